@@ -1,0 +1,235 @@
+// Exact global Manhattan (L1) distance transform by separable min-plus sweeps along x, y and
+// z (Rosenfeld & Pfaltz 1966; the dissertation's chapter 2 defines the metric). The 1-D L1
+// transform of a line is a forward sweep d[i] = min(d[i], d[i-1] + 1) plus the mirrored
+// backward sweep; doing it along each axis in turn gives the exact 3-D distance.
+//
+// Build options: T (work element: uchar, ushort or uint), T_MAX (its maximum), PACKED (1 when
+// the output is packed32 and T is a separate uchar work buffer), SEG_K (values per work-item
+// in cols_seg). Saturating at T_MAX is exact: min-plus with +1 commutes with min(., T_MAX).
+//
+// Two layouts of the same sweeps, chosen by the host per device:
+// - CPU (PoCL): xy_slices_seq gives each work-item a whole z-slice (x sweeps, then y sweeps
+//   whose inner loop runs along x and vectorises), cols_strip sweeps z over strips of rows;
+//   each work-item's data stays in its core's L2 between the forward and backward sweeps.
+// - GPU: x_rows_local stages a row in local memory (coalesced) and scans it per work-group;
+//   cols_seg gives each work-item SEG_K consecutive values of a column in registers, joins
+//   the segments of a column through local memory, and so reads and writes each voxel once.
+
+inline uint inc_sat(uint v) { return v >= T_MAX ? T_MAX : v + 1u; }
+inline uint add_k_sat(uint v, uint k) { return v >= T_MAX - k ? T_MAX : v + k; }
+
+#if PACKED
+#define STORE_FINAL(i, d) \
+    out[i] = (min((uint)(d), VF_PACKED_DISTANCE_MAX) << VF_PACKED_DISTANCE_SHIFT) | rgb[vox[i]]
+#else
+#define STORE_FINAL(i, d) work[i] = (T)(d)
+#endif
+
+// x sweeps of rows r, r+X, r+2X, r+3X interleaved: four independent dependency chains keep a
+// CPU core busy where one chain would wait on each add. Distances count up in 64 bits from
+// 2^32 ("no solid yet") and are clamped to T_MAX on store, so nothing wraps.
+#define X_SWEEP_ROWS(R)                                                                   \
+    {                                                                                     \
+        ulong d[R];                                                                       \
+        for (uint k = 0; k < R; ++k) {                                                    \
+            d[k] = 0x100000000ul;                                                         \
+        }                                                                                 \
+        for (uint x = 0; x < X; ++x) {                                                    \
+            for (uint k = 0; k < R; ++k) {                                                \
+                d[k] = vox[row + k * X + x] ? 0ul : d[k] + 1;                             \
+                work[row + k * X + x] = (T)min(d[k], (ulong)T_MAX);                       \
+            }                                                                             \
+        }                                                                                 \
+        for (uint k = 0; k < R; ++k) {                                                    \
+            d[k] = 0x100000000ul;                                                         \
+        }                                                                                 \
+        for (uint x = X; x-- > 0;) {                                                      \
+            for (uint k = 0; k < R; ++k) {                                                \
+                d[k] = vox[row + k * X + x] ? 0ul : d[k] + 1;                             \
+                work[row + k * X + x] =                                                   \
+                    (T)min(min(d[k], (ulong)T_MAX), (ulong)work[row + k * X + x]);        \
+            }                                                                             \
+        }                                                                                 \
+    }
+
+// One work-item per z-slice: x sweeps of every row, then the y sweeps over the slice (inner
+// loops along x, which vectorise; indexed from one base pointer so the compiler sees the
+// rows' distance).
+__kernel void xy_slices_seq(__global const uchar* restrict vox, __global T* restrict work,
+                            uint X, uint Y) {
+    const size_t base = get_global_id(0) * (size_t)X * Y;
+    uint y = 0;
+    for (; y + 4 <= Y; y += 4) {
+        const size_t row = base + (size_t)y * X;
+        X_SWEEP_ROWS(4)
+    }
+    for (; y < Y; ++y) {
+        const size_t row = base + (size_t)y * X;
+        X_SWEEP_ROWS(1)
+    }
+    for (uint y = 1; y < Y; ++y) {
+        const size_t row = base + (size_t)y * X;
+        for (uint x = 0; x < X; ++x) {
+            work[row + x] = (T)min((uint)work[row + x], inc_sat(work[row - X + x]));
+        }
+    }
+    for (uint y = Y - 1; y-- > 0;) {
+        const size_t row = base + (size_t)y * X;
+        for (uint x = 0; x < X; ++x) {
+            work[row + x] = (T)min((uint)work[row + x], inc_sat(work[row + X + x]));
+        }
+    }
+}
+
+// Sweeps columns of length N (element stride `stride`) over a strip of `strip` adjacent x
+// positions; get_global_id(1) picks the line of columns at offset m * mstride. With
+// final != 0 it writes the output format.
+__kernel void cols_strip(__global T* restrict work, __global uint* restrict out,
+                         __global const uchar* restrict vox, __constant uchar* rgb, uint X,
+                         uint N, ulong stride, ulong mstride, uint strip, uint final) {
+    const uint x0 = (uint)get_global_id(0) * strip;
+    const uint x1 = min(x0 + strip, X);
+    const size_t base = get_global_id(1) * mstride;
+    for (uint n = 1; n < N; ++n) {
+        const size_t row = base + n * stride;
+        for (uint x = x0; x < x1; ++x) {
+            work[row + x] = (T)min((uint)work[row + x], inc_sat(work[row - stride + x]));
+        }
+    }
+    if (final) {
+        const size_t last = base + (size_t)(N - 1) * stride;
+        for (uint x = x0; x < x1; ++x) {
+            STORE_FINAL(last + x, work[last + x]);
+        }
+    }
+    for (uint n = N - 1; n-- > 0;) {
+        const size_t row = base + n * stride;
+        for (uint x = x0; x < x1; ++x) {
+            const uint d = min((uint)work[row + x], inc_sat(work[row + stride + x]));
+            work[row + x] = (T)d;
+            if (final) {
+                STORE_FINAL(row + x, d);
+            }
+        }
+    }
+}
+
+// One work-group per row of X voxels: the row's occupancy is staged in local memory, each
+// work-item scans a segment for its last and first solid, a Hillis-Steele scan over the
+// segments gives every segment the nearest solid on either side, and the distances are
+// written back coalesced.
+__kernel void x_rows_local(__global const uchar* restrict vox, __global T* restrict work,
+                           uint X, __local uchar* occ, __local uint* dist, __local int* last,
+                           __local int* first) {
+    const uint lid = (uint)get_local_id(0);
+    const uint L = (uint)get_local_size(0);
+    const size_t base = get_group_id(0) * (size_t)X;
+    for (uint x = lid; x < X; x += L) {
+        occ[x] = vox[base + x] != 0;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const uint seg = (X + L - 1) / L;
+    const uint a = min(lid * seg, X);
+    const uint b = min(a + seg, X);
+    int l = -1;
+    int f = INT_MAX;
+    for (uint x = a; x < b; ++x) {
+        if (occ[x]) {
+            l = (int)x;
+            f = min(f, (int)x);
+        }
+    }
+    last[lid] = l;
+    first[lid] = f;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint off = 1; off < L; off <<= 1) {
+        const int lo = lid >= off ? last[lid - off] : -1;
+        const int hi = lid + off < L ? first[lid + off] : INT_MAX;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        last[lid] = max(last[lid], lo);
+        first[lid] = min(first[lid], hi);
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    l = lid > 0 ? last[lid - 1] : -1;
+    for (uint x = a; x < b; ++x) {
+        if (occ[x]) {
+            l = (int)x;
+        }
+        dist[x] = l < 0 ? T_MAX : min((uint)((int)x - l), (uint)T_MAX);
+    }
+    f = lid + 1 < L ? first[lid + 1] : INT_MAX;
+    for (uint x = b; x-- > a;) {
+        if (occ[x]) {
+            f = (int)x;
+        }
+        if (f != INT_MAX) {
+            dist[x] = min(dist[x], min((uint)(f - (int)x), (uint)T_MAX));
+        }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint x = lid; x < X; x += L) {
+        work[base + x] = (T)dist[x];
+    }
+}
+
+// Columns of length N <= SEG_K * get_local_size(1): work-item (c, s) of a work-group holds
+// values [s*SEG_K, (s+1)*SEG_K) of column c in registers. Each segment publishes the value
+// its forward sweep reaches at its end and its backward sweep at its start (with no carry),
+// every work-item folds the segments before and after it into its carries, and sweeps again.
+__kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
+                       __global const uchar* restrict vox, __constant uchar* rgb, uint X,
+                       uint N, ulong stride, ulong mstride, uint final, __local uint* fout,
+                       __local uint* bout) {
+    const uint cw = (uint)get_local_size(0);
+    const uint segs = (uint)get_local_size(1);
+    const uint lc = (uint)get_local_id(0);
+    const uint s = (uint)get_local_id(1);
+    const uint x = (uint)get_group_id(0) * cw + lc;
+    const bool active = x < X;
+    const size_t base = x + get_global_id(2) * mstride;
+    const uint n0 = s * SEG_K;
+    uint v[SEG_K];
+#pragma unroll
+    for (uint k = 0; k < SEG_K; ++k) {
+        v[k] = (active && n0 + k < N) ? (uint)work[base + (n0 + k) * stride] : T_MAX;
+    }
+    uint fo = T_MAX;
+    uint bo = T_MAX;
+#pragma unroll
+    for (uint k = 0; k < SEG_K; ++k) {
+        fo = min(inc_sat(fo), v[k]);
+        bo = min(inc_sat(bo), v[SEG_K - 1 - k]);
+    }
+    fout[s * cw + lc] = fo;
+    bout[s * cw + lc] = bo;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    uint c = T_MAX;
+    for (uint t = 0; t < s; ++t) {
+        c = min(add_k_sat(c, SEG_K), fout[t * cw + lc]);
+    }
+#pragma unroll
+    for (uint k = 0; k < SEG_K; ++k) {
+        c = min(v[k], inc_sat(c));
+        v[k] = c;
+    }
+    c = T_MAX;
+    for (uint t = segs - 1; t > s; --t) {
+        c = min(add_k_sat(c, SEG_K), bout[t * cw + lc]);
+    }
+#pragma unroll
+    for (uint k = SEG_K; k-- > 0;) {
+        c = min(v[k], inc_sat(c));
+        v[k] = c;
+    }
+#pragma unroll
+    for (uint k = 0; k < SEG_K; ++k) {
+        if (active && n0 + k < N) {
+            const size_t i = base + (n0 + k) * stride;
+            if (final) {
+                STORE_FINAL(i, v[k]);
+            } else {
+                work[i] = (T)v[k];
+            }
+        }
+    }
+}

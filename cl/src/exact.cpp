@@ -1,0 +1,239 @@
+// Exact global Manhattan distance transform, host side (kernels: cl/kernels/exact_manhattan.cl).
+#include "voxfield/cl/exact.hpp"
+
+#include <algorithm>
+#include <string>
+
+namespace voxfield::cl_sources {
+extern const char* const layout_h;
+extern const char* const exact_manhattan_cl;
+}  // namespace voxfield::cl_sources
+
+namespace voxfield::ocl {
+namespace {
+
+struct WorkType {
+    const char* name;
+    std::uint32_t max;
+    std::size_t bytes;
+};
+
+WorkType work_type(Format f) {
+    switch (f) {
+        case Format::u8:
+        case Format::packed32:
+            return {"uchar", 255u, 1};
+        case Format::u16:
+            return {"ushort", 65535u, 2};
+        case Format::u32:
+            return {"uint", 0xFFFFFFFFu, 4};
+    }
+    return {"uint", 0xFFFFFFFFu, 4};
+}
+
+std::size_t round_up(std::size_t v, std::size_t m) {
+    return (v + m - 1) / m * m;
+}
+
+std::size_t next_pow2(std::size_t v) {
+    std::size_t p = 1;
+    while (p < v) {
+        p <<= 1;
+    }
+    return p;
+}
+
+// Values per work-item in cols_seg for a column of n voxels, or 0 when too long for it.
+std::uint32_t seg_k(std::uint32_t n) {
+    if (n <= 512) {
+        return 32;
+    }
+    if (n <= 2048) {
+        return 64;
+    }
+    return 0;
+}
+
+}  // namespace
+
+ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& palette,
+                               Format format, Layout layout)
+    : ctx_(ctx),
+      dims_(world.dims()),
+      format_(format),
+      gpu_layout_(layout == Layout::automatic ? !ctx.is_cpu() : layout == Layout::gpu) {
+    const auto& info = ctx.info();
+    const WorkType wt = work_type(format);
+    const std::size_t n = dims_.count();
+    const std::size_t out_bytes = n * element_size(format);
+    const std::string sizes = "world " + dims_.to_string() + ", format " + to_string(format);
+    if (out_bytes > info.max_alloc || n > info.max_alloc) {
+        throw ClError("clCreateBuffer", CL_INVALID_BUFFER_SIZE,
+                      sizes + " needs a " + std::to_string(out_bytes >> 20) + " MiB buffer; " +
+                          info.name + " allows at most " + std::to_string(info.max_alloc >> 20) +
+                          " MiB per buffer");
+    }
+    const bool packed = format == Format::packed32;
+
+    auto program = [&](std::uint32_t k) {
+        const std::string options = "-DT=" + std::string(wt.name) +
+                                    " -DT_MAX=" + std::to_string(wt.max) +
+                                    "u -DPACKED=" + (packed ? "1" : "0") +
+                                    " -DSEG_K=" + std::to_string(k) + " -cl-std=CL1.2";
+        return ctx.program("exact_manhattan.cl",
+                           {cl_sources::layout_h, cl_sources::exact_manhattan_cl}, options);
+    };
+
+    cl_call("allocating and uploading, " + sizes, [&] {
+        auto& q = ctx.queue();
+        voxels_ = cl::Buffer(ctx.context(), CL_MEM_READ_ONLY, n);
+        out_ = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, out_bytes);
+        work_ = packed ? cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, n * wt.bytes) : out_;
+        rgb_ = cl::Buffer(ctx.context(), CL_MEM_READ_ONLY, 256);
+        const auto table = palette.rgb332_table();
+        cl::Event up_vox, up_rgb;
+        q.enqueueWriteBuffer(voxels_, CL_FALSE, 0, n, world.voxels().data(), nullptr, &up_vox);
+        q.enqueueWriteBuffer(rgb_, CL_FALSE, 0, table.size(), table.data(), nullptr, &up_rgb);
+        q.finish();
+        upload_ms_ = elapsed_ms(up_vox, up_rgb);
+    });
+
+    const cl::Program base = program(32);
+    const std::size_t plane = std::size_t{dims_.x} * dims_.y;
+    cl_call("setting up kernels, " + sizes, [&] {
+        // Columns of length len with element stride `stride`, lines of columns `m_count`
+        // apart by `m_stride`; `final` writes the output format.
+        auto columns = [&](std::uint32_t len, std::uint64_t stride, std::uint64_t m_stride,
+                           std::size_t m_count, bool final, cl::Kernel& kernel, cl::NDRange& global,
+                           cl::NDRange& local) {
+            const std::uint32_t k = gpu_layout_ ? seg_k(len) : 0;
+            const std::uint32_t segs = k == 0 ? 0 : (len + k - 1) / k;
+            const std::uint32_t cw = segs <= 8 ? 32 : segs <= 16 ? 16 : 8;
+            if (k != 0 && std::size_t{cw} * segs <= info.max_work_group &&
+                2 * std::size_t{cw} * segs * 4 <= info.local_mem) {
+                kernel = cl::Kernel(program(k), "cols_seg");
+                kernel.setArg(0, work_);
+                kernel.setArg(1, out_);
+                kernel.setArg(2, voxels_);
+                kernel.setArg(3, rgb_);
+                kernel.setArg(4, dims_.x);
+                kernel.setArg(5, len);
+                kernel.setArg(6, static_cast<cl_ulong>(stride));
+                kernel.setArg(7, static_cast<cl_ulong>(m_stride));
+                kernel.setArg(8, cl_uint{final ? 1u : 0u});
+                kernel.setArg(9, cl::Local(std::size_t{cw} * segs * 4));
+                kernel.setArg(10, cl::Local(std::size_t{cw} * segs * 4));
+                global = cl::NDRange(round_up(dims_.x, cw), segs, m_count);
+                local = cl::NDRange(cw, segs, 1);
+                return;
+            }
+            // A strip of x positions per work-item: the whole row on a CPU (the inner loop
+            // vectorises and a strip's columns stay in L2), single columns on a GPU.
+            std::uint32_t strip = 1;
+            if (!gpu_layout_) {
+                const std::size_t budget = 512 * 1024;
+                const std::size_t per_x = std::size_t{len} * wt.bytes;
+                strip = static_cast<std::uint32_t>(
+                    std::clamp<std::size_t>(budget / per_x / 16 * 16, 16, dims_.x));
+                const std::size_t want_items = 4 * std::size_t{info.compute_units};
+                while (strip > 16 && ((dims_.x + strip - 1) / strip) * m_count < want_items) {
+                    strip = std::max<std::uint32_t>(16, strip / 2);
+                }
+            }
+            kernel = cl::Kernel(base, "cols_strip");
+            kernel.setArg(0, work_);
+            kernel.setArg(1, out_);
+            kernel.setArg(2, voxels_);
+            kernel.setArg(3, rgb_);
+            kernel.setArg(4, dims_.x);
+            kernel.setArg(5, len);
+            kernel.setArg(6, static_cast<cl_ulong>(stride));
+            kernel.setArg(7, static_cast<cl_ulong>(m_stride));
+            kernel.setArg(8, strip);
+            kernel.setArg(9, cl_uint{final ? 1u : 0u});
+            global = cl::NDRange((dims_.x + strip - 1) / strip, m_count);
+            local = gpu_layout_ ? cl::NullRange : cl::NDRange(1, 1);
+        };
+
+        const std::size_t x_local = std::min<std::size_t>(
+            {256, info.max_work_group, std::max<std::size_t>(32, next_pow2(dims_.x) / 2)});
+        const std::size_t x_local_bytes = std::size_t{dims_.x} * 5 + 2 * x_local * 4 + 256;
+        if (gpu_layout_ && x_local_bytes <= info.local_mem) {
+            x_rows_ = cl::Kernel(base, "x_rows_local");
+            x_rows_.setArg(0, voxels_);
+            x_rows_.setArg(1, work_);
+            x_rows_.setArg(2, dims_.x);
+            x_rows_.setArg(3, cl::Local(dims_.x));
+            x_rows_.setArg(4, cl::Local(std::size_t{dims_.x} * 4));
+            x_rows_.setArg(5, cl::Local(x_local * 4));
+            x_rows_.setArg(6, cl::Local(x_local * 4));
+            x_global_ = cl::NDRange(x_local * dims_.y * dims_.z);
+            x_local_ = cl::NDRange(x_local);
+            columns(dims_.y, dims_.x, plane, dims_.z, false, cols_y_, y_global_, y_local_);
+        } else {
+            xy_slices_ = cl::Kernel(base, "xy_slices_seq");
+            xy_slices_.setArg(0, voxels_);
+            xy_slices_.setArg(1, work_);
+            xy_slices_.setArg(2, dims_.x);
+            xy_slices_.setArg(3, dims_.y);
+            x_global_ = cl::NDRange(dims_.z);
+            x_local_ = gpu_layout_ ? cl::NullRange : cl::NDRange(1);
+        }
+        columns(dims_.z, plane, dims_.x, dims_.y, true, cols_z_, z_global_, z_local_);
+    });
+}
+
+const char* ExactManhattan::layout() const {
+    return gpu_layout_ ? "gpu" : "cpu";
+}
+
+double ExactManhattan::run() {
+    return cl_call("running exact_manhattan.cl on " + dims_.to_string(), [&] {
+        auto& q = ctx_.queue();
+        std::vector<cl::Kernel*> kernels;
+        if (x_rows_()) {
+            kernels = {&x_rows_, &cols_y_, &cols_z_};
+        } else {
+            kernels = {&xy_slices_, &cols_z_};
+        }
+        const cl::NDRange* globals[] = {&x_global_, x_rows_() ? &y_global_ : &z_global_,
+                                        &z_global_};
+        const cl::NDRange* locals[] = {&x_local_, x_rows_() ? &y_local_ : &z_local_, &z_local_};
+        std::vector<cl::Event> events(kernels.size());
+        for (std::size_t i = 0; i < kernels.size(); ++i) {
+            q.enqueueNDRangeKernel(*kernels[i], cl::NullRange, *globals[i], *locals[i], nullptr,
+                                   &events[i]);
+        }
+        q.finish();
+        stage_ms_.clear();
+        for (std::size_t i = 0; i < kernels.size(); ++i) {
+            stage_ms_.emplace_back(kernels[i]->getInfo<CL_KERNEL_FUNCTION_NAME>(),
+                                   elapsed_ms(events[i], events[i]));
+        }
+        return elapsed_ms(events.front(), events.back());
+    });
+}
+
+std::vector<std::uint8_t> ExactManhattan::read(double* download_ms) {
+    return cl_call("reading the field of " + dims_.to_string(), [&] {
+        std::vector<std::uint8_t> bytes(dims_.count() * element_size(format_));
+        cl::Event ev;
+        ctx_.queue().enqueueReadBuffer(out_, CL_TRUE, 0, bytes.size(), bytes.data(), nullptr, &ev);
+        if (download_ms != nullptr) {
+            *download_ms = elapsed_ms(ev, ev);
+        }
+        return bytes;
+    });
+}
+
+FieldResult generate_exact(Context& ctx, const World& world, const Palette& palette, Format format,
+                           Layout layout) {
+    ExactManhattan job(ctx, world, palette, format, layout);
+    FieldResult result;
+    result.timing.upload_ms = job.upload_ms();
+    result.timing.kernel_ms = job.run();
+    result.bytes = job.read(&result.timing.download_ms);
+    return result;
+}
+
+}  // namespace voxfield::ocl

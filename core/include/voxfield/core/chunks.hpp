@@ -1,0 +1,50 @@
+#pragma once
+// Chunk geometry: a world cut into cubes of C voxels per side (C a power of two); chunks
+// at the far faces are clipped to the world.
+#include <cstdint>
+
+#include "voxfield/core/world.hpp"
+
+namespace voxfield {
+
+struct Int3 {
+    std::int64_t x = 0, y = 0, z = 0;
+    friend bool operator==(const Int3&, const Int3&) = default;
+};
+
+// Half-open integer box [min, max).
+struct Box {
+    Int3 min, max;
+    bool empty() const { return min.x >= max.x || min.y >= max.y || min.z >= max.z; }
+    std::int64_t volume() const;
+    friend bool operator==(const Box&, const Box&) = default;
+};
+
+Box intersect(const Box& a, const Box& b);
+
+// Floor division for negative coordinates too (floor_div(-1, 8) == -1).
+std::int64_t floor_div(std::int64_t a, std::int64_t b);
+
+class ChunkGrid {
+public:
+    // Throws InputError unless chunk is a power of two >= 1.
+    ChunkGrid(Dims world, std::uint32_t chunk);
+
+    std::uint32_t chunk() const { return chunk_; }
+    const Dims& world() const { return world_; }
+    Dims chunks() const { return chunks_; }  // ceil(world / chunk) per axis
+    std::size_t chunk_count() const { return chunks_.count(); }
+
+    Int3 chunk_of(Int3 voxel) const;  // floor division, may lie outside the grid
+    Box voxels_of(Int3 chunk) const;  // clipped to the world
+    std::size_t chunk_index(Int3 chunk) const;  // x fastest over the chunk grid
+    // Chunks (inclusive min, exclusive max) overlapping a voxel box, clipped to the grid.
+    Box chunks_overlapping(const Box& voxels) const;
+
+private:
+    Dims world_;
+    std::uint32_t chunk_;
+    Dims chunks_;
+};
+
+}  // namespace voxfield

@@ -1,0 +1,159 @@
+// `exact` on PoCL, both kernel layouts, against the CPU reference (core/reference).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <memory>
+#include <random>
+
+#include "voxfield/cl/exact.hpp"
+#include "voxfield/core/reference.hpp"
+#include "voxfield/core/scenes.hpp"
+#include "voxfield/core/vox.hpp"
+
+namespace voxfield {
+namespace {
+
+using ocl::Layout;
+
+const Format kFormats[] = {Format::u8, Format::u16, Format::u32, Format::packed32};
+const Layout kLayouts[] = {Layout::cpu, Layout::gpu};
+
+// Kernel tests run on PoCL explicitly; without it they fail (CI installs it).
+ocl::Context& pocl() {
+    static std::unique_ptr<ocl::Context> ctx = [] {
+        for (const auto& d : ocl::list_devices()) {
+            if (d.platform.find("Portable Computing Language") != std::string::npos) {
+                return std::make_unique<ocl::Context>(d);
+            }
+        }
+        return std::unique_ptr<ocl::Context>();
+    }();
+    if (!ctx) {
+        throw std::runtime_error("PoCL (pocl-opencl-icd) is not installed: no device to test");
+    }
+    return *ctx;
+}
+
+const char* name(Layout l) {
+    return l == Layout::cpu ? "cpu" : "gpu";
+}
+
+// Checks every format and layout against the reference, voxel by voxel.
+void expect_exact(const World& world, const Palette& palette, const std::string& what) {
+    const auto exact = reference_manhattan(world);
+    for (Format f : kFormats) {
+        const auto want = encode_field(exact, world, palette, f);
+        for (Layout layout : kLayouts) {
+            const auto got = ocl::generate_exact(pocl(), world, palette, f, layout).bytes;
+            ASSERT_EQ(got.size(), want.size());
+            if (got != want) {
+                std::size_t i = 0;
+                const std::size_t es = element_size(f);
+                while (i < want.size() && got[i] == want[i]) {
+                    ++i;
+                }
+                const std::size_t v = i / es;
+                const Dims& d = world.dims();
+                FAIL() << what << " " << d.to_string() << " format " << to_string(f) << " layout "
+                       << name(layout) << ": first difference at voxel (" << v % d.x << ","
+                       << v / d.x % d.y << "," << v / d.x / d.y << "): got "
+                       << decode_distance(got, f, v) << ", want " << decode_distance(want, f, v);
+            }
+        }
+    }
+}
+
+TEST(ExactManhattan, MatchesReferenceOnRandomGrids) {
+    std::mt19937_64 rng(20261122);
+    const double densities[] = {0.0001, 0.001, 0.01, 0.05, 0.2, 0.5};
+    auto axis = [&] {
+        const std::uint32_t choices[] = {1, 2, 3, 7, 8, 13, 31, 32, 33, 64, 67, 97};
+        return choices[rng() % std::size(choices)];
+    };
+    for (int i = 0; i < 60; ++i) {
+        const Dims dims{axis(), axis(), axis()};
+        const double density = densities[static_cast<std::size_t>(i) % std::size(densities)];
+        expect_exact(scene_random(dims, density, rng()), Palette(),
+                     "random #" + std::to_string(i) + " density " + std::to_string(density));
+    }
+}
+
+TEST(ExactManhattan, EmptyFullAndSingleVoxels) {
+    for (const Dims dims : {Dims{1, 1, 1}, Dims{5, 1, 3}, Dims{17, 9, 4}, Dims{40, 3, 29}}) {
+        expect_exact(scene_empty(dims), Palette(), "empty");
+        World full(dims);
+        std::fill(full.voxels().begin(), full.voxels().end(), std::uint8_t{7});
+        expect_exact(full, Palette(), "full");
+        for (int corner = 0; corner < 8; ++corner) {
+            World w(dims);
+            w.set(corner & 1 ? dims.x - 1 : 0, corner & 2 ? dims.y - 1 : 0,
+                  corner & 4 ? dims.z - 1 : 0, 3);
+            expect_exact(w, Palette::dissertation(), "corner " + std::to_string(corner));
+        }
+    }
+}
+
+TEST(ExactManhattan, LongDistancesSaturate) {
+    // Distances up to 300+ exceed u8 and the packed byte: they must saturate, never wrap.
+    World w(Dims{300, 40, 3});
+    w.set(0, 0, 0, 1);
+    expect_exact(w, Palette(), "far single voxel");
+}
+
+TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
+    // Columns longer than 512 and 2048 voxels take the other cols_seg width and the strip
+    // fallback of the GPU layout.
+    World w = scene_random(Dims{3, 700, 2}, 0.002, 5);
+    expect_exact(w, Palette(), "tall");
+    World deep = scene_random(Dims{2, 2, 2100}, 0.001, 6);
+    expect_exact(deep, Palette(), "deep");
+}
+
+TEST(ExactManhattan, BundledModels) {
+    const std::filesystem::path dir = std::filesystem::path(VOXFIELD_DATA_DIR) / "vox";
+    int models = 0;
+    for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+        if (entry.path().extension() == ".vox") {
+            const VoxModel m = read_vox(entry.path());
+            expect_exact(m.world, m.palette, entry.path().filename().string());
+            ++models;
+        }
+    }
+    EXPECT_GE(models, 2);
+}
+
+TEST(ExactManhattan, Handles512Cubed) {
+    const World w = scene_floor_spheres(Dims{512, 512, 512}, 6683787);
+    const auto want = encode_field(reference_manhattan(w), w, Palette(), Format::u8);
+    const auto got = ocl::generate_exact(pocl(), w, Palette(), Format::u8).bytes;
+    EXPECT_TRUE(got == want);
+}
+
+TEST(ExactManhattan, RepeatedRunsAreBitIdentical) {
+    const World w = scene_terrain(Dims{96, 64, 80}, 3);
+    for (Layout layout : kLayouts) {
+        ocl::ExactManhattan job(pocl(), w, Palette(), Format::packed32, layout);
+        job.run();
+        const auto first = job.read();
+        for (int i = 0; i < 3; ++i) {
+            job.run();
+            EXPECT_TRUE(job.read() == first) << name(layout);
+        }
+    }
+}
+
+TEST(DeviceSelection, ExplainsRejections) {
+    try {
+        ocl::select_device("9999");
+        FAIL() << "index 9999 was accepted";
+    } catch (const ocl::DeviceSelectionError& e) {
+        const std::string msg = e.what();
+        EXPECT_NE(msg.find("not index 9999"), std::string::npos) << msg;
+        EXPECT_NE(msg.find("#0 "), std::string::npos) << msg;
+    }
+    EXPECT_THROW(ocl::select_device("fastest"), ocl::DeviceSelectionError);
+    EXPECT_EQ(ocl::select_device("cpu").type, "cpu");
+}
+
+}  // namespace
+}  // namespace voxfield

@@ -1,0 +1,36 @@
+#pragma once
+// Shared pieces of the `voxfield` subcommands.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <functional>
+#include <string>
+
+#include "voxfield/cl/runtime.hpp"
+
+namespace voxfield::cli {
+
+// A registered subcommand and what to run when it was chosen; run returns the exit code.
+struct Command {
+    CLI::App* app = nullptr;
+    std::function<int()> run;
+};
+
+Command add_devices(CLI::App& root);
+Command add_generate(CLI::App& root);
+Command add_bench(CLI::App& root);
+
+// The names `--algorithm` accepts today.
+inline const std::vector<std::string> kAlgorithms = {"exact"};
+inline const std::vector<std::string> kMetrics = {"manhattan"};
+
+// Throws InputError unless `path`'s folder exists (checked before long work starts).
+void require_output_folder(const std::filesystem::path& path);
+// Writes `j` to `path` atomically (temporary file + rename).
+void write_json_file(const std::filesystem::path& path, const nlohmann::json& j);
+
+nlohmann::json device_json(const ocl::DeviceInfo& d);
+std::string commit();
+
+}  // namespace voxfield::cli

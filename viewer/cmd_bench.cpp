@@ -1,0 +1,184 @@
+// `voxfield bench`: kernel times of the generators over world sizes, with statistics and
+// accuracy, as a table on stdout and JSON/CSV records (DESIGN §4).
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "cli_util.hpp"
+#include "voxfield/cl/exact.hpp"
+#include "voxfield/core/accuracy.hpp"
+#include "voxfield/core/reference.hpp"
+#include "voxfield/core/scenes.hpp"
+#include "voxfield/core/stats.hpp"
+
+namespace voxfield::cli {
+namespace {
+
+struct BenchOptions {
+    std::vector<std::string> algorithms = {"exact"};
+    std::vector<std::string> sizes = {"64", "128", "256"};
+    std::string device, json, csv, scene = "spheres", format = "u16", metric = "manhattan";
+    std::uint32_t repeat = 10, warmup = 2;
+    std::uint64_t seed = 6683787;
+};
+
+// "N" is a cube; "XxYxZ" any box.
+Dims parse_size(const std::string& text) {
+    std::string s = text;
+    for (char& c : s) {
+        if (c == 'x' || c == 'X') {
+            c = ',';
+        }
+    }
+    return parse_dims(s);
+}
+
+std::string utc_now() {
+    const std::time_t t = std::time(nullptr);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
+    return buf;
+}
+
+int run_bench(const BenchOptions& o) {
+    const Format format = parse_format(o.format);
+    std::vector<Dims> sizes;
+    for (const auto& s : o.sizes) {
+        sizes.push_back(parse_size(s));
+    }
+    if (!o.json.empty()) {
+        require_output_folder(o.json);
+    }
+    if (!o.csv.empty()) {
+        require_output_folder(o.csv);
+    }
+    ocl::Context ctx(ocl::select_device(o.device));
+    std::cerr << "bench: device " << ctx.info().name << " (" << ctx.info().platform << ")\n";
+
+    nlohmann::json results = nlohmann::json::array();
+    std::ostringstream csv;
+    csv << "algorithm,x,y,z,format,scene,repeat,median_ms,mean_ms,std_ms,ci95_lo_ms,ci95_hi_ms,"
+           "min_ms,max_ms,gvox_per_s,max_error,mean_error\n";
+    std::printf("%-10s %-14s %-8s %10s %10s %10s %10s %9s\n", "algorithm", "size", "format",
+                "median ms", "mean ms", "std ms", "Gvox/s", "max err");
+    for (const auto& algorithm : o.algorithms) {
+        for (const Dims& dims : sizes) {
+            const std::string label = algorithm + " " + dims.to_string();
+            std::cerr << "bench: " << label << ": building scene '" << o.scene << "'\n";
+            const World world = make_scene(o.scene, dims, o.seed);
+            ocl::ExactManhattan job(ctx, world, Palette::magicavoxel_default(), format);
+            std::vector<double> ms;
+            std::vector<std::vector<double>> stage_samples;
+            for (std::uint32_t i = 0; i < o.warmup + o.repeat; ++i) {
+                std::cerr << "\rbench: " << label << ": " << (i < o.warmup ? "warm-up " : "run ")
+                          << (i < o.warmup ? i + 1 : i + 1 - o.warmup) << "/"
+                          << (i < o.warmup ? o.warmup : o.repeat) << "   " << std::flush;
+                const double t = job.run();
+                if (i >= o.warmup) {
+                    ms.push_back(t);
+                    stage_samples.resize(job.stage_ms().size());
+                    for (std::size_t k = 0; k < stage_samples.size(); ++k) {
+                        stage_samples[k].push_back(job.stage_ms()[k].second);
+                    }
+                }
+            }
+            double download_ms = 0;
+            const auto field = job.read(&download_ms);
+            std::cerr << "\rbench: " << label << ": checking against the CPU reference\n";
+            const Accuracy a = compare_to_exact(field, format, reference_manhattan(world));
+            const Summary s = summarize(ms);
+            nlohmann::json stages = nlohmann::json::array();
+            std::string stage_text;
+            for (std::size_t k = 0; k < stage_samples.size(); ++k) {
+                const double median = summarize(stage_samples[k]).median;
+                stages.push_back({{"kernel", job.stage_ms()[k].first}, {"median_ms", median}});
+                stage_text += " " + job.stage_ms()[k].first + " " + std::to_string(median) + " ms";
+            }
+            std::cerr << "bench: " << label << ": median per kernel:" << stage_text << '\n';
+            const double gvox = static_cast<double>(dims.count()) / (s.median * 1e-3) / 1e9;
+            results.push_back({{"algorithm", algorithm},
+                               {"size", {dims.x, dims.y, dims.z}},
+                               {"chunk", nullptr},
+                               {"metric", o.metric},
+                               {"format", o.format},
+                               {"scene", o.scene},
+                               {"seed", o.seed},
+                               {"layout", job.layout()},
+                               {"repeat", o.repeat},
+                               {"warmup", o.warmup},
+                               {"median_ms", s.median},
+                               {"mean_ms", s.mean},
+                               {"std_ms", s.std},
+                               {"ci95_ms", {s.ci95_lo, s.ci95_hi}},
+                               {"min_ms", s.min},
+                               {"max_ms", s.max},
+                               {"gvox_per_s", gvox},
+                               {"iterations", nullptr},
+                               {"max_error", a.max_error},
+                               {"mean_error", a.mean_error},
+                               {"over_fraction", a.over_fraction},
+                               {"under_fraction", a.under_fraction},
+                               {"upload_ms", job.upload_ms()},
+                               {"download_ms", download_ms},
+                               {"stages", stages},
+                               {"samples_ms", ms}});
+            csv << algorithm << ',' << dims.x << ',' << dims.y << ',' << dims.z << ',' << o.format
+                << ',' << o.scene << ',' << o.repeat << ',' << s.median << ',' << s.mean << ','
+                << s.std << ',' << s.ci95_lo << ',' << s.ci95_hi << ',' << s.min << ',' << s.max
+                << ',' << gvox << ',' << a.max_error << ',' << a.mean_error << '\n';
+            std::printf("%-10s %-14s %-8s %10.3f %10.3f %10.3f %10.2f %9u\n", algorithm.c_str(),
+                        dims.to_string().c_str(), o.format.c_str(), s.median, s.mean, s.std, gvox,
+                        a.max_error);
+            std::fflush(stdout);
+        }
+    }
+    if (!o.json.empty()) {
+        write_json_file(o.json, {{"device", device_json(ctx.info())},
+                                 {"commit", commit()},
+                                 {"date", utc_now()},
+                                 {"results", results}});
+    }
+    if (!o.csv.empty()) {
+        std::ofstream(o.csv) << csv.str();
+    }
+    return 0;
+}
+
+}  // namespace
+
+Command add_bench(CLI::App& root) {
+    auto o = std::make_shared<BenchOptions>();
+    auto* app = root.add_subcommand(
+        "bench", "Time generators on generated worlds (kernel time from OpenCL profiling)");
+    app->add_option("--algorithms", o->algorithms, "Generators to time")
+        ->delimiter(',')
+        ->check(CLI::IsMember(kAlgorithms))
+        ->capture_default_str();
+    app->add_option("--sizes", o->sizes, "World sizes: N (a cube) or XxYxZ, comma-separated")
+        ->delimiter(',')
+        ->capture_default_str();
+    app->add_option("--device", o->device, "cpu, gpu or an index from `voxfield devices`");
+    app->add_option("--repeat", o->repeat, "Timed runs per size")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    app->add_option("--warmup", o->warmup, "Untimed runs before the timed ones")
+        ->capture_default_str();
+    app->add_option("--scene", o->scene, "World generator: empty, spheres, terrain, menger, random")
+        ->check(CLI::IsMember(scene_names()))
+        ->capture_default_str();
+    app->add_option("--seed", o->seed, "Scene seed")->capture_default_str();
+    app->add_option("--format", o->format, "Output format: u8, u16, u32, packed32")
+        ->check(CLI::IsMember({"u8", "u16", "u32", "packed32"}))
+        ->capture_default_str();
+    app->add_option("--metric", o->metric, "Distance metric")
+        ->check(CLI::IsMember(kMetrics))
+        ->capture_default_str();
+    app->add_option("--json", o->json, "Write results as JSON (DESIGN §4 fields)");
+    app->add_option("--csv", o->csv, "Write results as CSV");
+    return {app, [o] { return run_bench(*o); }};
+}
+
+}  // namespace voxfield::cli

@@ -1,0 +1,128 @@
+// `voxfield generate INPUT -o OUT.npy`: one distance field, with a summary and optional stats.
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+
+#include "cli_util.hpp"
+#include "voxfield/cl/exact.hpp"
+#include "voxfield/core/accuracy.hpp"
+#include "voxfield/core/npy.hpp"
+#include "voxfield/core/reference.hpp"
+#include "voxfield/core/vox.hpp"
+
+namespace voxfield::cli {
+namespace {
+
+struct GenerateOptions {
+    std::string input, output, algorithm = "exact", metric = "manhattan", device, format = "u16",
+                               json;
+    bool stats = false;
+};
+
+NpyType npy_type(Format f) {
+    switch (f) {
+        case Format::u8:
+            return NpyType::u8;
+        case Format::u16:
+            return NpyType::u16;
+        case Format::u32:
+        case Format::packed32:
+            return NpyType::u32;
+    }
+    return NpyType::u32;
+}
+
+std::string fixed(double v, int digits) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+    return buf;
+}
+
+int run_generate(const GenerateOptions& o) {
+    const Format format = parse_format(o.format);
+    require_output_folder(o.output);
+    if (!o.json.empty()) {
+        require_output_folder(o.json);
+    }
+    const VoxModel model = load_world(o.input);
+    const World& world = model.world;
+    ocl::Context ctx(ocl::select_device(o.device));
+
+    const auto t0 = std::chrono::steady_clock::now();
+    ocl::FieldResult field = ocl::generate_exact(ctx, world, model.palette, format);
+    const auto t1 = std::chrono::steady_clock::now();
+    const double end_to_end_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+    write_npy(o.output, npy_type(format), world.dims(), field.bytes);
+
+    const double voxels = static_cast<double>(world.size());
+    const double gvox = voxels / (field.timing.kernel_ms * 1e-3) / 1e9;
+    std::cout << "device:  " << ctx.info().name << " (" << ctx.info().platform << ", "
+              << ctx.info().type << ")\n"
+              << "world:   " << o.input << "  " << world.dims().to_string() << " = " << world.size()
+              << " voxels, " << world.solid_count() << " solid\n"
+              << "field:   " << o.algorithm << ", " << o.metric << ", " << o.format << " -> "
+              << o.output << '\n'
+              << "time:    kernels " << fixed(field.timing.kernel_ms, 3) << " ms ("
+              << fixed(gvox, 2) << " Gvox/s); end to end " << fixed(end_to_end_ms, 1)
+              << " ms (upload " << fixed(field.timing.upload_ms, 2) << " ms, download "
+              << fixed(field.timing.download_ms, 2) << " ms, incl. kernel build on first use)\n";
+
+    nlohmann::json j = {{"device", device_json(ctx.info())},
+                        {"commit", commit()},
+                        {"input", o.input},
+                        {"size", {world.dims().x, world.dims().y, world.dims().z}},
+                        {"algorithm", o.algorithm},
+                        {"metric", o.metric},
+                        {"format", o.format},
+                        {"kernel_ms", field.timing.kernel_ms},
+                        {"upload_ms", field.timing.upload_ms},
+                        {"download_ms", field.timing.download_ms},
+                        {"end_to_end_ms", end_to_end_ms},
+                        {"gvox_per_s", gvox}};
+    if (o.stats) {
+        const Accuracy a = compare_to_exact(field.bytes, format, reference_manhattan(world));
+        std::cout << "stats:   " << fixed(voxels / (field.timing.kernel_ms * 1e-3) / 1e6, 1)
+                  << " Mvox/s; vs exact CPU reference: max error " << a.max_error << ", mean error "
+                  << fixed(a.mean_error, 4) << ", over-estimated "
+                  << fixed(100 * a.over_fraction, 3) << "%, under-estimated "
+                  << fixed(100 * a.under_fraction, 3) << "%\n";
+        j["max_error"] = a.max_error;
+        j["mean_error"] = a.mean_error;
+        j["over_fraction"] = a.over_fraction;
+        j["under_fraction"] = a.under_fraction;
+    }
+    if (!o.json.empty()) {
+        write_json_file(o.json, j);
+    }
+    return 0;
+}
+
+}  // namespace
+
+Command add_generate(CLI::App& root) {
+    auto o = std::make_shared<GenerateOptions>();
+    auto* app = root.add_subcommand(
+        "generate", "Generate the distance field of a .vox or .npy world into a .npy file");
+    app->add_option("INPUT", o->input, "World: MagicaVoxel .vox or uint8/16/32 .npy (Z,Y,X)")
+        ->required();
+    app->add_option("-o,--output", o->output, "Output .npy of shape (Z,Y,X)")->required();
+    app->add_option("--algorithm", o->algorithm, "Generator")
+        ->check(CLI::IsMember(kAlgorithms))
+        ->capture_default_str();
+    app->add_option("--metric", o->metric, "Distance metric")
+        ->check(CLI::IsMember(kMetrics))
+        ->capture_default_str();
+    app->add_option("--device", o->device,
+                    "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, "
+                    "else the first GPU, else the first CPU)");
+    app->add_option("--format", o->format,
+                    "u8, u16, u32 (distance, saturated) or packed32 ((min(d,255)<<8)|rgb332)")
+        ->check(CLI::IsMember({"u8", "u16", "u32", "packed32"}))
+        ->capture_default_str();
+    app->add_flag("--stats", o->stats,
+                  "Also report voxels/s and accuracy against the exact CPU reference");
+    app->add_option("--json", o->json, "Write timings (and --stats accuracy) to this JSON file");
+    return {app, [o] { return run_generate(*o); }};
+}
+
+}  // namespace voxfield::cli

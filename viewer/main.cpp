@@ -1,0 +1,51 @@
+// `voxfield`: the command-line front end. The only place that prints or exits.
+#include <cstdio>
+#include <iostream>
+
+#include "cli_util.hpp"
+#include "voxfield/cl/runtime.hpp"
+#include "voxfield/core/error.hpp"
+
+int main(int argc, char** argv) {
+    using namespace voxfield;
+    CLI::App app{"voxfield: fast, exact distance fields for voxel worlds on any OpenCL device"};
+    app.require_subcommand(1);
+    app.set_version_flag("--version", std::string("voxfield ") + cli::commit());
+    std::vector<cli::Command> commands = {cli::add_devices(app), cli::add_generate(app),
+                                          cli::add_bench(app)};
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        std::cerr << "voxfield: " << e.what() << " (see --help)\n";
+        return 2;
+    }
+    try {
+        for (auto& c : commands) {
+            if (c.app->parsed()) {
+                return c.run();
+            }
+        }
+        return 2;
+    } catch (const InputError& e) {
+        std::cerr << "voxfield: " << e.what() << '\n';
+        return 2;
+    } catch (const ocl::BuildError& e) {
+        std::cerr << "voxfield: " << e.what() << '\n';
+        return 1;
+    } catch (const ocl::ClError& e) {
+        std::cerr << "voxfield: device failure: " << e.what() << '\n';
+        return 1;
+    } catch (const std::bad_alloc&) {
+        std::cerr << "voxfield: out of host memory\n";
+        return 1;
+    } catch (const std::exception& e) {
+        std::cerr << "voxfield: " << e.what() << '\n';
+        return 1;
+    }
+}
