@@ -1,0 +1,92 @@
+// Chunk geometry: C-voxel cubes (C a power of two), clipped at the world's far faces.
+#include "voxfield/core/chunks.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+
+#include "voxfield/core/error.hpp"
+
+namespace voxfield {
+
+std::int64_t Box::volume() const {
+    if (empty()) {
+        return 0;
+    }
+    return (max.x - min.x) * (max.y - min.y) * (max.z - min.z);
+}
+
+Box intersect(const Box& a, const Box& b) {
+    Box r;
+    r.min = {std::max(a.min.x, b.min.x), std::max(a.min.y, b.min.y), std::max(a.min.z, b.min.z)};
+    r.max = {std::min(a.max.x, b.max.x), std::min(a.max.y, b.max.y), std::min(a.max.z, b.max.z)};
+    return r;
+}
+
+std::int64_t floor_div(std::int64_t a, std::int64_t b) {
+    if (b == 0) {
+        throw std::invalid_argument("floor_div: division by zero");
+    }
+    std::int64_t q = a / b;
+    if ((a % b != 0) && ((a < 0) != (b < 0))) {
+        --q;
+    }
+    return q;
+}
+
+namespace {
+
+std::uint32_t ceil_div(std::uint32_t a, std::uint32_t b) {
+    return static_cast<std::uint32_t>((std::uint64_t{a} + b - 1) / b);
+}
+
+}  // namespace
+
+ChunkGrid::ChunkGrid(Dims world, std::uint32_t chunk) : world_(world), chunk_(chunk) {
+    if (chunk == 0 || (chunk & (chunk - 1)) != 0) {
+        throw InputError("invalid chunk size " + std::to_string(chunk) +
+                         ": must be a power of two (1, 2, 4, ..., e.g. 16)");
+    }
+    if (world.x == 0 || world.y == 0 || world.z == 0) {
+        throw InputError("invalid world dims " + world.to_string() + ": every axis must be >= 1");
+    }
+    chunks_ = {ceil_div(world.x, chunk), ceil_div(world.y, chunk), ceil_div(world.z, chunk)};
+}
+
+Int3 ChunkGrid::chunk_of(Int3 voxel) const {
+    const std::int64_t c = chunk_;
+    return {floor_div(voxel.x, c), floor_div(voxel.y, c), floor_div(voxel.z, c)};
+}
+
+Box ChunkGrid::voxels_of(Int3 chunk) const {
+    const std::int64_t c = chunk_;
+    const Box raw{{chunk.x * c, chunk.y * c, chunk.z * c},
+                  {(chunk.x + 1) * c, (chunk.y + 1) * c, (chunk.z + 1) * c}};
+    const Box world{{0, 0, 0}, {world_.x, world_.y, world_.z}};
+    return intersect(raw, world);
+}
+
+std::size_t ChunkGrid::chunk_index(Int3 chunk) const {
+    if (!chunks_.contains(chunk.x, chunk.y, chunk.z)) {
+        throw std::out_of_range("chunk (" + std::to_string(chunk.x) + ", " +
+                                std::to_string(chunk.y) + ", " + std::to_string(chunk.z) +
+                                ") is outside the chunk grid " + chunks_.to_string());
+    }
+    return chunks_.index(static_cast<std::uint32_t>(chunk.x), static_cast<std::uint32_t>(chunk.y),
+                         static_cast<std::uint32_t>(chunk.z));
+}
+
+Box ChunkGrid::chunks_overlapping(const Box& voxels) const {
+    if (voxels.empty()) {
+        return Box{};
+    }
+    const Int3 lo = chunk_of(voxels.min);
+    const Int3 hi = chunk_of({voxels.max.x - 1, voxels.max.y - 1, voxels.max.z - 1});
+    const Box raw{lo, {hi.x + 1, hi.y + 1, hi.z + 1}};
+    const Box grid{{0, 0, 0}, {chunks_.x, chunks_.y, chunks_.z}};
+    const Box r = intersect(raw, grid);
+    return r.empty() ? Box{} : r;
+}
+
+}  // namespace voxfield

@@ -1,0 +1,523 @@
+// NumPy .npy reader/writer (format spec: numpy.lib.format, versions 1.0, 2.0 and 3.0).
+#include "voxfield/core/npy.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <bit>
+#include <cerrno>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <optional>
+#include <string>
+#include <system_error>
+#include <vector>
+
+#include "voxfield/core/error.hpp"
+
+namespace voxfield {
+
+static_assert(std::endian::native == std::endian::little, "voxfield assumes a little-endian host");
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::size_t elem_size(NpyType t) {
+    switch (t) {
+        case NpyType::u8:
+            return 1;
+        case NpyType::u16:
+            return 2;
+        case NpyType::u32:
+            return 4;
+    }
+    return 1;
+}
+
+const char* type_name(NpyType t) {
+    switch (t) {
+        case NpyType::u8:
+            return "uint8";
+        case NpyType::u16:
+            return "uint16";
+        case NpyType::u32:
+            return "uint32";
+    }
+    return "?";
+}
+
+const char* descr_of(NpyType t) {
+    switch (t) {
+        case NpyType::u8:
+            return "|u1";
+        case NpyType::u16:
+            return "<u2";
+        case NpyType::u32:
+            return "<u4";
+    }
+    return "?";
+}
+
+// A Python literal as found in a .npy header: a string, a bool, an int or a tuple of ints.
+struct Value {
+    enum class Kind { string, boolean, integer, tuple, none } kind = Kind::none;
+    std::string text;                  // string
+    bool flag = false;                 // boolean
+    std::uint64_t number = 0;          // integer
+    std::vector<std::uint64_t> items;  // tuple
+    std::string source;                // as written, for messages
+};
+
+class HeaderParser {
+  public:
+    HeaderParser(const std::string& file, const std::string& text) : file_(file), s_(text) {}
+
+    // Parses "{'key': value, ...}" into (key, value) pairs.
+    std::vector<std::pair<std::string, Value>> parse_dict() {
+        std::vector<std::pair<std::string, Value>> out;
+        skip_ws();
+        expect('{');
+        skip_ws();
+        while (peek() != '}') {
+            Value key = parse_value();
+            if (key.kind != Value::Kind::string) {
+                fail("expected a string key at '" + key.source + "'");
+            }
+            skip_ws();
+            expect(':');
+            skip_ws();
+            Value value = parse_value();
+            out.emplace_back(key.text, value);
+            skip_ws();
+            if (peek() == ',') {
+                ++i_;
+                skip_ws();
+            } else if (peek() != '}') {
+                fail_here("expected ',' or '}'");
+            }
+        }
+        ++i_;
+        skip_ws();
+        if (i_ != s_.size()) {
+            fail_here("unexpected text after the dictionary");
+        }
+        return out;
+    }
+
+  private:
+    [[noreturn]] void fail(const std::string& what) const {
+        throw InputError(file_ + ": malformed header: " + what);
+    }
+    [[noreturn]] void fail_here(const std::string& what) const {
+        if (i_ >= s_.size()) {
+            fail(what + " but the header ends");
+        }
+        fail(what + " at column " + std::to_string(i_ + 1) + " ('" + s_.substr(i_, 16) + "')");
+    }
+    char peek() const { return i_ < s_.size() ? s_[i_] : '\0'; }
+    void skip_ws() {
+        while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\t' || s_[i_] == '\n' ||
+                                  s_[i_] == '\r' || s_[i_] == '\0')) {
+            ++i_;
+        }
+    }
+    void expect(char c) {
+        if (peek() != c) {
+            fail_here(std::string("expected '") + c + "'");
+        }
+        ++i_;
+    }
+    static bool is_digit(char c) { return c >= '0' && c <= '9'; }
+
+    std::uint64_t parse_int() {
+        const std::size_t start = i_;
+        if (!is_digit(peek())) {
+            fail_here("expected a non-negative integer");
+        }
+        std::uint64_t v = 0;
+        while (is_digit(peek())) {
+            const auto digit = static_cast<std::uint64_t>(s_[i_] - '0');
+            if (v > (std::numeric_limits<std::uint64_t>::max() - digit) / 10) {
+                fail("integer '" + s_.substr(start, i_ - start + 1) + "...' is too large");
+            }
+            v = v * 10 + digit;
+            ++i_;
+        }
+        if (peek() == 'L') {  // Python 2 long suffix
+            ++i_;
+        }
+        return v;
+    }
+
+    Value parse_value() {
+        Value v;
+        const std::size_t start = i_;
+        const char c = peek();
+        if (c == '\'' || c == '"') {
+            ++i_;
+            const std::size_t end = s_.find(c, i_);
+            if (end == std::string::npos) {
+                fail("unterminated string starting at column " + std::to_string(start + 1));
+            }
+            v.kind = Value::Kind::string;
+            v.text = s_.substr(i_, end - i_);
+            i_ = end + 1;
+        } else if (s_.compare(i_, 4, "True") == 0) {
+            v.kind = Value::Kind::boolean;
+            v.flag = true;
+            i_ += 4;
+        } else if (s_.compare(i_, 5, "False") == 0) {
+            v.kind = Value::Kind::boolean;
+            i_ += 5;
+        } else if (c == '(') {
+            ++i_;
+            v.kind = Value::Kind::tuple;
+            skip_ws();
+            while (peek() != ')') {
+                v.items.push_back(parse_int());
+                skip_ws();
+                if (peek() == ',') {
+                    ++i_;
+                    skip_ws();
+                } else if (peek() != ')') {
+                    fail_here("expected ',' or ')' in a tuple");
+                }
+            }
+            ++i_;
+        } else if (is_digit(c)) {
+            v.kind = Value::Kind::integer;
+            v.number = parse_int();
+        } else {
+            fail_here("expected a string, True, False, an integer or a tuple");
+        }
+        v.source = s_.substr(start, i_ - start);
+        return v;
+    }
+
+    std::string file_;
+    std::string s_;
+    std::size_t i_ = 0;
+};
+
+std::string shape_text(const std::vector<std::uint64_t>& shape) {
+    std::string s = "(";
+    for (std::size_t k = 0; k < shape.size(); ++k) {
+        s += (k ? ", " : "") + std::to_string(shape[k]);
+    }
+    if (shape.size() == 1) {
+        s += ",";
+    }
+    return s + ")";
+}
+
+std::string errno_text(int e) {
+    return std::generic_category().message(e);
+}
+
+// Opens `path` for reading, with the project's messages for a missing or unreadable file.
+std::ifstream open_input(const fs::path& path, std::uint64_t& size) {
+    std::error_code ec;
+    const auto st = fs::status(path, ec);
+    if (!fs::exists(st)) {
+        throw InputError("'" + path.string() + "': no such file");
+    }
+    if (fs::is_directory(st)) {
+        throw InputError("'" + path.string() + "': is a directory, not a file");
+    }
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+        throw InputError("'" + path.string() + "': cannot open for reading (" + errno_text(errno) +
+                         ")");
+    }
+    in.seekg(0, std::ios::end);
+    const auto end = in.tellg();
+    in.seekg(0, std::ios::beg);
+    if (end < 0 || !in) {
+        throw InputError("'" + path.string() + "': cannot read (not a regular file?)");
+    }
+    size = static_cast<std::uint64_t>(end);
+    return in;
+}
+
+void read_exact(std::ifstream& in, const std::string& file, char* dst, std::size_t n) {
+    in.read(dst, static_cast<std::streamsize>(n));
+    if (static_cast<std::size_t>(in.gcount()) != n) {
+        throw InputError(file + ": read error (" + std::to_string(in.gcount()) + " of " +
+                         std::to_string(n) + " bytes)");
+    }
+}
+
+}  // namespace
+
+NpyArray read_npy(const std::filesystem::path& path) {
+    const std::string file = path.string();
+    std::uint64_t size = 0;
+    std::ifstream in = open_input(path, size);
+
+    // Preamble: magic (6), version (2), header length (2 or 4).
+    const char magic[] = "\x93NUMPY";
+    char pre[12] = {};
+    if (size < 10) {
+        throw InputError(file + ": not a .npy file (only " + std::to_string(size) +
+                         " bytes, shorter than the 10-byte preamble)");
+    }
+    read_exact(in, file, pre, 10);
+    if (std::memcmp(pre, magic, 6) != 0) {
+        throw InputError(file + ": not a .npy file (missing the \\x93NUMPY magic)");
+    }
+    const auto major = static_cast<unsigned char>(pre[6]);
+    const auto minor = static_cast<unsigned char>(pre[7]);
+    if (major < 1 || major > 3) {
+        throw InputError(file + ": .npy format version " + std::to_string(major) + "." +
+                         std::to_string(minor) + " is not supported (expected 1.0, 2.0 or 3.0)");
+    }
+    std::uint64_t header_len = 0;
+    std::uint64_t header_start = 10;
+    if (major == 1) {
+        header_len = static_cast<std::uint64_t>(static_cast<unsigned char>(pre[8])) |
+                     (static_cast<std::uint64_t>(static_cast<unsigned char>(pre[9])) << 8);
+    } else {
+        if (size < 12) {
+            throw InputError(file + ": truncated: the .npy " + std::to_string(major) +
+                             ".0 preamble needs 12 bytes, file has " + std::to_string(size));
+        }
+        read_exact(in, file, pre + 10, 2);
+        for (int k = 0; k < 4; ++k) {
+            header_len |= static_cast<std::uint64_t>(static_cast<unsigned char>(pre[8 + k]))
+                          << (8 * k);
+        }
+        header_start = 12;
+    }
+    if (header_start + header_len > size) {
+        throw InputError(file + ": truncated: header needs " + std::to_string(header_len) +
+                         " bytes at offset " + std::to_string(header_start) + ", file has " +
+                         std::to_string(size - header_start));
+    }
+    std::string header(static_cast<std::size_t>(header_len), '\0');
+    read_exact(in, file, header.data(), header.size());
+
+    HeaderParser parser(file, header);
+    std::optional<Value> descr, fortran, shape;
+    for (auto& [key, value] : parser.parse_dict()) {
+        if (key == "descr") {
+            descr = value;
+        } else if (key == "fortran_order") {
+            fortran = value;
+        } else if (key == "shape") {
+            shape = value;
+        }
+    }
+    if (!descr || !fortran || !shape) {
+        throw InputError(file + ": malformed header: missing key '" +
+                         std::string(!descr     ? "descr"
+                                     : !fortran ? "fortran_order"
+                                                : "shape") +
+                         "'");
+    }
+    if (descr->kind != Value::Kind::string) {
+        throw InputError(file + ": dtype " + descr->source +
+                         " is not supported (expected uint8, uint16 or uint32)");
+    }
+    if (fortran->kind != Value::Kind::boolean) {
+        throw InputError(file + ": malformed header: fortran_order is " + fortran->source +
+                         ", expected True or False");
+    }
+    if (shape->kind != Value::Kind::tuple) {
+        throw InputError(file + ": malformed header: shape is " + shape->source +
+                         ", expected a tuple");
+    }
+
+    NpyArray a;
+    const std::string& d = descr->text;
+    const char order = d.size() == 3 ? d[0] : '\0';
+    const std::string kind = d.size() == 3 ? d.substr(1) : d;
+    if (d.size() == 3 && (kind == "u2" || kind == "u4") && order == '>') {
+        throw InputError(file + ": dtype '" + d + "' is big-endian (only little-endian '<" + kind +
+                         "' is supported)");
+    }
+    if (d == "|u1" || d == "<u1" || d == "=u1" || d == ">u1" || d == "u1") {
+        a.type = NpyType::u8;
+    } else if (d == "<u2" || d == "=u2") {
+        a.type = NpyType::u16;
+    } else if (d == "<u4" || d == "=u4") {
+        a.type = NpyType::u32;
+    } else {
+        throw InputError(file + ": dtype '" + d +
+                         "' is not supported (expected uint8, uint16 or uint32)");
+    }
+    if (fortran->flag) {
+        throw InputError(file + ": fortran_order is True (only C-order arrays are supported)");
+    }
+    const auto& sh = shape->items;
+    if (sh.size() != 3) {
+        throw InputError(file + ": shape " + shape_text(sh) + " has " + std::to_string(sh.size()) +
+                         " dimensions (expected 3: Z, Y, X)");
+    }
+    for (std::uint64_t n : sh) {
+        if (n == 0) {
+            throw InputError(file + ": shape " + shape_text(sh) + " has an empty axis");
+        }
+        if (n > std::numeric_limits<std::uint32_t>::max()) {
+            throw InputError(file + ": shape " + shape_text(sh) + " has an axis too large");
+        }
+    }
+    a.dims = {static_cast<std::uint32_t>(sh[2]), static_cast<std::uint32_t>(sh[1]),
+              static_cast<std::uint32_t>(sh[0])};
+    const std::uint64_t data_start = header_start + header_len;
+    const std::uint64_t available = size - data_start;
+    const std::uint64_t es = elem_size(a.type);
+    // Compare without overflow: count * es <= available.
+    const std::uint64_t limit = available / es;
+    const bool fits = sh[0] <= limit && sh[1] <= limit / sh[0] && sh[2] <= limit / (sh[0] * sh[1]);
+    if (!fits) {
+        const long double need = static_cast<long double>(sh[0]) * static_cast<long double>(sh[1]) *
+                                 static_cast<long double>(sh[2]) * static_cast<long double>(es);
+        std::string need_text = need < 1.8e19L ? std::to_string(static_cast<std::uint64_t>(need))
+                                               : std::string("more than 2^64");
+        throw InputError(file + ": truncated: shape " + shape_text(sh) + " of " +
+                         type_name(a.type) + " needs " + need_text + " data bytes at offset " +
+                         std::to_string(data_start) + ", file has " + std::to_string(available));
+    }
+    const std::uint64_t bytes = sh[0] * sh[1] * sh[2] * es;
+    a.data.resize(static_cast<std::size_t>(bytes));
+    read_exact(in, file, reinterpret_cast<char*>(a.data.data()), a.data.size());
+    return a;
+}
+
+void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
+               const std::vector<std::uint8_t>& data) {
+    const std::string file = path.string();
+    if (dims.x == 0 || dims.y == 0 || dims.z == 0) {
+        throw InputError("cannot write '" + file + "': dims " + dims.to_string() +
+                         " have an empty axis");
+    }
+    if (data.size() != dims.count() * elem_size(type)) {
+        throw InputError("cannot write '" + file + "': " + std::to_string(data.size()) +
+                         " bytes do not match dims " + dims.to_string() + " of " + type_name(type));
+    }
+    fs::path dir = path.parent_path();
+    if (dir.empty()) {
+        dir = ".";
+    }
+    std::error_code ec;
+    if (!fs::is_directory(dir, ec)) {
+        throw InputError("cannot write '" + file + "': folder '" + dir.string() +
+                         "' does not exist");
+    }
+    if (fs::is_directory(path, ec)) {
+        throw InputError("cannot write '" + file + "': it is a directory");
+    }
+
+    std::string header = std::string("{'descr': '") + descr_of(type) +
+                         "', 'fortran_order': False, 'shape': (" + std::to_string(dims.z) + ", " +
+                         std::to_string(dims.y) + ", " + std::to_string(dims.x) + "), }";
+    const std::size_t unpadded = 10 + header.size() + 1;  // + '\n'
+    header.append((64 - unpadded % 64) % 64, ' ');
+    header += '\n';
+    std::vector<std::uint8_t> bytes;
+    bytes.reserve(10 + header.size());
+    const char magic[] = "\x93NUMPY";
+    bytes.insert(bytes.end(), magic, magic + 6);
+    bytes.push_back(1);
+    bytes.push_back(0);
+    bytes.push_back(static_cast<std::uint8_t>(header.size() & 0xFF));
+    bytes.push_back(static_cast<std::uint8_t>(header.size() >> 8));
+    bytes.insert(bytes.end(), header.begin(), header.end());
+
+    // Temporary file in the same folder, then rename: readers never see a partial file.
+    // O_EXCL with a unique name; mode 0666 minus the umask, like any new file.
+    static std::atomic<std::uint64_t> counter{0};
+    int fd = -1;
+    std::string tmp;
+    for (int attempt = 0; fd < 0; ++attempt) {
+        // Built by append: GCC 12 gives a false -Wrestrict on "." + std::string.
+        std::string leaf(".");
+        leaf.append(path.filename().string());
+        leaf.append(".tmp-");
+        leaf.append(std::to_string(::getpid()));
+        leaf.append("-");
+        leaf.append(std::to_string(counter.fetch_add(1)));
+        tmp = (dir / leaf).string();
+        fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+        if (fd < 0 && (errno != EEXIST || attempt > 100)) {
+            throw InputError("cannot write '" + file + "': cannot create a temporary file in '" +
+                             dir.string() + "' (" + errno_text(errno) + ")");
+        }
+    }
+    auto fail = [&](const std::string& what, int e) {
+        ::close(fd);
+        ::unlink(tmp.c_str());
+        throw InputError("cannot write '" + file + "': " + what + " (" + errno_text(e) + ")");
+    };
+    auto write_all = [&](const std::uint8_t* p, std::size_t n) {
+        while (n > 0) {
+            const ssize_t w = ::write(fd, p, n);
+            if (w < 0) {
+                if (errno == EINTR) {
+                    continue;
+                }
+                fail("write failed", errno);
+            }
+            p += w;
+            n -= static_cast<std::size_t>(w);
+        }
+    };
+    write_all(bytes.data(), bytes.size());
+    write_all(data.data(), data.size());
+    if (::fsync(fd) != 0) {
+        fail("cannot finish the temporary file", errno);
+    }
+    if (::close(fd) != 0) {
+        const int e = errno;
+        ::unlink(tmp.c_str());
+        throw InputError("cannot write '" + file + "': close failed (" + errno_text(e) + ")");
+    }
+    if (::rename(tmp.c_str(), file.c_str()) != 0) {
+        const int e = errno;
+        ::unlink(tmp.c_str());
+        throw InputError("cannot write '" + file + "': rename failed (" + errno_text(e) + ")");
+    }
+}
+
+World world_from_npy(const NpyArray& array) {
+    const std::size_t es = elem_size(array.type);
+    World world(array.dims);
+    const std::size_t n = world.size();
+    if (array.data.size() != n * es) {
+        throw InputError("npy array of dims " + array.dims.to_string() + " has " +
+                         std::to_string(array.data.size()) + " data bytes, expected " +
+                         std::to_string(n * es));
+    }
+    auto& vox = world.voxels();
+    const std::uint8_t* p = array.data.data();
+    for (std::size_t i = 0; i < n; ++i) {
+        std::uint32_t v = 0;
+        for (std::size_t b = 0; b < es; ++b) {
+            v |= static_cast<std::uint32_t>(p[i * es + b]) << (8 * b);
+        }
+        if (v > 255) {
+            const Dims& d = array.dims;
+            const std::size_t x = i % d.x, y = (i / d.x) % d.y, z = i / (std::size_t{d.x} * d.y);
+            throw InputError("value " + std::to_string(v) + " at voxel (x=" + std::to_string(x) +
+                             ", y=" + std::to_string(y) + ", z=" + std::to_string(z) +
+                             ") is not a palette index (expected 0..255)");
+        }
+        vox[i] = static_cast<std::uint8_t>(v);
+    }
+    return world;
+}
+
+NpyArray npy_from_world(const World& world) {
+    NpyArray a;
+    a.type = NpyType::u8;
+    a.dims = world.dims();
+    a.data = world.voxels();
+    return a;
+}
+
+}  // namespace voxfield

@@ -1,0 +1,108 @@
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+
+#include "test_util.hpp"
+#include "voxfield/core/chunks.hpp"
+
+namespace voxfield {
+namespace {
+
+using test::expect_input_error;
+
+TEST(Chunks, FloorDiv) {
+    EXPECT_EQ(floor_div(-1, 8), -1);
+    EXPECT_EQ(floor_div(-8, 8), -1);
+    EXPECT_EQ(floor_div(-9, 8), -2);
+    EXPECT_EQ(floor_div(0, 8), 0);
+    EXPECT_EQ(floor_div(7, 8), 0);
+    EXPECT_EQ(floor_div(8, 8), 1);
+    EXPECT_EQ(floor_div(7, -2), -4);
+    EXPECT_EQ(floor_div(-7, -2), 3);
+    for (std::int64_t a = -50; a <= 50; ++a) {
+        for (std::int64_t b : {1, 2, 3, 8, 16}) {
+            const std::int64_t q = floor_div(a, b);
+            EXPECT_LE(q * b, a);
+            EXPECT_GT((q + 1) * b, a);
+        }
+    }
+}
+
+TEST(Chunks, BoxVolumeAndIntersect) {
+    const Box a{{0, 0, 0}, {4, 5, 6}};
+    EXPECT_EQ(a.volume(), 120);
+    EXPECT_FALSE(a.empty());
+    const Box b{{2, -3, 5}, {10, 2, 9}};
+    const Box c = intersect(a, b);
+    EXPECT_EQ(c, (Box{{2, 0, 5}, {4, 2, 6}}));
+    EXPECT_EQ(c.volume(), 4);
+    const Box d = intersect(a, Box{{4, 0, 0}, {8, 5, 6}});
+    EXPECT_TRUE(d.empty());
+    EXPECT_EQ(d.volume(), 0);
+}
+
+TEST(Chunks, RejectsNonPowerOfTwo) {
+    for (std::uint32_t c : {0u, 3u, 6u, 12u, 100u}) {
+        expect_input_error(
+            [&] {
+                ChunkGrid g(Dims{8, 8, 8}, c);
+            },
+            {std::to_string(c), "power of two"});
+    }
+    for (std::uint32_t c : {1u, 2u, 8u, 16u, 1024u}) {
+        EXPECT_NO_THROW(ChunkGrid(Dims{8, 8, 8}, c));
+    }
+}
+
+TEST(Chunks, NonCubicWorldClippedEdges) {
+    const ChunkGrid g(Dims{20, 8, 33}, 8);
+    EXPECT_EQ(g.chunk(), 8u);
+    EXPECT_EQ(g.world(), (Dims{20, 8, 33}));
+    EXPECT_EQ(g.chunks(), (Dims{3, 1, 5}));
+    EXPECT_EQ(g.chunk_count(), 15u);
+    EXPECT_EQ(g.voxels_of({0, 0, 0}), (Box{{0, 0, 0}, {8, 8, 8}}));
+    EXPECT_EQ(g.voxels_of({2, 0, 4}), (Box{{16, 0, 32}, {20, 8, 33}}));
+    EXPECT_EQ(g.voxels_of({2, 0, 4}).volume(), 4 * 8 * 1);
+    EXPECT_TRUE(g.voxels_of({3, 0, 0}).empty());
+    EXPECT_TRUE(g.voxels_of({-1, 0, 0}).empty());
+    // The clipped chunks tile the world exactly.
+    std::int64_t total = 0;
+    for (std::int64_t z = 0; z < 5; ++z) {
+        for (std::int64_t y = 0; y < 1; ++y) {
+            for (std::int64_t x = 0; x < 3; ++x) {
+                total += g.voxels_of({x, y, z}).volume();
+            }
+        }
+    }
+    EXPECT_EQ(total, 20 * 8 * 33);
+}
+
+TEST(Chunks, ChunkOfAndIndex) {
+    const ChunkGrid g(Dims{20, 16, 33}, 8);
+    EXPECT_EQ(g.chunk_of({0, 0, 0}), (Int3{0, 0, 0}));
+    EXPECT_EQ(g.chunk_of({19, 15, 32}), (Int3{2, 1, 4}));
+    EXPECT_EQ(g.chunk_of({-1, -8, -9}), (Int3{-1, -1, -2}));
+    EXPECT_EQ(g.chunk_index({0, 0, 0}), 0u);
+    EXPECT_EQ(g.chunk_index({1, 0, 0}), 1u);
+    EXPECT_EQ(g.chunk_index({0, 1, 0}), 3u);
+    EXPECT_EQ(g.chunk_index({0, 0, 1}), 6u);
+    EXPECT_EQ(g.chunk_index({2, 1, 4}), 29u);
+    EXPECT_THROW(g.chunk_index({3, 0, 0}), std::out_of_range);
+    EXPECT_THROW(g.chunk_index({-1, 0, 0}), std::out_of_range);
+}
+
+TEST(Chunks, ChunksOverlapping) {
+    const ChunkGrid g(Dims{20, 16, 33}, 8);
+    EXPECT_EQ(g.chunks_overlapping(Box{{0, 0, 0}, {1, 1, 1}}), (Box{{0, 0, 0}, {1, 1, 1}}));
+    EXPECT_EQ(g.chunks_overlapping(Box{{7, 7, 7}, {9, 9, 9}}), (Box{{0, 0, 0}, {2, 2, 2}}));
+    EXPECT_EQ(g.chunks_overlapping(Box{{8, 8, 8}, {16, 16, 16}}), (Box{{1, 1, 1}, {2, 2, 2}}));
+    // Clipped to the grid on both sides.
+    EXPECT_EQ(g.chunks_overlapping(Box{{-100, -5, -1}, {100, 100, 100}}),
+              (Box{{0, 0, 0}, {3, 2, 5}}));
+    EXPECT_TRUE(g.chunks_overlapping(Box{{30, 0, 0}, {40, 4, 4}}).empty());
+    EXPECT_TRUE(g.chunks_overlapping(Box{{-9, 0, 0}, {-1, 4, 4}}).empty());
+    EXPECT_TRUE(g.chunks_overlapping(Box{{3, 3, 3}, {3, 5, 5}}).empty());
+}
+
+}  // namespace
+}  // namespace voxfield

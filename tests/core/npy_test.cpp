@@ -1,0 +1,315 @@
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "test_util.hpp"
+#include "voxfield/core/npy.hpp"
+#include "voxfield/core/vox.hpp"
+
+namespace voxfield {
+namespace {
+
+namespace fs = std::filesystem;
+using test::expect_input_error;
+using test::read_bytes;
+using test::TempDir;
+using test::write_bytes;
+
+std::size_t esize(NpyType t) {
+    return t == NpyType::u8 ? 1 : t == NpyType::u16 ? 2 : 4;
+}
+
+std::vector<std::uint8_t> random_data(NpyType t, Dims d, std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::vector<std::uint8_t> b(d.count() * esize(t));
+    for (auto& x : b) {
+        x = static_cast<std::uint8_t>(rng());
+    }
+    return b;
+}
+
+// A .npy file with the given version, header text (padded as numpy does) and data bytes.
+std::vector<std::uint8_t> make_npy(const std::string& dict, std::size_t data_bytes, int major = 1) {
+    std::string header = dict;
+    const std::size_t pre = major == 1 ? 10 : 12;
+    while ((pre + header.size() + 1) % 64 != 0) {
+        header += ' ';
+    }
+    header += '\n';
+    std::vector<std::uint8_t> b = {0x93, 'N', 'U', 'M', 'P', 'Y'};
+    b.push_back(static_cast<std::uint8_t>(major));
+    b.push_back(0);
+    b.push_back(static_cast<std::uint8_t>(header.size()));
+    b.push_back(static_cast<std::uint8_t>(header.size() >> 8));
+    if (major != 1) {
+        b.push_back(0);
+        b.push_back(0);
+    }
+    b.insert(b.end(), header.begin(), header.end());
+    for (std::size_t i = 0; i < data_bytes; ++i) {
+        b.push_back(static_cast<std::uint8_t>(i % 7));
+    }
+    return b;
+}
+
+std::string dict(const std::string& descr, const std::string& fortran, const std::string& shape) {
+    return "{'descr': '" + descr + "', 'fortran_order': " + fortran + ", 'shape': " + shape + ", }";
+}
+
+TEST(Npy, RoundTripAllTypesAndOddShapes) {
+    TempDir dir;
+    const std::vector<Dims> shapes = {{1, 1, 1}, {3, 5, 7}, {17, 1, 2}, {1, 9, 1}, {64, 3, 33}};
+    std::uint64_t seed = 1;
+    for (NpyType t : {NpyType::u8, NpyType::u16, NpyType::u32}) {
+        for (const Dims& d : shapes) {
+            const auto data = random_data(t, d, seed++);
+            const fs::path p = dir / "a.npy";
+            write_npy(p, t, d, data);
+            const auto raw = read_bytes(p);
+            // Format 1.0, header padded so the data starts on a 64-byte boundary, ends in \n.
+            ASSERT_GE(raw.size(), 10u);
+            EXPECT_EQ(raw[6], 1);
+            EXPECT_EQ(raw[7], 0);
+            const std::size_t hl = raw[8] | (std::size_t{raw[9]} << 8);
+            EXPECT_EQ((10 + hl) % 64, 0u);
+            EXPECT_EQ(raw[10 + hl - 1], '\n');
+            EXPECT_EQ(raw.size(), 10 + hl + data.size());
+            const std::string header(raw.begin() + 10, raw.begin() + 10 + static_cast<long>(hl));
+            std::string shape("(");  // by append: GCC 12 warns falsely on "(" + std::string
+            shape.append(std::to_string(d.z)).append(", ").append(std::to_string(d.y));
+            shape.append(", ").append(std::to_string(d.x)).append(")");
+            EXPECT_NE(header.find(shape), std::string::npos) << header;
+            const NpyArray a = read_npy(p);
+            EXPECT_EQ(a.type, t);
+            EXPECT_EQ(a.dims, d);
+            EXPECT_EQ(a.data, data);
+        }
+    }
+    // No temporary files are left behind.
+    int files = 0;
+    for (const auto& e : fs::directory_iterator(dir.path())) {
+        ++files;
+        EXPECT_EQ(e.path().filename(), "a.npy");
+    }
+    EXPECT_EQ(files, 1);
+}
+
+TEST(Npy, ReadsVersions2And3AndVariants) {
+    TempDir dir;
+    const std::vector<std::pair<std::string, NpyType>> ok = {
+        {"|u1", NpyType::u8},  {"<u1", NpyType::u8},  {"=u1", NpyType::u8}, {"<u2", NpyType::u16},
+        {"=u2", NpyType::u16}, {"<u4", NpyType::u32}, {"=u4", NpyType::u32}};
+    int major = 1;
+    for (const auto& [descr, type] : ok) {
+        std::string name("v");
+        name.append(descr).append(".npy");
+        const fs::path p = dir / name;
+        const std::size_t bytes = 2 * 3 * 4 * esize(type);
+        write_bytes(p, make_npy(dict(descr, "False", "(4, 3, 2)"), bytes, major));
+        major = major % 3 + 1;
+        const NpyArray a = read_npy(p);
+        EXPECT_EQ(a.type, type) << descr;
+        EXPECT_EQ(a.dims, (Dims{2, 3, 4}));
+        EXPECT_EQ(a.data.size(), bytes);
+        EXPECT_EQ(a.data[1], 1);
+    }
+    // Key order, double quotes and no trailing comma are all accepted.
+    const fs::path p = dir / "order.npy";
+    write_bytes(p,
+                make_npy("{\"shape\": (1,2,3), \"fortran_order\": False, \"descr\": \"|u1\"}", 6));
+    EXPECT_EQ(read_npy(p).dims, (Dims{3, 2, 1}));
+}
+
+TEST(Npy, Rejections) {
+    TempDir dir;
+    struct Case {
+        std::string name;
+        std::vector<std::uint8_t> bytes;
+        std::vector<std::string> expect;
+    };
+    std::vector<Case> cases;
+    cases.push_back({"f4.npy",
+                     make_npy(dict("<f4", "False", "(2, 2, 2)"), 32),
+                     {"f4.npy", "dtype '<f4' is not supported", "uint8, uint16 or uint32"}});
+    cases.push_back({"i2.npy", make_npy(dict("<i2", "False", "(2, 2, 2)"), 16), {"'<i2'"}});
+    cases.push_back({"u8.npy", make_npy(dict("<u8", "False", "(2, 2, 2)"), 64), {"'<u8'"}});
+    cases.push_back({"pipe_u2.npy", make_npy(dict("|u2", "False", "(2, 2, 2)"), 16), {"'|u2'"}});
+    cases.push_back({"be2.npy",
+                     make_npy(dict(">u2", "False", "(2, 2, 2)"), 16),
+                     {"be2.npy", "'>u2'", "big-endian"}});
+    cases.push_back({"be4.npy", make_npy(dict(">u4", "False", "(2, 2, 2)"), 32), {"big-endian"}});
+    cases.push_back({"fortran.npy",
+                     make_npy(dict("|u1", "True", "(2, 2, 2)"), 8),
+                     {"fortran.npy", "fortran_order"}});
+    cases.push_back({"ndim2.npy",
+                     make_npy(dict("|u1", "False", "(2, 2)"), 4),
+                     {"ndim2.npy", "(2, 2)", "2 dimensions", "expected 3"}});
+    cases.push_back({"ndim1.npy", make_npy(dict("|u1", "False", "(8,)"), 8), {"1 dimensions"}});
+    cases.push_back(
+        {"ndim4.npy", make_npy(dict("|u1", "False", "(1, 2, 2, 2)"), 8), {"4 dimensions"}});
+    cases.push_back({"ndim0.npy", make_npy(dict("|u1", "False", "()"), 1), {"0 dimensions"}});
+    cases.push_back({"zero.npy",
+                     make_npy(dict("|u1", "False", "(2, 0, 2)"), 0),
+                     {"zero.npy", "(2, 0, 2)", "empty axis"}});
+    cases.push_back({"short.npy",
+                     make_npy(dict("<u2", "False", "(2, 3, 4)"), 47),
+                     {"short.npy", "truncated", "needs 48", "file has 47"}});
+    cases.push_back({"nodata.npy",
+                     make_npy(dict("<u4", "False", "(1, 1, 1)"), 0),
+                     {"truncated", "needs 4", "file has 0"}});
+    cases.push_back({"huge.npy",
+                     make_npy(dict("<u4", "False", "(4294967295, 4294967295, 4294967295)"), 8),
+                     {"truncated"}});
+    cases.push_back(
+        {"bigaxis.npy", make_npy(dict("|u1", "False", "(1, 1, 4294967296)"), 8), {"too large"}});
+    cases.push_back({"nodescr.npy",
+                     make_npy("{'fortran_order': False, 'shape': (1, 1, 1), }", 1),
+                     {"nodescr.npy", "missing key 'descr'"}});
+    cases.push_back({"noshape.npy",
+                     make_npy("{'descr': '|u1', 'fortran_order': False}", 1),
+                     {"missing key 'shape'"}});
+    cases.push_back({"garbage.npy",
+                     make_npy("{'descr': '|u1', 'fortran_order': Fals", 1),
+                     {"garbage.npy", "malformed header"}});
+    cases.push_back({"notdict.npy", make_npy("[1, 2, 3]", 1), {"malformed header"}});
+    cases.push_back({"unterminated.npy", make_npy("{'descr: |u1}", 1), {"unterminated string"}});
+    cases.push_back(
+        {"shape_str.npy", make_npy(dict("|u1", "False", "'abc'"), 1), {"shape is 'abc'"}});
+    cases.push_back(
+        {"fo_int.npy", make_npy(dict("|u1", "0", "(1, 1, 1)"), 1), {"fortran_order is 0"}});
+    cases.push_back(
+        {"neg.npy", make_npy(dict("|u1", "False", "(1, -1, 1)"), 1), {"malformed header"}});
+    {
+        auto b = make_npy(dict("|u1", "False", "(1, 1, 1)"), 1);
+        b[0] = 'X';
+        cases.push_back({"magic.npy", b, {"magic.npy", "not a .npy file", "magic"}});
+    }
+    {
+        auto b = make_npy(dict("|u1", "False", "(1, 1, 1)"), 1);
+        b[6] = 4;
+        cases.push_back({"version.npy", b, {"version 4.0", "not supported"}});
+    }
+    {
+        auto b = make_npy(dict("|u1", "False", "(1, 1, 1)"), 1);
+        b[8] = 0xFF;
+        b[9] = 0xFF;
+        cases.push_back({"hlen.npy", b, {"hlen.npy", "truncated", "header needs 65535"}});
+    }
+    {
+        auto b = make_npy(dict("|u1", "False", "(1, 1, 1)"), 1, 2);
+        b[11] = 0x80;  // 2 GiB header length
+        cases.push_back({"hlen2.npy", b, {"truncated", "header needs"}});
+    }
+    cases.push_back({"tiny.npy", {0x93, 'N', 'U'}, {"tiny.npy", "3 bytes"}});
+    cases.push_back({"empty.npy", {}, {"empty.npy", "0 bytes"}});
+    for (const auto& c : cases) {
+        SCOPED_TRACE(c.name);
+        write_bytes(dir / c.name, c.bytes);
+        expect_input_error([&] { read_npy(dir / c.name); }, c.expect);
+    }
+    // Every prefix of a valid file is rejected cleanly.
+    const auto good = make_npy(dict("<u2", "False", "(2, 3, 4)"), 48);
+    for (std::size_t cut = 0; cut < good.size(); ++cut) {
+        write_bytes(dir / "cut.npy",
+                    std::vector<std::uint8_t>(good.begin(), good.begin() + static_cast<long>(cut)));
+        EXPECT_THROW(read_npy(dir / "cut.npy"), InputError) << cut;
+    }
+    write_bytes(dir / "cut.npy", good);
+    EXPECT_NO_THROW(read_npy(dir / "cut.npy"));
+}
+
+TEST(Npy, MissingFileAndFolder) {
+    TempDir dir;
+    const fs::path missing = dir / "nope.npy";
+    expect_input_error([&] { read_npy(missing); },
+                       {test::cat({"'", missing.string(), "': no such file"})});
+    expect_input_error([&] { read_npy(dir.path()); }, {"directory"});
+}
+
+TEST(Npy, AtomicWriteLeavesNothingWhenFolderMissing) {
+    TempDir dir;
+    const fs::path target = dir / "missing" / "out.npy";
+    const std::vector<std::uint8_t> data(8, 1);
+    expect_input_error(
+        [&] {
+            write_npy(target, NpyType::u8, Dims{2, 2, 2}, data);
+        },
+        {test::cat({"cannot write '", target.string(), "'"}),
+         test::cat({"folder '", (dir / "missing").string(), "' does not exist"})});
+    EXPECT_FALSE(fs::exists(target));
+    EXPECT_TRUE(fs::is_empty(dir.path()));
+    // A size mismatch is rejected before anything is written.
+    EXPECT_THROW(write_npy(dir / "bad.npy", NpyType::u16, Dims{2, 2, 2}, data), InputError);
+    EXPECT_TRUE(fs::is_empty(dir.path()));
+    // Overwriting an existing file replaces it whole.
+    write_npy(dir / "x.npy", NpyType::u8, Dims{2, 2, 2}, data);
+    write_npy(dir / "x.npy", NpyType::u8, Dims{1, 1, 1}, {5});
+    const NpyArray a = read_npy(dir / "x.npy");
+    EXPECT_EQ(a.dims, (Dims{1, 1, 1}));
+    EXPECT_EQ(a.data, std::vector<std::uint8_t>{5});
+    int files = 0;
+    for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path())) {
+        ++files;
+    }
+    EXPECT_EQ(files, 1);
+}
+
+TEST(Npy, WorldConversions) {
+    World w(Dims{3, 2, 4});
+    w.set(2, 1, 3, 200);
+    w.set(0, 0, 1, 1);
+    const NpyArray a = npy_from_world(w);
+    EXPECT_EQ(a.type, NpyType::u8);
+    EXPECT_EQ(a.dims, w.dims());
+    const World back = world_from_npy(a);
+    EXPECT_EQ(back.voxels(), w.voxels());
+
+    NpyArray wide;
+    wide.type = NpyType::u16;
+    wide.dims = Dims{3, 2, 4};
+    wide.data.assign(24 * 2, 0);
+    wide.data[2 * w.dims().index(1, 1, 2)] = 255;
+    World ok = world_from_npy(wide);
+    EXPECT_EQ(ok.at(1, 1, 2), 255);
+    EXPECT_EQ(ok.solid_count(), 1u);
+    // 256 at (2, 0, 3) and 300 later: the first offending voxel is named.
+    wide.data[2 * w.dims().index(2, 0, 3) + 1] = 1;
+    wide.data[2 * w.dims().index(2, 1, 3)] = 44;
+    wide.data[2 * w.dims().index(2, 1, 3) + 1] = 1;
+    expect_input_error([&] { world_from_npy(wide); }, {"value 256", "(x=2, y=0, z=3)"});
+
+    NpyArray u32;
+    u32.type = NpyType::u32;
+    u32.dims = Dims{1, 1, 2};
+    u32.data = {7, 0, 0, 0, 0, 0, 0, 0x80};
+    expect_input_error([&] { world_from_npy(u32); }, {"value 2147483648", "(x=0, y=0, z=1)"});
+
+    NpyArray bad;
+    bad.dims = Dims{2, 2, 2};
+    bad.data.assign(7, 0);
+    EXPECT_THROW(world_from_npy(bad), InputError);
+}
+
+TEST(Npy, LoadWorldFromNpy) {
+    TempDir dir;
+    World w(Dims{4, 3, 2});
+    w.set(3, 2, 1, 9);
+    const NpyArray a = npy_from_world(w);
+    write_npy(dir / "w.NPY", a.type, a.dims, a.data);
+    const VoxModel m = load_world(dir / "w.NPY");
+    EXPECT_EQ(m.world.dims(), w.dims());
+    EXPECT_EQ(m.world.voxels(), w.voxels());
+    EXPECT_EQ(m.palette[1], Palette()[1]);
+    std::vector<std::uint8_t> wide(4 * 3 * 2 * 2, 0);
+    wide[2 * 5 + 1] = 3;  // value 768 at index 5 = (1, 1, 0)
+    write_npy(dir / "wide.npy", NpyType::u16, Dims{4, 3, 2}, wide);
+    expect_input_error([&] { load_world(dir / "wide.npy"); },
+                       {"wide.npy", "value 768", "(x=1, y=1, z=0)"});
+}
+
+}  // namespace
+}  // namespace voxfield
