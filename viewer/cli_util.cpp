@@ -15,18 +15,24 @@ void require_output_folder(const std::filesystem::path& path) {
     }
 }
 
-void write_json_file(const std::filesystem::path& path, const nlohmann::json& j) {
+void write_text_file(const std::filesystem::path& path, const std::string& text) {
     require_output_folder(path);
     const auto tmp = std::filesystem::path(path.string() + ".tmp");
     {
         std::ofstream out(tmp);
-        out << j.dump(2) << '\n';
+        out << text;
+        out.flush();
         if (!out) {
+            out.close();
             std::filesystem::remove(tmp);
             throw InputError("cannot write '" + path.string() + "'");
         }
     }
     std::filesystem::rename(tmp, path);
+}
+
+void write_json_file(const std::filesystem::path& path, const nlohmann::json& j) {
+    write_text_file(path, j.dump(2) + "\n");
 }
 
 nlohmann::json device_json(const ocl::DeviceInfo& d) {

@@ -27,7 +27,8 @@ inline const std::vector<std::string> kMetrics = {"manhattan"};
 
 // Throws InputError unless `path`'s folder exists (checked before long work starts).
 void require_output_folder(const std::filesystem::path& path);
-// Writes `j` to `path` atomically (temporary file + rename).
+// Writes `text` to `path` atomically (temporary file + rename): never a partial file.
+void write_text_file(const std::filesystem::path& path, const std::string& text);
 void write_json_file(const std::filesystem::path& path, const nlohmann::json& j);
 
 nlohmann::json device_json(const ocl::DeviceInfo& d);

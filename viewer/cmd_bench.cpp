@@ -3,7 +3,6 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
-#include <fstream>
 #include <iostream>
 #include <sstream>
 
@@ -142,7 +141,7 @@ int run_bench(const BenchOptions& o) {
                                  {"results", results}});
     }
     if (!o.csv.empty()) {
-        std::ofstream(o.csv) << csv.str();
+        write_text_file(o.csv, csv.str());
     }
     return 0;
 }

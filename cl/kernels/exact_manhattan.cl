@@ -16,6 +16,8 @@
 //   the segments of a column through local memory, and so reads and writes each voxel once.
 
 inline uint inc_sat(uint v) { return v >= T_MAX ? T_MAX : v + 1u; }
+// The same in the work type itself (saturating byte/short adds vectorise widest on CPUs).
+inline T inc_t(T v) { return add_sat(v, (T)1); }
 inline uint add_k_sat(uint v, uint k) { return v >= T_MAX - k ? T_MAX : v + k; }
 
 #if PACKED
@@ -25,94 +27,101 @@ inline uint add_k_sat(uint v, uint k) { return v >= T_MAX - k ? T_MAX : v + k; }
 #define STORE_FINAL(i, d) work[i] = (T)(d)
 #endif
 
-// x sweeps of rows r, r+X, r+2X, r+3X interleaved: four independent dependency chains keep a
-// CPU core busy where one chain would wait on each add. Distances count up in 64 bits from
-// 2^32 ("no solid yet") and are clamped to T_MAX on store, so nothing wraps.
-#define X_SWEEP_ROWS(R)                                                                   \
-    {                                                                                     \
-        ulong d[R];                                                                       \
-        for (uint k = 0; k < R; ++k) {                                                    \
-            d[k] = 0x100000000ul;                                                         \
-        }                                                                                 \
-        for (uint x = 0; x < X; ++x) {                                                    \
-            for (uint k = 0; k < R; ++k) {                                                \
-                d[k] = vox[row + k * X + x] ? 0ul : d[k] + 1;                             \
-                work[row + k * X + x] = (T)min(d[k], (ulong)T_MAX);                       \
-            }                                                                             \
-        }                                                                                 \
-        for (uint k = 0; k < R; ++k) {                                                    \
-            d[k] = 0x100000000ul;                                                         \
-        }                                                                                 \
-        for (uint x = X; x-- > 0;) {                                                      \
-            for (uint k = 0; k < R; ++k) {                                                \
-                d[k] = vox[row + k * X + x] ? 0ul : d[k] + 1;                             \
-                work[row + k * X + x] =                                                   \
-                    (T)min(min(d[k], (ulong)T_MAX), (ulong)work[row + k * X + x]);        \
-            }                                                                             \
-        }                                                                                 \
-    }
-
-// One work-item per z-slice: x sweeps of every row, then the y sweeps over the slice (inner
-// loops along x, which vectorise; indexed from one base pointer so the compiler sees the
-// rows' distance).
+// One work-item per z-slice. Along x (the contiguous axis) a sequential sweep is one long
+// dependency chain, so rows are transformed by doubling instead: after the steps 1, 2, 4, ...
+// < X, d[x] = min(d[x], d[x-s] + s, d[x+s] + s) has considered every offset |t| < 2*s as a
+// sum of distinct powers of two, which is the exact 1-D L1 transform; every step is a
+// vectorisable loop over `scratch` (two rows of X elements with T_MAX padding of `pad`
+// >= X/2 on both sides). Then the y sweeps over the slice (inner loops along x, vectorised).
 __kernel void xy_slices_seq(__global const uchar* restrict vox, __global T* restrict work,
-                            uint X, uint Y) {
+                            uint X, uint Y, uint pad, __local T* restrict scratch) {
     const size_t base = get_global_id(0) * (size_t)X * Y;
-    uint y = 0;
-    for (; y + 4 <= Y; y += 4) {
-        const size_t row = base + (size_t)y * X;
-        X_SWEEP_ROWS(4)
+    const uint span = X + 2 * pad;
+    for (uint i = 0; i < 2 * span; ++i) {
+        scratch[i] = (T)T_MAX;
     }
-    for (; y < Y; ++y) {
+    for (uint y = 0; y < Y; ++y) {
         const size_t row = base + (size_t)y * X;
-        X_SWEEP_ROWS(1)
+        __local T* a = scratch + pad;
+        __local T* b = scratch + span + pad;
+        for (uint x = 0; x < X; ++x) {
+            a[x] = vox[row + x] ? (T)0 : (T)T_MAX;
+        }
+        for (uint s = 1; s < X; s <<= 1) {
+            const T step = (T)min(s, (uint)T_MAX);
+            __local const T* lo = a - s;
+            __local const T* hi = a + s;
+            for (uint x = 0; x < X; ++x) {
+                b[x] = min(a[x], add_sat(min(lo[x], hi[x]), step));
+            }
+            __local T* t = a;
+            a = b;
+            b = t;
+        }
+        for (uint x = 0; x < X; ++x) {
+            work[row + x] = a[x];
+        }
     }
     for (uint y = 1; y < Y; ++y) {
         const size_t row = base + (size_t)y * X;
         for (uint x = 0; x < X; ++x) {
-            work[row + x] = (T)min((uint)work[row + x], inc_sat(work[row - X + x]));
+            work[row + x] = min(work[row + x], inc_t(work[row - X + x]));
         }
     }
     for (uint y = Y - 1; y-- > 0;) {
         const size_t row = base + (size_t)y * X;
         for (uint x = 0; x < X; ++x) {
-            work[row + x] = (T)min((uint)work[row + x], inc_sat(work[row + X + x]));
+            work[row + x] = min(work[row + x], inc_t(work[row + X + x]));
         }
     }
 }
 
 // Sweeps columns of length N (element stride `stride`) over a strip of `strip` adjacent x
-// positions; get_global_id(1) picks the line of columns at offset m * mstride. With
-// final != 0 it writes the output format.
-__kernel void cols_strip(__global T* restrict work, __global uint* restrict out,
-                         __global const uchar* restrict vox, __constant uchar* rgb, uint X,
-                         uint N, ulong stride, ulong mstride, uint strip, uint final) {
-    const uint x0 = (uint)get_global_id(0) * strip;
-    const uint x1 = min(x0 + strip, X);
-    const size_t base = get_global_id(1) * mstride;
-    for (uint n = 1; n < N; ++n) {
-        const size_t row = base + n * stride;
-        for (uint x = x0; x < x1; ++x) {
-            work[row + x] = (T)min((uint)work[row + x], inc_sat(work[row - stride + x]));
-        }
+// positions; get_global_id(1) picks the line of columns at offset m * mstride. The forward
+// sweep copies the strip into `scratch` (strip * N elements, contiguous), so the backward
+// sweep reads it from cache: rows of a power-of-two world sit a power-of-two apart and would
+// all fall into the same cache sets. cols_strip_final writes the output format.
+#define COLS_STRIP(NAME, STORE)                                                            \
+    __kernel void NAME(__global T* restrict work, __global uint* restrict out,             \
+                       __global const uchar* restrict vox, __constant uchar* rgb, uint X,  \
+                       uint N, ulong stride, ulong mstride, uint strip,                    \
+                       __local T* restrict scratch) {                                      \
+        const uint x0 = (uint)get_global_id(0) * strip;                                    \
+        const uint w = min(x0 + strip, X) - x0;                                            \
+        const size_t base = get_global_id(1) * mstride + x0;                               \
+        for (uint i = 0; i < w; ++i) {                                                     \
+            scratch[i] = work[base + i];                                                   \
+        }                                                                                  \
+        for (uint n = 1; n < N; ++n) {                                                     \
+            const size_t row = base + n * stride;                                          \
+            __local T* cur = scratch + n * w;                                              \
+            __local const T* prev = cur - w;                                               \
+            for (uint i = 0; i < w; ++i) {                                                 \
+                cur[i] = min(work[row + i], inc_t(prev[i]));                               \
+            }                                                                              \
+        }                                                                                  \
+        {                                                                                  \
+            const size_t row = base + (N - 1) * stride;                                    \
+            __local const T* cur = scratch + (N - 1) * w;                                  \
+            for (uint i = 0; i < w; ++i) {                                                 \
+                STORE(row + i, cur[i]);                                                    \
+            }                                                                              \
+        }                                                                                  \
+        for (uint n = N - 1; n-- > 0;) {                                                   \
+            const size_t row = base + n * stride;                                          \
+            __local T* cur = scratch + n * w;                                              \
+            __local const T* next = cur + w;                                               \
+            for (uint i = 0; i < w; ++i) {                                                 \
+                const T d = min(cur[i], inc_t(next[i]));                                   \
+                cur[i] = d;                                                                \
+                STORE(row + i, d);                                                         \
+            }                                                                              \
+        }                                                                                  \
     }
-    if (final) {
-        const size_t last = base + (size_t)(N - 1) * stride;
-        for (uint x = x0; x < x1; ++x) {
-            STORE_FINAL(last + x, work[last + x]);
-        }
-    }
-    for (uint n = N - 1; n-- > 0;) {
-        const size_t row = base + n * stride;
-        for (uint x = x0; x < x1; ++x) {
-            const uint d = min((uint)work[row + x], inc_sat(work[row + stride + x]));
-            work[row + x] = (T)d;
-            if (final) {
-                STORE_FINAL(row + x, d);
-            }
-        }
-    }
-}
+
+#define STORE_WORK(i, d) work[i] = (d)
+COLS_STRIP(cols_strip, STORE_WORK)
+COLS_STRIP(cols_strip_final, STORE_FINAL)
 
 // One work-group per row of X voxels: the row's occupancy is staged in local memory, each
 // work-item scans a segment for its last and first solid, a Hillis-Steele scan over the

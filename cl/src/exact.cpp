@@ -127,20 +127,26 @@ ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& 
                 local = cl::NDRange(cw, segs, 1);
                 return;
             }
-            // A strip of x positions per work-item: the whole row on a CPU (the inner loop
-            // vectorises and a strip's columns stay in L2), single columns on a GPU.
+            // A strip of x positions per work-item, its columns copied to local scratch: the
+            // whole row on a CPU (the inner loop vectorises, the strip stays in L2), single
+            // columns on a GPU (a fallback for columns too long for cols_seg).
+            const std::size_t per_x = std::size_t{len} * wt.bytes;
+            const std::size_t budget = std::min<std::size_t>(info.local_mem / 2, 512 * 1024);
+            if (per_x > info.local_mem) {
+                throw ClError("clEnqueueNDRangeKernel", CL_OUT_OF_RESOURCES,
+                              sizes + ": a column of " + std::to_string(len) +
+                                  " voxels does not fit the local memory of " + info.name);
+            }
             std::uint32_t strip = 1;
             if (!gpu_layout_) {
-                const std::size_t budget = 512 * 1024;
-                const std::size_t per_x = std::size_t{len} * wt.bytes;
                 strip = static_cast<std::uint32_t>(
-                    std::clamp<std::size_t>(budget / per_x / 16 * 16, 16, dims_.x));
+                    std::clamp<std::size_t>(budget / per_x / 16 * 16, 1, dims_.x));
                 const std::size_t want_items = 4 * std::size_t{info.compute_units};
                 while (strip > 16 && ((dims_.x + strip - 1) / strip) * m_count < want_items) {
                     strip = std::max<std::uint32_t>(16, strip / 2);
                 }
             }
-            kernel = cl::Kernel(base, "cols_strip");
+            kernel = cl::Kernel(base, final ? "cols_strip_final" : "cols_strip");
             kernel.setArg(0, work_);
             kernel.setArg(1, out_);
             kernel.setArg(2, voxels_);
@@ -150,9 +156,9 @@ ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& 
             kernel.setArg(6, static_cast<cl_ulong>(stride));
             kernel.setArg(7, static_cast<cl_ulong>(m_stride));
             kernel.setArg(8, strip);
-            kernel.setArg(9, cl_uint{final ? 1u : 0u});
+            kernel.setArg(9, cl::Local(per_x * strip));
             global = cl::NDRange((dims_.x + strip - 1) / strip, m_count);
-            local = gpu_layout_ ? cl::NullRange : cl::NDRange(1, 1);
+            local = cl::NDRange(1, 1);
         };
 
         const std::size_t x_local = std::min<std::size_t>(
@@ -171,11 +177,20 @@ ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& 
             x_local_ = cl::NDRange(x_local);
             columns(dims_.y, dims_.x, plane, dims_.z, false, cols_y_, y_global_, y_local_);
         } else {
+            const std::size_t pad = next_pow2(dims_.x) / 2;
+            const std::size_t scratch = 2 * (std::size_t{dims_.x} + 2 * pad) * wt.bytes;
+            if (scratch > info.local_mem) {
+                throw ClError("clEnqueueNDRangeKernel", CL_OUT_OF_RESOURCES,
+                              sizes + ": rows of " + std::to_string(dims_.x) +
+                                  " voxels do not fit the local memory of " + info.name);
+            }
             xy_slices_ = cl::Kernel(base, "xy_slices_seq");
             xy_slices_.setArg(0, voxels_);
             xy_slices_.setArg(1, work_);
             xy_slices_.setArg(2, dims_.x);
             xy_slices_.setArg(3, dims_.y);
+            xy_slices_.setArg(4, static_cast<cl_uint>(pad));
+            xy_slices_.setArg(5, cl::Local(scratch));
             x_global_ = cl::NDRange(dims_.z);
             x_local_ = gpu_layout_ ? cl::NullRange : cl::NDRange(1);
         }

@@ -200,7 +200,7 @@ DeviceInfo select_device(const std::string& requested) {
             if (why.empty()) {
                 return &d;
             }
-            reasons += "\n  " + describe(d) + ": " + why;
+            reasons += (reasons.empty() ? "" : "; ") + describe(d) + ": " + why;
         }
         return nullptr;
     };
@@ -231,7 +231,7 @@ DeviceInfo select_device(const std::string& requested) {
         found = consider(spec, false, 0);
     }
     if (found == nullptr) {
-        throw DeviceSelectionError("no OpenCL device matches " + wanted + ":" + reasons);
+        throw DeviceSelectionError("no OpenCL device matches " + wanted + " (" + reasons + ")");
     }
     return *found;
 }
