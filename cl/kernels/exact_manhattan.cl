@@ -123,18 +123,30 @@ __kernel void xy_slices_seq(__global const uchar* restrict vox, __global T* rest
 COLS_STRIP(cols_strip, STORE_WORK)
 COLS_STRIP(cols_strip_final, STORE_FINAL)
 
-// One work-group per row of X voxels: the row's occupancy is staged in local memory, each
-// work-item scans a segment for its last and first solid, a Hillis-Steele scan over the
-// segments gives every segment the nearest solid on either side, and the distances are
-// written back coalesced.
+// Rows along x, `per_row` work-items per row and get_local_size(0) / per_row rows per
+// work-group. A row's occupancy is staged in local memory (coalesced), each work-item
+// scans a contiguous segment for its last and first solid, a Hillis-Steele scan over the
+// row's segments gives every segment the nearest solid on either side, and the distances are
+// written back coalesced. Local arrays are indexed through pad_idx so that work-items reading
+// segment-strided addresses hit different banks.
+inline uint pad_idx(uint i) { return i + (i >> 5); }
+
 __kernel void x_rows_local(__global const uchar* restrict vox, __global T* restrict work,
-                           uint X, __local uchar* occ, __local uint* dist, __local int* last,
-                           __local int* first) {
-    const uint lid = (uint)get_local_id(0);
-    const uint L = (uint)get_local_size(0);
-    const size_t base = get_group_id(0) * (size_t)X;
+                           uint X, uint rows, uint per_row, __local uchar* occ,
+                           __local uint* dist, __local int* last, __local int* first) {
+    const uint L = per_row;
+    const uint lid = (uint)get_local_id(0) % L;
+    const uint r = (uint)get_local_id(0) / L;
+    const size_t row = get_group_id(0) * (get_local_size(0) / L) + r;
+    const bool active = row < rows;
+    const uint span = pad_idx(X) + 1;
+    __local uchar* o = occ + r * span;
+    __local uint* d = dist + r * span;
+    __local int* lr = last + r * L;
+    __local int* fr = first + r * L;
+    const size_t base = row * X;
     for (uint x = lid; x < X; x += L) {
-        occ[x] = vox[base + x] != 0;
+        o[pad_idx(x)] = active && vox[base + x] != 0;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     const uint seg = (X + L - 1) / L;
@@ -143,41 +155,44 @@ __kernel void x_rows_local(__global const uchar* restrict vox, __global T* restr
     int l = -1;
     int f = INT_MAX;
     for (uint x = a; x < b; ++x) {
-        if (occ[x]) {
+        if (o[pad_idx(x)]) {
             l = (int)x;
             f = min(f, (int)x);
         }
     }
-    last[lid] = l;
-    first[lid] = f;
+    lr[lid] = l;
+    fr[lid] = f;
     barrier(CLK_LOCAL_MEM_FENCE);
     for (uint off = 1; off < L; off <<= 1) {
-        const int lo = lid >= off ? last[lid - off] : -1;
-        const int hi = lid + off < L ? first[lid + off] : INT_MAX;
+        const int lo = lid >= off ? lr[lid - off] : -1;
+        const int hi = lid + off < L ? fr[lid + off] : INT_MAX;
         barrier(CLK_LOCAL_MEM_FENCE);
-        last[lid] = max(last[lid], lo);
-        first[lid] = min(first[lid], hi);
+        lr[lid] = max(lr[lid], lo);
+        fr[lid] = min(fr[lid], hi);
         barrier(CLK_LOCAL_MEM_FENCE);
     }
-    l = lid > 0 ? last[lid - 1] : -1;
+    l = lid > 0 ? lr[lid - 1] : -1;
     for (uint x = a; x < b; ++x) {
-        if (occ[x]) {
+        if (o[pad_idx(x)]) {
             l = (int)x;
         }
-        dist[x] = l < 0 ? T_MAX : min((uint)((int)x - l), (uint)T_MAX);
+        d[pad_idx(x)] = l < 0 ? T_MAX : min((uint)((int)x - l), (uint)T_MAX);
     }
-    f = lid + 1 < L ? first[lid + 1] : INT_MAX;
-    for (uint x = b; x-- > a;) {
-        if (occ[x]) {
+    f = lid + 1 < L ? fr[lid + 1] : INT_MAX;
+    for (uint x = b; x > a;) {
+        --x;
+        if (o[pad_idx(x)]) {
             f = (int)x;
         }
         if (f != INT_MAX) {
-            dist[x] = min(dist[x], min((uint)(f - (int)x), (uint)T_MAX));
+            d[pad_idx(x)] = min(d[pad_idx(x)], min((uint)(f - (int)x), (uint)T_MAX));
         }
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    for (uint x = lid; x < X; x += L) {
-        work[base + x] = (T)dist[x];
+    if (active) {
+        for (uint x = lid; x < X; x += L) {
+            work[base + x] = (T)d[pad_idx(x)];
+        }
     }
 }
 
@@ -185,6 +200,7 @@ __kernel void x_rows_local(__global const uchar* restrict vox, __global T* restr
 // values [s*SEG_K, (s+1)*SEG_K) of column c in registers. Each segment publishes the value
 // its forward sweep reaches at its end and its backward sweep at its start (with no carry),
 // every work-item folds the segments before and after it into its carries, and sweeps again.
+// Every loop over v has a constant trip count and is unrolled, so v stays in registers.
 __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
                        __global const uchar* restrict vox, __constant uchar* rgb, uint X,
                        uint N, ulong stride, ulong mstride, uint final, __local uint* fout,
@@ -226,9 +242,9 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
         c = min(add_k_sat(c, SEG_K), bout[t * cw + lc]);
     }
 #pragma unroll
-    for (uint k = SEG_K; k-- > 0;) {
-        c = min(v[k], inc_sat(c));
-        v[k] = c;
+    for (uint j = 0; j < SEG_K; ++j) {
+        c = min(v[SEG_K - 1 - j], inc_sat(c));
+        v[SEG_K - 1 - j] = c;
     }
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {

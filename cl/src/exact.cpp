@@ -108,24 +108,33 @@ ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& 
                            cl::NDRange& local) {
             const std::uint32_t k = gpu_layout_ ? seg_k(len) : 0;
             const std::uint32_t segs = k == 0 ? 0 : (len + k - 1) / k;
-            const std::uint32_t cw = segs <= 8 ? 32 : segs <= 16 ? 16 : 8;
-            if (k != 0 && std::size_t{cw} * segs <= info.max_work_group &&
-                2 * std::size_t{cw} * segs * 4 <= info.local_mem) {
-                kernel = cl::Kernel(program(k), "cols_seg");
-                kernel.setArg(0, work_);
-                kernel.setArg(1, out_);
-                kernel.setArg(2, voxels_);
-                kernel.setArg(3, rgb_);
-                kernel.setArg(4, dims_.x);
-                kernel.setArg(5, len);
-                kernel.setArg(6, static_cast<cl_ulong>(stride));
-                kernel.setArg(7, static_cast<cl_ulong>(m_stride));
-                kernel.setArg(8, cl_uint{final ? 1u : 0u});
-                kernel.setArg(9, cl::Local(std::size_t{cw} * segs * 4));
-                kernel.setArg(10, cl::Local(std::size_t{cw} * segs * 4));
-                global = cl::NDRange(round_up(dims_.x, cw), segs, m_count);
-                local = cl::NDRange(cw, segs, 1);
-                return;
+            if (k != 0) {
+                // As many columns per group as the kernel's registers allow (up to 16).
+                cl::Kernel seg(program(k), "cols_seg");
+                const std::size_t limit =
+                    seg.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
+                std::uint32_t cw = 16;
+                while (cw > 1 && std::size_t{cw} * segs > limit) {
+                    cw /= 2;
+                }
+                if (std::size_t{cw} * segs <= limit &&
+                    2 * std::size_t{cw} * segs * 4 <= info.local_mem) {
+                    kernel = seg;
+                    kernel.setArg(0, work_);
+                    kernel.setArg(1, out_);
+                    kernel.setArg(2, voxels_);
+                    kernel.setArg(3, rgb_);
+                    kernel.setArg(4, dims_.x);
+                    kernel.setArg(5, len);
+                    kernel.setArg(6, static_cast<cl_ulong>(stride));
+                    kernel.setArg(7, static_cast<cl_ulong>(m_stride));
+                    kernel.setArg(8, cl_uint{final ? 1u : 0u});
+                    kernel.setArg(9, cl::Local(std::size_t{cw} * segs * 4));
+                    kernel.setArg(10, cl::Local(std::size_t{cw} * segs * 4));
+                    global = cl::NDRange(round_up(dims_.x, cw), segs, m_count);
+                    local = cl::NDRange(cw, segs, 1);
+                    return;
+                }
             }
             // A strip of x positions per work-item, its columns copied to local scratch: the
             // whole row on a CPU (the inner loop vectorises, the strip stays in L2), single
@@ -161,20 +170,29 @@ ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& 
             local = cl::NDRange(1, 1);
         };
 
-        const std::size_t x_local = std::min<std::size_t>(
-            {256, info.max_work_group, std::max<std::size_t>(32, next_pow2(dims_.x) / 2)});
-        const std::size_t x_local_bytes = std::size_t{dims_.x} * 5 + 2 * x_local * 4 + 256;
-        if (gpu_layout_ && x_local_bytes <= info.local_mem) {
-            x_rows_ = cl::Kernel(base, "x_rows_local");
+        // x_rows_local: about 16 voxels per work-item, up to 32 work-items per row, rows
+        // stacked to 256 work-items per group.
+        const std::size_t per_row = std::clamp<std::size_t>(next_pow2(dims_.x) / 16, 1, 32);
+        cl::Kernel x_rows(base, "x_rows_local");
+        const std::size_t x_limit = std::min<std::size_t>(
+            256, x_rows.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device));
+        const std::size_t group_rows = std::max<std::size_t>(1, x_limit / per_row);
+        const std::size_t span = dims_.x + dims_.x / 32 + 1;
+        const std::size_t x_local_bytes = group_rows * (span * 5 + 2 * per_row * 4);
+        const std::size_t rows = std::size_t{dims_.y} * dims_.z;
+        if (gpu_layout_ && per_row <= x_limit && x_local_bytes <= info.local_mem) {
+            x_rows_ = x_rows;
             x_rows_.setArg(0, voxels_);
             x_rows_.setArg(1, work_);
             x_rows_.setArg(2, dims_.x);
-            x_rows_.setArg(3, cl::Local(dims_.x));
-            x_rows_.setArg(4, cl::Local(std::size_t{dims_.x} * 4));
-            x_rows_.setArg(5, cl::Local(x_local * 4));
-            x_rows_.setArg(6, cl::Local(x_local * 4));
-            x_global_ = cl::NDRange(x_local * dims_.y * dims_.z);
-            x_local_ = cl::NDRange(x_local);
+            x_rows_.setArg(3, static_cast<cl_uint>(rows));
+            x_rows_.setArg(4, static_cast<cl_uint>(per_row));
+            x_rows_.setArg(5, cl::Local(group_rows * span));
+            x_rows_.setArg(6, cl::Local(group_rows * span * 4));
+            x_rows_.setArg(7, cl::Local(group_rows * per_row * 4));
+            x_rows_.setArg(8, cl::Local(group_rows * per_row * 4));
+            x_global_ = cl::NDRange(round_up(rows, group_rows) * per_row);
+            x_local_ = cl::NDRange(group_rows * per_row);
             columns(dims_.y, dims_.x, plane, dims_.z, false, cols_y_, y_global_, y_local_);
         } else {
             const std::size_t pad = next_pow2(dims_.x) / 2;
