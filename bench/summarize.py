@@ -1,0 +1,54 @@
+#!/usr/bin/env python3
+"""Prints the result tables of bench/README.md from committed JSON files.
+
+Usage: python3 bench/summarize.py FILES...
+`voxfield bench --json` files give the timing table; `compare_scipy.py --json` files give the
+SciPy comparison table. Files of neither kind are skipped.
+"""
+import json
+import sys
+
+
+def bench_rows(path, doc):
+    device = doc["device"]["name"]
+    for r in doc["results"]:
+        size = "x".join(str(v) for v in r["size"])
+        lo, hi = r["ci95_ms"]
+        stages = ", ".join(f"{s['kernel']} {s['median_ms']:.3f}" for s in r.get("stages", []))
+        yield (f"| {device} | {doc['commit'][:8]} | {doc['date'][:10]} | {size} | {r['format']} |"
+               f" {r['median_ms']:.3f} | {lo:.3f}-{hi:.3f} | {r['gvox_per_s']:.2f} |"
+               f" {r['max_error']} | {stages} |")
+
+
+def scipy_row(path, doc):
+    return (f"| {doc['device']} | {doc['commit'][:8]} | {doc['date'][:10]} |"
+            f" {'x'.join(str(v) for v in doc['size'])} | {doc['ours_kernel_ms_median']:.2f} |"
+            f" {doc['scipy_ms_median']:.1f} | {doc['ratio_scipy_over_ours_kernel']:.1f} |"
+            f" {doc['equal']} | `{path}` |")
+
+
+def main(paths):
+    bench, scipy = [], []
+    for path in paths:
+        with open(path) as f:
+            doc = json.load(f)
+        if "results" in doc:
+            bench.extend(bench_rows(path, doc))
+        elif "scipy_ms_median" in doc:
+            scipy.append(scipy_row(path, doc))
+    if bench:
+        print("| device | commit | date | size | format | median ms | 95% CI ms | Gvox/s |"
+              " max error | per kernel (median ms) |")
+        print("| --- | --- | --- | --- | --- | ---: | --- | ---: | ---: | --- |")
+        print("\n".join(bench))
+    if scipy:
+        if bench:
+            print()
+        print("| device | commit | date | size | ours kernel median ms | SciPy cdt median ms |"
+              " SciPy / ours | outputs equal | file |")
+        print("| --- | --- | --- | --- | ---: | ---: | ---: | --- | --- |")
+        print("\n".join(scipy))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
