@@ -46,7 +46,7 @@ std::size_t next_pow2(std::size_t v) {
 // Values per work-item in cols_seg for a column of n voxels, or 0 when too long for it.
 std::uint32_t seg_k(std::uint32_t n) {
     if (n <= 512) {
-        return 32;
+        return 16;
     }
     if (n <= 2048) {
         return 64;
