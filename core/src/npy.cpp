@@ -1,6 +1,8 @@
 // NumPy .npy reader/writer (format spec: numpy.lib.format, versions 1.0, 2.0 and 3.0).
 #include "voxfield/core/npy.hpp"
 
+#include "input_file.hpp"
+
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -219,31 +221,6 @@ std::string errno_text(int e) {
     return std::generic_category().message(e);
 }
 
-// Opens `path` for reading, with the project's messages for a missing or unreadable file.
-std::ifstream open_input(const fs::path& path, std::uint64_t& size) {
-    std::error_code ec;
-    const auto st = fs::status(path, ec);
-    if (!fs::exists(st)) {
-        throw InputError("'" + path.string() + "': no such file");
-    }
-    if (fs::is_directory(st)) {
-        throw InputError("'" + path.string() + "': is a directory, not a file");
-    }
-    std::ifstream in(path, std::ios::binary);
-    if (!in) {
-        throw InputError("'" + path.string() + "': cannot open for reading (" + errno_text(errno) +
-                         ")");
-    }
-    in.seekg(0, std::ios::end);
-    const auto end = in.tellg();
-    in.seekg(0, std::ios::beg);
-    if (end < 0 || !in) {
-        throw InputError("'" + path.string() + "': cannot read (not a regular file?)");
-    }
-    size = static_cast<std::uint64_t>(end);
-    return in;
-}
-
 void read_exact(std::ifstream& in, const std::string& file, char* dst, std::size_t n) {
     in.read(dst, static_cast<std::streamsize>(n));
     if (static_cast<std::size_t>(in.gcount()) != n) {
@@ -257,7 +234,7 @@ void read_exact(std::ifstream& in, const std::string& file, char* dst, std::size
 NpyArray read_npy(const std::filesystem::path& path) {
     const std::string file = path.string();
     std::uint64_t size = 0;
-    std::ifstream in = open_input(path, size);
+    std::ifstream in = detail::open_input(path, size);
 
     // Preamble: magic (6), version (2), header length (2 or 4).
     const char magic[] = "\x93NUMPY";

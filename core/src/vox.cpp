@@ -1,6 +1,8 @@
 // MagicaVoxel .vox reader (format: ephtracy/voxel-model, MagicaVoxel-file-format-vox.txt).
 #include "voxfield/core/vox.hpp"
 
+#include "input_file.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -23,26 +25,9 @@ namespace {
 namespace fs = std::filesystem;
 
 std::vector<std::uint8_t> read_file(const fs::path& path) {
-    std::error_code ec;
-    const auto st = fs::status(path, ec);
-    if (!fs::exists(st)) {
-        throw InputError("'" + path.string() + "': no such file");
-    }
-    if (fs::is_directory(st)) {
-        throw InputError("'" + path.string() + "': is a directory, not a file");
-    }
-    std::ifstream in(path, std::ios::binary);
-    if (!in) {
-        throw InputError("'" + path.string() + "': cannot open for reading (" +
-                         std::generic_category().message(errno) + ")");
-    }
-    in.seekg(0, std::ios::end);
-    const auto end = in.tellg();
-    in.seekg(0, std::ios::beg);
-    if (end < 0 || !in) {
-        throw InputError("'" + path.string() + "': cannot read (not a regular file?)");
-    }
-    std::vector<std::uint8_t> bytes(static_cast<std::size_t>(end));
+    std::uint64_t size = 0;
+    std::ifstream in = detail::open_input(path, size);
+    std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
     in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
     if (static_cast<std::size_t>(in.gcount()) != bytes.size()) {
         throw InputError("'" + path.string() + "': read error");
