@@ -104,13 +104,25 @@ ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& 
         // Columns of length len with element stride `stride`, lines of columns `m_count`
         // apart by `m_stride`; `final` writes the output format.
         auto columns = [&](std::uint32_t len, std::uint64_t stride, std::uint64_t m_stride,
-                           std::size_t m_count, bool final, cl::Kernel& kernel, cl::NDRange& global,
-                           cl::NDRange& local) {
+                           std::size_t m_count, bool final) -> Stage {
+            // Arguments 0-7 are common to cols_seg and cols_strip.
+            auto column_kernel = [&](const cl::Program& source, const char* name) {
+                cl::Kernel kernel(source, name);
+                kernel.setArg(0, work_);
+                kernel.setArg(1, out_);
+                kernel.setArg(2, voxels_);
+                kernel.setArg(3, rgb_);
+                kernel.setArg(4, dims_.x);
+                kernel.setArg(5, len);
+                kernel.setArg(6, static_cast<cl_ulong>(stride));
+                kernel.setArg(7, static_cast<cl_ulong>(m_stride));
+                return kernel;
+            };
             const std::uint32_t k = gpu_layout_ ? seg_k(len) : 0;
             const std::uint32_t segs = k == 0 ? 0 : (len + k - 1) / k;
             if (k != 0) {
                 // As many columns per group as the kernel's registers allow (up to 16).
-                cl::Kernel seg(program(k), "cols_seg");
+                cl::Kernel seg = column_kernel(program(k), "cols_seg");
                 const std::size_t limit =
                     seg.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
                 std::uint32_t cw = 16;
@@ -119,21 +131,11 @@ ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& 
                 }
                 if (std::size_t{cw} * segs <= limit &&
                     2 * std::size_t{cw} * segs * 4 <= info.local_mem) {
-                    kernel = seg;
-                    kernel.setArg(0, work_);
-                    kernel.setArg(1, out_);
-                    kernel.setArg(2, voxels_);
-                    kernel.setArg(3, rgb_);
-                    kernel.setArg(4, dims_.x);
-                    kernel.setArg(5, len);
-                    kernel.setArg(6, static_cast<cl_ulong>(stride));
-                    kernel.setArg(7, static_cast<cl_ulong>(m_stride));
-                    kernel.setArg(8, cl_uint{final ? 1u : 0u});
-                    kernel.setArg(9, cl::Local(std::size_t{cw} * segs * 4));
-                    kernel.setArg(10, cl::Local(std::size_t{cw} * segs * 4));
-                    global = cl::NDRange(round_up(dims_.x, cw), segs, m_count);
-                    local = cl::NDRange(cw, segs, 1);
-                    return;
+                    seg.setArg(8, cl_uint{final ? 1u : 0u});
+                    seg.setArg(9, cl::Local(std::size_t{cw} * segs * 4));
+                    seg.setArg(10, cl::Local(std::size_t{cw} * segs * 4));
+                    return {"cols_seg", seg, cl::NDRange(round_up(dims_.x, cw), segs, m_count),
+                            cl::NDRange(cw, segs, 1)};
                 }
             }
             // A strip of x positions per work-item, its columns copied to local scratch: the
@@ -155,46 +157,44 @@ ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& 
                     strip = std::max<std::uint32_t>(16, strip / 2);
                 }
             }
-            kernel = cl::Kernel(base, final ? "cols_strip_final" : "cols_strip");
-            kernel.setArg(0, work_);
-            kernel.setArg(1, out_);
-            kernel.setArg(2, voxels_);
-            kernel.setArg(3, rgb_);
-            kernel.setArg(4, dims_.x);
-            kernel.setArg(5, len);
-            kernel.setArg(6, static_cast<cl_ulong>(stride));
-            kernel.setArg(7, static_cast<cl_ulong>(m_stride));
+            const char* name = final ? "cols_strip_final" : "cols_strip";
+            cl::Kernel kernel = column_kernel(base, name);
             kernel.setArg(8, strip);
             kernel.setArg(9, cl::Local(per_x * strip));
-            global = cl::NDRange((dims_.x + strip - 1) / strip, m_count);
-            local = cl::NDRange(1, 1);
+            return {name, kernel, cl::NDRange((dims_.x + strip - 1) / strip, m_count),
+                    cl::NDRange(1, 1)};
         };
 
         // x_rows_local: about 16 voxels per work-item, up to 32 work-items per row, rows
         // stacked to 256 work-items per group.
-        const std::size_t per_row = std::clamp<std::size_t>(next_pow2(dims_.x) / 16, 1, 32);
-        cl::Kernel x_rows(base, "x_rows_local");
-        const std::size_t x_limit = std::min<std::size_t>(
-            256, x_rows.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device));
-        const std::size_t group_rows = std::max<std::size_t>(1, x_limit / per_row);
-        const std::size_t span = dims_.x + dims_.x / 32 + 1;
-        const std::size_t x_local_bytes = group_rows * (span * 5 + 2 * per_row * 4);
-        const std::size_t rows = std::size_t{dims_.y} * dims_.z;
-        if (gpu_layout_ && per_row <= x_limit && x_local_bytes <= info.local_mem) {
-            x_rows_ = x_rows;
-            x_rows_.setArg(0, voxels_);
-            x_rows_.setArg(1, work_);
-            x_rows_.setArg(2, dims_.x);
-            x_rows_.setArg(3, static_cast<cl_uint>(rows));
-            x_rows_.setArg(4, static_cast<cl_uint>(per_row));
-            x_rows_.setArg(5, cl::Local(group_rows * span));
-            x_rows_.setArg(6, cl::Local(group_rows * span * 4));
-            x_rows_.setArg(7, cl::Local(group_rows * per_row * 4));
-            x_rows_.setArg(8, cl::Local(group_rows * per_row * 4));
-            x_global_ = cl::NDRange(round_up(rows, group_rows) * per_row);
-            x_local_ = cl::NDRange(group_rows * per_row);
-            columns(dims_.y, dims_.x, plane, dims_.z, false, cols_y_, y_global_, y_local_);
-        } else {
+        bool rows_on_gpu = false;
+        if (gpu_layout_) {
+            const std::size_t per_row = std::clamp<std::size_t>(next_pow2(dims_.x) / 16, 1, 32);
+            cl::Kernel x_rows(base, "x_rows_local");
+            const std::size_t x_limit = std::min<std::size_t>(
+                256, x_rows.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device));
+            const std::size_t group_rows = std::max<std::size_t>(1, x_limit / per_row);
+            const std::size_t span = dims_.x + dims_.x / 32 + 1;
+            const std::size_t x_local_bytes = group_rows * (span * 5 + 2 * per_row * 4);
+            const std::size_t rows = std::size_t{dims_.y} * dims_.z;
+            if (per_row <= x_limit && x_local_bytes <= info.local_mem) {
+                x_rows.setArg(0, voxels_);
+                x_rows.setArg(1, work_);
+                x_rows.setArg(2, dims_.x);
+                x_rows.setArg(3, static_cast<cl_uint>(rows));
+                x_rows.setArg(4, static_cast<cl_uint>(per_row));
+                x_rows.setArg(5, cl::Local(group_rows * span));
+                x_rows.setArg(6, cl::Local(group_rows * span * 4));
+                x_rows.setArg(7, cl::Local(group_rows * per_row * 4));
+                x_rows.setArg(8, cl::Local(group_rows * per_row * 4));
+                stages_.push_back({"x_rows_local", x_rows,
+                                   cl::NDRange(round_up(rows, group_rows) * per_row),
+                                   cl::NDRange(group_rows * per_row)});
+                stages_.push_back(columns(dims_.y, dims_.x, plane, dims_.z, false));
+                rows_on_gpu = true;
+            }
+        }
+        if (!rows_on_gpu) {
             const std::size_t pad = next_pow2(dims_.x) / 2;
             const std::size_t scratch = 2 * (std::size_t{dims_.x} + 2 * pad) * wt.bytes;
             if (scratch > info.local_mem) {
@@ -202,17 +202,17 @@ ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& 
                               sizes + ": rows of " + std::to_string(dims_.x) +
                                   " voxels do not fit the local memory of " + info.name);
             }
-            xy_slices_ = cl::Kernel(base, "xy_slices_seq");
-            xy_slices_.setArg(0, voxels_);
-            xy_slices_.setArg(1, work_);
-            xy_slices_.setArg(2, dims_.x);
-            xy_slices_.setArg(3, dims_.y);
-            xy_slices_.setArg(4, static_cast<cl_uint>(pad));
-            xy_slices_.setArg(5, cl::Local(scratch));
-            x_global_ = cl::NDRange(dims_.z);
-            x_local_ = gpu_layout_ ? cl::NullRange : cl::NDRange(1);
+            cl::Kernel xy(base, "xy_slices_seq");
+            xy.setArg(0, voxels_);
+            xy.setArg(1, work_);
+            xy.setArg(2, dims_.x);
+            xy.setArg(3, dims_.y);
+            xy.setArg(4, static_cast<cl_uint>(pad));
+            xy.setArg(5, cl::Local(scratch));
+            stages_.push_back({"xy_slices_seq", xy, cl::NDRange(dims_.z),
+                               gpu_layout_ ? cl::NullRange : cl::NDRange(1)});
         }
-        columns(dims_.z, plane, dims_.x, dims_.y, true, cols_z_, z_global_, z_local_);
+        stages_.push_back(columns(dims_.z, plane, dims_.x, dims_.y, true));
     });
 }
 
@@ -223,25 +223,15 @@ const char* ExactManhattan::layout() const {
 double ExactManhattan::run() {
     return cl_call("running exact_manhattan.cl on " + dims_.to_string(), [&] {
         auto& q = ctx_.queue();
-        std::vector<cl::Kernel*> kernels;
-        if (x_rows_()) {
-            kernels = {&x_rows_, &cols_y_, &cols_z_};
-        } else {
-            kernels = {&xy_slices_, &cols_z_};
-        }
-        const cl::NDRange* globals[] = {&x_global_, x_rows_() ? &y_global_ : &z_global_,
-                                        &z_global_};
-        const cl::NDRange* locals[] = {&x_local_, x_rows_() ? &y_local_ : &z_local_, &z_local_};
-        std::vector<cl::Event> events(kernels.size());
-        for (std::size_t i = 0; i < kernels.size(); ++i) {
-            q.enqueueNDRangeKernel(*kernels[i], cl::NullRange, *globals[i], *locals[i], nullptr,
-                                   &events[i]);
+        std::vector<cl::Event> events(stages_.size());
+        for (std::size_t i = 0; i < stages_.size(); ++i) {
+            q.enqueueNDRangeKernel(stages_[i].kernel, cl::NullRange, stages_[i].global,
+                                   stages_[i].local, nullptr, &events[i]);
         }
         q.finish();
         stage_ms_.clear();
-        for (std::size_t i = 0; i < kernels.size(); ++i) {
-            stage_ms_.emplace_back(kernels[i]->getInfo<CL_KERNEL_FUNCTION_NAME>(),
-                                   elapsed_ms(events[i], events[i]));
+        for (std::size_t i = 0; i < stages_.size(); ++i) {
+            stage_ms_.emplace_back(stages_[i].name, elapsed_ms(events[i], events[i]));
         }
         return elapsed_ms(events.front(), events.back());
     });

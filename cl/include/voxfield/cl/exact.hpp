@@ -49,8 +49,13 @@ class ExactManhattan {
     Format format_;
     bool gpu_layout_;
     cl::Buffer voxels_, rgb_, work_, out_;
-    cl::Kernel xy_slices_, x_rows_, cols_y_, cols_z_;
-    cl::NDRange y_global_, y_local_, z_global_, z_local_, x_global_, x_local_;
+    // The kernels of one transform, in enqueue order.
+    struct Stage {
+        std::string name;
+        cl::Kernel kernel;
+        cl::NDRange global, local;
+    };
+    std::vector<Stage> stages_;
     double upload_ms_ = 0;
     std::vector<std::pair<std::string, double>> stage_ms_;
 };
