@@ -89,4 +89,35 @@ Box ChunkGrid::chunks_overlapping(const Box& voxels) const {
     return r.empty() ? Box{} : r;
 }
 
+void require_chunk_fits(Dims world, std::uint32_t chunk) {
+    const ChunkGrid grid(world, chunk);  // checks the power of two
+    const char* axes[] = {"x", "y", "z"};
+    const std::uint32_t extent[] = {world.x, world.y, world.z};
+    for (int a = 0; a < 3; ++a) {
+        if (chunk > extent[a]) {
+            throw InputError("chunk size " + std::to_string(chunk) + " is larger than the world " +
+                             world.to_string() + " along " + axes[a] + ": use a chunk of at most " +
+                             std::to_string(extent[a]) + " voxels");
+        }
+    }
+}
+
+Box focus_chunks(const ChunkGrid& grid, const Focus& focus) {
+    const Dims n = grid.chunks();
+    const Int3 c = focus.centre;
+    if (c.x < 0 || c.y < 0 || c.z < 0 || c.x >= n.x || c.y >= n.y || c.z >= n.z) {
+        throw InputError("focus centre chunk (" + std::to_string(c.x) + "," + std::to_string(c.y) +
+                         "," + std::to_string(c.z) + ") is outside the chunk grid " +
+                         n.to_string() + " (chunk coordinates run from 0 to " +
+                         std::to_string(n.x - 1) + "," + std::to_string(n.y - 1) + "," +
+                         std::to_string(n.z - 1) + ")");
+    }
+    if (focus.size < 0) {
+        throw InputError("focus size " + std::to_string(focus.size) + " is negative");
+    }
+    const std::int64_t s = focus.size;
+    const Box raw{{c.x - s, c.y - s, c.z - s}, {c.x + s + 1, c.y + s + 1, c.z + s + 1}};
+    return intersect(raw, Box{{0, 0, 0}, {n.x, n.y, n.z}});
+}
+
 }  // namespace voxfield

@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstdlib>
+#include <limits>
 #include <vector>
 
+#include "voxfield/core/chunks.hpp"
 #include "voxfield/core/format.hpp"
 
 namespace voxfield {
@@ -108,6 +110,100 @@ std::vector<std::uint32_t> brute_force_manhattan(const World& world) {
             }
         }
     }
+    return f;
+}
+
+namespace {
+
+// Calls f(box) for every chunk of `grid`.
+template <class F>
+void for_each_chunk(const ChunkGrid& grid, F&& f) {
+    const Dims n = grid.chunks();
+    for (std::uint32_t cz = 0; cz < n.z; ++cz) {
+        for (std::uint32_t cy = 0; cy < n.y; ++cy) {
+            for (std::uint32_t cx = 0; cx < n.x; ++cx) {
+                f(grid.voxels_of({cx, cy, cz}));
+            }
+        }
+    }
+}
+
+// Manhattan distance from (x,y,z) in `b` to the nearest voxel of b's one-voxel shell.
+std::uint32_t shell_distance(const Box& b, std::int64_t x, std::int64_t y, std::int64_t z) {
+    return static_cast<std::uint32_t>(std::min({x - b.min.x + 1, b.max.x - x, y - b.min.y + 1,
+                                                b.max.y - y, z - b.min.z + 1, b.max.z - z}));
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> reference_manhattan_chunked(const World& world, std::uint32_t chunk) {
+    const ChunkGrid grid(world.dims(), chunk);
+    const Dims d = world.dims();
+    std::vector<std::uint32_t> f(world.size());
+    for_each_chunk(grid, [&](const Box& b) {
+        // The chunk alone, outside empty (global semantics), then the shell as extra solid.
+        const Dims cd{static_cast<std::uint32_t>(b.max.x - b.min.x),
+                      static_cast<std::uint32_t>(b.max.y - b.min.y),
+                      static_cast<std::uint32_t>(b.max.z - b.min.z)};
+        World sub(cd);
+        for (std::uint32_t z = 0; z < cd.z; ++z) {
+            for (std::uint32_t y = 0; y < cd.y; ++y) {
+                for (std::uint32_t x = 0; x < cd.x; ++x) {
+                    sub.set(x, y, z,
+                            world.at(static_cast<std::uint32_t>(b.min.x + x),
+                                     static_cast<std::uint32_t>(b.min.y + y),
+                                     static_cast<std::uint32_t>(b.min.z + z)));
+                }
+            }
+        }
+        const auto local = reference_manhattan(sub);
+        for (std::uint32_t z = 0; z < cd.z; ++z) {
+            for (std::uint32_t y = 0; y < cd.y; ++y) {
+                for (std::uint32_t x = 0; x < cd.x; ++x) {
+                    const std::int64_t gx = b.min.x + x, gy = b.min.y + y, gz = b.min.z + z;
+                    f[d.index(static_cast<std::uint32_t>(gx), static_cast<std::uint32_t>(gy),
+                              static_cast<std::uint32_t>(gz))] =
+                        std::min(local[cd.index(x, y, z)], shell_distance(b, gx, gy, gz));
+                }
+            }
+        }
+    });
+    return f;
+}
+
+std::vector<std::uint32_t> brute_force_manhattan_chunked(const World& world, std::uint32_t chunk) {
+    const ChunkGrid grid(world.dims(), chunk);
+    const Dims d = world.dims();
+    std::vector<std::uint32_t> f(world.size(), kInfinite);
+    for_each_chunk(grid, [&](const Box& b) {
+        // Algorithm 2: inside the chunk the world's voxel, on the padding shell a solid.
+        auto solid = [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+            const bool inside = x >= b.min.x && x < b.max.x && y >= b.min.y && y < b.max.y &&
+                                z >= b.min.z && z < b.max.z;
+            return !inside || world.at(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                                       static_cast<std::uint32_t>(z)) != 0;
+        };
+        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
+            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
+                for (std::int64_t x = b.min.x; x < b.max.x; ++x) {
+                    std::int64_t best = std::numeric_limits<std::int64_t>::max();
+                    for (std::int64_t k = b.min.z - 1; k <= b.max.z; ++k) {
+                        for (std::int64_t j = b.min.y - 1; j <= b.max.y; ++j) {
+                            for (std::int64_t i = b.min.x - 1; i <= b.max.x; ++i) {
+                                if (solid(i, j, k)) {
+                                    best = std::min<std::int64_t>(
+                                        best,
+                                        std::llabs(i - x) + std::llabs(j - y) + std::llabs(k - z));
+                                }
+                            }
+                        }
+                    }
+                    f[d.index(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                              static_cast<std::uint32_t>(z))] = static_cast<std::uint32_t>(best);
+                }
+            }
+        }
+    });
     return f;
 }
 

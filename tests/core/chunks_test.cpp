@@ -104,5 +104,28 @@ TEST(Chunks, ChunksOverlapping) {
     EXPECT_TRUE(g.chunks_overlapping(Box{{3, 3, 3}, {3, 5, 5}}).empty());
 }
 
+TEST(Chunks, RequireChunkFits) {
+    EXPECT_NO_THROW(require_chunk_fits(Dims{16, 16, 16}, 16));
+    EXPECT_NO_THROW(require_chunk_fits(Dims{20, 17, 33}, 16));
+    EXPECT_THROW(require_chunk_fits(Dims{16, 16, 16}, 12), InputError);
+    EXPECT_THROW(require_chunk_fits(Dims{16, 16, 16}, 0), InputError);
+    try {
+        require_chunk_fits(Dims{64, 8, 64}, 16);
+        FAIL() << "chunk 16 in an 8-voxel-tall world accepted";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("along y"), std::string::npos) << e.what();
+    }
+}
+
+TEST(Chunks, FocusBox) {
+    const ChunkGrid grid(Dims{64, 32, 48}, 16);  // 4 x 2 x 3 chunks
+    EXPECT_EQ(focus_chunks(grid, {{1, 1, 1}, 0}), (Box{{1, 1, 1}, {2, 2, 2}}));
+    EXPECT_EQ(focus_chunks(grid, {{1, 0, 2}, 1}), (Box{{0, 0, 1}, {3, 2, 3}}));
+    EXPECT_EQ(focus_chunks(grid, {{0, 0, 0}, 9}), (Box{{0, 0, 0}, {4, 2, 3}}));
+    EXPECT_THROW(focus_chunks(grid, {{4, 0, 0}, 1}), InputError);
+    EXPECT_THROW(focus_chunks(grid, {{0, -1, 0}, 1}), InputError);
+    EXPECT_THROW(focus_chunks(grid, {{0, 0, 0}, -1}), InputError);
+}
+
 }  // namespace
 }  // namespace voxfield

@@ -1,10 +1,12 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <random>
 #include <vector>
 
+#include "voxfield/core/chunks.hpp"
 #include "voxfield/core/format.hpp"
 #include "voxfield/core/reference.hpp"
 #include "voxfield/core/scenes.hpp"
@@ -97,6 +99,59 @@ TEST(Reference, LargeWorldIsFastEnough) {
         }
     }
     EXPECT_LT(ms, 5000) << "reference_manhattan on 256^3 took " << ms << " ms";
+}
+
+TEST(ReferenceChunked, HandComputedRow) {
+    // One row of 8 in chunks of 4: each chunk's shell bounds the distance, a solid at x = 6.
+    World w(Dims{8, 1, 1});
+    w.set(6, 0, 0, 1);
+    const auto f = reference_manhattan_chunked(w, 4);
+    // y and z extents are 1, so the shell is one step away everywhere.
+    EXPECT_EQ(f, (std::vector<std::uint32_t>{1, 1, 1, 1, 1, 1, 0, 1}));
+    World row(Dims{8, 9, 9});
+    row.set(6, 4, 4, 1);
+    const auto g = reference_manhattan_chunked(row, 8);
+    const std::uint32_t expected[] = {1, 2, 3, 3, 2, 1, 0, 1};
+    for (std::uint32_t x = 0; x < 8; ++x) {
+        EXPECT_EQ(g[row.dims().index(x, 4, 4)], expected[x]) << x;
+    }
+}
+
+TEST(ReferenceChunked, MatchesAlgorithm3OnRandomGrids) {
+    std::mt19937_64 rng(77);
+    const double densities[] = {0.0, 0.01, 0.05, 0.2, 0.6, 1.0};
+    for (int trial = 0; trial < 150; ++trial) {
+        const Dims d{static_cast<std::uint32_t>(1 + rng() % 13),
+                     static_cast<std::uint32_t>(1 + rng() % 13),
+                     static_cast<std::uint32_t>(1 + rng() % 13)};
+        const std::uint32_t chunk = 1u << (rng() % 4);
+        World w(d);
+        const double density = densities[static_cast<std::size_t>(trial) % 6];
+        for (auto& v : w.voxels()) {
+            v = static_cast<double>(rng() >> 11) * 0x1.0p-53 < density ? 3 : 0;
+        }
+        const auto ref = reference_manhattan_chunked(w, chunk);
+        ASSERT_EQ(ref, brute_force_manhattan_chunked(w, chunk))
+            << "trial " << trial << " dims " << d.to_string() << " chunk " << chunk;
+        for (auto v : ref) {
+            ASSERT_LE(v, (chunk + 1) / 2) << "beyond the shell bound";
+        }
+    }
+}
+
+TEST(ReferenceChunked, ChunkAsLargeAsWorldIsGlobalPlusShell) {
+    const World w = scene_floor_spheres(Dims{16, 16, 16}, 3);
+    const auto local = reference_manhattan_chunked(w, 16);
+    const auto global = reference_manhattan(w);
+    for (std::uint32_t z = 0; z < 16; ++z) {
+        for (std::uint32_t y = 0; y < 16; ++y) {
+            for (std::uint32_t x = 0; x < 16; ++x) {
+                const std::uint32_t shell = std::min({x + 1, 16 - x, y + 1, 16 - y, z + 1, 16 - z});
+                const std::size_t i = w.dims().index(x, y, z);
+                ASSERT_EQ(local[i], std::min(global[i], shell));
+            }
+        }
+    }
 }
 
 }  // namespace

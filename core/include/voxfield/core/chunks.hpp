@@ -26,7 +26,7 @@ Box intersect(const Box& a, const Box& b);
 std::int64_t floor_div(std::int64_t a, std::int64_t b);
 
 class ChunkGrid {
-public:
+  public:
     // Throws InputError unless chunk is a power of two >= 1.
     ChunkGrid(Dims world, std::uint32_t chunk);
 
@@ -35,16 +35,31 @@ public:
     Dims chunks() const { return chunks_; }  // ceil(world / chunk) per axis
     std::size_t chunk_count() const { return chunks_.count(); }
 
-    Int3 chunk_of(Int3 voxel) const;  // floor division, may lie outside the grid
-    Box voxels_of(Int3 chunk) const;  // clipped to the world
+    Int3 chunk_of(Int3 voxel) const;            // floor division, may lie outside the grid
+    Box voxels_of(Int3 chunk) const;            // clipped to the world
     std::size_t chunk_index(Int3 chunk) const;  // x fastest over the chunk grid
     // Chunks (inclusive min, exclusive max) overlapping a voxel box, clipped to the grid.
     Box chunks_overlapping(const Box& voxels) const;
 
-private:
+  private:
     Dims world_;
     std::uint32_t chunk_;
     Dims chunks_;
 };
+
+// Throws InputError unless `chunk` is a power of two no larger than any axis of `world`
+// (the checks a user-given --chunk must pass before chunk-local work starts).
+void require_chunk_fits(Dims world, std::uint32_t chunk);
+
+// The dissertation's level-of-detail focus (section 4.6): the chunks within `size` chunks of
+// `centre` along every axis (inclusive), in chunk coordinates.
+struct Focus {
+    Int3 centre;
+    std::int64_t size = 0;
+};
+
+// The focus as a half-open box of chunk coordinates, clipped to the grid. Throws InputError
+// when the centre lies outside the chunk grid or the size is negative.
+Box focus_chunks(const ChunkGrid& grid, const Focus& focus);
 
 }  // namespace voxfield
