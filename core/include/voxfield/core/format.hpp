@@ -17,8 +17,8 @@ inline constexpr std::uint32_t kInfinite = 0xFFFFFFFFu;
 
 Format parse_format(const std::string& name);  // throws InputError listing the valid names
 std::string to_string(Format f);
-std::size_t element_size(Format f);            // 1, 2, 4, 4
-std::uint32_t max_distance(Format f);          // 255, 65535, 4294967295, 255
+std::size_t element_size(Format f);    // 1, 2, 4, 4
+std::uint32_t max_distance(Format f);  // 255, 65535, 4294967295, 255
 
 // Encodes unsaturated distances (kInfinite allowed) into `f`, little-endian, saturating at
 // max_distance(f). packed32 = (min(d,255) << 8) | rgb332 of the voxel (0 for air).

@@ -14,7 +14,7 @@ struct Rgba {
 std::uint8_t to_rgb332(Rgba c);
 
 class Palette {
-public:
+  public:
     Palette();  // MagicaVoxel's default palette
 
     static Palette magicavoxel_default();
@@ -29,7 +29,7 @@ public:
     // to_rgb332 of every entry, with entry 0 (air) forced to 0.
     std::array<std::uint8_t, 256> rgb332_table() const;
 
-private:
+  private:
     std::array<Rgba, 256> colours_{};
 };
 

@@ -26,7 +26,7 @@ struct Dims {
 Dims parse_dims(const std::string& text);
 
 class World {
-public:
+  public:
     // Throws InputError if any axis is 0 or the voxel count does not fit in memory indices.
     explicit World(Dims dims);
     World(Dims dims, std::vector<std::uint8_t> voxels);  // voxels.size() must equal count
@@ -46,7 +46,7 @@ public:
 
     std::size_t solid_count() const;
 
-private:
+  private:
     Dims dims_;
     std::vector<std::uint8_t> voxels_;
 };
