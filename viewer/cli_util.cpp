@@ -1,6 +1,8 @@
 #include "cli_util.hpp"
 
+#include <algorithm>
 #include <fstream>
+#include <vector>
 
 #include "voxfield/core/error.hpp"
 #include "voxfield_commit.hpp"
@@ -50,6 +52,69 @@ nlohmann::json device_json(const ocl::DeviceInfo& d) {
             {"max_work_group_size", d.max_work_group},
             {"available", d.available},
             {"extensions", d.extensions}};
+}
+
+namespace {
+
+// "X,Y,Z,SIZE" in chunk coordinates.
+Focus parse_focus(const std::string& text) {
+    std::vector<std::int64_t> v;
+    std::size_t pos = 0;
+    while (pos <= text.size()) {
+        const std::size_t end = std::min(text.find(',', pos), text.size());
+        const std::string part = text.substr(pos, end - pos);
+        std::size_t used = 0;
+        long long value = 0;
+        try {
+            value = std::stoll(part, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (part.empty() || used != part.size()) {
+            throw InputError("invalid --focus '" + text +
+                             "': expected X,Y,Z,SIZE (integers, chunk coordinates), e.g. 4,1,4,2");
+        }
+        v.push_back(value);
+        pos = end + 1;
+    }
+    if (v.size() != 4) {
+        throw InputError("invalid --focus '" + text + "': expected 4 integers X,Y,Z,SIZE, got " +
+                         std::to_string(v.size()));
+    }
+    return Focus{{v[0], v[1], v[2]}, v[3]};
+}
+
+}  // namespace
+
+void add_generator_flags(CLI::App& app, GeneratorFlags& flags) {
+    app.add_option("--algorithm", flags.algorithm,
+                   "Generator: exact (ours, global, exact) or one of the dissertation's: brute, "
+                   "brute-chunked, fim, fim-host, jfa, jfa-host, jfa-fim, lod, monolithic")
+        ->check(CLI::IsMember(ocl::algorithm_names()))
+        ->capture_default_str();
+    app.add_option("--chunk", flags.chunk,
+                   "Chunk-local semantics (the dissertation's): chunks of C^3 voxels, C a power "
+                   "of two, everything outside a chunk solid. Omitted: global semantics, except "
+                   "brute-chunked, lod and monolithic, which default to 16")
+        ->check(CLI::PositiveNumber);
+    app.add_option("--focus", flags.focus,
+                   "lod and monolithic: run FIM only in chunks within SIZE chunks of chunk "
+                   "X,Y,Z (X,Y,Z,SIZE in chunk coordinates; default: the centre chunk, size 1)");
+    app.add_option("--jfa-extra", flags.jfa_extra,
+                   "JFA-based algorithms: 1 or 2 extra passes at the end (JFA+1, JFA+2)")
+        ->capture_default_str();
+}
+
+ocl::GeneratorOptions generator_options(const GeneratorFlags& flags, Format format, Dims world) {
+    ocl::GeneratorOptions o;
+    o.algorithm = ocl::parse_algorithm(flags.algorithm);
+    o.format = format;
+    o.chunk = flags.chunk;
+    if (!flags.focus.empty()) {
+        o.focus = parse_focus(flags.focus);
+    }
+    o.jfa_extra = flags.jfa_extra;
+    return ocl::resolve_options(o, world);
 }
 
 std::string commit() {

@@ -7,6 +7,7 @@
 #include <functional>
 #include <string>
 
+#include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/runtime.hpp"
 
 namespace voxfield::cli {
@@ -21,9 +22,18 @@ Command add_devices(CLI::App& root);
 Command add_generate(CLI::App& root);
 Command add_bench(CLI::App& root);
 
-// The names `--algorithm` accepts today.
-inline const std::vector<std::string> kAlgorithms = {"exact"};
+// The metrics `--metric` accepts today.
 inline const std::vector<std::string> kMetrics = {"manhattan"};
+
+// Options shared by the subcommands that run generators (--algorithm, --chunk, --focus,
+// --jfa-extra), as typed, and their registration.
+struct GeneratorFlags {
+    std::string algorithm = "exact", focus;
+    std::uint32_t chunk = 0, jfa_extra = 0;
+};
+void add_generator_flags(CLI::App& app, GeneratorFlags& flags);
+// Turns the flags into resolved options for `world` (InputError on any bad combination).
+ocl::GeneratorOptions generator_options(const GeneratorFlags& flags, Format format, Dims world);
 
 // Throws InputError unless `path`'s folder exists (checked before long work starts).
 void require_output_folder(const std::filesystem::path& path);

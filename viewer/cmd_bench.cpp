@@ -7,9 +7,9 @@
 #include <sstream>
 
 #include "cli_util.hpp"
-#include "voxfield/cl/exact.hpp"
+#include "voxfield/cl/generator.hpp"
 #include "voxfield/core/accuracy.hpp"
-#include "voxfield/core/reference.hpp"
+#include "voxfield/core/error.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/stats.hpp"
 
@@ -20,7 +20,7 @@ struct BenchOptions {
     std::vector<std::string> algorithms = {"exact"};
     std::vector<std::string> sizes = {"64", "128", "256"};
     std::string device, json, csv, scene = "spheres", format = "u16", metric = "manhattan";
-    std::uint32_t repeat = 10, warmup = 2;
+    std::uint32_t repeat = 10, warmup = 2, chunk = 0;
     std::uint64_t seed = 6683787;
 };
 
@@ -59,16 +59,39 @@ int run_bench(const BenchOptions& o) {
 
     nlohmann::json results = nlohmann::json::array();
     std::ostringstream csv;
-    csv << "algorithm,x,y,z,format,scene,repeat,median_ms,mean_ms,std_ms,ci95_lo_ms,ci95_hi_ms,"
+    csv << "algorithm,x,y,z,chunk,format,scene,repeat,median_ms,mean_ms,std_ms,ci95_lo_ms,ci95_hi_"
+           "ms,"
            "min_ms,max_ms,gvox_per_s,max_error,mean_error\n";
-    std::printf("%-10s %-14s %-8s %10s %10s %10s %10s %9s\n", "algorithm", "size", "format",
-                "median ms", "mean ms", "std ms", "Gvox/s", "max err");
+    std::printf("%-14s %-14s %-6s %-8s %10s %10s %10s %10s %6s %9s\n", "algorithm", "size", "chunk",
+                "format", "median ms", "mean ms", "std ms", "Gvox/s", "iters", "max err");
     for (const auto& algorithm : o.algorithms) {
         for (const Dims& dims : sizes) {
             const std::string label = algorithm + " " + dims.to_string();
             std::cerr << "bench: " << label << ": building scene '" << o.scene << "'\n";
             const World world = make_scene(o.scene, dims, o.seed);
-            ocl::ExactManhattan job(ctx, world, Palette::magicavoxel_default(), format);
+            GeneratorFlags flags;
+            flags.algorithm = algorithm;
+            flags.chunk = algorithm == "exact" ? 0 : o.chunk;
+            std::unique_ptr<ocl::Generator> generator;
+            ocl::GeneratorOptions options;
+            try {
+                options = generator_options(flags, format, dims);
+                generator =
+                    ocl::make_generator(ctx, world, Palette::magicavoxel_default(), options);
+            } catch (const InputError& e) {
+                // Sizes an algorithm cannot do (brute force on large grids, chunks larger than
+                // the world) are reported, not silently dropped.
+                std::cerr << "bench: " << label << ": skipped: " << e.what() << '\n';
+                std::printf("%-14s %-14s skipped: %s\n", algorithm.c_str(),
+                            dims.to_string().c_str(), e.what());
+                results.push_back(
+                    {{"algorithm", algorithm},
+                     {"size", {dims.x, dims.y, dims.z}},
+                     {"chunk", flags.chunk == 0 ? nlohmann::json() : nlohmann::json(flags.chunk)},
+                     {"skipped", e.what()}});
+                continue;
+            }
+            ocl::Generator& job = *generator;
             std::vector<double> ms;
             std::vector<std::vector<double>> stage_samples;
             for (std::uint32_t i = 0; i < o.warmup + o.repeat; ++i) {
@@ -87,7 +110,8 @@ int run_bench(const BenchOptions& o) {
             double download_ms = 0;
             const auto field = job.read(&download_ms);
             std::cerr << "\rbench: " << label << ": checking against the CPU reference\n";
-            const Accuracy a = compare_to_exact(field, format, reference_manhattan(world));
+            const Accuracy a =
+                compare_to_exact(field, format, ocl::exact_reference(world, options));
             const Summary s = summarize(ms);
             nlohmann::json stages = nlohmann::json::array();
             std::string stage_text;
@@ -98,38 +122,42 @@ int run_bench(const BenchOptions& o) {
             }
             std::cerr << "bench: " << label << ": median per kernel:" << stage_text << '\n';
             const double gvox = static_cast<double>(dims.count()) / (s.median * 1e-3) / 1e9;
-            results.push_back({{"algorithm", algorithm},
-                               {"size", {dims.x, dims.y, dims.z}},
-                               {"chunk", nullptr},
-                               {"metric", o.metric},
-                               {"format", o.format},
-                               {"scene", o.scene},
-                               {"seed", o.seed},
-                               {"layout", job.layout()},
-                               {"repeat", o.repeat},
-                               {"warmup", o.warmup},
-                               {"median_ms", s.median},
-                               {"mean_ms", s.mean},
-                               {"std_ms", s.std},
-                               {"ci95_ms", {s.ci95_lo, s.ci95_hi}},
-                               {"min_ms", s.min},
-                               {"max_ms", s.max},
-                               {"gvox_per_s", gvox},
-                               {"iterations", nullptr},
-                               {"max_error", a.max_error},
-                               {"mean_error", a.mean_error},
-                               {"over_fraction", a.over_fraction},
-                               {"under_fraction", a.under_fraction},
-                               {"upload_ms", job.upload_ms()},
-                               {"download_ms", download_ms},
-                               {"stages", stages},
-                               {"samples_ms", ms}});
-            csv << algorithm << ',' << dims.x << ',' << dims.y << ',' << dims.z << ',' << o.format
-                << ',' << o.scene << ',' << o.repeat << ',' << s.median << ',' << s.mean << ','
-                << s.std << ',' << s.ci95_lo << ',' << s.ci95_hi << ',' << s.min << ',' << s.max
-                << ',' << gvox << ',' << a.max_error << ',' << a.mean_error << '\n';
-            std::printf("%-10s %-14s %-8s %10.3f %10.3f %10.3f %10.2f %9u\n", algorithm.c_str(),
-                        dims.to_string().c_str(), o.format.c_str(), s.median, s.mean, s.std, gvox,
+            results.push_back(
+                {{"algorithm", algorithm},
+                 {"size", {dims.x, dims.y, dims.z}},
+                 {"chunk", options.chunk == 0 ? nlohmann::json() : nlohmann::json(options.chunk)},
+                 {"metric", o.metric},
+                 {"format", o.format},
+                 {"scene", o.scene},
+                 {"seed", o.seed},
+                 {"variant", job.variant()},
+                 {"repeat", o.repeat},
+                 {"warmup", o.warmup},
+                 {"median_ms", s.median},
+                 {"mean_ms", s.mean},
+                 {"std_ms", s.std},
+                 {"ci95_ms", {s.ci95_lo, s.ci95_hi}},
+                 {"min_ms", s.min},
+                 {"max_ms", s.max},
+                 {"gvox_per_s", gvox},
+                 {"iterations", job.iterations()},
+                 {"max_error", a.max_error},
+                 {"mean_error", a.mean_error},
+                 {"over_fraction", a.over_fraction},
+                 {"under_fraction", a.under_fraction},
+                 {"upload_ms", job.upload_ms()},
+                 {"download_ms", download_ms},
+                 {"stages", stages},
+                 {"samples_ms", ms}});
+            csv << algorithm << ',' << dims.x << ',' << dims.y << ',' << dims.z << ','
+                << options.chunk << ',' << o.format << ',' << o.scene << ',' << o.repeat << ','
+                << s.median << ',' << s.mean << ',' << s.std << ',' << s.ci95_lo << ',' << s.ci95_hi
+                << ',' << s.min << ',' << s.max << ',' << gvox << ',' << a.max_error << ','
+                << a.mean_error << '\n';
+            std::printf("%-14s %-14s %-6s %-8s %10.3f %10.3f %10.3f %10.2f %6u %9u\n",
+                        algorithm.c_str(), dims.to_string().c_str(),
+                        options.chunk == 0 ? "-" : std::to_string(options.chunk).c_str(),
+                        o.format.c_str(), s.median, s.mean, s.std, gvox, job.iterations(),
                         a.max_error);
             std::fflush(stdout);
         }
@@ -154,11 +182,15 @@ Command add_bench(CLI::App& root) {
         "bench", "Time generators on generated worlds (kernel time from OpenCL profiling)");
     app->add_option("--algorithms", o->algorithms, "Generators to time")
         ->delimiter(',')
-        ->check(CLI::IsMember(kAlgorithms))
+        ->check(CLI::IsMember(ocl::algorithm_names()))
         ->capture_default_str();
     app->add_option("--sizes", o->sizes, "World sizes: N (a cube) or XxYxZ, comma-separated")
         ->delimiter(',')
         ->capture_default_str();
+    app->add_option("--chunk", o->chunk,
+                    "Chunk size for the dissertation's algorithms (chunk-local semantics); "
+                    "exact stays global")
+        ->check(CLI::PositiveNumber);
     app->add_option("--device", o->device, "cpu, gpu or an index from `voxfield devices`");
     app->add_option("--repeat", o->repeat, "Timed runs per size")
         ->check(CLI::PositiveNumber)

@@ -4,10 +4,9 @@
 #include <iostream>
 
 #include "cli_util.hpp"
-#include "voxfield/cl/exact.hpp"
+#include "voxfield/cl/generator.hpp"
 #include "voxfield/core/accuracy.hpp"
 #include "voxfield/core/npy.hpp"
-#include "voxfield/core/reference.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/vox.hpp"
 
@@ -15,8 +14,8 @@ namespace voxfield::cli {
 namespace {
 
 struct GenerateOptions {
-    std::string input, output, algorithm = "exact", metric = "manhattan", device, format = "u16",
-                               json;
+    GeneratorFlags generator;
+    std::string input, output, metric = "manhattan", device, format = "u16", json;
     bool stats = false;
     std::uint32_t repeat = 1, warmup = 0;
 };
@@ -34,6 +33,11 @@ NpyType npy_type(Format f) {
     return NpyType::u32;
 }
 
+bool uses_fim(ocl::Algorithm a) {
+    using A = ocl::Algorithm;
+    return a == A::fim || a == A::fim_host || a == A::jfa_fim || a == A::lod || a == A::monolithic;
+}
+
 std::string fixed(double v, int digits) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%.*f", digits, v);
@@ -48,17 +52,18 @@ int run_generate(const GenerateOptions& o) {
     }
     const VoxModel model = load_world(o.input);
     const World& world = model.world;
+    const ocl::GeneratorOptions options = generator_options(o.generator, format, world.dims());
     ocl::Context ctx(ocl::select_device(o.device));
 
     // End to end = upload + first run + download, wall clock (the first run pays page
     // faults and kernel set-up, as a one-off user would).
     using clock = std::chrono::steady_clock;
     const auto t0 = clock::now();
-    ocl::ExactManhattan job(ctx, world, model.palette, format);
+    const auto job = ocl::make_generator(ctx, world, model.palette, options);
     std::vector<double> samples;
     clock::duration first_run{};
     for (std::uint32_t i = 0; i < o.warmup + o.repeat; ++i) {
-        const double ms = job.run();
+        const double ms = job->run();
         if (i == 0) {
             first_run = clock::now() - t0;
         }
@@ -68,10 +73,10 @@ int run_generate(const GenerateOptions& o) {
     }
     ocl::FieldResult field;
     const auto t1 = clock::now();
-    field.bytes = job.read(&field.timing.download_ms);
+    field.bytes = job->read(&field.timing.download_ms);
     const double end_to_end_ms =
         std::chrono::duration<double, std::milli>(first_run + (clock::now() - t1)).count();
-    field.timing.upload_ms = job.upload_ms();
+    field.timing.upload_ms = job->upload_ms();
     field.timing.kernel_ms = summarize(samples).median;
     write_npy(o.output, npy_type(format), world.dims(), field.bytes);
 
@@ -81,34 +86,51 @@ int run_generate(const GenerateOptions& o) {
               << ctx.info().type << ")\n"
               << "world:   " << o.input << "  " << world.dims().to_string() << " = " << world.size()
               << " voxels, " << world.solid_count() << " solid\n"
-              << "field:   " << o.algorithm << ", " << o.metric << ", " << o.format << " -> "
-              << o.output << '\n'
+              << "field:   " << o.generator.algorithm << " (" << job->variant() << "), " << o.metric
+              << ", " << o.format << " -> " << o.output << '\n'
               << "time:    kernels " << fixed(field.timing.kernel_ms, 3) << " ms"
               << (samples.size() > 1 ? " median of " + std::to_string(samples.size()) : "") << " ("
               << fixed(gvox, 2) << " Gvox/s); end to end " << fixed(end_to_end_ms, 1)
               << " ms (upload " << fixed(field.timing.upload_ms, 2) << " ms, download "
               << fixed(field.timing.download_ms, 2) << " ms, incl. kernel build on first use)\n";
 
-    nlohmann::json j = {{"device", device_json(ctx.info())},
-                        {"commit", commit()},
-                        {"input", o.input},
-                        {"size", {world.dims().x, world.dims().y, world.dims().z}},
-                        {"algorithm", o.algorithm},
-                        {"metric", o.metric},
-                        {"format", o.format},
-                        {"kernel_ms", field.timing.kernel_ms},
-                        {"kernel_ms_samples", samples},
-                        {"warmup", o.warmup},
-                        {"upload_ms", field.timing.upload_ms},
-                        {"download_ms", field.timing.download_ms},
-                        {"end_to_end_ms", end_to_end_ms},
-                        {"gvox_per_s", gvox}};
+    nlohmann::json j = {
+        {"device", device_json(ctx.info())},
+        {"commit", commit()},
+        {"input", o.input},
+        {"size", {world.dims().x, world.dims().y, world.dims().z}},
+        {"algorithm", o.generator.algorithm},
+        {"chunk", options.chunk == 0 ? nlohmann::json() : nlohmann::json(options.chunk)},
+        {"variant", job->variant()},
+        {"jfa_extra", options.jfa_extra},
+        {"metric", o.metric},
+        {"format", o.format},
+        {"kernel_ms", field.timing.kernel_ms},
+        {"kernel_ms_samples", samples},
+        {"warmup", o.warmup},
+        {"upload_ms", field.timing.upload_ms},
+        {"download_ms", field.timing.download_ms},
+        {"end_to_end_ms", end_to_end_ms},
+        {"gvox_per_s", gvox},
+        {"iterations", job->iterations()}};
+    if (options.focus) {
+        const Focus& f = *options.focus;
+        j["focus"] = {f.centre.x, f.centre.y, f.centre.z, f.size};
+    }
+    if (uses_fim(options.algorithm)) {
+        std::cout << "fim:     " << job->iterations()
+                  << " passes changed the field before one changed nothing"
+                  << (options.chunk != 0 ? " (slowest chunk)" : "") << '\n';
+    }
     if (o.stats) {
-        const Accuracy a = compare_to_exact(field.bytes, format, reference_manhattan(world));
+        const Accuracy a =
+            compare_to_exact(field.bytes, format, ocl::exact_reference(world, options));
         std::cout << "stats:   " << fixed(voxels / (field.timing.kernel_ms * 1e-3) / 1e6, 1)
-                  << " Mvox/s; vs exact CPU reference: max error " << a.max_error << ", mean error "
-                  << fixed(a.mean_error, 4) << ", over-estimated "
-                  << fixed(100 * a.over_fraction, 3) << "%, under-estimated "
+                  << " Mvox/s; vs the exact CPU reference ("
+                  << (options.chunk != 0 ? "chunk-local, chunk " + std::to_string(options.chunk)
+                                         : std::string("global"))
+                  << "): max error " << a.max_error << ", mean error " << fixed(a.mean_error, 4)
+                  << ", over-estimated " << fixed(100 * a.over_fraction, 3) << "%, under-estimated "
                   << fixed(100 * a.under_fraction, 3) << "%\n";
         j["max_error"] = a.max_error;
         j["mean_error"] = a.mean_error;
@@ -130,9 +152,7 @@ Command add_generate(CLI::App& root) {
     app->add_option("INPUT", o->input, "World: MagicaVoxel .vox or uint8/16/32 .npy (Z,Y,X)")
         ->required();
     app->add_option("-o,--output", o->output, "Output .npy of shape (Z,Y,X)")->required();
-    app->add_option("--algorithm", o->algorithm, "Generator")
-        ->check(CLI::IsMember(kAlgorithms))
-        ->capture_default_str();
+    add_generator_flags(*app, o->generator);
     app->add_option("--metric", o->metric, "Distance metric")
         ->check(CLI::IsMember(kMetrics))
         ->capture_default_str();
@@ -144,7 +164,8 @@ Command add_generate(CLI::App& root) {
         ->check(CLI::IsMember({"u8", "u16", "u32", "packed32"}))
         ->capture_default_str();
     app->add_flag("--stats", o->stats,
-                  "Also report voxels/s and accuracy against the exact CPU reference");
+                  "Also report voxels/s and accuracy against the exact CPU reference of the "
+                  "same semantics (global, or chunk-local with --chunk)");
     app->add_option("--json", o->json, "Write timings (and --stats accuracy) to this JSON file");
     app->add_option("--repeat", o->repeat,
                     "Run the transform this many times and report the median kernel time")

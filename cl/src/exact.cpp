@@ -58,9 +58,7 @@ std::uint32_t seg_k(std::uint32_t n) {
 
 ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& palette,
                                Format format, Layout layout)
-    : ctx_(ctx),
-      dims_(world.dims()),
-      format_(format),
+    : Generator(ctx, world.dims(), format),
       gpu_layout_(layout == Layout::automatic ? !ctx.is_cpu() : layout == Layout::gpu) {
     const auto& info = ctx.info();
     const WorkType wt = work_type(format);
@@ -216,47 +214,23 @@ ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& 
     });
 }
 
-const char* ExactManhattan::layout() const {
-    return gpu_layout_ ? "gpu" : "cpu";
+std::string ExactManhattan::variant() const {
+    return gpu_layout_ ? "gpu layout" : "cpu layout";
 }
 
 double ExactManhattan::run() {
     return cl_call("running exact_manhattan.cl on " + dims_.to_string(), [&] {
         auto& q = ctx_.queue();
-        std::vector<cl::Event> events(stages_.size());
-        for (std::size_t i = 0; i < stages_.size(); ++i) {
-            q.enqueueNDRangeKernel(stages_[i].kernel, cl::NullRange, stages_[i].global,
-                                   stages_[i].local, nullptr, &events[i]);
+        std::vector<std::pair<std::string, cl::Event>> events;
+        for (const Stage& stage : stages_) {
+            events.emplace_back(stage.name, cl::Event());
+            q.enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global, stage.local, nullptr,
+                                   &events.back().second);
         }
         q.finish();
-        stage_ms_.clear();
-        for (std::size_t i = 0; i < stages_.size(); ++i) {
-            stage_ms_.emplace_back(stages_[i].name, elapsed_ms(events[i], events[i]));
-        }
-        return elapsed_ms(events.front(), events.back());
+        record_stages(events);
+        return elapsed_ms(events.front().second, events.back().second);
     });
-}
-
-std::vector<std::uint8_t> ExactManhattan::read(double* download_ms) {
-    return cl_call("reading the field of " + dims_.to_string(), [&] {
-        std::vector<std::uint8_t> bytes(dims_.count() * element_size(format_));
-        cl::Event ev;
-        ctx_.queue().enqueueReadBuffer(out_, CL_TRUE, 0, bytes.size(), bytes.data(), nullptr, &ev);
-        if (download_ms != nullptr) {
-            *download_ms = elapsed_ms(ev, ev);
-        }
-        return bytes;
-    });
-}
-
-FieldResult generate_exact(Context& ctx, const World& world, const Palette& palette, Format format,
-                           Layout layout) {
-    ExactManhattan job(ctx, world, palette, format, layout);
-    FieldResult result;
-    result.timing.upload_ms = job.upload_ms();
-    result.timing.kernel_ms = job.run();
-    result.bytes = job.read(&result.timing.download_ms);
-    return result;
 }
 
 }  // namespace voxfield::ocl

@@ -5,6 +5,7 @@
 #include <memory>
 #include <random>
 
+#include "cl_test_util.hpp"
 #include "voxfield/cl/exact.hpp"
 #include "voxfield/core/reference.hpp"
 #include "voxfield/core/scenes.hpp"
@@ -18,20 +19,13 @@ using ocl::Layout;
 const Format kFormats[] = {Format::u8, Format::u16, Format::u32, Format::packed32};
 const Layout kLayouts[] = {Layout::cpu, Layout::gpu};
 
-// Kernel tests run on PoCL explicitly; without it they fail (CI installs it).
-ocl::Context& pocl() {
-    static std::unique_ptr<ocl::Context> ctx = [] {
-        for (const auto& d : ocl::list_devices()) {
-            if (d.platform.find("Portable Computing Language") != std::string::npos) {
-                return std::make_unique<ocl::Context>(d);
-            }
-        }
-        return std::unique_ptr<ocl::Context>();
-    }();
-    if (!ctx) {
-        throw std::runtime_error("PoCL (pocl-opencl-icd) is not installed: no device to test");
-    }
-    return *ctx;
+using test::pocl;
+
+ocl::GeneratorOptions exact_options(Format f, Layout layout = Layout::automatic) {
+    ocl::GeneratorOptions o;
+    o.format = f;
+    o.layout = layout;
+    return o;
 }
 
 const char* name(Layout l) {
@@ -44,20 +38,11 @@ void expect_exact(const World& world, const Palette& palette, const std::string&
     for (Format f : kFormats) {
         const auto want = encode_field(exact, world, palette, f);
         for (Layout layout : kLayouts) {
-            const auto got = ocl::generate_exact(pocl(), world, palette, f, layout).bytes;
-            ASSERT_EQ(got.size(), want.size());
-            if (got != want) {
-                std::size_t i = 0;
-                const std::size_t es = element_size(f);
-                while (i < want.size() && got[i] == want[i]) {
-                    ++i;
-                }
-                const std::size_t v = i / es;
-                const Dims& d = world.dims();
-                FAIL() << what << " " << d.to_string() << " format " << to_string(f) << " layout "
-                       << name(layout) << ": first difference at voxel (" << v % d.x << ","
-                       << v / d.x % d.y << "," << v / d.x / d.y << "): got "
-                       << decode_distance(got, f, v) << ", want " << decode_distance(want, f, v);
+            const auto got = ocl::generate(pocl(), world, palette, exact_options(f, layout)).bytes;
+            const std::string diff = test::first_difference(got, want, f, world.dims());
+            if (!diff.empty()) {
+                FAIL() << what << " " << world.dims().to_string() << " format " << to_string(f)
+                       << " layout " << name(layout) << ": " << diff;
             }
         }
     }
@@ -125,7 +110,7 @@ TEST(ExactManhattan, BundledModels) {
 TEST(ExactManhattan, Handles512Cubed) {
     const World w = scene_floor_spheres(Dims{512, 512, 512}, 6683787);
     const auto want = encode_field(reference_manhattan(w), w, Palette(), Format::u8);
-    const auto got = ocl::generate_exact(pocl(), w, Palette(), Format::u8).bytes;
+    const auto got = ocl::generate(pocl(), w, Palette(), exact_options(Format::u8)).bytes;
     EXPECT_TRUE(got == want);
 }
 

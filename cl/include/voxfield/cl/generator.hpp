@@ -1,0 +1,134 @@
+#pragma once
+// Every distance-field generator behind one interface: `exact` (ours) and the family of the
+// dissertation (chapter 4), selected by name as DESIGN §4 lists them.
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "voxfield/cl/runtime.hpp"
+#include "voxfield/core/chunks.hpp"
+#include "voxfield/core/format.hpp"
+#include "voxfield/core/palette.hpp"
+#include "voxfield/core/world.hpp"
+
+namespace voxfield::ocl {
+
+enum class Algorithm {
+    exact,
+    brute,
+    brute_chunked,
+    fim_host,
+    fim,
+    jfa_host,
+    jfa,
+    jfa_fim,
+    lod,
+    monolithic
+};
+
+// Names in DESIGN §4 order ("exact", "brute", "brute-chunked", ...).
+const std::vector<std::string>& algorithm_names();
+// Throws InputError naming the known algorithms.
+Algorithm parse_algorithm(const std::string& name);
+std::string to_string(Algorithm a);
+
+// jfa, jfa-host and lod can over-estimate (never under-estimate); the rest are exact for
+// their semantics (lod and monolithic only inside their focus).
+bool is_approximate(Algorithm a);
+
+// brute-chunked, lod and monolithic are chunk-local by definition; without --chunk they use
+// the dissertation's 16^3 chunks.
+inline constexpr std::uint32_t kDefaultChunk = 16;
+bool always_chunked(Algorithm a);
+
+// Which kernel layout `exact` runs: `automatic` picks by device type; tests force each one
+// on PoCL so that the GPU kernels are checked where CI runs.
+enum class Layout { automatic, cpu, gpu };
+
+struct GeneratorOptions {
+    Algorithm algorithm = Algorithm::exact;
+    Format format = Format::u16;
+    // 0: global semantics (DESIGN §3); C: chunk-local with the solid padding shell.
+    std::uint32_t chunk = 0;
+    // lod and monolithic: FIM only in these chunks; default: the centre chunk, size 1.
+    std::optional<Focus> focus;
+    // JFA+1 / JFA+2 (Rong & Tan): extra passes at steps (2,) 1 after the regular ones.
+    std::uint32_t jfa_extra = 0;
+    Layout layout = Layout::automatic;  // exact only
+};
+
+// Fills in defaults (chunk for always-chunked algorithms, focus) and checks the options
+// against the world; throws InputError with what to change.
+GeneratorOptions resolve_options(const GeneratorOptions& options, Dims world);
+
+// The field a generator must match (exactly, or as the bound of an approximate one):
+// global or chunk-local by options.chunk. Unsaturated, kInfinite where nothing is reached.
+std::vector<std::uint32_t> exact_reference(const World& world, const GeneratorOptions& options);
+
+// A world resident on the device with its output buffer, transformed any number of times
+// (benchmarks repeat run() without re-uploading).
+class Generator {
+  public:
+    virtual ~Generator() = default;
+    Generator(const Generator&) = delete;
+    Generator& operator=(const Generator&) = delete;
+
+    // Enqueues the transform, waits, and returns the time from the first kernel's start to
+    // the last one's end (profiling events; host round trips of the *-host variants
+    // included, as that is what they cost).
+    virtual double run() = 0;
+    // Reads the field back (element_size(format) bytes per voxel, little-endian).
+    std::vector<std::uint8_t> read(double* download_ms = nullptr);
+
+    double upload_ms() const { return upload_ms_; }
+    // Per-kernel time of the last run(), in first-enqueue order, summed over repeated
+    // launches of one kernel: {kernel name, ms}.
+    const std::vector<std::pair<std::string, double>>& stage_ms() const { return stage_ms_; }
+    // FIM passes of the last run that changed some voxel (the slowest chunk's count for
+    // per-chunk kernels); 0 for algorithms without FIM.
+    std::uint32_t iterations() const { return iterations_; }
+    // Short description of how it ran (kernel layout, chunking), for reports.
+    virtual std::string variant() const = 0;
+    // The buffer the field is written to (for later consumers such as the renderer).
+    const cl::Buffer& field_buffer() const { return out_; }
+
+  protected:
+    Generator(Context& ctx, Dims dims, Format format) : ctx_(ctx), dims_(dims), format_(format) {}
+    // Records stage times from (name, event) pairs in enqueue order.
+    void record_stages(const std::vector<std::pair<std::string, cl::Event>>& events);
+
+    Context& ctx_;
+    Dims dims_;
+    Format format_;
+    cl::Buffer out_;
+    double upload_ms_ = 0;
+    std::uint32_t iterations_ = 0;
+    std::vector<std::pair<std::string, double>> stage_ms_;
+};
+
+// Uploads the world and palette and sets up the kernels of options.algorithm (options as
+// returned by resolve_options). Throws InputError for work it refuses (brute force on a
+// grid that would take minutes), ClError / BuildError for device failures.
+std::unique_ptr<Generator> make_generator(Context& ctx, const World& world, const Palette& palette,
+                                          const GeneratorOptions& options);
+
+struct FieldTiming {
+    double kernel_ms = 0;    // first kernel start to last kernel end (profiling events)
+    double upload_ms = 0;    // world + palette upload (profiling events)
+    double download_ms = 0;  // field readback (profiling events)
+};
+
+struct FieldResult {
+    std::vector<std::uint8_t> bytes;
+    FieldTiming timing;
+    std::uint32_t iterations = 0;
+};
+
+// Uploads, transforms once and reads back.
+FieldResult generate(Context& ctx, const World& world, const Palette& palette,
+                     const GeneratorOptions& options);
+
+}  // namespace voxfield::ocl

@@ -1,0 +1,168 @@
+// Algorithm names, option checks and the pieces every generator shares.
+#include "voxfield/cl/generator.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "classic.hpp"
+#include "voxfield/cl/exact.hpp"
+#include "voxfield/core/error.hpp"
+#include "voxfield/core/reference.hpp"
+
+namespace voxfield::ocl {
+namespace {
+
+struct Named {
+    Algorithm algorithm;
+    const char* name;
+};
+
+constexpr Named kNames[] = {
+    {Algorithm::exact, "exact"},
+    {Algorithm::brute, "brute"},
+    {Algorithm::brute_chunked, "brute-chunked"},
+    {Algorithm::fim, "fim"},
+    {Algorithm::fim_host, "fim-host"},
+    {Algorithm::jfa, "jfa"},
+    {Algorithm::jfa_host, "jfa-host"},
+    {Algorithm::jfa_fim, "jfa-fim"},
+    {Algorithm::lod, "lod"},
+    {Algorithm::monolithic, "monolithic"},
+};
+
+bool uses_jfa(Algorithm a) {
+    return a == Algorithm::jfa || a == Algorithm::jfa_host || a == Algorithm::jfa_fim ||
+           a == Algorithm::lod || a == Algorithm::monolithic;
+}
+
+}  // namespace
+
+const std::vector<std::string>& algorithm_names() {
+    static const std::vector<std::string> names = [] {
+        std::vector<std::string> v;
+        for (const Named& n : kNames) {
+            v.emplace_back(n.name);
+        }
+        return v;
+    }();
+    return names;
+}
+
+Algorithm parse_algorithm(const std::string& name) {
+    for (const Named& n : kNames) {
+        if (name == n.name) {
+            return n.algorithm;
+        }
+    }
+    std::string known;
+    for (const auto& n : algorithm_names()) {
+        known += (known.empty() ? "" : ", ") + n;
+    }
+    throw InputError("unknown algorithm '" + name + "': expected one of " + known);
+}
+
+std::string to_string(Algorithm a) {
+    for (const Named& n : kNames) {
+        if (n.algorithm == a) {
+            return n.name;
+        }
+    }
+    throw std::invalid_argument("unknown Algorithm value");
+}
+
+bool is_approximate(Algorithm a) {
+    return a == Algorithm::jfa || a == Algorithm::jfa_host || a == Algorithm::lod;
+}
+
+bool always_chunked(Algorithm a) {
+    return a == Algorithm::brute_chunked || a == Algorithm::lod || a == Algorithm::monolithic;
+}
+
+GeneratorOptions resolve_options(const GeneratorOptions& options, Dims world) {
+    GeneratorOptions o = options;
+    const std::string name = to_string(o.algorithm);
+    if (o.algorithm == Algorithm::exact && o.chunk != 0) {
+        throw InputError(
+            "--chunk does not apply to exact, which computes the global field; chunk-local "
+            "semantics belong to the dissertation's algorithms (brute-chunked, fim, jfa, ...)");
+    }
+    if (o.chunk == 0 && always_chunked(o.algorithm)) {
+        o.chunk = kDefaultChunk;
+    }
+    if (o.chunk != 0) {
+        require_chunk_fits(world, o.chunk);
+    }
+    const bool focused = o.algorithm == Algorithm::lod || o.algorithm == Algorithm::monolithic;
+    if (o.focus && !focused) {
+        throw InputError("--focus applies to lod and monolithic only, not to " + name);
+    }
+    if (focused) {
+        const ChunkGrid grid(world, o.chunk);
+        if (!o.focus) {
+            const Dims n = grid.chunks();
+            o.focus = Focus{{n.x / 2, n.y / 2, n.z / 2}, 1};
+        }
+        focus_chunks(grid, *o.focus);  // throws when outside the grid
+    }
+    if (o.jfa_extra > 2) {
+        throw InputError("--jfa-extra " + std::to_string(o.jfa_extra) +
+                         ": JFA+1 and JFA+2 are supported (0, 1 or 2 extra passes)");
+    }
+    if (o.jfa_extra != 0 && !uses_jfa(o.algorithm)) {
+        throw InputError("--jfa-extra applies to the JFA-based algorithms, not to " + name);
+    }
+    return o;
+}
+
+std::vector<std::uint32_t> exact_reference(const World& world, const GeneratorOptions& options) {
+    return options.chunk == 0 ? reference_manhattan(world)
+                              : reference_manhattan_chunked(world, options.chunk);
+}
+
+std::vector<std::uint8_t> Generator::read(double* download_ms) {
+    return cl_call("reading the field of " + dims_.to_string(), [&] {
+        std::vector<std::uint8_t> bytes(dims_.count() * element_size(format_));
+        cl::Event ev;
+        ctx_.queue().enqueueReadBuffer(out_, CL_TRUE, 0, bytes.size(), bytes.data(), nullptr, &ev);
+        if (download_ms != nullptr) {
+            *download_ms = elapsed_ms(ev, ev);
+        }
+        return bytes;
+    });
+}
+
+void Generator::record_stages(const std::vector<std::pair<std::string, cl::Event>>& events) {
+    stage_ms_.clear();
+    for (const auto& [name, event] : events) {
+        const double ms = elapsed_ms(event, event);
+        auto it = std::find_if(stage_ms_.begin(), stage_ms_.end(),
+                               [&](const auto& s) { return s.first == name; });
+        if (it == stage_ms_.end()) {
+            stage_ms_.emplace_back(name, ms);
+        } else {
+            it->second += ms;
+        }
+    }
+}
+
+std::unique_ptr<Generator> make_generator(Context& ctx, const World& world, const Palette& palette,
+                                          const GeneratorOptions& options) {
+    const GeneratorOptions o = resolve_options(options, world.dims());
+    if (o.algorithm == Algorithm::exact) {
+        return std::make_unique<ExactManhattan>(ctx, world, palette, o.format, o.layout);
+    }
+    return make_classic(ctx, world, palette, o);
+}
+
+FieldResult generate(Context& ctx, const World& world, const Palette& palette,
+                     const GeneratorOptions& options) {
+    auto job = make_generator(ctx, world, palette, options);
+    FieldResult result;
+    result.timing.upload_ms = job->upload_ms();
+    result.timing.kernel_ms = job->run();
+    result.iterations = job->iterations();
+    result.bytes = job->read(&result.timing.download_ms);
+    return result;
+}
+
+}  // namespace voxfield::ocl
