@@ -51,6 +51,10 @@ class Classic : public Generator {
     using Events = std::vector<std::pair<std::string, cl::Event>>;
     void enqueue(Events& events, const char* name, cl::Kernel& kernel, const cl::NDRange& global,
                  const cl::NDRange& local);
+    // Algorithm 1, staging rows of the world in local memory.
+    void enqueue_brute_global(Events& events);
+    // Algorithm 3; also `brute` with --chunk, which is the same thing.
+    void enqueue_brute_chunked(Events& events);
     void enqueue_jfa(Events& events, bool wait_each_pass);
     // Enqueues FIM passes over fim_box_; the host reads the change counter after each pass
     // (fim-host) or enqueues every pass up front (the others). Returns the passes that
@@ -220,6 +224,34 @@ void Classic::enqueue(Events& events, const char* name, cl::Kernel& kernel,
                                       &events.back().second);
 }
 
+void Classic::enqueue_brute_global(Events& events) {
+    // Whole rows staged per group, about 4 KiB of them.
+    const std::uint32_t rows = std::max<std::uint32_t>(1, 4096 / dims_.x);
+    const std::size_t tile = std::size_t{rows} * dims_.x;
+    if (tile > ctx_.info().local_mem) {
+        throw ClError("clEnqueueNDRangeKernel", CL_OUT_OF_RESOURCES,
+                      to_string(o_.algorithm) + " on " + dims_.to_string() + ": a row of " +
+                          std::to_string(dims_.x) + " voxels does not fit the local memory of " +
+                          ctx_.info().name);
+    }
+    cl::Kernel k(program_, "brute_global");
+    k.setArg(0, vox_);
+    k.setArg(1, dist_);
+    k.setArg(2, d_);
+    k.setArg(3, cl_uint{rows});
+    k.setArg(4, cl::Local(tile));
+    enqueue(events, "brute_global", k, grid1_, local1_);
+}
+
+void Classic::enqueue_brute_chunked(Events& events) {
+    cl::Kernel k(program_, "brute_chunked");
+    k.setArg(0, vox_);
+    k.setArg(1, dist_);
+    k.setArg(2, d_);
+    k.setArg(3, cl_uint{o_.chunk});
+    enqueue(events, "brute_chunked", k, grid3_, local3_);
+}
+
 void Classic::enqueue_jfa(Events& events, bool wait_each_pass) {
     cl::Kernel init(program_, "jfa_init");
     init.setArg(0, vox_);
@@ -288,34 +320,16 @@ double Classic::run() {
         bool count_fim_after = false;
         iterations_ = 0;
         switch (o_.algorithm) {
-            case Algorithm::brute: {
-                // Whole rows staged per group, about 4 KiB of them.
-                const std::uint32_t rows = std::max<std::uint32_t>(1, 4096 / dims_.x);
-                const std::size_t tile = std::size_t{rows} * dims_.x;
-                if (tile > ctx_.info().local_mem) {
-                    throw ClError("clEnqueueNDRangeKernel", CL_OUT_OF_RESOURCES,
-                                  what + ": a row of " + std::to_string(dims_.x) +
-                                      " voxels does not fit the local memory of " +
-                                      ctx_.info().name);
+            case Algorithm::brute:
+                if (o_.chunk != 0) {
+                    enqueue_brute_chunked(events);
+                } else {
+                    enqueue_brute_global(events);
                 }
-                cl::Kernel k(program_, "brute_global");
-                k.setArg(0, vox_);
-                k.setArg(1, dist_);
-                k.setArg(2, d_);
-                k.setArg(3, cl_uint{rows});
-                k.setArg(4, cl::Local(tile));
-                enqueue(events, "brute_global", k, grid1_, local1_);
                 break;
-            }
-            case Algorithm::brute_chunked: {
-                cl::Kernel k(program_, "brute_chunked");
-                k.setArg(0, vox_);
-                k.setArg(1, dist_);
-                k.setArg(2, d_);
-                k.setArg(3, cl_uint{o_.chunk});
-                enqueue(events, "brute_chunked", k, grid3_, local3_);
+            case Algorithm::brute_chunked:
+                enqueue_brute_chunked(events);
                 break;
-            }
             case Algorithm::fim_host:
             case Algorithm::fim: {
                 cl::Kernel init(program_, "fim_init");
