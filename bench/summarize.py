@@ -13,11 +13,19 @@ def bench_rows(path, doc):
     device = doc["device"]["name"]
     for r in doc["results"]:
         size = "x".join(str(v) for v in r["size"])
+        algorithm = r.get("algorithm", "exact")
+        chunk = r.get("chunk") or "-"
+        head = f"| {device} | {doc['commit'][:8]} | {doc['date'][:10]} | {algorithm} | {size} | {chunk} |"
+        if "skipped" in r:
+            yield head + f" skipped: {r['skipped']} |" + " |" * 9
+            continue
         lo, hi = r["ci95_ms"]
         stages = ", ".join(f"{s['kernel']} {s['median_ms']:.3f}" for s in r.get("stages", []))
-        yield (f"| {device} | {doc['commit'][:8]} | {doc['date'][:10]} | {size} | {r['format']} |"
-               f" {r['median_ms']:.3f} | {lo:.3f}-{hi:.3f} | {r['gvox_per_s']:.2f} |"
-               f" {r['max_error']} | {stages} |")
+        iterations = r.get("iterations") or "-"
+        over = 100 * r.get("over_fraction", 0)
+        yield (head + f" {r['format']} | {r['median_ms']:.3f} | {lo:.3f}-{hi:.3f} |"
+               f" {r['gvox_per_s']:.2f} | {iterations} | {r['max_error']} |"
+               f" {r['mean_error']:.4f} | {over:.3f} | {stages} |")
 
 
 def scipy_row(path, doc):
@@ -37,9 +45,11 @@ def main(paths):
         elif "scipy_ms_median" in doc:
             scipy.append(scipy_row(path, doc))
     if bench:
-        print("| device | commit | date | size | format | median ms | 95% CI ms | Gvox/s |"
-              " max error | per kernel (median ms) |")
-        print("| --- | --- | --- | --- | --- | ---: | --- | ---: | ---: | --- |")
+        print("| device | commit | date | algorithm | size | chunk | format | median ms |"
+              " 95% CI ms | Gvox/s | FIM passes | max error | mean error | over-estimated % |"
+              " per kernel (median ms) |")
+        print("| --- | --- | --- | --- | --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: |"
+              " ---: | --- |")
         print("\n".join(bench))
     if scipy:
         if bench:

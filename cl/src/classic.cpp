@@ -35,10 +35,10 @@ std::uint32_t next_pow2(std::uint32_t v) {
 }
 
 // Voxel pairs per second and compute unit that brute force sustains, measured with
-// `voxfield bench --algorithms brute` (PoCL on a 2-core x86: ~2.5e9 per core; H200: ~9e9
+// `voxfield bench --algorithms brute` (PoCL on a 2-core x86: ~2.5e9 per core; H200: ~3e10
 // per SM). Used only to refuse grids that would take more than kBruteLimitS.
 constexpr double kBrutePairsPerUnitCpu = 2e9;
-constexpr double kBrutePairsPerUnitGpu = 9e9;
+constexpr double kBrutePairsPerUnitGpu = 2e10;
 constexpr double kBruteLimitS = 60;
 
 class Classic : public Generator {
