@@ -96,7 +96,7 @@ void add_generator_flags(CLI::App& app, GeneratorFlags& flags) {
                    "Chunk-local semantics (the dissertation's): chunks of C^3 voxels, C a power "
                    "of two, everything outside a chunk solid. Omitted: global semantics, except "
                    "brute-chunked, lod and monolithic, which default to 16")
-        ->check(CLI::PositiveNumber);
+        ->check(CLI::Range(1u, 1u << 20));
     app.add_option("--focus", flags.focus,
                    "lod and monolithic: run FIM only in chunks within SIZE chunks of chunk "
                    "X,Y,Z (X,Y,Z,SIZE in chunk coordinates; default: the centre chunk, size 1)");

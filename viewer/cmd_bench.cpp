@@ -190,7 +190,7 @@ Command add_bench(CLI::App& root) {
     app->add_option("--chunk", o->chunk,
                     "Chunk size for the dissertation's algorithms (chunk-local semantics); "
                     "exact stays global")
-        ->check(CLI::PositiveNumber);
+        ->check(CLI::Range(1u, 1u << 20));
     app->add_option("--device", o->device, "cpu, gpu or an index from `voxfield devices`");
     app->add_option("--repeat", o->repeat, "Timed runs per size")
         ->check(CLI::PositiveNumber)

@@ -115,7 +115,9 @@ Box focus_chunks(const ChunkGrid& grid, const Focus& focus) {
     if (focus.size < 0) {
         throw InputError("focus size " + std::to_string(focus.size) + " is negative");
     }
-    const std::int64_t s = focus.size;
+    // Beyond the grid's largest extent a larger size covers nothing more (and must not
+    // overflow the box arithmetic).
+    const std::int64_t s = std::min<std::int64_t>(focus.size, std::max({n.x, n.y, n.z}));
     const Box raw{{c.x - s, c.y - s, c.z - s}, {c.x + s + 1, c.y + s + 1, c.z + s + 1}};
     return intersect(raw, Box{{0, 0, 0}, {n.x, n.y, n.z}});
 }

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <stdexcept>
 
 #include "test_util.hpp"
@@ -122,6 +123,8 @@ TEST(Chunks, FocusBox) {
     EXPECT_EQ(focus_chunks(grid, {{1, 1, 1}, 0}), (Box{{1, 1, 1}, {2, 2, 2}}));
     EXPECT_EQ(focus_chunks(grid, {{1, 0, 2}, 1}), (Box{{0, 0, 1}, {3, 2, 3}}));
     EXPECT_EQ(focus_chunks(grid, {{0, 0, 0}, 9}), (Box{{0, 0, 0}, {4, 2, 3}}));
+    EXPECT_EQ(focus_chunks(grid, {{3, 1, 2}, std::numeric_limits<std::int64_t>::max()}),
+              (Box{{0, 0, 0}, {4, 2, 3}}));
     EXPECT_THROW(focus_chunks(grid, {{4, 0, 0}, 1}), InputError);
     EXPECT_THROW(focus_chunks(grid, {{0, -1, 0}, 1}), InputError);
     EXPECT_THROW(focus_chunks(grid, {{0, 0, 0}, -1}), InputError);
