@@ -15,6 +15,8 @@ class ExactManhattan : public Generator {
 
     double run() override;
     std::string variant() const override;  // "cpu layout" or "gpu layout"
+    // The world on the device (uint8 per voxel); writes to it show in the next run().
+    const cl::Buffer& voxels_buffer() const { return voxels_; }
 
   private:
     bool gpu_layout_;

@@ -1,0 +1,63 @@
+#pragma once
+// A world and its distance field kept on the device across edits: each batch of brush edits
+// (one frame) uploads only the changed voxels and recomputes only what the edits can change,
+// in one submission with no host wait per region or chunk.
+//
+// Global semantics (`exact`): exact after every batch. For an edit whose changed voxels have
+// the bounding box B, only R = {p : old d(p) >= L1(p, B)} can change (outside R the old
+// nearest solid is nearer than anything edited). The device finds R's bounding box W by
+// scanning L-infinity shells around B outward until a shell holds no voxel of R (R is
+// star-shaped towards B: one step towards B lowers L1(p, B) by 1 and d by at most 1), then
+// recomputes W by separable min-plus sweeps from sources that are already right: the new
+// solids, and the old values outside R in W and in W's one-voxel ring. If R reaches further
+// than `max_margin` voxels from B (by default: no limit inside the world) the batch falls
+// back to a full regeneration (still exact, reported as such).
+//
+// Chunk-local algorithms (the dissertation's): the dirty chunks of the batch are recomputed
+// with the algorithm's own per-chunk kernel, all in one launch (one work-group per chunk).
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "voxfield/cl/generator.hpp"
+#include "voxfield/core/brush.hpp"
+#include "voxfield/core/chunks.hpp"
+
+namespace voxfield::ocl {
+
+struct UpdateStats {
+    double update_ms = 0;  // the batch's device time: uploads and kernels (profiling events)
+    std::uint64_t voxels_recomputed = 0;  // voxels whose distance the batch recomputed
+    std::vector<Box> regions;             // the voxel boxes recomputed (global: W per edit)
+    bool full_regeneration = false;       // a region grew past max_margin
+    std::vector<EditResult> edits;        // what each brush changed in the world
+};
+
+class IncrementalField {
+  public:
+    // options: resolved; algorithm exact (global) or a chunk-local algorithm (options.chunk
+    // != 0: brute-chunked, fim, fim-host, jfa, jfa-host, jfa-fim, lod, monolithic). Throws
+    // InputError for algorithms it cannot update (global brute/fim/jfa variants).
+    IncrementalField(Context& ctx, World world, const Palette& palette,
+                     const GeneratorOptions& options, std::uint32_t max_margin = kNoMargin);
+    static constexpr std::uint32_t kNoMargin = 0xFFFFFFFFu;
+    ~IncrementalField();
+    IncrementalField(const IncrementalField&) = delete;
+    IncrementalField& operator=(const IncrementalField&) = delete;
+
+    // Regenerates the whole field; returns its device time in ms.
+    double regenerate();
+    // Applies the brushes in order to the world and updates the field (one batch).
+    UpdateStats apply(const std::vector<Brush>& batch);
+
+    const World& world() const;
+    // The field in options.format, as generate() would write it.
+    std::vector<std::uint8_t> read();
+    const cl::Buffer& field_buffer() const;
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace voxfield::ocl

@@ -1,0 +1,208 @@
+// Exact incremental update of a global Manhattan field after edits (ours; see
+// cl/include/voxfield/cl/incremental.hpp for the method and why it is exact).
+//
+// `dist` holds exact distances (uint, VF_FAR where no solid exists; classic_common.cl's
+// vf_encode saturates it). Boxes are int4 with w unused; b_lo/b_hi is the edit's changed box
+// B (half-open).
+
+#define VF_FAR 0xFFFFFFFFu
+
+inline uint vf_sat_inc(uint v) {
+    return v == VF_FAR ? VF_FAR : v + 1u;
+}
+
+// L1 distance from p to the box [lo, hi).
+inline uint vf_l1_to_box(int3 p, int3 lo, int3 hi) {
+    const int3 gap = max(max(lo - p, p - (hi - (int3)(1))), (int3)(0));
+    return (uint)(gap.x + gap.y + gap.z);
+}
+
+// Writes the edit's new voxel values: changes[2k] = linear index, changes[2k+1] = value.
+kernel void inc_scatter(global uchar* vox, global const uint* changes, uint first, uint count) {
+    const uint k = get_global_id(0);
+    if (k < count) {
+        vox[changes[2 * (first + k)]] = (uchar)changes[2 * (first + k) + 1];
+    }
+}
+
+// Per-block maxima of `dist` (VF_BLOCK^3 voxels per block) bound R from outside: a voxel of
+// R = {p : dist(p) >= L1(p, B)} can only lie in a block whose maximum reaches the block's
+// L1 distance to B. `regions + 8 * slot` holds the edit's box W, stored so that zero is the
+// neutral start and atomic_max accumulates it: {d.x - W.lo.x, d.y - W.lo.y, d.z - W.lo.z,
+// W.hi.x, W.hi.y, W.hi.z, overflow}.
+#define VF_BLOCK 8
+
+inline int4 vf_blocks(int4 d) {
+    return (d + (int4)(VF_BLOCK - 1)) / (int4)(VF_BLOCK);
+}
+
+// The maximum over each block of the box [lo, lo + size) of blocks.
+kernel void inc_block_max(global const uint* dist, global uint* block_max, int4 d, int4 lo,
+                          int4 size, global const int* regions, int slot) {
+    const int3 b = lo.xyz + (int3)(get_global_id(0), get_global_id(1), get_global_id(2));
+    if ((int)get_global_id(0) >= size.x || (int)get_global_id(1) >= size.y ||
+        (int)get_global_id(2) >= size.z) {
+        return;
+    }
+    if (slot >= 0) {
+        // Only the blocks of the edit's W changed.
+        global const int* r = regions + 8 * slot;
+        const int3 w_lo = d.xyz - (int3)(r[0], r[1], r[2]);
+        const int3 w_hi = (int3)(r[3], r[4], r[5]);
+        if (any(b * VF_BLOCK >= w_hi) || any((b + 1) * VF_BLOCK <= w_lo)) {
+            return;
+        }
+    }
+    const int3 v_lo = b * VF_BLOCK;
+    const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
+    uint m = 0;
+    for (int z = v_lo.z; z < v_hi.z; ++z) {
+        for (int y = v_lo.y; y < v_hi.y; ++y) {
+            const int row = (z * d.y + y) * d.x;
+            for (int x = v_lo.x; x < v_hi.x; ++x) {
+                m = max(m, dist[row + x]);
+            }
+        }
+    }
+    const int4 nb = vf_blocks(d);
+    block_max[(b.z * nb.y + b.y) * nb.x + b.x] = m;
+}
+
+// W: the bounding box of the candidate blocks within the cap box of blocks [lo, lo + size)
+// (B grown by the margin). A candidate on a face of the cap box that the margin (not the
+// world) cut sets overflow: R may reach further.
+kernel void inc_bounds(global const uint* block_max, int4 d, int4 b_lo, int4 b_hi, int4 lo,
+                       int4 size, global int* regions, int slot) {
+    const int3 b = lo.xyz + (int3)(get_global_id(0), get_global_id(1), get_global_id(2));
+    if ((int)get_global_id(0) >= size.x || (int)get_global_id(1) >= size.y ||
+        (int)get_global_id(2) >= size.z) {
+        return;
+    }
+    const int4 nb = vf_blocks(d);
+    const int3 v_lo = b * VF_BLOCK;
+    const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
+    // L1 distance between the block and B: per axis the gap between the two ranges.
+    const int3 gap = max(max(b_lo.xyz - v_hi + (int3)(1), v_lo - b_hi.xyz + (int3)(1)), (int3)(0));
+    if (block_max[(b.z * nb.y + b.y) * nb.x + b.x] < (uint)(gap.x + gap.y + gap.z)) {
+        return;
+    }
+    global int* r = regions + 8 * slot;
+    atomic_max(&r[0], d.x - v_lo.x);
+    atomic_max(&r[1], d.y - v_lo.y);
+    atomic_max(&r[2], d.z - v_lo.z);
+    atomic_max(&r[3], v_hi.x);
+    atomic_max(&r[4], v_hi.y);
+    atomic_max(&r[5], v_hi.z);
+    const int3 cap_hi = lo.xyz + size.xyz;
+    if (any(b == lo.xyz && lo.xyz > (int3)(0)) || any(b == cap_hi - (int3)(1) && cap_hi < nb.xyz)) {
+        atomic_max(&r[6], 1);
+    }
+}
+
+// W grown by the one-voxel ring whose old values are sources, clipped to the world.
+inline void inc_ring(global const int* region, int4 d, int3* lo, int3* hi) {
+    *lo = max(d.xyz - (int3)(region[0], region[1], region[2]) - (int3)(1), (int3)(0));
+    *hi = min((int3)(region[3], region[4], region[5]) + (int3)(1), d.xyz);
+}
+
+// Sources and the x sweeps: tmp = min over x' of g(x') + |x - x'| along each row of the
+// ring box, g = 0 at solids, the old distance outside R, VF_FAR inside R. Work-items cover
+// the rows of the cap box (the largest W the margin allows) and skip rows outside W.
+kernel void inc_sweep_x(global const uchar* vox, global const uint* dist, global uint* tmp,
+                        global const int* regions, int slot, int4 d, int4 b_lo, int4 b_hi,
+                        int4 cap_lo, int4 cap_size) {
+    global const int* region = regions + 8 * slot;
+    int3 lo, hi;
+    inc_ring(region, d, &lo, &hi);
+    const int y = cap_lo.y + (int)get_global_id(0), z = cap_lo.z + (int)get_global_id(1);
+    if ((int)get_global_id(0) >= cap_size.y || (int)get_global_id(1) >= cap_size.z ||
+        y < lo.y || y >= hi.y || z < lo.z || z >= hi.z) {
+        return;
+    }
+    const int row = (z * d.y + y) * d.x;
+    uint run = VF_FAR;
+    for (int x = lo.x; x < hi.x; ++x) {
+        const int3 p = (int3)(x, y, z);
+        const uint old = dist[row + x];
+        const uint g = vox[row + x] != 0 ? 0u
+                       : old < vf_l1_to_box(p, b_lo.xyz, b_hi.xyz) ? old
+                                                                    : VF_FAR;
+        run = min(g, vf_sat_inc(run));
+        tmp[row + x] = run;
+    }
+    run = VF_FAR;
+    for (int x = hi.x - 1; x >= lo.x; --x) {
+        run = min(tmp[row + x], vf_sat_inc(run));
+        tmp[row + x] = run;
+    }
+}
+
+// y sweeps over the columns of the ring box.
+kernel void inc_sweep_y(global uint* tmp, global const int* regions, int slot, int4 d,
+                        int4 cap_lo, int4 cap_size) {
+    global const int* region = regions + 8 * slot;
+    int3 lo, hi;
+    inc_ring(region, d, &lo, &hi);
+    const int x = cap_lo.x + (int)get_global_id(0), z = cap_lo.z + (int)get_global_id(1);
+    if ((int)get_global_id(0) >= cap_size.x || (int)get_global_id(1) >= cap_size.z ||
+        x < lo.x || x >= hi.x || z < lo.z || z >= hi.z) {
+        return;
+    }
+    const int base = z * d.y * d.x + x;
+    uint run = VF_FAR;
+    for (int y = lo.y; y < hi.y; ++y) {
+        run = min(tmp[base + y * d.x], vf_sat_inc(run));
+        tmp[base + y * d.x] = run;
+    }
+    run = VF_FAR;
+    for (int y = hi.y - 1; y >= lo.y; --y) {
+        run = min(tmp[base + y * d.x], vf_sat_inc(run));
+        tmp[base + y * d.x] = run;
+    }
+}
+
+// z sweeps, then the new distances of W (not the ring, whose values were sources) replace
+// the old ones where they differ, in `dist` and in the output format.
+kernel void inc_sweep_z(global const uchar* vox, global uint* dist, global uint* tmp,
+                        global const uchar* rgb, global OUT_T* out, global const int* regions,
+                        int slot, int4 d, int4 cap_lo, int4 cap_size) {
+    global const int* region = regions + 8 * slot;
+    int3 lo, hi;
+    inc_ring(region, d, &lo, &hi);
+    const int x = cap_lo.x + (int)get_global_id(0), y = cap_lo.y + (int)get_global_id(1);
+    if ((int)get_global_id(0) >= cap_size.x || (int)get_global_id(1) >= cap_size.y ||
+        x < lo.x || x >= hi.x || y < lo.y || y >= hi.y) {
+        return;
+    }
+    const int plane = d.x * d.y;
+    const int base = y * d.x + x;
+    uint run = VF_FAR;
+    for (int z = lo.z; z < hi.z; ++z) {
+        run = min(tmp[base + z * plane], vf_sat_inc(run));
+        tmp[base + z * plane] = run;
+    }
+    const int3 w_lo = d.xyz - (int3)(region[0], region[1], region[2]);
+    const bool in_w_xy = x >= w_lo.x && x < region[3] && y >= w_lo.y && y < region[4];
+    run = VF_FAR;
+    for (int z = hi.z - 1; z >= lo.z; --z) {
+        const int i = base + z * plane;
+        run = min(tmp[i], vf_sat_inc(run));
+        if (in_w_xy && z >= w_lo.z && z < region[5] && run != dist[i]) {
+            dist[i] = run;
+            out[i] = vf_encode(run, vox[i], rgb);
+        }
+    }
+}
+
+// Output of every voxel of a box from `dist` (after a recolour, or after a full
+// regeneration when the box is the world).
+kernel void inc_encode_box(global const uchar* vox, global const uint* dist,
+                           global const uchar* rgb, global OUT_T* out, int4 d, int4 lo,
+                           int4 size) {
+    const int3 p = lo.xyz + (int3)(get_global_id(0), get_global_id(1), get_global_id(2));
+    if ((int)get_global_id(0) < size.x && (int)get_global_id(1) < size.y &&
+        (int)get_global_id(2) < size.z) {
+        const int i = (p.z * d.y + p.y) * d.x + p.x;
+        out[i] = vf_encode(dist[i], vox[i], rgb);
+    }
+}

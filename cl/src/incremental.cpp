@@ -1,0 +1,344 @@
+// Incremental field updates, host side (kernels: cl/kernels/incremental.cl for the global
+// exact field, the per-chunk batch kernel of monolithic.cl for chunk-local algorithms).
+#include "voxfield/cl/incremental.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+#include "voxfield/cl/exact.hpp"
+#include "voxfield/core/error.hpp"
+
+namespace voxfield::cl_sources {
+extern const char* const layout_h;
+extern const char* const classic_common_cl;
+extern const char* const incremental_cl;
+}  // namespace voxfield::cl_sources
+
+namespace voxfield::ocl {
+namespace {
+
+cl_int4 int4_of(const Int3& v) {
+    return {{static_cast<cl_int>(v.x), static_cast<cl_int>(v.y), static_cast<cl_int>(v.z), 0}};
+}
+
+std::string output_options(Format f) {
+    const char* t = f == Format::u8 ? "uchar" : f == Format::u16 ? "ushort" : "uint";
+    const char* max = f == Format::u8 ? "255u" : f == Format::u16 ? "65535u" : "4294967295u";
+    return std::string("-DOUT_T=") + t + " -DOUT_MAX=" + max +
+           " -DPACKED=" + (f == Format::packed32 ? "1" : "0") + " -cl-std=CL1.2";
+}
+
+}  // namespace
+
+struct IncrementalField::Impl {
+    Context& ctx;
+    World world;
+    GeneratorOptions options;
+    std::uint32_t max_margin;
+    std::unique_ptr<ExactManhattan> exact;  // u32: its output is the exact distance buffer
+    cl::Program program;
+    cl::Buffer rgb, out, tmp, changes, regions, block_max;
+    std::size_t changes_capacity = 0, regions_capacity = 0;
+    cl_int4 d{};
+
+    Impl(Context& c, World w, const Palette& palette, const GeneratorOptions& o,
+         std::uint32_t margin)
+        : ctx(c),
+          world(std::move(w)),
+          options(o),
+          max_margin(std::min<std::uint32_t>(
+              margin, std::max({world.dims().x, world.dims().y, world.dims().z}))) {
+        if (o.algorithm != Algorithm::exact) {
+            throw InputError("incremental updates of " + to_string(o.algorithm) +
+                             " are not available: use exact (global)");
+        }
+        const Dims dims = world.dims();
+        if (dims.count() >= 0x7FFFFFFFu) {
+            throw InputError("incremental updates index voxels with 31 bits; world " +
+                             dims.to_string() + " is too large");
+        }
+        d = {{static_cast<cl_int>(dims.x), static_cast<cl_int>(dims.y), static_cast<cl_int>(dims.z),
+              0}};
+        exact = std::make_unique<ExactManhattan>(ctx, world, palette, Format::u32);
+        program = ctx.program(
+            "incremental",
+            {cl_sources::layout_h, cl_sources::classic_common_cl, cl_sources::incremental_cl},
+            output_options(o.format));
+        cl_call("allocating the incremental buffers of " + dims.to_string(), [&] {
+            const std::size_t n = dims.count();
+            const auto table = palette.rgb332_table();
+            rgb = cl::Buffer(ctx.context(), CL_MEM_READ_ONLY, 256);
+            ctx.queue().enqueueWriteBuffer(rgb, CL_TRUE, 0, 256, table.data());
+            out = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, n * element_size(o.format));
+            tmp = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * n);
+            block_max =
+                cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * blocks_of(world_box()).volume());
+        });
+    }
+
+    using Events = std::vector<cl::Event>;
+
+    // Fixed work-group shapes, the global size rounded up to them (the kernels skip what is
+    // outside): edits of every size then reuse one compiled work-group function (PoCL
+    // specialises kernels per local size).
+    void enqueue(Events& events, cl::Kernel& k, const cl::NDRange& global) {
+        static const std::size_t shapes[3][3] = {{64, 1, 1}, {16, 4, 1}, {4, 4, 4}};
+        const std::size_t dims = global.dimensions();
+        const std::size_t* shape = shapes[dims - 1];
+        std::size_t g[3] = {1, 1, 1};
+        for (std::size_t i = 0; i < dims; ++i) {
+            g[i] = (global[i] + shape[i] - 1) / shape[i] * shape[i];
+        }
+        const cl::NDRange rounded = dims == 1   ? cl::NDRange(g[0])
+                                    : dims == 2 ? cl::NDRange(g[0], g[1])
+                                                : cl::NDRange(g[0], g[1], g[2]);
+        const cl::NDRange local = dims == 1   ? cl::NDRange(shape[0])
+                                  : dims == 2 ? cl::NDRange(shape[0], shape[1])
+                                              : cl::NDRange(shape[0], shape[1], shape[2]);
+        events.emplace_back();
+        ctx.queue().enqueueNDRangeKernel(k, cl::NullRange, rounded, local, nullptr, &events.back());
+    }
+
+    void encode_box(Events& events, const Box& b) {
+        cl::Kernel k(program, "inc_encode_box");
+        k.setArg(0, exact->voxels_buffer());
+        k.setArg(1, exact->field_buffer());
+        k.setArg(2, rgb);
+        k.setArg(3, out);
+        k.setArg(4, d);
+        k.setArg(5, int4_of(b.min));
+        k.setArg(6, int4_of(size_of(b)));
+        enqueue(events, k, range_of(b));
+    }
+
+    Box world_box() const {
+        const Dims n = world.dims();
+        return Box{{0, 0, 0}, {n.x, n.y, n.z}};
+    }
+
+    // The blocks (kBlock^3 voxels, incremental.cl's VF_BLOCK) overlapping a voxel box.
+    static constexpr std::int64_t kBlock = 8;
+    static Box blocks_of(const Box& v) {
+        return Box{
+            {floor_div(v.min.x, kBlock), floor_div(v.min.y, kBlock), floor_div(v.min.z, kBlock)},
+            {floor_div(v.max.x + kBlock - 1, kBlock), floor_div(v.max.y + kBlock - 1, kBlock),
+             floor_div(v.max.z + kBlock - 1, kBlock)}};
+    }
+
+    static cl::NDRange range_of(const Box& b) {
+        return cl::NDRange(static_cast<std::size_t>(b.max.x - b.min.x),
+                           static_cast<std::size_t>(b.max.y - b.min.y),
+                           static_cast<std::size_t>(b.max.z - b.min.z));
+    }
+
+    static Int3 size_of(const Box& b) {
+        return {b.max.x - b.min.x, b.max.y - b.min.y, b.max.z - b.min.z};
+    }
+
+    // Block maxima of the blocks in `blocks`; slot >= 0 limits them to that edit's W.
+    void update_block_max(Events& events, const Box& blocks, cl_int slot) {
+        cl::Kernel k(program, "inc_block_max");
+        k.setArg(0, exact->field_buffer());
+        k.setArg(1, block_max);
+        k.setArg(2, d);
+        k.setArg(3, int4_of(blocks.min));
+        k.setArg(4, int4_of(size_of(blocks)));
+        k.setArg(5, slot >= 0 ? regions : block_max);  // unread when slot < 0
+        k.setArg(6, slot);
+        enqueue(events, k, range_of(blocks));
+    }
+
+    double regenerate() {
+        return cl_call("regenerating the field of " + world.dims().to_string(), [&] {
+            exact->run();
+            Events events;
+            encode_box(events, world_box());
+            update_block_max(events, blocks_of(world_box()), -1);
+            ctx.queue().finish();
+            // The exact transform's own kernels ran first; add their time.
+            double ms = elapsed_ms(events.front(), events.back());
+            for (const auto& stage : exact->stage_ms()) {
+                ms += stage.second;
+            }
+            return ms;
+        });
+    }
+
+    // Grows a device buffer to hold at least `bytes`.
+    void reserve(cl::Buffer& buffer, std::size_t& capacity, std::size_t bytes) {
+        if (bytes > capacity) {
+            capacity = std::max(bytes, 2 * capacity);
+            buffer = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, capacity);
+        }
+    }
+
+    UpdateStats apply(const std::vector<Brush>& batch) {
+        UpdateStats stats;
+        std::vector<cl_uint> staged;
+        std::vector<std::size_t> first;
+        for (const Brush& brush : batch) {
+            first.push_back(staged.size() / 2);
+            stats.edits.push_back(apply_brush(world, brush));
+            for (const VoxelChange& c : stats.edits.back().changes) {
+                staged.push_back(static_cast<cl_uint>(c.index));
+                staged.push_back(c.after);
+            }
+        }
+        if (staged.empty()) {
+            return stats;
+        }
+        return cl_call("updating the field of " + world.dims().to_string(), [&] {
+            auto& q = ctx.queue();
+            reserve(changes, changes_capacity, 4 * staged.size());
+            reserve(regions, regions_capacity, 8 * 4 * batch.size());
+            Events events(2);
+            q.enqueueWriteBuffer(changes, CL_FALSE, 0, 4 * staged.size(), staged.data(), nullptr,
+                                 &events[0]);
+            // inc_bounds accumulates W with atomic_max from zero.
+            q.enqueueFillBuffer(regions, cl_int{0}, 0, 8 * 4 * batch.size(), nullptr, &events[1]);
+            std::vector<std::size_t> swept;  // edits whose distances were recomputed
+            for (std::size_t e = 0; e < batch.size(); ++e) {
+                const EditResult& r = stats.edits[e];
+                if (!r.changed()) {
+                    continue;
+                }
+                cl::Kernel scatter(program, "inc_scatter");
+                scatter.setArg(0, exact->voxels_buffer());
+                scatter.setArg(1, changes);
+                scatter.setArg(2, static_cast<cl_uint>(first[e]));
+                scatter.setArg(3, static_cast<cl_uint>(r.changes.size()));
+                enqueue(events, scatter, cl::NDRange(r.changes.size()));
+                if (r.occupancy_changed()) {
+                    enqueue_sweeps(events, r.occupancy_bounds, e);
+                    swept.push_back(e);
+                }
+                if (options.format == Format::packed32) {
+                    encode_box(events, r.bounds);  // colours of recoloured voxels
+                }
+            }
+            std::vector<cl_int> found(8 * batch.size());
+            if (!swept.empty()) {
+                q.enqueueReadBuffer(regions, CL_FALSE, 0, 4 * found.size(), found.data());
+            }
+            q.finish();
+            stats.update_ms = elapsed_ms(events.front(), events.back());
+            for (const std::size_t e : swept) {
+                const cl_int* g = found.data() + 8 * e;
+                stats.full_regeneration |= g[6] != 0;
+                const Box w{{d.s[0] - g[0], d.s[1] - g[1], d.s[2] - g[2]}, {g[3], g[4], g[5]}};
+                stats.regions.push_back(w);
+                stats.voxels_recomputed += static_cast<std::uint64_t>(w.volume());
+            }
+            if (stats.full_regeneration) {
+                // A region reached past max_margin: what was computed for it is incomplete.
+                stats.update_ms += regenerate();
+                stats.regions = {world_box()};
+                stats.voxels_recomputed = world.size();
+            }
+            return stats;
+        });
+    }
+
+    // inc_bounds over the blocks of the cap box (B grown by max_margin), the three sweeps
+    // over its voxels (and W's one-voxel ring), then the block maxima of W.
+    void enqueue_sweeps(Events& events, const Box& b, std::size_t slot) {
+        const std::int64_t m = max_margin;
+        const Box cap_blocks = intersect(blocks_of(Box{{b.min.x - m, b.min.y - m, b.min.z - m},
+                                                       {b.max.x + m, b.max.y + m, b.max.z + m}}),
+                                         blocks_of(world_box()));
+        const Box cap = intersect(Box{{cap_blocks.min.x * kBlock - 1, cap_blocks.min.y * kBlock - 1,
+                                       cap_blocks.min.z * kBlock - 1},
+                                      {cap_blocks.max.x * kBlock + 1, cap_blocks.max.y * kBlock + 1,
+                                       cap_blocks.max.z * kBlock + 1}},
+                                  world_box());
+        const Int3 size = size_of(cap);
+        const cl::Buffer& dist = exact->field_buffer();
+        const cl::Buffer& vox = exact->voxels_buffer();
+        const auto slot_arg = static_cast<cl_int>(slot);
+
+        cl::Kernel bounds(program, "inc_bounds");
+        bounds.setArg(0, block_max);
+        bounds.setArg(1, d);
+        bounds.setArg(2, int4_of(b.min));
+        bounds.setArg(3, int4_of(b.max));
+        bounds.setArg(4, int4_of(cap_blocks.min));
+        bounds.setArg(5, int4_of(size_of(cap_blocks)));
+        bounds.setArg(6, regions);
+        bounds.setArg(7, slot_arg);
+        enqueue(events, bounds, range_of(cap_blocks));
+
+        const auto ux = static_cast<std::size_t>(size.x), uy = static_cast<std::size_t>(size.y),
+                   uz = static_cast<std::size_t>(size.z);
+        cl::Kernel sx(program, "inc_sweep_x");
+        sx.setArg(0, vox);
+        sx.setArg(1, dist);
+        sx.setArg(2, tmp);
+        sx.setArg(3, regions);
+        sx.setArg(4, slot_arg);
+        sx.setArg(5, d);
+        sx.setArg(6, int4_of(b.min));
+        sx.setArg(7, int4_of(b.max));
+        sx.setArg(8, int4_of(cap.min));
+        sx.setArg(9, int4_of(size));
+        enqueue(events, sx, cl::NDRange(uy, uz));
+
+        cl::Kernel sy(program, "inc_sweep_y");
+        sy.setArg(0, tmp);
+        sy.setArg(1, regions);
+        sy.setArg(2, slot_arg);
+        sy.setArg(3, d);
+        sy.setArg(4, int4_of(cap.min));
+        sy.setArg(5, int4_of(size));
+        enqueue(events, sy, cl::NDRange(ux, uz));
+
+        cl::Kernel sz(program, "inc_sweep_z");
+        sz.setArg(0, vox);
+        sz.setArg(1, dist);
+        sz.setArg(2, tmp);
+        sz.setArg(3, rgb);
+        sz.setArg(4, out);
+        sz.setArg(5, regions);
+        sz.setArg(6, slot_arg);
+        sz.setArg(7, d);
+        sz.setArg(8, int4_of(cap.min));
+        sz.setArg(9, int4_of(size));
+        enqueue(events, sz, cl::NDRange(ux, uy));
+
+        update_block_max(events, cap_blocks, slot_arg);
+    }
+};
+
+IncrementalField::IncrementalField(Context& ctx, World world, const Palette& palette,
+                                   const GeneratorOptions& options, std::uint32_t max_margin)
+    : impl_(std::make_unique<Impl>(ctx, std::move(world), palette, options, max_margin)) {
+    impl_->regenerate();
+}
+
+IncrementalField::~IncrementalField() = default;
+
+double IncrementalField::regenerate() {
+    return impl_->regenerate();
+}
+
+UpdateStats IncrementalField::apply(const std::vector<Brush>& batch) {
+    return impl_->apply(batch);
+}
+
+const World& IncrementalField::world() const {
+    return impl_->world;
+}
+
+std::vector<std::uint8_t> IncrementalField::read() {
+    return cl_call("reading the field", [&] {
+        std::vector<std::uint8_t> bytes(impl_->world.size() * element_size(impl_->options.format));
+        impl_->ctx.queue().enqueueReadBuffer(impl_->out, CL_TRUE, 0, bytes.size(), bytes.data());
+        return bytes;
+    });
+}
+
+const cl::Buffer& IncrementalField::field_buffer() const {
+    return impl_->out;
+}
+
+}  // namespace voxfield::ocl

@@ -1,0 +1,160 @@
+// Incremental updates on PoCL: after every batch of random edits the field equals a full
+// regeneration (the CPU reference), and nothing outside the reported regions is written.
+#include <gtest/gtest.h>
+
+#include <random>
+#include <string>
+#include <vector>
+
+#include "cl_test_util.hpp"
+#include "voxfield/cl/incremental.hpp"
+#include "voxfield/core/reference.hpp"
+#include "voxfield/core/scenes.hpp"
+
+namespace voxfield {
+namespace {
+
+using test::pocl;
+
+ocl::GeneratorOptions exact_options(Format f) {
+    ocl::GeneratorOptions o;
+    o.format = f;
+    return o;
+}
+
+Brush random_brush(std::mt19937_64& rng, Dims d, std::int64_t max_radius) {
+    Brush b;
+    const auto op = rng() % 10;
+    b.op = op < 5 ? BrushOp::place : op < 9 ? BrushOp::erase : BrushOp::paint;
+    b.shape = rng() % 2 == 0 ? BrushShape::sphere : BrushShape::cube;
+    // Centres up to max_radius outside the world, so edits touch and cross every border.
+    auto coord = [&](std::uint32_t n) {
+        return static_cast<std::int64_t>(rng() % (n + 2 * static_cast<std::uint64_t>(max_radius))) -
+               max_radius;
+    };
+    b.centre = {coord(d.x), coord(d.y), coord(d.z)};
+    b.radius = static_cast<std::int64_t>(rng() % static_cast<std::uint64_t>(max_radius + 1));
+    b.material = static_cast<std::uint8_t>(1 + rng() % 255);
+    return b;
+}
+
+void expect_exact(ocl::IncrementalField& field, Format f, const std::string& what) {
+    const World& w = field.world();
+    const auto want = encode_field(reference_manhattan(w), w, Palette(), f);
+    const std::string diff = test::first_difference(field.read(), want, f, w.dims());
+    ASSERT_TRUE(diff.empty()) << what << ": " << diff;
+}
+
+TEST(Incremental, ThousandsOfRandomEditsStayExact) {
+    std::mt19937_64 rng(1234);
+    const World start = scene_floor_spheres(Dims{48, 40, 36}, 17, 10);
+    ocl::IncrementalField field(pocl(), start, Palette(), exact_options(Format::u16));
+    int edits = 0;
+    for (int batch = 0; batch < 500; ++batch) {
+        std::vector<Brush> brushes;
+        const int n = batch % 3 == 0 ? 4 : 1;  // some frames carry several edits
+        for (int i = 0; i < n; ++i) {
+            brushes.push_back(random_brush(rng, start.dims(), batch % 7 == 0 ? 20 : 8));
+        }
+        const auto stats = field.apply(brushes);
+        edits += n;
+        ASSERT_EQ(stats.edits.size(), brushes.size());
+        expect_exact(field, Format::u16, "after batch " + std::to_string(batch));
+    }
+    EXPECT_GE(edits, 1000);
+}
+
+TEST(Incremental, EveryFormatAndSmallMargins) {
+    std::mt19937_64 rng(77);
+    for (Format f : {Format::u8, Format::u32, Format::packed32}) {
+        for (std::uint32_t margin : {1u, 3u, 64u}) {
+            const World start = scene_terrain(Dims{33, 21, 27}, 5);
+            ocl::IncrementalField field(pocl(), start, Palette(), exact_options(f), margin);
+            bool fell_back = false;
+            for (int batch = 0; batch < 60; ++batch) {
+                fell_back |= field.apply({random_brush(rng, start.dims(), 6)}).full_regeneration;
+                expect_exact(field, f,
+                             to_string(f) + " margin " + std::to_string(margin) + " batch " +
+                                 std::to_string(batch));
+            }
+            if (margin == 1) {
+                EXPECT_TRUE(fell_back) << "a margin of 1 never overflowed";
+            }
+        }
+    }
+}
+
+TEST(Incremental, EraseEverythingThenFillEverything) {
+    const World start = scene_floor_spheres(Dims{24, 20, 16}, 3, 4);
+    ocl::IncrementalField field(pocl(), start, Palette(), exact_options(Format::u32));
+    Brush all;
+    all.shape = BrushShape::cube;
+    all.centre = {12, 10, 8};
+    all.radius = 40;
+    all.op = BrushOp::erase;
+    field.apply({all});
+    expect_exact(field, Format::u32, "erased everything");
+    Brush one;
+    one.centre = {3, 4, 5};
+    one.radius = 0;
+    field.apply({one});
+    expect_exact(field, Format::u32, "one voxel in an empty world");
+    all.op = BrushOp::place;
+    field.apply({all});
+    expect_exact(field, Format::u32, "filled everything");
+    all.op = BrushOp::erase;
+    all.radius = 3;
+    field.apply({all});
+    expect_exact(field, Format::u32, "a hole in a full world");
+}
+
+TEST(Incremental, WritesNothingOutsideItsRegions) {
+    std::mt19937_64 rng(5);
+    const World start = scene_floor_spheres(Dims{40, 32, 40}, 9, 8);
+    ocl::IncrementalField field(pocl(), start, Palette(), exact_options(Format::u16));
+    const std::uint16_t poison = 0xBEEF;
+    int checked = 0;
+    for (int batch = 0; batch < 40; ++batch) {
+        const auto before = field.read();
+        pocl().queue().enqueueFillBuffer(field.field_buffer(), poison, 0, before.size());
+        const auto stats = field.apply({random_brush(rng, start.dims(), 5)});
+        const auto after = field.read();
+        const auto want =
+            encode_field(reference_manhattan(field.world()), field.world(), Palette(), Format::u16);
+        const Dims d = start.dims();
+        for (std::uint32_t z = 0; z < d.z; ++z) {
+            for (std::uint32_t y = 0; y < d.y; ++y) {
+                for (std::uint32_t x = 0; x < d.x; ++x) {
+                    const std::size_t i = d.index(x, y, z);
+                    const auto got = decode_distance(after, Format::u16, i);
+                    bool inside = stats.full_regeneration;
+                    for (const Box& b : stats.regions) {
+                        inside |= x >= b.min.x && x < b.max.x && y >= b.min.y && y < b.max.y &&
+                                  z >= b.min.z && z < b.max.z;
+                    }
+                    if (!inside) {
+                        ASSERT_EQ(got, poison) << "written outside the regions at " << x << "," << y
+                                               << "," << z << " batch " << batch;
+                    } else if (got != poison) {
+                        ASSERT_EQ(got, decode_distance(want, Format::u16, i));
+                    }
+                }
+            }
+        }
+        // Restore the real field for the next batch.
+        pocl().queue().enqueueWriteBuffer(field.field_buffer(), CL_TRUE, 0, want.size(),
+                                          want.data());
+        checked += stats.regions.empty() ? 0 : 1;
+    }
+    EXPECT_GE(checked, 10);
+}
+
+TEST(Incremental, ChunkLocalAlgorithmsAreRefusedWithAReason) {
+    ocl::GeneratorOptions o;
+    o.algorithm = ocl::Algorithm::jfa;
+    o = ocl::resolve_options(o, Dims{16, 16, 16});
+    EXPECT_THROW(ocl::IncrementalField(pocl(), World(Dims{16, 16, 16}), Palette(), o), InputError);
+}
+
+}  // namespace
+}  // namespace voxfield
