@@ -379,6 +379,7 @@ double Classic::run() {
                 k.setArg(11, cl_uint{first});
                 k.setArg(12, cl_uint{o_.jfa_extra});
                 k.setArg(13, chunk_iterations_);
+                k.setArg(14, cl_uint{5});  // VF_MODE_JFA | VF_MODE_FIM_FOCUS: Algorithm 10
                 enqueue(events, "monolithic", k, cl::NDRange(chunk_count_ * group),
                         cl::NDRange(group));
                 break;

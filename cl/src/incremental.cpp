@@ -7,12 +7,17 @@
 #include <string>
 
 #include "voxfield/cl/exact.hpp"
+#include "voxfield/core/dirty.hpp"
 #include "voxfield/core/error.hpp"
 
 namespace voxfield::cl_sources {
 extern const char* const layout_h;
 extern const char* const classic_common_cl;
 extern const char* const incremental_cl;
+extern const char* const brute_cl;
+extern const char* const fim_cl;
+extern const char* const jfa_cl;
+extern const char* const monolithic_cl;
 }  // namespace voxfield::cl_sources
 
 namespace voxfield::ocl {
@@ -29,30 +34,12 @@ std::string output_options(Format f) {
            " -DPACKED=" + (f == Format::packed32 ? "1" : "0") + " -cl-std=CL1.2";
 }
 
-}  // namespace
-
-struct IncrementalField::Impl {
-    Context& ctx;
-    World world;
-    GeneratorOptions options;
-    std::uint32_t max_margin;
-    std::unique_ptr<ExactManhattan> exact;  // u32: its output is the exact distance buffer
-    cl::Program program;
-    cl::Buffer rgb, out, tmp, changes, regions, block_max;
-    std::size_t changes_capacity = 0, regions_capacity = 0;
-    cl_int4 d{};
-
-    Impl(Context& c, World w, const Palette& palette, const GeneratorOptions& o,
-         std::uint32_t margin)
-        : ctx(c),
-          world(std::move(w)),
-          options(o),
-          max_margin(std::min<std::uint32_t>(
-              margin, std::max({world.dims().x, world.dims().y, world.dims().z}))) {
-        if (o.algorithm != Algorithm::exact) {
-            throw InputError("incremental updates of " + to_string(o.algorithm) +
-                             " are not available: use exact (global)");
-        }
+// What both updaters share: the host world, the output buffer, staging and uploading the
+// changed voxels, and the enqueue helpers.
+class Engine {
+  public:
+    Engine(Context& c, World w, const Palette& palette, const GeneratorOptions& o)
+        : ctx(c), world(std::move(w)), options(o) {
         const Dims dims = world.dims();
         if (dims.count() >= 0x7FFFFFFFu) {
             throw InputError("incremental updates index voxels with 31 bits; world " +
@@ -60,24 +47,82 @@ struct IncrementalField::Impl {
         }
         d = {{static_cast<cl_int>(dims.x), static_cast<cl_int>(dims.y), static_cast<cl_int>(dims.z),
               0}};
-        exact = std::make_unique<ExactManhattan>(ctx, world, palette, Format::u32);
         program = ctx.program(
             "incremental",
             {cl_sources::layout_h, cl_sources::classic_common_cl, cl_sources::incremental_cl},
             output_options(o.format));
-        cl_call("allocating the incremental buffers of " + dims.to_string(), [&] {
-            const std::size_t n = dims.count();
+        cl_call("allocating the output of " + dims.to_string(), [&] {
             const auto table = palette.rgb332_table();
             rgb = cl::Buffer(ctx.context(), CL_MEM_READ_ONLY, 256);
             ctx.queue().enqueueWriteBuffer(rgb, CL_TRUE, 0, 256, table.data());
-            out = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, n * element_size(o.format));
-            tmp = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * n);
-            block_max =
-                cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * blocks_of(world_box()).volume());
+            out =
+                cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, dims.count() * element_size(o.format));
         });
     }
+    virtual ~Engine() = default;
+    Engine(const Engine&) = delete;
+    Engine& operator=(const Engine&) = delete;
 
+    virtual double regenerate() = 0;
+    virtual UpdateStats apply(const std::vector<Brush>& batch) = 0;
+
+    Context& ctx;
+    World world;
+    GeneratorOptions options;
+    cl::Buffer out;
+
+  protected:
     using Events = std::vector<cl::Event>;
+
+    Box world_box() const {
+        const Dims n = world.dims();
+        return Box{{0, 0, 0}, {n.x, n.y, n.z}};
+    }
+
+    // Grows a device buffer to hold at least `bytes`.
+    void reserve(cl::Buffer& buffer, std::size_t& capacity, std::size_t bytes) {
+        if (bytes > capacity) {
+            capacity = std::max(bytes, 2 * capacity);
+            buffer = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, capacity);
+        }
+    }
+
+    // Applies the brushes to the host world; returns the changed voxels as (index, value)
+    // pairs, `first` saying where each edit's pairs start.
+    std::vector<cl_uint> stage(const std::vector<Brush>& batch, UpdateStats& stats,
+                               std::vector<std::size_t>& first) {
+        std::vector<cl_uint> staged;
+        for (const Brush& brush : batch) {
+            first.push_back(staged.size() / 2);
+            stats.edits.push_back(apply_brush(world, brush));
+            for (const VoxelChange& c : stats.edits.back().changes) {
+                staged.push_back(static_cast<cl_uint>(c.index));
+                staged.push_back(c.after);
+            }
+        }
+        return staged;
+    }
+
+    // One write of every staged change; its event starts the batch's event list.
+    Events upload(const std::vector<cl_uint>& staged) {
+        reserve(changes, changes_capacity, 4 * staged.size());
+        Events events(1);
+        ctx.queue().enqueueWriteBuffer(changes, CL_FALSE, 0, 4 * staged.size(), staged.data(),
+                                       nullptr, &events[0]);
+        return events;
+    }
+
+    // Writes edit e's new voxel values into the device world `vox` (edits in order, so a
+    // voxel changed twice in a batch ends with its last value).
+    void scatter(Events& events, const cl::Buffer& vox, const UpdateStats& stats,
+                 const std::vector<std::size_t>& first, std::size_t e) {
+        cl::Kernel k(program, "inc_scatter");
+        k.setArg(0, vox);
+        k.setArg(1, changes);
+        k.setArg(2, static_cast<cl_uint>(first[e]));
+        k.setArg(3, static_cast<cl_uint>(stats.edits[e].changes.size()));
+        enqueue(events, k, cl::NDRange(stats.edits[e].changes.size()));
+    }
 
     // Fixed work-group shapes, the global size rounded up to them (the kernels skip what is
     // outside): edits of every size then reuse one compiled work-group function (PoCL
@@ -100,6 +145,108 @@ struct IncrementalField::Impl {
         ctx.queue().enqueueNDRangeKernel(k, cl::NullRange, rounded, local, nullptr, &events.back());
     }
 
+    static cl::NDRange range_of(const Box& b) {
+        return cl::NDRange(static_cast<std::size_t>(b.max.x - b.min.x),
+                           static_cast<std::size_t>(b.max.y - b.min.y),
+                           static_cast<std::size_t>(b.max.z - b.min.z));
+    }
+
+    static Int3 size_of(const Box& b) {
+        return {b.max.x - b.min.x, b.max.y - b.min.y, b.max.z - b.min.z};
+    }
+
+    cl::Program program;
+    cl::Buffer rgb, changes;
+    std::size_t changes_capacity = 0;
+    cl_int4 d{};
+};
+
+// Global semantics, exact: see incremental.hpp.
+class GlobalEngine : public Engine {
+  public:
+    GlobalEngine(Context& c, World w, const Palette& palette, const GeneratorOptions& o,
+                 std::uint32_t margin)
+        : Engine(c, std::move(w), palette, o),
+          max_margin(std::min<std::uint32_t>(
+              margin, std::max({world.dims().x, world.dims().y, world.dims().z}))),
+          exact(std::make_unique<ExactManhattan>(ctx, world, palette, Format::u32)) {
+        cl_call("allocating the incremental buffers of " + world.dims().to_string(), [&] {
+            tmp = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * world.size());
+            block_max =
+                cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * blocks_of(world_box()).volume());
+        });
+    }
+
+    double regenerate() override {
+        return cl_call("regenerating the field of " + world.dims().to_string(), [&] {
+            exact->run();
+            Events events;
+            encode_box(events, world_box());
+            update_block_max(events, blocks_of(world_box()), -1);
+            ctx.queue().finish();
+            // The exact transform's own kernels ran first; add their time.
+            double ms = elapsed_ms(events.front(), events.back());
+            for (const auto& stage : exact->stage_ms()) {
+                ms += stage.second;
+            }
+            return ms;
+        });
+    }
+
+    UpdateStats apply(const std::vector<Brush>& batch) override {
+        UpdateStats stats;
+        std::vector<std::size_t> first;
+        const std::vector<cl_uint> staged = stage(batch, stats, first);
+        if (staged.empty()) {
+            return stats;
+        }
+        return cl_call("updating the field of " + world.dims().to_string(), [&] {
+            auto& q = ctx.queue();
+            reserve(regions, regions_capacity, 8 * 4 * batch.size());
+            Events events = upload(staged);
+            events.emplace_back();
+            // inc_bounds accumulates W with atomic_max from zero.
+            q.enqueueFillBuffer(regions, cl_int{0}, 0, 8 * 4 * batch.size(), nullptr,
+                                &events.back());
+            std::vector<std::size_t> swept;  // edits whose distances were recomputed
+            for (std::size_t e = 0; e < batch.size(); ++e) {
+                const EditResult& r = stats.edits[e];
+                if (!r.changed()) {
+                    continue;
+                }
+                scatter(events, exact->voxels_buffer(), stats, first, e);
+                if (r.occupancy_changed()) {
+                    enqueue_sweeps(events, r.occupancy_bounds, e);
+                    swept.push_back(e);
+                }
+                if (options.format == Format::packed32) {
+                    encode_box(events, r.bounds);  // colours of recoloured voxels
+                }
+            }
+            std::vector<cl_int> found(8 * batch.size());
+            if (!swept.empty()) {
+                q.enqueueReadBuffer(regions, CL_FALSE, 0, 4 * found.size(), found.data());
+            }
+            q.finish();
+            stats.update_ms = elapsed_ms(events.front(), events.back());
+            for (const std::size_t e : swept) {
+                const cl_int* g = found.data() + 8 * e;
+                stats.full_regeneration |= g[6] != 0;
+                const Box w{{d.s[0] - g[0], d.s[1] - g[1], d.s[2] - g[2]}, {g[3], g[4], g[5]}};
+                stats.regions.push_back(w);
+                stats.voxels_recomputed += static_cast<std::uint64_t>(w.volume());
+            }
+            if (stats.full_regeneration) {
+                // A region reached past max_margin: what was computed for it is incomplete.
+                stats.update_ms += regenerate();
+                stats.regions = {world_box()};
+                stats.voxels_recomputed = world.size();
+            }
+            return stats;
+        });
+    }
+
+  private:
     void encode_box(Events& events, const Box& b) {
         cl::Kernel k(program, "inc_encode_box");
         k.setArg(0, exact->voxels_buffer());
@@ -110,11 +257,6 @@ struct IncrementalField::Impl {
         k.setArg(5, int4_of(b.min));
         k.setArg(6, int4_of(size_of(b)));
         enqueue(events, k, range_of(b));
-    }
-
-    Box world_box() const {
-        const Dims n = world.dims();
-        return Box{{0, 0, 0}, {n.x, n.y, n.z}};
     }
 
     // The blocks (kBlock^3 voxels, incremental.cl's VF_BLOCK) overlapping a voxel box.
@@ -147,97 +289,6 @@ struct IncrementalField::Impl {
         k.setArg(5, slot >= 0 ? regions : block_max);  // unread when slot < 0
         k.setArg(6, slot);
         enqueue(events, k, range_of(blocks));
-    }
-
-    double regenerate() {
-        return cl_call("regenerating the field of " + world.dims().to_string(), [&] {
-            exact->run();
-            Events events;
-            encode_box(events, world_box());
-            update_block_max(events, blocks_of(world_box()), -1);
-            ctx.queue().finish();
-            // The exact transform's own kernels ran first; add their time.
-            double ms = elapsed_ms(events.front(), events.back());
-            for (const auto& stage : exact->stage_ms()) {
-                ms += stage.second;
-            }
-            return ms;
-        });
-    }
-
-    // Grows a device buffer to hold at least `bytes`.
-    void reserve(cl::Buffer& buffer, std::size_t& capacity, std::size_t bytes) {
-        if (bytes > capacity) {
-            capacity = std::max(bytes, 2 * capacity);
-            buffer = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, capacity);
-        }
-    }
-
-    UpdateStats apply(const std::vector<Brush>& batch) {
-        UpdateStats stats;
-        std::vector<cl_uint> staged;
-        std::vector<std::size_t> first;
-        for (const Brush& brush : batch) {
-            first.push_back(staged.size() / 2);
-            stats.edits.push_back(apply_brush(world, brush));
-            for (const VoxelChange& c : stats.edits.back().changes) {
-                staged.push_back(static_cast<cl_uint>(c.index));
-                staged.push_back(c.after);
-            }
-        }
-        if (staged.empty()) {
-            return stats;
-        }
-        return cl_call("updating the field of " + world.dims().to_string(), [&] {
-            auto& q = ctx.queue();
-            reserve(changes, changes_capacity, 4 * staged.size());
-            reserve(regions, regions_capacity, 8 * 4 * batch.size());
-            Events events(2);
-            q.enqueueWriteBuffer(changes, CL_FALSE, 0, 4 * staged.size(), staged.data(), nullptr,
-                                 &events[0]);
-            // inc_bounds accumulates W with atomic_max from zero.
-            q.enqueueFillBuffer(regions, cl_int{0}, 0, 8 * 4 * batch.size(), nullptr, &events[1]);
-            std::vector<std::size_t> swept;  // edits whose distances were recomputed
-            for (std::size_t e = 0; e < batch.size(); ++e) {
-                const EditResult& r = stats.edits[e];
-                if (!r.changed()) {
-                    continue;
-                }
-                cl::Kernel scatter(program, "inc_scatter");
-                scatter.setArg(0, exact->voxels_buffer());
-                scatter.setArg(1, changes);
-                scatter.setArg(2, static_cast<cl_uint>(first[e]));
-                scatter.setArg(3, static_cast<cl_uint>(r.changes.size()));
-                enqueue(events, scatter, cl::NDRange(r.changes.size()));
-                if (r.occupancy_changed()) {
-                    enqueue_sweeps(events, r.occupancy_bounds, e);
-                    swept.push_back(e);
-                }
-                if (options.format == Format::packed32) {
-                    encode_box(events, r.bounds);  // colours of recoloured voxels
-                }
-            }
-            std::vector<cl_int> found(8 * batch.size());
-            if (!swept.empty()) {
-                q.enqueueReadBuffer(regions, CL_FALSE, 0, 4 * found.size(), found.data());
-            }
-            q.finish();
-            stats.update_ms = elapsed_ms(events.front(), events.back());
-            for (const std::size_t e : swept) {
-                const cl_int* g = found.data() + 8 * e;
-                stats.full_regeneration |= g[6] != 0;
-                const Box w{{d.s[0] - g[0], d.s[1] - g[1], d.s[2] - g[2]}, {g[3], g[4], g[5]}};
-                stats.regions.push_back(w);
-                stats.voxels_recomputed += static_cast<std::uint64_t>(w.volume());
-            }
-            if (stats.full_regeneration) {
-                // A region reached past max_margin: what was computed for it is incomplete.
-                stats.update_ms += regenerate();
-                stats.regions = {world_box()};
-                stats.voxels_recomputed = world.size();
-            }
-            return stats;
-        });
     }
 
     // inc_bounds over the blocks of the cap box (B grown by max_margin), the three sweeps
@@ -307,38 +358,217 @@ struct IncrementalField::Impl {
 
         update_block_max(events, cap_blocks, slot_arg);
     }
+
+    std::uint32_t max_margin;
+    std::unique_ptr<ExactManhattan> exact;  // u32: its output is the exact distance buffer
+    cl::Buffer tmp, regions, block_max;
+    std::size_t regions_capacity = 0;
+};
+
+// Chunk-local algorithms: the dirty chunks of a batch, recomputed by the algorithm's own
+// per-chunk work in one launch of the per-chunk batch kernel (monolithic.cl).
+class ChunkEngine : public Engine {
+  public:
+    ChunkEngine(Context& c, World w, const Palette& palette, const GeneratorOptions& o)
+        : Engine(c, std::move(w), palette, o), grid(world.dims(), o.chunk) {
+        switch (o.algorithm) {
+            case Algorithm::brute:
+            case Algorithm::brute_chunked:
+                mode = kBrute;
+                break;
+            case Algorithm::fim:
+            case Algorithm::fim_host:
+                mode = kFimAll;
+                break;
+            case Algorithm::jfa:
+            case Algorithm::jfa_host:
+                mode = kJfa;
+                break;
+            case Algorithm::jfa_fim:
+                mode = kJfa | kFimAll;
+                break;
+            case Algorithm::lod:
+            case Algorithm::monolithic:
+                mode = kJfa | kFimFocus;
+                break;
+            case Algorithm::exact:
+                throw std::logic_error("exact is global");
+        }
+        if (o.focus) {
+            focus = focus_chunks(grid, *o.focus);
+        }
+        std::uint32_t p = 1;
+        while (p < o.chunk) {
+            p *= 2;
+        }
+        first_step = p / 2;
+        classic =
+            ctx.program("classic",
+                        {cl_sources::layout_h, cl_sources::classic_common_cl, cl_sources::brute_cl,
+                         cl_sources::fim_cl, cl_sources::jfa_cl, cl_sources::monolithic_cl},
+                        output_options(o.format));
+        cl_call("allocating the chunk buffers of " + world.dims().to_string(), [&] {
+            const std::size_t n = world.size();
+            auto& q = ctx.queue();
+            vox = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, n);
+            q.enqueueWriteBuffer(vox, CL_TRUE, 0, n, world.voxels().data());
+            dist = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * n);
+            seed_a = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * n);
+            seed_b = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * n);
+            iterations = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * grid.chunk_count());
+        });
+    }
+
+    double regenerate() override {
+        std::vector<cl_uint> all(grid.chunk_count());
+        for (std::size_t i = 0; i < all.size(); ++i) {
+            all[i] = static_cast<cl_uint>(i);
+        }
+        return cl_call("regenerating the chunks of " + world.dims().to_string(), [&] {
+            Events events;
+            run_chunks(events, all);
+            ctx.queue().finish();
+            return elapsed_ms(events.front(), events.back());
+        });
+    }
+
+    UpdateStats apply(const std::vector<Brush>& batch) override {
+        UpdateStats stats;
+        std::vector<std::size_t> first;
+        const std::vector<cl_uint> staged = stage(batch, stats, first);
+        if (staged.empty()) {
+            return stats;
+        }
+        // Chunks are independent: exactly those holding a changed voxel change.
+        DirtyTracker dirty(grid);
+        for (const EditResult& r : stats.edits) {
+            if (r.changed()) {
+                dirty.add(r.bounds);
+            }
+        }
+        std::vector<cl_uint> chunks;
+        for (const std::size_t c : dirty.dirty_chunks()) {
+            chunks.push_back(static_cast<cl_uint>(c));
+            const Dims n = grid.chunks();
+            const Int3 cc{static_cast<std::int64_t>(c % n.x),
+                          static_cast<std::int64_t>(c / n.x % n.y),
+                          static_cast<std::int64_t>(c / n.x / n.y)};
+            const Box b = grid.voxels_of(cc);
+            stats.regions.push_back(b);
+            stats.voxels_recomputed += static_cast<std::uint64_t>(b.volume());
+        }
+        return cl_call("updating the chunks of " + world.dims().to_string(), [&] {
+            Events events = upload(staged);
+            for (std::size_t e = 0; e < batch.size(); ++e) {
+                if (stats.edits[e].changed()) {
+                    scatter(events, vox, stats, first, e);
+                }
+            }
+            run_chunks(events, chunks);
+            ctx.queue().finish();
+            stats.update_ms = elapsed_ms(events.front(), events.back());
+            return stats;
+        });
+    }
+
+  private:
+    // monolithic.cl's VF_MODE_* bits.
+    static constexpr cl_uint kJfa = 1, kFimAll = 2, kFimFocus = 4, kBrute = 8;
+
+    void run_chunks(Events& events, const std::vector<cl_uint>& chunks) {
+        reserve(chunk_list, chunk_capacity, 4 * chunks.size());
+        events.emplace_back();
+        ctx.queue().enqueueWriteBuffer(chunk_list, CL_FALSE, 0, 4 * chunks.size(), chunks.data(),
+                                       nullptr, &events.back());
+        cl::Kernel k(classic, "monolithic");
+        const std::size_t limit = std::min<std::size_t>(
+            256, k.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(ctx.info().device));
+        const std::size_t volume = std::size_t{options.chunk} * options.chunk * options.chunk;
+        const std::size_t group = std::clamp<std::size_t>(volume, 32, limit);
+        k.setArg(0, vox);
+        k.setArg(1, seed_a);
+        k.setArg(2, seed_b);
+        k.setArg(3, dist);
+        k.setArg(4, rgb);
+        k.setArg(5, out);
+        k.setArg(6, cl_uint4{{static_cast<cl_uint>(d.s[0]), static_cast<cl_uint>(d.s[1]),
+                              static_cast<cl_uint>(d.s[2]), 0}});
+        k.setArg(7, cl_uint{options.chunk});
+        k.setArg(8, chunk_list);
+        // An empty focus (lo > hi) unless the algorithm has one.
+        const bool has_focus = !focus.empty();
+        k.setArg(9, cl_uint4{{has_focus ? static_cast<cl_uint>(focus.min.x) : 1u,
+                              has_focus ? static_cast<cl_uint>(focus.min.y) : 1u,
+                              has_focus ? static_cast<cl_uint>(focus.min.z) : 1u, 0}});
+        k.setArg(10, cl_uint4{{has_focus ? static_cast<cl_uint>(focus.max.x - 1) : 0u,
+                               has_focus ? static_cast<cl_uint>(focus.max.y - 1) : 0u,
+                               has_focus ? static_cast<cl_uint>(focus.max.z - 1) : 0u, 0}});
+        k.setArg(11, cl_uint{first_step});
+        k.setArg(12, cl_uint{options.jfa_extra});
+        k.setArg(13, iterations);
+        k.setArg(14, mode);
+        events.emplace_back();
+        ctx.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(chunks.size() * group),
+                                         cl::NDRange(group), nullptr, &events.back());
+    }
+
+    ChunkGrid grid;
+    cl_uint mode = 0;
+    Box focus;
+    std::uint32_t first_step = 0;
+    cl::Program classic;
+    cl::Buffer vox, dist, seed_a, seed_b, iterations, chunk_list;
+    std::size_t chunk_capacity = 0;
+};
+
+}  // namespace
+
+struct IncrementalField::Impl {
+    std::unique_ptr<Engine> engine;
 };
 
 IncrementalField::IncrementalField(Context& ctx, World world, const Palette& palette,
                                    const GeneratorOptions& options, std::uint32_t max_margin)
-    : impl_(std::make_unique<Impl>(ctx, std::move(world), palette, options, max_margin)) {
-    impl_->regenerate();
+    : impl_(std::make_unique<Impl>()) {
+    if (options.algorithm == Algorithm::exact) {
+        impl_->engine =
+            std::make_unique<GlobalEngine>(ctx, std::move(world), palette, options, max_margin);
+    } else if (options.chunk != 0) {
+        impl_->engine = std::make_unique<ChunkEngine>(ctx, std::move(world), palette, options);
+    } else {
+        throw InputError("incremental updates of " + to_string(options.algorithm) +
+                         " need chunk-local semantics (--chunk C); with global semantics use "
+                         "exact, whose updates are exact and local");
+    }
+    impl_->engine->regenerate();
 }
 
 IncrementalField::~IncrementalField() = default;
 
 double IncrementalField::regenerate() {
-    return impl_->regenerate();
+    return impl_->engine->regenerate();
 }
 
 UpdateStats IncrementalField::apply(const std::vector<Brush>& batch) {
-    return impl_->apply(batch);
+    return impl_->engine->apply(batch);
 }
 
 const World& IncrementalField::world() const {
-    return impl_->world;
+    return impl_->engine->world;
 }
 
 std::vector<std::uint8_t> IncrementalField::read() {
     return cl_call("reading the field", [&] {
-        std::vector<std::uint8_t> bytes(impl_->world.size() * element_size(impl_->options.format));
-        impl_->ctx.queue().enqueueReadBuffer(impl_->out, CL_TRUE, 0, bytes.size(), bytes.data());
+        std::vector<std::uint8_t> bytes(impl_->engine->world.size() *
+                                        element_size(impl_->engine->options.format));
+        impl_->engine->ctx.queue().enqueueReadBuffer(impl_->engine->out, CL_TRUE, 0, bytes.size(),
+                                                     bytes.data());
         return bytes;
     });
 }
 
 const cl::Buffer& IncrementalField::field_buffer() const {
-    return impl_->out;
+    return impl_->engine->out;
 }
 
 }  // namespace voxfield::ocl

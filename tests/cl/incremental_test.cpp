@@ -149,11 +149,51 @@ TEST(Incremental, WritesNothingOutsideItsRegions) {
     EXPECT_GE(checked, 10);
 }
 
-TEST(Incremental, ChunkLocalAlgorithmsAreRefusedWithAReason) {
+TEST(Incremental, GlobalDissertationAlgorithmsNeedChunks) {
     ocl::GeneratorOptions o;
     o.algorithm = ocl::Algorithm::jfa;
     o = ocl::resolve_options(o, Dims{16, 16, 16});
     EXPECT_THROW(ocl::IncrementalField(pocl(), World(Dims{16, 16, 16}), Palette(), o), InputError);
+}
+
+TEST(Incremental, ChunkLocalAlgorithmsEqualTheirFullRegeneration) {
+    std::mt19937_64 rng(31);
+    const World start = scene_floor_spheres(Dims{40, 24, 36}, 13, 8);
+    for (const std::string& name : ocl::algorithm_names()) {
+        const ocl::Algorithm a = ocl::parse_algorithm(name);
+        if (a == ocl::Algorithm::exact) {
+            continue;
+        }
+        for (std::uint32_t chunk : {4u, 8u}) {
+            ocl::GeneratorOptions o;
+            o.algorithm = a;
+            o.format = a == ocl::Algorithm::monolithic ? Format::packed32 : Format::u16;
+            o.chunk = chunk;
+            if (a == ocl::Algorithm::lod) {
+                o.focus = Focus{{2, 1, 2}, 1};  // a partial focus: JFA-only chunks too
+            }
+            o = ocl::resolve_options(o, start.dims());
+            ocl::IncrementalField field(pocl(), start, Palette(), o);
+            for (int batch = 0; batch < 12; ++batch) {
+                std::vector<Brush> brushes = {random_brush(rng, start.dims(), 6)};
+                if (batch % 4 == 0) {
+                    brushes.push_back(random_brush(rng, start.dims(), 6));
+                }
+                const auto stats = field.apply(brushes);
+                const auto want = ocl::generate(pocl(), field.world(), Palette(), o).bytes;
+                const std::string diff =
+                    test::first_difference(field.read(), want, o.format, start.dims());
+                ASSERT_TRUE(diff.empty())
+                    << name << " chunk " << chunk << " batch " << batch << ": " << diff;
+                // Only whole chunks holding a changed voxel are recomputed.
+                for (const Box& b : stats.regions) {
+                    EXPECT_LE(b.max.x - b.min.x, std::int64_t{chunk});
+                    EXPECT_EQ(b.min.x % chunk, 0);
+                }
+                EXPECT_LE(stats.regions.size(), 2u * 8u * 27u);
+            }
+        }
+    }
 }
 
 }  // namespace
