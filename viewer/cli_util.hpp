@@ -20,6 +20,7 @@ struct Command {
 
 Command add_devices(CLI::App& root);
 Command add_generate(CLI::App& root);
+Command add_replay(CLI::App& root);
 Command add_bench(CLI::App& root);
 
 // The metrics `--metric` accepts today.
