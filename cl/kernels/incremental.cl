@@ -8,7 +8,7 @@
 #define VF_FAR 0xFFFFFFFFu
 
 inline uint vf_sat_inc(uint v) {
-    return v == VF_FAR ? VF_FAR : v + 1u;
+    return v + (v != VF_FAR ? 1u : 0u);
 }
 
 // L1 distance from p to the box [lo, hi).
@@ -204,5 +204,109 @@ kernel void inc_encode_box(global const uchar* vox, global const uint* dist,
         (int)get_global_id(2) < size.z) {
         const int i = (p.z * d.y + p.y) * d.x + p.x;
         out[i] = vf_encode(dist[i], vox[i], rgb);
+    }
+}
+
+// CPU layout of the y and z sweeps: one work-item per z slice (y sweeps) or per y (z sweeps),
+// the inner loops running along contiguous x so that they vectorise; the per-column kernels
+// above keep each work-item on one column, which suits GPUs.
+kernel void inc_sweep_y_slices(global uint* tmp, global const int* regions, int slot, int4 d,
+                               int4 cap_lo, int4 cap_size) {
+    global const int* region = regions + 8 * slot;
+    int3 lo, hi;
+    inc_ring(region, d, &lo, &hi);
+    const int z = cap_lo.z + (int)get_global_id(0);
+    if ((int)get_global_id(0) >= cap_size.z || z < lo.z || z >= hi.z) {
+        return;
+    }
+    global uint* slice = tmp + z * d.y * d.x;
+    for (int y = lo.y + 1; y < hi.y; ++y) {
+        global uint* cur = slice + y * d.x;
+        global const uint* prev = cur - d.x;
+        for (int x = lo.x; x < hi.x; ++x) {
+            cur[x] = min(cur[x], vf_sat_inc(prev[x]));
+        }
+    }
+    for (int y = hi.y - 2; y >= lo.y; --y) {
+        global uint* cur = slice + y * d.x;
+        global const uint* next = cur + d.x;
+        for (int x = lo.x; x < hi.x; ++x) {
+            cur[x] = min(cur[x], vf_sat_inc(next[x]));
+        }
+    }
+}
+
+kernel void inc_sweep_z_rows(global const uchar* vox, global uint* dist, global uint* tmp,
+                             global const uchar* rgb, global OUT_T* out,
+                             global const int* regions, int slot, int4 d, int4 cap_lo,
+                             int4 cap_size) {
+    global const int* region = regions + 8 * slot;
+    int3 lo, hi;
+    inc_ring(region, d, &lo, &hi);
+    const int y = cap_lo.y + (int)get_global_id(0);
+    if ((int)get_global_id(0) >= cap_size.y || y < lo.y || y >= hi.y) {
+        return;
+    }
+    const int plane = d.x * d.y;
+    global uint* row0 = tmp + y * d.x;
+    for (int z = lo.z + 1; z < hi.z; ++z) {
+        global uint* cur = row0 + z * plane;
+        global const uint* prev = cur - plane;
+        for (int x = lo.x; x < hi.x; ++x) {
+            cur[x] = min(cur[x], vf_sat_inc(prev[x]));
+        }
+    }
+    const int3 w_lo = d.xyz - (int3)(region[0], region[1], region[2]);
+    const bool in_w_y = y >= w_lo.y && y < region[4];
+    for (int z = hi.z - 1; z >= lo.z; --z) {
+        global uint* cur = row0 + z * plane;
+        if (z + 1 < hi.z) {
+            global const uint* next = cur + plane;
+            for (int x = lo.x; x < hi.x; ++x) {
+                cur[x] = min(cur[x], vf_sat_inc(next[x]));
+            }
+        }
+        if (in_w_y && z >= w_lo.z && z < region[5]) {
+            const int base = z * plane + y * d.x;
+            for (int x = max(lo.x, w_lo.x); x < min(hi.x, region[3]); ++x) {
+                const uint v = cur[x];
+                if (v != dist[base + x]) {
+                    dist[base + x] = v;
+                    out[base + x] = vf_encode(v, vox[base + x], rgb);
+                }
+            }
+        }
+    }
+}
+
+// CPU layout of inc_sweep_x: one work-item per z slice runs the sequential row sweeps of its
+// rows (a scalar loop per row beats vectorising across rows with gathers).
+kernel void inc_sweep_x_slices(global const uchar* vox, global const uint* dist,
+                               global uint* tmp, global const int* regions, int slot, int4 d,
+                               int4 b_lo, int4 b_hi, int4 cap_lo, int4 cap_size) {
+    global const int* region = regions + 8 * slot;
+    int3 lo, hi;
+    inc_ring(region, d, &lo, &hi);
+    const int z = cap_lo.z + (int)get_global_id(0);
+    if ((int)get_global_id(0) >= cap_size.z || z < lo.z || z >= hi.z) {
+        return;
+    }
+    for (int y = lo.y; y < hi.y; ++y) {
+        const int row = (z * d.y + y) * d.x;
+        // L1 distance to B without x: the rest is the gap along x.
+        const uint yz = vf_l1_to_box((int3)(b_lo.x, y, z), b_lo.xyz, b_hi.xyz);
+        uint run = VF_FAR;
+        for (int x = lo.x; x < hi.x; ++x) {
+            const uint gap = (uint)max(max(b_lo.x - x, x - (b_hi.x - 1)), 0);
+            const uint old = dist[row + x];
+            const uint g = vox[row + x] != 0 ? 0u : (old < yz + gap ? old : VF_FAR);
+            run = min(g, vf_sat_inc(run));
+            tmp[row + x] = run;
+        }
+        run = VF_FAR;
+        for (int x = hi.x - 1; x >= lo.x; --x) {
+            run = min(tmp[row + x], vf_sat_inc(run));
+            tmp[row + x] = run;
+        }
     }
 }

@@ -145,6 +145,13 @@ class Engine {
         ctx.queue().enqueueNDRangeKernel(k, cl::NullRange, rounded, local, nullptr, &events.back());
     }
 
+    // `count` independent work-items in groups of one (each does a whole slice or row).
+    void enqueue_items(Events& events, cl::Kernel& k, std::size_t count) {
+        events.emplace_back();
+        ctx.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(count), cl::NDRange(1),
+                                         nullptr, &events.back());
+    }
+
     static cl::NDRange range_of(const Box& b) {
         return cl::NDRange(static_cast<std::size_t>(b.max.x - b.min.x),
                            static_cast<std::size_t>(b.max.y - b.min.y),
@@ -169,7 +176,8 @@ class GlobalEngine : public Engine {
         : Engine(c, std::move(w), palette, o),
           max_margin(std::min<std::uint32_t>(
               margin, std::max({world.dims().x, world.dims().y, world.dims().z}))),
-          exact(std::make_unique<ExactManhattan>(ctx, world, palette, Format::u32)) {
+          cpu_layout(o.layout == Layout::automatic ? ctx.is_cpu() : o.layout == Layout::cpu),
+          exact(std::make_unique<ExactManhattan>(ctx, world, palette, Format::u32, o.layout)) {
         cl_call("allocating the incremental buffers of " + world.dims().to_string(), [&] {
             tmp = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * world.size());
             block_max =
@@ -268,6 +276,13 @@ class GlobalEngine : public Engine {
              floor_div(v.max.z + kBlock - 1, kBlock)}};
     }
 
+    // `count` independent work-items in groups of one (each does a whole slice or row).
+    void enqueue_items(Events& events, cl::Kernel& k, std::size_t count) {
+        events.emplace_back();
+        ctx.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(count), cl::NDRange(1),
+                                         nullptr, &events.back());
+    }
+
     static cl::NDRange range_of(const Box& b) {
         return cl::NDRange(static_cast<std::size_t>(b.max.x - b.min.x),
                            static_cast<std::size_t>(b.max.y - b.min.y),
@@ -321,7 +336,7 @@ class GlobalEngine : public Engine {
 
         const auto ux = static_cast<std::size_t>(size.x), uy = static_cast<std::size_t>(size.y),
                    uz = static_cast<std::size_t>(size.z);
-        cl::Kernel sx(program, "inc_sweep_x");
+        cl::Kernel sx(program, cpu_layout ? "inc_sweep_x_slices" : "inc_sweep_x");
         sx.setArg(0, vox);
         sx.setArg(1, dist);
         sx.setArg(2, tmp);
@@ -332,18 +347,26 @@ class GlobalEngine : public Engine {
         sx.setArg(7, int4_of(b.max));
         sx.setArg(8, int4_of(cap.min));
         sx.setArg(9, int4_of(size));
-        enqueue(events, sx, cl::NDRange(uy, uz));
+        if (cpu_layout) {
+            enqueue_items(events, sx, uz);
+        } else {
+            enqueue(events, sx, cl::NDRange(uy, uz));
+        }
 
-        cl::Kernel sy(program, "inc_sweep_y");
+        cl::Kernel sy(program, cpu_layout ? "inc_sweep_y_slices" : "inc_sweep_y");
         sy.setArg(0, tmp);
         sy.setArg(1, regions);
         sy.setArg(2, slot_arg);
         sy.setArg(3, d);
         sy.setArg(4, int4_of(cap.min));
         sy.setArg(5, int4_of(size));
-        enqueue(events, sy, cl::NDRange(ux, uz));
+        if (cpu_layout) {
+            enqueue_items(events, sy, uz);
+        } else {
+            enqueue(events, sy, cl::NDRange(ux, uz));
+        }
 
-        cl::Kernel sz(program, "inc_sweep_z");
+        cl::Kernel sz(program, cpu_layout ? "inc_sweep_z_rows" : "inc_sweep_z");
         sz.setArg(0, vox);
         sz.setArg(1, dist);
         sz.setArg(2, tmp);
@@ -354,12 +377,17 @@ class GlobalEngine : public Engine {
         sz.setArg(7, d);
         sz.setArg(8, int4_of(cap.min));
         sz.setArg(9, int4_of(size));
-        enqueue(events, sz, cl::NDRange(ux, uy));
+        if (cpu_layout) {
+            enqueue_items(events, sz, uy);
+        } else {
+            enqueue(events, sz, cl::NDRange(ux, uy));
+        }
 
         update_block_max(events, cap_blocks, slot_arg);
     }
 
     std::uint32_t max_margin;
+    bool cpu_layout;  // sweeps with inner loops along x (CPU) or one column per work-item (GPU)
     std::unique_ptr<ExactManhattan> exact;  // u32: its output is the exact distance buffer
     cl::Buffer tmp, regions, block_max;
     std::size_t regions_capacity = 0;

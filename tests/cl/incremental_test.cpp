@@ -46,22 +46,29 @@ void expect_exact(ocl::IncrementalField& field, Format f, const std::string& wha
 }
 
 TEST(Incremental, ThousandsOfRandomEditsStayExact) {
-    std::mt19937_64 rng(1234);
-    const World start = scene_floor_spheres(Dims{48, 40, 36}, 17, 10);
-    ocl::IncrementalField field(pocl(), start, Palette(), exact_options(Format::u16));
-    int edits = 0;
-    for (int batch = 0; batch < 500; ++batch) {
-        std::vector<Brush> brushes;
-        const int n = batch % 3 == 0 ? 4 : 1;  // some frames carry several edits
-        for (int i = 0; i < n; ++i) {
-            brushes.push_back(random_brush(rng, start.dims(), batch % 7 == 0 ? 20 : 8));
+    // Both sweep layouts (CPU: inner loops along x; GPU: a column per work-item) on PoCL.
+    for (const ocl::Layout layout : {ocl::Layout::cpu, ocl::Layout::gpu}) {
+        std::mt19937_64 rng(1234);
+        const World start = scene_floor_spheres(Dims{48, 40, 36}, 17, 10);
+        auto o = exact_options(Format::u16);
+        o.layout = layout;
+        ocl::IncrementalField field(pocl(), start, Palette(), o);
+        int edits = 0;
+        for (int batch = 0; batch < 500; ++batch) {
+            std::vector<Brush> brushes;
+            const int n = batch % 3 == 0 ? 4 : 1;  // some frames carry several edits
+            for (int i = 0; i < n; ++i) {
+                brushes.push_back(random_brush(rng, start.dims(), batch % 7 == 0 ? 20 : 8));
+            }
+            const auto stats = field.apply(brushes);
+            edits += n;
+            ASSERT_EQ(stats.edits.size(), brushes.size());
+            expect_exact(field, Format::u16,
+                         std::string(layout == ocl::Layout::cpu ? "cpu" : "gpu") +
+                             " layout, after batch " + std::to_string(batch));
         }
-        const auto stats = field.apply(brushes);
-        edits += n;
-        ASSERT_EQ(stats.edits.size(), brushes.size());
-        expect_exact(field, Format::u16, "after batch " + std::to_string(batch));
+        EXPECT_GE(edits, 1000);
     }
-    EXPECT_GE(edits, 1000);
 }
 
 TEST(Incremental, EveryFormatAndSmallMargins) {
