@@ -3,7 +3,7 @@
 
 Usage: python3 bench/summarize.py FILES...
 `voxfield bench --json` files give the timing table; `compare_scipy.py --json` files give the
-SciPy comparison table. Files of neither kind are skipped.
+SciPy comparison table; `voxfield replay --json` files give the incremental-update table. Files of neither kind are skipped.
 """
 import json
 import sys
@@ -35,8 +35,15 @@ def scipy_row(path, doc):
             f" {doc['equal']} | `{path}` |")
 
 
+def replay_row(path, doc):
+    sm = doc["summary"]
+    return (f"| `{path.split('/')[-1]}` | {sm['median_update_ms']:.3f} | {sm['mean_update_ms']:.3f} |"
+            f" {sm['max_update_ms']:.3f} | {doc['full_regeneration_ms']:.3f} |"
+            f" {sm['ratio_full_to_median_update']:.1f} | {sm['voxels_recomputed'] / sm['edits']:.0f} |")
+
+
 def main(paths):
-    bench, scipy = [], []
+    bench, scipy, replay = [], [], []
     for path in paths:
         with open(path) as f:
             doc = json.load(f)
@@ -44,6 +51,8 @@ def main(paths):
             bench.extend(bench_rows(path, doc))
         elif "scipy_ms_median" in doc:
             scipy.append(scipy_row(path, doc))
+        elif "full_regeneration_ms" in doc:
+            replay.append(replay_row(path, doc))
     if bench:
         print("| device | commit | date | algorithm | size | chunk | format | median ms |"
               " 95% CI ms | Gvox/s | FIM passes | max error | mean error | over-estimated % |"
@@ -58,6 +67,13 @@ def main(paths):
               " SciPy / ours | outputs equal | file |")
         print("| --- | --- | --- | --- | ---: | ---: | ---: | --- | --- |")
         print("\n".join(scipy))
+    if replay:
+        if bench or scipy:
+            print()
+        print("| file | median update ms | mean | max | full regeneration ms | full / median |"
+              " voxels recomputed per edit |")
+        print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+        print("\n".join(replay))
 
 
 if __name__ == "__main__":
