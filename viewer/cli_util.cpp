@@ -9,6 +9,19 @@
 
 namespace voxfield::cli {
 
+NpyType npy_type(Format f) {
+    switch (f) {
+        case Format::u8:
+            return NpyType::u8;
+        case Format::u16:
+            return NpyType::u16;
+        case Format::u32:
+        case Format::packed32:
+            return NpyType::u32;
+    }
+    return NpyType::u32;
+}
+
 void require_output_folder(const std::filesystem::path& path) {
     const auto folder = path.parent_path();
     if (!folder.empty() && !std::filesystem::is_directory(folder)) {

@@ -9,6 +9,7 @@
 
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/runtime.hpp"
+#include "voxfield/core/npy.hpp"
 
 namespace voxfield::cli {
 
@@ -35,6 +36,9 @@ struct GeneratorFlags {
 void add_generator_flags(CLI::App& app, GeneratorFlags& flags);
 // Turns the flags into resolved options for `world` (InputError on any bad combination).
 ocl::GeneratorOptions generator_options(const GeneratorFlags& flags, Format format, Dims world);
+
+// The .npy element type a field of format `f` is stored as (packed32 as uint32).
+NpyType npy_type(Format f);
 
 // Throws InputError unless `path`'s folder exists (checked before long work starts).
 void require_output_folder(const std::filesystem::path& path);

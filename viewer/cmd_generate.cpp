@@ -20,19 +20,6 @@ struct GenerateOptions {
     std::uint32_t repeat = 1, warmup = 0;
 };
 
-NpyType npy_type(Format f) {
-    switch (f) {
-        case Format::u8:
-            return NpyType::u8;
-        case Format::u16:
-            return NpyType::u16;
-        case Format::u32:
-        case Format::packed32:
-            return NpyType::u32;
-    }
-    return NpyType::u32;
-}
-
 bool uses_fim(ocl::Algorithm a) {
     using A = ocl::Algorithm;
     return a == A::fim || a == A::fim_host || a == A::jfa_fim || a == A::lod || a == A::monolithic;

@@ -35,19 +35,6 @@ struct ReplayOptions {
     std::uint32_t max_margin = 0;  // 0: no limit
 };
 
-NpyType npy_type(Format f) {
-    switch (f) {
-        case Format::u8:
-            return NpyType::u8;
-        case Format::u16:
-            return NpyType::u16;
-        case Format::u32:
-        case Format::packed32:
-            return NpyType::u32;
-    }
-    return NpyType::u32;
-}
-
 std::string fixed(double v, int digits) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%.*f", digits, v);

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "util.hpp"
 #include "voxfield/core/error.hpp"
 
 namespace voxfield::cl_sources {
@@ -21,18 +22,6 @@ extern const char* const monolithic_cl;
 
 namespace voxfield::ocl {
 namespace {
-
-std::size_t round_up(std::size_t v, std::size_t m) {
-    return (v + m - 1) / m * m;
-}
-
-std::uint32_t next_pow2(std::uint32_t v) {
-    std::uint32_t p = 1;
-    while (p < v) {
-        p <<= 1;
-    }
-    return p;
-}
 
 // Voxel pairs per second and compute unit that brute force sustains, measured with
 // `voxfield bench --algorithms brute` (PoCL on a 2-core x86: ~2.5e9 per core; H200: ~3e10
@@ -97,28 +86,12 @@ Classic::Classic(Context& ctx, const World& world, const Palette& palette,
     }
     d_ = {{dims_.x, dims_.y, dims_.z, 0}};
 
-    const char* out_t = "uint";
-    std::string out_max = "4294967295u";
-    if (o.format == Format::u8) {
-        out_t = "uchar";
-        out_max = "255u";
-    } else if (o.format == Format::u16) {
-        out_t = "ushort";
-        out_max = "65535u";
-    }
-    const std::string options = std::string("-DOUT_T=") + out_t + " -DOUT_MAX=" + out_max +
-                                " -DPACKED=" + (o.format == Format::packed32 ? "1" : "0") +
-                                " -cl-std=CL1.2";
-    program_ =
-        ctx.program("classic",
-                    {cl_sources::layout_h, cl_sources::classic_common_cl, cl_sources::brute_cl,
-                     cl_sources::fim_cl, cl_sources::jfa_cl, cl_sources::monolithic_cl},
-                    options);
+    program_ = classic_program(ctx, o.format);
 
     // JFA steps: half the extent rounded up to a power of two, halving to 1; then JFA+1 (1)
     // or JFA+2 (2, 1).
     const std::uint32_t extent = o.chunk != 0 ? o.chunk : std::max({dims_.x, dims_.y, dims_.z});
-    for (std::uint32_t s = next_pow2(extent) / 2; s >= 1; s /= 2) {
+    for (auto s = static_cast<std::uint32_t>(next_pow2(extent) / 2); s >= 1; s /= 2) {
         jfa_steps_.push_back(static_cast<int>(s));
     }
     for (std::uint32_t e = o.jfa_extra; e >= 1; --e) {
@@ -419,6 +392,13 @@ double Classic::run() {
 }
 
 }  // namespace
+
+cl::Program classic_program(Context& ctx, Format format) {
+    return ctx.program("classic",
+                       {cl_sources::layout_h, cl_sources::classic_common_cl, cl_sources::brute_cl,
+                        cl_sources::fim_cl, cl_sources::jfa_cl, cl_sources::monolithic_cl},
+                       output_options(format));
+}
 
 std::unique_ptr<Generator> make_classic(Context& ctx, const World& world, const Palette& palette,
                                         const GeneratorOptions& options) {

@@ -6,6 +6,10 @@
 
 namespace voxfield::ocl {
 
+// The program of the dissertation's kernels (classic_common, brute, fim, jfa, monolithic)
+// writing `format`, built once per context.
+cl::Program classic_program(Context& ctx, Format format);
+
 // options: resolved (resolve_options), algorithm other than exact.
 std::unique_ptr<Generator> make_classic(Context& ctx, const World& world, const Palette& palette,
                                         const GeneratorOptions& options);

@@ -1,6 +1,8 @@
 // Exact global Manhattan distance transform, host side (kernels: cl/kernels/exact_manhattan.cl).
 #include "voxfield/cl/exact.hpp"
 
+#include "util.hpp"
+
 #include <algorithm>
 #include <string>
 
@@ -29,18 +31,6 @@ WorkType work_type(Format f) {
             return {"uint", 0xFFFFFFFFu, 4};
     }
     return {"uint", 0xFFFFFFFFu, 4};
-}
-
-std::size_t round_up(std::size_t v, std::size_t m) {
-    return (v + m - 1) / m * m;
-}
-
-std::size_t next_pow2(std::size_t v) {
-    std::size_t p = 1;
-    while (p < v) {
-        p <<= 1;
-    }
-    return p;
 }
 
 // Values per work-item in cols_seg for a column of n voxels, or 0 when too long for it.

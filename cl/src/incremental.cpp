@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "classic.hpp"
+#include "util.hpp"
 #include "voxfield/cl/exact.hpp"
 #include "voxfield/core/dirty.hpp"
 #include "voxfield/core/error.hpp"
@@ -14,10 +16,6 @@ namespace voxfield::cl_sources {
 extern const char* const layout_h;
 extern const char* const classic_common_cl;
 extern const char* const incremental_cl;
-extern const char* const brute_cl;
-extern const char* const fim_cl;
-extern const char* const jfa_cl;
-extern const char* const monolithic_cl;
 }  // namespace voxfield::cl_sources
 
 namespace voxfield::ocl {
@@ -25,13 +23,6 @@ namespace {
 
 cl_int4 int4_of(const Int3& v) {
     return {{static_cast<cl_int>(v.x), static_cast<cl_int>(v.y), static_cast<cl_int>(v.z), 0}};
-}
-
-std::string output_options(Format f) {
-    const char* t = f == Format::u8 ? "uchar" : f == Format::u16 ? "ushort" : "uint";
-    const char* max = f == Format::u8 ? "255u" : f == Format::u16 ? "65535u" : "4294967295u";
-    return std::string("-DOUT_T=") + t + " -DOUT_MAX=" + max +
-           " -DPACKED=" + (f == Format::packed32 ? "1" : "0") + " -cl-std=CL1.2";
 }
 
 // What both updaters share: the host world, the output buffer, staging and uploading the
@@ -425,16 +416,8 @@ class ChunkEngine : public Engine {
         if (o.focus) {
             focus = focus_chunks(grid, *o.focus);
         }
-        std::uint32_t p = 1;
-        while (p < o.chunk) {
-            p *= 2;
-        }
-        first_step = p / 2;
-        classic =
-            ctx.program("classic",
-                        {cl_sources::layout_h, cl_sources::classic_common_cl, cl_sources::brute_cl,
-                         cl_sources::fim_cl, cl_sources::jfa_cl, cl_sources::monolithic_cl},
-                        output_options(o.format));
+        first_step = static_cast<std::uint32_t>(next_pow2(o.chunk) / 2);
+        classic = classic_program(ctx, o.format);
         cl_call("allocating the chunk buffers of " + world.dims().to_string(), [&] {
             const std::size_t n = world.size();
             auto& q = ctx.queue();

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include "cli_test_util.hpp"
 
 #include <algorithm>
 #include <cstdint>
@@ -30,111 +31,16 @@
 #include "voxfield/core/vox.hpp"
 #include "voxfield/core/world.hpp"
 
-extern char** environ;
-
 namespace voxfield {
 namespace {
+
+using namespace voxfield::test;  // the spawn and file helpers of cli_test_util.hpp
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-const fs::path kExe = VOXFIELD_EXE;
 const fs::path kVox = fs::path(VOXFIELD_DATA_DIR) / "vox" / "chr_army1.vox";
 const std::vector<std::string> kFormats = {"u8", "u16", "u32", "packed32"};
-
-struct RunResult {
-    int code = -1;
-    std::string out, err;
-};
-
-std::string read_text(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-std::vector<std::uint8_t> read_bytes(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-void write_bytes(const fs::path& p, const std::string& bytes) {
-    std::ofstream out(p, std::ios::binary);
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    ASSERT_TRUE(out.good()) << p;
-}
-
-fs::path make_temp_dir(const std::string& stem) {
-    std::string tmpl = (fs::temp_directory_path() / (stem + "_XXXXXX")).string();
-    if (::mkdtemp(tmpl.data()) == nullptr) {
-        throw std::runtime_error("mkdtemp failed for " + tmpl);
-    }
-    return tmpl;
-}
-
-std::set<std::string> list_dir(const fs::path& dir) {
-    std::set<std::string> names;
-    for (const auto& e : fs::directory_iterator(dir)) {
-        names.insert(e.path().filename().string());
-    }
-    return names;
-}
-
-std::vector<std::string> split_lines(const std::string& text) {
-    std::vector<std::string> lines;
-    std::istringstream in(text);
-    for (std::string line; std::getline(in, line);) {
-        lines.push_back(line);
-    }
-    return lines;
-}
-
-// Runs the binary with `args`; stdout/stderr go to files in `io_dir` (never the work folder,
-// so that the folder listing checks see only what voxfield wrote).
-RunResult run_voxfield(const std::vector<std::string>& args, const fs::path& io_dir) {
-    static int counter = 0;
-    ++counter;
-    const fs::path out_path = io_dir / ("stdout_" + std::to_string(counter));
-    const fs::path err_path = io_dir / ("stderr_" + std::to_string(counter));
-    std::vector<std::string> argv_s = {kExe.string()};
-    argv_s.insert(argv_s.end(), args.begin(), args.end());
-    std::vector<char*> argv;
-    for (auto& a : argv_s) {
-        argv.push_back(a.data());
-    }
-    argv.push_back(nullptr);
-
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&fa, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
-    pid_t pid = 0;
-    const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&fa);
-    RunResult r;
-    if (rc != 0) {
-        r.err = std::string("posix_spawn failed: ") + std::strerror(rc);
-        return r;
-    }
-    int status = 0;
-    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-    }
-    if (WIFEXITED(status)) {
-        r.code = WEXITSTATUS(status);
-    } else if (WIFSIGNALED(status)) {
-        r.code = 128 + WTERMSIG(status);
-    }
-    r.out = read_text(out_path);
-    r.err = read_text(err_path);
-    fs::remove(out_path);
-    fs::remove(err_path);
-    return r;
-}
-
-std::string describe(const RunResult& r) {
-    return "exit " + std::to_string(r.code) + "\n--- stdout ---\n" + r.out + "--- stderr ---\n" +
-           r.err;
-}
 
 // A .npy file with an arbitrary header dict (format 1.0, padded with spaces to a multiple of
 // 64 bytes, ending in '\n') followed by `data`.
@@ -379,7 +285,7 @@ TEST_F(CliTest, GenerateOverwritesExistingOutput) {
     const fs::path in = dir_ / "world.npy";
     write_npy(in, NpyType::u8, w.dims(), w.voxels());
     const fs::path out = dir_ / "field.npy";
-    write_bytes(out, "old contents");
+    write_file(out, "old contents");
     const RunResult r =
         run({"generate", in.string(), "-o", out.string(), "--format", "u8", "--device", "cpu"});
     ASSERT_EQ(r.code, 0) << describe(r);
@@ -444,13 +350,13 @@ std::vector<BadCase> bad_cases() {
                  {"adir.npy"}});
     c.push_back({"EmptyVox",
                  [](const fs::path& d, const fs::path& o) {
-                     write_bytes(d / "empty.vox", "");
+                     write_file(d / "empty.vox", "");
                      return gen(d / "empty.vox", o);
                  },
                  {"empty.vox"}});
     c.push_back({"TruncatedVox",
                  [](const fs::path& d, const fs::path& o) {
-                     write_bytes(d / "trunc.vox", vox_bytes().substr(0, 100));
+                     write_file(d / "trunc.vox", vox_bytes().substr(0, 100));
                      return gen(d / "trunc.vox", o);
                  },
                  {"trunc.vox"}});
@@ -458,26 +364,26 @@ std::vector<BadCase> bad_cases() {
                  [](const fs::path& d, const fs::path& o) {
                      std::string b = vox_bytes();
                      b.replace(0, 4, "XOV ");
-                     write_bytes(d / "corrupt.vox", b);
+                     write_file(d / "corrupt.vox", b);
                      return gen(d / "corrupt.vox", o);
                  },
                  {"corrupt.vox"}});
     c.push_back({"NpyFloat32",
                  [](const fs::path& d, const fs::path& o) {
-                     write_bytes(d / "float.npy",
-                                 raw_npy("<f4", "(2, 2, 2)", std::string(32, '\0')));
+                     write_file(d / "float.npy",
+                                raw_npy("<f4", "(2, 2, 2)", std::string(32, '\0')));
                      return gen(d / "float.npy", o);
                  },
                  {"float.npy", "dtype"}});
     c.push_back({"Npy2D",
                  [](const fs::path& d, const fs::path& o) {
-                     write_bytes(d / "flat.npy", raw_npy("|u1", "(4, 4)", std::string(16, '\1')));
+                     write_file(d / "flat.npy", raw_npy("|u1", "(4, 4)", std::string(16, '\1')));
                      return gen(d / "flat.npy", o);
                  },
                  {"flat.npy", "shape"}});
     c.push_back({"NpyZeroAxis",
                  [](const fs::path& d, const fs::path& o) {
-                     write_bytes(d / "zero.npy", raw_npy("|u1", "(0, 4, 4)", ""));
+                     write_file(d / "zero.npy", raw_npy("|u1", "(0, 4, 4)", ""));
                      return gen(d / "zero.npy", o);
                  },
                  {"zero.npy", "empty axis"}});
@@ -486,13 +392,13 @@ std::vector<BadCase> bad_cases() {
                      std::string data(2 * 2 * 3 * 2, '\0');
                      data[14] = static_cast<char>(300 & 0xFF);  // element 7 = 300
                      data[15] = static_cast<char>(300 >> 8);
-                     write_bytes(d / "big.npy", raw_npy("<u2", "(2, 2, 3)", data));
+                     write_file(d / "big.npy", raw_npy("<u2", "(2, 2, 3)", data));
                      return gen(d / "big.npy", o);
                  },
                  {"big.npy", "300"}});
     c.push_back({"UnknownExtension",
                  [](const fs::path& d, const fs::path& o) {
-                     write_bytes(d / "world.txt", "hello");
+                     write_file(d / "world.txt", "hello");
                      return gen(d / "world.txt", o);
                  },
                  {"world.txt", ".txt"}});

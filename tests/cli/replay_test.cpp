@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include "cli_test_util.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -32,105 +33,15 @@
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/world.hpp"
 
-extern char** environ;
-
 namespace voxfield {
 namespace {
+
+using namespace voxfield::test;  // the spawn and file helpers of cli_test_util.hpp
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-const fs::path kExe = VOXFIELD_EXE;
 const Dims kDims{48, 48, 48};
-
-struct RunResult {
-    int code = -1;
-    std::string out, err;
-};
-
-std::string read_text(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-void write_text(const fs::path& p, const std::string& text) {
-    std::ofstream out(p, std::ios::binary);
-    out.write(text.data(), static_cast<std::streamsize>(text.size()));
-    ASSERT_TRUE(out.good()) << p;
-}
-
-fs::path make_temp_dir(const std::string& stem) {
-    std::string tmpl = (fs::temp_directory_path() / (stem + "_XXXXXX")).string();
-    if (::mkdtemp(tmpl.data()) == nullptr) {
-        throw std::runtime_error("mkdtemp failed for " + tmpl);
-    }
-    return tmpl;
-}
-
-std::set<std::string> list_dir(const fs::path& dir) {
-    std::set<std::string> names;
-    for (const auto& e : fs::directory_iterator(dir)) {
-        names.insert(e.path().filename().string());
-    }
-    return names;
-}
-
-std::vector<std::string> split_lines(const std::string& text) {
-    std::vector<std::string> lines;
-    std::istringstream in(text);
-    for (std::string line; std::getline(in, line);) {
-        lines.push_back(line);
-    }
-    return lines;
-}
-
-// Runs the binary with `args`; stdout/stderr go to files in `io_dir` (never the work folder,
-// so that the folder listing checks see only what voxfield wrote).
-RunResult run_voxfield(const std::vector<std::string>& args, const fs::path& io_dir) {
-    static int counter = 0;
-    ++counter;
-    const fs::path out_path = io_dir / ("stdout_" + std::to_string(counter));
-    const fs::path err_path = io_dir / ("stderr_" + std::to_string(counter));
-    std::vector<std::string> argv_s = {kExe.string()};
-    argv_s.insert(argv_s.end(), args.begin(), args.end());
-    std::vector<char*> argv;
-    for (auto& a : argv_s) {
-        argv.push_back(a.data());
-    }
-    argv.push_back(nullptr);
-
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&fa, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
-    pid_t pid = 0;
-    const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&fa);
-    RunResult r;
-    if (rc != 0) {
-        r.err = std::string("posix_spawn failed: ") + std::strerror(rc);
-        return r;
-    }
-    int status = 0;
-    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-    }
-    if (WIFEXITED(status)) {
-        r.code = WEXITSTATUS(status);
-    } else if (WIFSIGNALED(status)) {
-        r.code = 128 + WTERMSIG(status);
-    }
-    r.out = read_text(out_path);
-    r.err = read_text(err_path);
-    fs::remove(out_path);
-    fs::remove(err_path);
-    return r;
-}
-
-std::string describe(const RunResult& r) {
-    return "exit " + std::to_string(r.code) + "\n--- stdout ---\n" + r.out + "--- stderr ---\n" +
-           r.err;
-}
 
 // Index of the first differing element (element size `es`), or -1.
 long long first_difference(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b,
@@ -244,7 +155,7 @@ class ReplayTest : public ::testing::Test {
                       const std::function<std::vector<std::uint32_t>(const World&)>& reference,
                       const std::string& format = "u16") {
         const fs::path edits = dir_ / "edits.txt";
-        write_text(edits, script.text);
+        write_file(edits, script.text);
         const fs::path world_out = dir_ / "world_out.npy";
         const fs::path field_out = dir_ / "field_out.npy";
         const fs::path json_out = dir_ / "replay.json";
@@ -311,7 +222,7 @@ class ReplayTest : public ::testing::Test {
     std::string expect_rejected(const std::string& edit_text,
                                 const std::vector<std::string>& extra = {}) {
         const fs::path edits = dir_ / "edits.txt";
-        write_text(edits, edit_text);
+        write_file(edits, edit_text);
         std::vector<std::string> args = {"replay",
                                          edits.string(),
                                          "--input",
@@ -422,7 +333,7 @@ TEST_F(ReplayTest, MissingEditFileIsInputError) {
 
 TEST_F(ReplayTest, NothingToProduceIsUsageError) {
     const fs::path edits = dir_ / "edits.txt";
-    write_text(edits, "place sphere 1 2 3 4\n");
+    write_file(edits, "place sphere 1 2 3 4\n");
     const RunResult r = run({"replay", edits.string(), "--input", world_path_.string()});
     EXPECT_EQ(r.code, 2) << describe(r);
     EXPECT_NE(r.err.find("nothing"), std::string::npos) << r.err;
@@ -431,7 +342,7 @@ TEST_F(ReplayTest, NothingToProduceIsUsageError) {
 
 TEST_F(ReplayTest, SameFileForTwoOutputsIsUsageError) {
     const fs::path edits = dir_ / "edits.txt";
-    write_text(edits, "place sphere 1 2 3 4\n");
+    write_file(edits, "place sphere 1 2 3 4\n");
     const std::string same = (dir_ / "out.npy").string();
     const RunResult r = run({"replay", edits.string(), "--input", world_path_.string(),
                              "--world-output", same, "-o", same});
@@ -442,7 +353,7 @@ TEST_F(ReplayTest, SameFileForTwoOutputsIsUsageError) {
 
 TEST_F(ReplayTest, MissingOutputFolderIsRejectedBeforeWork) {
     const fs::path edits = dir_ / "edits.txt";
-    write_text(edits, "place sphere 1 2 3 4\n");
+    write_file(edits, "place sphere 1 2 3 4\n");
     const RunResult r = run({"replay", edits.string(), "--input", world_path_.string(), "-o",
                              (dir_ / "no_such_dir" / "f.npy").string()});
     EXPECT_EQ(r.code, 2) << describe(r);

@@ -1,0 +1,32 @@
+#pragma once
+// Small host-side helpers shared by the generators.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "voxfield/core/format.hpp"
+
+namespace voxfield::ocl {
+
+inline std::size_t round_up(std::size_t v, std::size_t m) {
+    return (v + m - 1) / m * m;
+}
+
+inline std::size_t next_pow2(std::size_t v) {
+    std::size_t p = 1;
+    while (p < v) {
+        p <<= 1;
+    }
+    return p;
+}
+
+// Build options of the kernels that write a field: OUT_T (the element type), OUT_MAX (its
+// largest distance) and PACKED (1 for packed32), shared by classic_common.cl's users.
+inline std::string output_options(Format f) {
+    const char* t = f == Format::u8 ? "uchar" : f == Format::u16 ? "ushort" : "uint";
+    const char* max = f == Format::u8 ? "255u" : f == Format::u16 ? "65535u" : "4294967295u";
+    return std::string("-DOUT_T=") + t + " -DOUT_MAX=" + max +
+           " -DPACKED=" + (f == Format::packed32 ? "1" : "0") + " -cl-std=CL1.2";
+}
+
+}  // namespace voxfield::ocl

@@ -1,0 +1,126 @@
+#pragma once
+// Shared by the end-to-end tests of the `voxfield` executable: spawning it with captured
+// stdout/stderr and exit code, and small file helpers.
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <cerrno>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+extern char** environ;
+
+namespace voxfield::test {
+
+namespace fs = std::filesystem;
+
+inline const fs::path kExe = VOXFIELD_EXE;
+
+struct RunResult {
+    int code = -1;
+    std::string out, err;
+};
+
+inline std::string read_text(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+inline std::vector<std::uint8_t> read_bytes(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+inline void write_file(const fs::path& p, const std::string& bytes) {
+    std::ofstream out(p, std::ios::binary);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    ASSERT_TRUE(out.good()) << p;
+}
+
+inline fs::path make_temp_dir(const std::string& stem) {
+    std::string tmpl = (fs::temp_directory_path() / (stem + "_XXXXXX")).string();
+    if (::mkdtemp(tmpl.data()) == nullptr) {
+        throw std::runtime_error("mkdtemp failed for " + tmpl);
+    }
+    return tmpl;
+}
+
+inline std::set<std::string> list_dir(const fs::path& dir) {
+    std::set<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir)) {
+        names.insert(e.path().filename().string());
+    }
+    return names;
+}
+
+inline std::vector<std::string> split_lines(const std::string& text) {
+    std::vector<std::string> lines;
+    std::istringstream in(text);
+    for (std::string line; std::getline(in, line);) {
+        lines.push_back(line);
+    }
+    return lines;
+}
+
+// Runs the binary with `args`; stdout/stderr go to files in `io_dir` (never the work folder,
+// so that the folder listing checks see only what voxfield wrote).
+inline RunResult run_voxfield(const std::vector<std::string>& args, const fs::path& io_dir) {
+    static int counter = 0;
+    ++counter;
+    const fs::path out_path = io_dir / ("stdout_" + std::to_string(counter));
+    const fs::path err_path = io_dir / ("stderr_" + std::to_string(counter));
+    std::vector<std::string> argv_s = {kExe.string()};
+    argv_s.insert(argv_s.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (auto& a : argv_s) {
+        argv.push_back(a.data());
+    }
+    argv.push_back(nullptr);
+
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&fa, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+    pid_t pid = 0;
+    const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    RunResult r;
+    if (rc != 0) {
+        r.err = std::string("posix_spawn failed: ") + std::strerror(rc);
+        return r;
+    }
+    int status = 0;
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    if (WIFEXITED(status)) {
+        r.code = WEXITSTATUS(status);
+    } else if (WIFSIGNALED(status)) {
+        r.code = 128 + WTERMSIG(status);
+    }
+    r.out = read_text(out_path);
+    r.err = read_text(err_path);
+    fs::remove(out_path);
+    fs::remove(err_path);
+    return r;
+}
+
+inline std::string describe(const RunResult& r) {
+    return "exit " + std::to_string(r.code) + "\n--- stdout ---\n" + r.out + "--- stderr ---\n" +
+           r.err;
+}
+
+}  // namespace voxfield::test
