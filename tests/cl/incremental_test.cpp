@@ -156,6 +156,41 @@ TEST(Incremental, WritesNothingOutsideItsRegions) {
     EXPECT_GE(checked, 10);
 }
 
+TEST(Incremental, ChunkLocalWritesOnlyDirtyChunks) {
+    std::mt19937_64 rng(8);
+    const World start = scene_floor_spheres(Dims{32, 24, 40}, 4, 6);
+    ocl::GeneratorOptions o;
+    o.algorithm = ocl::Algorithm::fim;
+    o.format = Format::u16;
+    o.chunk = 8;
+    o = ocl::resolve_options(o, start.dims());
+    ocl::IncrementalField field(pocl(), start, Palette(), o);
+    const std::uint16_t poison = 0xBEEF;
+    const Dims d = start.dims();
+    for (int batch = 0; batch < 20; ++batch) {
+        const auto bytes = 2 * start.size();
+        pocl().queue().enqueueFillBuffer(field.field_buffer(), poison, 0, bytes);
+        const auto stats = field.apply({random_brush(rng, d, 4)});
+        const auto after = field.read();
+        for (std::uint32_t z = 0; z < d.z; ++z) {
+            for (std::uint32_t y = 0; y < d.y; ++y) {
+                for (std::uint32_t x = 0; x < d.x; ++x) {
+                    bool inside = false;
+                    for (const Box& b : stats.regions) {
+                        inside |= x >= b.min.x && x < b.max.x && y >= b.min.y && y < b.max.y &&
+                                  z >= b.min.z && z < b.max.z;
+                    }
+                    if (!inside) {
+                        ASSERT_EQ(decode_distance(after, Format::u16, d.index(x, y, z)), poison)
+                            << "written outside the dirty chunks, batch " << batch;
+                    }
+                }
+            }
+        }
+        field.regenerate();  // the real field again for the next batch
+    }
+}
+
 TEST(Incremental, GlobalDissertationAlgorithmsNeedChunks) {
     ocl::GeneratorOptions o;
     o.algorithm = ocl::Algorithm::jfa;
