@@ -6,7 +6,8 @@ set -eu
 cd "$(dirname "$0")"
 
 packages="cmake g++ make git ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers
-pocl-opencl-icd libcli11-dev nlohmann-json3-dev libgtest-dev"
+pocl-opencl-icd libcli11-dev nlohmann-json3-dev libgtest-dev
+libvulkan-dev mesa-vulkan-drivers glslang-tools libstb-dev"
 
 missing=""
 for p in $packages; do

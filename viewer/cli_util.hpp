@@ -23,6 +23,7 @@ Command add_devices(CLI::App& root);
 Command add_generate(CLI::App& root);
 Command add_replay(CLI::App& root);
 Command add_bench(CLI::App& root);
+Command add_render(CLI::App& root);
 
 // The metrics `--metric` accepts today.
 inline const std::vector<std::string> kMetrics = {"manhattan"};

@@ -5,6 +5,7 @@
 #include "cli_util.hpp"
 #include "voxfield/cl/runtime.hpp"
 #include "voxfield/core/error.hpp"
+#include "voxfield/vk/context.hpp"
 
 int main(int argc, char** argv) {
     using namespace voxfield;
@@ -12,7 +13,8 @@ int main(int argc, char** argv) {
     app.require_subcommand(1);
     app.set_version_flag("--version", std::string("voxfield ") + cli::commit());
     std::vector<cli::Command> commands = {cli::add_devices(app), cli::add_generate(app),
-                                          cli::add_replay(app), cli::add_bench(app)};
+                                          cli::add_replay(app), cli::add_bench(app),
+                                          cli::add_render(app)};
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
@@ -40,6 +42,12 @@ int main(int argc, char** argv) {
         return 1;
     } catch (const ocl::ClError& e) {
         std::cerr << "voxfield: device failure: " << e.what() << '\n';
+        return 1;
+    } catch (const vk::VkError& e) {
+        std::cerr << "voxfield: Vulkan device failure: " << e.what() << '\n';
+        return 1;
+    } catch (const vk::DeviceSelectionError& e) {
+        std::cerr << "voxfield: " << e.what() << '\n';
         return 1;
     } catch (const std::bad_alloc&) {
         std::cerr << "voxfield: out of host memory\n";

@@ -1,4 +1,4 @@
-/* GPU-visible data layouts, shared by C++ (host), OpenCL C (kernels) and, later, GLSL.
+/* GPU-visible data layouts, shared by C++ (host), OpenCL C (kernels) and GLSL (vk/shaders).
  * Only preprocessor constants, so every language reads it; host static_asserts in
  * core/src/format.cpp and the kernels' use of these names keep both sides in step. */
 #ifndef VOXFIELD_LAYOUT_H
@@ -12,5 +12,18 @@
 /* RGB332 colour byte: rrrgggbb. */
 #define VF_RGB332_R_SHIFT 5
 #define VF_RGB332_G_SHIFT 2
+
+/* Ray marcher (vk/shaders/raymarch.comp): work-group edge, the most storage-buffer bindings
+ * the packed32 field (and the material bytes beside it) may be split across, since one
+ * binding is limited to maxStorageBufferRange (lavapipe: 128 MiB), and its binding numbers. */
+#define VF_RAYMARCH_LOCAL_SIZE 8
+#define VF_RAYMARCH_MAX_SLABS 8
+#define VF_RAYMARCH_BINDING_IMAGE 0
+#define VF_RAYMARCH_BINDING_PALETTE 1
+#define VF_RAYMARCH_BINDING_FIELD 2
+#define VF_RAYMARCH_BINDING_MATERIAL 10
+/* Ray marcher flags (push constant): lit shading, sky gradient instead of a flat colour. */
+#define VF_RAYMARCH_FLAG_LIT 1u
+#define VF_RAYMARCH_FLAG_SKY_GRADIENT 2u
 
 #endif

@@ -1,0 +1,89 @@
+// `voxfield render` end to end: bad input is refused (exit 2, one stderr line, no file), and a
+// small render writes a PNG atomically and reports the sharing path and GPU time.
+#include <string>
+#include <vector>
+
+#include "../cli/cli_test_util.hpp"
+
+namespace voxfield::test {
+namespace {
+
+const fs::path kModel = fs::path(VOXFIELD_DATA_DIR) / "vox" / "chr_army1.vox";
+
+class RenderCli : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        dir_ = make_temp_dir("voxfield_render");
+        io_ = make_temp_dir("voxfield_render_io");
+    }
+    void TearDown() override {
+        fs::remove_all(dir_);
+        fs::remove_all(io_);
+    }
+    fs::path dir_, io_;
+};
+
+TEST_F(RenderCli, BadInputExitsTwoWithOneLineAndNoFile) {
+    write_file(dir_ / "world.txt", "not a world");
+    const std::string out = (dir_ / "out.png").string();
+    const std::vector<std::vector<std::string>> cases = {
+        {kModel.string(), "-o", out, "--width", "0"},
+        {kModel.string(), "-o", out, "--width", "16385"},
+        {kModel.string(), "-o", out, "--height", "0"},
+        {kModel.string(), "-o", out, "--width", "-3"},
+        {kModel.string(), "-o", out, "--fov", "0"},
+        {kModel.string(), "-o", out, "--fov", "180"},
+        {kModel.string(), "-o", out, "--fov", "-10"},
+        {kModel.string(), "-o", out, "--camera", "1,2,3", "--target", "1,2,3"},
+        {kModel.string(), "-o", out, "--camera", "1,2"},
+        {kModel.string(), "-o", out, "--target", "a,b,c"},
+        {kModel.string(), "-o", out, "--camera", "1,2,3,4"},
+        {kModel.string(), "-o", out, "--sky", "12345"},
+        {kModel.string(), "-o", out, "--sky", "zzzzzz"},
+        {kModel.string(), "-o", out, "--shading", "phong"},
+        {kModel.string(), "-o", (dir_ / "out.jpg").string()},
+        {kModel.string(), "-o", (dir_ / "missing" / "out.png").string()},
+        {(dir_ / "absent.vox").string(), "-o", out},
+        {(dir_ / "world.txt").string(), "-o", out},
+        {kModel.string()},
+    };
+    for (const auto& args : cases) {
+        std::vector<std::string> full = {"render"};
+        full.insert(full.end(), args.begin(), args.end());
+        const RunResult r = run_voxfield(full, io_);
+        std::string cmd;
+        for (const auto& a : args) {
+            cmd += a + " ";
+        }
+        EXPECT_EQ(r.code, 2) << cmd << describe(r);
+        EXPECT_EQ(split_lines(r.err).size(), 1u) << cmd << describe(r);
+        EXPECT_EQ(list_dir(dir_), std::set<std::string>{"world.txt"}) << cmd;
+    }
+}
+
+TEST_F(RenderCli, WritesPngAndReports) {
+    const fs::path out = dir_ / "army.png";
+    const RunResult r = run_voxfield({"render", kModel.string(), "-o", out.string(), "--width",
+                                      "64", "--height", "48", "--shading", "lit", "--stats"},
+                                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_EQ(list_dir(dir_), std::set<std::string>{"army.png"});
+    const auto bytes = read_bytes(out);
+    ASSERT_GT(bytes.size(), 8u);
+    EXPECT_EQ(std::string(bytes.begin() + 1, bytes.begin() + 4), "PNG");
+    EXPECT_NE(r.out.find("sharing: copy"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("ray march"), std::string::npos) << r.out;
+    EXPECT_TRUE(r.err.empty()) << r.err;
+}
+
+TEST_F(RenderCli, HelpListsEveryOption) {
+    const RunResult r = run_voxfield({"render", "--help"}, io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    for (const char* opt : {"--width", "--height", "--camera", "--target", "--fov", "--shading",
+                            "--sky", "--device", "--stats", "--output"}) {
+        EXPECT_NE(r.out.find(opt), std::string::npos) << opt;
+    }
+}
+
+}  // namespace
+}  // namespace voxfield::test

@@ -1,0 +1,165 @@
+#pragma once
+// Vulkan runtime: errors carrying the call and VkResult name, move-only RAII handles, device
+// enumeration and selection (explaining every rejection), a headless compute context with
+// buffers allocated by intent and one-shot submissions.
+#include <vulkan/vulkan.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace voxfield::vk {
+
+// A failed Vulkan call: the API function, its VkResult name and our context. The command
+// line maps it to exit code 1.
+class VkError : public std::runtime_error {
+  public:
+    VkError(const std::string& call, VkResult result, const std::string& context);
+    VkResult result() const { return result_; }
+
+  private:
+    VkResult result_;
+};
+
+// No Vulkan device can serve the request; the message lists every device and why it was
+// rejected (exit code 1: nothing the user typed is wrong, the machine lacks a driver).
+class DeviceSelectionError : public std::runtime_error {
+  public:
+    using std::runtime_error::runtime_error;
+};
+
+// "VK_ERROR_OUT_OF_DEVICE_MEMORY", ...; "VkResult(N)" for codes it does not know.
+const char* result_name(VkResult r);
+
+// Throws VkError(call, r, context) unless r is VK_SUCCESS.
+void check(VkResult r, const char* call, const std::string& context = "");
+
+// A device-level handle destroyed by vkDestroyX(device, handle, nullptr); move-only.
+template <class H>
+class Owned {
+  public:
+    using Destroy = void (*)(VkDevice, H, const VkAllocationCallbacks*);
+    Owned() = default;
+    Owned(VkDevice device, H handle, Destroy destroy)
+        : device_(device), handle_(handle), destroy_(destroy) {}
+    ~Owned() { reset(); }
+    Owned(const Owned&) = delete;
+    Owned& operator=(const Owned&) = delete;
+    Owned(Owned&& o) noexcept
+        : device_(o.device_), handle_(std::exchange(o.handle_, H{})), destroy_(o.destroy_) {}
+    Owned& operator=(Owned&& o) noexcept {
+        if (this != &o) {
+            reset();
+            device_ = o.device_;
+            handle_ = std::exchange(o.handle_, H{});
+            destroy_ = o.destroy_;
+        }
+        return *this;
+    }
+    H get() const { return handle_; }
+    explicit operator bool() const { return handle_ != H{}; }
+    void reset() {
+        if (handle_ != H{} && destroy_ != nullptr) {
+            destroy_(device_, handle_, nullptr);
+        }
+        handle_ = H{};
+    }
+
+  private:
+    VkDevice device_ = VK_NULL_HANDLE;
+    H handle_{};
+    Destroy destroy_ = nullptr;
+};
+
+struct PhysicalDeviceInfo {
+    std::size_t index = 0;           // position in list_devices()
+    std::string name, type, driver;  // type: "discrete-gpu", "integrated-gpu", "cpu", ...
+    std::uint32_t api_version = 0;
+    std::string api;  // "1.3.230"
+    VkDeviceSize max_storage_buffer_range = 0;
+    std::uint32_t max_storage_buffers_per_stage = 0;
+    std::uint32_t max_image_dimension_2d = 0;
+    bool timestamps = false;  // compute queue can write timestamps
+    std::vector<std::string> extensions;
+    std::string rejected;  // why this device cannot serve the renderer, "" if it can
+
+    bool has_extension(const std::string& ext) const;
+};
+
+// Every physical device, with why it is unusable (if it is). Throws VkError when no Vulkan
+// loader / driver is installed.
+std::vector<PhysicalDeviceInfo> list_devices();
+
+// Intent of a buffer's memory: where the GPU reads it fastest, or where the host writes /
+// reads it (host-visible, coherent; readback prefers cached memory).
+enum class MemoryIntent { device_local, upload, readback };
+
+class Context;
+
+// A buffer with its own memory; host-visible memory stays mapped (data() non-null).
+class Buffer {
+  public:
+    Buffer() = default;
+    VkBuffer get() const { return buffer_.get(); }
+    VkDeviceSize size() const { return size_; }
+    void* data() const { return mapped_; }
+    bool host_visible() const { return mapped_ != nullptr; }
+
+  private:
+    friend class Context;
+    Owned<VkDeviceMemory> memory_;  // declared first: freed after the buffer is destroyed
+    Owned<VkBuffer> buffer_;
+    VkDeviceSize size_ = 0;
+    void* mapped_ = nullptr;  // unmapped implicitly when the memory is freed
+};
+
+// Owns the instance, one logical device with a compute queue and a command pool.
+class Context {
+  public:
+    // spec: "" (default: $VOXFIELD_VK_DEVICE, else the first discrete GPU, integrated GPU,
+    // virtual GPU, then CPU), "gpu", "cpu" or an index from list_devices(). Throws
+    // DeviceSelectionError explaining why each device was rejected.
+    explicit Context(const std::string& spec = "");
+    ~Context();
+    Context(const Context&) = delete;
+    Context& operator=(const Context&) = delete;
+
+    const PhysicalDeviceInfo& info() const { return info_; }
+    VkDevice device() const { return device_; }
+    VkPhysicalDevice physical() const { return physical_; }
+    VkQueue queue() const { return queue_; }
+    std::uint32_t queue_family() const { return family_; }
+    float timestamp_period_ns() const { return timestamp_period_; }
+
+    Buffer make_buffer(VkDeviceSize size, VkBufferUsageFlags usage, MemoryIntent intent,
+                       const std::string& what);
+    // Allocates memory for `requirements` by intent (for images).
+    Owned<VkDeviceMemory> allocate(const VkMemoryRequirements& requirements, MemoryIntent intent,
+                                   const std::string& what);
+    // Copies `bytes` into `dst` at `offset`: directly when it is mapped, else through a
+    // staging buffer (needs VK_BUFFER_USAGE_TRANSFER_DST_BIT).
+    void upload(const Buffer& dst, const void* bytes, VkDeviceSize size, VkDeviceSize offset = 0);
+    // Records `record` into a fresh command buffer, submits it and waits for its fence.
+    void submit_and_wait(const std::function<void(VkCommandBuffer)>& record,
+                         const std::string& what);
+
+  private:
+    std::uint32_t memory_type(std::uint32_t allowed, MemoryIntent intent,
+                              const std::string& what) const;
+
+    VkInstance instance_ = VK_NULL_HANDLE;
+    VkPhysicalDevice physical_ = VK_NULL_HANDLE;
+    VkDevice device_ = VK_NULL_HANDLE;
+    VkQueue queue_ = VK_NULL_HANDLE;
+    std::uint32_t family_ = 0;
+    float timestamp_period_ = 1;
+    VkPhysicalDeviceMemoryProperties memory_{};
+    PhysicalDeviceInfo info_;
+    Owned<VkCommandPool> pool_;
+};
+
+}  // namespace voxfield::vk

@@ -1,0 +1,90 @@
+#pragma once
+// The DDA ray marcher (vk/shaders/raymarch.comp) over a packed32 distance field, rendering
+// headless into an offscreen image that is read back as RGBA8.
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "voxfield/core/palette.hpp"
+#include "voxfield/core/world.hpp"
+#include "voxfield/vk/context.hpp"
+
+namespace voxfield::vk {
+
+using Vec3 = std::array<double, 3>;
+
+// Pinhole camera, DESIGN §4: up = +y, vertical field of view in degrees, in (0, 180).
+struct Camera {
+    Vec3 position{0, 0, 0}, target{0, 0, 1};
+    double fov_deg = 60;
+};
+
+// The camera's basis for an image of width x height: pixel (i, j) (j down) looks along
+// forward + sx * right + sy * up with sx = ((i+0.5)/W*2-1), sy = (1-(j+0.5)/H*2), where
+// right is scaled by aspect * tan(fov/2) and up by tan(fov/2). Looking straight along +-y,
+// right is +x. Throws InputError when target equals position or fov is outside (0, 180).
+struct CameraBasis {
+    Vec3 forward, right, up;
+};
+CameraBasis camera_basis(const Camera& camera, std::uint32_t width, std::uint32_t height);
+
+// A camera outside the world looking at its centre from above and in front (a three-quarter
+// view that shows the whole world at a 60 degree field of view).
+Camera default_camera(Dims dims);
+
+enum class Shading { flat, lit };
+
+inline constexpr std::uint32_t kMaxImageSize = 16384;
+
+struct RenderOptions {
+    std::uint32_t width = 800, height = 600;  // 1 .. kMaxImageSize
+    Camera camera;
+    Shading shading = Shading::flat;
+    Rgba sky{0, 0, 0, 255};
+    // Lit shading only: the sky gradient and sun disc instead of the flat `sky` colour.
+    bool sky_gradient = false;
+};
+
+struct Image {
+    std::uint32_t width = 0, height = 0;
+    std::vector<std::uint8_t> rgba;  // width * height * 4 bytes, rows top to bottom
+    double raymarch_ms = -1;         // the dispatch, by GPU timestamps (-1: not available)
+};
+
+// Throws InputError for sizes outside 1..kMaxImageSize or a bad camera.
+void validate(const RenderOptions& options);
+
+class Raymarcher {
+  public:
+    // max_binding_bytes: split the field into storage-buffer bindings of at most this many
+    // bytes (0: the device's maxStorageBufferRange). Tests lower it to exercise the split.
+    explicit Raymarcher(Context& ctx, std::uint64_t max_binding_bytes = 0);
+    ~Raymarcher();
+    Raymarcher(const Raymarcher&) = delete;
+    Raymarcher& operator=(const Raymarcher&) = delete;
+
+    // Uploads the packed32 field (dims.count() elements, DESIGN §3: distance in bits 15..8),
+    // the world's voxels (flat shading writes the palette colour of the hit voxel's
+    // material exactly, not the field's rgb332 approximation) and the palette. This is
+    // DESIGN §2 sharing path 3 (a copy). Throws InputError when the world needs more than
+    // VF_RAYMARCH_MAX_SLABS bindings or one z-slice exceeds a binding.
+    void upload(const World& world, const Palette& palette,
+                std::span<const std::uint32_t> packed32);
+
+    Image render(const RenderOptions& options);
+
+    // How many storage-buffer bindings the field was split across, and z-slices per binding.
+    std::uint32_t field_bindings() const;
+    std::uint32_t slab_depth() const;
+    // The active OpenCL -> Vulkan sharing path, for reports.
+    std::string sharing_path() const;
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace voxfield::vk

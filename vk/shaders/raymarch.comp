@@ -1,0 +1,272 @@
+#version 450
+// DDA ray marcher over a packed32 Manhattan distance field. Traversal: Amanatides & Woo, "A
+// Fast Voxel Traversal Algorithm for Ray Tracing" (Eurographics 1987); empty-space skipping
+// by the distance field as in the dissertation's viewer (chapter 5), without its step cap.
+#extension GL_GOOGLE_include_directive : require
+#include "voxfield/layout.h"
+
+layout(local_size_x = VF_RAYMARCH_LOCAL_SIZE, local_size_y = VF_RAYMARCH_LOCAL_SIZE) in;
+
+// One RGBA8 pixel per texel, r | g << 8 | b << 16 | a << 24 (bytes R, G, B, A in memory), so
+// flat colours are written bit-exactly (no float -> unorm rounding).
+layout(binding = VF_RAYMARCH_BINDING_IMAGE, r32ui) uniform writeonly uimage2D out_image;
+// Palette entry m as r | g << 8 | b << 16 | a << 24.
+layout(std430, binding = VF_RAYMARCH_BINDING_PALETTE) readonly buffer PaletteBuf {
+    uint palette[256];
+};
+
+// The field is split along z into slabs of pc.dims.w slices, one binding each, so that no
+// binding exceeds maxStorageBufferRange. Unused bindings alias slab 0 and are never read.
+// Materials (the world's voxel bytes, four per word, same slabs) sit beside the field.
+layout(std430, binding = VF_RAYMARCH_BINDING_FIELD + 0) readonly buffer F0 {
+    uint f0[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_FIELD + 1) readonly buffer F1 {
+    uint f1[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_FIELD + 2) readonly buffer F2 {
+    uint f2[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_FIELD + 3) readonly buffer F3 {
+    uint f3[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_FIELD + 4) readonly buffer F4 {
+    uint f4[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_FIELD + 5) readonly buffer F5 {
+    uint f5[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_FIELD + 6) readonly buffer F6 {
+    uint f6[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_FIELD + 7) readonly buffer F7 {
+    uint f7[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_MATERIAL + 0) readonly buffer M0 {
+    uint m0[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_MATERIAL + 1) readonly buffer M1 {
+    uint m1[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_MATERIAL + 2) readonly buffer M2 {
+    uint m2[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_MATERIAL + 3) readonly buffer M3 {
+    uint m3[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_MATERIAL + 4) readonly buffer M4 {
+    uint m4[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_MATERIAL + 5) readonly buffer M5 {
+    uint m5[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_MATERIAL + 6) readonly buffer M6 {
+    uint m6[];
+};
+layout(std430, binding = VF_RAYMARCH_BINDING_MATERIAL + 7) readonly buffer M7 {
+    uint m7[];
+};
+
+// Mirrors PushConstants in vk/src/raymarcher.cpp (static_asserts there).
+layout(push_constant) uniform Params {
+    vec4 origin;   // camera position (xyz)
+    vec4 forward;  // unit view direction
+    vec4 right;    // camera right * aspect * tan(fov / 2)
+    vec4 up;       // camera up * tan(fov / 2)
+    uvec4 dims;    // world X, Y, Z; z-slices per slab
+    uvec4 image;   // width, height, VF_RAYMARCH_FLAG_*, flat sky colour (packed RGBA8)
+}
+pc;
+
+const float kFar = 1e30;
+// Direction components smaller than this are treated as 0 (never stepped along), so that
+// no 1 / tiny overflows or flushes differently in the clip and in the walk.
+const float kTinyDirection = 1e-20;
+
+uint read_field(uint slab, uint i) {
+    switch (slab) {
+        case 0u:
+            return f0[i];
+        case 1u:
+            return f1[i];
+        case 2u:
+            return f2[i];
+        case 3u:
+            return f3[i];
+        case 4u:
+            return f4[i];
+        case 5u:
+            return f5[i];
+        case 6u:
+            return f6[i];
+        default:
+            return f7[i];
+    }
+}
+
+uint read_material_word(uint slab, uint i) {
+    switch (slab) {
+        case 0u:
+            return m0[i];
+        case 1u:
+            return m1[i];
+        case 2u:
+            return m2[i];
+        case 3u:
+            return m3[i];
+        case 4u:
+            return m4[i];
+        case 5u:
+            return m5[i];
+        case 6u:
+            return m6[i];
+        default:
+            return m7[i];
+    }
+}
+
+// Slab and index inside the slab of cell c (all coordinates inside the world).
+uvec2 locate(ivec3 c) {
+    uint z = uint(c.z);
+    uint slab = z / pc.dims.w;
+    uint i = ((z - slab * pc.dims.w) * pc.dims.y + uint(c.y)) * pc.dims.x + uint(c.x);
+    return uvec2(slab, i);
+}
+
+vec3 unpack_rgb(uint c) {
+    return vec3(float(c & 0xFFu), float((c >> 8) & 0xFFu), float((c >> 16) & 0xFFu)) / 255.0;
+}
+
+vec3 srgb_to_linear(vec3 c) {
+    return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), greaterThan(c, vec3(0.04045)));
+}
+
+vec3 linear_to_srgb(vec3 c) {
+    c = clamp(c, 0.0, 1.0);
+    return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
+}
+
+uint pack_rgb(vec3 srgb) {
+    uvec3 b = uvec3(round(clamp(srgb, 0.0, 1.0) * 255.0));
+    return b.r | (b.g << 8) | (b.b << 16) | 0xFF000000u;
+}
+
+const vec3 kSun = vec3(0.57735027, 0.57735027, 0.57735027);  // normalize(1, 1, 1)
+
+// The dissertation's sky (seed-code-notes.md): a gradient by elevation plus a sun disc, taken
+// as sRGB display colours.
+vec3 sky_srgb(vec3 dir) {
+    vec3 sky = mix(vec3(0.714, 1.0, 1.0), vec3(0.286, 0.714, 1.0), smoothstep(-0.1, 0.0, dir.y));
+    float s = dot(dir, kSun);
+    return s > 0.9995 ? vec3(1.0, 0.98, 0.9) : sky;
+}
+
+void main() {
+    uvec2 pix = gl_GlobalInvocationID.xy;
+    uint width = pc.image.x, height = pc.image.y;
+    if (pix.x >= width || pix.y >= height) {
+        return;
+    }
+    bool lit = (pc.image.z & VF_RAYMARCH_FLAG_LIT) != 0u;
+    bool gradient = (pc.image.z & VF_RAYMARCH_FLAG_SKY_GRADIENT) != 0u;
+
+    // Pinhole camera, DESIGN §4.
+    float sx = (float(pix.x) + 0.5) / float(width) * 2.0 - 1.0;
+    float sy = 1.0 - (float(pix.y) + 0.5) / float(height) * 2.0;
+    vec3 dir = normalize(pc.forward.xyz + sx * pc.right.xyz + sy * pc.up.xyz);
+    dir = mix(dir, vec3(0.0), lessThan(abs(dir), vec3(kTinyDirection)));
+    vec3 o = pc.origin.xyz;
+    ivec3 dims = ivec3(pc.dims.xyz);
+    vec3 dimsf = vec3(pc.dims.xyz);
+
+    // Clip the ray to the world box [0, dims]: t_enter is 0 when the camera is inside.
+    ivec3 stp = ivec3(sign(dir));
+    vec3 inv = vec3(stp.x != 0 ? 1.0 / dir.x : 0.0, stp.y != 0 ? 1.0 / dir.y : 0.0,
+                    stp.z != 0 ? 1.0 / dir.z : 0.0);
+    vec3 ta = -o * inv, tb = (dimsf - o) * inv;
+    vec3 tnear = mix(min(ta, tb), vec3(-kFar), equal(stp, ivec3(0)));
+    vec3 tfar = mix(max(ta, tb), vec3(kFar), equal(stp, ivec3(0)));
+    // A ray parallel to an axis misses unless it lies inside the world's slab on that axis.
+    bool parallel_outside = false;
+    for (int a = 0; a < 3; ++a) {
+        parallel_outside = parallel_outside || (stp[a] == 0 && (o[a] < 0.0 || o[a] >= dimsf[a]));
+    }
+    float t_enter = max(max(max(tnear.x, tnear.y), tnear.z), 0.0);
+    float t_exit = min(min(tfar.x, tfar.y), tfar.z);
+
+    bool hit = false;
+    ivec3 face = ivec3(0);  // the step that entered the hit cell (0: the ray started in it)
+    ivec3 cell = ivec3(0);
+    if (!parallel_outside && t_enter < t_exit) {
+        if (t_enter > 0.0) {
+            // Entered through the face of the largest tnear (ties: x, then y, then z).
+            bvec3 e = bvec3(tnear.x == t_enter, tnear.x != t_enter && tnear.y == t_enter,
+                            tnear.x != t_enter && tnear.y != t_enter);
+            face = ivec3(e) * stp;
+        }
+        // Clamping puts the entry cell inside the world even when rounding lands the entry
+        // point a hair outside the face it crossed.
+        // The walk measures t from the entry point, whose coordinates are small even for a
+        // distant camera, so float keeps sub-voxel precision along the whole walk.
+        vec3 start = o + dir * t_enter;
+        cell = clamp(ivec3(floor(start)), ivec3(0), dims - 1);
+        // Parametric distance to the next cell boundary per axis, recomputed from the
+        // integer cell after each step (no accumulated error); axes not stepped: never.
+        vec3 t_next =
+            mix((vec3(cell + max(stp, ivec3(0))) - start) * inv, vec3(kFar), equal(stp, ivec3(0)));
+        // Safe skipping rule. The field holds d = the L1 distance from this cell to the
+        // nearest solid cell (0 = solid; saturated at 255, which only under-states it). A DDA
+        // step moves to a face neighbour and the walk is monotone along every axis, so the
+        // cell reached after k steps is at L1 distance exactly k from this one. Every cell at
+        // L1 distance < d is empty, so the cells after 1 .. d-1 steps are empty and need no
+        // fetch; the cell after d steps may be solid and is fetched. Hence: d steps per
+        // fetch, never skipping a solid cell. The walk ends only when the ray hits a solid
+        // or leaves the world (at most X+Y+Z steps), never by a step cap.
+        for (;;) {
+            uvec2 at = locate(cell);
+            uint d = (read_field(at.x, at.y) >> VF_PACKED_DISTANCE_SHIFT) & VF_PACKED_DISTANCE_MAX;
+            if (d == 0u) {
+                hit = true;
+                break;
+            }
+            bool inside = true;
+            for (uint k = 0u; k < d; ++k) {
+                // The axis whose boundary comes first (ties: x, then y, then z).
+                bool bx = t_next.x <= t_next.y && t_next.x <= t_next.z;
+                bool by = !bx && t_next.y <= t_next.z;
+                ivec3 m = ivec3(bx, by, !bx && !by);
+                face = m * stp;
+                cell += face;
+                if (any(lessThan(cell, ivec3(0))) || any(greaterThanEqual(cell, dims))) {
+                    inside = false;
+                    break;
+                }
+                t_next = mix(t_next, (vec3(cell + max(stp, ivec3(0))) - start) * inv, bvec3(m));
+            }
+            if (!inside) {
+                break;
+            }
+        }
+    }
+
+    uint colour;
+    if (hit) {
+        uvec2 at = locate(cell);
+        uint material = (read_material_word(at.x, at.y >> 2) >> ((at.y & 3u) * 8u)) & 0xFFu;
+        uint rgba = palette[material];
+        if (!lit) {
+            colour = (rgba & 0x00FFFFFFu) | 0xFF000000u;
+        } else {
+            vec3 n = face != ivec3(0) ? -vec3(face) : -dir;
+            vec3 base = srgb_to_linear(unpack_rgb(rgba));
+            float diffuse = max(dot(n, kSun), 0.0);
+            float ambient = 0.18 + 0.12 * n.y;
+            colour = pack_rgb(linear_to_srgb(base * (ambient + 0.8 * diffuse)));
+        }
+    } else if (lit && gradient) {
+        colour = pack_rgb(sky_srgb(dir));
+    } else {
+        colour = (pc.image.w & 0x00FFFFFFu) | 0xFF000000u;
+    }
+    imageStore(out_image, ivec2(pix), uvec4(colour, 0u, 0u, 0u));
+}

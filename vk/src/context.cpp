@@ -1,0 +1,443 @@
+#include "voxfield/vk/context.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cstdlib>
+#include <cstring>
+
+#include "voxfield/layout.h"
+
+namespace voxfield::vk {
+namespace {
+
+// The ray marcher's palette plus field and material slabs (voxfield/layout.h).
+constexpr std::uint32_t kStorageBuffersNeeded = 2 * VF_RAYMARCH_MAX_SLABS + 1;
+
+std::string type_name(VkPhysicalDeviceType t) {
+    switch (t) {
+        case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU:
+            return "discrete-gpu";
+        case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU:
+            return "integrated-gpu";
+        case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU:
+            return "virtual-gpu";
+        case VK_PHYSICAL_DEVICE_TYPE_CPU:
+            return "cpu";
+        default:
+            return "other";
+    }
+}
+
+std::string version_string(std::uint32_t v) {
+    return std::to_string(VK_API_VERSION_MAJOR(v)) + "." + std::to_string(VK_API_VERSION_MINOR(v)) +
+           "." + std::to_string(VK_API_VERSION_PATCH(v));
+}
+
+// An instance with no layers and no surface extensions (headless compute only).
+VkInstance create_instance() {
+    // lavapipe prints a non-conformance warning on stderr unless this is set; the library
+    // must not print, so silence it (never overriding a value the user chose).
+    ::setenv("MESA_VK_IGNORE_CONFORMANCE_WARNING", "1", 0);
+    VkApplicationInfo app{};
+    app.sType = VK_STRUCTURE_TYPE_APPLICATION_INFO;
+    app.pApplicationName = "voxfield";
+    app.applicationVersion = 1;
+    app.pEngineName = "voxfield";
+    app.apiVersion = VK_API_VERSION_1_1;
+    VkInstanceCreateInfo info{};
+    info.sType = VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO;
+    info.pApplicationInfo = &app;
+    VkInstance instance = VK_NULL_HANDLE;
+    const VkResult r = vkCreateInstance(&info, nullptr, &instance);
+    if (r == VK_ERROR_INCOMPATIBLE_DRIVER) {
+        throw VkError("vkCreateInstance", r,
+                      "no Vulkan 1.1 driver is installed (install mesa-vulkan-drivers for "
+                      "lavapipe, or a GPU driver; see /usr/share/vulkan/icd.d)");
+    }
+    check(r, "vkCreateInstance", "headless instance");
+    return instance;
+}
+
+std::vector<VkPhysicalDevice> physical_devices(VkInstance instance) {
+    std::uint32_t n = 0;
+    check(vkEnumeratePhysicalDevices(instance, &n, nullptr), "vkEnumeratePhysicalDevices");
+    std::vector<VkPhysicalDevice> devices(n);
+    check(vkEnumeratePhysicalDevices(instance, &n, devices.data()), "vkEnumeratePhysicalDevices");
+    devices.resize(n);
+    return devices;
+}
+
+// The first queue family with compute, preferring one without graphics (async compute);
+// returns false when there is none.
+bool compute_family(VkPhysicalDevice d, std::uint32_t& family, bool& timestamps) {
+    std::uint32_t n = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(d, &n, nullptr);
+    std::vector<VkQueueFamilyProperties> families(n);
+    vkGetPhysicalDeviceQueueFamilyProperties(d, &n, families.data());
+    bool found = false;
+    for (std::uint32_t i = 0; i < n; ++i) {
+        if ((families[i].queueFlags & VK_QUEUE_COMPUTE_BIT) == 0) {
+            continue;
+        }
+        if (!found) {
+            family = i;
+            timestamps = families[i].timestampValidBits > 0;
+            found = true;
+        }
+    }
+    return found;
+}
+
+PhysicalDeviceInfo describe_device(VkPhysicalDevice d, std::size_t index) {
+    VkPhysicalDeviceProperties p{};
+    vkGetPhysicalDeviceProperties(d, &p);
+    PhysicalDeviceInfo info;
+    info.index = index;
+    info.name = p.deviceName;
+    info.type = type_name(p.deviceType);
+    info.api_version = p.apiVersion;
+    info.api = version_string(p.apiVersion);
+    info.driver = std::to_string(p.driverVersion);
+    info.max_storage_buffer_range = p.limits.maxStorageBufferRange;
+    info.max_storage_buffers_per_stage = p.limits.maxPerStageDescriptorStorageBuffers;
+    info.max_image_dimension_2d = p.limits.maxImageDimension2D;
+    std::uint32_t n = 0;
+    vkEnumerateDeviceExtensionProperties(d, nullptr, &n, nullptr);
+    std::vector<VkExtensionProperties> ext(n);
+    vkEnumerateDeviceExtensionProperties(d, nullptr, &n, ext.data());
+    for (std::uint32_t i = 0; i < n; ++i) {
+        info.extensions.emplace_back(ext[i].extensionName);
+    }
+    std::uint32_t family = 0;
+    bool timestamps = false;
+    if (p.apiVersion < VK_API_VERSION_1_1) {
+        info.rejected = "supports only Vulkan " + info.api + " (1.1 needed)";
+    } else if (!compute_family(d, family, timestamps)) {
+        info.rejected = "has no compute queue";
+    } else if (p.limits.maxPerStageDescriptorStorageBuffers < kStorageBuffersNeeded) {
+        info.rejected = "allows " + std::to_string(p.limits.maxPerStageDescriptorStorageBuffers) +
+                        " storage buffers per shader stage (the ray marcher needs " +
+                        std::to_string(kStorageBuffersNeeded) + ")";
+    }
+    info.timestamps = timestamps && p.limits.timestampComputeAndGraphics == VK_TRUE;
+    return info;
+}
+
+std::string describe(const PhysicalDeviceInfo& d) {
+    return "#" + std::to_string(d.index) + " " + d.name + " (" + d.type + ")";
+}
+
+int type_rank(const std::string& type) {
+    static const std::array<const char*, 5> order = {"discrete-gpu", "integrated-gpu",
+                                                     "virtual-gpu", "cpu", "other"};
+    for (std::size_t i = 0; i < order.size(); ++i) {
+        if (type == order[i]) {
+            return static_cast<int>(i);
+        }
+    }
+    return static_cast<int>(order.size());
+}
+
+}  // namespace
+
+VkError::VkError(const std::string& call, VkResult result, const std::string& context)
+    : std::runtime_error(call + " failed with " + result_name(result) +
+                         (context.empty() ? std::string() : " (" + context + ")")),
+      result_(result) {}
+
+const char* result_name(VkResult r) {
+    switch (r) {
+#define VF_CASE(c) \
+    case c:        \
+        return #c;
+        VF_CASE(VK_SUCCESS)
+        VF_CASE(VK_NOT_READY)
+        VF_CASE(VK_TIMEOUT)
+        VF_CASE(VK_EVENT_SET)
+        VF_CASE(VK_EVENT_RESET)
+        VF_CASE(VK_INCOMPLETE)
+        VF_CASE(VK_ERROR_OUT_OF_HOST_MEMORY)
+        VF_CASE(VK_ERROR_OUT_OF_DEVICE_MEMORY)
+        VF_CASE(VK_ERROR_INITIALIZATION_FAILED)
+        VF_CASE(VK_ERROR_DEVICE_LOST)
+        VF_CASE(VK_ERROR_MEMORY_MAP_FAILED)
+        VF_CASE(VK_ERROR_LAYER_NOT_PRESENT)
+        VF_CASE(VK_ERROR_EXTENSION_NOT_PRESENT)
+        VF_CASE(VK_ERROR_FEATURE_NOT_PRESENT)
+        VF_CASE(VK_ERROR_INCOMPATIBLE_DRIVER)
+        VF_CASE(VK_ERROR_TOO_MANY_OBJECTS)
+        VF_CASE(VK_ERROR_FORMAT_NOT_SUPPORTED)
+        VF_CASE(VK_ERROR_FRAGMENTED_POOL)
+        VF_CASE(VK_ERROR_UNKNOWN)
+        VF_CASE(VK_ERROR_OUT_OF_POOL_MEMORY)
+        VF_CASE(VK_ERROR_INVALID_EXTERNAL_HANDLE)
+        VF_CASE(VK_ERROR_FRAGMENTATION)
+        VF_CASE(VK_ERROR_INVALID_OPAQUE_CAPTURE_ADDRESS)
+#undef VF_CASE
+        default:
+            return "VkResult(unknown)";
+    }
+}
+
+void check(VkResult r, const char* call, const std::string& context) {
+    if (r != VK_SUCCESS) {
+        throw VkError(call, r, context);
+    }
+}
+
+bool PhysicalDeviceInfo::has_extension(const std::string& ext) const {
+    return std::find(extensions.begin(), extensions.end(), ext) != extensions.end();
+}
+
+std::vector<PhysicalDeviceInfo> list_devices() {
+    VkInstance instance = create_instance();
+    std::vector<PhysicalDeviceInfo> out;
+    try {
+        const auto devices = physical_devices(instance);
+        for (std::size_t i = 0; i < devices.size(); ++i) {
+            out.push_back(describe_device(devices[i], i));
+        }
+    } catch (...) {
+        vkDestroyInstance(instance, nullptr);
+        throw;
+    }
+    vkDestroyInstance(instance, nullptr);
+    return out;
+}
+
+Context::Context(const std::string& requested) {
+    std::string spec = requested, origin = "Vulkan device";
+    if (spec.empty()) {
+        if (const char* env = std::getenv("VOXFIELD_VK_DEVICE"); env != nullptr && *env != '\0') {
+            spec = env;
+            origin = "VOXFIELD_VK_DEVICE";
+        }
+    }
+    const bool is_index = !spec.empty() && std::all_of(spec.begin(), spec.end(),
+                                                       [](char c) { return c >= '0' && c <= '9'; });
+    if (!spec.empty() && spec != "gpu" && spec != "cpu" && !is_index) {
+        throw DeviceSelectionError(origin + " '" + spec +
+                                   "' is not a device: use gpu, cpu or a Vulkan device index");
+    }
+    instance_ = create_instance();
+    try {
+        const auto devices = physical_devices(instance_);
+        if (devices.empty()) {
+            throw DeviceSelectionError(
+                "no Vulkan device found (install mesa-vulkan-drivers for lavapipe, or a GPU "
+                "driver)");
+        }
+        std::vector<PhysicalDeviceInfo> infos;
+        for (std::size_t i = 0; i < devices.size(); ++i) {
+            infos.push_back(describe_device(devices[i], i));
+        }
+        std::string reasons;
+        const PhysicalDeviceInfo* best = nullptr;
+        for (const auto& d : infos) {
+            std::string why = d.rejected;
+            if (why.empty() && is_index && std::to_string(d.index) != spec) {
+                why = "not index " + spec;
+            } else if (why.empty() && spec == "cpu" && d.type != "cpu") {
+                why = "is a " + d.type + ", not a cpu";
+            } else if (why.empty() && spec == "gpu" && d.type.find("gpu") == std::string::npos) {
+                why = "is a " + d.type + ", not a gpu";
+            }
+            if (!why.empty()) {
+                reasons += (reasons.empty() ? "" : "; ") + describe(d) + ": " + why;
+                continue;
+            }
+            if (best == nullptr || type_rank(d.type) < type_rank(best->type)) {
+                best = &d;
+            }
+        }
+        if (best == nullptr) {
+            throw DeviceSelectionError("no usable Vulkan device for " +
+                                       (spec.empty() ? std::string("the default") : spec) + ": " +
+                                       reasons);
+        }
+        info_ = *best;
+        physical_ = devices[info_.index];
+        bool timestamps = false;
+        compute_family(physical_, family_, timestamps);
+        VkPhysicalDeviceProperties props{};
+        vkGetPhysicalDeviceProperties(physical_, &props);
+        timestamp_period_ = props.limits.timestampPeriod;
+        vkGetPhysicalDeviceMemoryProperties(physical_, &memory_);
+
+        const float priority = 1.0f;
+        VkDeviceQueueCreateInfo q{};
+        q.sType = VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO;
+        q.queueFamilyIndex = family_;
+        q.queueCount = 1;
+        q.pQueuePriorities = &priority;
+        VkDeviceCreateInfo info{};
+        info.sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO;
+        info.queueCreateInfoCount = 1;
+        info.pQueueCreateInfos = &q;
+        check(vkCreateDevice(physical_, &info, nullptr, &device_), "vkCreateDevice", info_.name);
+        vkGetDeviceQueue(device_, family_, 0, &queue_);
+
+        VkCommandPoolCreateInfo pool{};
+        pool.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
+        pool.flags = VK_COMMAND_POOL_CREATE_TRANSIENT_BIT;
+        pool.queueFamilyIndex = family_;
+        VkCommandPool handle = VK_NULL_HANDLE;
+        check(vkCreateCommandPool(device_, &pool, nullptr, &handle), "vkCreateCommandPool");
+        pool_ = Owned<VkCommandPool>(device_, handle, vkDestroyCommandPool);
+    } catch (...) {
+        pool_.reset();
+        if (device_ != VK_NULL_HANDLE) {
+            vkDestroyDevice(device_, nullptr);
+        }
+        vkDestroyInstance(instance_, nullptr);
+        throw;
+    }
+}
+
+Context::~Context() {
+    if (device_ != VK_NULL_HANDLE) {
+        vkDeviceWaitIdle(device_);
+    }
+    pool_.reset();
+    if (device_ != VK_NULL_HANDLE) {
+        vkDestroyDevice(device_, nullptr);
+    }
+    vkDestroyInstance(instance_, nullptr);
+}
+
+std::uint32_t Context::memory_type(std::uint32_t allowed, MemoryIntent intent,
+                                   const std::string& what) const {
+    const VkMemoryPropertyFlags host =
+        VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+    VkMemoryPropertyFlags required = 0, preferred = 0;
+    switch (intent) {
+        case MemoryIntent::device_local:
+            preferred = VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT;
+            break;
+        case MemoryIntent::upload:
+            required = host;
+            break;
+        case MemoryIntent::readback:
+            required = host;
+            preferred = VK_MEMORY_PROPERTY_HOST_CACHED_BIT;
+            break;
+    }
+    int fallback = -1;
+    for (std::uint32_t i = 0; i < memory_.memoryTypeCount; ++i) {
+        const VkMemoryPropertyFlags f = memory_.memoryTypes[i].propertyFlags;
+        if ((allowed & (1u << i)) == 0 || (f & required) != required) {
+            continue;
+        }
+        if ((f & preferred) == preferred) {
+            return i;
+        }
+        if (fallback < 0) {
+            fallback = static_cast<int>(i);
+        }
+    }
+    if (fallback < 0) {
+        throw VkError("vkAllocateMemory", VK_ERROR_FEATURE_NOT_PRESENT,
+                      "no memory type fits " + what);
+    }
+    return static_cast<std::uint32_t>(fallback);
+}
+
+Owned<VkDeviceMemory> Context::allocate(const VkMemoryRequirements& req, MemoryIntent intent,
+                                        const std::string& what) {
+    VkMemoryAllocateInfo info{};
+    info.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
+    info.allocationSize = req.size;
+    info.memoryTypeIndex = memory_type(req.memoryTypeBits, intent, what);
+    VkDeviceMemory memory = VK_NULL_HANDLE;
+    check(vkAllocateMemory(device_, &info, nullptr, &memory), "vkAllocateMemory",
+          what + ", " + std::to_string(req.size) + " bytes");
+    return Owned<VkDeviceMemory>(device_, memory, vkFreeMemory);
+}
+
+Buffer Context::make_buffer(VkDeviceSize size, VkBufferUsageFlags usage, MemoryIntent intent,
+                            const std::string& what) {
+    Buffer b;
+    b.size_ = size;
+    VkBufferCreateInfo info{};
+    info.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO;
+    info.size = std::max<VkDeviceSize>(size, 4);
+    info.usage = usage;
+    info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+    VkBuffer handle = VK_NULL_HANDLE;
+    check(vkCreateBuffer(device_, &info, nullptr, &handle), "vkCreateBuffer",
+          what + ", " + std::to_string(size) + " bytes");
+    b.buffer_ = Owned<VkBuffer>(device_, handle, vkDestroyBuffer);
+    VkMemoryRequirements req{};
+    vkGetBufferMemoryRequirements(device_, handle, &req);
+    b.memory_ = allocate(req, intent, what);
+    check(vkBindBufferMemory(device_, handle, b.memory_.get(), 0), "vkBindBufferMemory", what);
+    const std::uint32_t type = memory_type(req.memoryTypeBits, intent, what);
+    const VkMemoryPropertyFlags host =
+        VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+    if ((memory_.memoryTypes[type].propertyFlags & host) == host) {
+        check(vkMapMemory(device_, b.memory_.get(), 0, VK_WHOLE_SIZE, 0, &b.mapped_), "vkMapMemory",
+              what);
+    }
+    return b;
+}
+
+void Context::upload(const Buffer& dst, const void* bytes, VkDeviceSize size, VkDeviceSize offset) {
+    if (size == 0) {
+        return;
+    }
+    if (dst.host_visible()) {
+        std::memcpy(static_cast<std::uint8_t*>(dst.data()) + offset, bytes, size);
+        return;
+    }
+    const VkDeviceSize chunk = std::min<VkDeviceSize>(size, VkDeviceSize{64} << 20);
+    Buffer staging =
+        make_buffer(chunk, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryIntent::upload, "staging");
+    for (VkDeviceSize done = 0; done < size; done += chunk) {
+        const VkDeviceSize n = std::min(chunk, size - done);
+        std::memcpy(staging.data(), static_cast<const std::uint8_t*>(bytes) + done, n);
+        submit_and_wait(
+            [&](VkCommandBuffer cmd) {
+                VkBufferCopy region{0, offset + done, n};
+                vkCmdCopyBuffer(cmd, staging.get(), dst.get(), 1, &region);
+            },
+            "upload");
+    }
+}
+
+void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record,
+                              const std::string& what) {
+    VkCommandBufferAllocateInfo alloc{};
+    alloc.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
+    alloc.commandPool = pool_.get();
+    alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    alloc.commandBufferCount = 1;
+    VkCommandBuffer cmd = VK_NULL_HANDLE;
+    check(vkAllocateCommandBuffers(device_, &alloc, &cmd), "vkAllocateCommandBuffers", what);
+    struct FreeCmd {
+        VkDevice device;
+        VkCommandPool pool;
+        VkCommandBuffer cmd;
+        ~FreeCmd() { vkFreeCommandBuffers(device, pool, 1, &cmd); }
+    } free_cmd{device_, pool_.get(), cmd};
+    VkCommandBufferBeginInfo begin{};
+    begin.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
+    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    check(vkBeginCommandBuffer(cmd, &begin), "vkBeginCommandBuffer", what);
+    record(cmd);
+    check(vkEndCommandBuffer(cmd), "vkEndCommandBuffer", what);
+
+    VkFenceCreateInfo fence_info{};
+    fence_info.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
+    VkFence fence_handle = VK_NULL_HANDLE;
+    check(vkCreateFence(device_, &fence_info, nullptr, &fence_handle), "vkCreateFence", what);
+    Owned<VkFence> fence(device_, fence_handle, vkDestroyFence);
+    VkSubmitInfo submit{};
+    submit.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+    submit.commandBufferCount = 1;
+    submit.pCommandBuffers = &cmd;
+    check(vkQueueSubmit(queue_, 1, &submit, fence.get()), "vkQueueSubmit", what);
+    // The command buffer (and whatever it reads) is retired only once its fence signalled.
+    check(vkWaitForFences(device_, 1, &fence_handle, VK_TRUE, UINT64_MAX), "vkWaitForFences", what);
+}
+
+}  // namespace voxfield::vk

@@ -1,0 +1,460 @@
+#include "voxfield/vk/raymarcher.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstring>
+
+#include "raymarch_spv.h"
+#include "voxfield/core/error.hpp"
+#include "voxfield/layout.h"
+
+namespace voxfield::vk {
+namespace {
+
+// Mirrors the push-constant block `Params` of raymarch.comp (std430: vec4 / uvec4 members).
+struct PushConstants {
+    float origin[4];
+    float forward[4];
+    float right[4];
+    float up[4];
+    std::uint32_t dims[4];   // X, Y, Z, z-slices per slab
+    std::uint32_t image[4];  // width, height, flags, flat sky RGBA8
+};
+static_assert(sizeof(PushConstants) == 96);
+static_assert(offsetof(PushConstants, dims) == 64);
+static_assert(offsetof(PushConstants, image) == 80);
+
+constexpr std::uint32_t kBindings = VF_RAYMARCH_BINDING_MATERIAL + VF_RAYMARCH_MAX_SLABS;
+static_assert(VF_RAYMARCH_BINDING_FIELD + VF_RAYMARCH_MAX_SLABS <= VF_RAYMARCH_BINDING_MATERIAL);
+
+Vec3 sub(const Vec3& a, const Vec3& b) {
+    return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
+}
+Vec3 cross(const Vec3& a, const Vec3& b) {
+    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+double length(const Vec3& a) {
+    return std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+}
+Vec3 scale(const Vec3& a, double s) {
+    return {a[0] * s, a[1] * s, a[2] * s};
+}
+bool finite(const Vec3& a) {
+    return std::isfinite(a[0]) && std::isfinite(a[1]) && std::isfinite(a[2]);
+}
+
+std::uint32_t pack(Rgba c) {
+    return std::uint32_t{c.r} | (std::uint32_t{c.g} << 8) | (std::uint32_t{c.b} << 16) |
+           (std::uint32_t{c.a} << 24);
+}
+
+void to4(float out[4], const Vec3& v) {
+    for (int i = 0; i < 3; ++i) {
+        out[i] = static_cast<float>(v[static_cast<std::size_t>(i)]);
+    }
+    out[3] = 0;
+}
+
+}  // namespace
+
+CameraBasis camera_basis(const Camera& camera, std::uint32_t width, std::uint32_t height) {
+    if (!finite(camera.position) || !finite(camera.target)) {
+        throw InputError("camera position and target must be finite numbers");
+    }
+    if (!(camera.fov_deg > 0 && camera.fov_deg < 180)) {
+        throw InputError("field of view " + std::to_string(camera.fov_deg) +
+                         " is outside (0, 180) degrees");
+    }
+    const Vec3 view = sub(camera.target, camera.position);
+    const double len = length(view);
+    if (!(len > 1e-9)) {
+        throw InputError("camera target equals the camera position: no view direction");
+    }
+    CameraBasis b;
+    b.forward = scale(view, 1 / len);
+    Vec3 right = cross(b.forward, Vec3{0, 1, 0});
+    if (length(right) < 1e-9) {
+        right = {1, 0, 0};  // looking straight along +-y: image right is +x
+    }
+    right = scale(right, 1 / length(right));
+    const Vec3 up = cross(right, b.forward);
+    const double half = std::tan(camera.fov_deg * M_PI / 360);
+    const double aspect = static_cast<double>(width) / static_cast<double>(height);
+    b.right = scale(right, aspect * half);
+    b.up = scale(up, half);
+    return b;
+}
+
+Camera default_camera(Dims dims) {
+    const Vec3 centre = {dims.x / 2.0, dims.y / 2.0, dims.z / 2.0};
+    const double radius = 0.5 * length(Vec3{double(dims.x), double(dims.y), double(dims.z)});
+    Vec3 from = {-0.6, 0.5, -0.75};
+    from = scale(from, 2.0 * radius / length(from));
+    Camera c;
+    c.position = {centre[0] + from[0], centre[1] + from[1], centre[2] + from[2]};
+    c.target = centre;
+    return c;
+}
+
+void validate(const RenderOptions& o) {
+    for (const auto& [name, v] : {std::pair{"width", o.width}, std::pair{"height", o.height}}) {
+        if (v < 1 || v > kMaxImageSize) {
+            throw InputError(std::string("image ") + name + " " + std::to_string(v) +
+                             " is outside 1.." + std::to_string(kMaxImageSize));
+        }
+    }
+    camera_basis(o.camera, o.width, o.height);
+}
+
+struct Raymarcher::Impl {
+    Context& ctx;
+    VkDeviceSize max_binding = 0;
+    Owned<VkDescriptorSetLayout> set_layout;
+    Owned<VkPipelineLayout> pipeline_layout;
+    Owned<VkShaderModule> shader;
+    Owned<VkPipeline> pipeline;
+    Owned<VkDescriptorPool> pool;
+    VkDescriptorSet set = VK_NULL_HANDLE;
+    Owned<VkQueryPool> queries;
+    Buffer palette;
+    std::vector<Buffer> field, material;
+    Dims dims;
+    std::uint32_t slab_depth = 0;
+
+    explicit Impl(Context& c) : ctx(c) {}
+};
+
+Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
+    : impl_(std::make_unique<Impl>(ctx)) {
+    Impl& m = *impl_;
+    const VkDevice dev = ctx.device();
+    m.max_binding = ctx.info().max_storage_buffer_range;
+    if (max_binding_bytes != 0) {
+        m.max_binding = std::min<VkDeviceSize>(m.max_binding, max_binding_bytes);
+    }
+
+    std::vector<VkDescriptorSetLayoutBinding> bindings;
+    for (std::uint32_t b = 0; b < kBindings; ++b) {
+        if (b >= VF_RAYMARCH_BINDING_FIELD + VF_RAYMARCH_MAX_SLABS &&
+            b < VF_RAYMARCH_BINDING_MATERIAL) {
+            continue;
+        }
+        VkDescriptorSetLayoutBinding x{};
+        x.binding = b;
+        x.descriptorType = b == VF_RAYMARCH_BINDING_IMAGE ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE
+                                                          : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        x.descriptorCount = 1;
+        x.stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
+        bindings.push_back(x);
+    }
+    VkDescriptorSetLayoutCreateInfo sl{};
+    sl.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO;
+    sl.bindingCount = static_cast<std::uint32_t>(bindings.size());
+    sl.pBindings = bindings.data();
+    VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
+    check(vkCreateDescriptorSetLayout(dev, &sl, nullptr, &set_layout),
+          "vkCreateDescriptorSetLayout", "ray marcher");
+    m.set_layout = Owned<VkDescriptorSetLayout>(dev, set_layout, vkDestroyDescriptorSetLayout);
+
+    VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(PushConstants)};
+    VkPipelineLayoutCreateInfo pl{};
+    pl.sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO;
+    pl.setLayoutCount = 1;
+    pl.pSetLayouts = &set_layout;
+    pl.pushConstantRangeCount = 1;
+    pl.pPushConstantRanges = &range;
+    VkPipelineLayout pipeline_layout = VK_NULL_HANDLE;
+    check(vkCreatePipelineLayout(dev, &pl, nullptr, &pipeline_layout), "vkCreatePipelineLayout",
+          "ray marcher");
+    m.pipeline_layout = Owned<VkPipelineLayout>(dev, pipeline_layout, vkDestroyPipelineLayout);
+
+    VkShaderModuleCreateInfo sm{};
+    sm.sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO;
+    sm.codeSize = sizeof(vf_raymarch_spv);
+    sm.pCode = vf_raymarch_spv;
+    VkShaderModule shader = VK_NULL_HANDLE;
+    check(vkCreateShaderModule(dev, &sm, nullptr, &shader), "vkCreateShaderModule",
+          "raymarch.comp");
+    m.shader = Owned<VkShaderModule>(dev, shader, vkDestroyShaderModule);
+
+    VkComputePipelineCreateInfo cp{};
+    cp.sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO;
+    cp.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
+    cp.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+    cp.stage.module = shader;
+    cp.stage.pName = "main";
+    cp.layout = pipeline_layout;
+    VkPipeline pipeline = VK_NULL_HANDLE;
+    check(vkCreateComputePipelines(dev, VK_NULL_HANDLE, 1, &cp, nullptr, &pipeline),
+          "vkCreateComputePipelines", "raymarch.comp");
+    m.pipeline = Owned<VkPipeline>(dev, pipeline, vkDestroyPipeline);
+
+    const std::array<VkDescriptorPoolSize, 2> sizes = {
+        VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
+        VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kBindings}};
+    VkDescriptorPoolCreateInfo dp{};
+    dp.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO;
+    dp.maxSets = 1;
+    dp.poolSizeCount = static_cast<std::uint32_t>(sizes.size());
+    dp.pPoolSizes = sizes.data();
+    VkDescriptorPool pool = VK_NULL_HANDLE;
+    check(vkCreateDescriptorPool(dev, &dp, nullptr, &pool), "vkCreateDescriptorPool",
+          "ray marcher");
+    m.pool = Owned<VkDescriptorPool>(dev, pool, vkDestroyDescriptorPool);
+    VkDescriptorSetAllocateInfo da{};
+    da.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO;
+    da.descriptorPool = pool;
+    da.descriptorSetCount = 1;
+    da.pSetLayouts = &set_layout;
+    check(vkAllocateDescriptorSets(dev, &da, &m.set), "vkAllocateDescriptorSets", "ray marcher");
+
+    if (ctx.info().timestamps) {
+        VkQueryPoolCreateInfo qp{};
+        qp.sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO;
+        qp.queryType = VK_QUERY_TYPE_TIMESTAMP;
+        qp.queryCount = 2;
+        VkQueryPool q = VK_NULL_HANDLE;
+        check(vkCreateQueryPool(dev, &qp, nullptr, &q), "vkCreateQueryPool", "ray marcher");
+        m.queries = Owned<VkQueryPool>(dev, q, vkDestroyQueryPool);
+    }
+    m.palette = ctx.make_buffer(
+        256 * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+        MemoryIntent::device_local, "palette");
+}
+
+Raymarcher::~Raymarcher() = default;
+
+void Raymarcher::upload(const World& world, const Palette& palette,
+                        std::span<const std::uint32_t> packed32) {
+    Impl& m = *impl_;
+    const Dims d = world.dims();
+    if (packed32.size() != d.count()) {
+        throw InputError("field has " + std::to_string(packed32.size()) + " elements, the world " +
+                         std::to_string(d.count()));
+    }
+    const VkDeviceSize slice = VkDeviceSize{d.x} * d.y * 4;
+    if (slice > m.max_binding) {
+        throw InputError("world " + d.to_string() + ": one z-slice of the field (" +
+                         std::to_string(slice) + " bytes) exceeds the Vulkan device's " +
+                         "storage-buffer binding limit of " + std::to_string(m.max_binding) +
+                         " bytes");
+    }
+    const std::uint32_t depth =
+        static_cast<std::uint32_t>(std::min<VkDeviceSize>(d.z, m.max_binding / slice));
+    const std::uint32_t slabs = (d.z + depth - 1) / depth;
+    if (slabs > VF_RAYMARCH_MAX_SLABS) {
+        throw InputError("world " + d.to_string() + " needs " + std::to_string(slabs) +
+                         " storage-buffer bindings of at most " + std::to_string(m.max_binding) +
+                         " bytes for its field; the ray marcher has " +
+                         std::to_string(VF_RAYMARCH_MAX_SLABS));
+    }
+    // Built aside and swapped in at the end, so that a failure leaves the old world intact.
+    std::vector<Buffer> field, material;
+    const VkBufferUsageFlags usage =
+        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    const std::size_t slice_voxels = std::size_t{d.x} * d.y;
+    for (std::uint32_t s = 0; s < slabs; ++s) {
+        const std::uint32_t z0 = s * depth, nz = std::min(depth, d.z - z0);
+        const std::size_t voxels = slice_voxels * nz, first = slice_voxels * z0;
+        field.push_back(m.ctx.make_buffer(voxels * 4, usage, MemoryIntent::device_local,
+                                          "field slab " + std::to_string(s)));
+        m.ctx.upload(field.back(), packed32.data() + first, voxels * 4);
+        // Material bytes, padded to whole words (the padding is never read).
+        const std::size_t words = (voxels + 3) / 4;
+        material.push_back(m.ctx.make_buffer(words * 4, usage, MemoryIntent::device_local,
+                                             "material slab " + std::to_string(s)));
+        std::vector<std::uint8_t> bytes(words * 4, 0);
+        std::memcpy(bytes.data(), world.voxels().data() + first, voxels);
+        m.ctx.upload(material.back(), bytes.data(), bytes.size());
+    }
+    std::array<std::uint32_t, 256> colours{};
+    for (std::size_t i = 0; i < 256; ++i) {
+        colours[i] = pack(palette[static_cast<std::uint8_t>(i)]);
+    }
+    m.ctx.upload(m.palette, colours.data(), sizeof colours);
+    // Nothing reads the old buffers any more: every submission was waited for.
+    m.field = std::move(field);
+    m.material = std::move(material);
+    m.dims = d;
+    m.slab_depth = depth;
+
+    std::vector<VkDescriptorBufferInfo> infos;
+    infos.reserve(kBindings);
+    std::vector<VkWriteDescriptorSet> writes;
+    auto add = [&](std::uint32_t binding, const Buffer& b) {
+        infos.push_back(VkDescriptorBufferInfo{b.get(), 0, VK_WHOLE_SIZE});
+        VkWriteDescriptorSet w{};
+        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        w.dstSet = m.set;
+        w.dstBinding = binding;
+        w.descriptorCount = 1;
+        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        w.pBufferInfo = &infos.back();
+        writes.push_back(w);
+    };
+    add(VF_RAYMARCH_BINDING_PALETTE, m.palette);
+    for (std::uint32_t s = 0; s < VF_RAYMARCH_MAX_SLABS; ++s) {
+        const std::size_t k = s < slabs ? s : 0;
+        add(VF_RAYMARCH_BINDING_FIELD + s, m.field[k]);
+        add(VF_RAYMARCH_BINDING_MATERIAL + s, m.material[k]);
+    }
+    vkUpdateDescriptorSets(m.ctx.device(), static_cast<std::uint32_t>(writes.size()), writes.data(),
+                           0, nullptr);
+}
+
+Image Raymarcher::render(const RenderOptions& o) {
+    Impl& m = *impl_;
+    if (m.field.empty()) {
+        throw std::logic_error("Raymarcher::render before upload");
+    }
+    validate(o);
+    const CameraBasis basis = camera_basis(o.camera, o.width, o.height);
+    const VkDevice dev = m.ctx.device();
+    const std::string what = "ray march " + std::to_string(o.width) + "x" +
+                             std::to_string(o.height) + " of " + m.dims.to_string();
+
+    // Offscreen target: one r32ui texel per RGBA8 pixel, read back through a buffer.
+    VkImageCreateInfo ii{};
+    ii.sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO;
+    ii.imageType = VK_IMAGE_TYPE_2D;
+    ii.format = VK_FORMAT_R32_UINT;
+    ii.extent = {o.width, o.height, 1};
+    ii.mipLevels = 1;
+    ii.arrayLayers = 1;
+    ii.samples = VK_SAMPLE_COUNT_1_BIT;
+    ii.tiling = VK_IMAGE_TILING_OPTIMAL;
+    ii.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+    ii.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+    ii.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+    VkImage image_handle = VK_NULL_HANDLE;
+    check(vkCreateImage(dev, &ii, nullptr, &image_handle), "vkCreateImage", what);
+    // Declared before the image so that the memory is freed after the image is destroyed.
+    Owned<VkDeviceMemory> image_memory;
+    Owned<VkImage> image(dev, image_handle, vkDestroyImage);
+    VkMemoryRequirements req{};
+    vkGetImageMemoryRequirements(dev, image_handle, &req);
+    image_memory = m.ctx.allocate(req, MemoryIntent::device_local, "offscreen image");
+    check(vkBindImageMemory(dev, image_handle, image_memory.get(), 0), "vkBindImageMemory", what);
+    VkImageViewCreateInfo vi{};
+    vi.sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO;
+    vi.image = image_handle;
+    vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
+    vi.format = VK_FORMAT_R32_UINT;
+    vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    VkImageView view_handle = VK_NULL_HANDLE;
+    check(vkCreateImageView(dev, &vi, nullptr, &view_handle), "vkCreateImageView", what);
+    Owned<VkImageView> view(dev, view_handle, vkDestroyImageView);
+    const VkDeviceSize bytes = VkDeviceSize{o.width} * o.height * 4;
+    Buffer readback = m.ctx.make_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                        MemoryIntent::readback, "image readback");
+
+    VkDescriptorImageInfo image_info{VK_NULL_HANDLE, view_handle, VK_IMAGE_LAYOUT_GENERAL};
+    VkWriteDescriptorSet w{};
+    w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+    w.dstSet = m.set;
+    w.dstBinding = VF_RAYMARCH_BINDING_IMAGE;
+    w.descriptorCount = 1;
+    w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+    w.pImageInfo = &image_info;
+    vkUpdateDescriptorSets(dev, 1, &w, 0, nullptr);
+
+    PushConstants pc{};
+    to4(pc.origin, o.camera.position);
+    to4(pc.forward, basis.forward);
+    to4(pc.right, basis.right);
+    to4(pc.up, basis.up);
+    pc.dims[0] = m.dims.x;
+    pc.dims[1] = m.dims.y;
+    pc.dims[2] = m.dims.z;
+    pc.dims[3] = m.slab_depth;
+    pc.image[0] = o.width;
+    pc.image[1] = o.height;
+    pc.image[2] =
+        (o.shading == Shading::lit ? VF_RAYMARCH_FLAG_LIT : 0u) |
+        (o.shading == Shading::lit && o.sky_gradient ? VF_RAYMARCH_FLAG_SKY_GRADIENT : 0u);
+    pc.image[3] = pack(o.sky);
+
+    const VkQueryPool queries = m.queries.get();
+    m.ctx.submit_and_wait(
+        [&](VkCommandBuffer cmd) {
+            VkImageMemoryBarrier to_general{};
+            to_general.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
+            to_general.srcAccessMask = 0;
+            to_general.dstAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+            to_general.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+            to_general.newLayout = VK_IMAGE_LAYOUT_GENERAL;
+            to_general.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+            to_general.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+            to_general.image = image_handle;
+            to_general.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+            // Host writes to mapped buffers are visible to the device at submission; the
+            // staged uploads finished (and were waited for) before this submission.
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT,
+                                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 0, nullptr, 0, nullptr, 1,
+                                 &to_general);
+            if (queries != VK_NULL_HANDLE) {
+                vkCmdResetQueryPool(cmd, queries, 0, 2);
+                vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, 0);
+            }
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipeline.get());
+            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipeline_layout.get(), 0,
+                                    1, &m.set, 0, nullptr);
+            vkCmdPushConstants(cmd, m.pipeline_layout.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                               sizeof pc, &pc);
+            const std::uint32_t g = VF_RAYMARCH_LOCAL_SIZE;
+            vkCmdDispatch(cmd, (o.width + g - 1) / g, (o.height + g - 1) / g, 1);
+            if (queries != VK_NULL_HANDLE) {
+                vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 1);
+            }
+            VkImageMemoryBarrier to_copy = to_general;
+            to_copy.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+            to_copy.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+            to_copy.oldLayout = VK_IMAGE_LAYOUT_GENERAL;
+            to_copy.newLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                                 VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr, 1,
+                                 &to_copy);
+            VkBufferImageCopy region{};
+            region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+            region.imageExtent = {o.width, o.height, 1};
+            vkCmdCopyImageToBuffer(cmd, image_handle, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                                   readback.get(), 1, &region);
+            VkMemoryBarrier to_host{};
+            to_host.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+            to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+            to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0,
+                                 1, &to_host, 0, nullptr, 0, nullptr);
+        },
+        what);
+
+    Image out;
+    out.width = o.width;
+    out.height = o.height;
+    out.rgba.resize(bytes);
+    std::memcpy(out.rgba.data(), readback.data(), bytes);
+    if (queries != VK_NULL_HANDLE) {
+        std::array<std::uint64_t, 2> ts{};
+        check(vkGetQueryPoolResults(dev, queries, 0, 2, sizeof ts, ts.data(), sizeof(std::uint64_t),
+                                    VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
+              "vkGetQueryPoolResults", what);
+        out.raymarch_ms = static_cast<double>(ts[1] - ts[0]) *
+                          static_cast<double>(m.ctx.timestamp_period_ns()) * 1e-6;
+    }
+    return out;
+}
+
+std::uint32_t Raymarcher::field_bindings() const {
+    return static_cast<std::uint32_t>(impl_->field.size());
+}
+
+std::uint32_t Raymarcher::slab_depth() const {
+    return impl_->slab_depth;
+}
+
+std::string Raymarcher::sharing_path() const {
+    return "copy (DESIGN §2 path 3: the field is uploaded from host memory)";
+}
+
+}  // namespace voxfield::vk
