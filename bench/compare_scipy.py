@@ -10,7 +10,9 @@ included) beside it. F is u16 when every possible distance (X+Y+Z-3) fits in it,
 the narrowest format that holds the exact field, as a user would pick. It times
 scipy.ndimage.distance_transform_cdt(world == 0, metric='taxicab') as often (median of
 time.perf_counter wall time, single-threaded host code) and checks that both fields are
-identical.
+identical. It also times scipy.ndimage.distance_transform_edt(world == 0) (Euclidean
+distance: a DIFFERENT metric from ours, so it is reported as a separate figure for scale and
+never compared for equality; --no-edt skips it).
 
 cdt gives each non-zero element its distance to the nearest zero element, so it is fed the
 *empty* mask: solids are its zeros. Elements outside the array are ignored by cdt, which is
@@ -35,26 +37,9 @@ import time
 import numpy as np
 from scipy import ndimage
 
+from worlds import make_world
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def make_world(n, seed, spheres=16):
-    """A (Z, Y, X) uint8 world: a floor at y = 0 and `spheres` random spheres, values 1..255."""
-    rng = np.random.default_rng(seed)
-    world = np.zeros((n, n, n), dtype=np.uint8)
-    world[:, 0, :] = 1
-    z, y, x = np.ogrid[0:n, 0:n, 0:n]
-    for _ in range(spheres):
-        cx, cy, cz = rng.integers(0, n, size=3)
-        r = int(rng.integers(max(1, n // 32), max(2, n // 8) + 1))
-        colour = int(rng.integers(1, 256))
-        # Only touch the sphere's bounding box.
-        zs = slice(max(0, cz - r), min(n, cz + r + 1))
-        ys = slice(max(0, cy - r), min(n, cy + r + 1))
-        xs = slice(max(0, cx - r), min(n, cx + r + 1))
-        inside = (z[zs] - cz) ** 2 + (y[:, ys] - cy) ** 2 + (x[:, :, xs] - cx) ** 2 <= r * r
-        world[zs, ys, xs][inside] = colour
-    return world
 
 
 def git_commit():
@@ -97,6 +82,8 @@ def main():
     ap.add_argument("--device", default="cpu", help="voxfield --device (default: cpu)")
     ap.add_argument("--repeat", type=int, default=5, help="runs of each (default 5)")
     ap.add_argument("--json", help="write the comparison to this JSON file")
+    ap.add_argument("--no-edt", action="store_true",
+                    help="do not time distance_transform_edt (Euclidean, a different metric)")
     args = ap.parse_args()
 
     if args.repeat < 1:
@@ -139,6 +126,13 @@ def main():
             t0 = time.perf_counter()
             theirs = ndimage.distance_transform_cdt(mask, metric="taxicab")
             scipy_ms.append((time.perf_counter() - t0) * 1e3)
+        # Euclidean EDT: another metric, timed for scale only (float64 output).
+        edt_ms = []
+        if not args.no_edt:
+            for _ in range(args.repeat):
+                t0 = time.perf_counter()
+                ndimage.distance_transform_edt(mask)
+                edt_ms.append((time.perf_counter() - t0) * 1e3)
 
     want_dtype = np.uint16 if fmt == "u16" else np.uint32
     if ours.shape != world.shape or ours.dtype != want_dtype:
@@ -169,6 +163,10 @@ def main():
     print(f"device: {device_name} (--device {args.device}); {args.repeat} runs each, medians")
     print(f"{'voxels':>12} {'ours ms':>10} {'scipy ms':>10} {'scipy/ours':>10}  equal")
     print(f"{voxels:>12} {ours_med:>10.3f} {scipy_med:>10.3f} {ratio:>10.1f}  {equal_text}")
+    if edt_ms:
+        edt_med = statistics.median(edt_ms)
+        print(f"scipy distance_transform_edt (EUCLIDEAN, a different metric; not compared): "
+              f"{edt_med:.3f} ms median, edt/ours = {edt_med / ours_med:.1f}")
     print(
         f"ours = OpenCL kernel time (profiling events; the fair device-side figure). "
         f"ours end to end (process-internal: upload + kernels + download + kernel build): "
@@ -196,6 +194,9 @@ def main():
             "ours_end_to_end_ms": e2e_ms,
             "scipy_ms": scipy_ms,
             "equal": equal,
+            "scipy_edt_ms_median": statistics.median(edt_ms) if edt_ms else None,
+            "scipy_edt_ms": edt_ms,
+            "scipy_edt_metric": "euclidean (different from ours: timed for scale, not compared)",
             "numpy": np.__version__,
             "scipy": __import__("scipy").__version__,
         }

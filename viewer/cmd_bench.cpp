@@ -3,9 +3,12 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <filesystem>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
+#include "bench_suites.hpp"
 #include "cli_util.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/core/accuracy.hpp"
@@ -22,6 +25,11 @@ struct BenchOptions {
     std::string device, json, csv, scene = "spheres", format = "u16", metric = "manhattan";
     std::uint32_t repeat = 10, warmup = 2, chunk = 0;
     std::uint64_t seed = 6683787;
+    // --suite NAME runs a whole suite (bench_suites.hpp) instead of the grid above.
+    std::string suite, plot;
+    bool quick = false;
+    double budget_s = 0;
+    std::uint32_t edits = 0, world = 0;
 };
 
 // "N" is a cube; "XxYxZ" any box.
@@ -48,8 +56,20 @@ int run_bench(const BenchOptions& o) {
     for (const auto& s : o.sizes) {
         sizes.push_back(parse_size(s));
     }
-    if (!o.json.empty()) {
-        require_output_folder(o.json);
+    std::string json_path = o.json;
+    std::optional<Plotter> plotter;
+    if (!o.plot.empty()) {
+        // Checked before the long run starts.
+        plotter = require_plotter();
+        if (!std::filesystem::is_directory(o.plot)) {
+            throw InputError("--plot " + o.plot + ": no such folder (create it first)");
+        }
+        if (json_path.empty()) {
+            json_path = (std::filesystem::path(o.plot) / "bench.json").string();
+        }
+    }
+    if (!json_path.empty()) {
+        require_output_folder(json_path);
     }
     if (!o.csv.empty()) {
         require_output_folder(o.csv);
@@ -162,14 +182,17 @@ int run_bench(const BenchOptions& o) {
             std::fflush(stdout);
         }
     }
-    if (!o.json.empty()) {
-        write_json_file(o.json, {{"device", device_json(ctx.info())},
-                                 {"commit", commit()},
-                                 {"date", utc_now()},
-                                 {"results", results}});
+    if (!json_path.empty()) {
+        write_json_file(json_path, {{"device", device_json(ctx.info())},
+                                    {"commit", commit()},
+                                    {"date", utc_now()},
+                                    {"results", results}});
     }
     if (!o.csv.empty()) {
         write_text_file(o.csv, csv.str());
+    }
+    if (plotter) {
+        run_plotter(*plotter, o.plot, {json_path});
     }
     return 0;
 }
@@ -209,7 +232,66 @@ Command add_bench(CLI::App& root) {
         ->capture_default_str();
     app->add_option("--json", o->json, "Write results as JSON (DESIGN §4 fields)");
     app->add_option("--csv", o->csv, "Write results as CSV");
-    return {app, [o] { return run_bench(*o); }};
+    app->add_option("--plot", o->plot,
+                    "Write PNG plots into this folder after the JSON (bench/plot.py; needs "
+                    "python3-matplotlib, checked before the run; without --json the JSON goes "
+                    "there too)");
+    app->add_option("--suite", o->suite,
+                    "Run a whole suite instead of --algorithms x --sizes: dissertation (the "
+                    "dissertation's generation-time tables, exact beside every row group), edits "
+                    "(its editing protocol, per-edit update times), render")
+        ->check(CLI::IsMember(suite_names()));
+    app->add_flag("--quick", o->quick,
+                  "Suites: smaller sizes and fewer runs (minutes on a 2-core CPU; what CI runs)");
+    app->add_option("--time-budget", o->budget_s,
+                    "Suites: wall-clock seconds per row; a row stops after the run that passes "
+                    "it, larger sizes predicted to pass it are skipped (default 60, --quick 15)")
+        ->check(CLI::PositiveNumber);
+    app->add_option("--edits", o->edits, "Suite edits: number of edits (default 200, --quick 20)")
+        ->check(CLI::PositiveNumber);
+    app->add_option("--world", o->world, "Suite edits: world edge N (default 128, --quick 64)")
+        ->check(CLI::PositiveNumber);
+    return {app, [o, app] {
+                if (o->suite.empty()) {
+                    for (const char* flag : {"--quick", "--time-budget", "--edits", "--world"}) {
+                        if (app->count(flag) != 0) {
+                            throw InputError(std::string(flag) + " applies to --suite only");
+                        }
+                    }
+                    return run_bench(*o);
+                }
+                for (const char* flag : {"--algorithms", "--sizes", "--scene"}) {
+                    if (app->count(flag) != 0) {
+                        throw InputError(std::string(flag) +
+                                         " does not apply to --suite (a suite fixes its "
+                                         "algorithms, sizes and scene)");
+                    }
+                }
+                if ((o->suite != "edits") &&
+                    (app->count("--edits") != 0 || app->count("--world") != 0 ||
+                     app->count("--chunk") != 0 || app->count("--format") != 0)) {
+                    throw InputError(
+                        "--edits, --world, --chunk and --format apply to --suite edits only");
+                }
+                SuiteOptions s;
+                s.suite = o->suite;
+                s.device = o->device;
+                s.json = o->json;
+                s.csv = o->csv;
+                s.plot = o->plot;
+                s.quick = o->quick;
+                s.repeat = app->count("--repeat") != 0 ? o->repeat : 0;
+                if (app->count("--warmup") != 0) {
+                    s.warmup = o->warmup;
+                }
+                s.budget_s = o->budget_s;
+                s.seed = o->seed;
+                s.chunk = o->chunk != 0 ? o->chunk : 16;
+                s.edits = o->edits;
+                s.world = o->world;
+                s.format = o->format;
+                return run_suite(s);
+            }};
 }
 
 }  // namespace voxfield::cli

@@ -1,0 +1,186 @@
+// End-to-end tests of `voxfield bench --suite ...` (issue 7): the quick suites run to the
+// end on the CPU device and write JSON of the documented structure. Timings are never
+// asserted; only that every row is either timed (finite statistics) or skipped with a reason.
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <map>
+#include <set>
+#include <string>
+
+#include "cli_test_util.hpp"
+
+namespace voxfield::test {
+namespace {
+
+using nlohmann::json;
+
+class BenchSuite : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        dir_ = make_temp_dir("voxfield_bench_suite");
+        io_ = make_temp_dir("voxfield_bench_suite_io");
+    }
+    void TearDown() override {
+        fs::remove_all(dir_);
+        fs::remove_all(io_);
+    }
+    RunResult run(const std::vector<std::string>& args) { return run_voxfield(args, io_); }
+
+    fs::path dir_, io_;
+};
+
+bool finite_number(const json& v) {
+    return v.is_number() && std::isfinite(v.get<double>());
+}
+
+// The DESIGN §4 keys every timed row carries, all finite, plus the suites' accuracy fields.
+void expect_timed_row(const json& r, const std::string& where) {
+    for (const char* key : {"median_ms", "mean_ms", "std_ms", "min_ms", "max_ms", "max_error",
+                            "mean_error", "over_fraction", "under_fraction"}) {
+        ASSERT_TRUE(r.contains(key)) << where << " lacks " << key;
+        EXPECT_TRUE(finite_number(r[key])) << where << " " << key << " = " << r[key];
+    }
+    ASSERT_TRUE(r.contains("ci95_ms") && r["ci95_ms"].is_array() && r["ci95_ms"].size() == 2)
+        << where;
+    EXPECT_TRUE(finite_number(r["ci95_ms"][0]) && finite_number(r["ci95_ms"][1])) << where;
+    EXPECT_LE(r["ci95_ms"][0].get<double>(), r["ci95_ms"][1].get<double>()) << where;
+    EXPECT_GE(r["median_ms"].get<double>(), 0.0) << where;
+    for (const char* key : {"gvox_per_s", "iterations"}) {
+        ASSERT_TRUE(r.contains(key)) << where << " lacks " << key;
+        EXPECT_TRUE(r[key].is_null() || finite_number(r[key])) << where << " " << key;
+    }
+}
+
+void expect_common(const json& doc, const std::string& suite) {
+    for (const char* key : {"device", "commit", "date", "suite", "results"}) {
+        ASSERT_TRUE(doc.contains(key)) << key;
+    }
+    EXPECT_EQ(doc["suite"], suite);
+    EXPECT_TRUE(doc["device"].contains("name"));
+    EXPECT_TRUE(doc["device"].contains("driver"));
+    ASSERT_TRUE(doc["results"].is_array());
+    ASSERT_FALSE(doc["results"].empty());
+}
+
+// Each row: algorithm, size, chunk, metric, table; either skipped with a reason or timed.
+void expect_rows(const json& doc) {
+    for (const json& r : doc["results"]) {
+        const std::string where = r.dump().substr(0, 200);
+        for (const char* key : {"table", "algorithm", "size", "chunk", "metric"}) {
+            ASSERT_TRUE(r.contains(key)) << where << " lacks " << key;
+        }
+        ASSERT_TRUE(r["size"].is_array() && r["size"].size() == 3) << where;
+        if (r.contains("skipped")) {
+            ASSERT_TRUE(r["skipped"].is_string()) << where;
+            EXPECT_FALSE(r["skipped"].get<std::string>().empty()) << where;
+        } else {
+            expect_timed_row(r, where);
+        }
+    }
+}
+
+TEST_F(BenchSuite, DissertationQuickWritesEveryTableWithExactBesideIt) {
+    const fs::path js = dir_ / "d.json";
+    const fs::path csv = dir_ / "d.csv";
+    const RunResult r = run({"bench", "--suite", "dissertation", "--quick", "--device", "cpu",
+                             "--json", js.string(), "--csv", csv.string()});
+    ASSERT_EQ(r.code, 0) << describe(r);
+    // Progress on stderr: which row of how many.
+    EXPECT_NE(r.err.find("[1/"), std::string::npos) << r.err.substr(0, 400);
+    const json doc = json::parse(read_text(js));
+    expect_common(doc, "dissertation");
+    EXPECT_EQ(doc["quick"], true);
+    ASSERT_TRUE(doc.contains("mapping"));
+    expect_rows(doc);
+
+    std::set<std::string> tables;
+    std::map<std::string, std::set<std::string>> algorithms_by_group;
+    for (const json& row : doc["results"]) {
+        const std::string table = row["table"];
+        tables.insert(table);
+        algorithms_by_group[table + " / " + row["group"].get<std::string>()].insert(
+            row["algorithm"].get<std::string>());
+        if (row["algorithm"] == "exact" && !row.contains("skipped")) {
+            EXPECT_EQ(row["max_error"], 0) << row.dump().substr(0, 200);
+            EXPECT_TRUE(row["chunk"].is_null());
+        }
+    }
+    EXPECT_EQ(tables, (std::set<std::string>{"Table 4.2", "Table 4.3", "Table 4.4", "Table 4.5",
+                                             "Table 4.6", "Table 4.7", "Table 5.1", "Figure 4.8"}));
+    for (const auto& [group, algorithms] : algorithms_by_group) {
+        EXPECT_TRUE(algorithms.count("exact") == 1) << group;
+        EXPECT_GE(algorithms.size(), 2u) << group;
+    }
+    const auto lines = split_lines(read_text(csv));
+    EXPECT_EQ(lines.size(), doc["results"].size() + 1);
+}
+
+TEST_F(BenchSuite, EditsQuickRecordsPerEditTimesAndFullRegeneration) {
+    const fs::path js = dir_ / "e.json";
+    const RunResult r = run({"bench", "--suite", "edits", "--quick", "--device", "cpu", "--world",
+                             "32", "--edits", "6", "--json", js.string()});
+    ASSERT_EQ(r.code, 0) << describe(r);
+    const json doc = json::parse(read_text(js));
+    expect_common(doc, "edits");
+    EXPECT_EQ(doc["edits"], 6);
+    EXPECT_EQ(doc["seed"], 6683787);
+    expect_rows(doc);
+    std::set<std::string> algorithms;
+    std::string first_sequence;
+    for (const json& row : doc["results"]) {
+        algorithms.insert(row["algorithm"].get<std::string>());
+        if (row.contains("skipped")) {
+            continue;
+        }
+        EXPECT_TRUE(finite_number(row["full_regeneration_ms"]));
+        ASSERT_TRUE(row["edits"].is_array());
+        EXPECT_EQ(row["edits"].size(), row["edits_done"].get<std::size_t>());
+        json sequence = json::array();
+        for (const json& e : row["edits"]) {
+            EXPECT_TRUE(finite_number(e["update_ms"]));
+            EXPECT_TRUE(e["voxels_recomputed"].is_number_unsigned());
+            EXPECT_GE(e["size"].get<int>(), 1);
+            EXPECT_LE(e["size"].get<int>(), 15);
+            sequence.push_back({e["op"], e["centre"], e["size"], e["material"]});
+        }
+        // The same seeded edits for every algorithm.
+        if (first_sequence.empty()) {
+            first_sequence = sequence.dump();
+        } else if (row["edits"].size() == 6) {
+            EXPECT_EQ(sequence.dump(), first_sequence) << row["algorithm"];
+        }
+        if (row["algorithm"] == "exact") {
+            EXPECT_EQ(row["max_error"], 0);
+        }
+    }
+    EXPECT_EQ(algorithms,
+              (std::set<std::string>{"exact", "brute-chunked", "fim-host", "fim", "jfa-host", "jfa",
+                                     "jfa-fim", "lod", "monolithic"}));
+}
+
+TEST_F(BenchSuite, RenderIsRegisteredAndSaysWhyItIsSkipped) {
+    const fs::path js = dir_ / "r.json";
+    const RunResult r =
+        run({"bench", "--suite", "render", "--device", "cpu", "--json", js.string()});
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_NE(r.err.find("skipped"), std::string::npos) << r.err;
+    const json doc = json::parse(read_text(js));
+    expect_common(doc, "render");
+    for (const json& row : doc["results"]) {
+        EXPECT_TRUE(row.contains("skipped") || row.contains("median_ms")) << row.dump();
+    }
+}
+
+TEST_F(BenchSuite, SuiteRefusesGridOptions) {
+    const RunResult r = run({"bench", "--suite", "dissertation", "--sizes", "64"});
+    EXPECT_EQ(r.code, 2) << describe(r);
+    EXPECT_NE(r.err.find("--sizes"), std::string::npos) << r.err;
+    const RunResult q = run({"bench", "--quick", "--sizes", "8", "--device", "cpu"});
+    EXPECT_EQ(q.code, 2) << describe(q);
+    EXPECT_NE(q.err.find("--suite"), std::string::npos) << q.err;
+    EXPECT_TRUE(list_dir(dir_).empty());
+}
+
+}  // namespace
+}  // namespace voxfield::test

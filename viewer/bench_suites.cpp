@@ -1,0 +1,817 @@
+// `voxfield bench --suite NAME` (bench_suites.hpp).
+#include "bench_suites.hpp"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <utility>
+
+#include "cli_util.hpp"
+#include "voxfield/cl/generator.hpp"
+#include "voxfield/cl/incremental.hpp"
+#include "voxfield/core/accuracy.hpp"
+#include "voxfield/core/brush.hpp"
+#include "voxfield/core/error.hpp"
+#include "voxfield/core/palette.hpp"
+#include "voxfield/core/scenes.hpp"
+#include "voxfield/core/stats.hpp"
+
+namespace voxfield::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+using nlohmann::json;
+
+// The dissertation's scene (a floor plus random spheres) for every suite world.
+const std::string kScene = "spheres";
+
+double seconds_since(Clock::time_point t0) {
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+std::string utc_now() {
+    const std::time_t t = std::time(nullptr);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
+    return buf;
+}
+
+std::string fixed(double v, int digits) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+    return buf;
+}
+
+json opt_chunk(std::uint32_t chunk) {
+    return chunk == 0 ? json() : json(chunk);
+}
+
+json focus_json(const std::optional<Focus>& f) {
+    if (!f) {
+        return json();
+    }
+    return {f->centre.x, f->centre.y, f->centre.z, f->size};
+}
+
+// Summary statistics as DESIGN §4 keys (plus min/max and the samples).
+void put_summary(json& row, const std::vector<double>& ms) {
+    const Summary s = summarize(ms);
+    row["median_ms"] = s.median;
+    row["mean_ms"] = s.mean;
+    row["std_ms"] = s.std;
+    row["ci95_ms"] = {s.ci95_lo, s.ci95_hi};
+    row["min_ms"] = s.min;
+    row["max_ms"] = s.max;
+    row["samples_ms"] = ms;
+}
+
+void put_accuracy(json& row, const Accuracy& a) {
+    row["max_error"] = a.max_error;
+    row["mean_error"] = a.mean_error;
+    row["over_fraction"] = a.over_fraction;
+    row["under_fraction"] = a.under_fraction;
+}
+
+// ---------------------------------------------------------------------------------------
+// dissertation suite
+
+// One generator configuration measured on a group's world.
+struct Variant {
+    Variant(std::string a, std::uint32_t c = 0, std::optional<Focus> f = std::nullopt)
+        : algorithm(std::move(a)), chunk(c), focus(f) {}
+    std::string algorithm;
+    std::uint32_t chunk = 0;
+    std::optional<Focus> focus;
+};
+
+// A row group: one world, the dissertation's algorithm(s) at one table column, and `exact`
+// on the same world in the same run.
+struct Group {
+    std::string table;  // "Table 4.4", "Figure 4.8"
+    std::string label;  // e.g. "chunk 32^3"
+    Dims dims;
+    std::string format;
+    std::vector<Variant> variants;  // exact is appended by the suite
+};
+
+struct RunPlan {
+    std::uint32_t repeat = 0, warmup = 0;
+    double budget_s = 0;
+    std::uint64_t seed = 0;
+};
+
+// What each dissertation table is and what the suite measures for it (recorded in the JSON).
+json dissertation_mapping() {
+    return json::array(
+        {{{"table", "Table 4.1"},
+          {"mapped", false},
+          {"why", "frame rate of the demo application (render + edits), not generation time"}},
+         {{"table", "Table 4.2"},
+          {"mapped", true},
+          {"dissertation", "brute force (Algorithm 1), compute-shader time by world size N^3"},
+          {"ours", "brute on an N^3 world, global semantics, packed32 (distance + colour)"}},
+         {{"table", "Table 4.3"},
+          {"mapped", true},
+          {"dissertation",
+           "brute force in 16^3 chunks (Algorithm 3), execution time per update (the edited "
+           "chunks) by world size"},
+          {"ours",
+           "brute-chunked --chunk 16 regenerating the WHOLE N^3 world (a full-world figure, not "
+           "the per-edit one: `--suite edits` gives per-edit update times)"}},
+         {{"table", "Table 4.4"},
+          {"mapped", true},
+          {"dissertation",
+           "FIM (Algorithms 4-5, host-driven convergence), time for one chunk of C^3, average "
+           "iterations, inside the running demo (fields mostly converged already)"},
+          {"ours",
+           "fim-host (the table's protocol) and fim (device-driven) on a world of one C^3 chunk "
+           "(--chunk C), from a freshly initialised field: iterations are FIM passes from "
+           "scratch"}},
+         {{"table", "Table 4.5"},
+          {"mapped", true},
+          {"dissertation", "JFA (Algorithm 6, one dispatch per pass), one chunk of C^3"},
+          {"ours", "jfa-host and jfa on a world of one C^3 chunk (--chunk C)"}},
+         {{"table", "Table 4.6"},
+          {"mapped", true},
+          {"dissertation", "JFA seed + FIM refinement (section 4.5), one chunk of C^3"},
+          {"ours", "jfa-fim on a world of one C^3 chunk (--chunk C)"}},
+         {{"table", "Table 4.7"},
+          {"mapped", true},
+          {"dissertation",
+           "optimised monolithic shader, pure distance field, single-chunk time; 2x2x2 chunks, "
+           "focus over half the chunks"},
+          {"ours",
+           "monolithic --chunk C, u32 field, on a 2C x C x C world (2 chunks) with the focus on "
+           "chunk (0,0,0) only: half the chunks FIM, half JFA as in the table (our focus is a "
+           "cube around one chunk, so 2x2x2 with a half focus cannot be expressed); the time "
+           "is for the whole 2-chunk world in one launch"}},
+         {{"table", "Figure 4.8"},
+          {"mapped", true},
+          {"dissertation",
+           "level of detail (Algorithm 7): generation time by focus size (a figure; no table "
+           "and no published numbers in the text)"},
+          {"ours", "lod --chunk 16, focus on the centre chunk with sizes 0.. (whole world)"}},
+         {{"table", "Table 5.1"},
+          {"mapped", true},
+          {"dissertation",
+           "final monolithic shader with colour in the field, single-chunk time; 2x2x2 chunks, "
+           "half in focus (plus demo FPS, not mapped)"},
+          {"ours", "as Table 4.7 with the packed32 field (distance + colour)"}},
+         {{"table", "Table 5.2"},
+          {"mapped", false},
+          {"why",
+           "per-edit update time and ray-march time in a 512^3 world against a dynamic SVO: "
+           "see `--suite edits` (monolithic/lod) and `--suite render`"}}});
+}
+
+std::vector<Group> dissertation_groups(bool quick) {
+    std::vector<Group> groups;
+    const auto cube = [](std::uint32_t n) { return Dims{n, n, n}; };
+    const auto edge = [](std::uint32_t n) { return std::to_string(n) + "^3"; };
+    for (std::uint32_t n : quick ? std::vector<std::uint32_t>{8, 16, 32}
+                                 : std::vector<std::uint32_t>{8, 16, 32, 64, 128}) {
+        groups.push_back({"Table 4.2", "world " + edge(n), cube(n), "packed32", {{"brute"}}});
+    }
+    for (std::uint32_t n : quick ? std::vector<std::uint32_t>{32, 64}
+                                 : std::vector<std::uint32_t>{32, 64, 128, 256, 512}) {
+        groups.push_back(
+            {"Table 4.3", "world " + edge(n), cube(n), "packed32", {{"brute-chunked", 16}}});
+    }
+    const std::vector<std::uint32_t> chunk_sizes =
+        quick ? std::vector<std::uint32_t>{8, 16, 32}
+              : std::vector<std::uint32_t>{8, 16, 32, 64, 128};
+    for (std::uint32_t c : chunk_sizes) {
+        groups.push_back(
+            {"Table 4.4", "chunk " + edge(c), cube(c), "packed32", {{"fim-host", c}, {"fim", c}}});
+    }
+    for (std::uint32_t c : chunk_sizes) {
+        groups.push_back(
+            {"Table 4.5", "chunk " + edge(c), cube(c), "packed32", {{"jfa-host", c}, {"jfa", c}}});
+    }
+    for (std::uint32_t c : chunk_sizes) {
+        groups.push_back({"Table 4.6", "chunk " + edge(c), cube(c), "packed32", {{"jfa-fim", c}}});
+    }
+    const std::vector<std::uint32_t> mono_sizes =
+        quick ? std::vector<std::uint32_t>{16, 32}
+              : std::vector<std::uint32_t>{16, 32, 64, 128, 256};
+    for (const auto& [table, format] :
+         {std::pair<std::string, std::string>{"Table 4.7", "u32"}, {"Table 5.1", "packed32"}}) {
+        for (std::uint32_t c : mono_sizes) {
+            groups.push_back({table,
+                              "chunk " + edge(c) + ", 2 chunks, focus 1",
+                              Dims{2 * c, c, c},
+                              format,
+                              {{"monolithic", c, Focus{{0, 0, 0}, 0}}}});
+        }
+    }
+    {
+        const std::uint32_t n = quick ? 64 : 128;
+        const std::int64_t centre = n / 16 / 2;
+        Group g{"Figure 4.8",
+                "world " + edge(n) + ", chunk 16^3, focus sizes",
+                cube(n),
+                "packed32",
+                {}};
+        for (std::int64_t s :
+             quick ? std::vector<std::int64_t>{0, 1} : std::vector<std::int64_t>{0, 1, 2, centre}) {
+            g.variants.push_back({"lod", 16, Focus{{centre, centre, centre}, s}});
+        }
+        groups.push_back(g);
+    }
+    return groups;
+}
+
+// Predicted time of one run from the same table's previous (smaller) row of this algorithm.
+struct Previous {
+    double ms = 0;
+    std::size_t voxels = 0;
+};
+
+class DissertationSuite {
+  public:
+    DissertationSuite(ocl::Context& ctx, const RunPlan& plan, std::size_t total)
+        : ctx_(ctx), plan_(plan), total_(total) {}
+
+    json measure(const Group& g, const World& world, const Variant& v) {
+        ++index_;
+        const Dims dims = world.dims();
+        std::string label = "[" + std::to_string(index_) + "/" + std::to_string(total_) + "] " +
+                            g.table + " " + v.algorithm + " " + dims.to_string();
+        if (v.chunk != 0) {
+            label += " chunk " + std::to_string(v.chunk);
+        }
+        if (v.focus) {
+            label += " focus " + std::to_string(v.focus->size);
+        }
+        json row = {{"table", g.table},
+                    {"group", g.label},
+                    {"algorithm", v.algorithm},
+                    {"size", {dims.x, dims.y, dims.z}},
+                    {"chunk", opt_chunk(v.chunk)},
+                    {"focus", focus_json(v.focus)},
+                    {"metric", "manhattan"},
+                    {"format", g.format},
+                    {"scene", kScene},
+                    {"seed", plan_.seed},
+                    {"time_budget_s", plan_.budget_s}};
+        const auto skip = [&](const std::string& why) {
+            std::cerr << "bench: " << label << ": skipped: " << why << '\n';
+            std::printf("%-11s %-14s %-14s %-6s skipped: %s\n", g.table.c_str(),
+                        v.algorithm.c_str(), dims.to_string().c_str(),
+                        v.chunk == 0 ? "-" : std::to_string(v.chunk).c_str(), why.c_str());
+            std::fflush(stdout);
+            row["skipped"] = why;
+            return row;
+        };
+        const std::string key = g.table + "/" + v.algorithm;
+        if (const auto it = previous_.find(key); it != previous_.end() && it->second.voxels > 0) {
+            const double predicted_s = it->second.ms * 1e-3 * static_cast<double>(dims.count()) /
+                                       static_cast<double>(it->second.voxels);
+            if (predicted_s > plan_.budget_s) {
+                return skip("predicted " + fixed(predicted_s, 1) +
+                            " s per run (the previous size's median scaled by the voxel count) "
+                            "exceeds the per-row time budget of " +
+                            fixed(plan_.budget_s, 0) + " s (--time-budget)");
+            }
+        }
+        ocl::GeneratorOptions options;
+        std::unique_ptr<ocl::Generator> job;
+        try {
+            options.algorithm = ocl::parse_algorithm(v.algorithm);
+            options.format = parse_format(g.format);
+            options.chunk = v.chunk;
+            options.focus = v.focus;
+            options = ocl::resolve_options(options, dims);
+            std::cerr << "bench: " << label << ": setting up\n";
+            job = ocl::make_generator(ctx_, world, Palette::magicavoxel_default(), options);
+        } catch (const InputError& e) {
+            // Sizes a generator refuses (brute force estimated over a minute) are reported.
+            return skip(e.what());
+        } catch (const ocl::ClError& e) {
+            return skip(std::string("device failure: ") + e.what());
+        }
+
+        std::vector<double> ms;
+        std::vector<std::vector<double>> stage_samples;
+        const auto t0 = Clock::now();
+        double last_wall = 0;
+        std::string truncated;
+        try {
+            for (std::uint32_t i = 0; i < plan_.warmup + plan_.repeat; ++i) {
+                const bool warm = i < plan_.warmup;
+                const double elapsed = seconds_since(t0);
+                if (elapsed + last_wall > plan_.budget_s) {
+                    if (warm) {
+                        i = plan_.warmup - 1;  // straight to the first timed run
+                        continue;
+                    }
+                    if (!ms.empty()) {
+                        truncated = std::to_string(ms.size()) + " of " +
+                                    std::to_string(plan_.repeat) +
+                                    " timed runs: the per-row time budget of " +
+                                    fixed(plan_.budget_s, 0) + " s (--time-budget) ran out";
+                        break;
+                    }
+                }
+                std::cerr << "\rbench: " << label << ": " << (warm ? "warm-up " : "run ")
+                          << (warm ? i + 1 : i + 1 - plan_.warmup) << "/"
+                          << (warm ? plan_.warmup : plan_.repeat) << "   " << std::flush;
+                const auto r0 = Clock::now();
+                const double t = job->run();
+                last_wall = seconds_since(r0);
+                if (!warm) {
+                    ms.push_back(t);
+                    stage_samples.resize(job->stage_ms().size());
+                    for (std::size_t k = 0; k < stage_samples.size(); ++k) {
+                        stage_samples[k].push_back(job->stage_ms()[k].second);
+                    }
+                }
+            }
+        } catch (const ocl::ClError& e) {
+            std::cerr << '\n';
+            return skip(std::string("device failure: ") + e.what());
+        }
+        std::cerr << "\rbench: " << label << ": checking against the CPU reference      \n";
+        double download_ms = 0;
+        const auto field = job->read(&download_ms);
+        const Accuracy a =
+            compare_to_exact(field, options.format, ocl::exact_reference(world, options));
+        put_summary(row, ms);
+        const double median = row["median_ms"].get<double>();
+        previous_[key] = {median, dims.count()};
+        row["repeat"] = plan_.repeat;
+        row["warmup"] = plan_.warmup;
+        row["runs"] = ms.size();
+        if (!truncated.empty()) {
+            row["budget_truncated"] = truncated;
+            std::cerr << "bench: " << label << ": " << truncated << '\n';
+        }
+        row["gvox_per_s"] =
+            median > 0 ? static_cast<double>(dims.count()) / (median * 1e-3) / 1e9 : 0.0;
+        row["iterations"] = job->iterations();
+        put_accuracy(row, a);
+        row["variant"] = job->variant();
+        row["upload_ms"] = job->upload_ms();
+        row["download_ms"] = download_ms;
+        json stages = json::array();
+        for (std::size_t k = 0; k < stage_samples.size(); ++k) {
+            stages.push_back({{"kernel", job->stage_ms()[k].first},
+                              {"median_ms", summarize(stage_samples[k]).median}});
+        }
+        row["stages"] = stages;
+        std::printf("%-11s %-14s %-14s %-6s %-8s %12.3f %12.3f %6u %7u %9.4f\n", g.table.c_str(),
+                    v.algorithm.c_str(), dims.to_string().c_str(),
+                    v.chunk == 0 ? "-" : std::to_string(v.chunk).c_str(), g.format.c_str(), median,
+                    row["std_ms"].get<double>(), job->iterations(), a.max_error, a.mean_error);
+        std::fflush(stdout);
+        return row;
+    }
+
+  private:
+    ocl::Context& ctx_;
+    RunPlan plan_;
+    std::size_t total_ = 0, index_ = 0;
+    std::map<std::string, Previous> previous_;
+};
+
+json run_dissertation(ocl::Context& ctx, const RunPlan& plan, bool quick) {
+    const std::vector<Group> groups = dissertation_groups(quick);
+    std::size_t total = 0;
+    for (const Group& g : groups) {
+        total += g.variants.size() + 1;
+    }
+    std::cerr << "bench: suite dissertation" << (quick ? " (--quick)" : "") << ": " << groups.size()
+              << " row groups, " << total << " rows, " << plan.repeat << " timed runs after "
+              << plan.warmup << " warm-up, at most ~" << fixed(plan.budget_s, 0) << " s per row\n";
+    std::printf("%-11s %-14s %-14s %-6s %-8s %12s %12s %6s %7s %9s\n", "table", "algorithm", "size",
+                "chunk", "format", "median ms", "std ms", "iters", "max err", "mean err");
+    DissertationSuite suite(ctx, plan, total);
+    json rows = json::array();
+    const auto t0 = Clock::now();
+    for (const Group& g : groups) {
+        const World world = make_scene(kScene, g.dims, plan.seed);
+        for (const Variant& v : g.variants) {
+            rows.push_back(suite.measure(g, world, v));
+        }
+        rows.push_back(suite.measure(g, world, Variant{"exact"}));
+    }
+    std::cerr << "bench: suite dissertation done in " << fixed(seconds_since(t0), 1) << " s\n";
+    return rows;
+}
+
+// ---------------------------------------------------------------------------------------
+// edits suite
+
+// splitmix64: the same sequence on every platform and compiler (std distributions are not).
+class Rng {
+  public:
+    explicit Rng(std::uint64_t seed) : state_(seed) {}
+    std::uint64_t next() {
+        std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        return z ^ (z >> 31);
+    }
+    // Uniform in [lo, hi] (modulo bias below 2^-40 for these ranges).
+    std::int64_t range(std::int64_t lo, std::int64_t hi) {
+        return lo + static_cast<std::int64_t>(next() % static_cast<std::uint64_t>(hi - lo + 1));
+    }
+
+  private:
+    std::uint64_t state_;
+};
+
+struct EditSpec {
+    Brush brush;
+    std::int64_t size = 0;  // the protocol's brush size 1..C-1; radius = size / 2
+};
+
+// The dissertation's benchmark mode (seed-code-notes: "every 200 ms a sphere at a uniformly
+// random centre with random size in 1..C-1 and a random voxel type, about 1 in 12 air"), the
+// demo's brush radius being size / 2. The same sequence for every algorithm of the run.
+std::vector<EditSpec> make_edit_sequence(Dims dims, std::uint32_t chunk, std::uint32_t count,
+                                         std::uint64_t seed) {
+    Rng rng(seed);
+    std::vector<EditSpec> edits;
+    for (std::uint32_t i = 0; i < count; ++i) {
+        EditSpec e;
+        e.brush.shape = BrushShape::sphere;
+        e.brush.centre = {rng.range(0, dims.x - 1), rng.range(0, dims.y - 1),
+                          rng.range(0, dims.z - 1)};
+        e.size = rng.range(1, std::max<std::int64_t>(1, std::int64_t{chunk} - 1));
+        e.brush.radius = e.size / 2;
+        // Voxel type 0..255 with air weighted to one in 12.
+        if (rng.range(0, 11) == 0) {
+            e.brush.op = BrushOp::erase;
+            e.brush.material = 1;
+        } else {
+            e.brush.op = BrushOp::place;
+            e.brush.material = static_cast<std::uint8_t>(rng.range(1, 255));
+        }
+        edits.push_back(e);
+    }
+    return edits;
+}
+
+json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Dims dims,
+               std::uint32_t count) {
+    const std::vector<std::string> algorithms = {"exact",   "brute-chunked", "fim-host",
+                                                 "fim",     "jfa-host",      "jfa",
+                                                 "jfa-fim", "lod",           "monolithic"};
+    const std::vector<EditSpec> edits = make_edit_sequence(dims, o.chunk, count, o.seed);
+    const World initial = make_scene(kScene, dims, o.seed);
+    const Palette palette = Palette::magicavoxel_default();
+    const Format format = parse_format(o.format);
+    std::cerr << "bench: suite edits" << (o.quick ? " (--quick)" : "") << ": world "
+              << dims.to_string() << ", " << count << " edits (seed " << o.seed << "), chunk "
+              << o.chunk << ", " << algorithms.size() << " algorithms, at most ~"
+              << fixed(plan.budget_s, 0) << " s each\n";
+    std::printf("%-14s %-14s %-6s %12s %12s %12s %12s %14s %7s\n", "algorithm", "size", "chunk",
+                "median ms", "mean ms", "max ms", "full ms", "recomputed/ed", "max err");
+    json rows = json::array();
+    const auto suite_t0 = Clock::now();
+    for (std::size_t ai = 0; ai < algorithms.size(); ++ai) {
+        const std::string& name = algorithms[ai];
+        const std::string label = "[" + std::to_string(ai + 1) + "/" +
+                                  std::to_string(algorithms.size()) + "] edits " + name;
+        const std::uint32_t chunk = name == "exact" ? 0 : o.chunk;
+        json row = {{"table", "edits"},
+                    {"group", "world " + dims.to_string() + ", " + std::to_string(count) +
+                                  " edits, seed " + std::to_string(o.seed)},
+                    {"algorithm", name},
+                    {"size", {dims.x, dims.y, dims.z}},
+                    {"chunk", opt_chunk(chunk)},
+                    {"metric", "manhattan"},
+                    {"format", o.format},
+                    {"scene", kScene},
+                    {"seed", o.seed},
+                    {"time_budget_s", plan.budget_s}};
+        ocl::GeneratorOptions options;
+        std::unique_ptr<ocl::IncrementalField> field;
+        try {
+            options.algorithm = ocl::parse_algorithm(name);
+            options.format = format;
+            options.chunk = chunk;
+            options = ocl::resolve_options(options, dims);
+            if (options.focus) {
+                row["focus"] = focus_json(options.focus);
+            }
+            std::cerr << "bench: " << label << ": setting up\n";
+            field = std::make_unique<ocl::IncrementalField>(ctx, initial, palette, options);
+            // Pay the update kernels' builds outside the timings (as `replay` does): toggle
+            // voxel (0,0,0) and restore it.
+            const std::uint8_t v0 = field->world().at(0, 0, 0);
+            Brush toggle;
+            toggle.shape = BrushShape::cube;
+            toggle.op = v0 != 0 ? BrushOp::erase : BrushOp::place;
+            field->apply({toggle});
+            toggle.op = v0 != 0 ? BrushOp::place : BrushOp::erase;
+            toggle.material = v0 != 0 ? v0 : std::uint8_t{1};
+            field->apply({toggle});
+        } catch (const InputError& e) {
+            std::cerr << "bench: " << label << ": skipped: " << e.what() << '\n';
+            row["skipped"] = e.what();
+            rows.push_back(row);
+            continue;
+        } catch (const ocl::ClError& e) {
+            row["skipped"] = std::string("device failure: ") + e.what();
+            std::cerr << "bench: " << label << ": skipped: " << row["skipped"] << '\n';
+            rows.push_back(row);
+            continue;
+        }
+        const auto t0 = Clock::now();
+        // Full regeneration of the same world on the same device, in the same run.
+        std::vector<double> regen;
+        for (std::uint32_t i = 0; i < plan.warmup + plan.repeat; ++i) {
+            std::cerr << "\rbench: " << label << ": full regeneration " << i + 1 << "/"
+                      << plan.warmup + plan.repeat << "   " << std::flush;
+            const double t = field->regenerate();
+            if (i >= plan.warmup) {
+                regen.push_back(t);
+            }
+            if (seconds_since(t0) > plan.budget_s / 2 && !regen.empty()) {
+                break;
+            }
+        }
+        std::cerr << '\n';
+        std::vector<double> update_ms;
+        json per_edit = json::array();
+        std::uint64_t recomputed = 0;
+        std::size_t fallbacks = 0;
+        std::string truncated;
+        for (std::size_t i = 0; i < edits.size(); ++i) {
+            if (seconds_since(t0) > plan.budget_s && !update_ms.empty()) {
+                truncated = std::to_string(i) + " of " + std::to_string(edits.size()) +
+                            " edits: the per-row time budget of " + fixed(plan.budget_s, 0) +
+                            " s (--time-budget) ran out";
+                break;
+            }
+            if (i % 10 == 0 || i + 1 == edits.size()) {
+                std::cerr << "\rbench: " << label << ": edit " << i + 1 << "/" << edits.size()
+                          << "   " << std::flush;
+            }
+            const EditSpec& e = edits[i];
+            const ocl::UpdateStats s = field->apply({e.brush});
+            std::size_t changed = 0;
+            for (const EditResult& r : s.edits) {
+                changed += r.changes.size();
+            }
+            update_ms.push_back(s.update_ms);
+            recomputed += s.voxels_recomputed;
+            fallbacks += s.full_regeneration ? 1 : 0;
+            per_edit.push_back({{"op", to_string(e.brush.op)},
+                                {"centre", {e.brush.centre.x, e.brush.centre.y, e.brush.centre.z}},
+                                {"size", e.size},
+                                {"radius", e.brush.radius},
+                                {"material", e.brush.op == BrushOp::erase ? 0 : e.brush.material},
+                                {"update_ms", s.update_ms},
+                                {"voxels_recomputed", s.voxels_recomputed},
+                                {"voxels_changed", changed},
+                                {"full_regeneration", s.full_regeneration}});
+        }
+        std::cerr << "\rbench: " << label << ": checking the final field against the CPU "
+                  << "reference\n";
+        const Accuracy a = compare_to_exact(field->read(), options.format,
+                                            ocl::exact_reference(field->world(), options));
+        put_summary(row, update_ms);
+        row.erase("samples_ms");  // per edit below
+        const Summary rs = summarize(regen);
+        const double median = row["median_ms"].get<double>();
+        row["gvox_per_s"] = json();  // not a whole-world rate
+        row["iterations"] = json();
+        put_accuracy(row, a);
+        row["accuracy_of"] =
+            "the field after the last edit, against the exact field of the "
+            "row's semantics";
+        row["edits_requested"] = edits.size();
+        row["edits_done"] = update_ms.size();
+        row["repeat"] = plan.repeat;
+        row["warmup"] = plan.warmup;
+        if (!truncated.empty()) {
+            row["budget_truncated"] = truncated;
+            std::cerr << "bench: " << label << ": " << truncated << '\n';
+        }
+        row["full_regeneration_ms"] = rs.median;
+        row["full_regeneration_ms_samples"] = regen;
+        row["ratio_full_to_median_update"] = median > 0 ? json(rs.median / median) : json();
+        row["voxels_recomputed_total"] = recomputed;
+        row["voxels_recomputed_mean"] =
+            update_ms.empty()
+                ? 0.0
+                : static_cast<double>(recomputed) / static_cast<double>(update_ms.size());
+        row["full_regenerations"] = fallbacks;
+        row["edits"] = per_edit;
+        std::printf("%-14s %-14s %-6s %12.3f %12.3f %12.3f %12.3f %14.0f %7u\n", name.c_str(),
+                    dims.to_string().c_str(), chunk == 0 ? "-" : std::to_string(chunk).c_str(),
+                    median, row["mean_ms"].get<double>(), row["max_ms"].get<double>(), rs.median,
+                    row["voxels_recomputed_mean"].get<double>(), a.max_error);
+        std::fflush(stdout);
+        rows.push_back(row);
+    }
+    std::cerr << "bench: suite edits done in " << fixed(seconds_since(suite_t0), 1) << " s\n";
+    return rows;
+}
+
+// ---------------------------------------------------------------------------------------
+// render suite
+
+json run_render() {
+    const std::string why =
+        "the render suite is not wired to the renderer yet; time a frame with `voxfield render "
+        "--stats`";
+    std::cerr << "bench: suite render: skipped: " << why << '\n';
+    std::printf("render: skipped: %s\n", why.c_str());
+    return json::array({{{"table", "render"}, {"algorithm", json()}, {"skipped", why}}});
+}
+
+void write_csv(const std::string& path, const json& rows) {
+    std::ostringstream csv;
+    csv << "table,group,algorithm,x,y,z,chunk,focus_size,format,median_ms,mean_ms,std_ms,ci95_lo_"
+           "ms,ci95_hi_ms,min_ms,max_ms,iterations,max_error,mean_error,over_fraction,under_"
+           "fraction,full_regeneration_ms,skipped\n";
+    const auto num = [](const json& row, const char* key) -> std::string {
+        if (!row.contains(key) || row[key].is_null()) {
+            return "";
+        }
+        std::ostringstream s;
+        s << row[key].get<double>();
+        return s.str();
+    };
+    const auto quoted = [](std::string s) {
+        std::string out = "\"";
+        for (char c : s) {
+            out += c == '"' ? std::string("\"\"") : std::string(1, c);
+        }
+        return out + "\"";
+    };
+    for (const json& r : rows) {
+        const bool has_size = r.contains("size") && r["size"].is_array();
+        csv << quoted(r.value("table", "")) << ',' << quoted(r.value("group", "")) << ','
+            << (r["algorithm"].is_string() ? r["algorithm"].get<std::string>() : "") << ','
+            << (has_size ? std::to_string(r["size"][0].get<std::uint32_t>()) : "") << ','
+            << (has_size ? std::to_string(r["size"][1].get<std::uint32_t>()) : "") << ','
+            << (has_size ? std::to_string(r["size"][2].get<std::uint32_t>()) : "") << ','
+            << num(r, "chunk") << ','
+            << (r.contains("focus") && r["focus"].is_array()
+                    ? std::to_string(r["focus"][3].get<std::int64_t>())
+                    : "")
+            << ',' << r.value("format", "") << ',' << num(r, "median_ms") << ','
+            << num(r, "mean_ms") << ',' << num(r, "std_ms") << ','
+            << (r.contains("ci95_ms") ? std::to_string(r["ci95_ms"][0].get<double>()) : "") << ','
+            << (r.contains("ci95_ms") ? std::to_string(r["ci95_ms"][1].get<double>()) : "") << ','
+            << num(r, "min_ms") << ',' << num(r, "max_ms") << ',' << num(r, "iterations") << ','
+            << num(r, "max_error") << ',' << num(r, "mean_error") << ',' << num(r, "over_fraction")
+            << ',' << num(r, "under_fraction") << ',' << num(r, "full_regeneration_ms") << ','
+            << (r.contains("skipped") ? quoted(r["skipped"].get<std::string>()) : "") << '\n';
+    }
+    write_text_file(path, csv.str());
+}
+
+bool python_has_matplotlib(const std::string& python) {
+    const std::string cmd = python + " -c 'import matplotlib' >/dev/null 2>&1";
+    return std::system(cmd.c_str()) == 0;
+}
+
+}  // namespace
+
+const std::vector<std::string>& suite_names() {
+    static const std::vector<std::string> names = {"dissertation", "edits", "render"};
+    return names;
+}
+
+Plotter require_plotter() {
+    // This file lives in viewer/; the script in bench/ of the same checkout (or of the
+    // working directory when the binary was built elsewhere).
+    Plotter p;
+    const fs::path source_root = fs::path(__FILE__).parent_path().parent_path();
+    for (const fs::path& candidate :
+         {source_root / "bench" / "plot.py", fs::current_path() / "bench" / "plot.py"}) {
+        if (fs::is_regular_file(candidate)) {
+            p.script = candidate.string();
+            break;
+        }
+    }
+    if (p.script.empty()) {
+        throw InputError(
+            "--plot needs bench/plot.py of the voxfield sources (run from the "
+            "repository root)");
+    }
+    std::vector<std::string> pythons;
+    if (const char* env = std::getenv("VOXFIELD_PYTHON"); env != nullptr && *env != '\0') {
+        pythons.emplace_back(env);
+    }
+    pythons.emplace_back("/usr/bin/python3");
+    pythons.emplace_back("python3");
+    for (const std::string& py : pythons) {
+        if ((py.find('/') == std::string::npos || ::access(py.c_str(), X_OK) == 0) &&
+            python_has_matplotlib(py)) {
+            p.python = py;
+            return p;
+        }
+    }
+    throw InputError(
+        "--plot needs python3 with matplotlib, found none (tried VOXFIELD_PYTHON, "
+        "/usr/bin/python3, python3): apt-get install python3-matplotlib");
+}
+
+void run_plotter(const Plotter& p, const std::string& dir, const std::vector<std::string>& files) {
+    const auto quote = [](const std::string& s) {
+        std::string out = "'";
+        for (char c : s) {
+            out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+        }
+        return out + "'";
+    };
+    std::string cmd = quote(p.python) + " " + quote(p.script) + " --out " + quote(dir);
+    for (const auto& f : files) {
+        cmd += " " + quote(f);
+    }
+    std::cerr << "bench: plotting: " << cmd << '\n';
+    if (std::system(cmd.c_str()) != 0) {
+        throw InputError("plotting failed: " + cmd);
+    }
+}
+
+int run_suite(const SuiteOptions& o) {
+    std::string json_path = o.json;
+    std::optional<Plotter> plotter;
+    if (!o.plot.empty()) {
+        // Checked before the long run starts.
+        plotter = require_plotter();
+        if (!fs::is_directory(o.plot)) {
+            throw InputError("--plot " + o.plot + ": no such folder (create it first)");
+        }
+        if (json_path.empty()) {
+            json_path = (fs::path(o.plot) / (o.suite + ".json")).string();
+        }
+    }
+    if (!json_path.empty()) {
+        require_output_folder(json_path);
+    }
+    if (!o.csv.empty()) {
+        require_output_folder(o.csv);
+    }
+    RunPlan plan;
+    plan.seed = o.seed;
+    plan.repeat = o.repeat != 0 ? o.repeat : (o.quick ? 3 : (o.suite == "edits" ? 5 : 10));
+    plan.warmup = o.warmup ? *o.warmup : (o.quick ? 1u : 2u);
+    plan.budget_s = o.budget_s > 0 ? o.budget_s : (o.quick ? 15.0 : 60.0);
+
+    ocl::Context ctx(ocl::select_device(o.device));
+    std::cerr << "bench: device " << ctx.info().name << " (" << ctx.info().platform << ")\n";
+    json doc = {{"device", device_json(ctx.info())},
+                {"commit", commit()},
+                {"date", utc_now()},
+                {"suite", o.suite},
+                {"quick", o.quick},
+                {"scene", kScene},
+                {"seed", o.seed},
+                {"repeat", plan.repeat},
+                {"warmup", plan.warmup},
+                {"time_budget_s", plan.budget_s}};
+    json rows;
+    if (o.suite == "dissertation") {
+        doc["mapping"] = dissertation_mapping();
+        rows = run_dissertation(ctx, plan, o.quick);
+    } else if (o.suite == "edits") {
+        const std::uint32_t n = o.world != 0 ? o.world : (o.quick ? 64 : 128);
+        const std::uint32_t count = o.edits != 0 ? o.edits : (o.quick ? 20 : 200);
+        const Dims dims{n, n, n};
+        require_chunk_fits(dims, o.chunk);
+        doc["edits"] = count;
+        doc["chunk"] = o.chunk;
+        doc["protocol"] =
+            "the dissertation's benchmark mode: spheres at uniformly random centres, size "
+            "uniform in 1..C-1 (brush radius = size / 2, as the demo's brush), voxel type "
+            "uniform with one in 12 air (an erase), else place with material 1..255; splitmix64 "
+            "seeded with `seed`, the same sequence for every algorithm; one edit per update";
+        rows = run_edits(ctx, o, plan, dims, count);
+    } else {
+        rows = run_render();
+    }
+    doc["results"] = rows;
+    if (!json_path.empty()) {
+        write_json_file(json_path, doc);
+        std::cerr << "bench: wrote " << json_path << '\n';
+    }
+    if (!o.csv.empty()) {
+        write_csv(o.csv, rows);
+        std::cerr << "bench: wrote " << o.csv << '\n';
+    }
+    if (plotter) {
+        run_plotter(*plotter, o.plot, {json_path});
+    }
+    return 0;
+}
+
+}  // namespace voxfield::cli
