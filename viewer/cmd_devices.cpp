@@ -1,9 +1,37 @@
-// `voxfield devices [--json]`: every OpenCL device, with the index --device accepts.
+// `voxfield devices [--json]`: every OpenCL device, with the index --device accepts, and the
+// OpenCL -> Vulkan sharing path (DESIGN §2) that `render` would use with the default devices.
+#include <exception>
 #include <iostream>
+#include <string>
 
 #include "cli_util.hpp"
+#include "voxfield/vk/context.hpp"
+#include "voxfield/vk/shared.hpp"
 
 namespace voxfield::cli {
+
+// cmd_render.cpp.
+vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Context& vk_ctx,
+                                    std::string& why_not);
+
+namespace {
+
+// "sharing: path N: ... (OpenCL X, Vulkan Y)", or why it cannot be said.
+std::string sharing_line() {
+    try {
+        ocl::Context cl_ctx(ocl::select_device(""));
+        vk::Context vk_ctx;
+        std::string why_not;
+        const vk::SharingPath path = choose_sharing_path(cl_ctx, vk_ctx, why_not);
+        return "sharing: " + vk::describe(path) + " (OpenCL " + cl_ctx.info().name + ", Vulkan " +
+               vk_ctx.info().name + "; render --field compact)" +
+               (why_not.empty() ? "" : " [" + why_not.substr(0, why_not.size() - 2) + "]");
+    } catch (const std::exception& e) {
+        return std::string("sharing: none (") + e.what() + ")";
+    }
+}
+
+}  // namespace
 
 Command add_devices(CLI::App& root) {
     auto* app = root.add_subcommand("devices", "List OpenCL devices and their indices");
@@ -29,6 +57,7 @@ Command add_devices(CLI::App& root) {
                               << (d.global_mem >> 20) << " MiB]"
                               << (d.available ? "" : " (not available)") << '\n';
                 }
+                std::cout << sharing_line() << '\n';
                 return 0;
             }};
 }

@@ -12,11 +12,16 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
 #include "cli_util.hpp"
+
+#include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/generator.hpp"
+#include "voxfield/cl/interop.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/vk/raymarcher.hpp"
+#include "voxfield/vk/shared.hpp"
 
 #define STB_IMAGE_WRITE_IMPLEMENTATION
 #define STB_IMAGE_WRITE_STATIC
@@ -26,7 +31,7 @@ namespace voxfield::cli {
 namespace {
 
 struct RenderCliOptions {
-    std::string input, output, camera, target, shading = "flat", sky, device;
+    std::string input, output, camera, target, shading = "flat", sky, device, field = "compact";
     std::uint32_t width = 800, height = 600;
     double fov = 60;
     bool stats = false;
@@ -96,6 +101,48 @@ void append_bytes(void* context, void* data, int size) {
     out->append(static_cast<const char*>(data), static_cast<std::size_t>(size));
 }
 
+// An owned file descriptor (path 1's export), closed after the OpenCL buffer is released.
+struct Fd {
+    int fd = -1;
+    Fd() = default;
+    Fd(const Fd&) = delete;
+    Fd& operator=(const Fd&) = delete;
+    ~Fd() {
+        if (fd >= 0) {
+            close(fd);
+        }
+    }
+};
+
+}  // namespace
+
+// DESIGN §2: the first sharing path both devices support, 1 -> 2 -> 3, and why the earlier
+// ones are not (for reports). Used by render and by `voxfield devices`.
+vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Context& vk_ctx,
+                                    std::string& why_not) {
+    why_not.clear();
+    if (!vk::supports(vk_ctx, vk::SharingPath::opaque_fd)) {
+        why_not += "path 1: Vulkan device lacks VK_KHR_external_memory_fd; ";
+    } else if (!ocl::can_import_opaque_fd(cl_ctx)) {
+        why_not += "path 1: OpenCL device lacks cl_khr_external_memory_opaque_fd (OpenCL 3.0); ";
+    } else if (const auto uuid = ocl::device_uuid(cl_ctx); !uuid || *uuid != vk_ctx.info().uuid) {
+        why_not += uuid ? "path 1: the OpenCL and Vulkan devices differ (UUID); "
+                        : "path 1: OpenCL device lacks cl_khr_device_uuid; ";
+    } else {
+        return vk::SharingPath::opaque_fd;
+    }
+    if (!vk::supports(vk_ctx, vk::SharingPath::host_pointer)) {
+        why_not += "path 2: Vulkan device lacks VK_EXT_external_memory_host; ";
+    } else if (!ocl::can_use_host_memory(cl_ctx)) {
+        why_not += "path 2: the OpenCL device is not a CPU; ";
+    } else {
+        return vk::SharingPath::host_pointer;
+    }
+    return vk::SharingPath::copy;
+}
+
+namespace {
+
 std::string point(const vk::Vec3& v) {
     return "(" + fixed(v[0], 2) + ", " + fixed(v[1], 2) + ", " + fixed(v[2], 2) + ")";
 }
@@ -142,19 +189,89 @@ int run_render(const RenderCliOptions& o) {
     r.camera.target = target ? *target : fallback.target;
     vk::validate(r);
 
-    // The exact global L1 field in packed32 on the OpenCL device.
+    const vk::FieldFormat format = vk::parse_field_format(o.field);
     ocl::Context cl_ctx(ocl::select_device(o.device));
-    ocl::GeneratorOptions g;
-    g.algorithm = ocl::Algorithm::exact;
-    g.format = Format::packed32;
-    g = ocl::resolve_options(g, world.dims());
-    const ocl::FieldResult field = ocl::generate(cl_ctx, world, model.palette, g);
-    std::vector<std::uint32_t> packed(world.size());
-    std::memcpy(packed.data(), field.bytes.data(), packed.size() * sizeof(std::uint32_t));
-
     vk::Context vk_ctx;
+    // Declaration order is release order in reverse: the ray marcher's buffers, then the
+    // OpenCL buffer, then the fd / shared memory they refer to.
+    vk::ExternalMemory shared;
+    Fd fd;
+    cl::Buffer cl_field;
+    std::optional<ocl::ExactManhattan> exact;
+    std::optional<ocl::CompactWriter> writer;
     vk::Raymarcher marcher(vk_ctx);
-    marcher.upload(world, model.palette, packed);
+    double kernel_ms = 0;
+    std::string why_not;
+    vk::SharingPath path = vk::SharingPath::copy;
+    if (format == vk::FieldFormat::packed32) {
+        // The exact global L1 field in packed32 on the OpenCL device, copied (path 3).
+        ocl::GeneratorOptions g;
+        g.algorithm = ocl::Algorithm::exact;
+        g.format = Format::packed32;
+        g = ocl::resolve_options(g, world.dims());
+        const ocl::FieldResult field = ocl::generate(cl_ctx, world, model.palette, g);
+        kernel_ms = field.timing.kernel_ms;
+        std::vector<std::uint32_t> packed(world.size());
+        std::memcpy(packed.data(), field.bytes.data(), packed.size() * sizeof(std::uint32_t));
+        marcher.upload(world, model.palette, packed);
+        why_not = "packed32 is always copied (path 3); ";
+    } else {
+        // The exact field in u8, converted by OpenCL into the compact format, written where
+        // Vulkan reads it (paths 1, 2) or into an OpenCL buffer that is copied (path 3).
+        const vk::FieldLayout layout = marcher.plan(world.dims(), format);
+        exact.emplace(cl_ctx, world, model.palette, Format::u8);
+        path = choose_sharing_path(cl_ctx, vk_ctx, why_not);
+        const VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+        if (path == vk::SharingPath::opaque_fd) {
+            try {
+                shared = vk::ExternalMemory::exportable(vk_ctx, layout.total_bytes, usage,
+                                                        "shared field");
+                fd.fd = shared.export_fd();
+                cl_field = ocl::import_opaque_fd(cl_ctx, fd.fd,
+                                                 static_cast<std::size_t>(layout.total_bytes));
+            } catch (const std::exception& e) {
+                why_not += std::string("path 1 failed: ") + e.what() + "; ";
+                cl_field = cl::Buffer();
+                shared = vk::ExternalMemory();
+                path = vk::supports(vk_ctx, vk::SharingPath::host_pointer) &&
+                               ocl::can_use_host_memory(cl_ctx)
+                           ? vk::SharingPath::host_pointer
+                           : vk::SharingPath::copy;
+            }
+        }
+        if (path == vk::SharingPath::host_pointer) {
+            shared = vk::ExternalMemory::host_allocation(vk_ctx, layout.total_bytes, usage,
+                                                         "shared field");
+            cl_field = ocl::wrap_host_memory(cl_ctx, shared.host_pointer(),
+                                             static_cast<std::size_t>(shared.size()));
+        } else if (path == vk::SharingPath::copy) {
+            cl_field = ocl::cl_call("the compact field buffer", [&] {
+                return cl::Buffer(cl_ctx.context(), CL_MEM_READ_WRITE,
+                                  static_cast<std::size_t>(layout.total_bytes));
+            });
+        }
+        writer.emplace(cl_ctx, *exact, world.dims(), cl_field,
+                       ocl::SlabLayout{layout.slab_depth, layout.slab_stride},
+                       path == vk::SharingPath::opaque_fd);
+        kernel_ms = exact->run();
+        kernel_ms += writer->run();
+        if (path == vk::SharingPath::copy) {
+            std::vector<std::uint16_t> compact(world.size());
+            const std::size_t plane = std::size_t{world.dims().x} * world.dims().y;
+            for (std::uint32_t s = 0; s < layout.slabs; ++s) {
+                const std::size_t z0 = std::size_t{s} * layout.slab_depth;
+                const std::size_t voxels =
+                    plane * std::min<std::size_t>(layout.slab_depth, world.dims().z - z0);
+                ocl::cl_call("reading the compact field", [&] {
+                    cl_ctx.queue().enqueueReadBuffer(cl_field, CL_TRUE, s * layout.slab_stride,
+                                                     voxels * 2, compact.data() + plane * z0);
+                });
+            }
+            marcher.upload_compact(world.dims(), model.palette, compact);
+        } else {
+            marcher.bind_shared(shared, layout, model.palette);
+        }
+    }
     const vk::Image image = marcher.render(r);
 
     std::string png;
@@ -167,15 +284,20 @@ int run_render(const RenderCliOptions& o) {
     write_text_file(o.output, png);
 
     std::cout << "opencl:  " << cl_ctx.info().name << " (" << cl_ctx.info().platform << ", "
-              << cl_ctx.info().type << "): exact L1 field, packed32, kernels "
-              << fixed(field.timing.kernel_ms, 3) << " ms\n"
+              << cl_ctx.info().type << "): exact L1 field, " << vk::to_string(format) << " ("
+              << (format == vk::FieldFormat::compact ? "2 bytes per voxel, world + field"
+                                                     : "4 + 1 material byte per voxel")
+              << "), kernels " << fixed(kernel_ms, 3) << " ms\n"
               << "vulkan:  " << vk_ctx.info().name << " (" << vk_ctx.info().type << ", Vulkan "
               << vk_ctx.info().api << ")\n"
               << "world:   " << o.input << "  " << world.dims().to_string() << " = " << world.size()
               << " voxels, " << world.solid_count() << " solid\n"
-              << "sharing: " << marcher.sharing_path() << "; field in " << marcher.field_bindings()
-              << " storage-buffer binding" << (marcher.field_bindings() == 1 ? "" : "s")
-              << " of up to " << marcher.slab_depth() << " z-slices\n"
+              << "sharing: " << marcher.sharing_path()
+              << (why_not.empty() ? std::string()
+                                  : " [" + why_not.substr(0, why_not.size() - 2) + "]")
+              << "; field in " << marcher.field_bindings() << " storage-buffer binding"
+              << (marcher.field_bindings() == 1 ? "" : "s") << " of up to " << marcher.slab_depth()
+              << " z-slices\n"
               << "image:   " << image.width << "x" << image.height << ", " << o.shading
               << " shading, camera " << point(r.camera.position) << " -> " << point(r.camera.target)
               << ", fov " << fixed(r.camera.fov_deg, 1) << " -> " << o.output << '\n';
@@ -223,6 +345,12 @@ Command add_render(CLI::App& root) {
                     "devices` (default: $VOXFIELD_DEVICE, else the first GPU, else the first "
                     "CPU); the Vulkan device is chosen automatically ($VOXFIELD_VK_DEVICE: gpu, "
                     "cpu or an index)");
+    app->add_option("--field", o->field,
+                    "Field format the ray marcher reads: compact (16 bits per voxel, distance "
+                    "and palette index: world + field in 2 bytes, shared with OpenCL where the "
+                    "devices allow) or packed32 (4 bytes plus a material byte, always copied)")
+        ->check(CLI::IsMember({"packed32", "compact"}))
+        ->capture_default_str();
     app->add_flag("--stats", o->stats,
                   "Report the ray-march dispatch time (GPU timestamps) and Mrays/s");
     return {app, [o] { return run_render(*o); }};

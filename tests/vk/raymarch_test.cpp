@@ -1,5 +1,6 @@
 // The Vulkan ray marcher on lavapipe (or any Vulkan device) against an independent CPU ray
 // caster: exact voxel traversal of the world itself (no distance field) in double precision.
+// Every scene runs in both field formats (packed32 and compact).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -14,6 +15,7 @@
 #include "voxfield/core/format.hpp"
 #include "voxfield/core/reference.hpp"
 #include "voxfield/core/scenes.hpp"
+#include "voxfield/layout.h"
 #include "voxfield/vk/raymarcher.hpp"
 
 namespace voxfield::test {
@@ -32,6 +34,26 @@ std::vector<std::uint32_t> packed_field(const World& world, const Palette& palet
     std::vector<std::uint32_t> out(world.size());
     std::memcpy(out.data(), bytes.data(), bytes.size());
     return out;
+}
+
+// compact: (min(d, 255) << 8) | material, from the CPU reference distances.
+std::vector<std::uint16_t> compact_field(const World& world) {
+    const auto d = reference_manhattan(world);
+    std::vector<std::uint16_t> out(world.size());
+    for (std::size_t i = 0; i < out.size(); ++i) {
+        out[i] = static_cast<std::uint16_t>((std::min<std::uint32_t>(d[i], 255) << 8) |
+                                            world.voxels()[i]);
+    }
+    return out;
+}
+
+void upload(vk::Raymarcher& marcher, const World& world, const Palette& palette,
+            vk::FieldFormat format) {
+    if (format == vk::FieldFormat::packed32) {
+        marcher.upload(world, palette, packed_field(world, palette));
+    } else {
+        marcher.upload_compact(world.dims(), palette, compact_field(world));
+    }
 }
 
 // ---- The CPU reference caster (independent of vk/: its own camera and traversal). ----
@@ -155,11 +177,11 @@ Comparison compare(const std::vector<std::uint8_t>& got, const std::vector<std::
 
 // Renders on the GPU and on the CPU and requires <= 0.5% differing pixels (ties at voxel
 // edges); also that the image is not trivial (some hits, and some sky when `want_sky`).
-void expect_matches(const World& world, const Palette& palette, const vk::RenderOptions& r,
-                    std::uint64_t max_binding_bytes = 0, bool want_sky = true,
-                    std::uint32_t* bindings = nullptr) {
+void expect_matches(vk::FieldFormat format, const World& world, const Palette& palette,
+                    const vk::RenderOptions& r, std::uint64_t max_binding_bytes = 0,
+                    bool want_sky = true, std::uint32_t* bindings = nullptr) {
     vk::Raymarcher marcher(vulkan(), max_binding_bytes);
-    marcher.upload(world, palette, packed_field(world, palette));
+    upload(marcher, world, palette, format);
     if (bindings != nullptr) {
         *bindings = marcher.field_bindings();
     }
@@ -187,34 +209,37 @@ vk::RenderOptions options(std::uint32_t w, std::uint32_t h, Vec3 camera, Vec3 ta
     return r;
 }
 
-TEST(Raymarch, SingleVoxelIncludingABlackMaterial) {
+class Raymarch : public ::testing::TestWithParam<vk::FieldFormat> {};
+
+TEST_P(Raymarch, SingleVoxelIncludingABlackMaterial) {
     World world(Dims{8, 8, 8});
     world.set(3, 4, 5, 5);
     Palette palette;
     palette[5] = Rgba{0, 0, 0, 255};  // solid and black: distance 0 marks solids, not colour
-    expect_matches(world, palette, options(64, 48, {-6, 9, -4}, {3.5, 4.5, 5.5}, 30));
+    expect_matches(GetParam(), world, palette, options(64, 48, {-6, 9, -4}, {3.5, 4.5, 5.5}, 30));
     world.set(3, 4, 5, 79);
-    expect_matches(world, palette, options(64, 48, {12, -3, 14}, {3.5, 4.5, 5.5}, 25));
+    expect_matches(GetParam(), world, palette, options(64, 48, {12, -3, 14}, {3.5, 4.5, 5.5}, 25));
 }
 
-TEST(Raymarch, FloorAndSpheres) {
+TEST_P(Raymarch, FloorAndSpheres) {
     const World world = scene_floor_spheres(Dims{64, 64, 64}, 6683787);
     vk::RenderOptions r = options(128, 96, {}, {});
     r.camera = vk::default_camera(world.dims());
-    expect_matches(world, Palette(), r);
+    expect_matches(GetParam(), world, Palette(), r);
 }
 
-TEST(Raymarch, MengerSpongeThroughTunnels) {
+TEST_P(Raymarch, MengerSpongeThroughTunnels) {
     const World world = scene_menger(Dims{81, 81, 81});
     ASSERT_GT(world.solid_count(), 0u);
     // Down the z tunnels, slightly off axis so that rays travel far through them.
-    expect_matches(world, Palette(), options(96, 96, {40.3, 40.6, -50}, {40.5, 40.5, 81}, 50), 0,
-                   false);
+    expect_matches(GetParam(), world, Palette(),
+                   options(96, 96, {40.3, 40.6, -50}, {40.5, 40.5, 81}, 50), 0, false);
     // Oblique, from a corner.
-    expect_matches(world, Palette(), options(96, 72, {-30, 95, -40}, {40.5, 40.5, 40.5}));
+    expect_matches(GetParam(), world, Palette(),
+                   options(96, 72, {-30, 95, -40}, {40.5, 40.5, 40.5}));
 }
 
-TEST(Raymarch, ThinWallsAtGrazingAngles) {
+TEST_P(Raymarch, ThinWallsAtGrazingAngles) {
     World world(Dims{64, 64, 64});
     for (std::uint32_t z = 0; z < 64; ++z) {
         for (std::uint32_t y = 0; y < 64; ++y) {
@@ -225,78 +250,86 @@ TEST(Raymarch, ThinWallsAtGrazingAngles) {
         }
     }
     // Nearly parallel to the wall and to the floor.
-    expect_matches(world, Palette(), options(96, 72, {31.2, 1.3, -80}, {33.4, 0.8, 64}, 40));
-    expect_matches(world, Palette(), options(96, 72, {20, 30, -10}, {36, 28, 70}, 70));
+    expect_matches(GetParam(), world, Palette(),
+                   options(96, 72, {31.2, 1.3, -80}, {33.4, 0.8, 64}, 40));
+    expect_matches(GetParam(), world, Palette(), options(96, 72, {20, 30, -10}, {36, 28, 70}, 70));
 }
 
-TEST(Raymarch, CameraInsideTheWorld) {
+TEST_P(Raymarch, CameraInsideTheWorld) {
     const World world = scene_floor_spheres(Dims{64, 64, 64}, 6683787);
-    expect_matches(world, Palette(), options(96, 72, {10, 20, 12}, {40, 10, 50}, 90), 0, false);
+    expect_matches(GetParam(), world, Palette(), options(96, 72, {10, 20, 12}, {40, 10, 50}, 90), 0,
+                   false);
     // Inside a solid voxel: every ray hits it at once.
     World filled(Dims{16, 16, 16});
     filled.set(5, 6, 7, 42);
-    expect_matches(filled, Palette(), options(16, 16, {5.5, 6.5, 7.5}, {9, 9, 9}), 0, false);
+    expect_matches(GetParam(), filled, Palette(), options(16, 16, {5.5, 6.5, 7.5}, {9, 9, 9}), 0,
+                   false);
 }
 
-TEST(Raymarch, CameraOutsideLookingPast) {
+TEST_P(Raymarch, CameraOutsideLookingPast) {
     const World world = scene_floor_spheres(Dims{64, 64, 64}, 6683787);
     // The world is at the right edge of the view; most rays miss it.
-    expect_matches(world, Palette(), options(96, 72, {-20, 30, -20}, {-25, 28, 60}));
+    expect_matches(GetParam(), world, Palette(), options(96, 72, {-20, 30, -20}, {-25, 28, 60}));
     // Looking straight away from it: nothing is hit.
     vk::Raymarcher marcher(vulkan());
-    marcher.upload(world, Palette(), packed_field(world, Palette()));
+    upload(marcher, world, Palette(), GetParam());
     const auto r = options(32, 24, {-20, 30, -20}, {-60, 30, -60});
     const auto img = marcher.render(r);
     EXPECT_EQ(compare(img.rgba, cpu_render(world, Palette(), r), r.sky).differing, 0u);
     EXPECT_EQ(compare(img.rgba, cpu_render(world, Palette(), r), r.sky).sky, 32u * 24u);
 }
 
-TEST(Raymarch, DistantCamera) {
+TEST_P(Raymarch, DistantCamera) {
     const World world = scene_floor_spheres(Dims{64, 64, 64}, 6683787);
     // About 5000 voxels away with a narrow field of view: float must not lose the voxels.
-    expect_matches(world, Palette(), options(96, 72, {-2900, 2400, -3300}, {32, 20, 32}, 1.2));
+    expect_matches(GetParam(), world, Palette(),
+                   options(96, 72, {-2900, 2400, -3300}, {32, 20, 32}, 1.2));
 }
 
-TEST(Raymarch, StraightDownAlongY) {
+TEST_P(Raymarch, StraightDownAlongY) {
     const World world = scene_floor_spheres(Dims{48, 40, 32}, 3);
-    expect_matches(world, Palette(), options(64, 64, {20.3, 90, 15.2}, {20.3, 0, 15.2}), 0, false);
+    expect_matches(GetParam(), world, Palette(), options(64, 64, {20.3, 90, 15.2}, {20.3, 0, 15.2}),
+                   0, false);
 }
 
-TEST(Raymarch, FieldSplitAcrossBindings) {
+TEST_P(Raymarch, FieldSplitAcrossBindings) {
     const World world = scene_floor_spheres(Dims{64, 64, 64}, 6683787);
     vk::RenderOptions r = options(96, 72, {}, {});
     r.camera = vk::default_camera(world.dims());
     std::uint32_t bindings = 0;
     // Ten z-slices per binding: 7 bindings, the last one shorter.
-    expect_matches(world, Palette(), r, 64 * 64 * 4 * 10, true, &bindings);
+    expect_matches(GetParam(), world, Palette(), r, 64 * 64 * vk::element_size(GetParam()) * 10,
+                   true, &bindings);
     EXPECT_EQ(bindings, 7u);
 }
 
-TEST(Raymarch, RefusesMoreBindingsThanItHas) {
+TEST_P(Raymarch, RefusesMoreBindingsThanItHas) {
     const World world = scene_floor_spheres(Dims{16, 16, 64}, 1);
-    vk::Raymarcher marcher(vulkan(), 16 * 16 * 4);  // one slice per binding: 64 > 8
-    EXPECT_THROW(marcher.upload(world, Palette(), packed_field(world, Palette())), InputError);
+    // One slice per binding: 64 > 8.
+    vk::Raymarcher marcher(vulkan(), 16 * 16 * vk::element_size(GetParam()));
+    EXPECT_THROW(upload(marcher, world, Palette(), GetParam()), InputError);
 }
 
 // 520x256x256 packed32 = 136 MiB, more than lavapipe's 128 MiB maxStorageBufferRange.
-TEST(Raymarch, WorldLargerThanOneBinding) {
+TEST_P(Raymarch, WorldLargerThanOneBinding) {
     const World world = scene_floor_spheres(Dims{520, 256, 256}, 6683787);
     vk::RenderOptions r = options(64, 48, {}, {});
     r.camera = vk::default_camera(world.dims());
     std::uint32_t bindings = 0;
-    expect_matches(world, Palette(), r, 0, true, &bindings);
-    const std::uint64_t field_bytes = world.size() * 4;
+    expect_matches(GetParam(), world, Palette(), r, 0, true, &bindings);
+    const std::uint64_t field_bytes = world.size() * vk::element_size(GetParam());
     if (vulkan().info().max_storage_buffer_range < field_bytes) {
         EXPECT_GE(bindings, 2u);
     }
     // A second view from inside, along the long axis.
-    expect_matches(world, Palette(), options(48, 32, {5, 40, 128}, {515, 20, 120}, 70), 0, false);
+    expect_matches(GetParam(), world, Palette(), options(48, 32, {5, 40, 128}, {515, 20, 120}, 70),
+                   0, false);
 }
 
-TEST(Raymarch, LitShadingHitsWhatFlatHits) {
+TEST_P(Raymarch, LitShadingHitsWhatFlatHits) {
     const World world = scene_floor_spheres(Dims{64, 64, 64}, 6683787);
     vk::Raymarcher marcher(vulkan());
-    marcher.upload(world, Palette(), packed_field(world, Palette()));
+    upload(marcher, world, Palette(), GetParam());
     vk::RenderOptions r = options(96, 72, {}, {});
     r.camera = vk::default_camera(world.dims());
     r.shading = vk::Shading::lit;
@@ -327,20 +360,20 @@ TEST(Raymarch, LitShadingHitsWhatFlatHits) {
               0);
 }
 
-TEST(Raymarch, GpuTimestamps) {
+TEST_P(Raymarch, GpuTimestamps) {
     if (!vulkan().info().timestamps) {
         GTEST_SKIP() << vulkan().info().name << " has no compute timestamps";
     }
     const World world = scene_floor_spheres(Dims{32, 32, 32}, 1);
     vk::Raymarcher marcher(vulkan());
-    marcher.upload(world, Palette(), packed_field(world, Palette()));
+    upload(marcher, world, Palette(), GetParam());
     vk::RenderOptions r = options(64, 64, {}, {});
     r.camera = vk::default_camera(world.dims());
     const auto img = marcher.render(r);
     EXPECT_GT(img.raymarch_ms, 0);
 }
 
-TEST(Raymarch, CameraValidation) {
+TEST_P(Raymarch, CameraValidation) {
     vk::RenderOptions r = options(64, 64, {1, 2, 3}, {1, 2, 3});
     EXPECT_THROW(vk::validate(r), InputError);
     r.camera.target = {4, 5, 6};
@@ -360,6 +393,33 @@ TEST(Raymarch, CameraValidation) {
     }
 }
 
+// 520x256x512 compact = 136 MiB, more than lavapipe's 128 MiB maxStorageBufferRange (the
+// packed32 test world above is only 68 MiB compact).
+TEST(RaymarchCompact, WorldLargerThanOneBinding) {
+    const World world = scene_floor_spheres(Dims{520, 256, 512}, 6683787);
+    vk::RenderOptions r = options(64, 48, {}, {});
+    r.camera = vk::default_camera(world.dims());
+    std::uint32_t bindings = 0;
+    expect_matches(vk::FieldFormat::compact, world, Palette(), r, 0, true, &bindings);
+    if (vulkan().info().max_storage_buffer_range < world.size() * 2) {
+        EXPECT_GE(bindings, 2u);
+    }
+}
+
+TEST(RaymarchCompact, PlanAlignsSlabsAndNamesFormats) {
+    vk::Raymarcher marcher(vulkan(), 33 * 17 * 2 * 5 + 2);  // a multiple of 4
+    const vk::FieldLayout l = marcher.plan(Dims{33, 17, 23}, vk::FieldFormat::compact);
+    EXPECT_EQ(l.slab_depth, 5u);
+    EXPECT_EQ(l.slabs, 5u);
+    EXPECT_EQ(l.slab_stride % VF_FIELD_SLAB_ALIGN, 0u);
+    EXPECT_GE(l.slab_stride, l.slab_bytes(0));
+    EXPECT_EQ(l.slab_bytes(0), (33u * 17 * 5 * 2 + 3) / 4 * 4);  // odd voxel count: padded
+    EXPECT_EQ(l.slab_bytes(4), 33u * 17 * 3 * 2 + 2);
+    EXPECT_EQ(vk::parse_field_format("compact"), vk::FieldFormat::compact);
+    EXPECT_EQ(vk::parse_field_format("packed32"), vk::FieldFormat::packed32);
+    EXPECT_THROW(vk::parse_field_format("u16"), InputError);
+}
+
 TEST(VulkanDevice, ListsAndSelects) {
     const auto devices = vk::list_devices();
     ASSERT_FALSE(devices.empty()) << "no Vulkan device (install mesa-vulkan-drivers)";
@@ -368,6 +428,10 @@ TEST(VulkanDevice, ListsAndSelects) {
     EXPECT_THROW(vk::Context("banana"), vk::DeviceSelectionError);
     EXPECT_THROW(vk::Context("999"), vk::DeviceSelectionError);
 }
+
+INSTANTIATE_TEST_SUITE_P(Formats, Raymarch,
+                         ::testing::Values(vk::FieldFormat::packed32, vk::FieldFormat::compact),
+                         [](const auto& p) { return vk::to_string(p.param); });
 
 }  // namespace
 }  // namespace voxfield::test

@@ -28,6 +28,7 @@ TEST_F(RenderCli, BadInputExitsTwoWithOneLineAndNoFile) {
     const std::string out = (dir_ / "out.png").string();
     const std::vector<std::vector<std::string>> cases = {
         {kModel.string(), "-o", out, "--width", "0"},
+        {kModel.string(), "-o", out, "--field", "u16"},
         {kModel.string(), "-o", out, "--width", "16385"},
         {kModel.string(), "-o", out, "--height", "0"},
         {kModel.string(), "-o", out, "--width", "-3"},
@@ -71,16 +72,32 @@ TEST_F(RenderCli, WritesPngAndReports) {
     const auto bytes = read_bytes(out);
     ASSERT_GT(bytes.size(), 8u);
     EXPECT_EQ(std::string(bytes.begin() + 1, bytes.begin() + 4), "PNG");
-    EXPECT_NE(r.out.find("sharing: copy"), std::string::npos) << r.out;
+    // compact by default; PoCL + lavapipe share one host allocation (DESIGN §2 path 2).
+    EXPECT_NE(r.out.find("compact"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("sharing: path 2"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("ray march"), std::string::npos) << r.out;
     EXPECT_TRUE(r.err.empty()) << r.err;
+}
+
+TEST_F(RenderCli, BothFieldFormatsGiveTheSameImage) {
+    const fs::path a = dir_ / "compact.png", b = dir_ / "packed.png";
+    const RunResult rc = run_voxfield({"render", kModel.string(), "-o", a.string(), "--width", "64",
+                                       "--height", "48", "--field", "compact"},
+                                      io_);
+    ASSERT_EQ(rc.code, 0) << describe(rc);
+    const RunResult rp = run_voxfield({"render", kModel.string(), "-o", b.string(), "--width", "64",
+                                       "--height", "48", "--field", "packed32"},
+                                      io_);
+    ASSERT_EQ(rp.code, 0) << describe(rp);
+    EXPECT_NE(rp.out.find("sharing: path 3"), std::string::npos) << rp.out;
+    EXPECT_EQ(read_bytes(a), read_bytes(b));
 }
 
 TEST_F(RenderCli, HelpListsEveryOption) {
     const RunResult r = run_voxfield({"render", "--help"}, io_);
     ASSERT_EQ(r.code, 0) << describe(r);
     for (const char* opt : {"--width", "--height", "--camera", "--target", "--fov", "--shading",
-                            "--sky", "--device", "--stats", "--output"}) {
+                            "--sky", "--device", "--stats", "--output", "--field"}) {
         EXPECT_NE(r.out.find(opt), std::string::npos) << opt;
     }
 }

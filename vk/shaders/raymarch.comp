@@ -1,5 +1,5 @@
 #version 450
-// DDA ray marcher over a packed32 Manhattan distance field. Traversal: Amanatides & Woo, "A
+// DDA ray marcher over a packed32 or compact Manhattan distance field. Traversal: Amanatides & Woo, "A
 // Fast Voxel Traversal Algorithm for Ray Tracing" (Eurographics 1987); empty-space skipping
 // by the distance field as in the dissertation's viewer (chapter 5), without its step cap.
 #extension GL_GOOGLE_include_directive : require
@@ -17,7 +17,9 @@ layout(std430, binding = VF_RAYMARCH_BINDING_PALETTE) readonly buffer PaletteBuf
 
 // The field is split along z into slabs of pc.dims.w slices, one binding each, so that no
 // binding exceeds maxStorageBufferRange. Unused bindings alias slab 0 and are never read.
-// Materials (the world's voxel bytes, four per word, same slabs) sit beside the field.
+// packed32: materials (the world's voxel bytes, four per word, same slabs) sit beside the
+// field. compact (VF_RAYMARCH_FLAG_COMPACT): 16 bits per voxel, two per word, distance and
+// material together; the material bindings alias field slab 0 and are never read.
 layout(std430, binding = VF_RAYMARCH_BINDING_FIELD + 0) readonly buffer F0 {
     uint f0[];
 };
@@ -133,6 +135,17 @@ uvec2 locate(ivec3 c) {
     return uvec2(slab, i);
 }
 
+bool g_compact;
+
+// The field element of cell c: (distance << 8) | colour or material, in its low 16 bits.
+uint read_cell(ivec3 c) {
+    uvec2 at = locate(c);
+    if (g_compact) {
+        return (read_field(at.x, at.y >> 1u) >> ((at.y & 1u) * 16u)) & 0xFFFFu;
+    }
+    return read_field(at.x, at.y);
+}
+
 vec3 unpack_rgb(uint c) {
     return vec3(float(c & 0xFFu), float((c >> 8) & 0xFFu), float((c >> 16) & 0xFFu)) / 255.0;
 }
@@ -169,6 +182,7 @@ void main() {
     }
     bool lit = (pc.image.z & VF_RAYMARCH_FLAG_LIT) != 0u;
     bool gradient = (pc.image.z & VF_RAYMARCH_FLAG_SKY_GRADIENT) != 0u;
+    g_compact = (pc.image.z & VF_RAYMARCH_FLAG_COMPACT) != 0u;
 
     // Pinhole camera, DESIGN §4.
     float sx = (float(pix.x) + 0.5) / float(width) * 2.0 - 1.0;
@@ -223,8 +237,8 @@ void main() {
         // fetch, never skipping a solid cell. The walk ends only when the ray hits a solid
         // or leaves the world (at most X+Y+Z steps), never by a step cap.
         for (;;) {
-            uvec2 at = locate(cell);
-            uint d = (read_field(at.x, at.y) >> VF_PACKED_DISTANCE_SHIFT) & VF_PACKED_DISTANCE_MAX;
+            // VF_PACKED_DISTANCE_* and VF_COMPACT_DISTANCE_* agree (static_assert'ed on the host).
+            uint d = (read_cell(cell) >> VF_PACKED_DISTANCE_SHIFT) & VF_PACKED_DISTANCE_MAX;
             if (d == 0u) {
                 hit = true;
                 break;
@@ -251,8 +265,13 @@ void main() {
 
     uint colour;
     if (hit) {
-        uvec2 at = locate(cell);
-        uint material = (read_material_word(at.x, at.y >> 2) >> ((at.y & 3u) * 8u)) & 0xFFu;
+        uint material;
+        if (g_compact) {
+            material = read_cell(cell) & VF_COMPACT_MATERIAL_MASK;
+        } else {
+            uvec2 at = locate(cell);
+            material = (read_material_word(at.x, at.y >> 2) >> ((at.y & 3u) * 8u)) & 0xFFu;
+        }
         uint rgba = palette[material];
         if (!lit) {
             colour = (rgba & 0x00FFFFFFu) | 0xFF000000u;

@@ -101,12 +101,28 @@ PhysicalDeviceInfo describe_device(VkPhysicalDevice d, std::size_t index) {
     info.max_storage_buffer_range = p.limits.maxStorageBufferRange;
     info.max_storage_buffers_per_stage = p.limits.maxPerStageDescriptorStorageBuffers;
     info.max_image_dimension_2d = p.limits.maxImageDimension2D;
+    info.min_storage_buffer_offset_alignment = p.limits.minStorageBufferOffsetAlignment;
     std::uint32_t n = 0;
     vkEnumerateDeviceExtensionProperties(d, nullptr, &n, nullptr);
     std::vector<VkExtensionProperties> ext(n);
     vkEnumerateDeviceExtensionProperties(d, nullptr, &n, ext.data());
     for (std::uint32_t i = 0; i < n; ++i) {
         info.extensions.emplace_back(ext[i].extensionName);
+    }
+    if (p.apiVersion >= VK_API_VERSION_1_1) {
+        VkPhysicalDeviceExternalMemoryHostPropertiesEXT host{};
+        host.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_EXTERNAL_MEMORY_HOST_PROPERTIES_EXT;
+        VkPhysicalDeviceIDProperties id{};
+        id.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ID_PROPERTIES;
+        if (info.has_extension(VK_EXT_EXTERNAL_MEMORY_HOST_EXTENSION_NAME)) {
+            id.pNext = &host;
+        }
+        VkPhysicalDeviceProperties2 p2{};
+        p2.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2;
+        p2.pNext = &id;
+        vkGetPhysicalDeviceProperties2(d, &p2);
+        std::memcpy(info.uuid.data(), id.deviceUUID, VK_UUID_SIZE);
+        info.min_imported_host_pointer_alignment = host.minImportedHostPointerAlignment;
     }
     std::uint32_t family = 0;
     bool timestamps = false;
@@ -270,10 +286,21 @@ Context::Context(const std::string& requested) {
         q.queueFamilyIndex = family_;
         q.queueCount = 1;
         q.pQueuePriorities = &priority;
+        // External memory (DESIGN §2 sharing paths 1 and 2) where the device has it.
+        std::vector<const char*> extensions;
+        for (const char* ext : {VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME,
+                                VK_EXT_EXTERNAL_MEMORY_HOST_EXTENSION_NAME}) {
+            if (info_.has_extension(ext)) {
+                extensions.push_back(ext);
+                enabled_.emplace_back(ext);
+            }
+        }
         VkDeviceCreateInfo info{};
         info.sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO;
         info.queueCreateInfoCount = 1;
         info.pQueueCreateInfos = &q;
+        info.enabledExtensionCount = static_cast<std::uint32_t>(extensions.size());
+        info.ppEnabledExtensionNames = extensions.data();
         check(vkCreateDevice(physical_, &info, nullptr, &device_), "vkCreateDevice", info_.name);
         vkGetDeviceQueue(device_, family_, 0, &queue_);
 
@@ -352,6 +379,73 @@ Owned<VkDeviceMemory> Context::allocate(const VkMemoryRequirements& req, MemoryI
     check(vkAllocateMemory(device_, &info, nullptr, &memory), "vkAllocateMemory",
           what + ", " + std::to_string(req.size) + " bytes");
     return Owned<VkDeviceMemory>(device_, memory, vkFreeMemory);
+}
+
+bool Context::enabled(const std::string& extension) const {
+    return std::find(enabled_.begin(), enabled_.end(), extension) != enabled_.end();
+}
+
+VkMemoryRequirements Context::external_buffer_requirements(
+    VkDeviceSize size, VkBufferUsageFlags usage, VkExternalMemoryHandleTypeFlags handle_types,
+    const std::string& what) {
+    Buffer probe = make_external_buffer(size, usage, handle_types, what);
+    VkMemoryRequirements req{};
+    vkGetBufferMemoryRequirements(device_, probe.get(), &req);
+    return req;
+}
+
+Buffer Context::make_external_buffer(VkDeviceSize size, VkBufferUsageFlags usage,
+                                     VkExternalMemoryHandleTypeFlags handle_types,
+                                     const std::string& what) {
+    Buffer b;
+    b.size_ = size;
+    VkExternalMemoryBufferCreateInfo external{};
+    external.sType = VK_STRUCTURE_TYPE_EXTERNAL_MEMORY_BUFFER_CREATE_INFO;
+    external.handleTypes = handle_types;
+    VkBufferCreateInfo info{};
+    info.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO;
+    info.pNext = &external;
+    info.size = std::max<VkDeviceSize>(size, 4);
+    info.usage = usage;
+    info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+    VkBuffer handle = VK_NULL_HANDLE;
+    check(vkCreateBuffer(device_, &info, nullptr, &handle), "vkCreateBuffer",
+          what + ", " + std::to_string(size) + " bytes of external memory");
+    b.buffer_ = Owned<VkBuffer>(device_, handle, vkDestroyBuffer);
+    return b;
+}
+
+void Context::bind(const Buffer& buffer, VkDeviceMemory memory, VkDeviceSize offset,
+                   const std::string& what) {
+    VkMemoryRequirements req{};
+    vkGetBufferMemoryRequirements(device_, buffer.get(), &req);
+    if (offset % req.alignment != 0) {
+        throw VkError("vkBindBufferMemory", VK_ERROR_VALIDATION_FAILED_EXT,
+                      what + ": offset " + std::to_string(offset) + " is not a multiple of " +
+                          std::to_string(req.alignment));
+    }
+    check(vkBindBufferMemory(device_, buffer.get(), memory, offset), "vkBindBufferMemory", what);
+}
+
+std::uint32_t Context::memory_type_for(std::uint32_t allowed, VkMemoryPropertyFlags preferred,
+                                       const std::string& what) const {
+    int fallback = -1;
+    for (std::uint32_t i = 0; i < memory_.memoryTypeCount; ++i) {
+        if ((allowed & (1u << i)) == 0) {
+            continue;
+        }
+        if ((memory_.memoryTypes[i].propertyFlags & preferred) == preferred) {
+            return i;
+        }
+        if (fallback < 0) {
+            fallback = static_cast<int>(i);
+        }
+    }
+    if (fallback < 0) {
+        throw VkError("vkAllocateMemory", VK_ERROR_FEATURE_NOT_PRESENT,
+                      "no memory type fits " + what);
+    }
+    return static_cast<std::uint32_t>(fallback);
 }
 
 Buffer Context::make_buffer(VkDeviceSize size, VkBufferUsageFlags usage, MemoryIntent intent,

@@ -27,6 +27,9 @@ static_assert(offsetof(PushConstants, image) == 80);
 
 constexpr std::uint32_t kBindings = VF_RAYMARCH_BINDING_MATERIAL + VF_RAYMARCH_MAX_SLABS;
 static_assert(VF_RAYMARCH_BINDING_FIELD + VF_RAYMARCH_MAX_SLABS <= VF_RAYMARCH_BINDING_MATERIAL);
+// The shader reads the distance of both formats with the packed32 constants.
+static_assert(VF_COMPACT_DISTANCE_SHIFT == VF_PACKED_DISTANCE_SHIFT);
+static_assert(VF_COMPACT_DISTANCE_MAX == VF_PACKED_DISTANCE_MAX);
 
 Vec3 sub(const Vec3& a, const Vec3& b) {
     return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
@@ -47,6 +50,10 @@ bool finite(const Vec3& a) {
 std::uint32_t pack(Rgba c) {
     return std::uint32_t{c.r} | (std::uint32_t{c.g} << 8) | (std::uint32_t{c.b} << 16) |
            (std::uint32_t{c.a} << 24);
+}
+
+std::uint64_t round_up4(std::uint64_t v) {
+    return (v + 3) / 4 * 4;
 }
 
 void to4(float out[4], const Vec3& v) {
@@ -118,11 +125,16 @@ struct Raymarcher::Impl {
     VkDescriptorSet set = VK_NULL_HANDLE;
     Owned<VkQueryPool> queries;
     Buffer palette;
-    std::vector<Buffer> field, material;
-    Dims dims;
-    std::uint32_t slab_depth = 0;
+    std::vector<Buffer> field, material;  // material: packed32 only
+    FieldLayout layout;
+    SharingPath sharing = SharingPath::copy;
+    std::uint64_t copied = 0;
 
     explicit Impl(Context& c) : ctx(c) {}
+    void upload_palette(const Palette& p);
+    // Takes the new field buffers and points every binding at them.
+    void install(std::vector<Buffer> new_field, std::vector<Buffer> new_material,
+                 const FieldLayout& new_layout, SharingPath path);
 };
 
 Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
@@ -133,6 +145,7 @@ Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
     if (max_binding_bytes != 0) {
         m.max_binding = std::min<VkDeviceSize>(m.max_binding, max_binding_bytes);
     }
+    m.max_binding = m.max_binding / 4 * 4;
 
     std::vector<VkDescriptorSetLayoutBinding> bindings;
     for (std::uint32_t b = 0; b < kBindings; ++b) {
@@ -225,6 +238,103 @@ Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
 
 Raymarcher::~Raymarcher() = default;
 
+FieldFormat parse_field_format(const std::string& name) {
+    if (name == "packed32") {
+        return FieldFormat::packed32;
+    }
+    if (name == "compact") {
+        return FieldFormat::compact;
+    }
+    throw InputError("unknown field format '" + name + "': use packed32 or compact");
+}
+
+std::string to_string(FieldFormat f) {
+    return f == FieldFormat::packed32 ? "packed32" : "compact";
+}
+
+std::size_t element_size(FieldFormat f) {
+    return f == FieldFormat::packed32 ? 4 : 2;
+}
+
+std::uint64_t FieldLayout::slab_bytes(std::uint32_t s) const {
+    const std::uint64_t z0 = std::uint64_t{s} * slab_depth;
+    const std::uint64_t nz = std::min<std::uint64_t>(slab_depth, dims.z - z0);
+    return round_up4(std::uint64_t{dims.x} * dims.y * nz * element_size(format));
+}
+
+FieldLayout Raymarcher::plan(Dims d, FieldFormat format) const {
+    const Impl& m = *impl_;
+    const VkDeviceSize slice = VkDeviceSize{d.x} * d.y * element_size(format);
+    if (slice > m.max_binding) {
+        throw InputError("world " + d.to_string() + ": one z-slice of the " + to_string(format) +
+                         " field (" + std::to_string(slice) + " bytes) exceeds the Vulkan " +
+                         "device's storage-buffer binding limit of " +
+                         std::to_string(m.max_binding) + " bytes");
+    }
+    FieldLayout l;
+    l.format = format;
+    l.dims = d;
+    // max_binding is a multiple of 4, so rounding a slab up to whole words stays within it.
+    l.slab_depth = static_cast<std::uint32_t>(std::min<VkDeviceSize>(d.z, m.max_binding / slice));
+    l.slabs = (d.z + l.slab_depth - 1) / l.slab_depth;
+    if (l.slabs > VF_RAYMARCH_MAX_SLABS) {
+        throw InputError("world " + d.to_string() + " needs " + std::to_string(l.slabs) +
+                         " storage-buffer bindings of at most " + std::to_string(m.max_binding) +
+                         " bytes for its " + to_string(format) + " field; the ray marcher has " +
+                         std::to_string(VF_RAYMARCH_MAX_SLABS));
+    }
+    const std::uint64_t align = VF_FIELD_SLAB_ALIGN;
+    l.slab_stride = (l.slab_bytes(0) + align - 1) / align * align;
+    l.total_bytes = l.slab_stride * l.slabs;
+    return l;
+}
+
+void Raymarcher::Impl::upload_palette(const Palette& p) {
+    std::array<std::uint32_t, 256> colours{};
+    for (std::size_t i = 0; i < 256; ++i) {
+        colours[i] = pack(p[static_cast<std::uint8_t>(i)]);
+    }
+    ctx.upload(palette, colours.data(), sizeof colours);
+}
+
+void Raymarcher::Impl::install(std::vector<Buffer> new_field, std::vector<Buffer> new_material,
+                               const FieldLayout& new_layout, SharingPath path) {
+    // Nothing reads the old buffers any more: every submission was waited for.
+    field = std::move(new_field);
+    material = std::move(new_material);
+    layout = new_layout;
+    sharing = path;
+
+    std::vector<VkDescriptorBufferInfo> infos;
+    infos.reserve(kBindings);
+    std::vector<VkWriteDescriptorSet> writes;
+    auto add = [&](std::uint32_t binding, const Buffer& b, VkDeviceSize range) {
+        infos.push_back(VkDescriptorBufferInfo{b.get(), 0, range});
+        VkWriteDescriptorSet w{};
+        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        w.dstSet = set;
+        w.dstBinding = binding;
+        w.descriptorCount = 1;
+        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        w.pBufferInfo = &infos.back();
+        writes.push_back(w);
+    };
+    add(VF_RAYMARCH_BINDING_PALETTE, palette, VK_WHOLE_SIZE);
+    for (std::uint32_t s = 0; s < VF_RAYMARCH_MAX_SLABS; ++s) {
+        // Unused bindings alias slab 0 and are never read; compact fields have no material
+        // buffers, so those bindings alias field slab 0 too.
+        const std::uint32_t k = s < layout.slabs ? s : 0;
+        add(VF_RAYMARCH_BINDING_FIELD + s, field[k], layout.slab_bytes(k));
+        if (material.empty()) {
+            add(VF_RAYMARCH_BINDING_MATERIAL + s, field[0], layout.slab_bytes(0));
+        } else {
+            add(VF_RAYMARCH_BINDING_MATERIAL + s, material[k], VK_WHOLE_SIZE);
+        }
+    }
+    vkUpdateDescriptorSets(ctx.device(), static_cast<std::uint32_t>(writes.size()), writes.data(),
+                           0, nullptr);
+}
+
 void Raymarcher::upload(const World& world, const Palette& palette,
                         std::span<const std::uint32_t> packed32) {
     Impl& m = *impl_;
@@ -233,29 +343,15 @@ void Raymarcher::upload(const World& world, const Palette& palette,
         throw InputError("field has " + std::to_string(packed32.size()) + " elements, the world " +
                          std::to_string(d.count()));
     }
-    const VkDeviceSize slice = VkDeviceSize{d.x} * d.y * 4;
-    if (slice > m.max_binding) {
-        throw InputError("world " + d.to_string() + ": one z-slice of the field (" +
-                         std::to_string(slice) + " bytes) exceeds the Vulkan device's " +
-                         "storage-buffer binding limit of " + std::to_string(m.max_binding) +
-                         " bytes");
-    }
-    const std::uint32_t depth =
-        static_cast<std::uint32_t>(std::min<VkDeviceSize>(d.z, m.max_binding / slice));
-    const std::uint32_t slabs = (d.z + depth - 1) / depth;
-    if (slabs > VF_RAYMARCH_MAX_SLABS) {
-        throw InputError("world " + d.to_string() + " needs " + std::to_string(slabs) +
-                         " storage-buffer bindings of at most " + std::to_string(m.max_binding) +
-                         " bytes for its field; the ray marcher has " +
-                         std::to_string(VF_RAYMARCH_MAX_SLABS));
-    }
-    // Built aside and swapped in at the end, so that a failure leaves the old world intact.
+    const FieldLayout l = plan(d, FieldFormat::packed32);
+    // Built aside and installed at the end, so that a failure leaves the old world intact.
     std::vector<Buffer> field, material;
     const VkBufferUsageFlags usage =
         VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     const std::size_t slice_voxels = std::size_t{d.x} * d.y;
-    for (std::uint32_t s = 0; s < slabs; ++s) {
-        const std::uint32_t z0 = s * depth, nz = std::min(depth, d.z - z0);
+    std::uint64_t copied = 0;
+    for (std::uint32_t s = 0; s < l.slabs; ++s) {
+        const std::uint32_t z0 = s * l.slab_depth, nz = std::min(l.slab_depth, d.z - z0);
         const std::size_t voxels = slice_voxels * nz, first = slice_voxels * z0;
         field.push_back(m.ctx.make_buffer(voxels * 4, usage, MemoryIntent::device_local,
                                           "field slab " + std::to_string(s)));
@@ -267,40 +363,65 @@ void Raymarcher::upload(const World& world, const Palette& palette,
         std::vector<std::uint8_t> bytes(words * 4, 0);
         std::memcpy(bytes.data(), world.voxels().data() + first, voxels);
         m.ctx.upload(material.back(), bytes.data(), bytes.size());
+        copied += voxels * 4 + bytes.size();
     }
-    std::array<std::uint32_t, 256> colours{};
-    for (std::size_t i = 0; i < 256; ++i) {
-        colours[i] = pack(palette[static_cast<std::uint8_t>(i)]);
-    }
-    m.ctx.upload(m.palette, colours.data(), sizeof colours);
-    // Nothing reads the old buffers any more: every submission was waited for.
-    m.field = std::move(field);
-    m.material = std::move(material);
-    m.dims = d;
-    m.slab_depth = depth;
+    m.upload_palette(palette);
+    m.install(std::move(field), std::move(material), l, SharingPath::copy);
+    m.copied += copied;
+}
 
-    std::vector<VkDescriptorBufferInfo> infos;
-    infos.reserve(kBindings);
-    std::vector<VkWriteDescriptorSet> writes;
-    auto add = [&](std::uint32_t binding, const Buffer& b) {
-        infos.push_back(VkDescriptorBufferInfo{b.get(), 0, VK_WHOLE_SIZE});
-        VkWriteDescriptorSet w{};
-        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-        w.dstSet = m.set;
-        w.dstBinding = binding;
-        w.descriptorCount = 1;
-        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-        w.pBufferInfo = &infos.back();
-        writes.push_back(w);
-    };
-    add(VF_RAYMARCH_BINDING_PALETTE, m.palette);
-    for (std::uint32_t s = 0; s < VF_RAYMARCH_MAX_SLABS; ++s) {
-        const std::size_t k = s < slabs ? s : 0;
-        add(VF_RAYMARCH_BINDING_FIELD + s, m.field[k]);
-        add(VF_RAYMARCH_BINDING_MATERIAL + s, m.material[k]);
+void Raymarcher::upload_compact(Dims d, const Palette& palette,
+                                std::span<const std::uint16_t> compact) {
+    Impl& m = *impl_;
+    if (compact.size() != d.count()) {
+        throw InputError("compact field has " + std::to_string(compact.size()) +
+                         " elements, the world " + std::to_string(d.count()));
     }
-    vkUpdateDescriptorSets(m.ctx.device(), static_cast<std::uint32_t>(writes.size()), writes.data(),
-                           0, nullptr);
+    const FieldLayout l = plan(d, FieldFormat::compact);
+    std::vector<Buffer> field;
+    const VkBufferUsageFlags usage =
+        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    const std::size_t slice_voxels = std::size_t{d.x} * d.y;
+    std::uint64_t copied = 0;
+    for (std::uint32_t s = 0; s < l.slabs; ++s) {
+        const std::uint32_t z0 = s * l.slab_depth, nz = std::min(l.slab_depth, d.z - z0);
+        const std::size_t voxels = slice_voxels * nz, first = slice_voxels * z0;
+        field.push_back(m.ctx.make_buffer(l.slab_bytes(s), usage, MemoryIntent::device_local,
+                                          "compact field slab " + std::to_string(s)));
+        if (voxels % 2 == 0) {
+            m.ctx.upload(field.back(), compact.data() + first, voxels * 2);
+        } else {  // padded to a whole word (the padding is never read)
+            std::vector<std::uint16_t> padded(voxels + 1, 0);
+            std::memcpy(padded.data(), compact.data() + first, voxels * 2);
+            m.ctx.upload(field.back(), padded.data(), padded.size() * 2);
+        }
+        copied += l.slab_bytes(s);
+    }
+    m.upload_palette(palette);
+    m.install(std::move(field), {}, l, SharingPath::copy);
+    m.copied += copied;
+}
+
+void Raymarcher::bind_shared(const ExternalMemory& memory, const FieldLayout& l,
+                             const Palette& palette) {
+    Impl& m = *impl_;
+    if (l.format != FieldFormat::compact) {
+        throw std::logic_error("Raymarcher::bind_shared: only the compact format is shared");
+    }
+    if (memory.memory() == VK_NULL_HANDLE || memory.size() < l.total_bytes) {
+        throw std::logic_error("Raymarcher::bind_shared: the shared memory (" +
+                               std::to_string(memory.size()) + " bytes) is smaller than the " +
+                               "field layout (" + std::to_string(l.total_bytes) + " bytes)");
+    }
+    std::vector<Buffer> field;
+    for (std::uint32_t s = 0; s < l.slabs; ++s) {
+        const std::string what = "shared field slab " + std::to_string(s);
+        field.push_back(m.ctx.make_external_buffer(
+            l.slab_bytes(s), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, memory.handle_type(), what));
+        m.ctx.bind(field.back(), memory.memory(), std::uint64_t{s} * l.slab_stride, what);
+    }
+    m.upload_palette(palette);
+    m.install(std::move(field), {}, l, memory.path());
 }
 
 Image Raymarcher::render(const RenderOptions& o) {
@@ -312,7 +433,7 @@ Image Raymarcher::render(const RenderOptions& o) {
     const CameraBasis basis = camera_basis(o.camera, o.width, o.height);
     const VkDevice dev = m.ctx.device();
     const std::string what = "ray march " + std::to_string(o.width) + "x" +
-                             std::to_string(o.height) + " of " + m.dims.to_string();
+                             std::to_string(o.height) + " of " + m.layout.dims.to_string();
 
     // Offscreen target: one r32ui texel per RGBA8 pixel, read back through a buffer.
     VkImageCreateInfo ii{};
@@ -364,15 +485,16 @@ Image Raymarcher::render(const RenderOptions& o) {
     to4(pc.forward, basis.forward);
     to4(pc.right, basis.right);
     to4(pc.up, basis.up);
-    pc.dims[0] = m.dims.x;
-    pc.dims[1] = m.dims.y;
-    pc.dims[2] = m.dims.z;
-    pc.dims[3] = m.slab_depth;
+    pc.dims[0] = m.layout.dims.x;
+    pc.dims[1] = m.layout.dims.y;
+    pc.dims[2] = m.layout.dims.z;
+    pc.dims[3] = m.layout.slab_depth;
     pc.image[0] = o.width;
     pc.image[1] = o.height;
     pc.image[2] =
         (o.shading == Shading::lit ? VF_RAYMARCH_FLAG_LIT : 0u) |
-        (o.shading == Shading::lit && o.sky_gradient ? VF_RAYMARCH_FLAG_SKY_GRADIENT : 0u);
+        (o.shading == Shading::lit && o.sky_gradient ? VF_RAYMARCH_FLAG_SKY_GRADIENT : 0u) |
+        (m.layout.format == FieldFormat::compact ? VF_RAYMARCH_FLAG_COMPACT : 0u);
     pc.image[3] = pack(o.sky);
 
     const VkQueryPool queries = m.queries.get();
@@ -450,11 +572,23 @@ std::uint32_t Raymarcher::field_bindings() const {
 }
 
 std::uint32_t Raymarcher::slab_depth() const {
-    return impl_->slab_depth;
+    return impl_->layout.slab_depth;
+}
+
+const FieldLayout& Raymarcher::layout() const {
+    return impl_->layout;
+}
+
+std::uint64_t Raymarcher::bytes_copied() const {
+    return impl_->copied;
+}
+
+SharingPath Raymarcher::sharing() const {
+    return impl_->sharing;
 }
 
 std::string Raymarcher::sharing_path() const {
-    return "copy (DESIGN §2 path 3: the field is uploaded from host memory)";
+    return describe(impl_->sharing);
 }
 
 }  // namespace voxfield::vk

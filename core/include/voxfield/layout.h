@@ -9,6 +9,16 @@
 #define VF_PACKED_DISTANCE_MAX 255u
 #define VF_PACKED_COLOUR_MASK 0xFFu
 
+/* compact field element, 16 bits, two per 32-bit word (the lower half first):
+ * (min(distance, 255) << 8) | material (palette index, 0 for air). World and field in 2 bytes
+ * per voxel; the ray marcher looks up the exact palette colour by the material index. */
+#define VF_COMPACT_DISTANCE_SHIFT 8
+#define VF_COMPACT_DISTANCE_MAX 255u
+#define VF_COMPACT_MATERIAL_MASK 0xFFu
+/* In one allocation shared by OpenCL and Vulkan, each storage-buffer slab of the field starts
+ * at a multiple of this many bytes (>= any minStorageBufferOffsetAlignment). */
+#define VF_FIELD_SLAB_ALIGN 4096
+
 /* RGB332 colour byte: rrrgggbb. */
 #define VF_RGB332_R_SHIFT 5
 #define VF_RGB332_G_SHIFT 2
@@ -25,5 +35,7 @@
 /* Ray marcher flags (push constant): lit shading, sky gradient instead of a flat colour. */
 #define VF_RAYMARCH_FLAG_LIT 1u
 #define VF_RAYMARCH_FLAG_SKY_GRADIENT 2u
+/* The field is compact (else packed32 with material bytes at VF_RAYMARCH_BINDING_MATERIAL). */
+#define VF_RAYMARCH_FLAG_COMPACT 4u
 
 #endif

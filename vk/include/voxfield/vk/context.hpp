@@ -4,6 +4,7 @@
 // buffers allocated by intent and one-shot submissions.
 #include <vulkan/vulkan.h>
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -83,7 +84,12 @@ struct PhysicalDeviceInfo {
     VkDeviceSize max_storage_buffer_range = 0;
     std::uint32_t max_storage_buffers_per_stage = 0;
     std::uint32_t max_image_dimension_2d = 0;
-    bool timestamps = false;  // compute queue can write timestamps
+    VkDeviceSize min_storage_buffer_offset_alignment = 0;
+    // VK_EXT_external_memory_host: imported host pointers and sizes are multiples of this (0:
+    // the device lacks the extension).
+    VkDeviceSize min_imported_host_pointer_alignment = 0;
+    std::array<std::uint8_t, 16> uuid{};  // VkPhysicalDeviceIDProperties::deviceUUID
+    bool timestamps = false;              // compute queue can write timestamps
     std::vector<std::string> extensions;
     std::string rejected;  // why this device cannot serve the renderer, "" if it can
 
@@ -137,6 +143,24 @@ class Context {
 
     Buffer make_buffer(VkDeviceSize size, VkBufferUsageFlags usage, MemoryIntent intent,
                        const std::string& what);
+    // Device extensions enabled on the logical device (VK_KHR_external_memory_fd and
+    // VK_EXT_external_memory_host, where the physical device has them).
+    bool enabled(const std::string& extension) const;
+    // A buffer without memory, created for external memory of `handle_types`; bind() it.
+    Buffer make_external_buffer(VkDeviceSize size, VkBufferUsageFlags usage,
+                                VkExternalMemoryHandleTypeFlags handle_types,
+                                const std::string& what);
+    // The requirements such a buffer has (memory type bits, alignment).
+    VkMemoryRequirements external_buffer_requirements(VkDeviceSize size, VkBufferUsageFlags usage,
+                                                      VkExternalMemoryHandleTypeFlags handle_types,
+                                                      const std::string& what);
+    // Binds `buffer` to `memory` (owned elsewhere, which must outlive the buffer) at `offset`.
+    void bind(const Buffer& buffer, VkDeviceMemory memory, VkDeviceSize offset,
+              const std::string& what);
+    // The first memory type in `allowed` with all `preferred` flags, else the first allowed.
+    std::uint32_t memory_type_for(std::uint32_t allowed, VkMemoryPropertyFlags preferred,
+                                  const std::string& what) const;
+    const VkPhysicalDeviceMemoryProperties& memory_properties() const { return memory_; }
     // Allocates memory for `requirements` by intent (for images).
     Owned<VkDeviceMemory> allocate(const VkMemoryRequirements& requirements, MemoryIntent intent,
                                    const std::string& what);
@@ -159,6 +183,7 @@ class Context {
     float timestamp_period_ = 1;
     VkPhysicalDeviceMemoryProperties memory_{};
     PhysicalDeviceInfo info_;
+    std::vector<std::string> enabled_;
     Owned<VkCommandPool> pool_;
 };
 

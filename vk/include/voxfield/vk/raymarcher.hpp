@@ -1,6 +1,6 @@
 #pragma once
-// The DDA ray marcher (vk/shaders/raymarch.comp) over a packed32 distance field, rendering
-// headless into an offscreen image that is read back as RGBA8.
+// The DDA ray marcher (vk/shaders/raymarch.comp) over a packed32 or compact distance field,
+// rendering headless into an offscreen image that is read back as RGBA8.
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -11,6 +11,7 @@
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/world.hpp"
 #include "voxfield/vk/context.hpp"
+#include "voxfield/vk/shared.hpp"
 
 namespace voxfield::vk {
 
@@ -57,6 +58,29 @@ struct Image {
 // Throws InputError for sizes outside 1..kMaxImageSize or a bad camera.
 void validate(const RenderOptions& options);
 
+// What the ray marcher reads. packed32: the field of DESIGN §3 (4 bytes per voxel) plus the
+// world's material bytes beside it (flat shading needs the exact palette index, which rgb332
+// loses), 5 bytes per voxel resident. compact: 16 bits per voxel, (min(d,255) << 8) | material
+// index (layout.h VF_COMPACT_*), two voxels per 32-bit word (the lower half first): world and
+// field in 2 bytes per voxel, nothing beside it.
+enum class FieldFormat { packed32, compact };
+FieldFormat parse_field_format(const std::string& name);  // throws InputError
+std::string to_string(FieldFormat f);
+std::size_t element_size(FieldFormat f);  // 4, 2
+
+// How a field is split along z into storage-buffer bindings ("slabs"). In one allocation
+// (sharing paths 1/2) slab s starts at byte s * slab_stride; voxel (x, y, z) is element
+// ((z - s * slab_depth) * Y + y) * X + x of its slab.
+struct FieldLayout {
+    FieldFormat format = FieldFormat::compact;
+    Dims dims;
+    std::uint32_t slab_depth = 0, slabs = 0;
+    std::uint64_t slab_stride = 0;  // bytes, a multiple of VF_FIELD_SLAB_ALIGN
+    std::uint64_t total_bytes = 0;  // slab_stride * slabs
+
+    std::uint64_t slab_bytes(std::uint32_t s) const;  // bytes bound for slab s (whole words)
+};
+
 class Raymarcher {
   public:
     // max_binding_bytes: split the field into storage-buffer bindings of at most this many
@@ -74,12 +98,33 @@ class Raymarcher {
     void upload(const World& world, const Palette& palette,
                 std::span<const std::uint32_t> packed32);
 
+    // How a field of `dims` in `format` is split across bindings on this device. Throws
+    // InputError when it needs more than VF_RAYMARCH_MAX_SLABS bindings or one z-slice
+    // exceeds a binding.
+    FieldLayout plan(Dims dims, FieldFormat format) const;
+
+    // Uploads a compact field (dims.count() elements, voxel order x fastest) and the palette
+    // (sharing path 3: a copy). Throws InputError like plan().
+    void upload_compact(Dims dims, const Palette& palette, std::span<const std::uint16_t> compact);
+
+    // Reads the field in place from `memory` (sharing path 1 or 2), laid out as `layout`
+    // (from plan()); whatever OpenCL writes there shows in the next render() with no copy.
+    // `memory` must outlive this ray marcher or the next upload / bind_shared.
+    void bind_shared(const ExternalMemory& memory, const FieldLayout& layout,
+                     const Palette& palette);
+
     Image render(const RenderOptions& options);
+
+    // The field format and layout in use, and the bytes copied into field / material buffers
+    // so far (stays 0 while the field is shared).
+    const FieldLayout& layout() const;
+    std::uint64_t bytes_copied() const;
 
     // How many storage-buffer bindings the field was split across, and z-slices per binding.
     std::uint32_t field_bindings() const;
     std::uint32_t slab_depth() const;
     // The active OpenCL -> Vulkan sharing path, for reports.
+    SharingPath sharing() const;
     std::string sharing_path() const;
 
   private:

@@ -1,0 +1,62 @@
+#pragma once
+// Writing the renderer's field straight into memory Vulkan reads (DESIGN §2 sharing paths 1
+// and 2). cl/ never includes Vulkan headers: it takes a host pointer or a file descriptor.
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+
+#include "voxfield/cl/exact.hpp"
+#include "voxfield/cl/runtime.hpp"
+
+namespace voxfield::ocl {
+
+// Where the field's z-slabs lie in the destination buffer (the ray marcher's FieldLayout).
+struct SlabLayout {
+    std::uint32_t slab_depth = 0;         // z-slices per slab
+    std::uint64_t slab_stride_bytes = 0;  // slab s starts at s * slab_stride_bytes (even)
+};
+
+// Converts the exact field of `exact` (which must have been made with Format::u8) and its
+// voxels into the compact render format (layout.h VF_COMPACT_*, 2 bytes per voxel) in `dst`.
+// Holds references to both buffers; run() again after every exact.run(). external: dst was
+// imported with import_opaque_fd, so run() acquires it before the kernel and releases it
+// after (clEnqueueAcquire/ReleaseExternalMemObjectsKHR).
+class CompactWriter {
+  public:
+    CompactWriter(Context& ctx, const ExactManhattan& exact, Dims dims, cl::Buffer dst,
+                  SlabLayout layout, bool external = false);
+    // Enqueues the conversion and waits for it (clFinish): afterwards Vulkan may read dst.
+    // Returns the kernel time in ms (profiling events).
+    double run();
+
+  private:
+    Context& ctx_;
+    cl::Buffer dst_;
+    cl::Kernel kernel_;
+    std::size_t global_ = 0;
+    bool external_ = false;
+};
+
+// Path 2: CL_MEM_USE_HOST_PTR is zero-copy on CPU devices (PoCL's pthread device computes in
+// host memory), so this is true exactly for CPU devices.
+bool can_use_host_memory(const Context& ctx);
+// A buffer over `bytes` at `host` (CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR). The memory must
+// stay allocated until the buffer (every copy of the handle) is released.
+cl::Buffer wrap_host_memory(Context& ctx, void* host, std::size_t bytes);
+
+// Path 1: the device has cl_khr_external_memory_opaque_fd and its platform exports
+// clCreateBufferWithPropertiesKHR or clCreateBufferWithProperties (OpenCL 3.0).
+bool can_import_opaque_fd(const Context& ctx);
+// CL_DEVICE_UUID_KHR (cl_khr_device_uuid), to match the Vulkan device's deviceUUID.
+std::optional<std::array<std::uint8_t, 16>> device_uuid(const Context& ctx);
+// A buffer over memory exported by Vulkan as an opaque fd
+// (CL_EXTERNAL_MEMORY_HANDLE_OPAQUE_FD_KHR). The caller keeps `fd` open until the buffer is
+// released and closes it afterwards.
+cl::Buffer import_opaque_fd(Context& ctx, int fd, std::size_t bytes);
+// cl_khr_external_memory ordering: enqueue the acquire before OpenCL uses an imported buffer
+// and the release after (the queue is finished before Vulkan reads it).
+void acquire_external(Context& ctx, const cl::Buffer& buffer);
+void release_external(Context& ctx, const cl::Buffer& buffer);
+
+}  // namespace voxfield::ocl
