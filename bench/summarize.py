@@ -6,7 +6,7 @@ Usage: python3 bench/summarize.py FILES...
 SciPy comparison table; `compare_cupy.py --json` files the CuPy one; `voxfield replay --json`
 files give the incremental-update table; `voxfield bench --suite dissertation` files give one
 table per dissertation table with its published numbers beside ours; `--suite edits` files the
-editing-protocol table. Files of neither kind are skipped.
+editing-protocol table, `--suite render` files the ray-march table. Other files are skipped.
 """
 import json
 import sys
@@ -179,8 +179,18 @@ def replay_row(path, doc):
             f" {sm['ratio_full_to_median_update']:.1f} | {sm['voxels_recomputed'] / sm['edits']:.0f} |")
 
 
+def render_rows(doc):
+    device = doc["device"]["name"]
+    for r in doc["results"]:
+        size = "x".join(str(v) for v in r["size"])
+        lo, hi = r["ci95_ms"]
+        yield (f"| {device} | {r['vulkan_device']} | {doc['commit'][:8]} | {doc['date'][:10]} | {size} |"
+               f" {r['width']}x{r['height']} | {r['format']} | {r['runs']} | {r['median_ms']:.3f} |"
+               f" {lo:.3f}-{hi:.3f} | {r['mrays_per_s']:.1f} |")
+
+
 def main(paths):
-    bench, scipy, replay, cupy, dissertation, edits = [], [], [], [], [], []
+    bench, scipy, replay, cupy, dissertation, edits, render = [], [], [], [], [], [], []
     for path in paths:
         with open(path) as f:
             doc = json.load(f)
@@ -189,7 +199,7 @@ def main(paths):
         elif doc.get("suite") == "edits":
             edits.append((path, doc))
         elif doc.get("suite") == "render":
-            continue
+            render.extend(render_rows(doc))
         elif "cupy_edt_ms_median" in doc:
             cupy.append(cupy_row(path, doc))
         elif "results" in doc:
@@ -230,6 +240,11 @@ def main(paths):
         blocks.append(dissertation_tables(dissertation))
     if edits:
         blocks.append(edits_table(edits))
+    if render:
+        blocks.append(["| OpenCL device (field) | Vulkan device (ray march) | commit | date | world |"
+                       " image | field | runs | median ms | 95% CI ms | Mrays/s |",
+                       "| --- | --- | --- | --- | --- | --- | --- | ---: | ---: | --- | ---: |"]
+                      + render)
     for block in blocks:
         if bench or scipy or replay or block is not blocks[0]:
             print()

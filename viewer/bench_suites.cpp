@@ -13,6 +13,7 @@
 #include <map>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <utility>
 
 #include "cli_util.hpp"
@@ -24,6 +25,8 @@
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/stats.hpp"
+#include "voxfield/layout.h"
+#include "voxfield/vk/raymarcher.hpp"
 
 namespace voxfield::cli {
 namespace {
@@ -625,13 +628,93 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
 // ---------------------------------------------------------------------------------------
 // render suite
 
-json run_render() {
-    const std::string why =
-        "the render suite is not wired to the renderer yet; time a frame with `voxfield render "
-        "--stats`";
-    std::cerr << "bench: suite render: skipped: " << why << '\n';
-    std::printf("render: skipped: %s\n", why.c_str());
-    return json::array({{{"table", "render"}, {"algorithm", json()}, {"skipped", why}}});
+// Ray-march time per frame across world sizes and resolutions (the floor + spheres scene,
+// the default three-quarter camera, lit shading with the sky gradient): the exact field in
+// the compact format, uploaded once; each frame's dispatch timed by GPU timestamps.
+json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
+    const std::vector<std::uint32_t> sizes =
+        quick ? std::vector<std::uint32_t>{32, 64} : std::vector<std::uint32_t>{128, 256, 512};
+    const std::vector<std::pair<std::uint32_t, std::uint32_t>> resolutions =
+        quick ? std::vector<std::pair<std::uint32_t, std::uint32_t>>{{320, 240}}
+              : std::vector<std::pair<std::uint32_t, std::uint32_t>>{
+                    {640, 480}, {1280, 720}, {1920, 1080}};
+    vk::Context vk_ctx;
+    std::cerr << "bench: suite render: Vulkan device " << vk_ctx.info().name << '\n';
+    vk::Raymarcher marcher(vk_ctx);
+    json rows = json::array();
+    const std::size_t total = sizes.size() * resolutions.size();
+    std::size_t k = 0;
+    for (const std::uint32_t n : sizes) {
+        const Dims dims{n, n, n};
+        const World world = make_scene(kScene, dims, plan.seed);
+        const Palette palette = Palette::magicavoxel_default();
+        ocl::GeneratorOptions g;
+        g.format = Format::u8;
+        g = ocl::resolve_options(g, dims);
+        const auto field = ocl::generate(ctx, world, palette, g).bytes;
+        std::vector<std::uint16_t> compact(world.size());
+        for (std::size_t i = 0; i < compact.size(); ++i) {
+            compact[i] = static_cast<std::uint16_t>((field[i] << VF_COMPACT_DISTANCE_SHIFT) |
+                                                    world.voxels()[i]);
+        }
+        marcher.upload_compact(dims, palette, compact);
+        for (const auto& [w, h] : resolutions) {
+            ++k;
+            const std::string label =
+                dims.to_string() + " at " + std::to_string(w) + "x" + std::to_string(h);
+            vk::RenderOptions r;
+            r.width = w;
+            r.height = h;
+            r.camera = vk::default_camera(dims);
+            r.shading = vk::Shading::lit;
+            r.sky_gradient = true;
+            std::vector<double> ms;
+            const auto start = std::chrono::steady_clock::now();
+            for (std::uint32_t i = 0; i < plan.warmup + plan.repeat; ++i) {
+                std::cerr << "\rbench: render [" << k << "/" << total << "] " << label << ": "
+                          << (i < plan.warmup ? "warm-up " : "run ") << i + 1 << "   "
+                          << std::flush;
+                const vk::Image image = marcher.render(r);
+                if (image.raymarch_ms < 0) {
+                    throw std::runtime_error(vk_ctx.info().name +
+                                             " has no compute timestamps to time the ray march");
+                }
+                if (i >= plan.warmup) {
+                    ms.push_back(image.raymarch_ms);
+                }
+                if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+                        .count() > plan.budget_s) {
+                    break;
+                }
+            }
+            std::cerr << '\n';
+            const Summary sm = summarize(ms);
+            const double rays = double(w) * double(h);
+            rows.push_back({{"table", "render"},
+                            {"algorithm", "raymarch"},
+                            {"size", {n, n, n}},
+                            {"width", w},
+                            {"height", h},
+                            {"format", "compact"},
+                            {"shading", "lit"},
+                            {"vulkan_device", vk_ctx.info().name},
+                            {"sharing", marcher.sharing_path()},
+                            {"runs", ms.size()},
+                            {"median_ms", sm.median},
+                            {"mean_ms", sm.mean},
+                            {"std_ms", sm.std},
+                            {"ci95_ms", {sm.ci95_lo, sm.ci95_hi}},
+                            {"min_ms", sm.min},
+                            {"max_ms", sm.max},
+                            {"mrays_per_s", rays / (sm.median * 1e-3) / 1e6}});
+            std::printf(
+                "render %-14s %5ux%-5u median %8.3f ms  mean %8.3f  std %7.3f  %8.1f Mrays/s\n",
+                dims.to_string().c_str(), w, h, sm.median, sm.mean, sm.std,
+                rays / (sm.median * 1e-3) / 1e6);
+            std::fflush(stdout);
+        }
+    }
+    return rows;
 }
 
 void write_csv(const std::string& path, const json& rows) {
@@ -797,7 +880,7 @@ int run_suite(const SuiteOptions& o) {
             "seeded with `seed`, the same sequence for every algorithm; one edit per update";
         rows = run_edits(ctx, o, plan, dims, count);
     } else {
-        rows = run_render();
+        rows = run_render(ctx, plan, o.quick);
     }
     doc["results"] = rows;
     if (!json_path.empty()) {

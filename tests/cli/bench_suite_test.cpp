@@ -159,16 +159,20 @@ TEST_F(BenchSuite, EditsQuickRecordsPerEditTimesAndFullRegeneration) {
                                      "jfa-fim", "lod", "monolithic"}));
 }
 
-TEST_F(BenchSuite, RenderIsRegisteredAndSaysWhyItIsSkipped) {
+TEST_F(BenchSuite, RenderTimesFramesOnLavapipe) {
     const fs::path js = dir_ / "r.json";
     const RunResult r =
-        run({"bench", "--suite", "render", "--device", "cpu", "--json", js.string()});
+        run({"bench", "--suite", "render", "--quick", "--device", "cpu", "--json", js.string()});
     ASSERT_EQ(r.code, 0) << describe(r);
-    EXPECT_NE(r.err.find("skipped"), std::string::npos) << r.err;
     const json doc = json::parse(read_text(js));
     expect_common(doc, "render");
+    ASSERT_EQ(doc["results"].size(), 2u);  // --quick: 32^3 and 64^3 at 320x240
     for (const json& row : doc["results"]) {
-        EXPECT_TRUE(row.contains("skipped") || row.contains("median_ms")) << row.dump();
+        ASSERT_TRUE(row.contains("median_ms")) << row.dump();
+        EXPECT_GT(row["median_ms"].get<double>(), 0.0);
+        EXPECT_GT(row["mrays_per_s"].get<double>(), 0.0);
+        EXPECT_EQ(row["width"], 320);
+        EXPECT_EQ(row["height"], 240);
     }
 }
 
