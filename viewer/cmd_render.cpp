@@ -216,10 +216,11 @@ int run_render(const RenderCliOptions& o) {
         marcher.upload(world, model.palette, packed);
         why_not = "packed32 is always copied (path 3); ";
     } else {
-        // The exact field in u8, converted by OpenCL into the compact format, written where
-        // Vulkan reads it (paths 1, 2) or into an OpenCL buffer that is copied (path 3).
+        // The exact field in u16, converted by OpenCL into the compact format, written where
+        // Vulkan reads it (paths 1, 2) or into an OpenCL buffer that is copied (path 3), and
+        // the per-block minima for coarse skipping (a small table, always copied).
         const vk::FieldLayout layout = marcher.plan(world.dims(), format);
-        exact.emplace(cl_ctx, world, model.palette, Format::u8);
+        exact.emplace(cl_ctx, world, model.palette, Format::u16);
         path = choose_sharing_path(cl_ctx, vk_ctx, why_not);
         const VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
         if (path == vk::SharingPath::opaque_fd) {
@@ -271,6 +272,7 @@ int run_render(const RenderCliOptions& o) {
         } else {
             marcher.bind_shared(shared, layout, model.palette);
         }
+        marcher.set_block_min(writer->block_min());
     }
     const vk::Image image = marcher.render(r);
 

@@ -1,6 +1,8 @@
 // Writing the render field into memory shared with Vulkan (kernels: cl/kernels/render_field.cl).
 #include "voxfield/cl/interop.hpp"
 
+#include "voxfield/layout.h"
+
 #include <CL/cl_ext.h>
 
 #include <algorithm>
@@ -54,6 +56,16 @@ CompactWriter::CompactWriter(Context& ctx, const ExactManhattan& exact, Dims dim
         kernel_.setArg(4, cl_uint{layout.slab_depth});
         kernel_.setArg(5, static_cast<cl_ulong>(layout.slab_stride_bytes / 2));
         kernel_.setArg(6, static_cast<cl_ulong>(dims.count()));
+        const std::uint32_t b = VF_RAYMARCH_BLOCK;
+        const std::size_t bx = (dims.x + b - 1) / b, by = (dims.y + b - 1) / b,
+                          bz = (dims.z + b - 1) / b;
+        block_count_ = bx * by * bz;
+        block_min_ = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * block_count_);
+        block_kernel_ = cl::Kernel(program, "block_min");
+        block_kernel_.setArg(0, exact.field_buffer());
+        block_kernel_.setArg(1, block_min_);
+        block_kernel_.setArg(2, cl_uint4{{dims.x, dims.y, dims.z, 0}});
+        blocks_ = cl::NDRange(bx, by, bz);
     });
     global_ = round_up(dims.count(), 64);
 }
@@ -66,11 +78,20 @@ double CompactWriter::run() {
         cl::Event done;
         ctx_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global_),
                                           cl::NullRange, nullptr, &done);
+        ctx_.queue().enqueueNDRangeKernel(block_kernel_, cl::NullRange, blocks_);
         if (external_) {
             release_external(ctx_, dst_);
         }
         ctx_.queue().finish();  // Vulkan reads the field only after OpenCL finished writing it
         return elapsed_ms(done, done);
+    });
+}
+
+std::vector<std::uint32_t> CompactWriter::block_min() {
+    return cl_call("reading the ray marcher's block minima", [&] {
+        std::vector<std::uint32_t> table(block_count_);
+        ctx_.queue().enqueueReadBuffer(block_min_, CL_TRUE, 0, 4 * table.size(), table.data());
+        return table;
     });
 }
 

@@ -406,6 +406,57 @@ TEST(RaymarchCompact, WorldLargerThanOneBinding) {
     }
 }
 
+// Per-8^3-block minima of the unsaturated reference distance (layout.h VF_RAYMARCH_BLOCK).
+std::vector<std::uint32_t> block_minima(const World& world) {
+    const auto d = reference_manhattan(world);
+    const Dims n = world.dims();
+    const std::uint32_t b = VF_RAYMARCH_BLOCK;
+    const Dims nb{(n.x + b - 1) / b, (n.y + b - 1) / b, (n.z + b - 1) / b};
+    std::vector<std::uint32_t> out(nb.count(), 0xFFFFFFFFu);
+    for (std::uint32_t z = 0; z < n.z; ++z) {
+        for (std::uint32_t y = 0; y < n.y; ++y) {
+            for (std::uint32_t x = 0; x < n.x; ++x) {
+                auto& m = out[nb.index(x / b, y / b, z / b)];
+                m = std::min(m, d[n.index(x, y, z)]);
+            }
+        }
+    }
+    return out;
+}
+
+TEST(RaymarchCompact, CoarseSkippingBeyondSaturatedDistances) {
+    // Solids hundreds of voxels apart: the 8-bit field saturates at 255 around x = 300, where
+    // the block minima let rays take longer strides. Images must not change (and inflated
+    // minima would carry rays through the wall at x = 600: the comparison has teeth).
+    World world(Dims{700, 24, 24});
+    world.set(690, 12, 12, 9);
+    world.set(5, 20, 2, 33);
+    for (std::uint32_t z = 0; z < 24; ++z) {
+        for (std::uint32_t y = 0; y < 24; ++y) {
+            world.set(600, y, z, 44);  // a wall across the world
+        }
+    }
+
+    const Palette palette;
+    for (const vk::RenderOptions& r : {options(160, 60, {-30, 12, 12}, {700, 12, 12}, 20),
+                                       options(120, 80, {300, 60, -200}, {600, 12, 12}, 30),
+                                       options(100, 100, {699.5, 23.5, 23.5}, {0, 0, 0}, 40)}) {
+        vk::Raymarcher marcher(vulkan());
+        marcher.upload_compact(world.dims(), palette, compact_field(world));
+        const auto plain = marcher.render(r);
+        marcher.set_block_min(block_minima(world));
+        const auto coarse = marcher.render(r);
+        const auto want = cpu_render(world, palette, r);
+        const Comparison c = compare(coarse.rgba, want, r.sky);
+        EXPECT_LE(double(c.differing), 0.005 * double(c.pixels));
+        EXPECT_LT(c.sky, c.pixels) << "nothing was hit: the test would prove nothing";
+        EXPECT_EQ(coarse.rgba, plain.rgba) << "coarse skipping changed the image";
+    }
+    vk::Raymarcher marcher(vulkan());
+    marcher.upload_compact(world.dims(), palette, compact_field(world));
+    EXPECT_THROW(marcher.set_block_min(std::vector<std::uint32_t>(3, 0)), InputError);
+}
+
 TEST(RaymarchCompact, PlanAlignsSlabsAndNamesFormats) {
     vk::Raymarcher marcher(vulkan(), 33 * 17 * 2 * 5 + 2);  // a multiple of 4
     const vk::FieldLayout l = marcher.plan(Dims{33, 17, 23}, vk::FieldFormat::compact);

@@ -121,7 +121,7 @@ TEST(Share, RegeneratedFieldShowsInTheNextRenderWithoutUpload) {
         vulkan(), layout.total_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, "test field");
     shared.buffer = ocl::wrap_host_memory(opencl(), shared.memory.host_pointer(),
                                           static_cast<std::size_t>(shared.memory.size()));
-    ocl::ExactManhattan exact(opencl(), world, palette, Format::u8);
+    ocl::ExactManhattan exact(opencl(), world, palette, Format::u16);
     ocl::CompactWriter writer(opencl(), exact, dims, shared.buffer,
                               {layout.slab_depth, layout.slab_stride});
     exact.run();

@@ -10,9 +10,11 @@ layout(local_size_x = VF_RAYMARCH_LOCAL_SIZE, local_size_y = VF_RAYMARCH_LOCAL_S
 // One RGBA8 pixel per texel, r | g << 8 | b << 16 | a << 24 (bytes R, G, B, A in memory), so
 // flat colours are written bit-exactly (no float -> unorm rounding).
 layout(binding = VF_RAYMARCH_BINDING_IMAGE, r32ui) uniform writeonly uimage2D out_image;
-// Palette entry m as r | g << 8 | b << 16 | a << 24.
+// Palette entry m as r | g << 8 | b << 16 | a << 24; then, with VF_RAYMARCH_FLAG_BLOCK_MIN,
+// the per-block minimum distances (layout.h VF_RAYMARCH_BLOCK).
 layout(std430, binding = VF_RAYMARCH_BINDING_PALETTE) readonly buffer PaletteBuf {
     uint palette[256];
+    uint block_min[];
 };
 
 // The field is split along z into slabs of pc.dims.w slices, one binding each, so that no
@@ -183,6 +185,8 @@ void main() {
     bool lit = (pc.image.z & VF_RAYMARCH_FLAG_LIT) != 0u;
     bool gradient = (pc.image.z & VF_RAYMARCH_FLAG_SKY_GRADIENT) != 0u;
     g_compact = (pc.image.z & VF_RAYMARCH_FLAG_COMPACT) != 0u;
+    bool coarse = (pc.image.z & VF_RAYMARCH_FLAG_BLOCK_MIN) != 0u;
+    uvec3 blocks = (pc.dims.xyz + uvec3(VF_RAYMARCH_BLOCK - 1)) / uvec3(VF_RAYMARCH_BLOCK);
 
     // Pinhole camera, DESIGN §4.
     float sx = (float(pix.x) + 0.5) / float(width) * 2.0 - 1.0;
@@ -235,13 +239,19 @@ void main() {
         // L1 distance < d is empty, so the cells after 1 .. d-1 steps are empty and need no
         // fetch; the cell after d steps may be solid and is fetched. Hence: d steps per
         // fetch, never skipping a solid cell. The walk ends only when the ray hits a solid
-        // or leaves the world (at most X+Y+Z steps), never by a step cap.
+        // or leaves the world (at most X+Y+Z steps), never by a step cap. Coarse skipping: a
+        // saturated 255 only says d >= 255; the minimum distance over the cell's 8^3 block
+        // is also a lower bound of d, so the ray may take max(255, that minimum) steps.
         for (;;) {
             // VF_PACKED_DISTANCE_* and VF_COMPACT_DISTANCE_* agree (static_assert'ed on the host).
             uint d = (read_cell(cell) >> VF_PACKED_DISTANCE_SHIFT) & VF_PACKED_DISTANCE_MAX;
             if (d == 0u) {
                 hit = true;
                 break;
+            }
+            if (coarse && d == VF_PACKED_DISTANCE_MAX) {
+                uvec3 b = uvec3(cell) / uvec3(VF_RAYMARCH_BLOCK);
+                d = max(d, block_min[(b.z * blocks.y + b.y) * blocks.x + b.x]);
             }
             bool inside = true;
             for (uint k = 0u; k < d; ++k) {

@@ -124,7 +124,9 @@ struct Raymarcher::Impl {
     Owned<VkDescriptorPool> pool;
     VkDescriptorSet set = VK_NULL_HANDLE;
     Owned<VkQueryPool> queries;
-    Buffer palette;
+    Buffer palette;  // 256 colours, then the block minima when set
+    std::array<std::uint32_t, 256> colours{};
+    std::vector<std::uint32_t> block_min;
     std::vector<Buffer> field, material;  // material: packed32 only
     FieldLayout layout;
     SharingPath sharing = SharingPath::copy;
@@ -132,6 +134,8 @@ struct Raymarcher::Impl {
 
     explicit Impl(Context& c) : ctx(c) {}
     void upload_palette(const Palette& p);
+    // Writes colours + block_min into the palette binding (a new buffer when it grows).
+    void write_palette_binding();
     // Takes the new field buffers and points every binding at them.
     void install(std::vector<Buffer> new_field, std::vector<Buffer> new_material,
                  const FieldLayout& new_layout, SharingPath path);
@@ -290,11 +294,32 @@ FieldLayout Raymarcher::plan(Dims d, FieldFormat format) const {
 }
 
 void Raymarcher::Impl::upload_palette(const Palette& p) {
-    std::array<std::uint32_t, 256> colours{};
     for (std::size_t i = 0; i < 256; ++i) {
         colours[i] = pack(p[static_cast<std::uint8_t>(i)]);
     }
-    ctx.upload(palette, colours.data(), sizeof colours);
+    block_min.clear();  // a new field: the old minima no longer hold
+    write_palette_binding();
+}
+
+void Raymarcher::Impl::write_palette_binding() {
+    std::vector<std::uint32_t> words(colours.begin(), colours.end());
+    words.insert(words.end(), block_min.begin(), block_min.end());
+    const VkDeviceSize bytes = 4 * words.size();
+    if (bytes > palette.size()) {
+        palette = ctx.make_buffer(
+            bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+            MemoryIntent::device_local, "palette and block minima");
+        VkDescriptorBufferInfo info{palette.get(), 0, VK_WHOLE_SIZE};
+        VkWriteDescriptorSet w{};
+        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        w.dstSet = set;
+        w.dstBinding = VF_RAYMARCH_BINDING_PALETTE;
+        w.descriptorCount = 1;
+        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        w.pBufferInfo = &info;
+        vkUpdateDescriptorSets(ctx.device(), 1, &w, 0, nullptr);
+    }
+    ctx.upload(palette, words.data(), bytes);
 }
 
 void Raymarcher::Impl::install(std::vector<Buffer> new_field, std::vector<Buffer> new_material,
@@ -494,7 +519,8 @@ Image Raymarcher::render(const RenderOptions& o) {
     pc.image[2] =
         (o.shading == Shading::lit ? VF_RAYMARCH_FLAG_LIT : 0u) |
         (o.shading == Shading::lit && o.sky_gradient ? VF_RAYMARCH_FLAG_SKY_GRADIENT : 0u) |
-        (m.layout.format == FieldFormat::compact ? VF_RAYMARCH_FLAG_COMPACT : 0u);
+        (m.layout.format == FieldFormat::compact ? VF_RAYMARCH_FLAG_COMPACT : 0u) |
+        (m.block_min.empty() ? 0u : VF_RAYMARCH_FLAG_BLOCK_MIN);
     pc.image[3] = pack(o.sky);
 
     const VkQueryPool queries = m.queries.get();
@@ -565,6 +591,20 @@ Image Raymarcher::render(const RenderOptions& o) {
                           static_cast<double>(m.ctx.timestamp_period_ns()) * 1e-6;
     }
     return out;
+}
+
+void Raymarcher::set_block_min(std::span<const std::uint32_t> block_min) {
+    Impl& m = *impl_;
+    const Dims d = m.layout.dims;
+    const std::uint64_t b = VF_RAYMARCH_BLOCK;
+    const std::uint64_t blocks = ((d.x + b - 1) / b) * ((d.y + b - 1) / b) * ((d.z + b - 1) / b);
+    if (m.layout.slabs == 0 || block_min.size() != blocks) {
+        throw InputError("block minima: " + std::to_string(block_min.size()) +
+                         " entries for a field of " + d.to_string() + " (" +
+                         std::to_string(blocks) + " blocks of " + std::to_string(b) + "^3)");
+    }
+    m.block_min.assign(block_min.begin(), block_min.end());
+    m.write_palette_binding();
 }
 
 std::uint32_t Raymarcher::field_bindings() const {

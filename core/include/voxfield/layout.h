@@ -37,5 +37,11 @@
 #define VF_RAYMARCH_FLAG_SKY_GRADIENT 2u
 /* The field is compact (else packed32 with material bytes at VF_RAYMARCH_BINDING_MATERIAL). */
 #define VF_RAYMARCH_FLAG_COMPACT 4u
+/* Coarse skipping: after the 256 palette entries the palette binding holds, per block of
+ * VF_RAYMARCH_BLOCK^3 voxels (x fastest over ceil(dims / VF_RAYMARCH_BLOCK)), the minimum of
+ * the unsaturated L1 distance over the block; a lower bound for every voxel in it, used where
+ * the field's 8-bit distance is saturated. */
+#define VF_RAYMARCH_FLAG_BLOCK_MIN 8u
+#define VF_RAYMARCH_BLOCK 8
 
 #endif

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <vector>
 
 #include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/runtime.hpp"
@@ -17,8 +18,9 @@ struct SlabLayout {
     std::uint64_t slab_stride_bytes = 0;  // slab s starts at s * slab_stride_bytes (even)
 };
 
-// Converts the exact field of `exact` (which must have been made with Format::u8) and its
-// voxels into the compact render format (layout.h VF_COMPACT_*, 2 bytes per voxel) in `dst`.
+// Converts the exact field of `exact` (which must have been made with Format::u16) and its
+// voxels into the compact render format (layout.h VF_COMPACT_*, 2 bytes per voxel) in `dst`,
+// and computes the ray marcher's coarse table (per-block minimum distance, block_min()).
 // Holds references to both buffers; run() again after every exact.run(). external: dst was
 // imported with import_opaque_fd, so run() acquires it before the kernel and releases it
 // after (clEnqueueAcquire/ReleaseExternalMemObjectsKHR).
@@ -29,11 +31,16 @@ class CompactWriter {
     // Enqueues the conversion and waits for it (clFinish): afterwards Vulkan may read dst.
     // Returns the kernel time in ms (profiling events).
     double run();
+    // The per-block minima of the last run() (layout.h VF_RAYMARCH_BLOCK; x fastest), read
+    // back: a small table (1/512 of the voxels) the ray marcher keeps beside its palette.
+    std::vector<std::uint32_t> block_min();
 
   private:
     Context& ctx_;
-    cl::Buffer dst_;
-    cl::Kernel kernel_;
+    cl::Buffer dst_, block_min_;
+    cl::Kernel kernel_, block_kernel_;
+    cl::NDRange blocks_;
+    std::size_t block_count_ = 0;
     std::size_t global_ = 0;
     bool external_ = false;
 };

@@ -113,6 +113,12 @@ class Raymarcher {
     void bind_shared(const ExternalMemory& memory, const FieldLayout& layout,
                      const Palette& palette);
 
+    // Coarse skipping (layout.h VF_RAYMARCH_BLOCK): per block of the current field, the
+    // minimum of the unsaturated L1 distance (x fastest over ceil(dims / VF_RAYMARCH_BLOCK)),
+    // e.g. ocl::CompactWriter::block_min(). Where a cell's 8-bit distance is saturated the ray
+    // then skips max(255, block minimum) cells. Uploading or binding a new field clears it.
+    // Throws InputError when the table's size does not match the field's blocks.
+    void set_block_min(std::span<const std::uint32_t> block_min);
     Image render(const RenderOptions& options);
 
     // The field format and layout in use, and the bytes copied into field / material buffers
