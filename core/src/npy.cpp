@@ -2,6 +2,7 @@
 #include "voxfield/core/npy.hpp"
 
 #include "input_file.hpp"
+#include "output_file.hpp"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -217,10 +218,6 @@ std::string shape_text(const std::vector<std::uint64_t>& shape) {
     return s + ")";
 }
 
-std::string errno_text(int e) {
-    return std::generic_category().message(e);
-}
-
 void read_exact(std::ifstream& in, const std::string& file, char* dst, std::size_t n) {
     in.read(dst, static_cast<std::streamsize>(n));
     if (static_cast<std::size_t>(in.gcount()) != n) {
@@ -377,19 +374,6 @@ void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
         throw InputError("cannot write '" + file + "': " + std::to_string(data.size()) +
                          " bytes do not match dims " + dims.to_string() + " of " + type_name(type));
     }
-    fs::path dir = path.parent_path();
-    if (dir.empty()) {
-        dir = ".";
-    }
-    std::error_code ec;
-    if (!fs::is_directory(dir, ec)) {
-        throw InputError("cannot write '" + file + "': folder '" + dir.string() +
-                         "' does not exist");
-    }
-    if (fs::is_directory(path, ec)) {
-        throw InputError("cannot write '" + file + "': it is a directory");
-    }
-
     std::string header = std::string("{'descr': '") + descr_of(type) +
                          "', 'fortran_order': False, 'shape': (" + std::to_string(dims.z) + ", " +
                          std::to_string(dims.y) + ", " + std::to_string(dims.x) + "), }";
@@ -406,59 +390,7 @@ void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
     bytes.push_back(static_cast<std::uint8_t>(header.size() >> 8));
     bytes.insert(bytes.end(), header.begin(), header.end());
 
-    // Temporary file in the same folder, then rename: readers never see a partial file.
-    // O_EXCL with a unique name; mode 0666 minus the umask, like any new file.
-    static std::atomic<std::uint64_t> counter{0};
-    int fd = -1;
-    std::string tmp;
-    for (int attempt = 0; fd < 0; ++attempt) {
-        // Built by append: GCC 12 gives a false -Wrestrict on "." + std::string.
-        std::string leaf(".");
-        leaf.append(path.filename().string());
-        leaf.append(".tmp-");
-        leaf.append(std::to_string(::getpid()));
-        leaf.append("-");
-        leaf.append(std::to_string(counter.fetch_add(1)));
-        tmp = (dir / leaf).string();
-        fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-        if (fd < 0 && (errno != EEXIST || attempt > 100)) {
-            throw InputError("cannot write '" + file + "': cannot create a temporary file in '" +
-                             dir.string() + "' (" + errno_text(errno) + ")");
-        }
-    }
-    auto fail = [&](const std::string& what, int e) {
-        ::close(fd);
-        ::unlink(tmp.c_str());
-        throw InputError("cannot write '" + file + "': " + what + " (" + errno_text(e) + ")");
-    };
-    auto write_all = [&](const std::uint8_t* p, std::size_t n) {
-        while (n > 0) {
-            const ssize_t w = ::write(fd, p, n);
-            if (w < 0) {
-                if (errno == EINTR) {
-                    continue;
-                }
-                fail("write failed", errno);
-            }
-            p += w;
-            n -= static_cast<std::size_t>(w);
-        }
-    };
-    write_all(bytes.data(), bytes.size());
-    write_all(data.data(), data.size());
-    if (::fsync(fd) != 0) {
-        fail("cannot finish the temporary file", errno);
-    }
-    if (::close(fd) != 0) {
-        const int e = errno;
-        ::unlink(tmp.c_str());
-        throw InputError("cannot write '" + file + "': close failed (" + errno_text(e) + ")");
-    }
-    if (::rename(tmp.c_str(), file.c_str()) != 0) {
-        const int e = errno;
-        ::unlink(tmp.c_str());
-        throw InputError("cannot write '" + file + "': rename failed (" + errno_text(e) + ")");
-    }
+    detail::write_file_atomic(path, {bytes, data});
 }
 
 World world_from_npy(const NpyArray& array) {

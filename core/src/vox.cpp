@@ -2,6 +2,7 @@
 #include "voxfield/core/vox.hpp"
 
 #include "input_file.hpp"
+#include "output_file.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -206,6 +207,64 @@ class VoxParser {
 VoxModel read_vox(const std::filesystem::path& path) {
     const std::vector<std::uint8_t> bytes = read_file(path);
     return VoxParser(path.string(), bytes).parse();
+}
+
+void write_vox(const std::filesystem::path& path, const World& world, const Palette& palette) {
+    const Dims d = world.dims();
+    if (d.x > 256 || d.y > 256 || d.z > 256) {
+        throw InputError("cannot write '" + path.string() + "': world " + d.to_string() +
+                         " exceeds MagicaVoxel's 256 voxels per axis (save it as .npy)");
+    }
+    std::vector<std::uint8_t> b;
+    auto put_id = [&](const char* id) { b.insert(b.end(), id, id + 4); };
+    auto put_u32 = [&](std::uint32_t v) {
+        for (int k = 0; k < 4; ++k) {
+            b.push_back(static_cast<std::uint8_t>(v >> (8 * k)));
+        }
+    };
+    const std::size_t solid = world.solid_count();
+    const std::uint32_t xyzi_bytes = static_cast<std::uint32_t>(4 + 4 * solid);
+    const std::uint32_t children = (12 + 12) + (12 + xyzi_bytes) + (12 + 256 * 4);
+    b.reserve(20 + children);
+    put_id("VOX ");
+    put_u32(150);
+    put_id("MAIN");
+    put_u32(0);
+    put_u32(children);
+    put_id("SIZE");
+    put_u32(12);
+    put_u32(0);
+    put_u32(d.x);  // vox x = world x
+    put_u32(d.z);  // vox y = world z
+    put_u32(d.y);  // vox z (up) = world y
+    put_id("XYZI");
+    put_u32(xyzi_bytes);
+    put_u32(0);
+    put_u32(static_cast<std::uint32_t>(solid));
+    for (std::uint32_t z = 0; z < d.z; ++z) {
+        for (std::uint32_t y = 0; y < d.y; ++y) {
+            for (std::uint32_t x = 0; x < d.x; ++x) {
+                const std::uint8_t v = world.at(x, y, z);
+                if (v != 0) {
+                    b.push_back(static_cast<std::uint8_t>(x));
+                    b.push_back(static_cast<std::uint8_t>(z));
+                    b.push_back(static_cast<std::uint8_t>(y));
+                    b.push_back(v);
+                }
+            }
+        }
+    }
+    put_id("RGBA");
+    put_u32(256 * 4);
+    put_u32(0);
+    for (std::size_t i = 1; i <= 256; ++i) {
+        const Rgba c = i < 256 ? palette[static_cast<std::uint8_t>(i)] : Rgba{0, 0, 0, 0};
+        b.push_back(c.r);
+        b.push_back(c.g);
+        b.push_back(c.b);
+        b.push_back(c.a);
+    }
+    detail::write_file_atomic(path, {b});
 }
 
 VoxModel load_world(const std::filesystem::path& path) {

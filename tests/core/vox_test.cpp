@@ -356,5 +356,57 @@ TEST(Vox, LoadWorldErrors) {
     }
 }
 
+TEST(Vox, WriteRoundTrips) {
+    TempDir dir;
+    // A non-cubic world with every palette index, written and read back unchanged.
+    World w(Dims{7, 5, 3});
+    Palette pal = Palette::dissertation();
+    pal[255] = Rgba{1, 2, 3, 4};
+    for (std::size_t i = 0; i < w.size(); ++i) {
+        w.voxels()[i] = static_cast<std::uint8_t>(i % 3 == 0 ? 0 : (i * 37) % 256);
+    }
+    w.set(6, 4, 2, 255);
+    w.set(0, 0, 0, 1);
+    const fs::path p = dir / "world.vox";
+    write_vox(p, w, pal);
+    const VoxModel m = read_vox(p);
+    EXPECT_EQ(m.world.dims(), w.dims());
+    EXPECT_EQ(m.world.voxels(), w.voxels());
+    for (int i = 1; i < 256; ++i) {
+        EXPECT_EQ(m.palette[static_cast<std::uint8_t>(i)], pal[static_cast<std::uint8_t>(i)]) << i;
+    }
+    // MagicaVoxel is z-up: SIZE holds (X, Z, Y) and XYZI (x, z, y, index).
+    const std::vector<std::uint8_t> b = read_bytes(p);
+    ASSERT_GE(b.size(), 56u);
+    EXPECT_EQ(std::string(b.begin(), b.begin() + 4), "VOX ");
+    EXPECT_EQ(std::string(b.begin() + 20, b.begin() + 24), "SIZE");
+    EXPECT_EQ(b[32], 7);
+    EXPECT_EQ(b[36], 3);
+    EXPECT_EQ(b[40], 5);
+    // A shipped model survives a round trip, and so does an empty world.
+    const VoxModel house = read_vox(kData / "obj_house4.vox");
+    write_vox(dir / "house.vox", house.world, house.palette);
+    const VoxModel again = read_vox(dir / "house.vox");
+    EXPECT_EQ(again.world.dims(), house.world.dims());
+    EXPECT_EQ(again.world.voxels(), house.world.voxels());
+    write_vox(dir / "empty.vox", World(Dims{2, 3, 4}), pal);
+    EXPECT_EQ(read_vox(dir / "empty.vox").world.solid_count(), 0u);
+}
+
+TEST(Vox, WriteErrors) {
+    TempDir dir;
+    expect_input_error(
+        [&] {
+            write_vox(dir / "big.vox", World(Dims{257, 1, 1}), Palette());
+        },
+        {"big.vox", "257x1x1", "256"});
+    expect_input_error(
+        [&] {
+            write_vox(dir / "missing" / "w.vox", World(Dims{1, 1, 1}), Palette());
+        },
+        {"w.vox", "does not exist"});
+    EXPECT_TRUE(fs::is_empty(dir.path()));
+}
+
 }  // namespace
 }  // namespace voxfield

@@ -1,0 +1,105 @@
+#pragma once
+// The viewer's camera as plain math (no windowing API): free-fly as in the dissertation's
+// demo (WASD / arrows, Space up, Left Shift down, Left Ctrl x4, 10 voxels/s, mouse look),
+// an orbit mode around the world's centre, and the pinhole rays of DESIGN §4 for picking.
+//
+// Angles are in degrees. yaw 0 looks along +x, yaw 90 along +z; pitch > 0 looks up (+y).
+// The image basis is the renderer's (vk::camera_basis, DESIGN §4): right =
+// normalize(cross(forward, +y)) (+x when looking straight along +-y), up = cross(right,
+// forward).
+#include <array>
+#include <cstdint>
+
+#include "voxfield/core/world.hpp"
+
+namespace voxfield {
+
+using Vec3d = std::array<double, 3>;
+
+// Unit view direction for yaw/pitch (degrees).
+Vec3d direction_from_angles(double yaw_deg, double pitch_deg);
+
+// Unit right/up vectors of the DESIGN §4 image basis for a view direction (any length > 0).
+struct ViewBasis {
+    Vec3d forward, right, up;  // unit vectors
+};
+ViewBasis view_basis(const Vec3d& forward);
+
+// The unit direction through the image point (px, py) in pixels (x right, y down; the centre
+// of pixel (i, j) is (i + 0.5, j + 0.5)) of a width x height image with vertical field of
+// view fov_deg: forward + sx * aspect * tan(fov/2) * right + sy * tan(fov/2) * up with
+// sx = px / W * 2 - 1, sy = 1 - py / H * 2.
+Vec3d pixel_direction(const Vec3d& forward, double fov_deg, double width, double height, double px,
+                      double py);
+
+// One frame of input. Movement keys are held states; look_dx/dy are the mouse movement in
+// screen pixels accumulated over the frame (x right, y down).
+struct CameraInput {
+    bool forward = false, back = false, left = false, right = false;  // W S A D / arrows
+    bool up = false, down = false;                                    // Space, Left Shift
+    bool fast = false;                                                // Left Ctrl
+    double look_dx = 0, look_dy = 0;
+};
+
+struct CameraSettings {
+    double speed = 10;             // voxels per second (the dissertation's base speed)
+    double fast_factor = 4;        // Left Ctrl multiplies the speed
+    double sensitivity = 0.1;      // degrees per pixel of mouse movement
+    double max_pitch = 89;         // |pitch| is clamped to this, in degrees
+    double orbit_turn_speed = 60;  // degrees per second for the orbit keys
+    double fov_deg = 60;           // vertical field of view
+};
+
+class ViewCamera {
+  public:
+    enum class Mode { fly, orbit };
+
+    // Starts at the overview: outside the world, above and in front of it, looking at its
+    // centre (the same view as `voxfield render`'s default camera).
+    explicit ViewCamera(Dims world);
+
+    CameraSettings settings;
+
+    // Back to the start view, fly mode.
+    void reset();
+    // The dissertation's start: (-X, Y/2, Z/2) looking along +x.
+    void dissertation_start();
+    // Orbit keeps the current view and turns around the world's centre at the current
+    // distance (the view is first turned to face the centre); fly keeps the current view.
+    void set_mode(Mode mode);
+    void toggle_mode() { set_mode(mode_ == Mode::fly ? Mode::orbit : Mode::fly); }
+    Mode mode() const { return mode_; }
+
+    // Advances by dt seconds (motion is speed * dt: frame-rate independent). Fly: look
+    // turns yaw/pitch; forward/back along the view direction, left/right along the image's
+    // right vector, up/down along +y; diagonal moves are not faster. Orbit: look and the
+    // left/right/up/down keys turn around the centre, forward/back change the distance
+    // (never below 1 voxel).
+    void update(const CameraInput& input, double dt_seconds);
+
+    // Places the camera at `position` looking at `target` (fly mode keeps it; orbit
+    // re-centres on the world). Throws InputError when they coincide or are not finite.
+    void look_at(const Vec3d& position, const Vec3d& target);
+
+    const Vec3d& position() const { return position_; }
+    Vec3d forward() const { return direction_from_angles(yaw_, pitch_); }
+    // A point one voxel ahead (for vk::Camera's target).
+    Vec3d target() const;
+    double yaw() const { return yaw_; }
+    double pitch() const { return pitch_; }
+    double orbit_distance() const { return distance_; }
+    const Vec3d& centre() const { return centre_; }
+
+  private:
+    void set_angles(double yaw, double pitch);
+    void place_on_orbit();
+
+    Dims dims_;
+    Vec3d centre_;
+    Vec3d position_{};
+    double yaw_ = 0, pitch_ = 0;
+    double distance_ = 1;
+    Mode mode_ = Mode::fly;
+};
+
+}  // namespace voxfield

@@ -1,0 +1,169 @@
+// The viewer's camera: free-fly (the dissertation's demo controls) and orbit, plus the
+// DESIGN §4 pinhole rays.
+#include "voxfield/core/camera.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "voxfield/core/error.hpp"
+
+namespace voxfield {
+
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+Vec3d add(const Vec3d& a, const Vec3d& b) {
+    return {a[0] + b[0], a[1] + b[1], a[2] + b[2]};
+}
+Vec3d sub(const Vec3d& a, const Vec3d& b) {
+    return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
+}
+Vec3d scale(const Vec3d& a, double s) {
+    return {a[0] * s, a[1] * s, a[2] * s};
+}
+double dot(const Vec3d& a, const Vec3d& b) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+double length(const Vec3d& a) {
+    return std::sqrt(dot(a, a));
+}
+Vec3d cross(const Vec3d& a, const Vec3d& b) {
+    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+bool finite(const Vec3d& a) {
+    return std::isfinite(a[0]) && std::isfinite(a[1]) && std::isfinite(a[2]);
+}
+
+}  // namespace
+
+Vec3d direction_from_angles(double yaw_deg, double pitch_deg) {
+    const double cy = std::cos(yaw_deg * kDeg), sy = std::sin(yaw_deg * kDeg);
+    const double cp = std::cos(pitch_deg * kDeg), sp = std::sin(pitch_deg * kDeg);
+    return {cp * cy, sp, cp * sy};
+}
+
+ViewBasis view_basis(const Vec3d& forward) {
+    ViewBasis b;
+    b.forward = scale(forward, 1 / length(forward));
+    Vec3d right = cross(b.forward, Vec3d{0, 1, 0});
+    if (length(right) < 1e-9) {
+        right = {1, 0, 0};  // looking straight along +-y: image right is +x
+    }
+    b.right = scale(right, 1 / length(right));
+    b.up = cross(b.right, b.forward);
+    return b;
+}
+
+Vec3d pixel_direction(const Vec3d& forward, double fov_deg, double width, double height, double px,
+                      double py) {
+    const ViewBasis b = view_basis(forward);
+    const double half = std::tan(fov_deg * kDeg / 2);
+    const double sx = (px / width * 2 - 1) * (width / height) * half;
+    const double sy = (1 - py / height * 2) * half;
+    const Vec3d d = add(b.forward, add(scale(b.right, sx), scale(b.up, sy)));
+    return scale(d, 1 / length(d));
+}
+
+ViewCamera::ViewCamera(Dims world)
+    : dims_(world), centre_{world.x / 2.0, world.y / 2.0, world.z / 2.0} {
+    reset();
+}
+
+void ViewCamera::reset() {
+    // The renderer's default camera (vk::default_camera): from (-0.6, 0.5, -0.75) at twice
+    // the radius of the world's bounding sphere, looking at the centre.
+    const double radius = 0.5 * length(Vec3d{double(dims_.x), double(dims_.y), double(dims_.z)});
+    Vec3d from = {-0.6, 0.5, -0.75};
+    from = scale(from, 2.0 * radius / length(from));
+    mode_ = Mode::fly;
+    look_at(add(centre_, from), centre_);
+}
+
+void ViewCamera::dissertation_start() {
+    mode_ = Mode::fly;
+    position_ = {-double(dims_.x), dims_.y / 2.0, dims_.z / 2.0};
+    set_angles(0, 0);
+}
+
+void ViewCamera::look_at(const Vec3d& position, const Vec3d& target) {
+    const Vec3d d = sub(target, position);
+    if (!finite(position) || !finite(target) || !(length(d) > 1e-9)) {
+        throw InputError("camera position and target must be finite and distinct");
+    }
+    position_ = position;
+    const double horizontal = std::hypot(d[0], d[2]);
+    set_angles(std::atan2(d[2], d[0]) / kDeg, std::atan2(d[1], horizontal) / kDeg);
+    if (mode_ == Mode::orbit) {
+        distance_ = std::max(1.0, length(sub(centre_, position_)));
+        set_mode(Mode::orbit);
+    }
+}
+
+void ViewCamera::set_angles(double yaw, double pitch) {
+    yaw_ = std::remainder(yaw, 360.0);
+    const double limit = std::clamp(settings.max_pitch, 0.0, 89.999);
+    pitch_ = std::clamp(pitch, -limit, limit);
+}
+
+void ViewCamera::place_on_orbit() {
+    position_ = sub(centre_, scale(forward(), distance_));
+}
+
+void ViewCamera::set_mode(Mode mode) {
+    mode_ = mode;
+    if (mode == Mode::orbit) {
+        const Vec3d to_centre = sub(centre_, position_);
+        distance_ = std::max(1.0, length(to_centre));
+        if (length(to_centre) > 1e-9) {
+            const double horizontal = std::hypot(to_centre[0], to_centre[2]);
+            set_angles(std::atan2(to_centre[2], to_centre[0]) / kDeg,
+                       std::atan2(to_centre[1], horizontal) / kDeg);
+        }
+        place_on_orbit();
+    }
+}
+
+Vec3d ViewCamera::target() const {
+    return add(position_, forward());
+}
+
+void ViewCamera::update(const CameraInput& in, double dt) {
+    if (!(dt > 0) || !std::isfinite(dt)) {
+        dt = 0;
+    }
+    const double speed = settings.speed * (in.fast ? settings.fast_factor : 1.0);
+    const double s = settings.sensitivity;
+    if (mode_ == Mode::fly) {
+        set_angles(yaw_ + in.look_dx * s, pitch_ - in.look_dy * s);
+        const ViewBasis b = view_basis(forward());
+        Vec3d move{0, 0, 0};
+        auto axis = [&](bool plus, bool minus, const Vec3d& v) {
+            if (plus != minus) {
+                move = add(move, scale(v, plus ? 1.0 : -1.0));
+            }
+        };
+        axis(in.forward, in.back, b.forward);
+        axis(in.right, in.left, b.right);
+        axis(in.up, in.down, Vec3d{0, 1, 0});
+        const double len = length(move);
+        if (len > 1e-12) {
+            position_ = add(position_, scale(move, speed * dt / len));
+        }
+        return;
+    }
+    // Orbit: turn around the centre; forward/back zoom.
+    const double turn = settings.orbit_turn_speed * dt * (in.fast ? settings.fast_factor : 1.0);
+    double yaw = yaw_ + in.look_dx * s, pitch = pitch_ - in.look_dy * s;
+    yaw += (in.left ? turn : 0) - (in.right ? turn : 0);
+    pitch += (in.up ? turn : 0) - (in.down ? turn : 0);
+    set_angles(yaw, pitch);
+    if (in.forward != in.back) {
+        distance_ = std::max(1.0, distance_ + (in.forward ? -speed * dt : speed * dt));
+    }
+    place_on_orbit();
+}
+
+}  // namespace voxfield

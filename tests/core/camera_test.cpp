@@ -1,0 +1,190 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "voxfield/core/camera.hpp"
+#include "voxfield/core/error.hpp"
+
+namespace voxfield {
+namespace {
+
+void expect_near(const Vec3d& a, const Vec3d& b, double eps = 1e-9) {
+    for (int i = 0; i < 3; ++i) {
+        EXPECT_NEAR(a[i], b[i], eps) << "component " << i;
+    }
+}
+
+double length(const Vec3d& a) {
+    return std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+}
+
+TEST(Camera, AnglesFollowTheConvention) {
+    expect_near(direction_from_angles(0, 0), {1, 0, 0});
+    expect_near(direction_from_angles(90, 0), {0, 0, 1});
+    expect_near(direction_from_angles(0, 90), {0, 1, 0});
+    expect_near(direction_from_angles(180, -45), {-std::sqrt(0.5), -std::sqrt(0.5), 0});
+}
+
+TEST(Camera, BasisMatchesTheRenderer) {
+    // DESIGN §4 / vk::camera_basis: right = cross(forward, +y), up = cross(right, forward).
+    ViewBasis b = view_basis({0, 0, 2});
+    expect_near(b.forward, {0, 0, 1});
+    expect_near(b.right, {-1, 0, 0});
+    expect_near(b.up, {0, 1, 0});
+    b = view_basis({1, 0, 0});
+    expect_near(b.right, {0, 0, 1});
+    b = view_basis({0, -3, 0});  // straight down: right is +x
+    expect_near(b.right, {1, 0, 0});
+    expect_near(b.up, {0, 0, -1});
+}
+
+TEST(Camera, PixelDirectionsFollowDesign) {
+    const Vec3d f = {0, 0, 1};
+    // The centre of the image looks straight ahead.
+    expect_near(pixel_direction(f, 60, 800, 600, 400, 300), f);
+    // The top-left corner: sx = -1 (scaled by aspect * tan 30), sy = +1 (tan 30).
+    const double t = std::tan(M_PI / 6);
+    Vec3d d = pixel_direction(f, 60, 800, 600, 0, 0);
+    const Vec3d want = {-(-1 * 800.0 / 600.0 * t), t, 1};  // right is -x
+    const double n = length(want);
+    expect_near(d, {want[0] / n, want[1] / n, want[2] / n});
+    // Pixel (i, j)'s centre as the renderer samples it.
+    d = pixel_direction(f, 90, 4, 2, 3.5, 0.5);
+    const double sx = (3.5 / 4 * 2 - 1) * 2, sy = 1 - 0.5 / 2 * 2;
+    const Vec3d w2 = {-sx, sy, 1};
+    const double n2 = length(w2);
+    expect_near(d, {w2[0] / n2, w2[1] / n2, w2[2] / n2});
+}
+
+TEST(Camera, StartsAtTheRenderersOverview) {
+    ViewCamera cam(Dims{64, 32, 48});
+    const Vec3d c = {32, 16, 24};
+    expect_near(cam.centre(), c);
+    const double radius = 0.5 * std::sqrt(64.0 * 64 + 32 * 32 + 48 * 48);
+    const Vec3d from = {-0.6, 0.5, -0.75};
+    const double s = 2 * radius / length(from);
+    expect_near(cam.position(), {c[0] + from[0] * s, c[1] + from[1] * s, c[2] + from[2] * s}, 1e-9);
+    const Vec3d f = cam.forward();
+    expect_near(f, {-from[0] / length(from), -from[1] / length(from), -from[2] / length(from)});
+    EXPECT_EQ(cam.mode(), ViewCamera::Mode::fly);
+}
+
+TEST(Camera, DissertationStart) {
+    ViewCamera cam(Dims{128, 128, 128});
+    cam.dissertation_start();
+    expect_near(cam.position(), {-128, 64, 64});
+    expect_near(cam.forward(), {1, 0, 0});
+}
+
+TEST(Camera, MotionIsFrameRateIndependent) {
+    ViewCamera a(Dims{16, 16, 16}), b(Dims{16, 16, 16});
+    a.dissertation_start();
+    b.dissertation_start();
+    CameraInput in;
+    in.forward = true;
+    a.update(in, 1.0);
+    for (int i = 0; i < 144; ++i) {
+        b.update(in, 1.0 / 144);
+    }
+    expect_near(a.position(), {-16 + 10, 8, 8});  // base speed 10 voxels/s along +x
+    expect_near(b.position(), a.position(), 1e-9);
+    // Left Ctrl: x4.
+    in.fast = true;
+    a.update(in, 0.5);
+    expect_near(a.position(), {-6 + 20, 8, 8});
+}
+
+TEST(Camera, KeysMoveAlongTheViewBasis) {
+    ViewCamera cam(Dims{16, 16, 16});
+    cam.dissertation_start();  // looking along +x: right is +z
+    CameraInput in;
+    in.right = true;
+    cam.update(in, 1);
+    expect_near(cam.position(), {-16, 8, 18});
+    in = {};
+    in.up = true;
+    cam.update(in, 0.5);
+    expect_near(cam.position(), {-16, 13, 18});
+    in = {};
+    in.down = true;
+    in.left = true;  // diagonal: still 10 voxels/s
+    cam.update(in, 1);
+    const double h = 10 / std::sqrt(2.0);
+    expect_near(cam.position(), {-16, 13 - h, 18 - h});
+    in = {};
+    in.forward = in.back = true;  // opposite keys cancel
+    cam.update(in, 1);
+    expect_near(cam.position(), {-16, 13 - h, 18 - h});
+}
+
+TEST(Camera, MouseLooksAndPitchIsClamped) {
+    ViewCamera cam(Dims{16, 16, 16});
+    cam.dissertation_start();
+    CameraInput in;
+    in.look_dx = 900;  // 0.1 deg/pixel: 90 degrees to the right (towards +z)
+    cam.update(in, 0.016);
+    EXPECT_NEAR(cam.yaw(), 90, 1e-9);
+    expect_near(cam.forward(), {0, 0, 1});
+    in = {};
+    in.look_dy = -5000;  // mouse up looks up, clamped at 89 degrees
+    cam.update(in, 0.016);
+    EXPECT_NEAR(cam.pitch(), 89, 1e-9);
+    in.look_dy = 100000;
+    cam.update(in, 0.016);
+    EXPECT_NEAR(cam.pitch(), -89, 1e-9);
+    // The deltas of a frame are a sum: one update with 30 px equals three with 10 px.
+    ViewCamera a(Dims{8, 8, 8}), b(Dims{8, 8, 8});
+    in = {};
+    in.look_dx = 30;
+    a.update(in, 0.01);
+    in.look_dx = 10;
+    for (int i = 0; i < 3; ++i) {
+        b.update(in, 0.01);
+    }
+    EXPECT_NEAR(a.yaw(), b.yaw(), 1e-9);
+}
+
+TEST(Camera, OrbitTurnsAroundTheCentre) {
+    ViewCamera cam(Dims{32, 32, 32});
+    cam.dissertation_start();  // (-32, 16, 16), 48 from the centre (16, 16, 16)
+    cam.set_mode(ViewCamera::Mode::orbit);
+    EXPECT_NEAR(cam.orbit_distance(), 48, 1e-9);
+    CameraInput in;
+    in.look_dx = 900;  // a quarter turn
+    cam.update(in, 0.016);
+    const Vec3d p = cam.position();
+    const Vec3d c = cam.centre();
+    const Vec3d d = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
+    EXPECT_NEAR(length(d), 48, 1e-9);
+    expect_near(p, {16, 16, -32});
+    // Looking at the centre.
+    const Vec3d f = cam.forward();
+    expect_near(f, {-d[0] / 48, -d[1] / 48, -d[2] / 48});
+    // Forward zooms in at the movement speed, never closer than 1 voxel.
+    in = {};
+    in.forward = true;
+    cam.update(in, 1);
+    EXPECT_NEAR(cam.orbit_distance(), 38, 1e-9);
+    cam.update(in, 100);
+    EXPECT_NEAR(cam.orbit_distance(), 1, 1e-9);
+    // Back to fly keeps the view; reset returns to the start view in fly mode.
+    const Vec3d before = cam.position();
+    cam.toggle_mode();
+    EXPECT_EQ(cam.mode(), ViewCamera::Mode::fly);
+    expect_near(cam.position(), before);
+    cam.reset();
+    EXPECT_EQ(cam.mode(), ViewCamera::Mode::fly);
+    ViewCamera fresh(Dims{32, 32, 32});
+    expect_near(cam.position(), fresh.position());
+}
+
+TEST(Camera, LookAtRejectsDegenerateViews) {
+    ViewCamera cam(Dims{8, 8, 8});
+    EXPECT_THROW(cam.look_at({1, 2, 3}, {1, 2, 3}), InputError);
+    EXPECT_THROW(cam.look_at({NAN, 2, 3}, {1, 2, 3}), InputError);
+    cam.look_at({0, 0, 0}, {0, 10, 0});  // straight up: clamped to the pitch limit
+    EXPECT_NEAR(cam.pitch(), 89, 1e-9);
+}
+
+}  // namespace
+}  // namespace voxfield
