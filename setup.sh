@@ -7,7 +7,8 @@ cd "$(dirname "$0")"
 
 packages="cmake g++ make git ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers
 pocl-opencl-icd libcli11-dev nlohmann-json3-dev libgtest-dev
-libvulkan-dev mesa-vulkan-drivers glslang-tools libstb-dev"
+libvulkan-dev mesa-vulkan-drivers glslang-tools libstb-dev
+pkg-config libglfw3-dev libimgui-dev xvfb xauth"
 
 missing=""
 for p in $packages; do

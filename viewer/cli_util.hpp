@@ -24,6 +24,7 @@ Command add_generate(CLI::App& root);
 Command add_replay(CLI::App& root);
 Command add_bench(CLI::App& root);
 Command add_render(CLI::App& root);
+Command add_view(CLI::App& root);
 
 // The metrics `--metric` accepts today.
 inline const std::vector<std::string> kMetrics = {"manhattan"};

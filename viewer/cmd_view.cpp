@@ -1,0 +1,903 @@
+// `voxfield view`: the interactive viewer (issue 6). A GLFW window with a Vulkan swapchain
+// shows the world ray-marched through its distance field; edits go through the incremental
+// updater every frame; Dear ImGui draws the overlay. Without a display it says so in one line
+// and exits 2 (suggesting `voxfield render`), except in benchmark mode, which then runs
+// headless (same loop, no window).
+#include <vulkan/vulkan.h>
+
+#define GLFW_INCLUDE_VULKAN
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+#include <imgui/backends/imgui_impl_glfw.h>
+#include <imgui/backends/imgui_impl_vulkan.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
+#include <deque>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli_util.hpp"
+#include "voxfield/cl/generator.hpp"
+#include "voxfield/cl/incremental.hpp"
+#include "voxfield/core/camera.hpp"
+#include "voxfield/core/edits.hpp"
+#include "voxfield/core/error.hpp"
+#include "voxfield/core/npy.hpp"
+#include "voxfield/core/pick.hpp"
+#include "voxfield/core/scenes.hpp"
+#include "voxfield/core/stats.hpp"
+#include "voxfield/core/undo.hpp"
+#include "voxfield/core/vox.hpp"
+#include "voxfield/vk/present.hpp"
+#include "voxfield/vk/raymarcher.hpp"
+
+#define STB_IMAGE_WRITE_IMPLEMENTATION
+#define STB_IMAGE_WRITE_STATIC
+#include <stb/stb_image_write.h>
+
+namespace voxfield::cli {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+struct ViewCliOptions {
+    std::string input, dims, scene = "spheres", device, shading = "lit";
+    std::uint32_t world = 0, width = 1280, height = 720, frames = 0;
+    std::uint64_t scene_seed = 6683787;
+    GeneratorFlags gen;
+    std::string screenshot, edits, field_output, world_output;
+    bool benchmark = false;
+    std::uint64_t seed = 6683787;
+    double interval_ms = 200, duration_s = 30;
+    std::string json, csv;
+};
+
+// The keys, for F1 and --help.
+const char* const kHelp[][2] = {
+    {"W A S D / arrows", "fly forward, left, back, right (10 voxels/s)"},
+    {"Space / Left Shift", "fly up / down"},
+    {"Left Ctrl (held)", "4x speed"},
+    {"mouse", "look around (cursor captured)"},
+    {"Left Alt (held)", "free the cursor for the overlay"},
+    {"Tab", "orbit around the world's centre / free fly"},
+    {"R", "reset the view"},
+    {"left mouse", "place (paint mode: recolour)"},
+    {"right mouse", "erase"},
+    {"P", "paint mode on / off"},
+    {"B", "sphere / cube brush"},
+    {"scroll", "brush size (radius = size / 2)"},
+    {"1 .. 9, 0", "colour 1 .. 9, 10"},
+    {"Ctrl+Z / Ctrl+Y", "undo / redo the last stroke"},
+    {"Ctrl+S", "save the world as .npy and .vox (current folder)"},
+    {"F1", "this help"},
+    {"F12", "screenshot PNG (current folder; path printed)"},
+    {"Esc", "quit"},
+};
+
+std::string timestamp() {
+    const std::time_t t = std::time(nullptr);
+    std::tm tm{};
+    localtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y%m%d-%H%M%S", &tm);
+    return buf;
+}
+
+void append_bytes(void* context, void* data, int size) {
+    static_cast<std::string*>(context)->append(static_cast<const char*>(data),
+                                               static_cast<std::size_t>(size));
+}
+
+void write_png(const std::filesystem::path& path, const vk::Image& image) {
+    std::string png;
+    if (stbi_write_png_to_func(append_bytes, &png, static_cast<int>(image.width),
+                               static_cast<int>(image.height), 4, image.rgba.data(),
+                               static_cast<int>(image.width * 4)) == 0) {
+        throw std::runtime_error("PNG encoding failed for " + std::to_string(image.width) + "x" +
+                                 std::to_string(image.height));
+    }
+    write_text_file(path, png);
+}
+
+bool display_present() {
+    const char* x = std::getenv("DISPLAY");
+    const char* w = std::getenv("WAYLAND_DISPLAY");
+    return (x != nullptr && *x != '\0') || (w != nullptr && *w != '\0');
+}
+
+int no_display(const std::string& why) {
+    std::cerr << "voxfield view: no display (" << why
+              << "); render headless instead: voxfield render WORLD -o OUT.png\n";
+    return 2;
+}
+
+// The world, its field on the OpenCL device and the ray marcher reading it.
+class Session {
+  public:
+    Session(ocl::Context& cl, vk::Context& vkc, Palette palette, ocl::GeneratorOptions options)
+        : cl_(cl), vk_(vkc), palette_(palette), options_(options) {
+        marcher_ = std::make_unique<vk::Raymarcher>(vk_);
+    }
+
+    // Regenerates everything for `world` (new algorithm, chunk, scene or a large undo).
+    double rebuild(World world) {
+        const auto t = Clock::now();
+        options_ = ocl::resolve_options(options_, world.dims());
+        field_.reset();
+        field_ = std::make_unique<ocl::IncrementalField>(cl_, std::move(world), palette_, options_);
+        dirty_ = true;
+        return ms_since(t);
+    }
+
+    ocl::UpdateStats apply(const std::vector<Brush>& batch) {
+        ocl::UpdateStats s = field_->apply(batch);
+        for (const EditResult& e : s.edits) {
+            dirty_ = dirty_ || e.changed();
+        }
+        return s;
+    }
+
+    // The field to Vulkan (sharing path 3: read back and copied) when it changed.
+    void sync() {
+        if (!dirty_) {
+            return;
+        }
+        const std::vector<std::uint8_t> bytes = field_->read();
+        packed_.resize(bytes.size() / 4);
+        std::memcpy(packed_.data(), bytes.data(), packed_.size() * 4);
+        marcher_->upload(field_->world(), palette_, packed_);
+        dirty_ = false;
+    }
+
+    vk::Image render(const vk::RenderOptions& r) {
+        sync();
+        return marcher_->render(r);
+    }
+
+    const World& world() const { return field_->world(); }
+    const Palette& palette() const { return palette_; }
+    ocl::GeneratorOptions& options() { return options_; }
+    std::vector<std::uint8_t> read_field() { return field_->read(); }
+    vk::Raymarcher& marcher() { return *marcher_; }
+
+  private:
+    ocl::Context& cl_;
+    vk::Context& vk_;
+    Palette palette_;
+    ocl::GeneratorOptions options_;
+    std::unique_ptr<ocl::IncrementalField> field_;
+    std::unique_ptr<vk::Raymarcher> marcher_;
+    std::vector<std::uint32_t> packed_;
+    bool dirty_ = true;
+};
+
+struct FrameRecord {
+    double time_s = 0, frame_ms = 0, update_ms = 0, raymarch_ms = 0;
+    bool edit = false;
+};
+
+nlohmann::json summary_json(const Summary& s) {
+    return {{"n", s.n},
+            {"mean_ms", s.mean},
+            {"median_ms", s.median},
+            {"std_ms", s.std},
+            {"min_ms", s.min},
+            {"max_ms", s.max},
+            {"ci95_ms", {s.ci95_lo, s.ci95_hi}}};
+}
+
+std::string fixed(double v, int digits) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+    return buf;
+}
+
+void print_summary(const std::string& what, const Summary& s) {
+    std::cout << "  " << what << ": n " << s.n << ", mean " << fixed(s.mean, 3) << " ms, median "
+              << fixed(s.median, 3) << ", std " << fixed(s.std, 3) << ", min " << fixed(s.min, 3)
+              << ", max " << fixed(s.max, 3) << ", 95% CI [" << fixed(s.ci95_lo, 3) << ", "
+              << fixed(s.ci95_hi, 3) << "]\n";
+}
+
+// Edge detection for keys polled once per frame.
+class Keys {
+  public:
+    explicit Keys(GLFWwindow* w) : w_(w) {}
+    bool down(int key) const { return glfwGetKey(w_, key) == GLFW_PRESS; }
+    bool pressed(int key) {
+        const bool now = down(key);
+        bool& was = state_[key & 511];
+        const bool edge = now && !was;
+        was = now;
+        return edge;
+    }
+
+  private:
+    GLFWwindow* w_;
+    bool state_[512] = {};
+};
+
+struct Window {
+    GLFWwindow* handle = nullptr;
+    ~Window() {
+        if (handle != nullptr) {
+            glfwDestroyWindow(handle);
+        }
+        glfwTerminate();
+    }
+};
+
+int run_view(const ViewCliOptions& o) {
+    // Everything the user typed is checked before any device or window is touched.
+    if (!o.input.empty() && (o.world != 0 || !o.dims.empty())) {
+        throw InputError("give either INPUT or --world/--dims, not both");
+    }
+    if (o.world != 0 && !o.dims.empty()) {
+        throw InputError("give either --world N or --dims X,Y,Z, not both");
+    }
+    if (!o.screenshot.empty()) {
+        require_output_folder(o.screenshot);
+    }
+    for (const std::string& p : {o.field_output, o.world_output, o.json, o.csv}) {
+        if (!p.empty()) {
+            require_output_folder(p);
+        }
+    }
+    if (!(o.interval_ms > 0) || !(o.duration_s > 0)) {
+        throw InputError("--interval-ms and --duration-s must be positive");
+    }
+    std::vector<Edit> scripted;
+    if (!o.edits.empty()) {
+        scripted = read_edits(o.edits);
+    }
+    const bool have_display = display_present();
+    if (!have_display && !o.benchmark) {
+        return no_display("neither $DISPLAY nor $WAYLAND_DISPLAY is set");
+    }
+    bool windowed = have_display;
+    Window window;
+    if (windowed) {
+        glfwInitHint(GLFW_JOYSTICK_HAT_BUTTONS, GLFW_FALSE);
+        if (glfwInit() != GLFW_TRUE) {
+            const char* desc = nullptr;
+            glfwGetError(&desc);
+            if (!o.benchmark) {
+                return no_display(std::string("cannot open it: ") +
+                                  (desc != nullptr ? desc : "glfwInit failed"));
+            }
+            windowed = false;
+        } else if (glfwVulkanSupported() != GLFW_TRUE) {
+            if (!o.benchmark) {
+                return no_display("GLFW finds no Vulkan loader able to present to it");
+            }
+            windowed = false;
+        }
+    }
+    if (!windowed) {
+        std::cout << "view: no display, benchmark runs headless at " << o.width << "x" << o.height
+                  << '\n';
+    }
+
+    // The world.
+    VoxModel model{World(Dims{1, 1, 1}), Palette::dissertation()};
+    std::string world_name;
+    if (!o.input.empty()) {
+        model = load_world(o.input);
+        world_name = o.input;
+    } else {
+        const Dims dims = !o.dims.empty() ? parse_dims(o.dims)
+                                          : Dims{o.world ? o.world : 128, o.world ? o.world : 128,
+                                                 o.world ? o.world : 128};
+        model.world = make_scene(o.scene, dims, o.scene_seed);
+        world_name = "scene " + o.scene;
+    }
+    const Dims dims = model.world.dims();
+    ocl::GeneratorOptions gopts = generator_options(o.gen, Format::packed32, dims);
+    const std::uint32_t bench_chunk = gopts.chunk != 0 ? gopts.chunk : ocl::kDefaultChunk;
+
+    ocl::Context cl_ctx(ocl::select_device(o.device));
+    vk::Context vk_ctx;
+    Session session(cl_ctx, vk_ctx, model.palette, gopts);
+    const double build_ms = session.rebuild(std::move(model.world));
+    std::cout << "opencl:  " << cl_ctx.info().name << " (" << cl_ctx.info().type << ")\n"
+              << "vulkan:  " << vk_ctx.info().name << " (" << vk_ctx.info().type << ")\n"
+              << "world:   " << world_name << " " << dims.to_string() << ", algorithm "
+              << ocl::to_string(session.options().algorithm)
+              << (session.options().chunk ? ", chunk " + std::to_string(session.options().chunk)
+                                          : std::string(", global"))
+              << ", field built in " << fixed(build_ms, 1) << " ms\n";
+
+    // Window, swapchain, overlay.
+    std::unique_ptr<vk::Presenter> presenter;
+    VkDescriptorPool imgui_pool = VK_NULL_HANDLE;
+    bool imgui_ready = false;
+    if (windowed) {
+        glfwWindowHint(GLFW_CLIENT_API, GLFW_NO_API);
+        glfwWindowHint(GLFW_RESIZABLE, GLFW_TRUE);
+        glfwWindowHint(GLFW_SCALE_TO_MONITOR, GLFW_TRUE);
+        window.handle = glfwCreateWindow(static_cast<int>(o.width), static_cast<int>(o.height),
+                                         "voxfield", nullptr, nullptr);
+        if (window.handle == nullptr) {
+            const char* desc = nullptr;
+            glfwGetError(&desc);
+            return no_display(std::string("cannot create a window: ") +
+                              (desc != nullptr ? desc : "unknown GLFW error"));
+        }
+        vk::PresenterOptions po;
+        std::uint32_t n = 0;
+        const char** exts = glfwGetRequiredInstanceExtensions(&n);
+        for (std::uint32_t i = 0; i < n; ++i) {
+            po.instance_extensions.emplace_back(exts[i]);
+        }
+        GLFWwindow* handle = window.handle;
+        po.make_surface = [handle](VkInstance instance) {
+            VkSurfaceKHR surface = VK_NULL_HANDLE;
+            vk::check(glfwCreateWindowSurface(instance, handle, nullptr, &surface),
+                      "glfwCreateWindowSurface");
+            return surface;
+        };
+        po.device = std::to_string(vk_ctx.info().index);
+        if (o.benchmark) {
+            po.modes = {vk::PresentMode::immediate, vk::PresentMode::mailbox,
+                        vk::PresentMode::fifo};
+        }
+        presenter = std::make_unique<vk::Presenter>(po);
+    }
+    struct ImGuiGuard {
+        bool* ready;
+        vk::Presenter* p;
+        VkDescriptorPool* pool;
+        ~ImGuiGuard() {
+            if (*ready) {
+                p->wait_idle();
+                ImGui_ImplVulkan_Shutdown();
+                ImGui_ImplGlfw_Shutdown();
+                ImGui::DestroyContext();
+            }
+            if (*pool != VK_NULL_HANDLE) {
+                vkDestroyDescriptorPool(p->device(), *pool, nullptr);
+            }
+        }
+    };
+    std::optional<ImGuiGuard> imgui_guard;
+    if (presenter) {
+        imgui_guard.emplace(ImGuiGuard{&imgui_ready, presenter.get(), &imgui_pool});
+        VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 16}};
+        VkDescriptorPoolCreateInfo dp{};
+        dp.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO;
+        dp.flags = VK_DESCRIPTOR_POOL_CREATE_FREE_DESCRIPTOR_SET_BIT;
+        dp.maxSets = 16;
+        dp.poolSizeCount = 1;
+        dp.pPoolSizes = sizes;
+        vk::check(vkCreateDescriptorPool(presenter->device(), &dp, nullptr, &imgui_pool),
+                  "vkCreateDescriptorPool", "overlay");
+        ImGui::CreateContext();
+        ImGui::GetIO().IniFilename = nullptr;
+        ImGui::StyleColorsDark();
+        ImGui_ImplGlfw_InitForVulkan(window.handle, true);
+        ImGui_ImplVulkan_InitInfo ii{};
+        ii.Instance = presenter->instance();
+        ii.PhysicalDevice = presenter->physical();
+        ii.Device = presenter->device();
+        ii.QueueFamily = presenter->queue_family();
+        ii.Queue = presenter->queue();
+        ii.DescriptorPool = imgui_pool;
+        ii.MinImageCount = 2;
+        ii.ImageCount = 3;
+        ii.MSAASamples = VK_SAMPLE_COUNT_1_BIT;
+        ImGui_ImplVulkan_Init(&ii, presenter->render_pass());
+        imgui_ready = true;
+        presenter->submit_and_wait(
+            [](VkCommandBuffer cmd) { ImGui_ImplVulkan_CreateFontsTexture(cmd); });
+        ImGui_ImplVulkan_DestroyFontUploadObjects();
+        glfwSetInputMode(window.handle, GLFW_CURSOR, GLFW_CURSOR_DISABLED);
+        std::cout << "window:  " << presenter->device_name() << ", present mode "
+                  << vk::to_string(vk::PresentMode::fifo) << " requested"
+                  << (o.benchmark ? " (benchmark: immediate/mailbox preferred)" : "")
+                  << "; F1 lists the keys\n";
+    }
+
+    // State of the interactive session.
+    ViewCamera camera(dims);
+    vk::RenderOptions ropts;
+    ropts.shading = o.shading == "flat" ? vk::Shading::flat : vk::Shading::lit;
+    ropts.sky_gradient = ropts.shading == vk::Shading::lit;
+    ropts.sky = Rgba{0, 0, 0, 255};
+    BrushSettings brush;
+    brush.size = 5;
+    brush.material = 4;
+    bool paint_mode = false, show_help = false, stroke_open = false;
+    UndoStack undo;
+    std::optional<Brush> last_stroke_brush;
+    std::optional<RandomEdits> random_edits;
+    if (o.benchmark) {
+        random_edits.emplace(dims, bench_chunk, o.seed);
+    }
+    std::vector<FrameRecord> records;
+    std::deque<float> hist_frame, hist_update, hist_march;
+    double last_update_ms = 0;
+    int algorithm_index = static_cast<int>(session.options().algorithm);
+    int scene_index = 0;
+    const std::vector<std::string> scenes = scene_names();
+    for (std::size_t i = 0; i < scenes.size(); ++i) {
+        if (scenes[i] == o.scene) {
+            scene_index = static_cast<int>(i);
+        }
+    }
+    int chunk_log2 = 4;
+    int focus_size = 1;
+    Keys keys(window.handle);
+    double cursor_x = 0, cursor_y = 0;
+    if (window.handle != nullptr) {
+        glfwGetCursorPos(window.handle, &cursor_x, &cursor_y);
+    }
+
+    const auto start = Clock::now();
+    auto last = start;
+    double next_edit_s = o.interval_ms / 1000.0;
+    std::uint64_t frame = 0;
+    vk::Image image;
+    bool running = true;
+    int exit_code = 0;
+    while (running) {
+        const auto t0 = Clock::now();
+        const double dt = std::chrono::duration<double>(t0 - last).count();
+        last = t0;
+        const double time_s = std::chrono::duration<double>(t0 - start).count();
+        std::vector<Brush> batch;
+        bool stroke_batch = false;
+        std::optional<VoxelChanges> undo_changes;
+
+        std::uint32_t fb_w = o.width, fb_h = o.height;
+        if (window.handle != nullptr) {
+            glfwPollEvents();
+            if (glfwWindowShouldClose(window.handle) != 0) {
+                break;
+            }
+            int w = 0, h = 0;
+            glfwGetFramebufferSize(window.handle, &w, &h);
+            fb_w = static_cast<std::uint32_t>(std::max(w, 0));
+            fb_h = static_cast<std::uint32_t>(std::max(h, 0));
+            int ww = 0, wh = 0;
+            glfwGetWindowSize(window.handle, &ww, &wh);
+            const ImGuiIO& io = ImGui::GetIO();
+            const bool ui_mode = keys.down(GLFW_KEY_LEFT_ALT);
+            glfwSetInputMode(window.handle, GLFW_CURSOR,
+                             ui_mode ? GLFW_CURSOR_NORMAL : GLFW_CURSOR_DISABLED);
+            double cx = 0, cy = 0;
+            glfwGetCursorPos(window.handle, &cx, &cy);
+            CameraInput in;
+            const bool ctrl = keys.down(GLFW_KEY_LEFT_CONTROL) || keys.down(GLFW_KEY_RIGHT_CONTROL);
+            if (!io.WantCaptureKeyboard) {
+                in.forward = keys.down(GLFW_KEY_W) || keys.down(GLFW_KEY_UP);
+                in.back = (keys.down(GLFW_KEY_S) && !ctrl) || keys.down(GLFW_KEY_DOWN);
+                in.left = keys.down(GLFW_KEY_A) || keys.down(GLFW_KEY_LEFT);
+                in.right = keys.down(GLFW_KEY_D) || keys.down(GLFW_KEY_RIGHT);
+                in.up = keys.down(GLFW_KEY_SPACE);
+                in.down = keys.down(GLFW_KEY_LEFT_SHIFT);
+                in.fast = keys.down(GLFW_KEY_LEFT_CONTROL);
+            }
+            if (!ui_mode) {
+                in.look_dx = cx - cursor_x;
+                in.look_dy = cy - cursor_y;
+            }
+            cursor_x = cx;
+            cursor_y = cy;
+            camera.update(in, dt);
+
+            if (keys.pressed(GLFW_KEY_ESCAPE)) {
+                running = false;
+            }
+            if (keys.pressed(GLFW_KEY_F1)) {
+                show_help = !show_help;
+            }
+            if (keys.pressed(GLFW_KEY_TAB)) {
+                camera.toggle_mode();
+            }
+            if (keys.pressed(GLFW_KEY_R) && !ctrl) {
+                camera.reset();
+            }
+            if (keys.pressed(GLFW_KEY_P)) {
+                paint_mode = !paint_mode;
+            }
+            if (keys.pressed(GLFW_KEY_B)) {
+                brush.shape =
+                    brush.shape == BrushShape::sphere ? BrushShape::cube : BrushShape::sphere;
+            }
+            for (int k = 0; k <= 9; ++k) {
+                if (keys.pressed(GLFW_KEY_0 + k)) {
+                    brush.material = static_cast<std::uint8_t>(k == 0 ? 10 : k);
+                }
+            }
+            if (!io.WantCaptureMouse && io.MouseWheel != 0) {
+                brush.size = scroll_brush_size(brush.size, io.MouseWheel, kMaxBrushSize);
+            }
+            const bool z = keys.pressed(GLFW_KEY_Z), y = keys.pressed(GLFW_KEY_Y);
+            const bool s = keys.pressed(GLFW_KEY_S), f12 = keys.pressed(GLFW_KEY_F12);
+            if (ctrl && z) {
+                undo_changes = undo.undo();
+            } else if (ctrl && y) {
+                undo_changes = undo.redo();
+            }
+            if (ctrl && s) {
+                const std::string stem = "voxfield-world-" + timestamp();
+                const NpyArray a = npy_from_world(session.world());
+                write_npy(stem + ".npy", a.type, a.dims, a.data);
+                std::cout << "saved " << stem << ".npy\n";
+                try {
+                    write_vox(stem + ".vox", session.world(), session.palette());
+                    std::cout << "saved " << stem << ".vox\n";
+                } catch (const InputError& e) {
+                    std::cout << "not saved as .vox: " << e.what() << '\n';
+                }
+            }
+            if (f12 && !image.rgba.empty()) {
+                const std::string path = "voxfield-" + timestamp() + ".png";
+                write_png(path, image);
+                std::cout << "screenshot " << std::filesystem::absolute(path).string() << '\n';
+            }
+
+            // Editing: the pick ray through the crosshair (cursor captured) or the cursor.
+            const bool lmb =
+                glfwGetMouseButton(window.handle, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+            const bool rmb =
+                glfwGetMouseButton(window.handle, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
+            if ((lmb || rmb) && !io.WantCaptureMouse && fb_w > 0 && fb_h > 0) {
+                double px = fb_w / 2.0, py = fb_h / 2.0;
+                if (ui_mode && ww > 0 && wh > 0) {
+                    px = cx * fb_w / ww;
+                    py = cy * fb_h / wh;
+                }
+                const Vec3d dir =
+                    pixel_direction(camera.forward(), camera.settings.fov_deg, fb_w, fb_h, px, py);
+                const auto hit = pick_voxel(session.world(), camera.position(), dir);
+                if (hit) {
+                    const Tool tool = rmb ? Tool::erase : (paint_mode ? Tool::paint : Tool::place);
+                    const auto b = brush_for_pick(tool, brush, *hit);
+                    if (b && b != last_stroke_brush) {
+                        if (!stroke_open) {
+                            undo.begin_stroke();
+                            stroke_open = true;
+                        }
+                        batch.push_back(*b);
+                        stroke_batch = true;
+                        last_stroke_brush = b;
+                    }
+                }
+            } else if (stroke_open) {
+                undo.end_stroke();
+                stroke_open = false;
+                last_stroke_brush.reset();
+            }
+        }
+
+        // Scripted and benchmark edits.
+        if (frame < scripted.size()) {
+            batch.push_back(scripted[frame].brush);
+        }
+        bool bench_edit = false;
+        if (random_edits && time_s >= next_edit_s) {
+            batch.push_back(random_edits->next());
+            next_edit_s += o.interval_ms / 1000.0;
+            bench_edit = true;
+        }
+        double update_ms = 0;
+        if (undo_changes && !undo_changes->empty()) {
+            if (undo_changes->size() <= 4096) {
+                const auto s = session.apply(brushes_for_changes(*undo_changes, dims));
+                update_ms += s.update_ms;
+            } else {
+                World w = session.world();
+                apply_changes(w, *undo_changes);
+                update_ms += session.rebuild(std::move(w));
+            }
+        }
+        if (!batch.empty()) {
+            const ocl::UpdateStats s = session.apply(batch);
+            update_ms += s.update_ms;
+            if (stroke_batch) {
+                // Only the stroke's brushes (the first ones of the batch) are undoable.
+                for (std::size_t i = 0; i < s.edits.size() && i < 1; ++i) {
+                    undo.record(s.edits[i]);
+                }
+            }
+        }
+        if (update_ms > 0) {
+            last_update_ms = update_ms;
+        }
+
+        // Render at the framebuffer's size (HiDPI: pixels, not window units).
+        if (fb_w > 0 && fb_h > 0) {
+            ropts.width = std::min(fb_w, vk::kMaxImageSize);
+            ropts.height = std::min(fb_h, vk::kMaxImageSize);
+            ropts.camera.position = camera.position();
+            ropts.camera.target = camera.target();
+            ropts.camera.fov_deg = camera.settings.fov_deg;
+            image = session.render(ropts);
+        }
+
+        if (presenter) {
+            ImGui_ImplVulkan_NewFrame();
+            ImGui_ImplGlfw_NewFrame();
+            ImGui::NewFrame();
+            const ImGuiIO& io = ImGui::GetIO();
+            // Crosshair.
+            ImDrawList* fg = ImGui::GetForegroundDrawList();
+            const ImVec2 c(io.DisplaySize.x / 2, io.DisplaySize.y / 2);
+            fg->AddLine(ImVec2(c.x - 8, c.y), ImVec2(c.x + 9, c.y), IM_COL32(255, 255, 255, 220),
+                        2);
+            fg->AddLine(ImVec2(c.x, c.y - 8), ImVec2(c.x, c.y + 9), IM_COL32(255, 255, 255, 220),
+                        2);
+
+            ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
+            ImGui::Begin("voxfield");
+            const auto push = [](std::deque<float>& h, double v) {
+                h.push_back(static_cast<float>(v));
+                if (h.size() > 120) {
+                    h.pop_front();
+                }
+            };
+            const double frame_ms = records.empty() ? 0 : records.back().frame_ms;
+            push(hist_frame, frame_ms);
+            push(hist_update, last_update_ms);
+            push(hist_march, image.raymarch_ms);
+            const std::vector<float> hf(hist_frame.begin(), hist_frame.end());
+            const std::vector<float> hu(hist_update.begin(), hist_update.end());
+            const std::vector<float> hm(hist_march.begin(), hist_march.end());
+            ImGui::Text("%.1f FPS, frame %.2f ms", frame_ms > 0 ? 1000.0 / frame_ms : 0.0,
+                        frame_ms);
+            ImGui::PlotLines("frame ms", hf.data(), static_cast<int>(hf.size()));
+            ImGui::Text("field update %.3f ms (device)", last_update_ms);
+            ImGui::PlotLines("update ms", hu.data(), static_cast<int>(hu.size()));
+            ImGui::Text("ray march %.3f ms (GPU timestamps)", image.raymarch_ms);
+            ImGui::PlotLines("march ms", hm.data(), static_cast<int>(hm.size()));
+            const World& w = session.world();
+            ImGui::Text("world %s, %zu solid of %zu voxels", w.dims().to_string().c_str(),
+                        w.solid_count(), w.size());
+            ImGui::Text("memory %.1f bytes/voxel (world 1 + packed32 field 4 + voxels 1)", 6.0);
+            ImGui::Text("OpenCL: %s", cl_ctx.info().name.c_str());
+            ImGui::Text("Vulkan: %s / present %s (%s)", vk_ctx.info().name.c_str(),
+                        presenter->device_name().c_str(), vk::to_string(presenter->mode()).c_str());
+            ImGui::Text("sharing: %s", session.marcher().sharing_path().c_str());
+            ImGui::Separator();
+            const auto& names = ocl::algorithm_names();
+            std::vector<const char*> cnames;
+            for (const auto& n : names) {
+                cnames.push_back(n.c_str());
+            }
+            bool regen = false;
+            if (ImGui::Combo("algorithm", &algorithm_index, cnames.data(),
+                             static_cast<int>(cnames.size()))) {
+                regen = true;
+            }
+            ImGui::SliderInt("chunk 2^k", &chunk_log2, 3, 7);
+            ImGui::SliderInt("focus size", &focus_size, 0, 8);
+            std::vector<const char*> snames;
+            for (const auto& n : scenes) {
+                snames.push_back(n.c_str());
+            }
+            ImGui::Combo("scene", &scene_index, snames.data(), static_cast<int>(snames.size()));
+            const bool new_scene = ImGui::Button("regenerate");
+            ImGui::SameLine();
+            regen = ImGui::Button("apply algorithm") || regen;
+            int shading = ropts.shading == vk::Shading::lit ? 1 : 0;
+            const char* shadings[] = {"flat", "lit"};
+            if (ImGui::Combo("shading", &shading, shadings, 2)) {
+                ropts.shading = shading == 1 ? vk::Shading::lit : vk::Shading::flat;
+                ropts.sky_gradient = shading == 1;
+            }
+            ImGui::Text("brush: %s %s, size %lld, colour %d  (%s)", paint_mode ? "paint" : "place",
+                        to_string(brush.shape).c_str(), static_cast<long long>(brush.size),
+                        brush.material, camera.mode() == ViewCamera::Mode::orbit ? "orbit" : "fly");
+            ImGui::Text("undo %zu, redo %zu. F1: keys", undo.undo_count(), undo.redo_count());
+            ImGui::End();
+            if (show_help) {
+                ImGui::SetNextWindowPos(ImVec2(io.DisplaySize.x / 2, io.DisplaySize.y / 2),
+                                        ImGuiCond_Always, ImVec2(0.5f, 0.5f));
+                ImGui::Begin("keys (F1)", &show_help, ImGuiWindowFlags_AlwaysAutoResize);
+                for (const auto& k : kHelp) {
+                    ImGui::Text("%-20s %s", k[0], k[1]);
+                }
+                ImGui::End();
+            }
+            ImGui::Render();
+            if (regen || new_scene) {
+                try {
+                    session.options().algorithm =
+                        ocl::parse_algorithm(names[static_cast<std::size_t>(algorithm_index)]);
+                    session.options().chunk =
+                        ocl::always_chunked(session.options().algorithm) || session.options().chunk
+                            ? (1u << chunk_log2)
+                            : 0;
+                    session.options().focus.reset();
+                    World next = new_scene
+                                     ? make_scene(scenes[static_cast<std::size_t>(scene_index)],
+                                                  dims, o.scene_seed)
+                                     : World(session.world());
+                    if (session.options().focus == std::nullopt && focus_size > 0) {
+                        (void)focus_size;  // focus: the centre chunk (resolve_options default)
+                    }
+                    const double ms = session.rebuild(std::move(next));
+                    undo.clear();
+                    std::cout << "regenerated: " << ocl::to_string(session.options().algorithm)
+                              << " in " << fixed(ms, 1) << " ms\n";
+                } catch (const InputError& e) {
+                    std::cout << "cannot switch: " << e.what() << '\n';
+                }
+            }
+            presenter->present(image.rgba.data(), image.width, image.height, fb_w, fb_h,
+                               [](VkCommandBuffer cmd) {
+                                   ImGui_ImplVulkan_RenderDrawData(ImGui::GetDrawData(), cmd);
+                               });
+        }
+
+        FrameRecord rec;
+        rec.time_s = time_s;
+        rec.frame_ms = ms_since(t0);
+        rec.update_ms = update_ms;
+        rec.raymarch_ms = image.raymarch_ms;
+        rec.edit = bench_edit;
+        records.push_back(rec);
+        ++frame;
+        if (o.frames != 0 && frame >= o.frames) {
+            running = false;
+        }
+        if (o.benchmark && time_s >= o.duration_s) {
+            running = false;
+        }
+    }
+    if (stroke_open) {
+        undo.end_stroke();
+    }
+
+    if (!o.screenshot.empty()) {
+        if (image.rgba.empty()) {
+            throw std::runtime_error("no frame was rendered for --screenshot");
+        }
+        write_png(o.screenshot, image);
+        std::cout << "screenshot " << o.screenshot << " (" << image.width << "x" << image.height
+                  << ", frame " << frame << ")\n";
+    }
+    if (!o.world_output.empty()) {
+        const NpyArray a = npy_from_world(session.world());
+        write_npy(o.world_output, a.type, a.dims, a.data);
+    }
+    if (!o.field_output.empty()) {
+        write_npy(o.field_output, npy_type(Format::packed32), dims, session.read_field());
+    }
+    std::cout << "frames:  " << frame << '\n';
+
+    if (o.benchmark) {
+        std::vector<double> frame_ms, update_ms, march_ms;
+        for (const FrameRecord& r : records) {
+            frame_ms.push_back(r.frame_ms);
+            if (r.edit) {
+                update_ms.push_back(r.update_ms);
+            }
+            if (r.raymarch_ms >= 0) {
+                march_ms.push_back(r.raymarch_ms);
+            }
+        }
+        const Summary sf = summarize(frame_ms), su = summarize(update_ms), sm = summarize(march_ms);
+        std::cout << "benchmark: seed " << o.seed << ", an edit every " << o.interval_ms
+                  << " ms for " << o.duration_s << " s, " << records.size() << " frames, "
+                  << update_ms.size() << " edits, " << ropts.width << "x" << ropts.height
+                  << (presenter ? ", present " + vk::to_string(presenter->mode())
+                                : std::string(", headless"))
+                  << '\n';
+        print_summary("frame (incl. field update)", sf);
+        print_summary("field update (edit frames)", su);
+        print_summary("ray march", sm);
+        if (sf.mean > 0) {
+            std::cout << "  mean FPS " << fixed(1000.0 / sf.mean, 1) << '\n';
+        }
+        if (!o.json.empty()) {
+            nlohmann::json j;
+            j["device"] = device_json(cl_ctx.info());
+            j["vulkan"] = vk_ctx.info().name;
+            j["commit"] = commit();
+            j["world"] = {dims.x, dims.y, dims.z};
+            j["source"] = world_name;
+            j["algorithm"] = ocl::to_string(session.options().algorithm);
+            j["chunk"] = session.options().chunk;
+            j["seed"] = o.seed;
+            j["interval_ms"] = o.interval_ms;
+            j["duration_s"] = o.duration_s;
+            j["image"] = {ropts.width, ropts.height};
+            j["present"] = presenter ? vk::to_string(presenter->mode()) : "headless";
+            j["sharing"] = session.marcher().sharing_path();
+            j["summary"] = {{"frame", summary_json(sf)},
+                            {"field_update", summary_json(su)},
+                            {"raymarch", summary_json(sm)}};
+            nlohmann::json frames = nlohmann::json::array();
+            for (const FrameRecord& r : records) {
+                frames.push_back({{"time_s", r.time_s},
+                                  {"frame_ms", r.frame_ms},
+                                  {"update_ms", r.update_ms},
+                                  {"raymarch_ms", r.raymarch_ms},
+                                  {"edit", r.edit}});
+            }
+            j["frames"] = frames;
+            write_json_file(o.json, j);
+        }
+        if (!o.csv.empty()) {
+            std::ostringstream csv;
+            csv << "frame,time_s,edit,frame_ms,update_ms,raymarch_ms\n";
+            for (std::size_t i = 0; i < records.size(); ++i) {
+                const FrameRecord& r = records[i];
+                csv << i << ',' << r.time_s << ',' << (r.edit ? 1 : 0) << ',' << r.frame_ms << ','
+                    << r.update_ms << ',' << r.raymarch_ms << '\n';
+            }
+            write_text_file(o.csv, csv.str());
+        }
+    }
+    return exit_code;
+}
+
+}  // namespace
+
+Command add_view(CLI::App& root) {
+    auto o = std::make_shared<ViewCliOptions>();
+    auto* app = root.add_subcommand(
+        "view",
+        "Interactive viewer: fly through the world, paint voxels, switch algorithms (needs a "
+        "display; without one it exits 2 and suggests `render`, except --benchmark, which "
+        "then runs headless)");
+    app->add_option("INPUT", o->input, "World: MagicaVoxel .vox or uint8/16/32 .npy (Z,Y,X)");
+    app->add_option("--world", o->world, "Generate a cube world of N^3 voxels (default 128)")
+        ->check(CLI::Range(1u, 4096u));
+    app->add_option("--dims", o->dims, "Generate a world of X,Y,Z voxels");
+    app->add_option("--scene", o->scene, "Scene for a generated world")
+        ->check(CLI::IsMember(scene_names()))
+        ->capture_default_str();
+    add_generator_flags(*app, o->gen);
+    app->add_option("--device", o->device,
+                    "OpenCL device: cpu, gpu or an index from `voxfield devices` (Vulkan: "
+                    "$VOXFIELD_VK_DEVICE)");
+    app->add_option("--shading", o->shading, "flat or lit")
+        ->check(CLI::IsMember({"flat", "lit"}))
+        ->capture_default_str();
+    app->add_option("--width", o->width, "Window (or headless image) width")
+        ->check(CLI::Range(1u, vk::kMaxImageSize))
+        ->capture_default_str();
+    app->add_option("--height", o->height, "Window (or headless image) height")
+        ->check(CLI::Range(1u, vk::kMaxImageSize))
+        ->capture_default_str();
+    app->add_option("--frames", o->frames, "Quit after N frames (scripted runs)");
+    app->add_option("--screenshot", o->screenshot,
+                    "Write the last frame's ray-marched image (no overlay) as PNG at exit");
+    app->add_option("--edits", o->edits,
+                    "Scripted edits (the replay file format), one applied per frame from the "
+                    "first frame");
+    app->add_option("--field-output", o->field_output,
+                    "Write the final distance field (packed32, uint32 .npy) at exit");
+    app->add_option("--world-output", o->world_output, "Write the final world (.npy) at exit");
+    app->add_flag("--benchmark", o->benchmark,
+                  "The dissertation's benchmark: a random sphere every --interval-ms (seeded, "
+                  "reproducible), vsync off, per-frame times, summary printed and saved");
+    app->add_option("--seed", o->seed, "Benchmark seed")->capture_default_str();
+    app->add_option("--interval-ms", o->interval_ms, "Benchmark: time between edits")
+        ->capture_default_str();
+    app->add_option("--duration-s", o->duration_s, "Benchmark: duration")->capture_default_str();
+    app->add_option("--json", o->json, "Benchmark: summary and per-frame times as JSON");
+    app->add_option("--csv", o->csv, "Benchmark: per-frame times as CSV");
+    return {app, [o] { return run_view(*o); }};
+}
+
+}  // namespace voxfield::cli

@@ -1,0 +1,69 @@
+#pragma once
+// Presenting to a window (the interactive viewer): its own Vulkan instance with the surface
+// extensions the window system asks for, a device and queue that can present to the surface,
+// and a swapchain that is recreated on resize. Each frame copies an RGBA8 image (what the
+// Raymarcher rendered) into the acquired swapchain image and then runs an overlay callback
+// inside a render pass that loads it (Dear ImGui draws there). vk/ stays free of any window
+// system API: the caller passes the required instance extensions and a function that makes
+// the surface.
+#include <vulkan/vulkan.h>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "voxfield/vk/context.hpp"
+
+namespace voxfield::vk {
+
+enum class PresentMode { fifo, mailbox, immediate };
+std::string to_string(PresentMode mode);
+
+struct PresenterOptions {
+    std::vector<std::string> instance_extensions;          // e.g. glfwGetRequiredInstanceExtensions
+    std::function<VkSurfaceKHR(VkInstance)> make_surface;  // throws on failure
+    // Preferred modes in order; FIFO (always available, vsync) is the fallback.
+    std::vector<PresentMode> modes = {PresentMode::fifo};
+    std::string device;  // as Context: "" ($VOXFIELD_VK_DEVICE or the best), gpu, cpu, N
+};
+
+class Presenter {
+  public:
+    explicit Presenter(const PresenterOptions& options);
+    ~Presenter();
+    Presenter(const Presenter&) = delete;
+    Presenter& operator=(const Presenter&) = delete;
+
+    VkInstance instance() const;
+    VkPhysicalDevice physical() const;
+    VkDevice device() const;
+    VkQueue queue() const;
+    std::uint32_t queue_family() const;
+    VkRenderPass render_pass() const;  // the overlay's pass (one colour attachment, loaded)
+    std::uint32_t image_count() const;
+    std::uint32_t min_image_count() const;
+    PresentMode mode() const;
+    std::string device_name() const;
+    VkFormat format() const;
+
+    // Presents `rgba` (width x height RGBA8 rows, top to bottom; the part outside the
+    // swapchain's extent is dropped, uncovered parts are black) at framebuffer size
+    // (fb_width, fb_height); recreates the swapchain when that size changed or the surface
+    // reports it out of date. `overlay` records draw commands inside the render pass.
+    // Returns false when the frame was skipped (a zero-size window, e.g. minimised).
+    bool present(const std::uint8_t* rgba, std::uint32_t width, std::uint32_t height,
+                 std::uint32_t fb_width, std::uint32_t fb_height,
+                 const std::function<void(VkCommandBuffer)>& overlay);
+
+    // Records into a fresh command buffer and waits (e.g. the overlay's font upload).
+    void submit_and_wait(const std::function<void(VkCommandBuffer)>& record);
+    void wait_idle();
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace voxfield::vk

@@ -1,0 +1,591 @@
+// Window presentation: swapchain, host image copy, overlay render pass (present.hpp).
+#include "voxfield/vk/present.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace voxfield::vk {
+
+std::string to_string(PresentMode mode) {
+    switch (mode) {
+        case PresentMode::fifo:
+            return "fifo";
+        case PresentMode::mailbox:
+            return "mailbox";
+        case PresentMode::immediate:
+            return "immediate";
+    }
+    return "?";
+}
+
+namespace {
+
+VkPresentModeKHR to_vk(PresentMode m) {
+    switch (m) {
+        case PresentMode::mailbox:
+            return VK_PRESENT_MODE_MAILBOX_KHR;
+        case PresentMode::immediate:
+            return VK_PRESENT_MODE_IMMEDIATE_KHR;
+        case PresentMode::fifo:
+            break;
+    }
+    return VK_PRESENT_MODE_FIFO_KHR;
+}
+
+int type_rank(VkPhysicalDeviceType t) {
+    switch (t) {
+        case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU:
+            return 0;
+        case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU:
+            return 1;
+        case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU:
+            return 2;
+        case VK_PHYSICAL_DEVICE_TYPE_CPU:
+            return 3;
+        default:
+            return 4;
+    }
+}
+
+}  // namespace
+
+struct Presenter::Impl {
+    VkInstance instance = VK_NULL_HANDLE;
+    VkSurfaceKHR surface = VK_NULL_HANDLE;
+    VkPhysicalDevice physical = VK_NULL_HANDLE;
+    VkDevice device = VK_NULL_HANDLE;
+    VkQueue queue = VK_NULL_HANDLE;
+    std::uint32_t family = 0;
+    std::string name;
+    VkPhysicalDeviceMemoryProperties memory{};
+    VkSurfaceFormatKHR format{};
+    bool swizzle = false;  // BGRA swapchain: swap R and B when copying
+    PresentMode mode = PresentMode::fifo;
+    std::vector<PresentMode> wanted;
+
+    VkSwapchainKHR swapchain = VK_NULL_HANDLE;
+    VkExtent2D extent{0, 0};
+    std::uint32_t min_images = 2;
+    std::vector<VkImage> images;
+    std::vector<VkImageView> views;
+    std::vector<VkFramebuffer> framebuffers;
+    VkRenderPass pass = VK_NULL_HANDLE;
+    VkCommandPool pool = VK_NULL_HANDLE;
+    VkCommandBuffer cmd = VK_NULL_HANDLE;
+    VkFence fence = VK_NULL_HANDLE;
+    VkSemaphore acquired = VK_NULL_HANDLE, rendered = VK_NULL_HANDLE;
+
+    VkBuffer staging = VK_NULL_HANDLE;
+    VkDeviceMemory staging_memory = VK_NULL_HANDLE;
+    VkDeviceSize staging_size = 0;
+    void* staging_map = nullptr;
+
+    ~Impl() {
+        if (device != VK_NULL_HANDLE) {
+            vkDeviceWaitIdle(device);
+            destroy_swapchain();
+            destroy_staging();
+            if (pass)
+                vkDestroyRenderPass(device, pass, nullptr);
+            if (fence)
+                vkDestroyFence(device, fence, nullptr);
+            if (acquired)
+                vkDestroySemaphore(device, acquired, nullptr);
+            if (rendered)
+                vkDestroySemaphore(device, rendered, nullptr);
+            if (pool)
+                vkDestroyCommandPool(device, pool, nullptr);
+            vkDestroyDevice(device, nullptr);
+        }
+        if (surface != VK_NULL_HANDLE) {
+            vkDestroySurfaceKHR(instance, surface, nullptr);
+        }
+        if (instance != VK_NULL_HANDLE) {
+            vkDestroyInstance(instance, nullptr);
+        }
+    }
+
+    void destroy_staging() {
+        if (staging)
+            vkDestroyBuffer(device, staging, nullptr);
+        if (staging_memory)
+            vkFreeMemory(device, staging_memory, nullptr);
+        staging = VK_NULL_HANDLE;
+        staging_memory = VK_NULL_HANDLE;
+        staging_map = nullptr;
+        staging_size = 0;
+    }
+
+    void destroy_swapchain() {
+        for (VkFramebuffer f : framebuffers)
+            vkDestroyFramebuffer(device, f, nullptr);
+        for (VkImageView v : views)
+            vkDestroyImageView(device, v, nullptr);
+        framebuffers.clear();
+        views.clear();
+        images.clear();
+        if (swapchain)
+            vkDestroySwapchainKHR(device, swapchain, nullptr);
+        swapchain = VK_NULL_HANDLE;
+    }
+
+    std::uint32_t memory_type(std::uint32_t allowed, VkMemoryPropertyFlags flags) const {
+        for (std::uint32_t i = 0; i < memory.memoryTypeCount; ++i) {
+            if ((allowed & (1u << i)) && (memory.memoryTypes[i].propertyFlags & flags) == flags) {
+                return i;
+            }
+        }
+        throw VkError("vkAllocateMemory", VK_ERROR_OUT_OF_DEVICE_MEMORY,
+                      "no host-visible coherent memory type for the presentation staging buffer");
+    }
+
+    void ensure_staging(VkDeviceSize size) {
+        if (size <= staging_size) {
+            return;
+        }
+        destroy_staging();
+        VkBufferCreateInfo b{};
+        b.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO;
+        b.size = size;
+        b.usage = VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+        check(vkCreateBuffer(device, &b, nullptr, &staging), "vkCreateBuffer", "present staging");
+        VkMemoryRequirements req;
+        vkGetBufferMemoryRequirements(device, staging, &req);
+        VkMemoryAllocateInfo a{};
+        a.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
+        a.allocationSize = req.size;
+        a.memoryTypeIndex =
+            memory_type(req.memoryTypeBits,
+                        VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
+        check(vkAllocateMemory(device, &a, nullptr, &staging_memory), "vkAllocateMemory",
+              "present staging, " + std::to_string(size) + " bytes");
+        check(vkBindBufferMemory(device, staging, staging_memory, 0), "vkBindBufferMemory");
+        check(vkMapMemory(device, staging_memory, 0, VK_WHOLE_SIZE, 0, &staging_map),
+              "vkMapMemory");
+        staging_size = size;
+    }
+
+    void create_swapchain(std::uint32_t w, std::uint32_t h) {
+        vkDeviceWaitIdle(device);
+        VkSurfaceCapabilitiesKHR caps;
+        check(vkGetPhysicalDeviceSurfaceCapabilitiesKHR(physical, surface, &caps),
+              "vkGetPhysicalDeviceSurfaceCapabilitiesKHR");
+        VkExtent2D e = caps.currentExtent;
+        if (e.width == 0xFFFFFFFFu) {
+            e.width = std::clamp(w, caps.minImageExtent.width, caps.maxImageExtent.width);
+            e.height = std::clamp(h, caps.minImageExtent.height, caps.maxImageExtent.height);
+        }
+        std::uint32_t count = 0;
+        vkGetPhysicalDeviceSurfacePresentModesKHR(physical, surface, &count, nullptr);
+        std::vector<VkPresentModeKHR> modes(count);
+        vkGetPhysicalDeviceSurfacePresentModesKHR(physical, surface, &count, modes.data());
+        mode = PresentMode::fifo;
+        for (PresentMode m : wanted) {
+            if (std::find(modes.begin(), modes.end(), to_vk(m)) != modes.end()) {
+                mode = m;
+                break;
+            }
+        }
+        min_images = std::max(caps.minImageCount, 2u);
+        if (caps.maxImageCount != 0) {
+            min_images = std::min(min_images, caps.maxImageCount);
+        }
+        VkSwapchainCreateInfoKHR s{};
+        s.sType = VK_STRUCTURE_TYPE_SWAPCHAIN_CREATE_INFO_KHR;
+        s.surface = surface;
+        s.minImageCount = min_images;
+        s.imageFormat = format.format;
+        s.imageColorSpace = format.colorSpace;
+        s.imageExtent = e;
+        s.imageArrayLayers = 1;
+        s.imageUsage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
+        s.imageSharingMode = VK_SHARING_MODE_EXCLUSIVE;
+        s.preTransform = caps.currentTransform;
+        s.compositeAlpha = (caps.supportedCompositeAlpha & VK_COMPOSITE_ALPHA_OPAQUE_BIT_KHR)
+                               ? VK_COMPOSITE_ALPHA_OPAQUE_BIT_KHR
+                               : VK_COMPOSITE_ALPHA_INHERIT_BIT_KHR;
+        s.presentMode = to_vk(mode);
+        s.clipped = VK_TRUE;
+        s.oldSwapchain = swapchain;
+        VkSwapchainKHR fresh = VK_NULL_HANDLE;
+        check(vkCreateSwapchainKHR(device, &s, nullptr, &fresh), "vkCreateSwapchainKHR",
+              std::to_string(e.width) + "x" + std::to_string(e.height) + ", " + to_string(mode));
+        destroy_swapchain();
+        swapchain = fresh;
+        extent = e;
+        vkGetSwapchainImagesKHR(device, swapchain, &count, nullptr);
+        images.resize(count);
+        vkGetSwapchainImagesKHR(device, swapchain, &count, images.data());
+        for (VkImage image : images) {
+            VkImageViewCreateInfo v{};
+            v.sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO;
+            v.image = image;
+            v.viewType = VK_IMAGE_VIEW_TYPE_2D;
+            v.format = format.format;
+            v.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+            VkImageView view = VK_NULL_HANDLE;
+            check(vkCreateImageView(device, &v, nullptr, &view), "vkCreateImageView");
+            views.push_back(view);
+            VkFramebufferCreateInfo f{};
+            f.sType = VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO;
+            f.renderPass = pass;
+            f.attachmentCount = 1;
+            f.pAttachments = &view;
+            f.width = e.width;
+            f.height = e.height;
+            f.layers = 1;
+            VkFramebuffer fb = VK_NULL_HANDLE;
+            check(vkCreateFramebuffer(device, &f, nullptr, &fb), "vkCreateFramebuffer");
+            framebuffers.push_back(fb);
+        }
+    }
+};
+
+Presenter::Presenter(const PresenterOptions& options) : impl_(std::make_unique<Impl>()) {
+    Impl& m = *impl_;
+    m.wanted = options.modes;
+    std::vector<const char*> exts;
+    for (const auto& e : options.instance_extensions) {
+        exts.push_back(e.c_str());
+    }
+    VkApplicationInfo app{};
+    app.sType = VK_STRUCTURE_TYPE_APPLICATION_INFO;
+    app.pApplicationName = "voxfield view";
+    app.apiVersion = VK_API_VERSION_1_1;
+    VkInstanceCreateInfo ii{};
+    ii.sType = VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO;
+    ii.pApplicationInfo = &app;
+    ii.enabledExtensionCount = static_cast<std::uint32_t>(exts.size());
+    ii.ppEnabledExtensionNames = exts.data();
+    check(vkCreateInstance(&ii, nullptr, &m.instance), "vkCreateInstance",
+          "presentation instance with the window system's surface extensions");
+    m.surface = options.make_surface(m.instance);
+
+    // A device with a queue family that does graphics and presents to the surface.
+    std::uint32_t n = 0;
+    vkEnumeratePhysicalDevices(m.instance, &n, nullptr);
+    std::vector<VkPhysicalDevice> devices(n);
+    vkEnumeratePhysicalDevices(m.instance, &n, devices.data());
+    std::string reasons;
+    int best_rank = 1 << 30;
+    for (std::uint32_t i = 0; i < n; ++i) {
+        VkPhysicalDeviceProperties p;
+        vkGetPhysicalDeviceProperties(devices[i], &p);
+        const bool wanted_index = options.device == std::to_string(i);
+        int rank = type_rank(p.deviceType);
+        if (!options.device.empty() && !wanted_index) {
+            if (options.device == "cpu" && p.deviceType != VK_PHYSICAL_DEVICE_TYPE_CPU)
+                continue;
+            if (options.device == "gpu" && p.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU)
+                continue;
+            if (options.device != "cpu" && options.device != "gpu")
+                continue;
+        }
+        std::uint32_t qn = 0;
+        vkGetPhysicalDeviceQueueFamilyProperties(devices[i], &qn, nullptr);
+        std::vector<VkQueueFamilyProperties> qs(qn);
+        vkGetPhysicalDeviceQueueFamilyProperties(devices[i], &qn, qs.data());
+        bool found = false;
+        std::uint32_t family = 0;
+        for (std::uint32_t q = 0; q < qn && !found; ++q) {
+            VkBool32 present = VK_FALSE;
+            vkGetPhysicalDeviceSurfaceSupportKHR(devices[i], q, m.surface, &present);
+            if ((qs[q].queueFlags & VK_QUEUE_GRAPHICS_BIT) && present) {
+                found = true;
+                family = q;
+            }
+        }
+        if (!found) {
+            reasons += std::string(reasons.empty() ? "" : "; ") + p.deviceName +
+                       ": no queue family both draws and presents to this window";
+            continue;
+        }
+        if (rank < best_rank) {
+            best_rank = rank;
+            m.physical = devices[i];
+            m.family = family;
+            m.name = p.deviceName;
+        }
+    }
+    if (m.physical == VK_NULL_HANDLE) {
+        throw DeviceSelectionError(
+            "no Vulkan device can present to the window" +
+            (reasons.empty() ? std::string(" (no device matches '") + options.device + "')"
+                             : ": " + reasons));
+    }
+    vkGetPhysicalDeviceMemoryProperties(m.physical, &m.memory);
+
+    const float priority = 1;
+    VkDeviceQueueCreateInfo q{};
+    q.sType = VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO;
+    q.queueFamilyIndex = m.family;
+    q.queueCount = 1;
+    q.pQueuePriorities = &priority;
+    const char* dev_ext[] = {VK_KHR_SWAPCHAIN_EXTENSION_NAME};
+    VkDeviceCreateInfo di{};
+    di.sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO;
+    di.queueCreateInfoCount = 1;
+    di.pQueueCreateInfos = &q;
+    di.enabledExtensionCount = 1;
+    di.ppEnabledExtensionNames = dev_ext;
+    check(vkCreateDevice(m.physical, &di, nullptr, &m.device), "vkCreateDevice",
+          m.name + " (presentation)");
+    vkGetDeviceQueue(m.device, m.family, 0, &m.queue);
+
+    // Surface format: 8-bit UNORM (the ray marcher's bytes are already display-encoded).
+    std::uint32_t fc = 0;
+    vkGetPhysicalDeviceSurfaceFormatsKHR(m.physical, m.surface, &fc, nullptr);
+    std::vector<VkSurfaceFormatKHR> formats(fc);
+    vkGetPhysicalDeviceSurfaceFormatsKHR(m.physical, m.surface, &fc, formats.data());
+    if (formats.empty()) {
+        throw DeviceSelectionError(m.name + " reports no surface format for the window");
+    }
+    m.format = formats[0];
+    for (VkFormat want : {VK_FORMAT_R8G8B8A8_UNORM, VK_FORMAT_B8G8R8A8_UNORM}) {
+        auto it = std::find_if(formats.begin(), formats.end(),
+                               [&](const VkSurfaceFormatKHR& f) { return f.format == want; });
+        if (it != formats.end()) {
+            m.format = *it;
+            break;
+        }
+    }
+    m.swizzle =
+        m.format.format == VK_FORMAT_B8G8R8A8_UNORM || m.format.format == VK_FORMAT_B8G8R8A8_SRGB;
+
+    VkAttachmentDescription att{};
+    att.format = m.format.format;
+    att.samples = VK_SAMPLE_COUNT_1_BIT;
+    att.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
+    att.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    att.stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
+    att.stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+    att.initialLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+    att.finalLayout = VK_IMAGE_LAYOUT_PRESENT_SRC_KHR;
+    VkAttachmentReference ref{0, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
+    VkSubpassDescription sub{};
+    sub.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
+    sub.colorAttachmentCount = 1;
+    sub.pColorAttachments = &ref;
+    VkSubpassDependency dep{};
+    dep.srcSubpass = VK_SUBPASS_EXTERNAL;
+    dep.dstSubpass = 0;
+    dep.srcStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
+    dep.dstStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
+    dep.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    dep.dstAccessMask = VK_ACCESS_COLOR_ATTACHMENT_READ_BIT | VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
+    VkRenderPassCreateInfo rp{};
+    rp.sType = VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO;
+    rp.attachmentCount = 1;
+    rp.pAttachments = &att;
+    rp.subpassCount = 1;
+    rp.pSubpasses = &sub;
+    rp.dependencyCount = 1;
+    rp.pDependencies = &dep;
+    check(vkCreateRenderPass(m.device, &rp, nullptr, &m.pass), "vkCreateRenderPass", "overlay");
+
+    VkCommandPoolCreateInfo pi{};
+    pi.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
+    pi.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+    pi.queueFamilyIndex = m.family;
+    check(vkCreateCommandPool(m.device, &pi, nullptr, &m.pool), "vkCreateCommandPool");
+    VkCommandBufferAllocateInfo ai{};
+    ai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
+    ai.commandPool = m.pool;
+    ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    ai.commandBufferCount = 1;
+    check(vkAllocateCommandBuffers(m.device, &ai, &m.cmd), "vkAllocateCommandBuffers");
+    VkFenceCreateInfo fi{};
+    fi.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
+    fi.flags = VK_FENCE_CREATE_SIGNALED_BIT;
+    check(vkCreateFence(m.device, &fi, nullptr, &m.fence), "vkCreateFence");
+    VkSemaphoreCreateInfo si{};
+    si.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO;
+    check(vkCreateSemaphore(m.device, &si, nullptr, &m.acquired), "vkCreateSemaphore");
+    check(vkCreateSemaphore(m.device, &si, nullptr, &m.rendered), "vkCreateSemaphore");
+}
+
+Presenter::~Presenter() = default;
+
+VkInstance Presenter::instance() const {
+    return impl_->instance;
+}
+VkPhysicalDevice Presenter::physical() const {
+    return impl_->physical;
+}
+VkDevice Presenter::device() const {
+    return impl_->device;
+}
+VkQueue Presenter::queue() const {
+    return impl_->queue;
+}
+std::uint32_t Presenter::queue_family() const {
+    return impl_->family;
+}
+VkRenderPass Presenter::render_pass() const {
+    return impl_->pass;
+}
+std::uint32_t Presenter::image_count() const {
+    return std::max<std::uint32_t>(static_cast<std::uint32_t>(impl_->images.size()),
+                                   impl_->min_images);
+}
+std::uint32_t Presenter::min_image_count() const {
+    return impl_->min_images;
+}
+PresentMode Presenter::mode() const {
+    return impl_->mode;
+}
+std::string Presenter::device_name() const {
+    return impl_->name;
+}
+VkFormat Presenter::format() const {
+    return impl_->format.format;
+}
+
+void Presenter::wait_idle() {
+    vkDeviceWaitIdle(impl_->device);
+}
+
+void Presenter::submit_and_wait(const std::function<void(VkCommandBuffer)>& record) {
+    Impl& m = *impl_;
+    check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+    check(vkResetCommandBuffer(m.cmd, 0), "vkResetCommandBuffer");
+    VkCommandBufferBeginInfo b{};
+    b.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
+    b.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    check(vkBeginCommandBuffer(m.cmd, &b), "vkBeginCommandBuffer");
+    record(m.cmd);
+    check(vkEndCommandBuffer(m.cmd), "vkEndCommandBuffer");
+    VkSubmitInfo s{};
+    s.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+    s.commandBufferCount = 1;
+    s.pCommandBuffers = &m.cmd;
+    check(vkResetFences(m.device, 1, &m.fence), "vkResetFences");
+    check(vkQueueSubmit(m.queue, 1, &s, m.fence), "vkQueueSubmit");
+    check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+}
+
+bool Presenter::present(const std::uint8_t* rgba, std::uint32_t width, std::uint32_t height,
+                        std::uint32_t fb_width, std::uint32_t fb_height,
+                        const std::function<void(VkCommandBuffer)>& overlay) {
+    Impl& m = *impl_;
+    if (fb_width == 0 || fb_height == 0) {
+        return false;
+    }
+    check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+    if (m.swapchain == VK_NULL_HANDLE || m.extent.width != fb_width ||
+        m.extent.height != fb_height) {
+        m.create_swapchain(fb_width, fb_height);
+    }
+    std::uint32_t index = 0;
+    VkResult r = vkAcquireNextImageKHR(m.device, m.swapchain, UINT64_MAX, m.acquired,
+                                       VK_NULL_HANDLE, &index);
+    if (r == VK_ERROR_OUT_OF_DATE_KHR) {
+        m.create_swapchain(fb_width, fb_height);
+        return false;
+    }
+    if (r != VK_SUBOPTIMAL_KHR) {
+        check(r, "vkAcquireNextImageKHR");
+    }
+
+    // The image, cropped to the swapchain's extent, into the staging buffer.
+    const std::uint32_t w = std::min(width, m.extent.width);
+    const std::uint32_t h = std::min(height, m.extent.height);
+    m.ensure_staging(VkDeviceSize{w} * h * 4 + 4);
+    auto* dst = static_cast<std::uint8_t*>(m.staging_map);
+    for (std::uint32_t y = 0; y < h; ++y) {
+        const std::uint8_t* src = rgba + (std::size_t{y} * width) * 4;
+        std::uint8_t* row = dst + std::size_t{y} * w * 4;
+        if (!m.swizzle) {
+            std::memcpy(row, src, std::size_t{w} * 4);
+        } else {
+            for (std::uint32_t x = 0; x < w; ++x) {
+                row[4 * x + 0] = src[4 * x + 2];
+                row[4 * x + 1] = src[4 * x + 1];
+                row[4 * x + 2] = src[4 * x + 0];
+                row[4 * x + 3] = src[4 * x + 3];
+            }
+        }
+    }
+
+    check(vkResetCommandBuffer(m.cmd, 0), "vkResetCommandBuffer");
+    VkCommandBufferBeginInfo b{};
+    b.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
+    b.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    check(vkBeginCommandBuffer(m.cmd, &b), "vkBeginCommandBuffer");
+    VkImageMemoryBarrier to_dst{};
+    to_dst.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
+    to_dst.srcAccessMask = 0;
+    to_dst.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    to_dst.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+    to_dst.newLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+    to_dst.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    to_dst.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    to_dst.image = m.images[index];
+    to_dst.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    vkCmdPipelineBarrier(m.cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         0, 0, nullptr, 0, nullptr, 1, &to_dst);
+    if (w < m.extent.width || h < m.extent.height) {
+        const VkClearColorValue black{{0, 0, 0, 1}};
+        vkCmdClearColorImage(m.cmd, m.images[index], VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &black,
+                             1, &to_dst.subresourceRange);
+        VkMemoryBarrier mb{};
+        mb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+        mb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+        mb.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+        vkCmdPipelineBarrier(m.cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                             0, 1, &mb, 0, nullptr, 0, nullptr);
+    }
+    if (w > 0 && h > 0) {
+        VkBufferImageCopy c{};
+        c.bufferRowLength = w;
+        c.bufferImageHeight = h;
+        c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+        c.imageExtent = {w, h, 1};
+        vkCmdCopyBufferToImage(m.cmd, m.staging, m.images[index],
+                               VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &c);
+    }
+    VkRenderPassBeginInfo rb{};
+    rb.sType = VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO;
+    rb.renderPass = m.pass;
+    rb.framebuffer = m.framebuffers[index];
+    rb.renderArea.extent = m.extent;
+    vkCmdBeginRenderPass(m.cmd, &rb, VK_SUBPASS_CONTENTS_INLINE);
+    if (overlay) {
+        overlay(m.cmd);
+    }
+    vkCmdEndRenderPass(m.cmd);
+    check(vkEndCommandBuffer(m.cmd), "vkEndCommandBuffer");
+
+    const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
+    VkSubmitInfo s{};
+    s.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+    s.waitSemaphoreCount = 1;
+    s.pWaitSemaphores = &m.acquired;
+    s.pWaitDstStageMask = &wait_stage;
+    s.commandBufferCount = 1;
+    s.pCommandBuffers = &m.cmd;
+    s.signalSemaphoreCount = 1;
+    s.pSignalSemaphores = &m.rendered;
+    check(vkResetFences(m.device, 1, &m.fence), "vkResetFences");
+    check(vkQueueSubmit(m.queue, 1, &s, m.fence), "vkQueueSubmit", "present");
+    VkPresentInfoKHR p{};
+    p.sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR;
+    p.waitSemaphoreCount = 1;
+    p.pWaitSemaphores = &m.rendered;
+    p.swapchainCount = 1;
+    p.pSwapchains = &m.swapchain;
+    p.pImageIndices = &index;
+    r = vkQueuePresentKHR(m.queue, &p);
+    if (r == VK_ERROR_OUT_OF_DATE_KHR || r == VK_SUBOPTIMAL_KHR) {
+        check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+        m.create_swapchain(fb_width, fb_height);
+        return true;
+    }
+    check(r, "vkQueuePresentKHR");
+    return true;
+}
+
+}  // namespace voxfield::vk
