@@ -478,10 +478,19 @@ int run_view(const ViewCliOptions& o) {
             glfwGetWindowSize(window.handle, &ww, &wh);
             const ImGuiIO& io = ImGui::GetIO();
             const bool ui_mode = keys.down(GLFW_KEY_LEFT_ALT);
-            glfwSetInputMode(window.handle, GLFW_CURSOR,
-                             ui_mode ? GLFW_CURSOR_NORMAL : GLFW_CURSOR_DISABLED);
+            const int cursor_mode = ui_mode ? GLFW_CURSOR_NORMAL : GLFW_CURSOR_DISABLED;
+            // Capturing or freeing the cursor warps it: that jump is not a mouse movement.
+            bool skip_look = frame == 0;
+            if (glfwGetInputMode(window.handle, GLFW_CURSOR) != cursor_mode) {
+                glfwSetInputMode(window.handle, GLFW_CURSOR, cursor_mode);
+                skip_look = true;
+            }
             double cx = 0, cy = 0;
             glfwGetCursorPos(window.handle, &cx, &cy);
+            if (skip_look) {
+                cursor_x = cx;
+                cursor_y = cy;
+            }
             CameraInput in;
             const bool ctrl = keys.down(GLFW_KEY_LEFT_CONTROL) || keys.down(GLFW_KEY_RIGHT_CONTROL);
             if (!io.WantCaptureKeyboard) {

@@ -182,7 +182,7 @@ TEST(RandomEdits, ReproducibleDissertationProtocol) {
     EXPECT_EQ(radii.size(), 8u);
     EXPECT_NEAR(double(erases) / n, 1.0 / 12, 0.015);
     EXPECT_GT(differ, n - 10);
-    // The first brush of the dissertation's seed, pinned so the sequence never drifts.
+    // A fresh generator with the same seed starts the same sequence again.
     RandomEdits first(dims, 16, 6683787);
     const Brush f = first.next();
     RandomEdits again(dims, 16, 6683787);

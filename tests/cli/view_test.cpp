@@ -1,0 +1,184 @@
+// `voxfield view` end to end: the no-display path, the headless benchmark, and a smoke test
+// of the window under Xvfb + lavapipe (skipped, with CTest's skip, only without xvfb-run).
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cstdlib>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cli_test_util.hpp"
+#include "voxfield/core/npy.hpp"
+#include "voxfield/core/world.hpp"
+
+#define STB_IMAGE_IMPLEMENTATION
+#define STB_IMAGE_STATIC
+#include <stb/stb_image.h>
+
+namespace voxfield::test {
+namespace {
+
+class ViewTest : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        dir_ = make_temp_dir("voxfield_view_test");
+        io_ = make_temp_dir("voxfield_view_io");
+        for (const char* v : {"DISPLAY", "WAYLAND_DISPLAY"}) {
+            const char* old = std::getenv(v);
+            saved_.push_back(old ? std::optional<std::string>(old) : std::nullopt);
+        }
+        ::unsetenv("DISPLAY");
+        ::unsetenv("WAYLAND_DISPLAY");
+        ::setenv("VOXFIELD_DEVICE", "cpu", 1);
+    }
+    void TearDown() override {
+        const char* names[] = {"DISPLAY", "WAYLAND_DISPLAY"};
+        for (std::size_t i = 0; i < 2; ++i) {
+            if (saved_[i]) {
+                ::setenv(names[i], saved_[i]->c_str(), 1);
+            }
+        }
+        fs::remove_all(dir_);
+        fs::remove_all(io_);
+    }
+    fs::path dir_, io_;
+    std::vector<std::optional<std::string>> saved_;
+};
+
+TEST_F(ViewTest, NoDisplaySaysSoInOneLineAndSuggestsRender) {
+    const RunResult r = run_voxfield({"view", "--world", "16"}, io_);
+    EXPECT_EQ(r.code, 2) << describe(r);
+    const auto lines = split_lines(r.err);
+    ASSERT_EQ(lines.size(), 1u) << describe(r);
+    EXPECT_NE(lines[0].find("no display"), std::string::npos) << lines[0];
+    EXPECT_NE(lines[0].find("voxfield render"), std::string::npos) << lines[0];
+    EXPECT_TRUE(r.out.empty()) << describe(r);
+}
+
+TEST_F(ViewTest, UnreachableDisplayIsNoDisplayToo) {
+    ::setenv("DISPLAY", ":4711", 1);  // no X server there
+    const RunResult r = run_voxfield({"view", "--world", "16"}, io_);
+    ::unsetenv("DISPLAY");
+    EXPECT_EQ(r.code, 2) << describe(r);
+    const auto lines = split_lines(r.err);
+    ASSERT_EQ(lines.size(), 1u) << describe(r);
+    EXPECT_NE(lines[0].find("no display"), std::string::npos) << lines[0];
+    EXPECT_NE(lines[0].find("voxfield render"), std::string::npos) << lines[0];
+}
+
+TEST_F(ViewTest, BadUsageIsCheckedFirst) {
+    RunResult r = run_voxfield({"view", "--world", "16", "--dims", "4,4,4"}, io_);
+    EXPECT_EQ(r.code, 2) << describe(r);
+    EXPECT_NE(r.err.find("not both"), std::string::npos) << describe(r);
+    r = run_voxfield({"view", "--algorithm", "nope"}, io_);
+    EXPECT_EQ(r.code, 2) << describe(r);
+    r = run_voxfield({"view", "--edits", (dir_ / "missing.txt").string()}, io_);
+    EXPECT_EQ(r.code, 2) << describe(r);
+}
+
+TEST_F(ViewTest, HeadlessBenchmarkIsReproducibleAndRecorded) {
+    const fs::path json = dir_ / "b.json", csv = dir_ / "b.csv";
+    const RunResult r =
+        run_voxfield({"view", "--world", "32", "--benchmark", "--seed", "7", "--interval-ms", "50",
+                      "--duration-s", "1", "--width", "96", "--height", "64", "--json",
+                      json.string(), "--csv", csv.string()},
+                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_NE(r.out.find("headless"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("95% CI"), std::string::npos) << r.out;
+    const auto j = nlohmann::json::parse(read_text(json));
+    EXPECT_EQ(j["seed"], 7);
+    EXPECT_EQ(j["present"], "headless");
+    const auto& frames = j["frames"];
+    ASSERT_GT(frames.size(), 2u);
+    std::size_t edits = 0;
+    for (const auto& f : frames) {
+        EXPECT_GE(f["frame_ms"].get<double>(), f["update_ms"].get<double>());
+        edits += f["edit"].get<bool>() ? 1 : 0;
+    }
+    EXPECT_GE(edits, 1u);
+    EXPECT_EQ(j["summary"]["field_update"]["n"], edits);
+    EXPECT_EQ(j["summary"]["frame"]["n"], frames.size());
+    EXPECT_EQ(split_lines(read_text(csv)).size(), frames.size() + 1);
+}
+
+bool have_xvfb() {
+    return std::system("command -v xvfb-run >/dev/null 2>&1") == 0;
+}
+
+// Runs `voxfield ARGS` under a fresh Xvfb server; returns the exit code, output in `log`.
+int run_under_xvfb(const std::vector<std::string>& args, const fs::path& log) {
+    std::string cmd = "xvfb-run -a -s '-screen 0 640x480x24' '" + kExe.string() + "'";
+    for (const auto& a : args) {
+        cmd += " '" + a + "'";
+    }
+    cmd += " >'" + log.string() + "' 2>&1";
+    const int status = std::system(cmd.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
+}
+
+TEST_F(ViewTest, SmokeUnderXvfbShowsTheWorldAndFollowsEdits) {
+    if (!have_xvfb()) {
+        GTEST_SKIP() << "xvfb-run is not installed (setup.sh installs it)";
+    }
+    // A 40x24x40 world: a floor and a pillar, palette index 1 (white in MagicaVoxel's).
+    World w(Dims{40, 24, 40});
+    for (std::uint32_t z = 0; z < 40; ++z) {
+        for (std::uint32_t x = 0; x < 40; ++x) {
+            w.set(x, 0, z, 1);
+        }
+    }
+    for (std::uint32_t y = 0; y < 12; ++y) {
+        w.set(20, y, 20, 2);
+    }
+    const fs::path world = dir_ / "world.npy";
+    const NpyArray a = npy_from_world(w);
+    write_npy(world, a.type, a.dims, a.data);
+    const fs::path edits = dir_ / "edits.txt";
+    write_file(edits, "place sphere 10 6 10 4 3\nerase cube 30 0 30 3\npaint sphere 20 5 20 3 7\n");
+
+    const fs::path shot = dir_ / "shot.png", field = dir_ / "view_field.npy";
+    const int code =
+        run_under_xvfb({"view", world.string(), "--frames", "6", "--edits", edits.string(),
+                        "--shading", "flat", "--width", "160", "--height", "120", "--screenshot",
+                        shot.string(), "--field-output", field.string()},
+                       io_ / "xvfb.log");
+    ASSERT_EQ(code, 0) << read_text(io_ / "xvfb.log");
+    EXPECT_NE(read_text(io_ / "xvfb.log").find("window:"), std::string::npos)
+        << read_text(io_ / "xvfb.log");
+
+    // The screenshot shows the world: flat shading, black sky, so lit pixels are voxels.
+    int iw = 0, ih = 0, channels = 0;
+    unsigned char* px = stbi_load(shot.c_str(), &iw, &ih, &channels, 4);
+    ASSERT_NE(px, nullptr) << shot;
+    EXPECT_EQ(iw, 160);
+    EXPECT_EQ(ih, 120);
+    std::size_t solid = 0;
+    for (int i = 0; i < iw * ih; ++i) {
+        if (px[4 * i] != 0 || px[4 * i + 1] != 0 || px[4 * i + 2] != 0) {
+            ++solid;
+        }
+    }
+    stbi_image_free(px);
+    EXPECT_GT(solid, static_cast<std::size_t>(iw * ih / 20)) << "the screenshot is all sky";
+
+    // The field after the edits equals `replay`'s and differs from the unedited world's.
+    const fs::path replayed = dir_ / "replay_field.npy", before = dir_ / "before.npy";
+    RunResult r = run_voxfield({"replay", edits.string(), "--input", world.string(), "--format",
+                                "packed32", "-o", replayed.string()},
+                               io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    r = run_voxfield({"generate", world.string(), "--format", "packed32", "-o", before.string()},
+                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    const auto got = read_npy(field), want = read_npy(replayed), old = read_npy(before);
+    EXPECT_EQ(got.dims, want.dims);
+    EXPECT_TRUE(got.data == want.data) << "view's field differs from replay's";
+    EXPECT_FALSE(got.data == old.data) << "the edits did not change the field";
+}
+
+}  // namespace
+}  // namespace voxfield::test
