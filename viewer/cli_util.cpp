@@ -118,6 +118,13 @@ void add_generator_flags(CLI::App& app, GeneratorFlags& flags) {
         ->capture_default_str();
 }
 
+void add_format_option(CLI::App& app, std::string& format) {
+    app.add_option("--format", format,
+                   "u8, u16, u32 (distance, saturated) or packed32 ((min(d,255)<<8)|rgb332)")
+        ->check(CLI::IsMember({"u8", "u16", "u32", "packed32"}))
+        ->capture_default_str();
+}
+
 ocl::GeneratorOptions generator_options(const GeneratorFlags& flags, Format format, Dims world) {
     ocl::GeneratorOptions o;
     o.algorithm = ocl::parse_algorithm(flags.algorithm);

@@ -36,6 +36,8 @@ struct GeneratorFlags {
     std::uint32_t chunk = 0, jfa_extra = 0;
 };
 void add_generator_flags(CLI::App& app, GeneratorFlags& flags);
+// --format: u8, u16, u32 or packed32, into `format` (its current value is the default).
+void add_format_option(CLI::App& app, std::string& format);
 // Turns the flags into resolved options for `world` (InputError on any bad combination).
 ocl::GeneratorOptions generator_options(const GeneratorFlags& flags, Format format, Dims world);
 

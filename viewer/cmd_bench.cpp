@@ -224,9 +224,7 @@ Command add_bench(CLI::App& root) {
         ->check(CLI::IsMember(scene_names()))
         ->capture_default_str();
     app->add_option("--seed", o->seed, "Scene seed")->capture_default_str();
-    app->add_option("--format", o->format, "Output format: u8, u16, u32, packed32")
-        ->check(CLI::IsMember({"u8", "u16", "u32", "packed32"}))
-        ->capture_default_str();
+    add_format_option(*app, o->format);
     app->add_option("--metric", o->metric, "Distance metric")
         ->check(CLI::IsMember(kMetrics))
         ->capture_default_str();

@@ -146,10 +146,7 @@ Command add_generate(CLI::App& root) {
     app->add_option("--device", o->device,
                     "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, "
                     "else the first GPU, else the first CPU)");
-    app->add_option("--format", o->format,
-                    "u8, u16, u32 (distance, saturated) or packed32 ((min(d,255)<<8)|rgb332)")
-        ->check(CLI::IsMember({"u8", "u16", "u32", "packed32"}))
-        ->capture_default_str();
+    add_format_option(*app, o->format);
     app->add_flag("--stats", o->stats,
                   "Also report voxels/s and accuracy against the exact CPU reference of the "
                   "same semantics (global, or chunk-local with --chunk)");

@@ -342,10 +342,7 @@ Command add_replay(CLI::App& root) {
     app->add_option("--device", o->device,
                     "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, "
                     "else the first GPU, else the first CPU)");
-    app->add_option("--format", o->format,
-                    "u8, u16, u32 (distance, saturated) or packed32 ((min(d,255)<<8)|rgb332)")
-        ->check(CLI::IsMember({"u8", "u16", "u32", "packed32"}))
-        ->capture_default_str();
+    add_format_option(*app, o->format);
     app->add_flag("--verify", o->verify,
                   "After every edit, compare the field byte for byte with a full regeneration of "
                   "the current world (same algorithm and options); exit 1 at the first "

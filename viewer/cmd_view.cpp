@@ -679,7 +679,14 @@ int run_view(const ViewCliOptions& o) {
             const World& w = session.world();
             ImGui::Text("world %s, %zu solid of %zu voxels", w.dims().to_string().c_str(),
                         w.solid_count(), w.size());
-            ImGui::Text("memory %.1f bytes/voxel (world 1 + packed32 field 4 + voxels 1)", 6.0);
+            // Resident per voxel for drawing: the ray marcher's field plus the material bytes
+            // packed32 needs beside it (vk::Raymarcher::upload).
+            const vk::FieldFormat field_format = session.marcher().layout().format;
+            ImGui::Text("render memory %zu bytes/voxel (%s field%s)",
+                        vk::element_size(field_format) +
+                            (field_format == vk::FieldFormat::packed32 ? 1 : 0),
+                        vk::to_string(field_format).c_str(),
+                        field_format == vk::FieldFormat::packed32 ? " + material byte" : "");
             ImGui::Text("OpenCL: %s", cl_ctx.info().name.c_str());
             ImGui::Text("Vulkan: %s / present %s (%s)", vk_ctx.info().name.c_str(),
                         presenter->device_name().c_str(), vk::to_string(presenter->mode()).c_str());
@@ -735,13 +742,16 @@ int run_view(const ViewCliOptions& o) {
                             ? (1u << chunk_log2)
                             : 0;
                     session.options().focus.reset();
+                    const ocl::Algorithm a = session.options().algorithm;
+                    if (a == ocl::Algorithm::lod || a == ocl::Algorithm::monolithic) {
+                        // FIM in the chunks within `focus size` of the centre chunk.
+                        const Dims n = ChunkGrid(dims, session.options().chunk).chunks();
+                        session.options().focus = Focus{{n.x / 2, n.y / 2, n.z / 2}, focus_size};
+                    }
                     World next = new_scene
                                      ? make_scene(scenes[static_cast<std::size_t>(scene_index)],
                                                   dims, o.scene_seed)
                                      : World(session.world());
-                    if (session.options().focus == std::nullopt && focus_size > 0) {
-                        (void)focus_size;  // focus: the centre chunk (resolve_options default)
-                    }
                     const double ms = session.rebuild(std::move(next));
                     undo.clear();
                     std::cout << "regenerated: " << ocl::to_string(session.options().algorithm)
