@@ -1,6 +1,8 @@
 #include "cli_util.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <ctime>
 #include <fstream>
 #include <vector>
 
@@ -139,6 +141,19 @@ ocl::GeneratorOptions generator_options(const GeneratorFlags& flags, Format form
 
 std::string commit() {
     return VOXFIELD_GIT_COMMIT;
+}
+
+std::string utc_now() {
+    const std::time_t t = std::time(nullptr);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
+    return buf;
+}
+
+std::string fixed(double v, int digits) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+    return buf;
 }
 
 }  // namespace voxfield::cli

@@ -52,5 +52,9 @@ void write_json_file(const std::filesystem::path& path, const nlohmann::json& j)
 
 nlohmann::json device_json(const ocl::DeviceInfo& d);
 std::string commit();
+// Now in UTC, ISO 8601 ("2026-11-22T05:16:00Z"), for benchmark records.
+std::string utc_now();
+// `v` with `digits` decimals ("%.*f").
+std::string fixed(double v, int digits);
 
 }  // namespace voxfield::cli

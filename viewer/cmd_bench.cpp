@@ -43,13 +43,6 @@ Dims parse_size(const std::string& text) {
     return parse_dims(s);
 }
 
-std::string utc_now() {
-    const std::time_t t = std::time(nullptr);
-    char buf[32];
-    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
-    return buf;
-}
-
 int run_bench(const BenchOptions& o) {
     const Format format = parse_format(o.format);
     std::vector<Dims> sizes;

@@ -5,14 +5,11 @@
 #include <string>
 
 #include "cli_util.hpp"
+#include "render_field.hpp"
 #include "voxfield/vk/context.hpp"
 #include "voxfield/vk/shared.hpp"
 
 namespace voxfield::cli {
-
-// cmd_render.cpp.
-vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Context& vk_ctx,
-                                    std::string& why_not);
 
 namespace {
 

@@ -25,12 +25,6 @@ bool uses_fim(ocl::Algorithm a) {
     return a == A::fim || a == A::fim_host || a == A::jfa_fim || a == A::lod || a == A::monolithic;
 }
 
-std::string fixed(double v, int digits) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-    return buf;
-}
-
 int run_generate(const GenerateOptions& o) {
     const Format format = parse_format(o.format);
     require_output_folder(o.output);

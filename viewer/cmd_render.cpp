@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include <unistd.h>
 #include "cli_util.hpp"
+#include "render_field.hpp"
 
 #include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/generator.hpp"
@@ -36,12 +36,6 @@ struct RenderCliOptions {
     double fov = 60;
     bool stats = false;
 };
-
-std::string fixed(double v, int digits) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-    return buf;
-}
 
 // "X,Y,Z" (finite decimal numbers, world voxel units).
 vk::Vec3 parse_point(const std::string& text, const std::string& option) {
@@ -101,48 +95,6 @@ void append_bytes(void* context, void* data, int size) {
     out->append(static_cast<const char*>(data), static_cast<std::size_t>(size));
 }
 
-// An owned file descriptor (path 1's export), closed after the OpenCL buffer is released.
-struct Fd {
-    int fd = -1;
-    Fd() = default;
-    Fd(const Fd&) = delete;
-    Fd& operator=(const Fd&) = delete;
-    ~Fd() {
-        if (fd >= 0) {
-            close(fd);
-        }
-    }
-};
-
-}  // namespace
-
-// DESIGN §2: the first sharing path both devices support, 1 -> 2 -> 3, and why the earlier
-// ones are not (for reports). Used by render and by `voxfield devices`.
-vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Context& vk_ctx,
-                                    std::string& why_not) {
-    why_not.clear();
-    if (!vk::supports(vk_ctx, vk::SharingPath::opaque_fd)) {
-        why_not += "path 1: Vulkan device lacks VK_KHR_external_memory_fd; ";
-    } else if (!ocl::can_import_opaque_fd(cl_ctx)) {
-        why_not += "path 1: OpenCL device lacks cl_khr_external_memory_opaque_fd (OpenCL 3.0); ";
-    } else if (const auto uuid = ocl::device_uuid(cl_ctx); !uuid || *uuid != vk_ctx.info().uuid) {
-        why_not += uuid ? "path 1: the OpenCL and Vulkan devices differ (UUID); "
-                        : "path 1: OpenCL device lacks cl_khr_device_uuid; ";
-    } else {
-        return vk::SharingPath::opaque_fd;
-    }
-    if (!vk::supports(vk_ctx, vk::SharingPath::host_pointer)) {
-        why_not += "path 2: Vulkan device lacks VK_EXT_external_memory_host; ";
-    } else if (!ocl::can_use_host_memory(cl_ctx)) {
-        why_not += "path 2: the OpenCL device is not a CPU; ";
-    } else {
-        return vk::SharingPath::host_pointer;
-    }
-    return vk::SharingPath::copy;
-}
-
-namespace {
-
 std::string point(const vk::Vec3& v) {
     return "(" + fixed(v[0], 2) + ", " + fixed(v[1], 2) + ", " + fixed(v[2], 2) + ")";
 }
@@ -192,17 +144,12 @@ int run_render(const RenderCliOptions& o) {
     const vk::FieldFormat format = vk::parse_field_format(o.field);
     ocl::Context cl_ctx(ocl::select_device(o.device));
     vk::Context vk_ctx;
-    // Declaration order is release order in reverse: the ray marcher's buffers, then the
-    // OpenCL buffer, then the fd / shared memory they refer to.
-    vk::ExternalMemory shared;
-    Fd fd;
-    cl::Buffer cl_field;
-    std::optional<ocl::ExactManhattan> exact;
-    std::optional<ocl::CompactWriter> writer;
     vk::Raymarcher marcher(vk_ctx);
     double kernel_ms = 0;
     std::string why_not;
-    vk::SharingPath path = vk::SharingPath::copy;
+    // Declared after the ray marcher, destroyed before it: the marcher may read its memory.
+    std::optional<ocl::ExactManhattan> exact;
+    std::optional<RenderField> shared;
     if (format == vk::FieldFormat::packed32) {
         // The exact global L1 field in packed32 on the OpenCL device, copied (path 3).
         ocl::GeneratorOptions g;
@@ -214,65 +161,17 @@ int run_render(const RenderCliOptions& o) {
         std::vector<std::uint32_t> packed(world.size());
         std::memcpy(packed.data(), field.bytes.data(), packed.size() * sizeof(std::uint32_t));
         marcher.upload(world, model.palette, packed);
-        why_not = "packed32 is always copied (path 3); ";
+        why_not = "packed32 is always copied (path 3)";
     } else {
         // The exact field in u16, converted by OpenCL into the compact format, written where
         // Vulkan reads it (paths 1, 2) or into an OpenCL buffer that is copied (path 3), and
         // the per-block minima for coarse skipping (a small table, always copied).
-        const vk::FieldLayout layout = marcher.plan(world.dims(), format);
         exact.emplace(cl_ctx, world, model.palette, Format::u16);
-        path = choose_sharing_path(cl_ctx, vk_ctx, why_not);
-        const VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-        if (path == vk::SharingPath::opaque_fd) {
-            try {
-                shared = vk::ExternalMemory::exportable(vk_ctx, layout.total_bytes, usage,
-                                                        "shared field");
-                fd.fd = shared.export_fd();
-                cl_field = ocl::import_opaque_fd(cl_ctx, fd.fd,
-                                                 static_cast<std::size_t>(layout.total_bytes));
-            } catch (const std::exception& e) {
-                why_not += std::string("path 1 failed: ") + e.what() + "; ";
-                cl_field = cl::Buffer();
-                shared = vk::ExternalMemory();
-                path = vk::supports(vk_ctx, vk::SharingPath::host_pointer) &&
-                               ocl::can_use_host_memory(cl_ctx)
-                           ? vk::SharingPath::host_pointer
-                           : vk::SharingPath::copy;
-            }
-        }
-        if (path == vk::SharingPath::host_pointer) {
-            shared = vk::ExternalMemory::host_allocation(vk_ctx, layout.total_bytes, usage,
-                                                         "shared field");
-            cl_field = ocl::wrap_host_memory(cl_ctx, shared.host_pointer(),
-                                             static_cast<std::size_t>(shared.size()));
-        } else if (path == vk::SharingPath::copy) {
-            cl_field = ocl::cl_call("the compact field buffer", [&] {
-                return cl::Buffer(cl_ctx.context(), CL_MEM_READ_WRITE,
-                                  static_cast<std::size_t>(layout.total_bytes));
-            });
-        }
-        writer.emplace(cl_ctx, *exact, world.dims(), cl_field,
-                       ocl::SlabLayout{layout.slab_depth, layout.slab_stride},
-                       path == vk::SharingPath::opaque_fd);
+        shared.emplace(cl_ctx, vk_ctx, marcher, world.dims());
+        why_not = shared->why_not();
         kernel_ms = exact->run();
-        kernel_ms += writer->run();
-        if (path == vk::SharingPath::copy) {
-            std::vector<std::uint16_t> compact(world.size());
-            const std::size_t plane = std::size_t{world.dims().x} * world.dims().y;
-            for (std::uint32_t s = 0; s < layout.slabs; ++s) {
-                const std::size_t z0 = std::size_t{s} * layout.slab_depth;
-                const std::size_t voxels =
-                    plane * std::min<std::size_t>(layout.slab_depth, world.dims().z - z0);
-                ocl::cl_call("reading the compact field", [&] {
-                    cl_ctx.queue().enqueueReadBuffer(cl_field, CL_TRUE, s * layout.slab_stride,
-                                                     voxels * 2, compact.data() + plane * z0);
-                });
-            }
-            marcher.upload_compact(world.dims(), model.palette, compact);
-        } else {
-            marcher.bind_shared(shared, layout, model.palette);
-        }
-        marcher.set_block_min(writer->block_min());
+        kernel_ms += shared->attach(marcher, exact->field_buffer(), Format::u16,
+                                    exact->voxels_buffer(), model.palette);
     }
     const vk::Image image = marcher.render(r);
 
@@ -295,9 +194,8 @@ int run_render(const RenderCliOptions& o) {
               << "world:   " << o.input << "  " << world.dims().to_string() << " = " << world.size()
               << " voxels, " << world.solid_count() << " solid\n"
               << "sharing: " << marcher.sharing_path()
-              << (why_not.empty() ? std::string()
-                                  : " [" + why_not.substr(0, why_not.size() - 2) + "]")
-              << "; field in " << marcher.field_bindings() << " storage-buffer binding"
+              << (why_not.empty() ? std::string() : " [" + why_not + "]") << "; field in "
+              << marcher.field_bindings() << " storage-buffer binding"
               << (marcher.field_bindings() == 1 ? "" : "s") << " of up to " << marcher.slab_depth()
               << " z-slices\n"
               << "image:   " << image.width << "x" << image.height << ", " << o.shading

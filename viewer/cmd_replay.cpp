@@ -35,12 +35,6 @@ struct ReplayOptions {
     std::uint32_t max_margin = 0;  // 0: no limit
 };
 
-std::string fixed(double v, int digits) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-    return buf;
-}
-
 // Element i of an encoded field as an unsigned integer (little-endian).
 std::uint64_t element(const std::vector<std::uint8_t>& field, std::size_t size, std::size_t i) {
     std::uint64_t v = 0;

@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "cli_util.hpp"
+#include "render_field.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
 #include "voxfield/core/camera.hpp"
@@ -66,6 +67,7 @@ struct ViewCliOptions {
     std::uint64_t seed = 6683787;
     double interval_ms = 200, duration_s = 30;
     std::string json, csv;
+    std::string format = "u16", fallback_png;
 };
 
 // The keys, for F1 and --help.
@@ -127,68 +129,100 @@ int no_display(const std::string& why) {
     return 2;
 }
 
-// The world, its field on the OpenCL device and the ray marcher reading it.
+// The world, its field on the OpenCL device (kept current by IncrementalField) and the ray
+// marcher reading the compact render field that OpenCL writes from it (render_field.hpp:
+// paths 1/2 share the memory, path 3 copies).
 class Session {
   public:
-    Session(ocl::Context& cl, vk::Context& vkc, Palette palette, ocl::GeneratorOptions options)
-        : cl_(cl), vk_(vkc), palette_(palette), options_(options) {
-        marcher_ = std::make_unique<vk::Raymarcher>(vk_);
+    Session(ocl::Context& cl, vk::Context& vkc, Palette palette, ocl::GeneratorOptions options,
+            Dims dims)
+        : cl_(cl), palette_(palette), options_(options) {
+        marcher_ = std::make_unique<vk::Raymarcher>(vkc);
+        render_field_ = std::make_unique<RenderField>(cl, vkc, *marcher_, dims);
     }
+    ~Session() { marcher_.reset(); }  // before the memory it reads
+    Session(const Session&) = delete;
+    Session& operator=(const Session&) = delete;
 
-    // Regenerates everything for `world` (new algorithm, chunk, scene or a large undo).
+    // Regenerates everything for `world` (new algorithm, chunk, scene or a large undo);
+    // returns the wall time in ms.
     double rebuild(World world) {
         const auto t = Clock::now();
         options_ = ocl::resolve_options(options_, world.dims());
         field_.reset();
         field_ = std::make_unique<ocl::IncrementalField>(cl_, std::move(world), palette_, options_);
-        dirty_ = true;
+        render_field_->attach(*marcher_, field_->field_buffer(), options_.format,
+                              field_->voxels_buffer(), palette_);
         return ms_since(t);
     }
 
-    ocl::UpdateStats apply(const std::vector<Brush>& batch) {
+    struct Update {
+        double field_ms = 0;    // the incremental update's device time
+        double convert_ms = 0;  // writing the changed voxels into the render field
+    };
+
+    Update apply(const std::vector<Brush>& batch, std::vector<EditResult>* edits = nullptr) {
         ocl::UpdateStats s = field_->apply(batch);
+        std::vector<Box> regions = s.regions;
         for (const EditResult& e : s.edits) {
-            dirty_ = dirty_ || e.changed();
+            if (e.changed()) {
+                regions.push_back(e.bounds);  // recoloured voxels keep their distance
+            }
         }
-        return s;
+        Update u{s.update_ms, publish(regions)};
+        if (edits != nullptr) {
+            *edits = std::move(s.edits);
+        }
+        return u;
     }
 
-    // The field to Vulkan (sharing path 3: read back and copied) when it changed.
-    void sync() {
-        if (!dirty_) {
-            return;
-        }
-        const std::vector<std::uint8_t> bytes = field_->read();
-        packed_.resize(bytes.size() / 4);
-        std::memcpy(packed_.data(), bytes.data(), packed_.size() * 4);
-        marcher_->upload(field_->world(), palette_, packed_);
-        dirty_ = false;
+    // Moves lod's / monolithic's focus and recomputes the chunks that entered or left it.
+    Update set_focus(const std::optional<Focus>& focus) {
+        const ocl::UpdateStats s = field_->set_focus(focus);
+        options_.focus = focus;
+        return Update{s.update_ms, publish(s.regions)};
     }
 
-    vk::Image render(const vk::RenderOptions& r) {
-        sync();
-        return marcher_->render(r);
-    }
+    void render(const vk::RenderOptions& r, vk::Image& out) { marcher_->render(r, out); }
 
     const World& world() const { return field_->world(); }
     const Palette& palette() const { return palette_; }
     ocl::GeneratorOptions& options() { return options_; }
     std::vector<std::uint8_t> read_field() { return field_->read(); }
     vk::Raymarcher& marcher() { return *marcher_; }
+    const RenderField& render_field() const { return *render_field_; }
 
   private:
+    double publish(std::vector<Box> regions) {
+        if (regions.empty()) {
+            return 0;
+        }
+        if (regions.size() > 64) {
+            // Many small boxes (a long stroke, many chunks): one launch over their hull.
+            Box hull = regions.front();
+            for (const Box& b : regions) {
+                hull.min = {std::min(hull.min.x, b.min.x), std::min(hull.min.y, b.min.y),
+                            std::min(hull.min.z, b.min.z)};
+                hull.max = {std::max(hull.max.x, b.max.x), std::max(hull.max.y, b.max.y),
+                            std::max(hull.max.z, b.max.z)};
+            }
+            regions = {hull};
+        }
+        return render_field_->update(*marcher_, regions);
+    }
+
     ocl::Context& cl_;
-    vk::Context& vk_;
     Palette palette_;
     ocl::GeneratorOptions options_;
     std::unique_ptr<ocl::IncrementalField> field_;
+    std::unique_ptr<RenderField> render_field_;
     std::unique_ptr<vk::Raymarcher> marcher_;
-    std::vector<std::uint32_t> packed_;
-    bool dirty_ = true;
 };
 
 struct FrameRecord {
-    double time_s = 0, frame_ms = 0, update_ms = 0, raymarch_ms = 0;
+    // update_ms: the field's incremental update plus writing it into the render field
+    // (convert_ms), device time.
+    double time_s = 0, frame_ms = 0, update_ms = 0, convert_ms = 0, raymarch_ms = 0;
     bool edit = false;
 };
 
@@ -202,17 +236,69 @@ nlohmann::json summary_json(const Summary& s) {
             {"ci95_ms", {s.ci95_lo, s.ci95_hi}}};
 }
 
-std::string fixed(double v, int digits) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-    return buf;
-}
-
 void print_summary(const std::string& what, const Summary& s) {
     std::cout << "  " << what << ": n " << s.n << ", mean " << fixed(s.mean, 3) << " ms, median "
               << fixed(s.median, 3) << ", std " << fixed(s.std, 3) << ", min " << fixed(s.min, 3)
               << ", max " << fixed(s.max, 3) << ", 95% CI [" << fixed(s.ci95_lo, 3) << ", "
               << fixed(s.ci95_hi, 3) << "]\n";
+}
+
+bool has_focus(ocl::Algorithm a) {
+    return a == ocl::Algorithm::lod || a == ocl::Algorithm::monolithic;
+}
+
+// The brush's target drawn over the image: a cube's box as 12 edges, a sphere as the circle
+// of its projected radius (place: green, erase: red, paint: the brush's colour).
+void draw_brush_preview(ImDrawList* draw, const Brush& b, const ViewCamera& camera,
+                        std::uint32_t fb_w, std::uint32_t fb_h, ImVec2 display,
+                        const Palette& palette) {
+    const Vec3d eye = camera.position(), forward = camera.forward();
+    const double fov = camera.settings.fov_deg;
+    // Framebuffer pixels -> overlay units (they differ on HiDPI displays).
+    const double sx = display.x / static_cast<double>(fb_w);
+    const double sy = display.y / static_cast<double>(fb_h);
+    const auto project = [&](const Vec3d& p) -> std::optional<ImVec2> {
+        const auto ip = project_point(eye, forward, fov, fb_w, fb_h, p);
+        if (!ip) {
+            return std::nullopt;
+        }
+        return ImVec2(static_cast<float>(ip->x * sx), static_cast<float>(ip->y * sy));
+    };
+    ImU32 colour = IM_COL32(80, 255, 120, 230);
+    if (b.op == BrushOp::erase) {
+        colour = IM_COL32(255, 80, 80, 230);
+    } else if (b.op == BrushOp::paint) {
+        const Rgba c = palette[b.material];
+        colour = IM_COL32(c.r, c.g, c.b, 255);
+    }
+    const double r = static_cast<double>(b.radius);
+    const Vec3d c{static_cast<double>(b.centre.x) + 0.5, static_cast<double>(b.centre.y) + 0.5,
+                  static_cast<double>(b.centre.z) + 0.5};
+    if (b.shape == BrushShape::sphere) {
+        const auto centre = project(c);
+        const Vec3d right = view_basis(forward).right;
+        const auto edge = project({c[0] + (r + 0.5) * right[0], c[1] + (r + 0.5) * right[1], c[2]});
+        if (centre && edge) {
+            const float radius = std::hypot(edge->x - centre->x, edge->y - centre->y);
+            draw->AddCircle(*centre, std::max(radius, 2.0f), colour, 0, 2);
+        }
+        return;
+    }
+    const double lo[3] = {c[0] - r - 0.5, c[1] - r - 0.5, c[2] - r - 0.5};
+    const double hi[3] = {c[0] + r + 0.5, c[1] + r + 0.5, c[2] + r + 0.5};
+    std::optional<ImVec2> corner[8];
+    for (int i = 0; i < 8; ++i) {
+        corner[i] =
+            project({(i & 1) ? hi[0] : lo[0], (i & 2) ? hi[1] : lo[1], (i & 4) ? hi[2] : lo[2]});
+    }
+    for (int i = 0; i < 8; ++i) {
+        for (const int bit : {1, 2, 4}) {
+            const int j = i | bit;
+            if (j != i && corner[i] && corner[j]) {
+                draw->AddLine(*corner[i], *corner[j], colour, 2);
+            }
+        }
+    }
 }
 
 // Edge detection for keys polled once per frame.
@@ -243,7 +329,7 @@ struct Window {
     }
 };
 
-int run_view(const ViewCliOptions& o) {
+int run_view(ViewCliOptions o) {
     // Everything the user typed is checked before any device or window is touched.
     if (!o.input.empty() && (o.world != 0 || !o.dims.empty())) {
         throw InputError("give either INPUT or --world/--dims, not both");
@@ -251,10 +337,8 @@ int run_view(const ViewCliOptions& o) {
     if (o.world != 0 && !o.dims.empty()) {
         throw InputError("give either --world N or --dims X,Y,Z, not both");
     }
-    if (!o.screenshot.empty()) {
-        require_output_folder(o.screenshot);
-    }
-    for (const std::string& p : {o.field_output, o.world_output, o.json, o.csv}) {
+    for (const std::string& p :
+         {o.screenshot, o.fallback_png, o.field_output, o.world_output, o.json, o.csv}) {
         if (!p.empty()) {
             require_output_folder(p);
         }
@@ -266,32 +350,47 @@ int run_view(const ViewCliOptions& o) {
     if (!o.edits.empty()) {
         scripted = read_edits(o.edits);
     }
-    const bool have_display = display_present();
-    if (!have_display && !o.benchmark) {
-        return no_display("neither $DISPLAY nor $WAYLAND_DISPLAY is set");
-    }
-    bool windowed = have_display;
+    // A window, or why there is none: then --benchmark runs headless, --fallback-png renders
+    // one frame headless into that file, anything else exits 2.
     Window window;
-    if (windowed) {
+    std::string why_no_window;
+    if (!display_present()) {
+        why_no_window = "neither $DISPLAY nor $WAYLAND_DISPLAY is set";
+    } else {
         glfwInitHint(GLFW_JOYSTICK_HAT_BUTTONS, GLFW_FALSE);
+        const char* desc = nullptr;
         if (glfwInit() != GLFW_TRUE) {
-            const char* desc = nullptr;
             glfwGetError(&desc);
-            if (!o.benchmark) {
-                return no_display(std::string("cannot open it: ") +
-                                  (desc != nullptr ? desc : "glfwInit failed"));
-            }
-            windowed = false;
+            why_no_window =
+                std::string("cannot open it: ") + (desc != nullptr ? desc : "glfwInit failed");
         } else if (glfwVulkanSupported() != GLFW_TRUE) {
-            if (!o.benchmark) {
-                return no_display("GLFW finds no Vulkan loader able to present to it");
+            why_no_window = "GLFW finds no Vulkan loader able to present to it";
+        } else {
+            glfwWindowHint(GLFW_CLIENT_API, GLFW_NO_API);
+            glfwWindowHint(GLFW_RESIZABLE, GLFW_TRUE);
+            glfwWindowHint(GLFW_SCALE_TO_MONITOR, GLFW_TRUE);
+            window.handle = glfwCreateWindow(static_cast<int>(o.width), static_cast<int>(o.height),
+                                             "voxfield", nullptr, nullptr);
+            if (window.handle == nullptr) {
+                glfwGetError(&desc);
+                why_no_window = std::string("cannot create a window: ") +
+                                (desc != nullptr ? desc : "unknown GLFW error");
             }
-            windowed = false;
         }
     }
+    const bool windowed = window.handle != nullptr;
     if (!windowed) {
-        std::cout << "view: no display, benchmark runs headless at " << o.width << "x" << o.height
-                  << '\n';
+        if (o.benchmark) {
+            std::cout << "view: no display (" << why_no_window << "), benchmark runs headless at "
+                      << o.width << "x" << o.height << '\n';
+        } else if (!o.fallback_png.empty()) {
+            std::cout << "view: no display (" << why_no_window
+                      << "), rendering one frame headless to " << o.fallback_png << '\n';
+            o.frames = 1;
+            o.screenshot = o.fallback_png;
+        } else {
+            return no_display(why_no_window);
+        }
     }
 
     // The world.
@@ -308,12 +407,12 @@ int run_view(const ViewCliOptions& o) {
         world_name = "scene " + o.scene;
     }
     const Dims dims = model.world.dims();
-    ocl::GeneratorOptions gopts = generator_options(o.gen, Format::packed32, dims);
+    ocl::GeneratorOptions gopts = generator_options(o.gen, parse_format(o.format), dims);
     const std::uint32_t bench_chunk = gopts.chunk != 0 ? gopts.chunk : ocl::kDefaultChunk;
 
     ocl::Context cl_ctx(ocl::select_device(o.device));
     vk::Context vk_ctx;
-    Session session(cl_ctx, vk_ctx, model.palette, gopts);
+    Session session(cl_ctx, vk_ctx, model.palette, gopts, dims);
     const double build_ms = session.rebuild(std::move(model.world));
     std::cout << "opencl:  " << cl_ctx.info().name << " (" << cl_ctx.info().type << ")\n"
               << "vulkan:  " << vk_ctx.info().name << " (" << vk_ctx.info().type << ")\n"
@@ -321,24 +420,19 @@ int run_view(const ViewCliOptions& o) {
               << ocl::to_string(session.options().algorithm)
               << (session.options().chunk ? ", chunk " + std::to_string(session.options().chunk)
                                           : std::string(", global"))
-              << ", field built in " << fixed(build_ms, 1) << " ms\n";
+              << ", field " << to_string(session.options().format) << " built in "
+              << fixed(build_ms, 1) << " ms\n"
+              << "sharing: " << session.marcher().sharing_path()
+              << (session.render_field().why_not().empty()
+                      ? std::string()
+                      : " [" + session.render_field().why_not() + "]")
+              << '\n';
 
     // Window, swapchain, overlay.
     std::unique_ptr<vk::Presenter> presenter;
     VkDescriptorPool imgui_pool = VK_NULL_HANDLE;
     bool imgui_ready = false;
     if (windowed) {
-        glfwWindowHint(GLFW_CLIENT_API, GLFW_NO_API);
-        glfwWindowHint(GLFW_RESIZABLE, GLFW_TRUE);
-        glfwWindowHint(GLFW_SCALE_TO_MONITOR, GLFW_TRUE);
-        window.handle = glfwCreateWindow(static_cast<int>(o.width), static_cast<int>(o.height),
-                                         "voxfield", nullptr, nullptr);
-        if (window.handle == nullptr) {
-            const char* desc = nullptr;
-            glfwGetError(&desc);
-            return no_display(std::string("cannot create a window: ") +
-                              (desc != nullptr ? desc : "unknown GLFW error"));
-        }
         vk::PresenterOptions po;
         std::uint32_t n = 0;
         const char** exts = glfwGetRequiredInstanceExtensions(&n);
@@ -431,7 +525,9 @@ int run_view(const ViewCliOptions& o) {
     }
     std::vector<FrameRecord> records;
     std::deque<float> hist_frame, hist_update, hist_march;
-    double last_update_ms = 0;
+    Session::Update last_update;
+    std::optional<Brush> preview;
+    bool focus_follows = false;
     int algorithm_index = static_cast<int>(session.options().algorithm);
     int scene_index = 0;
     const std::vector<std::string> scenes = scene_names();
@@ -562,12 +658,14 @@ int run_view(const ViewCliOptions& o) {
                 std::cout << "screenshot " << std::filesystem::absolute(path).string() << '\n';
             }
 
-            // Editing: the pick ray through the crosshair (cursor captured) or the cursor.
+            // Editing: the pick ray through the crosshair (cursor captured) or the cursor;
+            // the brush it would apply is previewed every frame.
             const bool lmb =
                 glfwGetMouseButton(window.handle, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
             const bool rmb =
                 glfwGetMouseButton(window.handle, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
-            if ((lmb || rmb) && !io.WantCaptureMouse && fb_w > 0 && fb_h > 0) {
+            preview.reset();
+            if (!io.WantCaptureMouse && fb_w > 0 && fb_h > 0) {
                 double px = fb_w / 2.0, py = fb_h / 2.0;
                 if (ui_mode && ww > 0 && wh > 0) {
                     px = cx * fb_w / ww;
@@ -575,21 +673,22 @@ int run_view(const ViewCliOptions& o) {
                 }
                 const Vec3d dir =
                     pixel_direction(camera.forward(), camera.settings.fov_deg, fb_w, fb_h, px, py);
-                const auto hit = pick_voxel(session.world(), camera.position(), dir);
-                if (hit) {
+                if (const auto hit = pick_voxel(session.world(), camera.position(), dir)) {
                     const Tool tool = rmb ? Tool::erase : (paint_mode ? Tool::paint : Tool::place);
-                    const auto b = brush_for_pick(tool, brush, *hit);
-                    if (b && b != last_stroke_brush) {
-                        if (!stroke_open) {
-                            undo.begin_stroke();
-                            stroke_open = true;
-                        }
-                        batch.push_back(*b);
-                        stroke_batch = true;
-                        last_stroke_brush = b;
-                    }
+                    preview = brush_for_pick(tool, brush, *hit);
                 }
-            } else if (stroke_open) {
+            }
+            if ((lmb || rmb) && preview) {
+                if (preview != last_stroke_brush) {
+                    if (!stroke_open) {
+                        undo.begin_stroke();
+                        stroke_open = true;
+                    }
+                    batch.push_back(*preview);
+                    stroke_batch = true;
+                    last_stroke_brush = preview;
+                }
+            } else if (!lmb && !rmb && stroke_open) {
                 undo.end_stroke();
                 stroke_open = false;
                 last_stroke_brush.reset();
@@ -606,29 +705,45 @@ int run_view(const ViewCliOptions& o) {
             next_edit_s += o.interval_ms / 1000.0;
             bench_edit = true;
         }
-        double update_ms = 0;
+        // Lod / monolithic: the focus is the centre chunk or, following the camera, the
+        // camera's chunk; a changed focus recomputes the chunks that entered or left it.
+        Session::Update update;
+        const auto add = [&update](const Session::Update& u) {
+            update.field_ms += u.field_ms;
+            update.convert_ms += u.convert_ms;
+        };
+        if (has_focus(session.options().algorithm)) {
+            const std::uint32_t chunk = session.options().chunk;
+            const Dims n = ChunkGrid(dims, chunk).chunks();
+            const Int3 centre = focus_follows ? chunk_at(camera.position(), dims, chunk)
+                                              : Int3{n.x / 2, n.y / 2, n.z / 2};
+            const Focus f{centre, focus_size};
+            const auto& current = session.options().focus;
+            if (!current || current->centre != f.centre || current->size != f.size) {
+                add(session.set_focus(f));
+            }
+        }
         if (undo_changes && !undo_changes->empty()) {
             if (undo_changes->size() <= 4096) {
-                const auto s = session.apply(brushes_for_changes(*undo_changes, dims));
-                update_ms += s.update_ms;
+                add(session.apply(brushes_for_changes(*undo_changes, dims)));
             } else {
+                // Rebuilding is cheaper than thousands of one-voxel brushes.
                 World w = session.world();
                 apply_changes(w, *undo_changes);
-                update_ms += session.rebuild(std::move(w));
+                update.field_ms += session.rebuild(std::move(w));
             }
         }
         if (!batch.empty()) {
-            const ocl::UpdateStats s = session.apply(batch);
-            update_ms += s.update_ms;
-            if (stroke_batch) {
-                // Only the stroke's brushes (the first ones of the batch) are undoable.
-                for (std::size_t i = 0; i < s.edits.size() && i < 1; ++i) {
-                    undo.record(s.edits[i]);
-                }
+            std::vector<EditResult> edits;
+            add(session.apply(batch, &edits));
+            if (stroke_batch && !edits.empty()) {
+                // Only the stroke's brush (the first of the batch) is undoable.
+                undo.record(edits.front());
             }
         }
+        const double update_ms = update.field_ms + update.convert_ms;
         if (update_ms > 0) {
-            last_update_ms = update_ms;
+            last_update = update;
         }
 
         // Render at the framebuffer's size (HiDPI: pixels, not window units).
@@ -638,7 +753,7 @@ int run_view(const ViewCliOptions& o) {
             ropts.camera.position = camera.position();
             ropts.camera.target = camera.target();
             ropts.camera.fov_deg = camera.settings.fov_deg;
-            image = session.render(ropts);
+            session.render(ropts, image);
         }
 
         if (presenter) {
@@ -654,6 +769,11 @@ int run_view(const ViewCliOptions& o) {
             fg->AddLine(ImVec2(c.x, c.y - 8), ImVec2(c.x, c.y + 9), IM_COL32(255, 255, 255, 220),
                         2);
 
+            if (preview && fb_w > 0 && fb_h > 0) {
+                draw_brush_preview(fg, *preview, camera, fb_w, fb_h, io.DisplaySize,
+                                   session.palette());
+            }
+
             ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
             ImGui::Begin("voxfield");
             const auto push = [](std::deque<float>& h, double v) {
@@ -664,7 +784,7 @@ int run_view(const ViewCliOptions& o) {
             };
             const double frame_ms = records.empty() ? 0 : records.back().frame_ms;
             push(hist_frame, frame_ms);
-            push(hist_update, last_update_ms);
+            push(hist_update, last_update.field_ms + last_update.convert_ms);
             push(hist_march, image.raymarch_ms);
             const std::vector<float> hf(hist_frame.begin(), hist_frame.end());
             const std::vector<float> hu(hist_update.begin(), hist_update.end());
@@ -672,25 +792,24 @@ int run_view(const ViewCliOptions& o) {
             ImGui::Text("%.1f FPS, frame %.2f ms", frame_ms > 0 ? 1000.0 / frame_ms : 0.0,
                         frame_ms);
             ImGui::PlotLines("frame ms", hf.data(), static_cast<int>(hf.size()));
-            ImGui::Text("field update %.3f ms (device)", last_update_ms);
+            ImGui::Text("field update %.3f ms + render field %.3f ms (device)",
+                        last_update.field_ms, last_update.convert_ms);
             ImGui::PlotLines("update ms", hu.data(), static_cast<int>(hu.size()));
             ImGui::Text("ray march %.3f ms (GPU timestamps)", image.raymarch_ms);
             ImGui::PlotLines("march ms", hm.data(), static_cast<int>(hm.size()));
             const World& w = session.world();
             ImGui::Text("world %s, %zu solid of %zu voxels", w.dims().to_string().c_str(),
                         w.solid_count(), w.size());
-            // Resident per voxel for drawing: the ray marcher's field plus the material bytes
-            // packed32 needs beside it (vk::Raymarcher::upload).
-            const vk::FieldFormat field_format = session.marcher().layout().format;
-            ImGui::Text("render memory %zu bytes/voxel (%s field%s)",
-                        vk::element_size(field_format) +
-                            (field_format == vk::FieldFormat::packed32 ? 1 : 0),
-                        vk::to_string(field_format).c_str(),
-                        field_format == vk::FieldFormat::packed32 ? " + material byte" : "");
+            ImGui::Text("memory/voxel: render 2 B (compact), OpenCL field %zu B (%s) + world 1 B",
+                        element_size(session.options().format),
+                        to_string(session.options().format).c_str());
             ImGui::Text("OpenCL: %s", cl_ctx.info().name.c_str());
             ImGui::Text("Vulkan: %s / present %s (%s)", vk_ctx.info().name.c_str(),
                         presenter->device_name().c_str(), vk::to_string(presenter->mode()).c_str());
             ImGui::Text("sharing: %s", session.marcher().sharing_path().c_str());
+            if (!session.render_field().why_not().empty() && ImGui::IsItemHovered()) {
+                ImGui::SetTooltip("%s", session.render_field().why_not().c_str());
+            }
             ImGui::Separator();
             const auto& names = ocl::algorithm_names();
             std::vector<const char*> cnames;
@@ -703,7 +822,16 @@ int run_view(const ViewCliOptions& o) {
                 regen = true;
             }
             ImGui::SliderInt("chunk 2^k", &chunk_log2, 3, 7);
-            ImGui::SliderInt("focus size", &focus_size, 0, 8);
+            if (has_focus(session.options().algorithm)) {
+                ImGui::SliderInt("focus size", &focus_size, 0, 8);
+                ImGui::Checkbox("focus follows camera", &focus_follows);
+                if (const auto& f = session.options().focus) {
+                    ImGui::Text(
+                        "focus: chunk (%lld, %lld, %lld), size %lld",
+                        static_cast<long long>(f->centre.x), static_cast<long long>(f->centre.y),
+                        static_cast<long long>(f->centre.z), static_cast<long long>(f->size));
+                }
+            }
             std::vector<const char*> snames;
             for (const auto& n : scenes) {
                 snames.push_back(n.c_str());
@@ -722,6 +850,28 @@ int run_view(const ViewCliOptions& o) {
                         to_string(brush.shape).c_str(), static_cast<long long>(brush.size),
                         brush.material, camera.mode() == ViewCamera::Mode::orbit ? "orbit" : "fly");
             ImGui::Text("undo %zu, redo %zu. F1: keys", undo.undo_count(), undo.redo_count());
+            if (ImGui::CollapsingHeader("palette")) {
+                const Palette& pal = session.palette();
+                for (int m = 1; m < 256; ++m) {
+                    const Rgba rgb = pal[static_cast<std::uint8_t>(m)];
+                    ImGui::PushID(m);
+                    if (ImGui::ColorButton(
+                            "##colour", ImVec4(rgb.r / 255.0f, rgb.g / 255.0f, rgb.b / 255.0f, 1),
+                            ImGuiColorEditFlags_NoAlpha, ImVec2(14, 14))) {
+                        brush.material = static_cast<std::uint8_t>(m);
+                    }
+                    if (m == brush.material) {
+                        ImGui::GetWindowDrawList()->AddRect(ImGui::GetItemRectMin(),
+                                                            ImGui::GetItemRectMax(),
+                                                            IM_COL32(255, 255, 255, 255), 0, 0, 2);
+                    }
+                    ImGui::PopID();
+                    if (m % 16 != 15) {
+                        ImGui::SameLine(0, 2);
+                    }
+                }
+                ImGui::NewLine();
+            }
             ImGui::End();
             if (show_help) {
                 ImGui::SetNextWindowPos(ImVec2(io.DisplaySize.x / 2, io.DisplaySize.y / 2),
@@ -770,6 +920,7 @@ int run_view(const ViewCliOptions& o) {
         rec.time_s = time_s;
         rec.frame_ms = ms_since(t0);
         rec.update_ms = update_ms;
+        rec.convert_ms = update.convert_ms;
         rec.raymarch_ms = image.raymarch_ms;
         rec.edit = bench_edit;
         records.push_back(rec);
@@ -798,7 +949,7 @@ int run_view(const ViewCliOptions& o) {
         write_npy(o.world_output, a.type, a.dims, a.data);
     }
     if (!o.field_output.empty()) {
-        write_npy(o.field_output, npy_type(Format::packed32), dims, session.read_field());
+        write_npy(o.field_output, npy_type(session.options().format), dims, session.read_field());
     }
     std::cout << "frames:  " << frame << '\n';
 
@@ -831,6 +982,8 @@ int run_view(const ViewCliOptions& o) {
             j["device"] = device_json(cl_ctx.info());
             j["vulkan"] = vk_ctx.info().name;
             j["commit"] = commit();
+            j["date"] = utc_now();
+            j["format"] = to_string(session.options().format);
             j["world"] = {dims.x, dims.y, dims.z};
             j["source"] = world_name;
             j["algorithm"] = ocl::to_string(session.options().algorithm);
@@ -849,6 +1002,7 @@ int run_view(const ViewCliOptions& o) {
                 frames.push_back({{"time_s", r.time_s},
                                   {"frame_ms", r.frame_ms},
                                   {"update_ms", r.update_ms},
+                                  {"convert_ms", r.convert_ms},
                                   {"raymarch_ms", r.raymarch_ms},
                                   {"edit", r.edit}});
             }
@@ -857,11 +1011,11 @@ int run_view(const ViewCliOptions& o) {
         }
         if (!o.csv.empty()) {
             std::ostringstream csv;
-            csv << "frame,time_s,edit,frame_ms,update_ms,raymarch_ms\n";
+            csv << "frame,time_s,edit,frame_ms,update_ms,convert_ms,raymarch_ms\n";
             for (std::size_t i = 0; i < records.size(); ++i) {
                 const FrameRecord& r = records[i];
                 csv << i << ',' << r.time_s << ',' << (r.edit ? 1 : 0) << ',' << r.frame_ms << ','
-                    << r.update_ms << ',' << r.raymarch_ms << '\n';
+                    << r.update_ms << ',' << r.convert_ms << ',' << r.raymarch_ms << '\n';
             }
             write_text_file(o.csv, csv.str());
         }
@@ -904,9 +1058,14 @@ Command add_view(CLI::App& root) {
     app->add_option("--edits", o->edits,
                     "Scripted edits (the replay file format), one applied per frame from the "
                     "first frame");
-    app->add_option("--field-output", o->field_output,
-                    "Write the final distance field (packed32, uint32 .npy) at exit");
+    add_format_option(*app, o->format);
+    app->add_option(
+        "--field-output", o->field_output,
+        "Write the final distance field (in --format, as `generate` writes it) at exit");
     app->add_option("--world-output", o->world_output, "Write the final world (.npy) at exit");
+    app->add_option("--fallback-png", o->fallback_png,
+                    "Without a display: render the first frame headless into this PNG and exit 0 "
+                    "(instead of exiting 2)");
     app->add_flag("--benchmark", o->benchmark,
                   "The dissertation's benchmark: a random sphere every --interval-ms (seeded, "
                   "reproducible), vsync off, per-frame times, summary printed and saved");

@@ -1,38 +1,52 @@
-// The ray marcher's compact field (layout.h VF_COMPACT_*) from the exact field in u16 (L1
-// distances saturated at 65535, 0 on solids) and the world's voxels: one work-item per voxel,
-// written into z-slabs of SLAB_DEPTH slices that start slab_stride elements apart, so that
-// each slab is one Vulkan storage-buffer binding inside a single shared allocation.
-__kernel void to_compact(__global const ushort* restrict dist, __global const uchar* restrict vox,
-                         __global ushort* restrict out, ulong plane, uint slab_depth,
-                         ulong slab_stride, ulong n) {
-    const ulong i = get_global_id(0);
-    if (i >= n) {
+// The ray marcher's compact field (layout.h VF_COMPACT_*) from a distance field and the
+// world's voxels, and its coarse table. The field's element type and how its distance is read
+// come from the build options: VF_SRC_T (uchar, ushort, uint) and VF_SRC_SHIFT / VF_SRC_MASK
+// (packed32: bits 15..8). Distances are saturated at the source format's maximum, 0 on solids.
+#define SRC_DISTANCE(v) (((uint)(v) >> VF_SRC_SHIFT) & VF_SRC_MASK)
+
+// One work-item per voxel of the box at `lo` of `size` voxels (count = its volume; x fastest),
+// written into z-slabs of slab_depth slices that start slab_stride elements apart, so that each
+// slab is one Vulkan storage-buffer binding inside a single shared allocation.
+__kernel void to_compact(__global const VF_SRC_T* restrict dist, __global const uchar* restrict vox,
+                         __global ushort* restrict out, uint4 d, uint slab_depth,
+                         ulong slab_stride, uint4 lo, uint4 size, ulong count) {
+    const ulong k = get_global_id(0);
+    if (k >= count) {
         return;
     }
-    const ulong slab = i / plane / slab_depth;
-    const ulong local_i = i - slab * slab_depth * plane;
-    const uint d = min((uint)dist[i], VF_COMPACT_DISTANCE_MAX);
+    const ulong row = k / size.x;
+    const uint x = lo.x + (uint)(k - row * size.x);
+    const uint y = lo.y + (uint)(row % size.y);
+    const uint z = lo.z + (uint)(row / size.y);
+    const ulong i = ((ulong)z * d.y + y) * d.x + x;
+    const uint slab = z / slab_depth;
+    const ulong local_i = ((ulong)(z - slab * slab_depth) * d.y + y) * d.x + x;
+    const uint dd = min(SRC_DISTANCE(dist[i]), (uint)VF_COMPACT_DISTANCE_MAX);
     out[slab * slab_stride + local_i] =
-        (ushort)((d << VF_COMPACT_DISTANCE_SHIFT) | (vox[i] & VF_COMPACT_MATERIAL_MASK));
+        (ushort)((dd << VF_COMPACT_DISTANCE_SHIFT) | (vox[i] & VF_COMPACT_MATERIAL_MASK));
 }
 
-// The ray marcher's coarse table (layout.h VF_RAYMARCH_BLOCK): per block, the minimum of the
-// u16 distances over its voxels, a lower bound of every voxel's true distance in the block.
-__kernel void block_min(__global const ushort* restrict dist, __global uint* restrict out,
-                        uint4 d) {
-    const uint3 b = (uint3)(get_global_id(0), get_global_id(1), get_global_id(2));
-    const uint3 nb = (d.xyz + (uint3)(VF_RAYMARCH_BLOCK - 1)) / (uint3)(VF_RAYMARCH_BLOCK);
-    if (b.x >= nb.x || b.y >= nb.y || b.z >= nb.z) {
+// The ray marcher's coarse table (layout.h VF_RAYMARCH_BLOCK): one work-item per block of the
+// block box at `lo` of `size` blocks (count = its volume), the minimum of the distances over
+// the block's voxels, a lower bound of every voxel's true distance in the block.
+__kernel void block_min(__global const VF_SRC_T* restrict dist, __global uint* restrict out,
+                        uint4 d, uint4 lo, uint4 size, ulong count) {
+    const ulong k = get_global_id(0);
+    if (k >= count) {
         return;
     }
-    const uint3 lo = b * (uint3)(VF_RAYMARCH_BLOCK);
-    const uint3 hi = min(lo + (uint3)(VF_RAYMARCH_BLOCK), d.xyz);
+    const ulong row = k / size.x;
+    const uint3 b = (uint3)(lo.x + (uint)(k - row * size.x), lo.y + (uint)(row % size.y),
+                            lo.z + (uint)(row / size.y));
+    const uint3 nb = (d.xyz + (uint3)(VF_RAYMARCH_BLOCK - 1)) / (uint3)(VF_RAYMARCH_BLOCK);
+    const uint3 first = b * (uint3)(VF_RAYMARCH_BLOCK);
+    const uint3 last = min(first + (uint3)(VF_RAYMARCH_BLOCK), d.xyz);
     uint m = 0xFFFFFFFFu;
-    for (uint z = lo.z; z < hi.z; ++z) {
-        for (uint y = lo.y; y < hi.y; ++y) {
-            const ulong row = ((ulong)z * d.y + y) * d.x;
-            for (uint x = lo.x; x < hi.x; ++x) {
-                m = min(m, (uint)dist[row + x]);
+    for (uint z = first.z; z < last.z; ++z) {
+        for (uint y = first.y; y < last.y; ++y) {
+            const ulong r = ((ulong)z * d.y + y) * d.x;
+            for (uint x = first.x; x < last.x; ++x) {
+                m = min(m, SRC_DISTANCE(dist[r + x]));
             }
         }
     }

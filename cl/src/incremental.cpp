@@ -56,6 +56,9 @@ class Engine {
 
     virtual double regenerate() = 0;
     virtual UpdateStats apply(const std::vector<Brush>& batch) = 0;
+    virtual UpdateStats set_focus(const std::optional<Focus>& focus) = 0;
+    // The device world that apply() keeps current.
+    virtual const cl::Buffer& voxels_buffer() const = 0;
 
     Context& ctx;
     World world;
@@ -244,6 +247,14 @@ class GlobalEngine : public Engine {
             return stats;
         });
     }
+
+    UpdateStats set_focus(const std::optional<Focus>&) override {
+        throw InputError(
+            "exact has no focus to move: only the chunk-local lod and monolithic "
+            "run FIM in a focus");
+    }
+
+    const cl::Buffer& voxels_buffer() const override { return exact->voxels_buffer(); }
 
   private:
     void encode_box(Events& events, const Box& b) {
@@ -482,7 +493,60 @@ class ChunkEngine : public Engine {
         });
     }
 
+    UpdateStats set_focus(const std::optional<Focus>& f) override {
+        if ((mode & kFimFocus) == 0) {
+            throw InputError(to_string(options.algorithm) +
+                             " has no focus to move: only lod and monolithic run FIM in a focus");
+        }
+        const Box next = f ? focus_chunks(grid, *f) : Box{};  // throws outside the grid
+        options.focus = f;
+        // The chunks inside exactly one of the two boxes, in chunk index order.
+        auto inside = [](const Box& b, const Int3& c) {
+            return c.x >= b.min.x && c.x < b.max.x && c.y >= b.min.y && c.y < b.max.y &&
+                   c.z >= b.min.z && c.z < b.max.z;
+        };
+        const Box hull = hull_of(focus, next);
+        UpdateStats stats;
+        std::vector<cl_uint> chunks;
+        for (std::int64_t z = hull.min.z; z < hull.max.z; ++z) {
+            for (std::int64_t y = hull.min.y; y < hull.max.y; ++y) {
+                for (std::int64_t x = hull.min.x; x < hull.max.x; ++x) {
+                    const Int3 c{x, y, z};
+                    if (inside(focus, c) != inside(next, c)) {
+                        chunks.push_back(static_cast<cl_uint>(grid.chunk_index(c)));
+                        const Box b = grid.voxels_of(c);
+                        stats.regions.push_back(b);
+                        stats.voxels_recomputed += static_cast<std::uint64_t>(b.volume());
+                    }
+                }
+            }
+        }
+        focus = next;  // run_chunks reads it
+        if (chunks.empty()) {
+            return stats;
+        }
+        return cl_call("moving the focus in " + world.dims().to_string(), [&] {
+            Events events;
+            run_chunks(events, chunks);
+            ctx.queue().finish();
+            stats.update_ms = elapsed_ms(events.front(), events.back());
+            return stats;
+        });
+    }
+
+    const cl::Buffer& voxels_buffer() const override { return vox; }
+
   private:
+    // The smallest box holding both (an empty one adds nothing).
+    static Box hull_of(const Box& a, const Box& b) {
+        if (a.empty() || b.empty()) {
+            return a.empty() ? b : a;
+        }
+        return Box{
+            {std::min(a.min.x, b.min.x), std::min(a.min.y, b.min.y), std::min(a.min.z, b.min.z)},
+            {std::max(a.max.x, b.max.x), std::max(a.max.y, b.max.y), std::max(a.max.z, b.max.z)}};
+    }
+
     // monolithic.cl's VF_MODE_* bits.
     static constexpr cl_uint kJfa = 1, kFimAll = 2, kFimFocus = 4, kBrute = 8;
 
@@ -580,6 +644,14 @@ std::vector<std::uint8_t> IncrementalField::read() {
 
 const cl::Buffer& IncrementalField::field_buffer() const {
     return impl_->engine->out;
+}
+
+const cl::Buffer& IncrementalField::voxels_buffer() const {
+    return impl_->engine->voxels_buffer();
+}
+
+UpdateStats IncrementalField::set_focus(std::optional<Focus> focus) {
+    return impl_->engine->set_focus(focus);
 }
 
 }  // namespace voxfield::ocl

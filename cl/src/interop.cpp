@@ -36,54 +36,106 @@ int platform_major(const Context& ctx) {
 
 }  // namespace
 
-CompactWriter::CompactWriter(Context& ctx, const ExactManhattan& exact, Dims dims, cl::Buffer dst,
-                             SlabLayout layout, bool external)
-    : ctx_(ctx), dst_(dst), external_(external) {
+namespace {
+
+constexpr std::size_t kLocal = 64;  // work-group size of both kernels
+
+// render_field.cl's build options for a source field in `format`.
+std::string source_options(Format format) {
+    switch (format) {
+        case Format::u8:
+            return " -DVF_SRC_T=uchar -DVF_SRC_SHIFT=0 -DVF_SRC_MASK=0xFFu";
+        case Format::u16:
+            return " -DVF_SRC_T=ushort -DVF_SRC_SHIFT=0 -DVF_SRC_MASK=0xFFFFu";
+        case Format::u32:
+            return " -DVF_SRC_T=uint -DVF_SRC_SHIFT=0 -DVF_SRC_MASK=0xFFFFFFFFu";
+        case Format::packed32:
+            return " -DVF_SRC_T=uint -DVF_SRC_SHIFT=VF_PACKED_DISTANCE_SHIFT "
+                   "-DVF_SRC_MASK=VF_PACKED_DISTANCE_MAX";
+    }
+    return {};
+}
+
+// Sets the box arguments (lo, size, count) from `first` and returns the 1-D launch size.
+std::size_t set_box(cl::Kernel& kernel, cl_uint first, const Int3& lo, const Int3& hi) {
+    const auto u = [](std::int64_t v) { return static_cast<cl_uint>(v); };
+    const std::uint64_t count = static_cast<std::uint64_t>(hi.x - lo.x) *
+                                static_cast<std::uint64_t>(hi.y - lo.y) *
+                                static_cast<std::uint64_t>(hi.z - lo.z);
+    kernel.setArg(first, cl_uint4{{u(lo.x), u(lo.y), u(lo.z), 0}});
+    kernel.setArg(first + 1, cl_uint4{{u(hi.x - lo.x), u(hi.y - lo.y), u(hi.z - lo.z), 0}});
+    kernel.setArg(first + 2, static_cast<cl_ulong>(count));
+    return round_up(count, kLocal);
+}
+
+}  // namespace
+
+CompactWriter::CompactWriter(Context& ctx, const cl::Buffer& field, Format format,
+                             const cl::Buffer& voxels, Dims dims, cl::Buffer dst, SlabLayout layout,
+                             bool external)
+    : ctx_(ctx), dims_(dims), dst_(dst), external_(external) {
     const std::string what = "compact render field of " + dims.to_string();
     if (layout.slab_depth == 0 || layout.slab_stride_bytes % 2 != 0) {
         throw ClError("clSetKernelArg", CL_INVALID_VALUE,
                       what + ": bad slab layout (depth " + std::to_string(layout.slab_depth) +
                           ", stride " + std::to_string(layout.slab_stride_bytes) + " bytes)");
     }
-    const cl::Program program = ctx.program(
-        "render_field.cl", {cl_sources::layout_h, cl_sources::render_field_cl}, "-cl-std=CL1.2");
+    const cl::Program program =
+        ctx.program("render_field.cl", {cl_sources::layout_h, cl_sources::render_field_cl},
+                    "-cl-std=CL1.2" + source_options(format));
+    const cl_uint4 d{{dims.x, dims.y, dims.z, 0}};
     cl_call(what, [&] {
         kernel_ = cl::Kernel(program, "to_compact");
-        kernel_.setArg(0, exact.field_buffer());
-        kernel_.setArg(1, exact.voxels_buffer());
+        kernel_.setArg(0, field);
+        kernel_.setArg(1, voxels);
         kernel_.setArg(2, dst);
-        kernel_.setArg(3, static_cast<cl_ulong>(std::uint64_t{dims.x} * dims.y));
+        kernel_.setArg(3, d);
         kernel_.setArg(4, cl_uint{layout.slab_depth});
         kernel_.setArg(5, static_cast<cl_ulong>(layout.slab_stride_bytes / 2));
-        kernel_.setArg(6, static_cast<cl_ulong>(dims.count()));
         const std::uint32_t b = VF_RAYMARCH_BLOCK;
-        const std::size_t bx = (dims.x + b - 1) / b, by = (dims.y + b - 1) / b,
-                          bz = (dims.z + b - 1) / b;
-        block_count_ = bx * by * bz;
+        block_count_ =
+            std::size_t{(dims.x + b - 1) / b} * ((dims.y + b - 1) / b) * ((dims.z + b - 1) / b);
         block_min_ = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * block_count_);
         block_kernel_ = cl::Kernel(program, "block_min");
-        block_kernel_.setArg(0, exact.field_buffer());
+        block_kernel_.setArg(0, field);
         block_kernel_.setArg(1, block_min_);
-        block_kernel_.setArg(2, cl_uint4{{dims.x, dims.y, dims.z, 0}});
-        blocks_ = cl::NDRange(bx, by, bz);
+        block_kernel_.setArg(2, d);
     });
-    global_ = round_up(dims.count(), 64);
 }
 
 double CompactWriter::run() {
-    if (external_) {
-        acquire_external(ctx_, dst_);
-    }
+    return run({Box{{0, 0, 0}, {dims_.x, dims_.y, dims_.z}}});
+}
+
+double CompactWriter::run(const std::vector<Box>& regions) {
+    const Box world{{0, 0, 0}, {dims_.x, dims_.y, dims_.z}};
+    const std::int64_t b = VF_RAYMARCH_BLOCK;
     return cl_call("writing the compact render field", [&] {
-        cl::Event done;
-        ctx_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global_),
-                                          cl::NullRange, nullptr, &done);
-        ctx_.queue().enqueueNDRangeKernel(block_kernel_, cl::NullRange, blocks_);
+        std::vector<cl::Event> events;
+        if (external_) {
+            acquire_external(ctx_, dst_);
+        }
+        for (const Box& region : regions) {
+            const Box r = intersect(region, world);
+            if (r.empty()) {
+                continue;
+            }
+            events.emplace_back();
+            ctx_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange,
+                                              cl::NDRange(set_box(kernel_, 6, r.min, r.max)),
+                                              cl::NDRange(kLocal), nullptr, &events.back());
+            const Int3 lo{r.min.x / b, r.min.y / b, r.min.z / b};
+            const Int3 hi{(r.max.x + b - 1) / b, (r.max.y + b - 1) / b, (r.max.z + b - 1) / b};
+            events.emplace_back();
+            ctx_.queue().enqueueNDRangeKernel(block_kernel_, cl::NullRange,
+                                              cl::NDRange(set_box(block_kernel_, 3, lo, hi)),
+                                              cl::NDRange(kLocal), nullptr, &events.back());
+        }
         if (external_) {
             release_external(ctx_, dst_);
         }
         ctx_.queue().finish();  // Vulkan reads the field only after OpenCL finished writing it
-        return elapsed_ms(done, done);
+        return events.empty() ? 0.0 : elapsed_ms(events.front(), events.back());
     });
 }
 

@@ -67,6 +67,31 @@ Vec3d pixel_direction(const Vec3d& forward, double fov_deg, double width, double
     return scale(d, 1 / length(d));
 }
 
+std::optional<ImagePoint> project_point(const Vec3d& eye, const Vec3d& forward, double fov_deg,
+                                        double width, double height, const Vec3d& point) {
+    const ViewBasis b = view_basis(forward);
+    const Vec3d v = sub(point, eye);
+    const double depth = dot(v, b.forward);
+    if (!(depth > 1e-6)) {
+        return std::nullopt;
+    }
+    const double half = std::tan(fov_deg * kDeg / 2);
+    const double sx = dot(v, b.right) / depth / ((width / height) * half);
+    const double sy = dot(v, b.up) / depth / half;
+    return ImagePoint{(sx + 1) / 2 * width, (1 - sy) / 2 * height};
+}
+
+Int3 chunk_at(const Vec3d& position, Dims world, std::uint32_t chunk) {
+    const std::uint32_t n[3] = {world.x, world.y, world.z};
+    std::int64_t c[3];
+    for (int a = 0; a < 3; ++a) {
+        const double v = std::isfinite(position[a]) ? position[a] : 0.0;
+        const double clamped = std::clamp(v, 0.0, static_cast<double>(n[a]) - 0.5);
+        c[a] = static_cast<std::int64_t>(clamped) / chunk;
+    }
+    return Int3{c[0], c[1], c[2]};
+}
+
 ViewCamera::ViewCamera(Dims world)
     : dims_(world), centre_{world.x / 2.0, world.y / 2.0, world.z / 2.0} {
     reset();

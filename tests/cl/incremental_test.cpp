@@ -2,6 +2,8 @@
 // regeneration (the CPU reference), and nothing outside the reported regions is written.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -234,6 +236,172 @@ TEST(Incremental, ChunkLocalAlgorithmsEqualTheirFullRegeneration) {
                 }
                 EXPECT_LE(stats.regions.size(), 2u * 8u * 27u);
             }
+        }
+    }
+}
+
+// The focus as a chunk box; empty without a focus.
+Box focus_box(const ChunkGrid& grid, const std::optional<Focus>& focus) {
+    return focus ? focus_chunks(grid, *focus) : Box{};
+}
+
+bool contains(const Box& b, const Int3& c) {
+    return c.x >= b.min.x && c.x < b.max.x && c.y >= b.min.y && c.y < b.max.y && c.z >= b.min.z &&
+           c.z < b.max.z;
+}
+
+// Moves the focus of `field` (whose focus is `from`) to `to` and checks: the recomputed
+// regions are exactly the voxel boxes of the chunks in one focus box but not the other,
+// nothing outside them is written, and the field equals a fresh one with the new focus.
+void expect_focus_move(ocl::IncrementalField& field, ocl::GeneratorOptions o,
+                       const std::optional<Focus>& from, const std::optional<Focus>& to,
+                       const std::string& what) {
+    const Dims d = field.world().dims();
+    const ChunkGrid grid(d, o.chunk);
+    const Box a = focus_box(grid, from), b = focus_box(grid, to);
+    std::vector<Box> want_regions;
+    const Dims n = grid.chunks();
+    for (std::int64_t z = 0; z < n.z; ++z) {
+        for (std::int64_t y = 0; y < n.y; ++y) {
+            for (std::int64_t x = 0; x < n.x; ++x) {
+                if (contains(a, {x, y, z}) != contains(b, {x, y, z})) {
+                    want_regions.push_back(grid.voxels_of({x, y, z}));
+                }
+            }
+        }
+    }
+    // Poison the field: what set_focus leaves alone must stay poison.
+    const std::vector<std::uint8_t> before = field.read();
+    const cl_uchar poison = 0xA5;
+    pocl().queue().enqueueFillBuffer(field.field_buffer(), poison, 0, before.size());
+    const ocl::UpdateStats stats = field.set_focus(to);
+    std::vector<std::uint8_t> merged = field.read();
+
+    ASSERT_EQ(stats.regions.size(), want_regions.size()) << what;
+    std::uint64_t volume = 0;
+    for (const Box& r : stats.regions) {
+        EXPECT_NE(std::find(want_regions.begin(), want_regions.end(), r), want_regions.end())
+            << what << ": recomputed a chunk whose focus membership did not change";
+        EXPECT_EQ(std::count(stats.regions.begin(), stats.regions.end(), r), 1) << what;
+        volume += static_cast<std::uint64_t>(r.volume());
+    }
+    EXPECT_EQ(stats.voxels_recomputed, volume) << what;
+    EXPECT_GE(stats.update_ms, 0.0) << what;
+    if (want_regions.empty()) {
+        EXPECT_EQ(stats.voxels_recomputed, 0u) << what;
+    }
+
+    // Outside the regions: still poison; put the old bytes back there.
+    const std::size_t es = element_size(o.format);
+    for (std::uint32_t z = 0; z < d.z; ++z) {
+        for (std::uint32_t y = 0; y < d.y; ++y) {
+            for (std::uint32_t x = 0; x < d.x; ++x) {
+                const Int3 v{x, y, z};
+                bool inside = false;
+                for (const Box& r : stats.regions) {
+                    inside |= contains(r, v);
+                }
+                if (inside) {
+                    continue;
+                }
+                const std::size_t i = d.index(x, y, z) * es;
+                for (std::size_t k = 0; k < es; ++k) {
+                    ASSERT_EQ(merged[i + k], poison) << what << ": written outside the changed "
+                                                     << "chunks at " << x << "," << y << "," << z;
+                    merged[i + k] = before[i + k];
+                }
+            }
+        }
+    }
+    pocl().queue().enqueueWriteBuffer(field.field_buffer(), CL_TRUE, 0, merged.size(),
+                                      merged.data());
+
+    o.focus = to;
+    ocl::IncrementalField fresh(pocl(), field.world(), Palette(), o);
+    const std::string diff = test::first_difference(field.read(), fresh.read(), o.format, d);
+    ASSERT_TRUE(diff.empty()) << what << ": " << diff;
+}
+
+TEST(Incremental, MovingTheFocusEqualsAFreshField) {
+    std::mt19937_64 rng(2024);
+    const Dims d{48, 40, 56};
+    for (const double density : {0.002, 0.03, 0.25}) {
+        const World start = scene_random(d, density, static_cast<std::uint64_t>(density * 1000));
+        for (const ocl::Algorithm a : {ocl::Algorithm::lod, ocl::Algorithm::monolithic}) {
+            for (const std::uint32_t chunk : {8u, 16u}) {
+                ocl::GeneratorOptions o;
+                o.algorithm = a;
+                o.format = a == ocl::Algorithm::monolithic ? Format::packed32 : Format::u16;
+                o.chunk = chunk;
+                o = ocl::resolve_options(o, d);  // the default focus: the centre chunk, size 1
+                ocl::IncrementalField field(pocl(), start, Palette(), o);
+                const Dims n = ChunkGrid(d, chunk).chunks();
+                const std::int64_t nx = n.x, ny = n.y, nz = n.z;
+                const std::vector<std::optional<Focus>> moves = {
+                    o.focus,                             // the same focus
+                    Focus{{0, 0, 0}, 1},                 // a corner chunk
+                    Focus{{nx - 1, ny - 1, nz - 1}, 0},  // the far corner, one chunk
+                    Focus{{1, 1, 1}, 100},               // every chunk
+                    Focus{{nx / 2, 0, nz - 1}, 100},     // every chunk again
+                    std::nullopt,                        // no focus
+                    std::nullopt,                        // still none
+                    Focus{{nx - 1, 0, nz / 2}, 2},       // clipped at the faces
+                    Focus{{nx - 1, 0, nz / 2}, 2},       // the same again
+                    Focus{{nx / 2, ny / 2, nz / 2}, 1},  // overlapping the last one
+                };
+                std::optional<Focus> current = o.focus;
+                for (std::size_t m = 0; m < moves.size(); ++m) {
+                    const std::string what = ocl::to_string(a) + " chunk " + std::to_string(chunk) +
+                                             " density " + std::to_string(density) + " move " +
+                                             std::to_string(m);
+                    expect_focus_move(field, o, current, moves[m], what);
+                    current = moves[m];
+                    if (m == 3) {
+                        // An edit between moves: the next ones start from the edited world.
+                        field.apply({random_brush(rng, d, 8)});
+                    }
+                }
+                // A focus outside the grid or of negative size: InputError, focus unchanged.
+                EXPECT_THROW(field.set_focus(Focus{{nx, 0, 0}, 1}), InputError);
+                EXPECT_THROW(field.set_focus(Focus{{0, 0, 0}, -1}), InputError);
+                const auto same = field.set_focus(current);
+                EXPECT_EQ(same.voxels_recomputed, 0u);
+                EXPECT_TRUE(same.regions.empty());
+            }
+        }
+    }
+}
+
+TEST(Incremental, OnlyLodAndMonolithicHaveAFocus) {
+    const World start = scene_floor_spheres(Dims{32, 24, 16}, 2, 4);
+    ocl::IncrementalField exact(pocl(), start, Palette(), exact_options(Format::u16));
+    EXPECT_THROW(exact.set_focus(Focus{{0, 0, 0}, 1}), InputError);
+    EXPECT_THROW(exact.set_focus(std::nullopt), InputError);
+    ocl::GeneratorOptions o;
+    o.algorithm = ocl::Algorithm::fim;
+    o.chunk = 8;
+    o = ocl::resolve_options(o, start.dims());
+    ocl::IncrementalField fim(pocl(), start, Palette(), o);
+    EXPECT_THROW(fim.set_focus(Focus{{0, 0, 0}, 1}), InputError);
+    EXPECT_THROW(fim.set_focus(std::nullopt), InputError);
+}
+
+TEST(Incremental, VoxelsBufferFollowsTheWorld) {
+    std::mt19937_64 rng(99);
+    const World start = scene_floor_spheres(Dims{40, 24, 32}, 6, 6);
+    ocl::GeneratorOptions chunked;
+    chunked.algorithm = ocl::Algorithm::lod;
+    chunked.chunk = 8;
+    chunked = ocl::resolve_options(chunked, start.dims());
+    for (const auto& o : {exact_options(Format::u16), chunked}) {
+        ocl::IncrementalField field(pocl(), start, Palette(), o);
+        for (int batch = 0; batch < 10; ++batch) {
+            field.apply({random_brush(rng, start.dims(), 6), random_brush(rng, start.dims(), 3)});
+            std::vector<std::uint8_t> got(start.size());
+            pocl().queue().enqueueReadBuffer(field.voxels_buffer(), CL_TRUE, 0, got.size(),
+                                             got.data());
+            ASSERT_EQ(got, field.world().voxels())
+                << ocl::to_string(o.algorithm) << " batch " << batch;
         }
     }
 }

@@ -44,6 +44,9 @@ class ViewTest : public ::testing::Test {
         fs::remove_all(dir_);
         fs::remove_all(io_);
     }
+    void check_shot_and_field(const fs::path& world, const fs::path& edits,
+                              const std::string& format, const fs::path& shot,
+                              const fs::path& field);
     fs::path dir_, io_;
     std::vector<std::optional<std::string>> saved_;
 };
@@ -67,6 +70,28 @@ TEST_F(ViewTest, UnreachableDisplayIsNoDisplayToo) {
     ASSERT_EQ(lines.size(), 1u) << describe(r);
     EXPECT_NE(lines[0].find("no display"), std::string::npos) << lines[0];
     EXPECT_NE(lines[0].find("voxfield render"), std::string::npos) << lines[0];
+}
+
+TEST_F(ViewTest, FallbackPngRendersOneFrameHeadless) {
+    const fs::path shot = dir_ / "fallback.png";
+    const RunResult r =
+        run_voxfield({"view", "--world", "24", "--scene", "terrain", "--shading", "flat", "--width",
+                      "80", "--height", "60", "--fallback-png", shot.string()},
+                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_NE(r.out.find("no display"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("screenshot " + shot.string()), std::string::npos) << r.out;
+    int iw = 0, ih = 0, channels = 0;
+    unsigned char* px = stbi_load(shot.c_str(), &iw, &ih, &channels, 4);
+    ASSERT_NE(px, nullptr) << shot;
+    EXPECT_EQ(iw, 80);
+    EXPECT_EQ(ih, 60);
+    std::size_t lit = 0;
+    for (int i = 0; i < iw * ih; ++i) {
+        lit += (px[4 * i] != 0 || px[4 * i + 1] != 0 || px[4 * i + 2] != 0) ? 1 : 0;
+    }
+    stbi_image_free(px);
+    EXPECT_GT(lit, static_cast<std::size_t>(iw * ih / 20)) << "the fallback image is all sky";
 }
 
 TEST_F(ViewTest, BadUsageIsCheckedFirst) {
@@ -140,16 +165,30 @@ TEST_F(ViewTest, SmokeUnderXvfbShowsTheWorldAndFollowsEdits) {
     const fs::path edits = dir_ / "edits.txt";
     write_file(edits, "place sphere 10 6 10 4 3\nerase cube 30 0 30 3\npaint sphere 20 5 20 3 7\n");
 
-    const fs::path shot = dir_ / "shot.png", field = dir_ / "view_field.npy";
-    const int code =
-        run_under_xvfb({"view", world.string(), "--frames", "6", "--edits", edits.string(),
-                        "--shading", "flat", "--width", "160", "--height", "120", "--screenshot",
-                        shot.string(), "--field-output", field.string()},
-                       io_ / "xvfb.log");
-    ASSERT_EQ(code, 0) << read_text(io_ / "xvfb.log");
-    EXPECT_NE(read_text(io_ / "xvfb.log").find("window:"), std::string::npos)
-        << read_text(io_ / "xvfb.log");
+    // The field kept on the OpenCL device in u16 (the default) and in packed32: both are
+    // converted into the render field the ray marcher reads in place (sharing path 2 here).
+    for (const std::string format : {"u16", "packed32"}) {
+        SCOPED_TRACE(format);
+        const fs::path shot = dir_ / ("shot_" + format + ".png");
+        const fs::path field = dir_ / ("view_field_" + format + ".npy");
+        const int code = run_under_xvfb(
+            {"view", world.string(), "--frames", "6", "--edits", edits.string(), "--shading",
+             "flat", "--width", "160", "--height", "120", "--format", format, "--screenshot",
+             shot.string(), "--field-output", field.string()},
+            io_ / "xvfb.log");
+        const std::string log = read_text(io_ / "xvfb.log");
+        ASSERT_EQ(code, 0) << log;
+        EXPECT_NE(log.find("window:"), std::string::npos) << log;
+        EXPECT_NE(log.find("sharing: path 2"), std::string::npos) << log;
+        check_shot_and_field(world, edits, format, shot, field);
+    }
+}
 
+// The smoke test's checks for one format: the screenshot shows the world, the final field
+// equals replay's for the same edits and differs from the unedited world's.
+void ViewTest::check_shot_and_field(const fs::path& world, const fs::path& edits,
+                                    const std::string& format, const fs::path& shot,
+                                    const fs::path& field) {
     // The screenshot shows the world: flat shading, black sky, so lit pixels are voxels.
     int iw = 0, ih = 0, channels = 0;
     unsigned char* px = stbi_load(shot.c_str(), &iw, &ih, &channels, 4);
@@ -168,11 +207,10 @@ TEST_F(ViewTest, SmokeUnderXvfbShowsTheWorldAndFollowsEdits) {
     // The field after the edits equals `replay`'s and differs from the unedited world's.
     const fs::path replayed = dir_ / "replay_field.npy", before = dir_ / "before.npy";
     RunResult r = run_voxfield({"replay", edits.string(), "--input", world.string(), "--format",
-                                "packed32", "-o", replayed.string()},
+                                format, "-o", replayed.string()},
                                io_);
     ASSERT_EQ(r.code, 0) << describe(r);
-    r = run_voxfield({"generate", world.string(), "--format", "packed32", "-o", before.string()},
-                     io_);
+    r = run_voxfield({"generate", world.string(), "--format", format, "-o", before.string()}, io_);
     ASSERT_EQ(r.code, 0) << describe(r);
     const auto got = read_npy(field), want = read_npy(replayed), old = read_npy(before);
     EXPECT_EQ(got.dims, want.dims);

@@ -56,6 +56,36 @@ TEST(Camera, PixelDirectionsFollowDesign) {
     expect_near(d, {w2[0] / n2, w2[1] / n2, w2[2] / n2});
 }
 
+TEST(Camera, ProjectPointInvertsPixelDirection) {
+    const Vec3d eye = {3, -2, 7};
+    for (const Vec3d& f :
+         {Vec3d{0, 0, 1}, Vec3d{0.3, -0.5, 0.8}, Vec3d{0, 1, 0}, Vec3d{-1, 0.2, 0}}) {
+        for (const auto& [px, py] : {std::pair{0.0, 0.0}, std::pair{400.0, 300.0},
+                                     std::pair{799.5, 12.25}, std::pair{-50.0, 700.0}}) {
+            const Vec3d d = pixel_direction(f, 70, 800, 600, px, py);
+            const Vec3d p = {eye[0] + 9 * d[0], eye[1] + 9 * d[1], eye[2] + 9 * d[2]};
+            const auto ip = project_point(eye, f, 70, 800, 600, p);
+            ASSERT_TRUE(ip.has_value());
+            EXPECT_NEAR(ip->x, px, 1e-9);
+            EXPECT_NEAR(ip->y, py, 1e-9);
+        }
+        // Behind the eye and on its image plane: not visible.
+        const double n = length(f);
+        EXPECT_FALSE(project_point(eye, f, 70, 800, 600,
+                                   {eye[0] - f[0] / n, eye[1] - f[1] / n, eye[2] - f[2] / n}));
+        EXPECT_FALSE(project_point(eye, f, 70, 800, 600, eye));
+    }
+}
+
+TEST(Camera, ChunkAtClampsIntoTheGrid) {
+    const Dims w{64, 40, 33};  // 16^3 chunks: 4 x 3 x 3 (edge chunks clipped)
+    EXPECT_EQ(chunk_at({0, 0, 0}, w, 16), (Int3{0, 0, 0}));
+    EXPECT_EQ(chunk_at({15.99, 16, 32.5}, w, 16), (Int3{0, 1, 2}));
+    EXPECT_EQ(chunk_at({-100, 1e9, 20}, w, 16), (Int3{0, 2, 1}));
+    EXPECT_EQ(chunk_at({64, 40, 33}, w, 16), (Int3{3, 2, 2}));
+    EXPECT_EQ(chunk_at({NAN, 5, 5}, w, 8), (Int3{0, 0, 0}));
+}
+
 TEST(Camera, StartsAtTheRenderersOverview) {
     ViewCamera cam(Dims{64, 32, 48});
     const Vec3d c = {32, 16, 24};

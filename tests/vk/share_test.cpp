@@ -10,7 +10,9 @@
 
 #include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/interop.hpp"
+#include "voxfield/core/format.hpp"
 #include "voxfield/core/reference.hpp"
+#include "voxfield/core/scenes.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 #include "voxfield/vk/shared.hpp"
 
@@ -103,6 +105,98 @@ TEST(Share, OpenClFillIsSeenByTheShaderWithNoCopy) {
     EXPECT_EQ(marcher.bytes_copied(), 0u);
 }
 
+// The writer on its own (OpenCL only): every source format, the whole field and regions.
+TEST(Share, CompactWriterConvertsEveryFormatWholeAndByRegion) {
+    const Dims dims{21, 18, 27};
+    const World world = make_scene("random", dims, 99);
+    const Palette palette;
+    const std::vector<std::uint32_t> distances = reference_manhattan(world);
+    const std::uint32_t depth = 5;
+    const std::size_t plane = std::size_t{dims.x} * dims.y;
+    const std::size_t stride = plane * depth + 6;  // elements between slab starts
+    const std::size_t slabs = (dims.z + depth - 1) / depth;
+    auto& q = opencl().queue();
+    for (const Format format : {Format::u8, Format::u16, Format::u32, Format::packed32}) {
+        SCOPED_TRACE(to_string(format));
+        const std::vector<std::uint8_t> field = encode_field(distances, world, palette, format);
+        cl::Buffer src(opencl().context(), CL_MEM_READ_WRITE, field.size());
+        cl::Buffer vox(opencl().context(), CL_MEM_READ_WRITE, world.size());
+        cl::Buffer dst(opencl().context(), CL_MEM_READ_WRITE, 2 * stride * slabs);
+        q.enqueueWriteBuffer(src, CL_TRUE, 0, field.size(), field.data());
+        q.enqueueWriteBuffer(vox, CL_TRUE, 0, world.size(), world.voxels().data());
+        q.enqueueFillBuffer(dst, cl_ushort{0xABCD}, 0, 2 * stride * slabs);
+        ocl::CompactWriter writer(opencl(), src, format, vox, dims, dst,
+                                  {depth, static_cast<std::uint64_t>(2 * stride)});
+        const auto expected = [&](std::size_t i) {
+            const std::uint32_t d = std::min(decode_distance(field, format, i), 255u);
+            return static_cast<std::uint16_t>((d << 8) | world.voxels()[i]);
+        };
+        const auto read_dst = [&] {
+            std::vector<std::uint16_t> out(stride * slabs);
+            q.enqueueReadBuffer(dst, CL_TRUE, 0, 2 * out.size(), out.data());
+            return out;
+        };
+        const auto at = [&](const std::vector<std::uint16_t>& out, std::size_t x, std::size_t y,
+                            std::size_t z) {
+            return out[z / depth * stride + ((z % depth) * dims.y + y) * dims.x + x];
+        };
+
+        // Regions first: exactly their voxels are written.
+        const std::vector<Box> regions{{{2, 3, 4}, {9, 11, 13}}, {{15, -4, 20}, {40, 5, 40}}};
+        writer.run(regions);
+        std::vector<std::uint16_t> out = read_dst();
+        std::size_t written = 0;
+        for (std::size_t z = 0; z < dims.z; ++z) {
+            for (std::size_t y = 0; y < dims.y; ++y) {
+                for (std::size_t x = 0; x < dims.x; ++x) {
+                    const Int3 p{static_cast<std::int64_t>(x), static_cast<std::int64_t>(y),
+                                 static_cast<std::int64_t>(z)};
+                    bool inside = false;
+                    for (const Box& b : regions) {
+                        inside = inside || (p.x >= b.min.x && p.x < b.max.x && p.y >= b.min.y &&
+                                            p.y < b.max.y && p.z >= b.min.z && p.z < b.max.z);
+                    }
+                    const std::size_t i = (z * dims.y + y) * dims.x + x;
+                    if (inside) {
+                        ++written;
+                        ASSERT_EQ(at(out, x, y, z), expected(i)) << x << "," << y << "," << z;
+                    } else {
+                        ASSERT_EQ(at(out, x, y, z), 0xABCD) << x << "," << y << "," << z;
+                    }
+                }
+            }
+        }
+        EXPECT_EQ(written, 7u * 8 * 9 + 6u * 5 * 7);
+
+        // The whole field, and the block minima of every block.
+        writer.run();
+        out = read_dst();
+        for (std::size_t z = 0; z < dims.z; ++z) {
+            for (std::size_t y = 0; y < dims.y; ++y) {
+                for (std::size_t x = 0; x < dims.x; ++x) {
+                    ASSERT_EQ(at(out, x, y, z), expected((z * dims.y + y) * dims.x + x));
+                }
+            }
+        }
+        const std::vector<std::uint32_t> minima = writer.block_min();
+        const std::size_t bx = 3, by = 3, bz = 4;  // ceil(dims / 8)
+        ASSERT_EQ(minima.size(), bx * by * bz);
+        for (std::size_t b = 0; b < minima.size(); ++b) {
+            const std::size_t x0 = b % bx * 8, y0 = b / bx % by * 8, z0 = b / bx / by * 8;
+            std::uint32_t m = 0xFFFFFFFFu;
+            for (std::size_t z = z0; z < std::min<std::size_t>(z0 + 8, dims.z); ++z) {
+                for (std::size_t y = y0; y < std::min<std::size_t>(y0 + 8, dims.y); ++y) {
+                    for (std::size_t x = x0; x < std::min<std::size_t>(x0 + 8, dims.x); ++x) {
+                        m = std::min(m,
+                                     decode_distance(field, format, (z * dims.y + y) * dims.x + x));
+                    }
+                }
+            }
+            ASSERT_EQ(minima[b], m) << "block " << b;
+        }
+    }
+}
+
 TEST(Share, RegeneratedFieldShowsInTheNextRenderWithoutUpload) {
     const Dims dims{24, 20, 28};
     World world(dims);
@@ -122,8 +216,8 @@ TEST(Share, RegeneratedFieldShowsInTheNextRenderWithoutUpload) {
     shared.buffer = ocl::wrap_host_memory(opencl(), shared.memory.host_pointer(),
                                           static_cast<std::size_t>(shared.memory.size()));
     ocl::ExactManhattan exact(opencl(), world, palette, Format::u16);
-    ocl::CompactWriter writer(opencl(), exact, dims, shared.buffer,
-                              {layout.slab_depth, layout.slab_stride});
+    ocl::CompactWriter writer(opencl(), exact.field_buffer(), Format::u16, exact.voxels_buffer(),
+                              dims, shared.buffer, {layout.slab_depth, layout.slab_stride});
     exact.run();
     writer.run();
     marcher.bind_shared(shared.memory, layout, palette);

@@ -131,8 +131,19 @@ struct Raymarcher::Impl {
     FieldLayout layout;
     SharingPath sharing = SharingPath::copy;
     std::uint64_t copied = 0;
+    // The offscreen image and its readback buffer, kept while the image size stays (a frame
+    // loop would otherwise allocate both, megabytes of pinned memory, every frame).
+    struct Target {
+        std::uint32_t width = 0, height = 0;
+        Owned<VkDeviceMemory> memory;  // declared first: freed after the image is destroyed
+        Owned<VkImage> image;
+        Owned<VkImageView> view;
+        Buffer readback;
+    } target;
 
     explicit Impl(Context& c) : ctx(c) {}
+    // Makes `target` an image of width x height (no-op when it already is).
+    void prepare_target(std::uint32_t width, std::uint32_t height, const std::string& what);
     void upload_palette(const Palette& p);
     // Writes colours + block_min into the palette binding (a new buffer when it grows).
     void write_palette_binding();
@@ -449,7 +460,61 @@ void Raymarcher::bind_shared(const ExternalMemory& memory, const FieldLayout& l,
     m.install(std::move(field), {}, l, memory.path());
 }
 
+void Raymarcher::Impl::prepare_target(std::uint32_t width, std::uint32_t height,
+                                      const std::string& what) {
+    if (target.width == width && target.height == height) {
+        return;
+    }
+    const VkDevice dev = ctx.device();
+    // Release the old target first (view, image, then its memory).
+    target.view.reset();
+    target.image.reset();
+    target.memory.reset();
+    target.readback = Buffer();
+    target.width = target.height = 0;
+    // Offscreen target: one r32ui texel per RGBA8 pixel, read back through a buffer.
+    VkImageCreateInfo ii{};
+    ii.sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO;
+    ii.imageType = VK_IMAGE_TYPE_2D;
+    ii.format = VK_FORMAT_R32_UINT;
+    ii.extent = {width, height, 1};
+    ii.mipLevels = 1;
+    ii.arrayLayers = 1;
+    ii.samples = VK_SAMPLE_COUNT_1_BIT;
+    ii.tiling = VK_IMAGE_TILING_OPTIMAL;
+    ii.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+    ii.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+    ii.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+    VkImage image_handle = VK_NULL_HANDLE;
+    check(vkCreateImage(dev, &ii, nullptr, &image_handle), "vkCreateImage", what);
+    target.image = Owned<VkImage>(dev, image_handle, vkDestroyImage);
+    VkMemoryRequirements req{};
+    vkGetImageMemoryRequirements(dev, image_handle, &req);
+    target.memory = ctx.allocate(req, MemoryIntent::device_local, "offscreen image");
+    check(vkBindImageMemory(dev, image_handle, target.memory.get(), 0), "vkBindImageMemory", what);
+    VkImageViewCreateInfo vi{};
+    vi.sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO;
+    vi.image = image_handle;
+    vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
+    vi.format = VK_FORMAT_R32_UINT;
+    vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    VkImageView view_handle = VK_NULL_HANDLE;
+    check(vkCreateImageView(dev, &vi, nullptr, &view_handle), "vkCreateImageView", what);
+    target.view = Owned<VkImageView>(dev, view_handle, vkDestroyImageView);
+    target.readback =
+        ctx.make_buffer(VkDeviceSize{width} * height * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                        MemoryIntent::readback, "image readback");
+    target.width = width;
+    target.height = height;
+}
+
 Image Raymarcher::render(const RenderOptions& o) {
+    Image out;
+    render(o, out);
+    return out;
+}
+
+void Raymarcher::render(const RenderOptions& o, Image& out) {
     Impl& m = *impl_;
     if (m.field.empty()) {
         throw std::logic_error("Raymarcher::render before upload");
@@ -460,40 +525,11 @@ Image Raymarcher::render(const RenderOptions& o) {
     const std::string what = "ray march " + std::to_string(o.width) + "x" +
                              std::to_string(o.height) + " of " + m.layout.dims.to_string();
 
-    // Offscreen target: one r32ui texel per RGBA8 pixel, read back through a buffer.
-    VkImageCreateInfo ii{};
-    ii.sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO;
-    ii.imageType = VK_IMAGE_TYPE_2D;
-    ii.format = VK_FORMAT_R32_UINT;
-    ii.extent = {o.width, o.height, 1};
-    ii.mipLevels = 1;
-    ii.arrayLayers = 1;
-    ii.samples = VK_SAMPLE_COUNT_1_BIT;
-    ii.tiling = VK_IMAGE_TILING_OPTIMAL;
-    ii.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
-    ii.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-    ii.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-    VkImage image_handle = VK_NULL_HANDLE;
-    check(vkCreateImage(dev, &ii, nullptr, &image_handle), "vkCreateImage", what);
-    // Declared before the image so that the memory is freed after the image is destroyed.
-    Owned<VkDeviceMemory> image_memory;
-    Owned<VkImage> image(dev, image_handle, vkDestroyImage);
-    VkMemoryRequirements req{};
-    vkGetImageMemoryRequirements(dev, image_handle, &req);
-    image_memory = m.ctx.allocate(req, MemoryIntent::device_local, "offscreen image");
-    check(vkBindImageMemory(dev, image_handle, image_memory.get(), 0), "vkBindImageMemory", what);
-    VkImageViewCreateInfo vi{};
-    vi.sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO;
-    vi.image = image_handle;
-    vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
-    vi.format = VK_FORMAT_R32_UINT;
-    vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-    VkImageView view_handle = VK_NULL_HANDLE;
-    check(vkCreateImageView(dev, &vi, nullptr, &view_handle), "vkCreateImageView", what);
-    Owned<VkImageView> view(dev, view_handle, vkDestroyImageView);
+    m.prepare_target(o.width, o.height, what);
+    const VkImage image_handle = m.target.image.get();
+    const VkImageView view_handle = m.target.view.get();
+    const Buffer& readback = m.target.readback;
     const VkDeviceSize bytes = VkDeviceSize{o.width} * o.height * 4;
-    Buffer readback = m.ctx.make_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                        MemoryIntent::readback, "image readback");
 
     VkDescriptorImageInfo image_info{VK_NULL_HANDLE, view_handle, VK_IMAGE_LAYOUT_GENERAL};
     VkWriteDescriptorSet w{};
@@ -577,9 +613,9 @@ Image Raymarcher::render(const RenderOptions& o) {
         },
         what);
 
-    Image out;
     out.width = o.width;
     out.height = o.height;
+    out.raymarch_ms = -1;
     out.rgba.resize(bytes);
     std::memcpy(out.rgba.data(), readback.data(), bytes);
     if (queries != VK_NULL_HANDLE) {
@@ -590,7 +626,6 @@ Image Raymarcher::render(const RenderOptions& o) {
         out.raymarch_ms = static_cast<double>(ts[1] - ts[0]) *
                           static_cast<double>(m.ctx.timestamp_period_ns()) * 1e-6;
     }
-    return out;
 }
 
 void Raymarcher::set_block_min(std::span<const std::uint32_t> block_min) {

@@ -17,6 +17,7 @@
 // with the algorithm's own per-chunk kernel, all in one launch (one work-group per chunk).
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "voxfield/cl/generator.hpp"
@@ -49,11 +50,24 @@ class IncrementalField {
     double regenerate();
     // Applies the brushes in order to the world and updates the field (one batch).
     UpdateStats apply(const std::vector<Brush>& batch);
+    // lod and monolithic (chunk-local with a focus): moves the focus, the chunks where FIM
+    // runs after JFA (std::nullopt: no focus, JFA only everywhere), and recomputes exactly
+    // the chunks whose membership in the focus box changed (old box XOR new box), in one
+    // launch. The field then equals a fresh IncrementalField with that focus. Returns the
+    // launch's device time, the voxel boxes of the recomputed chunks and their voxel count;
+    // empty stats when no chunk changed membership (the same focus). Throws InputError for
+    // algorithms without a focus (exact, the other chunk-local ones) and for a focus outside
+    // the chunk grid or of negative size.
+    UpdateStats set_focus(std::optional<Focus> focus);
 
     const World& world() const;
     // The field in options.format, as generate() would write it.
     std::vector<std::uint8_t> read();
+    // The field in options.format, on the device.
     const cl::Buffer& field_buffer() const;
+    // The world's voxels on the device (one uchar per voxel, x fastest), kept current by
+    // apply().
+    const cl::Buffer& voxels_buffer() const;
 
   private:
     struct Impl;

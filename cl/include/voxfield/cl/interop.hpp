@@ -7,8 +7,10 @@
 #include <optional>
 #include <vector>
 
-#include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/runtime.hpp"
+#include "voxfield/core/chunks.hpp"
+#include "voxfield/core/format.hpp"
+#include "voxfield/core/world.hpp"
 
 namespace voxfield::ocl {
 
@@ -18,30 +20,34 @@ struct SlabLayout {
     std::uint64_t slab_stride_bytes = 0;  // slab s starts at s * slab_stride_bytes (even)
 };
 
-// Converts the exact field of `exact` (which must have been made with Format::u16) and its
-// voxels into the compact render format (layout.h VF_COMPACT_*, 2 bytes per voxel) in `dst`,
-// and computes the ray marcher's coarse table (per-block minimum distance, block_min()).
-// Holds references to both buffers; run() again after every exact.run(). external: dst was
-// imported with import_opaque_fd, so run() acquires it before the kernel and releases it
-// after (clEnqueueAcquire/ReleaseExternalMemObjectsKHR).
+// Converts a distance field and its world's voxels into the compact render format (layout.h
+// VF_COMPACT_*, 2 bytes per voxel) in `dst`, and computes the ray marcher's coarse table
+// (per-block minimum distance, block_min()). `field` holds the field in `format` (DESIGN §3;
+// packed32 contributes its 8-bit distance, so its block minima are at most 255), `voxels` one
+// byte per voxel; both x fastest, dims.count() elements. Holds references to the three
+// buffers; run() again after the field changed. external: dst was imported with
+// import_opaque_fd, so run() acquires it before the kernels and releases it after
+// (clEnqueueAcquire/ReleaseExternalMemObjectsKHR).
 class CompactWriter {
   public:
-    CompactWriter(Context& ctx, const ExactManhattan& exact, Dims dims, cl::Buffer dst,
-                  SlabLayout layout, bool external = false);
-    // Enqueues the conversion and waits for it (clFinish): afterwards Vulkan may read dst.
-    // Returns the kernel time in ms (profiling events).
+    CompactWriter(Context& ctx, const cl::Buffer& field, Format format, const cl::Buffer& voxels,
+                  Dims dims, cl::Buffer dst, SlabLayout layout, bool external = false);
+    // Converts the whole field, or only the voxels of `regions` (boxes clipped to the world;
+    // the block minima of every block they touch are recomputed). Enqueues the kernels and
+    // waits for them (clFinish): afterwards Vulkan may read dst. Returns the kernels' time in
+    // ms (profiling events).
     double run();
+    double run(const std::vector<Box>& regions);
     // The per-block minima of the last run() (layout.h VF_RAYMARCH_BLOCK; x fastest), read
     // back: a small table (1/512 of the voxels) the ray marcher keeps beside its palette.
     std::vector<std::uint32_t> block_min();
 
   private:
     Context& ctx_;
+    Dims dims_;
     cl::Buffer dst_, block_min_;
     cl::Kernel kernel_, block_kernel_;
-    cl::NDRange blocks_;
     std::size_t block_count_ = 0;
-    std::size_t global_ = 0;
     bool external_ = false;
 };
 

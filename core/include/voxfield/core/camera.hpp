@@ -9,7 +9,9 @@
 // forward).
 #include <array>
 #include <cstdint>
+#include <optional>
 
+#include "voxfield/core/chunks.hpp"
 #include "voxfield/core/world.hpp"
 
 namespace voxfield {
@@ -31,6 +33,20 @@ ViewBasis view_basis(const Vec3d& forward);
 // sx = px / W * 2 - 1, sy = 1 - py / H * 2.
 Vec3d pixel_direction(const Vec3d& forward, double fov_deg, double width, double height, double px,
                       double py);
+
+// The inverse: where the world point `point` appears in that image, seen from `eye` along
+// `forward` (image coordinates as above; may lie outside the image), or nothing when the
+// point is not in front of the eye (depth along forward <= 1e-6). For the brush preview.
+struct ImagePoint {
+    double x = 0, y = 0;
+};
+std::optional<ImagePoint> project_point(const Vec3d& eye, const Vec3d& forward, double fov_deg,
+                                        double width, double height, const Vec3d& point);
+
+// The chunk (chunk coordinates of `chunk`^3 chunks over `world`) that holds `position`, the
+// nearest one when the position lies outside the world: where "focus follows camera" puts
+// lod's focus. chunk > 0.
+Int3 chunk_at(const Vec3d& position, Dims world, std::uint32_t chunk);
 
 // One frame of input. Movement keys are held states; look_dx/dy are the mouse movement in
 // screen pixels accumulated over the frame (x right, y down).

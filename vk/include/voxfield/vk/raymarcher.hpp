@@ -119,7 +119,10 @@ class Raymarcher {
     // then skips max(255, block minimum) cells. Uploading or binding a new field clears it.
     // Throws InputError when the table's size does not match the field's blocks.
     void set_block_min(std::span<const std::uint32_t> block_min);
+    // Ray-marches one image and reads it back. The offscreen image and readback buffer are
+    // kept while the size stays; the second form also reuses out.rgba's storage.
     Image render(const RenderOptions& options);
+    void render(const RenderOptions& options, Image& out);
 
     // The field format and layout in use, and the bytes copied into field / material buffers
     // so far (stays 0 while the field is shared).

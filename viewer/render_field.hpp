@@ -1,0 +1,64 @@
+#pragma once
+// The ray marcher's compact field, written by OpenCL where Vulkan reads it (DESIGN §2): the
+// first sharing path both devices support (1 opaque fd -> 2 host pointer -> 3 copy), with the
+// conversion from any distance field on the OpenCL device (ocl::CompactWriter) and the coarse
+// table the ray marcher skips with. The glue between cl/ and vk/, so it lives in viewer/.
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "voxfield/cl/interop.hpp"
+#include "voxfield/vk/raymarcher.hpp"
+#include "voxfield/vk/shared.hpp"
+
+namespace voxfield::cli {
+
+// DESIGN §2: the first sharing path both devices support, 1 -> 2 -> 3, and why the earlier
+// ones are not (for reports).
+vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Context& vk_ctx,
+                                    std::string& why_not);
+
+class RenderField {
+  public:
+    // Allocates the compact field for `dims` as `marcher` plans it, on the first path that
+    // works (a path 1 import that fails falls back, and says why in why_not()). The ray
+    // marcher must be destroyed before this object (it may read this memory).
+    RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Raymarcher& marcher,
+                Dims dims);
+    ~RenderField();
+    RenderField(const RenderField&) = delete;
+    RenderField& operator=(const RenderField&) = delete;
+
+    // Converts from a new source (the field in `format` and the world's voxels, both on the
+    // OpenCL device; they must stay alive until the next attach) and shows the whole field
+    // in `marcher` (bound in place on paths 1/2, copied on path 3). Returns the OpenCL time
+    // in ms.
+    double attach(vk::Raymarcher& marcher, const cl::Buffer& field, Format format,
+                  const cl::Buffer& voxels, const Palette& palette);
+    // After the source changed inside `regions`: converts those voxels and refreshes the
+    // coarse table (path 3: copies the field again). Returns the OpenCL time in ms.
+    double update(vk::Raymarcher& marcher, const std::vector<Box>& regions);
+
+    vk::SharingPath path() const { return path_; }
+    // Why faster paths are not in use ("" on path 1).
+    const std::string& why_not() const { return why_not_; }
+
+  private:
+    void publish(vk::Raymarcher& marcher);
+
+    ocl::Context& cl_;
+    Dims dims_;
+    vk::FieldLayout layout_;
+    vk::SharingPath path_ = vk::SharingPath::copy;
+    std::string why_not_;
+    Palette palette_;
+    // Release order (reverse): writer, OpenCL buffer, then the fd and the memory it uses.
+    vk::ExternalMemory shared_;
+    int fd_ = -1;
+    cl::Buffer cl_field_;
+    std::optional<ocl::CompactWriter> writer_;
+};
+
+}  // namespace voxfield::cli
