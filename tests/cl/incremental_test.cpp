@@ -253,6 +253,8 @@ bool contains(const Box& b, const Int3& c) {
 // Moves the focus of `field` (whose focus is `from`) to `to` and checks: the recomputed
 // regions are exactly the voxel boxes of the chunks in one focus box but not the other,
 // nothing outside them is written, and the field equals a fresh one with the new focus.
+// (Seed-propagating JFA under L1 has been exact on every world tried, so FIM after it
+// rarely changes a value: the region and poison checks are what pin down the chunk set.)
 void expect_focus_move(ocl::IncrementalField& field, ocl::GeneratorOptions o,
                        const std::optional<Focus>& from, const std::optional<Focus>& to,
                        const std::string& what) {
