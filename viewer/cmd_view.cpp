@@ -134,9 +134,9 @@ int no_display(const std::string& why) {
 // paths 1/2 share the memory, path 3 copies).
 class Session {
   public:
-    Session(ocl::Context& cl, vk::Context& vkc, Palette palette, ocl::GeneratorOptions options,
-            Dims dims)
-        : cl_(cl), palette_(palette), options_(options) {
+    // Call rebuild() before anything else.
+    Session(ocl::Context& cl, vk::Context& vkc, Palette palette, Dims dims)
+        : cl_(cl), palette_(palette) {
         marcher_ = std::make_unique<vk::Raymarcher>(vkc);
         render_field_ = std::make_unique<RenderField>(cl, vkc, *marcher_, dims);
     }
@@ -144,13 +144,17 @@ class Session {
     Session(const Session&) = delete;
     Session& operator=(const Session&) = delete;
 
-    // Regenerates everything for `world` (new algorithm, chunk, scene or a large undo);
-    // returns the wall time in ms.
-    double rebuild(World world) {
+    // Regenerates everything for `world` with `options` (new algorithm, chunk, scene or a
+    // large undo); returns the wall time in ms. When the options are refused (InputError) the
+    // session keeps its field and options.
+    double rebuild(World world, const ocl::GeneratorOptions& options) {
         const auto t = Clock::now();
-        options_ = ocl::resolve_options(options_, world.dims());
-        field_.reset();
-        field_ = std::make_unique<ocl::IncrementalField>(cl_, std::move(world), palette_, options_);
+        const ocl::GeneratorOptions next = ocl::resolve_options(options, world.dims());
+        // The new field is complete before the old one goes: never a session without one.
+        auto field = std::make_unique<ocl::IncrementalField>(cl_, std::move(world), palette_, next);
+        render_field_->detach();
+        field_ = std::move(field);
+        options_ = next;
         render_field_->attach(*marcher_, field_->field_buffer(), options_.format,
                               field_->voxels_buffer(), palette_);
         return ms_since(t);
@@ -187,7 +191,7 @@ class Session {
 
     const World& world() const { return field_->world(); }
     const Palette& palette() const { return palette_; }
-    ocl::GeneratorOptions& options() { return options_; }
+    const ocl::GeneratorOptions& options() const { return options_; }
     std::vector<std::uint8_t> read_field() { return field_->read(); }
     vk::Raymarcher& marcher() { return *marcher_; }
     const RenderField& render_field() const { return *render_field_; }
@@ -412,8 +416,8 @@ int run_view(ViewCliOptions o) {
 
     ocl::Context cl_ctx(ocl::select_device(o.device));
     vk::Context vk_ctx;
-    Session session(cl_ctx, vk_ctx, model.palette, gopts, dims);
-    const double build_ms = session.rebuild(std::move(model.world));
+    Session session(cl_ctx, vk_ctx, model.palette, dims);
+    const double build_ms = session.rebuild(std::move(model.world), gopts);
     std::cout << "opencl:  " << cl_ctx.info().name << " (" << cl_ctx.info().type << ")\n"
               << "vulkan:  " << vk_ctx.info().name << " (" << vk_ctx.info().type << ")\n"
               << "world:   " << world_name << " " << dims.to_string() << ", algorithm "
@@ -730,7 +734,7 @@ int run_view(ViewCliOptions o) {
                 // Rebuilding is cheaper than thousands of one-voxel brushes.
                 World w = session.world();
                 apply_changes(w, *undo_changes);
-                update.field_ms += session.rebuild(std::move(w));
+                update.field_ms += session.rebuild(std::move(w), session.options());
             }
         }
         if (!batch.empty()) {
@@ -885,26 +889,28 @@ int run_view(ViewCliOptions o) {
             ImGui::Render();
             if (regen || new_scene) {
                 try {
-                    session.options().algorithm =
+                    // The dissertation's algorithms are updated per chunk (chunk-local);
+                    // exact is global.
+                    ocl::GeneratorOptions next = session.options();
+                    next.algorithm =
                         ocl::parse_algorithm(names[static_cast<std::size_t>(algorithm_index)]);
-                    session.options().chunk =
-                        ocl::always_chunked(session.options().algorithm) || session.options().chunk
-                            ? (1u << chunk_log2)
-                            : 0;
-                    session.options().focus.reset();
-                    const ocl::Algorithm a = session.options().algorithm;
-                    if (a == ocl::Algorithm::lod || a == ocl::Algorithm::monolithic) {
+                    next.chunk = next.algorithm == ocl::Algorithm::exact ? 0 : 1u << chunk_log2;
+                    next.focus.reset();
+                    if (has_focus(next.algorithm)) {
                         // FIM in the chunks within `focus size` of the centre chunk.
-                        const Dims n = ChunkGrid(dims, session.options().chunk).chunks();
-                        session.options().focus = Focus{{n.x / 2, n.y / 2, n.z / 2}, focus_size};
+                        require_chunk_fits(dims, next.chunk);
+                        const Dims n = ChunkGrid(dims, next.chunk).chunks();
+                        next.focus = Focus{{n.x / 2, n.y / 2, n.z / 2}, focus_size};
                     }
-                    World next = new_scene
-                                     ? make_scene(scenes[static_cast<std::size_t>(scene_index)],
-                                                  dims, o.scene_seed)
-                                     : World(session.world());
-                    const double ms = session.rebuild(std::move(next));
+                    World world = new_scene
+                                      ? make_scene(scenes[static_cast<std::size_t>(scene_index)],
+                                                   dims, o.scene_seed)
+                                      : World(session.world());
+                    const double ms = session.rebuild(std::move(world), next);
                     undo.clear();
-                    std::cout << "regenerated: " << ocl::to_string(session.options().algorithm)
+                    std::cout << "regenerated: " << ocl::to_string(next.algorithm)
+                              << (next.chunk ? ", chunk " + std::to_string(next.chunk)
+                                             : std::string(", global"))
                               << " in " << fixed(ms, 1) << " ms\n";
                 } catch (const InputError& e) {
                     std::cout << "cannot switch: " << e.what() << '\n';

@@ -37,6 +37,9 @@ class RenderField {
     // in ms.
     double attach(vk::Raymarcher& marcher, const cl::Buffer& field, Format format,
                   const cl::Buffer& voxels, const Palette& palette);
+    // Lets go of the source (before it is replaced, so that both never hold device memory
+    // at once); update() needs an attach() after this.
+    void detach() { writer_.reset(); }
     // After the source changed inside `regions`: converts those voxels and refreshes the
     // coarse table (path 3: copies the field again). Returns the OpenCL time in ms.
     double update(vk::Raymarcher& marcher, const std::vector<Box>& regions);

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <optional>
+#include <regex>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,25 @@
 
 namespace voxfield::test {
 namespace {
+
+// The pixels of the PNG at `path` that are not black; 0 (with a failure) when it cannot be read
+// or is not width x height.
+std::size_t non_black_pixels(const fs::path& path, int width, int height) {
+    int iw = 0, ih = 0, channels = 0;
+    unsigned char* px = stbi_load(path.c_str(), &iw, &ih, &channels, 4);
+    if (px == nullptr || iw != width || ih != height) {
+        ADD_FAILURE() << path << ": not a " << width << "x" << height << " PNG (" << iw << "x" << ih
+                      << ")";
+        stbi_image_free(px);
+        return 0;
+    }
+    std::size_t n = 0;
+    for (int i = 0; i < iw * ih; ++i) {
+        n += (px[4 * i] != 0 || px[4 * i + 1] != 0 || px[4 * i + 2] != 0) ? 1 : 0;
+    }
+    stbi_image_free(px);
+    return n;
+}
 
 class ViewTest : public ::testing::Test {
   protected:
@@ -81,17 +101,8 @@ TEST_F(ViewTest, FallbackPngRendersOneFrameHeadless) {
     ASSERT_EQ(r.code, 0) << describe(r);
     EXPECT_NE(r.out.find("no display"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("screenshot " + shot.string()), std::string::npos) << r.out;
-    int iw = 0, ih = 0, channels = 0;
-    unsigned char* px = stbi_load(shot.c_str(), &iw, &ih, &channels, 4);
-    ASSERT_NE(px, nullptr) << shot;
-    EXPECT_EQ(iw, 80);
-    EXPECT_EQ(ih, 60);
-    std::size_t lit = 0;
-    for (int i = 0; i < iw * ih; ++i) {
-        lit += (px[4 * i] != 0 || px[4 * i + 1] != 0 || px[4 * i + 2] != 0) ? 1 : 0;
-    }
-    stbi_image_free(px);
-    EXPECT_GT(lit, static_cast<std::size_t>(iw * ih / 20)) << "the fallback image is all sky";
+    // Flat shading, black sky: lit pixels are voxels.
+    EXPECT_GT(non_black_pixels(shot, 80, 60), 80u * 60 / 20) << "the fallback image is all sky";
 }
 
 TEST_F(ViewTest, BadUsageIsCheckedFirst) {
@@ -128,6 +139,48 @@ TEST_F(ViewTest, HeadlessBenchmarkIsReproducibleAndRecorded) {
     EXPECT_EQ(j["summary"]["field_update"]["n"], edits);
     EXPECT_EQ(j["summary"]["frame"]["n"], frames.size());
     EXPECT_EQ(split_lines(read_text(csv)).size(), frames.size() + 1);
+}
+
+TEST_F(ViewTest, BenchmarkEditsLeaveTheFieldAFreshGenerationWouldGive) {
+    // The viewer's loop (random spheres through IncrementalField, the render field written in
+    // place) ends with the field `generate` computes from the final world.
+    for (const std::vector<std::string>& algorithm :
+         {std::vector<std::string>{"--algorithm", "exact"},
+          std::vector<std::string>{"--algorithm", "lod", "--chunk", "8"}}) {
+        SCOPED_TRACE(algorithm[1]);
+        const fs::path world = dir_ / "w.npy", field = dir_ / "f.npy", fresh = dir_ / "g.npy";
+        std::vector<std::string> args = {"view",
+                                         "--world",
+                                         "32",
+                                         "--benchmark",
+                                         "--seed",
+                                         "3",
+                                         "--interval-ms",
+                                         "10",
+                                         "--duration-s",
+                                         "0.6",
+                                         "--width",
+                                         "32",
+                                         "--height",
+                                         "24",
+                                         "--world-output",
+                                         world.string(),
+                                         "--field-output",
+                                         field.string()};
+        args.insert(args.end(), algorithm.begin(), algorithm.end());
+        RunResult r = run_voxfield(args, io_);
+        ASSERT_EQ(r.code, 0) << describe(r);
+        std::smatch m;
+        ASSERT_TRUE(std::regex_search(r.out, m, std::regex(" (\\d+) edits,"))) << r.out;
+        EXPECT_GE(std::stoi(m[1]), 5) << r.out;
+        std::vector<std::string> gen = {"generate", world.string(), "-o", fresh.string()};
+        gen.insert(gen.end(), algorithm.begin(), algorithm.end());
+        r = run_voxfield(gen, io_);
+        ASSERT_EQ(r.code, 0) << describe(r);
+        const auto got = read_npy(field), want = read_npy(fresh);
+        EXPECT_EQ(got.dims, want.dims);
+        EXPECT_TRUE(got.data == want.data) << "the viewer's field differs from a fresh one";
+    }
 }
 
 bool have_xvfb() {
@@ -190,19 +243,7 @@ void ViewTest::check_shot_and_field(const fs::path& world, const fs::path& edits
                                     const std::string& format, const fs::path& shot,
                                     const fs::path& field) {
     // The screenshot shows the world: flat shading, black sky, so lit pixels are voxels.
-    int iw = 0, ih = 0, channels = 0;
-    unsigned char* px = stbi_load(shot.c_str(), &iw, &ih, &channels, 4);
-    ASSERT_NE(px, nullptr) << shot;
-    EXPECT_EQ(iw, 160);
-    EXPECT_EQ(ih, 120);
-    std::size_t solid = 0;
-    for (int i = 0; i < iw * ih; ++i) {
-        if (px[4 * i] != 0 || px[4 * i + 1] != 0 || px[4 * i + 2] != 0) {
-            ++solid;
-        }
-    }
-    stbi_image_free(px);
-    EXPECT_GT(solid, static_cast<std::size_t>(iw * ih / 20)) << "the screenshot is all sky";
+    EXPECT_GT(non_black_pixels(shot, 160, 120), 160u * 120 / 20) << "the screenshot is all sky";
 
     // The field after the edits equals `replay`'s and differs from the unedited world's.
     const fs::path replayed = dir_ / "replay_field.npy", before = dir_ / "before.npy";
