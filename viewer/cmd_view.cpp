@@ -166,18 +166,12 @@ class Session {
     };
 
     Update apply(const std::vector<Brush>& batch, std::vector<EditResult>* edits = nullptr) {
-        ocl::UpdateStats s = field_->apply(batch);
-        std::vector<Box> regions = s.regions;
-        for (const EditResult& e : s.edits) {
-            if (e.changed()) {
-                regions.push_back(e.bounds);  // recoloured voxels keep their distance
-            }
-        }
-        Update u{s.update_ms, publish(regions)};
-        if (edits != nullptr) {
-            *edits = std::move(s.edits);
-        }
-        return u;
+        return finish(field_->apply(batch), edits);
+    }
+
+    // An undo or redo (one edit, through the incremental updater like every other edit).
+    Update apply_changes(const VoxelChanges& changes) {
+        return finish(field_->apply_changes(changes), nullptr);
     }
 
     // Moves lod's / monolithic's focus and recomputes the chunks that entered or left it.
@@ -197,6 +191,21 @@ class Session {
     const RenderField& render_field() const { return *render_field_; }
 
   private:
+    // Writes what the update changed into the render field.
+    Update finish(ocl::UpdateStats s, std::vector<EditResult>* edits) {
+        std::vector<Box> regions = s.regions;
+        for (const EditResult& e : s.edits) {
+            if (e.changed()) {
+                regions.push_back(e.bounds);  // recoloured voxels keep their distance
+            }
+        }
+        Update u{s.update_ms, publish(regions)};
+        if (edits != nullptr) {
+            *edits = std::move(s.edits);
+        }
+        return u;
+    }
+
     double publish(std::vector<Box> regions) {
         if (regions.empty()) {
             return 0;
@@ -728,14 +737,7 @@ int run_view(ViewCliOptions o) {
             }
         }
         if (undo_changes && !undo_changes->empty()) {
-            if (undo_changes->size() <= 4096) {
-                add(session.apply(brushes_for_changes(*undo_changes, dims)));
-            } else {
-                // Rebuilding is cheaper than thousands of one-voxel brushes.
-                World w = session.world();
-                apply_changes(w, *undo_changes);
-                update.field_ms += session.rebuild(std::move(w), session.options());
-            }
+            add(session.apply_changes(*undo_changes));
         }
         if (!batch.empty()) {
             std::vector<EditResult> edits;

@@ -11,6 +11,7 @@
 #include "voxfield/cl/exact.hpp"
 #include "voxfield/core/dirty.hpp"
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/undo.hpp"
 
 namespace voxfield::cl_sources {
 extern const char* const layout_h;
@@ -55,7 +56,21 @@ class Engine {
     Engine& operator=(const Engine&) = delete;
 
     virtual double regenerate() = 0;
-    virtual UpdateStats apply(const std::vector<Brush>& batch) = 0;
+
+    // Applies the brushes (in order) or the voxel changes (one edit) to the host world, then
+    // updates the device.
+    UpdateStats apply(const std::vector<Brush>& batch) {
+        UpdateStats stats;
+        for (const Brush& brush : batch) {
+            stats.edits.push_back(apply_brush(world, brush));
+        }
+        return update(std::move(stats));
+    }
+    UpdateStats apply_changes(const VoxelChanges& voxel_changes) {
+        UpdateStats stats;
+        stats.edits.push_back(voxfield::apply_changes(world, voxel_changes));
+        return update(std::move(stats));
+    }
     virtual UpdateStats set_focus(const std::optional<Focus>& focus) = 0;
     // The device world that apply() keeps current.
     virtual const cl::Buffer& voxels_buffer() const = 0;
@@ -81,15 +96,16 @@ class Engine {
         }
     }
 
-    // Applies the brushes to the host world; returns the changed voxels as (index, value)
-    // pairs, `first` saying where each edit's pairs start.
-    std::vector<cl_uint> stage(const std::vector<Brush>& batch, UpdateStats& stats,
-                               std::vector<std::size_t>& first) {
+    // Brings the device up to date with stats.edits, already applied to the host world.
+    virtual UpdateStats update(UpdateStats stats) = 0;
+
+    // The edits' changed voxels as (index, value) pairs, `first` saying where each edit's
+    // pairs start.
+    static std::vector<cl_uint> stage(const UpdateStats& stats, std::vector<std::size_t>& first) {
         std::vector<cl_uint> staged;
-        for (const Brush& brush : batch) {
+        for (const EditResult& edit : stats.edits) {
             first.push_back(staged.size() / 2);
-            stats.edits.push_back(apply_brush(world, brush));
-            for (const VoxelChange& c : stats.edits.back().changes) {
+            for (const VoxelChange& c : edit.changes) {
                 staged.push_back(static_cast<cl_uint>(c.index));
                 staged.push_back(c.after);
             }
@@ -195,23 +211,22 @@ class GlobalEngine : public Engine {
         });
     }
 
-    UpdateStats apply(const std::vector<Brush>& batch) override {
-        UpdateStats stats;
+    UpdateStats update(UpdateStats stats) override {
         std::vector<std::size_t> first;
-        const std::vector<cl_uint> staged = stage(batch, stats, first);
+        const std::vector<cl_uint> staged = stage(stats, first);
         if (staged.empty()) {
             return stats;
         }
         return cl_call("updating the field of " + world.dims().to_string(), [&] {
             auto& q = ctx.queue();
-            reserve(regions, regions_capacity, 8 * 4 * batch.size());
+            reserve(regions, regions_capacity, 8 * 4 * stats.edits.size());
             Events events = upload(staged);
             events.emplace_back();
             // inc_bounds accumulates W with atomic_max from zero.
-            q.enqueueFillBuffer(regions, cl_int{0}, 0, 8 * 4 * batch.size(), nullptr,
+            q.enqueueFillBuffer(regions, cl_int{0}, 0, 8 * 4 * stats.edits.size(), nullptr,
                                 &events.back());
             std::vector<std::size_t> swept;  // edits whose distances were recomputed
-            for (std::size_t e = 0; e < batch.size(); ++e) {
+            for (std::size_t e = 0; e < stats.edits.size(); ++e) {
                 const EditResult& r = stats.edits[e];
                 if (!r.changed()) {
                     continue;
@@ -225,7 +240,7 @@ class GlobalEngine : public Engine {
                     encode_box(events, r.bounds);  // colours of recoloured voxels
                 }
             }
-            std::vector<cl_int> found(8 * batch.size());
+            std::vector<cl_int> found(8 * stats.edits.size());
             if (!swept.empty()) {
                 q.enqueueReadBuffer(regions, CL_FALSE, 0, 4 * found.size(), found.data());
             }
@@ -454,10 +469,9 @@ class ChunkEngine : public Engine {
         });
     }
 
-    UpdateStats apply(const std::vector<Brush>& batch) override {
-        UpdateStats stats;
+    UpdateStats update(UpdateStats stats) override {
         std::vector<std::size_t> first;
-        const std::vector<cl_uint> staged = stage(batch, stats, first);
+        const std::vector<cl_uint> staged = stage(stats, first);
         if (staged.empty()) {
             return stats;
         }
@@ -481,7 +495,7 @@ class ChunkEngine : public Engine {
         }
         return cl_call("updating the chunks of " + world.dims().to_string(), [&] {
             Events events = upload(staged);
-            for (std::size_t e = 0; e < batch.size(); ++e) {
+            for (std::size_t e = 0; e < stats.edits.size(); ++e) {
                 if (stats.edits[e].changed()) {
                     scatter(events, vox, stats, first, e);
                 }
@@ -626,6 +640,10 @@ double IncrementalField::regenerate() {
 
 UpdateStats IncrementalField::apply(const std::vector<Brush>& batch) {
     return impl_->engine->apply(batch);
+}
+
+UpdateStats IncrementalField::apply_changes(const VoxelChanges& changes) {
+    return impl_->engine->apply_changes(changes);
 }
 
 const World& IncrementalField::world() const {

@@ -56,7 +56,7 @@ std::int64_t scroll_brush_size(std::int64_t size, double scroll, std::int64_t ma
         std::clamp(next, 1.0, double(std::max<std::int64_t>(1, max_size))));
 }
 
-void apply_changes(World& world, const VoxelChanges& changes) {
+EditResult apply_changes(World& world, const VoxelChanges& changes) {
     for (const VoxelChange& c : changes) {
         if (c.index >= world.size()) {
             throw InputError("undo: voxel index " + std::to_string(c.index) +
@@ -68,31 +68,40 @@ void apply_changes(World& world, const VoxelChanges& changes) {
                              std::to_string(c.before) + " (the world changed outside the stack)");
         }
     }
-    for (const VoxelChange& c : changes) {
-        world.voxels()[c.index] = c.after;
-    }
-}
-
-std::vector<Brush> brushes_for_changes(const VoxelChanges& changes, Dims dims) {
-    std::vector<Brush> brushes;
-    brushes.reserve(changes.size());
-    const std::size_t plane = std::size_t{dims.x} * dims.y;
-    for (const VoxelChange& c : changes) {
-        Brush b;
-        b.shape = BrushShape::cube;
-        b.radius = 0;
-        b.centre = {static_cast<std::int64_t>(c.index % dims.x),
-                    static_cast<std::int64_t>((c.index / dims.x) % dims.y),
-                    static_cast<std::int64_t>(c.index / plane)};
-        if (c.after == 0) {
-            b.op = BrushOp::erase;
-        } else {
-            b.op = BrushOp::place;
-            b.material = c.after;
+    const Dims d = world.dims();
+    const auto grow = [](Box& box, const Int3& p) {
+        if (box.empty()) {
+            box = Box{p, {p.x + 1, p.y + 1, p.z + 1}};
+            return;
         }
-        brushes.push_back(b);
+        box.min = {std::min(box.min.x, p.x), std::min(box.min.y, p.y), std::min(box.min.z, p.z)};
+        box.max = {std::max(box.max.x, p.x + 1), std::max(box.max.y, p.y + 1),
+                   std::max(box.max.z, p.z + 1)};
+    };
+    EditResult result;
+    for (const VoxelChange& c : changes) {
+        if (c.before == c.after) {
+            continue;
+        }
+        world.voxels()[c.index] = c.after;
+        result.changes.push_back(c);
+        const Int3 p{static_cast<std::int64_t>(c.index % d.x),
+                     static_cast<std::int64_t>(c.index / d.x % d.y),
+                     static_cast<std::int64_t>(c.index / d.x / d.y)};
+        grow(result.bounds, p);
+        if (c.before == 0) {
+            ++result.became_solid;
+            grow(result.occupancy_bounds, p);
+        } else if (c.after == 0) {
+            ++result.became_empty;
+            grow(result.occupancy_bounds, p);
+        } else {
+            ++result.recoloured;
+        }
     }
-    return brushes;
+    std::sort(result.changes.begin(), result.changes.end(),
+              [](const VoxelChange& a, const VoxelChange& b) { return a.index < b.index; });
+    return result;
 }
 
 UndoStack::UndoStack(std::size_t max_strokes, std::size_t max_voxels)

@@ -12,6 +12,7 @@
 #include "voxfield/cl/incremental.hpp"
 #include "voxfield/core/reference.hpp"
 #include "voxfield/core/scenes.hpp"
+#include "voxfield/core/undo.hpp"
 
 namespace voxfield {
 namespace {
@@ -237,6 +238,52 @@ TEST(Incremental, ChunkLocalAlgorithmsEqualTheirFullRegeneration) {
                 EXPECT_LE(stats.regions.size(), 2u * 8u * 27u);
             }
         }
+    }
+}
+
+TEST(Incremental, UndoAndRedoOfStrokesStayExact) {
+    // Strokes recorded by the viewer's UndoStack, undone and redone through apply_changes:
+    // each is one edit, and the field equals a fresh one every time.
+    std::mt19937_64 rng(404);
+    const World start = scene_floor_spheres(Dims{40, 28, 36}, 21, 9);
+    ocl::GeneratorOptions chunked;
+    chunked.algorithm = ocl::Algorithm::fim;
+    chunked.chunk = 8;
+    for (ocl::GeneratorOptions o : {exact_options(Format::packed32), chunked}) {
+        o = ocl::resolve_options(o, start.dims());
+        ocl::IncrementalField field(pocl(), start, Palette(), o);
+        UndoStack undo;
+        const auto check = [&](const std::string& what) {
+            const auto want = ocl::generate(pocl(), field.world(), Palette(), o).bytes;
+            const std::string diff =
+                test::first_difference(field.read(), want, o.format, start.dims());
+            ASSERT_TRUE(diff.empty()) << to_string(o.algorithm) << ", " << what << ": " << diff;
+        };
+        for (int stroke = 0; stroke < 6; ++stroke) {
+            undo.begin_stroke();
+            for (int i = 0; i < 3; ++i) {
+                undo.record(field.apply({random_brush(rng, start.dims(), 7)}).edits.front());
+            }
+            undo.end_stroke();
+        }
+        const World edited = field.world();
+        for (int i = 0; i < 6 && undo.can_undo(); ++i) {
+            const ocl::UpdateStats s = field.apply_changes(undo.undo());
+            ASSERT_EQ(s.edits.size(), 1u);
+            check("undo " + std::to_string(i));
+        }
+        EXPECT_EQ(field.world().voxels(), start.voxels());
+        while (undo.can_redo()) {
+            field.apply_changes(undo.redo());
+            check("redo");
+        }
+        EXPECT_EQ(field.world().voxels(), edited.voxels());
+        // A change that does not match the world is refused, and nothing changes.
+        const std::vector<std::uint8_t> before = field.read();
+        const std::uint8_t v = field.world().voxels()[5];
+        EXPECT_THROW(field.apply_changes({{5, static_cast<std::uint8_t>(v + 1), 0}}), InputError);
+        EXPECT_EQ(field.world().voxels(), edited.voxels());
+        EXPECT_EQ(field.read(), before);
     }
 }
 

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <set>
 #include <vector>
 
@@ -114,24 +115,43 @@ TEST(UndoStack, MergesPerVoxelAndDropsNoOps) {
     EXPECT_FALSE(stack.can_undo());
 }
 
-TEST(UndoStack, BrushesReplayTheInverse) {
+TEST(UndoStack, ApplyChangesReportsLikeABrush) {
     World w = scene_random(Dims{10, 12, 9}, 0.3, 4);
-    World mirror = w;
+    const World original = w;
     UndoStack stack;
     stack.record(apply_brush(w, Brush{BrushOp::place, BrushShape::sphere, {5, 5, 5}, 3, 200}));
     stack.record(apply_brush(w, Brush{BrushOp::erase, BrushShape::sphere, {3, 6, 4}, 2, 1}));
+    stack.record(apply_brush(w, Brush{BrushOp::paint, BrushShape::cube, {7, 2, 2}, 1, 9}));
     stack.end_stroke();
     const World edited = w;
     const VoxelChanges inv = stack.undo();
-    for (const Brush& b : brushes_for_changes(inv, w.dims())) {
-        EXPECT_EQ(b.radius, 0);
-        apply_brush(w, b);
+    const EditResult r = apply_changes(w, inv);
+    EXPECT_EQ(w.voxels(), original.voxels());
+    // The summary agrees with the world: every change, counted by kind, inside its bounds.
+    EXPECT_EQ(r.changes.size(), inv.size());
+    EXPECT_EQ(r.became_solid + r.became_empty + r.recoloured, r.changes.size());
+    EXPECT_GT(r.became_solid, 0u);
+    EXPECT_GT(r.became_empty, 0u);
+    EXPECT_GT(r.recoloured, 0u);
+    Int3 lo{99, 99, 99}, hi{0, 0, 0};
+    for (const VoxelChange& c : r.changes) {
+        const Int3 p{static_cast<std::int64_t>(c.index % 10),
+                     static_cast<std::int64_t>(c.index / 10 % 12),
+                     static_cast<std::int64_t>(c.index / 120)};
+        lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+        hi = {std::max(hi.x, p.x + 1), std::max(hi.y, p.y + 1), std::max(hi.z, p.z + 1)};
+        EXPECT_EQ(original.voxels()[c.index], c.after);
+        EXPECT_EQ(edited.voxels()[c.index], c.before);
     }
-    EXPECT_EQ(w.voxels(), mirror.voxels());
-    for (const Brush& b : brushes_for_changes(stack.redo(), w.dims())) {
-        apply_brush(w, b);
-    }
+    EXPECT_EQ(r.bounds, (Box{lo, hi}));
+    EXPECT_TRUE(r.occupancy_changed());
+    EXPECT_TRUE(std::is_sorted(
+        r.changes.begin(), r.changes.end(),
+        [](const VoxelChange& a, const VoxelChange& b) { return a.index < b.index; }));
+    apply_changes(w, stack.redo());
     EXPECT_EQ(w.voxels(), edited.voxels());
+    // No-op entries are dropped.
+    EXPECT_FALSE(apply_changes(w, {{0, w.voxels()[0], w.voxels()[0]}}).changed());
 }
 
 TEST(UndoStack, ApplyChangesChecksTheWorld) {

@@ -23,6 +23,7 @@
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/chunks.hpp"
+#include "voxfield/core/undo.hpp"
 
 namespace voxfield::ocl {
 
@@ -50,6 +51,10 @@ class IncrementalField {
     double regenerate();
     // Applies the brushes in order to the world and updates the field (one batch).
     UpdateStats apply(const std::vector<Brush>& batch);
+    // Applies explicit voxel changes (an undo or redo of a stroke: core/undo.hpp) as one edit,
+    // updated like apply(): exact, local to what the changes can affect. Throws InputError,
+    // changing nothing, when a voxel does not hold its `before` value.
+    UpdateStats apply_changes(const VoxelChanges& changes);
     // lod and monolithic (chunk-local with a focus): moves the focus, the chunks where FIM
     // runs after JFA (std::nullopt: no focus, JFA only everywhere), and recomputes exactly
     // the chunks whose membership in the focus box changed (old box XOR new box), in one

@@ -41,20 +41,18 @@ std::int64_t scroll_brush_size(std::int64_t size, double scroll, std::int64_t ma
 // after it (voxels it changed back to their original value are dropped), ascending index.
 using VoxelChanges = std::vector<VoxelChange>;
 
-// Sets every listed voxel to `after`. Throws InputError (leaving the world untouched) when a
-// voxel does not hold `before` or an index is outside the world.
-void apply_changes(World& world, const VoxelChanges& changes);
-
-// The changes as brushes for IncrementalField::apply: one radius-0 cube per voxel, placing
-// `after` or erasing when it is 0, in ascending index order.
-std::vector<Brush> brushes_for_changes(const VoxelChanges& changes, Dims dims);
+// Sets every listed voxel to `after` and returns what changed, as apply_brush does (changes
+// with before == after are skipped; bounds over the rest). Throws InputError (leaving the
+// world untouched) when a voxel does not hold `before` or an index is outside the world.
+EditResult apply_changes(World& world, const VoxelChanges& changes);
 
 // Undo/redo of whole strokes (a stroke: everything from mouse down to mouse up). Recording
 // merges the EditResults of the stroke's brushes per voxel (first `before`, last `after`).
 // undo() returns the changes that restore the state before the newest stroke (before and
-// after swapped), redo() those that reapply it; apply them to the world (apply_changes or
-// brushes_for_changes). A new stroke clears the redo list. At most `max_strokes` strokes and
-// `max_voxels` recorded voxel changes are kept (the oldest strokes are dropped first).
+// after swapped), redo() those that reapply it; apply them to the world (apply_changes, or
+// IncrementalField::apply_changes for the world and its field). A new stroke clears the redo list.
+// At most `max_strokes` strokes and `max_voxels` recorded voxel changes are kept (the oldest
+// strokes are dropped first).
 class UndoStack {
   public:
     explicit UndoStack(std::size_t max_strokes = 256, std::size_t max_voxels = 64u << 20);
