@@ -67,7 +67,7 @@ struct ViewCliOptions {
     std::uint64_t seed = 6683787;
     double interval_ms = 200, duration_s = 30;
     std::string json, csv;
-    std::string format = "u16", fallback_png;
+    std::string format = "u16", fallback_png, window_screenshot, present = "auto";
 };
 
 // The keys, for F1 and --help.
@@ -182,6 +182,9 @@ class Session {
     }
 
     void render(const vk::RenderOptions& r, vk::Image& out) { marcher_->render(r, out); }
+    double render_to(const vk::RenderOptions& r, const vk::ExternalMemory& frame) {
+        return marcher_->render_to(r, frame);
+    }
 
     const World& world() const { return field_->world(); }
     const Palette& palette() const { return palette_; }
@@ -254,6 +257,11 @@ void print_summary(const std::string& what, const Summary& s) {
               << fixed(s.median, 3) << ", std " << fixed(s.std, 3) << ", min " << fixed(s.min, 3)
               << ", max " << fixed(s.max, 3) << ", 95% CI [" << fixed(s.ci95_lo, 3) << ", "
               << fixed(s.ci95_hi, 3) << "]\n";
+}
+
+const char* present_path(bool gpu) {
+    return gpu ? "frames stay on the GPU (exported by the ray marcher, imported by the presenter)"
+               : "frames go through the host (read back, uploaded)";
 }
 
 bool has_focus(ocl::Algorithm a) {
@@ -350,11 +358,14 @@ int run_view(ViewCliOptions o) {
     if (o.world != 0 && !o.dims.empty()) {
         throw InputError("give either --world N or --dims X,Y,Z, not both");
     }
-    for (const std::string& p :
-         {o.screenshot, o.fallback_png, o.field_output, o.world_output, o.json, o.csv}) {
+    for (const std::string& p : {o.screenshot, o.fallback_png, o.window_screenshot, o.field_output,
+                                 o.world_output, o.json, o.csv}) {
         if (!p.empty()) {
             require_output_folder(p);
         }
+    }
+    if (!o.window_screenshot.empty() && o.frames == 0) {
+        throw InputError("--window-screenshot needs --frames N (it captures the last frame)");
     }
     if (!(o.interval_ms > 0) || !(o.duration_s > 0)) {
         throw InputError("--interval-ms and --duration-s must be positive");
@@ -425,6 +436,9 @@ int run_view(ViewCliOptions o) {
 
     ocl::Context cl_ctx(ocl::select_device(o.device));
     vk::Context vk_ctx;
+    // Frames for the presenter's device, exported by the ray marcher's (declared before the
+    // session: it outlives the ray marcher's buffer over it).
+    vk::ExternalMemory frame_memory;
     Session session(cl_ctx, vk_ctx, model.palette, dims);
     const double build_ms = session.rebuild(std::move(model.world), gopts);
     std::cout << "opencl:  " << cl_ctx.info().name << " (" << cl_ctx.info().type << ")\n"
@@ -443,6 +457,9 @@ int run_view(ViewCliOptions o) {
 
     // Window, swapchain, overlay.
     std::unique_ptr<vk::Presenter> presenter;
+    // Frames go from the ray marcher to the swapchain on the GPU (shared memory) when the
+    // presenting device can import the ray marcher's exports; else through the host.
+    bool gpu_present = false;
     VkDescriptorPool imgui_pool = VK_NULL_HANDLE;
     bool imgui_ready = false;
     if (windowed) {
@@ -514,10 +531,18 @@ int run_view(ViewCliOptions o) {
             [](VkCommandBuffer cmd) { ImGui_ImplVulkan_CreateFontsTexture(cmd); });
         ImGui_ImplVulkan_DestroyFontUploadObjects();
         glfwSetInputMode(window.handle, GLFW_CURSOR, GLFW_CURSOR_DISABLED);
+        const bool gpu_possible = presenter->can_import_frames(vk_ctx.info().uuid) &&
+                                  vk::supports(vk_ctx, vk::SharingPath::opaque_fd);
+        if (o.present == "gpu" && !gpu_possible) {
+            throw InputError("--present gpu: the presenting device " + presenter->device_name() +
+                             " cannot import frames from the ray marcher's " + vk_ctx.info().name +
+                             " (needs VK_KHR_external_memory_fd on both and the same GPU)");
+        }
+        gpu_present = gpu_possible && o.present != "host";
         std::cout << "window:  " << presenter->device_name() << ", present mode "
                   << vk::to_string(vk::PresentMode::fifo) << " requested"
-                  << (o.benchmark ? " (benchmark: immediate/mailbox preferred)" : "")
-                  << "; F1 lists the keys\n";
+                  << (o.benchmark ? " (benchmark: immediate/mailbox preferred)" : "") << ", "
+                  << present_path(gpu_present) << "; F1 lists the keys\n";
     }
 
     // State of the interactive session.
@@ -562,6 +587,18 @@ int run_view(ViewCliOptions o) {
     double next_edit_s = o.interval_ms / 1000.0;
     std::uint64_t frame = 0;
     vk::Image image;
+    double raymarch_ms = -1;
+    bool rendered = false;
+    // The last frame's pixels on the host: with GPU presenting they never left the GPU, so
+    // the same view is ray-marched again (same field, same camera: the same image).
+    const auto host_image = [&]() -> const vk::Image& {
+        if (gpu_present && rendered) {
+            vk::RenderOptions r = ropts;
+            r.bgra = false;
+            session.render(r, image);
+        }
+        return image;
+    };
     bool running = true;
     int exit_code = 0;
     while (running) {
@@ -665,9 +702,9 @@ int run_view(ViewCliOptions o) {
                     std::cout << "not saved as .vox: " << e.what() << '\n';
                 }
             }
-            if (f12 && !image.rgba.empty()) {
+            if (f12 && rendered) {
                 const std::string path = "voxfield-" + timestamp() + ".png";
-                write_png(path, image);
+                write_png(path, host_image());
                 std::cout << "screenshot " << std::filesystem::absolute(path).string() << '\n';
             }
 
@@ -759,7 +796,22 @@ int run_view(ViewCliOptions o) {
             ropts.camera.position = camera.position();
             ropts.camera.target = camera.target();
             ropts.camera.fov_deg = camera.settings.fov_deg;
-            session.render(ropts, image);
+            if (gpu_present) {
+                ropts.bgra = presenter->bgra();
+                presenter->wait_frame();  // the frame in flight reads frame_memory
+                const VkDeviceSize bytes = VkDeviceSize{ropts.width} * ropts.height * 4;
+                if (frame_memory.size() < bytes) {
+                    frame_memory = vk::ExternalMemory::exportable(
+                        vk_ctx, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, "frame");
+                    presenter->import_frame(frame_memory.export_fd(), frame_memory.size(),
+                                            frame_memory.memory_type());
+                }
+                raymarch_ms = session.render_to(ropts, frame_memory);
+            } else {
+                session.render(ropts, image);
+                raymarch_ms = image.raymarch_ms;
+            }
+            rendered = true;
         }
 
         if (presenter) {
@@ -791,7 +843,7 @@ int run_view(ViewCliOptions o) {
             const double frame_ms = records.empty() ? 0 : records.back().frame_ms;
             push(hist_frame, frame_ms);
             push(hist_update, last_update.field_ms + last_update.convert_ms);
-            push(hist_march, image.raymarch_ms);
+            push(hist_march, raymarch_ms);
             const std::vector<float> hf(hist_frame.begin(), hist_frame.end());
             const std::vector<float> hu(hist_update.begin(), hist_update.end());
             const std::vector<float> hm(hist_march.begin(), hist_march.end());
@@ -801,7 +853,7 @@ int run_view(ViewCliOptions o) {
             ImGui::Text("field update %.3f ms + render field %.3f ms (device)",
                         last_update.field_ms, last_update.convert_ms);
             ImGui::PlotLines("update ms", hu.data(), static_cast<int>(hu.size()));
-            ImGui::Text("ray march %.3f ms (GPU timestamps)", image.raymarch_ms);
+            ImGui::Text("ray march %.3f ms (GPU timestamps)", raymarch_ms);
             ImGui::PlotLines("march ms", hm.data(), static_cast<int>(hm.size()));
             const World& w = session.world();
             ImGui::Text("world %s, %zu solid of %zu voxels", w.dims().to_string().c_str(),
@@ -812,6 +864,7 @@ int run_view(ViewCliOptions o) {
             ImGui::Text("OpenCL: %s", cl_ctx.info().name.c_str());
             ImGui::Text("Vulkan: %s / present %s (%s)", vk_ctx.info().name.c_str(),
                         presenter->device_name().c_str(), vk::to_string(presenter->mode()).c_str());
+            ImGui::Text("frames: %s", present_path(gpu_present));
             ImGui::Text("sharing: %s", session.marcher().sharing_path().c_str());
             if (!session.render_field().why_not().empty() && ImGui::IsItemHovered()) {
                 ImGui::SetTooltip("%s", session.render_field().why_not().c_str());
@@ -918,10 +971,22 @@ int run_view(ViewCliOptions o) {
                     std::cout << "cannot switch: " << e.what() << '\n';
                 }
             }
-            presenter->present(image.rgba.data(), image.width, image.height, fb_w, fb_h,
-                               [](VkCommandBuffer cmd) {
-                                   ImGui_ImplVulkan_RenderDrawData(ImGui::GetDrawData(), cmd);
-                               });
+            const auto overlay = [](VkCommandBuffer cmd) {
+                ImGui_ImplVulkan_RenderDrawData(ImGui::GetDrawData(), cmd);
+            };
+            if (!o.window_screenshot.empty() && frame + 1 >= o.frames &&
+                !presenter->capture_next_frame()) {
+                throw std::runtime_error("--window-screenshot: the swapchain of " +
+                                         presenter->device_name() +
+                                         " cannot be copied from (no TRANSFER_SRC usage)");
+            }
+            // Nothing is presented before the first frame was rendered (a zero-size window).
+            if (rendered && gpu_present) {
+                presenter->present_imported(ropts.width, ropts.height, fb_w, fb_h, overlay);
+            } else if (rendered) {
+                presenter->present(image.rgba.data(), image.width, image.height, fb_w, fb_h,
+                                   overlay);
+            }
         }
 
         FrameRecord rec;
@@ -929,7 +994,7 @@ int run_view(ViewCliOptions o) {
         rec.frame_ms = ms_since(t0);
         rec.update_ms = update_ms;
         rec.convert_ms = update.convert_ms;
-        rec.raymarch_ms = image.raymarch_ms;
+        rec.raymarch_ms = raymarch_ms;
         rec.edit = bench_edit;
         records.push_back(rec);
         ++frame;
@@ -945,12 +1010,23 @@ int run_view(ViewCliOptions o) {
     }
 
     if (!o.screenshot.empty()) {
-        if (image.rgba.empty()) {
+        if (!rendered) {
             throw std::runtime_error("no frame was rendered for --screenshot");
         }
-        write_png(o.screenshot, image);
+        write_png(o.screenshot, host_image());
         std::cout << "screenshot " << o.screenshot << " (" << image.width << "x" << image.height
                   << ", frame " << frame << ")\n";
+    }
+    if (!o.window_screenshot.empty()) {
+        const std::optional<vk::Image> shown =
+            presenter ? presenter->captured_frame() : std::nullopt;
+        if (!shown) {
+            throw std::runtime_error("--window-screenshot: no window frame was presented" +
+                                     std::string(presenter ? "" : " (there is no window)"));
+        }
+        write_png(o.window_screenshot, *shown);
+        std::cout << "window screenshot " << o.window_screenshot << " (" << shown->width << "x"
+                  << shown->height << ", overlay included)\n";
     }
     if (!o.world_output.empty()) {
         const NpyArray a = npy_from_world(session.world());
@@ -1063,6 +1139,14 @@ Command add_view(CLI::App& root) {
     app->add_option("--frames", o->frames, "Quit after N frames (scripted runs)");
     app->add_option("--screenshot", o->screenshot,
                     "Write the last frame's ray-marched image (no overlay) as PNG at exit");
+    app->add_option("--present", o->present,
+                    "How frames reach the window: gpu (the presenter imports the ray marcher's "
+                    "memory), host (read back and uploaded) or auto (gpu where possible)")
+        ->check(CLI::IsMember({"auto", "gpu", "host"}))
+        ->capture_default_str();
+    app->add_option("--window-screenshot", o->window_screenshot,
+                    "Write what the window showed in the last frame (overlay included) as PNG at "
+                    "exit; needs --frames");
     app->add_option("--edits", o->edits,
                     "Scripted edits (the replay file format), one applied per frame from the "
                     "first frame");

@@ -297,5 +297,8 @@ void main() {
     } else {
         colour = (pc.image.w & 0x00FFFFFFu) | 0xFF000000u;
     }
+    if ((pc.image.z & VF_RAYMARCH_FLAG_BGRA) != 0u) {
+        colour = (colour & 0xFF00FF00u) | ((colour & 0xFFu) << 16) | ((colour >> 16) & 0xFFu);
+    }
     imageStore(out_image, ivec2(pix), uvec4(colour, 0u, 0u, 0u));
 }

@@ -1,7 +1,9 @@
 // Window presentation: swapchain, host image copy, overlay render pass (present.hpp).
 #include "voxfield/vk/present.hpp"
 
+#include <unistd.h>
 #include <algorithm>
+#include <array>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -83,11 +85,27 @@ struct Presenter::Impl {
     VkDeviceSize staging_size = 0;
     void* staging_map = nullptr;
 
+    // Frames rendered by another VkDevice of this GPU (import_frame).
+    bool external_memory_fd = false;  // VK_KHR_external_memory_fd enabled
+    std::array<std::uint8_t, VK_UUID_SIZE> uuid{};
+    VkBuffer imported = VK_NULL_HANDLE;
+    VkDeviceMemory imported_memory = VK_NULL_HANDLE;
+    VkDeviceSize imported_size = 0;
+
+    // capture_next_frame(): the next presented image (overlay included) copied to the host.
+    bool can_capture = false, capture_requested = false, captured = false;
+    VkBuffer capture = VK_NULL_HANDLE;
+    VkDeviceMemory capture_memory = VK_NULL_HANDLE;
+    void* capture_map = nullptr;
+    VkExtent2D capture_extent{0, 0};
+
     ~Impl() {
         if (device != VK_NULL_HANDLE) {
             vkDeviceWaitIdle(device);
             destroy_swapchain();
             destroy_staging();
+            destroy_imported();
+            destroy_capture();
             if (pass)
                 vkDestroyRenderPass(device, pass, nullptr);
             if (fence)
@@ -118,6 +136,40 @@ struct Presenter::Impl {
         staging_map = nullptr;
         staging_size = 0;
     }
+
+    void destroy_capture() {
+        if (capture)
+            vkDestroyBuffer(device, capture, nullptr);
+        if (capture_memory)
+            vkFreeMemory(device, capture_memory, nullptr);
+        capture = VK_NULL_HANDLE;
+        capture_memory = VK_NULL_HANDLE;
+        capture_map = nullptr;
+    }
+
+    // Records the copy of swapchain image `image` (after the overlay's pass) into a fresh
+    // host-visible buffer.
+    void record_capture(VkImage image);
+
+    void destroy_imported() {
+        if (imported)
+            vkDestroyBuffer(device, imported, nullptr);
+        if (imported_memory)
+            vkFreeMemory(device, imported_memory, nullptr);
+        imported = VK_NULL_HANDLE;
+        imported_memory = VK_NULL_HANDLE;
+        imported_size = 0;
+    }
+
+    // Waits for the last frame, recreates the swapchain when the framebuffer size changed and
+    // acquires an image; false when the frame must be skipped (out of date).
+    bool begin_frame(std::uint32_t fb_width, std::uint32_t fb_height, std::uint32_t& index);
+    // Records and submits one frame: `src` (rows of `row_length` pixels, bytes already in
+    // the swapchain's order; external: acquired from another VkDevice) cropped to w x h, then
+    // the overlay; presents it.
+    bool submit_frame(VkBuffer src, bool external, std::uint32_t row_length, std::uint32_t w,
+                      std::uint32_t h, std::uint32_t index, std::uint32_t fb_width,
+                      std::uint32_t fb_height, const std::function<void(VkCommandBuffer)>& overlay);
 
     void destroy_swapchain() {
         for (VkFramebuffer f : framebuffers)
@@ -202,6 +254,10 @@ struct Presenter::Impl {
         s.imageExtent = e;
         s.imageArrayLayers = 1;
         s.imageUsage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
+        can_capture = (caps.supportedUsageFlags & VK_IMAGE_USAGE_TRANSFER_SRC_BIT) != 0;
+        if (can_capture) {
+            s.imageUsage |= VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+        }
         s.imageSharingMode = VK_SHARING_MODE_EXCLUSIVE;
         s.preTransform = caps.currentTransform;
         s.compositeAlpha = (caps.supportedCompositeAlpha & VK_COMPOSITE_ALPHA_OPAQUE_BIT_KHR)
@@ -324,13 +380,33 @@ Presenter::Presenter(const PresenterOptions& options) : impl_(std::make_unique<I
     q.queueFamilyIndex = m.family;
     q.queueCount = 1;
     q.pQueuePriorities = &priority;
-    const char* dev_ext[] = {VK_KHR_SWAPCHAIN_EXTENSION_NAME};
+    std::vector<const char*> dev_ext = {VK_KHR_SWAPCHAIN_EXTENSION_NAME};
+    {
+        // Importing frames the ray marcher's device exported (same GPU, no host round trip).
+        std::uint32_t en = 0;
+        vkEnumerateDeviceExtensionProperties(m.physical, nullptr, &en, nullptr);
+        std::vector<VkExtensionProperties> available(en);
+        vkEnumerateDeviceExtensionProperties(m.physical, nullptr, &en, available.data());
+        for (const VkExtensionProperties& e : available) {
+            if (std::strcmp(e.extensionName, VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME) == 0) {
+                m.external_memory_fd = true;
+                dev_ext.push_back(VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME);
+            }
+        }
+        VkPhysicalDeviceIDProperties id{};
+        id.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ID_PROPERTIES;
+        VkPhysicalDeviceProperties2 p2{};
+        p2.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2;
+        p2.pNext = &id;
+        vkGetPhysicalDeviceProperties2(m.physical, &p2);
+        std::memcpy(m.uuid.data(), id.deviceUUID, VK_UUID_SIZE);
+    }
     VkDeviceCreateInfo di{};
     di.sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO;
     di.queueCreateInfoCount = 1;
     di.pQueueCreateInfos = &q;
-    di.enabledExtensionCount = 1;
-    di.ppEnabledExtensionNames = dev_ext;
+    di.enabledExtensionCount = static_cast<std::uint32_t>(dev_ext.size());
+    di.ppEnabledExtensionNames = dev_ext.data();
     check(vkCreateDevice(m.physical, &di, nullptr, &m.device), "vkCreateDevice",
           m.name + " (presentation)");
     vkGetDeviceQueue(m.device, m.family, 0, &m.queue);
@@ -467,19 +543,67 @@ void Presenter::submit_and_wait(const std::function<void(VkCommandBuffer)>& reco
     check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
 }
 
-bool Presenter::present(const std::uint8_t* rgba, std::uint32_t width, std::uint32_t height,
-                        std::uint32_t fb_width, std::uint32_t fb_height,
-                        const std::function<void(VkCommandBuffer)>& overlay) {
-    Impl& m = *impl_;
-    if (fb_width == 0 || fb_height == 0) {
-        return false;
-    }
+void Presenter::Impl::record_capture(VkImage image) {
+    destroy_capture();
+    const VkDeviceSize bytes = VkDeviceSize{extent.width} * extent.height * 4;
+    VkBufferCreateInfo b{};
+    b.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO;
+    b.size = bytes;
+    b.usage = VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    check(vkCreateBuffer(device, &b, nullptr, &capture), "vkCreateBuffer", "window capture");
+    VkMemoryRequirements req;
+    vkGetBufferMemoryRequirements(device, capture, &req);
+    VkMemoryAllocateInfo a{};
+    a.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
+    a.allocationSize = req.size;
+    a.memoryTypeIndex = memory_type(req.memoryTypeBits, VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT |
+                                                            VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
+    check(vkAllocateMemory(device, &a, nullptr, &capture_memory), "vkAllocateMemory",
+          "window capture");
+    check(vkBindBufferMemory(device, capture, capture_memory, 0), "vkBindBufferMemory",
+          "window capture");
+    check(vkMapMemory(device, capture_memory, 0, VK_WHOLE_SIZE, 0, &capture_map), "vkMapMemory",
+          "window capture");
+    capture_extent = extent;
+
+    VkImageMemoryBarrier to_src{};
+    to_src.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
+    to_src.srcAccessMask = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
+    to_src.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+    to_src.oldLayout = VK_IMAGE_LAYOUT_PRESENT_SRC_KHR;
+    to_src.newLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+    to_src.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    to_src.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    to_src.image = image;
+    to_src.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT,
+                         VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr, 1, &to_src);
+    VkBufferImageCopy c{};
+    c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    c.imageExtent = {extent.width, extent.height, 1};
+    vkCmdCopyImageToBuffer(cmd, image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, capture, 1, &c);
+    VkImageMemoryBarrier to_present = to_src;
+    to_present.srcAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+    to_present.dstAccessMask = 0;
+    to_present.oldLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+    to_present.newLayout = VK_IMAGE_LAYOUT_PRESENT_SRC_KHR;
+    VkMemoryBarrier to_host{};
+    to_host.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+    to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_PIPELINE_STAGE_HOST_BIT | VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, 0, 1,
+                         &to_host, 0, nullptr, 1, &to_present);
+}
+
+bool Presenter::Impl::begin_frame(std::uint32_t fb_width, std::uint32_t fb_height,
+                                  std::uint32_t& index) {
+    Impl& m = *this;
     check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
     if (m.swapchain == VK_NULL_HANDLE || m.extent.width != fb_width ||
         m.extent.height != fb_height) {
         m.create_swapchain(fb_width, fb_height);
     }
-    std::uint32_t index = 0;
     VkResult r = vkAcquireNextImageKHR(m.device, m.swapchain, UINT64_MAX, m.acquired,
                                        VK_NULL_HANDLE, &index);
     if (r == VK_ERROR_OUT_OF_DATE_KHR) {
@@ -488,6 +612,119 @@ bool Presenter::present(const std::uint8_t* rgba, std::uint32_t width, std::uint
     }
     if (r != VK_SUBOPTIMAL_KHR) {
         check(r, "vkAcquireNextImageKHR");
+    }
+
+    return true;
+}
+
+bool Presenter::Impl::submit_frame(VkBuffer src, bool external, std::uint32_t row_length,
+                                   std::uint32_t w, std::uint32_t h, std::uint32_t index,
+                                   std::uint32_t fb_width, std::uint32_t fb_height,
+                                   const std::function<void(VkCommandBuffer)>& overlay) {
+    Impl& m = *this;
+    check(vkResetCommandBuffer(m.cmd, 0), "vkResetCommandBuffer");
+    VkCommandBufferBeginInfo b{};
+    b.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
+    b.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    check(vkBeginCommandBuffer(m.cmd, &b), "vkBeginCommandBuffer");
+    VkImageMemoryBarrier to_dst{};
+    to_dst.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
+    to_dst.srcAccessMask = 0;
+    to_dst.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    to_dst.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+    to_dst.newLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+    to_dst.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    to_dst.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    to_dst.image = m.images[index];
+    to_dst.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    // An imported frame is acquired from the device that rendered it (it released it).
+    VkBufferMemoryBarrier acquire{};
+    acquire.sType = VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER;
+    acquire.srcAccessMask = 0;
+    acquire.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+    acquire.srcQueueFamilyIndex = VK_QUEUE_FAMILY_EXTERNAL;
+    acquire.dstQueueFamilyIndex = m.family;
+    acquire.buffer = src;
+    acquire.offset = 0;
+    acquire.size = VK_WHOLE_SIZE;
+    vkCmdPipelineBarrier(m.cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         0, 0, nullptr, external ? 1 : 0, &acquire, 1, &to_dst);
+    if (w < m.extent.width || h < m.extent.height) {
+        const VkClearColorValue black{{0, 0, 0, 1}};
+        vkCmdClearColorImage(m.cmd, m.images[index], VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &black,
+                             1, &to_dst.subresourceRange);
+        VkMemoryBarrier mb{};
+        mb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+        mb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+        mb.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+        vkCmdPipelineBarrier(m.cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                             0, 1, &mb, 0, nullptr, 0, nullptr);
+    }
+    if (w > 0 && h > 0) {
+        VkBufferImageCopy c{};
+        c.bufferRowLength = row_length;
+        c.bufferImageHeight = h;
+        c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+        c.imageExtent = {w, h, 1};
+        vkCmdCopyBufferToImage(m.cmd, src, m.images[index], VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1,
+                               &c);
+    }
+    VkRenderPassBeginInfo rb{};
+    rb.sType = VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO;
+    rb.renderPass = m.pass;
+    rb.framebuffer = m.framebuffers[index];
+    rb.renderArea.extent = m.extent;
+    vkCmdBeginRenderPass(m.cmd, &rb, VK_SUBPASS_CONTENTS_INLINE);
+    if (overlay) {
+        overlay(m.cmd);
+    }
+    vkCmdEndRenderPass(m.cmd);
+    if (m.capture_requested) {
+        m.record_capture(m.images[index]);
+        m.capture_requested = false;
+        m.captured = true;
+    }
+    check(vkEndCommandBuffer(m.cmd), "vkEndCommandBuffer");
+
+    const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
+    VkSubmitInfo s{};
+    s.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+    s.waitSemaphoreCount = 1;
+    s.pWaitSemaphores = &m.acquired;
+    s.pWaitDstStageMask = &wait_stage;
+    s.commandBufferCount = 1;
+    s.pCommandBuffers = &m.cmd;
+    s.signalSemaphoreCount = 1;
+    s.pSignalSemaphores = &m.rendered;
+    check(vkResetFences(m.device, 1, &m.fence), "vkResetFences");
+    check(vkQueueSubmit(m.queue, 1, &s, m.fence), "vkQueueSubmit", "present");
+    VkPresentInfoKHR p{};
+    p.sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR;
+    p.waitSemaphoreCount = 1;
+    p.pWaitSemaphores = &m.rendered;
+    p.swapchainCount = 1;
+    p.pSwapchains = &m.swapchain;
+    p.pImageIndices = &index;
+    const VkResult r = vkQueuePresentKHR(m.queue, &p);
+    if (r == VK_ERROR_OUT_OF_DATE_KHR || r == VK_SUBOPTIMAL_KHR) {
+        check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+        m.create_swapchain(fb_width, fb_height);
+        return true;
+    }
+    check(r, "vkQueuePresentKHR");
+    return true;
+}
+
+bool Presenter::present(const std::uint8_t* rgba, std::uint32_t width, std::uint32_t height,
+                        std::uint32_t fb_width, std::uint32_t fb_height,
+                        const std::function<void(VkCommandBuffer)>& overlay) {
+    Impl& m = *impl_;
+    if (fb_width == 0 || fb_height == 0) {
+        return false;
+    }
+    std::uint32_t index = 0;
+    if (!m.begin_frame(fb_width, fb_height, index)) {
+        return false;
     }
 
     // The image, cropped to the swapchain's extent, into the staging buffer.
@@ -510,82 +747,106 @@ bool Presenter::present(const std::uint8_t* rgba, std::uint32_t width, std::uint
         }
     }
 
-    check(vkResetCommandBuffer(m.cmd, 0), "vkResetCommandBuffer");
-    VkCommandBufferBeginInfo b{};
-    b.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
-    b.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    check(vkBeginCommandBuffer(m.cmd, &b), "vkBeginCommandBuffer");
-    VkImageMemoryBarrier to_dst{};
-    to_dst.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
-    to_dst.srcAccessMask = 0;
-    to_dst.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-    to_dst.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-    to_dst.newLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
-    to_dst.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-    to_dst.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-    to_dst.image = m.images[index];
-    to_dst.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-    vkCmdPipelineBarrier(m.cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                         0, 0, nullptr, 0, nullptr, 1, &to_dst);
-    if (w < m.extent.width || h < m.extent.height) {
-        const VkClearColorValue black{{0, 0, 0, 1}};
-        vkCmdClearColorImage(m.cmd, m.images[index], VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &black,
-                             1, &to_dst.subresourceRange);
-        VkMemoryBarrier mb{};
-        mb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-        mb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-        mb.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-        vkCmdPipelineBarrier(m.cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                             0, 1, &mb, 0, nullptr, 0, nullptr);
-    }
-    if (w > 0 && h > 0) {
-        VkBufferImageCopy c{};
-        c.bufferRowLength = w;
-        c.bufferImageHeight = h;
-        c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-        c.imageExtent = {w, h, 1};
-        vkCmdCopyBufferToImage(m.cmd, m.staging, m.images[index],
-                               VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &c);
-    }
-    VkRenderPassBeginInfo rb{};
-    rb.sType = VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO;
-    rb.renderPass = m.pass;
-    rb.framebuffer = m.framebuffers[index];
-    rb.renderArea.extent = m.extent;
-    vkCmdBeginRenderPass(m.cmd, &rb, VK_SUBPASS_CONTENTS_INLINE);
-    if (overlay) {
-        overlay(m.cmd);
-    }
-    vkCmdEndRenderPass(m.cmd);
-    check(vkEndCommandBuffer(m.cmd), "vkEndCommandBuffer");
+    return m.submit_frame(m.staging, false, w, w, h, index, fb_width, fb_height, overlay);
+}
 
-    const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
-    VkSubmitInfo s{};
-    s.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
-    s.waitSemaphoreCount = 1;
-    s.pWaitSemaphores = &m.acquired;
-    s.pWaitDstStageMask = &wait_stage;
-    s.commandBufferCount = 1;
-    s.pCommandBuffers = &m.cmd;
-    s.signalSemaphoreCount = 1;
-    s.pSignalSemaphores = &m.rendered;
-    check(vkResetFences(m.device, 1, &m.fence), "vkResetFences");
-    check(vkQueueSubmit(m.queue, 1, &s, m.fence), "vkQueueSubmit", "present");
-    VkPresentInfoKHR p{};
-    p.sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR;
-    p.waitSemaphoreCount = 1;
-    p.pWaitSemaphores = &m.rendered;
-    p.swapchainCount = 1;
-    p.pSwapchains = &m.swapchain;
-    p.pImageIndices = &index;
-    r = vkQueuePresentKHR(m.queue, &p);
-    if (r == VK_ERROR_OUT_OF_DATE_KHR || r == VK_SUBOPTIMAL_KHR) {
-        check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
-        m.create_swapchain(fb_width, fb_height);
-        return true;
+bool Presenter::can_import_frames(const std::array<std::uint8_t, VK_UUID_SIZE>& uuid) const {
+    return impl_->external_memory_fd && impl_->uuid == uuid;
+}
+
+bool Presenter::bgra() const {
+    return impl_->swizzle;
+}
+
+void Presenter::import_frame(int fd, VkDeviceSize size, std::uint32_t memory_type) {
+    Impl& m = *impl_;
+    if (!m.external_memory_fd) {
+        close(fd);
+        throw VkError("vkAllocateMemory", VK_ERROR_EXTENSION_NOT_PRESENT,
+                      m.name + " (presentation) lacks VK_KHR_external_memory_fd");
     }
-    check(r, "vkQueuePresentKHR");
-    return true;
+    check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+    m.destroy_imported();
+    VkExternalMemoryBufferCreateInfo eb{};
+    eb.sType = VK_STRUCTURE_TYPE_EXTERNAL_MEMORY_BUFFER_CREATE_INFO;
+    eb.handleTypes = VK_EXTERNAL_MEMORY_HANDLE_TYPE_OPAQUE_FD_BIT;
+    VkBufferCreateInfo b{};
+    b.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO;
+    b.pNext = &eb;
+    b.size = size;
+    b.usage = VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+    b.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+    if (const VkResult r = vkCreateBuffer(m.device, &b, nullptr, &m.imported); r != VK_SUCCESS) {
+        close(fd);
+        check(r, "vkCreateBuffer", "imported frame");
+    }
+    VkImportMemoryFdInfoKHR import{};
+    import.sType = VK_STRUCTURE_TYPE_IMPORT_MEMORY_FD_INFO_KHR;
+    import.handleType = VK_EXTERNAL_MEMORY_HANDLE_TYPE_OPAQUE_FD_BIT;
+    import.fd = fd;
+    VkMemoryAllocateInfo a{};
+    a.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
+    a.pNext = &import;
+    a.allocationSize = size;
+    a.memoryTypeIndex = memory_type;
+    // On success the driver owns the fd; on failure it is still ours.
+    if (const VkResult r = vkAllocateMemory(m.device, &a, nullptr, &m.imported_memory);
+        r != VK_SUCCESS) {
+        close(fd);
+        m.imported_memory = VK_NULL_HANDLE;
+        m.destroy_imported();
+        check(r, "vkAllocateMemory", "importing a " + std::to_string(size) + "-byte frame");
+    }
+    check(vkBindBufferMemory(m.device, m.imported, m.imported_memory, 0), "vkBindBufferMemory",
+          "imported frame");
+    m.imported_size = size;
+}
+
+void Presenter::wait_frame() {
+    check(vkWaitForFences(impl_->device, 1, &impl_->fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+}
+
+bool Presenter::present_imported(std::uint32_t width, std::uint32_t height, std::uint32_t fb_width,
+                                 std::uint32_t fb_height,
+                                 const std::function<void(VkCommandBuffer)>& overlay) {
+    Impl& m = *impl_;
+    if (m.imported == VK_NULL_HANDLE || VkDeviceSize{width} * height * 4 > m.imported_size) {
+        throw std::logic_error("Presenter::present_imported without a large enough import_frame");
+    }
+    if (fb_width == 0 || fb_height == 0) {
+        return false;
+    }
+    std::uint32_t index = 0;
+    if (!m.begin_frame(fb_width, fb_height, index)) {
+        return false;
+    }
+    const std::uint32_t w = std::min(width, m.extent.width);
+    const std::uint32_t h = std::min(height, m.extent.height);
+    return m.submit_frame(m.imported, true, width, w, h, index, fb_width, fb_height, overlay);
+}
+
+bool Presenter::capture_next_frame() {
+    impl_->capture_requested = impl_->can_capture;
+    return impl_->can_capture;
+}
+
+std::optional<Image> Presenter::captured_frame() {
+    Impl& m = *impl_;
+    if (!m.captured) {
+        return std::nullopt;
+    }
+    check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+    Image out;
+    out.width = m.capture_extent.width;
+    out.height = m.capture_extent.height;
+    out.rgba.resize(std::size_t{out.width} * out.height * 4);
+    std::memcpy(out.rgba.data(), m.capture_map, out.rgba.size());
+    if (m.swizzle) {
+        for (std::size_t i = 0; i < out.rgba.size(); i += 4) {
+            std::swap(out.rgba[i], out.rgba[i + 2]);
+        }
+    }
+    return out;
 }
 
 }  // namespace voxfield::vk

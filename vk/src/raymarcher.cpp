@@ -142,6 +142,12 @@ struct Raymarcher::Impl {
     } target;
 
     explicit Impl(Context& c) : ctx(c) {}
+    // render_to's buffer over the caller's exportable memory (rebound when that changes).
+    Buffer frame;
+    VkDeviceMemory frame_memory = VK_NULL_HANDLE;
+
+    void march(const RenderOptions& o, VkBuffer dst, bool external);
+    double last_raymarch_ms();
     // Makes `target` an image of width x height (no-op when it already is).
     void prepare_target(std::uint32_t width, std::uint32_t height, const std::string& what);
     void upload_palette(const Palette& p);
@@ -514,8 +520,11 @@ Image Raymarcher::render(const RenderOptions& o) {
     return out;
 }
 
-void Raymarcher::render(const RenderOptions& o, Image& out) {
-    Impl& m = *impl_;
+// Ray-marches o into the offscreen target and copies it into `dst` (width * height * 4
+// bytes), then waits. external: dst lies in memory another VkDevice imports; it is released to
+// VK_QUEUE_FAMILY_EXTERNAL instead of being made visible to the host.
+void Raymarcher::Impl::march(const RenderOptions& o, VkBuffer dst, bool external) {
+    Impl& m = *this;
     if (m.field.empty()) {
         throw std::logic_error("Raymarcher::render before upload");
     }
@@ -528,8 +537,10 @@ void Raymarcher::render(const RenderOptions& o, Image& out) {
     m.prepare_target(o.width, o.height, what);
     const VkImage image_handle = m.target.image.get();
     const VkImageView view_handle = m.target.view.get();
-    const Buffer& readback = m.target.readback;
     const VkDeviceSize bytes = VkDeviceSize{o.width} * o.height * 4;
+    if (dst == VK_NULL_HANDLE) {
+        dst = m.target.readback.get();
+    }
 
     VkDescriptorImageInfo image_info{VK_NULL_HANDLE, view_handle, VK_IMAGE_LAYOUT_GENERAL};
     VkWriteDescriptorSet w{};
@@ -556,10 +567,11 @@ void Raymarcher::render(const RenderOptions& o, Image& out) {
         (o.shading == Shading::lit ? VF_RAYMARCH_FLAG_LIT : 0u) |
         (o.shading == Shading::lit && o.sky_gradient ? VF_RAYMARCH_FLAG_SKY_GRADIENT : 0u) |
         (m.layout.format == FieldFormat::compact ? VF_RAYMARCH_FLAG_COMPACT : 0u) |
-        (m.block_min.empty() ? 0u : VF_RAYMARCH_FLAG_BLOCK_MIN);
+        (m.block_min.empty() ? 0u : VF_RAYMARCH_FLAG_BLOCK_MIN) |
+        (o.bgra ? VF_RAYMARCH_FLAG_BGRA : 0u);
     pc.image[3] = pack(o.sky);
 
-    const VkQueryPool queries = m.queries.get();
+    const VkQueryPool timer = m.queries.get();
     m.ctx.submit_and_wait(
         [&](VkCommandBuffer cmd) {
             VkImageMemoryBarrier to_general{};
@@ -577,9 +589,9 @@ void Raymarcher::render(const RenderOptions& o, Image& out) {
             vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT,
                                  VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 0, nullptr, 0, nullptr, 1,
                                  &to_general);
-            if (queries != VK_NULL_HANDLE) {
-                vkCmdResetQueryPool(cmd, queries, 0, 2);
-                vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, 0);
+            if (timer != VK_NULL_HANDLE) {
+                vkCmdResetQueryPool(cmd, timer, 0, 2);
+                vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, timer, 0);
             }
             vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipeline.get());
             vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipeline_layout.get(), 0,
@@ -588,8 +600,8 @@ void Raymarcher::render(const RenderOptions& o, Image& out) {
                                sizeof pc, &pc);
             const std::uint32_t g = VF_RAYMARCH_LOCAL_SIZE;
             vkCmdDispatch(cmd, (o.width + g - 1) / g, (o.height + g - 1) / g, 1);
-            if (queries != VK_NULL_HANDLE) {
-                vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 1);
+            if (timer != VK_NULL_HANDLE) {
+                vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, timer, 1);
             }
             VkImageMemoryBarrier to_copy = to_general;
             to_copy.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
@@ -602,30 +614,76 @@ void Raymarcher::render(const RenderOptions& o, Image& out) {
             VkBufferImageCopy region{};
             region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
             region.imageExtent = {o.width, o.height, 1};
-            vkCmdCopyImageToBuffer(cmd, image_handle, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                                   readback.get(), 1, &region);
-            VkMemoryBarrier to_host{};
-            to_host.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-            to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-            to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0,
-                                 1, &to_host, 0, nullptr, 0, nullptr);
+            vkCmdCopyImageToBuffer(cmd, image_handle, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, dst, 1,
+                                   &region);
+            if (external) {
+                // Release the buffer to the device that imports it (another VkDevice).
+                VkBufferMemoryBarrier release{};
+                release.sType = VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER;
+                release.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+                release.dstAccessMask = 0;
+                release.srcQueueFamilyIndex = m.ctx.queue_family();
+                release.dstQueueFamilyIndex = VK_QUEUE_FAMILY_EXTERNAL;
+                release.buffer = dst;
+                release.offset = 0;
+                release.size = bytes;
+                vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                     VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, 0, 0, nullptr, 1,
+                                     &release, 0, nullptr);
+            } else {
+                VkMemoryBarrier to_host{};
+                to_host.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+                to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+                to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+                vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                     VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host, 0, nullptr, 0,
+                                     nullptr);
+            }
         },
         what);
+}
 
+// The last march's dispatch time by GPU timestamps (-1 without timestamp queries).
+double Raymarcher::Impl::last_raymarch_ms() {
+    if (!queries) {
+        return -1;
+    }
+    std::array<std::uint64_t, 2> ts{};
+    check(vkGetQueryPoolResults(ctx.device(), queries.get(), 0, 2, sizeof ts, ts.data(),
+                                sizeof(std::uint64_t),
+                                VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
+          "vkGetQueryPoolResults", "ray march timestamps");
+    return static_cast<double>(ts[1] - ts[0]) * static_cast<double>(ctx.timestamp_period_ns()) *
+           1e-6;
+}
+
+void Raymarcher::render(const RenderOptions& o, Image& out) {
+    Impl& m = *impl_;
+    m.march(o, VK_NULL_HANDLE, false);
+    const VkDeviceSize bytes = VkDeviceSize{o.width} * o.height * 4;
     out.width = o.width;
     out.height = o.height;
-    out.raymarch_ms = -1;
     out.rgba.resize(bytes);
-    std::memcpy(out.rgba.data(), readback.data(), bytes);
-    if (queries != VK_NULL_HANDLE) {
-        std::array<std::uint64_t, 2> ts{};
-        check(vkGetQueryPoolResults(dev, queries, 0, 2, sizeof ts, ts.data(), sizeof(std::uint64_t),
-                                    VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
-              "vkGetQueryPoolResults", what);
-        out.raymarch_ms = static_cast<double>(ts[1] - ts[0]) *
-                          static_cast<double>(m.ctx.timestamp_period_ns()) * 1e-6;
+    std::memcpy(out.rgba.data(), m.target.readback.data(), bytes);
+    out.raymarch_ms = m.last_raymarch_ms();
+}
+
+double Raymarcher::render_to(const RenderOptions& o, const ExternalMemory& frame) {
+    Impl& m = *impl_;
+    const VkDeviceSize bytes = VkDeviceSize{o.width} * o.height * 4;
+    if (frame.path() != SharingPath::opaque_fd || frame.size() < bytes) {
+        throw std::logic_error("Raymarcher::render_to needs exportable memory of " +
+                               std::to_string(bytes) + " bytes");
     }
+    if (m.frame_memory != frame.memory() || m.frame.size() < bytes) {
+        m.frame = Buffer();
+        m.frame = m.ctx.make_external_buffer(frame.size(), VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                             frame.handle_type(), "shared frame");
+        m.ctx.bind(m.frame, frame.memory(), 0, "shared frame");
+        m.frame_memory = frame.memory();
+    }
+    m.march(o, m.frame.get(), true);
+    return m.last_raymarch_ms();
 }
 
 void Raymarcher::set_block_min(std::span<const std::uint32_t> block_min) {

@@ -60,6 +60,7 @@ ExternalMemory::ExternalMemory(ExternalMemory&& o) noexcept
       path_(o.path_),
       memory_(std::move(o.memory_)),
       size_(std::exchange(o.size_, 0)),
+      memory_type_(o.memory_type_),
       handle_type_(o.handle_type_),
       host_(std::exchange(o.host_, nullptr)) {}
 
@@ -70,6 +71,7 @@ ExternalMemory& ExternalMemory::operator=(ExternalMemory&& o) noexcept {
         path_ = o.path_;
         memory_ = std::move(o.memory_);
         size_ = std::exchange(o.size_, 0);
+        memory_type_ = o.memory_type_;
         handle_type_ = o.handle_type_;
         host_ = std::exchange(o.host_, nullptr);
     }
@@ -170,6 +172,7 @@ ExternalMemory ExternalMemory::exportable(Context& ctx, VkDeviceSize bytes,
     info.memoryTypeIndex =
         ctx.memory_type_for(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, what);
     m.size_ = info.allocationSize;
+    m.memory_type_ = info.memoryTypeIndex;
     VkDeviceMemory memory = VK_NULL_HANDLE;
     check(vkAllocateMemory(ctx.device(), &info, nullptr, &memory), "vkAllocateMemory",
           what + ": " + std::to_string(m.size_) + " exportable bytes");

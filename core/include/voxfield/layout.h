@@ -43,5 +43,7 @@
  * the field's 8-bit distance is saturated. */
 #define VF_RAYMARCH_FLAG_BLOCK_MIN 8u
 #define VF_RAYMARCH_BLOCK 8
+/* Write pixels as B, G, R, A bytes (a BGRA swapchain) instead of R, G, B, A. */
+#define VF_RAYMARCH_FLAG_BGRA 16u
 
 #endif

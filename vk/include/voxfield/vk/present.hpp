@@ -8,13 +8,16 @@
 // the surface.
 #include <vulkan/vulkan.h>
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "voxfield/vk/context.hpp"
+#include "voxfield/vk/raymarcher.hpp"
 
 namespace voxfield::vk {
 
@@ -56,6 +59,31 @@ class Presenter {
     bool present(const std::uint8_t* rgba, std::uint32_t width, std::uint32_t height,
                  std::uint32_t fb_width, std::uint32_t fb_height,
                  const std::function<void(VkCommandBuffer)>& overlay);
+
+    // Frames rendered on another VkDevice of the same GPU (vk::Raymarcher::render_to into
+    // ExternalMemory::exportable memory) and presented with no host round trip.
+    // can_import_frames: this device imports opaque fds and its deviceUUID is `uuid`.
+    bool can_import_frames(const std::array<std::uint8_t, VK_UUID_SIZE>& uuid) const;
+    // The swapchain wants B, G, R, A bytes (render with RenderOptions::bgra).
+    bool bgra() const;
+    // Imports the memory behind `fd` (ExternalMemory::export_fd; the presenter takes the fd)
+    // of `size` bytes and `memory_type` (ExternalMemory::memory_type) as the source of
+    // present_imported(), replacing the previous one; waits for the frame in flight first.
+    void import_frame(int fd, VkDeviceSize size, std::uint32_t memory_type);
+    // Waits until the frame in flight no longer reads the imported memory: call before
+    // rendering the next frame into it.
+    void wait_frame();
+    // As present(), from the imported memory holding width x height pixels (rows of `width`).
+    bool present_imported(std::uint32_t width, std::uint32_t height, std::uint32_t fb_width,
+                          std::uint32_t fb_height,
+                          const std::function<void(VkCommandBuffer)>& overlay);
+
+    // What the window shows, for scripted checks: the next presented frame (overlay
+    // included) is also copied to the host; captured_frame() returns it as RGBA8 once it was
+    // presented. capture_next_frame() is false (and nothing is captured) when the swapchain
+    // images cannot be copied from (no VK_IMAGE_USAGE_TRANSFER_SRC_BIT).
+    bool capture_next_frame();
+    std::optional<Image> captured_frame();
 
     // Records into a fresh command buffer and waits (e.g. the overlay's font upload).
     void submit_and_wait(const std::function<void(VkCommandBuffer)>& record);

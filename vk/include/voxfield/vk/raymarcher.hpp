@@ -47,6 +47,8 @@ struct RenderOptions {
     Rgba sky{0, 0, 0, 255};
     // Lit shading only: the sky gradient and sun disc instead of the flat `sky` colour.
     bool sky_gradient = false;
+    // Pixel bytes B, G, R, A instead of R, G, B, A (for a BGRA swapchain).
+    bool bgra = false;
 };
 
 struct Image {
@@ -123,6 +125,12 @@ class Raymarcher {
     // kept while the size stays; the second form also reuses out.rgba's storage.
     Image render(const RenderOptions& options);
     void render(const RenderOptions& options, Image& out);
+    // Ray-marches one image into `frame` (memory from ExternalMemory::exportable, at least
+    // width * height * 4 bytes: rows top to bottom, no padding) without reading it back, for a
+    // Presenter on another VkDevice of this GPU that imported it (Presenter::import_frame).
+    // The buffer is released to VK_QUEUE_FAMILY_EXTERNAL and the work has finished when this
+    // returns. Returns the dispatch's GPU time in ms (-1: not available).
+    double render_to(const RenderOptions& options, const ExternalMemory& frame);
 
     // The field format and layout in use, and the bytes copied into field / material buffers
     // so far (stays 0 while the field is shared).

@@ -44,6 +44,9 @@ class ExternalMemory {
     SharingPath path() const { return path_; }
     VkDeviceMemory memory() const { return memory_.get(); }
     VkDeviceSize size() const { return size_; }
+    // The memory type index it was allocated with (an importer of path 1's fd on another
+    // VkDevice of the same GPU allocates with the same index and size).
+    std::uint32_t memory_type() const { return memory_type_; }
     VkExternalMemoryHandleTypeFlags handle_type() const { return handle_type_; }
     // Path 2: the host allocation (nullptr otherwise).
     void* host_pointer() const { return host_; }
@@ -57,6 +60,7 @@ class ExternalMemory {
     SharingPath path_ = SharingPath::copy;
     Owned<VkDeviceMemory> memory_;
     VkDeviceSize size_ = 0;
+    std::uint32_t memory_type_ = 0;
     VkExternalMemoryHandleTypeFlags handle_type_ = 0;
     void* host_ = nullptr;  // freed after memory_
 };
