@@ -105,6 +105,22 @@ TEST_F(ViewTest, FallbackPngRendersOneFrameHeadless) {
     EXPECT_GT(non_black_pixels(shot, 80, 60), 80u * 60 / 20) << "the fallback image is all sky";
 }
 
+TEST_F(ViewTest, FirstFrameEqualsRender) {
+    // The viewer's pipeline (IncrementalField, the render field written in place) and
+    // `render`'s (the exact generator) show a model identically from the same default camera.
+    const fs::path model = fs::path(VOXFIELD_DATA_DIR) / "vox" / "chr_army1.vox";
+    const fs::path viewed = dir_ / "viewed.png", rendered = dir_ / "rendered.png";
+    RunResult r = run_voxfield({"view", model.string(), "--width", "120", "--height", "90",
+                                "--fallback-png", viewed.string()},
+                               io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    r = run_voxfield({"render", model.string(), "-o", rendered.string(), "--width", "120",
+                      "--height", "90", "--shading", "lit"},
+                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_EQ(read_text(viewed), read_text(rendered)) << "the PNGs differ";
+}
+
 TEST_F(ViewTest, BadUsageIsCheckedFirst) {
     RunResult r = run_voxfield({"view", "--world", "16", "--dims", "4,4,4"}, io_);
     EXPECT_EQ(r.code, 2) << describe(r);
