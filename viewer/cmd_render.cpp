@@ -144,12 +144,12 @@ int run_render(const RenderCliOptions& o) {
     const vk::FieldFormat format = vk::parse_field_format(o.field);
     ocl::Context cl_ctx(ocl::select_device(o.device));
     vk::Context vk_ctx;
+    // Declared before the ray marcher, destroyed after it: the marcher may read their memory.
+    std::optional<ocl::ExactManhattan> exact;
+    std::optional<RenderField> shared;
     vk::Raymarcher marcher(vk_ctx);
     double kernel_ms = 0;
     std::string why_not;
-    // Declared after the ray marcher, destroyed before it: the marcher may read its memory.
-    std::optional<ocl::ExactManhattan> exact;
-    std::optional<RenderField> shared;
     if (format == vk::FieldFormat::packed32) {
         // The exact global L1 field in packed32 on the OpenCL device, copied (path 3).
         ocl::GeneratorOptions g;

@@ -298,7 +298,8 @@ void draw_brush_preview(ImDrawList* draw, const Brush& b, const ViewCamera& came
     if (b.shape == BrushShape::sphere) {
         const auto centre = project(c);
         const Vec3d right = view_basis(forward).right;
-        const auto edge = project({c[0] + (r + 0.5) * right[0], c[1] + (r + 0.5) * right[1], c[2]});
+        const auto edge = project({c[0] + (r + 0.5) * right[0], c[1] + (r + 0.5) * right[1],
+                                   c[2] + (r + 0.5) * right[2]});
         if (centre && edge) {
             const float radius = std::hypot(edge->x - centre->x, edge->y - centre->y);
             draw->AddCircle(*centre, std::max(radius, 2.0f), colour, 0, 2);
@@ -575,7 +576,13 @@ int run_view(ViewCliOptions o) {
         }
     }
     int chunk_log2 = 4;
+    // lod / monolithic: the focus the user gave (--focus) or the default, until changed.
     int focus_size = 1;
+    Int3 focus_centre{0, 0, 0};
+    if (const auto& f = session.options().focus) {
+        focus_size = static_cast<int>(std::min<std::int64_t>(f->size, 8));
+        focus_centre = f->centre;
+    }
     Keys keys(window.handle);
     double cursor_x = 0, cursor_y = 0;
     if (window.handle != nullptr) {
@@ -764,9 +771,8 @@ int run_view(ViewCliOptions o) {
         };
         if (has_focus(session.options().algorithm)) {
             const std::uint32_t chunk = session.options().chunk;
-            const Dims n = ChunkGrid(dims, chunk).chunks();
-            const Int3 centre = focus_follows ? chunk_at(camera.position(), dims, chunk)
-                                              : Int3{n.x / 2, n.y / 2, n.z / 2};
+            const Int3 centre =
+                focus_follows ? chunk_at(camera.position(), dims, chunk) : focus_centre;
             const Focus f{centre, focus_size};
             const auto& current = session.options().focus;
             if (!current || current->centre != f.centre || current->size != f.size) {
@@ -774,7 +780,13 @@ int run_view(ViewCliOptions o) {
             }
         }
         if (undo_changes && !undo_changes->empty()) {
-            add(session.apply_changes(*undo_changes));
+            try {
+                add(session.apply_changes(*undo_changes));
+            } catch (const InputError& e) {
+                // Voxels of the stroke were changed by edits the stack did not record.
+                std::cout << "cannot undo/redo: " << e.what() << "; undo history cleared\n";
+                undo.clear();
+            }
         }
         if (!batch.empty()) {
             std::vector<EditResult> edits;
@@ -955,7 +967,8 @@ int run_view(ViewCliOptions o) {
                         // FIM in the chunks within `focus size` of the centre chunk.
                         require_chunk_fits(dims, next.chunk);
                         const Dims n = ChunkGrid(dims, next.chunk).chunks();
-                        next.focus = Focus{{n.x / 2, n.y / 2, n.z / 2}, focus_size};
+                        focus_centre = {n.x / 2, n.y / 2, n.z / 2};
+                        next.focus = Focus{focus_centre, focus_size};
                     }
                     World world = new_scene
                                       ? make_scene(scenes[static_cast<std::size_t>(scene_index)],
@@ -974,11 +987,8 @@ int run_view(ViewCliOptions o) {
             const auto overlay = [](VkCommandBuffer cmd) {
                 ImGui_ImplVulkan_RenderDrawData(ImGui::GetDrawData(), cmd);
             };
-            if (!o.window_screenshot.empty() && frame + 1 >= o.frames &&
-                !presenter->capture_next_frame()) {
-                throw std::runtime_error("--window-screenshot: the swapchain of " +
-                                         presenter->device_name() +
-                                         " cannot be copied from (no TRANSFER_SRC usage)");
+            if (!o.window_screenshot.empty() && frame + 1 >= o.frames) {
+                presenter->capture_next_frame();
             }
             // Nothing is presented before the first frame was rendered (a zero-size window).
             if (rendered && gpu_present) {
@@ -1021,8 +1031,11 @@ int run_view(ViewCliOptions o) {
         const std::optional<vk::Image> shown =
             presenter ? presenter->captured_frame() : std::nullopt;
         if (!shown) {
-            throw std::runtime_error("--window-screenshot: no window frame was presented" +
-                                     std::string(presenter ? "" : " (there is no window)"));
+            throw std::runtime_error(
+                "--window-screenshot: no window frame was captured" +
+                std::string(presenter ? " (the swapchain cannot be copied from: no TRANSFER_SRC "
+                                        "usage)"
+                                      : " (there is no window)"));
         }
         write_png(o.window_screenshot, *shown);
         std::cout << "window screenshot " << o.window_screenshot << " (" << shown->width << "x"
@@ -1114,8 +1127,8 @@ Command add_view(CLI::App& root) {
     auto* app = root.add_subcommand(
         "view",
         "Interactive viewer: fly through the world, paint voxels, switch algorithms (needs a "
-        "display; without one it exits 2 and suggests `render`, except --benchmark, which "
-        "then runs headless)");
+        "display; without one it exits 2 and suggests `render`, except with --benchmark, which "
+        "then runs headless, or --fallback-png, which then renders the first frame into it)");
     app->add_option("INPUT", o->input, "World: MagicaVoxel .vox or uint8/16/32 .npy (Z,Y,X)");
     app->add_option("--world", o->world, "Generate a cube world of N^3 voxels (default 128)")
         ->check(CLI::Range(1u, 4096u));

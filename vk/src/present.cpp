@@ -679,7 +679,7 @@ bool Presenter::Impl::submit_frame(VkBuffer src, bool external, std::uint32_t ro
         overlay(m.cmd);
     }
     vkCmdEndRenderPass(m.cmd);
-    if (m.capture_requested) {
+    if (m.capture_requested && m.can_capture) {
         m.record_capture(m.images[index]);
         m.capture_requested = false;
         m.captured = true;
@@ -825,9 +825,8 @@ bool Presenter::present_imported(std::uint32_t width, std::uint32_t height, std:
     return m.submit_frame(m.imported, true, width, w, h, index, fb_width, fb_height, overlay);
 }
 
-bool Presenter::capture_next_frame() {
-    impl_->capture_requested = impl_->can_capture;
-    return impl_->can_capture;
+void Presenter::capture_next_frame() {
+    impl_->capture_requested = true;
 }
 
 std::optional<Image> Presenter::captured_frame() {

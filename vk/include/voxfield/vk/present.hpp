@@ -80,9 +80,9 @@ class Presenter {
 
     // What the window shows, for scripted checks: the next presented frame (overlay
     // included) is also copied to the host; captured_frame() returns it as RGBA8 once it was
-    // presented. capture_next_frame() is false (and nothing is captured) when the swapchain
-    // images cannot be copied from (no VK_IMAGE_USAGE_TRANSFER_SRC_BIT).
-    bool capture_next_frame();
+    // presented, nothing when the swapchain images cannot be copied from (no
+    // VK_IMAGE_USAGE_TRANSFER_SRC_BIT) or no frame was presented since the request.
+    void capture_next_frame();
     std::optional<Image> captured_frame();
 
     // Records into a fresh command buffer and waits (e.g. the overlay's font upload).
