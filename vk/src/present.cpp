@@ -162,7 +162,7 @@ struct Presenter::Impl {
     }
 
     // Waits for the last frame, recreates the swapchain when the framebuffer size changed and
-    // acquires an image; false when the frame must be skipped (out of date).
+    // acquires an image; false when the frame must be skipped (zero size, out of date).
     bool begin_frame(std::uint32_t fb_width, std::uint32_t fb_height, std::uint32_t& index);
     // Records and submits one frame: `src` (rows of `row_length` pixels, bytes already in
     // the swapchain's order; external: acquired from another VkDevice) cropped to w x h, then
@@ -194,29 +194,35 @@ struct Presenter::Impl {
                       "no host-visible coherent memory type for the presentation staging buffer");
     }
 
-    void ensure_staging(VkDeviceSize size) {
-        if (size <= staging_size) {
-            return;
-        }
-        destroy_staging();
+    // A mapped host-visible, coherent buffer of `size` bytes (staging, window capture).
+    void make_host_buffer(VkDeviceSize size, VkBufferUsageFlags usage, const std::string& what,
+                          VkBuffer& buffer, VkDeviceMemory& buffer_memory, void*& map) {
         VkBufferCreateInfo b{};
         b.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO;
         b.size = size;
-        b.usage = VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
-        check(vkCreateBuffer(device, &b, nullptr, &staging), "vkCreateBuffer", "present staging");
+        b.usage = usage;
+        check(vkCreateBuffer(device, &b, nullptr, &buffer), "vkCreateBuffer", what);
         VkMemoryRequirements req;
-        vkGetBufferMemoryRequirements(device, staging, &req);
+        vkGetBufferMemoryRequirements(device, buffer, &req);
         VkMemoryAllocateInfo a{};
         a.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
         a.allocationSize = req.size;
         a.memoryTypeIndex =
             memory_type(req.memoryTypeBits,
                         VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
-        check(vkAllocateMemory(device, &a, nullptr, &staging_memory), "vkAllocateMemory",
-              "present staging, " + std::to_string(size) + " bytes");
-        check(vkBindBufferMemory(device, staging, staging_memory, 0), "vkBindBufferMemory");
-        check(vkMapMemory(device, staging_memory, 0, VK_WHOLE_SIZE, 0, &staging_map),
-              "vkMapMemory");
+        check(vkAllocateMemory(device, &a, nullptr, &buffer_memory), "vkAllocateMemory",
+              what + ", " + std::to_string(size) + " bytes");
+        check(vkBindBufferMemory(device, buffer, buffer_memory, 0), "vkBindBufferMemory", what);
+        check(vkMapMemory(device, buffer_memory, 0, VK_WHOLE_SIZE, 0, &map), "vkMapMemory", what);
+    }
+
+    void ensure_staging(VkDeviceSize size) {
+        if (size <= staging_size) {
+            return;
+        }
+        destroy_staging();
+        make_host_buffer(size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, "present staging", staging,
+                         staging_memory, staging_map);
         staging_size = size;
     }
 
@@ -545,25 +551,9 @@ void Presenter::submit_and_wait(const std::function<void(VkCommandBuffer)>& reco
 
 void Presenter::Impl::record_capture(VkImage image) {
     destroy_capture();
-    const VkDeviceSize bytes = VkDeviceSize{extent.width} * extent.height * 4;
-    VkBufferCreateInfo b{};
-    b.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO;
-    b.size = bytes;
-    b.usage = VK_BUFFER_USAGE_TRANSFER_DST_BIT;
-    check(vkCreateBuffer(device, &b, nullptr, &capture), "vkCreateBuffer", "window capture");
-    VkMemoryRequirements req;
-    vkGetBufferMemoryRequirements(device, capture, &req);
-    VkMemoryAllocateInfo a{};
-    a.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
-    a.allocationSize = req.size;
-    a.memoryTypeIndex = memory_type(req.memoryTypeBits, VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT |
-                                                            VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
-    check(vkAllocateMemory(device, &a, nullptr, &capture_memory), "vkAllocateMemory",
-          "window capture");
-    check(vkBindBufferMemory(device, capture, capture_memory, 0), "vkBindBufferMemory",
-          "window capture");
-    check(vkMapMemory(device, capture_memory, 0, VK_WHOLE_SIZE, 0, &capture_map), "vkMapMemory",
-          "window capture");
+    make_host_buffer(VkDeviceSize{extent.width} * extent.height * 4,
+                     VK_BUFFER_USAGE_TRANSFER_DST_BIT, "window capture", capture, capture_memory,
+                     capture_map);
     capture_extent = extent;
 
     VkImageMemoryBarrier to_src{};
@@ -599,6 +589,9 @@ void Presenter::Impl::record_capture(VkImage image) {
 bool Presenter::Impl::begin_frame(std::uint32_t fb_width, std::uint32_t fb_height,
                                   std::uint32_t& index) {
     Impl& m = *this;
+    if (fb_width == 0 || fb_height == 0) {
+        return false;  // a zero-size window, e.g. minimised
+    }
     check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
     if (m.swapchain == VK_NULL_HANDLE || m.extent.width != fb_width ||
         m.extent.height != fb_height) {
@@ -719,9 +712,6 @@ bool Presenter::present(const std::uint8_t* rgba, std::uint32_t width, std::uint
                         std::uint32_t fb_width, std::uint32_t fb_height,
                         const std::function<void(VkCommandBuffer)>& overlay) {
     Impl& m = *impl_;
-    if (fb_width == 0 || fb_height == 0) {
-        return false;
-    }
     std::uint32_t index = 0;
     if (!m.begin_frame(fb_width, fb_height, index)) {
         return false;
@@ -812,9 +802,6 @@ bool Presenter::present_imported(std::uint32_t width, std::uint32_t height, std:
     Impl& m = *impl_;
     if (m.imported == VK_NULL_HANDLE || VkDeviceSize{width} * height * 4 > m.imported_size) {
         throw std::logic_error("Presenter::present_imported without a large enough import_frame");
-    }
-    if (fb_width == 0 || fb_height == 0) {
-        return false;
     }
     std::uint32_t index = 0;
     if (!m.begin_frame(fb_width, fb_height, index)) {
