@@ -20,6 +20,16 @@ NpyType npy_type(Format f) {
         case Format::u32:
         case Format::packed32:
             return NpyType::u32;
+        case Format::i8:
+            return NpyType::i8;
+        case Format::i16:
+            return NpyType::i16;
+        case Format::i32:
+            return NpyType::i32;
+        case Format::f32:
+            return NpyType::f32;
+        case Format::f64:
+            return NpyType::f64;
     }
     return NpyType::u32;
 }

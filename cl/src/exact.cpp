@@ -4,6 +4,7 @@
 #include "util.hpp"
 
 #include <algorithm>
+#include <stdexcept>
 #include <string>
 
 namespace voxfield::cl_sources {
@@ -29,8 +30,15 @@ WorkType work_type(Format f) {
             return {"ushort", 65535u, 2};
         case Format::u32:
             return {"uint", 0xFFFFFFFFu, 4};
+        case Format::i8:
+        case Format::i16:
+        case Format::i32:
+        case Format::f32:
+        case Format::f64:
+            break;
     }
-    return {"uint", 0xFFFFFFFFu, 4};
+    throw std::invalid_argument("exact_manhattan.cl writes u8, u16, u32 or packed32, not " +
+                                to_string(f) + " (ExactSeparable writes the others)");
 }
 
 // Values per work-item in cols_seg for a column of n voxels, or 0 when too long for it.

@@ -6,6 +6,7 @@
 
 #include "classic.hpp"
 #include "voxfield/cl/exact.hpp"
+#include "voxfield/cl/separable.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/reference.hpp"
 
@@ -78,9 +79,46 @@ bool always_chunked(Algorithm a) {
     return a == Algorithm::brute_chunked || a == Algorithm::lod || a == Algorithm::monolithic;
 }
 
+Format default_format(Metric metric, const Spacing& spacing, bool signed_field) {
+    if (metric == Metric::euclidean || !spacing.unit()) {
+        return Format::f32;
+    }
+    return signed_field ? Format::i16 : Format::u16;
+}
+
 GeneratorOptions resolve_options(const GeneratorOptions& options, Dims world) {
     GeneratorOptions o = options;
     const std::string name = to_string(o.algorithm);
+    if (o.algorithm != Algorithm::exact) {
+        if (o.metric != Metric::manhattan) {
+            throw InputError("--metric " + to_string(o.metric) + ": " + name +
+                             " (the dissertation's) computes manhattan distances only; use "
+                             "--algorithm exact for " +
+                             to_string(o.metric));
+        }
+        if (!o.spacing.unit()) {
+            throw InputError("--spacing: " + name +
+                             " works on unit spacing only; use --algorithm exact");
+        }
+        if (o.signed_field || o.indices) {
+            throw InputError(std::string(o.signed_field ? "--signed" : "--indices") + ": " + name +
+                             " has no " + (o.signed_field ? "signed fields" : "feature transform") +
+                             "; use --algorithm exact");
+        }
+        if (holds_sign(o.format)) {
+            throw InputError("--format " + to_string(o.format) + ": " + name +
+                             " writes u8, u16, u32 or packed32 only");
+        }
+    }
+    if (o.signed_field && !holds_sign(o.format)) {
+        throw InputError("--signed needs a signed format (i8, i16, i32, f32 or f64), not " +
+                         to_string(o.format));
+    }
+    if (o.signed_field && o.indices) {
+        throw InputError(
+            "--indices needs an unsigned field: the feature transform names the nearest solid "
+            "voxel, which a signed field's solid voxels do not have; drop --signed or --indices");
+    }
     if (o.algorithm == Algorithm::exact && o.chunk != 0) {
         throw InputError(
             "--chunk does not apply to exact, which computes the global field; chunk-local "
@@ -112,6 +150,17 @@ GeneratorOptions resolve_options(const GeneratorOptions& options, Dims world) {
         throw InputError("--jfa-extra applies to the JFA-based algorithms, not to " + name);
     }
     return o;
+}
+
+std::vector<std::int32_t> Generator::read_indices() {
+    if (indices_() == nullptr) {
+        throw std::logic_error("read_indices: this generator was made without indices");
+    }
+    return cl_call("reading the feature transform of " + dims_.to_string(), [&] {
+        std::vector<std::int32_t> idx(3 * dims_.count());
+        ctx_.queue().enqueueReadBuffer(indices_, CL_TRUE, 0, idx.size() * 4, idx.data());
+        return idx;
+    });
 }
 
 std::vector<std::uint32_t> exact_reference(const World& world, const GeneratorOptions& options) {
@@ -149,6 +198,9 @@ std::unique_ptr<Generator> make_generator(Context& ctx, const World& world, cons
                                           const GeneratorOptions& options) {
     const GeneratorOptions o = resolve_options(options, world.dims());
     if (o.algorithm == Algorithm::exact) {
+        if (ExactSeparable::needed(o)) {
+            return std::make_unique<ExactSeparable>(ctx, world, palette, o);
+        }
         return std::make_unique<ExactManhattan>(ctx, world, palette, o.format, o.layout);
     }
     return make_classic(ctx, world, palette, o);
@@ -162,6 +214,9 @@ FieldResult generate(Context& ctx, const World& world, const Palette& palette,
     result.timing.kernel_ms = job->run();
     result.iterations = job->iterations();
     result.bytes = job->read(&result.timing.download_ms);
+    if (options.indices) {
+        result.indices = job->read_indices();
+    }
     return result;
 }
 

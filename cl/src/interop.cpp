@@ -52,8 +52,15 @@ std::string source_options(Format format) {
         case Format::packed32:
             return " -DVF_SRC_T=uint -DVF_SRC_SHIFT=VF_PACKED_DISTANCE_SHIFT "
                    "-DVF_SRC_MASK=VF_PACKED_DISTANCE_MAX";
+        case Format::i8:
+        case Format::i16:
+        case Format::i32:
+        case Format::f32:
+        case Format::f64:
+            break;
     }
-    return {};
+    throw InputError("the render field is made from a u8, u16, u32 or packed32 field, not " +
+                     to_string(format) + " (integer formats hold every metric's distance)");
 }
 
 // Sets the box arguments (lo, size, count) from `first` and returns the 1-D launch size.

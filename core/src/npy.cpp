@@ -30,40 +30,40 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::size_t elem_size(NpyType t) {
-    switch (t) {
-        case NpyType::u8:
-            return 1;
-        case NpyType::u16:
-            return 2;
-        case NpyType::u32:
-            return 4;
+struct TypeInfo {
+    NpyType type;
+    std::size_t size;
+    const char* name;
+    const char* descr;  // as written
+    const char* kind;   // descr without the byte order
+};
+
+constexpr TypeInfo kTypes[] = {
+    {NpyType::u8, 1, "uint8", "|u1", "u1"},    {NpyType::u16, 2, "uint16", "<u2", "u2"},
+    {NpyType::u32, 4, "uint32", "<u4", "u4"},  {NpyType::i8, 1, "int8", "|i1", "i1"},
+    {NpyType::i16, 2, "int16", "<i2", "i2"},   {NpyType::i32, 4, "int32", "<i4", "i4"},
+    {NpyType::f32, 4, "float32", "<f4", "f4"}, {NpyType::f64, 8, "float64", "<f8", "f8"},
+};
+
+const TypeInfo& type_info(NpyType t) {
+    for (const TypeInfo& i : kTypes) {
+        if (i.type == t) {
+            return i;
+        }
     }
-    return 1;
+    return kTypes[0];
+}
+
+std::size_t elem_size(NpyType t) {
+    return type_info(t).size;
 }
 
 const char* type_name(NpyType t) {
-    switch (t) {
-        case NpyType::u8:
-            return "uint8";
-        case NpyType::u16:
-            return "uint16";
-        case NpyType::u32:
-            return "uint32";
-    }
-    return "?";
+    return type_info(t).name;
 }
 
 const char* descr_of(NpyType t) {
-    switch (t) {
-        case NpyType::u8:
-            return "|u1";
-        case NpyType::u16:
-            return "<u2";
-        case NpyType::u32:
-            return "<u4";
-    }
-    return "?";
+    return type_info(t).descr;
 }
 
 // A Python literal as found in a .npy header: a string, a bool, an int or a tuple of ints.
@@ -310,20 +310,25 @@ NpyArray read_npy(const std::filesystem::path& path) {
     const std::string& d = descr->text;
     const char order = d.size() == 3 ? d[0] : '\0';
     const std::string kind = d.size() == 3 ? d.substr(1) : d;
-    if (d.size() == 3 && (kind == "u2" || kind == "u4") && order == '>') {
+    const TypeInfo* found = nullptr;
+    for (const TypeInfo& i : kTypes) {
+        if (kind == i.kind) {
+            found = &i;
+        }
+    }
+    const bool one_byte = found != nullptr && found->size == 1;
+    if (found != nullptr && !one_byte && order == '>') {
         throw InputError(file + ": dtype '" + d + "' is big-endian (only little-endian '<" + kind +
                          "' is supported)");
     }
-    if (d == "|u1" || d == "<u1" || d == "=u1" || d == ">u1" || d == "u1") {
-        a.type = NpyType::u8;
-    } else if (d == "<u2" || d == "=u2") {
-        a.type = NpyType::u16;
-    } else if (d == "<u4" || d == "=u4") {
-        a.type = NpyType::u32;
-    } else {
+    const bool order_ok = d.size() == 2 || order == '<' || order == '=' ||
+                          (one_byte && (order == '|' || order == '>'));
+    if (found == nullptr || !order_ok) {
         throw InputError(file + ": dtype '" + d +
-                         "' is not supported (expected uint8, uint16 or uint32)");
+                         "' is not supported (expected uint8, uint16 or uint32; int8, int16, "
+                         "int32, float32 or float64 for fields)");
     }
+    a.type = found->type;
     if (fortran->flag) {
         throw InputError(file + ": fortran_order is True (only C-order arrays are supported)");
     }
@@ -365,18 +370,33 @@ NpyArray read_npy(const std::filesystem::path& path) {
 
 void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
                const std::vector<std::uint8_t>& data) {
-    const std::string file = path.string();
     if (dims.x == 0 || dims.y == 0 || dims.z == 0) {
-        throw InputError("cannot write '" + file + "': dims " + dims.to_string() +
+        throw InputError("cannot write '" + path.string() + "': dims " + dims.to_string() +
                          " have an empty axis");
     }
-    if (data.size() != dims.count() * elem_size(type)) {
+    write_npy_shape(path, type, {dims.z, dims.y, dims.x}, data);
+}
+
+void write_npy_shape(const std::filesystem::path& path, NpyType type,
+                     const std::vector<std::uint64_t>& shape,
+                     const std::vector<std::uint8_t>& data) {
+    const std::string file = path.string();
+    std::uint64_t count = 1;
+    std::string dims_text;
+    for (std::uint64_t n : shape) {
+        count *= n;
+        dims_text += std::to_string(n) + ", ";
+    }
+    if (data.size() != count * elem_size(type)) {
         throw InputError("cannot write '" + file + "': " + std::to_string(data.size()) +
-                         " bytes do not match dims " + dims.to_string() + " of " + type_name(type));
+                         " bytes do not match shape (" + dims_text + ") of " + type_name(type));
+    }
+    if (shape.size() > 1) {
+        dims_text.resize(dims_text.size() - 1);  // "(a, b, c)"; one axis keeps "(a,)"
+        dims_text.resize(dims_text.size() - 1);
     }
     std::string header = std::string("{'descr': '") + descr_of(type) +
-                         "', 'fortran_order': False, 'shape': (" + std::to_string(dims.z) + ", " +
-                         std::to_string(dims.y) + ", " + std::to_string(dims.x) + "), }";
+                         "', 'fortran_order': False, 'shape': (" + dims_text + "), }";
     const std::size_t unpadded = 10 + header.size() + 1;  // + '\n'
     header.append((64 - unpadded % 64) % 64, ' ');
     header += '\n';
@@ -394,6 +414,11 @@ void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
 }
 
 World world_from_npy(const NpyArray& array) {
+    if (array.type != NpyType::u8 && array.type != NpyType::u16 && array.type != NpyType::u32) {
+        throw InputError(std::string("a world is an unsigned integer array (uint8, uint16 or "
+                                     "uint32 palette indices), not ") +
+                         type_name(array.type));
+    }
     const std::size_t es = elem_size(array.type);
     World world(array.dims);
     const std::size_t n = world.size();

@@ -124,6 +124,38 @@ TEST(Npy, ReadsVersions2And3AndVariants) {
     EXPECT_EQ(read_npy(p).dims, (Dims{3, 2, 1}));
 }
 
+TEST(Npy, FieldTypesReadButAreNoWorld) {
+    TempDir dir;
+    const std::vector<std::pair<std::string, NpyType>> fields = {{"|i1", NpyType::i8},
+                                                                 {"<i2", NpyType::i16},
+                                                                 {"<i4", NpyType::i32},
+                                                                 {"<f4", NpyType::f32},
+                                                                 {"<f8", NpyType::f64}};
+    for (const auto& [descr, type] : fields) {
+        const fs::path p = dir / "field.npy";
+        const std::size_t es = type == NpyType::f64   ? 8
+                               : type == NpyType::i8  ? 1
+                               : type == NpyType::i16 ? 2
+                                                      : 4;
+        write_bytes(p, make_npy(dict(descr, "False", "(2, 2, 2)"), 8 * es));
+        const NpyArray a = read_npy(p);
+        EXPECT_EQ(a.type, type) << descr;
+        try {
+            world_from_npy(a);
+            ADD_FAILURE() << descr << " was taken as a world";
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find("not "), std::string::npos) << e.what();
+        }
+    }
+    // A 4-D int32 array (the feature transform's layout) round-trips its header.
+    const fs::path p = dir / "idx.npy";
+    write_npy_shape(p, NpyType::i32, {3, 1, 1, 2}, std::vector<std::uint8_t>(24, 0));
+    std::ifstream in(p, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_NE(bytes.find("'descr': '<i4', 'fortran_order': False, 'shape': (3, 1, 1, 2), }"),
+              std::string::npos);
+}
+
 TEST(Npy, Rejections) {
     TempDir dir;
     struct Case {
@@ -132,10 +164,11 @@ TEST(Npy, Rejections) {
         std::vector<std::string> expect;
     };
     std::vector<Case> cases;
-    cases.push_back({"f4.npy",
-                     make_npy(dict("<f4", "False", "(2, 2, 2)"), 32),
-                     {"f4.npy", "dtype '<f4' is not supported", "uint8, uint16 or uint32"}});
-    cases.push_back({"i2.npy", make_npy(dict("<i2", "False", "(2, 2, 2)"), 16), {"'<i2'"}});
+    cases.push_back({"c8.npy",
+                     make_npy(dict("<c8", "False", "(2, 2, 2)"), 64),
+                     {"c8.npy", "dtype '<c8' is not supported", "uint8, uint16 or uint32"}});
+    cases.push_back({"i8.npy", make_npy(dict("<i8", "False", "(2, 2, 2)"), 64), {"'<i8'"}});
+    cases.push_back({"be_f4.npy", make_npy(dict(">f4", "False", "(2, 2, 2)"), 32), {"big-endian"}});
     cases.push_back({"u8.npy", make_npy(dict("<u8", "False", "(2, 2, 2)"), 64), {"'<u8'"}});
     cases.push_back({"pipe_u2.npy", make_npy(dict("|u2", "False", "(2, 2, 2)"), 16), {"'|u2'"}});
     cases.push_back({"be2.npy",

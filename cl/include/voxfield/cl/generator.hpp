@@ -11,6 +11,7 @@
 #include "voxfield/cl/runtime.hpp"
 #include "voxfield/core/chunks.hpp"
 #include "voxfield/core/format.hpp"
+#include "voxfield/core/metric.hpp"
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/world.hpp"
 
@@ -58,7 +59,16 @@ struct GeneratorOptions {
     // JFA+1 / JFA+2 (Rong & Tan): extra passes at steps (2,) 1 after the regular ones.
     std::uint32_t jfa_extra = 0;
     Layout layout = Layout::automatic;  // exact only
+    // exact only (the dissertation's algorithms are Manhattan with unit spacing):
+    Metric metric = Metric::manhattan;
+    Spacing spacing;            // world axis order x, y, z
+    bool signed_field = false;  // DESIGN §3 signed field; needs a format that holds_sign
+    bool indices = false;       // also compute the feature transform (unsigned fields only)
 };
+
+// The format a field gets when none is asked for (DESIGN §3): u16 (i16 when signed) for
+// manhattan and chebyshev with unit spacing, f32 otherwise.
+Format default_format(Metric metric, const Spacing& spacing, bool signed_field);
 
 // Fills in defaults (chunk for always-chunked algorithms, focus) and checks the options
 // against the world; throws InputError with what to change.
@@ -82,6 +92,10 @@ class Generator {
     virtual double run() = 0;
     // Reads the field back (element_size(format) bytes per voxel, little-endian).
     std::vector<std::uint8_t> read(double* download_ms = nullptr);
+    // Reads the feature transform back: int32 planes z, y, x of the nearest solid voxel of
+    // every voxel (shape (3, Z, Y, X)), -1 where there is none. Only for generators made
+    // with options.indices; std::logic_error otherwise.
+    std::vector<std::int32_t> read_indices();
 
     double upload_ms() const { return upload_ms_; }
     // Per-kernel time of the last run(), in first-enqueue order, summed over repeated
@@ -104,6 +118,7 @@ class Generator {
     Dims dims_;
     Format format_;
     cl::Buffer out_;
+    cl::Buffer indices_;  // set by generators that compute the feature transform
     double upload_ms_ = 0;
     std::uint32_t iterations_ = 0;
     std::vector<std::pair<std::string, double>> stage_ms_;
@@ -123,6 +138,7 @@ struct FieldTiming {
 
 struct FieldResult {
     std::vector<std::uint8_t> bytes;
+    std::vector<std::int32_t> indices;  // with options.indices
     FieldTiming timing;
     std::uint32_t iterations = 0;
 };

@@ -1,6 +1,7 @@
 #pragma once
-// NumPy .npy files (format 1.0/2.0/3.0 read, 1.0 write): 3-D uint8/uint16/uint32, C order,
-// shape (Z, Y, X). Anything else is rejected with an InputError naming the problem.
+// NumPy .npy files (format 1.0/2.0/3.0 read, 1.0 write): 3-D C-order arrays of shape (Z, Y, X)
+// of uint8/16/32 (worlds and fields), int8/16/32 and float32/64 (fields); 4-D int32 for the
+// feature transform is written only. Anything else is rejected with an InputError.
 #include <cstdint>
 #include <filesystem>
 #include <vector>
@@ -9,7 +10,7 @@
 
 namespace voxfield {
 
-enum class NpyType { u8, u16, u32 };
+enum class NpyType { u8, u16, u32, i8, i16, i32, f32, f64 };
 
 struct NpyArray {
     NpyType type = NpyType::u8;
@@ -24,7 +25,12 @@ NpyArray read_npy(const std::filesystem::path& path);
 void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
                const std::vector<std::uint8_t>& data);
 
-// A world from a .npy array; values must be palette indices 0..255.
+// Writes an array of any shape (C order, `data` little-endian), atomically as write_npy.
+void write_npy_shape(const std::filesystem::path& path, NpyType type,
+                     const std::vector<std::uint64_t>& shape,
+                     const std::vector<std::uint8_t>& data);
+
+// A world from a .npy array; values must be palette indices 0..255 of an unsigned type.
 World world_from_npy(const NpyArray& array);
 NpyArray npy_from_world(const World& world);
 

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "voxfield/core/metric.hpp"
 #include "voxfield/core/world.hpp"
 
 namespace voxfield {
@@ -21,5 +22,21 @@ std::vector<std::uint32_t> reference_manhattan_chunked(const World& world, std::
 
 // Algorithm 3 literally: each voxel scans its chunk plus the padding shell. Tiny grids only.
 std::vector<std::uint32_t> brute_force_manhattan_chunked(const World& world, std::uint32_t chunk);
+
+// Every metric and spacing (DESIGN §3), in double precision: the distance from each voxel to
+// the nearest solid voxel, +inf when the world has none. Separable, axis by axis, each 1-D
+// step a plain minimum over the whole line (O(N * n), no lower-envelope scan), so that it
+// shares no logic with the kernels. For unit spacing every L1/L-inf value and every L2
+// squared distance is an exact integer, and the L2 value is sqrt of it in double (which
+// rounds to the correctly rounded float as well).
+std::vector<double> reference_distance(const World& world, Metric metric, const Spacing& spacing);
+
+// The signed field: +distance to the nearest solid for empty voxels, -distance to the
+// nearest empty voxel for solid ones, the world surrounded by one layer of empty voxels.
+std::vector<double> reference_signed(const World& world, Metric metric, const Spacing& spacing);
+
+// O(N * targets) brute force of both, for checking the reference on tiny grids.
+std::vector<double> brute_force_distance(const World& world, Metric metric, const Spacing& spacing);
+std::vector<double> brute_force_signed(const World& world, Metric metric, const Spacing& spacing);
 
 }  // namespace voxfield

@@ -1,0 +1,31 @@
+#pragma once
+// Distance metrics and voxel spacing (DESIGN §3): L1, L-inf and L2 between voxel centres,
+// each axis offset scaled by its spacing first.
+#include <string>
+#include <vector>
+
+namespace voxfield {
+
+enum class Metric { manhattan, chebyshev, euclidean };
+
+// "manhattan", "chebyshev", "euclidean"; throws InputError listing them otherwise.
+Metric parse_metric(const std::string& name);
+std::string to_string(Metric m);
+const std::vector<std::string>& metric_names();
+
+// Spacing of the voxel grid per world axis (x, y, z), all positive and finite.
+struct Spacing {
+    double x = 1, y = 1, z = 1;
+    bool unit() const { return x == 1 && y == 1 && z == 1; }
+    std::string to_string() const;  // "X,Y,Z"
+    friend bool operator==(const Spacing&, const Spacing&) = default;
+};
+
+// Parses "X,Y,Z" (world axis order); throws InputError on a malformed, non-positive or
+// non-finite value.
+Spacing parse_spacing(const std::string& text);
+
+// The metric's distance for axis offsets (dx, dy, dz) in voxels, scaled by `s`.
+double metric_distance(Metric m, const Spacing& s, long dx, long dy, long dz);
+
+}  // namespace voxfield

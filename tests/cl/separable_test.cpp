@@ -1,0 +1,257 @@
+// `exact` for every metric, spacing, signed fields and the feature transform, on PoCL in both
+// kernel layouts, against the CPU reference (core/reference_metric.cpp).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <random>
+#include <string>
+
+#include "cl_test_util.hpp"
+#include "voxfield/core/reference.hpp"
+#include "voxfield/core/scenes.hpp"
+#include "voxfield/core/vox.hpp"
+
+namespace voxfield {
+namespace {
+
+using ocl::Layout;
+using test::pocl;
+
+const Metric kMetrics[] = {Metric::manhattan, Metric::chebyshev, Metric::euclidean};
+const Layout kLayouts[] = {Layout::cpu, Layout::gpu};
+
+ocl::GeneratorOptions options(Metric m, const Spacing& s, bool signed_field, Format f,
+                              Layout layout, bool indices = false) {
+    ocl::GeneratorOptions o;
+    o.metric = m;
+    o.spacing = s;
+    o.signed_field = signed_field;
+    o.format = f;
+    o.layout = layout;
+    o.indices = indices;
+    return o;
+}
+
+std::string describe(const ocl::GeneratorOptions& o, Dims d) {
+    return to_string(o.metric) + " spacing " + o.spacing.to_string() +
+           (o.signed_field ? " signed" : "") + " format " + to_string(o.format) + " layout " +
+           (o.layout == Layout::cpu ? "cpu" : "gpu") + " world " + d.to_string();
+}
+
+std::vector<double> reference(const World& w, const ocl::GeneratorOptions& o) {
+    return o.signed_field ? reference_signed(w, o.metric, o.spacing)
+                          : reference_distance(w, o.metric, o.spacing);
+}
+
+// Unit spacing: byte-identical to the reference's encoding (L2 floats correctly rounded).
+// Other spacings: floats within 4 float ulps relative, integers equal except where the
+// value lies within that rounding of an integer.
+void expect_matches(const World& w, const Palette& p, const ocl::GeneratorOptions& o,
+                    const std::vector<double>& ref, const std::string& what) {
+    const auto got = ocl::generate(pocl(), w, p, o).bytes;
+    const auto want = encode_real_field(ref, w, p, o.format);
+    ASSERT_EQ(got.size(), want.size()) << what;
+    if (o.spacing.unit()) {
+        if (got != want) {
+            std::size_t i = 0;
+            while (decode_value(got, o.format, i) == decode_value(want, o.format, i)) {
+                ++i;
+            }
+            const Dims d = w.dims();
+            FAIL() << what << " " << describe(o, d) << ": first difference at voxel (" << i % d.x
+                   << "," << i / d.x % d.y << "," << i / d.x / d.y << "): got "
+                   << decode_value(got, o.format, i) << ", want " << decode_value(want, o.format, i)
+                   << " (exact " << ref[i] << ")";
+        }
+        return;
+    }
+    for (std::size_t i = 0; i < ref.size(); ++i) {
+        const double a = decode_value(got, o.format, i);
+        const double b = decode_value(want, o.format, i);
+        if (a == b) {
+            continue;
+        }
+        const double tol = 5e-7 * std::max(1.0, std::fabs(ref[i]));
+        const bool near_integer = std::fabs(ref[i] - std::round(ref[i])) <= tol;
+        const bool ok =
+            is_float(o.format) ? std::fabs(a - b) <= tol : near_integer && std::fabs(a - b) == 1;
+        if (!ok) {
+            FAIL() << what << " " << describe(o, w.dims()) << ": voxel " << i << " got " << a
+                   << ", want " << b << " (exact " << ref[i] << ")";
+        }
+    }
+}
+
+Format float_or(Metric m, const Spacing& s, bool signed_field) {
+    return ocl::default_format(m, s, signed_field);
+}
+
+// Random grids (1..70 voxels per axis, densities 0 to 100%), unit and random spacing,
+// unsigned and signed, both layouts.
+void expect_random_grids(Metric m, std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    const double densities[] = {0.0, 0.0005, 0.005, 0.03, 0.1, 0.3, 0.6, 0.95, 1.0};
+    std::uniform_int_distribution<std::uint32_t> axis(1, 70);
+    std::uniform_real_distribution<double> sp(0.25, 3.0);
+    for (int i = 0; i < 18; ++i) {
+        const Dims dims{axis(rng), axis(rng), axis(rng)};
+        const double density = densities[static_cast<std::size_t>(i) % std::size(densities)];
+        const World w = scene_random(dims, density, rng());
+        const std::string what =
+            "random #" + std::to_string(i) + " density " + std::to_string(density);
+        const Spacing spacings[] = {Spacing{}, Spacing{sp(rng), sp(rng), sp(rng)}};
+        for (const Spacing& s : spacings) {
+            for (bool sgn : {false, true}) {
+                const auto o0 = options(m, s, sgn, float_or(m, s, sgn), Layout::cpu);
+                const auto ref = reference(w, o0);
+                for (Layout layout : kLayouts) {
+                    auto o = o0;
+                    o.layout = layout;
+                    expect_matches(w, Palette(), o, ref, what);
+                    if (::testing::Test::HasFailure()) {
+                        return;
+                    }
+                }
+            }
+        }
+    }
+}
+
+TEST(ExactSeparable, ManhattanMatchesReferenceOnRandomGrids) {
+    expect_random_grids(Metric::manhattan, 20261201);
+}
+
+TEST(ExactSeparable, ChebyshevMatchesReferenceOnRandomGrids) {
+    expect_random_grids(Metric::chebyshev, 20261202);
+}
+
+TEST(ExactSeparable, EuclideanMatchesReferenceOnRandomGrids) {
+    expect_random_grids(Metric::euclidean, 20261203);
+}
+
+TEST(ExactSeparable, EveryFormatOfEveryMetric) {
+    const World w = scene_random(Dims{37, 29, 41}, 0.01, 77);
+    const Format unsigned_formats[] = {Format::u8,       Format::u16, Format::u32,
+                                       Format::packed32, Format::i8,  Format::i16,
+                                       Format::i32,      Format::f32, Format::f64};
+    const Format signed_formats[] = {Format::i8, Format::i16, Format::i32, Format::f32,
+                                     Format::f64};
+    const Palette palette = Palette::dissertation();
+    for (Metric m : kMetrics) {
+        for (const Spacing& s : {Spacing{}, Spacing{0.5, 2.0, 1.25}}) {
+            const auto ref = reference_distance(w, m, s);
+            const auto sref = reference_signed(w, m, s);
+            for (Layout layout : kLayouts) {
+                for (Format f : unsigned_formats) {
+                    expect_matches(w, palette, options(m, s, false, f, layout), ref, "unsigned");
+                }
+                for (Format f : signed_formats) {
+                    expect_matches(w, palette, options(m, s, true, f, layout), sref, "signed");
+                }
+            }
+        }
+    }
+}
+
+TEST(ExactSeparable, SaturatesLongDistances) {
+    // A lone voxel in a long world: distances beyond 255 saturate u8 and i8.
+    World w(Dims{300, 2, 3});
+    w.set(0, 0, 0, 1);
+    for (Metric m : kMetrics) {
+        for (Format f : {Format::u8, Format::i8, Format::u16}) {
+            for (Layout layout : kLayouts) {
+                expect_matches(w, Palette(), options(m, Spacing{}, false, f, layout),
+                               reference_distance(w, m, Spacing{}), "saturation");
+            }
+        }
+    }
+}
+
+// Every index names a solid voxel at exactly the field's distance; -1 only without solids.
+void expect_indices(const World& w, const ocl::GeneratorOptions& o, const std::string& what) {
+    const auto r = ocl::generate(pocl(), w, Palette(), o);
+    const auto ref = reference_distance(w, o.metric, o.spacing);
+    const Dims d = w.dims();
+    const std::size_t n = d.count();
+    ASSERT_EQ(r.indices.size(), 3 * n) << what;
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::int32_t z = r.indices[i], y = r.indices[n + i], x = r.indices[2 * n + i];
+        if (std::isinf(ref[i])) {
+            ASSERT_TRUE(x == -1 && y == -1 && z == -1) << what << " voxel " << i;
+            continue;
+        }
+        ASSERT_TRUE(d.contains(x, y, z))
+            << what << " voxel " << i << " names " << x << "," << y << "," << z;
+        ASSERT_NE(w.at(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                       static_cast<std::uint32_t>(z)),
+                  0)
+            << what << " voxel " << i << " names an empty voxel";
+        const long px = static_cast<long>(i % d.x), py = static_cast<long>(i / d.x % d.y),
+                   pz = static_cast<long>(i / d.x / d.y);
+        const double at = metric_distance(o.metric, o.spacing, px - x, py - y, pz - z);
+        const double tol = o.spacing.unit() ? 0.0 : 1e-6 * std::max(1.0, ref[i]);
+        ASSERT_LE(std::fabs(at - ref[i]), tol)
+            << what << " " << describe(o, d) << " voxel " << i << ": index at distance " << at
+            << ", nearest solid at " << ref[i];
+    }
+}
+
+TEST(ExactSeparable, IndicesNameANearestSolid) {
+    std::mt19937_64 rng(99);
+    std::uniform_int_distribution<std::uint32_t> axis(1, 50);
+    const double densities[] = {0.0, 0.002, 0.02, 0.2, 1.0};
+    for (int i = 0; i < 10; ++i) {
+        const World w = scene_random(Dims{axis(rng), axis(rng), axis(rng)},
+                                     densities[static_cast<std::size_t>(i) % 5], rng());
+        for (Metric m : kMetrics) {
+            for (const Spacing& s : {Spacing{}, Spacing{1.5, 0.75, 2.0}}) {
+                for (Layout layout : kLayouts) {
+                    expect_indices(w, options(m, s, false, Format::f32, layout, true),
+                                   "random #" + std::to_string(i));
+                    if (HasFatalFailure()) {
+                        return;
+                    }
+                }
+            }
+        }
+    }
+}
+
+TEST(ExactSeparable, BundledModels) {
+    const std::filesystem::path dir = std::filesystem::path(VOXFIELD_DATA_DIR) / "vox";
+    for (const char* file : {"chr_army1.vox", "veh_car1.vox", "obj_house4.vox"}) {
+        const VoxModel model = load_world(dir / file);
+        for (Metric m : {Metric::chebyshev, Metric::euclidean}) {
+            const auto ref = reference_distance(model.world, m, Spacing{});
+            const auto sref = reference_signed(model.world, m, Spacing{});
+            for (Layout layout : kLayouts) {
+                expect_matches(model.world, model.palette,
+                               options(m, Spacing{}, false, float_or(m, Spacing{}, false), layout),
+                               ref, file);
+                expect_matches(model.world, model.palette,
+                               options(m, Spacing{}, true, float_or(m, Spacing{}, true), layout),
+                               sref, file);
+            }
+        }
+        for (Layout layout : kLayouts) {
+            expect_matches(model.world, model.palette,
+                           options(Metric::manhattan, Spacing{}, true, Format::i16, layout),
+                           reference_signed(model.world, Metric::manhattan, Spacing{}), file);
+        }
+    }
+}
+
+TEST(ExactSeparable, RefusesBadCombinations) {
+    const World w = scene_random(Dims{8, 8, 8}, 0.1, 1);
+    auto o = options(Metric::euclidean, Spacing{}, true, Format::u16, Layout::cpu);
+    EXPECT_THROW(ocl::generate(pocl(), w, Palette(), o), InputError);
+    o = options(Metric::euclidean, Spacing{}, true, Format::f32, Layout::cpu, true);
+    EXPECT_THROW(ocl::generate(pocl(), w, Palette(), o), InputError);
+    o = options(Metric::chebyshev, Spacing{}, false, Format::u16, Layout::cpu);
+    o.algorithm = ocl::Algorithm::fim;
+    EXPECT_THROW(ocl::generate(pocl(), w, Palette(), o), InputError);
+}
+
+}  // namespace
+}  // namespace voxfield
