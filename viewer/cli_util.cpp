@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/reference.hpp"
 #include "voxfield_commit.hpp"
 
 namespace voxfield::cli {
@@ -128,13 +129,42 @@ void add_generator_flags(CLI::App& app, GeneratorFlags& flags) {
     app.add_option("--jfa-extra", flags.jfa_extra,
                    "JFA-based algorithms: 1 or 2 extra passes at the end (JFA+1, JFA+2)")
         ->capture_default_str();
+    add_metric_flags(app, flags);
+}
+
+void add_metric_flags(CLI::App& app, GeneratorFlags& flags) {
+    app.add_option("--metric", flags.metric,
+                   "Distance metric: manhattan (L1, the dissertation's), chebyshev (L-inf) or "
+                   "euclidean (L2); other than manhattan needs --algorithm exact")
+        ->check(CLI::IsMember(metric_names()))
+        ->capture_default_str();
+    app.add_option("--spacing", flags.spacing,
+                   "Voxel size per world axis X,Y,Z (positive; default 1,1,1); each axis offset "
+                   "is scaled by it before the metric (SciPy's sampling, in x,y,z order)");
+}
+
+void add_signed_flag(CLI::App& app, GeneratorFlags& flags) {
+    app.add_flag("--signed", flags.signed_field,
+                 "Signed field: empty voxels +distance to the nearest solid, solid voxels "
+                 "-distance to the nearest empty one (the world surrounded by empty space); "
+                 "needs a signed format: i8, i16, i32, f32 or f64");
 }
 
 void add_format_option(CLI::App& app, std::string& format) {
     app.add_option("--format", format,
-                   "u8, u16, u32 (distance, saturated) or packed32 ((min(d,255)<<8)|rgb332)")
-        ->check(CLI::IsMember({"u8", "u16", "u32", "packed32"}))
-        ->capture_default_str();
+                   "u8, u16, u32 (distance rounded down, saturated), packed32 "
+                   "((min(d,255)<<8)|rgb332), i8, i16, i32 (signed, toward zero), f32, f64. "
+                   "Default: u16 (i16 with --signed) for manhattan and chebyshev with unit "
+                   "spacing, f32 otherwise")
+        ->check(CLI::IsMember(format_names()));
+}
+
+Format field_format(const GeneratorFlags& flags, const std::string& format) {
+    if (!format.empty()) {
+        return parse_format(format);
+    }
+    const Spacing spacing = flags.spacing.empty() ? Spacing{} : parse_spacing(flags.spacing);
+    return ocl::default_format(parse_metric(flags.metric), spacing, flags.signed_field);
 }
 
 ocl::GeneratorOptions generator_options(const GeneratorFlags& flags, Format format, Dims world) {
@@ -146,7 +176,26 @@ ocl::GeneratorOptions generator_options(const GeneratorFlags& flags, Format form
         o.focus = parse_focus(flags.focus);
     }
     o.jfa_extra = flags.jfa_extra;
+    o.metric = parse_metric(flags.metric);
+    if (!flags.spacing.empty()) {
+        o.spacing = parse_spacing(flags.spacing);
+    }
+    o.signed_field = flags.signed_field;
     return ocl::resolve_options(o, world);
+}
+
+Accuracy accuracy_of(const World& world, const Palette& palette,
+                     const ocl::GeneratorOptions& options, const std::vector<std::uint8_t>& field) {
+    const bool plain = options.metric == Metric::manhattan && options.spacing.unit() &&
+                       !options.signed_field && !holds_sign(options.format);
+    if (plain) {
+        return compare_to_exact(field, options.format, ocl::exact_reference(world, options));
+    }
+    const auto exact = options.signed_field
+                           ? reference_signed(world, options.metric, options.spacing)
+                           : reference_distance(world, options.metric, options.spacing);
+    return compare_fields(field, encode_real_field(exact, world, palette, options.format),
+                          options.format);
 }
 
 std::string commit() {

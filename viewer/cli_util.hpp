@@ -9,6 +9,7 @@
 
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/runtime.hpp"
+#include "voxfield/core/accuracy.hpp"
 #include "voxfield/core/npy.hpp"
 
 namespace voxfield::cli {
@@ -26,20 +27,29 @@ Command add_bench(CLI::App& root);
 Command add_render(CLI::App& root);
 Command add_view(CLI::App& root);
 
-// The metrics `--metric` accepts today.
-inline const std::vector<std::string> kMetrics = {"manhattan"};
-
 // Options shared by the subcommands that run generators (--algorithm, --chunk, --focus,
-// --jfa-extra), as typed, and their registration.
+// --jfa-extra, --metric, --spacing, --signed), as typed, and their registration.
 struct GeneratorFlags {
-    std::string algorithm = "exact", focus;
+    std::string algorithm = "exact", focus, metric = "manhattan", spacing;
     std::uint32_t chunk = 0, jfa_extra = 0;
+    bool signed_field = false;
 };
 void add_generator_flags(CLI::App& app, GeneratorFlags& flags);
-// --format: u8, u16, u32 or packed32, into `format` (its current value is the default).
+// Only --metric and --spacing (add_generator_flags includes them).
+void add_metric_flags(CLI::App& app, GeneratorFlags& flags);
+// --signed, for the subcommands that write signed fields (generate, bench).
+void add_signed_flag(CLI::App& app, GeneratorFlags& flags);
+// --format into `format`; empty (the default) means the metric's default format.
 void add_format_option(CLI::App& app, std::string& format);
+// The format asked for, or the default of the flags' metric, spacing and sign (DESIGN §3).
+Format field_format(const GeneratorFlags& flags, const std::string& format);
 // Turns the flags into resolved options for `world` (InputError on any bad combination).
 ocl::GeneratorOptions generator_options(const GeneratorFlags& flags, Format format, Dims world);
+
+// Accuracy of `field` (encoded in options.format) against the exact CPU reference of the
+// same options: metric, spacing, sign, global or chunk-local.
+Accuracy accuracy_of(const World& world, const Palette& palette,
+                     const ocl::GeneratorOptions& options, const std::vector<std::uint8_t>& field);
 
 // The .npy element type a field of format `f` is stored as (packed32 as uint32).
 NpyType npy_type(Format f);

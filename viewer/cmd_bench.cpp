@@ -22,7 +22,8 @@ namespace {
 struct BenchOptions {
     std::vector<std::string> algorithms = {"exact"};
     std::vector<std::string> sizes = {"64", "128", "256"};
-    std::string device, json, csv, scene = "spheres", format = "u16", metric = "manhattan";
+    std::string device, json, csv, scene = "spheres", format;
+    GeneratorFlags field;  // --metric, --spacing, --signed
     std::uint32_t repeat = 10, warmup = 2, chunk = 0;
     std::uint64_t seed = 6683787;
     // --suite NAME runs a whole suite (bench_suites.hpp) instead of the grid above.
@@ -44,7 +45,7 @@ Dims parse_size(const std::string& text) {
 }
 
 int run_bench(const BenchOptions& o) {
-    const Format format = parse_format(o.format);
+    const Format format = field_format(o.field, o.format);
     std::vector<Dims> sizes;
     for (const auto& s : o.sizes) {
         sizes.push_back(parse_size(s));
@@ -82,7 +83,7 @@ int run_bench(const BenchOptions& o) {
             const std::string label = algorithm + " " + dims.to_string();
             std::cerr << "bench: " << label << ": building scene '" << o.scene << "'\n";
             const World world = make_scene(o.scene, dims, o.seed);
-            GeneratorFlags flags;
+            GeneratorFlags flags = o.field;
             flags.algorithm = algorithm;
             flags.chunk = algorithm == "exact" ? 0 : o.chunk;
             std::unique_ptr<ocl::Generator> generator;
@@ -123,8 +124,7 @@ int run_bench(const BenchOptions& o) {
             double download_ms = 0;
             const auto field = job.read(&download_ms);
             std::cerr << "\rbench: " << label << ": checking against the CPU reference\n";
-            const Accuracy a =
-                compare_to_exact(field, format, ocl::exact_reference(world, options));
+            const Accuracy a = accuracy_of(world, Palette::magicavoxel_default(), options, field);
             const Summary s = summarize(ms);
             nlohmann::json stages = nlohmann::json::array();
             std::string stage_text;
@@ -139,8 +139,10 @@ int run_bench(const BenchOptions& o) {
                 {{"algorithm", algorithm},
                  {"size", {dims.x, dims.y, dims.z}},
                  {"chunk", options.chunk == 0 ? nlohmann::json() : nlohmann::json(options.chunk)},
-                 {"metric", o.metric},
-                 {"format", o.format},
+                 {"metric", to_string(options.metric)},
+                 {"spacing", {options.spacing.x, options.spacing.y, options.spacing.z}},
+                 {"signed", options.signed_field},
+                 {"format", to_string(format)},
                  {"scene", o.scene},
                  {"seed", o.seed},
                  {"variant", job.variant()},
@@ -163,14 +165,14 @@ int run_bench(const BenchOptions& o) {
                  {"stages", stages},
                  {"samples_ms", ms}});
             csv << algorithm << ',' << dims.x << ',' << dims.y << ',' << dims.z << ','
-                << options.chunk << ',' << o.format << ',' << o.scene << ',' << o.repeat << ','
-                << s.median << ',' << s.mean << ',' << s.std << ',' << s.ci95_lo << ',' << s.ci95_hi
-                << ',' << s.min << ',' << s.max << ',' << gvox << ',' << a.max_error << ','
-                << a.mean_error << '\n';
+                << options.chunk << ',' << to_string(format) << ',' << o.scene << ',' << o.repeat
+                << ',' << s.median << ',' << s.mean << ',' << s.std << ',' << s.ci95_lo << ','
+                << s.ci95_hi << ',' << s.min << ',' << s.max << ',' << gvox << ',' << a.max_error
+                << ',' << a.mean_error << '\n';
             std::printf("%-14s %-14s %-6s %-8s %10.3f %10.3f %10.3f %10.2f %6u %9u\n",
                         algorithm.c_str(), dims.to_string().c_str(),
                         options.chunk == 0 ? "-" : std::to_string(options.chunk).c_str(),
-                        o.format.c_str(), s.median, s.mean, s.std, gvox, job.iterations(),
+                        to_string(format).c_str(), s.median, s.mean, s.std, gvox, job.iterations(),
                         a.max_error);
             std::fflush(stdout);
         }
@@ -218,9 +220,8 @@ Command add_bench(CLI::App& root) {
         ->capture_default_str();
     app->add_option("--seed", o->seed, "Scene seed")->capture_default_str();
     add_format_option(*app, o->format);
-    app->add_option("--metric", o->metric, "Distance metric")
-        ->check(CLI::IsMember(kMetrics))
-        ->capture_default_str();
+    add_metric_flags(*app, o->field);
+    add_signed_flag(*app, o->field);
     app->add_option("--json", o->json, "Write results as JSON (DESIGN §4 fields)");
     app->add_option("--csv", o->csv, "Write results as CSV");
     app->add_option("--plot", o->plot,
@@ -280,7 +281,7 @@ Command add_bench(CLI::App& root) {
                 s.chunk = o->chunk != 0 ? o->chunk : 16;
                 s.edits = o->edits;
                 s.world = o->world;
-                s.format = o->format;
+                s.format = o->format.empty() ? "u16" : o->format;
                 return run_suite(s);
             }};
 }

@@ -1,6 +1,7 @@
 // `voxfield generate INPUT -o OUT.npy`: one distance field, with a summary and optional stats.
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 
 #include "cli_util.hpp"
@@ -15,7 +16,7 @@ namespace {
 
 struct GenerateOptions {
     GeneratorFlags generator;
-    std::string input, output, metric = "manhattan", device, format = "u16", json;
+    std::string input, output, device, format, json, indices;
     bool stats = false;
     std::uint32_t repeat = 1, warmup = 0;
 };
@@ -26,14 +27,21 @@ bool uses_fim(ocl::Algorithm a) {
 }
 
 int run_generate(const GenerateOptions& o) {
-    const Format format = parse_format(o.format);
+    const Format format = field_format(o.generator, o.format);
     require_output_folder(o.output);
-    if (!o.json.empty()) {
-        require_output_folder(o.json);
+    for (const std::string* extra : {&o.json, &o.indices}) {
+        if (!extra->empty()) {
+            require_output_folder(*extra);
+        }
+    }
+    if (!o.indices.empty() && o.indices == o.output) {
+        throw InputError("--indices and -o name the same file '" + o.output + "'");
     }
     const VoxModel model = load_world(o.input);
     const World& world = model.world;
-    const ocl::GeneratorOptions options = generator_options(o.generator, format, world.dims());
+    ocl::GeneratorOptions flags_options = generator_options(o.generator, format, world.dims());
+    flags_options.indices = !o.indices.empty();
+    const ocl::GeneratorOptions options = ocl::resolve_options(flags_options, world.dims());
     ocl::Context ctx(ocl::select_device(o.device));
 
     // End to end = upload + first run + download, wall clock (the first run pays page
@@ -59,7 +67,17 @@ int run_generate(const GenerateOptions& o) {
         std::chrono::duration<double, std::milli>(first_run + (clock::now() - t1)).count();
     field.timing.upload_ms = job->upload_ms();
     field.timing.kernel_ms = summarize(samples).median;
+    std::vector<std::int32_t> indices;
+    if (options.indices) {
+        indices = job->read_indices();
+    }
     write_npy(o.output, npy_type(format), world.dims(), field.bytes);
+    if (options.indices) {
+        const Dims d = world.dims();
+        std::vector<std::uint8_t> bytes(indices.size() * 4);
+        std::memcpy(bytes.data(), indices.data(), bytes.size());
+        write_npy_shape(o.indices, NpyType::i32, {3, d.z, d.y, d.x}, bytes);
+    }
 
     const double voxels = static_cast<double>(world.size());
     const double gvox = voxels / (field.timing.kernel_ms * 1e-3) / 1e9;
@@ -67,8 +85,11 @@ int run_generate(const GenerateOptions& o) {
               << ctx.info().type << ")\n"
               << "world:   " << o.input << "  " << world.dims().to_string() << " = " << world.size()
               << " voxels, " << world.solid_count() << " solid\n"
-              << "field:   " << o.generator.algorithm << " (" << job->variant() << "), " << o.metric
-              << ", " << o.format << " -> " << o.output << '\n'
+              << "field:   " << o.generator.algorithm << " (" << job->variant() << "), "
+              << to_string(options.metric)
+              << (options.spacing.unit() ? "" : " spacing " + options.spacing.to_string())
+              << (options.signed_field ? ", signed" : "") << ", " << to_string(format) << " -> "
+              << o.output << (options.indices ? ", indices -> " + o.indices : "") << '\n'
               << "time:    kernels " << fixed(field.timing.kernel_ms, 3) << " ms"
               << (samples.size() > 1 ? " median of " + std::to_string(samples.size()) : "") << " ("
               << fixed(gvox, 2) << " Gvox/s); end to end " << fixed(end_to_end_ms, 1)
@@ -84,8 +105,10 @@ int run_generate(const GenerateOptions& o) {
         {"chunk", options.chunk == 0 ? nlohmann::json() : nlohmann::json(options.chunk)},
         {"variant", job->variant()},
         {"jfa_extra", options.jfa_extra},
-        {"metric", o.metric},
-        {"format", o.format},
+        {"metric", to_string(options.metric)},
+        {"spacing", {options.spacing.x, options.spacing.y, options.spacing.z}},
+        {"signed", options.signed_field},
+        {"format", to_string(format)},
         {"kernel_ms", field.timing.kernel_ms},
         {"kernel_ms_samples", samples},
         {"warmup", o.warmup},
@@ -104,8 +127,7 @@ int run_generate(const GenerateOptions& o) {
                   << (options.chunk != 0 ? " (slowest chunk)" : "") << '\n';
     }
     if (o.stats) {
-        const Accuracy a =
-            compare_to_exact(field.bytes, format, ocl::exact_reference(world, options));
+        const Accuracy a = accuracy_of(world, model.palette, options, field.bytes);
         std::cout << "stats:   " << fixed(voxels / (field.timing.kernel_ms * 1e-3) / 1e6, 1)
                   << " Mvox/s; vs the exact CPU reference ("
                   << (options.chunk != 0 ? "chunk-local, chunk " + std::to_string(options.chunk)
@@ -134,9 +156,11 @@ Command add_generate(CLI::App& root) {
         ->required();
     app->add_option("-o,--output", o->output, "Output .npy of shape (Z,Y,X)")->required();
     add_generator_flags(*app, o->generator);
-    app->add_option("--metric", o->metric, "Distance metric")
-        ->check(CLI::IsMember(kMetrics))
-        ->capture_default_str();
+    add_signed_flag(*app, o->generator);
+    app->add_option("--indices", o->indices,
+                    "Also write the feature transform: int32 .npy of shape (3,Z,Y,X) holding the "
+                    "(z,y,x) of a nearest solid voxel of every voxel (-1 without solids; "
+                    "unsigned fields, --algorithm exact)");
     app->add_option("--device", o->device,
                     "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, "
                     "else the first GPU, else the first CPU)");

@@ -30,7 +30,7 @@ constexpr std::size_t kProgressEvery = 100;
 
 struct ReplayOptions {
     GeneratorFlags generator;
-    std::string edits, input, world_output, output, device, format = "u16", json;
+    std::string edits, input, world_output, output, device, format, json;
     bool verify = false;
     std::uint32_t max_margin = 0;  // 0: no limit
 };
@@ -124,7 +124,7 @@ void check_outputs(const ReplayOptions& o) {
 
 int run_replay(const ReplayOptions& o) {
     check_outputs(o);
-    const Format format = parse_format(o.format);
+    const Format format = field_format(o.generator, o.format);
     // The whole edit file is parsed before any work: a bad line fails with FILE:LINE.
     const std::vector<Edit> edits = read_edits(o.edits);
     const VoxModel model = load_world(o.input);
@@ -180,7 +180,7 @@ int run_replay(const ReplayOptions& o) {
                   << ": the incremental field differs from a full regeneration ("
                   << o.generator.algorithm
                   << (options.chunk != 0 ? ", chunk " + std::to_string(options.chunk) : "") << ", "
-                  << o.format << "): " << diff << '\n';
+                  << to_string(format) << "): " << diff << '\n';
         return false;
     };
     if (o.verify && !verify("before the first edit (initial field)")) {
@@ -250,7 +250,7 @@ int run_replay(const ReplayOptions& o) {
               << field.world().solid_count() << " solid after the edits\n"
               << "field:    " << o.generator.algorithm
               << (options.chunk != 0 ? " (chunk " + std::to_string(options.chunk) + ")" : "")
-              << ", " << o.format << '\n'
+              << ", " << to_string(format) << '\n'
               << "edits:    " << edits.size() << " applied from " << o.edits << ", "
               << voxels_changed << " voxels changed"
               << (fallbacks != 0
@@ -289,7 +289,7 @@ int run_replay(const ReplayOptions& o) {
             {"size", {dims.x, dims.y, dims.z}},
             {"algorithm", o.generator.algorithm},
             {"chunk", options.chunk == 0 ? nlohmann::json() : nlohmann::json(options.chunk)},
-            {"format", o.format},
+            {"format", to_string(format)},
             {"max_margin", o.max_margin},
             {"verified", o.verify},
             {"full_regeneration_ms", full_ms},

@@ -1,6 +1,7 @@
 // Reference fields of every metric by exact separable minimisation (the distance is the
 // minimum over the nearest-on-each-line decomposition of Saito & Toriwaki 1994 for L2,
-// and its min-plus / min-max analogues for L1 and L-inf), line by line in O(n^2).
+// and its min-plus / min-max analogues for L1 and L-inf), each voxel of a line searching
+// outwards until the offset alone exceeds the best candidate (O(n^2) at worst).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -36,7 +37,6 @@ std::vector<double> partial_field(Dims dims, const std::vector<char>& target, Me
         g[i] = target[i] ? 0.0 : kInf;
     }
     std::vector<double> line, out;
-    std::vector<std::size_t> sites;
     // One pass along an axis: lines of length n, element stride `stride`, starting at every
     // index whose coordinate on that axis is 0.
     auto pass = [&](std::size_t n, std::size_t stride, double spacing) {
@@ -46,18 +46,24 @@ std::vector<double> partial_field(Dims dims, const std::vector<char>& target, Me
             if ((start / stride) % n != 0) {
                 continue;
             }
-            sites.clear();
             for (std::size_t i = 0; i < n; ++i) {
                 line[i] = g[start + i * stride];
-                if (line[i] != kInf) {
-                    sites.push_back(i);
-                }
             }
+            // Every candidate at offset k costs at least the offset's own part, so the
+            // search outwards from i stops once that reaches the best found.
             for (std::size_t i = 0; i < n; ++i) {
                 double best = kInf;
-                for (std::size_t j : sites) {
-                    const double offset = spacing * static_cast<double>(i > j ? i - j : j - i);
-                    best = std::min(best, combine(m, line[j], offset));
+                for (std::size_t k = 0; k < n; ++k) {
+                    const double offset = spacing * static_cast<double>(k);
+                    if (combine(m, 0.0, offset) >= best) {
+                        break;
+                    }
+                    if (k <= i) {
+                        best = std::min(best, combine(m, line[i - k], offset));
+                    }
+                    if (i + k < n) {
+                        best = std::min(best, combine(m, line[i + k], offset));
+                    }
                 }
                 out[i] = best;
             }

@@ -19,4 +19,9 @@ struct Accuracy {
 Accuracy compare_to_exact(const std::vector<std::uint8_t>& field, Format f,
                           const std::vector<std::uint32_t>& exact);
 
+// Two fields of any format, `want` the exact one encoded in `f` (encode_real_field); the
+// max error is rounded up to a whole number, the mean is kept as is. Infinities are equal.
+Accuracy compare_fields(const std::vector<std::uint8_t>& got, const std::vector<std::uint8_t>& want,
+                        Format f);
+
 }  // namespace voxfield

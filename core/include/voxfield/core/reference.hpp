@@ -25,7 +25,7 @@ std::vector<std::uint32_t> brute_force_manhattan_chunked(const World& world, std
 
 // Every metric and spacing (DESIGN §3), in double precision: the distance from each voxel to
 // the nearest solid voxel, +inf when the world has none. Separable, axis by axis, each 1-D
-// step a plain minimum over the whole line (O(N * n), no lower-envelope scan), so that it
+// step a plain minimum over the line searched outwards (no lower-envelope scan), so that it
 // shares no logic with the kernels. For unit spacing every L1/L-inf value and every L2
 // squared distance is an exact integer, and the L2 value is sqrt of it in double (which
 // rounds to the correctly rounded float as well).
