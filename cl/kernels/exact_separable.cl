@@ -146,47 +146,73 @@ inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int
     return q;
 }
 
+// ---- change tracking (incremental updates) ----
+
+// box[0..5]: min x, max x, min y, max y, min z, max z of the voxels whose value a pass
+// changed (empty while min > max); box[6] counts the voxels the passes recomputed.
+inline void mark(__global int* box, int x, int y, int z) {
+    atomic_min(&box[0], x);
+    atomic_max(&box[1], x);
+    atomic_min(&box[2], y);
+    atomic_max(&box[3], y);
+    atomic_min(&box[4], z);
+    atomic_max(&box[5], z);
+}
+
 // ---- pass 1: rows along x, the 1-D distance to the nearest target ----
 
-// Row r's nearest target to each voxel; `want` is the voxel value class (1 solid, 0 empty),
-// `pad` counts the virtual voxels at -1 and X as targets. Writes partials (and features).
+// Row `base`'s nearest target to each voxel; `want` is the voxel value class (1 solid,
+// 0 empty), `pad` counts the virtual voxels at -1 and X as targets. `left` holds the row's
+// distances to the nearest target on the left between the two sweeps. With `box`, only
+// changed values are written and marked (y, z: the row's coordinates).
 inline void row_nearest(__global const uchar* vox, size_t base, int X, int want, int pad, float sx,
-                        __global GT* g, __global uint* feat) {
+                        __global GT* g, __global uint* feat, __global int* left,
+                        __global int* box, int y, int z) {
     int last = pad ? -1 : INT_MIN / 2;
     for (int x = 0; x < X; ++x) {
         if ((vox[base + x] != 0) == want) {
             last = x;
         }
-        g[base + x] = last == INT_MIN / 2 ? G_INF : offset_part(x - last, sx);
-#if INDICES
-        feat[base + x] = last < 0 ? UINT_MAX : (uint)(base + last);
-#endif
+        left[x] = last;
     }
     int next = pad ? X : INT_MAX / 2;
     for (int x = X - 1; x >= 0; --x) {
         if ((vox[base + x] != 0) == want) {
             next = x;
         }
-        if (next != INT_MAX / 2) {
-            const GT o = offset_part(next - x, sx);
-            if (o < g[base + x]) {
-                g[base + x] = o;
-#if INDICES
-                feat[base + x] = next >= X ? UINT_MAX : (uint)(base + next);
-#endif
+        const int l = left[x];
+        const bool has_l = l != INT_MIN / 2, has_n = next != INT_MAX / 2;
+        const bool use_n = has_n && (!has_l || next - x < x - l);
+        const int site = use_n ? next : l;
+        const GT v = (has_l || has_n) ? offset_part(abs(site - x), sx) : G_INF;
+        if (box == 0 || g[base + x] != v) {
+            g[base + x] = v;
+            if (box != 0) {
+                mark(box, x, y, z);
             }
         }
+#if INDICES
+        feat[base + x] = (site < 0 || site >= X || !(has_l || has_n)) ? UINT_MAX
+                                                                       : (uint)(base + site);
+#endif
     }
 }
 
+// Rows y in [lo.y, lo.y + size.y), z in [lo.z, lo.z + size.z), `per_item` per work-item;
+// `left` is each work-item's scratch of X ints (at scratch + item * istride).
 __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g,
-                     __global GT* restrict h, __global uint* restrict feat, uint X, uint rows,
-                     uint per_item, float sx) {
+                     __global GT* restrict h, __global uint* restrict feat, uint X, uint Y,
+                     int4 lo, int4 size, uint per_item, float sx, __global int* restrict scratch,
+                     ulong istride, __global int* box) {
+    const size_t rows = (size_t)size.y * size.z;
+    __global int* left = scratch + get_global_id(0) * istride;
     const size_t r0 = get_global_id(0) * per_item;
-    for (size_t r = r0; r < min(r0 + per_item, (size_t)rows); ++r) {
-        row_nearest(vox, r * X, (int)X, 1, 0, sx, g, feat);
+    for (size_t r = r0; r < min(r0 + per_item, rows); ++r) {
+        const int y = lo.y + (int)(r % size.y), z = lo.z + (int)(r / size.y);
+        const size_t base = ((size_t)z * Y + y) * X;
+        row_nearest(vox, base, (int)X, 1, 0, sx, g, feat, left, box, y, z);
 #if SIGNED
-        row_nearest(vox, r * X, (int)X, 0, 1, sx, h, feat);
+        row_nearest(vox, base, (int)X, 0, 1, sx, h, feat, left, box, y, z);
 #endif
     }
 }
@@ -194,49 +220,81 @@ __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g
 // ---- passes 2 and 3: columns along y, then z ----
 
 // Meijster's second phase for one line: every position takes the partial distance from the
-// site owning it. Returns through `out` (partials) and `win` (the winning site per position,
-// written only when `win` is not null-like, i.e. with INDICES).
+// site owning it (and, with INDICES, the site's feature). With `box`, only changed values
+// are written and marked; `pos` maps a line position to (x, y, z) through `axis`.
 inline void line_pass(__global const GT* gin, __global GT* gout, size_t base, size_t stride,
                       int n, int pad, float sp, __global int* s, __global int* t, size_t ks,
-                      __global const uint* fin, __global uint* fout) {
+                      __global const uint* fin, __global uint* fout, __global int* box, int x,
+                      int other, int axis) {
     int q = envelope(gin, base, stride, n, pad, sp, s, t, ks);
-    for (int x = n - 1; x >= 0; --x) {
-        const size_t i = base + (size_t)x * stride;
-        if (q < 0) {
-            gout[i] = G_INF;
+    for (int p = n - 1; p >= 0; --p) {
+        const size_t i = base + (size_t)p * stride;
+        GT v = G_INF;
+        uint f = UINT_MAX;
+        if (q >= 0) {
+            const int sq = s[q * ks];
+            v = fpart(p, sq, site_g(gin, base, stride, sq, n), sp);
 #if INDICES
-            fout[i] = UINT_MAX;
+            f = fin[base + (size_t)sq * stride];
 #endif
-            continue;
+            if (p == t[q * ks]) {
+                --q;
+            }
         }
-        const int sq = s[q * ks];
-        gout[i] = fpart(x, sq, site_g(gin, base, stride, sq, n), sp);
+        if (box == 0 || gout[i] != v) {
+            gout[i] = v;
+            if (box != 0) {
+                if (axis == 1) {
+                    mark(box, x, p, other);
+                } else {
+                    mark(box, x, other, p);
+                }
+            }
+        }
 #if INDICES
-        fout[i] = fin[base + (size_t)sq * stride];
+        fout[i] = f;
+#else
+        (void)f;
 #endif
-        if (x == t[q * ks]) {
-            --q;
-        }
     }
 }
 
-// Lines of length n and element stride `stride`, line l starting at (l / X) * mstride +
-// l % X; the stacks of work-item w at scratch + w * istride (k-th entry k * kstride later).
+// Lines of length n and element stride `stride` along `axis` (1: y, 2: z): line l has x =
+// lo_x + l % count_x and the other coordinate lo_o + l / count_x, and starts at
+// other * mstride + x. Lines outside `skip` (the box the previous pass changed; null: none
+// skipped) are left as they are. The stacks of work-item w are at scratch + w * istride,
+// their k-th entries k * kstride further.
 __kernel void col_pass(__global const GT* restrict g, __global GT* restrict gout,
                        __global const GT* restrict h, __global GT* restrict hout,
                        __global const uint* restrict fin, __global uint* restrict fout,
-                       __global int* restrict scratch, uint X, uint n, ulong stride,
-                       ulong mstride, uint lines, uint per_item, ulong kstride, ulong istride,
-                       float sp) {
+                       __global int* restrict scratch, uint n, ulong stride, ulong mstride,
+                       int lo_x, int count_x, int lo_o, int count_o, uint per_item, ulong kstride,
+                       ulong istride, float sp, int axis, __global const int* skip,
+                       __global int* box) {
     const size_t w = get_global_id(0);
     __global int* s = scratch + w * istride;
     __global int* t = s + (size_t)(n + 2) * kstride;
+    const size_t lines = (size_t)count_x * count_o;
     const size_t l0 = w * per_item;
-    for (size_t l = l0; l < min(l0 + per_item, (size_t)lines); ++l) {
-        const size_t base = (l / X) * mstride + l % X;
-        line_pass(g, gout, base, stride, (int)n, 0, sp, s, t, kstride, fin, fout);
+    // The previous pass marked (x, y, z); this pass's lines are indexed by x and the
+    // coordinate of the axis it does not run along: z for the y pass, y for the z pass.
+    const int skip_o = axis == 1 ? 4 : 2;
+    for (size_t l = l0; l < min(l0 + per_item, lines); ++l) {
+        const int x = lo_x + (int)(l % count_x);
+        const int other = lo_o + (int)(l / count_x);
+        if (skip != 0 && (x < skip[0] || x > skip[1] || other < skip[skip_o] ||
+                          other > skip[skip_o + 1])) {
+            continue;
+        }
+        if (box != 0) {
+            atomic_add(&box[6], (int)n);
+        }
+        const size_t base = (size_t)other * mstride + x;
+        line_pass(g, gout, base, stride, (int)n, 0, sp, s, t, kstride, fin, fout, box, x, other,
+                  axis);
 #if SIGNED
-        line_pass(h, hout, base, stride, (int)n, 1, sp, s, t, kstride, fin, fout);
+        line_pass(h, hout, base, stride, (int)n, 1, sp, s, t, kstride, fin, fout, box, x, other,
+                  axis);
 #endif
     }
 }
@@ -268,15 +326,19 @@ inline void store(__global OUT_T* out, __constant uchar* rgb, uchar v, size_t i,
 }
 
 // Writes the output format from the final partials (and the index planes: z, y, x of the
-// nearest solid, -1 without one, as SciPy's return_indices lays them out).
+// nearest solid, -1 without one, as SciPy's return_indices lays them out) for the voxels of
+// the box lo + [0, size): the whole world, or the voxels an incremental update changed.
 __kernel void finish(__global const GT* restrict g, __global const GT* restrict h,
                      __global const uchar* restrict vox, __constant uchar* rgb,
                      __global OUT_T* restrict out, __global const uint* restrict feat,
-                     __global int* restrict idx, uint X, uint Y, ulong count) {
-    const size_t i = get_global_id(0);
-    if (i >= count) {
+                     __global int* restrict idx, uint X, uint Y, ulong count, int4 lo, int4 size) {
+    const size_t k = get_global_id(0);
+    if (k >= (size_t)size.x * size.y * size.z) {
         return;
     }
+    const int x = lo.x + (int)(k % size.x), y = lo.y + (int)(k / size.x % size.y),
+              z = lo.z + (int)(k / ((size_t)size.x * size.y));
+    const size_t i = ((size_t)z * Y + y) * X + x;
     const uchar v = vox[i];
 #if SIGNED
     const double d = v != 0 ? -distance_of(h[i]) : distance_of(g[i]);

@@ -9,6 +9,7 @@
 #include "classic.hpp"
 #include "util.hpp"
 #include "voxfield/cl/exact.hpp"
+#include "voxfield/cl/separable.hpp"
 #include "voxfield/core/dirty.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/undo.hpp"
@@ -410,6 +411,68 @@ class GlobalEngine : public Engine {
     std::size_t regions_capacity = 0;
 };
 
+// Every other exact field (chebyshev, euclidean, spacing, signed; ExactSeparable): the batch's
+// changed voxels are scattered into the device world, then ExactSeparable::update
+// recomputes exactly the rows and lines whose input changed, for the hull of the batch's
+// edits.
+class SeparableEngine : public Engine {
+  public:
+    SeparableEngine(Context& c, World w, const Palette& palette, const GeneratorOptions& o)
+        : Engine(c, std::move(w), palette, o),
+          sep(std::make_unique<ExactSeparable>(ctx, world, palette, o, true)) {
+        out = sep->field_buffer();
+    }
+
+    double regenerate() override { return sep->run(); }
+
+    UpdateStats update(UpdateStats stats) override {
+        std::vector<std::size_t> first;
+        const std::vector<cl_uint> staged = stage(stats, first);
+        if (staged.empty()) {
+            return stats;
+        }
+        return cl_call("updating the field of " + world.dims().to_string(), [&] {
+            Events events = upload(staged);
+            Box edited;
+            for (std::size_t e = 0; e < stats.edits.size(); ++e) {
+                const EditResult& r = stats.edits[e];
+                if (!r.changed()) {
+                    continue;
+                }
+                scatter(events, sep->voxels_buffer(), stats, first, e);
+                edited = edited.empty() ? r.bounds
+                                        : Box{{std::min(edited.min.x, r.bounds.min.x),
+                                               std::min(edited.min.y, r.bounds.min.y),
+                                               std::min(edited.min.z, r.bounds.min.z)},
+                                              {std::max(edited.max.x, r.bounds.max.x),
+                                               std::max(edited.max.y, r.bounds.max.y),
+                                               std::max(edited.max.z, r.bounds.max.z)}};
+            }
+            if (!edited.empty()) {
+                const ExactSeparable::Update u = sep->update(edited, events);
+                stats.voxels_recomputed = u.voxels_recomputed;
+                if (!u.changed.empty()) {
+                    stats.regions.push_back(u.changed);
+                }
+            }
+            ctx.queue().finish();
+            stats.update_ms = elapsed_ms(events.front(), events.back());
+            return stats;
+        });
+    }
+
+    UpdateStats set_focus(const std::optional<Focus>&) override {
+        throw InputError(
+            "exact has no focus to move: only the chunk-local lod and monolithic "
+            "run FIM in a focus");
+    }
+
+    const cl::Buffer& voxels_buffer() const override { return sep->voxels_buffer(); }
+
+  private:
+    std::unique_ptr<ExactSeparable> sep;
+};
+
 // Chunk-local algorithms: the dirty chunks of a batch, recomputed by the algorithm's own
 // per-chunk work in one launch of the per-chunk batch kernel (monolithic.cl).
 class ChunkEngine : public Engine {
@@ -619,7 +682,14 @@ struct IncrementalField::Impl {
 IncrementalField::IncrementalField(Context& ctx, World world, const Palette& palette,
                                    const GeneratorOptions& options, std::uint32_t max_margin)
     : impl_(std::make_unique<Impl>()) {
-    if (options.algorithm == Algorithm::exact) {
+    if (options.algorithm == Algorithm::exact && options.indices) {
+        throw InputError(
+            "incremental fields keep no feature transform (--indices); generate "
+            "it with `voxfield generate --indices`");
+    }
+    if (options.algorithm == Algorithm::exact && ExactSeparable::needed(options)) {
+        impl_->engine = std::make_unique<SeparableEngine>(ctx, std::move(world), palette, options);
+    } else if (options.algorithm == Algorithm::exact) {
         impl_->engine =
             std::make_unique<GlobalEngine>(ctx, std::move(world), palette, options, max_margin);
     } else if (options.chunk != 0) {

@@ -53,10 +53,12 @@ bool ExactSeparable::needed(const GeneratorOptions& o) {
 }
 
 ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& palette,
-                               const GeneratorOptions& options)
+                               const GeneratorOptions& options, bool incremental)
     : Generator(ctx, world.dims(), options.format),
       gpu_layout_(options.layout == Layout::automatic ? !ctx.is_cpu()
-                                                      : options.layout == Layout::gpu) {
+                                                      : options.layout == Layout::gpu),
+      incremental_(incremental),
+      spacing_(options.spacing) {
     const auto& info = ctx.info();
     const std::size_t n = dims_.count();
     const std::string sizes = "world " + dims_.to_string() + ", " + to_string(options.metric) +
@@ -67,6 +69,9 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
                       sizes + ": " + info.name +
                           " lacks cl_khr_fp64, which the separable transforms need for their "
                           "final values");
+    }
+    if (incremental && options.indices) {
+        throw std::invalid_argument("ExactSeparable: incremental updates keep no indices");
     }
     const std::size_t out_bytes = n * element_size(format_);
     const std::size_t part_bytes = n * 4;
@@ -83,33 +88,38 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
         " -DUNIT=" + (unit ? "1" : "0") + " -DSIGNED=" + (options.signed_field ? "1" : "0") +
         " -DINDICES=" + (options.indices ? "1" : "0") + " -DOUT_KIND=" + std::to_string(ot.kind) +
         " -DOUT_T=" + ot.type + " -DOUT_MAX=" + ot.max + " -cl-std=CL1.2";
-    const cl::Program program = ctx.program(
-        "exact_separable.cl", {cl_sources::layout_h, cl_sources::exact_separable_cl}, build);
+    program_ = ctx.program("exact_separable.cl",
+                           {cl_sources::layout_h, cl_sources::exact_separable_cl}, build);
 
     const std::uint32_t X = dims_.x, Y = dims_.y, Z = dims_.z;
-    const std::size_t rows = std::size_t{Y} * Z;
-    const std::size_t y_lines = std::size_t{X} * Z, z_lines = std::size_t{X} * Y;
-    // CPU: a slice of y-columns or a row of z-columns per work-item; GPU: one line each.
-    const std::uint32_t row_items_per = gpu_layout_ ? 1u : std::max<std::uint32_t>(1, Y);
-    const std::uint32_t col_per = gpu_layout_ ? 1u : X;
-    const std::size_t y_items = (y_lines + col_per - 1) / col_per;
-    const std::size_t z_items = (z_lines + col_per - 1) / col_per;
-    const std::size_t stack = 2 * (std::size_t{std::max(Y, Z)} + 2);
-    const std::size_t scratch_ints = std::max(y_items, z_items) * stack;
+    col_stride_ = 2 * (std::size_t{std::max(Y, Z)} + 2);
+    x_stride_ = X;
+    const std::size_t most_lines = std::size_t{X} * std::max(Y, Z);
+    const std::size_t scratch_ints = std::max(x_items(Box{{0, 0, 0}, {X, Y, Z}}) * x_stride_,
+                                              col_items(most_lines) * col_stride_);
 
     cl_call("allocating and uploading, " + sizes, [&] {
         auto& c = ctx.context();
         auto& q = ctx.queue();
-        voxels_ = cl::Buffer(c, CL_MEM_READ_ONLY, n);
+        voxels_ = cl::Buffer(c, CL_MEM_READ_WRITE, n);
         rgb_ = cl::Buffer(c, CL_MEM_READ_ONLY, 256);
         out_ = cl::Buffer(c, CL_MEM_READ_WRITE, out_bytes);
-        for (int k = 0; k < 2; ++k) {
+        const int parts = incremental ? 3 : 2;
+        for (int k = 0; k < parts; ++k) {
             g_[k] = cl::Buffer(c, CL_MEM_READ_WRITE, part_bytes);
-            h_[k] = cl::Buffer(c, CL_MEM_READ_WRITE, options.signed_field ? part_bytes : 4);
-            feat_[k] = cl::Buffer(c, CL_MEM_READ_WRITE, options.indices ? part_bytes : 4);
+            if (options.signed_field) {
+                h_[k] = cl::Buffer(c, CL_MEM_READ_WRITE, part_bytes);
+            }
         }
-        indices_ =
-            options.indices ? cl::Buffer(c, CL_MEM_READ_WRITE, 3 * part_bytes) : cl::Buffer();
+        for (int k = 0; k < 2 && options.indices; ++k) {
+            feat_[k] = cl::Buffer(c, CL_MEM_READ_WRITE, part_bytes);
+        }
+        if (options.indices) {
+            indices_ = cl::Buffer(c, CL_MEM_READ_WRITE, 3 * part_bytes);
+        }
+        for (int b = 0; b < 3 && incremental; ++b) {
+            track_[b] = cl::Buffer(c, CL_MEM_READ_WRITE, 7 * sizeof(cl_int));
+        }
         scratch_ = cl::Buffer(c, CL_MEM_READ_WRITE, scratch_ints * 4);
         const auto table = palette.rgb332_table();
         cl::Event up_vox, up_rgb;
@@ -118,61 +128,121 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
         q.finish();
         upload_ms_ = elapsed_ms(up_vox, up_rgb);
     });
+    for (std::size_t axis = 0; axis < 3; ++axis) {
+        track_init_[2 * axis] = 0x7FFFFFFF;
+        track_init_[2 * axis + 1] = -1;
+    }
 
     cl_call("setting up kernels, " + sizes, [&] {
-        const auto sx = static_cast<float>(options.spacing.x);
-        cl::Kernel xk(program, "x_pass");
-        xk.setArg(0, voxels_);
-        xk.setArg(1, g_[0]);
-        xk.setArg(2, h_[0]);
-        xk.setArg(3, feat_[0]);
-        xk.setArg(4, X);
-        xk.setArg(5, static_cast<cl_uint>(rows));
-        xk.setArg(6, row_items_per);
-        xk.setArg(7, sx);
-        stages_.push_back({"x_pass", xk, cl::NDRange((rows + row_items_per - 1) / row_items_per)});
-
-        auto column = [&](const char* name, int from, std::uint32_t len, std::size_t stride,
-                          std::size_t mstride, std::size_t lines, std::size_t items,
-                          double spacing) {
-            cl::Kernel k(program, "col_pass");
-            k.setArg(0, g_[from]);
-            k.setArg(1, g_[1 - from]);
-            k.setArg(2, h_[from]);
-            k.setArg(3, h_[1 - from]);
-            k.setArg(4, feat_[from]);
-            k.setArg(5, feat_[1 - from]);
-            k.setArg(6, scratch_);
-            k.setArg(7, X);
-            k.setArg(8, len);
-            k.setArg(9, static_cast<cl_ulong>(stride));
-            k.setArg(10, static_cast<cl_ulong>(mstride));
-            k.setArg(11, static_cast<cl_uint>(lines));
-            k.setArg(12, col_per);
-            // CPU: each work-item's stack contiguous; GPU: interleaved across work-items.
-            k.setArg(13, static_cast<cl_ulong>(gpu_layout_ ? items : 1));
-            k.setArg(14, static_cast<cl_ulong>(gpu_layout_ ? 1 : stack));
-            k.setArg(15, static_cast<float>(spacing));
-            return Stage{name, k, cl::NDRange(items)};
-        };
-        stages_.push_back(
-            column("y_pass", 0, Y, X, std::size_t{X} * Y, y_lines, y_items, options.spacing.y));
-        stages_.push_back(
-            column("z_pass", 1, Z, std::size_t{X} * Y, X, z_lines, z_items, options.spacing.z));
-
-        cl::Kernel fk(program, "finish");
-        fk.setArg(0, g_[0]);
-        fk.setArg(1, h_[0]);
-        fk.setArg(2, voxels_);
-        fk.setArg(3, rgb_);
-        fk.setArg(4, out_);
-        fk.setArg(5, feat_[0]);
-        fk.setArg(6, options.indices ? indices_ : feat_[0]);
-        fk.setArg(7, X);
-        fk.setArg(8, Y);
-        fk.setArg(9, static_cast<cl_ulong>(n));
-        stages_.push_back({"finish", fk, cl::NDRange(round_up(n, 64))});
+        const Box all{{0, 0, 0}, {X, Y, Z}};
+        const cl::Buffer none;
+        stages_.push_back({"x_pass", x_kernel(all, none), x_items(all), false});
+        // Full transforms reuse the x pass's buffer for the z pass; incremental ones keep all.
+        const int last = incremental ? 2 : 0;
+        stages_.push_back({"y_pass", col_kernel(1, 0, 1, 0, Z, none, none),
+                           col_items(std::size_t{X} * Z), false});
+        stages_.push_back({"z_pass", col_kernel(2, 1, last, 0, Y, none, none),
+                           col_items(std::size_t{X} * Y), false});
+        stages_.push_back({"finish", finish_kernel(last, all), n, true});
     });
+}
+
+std::size_t ExactSeparable::x_items(const Box& rows) const {
+    // CPU: the rows of one z per work-item (as x_kernel sets them); GPU: one row each.
+    const auto ny = static_cast<std::size_t>(rows.max.y - rows.min.y);
+    const auto nz = static_cast<std::size_t>(rows.max.z - rows.min.z);
+    return gpu_layout_ ? ny * nz : nz;
+}
+
+std::size_t ExactSeparable::col_items(std::size_t lines) const {
+    // CPU: the lines of one x row per work-item; GPU: one line each.
+    return gpu_layout_ ? lines : (lines + dims_.x - 1) / dims_.x;
+}
+
+cl::Kernel ExactSeparable::x_kernel(const Box& rows, const cl::Buffer& box) {
+    const cl_int4 lo{{static_cast<cl_int>(rows.min.x), static_cast<cl_int>(rows.min.y),
+                      static_cast<cl_int>(rows.min.z), 0}};
+    const cl_int4 size{{static_cast<cl_int>(rows.max.x - rows.min.x),
+                        static_cast<cl_int>(rows.max.y - rows.min.y),
+                        static_cast<cl_int>(rows.max.z - rows.min.z), 0}};
+    cl::Kernel k(program_, "x_pass");
+    k.setArg(0, voxels_);
+    k.setArg(1, g_[0]);
+    k.setArg(2, h_[0]);
+    k.setArg(3, feat_[0]);
+    k.setArg(4, dims_.x);
+    k.setArg(5, dims_.y);
+    k.setArg(6, lo);
+    k.setArg(7, size);
+    k.setArg(8, gpu_layout_ ? cl_uint{1} : static_cast<cl_uint>(size.s[1]));
+    k.setArg(9, static_cast<float>(spacing_.x));
+    k.setArg(10, scratch_);
+    k.setArg(11, static_cast<cl_ulong>(x_stride_));
+    k.setArg(12, box);
+    return k;
+}
+
+cl::Kernel ExactSeparable::col_kernel(int axis, int from, int to, std::int64_t lo_o,
+                                      std::int64_t count_o, const cl::Buffer& skip,
+                                      const cl::Buffer& box) {
+    const std::uint32_t X = dims_.x, Y = dims_.y;
+    const bool along_y = axis == 1;
+    const std::size_t lines = std::size_t{X} * static_cast<std::size_t>(count_o);
+    cl::Kernel k(program_, "col_pass");
+    k.setArg(0, g_[from]);
+    k.setArg(1, g_[to]);
+    k.setArg(2, h_[from]);
+    k.setArg(3, h_[to]);
+    k.setArg(4, feat_[from == 0 ? 0 : 1]);
+    k.setArg(5, feat_[from == 0 ? 1 : 0]);
+    k.setArg(6, scratch_);
+    k.setArg(7, along_y ? Y : dims_.z);
+    k.setArg(8, static_cast<cl_ulong>(along_y ? X : std::size_t{X} * Y));
+    k.setArg(9, static_cast<cl_ulong>(along_y ? std::size_t{X} * Y : X));
+    k.setArg(10, cl_int{0});
+    k.setArg(11, static_cast<cl_int>(X));
+    k.setArg(12, static_cast<cl_int>(lo_o));
+    k.setArg(13, static_cast<cl_int>(count_o));
+    k.setArg(14, gpu_layout_ ? cl_uint{1} : X);
+    // CPU: each work-item's stack contiguous; GPU: interleaved across work-items.
+    k.setArg(15, static_cast<cl_ulong>(gpu_layout_ ? col_items(lines) : 1));
+    k.setArg(16, static_cast<cl_ulong>(gpu_layout_ ? 1 : col_stride_));
+    k.setArg(17, static_cast<float>(along_y ? spacing_.y : spacing_.z));
+    k.setArg(18, cl_int{axis});
+    k.setArg(19, skip);
+    k.setArg(20, box);
+    return k;
+}
+
+cl::Kernel ExactSeparable::finish_kernel(int from, const Box& voxels) {
+    const cl_int4 lo{{static_cast<cl_int>(voxels.min.x), static_cast<cl_int>(voxels.min.y),
+                      static_cast<cl_int>(voxels.min.z), 0}};
+    const cl_int4 size{{static_cast<cl_int>(voxels.max.x - voxels.min.x),
+                        static_cast<cl_int>(voxels.max.y - voxels.min.y),
+                        static_cast<cl_int>(voxels.max.z - voxels.min.z), 0}};
+    cl::Kernel k(program_, "finish");
+    k.setArg(0, g_[from]);
+    k.setArg(1, h_[from]);
+    k.setArg(2, voxels_);
+    k.setArg(3, rgb_);
+    k.setArg(4, out_);
+    k.setArg(5, feat_[0]);
+    k.setArg(6, indices_);
+    k.setArg(7, dims_.x);
+    k.setArg(8, dims_.y);
+    k.setArg(9, static_cast<cl_ulong>(dims_.count()));
+    k.setArg(10, lo);
+    k.setArg(11, size);
+    return k;
+}
+
+void ExactSeparable::enqueue(const cl::Kernel& k, std::size_t items, bool per_voxel,
+                             cl::Event* event) {
+    // Fixed work-group sizes, the global size rounded up to them (the kernels skip the
+    // rest): PoCL compiles a kernel per work-group size, and update() launches every size.
+    const std::size_t local = per_voxel || gpu_layout_ ? 64 : 1;
+    ctx_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(items, local)),
+                                      cl::NDRange(local), nullptr, event);
 }
 
 std::string ExactSeparable::variant() const {
@@ -185,12 +255,57 @@ double ExactSeparable::run() {
         std::vector<std::pair<std::string, cl::Event>> events;
         for (const Stage& stage : stages_) {
             events.emplace_back(stage.name, cl::Event());
-            q.enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global, cl::NullRange,
-                                   nullptr, &events.back().second);
+            enqueue(stage.kernel, stage.items, stage.per_voxel, &events.back().second);
         }
         q.finish();
         record_stages(events);
         return elapsed_ms(events.front().second, events.back().second);
+    });
+}
+
+ExactSeparable::Update ExactSeparable::update(const Box& edited, std::vector<cl::Event>& events) {
+    if (!incremental_) {
+        throw std::logic_error("ExactSeparable::update needs an incremental generator");
+    }
+    return cl_call("updating exact_separable.cl's field of " + dims_.to_string(), [&] {
+        auto& q = ctx_.queue();
+        const std::int64_t X = dims_.x, Y = dims_.y;
+        const Box rows{{0, edited.min.y, edited.min.z}, {X, edited.max.y, edited.max.z}};
+        const std::size_t row_count =
+            static_cast<std::size_t>((rows.max.y - rows.min.y) * (rows.max.z - rows.min.z));
+        // The change boxes of the x, y and z passes (7 ints each, as mark() writes them).
+        const cl::Buffer* box = track_;
+        for (int b = 0; b < 3; ++b) {
+            events.emplace_back();
+            q.enqueueWriteBuffer(track_[b], CL_FALSE, 0, sizeof(track_init_), track_init_.data(),
+                                 nullptr, &events.back());
+        }
+        auto launch = [&](const cl::Kernel& k, std::size_t items, bool per_voxel = false) {
+            events.emplace_back();
+            enqueue(k, items, per_voxel, &events.back());
+        };
+        launch(x_kernel(rows, box[0]), x_items(rows));
+        launch(col_kernel(1, 0, 1, rows.min.z, rows.max.z - rows.min.z, box[0], box[1]),
+               col_items(static_cast<std::size_t>(X * (rows.max.z - rows.min.z))));
+        launch(col_kernel(2, 1, 2, 0, Y, box[1], box[2]),
+               col_items(static_cast<std::size_t>(X * Y)));
+        std::array<cl_int, 7> yb{}, zb{};
+        q.enqueueReadBuffer(track_[1], CL_FALSE, 0, sizeof(yb), yb.data());
+        q.enqueueReadBuffer(track_[2], CL_TRUE, 0, sizeof(zb), zb.data());
+        Update u;
+        u.voxels_recomputed = static_cast<std::uint64_t>(row_count) * dims_.x +
+                              static_cast<std::uint64_t>(yb[6]) + static_cast<std::uint64_t>(zb[6]);
+        const Box changed =
+            zb[0] > zb[1] ? Box{} : Box{{zb[0], zb[2], zb[4]}, {zb[1] + 1, zb[3] + 1, zb[5] + 1}};
+        u.changed = changed;
+        // The output of the changed voxels (the z pass marked them) and of the edited box.
+        for (const Box& b : {changed, edited}) {
+            if (!b.empty()) {
+                launch(finish_kernel(2, b), static_cast<std::size_t>(b.volume()), true);
+            }
+        }
+        q.finish();
+        return u;
     });
 }
 

@@ -1,9 +1,12 @@
 #pragma once
 // `exact` for everything beyond unit-spacing Manhattan: L1, L-inf and L2 with voxel spacing,
 // signed fields and the feature transform (kernels: cl/kernels/exact_separable.cl).
+#include <array>
 #include <string>
+#include <vector>
 
 #include "voxfield/cl/generator.hpp"
+#include "voxfield/core/chunks.hpp"
 
 namespace voxfield::ocl {
 
@@ -13,21 +16,51 @@ class ExactSeparable : public Generator {
     static bool needed(const GeneratorOptions& options);
 
     // Uploads the world and palette and builds the kernels; options as resolve_options
-    // returns them. Throws ClError when the device cannot hold the buffers or lacks fp64.
+    // returns them. `incremental` keeps every pass's partial distances (4 bytes per voxel
+    // each, twice for signed fields) so that update() can recompute only what an edit
+    // changes. Throws ClError when the device cannot hold the buffers or lacks fp64.
     ExactSeparable(Context& ctx, const World& world, const Palette& palette,
-                   const GeneratorOptions& options);
+                   const GeneratorOptions& options, bool incremental = false);
 
     double run() override;
     std::string variant() const override;  // "cpu layout" or "gpu layout"
+    // The world on the device (one uchar per voxel); writes to it show in the next run().
+    const cl::Buffer& voxels_buffer() const { return voxels_; }
+
+    struct Update {
+        std::uint64_t voxels_recomputed = 0;  // positions the three passes recomputed
+        Box changed;                          // the voxels whose distance changed
+    };
+    // Incremental generators only: after the voxels inside `edited` were rewritten on the
+    // device (in the queue before this call), brings the field up to date exactly: the x
+    // pass over the rows through `edited`, then the y and z passes over exactly the lines
+    // whose input changed, then the output of the changed voxels and of `edited`. Appends
+    // its events to `events` and waits for the queue once (to size the output launch).
+    Update update(const Box& edited, std::vector<cl::Event>& events);
 
   private:
     struct Stage {
         std::string name;
         cl::Kernel kernel;
-        cl::NDRange global;
+        std::size_t items;  // work-items that do work
+        bool per_voxel;     // one voxel per work-item (finish)
     };
+    void enqueue(const cl::Kernel& k, std::size_t items, bool per_voxel, cl::Event* event);
+    cl::Kernel x_kernel(const Box& rows, const cl::Buffer& box);
+    cl::Kernel col_kernel(int axis, int from, int to, std::int64_t lo_o, std::int64_t count_o,
+                          const cl::Buffer& skip, const cl::Buffer& box);
+    cl::Kernel finish_kernel(int from, const Box& voxels);
+    std::size_t x_items(const Box& rows) const;
+    std::size_t col_items(std::size_t lines) const;
+
     bool gpu_layout_;
-    cl::Buffer voxels_, rgb_, g_[2], h_[2], feat_[2], scratch_;
+    bool incremental_;
+    Spacing spacing_;
+    cl::Program program_;
+    cl::Buffer voxels_, rgb_, g_[3], h_[3], feat_[2], scratch_, track_[3];
+    std::size_t col_stride_ = 0;          // ints per work-item stack (CPU layout)
+    std::size_t x_stride_ = 0;            // ints per work-item row scratch (CPU layout)
+    std::array<cl_int, 7> track_init_{};  // an empty change box, 0 voxels
     std::vector<Stage> stages_;
 };
 
