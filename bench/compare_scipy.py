@@ -1,27 +1,41 @@
 #!/usr/bin/env python3
-"""Compare `voxfield generate` (exact Manhattan field) with SciPy's chamfer distance transform.
+"""Compare voxfield with SciPy's distance transforms: every metric, signed fields, sampling and indices.
 
-Builds a world (a one-voxel floor plus random spheres, N^3, seeded; or --input WORLD.npy),
-runs `voxfield generate WORLD.npy -o FIELD.npy --format F --device D --json J --warmup 1
---repeat R` and takes the median of the R kernel times (OpenCL profiling of the kernels only:
-the fair device-side figure; the untimed first run pays page faults and kernel set-up), and
-reports end_to_end_ms (upload + first run + download in that process, kernel build
-included) beside it. F is u16 when every possible distance (X+Y+Z-3) fits in it, else u32:
-the narrowest format that holds the exact field, as a user would pick. It times
-scipy.ndimage.distance_transform_cdt(world == 0, metric='taxicab') as often (median of
-time.perf_counter wall time, single-threaded host code) and checks that both fields are
-identical. It also times scipy.ndimage.distance_transform_edt(world == 0) (Euclidean
-distance: a DIFFERENT metric from ours, so it is reported as a separate figure for scale and
-never compared for equality; --no-edt skips it).
+On one world (a one-voxel floor plus random spheres, N^3, seeded; or --input WORLD.npy) and in
+one run, each case below is computed three ways and checked against SciPy:
 
-cdt gives each non-zero element its distance to the nearest zero element, so it is fed the
-*empty* mask: solids are its zeros. Elements outside the array are ignored by cdt, which is
-DESIGN §3's "outside the world counts as empty". A world with no solid voxel has no zero in
-the mask (cdt then returns -1 everywhere) and the equality check is skipped.
+  case                 voxfield                              SciPy (on mask = world == 0)
+  manhattan            --metric manhattan                    distance_transform_cdt(mask, 'taxicab')
+  manhattan-indices    ... --indices                         cdt(mask, 'taxicab', return_indices=True)
+  chebyshev            --metric chebyshev                    cdt(mask, 'chessboard')
+  euclidean            --metric euclidean (f32)              distance_transform_edt(mask)
+  euclidean-sampling   ... --spacing X,Y,Z                   edt(mask, sampling=(z, y, x))
+  euclidean-indices    ... --indices                         edt(mask, return_indices=True)
+  signed-manhattan     --signed (i16/i32)                    cdt(~solid) - cdt(solid), padded, cropped
+  signed-euclidean     --signed --metric euclidean (f32)     edt(~solid) - edt(solid), padded, cropped
 
-Needs Debian's python3-numpy and python3-scipy (run with /usr/bin/python3). Exit status: 0 if
-the fields are equal (or the check was skipped), 1 if they differ, 2 on bad usage or a failed
-voxfield run.
+ 1. `voxfield generate WORLD.npy -o FIELD.npy ... --json J --warmup 1 --repeat R`: the median of
+    the R kernel times (OpenCL profiling events, the device-side figure);
+ 2. the plain command `voxfield generate WORLD.npy -o FIELD.npy ...`, R times: its median wall
+    time (process start, device set-up, reading the world, the transform, writing the field);
+ 3. in process: `voxfield.distance_transform` of the Python module (imported from
+    build/python, or --python-dir) on the same numpy array, after --warmup untimed calls;
+    median and spread of R calls (time.perf_counter), its result checked against the CLI's;
+and SciPy R times (median and spread, single-threaded host code) on the same array.
+
+Checks: L1 and L-inf fields equal SciPy's voxel for voxel; L2 fields (float32) are within one
+float32 ulp of SciPy's float64 rounded to float32 (DESIGN §3: correctly rounded); indices
+name a solid voxel at the field's distance (ties may pick another voxel than SciPy) and their
+field matches SciPy's. cdt gives each non-zero element its distance to the nearest zero, so it
+is fed the *empty* mask: solids are its zeros; elements outside the array are ignored, which is
+DESIGN §3's "outside the world counts as empty". Signed fields pad the world with one empty voxel
+on every side first (DESIGN §3). A world with no solid voxel has no zero in the mask (SciPy then
+returns -1 or garbage) and the checks are skipped.
+
+Needs Debian's python3-numpy and python3-scipy (run with /usr/bin/python3) and the built
+`voxfield` executable; the in-process figures need the built module (--no-module skips them).
+Exit status: 0 if every check passed (or was skipped), 1 if one failed, 2 on bad usage or a
+failed voxfield run.
 """
 
 import argparse
@@ -40,33 +54,163 @@ from scipy import ndimage
 from worlds import make_world
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+CASES = ["manhattan", "manhattan-indices", "chebyshev", "euclidean", "euclidean-sampling",
+         "euclidean-indices", "signed-manhattan", "signed-euclidean"]
 
 
 def git_commit():
     try:
-        out = subprocess.run(
-            ["git", "-C", REPO, "rev-parse", "HEAD"],
-            check=True,
-            capture_output=True,
-            text=True,
-        )
+        out = subprocess.run(["git", "-C", REPO, "rev-parse", "HEAD"], check=True,
+                             capture_output=True, text=True)
         return out.stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
 
 
-def run_voxfield(exe, world_path, field_path, json_path, device, repeat, fmt):
-    cmd = [exe, "generate", world_path, "-o", field_path, "--format", fmt, "--json", json_path,
-           "--warmup", "1", "--repeat", str(repeat)]
-    if device:
-        cmd += ["--device", device]
+def spread(samples):
+    """Median and spread of a list of milliseconds."""
+    return {
+        "median": statistics.median(samples),
+        "min": min(samples),
+        "max": max(samples),
+        "std": statistics.stdev(samples) if len(samples) > 1 else 0.0,
+        "samples": samples,
+    }
+
+
+def timed(fn, repeat, warmup=0):
+    """(last result, [ms per call]) of `warmup` untimed and `repeat` timed calls of fn()."""
+    result = None
+    for _ in range(warmup):
+        result = fn()
+    ms = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        result = fn()
+        ms.append((time.perf_counter() - t0) * 1e3)
+    return result, ms
+
+
+def ordered(a):
+    """float32 values as integers in the same order, one apart per ulp (for ulp distances)."""
+    i = np.ascontiguousarray(a, dtype=np.float32).view(np.int32).astype(np.int64)
+    return np.where(i < 0, -(i & 0x7FFFFFFF), i)
+
+
+def compare(ours, theirs, exact):
+    """(ok, detail): equal voxel for voxel (exact) or within one float32 ulp."""
+    if ours.shape != theirs.shape:
+        return False, f"shape {ours.shape}, expected {theirs.shape}"
+    if exact:
+        bad = ours.astype(np.float64) != theirs.astype(np.float64)
+        worst = None
+    else:
+        ulps = np.abs(ordered(ours) - ordered(theirs.astype(np.float32)))
+        bad = ulps > 1
+        worst = int(ulps.max())
+    if not bad.any():
+        return True, "equal" if exact else f"max {worst} ulp"
+    idx = tuple(int(i) for i in np.argwhere(bad)[0])
+    return False, (f"{int(bad.sum())} voxels differ{'' if exact else f' (max {worst} ulp)'}; "
+                   f"first (z,y,x)={idx}: ours {ours[idx]}, scipy {theirs[idx]}")
+
+
+def check_indices(world, field, idx, metric, sampling):
+    """(ok, detail): every index names a solid voxel at the field's distance."""
+    if idx.shape != (3,) + world.shape or idx.dtype != np.int32:
+        return False, f"indices have shape {idx.shape} dtype {idx.dtype}"
+    if not (world[idx[0], idx[1], idx[2]] != 0).all():
+        return False, "an index names an empty voxel"
+    grid = np.ogrid[tuple(slice(0, n) for n in world.shape)]
+    parts = [np.abs(idx[a] - grid[a]).astype(np.float64) * sampling[a] for a in range(3)]
+    if metric == "manhattan":
+        d = parts[0] + parts[1] + parts[2]
+        return compare(field, d, exact=True)
+    d = np.sqrt(parts[0] ** 2 + parts[1] ** 2 + parts[2] ** 2)
+    return compare(field, d, exact=False)
+
+
+def padded_signed(world, transform):
+    solid = np.pad(world != 0, 1, constant_values=False)
+    return (transform(~solid) - transform(solid))[1:-1, 1:-1, 1:-1]
+
+
+def make_case(name, world, sampling_zyx):
+    """The CLI flags, module keywords, SciPy call and check of one case."""
+    shape = world.shape
+    mask = world == 0
+    l1_fmt = "u16" if sum(shape) - 3 <= 0xFFFF else "u32"
+    linf_fmt = "u16" if max(shape) - 1 <= 0xFFFF else "u32"
+    signed_fmt = "i16" if sum(shape) - 3 <= 0x7FFF else "i32"
+    unit = (1.0, 1.0, 1.0)
+    if name == "manhattan":
+        return dict(flags=["--metric", "manhattan", "--format", l1_fmt],
+                    kwargs=dict(metric="manhattan", format=l1_fmt), exact=True,
+                    scipy_call="distance_transform_cdt(mask, metric='taxicab')",
+                    scipy=lambda: ndimage.distance_transform_cdt(mask, metric="taxicab"))
+    if name == "manhattan-indices":
+        return dict(flags=["--metric", "manhattan", "--format", l1_fmt], indices=True,
+                    kwargs=dict(metric="manhattan", format=l1_fmt, return_indices=True),
+                    exact=True, metric="manhattan", sampling=unit,
+                    scipy_call="distance_transform_cdt(mask, metric='taxicab', return_indices=True)",
+                    scipy=lambda: ndimage.distance_transform_cdt(mask, metric="taxicab",
+                                                                 return_indices=True))
+    if name == "chebyshev":
+        return dict(flags=["--metric", "chebyshev", "--format", linf_fmt],
+                    kwargs=dict(metric="chebyshev", format=linf_fmt), exact=True,
+                    scipy_call="distance_transform_cdt(mask, metric='chessboard')",
+                    scipy=lambda: ndimage.distance_transform_cdt(mask, metric="chessboard"))
+    if name == "euclidean":
+        return dict(flags=["--metric", "euclidean"], kwargs=dict(metric="euclidean"), exact=False,
+                    scipy_call="distance_transform_edt(mask)",
+                    scipy=lambda: ndimage.distance_transform_edt(mask))
+    if name == "euclidean-sampling":
+        z, y, x = sampling_zyx
+        return dict(flags=["--metric", "euclidean", "--spacing", f"{x!r},{y!r},{z!r}"],
+                    kwargs=dict(metric="euclidean", sampling=sampling_zyx), exact=False,
+                    scipy_call=f"distance_transform_edt(mask, sampling={sampling_zyx})",
+                    scipy=lambda: ndimage.distance_transform_edt(mask, sampling=sampling_zyx))
+    if name == "euclidean-indices":
+        return dict(flags=["--metric", "euclidean"], indices=True,
+                    kwargs=dict(metric="euclidean", return_indices=True), exact=False,
+                    metric="euclidean", sampling=unit,
+                    scipy_call="distance_transform_edt(mask, return_indices=True)",
+                    scipy=lambda: ndimage.distance_transform_edt(mask, return_indices=True))
+    if name == "signed-manhattan":
+        def cdt(m):
+            return ndimage.distance_transform_cdt(m, metric="taxicab")
+        return dict(flags=["--signed", "--metric", "manhattan", "--format", signed_fmt],
+                    kwargs=dict(metric="manhattan", signed=True, format=signed_fmt), exact=True,
+                    scipy_call="cdt(~solid, 'taxicab') - cdt(solid, 'taxicab'), padded by 1, cropped",
+                    scipy=lambda: padded_signed(world, cdt))
+    if name == "signed-euclidean":
+        return dict(flags=["--signed", "--metric", "euclidean"],
+                    kwargs=dict(metric="euclidean", signed=True), exact=False,
+                    scipy_call="edt(~solid) - edt(solid), padded by 1, cropped",
+                    scipy=lambda: padded_signed(world, ndimage.distance_transform_edt))
+    raise ValueError(name)
+
+
+def run_cli(cmd):
+    t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True)
+    ms = (time.perf_counter() - t0) * 1e3
     if proc.returncode != 0:
         sys.stderr.write(proc.stderr)
         sys.stderr.write(f"compare_scipy: voxfield failed (exit {proc.returncode}): {' '.join(cmd)}\n")
         sys.exit(2)
-    with open(json_path) as f:
-        return json.load(f)
+    return ms
+
+
+def import_module(python_dir):
+    sys.path.insert(0, python_dir)
+    try:
+        import voxfield
+    except ImportError as e:
+        sys.stderr.write(f"compare_scipy: cannot import the voxfield module from {python_dir} ({e}); "
+                         f"build it (target voxfield_python), pass --python-dir, or --no-module\n")
+        sys.exit(2)
+    return voxfield
 
 
 def main():
@@ -74,110 +218,155 @@ def main():
     ap.add_argument("--size", type=int, default=256, help="world edge N (N^3 voxels; default 256)")
     ap.add_argument("--seed", type=int, default=6683787, help="world seed")
     ap.add_argument("--input", help="use this (Z,Y,X) uint8/16/32 .npy world instead")
-    ap.add_argument(
-        "--voxfield",
-        default=os.path.join(REPO, "build", "viewer", "voxfield"),
-        help="voxfield binary (default: build/viewer/voxfield)",
-    )
-    ap.add_argument("--device", default="cpu", help="voxfield --device (default: cpu)")
-    ap.add_argument("--repeat", type=int, default=5, help="runs of each (default 5)")
+    ap.add_argument("--voxfield", default=os.path.join(REPO, "build", "viewer", "voxfield"),
+                    help="voxfield binary (default: build/viewer/voxfield)")
+    ap.add_argument("--python-dir", default=os.path.join(REPO, "build", "python"),
+                    help="folder holding the built voxfield module (default: build/python)")
+    ap.add_argument("--no-module", action="store_true", help="skip the in-process comparison")
+    ap.add_argument("--device", default="cpu", help="voxfield --device / device= (default: cpu)")
+    ap.add_argument("--repeat", type=int, default=5, help="timed runs of each (default 5)")
+    ap.add_argument("--warmup", type=int, default=1,
+                    help="untimed in-process calls before the timed ones (default 1)")
+    ap.add_argument("--cases", default=",".join(CASES),
+                    help=f"comma-separated subset of {','.join(CASES)} (default: all)")
+    ap.add_argument("--sampling", default="2,1,0.5",
+                    help="sampling (z,y,x) of euclidean-sampling, SciPy's order (default 2,1,0.5)")
     ap.add_argument("--json", help="write the comparison to this JSON file")
-    ap.add_argument("--no-edt", action="store_true",
-                    help="do not time distance_transform_edt (Euclidean, a different metric)")
     args = ap.parse_args()
 
-    if args.repeat < 1:
-        ap.error("--repeat must be at least 1")
+    if args.repeat < 1 or args.warmup < 0:
+        ap.error("--repeat must be at least 1 and --warmup at least 0")
+    cases = [c for c in args.cases.split(",") if c]
+    unknown = [c for c in cases if c not in CASES]
+    if unknown or not cases:
+        ap.error(f"--cases: unknown {','.join(unknown) or '(none given)'}; expected {','.join(CASES)}")
+    try:
+        sampling = tuple(float(v) for v in args.sampling.split(","))
+    except ValueError:
+        sampling = ()
+    if len(sampling) != 3 or not all(v > 0 and np.isfinite(v) for v in sampling):
+        ap.error(f"--sampling '{args.sampling}': expected three positive numbers z,y,x")
     if not (os.path.isfile(args.voxfield) and os.access(args.voxfield, os.X_OK)):
         ap.error(f"voxfield binary not found: {args.voxfield} (build it first, or pass --voxfield)")
+    module = None if args.no_module else import_module(args.python_dir)
 
-    with tempfile.TemporaryDirectory(prefix="voxfield_scipy_") as tmp:
-        if args.input:
-            world = np.load(args.input)
-            if world.ndim != 3:
-                ap.error(f"{args.input}: expected a 3-D (Z,Y,X) array, got shape {world.shape}")
-            world_path = os.path.abspath(args.input)
-            source = args.input
-        else:
-            if args.size < 1:
-                ap.error("--size must be at least 1")
-            world = make_world(args.size, args.seed)
-            world_path = os.path.join(tmp, "world.npy")
-            np.save(world_path, world)
-            source = f"floor+spheres N={args.size} seed={args.seed}"
-        field_path = os.path.join(tmp, "field.npy")
-        json_path = os.path.join(tmp, "run.json")
-        voxels = int(world.size)
-        solid = int(np.count_nonzero(world))
-        print(f"world: {source}, shape (Z,Y,X) {world.shape}, {voxels} voxels, {solid} solid")
-
-        fmt = "u16" if sum(world.shape) - 3 <= 0xFFFF else "u32"
-        j = run_voxfield(args.voxfield, world_path, field_path, json_path, args.device,
-                         args.repeat, fmt)
-        kernel_ms = [float(v) for v in j["kernel_ms_samples"]]
-        e2e_ms = [float(j["end_to_end_ms"])]
-        device_name = j["device"]["name"]
-        ours = np.load(field_path)
-
-        mask = world == 0
-        scipy_ms = []
-        theirs = None
-        for _ in range(args.repeat):
-            t0 = time.perf_counter()
-            theirs = ndimage.distance_transform_cdt(mask, metric="taxicab")
-            scipy_ms.append((time.perf_counter() - t0) * 1e3)
-        # Euclidean EDT: another metric, timed for scale only (float64 output).
-        edt_ms = []
-        if not args.no_edt:
-            for _ in range(args.repeat):
-                t0 = time.perf_counter()
-                ndimage.distance_transform_edt(mask)
-                edt_ms.append((time.perf_counter() - t0) * 1e3)
-
-    want_dtype = np.uint16 if fmt == "u16" else np.uint32
-    if ours.shape != world.shape or ours.dtype != want_dtype:
-        print(f"our field has shape {ours.shape} dtype {ours.dtype}, expected {world.shape} "
-              f"{np.dtype(want_dtype).name}")
-        equal = False
-        checked = True
-    elif solid == 0:
-        equal = None  # cdt has no zero to measure to; DESIGN says ours is all the format's max
-        checked = False
+    if args.input:
+        world = np.load(args.input)
+        if world.ndim != 3:
+            ap.error(f"{args.input}: expected a 3-D (Z,Y,X) array, got shape {world.shape}")
+        source = args.input
     else:
-        diff = ours.astype(np.int64) != theirs.astype(np.int64)
-        equal = not bool(diff.any())
-        checked = True
-        if not equal:
-            idx = tuple(int(i) for i in np.argwhere(diff)[0])
-            print(
-                f"fields differ at {int(diff.sum())} voxels; first (z,y,x)={idx}: "
-                f"ours {int(ours[idx])}, scipy {int(theirs[idx])}"
-            )
+        if args.size < 1:
+            ap.error("--size must be at least 1")
+        world = make_world(args.size, args.seed)
+        source = f"floor+spheres N={args.size} seed={args.seed}"
+    voxels = int(world.size)
+    solid = int(np.count_nonzero(world))
+    print(f"world: {source}, shape (Z,Y,X) {world.shape}, {voxels} voxels, {solid} solid")
 
-    ours_med = statistics.median(kernel_ms)
-    e2e_med = statistics.median(e2e_ms)
-    scipy_med = statistics.median(scipy_ms)
-    ratio = scipy_med / ours_med if ours_med > 0 else float("inf")
-    equal_text = "skipped (no solid voxel)" if not checked else ("yes" if equal else "NO")
+    rows = []
+    device_info = None
+    with tempfile.TemporaryDirectory(prefix="voxfield_scipy_") as tmp:
+        world_path = os.path.join(tmp, "world.npy")
+        np.save(world_path, world)
+        for name in cases:
+            case = make_case(name, world, sampling)
+            field_path = os.path.join(tmp, "field.npy")
+            json_path = os.path.join(tmp, "run.json")
+            idx_path = os.path.join(tmp, "indices.npy")
+            base = [args.voxfield, "generate", world_path, "-o", field_path, "--device",
+                    args.device] + case["flags"] + (["--indices", idx_path] if case.get("indices")
+                                                   else [])
+            print(f"{name}: voxfield (kernels, then {args.repeat} plain commands) ...",
+                  file=sys.stderr)
+            run_cli(base + ["--json", json_path, "--warmup", "1", "--repeat", str(args.repeat)])
+            with open(json_path) as f:
+                j = json.load(f)
+            device_info = j["device"]
+            command_ms = [run_cli(base) for _ in range(args.repeat)]
+            ours = np.load(field_path)
+            ours_idx = np.load(idx_path) if case.get("indices") else None
 
-    print(f"device: {device_name} (--device {args.device}); {args.repeat} runs each, medians")
-    print(f"{'voxels':>12} {'ours ms':>10} {'scipy ms':>10} {'scipy/ours':>10}  equal")
-    print(f"{voxels:>12} {ours_med:>10.3f} {scipy_med:>10.3f} {ratio:>10.1f}  {equal_text}")
-    if edt_ms:
-        edt_med = statistics.median(edt_ms)
-        print(f"scipy distance_transform_edt (EUCLIDEAN, a different metric; not compared): "
-              f"{edt_med:.3f} ms median, edt/ours = {edt_med / ours_med:.1f}")
-    print(
-        f"ours = OpenCL kernel time (profiling events; the fair device-side figure). "
-        f"ours end to end (process-internal: upload + kernels + download + kernel build): "
-        f"{e2e_med:.3f} ms, scipy/end-to-end = "
-        f"{(scipy_med / e2e_med if e2e_med > 0 else float('inf')):.2f}. "
-        f"scipy = distance_transform_cdt wall time on the host."
-    )
+            print(f"{name}: SciPy {case['scipy_call']} ...", file=sys.stderr)
+            theirs, scipy_ms = timed(case["scipy"], args.repeat)
+            theirs_field = theirs[0] if case.get("indices") else theirs
 
+            module_ms = None
+            module_same = None
+            if module is not None:
+                out, module_ms = timed(
+                    lambda: module.distance_transform(world, device=args.device, **case["kwargs"]),
+                    args.repeat, args.warmup)
+                if case.get("indices"):
+                    module_same = bool(np.array_equal(out[0], ours) and
+                                       np.array_equal(out[1], ours_idx))
+                else:
+                    module_same = bool(out.dtype == ours.dtype and np.array_equal(out, ours))
+
+            if solid == 0:
+                ok, detail = None, "no solid voxel"
+            else:
+                ok, detail = compare(ours, theirs_field, case["exact"])
+                if ok and case.get("indices"):
+                    ok, d2 = check_indices(world, ours, ours_idx, case["metric"], case["sampling"])
+                    detail += "; indices " + ("name a solid voxel at the field's distance"
+                                              if ok else d2)
+                if module_same is False:
+                    ok, detail = False, detail + "; the module's result differs from the CLI's"
+
+            kernel = spread([float(v) for v in j["kernel_ms_samples"]])
+            command = spread(command_ms)
+            scipy_t = spread(scipy_ms)
+            module_t = spread(module_ms) if module_ms else None
+            rows.append({
+                "case": name,
+                "scipy_call": case["scipy_call"],
+                "voxfield_flags": case["flags"] + (["--indices"] if case.get("indices") else []),
+                "format": j["format"],
+                "check_ok": ok,
+                "check": detail,
+                "module_equals_cli": module_same,
+                "kernel_ms": kernel,
+                "end_to_end_ms": float(j["end_to_end_ms"]),
+                "command_wall_ms": command,
+                "module_ms": module_t,
+                "scipy_ms": scipy_t,
+                "ratio_scipy_over_kernel": scipy_t["median"] / kernel["median"],
+                "ratio_scipy_over_command": scipy_t["median"] / command["median"],
+                "ratio_scipy_over_module": scipy_t["median"] / module_t["median"]
+                if module_t else None,
+            })
+
+    device_name = device_info["name"]
+    print(f"device: {device_name} (--device {args.device}); medians of {args.repeat} runs"
+          f" (module after {args.warmup} warm-up calls)")
+    print(f"{'case':<19} {'format':>6} {'kernel ms':>10} {'command ms':>11} {'module ms':>10}"
+          f" {'scipy ms':>10} {'scipy/kernel':>12} {'scipy/cmd':>9} {'scipy/module':>12}  check")
+    for r in rows:
+        mod = r["module_ms"]["median"] if r["module_ms"] else float("nan")
+        ratio_mod = r["ratio_scipy_over_module"] or float("nan")
+        print(f"{r['case']:<19} {r['format']:>6} {r['kernel_ms']['median']:>10.3f}"
+              f" {r['command_wall_ms']['median']:>11.1f} {mod:>10.3f}"
+              f" {r['scipy_ms']['median']:>10.1f} {r['ratio_scipy_over_kernel']:>12.1f}"
+              f" {r['ratio_scipy_over_command']:>9.2f} {ratio_mod:>12.1f}"
+              f"  {'ok' if r['check_ok'] else ('skipped' if r['check_ok'] is None else 'FAILED')}:"
+              f" {r['check']}")
+    if rows and rows[0]["module_ms"]:
+        print("module spread (min-max ms): " + ", ".join(
+            f"{r['case']} {r['module_ms']['min']:.3f}-{r['module_ms']['max']:.3f}" for r in rows))
+    print("kernel = OpenCL profiling of the kernels (median after 1 warm-up run); command = wall "
+          "time of a whole `voxfield generate` (start-up, read, transform, write); module = "
+          "voxfield.distance_transform in this process (array in, array out); scipy = the "
+          "SciPy call's wall time on the host.")
+
+    failed = any(r["check_ok"] is False for r in rows)
     if args.json:
+        by_case = {r["case"]: r for r in rows}
+        taxicab = by_case.get("manhattan")
+        edt = by_case.get("euclidean")
         record = {
             "device": device_name,
+            "device_info": device_info,
             "device_arg": args.device,
             "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
             "commit": git_commit(),
@@ -186,25 +375,25 @@ def main():
             "voxels": voxels,
             "solid": solid,
             "repeat": args.repeat,
-            "ours_kernel_ms_median": ours_med,
-            "ours_end_to_end_ms_median": e2e_med,
-            "scipy_ms_median": scipy_med,
-            "ratio_scipy_over_ours_kernel": ratio,
-            "ours_kernel_ms": kernel_ms,
-            "ours_end_to_end_ms": e2e_ms,
-            "scipy_ms": scipy_ms,
-            "equal": equal,
-            "scipy_edt_ms_median": statistics.median(edt_ms) if edt_ms else None,
-            "scipy_edt_ms": edt_ms,
-            "scipy_edt_metric": "euclidean (different from ours: timed for scale, not compared)",
+            "warmup": args.warmup,
+            "all_checks_pass": None if solid == 0 else not failed,
+            "comparisons": rows,
             "numpy": np.__version__,
             "scipy": __import__("scipy").__version__,
         }
+        if taxicab:  # the summary fields bench/summarize.py tabulates (the taxicab comparison)
+            record.update({
+                "ours_kernel_ms_median": taxicab["kernel_ms"]["median"],
+                "ours_end_to_end_ms_median": taxicab["end_to_end_ms"],
+                "scipy_ms_median": taxicab["scipy_ms"]["median"],
+                "ratio_scipy_over_ours_kernel": taxicab["ratio_scipy_over_kernel"],
+                "equal": taxicab["check_ok"],
+                "scipy_edt_ms_median": edt["scipy_ms"]["median"] if edt else None,
+            })
         with open(args.json, "w") as f:
             json.dump(record, f, indent=2)
             f.write("\n")
-
-    return 1 if checked and not equal else 0
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
