@@ -421,23 +421,15 @@ BrushShape parse_shape(const std::string& shape) {
 class Field {
   public:
     Field(const py::object& world, const std::string& metric, const py::object& device,
-          const std::string& algorithm, const std::optional<std::string>& format) {
+          const std::string& algorithm, const std::optional<std::string>& format,
+          const py::object& sampling, bool signed_field) {
         const WorldArray w = world_array(world);
         ocl::GeneratorOptions o;
         o.algorithm = ocl::parse_algorithm(algorithm);
         o.metric = parse_metric(metric);
-        // The incremental updater (cl/incremental.hpp) keeps L1 fields in the unsigned
-        // integer formats; refuse the rest instead of returning a wrong field.
-        if (o.metric != Metric::manhattan) {
-            throw InputError(
-                "Field keeps manhattan fields only (the incremental updater is L1); "
-                "use distance_transform for " +
-                to_string(o.metric));
-        }
-        o.format = format_of(format, o.metric, o.spacing, false);
-        if (holds_sign(o.format)) {
-            throw InputError("Field writes u8, u16, u32 or packed32, not " + to_string(o.format));
-        }
+        o.spacing = spacing_of(sampling);
+        o.signed_field = signed_field;
+        o.format = format_of(format, o.metric, o.spacing, signed_field);
         const ocl::GeneratorOptions options = ocl::resolve_options(o, w.dims);
         device_ = device_for(device);
         format_ = options.format;
@@ -595,20 +587,22 @@ PYBIND11_MODULE(voxfield, m) {
 
     py::class_<vp::Field>(
         m, "Field",
-        "Field(world, metric='manhattan', device=None, algorithm='exact', "
-        "format=None)\n\n"
-        "A copy of `world` and its distance field kept on the device across "
-        "edits: each edit uploads only the changed voxels and recomputes only "
-        "what it can change, exactly (`voxfield replay`). Manhattan fields in "
-        "u8, u16 (default), u32 or packed32 (with MagicaVoxel's default palette); "
-        "algorithm 'exact' (global) or a chunk-local one of the dissertation "
-        "(brute-chunked, lod, monolithic in 16^3 chunks). world, device: as for "
-        "distance_transform.")
+        "Field(world, metric='manhattan', device=None, algorithm='exact', format=None, *, "
+        "sampling=None, signed=False)\n\n"
+        "A copy of `world` and its distance field kept on the device across edits: each edit "
+        "uploads only the changed voxels and recomputes only what it can change, exactly "
+        "(`voxfield replay`); the field always equals distance_transform of world() with the "
+        "same arguments. world, metric, sampling, signed, format and device: as for "
+        "distance_transform (packed32 uses MagicaVoxel's default palette). algorithm: 'exact' "
+        "(global semantics) or a chunk-local one of the dissertation (brute-chunked, lod, "
+        "monolithic in 16^3 chunks; manhattan only).")
         .def(py::init<const py::object&, const std::string&, const py::object&, const std::string&,
-                      const std::optional<std::string>&>(),
+                      const std::optional<std::string>&, const py::object&, bool>(),
              py::arg("world"), py::arg("metric") = "manhattan", py::arg("device") = py::none(),
-             py::arg("algorithm") = "exact", py::arg("format") = py::none(),
-             "Field(world, metric='manhattan', device=None, algorithm='exact', format=None)\n\n"
+             py::arg("algorithm") = "exact", py::arg("format") = py::none(), py::kw_only(),
+             py::arg("sampling") = py::none(), py::arg("signed") = false,
+             "Field(world, metric='manhattan', device=None, algorithm='exact', format=None, *, "
+             "sampling=None, signed=False)\n\n"
              "Uploads a copy of `world` and computes its field (see the class).")
         .def("edit", &vp::Field::edit, py::arg("op"), py::arg("shape"), py::arg("center"),
              py::arg("radius"), py::arg("material") = 1,

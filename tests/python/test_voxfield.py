@@ -280,6 +280,24 @@ def test_field_edits_match_a_fresh_transform():
     assert not np.array_equal(world, current)
 
 
+def test_field_every_metric_sampling_and_sign():
+    world = random_world(A, 0.01, 51)
+    cases = [dict(metric="chebyshev"), dict(metric="euclidean"),
+             dict(metric="euclidean", sampling=(2.0, 0.5, 1.0)), dict(signed=True),
+             dict(metric="euclidean", signed=True), dict(sampling=1.5, format="f64")]
+    for kwargs in cases:
+        field = voxfield.Field(world, **kwargs)
+        np.testing.assert_array_equal(field.distances(),
+                                      voxfield.distance_transform(world, **kwargs))
+        for op, shape, center, radius in (("place", "sphere", (9, 8, 6), 3),
+                                          ("erase", "cube", (8, 8, 6), 1)):
+            field.edit(op, shape, center, radius)
+            got = field.distances()
+            want = voxfield.distance_transform(field.world(), **kwargs)
+            assert got.dtype == want.dtype
+            np.testing.assert_array_equal(got, want, err_msg=str(kwargs))
+
+
 def test_field_formats_and_chunk_local():
     world = random_world(A, 0.01, 41)
     for fmt, dtype in (("u8", np.uint8), ("u32", np.uint32), ("packed32", np.uint32)):
@@ -378,12 +396,16 @@ def test_bad_options(kwargs, error, match):
 
 
 def test_bad_field_arguments():
-    with pytest.raises(ValueError, match="manhattan"):
-        voxfield.Field(W, metric="euclidean")
     with pytest.raises(ValueError, match="unknown metric"):
         voxfield.Field(W, metric="hamming")
-    with pytest.raises(ValueError, match="f32"):
-        voxfield.Field(W, format="f32")
+    with pytest.raises(ValueError, match="u12"):
+        voxfield.Field(W, format="u12")
+    with pytest.raises(ValueError, match="signed format"):
+        voxfield.Field(W, signed=True, format="u16")
+    with pytest.raises(ValueError, match="positive"):
+        voxfield.Field(W, sampling=(1, 0, 1))
+    with pytest.raises(ValueError, match="manhattan"):
+        voxfield.Field(W, metric="chebyshev", algorithm="brute-chunked")
     with pytest.raises(ValueError, match="chunk"):
         voxfield.Field(W, algorithm="fim")
     field = voxfield.Field(W)
