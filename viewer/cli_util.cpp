@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <fstream>
 #include <vector>
@@ -141,6 +142,9 @@ void add_metric_flags(CLI::App& app, GeneratorFlags& flags) {
     app.add_option("--spacing", flags.spacing,
                    "Voxel size per world axis X,Y,Z (positive; default 1,1,1); each axis offset "
                    "is scaled by it before the metric (SciPy's sampling, in x,y,z order)");
+    app.add_option("--max-distance", flags.max_distance,
+                   "Bounded field: exact up to D, D beyond (a positive number, in the units of "
+                   "--spacing); an edit's update then touches only voxels within D of it");
 }
 
 void add_signed_flag(CLI::App& app, GeneratorFlags& flags) {
@@ -181,19 +185,34 @@ ocl::GeneratorOptions generator_options(const GeneratorFlags& flags, Format form
         o.spacing = parse_spacing(flags.spacing);
     }
     o.signed_field = flags.signed_field;
+    if (!flags.max_distance.empty()) {
+        char* end = nullptr;
+        const double d = std::strtod(flags.max_distance.c_str(), &end);
+        if (end != flags.max_distance.c_str() + flags.max_distance.size()) {
+            throw InputError("--max-distance '" + flags.max_distance + "' is not a number");
+        }
+        o.max_distance = d;
+    }
     return ocl::resolve_options(o, world);
 }
 
 Accuracy accuracy_of(const World& world, const Palette& palette,
                      const ocl::GeneratorOptions& options, const std::vector<std::uint8_t>& field) {
     const bool plain = options.metric == Metric::manhattan && options.spacing.unit() &&
-                       !options.signed_field && !holds_sign(options.format);
+                       !options.signed_field && !holds_sign(options.format) &&
+                       !options.max_distance;
     if (plain) {
         return compare_to_exact(field, options.format, ocl::exact_reference(world, options));
     }
-    const auto exact = options.signed_field
-                           ? reference_signed(world, options.metric, options.spacing)
-                           : reference_distance(world, options.metric, options.spacing);
+    auto exact = options.signed_field
+                     ? reference_signed(world, options.metric, options.spacing)
+                     : reference_distance(world, options.metric, options.spacing);
+    if (options.max_distance) {
+        const double bound = *options.max_distance;
+        for (double& v : exact) {
+            v = v < 0 ? -std::min(-v, bound) : std::min(v, bound);
+        }
+    }
     return compare_fields(field, encode_real_field(exact, world, palette, options.format),
                           options.format);
 }

@@ -30,12 +30,12 @@ Command add_view(CLI::App& root);
 // Options shared by the subcommands that run generators (--algorithm, --chunk, --focus,
 // --jfa-extra, --metric, --spacing, --signed), as typed, and their registration.
 struct GeneratorFlags {
-    std::string algorithm = "exact", focus, metric = "manhattan", spacing;
+    std::string algorithm = "exact", focus, metric = "manhattan", spacing, max_distance;
     std::uint32_t chunk = 0, jfa_extra = 0;
     bool signed_field = false;
 };
 void add_generator_flags(CLI::App& app, GeneratorFlags& flags);
-// Only --metric and --spacing (add_generator_flags includes them).
+// Only --metric, --spacing and --max-distance (add_generator_flags includes them).
 void add_metric_flags(CLI::App& app, GeneratorFlags& flags);
 // --signed, for the subcommands that write signed fields (generate, bench).
 void add_signed_flag(CLI::App& app, GeneratorFlags& flags);

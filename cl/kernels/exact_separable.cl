@@ -108,14 +108,15 @@ inline GT site_g(__global const GT* g, size_t base, size_t stride, int u, int n)
     return (u < 0 || u >= n) ? (GT)0 : g[base + (size_t)u * stride];
 }
 
-// Lower envelope of the sites of one line (Meijster's first phase): on return the stack
-// holds q + 1 sites s[k] owning positions [t[k], t[k+1]). Sites with no target are skipped;
-// `pad` adds the virtual empty sites at -1 and n. Returns q (-1: no site at all).
+// Lower envelope of the sites [i0, i1) of one line for the positions [o0, o1) (Meijster's
+// first phase): on return the stack holds q + 1 sites s[k] owning positions [t[k], t[k+1]).
+// Sites with no target are skipped; `pad` adds the virtual empty sites at -1 and n where the
+// site range reaches the line's ends. Returns q (-1: no site at all).
 inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int pad, float sp,
-                    __global int* s, __global int* t, size_t ks) {
+                    __global int* s, __global int* t, size_t ks, int o0, int o1, int i0, int i1) {
     int q = -1;
-    const int lo = pad ? -1 : 0;
-    const int hi = pad ? n : n - 1;
+    const int lo = pad && i0 == 0 ? -1 : i0;
+    const int hi = pad && i1 == n ? n : i1 - 1;
     for (int u = lo; u <= hi; ++u) {
         const GT gu = site_g(g, base, stride, u, n);
         if (gu == G_INF) {
@@ -136,8 +137,8 @@ inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int
         if (q < 0) {
             q = 0;
             s[0] = u;
-            t[0] = 0;
-        } else if (w < n) {
+            t[0] = o0;
+        } else if (w < o1) {
             ++q;
             s[q * ks] = u;
             t[q * ks] = w;
@@ -161,30 +162,35 @@ inline void mark(__global int* box, int x, int y, int z) {
 
 // ---- pass 1: rows along x, the 1-D distance to the nearest target ----
 
-// Row `base`'s nearest target to each voxel; `want` is the voxel value class (1 solid,
-// 0 empty), `pad` counts the virtual voxels at -1 and X as targets. `left` holds the row's
-// distances to the nearest target on the left between the two sweeps. With `box`, only
+// Row `base`'s nearest target to each voxel of [o0, o1) among the voxels [i0, i1);
+// `want` is the voxel value class (1 solid, 0 empty), `pad` counts the virtual voxels at -1
+// and X as targets where the range reaches them. Partials are capped at `cap`. `left` holds
+// the distances to the nearest target on the left between the two sweeps. With `box`, only
 // changed values are written and marked (y, z: the row's coordinates).
 inline void row_nearest(__global const uchar* vox, size_t base, int X, int want, int pad, float sx,
                         __global GT* g, __global uint* feat, __global int* left,
-                        __global int* box, int y, int z) {
-    int last = pad ? -1 : INT_MIN / 2;
-    for (int x = 0; x < X; ++x) {
+                        __global int* box, int y, int z, int o0, int o1, int i0, int i1,
+                        GT cap) {
+    int last = pad && i0 == 0 ? -1 : INT_MIN / 2;
+    for (int x = i0; x < o1; ++x) {
         if ((vox[base + x] != 0) == want) {
             last = x;
         }
-        left[x] = last;
+        left[x - i0] = last;
     }
-    int next = pad ? X : INT_MAX / 2;
-    for (int x = X - 1; x >= 0; --x) {
+    int next = pad && i1 == X ? X : INT_MAX / 2;
+    for (int x = i1 - 1; x >= o0; --x) {
         if ((vox[base + x] != 0) == want) {
             next = x;
         }
-        const int l = left[x];
+        if (x >= o1) {
+            continue;
+        }
+        const int l = left[x - i0];
         const bool has_l = l != INT_MIN / 2, has_n = next != INT_MAX / 2;
         const bool use_n = has_n && (!has_l || next - x < x - l);
         const int site = use_n ? next : l;
-        const GT v = (has_l || has_n) ? offset_part(abs(site - x), sx) : G_INF;
+        const GT v = (has_l || has_n) ? min(offset_part(abs(site - x), sx), cap) : G_INF;
         if (box == 0 || g[base + x] != v) {
             g[base + x] = v;
             if (box != 0) {
@@ -198,21 +204,24 @@ inline void row_nearest(__global const uchar* vox, size_t base, int X, int want,
     }
 }
 
-// Rows y in [lo.y, lo.y + size.y), z in [lo.z, lo.z + size.z), `per_item` per work-item;
-// `left` is each work-item's scratch of X ints (at scratch + item * istride).
+// Rows y in [lo.y, lo.y + size.y), z in [lo.z, lo.z + size.z), `per_item` per work-item,
+// their voxels x in [lo.x, lo.x + size.x) from the voxels [i0, i1); `left` is each
+// work-item's scratch of X ints (at scratch + item * istride).
 __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g,
                      __global GT* restrict h, __global uint* restrict feat, uint X, uint Y,
                      int4 lo, int4 size, uint per_item, float sx, __global int* restrict scratch,
-                     ulong istride, __global int* box) {
+                     ulong istride, __global int* box, int i0, int i1, GT cap) {
     const size_t rows = (size_t)size.y * size.z;
     __global int* left = scratch + get_global_id(0) * istride;
     const size_t r0 = get_global_id(0) * per_item;
     for (size_t r = r0; r < min(r0 + per_item, rows); ++r) {
         const int y = lo.y + (int)(r % size.y), z = lo.z + (int)(r / size.y);
         const size_t base = ((size_t)z * Y + y) * X;
-        row_nearest(vox, base, (int)X, 1, 0, sx, g, feat, left, box, y, z);
+        row_nearest(vox, base, (int)X, 1, 0, sx, g, feat, left, box, y, z, lo.x, lo.x + size.x,
+                    i0, i1, cap);
 #if SIGNED
-        row_nearest(vox, base, (int)X, 0, 1, sx, h, feat, left, box, y, z);
+        row_nearest(vox, base, (int)X, 0, 1, sx, h, feat, left, box, y, z, lo.x, lo.x + size.x,
+                    i0, i1, cap);
 #endif
     }
 }
@@ -225,15 +234,15 @@ __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g
 inline void line_pass(__global const GT* gin, __global GT* gout, size_t base, size_t stride,
                       int n, int pad, float sp, __global int* s, __global int* t, size_t ks,
                       __global const uint* fin, __global uint* fout, __global int* box, int x,
-                      int other, int axis) {
-    int q = envelope(gin, base, stride, n, pad, sp, s, t, ks);
-    for (int p = n - 1; p >= 0; --p) {
+                      int other, int axis, int o0, int o1, int i0, int i1, GT cap) {
+    int q = envelope(gin, base, stride, n, pad, sp, s, t, ks, o0, o1, i0, i1);
+    for (int p = o1 - 1; p >= o0; --p) {
         const size_t i = base + (size_t)p * stride;
         GT v = G_INF;
         uint f = UINT_MAX;
         if (q >= 0) {
             const int sq = s[q * ks];
-            v = fpart(p, sq, site_g(gin, base, stride, sq, n), sp);
+            v = min(fpart(p, sq, site_g(gin, base, stride, sq, n), sp), cap);
 #if INDICES
             f = fin[base + (size_t)sq * stride];
 #endif
@@ -261,7 +270,7 @@ inline void line_pass(__global const GT* gin, __global GT* gout, size_t base, si
 
 // Lines of length n and element stride `stride` along `axis` (1: y, 2: z): line l has x =
 // lo_x + l % count_x and the other coordinate lo_o + l / count_x, and starts at
-// other * mstride + x. Lines outside `skip` (the box the previous pass changed; null: none
+// other * mstride + x; positions [o0, o1) from the sites [i0, i1), partials capped at `cap`. Lines outside `skip` (the box the previous pass changed; null: none
 // skipped) are left as they are. The stacks of work-item w are at scratch + w * istride,
 // their k-th entries k * kstride further.
 __kernel void col_pass(__global const GT* restrict g, __global GT* restrict gout,
@@ -270,7 +279,7 @@ __kernel void col_pass(__global const GT* restrict g, __global GT* restrict gout
                        __global int* restrict scratch, uint n, ulong stride, ulong mstride,
                        int lo_x, int count_x, int lo_o, int count_o, uint per_item, ulong kstride,
                        ulong istride, float sp, int axis, __global const int* skip,
-                       __global int* box) {
+                       __global int* box, int o0, int o1, int i0, int i1, GT cap) {
     const size_t w = get_global_id(0);
     __global int* s = scratch + w * istride;
     __global int* t = s + (size_t)(n + 2) * kstride;
@@ -287,14 +296,14 @@ __kernel void col_pass(__global const GT* restrict g, __global GT* restrict gout
             continue;
         }
         if (box != 0) {
-            atomic_add(&box[6], (int)n);
+            atomic_add(&box[6], o1 - o0);
         }
         const size_t base = (size_t)other * mstride + x;
         line_pass(g, gout, base, stride, (int)n, 0, sp, s, t, kstride, fin, fout, box, x, other,
-                  axis);
+                  axis, o0, o1, i0, i1, cap);
 #if SIGNED
         line_pass(h, hout, base, stride, (int)n, 1, sp, s, t, kstride, fin, fout, box, x, other,
-                  axis);
+                  axis, o0, o1, i0, i1, cap);
 #endif
     }
 }
@@ -331,7 +340,7 @@ inline void store(__global OUT_T* out, __constant uchar* rgb, uchar v, size_t i,
 __kernel void finish(__global const GT* restrict g, __global const GT* restrict h,
                      __global const uchar* restrict vox, __constant uchar* rgb,
                      __global OUT_T* restrict out, __global const uint* restrict feat,
-                     __global int* restrict idx, uint X, uint Y, ulong count, int4 lo, int4 size) {
+                     __global int* restrict idx, uint X, uint Y, ulong count, int4 lo, int4 size, double dmax) {
     const size_t k = get_global_id(0);
     if (k >= (size_t)size.x * size.y * size.z) {
         return;
@@ -341,9 +350,9 @@ __kernel void finish(__global const GT* restrict g, __global const GT* restrict 
     const size_t i = ((size_t)z * Y + y) * X + x;
     const uchar v = vox[i];
 #if SIGNED
-    const double d = v != 0 ? -distance_of(h[i]) : distance_of(g[i]);
+    const double d = v != 0 ? -min(distance_of(h[i]), dmax) : min(distance_of(g[i]), dmax);
 #else
-    const double d = distance_of(g[i]);
+    const double d = min(distance_of(g[i]), dmax);
 #endif
     store(out, rgb, v, i, d);
 #if INDICES

@@ -2,6 +2,8 @@
 #include "voxfield/cl/generator.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <sstream>
 #include <stdexcept>
 
 #include "classic.hpp"
@@ -109,6 +111,15 @@ GeneratorOptions resolve_options(const GeneratorOptions& options, Dims world) {
             throw InputError("--format " + to_string(o.format) + ": " + name +
                              " writes u8, u16, u32 or packed32 only");
         }
+    }
+    if (o.max_distance && !(std::isfinite(*o.max_distance) && *o.max_distance > 0)) {
+        std::ostringstream text;
+        text << *o.max_distance;
+        throw InputError("--max-distance must be a positive number, not " + text.str());
+    }
+    if (o.max_distance && o.algorithm != Algorithm::exact) {
+        throw InputError("--max-distance: " + name +
+                         " has no bounded fields; use --algorithm exact");
     }
     if (o.signed_field && !holds_sign(o.format)) {
         throw InputError("--signed needs a signed format (i8, i16, i32, f32 or f64), not " +

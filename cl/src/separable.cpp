@@ -3,6 +3,8 @@
 #include "voxfield/cl/separable.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <string>
 
 #include "util.hpp"
@@ -49,7 +51,7 @@ OutType out_type(Format f) {
 
 bool ExactSeparable::needed(const GeneratorOptions& o) {
     return o.metric != Metric::manhattan || !o.spacing.unit() || o.signed_field || o.indices ||
-           holds_sign(o.format);
+           o.max_distance.has_value() || holds_sign(o.format);
 }
 
 ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& palette,
@@ -96,7 +98,7 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
     x_stride_ = X;
     const std::size_t most_lines = std::size_t{X} * std::max(Y, Z);
     const std::size_t scratch_ints = std::max(x_items(Box{{0, 0, 0}, {X, Y, Z}}) * x_stride_,
-                                              col_items(most_lines) * col_stride_);
+                                              col_items(most_lines, Span{0, X}) * col_stride_);
 
     cl_call("allocating and uploading, " + sizes, [&] {
         auto& c = ctx.context();
@@ -132,17 +134,40 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
         track_init_[2 * axis] = 0x7FFFFFFF;
         track_init_[2 * axis + 1] = -1;
     }
+    const std::int64_t extent[3] = {X, Y, Z};
+    const double step[3] = {spacing_.x, spacing_.y, spacing_.z};
+    if (options.max_distance) {
+        const double bound = *options.max_distance;
+        const double part = options.metric == Metric::euclidean ? bound * bound : bound;
+        max_distance_ = bound;
+        cap_unit_ = static_cast<cl_uint>(std::min(std::ceil(part), 4294967294.0));
+        cap_float_ = static_cast<float>(part * (1 + 1e-6));
+        // A site r voxels away along an axis is at least r * spacing away in every metric,
+        // so beyond bound / spacing + 1 it cannot come under the cap.
+        for (std::size_t a = 0; a < 3; ++a) {
+            reach_[a] = std::min<std::int64_t>(
+                extent[a], static_cast<std::int64_t>(std::ceil(bound / step[a])) + 1);
+        }
+    } else {
+        max_distance_ = std::numeric_limits<double>::infinity();
+        cap_unit_ = 0xFFFFFFFFu;
+        cap_float_ = std::numeric_limits<float>::infinity();
+        for (std::size_t a = 0; a < 3; ++a) {
+            reach_[a] = extent[a];
+        }
+    }
 
     cl_call("setting up kernels, " + sizes, [&] {
         const Box all{{0, 0, 0}, {X, Y, Z}};
         const cl::Buffer none;
-        stages_.push_back({"x_pass", x_kernel(all, none), x_items(all), false});
+        const Span xs{0, X}, ys{0, Y}, zs{0, Z};
+        stages_.push_back({"x_pass", x_kernel(all, xs, none), x_items(all), false});
         // Full transforms reuse the x pass's buffer for the z pass; incremental ones keep all.
         const int last = incremental ? 2 : 0;
-        stages_.push_back({"y_pass", col_kernel(1, 0, 1, 0, Z, none, none),
-                           col_items(std::size_t{X} * Z), false});
-        stages_.push_back({"z_pass", col_kernel(2, 1, last, 0, Y, none, none),
-                           col_items(std::size_t{X} * Y), false});
+        stages_.push_back({"y_pass", col_kernel(1, 0, 1, xs, zs, ys, ys, none, none),
+                           col_items(std::size_t{X} * Z, xs), false});
+        stages_.push_back({"z_pass", col_kernel(2, 1, last, xs, ys, zs, zs, none, none),
+                           col_items(std::size_t{X} * Y, xs), false});
         stages_.push_back({"finish", finish_kernel(last, all), n, true});
     });
 }
@@ -154,12 +179,21 @@ std::size_t ExactSeparable::x_items(const Box& rows) const {
     return gpu_layout_ ? ny * nz : nz;
 }
 
-std::size_t ExactSeparable::col_items(std::size_t lines) const {
+std::size_t ExactSeparable::col_items(std::size_t lines, Span xs) const {
     // CPU: the lines of one x row per work-item; GPU: one line each.
-    return gpu_layout_ ? lines : (lines + dims_.x - 1) / dims_.x;
+    const auto row = static_cast<std::size_t>(xs.hi - xs.lo);
+    return gpu_layout_ ? lines : (lines + row - 1) / row;
 }
 
-cl::Kernel ExactSeparable::x_kernel(const Box& rows, const cl::Buffer& box) {
+void ExactSeparable::set_cap(cl::Kernel& k, cl_uint index) const {
+    if (spacing_.unit()) {
+        k.setArg(index, cap_unit_);
+    } else {
+        k.setArg(index, cap_float_);
+    }
+}
+
+cl::Kernel ExactSeparable::x_kernel(const Box& rows, Span in, const cl::Buffer& box) {
     const cl_int4 lo{{static_cast<cl_int>(rows.min.x), static_cast<cl_int>(rows.min.y),
                       static_cast<cl_int>(rows.min.z), 0}};
     const cl_int4 size{{static_cast<cl_int>(rows.max.x - rows.min.x),
@@ -179,15 +213,18 @@ cl::Kernel ExactSeparable::x_kernel(const Box& rows, const cl::Buffer& box) {
     k.setArg(10, scratch_);
     k.setArg(11, static_cast<cl_ulong>(x_stride_));
     k.setArg(12, box);
+    k.setArg(13, static_cast<cl_int>(in.lo));
+    k.setArg(14, static_cast<cl_int>(in.hi));
+    set_cap(k, 15);
     return k;
 }
 
-cl::Kernel ExactSeparable::col_kernel(int axis, int from, int to, std::int64_t lo_o,
-                                      std::int64_t count_o, const cl::Buffer& skip,
-                                      const cl::Buffer& box) {
+cl::Kernel ExactSeparable::col_kernel(int axis, int from, int to, Span xs, Span others, Span out,
+                                      Span in, const cl::Buffer& skip, const cl::Buffer& box) {
     const std::uint32_t X = dims_.x, Y = dims_.y;
     const bool along_y = axis == 1;
-    const std::size_t lines = std::size_t{X} * static_cast<std::size_t>(count_o);
+    const std::size_t lines =
+        static_cast<std::size_t>(xs.hi - xs.lo) * static_cast<std::size_t>(others.hi - others.lo);
     cl::Kernel k(program_, "col_pass");
     k.setArg(0, g_[from]);
     k.setArg(1, g_[to]);
@@ -199,18 +236,23 @@ cl::Kernel ExactSeparable::col_kernel(int axis, int from, int to, std::int64_t l
     k.setArg(7, along_y ? Y : dims_.z);
     k.setArg(8, static_cast<cl_ulong>(along_y ? X : std::size_t{X} * Y));
     k.setArg(9, static_cast<cl_ulong>(along_y ? std::size_t{X} * Y : X));
-    k.setArg(10, cl_int{0});
-    k.setArg(11, static_cast<cl_int>(X));
-    k.setArg(12, static_cast<cl_int>(lo_o));
-    k.setArg(13, static_cast<cl_int>(count_o));
-    k.setArg(14, gpu_layout_ ? cl_uint{1} : X);
+    k.setArg(10, static_cast<cl_int>(xs.lo));
+    k.setArg(11, static_cast<cl_int>(xs.hi - xs.lo));
+    k.setArg(12, static_cast<cl_int>(others.lo));
+    k.setArg(13, static_cast<cl_int>(others.hi - others.lo));
+    k.setArg(14, gpu_layout_ ? cl_uint{1} : static_cast<cl_uint>(xs.hi - xs.lo));
     // CPU: each work-item's stack contiguous; GPU: interleaved across work-items.
-    k.setArg(15, static_cast<cl_ulong>(gpu_layout_ ? col_items(lines) : 1));
+    k.setArg(15, static_cast<cl_ulong>(gpu_layout_ ? col_items(lines, xs) : 1));
     k.setArg(16, static_cast<cl_ulong>(gpu_layout_ ? 1 : col_stride_));
     k.setArg(17, static_cast<float>(along_y ? spacing_.y : spacing_.z));
     k.setArg(18, cl_int{axis});
     k.setArg(19, skip);
     k.setArg(20, box);
+    k.setArg(21, static_cast<cl_int>(out.lo));
+    k.setArg(22, static_cast<cl_int>(out.hi));
+    k.setArg(23, static_cast<cl_int>(in.lo));
+    k.setArg(24, static_cast<cl_int>(in.hi));
+    set_cap(k, 25);
     return k;
 }
 
@@ -233,6 +275,7 @@ cl::Kernel ExactSeparable::finish_kernel(int from, const Box& voxels) {
     k.setArg(9, static_cast<cl_ulong>(dims_.count()));
     k.setArg(10, lo);
     k.setArg(11, size);
+    k.setArg(12, max_distance_);
     return k;
 }
 
@@ -269,8 +312,19 @@ ExactSeparable::Update ExactSeparable::update(const Box& edited, std::vector<cl:
     }
     return cl_call("updating exact_separable.cl's field of " + dims_.to_string(), [&] {
         auto& q = ctx_.queue();
-        const std::int64_t X = dims_.x, Y = dims_.y;
-        const Box rows{{0, edited.min.y, edited.min.z}, {X, edited.max.y, edited.max.z}};
+        const std::int64_t X = dims_.x, Y = dims_.y, Z = dims_.z;
+        // Unbounded: whole lines. Bounded: what can change lies within reach_ of the edit,
+        // and depends on the voxels within reach_ of that.
+        auto near = [](std::int64_t lo, std::int64_t hi, std::int64_t r, std::int64_t n) {
+            return Span{std::max<std::int64_t>(0, lo - r), std::min(n, hi + r)};
+        };
+        const Span xo = near(edited.min.x, edited.max.x, reach_[0], X);
+        const Span xi = near(edited.min.x, edited.max.x, 2 * reach_[0], X);
+        const Span yo = near(edited.min.y, edited.max.y, reach_[1], Y);
+        const Span yi = near(edited.min.y, edited.max.y, 2 * reach_[1], Y);
+        const Span zo = near(edited.min.z, edited.max.z, reach_[2], Z);
+        const Span zi = near(edited.min.z, edited.max.z, 2 * reach_[2], Z);
+        const Box rows{{xo.lo, edited.min.y, edited.min.z}, {xo.hi, edited.max.y, edited.max.z}};
         const std::size_t row_count =
             static_cast<std::size_t>((rows.max.y - rows.min.y) * (rows.max.z - rows.min.z));
         // The change boxes of the x, y and z passes (7 ints each, as mark() writes them).
@@ -284,17 +338,20 @@ ExactSeparable::Update ExactSeparable::update(const Box& edited, std::vector<cl:
             events.emplace_back();
             enqueue(k, items, per_voxel, &events.back());
         };
-        launch(x_kernel(rows, box[0]), x_items(rows));
-        launch(col_kernel(1, 0, 1, rows.min.z, rows.max.z - rows.min.z, box[0], box[1]),
-               col_items(static_cast<std::size_t>(X * (rows.max.z - rows.min.z))));
-        launch(col_kernel(2, 1, 2, 0, Y, box[1], box[2]),
-               col_items(static_cast<std::size_t>(X * Y)));
+        const Span zb_rows{edited.min.z, edited.max.z};
+        launch(x_kernel(rows, xi, box[0]), x_items(rows));
+        launch(
+            col_kernel(1, 0, 1, xo, zb_rows, yo, yi, box[0], box[1]),
+            col_items(static_cast<std::size_t>((xo.hi - xo.lo) * (zb_rows.hi - zb_rows.lo)), xo));
+        launch(col_kernel(2, 1, 2, xo, yo, zo, zi, box[1], box[2]),
+               col_items(static_cast<std::size_t>((xo.hi - xo.lo) * (yo.hi - yo.lo)), xo));
         std::array<cl_int, 7> yb{}, zb{};
         q.enqueueReadBuffer(track_[1], CL_FALSE, 0, sizeof(yb), yb.data());
         q.enqueueReadBuffer(track_[2], CL_TRUE, 0, sizeof(zb), zb.data());
         Update u;
-        u.voxels_recomputed = static_cast<std::uint64_t>(row_count) * dims_.x +
-                              static_cast<std::uint64_t>(yb[6]) + static_cast<std::uint64_t>(zb[6]);
+        u.voxels_recomputed =
+            static_cast<std::uint64_t>(row_count) * static_cast<std::uint64_t>(xo.hi - xo.lo) +
+            static_cast<std::uint64_t>(yb[6]) + static_cast<std::uint64_t>(zb[6]);
         const Box changed =
             zb[0] > zb[1] ? Box{} : Box{{zb[0], zb[2], zb[4]}, {zb[1] + 1, zb[3] + 1, zb[5] + 1}};
         u.changed = changed;

@@ -83,6 +83,7 @@ TEST(Incremental, EveryMetricStaysExact) {
         Spacing spacing;
         bool signed_field;
         Format format;
+        std::optional<double> max_distance = std::nullopt;
     };
     const Case cases[] = {{Metric::chebyshev, {}, false, Format::u16},
                           {Metric::euclidean, {}, false, Format::f32},
@@ -90,7 +91,10 @@ TEST(Incremental, EveryMetricStaysExact) {
                           {Metric::chebyshev, {}, true, Format::i16},
                           {Metric::euclidean, {}, true, Format::f32},
                           {Metric::manhattan, {}, true, Format::i8},
-                          {Metric::manhattan, {2.0, 1.0, 0.5}, false, Format::packed32}};
+                          {Metric::manhattan, {2.0, 1.0, 0.5}, false, Format::packed32},
+                          {Metric::manhattan, {}, false, Format::u16, 4.0},
+                          {Metric::euclidean, {}, false, Format::f32, 6.5},
+                          {Metric::chebyshev, {1.0, 2.0, 0.5}, true, Format::f32, 3.0}};
     for (const Case& c : cases) {
         for (const ocl::Layout layout : {ocl::Layout::cpu, ocl::Layout::gpu}) {
             std::mt19937_64 rng(4321);
@@ -99,11 +103,14 @@ TEST(Incremental, EveryMetricStaysExact) {
             o.metric = c.metric;
             o.spacing = c.spacing;
             o.signed_field = c.signed_field;
+            o.max_distance = c.max_distance;
             o.layout = layout;
             ocl::IncrementalField field(pocl(), start, Palette(), o);
-            const std::string what = to_string(c.metric) + " " + c.spacing.to_string() +
-                                     (c.signed_field ? " signed " : " ") + to_string(c.format) +
-                                     (layout == ocl::Layout::cpu ? " cpu" : " gpu");
+            const std::string what =
+                to_string(c.metric) + " " + c.spacing.to_string() +
+                (c.signed_field ? " signed " : " ") + to_string(c.format) +
+                (c.max_distance ? " max " + std::to_string(*c.max_distance) : "") +
+                (layout == ocl::Layout::cpu ? " cpu" : " gpu");
             for (int batch = 0; batch < 40; ++batch) {
                 std::vector<Brush> brushes;
                 for (int i = 0; i < (batch % 4 == 0 ? 3 : 1); ++i) {
@@ -114,6 +121,32 @@ TEST(Incremental, EveryMetricStaysExact) {
                 ASSERT_TRUE(field.read() == want) << what << ", after batch " << batch;
                 if (stats.edits.front().changed()) {
                     EXPECT_GT(stats.voxels_recomputed, 0u) << what;
+                }
+                // Bounded: every changed voxel lies within D (in voxels of the finest
+                // spacing) of an edited one, plus the one-voxel slack of rounding up.
+                for (const Box& r : stats.regions) {
+                    if (!c.max_distance) {
+                        break;
+                    }
+                    const double finest = std::min({c.spacing.x, c.spacing.y, c.spacing.z});
+                    const auto reach = static_cast<std::int64_t>(*c.max_distance / finest) + 2;
+                    Box hull = stats.edits.front().bounds;
+                    for (const EditResult& e : stats.edits) {
+                        if (e.changed()) {
+                            hull = Box{{std::min(hull.min.x, e.bounds.min.x),
+                                        std::min(hull.min.y, e.bounds.min.y),
+                                        std::min(hull.min.z, e.bounds.min.z)},
+                                       {std::max(hull.max.x, e.bounds.max.x),
+                                        std::max(hull.max.y, e.bounds.max.y),
+                                        std::max(hull.max.z, e.bounds.max.z)}};
+                        }
+                    }
+                    EXPECT_GE(r.min.x, hull.min.x - reach) << what;
+                    EXPECT_LE(r.max.x, hull.max.x + reach) << what;
+                    EXPECT_GE(r.min.y, hull.min.y - reach) << what;
+                    EXPECT_LE(r.max.y, hull.max.y + reach) << what;
+                    EXPECT_GE(r.min.z, hull.min.z - reach) << what;
+                    EXPECT_LE(r.max.z, hull.max.z + reach) << what;
                 }
             }
         }

@@ -166,6 +166,27 @@ TEST(ExactSeparable, EveryFormatOfEveryMetric) {
     }
 }
 
+TEST(ExactSeparable, BoundedFieldsAreTheExactFieldCappedAtD) {
+    const World w = scene_random(Dims{45, 33, 38}, 0.004, 5);
+    for (Metric m : kMetrics) {
+        for (const Spacing& s : {Spacing{}, Spacing{0.7, 1.3, 2.0}}) {
+            for (double bound : {1.0, 4.5, 16.0}) {
+                for (bool sgn : {false, true}) {
+                    auto ref = sgn ? reference_signed(w, m, s) : reference_distance(w, m, s);
+                    for (double& v : ref) {
+                        v = v < 0 ? -std::min(-v, bound) : std::min(v, bound);
+                    }
+                    for (Layout layout : kLayouts) {
+                        auto o = options(m, s, sgn, float_or(m, s, sgn), layout);
+                        o.max_distance = bound;
+                        expect_matches(w, Palette(), o, ref, "bounded " + std::to_string(bound));
+                    }
+                }
+            }
+        }
+    }
+}
+
 TEST(ExactSeparable, SaturatesLongDistances) {
     // A lone voxel in a long world: distances beyond 255 saturate u8 and i8.
     World w(Dims{300, 2, 3});
@@ -263,6 +284,11 @@ TEST(ExactSeparable, RefusesBadCombinations) {
     o = options(Metric::chebyshev, Spacing{}, false, Format::u16, Layout::cpu);
     o.algorithm = ocl::Algorithm::fim;
     EXPECT_THROW(ocl::generate(pocl(), w, Palette(), o), InputError);
+    for (double bad : {0.0, -1.0, std::nan("")}) {
+        o = options(Metric::euclidean, Spacing{}, false, Format::f32, Layout::cpu);
+        o.max_distance = bad;
+        EXPECT_THROW(ocl::generate(pocl(), w, Palette(), o), InputError) << bad;
+    }
 }
 
 }  // namespace

@@ -64,6 +64,9 @@ struct GeneratorOptions {
     Spacing spacing;            // world axis order x, y, z
     bool signed_field = false;  // DESIGN §3 signed field; needs a format that holds_sign
     bool indices = false;       // also compute the feature transform (unsigned fields only)
+    // Bounded field (DESIGN §3): exact up to D, D beyond; an incremental update then touches
+    // only voxels within D of an edit. Positive and finite.
+    std::optional<double> max_distance;
 };
 
 // The format a field gets when none is asked for (DESIGN §3): u16 (i16 when signed) for

@@ -46,12 +46,19 @@ class ExactSeparable : public Generator {
         bool per_voxel;     // one voxel per work-item (finish)
     };
     void enqueue(const cl::Kernel& k, std::size_t items, bool per_voxel, cl::Event* event);
-    cl::Kernel x_kernel(const Box& rows, const cl::Buffer& box);
-    cl::Kernel col_kernel(int axis, int from, int to, std::int64_t lo_o, std::int64_t count_o,
+    struct Span {
+        std::int64_t lo = 0, hi = 0;  // [lo, hi) along one axis
+    };
+    // x pass over `rows` (its x extent: the voxels written) from the voxels `in` of each row.
+    cl::Kernel x_kernel(const Box& rows, Span in, const cl::Buffer& box);
+    // y (axis 1) or z (axis 2) pass from partials g_[from] to g_[to], over the lines at x in
+    // `xs` and z (y pass) or y (z pass) in `others`, positions `out` from sites `in`.
+    cl::Kernel col_kernel(int axis, int from, int to, Span xs, Span others, Span out, Span in,
                           const cl::Buffer& skip, const cl::Buffer& box);
+    void set_cap(cl::Kernel& k, cl_uint index) const;
     cl::Kernel finish_kernel(int from, const Box& voxels);
     std::size_t x_items(const Box& rows) const;
-    std::size_t col_items(std::size_t lines) const;
+    std::size_t col_items(std::size_t lines, Span xs) const;
 
     bool gpu_layout_;
     bool incremental_;
@@ -61,6 +68,12 @@ class ExactSeparable : public Generator {
     std::size_t col_stride_ = 0;          // ints per work-item stack (CPU layout)
     std::size_t x_stride_ = 0;            // ints per work-item row scratch (CPU layout)
     std::array<cl_int, 7> track_init_{};  // an empty change box, 0 voxels
+    // --max-distance: the output's bound (+inf: none), the partials' cap in the kernels' own
+    // units, and per axis how far (voxels) a site can matter: a whole line when unbounded.
+    double max_distance_ = 0;
+    cl_uint cap_unit_ = 0;
+    float cap_float_ = 0;
+    std::int64_t reach_[3] = {0, 0, 0};
     std::vector<Stage> stages_;
 };
 
