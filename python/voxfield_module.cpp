@@ -236,6 +236,17 @@ Spacing spacing_of(const py::object& sampling) {
     return {zyx[2], zyx[1], zyx[0]};
 }
 
+// max_distance: None (unbounded) or a number; resolve_options checks that it is positive.
+std::optional<double> bound_of(const py::object& max_distance) {
+    if (max_distance.is_none()) {
+        return std::nullopt;
+    }
+    if (py::isinstance<py::str>(max_distance) || py::isinstance<py::bytes>(max_distance)) {
+        throw py::type_error("max_distance must be None or a number, not a string");
+    }
+    return py::float_(max_distance).cast<double>();  // TypeError for anything else
+}
+
 Format format_of(const std::optional<std::string>& format, Metric metric, const Spacing& spacing,
                  bool signed_field) {
     return format ? parse_format(*format) : ocl::default_format(metric, spacing, signed_field);
@@ -246,12 +257,9 @@ py::object distance_transform(const py::object& world, const std::string& metric
                               const py::object& max_distance,
                               const std::optional<std::string>& format,
                               const std::string& algorithm, const py::object& device) {
-    if (!max_distance.is_none()) {
-        throw py::value_error(
-            "max_distance is not supported yet: the library computes unbounded fields only");
-    }
     const WorldArray w = world_array(world);
     ocl::GeneratorOptions o;
+    o.max_distance = bound_of(max_distance);
     o.algorithm = ocl::parse_algorithm(algorithm);
     o.metric = parse_metric(metric);
     o.spacing = spacing_of(sampling);
@@ -422,9 +430,10 @@ class Field {
   public:
     Field(const py::object& world, const std::string& metric, const py::object& device,
           const std::string& algorithm, const std::optional<std::string>& format,
-          const py::object& sampling, bool signed_field) {
+          const py::object& sampling, bool signed_field, const py::object& max_distance) {
         const WorldArray w = world_array(world);
         ocl::GeneratorOptions o;
+        o.max_distance = bound_of(max_distance);
         o.algorithm = ocl::parse_algorithm(algorithm);
         o.metric = parse_metric(metric);
         o.spacing = spacing_of(sampling);
@@ -570,8 +579,8 @@ PYBIND11_MODULE(voxfield, m) {
           "return_indices: also return an int32 array of shape (3, Z, Y, X) holding the "
           "(z, y, x) of a nearest solid voxel of every voxel (-1 without solids), SciPy's "
           "layout; unsigned fields only.\n"
-          "max_distance: bounded fields are not supported yet; anything but None raises "
-          "ValueError.\n"
+          "max_distance: a bounded field, exact up to this distance (positive) and equal to it "
+          "beyond (saturated); exact algorithm only. None: unbounded.\n"
           "format: 'u8', 'u16', 'u32', 'packed32' (uint8/uint16/uint32; distances rounded "
           "down, saturated), 'i8', 'i16', 'i32' (signed, toward zero), 'f32', 'f64'. Default: "
           "u16 (i16 when signed) for manhattan and chebyshev with unit sampling, f32 "
@@ -588,21 +597,23 @@ PYBIND11_MODULE(voxfield, m) {
     py::class_<vp::Field>(
         m, "Field",
         "Field(world, metric='manhattan', device=None, algorithm='exact', format=None, *, "
-        "sampling=None, signed=False)\n\n"
+        "sampling=None, signed=False, max_distance=None)\n\n"
         "A copy of `world` and its distance field kept on the device across edits: each edit "
         "uploads only the changed voxels and recomputes only what it can change, exactly "
         "(`voxfield replay`); the field always equals distance_transform of world() with the "
-        "same arguments. world, metric, sampling, signed, format and device: as for "
+        "same arguments. world, metric, sampling, signed, max_distance, format and device: as for "
         "distance_transform (packed32 uses MagicaVoxel's default palette). algorithm: 'exact' "
         "(global semantics) or a chunk-local one of the dissertation (brute-chunked, lod, "
         "monolithic in 16^3 chunks; manhattan only).")
         .def(py::init<const py::object&, const std::string&, const py::object&, const std::string&,
-                      const std::optional<std::string>&, const py::object&, bool>(),
+                      const std::optional<std::string>&, const py::object&, bool,
+                      const py::object&>(),
              py::arg("world"), py::arg("metric") = "manhattan", py::arg("device") = py::none(),
              py::arg("algorithm") = "exact", py::arg("format") = py::none(), py::kw_only(),
              py::arg("sampling") = py::none(), py::arg("signed") = false,
+             py::arg("max_distance") = py::none(),
              "Field(world, metric='manhattan', device=None, algorithm='exact', format=None, *, "
-             "sampling=None, signed=False)\n\n"
+             "sampling=None, signed=False, max_distance=None)\n\n"
              "Uploads a copy of `world` and computes its field (see the class).")
         .def("edit", &vp::Field::edit, py::arg("op"), py::arg("shape"), py::arg("center"),
              py::arg("radius"), py::arg("material") = 1,

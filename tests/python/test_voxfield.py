@@ -156,6 +156,18 @@ def test_signed_equals_padded_edt_difference():
             np.testing.assert_array_equal(ours, want)
 
 
+def test_bounded_fields_saturate_at_max_distance():
+    for world in worlds():
+        mask = world == 0
+        ours = voxfield.distance_transform(world, max_distance=4)
+        assert ours.dtype == np.uint16
+        cdt = ndimage.distance_transform_cdt(mask, metric="taxicab")
+        np.testing.assert_array_equal(ours, np.minimum(cdt, 4))
+        ours = voxfield.distance_transform(world, metric="euclidean", max_distance=2.5)
+        edt = np.minimum(ndimage.distance_transform_edt(mask), 2.5).astype(np.float32)
+        np.testing.assert_array_max_ulp(ours, edt, maxulp=1)
+
+
 def test_empty_world_saturates():
     world = np.zeros(A, np.uint8)
     assert (voxfield.distance_transform(world) == 65535).all()
@@ -284,6 +296,7 @@ def test_field_every_metric_sampling_and_sign():
     world = random_world(A, 0.01, 51)
     cases = [dict(metric="chebyshev"), dict(metric="euclidean"),
              dict(metric="euclidean", sampling=(2.0, 0.5, 1.0)), dict(signed=True),
+             dict(max_distance=3), dict(metric="euclidean", max_distance=2.5),
              dict(metric="euclidean", signed=True), dict(sampling=1.5, format="f64")]
     for kwargs in cases:
         field = voxfield.Field(world, **kwargs)
@@ -381,7 +394,12 @@ BAD_OPTIONS = [
     (dict(sampling=0), ValueError, "positive"),
     (dict(sampling=(1, float("nan"), 1)), ValueError, "positive"),
     (dict(sampling="abc"), TypeError, "sampling"),
-    (dict(max_distance=4), ValueError, "max_distance is not supported yet"),
+    (dict(max_distance=0), ValueError, "max-distance"),
+    (dict(max_distance=-2.5), ValueError, "max-distance"),
+    (dict(max_distance=float("nan")), ValueError, "max-distance"),
+    (dict(max_distance="4"), TypeError, "max_distance"),
+    (dict(max_distance=[4]), TypeError, ""),
+    (dict(max_distance=4, algorithm="fim"), ValueError, "max-distance"),
     (dict(signed=True, format="u16"), ValueError, "signed format"),
     (dict(signed=True, return_indices=True), ValueError, "unsigned field"),
     (dict(metric="euclidean", algorithm="fim"), ValueError, "manhattan"),
