@@ -279,7 +279,7 @@ __kernel void col_pass(__global const GT* restrict g, __global GT* restrict gout
                        __global int* restrict scratch, uint n, ulong stride, ulong mstride,
                        int lo_x, int count_x, int lo_o, int count_o, uint per_item, ulong kstride,
                        ulong istride, float sp, int axis, __global const int* skip,
-                       __global int* box, int o0, int o1, int i0, int i1, GT cap) {
+                       __global int* box, int o0, int o1, int i0, int i1, GT cap, int tile_w) {
     const size_t w = get_global_id(0);
     __global int* s = scratch + w * istride;
     __global int* t = s + (size_t)(n + 2) * kstride;
@@ -288,6 +288,51 @@ __kernel void col_pass(__global const GT* restrict g, __global GT* restrict gout
     // The previous pass marked (x, y, z); this pass's lines are indexed by x and the
     // coordinate of the axis it does not run along: z for the y pass, y for the z pass.
     const int skip_o = axis == 1 ? 4 : 2;
+    if (tile_w > 0) {
+        // CPU layout (a row of lines per work-item): tile_w adjacent lines at a time are
+        // copied into a contiguous tile and transformed there, so that the lines' strided
+        // elements (a power of two apart in power-of-two worlds, all in one cache set) are
+        // read from memory once, a cache line at a time.
+        __global GT* tin = (__global GT*)(t + (size_t)(n + 2) * kstride);
+        __global GT* tout = tin + (size_t)n * tile_w;
+        for (size_t c0 = l0; c0 < min(l0 + per_item, lines); c0 += (size_t)tile_w) {
+            const int cw = (int)(min(min(c0 + tile_w, l0 + per_item), lines) - c0);
+            const int x0 = lo_x + (int)(c0 % count_x);
+            const int other = lo_o + (int)(c0 / count_x);
+            if (skip != 0 && (x0 + cw - 1 < skip[0] || x0 > skip[1] || other < skip[skip_o] ||
+                              other > skip[skip_o + 1])) {
+                continue;
+            }
+            if (box != 0) {
+                atomic_add(&box[6], (o1 - o0) * cw);
+            }
+            const size_t base = (size_t)other * mstride + x0;
+            for (int cls = 0; cls < 1 + SIGNED; ++cls) {
+                __global const GT* src = cls == 0 ? g : h;
+                __global GT* dst = cls == 0 ? gout : hout;
+                for (int u = i0; u < i1; ++u) {
+                    for (int c = 0; c < cw; ++c) {
+                        tin[u * tile_w + c] = src[base + (size_t)u * stride + c];
+                    }
+                }
+                for (int u = o0; u < o1 && box != 0; ++u) {
+                    for (int c = 0; c < cw; ++c) {
+                        tout[u * tile_w + c] = dst[base + (size_t)u * stride + c];
+                    }
+                }
+                for (int c = 0; c < cw; ++c) {
+                    line_pass(tin, tout, (size_t)c, (size_t)tile_w, (int)n, cls, sp, s, t, kstride,
+                              fin, fout, box, x0 + c, other, axis, o0, o1, i0, i1, cap);
+                }
+                for (int u = o0; u < o1; ++u) {
+                    for (int c = 0; c < cw; ++c) {
+                        dst[base + (size_t)u * stride + c] = tout[u * tile_w + c];
+                    }
+                }
+            }
+        }
+        return;
+    }
     for (size_t l = l0; l < min(l0 + per_item, lines); ++l) {
         const int x = lo_x + (int)(l % count_x);
         const int other = lo_o + (int)(l / count_x);
@@ -336,17 +381,17 @@ inline void store(__global OUT_T* out, __constant uchar* rgb, uchar v, size_t i,
 
 // Writes the output format from the final partials (and the index planes: z, y, x of the
 // nearest solid, -1 without one, as SciPy's return_indices lays them out) for the voxels of
-// the box lo + [0, size): the whole world, or the voxels an incremental update changed.
+// the box lo + [0, size): the whole world, or the voxels an incremental update changed. One
+// work-item per voxel in a 3-D range (x rounded up to the work-group size).
 __kernel void finish(__global const GT* restrict g, __global const GT* restrict h,
                      __global const uchar* restrict vox, __constant uchar* rgb,
                      __global OUT_T* restrict out, __global const uint* restrict feat,
                      __global int* restrict idx, uint X, uint Y, ulong count, int4 lo, int4 size, double dmax) {
-    const size_t k = get_global_id(0);
-    if (k >= (size_t)size.x * size.y * size.z) {
+    if (get_global_id(0) >= (size_t)size.x) {
         return;
     }
-    const int x = lo.x + (int)(k % size.x), y = lo.y + (int)(k / size.x % size.y),
-              z = lo.z + (int)(k / ((size_t)size.x * size.y));
+    const int x = lo.x + (int)get_global_id(0), y = lo.y + (int)get_global_id(1),
+              z = lo.z + (int)get_global_id(2);
     const size_t i = ((size_t)z * Y + y) * X + x;
     const uchar v = vox[i];
 #if SIGNED

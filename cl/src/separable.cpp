@@ -94,7 +94,12 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
                            {cl_sources::layout_h, cl_sources::exact_separable_cl}, build);
 
     const std::uint32_t X = dims_.x, Y = dims_.y, Z = dims_.z;
-    col_stride_ = 2 * (std::size_t{std::max(Y, Z)} + 2);
+    // CPU layout: each work-item's two stacks and, without indices, its two tiles of
+    // kTile lines (col_pass).
+    constexpr std::size_t kTile = 16;
+    tile_w_ = gpu_layout_ || options.indices ? 0 : static_cast<int>(kTile);
+    col_stride_ = 2 * (std::size_t{std::max(Y, Z)} + 2) +
+                  2 * std::size_t{std::max(Y, Z)} * static_cast<std::size_t>(tile_w_);
     x_stride_ = X;
     const std::size_t most_lines = std::size_t{X} * std::max(Y, Z);
     const std::size_t scratch_ints = std::max(x_items(Box{{0, 0, 0}, {X, Y, Z}}) * x_stride_,
@@ -161,14 +166,14 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
         const Box all{{0, 0, 0}, {X, Y, Z}};
         const cl::Buffer none;
         const Span xs{0, X}, ys{0, Y}, zs{0, Z};
-        stages_.push_back({"x_pass", x_kernel(all, xs, none), x_items(all), false});
+        stages_.push_back({"x_pass", x_kernel(all, xs, none), x_items(all)});
         // Full transforms reuse the x pass's buffer for the z pass; incremental ones keep all.
         const int last = incremental ? 2 : 0;
         stages_.push_back({"y_pass", col_kernel(1, 0, 1, xs, zs, ys, ys, none, none),
-                           col_items(std::size_t{X} * Z, xs), false});
+                           col_items(std::size_t{X} * Z, xs)});
         stages_.push_back({"z_pass", col_kernel(2, 1, last, xs, ys, zs, zs, none, none),
-                           col_items(std::size_t{X} * Y, xs), false});
-        stages_.push_back({"finish", finish_kernel(last, all), n, true});
+                           col_items(std::size_t{X} * Y, xs)});
+        stages_.push_back({"finish", finish_kernel(last, all), 0});
     });
 }
 
@@ -253,6 +258,7 @@ cl::Kernel ExactSeparable::col_kernel(int axis, int from, int to, Span xs, Span 
     k.setArg(23, static_cast<cl_int>(in.lo));
     k.setArg(24, static_cast<cl_int>(in.hi));
     set_cap(k, 25);
+    k.setArg(26, cl_int{tile_w_});
     return k;
 }
 
@@ -279,13 +285,21 @@ cl::Kernel ExactSeparable::finish_kernel(int from, const Box& voxels) {
     return k;
 }
 
-void ExactSeparable::enqueue(const cl::Kernel& k, std::size_t items, bool per_voxel,
-                             cl::Event* event) {
+void ExactSeparable::enqueue(const cl::Kernel& k, std::size_t items, cl::Event* event) {
     // Fixed work-group sizes, the global size rounded up to them (the kernels skip the
     // rest): PoCL compiles a kernel per work-group size, and update() launches every size.
-    const std::size_t local = per_voxel || gpu_layout_ ? 64 : 1;
+    const std::size_t local = gpu_layout_ ? 64 : 1;
     ctx_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(items, local)),
                                       cl::NDRange(local), nullptr, event);
+}
+
+void ExactSeparable::enqueue_voxels(const cl::Kernel& k, const Box& b, cl::Event* event) {
+    ctx_.queue().enqueueNDRangeKernel(
+        k, cl::NullRange,
+        cl::NDRange(round_up(static_cast<std::size_t>(b.max.x - b.min.x), 64),
+                    static_cast<std::size_t>(b.max.y - b.min.y),
+                    static_cast<std::size_t>(b.max.z - b.min.z)),
+        cl::NDRange(64, 1, 1), nullptr, event);
 }
 
 std::string ExactSeparable::variant() const {
@@ -298,7 +312,12 @@ double ExactSeparable::run() {
         std::vector<std::pair<std::string, cl::Event>> events;
         for (const Stage& stage : stages_) {
             events.emplace_back(stage.name, cl::Event());
-            enqueue(stage.kernel, stage.items, stage.per_voxel, &events.back().second);
+            if (stage.items == 0) {
+                enqueue_voxels(stage.kernel, Box{{0, 0, 0}, {dims_.x, dims_.y, dims_.z}},
+                               &events.back().second);
+            } else {
+                enqueue(stage.kernel, stage.items, &events.back().second);
+            }
         }
         q.finish();
         record_stages(events);
@@ -334,9 +353,9 @@ ExactSeparable::Update ExactSeparable::update(const Box& edited, std::vector<cl:
             q.enqueueWriteBuffer(track_[b], CL_FALSE, 0, sizeof(track_init_), track_init_.data(),
                                  nullptr, &events.back());
         }
-        auto launch = [&](const cl::Kernel& k, std::size_t items, bool per_voxel = false) {
+        auto launch = [&](const cl::Kernel& k, std::size_t items) {
             events.emplace_back();
-            enqueue(k, items, per_voxel, &events.back());
+            enqueue(k, items, &events.back());
         };
         const Span zb_rows{edited.min.z, edited.max.z};
         launch(x_kernel(rows, xi, box[0]), x_items(rows));
@@ -358,7 +377,8 @@ ExactSeparable::Update ExactSeparable::update(const Box& edited, std::vector<cl:
         // The output of the changed voxels (the z pass marked them) and of the edited box.
         for (const Box& b : {changed, edited}) {
             if (!b.empty()) {
-                launch(finish_kernel(2, b), static_cast<std::size_t>(b.volume()), true);
+                events.emplace_back();
+                enqueue_voxels(finish_kernel(2, b), b, &events.back());
             }
         }
         q.finish();

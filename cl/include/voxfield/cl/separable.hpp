@@ -42,10 +42,11 @@ class ExactSeparable : public Generator {
     struct Stage {
         std::string name;
         cl::Kernel kernel;
-        std::size_t items;  // work-items that do work
-        bool per_voxel;     // one voxel per work-item (finish)
+        std::size_t items;  // work-items that do work; 0: one per voxel of the world
     };
-    void enqueue(const cl::Kernel& k, std::size_t items, bool per_voxel, cl::Event* event);
+    void enqueue(const cl::Kernel& k, std::size_t items, cl::Event* event);
+    // One work-item per voxel of `b` (finish).
+    void enqueue_voxels(const cl::Kernel& k, const Box& b, cl::Event* event);
     struct Span {
         std::int64_t lo = 0, hi = 0;  // [lo, hi) along one axis
     };
@@ -65,7 +66,8 @@ class ExactSeparable : public Generator {
     Spacing spacing_;
     cl::Program program_;
     cl::Buffer voxels_, rgb_, g_[3], h_[3], feat_[2], scratch_, track_[3];
-    std::size_t col_stride_ = 0;          // ints per work-item stack (CPU layout)
+    std::size_t col_stride_ = 0;          // ints per work-item stacks and tiles (CPU layout)
+    int tile_w_ = 0;                      // lines per col_pass tile (CPU layout), 0: untiled
     std::size_t x_stride_ = 0;            // ints per work-item row scratch (CPU layout)
     std::array<cl_int, 7> track_init_{};  // an empty change box, 0 voxels
     // --max-distance: the output's bound (+inf: none), the partials' cap in the kernels' own
