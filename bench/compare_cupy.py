@@ -1,31 +1,51 @@
 #!/usr/bin/env python3
-"""Compare voxfield's exact field on an NVIDIA GPU with CuPy's distance_transform_edt (PBA+).
+"""Compare voxfield's exact fields on an NVIDIA GPU with CuPy's distance_transform_edt (PBA+).
 
 Usage (on the NVIDIA machine, after building voxfield):
-    python3 bench/compare_cupy.py --size 256 --voxfield build/viewer/voxfield --repeat 20 \
-        --json bench/results/h100-vs-cupy-256.json
+    python3 bench/compare_cupy.py --sizes 512 1024 --voxfield build/viewer/voxfield --repeat 10 \
+        --json 'bench/results/h200-vs-cupy-{size}.json'
+    python3 bench/compare_cupy.py --size 256 --repeat 20 --json bench/results/h200-vs-cupy-256.json
 
-In one run, on one machine:
-  1. builds the floor + spheres world of compare_scipy.py (bench/worlds.py; N^3, seeded);
-  2. runs `voxfield generate WORLD.npy --format u16 --device gpu --warmup W --repeat R --json`
-     and takes the median of the R kernel times (OpenCL profiling events);
-  3. times cupyx.scipy.ndimage.distance_transform_edt(world == 0) on the GPU with CUDA events
-     around each call, after W untimed warm-up calls, and takes the median of R calls (the
-     array is on the GPU before timing; float64 output as SciPy's; also float32 where CuPy
-     supports float64_distances=False);
-  4. prints the ratios CuPy / ours.
+--json PATH writes one file for the whole run; a PATH holding `{size}` writes one file per size
+instead (each in the form bench/summarize.py tabulates). Every file holds the device
+(nvidia-smi's name and driver where available, and `voxfield devices --json`), the date, the
+voxfield binary's commit (`voxfield --version`) and every timing sample. --cases picks a subset.
 
-What is checked, where the metric allows it:
-  - ours is Manhattan (L1), CuPy's EDT Euclidean: the fields are NOT comparable for equality.
-    Instead every voxel must satisfy EDT <= ours <= sqrt(3) * EDT (the Euclidean and the
-    Manhattan distance to the nearest solid bound each other this way), a consistency check.
-  - CuPy's EDT is compared with SciPy's distance_transform_edt on a small grid (--check-size,
-    default 64) of the same kind: they must agree to 1e-6 (needs SciPy; skipped, and said so,
-    without it).
+In one run, on one machine, for each size N of --sizes (or the single --size):
+  1. builds the floor + spheres world of compare_scipy.py (bench/worlds.py; N^3, seeded) and
+     saves it as .npy;
+  2. runs `voxfield generate WORLD.npy --device gpu --warmup W --repeat R --json J` for each case
+     and takes the median of the R kernel times (OpenCL profiling events), recording the
+     end-to-end time its JSON gives as well:
+
+     case               voxfield                          CuPy peer (mask = world == 0)
+     manhattan          --metric manhattan, u16           edt(mask): another metric (timing only)
+     euclidean          --metric euclidean, f32           edt(mask)
+     chebyshev          --metric chebyshev, u16           none (CuPy has no chessboard transform)
+     signed-euclidean   --signed --metric euclidean, f32  edt(~solid) - edt(solid), padded by one
+                                                          empty voxel, cropped
+     euclidean-indices  --metric euclidean --indices      edt(mask, return_distances=True,
+                        (f32 field + int32 indices)          return_indices=True)
+
+  3. times each CuPy peer on the GPU with CUDA events around each call, after W untimed
+     warm-up calls, and takes the median of R calls (inputs on the GPU before timing; float64
+     output as SciPy's, and float32 where CuPy supports float64_distances=False);
+  4. checks the values on the GPU, z-slab by z-slab (outputs are read with
+     np.load(mmap_mode="r"), so memory stays bounded at 1024^3):
+       - euclidean, signed-euclidean: |ours - CuPy float64| <= 2**-23 * |CuPy float64| at every
+         voxel (within one float32 ulp);
+       - euclidean-indices: the field as euclidean, and every index names a solid voxel whose
+         distance from the voxel is the field's (to the same tolerance);
+       - manhattan (L1; CuPy's EDT is L2, so not compared for equality): EDT <= L1 <= sqrt(3) EDT;
+       - chebyshev (L-inf): EDT / sqrt(3) <= L-inf <= EDT at full size, and equality with SciPy's
+         distance_transform_cdt(metric="chessboard") on a --check-size world if SciPy is
+         importable (said so otherwise); the same on that world for manhattan ("taxicab");
+       - CuPy's EDT against SciPy's distance_transform_edt on the --check-size world (to 1e-6);
+  5. prints a table (case, N, voxfield ms, CuPy ms, CuPy / voxfield, check).
 
 Needs numpy and CuPy (e.g. `pip install cupy-cuda12x`) with an NVIDIA GPU; fails with exit 2
-and a message naming what is missing otherwise. Exit status: 0 if the checks pass, 1 if one
-fails, 2 on bad usage, missing CuPy or a failed voxfield run.
+and a message naming what is missing otherwise (SciPy is optional). Exit status: 0 if the
+checks pass, 1 if one fails, 2 on bad usage, missing CuPy or a failed voxfield run.
 """
 
 import argparse
@@ -33,17 +53,26 @@ import datetime
 import json
 import math
 import os
+import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+CASES = ["manhattan", "euclidean", "chebyshev", "signed-euclidean", "euclidean-indices"]
+TOL = 2.0 ** -23          # relative tolerance of the float32 comparisons (one float32 ulp)
+SLAB_VOXELS = 1 << 25     # voxels per z-slab uploaded for a check (32 Mi: bounded GPU memory)
 
 
 def fail(message):
     sys.stderr.write(f"compare_cupy: {message}\n")
     sys.exit(2)
+
+
+def progress(message):
+    sys.stderr.write(f"compare_cupy: {message}\n")
+    sys.stderr.flush()
 
 
 try:
@@ -70,6 +99,17 @@ def import_cupy():
     return cp, cnd
 
 
+def import_scipy_ndimage():
+    try:
+        from scipy import ndimage
+    except ImportError:
+        return None
+    return ndimage
+
+
+# ---------------------------------------------------------------------------- the machine
+
+
 def git_commit():
     try:
         out = subprocess.run(["git", "-C", REPO, "rev-parse", "HEAD"], check=True,
@@ -79,21 +119,64 @@ def git_commit():
         return "unknown"
 
 
-def run_voxfield(exe, world_path, field_path, json_path, device, warmup, repeat):
-    cmd = [exe, "generate", world_path, "-o", field_path, "--format", "u16", "--json", json_path,
-           "--warmup", str(warmup), "--repeat", str(repeat)]
-    if device:
-        cmd += ["--device", device]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        sys.stderr.write(proc.stderr)
-        fail(f"voxfield failed (exit {proc.returncode}): {' '.join(cmd)}")
-    with open(json_path) as f:
-        return json.load(f)
+def voxfield_version(exe):
+    """The binary's commit from `voxfield --version` ("voxfield <commit>"), or None."""
+    try:
+        out = subprocess.run([exe, "--version"], capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired):
+        return None, None
+    text = (out.stdout or out.stderr).strip()
+    words = text.split()
+    return text, (words[-1] if words else None)
+
+
+def voxfield_devices(exe):
+    """`voxfield devices --json`, parsed (or {"error": ...})."""
+    try:
+        out = subprocess.run([exe, "devices", "--json"], capture_output=True, text=True,
+                             timeout=120)
+    except (OSError, subprocess.TimeoutExpired) as e:
+        return {"error": str(e)}
+    if out.returncode != 0:
+        return {"error": f"exit {out.returncode}: {out.stderr.strip()}"}
+    try:
+        return json.loads(out.stdout)
+    except ValueError as e:
+        return {"error": f"unreadable JSON ({e})", "stdout": out.stdout}
+
+
+def nvidia_smi():
+    """nvidia-smi's GPUs (index, name, driver, memory), or None without it."""
+    exe = shutil.which("nvidia-smi")
+    if not exe:
+        return None
+    fields = ["index", "name", "driver_version", "memory.total", "uuid"]
+    try:
+        out = subprocess.run([exe, "--query-gpu=" + ",".join(fields), "--format=csv,noheader"],
+                             capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired) as e:
+        return {"error": str(e)}
+    if out.returncode != 0:
+        return {"error": f"exit {out.returncode}: {out.stderr.strip()}"}
+    gpus = []
+    for line in out.stdout.strip().splitlines():
+        values = [v.strip() for v in line.split(",")]
+        gpus.append(dict(zip(fields, values)))
+    return gpus
+
+
+# ---------------------------------------------------------------------------- timing
+
+
+def spread(samples):
+    if not samples:
+        return None
+    return {"median": statistics.median(samples), "min": min(samples), "max": max(samples),
+            "std": statistics.stdev(samples) if len(samples) > 1 else 0.0, "samples": samples}
 
 
 def time_cupy(cp, fn, warmup, repeat):
-    """Median of `repeat` CUDA-event timings of fn() after `warmup` untimed calls (ms)."""
+    """`repeat` CUDA-event timings of fn() (ms) after `warmup` untimed calls."""
     for _ in range(warmup):
         fn()
     cp.cuda.Device().synchronize()
@@ -108,131 +191,561 @@ def time_cupy(cp, fn, warmup, repeat):
     return samples
 
 
-def check_against_scipy(cp, cnd, n, seed):
-    """CuPy EDT vs SciPy EDT on a small world: (status text, max abs difference or None)."""
-    try:
-        from scipy import ndimage
-    except ImportError:
-        return "skipped: SciPy is not installed (apt-get install python3-scipy)", None
-    mask = make_world(n, seed) == 0
+def run_voxfield(exe, world_path, field_path, json_path, device, flags, warmup, repeat):
+    cmd = [exe, "generate", world_path, "-o", field_path, "--json", json_path,
+           "--warmup", str(warmup), "--repeat", str(repeat)] + flags
+    if device:
+        cmd += ["--device", device]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        sys.stderr.write(proc.stdout)
+        sys.stderr.write(proc.stderr)
+        fail(f"voxfield failed (exit {proc.returncode}): {' '.join(cmd)}")
+    with open(json_path) as f:
+        return json.load(f), cmd
+
+
+# ---------------------------------------------------------------------------- checks (GPU, z-slabs)
+
+
+def slabs(shape):
+    step = max(1, SLAB_VOXELS // max(1, shape[1] * shape[2]))
+    for z0 in range(0, shape[0], step):
+        yield z0, min(shape[0], z0 + step)
+
+
+def upload(cp, mm, z0, z1, axis=None):
+    """Slab z0:z1 of a (possibly memory-mapped) host array, on the GPU."""
+    part = mm[z0:z1] if axis is None else mm[axis, z0:z1]
+    return cp.asarray(np.ascontiguousarray(part))
+
+
+def host(x):
+    """A Python number from a CuPy 0-d array, a NumPy scalar or a number."""
+    return x.item() if hasattr(x, "item") else x
+
+
+def first_bad(cp, bad, z0, *arrays):
+    """(z, y, x) of the first True of a slab mask and the arrays' values there."""
+    flat = int(host(cp.argmax(bad.ravel().astype(cp.int8))))
+    z, y, x = (int(v) for v in np.unravel_index(flat, bad.shape))
+    return (z + z0, y, x), [host(a[z, y, x]) for a in arrays]
+
+
+def check_close(cp, ours, ref, what="CuPy"):
+    """(ok, detail): |ours - ref| <= 2**-23 |ref| at every voxel (ref float64 on the GPU)."""
+    if tuple(ours.shape) != tuple(ref.shape):
+        return False, f"shape {ours.shape}, expected {ref.shape}"
+    bad_total, worst_abs, worst_rel, first = 0, 0.0, 0.0, None
+    for z0, z1 in slabs(ours.shape):
+        o = upload(cp, ours, z0, z1).astype(cp.float64)
+        r = ref[z0:z1].astype(cp.float64)
+        err = cp.abs(o - r)
+        bad = err > TOL * cp.abs(r)
+        n = int(host(cp.count_nonzero(bad)))
+        worst_abs = max(worst_abs, float(host(err.max())) if err.size else 0.0)
+        # |ref| >= 1 wherever it is not 0 (unit spacing): the relative error without a division by 0
+        worst_rel = max(worst_rel, float(host((err / cp.maximum(cp.abs(r), 1.0)).max()))
+                        if err.size else 0.0)
+        if n and first is None:
+            first = first_bad(cp, bad, z0, o, r)
+        bad_total += n
+        del o, r, err, bad
+    summary = f"max |diff| {worst_abs:.3g} ({worst_rel / TOL:.3g} x 2^-23 relative)"
+    if bad_total == 0:
+        return True, f"within 2^-23 relative of {what} float64; {summary}"
+    (z, y, x), (o, r) = first
+    return False, (f"{bad_total} voxels beyond 2^-23 relative of {what} float64; {summary}; "
+                   f"first (z,y,x)=({z},{y},{x}): ours {o!r}, {what} {r!r}")
+
+
+def check_bounds(cp, ours, edt, metric):
+    """(ok, detail): EDT <= L1 <= sqrt3 EDT (manhattan) or EDT/sqrt3 <= Linf <= EDT (chebyshev)."""
+    if tuple(ours.shape) != tuple(edt.shape):
+        return False, f"shape {ours.shape}, expected {edt.shape}"
+    s3, eps = math.sqrt(3.0), 1e-9
+    bad_total, first = 0, None
+    for z0, z1 in slabs(ours.shape):
+        v = upload(cp, ours, z0, z1).astype(cp.float64)
+        e = edt[z0:z1]
+        if metric == "manhattan":
+            bad = (v < e - eps) | (v > s3 * e + eps)
+        else:
+            bad = (v > e + eps) | (e > s3 * v + eps)
+        n = int(host(cp.count_nonzero(bad)))
+        if n and first is None:
+            first = first_bad(cp, bad, z0, v, e)
+        bad_total += n
+        del v, bad
+    text = ("EDT <= L1 <= sqrt(3) EDT" if metric == "manhattan"
+            else "EDT / sqrt(3) <= L-inf <= EDT")
+    if bad_total == 0:
+        return True, f"{text} holds at every voxel"
+    (z, y, x), (v, e) = first
+    return False, (f"{text} VIOLATED at {bad_total} voxels; first (z,y,x)=({z},{y},{x}): "
+                   f"ours {v!r}, EDT {e!r}")
+
+
+def check_indices(cp, field, idx, mask_gpu):
+    """(ok, detail): every index is in the world, names a solid voxel, at the field's distance."""
+    shape = tuple(field.shape)
+    if tuple(idx.shape) != (3,) + shape or idx.dtype != np.int32:
+        return False, f"indices have shape {idx.shape} dtype {idx.dtype}, expected (3,)+{shape} int32"
+    out_of_world = names_empty = far = 0
+    first = None
+    for z0, z1 in slabs(shape):
+        iz, iy, ix = (upload(cp, idx, z0, z1, a) for a in range(3))
+        inside = ((iz >= 0) & (iz < shape[0]) & (iy >= 0) & (iy < shape[1]) &
+                  (ix >= 0) & (ix < shape[2]))
+        n_out = int(inside.size) - int(host(cp.count_nonzero(inside)))
+        empty = inside & mask_gpu[cp.clip(iz, 0, shape[0] - 1), cp.clip(iy, 0, shape[1] - 1),
+                                  cp.clip(ix, 0, shape[2] - 1)]
+        n_empty = int(host(cp.count_nonzero(empty)))
+        zg = cp.arange(z0, z1, dtype=cp.int64).reshape(-1, 1, 1)
+        yg = cp.arange(shape[1], dtype=cp.int64).reshape(1, -1, 1)
+        xg = cp.arange(shape[2], dtype=cp.int64).reshape(1, 1, -1)
+        d = cp.sqrt(((iz - zg) ** 2 + (iy - yg) ** 2 + (ix - xg) ** 2).astype(cp.float64))
+        f = upload(cp, field, z0, z1).astype(cp.float64)
+        wrong = inside & (cp.abs(f - d) > TOL * d)
+        n_far = int(host(cp.count_nonzero(wrong)))
+        if (n_out or n_empty or n_far) and first is None:
+            first = first_bad(cp, ~inside | empty | wrong, z0, iz, iy, ix, f, d)
+        out_of_world += n_out
+        names_empty += n_empty
+        far += n_far
+        del iz, iy, ix, inside, empty, d, f, wrong
+    if not (out_of_world or names_empty or far):
+        return True, "every index names a solid voxel at the field's distance"
+    (z, y, x), (a, b, c, f, d) = first
+    return False, (f"indices: {out_of_world} outside the world, {names_empty} naming an empty "
+                   f"voxel, {far} at another distance than the field's; first (z,y,x)=({z},{y},{x}): "
+                   f"index ({a},{b},{c}), field {f!r}, its distance {d!r}")
+
+
+def small_checks(args, cnd_pair, tmp):
+    """On the --check-size world: CuPy EDT vs SciPy EDT, voxfield chebyshev/manhattan vs SciPy cdt."""
+    cp, cnd = cnd_pair
+    n = args.check_size
+    result = {"check_size": n}
+    ndimage = import_scipy_ndimage()
+    if ndimage is None:
+        why = "skipped: SciPy is not installed (apt-get install python3-scipy)"
+        result.update(cupy_edt_vs_scipy=why, cupy_edt_vs_scipy_max_abs_diff=None,
+                      chebyshev_vs_scipy=why, manhattan_vs_scipy=why,
+                      cupy_edt_vs_scipy_ok=None, chebyshev_vs_scipy_ok=None,
+                      manhattan_vs_scipy_ok=None, scipy=None)
+        return result
+    import scipy
+    result["scipy"] = scipy.__version__
+    world = make_world(n, args.seed)
+    mask = world == 0
     ref = ndimage.distance_transform_edt(mask)
     got = cp.asnumpy(cnd.distance_transform_edt(cp.asarray(mask)))
     diff = float(np.max(np.abs(got.astype(np.float64) - ref))) if ref.size else 0.0
-    return ("equal" if diff <= 1e-6 else "DIFFERENT"), diff
+    result.update(cupy_edt_vs_scipy="equal" if diff <= 1e-6 else "DIFFERENT",
+                  cupy_edt_vs_scipy_ok=diff <= 1e-6, cupy_edt_vs_scipy_max_abs_diff=diff)
+    world_path = os.path.join(tmp, f"check-world-{n}.npy")
+    np.save(world_path, world)
+    for metric, scipy_metric in (("chebyshev", "chessboard"), ("manhattan", "taxicab")):
+        if metric not in args.case_list:
+            result[f"{metric}_vs_scipy"], result[f"{metric}_vs_scipy_ok"] = "not run", None
+            continue
+        field_path = os.path.join(tmp, f"check-{metric}.npy")
+        doc, _ = run_voxfield(args.voxfield, world_path, field_path,
+                              os.path.join(tmp, "check.json"), args.device,
+                              ["--metric", metric, "--format", "u32"], 0, 1)
+        ours = np.load(field_path)
+        theirs = ndimage.distance_transform_cdt(mask, metric=scipy_metric)
+        same = ours.shape == theirs.shape and bool(np.array_equal(ours.astype(np.int64), theirs))
+        if same:
+            text = f"equal to SciPy cdt(metric='{scipy_metric}') on {n}^3"
+        elif ours.shape != theirs.shape:
+            text = f"DIFFERENT from SciPy cdt on {n}^3: shape {ours.shape}, expected {theirs.shape}"
+        else:
+            bad = ours.astype(np.int64) != theirs
+            z, y, x = (int(v) for v in np.argwhere(bad)[0])
+            text = (f"DIFFERENT from SciPy cdt(metric='{scipy_metric}') on {n}^3 at "
+                    f"{int(bad.sum())} voxels; first (z,y,x)=({z},{y},{x}): ours {ours[z, y, x]}, "
+                    f"SciPy {theirs[z, y, x]}")
+        result[f"{metric}_vs_scipy"], result[f"{metric}_vs_scipy_ok"] = text, same
+        os.remove(field_path)
+    os.remove(world_path)
+    return result
+
+
+# ---------------------------------------------------------------------------- one size
+
+
+def case_flags(name, shape):
+    l1_fmt = "u16" if sum(shape) - 3 <= 0xFFFF else "u32"
+    linf_fmt = "u16" if max(shape) - 1 <= 0xFFFF else "u32"
+    return {
+        "manhattan": ["--metric", "manhattan", "--format", l1_fmt],
+        "euclidean": ["--metric", "euclidean", "--format", "f32"],
+        "chebyshev": ["--metric", "chebyshev", "--format", linf_fmt],
+        "signed-euclidean": ["--signed", "--metric", "euclidean", "--format", "f32"],
+        "euclidean-indices": ["--metric", "euclidean", "--format", "f32"],
+    }[name]
+
+
+PEER_CALLS = {
+    "manhattan": "distance_transform_edt(mask) (Euclidean: another metric, timing only)",
+    "euclidean": "distance_transform_edt(mask)",
+    "chebyshev": None,
+    "signed-euclidean": "edt(~solid) - edt(solid) on the world padded by one empty voxel, cropped",
+    "euclidean-indices": "distance_transform_edt(mask, return_distances=True, return_indices=True)",
+}
+
+
+def run_size(args, cp, cnd, n, f32_ok, small, tmp):
+    """Every case at N^3: a list of row dicts."""
+    progress(f"N={n}: building the world")
+    world = make_world(n, args.seed)
+    shape = world.shape
+    solid = int(np.count_nonzero(world))
+    world_path = os.path.join(tmp, f"world-{n}.npy")
+    np.save(world_path, world)
+    mask_gpu = cp.asarray(world == 0)
+    del world
+    pool = cp.get_default_memory_pool()
+
+    def edt(m, f64=True, **kw):
+        if f64:
+            return cnd.distance_transform_edt(m, **kw)
+        return cnd.distance_transform_edt(m, float64_distances=False, **kw)
+
+    padded = None
+
+    def signed_peer(f64):
+        d = edt(padded[1], f64)   # empty voxels: distance to the nearest solid
+        d -= edt(padded[0], f64)  # solid voxels: minus the distance to the nearest empty one
+        return d[1:-1, 1:-1, 1:-1]
+
+    peer_fns = {
+        "edt": lambda f64: edt(mask_gpu, f64),
+        "signed": signed_peer,
+        "indices": lambda f64: edt(mask_gpu, f64, return_distances=True, return_indices=True),
+    }
+    peer_of = {"manhattan": "edt", "euclidean": "edt", "signed-euclidean": "signed",
+               "euclidean-indices": "indices"}
+    peer_times = {}
+
+    def peer_timing(kind):
+        if kind not in peer_times:
+            progress(f"N={n}: timing CuPy ({kind})")
+            f64 = time_cupy(cp, lambda: peer_fns[kind](True), args.warmup, args.repeat)
+            f32 = (time_cupy(cp, lambda: peer_fns[kind](False), args.warmup, args.repeat)
+                   if f32_ok else None)
+            peer_times[kind] = (f64, f32)
+            pool.free_all_blocks()
+        return peer_times[kind]
+
+    progress(f"N={n}: CuPy float64 EDT (the reference of the checks)")
+    ref_edt = edt(mask_gpu)
+    rows = []
+    for name in args.case_list:
+        flags = case_flags(name, shape)
+        field_path = os.path.join(tmp, f"{name}-{n}.npy")
+        idx_path = os.path.join(tmp, f"{name}-{n}-indices.npy")
+        json_path = os.path.join(tmp, f"{name}-{n}.json")
+        run_flags = flags + (["--indices", idx_path] if name == "euclidean-indices" else [])
+        if name == "signed-euclidean":
+            sp = cp.zeros(tuple(s + 2 for s in shape), dtype=cp.bool_)
+            sp[1:-1, 1:-1, 1:-1] = ~mask_gpu
+            padded = (sp, ~sp)
+        pool.free_all_blocks()  # leave the GPU's memory to voxfield's OpenCL context
+        progress(f"N={n}: voxfield {name} ({args.warmup} warm-up, {args.repeat} timed)")
+        doc, cmd = run_voxfield(args.voxfield, world_path, field_path, json_path, args.device,
+                                run_flags, args.warmup, args.repeat)
+        kernel_ms = [float(v) for v in doc["kernel_ms_samples"]]
+        ours = np.load(field_path, mmap_mode="r")
+
+        progress(f"N={n}: checking {name}")
+        bounds_ok = None
+        if solid == 0:
+            ok, detail = None, "skipped (no solid voxel)"
+        elif name == "manhattan":
+            ok, detail = check_bounds(cp, ours, ref_edt, "manhattan")
+            bounds_ok = ok
+            if small.get("manhattan_vs_scipy_ok") is not None:
+                ok = ok and small["manhattan_vs_scipy_ok"]
+                detail += f"; {small['manhattan_vs_scipy']}"
+        elif name == "chebyshev":
+            ok, detail = check_bounds(cp, ours, ref_edt, "chebyshev")
+            bounds_ok = ok
+            s_ok = small.get("chebyshev_vs_scipy_ok")
+            if s_ok is None:
+                detail += ("; not compared for equality with a peer (CuPy has no chessboard "
+                           f"transform; SciPy: {small.get('chebyshev_vs_scipy')})")
+            else:
+                ok = ok and s_ok
+                detail += f"; {small['chebyshev_vs_scipy']}"
+        elif name == "euclidean":
+            ok, detail = check_close(cp, ours, ref_edt)
+        elif name == "signed-euclidean":
+            ref = signed_peer(True)
+            ok, detail = check_close(cp, ours, ref, "CuPy padded signed")
+            del ref
+        else:  # euclidean-indices
+            ok, detail = check_close(cp, ours, ref_edt)
+            idx = np.load(idx_path, mmap_mode="r")
+            ok2, detail2 = check_indices(cp, ours, idx, mask_gpu)
+            ok, detail = ok and ok2, f"{detail}; {detail2}"
+            del idx
+        del ours
+        pool.free_all_blocks()
+        for path in (field_path, idx_path, json_path):
+            if os.path.exists(path):
+                os.remove(path)
+
+        peer = peer_of.get(name)
+        f64_ms, f32_ms = peer_timing(peer) if peer else (None, None)
+        if name == "signed-euclidean":
+            padded = None
+            pool.free_all_blocks()
+        kmed = statistics.median(kernel_ms)
+        row = {
+            "case": name,
+            "size": [int(shape[2]), int(shape[1]), int(shape[0])],
+            "n": n,
+            "voxels": int(np.prod(shape)),
+            "solid": solid,
+            "voxfield_flags": flags + (["--indices"] if name == "euclidean-indices" else []),
+            "voxfield_command": cmd,
+            "format": doc.get("format"),
+            "variant": doc.get("variant"),
+            "kernel_ms": spread(kernel_ms),
+            "kernel_ms_median": kmed,
+            "end_to_end_ms": float(doc["end_to_end_ms"]) if "end_to_end_ms" in doc else None,
+            "upload_ms": doc.get("upload_ms"),
+            "download_ms": doc.get("download_ms"),
+            "cupy_call": PEER_CALLS[name],
+            "cupy_comparable": name not in ("manhattan", "chebyshev"),
+            "cupy_f64_ms": spread(f64_ms),
+            "cupy_f32_ms": spread(f32_ms),
+            "ratio_cupy_f64_over_kernel": statistics.median(f64_ms) / kmed
+            if f64_ms and kmed > 0 else None,
+            "ratio_cupy_f32_over_kernel": statistics.median(f32_ms) / kmed
+            if f32_ms and kmed > 0 else None,
+            "check_ok": ok,
+            "check": detail,
+            "bounds_vs_edt_ok": bounds_ok,
+            "voxfield_device": doc.get("device"),
+            "voxfield_commit": doc.get("commit"),
+        }
+        rows.append(row)
+        print_row(row)
+    del ref_edt, mask_gpu
+    pool.free_all_blocks()
+    os.remove(world_path)
+    return rows
+
+
+# ---------------------------------------------------------------------------- output
+
+
+HEADER = (f"{'case':<18} {'N':>5} {'format':>6} {'voxfield ms':>11} {'e2e ms':>9}"
+          f" {'CuPy f64 ms':>11} {'CuPy f32 ms':>11} {'f64/ours':>8} {'f32/ours':>8}  check")
+
+
+def fmt(value, spec):
+    """value formatted by spec (">9.1f"), or a "-" as wide."""
+    if value is not None:
+        return format(value, spec)
+    return format("-", spec.split(".")[0].rstrip("fd"))
+
+
+def print_row(r):
+    f64 = r["cupy_f64_ms"]["median"] if r["cupy_f64_ms"] else None
+    f32 = r["cupy_f32_ms"]["median"] if r["cupy_f32_ms"] else None
+    status = "ok" if r["check_ok"] else ("skipped" if r["check_ok"] is None else "FAILED")
+    print(f"{r['case']:<18} {r['n']:>5} {r['format'] or '-':>6} {r['kernel_ms_median']:>11.3f}"
+          f" {fmt(r['end_to_end_ms'], '>9.1f')} {fmt(f64, '>11.3f')} {fmt(f32, '>11.3f')}"
+          f" {fmt(r['ratio_cupy_f64_over_kernel'], '>8.2f')}"
+          f" {fmt(r['ratio_cupy_f32_over_kernel'], '>8.2f')}  {status}: {r['check']}", flush=True)
+
+
+def legacy_summary(rows, small):
+    """The fields bench/summarize.py tabulates (its CuPy table), from one size's manhattan row."""
+    taxicab = next((r for r in rows if r["case"] == "manhattan"), None)
+    if taxicab is None or not taxicab["cupy_f64_ms"]:
+        return {}
+    f64, f32 = taxicab["cupy_f64_ms"], taxicab["cupy_f32_ms"]
+    return {
+        "size": taxicab["size"],
+        "ours_metric": "manhattan",
+        "ours_kernel_ms_median": taxicab["kernel_ms_median"],
+        "ours_kernel_ms": taxicab["kernel_ms"]["samples"],
+        "ours_end_to_end_ms": taxicab["end_to_end_ms"],
+        "cupy_metric": "euclidean (different from ours: not compared for equality)",
+        "cupy_edt_ms_median": f64["median"],
+        "cupy_edt_ms": f64["samples"],
+        "cupy_edt_f32_ms_median": f32["median"] if f32 else None,
+        "cupy_edt_f32_ms": f32["samples"] if f32 else None,
+        "ratio_cupy_over_ours_kernel": taxicab["ratio_cupy_f64_over_kernel"],
+        "bounds_l1_vs_edt_hold": taxicab["bounds_vs_edt_ok"],
+        "cupy_vs_scipy_edt": small.get("cupy_edt_vs_scipy"),
+        "cupy_vs_scipy_edt_max_abs_diff": small.get("cupy_edt_vs_scipy_max_abs_diff"),
+        "cupy_vs_scipy_check_size": small.get("check_size"),
+    }
+
+
+def write_json(path, common, rows, small):
+    sizes = sorted({r["n"] for r in rows})
+    record = dict(common)
+    record.update({
+        "sizes": sizes,
+        "small_checks": small,
+        "all_checks_pass": not any_failed(rows, small),
+        "rows": rows,
+    })
+    if len(sizes) == 1:
+        record.update(legacy_summary(rows, small))
+    tmp_path = path + ".partial"
+    with open(tmp_path, "w") as f:
+        json.dump(record, f, indent=2)
+        f.write("\n")
+    os.replace(tmp_path, path)
+
+
+def any_failed(rows, small):
+    return (any(r["check_ok"] is False for r in rows) or
+            small.get("cupy_edt_vs_scipy_ok") is False)
+
+
+def write_all(args, common, rows, small):
+    if not args.json:
+        return
+    if "{size}" in args.json:
+        for n in sorted({r["n"] for r in rows}):
+            write_json(args.json.replace("{size}", str(n)), common,
+                       [r for r in rows if r["n"] == n], small)
+    else:
+        write_json(args.json, common, rows, small)
+
+
+# ---------------------------------------------------------------------------- main
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--size", type=int, default=256, help="world edge N (N^3; default 256)")
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 epilog="\n\n".join(__doc__.split("\n\n")[1:]))
+    ap.add_argument("--size", type=int, help="one world edge N (N^3; default 256 without --sizes)")
+    ap.add_argument("--sizes", type=int, nargs="+", metavar="N",
+                    help="world edges to run in turn, e.g. --sizes 512 1024")
     ap.add_argument("--seed", type=int, default=6683787, help="world seed")
     ap.add_argument("--voxfield", default=os.path.join(REPO, "build", "viewer", "voxfield"),
                     help="voxfield binary (default: build/viewer/voxfield)")
     ap.add_argument("--device", default="gpu", help="voxfield --device (default: gpu)")
     ap.add_argument("--repeat", type=int, default=20, help="timed runs of each (default 20)")
     ap.add_argument("--warmup", type=int, default=3, help="untimed runs first (default 3)")
+    ap.add_argument("--cases", default=",".join(CASES),
+                    help=f"comma-separated subset of {','.join(CASES)} (default: all)")
     ap.add_argument("--check-size", type=int, default=64,
-                    help="edge of the small world on which CuPy is checked against SciPy")
-    ap.add_argument("--json", help="write the comparison to this JSON file")
+                    help="edge of the small world checked against SciPy (default 64)")
+    ap.add_argument("--tmpdir", help="folder for the world and the fields (default: the system's; "
+                    "1024^3 needs about 18 GB free at the peak, the indices case)")
+    ap.add_argument("--json", help="write the comparison to this JSON file; '{size}' in the name "
+                    "writes one file per size")
     args = ap.parse_args()
-    if args.repeat < 1 or args.size < 1 or args.check_size < 1 or args.warmup < 0:
-        ap.error("--size, --repeat and --check-size must be at least 1, --warmup at least 0")
+
+    if args.size is not None and args.sizes:
+        ap.error("give --size N or --sizes N [N ...], not both")
+    sizes = args.sizes or [args.size if args.size is not None else 256]
+    if len(set(sizes)) != len(sizes):
+        ap.error(f"--sizes: repeated size in {sizes}")
+    if args.repeat < 1 or min(sizes) < 1 or args.check_size < 1 or args.warmup < 0:
+        ap.error("sizes, --repeat and --check-size must be at least 1, --warmup at least 0")
+    args.case_list = [c for c in args.cases.split(",") if c]
+    unknown = [c for c in args.case_list if c not in CASES]
+    if unknown or not args.case_list:
+        ap.error(f"--cases: unknown {','.join(unknown) or '(none given)'}; expected {','.join(CASES)}")
     if not (os.path.isfile(args.voxfield) and os.access(args.voxfield, os.X_OK)):
         ap.error(f"voxfield binary not found: {args.voxfield} (build it first, or pass --voxfield)")
     if args.json and os.path.dirname(args.json) and not os.path.isdir(os.path.dirname(args.json)):
         ap.error(f"--json {args.json}: folder does not exist")
+    if args.tmpdir and not os.path.isdir(args.tmpdir):
+        ap.error(f"--tmpdir {args.tmpdir}: folder does not exist")
     cp, cnd = import_cupy()
 
-    world = make_world(args.size, args.seed)
-    source = f"floor+spheres N={args.size} seed={args.seed}"
-    with tempfile.TemporaryDirectory(prefix="voxfield_cupy_") as tmp:
-        world_path = os.path.join(tmp, "world.npy")
-        field_path = os.path.join(tmp, "field.npy")
-        json_path = os.path.join(tmp, "run.json")
-        np.save(world_path, world)
-        ours_doc = run_voxfield(args.voxfield, world_path, field_path, json_path, args.device,
-                                args.warmup, args.repeat)
-        ours = np.load(field_path)
-    ours_ms = [float(v) for v in ours_doc["kernel_ms_samples"]]
-    ours_med = statistics.median(ours_ms)
-
-    mask_gpu = cp.asarray(world == 0)
-    edt64_ms = time_cupy(cp, lambda: cnd.distance_transform_edt(mask_gpu), args.warmup,
-                         args.repeat)
-    edt32_ms = None
+    # float32 output (float64_distances=False) is in newer CuPy only: probe on a tiny array.
+    probe = cp.ones((4, 4, 4), dtype=cp.bool_)
+    probe[0, 0, 0] = False
     try:
-        cnd.distance_transform_edt(mask_gpu, float64_distances=False)
-        edt32_ms = time_cupy(
-            cp, lambda: cnd.distance_transform_edt(mask_gpu, float64_distances=False),
-            args.warmup, args.repeat)
+        cnd.distance_transform_edt(probe, float64_distances=False)
+        f32_ok = True
     except TypeError:
-        pass  # older CuPy: float64 only
-    edt = cp.asnumpy(cnd.distance_transform_edt(mask_gpu))
+        f32_ok = False
+    del probe
 
-    # Bounds between the metrics (ours is L1): EDT <= L1 <= sqrt(3) EDT, voxel by voxel.
-    solid = int(np.count_nonzero(world))
-    if solid == 0:
-        bounds_ok, bounds_text = None, "skipped (no solid voxel)"
-    else:
-        l1 = ours.astype(np.float64)
-        bad = (l1 < edt - 1e-9) | (l1 > math.sqrt(3) * edt + 1e-9)
-        bounds_ok = not bool(bad.any())
-        bounds_text = "hold" if bounds_ok else f"VIOLATED at {int(bad.sum())} voxels"
-    scipy_status, scipy_diff = check_against_scipy(cp, cnd, args.check_size, args.seed)
-
-    edt64_med = statistics.median(edt64_ms)
+    version_text, commit = voxfield_version(args.voxfield)
     props = cp.cuda.runtime.getDeviceProperties(cp.cuda.Device().id)
     gpu_name = props["name"].decode() if isinstance(props["name"], bytes) else str(props["name"])
-    print(f"world: {source}, {world.size} voxels, {solid} solid")
-    print(f"ours:  {ours_doc['device']['name']} (--device {args.device}), exact L1, u16: "
-          f"{ours_med:.3f} ms median kernel time of {args.repeat}")
-    print(f"cupy:  {gpu_name}, distance_transform_edt (EUCLIDEAN, PBA+), float64: "
-          f"{edt64_med:.3f} ms median of {args.repeat} (CUDA events, after {args.warmup} warm-up)")
-    if edt32_ms:
-        print(f"cupy:  float64_distances=False: {statistics.median(edt32_ms):.3f} ms median")
-    print(f"ratio: cupy float64 / ours = {edt64_med / ours_med:.2f}" +
-          (f", cupy float32 / ours = {statistics.median(edt32_ms) / ours_med:.2f}"
-           if edt32_ms else ""))
-    print("check: ours (L1) vs CuPy (Euclidean): different metrics, not compared for equality; "
-          f"EDT <= L1 <= sqrt(3) EDT {bounds_text}")
-    print(f"check: CuPy EDT vs SciPy EDT on {args.check_size}^3: {scipy_status}"
-          + (f" (max |diff| {scipy_diff:.2e})" if scipy_diff is not None else ""))
+    try:
+        cuda_runtime = cp.cuda.runtime.runtimeGetVersion()
+    except Exception:  # noqa: BLE001 (informative only)
+        cuda_runtime = None
+    smi = nvidia_smi()
+    common = {
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        # The voxfield binary's own commit (the checkout on the GPU machine may differ).
+        "commit": commit or git_commit(),
+        "voxfield_version": version_text,
+        "checkout_commit": git_commit(),
+        "device_arg": args.device,
+        "cupy_device": gpu_name,
+        "nvidia_smi": smi,
+        "voxfield_devices": voxfield_devices(args.voxfield),
+        "world": f"floor+spheres seed={args.seed} (bench/worlds.py)",
+        "seed": args.seed,
+        "repeat": args.repeat,
+        "warmup": args.warmup,
+        "cases": args.case_list,
+        "tolerance": "float32 fields: |ours - CuPy float64| <= 2^-23 |CuPy float64| per voxel",
+        "cupy_f32_supported": f32_ok,
+        "cupy": cp.__version__,
+        "cuda_driver": cp.cuda.runtime.driverGetVersion(),
+        "cuda_runtime": cuda_runtime,
+        "numpy": np.__version__,
+    }
+    print(f"voxfield {commit or '?'} on --device {args.device}; CuPy {cp.__version__} on "
+          f"{gpu_name}; sizes {', '.join(map(str, sizes))}; medians of {args.repeat} after "
+          f"{args.warmup} warm-up", flush=True)
 
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="voxfield_cupy_", dir=args.tmpdir) as tmp:
+        progress(f"checks on {args.check_size}^3 against SciPy")
+        small = small_checks(args, (cp, cnd), tmp)
+        print(f"check: CuPy EDT vs SciPy EDT on {args.check_size}^3: "
+              f"{small['cupy_edt_vs_scipy']}" +
+              (f" (max |diff| {small['cupy_edt_vs_scipy_max_abs_diff']:.2e})"
+               if small.get("cupy_edt_vs_scipy_max_abs_diff") is not None else ""), flush=True)
+        print(HEADER, flush=True)
+        for n in sizes:
+            rows.extend(run_size(args, cp, cnd, n, f32_ok, small, tmp))
+            device = rows[-1]["voxfield_device"] or {}
+            common["device"] = device.get("name")  # the string bench/summarize.py prints
+            common["driver"] = device.get("driver")
+            write_all(args, common, rows, small)  # after every size: a later failure keeps these
+
+    device_name = common.get("device")
+    print(f"voxfield on: {device_name}; CuPy on: {gpu_name}"
+          + (f"; nvidia-smi: {', '.join(g.get('name', '?') + ' driver ' + g.get('driver_version', '?') for g in smi)}"
+             if isinstance(smi, list) and smi else ""))
+    print("voxfield ms = median kernel time (OpenCL profiling); e2e = the run's end-to-end time from "
+          "its JSON (first run: includes the kernel build); CuPy ms = median of CUDA-event timings "
+          "(float64 output, and float32 via float64_distances=False); f64/ours = CuPy / voxfield.")
+    for name in args.case_list:
+        if PEER_CALLS[name]:
+            print(f"  {name}: CuPy {PEER_CALLS[name]}")
+        else:
+            print(f"  {name}: no CuPy peer (no chessboard transform in CuPy)")
     if args.json:
-        record = {
-            "device": ours_doc["device"]["name"],
-            "device_arg": args.device,
-            "cupy_device": gpu_name,
-            "driver": ours_doc["device"].get("driver"),
-            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
-            # The voxfield binary's own commit (the checkout on the GPU machine may differ).
-            "commit": ours_doc.get("commit") or git_commit(),
-            "world": source,
-            "size": [int(world.shape[2]), int(world.shape[1]), int(world.shape[0])],
-            "repeat": args.repeat,
-            "warmup": args.warmup,
-            "ours_metric": "manhattan",
-            "ours_kernel_ms_median": ours_med,
-            "ours_kernel_ms": ours_ms,
-            "cupy_metric": "euclidean (different from ours: not compared for equality)",
-            "cupy_edt_ms_median": edt64_med,
-            "cupy_edt_ms": edt64_ms,
-            "cupy_edt_f32_ms_median": statistics.median(edt32_ms) if edt32_ms else None,
-            "cupy_edt_f32_ms": edt32_ms,
-            "ratio_cupy_over_ours_kernel": edt64_med / ours_med if ours_med > 0 else None,
-            "bounds_l1_vs_edt_hold": bounds_ok,
-            "cupy_vs_scipy_edt": scipy_status,
-            "cupy_vs_scipy_edt_max_abs_diff": scipy_diff,
-            "cupy_vs_scipy_check_size": args.check_size,
-            "cupy": cp.__version__,
-            "cuda_driver": cp.cuda.runtime.driverGetVersion(),
-            "numpy": np.__version__,
-        }
-        with open(args.json, "w") as f:
-            json.dump(record, f, indent=2)
-            f.write("\n")
-
-    failed = bounds_ok is False or scipy_status == "DIFFERENT"
-    return 1 if failed else 0
+        names = ([args.json.replace("{size}", str(n)) for n in sizes] if "{size}" in args.json
+                 else [args.json])
+        print(f"wrote {', '.join(names)}")
+    return 1 if any_failed(rows, small) else 0
 
 
 if __name__ == "__main__":
