@@ -7,7 +7,7 @@ cd "$(dirname "$0")"
 
 packages="cmake g++ make git ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers
 pocl-opencl-icd libcli11-dev nlohmann-json3-dev libgtest-dev
-libvulkan-dev mesa-vulkan-drivers glslang-tools libstb-dev
+libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers glslang-tools libstb-dev
 pkg-config libglfw3-dev libimgui-dev xvfb xauth
 python3-dev pybind11-dev python3-pybind11 python3-numpy python3-scipy python3-pytest"
 

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstring>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -34,7 +35,7 @@ struct RenderCliOptions {
     std::string input, output, camera, target, shading = "flat", sky, device, field = "compact";
     std::uint32_t width = 800, height = 600;
     double fov = 60;
-    bool stats = false;
+    bool stats = false, validate = false;
 };
 
 // "X,Y,Z" (finite decimal numbers, world voxel units).
@@ -99,7 +100,7 @@ std::string point(const vk::Vec3& v) {
     return "(" + fixed(v[0], 2) + ", " + fixed(v[1], 2) + ", " + fixed(v[2], 2) + ")";
 }
 
-int run_render(const RenderCliOptions& o) {
+int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLog>& validation) {
     // Everything the user typed is checked before any file is read or device touched.
     if (!ends_with_png(o.output)) {
         throw InputError("output '" + o.output + "' must be a .png file");
@@ -143,7 +144,7 @@ int run_render(const RenderCliOptions& o) {
 
     const vk::FieldFormat format = vk::parse_field_format(o.field);
     ocl::Context cl_ctx(ocl::select_device(o.device));
-    vk::Context vk_ctx;
+    vk::Context vk_ctx(vk::ContextOptions{"", validation});
     // Declared before the ray marcher, destroyed after it: the marcher may read their memory.
     std::optional<ocl::ExactManhattan> exact;
     std::optional<RenderField> shared;
@@ -253,7 +254,26 @@ Command add_render(CLI::App& root) {
         ->capture_default_str();
     app->add_flag("--stats", o->stats,
                   "Report the ray-march dispatch time (GPU timestamps) and Mrays/s");
-    return {app, [o] { return run_render(*o); }};
+    app->add_flag("--validate", o->validate,
+                  "Run with the Vulkan validation layer (synchronisation validation included; "
+                  "Debian: vulkan-validationlayers): each message is printed to stderr and any "
+                  "makes the command exit 1")
+        ->envname("VOXFIELD_VALIDATE");
+    return {app, [o] {
+                std::shared_ptr<vk::ValidationLog> log;
+                if (o->validate) {
+                    log = std::make_shared<vk::ValidationLog>([](const std::string& m) {
+                        std::cerr << "voxfield: Vulkan validation: " << m << '\n';
+                    });
+                }
+                const int code = run_render(*o, log);  // every Vulkan object is gone afterwards
+                if (log && log->count() > 0) {
+                    std::cerr << "voxfield render: " << log->count()
+                              << " Vulkan validation message(s) (--validate)\n";
+                    return code == 0 ? 1 : code;
+                }
+                return code;
+            }};
 }
 
 }  // namespace voxfield::cli

@@ -68,6 +68,7 @@ struct ViewCliOptions {
     double interval_ms = 200, duration_s = 30;
     std::string json, csv;
     std::string format = "u16", fallback_png, window_screenshot, present = "auto";
+    bool validate = false;
 };
 
 // The keys, for F1 and --help.
@@ -351,7 +352,8 @@ struct Window {
     }
 };
 
-int run_view(ViewCliOptions o) {
+// validation: non-null with --validate, for every Vulkan instance of the viewer.
+int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validation) {
     // Everything the user typed is checked before any device or window is touched.
     if (!o.input.empty() && (o.world != 0 || !o.dims.empty())) {
         throw InputError("give either INPUT or --world/--dims, not both");
@@ -436,7 +438,7 @@ int run_view(ViewCliOptions o) {
     const std::uint32_t bench_chunk = gopts.chunk != 0 ? gopts.chunk : ocl::kDefaultChunk;
 
     ocl::Context cl_ctx(ocl::select_device(o.device));
-    vk::Context vk_ctx;
+    vk::Context vk_ctx(vk::ContextOptions{"", validation});
     // Frames for the presenter's device, exported by the ray marcher's (declared before the
     // session: it outlives the ray marcher's buffer over it).
     vk::ExternalMemory frame_memory;
@@ -478,6 +480,7 @@ int run_view(ViewCliOptions o) {
             return surface;
         };
         po.device = std::to_string(vk_ctx.info().index);
+        po.validation = validation;
         if (o.benchmark) {
             po.modes = {vk::PresentMode::immediate, vk::PresentMode::mailbox,
                         vk::PresentMode::fifo};
@@ -1180,7 +1183,26 @@ Command add_view(CLI::App& root) {
     app->add_option("--duration-s", o->duration_s, "Benchmark: duration")->capture_default_str();
     app->add_option("--json", o->json, "Benchmark: summary and per-frame times as JSON");
     app->add_option("--csv", o->csv, "Benchmark: per-frame times as CSV");
-    return {app, [o] { return run_view(*o); }};
+    app->add_flag("--validate", o->validate,
+                  "Run with the Vulkan validation layer (VK_LAYER_KHRONOS_validation, "
+                  "synchronisation validation included; Debian: vulkan-validationlayers): each "
+                  "message is printed to stderr and any makes the command exit 1")
+        ->envname("VOXFIELD_VALIDATE");
+    return {app, [o] {
+                std::shared_ptr<vk::ValidationLog> log;
+                if (o->validate) {
+                    log = std::make_shared<vk::ValidationLog>([](const std::string& m) {
+                        std::cerr << "voxfield: Vulkan validation: " << m << '\n';
+                    });
+                }
+                const int code = run_view(*o, log);  // every Vulkan object is gone afterwards
+                if (log && log->count() > 0) {
+                    std::cerr << "voxfield view: " << log->count()
+                              << " Vulkan validation message(s) (--validate)\n";
+                    return code == 0 ? 1 : code;
+                }
+                return code;
+            }};
 }
 
 }  // namespace voxfield::cli

@@ -53,6 +53,9 @@ class ViewTest : public ::testing::Test {
         ::unsetenv("DISPLAY");
         ::unsetenv("WAYLAND_DISPLAY");
         ::setenv("VOXFIELD_DEVICE", "cpu", 1);
+        // `--validate` for every run: the Vulkan validation layer's messages (synchronisation
+        // validation included) are printed and any makes the viewer exit 1.
+        ::setenv("VOXFIELD_VALIDATE", "1", 1);
     }
     void TearDown() override {
         const char* names[] = {"DISPLAY", "WAYLAND_DISPLAY"};

@@ -17,6 +17,7 @@
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/layout.h"
 #include "voxfield/vk/raymarcher.hpp"
+#include "vulkan_env.hpp"
 
 namespace voxfield::test {
 namespace {
@@ -25,8 +26,7 @@ using vk::Vec3;
 
 // One Vulkan context for the whole suite; without a Vulkan device every test fails.
 vk::Context& vulkan() {
-    static std::unique_ptr<vk::Context> ctx = std::make_unique<vk::Context>();
-    return *ctx;
+    return validated_vulkan();
 }
 
 std::vector<std::uint32_t> packed_field(const World& world, const Palette& palette) {

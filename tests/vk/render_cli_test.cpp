@@ -1,5 +1,6 @@
 // `voxfield render` end to end: bad input is refused (exit 2, one stderr line, no file), and a
 // small render writes a PNG atomically and reports the sharing path and GPU time.
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,7 @@ class RenderCli : public ::testing::Test {
     void SetUp() override {
         dir_ = make_temp_dir("voxfield_render");
         io_ = make_temp_dir("voxfield_render_io");
+        ::setenv("VOXFIELD_VALIDATE", "1", 1);  // `--validate`: any message exits 1
     }
     void TearDown() override {
         fs::remove_all(dir_);

@@ -15,13 +15,13 @@
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 #include "voxfield/vk/shared.hpp"
+#include "vulkan_env.hpp"
 
 namespace voxfield::test {
 namespace {
 
 vk::Context& vulkan() {
-    static std::unique_ptr<vk::Context> ctx = std::make_unique<vk::Context>();
-    return *ctx;
+    return validated_vulkan();
 }
 
 ocl::Context& opencl() {

@@ -55,7 +55,7 @@ int type_rank(VkPhysicalDeviceType t) {
 }  // namespace
 
 struct Presenter::Impl {
-    VkInstance instance = VK_NULL_HANDLE;
+    Instance instance;
     VkSurfaceKHR surface = VK_NULL_HANDLE;
     VkPhysicalDevice physical = VK_NULL_HANDLE;
     VkDevice device = VK_NULL_HANDLE;
@@ -119,11 +119,9 @@ struct Presenter::Impl {
             vkDestroyDevice(device, nullptr);
         }
         if (surface != VK_NULL_HANDLE) {
-            vkDestroySurfaceKHR(instance, surface, nullptr);
+            vkDestroySurfaceKHR(instance.get(), surface, nullptr);
         }
-        if (instance != VK_NULL_HANDLE) {
-            vkDestroyInstance(instance, nullptr);
-        }
+        instance.reset();
     }
 
     void destroy_staging() {
@@ -322,15 +320,15 @@ Presenter::Presenter(const PresenterOptions& options) : impl_(std::make_unique<I
     ii.pApplicationInfo = &app;
     ii.enabledExtensionCount = static_cast<std::uint32_t>(exts.size());
     ii.ppEnabledExtensionNames = exts.data();
-    check(vkCreateInstance(&ii, nullptr, &m.instance), "vkCreateInstance",
-          "presentation instance with the window system's surface extensions");
-    m.surface = options.make_surface(m.instance);
+    m.instance = Instance(ii, options.validation,
+                          "presentation instance with the window system's surface extensions");
+    m.surface = options.make_surface(m.instance.get());
 
     // A device with a queue family that does graphics and presents to the surface.
     std::uint32_t n = 0;
-    vkEnumeratePhysicalDevices(m.instance, &n, nullptr);
+    vkEnumeratePhysicalDevices(m.instance.get(), &n, nullptr);
     std::vector<VkPhysicalDevice> devices(n);
-    vkEnumeratePhysicalDevices(m.instance, &n, devices.data());
+    vkEnumeratePhysicalDevices(m.instance.get(), &n, devices.data());
     std::string reasons;
     int best_rank = 1 << 30;
     for (std::uint32_t i = 0; i < n; ++i) {
@@ -492,7 +490,7 @@ Presenter::Presenter(const PresenterOptions& options) : impl_(std::make_unique<I
 Presenter::~Presenter() = default;
 
 VkInstance Presenter::instance() const {
-    return impl_->instance;
+    return impl_->instance.get();
 }
 VkPhysicalDevice Presenter::physical() const {
     return impl_->physical;

@@ -1,13 +1,16 @@
 #pragma once
 // Vulkan runtime: errors carrying the call and VkResult name, move-only RAII handles, device
-// enumeration and selection (explaining every rejection), a headless compute context with
-// buffers allocated by intent and one-shot submissions.
+// enumeration and selection (explaining every rejection), validation (the Khronos layer with
+// synchronisation validation, messages collected), a headless compute context with buffers
+// allocated by intent and one-shot submissions.
 #include <vulkan/vulkan.h>
 
 #include <array>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -76,6 +79,56 @@ class Owned {
     Destroy destroy_ = nullptr;
 };
 
+// The messages of VK_LAYER_KHRONOS_validation (warnings and errors, synchronisation
+// validation included) for every instance that shares it: kept, counted and passed to
+// `on_message` (on the thread whose Vulkan call produced it). Thread-safe. Libraries never
+// print: the caller decides what a message means (tests fail, `--validate` exits 1).
+class ValidationLog {
+  public:
+    using Callback = std::function<void(const std::string&)>;
+    explicit ValidationLog(Callback on_message = {}) : on_message_(std::move(on_message)) {}
+    void add(const std::string& message);
+    std::vector<std::string> messages() const;
+    std::size_t count() const;
+    void clear();
+
+  private:
+    mutable std::mutex mutex_;
+    std::vector<std::string> messages_;
+    Callback on_message_;
+};
+
+// One VkInstance, with validation when a log is given: vkCreateInstance then also enables the
+// layer, VK_EXT_debug_utils and synchronisation validation (VK_EXT_validation_features), with
+// a messenger for the instance's own creation and destruction and one for its lifetime, both
+// reporting to the log. Move-only.
+class Instance {
+  public:
+    Instance() = default;
+    // `info` as for vkCreateInstance (its layers and extensions are kept). Throws VkError
+    // (VK_ERROR_LAYER_NOT_PRESENT, naming the Debian package) when validation is asked for and
+    // the layer is not installed.
+    Instance(const VkInstanceCreateInfo& info, std::shared_ptr<ValidationLog> validation,
+             const std::string& what);
+    ~Instance() { reset(); }
+    Instance(const Instance&) = delete;
+    Instance& operator=(const Instance&) = delete;
+    Instance(Instance&& o) noexcept;
+    Instance& operator=(Instance&& o) noexcept;
+    VkInstance get() const { return instance_; }
+    const std::shared_ptr<ValidationLog>& validation() const { return log_; }
+    // Destroys the messenger, then the instance (its devices must be gone).
+    void reset();
+
+  private:
+    VkInstance instance_ = VK_NULL_HANDLE;
+    VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
+    std::shared_ptr<ValidationLog> log_;  // outlives the instance: the layer reports to it
+};
+
+// Whether VK_LAYER_KHRONOS_validation is installed (Debian: vulkan-validationlayers).
+bool validation_layer_available();
+
 struct PhysicalDeviceInfo {
     std::size_t index = 0;           // position in list_devices()
     std::string name, type, driver;  // type: "discrete-gpu", "integrated-gpu", "cpu", ...
@@ -110,6 +163,22 @@ class Context;
 class Buffer {
   public:
     Buffer() = default;
+    Buffer(Buffer&& o) noexcept
+        : memory_(std::move(o.memory_)),
+          buffer_(std::move(o.buffer_)),
+          size_(std::exchange(o.size_, 0)),
+          mapped_(std::exchange(o.mapped_, nullptr)) {}
+    // The old buffer is destroyed before the memory it is bound to is freed.
+    Buffer& operator=(Buffer&& o) noexcept {
+        if (this != &o) {
+            buffer_.reset();
+            memory_ = std::move(o.memory_);
+            buffer_ = std::move(o.buffer_);
+            size_ = std::exchange(o.size_, 0);
+            mapped_ = std::exchange(o.mapped_, nullptr);
+        }
+        return *this;
+    }
     VkBuffer get() const { return buffer_.get(); }
     VkDeviceSize size() const { return size_; }
     void* data() const { return mapped_; }
@@ -123,13 +192,21 @@ class Buffer {
     void* mapped_ = nullptr;  // unmapped implicitly when the memory is freed
 };
 
+struct ContextOptions {
+    // "" (default: $VOXFIELD_VK_DEVICE, else the first discrete GPU, integrated GPU, virtual
+    // GPU, then CPU), "gpu", "cpu" or an index from list_devices().
+    std::string device;
+    // Non-null: validation on (the layer must be installed), every message goes to this log.
+    std::shared_ptr<ValidationLog> validation;
+};
+
 // Owns the instance, one logical device with a compute queue and a command pool.
 class Context {
   public:
-    // spec: "" (default: $VOXFIELD_VK_DEVICE, else the first discrete GPU, integrated GPU,
-    // virtual GPU, then CPU), "gpu", "cpu" or an index from list_devices(). Throws
-    // DeviceSelectionError explaining why each device was rejected.
-    explicit Context(const std::string& spec = "");
+    // spec: ContextOptions::device. Throws DeviceSelectionError explaining why each device
+    // was rejected.
+    explicit Context(const std::string& spec = "") : Context(ContextOptions{spec, nullptr}) {}
+    explicit Context(const ContextOptions& options);
     ~Context();
     Context(const Context&) = delete;
     Context& operator=(const Context&) = delete;
@@ -140,6 +217,8 @@ class Context {
     VkQueue queue() const { return queue_; }
     std::uint32_t queue_family() const { return family_; }
     float timestamp_period_ns() const { return timestamp_period_; }
+    // The validation log (nullptr: validation off).
+    const std::shared_ptr<ValidationLog>& validation() const { return instance_.validation(); }
 
     Buffer make_buffer(VkDeviceSize size, VkBufferUsageFlags usage, MemoryIntent intent,
                        const std::string& what);
@@ -175,7 +254,7 @@ class Context {
     std::uint32_t memory_type(std::uint32_t allowed, MemoryIntent intent,
                               const std::string& what) const;
 
-    VkInstance instance_ = VK_NULL_HANDLE;
+    Instance instance_;
     VkPhysicalDevice physical_ = VK_NULL_HANDLE;
     VkDevice device_ = VK_NULL_HANDLE;
     VkQueue queue_ = VK_NULL_HANDLE;

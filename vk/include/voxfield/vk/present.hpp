@@ -30,6 +30,9 @@ struct PresenterOptions {
     // Preferred modes in order; FIFO (always available, vsync) is the fallback.
     std::vector<PresentMode> modes = {PresentMode::fifo};
     std::string device;  // as Context: "" ($VOXFIELD_VK_DEVICE or the best), gpu, cpu, N
+    // Non-null: validation on for the presenter's instance, messages to this log (as
+    // ContextOptions::validation).
+    std::shared_ptr<ValidationLog> validation;
 };
 
 class Presenter {
