@@ -1,7 +1,9 @@
 // vk::Context on lavapipe (or any Vulkan device): validation really reports what it should
-// (parameter errors, synchronisation hazards, memory freed under a bound buffer).
+// (parameter errors, synchronisation hazards), and a submission whose wait fails is retired,
+// never destroyed while the GPU may still run it.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <string>
 
@@ -66,6 +68,44 @@ TEST(Validation, MovingABufferOverAnotherFreesNoMemoryStillBound) {
     EXPECT_EQ(a.size(), 8192u);
     EXPECT_FALSE(any_contains(log->messages(), "still has a reference to mem obj"))
         << log->messages().back();
+}
+
+TEST(Context, AFailedWaitRetiresTheSubmission) {
+    // A wait that times out while the GPU still runs the work: the command buffer and fence
+    // are retired (freed once the fence signals), not destroyed in use, which validation
+    // would report (VUID-vkDestroyFence-fence-01120, VUID-vkFreeCommandBuffers-...-00047).
+    vk::Context& ctx = validated_vulkan();
+    const VkDeviceSize size = VkDeviceSize{256} << 20;
+    const vk::Buffer b = ctx.make_buffer(size, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                         vk::MemoryIntent::device_local, "long fill");
+    const auto fill = [&](VkCommandBuffer cmd) {
+        for (int i = 0; i < 8; ++i) {
+            if (i > 0) {
+                VkMemoryBarrier m{};
+                m.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+                m.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+                m.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+                vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                     VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &m, 0, nullptr, 0,
+                                     nullptr);
+            }
+            vkCmdFillBuffer(cmd, b.get(), 0, VK_WHOLE_SIZE, static_cast<std::uint32_t>(i));
+        }
+    };
+    bool timed_out = false;
+    for (int attempt = 0; attempt < 5 && !timed_out; ++attempt) {
+        try {
+            ctx.submit_and_wait(fill, "long fill", std::chrono::nanoseconds(0));
+        } catch (const vk::VkError& e) {
+            EXPECT_EQ(e.result(), VK_TIMEOUT) << e.what();
+            timed_out = true;
+        }
+    }
+    ASSERT_TRUE(timed_out) << "2 GiB of fills finished before a zero-timeout wait, 5 times";
+    // The next submission runs after it (one queue, in order); then nothing is left.
+    ctx.submit_and_wait([&](VkCommandBuffer cmd) { vkCmdFillBuffer(cmd, b.get(), 0, 4, 9); },
+                        "after the timeout");
+    EXPECT_EQ(ctx.retired_in_flight(), 0u);
 }
 
 }  // namespace

@@ -467,6 +467,7 @@ Context::Context(const ContextOptions& options) {
 Context::~Context() {
     if (device_ != VK_NULL_HANDLE) {
         vkDeviceWaitIdle(device_);
+        collect_retired(true);
     }
     pool_.reset();
     if (device_ != VK_NULL_HANDLE) {
@@ -631,17 +632,27 @@ void Context::upload(const Buffer& dst, const void* bytes, VkDeviceSize size, Vk
     for (VkDeviceSize done = 0; done < size; done += chunk) {
         const VkDeviceSize n = std::min(chunk, size - done);
         std::memcpy(staging.data(), static_cast<const std::uint8_t*>(bytes) + done, n);
-        submit_and_wait(
-            [&](VkCommandBuffer cmd) {
-                VkBufferCopy region{0, offset + done, n};
-                vkCmdCopyBuffer(cmd, staging.get(), dst.get(), 1, &region);
-            },
-            "upload");
+        const std::size_t retired = retired_.size();
+        try {
+            submit_and_wait(
+                [&](VkCommandBuffer cmd) {
+                    VkBufferCopy region{0, offset + done, n};
+                    vkCmdCopyBuffer(cmd, staging.get(), dst.get(), 1, &region);
+                },
+                "upload");
+        } catch (...) {
+            if (retired_.size() > retired) {
+                // The copy may still read the staging buffer: it goes with the submission.
+                retired_.back().buffers.push_back(std::move(staging));
+            }
+            throw;
+        }
     }
 }
 
 void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record,
-                              const std::string& what) {
+                              const std::string& what, std::chrono::nanoseconds timeout) {
+    collect_retired(false);
     VkCommandBufferAllocateInfo alloc{};
     alloc.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
     alloc.commandPool = pool_.get();
@@ -649,11 +660,16 @@ void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record
     alloc.commandBufferCount = 1;
     VkCommandBuffer cmd = VK_NULL_HANDLE;
     check(vkAllocateCommandBuffers(device_, &alloc, &cmd), "vkAllocateCommandBuffers", what);
+    // Freed on every way out except a failed wait, which retires it instead.
     struct FreeCmd {
         VkDevice device;
         VkCommandPool pool;
         VkCommandBuffer cmd;
-        ~FreeCmd() { vkFreeCommandBuffers(device, pool, 1, &cmd); }
+        ~FreeCmd() {
+            if (cmd != VK_NULL_HANDLE) {
+                vkFreeCommandBuffers(device, pool, 1, &cmd);
+            }
+        }
     } free_cmd{device_, pool_.get(), cmd};
     VkCommandBufferBeginInfo begin{};
     begin.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
@@ -672,8 +688,44 @@ void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record
     submit.commandBufferCount = 1;
     submit.pCommandBuffers = &cmd;
     check(vkQueueSubmit(queue_, 1, &submit, fence.get()), "vkQueueSubmit", what);
-    // The command buffer (and whatever it reads) is retired only once its fence signalled.
-    check(vkWaitForFences(device_, 1, &fence_handle, VK_TRUE, UINT64_MAX), "vkWaitForFences", what);
+    const std::uint64_t ns =
+        timeout == std::chrono::nanoseconds::max()
+            ? UINT64_MAX
+            : static_cast<std::uint64_t>(std::max<std::int64_t>(timeout.count(), 0));
+    const VkResult r = vkWaitForFences(device_, 1, &fence_handle, VK_TRUE, ns);
+    if (r != VK_SUCCESS) {
+        // The GPU may still run the command buffer (and read what it refers to): both stay
+        // alive until its fence signals.
+        InFlight pending;
+        pending.fence = fence_handle;
+        pending.cmd = cmd;
+        retired_.push_back(std::move(pending));
+        free_cmd.cmd = VK_NULL_HANDLE;
+        static_cast<void>(fence.release());
+        throw VkError("vkWaitForFences", r, what);
+    }
+}
+
+std::size_t Context::retired_in_flight() {
+    collect_retired(false);
+    return retired_.size();
+}
+
+void Context::collect_retired(bool wait) {
+    if (wait && !retired_.empty()) {
+        vkDeviceWaitIdle(device_);
+    }
+    for (auto it = retired_.begin(); it != retired_.end();) {
+        // Finished, or never will (a lost device): nothing of it runs any more.
+        const VkResult r = vkGetFenceStatus(device_, it->fence);
+        if (wait || r != VK_NOT_READY) {
+            vkFreeCommandBuffers(device_, pool_.get(), 1, &it->cmd);
+            vkDestroyFence(device_, it->fence, nullptr);
+            it = retired_.erase(it);
+        } else {
+            ++it;
+        }
+    }
 }
 
 }  // namespace voxfield::vk

@@ -6,6 +6,7 @@
 #include <vulkan/vulkan.h>
 
 #include <array>
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -66,6 +67,8 @@ class Owned {
     }
     H get() const { return handle_; }
     explicit operator bool() const { return handle_ != H{}; }
+    // Gives up ownership: the caller destroys the handle.
+    [[nodiscard]] H release() { return std::exchange(handle_, H{}); }
     void reset() {
         if (handle_ != H{} && destroy_ != nullptr) {
             destroy_(device_, handle_, nullptr);
@@ -246,13 +249,28 @@ class Context {
     // Copies `bytes` into `dst` at `offset`: directly when it is mapped, else through a
     // staging buffer (needs VK_BUFFER_USAGE_TRANSFER_DST_BIT).
     void upload(const Buffer& dst, const void* bytes, VkDeviceSize size, VkDeviceSize offset = 0);
-    // Records `record` into a fresh command buffer, submits it and waits for its fence.
+    // Records `record` into a fresh command buffer, submits it and waits for its fence at
+    // most `timeout`. When the wait fails (VK_TIMEOUT, a lost device) it throws VkError and
+    // retires the command buffer and fence: they are freed once the fence signals (checked
+    // at each submission) or when the context is destroyed, never while the GPU may use them.
     void submit_and_wait(const std::function<void(VkCommandBuffer)>& record,
-                         const std::string& what);
+                         const std::string& what,
+                         std::chrono::nanoseconds timeout = std::chrono::nanoseconds::max());
+    // Submissions whose wait failed and that are not known to be finished.
+    std::size_t retired_in_flight();
 
   private:
+    // A submission whose wait failed, with what it uses.
+    struct InFlight {
+        VkFence fence = VK_NULL_HANDLE;
+        VkCommandBuffer cmd = VK_NULL_HANDLE;
+        std::vector<Buffer> buffers;
+    };
     std::uint32_t memory_type(std::uint32_t allowed, MemoryIntent intent,
                               const std::string& what) const;
+    // Frees the retired submissions whose fence signalled (all of them with `wait`, after
+    // vkDeviceWaitIdle).
+    void collect_retired(bool wait);
 
     Instance instance_;
     VkPhysicalDevice physical_ = VK_NULL_HANDLE;
@@ -264,6 +282,7 @@ class Context {
     PhysicalDeviceInfo info_;
     std::vector<std::string> enabled_;
     Owned<VkCommandPool> pool_;
+    std::vector<InFlight> retired_;
 };
 
 }  // namespace voxfield::vk
