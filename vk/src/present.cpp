@@ -78,7 +78,11 @@ struct Presenter::Impl {
     VkCommandPool pool = VK_NULL_HANDLE;
     VkCommandBuffer cmd = VK_NULL_HANDLE;
     VkFence fence = VK_NULL_HANDLE;
-    VkSemaphore acquired = VK_NULL_HANDLE, rendered = VK_NULL_HANDLE;
+    VkSemaphore acquired = VK_NULL_HANDLE;
+    // One render-finished semaphore per swapchain image (what presenting it waits on): a
+    // semaphore is signalled again only after its image was acquired again, i.e. after the
+    // presentation that waited on it is done with it.
+    std::vector<VkSemaphore> rendered;
 
     VkBuffer staging = VK_NULL_HANDLE;
     VkDeviceMemory staging_memory = VK_NULL_HANDLE;
@@ -112,8 +116,6 @@ struct Presenter::Impl {
                 vkDestroyFence(device, fence, nullptr);
             if (acquired)
                 vkDestroySemaphore(device, acquired, nullptr);
-            if (rendered)
-                vkDestroySemaphore(device, rendered, nullptr);
             if (pool)
                 vkDestroyCommandPool(device, pool, nullptr);
             vkDestroyDevice(device, nullptr);
@@ -174,9 +176,12 @@ struct Presenter::Impl {
             vkDestroyFramebuffer(device, f, nullptr);
         for (VkImageView v : views)
             vkDestroyImageView(device, v, nullptr);
+        for (VkSemaphore r : rendered)
+            vkDestroySemaphore(device, r, nullptr);
         framebuffers.clear();
         views.clear();
         images.clear();
+        rendered.clear();
         if (swapchain)
             vkDestroySwapchainKHR(device, swapchain, nullptr);
         swapchain = VK_NULL_HANDLE;
@@ -300,6 +305,12 @@ struct Presenter::Impl {
             VkFramebuffer fb = VK_NULL_HANDLE;
             check(vkCreateFramebuffer(device, &f, nullptr, &fb), "vkCreateFramebuffer");
             framebuffers.push_back(fb);
+            VkSemaphoreCreateInfo si{};
+            si.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO;
+            VkSemaphore done = VK_NULL_HANDLE;
+            check(vkCreateSemaphore(device, &si, nullptr, &done), "vkCreateSemaphore",
+                  "render finished");
+            rendered.push_back(done);
         }
     }
 };
@@ -484,7 +495,6 @@ Presenter::Presenter(const PresenterOptions& options) : impl_(std::make_unique<I
     VkSemaphoreCreateInfo si{};
     si.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO;
     check(vkCreateSemaphore(m.device, &si, nullptr, &m.acquired), "vkCreateSemaphore");
-    check(vkCreateSemaphore(m.device, &si, nullptr, &m.rendered), "vkCreateSemaphore");
 }
 
 Presenter::~Presenter() = default;
@@ -522,6 +532,9 @@ std::string Presenter::device_name() const {
 }
 VkFormat Presenter::format() const {
     return impl_->format.format;
+}
+std::vector<VkSemaphore> Presenter::render_finished_semaphores() const {
+    return impl_->rendered;
 }
 
 void Presenter::wait_idle() {
@@ -686,13 +699,13 @@ bool Presenter::Impl::submit_frame(VkBuffer src, bool external, std::uint32_t ro
     s.commandBufferCount = 1;
     s.pCommandBuffers = &m.cmd;
     s.signalSemaphoreCount = 1;
-    s.pSignalSemaphores = &m.rendered;
+    s.pSignalSemaphores = &m.rendered[index];
     check(vkResetFences(m.device, 1, &m.fence), "vkResetFences");
     check(vkQueueSubmit(m.queue, 1, &s, m.fence), "vkQueueSubmit", "present");
     VkPresentInfoKHR p{};
     p.sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR;
     p.waitSemaphoreCount = 1;
-    p.pWaitSemaphores = &m.rendered;
+    p.pWaitSemaphores = &m.rendered[index];
     p.swapchainCount = 1;
     p.pSwapchains = &m.swapchain;
     p.pImageIndices = &index;
@@ -748,8 +761,17 @@ bool Presenter::bgra() const {
 
 void Presenter::import_frame(int fd, VkDeviceSize size, std::uint32_t memory_type) {
     Impl& m = *impl_;
+    // The fd is ours until the driver takes it (a successful import): closed on every other
+    // way out, a throw included.
+    struct OwnedFd {
+        int fd;
+        ~OwnedFd() {
+            if (fd >= 0) {
+                close(fd);
+            }
+        }
+    } owned{fd};
     if (!m.external_memory_fd) {
-        close(fd);
         throw VkError("vkAllocateMemory", VK_ERROR_EXTENSION_NOT_PRESENT,
                       m.name + " (presentation) lacks VK_KHR_external_memory_fd");
     }
@@ -764,10 +786,9 @@ void Presenter::import_frame(int fd, VkDeviceSize size, std::uint32_t memory_typ
     b.size = size;
     b.usage = VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
     b.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-    if (const VkResult r = vkCreateBuffer(m.device, &b, nullptr, &m.imported); r != VK_SUCCESS) {
-        close(fd);
-        check(r, "vkCreateBuffer", "imported frame");
-    }
+    VkBuffer buffer = VK_NULL_HANDLE;
+    check(vkCreateBuffer(m.device, &b, nullptr, &buffer), "vkCreateBuffer", "imported frame");
+    m.imported = buffer;
     VkImportMemoryFdInfoKHR import{};
     import.sType = VK_STRUCTURE_TYPE_IMPORT_MEMORY_FD_INFO_KHR;
     import.handleType = VK_EXTERNAL_MEMORY_HANDLE_TYPE_OPAQUE_FD_BIT;
@@ -780,11 +801,11 @@ void Presenter::import_frame(int fd, VkDeviceSize size, std::uint32_t memory_typ
     // On success the driver owns the fd; on failure it is still ours.
     if (const VkResult r = vkAllocateMemory(m.device, &a, nullptr, &m.imported_memory);
         r != VK_SUCCESS) {
-        close(fd);
         m.imported_memory = VK_NULL_HANDLE;
         m.destroy_imported();
         check(r, "vkAllocateMemory", "importing a " + std::to_string(size) + "-byte frame");
     }
+    owned.fd = -1;
     check(vkBindBufferMemory(m.device, m.imported, m.imported_memory, 0), "vkBindBufferMemory",
           "imported frame");
     m.imported_size = size;

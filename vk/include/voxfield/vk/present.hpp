@@ -53,6 +53,9 @@ class Presenter {
     PresentMode mode() const;
     std::string device_name() const;
     VkFormat format() const;
+    // What presenting each swapchain image waits on: one semaphore per image (a semaphore is
+    // signalled again only once its image came back from the presentation engine).
+    std::vector<VkSemaphore> render_finished_semaphores() const;
 
     // Presents `rgba` (width x height RGBA8 rows, top to bottom; the part outside the
     // swapchain's extent is dropped, uncovered parts are black) at framebuffer size
