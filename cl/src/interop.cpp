@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cstring>
+#include <exception>
+#include <optional>
 #include <string>
 
 #include "util.hpp"
@@ -75,6 +77,38 @@ std::size_t set_box(cl::Kernel& kernel, cl_uint first, const Int3& lo, const Int
     return round_up(count, kLocal);
 }
 
+// An imported buffer held by OpenCL (cl_khr_external_memory) from construction to release():
+// on a way out without release() (a throw) the release is still enqueued and the queue
+// finished, so that Vulkan never finds the buffer left acquired.
+class ExternalAcquire {
+  public:
+    ExternalAcquire(Context& ctx, const cl::Buffer& buffer) : ctx_(ctx), buffer_(buffer) {
+        acquire_external(ctx_, buffer_);
+        held_ = true;
+    }
+    ~ExternalAcquire() {
+        if (held_) {
+            // Unwinding already: the first error is the one reported.
+            try {
+                release_external(ctx_, buffer_);
+                ctx_.queue().finish();
+            } catch (const std::exception&) {
+            }
+        }
+    }
+    ExternalAcquire(const ExternalAcquire&) = delete;
+    ExternalAcquire& operator=(const ExternalAcquire&) = delete;
+    void release() {
+        held_ = false;
+        release_external(ctx_, buffer_);
+    }
+
+  private:
+    Context& ctx_;
+    const cl::Buffer& buffer_;
+    bool held_ = false;
+};
+
 }  // namespace
 
 CompactWriter::CompactWriter(Context& ctx, const cl::Buffer& field, Format format,
@@ -119,8 +153,9 @@ double CompactWriter::run(const std::vector<Box>& regions) {
     const std::int64_t b = VF_RAYMARCH_BLOCK;
     return cl_call("writing the compact render field", [&] {
         std::vector<cl::Event> events;
+        std::optional<ExternalAcquire> acquired;
         if (external_) {
-            acquire_external(ctx_, dst_);
+            acquired.emplace(ctx_, dst_);
         }
         for (const Box& region : regions) {
             const Box r = intersect(region, world);
@@ -138,8 +173,8 @@ double CompactWriter::run(const std::vector<Box>& regions) {
                                               cl::NDRange(set_box(block_kernel_, 3, lo, hi)),
                                               cl::NDRange(kLocal), nullptr, &events.back());
         }
-        if (external_) {
-            release_external(ctx_, dst_);
+        if (acquired) {
+            acquired->release();
         }
         ctx_.queue().finish();  // Vulkan reads the field only after OpenCL finished writing it
         return events.empty() ? 0.0 : elapsed_ms(events.front(), events.back());
