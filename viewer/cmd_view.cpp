@@ -21,6 +21,7 @@
 #include <ctime>
 #include <deque>
 #include <filesystem>
+#include <iomanip>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -89,6 +90,7 @@ const char* const kHelp[][2] = {
     {"Ctrl+Z / Ctrl+Y", "undo / redo the last stroke"},
     {"Ctrl+S", "save the world as .npy and .vox (current folder)"},
     {"F1", "this help"},
+    {"F2", "full panel (algorithm, scene, shading, palette) / compact overlay"},
     {"F12", "screenshot PNG (current folder; path printed)"},
     {"Esc", "quit"},
 };
@@ -146,18 +148,26 @@ class Session {
     Session& operator=(const Session&) = delete;
 
     // Regenerates everything for `world` with `options` (new algorithm, chunk, scene or a
-    // large undo); returns the wall time in ms. When the options are refused (InputError) the
-    // session keeps its field and options.
+    // large undo); returns the wall time in ms. When it fails (refused options, a device
+    // error) the session keeps its field and options, shown as before, and the error goes on.
     double rebuild(World world, const ocl::GeneratorOptions& options) {
         const auto t = Clock::now();
         const ocl::GeneratorOptions next = ocl::resolve_options(options, world.dims());
         // The new field is complete before the old one goes: never a session without one.
         auto field = std::make_unique<ocl::IncrementalField>(cl_, std::move(world), palette_, next);
         render_field_->detach();
+        try {
+            render_field_->attach(*marcher_, field->field_buffer(), next.format,
+                                  field->voxels_buffer(), palette_);
+        } catch (...) {
+            if (field_) {
+                render_field_->attach(*marcher_, field_->field_buffer(), options_.format,
+                                      field_->voxels_buffer(), palette_);
+            }
+            throw;
+        }
         field_ = std::move(field);
         options_ = next;
-        render_field_->attach(*marcher_, field_->field_buffer(), options_.format,
-                              field_->voxels_buffer(), palette_);
         return ms_since(t);
     }
 
@@ -267,6 +277,40 @@ const char* present_path(bool gpu) {
 
 bool has_focus(ocl::Algorithm a) {
     return a == ocl::Algorithm::lod || a == ocl::Algorithm::monolithic;
+}
+
+// The overlay's algorithm combo lists algorithm_names() (DESIGN §4 order, which is not the
+// enum's): entries and algorithms are matched by name, never by the enum's value.
+int algorithm_entry(ocl::Algorithm a) {
+    const auto& names = ocl::algorithm_names();
+    return static_cast<int>(std::find(names.begin(), names.end(), ocl::to_string(a)) -
+                            names.begin());
+}
+
+ocl::Algorithm entry_algorithm(int entry) {
+    return ocl::parse_algorithm(ocl::algorithm_names().at(static_cast<std::size_t>(entry)));
+}
+
+// The failures an algorithm or scene switch survives (the session keeps its field): refused
+// options and device errors. Anything else ends the viewer.
+bool switch_failure(const std::exception& e) {
+    return dynamic_cast<const InputError*>(&e) != nullptr ||
+           dynamic_cast<const ocl::ClError*>(&e) != nullptr ||
+           dynamic_cast<const ocl::BuildError*>(&e) != nullptr ||
+           dynamic_cast<const vk::VkError*>(&e) != nullptr;
+}
+
+// The sharing path in a few words (the compact overlay; the full panel has the whole story).
+const char* sharing_summary(vk::SharingPath path) {
+    switch (path) {
+        case vk::SharingPath::opaque_fd:
+            return "path 1 (opaque fd, no copy)";
+        case vk::SharingPath::host_pointer:
+            return "path 2 (host memory, no copy)";
+        case vk::SharingPath::copy:
+            break;
+    }
+    return "path 3 (copy)";
 }
 
 // The brush's target drawn over the image: a cube's box as 12 edges, a sphere as the circle
@@ -570,7 +614,9 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     Session::Update last_update;
     std::optional<Brush> preview;
     bool focus_follows = false;
-    int algorithm_index = static_cast<int>(session.options().algorithm);
+    int algorithm_index = algorithm_entry(session.options().algorithm);
+    bool full_panel = false;   // F2: the full panel instead of the compact overlay
+    std::string switch_error;  // why the last algorithm / scene switch failed
     int scene_index = 0;
     const std::vector<std::string> scenes = scene_names();
     for (std::size_t i = 0; i < scenes.size(); ++i) {
@@ -671,6 +717,9 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             }
             if (keys.pressed(GLFW_KEY_F1)) {
                 show_help = !show_help;
+            }
+            if (keys.pressed(GLFW_KEY_F2)) {
+                full_panel = !full_panel;
             }
             if (keys.pressed(GLFW_KEY_TAB)) {
                 camera.toggle_mode();
@@ -847,8 +896,6 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                                    session.palette());
             }
 
-            ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
-            ImGui::Begin("voxfield");
             const auto push = [](std::deque<float>& h, double v) {
                 h.push_back(static_cast<float>(v));
                 if (h.size() > 120) {
@@ -859,94 +906,130 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             push(hist_frame, frame_ms);
             push(hist_update, last_update.field_ms + last_update.convert_ms);
             push(hist_march, raymarch_ms);
-            const std::vector<float> hf(hist_frame.begin(), hist_frame.end());
-            const std::vector<float> hu(hist_update.begin(), hist_update.end());
-            const std::vector<float> hm(hist_march.begin(), hist_march.end());
-            ImGui::Text("%.1f FPS, frame %.2f ms", frame_ms > 0 ? 1000.0 / frame_ms : 0.0,
-                        frame_ms);
-            ImGui::PlotLines("frame ms", hf.data(), static_cast<int>(hf.size()));
-            ImGui::Text("field update %.3f ms + render field %.3f ms (device)",
-                        last_update.field_ms, last_update.convert_ms);
-            ImGui::PlotLines("update ms", hu.data(), static_cast<int>(hu.size()));
-            ImGui::Text("ray march %.3f ms (GPU timestamps)", raymarch_ms);
-            ImGui::PlotLines("march ms", hm.data(), static_cast<int>(hm.size()));
-            const World& w = session.world();
-            ImGui::Text("world %s, %zu solid of %zu voxels", w.dims().to_string().c_str(),
-                        w.solid_count(), w.size());
-            ImGui::Text("memory/voxel: render 2 B (compact), OpenCL field %zu B (%s) + world 1 B",
-                        element_size(session.options().format),
-                        to_string(session.options().format).c_str());
-            ImGui::Text("OpenCL: %s", cl_ctx.info().name.c_str());
-            ImGui::Text("Vulkan: %s / present %s (%s)", vk_ctx.info().name.c_str(),
-                        presenter->device_name().c_str(), vk::to_string(presenter->mode()).c_str());
-            ImGui::Text("frames: %s", present_path(gpu_present));
-            ImGui::Text("sharing: %s", session.marcher().sharing_path().c_str());
-            if (!session.render_field().why_not().empty() && ImGui::IsItemHovered()) {
-                ImGui::SetTooltip("%s", session.render_field().why_not().c_str());
-            }
-            ImGui::Separator();
-            const auto& names = ocl::algorithm_names();
-            std::vector<const char*> cnames;
-            for (const auto& n : names) {
-                cnames.push_back(n.c_str());
-            }
-            bool regen = false;
-            if (ImGui::Combo("algorithm", &algorithm_index, cnames.data(),
-                             static_cast<int>(cnames.size()))) {
-                regen = true;
-            }
-            ImGui::SliderInt("chunk 2^k", &chunk_log2, 3, 7);
-            if (has_focus(session.options().algorithm)) {
-                ImGui::SliderInt("focus size", &focus_size, 0, 8);
-                ImGui::Checkbox("focus follows camera", &focus_follows);
-                if (const auto& f = session.options().focus) {
-                    ImGui::Text(
-                        "focus: chunk (%lld, %lld, %lld), size %lld",
-                        static_cast<long long>(f->centre.x), static_cast<long long>(f->centre.y),
-                        static_cast<long long>(f->centre.z), static_cast<long long>(f->size));
+            const ImVec4 red(1.0f, 0.45f, 0.4f, 1.0f);
+            bool regen = false, new_scene = false;
+            if (!full_panel) {
+                // The compact overlay: one small box that takes no input.
+                ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_Always);
+                ImGui::SetNextWindowBgAlpha(0.5f);
+                ImGui::Begin("##compact", nullptr,
+                             ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize |
+                                 ImGuiWindowFlags_NoInputs | ImGuiWindowFlags_NoSavedSettings |
+                                 ImGuiWindowFlags_NoFocusOnAppearing | ImGuiWindowFlags_NoNav);
+                ImGui::Text("%.1f FPS  frame %.2f  update %.3f  march %.3f ms",
+                            frame_ms > 0 ? 1000.0 / frame_ms : 0.0, frame_ms,
+                            last_update.field_ms + last_update.convert_ms, raymarch_ms);
+                ImGui::Text("%s + %s", vk_ctx.info().name.c_str(), cl_ctx.info().name.c_str());
+                ImGui::Text("%s, %s; F1 keys, F2 panel",
+                            sharing_summary(session.render_field().path()),
+                            ocl::to_string(session.options().algorithm).c_str());
+                if (!switch_error.empty()) {
+                    ImGui::PushTextWrapPos(ImGui::GetFontSize() * 32);
+                    ImGui::TextColored(red, "cannot switch: %s", switch_error.c_str());
+                    ImGui::PopTextWrapPos();
                 }
-            }
-            std::vector<const char*> snames;
-            for (const auto& n : scenes) {
-                snames.push_back(n.c_str());
-            }
-            ImGui::Combo("scene", &scene_index, snames.data(), static_cast<int>(snames.size()));
-            const bool new_scene = ImGui::Button("regenerate");
-            ImGui::SameLine();
-            regen = ImGui::Button("apply algorithm") || regen;
-            int shading = ropts.shading == vk::Shading::lit ? 1 : 0;
-            const char* shadings[] = {"flat", "lit"};
-            if (ImGui::Combo("shading", &shading, shadings, 2)) {
-                ropts.shading = shading == 1 ? vk::Shading::lit : vk::Shading::flat;
-                ropts.sky_gradient = shading == 1;
-            }
-            ImGui::Text("brush: %s %s, size %lld, colour %d  (%s)", paint_mode ? "paint" : "place",
-                        to_string(brush.shape).c_str(), static_cast<long long>(brush.size),
-                        brush.material, camera.mode() == ViewCamera::Mode::orbit ? "orbit" : "fly");
-            ImGui::Text("undo %zu, redo %zu. F1: keys", undo.undo_count(), undo.redo_count());
-            if (ImGui::CollapsingHeader("palette")) {
-                const Palette& pal = session.palette();
-                for (int m = 1; m < 256; ++m) {
-                    const Rgba rgb = pal[static_cast<std::uint8_t>(m)];
-                    ImGui::PushID(m);
-                    if (ImGui::ColorButton(
-                            "##colour", ImVec4(rgb.r / 255.0f, rgb.g / 255.0f, rgb.b / 255.0f, 1),
-                            ImGuiColorEditFlags_NoAlpha, ImVec2(14, 14))) {
-                        brush.material = static_cast<std::uint8_t>(m);
-                    }
-                    if (m == brush.material) {
-                        ImGui::GetWindowDrawList()->AddRect(ImGui::GetItemRectMin(),
-                                                            ImGui::GetItemRectMax(),
-                                                            IM_COL32(255, 255, 255, 255), 0, 0, 2);
-                    }
-                    ImGui::PopID();
-                    if (m % 16 != 15) {
-                        ImGui::SameLine(0, 2);
+                ImGui::End();
+            } else {
+                ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
+                ImGui::Begin("voxfield (F2: compact)");
+                if (!switch_error.empty()) {
+                    ImGui::PushTextWrapPos(ImGui::GetFontSize() * 40);
+                    ImGui::TextColored(red, "cannot switch: %s", switch_error.c_str());
+                    ImGui::PopTextWrapPos();
+                }
+                const std::vector<float> hf(hist_frame.begin(), hist_frame.end());
+                const std::vector<float> hu(hist_update.begin(), hist_update.end());
+                const std::vector<float> hm(hist_march.begin(), hist_march.end());
+                ImGui::Text("%.1f FPS, frame %.2f ms", frame_ms > 0 ? 1000.0 / frame_ms : 0.0,
+                            frame_ms);
+                ImGui::PlotLines("frame ms", hf.data(), static_cast<int>(hf.size()));
+                ImGui::Text("field update %.3f ms + render field %.3f ms (device)",
+                            last_update.field_ms, last_update.convert_ms);
+                ImGui::PlotLines("update ms", hu.data(), static_cast<int>(hu.size()));
+                ImGui::Text("ray march %.3f ms (GPU timestamps)", raymarch_ms);
+                ImGui::PlotLines("march ms", hm.data(), static_cast<int>(hm.size()));
+                const World& w = session.world();
+                ImGui::Text("world %s, %zu solid of %zu voxels", w.dims().to_string().c_str(),
+                            w.solid_count(), w.size());
+                ImGui::Text(
+                    "memory/voxel: render 2 B (compact), OpenCL field %zu B (%s) + world 1 B",
+                    element_size(session.options().format),
+                    to_string(session.options().format).c_str());
+                ImGui::Text("OpenCL: %s", cl_ctx.info().name.c_str());
+                ImGui::Text("Vulkan: %s / present %s (%s)", vk_ctx.info().name.c_str(),
+                            presenter->device_name().c_str(),
+                            vk::to_string(presenter->mode()).c_str());
+                ImGui::Text("frames: %s", present_path(gpu_present));
+                ImGui::Text("sharing: %s", session.marcher().sharing_path().c_str());
+                if (!session.render_field().why_not().empty() && ImGui::IsItemHovered()) {
+                    ImGui::SetTooltip("%s", session.render_field().why_not().c_str());
+                }
+                ImGui::Separator();
+                const auto& names = ocl::algorithm_names();
+                std::vector<const char*> cnames;
+                for (const auto& n : names) {
+                    cnames.push_back(n.c_str());
+                }
+                if (ImGui::Combo("algorithm", &algorithm_index, cnames.data(),
+                                 static_cast<int>(cnames.size()))) {
+                    regen = true;
+                }
+                ImGui::SliderInt("chunk 2^k", &chunk_log2, 3, 7);
+                if (has_focus(session.options().algorithm)) {
+                    ImGui::SliderInt("focus size", &focus_size, 0, 8);
+                    ImGui::Checkbox("focus follows camera", &focus_follows);
+                    if (const auto& f = session.options().focus) {
+                        ImGui::Text("focus: chunk (%lld, %lld, %lld), size %lld",
+                                    static_cast<long long>(f->centre.x),
+                                    static_cast<long long>(f->centre.y),
+                                    static_cast<long long>(f->centre.z),
+                                    static_cast<long long>(f->size));
                     }
                 }
-                ImGui::NewLine();
+                std::vector<const char*> snames;
+                for (const auto& n : scenes) {
+                    snames.push_back(n.c_str());
+                }
+                ImGui::Combo("scene", &scene_index, snames.data(), static_cast<int>(snames.size()));
+                new_scene = ImGui::Button("regenerate");
+                ImGui::SameLine();
+                regen = ImGui::Button("apply algorithm") || regen;
+                int shading = ropts.shading == vk::Shading::lit ? 1 : 0;
+                const char* shadings[] = {"flat", "lit"};
+                if (ImGui::Combo("shading", &shading, shadings, 2)) {
+                    ropts.shading = shading == 1 ? vk::Shading::lit : vk::Shading::flat;
+                    ropts.sky_gradient = shading == 1;
+                }
+                ImGui::Text("brush: %s %s, size %lld, colour %d  (%s)",
+                            paint_mode ? "paint" : "place", to_string(brush.shape).c_str(),
+                            static_cast<long long>(brush.size), brush.material,
+                            camera.mode() == ViewCamera::Mode::orbit ? "orbit" : "fly");
+                ImGui::Text("undo %zu, redo %zu. F1: keys", undo.undo_count(), undo.redo_count());
+                if (ImGui::CollapsingHeader("palette")) {
+                    const Palette& pal = session.palette();
+                    for (int m = 1; m < 256; ++m) {
+                        const Rgba rgb = pal[static_cast<std::uint8_t>(m)];
+                        ImGui::PushID(m);
+                        if (ImGui::ColorButton(
+                                "##colour",
+                                ImVec4(rgb.r / 255.0f, rgb.g / 255.0f, rgb.b / 255.0f, 1),
+                                ImGuiColorEditFlags_NoAlpha, ImVec2(14, 14))) {
+                            brush.material = static_cast<std::uint8_t>(m);
+                        }
+                        if (m == brush.material) {
+                            ImGui::GetWindowDrawList()->AddRect(
+                                ImGui::GetItemRectMin(), ImGui::GetItemRectMax(),
+                                IM_COL32(255, 255, 255, 255), 0, 0, 2);
+                        }
+                        ImGui::PopID();
+                        if (m % 16 != 15) {
+                            ImGui::SameLine(0, 2);
+                        }
+                    }
+                    ImGui::NewLine();
+                }
+                ImGui::End();
             }
-            ImGui::End();
             if (show_help) {
                 ImGui::SetNextWindowPos(ImVec2(io.DisplaySize.x / 2, io.DisplaySize.y / 2),
                                         ImGuiCond_Always, ImVec2(0.5f, 0.5f));
@@ -962,8 +1045,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                     // The dissertation's algorithms are updated per chunk (chunk-local);
                     // exact is global.
                     ocl::GeneratorOptions next = session.options();
-                    next.algorithm =
-                        ocl::parse_algorithm(names[static_cast<std::size_t>(algorithm_index)]);
+                    next.algorithm = entry_algorithm(algorithm_index);
                     next.chunk = next.algorithm == ocl::Algorithm::exact ? 0 : 1u << chunk_log2;
                     next.focus.reset();
                     if (has_focus(next.algorithm)) {
@@ -979,13 +1061,21 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                                       : World(session.world());
                     const double ms = session.rebuild(std::move(world), next);
                     undo.clear();
+                    switch_error.clear();
                     std::cout << "regenerated: " << ocl::to_string(next.algorithm)
                               << (next.chunk ? ", chunk " + std::to_string(next.chunk)
                                              : std::string(", global"))
                               << " in " << fixed(ms, 1) << " ms\n";
-                } catch (const InputError& e) {
-                    std::cout << "cannot switch: " << e.what() << '\n';
+                } catch (const std::exception& e) {
+                    // Refused options or a device failure (out of memory, a kernel that does
+                    // not build): the session keeps its field, the overlay says why.
+                    if (!switch_failure(e)) {
+                        throw;
+                    }
+                    switch_error = e.what();
+                    std::cout << "cannot switch: " << switch_error << '\n';
                 }
+                algorithm_index = algorithm_entry(session.options().algorithm);
             }
             const auto overlay = [](VkCommandBuffer cmd) {
                 ImGui_ImplVulkan_RenderDrawData(ImGui::GetDrawData(), cmd);
@@ -1052,6 +1142,12 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
         write_npy(o.field_output, npy_type(session.options().format), dims, session.read_field());
     }
     std::cout << "frames:  " << frame << '\n';
+    if (presenter) {
+        // What the overlay showed last (scripted runs check it).
+        std::cout << "overlay: algorithm "
+                  << ocl::algorithm_names().at(static_cast<std::size_t>(algorithm_index)) << ", "
+                  << (full_panel ? "full panel" : "compact") << '\n';
+    }
 
     if (o.benchmark) {
         std::vector<double> frame_ms, update_ms, march_ms;
@@ -1188,6 +1284,12 @@ Command add_view(CLI::App& root) {
                   "synchronisation validation included; Debian: vulkan-validationlayers): each "
                   "message is printed to stderr and any makes the command exit 1")
         ->envname("VOXFIELD_VALIDATE");
+    std::ostringstream keys;
+    keys << "Keys in the window (F1 shows them there):\n";
+    for (const auto& k : kHelp) {
+        keys << "  " << std::left << std::setw(22) << k[0] << k[1] << '\n';
+    }
+    app->footer(keys.str());
     return {app, [o] {
                 std::shared_ptr<vk::ValidationLog> log;
                 if (o->validate) {

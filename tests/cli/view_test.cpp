@@ -4,6 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <optional>
@@ -288,7 +289,8 @@ TEST_F(ViewTest, WindowShowsTheRayMarchedImage) {
         EXPECT_EQ(w2, w1);
         EXPECT_EQ(h2, h1);
         std::size_t compared = 0, differ = 0, coloured = 0;
-        // Right of the panel (about 640 pixels wide, 440 high) and below the centre.
+        // Right of the overlay (top left; even the full panel, F2, is about 640 pixels wide and
+        // 440 high) and below the centre.
         for (int y = h1 * 5 / 8; y < h1 && w2 == w1 && h2 == h1; ++y) {
             for (int x = w1 * 11 / 16; x < w1; ++x) {
                 const int i = 4 * (y * w1 + x);
@@ -303,6 +305,91 @@ TEST_F(ViewTest, WindowShowsTheRayMarchedImage) {
         EXPECT_EQ(differ, 0u) << "of " << compared << " pixels";
         EXPECT_GT(coloured, compared / 2)
             << "the compared region is grey: it cannot catch R/B swaps";
+    }
+}
+
+TEST_F(ViewTest, OverlayShowsTheAlgorithmGiven) {
+    if (!have_xvfb()) {
+        GTEST_SKIP() << "xvfb-run is not installed (setup.sh installs it)";
+    }
+    // The overlay's algorithm list is in DESIGN §4 order, not the enum's: `--algorithm fim`
+    // once showed (and "regenerate" switched to) fim-host. Every algorithm, under one server.
+    const std::vector<std::string> algorithms = {
+        "exact", "brute",    "brute-chunked", "fim", "fim-host",
+        "jfa",   "jfa-host", "jfa-fim",       "lod", "monolithic"};
+    std::string script;
+    for (const std::string& a : algorithms) {
+        script.append("'").append(kExe.string()).append("' view --world 16 --algorithm ");
+        script.append(a).append(a == "exact" ? "" : " --chunk 8");
+        script.append(" --frames 1 --width 64 --height 48 || exit 1; ");
+    }
+    const fs::path log = io_ / "xvfb.log";
+    const std::string cmd = "xvfb-run -a -s '-screen 0 640x480x24' sh -c \"" + script + "\" >'" +
+                            log.string() + "' 2>&1";
+    const int status = std::system(cmd.c_str());
+    const std::string out = read_text(log);
+    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << out;
+    std::size_t at = 0;
+    for (const std::string& a : algorithms) {
+        const std::string want = "overlay: algorithm " + a + ", compact\n";
+        const std::size_t found = out.find(want, at);
+        EXPECT_NE(found, std::string::npos) << want << out;
+        at = found == std::string::npos ? at : found + want.size();
+    }
+}
+
+TEST_F(ViewTest, CompactOverlayCoversAtMost15PercentOfTheWindow) {
+    if (!have_xvfb()) {
+        GTEST_SKIP() << "xvfb-run is not installed (setup.sh installs it)";
+    }
+    // 1280x720: what the window showed differs from the ray-marched image only in the overlay
+    // (the crosshair and brush preview aside, at the centre), whose bounding box must stay
+    // within 15% of the window.
+    const int w = 1280, h = 720;
+    const fs::path shot = dir_ / "marched.png", window = dir_ / "window.png";
+    const int code =
+        run_under_xvfb({"view", "--world", "48", "--scene", "terrain", "--frames", "2", "--width",
+                        std::to_string(w), "--height", std::to_string(h), "--screenshot",
+                        shot.string(), "--window-screenshot", window.string()},
+                       io_ / "xvfb.log", "1280x720x24");
+    const std::string log = read_text(io_ / "xvfb.log");
+    ASSERT_EQ(code, 0) << log;
+    EXPECT_NE(log.find("overlay: algorithm exact, compact"), std::string::npos) << log;
+    int w1 = 0, h1 = 0, w2 = 0, h2 = 0, c = 0;
+    unsigned char* a = stbi_load(shot.c_str(), &w1, &h1, &c, 4);
+    unsigned char* b = stbi_load(window.c_str(), &w2, &h2, &c, 4);
+    ASSERT_NE(a, nullptr);
+    ASSERT_NE(b, nullptr);
+    ASSERT_TRUE(w1 == w && h1 == h && w2 == w && h2 == h)
+        << w1 << "x" << h1 << ", " << w2 << "x" << h2;
+    int x0 = w, y0 = h, x1 = -1, y1 = -1;
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            if (std::abs(x - w / 2) < w / 8 && std::abs(y - h / 2) < h / 8) {
+                continue;  // crosshair and brush preview
+            }
+            const int i = 4 * (y * w + x);
+            if (a[i] != b[i] || a[i + 1] != b[i + 1] || a[i + 2] != b[i + 2]) {
+                x0 = std::min(x0, x);
+                y0 = std::min(y0, y);
+                x1 = std::max(x1, x);
+                y1 = std::max(y1, y);
+            }
+        }
+    }
+    stbi_image_free(a);
+    stbi_image_free(b);
+    ASSERT_GE(x1, 0) << "no overlay in the window";
+    const double covered = double(x1 - x0 + 1) * double(y1 - y0 + 1) / (double(w) * h);
+    EXPECT_LE(covered, 0.15) << "the overlay spans (" << x0 << ", " << y0 << ") - (" << x1 << ", "
+                             << y1 << ")";
+}
+
+TEST_F(ViewTest, HelpListsValidateAndTheKeys) {
+    const RunResult r = run_voxfield({"view", "--help"}, io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    for (const char* text : {"--validate", "VOXFIELD_VALIDATE", "F1", "F2", "compact overlay"}) {
+        EXPECT_NE(r.out.find(text), std::string::npos) << text << '\n' << r.out;
     }
 }
 
