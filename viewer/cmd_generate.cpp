@@ -1,11 +1,18 @@
 // `voxfield generate INPUT -o OUT.npy`: one distance field, with a summary and optional stats.
+#include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
-#include <cstring>
+#include <future>
 #include <iostream>
+#include <memory>
+#include <optional>
+#include <span>
 
 #include "cli_util.hpp"
+#include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/generator.hpp"
+#include "voxfield/cl/separable.hpp"
 #include "voxfield/core/accuracy.hpp"
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/stats.hpp"
@@ -14,6 +21,15 @@
 namespace voxfield::cli {
 namespace {
 
+using Clock = std::chrono::steady_clock;
+
+// When the program started (static initialisation, before main): the origin of the wall time.
+const Clock::time_point kProgramStart = Clock::now();
+
+double ms_since(Clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
 struct GenerateOptions {
     GeneratorFlags generator;
     std::string input, output, device, format, json, indices;
@@ -21,9 +37,35 @@ struct GenerateOptions {
     std::uint32_t repeat = 1, warmup = 0;
 };
 
+// Wall-clock phases of one generate, in ms (DESIGN §4 --stats).
+struct Phases {
+    double read = 0, setup = 0, upload = 0, kernels = 0, download = 0, write = 0, wall = 0;
+};
+
 bool uses_fim(ocl::Algorithm a) {
     using A = ocl::Algorithm;
     return a == A::fim || a == A::fim_host || a == A::jfa_fim || a == A::lod || a == A::monolithic;
+}
+
+// A uint8 .npy input, its header read and checked; nullopt for anything else (.vox, wider
+// types), which load_world reads.
+std::optional<NpyReader> open_u8_npy(const std::string& input) {
+    std::string ext = std::filesystem::path(input).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (ext != ".npy") {
+        return std::nullopt;
+    }
+    NpyReader npy(input);
+    if (npy.type() != NpyType::u8) {
+        return std::nullopt;
+    }
+    return npy;
+}
+
+std::size_t count_solid(std::span<const std::uint8_t> voxels) {
+    return voxels.size() -
+           static_cast<std::size_t>(std::count(voxels.begin(), voxels.end(), std::uint8_t{0}));
 }
 
 int run_generate(const GenerateOptions& o) {
@@ -37,70 +79,124 @@ int run_generate(const GenerateOptions& o) {
     if (!o.indices.empty() && o.indices == o.output) {
         throw InputError("--indices and -o name the same file '" + o.output + "'");
     }
-    const VoxModel model = load_world(o.input);
-    const World& world = model.world;
-    ocl::GeneratorOptions flags_options = generator_options(o.generator, format, world.dims());
+    Phases phases;
+    // The main job (exact Manhattan, unit spacing, unsigned, from a uint8 .npy) reads the
+    // world straight into the host memory the kernels read, on a second thread while the
+    // device and its kernels are set up; everything else loads a World first.
+    std::optional<NpyReader> npy = open_u8_npy(o.input);
+    std::optional<VoxModel> model;
+    auto load_model = [&] {
+        const auto t = Clock::now();
+        model = load_world(o.input);
+        phases.read = ms_since(t);
+    };
+    if (!npy) {
+        load_model();
+    }
+    const Dims dims = npy ? npy->dims() : model->world.dims();
+    ocl::GeneratorOptions flags_options = generator_options(o.generator, format, dims);
     flags_options.indices = !o.indices.empty();
-    const ocl::GeneratorOptions options = ocl::resolve_options(flags_options, world.dims());
-    ocl::Context ctx(ocl::select_device(o.device));
+    const ocl::GeneratorOptions options = ocl::resolve_options(flags_options, dims);
+    const bool in_place =
+        npy && options.algorithm == ocl::Algorithm::exact && !ocl::ExactSeparable::needed(options);
+    if (npy && !in_place) {
+        npy.reset();
+        load_model();
+    }
+    const Palette palette = model ? model->palette : Palette();
 
-    // End to end = upload + first run + download, wall clock (the first run pays page
+    ocl::HostMemory voxels;
+    std::size_t solid = 0;
+    std::future<double> reading;
+    if (in_place) {
+        voxels = ocl::HostMemory(dims.count());
+        reading = std::async(std::launch::async, [&] {
+            const auto t = Clock::now();
+            npy->read_data(voxels.span());
+            solid = count_solid(voxels.span());
+            return ms_since(t);
+        });
+    }
+    const auto t_setup = Clock::now();
+    ocl::Context ctx(ocl::select_device(o.device));
+    double build_ms = 0;  // kernel build, where it is not part of the upload
+    if (in_place) {
+        const auto t_build = Clock::now();
+        ocl::ExactManhattan::prepare(ctx, dims, format, options.layout);
+        build_ms = ms_since(t_build);
+        phases.setup = ms_since(t_setup);
+        phases.read = reading.get();
+    } else {
+        phases.setup = ms_since(t_setup);
+    }
+
+    // End to end = kernel build + upload + first run + download (the first run pays page
     // faults and kernel set-up, as a one-off user would).
-    using clock = std::chrono::steady_clock;
-    const auto t0 = clock::now();
-    const auto job = ocl::make_generator(ctx, world, model.palette, options);
+    const auto t_upload = Clock::now();
+    const std::unique_ptr<ocl::Generator> job =
+        in_place ? std::make_unique<ocl::ExactManhattan>(ctx, dims, voxels, palette, format,
+                                                         options.layout)
+                 : ocl::make_generator(ctx, model->world, palette, options);
+    phases.upload = ms_since(t_upload);
     std::vector<double> samples;
-    clock::duration first_run{};
+    double first_run_ms = 0;
+    const auto t_kernels = Clock::now();
     for (std::uint32_t i = 0; i < o.warmup + o.repeat; ++i) {
         const double ms = job->run();
         if (i == 0) {
-            first_run = clock::now() - t0;
+            first_run_ms = ms_since(t_kernels);
         }
         if (i >= o.warmup) {
             samples.push_back(ms);
         }
     }
-    ocl::FieldResult field;
-    const auto t1 = clock::now();
-    field.bytes = job->read(&field.timing.download_ms);
-    const double end_to_end_ms =
-        std::chrono::duration<double, std::milli>(first_run + (clock::now() - t1)).count();
-    field.timing.upload_ms = job->upload_ms();
-    field.timing.kernel_ms = summarize(samples).median;
+    phases.kernels = ms_since(t_kernels);
+    const auto t_download = Clock::now();
+    const ocl::MappedBuffer field(ctx, job->field_buffer(), dims.count() * element_size(format));
     std::vector<std::int32_t> indices;
     if (options.indices) {
         indices = job->read_indices();
     }
-    write_npy(o.output, npy_type(format), world.dims(), field.bytes);
-    if (options.indices) {
-        const Dims d = world.dims();
-        std::vector<std::uint8_t> bytes(indices.size() * 4);
-        std::memcpy(bytes.data(), indices.data(), bytes.size());
-        write_npy_shape(o.indices, NpyType::i32, {3, d.z, d.y, d.x}, bytes);
-    }
+    phases.download = ms_since(t_download);
+    ocl::FieldTiming timing;
+    timing.upload_ms = job->upload_ms();
+    timing.kernel_ms = summarize(samples).median;
+    timing.download_ms = field.map_ms();
+    const double end_to_end_ms = build_ms + phases.upload + first_run_ms + phases.download;
 
-    const double voxels = static_cast<double>(world.size());
-    const double gvox = voxels / (field.timing.kernel_ms * 1e-3) / 1e9;
+    const auto t_write = Clock::now();
+    write_npy(o.output, npy_type(format), dims, field.bytes());
+    if (options.indices) {
+        write_npy_shape(
+            o.indices, NpyType::i32, {3, dims.z, dims.y, dims.x},
+            std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(indices.data()),
+                                          indices.size() * sizeof(std::int32_t)));
+    }
+    phases.write = ms_since(t_write);
+    phases.wall = ms_since(kProgramStart);
+
+    const double voxel_count = static_cast<double>(dims.count());
+    const double gvox = voxel_count / (timing.kernel_ms * 1e-3) / 1e9;
     std::cout << "device:  " << ctx.info().name << " (" << ctx.info().platform << ", "
               << ctx.info().type << ")\n"
-              << "world:   " << o.input << "  " << world.dims().to_string() << " = " << world.size()
-              << " voxels, " << world.solid_count() << " solid\n"
+              << "world:   " << o.input << "  " << dims.to_string() << " = " << dims.count()
+              << " voxels, " << (in_place ? solid : model->world.solid_count()) << " solid\n"
               << "field:   " << o.generator.algorithm << " (" << job->variant() << "), "
               << to_string(options.metric)
               << (options.spacing.unit() ? "" : " spacing " + options.spacing.to_string())
               << (options.signed_field ? ", signed" : "") << ", " << to_string(format) << " -> "
               << o.output << (options.indices ? ", indices -> " + o.indices : "") << '\n'
-              << "time:    kernels " << fixed(field.timing.kernel_ms, 3) << " ms"
+              << "time:    kernels " << fixed(timing.kernel_ms, 3) << " ms"
               << (samples.size() > 1 ? " median of " + std::to_string(samples.size()) : "") << " ("
               << fixed(gvox, 2) << " Gvox/s); end to end " << fixed(end_to_end_ms, 1)
-              << " ms (upload " << fixed(field.timing.upload_ms, 2) << " ms, download "
-              << fixed(field.timing.download_ms, 2) << " ms, incl. kernel build on first use)\n";
+              << " ms (upload " << fixed(timing.upload_ms, 2) << " ms, download "
+              << fixed(timing.download_ms, 2) << " ms, incl. kernel build on first use)\n";
 
     nlohmann::json j = {
         {"device", device_json(ctx.info())},
         {"commit", commit()},
         {"input", o.input},
-        {"size", {world.dims().x, world.dims().y, world.dims().z}},
+        {"size", {dims.x, dims.y, dims.z}},
         {"algorithm", o.generator.algorithm},
         {"chunk", options.chunk == 0 ? nlohmann::json() : nlohmann::json(options.chunk)},
         {"variant", job->variant()},
@@ -109,12 +205,21 @@ int run_generate(const GenerateOptions& o) {
         {"spacing", {options.spacing.x, options.spacing.y, options.spacing.z}},
         {"signed", options.signed_field},
         {"format", to_string(format)},
-        {"kernel_ms", field.timing.kernel_ms},
+        {"kernel_ms", timing.kernel_ms},
         {"kernel_ms_samples", samples},
         {"warmup", o.warmup},
-        {"upload_ms", field.timing.upload_ms},
-        {"download_ms", field.timing.download_ms},
+        {"upload_ms", timing.upload_ms},
+        {"download_ms", timing.download_ms},
         {"end_to_end_ms", end_to_end_ms},
+        {"world_read_in_place", in_place},
+        {"phases_ms",
+         {{"read", phases.read},
+          {"setup", phases.setup},
+          {"upload", phases.upload},
+          {"kernels", phases.kernels},
+          {"download", phases.download},
+          {"write", phases.write},
+          {"wall", phases.wall}}},
         {"gvox_per_s", gvox},
         {"iterations", job->iterations()}};
     if (options.focus) {
@@ -127,8 +232,26 @@ int run_generate(const GenerateOptions& o) {
                   << (options.chunk != 0 ? " (slowest chunk)" : "") << '\n';
     }
     if (o.stats) {
-        const Accuracy a = accuracy_of(world, model.palette, options, field.bytes);
-        std::cout << "stats:   " << fixed(voxels / (field.timing.kernel_ms * 1e-3) / 1e6, 1)
+        std::cout << "phases:  read " << fixed(phases.read, 1) << " ms"
+                  << (in_place ? " (into the kernels' memory, beside setup)" : "") << ", setup "
+                  << fixed(phases.setup, 1) << " ms ("
+                  << (in_place ? "device " + fixed(phases.setup - build_ms, 1) + ", kernel build " +
+                                     fixed(build_ms, 1)
+                               : std::string("device"))
+                  << "), upload " << fixed(phases.upload, 1) << " ms"
+                  << (in_place ? "" : " (incl. kernel build)") << ", kernels "
+                  << fixed(phases.kernels, 1) << " ms, download " << fixed(phases.download, 1)
+                  << " ms, write " << fixed(phases.write, 1) << " ms; wall "
+                  << fixed(phases.wall, 1) << " ms (program start to output renamed)\n";
+        std::optional<World> copy;
+        if (!model) {
+            copy.emplace(dims,
+                         std::vector<std::uint8_t>(voxels.span().begin(), voxels.span().end()));
+        }
+        const World& world = model ? model->world : *copy;
+        const std::vector<std::uint8_t> bytes(field.bytes().begin(), field.bytes().end());
+        const Accuracy a = accuracy_of(world, palette, options, bytes);
+        std::cout << "stats:   " << fixed(voxel_count / (timing.kernel_ms * 1e-3) / 1e6, 1)
                   << " Mvox/s; vs the exact CPU reference ("
                   << (options.chunk != 0 ? "chunk-local, chunk " + std::to_string(options.chunk)
                                          : std::string("global"))
@@ -166,9 +289,12 @@ Command add_generate(CLI::App& root) {
                     "else the first GPU, else the first CPU)");
     add_format_option(*app, o->format);
     app->add_flag("--stats", o->stats,
-                  "Also report voxels/s and accuracy against the exact CPU reference of the "
-                  "same semantics (global, or chunk-local with --chunk)");
-    app->add_option("--json", o->json, "Write timings (and --stats accuracy) to this JSON file");
+                  "Also report the wall time of each phase (read, setup, upload, kernels, "
+                  "download, write, and the whole from program start to output renamed), "
+                  "voxels/s and accuracy against the exact CPU reference of the same semantics "
+                  "(global, or chunk-local with --chunk)");
+    app->add_option("--json", o->json,
+                    "Write timings and phases (and --stats accuracy) to this JSON file");
     app->add_option("--repeat", o->repeat,
                     "Run the transform this many times and report the median kernel time")
         ->check(CLI::PositiveNumber)

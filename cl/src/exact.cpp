@@ -52,48 +52,90 @@ std::uint32_t seg_k(std::uint32_t n) {
     return 0;
 }
 
+bool use_gpu_layout(const Context& ctx, Layout layout) {
+    return layout == Layout::automatic ? !ctx.is_cpu() : layout == Layout::gpu;
+}
+
+// The kernels of exact_manhattan.cl for format `f`, SEG_K = k (cached by ctx).
+cl::Program build_program(Context& ctx, Format f, std::uint32_t k) {
+    const WorkType wt = work_type(f);
+    const std::string options = "-DT=" + std::string(wt.name) +
+                                " -DT_MAX=" + std::to_string(wt.max) +
+                                "u -DPACKED=" + (f == Format::packed32 ? "1" : "0") +
+                                " -DSEG_K=" + std::to_string(k) + " -cl-std=CL1.2";
+    return ctx.program("exact_manhattan.cl", {cl_sources::layout_h, cl_sources::exact_manhattan_cl},
+                       options);
+}
+
 }  // namespace
 
 ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& palette,
                                Format format, Layout layout)
-    : Generator(ctx, world.dims(), format),
-      gpu_layout_(layout == Layout::automatic ? !ctx.is_cpu() : layout == Layout::gpu) {
-    const auto& info = ctx.info();
-    const WorkType wt = work_type(format);
+    : Generator(ctx, world.dims(), format), gpu_layout_(use_gpu_layout(ctx, layout)) {
+    allocate(palette, world.voxels().data(), nullptr);
+    set_up_kernels();
+}
+
+ExactManhattan::ExactManhattan(Context& ctx, Dims dims, HostMemory& voxels, const Palette& palette,
+                               Format format, Layout layout)
+    : Generator(ctx, dims, format), gpu_layout_(use_gpu_layout(ctx, layout)) {
+    if (voxels.size() != dims.count()) {
+        throw std::invalid_argument("ExactManhattan: " + std::to_string(voxels.size()) +
+                                    " bytes of voxels for a world of " + dims.to_string());
+    }
+    allocate(palette, voxels.data(), ctx.computes_in_host_memory() ? &voxels : nullptr);
+    set_up_kernels();
+}
+
+void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layout) {
+    build_program(ctx, format, 32);
+    if (use_gpu_layout(ctx, layout)) {
+        for (const std::uint32_t len : {dims.y, dims.z}) {
+            if (const std::uint32_t k = seg_k(len); k != 0) {
+                build_program(ctx, format, k);
+            }
+        }
+    }
+}
+
+void ExactManhattan::allocate(const Palette& palette, const std::uint8_t* upload,
+                              HostMemory* voxels) {
+    const auto& info = ctx_.info();
+    const WorkType wt = work_type(format_);
     const std::size_t n = dims_.count();
-    const std::size_t out_bytes = n * element_size(format);
-    const std::string sizes = "world " + dims_.to_string() + ", format " + to_string(format);
+    const std::size_t out_bytes = n * element_size(format_);
+    const std::string sizes = "world " + dims_.to_string() + ", format " + to_string(format_);
     if (out_bytes > info.max_alloc || n > info.max_alloc) {
         throw ClError("clCreateBuffer", CL_INVALID_BUFFER_SIZE,
                       sizes + " needs a " + std::to_string(out_bytes >> 20) + " MiB buffer; " +
                           info.name + " allows at most " + std::to_string(info.max_alloc >> 20) +
                           " MiB per buffer");
     }
-    const bool packed = format == Format::packed32;
-
-    auto program = [&](std::uint32_t k) {
-        const std::string options = "-DT=" + std::string(wt.name) +
-                                    " -DT_MAX=" + std::to_string(wt.max) +
-                                    "u -DPACKED=" + (packed ? "1" : "0") +
-                                    " -DSEG_K=" + std::to_string(k) + " -cl-std=CL1.2";
-        return ctx.program("exact_manhattan.cl",
-                           {cl_sources::layout_h, cl_sources::exact_manhattan_cl}, options);
-    };
-
     cl_call("allocating and uploading, " + sizes, [&] {
-        auto& q = ctx.queue();
-        voxels_ = cl::Buffer(ctx.context(), CL_MEM_READ_ONLY, n);
-        out_ = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, out_bytes);
-        work_ = packed ? cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, n * wt.bytes) : out_;
-        rgb_ = cl::Buffer(ctx.context(), CL_MEM_READ_ONLY, 256);
+        auto& q = ctx_.queue();
+        voxels_ = voxels != nullptr
+                      ? cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, n,
+                                   voxels->data())
+                      : make_buffer(n, CL_MEM_READ_ONLY);
+        out_ = make_buffer(out_bytes, CL_MEM_READ_WRITE);
+        work_ = format_ == Format::packed32 ? make_buffer(n * wt.bytes, CL_MEM_READ_WRITE) : out_;
+        rgb_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, 256);
         const auto table = palette.rgb332_table();
         cl::Event up_vox, up_rgb;
-        q.enqueueWriteBuffer(voxels_, CL_FALSE, 0, n, world.voxels().data(), nullptr, &up_vox);
+        if (voxels == nullptr) {
+            q.enqueueWriteBuffer(voxels_, CL_FALSE, 0, n, upload, nullptr, &up_vox);
+        }
         q.enqueueWriteBuffer(rgb_, CL_FALSE, 0, table.size(), table.data(), nullptr, &up_rgb);
         q.finish();
-        upload_ms_ = elapsed_ms(up_vox, up_rgb);
+        upload_ms_ = elapsed_ms(voxels == nullptr ? up_vox : up_rgb, up_rgb);
     });
+}
 
+void ExactManhattan::set_up_kernels() {
+    const auto& info = ctx_.info();
+    const WorkType wt = work_type(format_);
+    const std::string sizes = "world " + dims_.to_string() + ", format " + to_string(format_);
+    auto program = [&](std::uint32_t k) { return build_program(ctx_, format_, k); };
     const cl::Program base = program(32);
     const std::size_t plane = std::size_t{dims_.x} * dims_.y;
     cl_call("setting up kernels, " + sizes, [&] {

@@ -191,6 +191,25 @@ std::vector<std::uint8_t> Generator::read(double* download_ms) {
     });
 }
 
+Generator::~Generator() {
+    if (!host_memory_.empty()) {
+        // The host memory is freed after this; nothing queued may still use it.
+        try {
+            ctx_.queue().finish();
+        } catch (const cl::Error&) {
+        }
+    }
+}
+
+cl::Buffer Generator::make_buffer(std::size_t bytes, cl_mem_flags flags) {
+    if (!ctx_.computes_in_host_memory()) {
+        return cl::Buffer(ctx_.context(), flags, bytes);
+    }
+    host_memory_.emplace_back(bytes);
+    return cl::Buffer(ctx_.context(), flags | CL_MEM_USE_HOST_PTR, bytes,
+                      host_memory_.back().data());
+}
+
 void Generator::record_stages(const std::vector<std::pair<std::string, cl::Event>>& events) {
     stage_ms_.clear();
     for (const auto& [name, event] : events) {

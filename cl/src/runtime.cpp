@@ -1,7 +1,10 @@
 #include "voxfield/cl/runtime.hpp"
 
+#include <sys/mman.h>
+
 #include <algorithm>
 #include <cstdlib>
+#include <new>
 #include <sstream>
 
 namespace voxfield::ocl {
@@ -152,6 +155,7 @@ std::vector<DeviceInfo> list_devices() {
                 d.max_work_group = dev.getInfo<CL_DEVICE_MAX_WORK_GROUP_SIZE>();
                 d.available = dev.getInfo<CL_DEVICE_AVAILABLE>() != CL_FALSE;
                 d.compiler_available = dev.getInfo<CL_DEVICE_COMPILER_AVAILABLE>() != CL_FALSE;
+                d.host_unified_memory = dev.getInfo<CL_DEVICE_HOST_UNIFIED_MEMORY>() != CL_FALSE;
                 std::istringstream ext(dev.getInfo<CL_DEVICE_EXTENSIONS>());
                 for (std::string e; ext >> e;) {
                     d.extensions.push_back(e);
@@ -275,6 +279,39 @@ double elapsed_ms(const cl::Event& first, const cl::Event& last) {
         const auto end = last.getProfilingInfo<CL_PROFILING_COMMAND_END>();
         return static_cast<double>(end - start) * 1e-6;
     });
+}
+
+HostMemory::HostMemory(std::size_t bytes) : size_(bytes) {
+    constexpr std::size_t huge = std::size_t{2} << 20;
+    const std::size_t align = bytes >= huge ? huge : 4096;
+    void* p = nullptr;
+    if (posix_memalign(&p, align, std::max<std::size_t>(bytes, 1)) != 0) {
+        throw std::bad_alloc();
+    }
+    data_.reset(static_cast<std::uint8_t*>(p));
+    if (bytes >= huge) {
+        // Advice only: where transparent huge pages are off the memory works in small pages.
+        ::madvise(p, bytes, MADV_HUGEPAGE);
+    }
+}
+
+MappedBuffer::MappedBuffer(Context& ctx, const cl::Buffer& buffer, std::size_t bytes)
+    : queue_(ctx.queue()), buffer_(buffer), size_(bytes) {
+    cl_call("mapping " + std::to_string(bytes) + " bytes for reading on the host", [&] {
+        cl::Event ev;
+        data_ = static_cast<const std::uint8_t*>(
+            queue_.enqueueMapBuffer(buffer_, CL_TRUE, CL_MAP_READ, 0, bytes, nullptr, &ev));
+        map_ms_ = elapsed_ms(ev, ev);
+    });
+}
+
+MappedBuffer::~MappedBuffer() {
+    // A failing unmap has no one left to report to; the buffer is released either way.
+    try {
+        queue_.enqueueUnmapMemObject(buffer_, const_cast<std::uint8_t*>(data_));
+        queue_.finish();
+    } catch (const cl::Error&) {
+    }
 }
 
 }  // namespace voxfield::ocl

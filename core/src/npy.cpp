@@ -13,9 +13,10 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <optional>
+#include <span>
+#include <stdexcept>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -218,20 +219,21 @@ std::string shape_text(const std::vector<std::uint64_t>& shape) {
     return s + ")";
 }
 
-void read_exact(std::ifstream& in, const std::string& file, char* dst, std::size_t n) {
-    in.read(dst, static_cast<std::streamsize>(n));
-    if (static_cast<std::size_t>(in.gcount()) != n) {
-        throw InputError(file + ": read error (" + std::to_string(in.gcount()) + " of " +
-                         std::to_string(n) + " bytes)");
-    }
-}
-
 }  // namespace
 
-NpyArray read_npy(const std::filesystem::path& path) {
+struct NpyReader::File {
+    explicit File(const std::filesystem::path& path) : fd(path) {}
+    detail::InputFd fd;
+};
+
+NpyReader::~NpyReader() = default;
+NpyReader::NpyReader(NpyReader&&) noexcept = default;
+NpyReader& NpyReader::operator=(NpyReader&&) noexcept = default;
+
+NpyReader::NpyReader(const std::filesystem::path& path) : file_(std::make_unique<File>(path)) {
     const std::string file = path.string();
-    std::uint64_t size = 0;
-    std::ifstream in = detail::open_input(path, size);
+    const detail::InputFd& in = file_->fd;
+    const std::uint64_t size = in.size();
 
     // Preamble: magic (6), version (2), header length (2 or 4).
     const char magic[] = "\x93NUMPY";
@@ -240,7 +242,7 @@ NpyArray read_npy(const std::filesystem::path& path) {
         throw InputError(file + ": not a .npy file (only " + std::to_string(size) +
                          " bytes, shorter than the 10-byte preamble)");
     }
-    read_exact(in, file, pre, 10);
+    in.read_at(0, pre, 10);
     if (std::memcmp(pre, magic, 6) != 0) {
         throw InputError(file + ": not a .npy file (missing the \\x93NUMPY magic)");
     }
@@ -260,7 +262,7 @@ NpyArray read_npy(const std::filesystem::path& path) {
             throw InputError(file + ": truncated: the .npy " + std::to_string(major) +
                              ".0 preamble needs 12 bytes, file has " + std::to_string(size));
         }
-        read_exact(in, file, pre + 10, 2);
+        in.read_at(10, pre + 10, 2);
         for (int k = 0; k < 4; ++k) {
             header_len |= static_cast<std::uint64_t>(static_cast<unsigned char>(pre[8 + k]))
                           << (8 * k);
@@ -273,7 +275,7 @@ NpyArray read_npy(const std::filesystem::path& path) {
                          std::to_string(size - header_start));
     }
     std::string header(static_cast<std::size_t>(header_len), '\0');
-    read_exact(in, file, header.data(), header.size());
+    in.read_at(header_start, header.data(), header.size());
 
     HeaderParser parser(file, header);
     std::optional<Value> descr, fortran, shape;
@@ -306,7 +308,6 @@ NpyArray read_npy(const std::filesystem::path& path) {
                          ", expected a tuple");
     }
 
-    NpyArray a;
     const std::string& d = descr->text;
     const char order = d.size() == 3 ? d[0] : '\0';
     const std::string kind = d.size() == 3 ? d.substr(1) : d;
@@ -328,7 +329,7 @@ NpyArray read_npy(const std::filesystem::path& path) {
                          "' is not supported (expected uint8, uint16 or uint32; int8, int16, "
                          "int32, float32 or float64 for fields)");
     }
-    a.type = found->type;
+    type_ = found->type;
     if (fortran->flag) {
         throw InputError(file + ": fortran_order is True (only C-order arrays are supported)");
     }
@@ -345,11 +346,11 @@ NpyArray read_npy(const std::filesystem::path& path) {
             throw InputError(file + ": shape " + shape_text(sh) + " has an axis too large");
         }
     }
-    a.dims = {static_cast<std::uint32_t>(sh[2]), static_cast<std::uint32_t>(sh[1]),
-              static_cast<std::uint32_t>(sh[0])};
+    dims_ = {static_cast<std::uint32_t>(sh[2]), static_cast<std::uint32_t>(sh[1]),
+             static_cast<std::uint32_t>(sh[0])};
     const std::uint64_t data_start = header_start + header_len;
     const std::uint64_t available = size - data_start;
-    const std::uint64_t es = elem_size(a.type);
+    const std::uint64_t es = elem_size(type_);
     // Compare without overflow: count * es <= available.
     const std::uint64_t limit = available / es;
     const bool fits = sh[0] <= limit && sh[1] <= limit / sh[0] && sh[2] <= limit / (sh[0] * sh[1]);
@@ -358,18 +359,34 @@ NpyArray read_npy(const std::filesystem::path& path) {
                                  static_cast<long double>(sh[2]) * static_cast<long double>(es);
         std::string need_text = need < 1.8e19L ? std::to_string(static_cast<std::uint64_t>(need))
                                                : std::string("more than 2^64");
-        throw InputError(file + ": truncated: shape " + shape_text(sh) + " of " +
-                         type_name(a.type) + " needs " + need_text + " data bytes at offset " +
+        throw InputError(file + ": truncated: shape " + shape_text(sh) + " of " + type_name(type_) +
+                         " needs " + need_text + " data bytes at offset " +
                          std::to_string(data_start) + ", file has " + std::to_string(available));
     }
-    const std::uint64_t bytes = sh[0] * sh[1] * sh[2] * es;
-    a.data.resize(static_cast<std::size_t>(bytes));
-    read_exact(in, file, reinterpret_cast<char*>(a.data.data()), a.data.size());
+    data_offset_ = data_start;
+    data_bytes_ = static_cast<std::size_t>(sh[0] * sh[1] * sh[2] * es);
+}
+
+void NpyReader::read_data(std::span<std::uint8_t> dst) const {
+    if (dst.size() != data_bytes_) {
+        throw std::invalid_argument("NpyReader::read_data: " + std::to_string(dst.size()) +
+                                    " bytes for " + std::to_string(data_bytes_) + " of data");
+    }
+    file_->fd.read_at(data_offset_, dst.data(), dst.size());
+}
+
+NpyArray read_npy(const std::filesystem::path& path) {
+    const NpyReader reader(path);
+    NpyArray a;
+    a.type = reader.type();
+    a.dims = reader.dims();
+    a.data.resize(reader.data_bytes());
+    reader.read_data(a.data);
     return a;
 }
 
 void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
-               const std::vector<std::uint8_t>& data) {
+               std::span<const std::uint8_t> data) {
     if (dims.x == 0 || dims.y == 0 || dims.z == 0) {
         throw InputError("cannot write '" + path.string() + "': dims " + dims.to_string() +
                          " have an empty axis");
@@ -377,9 +394,19 @@ void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
     write_npy_shape(path, type, {dims.z, dims.y, dims.x}, data);
 }
 
+void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
+               const std::vector<std::uint8_t>& data) {
+    write_npy(path, type, dims, std::span<const std::uint8_t>(data));
+}
+
 void write_npy_shape(const std::filesystem::path& path, NpyType type,
                      const std::vector<std::uint64_t>& shape,
                      const std::vector<std::uint8_t>& data) {
+    write_npy_shape(path, type, shape, std::span<const std::uint8_t>(data));
+}
+
+void write_npy_shape(const std::filesystem::path& path, NpyType type,
+                     const std::vector<std::uint64_t>& shape, std::span<const std::uint8_t> data) {
     const std::string file = path.string();
     std::uint64_t count = 1;
     std::string dims_text;
@@ -416,7 +443,7 @@ void write_npy_shape(const std::filesystem::path& path, NpyType type,
 World world_from_npy(const NpyArray& array) {
     if (array.type != NpyType::u8 && array.type != NpyType::u16 && array.type != NpyType::u32) {
         throw InputError(std::string("a world is an unsigned integer array (uint8, uint16 or "
-                                     "uint32 palette indices), not ") +
+                                     "uint32 palette indices), not dtype ") +
                          type_name(array.type));
     }
     const std::size_t es = elem_size(array.type);

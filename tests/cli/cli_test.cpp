@@ -11,6 +11,7 @@
 #include "cli_test_util.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -280,6 +281,78 @@ TEST_F(CliTest, GenerateStatsAndJson) {
     EXPECT_EQ(list_dir(dir_), (std::set<std::string>{"world.npy", "field.npy", "run.json"}));
 }
 
+// --stats prints one line with the wall time of every phase and --json records them, on the
+// main job's path (a uint8 .npy read straight into the kernels' memory) and on the others (a
+// .vox, a uint16 .npy, another metric), with --repeat and --warmup too. No timing asserted.
+TEST_F(CliTest, GenerateStatsPrintsPhases) {
+    const World w = test_world();
+    const fs::path u8 = dir_ / "world_u8.npy";
+    write_npy(u8, NpyType::u8, w.dims(), w.voxels());
+    const fs::path u16 = dir_ / "world_u16.npy";
+    write_npy(u16, NpyType::u16, w.dims(), widen(w.voxels(), 2));
+    struct Case {
+        fs::path input;
+        std::vector<std::string> extra;
+        bool in_place;
+    };
+    const std::vector<Case> cases = {
+        {u8, {}, true},
+        {u8, {"--format", "packed32", "--repeat", "3", "--warmup", "1"}, true},
+        {kVox, {}, false},
+        {u16, {}, false},
+        {u8, {"--metric", "chebyshev"}, false},
+        {u8, {"--algorithm", "fim"}, false},
+    };
+    const std::vector<std::string> phases = {"read",     "setup", "upload", "kernels",
+                                             "download", "write", "wall"};
+    for (const Case& c : cases) {
+        std::string trace = c.input.filename().string();
+        for (const auto& e : c.extra) {
+            trace.append(" ").append(e);
+        }
+        SCOPED_TRACE(trace);
+        const fs::path out = dir_ / "field.npy";
+        const fs::path js = dir_ / "run.json";
+        std::vector<std::string> args = {"generate",   c.input.string(), "-o",
+                                         out.string(), "--device",       "cpu",
+                                         "--stats",    "--json",         js.string()};
+        args.insert(args.end(), c.extra.begin(), c.extra.end());
+        const RunResult r = run(args);
+        ASSERT_EQ(r.code, 0) << describe(r);
+        std::string line;
+        for (const std::string& l : split_lines(r.out)) {
+            if (l.rfind("phases:", 0) == 0) {
+                EXPECT_TRUE(line.empty()) << "two phases lines\n" << r.out;
+                line = l;
+            }
+        }
+        ASSERT_FALSE(line.empty()) << r.out;
+        std::size_t at = 0;
+        for (const std::string& p : phases) {
+            const std::size_t found = line.find(" " + p + " ", at);
+            ASSERT_NE(found, std::string::npos) << "no '" << p << "' in order in: " << line;
+            at = found + p.size();
+            // Each phase is followed by its milliseconds.
+            const std::string rest = line.substr(found + p.size() + 2);
+            EXPECT_TRUE(!rest.empty() && std::isdigit(static_cast<unsigned char>(rest[0]))) << line;
+        }
+        EXPECT_NE(line.find("ms (program start to output renamed)"), std::string::npos) << line;
+        EXPECT_NE(r.out.find("max error 0"), std::string::npos) << r.out;
+        json j;
+        ASSERT_NO_THROW(j = json::parse(read_text(js))) << read_text(js);
+        ASSERT_TRUE(j.contains("phases_ms")) << j.dump();
+        for (const std::string& p : phases) {
+            ASSERT_TRUE(j["phases_ms"].contains(p)) << p << ": " << j.dump();
+            EXPECT_TRUE(j["phases_ms"][p].is_number());
+            EXPECT_GE(j["phases_ms"][p].get<double>(), 0.0);
+        }
+        EXPECT_EQ(j.value("world_read_in_place", !c.in_place), c.in_place);
+        EXPECT_TRUE(j["end_to_end_ms"].is_number());
+        EXPECT_EQ(j.value("max_error", 999u), 0u);
+        EXPECT_TRUE(fs::is_regular_file(out));
+    }
+}
+
 TEST_F(CliTest, GenerateOverwritesExistingOutput) {
     const World w = test_world();
     const fs::path in = dir_ / "world.npy";
@@ -387,6 +460,13 @@ std::vector<BadCase> bad_cases() {
                      return gen(d / "zero.npy", o);
                  },
                  {"zero.npy", "empty axis"}});
+    c.push_back({"NpyUint8Truncated",
+                 [](const fs::path& d, const fs::path& o) {
+                     write_file(d / "short.npy",
+                                raw_npy("|u1", "(4, 4, 4)", std::string(63, '\1')));
+                     return gen(d / "short.npy", o);
+                 },
+                 {"short.npy", "truncated"}});
     c.push_back({"NpyUint16Over255",
                  [](const fs::path& d, const fs::path& o) {
                      std::string data(2 * 2 * 3 * 2, '\0');

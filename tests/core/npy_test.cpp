@@ -1,8 +1,11 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <random>
+#include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -289,6 +292,92 @@ TEST(Npy, AtomicWriteLeavesNothingWhenFolderMissing) {
         ++files;
     }
     EXPECT_EQ(files, 1);
+}
+
+// NpyReader parses and checks the header first; the data goes straight into memory the caller
+// owns, at any address and at any later time, and equals what read_npy returns.
+TEST(Npy, ReaderReadsIntoCallerMemory) {
+    TempDir dir;
+    std::uint64_t seed = 7;
+    int major = 1;
+    for (const auto& [descr, type] : std::vector<std::pair<std::string, NpyType>>{
+             {"|u1", NpyType::u8}, {"<u2", NpyType::u16}, {"<u4", NpyType::u32}}) {
+        SCOPED_TRACE(descr);
+        const Dims d{5, 3, 2};
+        const auto data = random_data(type, d, seed++);
+        auto bytes = make_npy(dict(descr, "False", "(2, 3, 5)"), 0, major);
+        major = major % 3 + 1;
+        bytes.insert(bytes.end(), data.begin(), data.end());
+        const fs::path p = dir / "r.npy";
+        write_bytes(p, bytes);
+        const NpyReader reader(p);
+        EXPECT_EQ(reader.type(), type);
+        EXPECT_EQ(reader.dims(), d);
+        ASSERT_EQ(reader.data_bytes(), data.size());
+        // An odd offset into a larger buffer, guarded on both sides.
+        std::vector<std::uint8_t> memory(data.size() + 16, 0xAB);
+        reader.read_data(std::span<std::uint8_t>(memory.data() + 3, data.size()));
+        EXPECT_EQ(std::vector<std::uint8_t>(memory.begin() + 3, memory.end() - 13), data);
+        EXPECT_EQ(memory[2], 0xAB);
+        EXPECT_EQ(memory[3 + data.size()], 0xAB);
+        // Reading twice gives the same bytes; read_npy agrees.
+        std::vector<std::uint8_t> again(data.size());
+        reader.read_data(again);
+        EXPECT_EQ(again, data);
+        EXPECT_EQ(read_npy(p).data, data);
+    }
+    // The header alone is checked: a reader over a 64 MiB world reads none of its data yet.
+    const fs::path big = dir / "big.npy";
+    auto header = make_npy(dict("|u1", "False", "(256, 512, 512)"), 0);
+    write_bytes(big, header);
+    fs::resize_file(big, header.size() + (std::uint64_t{64} << 20));
+    const NpyReader lazy(big);
+    EXPECT_EQ(lazy.dims(), (Dims{512, 512, 256}));
+    EXPECT_EQ(lazy.data_bytes(), std::size_t{64} << 20);
+}
+
+TEST(Npy, ReaderRejectsWhatReadNpyRejects) {
+    TempDir dir;
+    write_bytes(dir / "short.npy", make_npy(dict("<u2", "False", "(2, 3, 4)"), 47));
+    expect_input_error([&] { NpyReader r(dir / "short.npy"); },
+                       {"short.npy", "truncated", "needs 48", "file has 47"});
+    expect_input_error([&] { NpyReader r(dir / "nope.npy"); }, {"nope.npy", "no such file"});
+    expect_input_error([&] { NpyReader r(dir.path()); }, {"directory"});
+    write_bytes(dir / "ok.npy", make_npy(dict("|u1", "False", "(1, 2, 3)"), 6));
+    const NpyReader r(dir / "ok.npy");
+    std::vector<std::uint8_t> wrong(5);
+    EXPECT_THROW(r.read_data(wrong), std::invalid_argument);
+    // A file that shrinks after its header was read is a read error, not a short array.
+    fs::resize_file(dir / "ok.npy", fs::file_size(dir / "ok.npy") - 2);
+    std::vector<std::uint8_t> six(6);
+    expect_input_error([&] { r.read_data(six); }, {"ok.npy", "read error", "of 6 bytes"});
+}
+
+// write_npy from a pointer and size (memory that is no vector, e.g. a mapped device buffer)
+// writes the same file as from a vector, atomically.
+TEST(Npy, WritesFromCallerMemory) {
+    TempDir dir;
+    const Dims d{7, 3, 2};
+    const auto data = random_data(NpyType::u16, d, 99);
+    std::vector<std::uint8_t> memory(data.size() + 5, 0);
+    std::copy(data.begin(), data.end(), memory.begin() + 5);
+    const std::span<const std::uint8_t> view(memory.data() + 5, data.size());
+    write_npy(dir / "span.npy", NpyType::u16, d, view);
+    write_npy(dir / "vector.npy", NpyType::u16, d, data);
+    EXPECT_EQ(read_bytes(dir / "span.npy"), read_bytes(dir / "vector.npy"));
+    const NpyArray a = read_npy(dir / "span.npy");
+    EXPECT_EQ(a.dims, d);
+    EXPECT_EQ(a.data, data);
+    write_npy_shape(dir / "shape.npy", NpyType::u16, {2, 3, 7}, view);
+    EXPECT_EQ(read_bytes(dir / "shape.npy"), read_bytes(dir / "vector.npy"));
+    // A failing write leaves nothing: wrong size, missing folder.
+    EXPECT_THROW(write_npy(dir / "bad.npy", NpyType::u32, d, view), InputError);
+    EXPECT_THROW(write_npy(dir / "no" / "x.npy", NpyType::u16, d, view), InputError);
+    int files = 0;
+    for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path())) {
+        ++files;
+    }
+    EXPECT_EQ(files, 3);
 }
 
 TEST(Npy, WorldConversions) {

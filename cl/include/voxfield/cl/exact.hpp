@@ -1,5 +1,6 @@
 #pragma once
 // `exact`: global exact Manhattan distance field on any OpenCL device (DESIGN §3 semantics).
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,17 @@ class ExactManhattan : public Generator {
     // Uploads the world and palette; throws ClError (e.g. the device cannot allocate it).
     ExactManhattan(Context& ctx, const World& world, const Palette& palette, Format format,
                    Layout layout = Layout::automatic);
+    // The same for a world in host memory: `voxels` holds dims.count() palette indices (x
+    // fastest) and must outlive the generator. On a device that computes in host memory
+    // (Context::computes_in_host_memory) the kernels read it in place and write the field
+    // into host memory of the generator's own: nothing is copied or zero-filled. Elsewhere it
+    // is uploaded. std::invalid_argument when its size is not dims.count().
+    ExactManhattan(Context& ctx, Dims dims, HostMemory& voxels, const Palette& palette,
+                   Format format, Layout layout = Layout::automatic);
+
+    // Builds the kernel programs that a generator of `dims` and `format` uses into ctx's
+    // program cache, so that a caller can build them while it reads the world.
+    static void prepare(Context& ctx, Dims dims, Format format, Layout layout = Layout::automatic);
 
     double run() override;
     std::string variant() const override;  // "cpu layout" or "gpu layout"
@@ -19,6 +31,10 @@ class ExactManhattan : public Generator {
     const cl::Buffer& voxels_buffer() const { return voxels_; }
 
   private:
+    // `voxels`: host memory the kernels read in place, or nullptr to upload `upload`.
+    void allocate(const Palette& palette, const std::uint8_t* upload, HostMemory* voxels);
+    void set_up_kernels();
+
     bool gpu_layout_;
     cl::Buffer voxels_, rgb_, work_;
     // The kernels of one transform, in enqueue order.

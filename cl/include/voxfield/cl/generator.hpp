@@ -85,7 +85,8 @@ std::vector<std::uint32_t> exact_reference(const World& world, const GeneratorOp
 // (benchmarks repeat run() without re-uploading).
 class Generator {
   public:
-    virtual ~Generator() = default;
+    // Waits for the queue when kernels use host memory of the generator's own.
+    virtual ~Generator();
     Generator(const Generator&) = delete;
     Generator& operator=(const Generator&) = delete;
 
@@ -116,10 +117,16 @@ class Generator {
     Generator(Context& ctx, Dims dims, Format format) : ctx_(ctx), dims_(dims), format_(format) {}
     // Records stage times from (name, event) pairs in enqueue order.
     void record_stages(const std::vector<std::pair<std::string, cl::Event>>& events);
+    // A buffer of `bytes` (flags: its CL_MEM_READ_* access). On a device that computes in
+    // host memory it lies in HostMemory the generator keeps (CL_MEM_USE_HOST_PTR), never
+    // zero-filled: the first kernel that writes it touches its pages, in parallel, and the
+    // host maps it without a copy. Elsewhere it is device memory.
+    cl::Buffer make_buffer(std::size_t bytes, cl_mem_flags flags);
 
     Context& ctx_;
     Dims dims_;
     Format format_;
+    std::vector<HostMemory> host_memory_;  // behind make_buffer's buffers; released after them
     cl::Buffer out_;
     cl::Buffer indices_;  // set by generators that compute the feature transform
     double upload_ms_ = 0;

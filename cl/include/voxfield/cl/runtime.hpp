@@ -1,9 +1,15 @@
 #pragma once
 // OpenCL runtime: errors, device enumeration and selection, a context with a profiling
-// queue, and a program cache keyed by device, source and build options.
+// queue, a program cache keyed by device, source and build options, and host memory that
+// buffers can use in place.
 #include <CL/opencl.hpp>
 
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
 #include <map>
+#include <memory>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <tuple>
@@ -47,6 +53,7 @@ struct DeviceInfo {
     std::size_t max_work_group = 0;
     std::vector<std::string> extensions;
     bool available = false, compiler_available = false;
+    bool host_unified_memory = false;  // CL_DEVICE_HOST_UNIFIED_MEMORY
 
     bool has_extension(const std::string& ext) const;
 };
@@ -67,6 +74,10 @@ class Context {
     cl::Context& context() { return context_; }
     cl::CommandQueue& queue() { return queue_; }
     bool is_cpu() const { return info_.type == "cpu"; }
+    // Whether the device computes in host memory (a CPU device, or one that reports
+    // CL_DEVICE_HOST_UNIFIED_MEMORY), so that a buffer over host memory
+    // (CL_MEM_USE_HOST_PTR) is used in place: no upload, no download, no staging copy.
+    bool computes_in_host_memory() const { return is_cpu() || info_.host_unified_memory; }
 
     // Builds (or returns the cached) program from embedded sources; BuildError on failure.
     cl::Program program(const std::string& name, const std::vector<std::string>& sources,
@@ -91,5 +102,49 @@ decltype(auto) cl_call(const std::string& context, F&& body) {
 
 // Milliseconds between the start of `first` and the end of `last` (profiling info).
 double elapsed_ms(const cl::Event& first, const cl::Event& last);
+
+// Page-aligned host memory that is never zero-filled: its pages are touched first by whoever
+// writes them first (a read from a file, or the kernels writing a CL_MEM_USE_HOST_PTR buffer
+// over it, in parallel). Allocations of 2 MiB and more are 2 MiB-aligned and ask for
+// transparent huge pages (madvise MADV_HUGEPAGE), so that first touches fault 2 MiB at a time.
+class HostMemory {
+  public:
+    HostMemory() = default;
+    explicit HostMemory(std::size_t bytes);  // std::bad_alloc when the host cannot give it
+
+    std::uint8_t* data() { return data_.get(); }
+    const std::uint8_t* data() const { return data_.get(); }
+    std::size_t size() const { return size_; }
+    std::span<std::uint8_t> span() { return {data_.get(), size_}; }
+    std::span<const std::uint8_t> span() const { return {data_.get(), size_}; }
+
+  private:
+    struct Free {
+        void operator()(std::uint8_t* p) const { std::free(p); }
+    };
+    std::unique_ptr<std::uint8_t, Free> data_;
+    std::size_t size_ = 0;
+};
+
+// A buffer mapped for reading on the host (blocking map; unmapped, and the unmap waited for,
+// when destroyed). A buffer over host memory on a device that computes in host memory maps in
+// place; elsewhere the driver copies the buffer into host memory of its own.
+class MappedBuffer {
+  public:
+    MappedBuffer(Context& ctx, const cl::Buffer& buffer, std::size_t bytes);
+    ~MappedBuffer();
+    MappedBuffer(const MappedBuffer&) = delete;
+    MappedBuffer& operator=(const MappedBuffer&) = delete;
+
+    std::span<const std::uint8_t> bytes() const { return {data_, size_}; }
+    double map_ms() const { return map_ms_; }  // the map command (profiling event)
+
+  private:
+    cl::CommandQueue queue_;
+    cl::Buffer buffer_;
+    const std::uint8_t* data_ = nullptr;
+    std::size_t size_ = 0;
+    double map_ms_ = 0;
+};
 
 }  // namespace voxfield::ocl

@@ -2,8 +2,11 @@
 // NumPy .npy files (format 1.0/2.0/3.0 read, 1.0 write): 3-D C-order arrays of shape (Z, Y, X)
 // of uint8/16/32 (worlds and fields), int8/16/32 and float32/64 (fields); 4-D int32 for the
 // feature transform is written only. Anything else is rejected with an InputError.
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
+#include <span>
 #include <vector>
 
 #include "voxfield/core/world.hpp"
@@ -20,12 +23,43 @@ struct NpyArray {
 
 NpyArray read_npy(const std::filesystem::path& path);
 
+// A .npy file opened and its header read and checked as read_npy checks them, to read the
+// data straight into memory the caller provides (no copy on the way, nothing zero-filled):
+// a caller can parse the header first, allocate, and read later (or on another thread).
+class NpyReader {
+  public:
+    explicit NpyReader(const std::filesystem::path& path);  // InputError as read_npy
+    ~NpyReader();
+    NpyReader(NpyReader&&) noexcept;
+    NpyReader& operator=(NpyReader&&) noexcept;
+
+    NpyType type() const { return type_; }
+    const Dims& dims() const { return dims_; }
+    std::size_t data_bytes() const { return data_bytes_; }  // element size x voxel count
+    // Reads the data (little-endian elements, x fastest) into `dst`, which must hold exactly
+    // data_bytes(); InputError on a read error, std::invalid_argument on a size mismatch.
+    void read_data(std::span<std::uint8_t> dst) const;
+
+  private:
+    struct File;
+    std::unique_ptr<File> file_;
+    NpyType type_ = NpyType::u8;
+    Dims dims_;
+    std::uint64_t data_offset_ = 0;
+    std::size_t data_bytes_ = 0;
+};
+
 // Writes atomically: a temporary file in the same folder, renamed on success, so a failure
-// never leaves a partial file. Throws InputError if the folder does not exist.
+// never leaves a partial file. Throws InputError if the folder does not exist. `data` may be
+// any memory, e.g. a mapped device buffer: it is written from where it is, without a copy.
+void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
+               std::span<const std::uint8_t> data);
 void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
                const std::vector<std::uint8_t>& data);
 
 // Writes an array of any shape (C order, `data` little-endian), atomically as write_npy.
+void write_npy_shape(const std::filesystem::path& path, NpyType type,
+                     const std::vector<std::uint64_t>& shape, std::span<const std::uint8_t> data);
 void write_npy_shape(const std::filesystem::path& path, NpyType type,
                      const std::vector<std::uint64_t>& shape,
                      const std::vector<std::uint8_t>& data);
