@@ -23,6 +23,7 @@ struct Command {
 Command add_devices(CLI::App& root);
 Command add_generate(CLI::App& root);
 Command add_replay(CLI::App& root);
+Command add_simulate(CLI::App& root);
 Command add_bench(CLI::App& root);
 Command add_render(CLI::App& root);
 Command add_view(CLI::App& root);

@@ -12,9 +12,9 @@ int main(int argc, char** argv) {
     CLI::App app{"voxfield: fast, exact distance fields for voxel worlds on any OpenCL device"};
     app.require_subcommand(1);
     app.set_version_flag("--version", std::string("voxfield ") + cli::commit());
-    std::vector<cli::Command> commands = {cli::add_devices(app), cli::add_generate(app),
-                                          cli::add_replay(app),  cli::add_bench(app),
-                                          cli::add_render(app),  cli::add_view(app)};
+    std::vector<cli::Command> commands = {
+        cli::add_devices(app), cli::add_generate(app), cli::add_replay(app), cli::add_simulate(app),
+        cli::add_bench(app),   cli::add_render(app),   cli::add_view(app)};
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

@@ -1,0 +1,389 @@
+// `voxfield simulate INPUT --steps N`: falling sand and water (DESIGN §4) on the device, the
+// distance field kept exact after every step by one incremental update of the voxels the step
+// changed, with optional verification against a full regeneration and per-step timings.
+#include <algorithm>
+#include <charconv>
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cli_util.hpp"
+#include "voxfield/cl/generator.hpp"
+#include "voxfield/cl/incremental.hpp"
+#include "voxfield/cl/sand.hpp"
+#include "voxfield/core/error.hpp"
+#include "voxfield/core/format.hpp"
+#include "voxfield/core/npy.hpp"
+#include "voxfield/core/sand.hpp"
+#include "voxfield/core/stats.hpp"
+#include "voxfield/core/vox.hpp"
+
+namespace voxfield::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+// The full regeneration of the starting world: untimed warm-up, then the median of these.
+constexpr std::uint32_t kRegenerateWarmup = 1;
+constexpr std::uint32_t kRegenerateRepeat = 5;
+// Progress on stderr once a run has taken this long, at most this often.
+constexpr double kProgressAfterS = 1.0;
+constexpr double kProgressEveryS = 0.5;
+
+struct SimulateOptions {
+    GeneratorFlags generator;  // --metric, --spacing and --max-distance only
+    std::string input, world_output, output, device, format, json;
+    std::int64_t steps = -1;
+    int sand = SandRules{}.sand, water = SandRules{}.water;
+    std::string seed = "1";
+    bool verify = false;
+};
+
+SandRules rules_of(const SimulateOptions& o) {
+    for (const auto& [flag, value] :
+         {std::pair{"--sand-material", o.sand}, std::pair{"--water-material", o.water}}) {
+        if (value < 1 || value > 255) {
+            throw InputError(std::string(flag) + " must be a material 1..255, got " +
+                             std::to_string(value));
+        }
+    }
+    if (o.sand == o.water) {
+        throw InputError("--sand-material and --water-material are both " + std::to_string(o.sand) +
+                         ": give sand and water different materials");
+    }
+    return {static_cast<std::uint8_t>(o.sand), static_cast<std::uint8_t>(o.water)};
+}
+
+std::uint64_t parse_seed(const std::string& text) {
+    std::uint64_t seed = 0;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), seed);
+    if (text.empty() || ec != std::errc() || end != text.data() + text.size()) {
+        throw InputError("--seed must be an integer 0.." + std::to_string(UINT64_MAX) + ", got '" +
+                         text + "'");
+    }
+    return seed;
+}
+
+bool same_file(const std::string& a, const std::string& b) {
+    std::error_code ea, eb;
+    const fs::path pa = fs::weakly_canonical(a, ea), pb = fs::weakly_canonical(b, eb);
+    return ea || eb ? fs::path(a) == fs::path(b) : pa == pb;
+}
+
+// Every output's folder exists, and no two outputs (or an output and the input) are one file.
+void check_outputs(const SimulateOptions& o) {
+    const std::vector<std::pair<std::string, std::string>> outputs = {
+        {"-o", o.output}, {"--world-output", o.world_output}, {"--json", o.json}};
+    for (std::size_t i = 0; i < outputs.size(); ++i) {
+        if (outputs[i].second.empty()) {
+            continue;
+        }
+        require_output_folder(outputs[i].second);
+        if (same_file(outputs[i].second, o.input)) {
+            throw InputError(outputs[i].first + " '" + outputs[i].second +
+                             "' would overwrite the input world");
+        }
+        for (std::size_t k = i + 1; k < outputs.size(); ++k) {
+            if (!outputs[k].second.empty() && same_file(outputs[i].second, outputs[k].second)) {
+                throw InputError(outputs[i].first + " and " + outputs[k].first +
+                                 " name the same file '" + outputs[i].second +
+                                 "': give each output its own file");
+            }
+        }
+    }
+}
+
+// Empty when the fields are equal; otherwise the first differing voxel, both values there
+// and how many voxels differ.
+std::string field_difference(const std::vector<std::uint8_t>& incremental,
+                             const std::vector<std::uint8_t>& full, Format format, Dims dims) {
+    if (incremental == full) {
+        return {};
+    }
+    if (incremental.size() != full.size()) {
+        return "the incremental field has " + std::to_string(incremental.size()) +
+               " bytes, the full regeneration " + std::to_string(full.size());
+    }
+    const std::size_t es = element_size(format);
+    std::optional<std::size_t> first;
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < dims.count(); ++i) {
+        if (!std::equal(incremental.begin() + static_cast<std::ptrdiff_t>(i * es),
+                        incremental.begin() + static_cast<std::ptrdiff_t>((i + 1) * es),
+                        full.begin() + static_cast<std::ptrdiff_t>(i * es))) {
+            first = first.value_or(i);
+            ++count;
+        }
+    }
+    const std::size_t i = first.value_or(0);
+    std::ostringstream s;
+    s.precision(9);
+    s << "first difference at voxel (" << i % dims.x << "," << i / dims.x % dims.y << ","
+      << i / (std::size_t{dims.x} * dims.y) << "): incremental "
+      << decode_value(incremental, format, i) << ", full regeneration "
+      << decode_value(full, format, i) << "; " << count << " of " << dims.count()
+      << " voxels differ";
+    return s.str();
+}
+
+struct StepRecord {
+    std::uint64_t step = 0;
+    double simulate_ms = 0, update_ms = 0, wall_ms = 0;
+    std::size_t voxels_changed = 0;
+    std::uint64_t voxels_recomputed = 0;
+    bool full_regeneration = false;
+};
+
+int run_simulate(const SimulateOptions& o) {
+    if (o.steps < 0) {
+        throw InputError("--steps must be a step count >= 0, got " + std::to_string(o.steps));
+    }
+    const SandRules rules = rules_of(o);
+    const std::uint64_t seed = parse_seed(o.seed);
+    const Format format = field_format(o.generator, o.format);
+    check_outputs(o);
+    const VoxModel model = load_world(o.input);
+    const Dims dims = model.world.dims();
+    const ocl::GeneratorOptions options = generator_options(o.generator, format, dims);
+    ocl::Context ctx(ocl::select_device(o.device));
+
+    ocl::IncrementalField field(ctx, model.world, model.palette, options);
+    ocl::SandSimulator sim(ctx, model.world, rules);
+    // The first launch of each update kernel pays its build (PoCL compiles per kernel and
+    // work-group shape): voxel 0 is toggled and restored, untimed, so that update times
+    // measure updates (the updates are exact, so the field is as before).
+    {
+        const std::uint8_t v0 = model.world.voxels()[0];
+        const std::uint8_t other = v0 != 0 ? std::uint8_t{0} : std::uint8_t{1};
+        field.apply_changes({{0, v0, other}});
+        field.apply_changes({{0, other, v0}});
+    }
+
+    // Full regeneration of the starting world on this device: warm-up, then the median.
+    std::vector<double> regen_samples;
+    {
+        const auto job = ocl::make_generator(ctx, model.world, model.palette, options);
+        for (std::uint32_t i = 0; i < kRegenerateWarmup + kRegenerateRepeat; ++i) {
+            const double ms = job->run();
+            if (i >= kRegenerateWarmup) {
+                regen_samples.push_back(ms);
+            }
+        }
+    }
+    const double full_ms = summarize(regen_samples).median;
+
+    bool progress_open = false;
+    // --verify: a fresh generator on the current world, same options, byte for byte.
+    auto verify = [&](const std::string& when) {
+        const std::vector<std::uint8_t> full =
+            ocl::generate(ctx, field.world(), model.palette, options).bytes;
+        const std::string diff = field_difference(field.read(), full, format, dims);
+        if (diff.empty()) {
+            return true;
+        }
+        if (progress_open) {
+            std::cerr << '\n';
+        }
+        std::cerr << "voxfield: simulate --verify failed " << when
+                  << ": the incremental field differs from a full regeneration ("
+                  << to_string(options.metric) << ", " << to_string(format) << "): " << diff
+                  << '\n';
+        return false;
+    };
+    if (o.verify && !verify("before the first step (initial field)")) {
+        return 1;
+    }
+
+    const auto steps = static_cast<std::uint64_t>(o.steps);
+    std::vector<StepRecord> records;
+    const auto start = Clock::now();
+    auto last_progress = start;
+    for (std::uint64_t step = 0; step < steps; ++step) {
+        const auto t0 = Clock::now();
+        const ocl::SandStepResult r = sim.step(seed, step);
+        const ocl::UpdateStats u = field.apply_changes(r.changes);
+        const auto t1 = Clock::now();
+        records.push_back({step, r.simulate_ms, u.update_ms,
+                           std::chrono::duration<double, std::milli>(t1 - t0).count(),
+                           r.changes.size(), u.voxels_recomputed, u.full_regeneration});
+        if (o.verify && !verify("after step " + std::to_string(step))) {
+            return 1;
+        }
+        const auto now = Clock::now();
+        if (std::chrono::duration<double>(now - start).count() >= kProgressAfterS &&
+            std::chrono::duration<double>(now - last_progress).count() >= kProgressEveryS) {
+            std::cerr << "\rsimulate: step " << step + 1 << "/" << steps
+                      << (o.verify ? " (verifying)" : "") << "   " << std::flush;
+            progress_open = true;
+            last_progress = now;
+        }
+    }
+    if (progress_open) {
+        std::cerr << "\rsimulate: " << steps << "/" << steps << " steps"
+                  << (o.verify ? " verified" : "") << "        \n";
+    }
+
+    // Outputs only now, each written atomically.
+    if (!o.world_output.empty()) {
+        const NpyArray w = npy_from_world(field.world());
+        write_npy(o.world_output, w.type, w.dims, w.data);
+    }
+    if (!o.output.empty()) {
+        write_npy(o.output, npy_type(format), dims, field.read());
+    }
+
+    std::vector<double> simulate_ms, update_ms, step_ms;
+    double device_ms = 0, wall_ms = 0;
+    std::size_t changed = 0, fallbacks = 0;
+    nlohmann::json steps_json = nlohmann::json::array();
+    for (const StepRecord& s : records) {
+        simulate_ms.push_back(s.simulate_ms);
+        update_ms.push_back(s.update_ms);
+        step_ms.push_back(s.simulate_ms + s.update_ms);
+        device_ms += s.simulate_ms + s.update_ms;
+        wall_ms += s.wall_ms;
+        changed += s.voxels_changed;
+        fallbacks += s.full_regeneration ? 1 : 0;
+        steps_json.push_back({{"step", s.step},
+                              {"simulate_ms", s.simulate_ms},
+                              {"update_ms", s.update_ms},
+                              {"voxels_changed", s.voxels_changed},
+                              {"voxels_recomputed", s.voxels_recomputed},
+                              {"full_regeneration", s.full_regeneration},
+                              {"wall_ms", s.wall_ms}});
+    }
+    const Summary sim_s = summarize(simulate_ms), upd_s = summarize(update_ms),
+                  step_s = summarize(step_ms);
+    const auto per_s = [&](double ms) {
+        return ms > 0 ? nlohmann::json(static_cast<double>(steps) * 1000.0 / ms) : nlohmann::json();
+    };
+    const auto rate = [&](double ms) {
+        return ms > 0 ? fixed(static_cast<double>(steps) * 1000.0 / ms, 1) : std::string("-");
+    };
+    const bool has_ratio = !records.empty() && full_ms > 0;
+    std::cout << "device:   " << ctx.info().name << " (" << ctx.info().platform << ", "
+              << ctx.info().type << "), sand kernel " << sim.variant() << '\n'
+              << "world:    " << o.input << "  " << dims.to_string() << ", sand material "
+              << int{rules.sand} << ", water material " << int{rules.water} << ", seed " << seed
+              << '\n'
+              << "field:    exact " << to_string(options.metric)
+              << (options.spacing.unit() ? "" : ", spacing " + options.spacing.to_string())
+              << (options.max_distance ? ", bounded at " + fixed(*options.max_distance, 3) : "")
+              << ", " << to_string(format) << '\n'
+              << "steps:    " << steps << ", " << changed << " voxels changed"
+              << (fallbacks != 0 ? ", " + std::to_string(fallbacks) +
+                                       " updates fell back to a full regeneration"
+                                 : "")
+              << '\n'
+              << "rate:     " << rate(device_ms) << " steps/s (device time), " << rate(wall_ms)
+              << " steps/s (wall clock, host included)\n"
+              << "simulate: median " << fixed(sim_s.median, 4) << " ms, mean "
+              << fixed(sim_s.mean, 4) << " ms, max " << fixed(sim_s.max, 4) << " ms\n"
+              << "update:   median " << fixed(upd_s.median, 4) << " ms, mean "
+              << fixed(upd_s.mean, 4) << " ms, max " << fixed(upd_s.max, 4) << " ms\n"
+              << "full:     " << fixed(full_ms, 4) << " ms (median of " << kRegenerateRepeat
+              << " regenerations of the starting world)"
+              << (has_ratio ? "; median step (simulate + update) " +
+                                  fixed(step_s.median / full_ms, 2) + "x of it"
+                            : "")
+              << '\n';
+    if (o.verify) {
+        std::cout << "verify:   the field matched a full regeneration after every step\n";
+    }
+    if (!o.world_output.empty()) {
+        std::cout << "wrote:    " << o.world_output << " (world)\n";
+    }
+    if (!o.output.empty()) {
+        std::cout << "wrote:    " << o.output << " (field)\n";
+    }
+
+    if (!o.json.empty()) {
+        const nlohmann::json j = {
+            {"device", device_json(ctx.info())},
+            {"commit", commit()},
+            {"input", o.input},
+            {"size", {dims.x, dims.y, dims.z}},
+            {"metric", to_string(options.metric)},
+            {"spacing", {options.spacing.x, options.spacing.y, options.spacing.z}},
+            {"max_distance",
+             options.max_distance ? nlohmann::json(*options.max_distance) : nlohmann::json()},
+            {"format", to_string(format)},
+            {"layout", sim.variant()},
+            {"sand_material", rules.sand},
+            {"water_material", rules.water},
+            {"seed", seed},
+            {"verified", o.verify},
+            {"full_regeneration_ms", full_ms},
+            {"full_regeneration_ms_samples", regen_samples},
+            {"steps", steps_json},
+            {"summary",
+             {{"steps", steps},
+              {"steps_per_s_device", per_s(device_ms)},
+              {"steps_per_s_wall", per_s(wall_ms)},
+              {"median_simulate_ms", sim_s.median},
+              {"median_update_ms", upd_s.median},
+              {"mean_simulate_ms", sim_s.mean},
+              {"mean_update_ms", upd_s.mean},
+              {"ratio_median_step_to_full_regeneration",
+               has_ratio ? nlohmann::json(step_s.median / full_ms) : nlohmann::json()},
+              {"voxels_changed", changed},
+              {"full_regenerations", fallbacks}}}};
+        write_json_file(o.json, j);
+        std::cout << "wrote:    " << o.json << " (timings)\n";
+    }
+    return 0;
+}
+
+}  // namespace
+
+Command add_simulate(CLI::App& root) {
+    auto o = std::make_shared<SimulateOptions>();
+    auto* app = root.add_subcommand(
+        "simulate",
+        "Falling sand and water: run a block cellular automaton on the world, keeping its "
+        "distance field exact after every step by one incremental update of the voxels the "
+        "step changed; optionally verify every step and record timings");
+    app->add_option("INPUT", o->input, "World: MagicaVoxel .vox or uint8/16/32 .npy (Z,Y,X)")
+        ->required();
+    app->add_option("--steps", o->steps, "Number of steps to run (>= 0)")->required();
+    app->add_option("--sand-material", o->sand,
+                    "Material (1..255) that falls as sand: down into air or water (swapping "
+                    "with it), else diagonally down into air")
+        ->capture_default_str();
+    app->add_option("--water-material", o->water,
+                    "Material (1..255) that flows as water: down, else diagonally down, else "
+                    "sideways into air; every other solid is static")
+        ->capture_default_str();
+    app->add_option("--seed", o->seed,
+                    "Seed (0..2^64-1) of the random choices between diagonal and sideways "
+                    "moves: the same seed gives the same run")
+        ->capture_default_str();
+    app->add_option("--world-output", o->world_output,
+                    "Write the world after the last step to this uint8 .npy (Z,Y,X)");
+    app->add_option("-o,--output", o->output,
+                    "Write the distance field after the last step to this .npy (Z,Y,X)");
+    add_metric_flags(*app, o->generator);
+    add_format_option(*app, o->format);
+    app->add_option("--device", o->device,
+                    "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, "
+                    "else the first GPU, else the first CPU)");
+    app->add_flag("--verify", o->verify,
+                  "After every step, compare the field byte for byte with a full regeneration "
+                  "of the current world (same options); exit 1 at the first difference, naming "
+                  "the step and the voxel");
+    app->add_option("--json", o->json,
+                    "Write per-step device times (simulate, update) and voxels changed, and the "
+                    "full-regeneration time of the starting world on the same device, to this "
+                    "JSON file");
+    return {app, [o] { return run_simulate(*o); }};
+}
+
+}  // namespace voxfield::cli
