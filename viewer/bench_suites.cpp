@@ -22,6 +22,7 @@
 #include "voxfield/core/accuracy.hpp"
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/metric.hpp"
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/stats.hpp"
@@ -616,9 +617,13 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
 // render suite
 
 // Ray-march time per frame across world sizes and resolutions (the floor + spheres scene,
-// the default three-quarter camera, lit shading with the sky gradient): the exact field in
-// the compact format with the per-block minima, uploaded once; each frame's dispatch timed by GPU
-// timestamps.
+// the default three-quarter camera, lit shading with the sky gradient), for the exact field of
+// every metric on the same world: each in the compact format with its per-block minima,
+// uploaded once; each frame's dispatch timed by GPU timestamps. One more frame per metric
+// counts every ray's field fetches and DDA steps (a counting pipeline, not timed) and checks
+// that its image equals manhattan's: the metric changes how far rays walk per fetch, never
+// which voxel they hit. A row is one world and resolution: manhattan's times at the top level
+// (as before metrics existed), every metric's under "metrics".
 json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
     const std::vector<std::uint32_t> sizes =
         quick ? std::vector<std::uint32_t>{32, 64} : std::vector<std::uint32_t>{128, 256, 512};
@@ -626,96 +631,132 @@ json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
         quick ? std::vector<std::pair<std::uint32_t, std::uint32_t>>{{320, 240}}
               : std::vector<std::pair<std::uint32_t, std::uint32_t>>{
                     {640, 480}, {1280, 720}, {1920, 1080}};
+    const std::vector<Metric> metrics = {Metric::manhattan, Metric::chebyshev, Metric::euclidean};
     vk::Context vk_ctx;
     std::cerr << "bench: suite render: Vulkan device " << vk_ctx.info().name << '\n';
     vk::Raymarcher marcher(vk_ctx);
     json rows = json::array();
-    const std::size_t total = sizes.size() * resolutions.size();
+    const std::size_t total = sizes.size() * metrics.size() * resolutions.size();
     std::size_t k = 0;
     for (const std::uint32_t n : sizes) {
         const Dims dims{n, n, n};
         const World world = make_scene(kScene, dims, plan.seed);
         const Palette palette = Palette::magicavoxel_default();
-        ocl::GeneratorOptions g;
-        g.format = Format::u16;
-        g = ocl::resolve_options(g, dims);
-        const auto field = ocl::generate(ctx, world, palette, g).bytes;
-        // The compact field and the per-block minima for coarse skipping, as `render` does.
-        const std::uint32_t b = VF_RAYMARCH_BLOCK;
-        const Dims nb{(n + b - 1) / b, (n + b - 1) / b, (n + b - 1) / b};
-        std::vector<std::uint16_t> compact(world.size());
-        std::vector<std::uint32_t> block_min(nb.count(), 0xFFFFFFFFu);
-        for (std::uint32_t z = 0; z < n; ++z) {
-            for (std::uint32_t y = 0; y < n; ++y) {
-                for (std::uint32_t x = 0; x < n; ++x) {
-                    const std::size_t i = dims.index(x, y, z);
-                    const std::uint32_t d =
-                        std::uint32_t{field[2 * i]} | (std::uint32_t{field[2 * i + 1]} << 8);
-                    compact[i] = static_cast<std::uint16_t>(
-                        (std::min<std::uint32_t>(d, VF_COMPACT_DISTANCE_MAX)
-                         << VF_COMPACT_DISTANCE_SHIFT) |
-                        world.voxels()[i]);
-                    auto& m = block_min[nb.index(x / b, y / b, z / b)];
-                    m = std::min(m, d);
+        std::vector<json> per_metric(resolutions.size(), json::array());
+        std::vector<std::vector<std::uint8_t>> reference(resolutions.size());
+        for (const Metric metric : metrics) {
+            ocl::GeneratorOptions g;
+            g.format = Format::u16;
+            g.metric = metric;
+            g = ocl::resolve_options(g, dims);
+            const auto field = ocl::generate(ctx, world, palette, g).bytes;
+            // The compact field and the per-block minima for coarse skipping, as `render`
+            // does.
+            const std::uint32_t b = VF_RAYMARCH_BLOCK;
+            const Dims nb{(n + b - 1) / b, (n + b - 1) / b, (n + b - 1) / b};
+            std::vector<std::uint16_t> compact(world.size());
+            std::vector<std::uint32_t> block_min(nb.count(), 0xFFFFFFFFu);
+            for (std::uint32_t z = 0; z < n; ++z) {
+                for (std::uint32_t y = 0; y < n; ++y) {
+                    for (std::uint32_t x = 0; x < n; ++x) {
+                        const std::size_t i = dims.index(x, y, z);
+                        const std::uint32_t d =
+                            std::uint32_t{field[2 * i]} | (std::uint32_t{field[2 * i + 1]} << 8);
+                        compact[i] = static_cast<std::uint16_t>(
+                            (std::min<std::uint32_t>(d, VF_COMPACT_DISTANCE_MAX)
+                             << VF_COMPACT_DISTANCE_SHIFT) |
+                            world.voxels()[i]);
+                        auto& m = block_min[nb.index(x / b, y / b, z / b)];
+                        m = std::min(m, d);
+                    }
                 }
+            }
+            marcher.upload_compact(dims, palette, compact);
+            marcher.set_block_min(block_min);
+            marcher.set_metric(metric);
+            for (std::size_t res = 0; res < resolutions.size(); ++res) {
+                const auto [w, h] = resolutions[res];
+                ++k;
+                const std::string label = dims.to_string() + " " + to_string(metric) + " at " +
+                                          std::to_string(w) + "x" + std::to_string(h);
+                vk::RenderOptions r;
+                r.width = w;
+                r.height = h;
+                r.camera = vk::default_camera(dims);
+                r.shading = vk::Shading::lit;
+                r.sky_gradient = true;
+                std::vector<double> ms;
+                const auto start = std::chrono::steady_clock::now();
+                for (std::uint32_t i = 0; i < plan.warmup + plan.repeat; ++i) {
+                    std::cerr << "\rbench: render [" << k << "/" << total << "] " << label << ": "
+                              << (i < plan.warmup ? "warm-up " : "run ") << i + 1 << "   "
+                              << std::flush;
+                    const vk::Image image = marcher.render(r);
+                    if (image.raymarch_ms < 0) {
+                        throw std::runtime_error(
+                            vk_ctx.info().name +
+                            " has no compute timestamps to time the ray march");
+                    }
+                    if (i >= plan.warmup) {
+                        ms.push_back(image.raymarch_ms);
+                    }
+                    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+                            .count() > plan.budget_s) {
+                        break;
+                    }
+                }
+                std::cerr << '\n';
+                r.count = true;
+                const vk::Image counted = marcher.render(r);
+                if (metric == Metric::manhattan) {
+                    reference[res] = counted.rgba;
+                }
+                const Summary sm = summarize(ms);
+                const double rays = double(w) * double(h);
+                per_metric[res].push_back(
+                    {{"metric", to_string(metric)},
+                     {"runs", ms.size()},
+                     {"median_ms", sm.median},
+                     {"mean_ms", sm.mean},
+                     {"std_ms", sm.std},
+                     {"ci95_ms", {sm.ci95_lo, sm.ci95_hi}},
+                     {"min_ms", sm.min},
+                     {"max_ms", sm.max},
+                     {"mrays_per_s", rays / (sm.median * 1e-3) / 1e6},
+                     {"fetches_per_ray", double(counted.fetches) / rays},
+                     {"steps_per_ray", double(counted.steps) / rays},
+                     {"same_image_as_manhattan", counted.rgba == reference[res]}});
+                std::printf(
+                    "render %-14s %-9s %5ux%-5u median %8.3f ms  mean %8.3f  std %7.3f  %8.1f "
+                    "Mrays/s  %7.2f fetches  %7.2f steps per ray%s\n",
+                    dims.to_string().c_str(), to_string(metric).c_str(), w, h, sm.median, sm.mean,
+                    sm.std, rays / (sm.median * 1e-3) / 1e6, double(counted.fetches) / rays,
+                    double(counted.steps) / rays,
+                    counted.rgba == reference[res] ? "" : "  IMAGE DIFFERS FROM MANHATTAN'S");
+                std::fflush(stdout);
             }
         }
-        marcher.upload_compact(dims, palette, compact);
-        marcher.set_block_min(block_min);
-        for (const auto& [w, h] : resolutions) {
-            ++k;
-            const std::string label =
-                dims.to_string() + " at " + std::to_string(w) + "x" + std::to_string(h);
-            vk::RenderOptions r;
-            r.width = w;
-            r.height = h;
-            r.camera = vk::default_camera(dims);
-            r.shading = vk::Shading::lit;
-            r.sky_gradient = true;
-            std::vector<double> ms;
-            const auto start = std::chrono::steady_clock::now();
-            for (std::uint32_t i = 0; i < plan.warmup + plan.repeat; ++i) {
-                std::cerr << "\rbench: render [" << k << "/" << total << "] " << label << ": "
-                          << (i < plan.warmup ? "warm-up " : "run ") << i + 1 << "   "
-                          << std::flush;
-                const vk::Image image = marcher.render(r);
-                if (image.raymarch_ms < 0) {
-                    throw std::runtime_error(vk_ctx.info().name +
-                                             " has no compute timestamps to time the ray march");
-                }
-                if (i >= plan.warmup) {
-                    ms.push_back(image.raymarch_ms);
-                }
-                if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
-                        .count() > plan.budget_s) {
-                    break;
-                }
-            }
-            std::cerr << '\n';
-            const Summary sm = summarize(ms);
-            const double rays = double(w) * double(h);
+        for (std::size_t res = 0; res < resolutions.size(); ++res) {
+            const json& l1 = per_metric[res][0];
             rows.push_back({{"table", "render"},
                             {"algorithm", "raymarch"},
+                            {"metric", "manhattan"},
                             {"size", {n, n, n}},
-                            {"width", w},
-                            {"height", h},
+                            {"width", resolutions[res].first},
+                            {"height", resolutions[res].second},
                             {"format", "compact"},
                             {"shading", "lit"},
                             {"vulkan_device", vk_ctx.info().name},
                             {"sharing", marcher.sharing_path()},
-                            {"runs", ms.size()},
-                            {"median_ms", sm.median},
-                            {"mean_ms", sm.mean},
-                            {"std_ms", sm.std},
-                            {"ci95_ms", {sm.ci95_lo, sm.ci95_hi}},
-                            {"min_ms", sm.min},
-                            {"max_ms", sm.max},
-                            {"mrays_per_s", rays / (sm.median * 1e-3) / 1e6}});
-            std::printf(
-                "render %-14s %5ux%-5u median %8.3f ms  mean %8.3f  std %7.3f  %8.1f Mrays/s\n",
-                dims.to_string().c_str(), w, h, sm.median, sm.mean, sm.std,
-                rays / (sm.median * 1e-3) / 1e6);
-            std::fflush(stdout);
+                            {"runs", l1["runs"]},
+                            {"median_ms", l1["median_ms"]},
+                            {"mean_ms", l1["mean_ms"]},
+                            {"std_ms", l1["std_ms"]},
+                            {"ci95_ms", l1["ci95_ms"]},
+                            {"min_ms", l1["min_ms"]},
+                            {"max_ms", l1["max_ms"]},
+                            {"mrays_per_s", l1["mrays_per_s"]},
+                            {"metrics", per_metric[res]}});
         }
     }
     return rows;

@@ -1,5 +1,6 @@
-// `voxfield render INPUT -o OUT.png`: the exact field on the OpenCL device, ray-marched by
-// the Vulkan DDA (vk/shaders/raymarch.comp) into an offscreen image, written as PNG.
+// `voxfield render INPUT -o OUT.png`: the exact field of a metric on the OpenCL device,
+// ray-marched by the Vulkan DDA (vk/shaders/raymarch.comp) into an offscreen image, written as
+// PNG.
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -16,10 +17,10 @@
 #include "cli_util.hpp"
 #include "render_field.hpp"
 
-#include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/interop.hpp"
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/metric.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 #include "voxfield/vk/shared.hpp"
@@ -32,7 +33,8 @@ namespace voxfield::cli {
 namespace {
 
 struct RenderCliOptions {
-    std::string input, output, camera, target, shading = "flat", sky, device, field = "compact";
+    std::string input, output, camera, target, shading = "flat", sky, device, field = "compact",
+                                               metric = "manhattan";
     std::uint32_t width = 800, height = 600;
     double fov = 60;
     bool stats = false, validate = false;
@@ -143,36 +145,46 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
     vk::validate(r);
 
     const vk::FieldFormat format = vk::parse_field_format(o.field);
+    // The exact global field of the metric (unit spacing), distances rounded down.
+    ocl::GeneratorOptions g;
+    g.algorithm = ocl::Algorithm::exact;
+    g.metric = parse_metric(o.metric);
+    g.format = format == vk::FieldFormat::packed32 ? Format::packed32 : Format::u16;
+    g = ocl::resolve_options(g, world.dims());
     ocl::Context cl_ctx(ocl::select_device(o.device));
     vk::Context vk_ctx(vk::ContextOptions{"", validation});
     // Declared before the ray marcher, destroyed after it: the marcher may read their memory.
-    std::optional<ocl::ExactManhattan> exact;
+    std::unique_ptr<ocl::Generator> exact;
+    cl::Buffer voxels;
     std::optional<RenderField> shared;
     vk::Raymarcher marcher(vk_ctx);
     double kernel_ms = 0;
     std::string why_not;
     if (format == vk::FieldFormat::packed32) {
-        // The exact global L1 field in packed32 on the OpenCL device, copied (path 3).
-        ocl::GeneratorOptions g;
-        g.algorithm = ocl::Algorithm::exact;
-        g.format = Format::packed32;
-        g = ocl::resolve_options(g, world.dims());
+        // In packed32 on the OpenCL device, copied (path 3).
         const ocl::FieldResult field = ocl::generate(cl_ctx, world, model.palette, g);
         kernel_ms = field.timing.kernel_ms;
         std::vector<std::uint32_t> packed(world.size());
         std::memcpy(packed.data(), field.bytes.data(), packed.size() * sizeof(std::uint32_t));
         marcher.upload(world, model.palette, packed);
+        marcher.set_metric(g.metric);
         why_not = "packed32 is always copied (path 3)";
     } else {
-        // The exact field in u16, converted by OpenCL into the compact format, written where
-        // Vulkan reads it (paths 1, 2) or into an OpenCL buffer that is copied (path 3), and
-        // the per-block minima for coarse skipping (a small table, always copied).
-        exact.emplace(cl_ctx, world, model.palette, Format::u16);
+        // In u16, converted by OpenCL (from the field and the world's voxels) into the compact
+        // format, written where Vulkan reads it (paths 1, 2) or into an OpenCL buffer that is
+        // copied (path 3), and the per-block minima for coarse skipping (a small table, always
+        // copied).
+        exact = ocl::make_generator(cl_ctx, world, model.palette, g);
+        voxels = ocl::cl_call("uploading the world's voxels for the render field", [&] {
+            cl::Buffer b(cl_ctx.context(), CL_MEM_READ_ONLY, world.size());
+            cl_ctx.queue().enqueueWriteBuffer(b, CL_TRUE, 0, world.size(), world.voxels().data());
+            return b;
+        });
         shared.emplace(cl_ctx, vk_ctx, marcher, world.dims());
         why_not = shared->why_not();
         kernel_ms = exact->run();
-        kernel_ms += shared->attach(marcher, exact->field_buffer(), Format::u16,
-                                    exact->voxels_buffer(), model.palette);
+        kernel_ms += shared->attach(marcher, exact->field_buffer(), Format::u16, g.metric, voxels,
+                                    model.palette);
     }
     const vk::Image image = marcher.render(r);
 
@@ -186,7 +198,8 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
     write_text_file(o.output, png);
 
     std::cout << "opencl:  " << cl_ctx.info().name << " (" << cl_ctx.info().platform << ", "
-              << cl_ctx.info().type << "): exact L1 field, " << vk::to_string(format) << " ("
+              << cl_ctx.info().type << "): exact " << to_string(g.metric) << " field, "
+              << vk::to_string(format) << " ("
               << (format == vk::FieldFormat::compact ? "2 bytes per voxel, world + field"
                                                      : "4 + 1 material byte per voxel")
               << "), kernels " << fixed(kernel_ms, 3) << " ms\n"
@@ -211,6 +224,14 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
         } else {
             std::cout << "stats:   the Vulkan device has no compute timestamps\n";
         }
+        // One more frame through the counting pipeline (not timed).
+        vk::RenderOptions counting = r;
+        counting.count = true;
+        const vk::Image counted = marcher.render(counting);
+        const double rays = double(counted.width) * double(counted.height);
+        std::cout << "stats:   per ray " << fixed(double(counted.fetches) / rays, 2)
+                  << " field fetches, " << fixed(double(counted.steps) / rays, 2) << " DDA steps ("
+                  << to_string(g.metric) << " field)\n";
     }
     return 0;
 }
@@ -252,8 +273,15 @@ Command add_render(CLI::App& root) {
                     "devices allow) or packed32 (4 bytes plus a material byte, always copied)")
         ->check(CLI::IsMember({"packed32", "compact"}))
         ->capture_default_str();
+    app->add_option("--metric", o->metric,
+                    "Metric of the exact field the ray marcher steps through: manhattan (L1), "
+                    "chebyshev (L-inf) or euclidean (L2, rounded down); the image is the same, "
+                    "the number of steps per ray is not")
+        ->check(CLI::IsMember(metric_names()))
+        ->capture_default_str();
     app->add_flag("--stats", o->stats,
-                  "Report the ray-march dispatch time (GPU timestamps) and Mrays/s");
+                  "Report the ray-march dispatch time (GPU timestamps), Mrays/s, and the field "
+                  "fetches and DDA steps per ray (from one more, counting frame)");
     app->add_flag("--validate", o->validate,
                   "Run with the Vulkan validation layer (synchronisation validation included; "
                   "Debian: vulkan-validationlayers): each message is printed to stderr and any "

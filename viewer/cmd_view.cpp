@@ -157,12 +157,12 @@ class Session {
         auto field = std::make_unique<ocl::IncrementalField>(cl_, std::move(world), palette_, next);
         render_field_->detach();
         try {
-            render_field_->attach(*marcher_, field->field_buffer(), next.format,
+            render_field_->attach(*marcher_, field->field_buffer(), next.format, next.metric,
                                   field->voxels_buffer(), palette_);
         } catch (...) {
             if (field_) {
                 render_field_->attach(*marcher_, field_->field_buffer(), options_.format,
-                                      field_->voxels_buffer(), palette_);
+                                      options_.metric, field_->voxels_buffer(), palette_);
             }
             throw;
         }

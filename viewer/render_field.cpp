@@ -82,8 +82,9 @@ RenderField::~RenderField() {
 }
 
 double RenderField::attach(vk::Raymarcher& marcher, const cl::Buffer& field, Format format,
-                           const cl::Buffer& voxels, const Palette& palette) {
+                           Metric metric, const cl::Buffer& voxels, const Palette& palette) {
     palette_ = palette;
+    metric_ = metric;
     writer_.reset();
     writer_.emplace(cl_, field, format, voxels, dims_, cl_field_,
                     ocl::SlabLayout{layout_.slab_depth, layout_.slab_stride},
@@ -95,6 +96,7 @@ double RenderField::attach(vk::Raymarcher& marcher, const cl::Buffer& field, For
         marcher.bind_shared(shared_, layout_, palette_);
     }
     marcher.set_block_min(writer_->block_min());
+    marcher.set_metric(metric_);  // after the field (a new one resets it)
     return ms;
 }
 
@@ -104,6 +106,7 @@ double RenderField::update(vk::Raymarcher& marcher, const std::vector<Box>& regi
         publish(marcher);
     }
     marcher.set_block_min(writer_->block_min());
+    marcher.set_metric(metric_);  // after the field (a new one resets it)
     return ms;
 }
 

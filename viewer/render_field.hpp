@@ -31,11 +31,11 @@ class RenderField {
     RenderField(const RenderField&) = delete;
     RenderField& operator=(const RenderField&) = delete;
 
-    // Converts from a new source (the field in `format` and the world's voxels, both on the
-    // OpenCL device; they must stay alive until the next attach) and shows the whole field
-    // in `marcher` (bound in place on paths 1/2, copied on path 3). Returns the OpenCL time
-    // in ms.
-    double attach(vk::Raymarcher& marcher, const cl::Buffer& field, Format format,
+    // Converts from a new source (the field in `format` with distances in `metric`, and the
+    // world's voxels, both on the OpenCL device; they must stay alive until the next attach)
+    // and shows the whole field in `marcher` (bound in place on paths 1/2, copied on path 3),
+    // which then steps by that metric. Returns the OpenCL time in ms.
+    double attach(vk::Raymarcher& marcher, const cl::Buffer& field, Format format, Metric metric,
                   const cl::Buffer& voxels, const Palette& palette);
     // Lets go of the source (before it is replaced, so that both never hold device memory
     // at once); update() needs an attach() after this.
@@ -57,6 +57,7 @@ class RenderField {
     vk::SharingPath path_ = vk::SharingPath::copy;
     std::string why_not_;
     Palette palette_;
+    Metric metric_ = Metric::manhattan;
     // Release order (reverse): writer, OpenCL buffer, then the fd and the memory it uses.
     vk::ExternalMemory shared_;
     int fd_ = -1;

@@ -44,6 +44,7 @@ TEST_F(RenderCli, BadInputExitsTwoWithOneLineAndNoFile) {
         {kModel.string(), "-o", out, "--sky", "12345"},
         {kModel.string(), "-o", out, "--sky", "zzzzzz"},
         {kModel.string(), "-o", out, "--shading", "phong"},
+        {kModel.string(), "-o", out, "--metric", "taxicab"},
         {kModel.string(), "-o", (dir_ / "out.jpg").string()},
         {kModel.string(), "-o", (dir_ / "missing" / "out.png").string()},
         {(dir_ / "absent.vox").string(), "-o", out},
@@ -95,11 +96,31 @@ TEST_F(RenderCli, BothFieldFormatsGiveTheSameImage) {
     EXPECT_EQ(read_bytes(a), read_bytes(b));
 }
 
+// The field of every metric, in both formats, gives the same image: the metric decides how far
+// rays walk between fetches, never which voxel they hit. Lit shading, so that the face each
+// ray entered by shows too.
+TEST_F(RenderCli, EveryMetricGivesTheSameImage) {
+    const fs::path reference = dir_ / "manhattan-compact.png";
+    for (const std::string metric : {"manhattan", "chebyshev", "euclidean"}) {
+        for (const std::string field : {"compact", "packed32"}) {
+            const fs::path out = dir_ / (metric + "-" + field + ".png");
+            const RunResult r = run_voxfield(
+                {"render", kModel.string(), "-o", out.string(), "--width", "64", "--height", "48",
+                 "--shading", "lit", "--metric", metric, "--field", field, "--stats"},
+                io_);
+            ASSERT_EQ(r.code, 0) << describe(r);
+            EXPECT_NE(r.out.find("exact " + metric + " field"), std::string::npos) << r.out;
+            EXPECT_NE(r.out.find("field fetches"), std::string::npos) << r.out;
+            EXPECT_EQ(read_bytes(out), read_bytes(reference)) << metric << " " << field;
+        }
+    }
+}
+
 TEST_F(RenderCli, HelpListsEveryOption) {
     const RunResult r = run_voxfield({"render", "--help"}, io_);
     ASSERT_EQ(r.code, 0) << describe(r);
     for (const char* opt : {"--width", "--height", "--camera", "--target", "--fov", "--shading",
-                            "--sky", "--device", "--stats", "--output", "--field"}) {
+                            "--sky", "--device", "--stats", "--output", "--field", "--metric"}) {
         EXPECT_NE(r.out.find(opt), std::string::npos) << opt;
     }
 }

@@ -1,11 +1,18 @@
 #version 450
-// DDA ray marcher over a packed32 or compact Manhattan distance field. Traversal: Amanatides & Woo, "A
-// Fast Voxel Traversal Algorithm for Ray Tracing" (Eurographics 1987); empty-space skipping
-// by the distance field as in the dissertation's viewer (chapter 5), without its step cap.
+// DDA ray marcher over a packed32 or compact Manhattan, Chebyshev or Euclidean distance field.
+// Traversal: Amanatides & Woo, "A Fast Voxel Traversal Algorithm for Ray Tracing" (Eurographics
+// 1987); empty-space skipping by the distance field as in the dissertation's viewer (chapter 5),
+// without its step cap.
 #extension GL_GOOGLE_include_directive : require
 #include "voxfield/layout.h"
 
 layout(local_size_x = VF_RAYMARCH_LOCAL_SIZE, local_size_y = VF_RAYMARCH_LOCAL_SIZE) in;
+
+// Specialization constants (mirrored by vk/src/raymarcher.cpp): the metric of the field's
+// distances and of the block minima, and whether each ray records its counts.
+const uint kManhattan = 0u, kChebyshev = 1u, kEuclidean = 2u;
+layout(constant_id = 0) const uint kMetric = kManhattan;
+layout(constant_id = 1) const bool kCount = false;
 
 // One RGBA8 pixel per texel, r | g << 8 | b << 16 | a << 24 (bytes R, G, B, A in memory), so
 // flat colours are written bit-exactly (no float -> unorm rounding).
@@ -69,6 +76,11 @@ layout(std430, binding = VF_RAYMARCH_BINDING_MATERIAL + 6) readonly buffer M6 {
 };
 layout(std430, binding = VF_RAYMARCH_BINDING_MATERIAL + 7) readonly buffer M7 {
     uint m7[];
+};
+// With kCount: per pixel (row by row) the ray's field fetches and DDA steps. The binding after
+// the material slabs (kCounterBinding in vk/src/raymarcher.cpp); never written otherwise.
+layout(std430, binding = VF_RAYMARCH_BINDING_MATERIAL + VF_RAYMARCH_MAX_SLABS) writeonly buffer C {
+    uvec2 counters[];
 };
 
 // Mirrors PushConstants in vk/src/raymarcher.cpp (static_asserts there).
@@ -215,6 +227,7 @@ void main() {
     bool hit = false;
     ivec3 face = ivec3(0);  // the step that entered the hit cell (0: the ray started in it)
     ivec3 cell = ivec3(0);
+    uint fetches = 0u, steps = 0u;  // for kCount
     if (!parallel_outside && t_enter < t_exit) {
         if (t_enter > 0.0) {
             // Entered through the face of the largest tnear (ties: x, then y, then z).
@@ -232,19 +245,39 @@ void main() {
         // integer cell after each step (no accumulated error); axes not stepped: never.
         vec3 t_next =
             mix((vec3(cell + max(stp, ivec3(0))) - start) * inv, vec3(kFar), equal(stp, ivec3(0)));
-        // Safe skipping rule. The field holds d = the L1 distance from this cell to the
-        // nearest solid cell (0 = solid; saturated at 255, which only under-states it). A DDA
-        // step moves to a face neighbour and the walk is monotone along every axis, so the
-        // cell reached after k steps is at L1 distance exactly k from this one. Every cell at
-        // L1 distance < d is empty, so the cells after 1 .. d-1 steps are empty and need no
-        // fetch; the cell after d steps may be solid and is fetched. Hence: d steps per
-        // fetch, never skipping a solid cell. The walk ends only when the ray hits a solid
-        // or leaves the world (at most X+Y+Z steps), never by a step cap. Coarse skipping: a
-        // saturated 255 only says d >= 255; the minimum distance over the cell's 8^3 block
-        // is also a lower bound of d, so the ray may take max(255, that minimum) steps.
+        // Safe skipping rule. The field holds d, a lower bound of the metric distance from
+        // this cell to the nearest solid cell (0 = solid): the exact distance rounded down
+        // (an integer already for L1 and L-inf, the floor of it for L2) and saturated at 255,
+        // which only under-states it. A solid cell at metric distance r from this one makes
+        // the true distance at most r, so r >= d: every cell whose integer offset o from this
+        // one has metric(o) < d is empty, where the empty region is
+        //   L1:    |ox| + |oy| + |oz| < d   (the octahedron of radius d-1),
+        //   L-inf: max |o_i| < d            (the cube of half-width d-1),
+        //   L2:    ox^2 + oy^2 + oz^2 < d^2 (integers; strict, since floor(true) <= true: a
+        //          solid may lie at exactly d).
+        // A DDA step moves to a face neighbour and the walk is monotone along every axis, so
+        // |o_i| is the number of steps taken along axis i since the fetch. The walk keeps
+        // stepping without a fetch while o stays inside the region and fetches the first cell
+        // outside it, which may be solid. Per fetch that is
+        //   L1:    exactly d steps (the cell after k steps is at L1 distance k),
+        //   L-inf: until one |o_i| reaches d: d steps along an axis, up to 3(d-1)+1 along a
+        //          diagonal,
+        //   L2:    until the squared offset reaches d^2: d steps along an axis, up to about
+        //          sqrt(3) d along a diagonal.
+        // Hence no solid cell is ever skipped. (For one offset L-inf <= L2 <= L1, so each
+        // region holds the L1 one: the L1 rule is safe for every metric's field, only slower.)
+        // The offsets are integer counters, the squared offset updated exactly (a step along
+        // axis a adds 2 |o_a| + 1), so no float error accumulates. For L2 d is clamped to
+        // 65535, still a lower bound, so that d^2 and the squared offset (< d^2 + 2 * 65535)
+        // fit in 32 bits. The walk ends only when the ray hits a solid or leaves the world (at
+        // most X+Y+Z steps), never by a step cap. Coarse skipping: a saturated 255 only says
+        // d >= 255; the minimum distance over the cell's 8^3 block (same metric, unsaturated)
+        // is also a lower bound of the cell's distance, so the rule applies to
+        // d = max(255, that minimum).
         for (;;) {
             // VF_PACKED_DISTANCE_* and VF_COMPACT_DISTANCE_* agree (static_assert'ed on the host).
             uint d = (read_cell(cell) >> VF_PACKED_DISTANCE_SHIFT) & VF_PACKED_DISTANCE_MAX;
+            ++fetches;
             if (d == 0u) {
                 hit = true;
                 break;
@@ -253,24 +286,46 @@ void main() {
                 uvec3 b = uvec3(cell) / uvec3(VF_RAYMARCH_BLOCK);
                 d = max(d, block_min[(b.z * blocks.y + b.y) * blocks.x + b.x]);
             }
+            uvec3 off = uvec3(0u);  // |o_i|: steps along each axis since the fetch
+            uint off2 = 0u;         // L2: |o|^2
+            uint clamped = min(d, 65535u);
+            uint d2 = clamped * clamped;
             bool inside = true;
-            for (uint k = 0u; k < d; ++k) {
+            for (;;) {
                 // The axis whose boundary comes first (ties: x, then y, then z).
                 bool bx = t_next.x <= t_next.y && t_next.x <= t_next.z;
                 bool by = !bx && t_next.y <= t_next.z;
                 ivec3 m = ivec3(bx, by, !bx && !by);
                 face = m * stp;
                 cell += face;
+                ++steps;
                 if (any(lessThan(cell, ivec3(0))) || any(greaterThanEqual(cell, dims))) {
                     inside = false;
                     break;
                 }
                 t_next = mix(t_next, (vec3(cell + max(stp, ivec3(0))) - start) * inv, bvec3(m));
+                uint along = bx ? off.x : (by ? off.y : off.z);
+                off += uvec3(m);
+                bool beyond;
+                if (kMetric == kChebyshev) {
+                    beyond = along + 1u >= d;
+                } else if (kMetric == kEuclidean) {
+                    off2 += 2u * along + 1u;
+                    beyond = off2 >= d2;
+                } else {
+                    beyond = off.x + off.y + off.z >= d;
+                }
+                if (beyond) {
+                    break;  // the first cell outside the empty region: fetch it
+                }
             }
             if (!inside) {
                 break;
             }
         }
+    }
+    if (kCount) {
+        counters[pix.y * width + pix.x] = uvec2(fetches, steps);
     }
 
     uint colour;

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <stdexcept>
 
 #include "raymarch_spv.h"
 #include "voxfield/core/error.hpp"
@@ -30,6 +31,29 @@ static_assert(VF_RAYMARCH_BINDING_FIELD + VF_RAYMARCH_MAX_SLABS <= VF_RAYMARCH_B
 // The shader reads the distance of both formats with the packed32 constants.
 static_assert(VF_COMPACT_DISTANCE_SHIFT == VF_PACKED_DISTANCE_SHIFT);
 static_assert(VF_COMPACT_DISTANCE_MAX == VF_PACKED_DISTANCE_MAX);
+// The per-pixel counters of RenderOptions::count (raymarch.comp's buffer C): the binding after
+// the material slabs.
+constexpr std::uint32_t kCounterBinding = kBindings;
+
+// raymarch.comp's specialization constants: constant_id 0 the metric (kManhattan,
+// kChebyshev, kEuclidean = 0, 1, 2), constant_id 1 whether rays count (a VkBool32).
+struct Specialization {
+    std::uint32_t metric;
+    VkBool32 count;
+};
+constexpr std::size_t kMetrics = 3;
+
+std::uint32_t metric_code(Metric m) {
+    switch (m) {
+        case Metric::manhattan:
+            return 0;
+        case Metric::chebyshev:
+            return 1;
+        case Metric::euclidean:
+            return 2;
+    }
+    throw std::logic_error("ray marcher: unknown metric");
+}
 
 Vec3 sub(const Vec3& a, const Vec3& b) {
     return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
@@ -120,13 +144,17 @@ struct Raymarcher::Impl {
     Owned<VkDescriptorSetLayout> set_layout;
     Owned<VkPipelineLayout> pipeline_layout;
     Owned<VkShaderModule> shader;
-    Owned<VkPipeline> pipeline;
+    // One pipeline per metric, without and with counting; built on first use.
+    std::array<std::array<Owned<VkPipeline>, 2>, kMetrics> pipelines;
     Owned<VkDescriptorPool> pool;
     VkDescriptorSet set = VK_NULL_HANDLE;
     Owned<VkQueryPool> queries;
     Buffer palette;  // 256 colours, then the block minima when set
     std::array<std::uint32_t, 256> colours{};
     std::vector<std::uint32_t> block_min;
+    Metric metric = Metric::manhattan;
+    // RenderOptions::count: one uvec2 (fetches, steps) per pixel; a single one otherwise.
+    Buffer counters;
     std::vector<Buffer> field, material;  // material: packed32 only
     FieldLayout layout;
     SharingPath sharing = SharingPath::copy;
@@ -147,6 +175,10 @@ struct Raymarcher::Impl {
     VkDeviceMemory frame_memory = VK_NULL_HANDLE;
 
     void march(const RenderOptions& o, VkBuffer dst, bool external);
+    // The pipeline of `metric`, with or without counting (built when first asked for).
+    VkPipeline pipeline_for(Metric metric, bool count);
+    // Makes `counters` hold at least `pixels` counters and points its binding at it.
+    void prepare_counters(std::size_t pixels);
     double last_raymarch_ms();
     // Makes `target` an image of width x height (no-op when it already is).
     void prepare_target(std::uint32_t width, std::uint32_t height, const std::string& what);
@@ -169,7 +201,7 @@ Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
     m.max_binding = m.max_binding / 4 * 4;
 
     std::vector<VkDescriptorSetLayoutBinding> bindings;
-    for (std::uint32_t b = 0; b < kBindings; ++b) {
+    for (std::uint32_t b = 0; b <= kCounterBinding; ++b) {
         if (b >= VF_RAYMARCH_BINDING_FIELD + VF_RAYMARCH_MAX_SLABS &&
             b < VF_RAYMARCH_BINDING_MATERIAL) {
             continue;
@@ -212,21 +244,9 @@ Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
           "raymarch.comp");
     m.shader = Owned<VkShaderModule>(dev, shader, vkDestroyShaderModule);
 
-    VkComputePipelineCreateInfo cp{};
-    cp.sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO;
-    cp.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
-    cp.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-    cp.stage.module = shader;
-    cp.stage.pName = "main";
-    cp.layout = pipeline_layout;
-    VkPipeline pipeline = VK_NULL_HANDLE;
-    check(vkCreateComputePipelines(dev, VK_NULL_HANDLE, 1, &cp, nullptr, &pipeline),
-          "vkCreateComputePipelines", "raymarch.comp");
-    m.pipeline = Owned<VkPipeline>(dev, pipeline, vkDestroyPipeline);
-
     const std::array<VkDescriptorPoolSize, 2> sizes = {
         VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
-        VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kBindings}};
+        VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kCounterBinding + 1}};
     VkDescriptorPoolCreateInfo dp{};
     dp.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO;
     dp.maxSets = 1;
@@ -255,6 +275,7 @@ Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
     m.palette = ctx.make_buffer(
         256 * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
         MemoryIntent::device_local, "palette");
+    m.prepare_counters(1);
 }
 
 Raymarcher::~Raymarcher() = default;
@@ -314,8 +335,60 @@ void Raymarcher::Impl::upload_palette(const Palette& p) {
     for (std::size_t i = 0; i < 256; ++i) {
         colours[i] = pack(p[static_cast<std::uint8_t>(i)]);
     }
-    block_min.clear();  // a new field: the old minima no longer hold
+    block_min.clear();           // a new field: the old minima no longer hold
+    metric = Metric::manhattan;  // nor the old metric; manhattan's step is safe for any field
     write_palette_binding();
+}
+
+VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count) {
+    const std::uint32_t code = metric_code(which);
+    Owned<VkPipeline>& slot = pipelines[code][count ? 1 : 0];
+    if (slot) {
+        return slot.get();
+    }
+    const Specialization data{code, count ? VK_TRUE : VK_FALSE};
+    const std::array<VkSpecializationMapEntry, 2> entries = {
+        VkSpecializationMapEntry{0, offsetof(Specialization, metric), sizeof data.metric},
+        VkSpecializationMapEntry{1, offsetof(Specialization, count), sizeof data.count}};
+    VkSpecializationInfo spec{};
+    spec.mapEntryCount = static_cast<std::uint32_t>(entries.size());
+    spec.pMapEntries = entries.data();
+    spec.dataSize = sizeof data;
+    spec.pData = &data;
+    VkComputePipelineCreateInfo cp{};
+    cp.sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO;
+    cp.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
+    cp.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+    cp.stage.module = shader.get();
+    cp.stage.pName = "main";
+    cp.stage.pSpecializationInfo = &spec;
+    cp.layout = pipeline_layout.get();
+    const VkDevice dev = ctx.device();
+    VkPipeline pipeline = VK_NULL_HANDLE;
+    check(vkCreateComputePipelines(dev, VK_NULL_HANDLE, 1, &cp, nullptr, &pipeline),
+          "vkCreateComputePipelines",
+          "raymarch.comp, " + to_string(which) + (count ? ", counting" : ""));
+    slot = Owned<VkPipeline>(dev, pipeline, vkDestroyPipeline);
+    return pipeline;
+}
+
+void Raymarcher::Impl::prepare_counters(std::size_t pixels) {
+    const VkDeviceSize bytes = VkDeviceSize{8} * pixels;
+    if (counters.get() != VK_NULL_HANDLE && counters.size() >= bytes) {
+        return;
+    }
+    counters = Buffer();  // every submission that wrote it was waited for
+    counters = ctx.make_buffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryIntent::readback,
+                               "ray counters");
+    VkDescriptorBufferInfo info{counters.get(), 0, VK_WHOLE_SIZE};
+    VkWriteDescriptorSet w{};
+    w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+    w.dstSet = set;
+    w.dstBinding = kCounterBinding;
+    w.descriptorCount = 1;
+    w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    w.pBufferInfo = &info;
+    vkUpdateDescriptorSets(ctx.device(), 1, &w, 0, nullptr);
 }
 
 void Raymarcher::Impl::write_palette_binding() {
@@ -535,6 +608,10 @@ void Raymarcher::Impl::march(const RenderOptions& o, VkBuffer dst, bool external
                              std::to_string(o.height) + " of " + m.layout.dims.to_string();
 
     m.prepare_target(o.width, o.height, what);
+    if (o.count) {
+        m.prepare_counters(std::size_t{o.width} * o.height);
+    }
+    const VkPipeline pipeline = m.pipeline_for(m.metric, o.count);
     const VkImage image_handle = m.target.image.get();
     const VkImageView view_handle = m.target.view.get();
     const VkDeviceSize bytes = VkDeviceSize{o.width} * o.height * 4;
@@ -593,7 +670,7 @@ void Raymarcher::Impl::march(const RenderOptions& o, VkBuffer dst, bool external
                 vkCmdResetQueryPool(cmd, timer, 0, 2);
                 vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, timer, 0);
             }
-            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipeline.get());
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
             vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipeline_layout.get(), 0,
                                     1, &m.set, 0, nullptr);
             vkCmdPushConstants(cmd, m.pipeline_layout.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
@@ -602,6 +679,15 @@ void Raymarcher::Impl::march(const RenderOptions& o, VkBuffer dst, bool external
             vkCmdDispatch(cmd, (o.width + g - 1) / g, (o.height + g - 1) / g, 1);
             if (timer != VK_NULL_HANDLE) {
                 vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, timer, 1);
+            }
+            if (o.count) {
+                VkMemoryBarrier counted{};
+                counted.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+                counted.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+                counted.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+                vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                                     VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &counted, 0, nullptr, 0,
+                                     nullptr);
             }
             VkImageMemoryBarrier to_copy = to_general;
             to_copy.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
@@ -666,11 +752,22 @@ void Raymarcher::render(const RenderOptions& o, Image& out) {
     out.rgba.resize(bytes);
     std::memcpy(out.rgba.data(), m.target.readback.data(), bytes);
     out.raymarch_ms = m.last_raymarch_ms();
+    out.fetches = out.steps = 0;
+    if (o.count) {
+        const auto* c = static_cast<const std::uint32_t*>(m.counters.data());
+        for (std::size_t i = 0; i < std::size_t{o.width} * o.height; ++i) {
+            out.fetches += c[2 * i];
+            out.steps += c[2 * i + 1];
+        }
+    }
 }
 
 double Raymarcher::render_to(const RenderOptions& o, const ExternalMemory& frame) {
     Impl& m = *impl_;
     const VkDeviceSize bytes = VkDeviceSize{o.width} * o.height * 4;
+    if (o.count) {
+        throw std::logic_error("Raymarcher::render_to does not count; use render()");
+    }
     if (frame.path() != SharingPath::opaque_fd || frame.size() < bytes) {
         throw std::logic_error("Raymarcher::render_to needs exportable memory of " +
                                std::to_string(bytes) + " bytes");
@@ -698,6 +795,14 @@ void Raymarcher::set_block_min(std::span<const std::uint32_t> block_min) {
     }
     m.block_min.assign(block_min.begin(), block_min.end());
     m.write_palette_binding();
+}
+
+void Raymarcher::set_metric(Metric metric) {
+    impl_->metric = metric;
+}
+
+Metric Raymarcher::metric() const {
+    return impl_->metric;
 }
 
 std::uint32_t Raymarcher::field_bindings() const {

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "voxfield/core/metric.hpp"
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/world.hpp"
 #include "voxfield/vk/context.hpp"
@@ -49,12 +50,18 @@ struct RenderOptions {
     bool sky_gradient = false;
     // Pixel bytes B, G, R, A instead of R, G, B, A (for a BGRA swapchain).
     bool bgra = false;
+    // Also count each ray's field fetches and DDA steps (Image::fetches / steps), through a
+    // pipeline variant that writes a counter per pixel: for benchmarks, render() only.
+    bool count = false;
 };
 
 struct Image {
     std::uint32_t width = 0, height = 0;
     std::vector<std::uint8_t> rgba;  // width * height * 4 bytes, rows top to bottom
     double raymarch_ms = -1;         // the dispatch, by GPU timestamps (-1: not available)
+    // With RenderOptions::count: field fetches and DDA steps summed over all width * height
+    // rays (a ray that misses the world box has none).
+    std::uint64_t fetches = 0, steps = 0;
 };
 
 // Throws InputError for sizes outside 1..kMaxImageSize or a bad camera.
@@ -116,11 +123,19 @@ class Raymarcher {
                      const Palette& palette);
 
     // Coarse skipping (layout.h VF_RAYMARCH_BLOCK): per block of the current field, the
-    // minimum of the unsaturated L1 distance (x fastest over ceil(dims / VF_RAYMARCH_BLOCK)),
-    // e.g. ocl::CompactWriter::block_min(). Where a cell's 8-bit distance is saturated the ray
-    // then skips max(255, block minimum) cells. Uploading or binding a new field clears it.
-    // Throws InputError when the table's size does not match the field's blocks.
+    // minimum of the unsaturated distance in the field's metric (x fastest over
+    // ceil(dims / VF_RAYMARCH_BLOCK)), e.g. ocl::CompactWriter::block_min(). Where a cell's
+    // 8-bit distance is saturated the ray then walks as from a distance of max(255, block
+    // minimum). Uploading or binding a new field clears it. Throws InputError when the table's
+    // size does not match the field's blocks.
     void set_block_min(std::span<const std::uint32_t> block_min);
+    // The metric of the current field's distances and block minima (DESIGN §3; unit spacing,
+    // integer distances rounded down). It decides how far a ray may walk from a fetch without
+    // passing a solid (raymarch.comp derives each metric's step). Uploading or binding a new
+    // field resets it to manhattan, whose step is safe for every metric's field (only
+    // slower), while a larger metric's step over another field could skip solids.
+    void set_metric(Metric metric);
+    Metric metric() const;
     // Ray-marches one image and reads it back. The offscreen image and readback buffer are
     // kept while the size stays; the second form also reuses out.rgba's storage.
     Image render(const RenderOptions& options);
@@ -129,7 +144,8 @@ class Raymarcher {
     // width * height * 4 bytes: rows top to bottom, no padding) without reading it back, for a
     // Presenter on another VkDevice of this GPU that imported it (Presenter::import_frame).
     // The buffer is released to VK_QUEUE_FAMILY_EXTERNAL and the work has finished when this
-    // returns. Returns the dispatch's GPU time in ms (-1: not available).
+    // returns. Returns the dispatch's GPU time in ms (-1: not available). Throws
+    // std::logic_error for options.count.
     double render_to(const RenderOptions& options, const ExternalMemory& frame);
 
     // The field format and layout in use, and the bytes copied into field / material buffers
