@@ -479,6 +479,13 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     }
     const Dims dims = model.world.dims();
     ocl::GeneratorOptions gopts = generator_options(o.gen, parse_format(o.format), dims);
+    if (!gopts.spacing.unit()) {
+        // The ray marcher steps through cells by the field's value in voxels and takes a
+        // distance of 0 for a solid; a scaled field would make it skip solids or invent them.
+        throw InputError("--spacing " + gopts.spacing.to_string() +
+                         ": the viewer draws unit-spacing fields only (use generate or replay "
+                         "for scaled fields)");
+    }
     const std::uint32_t bench_chunk = gopts.chunk != 0 ? gopts.chunk : ocl::kDefaultChunk;
 
     ocl::Context cl_ctx(ocl::select_device(o.device));

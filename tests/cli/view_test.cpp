@@ -133,6 +133,13 @@ TEST_F(ViewTest, BadUsageIsCheckedFirst) {
     EXPECT_EQ(r.code, 2) << describe(r);
     r = run_voxfield({"view", "--edits", (dir_ / "missing.txt").string()}, io_);
     EXPECT_EQ(r.code, 2) << describe(r);
+    // The ray marcher steps by distances in voxels: a scaled field is refused, not drawn wrong.
+    r = run_voxfield({"view", "--world", "16", "--spacing", "2,2,2", "--fallback-png",
+                      (dir_ / "s.png").string()},
+                     io_);
+    EXPECT_EQ(r.code, 2) << describe(r);
+    EXPECT_NE(r.err.find("unit-spacing"), std::string::npos) << describe(r);
+    EXPECT_FALSE(std::filesystem::exists(dir_ / "s.png"));
 }
 
 TEST_F(ViewTest, HeadlessBenchmarkIsReproducibleAndRecorded) {
