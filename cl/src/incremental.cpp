@@ -23,6 +23,11 @@ extern const char* const incremental_cl;
 namespace voxfield::ocl {
 namespace {
 
+[[noreturn]] void no_focus_in_exact() {
+    throw InputError(
+        "exact has no focus to move: only the chunk-local lod and monolithic run FIM in a focus");
+}
+
 cl_int4 int4_of(const Int3& v) {
     return {{static_cast<cl_int>(v.x), static_cast<cl_int>(v.y), static_cast<cl_int>(v.z), 0}};
 }
@@ -264,11 +269,7 @@ class GlobalEngine : public Engine {
         });
     }
 
-    UpdateStats set_focus(const std::optional<Focus>&) override {
-        throw InputError(
-            "exact has no focus to move: only the chunk-local lod and monolithic "
-            "run FIM in a focus");
-    }
+    UpdateStats set_focus(const std::optional<Focus>&) override { no_focus_in_exact(); }
 
     const cl::Buffer& voxels_buffer() const override { return exact->voxels_buffer(); }
 
@@ -440,13 +441,7 @@ class SeparableEngine : public Engine {
                     continue;
                 }
                 scatter(events, sep->voxels_buffer(), stats, first, e);
-                edited = edited.empty() ? r.bounds
-                                        : Box{{std::min(edited.min.x, r.bounds.min.x),
-                                               std::min(edited.min.y, r.bounds.min.y),
-                                               std::min(edited.min.z, r.bounds.min.z)},
-                                              {std::max(edited.max.x, r.bounds.max.x),
-                                               std::max(edited.max.y, r.bounds.max.y),
-                                               std::max(edited.max.z, r.bounds.max.z)}};
+                edited = hull(edited, r.bounds);
             }
             if (!edited.empty()) {
                 const ExactSeparable::Update u = sep->update(edited, events);
@@ -461,11 +456,7 @@ class SeparableEngine : public Engine {
         });
     }
 
-    UpdateStats set_focus(const std::optional<Focus>&) override {
-        throw InputError(
-            "exact has no focus to move: only the chunk-local lod and monolithic "
-            "run FIM in a focus");
-    }
+    UpdateStats set_focus(const std::optional<Focus>&) override { no_focus_in_exact(); }
 
     const cl::Buffer& voxels_buffer() const override { return sep->voxels_buffer(); }
 
@@ -582,12 +573,12 @@ class ChunkEngine : public Engine {
             return c.x >= b.min.x && c.x < b.max.x && c.y >= b.min.y && c.y < b.max.y &&
                    c.z >= b.min.z && c.z < b.max.z;
         };
-        const Box hull = hull_of(focus, next);
+        const Box both = hull(focus, next);
         UpdateStats stats;
         std::vector<cl_uint> chunks;
-        for (std::int64_t z = hull.min.z; z < hull.max.z; ++z) {
-            for (std::int64_t y = hull.min.y; y < hull.max.y; ++y) {
-                for (std::int64_t x = hull.min.x; x < hull.max.x; ++x) {
+        for (std::int64_t z = both.min.z; z < both.max.z; ++z) {
+            for (std::int64_t y = both.min.y; y < both.max.y; ++y) {
+                for (std::int64_t x = both.min.x; x < both.max.x; ++x) {
                     const Int3 c{x, y, z};
                     if (inside(focus, c) != inside(next, c)) {
                         chunks.push_back(static_cast<cl_uint>(grid.chunk_index(c)));
@@ -614,16 +605,6 @@ class ChunkEngine : public Engine {
     const cl::Buffer& voxels_buffer() const override { return vox; }
 
   private:
-    // The smallest box holding both (an empty one adds nothing).
-    static Box hull_of(const Box& a, const Box& b) {
-        if (a.empty() || b.empty()) {
-            return a.empty() ? b : a;
-        }
-        return Box{
-            {std::min(a.min.x, b.min.x), std::min(a.min.y, b.min.y), std::min(a.min.z, b.min.z)},
-            {std::max(a.max.x, b.max.x), std::max(a.max.y, b.max.y), std::max(a.max.z, b.max.z)}};
-    }
-
     // monolithic.cl's VF_MODE_* bits.
     static constexpr cl_uint kJfa = 1, kFimAll = 2, kFimFocus = 4, kBrute = 8;
 

@@ -24,6 +24,15 @@ Box intersect(const Box& a, const Box& b) {
     return r;
 }
 
+Box hull(const Box& a, const Box& b) {
+    if (a.empty() || b.empty()) {
+        return a.empty() ? b : a;
+    }
+    return Box{
+        {std::min(a.min.x, b.min.x), std::min(a.min.y, b.min.y), std::min(a.min.z, b.min.z)},
+        {std::max(a.max.x, b.max.x), std::max(a.max.y, b.max.y), std::max(a.max.z, b.max.z)}};
+}
+
 std::int64_t floor_div(std::int64_t a, std::int64_t b) {
     if (b == 0) {
         throw std::invalid_argument("floor_div: division by zero");

@@ -130,23 +130,18 @@ TEST(Incremental, EveryMetricStaysExact) {
                     }
                     const double finest = std::min({c.spacing.x, c.spacing.y, c.spacing.z});
                     const auto reach = static_cast<std::int64_t>(*c.max_distance / finest) + 2;
-                    Box hull = stats.edits.front().bounds;
+                    Box edited;
                     for (const EditResult& e : stats.edits) {
                         if (e.changed()) {
-                            hull = Box{{std::min(hull.min.x, e.bounds.min.x),
-                                        std::min(hull.min.y, e.bounds.min.y),
-                                        std::min(hull.min.z, e.bounds.min.z)},
-                                       {std::max(hull.max.x, e.bounds.max.x),
-                                        std::max(hull.max.y, e.bounds.max.y),
-                                        std::max(hull.max.z, e.bounds.max.z)}};
+                            edited = hull(edited, e.bounds);
                         }
                     }
-                    EXPECT_GE(r.min.x, hull.min.x - reach) << what;
-                    EXPECT_LE(r.max.x, hull.max.x + reach) << what;
-                    EXPECT_GE(r.min.y, hull.min.y - reach) << what;
-                    EXPECT_LE(r.max.y, hull.max.y + reach) << what;
-                    EXPECT_GE(r.min.z, hull.min.z - reach) << what;
-                    EXPECT_LE(r.max.z, hull.max.z + reach) << what;
+                    EXPECT_GE(r.min.x, edited.min.x - reach) << what;
+                    EXPECT_LE(r.max.x, edited.max.x + reach) << what;
+                    EXPECT_GE(r.min.y, edited.min.y - reach) << what;
+                    EXPECT_LE(r.max.y, edited.max.y + reach) << what;
+                    EXPECT_GE(r.min.z, edited.min.z - reach) << what;
+                    EXPECT_LE(r.max.z, edited.max.z + reach) << what;
                 }
             }
         }

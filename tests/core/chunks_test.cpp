@@ -42,6 +42,14 @@ TEST(Chunks, BoxVolumeAndIntersect) {
     EXPECT_EQ(d.volume(), 0);
 }
 
+TEST(Box, HullHoldsBothAndIgnoresEmptyBoxes) {
+    const Box a{{0, 1, 2}, {3, 4, 5}};
+    const Box b{{-2, 3, 4}, {1, 9, 6}};
+    EXPECT_EQ(hull(a, b), (Box{{-2, 1, 2}, {3, 9, 6}}));
+    EXPECT_EQ(hull(Box{}, b), b);
+    EXPECT_EQ(hull(a, Box{}), a);
+}
+
 TEST(Chunks, RejectsNonPowerOfTwo) {
     for (std::uint32_t c : {0u, 3u, 6u, 12u, 100u}) {
         expect_input_error(

@@ -21,6 +21,8 @@ struct Box {
 };
 
 Box intersect(const Box& a, const Box& b);
+// The smallest box holding both (an empty one adds nothing).
+Box hull(const Box& a, const Box& b);
 
 // Floor division for negative coordinates too (floor_div(-1, 8) == -1).
 std::int64_t floor_div(std::int64_t a, std::int64_t b);
