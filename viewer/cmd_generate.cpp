@@ -97,8 +97,10 @@ int run_generate(const GenerateOptions& o) {
     ocl::GeneratorOptions flags_options = generator_options(o.generator, format, dims);
     flags_options.indices = !o.indices.empty();
     const ocl::GeneratorOptions options = ocl::resolve_options(flags_options, dims);
-    const bool in_place =
-        npy && options.algorithm == ocl::Algorithm::exact && !ocl::ExactSeparable::needed(options);
+    // In place where the sweeps of exact_manhattan.cl compute the field in some layout; a
+    // device whose layout they lack for it (chebyshev on a GPU) gets a World after the read.
+    bool in_place = npy && options.algorithm == ocl::Algorithm::exact &&
+                    ocl::ExactManhattan::handles(options, options.layout == ocl::Layout::gpu);
     if (npy && !in_place) {
         npy.reset();
         load_model();
@@ -120,9 +122,17 @@ int run_generate(const GenerateOptions& o) {
     const auto t_setup = Clock::now();
     ocl::Context ctx(ocl::select_device(o.device));
     double build_ms = 0;  // kernel build, where it is not part of the upload
+    if (in_place && !ocl::ExactManhattan::handles(ctx, options)) {
+        phases.read = reading.get();
+        model = VoxModel{
+            World(dims, std::vector<std::uint8_t>(voxels.span().begin(), voxels.span().end())),
+            Palette()};
+        voxels = ocl::HostMemory();
+        in_place = false;
+    }
     if (in_place) {
         const auto t_build = Clock::now();
-        ocl::ExactManhattan::prepare(ctx, dims, format, options.layout);
+        ocl::ExactManhattan::prepare(ctx, dims, format, options.layout, options.metric);
         build_ms = ms_since(t_build);
         phases.setup = ms_since(t_setup);
         phases.read = reading.get();
@@ -135,7 +145,7 @@ int run_generate(const GenerateOptions& o) {
     const auto t_upload = Clock::now();
     const std::unique_ptr<ocl::Generator> job =
         in_place ? std::make_unique<ocl::ExactManhattan>(ctx, dims, voxels, palette, format,
-                                                         options.layout)
+                                                         options.layout, options.metric)
                  : ocl::make_generator(ctx, model->world, palette, options);
     phases.upload = ms_since(t_upload);
     std::vector<double> samples;

@@ -3,22 +3,54 @@
 // transform of a line is a forward sweep d[i] = min(d[i], d[i-1] + 1) plus the mirrored
 // backward sweep; doing it along each axis in turn gives the exact 3-D distance.
 //
+// With CHEBYSHEV=1 the same sweeps give the exact L-inf (chessboard) distance at unit spacing.
+// The L-inf distance is the fewest king moves (steps in {-1,0,1}^3); moves commute, so a
+// shortest path can take its moves grouped by kind, each coordinate moving monotonically
+// toward the target (the path stays inside the world). The 13 kinds of move are composed by
+// min-plus sweeps like L1's: x moves (the rows' doubling), the y moves (a, 1, 0) for a in
+// {-1,0,1} together in one y sweep that takes the minimum of the three predecessors
+// x-1, x, x+1 (a chamfer step, Rosenfeld & Pfaltz 1966, within one slice), and the z moves
+// (a, b, 1) in three sweeps along z, one per b, each over "sheets" of rows whose y advances by
+// b per z step (wrapping around Y starts a new sheet), again with the three x predecessors.
+// A sweep with three predecessors composes its three move kinds (a forward then a backward
+// sweep covers every count of each, with either sign), so the whole is exact.
+//
 // Build options: T (work element: uchar, ushort or uint), T_MAX (its maximum), PACKED (1 when
 // the output is packed32 and T is a separate uchar work buffer), SEG_K (values per work-item
-// in cols_seg). Saturating at T_MAX is exact: min-plus with +1 commutes with min(., T_MAX).
+// in cols_seg), CHEBYSHEV (0 or 1). Saturating at T_MAX is exact: min-plus with +1 commutes
+// with min(., T_MAX).
 //
 // Two layouts of the same sweeps, chosen by the host per device:
 // - CPU (PoCL): xy_slices_seq gives each work-item a whole z-slice (x sweeps, then y sweeps
 //   whose inner loop runs along x and vectorises), cols_strip sweeps z over strips of rows;
 //   each work-item's data stays in its core's L2 between the forward and backward sweeps.
+//   L-inf: z_sheets gives each work-item a sheet (its rows in local scratch when they fit).
 // - GPU: x_rows_local stages a row in local memory (coalesced) and scans it per work-group;
 //   cols_seg gives each work-item SEG_K consecutive values of a column in registers, joins
 //   the segments of a column through local memory, and so reads and writes each voxel once.
+//   (L-inf has no GPU layout here: ExactSeparable computes it.)
 
 inline uint inc_sat(uint v) { return v >= T_MAX ? T_MAX : v + 1u; }
 // The same in the work type itself (saturating byte/short adds vectorise widest on CPUs).
 inline T inc_t(T v) { return add_sat(v, (T)1); }
 inline uint add_k_sat(uint v, uint k) { return v >= T_MAX - k ? T_MAX : v + k; }
+
+// One chamfer step of a row of n from its predecessor row: cur[x] = min(cur[x], 1 + the
+// least of prev[x-1], prev[x], prev[x+1]) (those inside the row). A macro: the rows may be
+// global or local.
+#define KING_STEP(cur, prev, n)                                                            \
+    do {                                                                                   \
+        if ((n) == 1) {                                                                    \
+            (cur)[0] = min((cur)[0], inc_t((prev)[0]));                                    \
+        } else {                                                                           \
+            (cur)[0] = min((cur)[0], inc_t(min((prev)[0], (prev)[1])));                    \
+            for (uint x_ = 1; x_ + 1 < (n); ++x_) {                                        \
+                (cur)[x_] =                                                                \
+                    min((cur)[x_], inc_t(min(min((prev)[x_ - 1], (prev)[x_]), (prev)[x_ + 1]))); \
+            }                                                                              \
+            (cur)[(n)-1] = min((cur)[(n)-1], inc_t(min((prev)[(n)-2], (prev)[(n)-1])));    \
+        }                                                                                  \
+    } while (0)
 
 #if PACKED
 #define STORE_FINAL(i, d) \
@@ -64,17 +96,116 @@ __kernel void xy_slices_seq(__global const uchar* restrict vox, __global T* rest
     }
     for (uint y = 1; y < Y; ++y) {
         const size_t row = base + (size_t)y * X;
+#if CHEBYSHEV
+        KING_STEP(work + row, work + row - X, X);
+#else
         for (uint x = 0; x < X; ++x) {
             work[row + x] = min(work[row + x], inc_t(work[row - X + x]));
         }
+#endif
     }
     for (uint y = Y - 1; y-- > 0;) {
         const size_t row = base + (size_t)y * X;
+#if CHEBYSHEV
+        KING_STEP(work + row, work + row + X, X);
+#else
         for (uint x = 0; x < X; ++x) {
             work[row + x] = min(work[row + x], inc_t(work[row + X + x]));
         }
+#endif
     }
 }
+
+#if CHEBYSHEV
+// Whether the sheet's step from row y (at z) to the next row (at z + 1) joins neighbours:
+// moving by `shear` in y without wrapping around Y.
+inline bool sheet_joins(uint y, int shear, uint Y) {
+    return shear == 0 || (shear > 0 ? y + 1 < Y : y > 0);
+}
+
+inline uint sheet_next(uint y, int shear, uint Y) {
+    return (uint)(((int)y + shear + (int)Y) % (int)Y);
+}
+
+// The L-inf z moves (a, shear, +-1), a in {-1,0,1}: work-item y0 sweeps the sheet of rows
+// (z, (y0 + shear * z) mod Y) forward and backward in z, each row by KING_STEP from the
+// sheet's previous row where the two are neighbours. Every (row, z) belongs to one sheet, so
+// the work-items never touch each other's rows. The rows are copied to `scratch` (Z * X
+// elements, contiguous) during the forward sweep, so that the backward sweep reads them from
+// cache; `final` writes the output format.
+__kernel void z_sheets(__global T* restrict work, __global uint* restrict out,
+                       __global const uchar* restrict vox, __constant uchar* rgb, uint X, uint Y,
+                       uint Z, int shear, uint final, __local T* restrict scratch) {
+    const uint y0 = (uint)get_global_id(0);
+    if (y0 >= Y) {
+        return;
+    }
+    const size_t plane = (size_t)X * Y;
+    uint y = y0;
+    for (uint x = 0; x < X; ++x) {
+        scratch[x] = work[(size_t)y * X + x];
+    }
+    for (uint z = 1; z < Z; ++z) {
+        const bool joins = sheet_joins(y, shear, Y);
+        y = sheet_next(y, shear, Y);
+        __local T* cur = scratch + (size_t)z * X;
+        const size_t row = z * plane + (size_t)y * X;
+        for (uint x = 0; x < X; ++x) {
+            cur[x] = work[row + x];
+        }
+        if (joins) {
+            KING_STEP(cur, cur - X, X);
+        }
+    }
+    for (uint z = Z; z-- > 0;) {
+        __local T* cur = scratch + (size_t)z * X;
+        if (z + 1 < Z && sheet_joins(y, shear, Y)) {
+            KING_STEP(cur, cur + X, X);
+        }
+        const size_t row = z * plane + (size_t)y * X;
+        if (final) {
+            for (uint x = 0; x < X; ++x) {
+                STORE_FINAL(row + x, cur[x]);
+            }
+        } else {
+            for (uint x = 0; x < X; ++x) {
+                work[row + x] = cur[x];
+            }
+        }
+        y = sheet_next(y, -shear, Y);
+    }
+}
+
+// z_sheets for sheets too large for local memory: the same sweeps in place in `work`.
+__kernel void z_sheets_global(__global T* restrict work, __global uint* restrict out,
+                              __global const uchar* restrict vox, __constant uchar* rgb, uint X,
+                              uint Y, uint Z, int shear, uint final) {
+    const uint y0 = (uint)get_global_id(0);
+    if (y0 >= Y) {
+        return;
+    }
+    const size_t plane = (size_t)X * Y;
+    uint y = y0;
+    for (uint z = 1; z < Z; ++z) {
+        const bool joins = sheet_joins(y, shear, Y);
+        const size_t prev = (z - 1) * plane + (size_t)y * X;
+        y = sheet_next(y, shear, Y);
+        if (joins) {
+            KING_STEP(work + z * plane + (size_t)y * X, work + prev, X);
+        }
+    }
+    for (uint z = Z; z-- > 0;) {
+        const size_t row = z * plane + (size_t)y * X;
+        if (z + 1 < Z && sheet_joins(y, shear, Y)) {
+            KING_STEP(work + row, work + row + plane + (size_t)shear * X, X);
+        }
+        for (uint x = 0; final && x < X; ++x) {
+            STORE_FINAL(row + x, work[row + x]);
+        }
+        y = sheet_next(y, -shear, Y);
+    }
+}
+#endif
 
 // Sweeps columns of length N (element stride `stride`) over a strip of `strip` adjacent x
 // positions; get_global_id(1) picks the line of columns at offset m * mstride. The forward

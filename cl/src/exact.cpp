@@ -56,29 +56,45 @@ bool use_gpu_layout(const Context& ctx, Layout layout) {
     return layout == Layout::automatic ? !ctx.is_cpu() : layout == Layout::gpu;
 }
 
-// The kernels of exact_manhattan.cl for format `f`, SEG_K = k (cached by ctx).
-cl::Program build_program(Context& ctx, Format f, std::uint32_t k) {
+// The kernels of exact_manhattan.cl for format `f`, SEG_K = k and metric m (cached by ctx).
+cl::Program build_program(Context& ctx, Format f, std::uint32_t k, Metric m) {
     const WorkType wt = work_type(f);
-    const std::string options = "-DT=" + std::string(wt.name) +
-                                " -DT_MAX=" + std::to_string(wt.max) +
-                                "u -DPACKED=" + (f == Format::packed32 ? "1" : "0") +
-                                " -DSEG_K=" + std::to_string(k) + " -cl-std=CL1.2";
+    const std::string options =
+        "-DT=" + std::string(wt.name) + " -DT_MAX=" + std::to_string(wt.max) +
+        "u -DPACKED=" + (f == Format::packed32 ? "1" : "0") + " -DSEG_K=" + std::to_string(k) +
+        " -DCHEBYSHEV=" + (m == Metric::chebyshev ? "1" : "0") + " -cl-std=CL1.2";
     return ctx.program("exact_manhattan.cl", {cl_sources::layout_h, cl_sources::exact_manhattan_cl},
                        options);
 }
 
 }  // namespace
 
+bool ExactManhattan::handles(const Context& ctx, const GeneratorOptions& o) {
+    return handles(o, use_gpu_layout(ctx, o.layout));
+}
+
+bool ExactManhattan::handles(const GeneratorOptions& o, bool gpu_layout) {
+    const bool sweepable_format = o.format == Format::u8 || o.format == Format::u16 ||
+                                  o.format == Format::u32 || o.format == Format::packed32;
+    if (!sweepable_format || !o.spacing.unit() || o.signed_field || o.indices ||
+        o.max_distance.has_value()) {
+        return false;
+    }
+    return o.metric == Metric::manhattan || (o.metric == Metric::chebyshev && !gpu_layout);
+}
+
 ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& palette,
-                               Format format, Layout layout)
-    : Generator(ctx, world.dims(), format), gpu_layout_(use_gpu_layout(ctx, layout)) {
+                               Format format, Layout layout, Metric metric)
+    : Generator(ctx, world.dims(), format),
+      gpu_layout_(use_gpu_layout(ctx, layout)),
+      metric_(metric) {
     allocate(palette, world.voxels().data(), nullptr);
     set_up_kernels();
 }
 
 ExactManhattan::ExactManhattan(Context& ctx, Dims dims, HostMemory& voxels, const Palette& palette,
-                               Format format, Layout layout)
-    : Generator(ctx, dims, format), gpu_layout_(use_gpu_layout(ctx, layout)) {
+                               Format format, Layout layout, Metric metric)
+    : Generator(ctx, dims, format), gpu_layout_(use_gpu_layout(ctx, layout)), metric_(metric) {
     if (voxels.size() != dims.count()) {
         throw std::invalid_argument("ExactManhattan: " + std::to_string(voxels.size()) +
                                     " bytes of voxels for a world of " + dims.to_string());
@@ -87,12 +103,12 @@ ExactManhattan::ExactManhattan(Context& ctx, Dims dims, HostMemory& voxels, cons
     set_up_kernels();
 }
 
-void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layout) {
-    build_program(ctx, format, 32);
+void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layout, Metric metric) {
+    build_program(ctx, format, 32, metric);
     if (use_gpu_layout(ctx, layout)) {
         for (const std::uint32_t len : {dims.y, dims.z}) {
             if (const std::uint32_t k = seg_k(len); k != 0) {
-                build_program(ctx, format, k);
+                build_program(ctx, format, k, metric);
             }
         }
     }
@@ -135,7 +151,11 @@ void ExactManhattan::set_up_kernels() {
     const auto& info = ctx_.info();
     const WorkType wt = work_type(format_);
     const std::string sizes = "world " + dims_.to_string() + ", format " + to_string(format_);
-    auto program = [&](std::uint32_t k) { return build_program(ctx_, format_, k); };
+    if (metric_ != Metric::manhattan && (metric_ != Metric::chebyshev || gpu_layout_)) {
+        throw std::invalid_argument("exact_manhattan.cl computes " + to_string(metric_) +
+                                    " fields in the " + variant() + " only through ExactSeparable");
+    }
+    auto program = [&](std::uint32_t k) { return build_program(ctx_, format_, k, metric_); };
     const cl::Program base = program(32);
     const std::size_t plane = std::size_t{dims_.x} * dims_.y;
     cl_call("setting up kernels, " + sizes, [&] {
@@ -250,7 +270,30 @@ void ExactManhattan::set_up_kernels() {
             stages_.push_back({"xy_slices_seq", xy, cl::NDRange(dims_.z),
                                gpu_layout_ ? cl::NullRange : cl::NDRange(1)});
         }
-        stages_.push_back(columns(dims_.z, plane, dims_.x, dims_.y, true));
+        if (metric_ == Metric::chebyshev) {
+            // The three z sweeps of L-inf's sheets (shear -1, 0, +1), one work-item per sheet,
+            // the rows in local scratch where they fit.
+            const std::size_t sheet = std::size_t{dims_.x} * dims_.z * wt.bytes;
+            const bool local = sheet <= std::min<std::size_t>(info.local_mem / 2, 512 * 1024);
+            for (const cl_int shear : {-1, 0, 1}) {
+                cl::Kernel k(base, local ? "z_sheets" : "z_sheets_global");
+                k.setArg(0, work_);
+                k.setArg(1, out_);
+                k.setArg(2, voxels_);
+                k.setArg(3, rgb_);
+                k.setArg(4, dims_.x);
+                k.setArg(5, dims_.y);
+                k.setArg(6, dims_.z);
+                k.setArg(7, shear);
+                k.setArg(8, cl_uint{shear == 1 ? 1u : 0u});
+                if (local) {
+                    k.setArg(9, cl::Local(sheet));
+                }
+                stages_.push_back({"z_sheets", k, cl::NDRange(dims_.y), cl::NDRange(1)});
+            }
+        } else {
+            stages_.push_back(columns(dims_.z, plane, dims_.x, dims_.y, true));
+        }
     });
 }
 

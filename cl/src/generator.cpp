@@ -228,10 +228,11 @@ std::unique_ptr<Generator> make_generator(Context& ctx, const World& world, cons
                                           const GeneratorOptions& options) {
     const GeneratorOptions o = resolve_options(options, world.dims());
     if (o.algorithm == Algorithm::exact) {
-        if (ExactSeparable::needed(o)) {
-            return std::make_unique<ExactSeparable>(ctx, world, palette, o);
+        if (ExactManhattan::handles(ctx, o)) {
+            return std::make_unique<ExactManhattan>(ctx, world, palette, o.format, o.layout,
+                                                    o.metric);
         }
-        return std::make_unique<ExactManhattan>(ctx, world, palette, o.format, o.layout);
+        return std::make_unique<ExactSeparable>(ctx, world, palette, o);
     }
     return make_classic(ctx, world, palette, o);
 }

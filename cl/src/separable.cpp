@@ -108,26 +108,26 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
     cl_call("allocating and uploading, " + sizes, [&] {
         auto& c = ctx.context();
         auto& q = ctx.queue();
-        voxels_ = cl::Buffer(c, CL_MEM_READ_WRITE, n);
+        voxels_ = make_buffer(n, CL_MEM_READ_WRITE);
         rgb_ = cl::Buffer(c, CL_MEM_READ_ONLY, 256);
-        out_ = cl::Buffer(c, CL_MEM_READ_WRITE, out_bytes);
+        out_ = make_buffer(out_bytes, CL_MEM_READ_WRITE);
         const int parts = incremental ? 3 : 2;
         for (int k = 0; k < parts; ++k) {
-            g_[k] = cl::Buffer(c, CL_MEM_READ_WRITE, part_bytes);
+            g_[k] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
             if (options.signed_field) {
-                h_[k] = cl::Buffer(c, CL_MEM_READ_WRITE, part_bytes);
+                h_[k] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
             }
         }
         for (int k = 0; k < 2 && options.indices; ++k) {
-            feat_[k] = cl::Buffer(c, CL_MEM_READ_WRITE, part_bytes);
+            feat_[k] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
         }
         if (options.indices) {
-            indices_ = cl::Buffer(c, CL_MEM_READ_WRITE, 3 * part_bytes);
+            indices_ = make_buffer(3 * part_bytes, CL_MEM_READ_WRITE);
         }
         for (int b = 0; b < 3 && incremental; ++b) {
             track_[b] = cl::Buffer(c, CL_MEM_READ_WRITE, 7 * sizeof(cl_int));
         }
-        scratch_ = cl::Buffer(c, CL_MEM_READ_WRITE, scratch_ints * 4);
+        scratch_ = make_buffer(scratch_ints * 4, CL_MEM_READ_WRITE);
         const auto table = palette.rgb332_table();
         cl::Event up_vox, up_rgb;
         q.enqueueWriteBuffer(voxels_, CL_FALSE, 0, n, world.voxels().data(), nullptr, &up_vox);

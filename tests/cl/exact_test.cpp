@@ -127,6 +127,82 @@ TEST(ExactManhattan, RepeatedRunsAreBitIdentical) {
     }
 }
 
+// L-inf by exact_manhattan.cl's sweeps (the CPU layout's path for unsigned unit-spacing
+// fields): every format against core's reference, whose line search shares nothing with them.
+void expect_chebyshev(const World& world, const Palette& palette, const std::string& what) {
+    const auto exact = reference_distance(world, Metric::chebyshev, Spacing{});
+    for (Format f : kFormats) {
+        auto o = exact_options(f, Layout::cpu);
+        o.metric = Metric::chebyshev;
+        ASSERT_TRUE(ocl::ExactManhattan::handles(pocl(), o));
+        const auto want = encode_real_field(exact, world, palette, f);
+        ocl::ExactManhattan job(pocl(), world, palette, f, Layout::cpu, Metric::chebyshev);
+        job.run();
+        const std::string diff = test::first_difference(job.read(), want, f, world.dims());
+        if (!diff.empty()) {
+            FAIL() << what << " " << world.dims().to_string() << " format " << to_string(f) << ": "
+                   << diff;
+        }
+    }
+}
+
+TEST(ExactChebyshevSweeps, MatchReferenceOnRandomGrids) {
+    std::mt19937_64 rng(20261203);
+    const double densities[] = {0.0, 0.0002, 0.002, 0.01, 0.05, 0.2, 0.5, 0.9, 1.0};
+    auto axis = [&] {
+        const std::uint32_t choices[] = {1, 2, 3, 7, 8, 13, 31, 32, 33, 64, 70};
+        return choices[rng() % std::size(choices)];
+    };
+    for (int i = 0; i < 60; ++i) {
+        const Dims dims{axis(), axis(), axis()};
+        const double density = densities[static_cast<std::size_t>(i) % std::size(densities)];
+        expect_chebyshev(scene_random(dims, density, rng()), Palette(),
+                         "random #" + std::to_string(i) + " density " + std::to_string(density));
+    }
+}
+
+TEST(ExactChebyshevSweeps, SingleVoxelsDiagonalsAndSaturation) {
+    // One solid per corner: the field is a cube's shells, reached by every king move.
+    for (const Dims dims : {Dims{1, 1, 1}, Dims{5, 1, 3}, Dims{17, 9, 4}, Dims{3, 40, 29}}) {
+        for (int corner = 0; corner < 8; ++corner) {
+            World w(dims);
+            w.set(corner & 1 ? dims.x - 1 : 0, corner & 2 ? dims.y - 1 : 0,
+                  corner & 4 ? dims.z - 1 : 0, 3);
+            expect_chebyshev(w, Palette::dissertation(), "corner " + std::to_string(corner));
+        }
+    }
+    // Distances past 255 saturate u8 and the packed byte.
+    World far(Dims{300, 40, 3});
+    far.set(0, 0, 0, 1);
+    expect_chebyshev(far, Palette(), "far single voxel");
+}
+
+TEST(ExactChebyshevSweeps, SheetsTooLargeForLocalMemory) {
+    // X * Z elements per sheet beyond the local scratch: z_sheets_global.
+    expect_chebyshev(scene_random(Dims{700, 3, 400}, 0.0005, 8), Palette(), "wide");
+}
+
+TEST(ExactChebyshevSweeps, RoutedByLayout) {
+    auto o = exact_options(Format::u16, Layout::cpu);
+    o.metric = Metric::chebyshev;
+    EXPECT_TRUE(ocl::ExactManhattan::handles(pocl(), o));
+    o.layout = Layout::gpu;
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    o.layout = Layout::cpu;
+    o.format = Format::f32;
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    o.format = Format::u16;
+    o.max_distance = 4.0;
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    const World w = scene_random(Dims{9, 9, 9}, 0.1, 1);
+    EXPECT_THROW(
+        ocl::ExactManhattan(pocl(), w, Palette(), Format::u16, Layout::gpu, Metric::chebyshev),
+        std::invalid_argument);
+    EXPECT_THROW(
+        ocl::ExactManhattan(pocl(), w, Palette(), Format::u16, Layout::cpu, Metric::euclidean),
+        std::invalid_argument);
+}
+
 TEST(DeviceSelection, ExplainsRejections) {
     try {
         ocl::select_device("9999");

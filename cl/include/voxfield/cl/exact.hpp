@@ -1,5 +1,6 @@
 #pragma once
-// `exact`: global exact Manhattan distance field on any OpenCL device (DESIGN §3 semantics).
+// `exact`: global exact Manhattan distance field on any OpenCL device (DESIGN §3 semantics),
+// and by the same sweeps the Chebyshev field in the CPU layout.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -12,18 +13,27 @@ class ExactManhattan : public Generator {
   public:
     // Uploads the world and palette; throws ClError (e.g. the device cannot allocate it).
     ExactManhattan(Context& ctx, const World& world, const Palette& palette, Format format,
-                   Layout layout = Layout::automatic);
+                   Layout layout = Layout::automatic, Metric metric = Metric::manhattan);
     // The same for a world in host memory: `voxels` holds dims.count() palette indices (x
     // fastest) and must outlive the generator. On a device that computes in host memory
     // (Context::computes_in_host_memory) the kernels read it in place and write the field
     // into host memory of the generator's own: nothing is copied or zero-filled. Elsewhere it
     // is uploaded. std::invalid_argument when its size is not dims.count().
     ExactManhattan(Context& ctx, Dims dims, HostMemory& voxels, const Palette& palette,
-                   Format format, Layout layout = Layout::automatic);
+                   Format format, Layout layout = Layout::automatic,
+                   Metric metric = Metric::manhattan);
+
+    // Whether these sweeps compute `o` (resolved options) on ctx: unsigned fields of unit
+    // spacing without indices or a bound, in u8, u16, u32 or packed32; manhattan in both
+    // layouts, chebyshev in the CPU layout. ExactSeparable computes the rest.
+    static bool handles(const Context& ctx, const GeneratorOptions& o);
+    // The same for the layout `gpu_layout` (as `o.layout` resolves on the device).
+    static bool handles(const GeneratorOptions& o, bool gpu_layout);
 
     // Builds the kernel programs that a generator of `dims` and `format` uses into ctx's
     // program cache, so that a caller can build them while it reads the world.
-    static void prepare(Context& ctx, Dims dims, Format format, Layout layout = Layout::automatic);
+    static void prepare(Context& ctx, Dims dims, Format format, Layout layout = Layout::automatic,
+                        Metric metric = Metric::manhattan);
 
     double run() override;
     std::string variant() const override;  // "cpu layout" or "gpu layout"
@@ -36,6 +46,7 @@ class ExactManhattan : public Generator {
     void set_up_kernels();
 
     bool gpu_layout_;
+    Metric metric_;
     cl::Buffer voxels_, rgb_, work_;
     // The kernels of one transform, in enqueue order.
     struct Stage {
