@@ -172,6 +172,18 @@ def scipy_row(path, doc):
             f" {doc['equal']} | {fmt(edt, 1)} | `{path}` |")
 
 
+def case_rows(path, doc):
+    """One row per case of a compare_scipy.py file that compares every metric."""
+    size = "x".join(str(v) for v in doc["size"])
+    for c in doc["comparisons"]:
+        module = c.get("module_ms")
+        yield (f"| {doc['device']} | {doc['commit'][:8]} | {doc['date'][:10]} | {size} |"
+               f" {c['case']} | {c['format']} | {c['kernel_ms']['median']:.2f} |"
+               f" {c['command_wall_ms']['median']:.1f} | {fmt(module and module['median'], 1)} |"
+               f" {c['scipy_ms']['median']:.1f} | {c['ratio_scipy_over_kernel']:.1f} |"
+               f" {fmt(c.get('ratio_scipy_over_module'), 1)} | {c['check']} | `{path}` |")
+
+
 def replay_row(path, doc):
     sm = doc["summary"]
     return (f"| `{path.split('/')[-1]}` | {sm['median_update_ms']:.3f} | {sm['mean_update_ms']:.3f} |"
@@ -191,6 +203,7 @@ def render_rows(doc):
 
 def main(paths):
     bench, scipy, replay, cupy, dissertation, edits, render = [], [], [], [], [], [], []
+    cases = []
     for path in paths:
         with open(path) as f:
             doc = json.load(f)
@@ -206,6 +219,8 @@ def main(paths):
             bench.extend(bench_rows(path, doc))
         elif "scipy_ms_median" in doc:
             scipy.append(scipy_row(path, doc))
+            if "comparisons" in doc:
+                cases.extend(case_rows(path, doc))
         elif "full_regeneration_ms" in doc:
             replay.append(replay_row(path, doc))
     if bench:
@@ -230,6 +245,11 @@ def main(paths):
         print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
         print("\n".join(replay))
     blocks = []
+    if cases:
+        blocks.append(["| device | commit | date | size | case | format | kernel ms | command ms |"
+                       " module ms | SciPy ms | SciPy / kernel | SciPy / module | check | file |",
+                       "| --- | --- | --- | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"
+                       " --- | --- |"] + cases)
     if cupy:
         blocks.append(["| ours on | CuPy on | commit | date | size | ours kernel median ms |"
                        " CuPy EDT f64 median ms | CuPy EDT f32 median ms | CuPy f64 / ours |"
