@@ -26,6 +26,7 @@
 #include <utility>
 #include <vector>
 
+#include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
 #include "voxfield/cl/runtime.hpp"
@@ -206,6 +207,35 @@ void read_into(Device& device, const cl::Buffer& buffer, void* out, std::size_t 
                  [&] { device.context.queue().enqueueReadBuffer(buffer, CL_TRUE, 0, bytes, out); });
 }
 
+// An uninitialised field array over host memory of its own (ocl::HostMemory: aligned and
+// huge-page advised, so that a CPU device writes it in place), freed with the array.
+py::array host_field(Dims d, Format f, std::uint8_t*& data) {
+    auto memory = std::make_unique<ocl::HostMemory>(d.count() * element_size(f));
+    data = memory->data();
+    py::capsule owner(memory.release(), [](void* p) { delete static_cast<ocl::HostMemory*>(p); });
+    return py::array(dtype_of(f), std::vector<py::ssize_t>{d.z, d.y, d.x}, data, owner);
+}
+
+// The sweeps of exact_manhattan.cl from a C-contiguous uint8 world straight into `field`
+// (host_field's memory): a CPU device reads the array and writes the field in place, nothing
+// copied; elsewhere the world is uploaded and the field read back into `field`.
+void sweep_into(Device& dev, const WorldArray& w, const ocl::GeneratorOptions& o,
+                std::uint8_t* field, std::size_t bytes) {
+    auto& ctx = dev.context;
+    ocl::ExactManhattan job(ctx, w.dims, std::span<const std::uint8_t>(w.data, w.bytes), Palette{},
+                            o.format, o.layout, o.metric, std::span<std::uint8_t>(field, bytes));
+    job.run();
+    if (ctx.computes_in_host_memory()) {
+        // Mapping makes the kernels' writes visible to the host; in place it copies nothing.
+        const ocl::MappedBuffer mapped(ctx, job.field_buffer(), bytes);
+        if (mapped.bytes().data() != field) {
+            std::memcpy(field, mapped.bytes().data(), bytes);
+        }
+    } else {
+        read_into(dev, job.field_buffer(), field, bytes, w.dims);
+    }
+}
+
 // sampling in array order (z, y, x), as SciPy takes it: None, one number for every axis, or
 // three numbers; each positive and finite.
 Spacing spacing_of(const py::object& sampling) {
@@ -269,7 +299,12 @@ py::object distance_transform(const py::object& world, const std::string& metric
     const ocl::GeneratorOptions options = ocl::resolve_options(o, w.dims);
     const std::shared_ptr<Device> dev = device_for(device);
 
-    py::array field = empty_field(w.dims, options.format);
+    // The sweeps read a uint8 array in place and write the field into the returned array.
+    const bool sweeps = w.type == NpyType::u8 && options.algorithm == ocl::Algorithm::exact &&
+                        ocl::ExactManhattan::handles(dev->context, options);
+    std::uint8_t* sweep_out = nullptr;
+    py::array field = sweeps ? host_field(w.dims, options.format, sweep_out)
+                             : empty_field(w.dims, options.format);
     py::array_t<std::int32_t> indices;
     if (return_indices) {
         indices =
@@ -280,14 +315,19 @@ py::object distance_transform(const py::object& world, const std::string& metric
     const std::size_t field_bytes = static_cast<std::size_t>(field.nbytes());
     {
         py::gil_scoped_release release;
-        const World vox = make_world(w);
-        const std::lock_guard<std::mutex> lock(dev->mutex);
-        const auto job = ocl::make_generator(dev->context, vox, Palette{}, options);
-        job->run();
-        read_into(*dev, job->field_buffer(), field_out, field_bytes, w.dims);
-        if (indices_out != nullptr) {
-            const std::vector<std::int32_t> idx = job->read_indices();
-            std::memcpy(indices_out, idx.data(), idx.size() * sizeof(std::int32_t));
+        if (sweeps) {
+            const std::lock_guard<std::mutex> lock(dev->mutex);
+            sweep_into(*dev, w, options, sweep_out, field_bytes);
+        } else {
+            const World vox = make_world(w);
+            const std::lock_guard<std::mutex> lock(dev->mutex);
+            const auto job = ocl::make_generator(dev->context, vox, Palette{}, options);
+            job->run();
+            read_into(*dev, job->field_buffer(), field_out, field_bytes, w.dims);
+            if (indices_out != nullptr) {
+                const std::vector<std::int32_t> idx = job->read_indices();
+                std::memcpy(indices_out, idx.data(), idx.size() * sizeof(std::int32_t));
+            }
         }
     }
     if (return_indices) {

@@ -144,7 +144,7 @@ int run_generate(const GenerateOptions& o) {
     // faults and kernel set-up, as a one-off user would).
     const auto t_upload = Clock::now();
     const std::unique_ptr<ocl::Generator> job =
-        in_place ? std::make_unique<ocl::ExactManhattan>(ctx, dims, voxels, palette, format,
+        in_place ? std::make_unique<ocl::ExactManhattan>(ctx, dims, voxels.span(), palette, format,
                                                          options.layout, options.metric)
                  : ocl::make_generator(ctx, model->world, palette, options);
     phases.upload = ms_since(t_upload);

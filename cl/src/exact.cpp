@@ -88,18 +88,25 @@ ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& 
     : Generator(ctx, world.dims(), format),
       gpu_layout_(use_gpu_layout(ctx, layout)),
       metric_(metric) {
-    allocate(palette, world.voxels().data(), nullptr);
+    allocate(palette, world.voxels().data(), false, {});
     set_up_kernels();
 }
 
-ExactManhattan::ExactManhattan(Context& ctx, Dims dims, HostMemory& voxels, const Palette& palette,
-                               Format format, Layout layout, Metric metric)
+ExactManhattan::ExactManhattan(Context& ctx, Dims dims, std::span<const std::uint8_t> voxels,
+                               const Palette& palette, Format format, Layout layout, Metric metric,
+                               std::span<std::uint8_t> field)
     : Generator(ctx, dims, format), gpu_layout_(use_gpu_layout(ctx, layout)), metric_(metric) {
     if (voxels.size() != dims.count()) {
         throw std::invalid_argument("ExactManhattan: " + std::to_string(voxels.size()) +
                                     " bytes of voxels for a world of " + dims.to_string());
     }
-    allocate(palette, voxels.data(), ctx.computes_in_host_memory() ? &voxels : nullptr);
+    if (!field.empty() && field.size() != dims.count() * element_size(format)) {
+        throw std::invalid_argument("ExactManhattan: " + std::to_string(field.size()) +
+                                    " bytes for a " + to_string(format) + " field of " +
+                                    dims.to_string());
+    }
+    const bool in_place = ctx.computes_in_host_memory();
+    allocate(palette, voxels.data(), in_place, in_place ? field : std::span<std::uint8_t>());
     set_up_kernels();
 }
 
@@ -114,8 +121,8 @@ void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layo
     }
 }
 
-void ExactManhattan::allocate(const Palette& palette, const std::uint8_t* upload,
-                              HostMemory* voxels) {
+void ExactManhattan::allocate(const Palette& palette, const std::uint8_t* voxels, bool in_place,
+                              std::span<std::uint8_t> field) {
     const auto& info = ctx_.info();
     const WorkType wt = work_type(format_);
     const std::size_t n = dims_.count();
@@ -129,21 +136,23 @@ void ExactManhattan::allocate(const Palette& palette, const std::uint8_t* upload
     }
     cl_call("allocating and uploading, " + sizes, [&] {
         auto& q = ctx_.queue();
-        voxels_ = voxels != nullptr
-                      ? cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, n,
-                                   voxels->data())
-                      : make_buffer(n, CL_MEM_READ_ONLY);
-        out_ = make_buffer(out_bytes, CL_MEM_READ_WRITE);
+        // CL_MEM_READ_ONLY: the kernels never write the world they read in place.
+        voxels_ = in_place ? cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, n,
+                                        const_cast<std::uint8_t*>(voxels))
+                           : make_buffer(n, CL_MEM_READ_ONLY);
+        out_ = field.empty() ? make_buffer(out_bytes, CL_MEM_READ_WRITE)
+                             : cl::Buffer(ctx_.context(), CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR,
+                                          out_bytes, field.data());
         work_ = format_ == Format::packed32 ? make_buffer(n * wt.bytes, CL_MEM_READ_WRITE) : out_;
         rgb_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, 256);
         const auto table = palette.rgb332_table();
         cl::Event up_vox, up_rgb;
-        if (voxels == nullptr) {
-            q.enqueueWriteBuffer(voxels_, CL_FALSE, 0, n, upload, nullptr, &up_vox);
+        if (!in_place) {
+            q.enqueueWriteBuffer(voxels_, CL_FALSE, 0, n, voxels, nullptr, &up_vox);
         }
         q.enqueueWriteBuffer(rgb_, CL_FALSE, 0, table.size(), table.data(), nullptr, &up_rgb);
         q.finish();
-        upload_ms_ = elapsed_ms(voxels == nullptr ? up_vox : up_rgb, up_rgb);
+        upload_ms_ = elapsed_ms(in_place ? up_rgb : up_vox, up_rgb);
     });
 }
 

@@ -242,6 +242,22 @@ def test_input_layouts_and_dtypes():
     np.testing.assert_array_equal(world, before)
 
 
+def test_field_outlives_its_input_and_owns_its_memory():
+    # uint8 worlds take the sweeps, which read the array in place and write the returned
+    # array's own memory: it must stay valid and writable after the input and the field go.
+    world = random_world(A, 0.05, 17)
+    for metric, scipy_metric in (("manhattan", "taxicab"), ("chebyshev", "chessboard")):
+        want = ndimage.distance_transform_cdt(world == 0, metric=scipy_metric)
+        source = world.copy()
+        field = voxfield.distance_transform(source, metric=metric)
+        del source
+        assert field.flags.writeable and field.flags.c_contiguous
+        tail = field[1:]
+        field[0, 0, 0] = 9999
+        del field
+        np.testing.assert_array_equal(tail, want[1:])
+
+
 def test_threads_share_a_device():
     world = random_world(A, 0.01, 13)
     want = ndimage.distance_transform_cdt(world == 0, metric="taxicab")

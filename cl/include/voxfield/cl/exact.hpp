@@ -2,6 +2,7 @@
 // `exact`: global exact Manhattan distance field on any OpenCL device (DESIGN §3 semantics),
 // and by the same sweeps the Chebyshev field in the CPU layout.
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -15,13 +16,15 @@ class ExactManhattan : public Generator {
     ExactManhattan(Context& ctx, const World& world, const Palette& palette, Format format,
                    Layout layout = Layout::automatic, Metric metric = Metric::manhattan);
     // The same for a world in host memory: `voxels` holds dims.count() palette indices (x
-    // fastest) and must outlive the generator. On a device that computes in host memory
-    // (Context::computes_in_host_memory) the kernels read it in place and write the field
-    // into host memory of the generator's own: nothing is copied or zero-filled. Elsewhere it
-    // is uploaded. std::invalid_argument when its size is not dims.count().
-    ExactManhattan(Context& ctx, Dims dims, HostMemory& voxels, const Palette& palette,
-                   Format format, Layout layout = Layout::automatic,
-                   Metric metric = Metric::manhattan);
+    // fastest). On a device that computes in host memory (Context::computes_in_host_memory)
+    // the kernels read it in place, and write the field into `field` where it is given
+    // (dims.count() * element_size(format) bytes; elsewhere into host memory of the
+    // generator's own): nothing is copied or zero-filled. Elsewhere the world is uploaded and
+    // `field` unused. Both must outlive the generator. std::invalid_argument when a size is
+    // wrong.
+    ExactManhattan(Context& ctx, Dims dims, std::span<const std::uint8_t> voxels,
+                   const Palette& palette, Format format, Layout layout = Layout::automatic,
+                   Metric metric = Metric::manhattan, std::span<std::uint8_t> field = {});
 
     // Whether these sweeps compute `o` (resolved options) on ctx: unsigned fields of unit
     // spacing without indices or a bound, in u8, u16, u32 or packed32; manhattan in both
@@ -41,8 +44,10 @@ class ExactManhattan : public Generator {
     const cl::Buffer& voxels_buffer() const { return voxels_; }
 
   private:
-    // `voxels`: host memory the kernels read in place, or nullptr to upload `upload`.
-    void allocate(const Palette& palette, const std::uint8_t* upload, HostMemory* voxels);
+    // Reads `voxels` in place (`in_place`) or uploads them; `field`: host memory for the
+    // output, or empty.
+    void allocate(const Palette& palette, const std::uint8_t* voxels, bool in_place,
+                  std::span<std::uint8_t> field);
     void set_up_kernels();
 
     bool gpu_layout_;
