@@ -1,4 +1,4 @@
-// Atomic output files: temporary file + fsync + rename.
+// Atomic output files: temporary file + rename.
 #include "output_file.hpp"
 
 #include <fcntl.h>
@@ -81,9 +81,8 @@ void write_file_atomic(const std::filesystem::path& path,
     for (const auto& part : parts) {
         write_all(part.data(), part.size());
     }
-    if (::fsync(fd) != 0) {
-        fail("cannot finish the temporary file", errno);
-    }
+    // Not forced to disk (no fsync, as numpy.save and cp do not): the rename makes the file
+    // whole or absent for readers; its data reach the disk with the page cache's writeback.
     if (::close(fd) != 0) {
         const int e = errno;
         ::unlink(tmp.c_str());

@@ -50,7 +50,7 @@ class NpyReader {
 };
 
 // Writes atomically: a temporary file in the same folder, renamed on success, so a failure
-// never leaves a partial file. Throws InputError if the folder does not exist. `data` may be
+// never leaves a partial file (not forced to disk: no fsync, as numpy.save). Throws InputError if the folder does not exist. `data` may be
 // any memory, e.g. a mapped device buffer: it is written from where it is, without a copy.
 void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
                std::span<const std::uint8_t> data);
