@@ -617,13 +617,14 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
 // render suite
 
 // Ray-march time per frame across world sizes and resolutions (the floor + spheres scene,
-// the default three-quarter camera, lit shading with the sky gradient), for the exact field of
-// every metric on the same world: each in the compact format with its per-block minima,
-// uploaded once; each frame's dispatch timed by GPU timestamps. One more frame per metric
-// counts every ray's field fetches and DDA steps (a counting pipeline, not timed) and checks
-// that its image equals manhattan's: the metric changes how far rays walk per fetch, never
-// which voxel they hit. A row is one world and resolution: manhattan's times at the top level
-// (as before metrics existed), every metric's under "metrics".
+// the default three-quarter camera, lit shading with the sky gradient, shadow rays and ambient
+// occlusion), for the exact field of every metric on the same world: each in the compact format
+// with its per-block minima, uploaded once; each frame's dispatch timed by GPU timestamps. One
+// more frame per metric counts every primary ray's field fetches and DDA steps (a counting
+// pipeline in flat shading, not timed) and checks that its image equals manhattan's: the metric
+// changes how far rays walk per fetch, never which voxel they hit. A row is one world and
+// resolution: manhattan's times at the top level (as before metrics existed), every metric's under
+// "metrics".
 json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
     const std::vector<std::uint32_t> sizes =
         quick ? std::vector<std::uint32_t>{32, 64} : std::vector<std::uint32_t>{128, 256, 512};
@@ -706,7 +707,12 @@ json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
                     }
                 }
                 std::cerr << '\n';
+                // Counted in flat shading: the counters follow the primary rays, which lit
+                // shading does not change, and flat images compare the hit voxels alone (lit
+                // shading's ambient occlusion reads the metric's distances).
                 r.count = true;
+                r.shading = vk::Shading::flat;
+                r.sky_gradient = false;
                 const vk::Image counted = marcher.render(r);
                 if (metric == Metric::manhattan) {
                     reference[res] = counted.rgba;

@@ -139,7 +139,7 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
 
     const VoxModel model = load_world(o.input);
     const World& world = model.world;
-    const vk::Camera fallback = vk::default_camera(world.dims());
+    const vk::Camera fallback = vk::default_camera(world, r.width, r.height, r.camera.fov_deg);
     r.camera.position = camera ? *camera : fallback.position;
     r.camera.target = target ? *target : fallback.target;
     vk::validate(r);
@@ -249,15 +249,18 @@ Command add_render(CLI::App& root) {
     app->add_option("--height", o->height, "Image height in pixels, 1..16384")
         ->capture_default_str();
     app->add_option("--camera", o->camera,
-                    "Camera position X,Y,Z in voxel units (y up; default: outside the world, "
-                    "above and in front of it)");
+                    "Camera position X,Y,Z in voxel units (y up; default: in front of the "
+                    "world's solid voxels (-z, MagicaVoxel's front), left of and above them, "
+                    "just far enough for the image to hold them all)");
     app->add_option("--target", o->target,
-                    "Point X,Y,Z the camera looks at (default: the world's centre)");
+                    "Point X,Y,Z the camera looks at (default: the centre of the box of the "
+                    "world's solid voxels)");
     app->add_option("--fov", o->fov, "Vertical field of view in degrees, in (0, 180)")
         ->capture_default_str();
     app->add_option("--shading", o->shading,
                     "flat: the hit voxel's palette colour exactly, unlit, misses the --sky "
-                    "colour; lit: face normal, sun and ambient light, sRGB-correct, misses the "
+                    "colour; lit: face normal, sun (shadows by a ray marched toward it) and "
+                    "ambient light (occlusion from the field), sRGB-correct, misses the "
                     "sky gradient and sun disc unless --sky is given")
         ->check(CLI::IsMember({"flat", "lit"}))
         ->capture_default_str();

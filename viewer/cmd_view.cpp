@@ -494,6 +494,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     // session: it outlives the ray marcher's buffer over it).
     vk::ExternalMemory frame_memory;
     Session session(cl_ctx, vk_ctx, model.palette, dims);
+    const Framing framing = solid_framing(model.world);  // the default camera's view
     const double build_ms = session.rebuild(std::move(model.world), gopts);
     std::cout << "opencl:  " << cl_ctx.info().name << " (" << cl_ctx.info().type << ")\n"
               << "vulkan:  " << vk_ctx.info().name << " (" << vk_ctx.info().type << ")\n"
@@ -601,7 +602,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     }
 
     // State of the interactive session.
-    ViewCamera camera(dims);
+    ViewCamera camera(dims, framing, double(o.width) / double(std::max(o.height, 1u)));
     vk::RenderOptions ropts;
     ropts.shading = o.shading == "flat" ? vk::Shading::flat : vk::Shading::lit;
     ropts.sky_gradient = ropts.shading == vk::Shading::lit;

@@ -92,19 +92,73 @@ Int3 chunk_at(const Vec3d& position, Dims world, std::uint32_t chunk) {
     return Int3{c[0], c[1], c[2]};
 }
 
-ViewCamera::ViewCamera(Dims world)
-    : dims_(world), centre_{world.x / 2.0, world.y / 2.0, world.z / 2.0} {
+Framing world_framing(Dims dims) {
+    Framing f;
+    f.centre = {dims.x / 2.0, dims.y / 2.0, dims.z / 2.0};
+    f.half = f.centre;
+    return f;
+}
+
+Framing solid_framing(const World& world) {
+    const Dims d = world.dims();
+    std::uint32_t lo[3] = {d.x, d.y, d.z}, hi[3] = {0, 0, 0};
+    const auto& v = world.voxels();
+    std::size_t i = 0;
+    for (std::uint32_t z = 0; z < d.z; ++z) {
+        for (std::uint32_t y = 0; y < d.y; ++y) {
+            for (std::uint32_t x = 0; x < d.x; ++x, ++i) {
+                if (v[i] != 0) {
+                    const std::uint32_t c[3] = {x, y, z};
+                    for (int a = 0; a < 3; ++a) {
+                        lo[a] = std::min(lo[a], c[a]);
+                        hi[a] = std::max(hi[a], c[a] + 1);
+                    }
+                }
+            }
+        }
+    }
+    if (hi[0] == 0) {
+        return world_framing(d);
+    }
+    Framing f;
+    for (int a = 0; a < 3; ++a) {
+        f.centre[a] = (lo[a] + hi[a]) / 2.0;
+        f.half[a] = (hi[a] - lo[a]) / 2.0;
+    }
+    return f;
+}
+
+Vec3d framing_position(const Framing& f, double fov_deg, double aspect) {
+    const Vec3d from = scale(Vec3d{-0.6, 0.5, -0.75}, 1 / length(Vec3d{-0.6, 0.5, -0.75}));
+    const ViewBasis b = view_basis(scale(from, -1));
+    const double tan_v = std::tan(0.5 * fov_deg * kDeg) / 1.05;
+    const double tan_h = aspect * tan_v;
+    // A corner at offset c from the centre lies at depth distance + dot(c, forward) and
+    // appears at dot(c, right), dot(c, up): inside the image when both are within the depth
+    // times the half-image tangents.
+    double distance = 0;
+    for (int k = 0; k < 8; ++k) {
+        const Vec3d c = {k & 1 ? f.half[0] : -f.half[0], k & 2 ? f.half[1] : -f.half[1],
+                         k & 4 ? f.half[2] : -f.half[2]};
+        const double depth = dot(c, b.forward);
+        distance = std::max({distance, std::abs(dot(c, b.right)) / tan_h - depth,
+                             std::abs(dot(c, b.up)) / tan_v - depth});
+    }
+    // Never inside the box: at least its bounding sphere's radius away.
+    distance = std::max(distance, length(f.half) + 1);
+    return add(f.centre, scale(from, distance));
+}
+
+ViewCamera::ViewCamera(Dims world) : ViewCamera(world, world_framing(world), 4.0 / 3.0) {}
+
+ViewCamera::ViewCamera(Dims world, const Framing& view, double aspect)
+    : dims_(world), centre_(view.centre), framing_(view), aspect_(aspect) {
     reset();
 }
 
 void ViewCamera::reset() {
-    // The renderer's default camera (vk::default_camera): from (-0.6, 0.5, -0.75) at twice
-    // the radius of the world's bounding sphere, looking at the centre.
-    const double radius = 0.5 * length(Vec3d{double(dims_.x), double(dims_.y), double(dims_.z)});
-    Vec3d from = {-0.6, 0.5, -0.75};
-    from = scale(from, 2.0 * radius / length(from));
     mode_ = Mode::fly;
-    look_at(add(centre_, from), centre_);
+    look_at(framing_position(framing_, settings.fov_deg, aspect_), centre_);
 }
 
 void ViewCamera::dissertation_start() {

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "voxfield/core/camera.hpp"
@@ -16,6 +17,10 @@ void expect_near(const Vec3d& a, const Vec3d& b, double eps = 1e-9) {
 
 double length(const Vec3d& a) {
     return std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+}
+
+Vec3d sub(const Vec3d& a, const Vec3d& b) {
+    return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
 }
 
 TEST(Camera, AnglesFollowTheConvention) {
@@ -90,13 +95,49 @@ TEST(Camera, StartsAtTheRenderersOverview) {
     ViewCamera cam(Dims{64, 32, 48});
     const Vec3d c = {32, 16, 24};
     expect_near(cam.centre(), c);
-    const double radius = 0.5 * std::sqrt(64.0 * 64 + 32 * 32 + 48 * 48);
+    const Vec3d want = framing_position(world_framing(Dims{64, 32, 48}), 60, 4.0 / 3.0);
+    expect_near(cam.position(), want, 1e-9);
     const Vec3d from = {-0.6, 0.5, -0.75};
-    const double s = 2 * radius / length(from);
-    expect_near(cam.position(), {c[0] + from[0] * s, c[1] + from[1] * s, c[2] + from[2] * s}, 1e-9);
     const Vec3d f = cam.forward();
     expect_near(f, {-from[0] / length(from), -from[1] / length(from), -from[2] / length(from)});
     EXPECT_EQ(cam.mode(), ViewCamera::Mode::fly);
+}
+
+TEST(Camera, FramesTheSolidVoxelsTightly) {
+    World w(Dims{100, 60, 80});
+    w.set(10, 5, 60, 1);
+    w.set(30, 20, 70, 2);
+    const Framing f = solid_framing(w);
+    expect_near(f.centre, {20.5, 13, 65.5});
+    expect_near(f.half, {10.5, 8, 5.5});
+    EXPECT_EQ(solid_framing(World(Dims{4, 6, 8})).centre, (Vec3d{2, 3, 4}));  // no solid: all
+    for (const double aspect : {0.5, 4.0 / 3.0, 2.5}) {
+        const Vec3d eye = framing_position(f, 50, aspect);
+        const Vec3d forward = sub(f.centre, eye);
+        EXPECT_LT(eye[0], f.centre[0]);  // left of, above and in front of (-z) the box
+        EXPECT_GT(eye[1], f.centre[1]);
+        EXPECT_LT(eye[2], f.centre[2]);
+        // Every corner inside the image, and one within a few percent of its edge.
+        const double W = 1000 * aspect, H = 1000;
+        double margin = 1e9;
+        for (int k = 0; k < 8; ++k) {
+            const Vec3d corner = {f.centre[0] + (k & 1 ? 1 : -1) * f.half[0],
+                                  f.centre[1] + (k & 2 ? 1 : -1) * f.half[1],
+                                  f.centre[2] + (k & 4 ? 1 : -1) * f.half[2]};
+            const auto p = project_point(eye, forward, 50, W, H, corner);
+            ASSERT_TRUE(p.has_value());
+            EXPECT_GT(p->x, 0);
+            EXPECT_LT(p->x, W);
+            EXPECT_GT(p->y, 0);
+            EXPECT_LT(p->y, H);
+            margin = std::min({margin, p->x / W, 1 - p->x / W, p->y / H, 1 - p->y / H});
+        }
+        EXPECT_LT(margin, 0.06) << "aspect " << aspect << ": the box could be framed closer";
+    }
+    // The viewer starts at the same view and orbits the box's centre.
+    const ViewCamera cam(w.dims(), f, 1.5);
+    expect_near(cam.position(), framing_position(f, cam.settings.fov_deg, 1.5), 1e-9);
+    expect_near(cam.centre(), f.centre);
 }
 
 TEST(Camera, DissertationStart) {

@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "voxfield/core/camera.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/format.hpp"
 #include "voxfield/core/metric.hpp"
@@ -632,6 +633,102 @@ TEST_P(Raymarch, LitShadingHitsWhatFlatHits) {
     const auto sky = marcher.render(r);
     EXPECT_NE(std::memcmp(&sky.rgba[0], &sky.rgba[(std::size_t{r.height} - 1) * r.width * 4], 3),
               0);
+}
+
+// A floor (material 1), a thin roof slab high above part of it and a wall (material 2), all
+// white, seen straight from above: the sun, normalize(1, 1, 1), casts the roof's and the wall's
+// shadows on the floor toward -x, -z.
+World shadow_scene() {
+    World w(Dims{48, 24, 48});
+    for (std::uint32_t z = 0; z < 48; ++z) {
+        for (std::uint32_t x = 0; x < 48; ++x) {
+            w.set(x, 0, z, 1);
+            for (std::uint32_t y = 1; y < 12 && x >= 32 && x < 34; ++y) {
+                w.set(x, y, z, 2);
+            }
+            if (x >= 8 && x < 26 && z >= 8 && z < 26) {
+                w.set(x, 9, z, 2);  // one voxel thick: a shadow ray must not skip it
+            }
+        }
+    }
+    return w;
+}
+
+Palette white_palette() {
+    Palette p;
+    p[1] = Rgba{255, 255, 255, 255};
+    p[2] = Rgba{255, 255, 255, 255};
+    return p;
+}
+
+TEST_P(Raymarch, LitShadingCastsShadowsTowardTheSun) {
+    const World world = shadow_scene();
+    const Palette palette = white_palette();
+    vk::Raymarcher marcher(vulkan());
+    upload(marcher, world, palette, format(), metric());
+    vk::RenderOptions r = options(160, 160, {24, 80, 24}, {24, 0, 24}, 40);
+    r.shading = vk::Shading::lit;
+    const auto img = marcher.render(r);
+    const Pinhole camera(r);
+    const Vec3 sun = normalized({1, 1, 1});
+    // Whether the floor point p (on its top face, y = 1) sees the sun, by the CPU traversal.
+    auto sunlit = [&](double x, double z) {
+        std::uint8_t m = 0;
+        return !cast(world, {x, 1.0 + 1e-6, z}, sun, m);
+    };
+    std::size_t shadowed = 0, lit = 0, wrong = 0;
+    for (std::uint32_t j = 0; j < r.height; ++j) {
+        for (std::uint32_t i = 0; i < r.width; ++i) {
+            const Vec3 d = camera.dir(i, j);
+            std::uint8_t m = 0;
+            if (!cast(world, r.camera.position, d, m) || m != 1) {
+                continue;  // the roof or the wall
+            }
+            const double t = (1.0 - r.camera.position[1]) / d[1];
+            const double x = r.camera.position[0] + t * d[0], z = r.camera.position[2] + t * d[2];
+            const bool want = sunlit(x, z);
+            // Points within a twentieth of a voxel of a shadow's edge may go either way.
+            if (sunlit(x + 0.05, z) != want || sunlit(x - 0.05, z) != want ||
+                sunlit(x, z + 0.05) != want || sunlit(x, z - 0.05) != want) {
+                continue;
+            }
+            // Lit white floor: (ambient * ao + 0.8 * 0.577) >= 0.58 linear; shadowed: <= 0.30.
+            const bool got = img.rgba[(std::size_t{j} * r.width + i) * 4] > 175;
+            (want ? lit : shadowed) += 1;
+            wrong += got != want;
+        }
+    }
+    EXPECT_GT(shadowed, 1000u);
+    EXPECT_GT(lit, 1000u);
+    EXPECT_EQ(wrong, 0u) << "of " << shadowed << " shadowed and " << lit << " lit floor pixels";
+}
+
+TEST_P(Raymarch, AmbientOcclusionDarkensEnclosedFaces) {
+    const World world = shadow_scene();
+    vk::Raymarcher marcher(vulkan());
+    upload(marcher, world, white_palette(), format(), metric());
+    // From above the floor east of the wall, so that the wall hides none of it.
+    vk::RenderOptions r = options(160, 160, {40, 80, 24}, {40, 0, 24}, 40);
+    r.shading = vk::Shading::lit;
+    // The red byte of the floor point (x, 1, z) in image `img`.
+    auto red_at = [&](const vk::Image& img, double x, double z) {
+        const auto p = project_point(r.camera.position, Vec3d{0, -1, 0}, r.camera.fov_deg, r.width,
+                                     r.height, Vec3d{x, 1.0, z});
+        EXPECT_TRUE(p.has_value());
+        const auto i = static_cast<std::size_t>(p->x), j = static_cast<std::size_t>(p->y);
+        return int(img.rgba[(j * r.width + i) * 4]);
+    };
+    const auto lit = marcher.render(r);
+    // Sunlit floor beside the wall's sunny face (the cells above it have the wall one voxel
+    // away) and in the open, at the same z.
+    const int enclosed = red_at(lit, 34.5, 40.5), open = red_at(lit, 44.5, 40.5);
+    EXPECT_GT(enclosed, 175) << "sunlit";
+    EXPECT_LT(enclosed + 10, open) << "occlusion beside the wall";
+    // Flat shading has none: both are the palette's white.
+    r.shading = vk::Shading::flat;
+    const auto flat = marcher.render(r);
+    EXPECT_EQ(red_at(flat, 34.5, 40.5), 255);
+    EXPECT_EQ(red_at(flat, 44.5, 40.5), 255);
 }
 
 TEST_P(Raymarch, GpuTimestamps) {

@@ -97,17 +97,18 @@ TEST_F(RenderCli, BothFieldFormatsGiveTheSameImage) {
 }
 
 // The field of every metric, in both formats, gives the same image: the metric decides how far
-// rays walk between fetches, never which voxel they hit. Lit shading, so that the face each
-// ray entered by shows too.
+// rays walk between fetches, never which voxel they hit. Flat shading: lit shading's ambient
+// occlusion reads the field's distances, which differ by metric where the nearest solid lies
+// off the normal.
 TEST_F(RenderCli, EveryMetricGivesTheSameImage) {
     const fs::path reference = dir_ / "manhattan-compact.png";
     for (const std::string metric : {"manhattan", "chebyshev", "euclidean"}) {
         for (const std::string field : {"compact", "packed32"}) {
             const fs::path out = dir_ / (metric + "-" + field + ".png");
-            const RunResult r = run_voxfield(
-                {"render", kModel.string(), "-o", out.string(), "--width", "64", "--height", "48",
-                 "--shading", "lit", "--metric", metric, "--field", field, "--stats"},
-                io_);
+            const RunResult r =
+                run_voxfield({"render", kModel.string(), "-o", out.string(), "--width", "64",
+                              "--height", "48", "--metric", metric, "--field", field, "--stats"},
+                             io_);
             ASSERT_EQ(r.code, 0) << describe(r);
             EXPECT_NE(r.out.find("exact " + metric + " field"), std::string::npos) << r.out;
             EXPECT_NE(r.out.find("field fetches"), std::string::npos) << r.out;

@@ -188,27 +188,19 @@ vec3 sky_srgb(vec3 dir) {
     return s > 0.9995 ? vec3(1.0, 0.98, 0.9) : sky;
 }
 
-void main() {
-    uvec2 pix = gl_GlobalInvocationID.xy;
-    uint width = pc.image.x, height = pc.image.y;
-    if (pix.x >= width || pix.y >= height) {
-        return;
-    }
-    bool lit = (pc.image.z & VF_RAYMARCH_FLAG_LIT) != 0u;
-    bool gradient = (pc.image.z & VF_RAYMARCH_FLAG_SKY_GRADIENT) != 0u;
-    g_compact = (pc.image.z & VF_RAYMARCH_FLAG_COMPACT) != 0u;
-    bool coarse = (pc.image.z & VF_RAYMARCH_FLAG_BLOCK_MIN) != 0u;
-    uvec3 blocks = (pc.dims.xyz + uvec3(VF_RAYMARCH_BLOCK - 1)) / uvec3(VF_RAYMARCH_BLOCK);
+bool g_coarse;
+uvec3 g_blocks;
 
-    // Pinhole camera, DESIGN §4.
-    float sx = (float(pix.x) + 0.5) / float(width) * 2.0 - 1.0;
-    float sy = 1.0 - (float(pix.y) + 0.5) / float(height) * 2.0;
-    vec3 dir = normalize(pc.forward.xyz + sx * pc.right.xyz + sy * pc.up.xyz);
-    dir = mix(dir, vec3(0.0), lessThan(abs(dir), vec3(kTinyDirection)));
-    vec3 o = pc.origin.xyz;
+// Marches the ray o + t dir (dir normalised, tiny components zeroed) from where it enters the
+// world until it hits a solid cell (true: `cell`, the step `face` that entered it, 0 when the
+// ray started in it, and the entry point `point` on that face) or leaves the world (false).
+// Counts field fetches and DDA steps.
+bool march(vec3 o, vec3 dir, out ivec3 cell, out ivec3 face, out vec3 point, inout uint fetches,
+           inout uint steps) {
     ivec3 dims = ivec3(pc.dims.xyz);
     vec3 dimsf = vec3(pc.dims.xyz);
-
+    bool coarse = g_coarse;
+    uvec3 blocks = g_blocks;
     // Clip the ray to the world box [0, dims]: t_enter is 0 when the camera is inside.
     ivec3 stp = ivec3(sign(dir));
     vec3 inv = vec3(stp.x != 0 ? 1.0 / dir.x : 0.0, stp.y != 0 ? 1.0 / dir.y : 0.0,
@@ -225,9 +217,9 @@ void main() {
     float t_exit = min(min(tfar.x, tfar.y), tfar.z);
 
     bool hit = false;
-    ivec3 face = ivec3(0);  // the step that entered the hit cell (0: the ray started in it)
-    ivec3 cell = ivec3(0);
-    uint fetches = 0u, steps = 0u;  // for kCount
+    face = ivec3(0);
+    cell = ivec3(0);
+    point = o;
     if (!parallel_outside && t_enter < t_exit) {
         if (t_enter > 0.0) {
             // Entered through the face of the largest tnear (ties: x, then y, then z).
@@ -245,6 +237,7 @@ void main() {
         // integer cell after each step (no accumulated error); axes not stepped: never.
         vec3 t_next =
             mix((vec3(cell + max(stp, ivec3(0))) - start) * inv, vec3(kFar), equal(stp, ivec3(0)));
+        float t_cell = 0.0;  // where the ray entered the current cell, from `start`
         // Safe skipping rule. The field holds d, a lower bound of the metric distance from
         // this cell to the nearest solid cell (0 = solid): the exact distance rounded down
         // (an integer already for L1 and L-inf, the floor of it for L2) and saturated at 255,
@@ -280,6 +273,7 @@ void main() {
             ++fetches;
             if (d == 0u) {
                 hit = true;
+                point = start + dir * t_cell;
                 break;
             }
             if (coarse && d == VF_PACKED_DISTANCE_MAX) {
@@ -303,6 +297,7 @@ void main() {
                     inside = false;
                     break;
                 }
+                t_cell = dot(t_next, vec3(m));
                 t_next = mix(t_next, (vec3(cell + max(stp, ivec3(0))) - start) * inv, bvec3(m));
                 uint along = bx ? off.x : (by ? off.y : off.z);
                 off += uvec3(m);
@@ -324,6 +319,54 @@ void main() {
             }
         }
     }
+    return hit;
+}
+
+// The metric distance stored for cell c (saturated), or `open` for cells outside the world.
+uint distance_at(ivec3 c, uint open) {
+    if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, ivec3(pc.dims.xyz)))) {
+        return open;
+    }
+    return (read_cell(c) >> VF_PACKED_DISTANCE_SHIFT) & VF_PACKED_DISTANCE_MAX;
+}
+
+// Ambient occlusion of the face of solid cell `cell` whose outward normal is n, from the field:
+// the cells k = 2..5 steps out along n are at most k away from the face's cell in every metric
+// (an axis offset of k); the less room they have (k - d), the more the face is enclosed. The
+// first cell out (k = 1) has d >= 1 = k whenever it is empty, so it is skipped.
+float ambient_occlusion(ivec3 cell, ivec3 n) {
+    const float weights[4] = float[4](0.4, 0.3, 0.2, 0.1);
+    float occlusion = 0.0;
+    for (int k = 2; k <= 5; ++k) {
+        uint d = min(distance_at(cell + n * k, uint(k)), uint(k));
+        occlusion += weights[k - 2] * float(uint(k) - d) / float(k);
+    }
+    return 1.0 - 0.7 * occlusion;
+}
+
+void main() {
+    uvec2 pix = gl_GlobalInvocationID.xy;
+    uint width = pc.image.x, height = pc.image.y;
+    if (pix.x >= width || pix.y >= height) {
+        return;
+    }
+    bool lit = (pc.image.z & VF_RAYMARCH_FLAG_LIT) != 0u;
+    bool gradient = (pc.image.z & VF_RAYMARCH_FLAG_SKY_GRADIENT) != 0u;
+    g_compact = (pc.image.z & VF_RAYMARCH_FLAG_COMPACT) != 0u;
+    bool coarse = (pc.image.z & VF_RAYMARCH_FLAG_BLOCK_MIN) != 0u;
+    uvec3 blocks = (pc.dims.xyz + uvec3(VF_RAYMARCH_BLOCK - 1)) / uvec3(VF_RAYMARCH_BLOCK);
+
+    // Pinhole camera, DESIGN §4.
+    float sx = (float(pix.x) + 0.5) / float(width) * 2.0 - 1.0;
+    float sy = 1.0 - (float(pix.y) + 0.5) / float(height) * 2.0;
+    vec3 dir = normalize(pc.forward.xyz + sx * pc.right.xyz + sy * pc.up.xyz);
+    dir = mix(dir, vec3(0.0), lessThan(abs(dir), vec3(kTinyDirection)));
+    g_coarse = coarse;
+    g_blocks = blocks;
+    ivec3 cell, face;
+    vec3 point;
+    uint fetches = 0u, steps = 0u;  // for kCount
+    bool hit = march(pc.origin.xyz, dir, cell, face, point, fetches, steps);
     if (kCount) {
         counters[pix.y * width + pix.x] = uvec2(fetches, steps);
     }
@@ -345,6 +388,20 @@ void main() {
             vec3 base = srgb_to_linear(unpack_rgb(rgba));
             float diffuse = max(dot(n, kSun), 0.0);
             float ambient = 0.18 + 0.12 * n.y;
+            if (face != ivec3(0)) {
+                // The sun's light reaches the face unless the ray from just outside it
+                // toward the sun hits a solid (the sun is a direction: no distance limit).
+                ivec3 out_n = -face;
+                if (diffuse > 0.0) {
+                    ivec3 c2, f2;
+                    vec3 p2;
+                    uint fetches2 = 0u, steps2 = 0u;
+                    if (march(point + vec3(out_n) * 0.01, kSun, c2, f2, p2, fetches2, steps2)) {
+                        diffuse = 0.0;
+                    }
+                }
+                ambient *= ambient_occlusion(cell, out_n);
+            }
             colour = pack_rgb(linear_to_srgb(base * (ambient + 0.8 * diffuse)));
         }
     } else if (lit && gradient) {

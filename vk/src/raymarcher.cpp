@@ -1,5 +1,7 @@
 #include "voxfield/vk/raymarcher.hpp"
 
+#include "voxfield/core/camera.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
@@ -117,15 +119,25 @@ CameraBasis camera_basis(const Camera& camera, std::uint32_t width, std::uint32_
     return b;
 }
 
-Camera default_camera(Dims dims) {
-    const Vec3 centre = {dims.x / 2.0, dims.y / 2.0, dims.z / 2.0};
-    const double radius = 0.5 * length(Vec3{double(dims.x), double(dims.y), double(dims.z)});
-    Vec3 from = {-0.6, 0.5, -0.75};
-    from = scale(from, 2.0 * radius / length(from));
+namespace {
+
+Camera framed(const Framing& f, double fov_deg, double aspect) {
     Camera c;
-    c.position = {centre[0] + from[0], centre[1] + from[1], centre[2] + from[2]};
-    c.target = centre;
+    c.position = framing_position(f, fov_deg, aspect);
+    c.target = f.centre;
+    c.fov_deg = fov_deg;
     return c;
+}
+
+}  // namespace
+
+Camera default_camera(Dims dims) {
+    return framed(world_framing(dims), 60, 4.0 / 3.0);
+}
+
+Camera default_camera(const World& world, std::uint32_t width, std::uint32_t height,
+                      double fov_deg) {
+    return framed(solid_framing(world), fov_deg, double(width) / double(std::max(height, 1u)));
 }
 
 void validate(const RenderOptions& o) {

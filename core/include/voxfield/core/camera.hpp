@@ -48,6 +48,21 @@ std::optional<ImagePoint> project_point(const Vec3d& eye, const Vec3d& forward, 
 // lod's focus. chunk > 0.
 Int3 chunk_at(const Vec3d& position, Dims world, std::uint32_t chunk);
 
+// What the default camera frames: the box of a world's solid voxels (the whole world when it
+// has none), as its centre and half extents.
+struct Framing {
+    Vec3d centre{0, 0, 0};
+    Vec3d half{0.5, 0.5, 0.5};
+};
+Framing solid_framing(const World& world);
+Framing world_framing(Dims dims);
+
+// The default camera's position for `f`: from the front-left and above (along (-0.6, 0.5,
+// -0.75) from the centre: -x, +y and -z, MagicaVoxel's front side, vox -y, facing it) at the
+// nearest distance where all eight corners of the box lie inside a pinhole image of vertical
+// field of view fov_deg and width / height `aspect` (with a 5% margin), looking at the centre.
+Vec3d framing_position(const Framing& f, double fov_deg, double aspect);
+
 // One frame of input. Movement keys are held states; look_dx/dy are the mouse movement in
 // screen pixels accumulated over the frame (x right, y down).
 struct CameraInput {
@@ -71,8 +86,11 @@ class ViewCamera {
     enum class Mode { fly, orbit };
 
     // Starts at the overview: outside the world, above and in front of it, looking at its
-    // centre (the same view as `voxfield render`'s default camera).
+    // centre (the whole world framed for a 4:3 image).
     explicit ViewCamera(Dims world);
+    // Starts at framing_position(view, settings.fov_deg, aspect), looking at view.centre,
+    // which orbit mode turns around (the same view as `voxfield render`'s default camera).
+    ViewCamera(Dims world, const Framing& view, double aspect);
 
     CameraSettings settings;
 
@@ -116,6 +134,8 @@ class ViewCamera {
     double yaw_ = 0, pitch_ = 0;
     double distance_ = 1;
     Mode mode_ = Mode::fly;
+    Framing framing_;            // what reset() frames
+    double aspect_ = 4.0 / 3.0;  // of the image reset() frames it for
 };
 
 }  // namespace voxfield

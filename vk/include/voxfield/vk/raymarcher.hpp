@@ -34,8 +34,12 @@ struct CameraBasis {
 CameraBasis camera_basis(const Camera& camera, std::uint32_t width, std::uint32_t height);
 
 // A camera outside the world looking at its centre from above and in front (a three-quarter
-// view that shows the whole world at a 60 degree field of view).
+// view that shows the whole world at a 60 degree field of view in a 4:3 image).
 Camera default_camera(Dims dims);
+// `render`'s and `view`'s default camera: the same view of the box of the world's solid voxels
+// (core's solid_framing and framing_position), framed for a width x height image.
+Camera default_camera(const World& world, std::uint32_t width, std::uint32_t height,
+                      double fov_deg = 60);
 
 enum class Shading { flat, lit };
 
@@ -50,8 +54,9 @@ struct RenderOptions {
     bool sky_gradient = false;
     // Pixel bytes B, G, R, A instead of R, G, B, A (for a BGRA swapchain).
     bool bgra = false;
-    // Also count each ray's field fetches and DDA steps (Image::fetches / steps), through a
-    // pipeline variant that writes a counter per pixel: for benchmarks, render() only.
+    // Also count each primary ray's field fetches and DDA steps (Image::fetches / steps; lit
+    // shading's shadow rays are not counted), through a pipeline variant that writes a
+    // counter per pixel: for benchmarks, render() only.
     bool count = false;
 };
 
