@@ -17,13 +17,16 @@
 #include <utility>
 
 #include "cli_util.hpp"
+#include "sand_run.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
+#include "voxfield/cl/sand.hpp"
 #include "voxfield/core/accuracy.hpp"
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/metric.hpp"
 #include "voxfield/core/palette.hpp"
+#include "voxfield/core/sand.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/layout.h"
@@ -818,8 +821,100 @@ bool python_has_matplotlib(const std::string& python) {
 
 }  // namespace
 
+// ---------------------------------------------------------------------------------------------
+// sand suite
+
+// The falling-sand demo (`simulate`) on scene_sand's world (a sand cone, a water basin, grains
+// falling from the upper half): `steps` steps with the exact L1 field updated after each, once
+// unbounded and once bounded at D = 16; per step the simulation's and the update's device
+// times and the voxels changed, beside a full regeneration of the starting world.
+json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::uint32_t steps) {
+    const Dims dims{n, n, n};
+    const World world = scene_sand(dims, o.seed);
+    json rows = json::array();
+    for (const std::optional<double> bound : {std::optional<double>(), std::optional<double>(16)}) {
+        ocl::GeneratorOptions g;
+        g.format = Format::u16;
+        g.max_distance = bound;
+        g = ocl::resolve_options(g, dims);
+        const std::string label =
+            dims.to_string() + (bound ? " bounded at 16" : " unbounded") + ", L1";
+        std::cerr << "bench: sand " << label << ": set-up\n";
+        ocl::IncrementalField field(ctx, world, Palette(), g);
+        ocl::SandSimulator sim(ctx, world, SandRules{});
+        warm_up_updates(field);
+        std::vector<double> full;
+        {
+            const auto job = ocl::make_generator(ctx, world, Palette(), g);
+            for (int i = 0; i < 6; ++i) {
+                const double ms = job->run();
+                if (i > 0) {
+                    full.push_back(ms);
+                }
+            }
+        }
+        const double full_ms = summarize(full).median;
+        const auto records =
+            run_sand_steps(sim, field, o.seed, steps, [&](const SandStepRecord& r) {
+                std::cerr << "\rbench: sand " << label << ": step " << r.step + 1 << "/" << steps
+                          << "   " << std::flush;
+                return true;
+            });
+        std::cerr << '\n';
+        std::vector<double> sim_ms, upd_ms, step_ms;
+        double device_ms = 0, wall_ms = 0;
+        std::size_t changed = 0, fallbacks = 0;
+        json per_step = json::array();
+        for (const SandStepRecord& r : records) {
+            sim_ms.push_back(r.simulate_ms);
+            upd_ms.push_back(r.update_ms);
+            step_ms.push_back(r.simulate_ms + r.update_ms);
+            device_ms += r.simulate_ms + r.update_ms;
+            wall_ms += r.wall_ms;
+            changed += r.voxels_changed;
+            fallbacks += r.full_regeneration ? 1 : 0;
+            per_step.push_back({{"step", r.step},
+                                {"simulate_ms", r.simulate_ms},
+                                {"update_ms", r.update_ms},
+                                {"wall_ms", r.wall_ms},
+                                {"voxels_changed", r.voxels_changed},
+                                {"voxels_recomputed", r.voxels_recomputed},
+                                {"full_regeneration", r.full_regeneration}});
+        }
+        const Summary ss = summarize(sim_ms), us = summarize(upd_ms), st = summarize(step_ms);
+        const auto count = static_cast<double>(records.size());
+        const double rate = device_ms > 0 ? count * 1000.0 / device_ms : 0;
+        const double wall_rate = wall_ms > 0 ? count * 1000.0 / wall_ms : 0;
+        std::printf(
+            "sand %-14s %-10s %4zu steps  %8.1f steps/s (device)  %8.1f (wall)  simulate %8.3f "
+            "ms  update %8.3f ms median  full %8.3f ms  step/full %.2f  %zu voxels changed, %zu "
+            "full regenerations\n",
+            dims.to_string().c_str(), bound ? "D=16" : "unbounded", records.size(), rate, wall_rate,
+            ss.median, us.median, full_ms, full_ms > 0 ? st.median / full_ms : 0.0, changed,
+            fallbacks);
+        rows.push_back({{"size", {n, n, n}},
+                        {"metric", "manhattan"},
+                        {"format", "u16"},
+                        {"max_distance", bound ? json(*bound) : json()},
+                        {"steps", records.size()},
+                        {"steps_per_s_device", rate},
+                        {"steps_per_s_wall", wall_rate},
+                        {"simulate_ms_median", ss.median},
+                        {"update_ms_median", us.median},
+                        {"update_ms_mean", us.mean},
+                        {"update_ms_max", us.max},
+                        {"step_ms_median", st.median},
+                        {"full_regeneration_ms", full_ms},
+                        {"step_over_full", full_ms > 0 ? st.median / full_ms : 0.0},
+                        {"voxels_changed", changed},
+                        {"full_regenerations", fallbacks},
+                        {"per_step", per_step}});
+    }
+    return rows;
+}
+
 const std::vector<std::string>& suite_names() {
-    static const std::vector<std::string> names = {"dissertation", "edits", "render"};
+    static const std::vector<std::string> names = {"dissertation", "edits", "render", "sand"};
     return names;
 }
 
@@ -930,6 +1025,13 @@ int run_suite(const SuiteOptions& o) {
             "uniform with one in 12 air (an erase), else place with material 1..255; splitmix64 "
             "seeded with `seed`, the same sequence for every algorithm; one edit per update";
         rows = run_edits(ctx, o, plan, dims, count);
+    } else if (o.suite == "sand") {
+        const std::uint32_t n = o.world != 0 ? o.world : (o.quick ? 64 : 256);
+        const std::uint32_t steps = o.repeat != 0 ? o.repeat : (o.quick ? 10 : 200);
+        doc["scene"] = "sand";
+        doc["steps"] = steps;
+        doc["world"] = n;
+        rows = run_sand(ctx, o, n, steps);
     } else {
         rows = run_render(ctx, plan, o.quick);
     }

@@ -18,11 +18,11 @@ struct SuiteOptions {
     std::uint64_t seed = 6683787;
     std::uint32_t chunk = 16;    // edits: the chunk-local algorithms' chunk size
     std::uint32_t edits = 0;     // edits: how many; 0: the suite's default
-    std::uint32_t world = 0;     // edits: the world's edge; 0: the suite's default
+    std::uint32_t world = 0;     // edits, sand: the world's edge; 0: the suite's default
     std::string format = "u16";  // edits: the field format
 };
 
-// "dissertation", "edits", "render".
+// "dissertation", "edits", "render", "sand".
 const std::vector<std::string>& suite_names();
 
 // The Python interpreter that has matplotlib (VOXFIELD_PYTHON, /usr/bin/python3, python3),

@@ -204,9 +204,8 @@ Accuracy accuracy_of(const World& world, const Palette& palette,
     if (plain) {
         return compare_to_exact(field, options.format, ocl::exact_reference(world, options));
     }
-    auto exact = options.signed_field
-                     ? reference_signed(world, options.metric, options.spacing)
-                     : reference_distance(world, options.metric, options.spacing);
+    auto exact = options.signed_field ? reference_signed(world, options.metric, options.spacing)
+                                      : reference_distance(world, options.metric, options.spacing);
     if (options.max_distance) {
         const double bound = *options.max_distance;
         for (double& v : exact) {

@@ -231,7 +231,9 @@ Command add_bench(CLI::App& root) {
     app->add_option("--suite", o->suite,
                     "Run a whole suite instead of --algorithms x --sizes: dissertation (the "
                     "dissertation's generation-time tables, exact beside every row group), edits "
-                    "(its editing protocol, per-edit update times), render")
+                    "(its editing protocol, per-edit update times), render (ray-march frame "
+                    "times of every metric), sand (falling sand with the exact field updated "
+                    "every step; --repeat is its step count, default 200, --quick 10)")
         ->check(CLI::IsMember(suite_names()));
     app->add_flag("--quick", o->quick,
                   "Suites: smaller sizes and fewer runs (minutes on a 2-core CPU; what CI runs)");
@@ -241,7 +243,9 @@ Command add_bench(CLI::App& root) {
         ->check(CLI::PositiveNumber);
     app->add_option("--edits", o->edits, "Suite edits: number of edits (default 200, --quick 20)")
         ->check(CLI::PositiveNumber);
-    app->add_option("--world", o->world, "Suite edits: world edge N (default 128, --quick 64)")
+    app->add_option("--world", o->world,
+                    "Suites edits and sand: world edge N (edits: default 128, --quick 64; sand: "
+                    "256, --quick 64)")
         ->check(CLI::PositiveNumber);
     return {app, [o, app] {
                 if (o->suite.empty()) {
@@ -260,10 +264,12 @@ Command add_bench(CLI::App& root) {
                     }
                 }
                 if ((o->suite != "edits") &&
-                    (app->count("--edits") != 0 || app->count("--world") != 0 ||
-                     app->count("--chunk") != 0 || app->count("--format") != 0)) {
-                    throw InputError(
-                        "--edits, --world, --chunk and --format apply to --suite edits only");
+                    (app->count("--edits") != 0 || app->count("--chunk") != 0 ||
+                     app->count("--format") != 0)) {
+                    throw InputError("--edits, --chunk and --format apply to --suite edits only");
+                }
+                if (o->suite != "edits" && o->suite != "sand" && app->count("--world") != 0) {
+                    throw InputError("--world applies to --suite edits and sand only");
                 }
                 SuiteOptions s;
                 s.suite = o->suite;

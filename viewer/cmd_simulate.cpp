@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "cli_util.hpp"
+#include "sand_run.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
 #include "voxfield/cl/sand.hpp"
@@ -134,14 +135,6 @@ std::string field_difference(const std::vector<std::uint8_t>& incremental,
     return s.str();
 }
 
-struct StepRecord {
-    std::uint64_t step = 0;
-    double simulate_ms = 0, update_ms = 0, wall_ms = 0;
-    std::size_t voxels_changed = 0;
-    std::uint64_t voxels_recomputed = 0;
-    bool full_regeneration = false;
-};
-
 int run_simulate(const SimulateOptions& o) {
     if (o.steps < 0) {
         throw InputError("--steps must be a step count >= 0, got " + std::to_string(o.steps));
@@ -157,15 +150,7 @@ int run_simulate(const SimulateOptions& o) {
 
     ocl::IncrementalField field(ctx, model.world, model.palette, options);
     ocl::SandSimulator sim(ctx, model.world, rules);
-    // The first launch of each update kernel pays its build (PoCL compiles per kernel and
-    // work-group shape): voxel 0 is toggled and restored, untimed, so that update times
-    // measure updates (the updates are exact, so the field is as before).
-    {
-        const std::uint8_t v0 = model.world.voxels()[0];
-        const std::uint8_t other = v0 != 0 ? std::uint8_t{0} : std::uint8_t{1};
-        field.apply_changes({{0, v0, other}});
-        field.apply_changes({{0, other, v0}});
-    }
+    warm_up_updates(field);
 
     // Full regeneration of the starting world on this device: warm-up, then the median.
     std::vector<double> regen_samples;
@@ -203,28 +188,27 @@ int run_simulate(const SimulateOptions& o) {
     }
 
     const auto steps = static_cast<std::uint64_t>(o.steps);
-    std::vector<StepRecord> records;
     const auto start = Clock::now();
     auto last_progress = start;
-    for (std::uint64_t step = 0; step < steps; ++step) {
-        const auto t0 = Clock::now();
-        const ocl::SandStepResult r = sim.step(seed, step);
-        const ocl::UpdateStats u = field.apply_changes(r.changes);
-        const auto t1 = Clock::now();
-        records.push_back({step, r.simulate_ms, u.update_ms,
-                           std::chrono::duration<double, std::milli>(t1 - t0).count(),
-                           r.changes.size(), u.voxels_recomputed, u.full_regeneration});
-        if (o.verify && !verify("after step " + std::to_string(step))) {
-            return 1;
-        }
-        const auto now = Clock::now();
-        if (std::chrono::duration<double>(now - start).count() >= kProgressAfterS &&
-            std::chrono::duration<double>(now - last_progress).count() >= kProgressEveryS) {
-            std::cerr << "\rsimulate: step " << step + 1 << "/" << steps
-                      << (o.verify ? " (verifying)" : "") << "   " << std::flush;
-            progress_open = true;
-            last_progress = now;
-        }
+    bool verified = true;
+    const std::vector<SandStepRecord> records =
+        run_sand_steps(sim, field, seed, steps, [&](const SandStepRecord& r) {
+            if (o.verify && !verify("after step " + std::to_string(r.step))) {
+                verified = false;
+                return false;
+            }
+            const auto now = Clock::now();
+            if (std::chrono::duration<double>(now - start).count() >= kProgressAfterS &&
+                std::chrono::duration<double>(now - last_progress).count() >= kProgressEveryS) {
+                std::cerr << "\rsimulate: step " << r.step + 1 << "/" << steps
+                          << (o.verify ? " (verifying)" : "") << "   " << std::flush;
+                progress_open = true;
+                last_progress = now;
+            }
+            return true;
+        });
+    if (!verified) {
+        return 1;
     }
     if (progress_open) {
         std::cerr << "\rsimulate: " << steps << "/" << steps << " steps"
@@ -244,7 +228,7 @@ int run_simulate(const SimulateOptions& o) {
     double device_ms = 0, wall_ms = 0;
     std::size_t changed = 0, fallbacks = 0;
     nlohmann::json steps_json = nlohmann::json::array();
-    for (const StepRecord& s : records) {
+    for (const SandStepRecord& s : records) {
         simulate_ms.push_back(s.simulate_ms);
         update_ms.push_back(s.update_ms);
         step_ms.push_back(s.simulate_ms + s.update_ms);

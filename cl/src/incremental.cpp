@@ -94,6 +94,18 @@ class Engine {
         return Box{{0, 0, 0}, {n.x, n.y, n.z}};
     }
 
+    // Whether a batch whose changes span `changed` is cheaper as a full regeneration: the
+    // update recomputes at least the lines through that box, and the full transform runs
+    // several times faster per voxel than the update's region passes, so from an eighth of
+    // the world on (a step of falling sand all over it, say) the whole transform wins.
+    // (For a bounded field the update would touch the voxels within D of the changes: most of
+    // the world too. Edits smaller than that stay local, whatever the world's size.)
+    bool regenerate_instead(const Box& changed) const {
+        return static_cast<std::uint64_t>(changed.volume()) * kRegenerateFraction >=
+               static_cast<std::uint64_t>(world.size());
+    }
+    static constexpr std::uint64_t kRegenerateFraction = 8;
+
     // Grows a device buffer to hold at least `bytes`.
     void reserve(cl::Buffer& buffer, std::size_t& capacity, std::size_t bytes) {
         if (bytes > capacity) {
@@ -144,7 +156,7 @@ class Engine {
     // outside): edits of every size then reuse one compiled work-group function (PoCL
     // specialises kernels per local size).
     void enqueue(Events& events, cl::Kernel& k, const cl::NDRange& global) {
-        static const std::size_t shapes[3][3] = {{64, 1, 1}, {16, 4, 1}, {4, 4, 4}};
+        static const std::size_t shapes[3][3] = {{64, 1, 1}, {16, 4, 1}, {64, 1, 1}};
         const std::size_t dims = global.dimensions();
         const std::size_t* shape = shapes[dims - 1];
         std::size_t g[3] = {1, 1, 1};
@@ -231,6 +243,25 @@ class GlobalEngine : public Engine {
             // inc_bounds accumulates W with atomic_max from zero.
             q.enqueueFillBuffer(regions, cl_int{0}, 0, 8 * 4 * stats.edits.size(), nullptr,
                                 &events.back());
+            Box occupancy;
+            for (const EditResult& r : stats.edits) {
+                if (r.occupancy_changed()) {
+                    occupancy = hull(occupancy, r.occupancy_bounds);
+                }
+            }
+            if (!occupancy.empty() && regenerate_instead(occupancy)) {
+                for (std::size_t e = 0; e < stats.edits.size(); ++e) {
+                    if (stats.edits[e].changed()) {
+                        scatter(events, exact->voxels_buffer(), stats, first, e);
+                    }
+                }
+                q.finish();
+                stats.update_ms = elapsed_ms(events.front(), events.back()) + regenerate();
+                stats.full_regeneration = true;
+                stats.regions = {world_box()};
+                stats.voxels_recomputed = world.size();
+                return stats;
+            }
             std::vector<std::size_t> swept;  // edits whose distances were recomputed
             for (std::size_t e = 0; e < stats.edits.size(); ++e) {
                 const EditResult& r = stats.edits[e];
@@ -442,6 +473,14 @@ class SeparableEngine : public Engine {
                 }
                 scatter(events, sep->voxels_buffer(), stats, first, e);
                 edited = hull(edited, r.bounds);
+            }
+            if (!edited.empty() && regenerate_instead(edited)) {
+                ctx.queue().finish();
+                stats.update_ms = elapsed_ms(events.front(), events.back()) + sep->run();
+                stats.full_regeneration = true;
+                stats.regions = {world_box()};
+                stats.voxels_recomputed = world.size();
+                return stats;
             }
             if (!edited.empty()) {
                 const ExactSeparable::Update u = sep->update(edited, events);

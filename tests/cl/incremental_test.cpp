@@ -6,6 +6,7 @@
 #include <optional>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cl_test_util.hpp"
@@ -111,6 +112,7 @@ TEST(Incremental, EveryMetricStaysExact) {
                 (c.signed_field ? " signed " : " ") + to_string(c.format) +
                 (c.max_distance ? " max " + std::to_string(*c.max_distance) : "") +
                 (layout == ocl::Layout::cpu ? " cpu" : " gpu");
+            int local = 0;  // batches updated incrementally
             for (int batch = 0; batch < 40; ++batch) {
                 std::vector<Brush> brushes;
                 for (int i = 0; i < (batch % 4 == 0 ? 3 : 1); ++i) {
@@ -123,9 +125,11 @@ TEST(Incremental, EveryMetricStaysExact) {
                     EXPECT_GT(stats.voxels_recomputed, 0u) << what;
                 }
                 // Bounded: every changed voxel lies within D (in voxels of the finest
-                // spacing) of an edited one, plus the one-voxel slack of rounding up.
+                // spacing) of an edited one, plus the one-voxel slack of rounding up (unless
+                // the batch spanned so much of the world that it was regenerated whole).
+                local += stats.full_regeneration ? 0 : 1;
                 for (const Box& r : stats.regions) {
-                    if (!c.max_distance) {
+                    if (!c.max_distance || stats.full_regeneration) {
                         break;
                     }
                     const double finest = std::min({c.spacing.x, c.spacing.y, c.spacing.z});
@@ -144,6 +148,7 @@ TEST(Incremental, EveryMetricStaysExact) {
                     EXPECT_LE(r.max.z, edited.max.z + reach) << what;
                 }
             }
+            EXPECT_GE(local, 30) << what;
         }
     }
 }
@@ -190,6 +195,50 @@ TEST(Incremental, EraseEverythingThenFillEverything) {
     all.radius = 3;
     field.apply({all});
     expect_exact(field, Format::u32, "a hole in a full world");
+}
+
+TEST(Incremental, BatchesSpanningTheWorldRegenerateAndStayExact) {
+    // Changes scattered over the whole world (as a step of falling sand makes) take one full
+    // regeneration; a small edit after it is incremental again. Unbounded L1 (the global sweeps),
+    // bounded L1 and L2 (the separable engine).
+    for (const auto& [metric, bound] : {std::pair{Metric::manhattan, std::optional<double>()},
+                                        std::pair{Metric::manhattan, std::optional<double>(6)},
+                                        std::pair{Metric::euclidean, std::optional<double>()}}) {
+        ocl::GeneratorOptions o;
+        o.metric = metric;
+        o.max_distance = bound;
+        o.format = metric == Metric::euclidean ? Format::f32 : Format::u16;
+        const World start = scene_floor_spheres(Dims{36, 28, 32}, 5, 6);
+        ocl::IncrementalField field(pocl(), start, Palette(), o);
+        std::mt19937_64 rng(17);
+        VoxelChanges scattered;
+        std::vector<bool> taken(start.size());
+        for (int i = 0; i < 400; ++i) {
+            const std::size_t v = rng() % start.size();
+            if (taken[v]) {
+                continue;
+            }
+            taken[v] = true;
+            const std::uint8_t was = start.voxels()[v];
+            scattered.push_back({v, was, static_cast<std::uint8_t>(was != 0 ? 0 : 1 + rng() % 9)});
+        }
+        const std::string what = to_string(metric) + (bound ? " bounded" : "");
+        auto expect_fresh = [&](const std::string& when) {
+            const auto want = ocl::generate(pocl(), field.world(), Palette(), o).bytes;
+            const std::string diff =
+                test::first_difference(field.read(), want, o.format, start.dims());
+            EXPECT_TRUE(diff.empty()) << what << " " << when << ": " << diff;
+        };
+        const ocl::UpdateStats big = field.apply_changes(scattered);
+        EXPECT_TRUE(big.full_regeneration) << what;
+        expect_fresh("after the scattered batch");
+        Brush small;
+        small.centre = {10, 12, 9};
+        small.radius = 2;
+        const ocl::UpdateStats next = field.apply({small});
+        EXPECT_FALSE(next.full_regeneration) << what;
+        expect_fresh("after a small edit");
+    }
 }
 
 TEST(Incremental, WritesNothingOutsideItsRegions) {

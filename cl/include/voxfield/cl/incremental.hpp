@@ -31,7 +31,8 @@ struct UpdateStats {
     double update_ms = 0;  // the batch's device time: uploads and kernels (profiling events)
     std::uint64_t voxels_recomputed = 0;  // voxels whose distance the batch recomputed
     std::vector<Box> regions;             // the voxel boxes recomputed (global: W per edit)
-    bool full_regeneration = false;       // a region grew past max_margin
+    bool full_regeneration = false;       // a region grew past max_margin, or the batch's
+                                          // changes spanned an eighth of the world or more
     std::vector<EditResult> edits;        // what each brush changed in the world
 };
 
