@@ -101,6 +101,21 @@ std::string shape_text(const py::array& a) {
 // A world array checked and made C-contiguous (a copy only when it was not), with the voxel
 // type the library's .npy reader uses for it. Holds a reference, so `data` stays valid while
 // the GIL is released.
+// A dtype's kind and item size and an array's byte count, asked of Python: NumPy 2 moved
+// the descriptor's fields after `kind`, and pybind11 2.10 (Debian 12) reads them directly,
+// which gives wrong sizes under NumPy 2.
+char kind_of(const py::dtype& dt) {
+    return dt.attr("kind").cast<std::string>().at(0);
+}
+
+py::ssize_t itemsize_of(const py::dtype& dt) {
+    return dt.attr("itemsize").cast<py::ssize_t>();
+}
+
+std::size_t nbytes_of(const py::array& a) {
+    return a.attr("nbytes").cast<std::size_t>();
+}
+
 struct WorldArray {
     py::array array;
     NpyType type = NpyType::u8;
@@ -131,8 +146,8 @@ WorldArray world_array(const py::object& object) {
         }
     }
     const py::dtype dt = input.dtype();
-    const char kind = dt.kind();
-    const py::ssize_t size = dt.itemsize();
+    const char kind = kind_of(dt);
+    const py::ssize_t size = itemsize_of(dt);
     WorldArray w;
     if (kind == 'b' || (kind == 'u' && size == 1)) {
         w.type = NpyType::u8;
@@ -157,7 +172,7 @@ WorldArray world_array(const py::object& object) {
               static_cast<std::uint32_t>(input.shape(1)),
               static_cast<std::uint32_t>(input.shape(0))};
     w.data = static_cast<const std::uint8_t*>(w.array.data());
-    w.bytes = static_cast<std::size_t>(w.array.nbytes());
+    w.bytes = nbytes_of(w.array);
     return w;
 }
 
@@ -197,8 +212,15 @@ py::dtype dtype_of(Format f) {
     throw std::invalid_argument("unknown Format value");
 }
 
+// C-order strides of a (Z, Y, X) array of format f, given explicitly: pybind11 2.10 would take
+// the element size from the dtype's fields, which NumPy 2 moved.
+std::vector<py::ssize_t> field_strides(Dims d, Format f) {
+    const auto e = static_cast<py::ssize_t>(element_size(f));
+    return {e * d.y * d.x, e * d.x, e};
+}
+
 py::array empty_field(Dims d, Format f) {
-    return py::array(dtype_of(f), std::vector<py::ssize_t>{d.z, d.y, d.x});
+    return py::array(dtype_of(f), std::vector<py::ssize_t>{d.z, d.y, d.x}, field_strides(d, f));
 }
 
 // Blocking read of a device field into the numpy array's own memory.
@@ -213,7 +235,8 @@ py::array host_field(Dims d, Format f, std::uint8_t*& data) {
     auto memory = std::make_unique<ocl::HostMemory>(d.count() * element_size(f));
     data = memory->data();
     py::capsule owner(memory.release(), [](void* p) { delete static_cast<ocl::HostMemory*>(p); });
-    return py::array(dtype_of(f), std::vector<py::ssize_t>{d.z, d.y, d.x}, data, owner);
+    return py::array(dtype_of(f), std::vector<py::ssize_t>{d.z, d.y, d.x}, field_strides(d, f),
+                     data, owner);
 }
 
 // The sweeps of exact_manhattan.cl from a C-contiguous uint8 world straight into `field`
@@ -312,7 +335,7 @@ py::object distance_transform(const py::object& world, const std::string& metric
     }
     void* field_out = field.mutable_data();
     std::int32_t* indices_out = return_indices ? indices.mutable_data() : nullptr;
-    const std::size_t field_bytes = static_cast<std::size_t>(field.nbytes());
+    const std::size_t field_bytes = nbytes_of(field);
     {
         py::gil_scoped_release release;
         if (sweeps) {
@@ -403,7 +426,7 @@ Palette palette_of(const py::object& palette) {
         throw py::value_error("palette must have shape (256, 4) (RGBA per palette index), got " +
                               shape_text(a));
     }
-    const char kind = a.dtype().kind();
+    const char kind = kind_of(a.dtype());
     if (kind != 'u' && kind != 'i') {
         throw py::type_error("palette dtype " + a.dtype().attr("name").cast<std::string>() +
                              " is not supported: expected an integer type (uint8)");
@@ -522,7 +545,7 @@ class Field {
         const Dims d = field_->world().dims();
         py::array out = empty_field(d, format_);
         void* data = out.mutable_data();
-        const std::size_t bytes = static_cast<std::size_t>(out.nbytes());
+        const std::size_t bytes = nbytes_of(out);
         py::gil_scoped_release release;
         const std::lock_guard<std::mutex> lock(device_->mutex);
         read_into(*device_, field_->field_buffer(), data, bytes, d);
