@@ -33,11 +33,13 @@
 #include "render_field.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
+#include "voxfield/cl/sand.hpp"
 #include "voxfield/core/camera.hpp"
 #include "voxfield/core/edits.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/pick.hpp"
+#include "voxfield/core/sand.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/undo.hpp"
@@ -70,6 +72,7 @@ struct ViewCliOptions {
     std::string json, csv;
     std::string format = "u16", fallback_png, window_screenshot, present = "auto";
     bool validate = false;
+    bool simulate = false;  // --simulate: falling sand and water every frame
 };
 
 // The keys, for F1 and --help.
@@ -89,6 +92,8 @@ const char* const kHelp[][2] = {
     {"1 .. 9, 0", "colour 1 .. 9, 10"},
     {"Ctrl+Z / Ctrl+Y", "undo / redo the last stroke"},
     {"Ctrl+S", "save the world as .npy and .vox (current folder)"},
+    {"G", "--simulate: pause / run the sand and water (colour 2 is sand, 3 water)"},
+    {"N", "--simulate, paused: one step"},
     {"F1", "this help"},
     {"F2", "full panel (algorithm, scene, shading, palette) / compact overlay"},
     {"F12", "screenshot PNG (current folder; path printed)"},
@@ -251,6 +256,10 @@ struct FrameRecord {
     // (convert_ms), device time.
     double time_s = 0, frame_ms = 0, update_ms = 0, convert_ms = 0, raymarch_ms = 0;
     bool edit = false;
+    // --simulate: the step's automaton (device time, -1 without a step) and the voxels it
+    // changed; its field update is part of update_ms.
+    double simulate_ms = -1;
+    std::size_t sim_changed = 0;
 };
 
 nlohmann::json summary_json(const Summary& s) {
@@ -619,6 +628,13 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     }
     std::vector<FrameRecord> records;
     std::deque<float> hist_frame, hist_update, hist_march;
+    // --simulate: the automaton on the device, rebuilt from the session's world whenever
+    // something else changed it (an edit, an undo, a new scene or algorithm).
+    std::unique_ptr<ocl::SandSimulator> sim;
+    bool sim_stale = true, sim_paused = false, sim_single = false;
+    std::uint64_t sim_step = 0;
+    double last_sim_ms = 0;
+    std::size_t last_sim_changed = 0;
     Session::Update last_update;
     std::optional<Brush> preview;
     bool focus_follows = false;
@@ -738,6 +754,12 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             if (keys.pressed(GLFW_KEY_P)) {
                 paint_mode = !paint_mode;
             }
+            if (keys.pressed(GLFW_KEY_G)) {
+                sim_paused = !sim_paused;
+            }
+            if (keys.pressed(GLFW_KEY_N)) {
+                sim_single = true;
+            }
             if (keys.pressed(GLFW_KEY_B)) {
                 brush.shape =
                     brush.shape == BrushShape::sphere ? BrushShape::cube : BrushShape::sphere;
@@ -856,6 +878,27 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                 undo.record(edits.front());
             }
         }
+        if (!batch.empty() || (undo_changes && !undo_changes->empty())) {
+            sim_stale = true;
+        }
+        // One step of falling sand and water, its changes through the incremental update.
+        double simulate_ms = -1;
+        std::size_t sim_changed = 0;
+        if (o.simulate && (!sim_paused || sim_single)) {
+            sim_single = false;
+            if (sim_stale || !sim) {
+                sim = std::make_unique<ocl::SandSimulator>(cl_ctx, session.world(), SandRules{});
+                sim_stale = false;
+            }
+            const ocl::SandStepResult r = sim->step(o.seed, sim_step++);
+            simulate_ms = r.simulate_ms;
+            sim_changed = r.changes.size();
+            if (!r.changes.empty()) {
+                add(session.apply_changes(r.changes));
+            }
+            last_sim_ms = simulate_ms;
+            last_sim_changed = sim_changed;
+        }
         const double update_ms = update.field_ms + update.convert_ms;
         if (update_ms > 0) {
             last_update = update;
@@ -927,6 +970,12 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                 ImGui::Text("%.1f FPS  frame %.2f  update %.3f  march %.3f ms",
                             frame_ms > 0 ? 1000.0 / frame_ms : 0.0, frame_ms,
                             last_update.field_ms + last_update.convert_ms, raymarch_ms);
+                if (o.simulate) {
+                    ImGui::Text("sand: step %llu%s, simulate %.3f ms, %zu voxels moved",
+                                static_cast<unsigned long long>(sim_step),
+                                sim_paused ? " (paused: G runs, N steps)" : "", last_sim_ms,
+                                last_sim_changed);
+                }
                 ImGui::Text("%s + %s", vk_ctx.info().name.c_str(), cl_ctx.info().name.c_str());
                 ImGui::Text("%s, %s; F1 keys, F2 panel",
                             sharing_summary(session.render_field().path()),
@@ -1068,6 +1117,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                                                    dims, o.scene_seed)
                                       : World(session.world());
                     const double ms = session.rebuild(std::move(world), next);
+                    sim_stale = true;
                     undo.clear();
                     switch_error.clear();
                     std::cout << "regenerated: " << ocl::to_string(next.algorithm)
@@ -1107,6 +1157,8 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
         rec.convert_ms = update.convert_ms;
         rec.raymarch_ms = raymarch_ms;
         rec.edit = bench_edit;
+        rec.simulate_ms = simulate_ms;
+        rec.sim_changed = sim_changed;
         records.push_back(rec);
         ++frame;
         if (o.frames != 0 && frame >= o.frames) {
@@ -1158,10 +1210,14 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     }
 
     if (o.benchmark) {
-        std::vector<double> frame_ms, update_ms, march_ms;
+        std::vector<double> frame_ms, update_ms, march_ms, sim_ms, sim_update_ms;
         for (const FrameRecord& r : records) {
             frame_ms.push_back(r.frame_ms);
-            if (r.edit) {
+            if (r.simulate_ms >= 0) {
+                // Every frame steps the sand: its update is the step's (plus any edit's).
+                sim_ms.push_back(r.simulate_ms);
+                sim_update_ms.push_back(r.update_ms);
+            } else if (r.edit) {
                 update_ms.push_back(r.update_ms);
             }
             if (r.raymarch_ms >= 0) {
@@ -1169,14 +1225,24 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             }
         }
         const Summary sf = summarize(frame_ms), su = summarize(update_ms), sm = summarize(march_ms);
+        const auto edit_count = static_cast<std::size_t>(std::count_if(
+            records.begin(), records.end(), [](const FrameRecord& r) { return r.edit; }));
         std::cout << "benchmark: seed " << o.seed << ", an edit every " << o.interval_ms
                   << " ms for " << o.duration_s << " s, " << records.size() << " frames, "
-                  << update_ms.size() << " edits, " << ropts.width << "x" << ropts.height
+                  << edit_count << " edits, "
+                  << (o.simulate ? std::to_string(sim_ms.size()) + " sand steps, " : "")
+                  << ropts.width << "x" << ropts.height
                   << (presenter ? ", present " + vk::to_string(presenter->mode())
                                 : std::string(", headless"))
                   << '\n';
         print_summary("frame (incl. field update)", sf);
-        print_summary("field update (edit frames)", su);
+        const Summary ssim = summarize(sim_ms), ssu = summarize(sim_update_ms);
+        if (o.simulate) {
+            print_summary("sand simulation (device)", ssim);
+            print_summary("field update (every frame)", ssu);
+        } else {
+            print_summary("field update (edit frames)", su);
+        }
         print_summary("ray march", sm);
         if (sf.mean > 0) {
             std::cout << "  mean FPS " << fixed(1000.0 / sf.mean, 1) << '\n';
@@ -1198,17 +1264,25 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             j["image"] = {ropts.width, ropts.height};
             j["present"] = presenter ? vk::to_string(presenter->mode()) : "headless";
             j["sharing"] = session.marcher().sharing_path();
+            j["simulate"] = o.simulate;
             j["summary"] = {{"frame", summary_json(sf)},
-                            {"field_update", summary_json(su)},
+                            {"field_update", summary_json(o.simulate ? ssu : su)},
                             {"raymarch", summary_json(sm)}};
+            if (o.simulate) {
+                j["summary"]["simulate"] = summary_json(ssim);
+            }
             nlohmann::json frames = nlohmann::json::array();
             for (const FrameRecord& r : records) {
-                frames.push_back({{"time_s", r.time_s},
-                                  {"frame_ms", r.frame_ms},
-                                  {"update_ms", r.update_ms},
-                                  {"convert_ms", r.convert_ms},
-                                  {"raymarch_ms", r.raymarch_ms},
-                                  {"edit", r.edit}});
+                frames.push_back(
+                    {{"time_s", r.time_s},
+                     {"frame_ms", r.frame_ms},
+                     {"update_ms", r.update_ms},
+                     {"convert_ms", r.convert_ms},
+                     {"raymarch_ms", r.raymarch_ms},
+                     {"edit", r.edit},
+                     {"simulate_ms",
+                      r.simulate_ms < 0 ? nlohmann::json() : nlohmann::json(r.simulate_ms)},
+                     {"sand_voxels_changed", r.sim_changed}});
             }
             j["frames"] = frames;
             write_json_file(o.json, j);
@@ -1281,7 +1355,13 @@ Command add_view(CLI::App& root) {
     app->add_flag("--benchmark", o->benchmark,
                   "The dissertation's benchmark: a random sphere every --interval-ms (seeded, "
                   "reproducible), vsync off, per-frame times, summary printed and saved");
-    app->add_option("--seed", o->seed, "Benchmark seed")->capture_default_str();
+    app->add_option("--seed", o->seed, "Benchmark seed (and the sand's, with --simulate)")
+        ->capture_default_str();
+    app->add_flag("--simulate", o->simulate,
+                  "Falling sand and water every frame (as `simulate`: colour 2 falls as sand, 3 "
+                  "flows as water, every other solid stays), the field updated after each step; "
+                  "G pauses, N steps; with --benchmark the sand's and the update's times are "
+                  "recorded per frame");
     app->add_option("--interval-ms", o->interval_ms, "Benchmark: time between edits")
         ->capture_default_str();
     app->add_option("--duration-s", o->duration_s, "Benchmark: duration")->capture_default_str();

@@ -3,6 +3,8 @@
 // mappings, so every standard library gives the same worlds for a seed.
 #include "voxfield/core/scenes.hpp"
 
+#include "voxfield/core/sand.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -165,7 +167,7 @@ World scene_random(Dims dims, double density, std::uint64_t seed) {
 }
 
 std::vector<std::string> scene_names() {
-    return {"empty", "spheres", "terrain", "menger", "random"};
+    return {"empty", "spheres", "terrain", "menger", "random", "sand"};
 }
 
 World make_scene(const std::string& name, Dims dims, std::uint64_t seed) {
@@ -183,6 +185,9 @@ World make_scene(const std::string& name, Dims dims, std::uint64_t seed) {
     }
     if (name == "random") {
         return scene_random(dims, 0.1, seed);
+    }
+    if (name == "sand") {
+        return scene_sand(dims, seed);
     }
     std::string valid;
     for (const auto& n : scene_names()) {

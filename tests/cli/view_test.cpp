@@ -14,6 +14,7 @@
 
 #include "cli_test_util.hpp"
 #include "voxfield/core/npy.hpp"
+#include "voxfield/core/scenes.hpp"
 #include "voxfield/core/world.hpp"
 
 #define STB_IMAGE_IMPLEMENTATION
@@ -208,6 +209,62 @@ TEST_F(ViewTest, BenchmarkEditsLeaveTheFieldAFreshGenerationWouldGive) {
         EXPECT_EQ(got.dims, want.dims);
         EXPECT_TRUE(got.data == want.data) << "the viewer's field differs from a fresh one";
     }
+}
+
+TEST_F(ViewTest, SimulateStepsTheSandEveryFrameAndKeepsTheFieldExact) {
+    // `--simulate` on the sand scene, no edits (an interval past the run): every frame steps
+    // the automaton; the final world conserves sand and water, and the final field is the one
+    // `generate` computes from it.
+    const fs::path json = dir_ / "s.json", world = dir_ / "w.npy", field = dir_ / "f.npy",
+                   fresh = dir_ / "g.npy";
+    RunResult r = run_voxfield({"view",
+                                "--world",
+                                "32",
+                                "--scene",
+                                "sand",
+                                "--simulate",
+                                "--benchmark",
+                                "--seed",
+                                "5",
+                                "--interval-ms",
+                                "100000",
+                                "--duration-s",
+                                "1",
+                                "--width",
+                                "48",
+                                "--height",
+                                "32",
+                                "--json",
+                                json.string(),
+                                "--world-output",
+                                world.string(),
+                                "--field-output",
+                                field.string()},
+                               io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_NE(r.out.find("sand simulation (device)"), std::string::npos) << r.out;
+    const auto j = nlohmann::json::parse(read_text(json));
+    EXPECT_TRUE(j["simulate"].get<bool>());
+    const auto& frames = j["frames"];
+    ASSERT_GT(frames.size(), 2u);
+    std::size_t moved = 0;
+    for (const auto& f : frames) {
+        ASSERT_FALSE(f["simulate_ms"].is_null());
+        moved += f["sand_voxels_changed"].get<std::size_t>();
+    }
+    EXPECT_GT(moved, 0u);
+    EXPECT_EQ(j["summary"]["simulate"]["n"], frames.size());
+    const World start = make_scene("sand", Dims{32, 32, 32}, 6683787);
+    const NpyArray end = read_npy(world);
+    for (const std::uint8_t material : {std::uint8_t{2}, std::uint8_t{3}}) {
+        EXPECT_EQ(std::count(end.data.begin(), end.data.end(), material),
+                  std::count(start.voxels().begin(), start.voxels().end(), material))
+            << "material " << int{material};
+    }
+    r = run_voxfield({"generate", world.string(), "-o", fresh.string()}, io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_TRUE(read_npy(field).data == read_npy(fresh).data)
+        << "the viewer's field differs from a fresh one";
 }
 
 bool have_xvfb() {

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "test_util.hpp"
+#include "voxfield/core/sand.hpp"
 #include "voxfield/core/scenes.hpp"
 
 namespace voxfield {
@@ -120,13 +121,14 @@ TEST(Scenes, RandomDensity) {
 
 TEST(Scenes, MakeSceneByName) {
     const Dims d{16, 16, 16};
-    EXPECT_EQ(scene_names(),
-              (std::vector<std::string>{"empty", "spheres", "terrain", "menger", "random"}));
+    EXPECT_EQ(scene_names(), (std::vector<std::string>{"empty", "spheres", "terrain", "menger",
+                                                       "random", "sand"}));
     EXPECT_EQ(make_scene("empty", d, 1).solid_count(), 0u);
     EXPECT_EQ(make_scene("spheres", d, 4).voxels(), scene_floor_spheres(d, 4).voxels());
     EXPECT_EQ(make_scene("terrain", d, 4).voxels(), scene_terrain(d, 4).voxels());
     EXPECT_EQ(make_scene("menger", d, 4).voxels(), scene_menger(d).voxels());
     EXPECT_EQ(make_scene("random", d, 4).voxels(), scene_random(d, 0.1, 4).voxels());
+    EXPECT_EQ(make_scene("sand", d, 4).voxels(), scene_sand(d, 4).voxels());
     expect_input_error([&] { make_scene("cube", d, 1); },
                        {"'cube'", "empty, spheres, terrain, menger, random"});
 }
