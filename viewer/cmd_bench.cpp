@@ -215,7 +215,7 @@ Command add_bench(CLI::App& root) {
         ->capture_default_str();
     app->add_option("--warmup", o->warmup, "Untimed runs before the timed ones")
         ->capture_default_str();
-    app->add_option("--scene", o->scene, "World generator: empty, spheres, terrain, menger, random")
+    app->add_option("--scene", o->scene, "World generator: empty, spheres, terrain, menger, random, sand")
         ->check(CLI::IsMember(scene_names()))
         ->capture_default_str();
     app->add_option("--seed", o->seed, "Scene seed")->capture_default_str();
