@@ -29,6 +29,7 @@
 #include "voxfield/core/sand.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/stats.hpp"
+#include "voxfield/core/undo.hpp"
 #include "voxfield/layout.h"
 #include "voxfield/vk/raymarcher.hpp"
 
@@ -406,52 +407,21 @@ json run_dissertation(ocl::Context& ctx, const RunPlan& plan, bool quick) {
 // ---------------------------------------------------------------------------------------
 // edits suite
 
-// splitmix64: the same sequence on every platform and compiler (std distributions are not).
-class Rng {
-  public:
-    explicit Rng(std::uint64_t seed) : state_(seed) {}
-    std::uint64_t next() {
-        std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
-    }
-    // Uniform in [lo, hi] (modulo bias below 2^-40 for these ranges).
-    std::int64_t range(std::int64_t lo, std::int64_t hi) {
-        return lo + static_cast<std::int64_t>(next() % static_cast<std::uint64_t>(hi - lo + 1));
-    }
-
-  private:
-    std::uint64_t state_;
-};
-
 struct EditSpec {
     Brush brush;
     std::int64_t size = 0;  // the protocol's brush size 1..C-1; radius = size / 2
 };
 
-// The dissertation's benchmark mode (seed-code-notes: "every 200 ms a sphere at a uniformly
-// random centre with random size in 1..C-1 and a random voxel type, about 1 in 12 air"), the
-// demo's brush radius being size / 2. The same sequence for every algorithm of the run.
+// The dissertation's benchmark mode, as `view --benchmark` runs it (core's RandomEdits: the
+// same seed gives the same edits there and here). The same sequence for every algorithm.
 std::vector<EditSpec> make_edit_sequence(Dims dims, std::uint32_t chunk, std::uint32_t count,
                                          std::uint64_t seed) {
-    Rng rng(seed);
+    RandomEdits generator(dims, chunk, seed);
     std::vector<EditSpec> edits;
     for (std::uint32_t i = 0; i < count; ++i) {
         EditSpec e;
-        e.brush.shape = BrushShape::sphere;
-        e.brush.centre = {rng.range(0, dims.x - 1), rng.range(0, dims.y - 1),
-                          rng.range(0, dims.z - 1)};
-        e.size = rng.range(1, std::max<std::int64_t>(1, std::int64_t{chunk} - 1));
-        e.brush.radius = e.size / 2;
-        // Voxel type 0..255 with air weighted to one in 12.
-        if (rng.range(0, 11) == 0) {
-            e.brush.op = BrushOp::erase;
-            e.brush.material = 1;
-        } else {
-            e.brush.op = BrushOp::place;
-            e.brush.material = static_cast<std::uint8_t>(rng.range(1, 255));
-        }
+        e.brush = generator.next();
+        e.size = generator.last_size();
         edits.push_back(e);
     }
     return edits;
@@ -1020,10 +990,11 @@ int run_suite(const SuiteOptions& o) {
         doc["edits"] = count;
         doc["chunk"] = o.chunk;
         doc["protocol"] =
-            "the dissertation's benchmark mode: spheres at uniformly random centres, size "
-            "uniform in 1..C-1 (brush radius = size / 2, as the demo's brush), voxel type "
-            "uniform with one in 12 air (an erase), else place with material 1..255; splitmix64 "
-            "seeded with `seed`, the same sequence for every algorithm; one edit per update";
+            "the dissertation's benchmark mode (core's RandomEdits, as view --benchmark): spheres "
+            "at uniformly random centres, size uniform in 1..C-1 (brush radius = size / 2, as the "
+            "demo's brush), voxel type uniform in 0..11 where 0 (one in 12) erases and 1..11 "
+            "place the dissertation's colours; splitmix64 seeded with `seed`, the same sequence "
+            "for every algorithm and for view --benchmark; one edit per update";
         rows = run_edits(ctx, o, plan, dims, count);
     } else if (o.suite == "sand") {
         const std::uint32_t n = o.world != 0 ? o.world : (o.quick ? 64 : 256);

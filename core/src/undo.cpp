@@ -220,6 +220,7 @@ Brush RandomEdits::next() {
                 static_cast<std::int64_t>(below(dims_.y)),
                 static_cast<std::int64_t>(below(dims_.z))};
     const std::int64_t size = 1 + static_cast<std::int64_t>(below(chunk_ - 1));
+    last_size_ = size;
     b.radius = size / 2;
     const auto material = static_cast<std::uint8_t>(below(12));
     if (material == 0) {

@@ -9,6 +9,8 @@
 #include <string>
 
 #include "cli_test_util.hpp"
+#include "voxfield/core/brush.hpp"
+#include "voxfield/core/undo.hpp"
 
 namespace voxfield::test {
 namespace {
@@ -144,7 +146,17 @@ TEST_F(BenchSuite, EditsQuickRecordsPerEditTimesAndFullRegeneration) {
             EXPECT_LE(e["size"].get<int>(), 15);
             sequence.push_back({e["op"], e["centre"], e["size"], e["material"]});
         }
-        // The same seeded edits for every algorithm.
+        // The same seeded edits for every algorithm, and those view --benchmark makes (core's
+        // RandomEdits, same world, chunk and seed).
+        RandomEdits view_edits(Dims{32, 32, 32}, 16, 6683787);
+        for (const json& e : row["edits"]) {
+            const Brush b = view_edits.next();
+            EXPECT_EQ(e["centre"], json::array({b.centre.x, b.centre.y, b.centre.z}));
+            EXPECT_EQ(e["radius"], b.radius);
+            EXPECT_EQ(e["size"], view_edits.last_size());
+            EXPECT_EQ(e["op"], to_string(b.op));
+            EXPECT_EQ(e["material"], b.op == BrushOp::erase ? 0 : b.material);
+        }
         if (first_sequence.empty()) {
             first_sequence = sequence.dump();
         } else if (row["edits"].size() == 6) {

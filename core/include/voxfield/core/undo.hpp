@@ -87,11 +87,14 @@ class UndoStack {
 // centre of the world, size uniform in 1..chunk-1 (radius = size / 2), material uniform in
 // 0..11 where 0 (about 1 in 12) erases and 1..11 place the dissertation's colours. The same
 // seed gives the same sequence on every run and platform (splitmix64, no std distributions).
+// `view --benchmark` and `bench --suite edits` both draw their edits from it.
 class RandomEdits {
   public:
     // chunk >= 2.
     RandomEdits(Dims dims, std::uint32_t chunk, std::uint64_t seed);
     Brush next();
+    // The protocol's size (1..chunk-1) of the last edit next() gave; its radius is size / 2.
+    std::int64_t last_size() const { return last_size_; }
 
   private:
     std::uint64_t below(std::uint64_t n);  // uniform in [0, n)
@@ -99,6 +102,7 @@ class RandomEdits {
     Dims dims_;
     std::uint32_t chunk_;
     std::uint64_t state_;
+    std::int64_t last_size_ = 0;
 };
 
 }  // namespace voxfield
