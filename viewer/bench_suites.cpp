@@ -429,9 +429,18 @@ std::vector<EditSpec> make_edit_sequence(Dims dims, std::uint32_t chunk, std::ui
 
 json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Dims dims,
                std::uint32_t count) {
-    const std::vector<std::string> algorithms = {"exact",   "brute-chunked", "fim-host",
-                                                 "fim",     "jfa-host",      "jfa",
-                                                 "jfa-fim", "lod",           "monolithic"};
+    // exact unbounded and bounded at several D (an edit's update then stays within D of it),
+    // then the dissertation's algorithms.
+    struct EditRow {
+        std::string algorithm;
+        std::optional<double> bound;
+    };
+    std::vector<EditRow> algorithms = {
+        {"exact", {}}, {"exact", 4.0}, {"exact", 16.0}, {"exact", 64.0}};
+    for (const char* name :
+         {"brute-chunked", "fim-host", "fim", "jfa-host", "jfa", "jfa-fim", "lod", "monolithic"}) {
+        algorithms.push_back({name, {}});
+    }
     const std::vector<EditSpec> edits = make_edit_sequence(dims, o.chunk, count, o.seed);
     const World initial = make_scene(kScene, dims, o.seed);
     const Palette palette = Palette::magicavoxel_default();
@@ -445,9 +454,11 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
     json rows = json::array();
     const auto suite_t0 = Clock::now();
     for (std::size_t ai = 0; ai < algorithms.size(); ++ai) {
-        const std::string& name = algorithms[ai];
+        const std::string& name = algorithms[ai].algorithm;
+        const std::optional<double> bound = algorithms[ai].bound;
         const std::string label = "[" + std::to_string(ai + 1) + "/" +
-                                  std::to_string(algorithms.size()) + "] edits " + name;
+                                  std::to_string(algorithms.size()) + "] edits " + name +
+                                  (bound ? " max-distance " + fixed(*bound, 0) : "");
         const std::uint32_t chunk = name == "exact" ? 0 : o.chunk;
         json row = {{"table", "edits"},
                     {"group", "world " + dims.to_string() + ", " + std::to_string(count) +
@@ -456,6 +467,7 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
                     {"size", {dims.x, dims.y, dims.z}},
                     {"chunk", opt_chunk(chunk)},
                     {"metric", "manhattan"},
+                    {"max_distance", bound ? json(*bound) : json()},
                     {"format", o.format},
                     {"scene", kScene},
                     {"seed", o.seed},
@@ -466,6 +478,7 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
             options.algorithm = ocl::parse_algorithm(name);
             options.format = format;
             options.chunk = chunk;
+            options.max_distance = bound;
             options = ocl::resolve_options(options, dims);
             if (options.focus) {
                 row["focus"] = focus_json(options.focus);
@@ -545,8 +558,15 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
         }
         std::cerr << "\rbench: " << label << ": checking the final field against the CPU "
                   << "reference\n";
-        const Accuracy a = compare_to_exact(field->read(), options.format,
-                                            ocl::exact_reference(field->world(), options));
+        std::vector<std::uint32_t> reference = ocl::exact_reference(field->world(), options);
+        if (bound) {
+            // A bounded field is the exact one capped at D (D is an integer here).
+            const auto cap = static_cast<std::uint32_t>(*bound);
+            for (std::uint32_t& v : reference) {
+                v = std::min(v, cap);
+            }
+        }
+        const Accuracy a = compare_to_exact(field->read(), options.format, reference);
         put_summary(row, update_ms);
         row.erase("samples_ms");  // per edit below
         const Summary rs = summarize(regen);
@@ -575,7 +595,8 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
                 : static_cast<double>(recomputed) / static_cast<double>(update_ms.size());
         row["full_regenerations"] = fallbacks;
         row["edits"] = per_edit;
-        std::printf("%-14s %-14s %-6s %12.3f %12.3f %12.3f %12.3f %14.0f %7u\n", name.c_str(),
+        const std::string shown = name + (bound ? " D=" + fixed(*bound, 0) : "");
+        std::printf("%-14s %-14s %-6s %12.3f %12.3f %12.3f %12.3f %14.0f %7u\n", shown.c_str(),
                     dims.to_string().c_str(), chunk == 0 ? "-" : std::to_string(chunk).c_str(),
                     median, row["mean_ms"].get<double>(), row["max_ms"].get<double>(), rs.median,
                     row["voxels_recomputed_mean"].get<double>(), a.max_error);
