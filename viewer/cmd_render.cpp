@@ -34,7 +34,7 @@ namespace {
 
 struct RenderCliOptions {
     std::string input, output, camera, target, shading = "flat", sky, device, field = "compact",
-                                               metric = "manhattan";
+                                               spacing, metric = "manhattan";
     std::uint32_t width = 800, height = 600;
     double fov = 60;
     bool stats = false, validate = false;
@@ -149,6 +149,14 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
     ocl::GeneratorOptions g;
     g.algorithm = ocl::Algorithm::exact;
     g.metric = parse_metric(o.metric);
+    if (!o.spacing.empty()) {
+        g.spacing = parse_spacing(o.spacing);
+        if (format == vk::FieldFormat::packed32 && !g.spacing.unit()) {
+            throw InputError("--spacing " + g.spacing.to_string() +
+                             " needs --field compact (the packed32 field is copied as it is, "
+                             "in the spacing's units, which the ray marcher cannot step by)");
+        }
+    }
     g.format = format == vk::FieldFormat::packed32 ? Format::packed32 : Format::u16;
     g = ocl::resolve_options(g, world.dims());
     ocl::Context cl_ctx(ocl::select_device(o.device));
@@ -184,7 +192,7 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
         why_not = shared->why_not();
         kernel_ms = exact->run();
         kernel_ms += shared->attach(marcher, exact->field_buffer(), Format::u16, g.metric, voxels,
-                                    model.palette);
+                                    model.palette, g.spacing.largest());
     }
     const vk::Image image = marcher.render(r);
 
@@ -282,6 +290,11 @@ Command add_render(CLI::App& root) {
                     "the number of steps per ray is not")
         ->check(CLI::IsMember(metric_names()))
         ->capture_default_str();
+    app->add_option("--spacing", o->spacing,
+                    "Voxel size X,Y,Z of the field's metric (default 1,1,1): the field is computed "
+                    "in those units and turned into voxel steps (divided by the largest, rounded "
+                    "down) for the ray marcher; the image is the same, the steps per ray are not "
+                    "(--field compact only)");
     app->add_flag("--stats", o->stats,
                   "Report the ray-march dispatch time (GPU timestamps), Mrays/s, and the field "
                   "fetches and DDA steps per ray (from one more, counting frame)");

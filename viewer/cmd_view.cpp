@@ -163,11 +163,12 @@ class Session {
         render_field_->detach();
         try {
             render_field_->attach(*marcher_, field->field_buffer(), next.format, next.metric,
-                                  field->voxels_buffer(), palette_);
+                                  field->voxels_buffer(), palette_, next.spacing.largest());
         } catch (...) {
             if (field_) {
                 render_field_->attach(*marcher_, field_->field_buffer(), options_.format,
-                                      options_.metric, field_->voxels_buffer(), palette_);
+                                      options_.metric, field_->voxels_buffer(), palette_,
+                                      options_.spacing.largest());
             }
             throw;
         }
@@ -488,13 +489,6 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     }
     const Dims dims = model.world.dims();
     ocl::GeneratorOptions gopts = generator_options(o.gen, parse_format(o.format), dims);
-    if (!gopts.spacing.unit()) {
-        // The ray marcher steps through cells by the field's value in voxels and takes a
-        // distance of 0 for a solid; a scaled field would make it skip solids or invent them.
-        throw InputError("--spacing " + gopts.spacing.to_string() +
-                         ": the viewer draws unit-spacing fields only (use generate or replay "
-                         "for scaled fields)");
-    }
     const std::uint32_t bench_chunk = gopts.chunk != 0 ? gopts.chunk : ocl::kDefaultChunk;
 
     ocl::Context cl_ctx(ocl::select_device(o.device));

@@ -82,13 +82,14 @@ RenderField::~RenderField() {
 }
 
 double RenderField::attach(vk::Raymarcher& marcher, const cl::Buffer& field, Format format,
-                           Metric metric, const cl::Buffer& voxels, const Palette& palette) {
+                           Metric metric, const cl::Buffer& voxels, const Palette& palette,
+                           double step) {
     palette_ = palette;
     metric_ = metric;
     writer_.reset();
     writer_.emplace(cl_, field, format, voxels, dims_, cl_field_,
                     ocl::SlabLayout{layout_.slab_depth, layout_.slab_stride},
-                    path_ == vk::SharingPath::opaque_fd);
+                    path_ == vk::SharingPath::opaque_fd, step);
     const double ms = writer_->run();
     if (path_ == vk::SharingPath::copy) {
         publish(marcher);

@@ -35,8 +35,10 @@ class RenderField {
     // world's voxels, both on the OpenCL device; they must stay alive until the next attach)
     // and shows the whole field in `marcher` (bound in place on paths 1/2, copied on path 3),
     // which then steps by that metric. Returns the OpenCL time in ms.
+    // `step` is the field's largest voxel spacing (1 for unit spacing): its distances are
+    // converted into voxels, rounded down, for the ray marcher.
     double attach(vk::Raymarcher& marcher, const cl::Buffer& field, Format format, Metric metric,
-                  const cl::Buffer& voxels, const Palette& palette);
+                  const cl::Buffer& voxels, const Palette& palette, double step = 1.0);
     // Lets go of the source (before it is replaced, so that both never hold device memory
     // at once); update() needs an attach() after this.
     void detach() { writer_.reset(); }

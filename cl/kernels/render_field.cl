@@ -4,12 +4,20 @@
 // (packed32: bits 15..8). Distances are saturated at the source format's maximum, 0 on solids.
 #define SRC_DISTANCE(v) (((uint)(v) >> VF_SRC_SHIFT) & VF_SRC_MASK)
 
+// The field's distance d (in the units of its voxel spacing) as a lower bound of the distance in
+// voxels, which the ray marcher steps by: with s the largest spacing, every metric of the scaled
+// offset is at most s times the metric of the voxel offset, so floor(d / s) never over-states it.
+// inv_step is 1 / s rounded down (exactly 1 for unit spacing).
+inline uint voxel_steps(uint d, float inv_step) {
+    return inv_step == 1.0f ? d : (uint)floor((float)d * inv_step);
+}
+
 // One work-item per voxel of the box at `lo` of `size` voxels (count = its volume; x fastest),
 // written into z-slabs of slab_depth slices that start slab_stride elements apart, so that each
 // slab is one Vulkan storage-buffer binding inside a single shared allocation.
 __kernel void to_compact(__global const VF_SRC_T* restrict dist, __global const uchar* restrict vox,
-                         __global ushort* restrict out, uint4 d, uint slab_depth,
-                         ulong slab_stride, uint4 lo, uint4 size, ulong count) {
+                         __global ushort* restrict out, uint4 d, uint slab_depth, ulong slab_stride,
+                         uint4 lo, uint4 size, ulong count, float inv_step) {
     const ulong k = get_global_id(0);
     if (k >= count) {
         return;
@@ -21,7 +29,10 @@ __kernel void to_compact(__global const VF_SRC_T* restrict dist, __global const 
     const ulong i = ((ulong)z * d.y + y) * d.x + x;
     const uint slab = z / slab_depth;
     const ulong local_i = ((ulong)(z - slab * slab_depth) * d.y + y) * d.x + x;
-    const uint dd = min(SRC_DISTANCE(dist[i]), (uint)VF_COMPACT_DISTANCE_MAX);
+    // An empty voxel is at least one voxel from every solid, whatever its scaled distance
+    // rounded to (0 would read as solid).
+    const uint steps = voxel_steps(SRC_DISTANCE(dist[i]), inv_step);
+    const uint dd = min(vox[i] == 0 ? max(steps, 1u) : steps, (uint)VF_COMPACT_DISTANCE_MAX);
     out[slab * slab_stride + local_i] =
         (ushort)((dd << VF_COMPACT_DISTANCE_SHIFT) | (vox[i] & VF_COMPACT_MATERIAL_MASK));
 }
@@ -30,7 +41,7 @@ __kernel void to_compact(__global const VF_SRC_T* restrict dist, __global const 
 // block box at `lo` of `size` blocks (count = its volume), the minimum of the distances over
 // the block's voxels, a lower bound of every voxel's true distance in the block.
 __kernel void block_min(__global const VF_SRC_T* restrict dist, __global uint* restrict out,
-                        uint4 d, uint4 lo, uint4 size, ulong count) {
+                        uint4 d, uint4 lo, uint4 size, ulong count, float inv_step) {
     const ulong k = get_global_id(0);
     if (k >= count) {
         return;
@@ -46,7 +57,7 @@ __kernel void block_min(__global const VF_SRC_T* restrict dist, __global uint* r
         for (uint y = first.y; y < last.y; ++y) {
             const ulong r = ((ulong)z * d.y + y) * d.x;
             for (uint x = first.x; x < last.x; ++x) {
-                m = min(m, SRC_DISTANCE(dist[r + x]));
+                m = min(m, voxel_steps(SRC_DISTANCE(dist[r + x]), inv_step));
             }
         }
     }

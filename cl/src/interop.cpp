@@ -6,9 +6,11 @@
 #include <CL/cl_ext.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <exception>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 #include "util.hpp"
@@ -113,8 +115,15 @@ class ExternalAcquire {
 
 CompactWriter::CompactWriter(Context& ctx, const cl::Buffer& field, Format format,
                              const cl::Buffer& voxels, Dims dims, cl::Buffer dst, SlabLayout layout,
-                             bool external)
+                             bool external, double step)
     : ctx_(ctx), dims_(dims), dst_(dst), external_(external) {
+    if (!(step > 0) || !std::isfinite(step)) {
+        throw std::invalid_argument("CompactWriter: the voxel step must be positive and finite");
+    }
+    // 1 / step rounded down with room for the kernel's float rounding (relative 2^-23 on
+    // distances below 2^20), so that floor(d * inv) never exceeds d / step.
+    const float inv_step =
+        step == 1.0 ? 1.0f : static_cast<float>((1.0 / step) * (1.0 - std::ldexp(1.0, -20)));
     const std::string what = "compact render field of " + dims.to_string();
     if (layout.slab_depth == 0 || layout.slab_stride_bytes % 2 != 0) {
         throw ClError("clSetKernelArg", CL_INVALID_VALUE,
@@ -133,6 +142,7 @@ CompactWriter::CompactWriter(Context& ctx, const cl::Buffer& field, Format forma
         kernel_.setArg(3, d);
         kernel_.setArg(4, cl_uint{layout.slab_depth});
         kernel_.setArg(5, static_cast<cl_ulong>(layout.slab_stride_bytes / 2));
+        kernel_.setArg(9, inv_step);
         const std::uint32_t b = VF_RAYMARCH_BLOCK;
         block_count_ =
             std::size_t{(dims.x + b - 1) / b} * ((dims.y + b - 1) / b) * ((dims.z + b - 1) / b);
@@ -141,6 +151,7 @@ CompactWriter::CompactWriter(Context& ctx, const cl::Buffer& field, Format forma
         block_kernel_.setArg(0, field);
         block_kernel_.setArg(1, block_min_);
         block_kernel_.setArg(2, d);
+        block_kernel_.setArg(6, inv_step);
     });
 }
 

@@ -300,7 +300,8 @@ TEST_F(CliTest, GenerateStatsPrintsPhases) {
         {u8, {"--format", "packed32", "--repeat", "3", "--warmup", "1"}, true},
         {kVox, {}, false},
         {u16, {}, false},
-        {u8, {"--metric", "chebyshev"}, false},
+        {u8, {"--metric", "chebyshev"}, true},  // the sweeps' CPU layout
+        {u8, {"--metric", "euclidean"}, false},
         {u8, {"--algorithm", "fim"}, false},
     };
     const std::vector<std::string> phases = {"read",     "setup", "upload", "kernels",

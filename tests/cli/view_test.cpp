@@ -10,6 +10,7 @@
 #include <optional>
 #include <regex>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli_test_util.hpp"
@@ -134,13 +135,16 @@ TEST_F(ViewTest, BadUsageIsCheckedFirst) {
     EXPECT_EQ(r.code, 2) << describe(r);
     r = run_voxfield({"view", "--edits", (dir_ / "missing.txt").string()}, io_);
     EXPECT_EQ(r.code, 2) << describe(r);
-    // The ray marcher steps by distances in voxels: a scaled field is refused, not drawn wrong.
-    r = run_voxfield({"view", "--world", "16", "--spacing", "2,2,2", "--fallback-png",
-                      (dir_ / "s.png").string()},
-                     io_);
-    EXPECT_EQ(r.code, 2) << describe(r);
-    EXPECT_NE(r.err.find("unit-spacing"), std::string::npos) << describe(r);
-    EXPECT_FALSE(std::filesystem::exists(dir_ / "s.png"));
+    // A scaled field is drawn through voxel steps (its distances divided by the largest
+    // spacing, rounded down): the same first frame as the unit field's.
+    const fs::path spaced = dir_ / "s.png", unit = dir_ / "u.png";
+    for (const auto& [png, spacing] : {std::pair{spaced, "2,1,0.5"}, std::pair{unit, "1,1,1"}}) {
+        r = run_voxfield({"view", "--world", "16", "--spacing", spacing, "--shading", "flat",
+                          "--width", "48", "--height", "32", "--fallback-png", png.string()},
+                         io_);
+        EXPECT_EQ(r.code, 0) << describe(r);
+    }
+    EXPECT_EQ(read_text(spaced), read_text(unit));
 }
 
 TEST_F(ViewTest, HeadlessBenchmarkIsReproducibleAndRecorded) {

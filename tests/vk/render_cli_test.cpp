@@ -117,6 +117,31 @@ TEST_F(RenderCli, EveryMetricGivesTheSameImage) {
     }
 }
 
+// A field with voxel spacing, turned into voxel steps by its largest spacing, draws the same
+// image as the unit field: the steps are lower bounds, so no solid is skipped, and the DDA
+// decides the hit voxel. packed32 cannot take a spacing (its field is copied as it is).
+TEST_F(RenderCli, SpacingGivesTheSameImage) {
+    const fs::path unit = dir_ / "unit.png";
+    RunResult r = run_voxfield(
+        {"render", kModel.string(), "-o", unit.string(), "--width", "64", "--height", "48"}, io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    for (const std::string metric : {"manhattan", "chebyshev", "euclidean"}) {
+        for (const std::string spacing : {"2,1,0.5", "0.3,0.3,0.3"}) {
+            const fs::path out = dir_ / (metric + "-spaced.png");
+            r = run_voxfield({"render", kModel.string(), "-o", out.string(), "--width", "64",
+                              "--height", "48", "--metric", metric, "--spacing", spacing},
+                             io_);
+            ASSERT_EQ(r.code, 0) << describe(r);
+            EXPECT_EQ(read_bytes(out), read_bytes(unit)) << metric << " spacing " << spacing;
+        }
+    }
+    r = run_voxfield({"render", kModel.string(), "-o", (dir_ / "p.png").string(), "--field",
+                      "packed32", "--spacing", "2,1,1"},
+                     io_);
+    EXPECT_EQ(r.code, 2) << describe(r);
+    EXPECT_FALSE(fs::exists(dir_ / "p.png"));
+}
+
 TEST_F(RenderCli, HelpListsEveryOption) {
     const RunResult r = run_voxfield({"render", "--help"}, io_);
     ASSERT_EQ(r.code, 0) << describe(r);

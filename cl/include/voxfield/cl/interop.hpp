@@ -30,8 +30,11 @@ struct SlabLayout {
 // (clEnqueueAcquire/ReleaseExternalMemObjectsKHR).
 class CompactWriter {
   public:
+    // `step`: the field's largest voxel spacing; its distances (in the spacing's units) are
+    // turned into lower bounds in voxels, floor(d / step), which the ray marcher steps by.
     CompactWriter(Context& ctx, const cl::Buffer& field, Format format, const cl::Buffer& voxels,
-                  Dims dims, cl::Buffer dst, SlabLayout layout, bool external = false);
+                  Dims dims, cl::Buffer dst, SlabLayout layout, bool external = false,
+                  double step = 1.0);
     // Converts the whole field, or only the voxels of `regions` (boxes clipped to the world;
     // the block minima of every block they touch are recomputed). Enqueues the kernels and
     // waits for them (clFinish): afterwards Vulkan may read dst. Returns the kernels' time in

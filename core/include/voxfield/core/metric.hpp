@@ -1,6 +1,7 @@
 #pragma once
 // Distance metrics and voxel spacing (DESIGN §3): L1, L-inf and L2 between voxel centres,
 // each axis offset scaled by its spacing first.
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,7 @@ const std::vector<std::string>& metric_names();
 struct Spacing {
     double x = 1, y = 1, z = 1;
     bool unit() const { return x == 1 && y == 1 && z == 1; }
+    double largest() const { return std::max({x, y, z}); }
     std::string to_string() const;  // "X,Y,Z"
     friend bool operator==(const Spacing&, const Spacing&) = default;
 };
