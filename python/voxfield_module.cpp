@@ -30,6 +30,7 @@
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
 #include "voxfield/cl/runtime.hpp"
+#include "voxfield/cl/separable.hpp"
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/edits.hpp"
 #include "voxfield/core/error.hpp"
@@ -239,14 +240,23 @@ py::array host_field(Dims d, Format f, std::uint8_t*& data) {
                      data, owner);
 }
 
-// The sweeps of exact_manhattan.cl from a C-contiguous uint8 world straight into `field`
-// (host_field's memory): a CPU device reads the array and writes the field in place, nothing
-// copied; elsewhere the world is uploaded and the field read back into `field`.
-void sweep_into(Device& dev, const WorldArray& w, const ocl::GeneratorOptions& o,
-                std::uint8_t* field, std::size_t bytes) {
+// `exact` (the sweeps of exact_manhattan.cl or the separable transforms) from a C-contiguous
+// uint8 world straight into `field` (host_field's memory): a CPU device reads the array and
+// writes the field in place, nothing copied; elsewhere the world is uploaded and the field
+// read back into `field`.
+void transform_into(Device& dev, const WorldArray& w, const ocl::GeneratorOptions& o,
+                    std::uint8_t* field, std::size_t bytes) {
     auto& ctx = dev.context;
-    ocl::ExactManhattan job(ctx, w.dims, std::span<const std::uint8_t>(w.data, w.bytes), Palette{},
-                            o.format, o.layout, o.metric, std::span<std::uint8_t>(field, bytes));
+    const std::span<const std::uint8_t> voxels(w.data, w.bytes);
+    const std::span<std::uint8_t> out(field, bytes);
+    std::unique_ptr<ocl::Generator> made;
+    if (ocl::ExactManhattan::handles(ctx, o)) {
+        made = std::make_unique<ocl::ExactManhattan>(ctx, w.dims, voxels, Palette{}, o.format,
+                                                     o.layout, o.metric, out);
+    } else {
+        made = std::make_unique<ocl::ExactSeparable>(ctx, w.dims, voxels, Palette{}, o, out);
+    }
+    ocl::Generator& job = *made;
     job.run();
     if (ctx.computes_in_host_memory()) {
         // Mapping makes the kernels' writes visible to the host; in place it copies nothing.
@@ -322,9 +332,10 @@ py::object distance_transform(const py::object& world, const std::string& metric
     const ocl::GeneratorOptions options = ocl::resolve_options(o, w.dims);
     const std::shared_ptr<Device> dev = device_for(device);
 
-    // The sweeps read a uint8 array in place and write the field into the returned array.
-    const bool sweeps = w.type == NpyType::u8 && options.algorithm == ocl::Algorithm::exact &&
-                        ocl::ExactManhattan::handles(dev->context, options);
+    // `exact` reads a uint8 array in place and writes the field into the returned array
+    // (indices come back through the generator's own buffers).
+    const bool sweeps =
+        w.type == NpyType::u8 && options.algorithm == ocl::Algorithm::exact && !return_indices;
     std::uint8_t* sweep_out = nullptr;
     py::array field = sweeps ? host_field(w.dims, options.format, sweep_out)
                              : empty_field(w.dims, options.format);
@@ -340,7 +351,7 @@ py::object distance_transform(const py::object& world, const std::string& metric
         py::gil_scoped_release release;
         if (sweeps) {
             const std::lock_guard<std::mutex> lock(dev->mutex);
-            sweep_into(*dev, w, options, sweep_out, field_bytes);
+            transform_into(*dev, w, options, sweep_out, field_bytes);
         } else {
             const World vox = make_world(w);
             const std::lock_guard<std::mutex> lock(dev->mutex);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <string>
 
 #include "util.hpp"
@@ -61,6 +62,35 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
                                                       : options.layout == Layout::gpu),
       incremental_(incremental),
       spacing_(options.spacing) {
+    set_up(world.voxels().data(), false, {}, palette, options);
+}
+
+ExactSeparable::ExactSeparable(Context& ctx, Dims dims, std::span<const std::uint8_t> voxels,
+                               const Palette& palette, const GeneratorOptions& options,
+                               std::span<std::uint8_t> field)
+    : Generator(ctx, dims, options.format),
+      gpu_layout_(options.layout == Layout::automatic ? !ctx.is_cpu()
+                                                      : options.layout == Layout::gpu),
+      incremental_(false),
+      spacing_(options.spacing) {
+    if (voxels.size() != dims.count()) {
+        throw std::invalid_argument("ExactSeparable: " + std::to_string(voxels.size()) +
+                                    " bytes of voxels for a world of " + dims.to_string());
+    }
+    if (!field.empty() && field.size() != dims.count() * element_size(options.format)) {
+        throw std::invalid_argument("ExactSeparable: " + std::to_string(field.size()) +
+                                    " bytes for a " + to_string(options.format) + " field of " +
+                                    dims.to_string());
+    }
+    const bool in_place = ctx.computes_in_host_memory();
+    set_up(voxels.data(), in_place, in_place ? field : std::span<std::uint8_t>(), palette, options);
+}
+
+void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
+                            std::span<std::uint8_t> field, const Palette& palette,
+                            const GeneratorOptions& options) {
+    Context& ctx = ctx_;
+    const bool incremental = incremental_;
     const auto& info = ctx.info();
     const std::size_t n = dims_.count();
     const std::string sizes = "world " + dims_.to_string() + ", " + to_string(options.metric) +
@@ -108,9 +138,14 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
     cl_call("allocating and uploading, " + sizes, [&] {
         auto& c = ctx.context();
         auto& q = ctx.queue();
-        voxels_ = make_buffer(n, CL_MEM_READ_WRITE);
+        // Read in place, the world is never written (incremental generators upload theirs).
+        voxels_ = in_place ? cl::Buffer(c, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, n,
+                                        const_cast<std::uint8_t*>(voxels))
+                           : make_buffer(n, CL_MEM_READ_WRITE);
         rgb_ = cl::Buffer(c, CL_MEM_READ_ONLY, 256);
-        out_ = make_buffer(out_bytes, CL_MEM_READ_WRITE);
+        out_ = field.empty() ? make_buffer(out_bytes, CL_MEM_READ_WRITE)
+                             : cl::Buffer(c, CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR, out_bytes,
+                                          field.data());
         const int parts = incremental ? 3 : 2;
         for (int k = 0; k < parts; ++k) {
             g_[k] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
@@ -130,10 +165,12 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
         scratch_ = make_buffer(scratch_ints * 4, CL_MEM_READ_WRITE);
         const auto table = palette.rgb332_table();
         cl::Event up_vox, up_rgb;
-        q.enqueueWriteBuffer(voxels_, CL_FALSE, 0, n, world.voxels().data(), nullptr, &up_vox);
+        if (!in_place) {
+            q.enqueueWriteBuffer(voxels_, CL_FALSE, 0, n, voxels, nullptr, &up_vox);
+        }
         q.enqueueWriteBuffer(rgb_, CL_FALSE, 0, table.size(), table.data(), nullptr, &up_rgb);
         q.finish();
-        upload_ms_ = elapsed_ms(up_vox, up_rgb);
+        upload_ms_ = elapsed_ms(in_place ? up_rgb : up_vox, up_rgb);
     });
     for (std::size_t axis = 0; axis < 3; ++axis) {
         track_init_[2 * axis] = 0x7FFFFFFF;

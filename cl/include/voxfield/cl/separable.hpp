@@ -2,6 +2,7 @@
 // `exact` for everything beyond unit-spacing Manhattan: L1, L-inf and L2 with voxel spacing,
 // signed fields and the feature transform (kernels: cl/kernels/exact_separable.cl).
 #include <array>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,15 @@ class ExactSeparable : public Generator {
     // changes. Throws ClError when the device cannot hold the buffers or lacks fp64.
     ExactSeparable(Context& ctx, const World& world, const Palette& palette,
                    const GeneratorOptions& options, bool incremental = false);
+    // A full (not incremental) transform of a world in host memory, as ExactManhattan's span
+    // constructor: on a device that computes in host memory the kernels read `voxels`
+    // (dims.count() palette indices) in place and write the field into `field` where given
+    // (dims.count() * element_size(options.format) bytes); elsewhere the world is uploaded
+    // and `field` unused. Both must outlive the generator; std::invalid_argument on a size
+    // mismatch.
+    ExactSeparable(Context& ctx, Dims dims, std::span<const std::uint8_t> voxels,
+                   const Palette& palette, const GeneratorOptions& options,
+                   std::span<std::uint8_t> field = {});
 
     double run() override;
     std::string variant() const override;  // "cpu layout" or "gpu layout"
@@ -39,6 +49,11 @@ class ExactSeparable : public Generator {
     Update update(const Box& edited, std::vector<cl::Event>& events);
 
   private:
+    // The constructors' common part: `voxels` read in place (`in_place`) or uploaded, the
+    // field written into `field` when it is not empty.
+    void set_up(const std::uint8_t* voxels, bool in_place, std::span<std::uint8_t> field,
+                const Palette& palette, const GeneratorOptions& options);
+
     struct Stage {
         std::string name;
         cl::Kernel kernel;
