@@ -12,6 +12,9 @@ Writes into DIR, from whatever the files hold:
                            field of the row's semantics)
   edit_time_vs_size.png    edits suite: per-edit update time vs brush size, per algorithm
   edit_time_hist.png       edits suite: histograms of per-edit update times
+  sand_rate.png            sand suite: steps per second (1000 / (simulate + update) device ms) at
+                           every step, per world and field
+  sand_update_vs_changed.png  sand suite: each step's update time against the voxels it changed
 Needs matplotlib (Debian: apt-get install python3-matplotlib). Skipped rows are not drawn.
 """
 import argparse
@@ -228,6 +231,57 @@ def plot_edit_hist(docs, out):
     return path
 
 
+def sand_rows(docs):
+    for doc in docs:
+        for r in doc["results"]:
+            if r.get("per_step"):
+                bound = r.get("max_distance")
+                size = "x".join(str(v) for v in r["size"])
+                yield doc, r, f"{short_device(doc)} {size} L1" + (f" D={bound:g}" if bound else "")
+
+
+def plot_sand_rate(docs, out):
+    rows = list(sand_rows(docs))
+    if not rows:
+        return None
+    fig, ax = plt.subplots(figsize=(8, 5))
+    for doc, r, label in rows:
+        steps = [s["step"] for s in r["per_step"]]
+        rate = [1000.0 / max(s["simulate_ms"] + s["update_ms"], 1e-9) for s in r["per_step"]]
+        ax.plot(steps, rate, lw=1, label=label)
+    ax.set_yscale("log")
+    ax.set_xlabel("step")
+    ax.set_ylabel("steps per second (device time: simulate + field update)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = os.path.join(out, "sand_rate.png")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_sand_update_vs_changed(docs, out):
+    rows = list(sand_rows(docs))
+    if not rows:
+        return None
+    fig, ax = plt.subplots(figsize=(8, 5))
+    for doc, r, label in rows:
+        ax.scatter([s["voxels_changed"] for s in r["per_step"]],
+                   [s["update_ms"] for s in r["per_step"]], s=6, label=label)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("voxels the step changed")
+    ax.set_ylabel("field update (device ms)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = os.path.join(out, "sand_update_vs_changed.png")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True, help="folder for the PNG files (must exist)")
@@ -236,10 +290,14 @@ def main():
     if not os.path.isdir(a.out):
         ap.error(f"--out {a.out}: no such folder")
     docs = load(a.files)
+    sand = [d for d in docs if d.get("suite") == "sand"]
+    others = [d for d in docs if d.get("suite") != "sand"]
     written = []
-    for fn in (plot_time_vs_size, plot_speedup, plot_accuracy, plot_edit_time_vs_size,
-               plot_edit_hist):
-        p = fn(docs, a.out)
+    for fn, subset in ((plot_time_vs_size, others), (plot_speedup, others),
+                       (plot_accuracy, others), (plot_edit_time_vs_size, others),
+                       (plot_edit_hist, others), (plot_sand_rate, sand),
+                       (plot_sand_update_vs_changed, sand)):
+        p = fn(subset, a.out)
         if p:
             written.append(p)
     for p in written:
