@@ -69,6 +69,26 @@ cl::Program build_program(Context& ctx, Format f, std::uint32_t k, Metric m) {
 
 }  // namespace
 
+ExactManhattan::ExactManhattan(Context& ctx, Dims dims, const cl::Buffer& voxels,
+                               const cl::Buffer& out, const Palette& palette, Format format,
+                               Layout layout)
+    : Generator(ctx, dims, format),
+      gpu_layout_(use_gpu_layout(ctx, layout)),
+      metric_(Metric::manhattan) {
+    const WorkType wt = work_type(format_);
+    cl_call("setting up exact_manhattan.cl over given buffers, world " + dims_.to_string(), [&] {
+        voxels_ = voxels;
+        out_ = out;
+        work_ = format_ == Format::packed32
+                    ? make_buffer(dims_.count() * wt.bytes, CL_MEM_READ_WRITE)
+                    : out_;
+        rgb_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, 256);
+        const auto table = palette.rgb332_table();
+        ctx_.queue().enqueueWriteBuffer(rgb_, CL_TRUE, 0, table.size(), table.data());
+    });
+    set_up_kernels();
+}
+
 bool ExactManhattan::handles(const Context& ctx, const GeneratorOptions& o) {
     return handles(o, use_gpu_layout(ctx, o.layout));
 }

@@ -205,7 +205,9 @@ class GlobalEngine : public Engine {
           max_margin(std::min<std::uint32_t>(
               margin, std::max({world.dims().x, world.dims().y, world.dims().z}))),
           cpu_layout(o.layout == Layout::automatic ? ctx.is_cpu() : o.layout == Layout::cpu),
-          exact(std::make_unique<ExactManhattan>(ctx, world, palette, Format::u32, o.layout)) {
+          exact(std::make_unique<ExactManhattan>(ctx, world, palette, Format::u32, o.layout)),
+          direct(std::make_unique<ExactManhattan>(ctx, world.dims(), exact->voxels_buffer(), out,
+                                                  palette, o.format, o.layout)) {
         cl_call("allocating the incremental buffers of " + world.dims().to_string(), [&] {
             tmp = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * world.size());
             block_max =
@@ -214,6 +216,7 @@ class GlobalEngine : public Engine {
     }
 
     double regenerate() override {
+        exact_stale = false;
         return cl_call("regenerating the field of " + world.dims().to_string(), [&] {
             exact->run();
             Events events;
@@ -250,17 +253,29 @@ class GlobalEngine : public Engine {
                 }
             }
             if (!occupancy.empty() && regenerate_instead(occupancy)) {
+                // The output straight from the sweeps in its own format; the exact u32 field
+                // and its block maxima, which only incremental updates read, are brought up to
+                // date before the next one (a run of world-spanning batches skips them).
                 for (std::size_t e = 0; e < stats.edits.size(); ++e) {
                     if (stats.edits[e].changed()) {
                         scatter(events, exact->voxels_buffer(), stats, first, e);
                     }
                 }
                 q.finish();
-                stats.update_ms = elapsed_ms(events.front(), events.back()) + regenerate();
+                stats.update_ms = elapsed_ms(events.front(), events.back()) + direct->run();
+                exact_stale = true;
                 stats.full_regeneration = true;
                 stats.regions = {world_box()};
                 stats.voxels_recomputed = world.size();
                 return stats;
+            }
+            double refresh_ms = 0;
+            if (exact_stale) {
+                // The device voxels hold the world before this batch (its changes are only
+                // staged): the u32 field and block maxima the sweeps start from are brought
+                // to that world first.
+                q.finish();
+                refresh_ms = refresh_exact();
             }
             std::vector<std::size_t> swept;  // edits whose distances were recomputed
             for (std::size_t e = 0; e < stats.edits.size(); ++e) {
@@ -282,7 +297,7 @@ class GlobalEngine : public Engine {
                 q.enqueueReadBuffer(regions, CL_FALSE, 0, 4 * found.size(), found.data());
             }
             q.finish();
-            stats.update_ms = elapsed_ms(events.front(), events.back());
+            stats.update_ms = elapsed_ms(events.front(), events.back()) + refresh_ms;
             for (const std::size_t e : swept) {
                 const cl_int* g = found.data() + 8 * e;
                 stats.full_regeneration |= g[6] != 0;
@@ -439,6 +454,20 @@ class GlobalEngine : public Engine {
     std::uint32_t max_margin;
     bool cpu_layout;  // sweeps with inner loops along x (CPU) or one column per work-item (GPU)
     std::unique_ptr<ExactManhattan> exact;  // u32: its output is the exact distance buffer
+    // The sweeps over the same voxels writing `out` in the output format: the regeneration of
+    // batches that span the world, after which `exact` is stale until refresh_exact().
+    std::unique_ptr<ExactManhattan> direct;
+    bool exact_stale = false;
+
+    // Recomputes the exact u32 field and the block maxima from the device voxels.
+    double refresh_exact() {
+        double ms = exact->run();
+        Events events;
+        update_block_max(events, blocks_of(world_box()), -1);
+        ctx.queue().finish();
+        exact_stale = false;
+        return ms + elapsed_ms(events.front(), events.back());
+    }
     cl::Buffer tmp, regions, block_max;
     std::size_t regions_capacity = 0;
 };

@@ -26,6 +26,12 @@ class ExactManhattan : public Generator {
                    const Palette& palette, Format format, Layout layout = Layout::automatic,
                    Metric metric = Metric::manhattan, std::span<std::uint8_t> field = {});
 
+    // Over buffers the caller owns and keeps alive: the world `voxels` (dims.count() bytes,
+    // read) and the field `out` (in `format`), such as an incremental engine's; only
+    // packed32's work buffer and the palette table are allocated.
+    ExactManhattan(Context& ctx, Dims dims, const cl::Buffer& voxels, const cl::Buffer& out,
+                   const Palette& palette, Format format, Layout layout = Layout::automatic);
+
     // Whether these sweeps compute `o` (resolved options) on ctx: unsigned fields of unit
     // spacing without indices or a bound, in u8, u16, u32 or packed32; manhattan in both
     // layouts, chebyshev in the CPU layout. ExactSeparable computes the rest.
