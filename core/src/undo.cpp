@@ -99,8 +99,13 @@ EditResult apply_changes(World& world, const VoxelChanges& changes) {
             ++result.recoloured;
         }
     }
-    std::sort(result.changes.begin(), result.changes.end(),
-              [](const VoxelChange& a, const VoxelChange& b) { return a.index < b.index; });
+    const auto by_index = [](const VoxelChange& a, const VoxelChange& b) {
+        return a.index < b.index;
+    };
+    // Often ascending already (a falling-sand step's list): then checking is all it costs.
+    if (!std::is_sorted(result.changes.begin(), result.changes.end(), by_index)) {
+        std::sort(result.changes.begin(), result.changes.end(), by_index);
+    }
     return result;
 }
 

@@ -45,7 +45,7 @@ class SandSimulator {
     int current_ = 0;  // the step reads world_[current_]; both copies agree between steps
     std::size_t capacity_ = 0;
     std::vector<cl_uint2> staged_;  // the step's changes as read back
-    std::vector<std::uint64_t> keys_;
+    std::vector<std::uint64_t> keys_, sort_scratch_;
 };
 
 }  // namespace voxfield::ocl
