@@ -852,27 +852,10 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
                 return true;
             });
         std::cerr << '\n';
-        std::vector<double> sim_ms, upd_ms, step_ms;
-        double device_ms = 0, wall_ms = 0;
-        std::size_t changed = 0, fallbacks = 0;
-        json per_step = json::array();
-        for (const SandStepRecord& r : records) {
-            sim_ms.push_back(r.simulate_ms);
-            upd_ms.push_back(r.update_ms);
-            step_ms.push_back(r.simulate_ms + r.update_ms);
-            device_ms += r.simulate_ms + r.update_ms;
-            wall_ms += r.wall_ms;
-            changed += r.voxels_changed;
-            fallbacks += r.full_regeneration ? 1 : 0;
-            per_step.push_back({{"step", r.step},
-                                {"simulate_ms", r.simulate_ms},
-                                {"update_ms", r.update_ms},
-                                {"wall_ms", r.wall_ms},
-                                {"voxels_changed", r.voxels_changed},
-                                {"voxels_recomputed", r.voxels_recomputed},
-                                {"full_regeneration", r.full_regeneration}});
-        }
-        const Summary ss = summarize(sim_ms), us = summarize(upd_ms), st = summarize(step_ms);
+        const SandRunSummary sm = summarize_run(records);
+        const Summary &ss = sm.simulate, &us = sm.update, &st = sm.step;
+        const double device_ms = sm.device_ms, wall_ms = sm.wall_ms;
+        const std::size_t changed = sm.voxels_changed, fallbacks = sm.full_regenerations;
         const auto count = static_cast<double>(records.size());
         const double rate = device_ms > 0 ? count * 1000.0 / device_ms : 0;
         const double wall_rate = wall_ms > 0 ? count * 1000.0 / wall_ms : 0;
@@ -899,7 +882,7 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
                         {"step_over_full", full_ms > 0 ? st.median / full_ms : 0.0},
                         {"voxels_changed", changed},
                         {"full_regenerations", fallbacks},
-                        {"per_step", per_step}});
+                        {"per_step", sm.per_step}});
     }
     return rows;
 }

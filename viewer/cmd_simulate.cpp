@@ -224,28 +224,10 @@ int run_simulate(const SimulateOptions& o) {
         write_npy(o.output, npy_type(format), dims, field.read());
     }
 
-    std::vector<double> simulate_ms, update_ms, step_ms;
-    double device_ms = 0, wall_ms = 0;
-    std::size_t changed = 0, fallbacks = 0;
-    nlohmann::json steps_json = nlohmann::json::array();
-    for (const SandStepRecord& s : records) {
-        simulate_ms.push_back(s.simulate_ms);
-        update_ms.push_back(s.update_ms);
-        step_ms.push_back(s.simulate_ms + s.update_ms);
-        device_ms += s.simulate_ms + s.update_ms;
-        wall_ms += s.wall_ms;
-        changed += s.voxels_changed;
-        fallbacks += s.full_regeneration ? 1 : 0;
-        steps_json.push_back({{"step", s.step},
-                              {"simulate_ms", s.simulate_ms},
-                              {"update_ms", s.update_ms},
-                              {"voxels_changed", s.voxels_changed},
-                              {"voxels_recomputed", s.voxels_recomputed},
-                              {"full_regeneration", s.full_regeneration},
-                              {"wall_ms", s.wall_ms}});
-    }
-    const Summary sim_s = summarize(simulate_ms), upd_s = summarize(update_ms),
-                  step_s = summarize(step_ms);
+    const SandRunSummary sm = summarize_run(records);
+    const Summary &sim_s = sm.simulate, &upd_s = sm.update, &step_s = sm.step;
+    const double device_ms = sm.device_ms, wall_ms = sm.wall_ms;
+    const std::size_t changed = sm.voxels_changed, fallbacks = sm.full_regenerations;
     const auto per_s = [&](double ms) {
         return ms > 0 ? nlohmann::json(static_cast<double>(steps) * 1000.0 / ms) : nlohmann::json();
     };
@@ -307,7 +289,7 @@ int run_simulate(const SimulateOptions& o) {
             {"verified", o.verify},
             {"full_regeneration_ms", full_ms},
             {"full_regeneration_ms_samples", regen_samples},
-            {"steps", steps_json},
+            {"steps", sm.per_step},
             {"summary",
              {{"steps", steps},
               {"steps_per_s_device", per_s(device_ms)},

@@ -32,4 +32,29 @@ std::vector<SandStepRecord> run_sand_steps(
     return records;
 }
 
+SandRunSummary summarize_run(const std::vector<SandStepRecord>& records) {
+    SandRunSummary out;
+    std::vector<double> simulate_ms, update_ms, step_ms;
+    for (const SandStepRecord& r : records) {
+        simulate_ms.push_back(r.simulate_ms);
+        update_ms.push_back(r.update_ms);
+        step_ms.push_back(r.simulate_ms + r.update_ms);
+        out.device_ms += r.simulate_ms + r.update_ms;
+        out.wall_ms += r.wall_ms;
+        out.voxels_changed += r.voxels_changed;
+        out.full_regenerations += r.full_regeneration ? 1 : 0;
+        out.per_step.push_back({{"step", r.step},
+                                {"simulate_ms", r.simulate_ms},
+                                {"update_ms", r.update_ms},
+                                {"wall_ms", r.wall_ms},
+                                {"voxels_changed", r.voxels_changed},
+                                {"voxels_recomputed", r.voxels_recomputed},
+                                {"full_regeneration", r.full_regeneration}});
+    }
+    out.simulate = summarize(simulate_ms);
+    out.update = summarize(update_ms);
+    out.step = summarize(step_ms);
+    return out;
+}
+
 }  // namespace voxfield::cli

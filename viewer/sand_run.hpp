@@ -6,8 +6,11 @@
 #include <functional>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "voxfield/cl/incremental.hpp"
 #include "voxfield/cl/sand.hpp"
+#include "voxfield/core/stats.hpp"
 
 namespace voxfield::cli {
 
@@ -30,5 +33,16 @@ void warm_up_updates(ocl::IncrementalField& field);
 std::vector<SandStepRecord> run_sand_steps(
     ocl::SandSimulator& sim, ocl::IncrementalField& field, std::uint64_t seed, std::uint64_t steps,
     const std::function<bool(const SandStepRecord&)>& after = {});
+
+// What `simulate` and `bench --suite sand` report of a run: per-step device-time statistics,
+// totals, and each step as JSON ({"step", "simulate_ms", "update_ms", "wall_ms",
+// "voxels_changed", "voxels_recomputed", "full_regeneration"}).
+struct SandRunSummary {
+    Summary simulate, update, step;  // device ms per step; step = simulate + update
+    double device_ms = 0, wall_ms = 0;
+    std::size_t voxels_changed = 0, full_regenerations = 0;
+    nlohmann::json per_step = nlohmann::json::array();
+};
+SandRunSummary summarize_run(const std::vector<SandStepRecord>& records);
 
 }  // namespace voxfield::cli
