@@ -485,16 +485,8 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
             }
             std::cerr << "bench: " << label << ": setting up\n";
             field = std::make_unique<ocl::IncrementalField>(ctx, initial, palette, options);
-            // Pay the update kernels' builds outside the timings (as `replay` does): toggle
-            // voxel (0,0,0) and restore it.
-            const std::uint8_t v0 = field->world().at(0, 0, 0);
-            Brush toggle;
-            toggle.shape = BrushShape::cube;
-            toggle.op = v0 != 0 ? BrushOp::erase : BrushOp::place;
-            field->apply({toggle});
-            toggle.op = v0 != 0 ? BrushOp::place : BrushOp::erase;
-            toggle.material = v0 != 0 ? v0 : std::uint8_t{1};
-            field->apply({toggle});
+            // Pay the update kernels' builds outside the timings (as `replay` does).
+            warm_up_updates(*field);
         } catch (const InputError& e) {
             std::cerr << "bench: " << label << ": skipped: " << e.what() << '\n';
             row["skipped"] = e.what();
