@@ -30,7 +30,7 @@
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/undo.hpp"
-#include "voxfield/layout.h"
+#include "voxfield/pipeline/frame_pipeline.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 
 namespace voxfield::cli {
@@ -604,13 +604,13 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
 
 // Ray-march time per frame across world sizes and resolutions (the floor + spheres scene,
 // the default three-quarter camera, lit shading with the sky gradient, shadow rays and ambient
-// occlusion), for the exact field of every metric on the same world: each in the compact format
-// with its per-block minima, uploaded once; each frame's dispatch timed by GPU timestamps. One
-// more frame per metric counts every primary ray's field fetches and DDA steps (a counting
-// pipeline in flat shading, not timed) and checks that its image equals manhattan's: the metric
-// changes how far rays walk per fetch, never which voxel they hit. A row is one world and
-// resolution: manhattan's times at the top level (as before metrics existed), every metric's under
-// "metrics".
+// occlusion), for the exact field of every metric on the same world: each through the frame
+// pipeline (compact format with its per-block minima, as render and view show it); each frame's
+// dispatch timed by GPU timestamps. One more frame per metric counts every primary ray's field
+// fetches and DDA steps (a counting pipeline in flat shading, not timed) and checks that its image
+// equals manhattan's: the metric changes how far rays walk per fetch, never which voxel they hit. A
+// row is one world and resolution: manhattan's times at the top level (as before metrics existed),
+// every metric's under "metrics".
 json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
     const std::vector<std::uint32_t> sizes =
         quick ? std::vector<std::uint32_t>{32, 64} : std::vector<std::uint32_t>{128, 256, 512};
@@ -621,46 +621,23 @@ json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
     const std::vector<Metric> metrics = {Metric::manhattan, Metric::chebyshev, Metric::euclidean};
     vk::Context vk_ctx;
     std::cerr << "bench: suite render: Vulkan device " << vk_ctx.info().name << '\n';
-    vk::Raymarcher marcher(vk_ctx);
     json rows = json::array();
     const std::size_t total = sizes.size() * metrics.size() * resolutions.size();
     std::size_t k = 0;
     for (const std::uint32_t n : sizes) {
         const Dims dims{n, n, n};
         const World world = make_scene(kScene, dims, plan.seed);
-        const Palette palette = Palette::magicavoxel_default();
+        // The frame pipeline that render and view use: the exact field on the OpenCL device,
+        // converted into the compact render field with its per-block minima.
+        pipeline::FramePipeline frames(ctx, vk_ctx, Palette::magicavoxel_default(), dims);
+        vk::Raymarcher& marcher = frames.marcher();
         std::vector<json> per_metric(resolutions.size(), json::array());
         std::vector<std::vector<std::uint8_t>> reference(resolutions.size());
         for (const Metric metric : metrics) {
             ocl::GeneratorOptions g;
             g.format = Format::u16;
             g.metric = metric;
-            g = ocl::resolve_options(g, dims);
-            const auto field = ocl::generate(ctx, world, palette, g).bytes;
-            // The compact field and the per-block minima for coarse skipping, as `render`
-            // does.
-            const std::uint32_t b = VF_RAYMARCH_BLOCK;
-            const Dims nb{(n + b - 1) / b, (n + b - 1) / b, (n + b - 1) / b};
-            std::vector<std::uint16_t> compact(world.size());
-            std::vector<std::uint32_t> block_min(nb.count(), 0xFFFFFFFFu);
-            for (std::uint32_t z = 0; z < n; ++z) {
-                for (std::uint32_t y = 0; y < n; ++y) {
-                    for (std::uint32_t x = 0; x < n; ++x) {
-                        const std::size_t i = dims.index(x, y, z);
-                        const std::uint32_t d =
-                            std::uint32_t{field[2 * i]} | (std::uint32_t{field[2 * i + 1]} << 8);
-                        compact[i] = static_cast<std::uint16_t>(
-                            (std::min<std::uint32_t>(d, VF_COMPACT_DISTANCE_MAX)
-                             << VF_COMPACT_DISTANCE_SHIFT) |
-                            world.voxels()[i]);
-                        auto& m = block_min[nb.index(x / b, y / b, z / b)];
-                        m = std::min(m, d);
-                    }
-                }
-            }
-            marcher.upload_compact(dims, palette, compact);
-            marcher.set_block_min(block_min);
-            marcher.set_metric(metric);
+            frames.rebuild(World(world), g);
             for (std::size_t res = 0; res < resolutions.size(); ++res) {
                 const auto [w, h] = resolutions[res];
                 ++k;

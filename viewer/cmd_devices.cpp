@@ -5,7 +5,7 @@
 #include <string>
 
 #include "cli_util.hpp"
-#include "render_field.hpp"
+#include "voxfield/pipeline/render_field.hpp"
 #include "voxfield/vk/context.hpp"
 #include "voxfield/vk/shared.hpp"
 
@@ -19,7 +19,7 @@ std::string sharing_line() {
         ocl::Context cl_ctx(ocl::select_device(""));
         vk::Context vk_ctx;
         std::string why_not;
-        const vk::SharingPath path = choose_sharing_path(cl_ctx, vk_ctx, why_not);
+        const vk::SharingPath path = pipeline::choose_sharing_path(cl_ctx, vk_ctx, why_not);
         return "sharing: " + vk::describe(path) + " (OpenCL " + cl_ctx.info().name + ", Vulkan " +
                vk_ctx.info().name + "; render --field compact)" +
                (why_not.empty() ? "" : " [" + why_not.substr(0, why_not.size() - 2) + "]");

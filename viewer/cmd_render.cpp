@@ -15,13 +15,11 @@
 #include <vector>
 
 #include "cli_util.hpp"
-#include "render_field.hpp"
-
 #include "voxfield/cl/generator.hpp"
-#include "voxfield/cl/interop.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/metric.hpp"
 #include "voxfield/core/vox.hpp"
+#include "voxfield/pipeline/frame_pipeline.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 #include "voxfield/vk/shared.hpp"
 
@@ -161,40 +159,18 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
     g = ocl::resolve_options(g, world.dims());
     ocl::Context cl_ctx(ocl::select_device(o.device));
     vk::Context vk_ctx(vk::ContextOptions{"", validation});
-    // Declared before the ray marcher, destroyed after it: the marcher may read their memory.
-    std::unique_ptr<ocl::Generator> exact;
-    cl::Buffer voxels;
-    std::optional<RenderField> shared;
-    vk::Raymarcher marcher(vk_ctx);
-    double kernel_ms = 0;
-    std::string why_not;
-    if (format == vk::FieldFormat::packed32) {
-        // In packed32 on the OpenCL device, copied (path 3).
-        const ocl::FieldResult field = ocl::generate(cl_ctx, world, model.palette, g);
-        kernel_ms = field.timing.kernel_ms;
-        std::vector<std::uint32_t> packed(world.size());
-        std::memcpy(packed.data(), field.bytes.data(), packed.size() * sizeof(std::uint32_t));
-        marcher.upload(world, model.palette, packed);
-        marcher.set_metric(g.metric);
-        why_not = "packed32 is always copied (path 3)";
-    } else {
-        // In u16, converted by OpenCL (from the field and the world's voxels) into the compact
-        // format, written where Vulkan reads it (paths 1, 2) or into an OpenCL buffer that is
-        // copied (path 3), and the per-block minima for coarse skipping (a small table, always
-        // copied).
-        exact = ocl::make_generator(cl_ctx, world, model.palette, g);
-        voxels = ocl::cl_call("uploading the world's voxels for the render field", [&] {
-            cl::Buffer b(cl_ctx.context(), CL_MEM_READ_ONLY, world.size());
-            cl_ctx.queue().enqueueWriteBuffer(b, CL_TRUE, 0, world.size(), world.voxels().data());
-            return b;
-        });
-        shared.emplace(cl_ctx, vk_ctx, marcher, world.dims());
-        why_not = shared->why_not();
-        kernel_ms = exact->run();
-        kernel_ms += shared->attach(marcher, exact->field_buffer(), Format::u16, g.metric, voxels,
-                                    model.palette, g.spacing.largest());
-    }
-    const vk::Image image = marcher.render(r);
+    // The frame pipeline that view and bench use too. compact: OpenCL converts the u16 field
+    // and the world's voxels into the compact format where Vulkan reads it (paths 1, 2) or
+    // into a buffer that is copied (path 3), with the per-block minima for coarse skipping.
+    // packed32: generated in that format and copied (path 3).
+    pipeline::PipelineOptions po;
+    po.render_format = format;
+    pipeline::FramePipeline frames(cl_ctx, vk_ctx, model.palette, world.dims(), po);
+    const double build_ms = frames.rebuild(World(world), g);
+    const vk::Raymarcher& marcher = frames.marcher();
+    const std::string why_not = frames.why_not();
+    vk::Image image;
+    frames.render(r, image);
 
     std::string png;
     const int stride = static_cast<int>(image.width * 4);
@@ -210,7 +186,7 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
               << vk::to_string(format) << " ("
               << (format == vk::FieldFormat::compact ? "2 bytes per voxel, world + field"
                                                      : "4 + 1 material byte per voxel")
-              << "), kernels " << fixed(kernel_ms, 3) << " ms\n"
+              << "), built in " << fixed(build_ms, 1) << " ms\n"
               << "vulkan:  " << vk_ctx.info().name << " (" << vk_ctx.info().type << ", Vulkan "
               << vk_ctx.info().api << ")\n"
               << "world:   " << o.input << "  " << world.dims().to_string() << " = " << world.size()
@@ -235,7 +211,8 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
         // One more frame through the counting pipeline (not timed).
         vk::RenderOptions counting = r;
         counting.count = true;
-        const vk::Image counted = marcher.render(counting);
+        vk::Image counted;
+        frames.render(counting, counted);
         const double rays = double(counted.width) * double(counted.height);
         std::cout << "stats:   per ray " << fixed(double(counted.fetches) / rays, 2)
                   << " field fetches, " << fixed(double(counted.steps) / rays, 2) << " DDA steps ("

@@ -30,7 +30,6 @@
 #include <vector>
 
 #include "cli_util.hpp"
-#include "render_field.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
 #include "voxfield/cl/sand.hpp"
@@ -44,6 +43,7 @@
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/undo.hpp"
 #include "voxfield/core/vox.hpp"
+#include "voxfield/pipeline/frame_pipeline.hpp"
 #include "voxfield/vk/present.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 
@@ -136,121 +136,6 @@ int no_display(const std::string& why) {
               << "); render headless instead: voxfield render WORLD -o OUT.png\n";
     return 2;
 }
-
-// The world, its field on the OpenCL device (kept current by IncrementalField) and the ray
-// marcher reading the compact render field that OpenCL writes from it (render_field.hpp:
-// paths 1/2 share the memory, path 3 copies).
-class Session {
-  public:
-    // Call rebuild() before anything else.
-    Session(ocl::Context& cl, vk::Context& vkc, Palette palette, Dims dims)
-        : cl_(cl), palette_(palette) {
-        marcher_ = std::make_unique<vk::Raymarcher>(vkc);
-        render_field_ = std::make_unique<RenderField>(cl, vkc, *marcher_, dims);
-    }
-    ~Session() { marcher_.reset(); }  // before the memory it reads
-    Session(const Session&) = delete;
-    Session& operator=(const Session&) = delete;
-
-    // Regenerates everything for `world` with `options` (new algorithm, chunk, scene or a
-    // large undo); returns the wall time in ms. When it fails (refused options, a device
-    // error) the session keeps its field and options, shown as before, and the error goes on.
-    double rebuild(World world, const ocl::GeneratorOptions& options) {
-        const auto t = Clock::now();
-        const ocl::GeneratorOptions next = ocl::resolve_options(options, world.dims());
-        // The new field is complete before the old one goes: never a session without one.
-        auto field = std::make_unique<ocl::IncrementalField>(cl_, std::move(world), palette_, next);
-        render_field_->detach();
-        try {
-            render_field_->attach(*marcher_, field->field_buffer(), next.format, next.metric,
-                                  field->voxels_buffer(), palette_, next.spacing.largest());
-        } catch (...) {
-            if (field_) {
-                render_field_->attach(*marcher_, field_->field_buffer(), options_.format,
-                                      options_.metric, field_->voxels_buffer(), palette_,
-                                      options_.spacing.largest());
-            }
-            throw;
-        }
-        field_ = std::move(field);
-        options_ = next;
-        return ms_since(t);
-    }
-
-    struct Update {
-        double field_ms = 0;    // the incremental update's device time
-        double convert_ms = 0;  // writing the changed voxels into the render field
-    };
-
-    Update apply(const std::vector<Brush>& batch, std::vector<EditResult>* edits = nullptr) {
-        return finish(field_->apply(batch), edits);
-    }
-
-    // An undo or redo (one edit, through the incremental updater like every other edit).
-    Update apply_changes(const VoxelChanges& changes) {
-        return finish(field_->apply_changes(changes), nullptr);
-    }
-
-    // Moves lod's / monolithic's focus and recomputes the chunks that entered or left it.
-    Update set_focus(const std::optional<Focus>& focus) {
-        const ocl::UpdateStats s = field_->set_focus(focus);
-        options_.focus = focus;
-        return Update{s.update_ms, publish(s.regions)};
-    }
-
-    void render(const vk::RenderOptions& r, vk::Image& out) { marcher_->render(r, out); }
-    double render_to(const vk::RenderOptions& r, const vk::ExternalMemory& frame) {
-        return marcher_->render_to(r, frame);
-    }
-
-    const World& world() const { return field_->world(); }
-    const Palette& palette() const { return palette_; }
-    const ocl::GeneratorOptions& options() const { return options_; }
-    std::vector<std::uint8_t> read_field() { return field_->read(); }
-    vk::Raymarcher& marcher() { return *marcher_; }
-    const RenderField& render_field() const { return *render_field_; }
-
-  private:
-    // Writes what the update changed into the render field.
-    Update finish(ocl::UpdateStats s, std::vector<EditResult>* edits) {
-        std::vector<Box> regions = s.regions;
-        for (const EditResult& e : s.edits) {
-            if (e.changed()) {
-                regions.push_back(e.bounds);  // recoloured voxels keep their distance
-            }
-        }
-        Update u{s.update_ms, publish(regions)};
-        if (edits != nullptr) {
-            *edits = std::move(s.edits);
-        }
-        return u;
-    }
-
-    double publish(std::vector<Box> regions) {
-        if (regions.empty()) {
-            return 0;
-        }
-        if (regions.size() > 64) {
-            // Many small boxes (a long stroke, many chunks): one launch over their hull.
-            Box hull = regions.front();
-            for (const Box& b : regions) {
-                hull.min = {std::min(hull.min.x, b.min.x), std::min(hull.min.y, b.min.y),
-                            std::min(hull.min.z, b.min.z)};
-                hull.max = {std::max(hull.max.x, b.max.x), std::max(hull.max.y, b.max.y),
-                            std::max(hull.max.z, b.max.z)};
-            }
-            regions = {hull};
-        }
-        return render_field_->update(*marcher_, regions);
-    }
-
-    ocl::Context& cl_;
-    Palette palette_;
-    ocl::GeneratorOptions options_;
-    std::unique_ptr<ocl::IncrementalField> field_;
-    std::unique_ptr<RenderField> render_field_;
-    std::unique_ptr<vk::Raymarcher> marcher_;
-};
 
 struct FrameRecord {
     // update_ms: the field's incremental update plus writing it into the render field
@@ -496,7 +381,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     // Frames for the presenter's device, exported by the ray marcher's (declared before the
     // session: it outlives the ray marcher's buffer over it).
     vk::ExternalMemory frame_memory;
-    Session session(cl_ctx, vk_ctx, model.palette, dims);
+    pipeline::FramePipeline session(cl_ctx, vk_ctx, model.palette, dims);
     const Framing framing = solid_framing(model.world);  // the default camera's view
     const double build_ms = session.rebuild(std::move(model.world), gopts);
     std::cout << "opencl:  " << cl_ctx.info().name << " (" << cl_ctx.info().type << ")\n"
@@ -508,9 +393,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
               << ", field " << to_string(session.options().format) << " built in "
               << fixed(build_ms, 1) << " ms\n"
               << "sharing: " << session.marcher().sharing_path()
-              << (session.render_field().why_not().empty()
-                      ? std::string()
-                      : " [" + session.render_field().why_not() + "]")
+              << (session.why_not().empty() ? std::string() : " [" + session.why_not() + "]")
               << '\n';
 
     // Window, swapchain, overlay.
@@ -629,7 +512,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     std::uint64_t sim_step = 0;
     double last_sim_ms = 0;
     std::size_t last_sim_changed = 0;
-    Session::Update last_update;
+    pipeline::UpdateTimings last_update;
     std::optional<Brush> preview;
     bool focus_follows = false;
     int algorithm_index = algorithm_entry(session.options().algorithm);
@@ -840,8 +723,8 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
         }
         // Lod / monolithic: the focus is the centre chunk or, following the camera, the
         // camera's chunk; a changed focus recomputes the chunks that entered or left it.
-        Session::Update update;
-        const auto add = [&update](const Session::Update& u) {
+        pipeline::UpdateTimings update;
+        const auto add = [&update](const pipeline::UpdateTimings& u) {
             update.field_ms += u.field_ms;
             update.convert_ms += u.convert_ms;
         };
@@ -971,8 +854,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                                 last_sim_changed);
                 }
                 ImGui::Text("%s + %s", vk_ctx.info().name.c_str(), cl_ctx.info().name.c_str());
-                ImGui::Text("%s, %s; F1 keys, F2 panel",
-                            sharing_summary(session.render_field().path()),
+                ImGui::Text("%s, %s; F1 keys, F2 panel", sharing_summary(session.sharing()),
                             ocl::to_string(session.options().algorithm).c_str());
                 if (!switch_error.empty()) {
                     ImGui::PushTextWrapPos(ImGui::GetFontSize() * 32);
@@ -1012,8 +894,8 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                             vk::to_string(presenter->mode()).c_str());
                 ImGui::Text("frames: %s", present_path(gpu_present));
                 ImGui::Text("sharing: %s", session.marcher().sharing_path().c_str());
-                if (!session.render_field().why_not().empty() && ImGui::IsItemHovered()) {
-                    ImGui::SetTooltip("%s", session.render_field().why_not().c_str());
+                if (!session.why_not().empty() && ImGui::IsItemHovered()) {
+                    ImGui::SetTooltip("%s", session.why_not().c_str());
                 }
                 ImGui::Separator();
                 const auto& names = ocl::algorithm_names();

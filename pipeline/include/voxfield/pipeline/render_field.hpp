@@ -2,7 +2,7 @@
 // The ray marcher's compact field, written by OpenCL where Vulkan reads it (DESIGN §2): the
 // first sharing path both devices support (1 opaque fd -> 2 host pointer -> 3 copy), with the
 // conversion from any distance field on the OpenCL device (ocl::CompactWriter) and the coarse
-// table the ray marcher skips with. The glue between cl/ and vk/, so it lives in viewer/.
+// table the ray marcher skips with. The glue between cl/ and vk/, part of the frame pipeline.
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -13,20 +13,22 @@
 #include "voxfield/vk/raymarcher.hpp"
 #include "voxfield/vk/shared.hpp"
 
-namespace voxfield::cli {
+namespace voxfield::pipeline {
 
-// DESIGN §2: the first sharing path both devices support, 1 -> 2 -> 3, and why the earlier
-// ones are not (for reports).
+// DESIGN §2: the first sharing path both devices support, 1 -> 2 -> 3, starting at `fastest`,
+// and why the earlier ones are not (for reports).
 vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Context& vk_ctx,
-                                    std::string& why_not);
+                                    std::string& why_not,
+                                    vk::SharingPath fastest = vk::SharingPath::opaque_fd);
 
 class RenderField {
   public:
     // Allocates the compact field for `dims` as `marcher` plans it, on the first path that
-    // works (a path 1 import that fails falls back, and says why in why_not()). The ray
-    // marcher must be destroyed before this object (it may read this memory).
-    RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Raymarcher& marcher,
-                Dims dims);
+    // works, from `fastest` on (a path 1 import that fails falls back, and says why in
+    // why_not()). The ray marcher must be destroyed before this object (it may read this
+    // memory).
+    RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Raymarcher& marcher, Dims dims,
+                vk::SharingPath fastest = vk::SharingPath::opaque_fd);
     ~RenderField();
     RenderField(const RenderField&) = delete;
     RenderField& operator=(const RenderField&) = delete;
@@ -67,4 +69,4 @@ class RenderField {
     std::optional<ocl::CompactWriter> writer_;
 };
 
-}  // namespace voxfield::cli
+}  // namespace voxfield::pipeline

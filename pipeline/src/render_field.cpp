@@ -1,5 +1,5 @@
 // The compact render field shared between OpenCL and Vulkan (see render_field.hpp).
-#include "render_field.hpp"
+#include "voxfield/pipeline/render_field.hpp"
 
 #include <unistd.h>
 
@@ -7,12 +7,14 @@
 #include <cstddef>
 #include <exception>
 
-namespace voxfield::cli {
+namespace voxfield::pipeline {
 
 vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Context& vk_ctx,
-                                    std::string& why_not) {
+                                    std::string& why_not, vk::SharingPath fastest) {
     why_not.clear();
-    if (!vk::supports(vk_ctx, vk::SharingPath::opaque_fd)) {
+    if (fastest != vk::SharingPath::opaque_fd) {
+        why_not += "path 1: not tried (a slower path was asked for); ";
+    } else if (!vk::supports(vk_ctx, vk::SharingPath::opaque_fd)) {
         why_not += "path 1: Vulkan device lacks VK_KHR_external_memory_fd; ";
     } else if (!ocl::can_import_opaque_fd(cl_ctx)) {
         why_not += "path 1: OpenCL device lacks cl_khr_external_memory_opaque_fd (OpenCL 3.0); ";
@@ -22,7 +24,9 @@ vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Contex
     } else {
         return vk::SharingPath::opaque_fd;
     }
-    if (!vk::supports(vk_ctx, vk::SharingPath::host_pointer)) {
+    if (fastest == vk::SharingPath::copy) {
+        why_not += "path 2: not tried (path 3 was asked for); ";
+    } else if (!vk::supports(vk_ctx, vk::SharingPath::host_pointer)) {
         why_not += "path 2: Vulkan device lacks VK_EXT_external_memory_host; ";
     } else if (!ocl::can_use_host_memory(cl_ctx)) {
         why_not += "path 2: the OpenCL device is not a CPU; ";
@@ -33,9 +37,9 @@ vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Contex
 }
 
 RenderField::RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Raymarcher& marcher,
-                         Dims dims)
+                         Dims dims, vk::SharingPath fastest)
     : cl_(cl_ctx), dims_(dims), layout_(marcher.plan(dims, vk::FieldFormat::compact)) {
-    path_ = choose_sharing_path(cl_ctx, vk_ctx, why_not_);
+    path_ = choose_sharing_path(cl_ctx, vk_ctx, why_not_, fastest);
     const VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
     const auto bytes = static_cast<std::size_t>(layout_.total_bytes);
     if (path_ == vk::SharingPath::opaque_fd) {
@@ -126,4 +130,4 @@ void RenderField::publish(vk::Raymarcher& marcher) {
     marcher.upload_compact(dims_, palette_, compact);
 }
 
-}  // namespace voxfield::cli
+}  // namespace voxfield::pipeline

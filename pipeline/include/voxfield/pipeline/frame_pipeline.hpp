@@ -1,0 +1,107 @@
+#pragma once
+// The frame pipeline that `render`, `view` and `bench` share (DESIGN §2, "The frame
+// pipeline"): a world and its distance field kept on the OpenCL device (ocl::IncrementalField),
+// the ray marcher's render field converted from it (RenderField: sharing path 1, 2 or 3), and
+// the Vulkan ray marcher reading it. Every edit goes edit -> field -> render field; every frame
+// is one ray march. Switching the world, algorithm or metric is transactional: the new field is
+// built completely before the old one goes, and a failure (refused options, a device error)
+// leaves the pipeline as it was. Nothing here prints.
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "voxfield/cl/generator.hpp"
+#include "voxfield/cl/incremental.hpp"
+#include "voxfield/core/brush.hpp"
+#include "voxfield/core/palette.hpp"
+#include "voxfield/core/undo.hpp"
+#include "voxfield/core/world.hpp"
+#include "voxfield/pipeline/render_field.hpp"
+#include "voxfield/vk/raymarcher.hpp"
+
+namespace voxfield::pipeline {
+
+struct PipelineOptions {
+    // What the ray marcher reads: the compact field (16 bits per voxel, written by OpenCL in
+    // place on paths 1/2) or packed32 (the field read back and uploaded, path 3).
+    vk::FieldFormat render_format = vk::FieldFormat::compact;
+    // The fastest sharing path the render field may take (tests force the slower ones).
+    vk::SharingPath fastest_path = vk::SharingPath::opaque_fd;
+    // Split the ray marcher's field into bindings of at most this many bytes (0: the device's
+    // limit; tests lower it).
+    std::uint64_t max_binding_bytes = 0;
+};
+
+// What one edit batch cost (device times, from OpenCL profiling events).
+struct UpdateTimings {
+    double field_ms = 0;    // the incremental update of the distance field
+    double convert_ms = 0;  // writing the changed voxels into the render field (and copying
+                            // them on path 3)
+    std::uint64_t voxels_recomputed = 0;
+    bool full_regeneration = false;
+    double total_ms() const { return field_ms + convert_ms; }
+};
+
+class FramePipeline {
+  public:
+    // Call rebuild() before anything else. `palette` colours every world of this pipeline.
+    FramePipeline(ocl::Context& cl, vk::Context& vkc, Palette palette, Dims dims,
+                  PipelineOptions options = {});
+    ~FramePipeline();
+    FramePipeline(const FramePipeline&) = delete;
+    FramePipeline& operator=(const FramePipeline&) = delete;
+
+    // Builds the field of `world` with `options` (resolved here) and shows it: a new world,
+    // algorithm, metric, format or chunk size. Returns the wall time in ms. Throws InputError
+    // for a world whose dims differ from the pipeline's. On any failure the pipeline keeps its
+    // previous world, field and options and the exception goes on.
+    double rebuild(World world, const ocl::GeneratorOptions& options);
+    // As rebuild() with the current world.
+    double switch_field(const ocl::GeneratorOptions& options);
+
+    // One batch of brushes (one frame's edits), applied in order; `edits` receives what each
+    // brush changed.
+    UpdateTimings apply(const std::vector<Brush>& batch, std::vector<EditResult>* edits = nullptr);
+    // Explicit voxel changes as one edit (an undo or redo, a simulation step).
+    UpdateTimings apply_changes(const VoxelChanges& changes);
+    // lod / monolithic: moves the focus and recomputes the chunks that entered or left it.
+    UpdateTimings set_focus(const std::optional<Focus>& focus);
+
+    // Ray-marches one frame and reads it back (out's storage is reused); its raymarch_ms is
+    // the dispatch's GPU time.
+    void render(const vk::RenderOptions& options, vk::Image& out);
+    // Ray-marches one frame into exported memory for a presenter on another VkDevice; returns
+    // the dispatch's GPU time in ms (-1: not available).
+    double render_to(const vk::RenderOptions& options, const vk::ExternalMemory& frame);
+
+    const World& world() const;
+    const Palette& palette() const { return palette_; }
+    const ocl::GeneratorOptions& options() const { return options_; }
+    // The field in options().format, as `generate` writes it.
+    std::vector<std::uint8_t> read_field();
+    vk::Raymarcher& marcher() { return *marcher_; }
+    const vk::Raymarcher& marcher() const { return *marcher_; }
+    // The sharing path of the compact render field and why faster ones are not used (packed32
+    // is always copied: path 3).
+    vk::SharingPath sharing() const;
+    std::string why_not() const;
+
+  private:
+    UpdateTimings finish(ocl::UpdateStats s, std::vector<EditResult>* edits);
+    double publish(std::vector<Box> regions);
+    // Shows `field` (built for options) in the ray marcher; returns the OpenCL time in ms.
+    double show(ocl::IncrementalField& field, const ocl::GeneratorOptions& options);
+
+    ocl::Context& cl_;
+    Palette palette_;
+    Dims dims_;
+    PipelineOptions pipeline_options_;
+    ocl::GeneratorOptions options_;
+    std::unique_ptr<ocl::IncrementalField> field_;
+    // Declared before the ray marcher: destroyed after it (it may read this memory).
+    std::unique_ptr<RenderField> render_field_;
+    std::unique_ptr<vk::Raymarcher> marcher_;
+};
+
+}  // namespace voxfield::pipeline

@@ -1,0 +1,161 @@
+// The frame pipeline (pipeline/) on PoCL + lavapipe, validated: the sharing-path choice and
+// its fallbacks, one picture whatever path or render format carries the field, edits that
+// reach the image, and switches that fail without changing anything.
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "../cl/cl_test_util.hpp"
+#include "../vk/vulkan_env.hpp"
+#include "voxfield/cl/generator.hpp"
+#include "voxfield/core/error.hpp"
+#include "voxfield/core/scenes.hpp"
+#include "voxfield/core/undo.hpp"
+#include "voxfield/pipeline/frame_pipeline.hpp"
+
+namespace voxfield::test {
+namespace {
+
+constexpr Dims kDims{40, 24, 32};
+
+vk::RenderOptions view(const World& world) {
+    vk::RenderOptions r;
+    r.width = 64;
+    r.height = 48;
+    r.camera = vk::default_camera(world, r.width, r.height, r.camera.fov_deg);
+    return r;
+}
+
+ocl::GeneratorOptions exact(Metric metric = Metric::manhattan) {
+    ocl::GeneratorOptions g;
+    g.format = Format::u16;
+    g.metric = metric;
+    return g;
+}
+
+std::vector<std::uint8_t> picture(pipeline::FramePipeline& p, const vk::RenderOptions& r) {
+    vk::Image image;
+    p.render(r, image);
+    return image.rgba;
+}
+
+TEST(SharingPath, PoclAndLavapipeTakePathTwoAndSayWhyNotOne) {
+    std::string why_not;
+    EXPECT_EQ(pipeline::choose_sharing_path(pocl(), validated_vulkan(), why_not),
+              vk::SharingPath::host_pointer);
+    EXPECT_NE(why_not.find("path 1"), std::string::npos) << why_not;
+    EXPECT_EQ(why_not.find("path 2"), std::string::npos) << why_not;
+}
+
+TEST(SharingPath, AskedForASlowerPathTakesIt) {
+    std::string why_not;
+    EXPECT_EQ(
+        pipeline::choose_sharing_path(pocl(), validated_vulkan(), why_not, vk::SharingPath::copy),
+        vk::SharingPath::copy);
+    EXPECT_NE(why_not.find("path 2: not tried"), std::string::npos) << why_not;
+    EXPECT_EQ(pipeline::choose_sharing_path(pocl(), validated_vulkan(), why_not,
+                                            vk::SharingPath::host_pointer),
+              vk::SharingPath::host_pointer);
+}
+
+// Paths 2 and 3 and the packed32 render field show the same picture, before and after edits
+// (flat shading: the hit voxels' colours alone).
+TEST(FramePipeline, EveryPathAndFormatShowsOnePicture) {
+    const World world = make_scene("spheres", kDims, 7);
+    vk::RenderOptions r = view(world);
+    r.shading = vk::Shading::flat;
+    pipeline::PipelineOptions shared, copied, packed;
+    copied.fastest_path = vk::SharingPath::copy;
+    packed.render_format = vk::FieldFormat::packed32;
+    pipeline::FramePipeline a(pocl(), validated_vulkan(), Palette::magicavoxel_default(), kDims,
+                              shared);
+    pipeline::FramePipeline b(pocl(), validated_vulkan(), Palette::magicavoxel_default(), kDims,
+                              copied);
+    pipeline::FramePipeline c(pocl(), validated_vulkan(), Palette::magicavoxel_default(), kDims,
+                              packed);
+    EXPECT_EQ(a.sharing(), vk::SharingPath::host_pointer);
+    EXPECT_EQ(b.sharing(), vk::SharingPath::copy);
+    EXPECT_EQ(c.sharing(), vk::SharingPath::copy);
+    EXPECT_EQ(c.why_not(), "packed32 is always copied (path 3)");
+    for (pipeline::FramePipeline* p : {&a, &b, &c}) {
+        p->rebuild(World(world), exact());
+    }
+    EXPECT_EQ(c.options().format, Format::packed32);
+    const std::vector<std::uint8_t> before = picture(a, r);
+    EXPECT_EQ(picture(b, r), before);
+    EXPECT_EQ(picture(c, r), before);
+
+    const std::vector<Brush> batch = {Brush{BrushOp::place, BrushShape::sphere, {20, 12, 10}, 5, 9},
+                                      Brush{BrushOp::erase, BrushShape::cube, {8, 4, 20}, 3, 0}};
+    for (pipeline::FramePipeline* p : {&a, &b, &c}) {
+        const pipeline::UpdateTimings u = p->apply(batch);
+        EXPECT_GT(u.voxels_recomputed, 0u);
+        EXPECT_GE(u.field_ms, 0);
+    }
+    const std::vector<std::uint8_t> after = picture(a, r);
+    EXPECT_NE(after, before);
+    EXPECT_EQ(picture(b, r), after);
+    EXPECT_EQ(picture(c, r), after);
+}
+
+// An edited pipeline shows what a fresh one built from the edited world shows, lit shading
+// included (occlusion and shadows read the updated field), and its field is exact.
+TEST(FramePipeline, EditsReachTheFieldAndThePicture) {
+    World world = make_scene("spheres", kDims, 11);
+    const vk::RenderOptions r = view(world);
+    pipeline::FramePipeline p(pocl(), validated_vulkan(), Palette::magicavoxel_default(), kDims);
+    p.rebuild(World(world), exact());
+    UndoStack undo;
+    std::vector<EditResult> edits;
+    for (const Brush& b : {Brush{BrushOp::place, BrushShape::sphere, {12, 16, 12}, 4, 5},
+                           Brush{BrushOp::paint, BrushShape::cube, {12, 16, 12}, 2, 200}}) {
+        p.apply({b}, &edits);
+        ASSERT_EQ(edits.size(), 1u);
+        EXPECT_TRUE(edits.front().changed());
+        undo.record(edits.front());
+        undo.end_stroke();
+    }
+
+    pipeline::FramePipeline fresh(pocl(), validated_vulkan(), Palette::magicavoxel_default(),
+                                  kDims);
+    fresh.rebuild(World(p.world()), exact());
+    EXPECT_EQ(picture(p, r), picture(fresh, r));
+    EXPECT_EQ(p.read_field(), fresh.read_field());
+
+    p.apply_changes(undo.undo());  // the paint, then the sphere
+    p.apply_changes(undo.undo());
+    EXPECT_EQ(p.world().voxels(), world.voxels());
+    fresh.rebuild(World(world), exact());
+    EXPECT_EQ(picture(p, r), picture(fresh, r));
+}
+
+// A switch the updater refuses (a global algorithm it cannot update), or a world of another
+// size, leaves the world, the options and the picture as they were.
+TEST(FramePipeline, FailedSwitchChangesNothing) {
+    const World world = make_scene("terrain", kDims, 3);
+    const vk::RenderOptions r = view(world);
+    pipeline::FramePipeline p(pocl(), validated_vulkan(), Palette::magicavoxel_default(), kDims);
+    p.rebuild(World(world), exact());
+    const std::vector<std::uint8_t> before = picture(p, r);
+    ocl::GeneratorOptions refused = exact();
+    refused.algorithm = ocl::Algorithm::jfa;  // global JFA: no incremental update
+    EXPECT_THROW(p.switch_field(refused), InputError);
+    EXPECT_THROW(p.rebuild(make_scene("terrain", Dims{16, 16, 16}, 3), exact()), InputError);
+    EXPECT_EQ(p.options().algorithm, ocl::Algorithm::exact);
+    EXPECT_EQ(p.world().voxels(), world.voxels());
+    EXPECT_EQ(picture(p, r), before);
+    // And it still works: a metric switch, then an edit.
+    p.switch_field(exact(Metric::chebyshev));
+    EXPECT_EQ(p.options().metric, Metric::chebyshev);
+    p.apply({Brush{BrushOp::place, BrushShape::sphere, {20, 20, 16}, 3, 4}});
+    pipeline::FramePipeline fresh(pocl(), validated_vulkan(), Palette::magicavoxel_default(),
+                                  kDims);
+    fresh.rebuild(World(p.world()), exact(Metric::chebyshev));
+    EXPECT_EQ(p.read_field(), fresh.read_field());
+    EXPECT_EQ(picture(p, r), picture(fresh, r));
+}
+
+}  // namespace
+}  // namespace voxfield::test
