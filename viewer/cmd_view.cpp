@@ -23,6 +23,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -30,6 +31,7 @@
 #include <vector>
 
 #include "cli_util.hpp"
+#include "view_script.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
 #include "voxfield/cl/sand.hpp"
@@ -65,7 +67,7 @@ struct ViewCliOptions {
     std::uint32_t world = 0, width = 1280, height = 720, frames = 0;
     std::uint64_t scene_seed = 6683787;
     GeneratorFlags gen;
-    std::string screenshot, edits, field_output, world_output;
+    std::string screenshot, edits, field_output, world_output, script;
     bool benchmark = false;
     std::uint64_t seed = 6683787;
     double interval_ms = 200, duration_s = 30;
@@ -182,6 +184,11 @@ int algorithm_entry(ocl::Algorithm a) {
                             names.begin());
 }
 
+int metric_entry(Metric m) {
+    const auto& names = metric_names();
+    return static_cast<int>(std::find(names.begin(), names.end(), to_string(m)) - names.begin());
+}
+
 ocl::Algorithm entry_algorithm(int entry) {
     return ocl::parse_algorithm(ocl::algorithm_names().at(static_cast<std::size_t>(entry)));
 }
@@ -266,8 +273,11 @@ void draw_brush_preview(ImDrawList* draw, const Brush& b, const ViewCamera& came
 // Edge detection for keys polled once per frame.
 class Keys {
   public:
-    explicit Keys(GLFWwindow* w) : w_(w) {}
-    bool down(int key) const { return glfwGetKey(w_, key) == GLFW_PRESS; }
+    // script: held keys from `view --script` (nullptr: the keyboard alone).
+    Keys(GLFWwindow* w, const ViewScript* script) : w_(w), script_(script) {}
+    bool down(int key) const {
+        return glfwGetKey(w_, key) == GLFW_PRESS || (script_ != nullptr && script_->key_down(key));
+    }
     bool pressed(int key) {
         const bool now = down(key);
         bool& was = state_[key & 511];
@@ -278,6 +288,7 @@ class Keys {
 
   private:
     GLFWwindow* w_;
+    const ViewScript* script_;
     bool state_[512] = {};
 };
 
@@ -316,6 +327,19 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     if (!o.edits.empty()) {
         scripted = read_edits(o.edits);
     }
+    std::optional<ViewScript> script;
+    if (!o.script.empty()) {
+        if (o.benchmark) {
+            throw InputError("--script and --benchmark do not go together");
+        }
+        script.emplace(read_view_script(o.script));
+        if (o.frames == 0) {
+            if (script->end_frame() > std::numeric_limits<std::uint32_t>::max()) {
+                throw InputError("--script: frame numbers above 4294967294");
+            }
+            o.frames = std::max(static_cast<std::uint32_t>(script->end_frame()), 1u);
+        }
+    }
     // A window, or why there is none: then --benchmark runs headless, --fallback-png renders
     // one frame headless into that file, anything else exits 2.
     Window window;
@@ -349,7 +373,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
         if (o.benchmark) {
             std::cout << "view: no display (" << why_no_window << "), benchmark runs headless at "
                       << o.width << "x" << o.height << '\n';
-        } else if (!o.fallback_png.empty()) {
+        } else if (!o.fallback_png.empty() && !script) {
             std::cout << "view: no display (" << why_no_window
                       << "), rendering one frame headless to " << o.fallback_png << '\n';
             o.frames = 1;
@@ -533,7 +557,20 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
         focus_size = static_cast<int>(std::min<std::int64_t>(f->size, 8));
         focus_centre = f->centre;
     }
-    Keys keys(window.handle);
+    Keys keys(window.handle, script ? &*script : nullptr);
+    int metric_index = metric_entry(session.options().metric);
+    // Ctrl+S and the script's `save`: the world as STEM.npy and STEM.vox.
+    const auto save_world = [&session](const std::string& stem) {
+        const NpyArray a = npy_from_world(session.world());
+        write_npy(stem + ".npy", a.type, a.dims, a.data);
+        std::cout << "saved " << stem << ".npy\n";
+        try {
+            write_vox(stem + ".vox", session.world(), session.palette());
+            std::cout << "saved " << stem << ".vox\n";
+        } catch (const InputError& e) {
+            std::cout << "not saved as .vox: " << e.what() << '\n';
+        }
+    };
     double cursor_x = 0, cursor_y = 0;
     if (window.handle != nullptr) {
         glfwGetCursorPos(window.handle, &cursor_x, &cursor_y);
@@ -560,7 +597,8 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     int exit_code = 0;
     while (running) {
         const auto t0 = Clock::now();
-        const double dt = std::chrono::duration<double>(t0 - last).count();
+        // Scripted frames advance by a fixed step: the same views on any machine.
+        const double dt = script ? 1.0 / 60 : std::chrono::duration<double>(t0 - last).count();
         last = t0;
         const double time_s = std::chrono::duration<double>(t0 - start).count();
         std::vector<Brush> batch;
@@ -568,6 +606,32 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
         std::optional<VoxelChanges> undo_changes;
 
         std::uint32_t fb_w = o.width, fb_h = o.height;
+        // --script: this frame's actions (keys, buttons, cursor and scroll are held in
+        // `script`; the overlay's selections switch below, checks are written at the end).
+        const std::vector<ScriptAction> actions =
+            script ? script->begin_frame(frame) : std::vector<ScriptAction>{};
+        bool script_regen = false, script_new_scene = false;
+        for (const ScriptAction& a : actions) {
+            if (a.kind != ScriptAction::Kind::select) {
+                continue;
+            }
+            if (a.what == "algorithm") {
+                algorithm_index = algorithm_entry(ocl::parse_algorithm(a.value));
+                script_regen = true;
+            } else if (a.what == "metric") {
+                metric_index = metric_entry(parse_metric(a.value));
+                script_regen = true;
+            } else if (a.what == "scene") {
+                scene_index = static_cast<int>(std::find(scenes.begin(), scenes.end(), a.value) -
+                                               scenes.begin());
+                script_new_scene = true;
+            } else if (a.what == "shading") {
+                ropts.shading = a.value == "lit" ? vk::Shading::lit : vk::Shading::flat;
+                ropts.sky_gradient = ropts.shading == vk::Shading::lit;
+            } else if (a.what == "colour") {
+                brush.material = static_cast<std::uint8_t>(std::stoi(a.value));
+            }
+        }
         if (window.handle != nullptr) {
             glfwPollEvents();
             if (glfwWindowShouldClose(window.handle) != 0) {
@@ -581,6 +645,9 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             glfwGetWindowSize(window.handle, &ww, &wh);
             const ImGuiIO& io = ImGui::GetIO();
             const bool ui_mode = keys.down(GLFW_KEY_LEFT_ALT);
+            // The overlay takes the mouse only while the cursor is free (Left Alt); captured,
+            // the crosshair picks even where the full panel lies under it.
+            const bool overlay_has_mouse = ui_mode && io.WantCaptureMouse;
             const int cursor_mode = ui_mode ? GLFW_CURSOR_NORMAL : GLFW_CURSOR_DISABLED;
             // Capturing or freeing the cursor warps it: that jump is not a mouse movement.
             bool skip_look = frame == 0;
@@ -590,6 +657,10 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             }
             double cx = 0, cy = 0;
             glfwGetCursorPos(window.handle, &cx, &cy);
+            if (script && script->has_cursor()) {
+                cx = script->cursor_x();
+                cy = script->cursor_y();
+            }
             if (skip_look) {
                 cursor_x = cx;
                 cursor_y = cy;
@@ -646,8 +717,10 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                     brush.material = static_cast<std::uint8_t>(k == 0 ? 10 : k);
                 }
             }
-            if (!io.WantCaptureMouse && io.MouseWheel != 0) {
-                brush.size = scroll_brush_size(brush.size, io.MouseWheel, kMaxBrushSize);
+            const double wheel =
+                (overlay_has_mouse ? 0.0 : io.MouseWheel) + (script ? script->scroll() : 0.0);
+            if (wheel != 0) {
+                brush.size = scroll_brush_size(brush.size, wheel, kMaxBrushSize);
             }
             const bool z = keys.pressed(GLFW_KEY_Z), y = keys.pressed(GLFW_KEY_Y);
             const bool s = keys.pressed(GLFW_KEY_S), f12 = keys.pressed(GLFW_KEY_F12);
@@ -657,16 +730,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                 undo_changes = undo.redo();
             }
             if (ctrl && s) {
-                const std::string stem = "voxfield-world-" + timestamp();
-                const NpyArray a = npy_from_world(session.world());
-                write_npy(stem + ".npy", a.type, a.dims, a.data);
-                std::cout << "saved " << stem << ".npy\n";
-                try {
-                    write_vox(stem + ".vox", session.world(), session.palette());
-                    std::cout << "saved " << stem << ".vox\n";
-                } catch (const InputError& e) {
-                    std::cout << "not saved as .vox: " << e.what() << '\n';
-                }
+                save_world("voxfield-world-" + timestamp());
             }
             if (f12 && rendered) {
                 const std::string path = "voxfield-" + timestamp() + ".png";
@@ -676,12 +740,14 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
 
             // Editing: the pick ray through the crosshair (cursor captured) or the cursor;
             // the brush it would apply is previewed every frame.
-            const bool lmb =
-                glfwGetMouseButton(window.handle, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
-            const bool rmb =
-                glfwGetMouseButton(window.handle, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
+            const auto button = [&](int b) {
+                return glfwGetMouseButton(window.handle, b) == GLFW_PRESS ||
+                       (script && script->button_down(b));
+            };
+            const bool lmb = button(GLFW_MOUSE_BUTTON_LEFT);
+            const bool rmb = button(GLFW_MOUSE_BUTTON_RIGHT);
             preview.reset();
-            if (!io.WantCaptureMouse && fb_w > 0 && fb_h > 0) {
+            if (!overlay_has_mouse && fb_w > 0 && fb_h > 0) {
                 double px = fb_w / 2.0, py = fb_h / 2.0;
                 if (ui_mode && ww > 0 && wh > 0) {
                     px = cx * fb_w / ww;
@@ -835,7 +901,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             push(hist_update, last_update.field_ms + last_update.convert_ms);
             push(hist_march, raymarch_ms);
             const ImVec4 red(1.0f, 0.45f, 0.4f, 1.0f);
-            bool regen = false, new_scene = false;
+            bool regen = script_regen, new_scene = script_new_scene;
             if (!full_panel) {
                 // The compact overlay: one small box that takes no input.
                 ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_Always);
@@ -905,6 +971,14 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                 }
                 if (ImGui::Combo("algorithm", &algorithm_index, cnames.data(),
                                  static_cast<int>(cnames.size()))) {
+                    regen = true;
+                }
+                std::vector<const char*> mnames;
+                for (const auto& n : metric_names()) {
+                    mnames.push_back(n.c_str());
+                }
+                if (ImGui::Combo("metric", &metric_index, mnames.data(),
+                                 static_cast<int>(mnames.size()))) {
                     regen = true;
                 }
                 ImGui::SliderInt("chunk 2^k", &chunk_log2, 3, 7);
@@ -979,6 +1053,8 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                     // exact is global.
                     ocl::GeneratorOptions next = session.options();
                     next.algorithm = entry_algorithm(algorithm_index);
+                    next.metric =
+                        parse_metric(metric_names().at(static_cast<std::size_t>(metric_index)));
                     next.chunk = next.algorithm == ocl::Algorithm::exact ? 0 : 1u << chunk_log2;
                     next.focus.reset();
                     if (has_focus(next.algorithm)) {
@@ -1010,6 +1086,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                     std::cout << "cannot switch: " << switch_error << '\n';
                 }
                 algorithm_index = algorithm_entry(session.options().algorithm);
+                metric_index = metric_entry(session.options().metric);
             }
             const auto overlay = [](VkCommandBuffer cmd) {
                 ImGui_ImplVulkan_RenderDrawData(ImGui::GetDrawData(), cmd);
@@ -1036,6 +1113,48 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
         rec.simulate_ms = simulate_ms;
         rec.sim_changed = sim_changed;
         records.push_back(rec);
+        for (const ScriptAction& a : actions) {
+            if (a.kind == ScriptAction::Kind::save) {
+                save_world(a.value);
+            } else if (a.kind == ScriptAction::Kind::check) {
+                // What a scripted test checks after this frame: the world, the field and what
+                // the overlay shows.
+                const NpyArray w = npy_from_world(session.world());
+                write_npy(a.value + "-world.npy", w.type, w.dims, w.data);
+                write_npy(a.value + "-field.npy", npy_type(session.options().format), dims,
+                          session.read_field());
+                const Vec3d eye = camera.position();
+                const nlohmann::json state = {
+                    {"frame", frame},
+                    {"algorithm",
+                     ocl::algorithm_names().at(static_cast<std::size_t>(algorithm_index))},
+                    {"field_algorithm", ocl::to_string(session.options().algorithm)},
+                    {"metric", metric_names().at(static_cast<std::size_t>(metric_index))},
+                    {"field_metric", to_string(session.options().metric)},
+                    {"chunk", session.options().chunk},
+                    {"panel", full_panel ? "full" : "compact"},
+                    {"help", show_help},
+                    {"switch_error", switch_error},
+                    {"shading", ropts.shading == vk::Shading::lit ? "lit" : "flat"},
+                    {"paint_mode", paint_mode},
+                    {"brush",
+                     {{"shape", to_string(brush.shape)},
+                      {"size", brush.size},
+                      {"material", brush.material}}},
+                    {"undo", undo.undo_count()},
+                    {"redo", undo.redo_count()},
+                    {"solid_voxels", session.world().solid_count()},
+                    {"camera",
+                     {{"position", {eye[0], eye[1], eye[2]}},
+                      {"mode", camera.mode() == ViewCamera::Mode::orbit ? "orbit" : "fly"}}},
+                    {"simulate", {{"paused", sim_paused}, {"step", sim_step}}},
+                    {"sharing", vk::describe(session.sharing())}};
+                write_json_file(a.value + "-state.json", state);
+                std::cout << "checked " << a.value << " (frame " << frame << ")\n";
+            } else if (a.kind == ScriptAction::Kind::quit) {
+                running = false;
+            }
+        }
         ++frame;
         if (o.frames != 0 && frame >= o.frames) {
             running = false;
@@ -1217,6 +1336,12 @@ Command add_view(CLI::App& root) {
     app->add_option("--window-screenshot", o->window_screenshot,
                     "Write what the window showed in the last frame (overlay included) as PNG at "
                     "exit; needs --frames");
+    app->add_option("--script", o->script,
+                    "Scripted input, one action per line `FRAME ACTION [ARGS]`: key NAME "
+                    "(ctrl+z, F2, ...), down/up NAME, click/press/release left|right, mouse X Y, "
+                    "scroll N, select algorithm|metric|scene|shading|colour VALUE, save STEM, "
+                    "check STEM (STEM-world.npy, STEM-field.npy, STEM-state.json), quit; runs "
+                    "until the last action's frame (or --frames); needs a display");
     app->add_option("--edits", o->edits,
                     "Scripted edits (the replay file format), one applied per frame from the "
                     "first frame");

@@ -326,6 +326,166 @@ TEST_F(ViewTest, SmokeUnderXvfbShowsTheWorldAndFollowsEdits) {
     }
 }
 
+// `view --script` drives the real window under Xvfb: a click places, Ctrl+Z / Ctrl+Y undo and
+// redo it, a palette colour paints, the overlay's algorithm and metric switches rebuild the
+// field (a refused one changes nothing and says why), F2 opens the full panel, the wheel sizes
+// the brush, `save` writes the world. After each step the world, the field (equal to what
+// `generate` gives for that world and those options) and the overlay's state are checked.
+TEST_F(ViewTest, ScriptDrivesEditsUndoSwitchesPaletteAndSaving) {
+    if (!have_xvfb()) {
+        GTEST_SKIP() << "xvfb-run is not installed (setup.sh installs it)";
+    }
+    const std::string d = dir_.string() + "/";
+    const fs::path script = dir_ / "script.txt";
+    write_file(script,
+               "# a scripted session\n"
+               "0 check " +
+                   d +
+                   "a\n"
+                   "1 key F2\n"
+                   "2 click left\n"
+                   "3 check " +
+                   d +
+                   "b\n"
+                   "4 key ctrl+z\n"
+                   "5 check " +
+                   d +
+                   "c\n"
+                   "6 key ctrl+y\n"
+                   "7 check " +
+                   d +
+                   "d\n"
+                   "8 select colour 7\n"
+                   "8 key P\n"
+                   "9 click left\n"
+                   "10 check " +
+                   d +
+                   "e\n"
+                   "11 select algorithm fim\n"
+                   "12 check " +
+                   d +
+                   "f\n"
+                   "13 select metric euclidean   # fim is manhattan only: refused\n"
+                   "14 check " +
+                   d +
+                   "g\n"
+                   "15 select algorithm exact\n"
+                   "15 select metric euclidean\n"
+                   "15 scroll 3\n"
+                   "16 check " +
+                   d +
+                   "h\n"
+                   "17 save " +
+                   d +
+                   "saved\n"
+                   "18 quit\n"
+                   "40 check " +
+                   d + "never\n");
+    const int code = run_under_xvfb({"view", "--world", "48", "--scene", "terrain", "--width",
+                                     "160", "--height", "120", "--script", script.string()},
+                                    io_ / "xvfb.log");
+    const std::string log = read_text(io_ / "xvfb.log");
+    ASSERT_EQ(code, 0) << log;
+    EXPECT_NE(log.find("frames:  19"), std::string::npos) << log;
+    EXPECT_FALSE(fs::exists(dir_ / "never-state.json"));
+
+    const auto state = [&](const std::string& stem) {
+        return nlohmann::json::parse(read_text(dir_ / (stem + "-state.json")));
+    };
+    const auto world = [&](const std::string& stem) {
+        return read_npy(dir_ / (stem + "-world.npy")).data;
+    };
+    const auto solids = [](const std::vector<std::uint8_t>& w) {
+        return static_cast<std::size_t>(
+            std::count_if(w.begin(), w.end(), [](std::uint8_t v) { return v != 0; }));
+    };
+    // The field of each check equals generate's for that world and the state's options.
+    const auto check_field = [&](const std::string& stem, const std::vector<std::string>& opts) {
+        SCOPED_TRACE(stem);
+        const fs::path field = dir_ / (stem + "-generated.npy");
+        std::vector<std::string> args = {"generate", (dir_ / (stem + "-world.npy")).string(),
+                                         "-o",       field.string(),
+                                         "--format", "u16",
+                                         "--device", "cpu"};
+        args.insert(args.end(), opts.begin(), opts.end());
+        const RunResult r = run_voxfield(args, io_);
+        ASSERT_EQ(r.code, 0) << describe(r);
+        EXPECT_EQ(read_npy(dir_ / (stem + "-field.npy")).data, read_npy(field).data);
+    };
+
+    const auto a = state("a");
+    EXPECT_EQ(a["frame"], 0);
+    EXPECT_EQ(a["panel"], "compact");
+    EXPECT_EQ(a["algorithm"], "exact");
+    EXPECT_EQ(a["metric"], "manhattan");
+    check_field("a", {});
+
+    const auto b = state("b");  // placed at the crosshair
+    EXPECT_EQ(b["panel"], "full");
+    EXPECT_EQ(b["undo"], 1);
+    EXPECT_GT(solids(world("b")), solids(world("a")));
+    EXPECT_EQ(b["solid_voxels"], solids(world("b")));
+    check_field("b", {});
+
+    const auto c = state("c");  // undone
+    EXPECT_EQ(c["undo"], 0);
+    EXPECT_EQ(c["redo"], 1);
+    EXPECT_EQ(world("c"), world("a"));
+    EXPECT_EQ(read_npy(dir_ / "c-field.npy").data, read_npy(dir_ / "a-field.npy").data);
+
+    EXPECT_EQ(world("d"), world("b"));  // redone
+    EXPECT_EQ(read_npy(dir_ / "d-field.npy").data, read_npy(dir_ / "b-field.npy").data);
+
+    const auto e = state("e");  // colour 7 painted: same solids, some of them now 7
+    EXPECT_TRUE(e["paint_mode"].get<bool>());
+    EXPECT_EQ(e["brush"]["material"], 7);
+    const std::vector<std::uint8_t> we = world("e"), wd = world("d");
+    EXPECT_EQ(solids(we), solids(wd));
+    EXPECT_GT(std::count(we.begin(), we.end(), 7), std::count(wd.begin(), wd.end(), 7));
+    check_field("e", {});
+
+    const auto f = state("f");
+    EXPECT_EQ(f["algorithm"], "fim");
+    EXPECT_EQ(f["field_algorithm"], "fim");
+    EXPECT_EQ(f["chunk"], 16);
+    EXPECT_EQ(f["undo"], 0);  // a new field starts a new history
+    check_field("f", {"--algorithm", "fim", "--chunk", "16"});
+
+    const auto g = state("g");  // refused: nothing changed, the overlay says why
+    EXPECT_NE(g["switch_error"].get<std::string>().find("euclidean"), std::string::npos) << g;
+    EXPECT_EQ(g["field_algorithm"], "fim");
+    EXPECT_EQ(g["metric"], "manhattan");
+    EXPECT_EQ(read_npy(dir_ / "g-field.npy").data, read_npy(dir_ / "f-field.npy").data);
+
+    const auto h = state("h");
+    EXPECT_EQ(h["field_algorithm"], "exact");
+    EXPECT_EQ(h["field_metric"], "euclidean");
+    EXPECT_EQ(h["switch_error"], "");
+    EXPECT_EQ(h["brush"]["size"], 8);  // 5 + 3 notches
+    check_field("h", {"--metric", "euclidean"});
+
+    EXPECT_EQ(read_npy(dir_ / "saved.npy").data, world("h"));
+    EXPECT_TRUE(fs::exists(dir_ / "saved.vox"));
+}
+
+// A script that cannot be read or parsed is refused before any window opens (exit 2, the
+// line named).
+TEST_F(ViewTest, BadScriptIsAnInputError) {
+    const fs::path script = dir_ / "bad.txt";
+    for (const std::string bad : {"0 key NOSUCHKEY\n", "x key A\n", "0 select algorithm magic\n",
+                                  "0 mouse 1\n", "0 jump\n", "0 select colour 300\n"}) {
+        write_file(script, "# fine\n" + bad);
+        const RunResult r =
+            run_voxfield({"view", "--world", "16", "--script", script.string()}, io_);
+        EXPECT_EQ(r.code, 2) << bad << describe(r);
+        EXPECT_NE(r.err.find("script line 2"), std::string::npos) << bad << describe(r);
+    }
+    const RunResult missing =
+        run_voxfield({"view", "--world", "16", "--script", (dir_ / "none.txt").string()}, io_);
+    EXPECT_EQ(missing.code, 2) << describe(missing);
+    EXPECT_NE(missing.err.find("cannot read script"), std::string::npos) << describe(missing);
+}
+
 TEST_F(ViewTest, WindowShowsTheRayMarchedImage) {
     if (!have_xvfb()) {
         GTEST_SKIP() << "xvfb-run is not installed (setup.sh installs it)";
