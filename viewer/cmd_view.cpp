@@ -167,9 +167,39 @@ void print_summary(const std::string& what, const Summary& s) {
               << fixed(s.ci95_hi, 3) << "]\n";
 }
 
-const char* present_path(bool gpu) {
-    return gpu ? "frames stay on the GPU (exported by the ray marcher, imported by the presenter)"
-               : "frames go through the host (read back, uploaded)";
+// How frames reach the window: ray-marched into the swapchain image on the one device that
+// presents, exported by the ray marcher's device and imported by the presenter's, or read back
+// and uploaded.
+enum class FramePath { one_device, imported, host };
+
+const char* present_path(FramePath path) {
+    switch (path) {
+        case FramePath::one_device:
+            return "one device: frames stay on the GPU (ray-marched, then copied into the "
+                   "swapchain image)";
+        case FramePath::imported:
+            return "two devices: frames stay on the GPU (exported by the ray marcher, imported "
+                   "by the presenter)";
+        case FramePath::host:
+            break;
+    }
+    return "frames go through the host (read back, uploaded)";
+}
+
+// The window system's instance extensions and a maker of `window`'s Vulkan surface.
+void window_surface(GLFWwindow* window, std::vector<std::string>& extensions,
+                    std::function<VkSurfaceKHR(VkInstance)>& make_surface) {
+    std::uint32_t n = 0;
+    const char** exts = glfwGetRequiredInstanceExtensions(&n);
+    for (std::uint32_t i = 0; i < n; ++i) {
+        extensions.emplace_back(exts[i]);
+    }
+    make_surface = [window](VkInstance instance) {
+        VkSurfaceKHR surface = VK_NULL_HANDLE;
+        vk::check(glfwCreateWindowSurface(instance, window, nullptr, &surface),
+                  "glfwCreateWindowSurface");
+        return surface;
+    };
 }
 
 bool has_focus(ocl::Algorithm a) {
@@ -401,7 +431,25 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     const std::uint32_t bench_chunk = gopts.chunk != 0 ? gopts.chunk : ocl::kDefaultChunk;
 
     ocl::Context cl_ctx(ocl::select_device(o.device));
-    vk::Context vk_ctx(vk::ContextOptions{"", validation});
+    // The ray marcher's device also presents the window where it can (one device, one queue);
+    // else a presenter of its own does.
+    std::unique_ptr<vk::Context> vk_owned;
+    std::string why_not_one_device;
+    if (windowed) {
+        try {
+            vk::ContextOptions co;
+            co.device = std::to_string(vk::select_device("").index);
+            co.validation = validation;
+            window_surface(window.handle, co.instance_extensions, co.make_surface);
+            vk_owned = std::make_unique<vk::Context>(co);
+        } catch (const vk::DeviceSelectionError& e) {
+            why_not_one_device = e.what();
+        }
+    }
+    if (!vk_owned) {
+        vk_owned = std::make_unique<vk::Context>(vk::ContextOptions{"", validation});
+    }
+    vk::Context& vk_ctx = *vk_owned;
     // Frames for the presenter's device, exported by the ray marcher's (declared before the
     // session: it outlives the ray marcher's buffer over it).
     vk::ExternalMemory frame_memory;
@@ -422,32 +470,24 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
 
     // Window, swapchain, overlay.
     std::unique_ptr<vk::Presenter> presenter;
-    // Frames go from the ray marcher to the swapchain on the GPU (shared memory) when the
-    // presenting device can import the ray marcher's exports; else through the host.
-    bool gpu_present = false;
+    // One device where it presents; else frames go from the ray marcher's device to the
+    // presenter's on the GPU (shared memory) when it can import them; else through the host.
+    FramePath frame_path = FramePath::host;
     VkDescriptorPool imgui_pool = VK_NULL_HANDLE;
     bool imgui_ready = false;
     if (windowed) {
         vk::PresenterOptions po;
-        std::uint32_t n = 0;
-        const char** exts = glfwGetRequiredInstanceExtensions(&n);
-        for (std::uint32_t i = 0; i < n; ++i) {
-            po.instance_extensions.emplace_back(exts[i]);
-        }
-        GLFWwindow* handle = window.handle;
-        po.make_surface = [handle](VkInstance instance) {
-            VkSurfaceKHR surface = VK_NULL_HANDLE;
-            vk::check(glfwCreateWindowSurface(instance, handle, nullptr, &surface),
-                      "glfwCreateWindowSurface");
-            return surface;
-        };
-        po.device = std::to_string(vk_ctx.info().index);
-        po.validation = validation;
         if (o.benchmark) {
             po.modes = {vk::PresentMode::immediate, vk::PresentMode::mailbox,
                         vk::PresentMode::fifo};
         }
-        presenter = std::make_unique<vk::Presenter>(po);
+        if (vk_ctx.presents()) {
+            presenter = std::make_unique<vk::Presenter>(vk_ctx, po.modes);
+        } else {
+            window_surface(window.handle, po.instance_extensions, po.make_surface);
+            po.validation = validation;
+            presenter = std::make_unique<vk::Presenter>(po);
+        }
     }
     struct ImGuiGuard {
         bool* ready;
@@ -497,18 +537,24 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             [](VkCommandBuffer cmd) { ImGui_ImplVulkan_CreateFontsTexture(cmd); });
         ImGui_ImplVulkan_DestroyFontUploadObjects();
         glfwSetInputMode(window.handle, GLFW_CURSOR, GLFW_CURSOR_DISABLED);
-        const bool gpu_possible = presenter->can_import_frames(vk_ctx.info().uuid) &&
-                                  vk::supports(vk_ctx, vk::SharingPath::opaque_fd);
-        if (o.present == "gpu" && !gpu_possible) {
-            throw InputError("--present gpu: the presenting device " + presenter->device_name() +
-                             " cannot import frames from the ray marcher's " + vk_ctx.info().name +
-                             " (needs VK_KHR_external_memory_fd on both and the same GPU)");
+        const bool import_possible = presenter->can_import_frames(vk_ctx.info().uuid) &&
+                                     vk::supports(vk_ctx, vk::SharingPath::opaque_fd);
+        if (o.present == "gpu" && !presenter->shares_context() && !import_possible) {
+            throw InputError("--present gpu: the ray marcher's " + vk_ctx.info().name +
+                             " cannot present (" + why_not_one_device +
+                             ") and the presenting device " + presenter->device_name() +
+                             " cannot import its frames (needs VK_KHR_external_memory_fd on "
+                             "both and the same GPU)");
         }
-        gpu_present = gpu_possible && o.present != "host";
+        if (o.present != "host") {
+            frame_path = presenter->shares_context() ? FramePath::one_device
+                         : import_possible           ? FramePath::imported
+                                                     : FramePath::host;
+        }
         std::cout << "window:  " << presenter->device_name() << ", present mode "
                   << vk::to_string(vk::PresentMode::fifo) << " requested"
                   << (o.benchmark ? " (benchmark: immediate/mailbox preferred)" : "") << ", "
-                  << present_path(gpu_present) << "; F1 lists the keys\n";
+                  << present_path(frame_path) << "; F1 lists the keys\n";
     }
 
     // State of the interactive session.
@@ -586,7 +632,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     // The last frame's pixels on the host: with GPU presenting they never left the GPU, so
     // the same view is ray-marched again (same field, same camera: the same image).
     const auto host_image = [&]() -> const vk::Image& {
-        if (gpu_present && rendered) {
+        if (frame_path != FramePath::host && rendered) {
             vk::RenderOptions r = ropts;
             r.bgra = false;
             session.render(r, image);
@@ -854,7 +900,11 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             ropts.camera.position = camera.position();
             ropts.camera.target = camera.target();
             ropts.camera.fov_deg = camera.settings.fov_deg;
-            if (gpu_present) {
+            if (frame_path == FramePath::one_device) {
+                // Recorded with the frame (present_marched); its GPU time comes a frame or two
+                // later.
+                raymarch_ms = session.marcher().finished_raymarch_ms();
+            } else if (frame_path == FramePath::imported) {
                 ropts.bgra = presenter->bgra();
                 presenter->wait_frame();  // the frame in flight reads frame_memory
                 const VkDeviceSize bytes = VkDeviceSize{ropts.width} * ropts.height * 4;
@@ -958,7 +1008,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                 ImGui::Text("Vulkan: %s / present %s (%s)", vk_ctx.info().name.c_str(),
                             presenter->device_name().c_str(),
                             vk::to_string(presenter->mode()).c_str());
-                ImGui::Text("frames: %s", present_path(gpu_present));
+                ImGui::Text("frames: %s", present_path(frame_path));
                 ImGui::Text("sharing: %s", session.marcher().sharing_path().c_str());
                 if (!session.why_not().empty() && ImGui::IsItemHovered()) {
                     ImGui::SetTooltip("%s", session.why_not().c_str());
@@ -1095,7 +1145,9 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                 presenter->capture_next_frame();
             }
             // Nothing is presented before the first frame was rendered (a zero-size window).
-            if (rendered && gpu_present) {
+            if (rendered && frame_path == FramePath::one_device) {
+                presenter->present_marched(session.marcher(), ropts, fb_w, fb_h, overlay);
+            } else if (rendered && frame_path == FramePath::imported) {
                 presenter->present_imported(ropts.width, ropts.height, fb_w, fb_h, overlay);
             } else if (rendered) {
                 presenter->present(image.rgba.data(), image.width, image.height, fb_w, fb_h,
@@ -1329,8 +1381,10 @@ Command add_view(CLI::App& root) {
     app->add_option("--screenshot", o->screenshot,
                     "Write the last frame's ray-marched image (no overlay) as PNG at exit");
     app->add_option("--present", o->present,
-                    "How frames reach the window: gpu (the presenter imports the ray marcher's "
-                    "memory), host (read back and uploaded) or auto (gpu where possible)")
+                    "How frames reach the window: gpu (they stay on the GPU: ray-marched into the "
+                    "swapchain image when the ray marcher's device presents, else imported by "
+                    "the presenting device), host (read back and uploaded) or auto (gpu where "
+                    "possible)")
         ->check(CLI::IsMember({"auto", "gpu", "host"}))
         ->capture_default_str();
     app->add_option("--window-screenshot", o->window_screenshot,

@@ -38,7 +38,7 @@ vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Contex
 
 RenderField::RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Raymarcher& marcher,
                          Dims dims, vk::SharingPath fastest)
-    : cl_(cl_ctx), dims_(dims), layout_(marcher.plan(dims, vk::FieldFormat::compact)) {
+    : cl_(cl_ctx), vk_(vk_ctx), dims_(dims), layout_(marcher.plan(dims, vk::FieldFormat::compact)) {
     path_ = choose_sharing_path(cl_ctx, vk_ctx, why_not_, fastest);
     const VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
     const auto bytes = static_cast<std::size_t>(layout_.total_bytes);
@@ -90,6 +90,7 @@ double RenderField::attach(vk::Raymarcher& marcher, const cl::Buffer& field, For
                            double step) {
     palette_ = palette;
     metric_ = metric;
+    wait_for_readers();
     writer_.reset();
     writer_.emplace(cl_, field, format, voxels, dims_, cl_field_,
                     ocl::SlabLayout{layout_.slab_depth, layout_.slab_stride},
@@ -106,6 +107,7 @@ double RenderField::attach(vk::Raymarcher& marcher, const cl::Buffer& field, For
 }
 
 double RenderField::update(vk::Raymarcher& marcher, const std::vector<Box>& regions) {
+    wait_for_readers();
     const double ms = writer_->run(regions);
     if (path_ == vk::SharingPath::copy) {
         publish(marcher);
@@ -113,6 +115,12 @@ double RenderField::update(vk::Raymarcher& marcher, const std::vector<Box>& regi
     marcher.set_block_min(writer_->block_min());
     marcher.set_metric(metric_);  // after the field (a new one resets it)
     return ms;
+}
+
+void RenderField::wait_for_readers() {
+    if (path_ != vk::SharingPath::copy) {
+        vk_.wait_frames_in_flight();
+    }
 }
 
 void RenderField::publish(vk::Raymarcher& marcher) {

@@ -1,17 +1,22 @@
 // vk::Presenter in a real window (GLFW on X11), with validation on (synchronisation included):
-// host frames and frames the ray marcher's device exports reach the swapchain unchanged, and
-// every swapchain image has its own render-finished semaphore. Without a display the test runs
-// itself again under xvfb-run (reported as skipped, with CTest's skip, only when xvfb-run is
-// missing).
+// on one presenting Context the ray-marched image reaches the swapchain unchanged, also with
+// frames in flight while the field is replaced, rebound and the image resized between them;
+// on a presenter's own device host frames and frames the ray marcher's device exports reach
+// the swapchain unchanged, and every swapchain image has its own render-finished semaphore. Without
+// a display the test runs itself again under xvfb-run (reported as skipped, with CTest's skip, only
+// when xvfb-run is missing).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
 #define GLFW_INCLUDE_VULKAN
 #include <GLFW/glfw3.h>
 
+#include <algorithm>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <set>
 #include <sstream>
 #include <string>
@@ -83,6 +88,41 @@ vk::PresenterOptions presenter_options(GLFWwindow* window) {
     return po;
 }
 
+// A presenting context on the window (validation failing the test on any message).
+std::unique_ptr<vk::Context> presenting_context(GLFWwindow* window) {
+    vk::ContextOptions co;
+    co.validation = failing_validation_log();
+    const vk::PresenterOptions po = presenter_options(window);
+    co.instance_extensions = po.instance_extensions;
+    co.make_surface = po.make_surface;
+    return std::make_unique<vk::Context>(co);
+}
+
+// A window of kWidth x kHeight framebuffer pixels (fails the test when there is none).
+void open_window(Window& window) {
+    ASSERT_EQ(glfwInit(), GLFW_TRUE);
+    ASSERT_EQ(glfwVulkanSupported(), GLFW_TRUE);
+    glfwWindowHint(GLFW_CLIENT_API, GLFW_NO_API);
+    glfwWindowHint(GLFW_RESIZABLE, GLFW_FALSE);
+    window.handle = glfwCreateWindow(kWidth, kHeight, "voxfield present test", nullptr, nullptr);
+    ASSERT_NE(window.handle, nullptr);
+    int fw = 0, fh = 0;
+    glfwGetFramebufferSize(window.handle, &fw, &fh);
+    ASSERT_EQ(fw, static_cast<int>(kWidth));
+    ASSERT_EQ(fh, static_cast<int>(kHeight));
+}
+
+// The compact field of `world` with every empty voxel at distance 1 (exact enough for the
+// marcher: it only steps by one).
+std::vector<std::uint16_t> compact_field(const World& world) {
+    std::vector<std::uint16_t> compact(world.size());
+    for (std::size_t i = 0; i < compact.size(); ++i) {
+        compact[i] =
+            static_cast<std::uint16_t>(world.voxels()[i] == 0 ? 1u << 8 : world.voxels()[i]);
+    }
+    return compact;
+}
+
 // The pixels two RGBA8 images of kWidth x kHeight differ in (RGB only).
 std::size_t differing(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b) {
     std::size_t n = 0;
@@ -98,17 +138,12 @@ TEST(Presenter, PresentsHostAndImportedFramesWithASemaphorePerImage) {
         return;
     }
     Window window;
-    ASSERT_EQ(glfwInit(), GLFW_TRUE);
-    ASSERT_EQ(glfwVulkanSupported(), GLFW_TRUE);
-    glfwWindowHint(GLFW_CLIENT_API, GLFW_NO_API);
-    glfwWindowHint(GLFW_RESIZABLE, GLFW_FALSE);
-    window.handle = glfwCreateWindow(kWidth, kHeight, "voxfield present test", nullptr, nullptr);
-    ASSERT_NE(window.handle, nullptr);
-    int fw = 0, fh = 0;
-    glfwGetFramebufferSize(window.handle, &fw, &fh);
-    ASSERT_EQ(fw, static_cast<int>(kWidth));
-    ASSERT_EQ(fh, static_cast<int>(kHeight));
+    open_window(window);
+    if (HasFatalFailure()) {
+        return;
+    }
     vk::Presenter presenter(presenter_options(window.handle));
+    EXPECT_FALSE(presenter.shares_context());
 
     // Host frames: a gradient, several frames per swapchain image.
     std::vector<std::uint8_t> rgba(std::size_t{kWidth} * kHeight * 4);
@@ -147,14 +182,7 @@ TEST(Presenter, PresentsHostAndImportedFramesWithASemaphorePerImage) {
     }
     const World world = make_scene("spheres", Dims{24, 24, 24}, 7);
     vk::Raymarcher marcher(ctx);
-    {
-        std::vector<std::uint16_t> compact(world.size());
-        for (std::size_t i = 0; i < compact.size(); ++i) {
-            compact[i] =
-                static_cast<std::uint16_t>(world.voxels()[i] == 0 ? 1u << 8 : world.voxels()[i]);
-        }
-        marcher.upload_compact(world.dims(), Palette::dissertation(), compact);
-    }
+    marcher.upload_compact(world.dims(), Palette::dissertation(), compact_field(world));
     vk::RenderOptions r;
     r.width = kWidth;
     r.height = kHeight;
@@ -179,6 +207,139 @@ TEST(Presenter, PresentsHostAndImportedFramesWithASemaphorePerImage) {
     ASSERT_TRUE(imported.has_value());
     EXPECT_EQ(differing(imported->rgba, want.rgba), 0u);
     presenter.wait_idle();
+}
+
+vk::RenderOptions lit_view(const World& world) {
+    vk::RenderOptions r;
+    r.width = kWidth;
+    r.height = kHeight;
+    r.camera = vk::default_camera(world.dims());
+    r.shading = vk::Shading::lit;
+    r.sky_gradient = true;
+    return r;
+}
+
+TEST(Presenter, OneDeviceShowsExactlyTheRayMarchedImage) {
+    if (!have_display()) {
+        rerun_under_xvfb();
+        return;
+    }
+    Window window;
+    open_window(window);
+    if (HasFatalFailure()) {
+        return;
+    }
+    const std::unique_ptr<vk::Context> ctx = presenting_context(window.handle);
+    ASSERT_TRUE(ctx->presents());
+    EXPECT_TRUE(ctx->enabled(VK_KHR_SWAPCHAIN_EXTENSION_NAME));
+    vk::Presenter presenter(*ctx);
+    EXPECT_TRUE(presenter.shares_context());
+    EXPECT_EQ(presenter.instance(), ctx->instance());
+    EXPECT_EQ(presenter.device(), ctx->device());
+    EXPECT_EQ(presenter.queue(), ctx->queue());
+    EXPECT_EQ(presenter.frames_in_flight(), 2u);
+    EXPECT_FALSE(presenter.can_import_frames(ctx->info().uuid)) << "one device imports nothing";
+
+    const World world = make_scene("spheres", Dims{24, 24, 24}, 7);
+    vk::Raymarcher marcher(*ctx);
+    marcher.upload_compact(world.dims(), Palette::dissertation(), compact_field(world));
+    const vk::RenderOptions r = lit_view(world);
+    const vk::Image want = marcher.render(r);
+    for (int i = 0; i < 8; ++i) {
+        glfwPollEvents();
+        if (i == 7) {
+            presenter.capture_next_frame();
+        }
+        ASSERT_TRUE(presenter.present_marched(marcher, r, kWidth, kHeight, {}));
+    }
+    const auto shown = presenter.captured_frame();
+    ASSERT_TRUE(shown.has_value()) << "the swapchain cannot be copied from";
+    EXPECT_EQ(differing(shown->rgba, want.rgba), 0u);
+    presenter.wait_idle();
+    if (ctx->info().timestamps) {
+        EXPECT_GE(marcher.finished_raymarch_ms(), 0.0);
+    }
+}
+
+TEST(Presenter, FramesInFlightSurviveFieldChangesRebindingAndResizes) {
+    if (!have_display()) {
+        rerun_under_xvfb();
+        return;
+    }
+    Window window;
+    open_window(window);
+    if (HasFatalFailure()) {
+        return;
+    }
+    const std::unique_ptr<vk::Context> ctx = presenting_context(window.handle);
+    // Worlds large enough that a frame is usually still running when the next one is recorded
+    // (RaymarchFrames.ReplacedResourcesAreRetiredUntilTheFrameFinished forces it).
+    const World a = make_scene("spheres", Dims{64, 64, 64}, 7);
+    const World b = make_scene("terrain", Dims{64, 64, 64}, 3);
+    // Path 1 where the device exports memory the host can write: the field in place, acquired
+    // from and released to VK_QUEUE_FAMILY_EXTERNAL by every frame (declared before the
+    // marcher, which reads it until it is gone).
+    vk::ExternalMemory shared;
+    vk::FieldLayout shared_layout;
+    vk::Raymarcher marcher(*ctx);
+    if (vk::supports(*ctx, vk::SharingPath::opaque_fd)) {
+        shared_layout = marcher.plan(b.dims(), vk::FieldFormat::compact);
+        shared = vk::ExternalMemory::exportable(*ctx, shared_layout.total_bytes,
+                                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, "field");
+        const auto flags = ctx->memory_properties().memoryTypes[shared.memory_type()].propertyFlags;
+        if ((flags & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT) != 0) {
+            void* map = nullptr;
+            ASSERT_EQ(vkMapMemory(ctx->device(), shared.memory(), 0, VK_WHOLE_SIZE, 0, &map),
+                      VK_SUCCESS);
+            const std::vector<std::uint16_t> field = compact_field(b);
+            ASSERT_EQ(shared_layout.slabs, 1u);
+            std::memcpy(map, field.data(), field.size() * 2);
+            vkUnmapMemory(ctx->device(), shared.memory());
+        } else {
+            shared = vk::ExternalMemory();
+        }
+    }
+    vk::Presenter presenter(*ctx);
+    vk::RenderOptions r = lit_view(a);
+    vk::SharingPath last_path = vk::SharingPath::copy;
+    const World* last = &a;
+    for (int i = 0; i < 30; ++i) {
+        glfwPollEvents();
+        // A new field every other frame (new buffers; the old ones may still be read by the
+        // frame in flight), bound in place from shared memory in frames 12..17, and the image
+        // smaller than the window (a new offscreen target) in frames 20..24.
+        if (i % 2 == 0) {
+            last = (i / 2) % 2 == 0 ? &a : &b;
+            if (i >= 12 && i < 18 && shared.memory() != VK_NULL_HANDLE) {
+                marcher.bind_shared(shared, shared_layout, Palette::dissertation());
+                last = &b;
+            } else {
+                marcher.upload_compact(last->dims(), Palette::dissertation(), compact_field(*last));
+            }
+            last_path = marcher.sharing();
+        }
+        r.width = i >= 20 && i < 25 ? kWidth - 40 : kWidth;
+        r.height = i >= 20 && i < 25 ? kHeight - 30 : kHeight;
+        if (i == 29) {
+            presenter.capture_next_frame();
+        }
+        ASSERT_TRUE(presenter.present_marched(marcher, r, kWidth, kHeight, {}));
+    }
+    const auto shown = presenter.captured_frame();
+    ASSERT_TRUE(shown.has_value());
+    EXPECT_EQ(last_path, vk::SharingPath::copy);
+    const vk::Image want = marcher.render(r);
+    EXPECT_EQ(differing(shown->rgba, want.rgba), 0u);
+    // The shared field renders as the uploaded one (what path 1's frames showed).
+    if (shared.memory() != VK_NULL_HANDLE) {
+        marcher.upload_compact(b.dims(), Palette::dissertation(), compact_field(b));
+        const vk::Image uploaded = marcher.render(r);
+        marcher.bind_shared(shared, shared_layout, Palette::dissertation());
+        EXPECT_EQ(marcher.sharing(), vk::SharingPath::opaque_fd);
+        EXPECT_EQ(differing(marcher.render(r).rgba, uploaded.rgba), 0u);
+    }
+    presenter.wait_idle();
+    EXPECT_EQ(ctx->retired_in_flight(), 0u);
 }
 
 }  // namespace

@@ -1002,6 +1002,109 @@ TEST_P(RaymarchMetric, NewFieldResetsTheMetric) {
     EXPECT_THROW(marcher.render_to(r, vk::ExternalMemory()), std::logic_error);
 }
 
+TEST(RaymarchFrames, ReplacedResourcesAreRetiredUntilTheFrameFinished) {
+    // A recorded frame waits behind a submission that waits for the host (an event): a new
+    // field, palette and image size meanwhile must not free what the frame reads (validation
+    // reports destroying it in use) but retire it until the frame's fence signalled.
+    vk::Context& ctx = vulkan();
+    const VkDevice dev = ctx.device();
+    const World world = make_scene("spheres", Dims{16, 16, 16}, 5);
+    const auto field = compact_field(world, distances(world, Metric::manhattan));
+    vk::Raymarcher marcher(ctx);
+    marcher.upload_compact(world.dims(), Palette(), field);
+    const vk::RenderOptions r = options(32, 24, {-5, 20, -5}, {8, 8, 8});
+    const vk::Image want = marcher.render(r);
+    ctx.wait_frames_in_flight();
+    ASSERT_EQ(ctx.retired_in_flight(), 0u);
+
+    VkEventCreateInfo ei{};
+    ei.sType = VK_STRUCTURE_TYPE_EVENT_CREATE_INFO;
+    VkEvent event = VK_NULL_HANDLE;
+    ASSERT_EQ(vkCreateEvent(dev, &ei, nullptr, &event), VK_SUCCESS);
+    VkCommandPoolCreateInfo pi{};
+    pi.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
+    pi.queueFamilyIndex = ctx.queue_family();
+    VkCommandPool pool = VK_NULL_HANDLE;
+    ASSERT_EQ(vkCreateCommandPool(dev, &pi, nullptr, &pool), VK_SUCCESS);
+    VkCommandBufferAllocateInfo ai{};
+    ai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
+    ai.commandPool = pool;
+    ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    ai.commandBufferCount = 3;
+    std::array<VkCommandBuffer, 3> cmd{};
+    ASSERT_EQ(vkAllocateCommandBuffers(dev, &ai, cmd.data()), VK_SUCCESS);
+    std::array<VkFence, 3> fence{};
+    for (VkFence& f : fence) {
+        VkFenceCreateInfo fi{};
+        fi.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
+        ASSERT_EQ(vkCreateFence(dev, &fi, nullptr, &f), VK_SUCCESS);
+    }
+    const vk::Buffer out =
+        ctx.make_buffer(VkDeviceSize{r.width} * r.height * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                        vk::MemoryIntent::readback, "frame");
+    VkCommandBufferBeginInfo bi{};
+    bi.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
+    ASSERT_EQ(vkBeginCommandBuffer(cmd[0], &bi), VK_SUCCESS);
+    vkCmdWaitEvents(cmd[0], 1, &event, VK_PIPELINE_STAGE_HOST_BIT,
+                    VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, nullptr, 0, nullptr, 0, nullptr);
+    ASSERT_EQ(vkEndCommandBuffer(cmd[0]), VK_SUCCESS);
+    ASSERT_EQ(vkBeginCommandBuffer(cmd[1], &bi), VK_SUCCESS);
+    const VkImage image = marcher.record(cmd[1], r);
+    VkBufferImageCopy region{};
+    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    region.imageExtent = {r.width, r.height, 1};
+    vkCmdCopyImageToBuffer(cmd[1], image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, out.get(), 1,
+                           &region);
+    VkMemoryBarrier to_host{};
+    to_host.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+    to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd[1], VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1,
+                         &to_host, 0, nullptr, 0, nullptr);
+    ASSERT_EQ(vkEndCommandBuffer(cmd[1]), VK_SUCCESS);
+    for (std::size_t i = 0; i < 2; ++i) {
+        VkSubmitInfo si{};
+        si.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+        si.commandBufferCount = 1;
+        si.pCommandBuffers = &cmd[i];
+        ctx.submit(si, fence[i], "frame " + std::to_string(i));
+    }
+    // While the frame waits: another field (and palette) and another image size.
+    marcher.upload_compact(world.dims(), Palette::dissertation(), field);
+    const std::size_t retired = ctx.retired_in_flight();
+    EXPECT_GE(retired, 2u) << "the old field and palette (and descriptor set) were not retired";
+    // A second frame at another size (a new offscreen image; the old one is retired too).
+    vk::RenderOptions smaller = r;
+    smaller.width = 16;
+    ASSERT_EQ(vkBeginCommandBuffer(cmd[2], &bi), VK_SUCCESS);
+    marcher.record(cmd[2], smaller);
+    ASSERT_EQ(vkEndCommandBuffer(cmd[2]), VK_SUCCESS);
+    VkSubmitInfo si{};
+    si.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+    si.commandBufferCount = 1;
+    si.pCommandBuffers = &cmd[2];
+    ctx.submit(si, fence[2], "frame 2");
+    EXPECT_GT(ctx.retired_in_flight(), retired) << "the old image was not retired";
+    EXPECT_TRUE(ctx.busy());
+    ASSERT_EQ(vkSetEvent(dev, event), VK_SUCCESS);
+    ctx.wait(fence[2], "frame 2");
+    EXPECT_EQ(ctx.retired_in_flight(), 0u);
+    EXPECT_FALSE(ctx.busy());
+    EXPECT_EQ(std::memcmp(out.data(), want.rgba.data(), want.rgba.size()), 0)
+        << "the frame did not read the field it was recorded with";
+    if (ctx.info().timestamps) {
+        EXPECT_GE(marcher.finished_raymarch_ms(), 0.0);
+    }
+    // The new field and palette, at another size, after the wait.
+    EXPECT_EQ(marcher.render(smaller).width, 16u);
+    for (VkFence f : fence) {
+        vkDestroyFence(dev, f, nullptr);
+    }
+    vkFreeCommandBuffers(dev, pool, 3, cmd.data());
+    vkDestroyCommandPool(dev, pool, nullptr);
+    vkDestroyEvent(dev, event, nullptr);
+}
+
 INSTANTIATE_TEST_SUITE_P(Metrics, RaymarchMetric,
                          ::testing::Values(Metric::manhattan, Metric::chebyshev, Metric::euclidean),
                          [](const auto& p) { return to_string(p.param); });

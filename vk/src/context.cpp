@@ -65,8 +65,9 @@ VkDebugUtilsMessengerCreateInfoEXT messenger_info(ValidationLog* log) {
     return m;
 }
 
-// An instance with no surface extensions (headless compute only).
-Instance create_instance(std::shared_ptr<ValidationLog> validation) {
+// An instance with `extensions` (none: headless compute only).
+Instance create_instance(std::shared_ptr<ValidationLog> validation,
+                         const std::vector<std::string>& extensions = {}) {
     // lavapipe prints a non-conformance warning on stderr unless this is set; the library
     // must not print, so silence it (never overriding a value the user chose).
     ::setenv("MESA_VK_IGNORE_CONFORMANCE_WARNING", "1", 0);
@@ -76,10 +77,18 @@ Instance create_instance(std::shared_ptr<ValidationLog> validation) {
     app.applicationVersion = 1;
     app.pEngineName = "voxfield";
     app.apiVersion = VK_API_VERSION_1_1;
+    std::vector<const char*> names;
+    for (const std::string& e : extensions) {
+        names.push_back(e.c_str());
+    }
     VkInstanceCreateInfo info{};
     info.sType = VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO;
     info.pApplicationInfo = &app;
-    return Instance(info, std::move(validation), "headless instance");
+    info.enabledExtensionCount = static_cast<std::uint32_t>(names.size());
+    info.ppEnabledExtensionNames = names.data();
+    return Instance(info, std::move(validation),
+                    extensions.empty() ? "headless instance"
+                                       : "instance with the window system's surface extensions");
 }
 
 std::vector<VkPhysicalDevice> physical_devices(VkInstance instance) {
@@ -110,6 +119,34 @@ bool compute_family(VkPhysicalDevice d, std::uint32_t& family, bool& timestamps)
         }
     }
     return found;
+}
+
+// The first queue family that does compute and graphics and presents to `surface`; returns
+// why there is none ("" when found).
+std::string present_family(VkPhysicalDevice d, VkSurfaceKHR surface, std::uint32_t& family,
+                           bool& timestamps) {
+    std::uint32_t n = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(d, &n, nullptr);
+    std::vector<VkQueueFamilyProperties> families(n);
+    vkGetPhysicalDeviceQueueFamilyProperties(d, &n, families.data());
+    bool compute_graphics = false;
+    for (std::uint32_t i = 0; i < n; ++i) {
+        const VkQueueFlags both = VK_QUEUE_COMPUTE_BIT | VK_QUEUE_GRAPHICS_BIT;
+        if ((families[i].queueFlags & both) != both) {
+            continue;
+        }
+        compute_graphics = true;
+        VkBool32 present = VK_FALSE;
+        if (vkGetPhysicalDeviceSurfaceSupportKHR(d, i, surface, &present) == VK_SUCCESS &&
+            present == VK_TRUE) {
+            family = i;
+            timestamps = families[i].timestampValidBits > 0;
+            return "";
+        }
+    }
+    return compute_graphics
+               ? "no queue family that does compute and graphics presents to the window"
+               : "has no queue family that does both compute and graphics";
 }
 
 PhysicalDeviceInfo describe_device(VkPhysicalDevice d, std::size_t index) {
@@ -176,6 +213,59 @@ int type_rank(const std::string& type) {
         }
     }
     return static_cast<int>(order.size());
+}
+
+// The device `spec` asks for among `infos`: the best type that no reason rejects (`extra`
+// adds a reason of its own, e.g. that a device cannot present). Throws DeviceSelectionError
+// listing every device and why it was rejected.
+const PhysicalDeviceInfo& choose(
+    const std::vector<PhysicalDeviceInfo>& infos, const std::string& options_spec,
+    const std::function<std::string(const PhysicalDeviceInfo&)>& extra) {
+    std::string spec = options_spec, origin = "Vulkan device";
+    if (spec.empty()) {
+        if (const char* env = std::getenv("VOXFIELD_VK_DEVICE"); env != nullptr && *env != '\0') {
+            spec = env;
+            origin = "VOXFIELD_VK_DEVICE";
+        }
+    }
+    const bool is_index = !spec.empty() && std::all_of(spec.begin(), spec.end(),
+                                                       [](char c) { return c >= '0' && c <= '9'; });
+    if (!spec.empty() && spec != "gpu" && spec != "cpu" && !is_index) {
+        throw DeviceSelectionError(origin + " '" + spec +
+                                   "' is not a device: use gpu, cpu or a Vulkan device index");
+    }
+    if (infos.empty()) {
+        throw DeviceSelectionError(
+            "no Vulkan device found (install mesa-vulkan-drivers for lavapipe, or a GPU driver)");
+    }
+    std::string reasons;
+    const PhysicalDeviceInfo* best = nullptr;
+    for (const auto& d : infos) {
+        std::string why = d.rejected;
+        if (why.empty() && is_index && std::to_string(d.index) != spec) {
+            why = "not index " + spec;
+        } else if (why.empty() && spec == "cpu" && d.type != "cpu") {
+            why = "is a " + d.type + ", not a cpu";
+        } else if (why.empty() && spec == "gpu" && d.type.find("gpu") == std::string::npos) {
+            why = "is a " + d.type + ", not a gpu";
+        }
+        if (why.empty() && extra) {
+            why = extra(d);
+        }
+        if (!why.empty()) {
+            reasons += (reasons.empty() ? "" : "; ") + describe(d) + ": " + why;
+            continue;
+        }
+        if (best == nullptr || type_rank(d.type) < type_rank(best->type)) {
+            best = &d;
+        }
+    }
+    if (best == nullptr) {
+        throw DeviceSelectionError("no usable Vulkan device for " +
+                                   (spec.empty() ? std::string("the default") : spec) + ": " +
+                                   reasons);
+    }
+    return *best;
 }
 
 }  // namespace
@@ -365,60 +455,44 @@ std::vector<PhysicalDeviceInfo> list_devices() {
     return out;
 }
 
+PhysicalDeviceInfo select_device(const std::string& spec) {
+    return choose(list_devices(), spec, {});
+}
+
 Context::Context(const ContextOptions& options) {
-    std::string spec = options.device, origin = "Vulkan device";
-    if (spec.empty()) {
-        if (const char* env = std::getenv("VOXFIELD_VK_DEVICE"); env != nullptr && *env != '\0') {
-            spec = env;
-            origin = "VOXFIELD_VK_DEVICE";
-        }
-    }
-    const bool is_index = !spec.empty() && std::all_of(spec.begin(), spec.end(),
-                                                       [](char c) { return c >= '0' && c <= '9'; });
-    if (!spec.empty() && spec != "gpu" && spec != "cpu" && !is_index) {
-        throw DeviceSelectionError(origin + " '" + spec +
-                                   "' is not a device: use gpu, cpu or a Vulkan device index");
-    }
-    instance_ = create_instance(options.validation);
+    const bool presenting = static_cast<bool>(options.make_surface);
+    instance_ = create_instance(options.validation, options.instance_extensions);
     try {
-        const auto devices = physical_devices(instance_.get());
-        if (devices.empty()) {
-            throw DeviceSelectionError(
-                "no Vulkan device found (install mesa-vulkan-drivers for lavapipe, or a GPU "
-                "driver)");
+        if (presenting) {
+            surface_ = options.make_surface(instance_.get());
         }
+        const auto devices = physical_devices(instance_.get());
         std::vector<PhysicalDeviceInfo> infos;
         for (std::size_t i = 0; i < devices.size(); ++i) {
             infos.push_back(describe_device(devices[i], i));
         }
-        std::string reasons;
-        const PhysicalDeviceInfo* best = nullptr;
-        for (const auto& d : infos) {
-            std::string why = d.rejected;
-            if (why.empty() && is_index && std::to_string(d.index) != spec) {
-                why = "not index " + spec;
-            } else if (why.empty() && spec == "cpu" && d.type != "cpu") {
-                why = "is a " + d.type + ", not a cpu";
-            } else if (why.empty() && spec == "gpu" && d.type.find("gpu") == std::string::npos) {
-                why = "is a " + d.type + ", not a gpu";
+        // Presenting: the window's surface from a queue that also ray-marches.
+        std::vector<std::uint32_t> families(devices.size(), 0);
+        const auto can_present = [&](const PhysicalDeviceInfo& d) -> std::string {
+            if (!presenting) {
+                return "";
             }
-            if (!why.empty()) {
-                reasons += (reasons.empty() ? "" : "; ") + describe(d) + ": " + why;
-                continue;
+            if (!d.has_extension(VK_KHR_SWAPCHAIN_EXTENSION_NAME)) {
+                return "lacks VK_KHR_swapchain";
             }
-            if (best == nullptr || type_rank(d.type) < type_rank(best->type)) {
-                best = &d;
-            }
-        }
-        if (best == nullptr) {
-            throw DeviceSelectionError("no usable Vulkan device for " +
-                                       (spec.empty() ? std::string("the default") : spec) + ": " +
-                                       reasons);
-        }
-        info_ = *best;
+            bool timestamps = false;
+            return present_family(devices[d.index], surface_, families[d.index], timestamps);
+        };
+        info_ = choose(infos, options.device, can_present);
         physical_ = devices[info_.index];
         bool timestamps = false;
-        compute_family(physical_, family_, timestamps);
+        if (presenting) {
+            family_ = families[info_.index];
+            present_family(physical_, surface_, family_, timestamps);
+            info_.timestamps = info_.timestamps && timestamps;
+        } else {
+            compute_family(physical_, family_, timestamps);
+        }
         VkPhysicalDeviceProperties props{};
         vkGetPhysicalDeviceProperties(physical_, &props);
         timestamp_period_ = props.limits.timestampPeriod;
@@ -432,6 +506,10 @@ Context::Context(const ContextOptions& options) {
         q.pQueuePriorities = &priority;
         // External memory (DESIGN §2 sharing paths 1 and 2) where the device has it.
         std::vector<const char*> extensions;
+        if (presenting) {
+            extensions.push_back(VK_KHR_SWAPCHAIN_EXTENSION_NAME);
+            enabled_.emplace_back(VK_KHR_SWAPCHAIN_EXTENSION_NAME);
+        }
         for (const char* ext : {VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME,
                                 VK_EXT_EXTERNAL_MEMORY_HOST_EXTENSION_NAME}) {
             if (info_.has_extension(ext)) {
@@ -460,6 +538,9 @@ Context::Context(const ContextOptions& options) {
         if (device_ != VK_NULL_HANDLE) {
             vkDestroyDevice(device_, nullptr);
         }
+        if (surface_ != VK_NULL_HANDLE) {
+            vkDestroySurfaceKHR(instance_.get(), surface_, nullptr);
+        }
         throw;  // instance_ destroys the instance
     }
 }
@@ -472,6 +553,9 @@ Context::~Context() {
     pool_.reset();
     if (device_ != VK_NULL_HANDLE) {
         vkDestroyDevice(device_, nullptr);
+    }
+    if (surface_ != VK_NULL_HANDLE) {
+        vkDestroySurfaceKHR(instance_.get(), surface_, nullptr);
     }
 }
 
@@ -632,7 +716,6 @@ void Context::upload(const Buffer& dst, const void* bytes, VkDeviceSize size, Vk
     for (VkDeviceSize done = 0; done < size; done += chunk) {
         const VkDeviceSize n = std::min(chunk, size - done);
         std::memcpy(staging.data(), static_cast<const std::uint8_t*>(bytes) + done, n);
-        const std::size_t retired = retired_.size();
         try {
             submit_and_wait(
                 [&](VkCommandBuffer cmd) {
@@ -641,10 +724,7 @@ void Context::upload(const Buffer& dst, const void* bytes, VkDeviceSize size, Vk
                 },
                 "upload");
         } catch (...) {
-            if (retired_.size() > retired) {
-                // The copy may still read the staging buffer: it goes with the submission.
-                retired_.back().buffers.push_back(std::move(staging));
-            }
+            retire(std::move(staging));  // the copy may still read it
             throw;
         }
     }
@@ -683,11 +763,12 @@ void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record
     VkFence fence_handle = VK_NULL_HANDLE;
     check(vkCreateFence(device_, &fence_info, nullptr, &fence_handle), "vkCreateFence", what);
     Owned<VkFence> fence(device_, fence_handle, vkDestroyFence);
-    VkSubmitInfo submit{};
-    submit.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
-    submit.commandBufferCount = 1;
-    submit.pCommandBuffers = &cmd;
-    check(vkQueueSubmit(queue_, 1, &submit, fence.get()), "vkQueueSubmit", what);
+    VkSubmitInfo info{};
+    info.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+    info.commandBufferCount = 1;
+    info.pCommandBuffers = &cmd;
+    submit(info, fence.get(), what);
+    const std::uint64_t serial = submitted_;
     const std::uint64_t ns =
         timeout == std::chrono::nanoseconds::max()
             ? UINT64_MAX
@@ -696,14 +777,74 @@ void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record
     if (r != VK_SUCCESS) {
         // The GPU may still run the command buffer (and read what it refers to): both stay
         // alive until its fence signals.
-        InFlight pending;
-        pending.fence = fence_handle;
-        pending.cmd = cmd;
-        retired_.push_back(std::move(pending));
+        struct Submission {
+            Owned<VkFence> fence;
+            VkDevice device;
+            VkCommandPool pool;
+            VkCommandBuffer cmd;
+            Submission(Owned<VkFence> f, VkDevice d, VkCommandPool p, VkCommandBuffer c)
+                : fence(std::move(f)), device(d), pool(p), cmd(c) {}
+            Submission(Submission&& o) noexcept
+                : fence(std::move(o.fence)),
+                  device(o.device),
+                  pool(o.pool),
+                  cmd(std::exchange(o.cmd, VK_NULL_HANDLE)) {}
+            ~Submission() {
+                if (cmd != VK_NULL_HANDLE) {
+                    vkFreeCommandBuffers(device, pool, 1, &cmd);
+                }
+            }
+        };
+        retire(Submission(std::move(fence), device_, pool_.get(), cmd));
         free_cmd.cmd = VK_NULL_HANDLE;
-        static_cast<void>(fence.release());
         throw VkError("vkWaitForFences", r, what);
     }
+    finish(serial);
+}
+
+void Context::submit(const VkSubmitInfo& info, VkFence fence, const std::string& what) {
+    check(vkQueueSubmit(queue_, 1, &info, fence), "vkQueueSubmit", what);
+    pending_.push_back(Pending{++submitted_, fence});
+}
+
+void Context::wait(VkFence fence, const std::string& what) {
+    check(vkWaitForFences(device_, 1, &fence, VK_TRUE, UINT64_MAX), "vkWaitForFences", what);
+    std::uint64_t serial = 0;
+    for (const Pending& p : pending_) {
+        if (p.fence == fence) {
+            serial = std::max(serial, p.serial);
+        }
+    }
+    finish(serial);
+}
+
+void Context::finish(std::uint64_t serial) {
+    // A fence's signal covers every earlier submission to the queue.
+    finished_ = std::max(finished_, serial);
+    std::erase_if(pending_, [&](const Pending& p) { return p.serial <= finished_; });
+    std::erase_if(retired_, [&](const Retired& r) { return r.serial <= finished_; });
+}
+
+void Context::retire_erased(std::shared_ptr<void> resource) {
+    if (submitted_ == finished_) {
+        return;  // nothing in flight: `resource` goes now
+    }
+    retired_.push_back(Retired{submitted_, std::move(resource)});
+}
+
+bool Context::busy() {
+    return !finished(submitted_);
+}
+
+bool Context::finished(std::uint64_t serial) {
+    if (serial > finished_) {
+        collect_retired(false);
+    }
+    return serial <= finished_;
+}
+
+void Context::wait_frames_in_flight() {
+    collect_retired(true);
 }
 
 std::size_t Context::retired_in_flight() {
@@ -712,18 +853,16 @@ std::size_t Context::retired_in_flight() {
 }
 
 void Context::collect_retired(bool wait) {
-    if (wait && !retired_.empty()) {
+    if (wait && finished_ < submitted_) {
         vkDeviceWaitIdle(device_);
+        finish(submitted_);
+        return;
     }
-    for (auto it = retired_.begin(); it != retired_.end();) {
-        // Finished, or never will (a lost device): nothing of it runs any more.
-        const VkResult r = vkGetFenceStatus(device_, it->fence);
-        if (wait || r != VK_NOT_READY) {
-            vkFreeCommandBuffers(device_, pool_.get(), 1, &it->cmd);
-            vkDestroyFence(device_, it->fence, nullptr);
-            it = retired_.erase(it);
-        } else {
-            ++it;
+    // The latest submission whose fence signalled, or never will (a lost device).
+    for (auto it = pending_.rbegin(); it != pending_.rend(); ++it) {
+        if (vkGetFenceStatus(device_, it->fence) != VK_NOT_READY) {
+            finish(it->serial);
+            return;
         }
     }
 }

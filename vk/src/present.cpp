@@ -54,8 +54,15 @@ int type_rank(VkPhysicalDeviceType t) {
 
 }  // namespace
 
+// Frames recorded and submitted while earlier ones still run on the GPU.
+constexpr std::uint32_t kFramesInFlight = 2;
+
 struct Presenter::Impl {
-    Instance instance;
+    // Presenting on a Context (its instance, surface, device and queue, submissions through
+    // it), else on the presenter's own instance and device.
+    Context* ctx = nullptr;
+    Instance own_instance;
+    VkInstance instance = VK_NULL_HANDLE;
     VkSurfaceKHR surface = VK_NULL_HANDLE;
     VkPhysicalDevice physical = VK_NULL_HANDLE;
     VkDevice device = VK_NULL_HANDLE;
@@ -76,18 +83,24 @@ struct Presenter::Impl {
     std::vector<VkFramebuffer> framebuffers;
     VkRenderPass pass = VK_NULL_HANDLE;
     VkCommandPool pool = VK_NULL_HANDLE;
-    VkCommandBuffer cmd = VK_NULL_HANDLE;
-    VkFence fence = VK_NULL_HANDLE;
-    VkSemaphore acquired = VK_NULL_HANDLE;
     // One render-finished semaphore per swapchain image (what presenting it waits on): a
     // semaphore is signalled again only after its image was acquired again, i.e. after the
     // presentation that waited on it is done with it.
     std::vector<VkSemaphore> rendered;
 
-    VkBuffer staging = VK_NULL_HANDLE;
-    VkDeviceMemory staging_memory = VK_NULL_HANDLE;
-    VkDeviceSize staging_size = 0;
-    void* staging_map = nullptr;
+    // A frame slot: its command buffer, the fence of its last submission, the semaphore its
+    // acquired image signals, and the staging buffer of present()'s host pixels.
+    struct Slot {
+        VkCommandBuffer cmd = VK_NULL_HANDLE;
+        VkFence fence = VK_NULL_HANDLE;
+        VkSemaphore acquired = VK_NULL_HANDLE;
+        VkBuffer staging = VK_NULL_HANDLE;
+        VkDeviceMemory staging_memory = VK_NULL_HANDLE;
+        VkDeviceSize staging_size = 0;
+        void* staging_map = nullptr;
+    };
+    std::array<Slot, kFramesInFlight> slots{};
+    std::uint32_t current = 0;  // the slot of the next frame
 
     // Frames rendered by another VkDevice of this GPU (import_frame).
     bool external_memory_fd = false;  // VK_KHR_external_memory_fd enabled
@@ -98,6 +111,7 @@ struct Presenter::Impl {
 
     // capture_next_frame(): the next presented image (overlay included) copied to the host.
     bool can_capture = false, capture_requested = false, captured = false;
+    std::uint32_t capture_slot = 0;  // the slot whose submission copies it
     VkBuffer capture = VK_NULL_HANDLE;
     VkDeviceMemory capture_memory = VK_NULL_HANDLE;
     void* capture_map = nullptr;
@@ -105,36 +119,74 @@ struct Presenter::Impl {
 
     ~Impl() {
         if (device != VK_NULL_HANDLE) {
-            vkDeviceWaitIdle(device);
+            wait_idle();
             destroy_swapchain();
-            destroy_staging();
+            for (Slot& slot : slots) {
+                destroy_staging(slot);
+                if (slot.fence)
+                    vkDestroyFence(device, slot.fence, nullptr);
+                if (slot.acquired)
+                    vkDestroySemaphore(device, slot.acquired, nullptr);
+            }
             destroy_imported();
             destroy_capture();
             if (pass)
                 vkDestroyRenderPass(device, pass, nullptr);
-            if (fence)
-                vkDestroyFence(device, fence, nullptr);
-            if (acquired)
-                vkDestroySemaphore(device, acquired, nullptr);
             if (pool)
                 vkDestroyCommandPool(device, pool, nullptr);
-            vkDestroyDevice(device, nullptr);
+            if (ctx == nullptr) {
+                vkDestroyDevice(device, nullptr);
+            }
         }
-        if (surface != VK_NULL_HANDLE) {
-            vkDestroySurfaceKHR(instance.get(), surface, nullptr);
+        if (ctx == nullptr && surface != VK_NULL_HANDLE) {
+            vkDestroySurfaceKHR(instance, surface, nullptr);
         }
-        instance.reset();
+        own_instance.reset();
     }
 
-    void destroy_staging() {
-        if (staging)
-            vkDestroyBuffer(device, staging, nullptr);
-        if (staging_memory)
-            vkFreeMemory(device, staging_memory, nullptr);
-        staging = VK_NULL_HANDLE;
-        staging_memory = VK_NULL_HANDLE;
-        staging_map = nullptr;
-        staging_size = 0;
+    // Submissions and waits go through the Context when presenting on one (it tracks them
+    // for what the ray marcher retires).
+    void submit(const VkSubmitInfo& info, VkFence fence, const std::string& what) {
+        if (ctx != nullptr) {
+            ctx->submit(info, fence, what);
+        } else {
+            check(vkQueueSubmit(queue, 1, &info, fence), "vkQueueSubmit", what);
+        }
+    }
+    void wait(VkFence fence) {
+        if (ctx != nullptr) {
+            ctx->wait(fence, "frame in flight");
+        } else {
+            check(vkWaitForFences(device, 1, &fence, VK_TRUE, UINT64_MAX), "vkWaitForFences",
+                  "frame in flight");
+        }
+    }
+    void wait_frames() {
+        for (Slot& slot : slots) {
+            wait(slot.fence);
+        }
+    }
+    void wait_idle() {
+        if (ctx != nullptr) {
+            ctx->wait_frames_in_flight();
+        } else {
+            vkDeviceWaitIdle(device);
+        }
+    }
+
+    // The swapchain's format and the overlay's render pass, the command pool and the frame
+    // slots (after the device and surface are known).
+    void init_frames();
+
+    void destroy_staging(Slot& slot) {
+        if (slot.staging)
+            vkDestroyBuffer(device, slot.staging, nullptr);
+        if (slot.staging_memory)
+            vkFreeMemory(device, slot.staging_memory, nullptr);
+        slot.staging = VK_NULL_HANDLE;
+        slot.staging_memory = VK_NULL_HANDLE;
+        slot.staging_map = nullptr;
+        slot.staging_size = 0;
     }
 
     void destroy_capture() {
@@ -148,8 +200,8 @@ struct Presenter::Impl {
     }
 
     // Records the copy of swapchain image `image` (after the overlay's pass) into a fresh
-    // host-visible buffer.
-    void record_capture(VkImage image);
+    // host-visible buffer, in `cmd`.
+    void record_capture(VkCommandBuffer cmd, VkImage image);
 
     void destroy_imported() {
         if (imported)
@@ -161,15 +213,24 @@ struct Presenter::Impl {
         imported_size = 0;
     }
 
-    // Waits for the last frame, recreates the swapchain when the framebuffer size changed and
-    // acquires an image; false when the frame must be skipped (zero size, out of date).
+    // Waits until the current slot's last frame has finished, recreates the swapchain when
+    // the framebuffer size changed and acquires an image; false when the frame must be
+    // skipped (zero size, out of date).
     bool begin_frame(std::uint32_t fb_width, std::uint32_t fb_height, std::uint32_t& index);
-    // Records and submits one frame: `src` (rows of `row_length` pixels, bytes already in
-    // the swapchain's order; external: acquired from another VkDevice) cropped to w x h, then
-    // the overlay; presents it.
-    bool submit_frame(VkBuffer src, bool external, std::uint32_t row_length, std::uint32_t w,
-                      std::uint32_t h, std::uint32_t index, std::uint32_t fb_width,
-                      std::uint32_t fb_height, const std::function<void(VkCommandBuffer)>& overlay);
+    // What a frame copies into the swapchain image (bytes already in the swapchain's order):
+    // a buffer with rows of `row_length` pixels (external: acquired from another VkDevice), or
+    // the image `march` records (the ray marcher on this device), in TRANSFER_SRC layout.
+    struct Source {
+        VkBuffer buffer = VK_NULL_HANDLE;
+        bool external = false;
+        std::uint32_t row_length = 0;
+        std::function<VkImage(VkCommandBuffer)> march;
+    };
+    // Records the current slot's frame: `src` cropped to w x h, then the overlay; submits
+    // it without waiting, presents it and moves on to the next slot.
+    bool submit_frame(const Source& src, std::uint32_t w, std::uint32_t h, std::uint32_t index,
+                      std::uint32_t fb_width, std::uint32_t fb_height,
+                      const std::function<void(VkCommandBuffer)>& overlay);
 
     void destroy_swapchain() {
         for (VkFramebuffer f : framebuffers)
@@ -219,18 +280,19 @@ struct Presenter::Impl {
         check(vkMapMemory(device, buffer_memory, 0, VK_WHOLE_SIZE, 0, &map), "vkMapMemory", what);
     }
 
-    void ensure_staging(VkDeviceSize size) {
-        if (size <= staging_size) {
+    // The slot's frame has finished (begin_frame waited for it).
+    void ensure_staging(Slot& slot, VkDeviceSize size) {
+        if (size <= slot.staging_size) {
             return;
         }
-        destroy_staging();
-        make_host_buffer(size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, "present staging", staging,
-                         staging_memory, staging_map);
-        staging_size = size;
+        destroy_staging(slot);
+        make_host_buffer(size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, "present staging", slot.staging,
+                         slot.staging_memory, slot.staging_map);
+        slot.staging_size = size;
     }
 
     void create_swapchain(std::uint32_t w, std::uint32_t h) {
-        vkDeviceWaitIdle(device);
+        wait_idle();
         VkSurfaceCapabilitiesKHR caps;
         check(vkGetPhysicalDeviceSurfaceCapabilitiesKHR(physical, surface, &caps),
               "vkGetPhysicalDeviceSurfaceCapabilitiesKHR");
@@ -315,6 +377,25 @@ struct Presenter::Impl {
     }
 };
 
+Presenter::Presenter(Context& ctx, std::vector<PresentMode> modes)
+    : impl_(std::make_unique<Impl>()) {
+    Impl& m = *impl_;
+    if (!ctx.presents()) {
+        throw std::logic_error("Presenter on a Context that was not created to present");
+    }
+    m.ctx = &ctx;
+    m.wanted = std::move(modes);
+    m.instance = ctx.instance();
+    m.surface = ctx.surface();
+    m.physical = ctx.physical();
+    m.device = ctx.device();
+    m.queue = ctx.queue();
+    m.family = ctx.queue_family();
+    m.name = ctx.info().name;
+    m.memory = ctx.memory_properties();
+    m.init_frames();
+}
+
 Presenter::Presenter(const PresenterOptions& options) : impl_(std::make_unique<Impl>()) {
     Impl& m = *impl_;
     m.wanted = options.modes;
@@ -331,15 +412,16 @@ Presenter::Presenter(const PresenterOptions& options) : impl_(std::make_unique<I
     ii.pApplicationInfo = &app;
     ii.enabledExtensionCount = static_cast<std::uint32_t>(exts.size());
     ii.ppEnabledExtensionNames = exts.data();
-    m.instance = Instance(ii, options.validation,
-                          "presentation instance with the window system's surface extensions");
-    m.surface = options.make_surface(m.instance.get());
+    m.own_instance = Instance(ii, options.validation,
+                              "presentation instance with the window system's surface extensions");
+    m.instance = m.own_instance.get();
+    m.surface = options.make_surface(m.instance);
 
     // A device with a queue family that does graphics and presents to the surface.
     std::uint32_t n = 0;
-    vkEnumeratePhysicalDevices(m.instance.get(), &n, nullptr);
+    vkEnumeratePhysicalDevices(m.instance, &n, nullptr);
     std::vector<VkPhysicalDevice> devices(n);
-    vkEnumeratePhysicalDevices(m.instance.get(), &n, devices.data());
+    vkEnumeratePhysicalDevices(m.instance, &n, devices.data());
     std::string reasons;
     int best_rank = 1 << 30;
     for (std::uint32_t i = 0; i < n; ++i) {
@@ -425,7 +507,11 @@ Presenter::Presenter(const PresenterOptions& options) : impl_(std::make_unique<I
     check(vkCreateDevice(m.physical, &di, nullptr, &m.device), "vkCreateDevice",
           m.name + " (presentation)");
     vkGetDeviceQueue(m.device, m.family, 0, &m.queue);
+    m.init_frames();
+}
 
+void Presenter::Impl::init_frames() {
+    Impl& m = *this;
     // Surface format: 8-bit UNORM (the ray marcher's bytes are already display-encoded).
     std::uint32_t fc = 0;
     vkGetPhysicalDeviceSurfaceFormatsKHR(m.physical, m.surface, &fc, nullptr);
@@ -482,25 +568,33 @@ Presenter::Presenter(const PresenterOptions& options) : impl_(std::make_unique<I
     pi.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
     pi.queueFamilyIndex = m.family;
     check(vkCreateCommandPool(m.device, &pi, nullptr, &m.pool), "vkCreateCommandPool");
-    VkCommandBufferAllocateInfo ai{};
-    ai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
-    ai.commandPool = m.pool;
-    ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-    ai.commandBufferCount = 1;
-    check(vkAllocateCommandBuffers(m.device, &ai, &m.cmd), "vkAllocateCommandBuffers");
-    VkFenceCreateInfo fi{};
-    fi.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
-    fi.flags = VK_FENCE_CREATE_SIGNALED_BIT;
-    check(vkCreateFence(m.device, &fi, nullptr, &m.fence), "vkCreateFence");
-    VkSemaphoreCreateInfo si{};
-    si.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO;
-    check(vkCreateSemaphore(m.device, &si, nullptr, &m.acquired), "vkCreateSemaphore");
+    for (Slot& slot : m.slots) {
+        VkCommandBufferAllocateInfo ai{};
+        ai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
+        ai.commandPool = m.pool;
+        ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+        ai.commandBufferCount = 1;
+        check(vkAllocateCommandBuffers(m.device, &ai, &slot.cmd), "vkAllocateCommandBuffers");
+        VkFenceCreateInfo fi{};
+        fi.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
+        fi.flags = VK_FENCE_CREATE_SIGNALED_BIT;
+        check(vkCreateFence(m.device, &fi, nullptr, &slot.fence), "vkCreateFence");
+        VkSemaphoreCreateInfo si{};
+        si.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO;
+        check(vkCreateSemaphore(m.device, &si, nullptr, &slot.acquired), "vkCreateSemaphore");
+    }
 }
 
 Presenter::~Presenter() = default;
 
 VkInstance Presenter::instance() const {
-    return impl_->instance.get();
+    return impl_->instance;
+}
+bool Presenter::shares_context() const {
+    return impl_->ctx != nullptr;
+}
+std::uint32_t Presenter::frames_in_flight() const {
+    return kFramesInFlight;
 }
 VkPhysicalDevice Presenter::physical() const {
     return impl_->physical;
@@ -538,29 +632,37 @@ std::vector<VkSemaphore> Presenter::render_finished_semaphores() const {
 }
 
 void Presenter::wait_idle() {
-    vkDeviceWaitIdle(impl_->device);
+    impl_->wait_idle();
 }
 
 void Presenter::submit_and_wait(const std::function<void(VkCommandBuffer)>& record) {
     Impl& m = *impl_;
-    check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
-    check(vkResetCommandBuffer(m.cmd, 0), "vkResetCommandBuffer");
+    if (m.ctx != nullptr) {
+        m.ctx->submit_and_wait(record, "presenter");
+        return;
+    }
+    Impl::Slot& slot = m.slots[m.current];
+    m.wait(slot.fence);
+    check(vkResetCommandBuffer(slot.cmd, 0), "vkResetCommandBuffer");
     VkCommandBufferBeginInfo b{};
     b.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
     b.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    check(vkBeginCommandBuffer(m.cmd, &b), "vkBeginCommandBuffer");
-    record(m.cmd);
-    check(vkEndCommandBuffer(m.cmd), "vkEndCommandBuffer");
+    check(vkBeginCommandBuffer(slot.cmd, &b), "vkBeginCommandBuffer");
+    record(slot.cmd);
+    check(vkEndCommandBuffer(slot.cmd), "vkEndCommandBuffer");
     VkSubmitInfo s{};
     s.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
     s.commandBufferCount = 1;
-    s.pCommandBuffers = &m.cmd;
-    check(vkResetFences(m.device, 1, &m.fence), "vkResetFences");
-    check(vkQueueSubmit(m.queue, 1, &s, m.fence), "vkQueueSubmit");
-    check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+    s.pCommandBuffers = &slot.cmd;
+    check(vkResetFences(m.device, 1, &slot.fence), "vkResetFences");
+    m.submit(s, slot.fence, "presenter");
+    m.wait(slot.fence);
 }
 
-void Presenter::Impl::record_capture(VkImage image) {
+void Presenter::Impl::record_capture(VkCommandBuffer cmd, VkImage image) {
+    if (capture != VK_NULL_HANDLE) {
+        wait(slots[capture_slot].fence);  // the last capture's copy may still run
+    }
     destroy_capture();
     make_host_buffer(VkDeviceSize{extent.width} * extent.height * 4,
                      VK_BUFFER_USAGE_TRANSFER_DST_BIT, "window capture", capture, capture_memory,
@@ -603,13 +705,13 @@ bool Presenter::Impl::begin_frame(std::uint32_t fb_width, std::uint32_t fb_heigh
     if (fb_width == 0 || fb_height == 0) {
         return false;  // a zero-size window, e.g. minimised
     }
-    check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+    m.wait(m.slots[m.current].fence);  // the only wait of a frame: reusing its slot
     if (m.swapchain == VK_NULL_HANDLE || m.extent.width != fb_width ||
         m.extent.height != fb_height) {
         m.create_swapchain(fb_width, fb_height);
     }
-    VkResult r = vkAcquireNextImageKHR(m.device, m.swapchain, UINT64_MAX, m.acquired,
-                                       VK_NULL_HANDLE, &index);
+    VkResult r = vkAcquireNextImageKHR(m.device, m.swapchain, UINT64_MAX,
+                                       m.slots[m.current].acquired, VK_NULL_HANDLE, &index);
     if (r == VK_ERROR_OUT_OF_DATE_KHR) {
         m.create_swapchain(fb_width, fb_height);
         return false;
@@ -621,16 +723,20 @@ bool Presenter::Impl::begin_frame(std::uint32_t fb_width, std::uint32_t fb_heigh
     return true;
 }
 
-bool Presenter::Impl::submit_frame(VkBuffer src, bool external, std::uint32_t row_length,
-                                   std::uint32_t w, std::uint32_t h, std::uint32_t index,
-                                   std::uint32_t fb_width, std::uint32_t fb_height,
+bool Presenter::Impl::submit_frame(const Source& src, std::uint32_t w, std::uint32_t h,
+                                   std::uint32_t index, std::uint32_t fb_width,
+                                   std::uint32_t fb_height,
                                    const std::function<void(VkCommandBuffer)>& overlay) {
     Impl& m = *this;
-    check(vkResetCommandBuffer(m.cmd, 0), "vkResetCommandBuffer");
+    Slot& slot = m.slots[m.current];
+    const VkCommandBuffer cmd = slot.cmd;
+    check(vkResetCommandBuffer(cmd, 0), "vkResetCommandBuffer");
     VkCommandBufferBeginInfo b{};
     b.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
     b.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    check(vkBeginCommandBuffer(m.cmd, &b), "vkBeginCommandBuffer");
+    check(vkBeginCommandBuffer(cmd, &b), "vkBeginCommandBuffer");
+    // The ray march runs before the acquired image is needed (only transfers wait for it).
+    const VkImage marched = src.march ? src.march(cmd) : VK_NULL_HANDLE;
     VkImageMemoryBarrier to_dst{};
     to_dst.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
     to_dst.srcAccessMask = 0;
@@ -648,60 +754,72 @@ bool Presenter::Impl::submit_frame(VkBuffer src, bool external, std::uint32_t ro
     acquire.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
     acquire.srcQueueFamilyIndex = VK_QUEUE_FAMILY_EXTERNAL;
     acquire.dstQueueFamilyIndex = m.family;
-    acquire.buffer = src;
+    acquire.buffer = src.buffer;
     acquire.offset = 0;
     acquire.size = VK_WHOLE_SIZE;
-    vkCmdPipelineBarrier(m.cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                         0, 0, nullptr, external ? 1 : 0, &acquire, 1, &to_dst);
+    // Transfers wait for the acquired image (the submission's wait stage): the layout
+    // transition follows that wait.
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0,
+                         nullptr, src.external ? 1 : 0, &acquire, 1, &to_dst);
     if (w < m.extent.width || h < m.extent.height) {
         const VkClearColorValue black{{0, 0, 0, 1}};
-        vkCmdClearColorImage(m.cmd, m.images[index], VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &black,
-                             1, &to_dst.subresourceRange);
+        vkCmdClearColorImage(cmd, m.images[index], VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &black, 1,
+                             &to_dst.subresourceRange);
         VkMemoryBarrier mb{};
         mb.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
         mb.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
         mb.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-        vkCmdPipelineBarrier(m.cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                             0, 1, &mb, 0, nullptr, 0, nullptr);
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
+                             1, &mb, 0, nullptr, 0, nullptr);
     }
-    if (w > 0 && h > 0) {
+    if (w > 0 && h > 0 && marched != VK_NULL_HANDLE) {
+        // r32ui texels holding RGBA8 (or BGRA8) bytes into the swapchain's 32-bit format.
+        VkImageCopy c{};
+        c.srcSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+        c.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+        c.extent = {w, h, 1};
+        vkCmdCopyImage(cmd, marched, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, m.images[index],
+                       VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &c);
+    } else if (w > 0 && h > 0) {
         VkBufferImageCopy c{};
-        c.bufferRowLength = row_length;
+        c.bufferRowLength = src.row_length;
         c.bufferImageHeight = h;
         c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
         c.imageExtent = {w, h, 1};
-        vkCmdCopyBufferToImage(m.cmd, src, m.images[index], VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1,
-                               &c);
+        vkCmdCopyBufferToImage(cmd, src.buffer, m.images[index],
+                               VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &c);
     }
     VkRenderPassBeginInfo rb{};
     rb.sType = VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO;
     rb.renderPass = m.pass;
     rb.framebuffer = m.framebuffers[index];
     rb.renderArea.extent = m.extent;
-    vkCmdBeginRenderPass(m.cmd, &rb, VK_SUBPASS_CONTENTS_INLINE);
+    vkCmdBeginRenderPass(cmd, &rb, VK_SUBPASS_CONTENTS_INLINE);
     if (overlay) {
-        overlay(m.cmd);
+        overlay(cmd);
     }
-    vkCmdEndRenderPass(m.cmd);
+    vkCmdEndRenderPass(cmd);
     if (m.capture_requested && m.can_capture) {
-        m.record_capture(m.images[index]);
+        m.record_capture(cmd, m.images[index]);
         m.capture_requested = false;
         m.captured = true;
+        m.capture_slot = m.current;
     }
-    check(vkEndCommandBuffer(m.cmd), "vkEndCommandBuffer");
+    check(vkEndCommandBuffer(cmd), "vkEndCommandBuffer");
 
     const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
     VkSubmitInfo s{};
     s.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
     s.waitSemaphoreCount = 1;
-    s.pWaitSemaphores = &m.acquired;
+    s.pWaitSemaphores = &slot.acquired;
     s.pWaitDstStageMask = &wait_stage;
     s.commandBufferCount = 1;
-    s.pCommandBuffers = &m.cmd;
+    s.pCommandBuffers = &cmd;
     s.signalSemaphoreCount = 1;
     s.pSignalSemaphores = &m.rendered[index];
-    check(vkResetFences(m.device, 1, &m.fence), "vkResetFences");
-    check(vkQueueSubmit(m.queue, 1, &s, m.fence), "vkQueueSubmit", "present");
+    check(vkResetFences(m.device, 1, &slot.fence), "vkResetFences");
+    m.submit(s, slot.fence, "present");
+    m.current = (m.current + 1) % kFramesInFlight;
     VkPresentInfoKHR p{};
     p.sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR;
     p.waitSemaphoreCount = 1;
@@ -711,7 +829,6 @@ bool Presenter::Impl::submit_frame(VkBuffer src, bool external, std::uint32_t ro
     p.pImageIndices = &index;
     const VkResult r = vkQueuePresentKHR(m.queue, &p);
     if (r == VK_ERROR_OUT_OF_DATE_KHR || r == VK_SUBOPTIMAL_KHR) {
-        check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
         m.create_swapchain(fb_width, fb_height);
         return true;
     }
@@ -728,11 +845,12 @@ bool Presenter::present(const std::uint8_t* rgba, std::uint32_t width, std::uint
         return false;
     }
 
-    // The image, cropped to the swapchain's extent, into the staging buffer.
+    // The image, cropped to the swapchain's extent, into the slot's staging buffer.
+    Impl::Slot& slot = m.slots[m.current];
     const std::uint32_t w = std::min(width, m.extent.width);
     const std::uint32_t h = std::min(height, m.extent.height);
-    m.ensure_staging(VkDeviceSize{w} * h * 4 + 4);
-    auto* dst = static_cast<std::uint8_t*>(m.staging_map);
+    m.ensure_staging(slot, VkDeviceSize{w} * h * 4 + 4);
+    auto* dst = static_cast<std::uint8_t*>(slot.staging_map);
     for (std::uint32_t y = 0; y < h; ++y) {
         const std::uint8_t* src = rgba + (std::size_t{y} * width) * 4;
         std::uint8_t* row = dst + std::size_t{y} * w * 4;
@@ -747,12 +865,34 @@ bool Presenter::present(const std::uint8_t* rgba, std::uint32_t width, std::uint
             }
         }
     }
+    Impl::Source source;
+    source.buffer = slot.staging;
+    source.row_length = w;
+    return m.submit_frame(source, w, h, index, fb_width, fb_height, overlay);
+}
 
-    return m.submit_frame(m.staging, false, w, w, h, index, fb_width, fb_height, overlay);
+bool Presenter::present_marched(Raymarcher& marcher, const RenderOptions& options,
+                                std::uint32_t fb_width, std::uint32_t fb_height,
+                                const std::function<void(VkCommandBuffer)>& overlay) {
+    Impl& m = *impl_;
+    if (m.ctx == nullptr) {
+        throw std::logic_error("Presenter::present_marched needs a Presenter on the Context");
+    }
+    validate(options);
+    std::uint32_t index = 0;
+    if (!m.begin_frame(fb_width, fb_height, index)) {
+        return false;
+    }
+    RenderOptions r = options;
+    r.bgra = m.swizzle;
+    Impl::Source source;
+    source.march = [&](VkCommandBuffer cmd) { return marcher.record(cmd, r); };
+    return m.submit_frame(source, std::min(r.width, m.extent.width),
+                          std::min(r.height, m.extent.height), index, fb_width, fb_height, overlay);
 }
 
 bool Presenter::can_import_frames(const std::array<std::uint8_t, VK_UUID_SIZE>& uuid) const {
-    return impl_->external_memory_fd && impl_->uuid == uuid;
+    return impl_->ctx == nullptr && impl_->external_memory_fd && impl_->uuid == uuid;
 }
 
 bool Presenter::bgra() const {
@@ -775,7 +915,7 @@ void Presenter::import_frame(int fd, VkDeviceSize size, std::uint32_t memory_typ
         throw VkError("vkAllocateMemory", VK_ERROR_EXTENSION_NOT_PRESENT,
                       m.name + " (presentation) lacks VK_KHR_external_memory_fd");
     }
-    check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+    m.wait_frames();  // frames in flight read the old import
     m.destroy_imported();
     VkExternalMemoryBufferCreateInfo eb{};
     eb.sType = VK_STRUCTURE_TYPE_EXTERNAL_MEMORY_BUFFER_CREATE_INFO;
@@ -812,7 +952,7 @@ void Presenter::import_frame(int fd, VkDeviceSize size, std::uint32_t memory_typ
 }
 
 void Presenter::wait_frame() {
-    check(vkWaitForFences(impl_->device, 1, &impl_->fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+    impl_->wait_frames();
 }
 
 bool Presenter::present_imported(std::uint32_t width, std::uint32_t height, std::uint32_t fb_width,
@@ -826,9 +966,12 @@ bool Presenter::present_imported(std::uint32_t width, std::uint32_t height, std:
     if (!m.begin_frame(fb_width, fb_height, index)) {
         return false;
     }
-    const std::uint32_t w = std::min(width, m.extent.width);
-    const std::uint32_t h = std::min(height, m.extent.height);
-    return m.submit_frame(m.imported, true, width, w, h, index, fb_width, fb_height, overlay);
+    Impl::Source source;
+    source.buffer = m.imported;
+    source.external = true;
+    source.row_length = width;
+    return m.submit_frame(source, std::min(width, m.extent.width),
+                          std::min(height, m.extent.height), index, fb_width, fb_height, overlay);
 }
 
 void Presenter::capture_next_frame() {
@@ -840,7 +983,7 @@ std::optional<Image> Presenter::captured_frame() {
     if (!m.captured) {
         return std::nullopt;
     }
-    check(vkWaitForFences(m.device, 1, &m.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+    m.wait(m.slots[m.capture_slot].fence);
     Image out;
     out.width = m.capture_extent.width;
     out.height = m.capture_extent.height;

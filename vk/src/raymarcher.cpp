@@ -44,6 +44,9 @@ struct Specialization {
     VkBool32 count;
 };
 constexpr std::size_t kMetrics = 3;
+// Timestamp pairs used in turn by recorded ray marches (more than the frames that can be in
+// flight, so that a finished frame's pair is read before it is reused).
+constexpr std::uint32_t kQueryPairs = 4;
 
 std::uint32_t metric_code(Metric m) {
     switch (m) {
@@ -158,9 +161,16 @@ struct Raymarcher::Impl {
     Owned<VkShaderModule> shader;
     // One pipeline per metric, without and with counting; built on first use.
     std::array<std::array<Owned<VkPipeline>, 2>, kMetrics> pipelines;
+    // The descriptor set, in a pool of its own: when the bindings change while work that uses
+    // the set may be in flight, the pool is retired and a fresh set written.
     Owned<VkDescriptorPool> pool;
     VkDescriptorSet set = VK_NULL_HANDLE;
-    Owned<VkQueryPool> queries;
+    bool set_recorded = false;   // bound in a command buffer since it was made
+    Owned<VkQueryPool> queries;  // kQueryPairs pairs (dispatch start, end)
+    std::array<std::uint64_t, kQueryPairs> pair_serial{};  // the submission that wrote each
+    std::uint32_t next_pair = 0;
+    std::uint64_t reported_serial = 0;  // finished_raymarch_ms(): the latest pair read
+    double reported_ms = -1;
     Buffer palette;  // 256 colours, then the block minima when set
     std::array<std::uint32_t, 256> colours{};
     std::vector<std::uint32_t> block_min;
@@ -186,12 +196,23 @@ struct Raymarcher::Impl {
     Buffer frame;
     VkDeviceMemory frame_memory = VK_NULL_HANDLE;
 
-    void march(const RenderOptions& o, VkBuffer dst, bool external);
+    // Records the ray march of `o` into `cmd` (Raymarcher::record); returns the timestamp pair
+    // it writes.
+    std::uint32_t record(VkCommandBuffer cmd, const RenderOptions& o);
+    // Renders `o` and copies the image into `dst` (width * height * 4 bytes), then waits.
+    // external: dst lies in memory another VkDevice imports; it is released to
+    // VK_QUEUE_FAMILY_EXTERNAL instead of being made visible to the host. Returns the pair.
+    std::uint32_t march(const RenderOptions& o, VkBuffer dst, bool external);
+    // A set that no work in flight uses (the current one, or a fresh one when it may be in
+    // use), with every binding written.
+    void write_set();
     // The pipeline of `metric`, with or without counting (built when first asked for).
     VkPipeline pipeline_for(Metric metric, bool count);
     // Makes `counters` hold at least `pixels` counters and points its binding at it.
     void prepare_counters(std::size_t pixels);
-    double last_raymarch_ms();
+    // The dispatch time recorded in timestamp pair `pair` (-1 without timestamp queries);
+    // wait: until it is available, else -1 when it is not yet.
+    double pair_ms(std::uint32_t pair, bool wait);
     // Makes `target` an image of width x height (no-op when it already is).
     void prepare_target(std::uint32_t width, std::uint32_t height, const std::string& what);
     void upload_palette(const Palette& p);
@@ -256,30 +277,13 @@ Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
           "raymarch.comp");
     m.shader = Owned<VkShaderModule>(dev, shader, vkDestroyShaderModule);
 
-    const std::array<VkDescriptorPoolSize, 2> sizes = {
-        VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
-        VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kCounterBinding + 1}};
-    VkDescriptorPoolCreateInfo dp{};
-    dp.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO;
-    dp.maxSets = 1;
-    dp.poolSizeCount = static_cast<std::uint32_t>(sizes.size());
-    dp.pPoolSizes = sizes.data();
-    VkDescriptorPool pool = VK_NULL_HANDLE;
-    check(vkCreateDescriptorPool(dev, &dp, nullptr, &pool), "vkCreateDescriptorPool",
-          "ray marcher");
-    m.pool = Owned<VkDescriptorPool>(dev, pool, vkDestroyDescriptorPool);
-    VkDescriptorSetAllocateInfo da{};
-    da.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO;
-    da.descriptorPool = pool;
-    da.descriptorSetCount = 1;
-    da.pSetLayouts = &set_layout;
-    check(vkAllocateDescriptorSets(dev, &da, &m.set), "vkAllocateDescriptorSets", "ray marcher");
+    m.write_set();
 
     if (ctx.info().timestamps) {
         VkQueryPoolCreateInfo qp{};
         qp.sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO;
         qp.queryType = VK_QUERY_TYPE_TIMESTAMP;
-        qp.queryCount = 2;
+        qp.queryCount = 2 * kQueryPairs;
         VkQueryPool q = VK_NULL_HANDLE;
         check(vkCreateQueryPool(dev, &qp, nullptr, &q), "vkCreateQueryPool", "ray marcher");
         m.queries = Owned<VkQueryPool>(dev, q, vkDestroyQueryPool);
@@ -290,7 +294,83 @@ Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
     m.prepare_counters(1);
 }
 
-Raymarcher::~Raymarcher() = default;
+Raymarcher::~Raymarcher() {
+    // Recorded frames may still use the pipelines, the set and the buffers.
+    impl_->ctx.wait_frames_in_flight();
+}
+
+void Raymarcher::Impl::write_set() {
+    const VkDevice dev = ctx.device();
+    if (!pool || (set_recorded && ctx.busy())) {
+        if (pool) {
+            ctx.retire(std::move(pool));  // frees the set once the frames using it finished
+        }
+        const std::array<VkDescriptorPoolSize, 2> sizes = {
+            VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
+            VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kCounterBinding + 1}};
+        VkDescriptorPoolCreateInfo dp{};
+        dp.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO;
+        dp.maxSets = 1;
+        dp.poolSizeCount = static_cast<std::uint32_t>(sizes.size());
+        dp.pPoolSizes = sizes.data();
+        VkDescriptorPool handle = VK_NULL_HANDLE;
+        check(vkCreateDescriptorPool(dev, &dp, nullptr, &handle), "vkCreateDescriptorPool",
+              "ray marcher");
+        pool = Owned<VkDescriptorPool>(dev, handle, vkDestroyDescriptorPool);
+        const VkDescriptorSetLayout layout_handle = set_layout.get();
+        VkDescriptorSetAllocateInfo da{};
+        da.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO;
+        da.descriptorPool = handle;
+        da.descriptorSetCount = 1;
+        da.pSetLayouts = &layout_handle;
+        check(vkAllocateDescriptorSets(dev, &da, &set), "vkAllocateDescriptorSets", "ray marcher");
+        set_recorded = false;
+    }
+    std::vector<VkDescriptorBufferInfo> infos;
+    infos.reserve(kCounterBinding + 1);
+    std::vector<VkWriteDescriptorSet> writes;
+    auto add = [&](std::uint32_t binding, const Buffer& b, VkDeviceSize range) {
+        if (b.get() == VK_NULL_HANDLE) {
+            return;
+        }
+        infos.push_back(VkDescriptorBufferInfo{b.get(), 0, range});
+        VkWriteDescriptorSet w{};
+        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        w.dstSet = set;
+        w.dstBinding = binding;
+        w.descriptorCount = 1;
+        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        w.pBufferInfo = &infos.back();
+        writes.push_back(w);
+    };
+    add(VF_RAYMARCH_BINDING_PALETTE, palette, VK_WHOLE_SIZE);
+    add(kCounterBinding, counters, VK_WHOLE_SIZE);
+    for (std::uint32_t s = 0; s < VF_RAYMARCH_MAX_SLABS && !field.empty(); ++s) {
+        // Unused bindings alias slab 0 and are never read; compact fields have no material
+        // buffers, so those bindings alias field slab 0 too.
+        const std::uint32_t k = s < layout.slabs ? s : 0;
+        add(VF_RAYMARCH_BINDING_FIELD + s, field[k], layout.slab_bytes(k));
+        if (material.empty()) {
+            add(VF_RAYMARCH_BINDING_MATERIAL + s, field[0], layout.slab_bytes(0));
+        } else {
+            add(VF_RAYMARCH_BINDING_MATERIAL + s, material[k], VK_WHOLE_SIZE);
+        }
+    }
+    const VkDescriptorImageInfo image_info{VK_NULL_HANDLE, target.view.get(),
+                                           VK_IMAGE_LAYOUT_GENERAL};
+    if (target.view) {
+        VkWriteDescriptorSet w{};
+        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        w.dstSet = set;
+        w.dstBinding = VF_RAYMARCH_BINDING_IMAGE;
+        w.descriptorCount = 1;
+        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+        w.pImageInfo = &image_info;
+        writes.push_back(w);
+    }
+    vkUpdateDescriptorSets(dev, static_cast<std::uint32_t>(writes.size()), writes.data(), 0,
+                           nullptr);
+}
 
 FieldFormat parse_field_format(const std::string& name) {
     if (name == "packed32") {
@@ -389,77 +469,39 @@ void Raymarcher::Impl::prepare_counters(std::size_t pixels) {
     if (counters.get() != VK_NULL_HANDLE && counters.size() >= bytes) {
         return;
     }
-    counters = Buffer();  // every submission that wrote it was waited for
+    ctx.retire(std::move(counters));
     counters = ctx.make_buffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryIntent::readback,
                                "ray counters");
-    VkDescriptorBufferInfo info{counters.get(), 0, VK_WHOLE_SIZE};
-    VkWriteDescriptorSet w{};
-    w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-    w.dstSet = set;
-    w.dstBinding = kCounterBinding;
-    w.descriptorCount = 1;
-    w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-    w.pBufferInfo = &info;
-    vkUpdateDescriptorSets(ctx.device(), 1, &w, 0, nullptr);
+    write_set();
 }
 
 void Raymarcher::Impl::write_palette_binding() {
     std::vector<std::uint32_t> words(colours.begin(), colours.end());
     words.insert(words.end(), block_min.begin(), block_min.end());
     const VkDeviceSize bytes = 4 * words.size();
-    if (bytes > palette.size()) {
+    // Frames in flight may read the old contents: those get a buffer of their own.
+    if (bytes > palette.size() || (set_recorded && ctx.busy())) {
+        ctx.retire(std::move(palette));
         palette = ctx.make_buffer(
             bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
             MemoryIntent::device_local, "palette and block minima");
-        VkDescriptorBufferInfo info{palette.get(), 0, VK_WHOLE_SIZE};
-        VkWriteDescriptorSet w{};
-        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-        w.dstSet = set;
-        w.dstBinding = VF_RAYMARCH_BINDING_PALETTE;
-        w.descriptorCount = 1;
-        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-        w.pBufferInfo = &info;
-        vkUpdateDescriptorSets(ctx.device(), 1, &w, 0, nullptr);
+        ctx.upload(palette, words.data(), bytes);
+        write_set();
+        return;
     }
     ctx.upload(palette, words.data(), bytes);
 }
 
 void Raymarcher::Impl::install(std::vector<Buffer> new_field, std::vector<Buffer> new_material,
                                const FieldLayout& new_layout, SharingPath path) {
-    // Nothing reads the old buffers any more: every submission was waited for.
+    // Frames in flight may still read the old buffers.
+    ctx.retire(std::move(field));
+    ctx.retire(std::move(material));
     field = std::move(new_field);
     material = std::move(new_material);
     layout = new_layout;
     sharing = path;
-
-    std::vector<VkDescriptorBufferInfo> infos;
-    infos.reserve(kBindings);
-    std::vector<VkWriteDescriptorSet> writes;
-    auto add = [&](std::uint32_t binding, const Buffer& b, VkDeviceSize range) {
-        infos.push_back(VkDescriptorBufferInfo{b.get(), 0, range});
-        VkWriteDescriptorSet w{};
-        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-        w.dstSet = set;
-        w.dstBinding = binding;
-        w.descriptorCount = 1;
-        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-        w.pBufferInfo = &infos.back();
-        writes.push_back(w);
-    };
-    add(VF_RAYMARCH_BINDING_PALETTE, palette, VK_WHOLE_SIZE);
-    for (std::uint32_t s = 0; s < VF_RAYMARCH_MAX_SLABS; ++s) {
-        // Unused bindings alias slab 0 and are never read; compact fields have no material
-        // buffers, so those bindings alias field slab 0 too.
-        const std::uint32_t k = s < layout.slabs ? s : 0;
-        add(VF_RAYMARCH_BINDING_FIELD + s, field[k], layout.slab_bytes(k));
-        if (material.empty()) {
-            add(VF_RAYMARCH_BINDING_MATERIAL + s, field[0], layout.slab_bytes(0));
-        } else {
-            add(VF_RAYMARCH_BINDING_MATERIAL + s, material[k], VK_WHOLE_SIZE);
-        }
-    }
-    vkUpdateDescriptorSets(ctx.device(), static_cast<std::uint32_t>(writes.size()), writes.data(),
-                           0, nullptr);
+    write_set();
 }
 
 void Raymarcher::upload(const World& world, const Palette& palette,
@@ -557,12 +599,9 @@ void Raymarcher::Impl::prepare_target(std::uint32_t width, std::uint32_t height,
         return;
     }
     const VkDevice dev = ctx.device();
-    // Release the old target first (view, image, then its memory).
-    target.view.reset();
-    target.image.reset();
-    target.memory.reset();
-    target.readback = Buffer();
-    target.width = target.height = 0;
+    // Frames in flight may still use the old target (view, image, then its memory go).
+    ctx.retire(std::move(target));
+    target = Target{};
     // Offscreen target: one r32ui texel per RGBA8 pixel, read back through a buffer.
     VkImageCreateInfo ii{};
     ii.sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO;
@@ -597,6 +636,7 @@ void Raymarcher::Impl::prepare_target(std::uint32_t width, std::uint32_t height,
                         MemoryIntent::readback, "image readback");
     target.width = width;
     target.height = height;
+    write_set();
 }
 
 Image Raymarcher::render(const RenderOptions& o) {
@@ -605,41 +645,21 @@ Image Raymarcher::render(const RenderOptions& o) {
     return out;
 }
 
-// Ray-marches o into the offscreen target and copies it into `dst` (width * height * 4
-// bytes), then waits. external: dst lies in memory another VkDevice imports; it is released to
-// VK_QUEUE_FAMILY_EXTERNAL instead of being made visible to the host.
-void Raymarcher::Impl::march(const RenderOptions& o, VkBuffer dst, bool external) {
+std::uint32_t Raymarcher::Impl::record(VkCommandBuffer cmd, const RenderOptions& o) {
     Impl& m = *this;
     if (m.field.empty()) {
         throw std::logic_error("Raymarcher::render before upload");
     }
     validate(o);
     const CameraBasis basis = camera_basis(o.camera, o.width, o.height);
-    const VkDevice dev = m.ctx.device();
     const std::string what = "ray march " + std::to_string(o.width) + "x" +
                              std::to_string(o.height) + " of " + m.layout.dims.to_string();
-
     m.prepare_target(o.width, o.height, what);
     if (o.count) {
         m.prepare_counters(std::size_t{o.width} * o.height);
     }
     const VkPipeline pipeline = m.pipeline_for(m.metric, o.count);
     const VkImage image_handle = m.target.image.get();
-    const VkImageView view_handle = m.target.view.get();
-    const VkDeviceSize bytes = VkDeviceSize{o.width} * o.height * 4;
-    if (dst == VK_NULL_HANDLE) {
-        dst = m.target.readback.get();
-    }
-
-    VkDescriptorImageInfo image_info{VK_NULL_HANDLE, view_handle, VK_IMAGE_LAYOUT_GENERAL};
-    VkWriteDescriptorSet w{};
-    w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-    w.dstSet = m.set;
-    w.dstBinding = VF_RAYMARCH_BINDING_IMAGE;
-    w.descriptorCount = 1;
-    w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
-    w.pImageInfo = &image_info;
-    vkUpdateDescriptorSets(dev, 1, &w, 0, nullptr);
 
     PushConstants pc{};
     to4(pc.origin, o.camera.position);
@@ -660,60 +680,106 @@ void Raymarcher::Impl::march(const RenderOptions& o, VkBuffer dst, bool external
         (o.bgra ? VF_RAYMARCH_FLAG_BGRA : 0u);
     pc.image[3] = pack(o.sky);
 
+    const std::uint32_t pair = m.next_pair;
+    m.next_pair = (m.next_pair + 1) % kQueryPairs;
+    m.pair_serial[pair] = m.ctx.next_serial();
+
+    // The previous march's writes and the copy out of the image (an earlier frame, maybe
+    // still running) come before the image is written again.
+    VkImageMemoryBarrier to_general{};
+    to_general.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
+    to_general.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    to_general.dstAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    to_general.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+    to_general.newLayout = VK_IMAGE_LAYOUT_GENERAL;
+    to_general.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    to_general.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    to_general.image = image_handle;
+    to_general.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    // Host writes to mapped buffers are visible to the device at submission; staged uploads
+    // finished (and were waited for) before it.
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 0, nullptr, 0, nullptr, 1,
+                         &to_general);
+    // Path 1: OpenCL wrote the field through its fd, so the field is acquired from
+    // VK_QUEUE_FAMILY_EXTERNAL before the dispatch reads it and released back after.
+    const bool external = m.sharing == SharingPath::opaque_fd;
+    std::vector<VkBufferMemoryBarrier> ownership;
+    if (external) {
+        for (const Buffer& b : m.field) {
+            VkBufferMemoryBarrier acquire{};
+            acquire.sType = VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER;
+            acquire.srcAccessMask = 0;
+            acquire.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+            acquire.srcQueueFamilyIndex = VK_QUEUE_FAMILY_EXTERNAL;
+            acquire.dstQueueFamilyIndex = m.ctx.queue_family();
+            acquire.buffer = b.get();
+            acquire.offset = 0;
+            acquire.size = VK_WHOLE_SIZE;
+            ownership.push_back(acquire);
+        }
+        vkCmdPipelineBarrier(
+            cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 0,
+            nullptr, static_cast<std::uint32_t>(ownership.size()), ownership.data(), 0, nullptr);
+    }
     const VkQueryPool timer = m.queries.get();
+    if (timer != VK_NULL_HANDLE) {
+        vkCmdResetQueryPool(cmd, timer, 2 * pair, 2);
+        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, timer, 2 * pair);
+    }
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipeline_layout.get(), 0, 1,
+                            &m.set, 0, nullptr);
+    m.set_recorded = true;
+    vkCmdPushConstants(cmd, m.pipeline_layout.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof pc,
+                       &pc);
+    const std::uint32_t g = VF_RAYMARCH_LOCAL_SIZE;
+    vkCmdDispatch(cmd, (o.width + g - 1) / g, (o.height + g - 1) / g, 1);
+    if (timer != VK_NULL_HANDLE) {
+        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, timer, 2 * pair + 1);
+    }
+    if (external) {
+        for (VkBufferMemoryBarrier& b : ownership) {
+            b.srcAccessMask = 0;
+            b.dstAccessMask = 0;
+            std::swap(b.srcQueueFamilyIndex, b.dstQueueFamilyIndex);
+        }
+        vkCmdPipelineBarrier(
+            cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, 0, 0,
+            nullptr, static_cast<std::uint32_t>(ownership.size()), ownership.data(), 0, nullptr);
+    }
+    if (o.count) {
+        VkMemoryBarrier counted{};
+        counted.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+        counted.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+        counted.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT,
+                             0, 1, &counted, 0, nullptr, 0, nullptr);
+    }
+    VkImageMemoryBarrier to_copy = to_general;
+    to_copy.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    to_copy.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+    to_copy.oldLayout = VK_IMAGE_LAYOUT_GENERAL;
+    to_copy.newLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         0, 0, nullptr, 0, nullptr, 1, &to_copy);
+    return pair;
+}
+
+std::uint32_t Raymarcher::Impl::march(const RenderOptions& o, VkBuffer dst, bool external) {
+    Impl& m = *this;
+    std::uint32_t pair = 0;
     m.ctx.submit_and_wait(
         [&](VkCommandBuffer cmd) {
-            VkImageMemoryBarrier to_general{};
-            to_general.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
-            to_general.srcAccessMask = 0;
-            to_general.dstAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-            to_general.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-            to_general.newLayout = VK_IMAGE_LAYOUT_GENERAL;
-            to_general.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-            to_general.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-            to_general.image = image_handle;
-            to_general.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-            // Host writes to mapped buffers are visible to the device at submission; the
-            // staged uploads finished (and were waited for) before this submission.
-            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT,
-                                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 0, nullptr, 0, nullptr, 1,
-                                 &to_general);
-            if (timer != VK_NULL_HANDLE) {
-                vkCmdResetQueryPool(cmd, timer, 0, 2);
-                vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, timer, 0);
+            pair = m.record(cmd, o);
+            if (dst == VK_NULL_HANDLE) {
+                dst = m.target.readback.get();
             }
-            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
-            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, m.pipeline_layout.get(), 0,
-                                    1, &m.set, 0, nullptr);
-            vkCmdPushConstants(cmd, m.pipeline_layout.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
-                               sizeof pc, &pc);
-            const std::uint32_t g = VF_RAYMARCH_LOCAL_SIZE;
-            vkCmdDispatch(cmd, (o.width + g - 1) / g, (o.height + g - 1) / g, 1);
-            if (timer != VK_NULL_HANDLE) {
-                vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, timer, 1);
-            }
-            if (o.count) {
-                VkMemoryBarrier counted{};
-                counted.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-                counted.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-                counted.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-                vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
-                                     VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &counted, 0, nullptr, 0,
-                                     nullptr);
-            }
-            VkImageMemoryBarrier to_copy = to_general;
-            to_copy.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-            to_copy.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-            to_copy.oldLayout = VK_IMAGE_LAYOUT_GENERAL;
-            to_copy.newLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
-            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
-                                 VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr, 1,
-                                 &to_copy);
             VkBufferImageCopy region{};
             region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
             region.imageExtent = {o.width, o.height, 1};
-            vkCmdCopyImageToBuffer(cmd, image_handle, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, dst, 1,
-                                   &region);
+            vkCmdCopyImageToBuffer(cmd, m.target.image.get(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                                   dst, 1, &region);
             if (external) {
                 // Release the buffer to the device that imports it (another VkDevice).
                 VkBufferMemoryBarrier release{};
@@ -724,7 +790,7 @@ void Raymarcher::Impl::march(const RenderOptions& o, VkBuffer dst, bool external
                 release.dstQueueFamilyIndex = VK_QUEUE_FAMILY_EXTERNAL;
                 release.buffer = dst;
                 release.offset = 0;
-                release.size = bytes;
+                release.size = VkDeviceSize{o.width} * o.height * 4;
                 vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
                                      VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, 0, 0, nullptr, 1,
                                      &release, 0, nullptr);
@@ -738,32 +804,35 @@ void Raymarcher::Impl::march(const RenderOptions& o, VkBuffer dst, bool external
                                      nullptr);
             }
         },
-        what);
+        "ray march " + std::to_string(o.width) + "x" + std::to_string(o.height));
+    return pair;
 }
 
-// The last march's dispatch time by GPU timestamps (-1 without timestamp queries).
-double Raymarcher::Impl::last_raymarch_ms() {
+double Raymarcher::Impl::pair_ms(std::uint32_t pair, bool wait) {
     if (!queries) {
         return -1;
     }
     std::array<std::uint64_t, 2> ts{};
-    check(vkGetQueryPoolResults(ctx.device(), queries.get(), 0, 2, sizeof ts, ts.data(),
-                                sizeof(std::uint64_t),
-                                VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
-          "vkGetQueryPoolResults", "ray march timestamps");
+    const VkResult r = vkGetQueryPoolResults(
+        ctx.device(), queries.get(), 2 * pair, 2, sizeof ts, ts.data(), sizeof(std::uint64_t),
+        wait ? VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT : VK_QUERY_RESULT_64_BIT);
+    if (r == VK_NOT_READY) {
+        return -1;
+    }
+    check(r, "vkGetQueryPoolResults", "ray march timestamps");
     return static_cast<double>(ts[1] - ts[0]) * static_cast<double>(ctx.timestamp_period_ns()) *
            1e-6;
 }
 
 void Raymarcher::render(const RenderOptions& o, Image& out) {
     Impl& m = *impl_;
-    m.march(o, VK_NULL_HANDLE, false);
+    const std::uint32_t pair = m.march(o, VK_NULL_HANDLE, false);
     const VkDeviceSize bytes = VkDeviceSize{o.width} * o.height * 4;
     out.width = o.width;
     out.height = o.height;
     out.rgba.resize(bytes);
     std::memcpy(out.rgba.data(), m.target.readback.data(), bytes);
-    out.raymarch_ms = m.last_raymarch_ms();
+    out.raymarch_ms = m.pair_ms(pair, true);
     out.fetches = out.steps = 0;
     if (o.count) {
         const auto* c = static_cast<const std::uint32_t*>(m.counters.data());
@@ -785,14 +854,38 @@ double Raymarcher::render_to(const RenderOptions& o, const ExternalMemory& frame
                                std::to_string(bytes) + " bytes");
     }
     if (m.frame_memory != frame.memory() || m.frame.size() < bytes) {
-        m.frame = Buffer();
+        m.ctx.retire(std::move(m.frame));
         m.frame = m.ctx.make_external_buffer(frame.size(), VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                              frame.handle_type(), "shared frame");
         m.ctx.bind(m.frame, frame.memory(), 0, "shared frame");
         m.frame_memory = frame.memory();
     }
-    m.march(o, m.frame.get(), true);
-    return m.last_raymarch_ms();
+    return m.pair_ms(m.march(o, m.frame.get(), true), true);
+}
+
+VkImage Raymarcher::record(VkCommandBuffer cmd, const RenderOptions& o) {
+    if (o.count) {
+        throw std::logic_error("Raymarcher::record does not count; use render()");
+    }
+    impl_->record(cmd, o);
+    return impl_->target.image.get();
+}
+
+double Raymarcher::finished_raymarch_ms() {
+    Impl& m = *impl_;
+    std::uint32_t latest = kQueryPairs;
+    for (std::uint32_t p = 0; p < kQueryPairs; ++p) {
+        const std::uint64_t serial = m.pair_serial[p];
+        if (serial > m.reported_serial && m.ctx.finished(serial) &&
+            (latest == kQueryPairs || serial > m.pair_serial[latest])) {
+            latest = p;
+        }
+    }
+    if (latest != kQueryPairs) {
+        m.reported_serial = m.pair_serial[latest];
+        m.reported_ms = m.pair_ms(latest, false);
+    }
+    return m.reported_ms;
 }
 
 void Raymarcher::set_block_min(std::span<const std::uint32_t> block_min) {

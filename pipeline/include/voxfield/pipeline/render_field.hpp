@@ -36,7 +36,8 @@ class RenderField {
     // Converts from a new source (the field in `format` with distances in `metric`, and the
     // world's voxels, both on the OpenCL device; they must stay alive until the next attach)
     // and shows the whole field in `marcher` (bound in place on paths 1/2, copied on path 3),
-    // which then steps by that metric. Returns the OpenCL time in ms.
+    // which then steps by that metric. Paths 1/2: first waits for the Vulkan frames in flight,
+    // which read the memory OpenCL overwrites. Returns the OpenCL time in ms.
     // `step` is the field's largest voxel spacing (1 for unit spacing): its distances are
     // converted into voxels, rounded down, for the ray marcher.
     double attach(vk::Raymarcher& marcher, const cl::Buffer& field, Format format, Metric metric,
@@ -45,7 +46,8 @@ class RenderField {
     // at once); update() needs an attach() after this.
     void detach() { writer_.reset(); }
     // After the source changed inside `regions`: converts those voxels and refreshes the
-    // coarse table (path 3: copies the field again). Returns the OpenCL time in ms.
+    // coarse table (path 3: copies the field again; paths 1/2: waits for the frames in flight
+    // first, as attach). Returns the OpenCL time in ms.
     double update(vk::Raymarcher& marcher, const std::vector<Box>& regions);
 
     vk::SharingPath path() const { return path_; }
@@ -54,8 +56,11 @@ class RenderField {
 
   private:
     void publish(vk::Raymarcher& marcher);
+    // Paths 1/2: no Vulkan frame in flight reads the shared field any more.
+    void wait_for_readers();
 
     ocl::Context& cl_;
+    vk::Context& vk_;
     Dims dims_;
     vk::FieldLayout layout_;
     vk::SharingPath path_ = vk::SharingPath::copy;

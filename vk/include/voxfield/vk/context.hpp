@@ -1,8 +1,10 @@
 #pragma once
 // Vulkan runtime: errors carrying the call and VkResult name, move-only RAII handles, device
 // enumeration and selection (explaining every rejection), validation (the Khronos layer with
-// synchronisation validation, messages collected), a headless compute context with buffers
-// allocated by intent and one-shot submissions.
+// synchronisation validation, messages collected), a compute context (headless, or able to
+// present to a window's surface) with buffers allocated by intent, one-shot submissions, and
+// submissions tracked by their fences so that resources still used by work in flight are
+// retired (freed once that work has finished) instead of destroyed.
 #include <vulkan/vulkan.h>
 
 #include <array>
@@ -14,6 +16,7 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -156,6 +159,10 @@ struct PhysicalDeviceInfo {
 // loader / driver is installed.
 std::vector<PhysicalDeviceInfo> list_devices();
 
+// The device a headless Context(spec) takes (ContextOptions::device), without creating it.
+// Throws DeviceSelectionError explaining why each device was rejected.
+PhysicalDeviceInfo select_device(const std::string& spec);
+
 // Intent of a buffer's memory: where the GPU reads it fastest, or where the host writes /
 // reads it (host-visible, coherent; readback prefers cached memory).
 enum class MemoryIntent { device_local, upload, readback };
@@ -200,21 +207,33 @@ struct ContextOptions {
     // GPU, then CPU), "gpu", "cpu" or an index from list_devices().
     std::string device;
     // Non-null: validation on (the layer must be installed), every message goes to this log.
-    std::shared_ptr<ValidationLog> validation;
+    std::shared_ptr<ValidationLog> validation = nullptr;
+    // Presentation (set both): the window system's instance extensions (e.g.
+    // glfwGetRequiredInstanceExtensions) and a function that makes the window's surface on the
+    // instance (throws on failure; the context destroys the surface). Selection then also
+    // requires a queue family that does compute and graphics and presents to that surface, and
+    // VK_KHR_swapchain, which it enables.
+    std::vector<std::string> instance_extensions = {};
+    std::function<VkSurfaceKHR(VkInstance)> make_surface = nullptr;
 };
 
-// Owns the instance, one logical device with a compute queue and a command pool.
+// Owns the instance (and the surface when presenting), one logical device with one queue and
+// a command pool.
 class Context {
   public:
     // spec: ContextOptions::device. Throws DeviceSelectionError explaining why each device
     // was rejected.
-    explicit Context(const std::string& spec = "") : Context(ContextOptions{spec, nullptr}) {}
+    explicit Context(const std::string& spec = "") : Context(ContextOptions{spec}) {}
     explicit Context(const ContextOptions& options);
     ~Context();
     Context(const Context&) = delete;
     Context& operator=(const Context&) = delete;
 
     const PhysicalDeviceInfo& info() const { return info_; }
+    VkInstance instance() const { return instance_.get(); }
+    // The window's surface (VK_NULL_HANDLE for a headless context).
+    VkSurfaceKHR surface() const { return surface_; }
+    bool presents() const { return surface_ != VK_NULL_HANDLE; }
     VkDevice device() const { return device_; }
     VkPhysicalDevice physical() const { return physical_; }
     VkQueue queue() const { return queue_; }
@@ -250,29 +269,60 @@ class Context {
     // staging buffer (needs VK_BUFFER_USAGE_TRANSFER_DST_BIT).
     void upload(const Buffer& dst, const void* bytes, VkDeviceSize size, VkDeviceSize offset = 0);
     // Records `record` into a fresh command buffer, submits it and waits for its fence at
-    // most `timeout`. When the wait fails (VK_TIMEOUT, a lost device) it throws VkError and
-    // retires the command buffer and fence: they are freed once the fence signals (checked
-    // at each submission) or when the context is destroyed, never while the GPU may use them.
+    // most `timeout` (so for all work submitted before it too). When the wait fails
+    // (VK_TIMEOUT, a lost device) it throws VkError and retires the command buffer and fence.
     void submit_and_wait(const std::function<void(VkCommandBuffer)>& record,
                          const std::string& what,
                          std::chrono::nanoseconds timeout = std::chrono::nanoseconds::max());
-    // Submissions whose wait failed and that are not known to be finished.
+
+    // Submits `info` to the queue, signalling `fence` (which stays the caller's) when it and
+    // all work submitted before it have finished. The caller waits for that fence with wait(),
+    // never resetting or destroying it before.
+    void submit(const VkSubmitInfo& info, VkFence fence, const std::string& what);
+    // Waits for a fence of submit() (or an unsubmitted, signalled one) and frees what was
+    // retired before that submission.
+    void wait(VkFence fence, const std::string& what);
+    // Keeps `resource` (any move-only object: buffers, images, descriptor pools) alive until
+    // every submission made so far has finished, then destroys it (checked at each
+    // submission and wait, or when the context is destroyed). Anything a recorded but not yet
+    // submitted command buffer uses must not be retired.
+    template <class T>
+    void retire(T&& resource) {
+        retire_erased(std::make_shared<std::decay_t<T>>(std::forward<T>(resource)));
+    }
+    // Whether work submitted is not known to have finished (no wait).
+    bool busy();
+    // The serial the next submission (submit or submit_and_wait) gets, and whether submission
+    // `serial` is known to have finished (no wait).
+    std::uint64_t next_serial() const { return submitted_ + 1; }
+    bool finished(std::uint64_t serial);
+    // Waits until all submitted work has finished (frames in flight included) and frees
+    // everything retired. Call it before OpenCL overwrites memory that submitted frames read
+    // (the shared field of sharing paths 1 and 2).
+    void wait_frames_in_flight();
+    // Retired resources (failed submit_and_wait submissions included) not freed yet.
     std::size_t retired_in_flight();
 
   private:
-    // A submission whose wait failed, with what it uses.
-    struct InFlight {
-        VkFence fence = VK_NULL_HANDLE;
-        VkCommandBuffer cmd = VK_NULL_HANDLE;
-        std::vector<Buffer> buffers;
+    struct Pending {
+        std::uint64_t serial;
+        VkFence fence;
+    };
+    struct Retired {
+        std::uint64_t serial;  // freed once this submission has finished
+        std::shared_ptr<void> resource;
     };
     std::uint32_t memory_type(std::uint32_t allowed, MemoryIntent intent,
                               const std::string& what) const;
-    // Frees the retired submissions whose fence signalled (all of them with `wait`, after
-    // vkDeviceWaitIdle).
+    void retire_erased(std::shared_ptr<void> resource);
+    // Submission `serial` and all before it have finished: frees what they retired.
+    void finish(std::uint64_t serial);
+    // Notes the submissions whose fence signalled (all of them with `wait`, after
+    // vkDeviceWaitIdle) and frees what was retired before them.
     void collect_retired(bool wait);
 
     Instance instance_;
+    VkSurfaceKHR surface_ = VK_NULL_HANDLE;
     VkPhysicalDevice physical_ = VK_NULL_HANDLE;
     VkDevice device_ = VK_NULL_HANDLE;
     VkQueue queue_ = VK_NULL_HANDLE;
@@ -282,7 +332,9 @@ class Context {
     PhysicalDeviceInfo info_;
     std::vector<std::string> enabled_;
     Owned<VkCommandPool> pool_;
-    std::vector<InFlight> retired_;
+    std::uint64_t submitted_ = 0, finished_ = 0;  // serials of submissions
+    std::vector<Pending> pending_;                // submitted, not known to be finished
+    std::vector<Retired> retired_;
 };
 
 }  // namespace voxfield::vk

@@ -1,9 +1,15 @@
 #pragma once
-// Presenting to a window (the interactive viewer): its own Vulkan instance with the surface
-// extensions the window system asks for, a device and queue that can present to the surface,
-// and a swapchain that is recreated on resize. Each frame copies an RGBA8 image (what the
-// Raymarcher rendered) into the acquired swapchain image and then runs an overlay callback
-// inside a render pass that loads it (Dear ImGui draws there). vk/ stays free of any window
+// Presenting to a window (the interactive viewer) through a swapchain that is recreated on
+// resize. Built on a presenting Context (ContextOptions::make_surface), it uses that
+// Context's instance, surface, device and queue: each frame records the Raymarcher's
+// dispatch, the copy of its image into the acquired swapchain image and an overlay render pass
+// (Dear ImGui draws there) into one command buffer, with no export, import or host round
+// trip. Built on its own (PresenterOptions) it has its own instance and device, for when the
+// ray marcher's device cannot present: frames then come from the host (present) or from
+// memory the ray marcher's device exported on the same GPU (present_imported).
+// Frames in flight: kFramesInFlight frame slots, each with a command buffer, a fence and an
+// image-available semaphore, plus one render-finished semaphore per swapchain image; the CPU
+// waits only when it reuses a slot (the frame before last). vk/ stays free of any window
 // system API: the caller passes the required instance extensions and a function that makes
 // the surface.
 #include <vulkan/vulkan.h>
@@ -37,12 +43,21 @@ struct PresenterOptions {
 
 class Presenter {
   public:
+    // On `ctx` (created with ContextOptions::make_surface; it must outlive the presenter),
+    // preferring `modes` in order (FIFO is the fallback). Throws std::logic_error when `ctx`
+    // does not present.
+    explicit Presenter(Context& ctx, std::vector<PresentMode> modes = {PresentMode::fifo});
+    // With its own instance and device (options.make_surface and instance_extensions).
     explicit Presenter(const PresenterOptions& options);
     ~Presenter();
     Presenter(const Presenter&) = delete;
     Presenter& operator=(const Presenter&) = delete;
 
     VkInstance instance() const;
+    // Whether it presents on a Context (its device and queue) rather than its own device.
+    bool shares_context() const;
+    // How many frames may be recorded and submitted before the CPU waits for the oldest.
+    std::uint32_t frames_in_flight() const;
     VkPhysicalDevice physical() const;
     VkDevice device() const;
     VkQueue queue() const;
@@ -66,18 +81,30 @@ class Presenter {
                  std::uint32_t fb_width, std::uint32_t fb_height,
                  const std::function<void(VkCommandBuffer)>& overlay);
 
-    // Frames rendered on another VkDevice of the same GPU (vk::Raymarcher::render_to into
-    // ExternalMemory::exportable memory) and presented with no host round trip.
-    // can_import_frames: this device imports opaque fds and its deviceUUID is `uuid`.
+    // On a Context only: records `marcher`'s ray march of `options` (the marcher must be on
+    // the same Context; options.bgra is set to the swapchain's byte order) into the frame's
+    // command buffer, followed by the copy of its image (cropped to the swapchain's extent,
+    // uncovered parts black) into the swapchain image and the overlay; submits without
+    // waiting and presents. The ray march's GPU time shows in
+    // marcher.finished_raymarch_ms() once the frame has finished. Returns false when the
+    // frame was skipped (a zero-size window, an out-of-date swapchain).
+    bool present_marched(Raymarcher& marcher, const RenderOptions& options, std::uint32_t fb_width,
+                         std::uint32_t fb_height,
+                         const std::function<void(VkCommandBuffer)>& overlay);
+
+    // With its own device: frames rendered on another VkDevice of the same GPU
+    // (vk::Raymarcher::render_to into ExternalMemory::exportable memory) and presented with
+    // no host round trip. can_import_frames: this presenter has its own device, which imports
+    // opaque fds and whose deviceUUID is `uuid`.
     bool can_import_frames(const std::array<std::uint8_t, VK_UUID_SIZE>& uuid) const;
     // The swapchain wants B, G, R, A bytes (render with RenderOptions::bgra).
     bool bgra() const;
     // Imports the memory behind `fd` (ExternalMemory::export_fd; the presenter takes the fd)
     // of `size` bytes and `memory_type` (ExternalMemory::memory_type) as the source of
-    // present_imported(), replacing the previous one; waits for the frame in flight first.
+    // present_imported(), replacing the previous one; waits for the frames in flight first.
     void import_frame(int fd, VkDeviceSize size, std::uint32_t memory_type);
-    // Waits until the frame in flight no longer reads the imported memory: call before
-    // rendering the next frame into it.
+    // Waits until no frame in flight reads the imported memory: call before rendering the
+    // next frame into it.
     void wait_frame();
     // As present(), from the imported memory holding width x height pixels (rows of `width`).
     bool present_imported(std::uint32_t width, std::uint32_t height, std::uint32_t fb_width,
@@ -91,8 +118,10 @@ class Presenter {
     void capture_next_frame();
     std::optional<Image> captured_frame();
 
-    // Records into a fresh command buffer and waits (e.g. the overlay's font upload).
+    // Records into a command buffer, submits it and waits (e.g. the overlay's font upload).
     void submit_and_wait(const std::function<void(VkCommandBuffer)>& record);
+    // Waits until every frame in flight has finished (on a Context:
+    // Context::wait_frames_in_flight).
     void wait_idle();
 
   private:

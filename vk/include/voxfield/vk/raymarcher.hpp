@@ -1,6 +1,10 @@
 #pragma once
 // The DDA ray marcher (vk/shaders/raymarch.comp) over a packed32 or compact distance field,
-// rendering headless into an offscreen image that is read back as RGBA8.
+// rendering into an offscreen image that is read back as RGBA8 (render), copied into memory
+// another VkDevice imports (render_to), or recorded into a caller's command buffer (record:
+// a Presenter on the same Context copies it into the swapchain image). Buffers, images and
+// descriptor sets that frames in flight may still use when they are replaced (a new field, a
+// resized image) are retired through the Context, never destroyed in use.
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -123,7 +127,10 @@ class Raymarcher {
 
     // Reads the field in place from `memory` (sharing path 1 or 2), laid out as `layout`
     // (from plan()); whatever OpenCL writes there shows in the next render() with no copy.
-    // `memory` must outlive this ray marcher or the next upload / bind_shared.
+    // Path 1: every recorded ray march acquires the field from VK_QUEUE_FAMILY_EXTERNAL
+    // before reading it and releases it back after. `memory` must outlive this ray marcher or
+    // the next upload / bind_shared and the frames in flight then (Context::
+    // wait_frames_in_flight); so must OpenCL's writes into it wait for those frames.
     void bind_shared(const ExternalMemory& memory, const FieldLayout& layout,
                      const Palette& palette);
 
@@ -145,6 +152,19 @@ class Raymarcher {
     // kept while the size stays; the second form also reuses out.rgba's storage.
     Image render(const RenderOptions& options);
     void render(const RenderOptions& options, Image& out);
+    // Records the ray march of `options` into `cmd` (a primary command buffer of this
+    // context's queue family, recording): the image it writes is returned in
+    // VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, its writes available to transfer reads; a copy
+    // out of it must be recorded in the same command buffer. Submit `cmd` with
+    // Context::submit before any other submission and before this ray marcher changes (a
+    // new field, another image size): earlier frames may still be in flight meanwhile, the
+    // next record() orders itself after them. Throws std::logic_error for options.count or
+    // before a field was given, InputError for bad options.
+    VkImage record(VkCommandBuffer cmd, const RenderOptions& options);
+    // The GPU time in ms of the ray march of the latest recorded frame whose submission is
+    // known to have finished (by Context::wait, no wait here): in a frame loop that is the
+    // frame one or two frames before. -1: none yet, or no timestamps on this device.
+    double finished_raymarch_ms();
     // Ray-marches one image into `frame` (memory from ExternalMemory::exportable, at least
     // width * height * 4 bytes: rows top to bottom, no padding) without reading it back, for a
     // Presenter on another VkDevice of this GPU that imported it (Presenter::import_frame).
