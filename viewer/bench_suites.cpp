@@ -17,6 +17,7 @@
 #include <utility>
 
 #include "cli_util.hpp"
+#include "edit_log.hpp"
 #include "sand_run.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
@@ -58,15 +59,9 @@ json focus_json(const std::optional<Focus>& f) {
     return {f->centre.x, f->centre.y, f->centre.z, f->size};
 }
 
-// Summary statistics as DESIGN §4 keys (plus min/max and the samples).
-void put_summary(json& row, const std::vector<double>& ms) {
-    const Summary s = summarize(ms);
-    row["median_ms"] = s.median;
-    row["mean_ms"] = s.mean;
-    row["std_ms"] = s.std;
-    row["ci95_ms"] = {s.ci95_lo, s.ci95_hi};
-    row["min_ms"] = s.min;
-    row["max_ms"] = s.max;
+// Summary statistics as DESIGN §4 keys (the editing protocol's, edit_log.hpp) and the samples.
+void put_samples(json& row, const std::vector<double>& ms) {
+    put_summary(row, summarize(ms));
     row["samples_ms"] = ms;
 }
 
@@ -341,7 +336,7 @@ class DissertationSuite {
         const auto field = job->read(&download_ms);
         const Accuracy a =
             compare_to_exact(field, options.format, ocl::exact_reference(world, options));
-        put_summary(row, ms);
+        put_samples(row, ms);
         const double median = row["median_ms"].get<double>();
         previous_[key] = {median, dims.count()};
         row["repeat"] = plan_.repeat;
@@ -513,13 +508,10 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
             }
         }
         std::cerr << '\n';
-        std::vector<double> update_ms;
-        json per_edit = json::array();
-        std::uint64_t recomputed = 0;
-        std::size_t fallbacks = 0;
+        EditLog log;
         std::string truncated;
         for (std::size_t i = 0; i < edits.size(); ++i) {
-            if (seconds_since(t0) > plan.budget_s && !update_ms.empty()) {
+            if (seconds_since(t0) > plan.budget_s && log.size() > 0) {
                 truncated = std::to_string(i) + " of " + std::to_string(edits.size()) +
                             " edits: the per-row time budget of " + fixed(plan.budget_s, 0) +
                             " s (--time-budget) ran out";
@@ -531,22 +523,12 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
             }
             const EditSpec& e = edits[i];
             const ocl::UpdateStats s = field->apply({e.brush});
-            std::size_t changed = 0;
+            EditSample sample{
+                e.brush, e.size, s.update_ms, s.voxels_recomputed, 0, s.full_regeneration};
             for (const EditResult& r : s.edits) {
-                changed += r.changes.size();
+                sample.voxels_changed += r.changes.size();
             }
-            update_ms.push_back(s.update_ms);
-            recomputed += s.voxels_recomputed;
-            fallbacks += s.full_regeneration ? 1 : 0;
-            per_edit.push_back({{"op", to_string(e.brush.op)},
-                                {"centre", {e.brush.centre.x, e.brush.centre.y, e.brush.centre.z}},
-                                {"size", e.size},
-                                {"radius", e.brush.radius},
-                                {"material", e.brush.op == BrushOp::erase ? 0 : e.brush.material},
-                                {"update_ms", s.update_ms},
-                                {"voxels_recomputed", s.voxels_recomputed},
-                                {"voxels_changed", changed},
-                                {"full_regeneration", s.full_regeneration}});
+            log.add(sample);
         }
         std::cerr << "\rbench: " << label << ": checking the final field against the CPU "
                   << "reference\n";
@@ -559,8 +541,7 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
             }
         }
         const Accuracy a = compare_to_exact(field->read(), options.format, reference);
-        put_summary(row, update_ms);
-        row.erase("samples_ms");  // per edit below
+        put_summary(row, log.update_summary());
         const Summary rs = summarize(regen);
         const double median = row["median_ms"].get<double>();
         row["gvox_per_s"] = json();  // not a whole-world rate
@@ -570,7 +551,7 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
             "the field after the last edit, against the exact field of the "
             "row's semantics";
         row["edits_requested"] = edits.size();
-        row["edits_done"] = update_ms.size();
+        row["edits_done"] = log.size();
         row["repeat"] = plan.repeat;
         row["warmup"] = plan.warmup;
         if (!truncated.empty()) {
@@ -580,13 +561,13 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
         row["full_regeneration_ms"] = rs.median;
         row["full_regeneration_ms_samples"] = regen;
         row["ratio_full_to_median_update"] = median > 0 ? json(rs.median / median) : json();
-        row["voxels_recomputed_total"] = recomputed;
-        row["voxels_recomputed_mean"] =
-            update_ms.empty()
-                ? 0.0
-                : static_cast<double>(recomputed) / static_cast<double>(update_ms.size());
-        row["full_regenerations"] = fallbacks;
-        row["edits"] = per_edit;
+        row["voxels_recomputed_total"] = log.voxels_recomputed_total();
+        row["voxels_recomputed_mean"] = log.size() == 0
+                                            ? 0.0
+                                            : static_cast<double>(log.voxels_recomputed_total()) /
+                                                  static_cast<double>(log.size());
+        row["full_regenerations"] = log.full_regenerations();
+        row["edits"] = log.edits_json();
         const std::string shown = name + (bound ? " D=" + fixed(*bound, 0) : "");
         std::printf("%-14s %-14s %-6s %12.3f %12.3f %12.3f %12.3f %14.0f %7u\n", shown.c_str(),
                     dims.to_string().c_str(), chunk == 0 ? "-" : std::to_string(chunk).c_str(),

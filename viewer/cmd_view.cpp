@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "cli_util.hpp"
+#include "edit_log.hpp"
 #include "view_script.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
@@ -151,13 +152,9 @@ struct FrameRecord {
 };
 
 nlohmann::json summary_json(const Summary& s) {
-    return {{"n", s.n},
-            {"mean_ms", s.mean},
-            {"median_ms", s.median},
-            {"std_ms", s.std},
-            {"min_ms", s.min},
-            {"max_ms", s.max},
-            {"ci95_ms", {s.ci95_lo, s.ci95_hi}}};
+    nlohmann::json j = nlohmann::json::object();
+    put_summary(j, s);
+    return j;
 }
 
 void print_summary(const std::string& what, const Summary& s) {
@@ -570,6 +567,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     UndoStack undo;
     std::optional<Brush> last_stroke_brush;
     std::optional<RandomEdits> random_edits;
+    EditLog edit_log;  // --benchmark: the protocol's edits and their update times
     if (o.benchmark) {
         random_edits.emplace(dims, bench_chunk, o.seed);
     }
@@ -861,7 +859,15 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
         }
         if (!batch.empty()) {
             std::vector<EditResult> edits;
-            add(session.apply(batch, &edits));
+            const pipeline::UpdateTimings u = session.apply(batch, &edits);
+            add(u);
+            if (bench_edit && !edits.empty()) {
+                // The protocol's edit is the batch's last brush; the batch's update is its cost.
+                EditSample sample{
+                    batch.back(),        random_edits->last_size(),   u.total_ms(),
+                    u.voxels_recomputed, edits.back().changes.size(), u.full_regeneration};
+                edit_log.add(sample);
+            }
             if (stroke_batch && !edits.empty()) {
                 // Only the stroke's brush (the first of the batch) is undoable.
                 undo.record(edits.front());
@@ -1257,21 +1263,20 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     }
 
     if (o.benchmark) {
-        std::vector<double> frame_ms, update_ms, march_ms, sim_ms, sim_update_ms;
+        std::vector<double> frame_ms, march_ms, sim_ms, sim_update_ms;
         for (const FrameRecord& r : records) {
             frame_ms.push_back(r.frame_ms);
             if (r.simulate_ms >= 0) {
                 // Every frame steps the sand: its update is the step's (plus any edit's).
                 sim_ms.push_back(r.simulate_ms);
                 sim_update_ms.push_back(r.update_ms);
-            } else if (r.edit) {
-                update_ms.push_back(r.update_ms);
             }
             if (r.raymarch_ms >= 0) {
                 march_ms.push_back(r.raymarch_ms);
             }
         }
-        const Summary sf = summarize(frame_ms), su = summarize(update_ms), sm = summarize(march_ms);
+        const Summary sf = summarize(frame_ms), su = edit_log.update_summary(),
+                      sm = summarize(march_ms);
         const auto edit_count = static_cast<std::size_t>(std::count_if(
             records.begin(), records.end(), [](const FrameRecord& r) { return r.edit; }));
         std::cout << "benchmark: seed " << o.seed << ", an edit every " << o.interval_ms
@@ -1332,6 +1337,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                      {"sand_voxels_changed", r.sim_changed}});
             }
             j["frames"] = frames;
+            j["edits"] = edit_log.edits_json();
             write_json_file(o.json, j);
         }
         if (!o.csv.empty()) {

@@ -14,8 +14,10 @@
 #include <vector>
 
 #include "cli_test_util.hpp"
+#include "voxfield/core/brush.hpp"
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/scenes.hpp"
+#include "voxfield/core/undo.hpp"
 #include "voxfield/core/world.hpp"
 
 #define STB_IMAGE_IMPLEMENTATION
@@ -171,6 +173,21 @@ TEST_F(ViewTest, HeadlessBenchmarkIsReproducibleAndRecorded) {
     EXPECT_EQ(j["summary"]["field_update"]["n"], edits);
     EXPECT_EQ(j["summary"]["frame"]["n"], frames.size());
     EXPECT_EQ(split_lines(read_text(csv)).size(), frames.size() + 1);
+    // The editing protocol's harness (shared with bench --suite edits): each edit is core's
+    // RandomEdits for this seed, recorded with bench's per-edit keys.
+    ASSERT_EQ(j["edits"].size(), edits);
+    RandomEdits protocol(Dims{32, 32, 32}, 16, 7);
+    for (const auto& e : j["edits"]) {
+        const Brush b = protocol.next();
+        EXPECT_EQ(e["op"], to_string(b.op));
+        EXPECT_EQ(e["centre"], nlohmann::json({b.centre.x, b.centre.y, b.centre.z}));
+        EXPECT_EQ(e["radius"], b.radius);
+        EXPECT_EQ(e["size"], protocol.last_size());
+        for (const char* key : {"material", "update_ms", "voxels_recomputed", "voxels_changed",
+                                "full_regeneration"}) {
+            EXPECT_TRUE(e.contains(key)) << key;
+        }
+    }
 }
 
 TEST_F(ViewTest, BenchmarkEditsLeaveTheFieldAFreshGenerationWouldGive) {
