@@ -87,10 +87,24 @@ inline int3 vf_cell(int3 origin, int k) {
     return origin + (int3)(k & 1, k >> 2, (k >> 1) & 1);
 }
 
-// True when a byte of `cells` equals the byte `v` (the zero-byte test of Mycroft's SWAR trick).
-inline bool vf_has(ulong cells, uint v) {
+// Bit 7 of every byte of `cells` that equals the byte `v` (the zero-byte test of Mycroft's SWAR
+// trick). Exact for "some byte equals v"; a byte above one that does may be flagged too, which
+// only makes vf_may_move below answer true more often.
+inline ulong vf_eq(ulong cells, uint v) {
     const ulong x = cells ^ ((ulong)v * 0x0101010101010101ul);
-    return ((x - 0x0101010101010101ul) & ~x & 0x8080808080808080ul) != 0;
+    return (x - 0x0101010101010101ul) & ~x & 0x8080808080808080ul;
+}
+
+#define VF_TOP 0x8080808000000000ul
+#define VF_BOTTOM 0x0000000080808080ul
+
+// False only for a block the rules cannot change: falling and sliding need sand or water in
+// the top layer and air (or water under sand) below, spreading needs water beside air. Blocks
+// of resting sand, of water without air, and pile surfaces (air above sand) are skipped.
+inline bool vf_may_move(ulong cells, uint sand, uint water) {
+    const ulong air = vf_eq(cells, 0), wet = vf_eq(cells, water);
+    const ulong top_sand = vf_eq(cells, sand) & VF_TOP;
+    return (air != 0 && (wet != 0 || top_sand != 0)) || (top_sand != 0 && (wet & VF_BOTTOM) != 0);
 }
 
 // Runs block b (block coordinates, origin its cell 0) of the step, holding `cells`.
@@ -137,7 +151,7 @@ void vf_sand_block(global const uchar* src, global uchar* dst, int4 d, int4 o, i
         const int3 p = vf_cell(origin, k);
         cells |= (ulong)(vf_inside(p, d) ? (uint)src[vf_index(p, d)] : wall) << (8 * k);
     }
-    if (vf_has(cells, sand) || vf_has(cells, water)) {
+    if (vf_may_move(cells, sand, water)) {
         vf_sand_run(src, dst, d, nb, key, sand, water, count, changes, capacity, b, origin, cells);
     }
 }
@@ -154,7 +168,7 @@ kernel void sand_step_blocks(global const uchar* src, global uchar* dst, int4 d,
 
 // CPU layout: one work-item per row of blocks along x, global size (nb.y, nb.z). Where the
 // row's four lines of voxels lie inside the world, blocks are read straight from them and runs
-// of eight blocks without sand or water are skipped by 16-byte loads.
+// of eight blocks that cannot move (vf_may_move) are skipped by 16-byte loads.
 kernel void sand_step_rows(global const uchar* src, global uchar* dst, int4 d, int4 o, int4 nb,
                            ulong key, uint sand, uint water, uint wall, global uint* count,
                            global uint2* changes, uint capacity) {
@@ -185,12 +199,22 @@ kernel void sand_step_rows(global const uchar* src, global uchar* dst, int4 d, i
             continue;
         }
         if (x0 + 16 <= d.x) {
-            char16 hit = (char16)(0);
+            // Lines 0, 1 are the bottom layer, 2, 3 the top; lanes 2i, 2i + 1 are block i's.
+            char16 air = (char16)(0), wet = (char16)(0), wet_bottom = (char16)(0);
+            char16 top_sand = (char16)(0);
             for (int r = 0; r < 4; ++r) {
                 const uchar16 v = vload16(0, line[r] + x0);
-                hit |= (v == s16) | (v == w16);
+                air |= v == (uchar16)(0);
+                wet |= v == w16;
+                if (r < 2) {
+                    wet_bottom |= v == w16;
+                } else {
+                    top_sand |= v == s16;
+                }
             }
-            if (!any(hit)) {
+            const char8 a = air.even | air.odd, w = wet.even | wet.odd;
+            const char8 wb = wet_bottom.even | wet_bottom.odd, ts = top_sand.even | top_sand.odd;
+            if (!any((a & (w | ts)) | (ts & wb))) {
                 i += 8;
                 continue;
             }
@@ -199,7 +223,7 @@ kernel void sand_step_rows(global const uchar* src, global uchar* dst, int4 d, i
         for (int q = 0; q < 8; ++q) {  // cell q = 4 * layer + dx + 2 * dz
             cells |= (ulong)line[2 * (q >> 2) + ((q >> 1) & 1)][x0 + (q & 1)] << (8 * q);
         }
-        if (vf_has(cells, sand) || vf_has(cells, water)) {
+        if (vf_may_move(cells, sand, water)) {
             vf_sand_run(src, dst, d, nb, key, sand, water, count, changes, capacity,
                         (int3)(i, j, k), (int3)(x0, y0, z0), cells);
         }

@@ -233,7 +233,8 @@ TEST_F(ViewTest, BenchmarkEditsLeaveTheFieldAFreshGenerationWouldGive) {
 }
 
 TEST_F(ViewTest, SimulateStepsTheSandEveryFrameAndKeepsTheFieldExact) {
-    // `--simulate` on the sand scene, no edits (an interval past the run): every frame steps
+    // `--simulate` on the sand scene, no edits (an interval past the run), six frames (not a
+    // duration: a loaded machine may not reach three frames in a second): every frame steps
     // the automaton; the final world conserves sand and water, and the final field is the one
     // `generate` computes from it.
     const fs::path json = dir_ / "s.json", world = dir_ / "w.npy", field = dir_ / "f.npy",
@@ -250,7 +251,9 @@ TEST_F(ViewTest, SimulateStepsTheSandEveryFrameAndKeepsTheFieldExact) {
                                 "--interval-ms",
                                 "100000",
                                 "--duration-s",
-                                "1",
+                                "60",
+                                "--frames",
+                                "6",
                                 "--width",
                                 "48",
                                 "--height",
