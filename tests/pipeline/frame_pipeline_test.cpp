@@ -196,7 +196,10 @@ TEST_P(FramePipelineBlockMin, EditsRewriteOnlyTheChangedBlocks) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Paths, FramePipelineBlockMin,
-                         ::testing::Values(vk::SharingPath::host_pointer, vk::SharingPath::copy));
+                         ::testing::Values(vk::SharingPath::host_pointer, vk::SharingPath::copy),
+                         [](const ::testing::TestParamInfo<vk::SharingPath>& p) {
+                             return p.param == vk::SharingPath::copy ? "path3" : "path2";
+                         });
 
 // A switch the updater refuses (a global algorithm it cannot update), or a world of another
 // size, leaves the world, the options and the picture as they were.
