@@ -225,7 +225,18 @@ std::vector<std::uint32_t> CompactWriter::block_min(const std::vector<Box>& bloc
     return cl_call("reading the ray marcher's block minima", [&] {
         std::vector<std::uint32_t> table(words);
         std::size_t next = 0;
-        // Row by row of blocks (contiguous in the table); one wait for them all.
+        // Row by row of blocks (contiguous in the table), rows that continue each other in
+        // one read (a box of whole rows or slices: one read); one wait for them all.
+        std::size_t run_first = 0, run_words = 0;
+        const auto flush = [&] {
+            if (run_words != 0) {
+                ctx_.queue().enqueueReadBuffer(block_min_, CL_FALSE,
+                                               block_min_offset_ + 4 * run_first, 4 * run_words,
+                                               table.data() + next);
+                next += run_words;
+            }
+            run_words = 0;
+        };
         for (const Box& box : blocks) {
             if (box.empty()) {
                 continue;
@@ -235,13 +246,15 @@ std::vector<std::uint32_t> CompactWriter::block_min(const std::vector<Box>& bloc
                 for (std::int64_t y = box.min.y; y < box.max.y; ++y) {
                     const auto first =
                         static_cast<std::size_t>((z * blocks_.y + y) * blocks_.x + box.min.x);
-                    ctx_.queue().enqueueReadBuffer(block_min_, CL_FALSE,
-                                                   block_min_offset_ + 4 * first, 4 * row,
-                                                   table.data() + next);
-                    next += row;
+                    if (run_words == 0 || first != run_first + run_words) {
+                        flush();
+                        run_first = first;
+                    }
+                    run_words += row;
                 }
             }
         }
+        flush();
         ctx_.queue().finish();
         return table;
     });
