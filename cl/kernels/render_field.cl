@@ -37,11 +37,12 @@ __kernel void to_compact(__global const VF_SRC_T* restrict dist, __global const 
         (ushort)((dd << VF_COMPACT_DISTANCE_SHIFT) | (vox[i] & VF_COMPACT_MATERIAL_MASK));
 }
 
-// The ray marcher's coarse table (layout.h VF_RAYMARCH_BLOCK): one work-item per block of the
-// block box at `lo` of `size` blocks (count = its volume), the minimum of the distances over
-// the block's voxels, a lower bound of every voxel's true distance in the block.
+// The ray marcher's coarse table (layout.h VF_RAYMARCH_BLOCK), which starts `base` words into
+// `out`: one work-item per block of the block box at `lo` of `size` blocks (count = its
+// volume), the minimum of the distances over the block's voxels, a lower bound of every
+// voxel's true distance in the block.
 __kernel void block_min(__global const VF_SRC_T* restrict dist, __global uint* restrict out,
-                        uint4 d, uint4 lo, uint4 size, ulong count, float inv_step) {
+                        uint4 d, uint4 lo, uint4 size, ulong count, float inv_step, ulong base) {
     const ulong k = get_global_id(0);
     if (k >= count) {
         return;
@@ -61,5 +62,5 @@ __kernel void block_min(__global const VF_SRC_T* restrict dist, __global uint* r
             }
         }
     }
-    out[(b.z * nb.y + b.y) * nb.x + b.x] = m;
+    out[base + (b.z * nb.y + b.y) * nb.x + b.x] = m;
 }

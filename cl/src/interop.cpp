@@ -130,6 +130,19 @@ CompactWriter::CompactWriter(Context& ctx, const cl::Buffer& field, Format forma
                       what + ": bad slab layout (depth " + std::to_string(layout.slab_depth) +
                           ", stride " + std::to_string(layout.slab_stride_bytes) + " bytes)");
     }
+    const std::uint32_t b = VF_RAYMARCH_BLOCK;
+    blocks_ = Dims{(dims.x + b - 1) / b, (dims.y + b - 1) / b, (dims.z + b - 1) / b};
+    const std::size_t table_bytes = 4 * blocks_.count();
+    if (layout.block_min_offset) {
+        block_min_offset_ = *layout.block_min_offset;
+        if (block_min_offset_ % 4 != 0 ||
+            block_min_offset_ + table_bytes > dst.getInfo<CL_MEM_SIZE>()) {
+            throw ClError("clSetKernelArg", CL_INVALID_VALUE,
+                          what + ": the block minima (" + std::to_string(table_bytes) +
+                              " bytes at " + std::to_string(block_min_offset_) +
+                              ") do not fit in the destination");
+        }
+    }
     const cl::Program program =
         ctx.program("render_field.cl", {cl_sources::layout_h, cl_sources::render_field_cl},
                     "-cl-std=CL1.2" + source_options(format));
@@ -143,15 +156,15 @@ CompactWriter::CompactWriter(Context& ctx, const cl::Buffer& field, Format forma
         kernel_.setArg(4, cl_uint{layout.slab_depth});
         kernel_.setArg(5, static_cast<cl_ulong>(layout.slab_stride_bytes / 2));
         kernel_.setArg(9, inv_step);
-        const std::uint32_t b = VF_RAYMARCH_BLOCK;
-        block_count_ =
-            std::size_t{(dims.x + b - 1) / b} * ((dims.y + b - 1) / b) * ((dims.z + b - 1) / b);
-        block_min_ = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * block_count_);
+        block_min_ = layout.block_min_offset
+                         ? dst
+                         : cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, table_bytes);
         block_kernel_ = cl::Kernel(program, "block_min");
         block_kernel_.setArg(0, field);
         block_kernel_.setArg(1, block_min_);
         block_kernel_.setArg(2, d);
         block_kernel_.setArg(6, inv_step);
+        block_kernel_.setArg(7, static_cast<cl_ulong>(block_min_offset_ / 4));
     });
 }
 
@@ -162,6 +175,7 @@ double CompactWriter::run() {
 double CompactWriter::run(const std::vector<Box>& regions) {
     const Box world{{0, 0, 0}, {dims_.x, dims_.y, dims_.z}};
     const std::int64_t b = VF_RAYMARCH_BLOCK;
+    changed_blocks_.clear();
     return cl_call("writing the compact render field", [&] {
         std::vector<cl::Event> events;
         std::optional<ExternalAcquire> acquired;
@@ -179,6 +193,7 @@ double CompactWriter::run(const std::vector<Box>& regions) {
                                               cl::NDRange(kLocal), nullptr, &events.back());
             const Int3 lo{r.min.x / b, r.min.y / b, r.min.z / b};
             const Int3 hi{(r.max.x + b - 1) / b, (r.max.y + b - 1) / b, (r.max.z + b - 1) / b};
+            changed_blocks_.push_back(Box{lo, hi});
             events.emplace_back();
             ctx_.queue().enqueueNDRangeKernel(block_kernel_, cl::NullRange,
                                               cl::NDRange(set_box(block_kernel_, 3, lo, hi)),
@@ -193,9 +208,54 @@ double CompactWriter::run(const std::vector<Box>& regions) {
 }
 
 std::vector<std::uint32_t> CompactWriter::block_min() {
+    return block_min({Box{{0, 0, 0}, {blocks_.x, blocks_.y, blocks_.z}}});
+}
+
+std::vector<std::uint32_t> CompactWriter::block_min(const std::vector<Box>& blocks) {
+    const Box grid{{0, 0, 0}, {blocks_.x, blocks_.y, blocks_.z}};
+    std::size_t words = 0;
+    for (const Box& box : blocks) {
+        if (!box.empty() && intersect(box, grid) != box) {
+            throw std::invalid_argument(
+                "CompactWriter::block_min: a block box leaves the grid of " + blocks_.to_string() +
+                " blocks");
+        }
+        words += box.empty() ? 0 : static_cast<std::size_t>(box.volume());
+    }
     return cl_call("reading the ray marcher's block minima", [&] {
-        std::vector<std::uint32_t> table(block_count_);
-        ctx_.queue().enqueueReadBuffer(block_min_, CL_TRUE, 0, 4 * table.size(), table.data());
+        std::vector<std::uint32_t> table(words);
+        std::size_t next = 0;
+        // Row by row of blocks (contiguous in the table), rows that continue each other in
+        // one read (a box of whole rows or slices: one read); one wait for them all.
+        std::size_t run_first = 0, run_words = 0;
+        const auto flush = [&] {
+            if (run_words != 0) {
+                ctx_.queue().enqueueReadBuffer(block_min_, CL_FALSE,
+                                               block_min_offset_ + 4 * run_first, 4 * run_words,
+                                               table.data() + next);
+                next += run_words;
+            }
+            run_words = 0;
+        };
+        for (const Box& box : blocks) {
+            if (box.empty()) {
+                continue;
+            }
+            const auto row = static_cast<std::size_t>(box.max.x - box.min.x);
+            for (std::int64_t z = box.min.z; z < box.max.z; ++z) {
+                for (std::int64_t y = box.min.y; y < box.max.y; ++y) {
+                    const auto first =
+                        static_cast<std::size_t>((z * blocks_.y + y) * blocks_.x + box.min.x);
+                    if (run_words == 0 || first != run_first + run_words) {
+                        flush();
+                        run_first = first;
+                    }
+                    run_words += row;
+                }
+            }
+        }
+        flush();
+        ctx_.queue().finish();
         return table;
     });
 }

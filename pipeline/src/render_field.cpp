@@ -3,6 +3,8 @@
 
 #include <unistd.h>
 
+#include "voxfield/layout.h"
+
 #include <algorithm>
 #include <cstddef>
 #include <exception>
@@ -41,13 +43,16 @@ RenderField::RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Ra
     : cl_(cl_ctx), vk_(vk_ctx), dims_(dims), layout_(marcher.plan(dims, vk::FieldFormat::compact)) {
     path_ = choose_sharing_path(cl_ctx, vk_ctx, why_not_, fastest);
     const VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-    const auto bytes = static_cast<std::size_t>(layout_.total_bytes);
+    // Paths 1/2: the slabs, then the block-minimum table (at a multiple of VF_FIELD_SLAB_ALIGN).
+    const std::uint32_t b = VF_RAYMARCH_BLOCK;
+    const std::uint64_t shared_bytes =
+        layout_.total_bytes +
+        std::uint64_t{4} * ((dims.x + b - 1) / b) * ((dims.y + b - 1) / b) * ((dims.z + b - 1) / b);
     if (path_ == vk::SharingPath::opaque_fd) {
         try {
-            shared_ =
-                vk::ExternalMemory::exportable(vk_ctx, layout_.total_bytes, usage, "shared field");
+            shared_ = vk::ExternalMemory::exportable(vk_ctx, shared_bytes, usage, "shared field");
             fd_ = shared_.export_fd();
-            cl_field_ = ocl::import_opaque_fd(cl_ctx, fd_, bytes);
+            cl_field_ = ocl::import_opaque_fd(cl_ctx, fd_, static_cast<std::size_t>(shared_bytes));
         } catch (const std::exception& e) {
             why_not_ += std::string("path 1 failed: ") + e.what() + "; ";
             cl_field_ = cl::Buffer();
@@ -63,13 +68,13 @@ RenderField::RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Ra
         }
     }
     if (path_ == vk::SharingPath::host_pointer) {
-        shared_ =
-            vk::ExternalMemory::host_allocation(vk_ctx, layout_.total_bytes, usage, "shared field");
+        shared_ = vk::ExternalMemory::host_allocation(vk_ctx, shared_bytes, usage, "shared field");
         cl_field_ = ocl::wrap_host_memory(cl_ctx, shared_.host_pointer(),
                                           static_cast<std::size_t>(shared_.size()));
     } else if (path_ == vk::SharingPath::copy) {
         cl_field_ = ocl::cl_call("the compact field buffer", [&] {
-            return cl::Buffer(cl_ctx.context(), CL_MEM_READ_WRITE, bytes);
+            return cl::Buffer(cl_ctx.context(), CL_MEM_READ_WRITE,
+                              static_cast<std::size_t>(layout_.total_bytes));
         });
     }
     if (why_not_.size() >= 2) {
@@ -88,21 +93,22 @@ RenderField::~RenderField() {
 double RenderField::attach(vk::Raymarcher& marcher, const cl::Buffer& field, Format format,
                            Metric metric, const cl::Buffer& voxels, const Palette& palette,
                            double step) {
-    palette_ = palette;
-    metric_ = metric;
     wait_for_readers();
     writer_.reset();
+    const bool copy = path_ == vk::SharingPath::copy;
     writer_.emplace(cl_, field, format, voxels, dims_, cl_field_,
-                    ocl::SlabLayout{layout_.slab_depth, layout_.slab_stride},
+                    ocl::SlabLayout{layout_.slab_depth, layout_.slab_stride,
+                                    copy ? std::nullopt : std::optional{layout_.total_bytes}},
                     path_ == vk::SharingPath::opaque_fd, step);
     const double ms = writer_->run();
-    if (path_ == vk::SharingPath::copy) {
-        publish(marcher);
+    if (copy) {
+        marcher.upload_compact(dims_, palette, read_compact());
+        marcher.set_block_min(writer_->block_min());
     } else {
-        marcher.bind_shared(shared_, layout_, palette_);
+        marcher.bind_shared(shared_, layout_, palette);
+        marcher.bind_shared_block_min(shared_, layout_.total_bytes);
     }
-    marcher.set_block_min(writer_->block_min());
-    marcher.set_metric(metric_);  // after the field (a new one resets it)
+    marcher.set_metric(metric);  // after the field (a new one resets it)
     return ms;
 }
 
@@ -110,10 +116,10 @@ double RenderField::update(vk::Raymarcher& marcher, const std::vector<Box>& regi
     wait_for_readers();
     const double ms = writer_->run(regions);
     if (path_ == vk::SharingPath::copy) {
-        publish(marcher);
+        marcher.update_compact(read_compact());
+        marcher.update_block_min(writer_->changed_blocks(),
+                                 writer_->block_min(writer_->changed_blocks()));
     }
-    marcher.set_block_min(writer_->block_min());
-    marcher.set_metric(metric_);  // after the field (a new one resets it)
     return ms;
 }
 
@@ -123,8 +129,8 @@ void RenderField::wait_for_readers() {
     }
 }
 
-void RenderField::publish(vk::Raymarcher& marcher) {
-    // Path 3: read the slabs back (each slab's voxels are contiguous) and upload them.
+std::vector<std::uint16_t> RenderField::read_compact() {
+    // Path 3: read the slabs back (each slab's voxels are contiguous).
     std::vector<std::uint16_t> compact(dims_.count());
     const std::size_t plane = std::size_t{dims_.x} * dims_.y;
     for (std::uint32_t s = 0; s < layout_.slabs; ++s) {
@@ -135,7 +141,7 @@ void RenderField::publish(vk::Raymarcher& marcher) {
                                           compact.data() + plane * z0);
         });
     }
-    marcher.upload_compact(dims_, palette_, compact);
+    return compact;
 }
 
 }  // namespace voxfield::pipeline

@@ -895,6 +895,102 @@ TEST_P(RaymarchMetric, InflatedBlockMinimaSkipTheWall) {
         << "inflated minima left the image intact: the coarse test would not notice";
 }
 
+// The words of `boxes` (block boxes) in `table`, box after box and x fastest in each, as
+// update_block_min takes them.
+std::vector<std::uint32_t> box_words(const std::vector<std::uint32_t>& table, Dims grid,
+                                     const std::vector<Box>& boxes) {
+    std::vector<std::uint32_t> out;
+    for (const Box& b : boxes) {
+        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
+            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
+                for (std::int64_t x = b.min.x; x < b.max.x; ++x) {
+                    out.push_back(table[grid.index(static_cast<std::uint32_t>(x),
+                                                   static_cast<std::uint32_t>(y),
+                                                   static_cast<std::uint32_t>(z))]);
+                }
+            }
+        }
+    }
+    return out;
+}
+
+TEST_P(RaymarchMetric, UpdatedBlockMinimaReachOnlyTheirBlocks) {
+    // Inflated minima carry rays through the wall (above). Rewriting every block from the true
+    // minima, in boxes of several shapes, restores the image; then inflating only the blocks
+    // of the saturated stretch breaks it again and rewriting just those mends it: each update
+    // reaches its own blocks and no others, and copies only their words.
+    const World world = far_apart_world();
+    const Dims grid{88, 3, 3};  // ceil(700x24x24 / 8)
+    const auto d = distances(world, GetParam());
+    const std::vector<std::uint32_t> minima = block_minima(world, d);
+    ASSERT_EQ(minima.size(), grid.count());
+    std::vector<std::uint32_t> inflated = minima;
+    for (std::uint32_t& m : inflated) {
+        m *= 2;
+    }
+    const vk::RenderOptions r = far_apart_views()[3];
+    vk::Raymarcher marcher(vulkan());
+    upload(marcher, world, Palette(), vk::FieldFormat::compact, GetParam(), d);
+    marcher.set_block_min(minima);
+    const std::vector<std::uint8_t> want = marcher.render(r).rgba;
+    marcher.set_block_min(inflated);
+    ASSERT_NE(marcher.render(r).rgba, want);
+    EXPECT_EQ(marcher.block_min_bytes_copied(), 2 * 4 * grid.count());
+
+    const std::vector<Box> everything = {Box{{0, 0, 0}, {88, 3, 1}}, Box{{0, 0, 1}, {40, 2, 3}},
+                                         Box{{0, 2, 1}, {40, 3, 3}}, Box{{40, 0, 1}, {88, 3, 3}},
+                                         Box{{5, 1, 1}, {5, 2, 2}}};  // empty
+    std::uint64_t copied = marcher.block_min_bytes_copied();
+    marcher.update_block_min(everything, box_words(minima, grid, everything));
+    EXPECT_EQ(marcher.block_min_bytes_copied() - copied, 4 * grid.count());
+    EXPECT_EQ(marcher.render(r).rgba, want);
+
+    const std::vector<Box> stretch = {Box{{30, 0, 0}, {46, 3, 3}}};  // x 240..368
+    marcher.update_block_min(stretch, box_words(inflated, grid, stretch));
+    EXPECT_NE(marcher.render(r).rgba, want);
+    copied = marcher.block_min_bytes_copied();
+    marcher.update_block_min(stretch, box_words(minima, grid, stretch));
+    EXPECT_EQ(marcher.block_min_bytes_copied() - copied, 4u * 16 * 3 * 3);
+    EXPECT_EQ(marcher.render(r).rgba, want);
+
+    EXPECT_THROW(
+        marcher.update_block_min({{Box{{80, 0, 0}, {89, 1, 1}}}}, std::vector<std::uint32_t>(9, 0)),
+        InputError);
+    EXPECT_THROW(marcher.update_block_min(stretch, std::vector<std::uint32_t>(3, 0)), InputError);
+    // A new field has no table to update.
+    upload(marcher, world, Palette(), vk::FieldFormat::compact, GetParam(), d);
+    EXPECT_THROW(marcher.update_block_min(stretch, box_words(minima, grid, stretch)),
+                 std::logic_error);
+}
+
+// update_compact copies the edited field but keeps the palette, the metric and the table.
+TEST_P(RaymarchMetric, UpdatedCompactFieldKeepsPaletteMetricAndTable) {
+    World world = far_apart_world();
+    const auto d = distances(world, GetParam());
+    Palette palette;
+    palette[44] = Rgba{200, 10, 20, 255};
+    vk::Raymarcher marcher(vulkan());
+    upload(marcher, world, palette, vk::FieldFormat::compact, GetParam(), d);
+    marcher.set_block_min(block_minima(world, d));
+    const std::uint64_t copied = marcher.block_min_bytes_copied();
+    // Recolour the wall: the distances stay, so do the minima.
+    for (std::uint32_t z = 0; z < 24; ++z) {
+        for (std::uint32_t y = 0; y < 24; ++y) {
+            world.set(600, y, z, 9);
+        }
+    }
+    marcher.update_compact(compact_field(world, d));
+    EXPECT_EQ(marcher.metric(), GetParam());
+    EXPECT_EQ(marcher.block_min_bytes_copied(), copied);
+    for (const vk::RenderOptions& r : far_apart_views()) {
+        const Comparison c = compare(marcher.render(r).rgba, cpu_render(world, palette, r), r.sky);
+        EXPECT_LE(double(c.differing), 0.005 * double(c.pixels));
+    }
+    EXPECT_THROW(marcher.update_compact(std::vector<std::uint16_t>(5, 0)), InputError);
+    marcher.upload(world, palette, packed_field(world, palette, d));
+    EXPECT_THROW(marcher.update_compact(compact_field(world, d)), std::logic_error);
+}
+
 // A field inflated by one (every empty voxel's distance + 1) is what a step one cell too long
 // in each metric's rule would amount to. A ray always reaches the voxel it hits as the first
 // cell outside the last fetch's empty region, so such a step walks past that voxel: into the

@@ -6,6 +6,7 @@
 
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "voxfield/cl/exact.hpp"
@@ -126,7 +127,7 @@ TEST(Share, CompactWriterConvertsEveryFormatWholeAndByRegion) {
         q.enqueueWriteBuffer(vox, CL_TRUE, 0, world.size(), world.voxels().data());
         q.enqueueFillBuffer(dst, cl_ushort{0xABCD}, 0, 2 * stride * slabs);
         ocl::CompactWriter writer(opencl(), src, format, vox, dims, dst,
-                                  {depth, static_cast<std::uint64_t>(2 * stride)});
+                                  {depth, static_cast<std::uint64_t>(2 * stride), std::nullopt});
         const auto expected = [&](std::size_t i) {
             const std::uint32_t d = std::min(decode_distance(field, format, i), 255u);
             return static_cast<std::uint16_t>((d << 8) | world.voxels()[i]);
@@ -197,6 +198,65 @@ TEST(Share, CompactWriterConvertsEveryFormatWholeAndByRegion) {
     }
 }
 
+// Paths 1/2 keep the block minima in the destination, after the slabs: a run over regions
+// recomputes the blocks covering them there (changed_blocks()) and leaves every other word as
+// it was; block_min(blocks) reads back just those blocks.
+TEST(Share, CompactWriterRewritesOnlyTheChangedBlocksInPlace) {
+    const Dims dims{21, 18, 27};  // 3 x 3 x 4 blocks
+    const Dims grid{3, 3, 4};
+    const World world = make_scene("random", dims, 5);
+    const std::vector<std::uint8_t> field =
+        encode_field(reference_manhattan(world), world, Palette(), Format::u16);
+    const std::uint64_t slabs_bytes = 5 * 4096;  // one slab, rounded up like the ray marcher's
+    const std::size_t table = grid.count();
+    auto& q = opencl().queue();
+    cl::Buffer src(opencl().context(), CL_MEM_READ_WRITE, field.size());
+    cl::Buffer vox(opencl().context(), CL_MEM_READ_WRITE, world.size());
+    cl::Buffer dst(opencl().context(), CL_MEM_READ_WRITE, slabs_bytes + 4 * table);
+    q.enqueueWriteBuffer(src, CL_TRUE, 0, field.size(), field.data());
+    q.enqueueWriteBuffer(vox, CL_TRUE, 0, world.size(), world.voxels().data());
+    ASSERT_GE(slabs_bytes, 2 * dims.count());
+    ocl::CompactWriter writer(opencl(), src, Format::u16, vox, dims, dst,
+                              {dims.z, slabs_bytes, slabs_bytes});
+    writer.run();
+    const std::vector<std::uint32_t> whole = writer.block_min();
+    ASSERT_EQ(whole.size(), table);
+    EXPECT_EQ(writer.changed_blocks(), (std::vector<Box>{Box{{0, 0, 0}, {3, 3, 4}}}));
+    const auto read_table = [&] {
+        std::vector<std::uint32_t> out(table);
+        q.enqueueReadBuffer(dst, CL_TRUE, slabs_bytes, 4 * table, out.data());
+        return out;
+    };
+    EXPECT_EQ(read_table(), whole) << "the table is not in place";
+
+    const cl_uint stale = 0xDEADBEEFu;
+    q.enqueueFillBuffer(dst, stale, slabs_bytes, 4 * table);
+    q.finish();
+    // Voxels x 9..12, y 0..3, z 17..20 (blocks x 1, y 0, z 2) and x 15..21, y 16..18,
+    // z 0..2 (blocks x 1..2, y 2, z 0; clipped to the world).
+    const std::vector<Box> regions{{{9, 0, 17}, {13, 4, 21}}, {{15, 16, -3}, {30, 19, 3}}};
+    writer.run(regions);
+    const std::vector<Box> blocks{{{1, 0, 2}, {2, 1, 3}}, {{1, 2, 0}, {3, 3, 1}}};
+    EXPECT_EQ(writer.changed_blocks(), blocks);
+    const std::vector<std::uint32_t> after = read_table();
+    std::size_t rewritten = 0;
+    for (std::uint32_t z = 0; z < grid.z; ++z) {
+        for (std::uint32_t y = 0; y < grid.y; ++y) {
+            for (std::uint32_t x = 0; x < grid.x; ++x) {
+                const bool changed = (x == 1 && y == 0 && z == 2) || (x >= 1 && y == 2 && z == 0);
+                const std::size_t i = grid.index(x, y, z);
+                rewritten += changed;
+                EXPECT_EQ(after[i], changed ? whole[i] : stale) << x << "," << y << "," << z;
+            }
+        }
+    }
+    EXPECT_EQ(rewritten, 3u);
+    const std::size_t first = grid.index(1, 0, 2), second = grid.index(1, 2, 0);
+    EXPECT_EQ(writer.block_min(blocks),
+              (std::vector<std::uint32_t>{whole[first], whole[second], whole[second + 1]}));
+    EXPECT_THROW(writer.block_min({Box{{2, 0, 0}, {4, 1, 1}}}), std::invalid_argument);
+}
+
 TEST(Share, RegeneratedFieldShowsInTheNextRenderWithoutUpload) {
     const Dims dims{24, 20, 28};
     World world(dims);
@@ -217,7 +277,8 @@ TEST(Share, RegeneratedFieldShowsInTheNextRenderWithoutUpload) {
                                           static_cast<std::size_t>(shared.memory.size()));
     ocl::ExactManhattan exact(opencl(), world, palette, Format::u16);
     ocl::CompactWriter writer(opencl(), exact.field_buffer(), Format::u16, exact.voxels_buffer(),
-                              dims, shared.buffer, {layout.slab_depth, layout.slab_stride});
+                              dims, shared.buffer,
+                              {layout.slab_depth, layout.slab_stride, std::nullopt});
     exact.run();
     writer.run();
     marcher.bind_shared(shared.memory, layout, palette);

@@ -17,10 +17,13 @@ layout(constant_id = 1) const bool kCount = false;
 // One RGBA8 pixel per texel, r | g << 8 | b << 16 | a << 24 (bytes R, G, B, A in memory), so
 // flat colours are written bit-exactly (no float -> unorm rounding).
 layout(binding = VF_RAYMARCH_BINDING_IMAGE, r32ui) uniform writeonly uimage2D out_image;
-// Palette entry m as r | g << 8 | b << 16 | a << 24; then, with VF_RAYMARCH_FLAG_BLOCK_MIN,
-// the per-block minimum distances (layout.h VF_RAYMARCH_BLOCK).
+// Palette entry m as r | g << 8 | b << 16 | a << 24.
 layout(std430, binding = VF_RAYMARCH_BINDING_PALETTE) readonly buffer PaletteBuf {
     uint palette[256];
+};
+// With VF_RAYMARCH_FLAG_BLOCK_MIN: the per-block minimum distances (layout.h
+// VF_RAYMARCH_BLOCK), copied or written in place by OpenCL; never read otherwise.
+layout(std430, binding = VF_RAYMARCH_BINDING_BLOCK_MIN) readonly buffer BlockMinBuf {
     uint block_min[];
 };
 

@@ -36,6 +36,10 @@ static_assert(VF_COMPACT_DISTANCE_MAX == VF_PACKED_DISTANCE_MAX);
 // The per-pixel counters of RenderOptions::count (raymarch.comp's buffer C): the binding after
 // the material slabs.
 constexpr std::uint32_t kCounterBinding = kBindings;
+static_assert(VF_RAYMARCH_BINDING_BLOCK_MIN == kCounterBinding + 1);
+// The ray marcher's own block-minimum table (and its placeholder, reused when the sizes match).
+constexpr VkBufferUsageFlags kTableUsage =
+    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
 
 // raymarch.comp's specialization constants: constant_id 0 the metric (kManhattan,
 // kChebyshev, kEuclidean = 0, 1, 2), constant_id 1 whether rays count (a VkBool32).
@@ -171,9 +175,14 @@ struct Raymarcher::Impl {
     std::uint32_t next_pair = 0;
     std::uint64_t reported_serial = 0;  // finished_raymarch_ms(): the latest pair read
     double reported_ms = -1;
-    Buffer palette;  // 256 colours, then the block minima when set
-    std::array<std::uint32_t, 256> colours{};
-    std::vector<std::uint32_t> block_min;
+    Buffer palette;  // 256 colours
+    // The block-minimum table's binding: a buffer of the ray marcher's own (copied), one over
+    // the shared field's memory (written by OpenCL), or, while there is no table, a placeholder
+    // word that is never read.
+    Buffer block_min;
+    bool coarse = false;            // the table holds the current field's minima
+    bool block_min_shared = false;  // block_min lies in shared memory
+    std::uint64_t block_min_copied = 0;
     Metric metric = Metric::manhattan;
     // RenderOptions::count: one uvec2 (fetches, steps) per pixel; a single one otherwise.
     Buffer counters;
@@ -216,8 +225,17 @@ struct Raymarcher::Impl {
     // Makes `target` an image of width x height (no-op when it already is).
     void prepare_target(std::uint32_t width, std::uint32_t height, const std::string& what);
     void upload_palette(const Palette& p);
-    // Writes colours + block_min into the palette binding (a new buffer when it grows).
-    void write_palette_binding();
+    // The number of blocks of the current field (layout.h VF_RAYMARCH_BLOCK).
+    Dims block_grid() const;
+    // The placeholder bound while there is no table: one word, never read.
+    Buffer no_table();
+    // Points the block-minimum binding at `table` (kept in block_min); the old table is
+    // retired (frames in flight may read it).
+    void bind_block_min(Buffer table, bool coarse_now, bool shared);
+    // Copies a compact field into new device-local slabs laid out as `l`; adds their size to
+    // `bytes`.
+    std::vector<Buffer> copy_compact(const FieldLayout& l, std::span<const std::uint16_t> compact,
+                                     std::uint64_t& bytes);
     // Takes the new field buffers and points every binding at them.
     void install(std::vector<Buffer> new_field, std::vector<Buffer> new_material,
                  const FieldLayout& new_layout, SharingPath path);
@@ -234,7 +252,7 @@ Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
     m.max_binding = m.max_binding / 4 * 4;
 
     std::vector<VkDescriptorSetLayoutBinding> bindings;
-    for (std::uint32_t b = 0; b <= kCounterBinding; ++b) {
+    for (std::uint32_t b = 0; b <= VF_RAYMARCH_BINDING_BLOCK_MIN; ++b) {
         if (b >= VF_RAYMARCH_BINDING_FIELD + VF_RAYMARCH_MAX_SLABS &&
             b < VF_RAYMARCH_BINDING_MATERIAL) {
             continue;
@@ -292,6 +310,7 @@ Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
         256 * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
         MemoryIntent::device_local, "palette");
     m.prepare_counters(1);
+    m.bind_block_min(m.no_table(), false, false);
 }
 
 Raymarcher::~Raymarcher() {
@@ -307,7 +326,8 @@ void Raymarcher::Impl::write_set() {
         }
         const std::array<VkDescriptorPoolSize, 2> sizes = {
             VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
-            VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kCounterBinding + 1}};
+            VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                 VF_RAYMARCH_BINDING_BLOCK_MIN + 1}};
         VkDescriptorPoolCreateInfo dp{};
         dp.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO;
         dp.maxSets = 1;
@@ -327,7 +347,7 @@ void Raymarcher::Impl::write_set() {
         set_recorded = false;
     }
     std::vector<VkDescriptorBufferInfo> infos;
-    infos.reserve(kCounterBinding + 1);
+    infos.reserve(VF_RAYMARCH_BINDING_BLOCK_MIN + 1);
     std::vector<VkWriteDescriptorSet> writes;
     auto add = [&](std::uint32_t binding, const Buffer& b, VkDeviceSize range) {
         if (b.get() == VK_NULL_HANDLE) {
@@ -345,6 +365,7 @@ void Raymarcher::Impl::write_set() {
     };
     add(VF_RAYMARCH_BINDING_PALETTE, palette, VK_WHOLE_SIZE);
     add(kCounterBinding, counters, VK_WHOLE_SIZE);
+    add(VF_RAYMARCH_BINDING_BLOCK_MIN, block_min, VK_WHOLE_SIZE);
     for (std::uint32_t s = 0; s < VF_RAYMARCH_MAX_SLABS && !field.empty(); ++s) {
         // Unused bindings alias slab 0 and are never read; compact fields have no material
         // buffers, so those bindings alias field slab 0 too.
@@ -424,12 +445,45 @@ FieldLayout Raymarcher::plan(Dims d, FieldFormat format) const {
 }
 
 void Raymarcher::Impl::upload_palette(const Palette& p) {
+    std::array<std::uint32_t, 256> colours{};
     for (std::size_t i = 0; i < 256; ++i) {
         colours[i] = pack(p[static_cast<std::uint8_t>(i)]);
     }
-    block_min.clear();           // a new field: the old minima no longer hold
+    // Frames in flight may read the old colours: those keep a buffer of their own.
+    if (set_recorded && ctx.busy()) {
+        ctx.retire(std::move(palette));
+        palette = ctx.make_buffer(
+            sizeof colours, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+            MemoryIntent::device_local, "palette");
+        ctx.upload(palette, colours.data(), sizeof colours);
+        write_set();
+    } else {
+        ctx.upload(palette, colours.data(), sizeof colours);
+    }
+    coarse = false;              // a new field: the old minima no longer hold
     metric = Metric::manhattan;  // nor the old metric; manhattan's step is safe for any field
-    write_palette_binding();
+    if (block_min_shared) {
+        // It may lie in memory the new field no longer keeps alive.
+        bind_block_min(no_table(), false, false);
+    }
+}
+
+Dims Raymarcher::Impl::block_grid() const {
+    const std::uint32_t b = VF_RAYMARCH_BLOCK;
+    const Dims d = layout.dims;
+    return Dims{(d.x + b - 1) / b, (d.y + b - 1) / b, (d.z + b - 1) / b};
+}
+
+Buffer Raymarcher::Impl::no_table() {
+    return ctx.make_buffer(4, kTableUsage, MemoryIntent::device_local, "no block minima");
+}
+
+void Raymarcher::Impl::bind_block_min(Buffer table, bool coarse_now, bool shared) {
+    ctx.retire(std::move(block_min));
+    block_min = std::move(table);
+    coarse = coarse_now;
+    block_min_shared = shared;
+    write_set();
 }
 
 VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count) {
@@ -473,23 +527,6 @@ void Raymarcher::Impl::prepare_counters(std::size_t pixels) {
     counters = ctx.make_buffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryIntent::readback,
                                "ray counters");
     write_set();
-}
-
-void Raymarcher::Impl::write_palette_binding() {
-    std::vector<std::uint32_t> words(colours.begin(), colours.end());
-    words.insert(words.end(), block_min.begin(), block_min.end());
-    const VkDeviceSize bytes = 4 * words.size();
-    // Frames in flight may read the old contents: those get a buffer of their own.
-    if (bytes > palette.size() || (set_recorded && ctx.busy())) {
-        ctx.retire(std::move(palette));
-        palette = ctx.make_buffer(
-            bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-            MemoryIntent::device_local, "palette and block minima");
-        ctx.upload(palette, words.data(), bytes);
-        write_set();
-        return;
-    }
-    ctx.upload(palette, words.data(), bytes);
 }
 
 void Raymarcher::Impl::install(std::vector<Buffer> new_field, std::vector<Buffer> new_material,
@@ -547,28 +584,53 @@ void Raymarcher::upload_compact(Dims d, const Palette& palette,
                          " elements, the world " + std::to_string(d.count()));
     }
     const FieldLayout l = plan(d, FieldFormat::compact);
-    std::vector<Buffer> field;
-    const VkBufferUsageFlags usage =
-        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
-    const std::size_t slice_voxels = std::size_t{d.x} * d.y;
     std::uint64_t copied = 0;
-    for (std::uint32_t s = 0; s < l.slabs; ++s) {
-        const std::uint32_t z0 = s * l.slab_depth, nz = std::min(l.slab_depth, d.z - z0);
-        const std::size_t voxels = slice_voxels * nz, first = slice_voxels * z0;
-        field.push_back(m.ctx.make_buffer(l.slab_bytes(s), usage, MemoryIntent::device_local,
-                                          "compact field slab " + std::to_string(s)));
-        if (voxels % 2 == 0) {
-            m.ctx.upload(field.back(), compact.data() + first, voxels * 2);
-        } else {  // padded to a whole word (the padding is never read)
-            std::vector<std::uint16_t> padded(voxels + 1, 0);
-            std::memcpy(padded.data(), compact.data() + first, voxels * 2);
-            m.ctx.upload(field.back(), padded.data(), padded.size() * 2);
-        }
-        copied += l.slab_bytes(s);
-    }
+    std::vector<Buffer> field = m.copy_compact(l, compact, copied);
     m.upload_palette(palette);
     m.install(std::move(field), {}, l, SharingPath::copy);
     m.copied += copied;
+}
+
+void Raymarcher::update_compact(std::span<const std::uint16_t> compact) {
+    Impl& m = *impl_;
+    if (m.field.empty() || m.layout.format != FieldFormat::compact ||
+        m.sharing != SharingPath::copy) {
+        throw std::logic_error("Raymarcher::update_compact: the field is not a copied compact one");
+    }
+    if (compact.size() != m.layout.dims.count()) {
+        throw InputError("compact field has " + std::to_string(compact.size()) +
+                         " elements, the world " + std::to_string(m.layout.dims.count()));
+    }
+    const FieldLayout l = m.layout;
+    std::uint64_t copied = 0;
+    std::vector<Buffer> field = m.copy_compact(l, compact, copied);
+    m.install(std::move(field), {}, l, SharingPath::copy);
+    m.copied += copied;
+}
+
+std::vector<Buffer> Raymarcher::Impl::copy_compact(const FieldLayout& l,
+                                                   std::span<const std::uint16_t> compact,
+                                                   std::uint64_t& bytes) {
+    std::vector<Buffer> out;
+    const VkBufferUsageFlags usage =
+        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    const Dims d = l.dims;
+    const std::size_t slice_voxels = std::size_t{d.x} * d.y;
+    for (std::uint32_t s = 0; s < l.slabs; ++s) {
+        const std::uint32_t z0 = s * l.slab_depth, nz = std::min(l.slab_depth, d.z - z0);
+        const std::size_t voxels = slice_voxels * nz, first = slice_voxels * z0;
+        out.push_back(ctx.make_buffer(l.slab_bytes(s), usage, MemoryIntent::device_local,
+                                      "compact field slab " + std::to_string(s)));
+        if (voxels % 2 == 0) {
+            ctx.upload(out.back(), compact.data() + first, voxels * 2);
+        } else {  // padded to a whole word (the padding is never read)
+            std::vector<std::uint16_t> padded(voxels + 1, 0);
+            std::memcpy(padded.data(), compact.data() + first, voxels * 2);
+            ctx.upload(out.back(), padded.data(), padded.size() * 2);
+        }
+        bytes += l.slab_bytes(s);
+    }
+    return out;
 }
 
 void Raymarcher::bind_shared(const ExternalMemory& memory, const FieldLayout& l,
@@ -676,8 +738,7 @@ std::uint32_t Raymarcher::Impl::record(VkCommandBuffer cmd, const RenderOptions&
         (o.shading == Shading::lit ? VF_RAYMARCH_FLAG_LIT : 0u) |
         (o.shading == Shading::lit && o.sky_gradient ? VF_RAYMARCH_FLAG_SKY_GRADIENT : 0u) |
         (m.layout.format == FieldFormat::compact ? VF_RAYMARCH_FLAG_COMPACT : 0u) |
-        (m.block_min.empty() ? 0u : VF_RAYMARCH_FLAG_BLOCK_MIN) |
-        (o.bgra ? VF_RAYMARCH_FLAG_BGRA : 0u);
+        (m.coarse ? VF_RAYMARCH_FLAG_BLOCK_MIN : 0u) | (o.bgra ? VF_RAYMARCH_FLAG_BGRA : 0u);
     pc.image[3] = pack(o.sky);
 
     const std::uint32_t pair = m.next_pair;
@@ -706,14 +767,21 @@ std::uint32_t Raymarcher::Impl::record(VkCommandBuffer cmd, const RenderOptions&
     const bool external = m.sharing == SharingPath::opaque_fd;
     std::vector<VkBufferMemoryBarrier> ownership;
     if (external) {
+        std::vector<VkBuffer> shared;
         for (const Buffer& b : m.field) {
+            shared.push_back(b.get());
+        }
+        if (m.block_min_shared) {
+            shared.push_back(m.block_min.get());  // written by OpenCL in the same memory
+        }
+        for (const VkBuffer b : shared) {
             VkBufferMemoryBarrier acquire{};
             acquire.sType = VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER;
             acquire.srcAccessMask = 0;
             acquire.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
             acquire.srcQueueFamilyIndex = VK_QUEUE_FAMILY_EXTERNAL;
             acquire.dstQueueFamilyIndex = m.ctx.queue_family();
-            acquire.buffer = b.get();
+            acquire.buffer = b;
             acquire.offset = 0;
             acquire.size = VK_WHOLE_SIZE;
             ownership.push_back(acquire);
@@ -891,15 +959,102 @@ double Raymarcher::finished_raymarch_ms() {
 void Raymarcher::set_block_min(std::span<const std::uint32_t> block_min) {
     Impl& m = *impl_;
     const Dims d = m.layout.dims;
-    const std::uint64_t b = VF_RAYMARCH_BLOCK;
-    const std::uint64_t blocks = ((d.x + b - 1) / b) * ((d.y + b - 1) / b) * ((d.z + b - 1) / b);
+    const std::uint64_t blocks = m.block_grid().count();
     if (m.layout.slabs == 0 || block_min.size() != blocks) {
         throw InputError("block minima: " + std::to_string(block_min.size()) +
                          " entries for a field of " + d.to_string() + " (" +
-                         std::to_string(blocks) + " blocks of " + std::to_string(b) + "^3)");
+                         std::to_string(blocks) + " blocks of " +
+                         std::to_string(VF_RAYMARCH_BLOCK) + "^3)");
     }
-    m.block_min.assign(block_min.begin(), block_min.end());
-    m.write_palette_binding();
+    const VkDeviceSize bytes = 4 * blocks;
+    // Frames in flight may read the old table: those keep it (retired), this one gets a new one.
+    if (m.block_min_shared || m.block_min.size() != bytes || (m.set_recorded && m.ctx.busy())) {
+        m.bind_block_min(
+            m.ctx.make_buffer(bytes, kTableUsage, MemoryIntent::device_local, "block minima"),
+            false, false);
+    }
+    m.ctx.upload(m.block_min, block_min.data(), bytes);
+    m.coarse = true;
+    m.block_min_copied += bytes;
+}
+
+void Raymarcher::update_block_min(std::span<const Box> blocks,
+                                  std::span<const std::uint32_t> minima) {
+    Impl& m = *impl_;
+    if (!m.coarse || m.block_min_shared) {
+        throw std::logic_error("Raymarcher::update_block_min without a table from set_block_min");
+    }
+    const Dims g = m.block_grid();
+    const Box grid{{0, 0, 0}, {g.x, g.y, g.z}};
+    std::uint64_t words = 0;
+    for (const Box& b : blocks) {
+        if (!b.empty() && intersect(b, grid) != b) {
+            throw InputError("block minima: block box [" + std::to_string(b.min.x) + "," +
+                             std::to_string(b.min.y) + "," + std::to_string(b.min.z) + ")..(" +
+                             std::to_string(b.max.x) + "," + std::to_string(b.max.y) + "," +
+                             std::to_string(b.max.z) + ") leaves the grid of " + g.to_string() +
+                             " blocks");
+        }
+        words += b.empty() ? 0 : static_cast<std::uint64_t>(b.volume());
+    }
+    if (minima.size() != words) {
+        throw InputError("block minima: " + std::to_string(minima.size()) + " entries for " +
+                         std::to_string(words) + " blocks in the boxes");
+    }
+    if (words == 0) {
+        return;
+    }
+    // The copy rewrites words that frames in flight may still read.
+    m.ctx.wait_frames_in_flight();
+    // One staging buffer, one copy region per row of blocks.
+    const VkDeviceSize bytes = 4 * words;
+    Buffer staging = m.ctx.make_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                                       MemoryIntent::upload, "block minima staging");
+    std::memcpy(staging.data(), minima.data(), bytes);
+    std::vector<VkBufferCopy> rows;
+    VkDeviceSize src = 0;
+    for (const Box& b : blocks) {
+        if (b.empty()) {
+            continue;
+        }
+        const VkDeviceSize row = 4 * static_cast<VkDeviceSize>(b.max.x - b.min.x);
+        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
+            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
+                const auto first = static_cast<VkDeviceSize>((z * g.y + y) * g.x + b.min.x);
+                rows.push_back(VkBufferCopy{src, 4 * first, row});
+                src += row;
+            }
+        }
+    }
+    m.ctx.submit_and_wait(
+        [&](VkCommandBuffer cmd) {
+            vkCmdCopyBuffer(cmd, staging.get(), m.block_min.get(),
+                            static_cast<std::uint32_t>(rows.size()), rows.data());
+        },
+        "block minima update");
+    m.block_min_copied += bytes;
+}
+
+void Raymarcher::bind_shared_block_min(const ExternalMemory& memory, std::uint64_t offset) {
+    Impl& m = *impl_;
+    if (m.field.empty() || m.sharing == SharingPath::copy) {
+        throw std::logic_error("Raymarcher::bind_shared_block_min: the field is not shared");
+    }
+    const VkDeviceSize bytes = 4 * m.block_grid().count();
+    if (memory.memory() == VK_NULL_HANDLE || offset + bytes > memory.size()) {
+        throw std::logic_error("Raymarcher::bind_shared_block_min: the table (" +
+                               std::to_string(bytes) + " bytes at " + std::to_string(offset) +
+                               ") does not fit in the shared memory (" +
+                               std::to_string(memory.size()) + " bytes)");
+    }
+    Buffer table = m.ctx.make_external_buffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                              memory.handle_type(), "shared block minima");
+    m.ctx.bind(table, memory.memory(), offset, "shared block minima");
+    m.bind_block_min(std::move(table), true, true);
+}
+
+std::uint64_t Raymarcher::block_min_bytes_copied() const {
+    return impl_->block_min_copied;
 }
 
 void Raymarcher::set_metric(Metric metric) {

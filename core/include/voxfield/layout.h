@@ -37,12 +37,14 @@
 #define VF_RAYMARCH_FLAG_SKY_GRADIENT 2u
 /* The field is compact (else packed32 with material bytes at VF_RAYMARCH_BINDING_MATERIAL). */
 #define VF_RAYMARCH_FLAG_COMPACT 4u
-/* Coarse skipping: after the 256 palette entries the palette binding holds, per block of
- * VF_RAYMARCH_BLOCK^3 voxels (x fastest over ceil(dims / VF_RAYMARCH_BLOCK)), the minimum of
- * the unsaturated L1 distance over the block; a lower bound for every voxel in it, used where
- * the field's 8-bit distance is saturated. */
+/* Coarse skipping: the block-minimum binding holds, per block of VF_RAYMARCH_BLOCK^3 voxels
+ * (x fastest over ceil(dims / VF_RAYMARCH_BLOCK)), the minimum of the unsaturated distance
+ * over the block (in the field's metric); a lower bound for every voxel in it, used where the
+ * field's 8-bit distance is saturated. Its binding follows the ray counters'
+ * (VF_RAYMARCH_BINDING_MATERIAL + VF_RAYMARCH_MAX_SLABS). */
 #define VF_RAYMARCH_FLAG_BLOCK_MIN 8u
 #define VF_RAYMARCH_BLOCK 8
+#define VF_RAYMARCH_BINDING_BLOCK_MIN (VF_RAYMARCH_BINDING_MATERIAL + VF_RAYMARCH_MAX_SLABS + 1)
 /* Write pixels as B, G, R, A bytes (a BGRA swapchain) instead of R, G, B, A. */
 #define VF_RAYMARCH_FLAG_BGRA 16u
 

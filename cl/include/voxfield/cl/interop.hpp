@@ -14,15 +14,22 @@
 
 namespace voxfield::ocl {
 
-// Where the field's z-slabs lie in the destination buffer (the ray marcher's FieldLayout).
+// Where the field's z-slabs lie in the destination buffer (the ray marcher's FieldLayout),
+// and its block minima.
 struct SlabLayout {
     std::uint32_t slab_depth = 0;         // z-slices per slab
     std::uint64_t slab_stride_bytes = 0;  // slab s starts at s * slab_stride_bytes (even)
+    // The block-minimum table at this byte offset of the destination (a multiple of 4, past
+    // the slabs): paths 1/2, where the ray marcher reads it in place
+    // (vk::Raymarcher::bind_shared_block_min). Absent: in a buffer of the writer's own, read
+    // back with block_min() (path 3).
+    std::optional<std::uint64_t> block_min_offset;
 };
 
 // Converts a distance field and its world's voxels into the compact render format (layout.h
 // VF_COMPACT_*, 2 bytes per voxel) in `dst`, and computes the ray marcher's coarse table
-// (per-block minimum distance, block_min()). `field` holds the field in `format` (DESIGN §3;
+// (per-block minimum distance; in `dst` or its own buffer, SlabLayout::block_min_offset).
+// `field` holds the field in `format` (DESIGN §3;
 // packed32 contributes its 8-bit distance, so its block minima are at most 255), `voxels` one
 // byte per voxel; both x fastest, dims.count() elements. Holds references to the three
 // buffers; run() again after the field changed. external: dst was imported with
@@ -36,22 +43,30 @@ class CompactWriter {
                   Dims dims, cl::Buffer dst, SlabLayout layout, bool external = false,
                   double step = 1.0);
     // Converts the whole field, or only the voxels of `regions` (boxes clipped to the world;
-    // the block minima of every block they touch are recomputed). Enqueues the kernels and
-    // waits for them (clFinish): afterwards Vulkan may read dst. Returns the kernels' time in
-    // ms (profiling events).
+    // the block minima of every block they touch are recomputed, and no others). Enqueues
+    // the kernels and waits for them (clFinish): afterwards Vulkan may read dst, field and
+    // table. Returns the kernels' time in ms (profiling events).
     double run();
     double run(const std::vector<Box>& regions);
-    // The per-block minima of the last run() (layout.h VF_RAYMARCH_BLOCK; x fastest), read
-    // back: a small table (1/512 of the voxels) the ray marcher keeps beside its palette.
+    // The blocks whose minima the last run() recomputed: per region that met the world, the
+    // box of blocks covering it (block coordinates over ceil(dims / VF_RAYMARCH_BLOCK); boxes
+    // of overlapping regions may overlap).
+    const std::vector<Box>& changed_blocks() const { return changed_blocks_; }
+    // The per-block minima (layout.h VF_RAYMARCH_BLOCK; x fastest), read back: the whole
+    // table (1/512 of the voxels), or only the blocks of `blocks` (block boxes inside the
+    // grid, e.g. changed_blocks()), box after box and x fastest in each, which is all that
+    // path 3 copies into the ray marcher after an edit (vk::Raymarcher::update_block_min).
     std::vector<std::uint32_t> block_min();
+    std::vector<std::uint32_t> block_min(const std::vector<Box>& blocks);
 
   private:
     Context& ctx_;
-    Dims dims_;
-    cl::Buffer dst_, block_min_;
+    Dims dims_, blocks_;
+    cl::Buffer dst_, block_min_;          // block_min_: dst_ itself or the writer's own buffer
+    std::uint64_t block_min_offset_ = 0;  // bytes
     cl::Kernel kernel_, block_kernel_;
-    std::size_t block_count_ = 0;
     bool external_ = false;
+    std::vector<Box> changed_blocks_;
 };
 
 // Path 2: CL_MEM_USE_HOST_PTR is zero-copy on CPU devices (PoCL's pthread device computes in

@@ -2,7 +2,10 @@
 // The ray marcher's compact field, written by OpenCL where Vulkan reads it (DESIGN §2): the
 // first sharing path both devices support (1 opaque fd -> 2 host pointer -> 3 copy), with the
 // conversion from any distance field on the OpenCL device (ocl::CompactWriter) and the coarse
-// table the ray marcher skips with. The glue between cl/ and vk/, part of the frame pipeline.
+// table the ray marcher skips with (its block minima). On paths 1/2 the table lies in the
+// shared allocation after the slabs and OpenCL writes it in place; on path 3 an edit copies
+// only the minima of the blocks it changed. The glue between cl/ and vk/, part of the frame
+// pipeline.
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -45,9 +48,11 @@ class RenderField {
     // Lets go of the source (before it is replaced, so that both never hold device memory
     // at once); update() needs an attach() after this.
     void detach() { writer_.reset(); }
-    // After the source changed inside `regions`: converts those voxels and refreshes the
-    // coarse table (path 3: copies the field again; paths 1/2: waits for the frames in flight
-    // first, as attach). Returns the OpenCL time in ms.
+    // After the source changed inside `regions`: converts those voxels and recomputes the
+    // minima of the blocks they touch. Paths 1/2 copy nothing (they first wait for the frames
+    // in flight, which read the memory OpenCL overwrites; OpenCL has finished writing when
+    // this returns); path 3 copies the field again and only those blocks' minima
+    // (vk::Raymarcher::update_compact, update_block_min). Returns the OpenCL time in ms.
     double update(vk::Raymarcher& marcher, const std::vector<Box>& regions);
 
     vk::SharingPath path() const { return path_; }
@@ -55,9 +60,10 @@ class RenderField {
     const std::string& why_not() const { return why_not_; }
 
   private:
-    void publish(vk::Raymarcher& marcher);
     // Paths 1/2: no Vulkan frame in flight reads the shared field any more.
     void wait_for_readers();
+    // Path 3: the compact field read back from OpenCL.
+    std::vector<std::uint16_t> read_compact();
 
     ocl::Context& cl_;
     vk::Context& vk_;
@@ -65,8 +71,6 @@ class RenderField {
     vk::FieldLayout layout_;
     vk::SharingPath path_ = vk::SharingPath::copy;
     std::string why_not_;
-    Palette palette_;
-    Metric metric_ = Metric::manhattan;
     // Release order (reverse): writer, OpenCL buffer, then the fd and the memory it uses.
     vk::ExternalMemory shared_;
     int fd_ = -1;

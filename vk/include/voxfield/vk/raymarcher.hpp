@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "voxfield/core/chunks.hpp"
 #include "voxfield/core/metric.hpp"
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/world.hpp"
@@ -134,13 +135,40 @@ class Raymarcher {
     void bind_shared(const ExternalMemory& memory, const FieldLayout& layout,
                      const Palette& palette);
 
-    // Coarse skipping (layout.h VF_RAYMARCH_BLOCK): per block of the current field, the
-    // minimum of the unsaturated distance in the field's metric (x fastest over
-    // ceil(dims / VF_RAYMARCH_BLOCK)), e.g. ocl::CompactWriter::block_min(). Where a cell's
-    // 8-bit distance is saturated the ray then walks as from a distance of max(255, block
-    // minimum). Uploading or binding a new field clears it. Throws InputError when the table's
-    // size does not match the field's blocks.
+    // Path 3 after an edit of the compact field it holds: copies the whole of `compact` (the
+    // same dims) like upload_compact, but the palette, the metric and the block-minimum table
+    // stay, so that update_block_min rewrites only the blocks the edit changed (before the
+    // next render, which would otherwise read their old minima). Throws InputError when the
+    // size differs, std::logic_error when the field is not a copied compact one.
+    void update_compact(std::span<const std::uint16_t> compact);
+
+    // Coarse skipping (layout.h VF_RAYMARCH_BLOCK), in its own storage-buffer binding: per
+    // block of the current field, the minimum of the unsaturated distance in the field's
+    // metric (x fastest over ceil(dims / VF_RAYMARCH_BLOCK)). Where a cell's 8-bit distance
+    // is saturated the ray then walks as from a distance of max(255, block minimum).
+    // Uploading or binding a new field clears the table (its old minima no longer hold).
+    //
+    // set_block_min copies a whole table (e.g. ocl::CompactWriter::block_min(), path 3) into
+    // a buffer of the ray marcher's own. Throws InputError when its size does not match the
+    // field's blocks.
     void set_block_min(std::span<const std::uint32_t> block_min);
+    // After an edit, path 3: copies the minima of `blocks` (boxes in block coordinates, e.g.
+    // ocl::CompactWriter::changed_blocks()), box after box and x fastest in each (as
+    // CompactWriter::block_min(blocks) reads them), over those words of the table that
+    // set_block_min copied; every other word stays as it was. One staged copy, waited for, so
+    // the next render reads them. Throws InputError when a box leaves the block grid or the
+    // minima do not match the boxes, std::logic_error without a copied table.
+    void update_block_min(std::span<const Box> blocks, std::span<const std::uint32_t> minima);
+    // Paths 1/2: the table lies in `memory` (the shared field's, bound with bind_shared) at
+    // byte `offset`, where OpenCL writes it in place (ocl::SlabLayout::block_min_offset):
+    // nothing is copied, ever. OpenCL finishes its writes (clFinish) before it returns, and
+    // render() runs after that, so the next render reads them; the caller must not run the two
+    // at once. `memory` must outlive this ray marcher or the next upload / bind_shared.
+    // Throws std::logic_error when no field is shared or the table does not fit in `memory`.
+    void bind_shared_block_min(const ExternalMemory& memory, std::uint64_t offset);
+    // Bytes of block minima copied into the ray marcher's table so far (set_block_min and
+    // update_block_min; stays 0 while the table is shared).
+    std::uint64_t block_min_bytes_copied() const;
     // The metric of the current field's distances and block minima (DESIGN §3; unit spacing,
     // integer distances rounded down). It decides how far a ray may walk from a fetch without
     // passing a solid (raymarch.comp derives each metric's step). Uploading or binding a new
