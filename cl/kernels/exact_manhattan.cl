@@ -16,24 +16,27 @@
 // sweep covers every count of each, with either sign), so the whole is exact.
 //
 // Build options: T (work element: uchar, ushort or uint), T_MAX (its maximum), PACKED (1 when
-// the output is packed32 and T is a separate uchar work buffer), SEG_K (values per work-item
-// in cols_seg), CHEBYSHEV (0 or 1). Saturating at T_MAX is exact: min-plus with +1 commutes
-// with min(., T_MAX).
+// the output is packed32 and T is a separate uchar work buffer), SEG_K (values per column and
+// work-item in cols_seg), VW (adjacent columns per work-item in cols_seg: 1, 2 or 4),
+// CHEBYSHEV (0 or 1). Saturating at T_MAX is exact: min-plus with +1 commutes with
+// min(., T_MAX).
 //
 // Two layouts of the same sweeps, chosen by the host per device:
 // - CPU (PoCL): xy_slices_seq gives each work-item a whole z-slice (x sweeps, then y sweeps
 //   whose inner loop runs along x and vectorises), cols_strip sweeps z over strips of rows;
 //   each work-item's data stays in its core's L2 between the forward and backward sweeps.
 //   L-inf: z_sheets gives each work-item a sheet (its rows in local scratch when they fit).
-// - GPU: x_rows_local stages a row in local memory (coalesced) and scans it per work-group;
-//   cols_seg gives each work-item SEG_K consecutive values of a column in registers, joins
-//   the segments of a column through local memory, and so reads and writes each voxel once.
+// - GPU: x_rows_seg gives each work-item 16 consecutive voxels of a row in registers (one
+//   16-byte load, one vector store) and joins a row's segments through local memory; ragged
+//   rows (X not a multiple of 16) take x_rows_local, which stages a row in local memory
+//   (coalesced) and scans it per work-group. cols_seg gives each work-item SEG_K consecutive
+//   values of VW adjacent columns in registers (one 32-bit word per load and store where X
+//   keeps the words aligned), joins the segments of a column through local memory, and so
+//   reads and writes each voxel once.
 //   (L-inf has no GPU layout here: ExactSeparable computes it.)
 
-inline uint inc_sat(uint v) { return v >= T_MAX ? T_MAX : v + 1u; }
-// The same in the work type itself (saturating byte/short adds vectorise widest on CPUs).
+// A saturating +1 in the work type (saturating byte/short adds vectorise widest on CPUs).
 inline T inc_t(T v) { return add_sat(v, (T)1); }
-inline uint add_k_sat(uint v, uint k) { return v >= T_MAX - k ? T_MAX : v + k; }
 
 // One chamfer step of a row of n from its predecessor row: cur[x] = min(cur[x], 1 + the
 // least of prev[x-1], prev[x], prev[x+1]) (those inside the row). A macro: the rows may be
@@ -327,65 +330,179 @@ __kernel void x_rows_local(__global const uchar* restrict vox, __global T* restr
     }
 }
 
+// The work vector of cols_seg: VW adjacent columns per work-item (VW = 1, 2 or 4), loaded
+// and stored as one aligned word.
+#define VEC_(t, n) t##n
+#define VEC(t, n) VEC_(t, n)
+#if VW == 1
+#define TV T
+#else
+#define TV VEC(T, VW)
+#endif
+
+#if PACKED
+inline void store_final_vec(__global uint* restrict out, __global const uchar* restrict vox,
+                            __constant uchar* rgb, size_t i, TV d) {
+#if VW == 1
+    STORE_FINAL(i, d);
+#else
+    STORE_FINAL(i, d.s0);
+    STORE_FINAL(i + 1, d.s1);
+#if VW == 4
+    STORE_FINAL(i + 2, d.s2);
+    STORE_FINAL(i + 3, d.s3);
+#endif
+#endif
+}
+#endif
+
 // Columns of length N <= SEG_K * get_local_size(1): work-item (c, s) of a work-group holds
-// values [s*SEG_K, (s+1)*SEG_K) of column c in registers. Each segment publishes the value
-// its forward sweep reaches at its end and its backward sweep at its start (with no carry),
-// every work-item folds the segments before and after it into its carries, and sweeps again.
-// Every loop over v has a constant trip count and is unrolled, so v stays in registers.
+// values [s*SEG_K, (s+1)*SEG_K) of the VW columns at x = VW * (group * cw + c) in
+// registers (X is a multiple of VW). Each segment publishes the value its forward sweep
+// reaches at its end and its backward sweep at its start (with no carry), every work-item
+// folds the segments before and after it into its carries, and sweeps again. Every loop over
+// v has a constant trip count and is unrolled, so v stays in registers. T_MAX is the type's
+// maximum, so add_sat saturates exactly there.
 __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
                        __global const uchar* restrict vox, __constant uchar* rgb, uint X,
-                       uint N, ulong stride, ulong mstride, uint final, __local uint* fout,
-                       __local uint* bout) {
+                       uint N, ulong stride, ulong mstride, uint final, __local TV* fout,
+                       __local TV* bout) {
     const uint cw = (uint)get_local_size(0);
     const uint segs = (uint)get_local_size(1);
     const uint lc = (uint)get_local_id(0);
     const uint s = (uint)get_local_id(1);
-    const uint x = (uint)get_group_id(0) * cw + lc;
+    const uint x = ((uint)get_group_id(0) * cw + lc) * VW;
     const bool active = x < X;
     const size_t base = x + get_global_id(2) * mstride;
     const uint n0 = s * SEG_K;
-    uint v[SEG_K];
+    TV v[SEG_K];
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {
-        v[k] = (active && n0 + k < N) ? (uint)work[base + (n0 + k) * stride] : T_MAX;
+        v[k] = (active && n0 + k < N) ? *(__global const TV*)(work + base + (n0 + k) * stride)
+                                      : (TV)T_MAX;
     }
-    uint fo = T_MAX;
-    uint bo = T_MAX;
+    TV fo = (TV)T_MAX;
+    TV bo = (TV)T_MAX;
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {
-        fo = min(inc_sat(fo), v[k]);
-        bo = min(inc_sat(bo), v[SEG_K - 1 - k]);
+        fo = min(add_sat(fo, (TV)1), v[k]);
+        bo = min(add_sat(bo, (TV)1), v[SEG_K - 1 - k]);
     }
     fout[s * cw + lc] = fo;
     bout[s * cw + lc] = bo;
     barrier(CLK_LOCAL_MEM_FENCE);
-    uint c = T_MAX;
+    TV c = (TV)T_MAX;
     for (uint t = 0; t < s; ++t) {
-        c = min(add_k_sat(c, SEG_K), fout[t * cw + lc]);
+        c = min(add_sat(c, (TV)SEG_K), fout[t * cw + lc]);
     }
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {
-        c = min(v[k], inc_sat(c));
+        c = min(v[k], add_sat(c, (TV)1));
         v[k] = c;
     }
-    c = T_MAX;
+    c = (TV)T_MAX;
     for (uint t = segs - 1; t > s; --t) {
-        c = min(add_k_sat(c, SEG_K), bout[t * cw + lc]);
+        c = min(add_sat(c, (TV)SEG_K), bout[t * cw + lc]);
     }
 #pragma unroll
     for (uint j = 0; j < SEG_K; ++j) {
-        c = min(v[SEG_K - 1 - j], inc_sat(c));
+        c = min(v[SEG_K - 1 - j], add_sat(c, (TV)1));
         v[SEG_K - 1 - j] = c;
     }
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {
         if (active && n0 + k < N) {
             const size_t i = base + (n0 + k) * stride;
+#if PACKED
             if (final) {
-                STORE_FINAL(i, v[k]);
+                store_final_vec(out, vox, rgb, i, v[k]);
             } else {
-                work[i] = (T)v[k];
+                *(__global TV*)(work + i) = v[k];
             }
+#else
+            *(__global TV*)(work + i) = v[k];
+#endif
         }
+    }
+}
+
+// Rows along x for X a multiple of XK = 16: work-item (s, r) holds voxels [16s, 16s + 16) of
+// row r of its work-group in registers (one aligned 16-byte load), the row's segments
+// (get_local_size(0) = X / 16 of them) are joined as in cols_seg through local memory, and
+// each work-item stores its 16 distances as one aligned vector.
+#define XK 16
+__kernel void x_rows_seg(__global const uchar* restrict vox, __global T* restrict work, uint X,
+                         uint rows, __local T* fout, __local T* bout) {
+    const uint segs = (uint)get_local_size(0);
+    const uint s = (uint)get_local_id(0);
+    const uint r = (uint)get_local_id(1);
+    const size_t row = get_group_id(1) * get_local_size(1) + r;
+    const bool active = row < rows;
+    const size_t base = (active ? row : 0) * X + s * XK;
+    const uchar16 o = *(__global const uchar16*)(vox + base);
+    T v[XK];
+    v[0] = o.s0 ? (T)0 : (T)T_MAX;
+    v[1] = o.s1 ? (T)0 : (T)T_MAX;
+    v[2] = o.s2 ? (T)0 : (T)T_MAX;
+    v[3] = o.s3 ? (T)0 : (T)T_MAX;
+    v[4] = o.s4 ? (T)0 : (T)T_MAX;
+    v[5] = o.s5 ? (T)0 : (T)T_MAX;
+    v[6] = o.s6 ? (T)0 : (T)T_MAX;
+    v[7] = o.s7 ? (T)0 : (T)T_MAX;
+    v[8] = o.s8 ? (T)0 : (T)T_MAX;
+    v[9] = o.s9 ? (T)0 : (T)T_MAX;
+    v[10] = o.sa ? (T)0 : (T)T_MAX;
+    v[11] = o.sb ? (T)0 : (T)T_MAX;
+    v[12] = o.sc ? (T)0 : (T)T_MAX;
+    v[13] = o.sd ? (T)0 : (T)T_MAX;
+    v[14] = o.se ? (T)0 : (T)T_MAX;
+    v[15] = o.sf ? (T)0 : (T)T_MAX;
+    T fo = (T)T_MAX;
+    T bo = (T)T_MAX;
+#pragma unroll
+    for (uint k = 0; k < XK; ++k) {
+        fo = min(add_sat(fo, (T)1), v[k]);
+        bo = min(add_sat(bo, (T)1), v[XK - 1 - k]);
+    }
+    fout[r * segs + s] = fo;
+    bout[r * segs + s] = bo;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    T c = (T)T_MAX;
+    for (uint t = 0; t < s; ++t) {
+        c = min(add_sat(c, (T)XK), fout[r * segs + t]);
+    }
+#pragma unroll
+    for (uint k = 0; k < XK; ++k) {
+        c = min(v[k], add_sat(c, (T)1));
+        v[k] = c;
+    }
+    c = (T)T_MAX;
+    for (uint t = segs - 1; t > s; --t) {
+        c = min(add_sat(c, (T)XK), bout[r * segs + t]);
+    }
+#pragma unroll
+    for (uint j = 0; j < XK; ++j) {
+        c = min(v[XK - 1 - j], add_sat(c, (T)1));
+        v[XK - 1 - j] = c;
+    }
+    if (active) {
+        VEC(T, 16) d;
+        d.s0 = v[0];
+        d.s1 = v[1];
+        d.s2 = v[2];
+        d.s3 = v[3];
+        d.s4 = v[4];
+        d.s5 = v[5];
+        d.s6 = v[6];
+        d.s7 = v[7];
+        d.s8 = v[8];
+        d.s9 = v[9];
+        d.sa = v[10];
+        d.sb = v[11];
+        d.sc = v[12];
+        d.sd = v[13];
+        d.se = v[14];
+        d.sf = v[15];
+        *(__global VEC(T, 16)*)(work + base) = d;
     }
 }

@@ -56,13 +56,22 @@ bool use_gpu_layout(const Context& ctx, Layout layout) {
     return layout == Layout::automatic ? !ctx.is_cpu() : layout == Layout::gpu;
 }
 
-// The kernels of exact_manhattan.cl for format `f`, SEG_K = k and metric m (cached by ctx).
-cl::Program build_program(Context& ctx, Format f, std::uint32_t k, Metric m) {
+// Adjacent columns per work-item in cols_seg: as many as make one 32-bit word, when the rows
+// of X elements keep those words aligned.
+std::uint32_t vec_width(Format f, std::uint32_t x) {
+    const std::uint32_t w = static_cast<std::uint32_t>(4 / work_type(f).bytes);
+    return x % w == 0 ? w : 1;
+}
+
+// The kernels of exact_manhattan.cl for format `f`, SEG_K = k, VW = vw and metric m (cached
+// by ctx).
+cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t vw, Metric m) {
     const WorkType wt = work_type(f);
     const std::string options =
         "-DT=" + std::string(wt.name) + " -DT_MAX=" + std::to_string(wt.max) +
         "u -DPACKED=" + (f == Format::packed32 ? "1" : "0") + " -DSEG_K=" + std::to_string(k) +
-        " -DCHEBYSHEV=" + (m == Metric::chebyshev ? "1" : "0") + " -cl-std=CL1.2";
+        " -DVW=" + std::to_string(vw) + " -DCHEBYSHEV=" + (m == Metric::chebyshev ? "1" : "0") +
+        " -cl-std=CL1.2";
     return ctx.program("exact_manhattan.cl", {cl_sources::layout_h, cl_sources::exact_manhattan_cl},
                        options);
 }
@@ -131,11 +140,11 @@ ExactManhattan::ExactManhattan(Context& ctx, Dims dims, std::span<const std::uin
 }
 
 void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layout, Metric metric) {
-    build_program(ctx, format, 32, metric);
+    build_program(ctx, format, 32, 1, metric);
     if (use_gpu_layout(ctx, layout)) {
         for (const std::uint32_t len : {dims.y, dims.z}) {
             if (const std::uint32_t k = seg_k(len); k != 0) {
-                build_program(ctx, format, k, metric);
+                build_program(ctx, format, k, vec_width(format, dims.x), metric);
             }
         }
     }
@@ -184,8 +193,10 @@ void ExactManhattan::set_up_kernels() {
         throw std::invalid_argument("exact_manhattan.cl computes " + to_string(metric_) +
                                     " fields in the " + variant() + " only through ExactSeparable");
     }
-    auto program = [&](std::uint32_t k) { return build_program(ctx_, format_, k, metric_); };
-    const cl::Program base = program(32);
+    auto program = [&](std::uint32_t k, std::uint32_t vw) {
+        return build_program(ctx_, format_, k, vw, metric_);
+    };
+    const cl::Program base = program(32, 1);
     const std::size_t plane = std::size_t{dims_.x} * dims_.y;
     cl_call("setting up kernels, " + sizes, [&] {
         // Columns of length len with element stride `stride`, lines of columns `m_count`
@@ -208,20 +219,23 @@ void ExactManhattan::set_up_kernels() {
             const std::uint32_t k = gpu_layout_ ? seg_k(len) : 0;
             const std::uint32_t segs = k == 0 ? 0 : (len + k - 1) / k;
             if (k != 0) {
-                // As many columns per group as the kernel's registers allow (up to 16).
-                cl::Kernel seg = column_kernel(program(k), "cols_seg");
+                // As many work-items along x per group as the kernel's registers allow (up to
+                // 16), each holding vw adjacent columns.
+                const std::uint32_t vw = vec_width(format_, dims_.x);
+                cl::Kernel seg = column_kernel(program(k, vw), "cols_seg");
                 const std::size_t limit =
                     seg.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
                 std::uint32_t cw = 16;
                 while (cw > 1 && std::size_t{cw} * segs > limit) {
                     cw /= 2;
                 }
+                const std::size_t word = std::size_t{vw} * wt.bytes;
                 if (std::size_t{cw} * segs <= limit &&
-                    2 * std::size_t{cw} * segs * 4 <= info.local_mem) {
+                    2 * std::size_t{cw} * segs * word <= info.local_mem) {
                     seg.setArg(8, cl_uint{final ? 1u : 0u});
-                    seg.setArg(9, cl::Local(std::size_t{cw} * segs * 4));
-                    seg.setArg(10, cl::Local(std::size_t{cw} * segs * 4));
-                    return {"cols_seg", seg, cl::NDRange(round_up(dims_.x, cw), segs, m_count),
+                    seg.setArg(9, cl::Local(std::size_t{cw} * segs * word));
+                    seg.setArg(10, cl::Local(std::size_t{cw} * segs * word));
+                    return {"cols_seg", seg, cl::NDRange(round_up(dims_.x / vw, cw), segs, m_count),
                             cl::NDRange(cw, segs, 1)};
                 }
             }
@@ -252,10 +266,35 @@ void ExactManhattan::set_up_kernels() {
                     cl::NDRange(1, 1)};
         };
 
-        // x_rows_local: about 16 voxels per work-item, up to 32 work-items per row, rows
-        // stacked to 256 work-items per group.
         bool rows_on_gpu = false;
-        if (gpu_layout_) {
+        const std::size_t rows = std::size_t{dims_.y} * dims_.z;
+        if (gpu_layout_ && dims_.x % 16 == 0) {
+            // x_rows_seg: 16 voxels per work-item (one aligned word), a row per line of the
+            // group, rows stacked to about 256 work-items per group.
+            cl::Kernel x_rows(base, "x_rows_seg");
+            const std::size_t limit =
+                x_rows.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
+            const std::size_t segs = dims_.x / 16;
+            const std::size_t group_rows =
+                std::max<std::size_t>(1, std::min<std::size_t>(256, limit) / segs);
+            const std::size_t local = group_rows * segs * wt.bytes;
+            if (segs <= limit && 2 * local <= info.local_mem) {
+                x_rows.setArg(0, voxels_);
+                x_rows.setArg(1, work_);
+                x_rows.setArg(2, dims_.x);
+                x_rows.setArg(3, static_cast<cl_uint>(rows));
+                x_rows.setArg(4, cl::Local(local));
+                x_rows.setArg(5, cl::Local(local));
+                stages_.push_back({"x_rows_seg", x_rows,
+                                   cl::NDRange(segs, round_up(rows, group_rows)),
+                                   cl::NDRange(segs, group_rows)});
+                stages_.push_back(columns(dims_.y, dims_.x, plane, dims_.z, false));
+                rows_on_gpu = true;
+            }
+        }
+        // Ragged rows (or rows too long for x_rows_seg) in x_rows_local: about 16 voxels per
+        // work-item, up to 32 work-items per row, rows stacked to 256 work-items per group.
+        if (gpu_layout_ && !rows_on_gpu) {
             const std::size_t per_row = std::clamp<std::size_t>(next_pow2(dims_.x) / 16, 1, 32);
             cl::Kernel x_rows(base, "x_rows_local");
             const std::size_t x_limit = std::min<std::size_t>(
@@ -263,7 +302,6 @@ void ExactManhattan::set_up_kernels() {
             const std::size_t group_rows = std::max<std::size_t>(1, x_limit / per_row);
             const std::size_t span = dims_.x + dims_.x / 32 + 1;
             const std::size_t x_local_bytes = group_rows * (span * 5 + 2 * per_row * 4);
-            const std::size_t rows = std::size_t{dims_.y} * dims_.z;
             if (per_row <= x_limit && x_local_bytes <= info.local_mem) {
                 x_rows.setArg(0, voxels_);
                 x_rows.setArg(1, work_);

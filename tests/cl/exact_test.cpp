@@ -94,6 +94,40 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     expect_exact(deep, Palette(), "deep");
 }
 
+TEST(ExactManhattan, LongColumnsSaturatePerLane) {
+    // cols_seg holds 4 byte columns (2 for u16) per work-item where X allows it: every lane
+    // of a word saturates on its own, along y and along z; X = 7 keeps one column per item.
+    for (const std::uint32_t x : {8u, 7u}) {
+        World tall(Dims{x, 600, 3});
+        tall.set(1, 0, 0, 1);
+        expect_exact(tall, Palette(), "far along y");
+        World deep(Dims{x, 3, 600});
+        deep.set(x - 1, 2, 599, 1);
+        deep.set(0, 0, 300, 2);
+        expect_exact(deep, Palette(), "far along z");
+    }
+}
+
+TEST(ExactManhattan, GpuLayoutOddShapes) {
+    // Rows of 16-voxel words and ragged rows, columns of every cols_seg width and the strip
+    // fallback, words of 1, 2 and 4 columns.
+    const Dims shapes[] = {Dims{1, 1, 1}, Dims{3, 2049, 5}, Dims{300, 200, 700}, Dims{1024, 64, 96},
+                           Dims{1040, 3, 2}};
+    for (const Dims dims : shapes) {
+        const World w = scene_random(dims, 0.0002, dims.x + dims.y + dims.z);
+        const auto exact = reference_manhattan(w);
+        for (Format f : kFormats) {
+            const auto want = encode_field(exact, w, Palette(), f);
+            const auto got =
+                ocl::generate(pocl(), w, Palette(), exact_options(f, Layout::gpu)).bytes;
+            const std::string diff = test::first_difference(got, want, f, dims);
+            if (!diff.empty()) {
+                FAIL() << dims.to_string() << " format " << to_string(f) << ": " << diff;
+            }
+        }
+    }
+}
+
 TEST(ExactManhattan, BundledModels) {
     const std::filesystem::path dir = std::filesystem::path(VOXFIELD_DATA_DIR) / "vox";
     int models = 0;
