@@ -64,20 +64,58 @@ class Engine {
     virtual double regenerate() = 0;
 
     // Applies the brushes (in order) or the voxel changes (one edit) to the host world, then
-    // updates the device.
+    // updates the device. All or nothing: on a throw the world, the device voxels and the
+    // field are those from before the call (see restore()).
     UpdateStats apply(const std::vector<Brush>& batch) {
+        require_intact();
         UpdateStats stats;
-        for (const Brush& brush : batch) {
-            stats.edits.push_back(apply_brush(world, brush));
+        try {
+            for (const Brush& brush : batch) {
+                stats.edits.push_back(apply_brush(world, brush));
+            }
+            update(stats);
+        } catch (...) {
+            restore(stats.edits);
+            throw;
         }
-        return update(std::move(stats));
+        return stats;
     }
     UpdateStats apply_changes(const VoxelChanges& voxel_changes) {
+        require_intact();
         UpdateStats stats;
+        // Throws InputError, changing nothing, when a voxel does not hold its `before` value.
         stats.edits.push_back(voxfield::apply_changes(world, voxel_changes));
-        return update(std::move(stats));
+        try {
+            update(stats);
+        } catch (...) {
+            restore(stats.edits);
+            throw;
+        }
+        return stats;
     }
-    virtual UpdateStats set_focus(const std::optional<Focus>& focus) = 0;
+    // Moves the focus (chunk-local lod and monolithic), all or nothing like apply().
+    UpdateStats set_focus(const std::optional<Focus>& focus) {
+        require_intact();
+        return move_focus(focus);
+    }
+
+    // Regenerates the field from the host world, uploaded whole first when a failed update
+    // left the device voxels in doubt; returns the device time in ms.
+    double rebuild() {
+        if (broken) {
+            cl_call("uploading the world " + world.dims().to_string(), [&] {
+                ctx.queue().enqueueWriteBuffer(voxels_buffer(), CL_TRUE, 0, world.size(),
+                                               world.voxels().data());
+            });
+        }
+        const double ms = regenerate();
+        broken = false;
+        return ms;
+    }
+
+    // Test seam (IncrementalField::fail_next_update_for_testing): the next update throws
+    // ClError at check_injected_failure().
+    bool fail_next = false;
     // The device world that apply() keeps current.
     virtual const cl::Buffer& voxels_buffer() const = 0;
 
@@ -114,28 +152,76 @@ class Engine {
         }
     }
 
-    // Brings the device up to date with stats.edits, already applied to the host world.
-    virtual UpdateStats update(UpdateStats stats) = 0;
+    // Brings the device up to date with stats.edits, already applied to the host world, and
+    // fills in the rest of stats.
+    virtual void update(UpdateStats& stats) = 0;
+    virtual UpdateStats move_focus(const std::optional<Focus>& focus) = 0;
 
-    // The edits' changed voxels as (index, value) pairs, `first` saying where each edit's
-    // pairs start.
-    static std::vector<cl_uint> stage(const UpdateStats& stats, std::vector<std::size_t>& first) {
-        std::vector<cl_uint> staged;
-        for (const EditResult& edit : stats.edits) {
-            first.push_back(staged.size() / 2);
-            for (const VoxelChange& c : edit.changes) {
-                staged.push_back(static_cast<cl_uint>(c.index));
-                staged.push_back(c.after);
-            }
+    // Where an update waits for its commands: a failure injected by the test seam is thrown
+    // there, after the update enqueued its work and before it waits for it (as a failing
+    // enqueue of its last command would).
+    void check_injected_failure() {
+        if (fail_next) {
+            fail_next = false;
+            throw ClError("clEnqueueNDRangeKernel", CL_OUT_OF_RESOURCES,
+                          "a device failure injected by IncrementalField::"
+                          "fail_next_update_for_testing");
         }
-        return staged;
     }
 
-    // One write of every staged change; its event starts the batch's event list.
-    Events upload(const std::vector<cl_uint>& staged) {
-        reserve(changes, changes_capacity, 4 * staged.size());
+    // After a failed update: the host world goes back to its state before the batch (the
+    // edits' changes undone in reverse order), then the device voxels and the field are
+    // rebuilt from it, so that the object is as before the call. Where the device fails
+    // again the object is marked broken: every update throws until rebuild() succeeds.
+    void restore(const std::vector<EditResult>& edits) {
+        broken = true;
+        try {
+            ctx.queue().finish();  // nothing in flight reads or writes what is rebuilt below
+        } catch (const cl::Error&) {
+            // A queue that cannot even finish: rebuild() below reports it, or fails too.
+        }
+        for (auto e = edits.rbegin(); e != edits.rend(); ++e) {
+            for (auto c = e->changes.rbegin(); c != e->changes.rend(); ++c) {
+                world.voxels()[c->index] = c->before;
+            }
+        }
+        try {
+            rebuild();
+        } catch (const std::exception&) {
+            // The first error is the one reported; `broken` stays set.
+        }
+    }
+
+    void require_intact() const {
+        if (broken) {
+            throw ClError("IncrementalField", CL_INVALID_OPERATION,
+                          "a failed update left the device field of " + world.dims().to_string() +
+                              " out of step with the world, and restoring it failed too; "
+                              "regenerate() rebuilds it");
+        }
+    }
+    bool broken = false;
+
+    // The edits' changed voxels as (index, value) pairs into `staging`, `first` saying where
+    // each edit's pairs start. A member, as every host array a transfer reads or writes
+    // without blocking: after a failed enqueue the queue may still use it (restore() waits).
+    std::vector<cl_uint>& stage(const UpdateStats& stats, std::vector<std::size_t>& first) {
+        staging.clear();
+        for (const EditResult& edit : stats.edits) {
+            first.push_back(staging.size() / 2);
+            for (const VoxelChange& c : edit.changes) {
+                staging.push_back(static_cast<cl_uint>(c.index));
+                staging.push_back(c.after);
+            }
+        }
+        return staging;
+    }
+
+    // One write of everything staged; its event starts the batch's event list.
+    Events upload() {
+        reserve(changes, changes_capacity, 4 * staging.size());
         Events events(1);
-        ctx.queue().enqueueWriteBuffer(changes, CL_FALSE, 0, 4 * staged.size(), staged.data(),
+        ctx.queue().enqueueWriteBuffer(changes, CL_FALSE, 0, 4 * staging.size(), staging.data(),
                                        nullptr, &events[0]);
         return events;
     }
@@ -191,6 +277,7 @@ class Engine {
     }
 
     cl::Program program;
+    std::vector<cl_uint> staging;
     cl::Buffer rgb, changes;
     std::size_t changes_capacity = 0;
     cl_int4 d{};
@@ -232,16 +319,15 @@ class GlobalEngine : public Engine {
         });
     }
 
-    UpdateStats update(UpdateStats stats) override {
+    void update(UpdateStats& stats) override {
         std::vector<std::size_t> first;
-        const std::vector<cl_uint> staged = stage(stats, first);
-        if (staged.empty()) {
-            return stats;
+        if (stage(stats, first).empty()) {
+            return;
         }
-        return cl_call("updating the field of " + world.dims().to_string(), [&] {
+        cl_call("updating the field of " + world.dims().to_string(), [&] {
             auto& q = ctx.queue();
             reserve(regions, regions_capacity, 8 * 4 * stats.edits.size());
-            Events events = upload(staged);
+            Events events = upload();
             events.emplace_back();
             // inc_bounds accumulates W with atomic_max from zero.
             q.enqueueFillBuffer(regions, cl_int{0}, 0, 8 * 4 * stats.edits.size(), nullptr,
@@ -261,13 +347,14 @@ class GlobalEngine : public Engine {
                         scatter(events, exact->voxels_buffer(), stats, first, e);
                     }
                 }
+                check_injected_failure();
                 q.finish();
                 stats.update_ms = elapsed_ms(events.front(), events.back()) + direct->run();
                 exact_stale = true;
                 stats.full_regeneration = true;
                 stats.regions = {world_box()};
                 stats.voxels_recomputed = world.size();
-                return stats;
+                return;
             }
             double refresh_ms = 0;
             if (exact_stale) {
@@ -292,10 +379,11 @@ class GlobalEngine : public Engine {
                     encode_box(events, r.bounds);  // colours of recoloured voxels
                 }
             }
-            std::vector<cl_int> found(8 * stats.edits.size());
+            found.assign(8 * stats.edits.size(), 0);
             if (!swept.empty()) {
                 q.enqueueReadBuffer(regions, CL_FALSE, 0, 4 * found.size(), found.data());
             }
+            check_injected_failure();
             q.finish();
             stats.update_ms = elapsed_ms(events.front(), events.back()) + refresh_ms;
             for (const std::size_t e : swept) {
@@ -311,11 +399,10 @@ class GlobalEngine : public Engine {
                 stats.regions = {world_box()};
                 stats.voxels_recomputed = world.size();
             }
-            return stats;
         });
     }
 
-    UpdateStats set_focus(const std::optional<Focus>&) override { no_focus_in_exact(); }
+    UpdateStats move_focus(const std::optional<Focus>&) override { no_focus_in_exact(); }
 
     const cl::Buffer& voxels_buffer() const override { return exact->voxels_buffer(); }
 
@@ -469,6 +556,7 @@ class GlobalEngine : public Engine {
         return ms + elapsed_ms(events.front(), events.back());
     }
     cl::Buffer tmp, regions, block_max;
+    std::vector<cl_int> found;  // each edit's W, read back
     std::size_t regions_capacity = 0;
 };
 
@@ -486,14 +574,13 @@ class SeparableEngine : public Engine {
 
     double regenerate() override { return sep->run(); }
 
-    UpdateStats update(UpdateStats stats) override {
+    void update(UpdateStats& stats) override {
         std::vector<std::size_t> first;
-        const std::vector<cl_uint> staged = stage(stats, first);
-        if (staged.empty()) {
-            return stats;
+        if (stage(stats, first).empty()) {
+            return;
         }
-        return cl_call("updating the field of " + world.dims().to_string(), [&] {
-            Events events = upload(staged);
+        cl_call("updating the field of " + world.dims().to_string(), [&] {
+            Events events = upload();
             Box edited;
             for (std::size_t e = 0; e < stats.edits.size(); ++e) {
                 const EditResult& r = stats.edits[e];
@@ -504,12 +591,13 @@ class SeparableEngine : public Engine {
                 edited = hull(edited, r.bounds);
             }
             if (!edited.empty() && regenerate_instead(edited)) {
+                check_injected_failure();
                 ctx.queue().finish();
                 stats.update_ms = elapsed_ms(events.front(), events.back()) + sep->run();
                 stats.full_regeneration = true;
                 stats.regions = {world_box()};
                 stats.voxels_recomputed = world.size();
-                return stats;
+                return;
             }
             if (!edited.empty()) {
                 const ExactSeparable::Update u = sep->update(edited, events);
@@ -518,13 +606,13 @@ class SeparableEngine : public Engine {
                     stats.regions.push_back(u.changed);
                 }
             }
+            check_injected_failure();
             ctx.queue().finish();
             stats.update_ms = elapsed_ms(events.front(), events.back());
-            return stats;
         });
     }
 
-    UpdateStats set_focus(const std::optional<Focus>&) override { no_focus_in_exact(); }
+    UpdateStats move_focus(const std::optional<Focus>&) override { no_focus_in_exact(); }
 
     const cl::Buffer& voxels_buffer() const override { return sep->voxels_buffer(); }
 
@@ -591,11 +679,10 @@ class ChunkEngine : public Engine {
         });
     }
 
-    UpdateStats update(UpdateStats stats) override {
+    void update(UpdateStats& stats) override {
         std::vector<std::size_t> first;
-        const std::vector<cl_uint> staged = stage(stats, first);
-        if (staged.empty()) {
-            return stats;
+        if (stage(stats, first).empty()) {
+            return;
         }
         // Chunks are independent: exactly those holding a changed voxel change.
         DirtyTracker dirty(grid);
@@ -615,27 +702,28 @@ class ChunkEngine : public Engine {
             stats.regions.push_back(b);
             stats.voxels_recomputed += static_cast<std::uint64_t>(b.volume());
         }
-        return cl_call("updating the chunks of " + world.dims().to_string(), [&] {
-            Events events = upload(staged);
+        cl_call("updating the chunks of " + world.dims().to_string(), [&] {
+            Events events = upload();
             for (std::size_t e = 0; e < stats.edits.size(); ++e) {
                 if (stats.edits[e].changed()) {
                     scatter(events, vox, stats, first, e);
                 }
             }
             run_chunks(events, chunks);
+            check_injected_failure();
             ctx.queue().finish();
             stats.update_ms = elapsed_ms(events.front(), events.back());
-            return stats;
         });
     }
 
-    UpdateStats set_focus(const std::optional<Focus>& f) override {
+    UpdateStats move_focus(const std::optional<Focus>& f) override {
         if ((mode & kFimFocus) == 0) {
             throw InputError(to_string(options.algorithm) +
                              " has no focus to move: only lod and monolithic run FIM in a focus");
         }
         const Box next = f ? focus_chunks(grid, *f) : Box{};  // throws outside the grid
-        options.focus = f;
+        const std::optional<Focus> old_focus = options.focus;
+        const Box old_box = focus;
         // The chunks inside exactly one of the two boxes, in chunk index order.
         auto inside = [](const Box& b, const Int3& c) {
             return c.x >= b.min.x && c.x < b.max.x && c.y >= b.min.y && c.y < b.max.y &&
@@ -657,17 +745,27 @@ class ChunkEngine : public Engine {
                 }
             }
         }
+        options.focus = f;
         focus = next;  // run_chunks reads it
         if (chunks.empty()) {
             return stats;
         }
-        return cl_call("moving the focus in " + world.dims().to_string(), [&] {
-            Events events;
-            run_chunks(events, chunks);
-            ctx.queue().finish();
-            stats.update_ms = elapsed_ms(events.front(), events.back());
-            return stats;
-        });
+        try {
+            cl_call("moving the focus in " + world.dims().to_string(), [&] {
+                Events events;
+                run_chunks(events, chunks);
+                check_injected_failure();
+                ctx.queue().finish();
+                stats.update_ms = elapsed_ms(events.front(), events.back());
+            });
+        } catch (...) {
+            // The old focus, and every chunk recomputed with it.
+            options.focus = old_focus;
+            focus = old_box;
+            restore({});
+            throw;
+        }
+        return stats;
     }
 
     const cl::Buffer& voxels_buffer() const override { return vox; }
@@ -678,9 +776,10 @@ class ChunkEngine : public Engine {
 
     void run_chunks(Events& events, const std::vector<cl_uint>& chunks) {
         reserve(chunk_list, chunk_capacity, 4 * chunks.size());
+        chunk_ids = chunks;  // the upload reads it after this returns
         events.emplace_back();
-        ctx.queue().enqueueWriteBuffer(chunk_list, CL_FALSE, 0, 4 * chunks.size(), chunks.data(),
-                                       nullptr, &events.back());
+        ctx.queue().enqueueWriteBuffer(chunk_list, CL_FALSE, 0, 4 * chunk_ids.size(),
+                                       chunk_ids.data(), nullptr, &events.back());
         cl::Kernel k(classic, "monolithic");
         const std::size_t limit = std::min<std::size_t>(
             256, k.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(ctx.info().device));
@@ -719,6 +818,7 @@ class ChunkEngine : public Engine {
     std::uint32_t first_step = 0;
     cl::Program classic;
     cl::Buffer vox, dist, seed_a, seed_b, iterations, chunk_list;
+    std::vector<cl_uint> chunk_ids;
     std::size_t chunk_capacity = 0;
 };
 
@@ -754,7 +854,11 @@ IncrementalField::IncrementalField(Context& ctx, World world, const Palette& pal
 IncrementalField::~IncrementalField() = default;
 
 double IncrementalField::regenerate() {
-    return impl_->engine->regenerate();
+    return impl_->engine->rebuild();
+}
+
+void IncrementalField::fail_next_update_for_testing() {
+    impl_->engine->fail_next = true;
 }
 
 UpdateStats IncrementalField::apply(const std::vector<Brush>& batch) {

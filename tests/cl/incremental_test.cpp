@@ -578,5 +578,76 @@ TEST(Incremental, VoxelsBufferFollowsTheWorld) {
     }
 }
 
+TEST(Incremental, DeviceFailuresLeaveWorldAndFieldAsBefore) {
+    // A device failure in the middle of an update (the test seam throws ClError after the
+    // update's commands were enqueued: the device voxels and part of the field already
+    // written) leaves the world, the device voxels and the field as before the call, and the
+    // next edit is exact. Every engine: global L1 sweeps, the separable engine (bounded),
+    // chunk-local; and a focus move.
+    const World start = scene_floor_spheres(Dims{40, 32, 36}, 7, 7);
+    ocl::GeneratorOptions bounded = exact_options(Format::u16);
+    bounded.max_distance = 5.0;
+    ocl::GeneratorOptions chunked;
+    chunked.algorithm = ocl::Algorithm::lod;
+    chunked.chunk = 8;
+    for (ocl::GeneratorOptions o : {exact_options(Format::packed32), bounded, chunked}) {
+        o = ocl::resolve_options(o, start.dims());
+        const std::string what = to_string(o.algorithm) + (o.max_distance ? " bounded" : "");
+        ocl::IncrementalField field(pocl(), start, Palette(), o);
+        std::mt19937_64 rng(606);
+        const auto device_voxels = [&] {
+            std::vector<std::uint8_t> got(start.size());
+            pocl().queue().enqueueReadBuffer(field.voxels_buffer(), CL_TRUE, 0, got.size(),
+                                             got.data());
+            return got;
+        };
+        const auto expect_fresh = [&](const std::string& when) {
+            const auto want = ocl::generate(pocl(), field.world(), Palette(), o).bytes;
+            const std::string diff =
+                test::first_difference(field.read(), want, o.format, start.dims());
+            EXPECT_TRUE(diff.empty()) << what << " " << when << ": " << diff;
+        };
+        Brush ball;
+        ball.centre = {20, 6, 18};
+        ball.radius = 6;
+        ball.material = 9;
+        for (const BrushOp op : {BrushOp::place, BrushOp::erase}) {
+            field.apply({random_brush(rng, start.dims(), 5)});
+            const std::vector<std::uint8_t> world_before = field.world().voxels();
+            const std::vector<std::uint8_t> field_before = field.read();
+            ball.op = op;
+            field.fail_next_update_for_testing();
+            EXPECT_THROW(field.apply({random_brush(rng, start.dims(), 4), ball}), ocl::ClError)
+                << what;
+            EXPECT_EQ(field.world().voxels(), world_before) << what;
+            EXPECT_EQ(device_voxels(), world_before) << what;
+            EXPECT_EQ(field.read(), field_before) << what;
+            // The same through apply_changes (an undo's path).
+            World edited = field.world();
+            const VoxelChanges changes = apply_brush(edited, ball).changes;
+            field.fail_next_update_for_testing();
+            EXPECT_THROW(field.apply_changes(changes), ocl::ClError) << what;
+            EXPECT_EQ(field.world().voxels(), world_before) << what;
+            EXPECT_EQ(device_voxels(), world_before) << what;
+            EXPECT_EQ(field.read(), field_before) << what;
+            // The next edits update from the restored state, exactly.
+            field.apply({ball});
+            EXPECT_EQ(field.world().voxels(), edited.voxels()) << what;
+            expect_fresh("after the failed edits");
+        }
+        if (o.algorithm == ocl::Algorithm::lod) {
+            const std::vector<std::uint8_t> field_before = field.read();
+            field.fail_next_update_for_testing();
+            EXPECT_THROW(field.set_focus(Focus{{0, 0, 0}, 1}), ocl::ClError);
+            EXPECT_EQ(field.read(), field_before) << "a failed focus move";
+            field.apply({random_brush(rng, start.dims(), 5)});
+            expect_fresh("after a failed focus move");  // still the old focus
+            field.set_focus(Focus{{0, 0, 0}, 1});
+            o.focus = Focus{{0, 0, 0}, 1};
+            expect_fresh("after the focus moved");
+        }
+    }
+}
+
 }  // namespace
 }  // namespace voxfield

@@ -48,9 +48,17 @@ class IncrementalField {
     IncrementalField(const IncrementalField&) = delete;
     IncrementalField& operator=(const IncrementalField&) = delete;
 
-    // Regenerates the whole field; returns its device time in ms.
+    // Regenerates the whole field; returns its device time in ms. After a failed update that
+    // could not be undone on the device (see apply()), uploads the world first and makes the
+    // object usable again.
     double regenerate();
     // Applies the brushes in order to the world and updates the field (one batch).
+    // apply, apply_changes and set_focus are all or nothing: when the device fails (ClError)
+    // the world, the device voxels and the field are left as they were before the call (the
+    // world's changes are undone, the device voxels rebuilt from it and the field
+    // regenerated), and the error is rethrown. Should the device fail again while restoring,
+    // every later apply, apply_changes and set_focus throws ClError until regenerate()
+    // succeeds.
     UpdateStats apply(const std::vector<Brush>& batch);
     // Applies explicit voxel changes (an undo or redo of a stroke: core/undo.hpp) as one edit,
     // updated like apply(): exact, local to what the changes can affect. Throws InputError,
@@ -65,6 +73,11 @@ class IncrementalField {
     // algorithms without a focus (exact, the other chunk-local ones) and for a focus outside
     // the chunk grid or of negative size.
     UpdateStats set_focus(std::optional<Focus> focus);
+
+    // Test seam: the next apply, apply_changes or set_focus that reaches the device throws
+    // ClError (CL_OUT_OF_RESOURCES) after enqueueing its commands and before waiting for them,
+    // as a failing enqueue there would, so that tests can check the all-or-nothing guarantee.
+    void fail_next_update_for_testing();
 
     const World& world() const;
     // The field in options.format, as generate() would write it.
