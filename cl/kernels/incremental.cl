@@ -99,6 +99,94 @@ kernel void inc_bounds(global const uint* block_max, int4 d, int4 b_lo, int4 b_h
     }
 }
 
+// An edit that only places solids: the new distance is min(old, d_B(p)), d_B the distance to
+// the solids inside the edit's changed box B (an old solid there is already counted in the
+// old distance, and every solid outside B is). Per axis outside B, |p - s| splits at B's face
+// for every s in B, so d_B(p) = L1(p, B) + f(clamp(p, B)) with f = d_B inside B, which the
+// host computed: fbox[f_off ...], B's voxels x fastest, then the least f over each part of B's
+// boundary (27 entries, see `side`). One work-item per block of the cap box of blocks
+// [lo, lo + size): a block can change only where its old maximum exceeds the least candidate
+// d_B over it, at least its L1 distance to B plus the least f where its voxels clamp to. Each
+// row computes its new values and change mask first, then writes the span of changed voxels
+// (those between unchanged ones keep their value). Writes the lowered distances, the block's
+// new maximum, and the box of the changed voxels into regions + 8 * slot (inc_bounds'
+// encoding, overflow when a candidate block lies on a face of the cap box that the margin
+// cut; [7] counts the voxels read).
+kernel void inc_place(global const uchar* vox, global uint* dist, global const uchar* rgb,
+                      global OUT_T* out, global uint* block_max, global const uint* fbox,
+                      uint f_off, int4 d, int4 b_lo, int4 b_hi, int4 lo, int4 size,
+                      global int* regions, int slot) {
+    const int3 b = lo.xyz + (int3)(get_global_id(0), get_global_id(1), get_global_id(2));
+    if ((int)get_global_id(0) >= size.x || (int)get_global_id(1) >= size.y ||
+        (int)get_global_id(2) >= size.z) {
+        return;
+    }
+    const int4 nb = vf_blocks(d);
+    const int3 v_lo = b * VF_BLOCK;
+    const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
+    const int3 gap = max(max(b_lo.xyz - v_hi + (int3)(1), v_lo - b_hi.xyz + (int3)(1)), (int3)(0));
+    // The least f on the part of B's boundary the block's voxels clamp to: per axis below B
+    // (0), across (1) or above it (2).
+    const int3 side = select(select((int3)(1), (int3)(2), v_lo >= b_hi.xyz), (int3)(0),
+                             v_hi <= b_lo.xyz);
+    const int3 bs = b_hi.xyz - b_lo.xyz;
+    global const uint* f = fbox + f_off;
+    const uint f_min = f[bs.x * bs.y * bs.z + (side.z * 3 + side.y) * 3 + side.x];
+    const int bi = (b.z * nb.y + b.y) * nb.x + b.x;
+    if (block_max[bi] <= add_sat((uint)(gap.x + gap.y + gap.z), f_min)) {
+        return;
+    }
+    global int* r = regions + 8 * slot;
+    const int3 cap_hi = lo.xyz + size.xyz;
+    if (any(b == lo.xyz && lo.xyz > (int3)(0)) || any(b == cap_hi - (int3)(1) && cap_hi < nb.xyz)) {
+        atomic_max(&r[6], 1);
+    }
+    atomic_add(&r[7], (v_hi.x - v_lo.x) * (v_hi.y - v_lo.y) * (v_hi.z - v_lo.z));
+    int3 c_lo = (int3)(INT_MAX), c_hi = (int3)(-1);
+    uint m = 0;
+    const int n = v_hi.x - v_lo.x;
+    for (int z = v_lo.z; z < v_hi.z; ++z) {
+        const int cz = clamp(z, b_lo.z, b_hi.z - 1);
+        for (int y = v_lo.y; y < v_hi.y; ++y) {
+            const int cy = clamp(y, b_lo.y, b_hi.y - 1);
+            const uint yz = (uint)(abs(z - cz) + abs(y - cy));
+            global const uint* fr = f + ((cz - b_lo.z) * bs.y + (cy - b_lo.y)) * bs.x;
+            const int row = (z * d.y + y) * d.x + v_lo.x;
+            // The row's new values and which of them changed (bit i: x = v_lo.x + i).
+            uint changed = 0;
+            uint nv[VF_BLOCK];
+            for (int i = 0; i < n; ++i) {
+                const int x = v_lo.x + i;
+                const int cx = clamp(x, b_lo.x, b_hi.x - 1);
+                const uint cand = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
+                const uint old = dist[row + i];
+                changed |= (cand < old ? 1u : 0u) << i;
+                nv[i] = min(old, cand);
+                m = max(m, nv[i]);
+            }
+            if (changed != 0) {
+                const int first = 31 - (int)clz(changed & (~changed + 1u));
+                const int last = 31 - (int)clz(changed);
+                for (int i = first; i <= last; ++i) {
+                    dist[row + i] = nv[i];
+                    out[row + i] = vf_encode(nv[i], vox[row + i], rgb);
+                }
+                c_lo = min(c_lo, (int3)(v_lo.x + first, y, z));
+                c_hi = max(c_hi, (int3)(v_lo.x + last, y, z));
+            }
+        }
+    }
+    block_max[bi] = m;
+    if (c_hi.x >= 0) {
+        atomic_max(&r[0], d.x - c_lo.x);
+        atomic_max(&r[1], d.y - c_lo.y);
+        atomic_max(&r[2], d.z - c_lo.z);
+        atomic_max(&r[3], c_hi.x + 1);
+        atomic_max(&r[4], c_hi.y + 1);
+        atomic_max(&r[5], c_hi.z + 1);
+    }
+}
+
 // W grown by the one-voxel ring whose old values are sources, clipped to the world.
 inline void inc_ring(global const int* region, int4 d, int3* lo, int3* hi) {
     *lo = max(d.xyz - (int3)(region[0], region[1], region[2]) - (int3)(1), (int3)(0));

@@ -324,6 +324,16 @@ class GlobalEngine : public Engine {
         if (stage(stats, first).empty()) {
             return;
         }
+        // Edits that only place solids take inc_place, from their box's distance field staged
+        // after the pairs (one upload); the rest the sweeps.
+        std::vector<std::size_t> placed_at(stats.edits.size(), kNotPlaced);
+        for (std::size_t e = 0; e < stats.edits.size(); ++e) {
+            const EditResult& r = stats.edits[e];
+            if (r.became_solid != 0 && r.became_empty == 0) {
+                placed_at[e] = staging.size();
+                append_box_field(staging, stats.edits, e);
+            }
+        }
         cl_call("updating the field of " + world.dims().to_string(), [&] {
             auto& q = ctx.queue();
             reserve(regions, regions_capacity, 8 * 4 * stats.edits.size());
@@ -371,7 +381,10 @@ class GlobalEngine : public Engine {
                     continue;
                 }
                 scatter(events, exact->voxels_buffer(), stats, first, e);
-                if (r.occupancy_changed()) {
+                if (placed_at[e] != kNotPlaced) {
+                    enqueue_place(events, r.occupancy_bounds, placed_at[e], e);
+                    swept.push_back(e);
+                } else if (r.occupancy_changed()) {
                     enqueue_sweeps(events, r.occupancy_bounds, e);
                     swept.push_back(e);
                 }
@@ -391,7 +404,10 @@ class GlobalEngine : public Engine {
                 stats.full_regeneration |= g[6] != 0;
                 const Box w{{d.s[0] - g[0], d.s[1] - g[1], d.s[2] - g[2]}, {g[3], g[4], g[5]}};
                 stats.regions.push_back(w);
-                stats.voxels_recomputed += static_cast<std::uint64_t>(w.volume());
+                // inc_place counts the voxels it read; the sweeps recompute all of W.
+                stats.voxels_recomputed += placed_at[e] != kNotPlaced
+                                               ? static_cast<std::uint64_t>(g[7])
+                                               : static_cast<std::uint64_t>(w.volume());
             }
             if (stats.full_regeneration) {
                 // A region reached past max_margin: what was computed for it is incomplete.
@@ -407,6 +423,129 @@ class GlobalEngine : public Engine {
     const cl::Buffer& voxels_buffer() const override { return exact->voxels_buffer(); }
 
   private:
+    static constexpr std::size_t kNotPlaced = ~std::size_t{0};
+
+    // Appends to `data` inc_place's box field of edit e: the exact L1 distance, inside the
+    // edit's occupancy box B (x fastest; VF_FAR without a solid), to the solids of B in the
+    // world as edit e left it (the host world with the later edits' changes undone), exact
+    // from B's voxels alone since an L1 shortest path between two voxels of a box stays in
+    // the box; then the 27 minima described below.
+    void append_box_field(std::vector<cl_uint>& data, const std::vector<EditResult>& edits,
+                          std::size_t e) const {
+        const Box b = edits[e].occupancy_bounds;
+        const Int3 n = size_of(b);
+        const auto nx = static_cast<std::size_t>(n.x), ny = static_cast<std::size_t>(n.y),
+                   nz = static_cast<std::size_t>(n.z);
+        const Dims dims = world.dims();
+        const std::size_t base = data.size();
+        data.resize(base + nx * ny * nz + 27);
+        cl_uint* f = data.data() + base;
+        for (std::size_t z = 0; z < nz; ++z) {
+            for (std::size_t y = 0; y < ny; ++y) {
+                const std::size_t src = (static_cast<std::size_t>(b.min.z) + z) * dims.x * dims.y +
+                                        (static_cast<std::size_t>(b.min.y) + y) * dims.x +
+                                        static_cast<std::size_t>(b.min.x);
+                for (std::size_t x = 0; x < nx; ++x) {
+                    f[(z * ny + y) * nx + x] = world.voxels()[src + x] != 0 ? 0 : kFar;
+                }
+            }
+        }
+        for (std::size_t k = edits.size(); k-- > e + 1;) {
+            for (auto c = edits[k].changes.rbegin(); c != edits[k].changes.rend(); ++c) {
+                const auto x = static_cast<std::int64_t>(c->index % dims.x);
+                const auto y = static_cast<std::int64_t>(c->index / dims.x % dims.y);
+                const auto z = static_cast<std::int64_t>(c->index / dims.x / dims.y);
+                if (x >= b.min.x && x < b.max.x && y >= b.min.y && y < b.max.y && z >= b.min.z &&
+                    z < b.max.z) {
+                    f[((static_cast<std::size_t>(z - b.min.z) * ny) +
+                       static_cast<std::size_t>(y - b.min.y)) *
+                          nx +
+                      static_cast<std::size_t>(x - b.min.x)] = c->before != 0 ? 0 : kFar;
+                }
+            }
+        }
+        // Forward and backward min-plus sweeps along x, y and z.
+        auto sweep = [&](std::size_t start, std::size_t count, std::size_t stride) {
+            cl_uint run = kFar;
+            for (std::size_t i = 0; i < count; ++i) {
+                cl_uint& v = f[start + i * stride];
+                run = std::min(v, run == kFar ? kFar : run + 1);
+                v = run;
+            }
+            run = kFar;
+            for (std::size_t i = count; i-- > 0;) {
+                cl_uint& v = f[start + i * stride];
+                run = std::min(v, run == kFar ? kFar : run + 1);
+                v = run;
+            }
+        };
+        for (std::size_t z = 0; z < nz; ++z) {
+            for (std::size_t y = 0; y < ny; ++y) {
+                sweep((z * ny + y) * nx, nx, 1);
+            }
+        }
+        for (std::size_t z = 0; z < nz; ++z) {
+            for (std::size_t x = 0; x < nx; ++x) {
+                sweep(z * ny * nx + x, ny, nx);
+            }
+        }
+        for (std::size_t y = 0; y < ny; ++y) {
+            for (std::size_t x = 0; x < nx; ++x) {
+                sweep(y * nx + x, nz, nx * ny);
+            }
+        }
+        // The least f over each part of B's boundary, (side.z * 3 + side.y) * 3 + side.x with
+        // per axis side 0: the low face, 1: any coordinate, 2: the high face.
+        const std::size_t n_axis[3] = {nx, ny, nz};
+        for (std::size_t part = 0; part < 27; ++part) {
+            std::size_t lo[3], hi[3];
+            for (std::size_t a = 0, side = part; a < 3; ++a, side /= 3) {
+                lo[a] = side % 3 == 2 ? n_axis[a] - 1 : 0;
+                hi[a] = side % 3 == 0 ? 1 : n_axis[a];
+            }
+            cl_uint least = kFar;
+            for (std::size_t z = lo[2]; z < hi[2]; ++z) {
+                for (std::size_t y = lo[1]; y < hi[1]; ++y) {
+                    for (std::size_t x = lo[0]; x < hi[0]; ++x) {
+                        least = std::min(least, f[(z * ny + y) * nx + x]);
+                    }
+                }
+            }
+            f[nx * ny * nz + part] = least;
+        }
+    }
+    static constexpr cl_uint kFar = 0xFFFFFFFFu;  // incremental.cl's VF_FAR
+
+    // inc_place over the blocks of the cap box (B grown by max_margin) for an edit that only
+    // placed solids; its box field starts at `f_off` in the changes buffer.
+    void enqueue_place(Events& events, const Box& b, std::size_t f_off, std::size_t slot) {
+        const Box cap_blocks = cap_blocks_of(b);
+        cl::Kernel k(program, "inc_place");
+        k.setArg(0, exact->voxels_buffer());
+        k.setArg(1, exact->field_buffer());
+        k.setArg(2, rgb);
+        k.setArg(3, out);
+        k.setArg(4, block_max);
+        k.setArg(5, changes);
+        k.setArg(6, static_cast<cl_uint>(f_off));
+        k.setArg(7, d);
+        k.setArg(8, int4_of(b.min));
+        k.setArg(9, int4_of(b.max));
+        k.setArg(10, int4_of(cap_blocks.min));
+        k.setArg(11, int4_of(size_of(cap_blocks)));
+        k.setArg(12, regions);
+        k.setArg(13, static_cast<cl_int>(slot));
+        enqueue(events, k, range_of(cap_blocks));
+    }
+
+    // The blocks within max_margin of B, clipped to the world.
+    Box cap_blocks_of(const Box& b) const {
+        const std::int64_t m = max_margin;
+        return intersect(blocks_of(Box{{b.min.x - m, b.min.y - m, b.min.z - m},
+                                       {b.max.x + m, b.max.y + m, b.max.z + m}}),
+                         blocks_of(world_box()));
+    }
+
     void encode_box(Events& events, const Box& b) {
         cl::Kernel k(program, "inc_encode_box");
         k.setArg(0, exact->voxels_buffer());
@@ -461,10 +600,7 @@ class GlobalEngine : public Engine {
     // inc_bounds over the blocks of the cap box (B grown by max_margin), the three sweeps
     // over its voxels (and W's one-voxel ring), then the block maxima of W.
     void enqueue_sweeps(Events& events, const Box& b, std::size_t slot) {
-        const std::int64_t m = max_margin;
-        const Box cap_blocks = intersect(blocks_of(Box{{b.min.x - m, b.min.y - m, b.min.z - m},
-                                                       {b.max.x + m, b.max.y + m, b.max.z + m}}),
-                                         blocks_of(world_box()));
+        const Box cap_blocks = cap_blocks_of(b);
         const Box cap = intersect(Box{{cap_blocks.min.x * kBlock - 1, cap_blocks.min.y * kBlock - 1,
                                        cap_blocks.min.z * kBlock - 1},
                                       {cap_blocks.max.x * kBlock + 1, cap_blocks.max.y * kBlock + 1,

@@ -11,7 +11,11 @@
 // recomputes W by separable min-plus sweeps from sources that are already right: the new
 // solids, and the old values outside R in W and in W's one-voxel ring. If R reaches further
 // than `max_margin` voxels from B (by default: no limit inside the world) the batch falls
-// back to a full regeneration (still exact, reported as such).
+// back to a full regeneration (still exact, reported as such). An edit that only places
+// solids needs no sweeps: the new distance is min(old, d_B) with d_B the distance to the
+// solids inside B, which is L1(p, B) plus that field (computed on the host over B alone) at
+// p clamped into B; one pass over the blocks that can hold R lowers the distances, rewrites
+// the blocks' maxima and finds the box of the changed voxels.
 //
 // Chunk-local algorithms (the dissertation's): the dirty chunks of the batch are recomputed
 // with the algorithm's own per-chunk kernel, all in one launch (one work-group per chunk).
