@@ -11,10 +11,25 @@ inline uint vf_sat_inc(uint v) {
     return v + (v != VF_FAR ? 1u : 0u);
 }
 
-// L1 distance from p to the box [lo, hi).
-inline uint vf_l1_to_box(int3 p, int3 lo, int3 hi) {
-    const int3 gap = max(max(lo - p, p - (hi - (int3)(1))), (int3)(0));
-    return (uint)(gap.x + gap.y + gap.z);
+// The distance from p to the sources of a box field f over the box [b_lo, b_hi) (x fastest;
+// VF_FAR without a source): per axis outside the box, |p - s| splits at its face for every s
+// inside, so it is L1(p, box) plus f at p clamped into the box.
+inline uint vf_reach(global const uint* f, int3 p, int4 b_lo, int4 b_hi) {
+    const int3 c = clamp(p, b_lo.xyz, b_hi.xyz - (int3)(1));
+    const int3 bs = b_hi.xyz - b_lo.xyz;
+    const int3 o = c - b_lo.xyz;
+    const uint3 g = abs(p - c);
+    return add_sat(f[(o.z * bs.y + o.y) * bs.x + o.x], g.x + g.y + g.z);
+}
+
+// The least f over the part of the box's boundary that the voxels of [v_lo, v_hi) clamp to:
+// per axis wholly below the box (0), across it (1) or wholly above (2); the 27 minima follow
+// f's voxels.
+inline uint vf_least(global const uint* f, int3 v_lo, int3 v_hi, int4 b_lo, int4 b_hi) {
+    const int3 side =
+        select(select((int3)(1), (int3)(2), v_lo >= b_hi.xyz), (int3)(0), v_hi <= b_lo.xyz);
+    const int3 bs = b_hi.xyz - b_lo.xyz;
+    return f[bs.x * bs.y * bs.z + (side.z * 3 + side.y) * 3 + side.x];
 }
 
 // Writes the edit's new voxel values: changes[2k] = linear index, changes[2k+1] = value.
@@ -25,11 +40,13 @@ kernel void inc_scatter(global uchar* vox, global const uint* changes, uint firs
     }
 }
 
-// Per-block maxima of `dist` (VF_BLOCK^3 voxels per block) bound R from outside: a voxel of
-// R = {p : dist(p) >= L1(p, B)} can only lie in a block whose maximum reaches the block's
-// L1 distance to B. `regions + 8 * slot` holds the edit's box W, stored so that zero is the
-// neutral start and atomic_max accumulates it: {d.x - W.lo.x, d.y - W.lo.y, d.z - W.lo.z,
-// W.hi.x, W.hi.y, W.hi.z, overflow}.
+// Per-block maxima of `dist` (VF_BLOCK^3 voxels per block) bound the voxels that an edit can
+// change from outside. With C the voxels whose occupancy the edit changed, inside its box B,
+// a voxel p changes only where dist(p) >= d_C(p) (placed solids lower it only if nearer than
+// the old nearest; erased ones raise it only where they were the nearest), and d_C(p) =
+// vf_reach of the box field of C. `regions + 8 * slot` holds the edit's box W of those
+// voxels, R, stored so that zero is the neutral start and atomic_max accumulates it:
+// {d.x - W.lo.x, d.y - W.lo.y, d.z - W.lo.z, W.hi.x, W.hi.y, W.hi.z, overflow}.
 #define VF_BLOCK 8
 
 inline int4 vf_blocks(int4 d) {
@@ -68,10 +85,12 @@ kernel void inc_block_max(global const uint* dist, global uint* block_max, int4 
     block_max[(b.z * nb.y + b.y) * nb.x + b.x] = m;
 }
 
-// W: the bounding box of the candidate blocks within the cap box of blocks [lo, lo + size)
-// (B grown by the margin). A candidate on a face of the cap box that the margin (not the
-// world) cut sets overflow: R may reach further.
-kernel void inc_bounds(global const uint* block_max, int4 d, int4 b_lo, int4 b_hi, int4 lo,
+// W: the bounding box of R within the cap box of blocks [lo, lo + size) (B grown by the
+// margin), one work-item per block: blocks whose maximum stays below the least d_C over them
+// are skipped, the others test each voxel. R in a block on a face of the cap box that the
+// margin (not the world) cut sets overflow: R may reach further.
+kernel void inc_bounds(global const uint* dist, global const uint* block_max,
+                       global const uint* fbox, uint f_off, int4 d, int4 b_lo, int4 b_hi, int4 lo,
                        int4 size, global int* regions, int slot) {
     const int3 b = lo.xyz + (int3)(get_global_id(0), get_global_id(1), get_global_id(2));
     if ((int)get_global_id(0) >= size.x || (int)get_global_id(1) >= size.y ||
@@ -83,16 +102,33 @@ kernel void inc_bounds(global const uint* block_max, int4 d, int4 b_lo, int4 b_h
     const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
     // L1 distance between the block and B: per axis the gap between the two ranges.
     const int3 gap = max(max(b_lo.xyz - v_hi + (int3)(1), v_lo - b_hi.xyz + (int3)(1)), (int3)(0));
-    if (block_max[(b.z * nb.y + b.y) * nb.x + b.x] < (uint)(gap.x + gap.y + gap.z)) {
+    global const uint* f = fbox + f_off;
+    if (block_max[(b.z * nb.y + b.y) * nb.x + b.x] <
+        add_sat((uint)(gap.x + gap.y + gap.z), vf_least(f, v_lo, v_hi, b_lo, b_hi))) {
+        return;
+    }
+    int3 r_lo = (int3)(INT_MAX), r_hi = (int3)(-1);
+    for (int z = v_lo.z; z < v_hi.z; ++z) {
+        for (int y = v_lo.y; y < v_hi.y; ++y) {
+            const int row = (z * d.y + y) * d.x;
+            for (int x = v_lo.x; x < v_hi.x; ++x) {
+                if (dist[row + x] >= vf_reach(f, (int3)(x, y, z), b_lo, b_hi)) {
+                    r_lo = min(r_lo, (int3)(x, y, z));
+                    r_hi = max(r_hi, (int3)(x, y, z));
+                }
+            }
+        }
+    }
+    if (r_hi.x < 0) {
         return;
     }
     global int* r = regions + 8 * slot;
-    atomic_max(&r[0], d.x - v_lo.x);
-    atomic_max(&r[1], d.y - v_lo.y);
-    atomic_max(&r[2], d.z - v_lo.z);
-    atomic_max(&r[3], v_hi.x);
-    atomic_max(&r[4], v_hi.y);
-    atomic_max(&r[5], v_hi.z);
+    atomic_max(&r[0], d.x - r_lo.x);
+    atomic_max(&r[1], d.y - r_lo.y);
+    atomic_max(&r[2], d.z - r_lo.z);
+    atomic_max(&r[3], r_hi.x + 1);
+    atomic_max(&r[4], r_hi.y + 1);
+    atomic_max(&r[5], r_hi.z + 1);
     const int3 cap_hi = lo.xyz + size.xyz;
     if (any(b == lo.xyz && lo.xyz > (int3)(0)) || any(b == cap_hi - (int3)(1) && cap_hi < nb.xyz)) {
         atomic_max(&r[6], 1);
@@ -104,7 +140,7 @@ kernel void inc_bounds(global const uint* block_max, int4 d, int4 b_lo, int4 b_h
 // old distance, and every solid outside B is). Per axis outside B, |p - s| splits at B's face
 // for every s in B, so d_B(p) = L1(p, B) + f(clamp(p, B)) with f = d_B inside B, which the
 // host computed: fbox[f_off ...], B's voxels x fastest, then the least f over each part of B's
-// boundary (27 entries, see `side`). One work-item per block of the cap box of blocks
+// boundary (27 entries, vf_least). One work-item per block of the cap box of blocks
 // [lo, lo + size): a block can change only where its old maximum exceeds the least candidate
 // d_B over it, at least its L1 distance to B plus the least f where its voxels clamp to. Each
 // row computes its new values and change mask first, then writes the span of changed voxels
@@ -125,13 +161,9 @@ kernel void inc_place(global const uchar* vox, global uint* dist, global const u
     const int3 v_lo = b * VF_BLOCK;
     const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
     const int3 gap = max(max(b_lo.xyz - v_hi + (int3)(1), v_lo - b_hi.xyz + (int3)(1)), (int3)(0));
-    // The least f on the part of B's boundary the block's voxels clamp to: per axis below B
-    // (0), across (1) or above it (2).
-    const int3 side = select(select((int3)(1), (int3)(2), v_lo >= b_hi.xyz), (int3)(0),
-                             v_hi <= b_lo.xyz);
     const int3 bs = b_hi.xyz - b_lo.xyz;
     global const uint* f = fbox + f_off;
-    const uint f_min = f[bs.x * bs.y * bs.z + (side.z * 3 + side.y) * 3 + side.x];
+    const uint f_min = vf_least(f, v_lo, v_hi, b_lo, b_hi);
     const int bi = (b.z * nb.y + b.y) * nb.x + b.x;
     if (block_max[bi] <= add_sat((uint)(gap.x + gap.y + gap.z), f_min)) {
         return;
@@ -194,11 +226,12 @@ inline void inc_ring(global const int* region, int4 d, int3* lo, int3* hi) {
 }
 
 // Sources and the x sweeps: tmp = min over x' of g(x') + |x - x'| along each row of the
-// ring box, g = 0 at solids, the old distance outside R, VF_FAR inside R. Work-items cover
-// the rows of the cap box (the largest W the margin allows) and skip rows outside W.
+// ring box, g = 0 at solids, the old distance outside R, VF_FAR inside R (R as inc_bounds
+// tests it, from the box field at fbox + f_off). Work-items cover the rows of the cap box (the
+// largest W the margin allows) and skip rows outside W.
 kernel void inc_sweep_x(global const uchar* vox, global const uint* dist, global uint* tmp,
                         global const int* regions, int slot, int4 d, int4 b_lo, int4 b_hi,
-                        int4 cap_lo, int4 cap_size) {
+                        global const uint* fbox, uint f_off, int4 cap_lo, int4 cap_size) {
     global const int* region = regions + 8 * slot;
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
@@ -212,9 +245,9 @@ kernel void inc_sweep_x(global const uchar* vox, global const uint* dist, global
     for (int x = lo.x; x < hi.x; ++x) {
         const int3 p = (int3)(x, y, z);
         const uint old = dist[row + x];
-        const uint g = vox[row + x] != 0 ? 0u
-                       : old < vf_l1_to_box(p, b_lo.xyz, b_hi.xyz) ? old
-                                                                    : VF_FAR;
+        const uint g = vox[row + x] != 0                         ? 0u
+                       : old < vf_reach(fbox + f_off, p, b_lo, b_hi) ? old
+                                                                     : VF_FAR;
         run = min(g, vf_sat_inc(run));
         tmp[row + x] = run;
     }
@@ -371,7 +404,8 @@ kernel void inc_sweep_z_rows(global const uchar* vox, global uint* dist, global 
 // rows (a scalar loop per row beats vectorising across rows with gathers).
 kernel void inc_sweep_x_slices(global const uchar* vox, global const uint* dist,
                                global uint* tmp, global const int* regions, int slot, int4 d,
-                               int4 b_lo, int4 b_hi, int4 cap_lo, int4 cap_size) {
+                               int4 b_lo, int4 b_hi, global const uint* fbox, uint f_off,
+                               int4 cap_lo, int4 cap_size) {
     global const int* region = regions + 8 * slot;
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
@@ -381,13 +415,17 @@ kernel void inc_sweep_x_slices(global const uchar* vox, global const uint* dist,
     }
     for (int y = lo.y; y < hi.y; ++y) {
         const int row = (z * d.y + y) * d.x;
-        // L1 distance to B without x: the rest is the gap along x.
-        const uint yz = vf_l1_to_box((int3)(b_lo.x, y, z), b_lo.xyz, b_hi.xyz);
+        // vf_reach along the row: the box field's row at the clamped y and z.
+        const int cy = clamp(y, b_lo.y, b_hi.y - 1), cz = clamp(z, b_lo.z, b_hi.z - 1);
+        const uint yz = (uint)(abs(y - cy) + abs(z - cz));
+        global const uint* fr =
+            fbox + f_off + ((cz - b_lo.z) * (b_hi.y - b_lo.y) + (cy - b_lo.y)) * (b_hi.x - b_lo.x);
         uint run = VF_FAR;
         for (int x = lo.x; x < hi.x; ++x) {
-            const uint gap = (uint)max(max(b_lo.x - x, x - (b_hi.x - 1)), 0);
+            const int cx = clamp(x, b_lo.x, b_hi.x - 1);
+            const uint reach = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
             const uint old = dist[row + x];
-            const uint g = vox[row + x] != 0 ? 0u : (old < yz + gap ? old : VF_FAR);
+            const uint g = vox[row + x] != 0 ? 0u : (old < reach ? old : VF_FAR);
             run = min(g, vf_sat_inc(run));
             tmp[row + x] = run;
         }

@@ -324,14 +324,15 @@ class GlobalEngine : public Engine {
         if (stage(stats, first).empty()) {
             return;
         }
-        // Edits that only place solids take inc_place, from their box's distance field staged
-        // after the pairs (one upload); the rest the sweeps.
-        std::vector<std::size_t> placed_at(stats.edits.size(), kNotPlaced);
+        // Every edit that changes occupancy has a box field staged after the pairs (one
+        // upload): edits that only place solids take inc_place with the field of B's solids,
+        // the rest the sweeps, with the field of the voxels whose occupancy they changed.
+        std::vector<std::size_t> field_at(stats.edits.size(), 0);
         for (std::size_t e = 0; e < stats.edits.size(); ++e) {
             const EditResult& r = stats.edits[e];
-            if (r.became_solid != 0 && r.became_empty == 0) {
-                placed_at[e] = staging.size();
-                append_box_field(staging, stats.edits, e);
+            if (r.occupancy_changed()) {
+                field_at[e] = staging.size();
+                append_box_field(staging, stats.edits, e, places_only(r));
             }
         }
         cl_call("updating the field of " + world.dims().to_string(), [&] {
@@ -381,11 +382,11 @@ class GlobalEngine : public Engine {
                     continue;
                 }
                 scatter(events, exact->voxels_buffer(), stats, first, e);
-                if (placed_at[e] != kNotPlaced) {
-                    enqueue_place(events, r.occupancy_bounds, placed_at[e], e);
+                if (places_only(r)) {
+                    enqueue_place(events, r.occupancy_bounds, field_at[e], e);
                     swept.push_back(e);
                 } else if (r.occupancy_changed()) {
-                    enqueue_sweeps(events, r.occupancy_bounds, e);
+                    enqueue_sweeps(events, r.occupancy_bounds, field_at[e], e);
                     swept.push_back(e);
                 }
                 if (options.format == Format::packed32) {
@@ -405,7 +406,7 @@ class GlobalEngine : public Engine {
                 const Box w{{d.s[0] - g[0], d.s[1] - g[1], d.s[2] - g[2]}, {g[3], g[4], g[5]}};
                 stats.regions.push_back(w);
                 // inc_place counts the voxels it read; the sweeps recompute all of W.
-                stats.voxels_recomputed += placed_at[e] != kNotPlaced
+                stats.voxels_recomputed += places_only(stats.edits[e])
                                                ? static_cast<std::uint64_t>(g[7])
                                                : static_cast<std::uint64_t>(w.volume());
             }
@@ -423,15 +424,18 @@ class GlobalEngine : public Engine {
     const cl::Buffer& voxels_buffer() const override { return exact->voxels_buffer(); }
 
   private:
-    static constexpr std::size_t kNotPlaced = ~std::size_t{0};
+    static bool places_only(const EditResult& r) {
+        return r.became_solid != 0 && r.became_empty == 0;
+    }
 
-    // Appends to `data` inc_place's box field of edit e: the exact L1 distance, inside the
-    // edit's occupancy box B (x fastest; VF_FAR without a solid), to the solids of B in the
-    // world as edit e left it (the host world with the later edits' changes undone), exact
-    // from B's voxels alone since an L1 shortest path between two voxels of a box stays in
-    // the box; then the 27 minima described below.
+    // Appends to `data` the box field of edit e: the exact L1 distance, inside the edit's
+    // occupancy box B (x fastest; VF_FAR without a source), to sources in B, exact from B's
+    // voxels alone since an L1 shortest path between two voxels of a box stays in the box;
+    // then the 27 minima described below. Sources: `solids`, the solids of B in the world as
+    // edit e left it (the host world with the later edits' changes undone); otherwise the
+    // voxels whose occupancy edit e changed.
     void append_box_field(std::vector<cl_uint>& data, const std::vector<EditResult>& edits,
-                          std::size_t e) const {
+                          std::size_t e, bool solids) const {
         const Box b = edits[e].occupancy_bounds;
         const Int3 n = size_of(b);
         const auto nx = static_cast<std::size_t>(n.x), ny = static_cast<std::size_t>(n.y),
@@ -440,27 +444,45 @@ class GlobalEngine : public Engine {
         const std::size_t base = data.size();
         data.resize(base + nx * ny * nz + 27);
         cl_uint* f = data.data() + base;
-        for (std::size_t z = 0; z < nz; ++z) {
-            for (std::size_t y = 0; y < ny; ++y) {
-                const std::size_t src = (static_cast<std::size_t>(b.min.z) + z) * dims.x * dims.y +
-                                        (static_cast<std::size_t>(b.min.y) + y) * dims.x +
-                                        static_cast<std::size_t>(b.min.x);
-                for (std::size_t x = 0; x < nx; ++x) {
-                    f[(z * ny + y) * nx + x] = world.voxels()[src + x] != 0 ? 0 : kFar;
+        // The element of f at the voxel with linear index i, or nullptr outside B.
+        const auto at = [&](std::size_t i) -> cl_uint* {
+            const auto x = static_cast<std::int64_t>(i % dims.x);
+            const auto y = static_cast<std::int64_t>(i / dims.x % dims.y);
+            const auto z = static_cast<std::int64_t>(i / dims.x / dims.y);
+            if (x < b.min.x || x >= b.max.x || y < b.min.y || y >= b.max.y || z < b.min.z ||
+                z >= b.max.z) {
+                return nullptr;
+            }
+            return f +
+                   (static_cast<std::size_t>(z - b.min.z) * ny +
+                    static_cast<std::size_t>(y - b.min.y)) *
+                       nx +
+                   static_cast<std::size_t>(x - b.min.x);
+        };
+        if (solids) {
+            for (std::size_t z = 0; z < nz; ++z) {
+                for (std::size_t y = 0; y < ny; ++y) {
+                    const std::size_t src =
+                        (static_cast<std::size_t>(b.min.z) + z) * dims.x * dims.y +
+                        (static_cast<std::size_t>(b.min.y) + y) * dims.x +
+                        static_cast<std::size_t>(b.min.x);
+                    for (std::size_t x = 0; x < nx; ++x) {
+                        f[(z * ny + y) * nx + x] = world.voxels()[src + x] != 0 ? 0 : kFar;
+                    }
                 }
             }
-        }
-        for (std::size_t k = edits.size(); k-- > e + 1;) {
-            for (auto c = edits[k].changes.rbegin(); c != edits[k].changes.rend(); ++c) {
-                const auto x = static_cast<std::int64_t>(c->index % dims.x);
-                const auto y = static_cast<std::int64_t>(c->index / dims.x % dims.y);
-                const auto z = static_cast<std::int64_t>(c->index / dims.x / dims.y);
-                if (x >= b.min.x && x < b.max.x && y >= b.min.y && y < b.max.y && z >= b.min.z &&
-                    z < b.max.z) {
-                    f[((static_cast<std::size_t>(z - b.min.z) * ny) +
-                       static_cast<std::size_t>(y - b.min.y)) *
-                          nx +
-                      static_cast<std::size_t>(x - b.min.x)] = c->before != 0 ? 0 : kFar;
+            for (std::size_t k = edits.size(); k-- > e + 1;) {
+                for (auto c = edits[k].changes.rbegin(); c != edits[k].changes.rend(); ++c) {
+                    if (cl_uint* v = at(c->index)) {
+                        *v = c->before != 0 ? 0 : kFar;
+                    }
+                }
+            }
+        } else {
+            std::fill(f, f + nx * ny * nz, kFar);
+            for (const VoxelChange& c : edits[e].changes) {
+                if ((c.before != 0) != (c.after != 0)) {
+                    *at(c.index) = 0;  // inside B, the box of exactly these voxels
                 }
             }
         }
@@ -598,8 +620,9 @@ class GlobalEngine : public Engine {
     }
 
     // inc_bounds over the blocks of the cap box (B grown by max_margin), the three sweeps
-    // over its voxels (and W's one-voxel ring), then the block maxima of W.
-    void enqueue_sweeps(Events& events, const Box& b, std::size_t slot) {
+    // over its voxels (and W's one-voxel ring), then the block maxima of W; the box field of
+    // the edit's changed voxels starts at `f_off` in the changes buffer.
+    void enqueue_sweeps(Events& events, const Box& b, std::size_t f_off, std::size_t slot) {
         const Box cap_blocks = cap_blocks_of(b);
         const Box cap = intersect(Box{{cap_blocks.min.x * kBlock - 1, cap_blocks.min.y * kBlock - 1,
                                        cap_blocks.min.z * kBlock - 1},
@@ -612,14 +635,17 @@ class GlobalEngine : public Engine {
         const auto slot_arg = static_cast<cl_int>(slot);
 
         cl::Kernel bounds(program, "inc_bounds");
-        bounds.setArg(0, block_max);
-        bounds.setArg(1, d);
-        bounds.setArg(2, int4_of(b.min));
-        bounds.setArg(3, int4_of(b.max));
-        bounds.setArg(4, int4_of(cap_blocks.min));
-        bounds.setArg(5, int4_of(size_of(cap_blocks)));
-        bounds.setArg(6, regions);
-        bounds.setArg(7, slot_arg);
+        bounds.setArg(0, dist);
+        bounds.setArg(1, block_max);
+        bounds.setArg(2, changes);
+        bounds.setArg(3, static_cast<cl_uint>(f_off));
+        bounds.setArg(4, d);
+        bounds.setArg(5, int4_of(b.min));
+        bounds.setArg(6, int4_of(b.max));
+        bounds.setArg(7, int4_of(cap_blocks.min));
+        bounds.setArg(8, int4_of(size_of(cap_blocks)));
+        bounds.setArg(9, regions);
+        bounds.setArg(10, slot_arg);
         enqueue(events, bounds, range_of(cap_blocks));
 
         const auto ux = static_cast<std::size_t>(size.x), uy = static_cast<std::size_t>(size.y),
@@ -633,8 +659,10 @@ class GlobalEngine : public Engine {
         sx.setArg(5, d);
         sx.setArg(6, int4_of(b.min));
         sx.setArg(7, int4_of(b.max));
-        sx.setArg(8, int4_of(cap.min));
-        sx.setArg(9, int4_of(size));
+        sx.setArg(8, changes);
+        sx.setArg(9, static_cast<cl_uint>(f_off));
+        sx.setArg(10, int4_of(cap.min));
+        sx.setArg(11, int4_of(size));
         if (cpu_layout) {
             enqueue_items(events, sx, uz);
         } else {

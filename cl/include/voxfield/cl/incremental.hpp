@@ -3,19 +3,21 @@
 // (one frame) uploads only the changed voxels and recomputes only what the edits can change,
 // in one submission with no host wait per region or chunk.
 //
-// Global semantics (`exact`): exact after every batch. For an edit whose changed voxels have
-// the bounding box B, only R = {p : old d(p) >= L1(p, B)} can change (outside R the old
-// nearest solid is nearer than anything edited). The device finds R's bounding box W by
-// scanning L-infinity shells around B outward until a shell holds no voxel of R (R is
-// star-shaped towards B: one step towards B lowers L1(p, B) by 1 and d by at most 1), then
-// recomputes W by separable min-plus sweeps from sources that are already right: the new
-// solids, and the old values outside R in W and in W's one-voxel ring. If R reaches further
-// than `max_margin` voxels from B (by default: no limit inside the world) the batch falls
-// back to a full regeneration (still exact, reported as such). An edit that only places
-// solids needs no sweeps: the new distance is min(old, d_B) with d_B the distance to the
-// solids inside B, which is L1(p, B) plus that field (computed on the host over B alone) at
-// p clamped into B; one pass over the blocks that can hold R lowers the distances, rewrites
-// the blocks' maxima and finds the box of the changed voxels.
+// Global semantics (`exact`): exact after every batch. Let B be the bounding box of the
+// voxels C whose occupancy an edit changed, and d_C(p) the L1 distance from p to C: per axis
+// outside B, |p - c| splits at B's face for every c in B, so d_C(p) = L1(p, B) + f(clamp(p,
+// B)) with f = d_C inside B, which the host computes over B alone (an L1 shortest path
+// between two voxels of a box stays in the box). Only R = {p : old d(p) >= d_C(p)} can change
+// (outside R the old nearest solid is nearer than anything edited). The device finds R's
+// bounding box W over the blocks whose maximum reaches the least d_C over them (block maxima
+// are kept per 8^3 voxels), testing each voxel of those, then recomputes W by separable
+// min-plus sweeps from sources that are already right: the new solids, and the old values
+// outside R in W and in W's one-voxel ring. If R reaches further than `max_margin` voxels
+// from B (by default: no limit inside the world) the batch falls back to a full regeneration
+// (still exact, reported as such). An edit that only places solids needs no sweeps: the new
+// distance is min(old, d_S) with d_S the distance to the solids inside B, computed the same
+// way; one pass over the blocks that can hold R lowers the distances, rewrites the blocks'
+// maxima and finds the box of the changed voxels.
 //
 // Chunk-local algorithms (the dissertation's): the dirty chunks of the batch are recomputed
 // with the algorithm's own per-chunk kernel, all in one launch (one work-group per chunk).
