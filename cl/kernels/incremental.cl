@@ -108,14 +108,26 @@ kernel void inc_bounds(global const uint* dist, global const uint* block_max,
         return;
     }
     int3 r_lo = (int3)(INT_MAX), r_hi = (int3)(-1);
+    const int3 bs = b_hi.xyz - b_lo.xyz;
+    const int n = v_hi.x - v_lo.x;
     for (int z = v_lo.z; z < v_hi.z; ++z) {
+        const int cz = clamp(z, b_lo.z, b_hi.z - 1);
         for (int y = v_lo.y; y < v_hi.y; ++y) {
-            const int row = (z * d.y + y) * d.x;
-            for (int x = v_lo.x; x < v_hi.x; ++x) {
-                if (dist[row + x] >= vf_reach(f, (int3)(x, y, z), b_lo, b_hi)) {
-                    r_lo = min(r_lo, (int3)(x, y, z));
-                    r_hi = max(r_hi, (int3)(x, y, z));
-                }
+            // vf_reach along the row: the box field's row at the clamped y and z.
+            const int cy = clamp(y, b_lo.y, b_hi.y - 1);
+            const uint yz = (uint)(abs(z - cz) + abs(y - cy));
+            global const uint* fr = f + ((cz - b_lo.z) * bs.y + (cy - b_lo.y)) * bs.x;
+            const int row = (z * d.y + y) * d.x + v_lo.x;
+            uint in_r = 0;  // bit i: x = v_lo.x + i lies in R
+            for (int i = 0; i < n; ++i) {
+                const int x = v_lo.x + i;
+                const int cx = clamp(x, b_lo.x, b_hi.x - 1);
+                const uint reach = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
+                in_r |= (dist[row + i] >= reach ? 1u : 0u) << i;
+            }
+            if (in_r != 0) {
+                r_lo = min(r_lo, (int3)(v_lo.x + 31 - (int)clz(in_r & (~in_r + 1u)), y, z));
+                r_hi = max(r_hi, (int3)(v_lo.x + 31 - (int)clz(in_r), y, z));
             }
         }
     }
@@ -400,12 +412,15 @@ kernel void inc_sweep_z_rows(global const uchar* vox, global uint* dist, global 
     }
 }
 
-// CPU layout of inc_sweep_x: one work-item per z slice runs the sequential row sweeps of its
-// rows (a scalar loop per row beats vectorising across rows with gathers).
+// CPU layout of inc_sweep_x: one work-item per z slice transforms its rows as xy_slices_seq
+// does (exact_manhattan.cl): the sources of a row of W's ring box into `scratch`, then
+// doubling steps s = 1, 2, 4, ... < w, d[x] = min(d[x], d[x-s] + s, d[x+s] + s), each a loop
+// that vectorises, instead of two sequential scans. `scratch` holds two rows of d.x + 2 * pad
+// elements (pad >= next_pow2(d.x) / 2) whose padding stays VF_FAR.
 kernel void inc_sweep_x_slices(global const uchar* vox, global const uint* dist,
                                global uint* tmp, global const int* regions, int slot, int4 d,
                                int4 b_lo, int4 b_hi, global const uint* fbox, uint f_off,
-                               int4 cap_lo, int4 cap_size) {
+                               int4 cap_lo, int4 cap_size, uint pad, local uint* scratch) {
     global const int* region = regions + 8 * slot;
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
@@ -413,26 +428,39 @@ kernel void inc_sweep_x_slices(global const uchar* vox, global const uint* dist,
     if ((int)get_global_id(0) >= cap_size.z || z < lo.z || z >= hi.z) {
         return;
     }
+    const int w = hi.x - lo.x;
+    const int span = d.x + 2 * (int)pad;
+    for (int i = 0; i < 2 * span; ++i) {
+        scratch[i] = VF_FAR;
+    }
     for (int y = lo.y; y < hi.y; ++y) {
-        const int row = (z * d.y + y) * d.x;
+        const int row = (z * d.y + y) * d.x + lo.x;
         // vf_reach along the row: the box field's row at the clamped y and z.
         const int cy = clamp(y, b_lo.y, b_hi.y - 1), cz = clamp(z, b_lo.z, b_hi.z - 1);
         const uint yz = (uint)(abs(y - cy) + abs(z - cz));
         global const uint* fr =
             fbox + f_off + ((cz - b_lo.z) * (b_hi.y - b_lo.y) + (cy - b_lo.y)) * (b_hi.x - b_lo.x);
-        uint run = VF_FAR;
-        for (int x = lo.x; x < hi.x; ++x) {
+        local uint* a = scratch + pad;
+        local uint* b = scratch + span + pad;
+        for (int i = 0; i < w; ++i) {
+            const int x = lo.x + i;
             const int cx = clamp(x, b_lo.x, b_hi.x - 1);
             const uint reach = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
-            const uint old = dist[row + x];
-            const uint g = vox[row + x] != 0 ? 0u : (old < reach ? old : VF_FAR);
-            run = min(g, vf_sat_inc(run));
-            tmp[row + x] = run;
+            const uint old = dist[row + i];
+            a[i] = vox[row + i] != 0 ? 0u : (old < reach ? old : VF_FAR);
         }
-        run = VF_FAR;
-        for (int x = hi.x - 1; x >= lo.x; --x) {
-            run = min(tmp[row + x], vf_sat_inc(run));
-            tmp[row + x] = run;
+        for (int s = 1; s < w; s <<= 1) {
+            local const uint* l = a - s;
+            local const uint* h = a + s;
+            for (int i = 0; i < w; ++i) {
+                b[i] = min(a[i], add_sat(min(l[i], h[i]), (uint)s));
+            }
+            local uint* t = a;
+            a = b;
+            b = t;
+        }
+        for (int i = 0; i < w; ++i) {
+            tmp[row + i] = a[i];
         }
     }
 }

@@ -664,6 +664,9 @@ class GlobalEngine : public Engine {
         sx.setArg(10, int4_of(cap.min));
         sx.setArg(11, int4_of(size));
         if (cpu_layout) {
+            const std::size_t pad = next_pow2(world.dims().x) / 2;
+            sx.setArg(12, static_cast<cl_uint>(pad));
+            sx.setArg(13, cl::Local(2 * (world.dims().x + 2 * pad) * 4));
             enqueue_items(events, sx, uz);
         } else {
             enqueue(events, sx, cl::NDRange(uy, uz));
