@@ -2,7 +2,8 @@
 // cl/include/voxfield/cl/incremental.hpp for the method and why it is exact).
 //
 // `dist` holds exact distances (uint, VF_FAR where no solid exists; classic_common.cl's
-// vf_encode saturates it). Boxes are int4 with w unused; b_lo/b_hi is the edit's changed box
+// vf_encode saturates it), capped at the bound of a bounded field (its values are then
+// min(exact, cap), and every update keeps them so). Boxes are int4 with w unused; b_lo/b_hi is the edit's changed box
 // B (half-open).
 
 #define VF_FAR 0xFFFFFFFFu
@@ -294,11 +295,12 @@ kernel void inc_sweep_y(global uint* tmp, global const int* regions, int slot, i
     }
 }
 
-// z sweeps, then the new distances of W (not the ring, whose values were sources) replace
-// the old ones where they differ, in `dist` and in the output format.
+// z sweeps, then the new distances of W (not the ring, whose values were sources), capped at
+// `cap` (a bounded field's bound, VF_FAR when unbounded: min-plus sweeps commute with the
+// cap), replace the old ones where they differ, in `dist` and in the output format.
 kernel void inc_sweep_z(global const uchar* vox, global uint* dist, global uint* tmp,
                         global const uchar* rgb, global OUT_T* out, global const int* regions,
-                        int slot, int4 d, int4 cap_lo, int4 cap_size) {
+                        int slot, int4 d, int4 cap_lo, int4 cap_size, uint cap) {
     global const int* region = regions + 8 * slot;
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
@@ -320,23 +322,28 @@ kernel void inc_sweep_z(global const uchar* vox, global uint* dist, global uint*
     for (int z = hi.z - 1; z >= lo.z; --z) {
         const int i = base + z * plane;
         run = min(tmp[i], vf_sat_inc(run));
-        if (in_w_xy && z >= w_lo.z && z < region[5] && run != dist[i]) {
-            dist[i] = run;
-            out[i] = vf_encode(run, vox[i], rgb);
+        const uint v = min(run, cap);
+        if (in_w_xy && z >= w_lo.z && z < region[5] && v != dist[i]) {
+            dist[i] = v;
+            out[i] = vf_encode(v, vox[i], rgb);
         }
     }
 }
 
 // Output of every voxel of a box from `dist` (after a recolour, or after a full
-// regeneration when the box is the world).
-kernel void inc_encode_box(global const uchar* vox, global const uint* dist,
-                           global const uchar* rgb, global OUT_T* out, int4 d, int4 lo,
-                           int4 size) {
+// regeneration when the box is the world), `dist` first capped at `cap` (a bounded field's
+// bound; VF_FAR when unbounded).
+kernel void inc_encode_box(global const uchar* vox, global uint* dist, global const uchar* rgb,
+                           global OUT_T* out, int4 d, int4 lo, int4 size, uint cap) {
     const int3 p = lo.xyz + (int3)(get_global_id(0), get_global_id(1), get_global_id(2));
     if ((int)get_global_id(0) < size.x && (int)get_global_id(1) < size.y &&
         (int)get_global_id(2) < size.z) {
         const int i = (p.z * d.y + p.y) * d.x + p.x;
-        out[i] = vf_encode(dist[i], vox[i], rgb);
+        const uint v = min(dist[i], cap);
+        if (v != dist[i]) {
+            dist[i] = v;
+        }
+        out[i] = vf_encode(v, vox[i], rgb);
     }
 }
 
@@ -372,7 +379,7 @@ kernel void inc_sweep_y_slices(global uint* tmp, global const int* regions, int 
 kernel void inc_sweep_z_rows(global const uchar* vox, global uint* dist, global uint* tmp,
                              global const uchar* rgb, global OUT_T* out,
                              global const int* regions, int slot, int4 d, int4 cap_lo,
-                             int4 cap_size) {
+                             int4 cap_size, uint cap) {
     global const int* region = regions + 8 * slot;
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
@@ -402,7 +409,7 @@ kernel void inc_sweep_z_rows(global const uchar* vox, global uint* dist, global 
         if (in_w_y && z >= w_lo.z && z < region[5]) {
             const int base = z * plane + y * d.x;
             for (int x = max(lo.x, w_lo.x); x < min(hi.x, region[3]); ++x) {
-                const uint v = cur[x];
+                const uint v = min(cur[x], cap);
                 if (v != dist[base + x]) {
                     dist[base + x] = v;
                     out[base + x] = vf_encode(v, vox[base + x], rgb);

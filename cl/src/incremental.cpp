@@ -3,6 +3,7 @@
 #include "voxfield/cl/incremental.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -293,8 +294,13 @@ class GlobalEngine : public Engine {
               margin, std::max({world.dims().x, world.dims().y, world.dims().z}))),
           cpu_layout(o.layout == Layout::automatic ? ctx.is_cpu() : o.layout == Layout::cpu),
           exact(std::make_unique<ExactManhattan>(ctx, world, palette, Format::u32, o.layout)),
-          direct(std::make_unique<ExactManhattan>(ctx, world.dims(), exact->voxels_buffer(), out,
-                                                  palette, o.format, o.layout)) {
+          bound(o.max_distance
+                    ? static_cast<cl_uint>(std::min(std::floor(*o.max_distance), 4294967294.0))
+                    : kFar),
+          direct(o.max_distance
+                     ? nullptr
+                     : std::make_unique<ExactManhattan>(ctx, world.dims(), exact->voxels_buffer(),
+                                                        out, palette, o.format, o.layout)) {
         cl_call("allocating the incremental buffers of " + world.dims().to_string(), [&] {
             tmp = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * world.size());
             block_max =
@@ -360,8 +366,12 @@ class GlobalEngine : public Engine {
                 }
                 check_injected_failure();
                 q.finish();
-                stats.update_ms = elapsed_ms(events.front(), events.back()) + direct->run();
-                exact_stale = true;
+                if (direct) {
+                    stats.update_ms = elapsed_ms(events.front(), events.back()) + direct->run();
+                    exact_stale = true;
+                } else {
+                    stats.update_ms = elapsed_ms(events.front(), events.back()) + regenerate();
+                }
                 stats.full_regeneration = true;
                 stats.regions = {world_box()};
                 stats.voxels_recomputed = world.size();
@@ -577,6 +587,7 @@ class GlobalEngine : public Engine {
         k.setArg(4, d);
         k.setArg(5, int4_of(b.min));
         k.setArg(6, int4_of(size_of(b)));
+        k.setArg(7, bound);
         enqueue(events, k, range_of(b));
     }
 
@@ -696,6 +707,7 @@ class GlobalEngine : public Engine {
         sz.setArg(7, d);
         sz.setArg(8, int4_of(cap.min));
         sz.setArg(9, int4_of(size));
+        sz.setArg(10, bound);
         if (cpu_layout) {
             enqueue_items(events, sz, uy);
         } else {
@@ -708,8 +720,12 @@ class GlobalEngine : public Engine {
     std::uint32_t max_margin;
     bool cpu_layout;  // sweeps with inner loops along x (CPU) or one column per work-item (GPU)
     std::unique_ptr<ExactManhattan> exact;  // u32: its output is the exact distance buffer
-    // The sweeps over the same voxels writing `out` in the output format: the regeneration of
-    // batches that span the world, after which `exact` is stale until refresh_exact().
+    // A bounded field's bound (--max-distance D: floor(D), the integer distances' cap), kFar
+    // when unbounded: the distance buffer holds min(exact, bound).
+    cl_uint bound;
+    // Unbounded fields: the sweeps over the same voxels writing `out` in the output format,
+    // the regeneration of batches that span the world, after which `exact` is stale until
+    // refresh_exact(). Bounded ones regenerate (the sweeps and the cap) instead.
     std::unique_ptr<ExactManhattan> direct;
     bool exact_stale = false;
 
@@ -1003,7 +1019,11 @@ IncrementalField::IncrementalField(Context& ctx, World world, const Palette& pal
             "incremental fields keep no feature transform (--indices); generate "
             "it with `voxfield generate --indices`");
     }
-    if (options.algorithm == Algorithm::exact && ExactSeparable::needed(options)) {
+    // Bounded fields that the L1 sweeps compute unbounded take them, capped.
+    GeneratorOptions unbounded = options;
+    unbounded.max_distance.reset();
+    const bool sweeps = options.metric == Metric::manhattan && !ExactSeparable::needed(unbounded);
+    if (options.algorithm == Algorithm::exact && !sweeps) {
         impl_->engine = std::make_unique<SeparableEngine>(ctx, std::move(world), palette, options);
     } else if (options.algorithm == Algorithm::exact) {
         impl_->engine =

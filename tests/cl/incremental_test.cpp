@@ -121,7 +121,7 @@ TEST(Incremental, EveryMetricStaysExact) {
                 const auto stats = field.apply(brushes);
                 const auto want = ocl::generate(pocl(), field.world(), Palette(), o).bytes;
                 ASSERT_TRUE(field.read() == want) << what << ", after batch " << batch;
-                if (stats.edits.front().changed()) {
+                if (stats.edits.front().occupancy_changed()) {
                     EXPECT_GT(stats.voxels_recomputed, 0u) << what;
                 }
                 // Bounded: every changed voxel lies within D (in voxels of the finest
@@ -149,6 +149,75 @@ TEST(Incremental, EveryMetricStaysExact) {
                 }
             }
             EXPECT_GE(local, 30) << what;
+        }
+    }
+}
+
+TEST(Incremental, BoundedL1IsMinOfExactAndTheBound) {
+    // Bounded unit-spacing L1 fields take the capped sweeps (place pass, exact R, capped z
+    // sweep): after every batch the field equals min(exact, floor(D)) voxel by voxel, in both
+    // layouts, for integer and fractional bounds and saturating formats; every changed voxel
+    // lies within D of the edit's changed box.
+    struct Case {
+        double bound;
+        Format format;
+    };
+    const Case cases[] = {{1.0, Format::u16},
+                          {3.5, Format::u8},
+                          {7.0, Format::packed32},
+                          {300.0, Format::u8},
+                          {12.0, Format::u32}};
+    for (const Case& c : cases) {
+        for (const ocl::Layout layout : {ocl::Layout::cpu, ocl::Layout::gpu}) {
+            std::mt19937_64 rng(1618);
+            const World start = scene_floor_spheres(Dims{41, 35, 30}, 9, 6);
+            ocl::GeneratorOptions o = exact_options(c.format);
+            o.max_distance = c.bound;
+            o.layout = layout;
+            ocl::IncrementalField field(pocl(), start, Palette(), o);
+            const auto cap = static_cast<std::uint32_t>(c.bound);
+            const std::string what = "max " + std::to_string(c.bound) + " " + to_string(c.format) +
+                                     (layout == ocl::Layout::cpu ? " cpu" : " gpu");
+            for (int batch = 0; batch < 50; ++batch) {
+                std::vector<Brush> brushes = {random_brush(rng, start.dims(), 7)};
+                if (batch % 3 == 0) {
+                    brushes.push_back(random_brush(rng, start.dims(), 4));
+                }
+                const std::vector<std::uint8_t> before = field.read();
+                const auto stats = field.apply(brushes);
+                std::vector<std::uint32_t> want = reference_manhattan(field.world());
+                for (std::uint32_t& v : want) {
+                    v = std::min(v, cap);
+                }
+                const std::vector<std::uint8_t> got = field.read();
+                const std::string diff = test::first_difference(
+                    got, encode_field(want, field.world(), Palette(), c.format), c.format,
+                    start.dims());
+                ASSERT_TRUE(diff.empty()) << what << ", batch " << batch << ": " << diff;
+                if (stats.full_regeneration) {
+                    continue;
+                }
+                Box changed;
+                for (const EditResult& e : stats.edits) {
+                    changed = hull(changed, e.bounds);
+                }
+                const Dims d = start.dims();
+                const auto reach = static_cast<std::int64_t>(c.bound);
+                for (std::size_t i = 0; i < start.size(); ++i) {
+                    if (decode_distance(got, c.format, i) == decode_distance(before, c.format, i)) {
+                        continue;
+                    }
+                    const Int3 p{static_cast<std::int64_t>(i % d.x),
+                                 static_cast<std::int64_t>(i / d.x % d.y),
+                                 static_cast<std::int64_t>(i / d.x / d.y)};
+                    const std::int64_t gap =
+                        std::max<std::int64_t>({changed.min.x - p.x, p.x - changed.max.x + 1, 0}) +
+                        std::max<std::int64_t>({changed.min.y - p.y, p.y - changed.max.y + 1, 0}) +
+                        std::max<std::int64_t>({changed.min.z - p.z, p.z - changed.max.z + 1, 0});
+                    ASSERT_LE(gap, reach) << what << ": a voxel changed " << gap
+                                          << " voxels from the edits, batch " << batch;
+                }
+            }
         }
     }
 }

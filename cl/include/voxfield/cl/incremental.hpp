@@ -17,7 +17,10 @@
 // (still exact, reported as such). An edit that only places solids needs no sweeps: the new
 // distance is min(old, d_S) with d_S the distance to the solids inside B, computed the same
 // way; one pass over the blocks that can hold R lowers the distances, rewrites the blocks'
-// maxima and finds the box of the changed voxels.
+// maxima and finds the box of the changed voxels. Bounded unit-spacing L1 fields
+// (--max-distance D) run the same way on distances capped at floor(D) (min-plus sweeps
+// commute with the cap), so R lies within D of B. Every other exact field: ExactSeparable's
+// incremental passes.
 //
 // Chunk-local algorithms (the dissertation's): the dirty chunks of the batch are recomputed
 // with the algorithm's own per-chunk kernel, all in one launch (one work-group per chunk).
