@@ -303,8 +303,13 @@ class GlobalEngine : public Engine {
                                                         out, palette, o.format, o.layout)) {
         cl_call("allocating the incremental buffers of " + world.dims().to_string(), [&] {
             tmp = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * world.size());
+            // Written once here, so that its pages are in memory before the first updates
+            // (on a CPU device the first write of a page faults it in, a 2 MiB huge page at a
+            // time: otherwise the x sweeps of the first edits in each part of the world pay it).
+            ctx.queue().enqueueFillBuffer(tmp, cl_uint{0}, 0, 4 * world.size());
             block_max =
                 cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * blocks_of(world_box()).volume());
+            ctx.queue().finish();
         });
     }
 
