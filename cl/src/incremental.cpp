@@ -301,6 +301,12 @@ class GlobalEngine : public Engine {
                      ? nullptr
                      : std::make_unique<ExactManhattan>(ctx, world.dims(), exact->voxels_buffer(),
                                                         out, palette, o.format, o.layout)) {
+        if (bound != kFar) {
+            // R lies within floor(D) of B (old distances are capped there): a cap box one block
+            // wider holds it, and never sets overflow (its face blocks are farther than D).
+            max_margin = static_cast<std::uint32_t>(
+                std::min<std::uint64_t>(max_margin, std::uint64_t{bound} + kBlock + 1));
+        }
         cl_call("allocating the incremental buffers of " + world.dims().to_string(), [&] {
             tmp = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * world.size());
             // Written once here, so that its pages are in memory before the first updates
@@ -722,7 +728,7 @@ class GlobalEngine : public Engine {
         update_block_max(events, cap_blocks, slot_arg);
     }
 
-    std::uint32_t max_margin;
+    std::uint32_t max_margin;  // the cap box: B grown by this much (bounded: by D and a block)
     bool cpu_layout;  // sweeps with inner loops along x (CPU) or one column per work-item (GPU)
     std::unique_ptr<ExactManhattan> exact;  // u32: its output is the exact distance buffer
     // A bounded field's bound (--max-distance D: floor(D), the integer distances' cap), kFar
