@@ -38,11 +38,15 @@ namespace voxfield::ocl {
 
 struct UpdateStats {
     double update_ms = 0;  // the batch's device time: uploads and kernels (profiling events)
-    std::uint64_t voxels_recomputed = 0;  // voxels whose distance the batch recomputed
-    std::vector<Box> regions;             // the voxel boxes recomputed (global: W per edit)
-    bool full_regeneration = false;       // a region grew past max_margin, or the batch's
-                                          // changes spanned an eighth of the world or more
-    std::vector<EditResult> edits;        // what each brush changed in the world
+    // Voxels whose distance the batch recomputed (global: W's for a swept edit, those of the
+    // blocks read for an edit that only placed solids).
+    std::uint64_t voxels_recomputed = 0;
+    // The voxel boxes whose distances were recomputed (global: per edit W, or the box of the
+    // voxels that a place lowered).
+    std::vector<Box> regions;
+    bool full_regeneration = false;  // a region grew past max_margin, or the batch's
+                                     // changes spanned an eighth of the world or more
+    std::vector<EditResult> edits;   // what each brush changed in the world
 };
 
 class IncrementalField {
