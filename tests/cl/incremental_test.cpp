@@ -707,17 +707,20 @@ TEST(Incremental, DeviceFailuresLeaveWorldAndFieldAsBefore) {
     // A device failure in the middle of an update (the test seam throws ClError after the
     // update's commands were enqueued: the device voxels and part of the field already
     // written) leaves the world, the device voxels and the field as before the call, and the
-    // next edit is exact. Every engine: global L1 sweeps, the separable engine (bounded),
-    // chunk-local; and a focus move.
+    // next edit is exact. Every engine: the L1 sweeps (unbounded and bounded), the separable
+    // engine (Euclidean), chunk-local; and a focus move.
     const World start = scene_floor_spheres(Dims{40, 32, 36}, 7, 7);
     ocl::GeneratorOptions bounded = exact_options(Format::u16);
     bounded.max_distance = 5.0;
+    ocl::GeneratorOptions euclidean = exact_options(Format::f32);
+    euclidean.metric = Metric::euclidean;
     ocl::GeneratorOptions chunked;
     chunked.algorithm = ocl::Algorithm::lod;
     chunked.chunk = 8;
-    for (ocl::GeneratorOptions o : {exact_options(Format::packed32), bounded, chunked}) {
+    for (ocl::GeneratorOptions o : {exact_options(Format::packed32), bounded, euclidean, chunked}) {
         o = ocl::resolve_options(o, start.dims());
-        const std::string what = to_string(o.algorithm) + (o.max_distance ? " bounded" : "");
+        const std::string what =
+            to_string(o.algorithm) + " " + to_string(o.metric) + (o.max_distance ? " bounded" : "");
         ocl::IncrementalField field(pocl(), start, Palette(), o);
         std::mt19937_64 rng(606);
         const auto device_voxels = [&] {
