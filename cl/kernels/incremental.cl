@@ -2,7 +2,8 @@
 // cl/include/voxfield/cl/incremental.hpp for the method and why it is exact).
 //
 // `dist` holds exact distances (uint, VF_FAR where no solid exists; classic_common.cl's
-// vf_encode saturates it). Boxes are int4 with w unused; b_lo/b_hi is the edit's changed box
+// vf_encode saturates it), capped at the bound of a bounded field (its values are then
+// min(exact, cap), and every update keeps them so). Boxes are int4 with w unused; b_lo/b_hi is the edit's changed box
 // B (half-open).
 
 #define VF_FAR 0xFFFFFFFFu
@@ -11,10 +12,25 @@ inline uint vf_sat_inc(uint v) {
     return v + (v != VF_FAR ? 1u : 0u);
 }
 
-// L1 distance from p to the box [lo, hi).
-inline uint vf_l1_to_box(int3 p, int3 lo, int3 hi) {
-    const int3 gap = max(max(lo - p, p - (hi - (int3)(1))), (int3)(0));
-    return (uint)(gap.x + gap.y + gap.z);
+// The distance from p to the sources of a box field f over the box [b_lo, b_hi) (x fastest;
+// VF_FAR without a source): per axis outside the box, |p - s| splits at its face for every s
+// inside, so it is L1(p, box) plus f at p clamped into the box.
+inline uint vf_reach(global const uint* f, int3 p, int4 b_lo, int4 b_hi) {
+    const int3 c = clamp(p, b_lo.xyz, b_hi.xyz - (int3)(1));
+    const int3 bs = b_hi.xyz - b_lo.xyz;
+    const int3 o = c - b_lo.xyz;
+    const uint3 g = abs(p - c);
+    return add_sat(f[(o.z * bs.y + o.y) * bs.x + o.x], g.x + g.y + g.z);
+}
+
+// The least f over the part of the box's boundary that the voxels of [v_lo, v_hi) clamp to:
+// per axis wholly below the box (0), across it (1) or wholly above (2); the 27 minima follow
+// f's voxels.
+inline uint vf_least(global const uint* f, int3 v_lo, int3 v_hi, int4 b_lo, int4 b_hi) {
+    const int3 side =
+        select(select((int3)(1), (int3)(2), v_lo >= b_hi.xyz), (int3)(0), v_hi <= b_lo.xyz);
+    const int3 bs = b_hi.xyz - b_lo.xyz;
+    return f[bs.x * bs.y * bs.z + (side.z * 3 + side.y) * 3 + side.x];
 }
 
 // Writes the edit's new voxel values: changes[2k] = linear index, changes[2k+1] = value.
@@ -25,11 +41,13 @@ kernel void inc_scatter(global uchar* vox, global const uint* changes, uint firs
     }
 }
 
-// Per-block maxima of `dist` (VF_BLOCK^3 voxels per block) bound R from outside: a voxel of
-// R = {p : dist(p) >= L1(p, B)} can only lie in a block whose maximum reaches the block's
-// L1 distance to B. `regions + 8 * slot` holds the edit's box W, stored so that zero is the
-// neutral start and atomic_max accumulates it: {d.x - W.lo.x, d.y - W.lo.y, d.z - W.lo.z,
-// W.hi.x, W.hi.y, W.hi.z, overflow}.
+// Per-block maxima of `dist` (VF_BLOCK^3 voxels per block) bound the voxels that an edit can
+// change from outside. With C the voxels whose occupancy the edit changed, inside its box B,
+// a voxel p changes only where dist(p) >= d_C(p) (placed solids lower it only if nearer than
+// the old nearest; erased ones raise it only where they were the nearest), and d_C(p) =
+// vf_reach of the box field of C. `regions + 8 * slot` holds the edit's box W of those
+// voxels, R, stored so that zero is the neutral start and atomic_max accumulates it:
+// {d.x - W.lo.x, d.y - W.lo.y, d.z - W.lo.z, W.hi.x, W.hi.y, W.hi.z, overflow}.
 #define VF_BLOCK 8
 
 inline int4 vf_blocks(int4 d) {
@@ -68,10 +86,12 @@ kernel void inc_block_max(global const uint* dist, global uint* block_max, int4 
     block_max[(b.z * nb.y + b.y) * nb.x + b.x] = m;
 }
 
-// W: the bounding box of the candidate blocks within the cap box of blocks [lo, lo + size)
-// (B grown by the margin). A candidate on a face of the cap box that the margin (not the
-// world) cut sets overflow: R may reach further.
-kernel void inc_bounds(global const uint* block_max, int4 d, int4 b_lo, int4 b_hi, int4 lo,
+// W: the bounding box of R within the cap box of blocks [lo, lo + size) (B grown by the
+// margin), one work-item per block: blocks whose maximum stays below the least d_C over them
+// are skipped, the others test each voxel. R in a block on a face of the cap box that the
+// margin (not the world) cut sets overflow: R may reach further.
+kernel void inc_bounds(global const uint* dist, global const uint* block_max,
+                       global const uint* fbox, uint f_off, int4 d, int4 b_lo, int4 b_hi, int4 lo,
                        int4 size, global int* regions, int slot) {
     const int3 b = lo.xyz + (int3)(get_global_id(0), get_global_id(1), get_global_id(2));
     if ((int)get_global_id(0) >= size.x || (int)get_global_id(1) >= size.y ||
@@ -83,19 +103,132 @@ kernel void inc_bounds(global const uint* block_max, int4 d, int4 b_lo, int4 b_h
     const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
     // L1 distance between the block and B: per axis the gap between the two ranges.
     const int3 gap = max(max(b_lo.xyz - v_hi + (int3)(1), v_lo - b_hi.xyz + (int3)(1)), (int3)(0));
-    if (block_max[(b.z * nb.y + b.y) * nb.x + b.x] < (uint)(gap.x + gap.y + gap.z)) {
+    global const uint* f = fbox + f_off;
+    if (block_max[(b.z * nb.y + b.y) * nb.x + b.x] <
+        add_sat((uint)(gap.x + gap.y + gap.z), vf_least(f, v_lo, v_hi, b_lo, b_hi))) {
+        return;
+    }
+    int3 r_lo = (int3)(INT_MAX), r_hi = (int3)(-1);
+    const int3 bs = b_hi.xyz - b_lo.xyz;
+    const int n = v_hi.x - v_lo.x;
+    for (int z = v_lo.z; z < v_hi.z; ++z) {
+        const int cz = clamp(z, b_lo.z, b_hi.z - 1);
+        for (int y = v_lo.y; y < v_hi.y; ++y) {
+            // vf_reach along the row: the box field's row at the clamped y and z.
+            const int cy = clamp(y, b_lo.y, b_hi.y - 1);
+            const uint yz = (uint)(abs(z - cz) + abs(y - cy));
+            global const uint* fr = f + ((cz - b_lo.z) * bs.y + (cy - b_lo.y)) * bs.x;
+            const int row = (z * d.y + y) * d.x + v_lo.x;
+            uint in_r = 0;  // bit i: x = v_lo.x + i lies in R
+            for (int i = 0; i < n; ++i) {
+                const int x = v_lo.x + i;
+                const int cx = clamp(x, b_lo.x, b_hi.x - 1);
+                const uint reach = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
+                in_r |= (dist[row + i] >= reach ? 1u : 0u) << i;
+            }
+            if (in_r != 0) {
+                r_lo = min(r_lo, (int3)(v_lo.x + 31 - (int)clz(in_r & (~in_r + 1u)), y, z));
+                r_hi = max(r_hi, (int3)(v_lo.x + 31 - (int)clz(in_r), y, z));
+            }
+        }
+    }
+    if (r_hi.x < 0) {
         return;
     }
     global int* r = regions + 8 * slot;
-    atomic_max(&r[0], d.x - v_lo.x);
-    atomic_max(&r[1], d.y - v_lo.y);
-    atomic_max(&r[2], d.z - v_lo.z);
-    atomic_max(&r[3], v_hi.x);
-    atomic_max(&r[4], v_hi.y);
-    atomic_max(&r[5], v_hi.z);
+    atomic_max(&r[0], d.x - r_lo.x);
+    atomic_max(&r[1], d.y - r_lo.y);
+    atomic_max(&r[2], d.z - r_lo.z);
+    atomic_max(&r[3], r_hi.x + 1);
+    atomic_max(&r[4], r_hi.y + 1);
+    atomic_max(&r[5], r_hi.z + 1);
     const int3 cap_hi = lo.xyz + size.xyz;
     if (any(b == lo.xyz && lo.xyz > (int3)(0)) || any(b == cap_hi - (int3)(1) && cap_hi < nb.xyz)) {
         atomic_max(&r[6], 1);
+    }
+}
+
+// An edit that only places solids: the new distance is min(old, d_B(p)), d_B the distance to
+// the solids inside the edit's changed box B (an old solid there is already counted in the
+// old distance, and every solid outside B is). Per axis outside B, |p - s| splits at B's face
+// for every s in B, so d_B(p) = L1(p, B) + f(clamp(p, B)) with f = d_B inside B, which the
+// host computed: fbox[f_off ...], B's voxels x fastest, then the least f over each part of B's
+// boundary (27 entries, vf_least). One work-item per block of the cap box of blocks
+// [lo, lo + size): a block can change only where its old maximum exceeds the least candidate
+// d_B over it, at least its L1 distance to B plus the least f where its voxels clamp to. Each
+// row computes its new values and change mask first, then writes the span of changed voxels
+// (those between unchanged ones keep their value). Writes the lowered distances, the block's
+// new maximum, and the box of the changed voxels into regions + 8 * slot (inc_bounds'
+// encoding, overflow when a candidate block lies on a face of the cap box that the margin
+// cut; [7] counts the voxels read).
+kernel void inc_place(global const uchar* vox, global uint* dist, global const uchar* rgb,
+                      global OUT_T* out, global uint* block_max, global const uint* fbox,
+                      uint f_off, int4 d, int4 b_lo, int4 b_hi, int4 lo, int4 size,
+                      global int* regions, int slot) {
+    const int3 b = lo.xyz + (int3)(get_global_id(0), get_global_id(1), get_global_id(2));
+    if ((int)get_global_id(0) >= size.x || (int)get_global_id(1) >= size.y ||
+        (int)get_global_id(2) >= size.z) {
+        return;
+    }
+    const int4 nb = vf_blocks(d);
+    const int3 v_lo = b * VF_BLOCK;
+    const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
+    const int3 gap = max(max(b_lo.xyz - v_hi + (int3)(1), v_lo - b_hi.xyz + (int3)(1)), (int3)(0));
+    const int3 bs = b_hi.xyz - b_lo.xyz;
+    global const uint* f = fbox + f_off;
+    const uint f_min = vf_least(f, v_lo, v_hi, b_lo, b_hi);
+    const int bi = (b.z * nb.y + b.y) * nb.x + b.x;
+    if (block_max[bi] <= add_sat((uint)(gap.x + gap.y + gap.z), f_min)) {
+        return;
+    }
+    global int* r = regions + 8 * slot;
+    const int3 cap_hi = lo.xyz + size.xyz;
+    if (any(b == lo.xyz && lo.xyz > (int3)(0)) || any(b == cap_hi - (int3)(1) && cap_hi < nb.xyz)) {
+        atomic_max(&r[6], 1);
+    }
+    atomic_add(&r[7], (v_hi.x - v_lo.x) * (v_hi.y - v_lo.y) * (v_hi.z - v_lo.z));
+    int3 c_lo = (int3)(INT_MAX), c_hi = (int3)(-1);
+    uint m = 0;
+    const int n = v_hi.x - v_lo.x;
+    for (int z = v_lo.z; z < v_hi.z; ++z) {
+        const int cz = clamp(z, b_lo.z, b_hi.z - 1);
+        for (int y = v_lo.y; y < v_hi.y; ++y) {
+            const int cy = clamp(y, b_lo.y, b_hi.y - 1);
+            const uint yz = (uint)(abs(z - cz) + abs(y - cy));
+            global const uint* fr = f + ((cz - b_lo.z) * bs.y + (cy - b_lo.y)) * bs.x;
+            const int row = (z * d.y + y) * d.x + v_lo.x;
+            // The row's new values and which of them changed (bit i: x = v_lo.x + i).
+            uint changed = 0;
+            uint nv[VF_BLOCK];
+            for (int i = 0; i < n; ++i) {
+                const int x = v_lo.x + i;
+                const int cx = clamp(x, b_lo.x, b_hi.x - 1);
+                const uint cand = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
+                const uint old = dist[row + i];
+                changed |= (cand < old ? 1u : 0u) << i;
+                nv[i] = min(old, cand);
+                m = max(m, nv[i]);
+            }
+            if (changed != 0) {
+                const int first = 31 - (int)clz(changed & (~changed + 1u));
+                const int last = 31 - (int)clz(changed);
+                for (int i = first; i <= last; ++i) {
+                    dist[row + i] = nv[i];
+                    out[row + i] = vf_encode(nv[i], vox[row + i], rgb);
+                }
+                c_lo = min(c_lo, (int3)(v_lo.x + first, y, z));
+                c_hi = max(c_hi, (int3)(v_lo.x + last, y, z));
+            }
+        }
+    }
+    block_max[bi] = m;
+    if (c_hi.x >= 0) {
+        atomic_max(&r[0], d.x - c_lo.x);
+        atomic_max(&r[1], d.y - c_lo.y);
+        atomic_max(&r[2], d.z - c_lo.z);
+        atomic_max(&r[3], c_hi.x + 1);
+        atomic_max(&r[4], c_hi.y + 1);
+        atomic_max(&r[5], c_hi.z + 1);
     }
 }
 
@@ -106,11 +239,12 @@ inline void inc_ring(global const int* region, int4 d, int3* lo, int3* hi) {
 }
 
 // Sources and the x sweeps: tmp = min over x' of g(x') + |x - x'| along each row of the
-// ring box, g = 0 at solids, the old distance outside R, VF_FAR inside R. Work-items cover
-// the rows of the cap box (the largest W the margin allows) and skip rows outside W.
+// ring box, g = 0 at solids, the old distance outside R, VF_FAR inside R (R as inc_bounds
+// tests it, from the box field at fbox + f_off). Work-items cover the rows of the cap box (the
+// largest W the margin allows) and skip rows outside W.
 kernel void inc_sweep_x(global const uchar* vox, global const uint* dist, global uint* tmp,
                         global const int* regions, int slot, int4 d, int4 b_lo, int4 b_hi,
-                        int4 cap_lo, int4 cap_size) {
+                        global const uint* fbox, uint f_off, int4 cap_lo, int4 cap_size) {
     global const int* region = regions + 8 * slot;
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
@@ -124,9 +258,9 @@ kernel void inc_sweep_x(global const uchar* vox, global const uint* dist, global
     for (int x = lo.x; x < hi.x; ++x) {
         const int3 p = (int3)(x, y, z);
         const uint old = dist[row + x];
-        const uint g = vox[row + x] != 0 ? 0u
-                       : old < vf_l1_to_box(p, b_lo.xyz, b_hi.xyz) ? old
-                                                                    : VF_FAR;
+        const uint g = vox[row + x] != 0                         ? 0u
+                       : old < vf_reach(fbox + f_off, p, b_lo, b_hi) ? old
+                                                                     : VF_FAR;
         run = min(g, vf_sat_inc(run));
         tmp[row + x] = run;
     }
@@ -161,11 +295,12 @@ kernel void inc_sweep_y(global uint* tmp, global const int* regions, int slot, i
     }
 }
 
-// z sweeps, then the new distances of W (not the ring, whose values were sources) replace
-// the old ones where they differ, in `dist` and in the output format.
+// z sweeps, then the new distances of W (not the ring, whose values were sources), capped at
+// `cap` (a bounded field's bound, VF_FAR when unbounded: min-plus sweeps commute with the
+// cap), replace the old ones where they differ, in `dist` and in the output format.
 kernel void inc_sweep_z(global const uchar* vox, global uint* dist, global uint* tmp,
                         global const uchar* rgb, global OUT_T* out, global const int* regions,
-                        int slot, int4 d, int4 cap_lo, int4 cap_size) {
+                        int slot, int4 d, int4 cap_lo, int4 cap_size, uint cap) {
     global const int* region = regions + 8 * slot;
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
@@ -187,23 +322,28 @@ kernel void inc_sweep_z(global const uchar* vox, global uint* dist, global uint*
     for (int z = hi.z - 1; z >= lo.z; --z) {
         const int i = base + z * plane;
         run = min(tmp[i], vf_sat_inc(run));
-        if (in_w_xy && z >= w_lo.z && z < region[5] && run != dist[i]) {
-            dist[i] = run;
-            out[i] = vf_encode(run, vox[i], rgb);
+        const uint v = min(run, cap);
+        if (in_w_xy && z >= w_lo.z && z < region[5] && v != dist[i]) {
+            dist[i] = v;
+            out[i] = vf_encode(v, vox[i], rgb);
         }
     }
 }
 
 // Output of every voxel of a box from `dist` (after a recolour, or after a full
-// regeneration when the box is the world).
-kernel void inc_encode_box(global const uchar* vox, global const uint* dist,
-                           global const uchar* rgb, global OUT_T* out, int4 d, int4 lo,
-                           int4 size) {
+// regeneration when the box is the world), `dist` first capped at `cap` (a bounded field's
+// bound; VF_FAR when unbounded).
+kernel void inc_encode_box(global const uchar* vox, global uint* dist, global const uchar* rgb,
+                           global OUT_T* out, int4 d, int4 lo, int4 size, uint cap) {
     const int3 p = lo.xyz + (int3)(get_global_id(0), get_global_id(1), get_global_id(2));
     if ((int)get_global_id(0) < size.x && (int)get_global_id(1) < size.y &&
         (int)get_global_id(2) < size.z) {
         const int i = (p.z * d.y + p.y) * d.x + p.x;
-        out[i] = vf_encode(dist[i], vox[i], rgb);
+        const uint v = min(dist[i], cap);
+        if (v != dist[i]) {
+            dist[i] = v;
+        }
+        out[i] = vf_encode(v, vox[i], rgb);
     }
 }
 
@@ -239,7 +379,7 @@ kernel void inc_sweep_y_slices(global uint* tmp, global const int* regions, int 
 kernel void inc_sweep_z_rows(global const uchar* vox, global uint* dist, global uint* tmp,
                              global const uchar* rgb, global OUT_T* out,
                              global const int* regions, int slot, int4 d, int4 cap_lo,
-                             int4 cap_size) {
+                             int4 cap_size, uint cap) {
     global const int* region = regions + 8 * slot;
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
@@ -269,7 +409,7 @@ kernel void inc_sweep_z_rows(global const uchar* vox, global uint* dist, global 
         if (in_w_y && z >= w_lo.z && z < region[5]) {
             const int base = z * plane + y * d.x;
             for (int x = max(lo.x, w_lo.x); x < min(hi.x, region[3]); ++x) {
-                const uint v = cur[x];
+                const uint v = min(cur[x], cap);
                 if (v != dist[base + x]) {
                     dist[base + x] = v;
                     out[base + x] = vf_encode(v, vox[base + x], rgb);
@@ -279,11 +419,15 @@ kernel void inc_sweep_z_rows(global const uchar* vox, global uint* dist, global 
     }
 }
 
-// CPU layout of inc_sweep_x: one work-item per z slice runs the sequential row sweeps of its
-// rows (a scalar loop per row beats vectorising across rows with gathers).
+// CPU layout of inc_sweep_x: one work-item per z slice transforms its rows as xy_slices_seq
+// does (exact_manhattan.cl): the sources of a row of W's ring box into `scratch`, then
+// doubling steps s = 1, 2, 4, ... < w, d[x] = min(d[x], d[x-s] + s, d[x+s] + s), each a loop
+// that vectorises, instead of two sequential scans. `scratch` holds two rows of d.x + 2 * pad
+// elements (pad >= next_pow2(d.x) / 2) whose padding stays VF_FAR.
 kernel void inc_sweep_x_slices(global const uchar* vox, global const uint* dist,
                                global uint* tmp, global const int* regions, int slot, int4 d,
-                               int4 b_lo, int4 b_hi, int4 cap_lo, int4 cap_size) {
+                               int4 b_lo, int4 b_hi, global const uint* fbox, uint f_off,
+                               int4 cap_lo, int4 cap_size, uint pad, local uint* scratch) {
     global const int* region = regions + 8 * slot;
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
@@ -291,22 +435,39 @@ kernel void inc_sweep_x_slices(global const uchar* vox, global const uint* dist,
     if ((int)get_global_id(0) >= cap_size.z || z < lo.z || z >= hi.z) {
         return;
     }
+    const int w = hi.x - lo.x;
+    const int span = d.x + 2 * (int)pad;
+    for (int i = 0; i < 2 * span; ++i) {
+        scratch[i] = VF_FAR;
+    }
     for (int y = lo.y; y < hi.y; ++y) {
-        const int row = (z * d.y + y) * d.x;
-        // L1 distance to B without x: the rest is the gap along x.
-        const uint yz = vf_l1_to_box((int3)(b_lo.x, y, z), b_lo.xyz, b_hi.xyz);
-        uint run = VF_FAR;
-        for (int x = lo.x; x < hi.x; ++x) {
-            const uint gap = (uint)max(max(b_lo.x - x, x - (b_hi.x - 1)), 0);
-            const uint old = dist[row + x];
-            const uint g = vox[row + x] != 0 ? 0u : (old < yz + gap ? old : VF_FAR);
-            run = min(g, vf_sat_inc(run));
-            tmp[row + x] = run;
+        const int row = (z * d.y + y) * d.x + lo.x;
+        // vf_reach along the row: the box field's row at the clamped y and z.
+        const int cy = clamp(y, b_lo.y, b_hi.y - 1), cz = clamp(z, b_lo.z, b_hi.z - 1);
+        const uint yz = (uint)(abs(y - cy) + abs(z - cz));
+        global const uint* fr =
+            fbox + f_off + ((cz - b_lo.z) * (b_hi.y - b_lo.y) + (cy - b_lo.y)) * (b_hi.x - b_lo.x);
+        local uint* a = scratch + pad;
+        local uint* b = scratch + span + pad;
+        for (int i = 0; i < w; ++i) {
+            const int x = lo.x + i;
+            const int cx = clamp(x, b_lo.x, b_hi.x - 1);
+            const uint reach = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
+            const uint old = dist[row + i];
+            a[i] = vox[row + i] != 0 ? 0u : (old < reach ? old : VF_FAR);
         }
-        run = VF_FAR;
-        for (int x = hi.x - 1; x >= lo.x; --x) {
-            run = min(tmp[row + x], vf_sat_inc(run));
-            tmp[row + x] = run;
+        for (int s = 1; s < w; s <<= 1) {
+            local const uint* l = a - s;
+            local const uint* h = a + s;
+            for (int i = 0; i < w; ++i) {
+                b[i] = min(a[i], add_sat(min(l[i], h[i]), (uint)s));
+            }
+            local uint* t = a;
+            a = b;
+            b = t;
+        }
+        for (int i = 0; i < w; ++i) {
+            tmp[row + i] = a[i];
         }
     }
 }

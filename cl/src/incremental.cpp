@@ -3,6 +3,7 @@
 #include "voxfield/cl/incremental.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -64,20 +65,58 @@ class Engine {
     virtual double regenerate() = 0;
 
     // Applies the brushes (in order) or the voxel changes (one edit) to the host world, then
-    // updates the device.
+    // updates the device. All or nothing: on a throw the world, the device voxels and the
+    // field are those from before the call (see restore()).
     UpdateStats apply(const std::vector<Brush>& batch) {
+        require_intact();
         UpdateStats stats;
-        for (const Brush& brush : batch) {
-            stats.edits.push_back(apply_brush(world, brush));
+        try {
+            for (const Brush& brush : batch) {
+                stats.edits.push_back(apply_brush(world, brush));
+            }
+            update(stats);
+        } catch (...) {
+            restore(stats.edits);
+            throw;
         }
-        return update(std::move(stats));
+        return stats;
     }
     UpdateStats apply_changes(const VoxelChanges& voxel_changes) {
+        require_intact();
         UpdateStats stats;
+        // Throws InputError, changing nothing, when a voxel does not hold its `before` value.
         stats.edits.push_back(voxfield::apply_changes(world, voxel_changes));
-        return update(std::move(stats));
+        try {
+            update(stats);
+        } catch (...) {
+            restore(stats.edits);
+            throw;
+        }
+        return stats;
     }
-    virtual UpdateStats set_focus(const std::optional<Focus>& focus) = 0;
+    // Moves the focus (chunk-local lod and monolithic), all or nothing like apply().
+    UpdateStats set_focus(const std::optional<Focus>& focus) {
+        require_intact();
+        return move_focus(focus);
+    }
+
+    // Regenerates the field from the host world, uploaded whole first when a failed update
+    // left the device voxels in doubt; returns the device time in ms.
+    double rebuild() {
+        if (broken) {
+            cl_call("uploading the world " + world.dims().to_string(), [&] {
+                ctx.queue().enqueueWriteBuffer(voxels_buffer(), CL_TRUE, 0, world.size(),
+                                               world.voxels().data());
+            });
+        }
+        const double ms = regenerate();
+        broken = false;
+        return ms;
+    }
+
+    // Test seam (IncrementalField::fail_next_update_for_testing): the next update throws
+    // ClError at check_injected_failure().
+    bool fail_next = false;
     // The device world that apply() keeps current.
     virtual const cl::Buffer& voxels_buffer() const = 0;
 
@@ -114,28 +153,76 @@ class Engine {
         }
     }
 
-    // Brings the device up to date with stats.edits, already applied to the host world.
-    virtual UpdateStats update(UpdateStats stats) = 0;
+    // Brings the device up to date with stats.edits, already applied to the host world, and
+    // fills in the rest of stats.
+    virtual void update(UpdateStats& stats) = 0;
+    virtual UpdateStats move_focus(const std::optional<Focus>& focus) = 0;
 
-    // The edits' changed voxels as (index, value) pairs, `first` saying where each edit's
-    // pairs start.
-    static std::vector<cl_uint> stage(const UpdateStats& stats, std::vector<std::size_t>& first) {
-        std::vector<cl_uint> staged;
-        for (const EditResult& edit : stats.edits) {
-            first.push_back(staged.size() / 2);
-            for (const VoxelChange& c : edit.changes) {
-                staged.push_back(static_cast<cl_uint>(c.index));
-                staged.push_back(c.after);
-            }
+    // Where an update waits for its commands: a failure injected by the test seam is thrown
+    // there, after the update enqueued its work and before it waits for it (as a failing
+    // enqueue of its last command would).
+    void check_injected_failure() {
+        if (fail_next) {
+            fail_next = false;
+            throw ClError("clEnqueueNDRangeKernel", CL_OUT_OF_RESOURCES,
+                          "a device failure injected by IncrementalField::"
+                          "fail_next_update_for_testing");
         }
-        return staged;
     }
 
-    // One write of every staged change; its event starts the batch's event list.
-    Events upload(const std::vector<cl_uint>& staged) {
-        reserve(changes, changes_capacity, 4 * staged.size());
+    // After a failed update: the host world goes back to its state before the batch (the
+    // edits' changes undone in reverse order), then the device voxels and the field are
+    // rebuilt from it, so that the object is as before the call. Where the device fails
+    // again the object is marked broken: every update throws until rebuild() succeeds.
+    void restore(const std::vector<EditResult>& edits) {
+        broken = true;
+        try {
+            ctx.queue().finish();  // nothing in flight reads or writes what is rebuilt below
+        } catch (const cl::Error&) {
+            // A queue that cannot even finish: rebuild() below reports it, or fails too.
+        }
+        for (auto e = edits.rbegin(); e != edits.rend(); ++e) {
+            for (auto c = e->changes.rbegin(); c != e->changes.rend(); ++c) {
+                world.voxels()[c->index] = c->before;
+            }
+        }
+        try {
+            rebuild();
+        } catch (const std::exception&) {
+            // The first error is the one reported; `broken` stays set.
+        }
+    }
+
+    void require_intact() const {
+        if (broken) {
+            throw ClError("IncrementalField", CL_INVALID_OPERATION,
+                          "a failed update left the device field of " + world.dims().to_string() +
+                              " out of step with the world, and restoring it failed too; "
+                              "regenerate() rebuilds it");
+        }
+    }
+    bool broken = false;
+
+    // The edits' changed voxels as (index, value) pairs into `staging`, `first` saying where
+    // each edit's pairs start. A member, as every host array a transfer reads or writes
+    // without blocking: after a failed enqueue the queue may still use it (restore() waits).
+    std::vector<cl_uint>& stage(const UpdateStats& stats, std::vector<std::size_t>& first) {
+        staging.clear();
+        for (const EditResult& edit : stats.edits) {
+            first.push_back(staging.size() / 2);
+            for (const VoxelChange& c : edit.changes) {
+                staging.push_back(static_cast<cl_uint>(c.index));
+                staging.push_back(c.after);
+            }
+        }
+        return staging;
+    }
+
+    // One write of everything staged; its event starts the batch's event list.
+    Events upload() {
+        reserve(changes, changes_capacity, 4 * staging.size());
         Events events(1);
-        ctx.queue().enqueueWriteBuffer(changes, CL_FALSE, 0, 4 * staged.size(), staged.data(),
+        ctx.queue().enqueueWriteBuffer(changes, CL_FALSE, 0, 4 * staging.size(), staging.data(),
                                        nullptr, &events[0]);
         return events;
     }
@@ -191,6 +278,7 @@ class Engine {
     }
 
     cl::Program program;
+    std::vector<cl_uint> staging;
     cl::Buffer rgb, changes;
     std::size_t changes_capacity = 0;
     cl_int4 d{};
@@ -206,12 +294,28 @@ class GlobalEngine : public Engine {
               margin, std::max({world.dims().x, world.dims().y, world.dims().z}))),
           cpu_layout(o.layout == Layout::automatic ? ctx.is_cpu() : o.layout == Layout::cpu),
           exact(std::make_unique<ExactManhattan>(ctx, world, palette, Format::u32, o.layout)),
-          direct(std::make_unique<ExactManhattan>(ctx, world.dims(), exact->voxels_buffer(), out,
-                                                  palette, o.format, o.layout)) {
+          bound(o.max_distance
+                    ? static_cast<cl_uint>(std::min(std::floor(*o.max_distance), 4294967294.0))
+                    : kFar),
+          direct(o.max_distance
+                     ? nullptr
+                     : std::make_unique<ExactManhattan>(ctx, world.dims(), exact->voxels_buffer(),
+                                                        out, palette, o.format, o.layout)) {
+        if (bound != kFar) {
+            // R lies within floor(D) of B (old distances are capped there): a cap box one block
+            // wider holds it, and never sets overflow (its face blocks are farther than D).
+            max_margin = static_cast<std::uint32_t>(
+                std::min<std::uint64_t>(max_margin, std::uint64_t{bound} + kBlock + 1));
+        }
         cl_call("allocating the incremental buffers of " + world.dims().to_string(), [&] {
             tmp = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * world.size());
+            // Written once here, so that its pages are in memory before the first updates
+            // (on a CPU device the first write of a page faults it in, a 2 MiB huge page at a
+            // time: otherwise the x sweeps of the first edits in each part of the world pay it).
+            ctx.queue().enqueueFillBuffer(tmp, cl_uint{0}, 0, 4 * world.size());
             block_max =
                 cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, 4 * blocks_of(world_box()).volume());
+            ctx.queue().finish();
         });
     }
 
@@ -232,16 +336,26 @@ class GlobalEngine : public Engine {
         });
     }
 
-    UpdateStats update(UpdateStats stats) override {
+    void update(UpdateStats& stats) override {
         std::vector<std::size_t> first;
-        const std::vector<cl_uint> staged = stage(stats, first);
-        if (staged.empty()) {
-            return stats;
+        if (stage(stats, first).empty()) {
+            return;
         }
-        return cl_call("updating the field of " + world.dims().to_string(), [&] {
+        // Every edit that changes occupancy has a box field staged after the pairs (one
+        // upload): edits that only place solids take inc_place with the field of B's solids,
+        // the rest the sweeps, with the field of the voxels whose occupancy they changed.
+        std::vector<std::size_t> field_at(stats.edits.size(), 0);
+        for (std::size_t e = 0; e < stats.edits.size(); ++e) {
+            const EditResult& r = stats.edits[e];
+            if (r.occupancy_changed()) {
+                field_at[e] = staging.size();
+                append_box_field(staging, stats.edits, e, places_only(r));
+            }
+        }
+        cl_call("updating the field of " + world.dims().to_string(), [&] {
             auto& q = ctx.queue();
             reserve(regions, regions_capacity, 8 * 4 * stats.edits.size());
-            Events events = upload(staged);
+            Events events = upload();
             events.emplace_back();
             // inc_bounds accumulates W with atomic_max from zero.
             q.enqueueFillBuffer(regions, cl_int{0}, 0, 8 * 4 * stats.edits.size(), nullptr,
@@ -261,13 +375,18 @@ class GlobalEngine : public Engine {
                         scatter(events, exact->voxels_buffer(), stats, first, e);
                     }
                 }
+                check_injected_failure();
                 q.finish();
-                stats.update_ms = elapsed_ms(events.front(), events.back()) + direct->run();
-                exact_stale = true;
+                if (direct) {
+                    stats.update_ms = elapsed_ms(events.front(), events.back()) + direct->run();
+                    exact_stale = true;
+                } else {
+                    stats.update_ms = elapsed_ms(events.front(), events.back()) + regenerate();
+                }
                 stats.full_regeneration = true;
                 stats.regions = {world_box()};
                 stats.voxels_recomputed = world.size();
-                return stats;
+                return;
             }
             double refresh_ms = 0;
             if (exact_stale) {
@@ -284,18 +403,22 @@ class GlobalEngine : public Engine {
                     continue;
                 }
                 scatter(events, exact->voxels_buffer(), stats, first, e);
-                if (r.occupancy_changed()) {
-                    enqueue_sweeps(events, r.occupancy_bounds, e);
+                if (places_only(r)) {
+                    enqueue_place(events, r.occupancy_bounds, field_at[e], e);
+                    swept.push_back(e);
+                } else if (r.occupancy_changed()) {
+                    enqueue_sweeps(events, r.occupancy_bounds, field_at[e], e);
                     swept.push_back(e);
                 }
                 if (options.format == Format::packed32) {
                     encode_box(events, r.bounds);  // colours of recoloured voxels
                 }
             }
-            std::vector<cl_int> found(8 * stats.edits.size());
+            found.assign(8 * stats.edits.size(), 0);
             if (!swept.empty()) {
                 q.enqueueReadBuffer(regions, CL_FALSE, 0, 4 * found.size(), found.data());
             }
+            check_injected_failure();
             q.finish();
             stats.update_ms = elapsed_ms(events.front(), events.back()) + refresh_ms;
             for (const std::size_t e : swept) {
@@ -303,7 +426,10 @@ class GlobalEngine : public Engine {
                 stats.full_regeneration |= g[6] != 0;
                 const Box w{{d.s[0] - g[0], d.s[1] - g[1], d.s[2] - g[2]}, {g[3], g[4], g[5]}};
                 stats.regions.push_back(w);
-                stats.voxels_recomputed += static_cast<std::uint64_t>(w.volume());
+                // inc_place counts the voxels it read; the sweeps recompute all of W.
+                stats.voxels_recomputed += places_only(stats.edits[e])
+                                               ? static_cast<std::uint64_t>(g[7])
+                                               : static_cast<std::uint64_t>(w.volume());
             }
             if (stats.full_regeneration) {
                 // A region reached past max_margin: what was computed for it is incomplete.
@@ -311,15 +437,158 @@ class GlobalEngine : public Engine {
                 stats.regions = {world_box()};
                 stats.voxels_recomputed = world.size();
             }
-            return stats;
         });
     }
 
-    UpdateStats set_focus(const std::optional<Focus>&) override { no_focus_in_exact(); }
+    UpdateStats move_focus(const std::optional<Focus>&) override { no_focus_in_exact(); }
 
     const cl::Buffer& voxels_buffer() const override { return exact->voxels_buffer(); }
 
   private:
+    static bool places_only(const EditResult& r) {
+        return r.became_solid != 0 && r.became_empty == 0;
+    }
+
+    // Appends to `data` the box field of edit e: the exact L1 distance, inside the edit's
+    // occupancy box B (x fastest; VF_FAR without a source), to sources in B, exact from B's
+    // voxels alone since an L1 shortest path between two voxels of a box stays in the box;
+    // then the 27 minima described below. Sources: `solids`, the solids of B in the world as
+    // edit e left it (the host world with the later edits' changes undone); otherwise the
+    // voxels whose occupancy edit e changed.
+    void append_box_field(std::vector<cl_uint>& data, const std::vector<EditResult>& edits,
+                          std::size_t e, bool solids) const {
+        const Box b = edits[e].occupancy_bounds;
+        const Int3 n = size_of(b);
+        const auto nx = static_cast<std::size_t>(n.x), ny = static_cast<std::size_t>(n.y),
+                   nz = static_cast<std::size_t>(n.z);
+        const Dims dims = world.dims();
+        const std::size_t base = data.size();
+        data.resize(base + nx * ny * nz + 27);
+        cl_uint* f = data.data() + base;
+        // The element of f at the voxel with linear index i, or nullptr outside B.
+        const auto at = [&](std::size_t i) -> cl_uint* {
+            const auto x = static_cast<std::int64_t>(i % dims.x);
+            const auto y = static_cast<std::int64_t>(i / dims.x % dims.y);
+            const auto z = static_cast<std::int64_t>(i / dims.x / dims.y);
+            if (x < b.min.x || x >= b.max.x || y < b.min.y || y >= b.max.y || z < b.min.z ||
+                z >= b.max.z) {
+                return nullptr;
+            }
+            return f +
+                   (static_cast<std::size_t>(z - b.min.z) * ny +
+                    static_cast<std::size_t>(y - b.min.y)) *
+                       nx +
+                   static_cast<std::size_t>(x - b.min.x);
+        };
+        if (solids) {
+            for (std::size_t z = 0; z < nz; ++z) {
+                for (std::size_t y = 0; y < ny; ++y) {
+                    const std::size_t src =
+                        (static_cast<std::size_t>(b.min.z) + z) * dims.x * dims.y +
+                        (static_cast<std::size_t>(b.min.y) + y) * dims.x +
+                        static_cast<std::size_t>(b.min.x);
+                    for (std::size_t x = 0; x < nx; ++x) {
+                        f[(z * ny + y) * nx + x] = world.voxels()[src + x] != 0 ? 0 : kFar;
+                    }
+                }
+            }
+            for (std::size_t k = edits.size(); k-- > e + 1;) {
+                for (auto c = edits[k].changes.rbegin(); c != edits[k].changes.rend(); ++c) {
+                    if (cl_uint* v = at(c->index)) {
+                        *v = c->before != 0 ? 0 : kFar;
+                    }
+                }
+            }
+        } else {
+            std::fill(f, f + nx * ny * nz, kFar);
+            for (const VoxelChange& c : edits[e].changes) {
+                if ((c.before != 0) != (c.after != 0)) {
+                    *at(c.index) = 0;  // inside B, the box of exactly these voxels
+                }
+            }
+        }
+        // Forward and backward min-plus sweeps along x, y and z.
+        auto sweep = [&](std::size_t start, std::size_t count, std::size_t stride) {
+            cl_uint run = kFar;
+            for (std::size_t i = 0; i < count; ++i) {
+                cl_uint& v = f[start + i * stride];
+                run = std::min(v, run == kFar ? kFar : run + 1);
+                v = run;
+            }
+            run = kFar;
+            for (std::size_t i = count; i-- > 0;) {
+                cl_uint& v = f[start + i * stride];
+                run = std::min(v, run == kFar ? kFar : run + 1);
+                v = run;
+            }
+        };
+        for (std::size_t z = 0; z < nz; ++z) {
+            for (std::size_t y = 0; y < ny; ++y) {
+                sweep((z * ny + y) * nx, nx, 1);
+            }
+        }
+        for (std::size_t z = 0; z < nz; ++z) {
+            for (std::size_t x = 0; x < nx; ++x) {
+                sweep(z * ny * nx + x, ny, nx);
+            }
+        }
+        for (std::size_t y = 0; y < ny; ++y) {
+            for (std::size_t x = 0; x < nx; ++x) {
+                sweep(y * nx + x, nz, nx * ny);
+            }
+        }
+        // The least f over each part of B's boundary, (side.z * 3 + side.y) * 3 + side.x with
+        // per axis side 0: the low face, 1: any coordinate, 2: the high face.
+        const std::size_t n_axis[3] = {nx, ny, nz};
+        for (std::size_t part = 0; part < 27; ++part) {
+            std::size_t lo[3], hi[3];
+            for (std::size_t a = 0, side = part; a < 3; ++a, side /= 3) {
+                lo[a] = side % 3 == 2 ? n_axis[a] - 1 : 0;
+                hi[a] = side % 3 == 0 ? 1 : n_axis[a];
+            }
+            cl_uint least = kFar;
+            for (std::size_t z = lo[2]; z < hi[2]; ++z) {
+                for (std::size_t y = lo[1]; y < hi[1]; ++y) {
+                    for (std::size_t x = lo[0]; x < hi[0]; ++x) {
+                        least = std::min(least, f[(z * ny + y) * nx + x]);
+                    }
+                }
+            }
+            f[nx * ny * nz + part] = least;
+        }
+    }
+    static constexpr cl_uint kFar = 0xFFFFFFFFu;  // incremental.cl's VF_FAR
+
+    // inc_place over the blocks of the cap box (B grown by max_margin) for an edit that only
+    // placed solids; its box field starts at `f_off` in the changes buffer.
+    void enqueue_place(Events& events, const Box& b, std::size_t f_off, std::size_t slot) {
+        const Box cap_blocks = cap_blocks_of(b);
+        cl::Kernel k(program, "inc_place");
+        k.setArg(0, exact->voxels_buffer());
+        k.setArg(1, exact->field_buffer());
+        k.setArg(2, rgb);
+        k.setArg(3, out);
+        k.setArg(4, block_max);
+        k.setArg(5, changes);
+        k.setArg(6, static_cast<cl_uint>(f_off));
+        k.setArg(7, d);
+        k.setArg(8, int4_of(b.min));
+        k.setArg(9, int4_of(b.max));
+        k.setArg(10, int4_of(cap_blocks.min));
+        k.setArg(11, int4_of(size_of(cap_blocks)));
+        k.setArg(12, regions);
+        k.setArg(13, static_cast<cl_int>(slot));
+        enqueue(events, k, range_of(cap_blocks));
+    }
+
+    // The blocks within max_margin of B, clipped to the world.
+    Box cap_blocks_of(const Box& b) const {
+        const std::int64_t m = max_margin;
+        return intersect(blocks_of(Box{{b.min.x - m, b.min.y - m, b.min.z - m},
+                                       {b.max.x + m, b.max.y + m, b.max.z + m}}),
+                         blocks_of(world_box()));
+    }
+
     void encode_box(Events& events, const Box& b) {
         cl::Kernel k(program, "inc_encode_box");
         k.setArg(0, exact->voxels_buffer());
@@ -329,6 +598,7 @@ class GlobalEngine : public Engine {
         k.setArg(4, d);
         k.setArg(5, int4_of(b.min));
         k.setArg(6, int4_of(size_of(b)));
+        k.setArg(7, bound);
         enqueue(events, k, range_of(b));
     }
 
@@ -372,12 +642,10 @@ class GlobalEngine : public Engine {
     }
 
     // inc_bounds over the blocks of the cap box (B grown by max_margin), the three sweeps
-    // over its voxels (and W's one-voxel ring), then the block maxima of W.
-    void enqueue_sweeps(Events& events, const Box& b, std::size_t slot) {
-        const std::int64_t m = max_margin;
-        const Box cap_blocks = intersect(blocks_of(Box{{b.min.x - m, b.min.y - m, b.min.z - m},
-                                                       {b.max.x + m, b.max.y + m, b.max.z + m}}),
-                                         blocks_of(world_box()));
+    // over its voxels (and W's one-voxel ring), then the block maxima of W; the box field of
+    // the edit's changed voxels starts at `f_off` in the changes buffer.
+    void enqueue_sweeps(Events& events, const Box& b, std::size_t f_off, std::size_t slot) {
+        const Box cap_blocks = cap_blocks_of(b);
         const Box cap = intersect(Box{{cap_blocks.min.x * kBlock - 1, cap_blocks.min.y * kBlock - 1,
                                        cap_blocks.min.z * kBlock - 1},
                                       {cap_blocks.max.x * kBlock + 1, cap_blocks.max.y * kBlock + 1,
@@ -389,14 +657,17 @@ class GlobalEngine : public Engine {
         const auto slot_arg = static_cast<cl_int>(slot);
 
         cl::Kernel bounds(program, "inc_bounds");
-        bounds.setArg(0, block_max);
-        bounds.setArg(1, d);
-        bounds.setArg(2, int4_of(b.min));
-        bounds.setArg(3, int4_of(b.max));
-        bounds.setArg(4, int4_of(cap_blocks.min));
-        bounds.setArg(5, int4_of(size_of(cap_blocks)));
-        bounds.setArg(6, regions);
-        bounds.setArg(7, slot_arg);
+        bounds.setArg(0, dist);
+        bounds.setArg(1, block_max);
+        bounds.setArg(2, changes);
+        bounds.setArg(3, static_cast<cl_uint>(f_off));
+        bounds.setArg(4, d);
+        bounds.setArg(5, int4_of(b.min));
+        bounds.setArg(6, int4_of(b.max));
+        bounds.setArg(7, int4_of(cap_blocks.min));
+        bounds.setArg(8, int4_of(size_of(cap_blocks)));
+        bounds.setArg(9, regions);
+        bounds.setArg(10, slot_arg);
         enqueue(events, bounds, range_of(cap_blocks));
 
         const auto ux = static_cast<std::size_t>(size.x), uy = static_cast<std::size_t>(size.y),
@@ -410,9 +681,14 @@ class GlobalEngine : public Engine {
         sx.setArg(5, d);
         sx.setArg(6, int4_of(b.min));
         sx.setArg(7, int4_of(b.max));
-        sx.setArg(8, int4_of(cap.min));
-        sx.setArg(9, int4_of(size));
+        sx.setArg(8, changes);
+        sx.setArg(9, static_cast<cl_uint>(f_off));
+        sx.setArg(10, int4_of(cap.min));
+        sx.setArg(11, int4_of(size));
         if (cpu_layout) {
+            const std::size_t pad = next_pow2(world.dims().x) / 2;
+            sx.setArg(12, static_cast<cl_uint>(pad));
+            sx.setArg(13, cl::Local(2 * (world.dims().x + 2 * pad) * 4));
             enqueue_items(events, sx, uz);
         } else {
             enqueue(events, sx, cl::NDRange(uy, uz));
@@ -442,6 +718,7 @@ class GlobalEngine : public Engine {
         sz.setArg(7, d);
         sz.setArg(8, int4_of(cap.min));
         sz.setArg(9, int4_of(size));
+        sz.setArg(10, bound);
         if (cpu_layout) {
             enqueue_items(events, sz, uy);
         } else {
@@ -451,11 +728,15 @@ class GlobalEngine : public Engine {
         update_block_max(events, cap_blocks, slot_arg);
     }
 
-    std::uint32_t max_margin;
+    std::uint32_t max_margin;  // the cap box: B grown by this much (bounded: by D and a block)
     bool cpu_layout;  // sweeps with inner loops along x (CPU) or one column per work-item (GPU)
     std::unique_ptr<ExactManhattan> exact;  // u32: its output is the exact distance buffer
-    // The sweeps over the same voxels writing `out` in the output format: the regeneration of
-    // batches that span the world, after which `exact` is stale until refresh_exact().
+    // A bounded field's bound (--max-distance D: floor(D), the integer distances' cap), kFar
+    // when unbounded: the distance buffer holds min(exact, bound).
+    cl_uint bound;
+    // Unbounded fields: the sweeps over the same voxels writing `out` in the output format,
+    // the regeneration of batches that span the world, after which `exact` is stale until
+    // refresh_exact(). Bounded ones regenerate (the sweeps and the cap) instead.
     std::unique_ptr<ExactManhattan> direct;
     bool exact_stale = false;
 
@@ -469,6 +750,7 @@ class GlobalEngine : public Engine {
         return ms + elapsed_ms(events.front(), events.back());
     }
     cl::Buffer tmp, regions, block_max;
+    std::vector<cl_int> found;  // each edit's W, read back
     std::size_t regions_capacity = 0;
 };
 
@@ -486,14 +768,13 @@ class SeparableEngine : public Engine {
 
     double regenerate() override { return sep->run(); }
 
-    UpdateStats update(UpdateStats stats) override {
+    void update(UpdateStats& stats) override {
         std::vector<std::size_t> first;
-        const std::vector<cl_uint> staged = stage(stats, first);
-        if (staged.empty()) {
-            return stats;
+        if (stage(stats, first).empty()) {
+            return;
         }
-        return cl_call("updating the field of " + world.dims().to_string(), [&] {
-            Events events = upload(staged);
+        cl_call("updating the field of " + world.dims().to_string(), [&] {
+            Events events = upload();
             Box edited;
             for (std::size_t e = 0; e < stats.edits.size(); ++e) {
                 const EditResult& r = stats.edits[e];
@@ -504,12 +785,13 @@ class SeparableEngine : public Engine {
                 edited = hull(edited, r.bounds);
             }
             if (!edited.empty() && regenerate_instead(edited)) {
+                check_injected_failure();
                 ctx.queue().finish();
                 stats.update_ms = elapsed_ms(events.front(), events.back()) + sep->run();
                 stats.full_regeneration = true;
                 stats.regions = {world_box()};
                 stats.voxels_recomputed = world.size();
-                return stats;
+                return;
             }
             if (!edited.empty()) {
                 const ExactSeparable::Update u = sep->update(edited, events);
@@ -518,13 +800,13 @@ class SeparableEngine : public Engine {
                     stats.regions.push_back(u.changed);
                 }
             }
+            check_injected_failure();
             ctx.queue().finish();
             stats.update_ms = elapsed_ms(events.front(), events.back());
-            return stats;
         });
     }
 
-    UpdateStats set_focus(const std::optional<Focus>&) override { no_focus_in_exact(); }
+    UpdateStats move_focus(const std::optional<Focus>&) override { no_focus_in_exact(); }
 
     const cl::Buffer& voxels_buffer() const override { return sep->voxels_buffer(); }
 
@@ -591,11 +873,10 @@ class ChunkEngine : public Engine {
         });
     }
 
-    UpdateStats update(UpdateStats stats) override {
+    void update(UpdateStats& stats) override {
         std::vector<std::size_t> first;
-        const std::vector<cl_uint> staged = stage(stats, first);
-        if (staged.empty()) {
-            return stats;
+        if (stage(stats, first).empty()) {
+            return;
         }
         // Chunks are independent: exactly those holding a changed voxel change.
         DirtyTracker dirty(grid);
@@ -615,27 +896,28 @@ class ChunkEngine : public Engine {
             stats.regions.push_back(b);
             stats.voxels_recomputed += static_cast<std::uint64_t>(b.volume());
         }
-        return cl_call("updating the chunks of " + world.dims().to_string(), [&] {
-            Events events = upload(staged);
+        cl_call("updating the chunks of " + world.dims().to_string(), [&] {
+            Events events = upload();
             for (std::size_t e = 0; e < stats.edits.size(); ++e) {
                 if (stats.edits[e].changed()) {
                     scatter(events, vox, stats, first, e);
                 }
             }
             run_chunks(events, chunks);
+            check_injected_failure();
             ctx.queue().finish();
             stats.update_ms = elapsed_ms(events.front(), events.back());
-            return stats;
         });
     }
 
-    UpdateStats set_focus(const std::optional<Focus>& f) override {
+    UpdateStats move_focus(const std::optional<Focus>& f) override {
         if ((mode & kFimFocus) == 0) {
             throw InputError(to_string(options.algorithm) +
                              " has no focus to move: only lod and monolithic run FIM in a focus");
         }
         const Box next = f ? focus_chunks(grid, *f) : Box{};  // throws outside the grid
-        options.focus = f;
+        const std::optional<Focus> old_focus = options.focus;
+        const Box old_box = focus;
         // The chunks inside exactly one of the two boxes, in chunk index order.
         auto inside = [](const Box& b, const Int3& c) {
             return c.x >= b.min.x && c.x < b.max.x && c.y >= b.min.y && c.y < b.max.y &&
@@ -657,17 +939,27 @@ class ChunkEngine : public Engine {
                 }
             }
         }
+        options.focus = f;
         focus = next;  // run_chunks reads it
         if (chunks.empty()) {
             return stats;
         }
-        return cl_call("moving the focus in " + world.dims().to_string(), [&] {
-            Events events;
-            run_chunks(events, chunks);
-            ctx.queue().finish();
-            stats.update_ms = elapsed_ms(events.front(), events.back());
-            return stats;
-        });
+        try {
+            cl_call("moving the focus in " + world.dims().to_string(), [&] {
+                Events events;
+                run_chunks(events, chunks);
+                check_injected_failure();
+                ctx.queue().finish();
+                stats.update_ms = elapsed_ms(events.front(), events.back());
+            });
+        } catch (...) {
+            // The old focus, and every chunk recomputed with it.
+            options.focus = old_focus;
+            focus = old_box;
+            restore({});
+            throw;
+        }
+        return stats;
     }
 
     const cl::Buffer& voxels_buffer() const override { return vox; }
@@ -678,9 +970,10 @@ class ChunkEngine : public Engine {
 
     void run_chunks(Events& events, const std::vector<cl_uint>& chunks) {
         reserve(chunk_list, chunk_capacity, 4 * chunks.size());
+        chunk_ids = chunks;  // the upload reads it after this returns
         events.emplace_back();
-        ctx.queue().enqueueWriteBuffer(chunk_list, CL_FALSE, 0, 4 * chunks.size(), chunks.data(),
-                                       nullptr, &events.back());
+        ctx.queue().enqueueWriteBuffer(chunk_list, CL_FALSE, 0, 4 * chunk_ids.size(),
+                                       chunk_ids.data(), nullptr, &events.back());
         cl::Kernel k(classic, "monolithic");
         const std::size_t limit = std::min<std::size_t>(
             256, k.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(ctx.info().device));
@@ -719,6 +1012,7 @@ class ChunkEngine : public Engine {
     std::uint32_t first_step = 0;
     cl::Program classic;
     cl::Buffer vox, dist, seed_a, seed_b, iterations, chunk_list;
+    std::vector<cl_uint> chunk_ids;
     std::size_t chunk_capacity = 0;
 };
 
@@ -736,7 +1030,11 @@ IncrementalField::IncrementalField(Context& ctx, World world, const Palette& pal
             "incremental fields keep no feature transform (--indices); generate "
             "it with `voxfield generate --indices`");
     }
-    if (options.algorithm == Algorithm::exact && ExactSeparable::needed(options)) {
+    // Bounded fields that the L1 sweeps compute unbounded take them, capped.
+    GeneratorOptions unbounded = options;
+    unbounded.max_distance.reset();
+    const bool sweeps = options.metric == Metric::manhattan && !ExactSeparable::needed(unbounded);
+    if (options.algorithm == Algorithm::exact && !sweeps) {
         impl_->engine = std::make_unique<SeparableEngine>(ctx, std::move(world), palette, options);
     } else if (options.algorithm == Algorithm::exact) {
         impl_->engine =
@@ -754,7 +1052,11 @@ IncrementalField::IncrementalField(Context& ctx, World world, const Palette& pal
 IncrementalField::~IncrementalField() = default;
 
 double IncrementalField::regenerate() {
-    return impl_->engine->regenerate();
+    return impl_->engine->rebuild();
+}
+
+void IncrementalField::fail_next_update_for_testing() {
+    impl_->engine->fail_next = true;
 }
 
 UpdateStats IncrementalField::apply(const std::vector<Brush>& batch) {

@@ -401,7 +401,8 @@ ExactSeparable::Update ExactSeparable::update(const Box& edited, std::vector<cl:
             col_items(static_cast<std::size_t>((xo.hi - xo.lo) * (zb_rows.hi - zb_rows.lo)), xo));
         launch(col_kernel(2, 1, 2, xo, yo, zo, zi, box[1], box[2]),
                col_items(static_cast<std::size_t>((xo.hi - xo.lo) * (yo.hi - yo.lo)), xo));
-        std::array<cl_int, 7> yb{}, zb{};
+        std::array<cl_int, 7>& yb = track_read_[0];
+        std::array<cl_int, 7>& zb = track_read_[1];
         q.enqueueReadBuffer(track_[1], CL_FALSE, 0, sizeof(yb), yb.data());
         q.enqueueReadBuffer(track_[2], CL_TRUE, 0, sizeof(zb), zb.data());
         Update u;

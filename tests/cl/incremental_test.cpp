@@ -121,7 +121,7 @@ TEST(Incremental, EveryMetricStaysExact) {
                 const auto stats = field.apply(brushes);
                 const auto want = ocl::generate(pocl(), field.world(), Palette(), o).bytes;
                 ASSERT_TRUE(field.read() == want) << what << ", after batch " << batch;
-                if (stats.edits.front().changed()) {
+                if (stats.edits.front().occupancy_changed()) {
                     EXPECT_GT(stats.voxels_recomputed, 0u) << what;
                 }
                 // Bounded: every changed voxel lies within D (in voxels of the finest
@@ -149,6 +149,80 @@ TEST(Incremental, EveryMetricStaysExact) {
                 }
             }
             EXPECT_GE(local, 30) << what;
+        }
+    }
+}
+
+TEST(Incremental, BoundedL1IsMinOfExactAndTheBound) {
+    // Bounded unit-spacing L1 fields take the capped sweeps (place pass, exact R, capped z
+    // sweep): after every batch the field equals min(exact, floor(D)) voxel by voxel, in both
+    // layouts, for integer and fractional bounds and saturating formats; every changed voxel
+    // lies within D of the edit's changed box.
+    struct Case {
+        double bound;
+        Format format;
+    };
+    const Case cases[] = {{1.0, Format::u16},
+                          {3.5, Format::u8},
+                          {7.0, Format::packed32},
+                          {300.0, Format::u8},
+                          {12.0, Format::u32}};
+    for (const Case& c : cases) {
+        for (const ocl::Layout layout : {ocl::Layout::cpu, ocl::Layout::gpu}) {
+            std::mt19937_64 rng(1618);
+            const World start = scene_floor_spheres(Dims{41, 35, 30}, 9, 6);
+            ocl::GeneratorOptions o = exact_options(c.format);
+            o.max_distance = c.bound;
+            o.layout = layout;
+            ocl::IncrementalField field(pocl(), start, Palette(), o);
+            const auto cap = static_cast<std::uint32_t>(c.bound);
+            const std::string what = "max " + std::to_string(c.bound) + " " + to_string(c.format) +
+                                     (layout == ocl::Layout::cpu ? " cpu" : " gpu");
+            int local = 0;  // batches updated incrementally
+            for (int batch = 0; batch < 50; ++batch) {
+                std::vector<Brush> brushes = {random_brush(rng, start.dims(), 7)};
+                if (batch % 3 == 0) {
+                    brushes.push_back(random_brush(rng, start.dims(), 4));
+                }
+                const std::vector<std::uint8_t> before = field.read();
+                const auto stats = field.apply(brushes);
+                std::vector<std::uint32_t> want = reference_manhattan(field.world());
+                for (std::uint32_t& v : want) {
+                    v = std::min(v, cap);
+                }
+                const std::vector<std::uint8_t> got = field.read();
+                const std::string diff = test::first_difference(
+                    got, encode_field(want, field.world(), Palette(), c.format), c.format,
+                    start.dims());
+                ASSERT_TRUE(diff.empty()) << what << ", batch " << batch << ": " << diff;
+                if (stats.full_regeneration) {
+                    continue;
+                }
+                ++local;
+                Box changed;
+                for (const EditResult& e : stats.edits) {
+                    changed = hull(changed, e.bounds);
+                }
+                const Dims d = start.dims();
+                const auto reach = static_cast<std::int64_t>(c.bound);
+                for (std::size_t i = 0; i < start.size(); ++i) {
+                    if (decode_distance(got, c.format, i) == decode_distance(before, c.format, i)) {
+                        continue;
+                    }
+                    const Int3 p{static_cast<std::int64_t>(i % d.x),
+                                 static_cast<std::int64_t>(i / d.x % d.y),
+                                 static_cast<std::int64_t>(i / d.x / d.y)};
+                    const std::int64_t gap =
+                        std::max<std::int64_t>({changed.min.x - p.x, p.x - changed.max.x + 1, 0}) +
+                        std::max<std::int64_t>({changed.min.y - p.y, p.y - changed.max.y + 1, 0}) +
+                        std::max<std::int64_t>({changed.min.z - p.z, p.z - changed.max.z + 1, 0});
+                    ASSERT_LE(gap, reach) << what << ": a voxel changed " << gap
+                                          << " voxels from the edits, batch " << batch;
+                }
+            }
+            // Only batches spanning an eighth of the world regenerate: the region, within D
+            // of the edits, never overflows the cap box.
+            EXPECT_GE(local, 40) << what;
         }
     }
 }
@@ -238,6 +312,57 @@ TEST(Incremental, BatchesSpanningTheWorldRegenerateAndStayExact) {
         const ocl::UpdateStats next = field.apply({small});
         EXPECT_FALSE(next.full_regeneration) << what;
         expect_fresh("after a small edit");
+    }
+}
+
+TEST(Incremental, OverlappingPlacesInOneBatchStayExact) {
+    // Batches of place-only edits (inc_place: each edit's box field is the world as that edit
+    // left it, later edits of the batch undone) that overlap each other, in both layouts and
+    // in u8 (saturating) and packed32 (colours): exact after every batch, and every voxel
+    // whose distance changed lies in a reported region.
+    for (const ocl::Layout layout : {ocl::Layout::cpu, ocl::Layout::gpu}) {
+        for (const Format f : {Format::u8, Format::packed32}) {
+            std::mt19937_64 rng(2718);
+            const World start = scene_floor_spheres(Dims{45, 38, 33}, 3, 5);
+            auto o = exact_options(f);
+            o.layout = layout;
+            ocl::IncrementalField field(pocl(), start, Palette(), o);
+            for (int batch = 0; batch < 40; ++batch) {
+                const std::vector<std::uint8_t> before = field.read();
+                std::vector<Brush> brushes;
+                const Brush first = random_brush(rng, start.dims(), 7);
+                for (int i = 0; i < 1 + batch % 4; ++i) {
+                    Brush b = first;
+                    b.op = BrushOp::place;
+                    b.centre = {first.centre.x + static_cast<std::int64_t>(rng() % 7) - 3,
+                                first.centre.y + static_cast<std::int64_t>(rng() % 7) - 3,
+                                first.centre.z + static_cast<std::int64_t>(rng() % 7) - 3};
+                    b.material = static_cast<std::uint8_t>(1 + rng() % 255);
+                    brushes.push_back(b);
+                }
+                const auto stats = field.apply(brushes);
+                const std::string what = std::string(layout == ocl::Layout::cpu ? "cpu" : "gpu") +
+                                         " " + to_string(f) + " batch " + std::to_string(batch);
+                expect_exact(field, f, what);
+                const std::vector<std::uint8_t> after = field.read();
+                const Dims d = start.dims();
+                for (std::size_t i = 0; i < start.size(); ++i) {
+                    if (decode_distance(after, f, i) == decode_distance(before, f, i)) {
+                        continue;
+                    }
+                    const Int3 p{static_cast<std::int64_t>(i % d.x),
+                                 static_cast<std::int64_t>(i / d.x % d.y),
+                                 static_cast<std::int64_t>(i / d.x / d.y)};
+                    bool inside = stats.full_regeneration;
+                    for (const Box& r : stats.regions) {
+                        inside |= p.x >= r.min.x && p.x < r.max.x && p.y >= r.min.y &&
+                                  p.y < r.max.y && p.z >= r.min.z && p.z < r.max.z;
+                    }
+                    ASSERT_TRUE(inside) << what << ": changed outside the regions at " << p.x << ","
+                                        << p.y << "," << p.z;
+                }
+            }
+        }
     }
 }
 
@@ -574,6 +699,80 @@ TEST(Incremental, VoxelsBufferFollowsTheWorld) {
                                              got.data());
             ASSERT_EQ(got, field.world().voxels())
                 << ocl::to_string(o.algorithm) << " batch " << batch;
+        }
+    }
+}
+
+TEST(Incremental, DeviceFailuresLeaveWorldAndFieldAsBefore) {
+    // A device failure in the middle of an update (the test seam throws ClError after the
+    // update's commands were enqueued: the device voxels and part of the field already
+    // written) leaves the world, the device voxels and the field as before the call, and the
+    // next edit is exact. Every engine: the L1 sweeps (unbounded and bounded), the separable
+    // engine (Euclidean), chunk-local; and a focus move.
+    const World start = scene_floor_spheres(Dims{40, 32, 36}, 7, 7);
+    ocl::GeneratorOptions bounded = exact_options(Format::u16);
+    bounded.max_distance = 5.0;
+    ocl::GeneratorOptions euclidean = exact_options(Format::f32);
+    euclidean.metric = Metric::euclidean;
+    ocl::GeneratorOptions chunked;
+    chunked.algorithm = ocl::Algorithm::lod;
+    chunked.chunk = 8;
+    for (ocl::GeneratorOptions o : {exact_options(Format::packed32), bounded, euclidean, chunked}) {
+        o = ocl::resolve_options(o, start.dims());
+        const std::string what =
+            to_string(o.algorithm) + " " + to_string(o.metric) + (o.max_distance ? " bounded" : "");
+        ocl::IncrementalField field(pocl(), start, Palette(), o);
+        std::mt19937_64 rng(606);
+        const auto device_voxels = [&] {
+            std::vector<std::uint8_t> got(start.size());
+            pocl().queue().enqueueReadBuffer(field.voxels_buffer(), CL_TRUE, 0, got.size(),
+                                             got.data());
+            return got;
+        };
+        const auto expect_fresh = [&](const std::string& when) {
+            const auto want = ocl::generate(pocl(), field.world(), Palette(), o).bytes;
+            const std::string diff =
+                test::first_difference(field.read(), want, o.format, start.dims());
+            EXPECT_TRUE(diff.empty()) << what << " " << when << ": " << diff;
+        };
+        Brush ball;
+        ball.centre = {20, 6, 18};
+        ball.radius = 6;
+        ball.material = 9;
+        for (const BrushOp op : {BrushOp::place, BrushOp::erase}) {
+            field.apply({random_brush(rng, start.dims(), 5)});
+            const std::vector<std::uint8_t> world_before = field.world().voxels();
+            const std::vector<std::uint8_t> field_before = field.read();
+            ball.op = op;
+            field.fail_next_update_for_testing();
+            EXPECT_THROW(field.apply({random_brush(rng, start.dims(), 4), ball}), ocl::ClError)
+                << what;
+            EXPECT_EQ(field.world().voxels(), world_before) << what;
+            EXPECT_EQ(device_voxels(), world_before) << what;
+            EXPECT_EQ(field.read(), field_before) << what;
+            // The same through apply_changes (an undo's path).
+            World edited = field.world();
+            const VoxelChanges changes = apply_brush(edited, ball).changes;
+            field.fail_next_update_for_testing();
+            EXPECT_THROW(field.apply_changes(changes), ocl::ClError) << what;
+            EXPECT_EQ(field.world().voxels(), world_before) << what;
+            EXPECT_EQ(device_voxels(), world_before) << what;
+            EXPECT_EQ(field.read(), field_before) << what;
+            // The next edits update from the restored state, exactly.
+            field.apply({ball});
+            EXPECT_EQ(field.world().voxels(), edited.voxels()) << what;
+            expect_fresh("after the failed edits");
+        }
+        if (o.algorithm == ocl::Algorithm::lod) {
+            const std::vector<std::uint8_t> field_before = field.read();
+            field.fail_next_update_for_testing();
+            EXPECT_THROW(field.set_focus(Focus{{0, 0, 0}, 1}), ocl::ClError);
+            EXPECT_EQ(field.read(), field_before) << "a failed focus move";
+            field.apply({random_brush(rng, start.dims(), 5)});
+            expect_fresh("after a failed focus move");  // still the old focus
+            field.set_focus(Focus{{0, 0, 0}, 1});
+            o.focus = Focus{{0, 0, 0}, 1};
+            expect_fresh("after the focus moved");
         }
     }
 }

@@ -3,15 +3,24 @@
 // (one frame) uploads only the changed voxels and recomputes only what the edits can change,
 // in one submission with no host wait per region or chunk.
 //
-// Global semantics (`exact`): exact after every batch. For an edit whose changed voxels have
-// the bounding box B, only R = {p : old d(p) >= L1(p, B)} can change (outside R the old
-// nearest solid is nearer than anything edited). The device finds R's bounding box W by
-// scanning L-infinity shells around B outward until a shell holds no voxel of R (R is
-// star-shaped towards B: one step towards B lowers L1(p, B) by 1 and d by at most 1), then
-// recomputes W by separable min-plus sweeps from sources that are already right: the new
-// solids, and the old values outside R in W and in W's one-voxel ring. If R reaches further
-// than `max_margin` voxels from B (by default: no limit inside the world) the batch falls
-// back to a full regeneration (still exact, reported as such).
+// Global semantics (`exact`): exact after every batch. Let B be the bounding box of the
+// voxels C whose occupancy an edit changed, and d_C(p) the L1 distance from p to C: per axis
+// outside B, |p - c| splits at B's face for every c in B, so d_C(p) = L1(p, B) + f(clamp(p,
+// B)) with f = d_C inside B, which the host computes over B alone (an L1 shortest path
+// between two voxels of a box stays in the box). Only R = {p : old d(p) >= d_C(p)} can change
+// (outside R the old nearest solid is nearer than anything edited). The device finds R's
+// bounding box W over the blocks whose maximum reaches the least d_C over them (block maxima
+// are kept per 8^3 voxels), testing each voxel of those, then recomputes W by separable
+// min-plus sweeps from sources that are already right: the new solids, and the old values
+// outside R in W and in W's one-voxel ring. If R reaches further than `max_margin` voxels
+// from B (by default: no limit inside the world) the batch falls back to a full regeneration
+// (still exact, reported as such). An edit that only places solids needs no sweeps: the new
+// distance is min(old, d_S) with d_S the distance to the solids inside B, computed the same
+// way; one pass over the blocks that can hold R lowers the distances, rewrites the blocks'
+// maxima and finds the box of the changed voxels. Bounded unit-spacing L1 fields
+// (--max-distance D) run the same way on distances capped at floor(D) (min-plus sweeps
+// commute with the cap), so R lies within D of B. Every other exact field: ExactSeparable's
+// incremental passes.
 //
 // Chunk-local algorithms (the dissertation's): the dirty chunks of the batch are recomputed
 // with the algorithm's own per-chunk kernel, all in one launch (one work-group per chunk).
@@ -29,11 +38,15 @@ namespace voxfield::ocl {
 
 struct UpdateStats {
     double update_ms = 0;  // the batch's device time: uploads and kernels (profiling events)
-    std::uint64_t voxels_recomputed = 0;  // voxels whose distance the batch recomputed
-    std::vector<Box> regions;             // the voxel boxes recomputed (global: W per edit)
-    bool full_regeneration = false;       // a region grew past max_margin, or the batch's
-                                          // changes spanned an eighth of the world or more
-    std::vector<EditResult> edits;        // what each brush changed in the world
+    // Voxels whose distance the batch recomputed (global: W's for a swept edit, those of the
+    // blocks read for an edit that only placed solids).
+    std::uint64_t voxels_recomputed = 0;
+    // The voxel boxes whose distances were recomputed (global: per edit W, or the box of the
+    // voxels that a place lowered).
+    std::vector<Box> regions;
+    bool full_regeneration = false;  // a region grew past max_margin, or the batch's
+                                     // changes spanned an eighth of the world or more
+    std::vector<EditResult> edits;   // what each brush changed in the world
 };
 
 class IncrementalField {
@@ -48,9 +61,17 @@ class IncrementalField {
     IncrementalField(const IncrementalField&) = delete;
     IncrementalField& operator=(const IncrementalField&) = delete;
 
-    // Regenerates the whole field; returns its device time in ms.
+    // Regenerates the whole field; returns its device time in ms. After a failed update that
+    // could not be undone on the device (see apply()), uploads the world first and makes the
+    // object usable again.
     double regenerate();
     // Applies the brushes in order to the world and updates the field (one batch).
+    // apply, apply_changes and set_focus are all or nothing: when the device fails (ClError)
+    // the world, the device voxels and the field are left as they were before the call (the
+    // world's changes are undone, the device voxels rebuilt from it and the field
+    // regenerated), and the error is rethrown. Should the device fail again while restoring,
+    // every later apply, apply_changes and set_focus throws ClError until regenerate()
+    // succeeds.
     UpdateStats apply(const std::vector<Brush>& batch);
     // Applies explicit voxel changes (an undo or redo of a stroke: core/undo.hpp) as one edit,
     // updated like apply(): exact, local to what the changes can affect. Throws InputError,
@@ -65,6 +86,11 @@ class IncrementalField {
     // algorithms without a focus (exact, the other chunk-local ones) and for a focus outside
     // the chunk grid or of negative size.
     UpdateStats set_focus(std::optional<Focus> focus);
+
+    // Test seam: the next apply, apply_changes or set_focus that reaches the device throws
+    // ClError (CL_OUT_OF_RESOURCES) after enqueueing its commands and before waiting for them,
+    // as a failing enqueue there would, so that tests can check the all-or-nothing guarantee.
+    void fail_next_update_for_testing();
 
     const World& world() const;
     // The field in options.format, as generate() would write it.

@@ -85,6 +85,9 @@ class ExactSeparable : public Generator {
     int tile_w_ = 0;                      // lines per col_pass tile (CPU layout), 0: untiled
     std::size_t x_stride_ = 0;            // ints per work-item row scratch (CPU layout)
     std::array<cl_int, 7> track_init_{};  // an empty change box, 0 voxels
+    // The y and z passes' change boxes read back by update(): members, so that a read still
+    // in flight when a later enqueue throws writes into live memory.
+    std::array<std::array<cl_int, 7>, 2> track_read_{};
     // --max-distance: the output's bound (+inf: none), the partials' cap in the kernels' own
     // units, and per axis how far (voxels) a site can matter: a whole line when unbounded.
     double max_distance_ = 0;
