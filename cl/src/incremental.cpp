@@ -341,11 +341,19 @@ class GlobalEngine : public Engine {
         if (stage(stats, first).empty()) {
             return;
         }
-        // Every edit that changes occupancy has a box field staged after the pairs (one
-        // upload): edits that only place solids take inc_place with the field of B's solids,
-        // the rest the sweeps, with the field of the voxels whose occupancy they changed.
+        Box occupancy;
+        for (const EditResult& r : stats.edits) {
+            if (r.occupancy_changed()) {
+                occupancy = hull(occupancy, r.occupancy_bounds);
+            }
+        }
+        const bool regenerate_all = !occupancy.empty() && regenerate_instead(occupancy);
+        // Unless the batch regenerates, every edit that changes occupancy has a box field
+        // staged after the pairs (one upload): edits that only place solids take inc_place
+        // with the field of B's solids, the rest the sweeps, with the field of the voxels whose
+        // occupancy they changed.
         std::vector<std::size_t> field_at(stats.edits.size(), 0);
-        for (std::size_t e = 0; e < stats.edits.size(); ++e) {
+        for (std::size_t e = 0; e < stats.edits.size() && !regenerate_all; ++e) {
             const EditResult& r = stats.edits[e];
             if (r.occupancy_changed()) {
                 field_at[e] = staging.size();
@@ -360,13 +368,7 @@ class GlobalEngine : public Engine {
             // inc_bounds accumulates W with atomic_max from zero.
             q.enqueueFillBuffer(regions, cl_int{0}, 0, 8 * 4 * stats.edits.size(), nullptr,
                                 &events.back());
-            Box occupancy;
-            for (const EditResult& r : stats.edits) {
-                if (r.occupancy_changed()) {
-                    occupancy = hull(occupancy, r.occupancy_bounds);
-                }
-            }
-            if (!occupancy.empty() && regenerate_instead(occupancy)) {
+            if (regenerate_all) {
                 // The output straight from the sweeps in its own format; the exact u32 field
                 // and its block maxima, which only incremental updates read, are brought up to
                 // date before the next one (a run of world-spanning batches skips them).
