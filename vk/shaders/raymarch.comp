@@ -9,10 +9,14 @@
 layout(local_size_x = VF_RAYMARCH_LOCAL_SIZE, local_size_y = VF_RAYMARCH_LOCAL_SIZE) in;
 
 // Specialization constants (mirrored by vk/src/raymarcher.cpp): the metric of the field's
-// distances and of the block minima, and whether each ray records its counts.
+// distances and of the block minima, whether each ray records its counts, and whether lit
+// shading marches shadow rays and takes occlusion taps (the pipelines for flat shading leave
+// them out: their mere presence slows the primary walk on CPU Vulkan drivers such as
+// lavapipe).
 const uint kManhattan = 0u, kChebyshev = 1u, kEuclidean = 2u;
 layout(constant_id = 0) const uint kMetric = kManhattan;
 layout(constant_id = 1) const bool kCount = false;
+layout(constant_id = 2) const bool kShadows = true;
 
 // One RGBA8 pixel per texel, r | g << 8 | b << 16 | a << 24 (bytes R, G, B, A in memory), so
 // flat colours are written bit-exactly (no float -> unorm rounding).
@@ -240,7 +244,7 @@ bool march(vec3 o, vec3 dir, out ivec3 cell, out ivec3 face, out vec3 point, ino
         // integer cell after each step (no accumulated error); axes not stepped: never.
         vec3 t_next =
             mix((vec3(cell + max(stp, ivec3(0))) - start) * inv, vec3(kFar), equal(stp, ivec3(0)));
-        float t_cell = 0.0;  // where the ray entered the current cell, from `start`
+        ivec3 entry = cell;
         // Safe skipping rule. The field holds d, a lower bound of the metric distance from
         // this cell to the nearest solid cell (0 = solid): the exact distance rounded down
         // (an integer already for L1 and L-inf, the floor of it for L2) and saturated at 255,
@@ -273,17 +277,28 @@ bool march(vec3 o, vec3 dir, out ivec3 cell, out ivec3 face, out vec3 point, ino
         for (;;) {
             // VF_PACKED_DISTANCE_* and VF_COMPACT_DISTANCE_* agree (static_assert'ed on the host).
             uint d = (read_cell(cell) >> VF_PACKED_DISTANCE_SHIFT) & VF_PACKED_DISTANCE_MAX;
-            ++fetches;
+            if (kCount) {
+                ++fetches;
+            }
             if (d == 0u) {
                 hit = true;
-                point = start + dir * t_cell;
+                if (cell != entry) {
+                    // Entered through the face it stepped across: that boundary plane's t,
+                    // from the same expression t_next held for it.
+                    int a = face.x != 0 ? 0 : (face.y != 0 ? 1 : 2);
+                    float boundary = float(cell[a] + max(-stp[a], 0));
+                    point = start + dir * ((boundary - start[a]) * inv[a]);
+                } else {
+                    point = start;
+                }
                 break;
             }
             if (coarse && d == VF_PACKED_DISTANCE_MAX) {
                 uvec3 b = uvec3(cell) / uvec3(VF_RAYMARCH_BLOCK);
                 d = max(d, block_min[(b.z * blocks.y + b.y) * blocks.x + b.x]);
             }
-            uvec3 off = uvec3(0u);  // |o_i|: steps along each axis since the fetch
+            uvec3 off = uvec3(0u);  // L-inf, L2: |o_i|, steps along each axis since the fetch
+            uint off1 = 0u;         // L1: |o|_1, the steps since the fetch
             uint off2 = 0u;         // L2: |o|^2
             uint clamped = min(d, 65535u);
             uint d2 = clamped * clamped;
@@ -295,23 +310,26 @@ bool march(vec3 o, vec3 dir, out ivec3 cell, out ivec3 face, out vec3 point, ino
                 ivec3 m = ivec3(bx, by, !bx && !by);
                 face = m * stp;
                 cell += face;
-                ++steps;
+                if (kCount) {
+                    ++steps;
+                }
                 if (any(lessThan(cell, ivec3(0))) || any(greaterThanEqual(cell, dims))) {
                     inside = false;
                     break;
                 }
-                t_cell = dot(t_next, vec3(m));
                 t_next = mix(t_next, (vec3(cell + max(stp, ivec3(0))) - start) * inv, bvec3(m));
-                uint along = bx ? off.x : (by ? off.y : off.z);
-                off += uvec3(m);
                 bool beyond;
-                if (kMetric == kChebyshev) {
-                    beyond = along + 1u >= d;
-                } else if (kMetric == kEuclidean) {
-                    off2 += 2u * along + 1u;
-                    beyond = off2 >= d2;
+                if (kMetric == kChebyshev || kMetric == kEuclidean) {
+                    uint along = bx ? off.x : (by ? off.y : off.z);
+                    off += uvec3(m);
+                    if (kMetric == kChebyshev) {
+                        beyond = along + 1u >= d;
+                    } else {
+                        off2 += 2u * along + 1u;
+                        beyond = off2 >= d2;
+                    }
                 } else {
-                    beyond = off.x + off.y + off.z >= d;
+                    beyond = ++off1 >= d;
                 }
                 if (beyond) {
                     break;  // the first cell outside the empty region: fetch it
@@ -395,7 +413,7 @@ void main() {
                 // The sun's light reaches the face unless the ray from just outside it
                 // toward the sun hits a solid (the sun is a direction: no distance limit).
                 ivec3 out_n = -face;
-                if (diffuse > 0.0) {
+                if (kShadows && diffuse > 0.0) {
                     ivec3 c2, f2;
                     vec3 p2;
                     uint fetches2 = 0u, steps2 = 0u;
@@ -403,7 +421,9 @@ void main() {
                         diffuse = 0.0;
                     }
                 }
-                ambient *= ambient_occlusion(cell, out_n);
+                if (kShadows) {
+                    ambient *= ambient_occlusion(cell, out_n);
+                }
             }
             colour = pack_rgb(linear_to_srgb(base * (ambient + 0.8 * diffuse)));
         }

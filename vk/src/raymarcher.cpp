@@ -42,10 +42,12 @@ constexpr VkBufferUsageFlags kTableUsage =
     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
 
 // raymarch.comp's specialization constants: constant_id 0 the metric (kManhattan,
-// kChebyshev, kEuclidean = 0, 1, 2), constant_id 1 whether rays count (a VkBool32).
+// kChebyshev, kEuclidean = 0, 1, 2), constant_id 1 whether rays count, constant_id 2 whether
+// lit shading marches shadow rays (VkBool32s).
 struct Specialization {
     std::uint32_t metric;
     VkBool32 count;
+    VkBool32 shadows;
 };
 constexpr std::size_t kMetrics = 3;
 // Timestamp pairs used in turn by recorded ray marches (more than the frames that can be in
@@ -163,8 +165,9 @@ struct Raymarcher::Impl {
     Owned<VkDescriptorSetLayout> set_layout;
     Owned<VkPipelineLayout> pipeline_layout;
     Owned<VkShaderModule> shader;
-    // One pipeline per metric, without and with counting; built on first use.
-    std::array<std::array<Owned<VkPipeline>, 2>, kMetrics> pipelines;
+    // One pipeline per metric, without and with counting, for flat and lit shading (shadow
+    // rays); built on first use.
+    std::array<std::array<std::array<Owned<VkPipeline>, 2>, 2>, kMetrics> pipelines;
     // The descriptor set, in a pool of its own: when the bindings change while work that uses
     // the set may be in flight, the pool is retired and a fresh set written.
     Owned<VkDescriptorPool> pool;
@@ -216,7 +219,7 @@ struct Raymarcher::Impl {
     // use), with every binding written.
     void write_set();
     // The pipeline of `metric`, with or without counting (built when first asked for).
-    VkPipeline pipeline_for(Metric metric, bool count);
+    VkPipeline pipeline_for(Metric metric, bool count, bool shadows);
     // Makes `counters` hold at least `pixels` counters and points its binding at it.
     void prepare_counters(std::size_t pixels);
     // The dispatch time recorded in timestamp pair `pair` (-1 without timestamp queries);
@@ -486,16 +489,17 @@ void Raymarcher::Impl::bind_block_min(Buffer table, bool coarse_now, bool shared
     write_set();
 }
 
-VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count) {
+VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count, bool shadows) {
     const std::uint32_t code = metric_code(which);
-    Owned<VkPipeline>& slot = pipelines[code][count ? 1 : 0];
+    Owned<VkPipeline>& slot = pipelines[code][count ? 1 : 0][shadows ? 1 : 0];
     if (slot) {
         return slot.get();
     }
-    const Specialization data{code, count ? VK_TRUE : VK_FALSE};
-    const std::array<VkSpecializationMapEntry, 2> entries = {
+    const Specialization data{code, count ? VK_TRUE : VK_FALSE, shadows ? VK_TRUE : VK_FALSE};
+    const std::array<VkSpecializationMapEntry, 3> entries = {
         VkSpecializationMapEntry{0, offsetof(Specialization, metric), sizeof data.metric},
-        VkSpecializationMapEntry{1, offsetof(Specialization, count), sizeof data.count}};
+        VkSpecializationMapEntry{1, offsetof(Specialization, count), sizeof data.count},
+        VkSpecializationMapEntry{2, offsetof(Specialization, shadows), sizeof data.shadows}};
     VkSpecializationInfo spec{};
     spec.mapEntryCount = static_cast<std::uint32_t>(entries.size());
     spec.pMapEntries = entries.data();
@@ -513,7 +517,8 @@ VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count) {
     VkPipeline pipeline = VK_NULL_HANDLE;
     check(vkCreateComputePipelines(dev, VK_NULL_HANDLE, 1, &cp, nullptr, &pipeline),
           "vkCreateComputePipelines",
-          "raymarch.comp, " + to_string(which) + (count ? ", counting" : ""));
+          "raymarch.comp, " + to_string(which) + (count ? ", counting" : "") +
+              (shadows ? ", shadows" : ""));
     slot = Owned<VkPipeline>(dev, pipeline, vkDestroyPipeline);
     return pipeline;
 }
@@ -720,7 +725,7 @@ std::uint32_t Raymarcher::Impl::record(VkCommandBuffer cmd, const RenderOptions&
     if (o.count) {
         m.prepare_counters(std::size_t{o.width} * o.height);
     }
-    const VkPipeline pipeline = m.pipeline_for(m.metric, o.count);
+    const VkPipeline pipeline = m.pipeline_for(m.metric, o.count, o.shading == Shading::lit);
     const VkImage image_handle = m.target.image.get();
 
     PushConstants pc{};
