@@ -17,6 +17,9 @@ const uint kManhattan = 0u, kChebyshev = 1u, kEuclidean = 2u;
 layout(constant_id = 0) const uint kMetric = kManhattan;
 layout(constant_id = 1) const bool kCount = false;
 layout(constant_id = 2) const bool kShadows = true;
+// Whether the field lies in one binding (slab 0): then a fetch needs neither the division that
+// finds a cell's slab nor the switch over the bindings, which CPU drivers run lane by lane.
+layout(constant_id = 3) const bool kOneSlab = false;
 
 // One RGBA8 pixel per texel, r | g << 8 | b << 16 | a << 24 (bytes R, G, B, A in memory), so
 // flat colours are written bit-exactly (no float -> unorm rounding).
@@ -107,6 +110,9 @@ const float kFar = 1e30;
 const float kTinyDirection = 1e-20;
 
 uint read_field(uint slab, uint i) {
+    if (kOneSlab) {
+        return f0[i];
+    }
     switch (slab) {
         case 0u:
             return f0[i];
@@ -128,6 +134,9 @@ uint read_field(uint slab, uint i) {
 }
 
 uint read_material_word(uint slab, uint i) {
+    if (kOneSlab) {
+        return m0[i];
+    }
     switch (slab) {
         case 0u:
             return m0[i];
@@ -150,6 +159,9 @@ uint read_material_word(uint slab, uint i) {
 
 // Slab and index inside the slab of cell c (all coordinates inside the world).
 uvec2 locate(ivec3 c) {
+    if (kOneSlab) {
+        return uvec2(0u, (uint(c.z) * pc.dims.y + uint(c.y)) * pc.dims.x + uint(c.x));
+    }
     uint z = uint(c.z);
     uint slab = z / pc.dims.w;
     uint i = ((z - slab * pc.dims.w) * pc.dims.y + uint(c.y)) * pc.dims.x + uint(c.x);

@@ -43,11 +43,13 @@ constexpr VkBufferUsageFlags kTableUsage =
 
 // raymarch.comp's specialization constants: constant_id 0 the metric (kManhattan,
 // kChebyshev, kEuclidean = 0, 1, 2), constant_id 1 whether rays count, constant_id 2 whether
-// lit shading marches shadow rays (VkBool32s).
+// lit shading marches shadow rays, constant_id 3 whether the field lies in one binding
+// (VkBool32s).
 struct Specialization {
     std::uint32_t metric;
     VkBool32 count;
     VkBool32 shadows;
+    VkBool32 one_slab;
 };
 constexpr std::size_t kMetrics = 3;
 // Timestamp pairs used in turn by recorded ray marches (more than the frames that can be in
@@ -166,8 +168,8 @@ struct Raymarcher::Impl {
     Owned<VkPipelineLayout> pipeline_layout;
     Owned<VkShaderModule> shader;
     // One pipeline per metric, without and with counting, for flat and lit shading (shadow
-    // rays); built on first use.
-    std::array<std::array<std::array<Owned<VkPipeline>, 2>, 2>, kMetrics> pipelines;
+    // rays), for fields in one binding or several; built on first use.
+    std::array<std::array<std::array<std::array<Owned<VkPipeline>, 2>, 2>, 2>, kMetrics> pipelines;
     // The descriptor set, in a pool of its own: when the bindings change while work that uses
     // the set may be in flight, the pool is retired and a fresh set written.
     Owned<VkDescriptorPool> pool;
@@ -219,7 +221,7 @@ struct Raymarcher::Impl {
     // use), with every binding written.
     void write_set();
     // The pipeline of `metric`, with or without counting (built when first asked for).
-    VkPipeline pipeline_for(Metric metric, bool count, bool shadows);
+    VkPipeline pipeline_for(Metric metric, bool count, bool shadows, bool one_slab);
     // Makes `counters` hold at least `pixels` counters and points its binding at it.
     void prepare_counters(std::size_t pixels);
     // The dispatch time recorded in timestamp pair `pair` (-1 without timestamp queries);
@@ -489,17 +491,19 @@ void Raymarcher::Impl::bind_block_min(Buffer table, bool coarse_now, bool shared
     write_set();
 }
 
-VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count, bool shadows) {
+VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count, bool shadows, bool one_slab) {
     const std::uint32_t code = metric_code(which);
-    Owned<VkPipeline>& slot = pipelines[code][count ? 1 : 0][shadows ? 1 : 0];
+    Owned<VkPipeline>& slot = pipelines[code][count ? 1 : 0][shadows ? 1 : 0][one_slab ? 1 : 0];
     if (slot) {
         return slot.get();
     }
-    const Specialization data{code, count ? VK_TRUE : VK_FALSE, shadows ? VK_TRUE : VK_FALSE};
-    const std::array<VkSpecializationMapEntry, 3> entries = {
+    const auto flag = [](bool b) { return b ? VkBool32{VK_TRUE} : VkBool32{VK_FALSE}; };
+    const Specialization data{code, flag(count), flag(shadows), flag(one_slab)};
+    const std::array<VkSpecializationMapEntry, 4> entries = {
         VkSpecializationMapEntry{0, offsetof(Specialization, metric), sizeof data.metric},
         VkSpecializationMapEntry{1, offsetof(Specialization, count), sizeof data.count},
-        VkSpecializationMapEntry{2, offsetof(Specialization, shadows), sizeof data.shadows}};
+        VkSpecializationMapEntry{2, offsetof(Specialization, shadows), sizeof data.shadows},
+        VkSpecializationMapEntry{3, offsetof(Specialization, one_slab), sizeof data.one_slab}};
     VkSpecializationInfo spec{};
     spec.mapEntryCount = static_cast<std::uint32_t>(entries.size());
     spec.pMapEntries = entries.data();
@@ -518,7 +522,7 @@ VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count, bool shadows
     check(vkCreateComputePipelines(dev, VK_NULL_HANDLE, 1, &cp, nullptr, &pipeline),
           "vkCreateComputePipelines",
           "raymarch.comp, " + to_string(which) + (count ? ", counting" : "") +
-              (shadows ? ", shadows" : ""));
+              (shadows ? ", shadows" : "") + (one_slab ? ", one binding" : ""));
     slot = Owned<VkPipeline>(dev, pipeline, vkDestroyPipeline);
     return pipeline;
 }
@@ -725,7 +729,8 @@ std::uint32_t Raymarcher::Impl::record(VkCommandBuffer cmd, const RenderOptions&
     if (o.count) {
         m.prepare_counters(std::size_t{o.width} * o.height);
     }
-    const VkPipeline pipeline = m.pipeline_for(m.metric, o.count, o.shading == Shading::lit);
+    const VkPipeline pipeline =
+        m.pipeline_for(m.metric, o.count, o.shading == Shading::lit, m.layout.slabs <= 1);
     const VkImage image_handle = m.target.image.get();
 
     PushConstants pc{};
