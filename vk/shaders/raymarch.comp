@@ -20,6 +20,9 @@ layout(constant_id = 2) const bool kShadows = true;
 // Whether the field lies in one binding (slab 0): then a fetch needs neither the division that
 // finds a cell's slab nor the switch over the bindings, which CPU drivers run lane by lane.
 layout(constant_id = 3) const bool kOneSlab = false;
+// Whether the field is compact (16 bits per cell) rather than packed32 with material bytes at
+// VF_RAYMARCH_BINDING_MATERIAL.
+layout(constant_id = 4) const bool kCompact = true;
 
 // One RGBA8 pixel per texel, r | g << 8 | b << 16 | a << 24 (bytes R, G, B, A in memory), so
 // flat colours are written bit-exactly (no float -> unorm rounding).
@@ -37,7 +40,7 @@ layout(std430, binding = VF_RAYMARCH_BINDING_BLOCK_MIN) readonly buffer BlockMin
 // The field is split along z into slabs of pc.dims.w slices, one binding each, so that no
 // binding exceeds maxStorageBufferRange. Unused bindings alias slab 0 and are never read.
 // packed32: materials (the world's voxel bytes, four per word, same slabs) sit beside the
-// field. compact (VF_RAYMARCH_FLAG_COMPACT): 16 bits per voxel, two per word, distance and
+// field. compact (kCompact): 16 bits per voxel, two per word, distance and
 // material together; the material bindings alias field slab 0 and are never read.
 layout(std430, binding = VF_RAYMARCH_BINDING_FIELD + 0) readonly buffer F0 {
     uint f0[];
@@ -168,12 +171,11 @@ uvec2 locate(ivec3 c) {
     return uvec2(slab, i);
 }
 
-bool g_compact;
 
 // The field element of cell c: (distance << 8) | colour or material, in its low 16 bits.
 uint read_cell(ivec3 c) {
     uvec2 at = locate(c);
-    if (g_compact) {
+    if (kCompact) {
         return (read_field(at.x, at.y >> 1u) >> ((at.y & 1u) * 16u)) & 0xFFFFu;
     }
     return read_field(at.x, at.y);
@@ -385,7 +387,6 @@ void main() {
     }
     bool lit = (pc.image.z & VF_RAYMARCH_FLAG_LIT) != 0u;
     bool gradient = (pc.image.z & VF_RAYMARCH_FLAG_SKY_GRADIENT) != 0u;
-    g_compact = (pc.image.z & VF_RAYMARCH_FLAG_COMPACT) != 0u;
     bool coarse = (pc.image.z & VF_RAYMARCH_FLAG_BLOCK_MIN) != 0u;
     uvec3 blocks = (pc.dims.xyz + uvec3(VF_RAYMARCH_BLOCK - 1)) / uvec3(VF_RAYMARCH_BLOCK);
 
@@ -407,7 +408,7 @@ void main() {
     uint colour;
     if (hit) {
         uint material;
-        if (g_compact) {
+        if (kCompact) {
             material = read_cell(cell) & VF_COMPACT_MATERIAL_MASK;
         } else {
             uvec2 at = locate(cell);

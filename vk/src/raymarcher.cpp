@@ -43,13 +43,14 @@ constexpr VkBufferUsageFlags kTableUsage =
 
 // raymarch.comp's specialization constants: constant_id 0 the metric (kManhattan,
 // kChebyshev, kEuclidean = 0, 1, 2), constant_id 1 whether rays count, constant_id 2 whether
-// lit shading marches shadow rays, constant_id 3 whether the field lies in one binding
-// (VkBool32s).
+// lit shading marches shadow rays, constant_id 3 whether the field lies in one binding,
+// constant_id 4 whether it is compact (VkBool32s).
 struct Specialization {
     std::uint32_t metric;
     VkBool32 count;
     VkBool32 shadows;
     VkBool32 one_slab;
+    VkBool32 compact;
 };
 constexpr std::size_t kMetrics = 3;
 // Timestamp pairs used in turn by recorded ray marches (more than the frames that can be in
@@ -167,9 +168,10 @@ struct Raymarcher::Impl {
     Owned<VkDescriptorSetLayout> set_layout;
     Owned<VkPipelineLayout> pipeline_layout;
     Owned<VkShaderModule> shader;
-    // One pipeline per metric, without and with counting, for flat and lit shading (shadow
-    // rays), for fields in one binding or several; built on first use.
-    std::array<std::array<std::array<std::array<Owned<VkPipeline>, 2>, 2>, 2>, kMetrics> pipelines;
+    // One pipeline per metric and combination of the specialization flags (bits 0..3 of its
+    // index among the metric's 16: counting, shadow rays, one binding, compact), built on first
+    // use.
+    std::array<Owned<VkPipeline>, kMetrics * 16> pipelines;
     // The descriptor set, in a pool of its own: when the bindings change while work that uses
     // the set may be in flight, the pool is retired and a fresh set written.
     Owned<VkDescriptorPool> pool;
@@ -221,7 +223,7 @@ struct Raymarcher::Impl {
     // use), with every binding written.
     void write_set();
     // The pipeline of `metric`, with or without counting (built when first asked for).
-    VkPipeline pipeline_for(Metric metric, bool count, bool shadows, bool one_slab);
+    VkPipeline pipeline_for(Metric metric, bool count, bool shadows, bool one_slab, bool compact);
     // Makes `counters` hold at least `pixels` counters and points its binding at it.
     void prepare_counters(std::size_t pixels);
     // The dispatch time recorded in timestamp pair `pair` (-1 without timestamp queries);
@@ -491,19 +493,23 @@ void Raymarcher::Impl::bind_block_min(Buffer table, bool coarse_now, bool shared
     write_set();
 }
 
-VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count, bool shadows, bool one_slab) {
+VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count, bool shadows, bool one_slab,
+                                          bool compact) {
     const std::uint32_t code = metric_code(which);
-    Owned<VkPipeline>& slot = pipelines[code][count ? 1 : 0][shadows ? 1 : 0][one_slab ? 1 : 0];
+    const std::size_t flags =
+        (count ? 1u : 0u) | (shadows ? 2u : 0u) | (one_slab ? 4u : 0u) | (compact ? 8u : 0u);
+    Owned<VkPipeline>& slot = pipelines[code * 16 + flags];
     if (slot) {
         return slot.get();
     }
     const auto flag = [](bool b) { return b ? VkBool32{VK_TRUE} : VkBool32{VK_FALSE}; };
-    const Specialization data{code, flag(count), flag(shadows), flag(one_slab)};
-    const std::array<VkSpecializationMapEntry, 4> entries = {
+    const Specialization data{code, flag(count), flag(shadows), flag(one_slab), flag(compact)};
+    const std::array<VkSpecializationMapEntry, 5> entries = {
         VkSpecializationMapEntry{0, offsetof(Specialization, metric), sizeof data.metric},
         VkSpecializationMapEntry{1, offsetof(Specialization, count), sizeof data.count},
         VkSpecializationMapEntry{2, offsetof(Specialization, shadows), sizeof data.shadows},
-        VkSpecializationMapEntry{3, offsetof(Specialization, one_slab), sizeof data.one_slab}};
+        VkSpecializationMapEntry{3, offsetof(Specialization, one_slab), sizeof data.one_slab},
+        VkSpecializationMapEntry{4, offsetof(Specialization, compact), sizeof data.compact}};
     VkSpecializationInfo spec{};
     spec.mapEntryCount = static_cast<std::uint32_t>(entries.size());
     spec.pMapEntries = entries.data();
@@ -522,7 +528,8 @@ VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count, bool shadows
     check(vkCreateComputePipelines(dev, VK_NULL_HANDLE, 1, &cp, nullptr, &pipeline),
           "vkCreateComputePipelines",
           "raymarch.comp, " + to_string(which) + (count ? ", counting" : "") +
-              (shadows ? ", shadows" : "") + (one_slab ? ", one binding" : ""));
+              (shadows ? ", shadows" : "") + (one_slab ? ", one binding" : "") +
+              (compact ? ", compact" : ", packed32"));
     slot = Owned<VkPipeline>(dev, pipeline, vkDestroyPipeline);
     return pipeline;
 }
@@ -730,7 +737,8 @@ std::uint32_t Raymarcher::Impl::record(VkCommandBuffer cmd, const RenderOptions&
         m.prepare_counters(std::size_t{o.width} * o.height);
     }
     const VkPipeline pipeline =
-        m.pipeline_for(m.metric, o.count, o.shading == Shading::lit, m.layout.slabs <= 1);
+        m.pipeline_for(m.metric, o.count, o.shading == Shading::lit, m.layout.slabs <= 1,
+                       m.layout.format == FieldFormat::compact);
     const VkImage image_handle = m.target.image.get();
 
     PushConstants pc{};
@@ -747,7 +755,6 @@ std::uint32_t Raymarcher::Impl::record(VkCommandBuffer cmd, const RenderOptions&
     pc.image[2] =
         (o.shading == Shading::lit ? VF_RAYMARCH_FLAG_LIT : 0u) |
         (o.shading == Shading::lit && o.sky_gradient ? VF_RAYMARCH_FLAG_SKY_GRADIENT : 0u) |
-        (m.layout.format == FieldFormat::compact ? VF_RAYMARCH_FLAG_COMPACT : 0u) |
         (m.coarse ? VF_RAYMARCH_FLAG_BLOCK_MIN : 0u) | (o.bgra ? VF_RAYMARCH_FLAG_BGRA : 0u);
     pc.image[3] = pack(o.sky);
 

@@ -35,8 +35,6 @@
 /* Ray marcher flags (push constant): lit shading, sky gradient instead of a flat colour. */
 #define VF_RAYMARCH_FLAG_LIT 1u
 #define VF_RAYMARCH_FLAG_SKY_GRADIENT 2u
-/* The field is compact (else packed32 with material bytes at VF_RAYMARCH_BINDING_MATERIAL). */
-#define VF_RAYMARCH_FLAG_COMPACT 4u
 /* Coarse skipping: the block-minimum binding holds, per block of VF_RAYMARCH_BLOCK^3 voxels
  * (x fastest over ceil(dims / VF_RAYMARCH_BLOCK)), the minimum of the unsaturated distance
  * over the block (in the field's metric); a lower bound for every voxel in it, used where the
