@@ -299,9 +299,10 @@ bool march(vec3 o, vec3 dir, out ivec3 cell, out ivec3 face, out vec3 point, ino
                 if (cell != entry) {
                     // Entered through the face it stepped across: that boundary plane's t,
                     // from the same expression t_next held for it.
-                    int a = face.x != 0 ? 0 : (face.y != 0 ? 1 : 2);
-                    float boundary = float(cell[a] + max(-stp[a], 0));
-                    point = start + dir * ((boundary - start[a]) * inv[a]);
+                    // (Component selects, not a dynamic index: GPUs keep vectors in registers.)
+                    vec3 t_face = (vec3(cell + max(-stp, ivec3(0))) - start) * inv;
+                    float t = face.x != 0 ? t_face.x : (face.y != 0 ? t_face.y : t_face.z);
+                    point = start + dir * t;
                 } else {
                     point = start;
                 }
