@@ -115,7 +115,6 @@ TEST(Context, RetiredResourcesAreFreedOnlyAfterTheirFence) {
     // whatever is checked, until its fence signals; with nothing in flight retiring frees at
     // once.
     vk::Context& ctx = validated_vulkan();
-    const VkDevice dev = ctx.device();
     struct Probe {
         bool* freed;
         explicit Probe(bool* f) : freed(f) {}
@@ -131,35 +130,17 @@ TEST(Context, RetiredResourcesAreFreedOnlyAfterTheirFence) {
     ctx.retire(Probe(&at_once));
     EXPECT_TRUE(at_once);
 
-    VkEventCreateInfo ei{};
-    ei.sType = VK_STRUCTURE_TYPE_EVENT_CREATE_INFO;
-    VkEvent event = VK_NULL_HANDLE;
-    ASSERT_EQ(vkCreateEvent(dev, &ei, nullptr, &event), VK_SUCCESS);
-    VkCommandPoolCreateInfo pi{};
-    pi.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
-    pi.queueFamilyIndex = ctx.queue_family();
-    VkCommandPool pool = VK_NULL_HANDLE;
-    ASSERT_EQ(vkCreateCommandPool(dev, &pi, nullptr, &pool), VK_SUCCESS);
-    VkCommandBufferAllocateInfo ai{};
-    ai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
-    ai.commandPool = pool;
-    ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-    ai.commandBufferCount = 1;
-    VkCommandBuffer cmd = VK_NULL_HANDLE;
-    ASSERT_EQ(vkAllocateCommandBuffers(dev, &ai, &cmd), VK_SUCCESS);
+    HostGate gate(ctx, 1);
+    const VkCommandBuffer cmd = gate.cmd[0];
     const vk::Buffer target = ctx.make_buffer(16, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                               vk::MemoryIntent::device_local, "after the event");
     VkCommandBufferBeginInfo bi{};
     bi.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
     ASSERT_EQ(vkBeginCommandBuffer(cmd, &bi), VK_SUCCESS);
-    vkCmdWaitEvents(cmd, 1, &event, VK_PIPELINE_STAGE_HOST_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
-                    nullptr, 0, nullptr, 0, nullptr);
+    gate.record_wait(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT);
     vkCmdFillBuffer(cmd, target.get(), 0, VK_WHOLE_SIZE, 7);
     ASSERT_EQ(vkEndCommandBuffer(cmd), VK_SUCCESS);
-    VkFenceCreateInfo fi{};
-    fi.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
-    VkFence fence = VK_NULL_HANDLE;
-    ASSERT_EQ(vkCreateFence(dev, &fi, nullptr, &fence), VK_SUCCESS);
+    const VkFence fence = gate.fence[0];
     VkSubmitInfo si{};
     si.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
     si.commandBufferCount = 1;
@@ -173,15 +154,11 @@ TEST(Context, RetiredResourcesAreFreedOnlyAfterTheirFence) {
         EXPECT_EQ(ctx.retired_in_flight(), 1u);
         EXPECT_FALSE(freed) << "freed while its submission still runs";
     }
-    ASSERT_EQ(vkSetEvent(dev, event), VK_SUCCESS);
+    gate.open();
     ctx.wait(fence, "the event's submission");
     EXPECT_TRUE(freed);
     EXPECT_EQ(ctx.retired_in_flight(), 0u);
     EXPECT_FALSE(ctx.busy());
-    vkDestroyFence(dev, fence, nullptr);
-    vkFreeCommandBuffers(dev, pool, 1, &cmd);
-    vkDestroyCommandPool(dev, pool, nullptr);
-    vkDestroyEvent(dev, event, nullptr);
 }
 
 }  // namespace

@@ -1103,7 +1103,6 @@ TEST(RaymarchFrames, ReplacedResourcesAreRetiredUntilTheFrameFinished) {
     // field, palette and image size meanwhile must not free what the frame reads (validation
     // reports destroying it in use) but retire it until the frame's fence signalled.
     vk::Context& ctx = vulkan();
-    const VkDevice dev = ctx.device();
     const World world = make_scene("spheres", Dims{16, 16, 16}, 5);
     const auto field = compact_field(world, distances(world, Metric::manhattan));
     vk::Raymarcher marcher(ctx);
@@ -1113,36 +1112,16 @@ TEST(RaymarchFrames, ReplacedResourcesAreRetiredUntilTheFrameFinished) {
     ctx.wait_frames_in_flight();
     ASSERT_EQ(ctx.retired_in_flight(), 0u);
 
-    VkEventCreateInfo ei{};
-    ei.sType = VK_STRUCTURE_TYPE_EVENT_CREATE_INFO;
-    VkEvent event = VK_NULL_HANDLE;
-    ASSERT_EQ(vkCreateEvent(dev, &ei, nullptr, &event), VK_SUCCESS);
-    VkCommandPoolCreateInfo pi{};
-    pi.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
-    pi.queueFamilyIndex = ctx.queue_family();
-    VkCommandPool pool = VK_NULL_HANDLE;
-    ASSERT_EQ(vkCreateCommandPool(dev, &pi, nullptr, &pool), VK_SUCCESS);
-    VkCommandBufferAllocateInfo ai{};
-    ai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
-    ai.commandPool = pool;
-    ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-    ai.commandBufferCount = 3;
-    std::array<VkCommandBuffer, 3> cmd{};
-    ASSERT_EQ(vkAllocateCommandBuffers(dev, &ai, cmd.data()), VK_SUCCESS);
-    std::array<VkFence, 3> fence{};
-    for (VkFence& f : fence) {
-        VkFenceCreateInfo fi{};
-        fi.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
-        ASSERT_EQ(vkCreateFence(dev, &fi, nullptr, &f), VK_SUCCESS);
-    }
+    HostGate gate(ctx, 3);
+    const std::vector<VkCommandBuffer>& cmd = gate.cmd;
+    const std::vector<VkFence>& fence = gate.fence;
     const vk::Buffer out =
         ctx.make_buffer(VkDeviceSize{r.width} * r.height * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                         vk::MemoryIntent::readback, "frame");
     VkCommandBufferBeginInfo bi{};
     bi.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
     ASSERT_EQ(vkBeginCommandBuffer(cmd[0], &bi), VK_SUCCESS);
-    vkCmdWaitEvents(cmd[0], 1, &event, VK_PIPELINE_STAGE_HOST_BIT,
-                    VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, nullptr, 0, nullptr, 0, nullptr);
+    gate.record_wait(cmd[0], VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
     ASSERT_EQ(vkEndCommandBuffer(cmd[0]), VK_SUCCESS);
     ASSERT_EQ(vkBeginCommandBuffer(cmd[1], &bi), VK_SUCCESS);
     const VkImage image = marcher.record(cmd[1], r);
@@ -1182,7 +1161,7 @@ TEST(RaymarchFrames, ReplacedResourcesAreRetiredUntilTheFrameFinished) {
     ctx.submit(si, fence[2], "frame 2");
     EXPECT_GT(ctx.retired_in_flight(), retired) << "the old image was not retired";
     EXPECT_TRUE(ctx.busy());
-    ASSERT_EQ(vkSetEvent(dev, event), VK_SUCCESS);
+    gate.open();
     ctx.wait(fence[2], "frame 2");
     EXPECT_EQ(ctx.retired_in_flight(), 0u);
     EXPECT_FALSE(ctx.busy());
@@ -1193,12 +1172,6 @@ TEST(RaymarchFrames, ReplacedResourcesAreRetiredUntilTheFrameFinished) {
     }
     // The new field and palette, at another size, after the wait.
     EXPECT_EQ(marcher.render(smaller).width, 16u);
-    for (VkFence f : fence) {
-        vkDestroyFence(dev, f, nullptr);
-    }
-    vkFreeCommandBuffers(dev, pool, 3, cmd.data());
-    vkDestroyCommandPool(dev, pool, nullptr);
-    vkDestroyEvent(dev, event, nullptr);
 }
 
 INSTANTIATE_TEST_SUITE_P(Metrics, RaymarchMetric,

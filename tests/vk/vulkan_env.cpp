@@ -36,4 +36,45 @@ vk::Context& validated_vulkan() {
     return environment->context();
 }
 
+HostGate::HostGate(vk::Context& ctx, std::uint32_t count)
+    : device(ctx.device()), cmd(count), fence(count) {
+    VkEventCreateInfo ei{};
+    ei.sType = VK_STRUCTURE_TYPE_EVENT_CREATE_INFO;
+    vk::check(vkCreateEvent(device, &ei, nullptr, &event), "vkCreateEvent", "host gate");
+    VkCommandPoolCreateInfo pi{};
+    pi.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
+    pi.queueFamilyIndex = ctx.queue_family();
+    vk::check(vkCreateCommandPool(device, &pi, nullptr, &pool), "vkCreateCommandPool", "host gate");
+    VkCommandBufferAllocateInfo ai{};
+    ai.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
+    ai.commandPool = pool;
+    ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    ai.commandBufferCount = count;
+    vk::check(vkAllocateCommandBuffers(device, &ai, cmd.data()), "vkAllocateCommandBuffers",
+              "host gate");
+    for (VkFence& f : fence) {
+        VkFenceCreateInfo fi{};
+        fi.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
+        vk::check(vkCreateFence(device, &fi, nullptr, &f), "vkCreateFence", "host gate");
+    }
+}
+
+HostGate::~HostGate() {
+    for (VkFence f : fence) {
+        vkDestroyFence(device, f, nullptr);
+    }
+    vkFreeCommandBuffers(device, pool, static_cast<std::uint32_t>(cmd.size()), cmd.data());
+    vkDestroyCommandPool(device, pool, nullptr);
+    vkDestroyEvent(device, event, nullptr);
+}
+
+void HostGate::record_wait(VkCommandBuffer c, VkPipelineStageFlags stages) const {
+    vkCmdWaitEvents(c, 1, &event, VK_PIPELINE_STAGE_HOST_BIT, stages, 0, nullptr, 0, nullptr, 0,
+                    nullptr);
+}
+
+void HostGate::open() const {
+    vk::check(vkSetEvent(device, event), "vkSetEvent", "host gate");
+}
+
 }  // namespace voxfield::test

@@ -3,7 +3,9 @@
 // synchronisation validation included): every message fails the test that is running, and
 // the global test environment destroys the context after the last test, failing the run on
 // any message its destruction gives (objects still alive, work still in flight).
+#include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "voxfield/vk/context.hpp"
 
@@ -14,5 +16,24 @@ vk::Context& validated_vulkan();
 
 // A log whose every message fails the running test (for further contexts of a test).
 std::shared_ptr<vk::ValidationLog> failing_validation_log();
+
+// Work held in flight by the host: an event that command buffers wait for
+// (record_wait) until open() sets it, `count` primary command buffers and as many unsignalled
+// fences for their submissions. Destroyed in order after the caller waited for them.
+struct HostGate {
+    HostGate(vk::Context& ctx, std::uint32_t count);
+    ~HostGate();
+    HostGate(const HostGate&) = delete;
+    HostGate& operator=(const HostGate&) = delete;
+    // Records, into cmd, a wait for the event before `stages`.
+    void record_wait(VkCommandBuffer cmd, VkPipelineStageFlags stages) const;
+    void open() const;
+
+    VkDevice device;
+    VkEvent event = VK_NULL_HANDLE;
+    VkCommandPool pool = VK_NULL_HANDLE;
+    std::vector<VkCommandBuffer> cmd;
+    std::vector<VkFence> fence;
+};
 
 }  // namespace voxfield::test
