@@ -205,15 +205,17 @@ bool has_focus(ocl::Algorithm a) {
 
 // The overlay's algorithm combo lists algorithm_names() (DESIGN §4 order, which is not the
 // enum's): entries and algorithms are matched by name, never by the enum's value.
+// The position of `name` in a combo's entries (entries.size() when it is not one).
+int entry_of(const std::vector<std::string>& entries, const std::string& name) {
+    return static_cast<int>(std::find(entries.begin(), entries.end(), name) - entries.begin());
+}
+
 int algorithm_entry(ocl::Algorithm a) {
-    const auto& names = ocl::algorithm_names();
-    return static_cast<int>(std::find(names.begin(), names.end(), ocl::to_string(a)) -
-                            names.begin());
+    return entry_of(ocl::algorithm_names(), ocl::to_string(a));
 }
 
 int metric_entry(Metric m) {
-    const auto& names = metric_names();
-    return static_cast<int>(std::find(names.begin(), names.end(), to_string(m)) - names.begin());
+    return entry_of(metric_names(), to_string(m));
 }
 
 ocl::Algorithm entry_algorithm(int entry) {
@@ -666,8 +668,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                 metric_index = metric_entry(parse_metric(a.value));
                 script_regen = true;
             } else if (a.what == "scene") {
-                scene_index = static_cast<int>(std::find(scenes.begin(), scenes.end(), a.value) -
-                                               scenes.begin());
+                scene_index = entry_of(scenes, a.value);
                 script_new_scene = true;
             } else if (a.what == "shading") {
                 ropts.shading = a.value == "lit" ? vk::Shading::lit : vk::Shading::flat;
