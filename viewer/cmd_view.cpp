@@ -98,7 +98,7 @@ const char* const kHelp[][2] = {
     {"G", "--simulate: pause / run the sand and water (colour 2 is sand, 3 water)"},
     {"N", "--simulate, paused: one step"},
     {"F1", "this help"},
-    {"F2", "full panel (algorithm, scene, shading, palette) / compact overlay"},
+    {"F2", "full panel (algorithm, metric, scene, shading, palette) / compact overlay"},
     {"F12", "screenshot PNG (current folder; path printed)"},
     {"Esc", "quit"},
 };
