@@ -408,3 +408,172 @@ __kernel void finish(__global const GT* restrict g, __global const GT* restrict 
     idx[2 * count + i] = f == UINT_MAX ? -1 : (int)(f % X);
 #endif
 }
+
+// ---- GPU layout of the full transform: lower envelopes by bands in local memory ----
+//
+// For unit spacing without sign or indices, the y and z passes run cols_banded: a work-group
+// holds C adjacent lines (x fastest, so its loads and stores are coalesced) of n positions in
+// local memory, and K work-items per line each build the envelope of one band of about n / K
+// sites with Meijster's stack, kept as a doubly linked list over the sites (prv, nxt). The
+// bands are then merged pairwise in log2(K) rounds (the parallel banding of Cao, Tang, Mitra
+// & Tan, "Parallel banding algorithm to compute exact distance transform with the GPU",
+// 2010): where two lists meet, the left list's last site is dropped while Sep(its
+// predecessor, it) >= Sep(it, the right list's first site), and the right list's first while
+// Sep(left's last, it) >= Sep(it, its successor) — a dropped site is everywhere at least as
+// far as one of its neighbours, so the lists' minimum is kept. In the final list every site
+// owns the positions (Sep(predecessor, it), Sep(it, successor)], which the sites' work-items
+// write as owners; then every position's partial (or, in the last pass, its output value)
+// goes out. The first pass is exact_manhattan.cl's x_rows (the 1-D distance along x, 16 bits,
+// 0xFFFF where a row has no solid).
+
+#define LINK_NONE 0xFFFFu
+#define LINK_DEAD 0xFFFEu
+
+// Lines of n positions, element stride `stride`, line (x, o) starting at o * mstride + x,
+// x = group(0) * C + local(0), o = group(1). Input: `in16` (from16: the x pass's 1-D
+// distances) or `in`; output: partials to `gout`, or with `final` the output format to `out`.
+// Local arrays of n * C entries (position p of line c at p * C + c): gl (the sites'
+// partials), prv, nxt (the list; LINK_DEAD: not in it), owner; ends: 2 * C * K ints (each
+// band's or merged group's first and last site, -1 when it has none).
+__kernel void cols_banded(__global const ushort* restrict in16, __global const GT* restrict in,
+                          __global GT* restrict gout, __global OUT_T* restrict out,
+                          __global const uchar* restrict vox, __constant uchar* rgb, uint X,
+                          uint n, ulong stride, ulong mstride, uint from16, uint final,
+                          double dmax, __local GT* gl, __local ushort* prv, __local ushort* nxt,
+                          __local ushort* owner, __local int* ends) {
+    const uint C = (uint)get_local_size(0), K = (uint)get_local_size(1);
+    const uint c = (uint)get_local_id(0), k = (uint)get_local_id(1);
+    const uint x = (uint)get_group_id(0) * C + c;
+    const bool active = x < X;
+    const size_t base = (size_t)get_group_id(1) * mstride + x;
+    __local int* first = ends;
+    __local int* last = ends + C * K;
+    for (uint p = k; p < n; p += K) {
+        GT v = G_INF;
+        if (active) {
+            if (from16) {
+                const uint d = in16[base + p * stride];
+                v = d == 0xFFFFu ? G_INF : (METRIC == 2 ? d * d : d);
+            } else {
+                v = in[base + p * stride];
+            }
+        }
+        gl[p * C + c] = v;
+        nxt[p * C + c] = LINK_DEAD;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+
+    // The band's envelope: push every site with a target, after dropping the top while the
+    // new site makes it useless.
+    const int band = (int)((n + K - 1) / K);
+    const int u0 = min((int)k * band, (int)n), u1 = min(u0 + band, (int)n);
+    int bot = -1, top = -1;
+    for (int u = u0; u < u1; ++u) {
+        const GT gu = gl[u * C + c];
+        if (gu == G_INF) {
+            continue;
+        }
+        while (top != bot) {
+            const int below = prv[top * C + c];
+            const GT gt = gl[top * C + c];
+            if (sep(below, top, gl[below * C + c], gt, 1.0f) < sep(top, u, gt, gu, 1.0f)) {
+                break;
+            }
+            nxt[top * C + c] = LINK_DEAD;
+            top = below;
+        }
+        if (top < 0) {
+            bot = u;
+            prv[u * C + c] = LINK_NONE;
+        } else {
+            nxt[top * C + c] = (ushort)u;
+            prv[u * C + c] = (ushort)top;
+        }
+        nxt[u * C + c] = LINK_NONE;
+        top = u;
+    }
+    first[k * C + c] = bot;
+    last[k * C + c] = top;
+
+    // Merge the groups [k, k + span) and [k + span, k + 2 span) into the first.
+    for (uint span = 1; span < K; span <<= 1) {
+        barrier(CLK_LOCAL_MEM_FENCE);
+        if (k % (2 * span) == 0 && k + span < K) {
+            const int lb = first[k * C + c], rb = first[(k + span) * C + c];
+            const int rt = last[(k + span) * C + c];
+            if (lb < 0) {
+                first[k * C + c] = rb;
+                last[k * C + c] = rt;
+            } else if (rb >= 0) {
+                int l = last[k * C + c], r = rb;
+                for (;;) {
+                    const GT glv = gl[l * C + c], grv = gl[r * C + c];
+                    if (l != lb) {
+                        const int lp = prv[l * C + c];
+                        if (sep(lp, l, gl[lp * C + c], glv, 1.0f) >= sep(l, r, glv, grv, 1.0f)) {
+                            nxt[l * C + c] = LINK_DEAD;
+                            l = lp;
+                            continue;
+                        }
+                    }
+                    if (r != rt) {
+                        const int rn = nxt[r * C + c];
+                        if (sep(l, r, glv, grv, 1.0f) >= sep(r, rn, grv, gl[rn * C + c], 1.0f)) {
+                            nxt[r * C + c] = LINK_DEAD;
+                            r = rn;
+                            continue;
+                        }
+                    }
+                    break;
+                }
+                nxt[l * C + c] = (ushort)r;
+                prv[r * C + c] = (ushort)l;
+                last[k * C + c] = rt;
+            }
+        }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+
+    // Every site still in the list writes itself as the owner of its positions.
+    for (int e = u0; e < u1; ++e) {
+        const uint after = nxt[e * C + c];
+        if (after == LINK_DEAD) {
+            continue;
+        }
+        const uint before = prv[e * C + c];
+        const GT ge = gl[e * C + c];
+        const int lo = before == LINK_NONE
+                           ? 0
+                           : max(0, 1 + sep((int)before, e, gl[before * C + c], ge, 1.0f));
+        const int hi = after == LINK_NONE
+                           ? (int)n - 1
+                           : min((int)n - 1, sep(e, (int)after, ge, gl[after * C + c], 1.0f));
+        for (int p = lo; p <= hi; ++p) {
+            owner[p * C + c] = (ushort)e;
+        }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+
+    const bool none = first[c] < 0;
+    if (!active) {
+        return;
+    }
+    for (uint p = k; p < n; p += K) {
+        GT v = G_INF;
+        if (!none) {
+            const int e = owner[p * C + c];
+            v = fpart((int)p, e, gl[e * C + c], 1.0f);
+        }
+        const size_t i = base + p * stride;
+        if (final) {
+#if OUT_KIND == 4
+            const uchar cls = vox[i];
+#else
+            const uchar cls = 0;
+#endif
+            store(out, rgb, cls, i, min(distance_of(v), dmax));
+        } else {
+            gout[i] = v;
+        }
+    }
+}

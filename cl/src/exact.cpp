@@ -2,8 +2,10 @@
 #include "voxfield/cl/exact.hpp"
 
 #include "util.hpp"
+#include "x_rows.hpp"
 
 #include <algorithm>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -77,6 +79,57 @@ cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t
 }
 
 }  // namespace
+
+std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
+                                       const cl::Buffer& voxels, const cl::Buffer& work) {
+    const auto& info = ctx.info();
+    const WorkType wt = work_type(format);
+    const cl::Program base = build_program(ctx, format, 32, 1, Metric::manhattan);
+    const std::size_t rows = std::size_t{dims.y} * dims.z;
+    if (dims.x % 16 == 0) {
+        // x_rows_seg: 16 voxels per work-item (one aligned word), a row per line of the
+        // group, rows stacked to about 256 work-items per group.
+        cl::Kernel x_rows(base, "x_rows_seg");
+        const std::size_t limit = x_rows.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
+        const std::size_t segs = dims.x / 16;
+        const std::size_t group_rows =
+            std::max<std::size_t>(1, std::min<std::size_t>(256, limit) / segs);
+        const std::size_t local = group_rows * segs * wt.bytes;
+        if (segs <= limit && 2 * local <= info.local_mem) {
+            x_rows.setArg(0, voxels);
+            x_rows.setArg(1, work);
+            x_rows.setArg(2, dims.x);
+            x_rows.setArg(3, static_cast<cl_uint>(rows));
+            x_rows.setArg(4, cl::Local(local));
+            x_rows.setArg(5, cl::Local(local));
+            return KernelLaunch{"x_rows_seg", x_rows, cl::NDRange(segs, round_up(rows, group_rows)),
+                                cl::NDRange(segs, group_rows)};
+        }
+    }
+    // Ragged rows (or rows too long for x_rows_seg) in x_rows_local: about 16 voxels per
+    // work-item, up to 32 work-items per row, rows stacked to 256 work-items per group.
+    const std::size_t per_row = std::clamp<std::size_t>(next_pow2(dims.x) / 16, 1, 32);
+    cl::Kernel x_rows(base, "x_rows_local");
+    const std::size_t x_limit =
+        std::min<std::size_t>(256, x_rows.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device));
+    const std::size_t group_rows = std::max<std::size_t>(1, x_limit / per_row);
+    const std::size_t span = dims.x + dims.x / 32 + 1;
+    const std::size_t x_local_bytes = group_rows * (span * 5 + 2 * per_row * 4);
+    if (per_row > x_limit || x_local_bytes > info.local_mem) {
+        return std::nullopt;
+    }
+    x_rows.setArg(0, voxels);
+    x_rows.setArg(1, work);
+    x_rows.setArg(2, dims.x);
+    x_rows.setArg(3, static_cast<cl_uint>(rows));
+    x_rows.setArg(4, static_cast<cl_uint>(per_row));
+    x_rows.setArg(5, cl::Local(group_rows * span));
+    x_rows.setArg(6, cl::Local(group_rows * span * 4));
+    x_rows.setArg(7, cl::Local(group_rows * per_row * 4));
+    x_rows.setArg(8, cl::Local(group_rows * per_row * 4));
+    return KernelLaunch{"x_rows_local", x_rows, cl::NDRange(round_up(rows, group_rows) * per_row),
+                        cl::NDRange(group_rows * per_row)};
+}
 
 ExactManhattan::ExactManhattan(Context& ctx, Dims dims, const cl::Buffer& voxels,
                                const cl::Buffer& out, const Palette& palette, Format format,
@@ -202,7 +255,7 @@ void ExactManhattan::set_up_kernels() {
         // Columns of length len with element stride `stride`, lines of columns `m_count`
         // apart by `m_stride`; `final` writes the output format.
         auto columns = [&](std::uint32_t len, std::uint64_t stride, std::uint64_t m_stride,
-                           std::size_t m_count, bool final) -> Stage {
+                           std::size_t m_count, bool final) -> KernelLaunch {
             // Arguments 0-7 are common to cols_seg and cols_strip.
             auto column_kernel = [&](const cl::Program& source, const char* name) {
                 cl::Kernel kernel(source, name);
@@ -267,54 +320,9 @@ void ExactManhattan::set_up_kernels() {
         };
 
         bool rows_on_gpu = false;
-        const std::size_t rows = std::size_t{dims_.y} * dims_.z;
-        if (gpu_layout_ && dims_.x % 16 == 0) {
-            // x_rows_seg: 16 voxels per work-item (one aligned word), a row per line of the
-            // group, rows stacked to about 256 work-items per group.
-            cl::Kernel x_rows(base, "x_rows_seg");
-            const std::size_t limit =
-                x_rows.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
-            const std::size_t segs = dims_.x / 16;
-            const std::size_t group_rows =
-                std::max<std::size_t>(1, std::min<std::size_t>(256, limit) / segs);
-            const std::size_t local = group_rows * segs * wt.bytes;
-            if (segs <= limit && 2 * local <= info.local_mem) {
-                x_rows.setArg(0, voxels_);
-                x_rows.setArg(1, work_);
-                x_rows.setArg(2, dims_.x);
-                x_rows.setArg(3, static_cast<cl_uint>(rows));
-                x_rows.setArg(4, cl::Local(local));
-                x_rows.setArg(5, cl::Local(local));
-                stages_.push_back({"x_rows_seg", x_rows,
-                                   cl::NDRange(segs, round_up(rows, group_rows)),
-                                   cl::NDRange(segs, group_rows)});
-                stages_.push_back(columns(dims_.y, dims_.x, plane, dims_.z, false));
-                rows_on_gpu = true;
-            }
-        }
-        // Ragged rows (or rows too long for x_rows_seg) in x_rows_local: about 16 voxels per
-        // work-item, up to 32 work-items per row, rows stacked to 256 work-items per group.
-        if (gpu_layout_ && !rows_on_gpu) {
-            const std::size_t per_row = std::clamp<std::size_t>(next_pow2(dims_.x) / 16, 1, 32);
-            cl::Kernel x_rows(base, "x_rows_local");
-            const std::size_t x_limit = std::min<std::size_t>(
-                256, x_rows.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device));
-            const std::size_t group_rows = std::max<std::size_t>(1, x_limit / per_row);
-            const std::size_t span = dims_.x + dims_.x / 32 + 1;
-            const std::size_t x_local_bytes = group_rows * (span * 5 + 2 * per_row * 4);
-            if (per_row <= x_limit && x_local_bytes <= info.local_mem) {
-                x_rows.setArg(0, voxels_);
-                x_rows.setArg(1, work_);
-                x_rows.setArg(2, dims_.x);
-                x_rows.setArg(3, static_cast<cl_uint>(rows));
-                x_rows.setArg(4, static_cast<cl_uint>(per_row));
-                x_rows.setArg(5, cl::Local(group_rows * span));
-                x_rows.setArg(6, cl::Local(group_rows * span * 4));
-                x_rows.setArg(7, cl::Local(group_rows * per_row * 4));
-                x_rows.setArg(8, cl::Local(group_rows * per_row * 4));
-                stages_.push_back({"x_rows_local", x_rows,
-                                   cl::NDRange(round_up(rows, group_rows) * per_row),
-                                   cl::NDRange(group_rows * per_row)});
+        if (gpu_layout_) {
+            if (auto rows = gpu_x_rows(ctx_, dims_, format_, voxels_, work_)) {
+                stages_.push_back(*rows);
                 stages_.push_back(columns(dims_.y, dims_.x, plane, dims_.z, false));
                 rows_on_gpu = true;
             }
@@ -372,7 +380,7 @@ double ExactManhattan::run() {
     return cl_call("running exact_manhattan.cl on " + dims_.to_string(), [&] {
         auto& q = ctx_.queue();
         std::vector<std::pair<std::string, cl::Event>> events;
-        for (const Stage& stage : stages_) {
+        for (const KernelLaunch& stage : stages_) {
             events.emplace_back(stage.name, cl::Event());
             q.enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global, stage.local, nullptr,
                                    &events.back().second);

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "util.hpp"
+#include "x_rows.hpp"
 
 namespace voxfield::cl_sources {
 extern const char* const layout_h;
@@ -201,17 +202,82 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
 
     cl_call("setting up kernels, " + sizes, [&] {
         const Box all{{0, 0, 0}, {X, Y, Z}};
+        if (banded_lines(Y) != 0 && banded_lines(Z) != 0 && !incremental && unit &&
+            !options.signed_field && !options.indices && X < 0xFFFF && Y < kLinkLimit &&
+            Z < kLinkLimit) {
+            if (auto rows = gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0])) {
+                stages_.push_back(*rows);
+                stages_.push_back(banded_kernel(1, Y, X, std::size_t{X} * Y, Z, false));
+                stages_.push_back(banded_kernel(2, Z, std::size_t{X} * Y, X, Y, true));
+                banded_ = true;
+                return;
+            }
+        }
         const cl::Buffer none;
         const Span xs{0, X}, ys{0, Y}, zs{0, Z};
-        stages_.push_back({"x_pass", x_kernel(all, xs, none), x_items(all)});
+        stages_.push_back(items_launch("x_pass", x_kernel(all, xs, none), x_items(all)));
         // Full transforms reuse the x pass's buffer for the z pass; incremental ones keep all.
         const int last = incremental ? 2 : 0;
-        stages_.push_back({"y_pass", col_kernel(1, 0, 1, xs, zs, ys, ys, none, none),
-                           col_items(std::size_t{X} * Z, xs)});
-        stages_.push_back({"z_pass", col_kernel(2, 1, last, xs, ys, zs, zs, none, none),
-                           col_items(std::size_t{X} * Y, xs)});
-        stages_.push_back({"finish", finish_kernel(last, all), 0});
+        stages_.push_back(items_launch("y_pass", col_kernel(1, 0, 1, xs, zs, ys, ys, none, none),
+                                       col_items(std::size_t{X} * Z, xs)));
+        stages_.push_back(items_launch("z_pass", col_kernel(2, 1, last, xs, ys, zs, zs, none, none),
+                                       col_items(std::size_t{X} * Y, xs)));
+        stages_.push_back({"finish", finish_kernel(last, all), cl::NDRange(round_up(X, 64), Y, Z),
+                           cl::NDRange(64, 1, 1)});
     });
+}
+
+std::uint32_t ExactSeparable::banded_lines(std::uint32_t n) const {
+    if (!gpu_layout_) {
+        return 0;
+    }
+    for (std::uint32_t c = kBandedGroup / 8; c >= 1; c /= 2) {
+        if (banded_local_bytes(n, c) <= ctx_.info().local_mem) {
+            return c;
+        }
+    }
+    return 0;
+}
+
+std::size_t ExactSeparable::banded_local_bytes(std::uint32_t n, std::uint32_t lines) {
+    // gl (4 bytes), prv, nxt, owner (2 each) per position and line; first and last per band.
+    return std::size_t{n} * lines * 10 + 2 * std::size_t{kBandedGroup} * 4;
+}
+
+KernelLaunch ExactSeparable::items_launch(const char* name, const cl::Kernel& k,
+                                          std::size_t items) const {
+    const std::size_t local = gpu_layout_ ? 64 : 1;
+    return {name, k, cl::NDRange(round_up(items, local)), cl::NDRange(local)};
+}
+
+KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint64_t stride,
+                                           std::uint64_t mstride, std::uint32_t lines_o,
+                                           bool final) {
+    const std::uint32_t c = banded_lines(n);
+    const std::uint32_t k = kBandedGroup / c;
+    cl::Kernel kernel(program_, "cols_banded");
+    const bool y = axis == 1;
+    kernel.setArg(0, g_[y ? 0 : 1]);
+    kernel.setArg(1, g_[y ? 0 : 1]);
+    kernel.setArg(2, g_[y ? 1 : 0]);
+    kernel.setArg(3, out_);
+    kernel.setArg(4, voxels_);
+    kernel.setArg(5, rgb_);
+    kernel.setArg(6, dims_.x);
+    kernel.setArg(7, n);
+    kernel.setArg(8, static_cast<cl_ulong>(stride));
+    kernel.setArg(9, static_cast<cl_ulong>(mstride));
+    kernel.setArg(10, cl_uint{y ? 1u : 0u});
+    kernel.setArg(11, cl_uint{final ? 1u : 0u});
+    kernel.setArg(12, max_distance_);
+    const std::size_t cells = std::size_t{n} * c;
+    kernel.setArg(13, cl::Local(cells * 4));
+    kernel.setArg(14, cl::Local(cells * 2));
+    kernel.setArg(15, cl::Local(cells * 2));
+    kernel.setArg(16, cl::Local(cells * 2));
+    kernel.setArg(17, cl::Local(std::size_t{2} * kBandedGroup * 4));
+    return {y ? "y_banded" : "z_banded", kernel,
+            cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * k), cl::NDRange(c, k)};
 }
 
 std::size_t ExactSeparable::x_items(const Box& rows) const {
@@ -340,21 +406,17 @@ void ExactSeparable::enqueue_voxels(const cl::Kernel& k, const Box& b, cl::Event
 }
 
 std::string ExactSeparable::variant() const {
-    return gpu_layout_ ? "gpu layout" : "cpu layout";
+    return !gpu_layout_ ? "cpu layout" : banded_ ? "gpu layout, banded" : "gpu layout";
 }
 
 double ExactSeparable::run() {
     return cl_call("running exact_separable.cl on " + dims_.to_string(), [&] {
         auto& q = ctx_.queue();
         std::vector<std::pair<std::string, cl::Event>> events;
-        for (const Stage& stage : stages_) {
+        for (const KernelLaunch& stage : stages_) {
             events.emplace_back(stage.name, cl::Event());
-            if (stage.items == 0) {
-                enqueue_voxels(stage.kernel, Box{{0, 0, 0}, {dims_.x, dims_.y, dims_.z}},
-                               &events.back().second);
-            } else {
-                enqueue(stage.kernel, stage.items, &events.back().second);
-            }
+            q.enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global, stage.local, nullptr,
+                                   &events.back().second);
         }
         q.finish();
         record_stages(events);

@@ -60,12 +60,7 @@ class ExactManhattan : public Generator {
     Metric metric_;
     cl::Buffer voxels_, rgb_, work_;
     // The kernels of one transform, in enqueue order.
-    struct Stage {
-        std::string name;
-        cl::Kernel kernel;
-        cl::NDRange global, local;
-    };
-    std::vector<Stage> stages_;
+    std::vector<KernelLaunch> stages_;
 };
 
 }  // namespace voxfield::ocl

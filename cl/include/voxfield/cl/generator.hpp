@@ -81,6 +81,13 @@ GeneratorOptions resolve_options(const GeneratorOptions& options, Dims world);
 // global or chunk-local by options.chunk. Unsaturated, kInfinite where nothing is reached.
 std::vector<std::uint32_t> exact_reference(const World& world, const GeneratorOptions& options);
 
+// One kernel launch of a generator's run(): its name (per-kernel timings) and its ranges.
+struct KernelLaunch {
+    std::string name;
+    cl::Kernel kernel;
+    cl::NDRange global, local;
+};
+
 // A world resident on the device with its output buffer, transformed any number of times
 // (benchmarks repeat run() without re-uploading).
 class Generator {

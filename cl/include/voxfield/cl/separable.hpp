@@ -54,11 +54,19 @@ class ExactSeparable : public Generator {
     void set_up(const std::uint8_t* voxels, bool in_place, std::span<std::uint8_t> field,
                 const Palette& palette, const GeneratorOptions& options);
 
-    struct Stage {
-        std::string name;
-        cl::Kernel kernel;
-        std::size_t items;  // work-items that do work; 0: one per voxel of the world
-    };
+    // One work-group of cols_banded: kBandedGroup work-items, `banded_lines(n)` lines of n
+    // positions (0: lines of n do not fit the local memory); its sites are 16-bit list links
+    // below kLinkLimit.
+    static constexpr std::uint32_t kBandedGroup = 256;
+    static constexpr std::uint32_t kLinkLimit = 0xFFFE;
+    std::uint32_t banded_lines(std::uint32_t n) const;
+    static std::size_t banded_local_bytes(std::uint32_t n, std::uint32_t lines);
+    // The banded y (axis 1) or z (axis 2) pass over lines of n positions `stride` apart, line
+    // starts x + o * mstride for the lines_o values of o; `final` writes the output format.
+    KernelLaunch banded_kernel(int axis, std::uint32_t n, std::uint64_t stride,
+                               std::uint64_t mstride, std::uint32_t lines_o, bool final);
+    // A launch of `items` work-items (rounded up to the layout's work-group size).
+    KernelLaunch items_launch(const char* name, const cl::Kernel& k, std::size_t items) const;
     void enqueue(const cl::Kernel& k, std::size_t items, cl::Event* event);
     // One work-item per voxel of `b` (finish).
     void enqueue_voxels(const cl::Kernel& k, const Box& b, cl::Event* event);
@@ -77,6 +85,7 @@ class ExactSeparable : public Generator {
     std::size_t col_items(std::size_t lines, Span xs) const;
 
     bool gpu_layout_;
+    bool banded_ = false;  // the full GPU transform by cols_banded
     bool incremental_;
     Spacing spacing_;
     cl::Program program_;
@@ -94,7 +103,7 @@ class ExactSeparable : public Generator {
     cl_uint cap_unit_ = 0;
     float cap_float_ = 0;
     std::int64_t reach_[3] = {0, 0, 0};
-    std::vector<Stage> stages_;
+    std::vector<KernelLaunch> stages_;
 };
 
 }  // namespace voxfield::ocl
