@@ -77,7 +77,17 @@ inline int sep(int i, int u, GT gi, GT gu, float s) {
     const int mid = floor_div(i + u, 2);
     return a <= b ? max(i + b, mid) : min(u - a, mid);
 #else
-    return floor_div(u * u - i * i + b - a, 2 * (u - i));
+    // floor(num / den) from a float quotient (off by at most one while |num| < 2^23), then
+    // corrected exactly: integer division by a variable is slow on GPUs.
+    const int num = u * u - i * i + b - a, den = 2 * (u - i);
+    int q = (int)floor((float)num / (float)den);
+    while (q * den > num) {
+        --q;
+    }
+    while ((q + 1) * den <= num) {
+        ++q;
+    }
+    return q;
 #endif
 #else
     const float fi = (float)i, fu = (float)u;
@@ -429,6 +439,10 @@ __kernel void finish(__global const GT* restrict g, __global const GT* restrict 
 #define LINK_NONE 0xFFFFu
 #define LINK_DEAD 0xFFFEu
 
+// Position p of line c in the local arrays: C extra entries after every band, so that the K
+// work-items of a warp walking their bands at the same offset hit different banks.
+#define LI(p) (((p) + (p) / band) * C + c)
+
 // Lines of n positions, element stride `stride`, line (x, o) starting at o * mstride + x,
 // x = group(0) * C + local(0), o = group(1). Input: `in16` (from16: the x pass's 1-D
 // distances) or `in`; output: partials to `gout`, or with `final` the output format to `out`.
@@ -446,6 +460,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     const uint x = (uint)get_group_id(0) * C + c;
     const bool active = x < X;
     const size_t base = (size_t)get_group_id(1) * mstride + x;
+    const int band = (int)((n + K - 1) / K);
     __local int* first = ends;
     __local int* last = ends + C * K;
     for (uint p = k; p < n; p += K) {
@@ -458,39 +473,43 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                 v = in[base + p * stride];
             }
         }
-        gl[p * C + c] = v;
-        nxt[p * C + c] = LINK_DEAD;
+        gl[LI(p)] = v;
+        nxt[LI(p)] = LINK_DEAD;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
 
     // The band's envelope: push every site with a target, after dropping the top while the
-    // new site makes it useless.
-    const int band = (int)((n + K - 1) / K);
+    // new site makes it useless. top_sep caches Sep(the site below the top, the top).
     const int u0 = min((int)k * band, (int)n), u1 = min(u0 + band, (int)n);
-    int bot = -1, top = -1;
+    int bot = -1, top = -1, top_sep = 0;
+    GT gt = G_INF;
     for (int u = u0; u < u1; ++u) {
-        const GT gu = gl[u * C + c];
+        const GT gu = gl[LI(u)];
         if (gu == G_INF) {
             continue;
         }
-        while (top != bot) {
-            const int below = prv[top * C + c];
-            const GT gt = gl[top * C + c];
-            if (sep(below, top, gl[below * C + c], gt, 1.0f) < sep(top, u, gt, gu, 1.0f)) {
+        int su = 0;
+        while (top >= 0) {
+            su = sep(top, u, gt, gu, 1.0f);
+            if (top == bot || top_sep < su) {
                 break;
             }
-            nxt[top * C + c] = LINK_DEAD;
-            top = below;
+            nxt[LI(top)] = LINK_DEAD;
+            top = prv[LI(top)];
+            gt = gl[LI(top)];
+            top_sep = top == bot ? 0 : sep(prv[LI(top)], top, gl[LI(prv[LI(top)])], gt, 1.0f);
         }
         if (top < 0) {
             bot = u;
-            prv[u * C + c] = LINK_NONE;
+            prv[LI(u)] = LINK_NONE;
         } else {
-            nxt[top * C + c] = (ushort)u;
-            prv[u * C + c] = (ushort)top;
+            nxt[LI(top)] = (ushort)u;
+            prv[LI(u)] = (ushort)top;
+            top_sep = su;
         }
-        nxt[u * C + c] = LINK_NONE;
+        nxt[LI(u)] = LINK_NONE;
         top = u;
+        gt = gu;
     }
     first[k * C + c] = bot;
     last[k * C + c] = top;
@@ -507,49 +526,53 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             } else if (rb >= 0) {
                 int l = last[k * C + c], r = rb;
                 for (;;) {
-                    const GT glv = gl[l * C + c], grv = gl[r * C + c];
+                    const GT glv = gl[LI(l)], grv = gl[LI(r)];
+                    const int slr = sep(l, r, glv, grv, 1.0f);
                     if (l != lb) {
-                        const int lp = prv[l * C + c];
-                        if (sep(lp, l, gl[lp * C + c], glv, 1.0f) >= sep(l, r, glv, grv, 1.0f)) {
-                            nxt[l * C + c] = LINK_DEAD;
+                        const int lp = prv[LI(l)];
+                        if (sep(lp, l, gl[LI(lp)], glv, 1.0f) >= slr) {
+                            nxt[LI(l)] = LINK_DEAD;
                             l = lp;
                             continue;
                         }
                     }
                     if (r != rt) {
-                        const int rn = nxt[r * C + c];
-                        if (sep(l, r, glv, grv, 1.0f) >= sep(r, rn, grv, gl[rn * C + c], 1.0f)) {
-                            nxt[r * C + c] = LINK_DEAD;
+                        const int rn = nxt[LI(r)];
+                        if (slr >= sep(r, rn, grv, gl[LI(rn)], 1.0f)) {
+                            nxt[LI(r)] = LINK_DEAD;
                             r = rn;
                             continue;
                         }
                     }
                     break;
                 }
-                nxt[l * C + c] = (ushort)r;
-                prv[r * C + c] = (ushort)l;
+                nxt[LI(l)] = (ushort)r;
+                prv[LI(r)] = (ushort)l;
                 last[k * C + c] = rt;
             }
         }
     }
     barrier(CLK_LOCAL_MEM_FENCE);
 
-    // Every site still in the list writes itself as the owner of its positions.
+    // Every site still in the list writes itself as the owner of its positions
+    // (Sep(predecessor, it), Sep(it, successor)]; `hi` carries the previous site's end when
+    // that site is the predecessor.
+    int prev = -1, hi = -1;
     for (int e = u0; e < u1; ++e) {
-        const uint after = nxt[e * C + c];
+        const uint after = nxt[LI(e)];
         if (after == LINK_DEAD) {
             continue;
         }
-        const uint before = prv[e * C + c];
-        const GT ge = gl[e * C + c];
-        const int lo = before == LINK_NONE
-                           ? 0
-                           : max(0, 1 + sep((int)before, e, gl[before * C + c], ge, 1.0f));
-        const int hi = after == LINK_NONE
-                           ? (int)n - 1
-                           : min((int)n - 1, sep(e, (int)after, ge, gl[after * C + c], 1.0f));
-        for (int p = lo; p <= hi; ++p) {
-            owner[p * C + c] = (ushort)e;
+        const uint before = prv[LI(e)];
+        const GT ge = gl[LI(e)];
+        const int lo = before == LINK_NONE ? 0
+                       : (int)before == prev
+                           ? hi + 1
+                           : 1 + sep((int)before, e, gl[LI((int)before)], ge, 1.0f);
+        hi = after == LINK_NONE ? (int)n - 1 : sep(e, (int)after, ge, gl[LI((int)after)], 1.0f);
+        prev = e;
+        for (int p = max(lo, 0); p <= min(hi, (int)n - 1); ++p) {
+            owner[LI(p)] = (ushort)e;
         }
     }
     barrier(CLK_LOCAL_MEM_FENCE);
@@ -561,8 +584,8 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     for (uint p = k; p < n; p += K) {
         GT v = G_INF;
         if (!none) {
-            const int e = owner[p * C + c];
-            v = fpart((int)p, e, gl[e * C + c], 1.0f);
+            const int e = owner[LI((int)p)];
+            v = fpart((int)p, e, gl[LI(e)], 1.0f);
         }
         const size_t i = base + p * stride;
         if (final) {

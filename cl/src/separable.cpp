@@ -240,8 +240,13 @@ std::uint32_t ExactSeparable::banded_lines(std::uint32_t n) const {
 }
 
 std::size_t ExactSeparable::banded_local_bytes(std::uint32_t n, std::uint32_t lines) {
-    // gl (4 bytes), prv, nxt, owner (2 each) per position and line; first and last per band.
-    return std::size_t{n} * lines * 10 + 2 * std::size_t{kBandedGroup} * 4;
+    // gl (4 bytes), prv, nxt, owner (2 each) per position and line, with one padding position
+    // per band (LI in the kernel); first and last per band.
+    return banded_cells(n, lines) * 10 + 2 * std::size_t{kBandedGroup} * 4;
+}
+
+std::size_t ExactSeparable::banded_cells(std::uint32_t n, std::uint32_t lines) {
+    return (std::size_t{n} + kBandedGroup / lines) * lines;
 }
 
 KernelLaunch ExactSeparable::items_launch(const char* name, const cl::Kernel& k,
@@ -270,7 +275,7 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint6
     kernel.setArg(10, cl_uint{y ? 1u : 0u});
     kernel.setArg(11, cl_uint{final ? 1u : 0u});
     kernel.setArg(12, max_distance_);
-    const std::size_t cells = std::size_t{n} * c;
+    const std::size_t cells = banded_cells(n, c);
     kernel.setArg(13, cl::Local(cells * 4));
     kernel.setArg(14, cl::Local(cells * 2));
     kernel.setArg(15, cl::Local(cells * 2));

@@ -61,6 +61,7 @@ class ExactSeparable : public Generator {
     static constexpr std::uint32_t kLinkLimit = 0xFFFE;
     std::uint32_t banded_lines(std::uint32_t n) const;
     static std::size_t banded_local_bytes(std::uint32_t n, std::uint32_t lines);
+    static std::size_t banded_cells(std::uint32_t n, std::uint32_t lines);  // per local array
     // The banded y (axis 1) or z (axis 2) pass over lines of n positions `stride` apart, line
     // starts x + o * mstride for the lines_o values of o; `final` writes the output format.
     KernelLaunch banded_kernel(int axis, std::uint32_t n, std::uint64_t stride,
