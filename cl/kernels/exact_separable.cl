@@ -439,9 +439,10 @@ __kernel void finish(__global const GT* restrict g, __global const GT* restrict 
 #define LINK_NONE 0xFFFFu
 #define LINK_DEAD 0xFFFEu
 
-// Position p of line c in the local arrays: C extra entries after every band, so that the K
-// work-items of a warp walking their bands at the same offset hit different banks.
-#define LI(p) (((p) + (p) / band) * C + c)
+// Position p of line c in the local arrays: C extra entries after every 16 positions, so that
+// the work-items of a warp walking bands of 16 at the same offset hit different banks (a
+// shift, not a division by the band: GPUs divide by a variable slowly).
+#define LI(p) (((p) + ((p) >> 4)) * C + c)
 
 // Lines of n positions, element stride `stride`, line (x, o) starting at o * mstride + x,
 // x = group(0) * C + local(0), o = group(1). Input: `in16` (from16: the x pass's 1-D
@@ -517,7 +518,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     // Merge the groups [k, k + span) and [k + span, k + 2 span) into the first.
     for (uint span = 1; span < K; span <<= 1) {
         barrier(CLK_LOCAL_MEM_FENCE);
-        if (k % (2 * span) == 0 && k + span < K) {
+        if ((k & (2 * span - 1)) == 0 && k + span < K) {
             const int lb = first[k * C + c], rb = first[(k + span) * C + c];
             const int rt = last[(k + span) * C + c];
             if (lb < 0) {
