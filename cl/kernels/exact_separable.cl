@@ -439,10 +439,8 @@ __kernel void finish(__global const GT* restrict g, __global const GT* restrict 
 #define LINK_NONE 0xFFFFu
 #define LINK_DEAD 0xFFFEu
 
-// Position p of line c in the local arrays: C extra entries after every 16 positions, so that
-// the work-items of a warp walking bands of 16 at the same offset hit different banks (a
-// shift, not a division by the band: GPUs divide by a variable slowly).
-#define LI(p) (((p) + ((p) >> 4)) * C + c)
+// Position p of line c in the local arrays.
+#define LI(p) ((p) * C + c)
 
 // Lines of n positions, element stride `stride`, line (x, o) starting at o * mstride + x,
 // x = group(0) * C + local(0), o = group(1). Input: `in16` (from16: the x pass's 1-D

@@ -240,13 +240,12 @@ std::uint32_t ExactSeparable::banded_lines(std::uint32_t n) const {
 }
 
 std::size_t ExactSeparable::banded_local_bytes(std::uint32_t n, std::uint32_t lines) {
-    // gl (4 bytes), prv, nxt, owner (2 each) per position and line, with one padding position
-    // per 16 (LI in the kernel); first and last per band.
+    // gl (4 bytes), prv, nxt, owner (2 each) per position and line; first and last per band.
     return banded_cells(n, lines) * 10 + 2 * std::size_t{kBandedGroup} * 4;
 }
 
 std::size_t ExactSeparable::banded_cells(std::uint32_t n, std::uint32_t lines) {
-    return (std::size_t{n} + n / 16 + 1) * lines;
+    return std::size_t{n} * lines;
 }
 
 KernelLaunch ExactSeparable::items_launch(const char* name, const cl::Kernel& k,
