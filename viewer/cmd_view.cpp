@@ -32,6 +32,7 @@
 
 #include "cli_util.hpp"
 #include "edit_log.hpp"
+#include "png.hpp"
 #include "view_script.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
@@ -49,10 +50,6 @@
 #include "voxfield/pipeline/frame_pipeline.hpp"
 #include "voxfield/vk/present.hpp"
 #include "voxfield/vk/raymarcher.hpp"
-
-#define STB_IMAGE_WRITE_IMPLEMENTATION
-#define STB_IMAGE_WRITE_STATIC
-#include <stb/stb_image_write.h>
 
 namespace voxfield::cli {
 namespace {
@@ -110,22 +107,6 @@ std::string timestamp() {
     char buf[32];
     std::strftime(buf, sizeof buf, "%Y%m%d-%H%M%S", &tm);
     return buf;
-}
-
-void append_bytes(void* context, void* data, int size) {
-    static_cast<std::string*>(context)->append(static_cast<const char*>(data),
-                                               static_cast<std::size_t>(size));
-}
-
-void write_png(const std::filesystem::path& path, const vk::Image& image) {
-    std::string png;
-    if (stbi_write_png_to_func(append_bytes, &png, static_cast<int>(image.width),
-                               static_cast<int>(image.height), 4, image.rgba.data(),
-                               static_cast<int>(image.width * 4)) == 0) {
-        throw std::runtime_error("PNG encoding failed for " + std::to_string(image.width) + "x" +
-                                 std::to_string(image.height));
-    }
-    write_text_file(path, png);
 }
 
 bool display_present() {
