@@ -33,6 +33,7 @@
 #include "cli_util.hpp"
 #include "edit_log.hpp"
 #include "png.hpp"
+#include "view_options.hpp"
 #include "view_script.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
@@ -59,46 +60,6 @@ using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
-
-struct ViewCliOptions {
-    std::string input, dims, scene = "spheres", device, shading = "lit";
-    std::uint32_t world = 0, width = 1280, height = 720, frames = 0;
-    std::uint64_t scene_seed = 6683787;
-    GeneratorFlags gen;
-    std::string screenshot, edits, field_output, world_output, script;
-    bool benchmark = false;
-    std::uint64_t seed = 6683787;
-    double interval_ms = 200, duration_s = 30;
-    std::string json, csv;
-    std::string format = "u16", fallback_png, window_screenshot, present = "auto";
-    bool validate = false;
-    bool simulate = false;  // --simulate: falling sand and water every frame
-};
-
-// The keys, for F1 and --help.
-const char* const kHelp[][2] = {
-    {"W A S D / arrows", "fly forward, left, back, right (10 voxels/s)"},
-    {"Space / Left Shift", "fly up / down"},
-    {"Left Ctrl (held)", "4x speed"},
-    {"mouse", "look around (cursor captured)"},
-    {"Left Alt (held)", "free the cursor for the overlay"},
-    {"Tab", "orbit around the world's centre / free fly"},
-    {"R", "reset the view"},
-    {"left mouse", "place (paint mode: recolour)"},
-    {"right mouse", "erase"},
-    {"P", "paint mode on / off"},
-    {"B", "sphere / cube brush"},
-    {"scroll", "brush size (radius = size / 2)"},
-    {"1 .. 9, 0", "colour 1 .. 9, 10"},
-    {"Ctrl+Z / Ctrl+Y", "undo / redo the last stroke"},
-    {"Ctrl+S", "save the world as .npy and .vox (current folder)"},
-    {"G", "--simulate: pause / run the sand and water (colour 2 is sand, 3 water)"},
-    {"N", "--simulate, paused: one step"},
-    {"F1", "this help"},
-    {"F2", "full panel (algorithm, metric, scene, shading, palette) / compact overlay"},
-    {"F12", "screenshot PNG (current folder; path printed)"},
-    {"Esc", "quit"},
-};
 
 std::string timestamp() {
     const std::time_t t = std::time(nullptr);
@@ -314,42 +275,9 @@ struct Window {
 
 // validation: non-null with --validate, for every Vulkan instance of the viewer.
 int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validation) {
-    // Everything the user typed is checked before any device or window is touched.
-    if (!o.input.empty() && (o.world != 0 || !o.dims.empty())) {
-        throw InputError("give either INPUT or --world/--dims, not both");
-    }
-    if (o.world != 0 && !o.dims.empty()) {
-        throw InputError("give either --world N or --dims X,Y,Z, not both");
-    }
-    for (const std::string& p : {o.screenshot, o.fallback_png, o.window_screenshot, o.field_output,
-                                 o.world_output, o.json, o.csv}) {
-        if (!p.empty()) {
-            require_output_folder(p);
-        }
-    }
-    if (!o.window_screenshot.empty() && o.frames == 0) {
-        throw InputError("--window-screenshot needs --frames N (it captures the last frame)");
-    }
-    if (!(o.interval_ms > 0) || !(o.duration_s > 0)) {
-        throw InputError("--interval-ms and --duration-s must be positive");
-    }
-    std::vector<Edit> scripted;
-    if (!o.edits.empty()) {
-        scripted = read_edits(o.edits);
-    }
-    std::optional<ViewScript> script;
-    if (!o.script.empty()) {
-        if (o.benchmark) {
-            throw InputError("--script and --benchmark do not go together");
-        }
-        script.emplace(read_view_script(o.script));
-        if (o.frames == 0) {
-            if (script->end_frame() > std::numeric_limits<std::uint32_t>::max()) {
-                throw InputError("--script: frame numbers above 4294967294");
-            }
-            o.frames = std::max(static_cast<std::uint32_t>(script->end_frame()), 1u);
-        }
-    }
+    ViewInputs inputs = check_view_options(o);
+    const std::vector<Edit>& scripted = inputs.edits;
+    std::optional<ViewScript>& script = inputs.script;
     // A window, or why there is none: then --benchmark runs headless, --fallback-png renders
     // one frame headless into that file, anything else exits 2.
     Window window;
@@ -1079,7 +1007,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                 ImGui::SetNextWindowPos(ImVec2(io.DisplaySize.x / 2, io.DisplaySize.y / 2),
                                         ImGuiCond_Always, ImVec2(0.5f, 0.5f));
                 ImGui::Begin("keys (F1)", &show_help, ImGuiWindowFlags_AlwaysAutoResize);
-                for (const auto& k : kHelp) {
+                for (const auto& k : kViewKeys) {
                     ImGui::Text("%-20s %s", k[0], k[1]);
                 }
                 ImGui::End();
@@ -1345,82 +1273,7 @@ Command add_view(CLI::App& root) {
         "Interactive viewer: fly through the world, paint voxels, switch algorithms (needs a "
         "display; without one it exits 2 and suggests `render`, except with --benchmark, which "
         "then runs headless, or --fallback-png, which then renders the first frame into it)");
-    app->add_option("INPUT", o->input, "World: MagicaVoxel .vox or uint8/16/32 .npy (Z,Y,X)");
-    app->add_option("--world", o->world, "Generate a cube world of N^3 voxels (default 128)")
-        ->check(CLI::Range(1u, 4096u));
-    app->add_option("--dims", o->dims, "Generate a world of X,Y,Z voxels");
-    app->add_option("--scene", o->scene, "Scene for a generated world")
-        ->check(CLI::IsMember(scene_names()))
-        ->capture_default_str();
-    add_generator_flags(*app, o->gen);
-    app->add_option("--device", o->device,
-                    "OpenCL device: cpu, gpu or an index from `voxfield devices` (Vulkan: "
-                    "$VOXFIELD_VK_DEVICE)");
-    app->add_option("--shading", o->shading, "flat or lit")
-        ->check(CLI::IsMember({"flat", "lit"}))
-        ->capture_default_str();
-    app->add_option("--width", o->width, "Window (or headless image) width")
-        ->check(CLI::Range(1u, vk::kMaxImageSize))
-        ->capture_default_str();
-    app->add_option("--height", o->height, "Window (or headless image) height")
-        ->check(CLI::Range(1u, vk::kMaxImageSize))
-        ->capture_default_str();
-    app->add_option("--frames", o->frames, "Quit after N frames (scripted runs)");
-    app->add_option("--screenshot", o->screenshot,
-                    "Write the last frame's ray-marched image (no overlay) as PNG at exit");
-    app->add_option("--present", o->present,
-                    "How frames reach the window: gpu (they stay on the GPU: ray-marched into the "
-                    "swapchain image when the ray marcher's device presents, else imported by "
-                    "the presenting device), host (read back and uploaded) or auto (gpu where "
-                    "possible)")
-        ->check(CLI::IsMember({"auto", "gpu", "host"}))
-        ->capture_default_str();
-    app->add_option("--window-screenshot", o->window_screenshot,
-                    "Write what the window showed in the last frame (overlay included) as PNG at "
-                    "exit; needs --frames");
-    app->add_option("--script", o->script,
-                    "Scripted input, one action per line `FRAME ACTION [ARGS]`: key NAME "
-                    "(ctrl+z, F2, ...), down/up NAME, click/press/release left|right, mouse X Y, "
-                    "scroll N, select algorithm|metric|scene|shading|colour VALUE, save STEM, "
-                    "check STEM (STEM-world.npy, STEM-field.npy, STEM-state.json), quit; runs "
-                    "until the last action's frame (or --frames); needs a display");
-    app->add_option("--edits", o->edits,
-                    "Scripted edits (the replay file format), one applied per frame from the "
-                    "first frame");
-    add_format_option(*app, o->format);
-    app->add_option(
-        "--field-output", o->field_output,
-        "Write the final distance field (in --format, as `generate` writes it) at exit");
-    app->add_option("--world-output", o->world_output, "Write the final world (.npy) at exit");
-    app->add_option("--fallback-png", o->fallback_png,
-                    "Without a display: render the first frame headless into this PNG and exit 0 "
-                    "(instead of exiting 2)");
-    app->add_flag("--benchmark", o->benchmark,
-                  "The dissertation's benchmark: a random sphere every --interval-ms (seeded, "
-                  "reproducible), vsync off, per-frame times, summary printed and saved");
-    app->add_option("--seed", o->seed, "Benchmark seed (and the sand's, with --simulate)")
-        ->capture_default_str();
-    app->add_flag("--simulate", o->simulate,
-                  "Falling sand and water every frame (as `simulate`: colour 2 falls as sand, 3 "
-                  "flows as water, every other solid stays), the field updated after each step; "
-                  "G pauses, N steps; with --benchmark the sand's and the update's times are "
-                  "recorded per frame");
-    app->add_option("--interval-ms", o->interval_ms, "Benchmark: time between edits")
-        ->capture_default_str();
-    app->add_option("--duration-s", o->duration_s, "Benchmark: duration")->capture_default_str();
-    app->add_option("--json", o->json, "Benchmark: summary and per-frame times as JSON");
-    app->add_option("--csv", o->csv, "Benchmark: per-frame times as CSV");
-    app->add_flag("--validate", o->validate,
-                  "Run with the Vulkan validation layer (VK_LAYER_KHRONOS_validation, "
-                  "synchronisation validation included; Debian: vulkan-validationlayers): each "
-                  "message is printed to stderr and any makes the command exit 1")
-        ->envname("VOXFIELD_VALIDATE");
-    std::ostringstream keys;
-    keys << "Keys in the window (F1 shows them there):\n";
-    for (const auto& k : kHelp) {
-        keys << "  " << std::left << std::setw(22) << k[0] << k[1] << '\n';
-    }
-    app->footer(keys.str());
+    add_view_options(*app, *o);
     return {app, [o] {
                 std::shared_ptr<vk::ValidationLog> log;
                 if (o->validate) {
