@@ -21,9 +21,7 @@
 #include <ctime>
 #include <deque>
 #include <filesystem>
-#include <iomanip>
 #include <iostream>
-#include <limits>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -31,8 +29,8 @@
 #include <vector>
 
 #include "cli_util.hpp"
-#include "edit_log.hpp"
 #include "png.hpp"
+#include "view_benchmark.hpp"
 #include "view_options.hpp"
 #include "view_script.hpp"
 #include "voxfield/cl/generator.hpp"
@@ -80,30 +78,6 @@ int no_display(const std::string& why) {
     std::cerr << "voxfield view: no display (" << why
               << "); render headless instead: voxfield render WORLD -o OUT.png\n";
     return 2;
-}
-
-struct FrameRecord {
-    // update_ms: the field's incremental update plus writing it into the render field
-    // (convert_ms), device time.
-    double time_s = 0, frame_ms = 0, update_ms = 0, convert_ms = 0, raymarch_ms = 0;
-    bool edit = false;
-    // --simulate: the step's automaton (device time, -1 without a step) and the voxels it
-    // changed; its field update is part of update_ms.
-    double simulate_ms = -1;
-    std::size_t sim_changed = 0;
-};
-
-nlohmann::json summary_json(const Summary& s) {
-    nlohmann::json j = nlohmann::json::object();
-    put_summary(j, s);
-    return j;
-}
-
-void print_summary(const std::string& what, const Summary& s) {
-    std::cout << "  " << what << ": n " << s.n << ", mean " << fixed(s.mean, 3) << " ms, median "
-              << fixed(s.median, 3) << ", std " << fixed(s.std, 3) << ", min " << fixed(s.min, 3)
-              << ", max " << fixed(s.max, 3) << ", 95% CI [" << fixed(s.ci95_lo, 3) << ", "
-              << fixed(s.ci95_hi, 3) << "]\n";
 }
 
 // How frames reach the window: ray-marched into the swapchain image on the one device that
@@ -336,7 +310,6 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     }
     const Dims dims = model.world.dims();
     ocl::GeneratorOptions gopts = generator_options(o.gen, parse_format(o.format), dims);
-    const std::uint32_t bench_chunk = gopts.chunk != 0 ? gopts.chunk : ocl::kDefaultChunk;
 
     ocl::Context cl_ctx(ocl::select_device(o.device));
     // The ray marcher's device also presents the window where it can (one device, one queue);
@@ -477,10 +450,9 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     bool paint_mode = false, show_help = false, stroke_open = false;
     UndoStack undo;
     std::optional<Brush> last_stroke_brush;
-    std::optional<RandomEdits> random_edits;
-    EditLog edit_log;  // --benchmark: the protocol's edits and their update times
+    std::optional<BenchmarkEdits> bench;  // --benchmark: the protocol's edits
     if (o.benchmark) {
-        random_edits.emplace(dims, bench_chunk, o.seed);
+        bench.emplace(dims, gopts.chunk, o.seed, o.interval_ms);
     }
     std::vector<FrameRecord> records;
     std::deque<float> hist_frame, hist_update, hist_march;
@@ -533,7 +505,6 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
 
     const auto start = Clock::now();
     auto last = start;
-    double next_edit_s = o.interval_ms / 1000.0;
     std::uint64_t frame = 0;
     vk::Image image;
     double raymarch_ms = -1;
@@ -736,9 +707,8 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             batch.push_back(scripted[frame].brush);
         }
         bool bench_edit = false;
-        if (random_edits && time_s >= next_edit_s) {
-            batch.push_back(random_edits->next());
-            next_edit_s += o.interval_ms / 1000.0;
+        if (const auto edit = bench ? bench->due(time_s) : std::nullopt) {
+            batch.push_back(*edit);
             bench_edit = true;
         }
         // Lod / monolithic: the focus is the centre chunk or, following the camera, the
@@ -773,10 +743,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             add(u);
             if (bench_edit && !edits.empty()) {
                 // The protocol's edit is the batch's last brush; the batch's update is its cost.
-                EditSample sample{
-                    batch.back(),        random_edits->last_size(),   u.total_ms(),
-                    u.voxels_recomputed, edits.back().changes.size(), u.full_regeneration};
-                edit_log.add(sample);
+                bench->record(batch.back(), u, edits.back());
             }
             if (stroke_batch && !edits.empty()) {
                 // Only the stroke's brush (the first of the batch) is undoable.
@@ -1172,94 +1139,10 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
                   << (full_panel ? "full panel" : "compact") << '\n';
     }
 
-    if (o.benchmark) {
-        std::vector<double> frame_ms, march_ms, sim_ms, sim_update_ms;
-        for (const FrameRecord& r : records) {
-            frame_ms.push_back(r.frame_ms);
-            if (r.simulate_ms >= 0) {
-                // Every frame steps the sand: its update is the step's (plus any edit's).
-                sim_ms.push_back(r.simulate_ms);
-                sim_update_ms.push_back(r.update_ms);
-            }
-            if (r.raymarch_ms >= 0) {
-                march_ms.push_back(r.raymarch_ms);
-            }
-        }
-        const Summary sf = summarize(frame_ms), su = edit_log.update_summary(),
-                      sm = summarize(march_ms);
-        const auto edit_count = static_cast<std::size_t>(std::count_if(
-            records.begin(), records.end(), [](const FrameRecord& r) { return r.edit; }));
-        std::cout << "benchmark: seed " << o.seed << ", an edit every " << o.interval_ms
-                  << " ms for " << o.duration_s << " s, " << records.size() << " frames, "
-                  << edit_count << " edits, "
-                  << (o.simulate ? std::to_string(sim_ms.size()) + " sand steps, " : "")
-                  << ropts.width << "x" << ropts.height
-                  << (presenter ? ", present " + vk::to_string(presenter->mode())
-                                : std::string(", headless"))
-                  << '\n';
-        print_summary("frame (incl. field update)", sf);
-        const Summary ssim = summarize(sim_ms), ssu = summarize(sim_update_ms);
-        if (o.simulate) {
-            print_summary("sand simulation (device)", ssim);
-            print_summary("field update (every frame)", ssu);
-        } else {
-            print_summary("field update (edit frames)", su);
-        }
-        print_summary("ray march", sm);
-        if (sf.mean > 0) {
-            std::cout << "  mean FPS " << fixed(1000.0 / sf.mean, 1) << '\n';
-        }
-        if (!o.json.empty()) {
-            nlohmann::json j;
-            j["device"] = device_json(cl_ctx.info());
-            j["vulkan"] = vk_ctx.info().name;
-            j["commit"] = commit();
-            j["date"] = utc_now();
-            j["format"] = to_string(session.options().format);
-            j["world"] = {dims.x, dims.y, dims.z};
-            j["source"] = world_name;
-            j["algorithm"] = ocl::to_string(session.options().algorithm);
-            j["chunk"] = session.options().chunk;
-            j["seed"] = o.seed;
-            j["interval_ms"] = o.interval_ms;
-            j["duration_s"] = o.duration_s;
-            j["image"] = {ropts.width, ropts.height};
-            j["present"] = presenter ? vk::to_string(presenter->mode()) : "headless";
-            j["sharing"] = session.marcher().sharing_path();
-            j["simulate"] = o.simulate;
-            j["summary"] = {{"frame", summary_json(sf)},
-                            {"field_update", summary_json(o.simulate ? ssu : su)},
-                            {"raymarch", summary_json(sm)}};
-            if (o.simulate) {
-                j["summary"]["simulate"] = summary_json(ssim);
-            }
-            nlohmann::json frames = nlohmann::json::array();
-            for (const FrameRecord& r : records) {
-                frames.push_back(
-                    {{"time_s", r.time_s},
-                     {"frame_ms", r.frame_ms},
-                     {"update_ms", r.update_ms},
-                     {"convert_ms", r.convert_ms},
-                     {"raymarch_ms", r.raymarch_ms},
-                     {"edit", r.edit},
-                     {"simulate_ms",
-                      r.simulate_ms < 0 ? nlohmann::json() : nlohmann::json(r.simulate_ms)},
-                     {"sand_voxels_changed", r.sim_changed}});
-            }
-            j["frames"] = frames;
-            j["edits"] = edit_log.edits_json();
-            write_json_file(o.json, j);
-        }
-        if (!o.csv.empty()) {
-            std::ostringstream csv;
-            csv << "frame,time_s,edit,frame_ms,update_ms,convert_ms,raymarch_ms\n";
-            for (std::size_t i = 0; i < records.size(); ++i) {
-                const FrameRecord& r = records[i];
-                csv << i << ',' << r.time_s << ',' << (r.edit ? 1 : 0) << ',' << r.frame_ms << ','
-                    << r.update_ms << ',' << r.convert_ms << ',' << r.raymarch_ms << '\n';
-            }
-            write_text_file(o.csv, csv.str());
-        }
+    if (bench) {
+        const BenchmarkSetup setup{world_name, cl_ctx.info(), vk_ctx.info().name,
+                                   presenter ? std::optional(presenter->mode()) : std::nullopt};
+        report_benchmark(o, setup, session, ropts, records, bench->log());
     }
     return exit_code;
 }
