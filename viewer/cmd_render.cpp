@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "cli_util.hpp"
+#include "png.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/metric.hpp"
@@ -22,10 +23,6 @@
 #include "voxfield/pipeline/frame_pipeline.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 #include "voxfield/vk/shared.hpp"
-
-#define STB_IMAGE_WRITE_IMPLEMENTATION
-#define STB_IMAGE_WRITE_STATIC
-#include <stb/stb_image_write.h>
 
 namespace voxfield::cli {
 namespace {
@@ -89,11 +86,6 @@ bool ends_with_png(const std::string& path) {
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
     return ext == ".png";
-}
-
-void append_bytes(void* context, void* data, int size) {
-    auto* out = static_cast<std::string*>(context);
-    out->append(static_cast<const char*>(data), static_cast<std::size_t>(size));
 }
 
 std::string point(const vk::Vec3& v) {
@@ -172,14 +164,7 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
     vk::Image image;
     frames.render(r, image);
 
-    std::string png;
-    const int stride = static_cast<int>(image.width * 4);
-    if (stbi_write_png_to_func(append_bytes, &png, static_cast<int>(image.width),
-                               static_cast<int>(image.height), 4, image.rgba.data(), stride) == 0) {
-        throw std::runtime_error("PNG encoding failed for " + std::to_string(image.width) + "x" +
-                                 std::to_string(image.height));
-    }
-    write_text_file(o.output, png);
+    write_png(o.output, image);
 
     std::cout << "opencl:  " << cl_ctx.info().name << " (" << cl_ctx.info().platform << ", "
               << cl_ctx.info().type << "): exact " << to_string(g.metric) << " field, "

@@ -1,0 +1,141 @@
+// `view --benchmark`: its edits, frame records and report (see view_benchmark.hpp).
+#include "view_benchmark.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <iostream>
+#include <sstream>
+
+#include "cli_util.hpp"
+#include "voxfield/core/stats.hpp"
+
+namespace voxfield::cli {
+namespace {
+
+nlohmann::json summary_json(const Summary& s) {
+    nlohmann::json j = nlohmann::json::object();
+    put_summary(j, s);
+    return j;
+}
+
+void print_summary(const std::string& what, const Summary& s) {
+    std::cout << "  " << what << ": n " << s.n << ", mean " << fixed(s.mean, 3) << " ms, median "
+              << fixed(s.median, 3) << ", std " << fixed(s.std, 3) << ", min " << fixed(s.min, 3)
+              << ", max " << fixed(s.max, 3) << ", 95% CI [" << fixed(s.ci95_lo, 3) << ", "
+              << fixed(s.ci95_hi, 3) << "]\n";
+}
+
+}  // namespace
+
+BenchmarkEdits::BenchmarkEdits(Dims dims, std::uint32_t chunk, std::uint64_t seed,
+                               double interval_ms)
+    : edits_(dims, chunk != 0 ? chunk : ocl::kDefaultChunk, seed),
+      interval_ms_(interval_ms),
+      next_s_(interval_ms / 1000.0) {}
+
+std::optional<Brush> BenchmarkEdits::due(double time_s) {
+    if (time_s < next_s_) {
+        return std::nullopt;
+    }
+    next_s_ += interval_ms_ / 1000.0;
+    return edits_.next();
+}
+
+void BenchmarkEdits::record(const Brush& brush, const pipeline::UpdateTimings& u,
+                            const EditResult& result) {
+    log_.add({brush, edits_.last_size(), u.total_ms(), u.voxels_recomputed, result.changes.size(),
+              u.full_regeneration});
+}
+
+void report_benchmark(const ViewCliOptions& o, const BenchmarkSetup& setup,
+                      const pipeline::FramePipeline& session, const vk::RenderOptions& ropts,
+                      const std::vector<FrameRecord>& records, const EditLog& log) {
+    const Dims dims = session.world().dims();
+    std::vector<double> frame_ms, march_ms, sim_ms, sim_update_ms;
+    for (const FrameRecord& r : records) {
+        frame_ms.push_back(r.frame_ms);
+        if (r.simulate_ms >= 0) {
+            // Every frame steps the sand: its update is the step's (plus any edit's).
+            sim_ms.push_back(r.simulate_ms);
+            sim_update_ms.push_back(r.update_ms);
+        }
+        if (r.raymarch_ms >= 0) {
+            march_ms.push_back(r.raymarch_ms);
+        }
+    }
+    const Summary sf = summarize(frame_ms), su = log.update_summary(), sm = summarize(march_ms);
+    const auto edit_count = static_cast<std::size_t>(
+        std::count_if(records.begin(), records.end(), [](const FrameRecord& r) { return r.edit; }));
+    std::cout << "benchmark: seed " << o.seed << ", an edit every " << o.interval_ms << " ms for "
+              << o.duration_s << " s, " << records.size() << " frames, " << edit_count << " edits, "
+              << (o.simulate ? std::to_string(sim_ms.size()) + " sand steps, " : "") << ropts.width
+              << "x" << ropts.height
+              << (setup.present ? ", present " + vk::to_string(*setup.present)
+                                : std::string(", headless"))
+              << '\n';
+    print_summary("frame (incl. field update)", sf);
+    const Summary ssim = summarize(sim_ms), ssu = summarize(sim_update_ms);
+    if (o.simulate) {
+        print_summary("sand simulation (device)", ssim);
+        print_summary("field update (every frame)", ssu);
+    } else {
+        print_summary("field update (edit frames)", su);
+    }
+    print_summary("ray march", sm);
+    if (sf.mean > 0) {
+        std::cout << "  mean FPS " << fixed(1000.0 / sf.mean, 1) << '\n';
+    }
+    if (!o.json.empty()) {
+        nlohmann::json j;
+        j["device"] = device_json(setup.opencl);
+        j["vulkan"] = setup.vulkan;
+        j["commit"] = commit();
+        j["date"] = utc_now();
+        j["format"] = to_string(session.options().format);
+        j["world"] = {dims.x, dims.y, dims.z};
+        j["source"] = setup.world_name;
+        j["algorithm"] = ocl::to_string(session.options().algorithm);
+        j["chunk"] = session.options().chunk;
+        j["seed"] = o.seed;
+        j["interval_ms"] = o.interval_ms;
+        j["duration_s"] = o.duration_s;
+        j["image"] = {ropts.width, ropts.height};
+        j["present"] = setup.present ? vk::to_string(*setup.present) : "headless";
+        j["sharing"] = session.marcher().sharing_path();
+        j["simulate"] = o.simulate;
+        j["summary"] = {{"frame", summary_json(sf)},
+                        {"field_update", summary_json(o.simulate ? ssu : su)},
+                        {"raymarch", summary_json(sm)}};
+        if (o.simulate) {
+            j["summary"]["simulate"] = summary_json(ssim);
+        }
+        nlohmann::json frames = nlohmann::json::array();
+        for (const FrameRecord& r : records) {
+            frames.push_back({{"time_s", r.time_s},
+                              {"frame_ms", r.frame_ms},
+                              {"update_ms", r.update_ms},
+                              {"convert_ms", r.convert_ms},
+                              {"raymarch_ms", r.raymarch_ms},
+                              {"edit", r.edit},
+                              {"simulate_ms", r.simulate_ms < 0 ? nlohmann::json()
+                                                                : nlohmann::json(r.simulate_ms)},
+                              {"sand_voxels_changed", r.sim_changed}});
+        }
+        j["frames"] = frames;
+        j["edits"] = log.edits_json();
+        write_json_file(o.json, j);
+    }
+    if (!o.csv.empty()) {
+        std::ostringstream csv;
+        csv << "frame,time_s,edit,frame_ms,update_ms,convert_ms,raymarch_ms\n";
+        for (std::size_t i = 0; i < records.size(); ++i) {
+            const FrameRecord& r = records[i];
+            csv << i << ',' << r.time_s << ',' << (r.edit ? 1 : 0) << ',' << r.frame_ms << ','
+                << r.update_ms << ',' << r.convert_ms << ',' << r.raymarch_ms << '\n';
+        }
+        write_text_file(o.csv, csv.str());
+    }
+}
+
+}  // namespace voxfield::cli

@@ -1,0 +1,49 @@
+#pragma once
+// `view`'s overlay (Dear ImGui): the crosshair and the preview of the brush aimed at, then
+// either the compact overlay (FPS, frame / update / ray march ms, the sand, devices, sharing
+// path; it takes no input) or the full panel (F2: the times plotted, world, memory, devices,
+// frame and sharing paths, the algorithm, metric, chunk, focus, scene and shading widgets, the
+// brush, undo depth, palette), and the keys (F1). It draws the session's state, lets the
+// widgets change the selections, shading, colour and help, and returns the switch asked for.
+#include <cstdint>
+#include <deque>
+#include <string>
+#include <vector>
+
+#include "view_session.hpp"
+#include "voxfield/vk/present.hpp"
+
+namespace voxfield::cli {
+
+// What one frame adds to the overlay.
+struct OverlayFrame {
+    double frame_ms = 0;      // the last frame's (0 before the first)
+    double raymarch_ms = -1;  // the last ray march's (-1: none yet)
+    std::uint32_t fb_width = 0, fb_height = 0;
+};
+
+class Overlay {
+  public:
+    // vulkan and opencl: the devices' names; frames: how frames reach the window.
+    Overlay(const vk::Presenter& presenter, std::string vulkan, std::string opencl,
+            const char* frames, bool simulate);
+    // Builds this frame's overlay (ImGui::Render included). `script`: what the script's
+    // selections asked for, to which the panel's widgets add.
+    SwitchRequest draw(ViewState& s, const pipeline::FramePipeline& session,
+                       const OverlayFrame& frame, SwitchRequest script);
+
+  private:
+    void compact(const ViewState& s, const pipeline::FramePipeline& session,
+                 const OverlayFrame& frame);
+    void full_panel(ViewState& s, const pipeline::FramePipeline& session, const OverlayFrame& frame,
+                    SwitchRequest& request);
+
+    const vk::Presenter& presenter_;
+    std::string vulkan_, opencl_;
+    const char* frames_;
+    bool simulate_;
+    std::vector<std::string> scenes_;                          // the scene combo's entries
+    std::deque<float> hist_frame_, hist_update_, hist_march_;  // the last 120 frames
+};
+
+}  // namespace voxfield::cli
