@@ -231,7 +231,7 @@ void Overlay::full_panel(ViewState& s, const pipeline::FramePipeline& session,
         snames.push_back(n.c_str());
     }
     ImGui::Combo("scene", &s.selection.scene, snames.data(), static_cast<int>(snames.size()));
-    request.scene = ImGui::Button("regenerate");
+    request.scene = ImGui::Button("regenerate") || request.scene;
     ImGui::SameLine();
     request.field = ImGui::Button("apply algorithm") || request.field;
     int shading = s.render.shading == vk::Shading::lit ? 1 : 0;
