@@ -107,10 +107,27 @@ inline bool vf_may_move(ulong cells, uint sand, uint water) {
     return (air != 0 && (wet != 0 || top_sand != 0)) || (top_sand != 0 && (wet & VF_BOTTOM) != 0);
 }
 
-// Runs block b (block coordinates, origin its cell 0) of the step, holding `cells`.
-void vf_sand_run(global const uchar* src, global uchar* dst, int4 d, int4 nb, ulong key, uint sand,
-                 uint water, global uint* count, global uint2* changes, uint capacity, int3 b,
-                 int3 origin, ulong cells) {
+// Bit 7 of every byte of x that is not zero (exact).
+inline ulong vf_nonzero_bytes(ulong x) {
+    return (((x & 0x7F7F7F7F7F7F7F7Ful) + 0x7F7F7F7F7F7F7F7Ful) | x) & 0x8080808080808080ul;
+}
+
+// 0xFF in every byte of `cells` that equals the byte `v`, 0 in the others (exact).
+inline ulong vf_bytes_equal(ulong cells, uint v) {
+    const ulong x = cells ^ ((ulong)v * 0x0101010101010101ul);
+    return ((~vf_nonzero_bytes(x) & 0x8080808080808080ul) >> 7) * 0xFFul;
+}
+
+// Block b (block coordinates, origin its cell 0) after the step, holding `cells` before it.
+// Over a bottom layer of air (a grain falling through the air, say) the rules come down to
+// every sand and water cell of the top layer falling straight down: no diagonal, no sideways
+// move, no random choice; that case is done here without them.
+inline ulong vf_sand_after(global const uchar* src, int4 d, int4 nb, ulong key, uint sand,
+                           uint water, int3 b, int3 origin, ulong cells) {
+    if ((cells & 0xFFFFFFFFul) == 0) {
+        const ulong falls = vf_bytes_equal(cells, sand) | vf_bytes_equal(cells, water);
+        return (cells & ~falls) | ((cells & falls) >> 32);
+    }
     uint below_air = 0;
     for (int c = 0; c < 4; ++c) {
         const int3 p = vf_cell(origin, c) - (int3)(0, 1, 0);
@@ -119,15 +136,32 @@ void vf_sand_run(global const uchar* src, global uchar* dst, int4 d, int4 nb, ul
         }
     }
     const ulong block = ((ulong)b.z * (ulong)nb.y + (ulong)b.y) * (ulong)nb.x + (ulong)b.x;
-    const ulong after = vf_sand_rules(cells, below_air, vf_sand_hash(key ^ block), sand, water);
+    return vf_sand_rules(cells, below_air, vf_sand_hash(key ^ block), sand, water);
+}
+
+// GPU layout: one work-item per block, global size (nb.x, nb.y, nb.z) rounded up; a block
+// that changes takes its slots with one atomic_add.
+kernel void sand_step_blocks(global const uchar* src, global uchar* dst, int4 d, int4 o, int4 nb,
+                             ulong key, uint sand, uint water, uint wall, global uint* count,
+                             global uint2* changes, uint capacity) {
+    const int3 b = (int3)((int)get_global_id(0), (int)get_global_id(1), (int)get_global_id(2));
+    if (b.x >= nb.x || b.y >= nb.y || b.z >= nb.z) {
+        return;
+    }
+    const int3 origin = 2 * b - o.xyz;
+    ulong cells = 0;
+    for (int k = 0; k < 8; ++k) {
+        const int3 p = vf_cell(origin, k);
+        cells |= (ulong)(vf_inside(p, d) ? (uint)src[vf_index(p, d)] : wall) << (8 * k);
+    }
+    if (!vf_may_move(cells, sand, water)) {
+        return;
+    }
+    const ulong after = vf_sand_after(src, d, nb, key, sand, water, b, origin, cells);
     if (after == cells) {
         return;
     }
-    uint n = 0;
-    for (int k = 0; k < 8; ++k) {
-        n += vf_get(after, k) != vf_get(cells, k) ? 1u : 0u;
-    }
-    uint slot = atomic_add(count, n);
+    uint slot = atomic_add(count, (uint)popcount(vf_nonzero_bytes(cells ^ after)));
     for (int k = 0; k < 8; ++k) {
         const uint was = vf_get(cells, k), now = vf_get(after, k);
         if (was != now) {
@@ -141,100 +175,206 @@ void vf_sand_run(global const uchar* src, global uchar* dst, int4 d, int4 nb, ul
     }
 }
 
-// Runs block b of the step, reading its cells with bounds checks.
-void vf_sand_block(global const uchar* src, global uchar* dst, int4 d, int4 o, int4 nb, ulong key,
-                   uint sand, uint water, uint wall, global uint* count, global uint2* changes,
-                   uint capacity, int3 b) {
-    const int3 origin = 2 * b - o.xyz;
-    ulong cells = 0;
-    for (int k = 0; k < 8; ++k) {
-        const int3 p = vf_cell(origin, k);
-        cells |= (ulong)(vf_inside(p, d) ? (uint)src[vf_index(p, d)] : wall) << (8 * k);
-    }
-    if (vf_may_move(cells, sand, water)) {
-        vf_sand_run(src, dst, d, nb, key, sand, water, count, changes, capacity, b, origin, cells);
-    }
-}
-
-// GPU layout: one work-item per block, global size (nb.x, nb.y, nb.z) rounded up.
-kernel void sand_step_blocks(global const uchar* src, global uchar* dst, int4 d, int4 o, int4 nb,
-                             ulong key, uint sand, uint water, uint wall, global uint* count,
-                             global uint2* changes, uint capacity) {
-    const int3 b = (int3)((int)get_global_id(0), (int)get_global_id(1), (int)get_global_id(2));
-    if (b.x < nb.x && b.y < nb.y && b.z < nb.z) {
-        vf_sand_block(src, dst, d, o, nb, key, sand, water, wall, count, changes, capacity, b);
-    }
-}
-
-// CPU layout: one work-item per row of blocks along x, global size (nb.y, nb.z). Where the
-// row's four lines of voxels lie inside the world, blocks are read straight from them and runs
-// of eight blocks that cannot move (vf_may_move) are skipped by 16-byte loads.
-kernel void sand_step_rows(global const uchar* src, global uchar* dst, int4 d, int4 o, int4 nb,
-                           ulong key, uint sand, uint water, uint wall, global uint* count,
-                           global uint2* changes, uint capacity) {
-    const int j = (int)get_global_id(0), k = (int)get_global_id(1);
-    if (j >= nb.y || k >= nb.z) {
-        return;
-    }
-    const int y0 = 2 * j - o.y, z0 = 2 * k - o.z;
-    if (y0 < 0 || z0 < 0 || y0 + 1 >= d.y || z0 + 1 >= d.z) {
-        for (int i = 0; i < nb.x; ++i) {
-            vf_sand_block(src, dst, d, o, nb, key, sand, water, wall, count, changes, capacity,
-                          (int3)(i, j, k));
-        }
-        return;
-    }
-    // Line r = 2 * layer + dz of the row.
-    global const uchar* line[4];
-    for (int r = 0; r < 4; ++r) {
-        line[r] = src + vf_index((int3)(0, y0 + (r >> 1), z0 + (r & 1)), d);
-    }
-    const uchar16 s16 = (uchar16)((uchar)sand), w16 = (uchar16)((uchar)water);
-    for (int i = 0; i < nb.x;) {
-        const int x0 = 2 * i - o.x;
-        if (x0 < 0 || x0 + 1 >= d.x) {
-            vf_sand_block(src, dst, d, o, nb, key, sand, water, wall, count, changes, capacity,
-                          (int3)(i, j, k));
-            ++i;
-            continue;
-        }
-        if (x0 + 16 <= d.x) {
-            // Lines 0, 1 are the bottom layer, 2, 3 the top; lanes 2i, 2i + 1 are block i's.
-            char16 air = (char16)(0), wet = (char16)(0), wet_bottom = (char16)(0);
-            char16 top_sand = (char16)(0);
-            for (int r = 0; r < 4; ++r) {
-                const uchar16 v = vload16(0, line[r] + x0);
-                air |= v == (uchar16)(0);
-                wet |= v == w16;
-                if (r < 2) {
-                    wet_bottom |= v == w16;
-                } else {
-                    top_sand |= v == s16;
-                }
-            }
-            const char8 a = air.even | air.odd, w = wet.even | wet.odd;
-            const char8 wb = wet_bottom.even | wet_bottom.odd, ts = top_sand.even | top_sand.odd;
-            if (!any((a & (w | ts)) | (ts & wb))) {
-                i += 8;
-                continue;
-            }
-        }
-        ulong cells = 0;
-        for (int q = 0; q < 8; ++q) {  // cell q = 4 * layer + dx + 2 * dz
-            cells |= (ulong)line[2 * (q >> 2) + ((q >> 1) & 1)][x0 + (q & 1)] << (8 * q);
-        }
-        if (vf_may_move(cells, sand, water)) {
-            vf_sand_run(src, dst, d, nb, key, sand, water, count, changes, capacity,
-                        (int3)(i, j, k), (int3)(x0, y0, z0), cells);
-        }
-        ++i;
-    }
-}
-
 // Writes a step's changes into the other copy of the world.
 kernel void sand_sync(global uchar* world, global const uint2* changes, uint count) {
     const uint i = get_global_id(0);
     if (i < count) {
         world[changes[i].x] = (uchar)(changes[i].y >> 8);
     }
+}
+
+// Changes a CPU-layout work-item holds before it takes their slots with one atomic_add.
+#define VF_HELD 128
+
+typedef struct {
+    uint n;
+    uint2 item[VF_HELD];
+} VfHeld;
+
+// Moves the held changes into the step's list.
+inline void vf_flush(VfHeld* held, global uint* count, global uint2* changes, uint capacity) {
+    if (held->n == 0) {
+        return;
+    }
+    const uint slot = atomic_add(count, held->n);
+    for (uint i = 0; i < held->n && slot + i < capacity; ++i) {
+        changes[slot + i] = held->item[i];
+    }
+    held->n = 0;
+}
+
+// A CPU-layout block row: its block coordinates (j, k), its four lines of voxels in `src`
+// (line r = 2 * layer + dz starts at voxel (0, y0 + layer, z0 + dz); inside: whether it lies
+// in the world), and the linear index of voxel (0, y0, z0) modulo 2^32 (y0 or z0 may be -1).
+typedef struct {
+    int j, k, y0, z0;
+    global const uchar* line[4];
+    bool inside[4];
+    uint first;
+} VfRow;
+
+// The cells of the row's block at x, x + 1 inside the world.
+inline ulong vf_row_cells(const VfRow* row, uint wall, int x) {
+    ulong cells = 0;
+    for (int r = 0; r < 4; ++r) {  // cells 4 * layer + 2 * dz, + 1 are line r's x, x + 1
+        const uint pair =
+            row->inside[r] ? (uint)row->line[r][x] | (uint)row->line[r][x + 1] << 8 : wall * 0x101u;
+        cells |= (ulong)pair << (8 * (4 * (r >> 1) + 2 * (r & 1)));
+    }
+    return cells;
+}
+
+// The cells of the row's block at x, with bounds checks along x.
+inline ulong vf_row_cells_checked(const VfRow* row, uint wall, int x, int dx) {
+    ulong cells = 0;
+    for (int c = 0; c < 8; ++c) {  // cell c = 4 * layer + dx + 2 * dz, of line 2 * layer + dz
+        const int r = 2 * (c >> 2) + ((c >> 1) & 1), xc = x + (c & 1);
+        const bool in = row->inside[r] && xc >= 0 && xc < dx;
+        cells |= (ulong)(in ? (uint)row->line[r][xc] : wall) << (8 * c);
+    }
+    return cells;
+}
+
+// Runs the row's block i (cells x, x + 1) holding `cells`: its changes into `dst` and `held`.
+inline void vf_row_block(global const uchar* src, global uchar* dst, int4 d, int4 nb, ulong key,
+                         uint sand, uint water, global uint* count, global uint2* changes,
+                         uint capacity, VfHeld* held, const VfRow* row, int i, int x, ulong cells) {
+    const ulong after = vf_sand_after(src, d, nb, key, sand, water, (int3)(i, row->j, row->k),
+                                      (int3)(x, row->y0, row->z0), cells);
+    ulong changed = vf_nonzero_bytes(cells ^ after);
+    if (changed == 0) {
+        return;
+    }
+    if (held->n > VF_HELD - 8) {
+        vf_flush(held, count, changes, capacity);
+    }
+    const uint first = row->first + (uint)x, dx = (uint)d.x, dxy = (uint)d.x * (uint)d.y;
+    while (changed != 0) {
+        const ulong bit = changed & (~changed + 1);
+        changed ^= bit;
+        const int c = (63 - (int)clz(bit)) >> 3;  // cell 4 * layer + dx + 2 * dz
+        const uint index = first + (uint)(c & 1) + (uint)(c >> 2) * dx + (uint)((c >> 1) & 1) * dxy;
+        const uint now = vf_get(after, c);
+        dst[index] = (uchar)now;
+        held->item[held->n++] = (uint2)(index, vf_get(cells, c) | (now << 8));
+    }
+}
+
+// Holds the changes of the cells flagged (bit 7 of a byte) in `fell`: lanes 8h .. 8h + 7 of
+// a 16-byte load `top` at x = base of the row's top line 2 + dz, whose values fell into the
+// cells below.
+inline void vf_row_falls(VfHeld* held, const VfRow* row, uchar16 top, int dz, int base, int h,
+                         ulong fell, uint dx, uint dxy) {
+    const uint bottom = row->first + (uint)(base + 8 * h) + (uint)dz * dxy;
+    const ulong values = h == 0 ? as_ulong2(top).s0 : as_ulong2(top).s1;
+    fell &= 0x8080808080808080ul;
+    while (fell != 0) {
+        const ulong bit = fell & (~fell + 1);
+        fell ^= bit;
+        const int lane = (63 - (int)clz(bit)) >> 3;
+        const uint v = vf_get(values, lane), at = bottom + (uint)lane;
+        held->item[held->n++] = (uint2)(at + dx, v);
+        held->item[held->n++] = (uint2)(at, v << 8);
+    }
+}
+
+// CPU layout: one work-item per row of blocks along x, global size (nb.y, nb.z); its changes
+// take their slots VF_HELD at a time. Runs of eight blocks are tested at once by 16-byte loads
+// of the row's four lines (a line outside the world reads as `wall`): blocks that cannot move
+// (vf_may_move's condition, exactly) are skipped, those over a bottom layer of air
+// (vf_sand_after's first case) are run on the vectors, the rest block by block. The run at the
+// row's end is loaded from as far left as it must to stay inside the world (its first lanes,
+// blocks already run, are left out) and run block by block, and the blocks at either end that
+// reach out of the world are read with bounds checks.
+kernel void sand_step_rows(global const uchar* src, global uchar* dst, int4 d, int4 o, int4 nb,
+                           ulong key, uint sand, uint water, uint wall, global uint* count,
+                           global uint2* changes, uint capacity) {
+    VfRow row;
+    row.j = (int)get_global_id(0);
+    row.k = (int)get_global_id(1);
+    if (row.j >= nb.y || row.k >= nb.z) {
+        return;
+    }
+    row.y0 = 2 * row.j - o.y;
+    row.z0 = 2 * row.k - o.z;
+    row.first = ((uint)row.z0 * (uint)d.y + (uint)row.y0) * (uint)d.x;
+    for (int r = 0; r < 4; ++r) {
+        const int y = row.y0 + (r >> 1), z = row.z0 + (r & 1);
+        row.inside[r] = y >= 0 && z >= 0 && y < d.y && z < d.z;
+        row.line[r] = src + (row.inside[r] ? vf_index((int3)(0, y, z), d) : 0);
+    }
+    const uint dx = (uint)d.x, dxy = (uint)d.x * (uint)d.y;
+    global uchar* const out = dst + (row.line[0] - src);  // line 0 in dst, where it is inside
+    VfHeld held;
+    held.n = 0;
+    // The last start of a 16-byte load inside the world with the parity of the block corners.
+    int last = d.x - 16;
+    last -= (last + o.x) & 1;
+    const uchar16 s16 = (uchar16)((uchar)sand), w16 = (uchar16)((uchar)water);
+    const uchar16 wall16 = (uchar16)((uchar)wall), zero16 = (uchar16)(0);
+    // Lanes 2q, 2q + 1 <- byte q of a char8.
+    const uchar16 pairs = (uchar16)(0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7);
+    for (int i = 0; i < nb.x;) {
+        const int x0 = 2 * i - o.x;
+        if (x0 < 0 || x0 + 1 >= d.x || last < 0) {
+            const ulong cells = vf_row_cells_checked(&row, wall, x0, d.x);
+            if (vf_may_move(cells, sand, water)) {
+                vf_row_block(src, dst, d, nb, key, sand, water, count, changes, capacity, &held,
+                             &row, i, x0, cells);
+            }
+            ++i;
+            continue;
+        }
+        // Lanes 2q, 2q + 1 of the load at `base` are block i - skip + q's.
+        const int base = min(x0, last), skip = (x0 - base) >> 1;
+        // Lines 0, 1 are the bottom layer (dz = 0, 1), 2, 3 the top.
+        const uchar16 b0 = row.inside[0] ? vload16(0, row.line[0] + base) : wall16;
+        const uchar16 b1 = row.inside[1] ? vload16(0, row.line[1] + base) : wall16;
+        const uchar16 t0 = row.inside[2] ? vload16(0, row.line[2] + base) : wall16;
+        const uchar16 t1 = row.inside[3] ? vload16(0, row.line[3] + base) : wall16;
+        const char16 air = (b0 == zero16) | (b1 == zero16) | (t0 == zero16) | (t1 == zero16);
+        const char16 wet_bottom = (b0 == w16) | (b1 == w16);
+        const char16 wet = wet_bottom | (t0 == w16) | (t1 == w16);
+        const char16 top_sand = (t0 == s16) | (t1 == s16);
+        const char8 a = air.even | air.odd, w = wet.even | wet.odd;
+        const char8 wb = wet_bottom.even | wet_bottom.odd, ts = top_sand.even | top_sand.odd;
+        // Bit 7 of byte q: block i - skip + q is run block by block.
+        ulong one_by_one = as_ulong((a & (w | ts)) | (ts & wb));
+        if (skip == 0 && one_by_one != 0) {
+            const char16 bottom_air = (b0 == zero16) & (b1 == zero16);
+            const char8 open = bottom_air.even & bottom_air.odd;
+            const char16 falling = shuffle(open, pairs);
+            const char16 f0 = falling & ((t0 == s16) | (t0 == w16));
+            const char16 f1 = falling & ((t1 == s16) | (t1 == w16));
+            // Only where all four lines lie in the world: one outside reads as wall, which is
+            // not air and does not fall. dst equals src but for the changes, so the lanes
+            // that do not fall are written as they are.
+            if (any(f0 | f1)) {
+                if (held.n > VF_HELD - 64) {
+                    vf_flush(&held, count, changes, capacity);
+                }
+                const uchar16 m0 = as_uchar16(f0), m1 = as_uchar16(f1);
+                vstore16(b0 | (t0 & m0), 0, out + base);
+                vstore16(b1 | (t1 & m1), 0, out + dxy + base);
+                vstore16(t0 & ~m0, 0, out + dx + base);
+                vstore16(t1 & ~m1, 0, out + dxy + dx + base);
+                const ulong2 u0 = as_ulong2(f0), u1 = as_ulong2(f1);
+                vf_row_falls(&held, &row, t0, 0, base, 0, u0.s0, dx, dxy);
+                vf_row_falls(&held, &row, t0, 0, base, 1, u0.s1, dx, dxy);
+                vf_row_falls(&held, &row, t1, 1, base, 0, u1.s0, dx, dxy);
+                vf_row_falls(&held, &row, t1, 1, base, 1, u1.s1, dx, dxy);
+            }
+            one_by_one &= ~as_ulong(open);
+        }
+        one_by_one = (one_by_one >> (8 * skip)) & 0x8080808080808080ul;
+        while (one_by_one != 0) {
+            const ulong bit = one_by_one & (~one_by_one + 1);
+            one_by_one ^= bit;
+            const int q = (63 - (int)clz(bit)) >> 3, x = x0 + 2 * q;
+            vf_row_block(src, dst, d, nb, key, sand, water, count, changes, capacity, &held, &row,
+                         i + q, x, vf_row_cells(&row, wall, x));
+        }
+        i += 8 - skip;
+    }
+    vf_flush(&held, count, changes, capacity);
 }
