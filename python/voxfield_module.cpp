@@ -252,7 +252,7 @@ void transform_into(Device& dev, const WorldArray& w, const ocl::GeneratorOption
     std::unique_ptr<ocl::Generator> made;
     if (ocl::ExactManhattan::handles(ctx, o)) {
         made = std::make_unique<ocl::ExactManhattan>(ctx, w.dims, voxels, Palette{}, o.format,
-                                                     o.layout, o.metric, out);
+                                                     o.layout, o.metric, out, o.max_distance);
     } else {
         made = std::make_unique<ocl::ExactSeparable>(ctx, w.dims, voxels, Palette{}, o, out);
     }

@@ -132,7 +132,8 @@ int run_generate(const GenerateOptions& o) {
     }
     if (in_place) {
         const auto t_build = Clock::now();
-        ocl::ExactManhattan::prepare(ctx, dims, format, options.layout, options.metric);
+        ocl::ExactManhattan::prepare(ctx, dims, format, options.layout, options.metric,
+                                     options.max_distance);
         build_ms = ms_since(t_build);
         phases.setup = ms_since(t_setup);
         phases.read = reading.get();
@@ -144,8 +145,9 @@ int run_generate(const GenerateOptions& o) {
     // faults and kernel set-up, as a one-off user would).
     const auto t_upload = Clock::now();
     const std::unique_ptr<ocl::Generator> job =
-        in_place ? std::make_unique<ocl::ExactManhattan>(ctx, dims, voxels.span(), palette, format,
-                                                         options.layout, options.metric)
+        in_place ? std::make_unique<ocl::ExactManhattan>(
+                       ctx, dims, voxels.span(), palette, format, options.layout, options.metric,
+                       std::span<std::uint8_t>(), options.max_distance)
                  : ocl::make_generator(ctx, model->world, palette, options);
     phases.upload = ms_since(t_upload);
     std::vector<double> samples;

@@ -5,6 +5,7 @@
 #include "x_rows.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -58,6 +59,13 @@ bool use_gpu_layout(const Context& ctx, Layout layout) {
     return layout == Layout::automatic ? !ctx.is_cpu() : layout == Layout::gpu;
 }
 
+// A bounded field's saturation in the sweeps: floor(D) (the integer formats' min(exact, D)).
+std::uint32_t cap_of(std::optional<double> max_distance) {
+    return max_distance
+               ? static_cast<std::uint32_t>(std::min(std::floor(*max_distance), 4294967295.0))
+               : 0xFFFFFFFFu;
+}
+
 // Adjacent columns per work-item in cols_seg: as many as make one 32-bit word, when the rows
 // of X elements keep those words aligned.
 std::uint32_t vec_width(Format f, std::uint32_t x) {
@@ -66,11 +74,13 @@ std::uint32_t vec_width(Format f, std::uint32_t x) {
 }
 
 // The kernels of exact_manhattan.cl for format `f`, SEG_K = k, VW = vw and metric m (cached
-// by ctx).
-cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t vw, Metric m) {
+// by ctx), saturating at `cap` where it is below the work type's maximum (T_MAX: every sweep
+// takes the minimum with a value that starts at most T_MAX, so the field is min(exact, cap)).
+cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t vw, Metric m,
+                          std::uint32_t cap) {
     const WorkType wt = work_type(f);
     const std::string options =
-        "-DT=" + std::string(wt.name) + " -DT_MAX=" + std::to_string(wt.max) +
+        "-DT=" + std::string(wt.name) + " -DT_MAX=" + std::to_string(std::min(wt.max, cap)) +
         "u -DPACKED=" + (f == Format::packed32 ? "1" : "0") + " -DSEG_K=" + std::to_string(k) +
         " -DVW=" + std::to_string(vw) + " -DCHEBYSHEV=" + (m == Metric::chebyshev ? "1" : "0") +
         " -cl-std=CL1.2";
@@ -81,10 +91,11 @@ cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t
 }  // namespace
 
 std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
-                                       const cl::Buffer& voxels, const cl::Buffer& work) {
+                                       const cl::Buffer& voxels, const cl::Buffer& work,
+                                       std::uint32_t cap) {
     const auto& info = ctx.info();
     const WorkType wt = work_type(format);
-    const cl::Program base = build_program(ctx, format, 32, 1, Metric::manhattan);
+    const cl::Program base = build_program(ctx, format, 32, 1, Metric::manhattan, cap);
     const std::size_t rows = std::size_t{dims.y} * dims.z;
     if (dims.x % 16 == 0) {
         // x_rows_seg: 16 voxels per work-item (one aligned word), a row per line of the
@@ -133,10 +144,11 @@ std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
 
 ExactManhattan::ExactManhattan(Context& ctx, Dims dims, const cl::Buffer& voxels,
                                const cl::Buffer& out, const Palette& palette, Format format,
-                               Layout layout)
+                               Layout layout, std::optional<double> max_distance)
     : Generator(ctx, dims, format),
       gpu_layout_(use_gpu_layout(ctx, layout)),
-      metric_(Metric::manhattan) {
+      metric_(Metric::manhattan),
+      cap_(cap_of(max_distance)) {
     const WorkType wt = work_type(format_);
     cl_call("setting up exact_manhattan.cl over given buffers, world " + dims_.to_string(), [&] {
         voxels_ = voxels;
@@ -158,26 +170,30 @@ bool ExactManhattan::handles(const Context& ctx, const GeneratorOptions& o) {
 bool ExactManhattan::handles(const GeneratorOptions& o, bool gpu_layout) {
     const bool sweepable_format = o.format == Format::u8 || o.format == Format::u16 ||
                                   o.format == Format::u32 || o.format == Format::packed32;
-    if (!sweepable_format || !o.spacing.unit() || o.signed_field || o.indices ||
-        o.max_distance.has_value()) {
+    if (!sweepable_format || !o.spacing.unit() || o.signed_field || o.indices) {
         return false;
     }
     return o.metric == Metric::manhattan || (o.metric == Metric::chebyshev && !gpu_layout);
 }
 
 ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& palette,
-                               Format format, Layout layout, Metric metric)
+                               Format format, Layout layout, Metric metric,
+                               std::optional<double> max_distance)
     : Generator(ctx, world.dims(), format),
       gpu_layout_(use_gpu_layout(ctx, layout)),
-      metric_(metric) {
+      metric_(metric),
+      cap_(cap_of(max_distance)) {
     allocate(palette, world.voxels().data(), false, {});
     set_up_kernels();
 }
 
 ExactManhattan::ExactManhattan(Context& ctx, Dims dims, std::span<const std::uint8_t> voxels,
                                const Palette& palette, Format format, Layout layout, Metric metric,
-                               std::span<std::uint8_t> field)
-    : Generator(ctx, dims, format), gpu_layout_(use_gpu_layout(ctx, layout)), metric_(metric) {
+                               std::span<std::uint8_t> field, std::optional<double> max_distance)
+    : Generator(ctx, dims, format),
+      gpu_layout_(use_gpu_layout(ctx, layout)),
+      metric_(metric),
+      cap_(cap_of(max_distance)) {
     if (voxels.size() != dims.count()) {
         throw std::invalid_argument("ExactManhattan: " + std::to_string(voxels.size()) +
                                     " bytes of voxels for a world of " + dims.to_string());
@@ -192,12 +208,14 @@ ExactManhattan::ExactManhattan(Context& ctx, Dims dims, std::span<const std::uin
     set_up_kernels();
 }
 
-void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layout, Metric metric) {
-    build_program(ctx, format, 32, 1, metric);
+void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layout, Metric metric,
+                             std::optional<double> max_distance) {
+    const std::uint32_t cap = cap_of(max_distance);
+    build_program(ctx, format, 32, 1, metric, cap);
     if (use_gpu_layout(ctx, layout)) {
         for (const std::uint32_t len : {dims.y, dims.z}) {
             if (const std::uint32_t k = seg_k(len); k != 0) {
-                build_program(ctx, format, k, vec_width(format, dims.x), metric);
+                build_program(ctx, format, k, vec_width(format, dims.x), metric, cap);
             }
         }
     }
@@ -247,7 +265,7 @@ void ExactManhattan::set_up_kernels() {
                                     " fields in the " + variant() + " only through ExactSeparable");
     }
     auto program = [&](std::uint32_t k, std::uint32_t vw) {
-        return build_program(ctx_, format_, k, vw, metric_);
+        return build_program(ctx_, format_, k, vw, metric_, cap_);
     };
     const cl::Program base = program(32, 1);
     const std::size_t plane = std::size_t{dims_.x} * dims_.y;
@@ -321,7 +339,7 @@ void ExactManhattan::set_up_kernels() {
 
         bool rows_on_gpu = false;
         if (gpu_layout_) {
-            if (auto rows = gpu_x_rows(ctx_, dims_, format_, voxels_, work_)) {
+            if (auto rows = gpu_x_rows(ctx_, dims_, format_, voxels_, work_, cap_)) {
                 stages_.push_back(*rows);
                 stages_.push_back(columns(dims_.y, dims_.x, plane, dims_.z, false));
                 rows_on_gpu = true;

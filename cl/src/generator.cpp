@@ -230,7 +230,7 @@ std::unique_ptr<Generator> make_generator(Context& ctx, const World& world, cons
     if (o.algorithm == Algorithm::exact) {
         if (ExactManhattan::handles(ctx, o)) {
             return std::make_unique<ExactManhattan>(ctx, world, palette, o.format, o.layout,
-                                                    o.metric);
+                                                    o.metric, o.max_distance);
         }
         return std::make_unique<ExactSeparable>(ctx, world, palette, o);
     }

@@ -293,14 +293,13 @@ class GlobalEngine : public Engine {
           max_margin(std::min<std::uint32_t>(
               margin, std::max({world.dims().x, world.dims().y, world.dims().z}))),
           cpu_layout(o.layout == Layout::automatic ? ctx.is_cpu() : o.layout == Layout::cpu),
-          exact(std::make_unique<ExactManhattan>(ctx, world, palette, Format::u32, o.layout)),
+          exact(std::make_unique<ExactManhattan>(ctx, world, palette, Format::u32, o.layout,
+                                                 Metric::manhattan, o.max_distance)),
           bound(o.max_distance
                     ? static_cast<cl_uint>(std::min(std::floor(*o.max_distance), 4294967294.0))
                     : kFar),
-          direct(o.max_distance
-                     ? nullptr
-                     : std::make_unique<ExactManhattan>(ctx, world.dims(), exact->voxels_buffer(),
-                                                        out, palette, o.format, o.layout)) {
+          direct(std::make_unique<ExactManhattan>(ctx, world.dims(), exact->voxels_buffer(), out,
+                                                  palette, o.format, o.layout, o.max_distance)) {
         if (bound != kFar) {
             // R lies within floor(D) of B (old distances are capped there): a cap box one block
             // wider holds it, and never sets overflow (its face blocks are farther than D).
@@ -379,12 +378,8 @@ class GlobalEngine : public Engine {
                 }
                 check_injected_failure();
                 q.finish();
-                if (direct) {
-                    stats.update_ms = elapsed_ms(events.front(), events.back()) + direct->run();
-                    exact_stale = true;
-                } else {
-                    stats.update_ms = elapsed_ms(events.front(), events.back()) + regenerate();
-                }
+                stats.update_ms = elapsed_ms(events.front(), events.back()) + direct->run();
+                exact_stale = true;
                 stats.full_regeneration = true;
                 stats.regions = {world_box()};
                 stats.voxels_recomputed = world.size();
@@ -732,13 +727,13 @@ class GlobalEngine : public Engine {
 
     std::uint32_t max_margin;  // the cap box: B grown by this much (bounded: by D and a block)
     bool cpu_layout;  // sweeps with inner loops along x (CPU) or one column per work-item (GPU)
-    std::unique_ptr<ExactManhattan> exact;  // u32: its output is the exact distance buffer
+    std::unique_ptr<ExactManhattan> exact;  // u32: its output is the distance buffer (capped)
     // A bounded field's bound (--max-distance D: floor(D), the integer distances' cap), kFar
     // when unbounded: the distance buffer holds min(exact, bound).
     cl_uint bound;
-    // Unbounded fields: the sweeps over the same voxels writing `out` in the output format,
-    // the regeneration of batches that span the world, after which `exact` is stale until
-    // refresh_exact(). Bounded ones regenerate (the sweeps and the cap) instead.
+    // The sweeps over the same voxels writing `out` in the output format (bounded fields
+    // saturated at floor(D)), the regeneration of batches that span the world, after which
+    // `exact` is stale until refresh_exact().
     std::unique_ptr<ExactManhattan> direct;
     bool exact_stale = false;
 

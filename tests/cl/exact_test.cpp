@@ -148,6 +148,40 @@ TEST(ExactManhattan, Handles512Cubed) {
     EXPECT_TRUE(got == want);
 }
 
+// Bounded fields from the same sweeps saturating at floor(D): min(exact, D) in every format
+// and layout (packed32 and u8 also saturate at 255 where D is larger), L-inf in the CPU layout.
+TEST(ExactManhattan, BoundedFieldsSaturateAtD) {
+    const World w = scene_random(Dims{48, 37, 29}, 0.003, 17);
+    for (Metric m : {Metric::manhattan, Metric::chebyshev}) {
+        const auto exact = reference_distance(w, m, Spacing{});
+        for (double bound : {1.0, 6.5, 300.0}) {
+            std::vector<double> capped = exact;
+            for (double& v : capped) {
+                v = std::min(v, bound);
+            }
+            for (Format f : kFormats) {
+                const auto want = encode_real_field(capped, w, Palette(), f);
+                for (Layout layout : kLayouts) {
+                    if (m == Metric::chebyshev && layout == Layout::gpu) {
+                        continue;
+                    }
+                    auto o = exact_options(f, layout);
+                    o.metric = m;
+                    o.max_distance = bound;
+                    ASSERT_TRUE(ocl::ExactManhattan::handles(pocl(), o));
+                    ocl::ExactManhattan job(pocl(), w, Palette(), f, layout, m, bound);
+                    job.run();
+                    const std::string diff = test::first_difference(job.read(), want, f, w.dims());
+                    if (!diff.empty()) {
+                        FAIL() << to_string(m) << " D " << bound << " format " << to_string(f)
+                               << " layout " << name(layout) << ": " << diff;
+                    }
+                }
+            }
+        }
+    }
+}
+
 TEST(ExactManhattan, RepeatedRunsAreBitIdentical) {
     const World w = scene_terrain(Dims{96, 64, 80}, 3);
     for (Layout layout : kLayouts) {

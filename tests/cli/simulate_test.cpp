@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include "cli_test_util.hpp"
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <set>
@@ -108,6 +109,24 @@ TEST_F(SimulateTest, VerifiedRunWritesTheReferenceWorldAndItsExactField) {
         << "field differs from the exact reference of the final world";
     EXPECT_EQ(list_dir(dir_),
               (std::set<std::string>{"world.npy", "world_out.npy", "field_out.npy"}));
+}
+
+// A bounded field after a run equals the exact field of the reference world capped at D,
+// whether the steps updated it incrementally or regenerated it (saturating sweeps).
+TEST_F(SimulateTest, BoundedRunEndsWithTheCappedExactField) {
+    const fs::path world_out = dir_ / "world_out.npy", field_out = dir_ / "field_out.npy";
+    const RunResult r = run({"--steps", "12", "--seed", "3", "--max-distance", "3.5",
+                             "--world-output", world_out.string(), "-o", field_out.string()});
+    ASSERT_EQ(r.code, 0) << describe(r);
+    const World want = reference(12, 3, SandRules{});
+    EXPECT_EQ(read_npy(world_out).data, want.voxels());
+    std::vector<double> capped = reference_distance(want, Metric::manhattan, Spacing{});
+    for (double& v : capped) {
+        v = std::min(v, 3.5);
+    }
+    EXPECT_EQ(read_npy(field_out).data,
+              encode_real_field(capped, want, Palette::magicavoxel_default(), Format::u16))
+        << "bounded field differs from min(exact, D) of the final world";
 }
 
 TEST_F(SimulateTest, JsonRecordsEveryStepAndTheFullRegeneration) {

@@ -2,6 +2,7 @@
 // `exact`: global exact Manhattan distance field on any OpenCL device (DESIGN §3 semantics),
 // and by the same sweeps the Chebyshev field in the CPU layout.
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -13,8 +14,11 @@ namespace voxfield::ocl {
 class ExactManhattan : public Generator {
   public:
     // Uploads the world and palette; throws ClError (e.g. the device cannot allocate it).
+    // `max_distance` D: the bounded field min(exact, floor(D)) (DESIGN §3), from the same
+    // sweeps saturating at floor(D).
     ExactManhattan(Context& ctx, const World& world, const Palette& palette, Format format,
-                   Layout layout = Layout::automatic, Metric metric = Metric::manhattan);
+                   Layout layout = Layout::automatic, Metric metric = Metric::manhattan,
+                   std::optional<double> max_distance = std::nullopt);
     // The same for a world in host memory: `voxels` holds dims.count() palette indices (x
     // fastest). On a device that computes in host memory (Context::computes_in_host_memory)
     // the kernels read it in place, and write the field into `field` where it is given
@@ -24,16 +28,18 @@ class ExactManhattan : public Generator {
     // wrong.
     ExactManhattan(Context& ctx, Dims dims, std::span<const std::uint8_t> voxels,
                    const Palette& palette, Format format, Layout layout = Layout::automatic,
-                   Metric metric = Metric::manhattan, std::span<std::uint8_t> field = {});
+                   Metric metric = Metric::manhattan, std::span<std::uint8_t> field = {},
+                   std::optional<double> max_distance = std::nullopt);
 
     // Over buffers the caller owns and keeps alive: the world `voxels` (dims.count() bytes,
     // read) and the field `out` (in `format`), such as an incremental engine's; only
     // packed32's work buffer and the palette table are allocated.
     ExactManhattan(Context& ctx, Dims dims, const cl::Buffer& voxels, const cl::Buffer& out,
-                   const Palette& palette, Format format, Layout layout = Layout::automatic);
+                   const Palette& palette, Format format, Layout layout = Layout::automatic,
+                   std::optional<double> max_distance = std::nullopt);
 
     // Whether these sweeps compute `o` (resolved options) on ctx: unsigned fields of unit
-    // spacing without indices or a bound, in u8, u16, u32 or packed32; manhattan in both
+    // spacing without indices, bounded or not, in u8, u16, u32 or packed32; manhattan in both
     // layouts, chebyshev in the CPU layout. ExactSeparable computes the rest.
     static bool handles(const Context& ctx, const GeneratorOptions& o);
     // The same for the layout `gpu_layout` (as `o.layout` resolves on the device).
@@ -42,7 +48,8 @@ class ExactManhattan : public Generator {
     // Builds the kernel programs that a generator of `dims` and `format` uses into ctx's
     // program cache, so that a caller can build them while it reads the world.
     static void prepare(Context& ctx, Dims dims, Format format, Layout layout = Layout::automatic,
-                        Metric metric = Metric::manhattan);
+                        Metric metric = Metric::manhattan,
+                        std::optional<double> max_distance = std::nullopt);
 
     double run() override;
     std::string variant() const override;  // "cpu layout" or "gpu layout"
@@ -58,6 +65,7 @@ class ExactManhattan : public Generator {
 
     bool gpu_layout_;
     Metric metric_;
+    std::uint32_t cap_;  // the sweeps' saturation (floor(D) of a bounded field)
     cl::Buffer voxels_, rgb_, work_;
     // The kernels of one transform, in enqueue order.
     std::vector<KernelLaunch> stages_;
