@@ -260,7 +260,9 @@ TEST(ExactChebyshevSweeps, RoutedByLayout) {
     o.format = Format::f32;
     EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
     o.format = Format::u16;
-    o.max_distance = 4.0;
+    o.max_distance = 4.0;  // bounded: the same sweeps, saturating at floor(D)
+    EXPECT_TRUE(ocl::ExactManhattan::handles(pocl(), o));
+    o.signed_field = true;
     EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
     const World w = scene_random(Dims{9, 9, 9}, 0.1, 1);
     EXPECT_THROW(
