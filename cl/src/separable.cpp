@@ -228,7 +228,10 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
 }
 
 std::uint32_t ExactSeparable::banded_lines(std::uint32_t n) const {
-    if (!gpu_layout_) {
+    // The kernel's registers may cap its work-groups below kBandedGroup on some devices.
+    if (!gpu_layout_ ||
+        cl::Kernel(program_, "cols_banded")
+                .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(ctx_.info().device) < kBandedGroup) {
         return 0;
     }
     for (std::uint32_t c = kBandedGroup / 8; c >= 1; c /= 2) {
