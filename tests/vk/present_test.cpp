@@ -132,14 +132,20 @@ std::size_t differing(const std::vector<std::uint8_t>& a, const std::vector<std:
     return n + (a.size() != b.size() ? 1 : 0);
 }
 
-TEST(Presenter, PresentsHostAndImportedFramesWithASemaphorePerImage) {
+// Opens the test's window. False when the test body must not run here: it was run again under
+// Xvfb (no display), skipped (no xvfb-run), or the window failed to open (a fatal failure).
+bool open_test_window(Window& window) {
     if (!have_display()) {
         rerun_under_xvfb();
-        return;
+        return false;
     }
-    Window window;
     open_window(window);
-    if (HasFatalFailure()) {
+    return !::testing::Test::HasFatalFailure();
+}
+
+TEST(Presenter, PresentsHostAndImportedFramesWithASemaphorePerImage) {
+    Window window;
+    if (!open_test_window(window)) {
         return;
     }
     vk::Presenter presenter(presenter_options(window.handle));
@@ -220,13 +226,8 @@ vk::RenderOptions lit_view(const World& world) {
 }
 
 TEST(Presenter, OneDeviceShowsExactlyTheRayMarchedImage) {
-    if (!have_display()) {
-        rerun_under_xvfb();
-        return;
-    }
     Window window;
-    open_window(window);
-    if (HasFatalFailure()) {
+    if (!open_test_window(window)) {
         return;
     }
     const std::unique_ptr<vk::Context> ctx = presenting_context(window.handle);
@@ -262,13 +263,8 @@ TEST(Presenter, OneDeviceShowsExactlyTheRayMarchedImage) {
 }
 
 TEST(Presenter, FramesInFlightSurviveFieldChangesRebindingAndResizes) {
-    if (!have_display()) {
-        rerun_under_xvfb();
-        return;
-    }
     Window window;
-    open_window(window);
-    if (HasFatalFailure()) {
+    if (!open_test_window(window)) {
         return;
     }
     const std::unique_ptr<vk::Context> ctx = presenting_context(window.handle);
