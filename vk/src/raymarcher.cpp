@@ -356,17 +356,21 @@ void Raymarcher::Impl::write_set() {
     std::vector<VkDescriptorBufferInfo> infos;
     infos.reserve(VF_RAYMARCH_BINDING_BLOCK_MIN + 1);
     std::vector<VkWriteDescriptorSet> writes;
-    auto add = [&](std::uint32_t binding, const Buffer& b, VkDeviceSize range) {
-        if (b.get() == VK_NULL_HANDLE) {
-            return;
-        }
-        infos.push_back(VkDescriptorBufferInfo{b.get(), 0, range});
+    auto write = [&](std::uint32_t binding, VkDescriptorType type) {
         VkWriteDescriptorSet w{};
         w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
         w.dstSet = set;
         w.dstBinding = binding;
         w.descriptorCount = 1;
-        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        w.descriptorType = type;
+        return w;
+    };
+    auto add = [&](std::uint32_t binding, const Buffer& b, VkDeviceSize range) {
+        if (b.get() == VK_NULL_HANDLE) {
+            return;
+        }
+        infos.push_back(VkDescriptorBufferInfo{b.get(), 0, range});
+        VkWriteDescriptorSet w = write(binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
         w.pBufferInfo = &infos.back();
         writes.push_back(w);
     };
@@ -387,12 +391,7 @@ void Raymarcher::Impl::write_set() {
     const VkDescriptorImageInfo image_info{VK_NULL_HANDLE, target.view.get(),
                                            VK_IMAGE_LAYOUT_GENERAL};
     if (target.view) {
-        VkWriteDescriptorSet w{};
-        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-        w.dstSet = set;
-        w.dstBinding = VF_RAYMARCH_BINDING_IMAGE;
-        w.descriptorCount = 1;
-        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+        VkWriteDescriptorSet w = write(VF_RAYMARCH_BINDING_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE);
         w.pImageInfo = &image_info;
         writes.push_back(w);
     }
