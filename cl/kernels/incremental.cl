@@ -23,6 +23,20 @@ inline uint vf_reach(global const uint* f, int3 p, int4 b_lo, int4 b_hi) {
     return add_sat(f[(o.z * bs.y + o.y) * bs.x + o.x], g.x + g.y + g.z);
 }
 
+// Per axis the gap between the voxels [v_lo, v_hi) and the box [b_lo, b_hi) (0 where they
+// overlap): its sum is the L1 distance between the two.
+inline int3 vf_gap(int3 v_lo, int3 v_hi, int4 b_lo, int4 b_hi) {
+    return max(max(b_lo.xyz - v_hi + (int3)(1), v_lo - b_hi.xyz + (int3)(1)), (int3)(0));
+}
+
+// Whether block b lies on a face of the cap box of blocks [lo, lo + size) that the margin (not
+// the world's edge, nb blocks) cut: a region reaching it may reach further (overflow).
+inline bool vf_on_cut_face(int3 b, int4 lo, int4 size, int4 nb) {
+    const int3 cap_hi = lo.xyz + size.xyz;
+    return any(b == lo.xyz && lo.xyz > (int3)(0)) ||
+           any(b == cap_hi - (int3)(1) && cap_hi < nb.xyz);
+}
+
 // The least f over the part of the box's boundary that the voxels of [v_lo, v_hi) clamp to:
 // per axis wholly below the box (0), across it (1) or wholly above (2); the 27 minima follow
 // f's voxels.
@@ -101,8 +115,7 @@ kernel void inc_bounds(global const uint* dist, global const uint* block_max,
     const int4 nb = vf_blocks(d);
     const int3 v_lo = b * VF_BLOCK;
     const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
-    // L1 distance between the block and B: per axis the gap between the two ranges.
-    const int3 gap = max(max(b_lo.xyz - v_hi + (int3)(1), v_lo - b_hi.xyz + (int3)(1)), (int3)(0));
+    const int3 gap = vf_gap(v_lo, v_hi, b_lo, b_hi);
     global const uint* f = fbox + f_off;
     if (block_max[(b.z * nb.y + b.y) * nb.x + b.x] <
         add_sat((uint)(gap.x + gap.y + gap.z), vf_least(f, v_lo, v_hi, b_lo, b_hi))) {
@@ -142,8 +155,7 @@ kernel void inc_bounds(global const uint* dist, global const uint* block_max,
     atomic_max(&r[3], r_hi.x + 1);
     atomic_max(&r[4], r_hi.y + 1);
     atomic_max(&r[5], r_hi.z + 1);
-    const int3 cap_hi = lo.xyz + size.xyz;
-    if (any(b == lo.xyz && lo.xyz > (int3)(0)) || any(b == cap_hi - (int3)(1) && cap_hi < nb.xyz)) {
+    if (vf_on_cut_face(b, lo, size, nb)) {
         atomic_max(&r[6], 1);
     }
 }
@@ -173,7 +185,7 @@ kernel void inc_place(global const uchar* vox, global uint* dist, global const u
     const int4 nb = vf_blocks(d);
     const int3 v_lo = b * VF_BLOCK;
     const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
-    const int3 gap = max(max(b_lo.xyz - v_hi + (int3)(1), v_lo - b_hi.xyz + (int3)(1)), (int3)(0));
+    const int3 gap = vf_gap(v_lo, v_hi, b_lo, b_hi);
     const int3 bs = b_hi.xyz - b_lo.xyz;
     global const uint* f = fbox + f_off;
     const uint f_min = vf_least(f, v_lo, v_hi, b_lo, b_hi);
@@ -182,8 +194,7 @@ kernel void inc_place(global const uchar* vox, global uint* dist, global const u
         return;
     }
     global int* r = regions + 8 * slot;
-    const int3 cap_hi = lo.xyz + size.xyz;
-    if (any(b == lo.xyz && lo.xyz > (int3)(0)) || any(b == cap_hi - (int3)(1) && cap_hi < nb.xyz)) {
+    if (vf_on_cut_face(b, lo, size, nb)) {
         atomic_max(&r[6], 1);
     }
     atomic_add(&r[7], (v_hi.x - v_lo.x) * (v_hi.y - v_lo.y) * (v_hi.z - v_lo.z));
