@@ -202,13 +202,20 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
 
     cl_call("setting up kernels, " + sizes, [&] {
         const Box all{{0, 0, 0}, {X, Y, Z}};
-        if (banded_lines(Y) != 0 && banded_lines(Z) != 0 && !incremental && unit &&
-            !options.signed_field && !options.indices && X < 0xFFFF && Y < kLinkLimit &&
-            Z < kLinkLimit) {
+        // cols_banded where the device runs its work-groups of kBandedGroup (its registers may
+        // cap them lower) and lines of Y and of Z fit its local memory.
+        const bool banded =
+            gpu_layout_ && !incremental && unit && !options.signed_field && !options.indices &&
+            X < 0xFFFF && Y < kLinkLimit && Z < kLinkLimit &&
+            cl::Kernel(program_, "cols_banded")
+                    .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
+        const std::uint32_t lines_y = banded ? banded_lines(Y, info.local_mem) : 0;
+        const std::uint32_t lines_z = banded ? banded_lines(Z, info.local_mem) : 0;
+        if (lines_y != 0 && lines_z != 0) {
             if (auto rows = gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0])) {
                 stages_.push_back(*rows);
-                stages_.push_back(banded_kernel(1, Y, X, std::size_t{X} * Y, Z, false));
-                stages_.push_back(banded_kernel(2, Z, std::size_t{X} * Y, X, Y, true));
+                stages_.push_back(banded_kernel(1, Y, lines_y, X, std::size_t{X} * Y, Z, false));
+                stages_.push_back(banded_kernel(2, Z, lines_z, std::size_t{X} * Y, X, Y, true));
                 banded_ = true;
                 return;
             }
@@ -227,15 +234,9 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     });
 }
 
-std::uint32_t ExactSeparable::banded_lines(std::uint32_t n) const {
-    // The kernel's registers may cap its work-groups below kBandedGroup on some devices.
-    if (!gpu_layout_ ||
-        cl::Kernel(program_, "cols_banded")
-                .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(ctx_.info().device) < kBandedGroup) {
-        return 0;
-    }
+std::uint32_t ExactSeparable::banded_lines(std::uint32_t n, std::size_t local_mem) {
     for (std::uint32_t c = kBandedGroup / 8; c >= 1; c /= 2) {
-        if (banded_local_bytes(n, c) <= ctx_.info().local_mem) {
+        if (banded_local_bytes(n, c) <= local_mem) {
             return c;
         }
     }
@@ -257,10 +258,9 @@ KernelLaunch ExactSeparable::items_launch(const char* name, const cl::Kernel& k,
     return {name, k, cl::NDRange(round_up(items, local)), cl::NDRange(local)};
 }
 
-KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint64_t stride,
-                                           std::uint64_t mstride, std::uint32_t lines_o,
-                                           bool final) {
-    const std::uint32_t c = banded_lines(n);
+KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint32_t c,
+                                           std::uint64_t stride, std::uint64_t mstride,
+                                           std::uint32_t lines_o, bool final) {
     const std::uint32_t k = kBandedGroup / c;
     cl::Kernel kernel(program_, "cols_banded");
     const bool y = axis == 1;

@@ -54,17 +54,18 @@ class ExactSeparable : public Generator {
     void set_up(const std::uint8_t* voxels, bool in_place, std::span<std::uint8_t> field,
                 const Palette& palette, const GeneratorOptions& options);
 
-    // One work-group of cols_banded: kBandedGroup work-items, `banded_lines(n)` lines of n
-    // positions (0: lines of n do not fit the local memory); its sites are 16-bit list links
-    // below kLinkLimit.
+    // One work-group of cols_banded: kBandedGroup work-items, `banded_lines(n, local_mem)`
+    // lines of n positions (0: lines of n do not fit that much local memory); its sites are
+    // 16-bit list links below kLinkLimit.
     static constexpr std::uint32_t kBandedGroup = 256;
     static constexpr std::uint32_t kLinkLimit = 0xFFFE;
-    std::uint32_t banded_lines(std::uint32_t n) const;
+    static std::uint32_t banded_lines(std::uint32_t n, std::size_t local_mem);
     static std::size_t banded_local_bytes(std::uint32_t n, std::uint32_t lines);
     static std::size_t banded_cells(std::uint32_t n, std::uint32_t lines);  // per local array
-    // The banded y (axis 1) or z (axis 2) pass over lines of n positions `stride` apart, line
-    // starts x + o * mstride for the lines_o values of o; `final` writes the output format.
-    KernelLaunch banded_kernel(int axis, std::uint32_t n, std::uint64_t stride,
+    // The banded y (axis 1) or z (axis 2) pass over lines of n positions `stride` apart, `c`
+    // lines per work-group, line starts x + o * mstride for the lines_o values of o; `final`
+    // writes the output format.
+    KernelLaunch banded_kernel(int axis, std::uint32_t n, std::uint32_t c, std::uint64_t stride,
                                std::uint64_t mstride, std::uint32_t lines_o, bool final);
     // A launch of `items` work-items (rounded up to the layout's work-group size).
     KernelLaunch items_launch(const char* name, const cl::Kernel& k, std::size_t items) const;
