@@ -292,7 +292,7 @@ class DissertationSuite {
         }
 
         std::vector<double> ms;
-        std::vector<std::vector<double>> stage_samples;
+        StageTimes stage_times;
         const auto t0 = Clock::now();
         double last_wall = 0;
         std::string truncated;
@@ -321,10 +321,7 @@ class DissertationSuite {
                 last_wall = seconds_since(r0);
                 if (!warm) {
                     ms.push_back(t);
-                    stage_samples.resize(job->stage_ms().size());
-                    for (std::size_t k = 0; k < stage_samples.size(); ++k) {
-                        stage_samples[k].push_back(job->stage_ms()[k].second);
-                    }
+                    stage_times.add(*job);
                 }
             }
         } catch (const ocl::ClError& e) {
@@ -353,12 +350,7 @@ class DissertationSuite {
         row["variant"] = job->variant();
         row["upload_ms"] = job->upload_ms();
         row["download_ms"] = download_ms;
-        json stages = json::array();
-        for (std::size_t k = 0; k < stage_samples.size(); ++k) {
-            stages.push_back({{"kernel", job->stage_ms()[k].first},
-                              {"median_ms", summarize(stage_samples[k]).median}});
-        }
-        row["stages"] = stages;
+        row["stages"] = stage_times.json();
         std::printf("%-11s %-14s %-14s %-6s %-8s %12.3f %12.3f %6u %7u %9.4f\n", g.table.c_str(),
                     v.algorithm.c_str(), dims.to_string().c_str(),
                     v.chunk == 0 ? "-" : std::to_string(v.chunk).c_str(), g.format.c_str(), median,

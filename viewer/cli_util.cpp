@@ -9,6 +9,7 @@
 
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/reference.hpp"
+#include "voxfield/core/stats.hpp"
 #include "voxfield_commit.hpp"
 
 namespace voxfield::cli {
@@ -231,6 +232,23 @@ std::string fixed(double v, int digits) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%.*f", digits, v);
     return buf;
+}
+
+void StageTimes::add(const ocl::Generator& job) {
+    const auto& stages = job.stage_ms();
+    kernels_.resize(stages.size());
+    for (std::size_t k = 0; k < stages.size(); ++k) {
+        kernels_[k].first = stages[k].first;
+        kernels_[k].second.push_back(stages[k].second);
+    }
+}
+
+nlohmann::json StageTimes::json() const {
+    nlohmann::json rows = nlohmann::json::array();
+    for (const auto& [name, samples] : kernels_) {
+        rows.push_back({{"kernel", name}, {"median_ms", summarize(samples).median}});
+    }
+    return rows;
 }
 
 }  // namespace voxfield::cli

@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/runtime.hpp"
@@ -62,6 +64,17 @@ void write_text_file(const std::filesystem::path& path, const std::string& text)
 void write_json_file(const std::filesystem::path& path, const nlohmann::json& j);
 
 nlohmann::json device_json(const ocl::DeviceInfo& d);
+
+// Each kernel's times over a generator's timed runs, for the "stages" rows of the JSON.
+class StageTimes {
+  public:
+    void add(const ocl::Generator& job);  // after each timed run()
+    // [{"kernel": name, "median_ms": median}] in launch order.
+    nlohmann::json json() const;
+
+  private:
+    std::vector<std::pair<std::string, std::vector<double>>> kernels_;
+};
 std::string commit();
 // Now in UTC, ISO 8601 ("2026-11-22T05:16:00Z"), for benchmark records.
 std::string utc_now();

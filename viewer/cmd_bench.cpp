@@ -107,7 +107,7 @@ int run_bench(const BenchOptions& o) {
             }
             ocl::Generator& job = *generator;
             std::vector<double> ms;
-            std::vector<std::vector<double>> stage_samples;
+            StageTimes stage_times;
             for (std::uint32_t i = 0; i < o.warmup + o.repeat; ++i) {
                 std::cerr << "\rbench: " << label << ": " << (i < o.warmup ? "warm-up " : "run ")
                           << (i < o.warmup ? i + 1 : i + 1 - o.warmup) << "/"
@@ -115,10 +115,7 @@ int run_bench(const BenchOptions& o) {
                 const double t = job.run();
                 if (i >= o.warmup) {
                     ms.push_back(t);
-                    stage_samples.resize(job.stage_ms().size());
-                    for (std::size_t k = 0; k < stage_samples.size(); ++k) {
-                        stage_samples[k].push_back(job.stage_ms()[k].second);
-                    }
+                    stage_times.add(job);
                 }
             }
             double download_ms = 0;
@@ -126,14 +123,13 @@ int run_bench(const BenchOptions& o) {
             std::cerr << "\rbench: " << label << ": checking against the CPU reference\n";
             const Accuracy a = accuracy_of(world, Palette::magicavoxel_default(), options, field);
             const Summary s = summarize(ms);
-            nlohmann::json stages = nlohmann::json::array();
-            std::string stage_text;
-            for (std::size_t k = 0; k < stage_samples.size(); ++k) {
-                const double median = summarize(stage_samples[k]).median;
-                stages.push_back({{"kernel", job.stage_ms()[k].first}, {"median_ms", median}});
-                stage_text += " " + job.stage_ms()[k].first + " " + std::to_string(median) + " ms";
+            const nlohmann::json stages = stage_times.json();
+            std::ostringstream stage_text;
+            for (const auto& stage : stages) {
+                stage_text << ' ' << stage["kernel"].get<std::string>() << ' '
+                           << std::to_string(stage["median_ms"].get<double>()) << " ms";
             }
-            std::cerr << "bench: " << label << ": median per kernel:" << stage_text << '\n';
+            std::cerr << "bench: " << label << ": median per kernel:" << stage_text.str() << '\n';
             const double gvox = static_cast<double>(dims.count()) / (s.median * 1e-3) / 1e9;
             results.push_back(
                 {{"algorithm", algorithm},
@@ -215,7 +211,8 @@ Command add_bench(CLI::App& root) {
         ->capture_default_str();
     app->add_option("--warmup", o->warmup, "Untimed runs before the timed ones")
         ->capture_default_str();
-    app->add_option("--scene", o->scene, "World generator: empty, spheres, terrain, menger, random, sand")
+    app->add_option("--scene", o->scene,
+                    "World generator: empty, spheres, terrain, menger, random, sand")
         ->check(CLI::IsMember(scene_names()))
         ->capture_default_str();
     app->add_option("--seed", o->seed, "Scene seed")->capture_default_str();

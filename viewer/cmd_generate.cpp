@@ -151,7 +151,7 @@ int run_generate(const GenerateOptions& o) {
                  : ocl::make_generator(ctx, model->world, palette, options);
     phases.upload = ms_since(t_upload);
     std::vector<double> samples;
-    std::vector<std::vector<double>> stage_samples;
+    StageTimes stage_times;
     double first_run_ms = 0;
     const auto t_kernels = Clock::now();
     for (std::uint32_t i = 0; i < o.warmup + o.repeat; ++i) {
@@ -161,10 +161,7 @@ int run_generate(const GenerateOptions& o) {
         }
         if (i >= o.warmup) {
             samples.push_back(ms);
-            stage_samples.resize(job->stage_ms().size());
-            for (std::size_t k = 0; k < stage_samples.size(); ++k) {
-                stage_samples[k].push_back(job->stage_ms()[k].second);
-            }
+            stage_times.add(*job);
         }
     }
     phases.kernels = ms_since(t_kernels);
@@ -239,13 +236,7 @@ int run_generate(const GenerateOptions& o) {
           {"wall", phases.wall}}},
         {"gvox_per_s", gvox},
         {"iterations", job->iterations()}};
-    // Per kernel (in launch order): the median of the timed runs.
-    nlohmann::json stages = nlohmann::json::array();
-    for (std::size_t k = 0; k < stage_samples.size(); ++k) {
-        stages.push_back({{"kernel", job->stage_ms()[k].first},
-                          {"median_ms", summarize(stage_samples[k]).median}});
-    }
-    j["stages"] = stages;
+    j["stages"] = stage_times.json();  // per kernel, in launch order
     if (options.focus) {
         const Focus& f = *options.focus;
         j["focus"] = {f.centre.x, f.centre.y, f.centre.z, f.size};
