@@ -309,7 +309,8 @@ Command add_generate(CLI::App& root) {
                   "voxels/s and accuracy against the exact CPU reference of the same semantics "
                   "(global, or chunk-local with --chunk)");
     app->add_option("--json", o->json,
-                    "Write timings and phases (and --stats accuracy) to this JSON file");
+                    "Write timings, phases and each kernel's median (stages), and --stats "
+                    "accuracy, to this JSON file");
     app->add_option("--repeat", o->repeat,
                     "Run the transform this many times and report the median kernel time")
         ->check(CLI::PositiveNumber)
