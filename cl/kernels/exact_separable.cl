@@ -80,7 +80,7 @@ inline int sep(int i, int u, GT gi, GT gu, float s) {
     // floor(num / den) from a float quotient (off by at most one while |num| < 2^23), then
     // corrected exactly: integer division by a variable is slow on GPUs.
     const int num = u * u - i * i + b - a, den = 2 * (u - i);
-    int q = (int)floor((float)num / (float)den);
+    int q = (int)floor(native_divide((float)num, (float)den));
     while (q * den > num) {
         --q;
     }
