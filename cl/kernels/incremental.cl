@@ -3,8 +3,8 @@
 //
 // `dist` holds exact distances (uint, VF_FAR where no solid exists; classic_common.cl's
 // vf_encode saturates it), capped at the bound of a bounded field (its values are then
-// min(exact, cap), and every update keeps them so). Boxes are int4 with w unused; b_lo/b_hi is the edit's changed box
-// B (half-open).
+// min(exact, cap), and every update keeps them so). Boxes are int4 with w unused; b_lo/b_hi is the
+// edit's changed box B (half-open).
 
 #define VF_FAR 0xFFFFFFFFu
 
@@ -100,63 +100,128 @@ kernel void inc_block_max(global const uint* dist, global uint* block_max, int4 
     block_max[(b.z * nb.y + b.y) * nb.x + b.x] = m;
 }
 
-// W: the bounding box of R within the cap box of blocks [lo, lo + size) (B grown by the
-// margin), one work-item per block: blocks whose maximum stays below the least d_C over them
-// are skipped, the others test each voxel. R in a block on a face of the cap box that the
-// margin (not the world) cut sets overflow: R may reach further.
-kernel void inc_bounds(global const uint* dist, global const uint* block_max,
-                       global const uint* fbox, uint f_off, int4 d, int4 b_lo, int4 b_hi, int4 lo,
-                       int4 size, global int* regions, int slot) {
-    const int3 b = lo.xyz + (int3)(get_global_id(0), get_global_id(1), get_global_id(2));
-    if ((int)get_global_id(0) >= size.x || (int)get_global_id(1) >= size.y ||
-        (int)get_global_id(2) >= size.z) {
-        return;
+// inc_bounds and inc_place run over the blocks of a cap box [lo, lo + size) (x fastest),
+// `per_group` (at most VF_GROUP) blocks per work-group: one work-item tests each against the
+// edit's reach, then every work-item takes its row of each block that passed (VF_BLOCK^2
+// rows, row r at y, z offsets r % VF_BLOCK, r / VF_BLOCK; in a work-group of L work-items
+// rows r, r + L, ...). On a GPU a work-group has VF_ROWS work-items, so a block's rows run
+// side by side; on a CPU it has one, which takes one block.
+#define VF_ROWS (VF_BLOCK * VF_BLOCK)
+#define VF_GROUP 8
+
+inline int3 vf_block_at(int i, int4 lo, int4 size) {
+    return lo.xyz + (int3)(i % size.x, i / size.x % size.y, i / (size.x * size.y));
+}
+
+// A block-local box of voxels in local memory: acc[0..2] the least x, y, z, acc[3..5] the
+// greatest (empty while acc[3] < 0), gathered from each work-item's own box.
+inline void vf_box_clear(local int* acc) {
+    for (int a = 0; a < 3; ++a) {
+        acc[a] = INT_MAX;
+        acc[3 + a] = -1;
     }
-    const int4 nb = vf_blocks(d);
+}
+
+inline void vf_box_add(local int* acc, int3 lo, int3 hi) {
+    if (hi.x >= 0) {
+        atomic_min(&acc[0], lo.x);
+        atomic_min(&acc[1], lo.y);
+        atomic_min(&acc[2], lo.z);
+        atomic_max(&acc[3], hi.x);
+        atomic_max(&acc[4], hi.y);
+        atomic_max(&acc[5], hi.z);
+    }
+}
+
+// Accumulates a block's box into the edit's W (regions' encoding, see above).
+inline void vf_box_to_region(local const int* acc, global int* r, int4 d) {
+    atomic_max(&r[0], d.x - acc[0]);
+    atomic_max(&r[1], d.y - acc[1]);
+    atomic_max(&r[2], d.z - acc[2]);
+    atomic_max(&r[3], acc[3] + 1);
+    atomic_max(&r[4], acc[4] + 1);
+    atomic_max(&r[5], acc[5] + 1);
+}
+
+// The least reach over block b's voxels of the box field f of B: its L1 gap to B plus the
+// least f where its voxels clamp to.
+inline uint vf_block_reach(int3 b, int4 d, global const uint* f, int4 b_lo, int4 b_hi) {
     const int3 v_lo = b * VF_BLOCK;
     const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
     const int3 gap = vf_gap(v_lo, v_hi, b_lo, b_hi);
+    return add_sat((uint)(gap.x + gap.y + gap.z), vf_least(f, v_lo, v_hi, b_lo, b_hi));
+}
+
+// W: the bounding box of R within the cap box of blocks [lo, lo + size) (B grown by the
+// margin): blocks whose maximum stays below the least d_C over them are skipped, the others
+// test each voxel. R in a block on a face of the cap box that the margin (not the world) cut
+// sets overflow: R may reach further. It also writes the edit's `count` voxel changes from
+// changes + 2 * first into `vox` (as inc_scatter; it reads no voxel values itself).
+kernel void inc_bounds(global const uint* dist, global const uint* block_max,
+                       global const uint* fbox, uint f_off, int4 d, int4 b_lo, int4 b_hi, int4 lo,
+                       int4 size, global int* regions, int slot, global uchar* vox,
+                       global const uint* changes, uint first, uint count, int per_group) {
+    local int acc[VF_GROUP][6];
+    local int cand[VF_GROUP];
+    local int n_cand;
+    const int lid = (int)get_local_id(0);
+    const int4 nb = vf_blocks(d);
     global const uint* f = fbox + f_off;
-    if (block_max[(b.z * nb.y + b.y) * nb.x + b.x] <
-        add_sat((uint)(gap.x + gap.y + gap.z), vf_least(f, v_lo, v_hi, b_lo, b_hi))) {
-        return;
+    for (size_t k = get_global_id(0); k < count; k += get_global_size(0)) {
+        vox[changes[2 * (first + k)]] = (uchar)changes[2 * (first + k) + 1];
     }
-    int3 r_lo = (int3)(INT_MAX), r_hi = (int3)(-1);
+    if (lid == 0) {
+        n_cand = 0;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const int i = (int)get_group_id(0) * per_group + lid;
+    if (lid < per_group && i < size.x * size.y * size.z) {
+        const int3 b = vf_block_at(i, lo, size);
+        if (block_max[(b.z * nb.y + b.y) * nb.x + b.x] >= vf_block_reach(b, d, f, b_lo, b_hi)) {
+            const int j = atomic_inc(&n_cand);
+            cand[j] = i;
+            vf_box_clear(acc[j]);
+        }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
     const int3 bs = b_hi.xyz - b_lo.xyz;
-    const int n = v_hi.x - v_lo.x;
-    for (int z = v_lo.z; z < v_hi.z; ++z) {
-        const int cz = clamp(z, b_lo.z, b_hi.z - 1);
-        for (int y = v_lo.y; y < v_hi.y; ++y) {
+    for (int j = 0; j < n_cand; ++j) {
+        const int3 v_lo = vf_block_at(cand[j], lo, size) * VF_BLOCK;
+        const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
+        int3 r_lo = (int3)(INT_MAX), r_hi = (int3)(-1);
+        const int n = v_hi.x - v_lo.x;
+        for (int rr = lid; rr < VF_ROWS; rr += (int)get_local_size(0)) {
+            const int y = v_lo.y + rr % VF_BLOCK, z = v_lo.z + rr / VF_BLOCK;
+            if (y >= v_hi.y || z >= v_hi.z) {
+                continue;
+            }
             // vf_reach along the row: the box field's row at the clamped y and z.
+            const int cz = clamp(z, b_lo.z, b_hi.z - 1);
             const int cy = clamp(y, b_lo.y, b_hi.y - 1);
             const uint yz = (uint)(abs(z - cz) + abs(y - cy));
             global const uint* fr = f + ((cz - b_lo.z) * bs.y + (cy - b_lo.y)) * bs.x;
             const int row = (z * d.y + y) * d.x + v_lo.x;
-            uint in_r = 0;  // bit i: x = v_lo.x + i lies in R
-            for (int i = 0; i < n; ++i) {
-                const int x = v_lo.x + i;
+            uint in_r = 0;  // bit k: x = v_lo.x + k lies in R
+            for (int k = 0; k < n; ++k) {
+                const int x = v_lo.x + k;
                 const int cx = clamp(x, b_lo.x, b_hi.x - 1);
                 const uint reach = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
-                in_r |= (dist[row + i] >= reach ? 1u : 0u) << i;
+                in_r |= (dist[row + k] >= reach ? 1u : 0u) << k;
             }
             if (in_r != 0) {
                 r_lo = min(r_lo, (int3)(v_lo.x + 31 - (int)clz(in_r & (~in_r + 1u)), y, z));
                 r_hi = max(r_hi, (int3)(v_lo.x + 31 - (int)clz(in_r), y, z));
             }
         }
+        vf_box_add(acc[j], r_lo, r_hi);
     }
-    if (r_hi.x < 0) {
-        return;
-    }
-    global int* r = regions + 8 * slot;
-    atomic_max(&r[0], d.x - r_lo.x);
-    atomic_max(&r[1], d.y - r_lo.y);
-    atomic_max(&r[2], d.z - r_lo.z);
-    atomic_max(&r[3], r_hi.x + 1);
-    atomic_max(&r[4], r_hi.y + 1);
-    atomic_max(&r[5], r_hi.z + 1);
-    if (vf_on_cut_face(b, lo, size, nb)) {
-        atomic_max(&r[6], 1);
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid < n_cand && acc[lid][3] >= 0) {
+        global int* r = regions + 8 * slot;
+        vf_box_to_region(acc[lid], r, d);
+        if (vf_on_cut_face(vf_block_at(cand[lid], lo, size), lo, size, nb)) {
+            atomic_max(&r[6], 1);
+        }
     }
 }
 
@@ -165,81 +230,103 @@ kernel void inc_bounds(global const uint* dist, global const uint* block_max,
 // old distance, and every solid outside B is). Per axis outside B, |p - s| splits at B's face
 // for every s in B, so d_B(p) = L1(p, B) + f(clamp(p, B)) with f = d_B inside B, which the
 // host computed: fbox[f_off ...], B's voxels x fastest, then the least f over each part of B's
-// boundary (27 entries, vf_least). One work-item per block of the cap box of blocks
-// [lo, lo + size): a block can change only where its old maximum exceeds the least candidate
+// boundary (27 entries, vf_least). Over the blocks of the cap box [lo, lo + size): a block
+// can change only where its old maximum exceeds the least candidate
 // d_B over it, at least its L1 distance to B plus the least f where its voxels clamp to. Each
 // row computes its new values and change mask first, then writes the span of changed voxels
 // (those between unchanged ones keep their value). Writes the lowered distances, the block's
 // new maximum, and the box of the changed voxels into regions + 8 * slot (inc_bounds'
 // encoding, overflow when a candidate block lies on a face of the cap box that the margin
-// cut; [7] counts the voxels read).
-kernel void inc_place(global const uchar* vox, global uint* dist, global const uchar* rgb,
+// cut; [7] counts the voxels read). First it writes the edit's `count` changes from
+// changes + 2 * first into `vox`, as inc_scatter does: the host passes none where the output
+// format reads voxel values (packed32), and scatters them before.
+kernel void inc_place(global uchar* vox, global uint* dist, global const uchar* rgb,
                       global OUT_T* out, global uint* block_max, global const uint* fbox,
                       uint f_off, int4 d, int4 b_lo, int4 b_hi, int4 lo, int4 size,
-                      global int* regions, int slot) {
-    const int3 b = lo.xyz + (int3)(get_global_id(0), get_global_id(1), get_global_id(2));
-    if ((int)get_global_id(0) >= size.x || (int)get_global_id(1) >= size.y ||
-        (int)get_global_id(2) >= size.z) {
-        return;
-    }
+                      global int* regions, int slot, global const uint* changes, uint first,
+                      uint count, int per_group) {
+    local int acc[VF_GROUP][6];
+    local uint block_m[VF_GROUP];
+    local int cand[VF_GROUP];
+    local int n_cand;
+    const int lid = (int)get_local_id(0);
     const int4 nb = vf_blocks(d);
-    const int3 v_lo = b * VF_BLOCK;
-    const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
-    const int3 gap = vf_gap(v_lo, v_hi, b_lo, b_hi);
-    const int3 bs = b_hi.xyz - b_lo.xyz;
     global const uint* f = fbox + f_off;
-    const uint f_min = vf_least(f, v_lo, v_hi, b_lo, b_hi);
-    const int bi = (b.z * nb.y + b.y) * nb.x + b.x;
-    if (block_max[bi] <= add_sat((uint)(gap.x + gap.y + gap.z), f_min)) {
-        return;
-    }
     global int* r = regions + 8 * slot;
-    if (vf_on_cut_face(b, lo, size, nb)) {
-        atomic_max(&r[6], 1);
+    for (size_t k = get_global_id(0); k < count; k += get_global_size(0)) {
+        vox[changes[2 * (first + k)]] = (uchar)changes[2 * (first + k) + 1];
     }
-    atomic_add(&r[7], (v_hi.x - v_lo.x) * (v_hi.y - v_lo.y) * (v_hi.z - v_lo.z));
-    int3 c_lo = (int3)(INT_MAX), c_hi = (int3)(-1);
-    uint m = 0;
-    const int n = v_hi.x - v_lo.x;
-    for (int z = v_lo.z; z < v_hi.z; ++z) {
-        const int cz = clamp(z, b_lo.z, b_hi.z - 1);
-        for (int y = v_lo.y; y < v_hi.y; ++y) {
+    if (lid == 0) {
+        n_cand = 0;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const int i = (int)get_group_id(0) * per_group + lid;
+    if (lid < per_group && i < size.x * size.y * size.z) {
+        const int3 b = vf_block_at(i, lo, size);
+        if (block_max[(b.z * nb.y + b.y) * nb.x + b.x] > vf_block_reach(b, d, f, b_lo, b_hi)) {
+            const int j = atomic_inc(&n_cand);
+            cand[j] = i;
+            vf_box_clear(acc[j]);
+            block_m[j] = 0;
+            if (vf_on_cut_face(b, lo, size, nb)) {
+                atomic_max(&r[6], 1);
+            }
+            const int3 v_lo = b * VF_BLOCK;
+            const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
+            atomic_add(&r[7], (v_hi.x - v_lo.x) * (v_hi.y - v_lo.y) * (v_hi.z - v_lo.z));
+        }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const int3 bs = b_hi.xyz - b_lo.xyz;
+    for (int j = 0; j < n_cand; ++j) {
+        const int3 v_lo = vf_block_at(cand[j], lo, size) * VF_BLOCK;
+        const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
+        int3 c_lo = (int3)(INT_MAX), c_hi = (int3)(-1);
+        uint m = 0;
+        const int n = v_hi.x - v_lo.x;
+        for (int rr = lid; rr < VF_ROWS; rr += (int)get_local_size(0)) {
+            const int y = v_lo.y + rr % VF_BLOCK, z = v_lo.z + rr / VF_BLOCK;
+            if (y >= v_hi.y || z >= v_hi.z) {
+                continue;
+            }
+            const int cz = clamp(z, b_lo.z, b_hi.z - 1);
             const int cy = clamp(y, b_lo.y, b_hi.y - 1);
             const uint yz = (uint)(abs(z - cz) + abs(y - cy));
             global const uint* fr = f + ((cz - b_lo.z) * bs.y + (cy - b_lo.y)) * bs.x;
             const int row = (z * d.y + y) * d.x + v_lo.x;
-            // The row's new values and which of them changed (bit i: x = v_lo.x + i).
+            // The row's new values and which of them changed (bit k: x = v_lo.x + k).
             uint changed = 0;
             uint nv[VF_BLOCK];
-            for (int i = 0; i < n; ++i) {
-                const int x = v_lo.x + i;
+            for (int k = 0; k < n; ++k) {
+                const int x = v_lo.x + k;
                 const int cx = clamp(x, b_lo.x, b_hi.x - 1);
-                const uint cand = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
-                const uint old = dist[row + i];
-                changed |= (cand < old ? 1u : 0u) << i;
-                nv[i] = min(old, cand);
-                m = max(m, nv[i]);
+                const uint cand_d = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
+                const uint old = dist[row + k];
+                changed |= (cand_d < old ? 1u : 0u) << k;
+                nv[k] = min(old, cand_d);
+                m = max(m, nv[k]);
             }
             if (changed != 0) {
-                const int first = 31 - (int)clz(changed & (~changed + 1u));
-                const int last = 31 - (int)clz(changed);
-                for (int i = first; i <= last; ++i) {
-                    dist[row + i] = nv[i];
-                    out[row + i] = vf_encode(nv[i], vox[row + i], rgb);
+                const int lo_k = 31 - (int)clz(changed & (~changed + 1u));
+                const int hi_k = 31 - (int)clz(changed);
+                for (int k = lo_k; k <= hi_k; ++k) {
+                    dist[row + k] = nv[k];
+                    out[row + k] = vf_encode(nv[k], vox[row + k], rgb);
                 }
-                c_lo = min(c_lo, (int3)(v_lo.x + first, y, z));
-                c_hi = max(c_hi, (int3)(v_lo.x + last, y, z));
+                c_lo = min(c_lo, (int3)(v_lo.x + lo_k, y, z));
+                c_hi = max(c_hi, (int3)(v_lo.x + hi_k, y, z));
             }
         }
+        atomic_max(&block_m[j], m);
+        vf_box_add(acc[j], c_lo, c_hi);
     }
-    block_max[bi] = m;
-    if (c_hi.x >= 0) {
-        atomic_max(&r[0], d.x - c_lo.x);
-        atomic_max(&r[1], d.y - c_lo.y);
-        atomic_max(&r[2], d.z - c_lo.z);
-        atomic_max(&r[3], c_hi.x + 1);
-        atomic_max(&r[4], c_hi.y + 1);
-        atomic_max(&r[5], c_hi.z + 1);
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid < n_cand) {
+        const int3 b = vf_block_at(cand[lid], lo, size);
+        block_max[(b.z * nb.y + b.y) * nb.x + b.x] = block_m[lid];
+        if (acc[lid][3] >= 0) {
+            vf_box_to_region(acc[lid], r, d);
+        }
     }
 }
 
@@ -260,8 +347,8 @@ kernel void inc_sweep_x(global const uchar* vox, global const uint* dist, global
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
     const int y = cap_lo.y + (int)get_global_id(0), z = cap_lo.z + (int)get_global_id(1);
-    if ((int)get_global_id(0) >= cap_size.y || (int)get_global_id(1) >= cap_size.z ||
-        y < lo.y || y >= hi.y || z < lo.z || z >= hi.z) {
+    if ((int)get_global_id(0) >= cap_size.y || (int)get_global_id(1) >= cap_size.z || y < lo.y ||
+        y >= hi.y || z < lo.z || z >= hi.z) {
         return;
     }
     const int row = (z * d.y + y) * d.x;
@@ -269,7 +356,7 @@ kernel void inc_sweep_x(global const uchar* vox, global const uint* dist, global
     for (int x = lo.x; x < hi.x; ++x) {
         const int3 p = (int3)(x, y, z);
         const uint old = dist[row + x];
-        const uint g = vox[row + x] != 0                         ? 0u
+        const uint g = vox[row + x] != 0                             ? 0u
                        : old < vf_reach(fbox + f_off, p, b_lo, b_hi) ? old
                                                                      : VF_FAR;
         run = min(g, vf_sat_inc(run));
@@ -283,14 +370,14 @@ kernel void inc_sweep_x(global const uchar* vox, global const uint* dist, global
 }
 
 // y sweeps over the columns of the ring box.
-kernel void inc_sweep_y(global uint* tmp, global const int* regions, int slot, int4 d,
-                        int4 cap_lo, int4 cap_size) {
+kernel void inc_sweep_y(global uint* tmp, global const int* regions, int slot, int4 d, int4 cap_lo,
+                        int4 cap_size) {
     global const int* region = regions + 8 * slot;
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
     const int x = cap_lo.x + (int)get_global_id(0), z = cap_lo.z + (int)get_global_id(1);
-    if ((int)get_global_id(0) >= cap_size.x || (int)get_global_id(1) >= cap_size.z ||
-        x < lo.x || x >= hi.x || z < lo.z || z >= hi.z) {
+    if ((int)get_global_id(0) >= cap_size.x || (int)get_global_id(1) >= cap_size.z || x < lo.x ||
+        x >= hi.x || z < lo.z || z >= hi.z) {
         return;
     }
     const int base = z * d.y * d.x + x;
@@ -316,8 +403,8 @@ kernel void inc_sweep_z(global const uchar* vox, global uint* dist, global uint*
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
     const int x = cap_lo.x + (int)get_global_id(0), y = cap_lo.y + (int)get_global_id(1);
-    if ((int)get_global_id(0) >= cap_size.x || (int)get_global_id(1) >= cap_size.y ||
-        x < lo.x || x >= hi.x || y < lo.y || y >= hi.y) {
+    if ((int)get_global_id(0) >= cap_size.x || (int)get_global_id(1) >= cap_size.y || x < lo.x ||
+        x >= hi.x || y < lo.y || y >= hi.y) {
         return;
     }
     const int plane = d.x * d.y;
@@ -388,9 +475,8 @@ kernel void inc_sweep_y_slices(global uint* tmp, global const int* regions, int 
 }
 
 kernel void inc_sweep_z_rows(global const uchar* vox, global uint* dist, global uint* tmp,
-                             global const uchar* rgb, global OUT_T* out,
-                             global const int* regions, int slot, int4 d, int4 cap_lo,
-                             int4 cap_size, uint cap) {
+                             global const uchar* rgb, global OUT_T* out, global const int* regions,
+                             int slot, int4 d, int4 cap_lo, int4 cap_size, uint cap) {
     global const int* region = regions + 8 * slot;
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);
@@ -435,10 +521,10 @@ kernel void inc_sweep_z_rows(global const uchar* vox, global uint* dist, global 
 // doubling steps s = 1, 2, 4, ... < w, d[x] = min(d[x], d[x-s] + s, d[x+s] + s), each a loop
 // that vectorises, instead of two sequential scans. `scratch` holds two rows of d.x + 2 * pad
 // elements (pad >= next_pow2(d.x) / 2) whose padding stays VF_FAR.
-kernel void inc_sweep_x_slices(global const uchar* vox, global const uint* dist,
-                               global uint* tmp, global const int* regions, int slot, int4 d,
-                               int4 b_lo, int4 b_hi, global const uint* fbox, uint f_off,
-                               int4 cap_lo, int4 cap_size, uint pad, local uint* scratch) {
+kernel void inc_sweep_x_slices(global const uchar* vox, global const uint* dist, global uint* tmp,
+                               global const int* regions, int slot, int4 d, int4 b_lo, int4 b_hi,
+                               global const uint* fbox, uint f_off, int4 cap_lo, int4 cap_size,
+                               uint pad, local uint* scratch) {
     global const int* region = regions + 8 * slot;
     int3 lo, hi;
     inc_ring(region, d, &lo, &hi);

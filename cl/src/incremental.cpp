@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 #include <string>
 
@@ -231,12 +232,22 @@ class Engine {
     // voxel changed twice in a batch ends with its last value).
     void scatter(Events& events, const cl::Buffer& vox, const UpdateStats& stats,
                  const std::vector<std::size_t>& first, std::size_t e) {
-        cl::Kernel k(program, "inc_scatter");
+        cl::Kernel& k = kernel("inc_scatter");
         k.setArg(0, vox);
         k.setArg(1, changes);
         k.setArg(2, static_cast<cl_uint>(first[e]));
         k.setArg(3, static_cast<cl_uint>(stats.edits[e].changes.size()));
         enqueue(events, k, cl::NDRange(stats.edits[e].changes.size()));
+    }
+
+    // The kernel `name` of `program`, created once: creating one per launch costs an update
+    // more than some of its kernels take. (Arguments are captured when a launch is enqueued.)
+    cl::Kernel& kernel(const char* name) {
+        auto it = kernels.find(name);
+        if (it == kernels.end()) {
+            it = kernels.emplace(name, cl::Kernel(program, name)).first;
+        }
+        return it->second;
     }
 
     // Fixed work-group shapes, the global size rounded up to them (the kernels skip what is
@@ -278,6 +289,7 @@ class Engine {
     }
 
     cl::Program program;
+    std::map<std::string, cl::Kernel> kernels;  // kernel()'s
     std::vector<cl_uint> staging;
     cl::Buffer rgb, changes;
     std::size_t changes_capacity = 0;
@@ -359,14 +371,15 @@ class GlobalEngine : public Engine {
                 append_box_field(staging, stats.edits, e, places_only(r));
             }
         }
+        // Then, 8-aligned, each edit's 8 ints of W (inc_bounds' encoding) zeroed, which its
+        // kernels accumulate with atomic_max: slot regions_at + e of the changes buffer.
+        const std::size_t regions_at = (staging.size() + 7) / 8;
+        if (!regenerate_all) {
+            staging.resize(8 * (regions_at + stats.edits.size()), 0);
+        }
         cl_call("updating the field of " + world.dims().to_string(), [&] {
             auto& q = ctx.queue();
-            reserve(regions, regions_capacity, 8 * 4 * stats.edits.size());
             Events events = upload();
-            events.emplace_back();
-            // inc_bounds accumulates W with atomic_max from zero.
-            q.enqueueFillBuffer(regions, cl_int{0}, 0, 8 * 4 * stats.edits.size(), nullptr,
-                                &events.back());
             if (regenerate_all) {
                 // The output straight from the sweeps in its own format; the exact u32 field
                 // and its block maxima, which only incremental updates read, are brought up to
@@ -399,12 +412,20 @@ class GlobalEngine : public Engine {
                 if (!r.changed()) {
                     continue;
                 }
-                scatter(events, exact->voxels_buffer(), stats, first, e);
+                const std::size_t slot = regions_at + e;
+                // inc_bounds and inc_place write the edit's voxels themselves, unless the output
+                // format reads them (inc_place encoding packed32's colours).
+                const bool in_place = places_only(r) && options.format != Format::packed32;
+                const bool in_bounds = !places_only(r) && r.occupancy_changed();
+                const std::size_t pairs = in_place || in_bounds ? r.changes.size() : 0;
+                if (pairs == 0) {
+                    scatter(events, exact->voxels_buffer(), stats, first, e);
+                }
                 if (places_only(r)) {
-                    enqueue_place(events, r.occupancy_bounds, field_at[e], e);
+                    enqueue_place(events, r.occupancy_bounds, field_at[e], slot, first[e], pairs);
                     swept.push_back(e);
                 } else if (r.occupancy_changed()) {
-                    enqueue_sweeps(events, r.occupancy_bounds, field_at[e], e);
+                    enqueue_sweeps(events, r.occupancy_bounds, field_at[e], slot, first[e], pairs);
                     swept.push_back(e);
                 }
                 if (options.format == Format::packed32) {
@@ -413,7 +434,8 @@ class GlobalEngine : public Engine {
             }
             found.assign(8 * stats.edits.size(), 0);
             if (!swept.empty()) {
-                q.enqueueReadBuffer(regions, CL_FALSE, 0, 4 * found.size(), found.data());
+                q.enqueueReadBuffer(changes, CL_FALSE, 4 * 8 * regions_at, 4 * found.size(),
+                                    found.data());
             }
             check_injected_failure();
             q.finish();
@@ -557,10 +579,12 @@ class GlobalEngine : public Engine {
     static constexpr cl_uint kFar = 0xFFFFFFFFu;  // incremental.cl's VF_FAR
 
     // inc_place over the blocks of the cap box (B grown by max_margin) for an edit that only
-    // placed solids; its box field starts at `f_off` in the changes buffer.
-    void enqueue_place(Events& events, const Box& b, std::size_t f_off, std::size_t slot) {
+    // placed solids; its box field starts at `f_off` in the changes buffer, its W at slot
+    // `slot`, and it writes the `count` voxel changes from pair `first` on.
+    void enqueue_place(Events& events, const Box& b, std::size_t f_off, std::size_t slot,
+                       std::size_t first, std::size_t count) {
         const Box cap_blocks = cap_blocks_of(b);
-        cl::Kernel k(program, "inc_place");
+        cl::Kernel& k = kernel("inc_place");
         k.setArg(0, exact->voxels_buffer());
         k.setArg(1, exact->field_buffer());
         k.setArg(2, rgb);
@@ -573,10 +597,34 @@ class GlobalEngine : public Engine {
         k.setArg(9, int4_of(b.max));
         k.setArg(10, int4_of(cap_blocks.min));
         k.setArg(11, int4_of(size_of(cap_blocks)));
-        k.setArg(12, regions);
+        k.setArg(12, changes);
         k.setArg(13, static_cast<cl_int>(slot));
-        enqueue(events, k, range_of(cap_blocks));
+        k.setArg(14, changes);
+        k.setArg(15, static_cast<cl_uint>(first));
+        k.setArg(16, static_cast<cl_uint>(count));
+        enqueue_blocks(events, k, 17, cap_blocks);
     }
+
+    // inc_place and inc_bounds over the blocks of `blocks`, argument `arg` saying how many
+    // blocks a work-group takes. On a CPU work-groups of one take a block each. On a GPU
+    // work-groups of kBlock^2 work-items (incremental.cl's VF_ROWS, a row each) take a block
+    // each while that launches at most kBlockGroups groups, as for a bounded field's small cap
+    // box; beyond that (an unbounded field's whole world, mostly blocks that the test skips)
+    // they take kGroupBlocks blocks each. On the H200 at 512^3 a group per block made a place
+    // edit's kernel 164 us against 105 us; at 256^3, and with D = 16, the group per block was
+    // the faster (27 and 9 us against 33 and 19 us).
+    void enqueue_blocks(Events& events, cl::Kernel& k, cl_uint arg, const Box& blocks) {
+        const auto count = static_cast<std::size_t>(blocks.volume());
+        const std::size_t group = cpu_layout ? 1 : static_cast<std::size_t>(kBlock * kBlock);
+        const std::size_t per_group = cpu_layout || count <= kBlockGroups ? 1 : kGroupBlocks;
+        k.setArg(arg, static_cast<cl_int>(per_group));
+        events.emplace_back();
+        ctx.queue().enqueueNDRangeKernel(k, cl::NullRange,
+                                         cl::NDRange((count + per_group - 1) / per_group * group),
+                                         cl::NDRange(group), nullptr, &events.back());
+    }
+    static constexpr std::size_t kBlockGroups = std::size_t{1} << 15;
+    static constexpr std::size_t kGroupBlocks = 8;  // incremental.cl's VF_GROUP
 
     // The blocks within max_margin of B, clipped to the world.
     Box cap_blocks_of(const Box& b) const {
@@ -587,7 +635,7 @@ class GlobalEngine : public Engine {
     }
 
     void encode_box(Events& events, const Box& b) {
-        cl::Kernel k(program, "inc_encode_box");
+        cl::Kernel& k = kernel("inc_encode_box");
         k.setArg(0, exact->voxels_buffer());
         k.setArg(1, exact->field_buffer());
         k.setArg(2, rgb);
@@ -608,40 +656,25 @@ class GlobalEngine : public Engine {
              floor_div(v.max.z + kBlock - 1, kBlock)}};
     }
 
-    // `count` independent work-items in groups of one (each does a whole slice or row).
-    void enqueue_items(Events& events, cl::Kernel& k, std::size_t count) {
-        events.emplace_back();
-        ctx.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(count), cl::NDRange(1),
-                                         nullptr, &events.back());
-    }
-
-    static cl::NDRange range_of(const Box& b) {
-        return cl::NDRange(static_cast<std::size_t>(b.max.x - b.min.x),
-                           static_cast<std::size_t>(b.max.y - b.min.y),
-                           static_cast<std::size_t>(b.max.z - b.min.z));
-    }
-
-    static Int3 size_of(const Box& b) {
-        return {b.max.x - b.min.x, b.max.y - b.min.y, b.max.z - b.min.z};
-    }
-
     // Block maxima of the blocks in `blocks`; slot >= 0 limits them to that edit's W.
     void update_block_max(Events& events, const Box& blocks, cl_int slot) {
-        cl::Kernel k(program, "inc_block_max");
+        cl::Kernel& k = kernel("inc_block_max");
         k.setArg(0, exact->field_buffer());
         k.setArg(1, block_max);
         k.setArg(2, d);
         k.setArg(3, int4_of(blocks.min));
         k.setArg(4, int4_of(size_of(blocks)));
-        k.setArg(5, slot >= 0 ? regions : block_max);  // unread when slot < 0
+        k.setArg(5, slot >= 0 ? changes : block_max);  // unread when slot < 0
         k.setArg(6, slot);
         enqueue(events, k, range_of(blocks));
     }
 
     // inc_bounds over the blocks of the cap box (B grown by max_margin), the three sweeps
     // over its voxels (and W's one-voxel ring), then the block maxima of W; the box field of
-    // the edit's changed voxels starts at `f_off` in the changes buffer.
-    void enqueue_sweeps(Events& events, const Box& b, std::size_t f_off, std::size_t slot) {
+    // the edit's changed voxels starts at `f_off` in the changes buffer, its W at slot `slot`;
+    // inc_bounds writes the `count` voxel changes from pair `first` on.
+    void enqueue_sweeps(Events& events, const Box& b, std::size_t f_off, std::size_t slot,
+                        std::size_t first, std::size_t count) {
         const Box cap_blocks = cap_blocks_of(b);
         const Box cap = intersect(Box{{cap_blocks.min.x * kBlock - 1, cap_blocks.min.y * kBlock - 1,
                                        cap_blocks.min.z * kBlock - 1},
@@ -653,7 +686,7 @@ class GlobalEngine : public Engine {
         const cl::Buffer& vox = exact->voxels_buffer();
         const auto slot_arg = static_cast<cl_int>(slot);
 
-        cl::Kernel bounds(program, "inc_bounds");
+        cl::Kernel& bounds = kernel("inc_bounds");
         bounds.setArg(0, dist);
         bounds.setArg(1, block_max);
         bounds.setArg(2, changes);
@@ -663,17 +696,21 @@ class GlobalEngine : public Engine {
         bounds.setArg(6, int4_of(b.max));
         bounds.setArg(7, int4_of(cap_blocks.min));
         bounds.setArg(8, int4_of(size_of(cap_blocks)));
-        bounds.setArg(9, regions);
+        bounds.setArg(9, changes);
         bounds.setArg(10, slot_arg);
-        enqueue(events, bounds, range_of(cap_blocks));
+        bounds.setArg(11, vox);
+        bounds.setArg(12, changes);
+        bounds.setArg(13, static_cast<cl_uint>(first));
+        bounds.setArg(14, static_cast<cl_uint>(count));
+        enqueue_blocks(events, bounds, 15, cap_blocks);
 
         const auto ux = static_cast<std::size_t>(size.x), uy = static_cast<std::size_t>(size.y),
                    uz = static_cast<std::size_t>(size.z);
-        cl::Kernel sx(program, cpu_layout ? "inc_sweep_x_slices" : "inc_sweep_x");
+        cl::Kernel& sx = kernel(cpu_layout ? "inc_sweep_x_slices" : "inc_sweep_x");
         sx.setArg(0, vox);
         sx.setArg(1, dist);
         sx.setArg(2, tmp);
-        sx.setArg(3, regions);
+        sx.setArg(3, changes);
         sx.setArg(4, slot_arg);
         sx.setArg(5, d);
         sx.setArg(6, int4_of(b.min));
@@ -691,9 +728,9 @@ class GlobalEngine : public Engine {
             enqueue(events, sx, cl::NDRange(uy, uz));
         }
 
-        cl::Kernel sy(program, cpu_layout ? "inc_sweep_y_slices" : "inc_sweep_y");
+        cl::Kernel& sy = kernel(cpu_layout ? "inc_sweep_y_slices" : "inc_sweep_y");
         sy.setArg(0, tmp);
-        sy.setArg(1, regions);
+        sy.setArg(1, changes);
         sy.setArg(2, slot_arg);
         sy.setArg(3, d);
         sy.setArg(4, int4_of(cap.min));
@@ -704,13 +741,13 @@ class GlobalEngine : public Engine {
             enqueue(events, sy, cl::NDRange(ux, uz));
         }
 
-        cl::Kernel sz(program, cpu_layout ? "inc_sweep_z_rows" : "inc_sweep_z");
+        cl::Kernel& sz = kernel(cpu_layout ? "inc_sweep_z_rows" : "inc_sweep_z");
         sz.setArg(0, vox);
         sz.setArg(1, dist);
         sz.setArg(2, tmp);
         sz.setArg(3, rgb);
         sz.setArg(4, out);
-        sz.setArg(5, regions);
+        sz.setArg(5, changes);
         sz.setArg(6, slot_arg);
         sz.setArg(7, d);
         sz.setArg(8, int4_of(cap.min));
@@ -746,9 +783,8 @@ class GlobalEngine : public Engine {
         exact_stale = false;
         return ms + elapsed_ms(events.front(), events.back());
     }
-    cl::Buffer tmp, regions, block_max;
+    cl::Buffer tmp, block_max;
     std::vector<cl_int> found;  // each edit's W, read back
-    std::size_t regions_capacity = 0;
 };
 
 // Every other exact field (chebyshev, euclidean, spacing, signed; ExactSeparable): the batch's

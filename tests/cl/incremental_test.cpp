@@ -75,6 +75,26 @@ TEST(Incremental, ThousandsOfRandomEditsStayExact) {
     }
 }
 
+// A cap box of more than 2^15 blocks (an unbounded field in a world of 33 792 blocks) makes
+// the GPU layout's inc_place and inc_bounds take eight blocks per work-group instead of one:
+// edits there, placing and erasing, stay exact.
+TEST(Incremental, WideCapBoxesTakeSeveralBlocksPerGroup) {
+    const World start = scene_floor_spheres(Dims{528, 256, 128}, 7, 12);
+    auto o = exact_options(Format::u16);
+    o.layout = ocl::Layout::gpu;
+    ocl::IncrementalField field(pocl(), start, Palette(), o);
+    std::mt19937_64 rng(99);
+    for (int i = 0; i < 6; ++i) {
+        Brush b = random_brush(rng, start.dims(), 6);
+        b.op = i % 3 == 2 ? BrushOp::erase : BrushOp::place;
+        b.radius = std::max<std::int64_t>(b.radius, 2);
+        const auto stats = field.apply({b});
+        ASSERT_EQ(stats.edits.size(), 1u);
+        EXPECT_FALSE(stats.full_regeneration) << "edit " << i;
+        expect_exact(field, Format::u16, "edit " + std::to_string(i));
+    }
+}
+
 // Chebyshev, Euclidean, spacing and signed fields (ExactSeparable's incremental passes):
 // after every batch the field is byte-identical to a fresh full transform of the edited
 // world, in both layouts.
