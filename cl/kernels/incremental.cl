@@ -68,49 +68,71 @@ inline int4 vf_blocks(int4 d) {
     return (d + (int4)(VF_BLOCK - 1)) / (int4)(VF_BLOCK);
 }
 
-// The maximum over each block of the box [lo, lo + size) of blocks.
-kernel void inc_block_max(global const uint* dist, global uint* block_max, int4 d, int4 lo,
-                          int4 size, global const int* regions, int slot) {
-    const int3 b = lo.xyz + (int3)(get_global_id(0), get_global_id(1), get_global_id(2));
-    if ((int)get_global_id(0) >= size.x || (int)get_global_id(1) >= size.y ||
-        (int)get_global_id(2) >= size.z) {
-        return;
-    }
-    if (slot >= 0) {
-        // Only the blocks of the edit's W changed.
-        global const int* r = regions + 8 * slot;
-        const int3 w_lo = d.xyz - (int3)(r[0], r[1], r[2]);
-        const int3 w_hi = (int3)(r[3], r[4], r[5]);
-        if (any(b * VF_BLOCK >= w_hi) || any((b + 1) * VF_BLOCK <= w_lo)) {
-            return;
-        }
-    }
-    const int3 v_lo = b * VF_BLOCK;
-    const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
-    uint m = 0;
-    for (int z = v_lo.z; z < v_hi.z; ++z) {
-        for (int y = v_lo.y; y < v_hi.y; ++y) {
-            const int row = (z * d.y + y) * d.x;
-            for (int x = v_lo.x; x < v_hi.x; ++x) {
-                m = max(m, dist[row + x]);
-            }
-        }
-    }
-    const int4 nb = vf_blocks(d);
-    block_max[(b.z * nb.y + b.y) * nb.x + b.x] = m;
-}
-
-// inc_bounds and inc_place run over the blocks of a cap box [lo, lo + size) (x fastest),
-// `per_group` (at most VF_GROUP) blocks per work-group: one work-item tests each against the
-// edit's reach, then every work-item takes its row of each block that passed (VF_BLOCK^2
-// rows, row r at y, z offsets r % VF_BLOCK, r / VF_BLOCK; in a work-group of L work-items
-// rows r, r + L, ...). On a GPU a work-group has VF_ROWS work-items, so a block's rows run
-// side by side; on a CPU it has one, which takes one block.
+// inc_block_max, inc_bounds and inc_place run over the blocks of a box [lo, lo + size)
+// (x fastest), `per_group` (at most VF_GROUP) blocks per work-group: one work-item tests each
+// block (whether the edit can reach it, or lies in its W), then every work-item takes its
+// row of each block that passed (VF_BLOCK^2 rows, row r at y, z offsets r % VF_BLOCK,
+// r / VF_BLOCK; in a work-group of L work-items rows r, r + L, ...). On a GPU a work-group
+// has VF_ROWS work-items, so a block's rows run side by side; on a CPU it has one, which
+// takes one block.
 #define VF_ROWS (VF_BLOCK * VF_BLOCK)
 #define VF_GROUP 8
 
 inline int3 vf_block_at(int i, int4 lo, int4 size) {
     return lo.xyz + (int3)(i % size.x, i / size.x % size.y, i / (size.x * size.y));
+}
+
+// The maximum over each block of the box [lo, lo + size) of blocks; with slot >= 0 only over
+// the blocks of the edit's W (the others did not change).
+kernel void inc_block_max(global const uint* dist, global uint* block_max, int4 d, int4 lo,
+                          int4 size, global const int* regions, int slot, int per_group) {
+    local uint bm[VF_GROUP];
+    local int cand[VF_GROUP];
+    local int n_cand;
+    const int lid = (int)get_local_id(0);
+    if (lid == 0) {
+        n_cand = 0;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    const int i = (int)get_group_id(0) * per_group + lid;
+    if (lid < per_group && i < size.x * size.y * size.z) {
+        const int3 b = vf_block_at(i, lo, size);
+        bool changed = true;
+        if (slot >= 0) {
+            global const int* r = regions + 8 * slot;
+            const int3 w_lo = d.xyz - (int3)(r[0], r[1], r[2]);
+            const int3 w_hi = (int3)(r[3], r[4], r[5]);
+            changed = !any(b * VF_BLOCK >= w_hi) && !any((b + 1) * VF_BLOCK <= w_lo);
+        }
+        if (changed) {
+            const int j = atomic_inc(&n_cand);
+            cand[j] = i;
+            bm[j] = 0;
+        }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (int j = 0; j < n_cand; ++j) {
+        const int3 v_lo = vf_block_at(cand[j], lo, size) * VF_BLOCK;
+        const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
+        uint m = 0;
+        for (int rr = lid; rr < VF_ROWS; rr += (int)get_local_size(0)) {
+            const int y = v_lo.y + rr % VF_BLOCK, z = v_lo.z + rr / VF_BLOCK;
+            if (y >= v_hi.y || z >= v_hi.z) {
+                continue;
+            }
+            const int row = (z * d.y + y) * d.x;
+            for (int x = v_lo.x; x < v_hi.x; ++x) {
+                m = max(m, dist[row + x]);
+            }
+        }
+        atomic_max(&bm[j], m);
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid < n_cand) {
+        const int3 b = vf_block_at(cand[lid], lo, size);
+        const int4 nb = vf_blocks(d);
+        block_max[(b.z * nb.y + b.y) * nb.x + b.x] = bm[lid];
+    }
 }
 
 // A block-local box of voxels in local memory: acc[0..2] the least x, y, z, acc[3..5] the

@@ -605,9 +605,9 @@ class GlobalEngine : public Engine {
         enqueue_blocks(events, k, 17, cap_blocks);
     }
 
-    // inc_place and inc_bounds over the blocks of `blocks`, argument `arg` saying how many
-    // blocks a work-group takes. On a CPU work-groups of one take a block each. On a GPU
-    // work-groups of kBlock^2 work-items (incremental.cl's VF_ROWS, a row each) take a block
+    // inc_block_max, inc_place or inc_bounds over the blocks of `blocks`, argument `arg`
+    // saying how many blocks a work-group takes. On a CPU work-groups of one take a block each. On
+    // a GPU work-groups of kBlock^2 work-items (incremental.cl's VF_ROWS, a row each) take a block
     // each while that launches at most kBlockGroups groups, as for a bounded field's small cap
     // box; beyond that (an unbounded field's whole world, mostly blocks that the test skips)
     // they take kGroupBlocks blocks each. On the H200 at 512^3 a group per block made a place
@@ -666,7 +666,7 @@ class GlobalEngine : public Engine {
         k.setArg(4, int4_of(size_of(blocks)));
         k.setArg(5, slot >= 0 ? changes : block_max);  // unread when slot < 0
         k.setArg(6, slot);
-        enqueue(events, k, range_of(blocks));
+        enqueue_blocks(events, k, 7, blocks);
     }
 
     // inc_bounds over the blocks of the cap box (B grown by max_margin), the three sweeps
