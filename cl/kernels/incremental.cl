@@ -83,39 +83,33 @@ inline int3 vf_block_at(int i, int4 lo, int4 size) {
 }
 
 // The maximum over each block of the box [lo, lo + size) of blocks; with slot >= 0 only over
-// the blocks of the edit's W (the others did not change).
+// the blocks of the edit's W (the others did not change). Unlike inc_bounds and inc_place,
+// `per_group` may reach the work-group's size: each block takes L / per_group work-items of the
+// L, which share its rows (per_group = L: a work-item per block, as for the whole world).
 kernel void inc_block_max(global const uint* dist, global uint* block_max, int4 d, int4 lo,
                           int4 size, global const int* regions, int slot, int per_group) {
-    local uint bm[VF_GROUP];
-    local int cand[VF_GROUP];
-    local int n_cand;
+    local uint bm[VF_ROWS];
     const int lid = (int)get_local_id(0);
-    if (lid == 0) {
-        n_cand = 0;
+    const int per_block = max(1, (int)get_local_size(0) / per_group);
+    const int j = lid / per_block;
+    const int i = (int)get_group_id(0) * per_group + j;
+    bool changed = j < per_group && i < size.x * size.y * size.z;
+    const int3 b = vf_block_at(i, lo, size);
+    if (changed && slot >= 0) {
+        global const int* r = regions + 8 * slot;
+        const int3 w_lo = d.xyz - (int3)(r[0], r[1], r[2]);
+        const int3 w_hi = (int3)(r[3], r[4], r[5]);
+        changed = !any(b * VF_BLOCK >= w_hi) && !any((b + 1) * VF_BLOCK <= w_lo);
+    }
+    if (changed && lid % per_block == 0) {
+        bm[j] = 0;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    const int i = (int)get_group_id(0) * per_group + lid;
-    if (lid < per_group && i < size.x * size.y * size.z) {
-        const int3 b = vf_block_at(i, lo, size);
-        bool changed = true;
-        if (slot >= 0) {
-            global const int* r = regions + 8 * slot;
-            const int3 w_lo = d.xyz - (int3)(r[0], r[1], r[2]);
-            const int3 w_hi = (int3)(r[3], r[4], r[5]);
-            changed = !any(b * VF_BLOCK >= w_hi) && !any((b + 1) * VF_BLOCK <= w_lo);
-        }
-        if (changed) {
-            const int j = atomic_inc(&n_cand);
-            cand[j] = i;
-            bm[j] = 0;
-        }
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    for (int j = 0; j < n_cand; ++j) {
-        const int3 v_lo = vf_block_at(cand[j], lo, size) * VF_BLOCK;
+    if (changed) {
+        const int3 v_lo = b * VF_BLOCK;
         const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
         uint m = 0;
-        for (int rr = lid; rr < VF_ROWS; rr += (int)get_local_size(0)) {
+        for (int rr = lid % per_block; rr < VF_ROWS; rr += per_block) {
             const int y = v_lo.y + rr % VF_BLOCK, z = v_lo.z + rr / VF_BLOCK;
             if (y >= v_hi.y || z >= v_hi.z) {
                 continue;
@@ -128,10 +122,9 @@ kernel void inc_block_max(global const uint* dist, global uint* block_max, int4 
         atomic_max(&bm[j], m);
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    if (lid < n_cand) {
-        const int3 b = vf_block_at(cand[lid], lo, size);
+    if (changed && lid % per_block == 0) {
         const int4 nb = vf_blocks(d);
-        block_max[(b.z * nb.y + b.y) * nb.x + b.x] = bm[lid];
+        block_max[(b.z * nb.y + b.y) * nb.x + b.x] = bm[j];
     }
 }
 

@@ -606,17 +606,23 @@ class GlobalEngine : public Engine {
     }
 
     // inc_block_max, inc_place or inc_bounds over the blocks of `blocks`, argument `arg`
-    // saying how many blocks a work-group takes. On a CPU work-groups of one take a block each. On
-    // a GPU work-groups of kBlock^2 work-items (incremental.cl's VF_ROWS, a row each) take a block
-    // each while that launches at most kBlockGroups groups, as for a bounded field's small cap
-    // box; beyond that (an unbounded field's whole world, mostly blocks that the test skips)
-    // they take kGroupBlocks blocks each. On the H200 at 512^3 a group per block made a place
-    // edit's kernel 164 us against 105 us; at 256^3, and with D = 16, the group per block was
-    // the faster (27 and 9 us against 33 and 19 us).
-    void enqueue_blocks(Events& events, cl::Kernel& k, cl_uint arg, const Box& blocks) {
+    // saying how many blocks a work-group takes: `per_group`, else as below. On a CPU
+    // work-groups of one take a block each. On a GPU work-groups of kBlock^2 work-items
+    // (incremental.cl's VF_ROWS, a row each) take a block each while that launches at most
+    // kBlockGroups groups, as for a bounded field's small cap box; beyond that (an unbounded
+    // field's whole world, mostly blocks that the test skips) they take kGroupBlocks blocks
+    // each. On the H200 at 512^3 a group per block made a place edit's kernel 164 us against
+    // 105 us; at 256^3, and with D = 16, the group per block was the faster (27 and 9 us
+    // against 33 and 19 us).
+    void enqueue_blocks(Events& events, cl::Kernel& k, cl_uint arg, const Box& blocks,
+                        std::size_t per_group = 0) {
         const auto count = static_cast<std::size_t>(blocks.volume());
         const std::size_t group = cpu_layout ? 1 : static_cast<std::size_t>(kBlock * kBlock);
-        const std::size_t per_group = cpu_layout || count <= kBlockGroups ? 1 : kGroupBlocks;
+        if (cpu_layout) {
+            per_group = 1;
+        } else if (per_group == 0) {
+            per_group = count <= kBlockGroups ? 1 : kGroupBlocks;
+        }
         k.setArg(arg, static_cast<cl_int>(per_group));
         events.emplace_back();
         ctx.queue().enqueueNDRangeKernel(k, cl::NullRange,
@@ -666,7 +672,9 @@ class GlobalEngine : public Engine {
         k.setArg(4, int4_of(size_of(blocks)));
         k.setArg(5, slot >= 0 ? changes : block_max);  // unread when slot < 0
         k.setArg(6, slot);
-        enqueue_blocks(events, k, 7, blocks);
+        // The whole world (slot < 0): a work-item per block, which streams through memory.
+        enqueue_blocks(events, k, 7, blocks,
+                       slot < 0 ? static_cast<std::size_t>(kBlock * kBlock) : 0);
     }
 
     // inc_bounds over the blocks of the cap box (B grown by max_margin), the three sweeps
