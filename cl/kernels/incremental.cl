@@ -16,8 +16,8 @@ inline uint vf_sat_inc(uint v) {
 // VF_FAR without a source): per axis outside the box, |p - s| splits at its face for every s
 // inside, so it is L1(p, box) plus f at p clamped into the box.
 inline uint vf_reach(global const uint* f, int3 p, int4 b_lo, int4 b_hi) {
-    const int3 c = clamp(p, b_lo.xyz, b_hi.xyz - (int3)(1));
     const int3 bs = b_hi.xyz - b_lo.xyz;
+    const int3 c = clamp(p, b_lo.xyz, b_hi.xyz - (int3)(1));
     const int3 o = c - b_lo.xyz;
     const uint3 g = abs(p - c);
     return add_sat(f[(o.z * bs.y + o.y) * bs.x + o.x], g.x + g.y + g.z);
@@ -41,9 +41,9 @@ inline bool vf_on_cut_face(int3 b, int4 lo, int4 size, int4 nb) {
 // per axis wholly below the box (0), across it (1) or wholly above (2); the 27 minima follow
 // f's voxels.
 inline uint vf_least(global const uint* f, int3 v_lo, int3 v_hi, int4 b_lo, int4 b_hi) {
+    const int3 bs = b_hi.xyz - b_lo.xyz;
     const int3 side =
         select(select((int3)(1), (int3)(2), v_lo >= b_hi.xyz), (int3)(0), v_hi <= b_lo.xyz);
-    const int3 bs = b_hi.xyz - b_lo.xyz;
     return f[bs.x * bs.y * bs.z + (side.z * 3 + side.y) * 3 + side.x];
 }
 
@@ -68,13 +68,17 @@ inline int4 vf_blocks(int4 d) {
     return (d + (int4)(VF_BLOCK - 1)) / (int4)(VF_BLOCK);
 }
 
-// inc_block_max, inc_bounds and inc_place run over the blocks of a box [lo, lo + size)
-// (x fastest), `per_group` (at most VF_GROUP) blocks per work-group: one work-item tests each
-// block (whether the edit can reach it, or lies in its W), then every work-item takes its
-// row of each block that passed (VF_BLOCK^2 rows, row r at y, z offsets r % VF_BLOCK,
-// r / VF_BLOCK; in a work-group of L work-items rows r, r + L, ...). On a GPU a work-group
-// has VF_ROWS work-items, so a block's rows run side by side; on a CPU it has one, which
-// takes one block.
+// inc_block_max, inc_bounds and inc_place have two layouts over the blocks of a box
+// [lo, lo + size) (x fastest), sharing the work of a block's rows (VF_BLOCK^2 rows, row r at
+// y, z offsets r % VF_BLOCK, r / VF_BLOCK):
+// - GPU: work-groups of VF_ROWS work-items take `per_group` (at most VF_GROUP) blocks each;
+//   one work-item tests each block (whether the edit can reach it, or lies in its W), then
+//   every work-item takes its row of each block that passed, so a block's rows run side by
+//   side (inc_block_max, which has no test, splits the work-items among the blocks instead:
+//   per_group = VF_ROWS is a work-item per block).
+// - CPU (the _seq kernels): a work-item per block over a 3-D range, its rows in sequence, no
+//   barriers (PoCL runs a work-group's work-items one after another: local reductions and
+//   work-groups of one both cost it 20-40% per unbounded update at 256^3).
 #define VF_ROWS (VF_BLOCK * VF_BLOCK)
 #define VF_GROUP 8
 
@@ -82,10 +86,79 @@ inline int3 vf_block_at(int i, int4 lo, int4 size) {
     return lo.xyz + (int3)(i % size.x, i / size.x % size.y, i / (size.x * size.y));
 }
 
+// The block at 3-D global id in the box [lo, lo + size) of blocks (the _seq kernels), or
+// false outside it.
+inline bool vf_seq_block(int4 lo, int4 size, int3* b) {
+    const int3 g = (int3)((int)get_global_id(0), (int)get_global_id(1), (int)get_global_id(2));
+    *b = lo.xyz + g;
+    return all(g < size.xyz);
+}
+
+// The _seq kernels' share of an edit's `count` voxel changes from changes + 2 * first (as
+// inc_scatter), over their 3-D range.
+inline void vf_scatter_seq(global uchar* vox, global const uint* changes, uint first, uint count) {
+    const size_t n = get_global_size(0) * get_global_size(1) * get_global_size(2);
+    const size_t id =
+        get_global_id(0) +
+        get_global_size(0) * (get_global_id(1) + get_global_size(1) * get_global_id(2));
+    for (size_t k = id; k < count; k += n) {
+        vox[changes[2 * (first + k)]] = (uchar)changes[2 * (first + k) + 1];
+    }
+}
+
+// Accumulates the voxel box [lo, hi] into the edit's W at r (regions' encoding).
+inline void vf_region_add(global int* r, int4 d, int3 lo, int3 hi) {
+    atomic_max(&r[0], d.x - lo.x);
+    atomic_max(&r[1], d.y - lo.y);
+    atomic_max(&r[2], d.z - lo.z);
+    atomic_max(&r[3], hi.x + 1);
+    atomic_max(&r[4], hi.y + 1);
+    atomic_max(&r[5], hi.z + 1);
+}
+
+// The maximum of `dist` over a block's row (y, z), x in [x0, x1).
+inline uint vf_row_max(global const uint* dist, int4 d, int x0, int x1, int y, int z) {
+    const int row = (z * d.y + y) * d.x;
+    uint m = 0;
+    for (int x = x0; x < x1; ++x) {
+        m = max(m, dist[row + x]);
+    }
+    return m;
+}
+
+// Whether block b lies in the edit's W (slot < 0: every block does).
+inline bool vf_in_w(int3 b, int4 d, global const int* regions, int slot) {
+    if (slot < 0) {
+        return true;
+    }
+    global const int* r = regions + 8 * slot;
+    const int3 w_lo = d.xyz - (int3)(r[0], r[1], r[2]);
+    const int3 w_hi = (int3)(r[3], r[4], r[5]);
+    return !any(b * VF_BLOCK >= w_hi) && !any((b + 1) * VF_BLOCK <= w_lo);
+}
+
+// inc_block_max's CPU layout.
+kernel void inc_block_max_seq(global const uint* dist, global uint* block_max, int4 d, int4 lo,
+                              int4 size, global const int* regions, int slot) {
+    int3 b;
+    if (!vf_seq_block(lo, size, &b) || !vf_in_w(b, d, regions, slot)) {
+        return;
+    }
+    const int3 v_lo = b * VF_BLOCK;
+    const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
+    uint m = 0;
+    for (int z = v_lo.z; z < v_hi.z; ++z) {
+        for (int y = v_lo.y; y < v_hi.y; ++y) {
+            m = max(m, vf_row_max(dist, d, v_lo.x, v_hi.x, y, z));
+        }
+    }
+    const int4 nb = vf_blocks(d);
+    block_max[(b.z * nb.y + b.y) * nb.x + b.x] = m;
+}
+
 // The maximum over each block of the box [lo, lo + size) of blocks; with slot >= 0 only over
-// the blocks of the edit's W (the others did not change). Unlike inc_bounds and inc_place,
-// `per_group` may reach the work-group's size: each block takes L / per_group work-items of the
-// L, which share its rows (per_group = L: a work-item per block, as for the whole world).
+// the blocks of the edit's W (the others did not change). Each block takes L / per_group of
+// the L work-items, which share its rows (per_group = L: a work-item per block).
 kernel void inc_block_max(global const uint* dist, global uint* block_max, int4 d, int4 lo,
                           int4 size, global const int* regions, int slot, int per_group) {
     local uint bm[VF_ROWS];
@@ -93,14 +166,9 @@ kernel void inc_block_max(global const uint* dist, global uint* block_max, int4 
     const int per_block = max(1, (int)get_local_size(0) / per_group);
     const int j = lid / per_block;
     const int i = (int)get_group_id(0) * per_group + j;
-    bool changed = j < per_group && i < size.x * size.y * size.z;
     const int3 b = vf_block_at(i, lo, size);
-    if (changed && slot >= 0) {
-        global const int* r = regions + 8 * slot;
-        const int3 w_lo = d.xyz - (int3)(r[0], r[1], r[2]);
-        const int3 w_hi = (int3)(r[3], r[4], r[5]);
-        changed = !any(b * VF_BLOCK >= w_hi) && !any((b + 1) * VF_BLOCK <= w_lo);
-    }
+    const bool changed =
+        j < per_group && i < size.x * size.y * size.z && vf_in_w(b, d, regions, slot);
     if (changed && lid % per_block == 0) {
         bm[j] = 0;
     }
@@ -114,10 +182,7 @@ kernel void inc_block_max(global const uint* dist, global uint* block_max, int4 
             if (y >= v_hi.y || z >= v_hi.z) {
                 continue;
             }
-            const int row = (z * d.y + y) * d.x;
-            for (int x = v_lo.x; x < v_hi.x; ++x) {
-                m = max(m, dist[row + x]);
-            }
+            m = max(m, vf_row_max(dist, d, v_lo.x, v_hi.x, y, z));
         }
         atomic_max(&bm[j], m);
     }
@@ -150,12 +215,7 @@ inline void vf_box_add(local int* acc, int3 lo, int3 hi) {
 
 // Accumulates a block's box into the edit's W (regions' encoding, see above).
 inline void vf_box_to_region(local const int* acc, global int* r, int4 d) {
-    atomic_max(&r[0], d.x - acc[0]);
-    atomic_max(&r[1], d.y - acc[1]);
-    atomic_max(&r[2], d.z - acc[2]);
-    atomic_max(&r[3], acc[3] + 1);
-    atomic_max(&r[4], acc[4] + 1);
-    atomic_max(&r[5], acc[5] + 1);
+    vf_region_add(r, d, (int3)(acc[0], acc[1], acc[2]), (int3)(acc[3], acc[4], acc[5]));
 }
 
 // The least reach over block b's voxels of the box field f of B: its L1 gap to B plus the
@@ -165,6 +225,36 @@ inline uint vf_block_reach(int3 b, int4 d, global const uint* f, int4 b_lo, int4
     const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
     const int3 gap = vf_gap(v_lo, v_hi, b_lo, b_hi);
     return add_sat((uint)(gap.x + gap.y + gap.z), vf_least(f, v_lo, v_hi, b_lo, b_hi));
+}
+
+// The box field's row at row (y, z) clamped into B [b_lo, b_hi), and the L1 offset of (y, z)
+// from it: vf_reach along a row is then add_sat(fr[clamp(x) - b_lo.x], yz + |x - clamp(x)|).
+inline global const uint* vf_field_row(global const uint* f, int4 b_lo, int4 b_hi, int y, int z,
+                                       uint* yz) {
+    const int cz = clamp(z, b_lo.z, b_hi.z - 1);
+    const int cy = clamp(y, b_lo.y, b_hi.y - 1);
+    *yz = (uint)(abs(z - cz) + abs(y - cy));
+    return f + ((cz - b_lo.z) * (b_hi.y - b_lo.y) + (cy - b_lo.y)) * (b_hi.x - b_lo.x);
+}
+
+// inc_bounds' row (y, z) of a block, its n voxels from x0: grows [*r_lo, *r_hi] by the row's
+// voxels in R (old distance >= vf_reach of the box field f).
+inline void vf_bounds_row(global const uint* dist, global const uint* f, int4 d, int4 b_lo,
+                          int4 b_hi, int x0, int n, int y, int z, int3* r_lo, int3* r_hi) {
+    uint yz;
+    global const uint* fr = vf_field_row(f, b_lo, b_hi, y, z, &yz);
+    const int row = (z * d.y + y) * d.x + x0;
+    uint in_r = 0;  // bit k: x = x0 + k lies in R
+    for (int k = 0; k < n; ++k) {
+        const int x = x0 + k;
+        const int cx = clamp(x, b_lo.x, b_hi.x - 1);
+        const uint reach = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
+        in_r |= (dist[row + k] >= reach ? 1u : 0u) << k;
+    }
+    if (in_r != 0) {
+        *r_lo = min(*r_lo, (int3)(x0 + 31 - (int)clz(in_r & (~in_r + 1u)), y, z));
+        *r_hi = max(*r_hi, (int3)(x0 + 31 - (int)clz(in_r), y, z));
+    }
 }
 
 // W: the bounding box of R within the cap box of blocks [lo, lo + size) (B grown by the
@@ -199,7 +289,6 @@ kernel void inc_bounds(global const uint* dist, global const uint* block_max,
         }
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    const int3 bs = b_hi.xyz - b_lo.xyz;
     for (int j = 0; j < n_cand; ++j) {
         const int3 v_lo = vf_block_at(cand[j], lo, size) * VF_BLOCK;
         const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
@@ -210,23 +299,7 @@ kernel void inc_bounds(global const uint* dist, global const uint* block_max,
             if (y >= v_hi.y || z >= v_hi.z) {
                 continue;
             }
-            // vf_reach along the row: the box field's row at the clamped y and z.
-            const int cz = clamp(z, b_lo.z, b_hi.z - 1);
-            const int cy = clamp(y, b_lo.y, b_hi.y - 1);
-            const uint yz = (uint)(abs(z - cz) + abs(y - cy));
-            global const uint* fr = f + ((cz - b_lo.z) * bs.y + (cy - b_lo.y)) * bs.x;
-            const int row = (z * d.y + y) * d.x + v_lo.x;
-            uint in_r = 0;  // bit k: x = v_lo.x + k lies in R
-            for (int k = 0; k < n; ++k) {
-                const int x = v_lo.x + k;
-                const int cx = clamp(x, b_lo.x, b_hi.x - 1);
-                const uint reach = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
-                in_r |= (dist[row + k] >= reach ? 1u : 0u) << k;
-            }
-            if (in_r != 0) {
-                r_lo = min(r_lo, (int3)(v_lo.x + 31 - (int)clz(in_r & (~in_r + 1u)), y, z));
-                r_hi = max(r_hi, (int3)(v_lo.x + 31 - (int)clz(in_r), y, z));
-            }
+            vf_bounds_row(dist, f, d, b_lo, b_hi, v_lo.x, n, y, z, &r_lo, &r_hi);
         }
         vf_box_add(acc[j], r_lo, r_hi);
     }
@@ -237,6 +310,74 @@ kernel void inc_bounds(global const uint* dist, global const uint* block_max,
         if (vf_on_cut_face(vf_block_at(cand[lid], lo, size), lo, size, nb)) {
             atomic_max(&r[6], 1);
         }
+    }
+}
+
+// inc_place's row (y, z) of a block, its n voxels from x0: lowers them to min(old, d_B) and
+// writes those that changed, with the span between (unchanged ones there keep their value),
+// to `dist` and, encoded, to `out`; grows [*c_lo, *c_hi] by the changed voxels. Returns the
+// row's new maximum.
+inline uint vf_place_row(global const uchar* vox, global uint* dist, global const uchar* rgb,
+                         global OUT_T* out, global const uint* f, int4 d, int4 b_lo, int4 b_hi,
+                         int x0, int n, int y, int z, int3* c_lo, int3* c_hi) {
+    uint yz;
+    global const uint* fr = vf_field_row(f, b_lo, b_hi, y, z, &yz);
+    const int row = (z * d.y + y) * d.x + x0;
+    uint changed = 0;  // bit k: x = x0 + k
+    uint nv[VF_BLOCK];
+    uint m = 0;
+    for (int k = 0; k < n; ++k) {
+        const int x = x0 + k;
+        const int cx = clamp(x, b_lo.x, b_hi.x - 1);
+        const uint cand = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
+        const uint old = dist[row + k];
+        changed |= (cand < old ? 1u : 0u) << k;
+        nv[k] = min(old, cand);
+        m = max(m, nv[k]);
+    }
+    if (changed != 0) {
+        const int lo_k = 31 - (int)clz(changed & (~changed + 1u));
+        const int hi_k = 31 - (int)clz(changed);
+        for (int k = lo_k; k <= hi_k; ++k) {
+            dist[row + k] = nv[k];
+            out[row + k] = vf_encode(nv[k], vox[row + k], rgb);
+        }
+        *c_lo = min(*c_lo, (int3)(x0 + lo_k, y, z));
+        *c_hi = max(*c_hi, (int3)(x0 + hi_k, y, z));
+    }
+    return m;
+}
+
+// inc_bounds' CPU layout.
+kernel void inc_bounds_seq(global const uint* dist, global const uint* block_max,
+                           global const uint* fbox, uint f_off, int4 d, int4 b_lo, int4 b_hi,
+                           int4 lo, int4 size, global int* regions, int slot, global uchar* vox,
+                           global const uint* changes, uint first, uint count) {
+    vf_scatter_seq(vox, changes, first, count);
+    int3 b;
+    if (!vf_seq_block(lo, size, &b)) {
+        return;
+    }
+    const int4 nb = vf_blocks(d);
+    global const uint* f = fbox + f_off;
+    if (block_max[(b.z * nb.y + b.y) * nb.x + b.x] < vf_block_reach(b, d, f, b_lo, b_hi)) {
+        return;
+    }
+    const int3 v_lo = b * VF_BLOCK;
+    const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
+    int3 r_lo = (int3)(INT_MAX), r_hi = (int3)(-1);
+    for (int z = v_lo.z; z < v_hi.z; ++z) {
+        for (int y = v_lo.y; y < v_hi.y; ++y) {
+            vf_bounds_row(dist, f, d, b_lo, b_hi, v_lo.x, v_hi.x - v_lo.x, y, z, &r_lo, &r_hi);
+        }
+    }
+    if (r_hi.x < 0) {
+        return;
+    }
+    global int* r = regions + 8 * slot;
+    vf_region_add(r, d, r_lo, r_hi);
+    if (vf_on_cut_face(b, lo, size, nb)) {
+        atomic_max(&r[6], 1);
     }
 }
 
@@ -292,7 +433,6 @@ kernel void inc_place(global uchar* vox, global uint* dist, global const uchar* 
         }
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    const int3 bs = b_hi.xyz - b_lo.xyz;
     for (int j = 0; j < n_cand; ++j) {
         const int3 v_lo = vf_block_at(cand[j], lo, size) * VF_BLOCK;
         const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
@@ -304,33 +444,8 @@ kernel void inc_place(global uchar* vox, global uint* dist, global const uchar* 
             if (y >= v_hi.y || z >= v_hi.z) {
                 continue;
             }
-            const int cz = clamp(z, b_lo.z, b_hi.z - 1);
-            const int cy = clamp(y, b_lo.y, b_hi.y - 1);
-            const uint yz = (uint)(abs(z - cz) + abs(y - cy));
-            global const uint* fr = f + ((cz - b_lo.z) * bs.y + (cy - b_lo.y)) * bs.x;
-            const int row = (z * d.y + y) * d.x + v_lo.x;
-            // The row's new values and which of them changed (bit k: x = v_lo.x + k).
-            uint changed = 0;
-            uint nv[VF_BLOCK];
-            for (int k = 0; k < n; ++k) {
-                const int x = v_lo.x + k;
-                const int cx = clamp(x, b_lo.x, b_hi.x - 1);
-                const uint cand_d = add_sat(fr[cx - b_lo.x], yz + (uint)abs(x - cx));
-                const uint old = dist[row + k];
-                changed |= (cand_d < old ? 1u : 0u) << k;
-                nv[k] = min(old, cand_d);
-                m = max(m, nv[k]);
-            }
-            if (changed != 0) {
-                const int lo_k = 31 - (int)clz(changed & (~changed + 1u));
-                const int hi_k = 31 - (int)clz(changed);
-                for (int k = lo_k; k <= hi_k; ++k) {
-                    dist[row + k] = nv[k];
-                    out[row + k] = vf_encode(nv[k], vox[row + k], rgb);
-                }
-                c_lo = min(c_lo, (int3)(v_lo.x + lo_k, y, z));
-                c_hi = max(c_hi, (int3)(v_lo.x + hi_k, y, z));
-            }
+            m = max(m, vf_place_row(vox, dist, rgb, out, f, d, b_lo, b_hi, v_lo.x, n, y, z, &c_lo,
+                                    &c_hi));
         }
         atomic_max(&block_m[j], m);
         vf_box_add(acc[j], c_lo, c_hi);
@@ -342,6 +457,44 @@ kernel void inc_place(global uchar* vox, global uint* dist, global const uchar* 
         if (acc[lid][3] >= 0) {
             vf_box_to_region(acc[lid], r, d);
         }
+    }
+}
+
+// inc_place's CPU layout.
+kernel void inc_place_seq(global uchar* vox, global uint* dist, global const uchar* rgb,
+                          global OUT_T* out, global uint* block_max, global const uint* fbox,
+                          uint f_off, int4 d, int4 b_lo, int4 b_hi, int4 lo, int4 size,
+                          global int* regions, int slot, global const uint* changes, uint first,
+                          uint count) {
+    vf_scatter_seq(vox, changes, first, count);
+    int3 b;
+    if (!vf_seq_block(lo, size, &b)) {
+        return;
+    }
+    const int4 nb = vf_blocks(d);
+    global const uint* f = fbox + f_off;
+    const int bi = (b.z * nb.y + b.y) * nb.x + b.x;
+    if (block_max[bi] <= vf_block_reach(b, d, f, b_lo, b_hi)) {
+        return;
+    }
+    global int* r = regions + 8 * slot;
+    if (vf_on_cut_face(b, lo, size, nb)) {
+        atomic_max(&r[6], 1);
+    }
+    const int3 v_lo = b * VF_BLOCK;
+    const int3 v_hi = min(v_lo + (int3)(VF_BLOCK), d.xyz);
+    atomic_add(&r[7], (v_hi.x - v_lo.x) * (v_hi.y - v_lo.y) * (v_hi.z - v_lo.z));
+    int3 c_lo = (int3)(INT_MAX), c_hi = (int3)(-1);
+    uint m = 0;
+    for (int z = v_lo.z; z < v_hi.z; ++z) {
+        for (int y = v_lo.y; y < v_hi.y; ++y) {
+            m = max(m, vf_place_row(vox, dist, rgb, out, f, d, b_lo, b_hi, v_lo.x, v_hi.x - v_lo.x,
+                                    y, z, &c_lo, &c_hi));
+        }
+    }
+    block_max[bi] = m;
+    if (c_hi.x >= 0) {
+        vf_region_add(r, d, c_lo, c_hi);
     }
 }
 

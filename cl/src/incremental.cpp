@@ -584,7 +584,7 @@ class GlobalEngine : public Engine {
     void enqueue_place(Events& events, const Box& b, std::size_t f_off, std::size_t slot,
                        std::size_t first, std::size_t count) {
         const Box cap_blocks = cap_blocks_of(b);
-        cl::Kernel& k = kernel("inc_place");
+        cl::Kernel& k = kernel(cpu_layout ? "inc_place_seq" : "inc_place");
         k.setArg(0, exact->voxels_buffer());
         k.setArg(1, exact->field_buffer());
         k.setArg(2, rgb);
@@ -605,22 +605,23 @@ class GlobalEngine : public Engine {
         enqueue_blocks(events, k, 17, cap_blocks);
     }
 
-    // inc_block_max, inc_place or inc_bounds over the blocks of `blocks`, argument `arg`
-    // saying how many blocks a work-group takes: `per_group`, else as below. On a CPU
-    // work-groups of one take a block each. On a GPU work-groups of kBlock^2 work-items
-    // (incremental.cl's VF_ROWS, a row each) take a block each while that launches at most
-    // kBlockGroups groups, as for a bounded field's small cap box; beyond that (an unbounded
-    // field's whole world, mostly blocks that the test skips) they take kGroupBlocks blocks
-    // each. On the H200 at 512^3 a group per block made a place edit's kernel 164 us against
-    // 105 us; at 256^3, and with D = 16, the group per block was the faster (27 and 9 us
-    // against 33 and 19 us).
+    // inc_block_max, inc_place or inc_bounds over the blocks of `blocks`. On a CPU their
+    // _seq kernels, a work-item per block. On a GPU work-groups of kBlock^2 work-items
+    // (incremental.cl's VF_ROWS), argument `arg` saying how many blocks each takes:
+    // `per_group` if given, else one while that launches at most kBlockGroups groups, as for
+    // a bounded field's small cap box, and beyond that (an unbounded field's whole world,
+    // mostly blocks that the test skips) kGroupBlocks. On the H200 at 512^3 a group per block
+    // made a place edit's kernel 164 us against 105 us; at 256^3, and with D = 16, the group
+    // per block was the faster (27 and 9 us against 33 and 19 us).
     void enqueue_blocks(Events& events, cl::Kernel& k, cl_uint arg, const Box& blocks,
                         std::size_t per_group = 0) {
-        const auto count = static_cast<std::size_t>(blocks.volume());
-        const std::size_t group = cpu_layout ? 1 : static_cast<std::size_t>(kBlock * kBlock);
         if (cpu_layout) {
-            per_group = 1;
-        } else if (per_group == 0) {
+            enqueue(events, k, range_of(blocks));
+            return;
+        }
+        const auto count = static_cast<std::size_t>(blocks.volume());
+        const auto group = static_cast<std::size_t>(kBlock * kBlock);
+        if (per_group == 0) {
             per_group = count <= kBlockGroups ? 1 : kGroupBlocks;
         }
         k.setArg(arg, static_cast<cl_int>(per_group));
@@ -664,7 +665,7 @@ class GlobalEngine : public Engine {
 
     // Block maxima of the blocks in `blocks`; slot >= 0 limits them to that edit's W.
     void update_block_max(Events& events, const Box& blocks, cl_int slot) {
-        cl::Kernel& k = kernel("inc_block_max");
+        cl::Kernel& k = kernel(cpu_layout ? "inc_block_max_seq" : "inc_block_max");
         k.setArg(0, exact->field_buffer());
         k.setArg(1, block_max);
         k.setArg(2, d);
@@ -694,7 +695,7 @@ class GlobalEngine : public Engine {
         const cl::Buffer& vox = exact->voxels_buffer();
         const auto slot_arg = static_cast<cl_int>(slot);
 
-        cl::Kernel& bounds = kernel("inc_bounds");
+        cl::Kernel& bounds = kernel(cpu_layout ? "inc_bounds_seq" : "inc_bounds");
         bounds.setArg(0, dist);
         bounds.setArg(1, block_max);
         bounds.setArg(2, changes);
