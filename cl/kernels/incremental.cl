@@ -94,9 +94,10 @@ inline bool vf_seq_block(int4 lo, int4 size, int3* b) {
     return all(g < size.xyz);
 }
 
-// The _seq kernels' share of an edit's `count` voxel changes from changes + 2 * first (as
-// inc_scatter), over their 3-D range.
-inline void vf_scatter_seq(global uchar* vox, global const uint* changes, uint first, uint count) {
+// This work-item's share of an edit's `count` voxel changes from changes + 2 * first (as
+// inc_scatter), over the launch's range.
+inline void vf_scatter_share(global uchar* vox, global const uint* changes, uint first,
+                             uint count) {
     const size_t n = get_global_size(0) * get_global_size(1) * get_global_size(2);
     const size_t id =
         get_global_id(0) +
@@ -114,6 +115,15 @@ inline void vf_region_add(global int* r, int4 d, int3 lo, int3 hi) {
     atomic_max(&r[3], hi.x + 1);
     atomic_max(&r[4], hi.y + 1);
     atomic_max(&r[5], hi.z + 1);
+}
+
+// Empties a work-group's list of the blocks that passed its test (before any work-item
+// appends to it).
+inline void vf_gather_start(local int* n_cand) {
+    if (get_local_id(0) == 0) {
+        *n_cand = 0;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
 }
 
 // The maximum of `dist` over a block's row (y, z), x in [x0, x1).
@@ -272,13 +282,8 @@ kernel void inc_bounds(global const uint* dist, global const uint* block_max,
     const int lid = (int)get_local_id(0);
     const int4 nb = vf_blocks(d);
     global const uint* f = fbox + f_off;
-    for (size_t k = get_global_id(0); k < count; k += get_global_size(0)) {
-        vox[changes[2 * (first + k)]] = (uchar)changes[2 * (first + k) + 1];
-    }
-    if (lid == 0) {
-        n_cand = 0;
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
+    vf_scatter_share(vox, changes, first, count);
+    vf_gather_start(&n_cand);
     const int i = (int)get_group_id(0) * per_group + lid;
     if (lid < per_group && i < size.x * size.y * size.z) {
         const int3 b = vf_block_at(i, lo, size);
@@ -353,7 +358,7 @@ kernel void inc_bounds_seq(global const uint* dist, global const uint* block_max
                            global const uint* fbox, uint f_off, int4 d, int4 b_lo, int4 b_hi,
                            int4 lo, int4 size, global int* regions, int slot, global uchar* vox,
                            global const uint* changes, uint first, uint count) {
-    vf_scatter_seq(vox, changes, first, count);
+    vf_scatter_share(vox, changes, first, count);
     int3 b;
     if (!vf_seq_block(lo, size, &b)) {
         return;
@@ -409,13 +414,8 @@ kernel void inc_place(global uchar* vox, global uint* dist, global const uchar* 
     const int4 nb = vf_blocks(d);
     global const uint* f = fbox + f_off;
     global int* r = regions + 8 * slot;
-    for (size_t k = get_global_id(0); k < count; k += get_global_size(0)) {
-        vox[changes[2 * (first + k)]] = (uchar)changes[2 * (first + k) + 1];
-    }
-    if (lid == 0) {
-        n_cand = 0;
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
+    vf_scatter_share(vox, changes, first, count);
+    vf_gather_start(&n_cand);
     const int i = (int)get_group_id(0) * per_group + lid;
     if (lid < per_group && i < size.x * size.y * size.z) {
         const int3 b = vf_block_at(i, lo, size);
@@ -466,7 +466,7 @@ kernel void inc_place_seq(global uchar* vox, global uint* dist, global const uch
                           uint f_off, int4 d, int4 b_lo, int4 b_hi, int4 lo, int4 size,
                           global int* regions, int slot, global const uint* changes, uint first,
                           uint count) {
-    vf_scatter_seq(vox, changes, first, count);
+    vf_scatter_share(vox, changes, first, count);
     int3 b;
     if (!vf_seq_block(lo, size, &b)) {
         return;
