@@ -71,16 +71,17 @@ inline int4 vf_blocks(int4 d) {
 // inc_block_max, inc_bounds and inc_place have two layouts over the blocks of a box
 // [lo, lo + size) (x fastest), sharing the work of a block's rows (VF_BLOCK^2 rows, row r at
 // y, z offsets r % VF_BLOCK, r / VF_BLOCK):
-// - GPU: work-groups of VF_ROWS work-items take `per_group` (at most VF_GROUP) blocks each;
-//   one work-item tests each block (whether the edit can reach it, or lies in its W), then
-//   every work-item takes its row of each block that passed, so a block's rows run side by
-//   side (inc_block_max, which has no test, splits the work-items among the blocks instead:
-//   per_group = VF_ROWS is a work-item per block).
+// - GPU: work-groups of VF_ROWS work-items. In inc_bounds and inc_place a work-group takes
+//   `per_group` (at most VF_GROUP) blocks: one work-item tests each block (whether the edit
+//   can reach it), the blocks that pass are gathered, and every work-item takes its row of
+//   each of them, so a block's rows run side by side. inc_block_max instead splits the
+//   work-items among its per_group (at most VF_ROWS) blocks, which each of a block's
+//   work-items tests against W itself: per_group = VF_ROWS is a work-item per block.
 // - CPU (the _seq kernels): a work-item per block over a 3-D range, its rows in sequence, no
 //   barriers (PoCL runs a work-group's work-items one after another: local reductions and
 //   work-groups of one both cost it 20-40% per unbounded update at 256^3).
 #define VF_ROWS (VF_BLOCK * VF_BLOCK)
-#define VF_GROUP 8
+// VF_GROUP: a build option, the host's kGroupBlocks.
 
 inline int3 vf_block_at(int i, int4 lo, int4 size) {
     return lo.xyz + (int3)(i % size.x, i / size.x % size.y, i / (size.x * size.y));
@@ -345,7 +346,11 @@ inline uint vf_place_row(global const uchar* vox, global uint* dist, global cons
         const int hi_k = 31 - (int)clz(changed);
         for (int k = lo_k; k <= hi_k; ++k) {
             dist[row + k] = nv[k];
+#if PACKED
             out[row + k] = vf_encode(nv[k], vox[row + k], rgb);
+#else
+            out[row + k] = vf_encode(nv[k], 0, rgb);  // no voxel value is read (see inc_place)
+#endif
         }
         *c_lo = min(*c_lo, (int3)(x0 + lo_k, y, z));
         *c_hi = max(*c_hi, (int3)(x0 + hi_k, y, z));
@@ -398,9 +403,10 @@ kernel void inc_bounds_seq(global const uint* dist, global const uint* block_max
 // (those between unchanged ones keep their value). Writes the lowered distances, the block's
 // new maximum, and the box of the changed voxels into regions + 8 * slot (inc_bounds'
 // encoding, overflow when a candidate block lies on a face of the cap box that the margin
-// cut; [7] counts the voxels read). First it writes the edit's `count` changes from
-// changes + 2 * first into `vox`, as inc_scatter does: the host passes none where the output
-// format reads voxel values (packed32), and scatters them before.
+// cut; [7] counts the voxels read). It also writes the edit's `count` changes from
+// changes + 2 * first into `vox`, as inc_scatter does, unordered with the other work-groups'
+// reads of `vox`: the host passes none where the output format reads voxel values (packed32),
+// and scatters them before.
 kernel void inc_place(global uchar* vox, global uint* dist, global const uchar* rgb,
                       global OUT_T* out, global uint* block_max, global const uint* fbox,
                       uint f_off, int4 d, int4 b_lo, int4 b_hi, int4 lo, int4 size,

@@ -25,6 +25,10 @@ extern const char* const incremental_cl;
 namespace voxfield::ocl {
 namespace {
 
+// The blocks a GPU work-group of inc_bounds or inc_place takes at most (incremental.cl's
+// VF_GROUP, passed as a build option), where one block per work-group would launch too many.
+constexpr std::size_t kGroupBlocks = 8;
+
 [[noreturn]] void no_focus_in_exact() {
     throw InputError(
         "exact has no focus to move: only the chunk-local lod and monolithic run FIM in a focus");
@@ -50,7 +54,7 @@ class Engine {
         program = ctx.program(
             "incremental",
             {cl_sources::layout_h, cl_sources::classic_common_cl, cl_sources::incremental_cl},
-            output_options(o.format));
+            output_options(o.format) + " -DVF_GROUP=" + std::to_string(kGroupBlocks));
         cl_call("allocating the output of " + dims.to_string(), [&] {
             const auto table = palette.rgb332_table();
             rgb = cl::Buffer(ctx.context(), CL_MEM_READ_ONLY, 256);
@@ -289,7 +293,7 @@ class Engine {
     }
 
     cl::Program program;
-    std::map<std::string, cl::Kernel> kernels;  // kernel()'s
+    std::map<std::string, cl::Kernel, std::less<>> kernels;  // kernel()'s
     std::vector<cl_uint> staging;
     cl::Buffer rgb, changes;
     std::size_t changes_capacity = 0;
@@ -372,7 +376,8 @@ class GlobalEngine : public Engine {
             }
         }
         // Then, 8-aligned, each edit's 8 ints of W (inc_bounds' encoding) zeroed, which its
-        // kernels accumulate with atomic_max: slot regions_at + e of the changes buffer.
+        // kernels accumulate (atomic_max; atomic_add for the voxels read): slot regions_at + e
+        // of the changes buffer.
         const std::size_t regions_at = (staging.size() + 7) / 8;
         if (!regenerate_all) {
             staging.resize(8 * (regions_at + stats.edits.size()), 0);
@@ -631,7 +636,6 @@ class GlobalEngine : public Engine {
                                          cl::NDRange(group), nullptr, &events.back());
     }
     static constexpr std::size_t kBlockGroups = std::size_t{1} << 15;
-    static constexpr std::size_t kGroupBlocks = 8;  // incremental.cl's VF_GROUP
 
     // The blocks within max_margin of B, clipped to the world.
     Box cap_blocks_of(const Box& b) const {
@@ -772,7 +776,9 @@ class GlobalEngine : public Engine {
     }
 
     std::uint32_t max_margin;  // the cap box: B grown by this much (bounded: by D and a block)
-    bool cpu_layout;  // sweeps with inner loops along x (CPU) or one column per work-item (GPU)
+    // The CPU layout: sweeps with inner loops along x and the block passes' _seq kernels (a
+    // work-item per block); else the GPU's (a column or a row per work-item).
+    bool cpu_layout;
     std::unique_ptr<ExactManhattan> exact;  // u32: its output is the distance buffer (capped)
     // A bounded field's bound (--max-distance D: floor(D), the integer distances' cap), kFar
     // when unbounded: the distance buffer holds min(exact, bound).

@@ -248,20 +248,61 @@ TEST(Incremental, BoundedL1IsMinOfExactAndTheBound) {
 }
 
 TEST(Incremental, EveryFormatAndSmallMargins) {
-    std::mt19937_64 rng(77);
-    for (Format f : {Format::u8, Format::u32, Format::packed32}) {
-        for (std::uint32_t margin : {1u, 3u, 64u}) {
-            const World start = scene_terrain(Dims{33, 21, 27}, 5);
-            ocl::IncrementalField field(pocl(), start, Palette(), exact_options(f), margin);
-            bool fell_back = false;
-            for (int batch = 0; batch < 60; ++batch) {
-                fell_back |= field.apply({random_brush(rng, start.dims(), 6)}).full_regeneration;
-                expect_exact(field, f,
-                             to_string(f) + " margin " + std::to_string(margin) + " batch " +
-                                 std::to_string(batch));
+    // Both layouts: small margins cut the cap box, so the block passes' overflow flags (the
+    // GPU kernels' and the CPU _seq kernels') must send updates to a full regeneration.
+    for (const ocl::Layout layout : {ocl::Layout::cpu, ocl::Layout::gpu}) {
+        std::mt19937_64 rng(77);
+        for (Format f : {Format::u8, Format::u32, Format::packed32}) {
+            for (std::uint32_t margin : {1u, 3u, 64u}) {
+                const World start = scene_terrain(Dims{33, 21, 27}, 5);
+                auto o = exact_options(f);
+                o.layout = layout;
+                ocl::IncrementalField field(pocl(), start, Palette(), o, margin);
+                bool fell_back = false;
+                const std::string what = std::string(layout == ocl::Layout::cpu ? "cpu" : "gpu") +
+                                         " layout, " + to_string(f) + " margin " +
+                                         std::to_string(margin);
+                for (int batch = 0; batch < 60; ++batch) {
+                    fell_back |=
+                        field.apply({random_brush(rng, start.dims(), 6)}).full_regeneration;
+                    expect_exact(field, f, what + " batch " + std::to_string(batch));
+                }
+                if (margin == 1) {
+                    EXPECT_TRUE(fell_back) << what << ": a margin of 1 never overflowed";
+                }
             }
-            if (margin == 1) {
-                EXPECT_TRUE(fell_back) << "a margin of 1 never overflowed";
+        }
+    }
+}
+
+// An edit with more voxel changes than the block passes have work-items (a 24^3 cube, 13 824
+// changes, over a cap box of 5^3 blocks: 8 000 work-items on the GPU layout, 1 600 on the
+// CPU's) must still write every change, placing and erasing, in both layouts and for packed32
+// (whose place edits scatter before inc_place).
+TEST(Incremental, EditsWithMoreChangesThanWorkItems) {
+    for (const ocl::Layout layout : {ocl::Layout::cpu, ocl::Layout::gpu}) {
+        for (Format f : {Format::u16, Format::packed32}) {
+            const World start = scene_floor_spheres(Dims{64, 64, 64}, 4, 3);
+            auto o = exact_options(f);
+            o.layout = layout;
+            ocl::IncrementalField field(pocl(), start, Palette(), o, 1);
+            Brush cube;
+            cube.shape = BrushShape::cube;
+            cube.centre = {20, 20, 20};  // voxels 8..32: three blocks per axis
+            cube.radius = 12;
+            cube.material = 77;
+            const std::string what = std::string(layout == ocl::Layout::cpu ? "cpu" : "gpu") +
+                                     " layout, " + to_string(f);
+            for (const BrushOp op : {BrushOp::place, BrushOp::erase}) {
+                cube.op = op;
+                const auto stats = field.apply({cube});
+                ASSERT_EQ(stats.edits.size(), 1u);
+                EXPECT_GE(stats.edits[0].changes.size(), 10000u) << what;
+                std::vector<std::uint8_t> got(start.size());
+                pocl().queue().enqueueReadBuffer(field.voxels_buffer(), CL_TRUE, 0, got.size(),
+                                                 got.data());
+                ASSERT_EQ(got, field.world().voxels()) << what;
+                expect_exact(field, f, what + (op == BrushOp::place ? " placed" : " erased"));
             }
         }
     }
@@ -710,7 +751,9 @@ TEST(Incremental, VoxelsBufferFollowsTheWorld) {
     chunked.algorithm = ocl::Algorithm::lod;
     chunked.chunk = 8;
     chunked = ocl::resolve_options(chunked, start.dims());
-    for (const auto& o : {exact_options(Format::u16), chunked}) {
+    auto gpu_packed = exact_options(Format::packed32);
+    gpu_packed.layout = ocl::Layout::gpu;
+    for (const auto& o : {exact_options(Format::u16), gpu_packed, chunked}) {
         ocl::IncrementalField field(pocl(), start, Palette(), o);
         for (int batch = 0; batch < 10; ++batch) {
             field.apply({random_brush(rng, start.dims(), 6), random_brush(rng, start.dims(), 3)});
