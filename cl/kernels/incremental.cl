@@ -47,12 +47,22 @@ inline uint vf_least(global const uint* f, int3 v_lo, int3 v_hi, int4 b_lo, int4
     return f[bs.x * bs.y * bs.z + (side.z * 3 + side.y) * 3 + side.x];
 }
 
-// Writes the edit's new voxel values: changes[2k] = linear index, changes[2k+1] = value.
-kernel void inc_scatter(global uchar* vox, global const uint* changes, uint first, uint count) {
-    const uint k = get_global_id(0);
-    if (k < count) {
+// This work-item's share of an edit's `count` voxel changes from changes + 2 * first
+// (changes[2k] = linear index, changes[2k+1] = value), over the launch's range.
+inline void vf_scatter_share(global uchar* vox, global const uint* changes, uint first,
+                             uint count) {
+    const size_t n = get_global_size(0) * get_global_size(1) * get_global_size(2);
+    const size_t id =
+        get_global_id(0) +
+        get_global_size(0) * (get_global_id(1) + get_global_size(1) * get_global_id(2));
+    for (size_t k = id; k < count; k += n) {
         vox[changes[2 * (first + k)]] = (uchar)changes[2 * (first + k) + 1];
     }
+}
+
+// Writes the edit's new voxel values: changes[2k] = linear index, changes[2k+1] = value.
+kernel void inc_scatter(global uchar* vox, global const uint* changes, uint first, uint count) {
+    vf_scatter_share(vox, changes, first, count);
 }
 
 // Per-block maxima of `dist` (VF_BLOCK^3 voxels per block) bound the voxels that an edit can
@@ -93,19 +103,6 @@ inline bool vf_seq_block(int4 lo, int4 size, int3* b) {
     const int3 g = (int3)((int)get_global_id(0), (int)get_global_id(1), (int)get_global_id(2));
     *b = lo.xyz + g;
     return all(g < size.xyz);
-}
-
-// This work-item's share of an edit's `count` voxel changes from changes + 2 * first (as
-// inc_scatter), over the launch's range.
-inline void vf_scatter_share(global uchar* vox, global const uint* changes, uint first,
-                             uint count) {
-    const size_t n = get_global_size(0) * get_global_size(1) * get_global_size(2);
-    const size_t id =
-        get_global_id(0) +
-        get_global_size(0) * (get_global_id(1) + get_global_size(1) * get_global_id(2));
-    for (size_t k = id; k < count; k += n) {
-        vox[changes[2 * (first + k)]] = (uchar)changes[2 * (first + k) + 1];
-    }
 }
 
 // Accumulates the voxel box [lo, hi] into the edit's W at r (regions' encoding).

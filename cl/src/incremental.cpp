@@ -418,20 +418,23 @@ class GlobalEngine : public Engine {
                     continue;
                 }
                 const std::size_t slot = regions_at + e;
-                // inc_bounds and inc_place write the edit's voxels themselves, unless the output
-                // format reads them (inc_place encoding packed32's colours).
-                const bool in_place = places_only(r) && options.format != Format::packed32;
-                const bool in_bounds = !places_only(r) && r.occupancy_changed();
-                const std::size_t pairs = in_place || in_bounds ? r.changes.size() : 0;
-                if (pairs == 0) {
-                    scatter(events, exact->voxels_buffer(), stats, first, e);
-                }
                 if (places_only(r)) {
-                    enqueue_place(events, r.occupancy_bounds, field_at[e], slot, first[e], pairs);
+                    // inc_place writes the edit's voxels itself, unless its encoding reads them
+                    // (packed32's colours).
+                    const bool packed = options.format == Format::packed32;
+                    if (packed) {
+                        scatter(events, exact->voxels_buffer(), stats, first, e);
+                    }
+                    enqueue_place(events, r.occupancy_bounds, field_at[e], slot, first[e],
+                                  packed ? 0 : r.changes.size());
                     swept.push_back(e);
                 } else if (r.occupancy_changed()) {
-                    enqueue_sweeps(events, r.occupancy_bounds, field_at[e], slot, first[e], pairs);
+                    // inc_bounds writes the edit's voxels.
+                    enqueue_sweeps(events, r.occupancy_bounds, field_at[e], slot, first[e],
+                                   r.changes.size());
                     swept.push_back(e);
+                } else {
+                    scatter(events, exact->voxels_buffer(), stats, first, e);  // recoloured
                 }
                 if (options.format == Format::packed32) {
                     encode_box(events, r.bounds);  // colours of recoloured voxels
