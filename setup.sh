@@ -9,7 +9,9 @@ packages="cmake g++ make git ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-he
 pocl-opencl-icd libcli11-dev nlohmann-json3-dev libgtest-dev
 libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers glslang-tools libstb-dev
 pkg-config libglfw3-dev libimgui-dev xvfb xauth
-python3-dev pybind11-dev python3-pybind11 python3-numpy python3-scipy python3-pytest"
+python3-dev pybind11-dev python3-pybind11 python3-numpy python3-scipy python3-pytest
+libopenvdb-dev python3-openvdb python3-dask python3-distributed python3-zarr
+python3-skbuild python3-build python3-pip python3-venv python3-wheel python3-setuptools"
 
 missing=""
 for p in $packages; do
