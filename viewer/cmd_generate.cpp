@@ -10,6 +10,7 @@
 #include <span>
 
 #include "cli_util.hpp"
+#include "generate_sparse.hpp"
 #include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/separable.hpp"
@@ -33,7 +34,7 @@ double ms_since(Clock::time_point t) {
 struct GenerateOptions {
     GeneratorFlags generator;
     std::string input, output, device, format, json, indices;
-    bool stats = false;
+    bool stats = false, sparse = false;
     std::uint32_t repeat = 1, warmup = 0;
 };
 
@@ -69,6 +70,10 @@ std::size_t count_solid(std::span<const std::uint8_t> voxels) {
 }
 
 int run_generate(const GenerateOptions& o) {
+    if (o.sparse || needs_sparse(o.input)) {
+        return run_generate_sparse({o.generator, o.input, o.output, o.device, o.format, o.json,
+                                    !o.indices.empty(), o.stats, o.repeat, o.warmup});
+    }
     const Format format = field_format(o.generator, o.format);
     require_output_folder(o.output);
     for (const std::string* extra : {&o.json, &o.indices}) {
@@ -303,6 +308,9 @@ Command add_generate(CLI::App& root) {
                     "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, "
                     "else the first GPU, else the first CPU)");
     add_format_option(*app, o->format);
+    app->add_flag("--sparse", o->sparse,
+                  "Store the world as a tile grid of 64-trees and compute the exact bounded "
+                  "field per tile (--max-distance, default 16); automatic above 2^31 voxels");
     app->add_flag("--stats", o->stats,
                   "Also report the wall time of each phase (read, setup, upload, kernels, "
                   "download, write, and the whole from program start to output renamed), "

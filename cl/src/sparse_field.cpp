@@ -71,6 +71,26 @@ Box grow(const Box& b, const std::uint32_t h[3]) {
             {b.max.x + h[0], b.max.y + h[1], b.max.z + h[2]}};
 }
 
+// The block of a tile's job: the tile and its halo, but along x and y no more than the world
+// with one voxel of empty space around it (beyond that nothing changes a value: unsigned
+// fields see solids only, signed ones the world surrounded by empty space), for worlds
+// thinner than a block. Along z, the axis blocks are stacked on, the whole halo always
+// separates a tile from the next block's voxels.
+Dims tile_block(Dims w, const std::uint32_t h[3]) {
+    return {std::min(kTileSize + 2 * h[0], w.x + 2), std::min(kTileSize + 2 * h[1], w.y + 2),
+            kTileSize + 2 * h[2]};
+}
+
+// Its first voxel: the tile's minus the halo, along x and y moved inside [-1, world + 1).
+Int3 tile_origin(std::int64_t tx, std::int64_t ty, std::int64_t tz, Dims w, Dims block,
+                 const std::uint32_t h[3]) {
+    auto axis = [](std::int64_t t, std::uint32_t halo, std::uint32_t extent, std::uint32_t b) {
+        return std::clamp<std::int64_t>(t * kTileSize - halo, -1,
+                                        std::int64_t{extent} + 1 - std::int64_t{b});
+    };
+    return {axis(tx, h[0], w.x, block.x), axis(ty, h[1], w.y, block.y), tz * kTileSize - h[2]};
+}
+
 // The tiles a box overlaps: first tile and count per axis.
 struct TileSpan {
     Int3 first, count;
@@ -501,6 +521,7 @@ double SparseField::run() {
     std::vector<Job> jobs;
     std::vector<std::uint32_t> slots;
     jobs.reserve(keys.size());
+    const Dims block = tile_block(wd, halo_);
     for (std::uint64_t key : keys) {
         const auto slot = static_cast<std::uint32_t>(slot_keys_.size());
         tiles_[key] = slot;
@@ -512,10 +533,9 @@ double SparseField::run() {
         const std::int64_t s = kTileSize;
         const Box region = intersect(
             Box{{t.x * s, t.y * s, t.z * s}, {(t.x + 1) * s, (t.y + 1) * s, (t.z + 1) * s}}, all);
-        jobs.push_back({region, {t.x * s - halo_[0], t.y * s - halo_[1], t.z * s - halo_[2]}});
+        jobs.push_back({region, tile_origin(t.x, t.y, t.z, wd, block, halo_)});
     }
     coarse_host_.assign(slot_keys_.size() * 64 * elem_, 0);
-    const Dims block{kTileSize + 2 * halo_[0], kTileSize + 2 * halo_[1], kTileSize + 2 * halo_[2]};
     double ms = compute(jobs, block);
     refresh_coarse(slots, &ms);
     return ms;
@@ -535,7 +555,9 @@ SparseField::Update SparseField::update(const Box& changed) {
             dense_slot(tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
                                 static_cast<std::uint32_t>(z))));
     });
-    const Box block_box = grow(region, halo_);
+    const Dims wd = world_.dims();
+    const Box block_box =
+        intersect(grow(region, halo_), Box{{-1, -1, -1}, {wd.x + 1, wd.y + 1, wd.z + 1}});
     std::vector<Job> jobs;
     Dims block{};
     if (block_box.volume() <= kBatchVoxels) {
@@ -544,12 +566,11 @@ SparseField::Update SparseField::update(const Box& changed) {
                  static_cast<std::uint32_t>(block_box.max.y - block_box.min.y),
                  static_cast<std::uint32_t>(block_box.max.z - block_box.min.z)};
     } else {
-        block = {kTileSize + 2 * halo_[0], kTileSize + 2 * halo_[1], kTileSize + 2 * halo_[2]};
+        block = tile_block(wd, halo_);
         const std::int64_t s = kTileSize;
         for_each_tile(tiles_of(region), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
             const Box tile{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}};
-            jobs.push_back(
-                {intersect(tile, region), {x * s - halo_[0], y * s - halo_[1], z * s - halo_[2]}});
+            jobs.push_back({intersect(tile, region), tile_origin(x, y, z, wd, block, halo_)});
         });
     }
     result.kernel_ms = compute(jobs, block);
