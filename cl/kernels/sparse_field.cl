@@ -57,62 +57,110 @@ inline uchar lookup(__global const ulong* restrict masks, __global const uint* r
 // first entry in `refs` (gather: per tile, x fastest, its node base and material base,
 // NO_TILE when not stored) or in `slots` (scatter: per tile, its field slot).
 
-// One work-item per voxel of blocks bx x by x bz stacked along z (global z = block * bz + z):
-// the world's voxel there (0 outside the world and in tiles that are not stored).
+// One work-item per row (along x) of blocks bx x by x bz stacked along z (global id 1 =
+// block * bz + z): the world's voxels there (0 outside the world and in tiles that are not
+// stored). Along a row, the tile is looked up once per 64 voxels and the leaf once per 4.
 __kernel void gather(__global const ulong* restrict masks, __global const uint* restrict offsets,
                      __global const uchar* restrict materials, __global const long* restrict jobs,
                      __global const ulong* restrict refs, __global uchar* restrict vox, uint bx,
                      uint by, uint bz, long wx, long wy, long wz) {
-    const uint x = (uint)get_global_id(0), y = (uint)get_global_id(1);
-    const size_t gz = get_global_id(2);
-    if (x >= bx) {
+    const uint y = (uint)get_global_id(0);
+    const size_t gz = get_global_id(1);
+    if (y >= by) {
         return;
     }
     const size_t j = gz / bz;
     const uint z = (uint)(gz - j * bz);
     __global const long* job = jobs + 8 * j;
-    const long px = job[0] + x, py = job[1] + y, pz = job[2] + z;
-    uchar v = 0;
-    if (px >= 0 && py >= 0 && pz >= 0 && px < wx && py < wy && pz < wz) {
-        const long nt = job[6];
-        const long ntx = nt & 0xFFFF, nty = (nt >> 16) & 0xFFFF;
-        const long rx = (px >> 6) - job[3], ry = (py >> 6) - job[4], rz = (pz >> 6) - job[5];
-        const size_t r = (size_t)(job[7] + (rz * nty + ry) * ntx + rx);
+    __global uchar* out = vox + (gz * by + y) * bx;
+    const long py = job[1] + y, pz = job[2] + z;
+    if (py < 0 || pz < 0 || py >= wy || pz >= wz) {
+        for (uint x = 0; x < bx; ++x) {
+            out[x] = 0;
+        }
+        return;
+    }
+    const long nt = job[6];
+    const long ntx = nt & 0xFFFF, nty = (nt >> 16) & 0xFFFF;
+    const long ry = (py >> 6) - job[4], rz = (pz >> 6) - job[5];
+    const uint ly = (uint)(py & 63), lz = (uint)(pz & 63);
+    uint x = 0;
+    while (x < bx) {
+        const long px = job[0] + x;
+        if (px < 0 || px >= wx) {
+            out[x++] = 0;
+            continue;
+        }
+        // The voxels of this row in tile px >> 6.
+        const uint lx0 = (uint)(px & 63);
+        const uint end = min(bx, x + (TILE - lx0));
+        const size_t r = (size_t)(job[7] + (rz * nty + ry) * ntx + ((px >> 6) - job[3]));
         const ulong base = refs[2 * r];
-        if (base != NO_TILE) {
-            v = lookup(masks, offsets, materials, base, refs[2 * r + 1], (uint)(px & 63),
-                       (uint)(py & 63), (uint)(pz & 63));
+        if (base == NO_TILE) {
+            for (; x < end; ++x) {
+                out[x] = 0;
+            }
+            continue;
+        }
+        const ulong mbase = refs[2 * r + 1];
+        const ulong root = masks[base];
+        for (uint lx = lx0; x < end; lx += 4) {
+            // The leaf of voxels lx..lx+3 (from lx0, which may not be a multiple of 4).
+            const uint group_end = min(end, x + (4 - (lx & 3)));
+            ulong m4 = 0, first = 0;
+            const uint b16 = (lz >> 4) << 4 | (ly >> 4) << 2 | (lx >> 4);
+            if ((root >> b16 & 1ul) != 0) {
+                const ulong n16 = base + offsets[base] + rank_below(root, b16);
+                const uint b4 = ((lz >> 2) & 3) << 4 | ((ly >> 2) & 3) << 2 | ((lx >> 2) & 3);
+                const ulong m16 = masks[n16];
+                if ((m16 >> b4 & 1ul) != 0) {
+                    const ulong n4 = base + offsets[n16] + rank_below(m16, b4);
+                    m4 = masks[n4];
+                    first = mbase + offsets[n4];
+                }
+            }
+            for (uint v = lx & 3; x < group_end; ++x, ++v) {
+                const uint bv = (lz & 3) << 4 | (ly & 3) << 2 | v;
+                out[x] = (m4 >> bv & 1ul) != 0 ? materials[first + rank_below(m4, bv)] : 0;
+            }
+            lx &= ~3u;
         }
     }
-    vox[(gz * by + y) * bx + x] = v;
 }
 
-// One work-item per voxel of the largest job region (sx x sy x sz, stacked along z per job):
-// copies the transformed block's value into the field tile that holds the voxel. A job:
-// region first voxel (ox, oy, oz), tile span and its slots from ref0; `regions` holds per
-// job the region's size and the block's first voxel (6 longs).
+// One work-item per row (along x) of the largest job region (sy x sz rows, stacked along z
+// per job): copies the transformed block's values into the field tiles that hold them. A
+// job: its region's first voxel, tile span and first entry in `slots` (per tile, x
+// fastest, its field slot); `regions` holds per job the region's size and the block's first
+// voxel (6 longs).
 __kernel void scatter(__global const ELEM* restrict field, __global ELEM* restrict pool,
                       __global const long* restrict jobs, __global const long* restrict regions,
-                      __global const uint* restrict slots, uint bx, uint by, uint bz, uint sx,
-                      uint sy, uint sz) {
-    const uint x = (uint)get_global_id(0), y = (uint)get_global_id(1);
-    const size_t gz = get_global_id(2);
+                      __global const uint* restrict slots, uint bx, uint by, uint bz, uint sy,
+                      uint sz) {
+    const uint y = (uint)get_global_id(0);
+    const size_t gz = get_global_id(1);
     const size_t j = gz / sz;
     const uint z = (uint)(gz - j * sz);
     __global const long* job = jobs + 8 * j;
     __global const long* reg = regions + 6 * j;
-    if (x >= sx || x >= reg[0] || y >= reg[1] || z >= reg[2]) {
+    if (y >= sy || y >= reg[1] || z >= reg[2]) {
         return;
     }
-    const long px = job[0] + x, py = job[1] + y, pz = job[2] + z;
-    const size_t in = ((j * bz + (size_t)(pz - reg[5])) * by + (size_t)(py - reg[4])) * bx +
-                      (size_t)(px - reg[3]);
+    const long py = job[1] + y, pz = job[2] + z;
+    __global const ELEM* in =
+        field + ((j * bz + (size_t)(pz - reg[5])) * by + (size_t)(py - reg[4])) * bx;
     const long nt = job[6];
     const long ntx = nt & 0xFFFF, nty = (nt >> 16) & 0xFFFF;
-    const long rx = (px >> 6) - job[3], ry = (py >> 6) - job[4], rz = (pz >> 6) - job[5];
-    const size_t slot = slots[job[7] + (rz * nty + ry) * ntx + rx];
-    pool[slot * TILE_VOXELS + (size_t)(((pz & 63) * TILE + (py & 63)) * TILE + (px & 63))] =
-        field[in];
+    const long ry = (py >> 6) - job[4], rz = (pz >> 6) - job[5];
+    const size_t row = (size_t)(((pz & 63) * TILE + (py & 63)) * TILE);
+    for (long px = job[0]; px < job[0] + reg[0];) {
+        const long end = min(job[0] + reg[0], (px | 63) + 1);
+        const size_t slot = slots[job[7] + (rz * nty + ry) * ntx + ((px >> 6) - job[3])];
+        __global ELEM* dst = pool + slot * TILE_VOXELS + row;
+        for (; px < end; ++px) {
+            dst[px & 63] = in[px - reg[3]];
+        }
+    }
 }
 
 // One work-item per 16^3 node of the listed slots: the least KEY over its voxels.

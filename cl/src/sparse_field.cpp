@@ -26,6 +26,8 @@ constexpr std::uint32_t kInsideTile = 0xFFFFFFFEu;
 constexpr std::uint64_t kNoRef = std::numeric_limits<std::uint64_t>::max();
 // Voxels of one batch of stacked blocks (and the most of one update block).
 constexpr std::int64_t kBatchVoxels = std::int64_t{1} << 25;
+// Rows per work-group of the gather and scatter kernels (a work-item per row).
+constexpr std::size_t kGroupRows = 8;
 // The largest halo (voxels): blocks beyond are larger than a batch.
 constexpr std::uint32_t kMaxHalo = 512;
 
@@ -398,9 +400,11 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                     gather.setArg(10, static_cast<cl_long>(wd.y));
                     gather.setArg(11, static_cast<cl_long>(wd.z));
                     cl::Event ev_gather, ev_scatter;
-                    q.enqueueNDRangeKernel(gather, cl::NullRange,
-                                           cl::NDRange(block.x, block.y, std::size_t{block.z} * n),
-                                           cl::NullRange, nullptr, &ev_gather);
+                    // Fixed work-group sizes: PoCL compiles a kernel once per local size.
+                    q.enqueueNDRangeKernel(
+                        gather, cl::NullRange,
+                        cl::NDRange(round_up(block.y, kGroupRows), std::size_t{block.z} * n),
+                        cl::NDRange(kGroupRows, 1), nullptr, &ev_gather);
                     ev_gather.wait();
                     ms += elapsed_ms(ev_gather, ev_gather);
                     ms += batch.generator->run();
@@ -413,14 +417,13 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                     scatter.setArg(5, block.x);
                     scatter.setArg(6, block.y);
                     scatter.setArg(7, block.z);
-                    scatter.setArg(8, static_cast<cl_uint>(largest.x));
-                    scatter.setArg(9, static_cast<cl_uint>(largest.y));
-                    scatter.setArg(10, static_cast<cl_uint>(largest.z));
-                    q.enqueueNDRangeKernel(scatter, cl::NullRange,
-                                           cl::NDRange(static_cast<std::size_t>(largest.x),
-                                                       static_cast<std::size_t>(largest.y),
-                                                       static_cast<std::size_t>(largest.z) * n),
-                                           cl::NullRange, nullptr, &ev_scatter);
+                    scatter.setArg(8, static_cast<cl_uint>(largest.y));
+                    scatter.setArg(9, static_cast<cl_uint>(largest.z));
+                    q.enqueueNDRangeKernel(
+                        scatter, cl::NullRange,
+                        cl::NDRange(round_up(static_cast<std::size_t>(largest.y), kGroupRows),
+                                    static_cast<std::size_t>(largest.z) * n),
+                        cl::NDRange(kGroupRows, 1), nullptr, &ev_scatter);
                     ev_scatter.wait();
                     ms += elapsed_ms(ev_scatter, ev_scatter);
                 });
@@ -442,8 +445,8 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double
         k.setArg(2, static_cast<cl_uint>(slots.size()));
         k.setArg(3, coarse_);
         cl::Event ev;
-        q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(slots.size() * 64, 64)),
-                               cl::NullRange, nullptr, &ev);
+        q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(slots.size() * 64), cl::NDRange(64),
+                               nullptr, &ev);
         const std::size_t per = 64 * elem_;
         if (slots.size() == slot_keys_.size()) {
             q.enqueueReadBuffer(coarse_, CL_TRUE, 0, slots.size() * per, coarse_host_.data());
@@ -643,8 +646,16 @@ std::vector<std::uint8_t> SparseField::read_dense() {
 
 double SparseField::coarse_node(std::int64_t nx, std::int64_t ny, std::int64_t nz) {
     const Format f = options_.format;
+    // Float values are correctly rounded, so possibly above the exact distance: one unit in
+    // the last place lower bounds it (integer formats hold it rounded down already).
+    auto below = [&](double v) {
+        if (f == Format::f32) {
+            return static_cast<double>(std::nextafter(static_cast<float>(v), 0.0f));
+        }
+        return f == Format::f64 ? std::nextafter(v, 0.0) : v;
+    };
     auto positive = [&](const std::vector<std::uint8_t>& v) {
-        return std::max(0.0, decode_value(v, f, 0));
+        return below(std::max(0.0, decode_value(v, f, 0)));
     };
     if (nx < 0 || ny < 0 || nz < 0) {
         return positive(far_);
@@ -660,7 +671,7 @@ double SparseField::coarse_node(std::int64_t nx, std::int64_t ny, std::int64_t n
     const std::vector<std::uint8_t> v(coarse_host_.begin() + static_cast<long>(node * elem_),
                                       coarse_host_.begin() + static_cast<long>((node + 1) * elem_));
     // The minima of packed32 hold the distance byte itself.
-    return std::max(0.0, decode_value(v, f == Format::packed32 ? Format::u32 : f, 0));
+    return below(std::max(0.0, decode_value(v, f == Format::packed32 ? Format::u32 : f, 0)));
 }
 
 double SparseField::coarse_tile(std::int64_t tx, std::int64_t ty, std::int64_t tz) {

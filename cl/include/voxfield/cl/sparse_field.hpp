@@ -74,7 +74,8 @@ class SparseField {
     // Conservative coarse distances (ray skipping): a lower bound of the field's distance to
     // the nearest solid (the field's value, its positive part when signed) over every voxel
     // of tile (tx, ty, tz), or of the 16^3 node (nx, ny, nz) (node units: voxel / 16). D for
-    // tiles beyond the bound.
+    // tiles beyond the bound. Float formats' values are lowered by one unit in the last place,
+    // so that the coarse distance bounds the exact distance as well.
     double coarse_tile(std::int64_t tx, std::int64_t ty, std::int64_t tz);
     double coarse_node(std::int64_t nx, std::int64_t ny, std::int64_t nz);
 
