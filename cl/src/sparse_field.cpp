@@ -64,6 +64,10 @@ std::string elem_options(Format f) {
            " -DELEM_DOUBLE=" + (f == Format::f64 ? "1" : "0") + " -cl-std=CL1.2";
 }
 
+std::int64_t round_up_to(std::int64_t v, std::int64_t m) {
+    return (v + m - 1) / m * m;
+}
+
 Box world_box(Dims d) {
     return {{0, 0, 0}, {d.x, d.y, d.z}};
 }
@@ -292,7 +296,7 @@ SparseField::Batch& SparseField::batch_for(Dims block, std::uint32_t blocks) {
     if (auto it = batches_.find(shape); it != batches_.end()) {
         return *it->second;
     }
-    if (batches_.size() >= 4) {
+    if (batches_.size() >= 8) {
         // Keep a few shapes only: an update's block follows its edit's size.
         batches_.clear();
     }
@@ -559,8 +563,14 @@ SparseField::Update SparseField::update(const Box& changed) {
                                 static_cast<std::uint32_t>(z))));
     });
     const Dims wd = world_.dims();
-    const Box block_box =
+    Box block_box =
         intersect(grow(region, halo_), Box{{-1, -1, -1}, {wd.x + 1, wd.y + 1, wd.z + 1}});
+    // Extents rounded up to a multiple of 16 (more empty space beyond the world, or more of
+    // the world, changes no value inside), so that edits of about one size share a block
+    // shape and its dense generator instead of setting one up each.
+    block_box.max = {block_box.min.x + round_up_to(block_box.max.x - block_box.min.x, 16),
+                     block_box.min.y + round_up_to(block_box.max.y - block_box.min.y, 16),
+                     block_box.min.z + round_up_to(block_box.max.z - block_box.min.z, 16)};
     std::vector<Job> jobs;
     Dims block{};
     if (block_box.volume() <= kBatchVoxels) {
