@@ -234,5 +234,6 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
     else:
         raise RuntimeError("invalid metric provided")
     targets = a == 0
-    d = _separable(targets, m, [1.0] * a.ndim).astype(np.int32)
-    return da.where(targets.any(), d, np.int32(-1))
+    g = _separable(targets, m, [1.0] * a.ndim)
+    # +inf only where the input has no zero at all: -1 there, as SciPy.
+    return da.where(da.isinf(g), -1.0, g).astype(np.int32)
