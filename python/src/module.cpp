@@ -155,6 +155,13 @@ PYBIND11_MODULE(_core, m) {
     m.def("devices", &vp::devices,
           "devices() -> list of dict\n\n"
           "Every OpenCL device of every platform, as `voxfield devices --json` lists them.");
+    m.def(
+        "device_type",
+        [](const py::object& device) { return vp::device_for(device)->context.info().type; },
+        py::arg("device") = py::none(),
+        "device_type(device=None) -> str\n\n"
+        "The type ('cpu', 'gpu', ...) of the device a call with this device= uses (resolved "
+        "once, as every call resolves it).");
     m.def("distance_transform", &vp::distance_transform, py::arg("world"),
           py::arg("metric") = "manhattan", py::arg("signed") = false,
           py::arg("sampling") = py::none(), py::arg("return_indices") = false,

@@ -223,3 +223,17 @@ def test_device_keyword():
     want = sp.distance_transform_edt(a)
     for device in (None, "cpu", 0):
         np.testing.assert_array_equal(vf.distance_transform_edt(a, device=device), want)
+
+
+def test_indices_break_ties_as_scipy_on_a_cpu_device():
+    """On a CPU device (and with any sampling) the host passes choose SciPy's sites."""
+    for i, shape in enumerate(SHAPES + [(16, 16, 16)]):
+        for density in (0.5, 0.95):
+            a = random_input(shape, density, 200 + i)
+            for sampling in (None, 2.0, (1, 1, 3)[-len(shape):]):
+                got_d, got_i = vf.distance_transform_edt(a, sampling=sampling,
+                                                         return_indices=True, device="cpu")
+                want_d, want_i = sp.distance_transform_edt(a, sampling=sampling,
+                                                           return_indices=True)
+                np.testing.assert_array_equal(got_i, want_i, err_msg=f"{shape} {sampling}")
+                np.testing.assert_array_equal(got_d, want_d)
