@@ -369,6 +369,21 @@ std::vector<std::uint8_t> ImplicitGrid::flags() const {
     return f;
 }
 
+std::uint64_t ImplicitGrid::solid_count() const {
+    std::uint64_t n = 0;
+    walk(
+        *this,
+        [&](std::uint32_t index, std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t) {
+            const std::uint32_t* rec = &nodes[std::size_t{index} * VF_SDF_NODE_WORDS];
+            n += static_cast<std::uint64_t>(std::popcount(rec[4]) + std::popcount(rec[5]));
+        },
+        [&](std::uint32_t x, std::uint32_t y, std::uint32_t z, std::uint32_t e) {
+            n += std::uint64_t{std::min(x + e, dims.x) - x} * (std::min(y + e, dims.y) - y) *
+                 (std::min(z + e, dims.z) - z);
+        });
+    return n;
+}
+
 std::vector<ImplicitGrid::Crossed> ImplicitGrid::crossed() const {
     std::vector<Crossed> out;
     walk(

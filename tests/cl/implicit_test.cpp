@@ -68,6 +68,7 @@ Check check(const sdf::Part& part, ImplicitOptions options, const std::string& w
         }
     }
     EXPECT_EQ(mismatches, 0u) << what;
+    EXPECT_EQ(grid.solid_count(), r.solid) << what;
     const auto crossed = grid.crossed();
     EXPECT_EQ(crossed.size(), r.crossed) << what;
     EXPECT_EQ(grid.crossed_count(), r.crossed) << what;

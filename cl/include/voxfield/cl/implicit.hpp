@@ -39,6 +39,8 @@ struct ImplicitGrid {
     std::size_t vertex_count() const { return vertices.size() / VF_SDF_VERTEX_FLOATS; }
     std::size_t bytes() const;  // of the four arrays
 
+    // Solid voxels (f < 0 at the centre), full cells and leaves' solid bits clipped to dims.
+    std::uint64_t solid_count() const;
     // Per voxel (x fastest): bit 0 solid, bit 1 crossed, decoded from the tree.
     std::vector<std::uint8_t> flags() const;
     // Every crossed voxel: its coordinates, material and its 8 corners' (grad x, y, z, f).
