@@ -67,8 +67,10 @@ inline float f_smooth_min(float a, float b, float k) {
     return fmin(a, b) - h * h * k * 0.25f;
 }
 
-/* The value at (x, y, z) and the material there (sdf.hpp's rules). */
-float eval_f(__global const Instr* tape, uint n, float x, float y, float z, uint* material) {
+/* The value at (x, y, z) and the material there (sdf.hpp's rules), running the instructions
+ * list[0..n) (a leaf's specialised tape), or 0..n when list is 0. */
+float eval_f(__global const Instr* tape, const ushort* list, uint n, float x, float y, float z,
+             uint* material) {
     float v[VF_SDF_STACK];
     uchar m[VF_SDF_STACK];
     float px[VF_SDF_STACK], py[VF_SDF_STACK], pz[VF_SDF_STACK];
@@ -76,8 +78,8 @@ float eval_f(__global const Instr* tape, uint n, float x, float y, float z, uint
     px[0] = x;
     py[0] = y;
     pz[0] = z;
-    for (uint i = 0; i < n; ++i) {
-        __global const Instr* in = tape + i;
+    for (uint t = 0; t < n; ++t) {
+        __global const Instr* in = tape + (list ? list[t] : t);
         const uint op = in->op;
         if (op <= VF_SDF_PLANE) {
             v[nv] = f_primitive(in, px[np], py[np], pz[np]);
@@ -207,8 +209,47 @@ inline float2 i_smooth_min(float2 a, float2 b, float k) {
     return (float2)(lo - e * (fabs(lo) + k), hi + e * (fabs(hi) + k));
 }
 
-/* An enclosure of the value over the box x * y * z. */
-float2 eval_i(__global const Instr* tape, uint n, float2 x, float2 y, float2 z) {
+/* Marks instructions first..last (inclusive) as not needed. */
+inline void drop_range(uchar* live, uint first, uint last) {
+    for (uint j = first; j <= last; ++j) {
+        live[j] = 0;
+    }
+}
+
+/* Where the box shows one operand of a binary operator at instruction i is never selected, marks
+ * the other operand's code and the operator as not needed: the result is then exactly the
+ * selected operand's, value, gradient and material (for the smooth operators: when the operands
+ * are k apart, h = 0). A difference keeps A's material, so its A is never dropped. */
+inline void decide(__global const Instr* in, uint i, float2 a, float2 b, uchar* live) {
+    const uint op = in->op;
+    const float k = in->p[0];
+    const uint a_start = (uint)in->p[1], b_start = (uint)in->p[2];
+    bool keep_a = false, keep_b = false;
+    if (op == VF_SDF_MIN) {
+        keep_a = a.y <= b.x;
+        keep_b = b.y < a.x;
+    } else if (op == VF_SDF_MAX) {
+        keep_a = a.x >= b.y;
+        keep_b = b.x > a.y;
+    } else if (op == VF_SDF_DIFF) {
+        keep_a = a.x >= -b.x;
+    } else if (op == VF_SDF_SMOOTH_MIN) {
+        keep_a = b.x - a.y >= k;
+        keep_b = a.x - b.y >= k;
+    } else {
+        keep_a = b.x + a.x >= k; /* smooth_min(-A, B): B - (-A) >= k */
+    }
+    if (keep_a) {
+        drop_range(live, b_start, i);
+    } else if (keep_b) {
+        drop_range(live, a_start, b_start - 1);
+        live[i] = 0;
+    }
+}
+
+/* An enclosure of the value over the box x * y * z; with `live` (tapes up to
+ * VF_SDF_SPECIALISE_MAX), also marks the instructions the box does not need. */
+float2 eval_i(__global const Instr* tape, uint n, float2 x, float2 y, float2 z, uchar* live) {
     float2 v[VF_SDF_STACK];
     float2 px[VF_SDF_STACK], py[VF_SDF_STACK], pz[VF_SDF_STACK];
     int nv = 0, np = 0;
@@ -223,6 +264,9 @@ float2 eval_i(__global const Instr* tape, uint n, float2 x, float2 y, float2 z) 
         } else if (op <= VF_SDF_SMOOTH_DIFF) {
             const float2 b = v[--nv], a = v[nv - 1];
             const float k = in->p[0];
+            if (live) {
+                decide(in, i, a, b, live);
+            }
             if (op == VF_SDF_MIN) {
                 v[nv - 1] = i_min(a, b);
             } else if (op == VF_SDF_MAX) {
@@ -320,16 +364,16 @@ inline float4 d_smooth_min(float4 a, float4 b, float k) {
                     fmin(a.w, b.w) - h * h * k * 0.25f);
 }
 
-/* The value and its gradient at (x, y, z). */
-float4 eval_d(__global const Instr* tape, uint n, float x, float y, float z) {
+/* The value and its gradient at (x, y, z) (list as for eval_f). */
+float4 eval_d(__global const Instr* tape, const ushort* list, uint n, float x, float y, float z) {
     float4 v[VF_SDF_STACK];
     float4 px[VF_SDF_STACK], py[VF_SDF_STACK], pz[VF_SDF_STACK];
     int nv = 0, np = 0;
     px[0] = (float4)(1.0f, 0.0f, 0.0f, x);
     py[0] = (float4)(0.0f, 1.0f, 0.0f, y);
     pz[0] = (float4)(0.0f, 0.0f, 1.0f, z);
-    for (uint i = 0; i < n; ++i) {
-        __global const Instr* in = tape + i;
+    for (uint t = 0; t < n; ++t) {
+        __global const Instr* in = tape + (list ? list[t] : t);
         const uint op = in->op;
         if (op <= VF_SDF_PLANE) {
             v[nv++] = d_primitive(in, px[np], py[np], pz[np]);
@@ -376,7 +420,7 @@ uint classify_cell(__global const Instr* tape, uint n, Grid g, uint i, uint j, u
     const uint i1 = min(i + edge, g.nx), j1 = min(j + edge, g.ny), k1 = min(k + edge, g.nz);
     const float2 r = eval_i(tape, n, (float2)(corner_at(g.x0, g.h, i), corner_at(g.x0, g.h, i1)),
                             (float2)(corner_at(g.y0, g.h, j), corner_at(g.y0, g.h, j1)),
-                            (float2)(corner_at(g.z0, g.h, k), corner_at(g.z0, g.h, k1)));
+                            (float2)(corner_at(g.z0, g.h, k), corner_at(g.z0, g.h, k1)), 0);
     if (r.x > 0) {
         return VF_SDF_CELL_EMPTY;
     }
@@ -407,6 +451,26 @@ __kernel void classify_children(__global const Instr* tape, uint n, Grid g,
     out[id] = (uchar)classify_cell(tape, n, g, o.x + (c & 3) * child_edge,
                                    o.y + (c >> 2 & 3) * child_edge, o.z + (c >> 4) * child_edge,
                                    child_edge);
+}
+
+/* The leaf at voxel o's specialised tape: the instructions its box (clipped to the grid, which
+ * holds every corner it keeps) needs, in order, into list; returns how many. */
+uint specialise(__global const Instr* tape, uint n, Grid g, uint4 o, ushort* list) {
+    uchar live[VF_SDF_SPECIALISE_MAX];
+    for (uint i = 0; i < n; ++i) {
+        live[i] = 1;
+    }
+    const uint i1 = min(o.x + 4, g.nx), j1 = min(o.y + 4, g.ny), k1 = min(o.z + 4, g.nz);
+    eval_i(tape, n, (float2)(corner_at(g.x0, g.h, o.x), corner_at(g.x0, g.h, i1)),
+           (float2)(corner_at(g.y0, g.h, o.y), corner_at(g.y0, g.h, j1)),
+           (float2)(corner_at(g.z0, g.h, o.z), corner_at(g.z0, g.h, k1)), live);
+    uint m = 0;
+    for (uint i = 0; i < n; ++i) {
+        if (live[i]) {
+            list[m++] = (ushort)i;
+        }
+    }
+    return m;
 }
 
 inline uint corner_index(uint v, uint c) {
@@ -442,11 +506,15 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
         return;
     }
     const uint4 o = leaves[id]; /* origin, node index in w */
+    ushort list[VF_SDF_SPECIALISE_MAX];
+    const bool special = n <= VF_SDF_SPECIALISE_MAX;
+    const uint m = special ? specialise(tape, n, g, o, list) : n;
+    const ushort* run = special ? list : 0;
     float f[125];
     uint material;
     for (uint c = 0; c < 125; ++c) {
         const uint i = o.x + c % 5, j = o.y + c / 5 % 5, k = o.z + c / 25;
-        f[c] = eval_f(tape, n, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
+        f[c] = eval_f(tape, run, m, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
                       corner_at(g.z0, g.h, k), &material);
     }
     uint occ[2] = {0u, 0u}, solid[2] = {0u, 0u}, kept[4] = {0u, 0u, 0u, 0u};
@@ -457,7 +525,7 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
         if (i >= g.nx || j >= g.ny || k >= g.nz) {
             continue;
         }
-        const float fc = eval_f(tape, n, centre_at(g.x0, g.h, i), centre_at(g.y0, g.h, j),
+        const float fc = eval_f(tape, run, m, centre_at(g.x0, g.h, i), centre_at(g.y0, g.h, j),
                                 centre_at(g.z0, g.h, k), &material);
         mats[v] = (uchar)material;
         uint inside = fc < 0 ? 1u : 0u, outside = fc < 0 ? 0u : 1u;
@@ -496,7 +564,7 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
     for (uint c = 0; c < 125; ++c) {
         if (kept[c / 32] >> (c % 32) & 1u) {
             const uint i = o.x + c % 5, j = o.y + c / 5 % 5, k = o.z + c / 25;
-            const float4 d = eval_d(tape, n, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
+            const float4 d = eval_d(tape, run, m, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
                                     corner_at(g.z0, g.h, k));
             vertices[voff + r++] = (float4)(d.xyz, f[c]);
         }
@@ -524,12 +592,28 @@ __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_gro
     __global uint* nodes, __global uint* voxels, uint voxel_capacity, __global float4* vertices,
     uint vertex_capacity, __global uint* counters) {
     __local float f[125];
-    __local uint occ[2], solid[2], kept[4], offsets[2];
+    __local uint occ[2], solid[2], kept[4], offsets[2], special_count;
+    __local ushort special_list[VF_SDF_SPECIALISE_MAX];
     const uint id = get_group_id(0), lid = get_local_id(0);
     if (id >= count) {
         return;
     }
     const uint4 o = leaves[id];
+    const bool special = n <= VF_SDF_SPECIALISE_MAX;
+    if (special && lid == 0) {
+        ushort l[VF_SDF_SPECIALISE_MAX];
+        special_count = specialise(tape, n, g, o, l);
+        for (uint t = 0; t < special_count; ++t) {
+            special_list[t] = l[t];
+        }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    ushort list[VF_SDF_SPECIALISE_MAX];
+    const uint m = special ? special_count : n;
+    for (uint t = 0; special && t < m; ++t) {
+        list[t] = special_list[t];
+    }
+    const ushort* run = special ? list : 0;
     if (lid < 4) {
         kept[lid] = 0;
     }
@@ -540,7 +624,7 @@ __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_gro
     uint material = 0;
     if (lid < 125) {
         const uint i = o.x + lid % 5, j = o.y + lid / 5 % 5, k = o.z + lid / 25;
-        f[lid] = eval_f(tape, n, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
+        f[lid] = eval_f(tape, run, m, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
                         corner_at(g.z0, g.h, k), &material);
     }
     float fc = 1.0f;
@@ -549,7 +633,7 @@ __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_gro
         const uint i = o.x + (lid & 3), j = o.y + (lid >> 2 & 3), k = o.z + (lid >> 4);
         in_grid = i < g.nx && j < g.ny && k < g.nz;
         if (in_grid) {
-            fc = eval_f(tape, n, centre_at(g.x0, g.h, i), centre_at(g.y0, g.h, j),
+            fc = eval_f(tape, run, m, centre_at(g.x0, g.h, i), centre_at(g.y0, g.h, j),
                         centre_at(g.z0, g.h, k), &material);
         }
     }
@@ -599,7 +683,7 @@ __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_gro
     uint kept_bits[4] = {kept[0], kept[1], kept[2], kept[3]};
     if (lid < 125 && (kept_bits[lid / 32] >> (lid % 32) & 1u)) {
         const uint i = o.x + lid % 5, j = o.y + lid / 5 % 5, k = o.z + lid / 25;
-        const float4 d = eval_d(tape, n, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
+        const float4 d = eval_d(tape, run, m, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
                                 corner_at(g.z0, g.h, k));
         vertices[voff + rank_below(kept_bits, lid)] = (float4)(d.xyz, f[lid]);
     }
@@ -627,7 +711,7 @@ __kernel void sample_corners(__global const Instr* tape, uint n, Grid g, __globa
     }
     const uint i = (uint)(id % nx), j = (uint)(id / nx % ny), k = (uint)(id / nx / ny);
     uint material;
-    out[id] = eval_f(tape, n, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
+    out[id] = eval_f(tape, 0, n, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
                      corner_at(g.z0, g.h, k), &material);
 }
 
@@ -638,6 +722,6 @@ __kernel void sample_centres(__global const Instr* tape, uint n, Grid g, __globa
     }
     const uint i = (uint)(id % g.nx), j = (uint)(id / g.nx % g.ny), k = (uint)(id / g.nx / g.ny);
     uint material;
-    out[id] = eval_f(tape, n, centre_at(g.x0, g.h, i), centre_at(g.y0, g.h, j),
+    out[id] = eval_f(tape, 0, n, centre_at(g.x0, g.h, i), centre_at(g.y0, g.h, j),
                      centre_at(g.z0, g.h, k), &material);
 }

@@ -229,10 +229,13 @@ class Compiler {
             fail(at, "expected an array of at least " + std::to_string(min_size) +
                          " node(s), got " + brief(arr));
         }
+        const auto a_start = static_cast<double>(tape_.code.size());
         for (std::size_t i = 0; i < arr.size(); ++i) {
+            const auto b_start = static_cast<double>(tape_.code.size());
             node(arr[i], at + "[" + std::to_string(i) + "]", depth + 1, material);
             if (i > 0) {
-                emit(op, 0, params);
+                // p[0] = k (smooth operators), p[1] / p[2] = where A's / B's code starts.
+                emit(op, 0, {params.size() != 0 ? *params.begin() : 0.0, a_start, b_start});
             }
         }
     }

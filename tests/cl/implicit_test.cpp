@@ -146,6 +146,26 @@ TEST_P(ImplicitLayouts, CapacityOverflowRerunsWithTheReachedSizes) {
     check(part, {1, GetParam()}, "shells");
 }
 
+TEST_P(ImplicitLayouts, TapesTooLongToSpecialiseRunWhole) {
+    // A union of 300 spheres: 599 instructions, more than VF_SDF_SPECIALISE_MAX.
+    test::RandomPart gen(31);
+    nlohmann::json kids = nlohmann::json::array();
+    for (int i = 0; i < 300; ++i) {
+        kids.push_back(
+            {{"sphere",
+              {{"center", {gen.real(-0.8, 0.8), gen.real(-0.8, 0.8), gen.real(-0.8, 0.8)}},
+               {"radius", gen.real(0.05, 0.15)}}}});
+    }
+    const nlohmann::json doc = {{"version", 1},
+                                {"voxel_size", 0.04},
+                                {"bounds", {{-1, -1, -1}, {1, 1, 1}}},
+                                {"shape", {{"union", kids}}}};
+    const sdf::Part part = sdf::parse_part(doc.dump(), "spheres");
+    ASSERT_GT(part.tape.code.size(), std::size_t{VF_SDF_SPECIALISE_MAX});
+    const Check c = check(part, {1, GetParam()}, "300 spheres");
+    EXPECT_GT(c.crossed, 1000u);
+}
+
 INSTANTIATE_TEST_SUITE_P(Pocl, ImplicitLayouts, ::testing::Values(Layout::cpu, Layout::gpu),
                          [](const auto& p) { return p.param == Layout::cpu ? "cpu" : "gpu"; });
 

@@ -20,7 +20,9 @@
 #define VF_SDF_TORUS 4u     /* center[3], major, minor (x-z plane) */
 #define VF_SDF_CAPSULE 5u   /* a[3], b[3], radius */
 #define VF_SDF_PLANE 6u     /* unit normal[3], offset */
-/* Binary operators pop B then A and push the result (material: see sdf.hpp). */
+/* Binary operators pop B then A and push the result (material: see sdf.hpp). p[0]: k (smooth
+ * operators), p[1]: the index of A's first instruction, p[2]: of B's (B's code ends just before
+ * the operator), so that a leaf may skip an operand its interval shows is never selected. */
 #define VF_SDF_MIN 7u         /* union */
 #define VF_SDF_MAX 8u         /* intersection */
 #define VF_SDF_DIFF 9u        /* max(A, -B) */
@@ -32,6 +34,9 @@
  * POP multiplies the child's value by s (p[0]). */
 #define VF_SDF_PUSH_POINT 13u
 #define VF_SDF_POP_POINT 14u
+
+/* Tapes up to this long are specialised per leaf (operands never selected there skipped). */
+#define VF_SDF_SPECIALISE_MAX 256
 
 /* Nesting limit of a part (nodes on the longest root-to-leaf path); the stacks hold one more. */
 #define VF_SDF_MAX_DEPTH 32
