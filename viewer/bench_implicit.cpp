@@ -1,6 +1,8 @@
 // `voxfield bench --suite implicit` (bench_implicit.hpp).
 #include "bench_implicit.hpp"
 
+#include <sys/resource.h>
+
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -49,6 +51,14 @@ sdf::Part at_resolution(const fs::path& path, std::uint32_t resolution) {
     return sdf::parse_part(doc.dump(), path.string());
 }
 
+// CPU time of this process (every thread, the OpenCL runtime's included), in ms.
+double process_cpu_ms() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return (double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) * 1e3) +
+           double(u.ru_utime.tv_usec + u.ru_stime.tv_usec) * 1e-3;
+}
+
 }  // namespace
 
 json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup, double budget_s,
@@ -65,14 +75,16 @@ json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup,
                 continue;  // a single tile mostly outside the grid
             }
             ocl::ImplicitDiscretiser job(ctx, part, {depth, ocl::Layout::automatic});
-            std::vector<double> wall, kernel;
+            std::vector<double> wall, kernel, cpu;
             ocl::ImplicitGrid grid;
             const auto start = std::chrono::steady_clock::now();
             for (std::uint32_t i = 0; i < warmup + repeat; ++i) {
+                const double cpu0 = process_cpu_ms();
                 grid = job.run();
                 if (i >= warmup) {
                     wall.push_back(job.timing().total_ms);
                     kernel.push_back(job.timing().kernel_ms);
+                    cpu.push_back(process_cpu_ms() - cpu0);
                 }
                 const double spent =
                     std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -109,6 +121,7 @@ json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup,
                             {"min_ms", s.min},
                             {"max_ms", s.max},
                             {"kernel_median_ms", k.median},
+                            {"cpu_median_ms", summarize(cpu).median},
                             {"gvox_per_s", effective / (s.median * 1e-3) / 1e9},
                             {"iterations", s.n},
                             {"passes", job.timing().passes},
