@@ -18,6 +18,7 @@
 
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/npy.hpp"
+#include "voxfield/core/sdf.hpp"
 
 namespace voxfield {
 
@@ -268,6 +269,9 @@ void write_vox(const std::filesystem::path& path, const World& world, const Pale
 }
 
 VoxModel load_world(const std::filesystem::path& path) {
+    if (sdf::is_sdf_path(path)) {  // an implicit part: its discretised solid (sdf.hpp)
+        return VoxModel{sdf::solid_world(sdf::load_part(path), path.string()), Palette()};
+    }
     std::string ext = path.extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });

@@ -16,6 +16,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "bench_implicit.hpp"
 #include "cli_util.hpp"
 #include "edit_log.hpp"
 #include "sand_run.hpp"
@@ -830,7 +831,8 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
 }
 
 const std::vector<std::string>& suite_names() {
-    static const std::vector<std::string> names = {"dissertation", "edits", "render", "sand"};
+    static const std::vector<std::string> names = {"dissertation", "edits", "render", "sand",
+                                                   "implicit"};
     return names;
 }
 
@@ -949,6 +951,9 @@ int run_suite(const SuiteOptions& o) {
         doc["steps"] = steps;
         doc["world"] = n;
         rows = run_sand(ctx, o, n, steps);
+    } else if (o.suite == "implicit") {
+        doc["scene"] = "data/parts/bracket.sdf.json";
+        rows = run_implicit(ctx, plan.repeat, plan.warmup, plan.budget_s, o.quick);
     } else {
         rows = run_render(ctx, plan, o.quick);
     }
