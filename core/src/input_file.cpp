@@ -4,11 +4,16 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <string>
+#include <string_view>
 #include <system_error>
 
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/npy.hpp"
+#include "voxfield/core/vox.hpp"
 
 namespace voxfield::detail {
 
@@ -94,3 +99,50 @@ void InputFd::read_at(std::uint64_t offset, void* dst, std::size_t n) const {
 }
 
 }  // namespace voxfield::detail
+
+namespace voxfield {
+
+namespace {
+
+VoxModel load_vox(const std::filesystem::path& path, const InputOptions&) {
+    return read_vox(path);
+}
+
+VoxModel load_npy(const std::filesystem::path& path, const InputOptions&) {
+    const NpyArray array = read_npy(path);
+    try {
+        return VoxModel{world_from_npy(array), Palette()};
+    } catch (const InputError& e) {
+        throw InputError(path.string() + ": " + e.what());
+    }
+}
+
+// The input formats, by lower-case extension.
+struct InputFormat {
+    std::string_view extension;
+    VoxModel (*load)(const std::filesystem::path&, const InputOptions&);
+};
+constexpr InputFormat kInputFormats[] = {
+    {".vox", load_vox},
+    {".npy", load_npy},
+};
+
+}  // namespace
+
+VoxModel load_world(const std::filesystem::path& path, const InputOptions& options) {
+    std::string ext = path.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    std::string accepted;
+    for (const InputFormat& f : kInputFormats) {
+        if (ext == f.extension) {
+            return f.load(path, options);
+        }
+        accepted += (accepted.empty() ? "" : ", ") + std::string(f.extension);
+    }
+    throw InputError("'" + path.string() + "': unsupported file type " +
+                     (ext.empty() ? std::string("(no extension)") : "'" + ext + "'") +
+                     " (expected one of " + accepted + ")");
+}
+
+}  // namespace voxfield
