@@ -389,11 +389,18 @@ NpyArray read_npy(const std::filesystem::path& path) {
 
 void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
                std::span<const std::uint8_t> data) {
+    OutputBatch batch;
+    write_npy(batch, path, type, dims, data);
+    batch.commit();
+}
+
+void write_npy(OutputBatch& batch, const std::filesystem::path& path, NpyType type, Dims dims,
+               std::span<const std::uint8_t> data) {
     if (dims.x == 0 || dims.y == 0 || dims.z == 0) {
         throw InputError("cannot write '" + path.string() + "': dims " + dims.to_string() +
                          " have an empty axis");
     }
-    write_npy_shape(path, type, {dims.z, dims.y, dims.x}, data);
+    write_npy_shape(batch, path, type, {dims.z, dims.y, dims.x}, data);
 }
 
 void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
@@ -408,6 +415,13 @@ void write_npy_shape(const std::filesystem::path& path, NpyType type,
 }
 
 void write_npy_shape(const std::filesystem::path& path, NpyType type,
+                     const std::vector<std::uint64_t>& shape, std::span<const std::uint8_t> data) {
+    OutputBatch batch;
+    write_npy_shape(batch, path, type, shape, data);
+    batch.commit();
+}
+
+void write_npy_shape(OutputBatch& batch, const std::filesystem::path& path, NpyType type,
                      const std::vector<std::uint64_t>& shape, std::span<const std::uint8_t> data) {
     const std::string file = path.string();
     std::uint64_t count = 1;
@@ -439,7 +453,7 @@ void write_npy_shape(const std::filesystem::path& path, NpyType type,
     bytes.push_back(static_cast<std::uint8_t>(header.size() >> 8));
     bytes.insert(bytes.end(), header.begin(), header.end());
 
-    detail::write_file_atomic(path, {bytes, data});
+    batch.write(path, {bytes, data});
 }
 
 namespace {

@@ -27,6 +27,7 @@
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/metric.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/sand.hpp"
 #include "voxfield/core/scenes.hpp"
@@ -902,12 +903,7 @@ int run_suite(const SuiteOptions& o) {
             json_path = (fs::path(o.plot) / (o.suite + ".json")).string();
         }
     }
-    if (!json_path.empty()) {
-        require_output_folder(json_path);
-    }
-    if (!o.csv.empty()) {
-        require_output_folder(o.csv);
-    }
+    check_outputs({{"--json", json_path}, {"--csv", o.csv}}, {});
     RunPlan plan;
     plan.seed = o.seed;
     plan.repeat = o.repeat != 0 ? o.repeat : (o.quick ? 3 : (o.suite == "edits" ? 5 : 10));

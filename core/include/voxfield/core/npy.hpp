@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/world.hpp"
 
 namespace voxfield {
@@ -54,11 +55,15 @@ class NpyReader {
     std::size_t data_bytes_ = 0;
 };
 
-// Writes atomically: a temporary file in the same folder, renamed on success, so a failure
-// never leaves a partial file (not forced to disk: no fsync, as numpy.save). Throws InputError if
-// the folder does not exist. `data` may be any memory, e.g. a mapped device buffer: it is written
-// from where it is, without a copy.
+// Writes through the output writer (voxfield/core/output.hpp): a temporary file beside a
+// regular or new target, renamed on success, so a failure never leaves a partial file (not
+// forced to disk: no fsync, as numpy.save); a character device or FIFO written directly.
+// InputError for a target refused, OutputError when the write fails. `data` may be any
+// memory, e.g. a mapped device buffer: it is written from where it is, without a copy.
 void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
+               std::span<const std::uint8_t> data);
+// The same, into `batch`: on disk once the caller commits it with the command's other outputs.
+void write_npy(OutputBatch& batch, const std::filesystem::path& path, NpyType type, Dims dims,
                std::span<const std::uint8_t> data);
 void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
                const std::vector<std::uint8_t>& data);
@@ -69,6 +74,8 @@ void write_npy_shape(const std::filesystem::path& path, NpyType type,
 void write_npy_shape(const std::filesystem::path& path, NpyType type,
                      const std::vector<std::uint64_t>& shape,
                      const std::vector<std::uint8_t>& data);
+void write_npy_shape(OutputBatch& batch, const std::filesystem::path& path, NpyType type,
+                     const std::vector<std::uint64_t>& shape, std::span<const std::uint8_t> data);
 
 // How a label volume's values become a world's voxels (DESIGN §3). Any integer or bool array
 // is a world: 0 is empty, every other value solid, and values 1..255 stay the voxel's palette
