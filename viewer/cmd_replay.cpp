@@ -16,6 +16,7 @@
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/vox.hpp"
+#include "voxfield/pipeline/scene.hpp"
 
 namespace voxfield::cli {
 namespace {
@@ -132,7 +133,8 @@ int run_replay(const ReplayOptions& o) {
     const ocl::GeneratorOptions options = generator_options(o.generator, format, dims);
     ocl::Context ctx(ocl::select_device(o.device));
 
-    ocl::IncrementalField field(
+    // The world and its field, edited as every front end edits them (pipeline::Scene).
+    pipeline::Scene field(
         ctx, model.world, model.palette, options,
         o.max_margin == 0 ? ocl::IncrementalField::kNoMargin : o.max_margin);
     // The first launch of each update kernel pays its build (PoCL compiles per kernel and
@@ -168,7 +170,7 @@ int run_replay(const ReplayOptions& o) {
         const auto job = ocl::make_generator(ctx, field.world(), model.palette, options);
         job->run();
         const std::vector<std::uint8_t> full = job->read();
-        const std::vector<std::uint8_t> incremental = field.read();
+        const std::vector<std::uint8_t> incremental = field.read_field();
         const std::string diff = field_difference(incremental, full, format, dims);
         if (diff.empty()) {
             return true;
@@ -198,7 +200,7 @@ int run_replay(const ReplayOptions& o) {
                       << (o.verify ? " (verifying)" : "") << "   " << std::flush;
             progress_open = true;
         }
-        const ocl::UpdateStats s = field.apply({e.brush});
+        const ocl::UpdateStats s = field.apply({e.brush}).stats;
         std::size_t changed = 0;
         for (const EditResult& r : s.edits) {
             changed += r.changes.size();
@@ -238,7 +240,7 @@ int run_replay(const ReplayOptions& o) {
         write_npy(o.world_output, w.type, w.dims, w.data);
     }
     if (!o.output.empty()) {
-        write_npy(o.output, npy_type(format), dims, field.read());
+        write_npy(o.output, npy_type(format), dims, field.read_field());
     }
 
     const Summary s = summarize(update_ms);
