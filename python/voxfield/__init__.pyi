@@ -4,8 +4,6 @@ from typing import Any, Sequence, Union
 import numpy as np
 import numpy.typing as npt
 
-from voxfield import dask as dask, ndimage as ndimage
-
 __version__: str
 
 _Device = Union[None, str, int]

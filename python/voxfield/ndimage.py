@@ -289,14 +289,16 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
         dt = np.full(shape, -1, np.int32)
         ft = np.indices(shape, dtype=np.int32)
     else:
+        # u32 (the sweeps' format; i32 would take the slower separable kernels): with a zero
+        # in the input every distance is below 2^31, so its bits are the int32 values.
         out = _core.distance_transform(_as_3d(targets), m, False, None, bool(return_indices),
-                                       None, "i32", "exact", device)
+                                       None, "u32", "exact", device)
         if return_indices:
             field, idx = out
             ft = idx[3 - a.ndim:].reshape((a.ndim,) + shape)
         else:
             field = out
-        dt = field.reshape(shape)
+        dt = field.view(np.int32).reshape(shape)
 
     if dt_inplace and return_distances:
         np.copyto(distances, dt)

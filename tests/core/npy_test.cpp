@@ -153,13 +153,15 @@ TEST(Npy, FloatFieldsAreNoWorldIntegerFieldsAreLabels) {
             body[5 * es + 1] = 3;  // voxel (1, 0, 1): 768
         }
         body[6 * es + es - 1] = type == NpyType::b1 ? 1 : 0x80;  // most negative / huge / true
-        write_bytes(p, make_npy(dict(descr, "False", "(2, 2, 2)"), body.size()));
+        std::vector<std::uint8_t> file = make_npy(dict(descr, "False", "(2, 2, 2)"), 0);
+        file.insert(file.end(), body.begin(), body.end());
+        write_bytes(p, file);
         const NpyArray a = read_npy(p);
         EXPECT_EQ(a.type, type) << descr;
         const World w = world_from_npy(a);
-        const std::vector<std::uint8_t> solid = {0, 1, 0, 1, 0, es > 1 ? 1 : 0, 1, 0};
+        const std::vector<bool> solid = {false, true, false, true, false, es > 1, true, false};
         for (std::size_t i = 0; i < 8; ++i) {
-            EXPECT_EQ(w.voxels()[i] != 0, solid[i] != 0) << descr << " voxel " << i;
+            EXPECT_EQ(w.voxels()[i] != 0, solid[i]) << descr << " voxel " << i;
         }
         EXPECT_EQ(w.voxels()[1], 1) << descr;
         if (type != NpyType::i8 && type != NpyType::b1) {
