@@ -337,8 +337,51 @@ def print_rows(rows, device_name, args):
               f" {r['check']}")
 
 
+def print_table(paths):
+    """A markdown table, case x world, of SciPy / kernel medians from --worlds JSON files."""
+    worlds = []
+    for path in paths:
+        with open(path) as f:
+            record = json.load(f)
+        for w in record.get("worlds", []):
+            worlds.append((w, record))
+    if not worlds:
+        sys.exit("compare_scipy: --table: no --worlds results in " + ", ".join(paths))
+    cases = []
+    for w, _ in worlds:
+        for r in w["comparisons"]:
+            if r["case"] not in cases:
+                cases.append(r["case"])
+    print("| case | " + " | ".join(w["name"] for w, _ in worlds) + " |")
+    print("| --- |" + " ---: |" * len(worlds))
+    for c in cases:
+        cells = []
+        for w, _ in worlds:
+            r = next((x for x in w["comparisons"] if x["case"] == c), None)
+            if r is None:
+                cells.append("-")
+                continue
+            k = r["kernel_ms"]
+            cells.append(f"{r['ratio_scipy_over_kernel']:.1f}x ({k['median']:.0f} ms, "
+                         f"{k['min']:.0f}-{k['max']:.0f}; SciPy {r['scipy_ms']['median']:.0f})"
+                         + ("" if r["check_ok"] is not False else " FAILED"))
+        print(f"| {c} | " + " | ".join(cells) + " |")
+    loads = [v for w, _ in worlds for r in w["comparisons"]
+             for v in r.get("loadavg_1min_before_after", [])]
+    records = {id(rec): rec for _, rec in worlds}.values()
+    print(f"\nDevice {worlds[0][1]['device']}; commits "
+          f"{', '.join(sorted({rec['commit'][:8] for rec in records}))}; dates "
+          f"{min(rec['date'] for rec in records)} to {max(rec['date'] for rec in records)}; "
+          f"1-minute load average {min(loads):.1f} to {max(loads):.1f} during the runs.")
+
+
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    if len(sys.argv) > 1 and sys.argv[1] == "--table":
+        print_table(sys.argv[2:])
+        return 0
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 epilog="compare_scipy.py --table FILE.json ... prints the "
+                                        "case x world markdown table of --worlds results.")
     ap.add_argument("--size", type=int, default=256, help="world edge N (N^3 voxels; default 256)")
     ap.add_argument("--seed", type=int, default=6683787, help="world seed")
     ap.add_argument("--input", help="use this (Z,Y,X) uint8/16/32 .npy world instead")

@@ -63,7 +63,10 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
                                                       : options.layout == Layout::gpu),
       incremental_(incremental),
       spacing_(options.spacing) {
-    set_up(world.voxels().data(), false, {}, palette, options);
+    // A full transform on a device that computes in host memory reads the world in place
+    // (no copy); an incremental one keeps its own copy, which its edits rewrite.
+    set_up(world.voxels().data(), !incremental && ctx.computes_in_host_memory(), {}, palette,
+           options);
 }
 
 ExactSeparable::ExactSeparable(Context& ctx, Dims dims, std::span<const std::uint8_t> voxels,
