@@ -17,13 +17,21 @@ typedef struct {
     uint nx, ny, nz, pad;
 } Grid;
 
-inline float corner_at(float x0, float h, uint i) { return x0 + (float)i * h; }
-inline float centre_at(float x0, float h, uint i) { return x0 + ((float)i + 0.5f) * h; }
+inline float corner_at(float x0, float h, uint i) {
+    return x0 + (float)i * h;
+}
+inline float centre_at(float x0, float h, uint i) {
+    return x0 + ((float)i + 0.5f) * h;
+}
 
 /* ---------------------------------------------------------------- floats */
 
-inline float f_len2(float a, float b) { return sqrt(fmax(a * a + b * b, 0.0f)); }
-inline float f_len3(float a, float b, float c) { return sqrt(fmax(a * a + b * b + c * c, 0.0f)); }
+inline float f_len2(float a, float b) {
+    return sqrt(fmax(a * a + b * b, 0.0f));
+}
+inline float f_len3(float a, float b, float c) {
+    return sqrt(fmax(a * a + b * b + c * c, 0.0f));
+}
 
 inline float f_box(float dx, float dy, float dz, float sx, float sy, float sz) {
     const float qx = fabs(dx) - sx, qy = fabs(dy) - sy, qz = fabs(dz) - sz;
@@ -121,9 +129,15 @@ float eval_f(__global const Instr* tape, const ushort* list, uint n, float x, fl
 
 /* ------------------------------------------------------------- intervals (lo, hi) */
 
-inline float2 i_sub(float2 a, float2 b) { return (float2)(a.x - b.y, a.y - b.x); }
-inline float2 i_add(float2 a, float2 b) { return (float2)(a.x + b.x, a.y + b.y); }
-inline float2 i_subs(float2 a, float s) { return (float2)(a.x - s, a.y - s); }
+inline float2 i_sub(float2 a, float2 b) {
+    return (float2)(a.x - b.y, a.y - b.x);
+}
+inline float2 i_add(float2 a, float2 b) {
+    return (float2)(a.x + b.x, a.y + b.y);
+}
+inline float2 i_subs(float2 a, float s) {
+    return (float2)(a.x - s, a.y - s);
+}
 inline float2 i_smul(float s, float2 a) {
     const float x = s * a.x, y = s * a.y;
     return (float2)(fmin(x, y), fmax(x, y));
@@ -145,10 +159,18 @@ inline float2 i_sq(float2 a) {
     const float2 m = i_abs(a);
     return (float2)(m.x * m.x, m.y * m.y);
 }
-inline float2 i_min(float2 a, float2 b) { return (float2)(fmin(a.x, b.x), fmin(a.y, b.y)); }
-inline float2 i_max(float2 a, float2 b) { return (float2)(fmax(a.x, b.x), fmax(a.y, b.y)); }
-inline float2 i_mins(float2 a, float s) { return (float2)(fmin(a.x, s), fmin(a.y, s)); }
-inline float2 i_maxs(float2 a, float s) { return (float2)(fmax(a.x, s), fmax(a.y, s)); }
+inline float2 i_min(float2 a, float2 b) {
+    return (float2)(fmin(a.x, b.x), fmin(a.y, b.y));
+}
+inline float2 i_max(float2 a, float2 b) {
+    return (float2)(fmax(a.x, b.x), fmax(a.y, b.y));
+}
+inline float2 i_mins(float2 a, float s) {
+    return (float2)(fmin(a.x, s), fmin(a.y, s));
+}
+inline float2 i_maxs(float2 a, float s) {
+    return (float2)(fmax(a.x, s), fmax(a.y, s));
+}
 inline float2 i_len2(float2 a, float2 b) {
     const float2 s = i_add(i_sq(a), i_sq(b));
     return (float2)(sqrt(fmax(s.x, 0.0f)), sqrt(fmax(s.y, 0.0f)));
@@ -159,8 +181,7 @@ inline float2 i_len3(float2 a, float2 b, float2 c) {
 }
 
 inline float2 i_box(float2 dx, float2 dy, float2 dz, float sx, float sy, float sz) {
-    const float2 qx = i_subs(i_abs(dx), sx), qy = i_subs(i_abs(dy), sy),
-                 qz = i_subs(i_abs(dz), sz);
+    const float2 qx = i_subs(i_abs(dx), sx), qy = i_subs(i_abs(dy), sy), qz = i_subs(i_abs(dz), sz);
     const float2 outside = i_len3(i_maxs(qx, 0.0f), i_maxs(qy, 0.0f), i_maxs(qz, 0.0f));
     return i_add(outside, i_mins(i_max(qx, i_max(qy, qz)), 0.0f));
 }
@@ -298,27 +319,46 @@ float2 eval_i(__global const Instr* tape, uint n, float2 x, float2 y, float2 z, 
 
 /* ------------------------------------------------- dual numbers: (grad x, y, z, value) */
 
-inline float4 d_sub(float4 a, float4 b) { return a - b; }
-inline float4 d_subs(float4 a, float s) { return (float4)(a.xyz, a.w - s); }
+inline float4 d_sub(float4 a, float4 b) {
+    return a - b;
+}
+inline float4 d_subs(float4 a, float s) {
+    return (float4)(a.xyz, a.w - s);
+}
 inline float4 d_mul(float4 a, float4 b) {
     return (float4)(a.w * b.xyz + b.w * a.xyz, a.w * b.w);
 }
-inline float4 d_abs(float4 a) { return a.w < 0 ? -a : a; }
-inline float4 d_sq(float4 a) { return d_mul(a, a); }
+inline float4 d_abs(float4 a) {
+    return a.w < 0 ? -a : a;
+}
+inline float4 d_sq(float4 a) {
+    return d_mul(a, a);
+}
 inline float4 d_sqrt(float4 a) {
     const float r = sqrt(fmax(a.w, 0.0f));
     return (float4)(r > 0 ? (0.5f / r) * a.xyz : (float3)(0.0f), r);
 }
-inline float4 d_min(float4 a, float4 b) { return a.w <= b.w ? a : b; }
-inline float4 d_max(float4 a, float4 b) { return a.w >= b.w ? a : b; }
-inline float4 d_mins(float4 a, float s) { return a.w <= s ? a : (float4)(0.0f, 0.0f, 0.0f, s); }
-inline float4 d_maxs(float4 a, float s) { return a.w >= s ? a : (float4)(0.0f, 0.0f, 0.0f, s); }
-inline float4 d_len2(float4 a, float4 b) { return d_sqrt(d_sq(a) + d_sq(b)); }
-inline float4 d_len3(float4 a, float4 b, float4 c) { return d_sqrt(d_sq(a) + d_sq(b) + d_sq(c)); }
+inline float4 d_min(float4 a, float4 b) {
+    return a.w <= b.w ? a : b;
+}
+inline float4 d_max(float4 a, float4 b) {
+    return a.w >= b.w ? a : b;
+}
+inline float4 d_mins(float4 a, float s) {
+    return a.w <= s ? a : (float4)(0.0f, 0.0f, 0.0f, s);
+}
+inline float4 d_maxs(float4 a, float s) {
+    return a.w >= s ? a : (float4)(0.0f, 0.0f, 0.0f, s);
+}
+inline float4 d_len2(float4 a, float4 b) {
+    return d_sqrt(d_sq(a) + d_sq(b));
+}
+inline float4 d_len3(float4 a, float4 b, float4 c) {
+    return d_sqrt(d_sq(a) + d_sq(b) + d_sq(c));
+}
 
 inline float4 d_box(float4 dx, float4 dy, float4 dz, float sx, float sy, float sz) {
-    const float4 qx = d_subs(d_abs(dx), sx), qy = d_subs(d_abs(dy), sy),
-                 qz = d_subs(d_abs(dz), sz);
+    const float4 qx = d_subs(d_abs(dx), sx), qy = d_subs(d_abs(dy), sy), qz = d_subs(d_abs(dz), sz);
     const float4 outside = d_len3(d_maxs(qx, 0.0f), d_maxs(qy, 0.0f), d_maxs(qz, 0.0f));
     return outside + d_mins(d_max(qx, d_max(qy, qz)), 0.0f);
 }
@@ -434,8 +474,8 @@ __kernel void classify_tiles(__global const Instr* tape, uint n, Grid g, uint tx
     if (t >= tiles) {
         return;
     }
-    out[t] = (uchar)classify_cell(tape, n, g, t % tx * edge, t / tx % ty * edge,
-                                  t / tx / ty * edge, edge);
+    out[t] = (uchar)classify_cell(tape, n, g, t % tx * edge, t / tx % ty * edge, t / tx / ty * edge,
+                                  edge);
 }
 
 /* One work-item per child (64 per node) of the nodes whose origins (voxels) are listed. */
@@ -545,8 +585,8 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
             }
         }
     }
-    const uint kept_count = popcount(kept[0]) + popcount(kept[1]) + popcount(kept[2]) +
-                            popcount(kept[3]);
+    const uint kept_count =
+        popcount(kept[0]) + popcount(kept[1]) + popcount(kept[2]) + popcount(kept[3]);
     const uint cross_count = popcount(occ[0]) + popcount(occ[1]);
     uint voff, xoff;
     leaf_reserve(counters, kept_count, cross_count, &voff, &xoff);
@@ -659,8 +699,8 @@ __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_gro
         }
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    const uint kept_count = popcount(kept[0]) + popcount(kept[1]) + popcount(kept[2]) +
-                            popcount(kept[3]);
+    const uint kept_count =
+        popcount(kept[0]) + popcount(kept[1]) + popcount(kept[2]) + popcount(kept[3]);
     const uint cross_count = popcount(occ[0]) + popcount(occ[1]);
     if (lid == 0) {
         uint voff, xoff;

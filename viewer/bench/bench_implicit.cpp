@@ -24,11 +24,17 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-// The gallery's bracket (data/parts of this checkout, else of the working directory).
+// The gallery's bracket: data/parts of the working directory, else of the source tree the
+// binary was built in (build/viewer/voxfield -> build/.. ).
 fs::path bracket_path() {
-    const fs::path source_root = fs::path(__FILE__).parent_path().parent_path();
-    for (const fs::path& p : {source_root / "data" / "parts" / "bracket.sdf.json",
-                              fs::current_path() / "data" / "parts" / "bracket.sdf.json"}) {
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    std::vector<fs::path> candidates = {fs::current_path() / "data" / "parts" / "bracket.sdf.json"};
+    if (!ec) {
+        candidates.push_back(exe.parent_path().parent_path().parent_path() / "data" / "parts" /
+                             "bracket.sdf.json");
+    }
+    for (const fs::path& p : candidates) {
         if (fs::is_regular_file(p)) {
             return p;
         }

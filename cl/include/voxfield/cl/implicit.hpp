@@ -73,7 +73,7 @@ class ImplicitDiscretiser {
 
   private:
     Context& ctx_;
-    const sdf::Part& part_;
+    sdf::Part part_;  // a copy: the caller's part may go
     ImplicitOptions options_;
     bool gpu_layout_;
     cl::Program program_;
