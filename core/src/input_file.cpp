@@ -13,6 +13,7 @@
 
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/npy.hpp"
+#include "voxfield/core/sdf.hpp"
 #include "voxfield/core/vdb.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/core/world_info.hpp"
@@ -135,6 +136,21 @@ WorldInfo describe_vox(const std::filesystem::path& path, const InputOptions&, d
     return info;
 }
 
+VoxModel load_sdf(const std::filesystem::path& path, const InputOptions&) {
+    return VoxModel{sdf::solid_world(sdf::load_part(path), path.string()), Palette()};
+}
+
+WorldInfo describe_sdf(const std::filesystem::path& path, const InputOptions& options,
+                       double bound) {
+    const VoxModel model = load_sdf(path, options);
+    TileCensus census(model.world.dims());
+    census.add_world(model.world);
+    WorldInfo info;
+    info.kind = "sdf";
+    census.finish(info, bound);
+    return info;
+}
+
 WorldInfo describe_npy(const std::filesystem::path& path, const InputOptions& options,
                        double bound) {
     const VoxModel model = load_npy(path, options);
@@ -168,6 +184,11 @@ constexpr InputFormat kInputFormats[] = {
 };
 
 const InputFormat& input_format(const std::filesystem::path& path) {
+    // `.sdf.json` is named by two suffixes, so it is matched by name before the table.
+    static constexpr InputFormat sdf_format{".sdf.json", load_sdf, describe_sdf};
+    if (sdf::is_sdf_path(path)) {
+        return sdf_format;
+    }
     std::string ext = path.extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
@@ -180,7 +201,7 @@ const InputFormat& input_format(const std::filesystem::path& path) {
     }
     throw InputError("'" + path.string() + "': unsupported file type " +
                      (ext.empty() ? std::string("(no extension)") : "'" + ext + "'") +
-                     " (expected one of " + accepted + ")");
+                     " (expected one of " + accepted + ", .sdf.json)");
 }
 
 }  // namespace

@@ -162,16 +162,12 @@ void walk_solid(const OpenGrid& g, const std::string& file, S&& start, F&& f) {
             if (v == zero) {
                 continue;
             }
+            // As label volumes: 1..255 is the palette index, any other nonzero value 1.
             std::uint8_t material = 1;
             if constexpr (std::is_integral_v<Value> && !std::is_same_v<Value, bool>) {
-                if (v < 0 || v > 255) {
-                    const openvdb::Coord c = it.getCoord();
-                    throw InputError(where + ": value " + std::to_string(v) + " at voxel (" +
-                                     std::to_string(c.x()) + ", " + std::to_string(c.y()) + ", " +
-                                     std::to_string(c.z()) +
-                                     ") is not a palette index (expected 0..255)");
+                if (v > 0 && v <= 255) {
+                    material = static_cast<std::uint8_t>(v);
                 }
-                material = static_cast<std::uint8_t>(v);
             }
             emit(it.getBoundingBox(), material);
         }
@@ -241,8 +237,12 @@ std::optional<VdbFieldSpec> vdb_output_spec(const std::filesystem::path& output,
     return spec;
 }
 
-void write_vdb(const std::filesystem::path& path, Dims dims, std::span<const std::uint8_t> voxels,
-               std::span<const std::uint8_t> field, Format format, const VdbFieldSpec& spec) {
+namespace {
+
+// The .vdb file's bytes: OpenVDB's io::Stream keeps the grids in the order given.
+std::string vdb_bytes(Dims dims, std::span<const std::uint8_t> voxels,
+                      std::span<const std::uint8_t> field, Format format,
+                      const VdbFieldSpec& spec) {
     init_openvdb();
     const auto d = static_cast<float>(spec.background);
     const auto transform = openvdb::math::Transform::createLinearTransform(spec.voxel_size);
@@ -283,10 +283,26 @@ void write_vdb(const std::filesystem::path& path, Dims dims, std::span<const std
     openvdb::GridPtrVec grids{material, distance};
     std::ostringstream out(std::ios::binary);
     openvdb::io::Stream(out).write(grids);
-    const std::string bytes = out.str();
-    detail::write_file_atomic(
-        path, {std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(bytes.data()),
-                                             bytes.size())});
+    return out.str();
+}
+
+std::span<const std::uint8_t> as_bytes(const std::string& s) {
+    return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
+}
+
+}  // namespace
+
+void write_vdb(const std::filesystem::path& path, Dims dims, std::span<const std::uint8_t> voxels,
+               std::span<const std::uint8_t> field, Format format, const VdbFieldSpec& spec) {
+    const std::string bytes = vdb_bytes(dims, voxels, field, format, spec);
+    detail::write_file_atomic(path, {as_bytes(bytes)});
+}
+
+void write_vdb(OutputBatch& batch, const std::filesystem::path& path, Dims dims,
+               std::span<const std::uint8_t> voxels, std::span<const std::uint8_t> field,
+               Format format, const VdbFieldSpec& spec) {
+    const std::string bytes = vdb_bytes(dims, voxels, field, format, spec);
+    batch.write(path, {as_bytes(bytes)});
 }
 
 }  // namespace voxfield

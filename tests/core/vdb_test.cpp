@@ -308,12 +308,15 @@ TEST(Vdb, UnusableFilesAreOneLineErrors) {
     write_grids(dir / "empty.vdb", {empty});
     expect_input_error([&] { read_vdb(dir / "empty.vdb", ""); },
                        {"grid 'empty'", "no active voxels"});
-    auto bad = openvdb::Int32Grid::create(0);
-    bad->setName("bad");
-    bad->tree().setValue(openvdb::Coord(1, 2, 3), 300);
-    write_grids(dir / "bad.vdb", {bad});
-    expect_input_error([&] { read_vdb(dir / "bad.vdb", ""); },
-                       {"value 300 at voxel (1, 2, 3)", "palette index"});
+    // Integer values outside 1..255 are solid with material 1, as in label volumes.
+    auto wide_labels = openvdb::Int64Grid::create(0);
+    wide_labels->setName("labels");
+    wide_labels->tree().setValue(openvdb::Coord(1, 2, 3), 300);
+    wide_labels->tree().setValue(openvdb::Coord(2, 2, 3), -4);
+    wide_labels->tree().setValue(openvdb::Coord(3, 2, 3), 200);
+    write_grids(dir / "labels.vdb", {wide_labels});
+    EXPECT_EQ(read_vdb(dir / "labels.vdb", "").world.voxels(),
+              (std::vector<std::uint8_t>{1, 1, 200}));
     auto wide = openvdb::BoolGrid::create(false);
     wide->setName("wide");
     wide->tree().setValue(openvdb::Coord(0, 0, 0), true);

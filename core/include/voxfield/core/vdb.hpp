@@ -9,6 +9,7 @@
 
 #include "voxfield/core/format.hpp"
 #include "voxfield/core/metric.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/core/world_info.hpp"
 
@@ -17,8 +18,8 @@ namespace voxfield {
 // Reads the grid named `grid` (empty: the first grid of the file) as a world whose origin is
 // the grid's active bounding box's minimum corner. A level set's interior (value < 0, found
 // by OpenVDB's sdfInteriorMask, inactive interior tiles included) is solid, material 1; any
-// other grid's active voxels and tiles with a nonzero value are solid: an integer value is the
-// material (1..255, else InputError naming the voxel), any other type 1. InputError for a
+// other grid's active voxels and tiles with a nonzero value are solid: an integer value 1..255
+// is the material, any other value material 1 (as label volumes). InputError for a
 // file OpenVDB cannot read, no grids, a missing grid name, a grid type that holds no values
 // (points, strings), no active voxels, over kVoxMaxSceneAxis per axis, or a dense world over
 // 2^31 voxels.
@@ -48,8 +49,12 @@ std::optional<VdbFieldSpec> vdb_output_spec(const std::filesystem::path& output,
 // |d| < background, background D; a level set: class GRID_LEVEL_SET, inactive inside values
 // -D), both with `spec.voxel_size`, in that order, so that reading the file's first grid gives
 // the world back. `voxels` and `field` are the world's and the field's arrays (x fastest).
-// Atomic (temporary file + rename).
+// Written through the output writer (voxfield/core/output.hpp): on its own, or into `batch`
+// with a command's other outputs.
 void write_vdb(const std::filesystem::path& path, Dims dims, std::span<const std::uint8_t> voxels,
                std::span<const std::uint8_t> field, Format format, const VdbFieldSpec& spec);
+void write_vdb(OutputBatch& batch, const std::filesystem::path& path, Dims dims,
+               std::span<const std::uint8_t> voxels, std::span<const std::uint8_t> field,
+               Format format, const VdbFieldSpec& spec);
 
 }  // namespace voxfield
