@@ -14,6 +14,7 @@
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/sdf.hpp"
+#include "voxfield/core/vdb.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/core/world_info.hpp"
 
@@ -161,6 +162,15 @@ WorldInfo describe_npy(const std::filesystem::path& path, const InputOptions& op
     return info;
 }
 
+VoxModel load_vdb(const std::filesystem::path& path, const InputOptions& options) {
+    return read_vdb(path, options.grid);
+}
+
+WorldInfo describe_vdb_file(const std::filesystem::path& path, const InputOptions& options,
+                            double bound) {
+    return describe_vdb(path, options.grid, bound);
+}
+
 // The input formats, by lower-case extension: how to load one and how to describe one.
 struct InputFormat {
     std::string_view extension;
@@ -170,6 +180,7 @@ struct InputFormat {
 constexpr InputFormat kInputFormats[] = {
     {".vox", load_vox, describe_vox},
     {".npy", load_npy, describe_npy},
+    {".vdb", load_vdb, describe_vdb_file},
 };
 
 const InputFormat& input_format(const std::filesystem::path& path) {

@@ -1,6 +1,8 @@
 // Procedural scenes. Floor + spheres follows the dissertation's test scene; the Menger
-// sponge is the classic fractal (Menger, 1926). Randomness: std::mt19937_64 with our own
-// mappings, so every standard library gives the same worlds for a seed.
+// sponge is the classic fractal (Menger, 1926); the city's hills are value noise (Perlin's
+// lattice noise with hashed values, "An image synthesizer", SIGGRAPH 1985). Randomness:
+// std::mt19937_64 with our own mappings, so every standard library gives the same worlds for a
+// seed.
 #include "voxfield/core/scenes.hpp"
 
 #include "voxfield/core/sand.hpp"
@@ -166,8 +168,191 @@ World scene_random(Dims dims, double density, std::uint64_t seed) {
     return w;
 }
 
+// ---- Terrain and city ---------------------------------------------------------------------
+
+namespace {
+
+constexpr std::uint8_t kBlack = 1, kRed = 4, kPink = 5, kPurple = 6, kBlue = 7, kCyan = 8,
+                       kTurquoise = 9, kYellow = 11;
+constexpr std::uint32_t kBlock = 64;  // city block pitch (a tile), roads along its low edges
+constexpr std::uint32_t kRoad = 8;
+constexpr std::uint32_t kLot = (kBlock - kRoad) / 2;  // 2 x 2 lots per block
+constexpr std::uint32_t kMaxCityAxis = 1u << 20;
+
+std::uint64_t splitmix(std::uint64_t v) {
+    v += 0x9E3779B97F4A7C15ull;
+    v = (v ^ (v >> 30)) * 0xBF58476D1CE4E5B9ull;
+    v = (v ^ (v >> 27)) * 0x94D049BB133111EBull;
+    return v ^ (v >> 31);
+}
+
+double unit_of(std::uint64_t h) {
+    return static_cast<double>(h >> 11) * 0x1.0p-53;
+}
+
+double smooth(double t) {
+    return t * t * (3 - 2 * t);
+}
+
+}  // namespace
+
+// What one (x, z) column holds, bottom to top: rock, the top material, water up to the lake
+// level, and a building's span.
+struct CityScene::Column {
+    std::uint32_t ground = 0;          // solid terrain below this y
+    std::uint32_t water = 0;           // water in [ground, water)
+    std::uint8_t top = 0;              // material of the terrain's top voxel
+    std::uint32_t base = 0, roof = 0;  // building in [base, roof), none when equal
+    std::uint8_t wall = 0;
+    bool facade = false;      // on the footprint's edge: windows
+    std::uint32_t along = 0;  // position along the facade, for the window pattern
+    std::uint32_t level = 0;  // where the floors count from
+};
+
+std::uint64_t CityScene::hash(std::uint64_t a, std::uint64_t b, std::uint64_t c) const {
+    return splitmix(seed_ ^ splitmix(a ^ splitmix(b ^ splitmix(c))));
+}
+
+// Value noise in [0, 1): hashed values at the corners of `cell`-sized squares, smoothly
+// interpolated; `salt` picks an independent field.
+double CityScene::noise(double x, double z, std::uint64_t salt, double cell) const {
+    const double fx = x / cell, fz = z / cell;
+    const double ix = std::floor(fx), iz = std::floor(fz);
+    const double tx = smooth(fx - ix), tz = smooth(fz - iz);
+    auto at = [&](double i, double k) {
+        return unit_of(hash(salt, static_cast<std::uint64_t>(static_cast<std::int64_t>(i)),
+                            static_cast<std::uint64_t>(static_cast<std::int64_t>(k))));
+    };
+    const double a = at(ix, iz), b = at(ix + 1, iz), c = at(ix, iz + 1), d = at(ix + 1, iz + 1);
+    return (a + (b - a) * tx) + ((c + (d - c) * tx) - (a + (b - a) * tx)) * tz;
+}
+
+CityScene::CityScene(Dims dims, std::uint64_t seed) : dims_(dims), seed_(seed) {
+    if (dims.x == 0 || dims.y == 0 || dims.z == 0 || dims.x > kMaxCityAxis ||
+        dims.y > kMaxCityAxis || dims.z > kMaxCityAxis) {
+        throw InputError("city scene: dims " + dims.to_string() + " must be 1.." +
+                         std::to_string(kMaxCityAxis) + " per axis");
+    }
+    cell_ = std::clamp(static_cast<double>(std::max(dims.x, dims.z)) / 2, 32.0, 1024.0);
+}
+
+CityScene::Column CityScene::column(std::uint32_t x, std::uint32_t z) const {
+    const double ny = dims_.y;
+    auto terrain = [&](double px, double pz) {
+        double h = 0, amp = 0.5, cell = cell_;
+        for (std::uint64_t octave = 0; octave < 4; ++octave) {
+            h += amp * noise(px, pz, octave, cell);
+            amp *= 0.5;
+            cell *= 0.5;
+        }
+        return std::clamp(std::floor(ny * (0.06 + 0.3 * h)), 1.0, ny);  // h in [0, 0.94)
+    };
+    Column c;
+    c.ground = static_cast<std::uint32_t>(terrain(x, z));
+    const auto lake = static_cast<std::uint32_t>(std::floor(ny * 0.17));
+    c.water = std::max(c.ground, std::min(lake, dims_.y));
+    c.top = c.ground > ny * 0.3 ? kWhite : kGreen;
+    // City: where the slow "city" noise is high, on dry land.
+    const std::uint32_t bx = x / kBlock, bz = z / kBlock;
+    const std::uint32_t lx = x % kBlock, lz = z % kBlock;
+    const double cx = bx * double{kBlock} + kBlock / 2.0, cz = bz * double{kBlock} + kBlock / 2.0;
+    const double city = noise(cx, cz, 100, 4 * cell_);
+    const double block_ground = terrain(cx, cz);
+    if (city < 0.45 || block_ground <= lake) {
+        return c;
+    }
+    if (lx < kRoad || lz < kRoad) {
+        c.top = kBlack;
+        return c;
+    }
+    const std::uint32_t u = (lx - kRoad) % kLot, v = (lz - kRoad) % kLot;
+    const std::uint64_t lot = hash(200 + (lx - kRoad) / kLot * 2 + (lz - kRoad) / kLot, bx, bz);
+    if (unit_of(lot) < 0.2) {
+        return c;  // an empty lot
+    }
+    auto param = [&](std::uint64_t k, std::uint32_t lo, std::uint32_t hi) {
+        return lo + static_cast<std::uint32_t>(unit_of(splitmix(lot + k)) * (hi - lo + 1));
+    };
+    const std::uint32_t m[4] = {param(1, 2, 7), param(2, 2, 7), param(3, 2, 7), param(4, 2, 7)};
+    if (u < m[0] || u >= kLot - m[1] || v < m[2] || v >= kLot - m[3]) {
+        return c;
+    }
+    const auto base = static_cast<std::uint32_t>(std::max(1.0, block_ground - 2));
+    const double tall = (city - 0.45) / 0.55 * 0.5 * ny;  // taller towards the city's core
+    const auto height = static_cast<std::uint32_t>(10 + unit_of(splitmix(lot + 5)) * tall);
+    c.level = base;
+    c.base = std::min(c.ground, base);
+    c.roof = std::min(dims_.y, base + height);
+    const std::uint8_t walls[4] = {kRed, kPink, kPurple, kYellow};
+    c.wall = walls[param(6, 0, 3) % 4];
+    const bool edge_u = u == m[0] || u + 1 == kLot - m[1];
+    const bool edge_v = v == m[2] || v + 1 == kLot - m[3];
+    c.facade = edge_u || edge_v;
+    c.along = edge_u ? v : u;
+    // A setback tower on some: above 60% of the height only the inner footprint.
+    if (unit_of(splitmix(lot + 7)) < 0.4) {
+        const bool inner =
+            u >= m[0] + 4 && u + 4 < kLot - m[1] && v >= m[2] + 4 && v + 4 < kLot - m[3];
+        const std::uint32_t step = std::min(c.roof, base + height * 3 / 5);
+        if (!inner) {
+            c.roof = std::max(c.base, step);
+        } else {
+            const bool tower_u = u == m[0] + 4 || u + 5 == kLot - m[1];
+            const bool tower_v = v == m[2] + 4 || v + 5 == kLot - m[3];
+            c.facade = tower_u || tower_v;
+            c.along = tower_u ? v : u;
+        }
+    }
+    return c;
+}
+
+void CityScene::fill(const Box& box, std::span<std::uint8_t> out) const {
+    const Box world{{0, 0, 0}, {dims_.x, dims_.y, dims_.z}};
+    if (box.empty() || intersect(box, world) != box ||
+        out.size() != static_cast<std::size_t>(box.volume())) {
+        throw InputError("city scene: box [" + std::to_string(box.min.x) + ", " +
+                         std::to_string(box.max.x) + ") x [" + std::to_string(box.min.y) + ", " +
+                         std::to_string(box.max.y) + ") x [" + std::to_string(box.min.z) + ", " +
+                         std::to_string(box.max.z) + ") with " + std::to_string(out.size()) +
+                         " bytes does not fit the world " + dims_.to_string());
+    }
+    const auto sx = static_cast<std::size_t>(box.max.x - box.min.x);
+    const auto sy = static_cast<std::size_t>(box.max.y - box.min.y);
+    std::size_t z_offset = 0;
+    for (std::int64_t z = box.min.z; z < box.max.z; ++z, z_offset += sx * sy) {
+        for (std::int64_t x = box.min.x; x < box.max.x; ++x) {
+            const Column c = column(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(z));
+            std::uint8_t* o = out.data() + z_offset + static_cast<std::size_t>(x - box.min.x);
+            for (std::int64_t y = box.min.y; y < box.max.y; ++y, o += sx) {
+                const auto wy = static_cast<std::uint32_t>(y);
+                std::uint8_t v = 0;
+                if (wy < c.roof && wy >= c.base) {
+                    const std::uint32_t floor = wy >= c.level ? (wy - c.level) % 5 : 0;
+                    const bool window = c.facade && (floor == 2 || floor == 3) &&
+                                        (c.along % 4 == 1 || c.along % 4 == 2) && wy >= c.level;
+                    v = wy + 1 == c.roof ? kTurquoise : window ? kCyan : c.wall;
+                } else if (wy + 1 == c.ground) {
+                    v = c.top;
+                } else if (wy < c.ground) {
+                    v = kGrey;
+                } else if (wy < c.water) {
+                    v = kBlue;
+                }
+                *o = v;
+            }
+        }
+    }
+}
+
+World scene_city(Dims dims, std::uint64_t seed) {
+    const CityScene city(dims, seed);
+    World w(dims);
+    city.fill(Box{{0, 0, 0}, {dims.x, dims.y, dims.z}}, w.voxels());
+    return w;
+}
+
 std::vector<std::string> scene_names() {
-    return {"empty", "spheres", "terrain", "menger", "random", "sand"};
+    return {"empty", "spheres", "terrain", "menger", "random", "sand", "city"};
 }
 
 World make_scene(const std::string& name, Dims dims, std::uint64_t seed) {
@@ -188,6 +373,9 @@ World make_scene(const std::string& name, Dims dims, std::uint64_t seed) {
     }
     if (name == "sand") {
         return scene_sand(dims, seed);
+    }
+    if (name == "city") {
+        return scene_city(dims, seed);
     }
     std::string valid;
     for (const auto& n : scene_names()) {

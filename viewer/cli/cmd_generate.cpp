@@ -19,6 +19,7 @@
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/output.hpp"
 #include "voxfield/core/stats.hpp"
+#include "voxfield/core/vdb.hpp"
 #include "voxfield/core/vox.hpp"
 
 namespace voxfield::cli {
@@ -35,7 +36,7 @@ double ms_since(Clock::time_point t) {
 
 struct GenerateOptions {
     GeneratorFlags generator;
-    std::string input, output, device, format, json, indices;
+    std::string input, output, device, format, json, indices, grid;
     bool stats = false, sparse = false;
     std::uint32_t repeat = 1, warmup = 0;
 };
@@ -89,7 +90,7 @@ int run_generate(const GenerateOptions& o) {
     std::optional<VoxModel> model;
     auto load_model = [&] {
         const auto t = Clock::now();
-        model = load_world(o.input);
+        model = load_world(o.input, InputOptions{o.grid});
         phases.read = ms_since(t);
     };
     if (!npy) {
@@ -99,6 +100,8 @@ int run_generate(const GenerateOptions& o) {
     ocl::GeneratorOptions flags_options = generator_options(o.generator, format, dims);
     flags_options.indices = !o.indices.empty();
     const ocl::GeneratorOptions options = ocl::resolve_options(flags_options, dims);
+    const std::optional<VdbFieldSpec> vdb =
+        vdb_output_spec(o.output, options.spacing, options.max_distance, options.signed_field);
     // In place where the sweeps of exact_manhattan.cl compute the field in some layout; a
     // device whose layout they lack for it (chebyshev on a GPU) gets a World after the read.
     bool in_place = npy && options.algorithm == ocl::Algorithm::exact &&
@@ -192,7 +195,13 @@ int run_generate(const GenerateOptions& o) {
     OutputBatch outputs;
     progress.set("writing " + o.output);
     const auto t_write = Clock::now();
-    write_npy(outputs, o.output, npy_type(format), dims, field.bytes());
+    if (vdb) {
+        write_vdb(outputs, o.output, dims,
+                  in_place ? voxels.span() : std::span(model->world.voxels()), field.bytes(),
+                  format, *vdb);
+    } else {
+        write_npy(outputs, o.output, npy_type(format), dims, field.bytes());
+    }
     if (options.indices) {
         write_npy_shape(
             outputs, o.indices, NpyType::i32, {3, dims.z, dims.y, dims.x},
@@ -309,10 +318,17 @@ int run_generate(const GenerateOptions& o) {
 Command add_generate(CLI::App& root) {
     auto o = std::make_shared<GenerateOptions>();
     auto* app = root.add_subcommand(
-        "generate", "Generate the distance field of a .vox or .npy world into a .npy file");
-    app->add_option("INPUT", o->input, "World: MagicaVoxel .vox or uint8/16/32 .npy (Z,Y,X)")
+        "generate", "Generate the distance field of a world into a .npy or .vdb file");
+    app->add_option("INPUT", o->input,
+                    "World: MagicaVoxel .vox (scene graph), uint8/16/32 .npy (Z,Y,X), OpenVDB "
+                    ".vdb or .sdf.json")
         ->required();
-    app->add_option("-o,--output", o->output, "Output .npy of shape (Z,Y,X)")->required();
+    app->add_option("--grid", o->grid, ".vdb input: the grid to read (default: the first grid)");
+    app->add_option("-o,--output", o->output,
+                    "Output .npy of shape (Z,Y,X), or .vdb: OpenVDB grids 'material' and "
+                    "'distance' (background --max-distance, else 16; a level set with --signed; "
+                    "uniform --spacing)")
+        ->required();
     add_generator_flags(*app, o->generator);
     add_signed_flag(*app, o->generator);
     app->add_option("--indices", o->indices,
