@@ -163,22 +163,30 @@ __kernel void scatter(__global const ELEM* restrict field, __global ELEM* restri
     }
 }
 
-// One work-item per 16^3 node of the listed slots: the least KEY over its voxels.
+// One work-item per 16^3 node of the listed slots: the least KEY over its voxels inside the
+// world (a tile cut by the world's edge holds no values beyond it), starting from the far
+// value, which no value exceeds. `tiles`: per listed slot its tile's coordinates (3 uints).
 __kernel void node_minima(__global const ELEM* restrict pool, __global const uint* restrict slots,
-                          uint count, __global ELEM* restrict minima) {
+                          __global const uint* restrict tiles, uint count,
+                          __global ELEM* restrict minima, ELEM far, uint wx, uint wy, uint wz) {
     const size_t i = get_global_id(0);
     if (i >= (size_t)count * 64) {
         return;
     }
     const size_t slot = slots[i / 64];
+    __global const uint* t = tiles + 3 * (i / 64);
     const uint node = (uint)(i % 64);
     const uint x0 = (node & 3) * 16, y0 = ((node >> 2) & 3) * 16, z0 = (node >> 4) * 16;
+    // Voxels of the node inside the world: [0, n) along each axis.
+    const long ox = (long)t[0] * TILE + x0, oy = (long)t[1] * TILE + y0, oz = (long)t[2] * TILE + z0;
+    const uint nx = (uint)clamp((long)wx - ox, 0l, 16l), ny = (uint)clamp((long)wy - oy, 0l, 16l),
+               nz = (uint)clamp((long)wz - oz, 0l, 16l);
     __global const ELEM* tile = pool + slot * TILE_VOXELS;
-    ELEM best = KEY(tile[(z0 * TILE + y0) * TILE + x0]);
-    for (uint z = 0; z < 16; ++z) {
-        for (uint y = 0; y < 16; ++y) {
+    ELEM best = KEY(far);
+    for (uint z = 0; z < nz; ++z) {
+        for (uint y = 0; y < ny; ++y) {
             __global const ELEM* row = tile + ((z0 + z) * TILE + y0 + y) * TILE + x0;
-            for (uint x = 0; x < 16; ++x) {
+            for (uint x = 0; x < nx; ++x) {
                 const ELEM k = KEY(row[x]);
                 best = k < best ? k : best;
             }

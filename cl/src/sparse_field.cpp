@@ -441,13 +441,29 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double
     }
     cl_call("computing the field tiles' node minima", [&] {
         auto& q = ctx_.queue();
+        std::vector<std::uint32_t> tiles;
+        tiles.reserve(3 * slots.size());
+        for (std::uint32_t slot : slots) {
+            const std::uint64_t key = slot_keys_[slot];
+            tiles.insert(tiles.end(), {static_cast<std::uint32_t>(key & 0x3FFF),
+                                       static_cast<std::uint32_t>(key >> 14 & 0x3FFF),
+                                       static_cast<std::uint32_t>(key >> 28)});
+        }
         cl::Buffer list(ctx_.context(), CL_MEM_READ_ONLY, slots.size() * 4);
+        cl::Buffer coords(ctx_.context(), CL_MEM_READ_ONLY, tiles.size() * 4);
         q.enqueueWriteBuffer(list, CL_FALSE, 0, slots.size() * 4, slots.data());
+        q.enqueueWriteBuffer(coords, CL_FALSE, 0, tiles.size() * 4, tiles.data());
+        const Dims wd = world_.dims();
         cl::Kernel k(program_, "node_minima");
         k.setArg(0, pool_);
         k.setArg(1, list);
-        k.setArg(2, static_cast<cl_uint>(slots.size()));
-        k.setArg(3, coarse_);
+        k.setArg(2, coords);
+        k.setArg(3, static_cast<cl_uint>(slots.size()));
+        k.setArg(4, coarse_);
+        k.setArg(5, elem_, far_.data());
+        k.setArg(6, wd.x);
+        k.setArg(7, wd.y);
+        k.setArg(8, wd.z);
         cl::Event ev;
         q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(slots.size() * 64), cl::NDRange(64),
                                nullptr, &ev);

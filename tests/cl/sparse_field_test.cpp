@@ -97,8 +97,9 @@ void expect_same(const std::vector<std::uint8_t>& got, const std::vector<std::ui
            << ", want " << decode_value(want, c.format, i);
 }
 
-// Every coarse distance is at most the field's distance to a solid (the value, its positive
-// part when signed) at each voxel of its node or tile.
+// Every node's coarse distance is the least of the field's distances to a solid (the value,
+// its positive part when signed) over its voxels in the world, so at most each of them; a
+// tile's is at most its nodes'.
 void expect_coarse_bounds(ocl::SparseField& f, const std::vector<std::uint8_t>& field,
                           const Case& c, Dims d) {
     const Int3 nodes{(d.x + 15) / 16, (d.y + 15) / 16, (d.z + 15) / 16};
@@ -120,7 +121,14 @@ void expect_coarse_bounds(ocl::SparseField& f, const std::vector<std::uint8_t>& 
                 const double m =
                     node_min[static_cast<std::size_t>((z * nodes.y + y) * nodes.x + x)];
                 const double coarse = f.coarse_node(x, y, z);
-                ASSERT_LE(coarse, m)
+                // Tight: the node's least value (one float ulp lower in float formats).
+                const double want =
+                    c.format == Format::f32
+                        ? static_cast<double>(std::nextafter(static_cast<float>(m), 0.0f))
+                    : c.format == Format::f64 ? std::nextafter(m, 0.0)
+                                              : m;
+                ASSERT_LE(coarse, m);
+                ASSERT_EQ(coarse, want)
                     << "node " << x << "," << y << "," << z << " " << describe(c, d);
                 ASSERT_LE(f.coarse_tile(x / 4, y / 4, z / 4), coarse);
             }

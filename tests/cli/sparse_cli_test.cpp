@@ -90,5 +90,35 @@ TEST_F(SparseCli, RefusesIndicesAndOtherAlgorithms) {
     }
 }
 
+// A .npy whose header says uint8 (Z, Y, X) and whose data is a hole (a sparse file).
+void write_hollow_npy(const std::filesystem::path& p, std::uint64_t z, std::uint64_t y,
+                      std::uint64_t x) {
+    std::string dict = "{'descr': '|u1', 'fortran_order': False, 'shape': (" + std::to_string(z) +
+                       ", " + std::to_string(y) + ", " + std::to_string(x) + "), }";
+    while ((10 + dict.size() + 1) % 64 != 0) {
+        dict += ' ';
+    }
+    dict += '\n';
+    std::string header = "\x93NUMPY";
+    header += '\x01';
+    header += '\x00';
+    header += static_cast<char>(dict.size() & 0xFF);
+    header += static_cast<char>(dict.size() >> 8);
+    test::write_file(p, header + dict);
+    std::filesystem::resize_file(p, header.size() + dict.size() + z * y * x);
+}
+
+TEST_F(SparseCli, RefusesAFieldTooLargeForOneNpyAndPointsAtVdb) {
+    // 1025 x 2048 x 2048 voxels: over 2^31, so sparse without --sparse, and over 2^32, too
+    // large for one .npy: refused before anything is read.
+    const auto big = dir_ / "big.npy";
+    write_hollow_npy(big, 1025, 2048, 2048);
+    const auto out = dir_ / "out.npy";
+    const auto r = run({"generate", big.string(), "-o", out.string(), "--device", "cpu"});
+    EXPECT_EQ(r.code, 2) << test::describe(r);
+    EXPECT_NE(r.err.find(".vdb"), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(out));
+}
+
 }  // namespace
 }  // namespace voxfield

@@ -27,10 +27,10 @@
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/chunks.hpp"
 #include "voxfield/core/world.hpp"
+#include "voxfield/core/world_info.hpp"  // kTileSize, 64 voxels per tile edge
 
 namespace voxfield {
 
-inline constexpr std::uint32_t kTileSize = 64;        // voxels per tile edge
 inline constexpr std::uint32_t kTileVoxels = 262144;  // 64^3
 inline constexpr std::uint32_t kMaxSparseAxis = 1u << 20;
 inline constexpr std::uint32_t kNoTile = 0xFFFFFFFFu;
