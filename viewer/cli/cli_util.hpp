@@ -29,6 +29,7 @@ Command add_simulate(CLI::App& root);
 Command add_bench(CLI::App& root);
 Command add_render(CLI::App& root);
 Command add_view(CLI::App& root);
+Command add_info(CLI::App& root);
 
 // Options shared by the subcommands that run generators (--algorithm, --chunk, --focus,
 // --jfa-extra, --metric, --spacing, --signed), as typed, and their registration.

@@ -257,7 +257,9 @@ Command add_bench(CLI::App& root) {
                     "dissertation's generation-time tables, exact beside every row group), edits "
                     "(its editing protocol, per-edit update times), render (ray-march frame "
                     "times of every metric), sand (falling sand with the exact field updated "
-                    "every step; --repeat is its step count, default 200, --quick 10)")
+                    "every step; --repeat is its step count, default 200, --quick 10), implicit "
+                    "(discretising data/parts/bracket.sdf.json into tile grids of contrees at "
+                    "256^3 and 1024^3, --quick 256^3)")
         ->check(CLI::IsMember(suite_names()));
     app->add_flag("--quick", o->quick,
                   "Suites: smaller sizes and fewer runs (minutes on a 2-core CPU; what CI runs)");

@@ -10,6 +10,7 @@
 #include <span>
 
 #include "cli_util.hpp"
+#include "generate_sparse.hpp"
 #include "progress.hpp"
 #include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/generator.hpp"
@@ -35,7 +36,7 @@ double ms_since(Clock::time_point t) {
 struct GenerateOptions {
     GeneratorFlags generator;
     std::string input, output, device, format, json, indices;
-    bool stats = false;
+    bool stats = false, sparse = false;
     std::uint32_t repeat = 1, warmup = 0;
 };
 
@@ -71,9 +72,13 @@ std::size_t count_solid(std::span<const std::uint8_t> voxels) {
 }
 
 int run_generate(const GenerateOptions& o) {
-    const Format format = field_format(o.generator, o.format);
     check_outputs({{"-o", o.output}, {"--indices", o.indices}, {"--json", o.json}},
                   {{"INPUT", o.input}});
+    if (o.sparse || needs_sparse(o.input)) {
+        return run_generate_sparse({o.generator, o.input, o.output, o.device, o.format, o.json,
+                                    !o.indices.empty(), o.stats, o.repeat, o.warmup});
+    }
+    const Format format = field_format(o.generator, o.format);
     Phases phases;
     Progress progress("generate");
     progress.set("reading " + o.input);
@@ -318,6 +323,9 @@ Command add_generate(CLI::App& root) {
                     "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, "
                     "else the first GPU, else the first CPU)");
     add_format_option(*app, o->format);
+    app->add_flag("--sparse", o->sparse,
+                  "Store the world as a tile grid of 64-trees and compute the exact bounded "
+                  "field per tile (--max-distance, default 16); automatic above 2^31 voxels");
     app->add_flag("--stats", o->stats,
                   "Also report the wall time of each phase (read, setup, upload, kernels, "
                   "download, write, and the whole from program start to output written), "

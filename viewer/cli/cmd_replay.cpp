@@ -18,6 +18,7 @@
 #include "voxfield/core/output.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/vox.hpp"
+#include "voxfield/pipeline/scene.hpp"
 
 namespace voxfield::cli {
 namespace {
@@ -112,7 +113,8 @@ int run_replay(const ReplayOptions& o) {
     Progress progress("replay");
     progress.set("setting up the field");
 
-    ocl::IncrementalField field(
+    // The world and its field, edited as every front end edits them (pipeline::Scene).
+    pipeline::Scene field(
         ctx, model.world, model.palette, options,
         o.max_margin == 0 ? ocl::IncrementalField::kNoMargin : o.max_margin);
     // The first launch of each update kernel pays its build (PoCL compiles per kernel and
@@ -146,7 +148,7 @@ int run_replay(const ReplayOptions& o) {
         const auto job = ocl::make_generator(ctx, field.world(), model.palette, options);
         job->run();
         const std::vector<std::uint8_t> full = job->read();
-        const std::vector<std::uint8_t> incremental = field.read();
+        const std::vector<std::uint8_t> incremental = field.read_field();
         const std::string diff = field_difference(incremental, full, format, dims);
         if (diff.empty()) {
             return true;
@@ -171,7 +173,7 @@ int run_replay(const ReplayOptions& o) {
         const Edit& e = edits[i];
         progress.set("edit " + std::to_string(i + 1) + "/" + std::to_string(edits.size()) +
                      (o.verify ? " (verifying)" : ""));
-        const ocl::UpdateStats s = field.apply({e.brush});
+        const ocl::UpdateStats s = field.apply({e.brush}).stats;
         std::size_t changed = 0;
         for (const EditResult& r : s.edits) {
             changed += r.changes.size();
@@ -209,8 +211,7 @@ int run_replay(const ReplayOptions& o) {
         write_npy(outputs, o.world_output, w.type, w.dims, w.data);
     }
     if (!o.output.empty()) {
-        const std::vector<std::uint8_t> bytes = field.read();
-        write_npy(outputs, o.output, npy_type(format), dims, bytes);
+        write_npy(outputs, o.output, npy_type(format), dims, field.read_field());
     }
 
     progress.stop();

@@ -1,6 +1,7 @@
-// `voxfield simulate INPUT --steps N`: falling sand and water (DESIGN §4) on the device, the
-// distance field kept exact after every step by one incremental update of the voxels the step
-// changed, with optional verification against a full regeneration and per-step timings.
+// `voxfield simulate INPUT --steps N`: falling sand and water (DESIGN §4) in place on the
+// device (pipeline::Scene), the distance field kept exact after every step by one update from
+// the step's change list on the device, with optional verification against a full
+// regeneration and per-step timings.
 #include <algorithm>
 #include <charconv>
 #include <chrono>
@@ -17,8 +18,6 @@
 #include "cli_util.hpp"
 #include "sand_run.hpp"
 #include "voxfield/cl/generator.hpp"
-#include "voxfield/cl/incremental.hpp"
-#include "voxfield/cl/sand.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/format.hpp"
 #include "voxfield/core/npy.hpp"
@@ -26,6 +25,7 @@
 #include "voxfield/core/sand.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/vox.hpp"
+#include "voxfield/pipeline/scene.hpp"
 
 namespace voxfield::cli {
 namespace {
@@ -127,9 +127,8 @@ int run_simulate(const SimulateOptions& o) {
     const ocl::GeneratorOptions options = generator_options(o.generator, format, dims);
     ocl::Context ctx(ocl::select_device(o.device));
 
-    ocl::IncrementalField field(ctx, model.world, model.palette, options);
-    ocl::SandSimulator sim(ctx, model.world, rules);
-    warm_up_updates(field);
+    pipeline::Scene scene(ctx, model.world, model.palette, options);
+    warm_up_updates(scene);
 
     // Full regeneration of the starting world on this device: warm-up, then the median.
     std::vector<double> regen_samples;
@@ -148,8 +147,8 @@ int run_simulate(const SimulateOptions& o) {
     // --verify: a fresh generator on the current world, same options, byte for byte.
     auto verify = [&](const std::string& when) {
         const std::vector<std::uint8_t> full =
-            ocl::generate(ctx, field.world(), model.palette, options).bytes;
-        const std::string diff = field_difference(field.read(), full, format, dims);
+            ocl::generate(ctx, scene.world(), model.palette, options).bytes;
+        const std::string diff = field_difference(scene.read_field(), full, format, dims);
         if (diff.empty()) {
             return true;
         }
@@ -171,7 +170,7 @@ int run_simulate(const SimulateOptions& o) {
     auto last_progress = start;
     bool verified = true;
     const std::vector<SandStepRecord> records =
-        run_sand_steps(sim, field, seed, steps, [&](const SandStepRecord& r) {
+        run_sand_steps(scene, rules, seed, steps, [&](const SandStepRecord& r) {
             if (o.verify && !verify("after step " + std::to_string(r.step))) {
                 verified = false;
                 return false;
@@ -197,12 +196,11 @@ int run_simulate(const SimulateOptions& o) {
     // Outputs only now, in one batch renamed onto their targets once all are written.
     OutputBatch outputs;
     if (!o.world_output.empty()) {
-        const NpyArray w = npy_from_world(field.world());
+        const NpyArray w = npy_from_world(scene.world());
         write_npy(outputs, o.world_output, w.type, w.dims, w.data);
     }
     if (!o.output.empty()) {
-        const std::vector<std::uint8_t> bytes = field.read();
-        write_npy(outputs, o.output, npy_type(format), dims, bytes);
+        write_npy(outputs, o.output, npy_type(format), dims, scene.read_field());
     }
 
     const SandRunSummary sm = summarize_run(records);
@@ -217,7 +215,7 @@ int run_simulate(const SimulateOptions& o) {
     };
     const bool has_ratio = !records.empty() && full_ms > 0;
     std::cout << "device:   " << ctx.info().name << " (" << ctx.info().platform << ", "
-              << ctx.info().type << "), sand kernel " << sim.variant() << '\n'
+              << ctx.info().type << "), sand kernel " << scene.sand_variant() << '\n'
               << "world:    " << o.input << "  " << dims.to_string() << ", sand material "
               << int{rules.sand} << ", water material " << int{rules.water} << ", seed " << seed
               << '\n'
@@ -263,7 +261,7 @@ int run_simulate(const SimulateOptions& o) {
             {"max_distance",
              options.max_distance ? nlohmann::json(*options.max_distance) : nlohmann::json()},
             {"format", to_string(format)},
-            {"layout", sim.variant()},
+            {"layout", scene.sand_variant()},
             {"sand_material", rules.sand},
             {"water_material", rules.water},
             {"seed", seed},

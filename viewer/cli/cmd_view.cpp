@@ -221,7 +221,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             edits.bench = true;
         }
         const FrameUpdate update =
-            apply_frame(s, session, cl_ctx, o, edits, bench ? &*bench : nullptr);
+            apply_frame(s, session, o, edits, bench ? &*bench : nullptr);
         frames.render(session, screen.get(), s.render, s.camera, fb_w, fb_h);
         if (screen) {
             screen->overlay().new_frame();
@@ -247,7 +247,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             running = false;
         }
     }
-    s.strokes.close(s.undo);
+    s.strokes.close(s.history());
 
     write_outputs(o, session, frames, screen.get(), s.render, frame);
     std::cout << "frames:  " << frame << '\n';

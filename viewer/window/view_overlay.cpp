@@ -252,7 +252,8 @@ void Overlay::full_panel(ViewState& s, const pipeline::FramePipeline& session,
         "brush: %s %s, size %lld, colour %d  (%s)", s.controls.paint_mode ? "paint" : "place",
         to_string(s.controls.brush.shape).c_str(), static_cast<long long>(s.controls.brush.size),
         s.controls.brush.material, s.camera.mode() == ViewCamera::Mode::orbit ? "orbit" : "fly");
-    ImGui::Text("undo %zu, redo %zu. F1: keys", s.undo.undo_count(), s.undo.redo_count());
+    ImGui::Text("undo %zu, redo %zu. F1: keys", s.history().undo_count(),
+                s.history().redo_count());
     if (ImGui::CollapsingHeader("palette")) {
         const Palette& pal = session.palette();
         for (int m = 1; m < 256; ++m) {
