@@ -104,10 +104,7 @@ void check_spacing_range(const Spacing& s, Metric m, Dims world) {
     if (s.unit()) {
         return;  // integer scans
     }
-    // The world's diameter in the metric (one more voxel per axis for a signed field's
-    // padding), against the smallest spacing: the float scans of exact_separable.cl compare
-    // partial distances of that size and turn their ratio to the spacing into a voxel
-    // position (an int); a step of the smallest spacing is resolved up to 2^24 of them.
+    // The world's diameter in the metric, one more voxel per axis for a signed field's padding.
     const double ax = s.x * (static_cast<double>(world.x) + 1);
     const double ay = s.y * (static_cast<double>(world.y) + 1);
     const double az = s.z * (static_cast<double>(world.z) + 1);
@@ -121,15 +118,19 @@ void check_spacing_range(const Spacing& s, Metric m, Dims world) {
                          ", beyond the float range the kernels compute in (" +
                          number(std::numeric_limits<float>::max()) + "); use smaller spacings");
     }
+    // Chebyshev's separator (exact_separable.cl's sep, METRIC 1) turns a partial distance
+    // divided by the line's spacing into a voxel position, a 32-bit int: beyond it the
+    // conversion wraps and voxels come out wrong (3e8,1,1 on a 20x16x24 world). The other
+    // metrics' separators are bounded by the line's length.
     const double smallest = std::min({s.x, s.y, s.z});
-    if (diameter / smallest > kSpacingStepsLimit) {
-        throw InputError(text + ": distances across this " + world.to_string() + " world reach " +
-                         number(diameter) + ", " + number(diameter / smallest) +
+    const double largest_axis = std::max({world.x, world.y, world.z}) + 1.0;
+    if (m == Metric::chebyshev && diameter / smallest + largest_axis > kChebyshevStepsLimit) {
+        throw InputError(text + ": chebyshev distances across this " + world.to_string() +
+                         " world reach " + number(diameter) + ", " + number(diameter / smallest) +
                          " times the smallest spacing " + number(smallest) +
-                         "; the kernels' float scans resolve at most " +
-                         number(kSpacingStepsLimit) +
-                         " (2^24) steps of the smallest spacing: bring the spacings closer "
-                         "together or use a smaller world");
+                         "; the kernels hold that ratio in a 32-bit int, at most 2147483647 "
+                         "(2^31 - 1) including the world's width: bring the spacings closer "
+                         "together");
     }
 }
 

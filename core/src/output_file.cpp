@@ -80,7 +80,7 @@ Target classify(const fs::path& path, std::string& resolved) {
         if (::access(resolved.c_str(), W_OK) != 0) {
             fail(file, "the existing file is not writable", errno);
         }
-    } else if (errno != ENOENT) {
+    } else if (errno != ENOENT && errno != ENOTDIR) {
         fail(file, "cannot examine the path", errno);
     }
     fs::path dir = fs::path(resolved).parent_path();

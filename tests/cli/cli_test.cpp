@@ -337,7 +337,7 @@ TEST_F(CliTest, GenerateStatsPrintsPhases) {
             const std::string rest = line.substr(found + p.size() + 2);
             EXPECT_TRUE(!rest.empty() && std::isdigit(static_cast<unsigned char>(rest[0]))) << line;
         }
-        EXPECT_NE(line.find("ms (program start to output renamed)"), std::string::npos) << line;
+        EXPECT_NE(line.find("ms (program start to output written)"), std::string::npos) << line;
         EXPECT_NE(r.out.find("max error 0"), std::string::npos) << r.out;
         json j;
         ASSERT_NO_THROW(j = json::parse(read_text(js))) << read_text(js);
@@ -502,7 +502,7 @@ std::vector<BadCase> bad_cases() {
                  [](const fs::path& d, const fs::path& o) {
                      return gen(good_npy(d), o, {"--device", "99"});
                  },
-                 {"99", "not index 99"}});
+                 {"99", "the indices are 0.."}});
     c.push_back({"DeviceBogus",
                  [](const fs::path& d, const fs::path& o) {
                      return gen(good_npy(d), o, {"--device", "bogus"});

@@ -35,10 +35,14 @@ TEST(Framing, TheSideWithTheMostDetailIsTheFront) {
     const Vec3d sides[] = {{0, 0, 1}, {-1, 0, 0}, {1, 0, 0}, {0, 0, -1}};
     for (const Vec3d& n : sides) {
         World w = plain_box();
-        // Windows of other colours on the side facing n.
-        for (std::uint32_t a = 2; a < 6; a += 2) {
-            for (std::uint32_t y = 2; y < 8; y += 2) {
-                const std::uint32_t x = n[0] < 0 ? 1 : n[0] > 0 ? 10 : a + 2;
+        // Windows of another colour, a checkerboard, on the side facing n.
+        for (std::uint32_t a = 2; a < 10; ++a) {
+            for (std::uint32_t y = 2; y < 8; ++y) {
+                const bool along_x = n[0] == 0;
+                if ((a + y) % 2 != 0 || (!along_x && a > 5)) {
+                    continue;
+                }
+                const std::uint32_t x = n[0] < 0 ? 1 : n[0] > 0 ? 10 : a;
                 const std::uint32_t z = n[2] < 0 ? 1 : n[2] > 0 ? 6 : a;
                 w.set(x, y, z, 5);
             }
@@ -52,9 +56,13 @@ TEST(Framing, TheSideWithTheMostDetailIsTheFront) {
     }
 }
 
-TEST(Framing, TheStoreIsSeenFromItsShopFront) {
-    const VoxModel m = load_world(std::string(VOXFIELD_DATA_DIR) + "/vox/scene_store8.vox");
-    EXPECT_EQ(solid_framing(m.world).front, (Vec3d{0, 0, 1}));
+TEST(Framing, TheStoreIsSeenFromItsShopFrontTheOthersFromTheirFront) {
+    const std::string dir = std::string(VOXFIELD_DATA_DIR) + "/vox/";
+    EXPECT_EQ(solid_framing(load_world(dir + "scene_store8.vox").world).front, (Vec3d{1, 0, 0}));
+    for (const char* name : {"chr_army1", "obj_house4", "veh_car1"}) {
+        EXPECT_EQ(solid_framing(load_world(dir + name + ".vox").world).front, (Vec3d{0, 0, -1}))
+            << name;
+    }
 }
 
 }  // namespace

@@ -59,10 +59,10 @@ struct Framing {
 };
 Framing world_framing(Dims dims);
 
-// The solids' bounding box, and as its front the side with the most visible detail: of the
-// four sides a person stands at (-z, MagicaVoxel's front, vox -y; then -x, +x, +z), the one
-// whose view along its axis shows the most neighbouring pixels that differ in colour or depth
-// (a shop front beats a blank back wall); -z on a tie.
+// The solids' bounding box, and its front: MagicaVoxel's (-z, vox -y) unless another of the
+// four sides a person stands at (-x, +x, +z) shows at least twice its detail, counted as the
+// neighbouring pixels of the view along the side's axis that differ in material or depth
+// (scene_store8's shop front, +x, against its blank -z wall); then the most detailed side.
 Framing solid_framing(const World& world);
 // The default camera's position for `f`: from the front-left and above (along 0.75 front +
 // 0.6 left + 0.5 up from the centre; for the -z front (-0.6, 0.5, -0.75), facing it) at the

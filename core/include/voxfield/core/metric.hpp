@@ -29,14 +29,14 @@ struct Spacing {
 // non-finite value.
 Spacing parse_spacing(const std::string& text);
 
-// Most steps of the smallest spacing that a distance across the world may span with a
-// non-unit spacing: the float scans resolve one step up to 2^24 of them.
-inline constexpr double kSpacingStepsLimit = 16777216.0;
+// The largest Chebyshev distance across a world, in units of the smallest spacing (plus the
+// world's width), that the kernels' separator holds: a 32-bit int.
+inline constexpr double kChebyshevStepsLimit = 2147483647.0;
 
 // Throws InputError unless the kernels represent `s` on a world of `dims` exactly: every value
 // positive and within float range, distances across the world within float range (squared,
-// for euclidean) and at most kSpacingStepsLimit times the smallest spacing. The limit and the
-// numbers are in the message.
+// for euclidean) and, for chebyshev, at most kChebyshevStepsLimit steps of the smallest
+// spacing. The limit and the numbers are in the message.
 void check_spacing_range(const Spacing& s, Metric m, Dims world);
 
 // The metric's distance for axis offsets (dx, dy, dz) in voxels, scaled by `s`.
