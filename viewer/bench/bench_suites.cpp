@@ -16,6 +16,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "bench_implicit.hpp"
 #include "cli_util.hpp"
 #include "edit_log.hpp"
 #include "sand_run.hpp"
@@ -25,6 +26,7 @@
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/metric.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/sand.hpp"
 #include "voxfield/core/scenes.hpp"
@@ -829,7 +831,8 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
 }
 
 const std::vector<std::string>& suite_names() {
-    static const std::vector<std::string> names = {"dissertation", "edits", "render", "sand"};
+    static const std::vector<std::string> names = {"dissertation", "edits", "render", "sand",
+                                                   "implicit"};
     return names;
 }
 
@@ -899,12 +902,7 @@ int run_suite(const SuiteOptions& o) {
             json_path = (fs::path(o.plot) / (o.suite + ".json")).string();
         }
     }
-    if (!json_path.empty()) {
-        require_output_folder(json_path);
-    }
-    if (!o.csv.empty()) {
-        require_output_folder(o.csv);
-    }
+    check_outputs({{"--json", json_path}, {"--csv", o.csv}}, {});
     RunPlan plan;
     plan.seed = o.seed;
     plan.repeat = o.repeat != 0 ? o.repeat : (o.quick ? 3 : (o.suite == "edits" ? 5 : 10));
@@ -948,6 +946,9 @@ int run_suite(const SuiteOptions& o) {
         doc["steps"] = steps;
         doc["world"] = n;
         rows = run_sand(ctx, o, n, steps);
+    } else if (o.suite == "implicit") {
+        doc["scene"] = "data/parts/bracket.sdf.json";
+        rows = run_implicit(ctx, plan.repeat, plan.warmup, plan.budget_s, o.quick);
     } else {
         rows = run_render(ctx, plan, o.quick);
     }

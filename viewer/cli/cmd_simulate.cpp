@@ -21,6 +21,7 @@
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/format.hpp"
 #include "voxfield/core/npy.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/sand.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/vox.hpp"
@@ -73,33 +74,11 @@ std::uint64_t parse_seed(const std::string& text) {
     return seed;
 }
 
-bool same_file(const std::string& a, const std::string& b) {
-    std::error_code ea, eb;
-    const fs::path pa = fs::weakly_canonical(a, ea), pb = fs::weakly_canonical(b, eb);
-    return ea || eb ? fs::path(a) == fs::path(b) : pa == pb;
-}
-
-// Every output's folder exists, and no two outputs (or an output and the input) are one file.
+// Every output writable, and no two outputs (or an output and the input) are one file.
 void check_outputs(const SimulateOptions& o) {
-    const std::vector<std::pair<std::string, std::string>> outputs = {
-        {"-o", o.output}, {"--world-output", o.world_output}, {"--json", o.json}};
-    for (std::size_t i = 0; i < outputs.size(); ++i) {
-        if (outputs[i].second.empty()) {
-            continue;
-        }
-        require_output_folder(outputs[i].second);
-        if (same_file(outputs[i].second, o.input)) {
-            throw InputError(outputs[i].first + " '" + outputs[i].second +
-                             "' would overwrite the input world");
-        }
-        for (std::size_t k = i + 1; k < outputs.size(); ++k) {
-            if (!outputs[k].second.empty() && same_file(outputs[i].second, outputs[k].second)) {
-                throw InputError(outputs[i].first + " and " + outputs[k].first +
-                                 " name the same file '" + outputs[i].second +
-                                 "': give each output its own file");
-            }
-        }
-    }
+    voxfield::check_outputs(
+        {{"-o", o.output}, {"--world-output", o.world_output}, {"--json", o.json}},
+        {{"INPUT", o.input}});
 }
 
 // Empty when the fields are equal; otherwise the first differing voxel, both values there
@@ -214,13 +193,14 @@ int run_simulate(const SimulateOptions& o) {
                   << (o.verify ? " verified" : "") << "        \n";
     }
 
-    // Outputs only now, each written atomically.
+    // Outputs only now, in one batch renamed onto their targets once all are written.
+    OutputBatch outputs;
     if (!o.world_output.empty()) {
         const NpyArray w = npy_from_world(scene.world());
-        write_npy(o.world_output, w.type, w.dims, w.data);
+        write_npy(outputs, o.world_output, w.type, w.dims, w.data);
     }
     if (!o.output.empty()) {
-        write_npy(o.output, npy_type(format), dims, scene.read_field());
+        write_npy(outputs, o.output, npy_type(format), dims, scene.read_field());
     }
 
     const SandRunSummary sm = summarize_run(records);
@@ -301,7 +281,10 @@ int run_simulate(const SimulateOptions& o) {
                has_ratio ? nlohmann::json(step_s.median / full_ms) : nlohmann::json()},
               {"voxels_changed", changed},
               {"full_regenerations", fallbacks}}}};
-        write_json_file(o.json, j);
+        outputs.write(o.json, j.dump(2) + "\n");
+    }
+    outputs.commit();
+    if (!o.json.empty()) {
         std::cout << "wrote:    " << o.json << " (timings)\n";
     }
     return 0;
