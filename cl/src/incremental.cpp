@@ -64,6 +64,10 @@ const World& IncrementalField::world() {
     return impl_->engine->current_world();
 }
 
+const World& IncrementalField::host_world() const {
+    return impl_->engine->world;
+}
+
 UpdateStats IncrementalField::apply_device_changes(const DeviceChanges& changes) {
     return impl_->engine->apply_device_changes(changes);
 }

@@ -174,12 +174,14 @@ class GlobalEngine : public Engine {
         const bool packed = options.format == Format::packed32;
         Events events;
         if (c.occupancy_bounds.empty()) {
-            // Recoloured voxels only: the distances stand; packed32 encodes their colours.
+            // Recoloured voxels only: the distances stand; packed32 encodes their colours (from
+            // the exact field, brought up to date first if a regeneration left it stale).
             if (packed) {
+                const double refresh_ms = exact_stale ? refresh_exact() : 0;
                 encode_box(events, c.bounds);
                 check_injected_failure();
                 q.finish();
-                stats.update_ms = elapsed_ms(events.front(), events.back());
+                stats.update_ms = refresh_ms + elapsed_ms(events.front(), events.back());
             }
             return;
         }

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <new>
 #include <sstream>
+#include <utility>
 
 namespace voxfield::ocl {
 namespace {
@@ -259,7 +260,7 @@ Context::Context(DeviceInfo device) : info_(std::move(device)) {
 
 cl::Program Context::program(const std::string& name, const std::vector<std::string>& sources,
                              const std::string& options) {
-    const auto key = std::make_tuple(name, options);
+    auto key = std::make_tuple(name, options, sources);
     if (auto it = programs_.find(key); it != programs_.end()) {
         return it->second;
     }
@@ -279,7 +280,7 @@ cl::Program Context::program(const std::string& name, const std::vector<std::str
                          "' failed on " + info_.name + " (" + info_.platform +
                          "): " + error_name(e.err()) + "\nbuild log:\n" + log);
     }
-    programs_.emplace(key, program);
+    programs_.emplace(std::move(key), program);
     return program;
 }
 

@@ -149,6 +149,13 @@ const World& FramePipeline::world() const {
     return scene_->world();
 }
 
+const World& FramePipeline::last_read_world() const {
+    if (!scene_) {
+        throw std::logic_error("FramePipeline: no world yet (rebuild() has not succeeded)");
+    }
+    return scene_->last_read_world();
+}
+
 Scene& FramePipeline::scene() {
     return current();
 }

@@ -284,5 +284,39 @@ TEST(SandCl, HostEditsAfterDeviceStepsSeeTheSteppedWorld) {
               "");
 }
 
+TEST(SandCl, RecolouringStepAfterARegenerationEncodesCurrentDistances) {
+    // All rock but two columns of sand over water: step 0 only swaps them (no occupancy
+    // change). Before it, a host batch spanning the world (the corners, and a pocket of air
+    // inside the step's box) regenerated the field, leaving the L1 engine's exact field stale:
+    // packed32's colours of the step's box must be encoded from current distances.
+    World w(Dims{16, 16, 16});
+    std::fill(w.voxels().begin(), w.voxels().end(), std::uint8_t{1});
+    for (const std::uint32_t x : {2u, 12u}) {
+        w.set(x, 4, 2, SandRules{}.water);
+        w.set(x, 5, 2, SandRules{}.sand);
+    }
+    ocl::GeneratorOptions o;
+    o.format = Format::packed32;
+    o = ocl::resolve_options(o, w.dims());
+    const Palette palette = Palette::magicavoxel_default();
+    ocl::IncrementalField field(pocl(), w, palette, o);
+    const Dims d = w.dims();
+    const VoxelChanges batch = {
+        {d.index(0, 0, 0), 1, 0}, {d.index(7, 4, 2), 1, 0}, {d.index(15, 15, 15), 1, 0}};
+    EXPECT_TRUE(field.apply_changes(batch).full_regeneration);
+    World ref = w;
+    apply_changes(ref, batch);
+    ocl::SandSimulator sim(pocl(), field.voxels_buffer(), d, SandRules{});
+    const VoxelChanges want = sand_step(ref, SandRules{}, 1, 0);
+    ASSERT_EQ(want.size(), 4u);
+    const ocl::SandStepResult r = sim.step(1, 0);
+    EXPECT_TRUE(r.changes.occupancy_bounds.empty());
+    field.apply_device_changes(r.changes);
+    EXPECT_EQ(field.world().voxels(), ref.voxels());
+    EXPECT_EQ(test::first_difference(field.read(), ocl::generate(pocl(), ref, palette, o).bytes,
+                                     o.format, d),
+              "");
+}
+
 }  // namespace
 }  // namespace voxfield

@@ -65,8 +65,10 @@ void expect_common(const json& doc, const std::string& suite) {
     ASSERT_FALSE(doc["results"].empty());
 }
 
-// Each row: algorithm, size, chunk, metric, table; either skipped with a reason or timed.
+// Each row: algorithm, size, chunk, metric, table; either skipped with a reason or timed, and
+// not every row skipped (a run that timed nothing proves nothing).
 void expect_rows(const json& doc) {
+    std::size_t timed = 0;
     for (const json& r : doc["results"]) {
         const std::string where = r.dump().substr(0, 200);
         for (const char* key : {"table", "algorithm", "size", "chunk", "metric"}) {
@@ -78,8 +80,10 @@ void expect_rows(const json& doc) {
             EXPECT_FALSE(r["skipped"].get<std::string>().empty()) << where;
         } else {
             expect_timed_row(r, where);
+            ++timed;
         }
     }
+    EXPECT_GT(timed, 0u) << "every row was skipped";
 }
 
 TEST_F(BenchSuite, DissertationQuickWritesEveryTableWithExactBesideIt) {
@@ -103,7 +107,8 @@ TEST_F(BenchSuite, DissertationQuickWritesEveryTableWithExactBesideIt) {
         tables.insert(table);
         algorithms_by_group[table + " / " + row["group"].get<std::string>()].insert(
             row["algorithm"].get<std::string>());
-        if (row["algorithm"] == "exact" && !row.contains("skipped")) {
+        if (row["algorithm"] == "exact") {
+            ASSERT_FALSE(row.contains("skipped")) << row.dump().substr(0, 200);
             EXPECT_EQ(row["max_error"], 0) << row.dump().substr(0, 200);
             EXPECT_TRUE(row["chunk"].is_null());
         }
@@ -133,6 +138,7 @@ TEST_F(BenchSuite, EditsQuickRecordsPerEditTimesAndFullRegeneration) {
     for (const json& row : doc["results"]) {
         algorithms.insert(row["algorithm"].get<std::string>());
         if (row.contains("skipped")) {
+            EXPECT_NE(row["algorithm"], "exact") << "the exact row was skipped";
             continue;
         }
         EXPECT_TRUE(finite_number(row["full_regeneration_ms"]));
@@ -185,6 +191,29 @@ TEST_F(BenchSuite, RenderTimesFramesOnLavapipe) {
         EXPECT_GT(row["mrays_per_s"].get<double>(), 0.0);
         EXPECT_EQ(row["width"], 320);
         EXPECT_EQ(row["height"], 240);
+    }
+}
+
+TEST_F(BenchSuite, SandRunsTheSimulationInPlaceAndTimesItBothWays) {
+    const fs::path js = dir_ / "s.json";
+    const RunResult r = run({"bench", "--suite", "sand", "--world", "24", "--repeat", "5",
+                             "--device", "cpu", "--json", js.string()});
+    ASSERT_EQ(r.code, 0) << describe(r);
+    const json doc = json::parse(read_text(js));
+    EXPECT_EQ(doc["suite"], "sand");
+    EXPECT_EQ(doc["steps"], 5);
+    ASSERT_EQ(doc["results"].size(), 2u);  // unbounded, and bounded at D = 16
+    for (const json& row : doc["results"]) {
+        const std::string where = row.dump().substr(0, 200);
+        EXPECT_EQ(row["steps"], 5) << where;
+        ASSERT_EQ(row["per_step"].size(), 5u) << where;
+        EXPECT_GT(row["steps_per_s_device"].get<double>(), 0.0) << where;
+        EXPECT_GT(row["steps_per_s_wall"].get<double>(), 0.0) << where;
+        EXPECT_GT(row["voxels_changed"].get<std::size_t>(), 0u) << where;
+        for (const json& step : row["per_step"]) {
+            EXPECT_GT(step["simulate_ms"].get<double>(), 0.0) << where;  // the kernel ran
+            EXPECT_TRUE(step["wall_ms"].is_number()) << where;
+        }
     }
 }
 

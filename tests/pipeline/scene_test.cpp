@@ -122,6 +122,21 @@ TEST(Scene, UndoOfAStrokeTheSandMovedClearsTheHistory) {
     EXPECT_EQ(scene.read_field(), ocl::generate(pocl(), ref, Palette(), o).bytes);
 }
 
+TEST(Scene, TheHostWorldIsReadBackOnlyWhenRead) {
+    const World start = sandy_terrain(Dims{20, 18, 16}, 4);
+    const ocl::GeneratorOptions o = options_for(Metric::manhattan, Format::u16, start.dims());
+    pipeline::Scene scene(pocl(), start, Palette(), o);
+    World ref = start;
+    for (std::uint64_t step = 0; step < 6; ++step) {
+        sand_step(ref, SandRules{}, 3, step);
+        scene.step_sand(SandRules{}, 3, step);
+    }
+    ASSERT_NE(ref.voxels(), start.voxels());
+    EXPECT_EQ(scene.last_read_world().voxels(), start.voxels());  // not read back yet
+    EXPECT_EQ(scene.world().voxels(), ref.voxels());
+    EXPECT_EQ(scene.last_read_world().voxels(), ref.voxels());
+}
+
 TEST(Scene, BrushesBetweenStepsSeeTheSteppedWorld) {
     // The host world is read back only when something reads it: a brush between steps starts
     // from the world the steps left, and the steps after it from the brush's.

@@ -192,7 +192,7 @@ void Overlay::full_panel(ViewState& s, const pipeline::FramePipeline& session,
     ImGui::PlotLines("update ms", hu.data(), static_cast<int>(hu.size()));
     ImGui::Text("ray march %.3f ms (GPU timestamps)", frame.raymarch_ms);
     ImGui::PlotLines("march ms", hm.data(), static_cast<int>(hm.size()));
-    const World& w = session.world();
+    const World& w = session.last_read_world();  // no read-back; the sand conserves counts
     ImGui::TextWrapped("world: %s, %s, %zu solid of %zu voxels", world_.c_str(),
                        w.dims().to_string().c_str(), w.solid_count(), w.size());
     ImGui::Text("memory/voxel: render 2 B (compact), OpenCL field %zu B (%s) + world 1 B",

@@ -17,6 +17,10 @@
 namespace voxfield::cli {
 namespace {
 
+// While the sand runs, the host's copy of the world (what the brush aims at) is read back from
+// the device every this many steps.
+constexpr std::uint64_t kAimRefreshSteps = 16;
+
 // The position of `name` in a combo's entries (entries.size() when it is not one).
 int entry_of(const std::vector<std::string>& entries, const std::string& name) {
     return static_cast<int>(std::find(entries.begin(), entries.end(), name) - entries.begin());
@@ -193,7 +197,9 @@ void apply_input(const InputActions& a, double dt, ViewState& s,
         s.sand.single = true;
     }
     edits.history = a.history;
-    s.preview = aimed_brush(session.world(), s.camera, s.controls, a);
+    // Aimed at the world as last read back: while the sand runs it lags the device by at most
+    // kAimRefreshSteps steps (apply_frame), instead of a read-back every frame.
+    s.preview = aimed_brush(session.last_read_world(), s.camera, s.controls, a);
     if (const auto brush = s.strokes.update(a.left || a.right, s.preview, s.history())) {
         edits.batch.push_back(*brush);
         edits.stroke = true;
@@ -212,7 +218,7 @@ FrameUpdate apply_frame(ViewState& s, pipeline::FramePipeline& session, const Vi
     if (has_focus(session.options().algorithm)) {
         const std::uint32_t chunk = session.options().chunk;
         const Int3 centre = s.selection.focus_follows
-                                ? chunk_at(s.camera.position(), session.world().dims(), chunk)
+                                ? chunk_at(s.camera.position(), session.dims(), chunk)
                                 : s.focus_centre;
         const Focus f{centre, s.selection.focus_size};
         const auto& current = session.options().focus;
@@ -249,6 +255,9 @@ FrameUpdate apply_frame(ViewState& s, pipeline::FramePipeline& session, const Vi
         add(u);
         sand.last_ms = update.simulate_ms;
         sand.last_changed = update.sand_changed;
+        if (sand.step % kAimRefreshSteps == 0) {
+            static_cast<void>(session.world());  // reads back what the steps moved
+        }
     }
     if (update.timings.total_ms() > 0) {
         s.last_update = update.timings;

@@ -116,6 +116,9 @@ class IncrementalField {
 
     // The world, read back from the device first where device changes made it out of date.
     const World& world();
+    // The host world as last brought up to date: without the device changes made since (no
+    // read-back; what a caller that tolerates a lag, such as the viewer's aim, reads).
+    const World& host_world() const;
     // The field in options.format, as generate() would write it.
     std::vector<std::uint8_t> read();
     // The field in options.format, on the device.

@@ -87,7 +87,10 @@ class Context {
     DeviceInfo info_;
     cl::Context context_;
     cl::CommandQueue queue_;
-    std::map<std::tuple<std::string, std::string>, cl::Program> programs_;
+    // Keyed by (name, options, sources): two programs of one name built from different
+    // sources are two programs.
+    std::map<std::tuple<std::string, std::string, std::vector<std::string>>, cl::Program>
+        programs_;
 };
 
 // Runs `body`, turning a cl::Error into a ClError with `context`.

@@ -90,6 +90,10 @@ class FramePipeline {
 
     // The scene's world (brought up to date from the device where the simulation moved it).
     const World& world() const;
+    // The scene's world as last read back (Scene::last_read_world: no read-back); throws
+    // std::logic_error before the first successful rebuild().
+    const World& last_read_world() const;
+    Dims dims() const { return dims_; }
     Scene& scene();
     const Palette& palette() const { return palette_; }
     const ocl::GeneratorOptions& options() const { return options_; }

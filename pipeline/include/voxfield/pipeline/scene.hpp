@@ -31,6 +31,8 @@ class SceneStorage {
     virtual Dims dims() const = 0;
     // The host world, read back first where the device changed it.
     virtual const World& world() = 0;
+    // The host world as last read back (without the device's changes since).
+    virtual const World& last_read_world() const = 0;
     virtual ocl::UpdateStats apply(const std::vector<Brush>& batch) = 0;
     virtual ocl::UpdateStats apply_changes(const VoxelChanges& changes) = 0;
     virtual ocl::UpdateStats apply_device_changes(const ocl::DeviceChanges& changes) = 0;
@@ -50,6 +52,7 @@ class DenseStorage : public SceneStorage {
                  const ocl::GeneratorOptions& options, std::uint32_t max_margin);
     Dims dims() const override { return dims_; }
     const World& world() override { return field_.world(); }
+    const World& last_read_world() const override { return field_.host_world(); }
     ocl::UpdateStats apply(const std::vector<Brush>& batch) override;
     ocl::UpdateStats apply_changes(const VoxelChanges& changes) override;
     ocl::UpdateStats apply_device_changes(const ocl::DeviceChanges& changes) override;
@@ -89,6 +92,10 @@ class Scene {
     const ocl::GeneratorOptions& options() const { return options_; }
     // The world, brought up to date from the device first where a simulation changed it.
     const World& world() { return storage_->world(); }
+    // The world as the host last read it back, without the simulation's changes since: no
+    // read-back. The simulation conserves every material's count, so counts read here are
+    // exact.
+    const World& last_read_world() const { return storage_->last_read_world(); }
 
     // The edit protocol. A batch of brushes in order, one field update; with `undoable` the
     // first brush's result joins the history's open stroke (UndoStack::record).
