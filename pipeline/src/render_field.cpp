@@ -1,8 +1,6 @@
 // The compact render field shared between OpenCL and Vulkan (see render_field.hpp).
 #include "voxfield/pipeline/render_field.hpp"
 
-#include <unistd.h>
-
 #include "voxfield/layout.h"
 
 #include <algorithm>
@@ -51,15 +49,13 @@ RenderField::RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Ra
     if (path_ == vk::SharingPath::opaque_fd) {
         try {
             shared_ = vk::ExternalMemory::exportable(vk_ctx, shared_bytes, usage, "shared field");
-            fd_ = shared_.export_fd();
-            cl_field_ = ocl::import_opaque_fd(cl_ctx, fd_, static_cast<std::size_t>(shared_bytes));
+            // The import takes the fd (OpenCL owns it after a successful import, and closes it
+            // after a failed one): never closed here.
+            cl_field_ = ocl::import_opaque_fd(cl_ctx, shared_.export_fd(),
+                                              static_cast<std::size_t>(shared_bytes));
         } catch (const std::exception& e) {
             why_not_ += std::string("path 1 failed: ") + e.what() + "; ";
             cl_field_ = cl::Buffer();
-            if (fd_ >= 0) {
-                close(fd_);
-                fd_ = -1;
-            }
             shared_ = vk::ExternalMemory();
             path_ = vk::supports(vk_ctx, vk::SharingPath::host_pointer) &&
                             ocl::can_use_host_memory(cl_ctx)
@@ -85,9 +81,6 @@ RenderField::RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Ra
 RenderField::~RenderField() {
     writer_.reset();
     cl_field_ = cl::Buffer();
-    if (fd_ >= 0) {
-        close(fd_);
-    }
 }
 
 double RenderField::attach(vk::Raymarcher& marcher, const cl::Buffer& field, Format format,
@@ -99,7 +92,10 @@ double RenderField::attach(vk::Raymarcher& marcher, const cl::Buffer& field, For
     writer_.emplace(cl_, field, format, voxels, dims_, cl_field_,
                     ocl::SlabLayout{layout_.slab_depth, layout_.slab_stride,
                                     copy ? std::nullopt : std::optional{layout_.total_bytes}},
-                    path_ == vk::SharingPath::opaque_fd, step);
+                    path_ == vk::SharingPath::opaque_fd      ? ocl::DstMemory::external
+                    : path_ == vk::SharingPath::host_pointer ? ocl::DstMemory::host
+                                                             : ocl::DstMemory::device,
+                    step);
     const double ms = writer_->run();
     if (copy) {
         marcher.upload_compact(dims_, palette, read_compact());

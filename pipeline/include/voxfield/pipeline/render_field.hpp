@@ -71,9 +71,8 @@ class RenderField {
     vk::FieldLayout layout_;
     vk::SharingPath path_ = vk::SharingPath::copy;
     std::string why_not_;
-    // Release order (reverse): writer, OpenCL buffer, then the fd and the memory it uses.
+    // Release order (reverse): writer (path 2: unmaps), OpenCL buffer, then the memory.
     vk::ExternalMemory shared_;
-    int fd_ = -1;
     cl::Buffer cl_field_;
     std::optional<ocl::CompactWriter> writer_;
 };
