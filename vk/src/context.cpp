@@ -121,17 +121,18 @@ bool compute_family(VkPhysicalDevice d, std::uint32_t& family, bool& timestamps)
     return found;
 }
 
-// The first queue family that does compute and graphics and presents to `surface`; returns
-// why there is none ("" when found).
-std::string present_family(VkPhysicalDevice d, VkSurfaceKHR surface, std::uint32_t& family,
-                           bool& timestamps) {
+// The first queue family that does graphics (and compute, when `compute`) and presents to
+// `surface`; returns why there is none ("" when found).
+std::string present_family(VkPhysicalDevice d, VkSurfaceKHR surface, bool compute,
+                           std::uint32_t& family, bool& timestamps) {
     std::uint32_t n = 0;
     vkGetPhysicalDeviceQueueFamilyProperties(d, &n, nullptr);
     std::vector<VkQueueFamilyProperties> families(n);
     vkGetPhysicalDeviceQueueFamilyProperties(d, &n, families.data());
     bool compute_graphics = false;
     for (std::uint32_t i = 0; i < n; ++i) {
-        const VkQueueFlags both = VK_QUEUE_COMPUTE_BIT | VK_QUEUE_GRAPHICS_BIT;
+        const VkQueueFlags both = (compute ? VkQueueFlags{VK_QUEUE_COMPUTE_BIT} : VkQueueFlags{0}) |
+                                  VK_QUEUE_GRAPHICS_BIT;
         if ((families[i].queueFlags & both) != both) {
             continue;
         }
@@ -144,9 +145,9 @@ std::string present_family(VkPhysicalDevice d, VkSurfaceKHR surface, std::uint32
             return "";
         }
     }
-    return compute_graphics
-               ? "no queue family that does compute and graphics presents to the window"
-               : "has no queue family that does both compute and graphics";
+    const std::string needs = compute ? "compute and graphics" : "graphics";
+    return compute_graphics ? "no queue family that does " + needs + " presents to the window"
+                            : "has no queue family that does " + needs;
 }
 
 PhysicalDeviceInfo describe_device(VkPhysicalDevice d, std::size_t index) {
@@ -459,6 +460,49 @@ PhysicalDeviceInfo select_device(const std::string& spec) {
     return choose(list_devices(), spec, {});
 }
 
+DeviceChoice choose_device(VkInstance instance, VkSurfaceKHR surface, const std::string& spec,
+                           DevicePurpose purpose) {
+    const bool marching = purpose == DevicePurpose::ray_marching;
+    const auto devices = physical_devices(instance);
+    std::vector<PhysicalDeviceInfo> infos;
+    for (std::size_t i = 0; i < devices.size(); ++i) {
+        infos.push_back(describe_device(devices[i], i));
+        if (!marching) {
+            // Only presenting: the ray marcher's needs do not apply, Vulkan 1.1 does.
+            PhysicalDeviceInfo& d = infos.back();
+            d.rejected = d.api_version < VK_API_VERSION_1_1
+                             ? "supports only Vulkan " + d.api + " (1.1 needed)"
+                             : "";
+        }
+    }
+    std::vector<std::uint32_t> families(devices.size(), 0);
+    std::vector<bool> timestamps(devices.size(), false);
+    const auto can_present = [&](const PhysicalDeviceInfo& d) -> std::string {
+        if (surface == VK_NULL_HANDLE) {
+            return "";
+        }
+        if (!d.has_extension(VK_KHR_SWAPCHAIN_EXTENSION_NAME)) {
+            return "lacks VK_KHR_swapchain";
+        }
+        bool ts = false;
+        const std::string why =
+            present_family(devices[d.index], surface, marching, families[d.index], ts);
+        timestamps[d.index] = ts;
+        return why;
+    };
+    DeviceChoice c;
+    c.info = choose(infos, spec, can_present);
+    c.physical = devices[c.info.index];
+    if (surface != VK_NULL_HANDLE) {
+        c.family = families[c.info.index];
+        c.info.timestamps = c.info.timestamps && timestamps[c.info.index];
+    } else {
+        bool ts = false;
+        compute_family(c.physical, c.family, ts);
+    }
+    return c;
+}
+
 Context::Context(const ContextOptions& options) {
     const bool presenting = static_cast<bool>(options.make_surface);
     instance_ = create_instance(options.validation, options.instance_extensions);
@@ -466,33 +510,12 @@ Context::Context(const ContextOptions& options) {
         if (presenting) {
             surface_ = options.make_surface(instance_.get());
         }
-        const auto devices = physical_devices(instance_.get());
-        std::vector<PhysicalDeviceInfo> infos;
-        for (std::size_t i = 0; i < devices.size(); ++i) {
-            infos.push_back(describe_device(devices[i], i));
-        }
         // Presenting: the window's surface from a queue that also ray-marches.
-        std::vector<std::uint32_t> families(devices.size(), 0);
-        const auto can_present = [&](const PhysicalDeviceInfo& d) -> std::string {
-            if (!presenting) {
-                return "";
-            }
-            if (!d.has_extension(VK_KHR_SWAPCHAIN_EXTENSION_NAME)) {
-                return "lacks VK_KHR_swapchain";
-            }
-            bool timestamps = false;
-            return present_family(devices[d.index], surface_, families[d.index], timestamps);
-        };
-        info_ = choose(infos, options.device, can_present);
-        physical_ = devices[info_.index];
-        bool timestamps = false;
-        if (presenting) {
-            family_ = families[info_.index];
-            present_family(physical_, surface_, family_, timestamps);
-            info_.timestamps = info_.timestamps && timestamps;
-        } else {
-            compute_family(physical_, family_, timestamps);
-        }
+        const DeviceChoice choice =
+            choose_device(instance_.get(), surface_, options.device, DevicePurpose::ray_marching);
+        info_ = choice.info;
+        physical_ = choice.physical;
+        family_ = choice.family;
         VkPhysicalDeviceProperties props{};
         vkGetPhysicalDeviceProperties(physical_, &props);
         timestamp_period_ = props.limits.timestampPeriod;
@@ -802,7 +825,60 @@ void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record
     finish(serial);
 }
 
+std::uint64_t Context::submit_unwaited(const std::function<void(VkCommandBuffer)>& record,
+                                       const std::string& what) {
+    collect_retired(false);
+    // The command buffer and fence of a submission nobody waits for: freed once it finished.
+    struct Unwaited {
+        VkDevice device;
+        VkCommandPool pool;
+        VkCommandBuffer cmd = VK_NULL_HANDLE;
+        Owned<VkFence> fence;
+        Unwaited(VkDevice d, VkCommandPool p) : device(d), pool(p) {}
+        Unwaited(Unwaited&& o) noexcept
+            : device(o.device),
+              pool(o.pool),
+              cmd(std::exchange(o.cmd, VK_NULL_HANDLE)),
+              fence(std::move(o.fence)) {}
+        ~Unwaited() {
+            if (cmd != VK_NULL_HANDLE) {
+                vkFreeCommandBuffers(device, pool, 1, &cmd);
+            }
+        }
+    };
+    Unwaited u(device_, pool_.get());
+    VkCommandBufferAllocateInfo alloc{};
+    alloc.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
+    alloc.commandPool = pool_.get();
+    alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    alloc.commandBufferCount = 1;
+    check(vkAllocateCommandBuffers(device_, &alloc, &u.cmd), "vkAllocateCommandBuffers", what);
+    VkCommandBufferBeginInfo begin{};
+    begin.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
+    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    check(vkBeginCommandBuffer(u.cmd, &begin), "vkBeginCommandBuffer", what);
+    record(u.cmd);
+    check(vkEndCommandBuffer(u.cmd), "vkEndCommandBuffer", what);
+    VkFenceCreateInfo fence_info{};
+    fence_info.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
+    VkFence fence = VK_NULL_HANDLE;
+    check(vkCreateFence(device_, &fence_info, nullptr, &fence), "vkCreateFence", what);
+    u.fence = Owned<VkFence>(device_, fence, vkDestroyFence);
+    VkSubmitInfo info{};
+    info.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+    info.commandBufferCount = 1;
+    info.pCommandBuffers = &u.cmd;
+    submit(info, fence, what);
+    const std::uint64_t serial = submitted_;
+    retire(std::move(u));
+    return serial;
+}
+
 void Context::submit(const VkSubmitInfo& info, VkFence fence, const std::string& what) {
+    if (injected_failure_ != VK_SUCCESS) {
+        const VkResult r = std::exchange(injected_failure_, VK_SUCCESS);
+        throw VkError("vkQueueSubmit", r, what + " (injected failure)");
+    }
     check(vkQueueSubmit(queue_, 1, &info, fence), "vkQueueSubmit", what);
     pending_.push_back(Pending{++submitted_, fence});
 }
