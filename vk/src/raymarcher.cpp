@@ -72,14 +72,8 @@ std::uint32_t metric_code(Metric m) {
 Vec3 sub(const Vec3& a, const Vec3& b) {
     return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
 }
-Vec3 cross(const Vec3& a, const Vec3& b) {
-    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
 double length(const Vec3& a) {
     return std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-}
-Vec3 scale(const Vec3& a, double s) {
-    return {a[0] * s, a[1] * s, a[2] * s};
 }
 bool finite(const Vec3& a) {
     return std::isfinite(a[0]) && std::isfinite(a[1]) && std::isfinite(a[2]);
@@ -112,23 +106,13 @@ CameraBasis camera_basis(const Camera& camera, std::uint32_t width, std::uint32_
                          " is outside (0, 180) degrees");
     }
     const Vec3 view = sub(camera.target, camera.position);
-    const double len = length(view);
-    if (!(len > 1e-9)) {
+    if (!(length(view) > 1e-9)) {
         throw InputError("camera target equals the camera position: no view direction");
     }
-    CameraBasis b;
-    b.forward = scale(view, 1 / len);
-    Vec3 right = cross(b.forward, Vec3{0, 1, 0});
-    if (length(right) < 1e-9) {
-        right = {1, 0, 0};  // looking straight along +-y: image right is +x
-    }
-    right = scale(right, 1 / length(right));
-    const Vec3 up = cross(right, b.forward);
-    const double half = std::tan(camera.fov_deg * M_PI / 360);
-    const double aspect = static_cast<double>(width) / static_cast<double>(height);
-    b.right = scale(right, aspect * half);
-    b.up = scale(up, half);
-    return b;
+    // The one camera model (core/camera.hpp image_basis, DESIGN §4).
+    const ImageBasis b =
+        image_basis(view, camera.fov_deg, static_cast<double>(width), static_cast<double>(height));
+    return CameraBasis{b.forward, b.right, b.up};
 }
 
 namespace {
