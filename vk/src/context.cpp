@@ -571,7 +571,7 @@ Context::Context(const ContextOptions& options) {
 Context::~Context() {
     if (device_ != VK_NULL_HANDLE) {
         vkDeviceWaitIdle(device_);
-        collect_retired(true);
+        finish(submitted_);
     }
     pool_.reset();
     if (device_ != VK_NULL_HANDLE) {
@@ -919,6 +919,26 @@ bool Context::finished(std::uint64_t serial) {
     return serial <= finished_;
 }
 
+void Context::wait_for(std::uint64_t serial) {
+    if (serial <= finished_) {
+        return;
+    }
+    // Submissions are pending in serial order; a fence covers every earlier submission.
+    for (const Pending& p : pending_) {
+        if (p.serial >= serial) {
+            const VkFence fence = p.fence;
+            const std::uint64_t covered = p.serial;
+            check(vkWaitForFences(device_, 1, &fence, VK_TRUE, UINT64_MAX), "vkWaitForFences",
+                  "the frames in flight");
+            finish(covered);
+            return;
+        }
+    }
+    if (!pending_.empty()) {
+        wait_for(pending_.back().serial);
+    }
+}
+
 void Context::wait_frames_in_flight() {
     collect_retired(true);
 }
@@ -930,8 +950,13 @@ std::size_t Context::retired_in_flight() {
 
 void Context::collect_retired(bool wait) {
     if (wait && finished_ < submitted_) {
-        vkDeviceWaitIdle(device_);
-        finish(submitted_);
+        // The latest submission's fence covers every earlier one: no device idle.
+        if (!pending_.empty()) {
+            const Pending last = pending_.back();
+            check(vkWaitForFences(device_, 1, &last.fence, VK_TRUE, UINT64_MAX), "vkWaitForFences",
+                  "the frames in flight");
+            finish(last.serial);
+        }
         return;
     }
     // The latest submission whose fence signalled, or never will (a lost device).

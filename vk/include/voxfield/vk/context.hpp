@@ -323,9 +323,12 @@ class Context {
     // `serial` is known to have finished (no wait).
     std::uint64_t next_serial() const { return submitted_ + 1; }
     bool finished(std::uint64_t serial);
-    // Waits until all submitted work has finished (frames in flight included) and frees
-    // everything retired. Call it before OpenCL overwrites memory that submitted frames read
-    // (the shared field of sharing paths 1 and 2).
+    // Waits until submission `serial` (and so every one before it) has finished, on the fence
+    // of the first submission at or after it (no device idle), and frees what they retired.
+    // A serial never submitted (the submission failed) waits for what was submitted.
+    void wait_for(std::uint64_t serial);
+    // Waits until all submitted work has finished (frames in flight included), on the fence of
+    // the latest submission (no device idle), and frees everything retired.
     void wait_frames_in_flight();
     // Retired resources (failed submit_and_wait submissions included) not freed yet.
     std::size_t retired_in_flight();
