@@ -32,3 +32,15 @@ endif()
 
 run_step(build "${CMAKE_COMMAND}" --build "${CONSUMER_BUILD}")
 run_step(run "${CONSUMER_BUILD}/voxfield_consumer")
+
+# The installed binary finds bench/plot.py in PREFIX/share/voxfield through its own path, from a
+# working directory outside the sources: `--plot` into a missing folder must fail on the folder
+# (checked after the script and python), never on a missing plot.py.
+execute_process(COMMAND "${PREFIX}/bin/voxfield" bench --suite generate --plot "${CONSUMER_BUILD}/no-such-folder"
+  WORKING_DIRECTORY "${CONSUMER_BUILD}" RESULT_VARIABLE rc ERROR_VARIABLE err OUTPUT_QUIET)
+if(NOT EXISTS "${PREFIX}/share/voxfield/plot.py")
+  message(FATAL_ERROR "plot.py was not installed into ${PREFIX}/share/voxfield")
+endif()
+if(err MATCHES "needs plot.py" OR NOT rc EQUAL 2)
+  message(FATAL_ERROR "the installed voxfield did not find its plot.py (exit ${rc}): ${err}")
+endif()

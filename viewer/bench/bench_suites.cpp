@@ -835,21 +835,21 @@ const std::vector<std::string>& suite_names() {
 }
 
 Plotter require_plotter() {
-    // This file lives in viewer/; the script in bench/ of the same checkout (or of the
-    // working directory when the binary was built elsewhere).
+    // The script is installed beside the binary's tree: <prefix>/share/voxfield/plot.py,
+    // which the build tree mirrors (build/share/voxfield/plot.py beside build/viewer/).
     Plotter p;
-    const fs::path source_root = fs::path(__FILE__).parent_path().parent_path();
-    for (const fs::path& candidate :
-         {source_root / "bench" / "plot.py", fs::current_path() / "bench" / "plot.py"}) {
-        if (fs::is_regular_file(candidate)) {
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    if (!ec) {
+        const fs::path candidate =
+            exe.parent_path().parent_path() / "share" / "voxfield" / "plot.py";
+        if (fs::is_regular_file(candidate))
             p.script = candidate.string();
-            break;
-        }
     }
     if (p.script.empty()) {
-        throw InputError(
-            "--plot needs bench/plot.py of the voxfield sources (run from the "
-            "repository root)");
+        throw InputError("--plot needs plot.py in share/voxfield/ beside the voxfield binary (" +
+                         (ec ? std::string("its path is unknown") : exe.string()) +
+                         "); reinstall voxfield");
     }
     std::vector<std::string> pythons;
     if (const char* env = std::getenv("VOXFIELD_PYTHON"); env != nullptr && *env != '\0') {
