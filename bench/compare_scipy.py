@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Compare voxfield with SciPy's distance transforms: every metric, signed fields, sampling and indices.
 
-On one world (a one-voxel floor plus random spheres, N^3, seeded; or --input WORLD.npy) and in
-one run, each case below is computed three ways and checked against SciPy:
+On one world (a one-voxel floor plus random spheres, N^3, seeded; --input WORLD.npy; or with
+--worlds, each named world of bench/worlds.py's benchmark set in turn) and in one run, each case
+below is computed three ways and checked against SciPy:
 
   case                 voxfield                              SciPy (on mask = world == 0)
   manhattan            --metric manhattan                    distance_transform_cdt(mask, 'taxicab')
@@ -10,6 +11,7 @@ one run, each case below is computed three ways and checked against SciPy:
   chebyshev            --metric chebyshev                    cdt(mask, 'chessboard')
   euclidean            --metric euclidean (f32)              distance_transform_edt(mask)
   euclidean-sampling   ... --spacing X,Y,Z                   edt(mask, sampling=(z, y, x))
+  euclidean-sampling-f64 ... --format f64                    edt(mask, sampling=(z, y, x))
   euclidean-indices    ... --indices                         edt(mask, return_indices=True)
   signed-manhattan     --signed (i16/i32)                    cdt(~solid) - cdt(solid), padded, cropped
   signed-euclidean     --signed --metric euclidean (f32)     edt(~solid) - edt(solid), padded, cropped
@@ -24,7 +26,8 @@ one run, each case below is computed three ways and checked against SciPy:
 and SciPy R times (median and spread, single-threaded host code) on the same array.
 
 Checks: L1 and L-inf fields equal SciPy's voxel for voxel; L2 fields (float32) are within one
-float32 ulp of SciPy's float64 rounded to float32 (DESIGN §3: correctly rounded); indices
+float32 ulp of SciPy's float64 rounded to float32 (DESIGN §3: correctly rounded), f64 fields
+within two float64 ulp of SciPy's float64; indices
 name a solid voxel at the field's distance (ties may pick another voxel than SciPy) and their
 field matches SciPy's. cdt gives each non-zero element its distance to the nearest zero, so it
 is fed the *empty* mask: solids are its zeros; elements outside the array are ignored, which is
@@ -51,11 +54,11 @@ import time
 import numpy as np
 from scipy import ndimage
 
-from worlds import make_world
+from worlds import WORLDS, make_named, make_world
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CASES = ["manhattan", "manhattan-indices", "chebyshev", "euclidean", "euclidean-sampling",
-         "euclidean-indices", "signed-manhattan", "signed-euclidean"]
+         "euclidean-sampling-f64", "euclidean-indices", "signed-manhattan", "signed-euclidean"]
 
 
 def git_commit():
@@ -97,13 +100,24 @@ def ordered(a):
     return np.where(i < 0, -(i & 0x7FFFFFFF), i)
 
 
+def ordered64(a):
+    """float64 values as integers in the same order, one apart per ulp."""
+    i = np.ascontiguousarray(a, dtype=np.float64).view(np.int64)
+    return np.where(i < 0, -(i & 0x7FFFFFFFFFFFFFFF), i)
+
+
 def compare(ours, theirs, exact):
-    """(ok, detail): equal voxel for voxel (exact) or within one float32 ulp."""
+    """(ok, detail): equal voxel for voxel (exact), within two float64 ulp (f64 fields) or
+    within one float32 ulp."""
     if ours.shape != theirs.shape:
         return False, f"shape {ours.shape}, expected {theirs.shape}"
     if exact:
         bad = ours.astype(np.float64) != theirs.astype(np.float64)
         worst = None
+    elif ours.dtype == np.float64:
+        ulps = np.abs(ordered64(ours) - ordered64(theirs))
+        bad = ulps > 2
+        worst = int(ulps.max())
     else:
         ulps = np.abs(ordered(ours) - ordered(theirs.astype(np.float32)))
         bad = ulps > 1
@@ -170,6 +184,14 @@ def make_case(name, world, sampling_zyx):
                     kwargs=dict(metric="euclidean", sampling=sampling_zyx), exact=False,
                     scipy_call=f"distance_transform_edt(mask, sampling={sampling_zyx})",
                     scipy=lambda: ndimage.distance_transform_edt(mask, sampling=sampling_zyx))
+    if name == "euclidean-sampling-f64":
+        z, y, x = sampling_zyx
+        return dict(flags=["--metric", "euclidean", "--format", "f64",
+                           "--spacing", f"{x!r},{y!r},{z!r}"],
+                    kwargs=dict(metric="euclidean", sampling=sampling_zyx, format="f64"),
+                    exact=False,
+                    scipy_call=f"distance_transform_edt(mask, sampling={sampling_zyx})",
+                    scipy=lambda: ndimage.distance_transform_edt(mask, sampling=sampling_zyx))
     if name == "euclidean-indices":
         return dict(flags=["--metric", "euclidean"], indices=True,
                     kwargs=dict(metric="euclidean", return_indices=True), exact=False,
@@ -213,57 +235,10 @@ def import_module(python_dir):
     return voxfield
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--size", type=int, default=256, help="world edge N (N^3 voxels; default 256)")
-    ap.add_argument("--seed", type=int, default=6683787, help="world seed")
-    ap.add_argument("--input", help="use this (Z,Y,X) uint8/16/32 .npy world instead")
-    ap.add_argument("--voxfield", default=os.path.join(REPO, "build", "viewer", "voxfield"),
-                    help="voxfield binary (default: build/viewer/voxfield)")
-    ap.add_argument("--python-dir", default=os.path.join(REPO, "build", "python"),
-                    help="folder holding the built voxfield module (default: build/python)")
-    ap.add_argument("--no-module", action="store_true", help="skip the in-process comparison")
-    ap.add_argument("--device", default="cpu", help="voxfield --device / device= (default: cpu)")
-    ap.add_argument("--repeat", type=int, default=5, help="timed runs of each (default 5)")
-    ap.add_argument("--warmup", type=int, default=1,
-                    help="untimed in-process calls before the timed ones (default 1)")
-    ap.add_argument("--cases", default=",".join(CASES),
-                    help=f"comma-separated subset of {','.join(CASES)} (default: all)")
-    ap.add_argument("--sampling", default="2,1,0.5",
-                    help="sampling (z,y,x) of euclidean-sampling, SciPy's order (default 2,1,0.5)")
-    ap.add_argument("--json", help="write the comparison to this JSON file")
-    args = ap.parse_args()
-
-    if args.repeat < 1 or args.warmup < 0:
-        ap.error("--repeat must be at least 1 and --warmup at least 0")
-    cases = [c for c in args.cases.split(",") if c]
-    unknown = [c for c in cases if c not in CASES]
-    if unknown or not cases:
-        ap.error(f"--cases: unknown {','.join(unknown) or '(none given)'}; expected {','.join(CASES)}")
-    try:
-        sampling = tuple(float(v) for v in args.sampling.split(","))
-    except ValueError:
-        sampling = ()
-    if len(sampling) != 3 or not all(v > 0 and np.isfinite(v) for v in sampling):
-        ap.error(f"--sampling '{args.sampling}': expected three positive numbers z,y,x")
-    if not (os.path.isfile(args.voxfield) and os.access(args.voxfield, os.X_OK)):
-        ap.error(f"voxfield binary not found: {args.voxfield} (build it first, or pass --voxfield)")
-    module = None if args.no_module else import_module(args.python_dir)
-
-    if args.input:
-        world = np.load(args.input)
-        if world.ndim != 3:
-            ap.error(f"{args.input}: expected a 3-D (Z,Y,X) array, got shape {world.shape}")
-        source = args.input
-    else:
-        if args.size < 1:
-            ap.error("--size must be at least 1")
-        world = make_world(args.size, args.seed)
-        source = f"floor+spheres N={args.size} seed={args.seed}"
+def run_world(world, args, module, cases, sampling):
+    """(rows, device info) of every case on one world, as the table and JSON report them."""
     voxels = int(world.size)
     solid = int(np.count_nonzero(world))
-    print(f"world: {source}, shape (Z,Y,X) {world.shape}, {voxels} voxels, {solid} solid")
-
     rows = []
     device_info = None
     with tempfile.TemporaryDirectory(prefix="voxfield_scipy_") as tmp:
@@ -277,18 +252,19 @@ def main():
             base = [args.voxfield, "generate", world_path, "-o", field_path, "--device",
                     args.device] + case["flags"] + (["--indices", idx_path] if case.get("indices")
                                                    else [])
-            print(f"{name}: voxfield (kernels, then {args.repeat} plain commands) ...",
+            load_before = os.getloadavg()
+            print(f"{name}: voxfield (kernels, then {args.command_repeat} plain commands) ...",
                   file=sys.stderr)
             run_cli(base + ["--json", json_path, "--warmup", "1", "--repeat", str(args.repeat)])
             with open(json_path) as f:
                 j = json.load(f)
             device_info = j["device"]
-            command_ms = [run_cli(base) for _ in range(args.repeat)]
+            command_ms = [run_cli(base) for _ in range(args.command_repeat)]
             ours = np.load(field_path)
             ours_idx = np.load(idx_path) if case.get("indices") else None
 
             print(f"{name}: SciPy {case['scipy_call']} ...", file=sys.stderr)
-            theirs, scipy_ms = timed(case["scipy"], args.repeat)
+            theirs, scipy_ms = timed(case["scipy"], args.scipy_repeat)
             theirs_field = theirs[0] if case.get("indices") else theirs
 
             module_ms = None
@@ -315,7 +291,7 @@ def main():
                     ok, detail = False, detail + "; the module's result differs from the CLI's"
 
             kernel = spread([float(v) for v in j["kernel_ms_samples"]])
-            command = spread(command_ms)
+            command = spread(command_ms) if command_ms else None
             scipy_t = spread(scipy_ms)
             module_t = spread(module_ms) if module_ms else None
             rows.append({
@@ -327,69 +303,183 @@ def main():
                 "check": detail,
                 "module_equals_cli": module_same,
                 "kernel_ms": kernel,
+                "stages_ms": j.get("stages"),
                 "end_to_end_ms": float(j["end_to_end_ms"]),
                 "command_wall_ms": command,
                 "module_ms": module_t,
                 "scipy_ms": scipy_t,
                 "ratio_scipy_over_kernel": scipy_t["median"] / kernel["median"],
-                "ratio_scipy_over_command": scipy_t["median"] / command["median"],
+                "ratio_scipy_over_command": scipy_t["median"] / command["median"]
+                if command else None,
                 "ratio_scipy_over_module": scipy_t["median"] / module_t["median"]
                 if module_t else None,
+                "loadavg_1min_before_after": [load_before[0], os.getloadavg()[0]],
             })
+    return rows, device_info
 
-    device_name = device_info["name"]
-    print(f"device: {device_name} (--device {args.device}); medians of {args.repeat} runs"
+
+def print_rows(rows, device_name, args):
+    print(f"device: {device_name} (--device {args.device}); medians of {args.repeat} kernel runs,"
+          f" {args.scipy_repeat} SciPy calls"
           f" (module after {args.warmup} warm-up calls)")
-    print(f"{'case':<19} {'format':>6} {'kernel ms':>10} {'command ms':>11} {'module ms':>10}"
+    print(f"{'case':<22} {'format':>6} {'kernel ms':>10} {'command ms':>11} {'module ms':>10}"
           f" {'scipy ms':>10} {'scipy/kernel':>12} {'scipy/cmd':>9} {'scipy/module':>12}  check")
+    nan = float("nan")
     for r in rows:
-        mod = r["module_ms"]["median"] if r["module_ms"] else float("nan")
-        ratio_mod = r["ratio_scipy_over_module"] or float("nan")
-        print(f"{r['case']:<19} {r['format']:>6} {r['kernel_ms']['median']:>10.3f}"
-              f" {r['command_wall_ms']['median']:>11.1f} {mod:>10.3f}"
+        mod = r["module_ms"]["median"] if r["module_ms"] else nan
+        cmd = r["command_wall_ms"]["median"] if r["command_wall_ms"] else nan
+        print(f"{r['case']:<22} {r['format']:>6} {r['kernel_ms']['median']:>10.3f}"
+              f" {cmd:>11.1f} {mod:>10.3f}"
               f" {r['scipy_ms']['median']:>10.1f} {r['ratio_scipy_over_kernel']:>12.1f}"
-              f" {r['ratio_scipy_over_command']:>9.2f} {ratio_mod:>12.1f}"
+              f" {r['ratio_scipy_over_command'] or nan:>9.2f}"
+              f" {r['ratio_scipy_over_module'] or nan:>12.1f}"
               f"  {'ok' if r['check_ok'] else ('skipped' if r['check_ok'] is None else 'FAILED')}:"
               f" {r['check']}")
-    if rows and rows[0]["module_ms"]:
-        print("module spread (min-max ms): " + ", ".join(
-            f"{r['case']} {r['module_ms']['min']:.3f}-{r['module_ms']['max']:.3f}" for r in rows))
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--size", type=int, default=256, help="world edge N (N^3 voxels; default 256)")
+    ap.add_argument("--seed", type=int, default=6683787, help="world seed")
+    ap.add_argument("--input", help="use this (Z,Y,X) uint8/16/32 .npy world instead")
+    ap.add_argument("--worlds",
+                    help=f"comma-separated worlds of bench/worlds.py ({','.join(WORLDS)}) or "
+                         f"'all': run every case on each (instead of the one world)")
+    ap.add_argument("--voxfield", default=os.path.join(REPO, "build", "viewer", "voxfield"),
+                    help="voxfield binary (default: build/viewer/voxfield)")
+    ap.add_argument("--python-dir", default=os.path.join(REPO, "build", "python"),
+                    help="folder holding the built voxfield module (default: build/python)")
+    ap.add_argument("--no-module", action="store_true", help="skip the in-process comparison")
+    ap.add_argument("--device", default="cpu", help="voxfield --device / device= (default: cpu)")
+    ap.add_argument("--repeat", type=int, default=5, help="timed runs of each (default 5)")
+    ap.add_argument("--command-repeat", type=int,
+                    help="timed plain `voxfield generate` commands per case (default: --repeat; "
+                         "0 skips them)")
+    ap.add_argument("--scipy-repeat", type=int,
+                    help="timed SciPy calls per case (default: --repeat)")
+    ap.add_argument("--warmup", type=int, default=1,
+                    help="untimed in-process calls before the timed ones (default 1)")
+    ap.add_argument("--cases", default=",".join(CASES),
+                    help=f"comma-separated subset of {','.join(CASES)} (default: all)")
+    ap.add_argument("--sampling", default="2,1,0.5",
+                    help="sampling (z,y,x) of euclidean-sampling, SciPy's order (default 2,1,0.5)")
+    ap.add_argument("--json", help="write the comparison to this JSON file")
+    args = ap.parse_args()
+
+    if args.command_repeat is None:
+        args.command_repeat = args.repeat
+    if args.scipy_repeat is None:
+        args.scipy_repeat = args.repeat
+    if args.repeat < 1 or args.scipy_repeat < 1 or args.warmup < 0 or args.command_repeat < 0:
+        ap.error("--repeat and --scipy-repeat must be at least 1, --warmup and --command-repeat "
+                 "at least 0")
+    cases = [c for c in args.cases.split(",") if c]
+    unknown = [c for c in cases if c not in CASES]
+    if unknown or not cases:
+        ap.error(f"--cases: unknown {','.join(unknown) or '(none given)'}; expected {','.join(CASES)}")
+    try:
+        sampling = tuple(float(v) for v in args.sampling.split(","))
+    except ValueError:
+        sampling = ()
+    if len(sampling) != 3 or not all(v > 0 and np.isfinite(v) for v in sampling):
+        ap.error(f"--sampling '{args.sampling}': expected three positive numbers z,y,x")
+    if not (os.path.isfile(args.voxfield) and os.access(args.voxfield, os.X_OK)):
+        ap.error(f"voxfield binary not found: {args.voxfield} (build it first, or pass --voxfield)")
+    if args.size < 1:
+        ap.error("--size must be at least 1")
+    names = []
+    if args.worlds:
+        names = WORLDS if args.worlds == "all" else [w for w in args.worlds.split(",") if w]
+        bad = [w for w in names if w not in WORLDS]
+        if bad or not names:
+            ap.error(f"--worlds: unknown {','.join(bad) or '(none given)'}; expected "
+                     f"{','.join(WORLDS)} or all")
+        if args.input:
+            ap.error("--worlds and --input exclude each other")
+    module = None if args.no_module else import_module(args.python_dir)
+
+    if names:
+        worlds = [(name, lambda name=name: make_named(name, args.size, args.seed)) for name in names]
+    elif args.input:
+        loaded = np.load(args.input)
+        if loaded.ndim != 3:
+            ap.error(f"{args.input}: expected a 3-D (Z,Y,X) array, got shape {loaded.shape}")
+        worlds = [(args.input, lambda: loaded)]
+    else:
+        worlds = [(f"floor+spheres N={args.size} seed={args.seed}",
+                   lambda: make_world(args.size, args.seed))]
+
+    results = []
+    device_name = None
+    device_info = None
+    failed = False
+    for source, make in worlds:
+        world = make()
+        voxels = int(world.size)
+        solid = int(np.count_nonzero(world))
+        print(f"world: {source}, shape (Z,Y,X) {world.shape}, {voxels} voxels, {solid} solid")
+        rows, device_info = run_world(world, args, module, cases, sampling)
+        device_name = device_info["name"]
+        print_rows(rows, device_name, args)
+        failed = failed or any(r["check_ok"] is False for r in rows)
+        results.append({"world": source, "size": [int(world.shape[2]), int(world.shape[1]),
+                                                  int(world.shape[0])],
+                        "voxels": voxels, "solid": solid, "rows": rows})
     print("kernel = OpenCL profiling of the kernels (median after 1 warm-up run); command = wall "
           "time of a whole `voxfield generate` (start-up, read, transform, write); module = "
           "voxfield.distance_transform in this process (array in, array out); scipy = the "
           "SciPy call's wall time on the host.")
+    if len(results) > 1:
+        print("\nSciPy / kernel (medians), case x world:")
+        print(f"{'case':<22} " + " ".join(f"{r['world']:>13}" for r in results))
+        for c in cases:
+            cells = []
+            for r in results:
+                row = next(x for x in r["rows"] if x["case"] == c)
+                mark = "" if row["check_ok"] is not False else "!"
+                cells.append(f"{row['ratio_scipy_over_kernel']:>12.1f}{mark or ' '}")
+            print(f"{c:<22} " + " ".join(cells))
 
-    failed = any(r["check_ok"] is False for r in rows)
     if args.json:
-        by_case = {r["case"]: r for r in rows}
-        taxicab = by_case.get("manhattan")
-        edt = by_case.get("euclidean")
-        record = {
+        common = {
             "device": device_name,
             "device_info": device_info,
             "device_arg": args.device,
             "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
             "commit": git_commit(),
-            "world": source,
-            "size": [int(world.shape[2]), int(world.shape[1]), int(world.shape[0])],
-            "voxels": voxels,
-            "solid": solid,
             "repeat": args.repeat,
+            "command_repeat": args.command_repeat,
+            "scipy_repeat": args.scipy_repeat,
             "warmup": args.warmup,
-            "all_checks_pass": None if solid == 0 else not failed,
-            "comparisons": rows,
+            "cpu_count": os.cpu_count(),
             "numpy": np.__version__,
             "scipy": __import__("scipy").__version__,
         }
-        if taxicab:  # the summary fields bench/summarize.py tabulates (the taxicab comparison)
-            record.update({
-                "ours_kernel_ms_median": taxicab["kernel_ms"]["median"],
-                "ours_end_to_end_ms_median": taxicab["end_to_end_ms"],
-                "scipy_ms_median": taxicab["scipy_ms"]["median"],
-                "ratio_scipy_over_ours_kernel": taxicab["ratio_scipy_over_kernel"],
-                "equal": taxicab["check_ok"],
-                "scipy_edt_ms_median": edt["scipy_ms"]["median"] if edt else None,
-            })
+        if names:
+            record = dict(common, size_arg=args.size, seed=args.seed,
+                          all_checks_pass=not failed,
+                          worlds=[{"name": r["world"], "size": r["size"], "voxels": r["voxels"],
+                                   "solid": r["solid"], "comparisons": r["rows"]}
+                                  for r in results])
+        else:
+            r = results[0]
+            rows = r["rows"]
+            record = dict(common, world=r["world"], size=r["size"], voxels=r["voxels"],
+                          solid=r["solid"],
+                          all_checks_pass=None if r["solid"] == 0 else not failed,
+                          comparisons=rows)
+            by_case = {x["case"]: x for x in rows}
+            taxicab = by_case.get("manhattan")
+            edt = by_case.get("euclidean")
+            if taxicab:  # the summary fields bench/summarize.py tabulates (the taxicab comparison)
+                record.update({
+                    "ours_kernel_ms_median": taxicab["kernel_ms"]["median"],
+                    "ours_end_to_end_ms_median": taxicab["end_to_end_ms"],
+                    "scipy_ms_median": taxicab["scipy_ms"]["median"],
+                    "ratio_scipy_over_ours_kernel": taxicab["ratio_scipy_over_kernel"],
+                    "equal": taxicab["check_ok"],
+                    "scipy_edt_ms_median": edt["scipy_ms"]["median"] if edt else None,
+                })
         with open(args.json, "w") as f:
             json.dump(record, f, indent=2)
             f.write("\n")

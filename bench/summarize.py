@@ -56,6 +56,11 @@ def fmt(v, digits=3):
 FIM_ALGORITHMS = {"fim", "fim-host", "jfa-fim", "lod", "monolithic"}
 
 
+def rate(v):
+    """Gvox/s: two decimals from 0.1 up, two significant digits below (never 0.00)."""
+    return f"{v:.2f}" if not v or v >= 0.1 else f"{v:.2g}"
+
+
 def iters(r):
     """FIM passes that changed the field; '-' for algorithms without FIM."""
     return r.get("iterations") if r["algorithm"] in FIM_ALGORITHMS else "-"
@@ -160,7 +165,7 @@ def bench_rows(path, doc):
         iterations = r.get("iterations") or "-"
         over = 100 * r.get("over_fraction", 0)
         yield (head + f" {r['format']} | {r['median_ms']:.3f} | {lo:.3f}-{hi:.3f} |"
-               f" {r['gvox_per_s']:.2f} | {iterations} | {r['max_error']} |"
+               f" {rate(r['gvox_per_s'])} | {iterations} | {r['max_error']} |"
                f" {r['mean_error']:.4f} | {over:.3f} | {stages} |")
 
 

@@ -9,6 +9,9 @@
 //   METRIC   0 manhattan, 1 chebyshev, 2 euclidean
 //   UNIT     1: unit spacing, partial distances are exact integers (GT = uint; L2 squared);
 //            0: GT = float, each axis offset scaled by its spacing (sx, sy, sz arguments)
+//   WIDE     1 (UNIT, L2): GT = ulong and 64-bit separators, for worlds whose squared
+//            distances reach 2^30 (an axis past about 32768 voxels)
+//   FP64     1 (not UNIT): GT = double and the spacing in double, for f64 fields
 //   SIGNED   1: also the transform to the empty voxels, the world surrounded by empty space
 //            (virtual empty sites at -1 and N on every line); the output is signed
 //   INDICES  1: carry the linear index of the nearest solid and write (z, y, x) planes
@@ -25,12 +28,24 @@
 
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 
-#if UNIT
+#if UNIT && WIDE
+typedef ulong GT;
+#define G_INF ULONG_MAX
+#elif UNIT
 typedef uint GT;
 #define G_INF UINT_MAX
+#elif FP64
+typedef double GT;
+#define G_INF ((double)INFINITY)
 #else
 typedef float GT;
 #define G_INF INFINITY
+#endif
+// The spacing's type (the scans' arithmetic where not UNIT).
+#if FP64
+typedef double ST;
+#else
+typedef float ST;
 #endif
 
 #define SEP_NEVER (1 << 30)
@@ -41,17 +56,17 @@ inline int floor_div(int a, int b) {
 }
 
 // The axis's offset d >= 0 (in voxels) as a partial distance: L2 squared, else plain.
-inline GT offset_part(int d, float s) {
+inline GT offset_part(int d, ST s) {
 #if UNIT
-    return METRIC == 2 ? (uint)(d * d) : (uint)d;
+    return METRIC == 2 ? (GT)d * (GT)d : (GT)d;
 #else
-    const float a = s * (float)d;
+    const ST a = s * (ST)d;
     return METRIC == 2 ? a * a : a;
 #endif
 }
 
 // f_i(x): the partial distance at x from site i whose partial distance is gi.
-inline GT fpart(int x, int i, GT gi, float s) {
+inline GT fpart(int x, int i, GT gi, ST s) {
     const GT o = offset_part(abs(x - i), s);
 #if METRIC == 1
     return max(gi, o);
@@ -62,8 +77,16 @@ inline GT fpart(int x, int i, GT gi, float s) {
 
 // Sep(i, u) for i < u: the last x at which site i is at least as near as site u (u is
 // strictly nearer beyond it); SEP_NEVER when u is never nearer, -SEP_NEVER when it always is.
-inline int sep(int i, int u, GT gi, GT gu, float s) {
-#if UNIT
+inline int sep(int i, int u, GT gi, GT gu, ST s) {
+#if UNIT && WIDE
+    // 64-bit floor((u^2 - i^2 + gu - gi) / (2 (u - i))), clamped to the int range.
+    const long num = (long)u * u - (long)i * i + (long)gu - (long)gi, den = 2 * (long)(u - i);
+    long q = num / den;
+    if (q * den > num) {
+        --q;
+    }
+    return (int)clamp(q, (long)-SEP_NEVER, (long)SEP_NEVER);
+#elif UNIT
     const int a = (int)gi, b = (int)gu;
 #if METRIC == 0
     if (b >= a + (u - i)) {
@@ -90,7 +113,7 @@ inline int sep(int i, int u, GT gi, GT gu, float s) {
     return q;
 #endif
 #else
-    const float fi = (float)i, fu = (float)u;
+    const ST fi = (ST)i, fu = (ST)u;
 #if METRIC == 0
     if (gu >= gi + s * (fu - fi)) {
         return SEP_NEVER;
@@ -98,18 +121,34 @@ inline int sep(int i, int u, GT gi, GT gu, float s) {
     if (gi > gu + s * (fu - fi)) {
         return -SEP_NEVER;
     }
-    return (int)floor((gu - gi + s * (fu + fi)) / (2.0f * s));
+    return (int)floor((gu - gi + s * (fu + fi)) / ((ST)2 * s));
 #elif METRIC == 1
     const int mid = floor_div(i + u, 2);
     if (gi <= gu) {
-        return max((int)floor(fi + gu / s), mid);
+        return max((int)min(floor(fi + gu / s), (ST)SEP_NEVER), mid);
     }
-    return min((int)floor(fu - gi / s), mid);
+    return min((int)max(floor(fu - gi / s), (ST)-SEP_NEVER), mid);
 #else
-    const float s2 = s * s;
-    const float v = (s2 * (fu * fu - fi * fi) + gu - gi) / (2.0f * s2 * (fu - fi));
-    return (int)clamp(floor(v), -4.0f, (float)SEP_NEVER);
+    const ST s2 = s * s;
+    const ST v = (s2 * (fu * fu - fi * fi) + gu - gi) / ((ST)2 * s2 * (fu - fi));
+    return (int)clamp(floor(v), (ST)-4, (ST)SEP_NEVER);
 #endif
+#endif
+}
+
+// Whether Sep(i, u) < tq (tq >= 0): for unit-spacing L2 by one multiplication instead of a
+// division (floor(num / den) < tq exactly when num < tq * den, den > 0), since the envelope
+// tests a separator about twice per site and divides only for the sites it keeps.
+inline bool sep_below(int i, int u, GT gi, GT gu, ST s, int tq) {
+#if UNIT && METRIC == 2
+#if WIDE
+    const long num = (long)u * u - (long)i * i + (long)gu - (long)gi;
+#else
+    const long num = (long)(u * u - i * i + (int)gu - (int)gi);
+#endif
+    return num < (long)tq * (2 * (long)(u - i));
+#else
+    return sep(i, u, gi, gu, s) < tq;
 #endif
 }
 
@@ -122,9 +161,69 @@ inline GT site_g(__global const GT* g, size_t base, size_t stride, int u, int n)
 // first phase): on return the stack holds q + 1 sites s[k] owning positions [t[k], t[k+1]).
 // Sites with no target are skipped; `pad` adds the virtual empty sites at -1 and n where the
 // site range reaches the line's ends. Returns q (-1: no site at all).
-inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int pad, float sp,
-                    __global int* s, __global int* t, size_t ks, int o0, int o1, int i0, int i1) {
-    int q = -1;
+#if UNIT && METRIC == 2 && !WIDE
+// Unit-spacing L2 (squares below 2^30) without division: the stack keeps each site's real
+// boundary with the site below it as a fraction t[k] / d[k] (site k is nearer beyond it,
+// the one below at or before it; d[k] > 0; none for the bottom site), so testing a new site
+// against the top compares two fractions by cross-multiplication in 64 bits. A kept site
+// may own no integer position; line_pass steps over it.
+#define FRACTIONS 1
+inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int pad, ST sp,
+                    __global int* s, __global int* t, __global int* d, size_t ks, int o0, int o1,
+                    int i0, int i1) {
+    int q = -1, sq = 0, nq = 0, dq = 1;
+    int gq = 0;
+    const int lo = pad && i0 == 0 ? -1 : i0;
+    const int hi = pad && i1 == n ? n : i1 - 1;
+    for (int u = lo; u <= hi; ++u) {
+        const GT gv = site_g(g, base, stride, u, n);
+        if (gv == G_INF) {
+            continue;
+        }
+        const int gu = (int)gv;
+        // The boundary of u with the top: num / den, and the top's own: nq / dq. Pop while
+        // u's boundary comes at or before the top's (the bottom site: before o0).
+        int num = 0, den = 1;
+        while (q >= 0) {
+            num = u * u - sq * sq + gu - gq;
+            den = 2 * (u - sq);
+            if (q == 0 ? (long)num >= (long)o0 * den : (long)num * dq > (long)nq * den) {
+                break;
+            }
+            if (--q >= 0) {
+                sq = s[q * ks];
+                nq = t[q * ks];
+                dq = d[q * ks];
+                gq = (int)site_g(g, base, stride, sq, n);
+            }
+        }
+        if (q < 0) {
+            q = 0;
+            sq = u;
+            gq = gu;
+            s[0] = u;
+        } else if ((long)num < (long)(o1 - 1) * den) {
+            // u owns positions before o1 (1 + floor(num / den) < o1).
+            ++q;
+            sq = u;
+            nq = num;
+            dq = den;
+            gq = gu;
+            s[q * ks] = u;
+            t[q * ks] = num;
+            d[q * ks] = den;
+        }
+    }
+    return q;
+}
+#else
+#define FRACTIONS 0
+inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int pad, ST sp,
+                    __global int* s, __global int* t, __global int* d, size_t ks, int o0, int o1,
+                    int i0, int i1) {
+    // The top of the stack (site, start, partial) stays in registers.
+    int q = -1, sq = 0, tq = 0;
+    GT gq = 0;
     const int lo = pad && i0 == 0 ? -1 : i0;
     const int hi = pad && i1 == n ? n : i1 - 1;
     for (int u = lo; u <= hi; ++u) {
@@ -135,26 +234,44 @@ inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int
         // Pop the sites that u is nearer than from where they start (their separator with
         // u lies before their first position); testing the separator itself keeps the
         // starts strictly increasing even where float rounding blurs a tie.
-        int w = 0;
-        while (q >= 0) {
-            const int sq = s[q * ks];
-            w = 1 + sep(sq, u, site_g(g, base, stride, sq, n), gu, sp);
-            if (w > t[q * ks]) {
-                break;
+        while (q >= 0 && sep_below(sq, u, gq, gu, sp, tq)) {
+            if (--q >= 0) {
+                sq = s[q * ks];
+                tq = t[q * ks];
+                gq = site_g(g, base, stride, sq, n);
             }
-            --q;
         }
         if (q < 0) {
             q = 0;
+            sq = u;
+            tq = o0;
+            gq = gu;
             s[0] = u;
             t[0] = o0;
-        } else if (w < o1) {
-            ++q;
-            s[q * ks] = u;
-            t[q * ks] = w;
+        } else {
+            const int w = 1 + sep(sq, u, gq, gu, sp);
+            if (w < o1) {
+                ++q;
+                sq = u;
+                tq = w;
+                gq = gu;
+                s[q * ks] = u;
+                t[q * ks] = w;
+            }
         }
     }
     return q;
+}
+#endif
+
+// Whether site q of the stack that envelope() left owns no position from p on (p is at or
+// before its boundary with site q - 1); the bottom site owns everything before the next.
+inline bool before_site(__global const int* t, __global const int* d, size_t ks, int q, int p) {
+#if FRACTIONS
+    return q > 0 && (long)p * d[q * ks] <= (long)t[q * ks];
+#else
+    return q > 0 && p < t[q * ks];
+#endif
 }
 
 // ---- change tracking (incremental updates) ----
@@ -177,7 +294,7 @@ inline void mark(__global int* box, int x, int y, int z) {
 // and X as targets where the range reaches them. Partials are capped at `cap`. `left` holds
 // the distances to the nearest target on the left between the two sweeps. With `box`, only
 // changed values are written and marked (y, z: the row's coordinates).
-inline void row_nearest(__global const uchar* vox, size_t base, int X, int want, int pad, float sx,
+inline void row_nearest(__global const uchar* vox, size_t base, int X, int want, int pad, ST sx,
                         __global GT* g, __global uint* feat, __global int* left,
                         __global int* box, int y, int z, int o0, int o1, int i0, int i1,
                         GT cap) {
@@ -214,12 +331,38 @@ inline void row_nearest(__global const uchar* vox, size_t base, int X, int want,
     }
 }
 
+// A whole row of a full transform without change tracking: the same nearest targets as
+// row_nearest (ties to the left) from two branch-free sweeps, the forward one leaving each
+// voxel's distance to its nearest target on the left in g itself (exact in every GT), so
+// its cost is the same on every world.
+#define ROW_NONE 0x3FFFFFFF
+inline void row_full(__global const uchar* vox, size_t base, int X, int want, int pad, ST sx,
+                     __global GT* g, __global uint* feat, GT cap) {
+    int last = pad ? -1 : -ROW_NONE;
+    for (int x = 0; x < X; ++x) {
+        last = (vox[base + x] != 0) == want ? x : last;
+        g[base + x] = (GT)min(x - last, ROW_NONE);
+    }
+    int next = pad ? X : X + ROW_NONE;
+    for (int x = X - 1; x >= 0; --x) {
+        next = (vox[base + x] != 0) == want ? x : next;
+        const int dl = (int)g[base + x];
+        const int dr = min(next - x, ROW_NONE);
+        const int d = min(dl, dr);
+        g[base + x] = d >= ROW_NONE ? G_INF : min(offset_part(d, sx), cap);
+#if INDICES
+        const int site = dr < dl ? next : x - dl;
+        feat[base + x] = d >= ROW_NONE || site < 0 || site >= X ? UINT_MAX : (uint)(base + site);
+#endif
+    }
+}
+
 // Rows y in [lo.y, lo.y + size.y), z in [lo.z, lo.z + size.z), `per_item` per work-item,
 // their voxels x in [lo.x, lo.x + size.x) from the voxels [i0, i1); `left` is each
 // work-item's scratch of X ints (at scratch + item * istride).
 __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g,
                      __global GT* restrict h, __global uint* restrict feat, uint X, uint Y,
-                     int4 lo, int4 size, uint per_item, float sx, __global int* restrict scratch,
+                     int4 lo, int4 size, uint per_item, ST sx, __global int* restrict scratch,
                      ulong istride, __global int* box, int i0, int i1, GT cap) {
     const size_t rows = (size_t)size.y * size.z;
     __global int* left = scratch + get_global_id(0) * istride;
@@ -227,6 +370,13 @@ __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g
     for (size_t r = r0; r < min(r0 + per_item, rows); ++r) {
         const int y = lo.y + (int)(r % size.y), z = lo.z + (int)(r / size.y);
         const size_t base = ((size_t)z * Y + y) * X;
+        if (box == 0 && i0 == 0 && i1 == (int)X && lo.x == 0 && size.x == (int)X) {
+            row_full(vox, base, (int)X, 1, 0, sx, g, feat, cap);
+#if SIGNED
+            row_full(vox, base, (int)X, 0, 1, sx, h, feat, cap);
+#endif
+            continue;
+        }
         row_nearest(vox, base, (int)X, 1, 0, sx, g, feat, left, box, y, z, lo.x, lo.x + size.x,
                     i0, i1, cap);
 #if SIGNED
@@ -242,23 +392,35 @@ __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g
 // site owning it (and, with INDICES, the site's feature). With `box`, only changed values
 // are written and marked; `pos` maps a line position to (x, y, z) through `axis`.
 inline void line_pass(__global const GT* gin, __global GT* gout, size_t base, size_t stride,
-                      int n, int pad, float sp, __global int* s, __global int* t, size_t ks,
-                      __global const uint* fin, __global uint* fout, __global int* box, int x,
-                      int other, int axis, int o0, int o1, int i0, int i1, GT cap) {
-    int q = envelope(gin, base, stride, n, pad, sp, s, t, ks, o0, o1, i0, i1);
+                      int n, int pad, ST sp, __global int* s, __global int* t, __global int* d,
+                      size_t ks, __global const uint* fin, __global uint* fout,
+                      __global int* box, int x, int other, int axis, int o0, int o1, int i0,
+                      int i1, GT cap) {
+    int q = envelope(gin, base, stride, n, pad, sp, s, t, d, ks, o0, o1, i0, i1);
+    // The owning site (its partial and feature) in registers.
+    int sq = 0;
+    GT gq = 0;
+    uint fq = UINT_MAX;
+    bool load = true;
     for (int p = o1 - 1; p >= o0; --p) {
         const size_t i = base + (size_t)p * stride;
         GT v = G_INF;
         uint f = UINT_MAX;
         if (q >= 0) {
-            const int sq = s[q * ks];
-            v = min(fpart(p, sq, site_g(gin, base, stride, sq, n), sp), cap);
-#if INDICES
-            f = fin[base + (size_t)sq * stride];
-#endif
-            if (p == t[q * ks]) {
+            while (before_site(t, d, ks, q, p)) {
                 --q;
+                load = true;
             }
+            if (load) {
+                sq = s[q * ks];
+                gq = site_g(gin, base, stride, sq, n);
+#if INDICES
+                fq = fin[base + (size_t)sq * stride];
+#endif
+                load = false;
+            }
+            v = min(fpart(p, sq, gq, sp), cap);
+            f = fq;
         }
         if (box == 0 || gout[i] != v) {
             gout[i] = v;
@@ -278,37 +440,95 @@ inline void line_pass(__global const GT* gin, __global GT* gout, size_t base, si
     }
 }
 
+#if METRIC == 0 && UNIT
+// Unit-spacing L1 of the cw lines of a tile (element (p, c) at p * tw + c), a full transform
+// (positions and sites [0, n)): the min-plus forward and backward sweeps (the lower envelope
+// of V-shapes of slope 1 is their minimum), with the nearest site's feature. The lines run
+// side by side (the inner loop over c vectorises), no division and no data-dependent stack,
+// so the cost is the same on every world. `pad` adds the virtual empty sites at -1 and n.
+inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int cw, int n,
+                          int pad, __global const uint* fin, __global uint* fout, GT cap) {
+    GT run[16];
+    uint fr[16];
+    // Virtual sites at -1 and n: partial 0, one step away from the line's ends.
+    for (int c = 0; c < cw; ++c) {
+        run[c] = pad ? 0u : G_INF;
+        fr[c] = UINT_MAX;
+    }
+    for (int p = 0; p < n; ++p) {
+        for (int c = 0; c < cw; ++c) {
+            const size_t i = (size_t)p * tw + c;
+            const GT cand = add_sat(run[c], 1u);
+            const GT gp = tin[i];
+#if INDICES
+            fr[c] = gp <= cand ? fin[i] : fr[c];
+            fout[i] = fr[c];
+#endif
+            run[c] = min(gp, cand);
+            tout[i] = run[c];
+        }
+    }
+    for (int c = 0; c < cw; ++c) {
+        run[c] = pad ? 0u : G_INF;
+    }
+    for (int p = n - 1; p >= 0; --p) {
+        for (int c = 0; c < cw; ++c) {
+            const size_t i = (size_t)p * tw + c;
+            const GT cand = add_sat(run[c], 1u);
+            const GT gp = tout[i];
+#if INDICES
+            fr[c] = gp <= cand ? fout[i] : fr[c];
+            fout[i] = fr[c];
+#endif
+            run[c] = min(gp, cand);
+            tout[i] = min(run[c], cap);
+        }
+    }
+}
+#endif
+
 // Lines of length n and element stride `stride` along `axis` (1: y, 2: z): line l has x =
 // lo_x + l % count_x and the other coordinate lo_o + l / count_x, and starts at
-// other * mstride + x; positions [o0, o1) from the sites [i0, i1), partials capped at `cap`. Lines outside `skip` (the box the previous pass changed; null: none
-// skipped) are left as they are. The stacks of work-item w are at scratch + w * istride,
-// their k-th entries k * kstride further.
-__kernel void col_pass(__global const GT* restrict g, __global GT* restrict gout,
-                       __global const GT* restrict h, __global GT* restrict hout,
-                       __global const uint* restrict fin, __global uint* restrict fout,
+// other * mstride + x; positions [o0, o1) from the sites [i0, i1), partials capped at `cap`.
+// Lines outside `skip` (the box the previous pass changed; null: none skipped) are left as
+// they are. The stacks of work-item w are at scratch + w * istride, their k-th entries
+// k * kstride further.
+//
+// With tile_w > 0 (CPU layout, per_item a multiple of count_x) up to tile_w adjacent lines of
+// one x row at a time are copied into a contiguous tile (partials, and features with
+// INDICES), transformed there and copied back, so that the lines' strided elements (a power
+// of two apart in power-of-two worlds, all in one cache set) are read from memory once, a
+// cache line at a time. Every line is read whole before any of it is written, so the input
+// and output buffers may be the same (the passes then run in place): hence no `restrict`.
+__kernel void col_pass(__global const GT* g, __global GT* gout, __global const GT* h,
+                       __global GT* hout, __global const uint* fin, __global uint* fout,
                        __global int* restrict scratch, uint n, ulong stride, ulong mstride,
                        int lo_x, int count_x, int lo_o, int count_o, uint per_item, ulong kstride,
-                       ulong istride, float sp, int axis, __global const int* skip,
+                       ulong istride, ST sp, int axis, __global const int* skip,
                        __global int* box, int o0, int o1, int i0, int i1, GT cap, int tile_w) {
     const size_t w = get_global_id(0);
     __global int* s = scratch + w * istride;
     __global int* t = s + (size_t)(n + 2) * kstride;
+    __global int* d = t + (size_t)(n + 2) * kstride;
     const size_t lines = (size_t)count_x * count_o;
     const size_t l0 = w * per_item;
     // The previous pass marked (x, y, z); this pass's lines are indexed by x and the
     // coordinate of the axis it does not run along: z for the y pass, y for the z pass.
     const int skip_o = axis == 1 ? 4 : 2;
     if (tile_w > 0) {
-        // CPU layout (a row of lines per work-item): tile_w adjacent lines at a time are
-        // copied into a contiguous tile and transformed there, so that the lines' strided
-        // elements (a power of two apart in power-of-two worlds, all in one cache set) are
-        // read from memory once, a cache line at a time.
-        __global GT* tin = (__global GT*)(t + (size_t)(n + 2) * kstride);
-        __global GT* tout = tin + (size_t)n * tile_w;
-        for (size_t c0 = l0; c0 < min(l0 + per_item, lines); c0 += (size_t)tile_w) {
-            const int cw = (int)(min(min(c0 + tile_w, l0 + per_item), lines) - c0);
+        const size_t cells = (size_t)n * tile_w;
+        __global GT* tin = (__global GT*)(d + (size_t)(n + 2) * kstride);
+        __global GT* tout = tin + cells;
+        __global uint* ftin = (__global uint*)(tout + cells);
+        __global uint* ftout = ftin + cells;
+        const size_t l_end = min(l0 + per_item, lines);
+        for (size_t c0 = l0; c0 < l_end;) {
             const int x0 = lo_x + (int)(c0 % count_x);
             const int other = lo_o + (int)(c0 / count_x);
+            // The tile ends at tile_w lines, the work-item's last line or the row's end.
+            const int cw = (int)min(min((size_t)tile_w, l_end - c0),
+                                    (size_t)(count_x - (int)(c0 % count_x)));
+            c0 += (size_t)cw;
             if (skip != 0 && (x0 + cw - 1 < skip[0] || x0 > skip[1] || other < skip[skip_o] ||
                               other > skip[skip_o + 1])) {
                 continue;
@@ -317,6 +537,13 @@ __kernel void col_pass(__global const GT* restrict g, __global GT* restrict gout
                 atomic_add(&box[6], (o1 - o0) * cw);
             }
             const size_t base = (size_t)other * mstride + x0;
+#if INDICES
+            for (int u = i0; u < i1; ++u) {
+                for (int c = 0; c < cw; ++c) {
+                    ftin[u * tile_w + c] = fin[base + (size_t)u * stride + c];
+                }
+            }
+#endif
             for (int cls = 0; cls < 1 + SIGNED; ++cls) {
                 __global const GT* src = cls == 0 ? g : h;
                 __global GT* dst = cls == 0 ? gout : hout;
@@ -330,9 +557,15 @@ __kernel void col_pass(__global const GT* restrict g, __global GT* restrict gout
                         tout[u * tile_w + c] = dst[base + (size_t)u * stride + c];
                     }
                 }
+#if METRIC == 0 && UNIT
+                if (box == 0) {
+                    tile_sweep_l1(tin, tout, tile_w, cw, (int)n, cls, ftin, ftout, cap);
+                } else
+#endif
                 for (int c = 0; c < cw; ++c) {
-                    line_pass(tin, tout, (size_t)c, (size_t)tile_w, (int)n, cls, sp, s, t, kstride,
-                              fin, fout, box, x0 + c, other, axis, o0, o1, i0, i1, cap);
+                    line_pass(tin, tout, (size_t)c, (size_t)tile_w, (int)n, cls, sp, s, t, d,
+                              kstride, ftin, ftout, box, x0 + c, other, axis, o0, o1, i0, i1,
+                              cap);
                 }
                 for (int u = o0; u < o1; ++u) {
                     for (int c = 0; c < cw; ++c) {
@@ -340,6 +573,13 @@ __kernel void col_pass(__global const GT* restrict g, __global GT* restrict gout
                     }
                 }
             }
+#if INDICES
+            for (int u = o0; u < o1; ++u) {
+                for (int c = 0; c < cw; ++c) {
+                    fout[base + (size_t)u * stride + c] = ftout[u * tile_w + c];
+                }
+            }
+#endif
         }
         return;
     }
@@ -354,11 +594,11 @@ __kernel void col_pass(__global const GT* restrict g, __global GT* restrict gout
             atomic_add(&box[6], o1 - o0);
         }
         const size_t base = (size_t)other * mstride + x;
-        line_pass(g, gout, base, stride, (int)n, 0, sp, s, t, kstride, fin, fout, box, x, other,
-                  axis, o0, o1, i0, i1, cap);
+        line_pass(g, gout, base, stride, (int)n, 0, sp, s, t, d, kstride, fin, fout, box, x,
+                  other, axis, o0, o1, i0, i1, cap);
 #if SIGNED
-        line_pass(h, hout, base, stride, (int)n, 1, sp, s, t, kstride, fin, fout, box, x, other,
-                  axis, o0, o1, i0, i1, cap);
+        line_pass(h, hout, base, stride, (int)n, 1, sp, s, t, d, kstride, fin, fout, box, x,
+                  other, axis, o0, o1, i0, i1, cap);
 #endif
     }
 }
@@ -392,11 +632,13 @@ inline void store(__global OUT_T* out, __constant uchar* rgb, uchar v, size_t i,
 // Writes the output format from the final partials (and the index planes: z, y, x of the
 // nearest solid, -1 without one, as SciPy's return_indices lays them out) for the voxels of
 // the box lo + [0, size): the whole world, or the voxels an incremental update changed. One
-// work-item per voxel in a 3-D range (x rounded up to the work-group size).
-__kernel void finish(__global const GT* restrict g, __global const GT* restrict h,
-                     __global const uchar* restrict vox, __constant uchar* rgb,
-                     __global OUT_T* restrict out, __global const uint* restrict feat,
-                     __global int* restrict idx, uint X, uint Y, ulong count, int4 lo, int4 size, double dmax) {
+// work-item per voxel in a 3-D range (x rounded up to the work-group size). Each reads its
+// voxel's partials and feature before writing, so `out` may be `g` (same element size) and
+// `feat` the first index plane: no `restrict` on them.
+__kernel void finish(__global const GT* g, __global const GT* h, __global const uchar* restrict vox,
+                     __constant uchar* rgb, __global OUT_T* out, __global const uint* feat,
+                     __global int* idx, uint X, uint Y, ulong count, int4 lo, int4 size,
+                     double dmax) {
     if (get_global_id(0) >= (size_t)size.x) {
         return;
     }

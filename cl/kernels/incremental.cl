@@ -739,3 +739,106 @@ kernel void inc_sweep_x_slices(global const uchar* vox, global const uint* dist,
         }
     }
 }
+
+// Changes made on the device (IncrementalField::apply_device_changes): a list of (linear index,
+// before | after << 8), one entry per changed voxel, in any order.
+
+// The linear index i as voxel coordinates.
+inline int3 vf_voxel_of(uint i, int4 d) {
+    return (int3)((int)(i % (uint)d.x), (int)(i / (uint)d.x % (uint)d.y),
+                  (int)(i / ((uint)d.x * (uint)d.y)));
+}
+
+// The box field's sources over B [b_lo, b_hi) (f filled with VF_FAR before): 0 at the listed
+// voxels whose occupancy changed, all inside B.
+kernel void inc_field_mark(global uint* f, global const uint2* list, uint count, int4 d,
+                           int4 b_lo, int4 b_hi) {
+    const uint k = (uint)get_global_id(0);
+    if (k >= count) {
+        return;
+    }
+    const uint2 c = list[k];
+    if (((c.y & 0xFFu) == 0) == (((c.y >> 8) & 0xFFu) == 0)) {
+        return;
+    }
+    const int3 p = vf_voxel_of(c.x, d) - b_lo.xyz;
+    const int3 n = (b_hi - b_lo).xyz;
+    f[((size_t)p.z * (size_t)n.y + (size_t)p.y) * (size_t)n.x + (size_t)p.x] = 0;
+}
+
+// Forward and backward min-plus sweeps of the box field f (n voxels per axis, x fastest) along
+// `axis`, a work-item per line.
+kernel void inc_field_sweep(global uint* f, int4 n, int axis) {
+    const size_t line = get_global_id(0);
+    const size_t nx = (size_t)n.x, ny = (size_t)n.y, nz = (size_t)n.z;
+    size_t start, count, stride;
+    if (axis == 0) {
+        if (line >= ny * nz) {
+            return;
+        }
+        start = line * nx, count = nx, stride = 1;
+    } else if (axis == 1) {
+        if (line >= nx * nz) {
+            return;
+        }
+        start = line / nx * nx * ny + line % nx, count = ny, stride = nx;
+    } else {
+        if (line >= nx * ny) {
+            return;
+        }
+        start = line, count = nz, stride = nx * ny;
+    }
+    uint run = VF_FAR;
+    for (size_t i = 0; i < count; ++i) {
+        global uint* v = f + start + i * stride;
+        run = min(*v, vf_sat_inc(run));
+        *v = run;
+    }
+    run = VF_FAR;
+    for (size_t i = count; i-- > 0;) {
+        global uint* v = f + start + i * stride;
+        run = min(*v, vf_sat_inc(run));
+        *v = run;
+    }
+}
+
+// The least f over each of the 27 parts of B's boundary (vf_least's order: part (side.z * 3 +
+// side.y) * 3 + side.x, per axis 0 the low face, 1 any coordinate, 2 the high face), into
+// f[n.x * n.y * n.z + part]; a work-item per part.
+kernel void inc_field_least(global uint* f, int4 n) {
+    const int part = (int)get_global_id(0);
+    if (part >= 27) {
+        return;
+    }
+    int lo[3], hi[3];
+    const int size[3] = {n.x, n.y, n.z};
+    for (int a = 0, side = part; a < 3; ++a, side /= 3) {
+        lo[a] = side % 3 == 2 ? size[a] - 1 : 0;
+        hi[a] = side % 3 == 0 ? 1 : size[a];
+    }
+    uint least = VF_FAR;
+    for (int z = lo[2]; z < hi[2]; ++z) {
+        for (int y = lo[1]; y < hi[1]; ++y) {
+            for (int x = lo[0]; x < hi[0]; ++x) {
+                least = min(least, f[((size_t)z * (size_t)n.y + (size_t)y) * (size_t)n.x + x]);
+            }
+        }
+    }
+    f[(size_t)n.x * (size_t)n.y * (size_t)n.z + (size_t)part] = least;
+}
+
+// Chunk-local fields: the chunks (`chunk` voxels per axis, nc per axis of the grid) holding a
+// listed voxel, each once: flags[c] (0 before) marks chunk c, whose index is appended to ids at
+// the slot taken from *n.
+kernel void inc_mark_chunks(global const uint2* list, uint count, int4 d, uint chunk, int4 nc,
+                            global uint* flags, global uint* ids, global uint* n) {
+    const uint k = (uint)get_global_id(0);
+    if (k >= count) {
+        return;
+    }
+    const int3 p = vf_voxel_of(list[k].x, d) / (int)chunk;
+    const uint c = ((uint)p.z * (uint)nc.y + (uint)p.y) * (uint)nc.x + (uint)p.x;
+    if (atomic_xchg(flags + c, 1u) == 0u) {
+        ids[atomic_inc(n)] = c;
+    }
+}

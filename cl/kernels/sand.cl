@@ -2,14 +2,62 @@
 // core/include/voxfield/core/sand.hpp and core/src/sand.cpp, which this matches bit for bit.
 // Source: Toffoli & Margolus, "Cellular Automata Machines" (1987), ch. 12 (Margolus blocks).
 //
-// Two copies of the world that agree before every step: a step reads `src` and writes only the
-// voxels it changes into `dst`, appending each to `changes` as (linear index, before | after
-// << 8) at a slot taken from `count` (slots past `capacity` are counted but not written: the
-// host grows the list and runs the step again, which writes the same values); sand_sync then
-// writes the changes into `src` as well. A block is held in a ulong, byte k = 4 * layer +
-// column (layer 0 bottom, 1 top; column dx + 2 * dz); cells outside the world hold `wall`, a
-// value that is neither air, sand nor water, so nothing moves into or out of them.
+// In place, on the one device copy of the world `vox` (an incremental field's voxels): a
+// block reads its own eight cells and, for its bottom water, the cells right below it, which
+// belong to the block below in the same column of blocks. Each work-item takes whole columns
+// of blocks (along y) from the top down, so the block below has not run yet when a block reads
+// it: every read sees the world before the step, as the reference's. Each changed voxel is
+// appended to `changes` as (linear index, before | after << 8) at a slot taken from
+// summary[0] (slots past `capacity` are counted but not written: the list overflowed, and its
+// reader falls back to what needs no list); summary[1..12] gather the boxes of the changed
+// voxels and of those whose occupancy changed (VF_SUMMARY_* below), the work-items' own boxes
+// merged by atomic_max. A block is held in a ulong, byte k = 4 * layer + column (layer 0
+// bottom, 1 top; column dx + 2 * dz); cells outside the world hold `wall`, a value that is
+// neither air, sand nor water, so nothing moves into or out of them.
 // d: world size; o: the step's block offset; nb: blocks per axis; key: sand_step_key.
+
+// summary: [0] changes made; [1..3] d - lo, [4..6] hi (half-open) of the changed voxels' box;
+// [7..9], [10..12] the same for the voxels whose occupancy changed. Zero everywhere is an
+// empty list with empty boxes, so the host clears it with a fill and atomic_max merges boxes.
+#define VF_SUMMARY_CHANGED 1
+#define VF_SUMMARY_OCCUPANCY 7
+
+// A work-item's boxes (inclusive; empty while hi.x < lo.x).
+typedef struct {
+    int3 lo, hi, occ_lo, occ_hi;
+} VfBoxes;
+
+inline void vf_boxes_clear(VfBoxes* b) {
+    b->lo = b->occ_lo = (int3)(INT_MAX);
+    b->hi = b->occ_hi = (int3)(-1);
+}
+
+// Voxel p changed from `was` to `now`.
+inline void vf_boxes_add(VfBoxes* b, int3 p, uint was, uint now) {
+    b->lo = min(b->lo, p);
+    b->hi = max(b->hi, p);
+    if ((was == 0) != (now == 0)) {
+        b->occ_lo = min(b->occ_lo, p);
+        b->occ_hi = max(b->occ_hi, p);
+    }
+}
+
+inline void vf_box_merge(global uint* s, int4 d, int3 lo, int3 hi) {
+    if (hi.x < lo.x) {
+        return;
+    }
+    atomic_max(s + 0, (uint)(d.x - lo.x));
+    atomic_max(s + 1, (uint)(d.y - lo.y));
+    atomic_max(s + 2, (uint)(d.z - lo.z));
+    atomic_max(s + 3, (uint)(hi.x + 1));
+    atomic_max(s + 4, (uint)(hi.y + 1));
+    atomic_max(s + 5, (uint)(hi.z + 1));
+}
+
+inline void vf_boxes_merge(const VfBoxes* b, global uint* summary, int4 d) {
+    vf_box_merge(summary + VF_SUMMARY_CHANGED, d, b->lo, b->hi);
+    vf_box_merge(summary + VF_SUMMARY_OCCUPANCY, d, b->occ_lo, b->occ_hi);
+}
 
 inline ulong vf_sand_hash(ulong x) {
     ulong z = x + 0x9E3779B97F4A7C15ul;
@@ -139,48 +187,48 @@ inline ulong vf_sand_after(global const uchar* src, int4 d, int4 nb, ulong key, 
     return vf_sand_rules(cells, below_air, vf_sand_hash(key ^ block), sand, water);
 }
 
-// GPU layout: one work-item per block, global size (nb.x, nb.y, nb.z) rounded up; a block
-// that changes takes its slots with one atomic_add.
-kernel void sand_step_blocks(global const uchar* src, global uchar* dst, int4 d, int4 o, int4 nb,
-                             ulong key, uint sand, uint water, uint wall, global uint* count,
-                             global uint2* changes, uint capacity) {
-    const int3 b = (int3)((int)get_global_id(0), (int)get_global_id(1), (int)get_global_id(2));
-    if (b.x >= nb.x || b.y >= nb.y || b.z >= nb.z) {
+// GPU layout: one work-item per column of blocks (i, k), global size (nb.x, nb.z) rounded
+// up, its blocks from the top down; a block that changes takes its slots with one atomic_add.
+kernel void sand_step_blocks(global uchar* vox, int4 d, int4 o, int4 nb, ulong key, uint sand,
+                             uint water, uint wall, global uint* summary, global uint2* changes,
+                             uint capacity) {
+    const int i = (int)get_global_id(0), k = (int)get_global_id(1);
+    if (i >= nb.x || k >= nb.z) {
         return;
     }
-    const int3 origin = 2 * b - o.xyz;
-    ulong cells = 0;
-    for (int k = 0; k < 8; ++k) {
-        const int3 p = vf_cell(origin, k);
-        cells |= (ulong)(vf_inside(p, d) ? (uint)src[vf_index(p, d)] : wall) << (8 * k);
-    }
-    if (!vf_may_move(cells, sand, water)) {
-        return;
-    }
-    const ulong after = vf_sand_after(src, d, nb, key, sand, water, b, origin, cells);
-    if (after == cells) {
-        return;
-    }
-    uint slot = atomic_add(count, (uint)popcount(vf_nonzero_bytes(cells ^ after)));
-    for (int k = 0; k < 8; ++k) {
-        const uint was = vf_get(cells, k), now = vf_get(after, k);
-        if (was != now) {
-            const ulong i = vf_index(vf_cell(origin, k), d);
-            dst[i] = (uchar)now;
-            if (slot < capacity) {
-                changes[slot] = (uint2)((uint)i, was | (now << 8));
+    VfBoxes boxes;
+    vf_boxes_clear(&boxes);
+    for (int j = nb.y - 1; j >= 0; --j) {
+        const int3 b = (int3)(i, j, k);
+        const int3 origin = 2 * b - o.xyz;
+        ulong cells = 0;
+        for (int c = 0; c < 8; ++c) {
+            const int3 p = vf_cell(origin, c);
+            cells |= (ulong)(vf_inside(p, d) ? (uint)vox[vf_index(p, d)] : wall) << (8 * c);
+        }
+        if (!vf_may_move(cells, sand, water)) {
+            continue;
+        }
+        const ulong after = vf_sand_after(vox, d, nb, key, sand, water, b, origin, cells);
+        if (after == cells) {
+            continue;
+        }
+        uint slot = atomic_add(summary, (uint)popcount(vf_nonzero_bytes(cells ^ after)));
+        for (int c = 0; c < 8; ++c) {
+            const uint was = vf_get(cells, c), now = vf_get(after, c);
+            if (was != now) {
+                const int3 p = vf_cell(origin, c);
+                const ulong at = vf_index(p, d);
+                vox[at] = (uchar)now;
+                vf_boxes_add(&boxes, p, was, now);
+                if (slot < capacity) {
+                    changes[slot] = (uint2)((uint)at, was | (now << 8));
+                }
+                ++slot;
             }
-            ++slot;
         }
     }
-}
-
-// Writes a step's changes into the other copy of the world.
-kernel void sand_sync(global uchar* world, global const uint2* changes, uint count) {
-    const uint i = get_global_id(0);
-    if (i < count) {
-        world[changes[i].x] = (uchar)(changes[i].y >> 8);
-    }
+    vf_boxes_merge(&boxes, summary, d);
 }
 
 // Changes a CPU-layout work-item holds before it takes their slots with one atomic_add.
@@ -192,23 +240,23 @@ typedef struct {
 } VfHeld;
 
 // Moves the held changes into the step's list.
-inline void vf_flush(VfHeld* held, global uint* count, global uint2* changes, uint capacity) {
+inline void vf_flush(VfHeld* held, global uint* summary, global uint2* changes, uint capacity) {
     if (held->n == 0) {
         return;
     }
-    const uint slot = atomic_add(count, held->n);
+    const uint slot = atomic_add(summary, held->n);
     for (uint i = 0; i < held->n && slot + i < capacity; ++i) {
         changes[slot + i] = held->item[i];
     }
     held->n = 0;
 }
 
-// A CPU-layout block row: its block coordinates (j, k), its four lines of voxels in `src`
+// A CPU-layout block row: its block coordinates (j, k), its four lines of voxels in `vox`
 // (line r = 2 * layer + dz starts at voxel (0, y0 + layer, z0 + dz); inside: whether it lies
 // in the world), and the linear index of voxel (0, y0, z0) modulo 2^32 (y0 or z0 may be -1).
 typedef struct {
     int j, k, y0, z0;
-    global const uchar* line[4];
+    global uchar* line[4];
     bool inside[4];
     uint first;
 } VfRow;
@@ -235,18 +283,20 @@ inline ulong vf_row_cells_checked(const VfRow* row, uint wall, int x, int dx) {
     return cells;
 }
 
-// Runs the row's block i (cells x, x + 1) holding `cells`: its changes into `dst` and `held`.
-inline void vf_row_block(global const uchar* src, global uchar* dst, int4 d, int4 nb, ulong key,
-                         uint sand, uint water, global uint* count, global uint2* changes,
-                         uint capacity, VfHeld* held, const VfRow* row, int i, int x, ulong cells) {
-    const ulong after = vf_sand_after(src, d, nb, key, sand, water, (int3)(i, row->j, row->k),
+// Runs the row's block i (cells x, x + 1) holding `cells`: its changes into `vox`, `held` and
+// `boxes`.
+inline void vf_row_block(global uchar* vox, int4 d, int4 nb, ulong key, uint sand, uint water,
+                         global uint* summary, global uint2* changes, uint capacity,
+                         VfHeld* held, VfBoxes* boxes, const VfRow* row, int i, int x,
+                         ulong cells) {
+    const ulong after = vf_sand_after(vox, d, nb, key, sand, water, (int3)(i, row->j, row->k),
                                       (int3)(x, row->y0, row->z0), cells);
     ulong changed = vf_nonzero_bytes(cells ^ after);
     if (changed == 0) {
         return;
     }
     if (held->n > VF_HELD - 8) {
-        vf_flush(held, count, changes, capacity);
+        vf_flush(held, summary, changes, capacity);
     }
     const uint first = row->first + (uint)x, dx = (uint)d.x, dxy = (uint)d.x * (uint)d.y;
     while (changed != 0) {
@@ -254,17 +304,19 @@ inline void vf_row_block(global const uchar* src, global uchar* dst, int4 d, int
         changed ^= bit;
         const int c = (63 - (int)clz(bit)) >> 3;  // cell 4 * layer + dx + 2 * dz
         const uint index = first + (uint)(c & 1) + (uint)(c >> 2) * dx + (uint)((c >> 1) & 1) * dxy;
-        const uint now = vf_get(after, c);
-        dst[index] = (uchar)now;
-        held->item[held->n++] = (uint2)(index, vf_get(cells, c) | (now << 8));
+        const uint was = vf_get(cells, c), now = vf_get(after, c);
+        vox[index] = (uchar)now;
+        held->item[held->n++] = (uint2)(index, was | (now << 8));
+        vf_boxes_add(boxes, (int3)(x + (c & 1), row->y0 + (c >> 2), row->z0 + ((c >> 1) & 1)), was,
+                     now);
     }
 }
 
 // Holds the changes of the cells flagged (bit 7 of a byte) in `fell`: lanes 8h .. 8h + 7 of
 // a 16-byte load `top` at x = base of the row's top line 2 + dz, whose values fell into the
 // cells below.
-inline void vf_row_falls(VfHeld* held, const VfRow* row, uchar16 top, int dz, int base, int h,
-                         ulong fell, uint dx, uint dxy) {
+inline void vf_row_falls(VfHeld* held, VfBoxes* boxes, const VfRow* row, uchar16 top, int dz,
+                         int base, int h, ulong fell, uint dx, uint dxy) {
     const uint bottom = row->first + (uint)(base + 8 * h) + (uint)dz * dxy;
     const ulong values = h == 0 ? as_ulong2(top).s0 : as_ulong2(top).s1;
     fell &= 0x8080808080808080ul;
@@ -275,38 +327,37 @@ inline void vf_row_falls(VfHeld* held, const VfRow* row, uchar16 top, int dz, in
         const uint v = vf_get(values, lane), at = bottom + (uint)lane;
         held->item[held->n++] = (uint2)(at + dx, v);
         held->item[held->n++] = (uint2)(at, v << 8);
+        const int3 p = (int3)(base + 8 * h + lane, row->y0, row->z0 + dz);
+        vf_boxes_add(boxes, p, 0, v);
+        vf_boxes_add(boxes, p + (int3)(0, 1, 0), v, 0);
     }
 }
 
-// CPU layout: one work-item per row of blocks along x, global size (nb.y, nb.z); its changes
-// take their slots VF_HELD at a time. Runs of eight blocks are tested at once by 16-byte loads
-// of the row's four lines (a line outside the world reads as `wall`): blocks that cannot move
-// (vf_may_move's condition, exactly) are skipped, those over a bottom layer of air
-// (vf_sand_after's first case) are run on the vectors, the rest block by block. The run at the
-// row's end is loaded from as far left as it must to stay inside the world (its first lanes,
-// blocks already run, are left out) and run block by block, and the blocks at either end that
-// reach out of the world are read with bounds checks.
-kernel void sand_step_rows(global const uchar* src, global uchar* dst, int4 d, int4 o, int4 nb,
-                           ulong key, uint sand, uint water, uint wall, global uint* count,
-                           global uint2* changes, uint capacity) {
+// CPU layout: one work-item per column of block rows k, global size nb.z, running its rows
+// (along x) from the top down (sand_row); a work-item's changes take their slots VF_HELD at a
+// time. Runs of eight blocks are tested at once by 16-byte loads of the row's four lines (a line
+// outside the world reads as `wall`): blocks that cannot move (vf_may_move's condition,
+// exactly) are skipped, those over a bottom layer of air (vf_sand_after's first case) are run on
+// the vectors, the rest block by block. The run at the row's end is loaded from as far left as
+// it must to stay inside the world (its first lanes, blocks already run, are left out) and run
+// block by block, and the blocks at either end that reach out of the world are read with bounds
+// checks.
+inline void vf_sand_row(global uchar* vox, int4 d, int4 o, int4 nb, ulong key, uint sand,
+                        uint water, uint wall, global uint* summary, global uint2* changes,
+                        uint capacity, VfHeld* held, VfBoxes* boxes, int j, int k) {
     VfRow row;
-    row.j = (int)get_global_id(0);
-    row.k = (int)get_global_id(1);
-    if (row.j >= nb.y || row.k >= nb.z) {
-        return;
-    }
+    row.j = j;
+    row.k = k;
     row.y0 = 2 * row.j - o.y;
     row.z0 = 2 * row.k - o.z;
     row.first = ((uint)row.z0 * (uint)d.y + (uint)row.y0) * (uint)d.x;
     for (int r = 0; r < 4; ++r) {
         const int y = row.y0 + (r >> 1), z = row.z0 + (r & 1);
         row.inside[r] = y >= 0 && z >= 0 && y < d.y && z < d.z;
-        row.line[r] = src + (row.inside[r] ? vf_index((int3)(0, y, z), d) : 0);
+        row.line[r] = vox + (row.inside[r] ? vf_index((int3)(0, y, z), d) : 0);
     }
     const uint dx = (uint)d.x, dxy = (uint)d.x * (uint)d.y;
-    global uchar* const out = dst + (row.line[0] - src);  // line 0 in dst, where it is inside
-    VfHeld held;
-    held.n = 0;
+    global uchar* const out = row.line[0];  // where all four lines are inside
     // The last start of a 16-byte load inside the world with the parity of the block corners.
     int last = d.x - 16;
     last -= (last + o.x) & 1;
@@ -319,7 +370,7 @@ kernel void sand_step_rows(global const uchar* src, global uchar* dst, int4 d, i
         if (x0 < 0 || x0 + 1 >= d.x || last < 0) {
             const ulong cells = vf_row_cells_checked(&row, wall, x0, d.x);
             if (vf_may_move(cells, sand, water)) {
-                vf_row_block(src, dst, d, nb, key, sand, water, count, changes, capacity, &held,
+                vf_row_block(vox, d, nb, key, sand, water, summary, changes, capacity, held, boxes,
                              &row, i, x0, cells);
             }
             ++i;
@@ -347,11 +398,11 @@ kernel void sand_step_rows(global const uchar* src, global uchar* dst, int4 d, i
             const char16 f0 = falling & ((t0 == s16) | (t0 == w16));
             const char16 f1 = falling & ((t1 == s16) | (t1 == w16));
             // Only where all four lines lie in the world: one outside reads as wall, which is
-            // not air and does not fall. dst equals src but for the changes, so the lanes
-            // that do not fall are written as they are.
+            // not air and does not fall. The lanes that do not fall are written back as they
+            // were loaded (these blocks are this work-item's alone).
             if (any(f0 | f1)) {
-                if (held.n > VF_HELD - 64) {
-                    vf_flush(&held, count, changes, capacity);
+                if (held->n > VF_HELD - 64) {
+                    vf_flush(held, summary, changes, capacity);
                 }
                 const uchar16 m0 = as_uchar16(f0), m1 = as_uchar16(f1);
                 vstore16(b0 | (t0 & m0), 0, out + base);
@@ -359,10 +410,10 @@ kernel void sand_step_rows(global const uchar* src, global uchar* dst, int4 d, i
                 vstore16(t0 & ~m0, 0, out + dx + base);
                 vstore16(t1 & ~m1, 0, out + dxy + dx + base);
                 const ulong2 u0 = as_ulong2(f0), u1 = as_ulong2(f1);
-                vf_row_falls(&held, &row, t0, 0, base, 0, u0.s0, dx, dxy);
-                vf_row_falls(&held, &row, t0, 0, base, 1, u0.s1, dx, dxy);
-                vf_row_falls(&held, &row, t1, 1, base, 0, u1.s0, dx, dxy);
-                vf_row_falls(&held, &row, t1, 1, base, 1, u1.s1, dx, dxy);
+                vf_row_falls(held, boxes, &row, t0, 0, base, 0, u0.s0, dx, dxy);
+                vf_row_falls(held, boxes, &row, t0, 0, base, 1, u0.s1, dx, dxy);
+                vf_row_falls(held, boxes, &row, t1, 1, base, 0, u1.s0, dx, dxy);
+                vf_row_falls(held, boxes, &row, t1, 1, base, 1, u1.s1, dx, dxy);
             }
             one_by_one &= ~as_ulong(open);
         }
@@ -371,10 +422,28 @@ kernel void sand_step_rows(global const uchar* src, global uchar* dst, int4 d, i
             const ulong bit = one_by_one & (~one_by_one + 1);
             one_by_one ^= bit;
             const int q = (63 - (int)clz(bit)) >> 3, x = x0 + 2 * q;
-            vf_row_block(src, dst, d, nb, key, sand, water, count, changes, capacity, &held, &row,
-                         i + q, x, vf_row_cells(&row, wall, x));
+            vf_row_block(vox, d, nb, key, sand, water, summary, changes, capacity, held, boxes,
+                         &row, i + q, x, vf_row_cells(&row, wall, x));
         }
         i += 8 - skip;
     }
-    vf_flush(&held, count, changes, capacity);
+}
+
+kernel void sand_step_rows(global uchar* vox, int4 d, int4 o, int4 nb, ulong key, uint sand,
+                           uint water, uint wall, global uint* summary, global uint2* changes,
+                           uint capacity) {
+    const int k = (int)get_global_id(0);
+    if (k >= nb.z) {
+        return;
+    }
+    VfHeld held;
+    held.n = 0;
+    VfBoxes boxes;
+    vf_boxes_clear(&boxes);
+    for (int j = nb.y - 1; j >= 0; --j) {
+        vf_sand_row(vox, d, o, nb, key, sand, water, wall, summary, changes, capacity, &held,
+                    &boxes, j, k);
+    }
+    vf_flush(&held, summary, changes, capacity);
+    vf_boxes_merge(&boxes, summary, d);
 }

@@ -29,6 +29,9 @@ namespace {
 constexpr double kBrutePairsPerUnitCpu = 2e9;
 constexpr double kBrutePairsPerUnitGpu = 2e10;
 constexpr double kBruteLimitS = 60;
+// What loading one voxel into a work-group's local memory costs brute_global, in voxel pairs
+// compared (an all-solid world, which compares none, measured as above).
+constexpr double kBruteTileLoadPairs = 3;
 
 class Classic : public Generator {
   public:
@@ -168,9 +171,31 @@ Classic::Classic(Context& ctx, const World& world, const Palette& palette,
 void Classic::refuse_slow_brute(const World& world) const {
     const auto& info = ctx_.info();
     const double n = static_cast<double>(world.size());
-    const double empty = n - static_cast<double>(world.solid_count());
-    const double chunk_volume = std::pow(static_cast<double>(o_.chunk), 3);
-    const double pairs = o_.algorithm == Algorithm::brute ? empty * n : n * chunk_volume;
+    double pairs = 0;
+    if (o_.algorithm == Algorithm::brute) {
+        // brute_global: each work-group loads the whole world through local memory, solid or
+        // not (kBruteTileLoadPairs pair-equivalents a voxel), and each of its work-items with
+        // an empty voxel (or past the end, the last group's padding) compares it with every
+        // voxel; on a GPU a group's items run in lock step, so one empty voxel costs them all.
+        const std::size_t group = std::min<std::size_t>(256, info.max_work_group);
+        const auto& voxels = world.voxels();
+        const std::size_t count = voxels.size();
+        for (std::size_t g0 = 0; g0 < count; g0 += group) {
+            const std::size_t g1 = std::min(count, g0 + group);
+            std::size_t scanning = group - (g1 - g0);
+            for (std::size_t i = g0; i < g1; ++i) {
+                scanning += voxels[i] == 0 ? 1 : 0;
+            }
+            if (!ctx_.is_cpu() && scanning != 0) {
+                scanning = group;
+            }
+            pairs += n * (static_cast<double>(scanning) + kBruteTileLoadPairs);
+        }
+    } else {
+        // brute_chunked: each empty voxel scans its chunk; a solid one returns at once.
+        const double empty = n - static_cast<double>(world.solid_count());
+        pairs = empty * std::pow(static_cast<double>(o_.chunk), 3) + n;
+    }
     const double rate = static_cast<double>(info.compute_units) *
                         (ctx_.is_cpu() ? kBrutePairsPerUnitCpu : kBrutePairsPerUnitGpu);
     const double seconds = pairs / rate;

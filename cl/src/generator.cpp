@@ -121,6 +121,20 @@ GeneratorOptions resolve_options(const GeneratorOptions& options, Dims world) {
         throw InputError("--max-distance: " + name +
                          " has no bounded fields; use --algorithm exact");
     }
+    if (o.max_distance && !is_float(o.format) && *o.max_distance < 1) {
+        std::ostringstream text;
+        text << *o.max_distance;
+        throw InputError("--max-distance " + text.str() + " with --format " + to_string(o.format) +
+                         ": integer formats round distances down, so every voxel would be 0; "
+                         "give a bound of at least 1 or a float format (f32, f64)");
+    }
+    if (o.max_distance && o.indices) {
+        throw InputError(
+            "--indices with --max-distance: a bounded field stops looking for solids beyond "
+            "the bound, so the indices there would not name the nearest solid; drop one of "
+            "them");
+    }
+    check_spacing_range(o.spacing, o.metric, world);
     if (o.signed_field && !holds_sign(o.format)) {
         throw InputError("--signed needs a signed format (i8, i16, i32, f32 or f64), not " +
                          to_string(o.format));

@@ -223,11 +223,21 @@ DeviceInfo select_device(const std::string& requested) {
         }
     } else if (is_index) {
         wanted = origin + " " + spec;
-        std::size_t index = 0;
-        try {
-            index = std::stoul(spec);
-        } catch (const std::exception&) {
-            index = devices.size();
+        // Compared as text, never converted: an index beyond the integers (18446744073709551616)
+        // must not wrap around to a device.
+        const std::string trimmed = spec.find_first_not_of('0') == std::string::npos
+                                        ? "0"
+                                        : spec.substr(spec.find_first_not_of('0'));
+        std::size_t index = devices.size();
+        for (const auto& d : devices) {
+            if (std::to_string(d.index) == trimmed) {
+                index = d.index;
+            }
+        }
+        if (index == devices.size()) {
+            throw DeviceSelectionError(
+                "no OpenCL device matches " + wanted + ": the indices are 0.." +
+                std::to_string(devices.size() - 1) + " (see `voxfield devices`)");
         }
         found = consider("", true, index);
     } else {

@@ -107,34 +107,70 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         throw std::invalid_argument("ExactSeparable: incremental updates keep no indices");
     }
     const std::size_t out_bytes = n * element_size(format_);
-    const std::size_t part_bytes = n * 4;
-    if (out_bytes > info.max_alloc || part_bytes > info.max_alloc) {
-        throw ClError("clCreateBuffer", CL_INVALID_BUFFER_SIZE,
-                      sizes + " needs a " + std::to_string(std::max(out_bytes, part_bytes) >> 20) +
-                          " MiB buffer; " + info.name + " allows at most " +
-                          std::to_string(info.max_alloc >> 20) + " MiB per buffer");
-    }
     const OutType ot = out_type(format_);
     const bool unit = options.spacing.unit();
+    const std::uint32_t X = dims_.x, Y = dims_.y, Z = dims_.z;
+    // Unit-spacing L2 squares whose separators' numerators could pass 2^31: 64-bit partials.
+    const auto sq = [](std::uint32_t a) { return std::uint64_t{a - 1} * (a - 1); };
+    wide_ = unit && options.metric == Metric::euclidean &&
+            sq(X) + sq(Y) + sq(Z) >= (std::uint64_t{1} << 30);
+    // f64 fields with spacing: the scans in double.
+    fp64_ = !unit && format_ == Format::f64;
+    gt_bytes_ = wide_ || fp64_ ? 8 : 4;
     const std::string build =
         std::string("-DMETRIC=") + std::to_string(static_cast<int>(options.metric)) +
-        " -DUNIT=" + (unit ? "1" : "0") + " -DSIGNED=" + (options.signed_field ? "1" : "0") +
+        " -DUNIT=" + (unit ? "1" : "0") + " -DWIDE=" + (wide_ ? "1" : "0") +
+        " -DFP64=" + (fp64_ ? "1" : "0") + " -DSIGNED=" + (options.signed_field ? "1" : "0") +
         " -DINDICES=" + (options.indices ? "1" : "0") + " -DOUT_KIND=" + std::to_string(ot.kind) +
         " -DOUT_T=" + ot.type + " -DOUT_MAX=" + ot.max + " -cl-std=CL1.2";
     program_ = ctx.program("exact_separable.cl",
                            {cl_sources::layout_h, cl_sources::exact_separable_cl}, build);
+    const std::size_t part_bytes = n * gt_bytes_;
+    if (out_bytes > info.max_alloc || part_bytes > info.max_alloc ||
+        (options.indices && 3 * n * 4 > info.max_alloc)) {
+        const std::size_t most = std::max({out_bytes, part_bytes, options.indices ? 3 * n * 4 : 0});
+        throw ClError("clCreateBuffer", CL_INVALID_BUFFER_SIZE,
+                      sizes + " needs a " + std::to_string(most >> 20) + " MiB buffer; " +
+                          info.name + " allows at most " + std::to_string(info.max_alloc >> 20) +
+                          " MiB per buffer");
+    }
 
-    const std::uint32_t X = dims_.x, Y = dims_.y, Z = dims_.z;
-    // CPU layout: each work-item's two stacks and, without indices, its two tiles of
-    // kTile lines (col_pass).
-    constexpr std::size_t kTile = 16;
-    tile_w_ = gpu_layout_ || options.indices ? 0 : static_cast<int>(kTile);
-    col_stride_ = 2 * (std::size_t{std::max(Y, Z)} + 2) +
-                  2 * std::size_t{std::max(Y, Z)} * static_cast<std::size_t>(tile_w_);
-    x_stride_ = X;
-    const std::size_t most_lines = std::size_t{X} * std::max(Y, Z);
-    const std::size_t scratch_ints = std::max(x_items(Box{{0, 0, 0}, {X, Y, Z}}) * x_stride_,
-                                              col_items(most_lines, Span{0, X}) * col_stride_);
+    // cols_banded where the device runs its work-groups of kBandedGroup (its registers may
+    // cap them lower) and lines of Y and of Z fit its local memory.
+    const bool banded_fits =
+        gpu_layout_ && !incremental && unit && !wide_ && !options.signed_field &&
+        !options.indices && X < 0xFFFF && Y < kLinkLimit && Z < kLinkLimit &&
+        cl::Kernel(program_, "cols_banded")
+                .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
+    const std::uint32_t lines_y = banded_fits ? banded_lines(Y, info.local_mem) : 0;
+    const std::uint32_t lines_z = banded_fits ? banded_lines(Z, info.local_mem) : 0;
+
+    // CPU layout: at most max_items_ work-items per pass, each with its three stacks and its
+    // tiles of tile_w_ lines (col_pass), sized by the pass's own line length.
+    max_items_ = std::max<std::size_t>(32, 16 * std::size_t{info.compute_units});
+    for (int a = 0; a < 2; ++a) {
+        const std::size_t len = a == 0 ? Y : Z;
+        // Tiles of up to 16 lines within about 2 MiB per work-item, at least one line.
+        tile_w_[a] = gpu_layout_
+                         ? 0
+                         : static_cast<int>(std::clamp<std::size_t>(
+                               (std::size_t{2} << 20) / (len * 2 * (gt_bytes_ + 4)), 1, 16));
+        const std::size_t tile = static_cast<std::size_t>(tile_w_[a]) * len;
+        col_stride_[a] =
+            3 * (len + 2) + 2 * tile * gt_bytes_ / 4 + (options.indices ? 2 * tile : 0);
+        col_stride_[a] += col_stride_[a] % 2;  // 8-byte partials stay aligned
+    }
+    // The CPU layout's passes read each line whole before writing it: a full transform runs
+    // them in place in one buffer of partials (the output's own where its elements are as
+    // wide) and keeps the features in the first index plane. The GPU layout alternates two
+    // buffers, the first of them the output's where its elements are as wide.
+    shared_parts_ = !gpu_layout_ && !incremental;
+    const bool out_is_g = !incremental && element_size(format_) == gt_bytes_;
+    const Box all{{0, 0, 0}, {X, Y, Z}};
+    const Span xs{0, X}, ys{0, Y}, zs{0, Z};
+    const std::size_t scratch_ints =
+        std::max({(gpu_layout_ ? x_items(all) : std::min<std::size_t>(Z, max_items_)) * X,
+                  col_scratch(1, X, Z), col_scratch(2, X, Y)});
 
     cl_call("allocating and uploading, " + sizes, [&] {
         auto& c = ctx.context();
@@ -147,18 +183,21 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         out_ = field.empty() ? make_buffer(out_bytes, CL_MEM_READ_WRITE)
                              : cl::Buffer(c, CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR, out_bytes,
                                           field.data());
-        const int parts = incremental ? 3 : 2;
+        const int parts = incremental ? 3 : shared_parts_ ? 1 : 2;
         for (int k = 0; k < parts; ++k) {
-            g_[k] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
+            g_[k] = k == 0 && out_is_g ? out_ : make_buffer(part_bytes, CL_MEM_READ_WRITE);
             if (options.signed_field) {
                 h_[k] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
             }
         }
-        for (int k = 0; k < 2 && options.indices; ++k) {
-            feat_[k] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
-        }
         if (options.indices) {
-            indices_ = make_buffer(3 * part_bytes, CL_MEM_READ_WRITE);
+            indices_ = make_buffer(3 * n * 4, CL_MEM_READ_WRITE);
+            feat_[0] = indices_;
+            feat_[1] = shared_parts_ ? indices_ : make_buffer(n * 4, CL_MEM_READ_WRITE);
+        }
+        for (int k = parts; k < 3; ++k) {
+            g_[k] = g_[0];
+            h_[k] = h_[0];
         }
         for (int b = 0; b < 3 && incremental; ++b) {
             track_[b] = cl::Buffer(c, CL_MEM_READ_WRITE, 7 * sizeof(cl_int));
@@ -184,7 +223,9 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         const double part = options.metric == Metric::euclidean ? bound * bound : bound;
         max_distance_ = bound;
         cap_unit_ = static_cast<cl_uint>(std::min(std::ceil(part), 4294967294.0));
+        cap_wide_ = static_cast<cl_ulong>(std::min(std::ceil(part), 4e18));
         cap_float_ = static_cast<float>(part * (1 + 1e-6));
+        cap_double_ = part * (1 + 1e-12);
         // A site r voxels away along an axis is at least r * spacing away in every metric,
         // so beyond bound / spacing + 1 it cannot come under the cap.
         for (std::size_t a = 0; a < 3; ++a) {
@@ -194,23 +235,15 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     } else {
         max_distance_ = std::numeric_limits<double>::infinity();
         cap_unit_ = 0xFFFFFFFFu;
+        cap_wide_ = ~cl_ulong{0};
         cap_float_ = std::numeric_limits<float>::infinity();
+        cap_double_ = std::numeric_limits<double>::infinity();
         for (std::size_t a = 0; a < 3; ++a) {
             reach_[a] = extent[a];
         }
     }
 
     cl_call("setting up kernels, " + sizes, [&] {
-        const Box all{{0, 0, 0}, {X, Y, Z}};
-        // cols_banded where the device runs its work-groups of kBandedGroup (its registers may
-        // cap them lower) and lines of Y and of Z fit its local memory.
-        const bool banded =
-            gpu_layout_ && !incremental && unit && !options.signed_field && !options.indices &&
-            X < 0xFFFF && Y < kLinkLimit && Z < kLinkLimit &&
-            cl::Kernel(program_, "cols_banded")
-                    .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
-        const std::uint32_t lines_y = banded ? banded_lines(Y, info.local_mem) : 0;
-        const std::uint32_t lines_z = banded ? banded_lines(Z, info.local_mem) : 0;
         if (lines_y != 0 && lines_z != 0) {
             if (auto rows = gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0])) {
                 stages_.push_back(*rows);
@@ -221,14 +254,13 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             }
         }
         const cl::Buffer none;
-        const Span xs{0, X}, ys{0, Y}, zs{0, Z};
         stages_.push_back(items_launch("x_pass", x_kernel(all, xs, none), x_items(all)));
         // Full transforms reuse the x pass's buffer for the z pass; incremental ones keep all.
         const int last = incremental ? 2 : 0;
         stages_.push_back(items_launch("y_pass", col_kernel(1, 0, 1, xs, zs, ys, ys, none, none),
-                                       col_items(std::size_t{X} * Z, xs)));
+                                       col_items(X, Z)));
         stages_.push_back(items_launch("z_pass", col_kernel(2, 1, last, xs, ys, zs, zs, none, none),
-                                       col_items(std::size_t{X} * Y, xs)));
+                                       col_items(X, Y)));
         stages_.push_back({"finish", finish_kernel(last, all), cl::NDRange(round_up(X, 64), Y, Z),
                            cl::NDRange(64, 1, 1)});
     });
@@ -287,24 +319,55 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
             cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * k), cl::NDRange(c, k)};
 }
 
-std::size_t ExactSeparable::x_items(const Box& rows) const {
-    // CPU: the rows of one z per work-item (as x_kernel sets them); GPU: one row each.
+std::size_t ExactSeparable::x_per_item(const Box& rows) const {
+    // CPU: whole z slices of rows per work-item, at most max_items_ work-items; GPU: a row.
     const auto ny = static_cast<std::size_t>(rows.max.y - rows.min.y);
     const auto nz = static_cast<std::size_t>(rows.max.z - rows.min.z);
-    return gpu_layout_ ? ny * nz : nz;
+    return gpu_layout_ ? 1 : ny * ((nz + max_items_ - 1) / max_items_);
 }
 
-std::size_t ExactSeparable::col_items(std::size_t lines, Span xs) const {
-    // CPU: the lines of one x row per work-item; GPU: one line each.
-    const auto row = static_cast<std::size_t>(xs.hi - xs.lo);
-    return gpu_layout_ ? lines : (lines + row - 1) / row;
+std::size_t ExactSeparable::x_items(const Box& rows) const {
+    const auto ny = static_cast<std::size_t>(rows.max.y - rows.min.y);
+    const auto nz = static_cast<std::size_t>(rows.max.z - rows.min.z);
+    const std::size_t per = x_per_item(rows);
+    return per == 0 ? 0 : (ny * nz + per - 1) / per;
+}
+
+std::size_t ExactSeparable::col_per_item(std::size_t count_x, std::size_t count_o) const {
+    // CPU: whole x rows of lines per work-item, at most max_items_ work-items; GPU: a line.
+    return gpu_layout_ ? 1 : count_x * ((count_o + max_items_ - 1) / max_items_);
+}
+
+std::size_t ExactSeparable::col_items(std::size_t count_x, std::size_t count_o) const {
+    const std::size_t per = col_per_item(count_x, count_o);
+    return per == 0 ? 0 : (count_x * count_o + per - 1) / per;
+}
+
+std::size_t ExactSeparable::col_scratch(int axis, std::size_t count_x, std::size_t count_o) const {
+    // CPU: col_stride_ ints per work-item (of a pass over these lines or any fewer rows);
+    // GPU: the three stacks of each line, interleaved.
+    const std::size_t len = axis == 1 ? dims_.y : dims_.z;
+    return gpu_layout_ ? count_x * count_o * 3 * (len + 2)
+                       : std::min(count_o, max_items_) * col_stride_[axis - 1];
 }
 
 void ExactSeparable::set_cap(cl::Kernel& k, cl_uint index) const {
-    if (spacing_.unit()) {
+    if (wide_) {
+        k.setArg(index, cap_wide_);
+    } else if (spacing_.unit()) {
         k.setArg(index, cap_unit_);
+    } else if (fp64_) {
+        k.setArg(index, cap_double_);
     } else {
         k.setArg(index, cap_float_);
+    }
+}
+
+void ExactSeparable::set_spacing(cl::Kernel& k, cl_uint index, double s) const {
+    if (fp64_) {
+        k.setArg(index, s);
+    } else {
+        k.setArg(index, static_cast<float>(s));
     }
 }
 
@@ -323,10 +386,10 @@ cl::Kernel ExactSeparable::x_kernel(const Box& rows, Span in, const cl::Buffer& 
     k.setArg(5, dims_.y);
     k.setArg(6, lo);
     k.setArg(7, size);
-    k.setArg(8, gpu_layout_ ? cl_uint{1} : static_cast<cl_uint>(size.s[1]));
-    k.setArg(9, static_cast<float>(spacing_.x));
+    k.setArg(8, static_cast<cl_uint>(x_per_item(rows)));
+    set_spacing(k, 9, spacing_.x);
     k.setArg(10, scratch_);
-    k.setArg(11, static_cast<cl_ulong>(x_stride_));
+    k.setArg(11, static_cast<cl_ulong>(dims_.x));
     k.setArg(12, box);
     k.setArg(13, static_cast<cl_int>(in.lo));
     k.setArg(14, static_cast<cl_int>(in.hi));
@@ -338,8 +401,8 @@ cl::Kernel ExactSeparable::col_kernel(int axis, int from, int to, Span xs, Span 
                                       Span in, const cl::Buffer& skip, const cl::Buffer& box) {
     const std::uint32_t X = dims_.x, Y = dims_.y;
     const bool along_y = axis == 1;
-    const std::size_t lines =
-        static_cast<std::size_t>(xs.hi - xs.lo) * static_cast<std::size_t>(others.hi - others.lo);
+    const auto count_x = static_cast<std::size_t>(xs.hi - xs.lo);
+    const auto count_o = static_cast<std::size_t>(others.hi - others.lo);
     cl::Kernel k(program_, "col_pass");
     k.setArg(0, g_[from]);
     k.setArg(1, g_[to]);
@@ -355,11 +418,11 @@ cl::Kernel ExactSeparable::col_kernel(int axis, int from, int to, Span xs, Span 
     k.setArg(11, static_cast<cl_int>(xs.hi - xs.lo));
     k.setArg(12, static_cast<cl_int>(others.lo));
     k.setArg(13, static_cast<cl_int>(others.hi - others.lo));
-    k.setArg(14, gpu_layout_ ? cl_uint{1} : static_cast<cl_uint>(xs.hi - xs.lo));
+    k.setArg(14, static_cast<cl_uint>(col_per_item(count_x, count_o)));
     // CPU: each work-item's stack contiguous; GPU: interleaved across work-items.
-    k.setArg(15, static_cast<cl_ulong>(gpu_layout_ ? col_items(lines, xs) : 1));
-    k.setArg(16, static_cast<cl_ulong>(gpu_layout_ ? 1 : col_stride_));
-    k.setArg(17, static_cast<float>(along_y ? spacing_.y : spacing_.z));
+    k.setArg(15, static_cast<cl_ulong>(gpu_layout_ ? col_items(count_x, count_o) : 1));
+    k.setArg(16, static_cast<cl_ulong>(gpu_layout_ ? 1 : col_stride_[axis - 1]));
+    set_spacing(k, 17, along_y ? spacing_.y : spacing_.z);
     k.setArg(18, cl_int{axis});
     k.setArg(19, skip);
     k.setArg(20, box);
@@ -368,7 +431,7 @@ cl::Kernel ExactSeparable::col_kernel(int axis, int from, int to, Span xs, Span 
     k.setArg(23, static_cast<cl_int>(in.lo));
     k.setArg(24, static_cast<cl_int>(in.hi));
     set_cap(k, 25);
-    k.setArg(26, cl_int{tile_w_});
+    k.setArg(26, cl_int{tile_w_[axis - 1]});
     return k;
 }
 
@@ -465,11 +528,12 @@ ExactSeparable::Update ExactSeparable::update(const Box& edited, std::vector<cl:
         };
         const Span zb_rows{edited.min.z, edited.max.z};
         launch(x_kernel(rows, xi, box[0]), x_items(rows));
-        launch(
-            col_kernel(1, 0, 1, xo, zb_rows, yo, yi, box[0], box[1]),
-            col_items(static_cast<std::size_t>((xo.hi - xo.lo) * (zb_rows.hi - zb_rows.lo)), xo));
+        launch(col_kernel(1, 0, 1, xo, zb_rows, yo, yi, box[0], box[1]),
+               col_items(static_cast<std::size_t>(xo.hi - xo.lo),
+                         static_cast<std::size_t>(zb_rows.hi - zb_rows.lo)));
         launch(col_kernel(2, 1, 2, xo, yo, zo, zi, box[1], box[2]),
-               col_items(static_cast<std::size_t>((xo.hi - xo.lo) * (yo.hi - yo.lo)), xo));
+               col_items(static_cast<std::size_t>(xo.hi - xo.lo),
+                         static_cast<std::size_t>(yo.hi - yo.lo)));
         std::array<cl_int, 7>& yb = track_read_[0];
         std::array<cl_int, 7>& zb = track_read_[1];
         q.enqueueReadBuffer(track_[1], CL_FALSE, 0, sizeof(yb), yb.data());

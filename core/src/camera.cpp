@@ -4,8 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "voxfield/core/error.hpp"
 
@@ -104,6 +107,72 @@ Framing world_framing(Dims dims) {
     return f;
 }
 
+namespace {
+
+// What a side shows: per pixel of the view along an axis, the first solid's material and depth
+// (0 where the ray meets nothing); detail counts neighbouring pixels that differ.
+struct SideView {
+    std::uint32_t width = 0, height = 0;
+    std::vector<std::uint8_t> material;
+    std::vector<std::uint32_t> depth;
+    SideView(std::uint32_t w, std::uint32_t h)
+        : width(w), height(h), material(w * std::size_t{h}), depth(w * std::size_t{h}) {}
+    void hit(std::uint32_t u, std::uint32_t v, std::uint8_t m, std::uint32_t d, bool nearest) {
+        const std::size_t i = std::size_t{v} * width + u;
+        if (material[i] == 0 || (nearest ? d < depth[i] : d > depth[i])) {
+            material[i] = m;
+            depth[i] = d;
+        }
+    }
+    std::size_t detail() const {
+        std::size_t n = 0;
+        auto differ = [&](std::size_t a, std::size_t b) {
+            return material[a] != material[b] || (material[a] != 0 && depth[a] != depth[b]);
+        };
+        for (std::uint32_t v = 0; v < height; ++v) {
+            for (std::uint32_t u = 0; u < width; ++u) {
+                const std::size_t i = std::size_t{v} * width + u;
+                n += (u + 1 < width && differ(i, i + 1)) ? 1 : 0;
+                n += (v + 1 < height && differ(i, i + width)) ? 1 : 0;
+            }
+        }
+        return n;
+    }
+};
+
+Vec3d most_detailed_side(const World& world) {
+    const Dims d = world.dims();
+    // Views along z (from -z and +z: pixels x, y) and along x (from -x and +x: pixels z, y).
+    SideView minus_z(d.x, d.y), plus_z(d.x, d.y), minus_x(d.z, d.y), plus_x(d.z, d.y);
+    const auto& v = world.voxels();
+    std::size_t i = 0;
+    for (std::uint32_t z = 0; z < d.z; ++z) {
+        for (std::uint32_t y = 0; y < d.y; ++y) {
+            for (std::uint32_t x = 0; x < d.x; ++x, ++i) {
+                if (v[i] != 0) {
+                    minus_z.hit(x, y, v[i], z, true);
+                    plus_z.hit(x, y, v[i], z, false);
+                    minus_x.hit(z, y, v[i], x, true);
+                    plus_x.hit(z, y, v[i], x, false);
+                }
+            }
+        }
+    }
+    const std::pair<Vec3d, std::size_t> sides[] = {{{0, 0, -1}, minus_z.detail()},
+                                                   {{-1, 0, 0}, minus_x.detail()},
+                                                   {{1, 0, 0}, plus_x.detail()},
+                                                   {{0, 0, 1}, plus_z.detail()}};
+    std::size_t best = 0;
+    for (std::size_t k = 1; k < 4; ++k) {
+        if (sides[k].second > sides[best].second) {
+            best = k;
+        }
+    }
+    return sides[best].first;
+}
+
+}  // namespace
+
 Framing solid_framing(const World& world) {
     const Dims d = world.dims();
     std::uint32_t lo[3] = {d.x, d.y, d.z}, hi[3] = {0, 0, 0};
@@ -130,11 +199,16 @@ Framing solid_framing(const World& world) {
         f.centre[a] = (lo[a] + hi[a]) / 2.0;
         f.half[a] = (hi[a] - lo[a]) / 2.0;
     }
+    f.front = most_detailed_side(world);
     return f;
 }
 
 Vec3d framing_position(const Framing& f, double fov_deg, double aspect) {
-    const Vec3d from = scale(Vec3d{-0.6, 0.5, -0.75}, 1 / length(Vec3d{-0.6, 0.5, -0.75}));
+    // Front-left and above: for the -z front (-0.6, 0.5, -0.75); left of a front n is
+    // (n.z, 0, -n.x).
+    const Vec3d n = scale(f.front, 1 / length(f.front));
+    const Vec3d side = {0.75 * n[0] + 0.6 * n[2], 0.5, 0.75 * n[2] - 0.6 * n[0]};
+    const Vec3d from = scale(side, 1 / length(side));
     const ViewBasis b = view_basis(scale(from, -1));
     const double tan_v = std::tan(0.5 * fov_deg * kDeg) / 1.05;
     const double tan_h = aspect * tan_v;

@@ -1,4 +1,4 @@
-// Dirty tracking: disjoint pending voxel boxes, the chunks they overlap, chunk generations.
+// Dirty tracking: disjoint pending voxel boxes and the chunks they overlap.
 #include "voxfield/core/dirty.hpp"
 
 #include <algorithm>
@@ -70,7 +70,7 @@ bool box_less(const Box& a, const Box& b) {
 }  // namespace
 
 DirtyTracker::DirtyTracker(const ChunkGrid& grid, double merge_slack)
-    : grid_(grid), merge_slack_(merge_slack), generations_(grid.chunk_count(), 0) {
+    : grid_(grid), merge_slack_(merge_slack) {
     if (!(merge_slack >= 0)) {
         throw std::invalid_argument("DirtyTracker: merge_slack must be >= 0, got " +
                                     std::to_string(merge_slack));
@@ -90,14 +90,6 @@ void DirtyTracker::add(const Box& voxels) {
     const Box box = intersect(voxels, world_box(grid_.world()));
     if (box.empty()) {
         return;
-    }
-    const Box chunks = grid_.chunks_overlapping(box);
-    for (std::int64_t z = chunks.min.z; z < chunks.max.z; ++z) {
-        for (std::int64_t y = chunks.min.y; y < chunks.max.y; ++y) {
-            for (std::int64_t x = chunks.min.x; x < chunks.max.x; ++x) {
-                ++generations_[grid_.chunk_index({x, y, z})];
-            }
-        }
     }
     insert(box);
 }
@@ -180,27 +172,10 @@ std::vector<std::size_t> DirtyTracker::dirty_chunks() const {
     return out;
 }
 
-std::uint64_t DirtyTracker::generation(std::size_t chunk) const {
-    if (chunk >= generations_.size()) {
-        throw std::out_of_range("chunk index " + std::to_string(chunk) +
-                                " is outside the chunk grid (" +
-                                std::to_string(generations_.size()) + " chunks)");
-    }
-    return generations_[chunk];
-}
-
-bool DirtyTracker::is_current(std::size_t chunk, std::uint64_t gen) const {
-    return generation(chunk) == gen;
-}
-
 DirtyTracker::Snapshot DirtyTracker::take() {
     Snapshot s;
     s.regions = regions();
     s.chunks = dirty_chunks();
-    s.generations.reserve(s.chunks.size());
-    for (std::size_t c : s.chunks) {
-        s.generations.push_back(generations_[c]);
-    }
     pending_.clear();
     return s;
 }

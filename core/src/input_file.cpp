@@ -4,11 +4,18 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <string>
+#include <string_view>
 #include <system_error>
 
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/npy.hpp"
+#include "voxfield/core/sdf.hpp"
+#include "voxfield/core/vox.hpp"
+#include "voxfield/core/world_info.hpp"
 
 namespace voxfield::detail {
 
@@ -94,3 +101,107 @@ void InputFd::read_at(std::uint64_t offset, void* dst, std::size_t n) const {
 }
 
 }  // namespace voxfield::detail
+
+namespace voxfield {
+
+namespace {
+
+VoxModel load_vox(const std::filesystem::path& path, const InputOptions&) {
+    return read_vox(path);
+}
+
+VoxModel load_npy(const std::filesystem::path& path, const InputOptions&) {
+    const NpyArray array = read_npy(path);
+    try {
+        return VoxModel{world_from_npy(array), Palette()};
+    } catch (const InputError& e) {
+        throw InputError(path.string() + ": " + e.what());
+    }
+}
+
+WorldInfo describe_vox(const std::filesystem::path& path, const InputOptions&, double bound) {
+    const VoxScene scene = read_vox_scene(path);
+    TileCensus census(scene.dims);
+    scene.place([&](std::uint32_t x, std::uint32_t y, std::uint32_t z, std::uint8_t) {
+        census.add(x, y, z);
+    });
+    WorldInfo info;
+    info.kind = "vox";
+    census.finish(info, bound);
+    info.scene_graph = scene.has_scene_graph;
+    info.models = scene.models.size();
+    info.instances = scene.instances.size();
+    info.hidden_instances = scene.hidden_instances;
+    return info;
+}
+
+VoxModel load_sdf(const std::filesystem::path& path, const InputOptions&) {
+    return VoxModel{sdf::solid_world(sdf::load_part(path), path.string()), Palette()};
+}
+
+WorldInfo describe_sdf(const std::filesystem::path& path, const InputOptions& options,
+                       double bound) {
+    const VoxModel model = load_sdf(path, options);
+    TileCensus census(model.world.dims());
+    census.add_world(model.world);
+    WorldInfo info;
+    info.kind = "sdf";
+    census.finish(info, bound);
+    return info;
+}
+
+WorldInfo describe_npy(const std::filesystem::path& path, const InputOptions& options,
+                       double bound) {
+    const VoxModel model = load_npy(path, options);
+    TileCensus census(model.world.dims());
+    census.add_world(model.world);
+    WorldInfo info;
+    info.kind = "npy";
+    census.finish(info, bound);
+    return info;
+}
+
+// The input formats, by lower-case extension: how to load one and how to describe one.
+struct InputFormat {
+    std::string_view extension;
+    VoxModel (*load)(const std::filesystem::path&, const InputOptions&);
+    WorldInfo (*describe)(const std::filesystem::path&, const InputOptions&, double);
+};
+constexpr InputFormat kInputFormats[] = {
+    {".vox", load_vox, describe_vox},
+    {".npy", load_npy, describe_npy},
+};
+
+const InputFormat& input_format(const std::filesystem::path& path) {
+    // `.sdf.json` is named by two suffixes, so it is matched by name before the table.
+    static constexpr InputFormat sdf_format{".sdf.json", load_sdf, describe_sdf};
+    if (sdf::is_sdf_path(path)) {
+        return sdf_format;
+    }
+    std::string ext = path.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    std::string accepted;
+    for (const InputFormat& f : kInputFormats) {
+        if (ext == f.extension) {
+            return f;
+        }
+        accepted += (accepted.empty() ? "" : ", ") + std::string(f.extension);
+    }
+    throw InputError("'" + path.string() + "': unsupported file type " +
+                     (ext.empty() ? std::string("(no extension)") : "'" + ext + "'") +
+                     " (expected one of " + accepted + ", .sdf.json)");
+}
+
+}  // namespace
+
+VoxModel load_world(const std::filesystem::path& path, const InputOptions& options) {
+    return input_format(path).load(path, options);
+}
+
+WorldInfo describe_input(const std::filesystem::path& path, const InputOptions& options,
+                         double max_distance) {
+    return input_format(path).describe(path, options, max_distance);
+}
+
+}  // namespace voxfield

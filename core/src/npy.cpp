@@ -44,6 +44,8 @@ constexpr TypeInfo kTypes[] = {
     {NpyType::u32, 4, "uint32", "<u4", "u4"},  {NpyType::i8, 1, "int8", "|i1", "i1"},
     {NpyType::i16, 2, "int16", "<i2", "i2"},   {NpyType::i32, 4, "int32", "<i4", "i4"},
     {NpyType::f32, 4, "float32", "<f4", "f4"}, {NpyType::f64, 8, "float64", "<f8", "f8"},
+    {NpyType::b1, 1, "bool", "|b1", "b1"},     {NpyType::u64, 8, "uint64", "<u8", "u8"},
+    {NpyType::i64, 8, "int64", "<i8", "i8"},
 };
 
 const TypeInfo& type_info(NpyType t) {
@@ -326,8 +328,8 @@ NpyReader::NpyReader(const std::filesystem::path& path) : file_(std::make_unique
                           (one_byte && (order == '|' || order == '>'));
     if (found == nullptr || !order_ok) {
         throw InputError(file + ": dtype '" + d +
-                         "' is not supported (expected uint8, uint16 or uint32; int8, int16, "
-                         "int32, float32 or float64 for fields)");
+                         "' is not supported (expected bool or an integer type for worlds; "
+                         "float32 or float64 for fields)");
     }
     type_ = found->type;
     if (fortran->flag) {
@@ -387,11 +389,18 @@ NpyArray read_npy(const std::filesystem::path& path) {
 
 void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
                std::span<const std::uint8_t> data) {
+    OutputBatch batch;
+    write_npy(batch, path, type, dims, data);
+    batch.commit();
+}
+
+void write_npy(OutputBatch& batch, const std::filesystem::path& path, NpyType type, Dims dims,
+               std::span<const std::uint8_t> data) {
     if (dims.x == 0 || dims.y == 0 || dims.z == 0) {
         throw InputError("cannot write '" + path.string() + "': dims " + dims.to_string() +
                          " have an empty axis");
     }
-    write_npy_shape(path, type, {dims.z, dims.y, dims.x}, data);
+    write_npy_shape(batch, path, type, {dims.z, dims.y, dims.x}, data);
 }
 
 void write_npy(const std::filesystem::path& path, NpyType type, Dims dims,
@@ -406,6 +415,13 @@ void write_npy_shape(const std::filesystem::path& path, NpyType type,
 }
 
 void write_npy_shape(const std::filesystem::path& path, NpyType type,
+                     const std::vector<std::uint64_t>& shape, std::span<const std::uint8_t> data) {
+    OutputBatch batch;
+    write_npy_shape(batch, path, type, shape, data);
+    batch.commit();
+}
+
+void write_npy_shape(OutputBatch& batch, const std::filesystem::path& path, NpyType type,
                      const std::vector<std::uint64_t>& shape, std::span<const std::uint8_t> data) {
     const std::string file = path.string();
     std::uint64_t count = 1;
@@ -437,40 +453,90 @@ void write_npy_shape(const std::filesystem::path& path, NpyType type,
     bytes.push_back(static_cast<std::uint8_t>(header.size() >> 8));
     bytes.insert(bytes.end(), header.begin(), header.end());
 
-    detail::write_file_atomic(path, {bytes, data});
+    batch.write(path, {bytes, data});
 }
 
-World world_from_npy(const NpyArray& array) {
-    if (array.type != NpyType::u8 && array.type != NpyType::u16 && array.type != NpyType::u32) {
-        throw InputError(std::string("a world is an unsigned integer array (uint8, uint16 or "
-                                     "uint32 palette indices), not dtype ") +
-                         type_name(array.type));
+namespace {
+
+// Element i of little-endian integer data of `type`, widened (bool: 0 or 1).
+std::int64_t label_at(NpyType type, const std::uint8_t* p, std::size_t i) {
+    switch (type) {
+        case NpyType::u8:
+        case NpyType::b1:
+            return p[i];
+        case NpyType::i8:
+            return static_cast<std::int8_t>(p[i]);
+        default:
+            break;
     }
-    const std::size_t es = elem_size(array.type);
-    World world(array.dims);
+    const std::size_t es = elem_size(type);
+    std::uint64_t v = 0;
+    std::memcpy(&v, p + i * es, es);
+    switch (type) {
+        case NpyType::i16:
+            return static_cast<std::int16_t>(v);
+        case NpyType::i32:
+            return static_cast<std::int32_t>(v);
+        case NpyType::u64:
+            // Above INT64_MAX only "nonzero" and "above 255" matter: saturate.
+            return v > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())
+                       ? std::numeric_limits<std::int64_t>::max()
+                       : static_cast<std::int64_t>(v);
+        default:
+            return static_cast<std::int64_t>(v);  // u16, u32, i64
+    }
+}
+
+}  // namespace
+
+const char* npy_type_name(NpyType type) {
+    return type_name(type);
+}
+
+std::size_t npy_element_size(NpyType type) {
+    return elem_size(type);
+}
+
+World world_from_labels(NpyType type, Dims dims, std::span<const std::uint8_t> data,
+                        Labels labels) {
+    if (type == NpyType::f32 || type == NpyType::f64) {
+        throw InputError(std::string("a world is a bool or integer array (a label volume: 0 = "
+                                     "empty, nonzero = solid), not dtype ") +
+                         type_name(type));
+    }
+    const std::size_t es = elem_size(type);
+    World world(dims);
     const std::size_t n = world.size();
-    if (array.data.size() != n * es) {
-        throw InputError("npy array of dims " + array.dims.to_string() + " has " +
-                         std::to_string(array.data.size()) + " data bytes, expected " +
+    if (data.size() != n * es) {
+        throw InputError("npy array of dims " + dims.to_string() + " has " +
+                         std::to_string(data.size()) + " data bytes, expected " +
                          std::to_string(n * es));
     }
     auto& vox = world.voxels();
-    const std::uint8_t* p = array.data.data();
+    const std::uint8_t* p = data.data();
+    if (type == NpyType::u8) {
+        std::memcpy(vox.data(), p, n);
+        return world;
+    }
     for (std::size_t i = 0; i < n; ++i) {
-        std::uint32_t v = 0;
-        for (std::size_t b = 0; b < es; ++b) {
-            v |= static_cast<std::uint32_t>(p[i * es + b]) << (8 * b);
-        }
-        if (v > 255) {
-            const Dims& d = array.dims;
-            const std::size_t x = i % d.x, y = (i / d.x) % d.y, z = i / (std::size_t{d.x} * d.y);
+        const std::int64_t v = label_at(type, p, i);
+        if (v >= 0 && v <= 255) {
+            vox[i] = static_cast<std::uint8_t>(v);
+        } else if (labels == Labels::solid) {
+            vox[i] = 1;
+        } else {
+            const std::size_t x = i % dims.x, y = (i / dims.x) % dims.y,
+                              z = i / (std::size_t{dims.x} * dims.y);
             throw InputError("value " + std::to_string(v) + " at voxel (x=" + std::to_string(x) +
                              ", y=" + std::to_string(y) + ", z=" + std::to_string(z) +
                              ") is not a palette index (expected 0..255)");
         }
-        vox[i] = static_cast<std::uint8_t>(v);
     }
     return world;
+}
+
+World world_from_npy(const NpyArray& array, Labels labels) {
+    return world_from_labels(array.type, array.dims, array.data, labels);
 }
 
 NpyArray npy_from_world(const World& world) {

@@ -1,18 +1,19 @@
-// Atomic output files: temporary file + rename.
+// The output writer (see voxfield/core/output.hpp).
 #include "output_file.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
-#include <atomic>
 #include <cerrno>
-#include <filesystem>
+#include <cstdio>
+#include <random>
 #include <string>
 #include <system_error>
 
 #include "voxfield/core/error.hpp"
 
-namespace voxfield::detail {
+namespace voxfield {
 
 namespace {
 
@@ -22,77 +23,269 @@ std::string errno_text(int e) {
     return std::generic_category().message(e);
 }
 
-}  // namespace
+// A failure on `file`: the user's (exit 2) for what a different path or permission mends,
+// a runtime failure (exit 1) for the rest (no space, I/O error, a reader gone).
+[[noreturn]] void fail(const std::string& file, const std::string& what, int e) {
+    const std::string message = "cannot write '" + file + "': " + what + " (" + errno_text(e) + ")";
+    switch (e) {
+        case EACCES:
+        case EPERM:
+        case EROFS:
+        case ENOENT:
+        case ENOTDIR:
+        case EISDIR:
+        case ENAMETOOLONG:
+        case ELOOP:
+        case ENXIO:
+            throw InputError(message);
+        default:
+            throw OutputError(message);
+    }
+}
 
-void write_file_atomic(const std::filesystem::path& path,
-                       std::initializer_list<std::span<const std::uint8_t>> parts) {
+// A file to create or replace through a temporary, or a device or FIFO written directly.
+enum class Target { file, direct };
+
+// What writing `path` means (see output.hpp); InputError for a refused target. `resolved` is
+// the file to create or replace (the target of a symbolic link).
+Target classify(const fs::path& path, std::string& resolved) {
     const std::string file = path.string();
-    fs::path dir = path.parent_path();
+    if (file.empty()) {
+        throw InputError("cannot write '': an output needs a file name");
+    }
+    resolved = file;
+    struct stat st {};
+    if (::stat(file.c_str(), &st) == 0) {
+        if (S_ISDIR(st.st_mode)) {
+            throw InputError("cannot write '" + file + "': it is a directory");
+        }
+        if (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode)) {
+            return Target::direct;
+        }
+        if (S_ISSOCK(st.st_mode)) {
+            throw InputError("cannot write '" + file + "': it is a socket; give a file name");
+        }
+        if (S_ISBLK(st.st_mode)) {
+            throw InputError("cannot write '" + file +
+                             "': it is a block device (a disk); give a file name");
+        }
+        if (!S_ISREG(st.st_mode)) {
+            throw InputError("cannot write '" + file + "': it is not a regular file");
+        }
+        std::error_code ec;
+        const fs::path real = fs::canonical(path, ec);
+        if (!ec) {
+            resolved = real.string();
+        }
+        if (::access(resolved.c_str(), W_OK) != 0) {
+            fail(file, "the existing file is not writable", errno);
+        }
+    } else if (errno != ENOENT) {
+        fail(file, "cannot examine the path", errno);
+    }
+    fs::path dir = fs::path(resolved).parent_path();
     if (dir.empty()) {
         dir = ".";
     }
-    std::error_code ec;
-    if (!fs::is_directory(dir, ec)) {
-        throw InputError("cannot write '" + file + "': folder '" + dir.string() +
-                         "' does not exist");
-    }
-    if (fs::is_directory(path, ec)) {
-        throw InputError("cannot write '" + file + "': it is a directory");
-    }
-
-    // Temporary file in the same folder, then rename: readers never see a partial file.
-    // O_EXCL with a unique name; mode 0666 minus the umask, like any new file.
-    static std::atomic<std::uint64_t> counter{0};
-    int fd = -1;
-    std::string tmp;
-    for (int attempt = 0; fd < 0; ++attempt) {
-        // Built by append: GCC 12 gives a false -Wrestrict on "." + std::string.
-        std::string leaf(".");
-        leaf.append(path.filename().string());
-        leaf.append(".tmp-");
-        leaf.append(std::to_string(::getpid()));
-        leaf.append("-");
-        leaf.append(std::to_string(counter.fetch_add(1)));
-        tmp = (dir / leaf).string();
-        fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-        if (fd < 0 && (errno != EEXIST || attempt > 100)) {
-            throw InputError("cannot write '" + file + "': cannot create a temporary file in '" +
-                             dir.string() + "' (" + errno_text(errno) + ")");
+    struct stat ds {};
+    if (::stat(dir.c_str(), &ds) != 0) {
+        if (errno == ENOENT) {
+            throw InputError("cannot write '" + file + "': folder '" + dir.string() +
+                             "' does not exist");
         }
+        fail(file, "cannot examine folder '" + dir.string() + "'", errno);
     }
-    auto fail = [&](const std::string& what, int e) {
-        ::close(fd);
-        ::unlink(tmp.c_str());
-        throw InputError("cannot write '" + file + "': " + what + " (" + errno_text(e) + ")");
-    };
-    auto write_all = [&](const std::uint8_t* p, std::size_t n) {
+    if (!S_ISDIR(ds.st_mode)) {
+        throw InputError("cannot write '" + file + "': '" + dir.string() + "' is not a folder");
+    }
+    if (::access(dir.c_str(), W_OK | X_OK) != 0) {
+        fail(file, "folder '" + dir.string() + "' is not writable", errno);
+    }
+    return Target::file;
+}
+
+void write_all(int fd, const std::string& file,
+               std::initializer_list<std::span<const std::uint8_t>> parts) {
+    for (const auto& part : parts) {
+        const std::uint8_t* p = part.data();
+        std::size_t n = part.size();
         while (n > 0) {
             const ssize_t w = ::write(fd, p, n);
-            if (w < 0) {
-                if (errno == EINTR) {
-                    continue;
-                }
-                fail("write failed", errno);
+            if (w < 0 && errno == EINTR) {
+                continue;
+            }
+            if (w <= 0) {
+                const int e = w < 0 ? errno : EIO;
+                ::close(fd);
+                fail(file, "write failed", e);
             }
             p += w;
             n -= static_cast<std::size_t>(w);
         }
-    };
-    for (const auto& part : parts) {
-        write_all(part.data(), part.size());
-    }
-    // Not forced to disk (no fsync, as numpy.save and cp do not): the rename makes the file
-    // whole or absent for readers; its data reach the disk with the page cache's writeback.
-    if (::close(fd) != 0) {
-        const int e = errno;
-        ::unlink(tmp.c_str());
-        throw InputError("cannot write '" + file + "': close failed (" + errno_text(e) + ")");
-    }
-    if (::rename(tmp.c_str(), file.c_str()) != 0) {
-        const int e = errno;
-        ::unlink(tmp.c_str());
-        throw InputError("cannot write '" + file + "': rename failed (" + errno_text(e) + ")");
     }
 }
 
-}  // namespace voxfield::detail
+// A unique temporary beside `target` (O_EXCL, random name, mode 0666 minus the umask like
+// any new file); its name in `tmp`.
+int create_temporary(const std::string& file, const std::string& target, std::string& tmp) {
+    static thread_local std::mt19937_64 random{std::random_device{}()};
+    const fs::path t(target);
+    fs::path dir = t.parent_path();
+    for (int attempt = 0;; ++attempt) {
+        char suffix[20];
+        std::snprintf(suffix, sizeof suffix, "%016llx", static_cast<unsigned long long>(random()));
+        // Built by append: GCC 12 gives a false -Wrestrict on "." + std::string.
+        std::string leaf(".");
+        leaf.append(t.filename().string());
+        leaf.append(".tmp-");
+        leaf.append(suffix);
+        tmp = (dir / leaf).string();
+        const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+        if (fd >= 0) {
+            return fd;
+        }
+        if (errno != EEXIST || attempt > 100) {
+            fail(file,
+                 "cannot create a temporary file in '" + (dir.empty() ? "." : dir.string()) + "'",
+                 errno);
+        }
+    }
+}
+
+}  // namespace
+
+void check_output_path(const fs::path& path) {
+    std::string resolved;
+    classify(path, resolved);
+}
+
+void check_outputs(const std::vector<NamedPath>& outputs, const std::vector<NamedPath>& inputs) {
+    struct Key {
+        bool exists = false, device = false;
+        dev_t dev = 0;
+        ino_t ino = 0;
+        fs::path path;
+    };
+    auto key_of = [](const fs::path& p) {
+        Key k;
+        struct stat st {};
+        if (::stat(p.c_str(), &st) == 0) {
+            k.exists = true;
+            k.device = S_ISCHR(st.st_mode);
+            k.dev = st.st_dev;
+            k.ino = st.st_ino;
+        }
+        std::error_code ec;
+        k.path = fs::weakly_canonical(p, ec);
+        if (ec) {
+            k.path = fs::absolute(p, ec).lexically_normal();
+        }
+        return k;
+    };
+    auto same = [](const Key& a, const Key& b) {
+        if (a.exists || b.exists) {
+            return a.exists && b.exists && a.dev == b.dev && a.ino == b.ino;
+        }
+        return a.path == b.path;
+    };
+    std::vector<std::pair<const NamedPath*, Key>> seen;
+    for (const NamedPath& out : outputs) {
+        if (out.path.empty()) {
+            continue;
+        }
+        check_output_path(out.path);
+        const Key k = key_of(out.path);
+        for (const NamedPath& in : inputs) {
+            if (!in.path.empty() && same(k, key_of(in.path))) {
+                throw InputError(out.option + " '" + out.path.string() + "' is the input " +
+                                 (in.option.empty() ? "" : in.option + " ") + "'" +
+                                 in.path.string() + "': give the output another name");
+            }
+        }
+        for (const auto& [other, ok] : seen) {
+            if (!k.device && same(k, ok)) {
+                throw InputError(other->option + " and " + out.option + " name the same file '" +
+                                 out.path.string() + "': give each output its own file");
+            }
+        }
+        seen.emplace_back(&out, k);
+    }
+}
+
+OutputBatch::~OutputBatch() {
+    for (const auto& [tmp, target] : pending_) {
+        ::unlink(tmp.c_str());
+    }
+}
+
+void OutputBatch::write(const fs::path& path,
+                        std::initializer_list<std::span<const std::uint8_t>> parts) {
+    const std::string file = path.string();
+    std::string target;
+    if (classify(path, target) == Target::direct) {
+        const int fd = ::open(file.c_str(), O_WRONLY | O_CLOEXEC);
+        if (fd < 0) {
+            fail(file, "cannot open", errno);
+        }
+        write_all(fd, file, parts);
+        if (::close(fd) != 0) {
+            fail(file, "close failed", errno);
+        }
+        return;
+    }
+    std::string tmp;
+    const int fd = create_temporary(file, target, tmp);
+    pending_.emplace_back(tmp, target);
+    write_all(fd, file, parts);
+    // Not forced to disk (no fsync, as numpy.save and cp do not): the rename makes the file
+    // whole or absent for readers; its data reach the disk with the page cache's writeback.
+    if (::close(fd) != 0) {
+        fail(file, "close failed", errno);
+    }
+}
+
+void OutputBatch::write(const fs::path& path, const std::string& text) {
+    write(path, {std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(text.data()),
+                                               text.size())});
+}
+
+void OutputBatch::commit() {
+    while (!pending_.empty()) {
+        const auto [tmp, target] = pending_.front();
+        // Renamed only onto a regular file or a new path: something else put there since the
+        // write is left alone.
+        struct stat st {};
+        if (::lstat(target.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+            throw InputError("cannot write '" + target +
+                             "': it is no longer a regular file or a new path");
+        }
+        if (::rename(tmp.c_str(), target.c_str()) != 0) {
+            fail(target, "rename failed", errno);
+        }
+        pending_.erase(pending_.begin());
+    }
+}
+
+void write_output_file(const fs::path& path,
+                       std::initializer_list<std::span<const std::uint8_t>> parts) {
+    OutputBatch batch;
+    batch.write(path, parts);
+    batch.commit();
+}
+
+void write_output_file(const fs::path& path, const std::string& text) {
+    OutputBatch batch;
+    batch.write(path, text);
+    batch.commit();
+}
+
+namespace detail {
+
+void write_file_atomic(const fs::path& path,
+                       std::initializer_list<std::span<const std::uint8_t>> parts) {
+    write_output_file(path, parts);
+}
+
+}  // namespace detail
+
+}  // namespace voxfield

@@ -1,15 +1,18 @@
 #pragma once
-// Writing an output file atomically (internal to core/): a temporary file in the same folder,
-// renamed on success, so that readers never see a partial file.
+// The output writer's entry point for core's own writers (npy.cpp, vox.cpp); the rules are in
+// voxfield/core/output.hpp.
 #include <cstdint>
 #include <filesystem>
 #include <initializer_list>
 #include <span>
 
+#include "voxfield/core/output.hpp"
+
 namespace voxfield::detail {
 
-// Writes the concatenation of `parts` to `path`. Throws InputError naming the file when its
-// folder does not exist, it is a directory, or any write fails (the temporary is removed).
+// write_output_file: a temporary beside a regular or new target renamed onto it, a character
+// device or FIFO written directly; InputError for a refused target, OutputError on a failed
+// write (the temporary removed).
 void write_file_atomic(const std::filesystem::path& path,
                        std::initializer_list<std::span<const std::uint8_t>> parts);
 

@@ -46,8 +46,13 @@ std::vector<double> partial_field(Dims dims, const std::vector<char>& target, Me
             if ((start / stride) % n != 0) {
                 continue;
             }
+            bool any = false;
             for (std::size_t i = 0; i < n; ++i) {
                 line[i] = g[start + i * stride];
+                any = any || line[i] != kInf;
+            }
+            if (!any) {
+                continue;  // no target on the line: it stays infinite
             }
             // Every candidate at offset k costs at least the offset's own part, so the
             // search outwards from i stops once that reaches the best found.

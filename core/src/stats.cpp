@@ -33,7 +33,9 @@ Summary summarize(std::span<const double> samples) {
         s.std = std::sqrt(ss / (n - 1.0));
     }
     const double half = 1.96 * s.std / std::sqrt(n);
-    s.ci95_lo = s.mean - half;
+    // Non-negative samples (durations, counts) have a non-negative mean: the interval is
+    // clipped at zero rather than reaching below what the quantity can be.
+    s.ci95_lo = s.min >= 0 ? std::max(0.0, s.mean - half) : s.mean - half;
     s.ci95_hi = s.mean + half;
     return s;
 }

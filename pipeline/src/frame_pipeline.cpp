@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstring>
+#include <stdexcept>
 #include <utility>
 
 #include "voxfield/core/error.hpp"
@@ -36,15 +37,33 @@ FramePipeline::~FramePipeline() {
     marcher_.reset();
 }  // before the memory it reads
 
-double FramePipeline::show(ocl::IncrementalField& field, const ocl::GeneratorOptions& options) {
+double FramePipeline::show(Scene& scene, const ocl::GeneratorOptions& options) {
+    if (failing_shows_ > 0) {
+        --failing_shows_;
+        throw ocl::ClError("clEnqueueNDRangeKernel", CL_OUT_OF_RESOURCES,
+                           "a failure injected by FramePipeline::fail_next_shows_for_testing");
+    }
     if (!render_field_) {
         // packed32: the field as generate writes it, plus the world's materials (path 3).
-        marcher_->upload(field.world(), palette_, as_words(field.read()));
+        marcher_->upload(scene.world(), palette_, as_words(scene.read_field()));
         marcher_->set_metric(options.metric);
         return 0;
     }
-    return render_field_->attach(*marcher_, field.field_buffer(), options.format, options.metric,
-                                 field.voxels_buffer(), palette_, options.spacing.largest());
+    return render_field_->attach(*marcher_, scene.field_buffer(), options.format, options.metric,
+                                 scene.voxels_buffer(), palette_, options.spacing.largest());
+}
+
+Scene& FramePipeline::current() {
+    if (!scene_) {
+        throw std::logic_error("FramePipeline: no field yet (rebuild() has not succeeded)");
+    }
+    if (!shown_) {
+        // A failed rebuild could not show the previous field again: shown now, or the update
+        // stops here.
+        show(*scene_, options_);
+        shown_ = true;
+    }
+    return *scene_;
 }
 
 double FramePipeline::rebuild(World world, const ocl::GeneratorOptions& options) {
@@ -58,20 +77,27 @@ double FramePipeline::rebuild(World world, const ocl::GeneratorOptions& options)
         next.format = Format::packed32;
     }
     next = ocl::resolve_options(next, world.dims());
-    // The new field is complete before the old one goes: never a pipeline without one.
-    auto field = std::make_unique<ocl::IncrementalField>(cl_, std::move(world), palette_, next);
+    // The new scene is complete before the old one goes: never a pipeline without one.
+    auto scene = std::make_unique<Scene>(cl_, std::move(world), palette_, next);
     if (render_field_) {
         render_field_->detach();
+        shown_ = false;
     }
     try {
-        show(*field, next);
+        show(*scene, next);
     } catch (...) {
-        if (field_) {
-            show(*field_, options_);
+        if (scene_) {
+            try {
+                show(*scene_, options_);
+                shown_ = true;
+            } catch (const std::exception&) {
+                // The first error is the one reported; the next update shows it again.
+            }
         }
         throw;
     }
-    field_ = std::move(field);
+    scene_ = std::move(scene);
+    shown_ = true;
     options_ = next;
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
 }
@@ -80,22 +106,31 @@ double FramePipeline::switch_field(const ocl::GeneratorOptions& options) {
     return rebuild(World(world()), options);
 }
 
-UpdateTimings FramePipeline::apply(const std::vector<Brush>& batch,
-                                   std::vector<EditResult>* edits) {
-    return finish(field_->apply(batch), edits);
+UpdateTimings FramePipeline::apply(const std::vector<Brush>& batch, std::vector<EditResult>* edits,
+                                   bool undoable) {
+    return finish(current().apply(batch, undoable), edits);
 }
 
 UpdateTimings FramePipeline::apply_changes(const VoxelChanges& changes) {
-    return finish(field_->apply_changes(changes), nullptr);
+    return finish(current().apply_changes(changes), nullptr);
+}
+
+UpdateTimings FramePipeline::undo() {
+    return finish(current().undo(), nullptr);
+}
+
+UpdateTimings FramePipeline::redo() {
+    return finish(current().redo(), nullptr);
+}
+
+UpdateTimings FramePipeline::step_sand(const SandRules& rules, std::uint64_t seed,
+                                       std::uint64_t step) {
+    return finish(current().step_sand(rules, seed, step), nullptr);
 }
 
 UpdateTimings FramePipeline::set_focus(const std::optional<Focus>& focus) {
-    const ocl::UpdateStats s = field_->set_focus(focus);
+    UpdateTimings u = finish(current().set_focus(focus), nullptr);
     options_.focus = focus;
-    UpdateTimings u;
-    u.field_ms = s.update_ms;
-    u.voxels_recomputed = s.voxels_recomputed;
-    u.convert_ms = publish(s.regions);
     return u;
 }
 
@@ -108,11 +143,18 @@ double FramePipeline::render_to(const vk::RenderOptions& options, const vk::Exte
 }
 
 const World& FramePipeline::world() const {
-    return field_->world();
+    if (!scene_) {
+        throw std::logic_error("FramePipeline: no world yet (rebuild() has not succeeded)");
+    }
+    return scene_->world();
+}
+
+Scene& FramePipeline::scene() {
+    return current();
 }
 
 std::vector<std::uint8_t> FramePipeline::read_field() {
-    return field_->read();
+    return current().read_field();
 }
 
 vk::SharingPath FramePipeline::sharing() const {
@@ -123,20 +165,16 @@ std::string FramePipeline::why_not() const {
     return render_field_ ? render_field_->why_not() : "packed32 is always copied (path 3)";
 }
 
-UpdateTimings FramePipeline::finish(ocl::UpdateStats s, std::vector<EditResult>* edits) {
-    std::vector<Box> regions = s.regions;
-    for (const EditResult& e : s.edits) {
-        if (e.changed()) {
-            regions.push_back(e.bounds);  // recoloured voxels keep their distance
-        }
-    }
+UpdateTimings FramePipeline::finish(SceneUpdate s, std::vector<EditResult>* edits) {
     UpdateTimings u;
-    u.field_ms = s.update_ms;
-    u.voxels_recomputed = s.voxels_recomputed;
-    u.full_regeneration = s.full_regeneration;
-    u.convert_ms = publish(std::move(regions));
+    u.field_ms = s.stats.update_ms;
+    u.voxels_recomputed = s.stats.voxels_recomputed;
+    u.full_regeneration = s.stats.full_regeneration;
+    u.simulate_ms = s.simulate_ms;
+    u.voxels_changed = s.voxels_changed;
+    u.convert_ms = publish(std::move(s.changed));
     if (edits != nullptr) {
-        *edits = std::move(s.edits);
+        *edits = std::move(s.stats.edits);
     }
     return u;
 }
@@ -146,7 +184,7 @@ double FramePipeline::publish(std::vector<Box> regions) {
         return 0;
     }
     if (!render_field_) {
-        show(*field_, options_);
+        show(*scene_, options_);
         return 0;
     }
     if (regions.size() > kMaxRegionsPerLaunch) {

@@ -11,6 +11,7 @@
 
 #include "cl_test_util.hpp"
 #include "voxfield/cl/incremental.hpp"
+#include "voxfield/core/format.hpp"
 #include "voxfield/core/reference.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/undo.hpp"
@@ -358,8 +359,21 @@ TEST(Incremental, BatchesSpanningTheWorldRegenerateAndStayExact) {
             scattered.push_back({v, was, static_cast<std::uint8_t>(was != 0 ? 0 : 1 + rng() % 9)});
         }
         const std::string what = to_string(metric) + (bound ? " bounded" : "");
+        // Against the CPU reference (a regeneration by the same kernels would share their
+        // mistakes): L1 capped at floor(D), or the exact L2 distance.
         auto expect_fresh = [&](const std::string& when) {
-            const auto want = ocl::generate(pocl(), field.world(), Palette(), o).bytes;
+            const World& w = field.world();
+            std::vector<std::uint8_t> want;
+            if (metric == Metric::manhattan) {
+                std::vector<std::uint32_t> d = reference_manhattan(w);
+                for (std::uint32_t& v : d) {
+                    v = bound ? std::min<std::uint32_t>(v, static_cast<std::uint32_t>(*bound)) : v;
+                }
+                want = encode_field(d, w, Palette(), o.format);
+            } else {
+                want = encode_real_field(reference_distance(w, metric, Spacing{}), w, Palette(),
+                                         o.format);
+            }
             const std::string diff =
                 test::first_difference(field.read(), want, o.format, start.dims());
             EXPECT_TRUE(diff.empty()) << what << " " << when << ": " << diff;
@@ -466,6 +480,66 @@ TEST(Incremental, WritesNothingOutsideItsRegions) {
         checked += stats.regions.empty() ? 0 : 1;
     }
     EXPECT_GE(checked, 10);
+}
+
+TEST(Incremental, FarApartEditsOfOneBatchStayLocalInTheSeparableEngine) {
+    // Two small strokes at opposite corners of the world in one batch: each is updated by
+    // itself, not their hull (the whole world) and not a full regeneration.
+    for (const Metric metric : {Metric::euclidean, Metric::chebyshev}) {
+        ocl::GeneratorOptions o;
+        o.metric = metric;
+        o.format = metric == Metric::euclidean ? Format::f32 : Format::u16;
+        o.layout = ocl::Layout::gpu;  // chebyshev takes the separable engine in this layout
+        const World start = scene_floor_spheres(Dims{48, 40, 44}, 3, 4);
+        ocl::IncrementalField field(pocl(), start, Palette(), o);
+        const std::vector<Brush> batch = {{BrushOp::place, BrushShape::sphere, {4, 30, 4}, 2, 3},
+                                          {BrushOp::place, BrushShape::cube, {43, 34, 39}, 2, 5},
+                                          {BrushOp::erase, BrushShape::sphere, {5, 31, 5}, 1, 0}};
+        const ocl::UpdateStats u = field.apply(batch);
+        // Their hull spans more than an eighth of the world: merged, they were regenerated.
+        EXPECT_FALSE(u.full_regeneration) << to_string(metric);
+        EXPECT_EQ(u.regions.size(), 3u) << to_string(metric);  // one update per run of edits
+        World want = start;
+        for (const Brush& b : batch) {
+            apply_brush(want, b);
+        }
+        ASSERT_EQ(field.world().voxels(), want.voxels());
+        const auto ref = encode_real_field(reference_distance(want, metric, Spacing{}), want,
+                                           Palette(), o.format);
+        EXPECT_EQ(test::first_difference(field.read(), ref, o.format, want.dims()), "")
+            << to_string(metric);
+    }
+}
+
+TEST(Incremental, ChunkLocalRecomputesExactlyTheChunksHoldingAChange) {
+    // A sphere of radius 3 at (5, 5, 5) in chunks of 8: its box [2, 9)^3 overlaps 8 chunks, its
+    // voxels lie in 4 ((8, 5, 5), (5, 8, 5) and (5, 5, 8) cross into the next chunk along one
+    // axis each; no voxel reaches two). Then two cubes whose boxes a 25% slack would merge
+    // into a hull over a chunk neither touches.
+    ocl::GeneratorOptions o;
+    o.algorithm = ocl::Algorithm::fim;
+    o.format = Format::u16;
+    o.chunk = 8;
+    const World start(Dims{24, 24, 24});
+    o = ocl::resolve_options(o, start.dims());
+    ocl::IncrementalField field(pocl(), start, Palette(), o);
+    auto chunks_of = [](const ocl::UpdateStats& u) {
+        std::vector<Int3> c;
+        for (const Box& b : u.regions) {
+            c.push_back({b.min.x / 8, b.min.y / 8, b.min.z / 8});
+        }
+        return c;
+    };
+    const ocl::UpdateStats sphere =
+        field.apply({{BrushOp::place, BrushShape::sphere, {5, 5, 5}, 3, 2}});
+    EXPECT_EQ(chunks_of(sphere), (std::vector<Int3>{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}}));
+    EXPECT_EQ(sphere.voxels_recomputed, 4u * 512u);
+    const ocl::UpdateStats cubes =
+        field.apply({{BrushOp::place, BrushShape::cube, {5, 6, 5 + 8}, 2, 3},
+                     {BrushOp::place, BrushShape::cube, {10, 5, 5 + 8}, 2, 4}});
+    EXPECT_EQ(chunks_of(cubes), (std::vector<Int3>{{0, 0, 1}, {1, 0, 1}, {0, 1, 1}}));
+    const auto want = ocl::generate(pocl(), field.world(), Palette(), o).bytes;
+    EXPECT_EQ(test::first_difference(field.read(), want, o.format, start.dims()), "");
 }
 
 TEST(Incremental, ChunkLocalWritesOnlyDirtyChunks) {

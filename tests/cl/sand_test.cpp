@@ -1,8 +1,11 @@
-// Falling sand on PoCL (cl/sand.hpp): both kernel layouts bit for bit equal to the CPU
-// reference (core/sand.hpp), world and change list, step after step; and the distance field
-// kept by IncrementalField::apply_changes equal to a full regeneration after every step.
+// Falling sand on PoCL (cl/sand.hpp): both kernel layouts, stepping in place, bit for bit equal
+// to the CPU reference (core/sand.hpp), world, change list and change boxes, step after step;
+// and the distance field kept by IncrementalField::apply_device_changes (the changes never
+// leave the device) equal to a full regeneration after every step.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cstdint>
 #include <random>
 #include <string>
@@ -39,20 +42,54 @@ const char* name_of(ocl::Layout layout) {
     return layout == ocl::Layout::cpu ? "cpu layout" : "gpu layout";
 }
 
+// The world on the PoCL device, for a simulator of its own.
+cl::Buffer upload(const World& w) {
+    cl::Buffer b(pocl().context(), CL_MEM_READ_WRITE, w.size());
+    pocl().queue().enqueueWriteBuffer(b, CL_TRUE, 0, w.size(), w.voxels().data());
+    return b;
+}
+
+std::vector<std::uint8_t> download(const cl::Buffer& b, std::size_t n) {
+    std::vector<std::uint8_t> v(n);
+    pocl().queue().enqueueReadBuffer(b, CL_TRUE, 0, n, v.data());
+    return v;
+}
+
+// The boxes of `changes` (all; occupancy only).
+std::array<Box, 2> boxes_of(const VoxelChanges& changes, Dims d) {
+    std::array<Box, 2> boxes;
+    for (const VoxelChange& c : changes) {
+        const auto x = static_cast<std::int64_t>(c.index % d.x);
+        const auto y = static_cast<std::int64_t>(c.index / d.x % d.y);
+        const auto z = static_cast<std::int64_t>(c.index / d.x / d.y);
+        const Box voxel{{x, y, z}, {x + 1, y + 1, z + 1}};
+        boxes[0] = hull(boxes[0], voxel);
+        if ((c.before == 0) != (c.after == 0)) {
+            boxes[1] = hull(boxes[1], voxel);
+        }
+    }
+    return boxes;
+}
+
 // Runs `steps` steps on the device and on the CPU and compares both after each.
 void expect_reference(World world, const SandRules& rules, std::uint64_t seed, std::uint64_t steps,
                       ocl::Layout layout) {
-    ocl::SandSimulator sim(pocl(), world, rules, layout);
+    const cl::Buffer voxels = upload(world);
+    ocl::SandSimulator sim(pocl(), voxels, world.dims(), rules, layout, world.size());
     EXPECT_EQ(sim.variant(), name_of(layout));
     std::size_t moved = 0;
     for (std::uint64_t step = 0; step < steps; ++step) {
         const VoxelChanges want = sand_step(world, rules, seed, step);
         const ocl::SandStepResult got = sim.step(seed, step);
-        ASSERT_EQ(got.changes, want)
-            << world.dims().to_string() << ", " << name_of(layout) << ", step " << step;
-        ASSERT_EQ(sim.read_world(), world.voxels())
-            << world.dims().to_string() << ", " << name_of(layout) << ", step " << step;
-        EXPECT_GE(got.simulate_ms, 0.0);
+        const std::string where =
+            world.dims().to_string() + ", " + name_of(layout) + ", step " + std::to_string(step);
+        ASSERT_EQ(got.changes.count, want.size()) << where;
+        ASSERT_FALSE(got.changes.overflow()) << where;
+        ASSERT_EQ(sim.read_changes(), want) << where;
+        const std::array<Box, 2> boxes = boxes_of(want, world.dims());
+        EXPECT_EQ(got.changes.bounds, boxes[0]) << where;
+        EXPECT_EQ(got.changes.occupancy_bounds, boxes[1]) << where;
+        ASSERT_EQ(download(voxels, world.size()), world.voxels()) << where;
         moved += want.size();
     }
     EXPECT_GT(moved, 0u) << world.dims().to_string();
@@ -62,7 +99,7 @@ TEST(SandCl, BothLayoutsMatchTheReferenceOnRandomWorlds) {
     const std::vector<std::pair<Dims, SandRules>> cases = {
         {Dims{23, 17, 19}, SandRules{}},   {Dims{16, 16, 16}, SandRules{}},
         {Dims{1, 9, 2}, SandRules{}},      {Dims{40, 8, 3}, SandRules{9, 8}},
-        {Dims{7, 30, 5}, SandRules{3, 2}},
+        {Dims{7, 30, 5}, SandRules{3, 2}}, {Dims{37, 21, 2}, SandRules{}},
     };
     std::uint64_t seed = 1;
     for (const auto& [dims, rules] : cases) {
@@ -81,9 +118,9 @@ TEST(SandCl, BothLayoutsMatchTheReferenceOnTheBasinScene) {
     }
 }
 
-TEST(SandCl, AStepThatChangesEveryVoxelGrowsTheChangeList) {
+TEST(SandCl, AStepThatOverflowsTheListStillStepsTheWholeWorld) {
     // Sand on every odd y, air on every even y: in step 0 (block offset 0) every grain falls,
-    // so all 32^3 voxels change, past the first list's room (1/8 of the voxels).
+    // so all 32^3 voxels change, past the list's default room (1/8 of the voxels).
     const Dims d{32, 32, 32};
     World w(d);
     for (std::uint32_t z = 0; z < d.z; ++z) {
@@ -95,14 +132,22 @@ TEST(SandCl, AStepThatChangesEveryVoxelGrowsTheChangeList) {
     }
     for (const ocl::Layout layout : {ocl::Layout::cpu, ocl::Layout::gpu}) {
         World ref = w;
-        ocl::SandSimulator sim(pocl(), w, SandRules{}, layout);
+        const cl::Buffer voxels = upload(w);
+        ocl::SandSimulator sim(pocl(), voxels, d, SandRules{}, layout);
         for (std::uint64_t step = 0; step < 6; ++step) {
             const VoxelChanges want = sand_step(ref, SandRules{}, 3, step);
+            const ocl::SandStepResult got = sim.step(3, step);
+            ASSERT_EQ(got.changes.count, want.size()) << name_of(layout) << ", step " << step;
             if (step == 0) {
                 ASSERT_EQ(want.size(), d.count());
+                EXPECT_TRUE(got.changes.overflow());
+                EXPECT_THROW(sim.read_changes(), std::logic_error);
             }
-            ASSERT_EQ(sim.step(3, step).changes, want) << name_of(layout) << ", step " << step;
-            ASSERT_EQ(sim.read_world(), ref.voxels()) << name_of(layout) << ", step " << step;
+            if (!got.changes.overflow()) {
+                ASSERT_EQ(sim.read_changes(), want) << name_of(layout) << ", step " << step;
+            }
+            ASSERT_EQ(download(voxels, d.count()), ref.voxels())
+                << name_of(layout) << ", step " << step;
         }
     }
 }
@@ -126,35 +171,117 @@ World corner_sand() {
     return w;
 }
 
-TEST(SandCl, FieldEqualsAFullRegenerationAfterEveryStep) {
+std::array<std::size_t, 256> histogram(const World& w) {
+    std::array<std::size_t, 256> h{};
+    for (const std::uint8_t v : w.voxels()) {
+        ++h[v];
+    }
+    return h;
+}
+
+struct FieldCase {
+    const char* name;
+    ocl::GeneratorOptions options;
+    std::size_t capacity;  // the change list's room (0: the default)
+};
+
+std::vector<FieldCase> field_cases() {
+    std::vector<FieldCase> cases;
+    auto add = [&](const char* name, Format f, Metric m, ocl::Layout layout,
+                   std::optional<double> bound, std::size_t capacity) {
+        ocl::GeneratorOptions o;
+        o.format = f;
+        o.metric = m;
+        o.layout = layout;
+        o.max_distance = bound;
+        cases.push_back({name, o, capacity});
+    };
+    add("L1 u16 cpu layout", Format::u16, Metric::manhattan, ocl::Layout::cpu, {}, 0);
+    add("L1 u16 gpu layout", Format::u16, Metric::manhattan, ocl::Layout::gpu, {}, 0);
+    add("L1 packed32", Format::packed32, Metric::manhattan, ocl::Layout::automatic, {}, 0);
+    add("L1 bounded at 5", Format::u16, Metric::manhattan, ocl::Layout::automatic, 5.0, 0);
+    add("L1, a list of 64", Format::u16, Metric::manhattan, ocl::Layout::automatic, {}, 64);
+    add("L-inf u16", Format::u16, Metric::chebyshev, ocl::Layout::automatic, {}, 0);
+    add("L2 f32 cpu layout", Format::f32, Metric::euclidean, ocl::Layout::cpu, {}, 0);
+    add("L2 f32 gpu layout", Format::f32, Metric::euclidean, ocl::Layout::gpu, {}, 64);
+    ocl::GeneratorOptions chunked;
+    chunked.algorithm = ocl::Algorithm::jfa_fim;
+    chunked.chunk = 8;
+    chunked.format = Format::u16;
+    cases.push_back({"jfa-fim chunk 8", chunked, 0});
+    cases.push_back({"jfa-fim chunk 8, a list of 64", chunked, 64});
+    return cases;
+}
+
+TEST(SandCl, FieldEqualsAFullRegenerationAfterEveryStepInPlace) {
     // scene_sand changes voxels all over its world each step (the field is regenerated whole);
-    // corner_sand's steps change a corner (updated incrementally).
+    // corner_sand's steps change a corner (updated incrementally, from the device list); a
+    // list of 64 overflows on most steps (regenerated, also on the device).
+    const Palette palette = Palette::magicavoxel_default();
     for (const World& start : {scene_sand(Dims{32, 28, 30}, 9), corner_sand()}) {
         const bool local = start.dims().x == 48;
-        const Palette palette = Palette::magicavoxel_default();
-        for (const Format format : {Format::u16, Format::packed32}) {
-            ocl::GeneratorOptions o;
-            o.format = format;
-            o = ocl::resolve_options(o, start.dims());
+        for (const FieldCase& c : field_cases()) {
+            const ocl::GeneratorOptions o = ocl::resolve_options(c.options, start.dims());
             ocl::IncrementalField field(pocl(), start, palette, o);
-            ocl::SandSimulator sim(pocl(), start, SandRules{});
-            std::size_t changed = 0;
+            ocl::SandSimulator sim(pocl(), field.voxels_buffer(), start.dims(), SandRules{},
+                                   ocl::Layout::automatic, c.capacity);
+            World ref = start;
+            std::size_t changed = 0, local_updates = 0;
             for (std::uint64_t step = 0; step < 24; ++step) {
+                const VoxelChanges want = sand_step(ref, SandRules{}, 42, step);
                 const ocl::SandStepResult r = sim.step(42, step);
-                changed += r.changes.size();
-                const ocl::UpdateStats u = field.apply_changes(r.changes);
-                if (!r.changes.empty()) {
-                    EXPECT_EQ(u.full_regeneration, !local) << "step " << step;
+                ASSERT_EQ(r.changes.count, want.size()) << c.name << ", step " << step;
+                changed += want.size();
+                const ocl::UpdateStats u = field.apply_device_changes(r.changes);
+                EXPECT_TRUE(u.edits.empty());
+                if (!want.empty() && !u.full_regeneration) {
+                    ++local_updates;
                 }
-                ASSERT_EQ(field.world().voxels(), sim.read_world()) << "step " << step;
-                const std::vector<std::uint8_t> full =
-                    ocl::generate(pocl(), field.world(), palette, o).bytes;
-                ASSERT_EQ(test::first_difference(field.read(), full, format, start.dims()), "")
-                    << to_string(format) << ", after step " << step;
+                // A global field regenerates whole after changes all over the world (a
+                // chunk-local one recomputes the chunks holding them, unless the list
+                // overflowed).
+                if (!local && !want.empty() && c.options.chunk == 0) {
+                    EXPECT_TRUE(u.full_regeneration) << c.name << ", step " << step;
+                }
+                if (step % 3 == 0 || step == 23) {
+                    ASSERT_EQ(field.world().voxels(), ref.voxels()) << c.name << ", step " << step;
+                }
+                const std::vector<std::uint8_t> full = ocl::generate(pocl(), ref, palette, o).bytes;
+                ASSERT_EQ(test::first_difference(field.read(), full, o.format, start.dims()), "")
+                    << c.name << ", " << start.dims().to_string() << ", after step " << step;
             }
+            EXPECT_EQ(histogram(field.world()), histogram(start)) << c.name;
             EXPECT_GT(changed, local ? 100u : 1000u);
+            if (local && c.capacity == 0) {
+                EXPECT_GT(local_updates, 0u) << c.name;
+            }
         }
     }
+}
+
+TEST(SandCl, HostEditsAfterDeviceStepsSeeTheSteppedWorld) {
+    // A brush after steps made on the device: the host world is read back first, so the
+    // brush's changes (and an undo of them) start from the world the steps left.
+    const World start = corner_sand();
+    ocl::GeneratorOptions o;
+    o.format = Format::u16;
+    o = ocl::resolve_options(o, start.dims());
+    ocl::IncrementalField field(pocl(), start, Palette(), o);
+    ocl::SandSimulator sim(pocl(), field.voxels_buffer(), start.dims(), SandRules{});
+    World ref = start;
+    for (std::uint64_t step = 0; step < 5; ++step) {
+        sand_step(ref, SandRules{}, 7, step);
+        field.apply_device_changes(sim.step(7, step).changes);
+    }
+    const Brush brush{BrushOp::place, BrushShape::sphere, {6, 10, 6}, 3, 5};
+    const ocl::UpdateStats u = field.apply({brush});
+    const EditResult want = apply_brush(ref, brush);
+    ASSERT_EQ(u.edits.size(), 1u);
+    EXPECT_EQ(u.edits[0].changes, want.changes);
+    EXPECT_EQ(field.world().voxels(), ref.voxels());
+    EXPECT_EQ(test::first_difference(field.read(), ocl::generate(pocl(), ref, Palette(), o).bytes,
+                                     o.format, ref.dims()),
+              "");
 }
 
 }  // namespace

@@ -30,8 +30,9 @@ TEST(Camera, AnglesFollowTheConvention) {
     expect_near(direction_from_angles(180, -45), {-std::sqrt(0.5), -std::sqrt(0.5), 0});
 }
 
-TEST(Camera, BasisMatchesTheRenderer) {
-    // DESIGN §4 / vk::camera_basis: right = cross(forward, +y), up = cross(right, forward).
+TEST(Camera, BasisFollowsTheDesignFormula) {
+    // DESIGN §4: right = cross(forward, +y), up = cross(right, forward). (That the renderer's
+    // host side uses this basis is for a test that links the renderer, not core's.)
     ViewBasis b = view_basis({0, 0, 2});
     expect_near(b.forward, {0, 0, 1});
     expect_near(b.right, {-1, 0, 0});

@@ -70,10 +70,6 @@ TEST(Dirty, StartsEmpty) {
     EXPECT_TRUE(t.regions().empty());
     EXPECT_TRUE(t.dirty_chunks().empty());
     EXPECT_EQ(t.pending_voxels(), 0);
-    for (std::size_t c = 0; c < 8; ++c) {
-        EXPECT_EQ(t.generation(c), 0u);
-        EXPECT_TRUE(t.is_current(c, 0));
-    }
 }
 
 TEST(Dirty, SingleBoxAndClipping) {
@@ -95,9 +91,6 @@ TEST(Dirty, EmptyAndOutsideBoxesAreIgnored) {
     t.add(Box{{0, 0, -10}, {16, 16, -1}});  // before -z
     EXPECT_TRUE(t.empty());
     EXPECT_TRUE(t.dirty_chunks().empty());
-    for (std::size_t c = 0; c < 8; ++c) {
-        EXPECT_EQ(t.generation(c), 0u) << c;
-    }
 }
 
 TEST(Dirty, OverlappingAlignedBoxesMergeExactly) {
@@ -263,44 +256,18 @@ TEST(Dirty, DirtyChunksHaveNoDuplicates) {
     EXPECT_EQ(t.dirty_chunks(), (std::vector<std::size_t>{0, 1, 63}));
 }
 
-TEST(Dirty, GenerationsCountAddsPerChunk) {
-    DirtyTracker t(ChunkGrid(Dims{16, 8, 8}, 8));  // two chunks along x
-    t.add(Box{{0, 0, 0}, {2, 2, 2}});
-    EXPECT_EQ(t.generation(0), 1u);
-    EXPECT_EQ(t.generation(1), 0u);
-    // Already pending, and inside the pending region: still a new generation.
-    t.add(Box{{0, 0, 0}, {1, 1, 1}});
-    EXPECT_EQ(t.generation(0), 2u);
-    EXPECT_EQ(t.regions(), (std::vector<Box>{{{0, 0, 0}, {2, 2, 2}}}));
-    // Spanning both chunks.
-    t.add(Box{{7, 0, 0}, {9, 1, 1}});
-    EXPECT_EQ(t.generation(0), 3u);
-    EXPECT_EQ(t.generation(1), 1u);
-    // Clipped away entirely: no change.
-    t.add(Box{{16, 0, 0}, {20, 8, 8}});
-    EXPECT_EQ(t.generation(1), 1u);
-    EXPECT_THROW(t.generation(2), std::out_of_range);
-    EXPECT_THROW(static_cast<void>(t.is_current(2, 0)), std::out_of_range);
-}
-
-TEST(Dirty, MergingDoesNotBumpUntouchedChunks) {
+TEST(Dirty, MergedRegionsMarkEveryChunkTheyCover) {
     // Two boxes meeting at an edge, in chunks 0 and 3 of a 2x2x1 grid: always-merge joins them
-    // into a bounding box that also covers chunks 1 and 2, which are then dirty, but their
-    // generations only count adds that overlapped them.
+    // into a bounding box that also covers chunks 1 and 2, which are then dirty.
     DirtyTracker t(ChunkGrid(Dims{16, 16, 8}, 8), kAlwaysMerge);
     t.add(Box{{0, 0, 0}, {8, 8, 1}});
     t.add(Box{{8, 8, 0}, {16, 16, 1}});
     EXPECT_EQ(t.regions(), (std::vector<Box>{{{0, 0, 0}, {16, 16, 1}}}));
     EXPECT_EQ(t.dirty_chunks(), (std::vector<std::size_t>{0, 1, 2, 3}));
-    EXPECT_EQ(t.generation(0), 1u);
-    EXPECT_EQ(t.generation(1), 0u);
-    EXPECT_EQ(t.generation(2), 0u);
-    EXPECT_EQ(t.generation(3), 1u);
-    const DirtyTracker::Snapshot s = t.take();
-    EXPECT_EQ(s.generations, (std::vector<std::uint64_t>{1, 0, 0, 1}));
+    EXPECT_EQ(t.take().chunks, (std::vector<std::size_t>{0, 1, 2, 3}));
 }
 
-TEST(Dirty, TakeClearsPendingAndKeepsGenerations) {
+TEST(Dirty, TakeClearsPending) {
     DirtyTracker t(ChunkGrid(Dims{16, 16, 8}, 8));  // chunks 2x2x1
     t.add(Box{{1, 1, 1}, {3, 3, 3}});
     t.add(Box{{1, 1, 1}, {2, 2, 2}});
@@ -308,37 +275,12 @@ TEST(Dirty, TakeClearsPendingAndKeepsGenerations) {
     const DirtyTracker::Snapshot s = t.take();
     EXPECT_EQ(s.regions, (std::vector<Box>{{{10, 10, 0}, {12, 12, 8}}, {{1, 1, 1}, {3, 3, 3}}}));
     EXPECT_EQ(s.chunks, (std::vector<std::size_t>{0, 3}));
-    EXPECT_EQ(s.generations, (std::vector<std::uint64_t>{2, 1}));
     EXPECT_TRUE(t.empty());
     EXPECT_TRUE(t.regions().empty());
     EXPECT_TRUE(t.dirty_chunks().empty());
-    EXPECT_EQ(t.generation(0), 2u);  // generations survive take()
-    EXPECT_EQ(t.generation(3), 1u);
     const DirtyTracker::Snapshot none = t.take();
     EXPECT_TRUE(none.regions.empty());
     EXPECT_TRUE(none.chunks.empty());
-    EXPECT_TRUE(none.generations.empty());
-}
-
-TEST(Dirty, StaleResultsAreDetected) {
-    DirtyTracker t(ChunkGrid(Dims{16, 16, 8}, 8));
-    t.add(Box{{0, 0, 0}, {9, 2, 2}});  // chunks 0 and 1
-    const DirtyTracker::Snapshot first = t.take();
-    ASSERT_EQ(first.chunks, (std::vector<std::size_t>{0, 1}));
-    for (std::size_t i = 0; i < first.chunks.size(); ++i) {
-        EXPECT_TRUE(t.is_current(first.chunks[i], first.generations[i]));
-    }
-    // A new edit in chunk 1 while the first update is in flight: its chunk-1 result is stale,
-    // its chunk-0 result is still good.
-    t.add(Box{{12, 0, 0}, {13, 1, 1}});
-    EXPECT_TRUE(t.is_current(0, first.generations[0]));
-    EXPECT_FALSE(t.is_current(1, first.generations[1]));
-    const DirtyTracker::Snapshot second = t.take();
-    EXPECT_EQ(second.chunks, (std::vector<std::size_t>{1}));
-    EXPECT_EQ(second.generations, (std::vector<std::uint64_t>{2}));
-    EXPECT_TRUE(t.is_current(1, second.generations[0]));
-    EXPECT_FALSE(t.is_current(1, second.generations[0] + 1));
-    EXPECT_TRUE(t.is_current(2, 0));  // never touched
 }
 
 TEST(Dirty, RejectsNegativeSlack) {

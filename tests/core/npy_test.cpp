@@ -127,27 +127,59 @@ TEST(Npy, ReadsVersions2And3AndVariants) {
     EXPECT_EQ(read_npy(p).dims, (Dims{3, 2, 1}));
 }
 
-TEST(Npy, FieldTypesReadButAreNoWorld) {
+TEST(Npy, FloatFieldsAreNoWorldIntegerFieldsAreLabels) {
     TempDir dir;
-    const std::vector<std::pair<std::string, NpyType>> fields = {{"|i1", NpyType::i8},
-                                                                 {"<i2", NpyType::i16},
-                                                                 {"<i4", NpyType::i32},
-                                                                 {"<f4", NpyType::f32},
+    const std::vector<std::pair<std::string, NpyType>> fields = {{"<f4", NpyType::f32},
                                                                  {"<f8", NpyType::f64}};
     for (const auto& [descr, type] : fields) {
         const fs::path p = dir / "field.npy";
-        const std::size_t es = type == NpyType::f64   ? 8
-                               : type == NpyType::i8  ? 1
-                               : type == NpyType::i16 ? 2
-                                                      : 4;
-        write_bytes(p, make_npy(dict(descr, "False", "(2, 2, 2)"), 8 * es));
+        write_bytes(p, make_npy(dict(descr, "False", "(2, 2, 2)"), 8 * npy_element_size(type)));
         const NpyArray a = read_npy(p);
         EXPECT_EQ(a.type, type) << descr;
+        expect_input_error([&] { world_from_npy(a); }, {"bool or integer", npy_type_name(type)});
+    }
+    // Every integer and bool dtype reads as a label volume: nonzero = solid.
+    const std::vector<std::pair<std::string, NpyType>> labels = {
+        {"|i1", NpyType::i8},  {"<i2", NpyType::i16}, {"<i4", NpyType::i32},
+        {"<i8", NpyType::i64}, {"|u1", NpyType::u8},  {"<u2", NpyType::u16},
+        {"<u4", NpyType::u32}, {"<u8", NpyType::u64}, {"|b1", NpyType::b1}};
+    for (const auto& [descr, type] : labels) {
+        const fs::path p = dir / "labels.npy";
+        const std::size_t es = npy_element_size(type);
+        std::vector<std::uint8_t> body(8 * es, 0);
+        body[1 * es] = 1;    // voxel (1, 0, 0): 1
+        body[3 * es] = 200;  // voxel (1, 1, 0): 200, or -56 for a signed byte
+        if (es > 1) {
+            body[5 * es + 1] = 3;  // voxel (1, 0, 1): 768
+        }
+        body[6 * es + es - 1] = type == NpyType::b1 ? 1 : 0x80;  // most negative / huge / true
+        std::vector<std::uint8_t> file = make_npy(dict(descr, "False", "(2, 2, 2)"), 0);
+        file.insert(file.end(), body.begin(), body.end());
+        write_bytes(p, file);
+        const NpyArray a = read_npy(p);
+        EXPECT_EQ(a.type, type) << descr;
+        const World w = world_from_npy(a);
+        const std::vector<bool> solid = {false, true, false, true, false, es > 1, true, false};
+        for (std::size_t i = 0; i < 8; ++i) {
+            EXPECT_EQ(w.voxels()[i] != 0, solid[i]) << descr << " voxel " << i;
+        }
+        EXPECT_EQ(w.voxels()[1], 1) << descr;
+        if (type != NpyType::i8 && type != NpyType::b1) {
+            EXPECT_EQ(w.voxels()[3], 200) << descr;  // palette indices survive
+        }
+        if (type == NpyType::b1 || type == NpyType::u8) {
+            continue;
+        }
+        // Values outside 0..255 are refused, naming the voxel, where palette values are needed.
         try {
-            world_from_npy(a);
-            ADD_FAILURE() << descr << " was taken as a world";
+            world_from_npy(a, Labels::palette);
+            ADD_FAILURE() << descr << " gave palette values outside 0..255";
         } catch (const InputError& e) {
-            EXPECT_NE(std::string(e.what()).find("not "), std::string::npos) << e.what();
+            const std::string what = e.what();
+            EXPECT_NE(what.find("is not a palette index"), std::string::npos) << what;
+            EXPECT_NE(what.find(type == NpyType::i8 ? "(x=1, y=1, z=0)" : "(x=1, y=0, z=1)"),
+                      std::string::npos)
+                << what;
         }
     }
     // A 4-D int32 array (the feature transform's layout) round-trips its header.
@@ -169,10 +201,9 @@ TEST(Npy, Rejections) {
     std::vector<Case> cases;
     cases.push_back({"c8.npy",
                      make_npy(dict("<c8", "False", "(2, 2, 2)"), 64),
-                     {"c8.npy", "dtype '<c8' is not supported", "uint8, uint16 or uint32"}});
-    cases.push_back({"i8.npy", make_npy(dict("<i8", "False", "(2, 2, 2)"), 64), {"'<i8'"}});
+                     {"c8.npy", "dtype '<c8' is not supported", "bool or an integer type"}});
     cases.push_back({"be_f4.npy", make_npy(dict(">f4", "False", "(2, 2, 2)"), 32), {"big-endian"}});
-    cases.push_back({"u8.npy", make_npy(dict("<u8", "False", "(2, 2, 2)"), 64), {"'<u8'"}});
+    cases.push_back({"be_u8.npy", make_npy(dict(">u8", "False", "(2, 2, 2)"), 64), {"big-endian"}});
     cases.push_back({"pipe_u2.npy", make_npy(dict("|u2", "False", "(2, 2, 2)"), 16), {"'|u2'"}});
     cases.push_back({"be2.npy",
                      make_npy(dict(">u2", "False", "(2, 2, 2)"), 16),
@@ -402,13 +433,16 @@ TEST(Npy, WorldConversions) {
     wide.data[2 * w.dims().index(2, 0, 3) + 1] = 1;
     wide.data[2 * w.dims().index(2, 1, 3)] = 44;
     wide.data[2 * w.dims().index(2, 1, 3) + 1] = 1;
-    expect_input_error([&] { world_from_npy(wide); }, {"value 256", "(x=2, y=0, z=3)"});
+    EXPECT_EQ(world_from_npy(wide).at(2, 0, 3), 1);  // a label above 255: solid
+    expect_input_error([&] { world_from_npy(wide, Labels::palette); },
+                       {"value 256", "(x=2, y=0, z=3)"});
 
     NpyArray u32;
     u32.type = NpyType::u32;
     u32.dims = Dims{1, 1, 2};
     u32.data = {7, 0, 0, 0, 0, 0, 0, 0x80};
-    expect_input_error([&] { world_from_npy(u32); }, {"value 2147483648", "(x=0, y=0, z=1)"});
+    expect_input_error([&] { world_from_npy(u32, Labels::palette); },
+                       {"value 2147483648", "(x=0, y=0, z=1)"});
 
     NpyArray bad;
     bad.dims = Dims{2, 2, 2};
@@ -429,8 +463,18 @@ TEST(Npy, LoadWorldFromNpy) {
     std::vector<std::uint8_t> wide(4 * 3 * 2 * 2, 0);
     wide[2 * 5 + 1] = 3;  // value 768 at index 5 = (1, 1, 0)
     write_npy(dir / "wide.npy", NpyType::u16, Dims{4, 3, 2}, wide);
-    expect_input_error([&] { load_world(dir / "wide.npy"); },
-                       {"wide.npy", "value 768", "(x=1, y=1, z=0)"});
+    // A label volume: the CLI's reader takes it, label 768 a solid voxel of material 1.
+    const VoxModel labels = load_world(dir / "wide.npy");
+    EXPECT_EQ(labels.world.at(1, 1, 0), 1);
+    EXPECT_EQ(labels.world.solid_count(), 1u);
+    // bool and signed label volumes too.
+    std::vector<std::uint8_t> flags(4 * 3 * 2, 0);
+    flags[7] = 1;
+    write_npy(dir / "flags.npy", NpyType::b1, Dims{4, 3, 2}, flags);
+    EXPECT_EQ(load_world(dir / "flags.npy").world.solid_count(), 1u);
+    std::vector<std::uint8_t> signed_labels(4 * 3 * 2 * 8, 0xFF);  // -1 everywhere
+    write_npy(dir / "signed.npy", NpyType::i64, Dims{4, 3, 2}, signed_labels);
+    EXPECT_EQ(load_world(dir / "signed.npy").world.solid_count(), 24u);
 }
 
 }  // namespace

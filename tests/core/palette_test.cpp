@@ -51,32 +51,35 @@ TEST(Palette, ToRgb332) {
     EXPECT_EQ(to_rgb332(Rgba{0x9F, 0x40, 0x80, 0}), (4 << 5) | (2 << 2) | 2);
 }
 
-TEST(Palette, DissertationColoursRoundTrip) {
+TEST(Palette, DissertationColoursAreTheSeedCodes) {
+    // seed-code-notes.md, "Data layout": the 3/3/2-bit values Black 0,0,0; White 7,7,3; Grey
+    // 5,5,2; Red 7,0,0; Pink 7,0,2; Purple 5,0,3; Blue 0,0,3; Cyan 0,7,3; Turquoise 0,7,2;
+    // Green 0,7,0; Yellow 7,7,0, written out here as RGB332 bytes and as the 8-bit colours they
+    // expand to (3 bits: 0 36 73 109 146 182 219 255; 2 bits: 0 85 170 255), not taken from the
+    // production table.
+    struct Named {
+        const char* name;
+        std::uint8_t rgb332;
+        Rgba rgba;
+    };
+    const std::array<Named, 11> want = {{{"Black", 0x00, {0, 0, 0, 255}},
+                                         {"White", 0xFF, {255, 255, 255, 255}},
+                                         {"Grey", 0xB6, {182, 182, 170, 255}},
+                                         {"Red", 0xE0, {255, 0, 0, 255}},
+                                         {"Pink", 0xE2, {255, 0, 170, 255}},
+                                         {"Purple", 0xA3, {182, 0, 255, 255}},
+                                         {"Blue", 0x03, {0, 0, 255, 255}},
+                                         {"Cyan", 0x1F, {0, 255, 255, 255}},
+                                         {"Turquoise", 0x1E, {0, 255, 170, 255}},
+                                         {"Green", 0x1C, {0, 255, 0, 255}},
+                                         {"Yellow", 0xFC, {255, 255, 0, 255}}}};
     const Palette p = Palette::dissertation();
-    // Black, White, Grey, Red, Pink, Purple, Blue, Cyan, Turquoise, Green, Yellow.
-    const std::array<std::array<int, 3>, 11> rgb = {{{0, 0, 0},
-                                                     {7, 7, 3},
-                                                     {5, 5, 2},
-                                                     {7, 0, 0},
-                                                     {7, 0, 2},
-                                                     {5, 0, 3},
-                                                     {0, 0, 3},
-                                                     {0, 7, 3},
-                                                     {0, 7, 2},
-                                                     {0, 7, 0},
-                                                     {7, 7, 0}}};
     const auto table = p.rgb332_table();
-    for (std::size_t k = 0; k < rgb.size(); ++k) {
-        const int expected = ((rgb[k][0] & 7) << 5) | ((rgb[k][1] & 7) << 2) | (rgb[k][2] & 3);
+    for (std::size_t k = 0; k < want.size(); ++k) {
         const auto idx = static_cast<std::uint8_t>(k + 1);
-        EXPECT_EQ(to_rgb332(p[idx]), expected) << "colour " << k + 1;
-        EXPECT_EQ(table[idx], expected);
-        EXPECT_EQ(p[idx].a, 255);
+        EXPECT_EQ(p[idx], want[k].rgba) << want[k].name;
+        EXPECT_EQ(table[idx], want[k].rgb332) << want[k].name;
     }
-    EXPECT_EQ(p[2], (Rgba{255, 255, 255, 255}));  // White expands to full white
-    EXPECT_EQ(p[1], (Rgba{0, 0, 0, 255}));        // Black
-    EXPECT_EQ(p[3], (Rgba{182, 182, 170, 255}));  // Grey 5,5,2
-    EXPECT_EQ(p[6], (Rgba{182, 0, 255, 255}));    // Purple 5,0,3
     // Beyond 11 it is MagicaVoxel's default.
     EXPECT_EQ(p[12], Palette()[12]);
     EXPECT_EQ(p[255], Palette()[255]);

@@ -62,5 +62,17 @@ TEST(Stats, KnownValuesEven) {
     EXPECT_DOUBLE_EQ(summarize(two).median, 1.5);
 }
 
+TEST(Stats, ConfidenceIntervalOfDurationsNeverGoesBelowZero) {
+    // One slow run among fast ones: mean - 1.96 std/sqrt(n) is negative, a time is not.
+    const std::vector<double> ms{0.019, 0.02, 0.021, 2.5};
+    const Summary s = summarize(ms);
+    EXPECT_GT(1.96 * s.std / 2.0, s.mean);
+    EXPECT_EQ(s.ci95_lo, 0.0);
+    EXPECT_NEAR(s.ci95_hi, s.mean + 1.96 * s.std / 2.0, 1e-12);
+    // Samples that can be negative keep the plain interval.
+    const std::vector<double> signed_values{-1.0, 1.0};
+    EXPECT_LT(summarize(signed_values).ci95_lo, -1.0);
+}
+
 }  // namespace
 }  // namespace voxfield

@@ -2,10 +2,15 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <iostream>
+#include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "test_util.hpp"
@@ -130,9 +135,9 @@ TEST(Vox, PaletteMappingAndAxes) {
     vb.chunk("PACK", pack);
     vb.size(4, 3, 2);  // x 4, y 3 (depth), z 2 (up)
     vb.xyzi({{{3, 2, 1, 1}}, {{0, 1, 0, 200}}, {{1, 0, 1, 255}}});
-    vb.chunk("nTRN", std::vector<std::uint8_t>(28, 0xAB));
+    vb.chunk("rOBJ", std::vector<std::uint8_t>(28, 0xAB));
     vb.chunk("MATL", std::vector<std::uint8_t>(13, 0));
-    vb.chunk("LAYR", std::vector<std::uint8_t>(5, 1), std::vector<std::uint8_t>(12, 0));
+    vb.chunk("IMAP", std::vector<std::uint8_t>(5, 1), std::vector<std::uint8_t>(12, 0));
     std::vector<std::uint8_t> rgba;
     for (int i = 0; i < 256; ++i) {
         rgba.insert(rgba.end(), {static_cast<std::uint8_t>(i), static_cast<std::uint8_t>(255 - i),
@@ -206,6 +211,21 @@ TEST(Vox, StructuralErrors) {
         VoxBuilder vb;
         vb.size(2, 2, 2);
         check("noxyzi.vox", vb.bytes(), {"no 'XYZI'"});
+    }
+    {
+        VoxBuilder vb;
+        vb.size(2, 2, 2);
+        vb.size(2, 2, 2);
+        vb.xyzi({});
+        check("twosize.vox", vb.bytes(), {"no 'XYZI'", "'SIZE' chunk at offset 20"});
+    }
+    {
+        VoxBuilder vb;
+        vb.size(2, 2, 2);
+        vb.xyzi({{{1, 0, 0, 1}}});
+        auto b = vb.bytes();
+        b[4] = 149;  // version 149
+        check("old.vox", b, {"version 149", "older than 150"});
     }
     {
         VoxBuilder vb;
@@ -344,9 +364,9 @@ TEST(Vox, LoadWorldErrors) {
     expect_input_error([&] { read_vox(missing); }, {"no such file"});
     test::write_text(dir / "model.obj", "v 1 2 3\n");
     expect_input_error([&] { load_world(dir / "model.obj"); },
-                       {"model.obj", "'.obj'", ".vox or .npy"});
+                       {"model.obj", "'.obj'", ".vox, .npy"});
     test::write_text(dir / "noext", "x");
-    expect_input_error([&] { load_world(dir / "noext"); }, {"noext", ".vox or .npy"});
+    expect_input_error([&] { load_world(dir / "noext"); }, {"noext", ".vox, .npy"});
     fs::create_directory(dir / "folder.vox");
     expect_input_error([&] { load_world(dir / "folder.vox"); }, {"folder.vox", "directory"});
     if (::geteuid() != 0) {
@@ -406,6 +426,601 @@ TEST(Vox, WriteErrors) {
         },
         {"w.vox", "does not exist"});
     EXPECT_TRUE(fs::is_empty(dir.path()));
+}
+
+// ---- Scene graphs (nTRN / nGRP / nSHP / LAYR) -------------------------------------------
+
+using Dict = std::vector<std::pair<std::string, std::string>>;
+
+void put_text(std::vector<std::uint8_t>& b, const std::string& s) {
+    put_u32(b, static_cast<std::uint32_t>(s.size()));
+    b.insert(b.end(), s.begin(), s.end());
+}
+
+void put_dict(std::vector<std::uint8_t>& b, const Dict& d) {
+    put_u32(b, static_cast<std::uint32_t>(d.size()));
+    for (const auto& [k, v] : d) {
+        put_text(b, k);
+        put_text(b, v);
+    }
+}
+
+// A signed permutation matrix, rows; the test's own description of a rotation.
+using Mat = std::array<int, 9>;
+using Vec = std::array<std::int64_t, 3>;
+
+const Mat kIdentity = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+
+// MagicaVoxel's packed byte for `m` (the inverse of what the reader decodes).
+int pack_rotation(const Mat& m) {
+    int bits = 0;
+    for (int row = 0; row < 3; ++row) {
+        for (int col = 0; col < 3; ++col) {
+            const int v = m[static_cast<std::size_t>(3 * row + col)];
+            if (v != 0) {
+                if (row < 2) {
+                    bits |= col << (2 * row);
+                }
+                if (v < 0) {
+                    bits |= 1 << (4 + row);
+                }
+            }
+        }
+    }
+    return bits;
+}
+
+// All 48 signed permutations (24 rotations and 24 reflections).
+std::vector<Mat> all_rotations() {
+    std::vector<Mat> out;
+    const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    for (const auto& p : perms) {
+        for (int s = 0; s < 8; ++s) {
+            Mat m{};
+            for (int row = 0; row < 3; ++row) {
+                m[static_cast<std::size_t>(3 * row + p[row])] = (s >> row) & 1 ? -1 : 1;
+            }
+            out.push_back(m);
+        }
+    }
+    return out;
+}
+
+Mat mul(const Mat& a, const Mat& b) {
+    Mat c{};
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            for (int k = 0; k < 3; ++k) {
+                c[static_cast<std::size_t>(3 * i + j)] +=
+                    a[static_cast<std::size_t>(3 * i + k)] * b[static_cast<std::size_t>(3 * k + j)];
+            }
+        }
+    }
+    return c;
+}
+
+Vec apply(const Mat& m, const std::array<double, 3>& v, std::array<double, 3>& out) {
+    for (int i = 0; i < 3; ++i) {
+        out[static_cast<std::size_t>(i)] = 0;
+        for (int k = 0; k < 3; ++k) {
+            out[static_cast<std::size_t>(i)] +=
+                m[static_cast<std::size_t>(3 * i + k)] * v[static_cast<std::size_t>(k)];
+        }
+    }
+    return {};
+}
+
+struct TestModel {
+    std::array<std::uint32_t, 3> size;
+    std::vector<std::array<std::uint8_t, 4>> voxels;
+};
+
+// Builds a .vox scene from the test's own tree and keeps, for every shape it adds, the
+// instance's accumulated transform as the test computes it (for the expectation).
+struct SceneBuilder {
+    std::vector<TestModel> models;
+    VoxBuilder vb;
+    std::vector<std::uint8_t> graph;  // node and layer chunks, appended after the models
+    std::uint32_t next_id = 0;
+    struct Placed {
+        std::uint32_t model;
+        Mat r;
+        std::array<double, 3> t;
+    };
+    std::vector<Placed> visible;  // in depth-first order
+    std::size_t hidden = 0;
+
+    void node_chunk(const std::string& id, const std::vector<std::uint8_t>& content) {
+        graph.insert(graph.end(), id.begin(), id.end());
+        put_u32(graph, static_cast<std::uint32_t>(content.size()));
+        put_u32(graph, 0);
+        graph.insert(graph.end(), content.begin(), content.end());
+    }
+    void transform(std::uint32_t id, std::uint32_t child, const Mat& r, const Vec& t,
+                   std::int32_t layer = -1, bool hidden_node = false) {
+        std::vector<std::uint8_t> c;
+        put_u32(c, id);
+        put_dict(c, hidden_node ? Dict{{"_name", "n"}, {"_hidden", "1"}} : Dict{{"_name", "n"}});
+        put_u32(c, child);
+        put_u32(c, 0xFFFFFFFFu);
+        put_u32(c, static_cast<std::uint32_t>(layer));
+        put_u32(c, 1);
+        Dict frame;
+        if (r != kIdentity) {
+            frame.emplace_back("_r", std::to_string(pack_rotation(r)));
+        }
+        frame.emplace_back(
+            "_t", std::to_string(t[0]) + " " + std::to_string(t[1]) + " " + std::to_string(t[2]));
+        put_dict(c, frame);
+        node_chunk("nTRN", c);
+    }
+    void group(std::uint32_t id, const std::vector<std::uint32_t>& kids) {
+        std::vector<std::uint8_t> c;
+        put_u32(c, id);
+        put_dict(c, {});
+        put_u32(c, static_cast<std::uint32_t>(kids.size()));
+        for (std::uint32_t k : kids) {
+            put_u32(c, k);
+        }
+        node_chunk("nGRP", c);
+    }
+    void shape(std::uint32_t id, std::uint32_t model) {
+        std::vector<std::uint8_t> c;
+        put_u32(c, id);
+        put_dict(c, {});
+        put_u32(c, 1);
+        put_u32(c, model);
+        put_dict(c, {});
+        node_chunk("nSHP", c);
+    }
+    void layer(std::int32_t id, bool hidden_layer) {
+        std::vector<std::uint8_t> c;
+        put_u32(c, static_cast<std::uint32_t>(id));
+        put_dict(c, hidden_layer ? Dict{{"_name", "L"}, {"_hidden", "1"}} : Dict{{"_name", "L"}});
+        put_u32(c, 0xFFFFFFFFu);
+        node_chunk("LAYR", c);
+    }
+
+    // A transform node over a shape node; `r`, `t` local; the parent's accumulated pr, pt.
+    void instance(std::uint32_t model, const Mat& pr, const std::array<double, 3>& pt, const Mat& r,
+                  const Vec& t, bool is_hidden, std::uint32_t& tid, std::int32_t layer_id = -1,
+                  bool hidden_node = false) {
+        tid = next_id++;
+        const std::uint32_t sid = next_id++;
+        transform(tid, sid, r, t, layer_id, hidden_node);
+        shape(sid, model);
+        if (is_hidden) {
+            ++hidden;
+            return;
+        }
+        std::array<double, 3> rt{};
+        apply(pr, {static_cast<double>(t[0]), static_cast<double>(t[1]), static_cast<double>(t[2])},
+              rt);
+        visible.push_back({model, mul(pr, r), {pt[0] + rt[0], pt[1] + rt[1], pt[2] + rt[2]}});
+    }
+
+    std::vector<std::uint8_t> bytes() {
+        VoxBuilder out;
+        for (const TestModel& m : models) {
+            out.size(m.size[0], m.size[1], m.size[2]);
+            out.xyzi(m.voxels);
+        }
+        out.children.insert(out.children.end(), graph.begin(), graph.end());
+        return out.bytes();
+    }
+
+    // The expectation: every visible instance's model box corners and voxel centres moved by
+    // x -> R (x - pivot) + T in doubles; origin at the minimum corner; vox -> world axes.
+    World expected() const {
+        std::array<double, 3> lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+        for (const Placed& p : visible) {
+            const TestModel& m = models[p.model];
+            for (int corner = 0; corner < 8; ++corner) {
+                std::array<double, 3> c{}, w{};
+                for (int a = 0; a < 3; ++a) {
+                    const double piv = std::floor(m.size[static_cast<std::size_t>(a)] / 2.0);
+                    c[static_cast<std::size_t>(a)] =
+                        ((corner >> a) & 1 ? m.size[static_cast<std::size_t>(a)] : 0) - piv;
+                }
+                apply(p.r, c, w);
+                for (std::size_t a = 0; a < 3; ++a) {
+                    lo[a] = std::min(lo[a], w[a] + p.t[a]);
+                    hi[a] = std::max(hi[a], w[a] + p.t[a]);
+                }
+            }
+        }
+        World w(Dims{static_cast<std::uint32_t>(hi[0] - lo[0]),
+                     static_cast<std::uint32_t>(hi[2] - lo[2]),
+                     static_cast<std::uint32_t>(hi[1] - lo[1])});
+        for (const Placed& p : visible) {
+            const TestModel& m = models[p.model];
+            for (const auto& v : m.voxels) {
+                std::array<double, 3> c{}, r{};
+                for (std::size_t a = 0; a < 3; ++a) {
+                    c[a] = v[a] + 0.5 - std::floor(m.size[a] / 2.0);
+                }
+                apply(p.r, c, r);
+                std::array<std::uint32_t, 3> cell{};
+                for (std::size_t a = 0; a < 3; ++a) {
+                    cell[a] = static_cast<std::uint32_t>(std::floor(r[a] + p.t[a] - lo[a]));
+                }
+                w.set(cell[0], cell[2], cell[1], v[3]);
+            }
+        }
+        return w;
+    }
+};
+
+// An asymmetric model: every voxel has its own colour, so any misplaced voxel shows.
+TestModel asymmetric_model(std::uint32_t sx, std::uint32_t sy, std::uint32_t sz,
+                           std::uint8_t colour_base, std::uint64_t seed) {
+    TestModel m{{sx, sy, sz}, {}};
+    std::mt19937_64 rng(seed);
+    for (std::uint32_t z = 0; z < sz; ++z) {
+        for (std::uint32_t y = 0; y < sy; ++y) {
+            for (std::uint32_t x = 0; x < sx; ++x) {
+                if (rng() % 3 != 0 || (x == 0 && y == 0 && z == 0)) {
+                    const auto c =
+                        static_cast<std::uint8_t>(1 + (colour_base + x + 7 * y + 31 * z) % 255);
+                    m.voxels.push_back({static_cast<std::uint8_t>(x), static_cast<std::uint8_t>(y),
+                                        static_cast<std::uint8_t>(z), c});
+                }
+            }
+        }
+    }
+    return m;
+}
+
+void expect_same_world(const World& got, const World& want) {
+    ASSERT_EQ(got.dims(), want.dims());
+    std::size_t diff = 0;
+    for (std::size_t i = 0; i < got.size(); ++i) {
+        diff += got.voxels()[i] != want.voxels()[i];
+    }
+    EXPECT_EQ(diff, 0u) << "of " << got.size() << " voxels";
+}
+
+TEST(VoxScene, EveryRotationByteIncludingReflections) {
+    TempDir dir;
+    SceneBuilder sb;
+    sb.models.push_back(asymmetric_model(3, 4, 5, 0, 1));  // odd and even sizes
+    sb.models.push_back(asymmetric_model(2, 6, 1, 90, 2));
+    const std::vector<Mat> rots = all_rotations();
+    std::vector<std::uint32_t> kids;
+    for (std::size_t i = 0; i < rots.size(); ++i) {
+        std::uint32_t tid = 0;
+        // Spread along x and y so no two instances overlap; z varies too.
+        const Vec t = {static_cast<std::int64_t>(i % 8) * 9 - 20,
+                       static_cast<std::int64_t>(i / 8) * 9 + 3, static_cast<std::int64_t>(i % 3)};
+        sb.next_id = std::max<std::uint32_t>(sb.next_id, 2);
+        sb.instance(static_cast<std::uint32_t>(i % 2), kIdentity, {0, 0, 0}, rots[i], t, false,
+                    tid);
+        kids.push_back(tid);
+    }
+    sb.transform(0, 1, kIdentity, {0, 0, 0});
+    sb.group(1, kids);
+    write_bytes(dir / "rot.vox", sb.bytes());
+    const VoxScene scene = read_vox_scene(dir / "rot.vox");
+    EXPECT_TRUE(scene.has_scene_graph);
+    EXPECT_EQ(scene.models.size(), 2u);
+    EXPECT_EQ(scene.instances.size(), 48u);
+    const VoxModel m = read_vox(dir / "rot.vox");
+    expect_same_world(m.world, sb.expected());
+    // Every rotation byte decodes to the matrix it was packed from.
+    for (std::size_t i = 0; i < rots.size(); ++i) {
+        for (std::size_t k = 0; k < 9; ++k) {
+            EXPECT_EQ(scene.instances[i].rotation[k], rots[i][k]) << "rotation " << i;
+        }
+    }
+}
+
+TEST(VoxScene, NestedGroupsTranslatedAndRotated) {
+    TempDir dir;
+    SceneBuilder sb;
+    sb.models.push_back(asymmetric_model(5, 3, 4, 10, 3));
+    sb.models.push_back(asymmetric_model(4, 4, 2, 50, 4));
+    const std::vector<Mat> rots = all_rotations();
+    // root 0 -> group 1 -> [T 2 (rot a, t) -> group 3 -> [T (rot b) -> shape, T -> shape],
+    //                       T (plain) -> shape]
+    sb.next_id = 4;
+    const Mat ra = rots[13], rb = rots[38];
+    const Vec ta = {-7, 11, 5};
+    std::uint32_t i0 = 0, i1 = 0, i2 = 0;
+    sb.instance(0, ra, {-7, 11, 5}, rb, {3, -2, 6}, false, i0);
+    sb.instance(1, ra, {-7, 11, 5}, kIdentity, {-4, 0, 1}, false, i1);
+    sb.instance(1, kIdentity, {0, 0, 0}, rots[5], {20, 20, -3}, false, i2);
+    sb.transform(0, 1, kIdentity, {0, 0, 0});
+    sb.group(1, {2, i2});
+    sb.transform(2, 3, ra, ta);
+    sb.group(3, {i0, i1});
+    write_bytes(dir / "nest.vox", sb.bytes());
+    const VoxScene scene = read_vox_scene(dir / "nest.vox");
+    ASSERT_EQ(scene.instances.size(), 3u);
+    EXPECT_EQ(scene.instances[0].model, 0u);  // depth-first order
+    EXPECT_EQ(scene.instances[2].model, 1u);
+    expect_same_world(read_vox(dir / "nest.vox").world, sb.expected());
+}
+
+TEST(VoxScene, HiddenNodesAndLayersAreSkipped) {
+    TempDir dir;
+    SceneBuilder sb;
+    sb.models.push_back(asymmetric_model(3, 3, 3, 0, 5));
+    sb.next_id = 4;
+    std::uint32_t a = 0, b = 0, c = 0, d = 0, e = 0;
+    sb.instance(0, kIdentity, {0, 0, 0}, kIdentity, {0, 0, 0}, false, a, 0);
+    sb.instance(0, kIdentity, {0, 0, 0}, kIdentity, {10, 0, 0}, true, b, 1);        // hidden layer
+    sb.instance(0, kIdentity, {0, 0, 0}, kIdentity, {0, 10, 0}, true, c, 0, true);  // hidden
+    sb.instance(0, kIdentity, {0, 0, 0}, kIdentity, {0, 0, 10}, false, d, 2);
+    // A hidden group transform: everything below it is skipped.
+    sb.instance(0, kIdentity, {30, 30, 30}, kIdentity, {0, 0, 0}, true, e);
+    sb.layer(0, false);
+    sb.layer(1, true);
+    sb.layer(2, false);
+    sb.transform(0, 1, kIdentity, {0, 0, 0});
+    sb.group(1, {a, b, c, d, 2});
+    sb.transform(2, 3, kIdentity, {30, 30, 30}, -1, true);
+    sb.group(3, {e});
+    write_bytes(dir / "hid.vox", sb.bytes());
+    const VoxScene scene = read_vox_scene(dir / "hid.vox");
+    EXPECT_EQ(scene.instances.size(), 2u);
+    EXPECT_EQ(scene.hidden_instances, 3u);
+    const World got = read_vox(dir / "hid.vox").world;
+    EXPECT_EQ(got.dims(), (Dims{3, 13, 3}));  // the hidden ones do not widen the world
+    expect_same_world(got, sb.expected());
+}
+
+TEST(VoxScene, OverlappingInstancesLaterWins) {
+    TempDir dir;
+    SceneBuilder sb;
+    TestModel red{{4, 4, 4}, {}}, blue{{4, 4, 4}, {}};
+    for (std::uint8_t z = 0; z < 4; ++z) {
+        for (std::uint8_t y = 0; y < 4; ++y) {
+            for (std::uint8_t x = 0; x < 4; ++x) {
+                red.voxels.push_back({x, y, z, 7});
+                if ((x + y + z) % 2 == 0) {
+                    blue.voxels.push_back({x, y, z, 9});
+                }
+            }
+        }
+    }
+    sb.models = {red, blue};
+    sb.next_id = 2;
+    std::uint32_t a = 0, b = 0, c = 0;
+    sb.instance(0, kIdentity, {0, 0, 0}, kIdentity, {0, 0, 0}, false, a);
+    sb.instance(1, kIdentity, {0, 0, 0}, kIdentity, {2, 1, 0}, false, b);
+    sb.instance(0, kIdentity, {0, 0, 0}, all_rotations()[9], {4, 3, 1}, false, c);
+    sb.transform(0, 1, kIdentity, {0, 0, 0});
+    sb.group(1, {a, b, c});
+    write_bytes(dir / "over.vox", sb.bytes());
+    const World got = read_vox(dir / "over.vox").world;
+    const World want = sb.expected();
+    expect_same_world(got, want);
+    // Spot checks, in the file's own words: vox (2, 1, 0) is blue's (0, 0, 0) -> 9 over red's
+    // 7; vox (3, 1, 0) is blue's (1, 0, 0), empty in blue, so red stays.
+    EXPECT_EQ(got.at(2, 0, 1), 9);
+    EXPECT_EQ(got.at(3, 0, 1), 7);
+}
+
+// Random trees built depth-first (so the test's instance order is the reader's), random
+// rotations among all 48, random translations, overlapping models.
+void random_group(SceneBuilder& sb, std::mt19937_64& rng, std::uint32_t gid, const Mat& pr,
+                  const std::array<double, 3>& pt, int depth) {
+    const std::vector<Mat> rots = all_rotations();
+    std::vector<std::uint32_t> kids;
+    const int n = 1 + static_cast<int>(rng() % 4);
+    for (int k = 0; k < n; ++k) {
+        const Mat r = rots[rng() % rots.size()];
+        const Vec t = {static_cast<std::int64_t>(rng() % 17) - 8,
+                       static_cast<std::int64_t>(rng() % 17) - 8,
+                       static_cast<std::int64_t>(rng() % 17) - 8};
+        if (rng() % 3 == 0 && depth < 4) {
+            const std::uint32_t tid = sb.next_id++, child = sb.next_id++;
+            sb.transform(tid, child, r, t);
+            kids.push_back(tid);
+            std::array<double, 3> rt{};
+            apply(pr,
+                  {static_cast<double>(t[0]), static_cast<double>(t[1]), static_cast<double>(t[2])},
+                  rt);
+            random_group(sb, rng, child, mul(pr, r), {pt[0] + rt[0], pt[1] + rt[1], pt[2] + rt[2]},
+                         depth + 1);
+        } else {
+            std::uint32_t tid = 0;
+            sb.instance(static_cast<std::uint32_t>(rng() % sb.models.size()), pr, pt, r, t, false,
+                        tid);
+            kids.push_back(tid);
+        }
+    }
+    sb.group(gid, kids);
+}
+
+TEST(VoxScene, RandomTreesMatchTheIndependentPlacement) {
+    TempDir dir;
+    std::mt19937_64 rng(2024);
+    std::size_t overlapping = 0;
+    for (int trial = 0; trial < 60; ++trial) {
+        SCOPED_TRACE(trial);
+        SceneBuilder sb;
+        const int n_models = 1 + static_cast<int>(rng() % 3);
+        for (int k = 0; k < n_models; ++k) {
+            sb.models.push_back(asymmetric_model(1 + static_cast<std::uint32_t>(rng() % 7),
+                                                 1 + static_cast<std::uint32_t>(rng() % 7),
+                                                 1 + static_cast<std::uint32_t>(rng() % 7),
+                                                 static_cast<std::uint8_t>(rng()), rng()));
+        }
+        const std::array<double, 3> root_t = {static_cast<double>(rng() % 9) - 4, 0, 3};
+        sb.transform(0, 1, kIdentity, {static_cast<std::int64_t>(root_t[0]), 0, 3});
+        sb.next_id = 2;
+        random_group(sb, rng, 1, kIdentity, root_t, 0);
+        write_bytes(dir / "rand.vox", sb.bytes());
+        const VoxScene scene = read_vox_scene(dir / "rand.vox");
+        ASSERT_EQ(scene.instances.size(), sb.visible.size());
+        const World want = sb.expected();
+        expect_same_world(read_vox(dir / "rand.vox").world, want);
+        std::size_t placed = 0;
+        for (const auto& p : sb.visible) {
+            placed += sb.models[p.model].voxels.size();
+        }
+        overlapping += want.solid_count() < placed;
+    }
+    EXPECT_GT(overlapping, 5u);  // the overlap rule was exercised
+}
+
+TEST(VoxScene, SharedShapeNodesAreInstancedPerPath) {
+    // MagicaVoxel writes copies of a model as transforms sharing one shape node.
+    TempDir dir;
+    SceneBuilder sb;
+    sb.models.push_back(asymmetric_model(3, 2, 4, 40, 6));
+    sb.next_id = 2;
+    std::uint32_t a = 0;
+    sb.instance(0, kIdentity, {0, 0, 0}, all_rotations()[20], {1, 2, 3}, false, a);
+    const std::uint32_t shared_shape = a + 1;
+    const Mat r = all_rotations()[33];
+    sb.transform(10, shared_shape, r, {9, -4, 0});
+    sb.visible.push_back({0, r, {9, -4, 0}});
+    sb.transform(0, 1, kIdentity, {0, 0, 0});
+    sb.group(1, {a, 10});
+    write_bytes(dir / "share.vox", sb.bytes());
+    EXPECT_EQ(read_vox_scene(dir / "share.vox").instances.size(), 2u);
+    expect_same_world(read_vox(dir / "share.vox").world, sb.expected());
+}
+
+TEST(VoxScene, CorruptGraphsAreOneLineErrors) {
+    TempDir dir;
+    const TestModel cube = asymmetric_model(2, 2, 2, 0, 9);
+    auto check = [&](const std::string& name, SceneBuilder& sb,
+                     const std::vector<std::string>& parts) {
+        SCOPED_TRACE(name);
+        if (sb.models.empty()) {
+            sb.models.push_back(cube);
+        }
+        write_bytes(dir / name, sb.bytes());
+        std::vector<std::string> all = parts;
+        all.push_back(name);
+        expect_input_error([&] { read_vox(dir / name); }, all);
+    };
+    {
+        SceneBuilder sb;
+        sb.transform(0, 1, kIdentity, {0, 0, 0});
+        sb.group(1, {2});
+        sb.transform(2, 1, kIdentity, {0, 0, 0});
+        check("cycle.vox", sb, {"node cycle: 1 -> 2 -> 1"});
+    }
+    {
+        SceneBuilder sb;
+        sb.transform(0, 0, kIdentity, {0, 0, 0});
+        check("self.vox", sb, {"node cycle: 0 -> 0"});
+    }
+    {
+        SceneBuilder sb;
+        sb.transform(0, 1, kIdentity, {0, 0, 0});
+        sb.group(1, {2, 7});
+        sb.transform(2, 3, kIdentity, {0, 0, 0});
+        sb.shape(3, 0);
+        check("missing.vox", sb, {"node 1 ('nGRP'", "child node 7", "not in the file"});
+    }
+    {
+        SceneBuilder sb;
+        // Each group lists the next one twice: 2^40 paths.
+        sb.transform(0, 1, kIdentity, {0, 0, 0});
+        for (std::uint32_t g = 1; g <= 40; ++g) {
+            sb.group(g, {g + 1, g + 1});
+        }
+        sb.shape(41, 0);
+        check("diamond.vox", sb, {"expands to more than 4194304 nodes"});
+    }
+    {
+        SceneBuilder sb;
+        sb.transform(0, 1, kIdentity, {0, 0, 0});
+        sb.shape(1, 5);
+        check("model.vox", sb, {"names model 5", "the file has 1"});
+    }
+    {
+        SceneBuilder sb;
+        sb.transform(1, 2, kIdentity, {0, 0, 0});
+        sb.shape(2, 0);
+        check("noroot.vox", sb, {"no root node 0"});
+    }
+    {
+        SceneBuilder sb;
+        sb.transform(0, 1, kIdentity, {0, 0, 0});
+        sb.shape(1, 0);
+        sb.shape(1, 0);
+        check("dup.vox", sb, {"node id 1 is already used", "'nSHP'"});
+    }
+    {
+        SceneBuilder sb;
+        sb.transform(0, 1, kIdentity, {0, 0, 0}, -1, true);
+        sb.shape(1, 0);
+        check("allhidden.vox", sb, {"no visible model instance", "1 hidden"});
+    }
+    {
+        SceneBuilder sb;
+        sb.transform(0, 1, kIdentity, {0, 0, 0});
+        sb.group(1, {2, 4});
+        sb.transform(2, 3, kIdentity, {0, 0, 0});
+        sb.shape(3, 0);
+        sb.transform(4, 5, kIdentity, {0, 0, (1 << 20) - 1});  // vox z = world y
+        sb.shape(5, 0);
+        check("huge.vox", sb, {"2x1048577x2", "over the limit of 1048576 per axis"});
+    }
+    // Bad rotation and translation strings, written by hand.
+    for (const auto& [r, t, part] :
+         std::vector<std::array<std::string, 3>>{{"3", "0 0 0", "invalid rotation '_r' = '3'"},
+                                                 {"5", "0 0 0", "invalid rotation '_r' = '5'"},
+                                                 {"128", "0 0 0", "invalid rotation '_r' = '128'"},
+                                                 {"x", "0 0 0", "invalid rotation"},
+                                                 {"4", "1 2", "invalid translation '_t' = '1 2'"},
+                                                 {"4", "1 2 3 4", "invalid translation"},
+                                                 {"4", "1 2 99999999999", "invalid translation"},
+                                                 {"4", "1 - 3", "invalid translation"}}) {
+        SceneBuilder sb;
+        std::vector<std::uint8_t> c;
+        put_u32(c, 0);
+        put_dict(c, {});
+        put_u32(c, 1);
+        put_u32(c, 0xFFFFFFFFu);
+        put_u32(c, 0);
+        put_u32(c, 1);
+        put_dict(c, {{"_r", r}, {"_t", t}});
+        sb.node_chunk("nTRN", c);
+        sb.shape(1, 0);
+        check("rt" + r + ".vox", sb, {"chunk 'nTRN'", part});
+    }
+    // Truncated node chunks: every cut of a valid nTRN's content.
+    SceneBuilder whole;
+    whole.transform(0, 1, all_rotations()[7], {1, -2, 3});
+    const std::vector<std::uint8_t> trn = whole.graph;
+    for (std::size_t cut = 4; cut + 12 < trn.size(); cut += 3) {
+        SceneBuilder sb;
+        std::vector<std::uint8_t> c(trn.begin() + 12, trn.begin() + 12 + static_cast<long>(cut));
+        sb.node_chunk("nTRN", c);
+        sb.shape(1, 0);
+        check("cut" + std::to_string(cut) + ".vox", sb, {"chunk 'nTRN' at offset", "truncated"});
+    }
+    {
+        SceneBuilder sb;
+        std::vector<std::uint8_t> c;
+        put_u32(c, 1);
+        put_u32(c, 0x40000000u);  // a dictionary claiming 2^30 entries
+        sb.node_chunk("nGRP", c);
+        check("dict.vox", sb, {"chunk 'nGRP'", "dictionary of 1073741824 entries"});
+    }
+}
+
+TEST(VoxScene, ShippedModelsHaveNoSceneGraph) {
+    // Every model shipped in data/vox is one model without a scene graph: its world is that
+    // model, as before (the scene tests above cover graphs).
+    for (const Expected& e : kModels) {
+        const VoxScene s = read_vox_scene(kData / e.file);
+        std::cout << e.file << ": " << s.models.size() << " model(s), "
+                  << (s.has_scene_graph ? "scene graph with " : "no scene graph, ")
+                  << s.instances.size() << " visible instance(s), " << s.hidden_instances
+                  << " hidden; world " << s.dims.to_string() << "\n";
+        EXPECT_EQ(s.models.size(), 1u) << e.file;
+        EXPECT_FALSE(s.has_scene_graph) << e.file;
+        EXPECT_EQ(s.instances.size(), 1u) << e.file;
+        EXPECT_EQ(s.dims, (Dims{e.vox_size.x, e.vox_size.z, e.vox_size.y})) << e.file;
+    }
 }
 
 }  // namespace

@@ -16,22 +16,24 @@
 #include <stdexcept>
 #include <utility>
 
+#include "bench_implicit.hpp"
 #include "cli_util.hpp"
 #include "edit_log.hpp"
 #include "sand_run.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
-#include "voxfield/cl/sand.hpp"
 #include "voxfield/core/accuracy.hpp"
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/metric.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/sand.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/undo.hpp"
 #include "voxfield/pipeline/frame_pipeline.hpp"
+#include "voxfield/pipeline/scene.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 
 namespace voxfield::cli {
@@ -773,9 +775,8 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
         const std::string label =
             dims.to_string() + (bound ? " bounded at 16" : " unbounded") + ", L1";
         std::cerr << "bench: sand " << label << ": set-up\n";
-        ocl::IncrementalField field(ctx, world, Palette(), g);
-        ocl::SandSimulator sim(ctx, world, SandRules{});
-        warm_up_updates(field);
+        pipeline::Scene scene(ctx, world, Palette(), g);
+        warm_up_updates(scene);
         std::vector<double> full;
         {
             const auto job = ocl::make_generator(ctx, world, Palette(), g);
@@ -788,7 +789,7 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
         }
         const double full_ms = summarize(full).median;
         const auto records =
-            run_sand_steps(sim, field, o.seed, steps, [&](const SandStepRecord& r) {
+            run_sand_steps(scene, SandRules{}, o.seed, steps, [&](const SandStepRecord& r) {
                 std::cerr << "\rbench: sand " << label << ": step " << r.step + 1 << "/" << steps
                           << "   " << std::flush;
                 return true;
@@ -830,7 +831,8 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
 }
 
 const std::vector<std::string>& suite_names() {
-    static const std::vector<std::string> names = {"dissertation", "edits", "render", "sand"};
+    static const std::vector<std::string> names = {"dissertation", "edits", "render", "sand",
+                                                   "implicit"};
     return names;
 }
 
@@ -900,12 +902,7 @@ int run_suite(const SuiteOptions& o) {
             json_path = (fs::path(o.plot) / (o.suite + ".json")).string();
         }
     }
-    if (!json_path.empty()) {
-        require_output_folder(json_path);
-    }
-    if (!o.csv.empty()) {
-        require_output_folder(o.csv);
-    }
+    check_outputs({{"--json", json_path}, {"--csv", o.csv}}, {});
     RunPlan plan;
     plan.seed = o.seed;
     plan.repeat = o.repeat != 0 ? o.repeat : (o.quick ? 3 : (o.suite == "edits" ? 5 : 10));
@@ -949,6 +946,9 @@ int run_suite(const SuiteOptions& o) {
         doc["steps"] = steps;
         doc["world"] = n;
         rows = run_sand(ctx, o, n, steps);
+    } else if (o.suite == "implicit") {
+        doc["scene"] = "data/parts/bracket.sdf.json";
+        rows = run_implicit(ctx, plan.repeat, plan.warmup, plan.budget_s, o.quick);
     } else {
         rows = run_render(ctx, plan, o.quick);
     }

@@ -22,7 +22,7 @@ struct SuiteOptions {
     std::string format = "u16";  // edits: the field format
 };
 
-// "dissertation", "edits", "render", "sand".
+// "dissertation", "edits", "render", "sand", "implicit".
 const std::vector<std::string>& suite_names();
 
 // The Python interpreter that has matplotlib (VOXFIELD_PYTHON, /usr/bin/python3, python3),

@@ -1,6 +1,7 @@
 #pragma once
 // The falling-sand loop that `simulate` and `bench --suite sand` share: each step of the
-// automaton on the device, then its changed voxels through the incremental field in one batch.
+// automaton in place on the scene's device voxels, then the field updated there from the
+// step's change list (pipeline::Scene::step_sand): nothing of a step crosses to the host.
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -8,9 +9,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "voxfield/cl/incremental.hpp"
-#include "voxfield/cl/sand.hpp"
+#include "voxfield/core/sand.hpp"
 #include "voxfield/core/stats.hpp"
+#include "voxfield/pipeline/scene.hpp"
 
 namespace voxfield::cli {
 
@@ -26,12 +27,19 @@ struct SandStepRecord {
 // Toggles voxel 0 and restores it, untimed: the first launch of each update kernel pays its
 // build (PoCL compiles per kernel and work-group shape), so that update times measure updates
 // (the updates are exact: the field is as before).
-void warm_up_updates(ocl::IncrementalField& field);
+// `Field`: an ocl::IncrementalField or a pipeline::Scene.
+template <class Field>
+void warm_up_updates(Field& field) {
+    const std::uint8_t v0 = field.world().voxels()[0];
+    const std::uint8_t other = v0 != 0 ? std::uint8_t{0} : std::uint8_t{1};
+    field.apply_changes({{0, v0, other}});
+    field.apply_changes({{0, other, v0}});
+}
 
 // Runs steps [0, steps) with `seed`; after each, `after` (if set) sees its record and returns
 // false to stop the run there. Returns the records of the steps run.
 std::vector<SandStepRecord> run_sand_steps(
-    ocl::SandSimulator& sim, ocl::IncrementalField& field, std::uint64_t seed, std::uint64_t steps,
+    pipeline::Scene& scene, const SandRules& rules, std::uint64_t seed, std::uint64_t steps,
     const std::function<bool(const SandStepRecord&)>& after = {});
 
 // What `simulate` and `bench --suite sand` report of a run: per-step device-time statistics,

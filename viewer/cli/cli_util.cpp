@@ -1,13 +1,16 @@
 #include "cli_util.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
-#include <fstream>
+
+#include <unistd.h>
 #include <vector>
 
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/reference.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield_commit.hpp"
@@ -38,27 +41,33 @@ NpyType npy_type(Format f) {
 }
 
 void require_output_folder(const std::filesystem::path& path) {
-    const auto folder = path.parent_path();
-    if (!folder.empty() && !std::filesystem::is_directory(folder)) {
-        throw InputError("cannot write '" + path.string() + "': folder '" + folder.string() +
-                         "' does not exist");
+    check_output_path(path);
+}
+
+void require_input_file(const std::filesystem::path& path) {
+    std::error_code ec;
+    const auto status = std::filesystem::status(path, ec);
+    if (!std::filesystem::exists(status)) {
+        throw InputError("'" + path.string() + "': no such file");
+    }
+    if (std::filesystem::is_directory(status)) {
+        throw InputError("'" + path.string() + "': is a directory, not a file");
+    }
+}
+
+void require_png_name(const std::string& option, const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (ext != ".png") {
+        throw InputError(option + " '" + path +
+                         "' must be a .png file (PNG is the only image "
+                         "format written)");
     }
 }
 
 void write_text_file(const std::filesystem::path& path, const std::string& text) {
-    require_output_folder(path);
-    const auto tmp = std::filesystem::path(path.string() + ".tmp");
-    {
-        std::ofstream out(tmp);
-        out << text;
-        out.flush();
-        if (!out) {
-            out.close();
-            std::filesystem::remove(tmp);
-            throw InputError("cannot write '" + path.string() + "'");
-        }
-    }
-    std::filesystem::rename(tmp, path);
+    write_output_file(path, text);
 }
 
 void write_json_file(const std::filesystem::path& path, const nlohmann::json& j) {
@@ -135,9 +144,15 @@ void add_generator_flags(CLI::App& app, GeneratorFlags& flags) {
 }
 
 void add_metric_flags(CLI::App& app, GeneratorFlags& flags) {
-    app.add_option("--metric", flags.metric,
-                   "Distance metric: manhattan (L1, the dissertation's), chebyshev (L-inf) or "
-                   "euclidean (L2); other than manhattan needs --algorithm exact")
+    // The clause about algorithms only where the command has them (simulate has none).
+    std::string metric_help =
+        "Distance metric: manhattan (L1, the dissertation's), chebyshev (L-inf) or euclidean (L2)";
+    if (app.get_option_no_throw("--algorithm") != nullptr) {
+        metric_help += "; other than manhattan needs --algorithm exact";
+    } else if (app.get_option_no_throw("--algorithms") != nullptr) {
+        metric_help += "; other than manhattan is computed by exact only";
+    }
+    app.add_option("--metric", flags.metric, metric_help)
         ->check(CLI::IsMember(metric_names()))
         ->capture_default_str();
     app.add_option("--spacing", flags.spacing,
@@ -231,6 +246,61 @@ std::string utc_now() {
 std::string fixed(double v, int digits) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+    return buf;
+}
+
+namespace {
+
+std::string gib(double bytes) {
+    return fixed(bytes / double(1ull << 30), 1) + " GiB";
+}
+
+}  // namespace
+
+void require_memory_for(Dims dims, Format format, const ocl::DeviceInfo& device,
+                        const std::string& what) {
+    const double n = static_cast<double>(dims.x) * dims.y * dims.z;
+    const double es = static_cast<double>(element_size(format));
+    // Host: the world (1 byte a voxel) and the field read back; device: the world, the field
+    // and a 4-byte work buffer a voxel (the least any generator allocates).
+    const double host = n * (1 + es);
+    const double on_device = n * (1 + es + 4);
+    const long pages = ::sysconf(_SC_PHYS_PAGES);
+    const long page = ::sysconf(_SC_PAGESIZE);
+    const double host_total =
+        pages > 0 && page > 0 ? static_cast<double>(pages) * static_cast<double>(page) : 0;
+    if (host_total > 0 && host > host_total) {
+        throw InputError(what + ": a " + dims.to_string() + " world needs at least " + gib(host) +
+                         " of host memory (" + gib(n) + " world + " + gib(n * es) + " " +
+                         to_string(format) + " field), this machine has " + gib(host_total));
+    }
+    if (device.global_mem > 0 && on_device > static_cast<double>(device.global_mem)) {
+        throw InputError(what + ": a " + dims.to_string() + " world needs at least " +
+                         gib(on_device) + " of device memory (world, " + to_string(format) +
+                         " field and a 4-byte buffer a voxel), " + device.name + " has " +
+                         gib(static_cast<double>(device.global_mem)));
+    }
+}
+
+CLI::Validator positive() {
+    return CLI::Validator(
+        [](std::string& text) -> std::string {
+            char* end = nullptr;
+            const double v = std::strtod(text.c_str(), &end);
+            if (text.empty() || end != text.c_str() + text.size() || !(v > 0)) {
+                return "must be a positive number, got '" + text + "'";
+            }
+            return {};
+        },
+        "POSITIVE");
+}
+
+std::string rate(double v) {
+    if (!(v > 0) || v >= 0.1) {
+        return fixed(v, 2);
+    }
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.2g", v);
     return buf;
 }
 

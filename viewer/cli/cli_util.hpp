@@ -29,6 +29,7 @@ Command add_simulate(CLI::App& root);
 Command add_bench(CLI::App& root);
 Command add_render(CLI::App& root);
 Command add_view(CLI::App& root);
+Command add_info(CLI::App& root);
 
 // Options shared by the subcommands that run generators (--algorithm, --chunk, --focus,
 // --jfa-extra, --metric, --spacing, --signed), as typed, and their registration.
@@ -57,9 +58,17 @@ Accuracy accuracy_of(const World& world, const Palette& palette,
 // The .npy element type a field of format `f` is stored as (packed32 as uint32).
 NpyType npy_type(Format f);
 
-// Throws InputError unless `path`'s folder exists (checked before long work starts).
+// Throws InputError unless `path` can be written as an output (check_output_path of
+// voxfield/core/output.hpp: its folder exists and is writable, it is not a directory, a
+// socket or a block device); checked before long work starts.
 void require_output_folder(const std::filesystem::path& path);
-// Writes `text` to `path` atomically (temporary file + rename): never a partial file.
+// Throws InputError, with the readers' words, when `path` does not exist or is a directory:
+// for checking the inputs exist before the outputs, without reading them yet.
+void require_input_file(const std::filesystem::path& path);
+// Throws InputError unless `path` ends in .png (any case): the images written are PNG only.
+void require_png_name(const std::string& option, const std::string& path);
+// Writes `text` to `path` through the output writer (voxfield/core/output.hpp): never a
+// partial file, a device or FIFO written directly.
 void write_text_file(const std::filesystem::path& path, const std::string& text);
 void write_json_file(const std::filesystem::path& path, const nlohmann::json& j);
 
@@ -80,5 +89,17 @@ std::string commit();
 std::string utc_now();
 // `v` with `digits` decimals ("%.*f").
 std::string fixed(double v, int digits);
+// Throws InputError, with the numbers, when a world of `dims` and its `format` field cannot
+// fit this machine's physical memory or `device`'s global memory (checked before any work;
+// `what` starts the message, e.g. "--sizes 100000").
+void require_memory_for(Dims dims, Format format, const ocl::DeviceInfo& device,
+                        const std::string& what);
+// CLI11 check for counts and durations that must be above zero, in plain words
+// ("--repeat: must be a positive number, got '0'") where CLI::PositiveNumber prints the range
+// 0 to DBL_MAX in 309 digits.
+CLI::Validator positive();
+// A rate such as Gvox/s: two decimals from 0.1 up, two significant digits below (0.0026),
+// so that a slow algorithm never reads 0.00.
+std::string rate(double v);
 
 }  // namespace voxfield::cli

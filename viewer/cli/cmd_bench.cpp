@@ -10,9 +10,11 @@
 
 #include "bench_suites.hpp"
 #include "cli_util.hpp"
+#include "progress.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/core/accuracy.hpp"
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/stats.hpp"
 
@@ -62,13 +64,33 @@ int run_bench(const BenchOptions& o) {
             json_path = (std::filesystem::path(o.plot) / "bench.json").string();
         }
     }
-    if (!json_path.empty()) {
-        require_output_folder(json_path);
+    check_outputs({{"--json", json_path}, {"--csv", o.csv}}, {});
+    // What generate refuses, bench refuses too, before any work: options that no size can
+    // take (a chunk that is not a power of two, a metric an algorithm lacks) exit 2; a size
+    // that only some algorithms cannot do (brute force on a large grid) becomes a skipped row.
+    for (const auto& algorithm : o.algorithms) {
+        GeneratorFlags flags = o.field;
+        flags.algorithm = algorithm;
+        flags.chunk = algorithm == "exact" ? 0 : o.chunk;
+        std::optional<std::string> refused;
+        std::size_t accepted = 0;
+        for (const Dims& dims : sizes) {
+            try {
+                generator_options(flags, format, dims);
+                ++accepted;
+            } catch (const InputError& e) {
+                refused = refused.value_or(e.what());
+            }
+        }
+        if (accepted == 0 && refused) {
+            throw InputError("bench --algorithms " + algorithm + ": " + *refused);
+        }
     }
-    if (!o.csv.empty()) {
-        require_output_folder(o.csv);
+    const ocl::DeviceInfo device = ocl::select_device(o.device);
+    for (std::size_t i = 0; i < sizes.size(); ++i) {
+        require_memory_for(sizes[i], format, device, "bench --sizes " + o.sizes[i]);
     }
-    ocl::Context ctx(ocl::select_device(o.device));
+    ocl::Context ctx(device);
     std::cerr << "bench: device " << ctx.info().name << " (" << ctx.info().platform << ")\n";
 
     nlohmann::json results = nlohmann::json::array();
@@ -108,10 +130,11 @@ int run_bench(const BenchOptions& o) {
             ocl::Generator& job = *generator;
             std::vector<double> ms;
             StageTimes stage_times;
+            Progress progress("bench");
             for (std::uint32_t i = 0; i < o.warmup + o.repeat; ++i) {
-                std::cerr << "\rbench: " << label << ": " << (i < o.warmup ? "warm-up " : "run ")
-                          << (i < o.warmup ? i + 1 : i + 1 - o.warmup) << "/"
-                          << (i < o.warmup ? o.warmup : o.repeat) << "   " << std::flush;
+                progress.set(label + ": " + (i < o.warmup ? "warm-up " : "run ") +
+                             std::to_string(i < o.warmup ? i + 1 : i + 1 - o.warmup) + "/" +
+                             std::to_string(i < o.warmup ? o.warmup : o.repeat));
                 const double t = job.run();
                 if (i >= o.warmup) {
                     ms.push_back(t);
@@ -120,8 +143,9 @@ int run_bench(const BenchOptions& o) {
             }
             double download_ms = 0;
             const auto field = job.read(&download_ms);
-            std::cerr << "\rbench: " << label << ": checking against the CPU reference\n";
+            progress.set(label + ": checking against the CPU reference");
             const Accuracy a = accuracy_of(world, Palette::magicavoxel_default(), options, field);
+            progress.stop();
             const Summary s = summarize(ms);
             const nlohmann::json stages = stage_times.json();
             std::ostringstream stage_text;
@@ -165,23 +189,26 @@ int run_bench(const BenchOptions& o) {
                 << ',' << s.median << ',' << s.mean << ',' << s.std << ',' << s.ci95_lo << ','
                 << s.ci95_hi << ',' << s.min << ',' << s.max << ',' << gvox << ',' << a.max_error
                 << ',' << a.mean_error << '\n';
-            std::printf("%-14s %-14s %-6s %-8s %10.3f %10.3f %10.3f %10.2f %6u %9u\n",
+            std::printf("%-14s %-14s %-6s %-8s %10.3f %10.3f %10.3f %10s %6u %9u\n",
                         algorithm.c_str(), dims.to_string().c_str(),
                         options.chunk == 0 ? "-" : std::to_string(options.chunk).c_str(),
-                        to_string(format).c_str(), s.median, s.mean, s.std, gvox, job.iterations(),
-                        a.max_error);
+                        to_string(format).c_str(), s.median, s.mean, s.std, rate(gvox).c_str(),
+                        job.iterations(), a.max_error);
             std::fflush(stdout);
         }
     }
+    OutputBatch outputs;  // both or neither
     if (!json_path.empty()) {
-        write_json_file(json_path, {{"device", device_json(ctx.info())},
+        const nlohmann::json doc = {{"device", device_json(ctx.info())},
                                     {"commit", commit()},
                                     {"date", utc_now()},
-                                    {"results", results}});
+                                    {"results", results}};
+        outputs.write(json_path, doc.dump(2) + "\n");
     }
     if (!o.csv.empty()) {
-        write_text_file(o.csv, csv.str());
+        outputs.write(o.csv, csv.str());
     }
+    outputs.commit();
     if (plotter) {
         run_plotter(*plotter, o.plot, {json_path});
     }
@@ -207,7 +234,7 @@ Command add_bench(CLI::App& root) {
         ->check(CLI::Range(1u, 1u << 20));
     app->add_option("--device", o->device, "cpu, gpu or an index from `voxfield devices`");
     app->add_option("--repeat", o->repeat, "Timed runs per size")
-        ->check(CLI::PositiveNumber)
+        ->check(positive())
         ->capture_default_str();
     app->add_option("--warmup", o->warmup, "Untimed runs before the timed ones")
         ->capture_default_str();
@@ -230,20 +257,22 @@ Command add_bench(CLI::App& root) {
                     "dissertation's generation-time tables, exact beside every row group), edits "
                     "(its editing protocol, per-edit update times), render (ray-march frame "
                     "times of every metric), sand (falling sand with the exact field updated "
-                    "every step; --repeat is its step count, default 200, --quick 10)")
+                    "every step; --repeat is its step count, default 200, --quick 10), implicit "
+                    "(discretising data/parts/bracket.sdf.json into tile grids of contrees at "
+                    "256^3 and 1024^3, --quick 256^3)")
         ->check(CLI::IsMember(suite_names()));
     app->add_flag("--quick", o->quick,
                   "Suites: smaller sizes and fewer runs (minutes on a 2-core CPU; what CI runs)");
     app->add_option("--time-budget", o->budget_s,
                     "Suites: wall-clock seconds per row; a row stops after the run that passes "
                     "it, larger sizes predicted to pass it are skipped (default 60, --quick 15)")
-        ->check(CLI::PositiveNumber);
+        ->check(positive());
     app->add_option("--edits", o->edits, "Suite edits: number of edits (default 200, --quick 20)")
-        ->check(CLI::PositiveNumber);
+        ->check(positive());
     app->add_option("--world", o->world,
                     "Suites edits and sand: world edge N (edits: default 128, --quick 64; sand: "
                     "256, --quick 64)")
-        ->check(CLI::PositiveNumber);
+        ->check(positive());
     return {app, [o, app] {
                 if (o->suite.empty()) {
                     for (const char* flag : {"--quick", "--time-budget", "--edits", "--world"}) {

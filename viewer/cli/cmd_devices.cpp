@@ -13,16 +13,35 @@ namespace voxfield::cli {
 
 namespace {
 
-// "sharing: path N: ... (OpenCL X, Vulkan Y)", or why it cannot be said.
-std::string sharing_line() {
+// The OpenCL -> Vulkan sharing path from OpenCL device `device` to the default Vulkan device
+// (what `render --field compact` would use), or why it cannot be said.
+struct Sharing {
+    std::string path, vulkan, why_not;
+};
+
+Sharing sharing_of(const ocl::DeviceInfo& device) {
     try {
-        ocl::Context cl_ctx(ocl::select_device(""));
+        ocl::Context cl_ctx(device);
         vk::Context vk_ctx;
         std::string why_not;
         const vk::SharingPath path = pipeline::choose_sharing_path(cl_ctx, vk_ctx, why_not);
-        return "sharing: " + vk::describe(path) + " (OpenCL " + cl_ctx.info().name + ", Vulkan " +
-               vk_ctx.info().name + "; render --field compact)" +
-               (why_not.empty() ? "" : " [" + why_not.substr(0, why_not.size() - 2) + "]");
+        return {vk::describe(path), vk_ctx.info().name,
+                why_not.empty() ? "" : why_not.substr(0, why_not.size() - 2)};
+    } catch (const std::exception& e) {
+        return {"none", "", e.what()};
+    }
+}
+
+// "sharing: path N: ... (OpenCL X, Vulkan Y)", or why it cannot be said.
+std::string sharing_line() {
+    try {
+        const ocl::DeviceInfo device = ocl::select_device("");
+        const Sharing s = sharing_of(device);
+        if (s.vulkan.empty()) {
+            return "sharing: none (" + s.why_not + ")";
+        }
+        return "sharing: " + s.path + " (OpenCL " + device.name + ", Vulkan " + s.vulkan +
+               "; render --field compact)" + (s.why_not.empty() ? "" : " [" + s.why_not + "]");
     } catch (const std::exception& e) {
         return std::string("sharing: none (") + e.what() + ")";
     }
@@ -33,13 +52,22 @@ std::string sharing_line() {
 Command add_devices(CLI::App& root) {
     auto* app = root.add_subcommand("devices", "List OpenCL devices and their indices");
     auto json = std::make_shared<bool>(false);
-    app->add_flag("--json", *json, "Print the list as JSON");
+    app->add_flag("--json", *json,
+                  "Print the list as JSON, each device with its sharing path to the default "
+                  "Vulkan device (path, vulkan_device, why_not)");
     return {app, [json] {
                 const auto devices = ocl::list_devices();
                 if (*json) {
                     nlohmann::json out = nlohmann::json::array();
                     for (const auto& d : devices) {
-                        out.push_back(device_json(d));
+                        nlohmann::json j = device_json(d);
+                        const Sharing s = sharing_of(d);
+                        j["sharing"] = {
+                            {"path", s.path},
+                            {"vulkan_device",
+                             s.vulkan.empty() ? nlohmann::json() : nlohmann::json(s.vulkan)},
+                            {"why_not", s.why_not}};
+                        out.push_back(std::move(j));
                     }
                     std::cout << out.dump(2) << '\n';
                     return 0;

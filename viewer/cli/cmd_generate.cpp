@@ -10,11 +10,14 @@
 #include <span>
 
 #include "cli_util.hpp"
+#include "generate_sparse.hpp"
+#include "progress.hpp"
 #include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/separable.hpp"
 #include "voxfield/core/accuracy.hpp"
 #include "voxfield/core/npy.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/vox.hpp"
 
@@ -33,7 +36,7 @@ double ms_since(Clock::time_point t) {
 struct GenerateOptions {
     GeneratorFlags generator;
     std::string input, output, device, format, json, indices;
-    bool stats = false;
+    bool stats = false, sparse = false;
     std::uint32_t repeat = 1, warmup = 0;
 };
 
@@ -69,17 +72,16 @@ std::size_t count_solid(std::span<const std::uint8_t> voxels) {
 }
 
 int run_generate(const GenerateOptions& o) {
+    check_outputs({{"-o", o.output}, {"--indices", o.indices}, {"--json", o.json}},
+                  {{"INPUT", o.input}});
+    if (o.sparse || needs_sparse(o.input)) {
+        return run_generate_sparse({o.generator, o.input, o.output, o.device, o.format, o.json,
+                                    !o.indices.empty(), o.stats, o.repeat, o.warmup});
+    }
     const Format format = field_format(o.generator, o.format);
-    require_output_folder(o.output);
-    for (const std::string* extra : {&o.json, &o.indices}) {
-        if (!extra->empty()) {
-            require_output_folder(*extra);
-        }
-    }
-    if (!o.indices.empty() && o.indices == o.output) {
-        throw InputError("--indices and -o name the same file '" + o.output + "'");
-    }
     Phases phases;
+    Progress progress("generate");
+    progress.set("reading " + o.input);
     // The main job (exact Manhattan, unit spacing, unsigned, from a uint8 .npy) reads the
     // world straight into the host memory the kernels read, on a second thread while the
     // device and its kernels are set up; everything else loads a World first.
@@ -119,6 +121,7 @@ int run_generate(const GenerateOptions& o) {
             return ms_since(t);
         });
     }
+    progress.set("setting up the device");
     const auto t_setup = Clock::now();
     ocl::Context ctx(ocl::select_device(o.device));
     double build_ms = 0;  // kernel build, where it is not part of the upload
@@ -143,6 +146,7 @@ int run_generate(const GenerateOptions& o) {
 
     // End to end = kernel build + upload + first run + download (the first run pays page
     // faults and kernel set-up, as a one-off user would).
+    progress.set("uploading the world");
     const auto t_upload = Clock::now();
     const std::unique_ptr<ocl::Generator> job =
         in_place ? std::make_unique<ocl::ExactManhattan>(
@@ -155,6 +159,10 @@ int run_generate(const GenerateOptions& o) {
     double first_run_ms = 0;
     const auto t_kernels = Clock::now();
     for (std::uint32_t i = 0; i < o.warmup + o.repeat; ++i) {
+        progress.set(i < o.warmup
+                         ? "warm-up run " + std::to_string(i + 1) + "/" + std::to_string(o.warmup)
+                         : "run " + std::to_string(i + 1 - o.warmup) + "/" +
+                               std::to_string(o.repeat));
         const double ms = job->run();
         if (i == 0) {
             first_run_ms = ms_since(t_kernels);
@@ -165,6 +173,7 @@ int run_generate(const GenerateOptions& o) {
         }
     }
     phases.kernels = ms_since(t_kernels);
+    progress.set("downloading the field");
     const auto t_download = Clock::now();
     const ocl::MappedBuffer field(ctx, job->field_buffer(), dims.count() * element_size(format));
     std::vector<std::int32_t> indices;
@@ -178,17 +187,22 @@ int run_generate(const GenerateOptions& o) {
     timing.download_ms = field.map_ms();
     const double end_to_end_ms = build_ms + phases.upload + first_run_ms + phases.download;
 
+    // Every output goes into one batch, renamed onto its target only once all are written:
+    // a failure leaves none of them.
+    OutputBatch outputs;
+    progress.set("writing " + o.output);
     const auto t_write = Clock::now();
-    write_npy(o.output, npy_type(format), dims, field.bytes());
+    write_npy(outputs, o.output, npy_type(format), dims, field.bytes());
     if (options.indices) {
         write_npy_shape(
-            o.indices, NpyType::i32, {3, dims.z, dims.y, dims.x},
+            outputs, o.indices, NpyType::i32, {3, dims.z, dims.y, dims.x},
             std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(indices.data()),
                                           indices.size() * sizeof(std::int32_t)));
     }
     phases.write = ms_since(t_write);
     phases.wall = ms_since(kProgramStart);
 
+    progress.stop();
     const double voxel_count = static_cast<double>(dims.count());
     const double gvox = voxel_count / (timing.kernel_ms * 1e-3) / 1e9;
     std::cout << "device:  " << ctx.info().name << " (" << ctx.info().platform << ", "
@@ -202,9 +216,11 @@ int run_generate(const GenerateOptions& o) {
               << o.output << (options.indices ? ", indices -> " + o.indices : "") << '\n'
               << "time:    kernels " << fixed(timing.kernel_ms, 3) << " ms"
               << (samples.size() > 1 ? " median of " + std::to_string(samples.size()) : "") << " ("
-              << fixed(gvox, 2) << " Gvox/s); end to end " << fixed(end_to_end_ms, 1)
-              << " ms (upload " << fixed(timing.upload_ms, 2) << " ms, download "
-              << fixed(timing.download_ms, 2) << " ms, incl. kernel build on first use)\n";
+              << rate(gvox) << " Gvox/s); end to end " << fixed(end_to_end_ms, 1) << " ms = "
+              << (in_place ? "kernel build " + fixed(build_ms, 1) + " + upload "
+                           : std::string("upload (incl. kernel build) "))
+              << fixed(phases.upload, 1) << " + first run " << fixed(first_run_ms, 1)
+              << " + download " << fixed(phases.download, 1) << " ms (wall)\n";
 
     nlohmann::json j = {
         {"device", device_json(ctx.info())},
@@ -257,7 +273,7 @@ int run_generate(const GenerateOptions& o) {
                   << (in_place ? "" : " (incl. kernel build)") << ", kernels "
                   << fixed(phases.kernels, 1) << " ms, download " << fixed(phases.download, 1)
                   << " ms, write " << fixed(phases.write, 1) << " ms; wall "
-                  << fixed(phases.wall, 1) << " ms (program start to output renamed)\n";
+                  << fixed(phases.wall, 1) << " ms (program start to output written)\n";
         std::optional<World> copy;
         if (!model) {
             copy.emplace(dims,
@@ -265,7 +281,10 @@ int run_generate(const GenerateOptions& o) {
         }
         const World& world = model ? model->world : *copy;
         const std::vector<std::uint8_t> bytes(field.bytes().begin(), field.bytes().end());
+        Progress checking("generate");
+        checking.set("checking against the CPU reference");
         const Accuracy a = accuracy_of(world, palette, options, bytes);
+        checking.stop();
         std::cout << "stats:   " << fixed(voxel_count / (timing.kernel_ms * 1e-3) / 1e6, 1)
                   << " Mvox/s; vs the exact CPU reference ("
                   << (options.chunk != 0 ? "chunk-local, chunk " + std::to_string(options.chunk)
@@ -279,8 +298,9 @@ int run_generate(const GenerateOptions& o) {
         j["under_fraction"] = a.under_fraction;
     }
     if (!o.json.empty()) {
-        write_json_file(o.json, j);
+        outputs.write(o.json, j.dump(2) + "\n");
     }
+    outputs.commit();
     return 0;
 }
 
@@ -303,9 +323,12 @@ Command add_generate(CLI::App& root) {
                     "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, "
                     "else the first GPU, else the first CPU)");
     add_format_option(*app, o->format);
+    app->add_flag("--sparse", o->sparse,
+                  "Store the world as a tile grid of 64-trees and compute the exact bounded "
+                  "field per tile (--max-distance, default 16); automatic above 2^31 voxels");
     app->add_flag("--stats", o->stats,
                   "Also report the wall time of each phase (read, setup, upload, kernels, "
-                  "download, write, and the whole from program start to output renamed), "
+                  "download, write, and the whole from program start to output written), "
                   "voxels/s and accuracy against the exact CPU reference of the same semantics "
                   "(global, or chunk-local with --chunk)");
     app->add_option("--json", o->json,
@@ -313,7 +336,7 @@ Command add_generate(CLI::App& root) {
                     "accuracy, to this JSON file");
     app->add_option("--repeat", o->repeat,
                     "Run the transform this many times and report the median kernel time")
-        ->check(CLI::PositiveNumber)
+        ->check(positive())
         ->capture_default_str();
     app->add_option("--warmup", o->warmup,
                     "Untimed runs first (the first run pays page faults and kernel set-up)")

@@ -19,6 +19,7 @@
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/metric.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/pipeline/frame_pipeline.hpp"
 #include "voxfield/vk/raymarcher.hpp"
@@ -78,26 +79,14 @@ Rgba parse_colour(const std::string& text) {
                 static_cast<std::uint8_t>(v), 255};
 }
 
-bool ends_with_png(const std::string& path) {
-    if (path.size() < 4) {
-        return false;
-    }
-    std::string ext = path.substr(path.size() - 4);
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return ext == ".png";
-}
-
 std::string point(const vk::Vec3& v) {
     return "(" + fixed(v[0], 2) + ", " + fixed(v[1], 2) + ", " + fixed(v[2], 2) + ")";
 }
 
 int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLog>& validation) {
     // Everything the user typed is checked before any file is read or device touched.
-    if (!ends_with_png(o.output)) {
-        throw InputError("output '" + o.output + "' must be a .png file");
-    }
-    require_output_folder(o.output);
+    require_png_name("-o", o.output);
+    check_outputs({{"-o", o.output}}, {{"INPUT", o.input}});
     vk::RenderOptions r;
     r.width = o.width;
     r.height = o.height;

@@ -9,13 +9,16 @@
 #include <sstream>
 
 #include "cli_util.hpp"
+#include "progress.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
 #include "voxfield/core/edits.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/npy.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/vox.hpp"
+#include "voxfield/pipeline/scene.hpp"
 
 namespace voxfield::cli {
 namespace {
@@ -25,8 +28,6 @@ namespace fs = std::filesystem;
 // Full regenerations timed once per run: untimed warm-up first, then the median of these.
 constexpr std::uint32_t kRegenerateWarmup = 1;
 constexpr std::uint32_t kRegenerateRepeat = 5;
-// Progress on stderr every this many edits (files at least this long only).
-constexpr std::size_t kProgressEvery = 100;
 
 struct ReplayOptions {
     GeneratorFlags generator;
@@ -85,41 +86,18 @@ std::string field_difference(const std::vector<std::uint8_t>& incremental,
            " of " + std::to_string(dims.count()) + " voxels differ";
 }
 
-bool same_file_path(const std::string& a, const std::string& b) {
-    if (a.empty() || b.empty()) {
-        return false;
-    }
-    std::error_code ec1, ec2;
-    const fs::path pa = fs::weakly_canonical(a, ec1);
-    const fs::path pb = fs::weakly_canonical(b, ec2);
-    return ec1 || ec2 ? fs::path(a) == fs::path(b) : pa == pb;
-}
-
 void check_outputs(const ReplayOptions& o) {
+    // The inputs exist before anything is said about the outputs.
+    require_input_file(o.edits);
+    require_input_file(o.input);
     if (o.output.empty() && o.world_output.empty() && o.json.empty() && !o.verify) {
         throw InputError(
             "replay would produce nothing: give -o FIELD.npy, --world-output W.npy, --json FILE "
             "or --verify");
     }
-    const std::vector<std::pair<std::string, std::string>> outputs = {
-        {"-o", o.output}, {"--world-output", o.world_output}, {"--json", o.json}};
-    for (std::size_t i = 0; i < outputs.size(); ++i) {
-        if (outputs[i].second.empty()) {
-            continue;
-        }
-        require_output_folder(outputs[i].second);
-        for (std::size_t k = i + 1; k < outputs.size(); ++k) {
-            if (same_file_path(outputs[i].second, outputs[k].second)) {
-                throw InputError(outputs[i].first + " and " + outputs[k].first +
-                                 " name the same file '" + outputs[i].second +
-                                 "': give each output its own file");
-            }
-        }
-        if (same_file_path(outputs[i].second, o.edits)) {
-            throw InputError(outputs[i].first + " '" + outputs[i].second +
-                             "' would overwrite the edit file");
-        }
-    }
+    voxfield::check_outputs(
+        {{"-o", o.output}, {"--world-output", o.world_output}, {"--json", o.json}},
+        {{"EDITS", o.edits}, {"--input", o.input}});
 }
 
 int run_replay(const ReplayOptions& o) {
@@ -131,8 +109,12 @@ int run_replay(const ReplayOptions& o) {
     const Dims dims = model.world.dims();
     const ocl::GeneratorOptions options = generator_options(o.generator, format, dims);
     ocl::Context ctx(ocl::select_device(o.device));
+    // Progress on a terminal for long replays; stopped before any message.
+    Progress progress("replay");
+    progress.set("setting up the field");
 
-    ocl::IncrementalField field(
+    // The world and its field, edited as every front end edits them (pipeline::Scene).
+    pipeline::Scene field(
         ctx, model.world, model.palette, options,
         o.max_margin == 0 ? ocl::IncrementalField::kNoMargin : o.max_margin);
     // The first launch of each update kernel pays its build (PoCL compiles per kernel and
@@ -151,6 +133,7 @@ int run_replay(const ReplayOptions& o) {
     }
 
     // Full regeneration of the initial world on this device: warm-up, then the median.
+    progress.set("timing full regenerations");
     std::vector<double> regen_samples;
     for (std::uint32_t i = 0; i < kRegenerateWarmup + kRegenerateRepeat; ++i) {
         const double ms = field.regenerate();
@@ -160,22 +143,17 @@ int run_replay(const ReplayOptions& o) {
     }
     const double full_ms = summarize(regen_samples).median;
 
-    // Progress on stderr (`\r` style) for long files; a message ends the progress line first.
-    const bool progress = edits.size() >= kProgressEvery;
-    bool progress_open = false;
     // --verify: a fresh generator on the current world, same options, byte for byte.
     auto verify = [&](const std::string& after) -> bool {
         const auto job = ocl::make_generator(ctx, field.world(), model.palette, options);
         job->run();
         const std::vector<std::uint8_t> full = job->read();
-        const std::vector<std::uint8_t> incremental = field.read();
+        const std::vector<std::uint8_t> incremental = field.read_field();
         const std::string diff = field_difference(incremental, full, format, dims);
         if (diff.empty()) {
             return true;
         }
-        if (progress_open) {
-            std::cerr << '\n';
-        }
+        progress.stop();
         std::cerr << "voxfield: replay --verify failed " << after
                   << ": the incremental field differs from a full regeneration ("
                   << o.generator.algorithm
@@ -193,12 +171,9 @@ int run_replay(const ReplayOptions& o) {
     std::size_t voxels_changed = 0, fallbacks = 0;
     for (std::size_t i = 0; i < edits.size(); ++i) {
         const Edit& e = edits[i];
-        if (progress && i % kProgressEvery == 0) {
-            std::cerr << "\rreplay: edit " << i + 1 << "/" << edits.size()
-                      << (o.verify ? " (verifying)" : "") << "   " << std::flush;
-            progress_open = true;
-        }
-        const ocl::UpdateStats s = field.apply({e.brush});
+        progress.set("edit " + std::to_string(i + 1) + "/" + std::to_string(edits.size()) +
+                     (o.verify ? " (verifying)" : ""));
+        const ocl::UpdateStats s = field.apply({e.brush}).stats;
         std::size_t changed = 0;
         for (const EditResult& r : s.edits) {
             changed += r.changes.size();
@@ -227,20 +202,19 @@ int run_replay(const ReplayOptions& o) {
             return 1;
         }
     }
-    if (progress) {
-        std::cerr << "\rreplay: " << edits.size() << "/" << edits.size() << " edits applied"
-                  << (o.verify ? " and verified" : "") << "        \n";
-    }
+    progress.set("writing the outputs");
 
-    // Outputs only now, each written atomically.
+    // Outputs only now, in one batch renamed onto their targets once all are written.
+    OutputBatch outputs;
     if (!o.world_output.empty()) {
         const NpyArray w = npy_from_world(field.world());
-        write_npy(o.world_output, w.type, w.dims, w.data);
+        write_npy(outputs, o.world_output, w.type, w.dims, w.data);
     }
     if (!o.output.empty()) {
-        write_npy(o.output, npy_type(format), dims, field.read());
+        write_npy(outputs, o.output, npy_type(format), dims, field.read_field());
     }
 
+    progress.stop();
     const Summary s = summarize(update_ms);
     const bool has_ratio = !update_ms.empty() && s.median > 0;
     const double ratio = has_ratio ? full_ms / s.median : 0;
@@ -272,12 +246,6 @@ int run_replay(const ReplayOptions& o) {
               << '\n';
     if (o.verify) {
         std::cout << "verify:   the field matched a full regeneration after every edit\n";
-    }
-    if (!o.world_output.empty()) {
-        std::cout << "wrote:    " << o.world_output << " (world)\n";
-    }
-    if (!o.output.empty()) {
-        std::cout << "wrote:    " << o.output << " (field)\n";
     }
 
     if (!o.json.empty()) {
@@ -311,7 +279,16 @@ int run_replay(const ReplayOptions& o) {
             const Focus& f = *options.focus;
             j["focus"] = {f.centre.x, f.centre.y, f.centre.z, f.size};
         }
-        write_json_file(o.json, j);
+        outputs.write(o.json, j.dump(2) + "\n");
+    }
+    outputs.commit();
+    if (!o.world_output.empty()) {
+        std::cout << "wrote:    " << o.world_output << " (world)\n";
+    }
+    if (!o.output.empty()) {
+        std::cout << "wrote:    " << o.output << " (field)\n";
+    }
+    if (!o.json.empty()) {
         std::cout << "wrote:    " << o.json << " (timings)\n";
     }
     return 0;

@@ -1,6 +1,7 @@
-// `voxfield simulate INPUT --steps N`: falling sand and water (DESIGN §4) on the device, the
-// distance field kept exact after every step by one incremental update of the voxels the step
-// changed, with optional verification against a full regeneration and per-step timings.
+// `voxfield simulate INPUT --steps N`: falling sand and water (DESIGN §4) in place on the
+// device (pipeline::Scene), the distance field kept exact after every step by one update from
+// the step's change list on the device, with optional verification against a full
+// regeneration and per-step timings.
 #include <algorithm>
 #include <charconv>
 #include <chrono>
@@ -17,14 +18,14 @@
 #include "cli_util.hpp"
 #include "sand_run.hpp"
 #include "voxfield/cl/generator.hpp"
-#include "voxfield/cl/incremental.hpp"
-#include "voxfield/cl/sand.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/format.hpp"
 #include "voxfield/core/npy.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/sand.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/vox.hpp"
+#include "voxfield/pipeline/scene.hpp"
 
 namespace voxfield::cli {
 namespace {
@@ -73,33 +74,11 @@ std::uint64_t parse_seed(const std::string& text) {
     return seed;
 }
 
-bool same_file(const std::string& a, const std::string& b) {
-    std::error_code ea, eb;
-    const fs::path pa = fs::weakly_canonical(a, ea), pb = fs::weakly_canonical(b, eb);
-    return ea || eb ? fs::path(a) == fs::path(b) : pa == pb;
-}
-
-// Every output's folder exists, and no two outputs (or an output and the input) are one file.
+// Every output writable, and no two outputs (or an output and the input) are one file.
 void check_outputs(const SimulateOptions& o) {
-    const std::vector<std::pair<std::string, std::string>> outputs = {
-        {"-o", o.output}, {"--world-output", o.world_output}, {"--json", o.json}};
-    for (std::size_t i = 0; i < outputs.size(); ++i) {
-        if (outputs[i].second.empty()) {
-            continue;
-        }
-        require_output_folder(outputs[i].second);
-        if (same_file(outputs[i].second, o.input)) {
-            throw InputError(outputs[i].first + " '" + outputs[i].second +
-                             "' would overwrite the input world");
-        }
-        for (std::size_t k = i + 1; k < outputs.size(); ++k) {
-            if (!outputs[k].second.empty() && same_file(outputs[i].second, outputs[k].second)) {
-                throw InputError(outputs[i].first + " and " + outputs[k].first +
-                                 " name the same file '" + outputs[i].second +
-                                 "': give each output its own file");
-            }
-        }
-    }
+    voxfield::check_outputs(
+        {{"-o", o.output}, {"--world-output", o.world_output}, {"--json", o.json}},
+        {{"INPUT", o.input}});
 }
 
 // Empty when the fields are equal; otherwise the first differing voxel, both values there
@@ -148,9 +127,8 @@ int run_simulate(const SimulateOptions& o) {
     const ocl::GeneratorOptions options = generator_options(o.generator, format, dims);
     ocl::Context ctx(ocl::select_device(o.device));
 
-    ocl::IncrementalField field(ctx, model.world, model.palette, options);
-    ocl::SandSimulator sim(ctx, model.world, rules);
-    warm_up_updates(field);
+    pipeline::Scene scene(ctx, model.world, model.palette, options);
+    warm_up_updates(scene);
 
     // Full regeneration of the starting world on this device: warm-up, then the median.
     std::vector<double> regen_samples;
@@ -169,8 +147,8 @@ int run_simulate(const SimulateOptions& o) {
     // --verify: a fresh generator on the current world, same options, byte for byte.
     auto verify = [&](const std::string& when) {
         const std::vector<std::uint8_t> full =
-            ocl::generate(ctx, field.world(), model.palette, options).bytes;
-        const std::string diff = field_difference(field.read(), full, format, dims);
+            ocl::generate(ctx, scene.world(), model.palette, options).bytes;
+        const std::string diff = field_difference(scene.read_field(), full, format, dims);
         if (diff.empty()) {
             return true;
         }
@@ -192,7 +170,7 @@ int run_simulate(const SimulateOptions& o) {
     auto last_progress = start;
     bool verified = true;
     const std::vector<SandStepRecord> records =
-        run_sand_steps(sim, field, seed, steps, [&](const SandStepRecord& r) {
+        run_sand_steps(scene, rules, seed, steps, [&](const SandStepRecord& r) {
             if (o.verify && !verify("after step " + std::to_string(r.step))) {
                 verified = false;
                 return false;
@@ -215,13 +193,14 @@ int run_simulate(const SimulateOptions& o) {
                   << (o.verify ? " verified" : "") << "        \n";
     }
 
-    // Outputs only now, each written atomically.
+    // Outputs only now, in one batch renamed onto their targets once all are written.
+    OutputBatch outputs;
     if (!o.world_output.empty()) {
-        const NpyArray w = npy_from_world(field.world());
-        write_npy(o.world_output, w.type, w.dims, w.data);
+        const NpyArray w = npy_from_world(scene.world());
+        write_npy(outputs, o.world_output, w.type, w.dims, w.data);
     }
     if (!o.output.empty()) {
-        write_npy(o.output, npy_type(format), dims, field.read());
+        write_npy(outputs, o.output, npy_type(format), dims, scene.read_field());
     }
 
     const SandRunSummary sm = summarize_run(records);
@@ -236,7 +215,7 @@ int run_simulate(const SimulateOptions& o) {
     };
     const bool has_ratio = !records.empty() && full_ms > 0;
     std::cout << "device:   " << ctx.info().name << " (" << ctx.info().platform << ", "
-              << ctx.info().type << "), sand kernel " << sim.variant() << '\n'
+              << ctx.info().type << "), sand kernel " << scene.sand_variant() << '\n'
               << "world:    " << o.input << "  " << dims.to_string() << ", sand material "
               << int{rules.sand} << ", water material " << int{rules.water} << ", seed " << seed
               << '\n'
@@ -282,7 +261,7 @@ int run_simulate(const SimulateOptions& o) {
             {"max_distance",
              options.max_distance ? nlohmann::json(*options.max_distance) : nlohmann::json()},
             {"format", to_string(format)},
-            {"layout", sim.variant()},
+            {"layout", scene.sand_variant()},
             {"sand_material", rules.sand},
             {"water_material", rules.water},
             {"seed", seed},
@@ -302,7 +281,10 @@ int run_simulate(const SimulateOptions& o) {
                has_ratio ? nlohmann::json(step_s.median / full_ms) : nlohmann::json()},
               {"voxels_changed", changed},
               {"full_regenerations", fallbacks}}}};
-        write_json_file(o.json, j);
+        outputs.write(o.json, j.dump(2) + "\n");
+    }
+    outputs.commit();
+    if (!o.json.empty()) {
         std::cout << "wrote:    " << o.json << " (timings)\n";
     }
     return 0;

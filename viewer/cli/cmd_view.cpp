@@ -24,6 +24,7 @@
 #include "view_session.hpp"
 #include "view_window.hpp"
 #include "voxfield/core/npy.hpp"
+#include "voxfield/core/sand.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/vox.hpp"
 
@@ -63,6 +64,14 @@ ViewWorld load_view_world(const ViewCliOptions& o) {
         w.model.world = make_scene(o.scene, dims, o.scene_seed);
         w.name = "scene " + o.scene;
     }
+    const std::string ext = std::filesystem::path(o.input).extension().string();
+    if (o.simulate && ext != ".vox" && ext != ".VOX") {
+        // A world without a palette of its own (a scene, a .npy) shows its falling materials
+        // as what they are, not as the palette's white and pale yellow.
+        const SandRules rules;
+        w.model.palette[rules.sand] = Rgba{218, 186, 120, 255};
+        w.model.palette[rules.water] = Rgba{48, 110, 210, 255};
+    }
     return w;
 }
 
@@ -85,14 +94,17 @@ void print_start(const ocl::Context& cl, const vk::Context& vkc,
 // showed (--window-screenshot), the world and the field.
 void write_outputs(const ViewCliOptions& o, pipeline::FramePipeline& session, Frames& frames,
                    Screen* screen, const vk::RenderOptions& r, std::uint64_t frame) {
+    // One batch, renamed onto the targets once all are written: a failure leaves none.
+    OutputBatch outputs;
+    std::vector<std::string> said;
     if (!o.screenshot.empty()) {
         if (!frames.rendered()) {
             throw std::runtime_error("no frame was rendered for --screenshot");
         }
         const vk::Image& image = frames.host_image(session, screen, r);
-        write_png(o.screenshot, image);
-        std::cout << "screenshot " << o.screenshot << " (" << image.width << "x" << image.height
-                  << ", frame " << frame << ")\n";
+        outputs.write(o.screenshot, encode_png(image));
+        said.push_back("screenshot " + o.screenshot + " (" + std::to_string(image.width) + "x" +
+                       std::to_string(image.height) + ", frame " + std::to_string(frame) + ")");
     }
     if (!o.window_screenshot.empty()) {
         const std::optional<vk::Image> shown =
@@ -104,17 +116,23 @@ void write_outputs(const ViewCliOptions& o, pipeline::FramePipeline& session, Fr
                                      "usage)"
                                    : " (there is no window)"));
         }
-        write_png(o.window_screenshot, *shown);
-        std::cout << "window screenshot " << o.window_screenshot << " (" << shown->width << "x"
-                  << shown->height << ", overlay included)\n";
+        outputs.write(o.window_screenshot, encode_png(*shown));
+        said.push_back("window screenshot " + o.window_screenshot + " (" +
+                       std::to_string(shown->width) + "x" + std::to_string(shown->height) +
+                       ", overlay included)");
     }
     if (!o.world_output.empty()) {
         const NpyArray a = npy_from_world(session.world());
-        write_npy(o.world_output, a.type, a.dims, a.data);
+        write_npy(outputs, o.world_output, a.type, a.dims, a.data);
     }
     if (!o.field_output.empty()) {
-        write_npy(o.field_output, npy_type(session.options().format), session.world().dims(),
-                  session.read_field());
+        const std::vector<std::uint8_t> field = session.read_field();
+        write_npy(outputs, o.field_output, npy_type(session.options().format),
+                  session.world().dims(), field);
+    }
+    outputs.commit();
+    for (const std::string& line : said) {
+        std::cout << line << '\n';
     }
 }
 
@@ -146,7 +164,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             std::make_unique<Screen>(window.handle(), *vk_ctx, o, validation, why_not_one_device);
         overlay =
             std::make_unique<Overlay>(screen->presenter(), vk_ctx->info().name, cl_ctx.info().name,
-                                      present_path(screen->path()), o.simulate);
+                                      present_path(screen->path()), o.simulate, world.name);
     }
 
     ViewState s(o, session, framing);
@@ -203,7 +221,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             edits.bench = true;
         }
         const FrameUpdate update =
-            apply_frame(s, session, cl_ctx, o, edits, bench ? &*bench : nullptr);
+            apply_frame(s, session, o, edits, bench ? &*bench : nullptr);
         frames.render(session, screen.get(), s.render, s.camera, fb_w, fb_h);
         if (screen) {
             screen->overlay().new_frame();
@@ -229,7 +247,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             running = false;
         }
     }
-    s.strokes.close(s.undo);
+    s.strokes.close(s.history());
 
     write_outputs(o, session, frames, screen.get(), s.render, frame);
     std::cout << "frames:  " << frame << '\n';

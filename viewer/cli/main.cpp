@@ -14,7 +14,7 @@ int main(int argc, char** argv) {
     app.set_version_flag("--version", std::string("voxfield ") + cli::commit());
     std::vector<cli::Command> commands = {
         cli::add_devices(app), cli::add_generate(app), cli::add_replay(app), cli::add_simulate(app),
-        cli::add_bench(app),   cli::add_render(app),   cli::add_view(app)};
+        cli::add_bench(app),   cli::add_render(app),   cli::add_view(app), cli::add_info(app)};
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

@@ -20,7 +20,7 @@ void append_bytes(void* context, void* data, int size) {
 
 }  // namespace
 
-void write_png(const std::filesystem::path& path, const vk::Image& image) {
+std::string encode_png(const vk::Image& image) {
     std::string png;
     if (stbi_write_png_to_func(append_bytes, &png, static_cast<int>(image.width),
                                static_cast<int>(image.height), 4, image.rgba.data(),
@@ -28,7 +28,11 @@ void write_png(const std::filesystem::path& path, const vk::Image& image) {
         throw std::runtime_error("PNG encoding failed for " + std::to_string(image.width) + "x" +
                                  std::to_string(image.height));
     }
-    write_text_file(path, png);
+    return png;
+}
+
+void write_png(const std::filesystem::path& path, const vk::Image& image) {
+    write_text_file(path, encode_png(image));
 }
 
 }  // namespace voxfield::cli

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 
@@ -55,7 +56,13 @@ void add_view_options(CLI::App& app, ViewCliOptions& o) {
     app.add_option("--edits", o.edits,
                    "Scripted edits (the replay file format), one applied per frame from the "
                    "first frame");
-    add_format_option(app, o.format);
+    // The field the viewer renders from is an unsigned integer one (the render field is made
+    // from these; the signed and float formats are generate's).
+    app.add_option("--format", o.format,
+                   "Field format: u8, u16, u32 (distance rounded down, saturated) or packed32 "
+                   "((min(d,255)<<8)|rgb332)")
+        ->check(CLI::IsMember({"u8", "u16", "u32", "packed32"}))
+        ->capture_default_str();
     app.add_option("--field-output", o.field_output,
                    "Write the final distance field (in --format, as `generate` writes it) at exit");
     app.add_option("--world-output", o.world_output, "Write the final world (.npy) at exit");
@@ -98,12 +105,21 @@ ViewInputs check_view_options(ViewCliOptions& o) {
     if (o.world != 0 && !o.dims.empty()) {
         throw InputError("give either --world N or --dims X,Y,Z, not both");
     }
-    for (const std::string& p : {o.screenshot, o.fallback_png, o.window_screenshot, o.field_output,
-                                 o.world_output, o.json, o.csv}) {
-        if (!p.empty()) {
-            require_output_folder(p);
+    for (const auto& [option, path] :
+         {std::pair{"--screenshot", &o.screenshot}, std::pair{"--fallback-png", &o.fallback_png},
+          std::pair{"--window-screenshot", &o.window_screenshot}}) {
+        if (!path->empty()) {
+            require_png_name(option, *path);
         }
     }
+    check_outputs({{"--screenshot", o.screenshot},
+                   {"--fallback-png", o.fallback_png},
+                   {"--window-screenshot", o.window_screenshot},
+                   {"--field-output", o.field_output},
+                   {"--world-output", o.world_output},
+                   {"--json", o.json},
+                   {"--csv", o.csv}},
+                  {{"INPUT", o.input}, {"--edits", o.edits}, {"--script", o.script}});
     if (!o.window_screenshot.empty() && o.frames == 0) {
         throw InputError("--window-screenshot needs --frames N (it captures the last frame)");
     }

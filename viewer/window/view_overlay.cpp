@@ -93,12 +93,13 @@ void push(std::deque<float>& h, double v) {
 }  // namespace
 
 Overlay::Overlay(const vk::Presenter& presenter, std::string vulkan, std::string opencl,
-                 const char* frames, bool simulate)
+                 const char* frames, bool simulate, std::string world)
     : presenter_(presenter),
       vulkan_(std::move(vulkan)),
       opencl_(std::move(opencl)),
       frames_(frames),
       simulate_(simulate),
+      world_(std::move(world)),
       scenes_(scene_names()) {}
 
 SwitchRequest Overlay::draw(ViewState& s, const pipeline::FramePipeline& session,
@@ -130,6 +131,10 @@ SwitchRequest Overlay::draw(ViewState& s, const pipeline::FramePipeline& session
             ImGui::Text("%-20s %s", k[0], k[1]);
         }
         ImGui::End();
+    }
+    if (request.scene) {
+        // From now on the world shown is the selected scene, not the file or scene it started as.
+        world_ = "scene " + scenes_.at(static_cast<std::size_t>(s.selection.scene));
     }
     ImGui::Render();
     return request;
@@ -167,7 +172,10 @@ void Overlay::compact(const ViewState& s, const pipeline::FramePipeline& session
 void Overlay::full_panel(ViewState& s, const pipeline::FramePipeline& session,
                          const OverlayFrame& frame, SwitchRequest& request) {
     ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
+    // Wide enough for the device and sharing lines, which also wrap rather than being clipped.
+    ImGui::SetNextWindowSize(ImVec2(ImGui::GetFontSize() * 36, 0), ImGuiCond_FirstUseEver);
     ImGui::Begin("voxfield (F2: compact)");
+    ImGui::PushTextWrapPos(0.0f);
     if (!s.switch_error.empty()) {
         ImGui::PushTextWrapPos(ImGui::GetFontSize() * 40);
         ImGui::TextColored(kRed, "cannot switch: %s", s.switch_error.c_str());
@@ -185,16 +193,16 @@ void Overlay::full_panel(ViewState& s, const pipeline::FramePipeline& session,
     ImGui::Text("ray march %.3f ms (GPU timestamps)", frame.raymarch_ms);
     ImGui::PlotLines("march ms", hm.data(), static_cast<int>(hm.size()));
     const World& w = session.world();
-    ImGui::Text("world %s, %zu solid of %zu voxels", w.dims().to_string().c_str(), w.solid_count(),
-                w.size());
+    ImGui::TextWrapped("world: %s, %s, %zu solid of %zu voxels", world_.c_str(),
+                       w.dims().to_string().c_str(), w.solid_count(), w.size());
     ImGui::Text("memory/voxel: render 2 B (compact), OpenCL field %zu B (%s) + world 1 B",
                 element_size(session.options().format),
                 to_string(session.options().format).c_str());
-    ImGui::Text("OpenCL: %s", opencl_.c_str());
-    ImGui::Text("Vulkan: %s / present %s (%s)", vulkan_.c_str(), presenter_.device_name().c_str(),
-                vk::to_string(presenter_.mode()).c_str());
-    ImGui::Text("frames: %s", frames_);
-    ImGui::Text("sharing: %s", session.marcher().sharing_path().c_str());
+    ImGui::TextWrapped("OpenCL: %s", opencl_.c_str());
+    ImGui::TextWrapped("Vulkan: %s / present %s (%s)", vulkan_.c_str(),
+                       presenter_.device_name().c_str(), vk::to_string(presenter_.mode()).c_str());
+    ImGui::TextWrapped("frames: %s", frames_);
+    ImGui::TextWrapped("sharing: %s", session.marcher().sharing_path().c_str());
     if (!session.why_not().empty() && ImGui::IsItemHovered()) {
         ImGui::SetTooltip("%s", session.why_not().c_str());
     }
@@ -230,7 +238,8 @@ void Overlay::full_panel(ViewState& s, const pipeline::FramePipeline& session,
     for (const auto& n : scenes_) {
         snames.push_back(n.c_str());
     }
-    ImGui::Combo("scene", &s.selection.scene, snames.data(), static_cast<int>(snames.size()));
+    // The scene "regenerate" makes; the world shown is named on the "world:" line above.
+    ImGui::Combo("new scene", &s.selection.scene, snames.data(), static_cast<int>(snames.size()));
     request.scene = ImGui::Button("regenerate") || request.scene;
     ImGui::SameLine();
     request.field = ImGui::Button("apply algorithm") || request.field;
@@ -243,7 +252,8 @@ void Overlay::full_panel(ViewState& s, const pipeline::FramePipeline& session,
         "brush: %s %s, size %lld, colour %d  (%s)", s.controls.paint_mode ? "paint" : "place",
         to_string(s.controls.brush.shape).c_str(), static_cast<long long>(s.controls.brush.size),
         s.controls.brush.material, s.camera.mode() == ViewCamera::Mode::orbit ? "orbit" : "fly");
-    ImGui::Text("undo %zu, redo %zu. F1: keys", s.undo.undo_count(), s.undo.redo_count());
+    ImGui::Text("undo %zu, redo %zu. F1: keys", s.history().undo_count(),
+                s.history().redo_count());
     if (ImGui::CollapsingHeader("palette")) {
         const Palette& pal = session.palette();
         for (int m = 1; m < 256; ++m) {
@@ -266,6 +276,7 @@ void Overlay::full_panel(ViewState& s, const pipeline::FramePipeline& session,
         }
         ImGui::NewLine();
     }
+    ImGui::PopTextWrapPos();
     ImGui::End();
 }
 

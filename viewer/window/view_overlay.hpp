@@ -24,9 +24,10 @@ struct OverlayFrame {
 
 class Overlay {
   public:
-    // vulkan and opencl: the devices' names; frames: how frames reach the window.
+    // vulkan and opencl: the devices' names; frames: how frames reach the window; world: what
+    // is shown at the start (the INPUT file, or "scene NAME").
     Overlay(const vk::Presenter& presenter, std::string vulkan, std::string opencl,
-            const char* frames, bool simulate);
+            const char* frames, bool simulate, std::string world);
     // Builds this frame's overlay (ImGui::Render included). `script`: what the script's
     // selections asked for, to which the panel's widgets add.
     SwitchRequest draw(ViewState& s, const pipeline::FramePipeline& session,
@@ -42,6 +43,7 @@ class Overlay {
     std::string vulkan_, opencl_;
     const char* frames_;
     bool simulate_;
+    std::string world_;                                        // what the world shown came from
     std::vector<std::string> scenes_;                          // the scene combo's entries
     std::deque<float> hist_frame_, hist_update_, hist_march_;  // the last 120 frames
 };

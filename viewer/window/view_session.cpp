@@ -64,8 +64,8 @@ void write_check(const std::string& stem, std::uint64_t frame, const ViewState& 
         {"paint_mode", s.controls.paint_mode},
         {"brush",
          {{"shape", to_string(brush.shape)}, {"size", brush.size}, {"material", brush.material}}},
-        {"undo", s.undo.undo_count()},
-        {"redo", s.undo.redo_count()},
+        {"undo", s.history().undo_count()},
+        {"redo", s.history().redo_count()},
         {"solid_voxels", session.world().solid_count()},
         {"camera", {{"position", {eye[0], eye[1], eye[2]}}, {"mode", orbit ? "orbit" : "fly"}}},
         {"simulate", {{"paused", s.controls.sand_paused}, {"step", s.sand.step}}},
@@ -93,9 +93,10 @@ std::string PanelSelection::metric_name() const {
     return metric_names().at(static_cast<std::size_t>(metric));
 }
 
-ViewState::ViewState(const ViewCliOptions& o, const pipeline::FramePipeline& session,
+ViewState::ViewState(const ViewCliOptions& o, pipeline::FramePipeline& session,
                      const Framing& framing)
-    : camera(session.world().dims(), framing, double(o.width) / double(std::max(o.height, 1u))) {
+    : camera(session.world().dims(), framing, double(o.width) / double(std::max(o.height, 1u))),
+      session_(&session) {
     set_shading(render, o.shading == "flat" ? vk::Shading::flat : vk::Shading::lit);
     render.sky = Rgba{0, 0, 0, 255};
     const ocl::GeneratorOptions& g = session.options();
@@ -161,8 +162,6 @@ void switch_field(ViewState& s, pipeline::FramePipeline& session, const SwitchRe
                              scene_seed)
                 : World(session.world());
         const double ms = session.rebuild(std::move(world), next);
-        s.sand.stale = true;
-        s.undo.clear();
         s.switch_error.clear();
         std::cout << "regenerated: " << ocl::to_string(next.algorithm)
                   << (next.chunk ? ", chunk " + std::to_string(next.chunk)
@@ -193,20 +192,16 @@ void apply_input(const InputActions& a, double dt, ViewState& s,
     if (a.sand_step) {
         s.sand.single = true;
     }
-    if (a.history == History::undo) {
-        edits.history = s.undo.undo();
-    } else if (a.history == History::redo) {
-        edits.history = s.undo.redo();
-    }
+    edits.history = a.history;
     s.preview = aimed_brush(session.world(), s.camera, s.controls, a);
-    if (const auto brush = s.strokes.update(a.left || a.right, s.preview, s.undo)) {
+    if (const auto brush = s.strokes.update(a.left || a.right, s.preview, s.history())) {
         edits.batch.push_back(*brush);
         edits.stroke = true;
     }
 }
 
-FrameUpdate apply_frame(ViewState& s, pipeline::FramePipeline& session, ocl::Context& cl,
-                        const ViewCliOptions& o, const FrameEdits& edits, BenchmarkEdits* bench) {
+FrameUpdate apply_frame(ViewState& s, pipeline::FramePipeline& session, const ViewCliOptions& o,
+                        const FrameEdits& edits, BenchmarkEdits* bench) {
     FrameUpdate update;
     const auto add = [&update](const pipeline::UpdateTimings& u) {
         update.timings.field_ms += u.field_ms;
@@ -225,44 +220,33 @@ FrameUpdate apply_frame(ViewState& s, pipeline::FramePipeline& session, ocl::Con
             add(session.set_focus(f));
         }
     }
-    if (!edits.history.empty()) {
+    if (edits.history != History::none) {
         try {
-            add(session.apply_changes(edits.history));
+            add(edits.history == History::undo ? session.undo() : session.redo());
         } catch (const InputError& e) {
-            // Voxels of the stroke were changed by edits the stack did not record.
+            // Voxels of the stroke were changed by edits the history did not record (the
+            // sand's); the scene cleared it.
             std::cout << "cannot undo/redo: " << e.what() << "; undo history cleared\n";
-            s.undo.clear();
         }
     }
     if (!edits.batch.empty()) {
         std::vector<EditResult> results;
-        const pipeline::UpdateTimings u = session.apply(edits.batch, &results);
+        // Only the stroke's brush (the first of the batch) is undoable.
+        const pipeline::UpdateTimings u = session.apply(edits.batch, &results, edits.stroke);
         add(u);
         if (edits.bench && bench != nullptr && !results.empty()) {
             bench->record(edits.batch.back(), u, results.back());
         }
-        if (edits.stroke && !results.empty()) {
-            // Only the stroke's brush (the first of the batch) is undoable.
-            s.undo.record(results.front());
-        }
     }
-    if (!edits.batch.empty() || !edits.history.empty()) {
-        s.sand.stale = true;
-    }
-    // One step of falling sand and water, its changes through the incremental update.
+    // One step of falling sand and water in place on the device, its changes through the
+    // incremental update there.
     SandState& sand = s.sand;
     if (o.simulate && (!s.controls.sand_paused || sand.single)) {
         sand.single = false;
-        if (sand.stale || !sand.sim) {
-            sand.sim = std::make_unique<ocl::SandSimulator>(cl, session.world(), SandRules{});
-            sand.stale = false;
-        }
-        const ocl::SandStepResult r = sand.sim->step(o.seed, sand.step++);
-        update.simulate_ms = r.simulate_ms;
-        update.sand_changed = r.changes.size();
-        if (!r.changes.empty()) {
-            add(session.apply_changes(r.changes));
-        }
+        const pipeline::UpdateTimings u = session.step_sand(SandRules{}, o.seed, sand.step++);
+        update.simulate_ms = u.simulate_ms;
+        update.sand_changed = static_cast<std::size_t>(u.voxels_changed);
+        add(u);
         sand.last_ms = update.simulate_ms;
         sand.last_changed = update.sand_changed;
     }

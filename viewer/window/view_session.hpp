@@ -1,7 +1,8 @@
 #pragma once
 // `view`'s interactive session around the frame pipeline: the state the user changes (camera,
-// render options, controls, the panel's selections, undo history, lod's focus, the sand), one
-// frame's changes applied as one batch, the algorithm / metric / scene switch, and what
+// render options, controls, the panel's selections, lod's focus, the sand's step), one frame's
+// changes applied as one batch through the pipeline's scene (which owns the world, its field,
+// the undo history and the simulation), the algorithm / metric / scene switch, and what
 // `--script` selects, saves and checks.
 #include <cstdint>
 #include <memory>
@@ -12,7 +13,6 @@
 #include "view_input.hpp"
 #include "view_options.hpp"
 #include "view_script.hpp"
-#include "voxfield/cl/sand.hpp"
 #include "voxfield/pipeline/frame_pipeline.hpp"
 
 namespace voxfield::cli {
@@ -37,11 +37,8 @@ struct PanelSelection {
     std::string metric_name() const;
 };
 
-// --simulate: the automaton on the device, rebuilt from the session's world whenever
-// something else changed it (an edit, an undo, a new scene or algorithm).
+// --simulate: the automaton runs in place on the scene's device voxels (Scene::step_sand).
 struct SandState {
-    std::unique_ptr<ocl::SandSimulator> sim;
-    bool stale = true;
     bool single = false;  // N: one step while paused
     std::uint64_t step = 0;
     double last_ms = 0;
@@ -52,19 +49,24 @@ struct SandState {
 struct ViewState {
     // The start: the default camera framing `framing`, --shading, the field's algorithm and
     // metric selected, --scene, lod's --focus.
-    ViewState(const ViewCliOptions& o, const pipeline::FramePipeline& session,
-              const Framing& framing);
+    // `session` outlives the state: its scene holds the undo history.
+    ViewState(const ViewCliOptions& o, pipeline::FramePipeline& session, const Framing& framing);
+    // The undo history: the current scene's (a new scene, a new history).
+    UndoStack& history() { return session_->scene().history(); }
+    const UndoStack& history() const { return session_->scene().history(); }
     ViewCamera camera;
     vk::RenderOptions render;
     ViewControls controls;
     PanelSelection selection;
-    UndoStack undo;
     Strokes strokes;
     SandState sand;
     Int3 focus_centre{0, 0, 0};           // lod / monolithic: --focus or the default, until changed
     std::string switch_error;             // why the last algorithm / scene switch failed
     pipeline::UpdateTimings last_update;  // of the last frame that updated anything
     std::optional<Brush> preview;         // the brush aimed at
+
+  private:
+    pipeline::FramePipeline* session_;
 };
 
 // What the panel (or the script) asks to rebuild: the field with the selected algorithm,
@@ -75,7 +77,7 @@ struct SwitchRequest {
 // The script's `select` actions of this frame, applied as the panel's widgets would.
 SwitchRequest apply_selects(const std::vector<ScriptAction>& actions, ViewState& s);
 // Rebuilds the field (of a new scene of scene_seed when asked) from the selections: a new
-// history and sand on success; refused options or a device failure keep the field, the
+// history on success; refused options or a device failure keep the field, the
 // overlay says why. The selections then show the field's algorithm and metric.
 void switch_field(ViewState& s, pipeline::FramePipeline& session, const SwitchRequest& request,
                   std::uint64_t scene_seed);
@@ -85,7 +87,7 @@ struct FrameEdits {
     std::vector<Brush> batch;  // the stroke's brush first, then --edits', then the benchmark's
     bool stroke = false;       // the batch's first brush is the stroke's (undoable)
     bool bench = false;        // the batch's last brush is the benchmark's
-    VoxelChanges history;      // an undo or redo
+    History history = History::none;  // Ctrl+Z / Ctrl+Y
 };
 // What the frame's changes cost.
 struct FrameUpdate {
@@ -94,14 +96,14 @@ struct FrameUpdate {
     std::size_t sand_changed = 0;
 };
 // The frame's input beyond the controls: the camera moves and switches mode or resets, N asks
-// for a sand step, Ctrl+Z / Ctrl+Y take their changes from the history, and the brush aimed
-// at is previewed and, under a held button, added to the stroke.
+// for a sand step, Ctrl+Z / Ctrl+Y ask for an undo or redo, and the brush aimed at is
+// previewed and, under a held button, added to the stroke.
 void apply_input(const InputActions& a, double dt, ViewState& s,
                  const pipeline::FramePipeline& session, FrameEdits& edits);
 // Moves lod's focus, applies the undo or redo, the batch (recording the stroke and the
 // benchmark's edit) and one step of the sand (--simulate, unless paused).
-FrameUpdate apply_frame(ViewState& s, pipeline::FramePipeline& session, ocl::Context& cl,
-                        const ViewCliOptions& o, const FrameEdits& edits, BenchmarkEdits* bench);
+FrameUpdate apply_frame(ViewState& s, pipeline::FramePipeline& session, const ViewCliOptions& o,
+                        const FrameEdits& edits, BenchmarkEdits* bench);
 
 // Ctrl+S and the script's `save`: the world as STEM.npy and STEM.vox.
 void save_world(const pipeline::FramePipeline& session, const std::string& stem);

@@ -49,6 +49,19 @@ struct UpdateStats {
     std::vector<EditResult> edits;   // what each brush changed in the world
 };
 
+// Voxel changes already made on the device, in place in an IncrementalField's voxels (a
+// simulation step: ocl::SandSimulator), listed there by the kernel that made them.
+struct DeviceChanges {
+    // list[k] = (linear index, before | after << 8) for k < min(count, capacity), in no
+    // particular order; a voxel appears at most once.
+    const cl::Buffer* list = nullptr;
+    std::uint64_t capacity = 0;  // the list's room, in entries
+    std::uint64_t count = 0;     // changes made (more than capacity: the list overflowed)
+    Box bounds;                  // the box of every changed voxel
+    Box occupancy_bounds;        // the box of the voxels that became solid or empty
+    bool overflow() const { return count > capacity; }
+};
+
 class IncrementalField {
   public:
     // options: resolved; algorithm exact (global) or a chunk-local algorithm (options.chunk
@@ -77,6 +90,15 @@ class IncrementalField {
     // updated like apply(): exact, local to what the changes can affect. Throws InputError,
     // changing nothing, when a voxel does not hold its `before` value.
     UpdateStats apply_changes(const VoxelChanges& changes);
+    // Brings the field up to date after `changes` were made on the device in voxels_buffer()
+    // (enqueued before this call), reading the changes from the device list and not the host:
+    // exact, local like apply() where the list holds every change and their occupancy box
+    // spans less than an eighth of the world, else a full regeneration on the device. The host
+    // world is then out of date until world() (or apply, apply_changes) reads the changed box
+    // back. On a device failure the changes stay made (they happened on the device) and the
+    // field is regenerated from the device voxels; should that fail too, the field is broken
+    // as after a failed apply(). UpdateStats::edits stays empty.
+    UpdateStats apply_device_changes(const DeviceChanges& changes);
     // lod and monolithic (chunk-local with a focus): moves the focus, the chunks where FIM
     // runs after JFA (std::nullopt: no focus, JFA only everywhere), and recomputes exactly
     // the chunks whose membership in the focus box changed (old box XOR new box), in one
@@ -92,7 +114,8 @@ class IncrementalField {
     // as a failing enqueue there would, so that tests can check the all-or-nothing guarantee.
     void fail_next_update_for_testing();
 
-    const World& world() const;
+    // The world, read back from the device first where device changes made it out of date.
+    const World& world();
     // The field in options.format, as generate() would write it.
     std::vector<std::uint8_t> read();
     // The field in options.format, on the device.

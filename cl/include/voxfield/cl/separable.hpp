@@ -82,9 +82,17 @@ class ExactSeparable : public Generator {
     cl::Kernel col_kernel(int axis, int from, int to, Span xs, Span others, Span out, Span in,
                           const cl::Buffer& skip, const cl::Buffer& box);
     void set_cap(cl::Kernel& k, cl_uint index) const;
+    // A spacing argument in the scans' type (double with fp64_, else float).
+    void set_spacing(cl::Kernel& k, cl_uint index, double s) const;
     cl::Kernel finish_kernel(int from, const Box& voxels);
+    // Rows per work-item and work-items of an x pass over `rows`.
+    std::size_t x_per_item(const Box& rows) const;
     std::size_t x_items(const Box& rows) const;
-    std::size_t col_items(std::size_t lines, Span xs) const;
+    // Lines per work-item and work-items of a y or z pass over count_x * count_o lines
+    // (count_x adjacent in x), and the scratch ints that pass needs along `axis` (1 y, 2 z).
+    std::size_t col_per_item(std::size_t count_x, std::size_t count_o) const;
+    std::size_t col_items(std::size_t count_x, std::size_t count_o) const;
+    std::size_t col_scratch(int axis, std::size_t count_x, std::size_t count_o) const;
 
     bool gpu_layout_;
     bool banded_ = false;  // the full GPU transform by cols_banded
@@ -92,9 +100,14 @@ class ExactSeparable : public Generator {
     Spacing spacing_;
     cl::Program program_;
     cl::Buffer voxels_, rgb_, g_[3], h_[3], feat_[2], scratch_, track_[3];
-    std::size_t col_stride_ = 0;          // ints per work-item stacks and tiles (CPU layout)
-    int tile_w_ = 0;                      // lines per col_pass tile (CPU layout), 0: untiled
-    std::size_t x_stride_ = 0;            // ints per work-item row scratch (CPU layout)
+    bool wide_ = false;           // unit-spacing L2 in 64-bit partials (squares reach 2^30)
+    bool fp64_ = false;           // f64 with spacing: the scans in double
+    bool shared_parts_ = false;   // one buffer of partials for every pass (CPU layout, full)
+    std::size_t gt_bytes_ = 4;    // bytes per partial
+    std::size_t max_items_ = 32;  // work-items per pass at most (CPU layout)
+    // Per y and z pass (CPU layout): ints per work-item's stacks and tiles, lines per tile.
+    std::size_t col_stride_[2] = {0, 0};
+    int tile_w_[2] = {0, 0};
     std::array<cl_int, 7> track_init_{};  // an empty change box, 0 voxels
     // The y and z passes' change boxes read back by update(): members, so that a read still
     // in flight when a later enqueue throws writes into live memory.
@@ -103,7 +116,9 @@ class ExactSeparable : public Generator {
     // units, and per axis how far (voxels) a site can matter: a whole line when unbounded.
     double max_distance_ = 0;
     cl_uint cap_unit_ = 0;
+    cl_ulong cap_wide_ = 0;
     float cap_float_ = 0;
+    double cap_double_ = 0;
     std::int64_t reach_[3] = {0, 0, 0};
     std::vector<KernelLaunch> stages_;
 };

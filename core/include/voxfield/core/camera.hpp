@@ -63,12 +63,19 @@ Int3 chunk_at(const Vec3d& position, Dims world, std::uint32_t chunk);
 struct Framing {
     Vec3d centre{0, 0, 0};
     Vec3d half{0.5, 0.5, 0.5};
+    // Where the default camera looks from, relative to the centre (any length): front-left
+    // and above, in front of the side `front` faces (horizontal, outward).
+    Vec3d front{0, 0, -1};
 };
-Framing solid_framing(const World& world);
 Framing world_framing(Dims dims);
 
-// The default camera's position for `f`: from the front-left and above (along (-0.6, 0.5,
-// -0.75) from the centre: -x, +y and -z, MagicaVoxel's front side, vox -y, facing it) at the
+// The solids' bounding box, and as its front the side with the most visible detail: of the
+// four sides a person stands at (-z, MagicaVoxel's front, vox -y; then -x, +x, +z), the one
+// whose view along its axis shows the most neighbouring pixels that differ in colour or depth
+// (a shop front beats a blank back wall); -z on a tie.
+Framing solid_framing(const World& world);
+// The default camera's position for `f`: from the front-left and above (along 0.75 front +
+// 0.6 left + 0.5 up from the centre; for the -z front (-0.6, 0.5, -0.75), facing it) at the
 // nearest distance where all eight corners of the box lie inside a pinhole image of vertical
 // field of view fov_deg and width / height `aspect` (with a 5% margin), looking at the centre.
 Vec3d framing_position(const Framing& f, double fov_deg, double aspect);

@@ -1,7 +1,7 @@
 #pragma once
-// Dirty tracking for incremental updates: the voxel boxes whose distances may have changed
-// since the last take(), the chunks they overlap, and per-chunk generation counters that let
-// an update computed from an older state of the world be recognised as stale.
+// Dirty tracking: the voxel boxes that changed since the last take() (an incremental field's
+// host world uses it for the boxes the device changed and it has yet to read back), and the
+// chunks they overlap.
 //
 // Semantics:
 // - add(box) records a box of voxels (the caller decides what it covers: usually an edit's
@@ -21,13 +21,8 @@
 // - dirty_chunks() are the chunks (ChunkGrid::chunk_index) that overlap a pending region,
 //   found by floor division of the region's corners; partial chunks at the world's far faces
 //   count like any other.
-// - generation(chunk) starts at 0 and grows by one on every add() whose clipped box overlaps
-//   the chunk, also when the chunk was already pending (a second edit makes work computed
-//   for the first stale). Merging alone never changes a generation; take() does not reset
-//   them.
-// - take() returns the pending regions, the dirty chunks and their generations at that
-//   moment, and clears the pending set. An update computed from a snapshot should be kept
-//   for a chunk only while is_current(chunk, the snapshot's generation) holds.
+// - take() returns the pending regions and the dirty chunks at that moment, and clears the
+//   pending set.
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -39,9 +34,8 @@ namespace voxfield {
 class DirtyTracker {
   public:
     struct Snapshot {
-        std::vector<Box> regions;                // as regions()
-        std::vector<std::size_t> chunks;         // as dirty_chunks()
-        std::vector<std::uint64_t> generations;  // generations[i] == generation(chunks[i])
+        std::vector<Box> regions;         // as regions()
+        std::vector<std::size_t> chunks;  // as dirty_chunks()
     };
 
     // Throws std::invalid_argument unless merge_slack >= 0 (infinity allowed).
@@ -60,10 +54,6 @@ class DirtyTracker {
     // Ascending indices of the chunks that overlap a pending region.
     std::vector<std::size_t> dirty_chunks() const;
 
-    // Throw std::out_of_range for chunk >= grid().chunk_count().
-    std::uint64_t generation(std::size_t chunk) const;
-    bool is_current(std::size_t chunk, std::uint64_t generation) const;
-
     Snapshot take();
 
   private:
@@ -73,7 +63,6 @@ class DirtyTracker {
     ChunkGrid grid_;
     double merge_slack_;
     std::vector<Box> pending_;
-    std::vector<std::uint64_t> generations_;
 };
 
 }  // namespace voxfield

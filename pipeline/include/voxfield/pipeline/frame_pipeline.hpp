@@ -1,6 +1,7 @@
 #pragma once
 // The frame pipeline that `render`, `view` and `bench` share (DESIGN §2, "The frame
-// pipeline"): a world and its distance field kept on the OpenCL device (ocl::IncrementalField),
+// pipeline"): a scene (pipeline::Scene: the world, its device copy and distance field, the
+// history and the simulation),
 // the ray marcher's render field converted from it (RenderField: sharing path 1, 2 or 3), and
 // the Vulkan ray marcher reading it. Every edit goes edit -> field -> render field; every frame
 // is one ray march. Switching the world, algorithm or metric is transactional: the new field is
@@ -18,6 +19,7 @@
 #include "voxfield/core/undo.hpp"
 #include "voxfield/core/world.hpp"
 #include "voxfield/pipeline/render_field.hpp"
+#include "voxfield/pipeline/scene.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 
 namespace voxfield::pipeline {
@@ -40,12 +42,15 @@ struct UpdateTimings {
                             // them on path 3)
     std::uint64_t voxels_recomputed = 0;
     bool full_regeneration = false;
+    double simulate_ms = -1;           // a simulation step's device time (-1: none)
+    std::uint64_t voxels_changed = 0;  // voxels whose value changed
     double total_ms() const { return field_ms + convert_ms; }
 };
 
 class FramePipeline {
   public:
-    // Call rebuild() before anything else. `palette` colours every world of this pipeline.
+    // Call rebuild() before anything else (until one succeeds, every other call but the
+    // ray marcher's throws std::logic_error). `palette` colours every world of this pipeline.
     FramePipeline(ocl::Context& cl, vk::Context& vkc, Palette palette, Dims dims,
                   PipelineOptions options = {});
     ~FramePipeline();
@@ -55,16 +60,24 @@ class FramePipeline {
     // Builds the field of `world` with `options` (resolved here) and shows it: a new world,
     // algorithm, metric, format or chunk size. Returns the wall time in ms. Throws InputError
     // for a world whose dims differ from the pipeline's. On any failure the pipeline keeps its
-    // previous world, field and options and the exception goes on.
+    // previous world, field and options and the exception goes on; should showing the previous
+    // field fail too, the next update shows it again first (and throws if it cannot).
     double rebuild(World world, const ocl::GeneratorOptions& options);
     // As rebuild() with the current world.
     double switch_field(const ocl::GeneratorOptions& options);
 
     // One batch of brushes (one frame's edits), applied in order; `edits` receives what each
-    // brush changed.
-    UpdateTimings apply(const std::vector<Brush>& batch, std::vector<EditResult>* edits = nullptr);
-    // Explicit voxel changes as one edit (an undo or redo, a simulation step).
+    // brush changed; `undoable`: the first brush joins the history's stroke (Scene::apply).
+    UpdateTimings apply(const std::vector<Brush>& batch, std::vector<EditResult>* edits = nullptr,
+                        bool undoable = false);
+    // Explicit voxel changes as one edit.
     UpdateTimings apply_changes(const VoxelChanges& changes);
+    // The scene's history: Scene::undo / redo, then the render field.
+    UpdateTimings undo();
+    UpdateTimings redo();
+    // One step of falling sand in place on the device (Scene::step_sand), then the render
+    // field.
+    UpdateTimings step_sand(const SandRules& rules, std::uint64_t seed, std::uint64_t step);
     // lod / monolithic: moves the focus and recomputes the chunks that entered or left it.
     UpdateTimings set_focus(const std::optional<Focus>& focus);
 
@@ -75,7 +88,9 @@ class FramePipeline {
     // the dispatch's GPU time in ms (-1: not available).
     double render_to(const vk::RenderOptions& options, const vk::ExternalMemory& frame);
 
+    // The scene's world (brought up to date from the device where the simulation moved it).
     const World& world() const;
+    Scene& scene();
     const Palette& palette() const { return palette_; }
     const ocl::GeneratorOptions& options() const { return options_; }
     // The field in options().format, as `generate` writes it.
@@ -87,18 +102,26 @@ class FramePipeline {
     vk::SharingPath sharing() const;
     std::string why_not() const;
 
+    // Test seam: the next `count` times the pipeline shows a field in the ray marcher, it
+    // throws ocl::ClError (CL_OUT_OF_RESOURCES) first, as a failing conversion would.
+    void fail_next_shows_for_testing(int count) { failing_shows_ = count; }
+
   private:
-    UpdateTimings finish(ocl::UpdateStats s, std::vector<EditResult>* edits);
+    UpdateTimings finish(SceneUpdate u, std::vector<EditResult>* edits);
     double publish(std::vector<Box> regions);
-    // Shows `field` (built for options) in the ray marcher; returns the OpenCL time in ms.
-    double show(ocl::IncrementalField& field, const ocl::GeneratorOptions& options);
+    // Shows `scene`'s field (built for options) in the ray marcher; returns the OpenCL time.
+    double show(Scene& scene, const ocl::GeneratorOptions& options);
+    // The scene, shown: throws std::logic_error before the first successful rebuild().
+    Scene& current();
 
     ocl::Context& cl_;
     Palette palette_;
     Dims dims_;
     PipelineOptions pipeline_options_;
     ocl::GeneratorOptions options_;
-    std::unique_ptr<ocl::IncrementalField> field_;
+    std::unique_ptr<Scene> scene_;
+    bool shown_ = false;  // scene_'s field is the one the render field converts
+    int failing_shows_ = 0;
     // Declared before the ray marcher: destroyed after it (it may read this memory).
     std::unique_ptr<RenderField> render_field_;
     std::unique_ptr<vk::Raymarcher> marcher_;

@@ -1,0 +1,122 @@
+#pragma once
+// Exact bounded distance fields of sparse worlds (core/sparse.hpp), tile by tile, on any
+// OpenCL device (kernels: cl/kernels/sparse_field.cl; the transforms: exact.hpp and
+// separable.hpp). Each tile to compute is gathered with a halo of ceil(D / spacing) voxels
+// per axis from its neighbour tiles into a dense block; blocks are stacked along z into one
+// dense world and transformed by the dense bounded generator, and each block's interior is
+// scattered into the field tiles. A voxel within D of another depends on nothing outside the
+// block, so the result equals the dense bounded field voxel for voxel.
+//
+// Field tiles: 64^3 values in the output format, in a pool of slots on the device, stored for
+// every tile within D of a solid voxel; tiles beyond D hold the far value (D in the format)
+// and are not stored, nor are tiles whose every value is the "inside" value (unsigned fields:
+// a tile full of solid voxels, 0; signed: a full tile whose halo is full, -D), except in
+// packed32, whose solid voxels carry their colour.
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <unordered_map>
+#include <vector>
+
+#include "voxfield/cl/generator.hpp"
+#include "voxfield/core/sparse.hpp"
+
+namespace voxfield::ocl {
+
+// --max-distance of sparse worlds when none is given.
+inline constexpr double kDefaultSparseMaxDistance = 16;
+
+// Checks and completes options for a sparse world: algorithm exact, no indices, no chunk;
+// max_distance defaults to kDefaultSparseMaxDistance; the format defaults as for dense
+// worlds when `format_given` is false. Throws InputError naming what to change.
+GeneratorOptions resolve_sparse_options(const GeneratorOptions& options, bool format_given);
+
+class SparseField {
+  public:
+    // Uploads the world's buffers; `world` and `palette` must outlive the field (update()
+    // reads the world's edits). Options as resolve_sparse_options returns them.
+    SparseField(Context& ctx, const SparseWorld& world, const Palette& palette,
+                const GeneratorOptions& options);
+    ~SparseField();
+    SparseField(const SparseField&) = delete;
+    SparseField& operator=(const SparseField&) = delete;
+
+    // The whole field from scratch; returns the kernel time (first kernel start to last
+    // kernel end, summed over batches).
+    double run();
+
+    struct Update {
+        Box recomputed;           // the voxels whose field was recomputed (Box{} when none)
+        std::uint32_t tiles = 0;  // field tiles written
+        double kernel_ms = 0;
+    };
+    // After the world's voxels inside `changed` were edited (SparseWorld::edit / apply_brush
+    // return that box), brings the field up to date: recomputes the voxels within D of
+    // `changed` only, in the tiles they lie in.
+    Update update(const Box& changed);
+
+    const GeneratorOptions& options() const { return options_; }
+    std::uint32_t halo(int axis) const { return halo_[axis]; }
+    // Field tiles with values of their own on the device, and all field tiles (constant
+    // ones included).
+    std::uint32_t dense_tiles() const { return static_cast<std::uint32_t>(slot_keys_.size()); }
+    std::uint64_t field_bytes() const;  // device bytes of the stored field tiles
+    // The encoded value of voxels beyond D (element_size(format) bytes).
+    const std::vector<std::uint8_t>& far_value() const { return far_; }
+
+    // The field of `box` (element_size(format) bytes per voxel, x fastest); InputError when
+    // it holds more than kMaxDenseVoxels voxels.
+    std::vector<std::uint8_t> read_box(const Box& box);
+    // The whole field as one dense array (DESIGN §3's layout), as read_box of the world.
+    std::vector<std::uint8_t> read_dense();
+
+    // Conservative coarse distances (ray skipping): a lower bound of the field's distance to
+    // the nearest solid (the field's value, its positive part when signed) over every voxel
+    // of tile (tx, ty, tz), or of the 16^3 node (nx, ny, nz) (node units: voxel / 16). D for
+    // tiles beyond the bound. Float formats' values are lowered by one unit in the last place,
+    // so that the coarse distance bounds the exact distance as well.
+    double coarse_tile(std::int64_t tx, std::int64_t ty, std::int64_t tz);
+    double coarse_node(std::int64_t nx, std::int64_t ny, std::int64_t nz);
+
+  private:
+    struct Job {
+        Box region;   // voxels written: inside one block, clipped to the world
+        Int3 origin;  // world coordinates of the block's first voxel
+    };
+    struct Batch;  // a dense generator of one block shape and its buffers
+    Batch& batch_for(Dims block, std::uint32_t blocks);
+    // Computes `jobs` (each block: block dims) in batches; returns kernel ms.
+    double compute(const std::vector<Job>& jobs, Dims block);
+    void sync_world();
+    // The slot of field tile `key`, made dense (filled with its constant) when it was not.
+    std::uint32_t dense_slot(std::uint64_t key);
+    void ensure_slots(std::size_t slots);
+    void refresh_coarse(const std::vector<std::uint32_t>& slots, double* ms);
+    std::vector<std::uint8_t> constant_value(std::uint32_t entry) const;
+
+    Context& ctx_;
+    const SparseWorld& world_;
+    const Palette& palette_;
+    GeneratorOptions options_;
+    std::uint32_t halo_[3] = {0, 0, 0};
+    std::size_t elem_ = 0;
+    std::vector<std::uint8_t> far_, inside_;
+    cl::Program program_;
+    // The world on the device: node masks, node offsets, materials; what was uploaded.
+    cl::Buffer masks_, offsets_, materials_;
+    std::uint64_t synced_nodes_ = 0, synced_materials_ = 0, synced_generation_ = 0;
+    bool world_on_device_ = false;
+    // Field tiles: key -> slot on the device, or kInsideTile (constant inside value).
+    std::unordered_map<std::uint64_t, std::uint32_t> tiles_;
+    std::vector<std::uint64_t> slot_keys_;  // per slot, its tile key
+    cl::Buffer pool_;                       // slots of kTileVoxels * elem_ bytes
+    std::size_t pool_slots_ = 0;
+    cl::Buffer coarse_;  // per slot, its 64 nodes' least KEY (sparse_field.cl), in the format
+    std::vector<std::uint8_t> coarse_host_;  // mirror of coarse_
+    std::map<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>,
+             std::unique_ptr<Batch>>
+        batches_;
+};
+
+}  // namespace voxfield::ocl

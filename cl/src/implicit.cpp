@@ -1,0 +1,416 @@
+// Implicit parts discretised into a tile grid of contrees (the reference blog, farfa.dev
+// "implicit surface rendering for CAD"), host side; kernels: cl/kernels/implicit.cl.
+//
+// The tape is interpreted by the kernels (one program for every part) rather than emitted as
+// OpenCL source per part: a per-part build costs a compiler run (hundreds of ms on PoCL), more
+// than the whole discretisation of a gallery part.
+#include "voxfield/cl/implicit.hpp"
+
+#include <bit>
+#include <chrono>
+#include <functional>
+#include <stdexcept>
+#include <string>
+
+#include "util.hpp"
+
+namespace voxfield::cl_sources {
+extern const char* const sdf_layout_h;
+extern const char* const implicit_cl;
+}  // namespace voxfield::cl_sources
+
+namespace voxfield::ocl {
+namespace {
+
+struct GridArg {
+    cl_float x0, y0, z0, h;
+    cl_uint nx, ny, nz, pad;
+};
+static_assert(sizeof(GridArg) == 32);
+static_assert(sizeof(cl_uint4) == 16);
+
+GridArg grid_arg(const sdf::Part& part) {
+    return {static_cast<float>(part.lo[0]),
+            static_cast<float>(part.lo[1]),
+            static_cast<float>(part.lo[2]),
+            static_cast<float>(part.voxel_size),
+            part.dims.x,
+            part.dims.y,
+            part.dims.z,
+            0};
+}
+
+double event_ms(const cl::Event& e) {
+    return elapsed_ms(e, e);
+}
+
+constexpr std::uint32_t kMaxDepth = 8;
+// Work-group sizes, fixed so that a device compiling per work-group size (PoCL) compiles each
+// kernel once: interval tests, and leaves in the CPU layout (one work-item each).
+constexpr std::size_t kGroup = 64;
+constexpr std::size_t kLeafGroup = 8;
+
+}  // namespace
+
+ImplicitDiscretiser::ImplicitDiscretiser(Context& ctx, const sdf::Part& part,
+                                         ImplicitOptions options)
+    : ctx_(ctx),
+      part_(part),
+      options_(options),
+      gpu_layout_(options.layout == Layout::automatic ? !ctx.is_cpu()
+                                                      : options.layout == Layout::gpu) {
+    if (options.tile_depth > kMaxDepth) {
+        throw InputError("implicit tile depth " + std::to_string(options.tile_depth) +
+                         " is out of range (0.." + std::to_string(kMaxDepth) + ")");
+    }
+    program_ = ctx.program("implicit.cl", {cl_sources::sdf_layout_h, cl_sources::implicit_cl},
+                           "-cl-std=CL1.2 -cl-fp32-correctly-rounded-divide-sqrt");
+    tape_ = cl_call("uploading the implicit tape", [&] {
+        return cl::Buffer(ctx.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                          part.tape.code.size() * sizeof(sdf::Instr),
+                          const_cast<sdf::Instr*>(part.tape.code.data()));
+    });
+}
+
+ImplicitGrid ImplicitDiscretiser::run() {
+    const auto t0 = std::chrono::steady_clock::now();
+    timing_ = {};
+    const cl_uint n = static_cast<cl_uint>(part_.tape.code.size());
+    const GridArg g = grid_arg(part_);
+    ImplicitGrid out;
+    out.dims = part_.dims;
+    out.tile_depth = options_.tile_depth;
+    out.tile_edge = 1u << (2 * (options_.tile_depth + 1));
+    const std::uint32_t edge = out.tile_edge;
+    out.tiles = {(out.dims.x + edge - 1) / edge, (out.dims.y + edge - 1) / edge,
+                 (out.dims.z + edge - 1) / edge};
+    const std::size_t tiles = out.tiles.count();
+    auto& q = ctx_.queue();
+    auto ctx_of = [&](const std::string& what) {
+        return "implicit " + what + " (" + std::to_string(n) + " instructions, grid " +
+               out.dims.to_string() + ", tile depth " + std::to_string(options_.tile_depth) + ")";
+    };
+
+    // Tiles: one interval test each.
+    std::vector<cl_uchar> classes(tiles);
+    std::vector<cl_uint4> frontier;
+    std::uint32_t nodes = 0;
+    cl_call(ctx_of("classify_tiles"), [&] {
+        cl::Buffer buf(ctx_.context(), CL_MEM_WRITE_ONLY, tiles);
+        cl::Kernel k(program_, "classify_tiles");
+        k.setArg(0, tape_);
+        k.setArg(1, n);
+        k.setArg(2, g);
+        k.setArg(3, out.tiles.x);
+        k.setArg(4, out.tiles.y);
+        k.setArg(5, static_cast<cl_uint>(tiles));
+        k.setArg(6, edge);
+        k.setArg(7, buf);
+        cl::Event e;
+        q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(tiles, kGroup)),
+                               cl::NDRange(kGroup), nullptr, &e);
+        q.enqueueReadBuffer(buf, CL_TRUE, 0, tiles, classes.data());
+        timing_.kernel_ms += event_ms(e);
+    });
+    out.tile_table.resize(tiles);
+    for (std::size_t t = 0; t < tiles; ++t) {
+        if (classes[t] == VF_SDF_CELL_EMPTY) {
+            out.tile_table[t] = VF_SDF_TILE_EMPTY;
+        } else if (classes[t] == VF_SDF_CELL_FULL) {
+            out.tile_table[t] = VF_SDF_TILE_FULL;
+        } else {
+            out.tile_table[t] = nodes;
+            const auto x = static_cast<cl_uint>(t % out.tiles.x * edge);
+            const auto y = static_cast<cl_uint>(t / out.tiles.x % out.tiles.y * edge);
+            const auto z = static_cast<cl_uint>(t / out.tiles.x / out.tiles.y * edge);
+            frontier.push_back({{x, y, z, nodes++}});
+        }
+    }
+
+    // Interior levels: every child of the frontier tested, ambiguous children become nodes of
+    // the next level, densely packed in mask order.
+    for (std::uint32_t level = 0; level < options_.tile_depth && !frontier.empty(); ++level) {
+        const cl_uint child_edge = edge >> (2 * (level + 1));
+        const std::size_t count = frontier.size();
+        classes.resize(count * 64);
+        cl_call(ctx_of("classify_children"), [&] {
+            cl::Buffer origins(ctx_.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                               count * sizeof(cl_uint4), frontier.data());
+            cl::Buffer buf(ctx_.context(), CL_MEM_WRITE_ONLY, count * 64);
+            cl::Kernel k(program_, "classify_children");
+            k.setArg(0, tape_);
+            k.setArg(1, n);
+            k.setArg(2, g);
+            k.setArg(3, origins);
+            k.setArg(4, static_cast<cl_uint>(count));
+            k.setArg(5, child_edge);
+            k.setArg(6, buf);
+            cl::Event e;
+            q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(count * 64), cl::NDRange(kGroup),
+                                   nullptr, &e);
+            q.enqueueReadBuffer(buf, CL_TRUE, 0, count * 64, classes.data());
+            timing_.kernel_ms += event_ms(e);
+        });
+        std::vector<cl_uint4> next;
+        out.nodes.resize(std::size_t{nodes} * VF_SDF_NODE_WORDS);
+        for (std::size_t f = 0; f < count; ++f) {
+            std::uint64_t occ = 0, solid = 0;
+            const std::uint32_t first = nodes;
+            for (std::uint32_t c = 0; c < 64; ++c) {
+                const cl_uchar cls = classes[f * 64 + c];
+                if (cls == VF_SDF_CELL_FULL) {
+                    solid |= std::uint64_t{1} << c;
+                } else if (cls == VF_SDF_CELL_AMBIGUOUS) {
+                    occ |= std::uint64_t{1} << c;
+                    const cl_uint4& o = frontier[f];
+                    next.push_back(
+                        {{o.s[0] + (c & 3) * child_edge, o.s[1] + (c >> 2 & 3) * child_edge,
+                          o.s[2] + (c >> 4) * child_edge, nodes++}});
+                }
+            }
+            std::uint32_t* rec = &out.nodes[std::size_t{frontier[f].s[3]} * VF_SDF_NODE_WORDS];
+            rec[0] = first;
+            rec[1] = VF_SDF_NOT_LEAF;
+            rec[2] = static_cast<std::uint32_t>(occ);
+            rec[3] = static_cast<std::uint32_t>(occ >> 32);
+            rec[4] = static_cast<std::uint32_t>(solid);
+            rec[5] = static_cast<std::uint32_t>(solid >> 32);
+        }
+        frontier = std::move(next);
+    }
+
+    // Leaves: the nodes of the last level, allocated last (indices first_leaf..nodes).
+    out.leaves = frontier.size();
+    out.nodes.resize(std::size_t{nodes} * VF_SDF_NODE_WORDS);
+    if (!frontier.empty()) {
+        const std::size_t count = frontier.size();
+        const std::uint32_t first_leaf = frontier.front().s[3];
+        for (auto& o : frontier) {
+            o.s[3] -= first_leaf;
+        }
+        std::size_t vcap = std::max<std::size_t>(1024, count * 48);
+        std::size_t xcap = std::max<std::size_t>(1024, count * 24);
+        cl_call(ctx_of(gpu_layout_ ? "sample_leaves_group" : "sample_leaves_seq"), [&] {
+            cl::Buffer origins(ctx_.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                               count * sizeof(cl_uint4), frontier.data());
+            cl::Buffer leaf_nodes(ctx_.context(), CL_MEM_WRITE_ONLY,
+                                  count * VF_SDF_NODE_WORDS * sizeof(cl_uint));
+            cl::Buffer counters(ctx_.context(), CL_MEM_READ_WRITE, 2 * sizeof(cl_uint));
+            cl::Kernel k(program_, gpu_layout_ ? "sample_leaves_group" : "sample_leaves_seq");
+            cl_uint reached[2] = {0, 0};
+            cl::Buffer voxels, vertices;
+            while (true) {
+                voxels = cl::Buffer(ctx_.context(), CL_MEM_WRITE_ONLY,
+                                    xcap * VF_SDF_VOXEL_WORDS * sizeof(cl_uint));
+                vertices = cl::Buffer(ctx_.context(), CL_MEM_WRITE_ONLY,
+                                      vcap * VF_SDF_VERTEX_FLOATS * sizeof(cl_float));
+                const cl_uint zero[2] = {0, 0};
+                q.enqueueWriteBuffer(counters, CL_FALSE, 0, sizeof(zero), zero);
+                k.setArg(0, tape_);
+                k.setArg(1, n);
+                k.setArg(2, g);
+                k.setArg(3, origins);
+                k.setArg(4, static_cast<cl_uint>(count));
+                k.setArg(5, leaf_nodes);
+                k.setArg(6, voxels);
+                k.setArg(7, static_cast<cl_uint>(xcap));
+                k.setArg(8, vertices);
+                k.setArg(9, static_cast<cl_uint>(vcap));
+                k.setArg(10, counters);
+                cl::Event e;
+                if (gpu_layout_) {
+                    q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(count * 128),
+                                           cl::NDRange(128), nullptr, &e);
+                } else {
+                    q.enqueueNDRangeKernel(k, cl::NullRange,
+                                           cl::NDRange(round_up(count, kLeafGroup)),
+                                           cl::NDRange(kLeafGroup), nullptr, &e);
+                }
+                q.enqueueReadBuffer(counters, CL_TRUE, 0, sizeof(reached), reached);
+                timing_.kernel_ms += event_ms(e);
+                ++timing_.passes;
+                if (reached[0] <= vcap && reached[1] <= xcap) {
+                    break;
+                }
+                vcap = std::max<std::size_t>(vcap, reached[0]);
+                xcap = std::max<std::size_t>(xcap, reached[1]);
+            }
+            q.enqueueReadBuffer(leaf_nodes, CL_FALSE, 0,
+                                count * VF_SDF_NODE_WORDS * sizeof(cl_uint),
+                                &out.nodes[std::size_t{first_leaf} * VF_SDF_NODE_WORDS]);
+            out.voxels.resize(std::size_t{reached[1]} * VF_SDF_VOXEL_WORDS);
+            out.vertices.resize(std::size_t{reached[0]} * VF_SDF_VERTEX_FLOATS);
+            if (reached[1] > 0) {
+                q.enqueueReadBuffer(voxels, CL_FALSE, 0, out.voxels.size() * sizeof(cl_uint),
+                                    out.voxels.data());
+            }
+            if (reached[0] > 0) {
+                q.enqueueReadBuffer(vertices, CL_FALSE, 0, out.vertices.size() * sizeof(cl_float),
+                                    out.vertices.data());
+            }
+            q.finish();
+        });
+    }
+    timing_.total_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return out;
+}
+
+std::vector<float> ImplicitDiscretiser::sample_corners() {
+    const Dims d = part_.dims;
+    const std::size_t count = std::size_t{d.x + 1} * (d.y + 1) * (d.z + 1);
+    std::vector<float> out(count);
+    cl_call("implicit sample_corners", [&] {
+        cl::Buffer buf(ctx_.context(), CL_MEM_WRITE_ONLY, count * sizeof(float));
+        cl::Kernel k(program_, "sample_corners");
+        k.setArg(0, tape_);
+        k.setArg(1, static_cast<cl_uint>(part_.tape.code.size()));
+        k.setArg(2, grid_arg(part_));
+        k.setArg(3, buf);
+        ctx_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(count, kGroup)),
+                                          cl::NDRange(kGroup));
+        ctx_.queue().enqueueReadBuffer(buf, CL_TRUE, 0, count * sizeof(float), out.data());
+    });
+    return out;
+}
+
+std::vector<float> ImplicitDiscretiser::sample_centres() {
+    const Dims d = part_.dims;
+    std::vector<float> out(d.count());
+    cl_call("implicit sample_centres", [&] {
+        cl::Buffer buf(ctx_.context(), CL_MEM_WRITE_ONLY, d.count() * sizeof(float));
+        cl::Kernel k(program_, "sample_centres");
+        k.setArg(0, tape_);
+        k.setArg(1, static_cast<cl_uint>(part_.tape.code.size()));
+        k.setArg(2, grid_arg(part_));
+        k.setArg(3, buf);
+        ctx_.queue().enqueueNDRangeKernel(
+            k, cl::NullRange, cl::NDRange(round_up(d.count(), kGroup)), cl::NDRange(kGroup));
+        ctx_.queue().enqueueReadBuffer(buf, CL_TRUE, 0, d.count() * sizeof(float), out.data());
+    });
+    return out;
+}
+
+std::size_t ImplicitGrid::bytes() const {
+    return (tile_table.size() + nodes.size() + voxels.size()) * sizeof(std::uint32_t) +
+           vertices.size() * sizeof(float);
+}
+
+namespace {
+
+// Visits every node of a grid: (node index, voxel origin, node edge in voxels).
+void walk(
+    const ImplicitGrid& g,
+    const std::function<void(std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t,
+                             std::uint32_t)>& leaf,
+    const std::function<void(std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t)>& full) {
+    std::function<void(std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t)>
+        node = [&](std::uint32_t index, std::uint32_t x, std::uint32_t y, std::uint32_t z,
+                   std::uint32_t edge) {
+            const std::uint32_t* rec = &g.nodes[std::size_t{index} * VF_SDF_NODE_WORDS];
+            if (rec[1] != VF_SDF_NOT_LEAF) {
+                leaf(index, x, y, z, edge);
+                return;
+            }
+            const std::uint64_t occ = rec[2] | std::uint64_t{rec[3]} << 32;
+            const std::uint64_t solid = rec[4] | std::uint64_t{rec[5]} << 32;
+            const std::uint32_t e = edge / 4;
+            for (std::uint32_t c = 0; c < 64; ++c) {
+                const std::uint32_t cx = x + (c & 3) * e, cy = y + (c >> 2 & 3) * e,
+                                    cz = z + (c >> 4) * e;
+                if (solid >> c & 1) {
+                    full(cx, cy, cz, e);
+                } else if (occ >> c & 1) {
+                    const auto rank = static_cast<std::uint32_t>(
+                        std::popcount(occ & ((std::uint64_t{1} << c) - 1)));
+                    node(rec[0] + rank, cx, cy, cz, e);
+                }
+            }
+        };
+    for (std::uint32_t t = 0; t < g.tile_table.size(); ++t) {
+        const std::uint32_t x = t % g.tiles.x * g.tile_edge,
+                            y = t / g.tiles.x % g.tiles.y * g.tile_edge,
+                            z = t / g.tiles.x / g.tiles.y * g.tile_edge;
+        if (g.tile_table[t] == VF_SDF_TILE_FULL) {
+            full(x, y, z, g.tile_edge);
+        } else if (g.tile_table[t] != VF_SDF_TILE_EMPTY) {
+            node(g.tile_table[t], x, y, z, g.tile_edge);
+        }
+    }
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> ImplicitGrid::flags() const {
+    std::vector<std::uint8_t> f(dims.count(), 0);
+    walk(
+        *this,
+        [&](std::uint32_t index, std::uint32_t x, std::uint32_t y, std::uint32_t z, std::uint32_t) {
+            const std::uint32_t* rec = &nodes[std::size_t{index} * VF_SDF_NODE_WORDS];
+            const std::uint64_t occ = rec[2] | std::uint64_t{rec[3]} << 32;
+            const std::uint64_t solid = rec[4] | std::uint64_t{rec[5]} << 32;
+            for (std::uint32_t v = 0; v < 64; ++v) {
+                const std::uint32_t vx = x + (v & 3), vy = y + (v >> 2 & 3), vz = z + (v >> 4);
+                if (vx < dims.x && vy < dims.y && vz < dims.z) {
+                    f[dims.index(vx, vy, vz)] =
+                        static_cast<std::uint8_t>((solid >> v & 1) | (occ >> v & 1) << 1);
+                }
+            }
+        },
+        [&](std::uint32_t x, std::uint32_t y, std::uint32_t z, std::uint32_t e) {
+            for (std::uint32_t vz = z; vz < std::min(z + e, dims.z); ++vz) {
+                for (std::uint32_t vy = y; vy < std::min(y + e, dims.y); ++vy) {
+                    for (std::uint32_t vx = x; vx < std::min(x + e, dims.x); ++vx) {
+                        f[dims.index(vx, vy, vz)] = 1;
+                    }
+                }
+            }
+        });
+    return f;
+}
+
+std::uint64_t ImplicitGrid::solid_count() const {
+    std::uint64_t n = 0;
+    walk(
+        *this,
+        [&](std::uint32_t index, std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t) {
+            const std::uint32_t* rec = &nodes[std::size_t{index} * VF_SDF_NODE_WORDS];
+            n += static_cast<std::uint64_t>(std::popcount(rec[4]) + std::popcount(rec[5]));
+        },
+        [&](std::uint32_t x, std::uint32_t y, std::uint32_t z, std::uint32_t e) {
+            n += std::uint64_t{std::min(x + e, dims.x) - x} * (std::min(y + e, dims.y) - y) *
+                 (std::min(z + e, dims.z) - z);
+        });
+    return n;
+}
+
+std::vector<ImplicitGrid::Crossed> ImplicitGrid::crossed() const {
+    std::vector<Crossed> out;
+    walk(
+        *this,
+        [&](std::uint32_t index, std::uint32_t x, std::uint32_t y, std::uint32_t z, std::uint32_t) {
+            const std::uint32_t* rec = &nodes[std::size_t{index} * VF_SDF_NODE_WORDS];
+            const std::uint64_t occ = rec[2] | std::uint64_t{rec[3]} << 32;
+            std::uint32_t r = 0;
+            for (std::uint32_t v = 0; v < 64; ++v) {
+                if (!(occ >> v & 1)) {
+                    continue;
+                }
+                const std::uint32_t* vox = &voxels[std::size_t{rec[0] + r++} * VF_SDF_VOXEL_WORDS];
+                Crossed c{x + (v & 3), y + (v >> 2 & 3), z + (v >> 4), vox[2], {}};
+                for (std::uint32_t k = 0; k < 8; ++k) {
+                    const std::uint32_t local = vox[k / 4] >> (8 * (k % 4)) & 0xFFu;
+                    const float* vert =
+                        &vertices[std::size_t{rec[1] + local} * VF_SDF_VERTEX_FLOATS];
+                    for (int w = 0; w < 4; ++w) {
+                        c.corner[k][w] = vert[w];
+                    }
+                }
+                out.push_back(c);
+            }
+        },
+        [](std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t) {});
+    return out;
+}
+
+}  // namespace voxfield::ocl

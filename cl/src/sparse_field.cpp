@@ -1,0 +1,696 @@
+// Exact bounded fields of sparse worlds, per tile with halos (issue 24; the tile grid of
+// 64-trees of the implicit-surface rendering blog, the transforms of exact.cpp and
+// separable.cpp on dense blocks).
+#include "voxfield/cl/sparse_field.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <string>
+
+#include "util.hpp"
+#include "voxfield/cl/exact.hpp"
+#include "voxfield/cl/separable.hpp"
+#include "voxfield/core/error.hpp"
+#include "voxfield/core/format.hpp"
+
+namespace voxfield::cl_sources {
+extern const char* const sparse_field_cl;
+}  // namespace voxfield::cl_sources
+
+namespace voxfield::ocl {
+namespace {
+
+constexpr std::uint32_t kInsideTile = 0xFFFFFFFEu;
+constexpr std::uint64_t kNoRef = std::numeric_limits<std::uint64_t>::max();
+// Voxels of one batch of stacked blocks (and the most of one update block).
+constexpr std::int64_t kBatchVoxels = std::int64_t{1} << 25;
+// Rows per work-group of the gather and scatter kernels (a work-item per row).
+constexpr std::size_t kGroupRows = 8;
+// The largest halo (voxels): blocks beyond are larger than a batch.
+constexpr std::uint32_t kMaxHalo = 512;
+
+std::string elem_options(Format f) {
+    const char* type = "uint";
+    switch (f) {
+        case Format::u8:
+            type = "uchar";
+            break;
+        case Format::u16:
+            type = "ushort";
+            break;
+        case Format::u32:
+        case Format::packed32:
+            break;
+        case Format::i8:
+            type = "char";
+            break;
+        case Format::i16:
+            type = "short";
+            break;
+        case Format::i32:
+            type = "int";
+            break;
+        case Format::f32:
+            type = "float";
+            break;
+        case Format::f64:
+            type = "double";
+            break;
+    }
+    const int key = f == Format::packed32 ? 1 : holds_sign(f) ? 2 : 0;
+    return std::string("-DELEM=") + type + " -DKEY_KIND=" + std::to_string(key) +
+           " -DELEM_DOUBLE=" + (f == Format::f64 ? "1" : "0") + " -cl-std=CL1.2";
+}
+
+std::int64_t round_up_to(std::int64_t v, std::int64_t m) {
+    return (v + m - 1) / m * m;
+}
+
+Box world_box(Dims d) {
+    return {{0, 0, 0}, {d.x, d.y, d.z}};
+}
+
+Box grow(const Box& b, const std::uint32_t h[3]) {
+    return {{b.min.x - h[0], b.min.y - h[1], b.min.z - h[2]},
+            {b.max.x + h[0], b.max.y + h[1], b.max.z + h[2]}};
+}
+
+// The block of a tile's job: the tile and its halo, but along x and y no more than the world
+// with one voxel of empty space around it (beyond that nothing changes a value: unsigned
+// fields see solids only, signed ones the world surrounded by empty space), for worlds
+// thinner than a block. Along z, the axis blocks are stacked on, the whole halo always
+// separates a tile from the next block's voxels.
+Dims tile_block(Dims w, const std::uint32_t h[3]) {
+    return {std::min(kTileSize + 2 * h[0], w.x + 2), std::min(kTileSize + 2 * h[1], w.y + 2),
+            kTileSize + 2 * h[2]};
+}
+
+// Its first voxel: the tile's minus the halo, along x and y moved inside [-1, world + 1).
+Int3 tile_origin(std::int64_t tx, std::int64_t ty, std::int64_t tz, Dims w, Dims block,
+                 const std::uint32_t h[3]) {
+    auto axis = [](std::int64_t t, std::uint32_t halo, std::uint32_t extent, std::uint32_t b) {
+        return std::clamp<std::int64_t>(t * kTileSize - halo, -1,
+                                        std::int64_t{extent} + 1 - std::int64_t{b});
+    };
+    return {axis(tx, h[0], w.x, block.x), axis(ty, h[1], w.y, block.y), tz * kTileSize - h[2]};
+}
+
+// The tiles a box overlaps: first tile and count per axis.
+struct TileSpan {
+    Int3 first, count;
+    std::int64_t size() const { return count.x * count.y * count.z; }
+    std::int64_t packed() const { return count.x | count.y << 16 | count.z << 32; }
+};
+
+TileSpan tiles_of(const Box& b) {
+    const std::int64_t s = kTileSize;
+    const Int3 lo{floor_div(b.min.x, s), floor_div(b.min.y, s), floor_div(b.min.z, s)};
+    const Int3 hi{floor_div(b.max.x - 1, s), floor_div(b.max.y - 1, s), floor_div(b.max.z - 1, s)};
+    return {lo, {hi.x - lo.x + 1, hi.y - lo.y + 1, hi.z - lo.z + 1}};
+}
+
+template <class F>
+void for_each_tile(const TileSpan& span, F&& f) {
+    for (std::int64_t z = 0; z < span.count.z; ++z) {
+        for (std::int64_t y = 0; y < span.count.y; ++y) {
+            for (std::int64_t x = 0; x < span.count.x; ++x) {
+                f(span.first.x + x, span.first.y + y, span.first.z + z);
+            }
+        }
+    }
+}
+
+// Fills field tile `slot` of `pool` with `value` (one element).
+void fill_tile(cl::CommandQueue& q, const cl::Buffer& pool, std::size_t slot,
+               const std::vector<std::uint8_t>& value) {
+    const std::size_t bytes = std::size_t{kTileVoxels} * value.size();
+    auto fill = [&](auto pattern) {
+        std::memcpy(&pattern, value.data(), sizeof(pattern));
+        q.enqueueFillBuffer(pool, pattern, slot * bytes, bytes);
+    };
+    switch (value.size()) {
+        case 1:
+            fill(std::uint8_t{0});
+            break;
+        case 2:
+            fill(std::uint16_t{0});
+            break;
+        case 4:
+            fill(std::uint32_t{0});
+            break;
+        default:
+            fill(std::uint64_t{0});
+            break;
+    }
+}
+
+}  // namespace
+
+GeneratorOptions resolve_sparse_options(const GeneratorOptions& options, bool format_given) {
+    GeneratorOptions o = options;
+    if (o.algorithm != Algorithm::exact) {
+        throw InputError("--algorithm " + to_string(o.algorithm) +
+                         ": sparse worlds have the exact bounded field only (--algorithm exact)");
+    }
+    if (o.indices) {
+        throw InputError("--indices: sparse worlds have no feature transform; drop --indices");
+    }
+    if (o.chunk != 0) {
+        throw InputError("--chunk does not apply to sparse worlds");
+    }
+    if (!o.max_distance) {
+        o.max_distance = kDefaultSparseMaxDistance;
+    }
+    if (!format_given) {
+        o.format = default_format(o.metric, o.spacing, o.signed_field);
+    }
+    o = resolve_options(o, Dims{1, 1, 1});
+    const double smallest = std::min({o.spacing.x, o.spacing.y, o.spacing.z});
+    if (std::ceil(*o.max_distance / smallest) > kMaxHalo) {
+        throw InputError("--max-distance " + std::to_string(*o.max_distance) +
+                         ": a sparse world's tiles take halos of at most " +
+                         std::to_string(kMaxHalo) + " voxels (D / smallest spacing)");
+    }
+    return o;
+}
+
+// A dense generator over `blocks` stacked blocks of one shape, with the job tables.
+struct SparseField::Batch {
+    Dims block;
+    std::uint32_t blocks = 0;
+    std::unique_ptr<Generator> generator;
+    cl::Buffer voxels;  // the generator's world
+    cl::Buffer jobs, refs, scatter_jobs, regions, slots;
+    std::size_t refs_cap = 0, slots_cap = 0;
+};
+
+SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& palette,
+                         const GeneratorOptions& options)
+    : ctx_(ctx), world_(world), palette_(palette), options_(options) {
+    if (!options_.max_distance) {
+        throw std::invalid_argument("SparseField: options without max_distance");
+    }
+    const double d = *options_.max_distance;
+    const double step[3] = {options_.spacing.x, options_.spacing.y, options_.spacing.z};
+    for (int a = 0; a < 3; ++a) {
+        halo_[a] = static_cast<std::uint32_t>(std::ceil(d / step[a]));
+    }
+    elem_ = element_size(options_.format);
+    const World one(Dims{1, 1, 1});
+    far_ = encode_real_field({d}, one, palette_, options_.format);
+    inside_ = encode_real_field({options_.signed_field ? -d : 0.0}, one, palette_, options_.format);
+    program_ = ctx_.program("sparse_field.cl", {cl_sources::sparse_field_cl},
+                            elem_options(options_.format));
+}
+
+SparseField::~SparseField() {
+    try {
+        ctx_.queue().finish();
+    } catch (const cl::Error&) {
+    }
+}
+
+std::uint64_t SparseField::field_bytes() const {
+    return std::uint64_t{slot_keys_.size()} * kTileVoxels * elem_;
+}
+
+std::vector<std::uint8_t> SparseField::constant_value(std::uint32_t entry) const {
+    return entry == kInsideTile ? inside_ : far_;
+}
+
+void SparseField::sync_world() {
+    auto& q = ctx_.queue();
+    const auto& masks = world_.node_masks();
+    const auto& offsets = world_.node_offsets();
+    const auto& materials = world_.materials();
+    const std::uint64_t nodes = masks.size(), mats = materials.size();
+    const bool whole = !world_on_device_ || world_.layout_generation() != synced_generation_ ||
+                       nodes * 8 > masks_.getInfo<CL_MEM_SIZE>() ||
+                       std::max<std::uint64_t>(mats, 1) > materials_.getInfo<CL_MEM_SIZE>() ||
+                       nodes < synced_nodes_ || mats < synced_materials_;
+    cl_call("uploading the sparse world", [&] {
+        if (whole) {
+            const std::uint64_t ncap = nodes + nodes / 4 + 4096, mcap = mats + mats / 4 + 4096;
+            masks_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, ncap * 8);
+            offsets_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, ncap * 4);
+            materials_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, mcap);
+            synced_nodes_ = synced_materials_ = 0;
+        }
+        if (nodes > synced_nodes_) {
+            q.enqueueWriteBuffer(masks_, CL_FALSE, synced_nodes_ * 8, (nodes - synced_nodes_) * 8,
+                                 masks.data() + synced_nodes_);
+            q.enqueueWriteBuffer(offsets_, CL_FALSE, synced_nodes_ * 4, (nodes - synced_nodes_) * 4,
+                                 offsets.data() + synced_nodes_);
+        }
+        if (mats > synced_materials_) {
+            q.enqueueWriteBuffer(materials_, CL_FALSE, synced_materials_, mats - synced_materials_,
+                                 materials.data() + synced_materials_);
+        }
+        q.finish();
+    });
+    synced_nodes_ = nodes;
+    synced_materials_ = mats;
+    synced_generation_ = world_.layout_generation();
+    world_on_device_ = true;
+}
+
+void SparseField::ensure_slots(std::size_t slots) {
+    if (slots <= pool_slots_) {
+        return;
+    }
+    const std::size_t cap = std::max({slots, pool_slots_ + pool_slots_ / 2, std::size_t{16}});
+    cl_call("allocating " + std::to_string(cap) + " field tiles", [&] {
+        cl::Buffer pool(ctx_.context(), CL_MEM_READ_WRITE, cap * kTileVoxels * elem_);
+        cl::Buffer coarse(ctx_.context(), CL_MEM_READ_WRITE, cap * 64 * elem_);
+        if (pool_slots_ != 0) {
+            ctx_.queue().enqueueCopyBuffer(pool_, pool, 0, 0, pool_slots_ * kTileVoxels * elem_);
+            ctx_.queue().enqueueCopyBuffer(coarse_, coarse, 0, 0, pool_slots_ * 64 * elem_);
+            ctx_.queue().finish();
+        }
+        pool_ = pool;
+        coarse_ = coarse;
+    });
+    pool_slots_ = cap;
+}
+
+std::uint32_t SparseField::dense_slot(std::uint64_t key) {
+    auto it = tiles_.find(key);
+    if (it != tiles_.end() && it->second != kInsideTile) {
+        return it->second;
+    }
+    const std::vector<std::uint8_t> value =
+        constant_value(it == tiles_.end() ? kNoTile : it->second);
+    const auto slot = static_cast<std::uint32_t>(slot_keys_.size());
+    ensure_slots(slot + std::size_t{1});
+    cl_call("filling a field tile", [&] { fill_tile(ctx_.queue(), pool_, slot, value); });
+    slot_keys_.push_back(key);
+    coarse_host_.resize(slot_keys_.size() * 64 * elem_);
+    tiles_[key] = slot;
+    return slot;
+}
+
+SparseField::Batch& SparseField::batch_for(Dims block, std::uint32_t blocks) {
+    const auto shape = std::make_tuple(block.x, block.y, block.z, blocks);
+    if (auto it = batches_.find(shape); it != batches_.end()) {
+        return *it->second;
+    }
+    if (batches_.size() >= 8) {
+        // Keep a few shapes only: an update's block follows its edit's size.
+        batches_.clear();
+    }
+    auto b = std::make_unique<Batch>();
+    b->block = block;
+    b->blocks = blocks;
+    const World zero(Dims{block.x, block.y, block.z * blocks});
+    const GeneratorOptions& o = options_;
+    if (ExactManhattan::handles(ctx_, o)) {
+        auto g = std::make_unique<ExactManhattan>(ctx_, zero, palette_, o.format, o.layout,
+                                                  o.metric, o.max_distance);
+        b->voxels = g->voxels_buffer();
+        b->generator = std::move(g);
+    } else {
+        auto g = std::make_unique<ExactSeparable>(ctx_, zero, palette_, o);
+        b->voxels = g->voxels_buffer();
+        b->generator = std::move(g);
+    }
+    auto& c = ctx_.context();
+    cl_call("allocating a sparse batch's tables", [&] {
+        b->jobs = cl::Buffer(c, CL_MEM_READ_ONLY, std::size_t{blocks} * 8 * 8);
+        b->scatter_jobs = cl::Buffer(c, CL_MEM_READ_ONLY, std::size_t{blocks} * 8 * 8);
+        b->regions = cl::Buffer(c, CL_MEM_READ_ONLY, std::size_t{blocks} * 6 * 8);
+    });
+    return *(batches_[shape] = std::move(b));
+}
+
+double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
+    if (jobs.empty()) {
+        return 0;
+    }
+    const std::int64_t per_block = std::int64_t{block.x} * block.y * block.z;
+    const auto per_batch = static_cast<std::uint32_t>(std::clamp<std::int64_t>(
+        kBatchVoxels / per_block, 1, static_cast<std::int64_t>(jobs.size())));
+    Batch& batch = batch_for(block, per_batch);
+    const Dims wd = world_.dims();
+    auto& q = ctx_.queue();
+    double ms = 0;
+    for (std::size_t first = 0; first < jobs.size(); first += per_batch) {
+        const std::size_t n = std::min<std::size_t>(per_batch, jobs.size() - first);
+        std::vector<std::int64_t> gjobs, sjobs, regions;
+        std::vector<std::uint64_t> refs;
+        std::vector<std::uint32_t> slots;
+        Int3 largest{0, 0, 0};
+        for (std::size_t j = first; j < first + n; ++j) {
+            const Job& job = jobs[j];
+            const Box bb{job.origin,
+                         {job.origin.x + block.x, job.origin.y + block.y, job.origin.z + block.z}};
+            const TileSpan span = tiles_of(bb);
+            gjobs.insert(gjobs.end(),
+                         {job.origin.x, job.origin.y, job.origin.z, span.first.x, span.first.y,
+                          span.first.z, span.packed(), static_cast<std::int64_t>(refs.size() / 2)});
+            for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
+                const std::uint32_t t = world_.find_tile(tx, ty, tz);
+                refs.push_back(t == kNoTile ? kNoRef : world_.node_bases()[t]);
+                refs.push_back(t == kNoTile ? 0 : world_.material_bases()[t]);
+            });
+            const TileSpan rspan = tiles_of(job.region);
+            sjobs.insert(sjobs.end(), {job.region.min.x, job.region.min.y, job.region.min.z,
+                                       rspan.first.x, rspan.first.y, rspan.first.z, rspan.packed(),
+                                       static_cast<std::int64_t>(slots.size())});
+            for_each_tile(rspan, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
+                slots.push_back(tiles_.at(tile_key(static_cast<std::uint32_t>(tx),
+                                                   static_cast<std::uint32_t>(ty),
+                                                   static_cast<std::uint32_t>(tz))));
+            });
+            const Int3 size{job.region.max.x - job.region.min.x,
+                            job.region.max.y - job.region.min.y,
+                            job.region.max.z - job.region.min.z};
+            regions.insert(regions.end(),
+                           {size.x, size.y, size.z, job.origin.x, job.origin.y, job.origin.z});
+            largest = {std::max(largest.x, size.x), std::max(largest.y, size.y),
+                       std::max(largest.z, size.z)};
+        }
+        cl_call("computing a sparse field batch of " + std::to_string(n) + " blocks of " +
+                    block.to_string(),
+                [&] {
+                    auto& c = ctx_.context();
+                    if (refs.size() * 8 > batch.refs_cap) {
+                        batch.refs_cap = refs.size() * 8;
+                        batch.refs = cl::Buffer(c, CL_MEM_READ_ONLY, batch.refs_cap);
+                    }
+                    if (slots.size() * 4 > batch.slots_cap) {
+                        batch.slots_cap = slots.size() * 4;
+                        batch.slots = cl::Buffer(c, CL_MEM_READ_ONLY, batch.slots_cap);
+                    }
+                    q.enqueueWriteBuffer(batch.jobs, CL_FALSE, 0, gjobs.size() * 8, gjobs.data());
+                    q.enqueueWriteBuffer(batch.refs, CL_FALSE, 0, refs.size() * 8, refs.data());
+                    q.enqueueWriteBuffer(batch.scatter_jobs, CL_FALSE, 0, sjobs.size() * 8,
+                                         sjobs.data());
+                    q.enqueueWriteBuffer(batch.regions, CL_FALSE, 0, regions.size() * 8,
+                                         regions.data());
+                    q.enqueueWriteBuffer(batch.slots, CL_FALSE, 0, slots.size() * 4, slots.data());
+                    cl::Kernel gather(program_, "gather");
+                    gather.setArg(0, masks_);
+                    gather.setArg(1, offsets_);
+                    gather.setArg(2, materials_);
+                    gather.setArg(3, batch.jobs);
+                    gather.setArg(4, batch.refs);
+                    gather.setArg(5, batch.voxels);
+                    gather.setArg(6, block.x);
+                    gather.setArg(7, block.y);
+                    gather.setArg(8, block.z);
+                    gather.setArg(9, static_cast<cl_long>(wd.x));
+                    gather.setArg(10, static_cast<cl_long>(wd.y));
+                    gather.setArg(11, static_cast<cl_long>(wd.z));
+                    cl::Event ev_gather, ev_scatter;
+                    // Fixed work-group sizes: PoCL compiles a kernel once per local size.
+                    q.enqueueNDRangeKernel(
+                        gather, cl::NullRange,
+                        cl::NDRange(round_up(block.y, kGroupRows), std::size_t{block.z} * n),
+                        cl::NDRange(kGroupRows, 1), nullptr, &ev_gather);
+                    ev_gather.wait();
+                    ms += elapsed_ms(ev_gather, ev_gather);
+                    ms += batch.generator->run();
+                    cl::Kernel scatter(program_, "scatter");
+                    scatter.setArg(0, batch.generator->field_buffer());
+                    scatter.setArg(1, pool_);
+                    scatter.setArg(2, batch.scatter_jobs);
+                    scatter.setArg(3, batch.regions);
+                    scatter.setArg(4, batch.slots);
+                    scatter.setArg(5, block.x);
+                    scatter.setArg(6, block.y);
+                    scatter.setArg(7, block.z);
+                    scatter.setArg(8, static_cast<cl_uint>(largest.y));
+                    scatter.setArg(9, static_cast<cl_uint>(largest.z));
+                    q.enqueueNDRangeKernel(
+                        scatter, cl::NullRange,
+                        cl::NDRange(round_up(static_cast<std::size_t>(largest.y), kGroupRows),
+                                    static_cast<std::size_t>(largest.z) * n),
+                        cl::NDRange(kGroupRows, 1), nullptr, &ev_scatter);
+                    ev_scatter.wait();
+                    ms += elapsed_ms(ev_scatter, ev_scatter);
+                });
+    }
+    return ms;
+}
+
+void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double* ms) {
+    if (slots.empty()) {
+        return;
+    }
+    cl_call("computing the field tiles' node minima", [&] {
+        auto& q = ctx_.queue();
+        cl::Buffer list(ctx_.context(), CL_MEM_READ_ONLY, slots.size() * 4);
+        q.enqueueWriteBuffer(list, CL_FALSE, 0, slots.size() * 4, slots.data());
+        cl::Kernel k(program_, "node_minima");
+        k.setArg(0, pool_);
+        k.setArg(1, list);
+        k.setArg(2, static_cast<cl_uint>(slots.size()));
+        k.setArg(3, coarse_);
+        cl::Event ev;
+        q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(slots.size() * 64), cl::NDRange(64),
+                               nullptr, &ev);
+        const std::size_t per = 64 * elem_;
+        if (slots.size() == slot_keys_.size()) {
+            q.enqueueReadBuffer(coarse_, CL_TRUE, 0, slots.size() * per, coarse_host_.data());
+        } else {
+            for (std::uint32_t s : slots) {
+                q.enqueueReadBuffer(coarse_, CL_FALSE, s * per, per, coarse_host_.data() + s * per);
+            }
+            q.finish();
+        }
+        *ms += elapsed_ms(ev, ev);
+    });
+}
+
+double SparseField::run() {
+    sync_world();
+    tiles_.clear();
+    slot_keys_.clear();
+    const Dims wd = world_.dims();
+    const Box all = world_box(wd);
+    const double d = *options_.max_distance;
+    const bool packed = options_.format == Format::packed32;
+    // Tiles within D of a solid voxel: the stored ones, and those whose box comes nearer than
+    // D to a stored tile's solid voxels.
+    auto full = [&](std::uint32_t t) {
+        return world_.material_counts()[t] == world_.tile_box(t).volume();
+    };
+    for (std::uint32_t t = 0; t < world_.tile_count(); ++t) {
+        const Int3 c = world_.tile_coord(t);
+        const Box tb = world_.tile_box(t);
+        bool inside = false;
+        if (!packed && full(t)) {
+            inside = true;
+            if (options_.signed_field) {
+                const Box halo = grow(tb, halo_);
+                inside = intersect(halo, all) == halo;
+                for_each_tile(tiles_of(halo), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+                    const std::uint32_t n = world_.find_tile(x, y, z);
+                    inside = inside && n != kNoTile && full(n);
+                });
+            }
+        }
+        tiles_[tile_key(static_cast<std::uint32_t>(c.x), static_cast<std::uint32_t>(c.y),
+                        static_cast<std::uint32_t>(c.z))] = inside ? kInsideTile : kNoTile;
+        const Box sb = world_.solid_bounds(t);
+        const Box reach = intersect(grow(sb, halo_), all);
+        for_each_tile(tiles_of(reach), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+            if (world_.find_tile(x, y, z) != kNoTile) {
+                return;
+            }
+            const std::int64_t s = kTileSize;
+            auto gap = [](std::int64_t lo, std::int64_t hi, std::int64_t slo, std::int64_t shi) {
+                return std::max<std::int64_t>({0, lo - (shi - 1), slo - (hi - 1)});
+            };
+            const std::int64_t gx = gap(x * s, (x + 1) * s, sb.min.x, sb.max.x);
+            const std::int64_t gy = gap(y * s, (y + 1) * s, sb.min.y, sb.max.y);
+            const std::int64_t gz = gap(z * s, (z + 1) * s, sb.min.z, sb.max.z);
+            if (metric_distance(options_.metric, options_.spacing, gx, gy, gz) < d) {
+                tiles_.emplace(
+                    tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                             static_cast<std::uint32_t>(z)),
+                    kNoTile);
+            }
+        });
+    }
+    // Slots for the tiles that are not constant, in key order (z, y, x: blocks near in space
+    // lie near in the batches).
+    std::vector<std::uint64_t> keys;
+    for (const auto& [key, entry] : tiles_) {
+        if (entry != kInsideTile) {
+            keys.push_back(key);
+        }
+    }
+    std::sort(keys.begin(), keys.end());
+    ensure_slots(keys.size());
+    std::vector<Job> jobs;
+    std::vector<std::uint32_t> slots;
+    jobs.reserve(keys.size());
+    const Dims block = tile_block(wd, halo_);
+    for (std::uint64_t key : keys) {
+        const auto slot = static_cast<std::uint32_t>(slot_keys_.size());
+        tiles_[key] = slot;
+        slot_keys_.push_back(key);
+        slots.push_back(slot);
+        const Int3 t{static_cast<std::int64_t>(key & 0x3FFF),
+                     static_cast<std::int64_t>(key >> 14 & 0x3FFF),
+                     static_cast<std::int64_t>(key >> 28)};
+        const std::int64_t s = kTileSize;
+        const Box region = intersect(
+            Box{{t.x * s, t.y * s, t.z * s}, {(t.x + 1) * s, (t.y + 1) * s, (t.z + 1) * s}}, all);
+        jobs.push_back({region, tile_origin(t.x, t.y, t.z, wd, block, halo_)});
+    }
+    coarse_host_.assign(slot_keys_.size() * 64 * elem_, 0);
+    double ms = compute(jobs, block);
+    refresh_coarse(slots, &ms);
+    return ms;
+}
+
+SparseField::Update SparseField::update(const Box& changed) {
+    Update result;
+    const Box all = world_box(world_.dims());
+    if (intersect(changed, all).empty()) {
+        return result;
+    }
+    sync_world();
+    const Box region = intersect(grow(intersect(changed, all), halo_), all);
+    std::vector<std::uint32_t> slots;
+    for_each_tile(tiles_of(region), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+        slots.push_back(
+            dense_slot(tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                                static_cast<std::uint32_t>(z))));
+    });
+    const Dims wd = world_.dims();
+    Box block_box =
+        intersect(grow(region, halo_), Box{{-1, -1, -1}, {wd.x + 1, wd.y + 1, wd.z + 1}});
+    // Extents rounded up to a multiple of 16 (more empty space beyond the world, or more of
+    // the world, changes no value inside), so that edits of about one size share a block
+    // shape and its dense generator instead of setting one up each.
+    block_box.max = {block_box.min.x + round_up_to(block_box.max.x - block_box.min.x, 16),
+                     block_box.min.y + round_up_to(block_box.max.y - block_box.min.y, 16),
+                     block_box.min.z + round_up_to(block_box.max.z - block_box.min.z, 16)};
+    std::vector<Job> jobs;
+    Dims block{};
+    if (block_box.volume() <= kBatchVoxels) {
+        jobs.push_back({region, block_box.min});
+        block = {static_cast<std::uint32_t>(block_box.max.x - block_box.min.x),
+                 static_cast<std::uint32_t>(block_box.max.y - block_box.min.y),
+                 static_cast<std::uint32_t>(block_box.max.z - block_box.min.z)};
+    } else {
+        block = tile_block(wd, halo_);
+        const std::int64_t s = kTileSize;
+        for_each_tile(tiles_of(region), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+            const Box tile{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}};
+            jobs.push_back({intersect(tile, region), tile_origin(x, y, z, wd, block, halo_)});
+        });
+    }
+    result.kernel_ms = compute(jobs, block);
+    refresh_coarse(slots, &result.kernel_ms);
+    result.recomputed = region;
+    result.tiles = static_cast<std::uint32_t>(slots.size());
+    return result;
+}
+
+std::vector<std::uint8_t> SparseField::read_box(const Box& box) {
+    if (box.empty() || static_cast<std::uint64_t>(box.volume()) > kMaxDenseVoxels) {
+        throw InputError("a field box of " + std::to_string(box.empty() ? 0 : box.volume()) +
+                         " voxels: one dense array holds 1.." + std::to_string(kMaxDenseVoxels));
+    }
+    const auto nx = static_cast<std::size_t>(box.max.x - box.min.x);
+    const auto ny = static_cast<std::size_t>(box.max.y - box.min.y);
+    const std::size_t count = static_cast<std::size_t>(box.volume());
+    std::vector<std::uint8_t> out(count * elem_);
+    for (std::size_t i = 0; i < count; ++i) {
+        std::memcpy(out.data() + i * elem_, far_.data(), elem_);
+    }
+    std::vector<std::uint8_t> tile(std::size_t{kTileVoxels} * elem_);
+    const Box clipped = intersect(box, world_box(world_.dims()));
+    if (clipped.empty()) {
+        return out;
+    }
+    const std::int64_t s = kTileSize;
+    for_each_tile(tiles_of(clipped), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+        const auto it =
+            tiles_.find(tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                                 static_cast<std::uint32_t>(z)));
+        if (it == tiles_.end()) {
+            return;
+        }
+        const Box part =
+            intersect(clipped, Box{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}});
+        if (it->second == kInsideTile) {
+            for (std::size_t i = 0; i < kTileVoxels; ++i) {
+                std::memcpy(tile.data() + i * elem_, inside_.data(), elem_);
+            }
+        } else {
+            cl_call("reading a field tile", [&] {
+                ctx_.queue().enqueueReadBuffer(pool_, CL_TRUE,
+                                               std::size_t{it->second} * kTileVoxels * elem_,
+                                               tile.size(), tile.data());
+            });
+        }
+        for (std::int64_t pz = part.min.z; pz < part.max.z; ++pz) {
+            for (std::int64_t py = part.min.y; py < part.max.y; ++py) {
+                const std::size_t from =
+                    static_cast<std::size_t>(((pz - z * s) * s + (py - y * s)) * s +
+                                             (part.min.x - x * s)) *
+                    elem_;
+                const std::size_t to = ((static_cast<std::size_t>(pz - box.min.z) * ny +
+                                         static_cast<std::size_t>(py - box.min.y)) *
+                                            nx +
+                                        static_cast<std::size_t>(part.min.x - box.min.x)) *
+                                       elem_;
+                std::memcpy(out.data() + to, tile.data() + from,
+                            static_cast<std::size_t>(part.max.x - part.min.x) * elem_);
+            }
+        }
+    });
+    return out;
+}
+
+std::vector<std::uint8_t> SparseField::read_dense() {
+    return read_box(world_box(world_.dims()));
+}
+
+double SparseField::coarse_node(std::int64_t nx, std::int64_t ny, std::int64_t nz) {
+    const Format f = options_.format;
+    // Float values are correctly rounded, so possibly above the exact distance: one unit in
+    // the last place lower bounds it (integer formats hold it rounded down already).
+    auto below = [&](double v) {
+        if (f == Format::f32) {
+            return static_cast<double>(std::nextafter(static_cast<float>(v), 0.0f));
+        }
+        return f == Format::f64 ? std::nextafter(v, 0.0) : v;
+    };
+    auto positive = [&](const std::vector<std::uint8_t>& v) {
+        return below(std::max(0.0, decode_value(v, f, 0)));
+    };
+    if (nx < 0 || ny < 0 || nz < 0) {
+        return positive(far_);
+    }
+    const auto it =
+        tiles_.find(tile_key(static_cast<std::uint32_t>(nx / 4), static_cast<std::uint32_t>(ny / 4),
+                             static_cast<std::uint32_t>(nz / 4)));
+    if (it == tiles_.end() || it->second == kInsideTile) {
+        return positive(it == tiles_.end() ? far_ : inside_);
+    }
+    const std::size_t node = static_cast<std::size_t>(it->second) * 64 +
+                             static_cast<std::size_t>((nz % 4) << 4 | (ny % 4) << 2 | (nx % 4));
+    const std::vector<std::uint8_t> v(coarse_host_.begin() + static_cast<long>(node * elem_),
+                                      coarse_host_.begin() + static_cast<long>((node + 1) * elem_));
+    // The minima of packed32 hold the distance byte itself.
+    return below(std::max(0.0, decode_value(v, f == Format::packed32 ? Format::u32 : f, 0)));
+}
+
+double SparseField::coarse_tile(std::int64_t tx, std::int64_t ty, std::int64_t tz) {
+    double best = std::numeric_limits<double>::infinity();
+    for (std::int64_t n = 0; n < 64; ++n) {
+        best =
+            std::min(best, coarse_node(tx * 4 + (n & 3), ty * 4 + (n >> 2 & 3), tz * 4 + (n >> 4)));
+    }
+    return best;
+}
+
+}  // namespace voxfield::ocl

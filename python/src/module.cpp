@@ -1,0 +1,202 @@
+// The compiled core of the Python package `voxfield` (DESIGN §4): `voxfield._core`, whose
+// public functions the package re-exports (voxfield/__init__.py), plus the host passes that
+// voxfield.ndimage and voxfield.dask build on.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include <algorithm>
+#include <thread>
+
+#include "common.hpp"
+#include "passes.hpp"
+#include "transform.hpp"
+#include "voxfield/core/error.hpp"
+
+namespace voxfield::python {
+namespace {
+
+Shape3 shape3(const py::array& a, const char* what) {
+    if (a.ndim() < 1 || a.ndim() > 3) {
+        throw py::value_error(std::string(what) + " must have 1 to 3 axes, got shape " +
+                              shape_text(a));
+    }
+    Shape3 s;
+    for (py::ssize_t i = 0; i < a.ndim(); ++i) {
+        s.n[3 - a.ndim() + i] = static_cast<std::size_t>(a.shape(i));
+    }
+    return s;
+}
+
+unsigned host_threads(const py::object& threads) {
+    if (!threads.is_none()) {
+        const long t = threads.cast<long>();
+        if (t < 1) {
+            throw py::value_error("threads must be at least 1, got " + std::to_string(t));
+        }
+        return static_cast<unsigned>(std::min<long>(t, 1024));
+    }
+    return std::max(1u, std::thread::hardware_concurrency());
+}
+
+// One pass of the separable transform over an array of 1 to 3 axes (see passes.hpp): from
+// targets (bool/integer, nonzero = target) when `first`, else from float64 partials.
+py::array_t<double> pass_of(const py::object& input, int axis, const std::string& metric,
+                            double spacing, bool first, const py::object& threads) {
+    const Metric m = parse_metric(metric);
+    const py::module_ np = py::module_::import("numpy");
+    const py::array a = first ? np.attr("ascontiguousarray")(np.attr("not_equal")(input, 0))
+                              : np.attr("ascontiguousarray")(input, "float64");
+    const Shape3 s = shape3(a, "the block");
+    if (axis < 0 || axis >= a.ndim()) {
+        throw py::value_error("axis " + std::to_string(axis) + " is not an axis of shape " +
+                              shape_text(a));
+    }
+    if (!(spacing > 0) || !std::isfinite(spacing)) {
+        throw py::value_error("sampling must be positive and finite");
+    }
+    const int axis3 = axis + 3 - static_cast<int>(a.ndim());
+    std::vector<py::ssize_t> shape(a.shape(), a.shape() + a.ndim());
+    check_host_bytes(s.count() * sizeof(double), "a block of partial distances");
+    py::array_t<double> out(shape);
+    const unsigned t = host_threads(threads);
+    const std::size_t n = s.count();
+    const auto* targets = static_cast<const std::uint8_t*>(a.data());
+    const auto* g_in = static_cast<const double*>(a.data());
+    double* g_out = out.mutable_data();
+    {
+        py::gil_scoped_release release;
+        voxfield::python::separable_pass(
+            m, s, axis3, spacing,
+            first ? std::span<const std::uint8_t>(targets, n) : std::span<const std::uint8_t>(),
+            first ? std::span<const double>() : std::span<const double>(g_in, n), {g_out, n}, {},
+            {}, t);
+    }
+    return out;
+}
+
+// The whole separable transform of targets (1 to 3 axes) on the host: partial distances
+// (L2: squared) after passes along every axis in order 0, 1, 2, and the linear index of each
+// element's nearest target (-1 without one) when asked.
+py::tuple transform_on_host(const py::object& input, const std::string& metric,
+                            const std::vector<double>& sampling, bool features,
+                            const py::object& threads) {
+    const Metric m = parse_metric(metric);
+    const py::module_ np = py::module_::import("numpy");
+    const py::array a = np.attr("ascontiguousarray")(np.attr("not_equal")(input, 0));
+    const Shape3 s = shape3(a, "input");
+    if (sampling.size() != static_cast<std::size_t>(a.ndim())) {
+        throw py::value_error("sampling must have one value per axis");
+    }
+    const std::size_t n = s.count();
+    check_host_bytes(n * (sizeof(double) + (features ? sizeof(std::int64_t) : 0)),
+                     "the transform of shape " + shape_text(a));
+    std::vector<py::ssize_t> shape(a.shape(), a.shape() + a.ndim());
+    py::array_t<double> g(shape);
+    py::object feat = py::none();
+    std::int64_t* f = nullptr;
+    if (features) {
+        py::array_t<std::int64_t> fa(shape);
+        f = fa.mutable_data();
+        feat = fa;
+    }
+    const unsigned t = host_threads(threads);
+    const auto* targets = static_cast<const std::uint8_t*>(a.data());
+    double* gd = g.mutable_data();
+    const int offset = 3 - static_cast<int>(a.ndim());
+    {
+        py::gil_scoped_release release;
+        const std::span<std::int64_t> fs =
+            f != nullptr ? std::span<std::int64_t>(f, n) : std::span<std::int64_t>();
+        for (int axis = 0; axis < static_cast<int>(sampling.size()); ++axis) {
+            voxfield::python::separable_pass(
+                m, s, axis + offset, sampling[static_cast<std::size_t>(axis)],
+                axis == 0 ? std::span<const std::uint8_t>(targets, n)
+                          : std::span<const std::uint8_t>(),
+                axis == 0 ? std::span<const double>() : std::span<const double>(gd, n), {gd, n},
+                axis == 0 ? std::span<const std::int64_t>() : std::span<const std::int64_t>(fs), fs,
+                t);
+        }
+    }
+    return py::make_tuple(g, feat);
+}
+
+}  // namespace
+}  // namespace voxfield::python
+
+PYBIND11_MODULE(_core, m) {
+    namespace vp = voxfield::python;
+    namespace ocl = voxfield::ocl;
+    namespace py = pybind11;
+    m.doc() =
+        "The compiled core of voxfield: OpenCL distance transforms of voxel worlds. Use the "
+        "package `voxfield` (which re-exports the public functions with their documentation), "
+        "`voxfield.ndimage` and `voxfield.dask`.";
+    m.attr("__version__") = VOXFIELD_VERSION;
+    // The docstrings start with hand-written signatures that name the return values.
+    py::options options;
+    options.disable_function_signatures();
+
+    py::register_exception_translator([](std::exception_ptr p) {
+        try {
+            if (p) {
+                std::rethrow_exception(p);
+            }
+        } catch (const voxfield::InputError& e) {
+            PyErr_SetString(PyExc_ValueError, e.what());
+        } catch (const ocl::ClError& e) {
+            PyErr_SetString(PyExc_RuntimeError, e.what());
+        } catch (const ocl::BuildError& e) {
+            PyErr_SetString(PyExc_RuntimeError, e.what());
+        }
+    });
+
+    m.def("devices", &vp::devices,
+          "devices() -> list of dict\n\n"
+          "Every OpenCL device of every platform, as `voxfield devices --json` lists them.");
+    m.def(
+        "device_type",
+        [](const py::object& device) { return vp::device_for(device)->context.info().type; },
+        py::arg("device") = py::none(),
+        "device_type(device=None) -> str\n\n"
+        "The type ('cpu', 'gpu', ...) of the device a call with this device= uses (resolved "
+        "once, as every call resolves it).");
+    m.def("distance_transform", &vp::distance_transform, py::arg("world"),
+          py::arg("metric") = "manhattan", py::arg("signed") = false,
+          py::arg("sampling") = py::none(), py::arg("return_indices") = false,
+          py::arg("max_distance") = py::none(), py::arg("format") = py::none(),
+          py::arg("algorithm") = "exact", py::arg("device") = py::none(),
+          "distance_transform(world, metric='manhattan', signed=False, sampling=None, "
+          "return_indices=False, max_distance=None, format=None, algorithm='exact', "
+          "device=None) -> ndarray, or (ndarray, indices)\n\n"
+          "See voxfield.distance_transform.");
+    py::class_<vp::Field>(m, "Field", "See voxfield.Field.")
+        .def(py::init<const py::object&, const std::string&, const py::object&, const std::string&,
+                      const std::optional<std::string>&, const py::object&, bool,
+                      const py::object&>(),
+             py::arg("world"), py::arg("metric") = "manhattan", py::arg("device") = py::none(),
+             py::arg("algorithm") = "exact", py::arg("format") = py::none(), py::kw_only(),
+             py::arg("sampling") = py::none(), py::arg("signed") = false,
+             py::arg("max_distance") = py::none())
+        .def("edit", &vp::Field::edit, py::arg("op"), py::arg("shape"), py::arg("center"),
+             py::arg("radius"), py::arg("material") = 1)
+        .def("apply_edits", &vp::Field::apply_edits, py::arg("text"))
+        .def("distances", &vp::Field::distances)
+        .def("world", &vp::Field::world);
+    m.def("load_vox", &vp::load_vox, py::arg("path"), "load_vox(path) -> (world, palette)");
+    m.def("save_vox", &vp::save_vox, py::arg("path"), py::arg("world"),
+          py::arg("palette") = py::none(), "save_vox(path, world, palette=None)");
+    m.def("separable_pass", &vp::pass_of, py::arg("input"), py::arg("axis"), py::arg("metric"),
+          py::arg("spacing"), py::arg("first"), py::arg("threads") = py::none(),
+          "separable_pass(input, axis, metric, spacing, first, threads=None) -> ndarray\n\n"
+          "One 1-D pass of the separable transform along `axis` of a 1- to 3-D array, on the "
+          "host in float64: from targets (nonzero = target) when `first`, else from the "
+          "previous pass's partial distances (L2: squared).");
+    m.def("host_transform", &vp::transform_on_host, py::arg("input"), py::arg("metric"),
+          py::arg("sampling"), py::arg("features"), py::arg("threads") = py::none(),
+          "host_transform(input, metric, sampling, features, threads=None) -> (g, features)\n\n"
+          "The separable transform of targets (nonzero = target) on the host in float64: "
+          "distances (L2: squared) and, when asked, the linear index of each element's "
+          "nearest target (-1 without one).");
+}

@@ -1,0 +1,260 @@
+// The host 1-D passes of the separable transforms (see passes.hpp).
+#include "passes.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+namespace voxfield::python {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// One line of n positions: g (partials in, +inf = none), site[i] (out) = the position whose
+// candidate is least at i (-1: none), val[i] = that value. Work arrays are the caller's.
+struct Line {
+    std::vector<double> g, val;
+    std::vector<std::int64_t> site, stack;
+    std::vector<double> cut;
+    void resize(std::size_t n) {
+        g.resize(n);
+        val.resize(n);
+        site.resize(n);
+        stack.resize(n);
+        cut.resize(n + 1);
+    }
+};
+
+double l2_at(double gj, double s, std::int64_t i, std::int64_t j) {
+    const double o = s * static_cast<double>(i - j);
+    return gj + o * o;
+}
+
+double l1_at(double gj, double s, std::int64_t i, std::int64_t j) {
+    return gj + s * static_cast<double>(i > j ? i - j : j - i);
+}
+
+double linf_at(double gj, double s, std::int64_t i, std::int64_t j) {
+    return std::max(gj, s * static_cast<double>(i > j ? i - j : j - i));
+}
+
+// L2: the lower envelope of the parabolas (Felzenszwalb & Huttenlocher), then at every i the
+// least of the envelope's site there and its neighbours on the envelope, so that rounding in
+// the intersections never picks a site whose value is not the least.
+void pass_l2(Line& l, std::size_t n, double s) {
+    std::int64_t k = -1;
+    const double s2 = 2 * s * s;
+    for (std::size_t qi = 0; qi < n; ++qi) {
+        const double gq = l.g[qi];
+        if (gq == kInf) {
+            continue;
+        }
+        const auto q = static_cast<std::int64_t>(qi);
+        const double sq = s * static_cast<double>(q);
+        const double fq = gq + sq * sq;
+        double x = -kInf;
+        while (k >= 0) {
+            const std::int64_t v = l.stack[k];
+            const double sv = s * static_cast<double>(v);
+            const double fv = l.g[v] + sv * sv;
+            x = (fq - fv) / (s2 * static_cast<double>(q - v));
+            if (x > l.cut[k]) {
+                break;
+            }
+            --k;
+        }
+        ++k;
+        l.stack[k] = q;
+        l.cut[k] = k == 0 ? -kInf : x;
+    }
+    if (k < 0) {
+        std::fill(l.site.begin(), l.site.begin() + static_cast<std::ptrdiff_t>(n), -1);
+        std::fill(l.val.begin(), l.val.begin() + static_cast<std::ptrdiff_t>(n), kInf);
+        return;
+    }
+    std::int64_t e = 0;
+    for (std::size_t ii = 0; ii < n; ++ii) {
+        const auto i = static_cast<std::int64_t>(ii);
+        while (e < k && l.cut[e + 1] < static_cast<double>(i)) {
+            ++e;
+        }
+        std::int64_t best = l.stack[e];
+        double value = l2_at(l.g[best], s, i, best);
+        for (std::int64_t nb : {e - 1, e + 1}) {
+            if (nb >= 0 && nb <= k) {
+                const std::int64_t j = l.stack[nb];
+                const double c = l2_at(l.g[j], s, i, j);
+                if (c < value || (c == value && j < best)) {
+                    value = c;
+                    best = j;
+                }
+            }
+        }
+        l.site[ii] = best;
+        l.val[ii] = value;
+    }
+}
+
+// L1: the order of two sites' candidates is the same at every position beyond both, so a
+// forward and a backward sweep, each keeping its best site, find the least candidate.
+void pass_l1(Line& l, std::size_t n, double s) {
+    std::int64_t best = -1;
+    for (std::size_t ii = 0; ii < n; ++ii) {
+        const auto i = static_cast<std::int64_t>(ii);
+        if (l.g[ii] != kInf && (best < 0 || l.g[ii] <= l1_at(l.g[best], s, i, best))) {
+            best = i;
+        }
+        l.site[ii] = best;
+        l.val[ii] = best < 0 ? kInf : l1_at(l.g[best], s, i, best);
+    }
+    best = -1;
+    for (std::size_t r = n; r-- > 0;) {
+        const auto i = static_cast<std::int64_t>(r);
+        if (l.g[r] != kInf && (best < 0 || l.g[r] < l1_at(l.g[best], s, i, best))) {
+            best = i;
+        }
+        if (best >= 0) {
+            const double c = l1_at(l.g[best], s, i, best);
+            if (c < l.val[r]) {
+                l.val[r] = c;
+                l.site[r] = best;
+            }
+        }
+    }
+}
+
+// L-inf, one direction: candidates j <= i on a stack of increasing j and increasing g (a later
+// site with g no larger is never worse again); at i the least of max(g_j, s (i - j)) lies where
+// g_j first reaches s (i - j), found by bisection, or just before it.
+void linf_sweep(Line& l, std::size_t n, double s, bool forward) {
+    std::int64_t k = -1;
+    for (std::size_t step = 0; step < n; ++step) {
+        const std::size_t ii = forward ? step : n - 1 - step;
+        const auto i = static_cast<std::int64_t>(ii);
+        if (l.g[ii] != kInf) {
+            while (k >= 0 && l.g[l.stack[k]] >= l.g[ii]) {
+                --k;
+            }
+            l.stack[++k] = i;
+        }
+        if (k < 0) {
+            continue;
+        }
+        std::int64_t lo = 0, hi = k + 1;  // first p with g >= distance, in [0, k]
+        while (lo < hi) {
+            const std::int64_t mid = (lo + hi) / 2;
+            const std::int64_t j = l.stack[mid];
+            if (l.g[j] >= linf_at(0, s, i, j)) {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        for (std::int64_t p : {lo - 1, lo}) {
+            if (p >= 0 && p <= k) {
+                const std::int64_t j = l.stack[p];
+                const double c = linf_at(l.g[j], s, i, j);
+                if (c < l.val[ii] || (c == l.val[ii] && (l.site[ii] < 0 || j < l.site[ii]))) {
+                    l.val[ii] = c;
+                    l.site[ii] = j;
+                }
+            }
+        }
+    }
+}
+
+void pass_linf(Line& l, std::size_t n, double s) {
+    std::fill(l.site.begin(), l.site.begin() + static_cast<std::ptrdiff_t>(n), -1);
+    std::fill(l.val.begin(), l.val.begin() + static_cast<std::ptrdiff_t>(n), kInf);
+    linf_sweep(l, n, s, true);
+    linf_sweep(l, n, s, false);
+}
+
+}  // namespace
+
+void separable_pass(Metric metric, Shape3 shape, int axis, double spacing,
+                    std::span<const std::uint8_t> targets, std::span<const double> g_in,
+                    std::span<double> g_out, std::span<const std::int64_t> feat_in,
+                    std::span<std::int64_t> feat_out, unsigned threads) {
+    if (axis < 0 || axis > 2) {
+        throw std::invalid_argument("separable_pass: axis must be 0, 1 or 2");
+    }
+    const std::size_t count = shape.count();
+    const bool first = g_in.empty();
+    if ((first ? targets.size() : g_in.size()) != count || g_out.size() != count ||
+        (!feat_out.empty() && feat_out.size() != count) ||
+        (!first && !feat_out.empty() && feat_in.size() != count)) {
+        throw std::invalid_argument("separable_pass: array sizes do not match the shape");
+    }
+    const std::size_t n = shape.n[axis];
+    std::size_t stride = 1;
+    for (int a = 2; a > axis; --a) {
+        stride *= shape.n[a];
+    }
+    const std::size_t lines = n == 0 ? 0 : count / n;
+    // Line number -> its first element: the axes before `axis` (outer) and after it (inner).
+    auto line_base = [&](std::size_t line) {
+        const std::size_t outer = line / stride, inner = line % stride;
+        return outer * n * stride + inner;
+    };
+    auto work = [&](std::size_t from, std::size_t to) {
+        Line l;
+        l.resize(n);
+        for (std::size_t line = from; line < to; ++line) {
+            const std::size_t base = line_base(line);
+            for (std::size_t i = 0; i < n; ++i) {
+                const std::size_t at = base + i * stride;
+                l.g[i] = first ? (targets[at] != 0 ? 0.0 : kInf) : g_in[at];
+            }
+            switch (metric) {
+                case Metric::euclidean:
+                    pass_l2(l, n, spacing);
+                    break;
+                case Metric::manhattan:
+                    pass_l1(l, n, spacing);
+                    break;
+                case Metric::chebyshev:
+                    pass_linf(l, n, spacing);
+                    break;
+            }
+            // Features first: with g_out == g_in, the sites' own values are read above only.
+            if (!feat_out.empty()) {
+                std::vector<std::int64_t> f(n);
+                for (std::size_t i = 0; i < n; ++i) {
+                    const std::int64_t j = l.site[i];
+                    f[i] = j < 0 ? -1
+                                 : (first ? static_cast<std::int64_t>(
+                                                base + static_cast<std::size_t>(j) * stride)
+                                          : feat_in[base + static_cast<std::size_t>(j) * stride]);
+                }
+                for (std::size_t i = 0; i < n; ++i) {
+                    feat_out[base + i * stride] = f[i];
+                }
+            }
+            for (std::size_t i = 0; i < n; ++i) {
+                g_out[base + i * stride] = l.val[i];
+            }
+        }
+    };
+    threads = std::max(
+        1u, std::min<unsigned>(threads, static_cast<unsigned>(std::min<std::size_t>(lines, 64))));
+    if (threads <= 1) {
+        work(0, lines);
+        return;
+    }
+    std::vector<std::thread> pool;
+    const std::size_t per = (lines + threads - 1) / threads;
+    for (unsigned t = 0; t < threads; ++t) {
+        const std::size_t from = std::min(lines, t * per), to = std::min(lines, from + per);
+        pool.emplace_back(work, from, to);
+    }
+    for (std::thread& t : pool) {
+        t.join();
+    }
+}
+
+}  // namespace voxfield::python

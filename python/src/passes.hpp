@@ -1,0 +1,39 @@
+#pragma once
+// The separable transforms' 1-D passes on the host, in double precision (DESIGN §4): what
+// voxfield.dask runs block by block with each block spanning whole lines of one axis, and what
+// voxfield.ndimage runs for float64 distances with non-unit sampling (the device's sampled
+// kernels carry float32 partial distances).
+//
+// A pass along one axis turns per-voxel partial distances g into
+//   L2:    g'(i) = min_j g(j) + (s (i - j))^2      (squared distances)
+//   L1:    g'(i) = min_j g(j) + s |i - j|
+//   L-inf: g'(i) = min_j max(g(j), s |i - j|)
+// over the positions j of the voxel's line; the first pass starts from the targets (g = 0 on
+// a target, +inf elsewhere). After passes along every axis, g is the distance to the nearest
+// target (L2: its square). Each candidate's value is computed as written above, so for unit
+// sampling every value is an exact integer and any order of axes gives the same field; the
+// sum order of an L2 value is that of its passes (SciPy adds axis 0, 1, 2 in turn).
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include "voxfield/core/metric.hpp"
+
+namespace voxfield::python {
+
+// A C-contiguous array of up to 3 axes seen as (n0, n1, n2).
+struct Shape3 {
+    std::size_t n[3] = {1, 1, 1};
+    std::size_t count() const { return n[0] * n[1] * n[2]; }
+};
+
+// One pass along `axis` of `shape`: from `targets` (nonzero = target; `g_in` empty) or from
+// the partials `g_in`, into `g_out` (may equal g_in). `feat_in`/`feat_out` (optional, empty to
+// skip): the linear index of each voxel's nearest target, -1 without one; the first pass
+// makes it from the targets. `threads` >= 1 lines in parallel.
+void separable_pass(Metric metric, Shape3 shape, int axis, double spacing,
+                    std::span<const std::uint8_t> targets, std::span<const double> g_in,
+                    std::span<double> g_out, std::span<const std::int64_t> feat_in,
+                    std::span<std::int64_t> feat_out, unsigned threads);
+
+}  // namespace voxfield::python

@@ -1,0 +1,122 @@
+// voxfield.distance_transform (DESIGN §4): a world array in, its field (and the feature
+// transform) out, with the command line's semantics.
+//
+// Copies: a C-contiguous uint8 or bool world is read in place by a device that computes in
+// host memory (and uploaded from where it is elsewhere); other layouts are made C-contiguous
+// by numpy first, and wider label volumes are turned into a World voxel by voxel. Fields are
+// written by the device straight into the memory of the returned array (CPU devices) or read
+// from the device buffer into it; the feature transform goes through one host copy
+// (Generator only hands it out as a vector).
+#include <cstring>
+#include <utility>
+
+#include "common.hpp"
+#include "transform.hpp"
+#include "voxfield/cl/exact.hpp"
+#include "voxfield/cl/separable.hpp"
+
+namespace voxfield::python {
+
+namespace {
+
+// `exact` (the sweeps of exact_manhattan.cl or the separable transforms) from a C-contiguous
+// uint8/bool world straight into `field` (host_field's memory): a CPU device reads the array
+// and writes the field in place, nothing copied; elsewhere the world is uploaded and the
+// field read back into `field`.
+void transform_into(Device& dev, const WorldArray& w, const ocl::GeneratorOptions& o,
+                    std::uint8_t* field, std::size_t bytes) {
+    auto& ctx = dev.context;
+    const std::span<const std::uint8_t> voxels(w.data, w.bytes);
+    const std::span<std::uint8_t> out(field, bytes);
+    std::unique_ptr<ocl::Generator> made;
+    if (ocl::ExactManhattan::handles(ctx, o)) {
+        made = std::make_unique<ocl::ExactManhattan>(ctx, w.dims, voxels, Palette{}, o.format,
+                                                     o.layout, o.metric, out, o.max_distance);
+    } else {
+        made = std::make_unique<ocl::ExactSeparable>(ctx, w.dims, voxels, Palette{}, o, out);
+    }
+    ocl::Generator& job = *made;
+    job.run();
+    if (ctx.computes_in_host_memory()) {
+        // Mapping makes the kernels' writes visible to the host; in place it copies nothing.
+        const ocl::MappedBuffer mapped(ctx, job.field_buffer(), bytes);
+        if (mapped.bytes().data() != field) {
+            std::memcpy(field, mapped.bytes().data(), bytes);
+        }
+    } else {
+        read_into(dev, job.field_buffer(), field, bytes, w.dims);
+    }
+}
+
+}  // namespace
+
+py::object distance_transform(const py::object& world, const std::string& metric, bool signed_field,
+                              const py::object& sampling, bool return_indices,
+                              const py::object& max_distance,
+                              const std::optional<std::string>& format,
+                              const std::string& algorithm, const py::object& device) {
+    const WorldArray w = world_array(world, true);
+    ocl::GeneratorOptions o;
+    o.max_distance = bound_of(max_distance);
+    o.algorithm = ocl::parse_algorithm(algorithm);
+    o.metric = parse_metric(metric);
+    o.spacing = spacing_of(sampling);
+    o.signed_field = signed_field;
+    o.indices = return_indices;
+    o.format = format_of(format, o.metric, o.spacing, signed_field);
+    const bool empty = w.count == 0;
+    const ocl::GeneratorOptions options =
+        resolve_python_options(o, empty ? Dims{1, 1, 1} : w.dims, false);
+    const std::shared_ptr<Device> dev = device_for(device);
+    const Labels labels = options.format == Format::packed32 ? Labels::palette : Labels::solid;
+
+    const std::size_t field_bytes = w.count * element_size(options.format);
+    const std::size_t index_bytes = return_indices ? 3 * w.count * sizeof(std::int32_t) : 0;
+    if (!empty) {
+        check_device_bytes(*dev, std::max(field_bytes, index_bytes),
+                           w.count + field_bytes + index_bytes,
+                           "the field of " + w.dims.to_string());
+        check_host_bytes(field_bytes + index_bytes + (w.bytes_are_voxels() ? 0 : w.count),
+                         "the field of " + w.dims.to_string());
+    }
+    // `exact` reads a uint8/bool array in place and writes the field into the returned array
+    // (indices come back through the generator's own buffers).
+    const bool sweeps = w.bytes_are_voxels() && options.algorithm == ocl::Algorithm::exact &&
+                        !return_indices && labels == Labels::solid;
+    std::uint8_t* sweep_out = nullptr;
+    py::array field = sweeps ? host_field(w.dims, options.format, sweep_out)
+                             : empty_field(w.dims, options.format);
+    py::array_t<std::int32_t> indices;
+    if (return_indices) {
+        indices =
+            py::array_t<std::int32_t>(std::vector<py::ssize_t>{3, w.dims.z, w.dims.y, w.dims.x});
+    }
+    if (empty) {
+        return return_indices ? py::object(py::make_tuple(field, indices)) : py::object(field);
+    }
+    void* field_out = field.mutable_data();
+    std::int32_t* indices_out = return_indices ? indices.mutable_data() : nullptr;
+    {
+        py::gil_scoped_release release;
+        if (sweeps) {
+            const std::lock_guard<std::mutex> lock(dev->mutex);
+            transform_into(*dev, w, options, sweep_out, field_bytes);
+        } else {
+            const World vox = make_world(w, labels);
+            const std::lock_guard<std::mutex> lock(dev->mutex);
+            const auto job = ocl::make_generator(dev->context, vox, Palette{}, options);
+            job->run();
+            read_into(*dev, job->field_buffer(), field_out, field_bytes, w.dims);
+            if (indices_out != nullptr) {
+                const std::vector<std::int32_t> idx = job->read_indices();
+                std::memcpy(indices_out, idx.data(), idx.size() * sizeof(std::int32_t));
+            }
+        }
+    }
+    if (return_indices) {
+        return py::make_tuple(field, indices);
+    }
+    return field;
+}
+
+}  // namespace voxfield::python

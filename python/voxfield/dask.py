@@ -1,0 +1,239 @@
+"""Distance transforms of ``dask.array`` volumes, block by block, exactly.
+
+Every function returns a lazy dask array equal, value for value, to the one-piece result of
+the same call on the whole array (:func:`voxfield.distance_transform`,
+:func:`voxfield.ndimage.distance_transform_edt`, :func:`voxfield.ndimage.distance_transform_cdt`),
+on any scheduler (threads, processes, a ``distributed`` cluster).
+
+Two exact schemes:
+
+* Bounded fields (``distance_transform(..., max_distance=D)``): each block is computed on the
+  OpenCL device with a halo of ``ceil(D / sampling)`` voxels per axis (``map_overlap``; Dask
+  merges blocks smaller than the halo first). A voxel's value depends only on the solids
+  within D, which the halo holds, and everything beyond D saturates at D.
+* Unbounded fields: the separable transform, one axis at a time. The volume is rechunked so
+  that each block spans whole lines of the axis, and the 1-D pass of the compiled core
+  (``voxfield._core.separable_pass``, float64 on the host) runs on every block; after the
+  passes along axes 0, 1 and 2 every voxel holds its exact distance (L2: squared, then one
+  square root). Each line is computed whole, so the result does not depend on the chunks.
+
+Each task picks its device when it runs: ``device=`` if given, else ``$VOXFIELD_DEVICE`` as
+the worker's environment has it, else the first GPU, else the first CPU; each worker process
+keeps one OpenCL context per device.
+"""
+
+import math
+
+import dask.array as da
+import numpy as np
+
+from voxfield import _core
+
+__all__ = ["distance_transform", "distance_transform_cdt", "distance_transform_edt"]
+
+_FORMAT_DTYPES = {"u8": np.uint8, "u16": np.uint16, "u32": np.uint32, "packed32": np.uint32,
+                  "i8": np.int8, "i16": np.int16, "i32": np.int32, "f32": np.float32,
+                  "f64": np.float64}
+
+
+def _spacing(sampling, ndim):
+    """Sampling in array order, one float per axis (None: all 1)."""
+    if sampling is None:
+        return [1.0] * ndim
+    if isinstance(sampling, (str, bytes)):
+        raise TypeError("sampling must be a number or a sequence of numbers, not a string")
+    s = np.asarray(sampling, dtype=np.float64)
+    if s.ndim == 0:
+        s = np.full(ndim, float(s))
+    if s.ndim != 1 or s.size != ndim:
+        raise ValueError(f"sampling must be one number or {ndim} numbers, got {sampling!r}")
+    if not np.all(np.isfinite(s)) or np.any(s <= 0):
+        raise ValueError(f"sampling: every value must be positive and finite, got {list(s)}")
+    return [float(v) for v in s]
+
+
+def _pass_block(block, axis, metric, spacing, first):
+    return _core.separable_pass(block, axis, metric, spacing, first, 1)
+
+
+def _separable(targets, metric, spacing):
+    """Lazy partial distances (L2: squared) of a dask array of targets (nonzero = target),
+    in float64, chunked as `targets`."""
+    chunks = targets.chunks
+    g = targets
+    for axis in range(targets.ndim):
+        g = g.rechunk({a: (-1 if a == axis else chunks[a]) for a in range(targets.ndim)})
+        g = g.map_blocks(_pass_block, axis, metric, spacing[axis], axis == 0, dtype=np.float64)
+    return g.rechunk(chunks)
+
+
+def _to_format(d, fmt):
+    """A float64 distance block in a field format, as the kernels store it: unsigned integers
+    rounded down and saturated, signed toward zero, floats rounded to nearest."""
+    dtype = np.dtype(_FORMAT_DTYPES[fmt])
+    if dtype.kind == "f":
+        return d.astype(dtype)
+    top = float(np.iinfo(dtype).max)
+    return np.where(d >= top, top, np.floor(d)).astype(dtype)
+
+
+def _default_format(metric, spacing, signed):
+    unit = all(s == 1.0 for s in spacing)
+    if metric == "euclidean" or not unit:
+        return "f32"
+    return "i16" if signed else "u16"
+
+
+def _bounded_block(block, metric, signed, sampling, max_distance, fmt, device):
+    return _core.distance_transform(block, metric, signed, sampling, False, max_distance, fmt,
+                                    "exact", device)
+
+
+def distance_transform(world, metric="manhattan", signed=False, sampling=None,
+                       max_distance=None, format=None, device=None):
+    """:func:`voxfield.distance_transform` of a dask array, lazily and exactly.
+
+    Parameters
+    ----------
+    world : dask.array.Array or array_like, shape (Z, Y, X)
+        A label volume (bool or any integer dtype, nonzero = solid), chunked any way.
+    metric : {'manhattan', 'chebyshev', 'euclidean'}
+    signed : bool
+        Signed fields need ``max_distance`` here (bounded blocks).
+    sampling : float or sequence of 3 floats, optional
+        Voxel spacing in array order (z, y, x).
+    max_distance : float, optional
+        Bounded field: blocks on the device with a halo of ``ceil(max_distance / sampling)``.
+        None: the unbounded field by the separable passes on the host.
+    format : str, optional
+        As for :func:`voxfield.distance_transform` (default u16 / i16 / f32 likewise).
+    device : None, 'cpu', 'gpu' or int
+        The device each task uses (None: ``$VOXFIELD_DEVICE`` of the worker, else its first
+        GPU, else its first CPU); bounded fields only.
+
+    Returns
+    -------
+    dask.array.Array
+        Chunked as ``world``, of the format's dtype. Without ``max_distance`` and with
+        non-unit sampling the values are the float64 separable transform rounded to the
+        format, which can differ from the one-piece device field by the float32 rounding of
+        its partial distances.
+    """
+    w = da.asarray(world)
+    if w.ndim != 3:
+        raise ValueError(f"world must be a 3-D array of shape (Z, Y, X), got shape {w.shape}")
+    if not (w.dtype.kind in "bui"):
+        raise TypeError(f"world dtype {w.dtype} is not supported: expected bool or an integer "
+                        "type (a label volume: 0 = empty, nonzero = solid)")
+    spacing = _spacing(sampling, 3)
+    if metric not in ("manhattan", "chebyshev", "euclidean"):
+        raise ValueError(f"unknown metric '{metric}': expected manhattan, chebyshev or euclidean")
+    fmt = format if format is not None else _default_format(metric, spacing, signed)
+    if fmt not in _FORMAT_DTYPES:
+        raise ValueError(f"unknown format '{fmt}': expected one of {', '.join(_FORMAT_DTYPES)}")
+    dtype = np.dtype(_FORMAT_DTYPES[fmt])
+    if max_distance is not None:
+        if isinstance(max_distance, (str, bytes)):
+            raise TypeError("max_distance must be None or a number, not a string")
+        bound = float(max_distance)
+        if not (math.isfinite(bound) and bound > 0):
+            raise ValueError(f"max_distance must be a positive number, not {max_distance}")
+        depth = {a: int(math.ceil(bound / spacing[a])) for a in range(3)}
+        # Checks every argument once, eagerly, on a one-voxel world.
+        _core.distance_transform(np.zeros((1, 1, 1), np.uint8), metric, signed, sampling,
+                                 False, bound, fmt, "exact", device)
+        return w.map_overlap(_bounded_block, depth=depth, boundary="none", trim=True,
+                             dtype=dtype, metric=metric, signed=signed, sampling=sampling,
+                             max_distance=bound, fmt=fmt, device=device)
+    if signed:
+        raise ValueError("signed=True on a dask array needs max_distance (signed fields are "
+                         "computed as bounded blocks)")
+    if fmt == "packed32":
+        raise ValueError("format='packed32' on a dask array needs max_distance (the palette "
+                         "colour is written by the device)")
+    g = _separable(w, metric, spacing)
+    d = da.sqrt(g) if metric == "euclidean" else g
+    return d.map_blocks(_to_format, fmt, dtype=dtype)
+
+
+def _no_target_edt(block, spacing, block_info=None):
+    """SciPy's edt of an input without zeros: measured to the point (-1, 0, ..., 0)."""
+    loc = block_info[0]["array-location"]
+    grids = np.indices(block.shape, dtype=np.float64)
+    total = np.zeros(block.shape, np.float64)
+    for axis in range(block.ndim):
+        coord = grids[axis] + loc[axis][0]
+        t = (coord + 1 if axis == 0 else coord) * spacing[axis]
+        total += t * t
+    return np.sqrt(total)
+
+
+def _refuse_outputs(return_distances, return_indices, distances, indices):
+    if not return_distances or return_indices or distances is not None or indices is not None:
+        raise ValueError("voxfield.dask returns the distances only (return_distances=True, "
+                         "return_indices=False, no output arrays)")
+
+
+def distance_transform_edt(input, sampling=None, return_distances=True, return_indices=False,
+                           distances=None, indices=None):
+    """:func:`voxfield.ndimage.distance_transform_edt` of a dask array, lazily and exactly.
+
+    Parameters
+    ----------
+    input : dask.array.Array or array_like
+        1-D to 3-D, any dtype, chunked any way: the distance of every nonzero element to the
+        nearest zero element.
+    sampling : float or sequence of float, optional
+        Spacing along each axis (array order).
+    return_distances, return_indices, distances, indices
+        SciPy's signature; only the distances are returned here (``return_indices=True`` or
+        output arrays raise ``ValueError``).
+
+    Returns
+    -------
+    dask.array.Array of float64
+        Chunked as ``input``; equal bit for bit to the one-piece
+        :func:`voxfield.ndimage.distance_transform_edt`.
+    """
+    _refuse_outputs(return_distances, return_indices, distances, indices)
+    a = da.asarray(input)
+    if a.ndim < 1 or a.ndim > 3:
+        raise ValueError(f"voxfield.dask handles 1-D to 3-D input, got shape {a.shape}")
+    spacing = _spacing(sampling, a.ndim)
+    targets = a == 0
+    d = da.sqrt(_separable(targets, "euclidean", spacing))
+    quirk = da.map_blocks(_no_target_edt, targets, spacing, dtype=np.float64)
+    return da.where(targets.any(), d, quirk)
+
+
+def distance_transform_cdt(input, metric="chessboard", return_distances=True,
+                           return_indices=False, distances=None, indices=None):
+    """:func:`voxfield.ndimage.distance_transform_cdt` of a dask array, lazily and exactly.
+
+    Parameters
+    ----------
+    input : dask.array.Array or array_like
+        1-D to 3-D, any dtype, chunked any way.
+    metric : {'chessboard', 'taxicab', 'cityblock', 'manhattan'}
+    return_distances, return_indices, distances, indices
+        SciPy's signature; only the distances are returned here.
+
+    Returns
+    -------
+    dask.array.Array of int32
+        Chunked as ``input``; -1 everywhere when the input has no zero element (as SciPy).
+    """
+    _refuse_outputs(return_distances, return_indices, distances, indices)
+    a = da.asarray(input)
+    if a.ndim < 1 or a.ndim > 3:
+        raise ValueError(f"voxfield.dask handles 1-D to 3-D input, got shape {a.shape}")
+    if metric in ("taxicab", "cityblock", "manhattan"):
+        m = "manhattan"
+    elif metric == "chessboard":
+        m = "chebyshev"
+    else:
+        raise RuntimeError("invalid metric provided")
+    targets = a == 0
+    g = _separable(targets, m, [1.0] * a.ndim)
+    # +inf only where the input has no zero at all: -1 there, as SciPy.
+    return da.where(da.isinf(g), -1.0, g).astype(np.int32)

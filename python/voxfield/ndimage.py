@@ -1,0 +1,307 @@
+"""Drop-in replacements for ``scipy.ndimage``'s distance transforms, on OpenCL devices.
+
+Change one import (``from voxfield import ndimage``) and keep the calls: the functions have
+SciPy's signatures, semantics (the distance from each nonzero element of ``input`` to the
+nearest zero element; elements outside the array are not zeros), dtypes (``edt`` float64,
+``cdt`` int32, indices int32 of shape ``(input.ndim,) + input.shape``), output arrays and error
+types, for 1-D, 2-D and 3-D inputs of any dtype and layout, zero-size inputs included. Each
+also takes ``device=`` (None: ``$VOXFIELD_DEVICE``, else the first GPU, else the first CPU;
+'cpu', 'gpu' or an index from :func:`voxfield.devices`).
+
+Exactness: ``distance_transform_edt`` with unit sampling is bit for bit SciPy's float64 result
+(exact integer squared distances, then one float64 square root). With other sampling it runs
+the separable passes on the host in float64 (the device's sampled kernels carry float32
+partial distances) and adds the axes' terms in SciPy's order, within 2 ulp of SciPy.
+``indices`` always name a nearest zero element. The host passes break ties as SciPy does
+(axis by axis in SciPy's order, the lowest coordinate among equally near sites), so their
+indices equal SciPy's; they compute the feature transform whenever sampling is not unit or
+the device is a CPU (there they are also faster than the OpenCL feature kernels: 7.8 s
+against 29 s at 256^3 on 2 PoCL cores). A GPU computes the indices with its own kernels,
+whose ties may differ from SciPy's (about 4% of elements on sparse worlds, 27% on dense
+random ones) at no cost in speed.
+
+Departures from SciPy: inputs of more than 3 axes raise ``ValueError``; ``cdt`` takes the
+metrics 'chessboard' and 'taxicab' (also as their 3x..x3 structuring elements), other
+structuring elements raise ``ValueError``; a string ``sampling`` (which SciPy reads as one
+number per character) raises ``TypeError``; a 0-d input is taken as 1-d by both functions
+(SciPy's ``cdt`` fails on it).
+"""
+
+import numpy as np
+
+from voxfield import _core
+
+__all__ = ["distance_transform_cdt", "distance_transform_edt"]
+
+
+def _arg_check(distances_out, indices_out, return_distances, return_indices):
+    """SciPy's checks and messages (RuntimeError) on what to return."""
+    errors = []
+    if not return_distances and not return_indices:
+        errors.append("at least one of return_distances/return_indices must be True")
+    if distances_out and not return_distances:
+        errors.append("return_distances must be True if distances is supplied")
+    if indices_out and not return_indices:
+        errors.append("return_indices must be True if indices is supplied")
+    if errors:
+        raise RuntimeError(", ".join(errors))
+
+
+def _as_input(input):
+    """The input as an array of 1 to 3 axes (0-d taken as 1-d)."""
+    a = np.atleast_1d(np.asarray(input))
+    if a.ndim > 3:
+        raise ValueError(
+            f"voxfield.ndimage handles 1-D to 3-D input, got {a.ndim} axes (shape {a.shape})")
+    return a
+
+
+def _sampling(sampling, ndim):
+    """SciPy's sampling rules: None, one number, or one number per axis; as floats."""
+    if sampling is None:
+        return None
+    if isinstance(sampling, (str, bytes)):
+        raise TypeError("sampling must be a number or a sequence of numbers, not a string")
+    s = np.asarray(sampling, dtype=np.float64)
+    if s.ndim == 0:
+        s = np.full(ndim, float(s))
+    elif s.ndim != 1 or s.size != ndim:
+        raise RuntimeError("sequence argument must have length equal to input rank")
+    if not np.all(np.isfinite(s)) or np.any(s <= 0):
+        raise ValueError(f"sampling: every value must be positive and finite, got {list(s)}")
+    return s
+
+
+def _as_3d(a):
+    return a.reshape((1,) * (3 - a.ndim) + a.shape)
+
+
+def _result(return_distances, dt, dt_inplace, return_indices, ft, ft_inplace):
+    out = []
+    if return_distances and not dt_inplace:
+        out.append(dt)
+    if return_indices and not ft_inplace:
+        out.append(ft)
+    if len(out) == 2:
+        return tuple(out)
+    if len(out) == 1:
+        return out[0]
+    return None
+
+
+def _indices_from_linear(feat, shape):
+    """int32 (ndim, *shape) coordinates of linear indices (-1 stays -1 on every plane)."""
+    out = np.empty((len(shape),) + tuple(shape), dtype=np.int32)
+    none = feat < 0
+    coords = np.unravel_index(np.where(none, 0, feat), shape)
+    for axis, c in enumerate(coords):
+        out[axis] = np.where(none, -1, c)
+    return out
+
+
+def distance_transform_edt(input, sampling=None, return_distances=True, return_indices=False,
+                           distances=None, indices=None, *, device=None):
+    """Exact Euclidean distance transform, as ``scipy.ndimage.distance_transform_edt``.
+
+    Parameters
+    ----------
+    input : array_like
+        1-D to 3-D, any dtype: the distance of every nonzero element to the nearest zero
+        element is computed.
+    sampling : float or sequence of float, optional
+        Spacing of elements along each axis (array order); one number for every axis.
+    return_distances : bool
+        Whether to return the distance transform.
+    return_indices : bool
+        Whether to return the feature transform (the index of a nearest zero element).
+    distances : ndarray of float64, optional
+        Output array for the distances (same shape as input); then not returned.
+    indices : ndarray of int32, optional
+        Output array of shape ``(input.ndim,) + input.shape`` for the feature transform; then
+        not returned.
+    device : None, 'cpu', 'gpu' or int
+        The OpenCL device (see :mod:`voxfield.ndimage`).
+
+    Returns
+    -------
+    distances : ndarray of float64
+        Unless ``return_distances`` is False or ``distances`` was given.
+    indices : ndarray of int32
+        With ``return_indices`` unless ``indices`` was given.
+    None
+        When both went into output arrays.
+
+    Raises
+    ------
+    RuntimeError
+        SciPy's errors: nothing to return, an output array of the wrong shape or dtype, a
+        sampling sequence of the wrong length.
+    ValueError, TypeError
+        More than 3 axes, a non-positive or string sampling, a bad device.
+    """
+    ft_inplace = isinstance(indices, np.ndarray)
+    dt_inplace = isinstance(distances, np.ndarray)
+    _arg_check(dt_inplace, ft_inplace, return_distances, return_indices)
+    a = _as_input(input)
+    s = _sampling(sampling, a.ndim)
+    shape = a.shape
+    if ft_inplace:
+        if indices.shape != (a.ndim,) + shape:
+            raise RuntimeError("indices array has wrong shape")
+        if indices.dtype.type != np.int32:
+            raise RuntimeError("indices array must be int32")
+    if dt_inplace:
+        if distances.shape != shape:
+            raise RuntimeError("distances array has wrong shape")
+        if distances.dtype.type != np.float64:
+            raise RuntimeError("distances array must be float64")
+
+    targets = np.equal(a, 0)
+    ft = None
+    if a.size == 0:
+        dt = np.zeros(shape, np.float64)
+        ft = np.zeros((a.ndim,) + shape, np.int32)
+    elif not targets.any():
+        # SciPy's feature transform without any zero: -1 on axis 0, 0 on the others, and the
+        # distances measured to that point.
+        ft = np.zeros((a.ndim,) + shape, np.int32)
+        ft[0] = -1
+        d = (ft - np.indices(shape, dtype=np.int32)).astype(np.float64)
+        if s is not None:
+            for axis in range(a.ndim):
+                d[axis] *= s[axis]
+        np.multiply(d, d, d)
+        dt = np.sqrt(np.add.reduce(d, axis=0))
+    elif (s is None or np.all(s == 1.0)) and not (return_indices
+                                                  and _core.device_type(device) == "cpu"):
+        out = _core.distance_transform(_as_3d(targets), "euclidean", False, None,
+                                       bool(return_indices), None, "f64", "exact", device)
+        if return_indices:
+            field, idx = out
+            ft = idx[3 - a.ndim:].reshape((a.ndim,) + shape)
+        else:
+            field = out
+        dt = field.reshape(shape)
+    else:
+        spacing = [1.0] * a.ndim if s is None else [float(v) for v in s]
+        g, feat = _core.host_transform(targets, "euclidean", spacing,
+                                       bool(return_indices))
+        dt = np.sqrt(g)
+        if return_indices:
+            ft = _indices_from_linear(feat, shape)
+
+    if dt_inplace and return_distances:
+        np.copyto(distances, dt)
+    if ft_inplace and return_indices:
+        np.copyto(indices, ft)
+    return _result(return_distances, dt, dt_inplace, return_indices, ft, ft_inplace)
+
+
+def _cdt_metric(metric, ndim):
+    """'manhattan' or 'chebyshev' for SciPy's metric argument."""
+    if isinstance(metric, str):
+        if metric in ("taxicab", "cityblock", "manhattan"):
+            return "manhattan"
+        if metric == "chessboard":
+            return "chebyshev"
+        raise RuntimeError("invalid metric provided")
+    try:
+        m = np.asarray(metric, dtype=np.int8)
+    except Exception as e:
+        raise RuntimeError("invalid metric provided") from e
+    for size in m.shape:
+        if size != 3:
+            raise RuntimeError("metric sizes must be equal to 3")
+    if m.ndim != ndim:
+        raise RuntimeError("metric rank must equal the input rank")
+    grid = np.indices((3,) * ndim) - 1
+    steps = np.abs(grid).sum(axis=0)
+    if np.array_equal(m != 0, steps <= 1):
+        return "manhattan"
+    if np.all(m != 0):
+        return "chebyshev"
+    raise ValueError("voxfield.ndimage.distance_transform_cdt computes the taxicab and "
+                     "chessboard metrics; for other structuring elements use "
+                     "scipy.ndimage.distance_transform_cdt")
+
+
+def distance_transform_cdt(input, metric="chessboard", return_distances=True,
+                           return_indices=False, distances=None, indices=None, *, device=None):
+    """Chamfer distance transform, as ``scipy.ndimage.distance_transform_cdt``.
+
+    The taxicab and chessboard chamfer distances are the exact L1 and L-inf distances, which
+    the device computes directly.
+
+    Parameters
+    ----------
+    input : array_like
+        1-D to 3-D, any dtype: the distance of every nonzero element to the nearest zero
+        element is computed.
+    metric : {'chessboard', 'taxicab', 'cityblock', 'manhattan'} or array_like
+        'taxicab' (synonyms 'cityblock', 'manhattan') or 'chessboard', or the 3x..x3
+        structuring element of one of them.
+    return_distances, return_indices : bool
+        What to return.
+    distances : ndarray of int32, optional
+        Output array for the distances; then not returned.
+    indices : ndarray of int32, optional
+        Output array of shape ``(input.ndim,) + input.shape``; then not returned.
+    device : None, 'cpu', 'gpu' or int
+        The OpenCL device (see :mod:`voxfield.ndimage`).
+
+    Returns
+    -------
+    distances : ndarray of int32
+        -1 everywhere when the input has no zero element (as SciPy).
+    indices : ndarray of int32
+        With ``return_indices`` unless ``indices`` was given.
+    None
+        When both went into output arrays.
+
+    Raises
+    ------
+    RuntimeError
+        SciPy's errors: nothing to return, an invalid metric, an output array of the wrong
+        shape or dtype.
+    ValueError
+        More than 3 axes, a structuring element other than taxicab's or chessboard's.
+    """
+    ft_inplace = isinstance(indices, np.ndarray)
+    dt_inplace = isinstance(distances, np.ndarray)
+    _arg_check(dt_inplace, ft_inplace, return_distances, return_indices)
+    a = _as_input(input)
+    m = _cdt_metric(metric, a.ndim)
+    shape = a.shape
+    if dt_inplace:
+        if distances.dtype.type != np.int32:
+            raise RuntimeError("distances must be of int32 type")
+        if distances.shape != shape:
+            raise RuntimeError("distances has wrong shape")
+    if ft_inplace:
+        if indices.dtype.type != np.int32:
+            raise RuntimeError("indices array must be int32")
+        if indices.shape != (a.ndim,) + shape:
+            raise RuntimeError("indices array has wrong shape")
+
+    targets = np.equal(a, 0)
+    ft = None
+    if a.size == 0 or not targets.any():
+        dt = np.full(shape, -1, np.int32)
+        ft = np.indices(shape, dtype=np.int32)
+    else:
+        # u32 (the sweeps' format; i32 would take the slower separable kernels): with a zero
+        # in the input every distance is below 2^31, so its bits are the int32 values.
+        out = _core.distance_transform(_as_3d(targets), m, False, None, bool(return_indices),
+                                       None, "u32", "exact", device)
+        if return_indices:
+            field, idx = out
+            ft = idx[3 - a.ndim:].reshape((a.ndim,) + shape)
+        else:
+            field = out
+        dt = field.view(np.int32).reshape(shape)
+
+    if dt_inplace and return_distances:
+        np.copyto(distances, dt)
+    if ft_inplace and return_indices:
+        np.copyto(indices, ft)
+    return _result(return_distances, dt, dt_inplace, return_indices, ft, ft_inplace)

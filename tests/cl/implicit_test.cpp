@@ -1,0 +1,202 @@
+// The implicit discretiser on PoCL, both layouts: solid and crossed voxels equal brute-force
+// sampling at every corner and centre of the same grid (pruning loses nothing), and the kept
+// corner values and gradients equal the CPU evaluators', on random trees and the gallery.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "cl_test_util.hpp"
+#include "sdf_random.hpp"
+#include "voxfield/cl/implicit.hpp"
+
+namespace voxfield::ocl {
+namespace {
+
+struct Check {
+    std::size_t solid = 0, crossed = 0;
+    float max_value_error = 0, max_gradient_error = 0;
+};
+
+// Brute-force flags (bit 0: f < 0 at the centre; bit 1: f < 0 differs among the 8 corners and
+// the centre) from the device's samples at every corner and centre.
+std::vector<std::uint8_t> brute_flags(const Dims d, const std::vector<float>& corners,
+                                      const std::vector<float>& centres) {
+    std::vector<std::uint8_t> f(d.count());
+    auto corner = [&](std::uint32_t i, std::uint32_t j, std::uint32_t k) {
+        return corners[(std::size_t{k} * (d.y + 1) + j) * (d.x + 1) + i];
+    };
+    for (std::uint32_t z = 0; z < d.z; ++z) {
+        for (std::uint32_t y = 0; y < d.y; ++y) {
+            for (std::uint32_t x = 0; x < d.x; ++x) {
+                const float c = centres[d.index(x, y, z)];
+                bool inside = c < 0, outside = !(c < 0);
+                for (std::uint32_t k = 0; k < 8; ++k) {
+                    const float v = corner(x + (k & 1), y + (k >> 1 & 1), z + (k >> 2));
+                    inside |= v < 0;
+                    outside |= !(v < 0);
+                }
+                f[d.index(x, y, z)] =
+                    static_cast<std::uint8_t>((c < 0 ? 1 : 0) | (inside && outside ? 2 : 0));
+            }
+        }
+    }
+    return f;
+}
+
+// Discretises `part` and compares it with brute force; returns counts and the largest errors.
+Check check(const sdf::Part& part, ImplicitOptions options, const std::string& what) {
+    Check r;
+    ImplicitDiscretiser job(test::pocl(), part, options);
+    EXPECT_EQ(job.gpu_layout(), options.layout == Layout::gpu);
+    const ImplicitGrid grid = job.run();
+    const std::vector<float> corners = job.sample_corners();
+    const std::vector<float> centres = job.sample_centres();
+    const std::vector<std::uint8_t> want = brute_flags(part.dims, corners, centres);
+    const std::vector<std::uint8_t> got = grid.flags();
+    const Dims d = part.dims;
+    std::size_t mismatches = 0;
+    for (std::size_t i = 0; i < want.size(); ++i) {
+        r.solid += want[i] & 1;
+        r.crossed += want[i] >> 1;
+        if (got[i] != want[i] && mismatches++ < 5) {
+            ADD_FAILURE() << what << ": voxel (" << i % d.x << "," << i / d.x % d.y << ","
+                          << i / d.x / d.y << ") flags " << int(got[i]) << ", brute force "
+                          << int(want[i]);
+        }
+    }
+    EXPECT_EQ(mismatches, 0u) << what;
+    EXPECT_EQ(grid.solid_count(), r.solid) << what;
+    const auto crossed = grid.crossed();
+    EXPECT_EQ(crossed.size(), r.crossed) << what;
+    EXPECT_EQ(grid.crossed_count(), r.crossed) << what;
+    for (const auto& c : crossed) {
+        const sdf::ValueMaterial vm = sdf::evaluate_material(part.tape, part.centre(c.x, c.y, c.z));
+        EXPECT_EQ(c.material, vm.material) << what;
+        for (std::uint32_t k = 0; k < 8; ++k) {
+            const std::uint32_t i = c.x + (k & 1), j = c.y + (k >> 1 & 1), l = c.z + (k >> 2);
+            const float* v = c.corner[k];
+            // The stored f is the device's sample of that corner, and f on the CPU to float
+            // precision.
+            EXPECT_EQ(v[3], corners[(std::size_t{l} * (d.y + 1) + j) * (d.x + 1) + i]) << what;
+            const sdf::ValueGradient cpu = sdf::evaluate_gradient(part.tape, part.corner(i, j, l));
+            const float scale = 1 + std::abs(cpu.value);
+            r.max_value_error = std::max(r.max_value_error, std::abs(v[3] - cpu.value) / scale);
+            r.max_gradient_error =
+                std::max({r.max_gradient_error, std::abs(v[0] - cpu.gradient.x),
+                          std::abs(v[1] - cpu.gradient.y), std::abs(v[2] - cpu.gradient.z)});
+        }
+    }
+    EXPECT_LE(r.max_value_error, 4 * 1.2e-7f) << what;
+    EXPECT_LE(r.max_gradient_error, 1e-5f) << what;
+    return r;
+}
+
+class ImplicitLayouts : public ::testing::TestWithParam<Layout> {};
+
+TEST_P(ImplicitLayouts, RandomTreesEqualBruteForce) {
+    test::RandomPart gen(21);
+    std::size_t crossed = 0, solid = 0;
+    for (int t = 0; t < 24; ++t) {
+        const double h = gen.real(0.025, 0.07);
+        const sdf::Part part = sdf::parse_part(gen.part(4, h), "random");
+        const std::uint32_t depth = static_cast<std::uint32_t>(t % 3);
+        const Check c = check(part, {depth, GetParam()},
+                              "tree " + std::to_string(t) + " depth " + std::to_string(depth));
+        crossed += c.crossed;
+        solid += c.solid;
+    }
+    EXPECT_GT(crossed, 10000u);  // the trees have surfaces to find
+    EXPECT_GT(solid, 10000u);
+}
+
+TEST_P(ImplicitLayouts, GalleryEqualsBruteForceAndPrunes) {
+    for (const char* name : {"bracket", "gear_ring", "pipe_elbow"}) {
+        const sdf::Part part = sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" /
+                                              (std::string(name) + ".sdf.json"));
+        for (std::uint32_t depth : {1u, 2u}) {
+            const std::string what = std::string(name) + " depth " + std::to_string(depth);
+            const Check c = check(part, {depth, GetParam()}, what);
+            EXPECT_GT(c.crossed, 1000u) << what;
+            ImplicitDiscretiser job(test::pocl(), part, {depth, GetParam()});
+            const ImplicitGrid grid = job.run();
+            // Pruning: far fewer voxels sampled in leaves than in the grid.
+            EXPECT_LT(grid.leaves * 64, part.dims.count() / 2) << what;
+            EXPECT_EQ(grid.tile_edge, depth == 1 ? 16u : 64u);
+        }
+    }
+}
+
+TEST_P(ImplicitLayouts, CapacityOverflowRerunsWithTheReachedSizes) {
+    // A thin shell of many crossings per leaf: more kept corners than the first guess.
+    const sdf::Part part = sdf::parse_part(
+        R"({"version": 1, "voxel_size": 0.02, "bounds": [[-1, -1, -1], [1, 1, 1]],
+            "shape": {"intersection": [{"box": {"center": [0, 0, 0], "half_size": [0.9, 0.9, 0.9]}},
+              {"union": [{"plane": {"normal": [0, 1, 0], "offset": 0.011}},
+                         {"shell": {"thickness": 0.001, "of": {"sphere": {"center": [0, 0, 0], "radius": 0.5}}}},
+                         {"shell": {"thickness": 0.001, "of": {"sphere": {"center": [0, 0, 0], "radius": 0.53}}}},
+                         {"shell": {"thickness": 0.001, "of": {"sphere": {"center": [0, 0, 0], "radius": 0.56}}}},
+                         {"shell": {"thickness": 0.001, "of": {"sphere": {"center": [0, 0, 0], "radius": 0.59}}}}]}]}})",
+        "shells");
+    ImplicitDiscretiser job(test::pocl(), part, {1, GetParam()});
+    job.run();
+    EXPECT_EQ(job.timing().passes, 2u);
+    check(part, {1, GetParam()}, "shells");
+}
+
+TEST_P(ImplicitLayouts, TapesTooLongToSpecialiseRunWhole) {
+    // A union of 300 spheres: 599 instructions, more than VF_SDF_SPECIALISE_MAX.
+    test::RandomPart gen(31);
+    nlohmann::json kids = nlohmann::json::array();
+    for (int i = 0; i < 300; ++i) {
+        kids.push_back(
+            {{"sphere",
+              {{"center", {gen.real(-0.8, 0.8), gen.real(-0.8, 0.8), gen.real(-0.8, 0.8)}},
+               {"radius", gen.real(0.05, 0.15)}}}});
+    }
+    const nlohmann::json doc = {{"version", 1},
+                                {"voxel_size", 0.04},
+                                {"bounds", {{-1, -1, -1}, {1, 1, 1}}},
+                                {"shape", {{"union", kids}}}};
+    const sdf::Part part = sdf::parse_part(doc.dump(), "spheres");
+    ASSERT_GT(part.tape.code.size(), std::size_t{VF_SDF_SPECIALISE_MAX});
+    const Check c = check(part, {1, GetParam()}, "300 spheres");
+    EXPECT_GT(c.crossed, 1000u);
+}
+
+INSTANTIATE_TEST_SUITE_P(Pocl, ImplicitLayouts, ::testing::Values(Layout::cpu, Layout::gpu),
+                         [](const auto& p) { return p.param == Layout::cpu ? "cpu" : "gpu"; });
+
+TEST(Implicit, FullAndEmptyTilesAreNotSubdivided) {
+    // A plane y < 0.51 over [0, 4]^3 at h = 1/32: 128^3 voxels, tiles of 16^3 (depth 1).
+    const sdf::Part part = sdf::parse_part(
+        R"({"version": 1, "voxel_size": 0.03125, "bounds": [[0, 0, 0], [4, 4, 4]],
+            "shape": {"plane": {"normal": [0, 1, 0], "offset": 0.51}}})",
+        "plane");
+    ImplicitDiscretiser job(test::pocl(), part, {1, Layout::cpu});
+    const ImplicitGrid grid = job.run();
+    std::size_t full = 0, empty = 0;
+    for (std::uint32_t t : grid.tile_table) {
+        full += t == VF_SDF_TILE_FULL;
+        empty += t == VF_SDF_TILE_EMPTY;
+    }
+    // Tile row 0 (y in [0, 0.5]) is full, row 1 (y in [0.5, 1]) holds the surface, rows 2..7
+    // are empty.
+    EXPECT_EQ(full, 64u);
+    EXPECT_EQ(empty, 6u * 64u);
+    EXPECT_EQ(grid.tile_table.size(), 512u);
+    check(part, {1, Layout::cpu}, "plane");
+}
+
+TEST(Implicit, RejectsATileDepthOutOfRange) {
+    const sdf::Part part = sdf::parse_part(
+        R"({"version": 1, "voxel_size": 0.1, "bounds": [[0, 0, 0], [1, 1, 1]],
+            "shape": {"sphere": {"center": [0, 0, 0], "radius": 1}}})",
+        "s");
+    EXPECT_THROW(ImplicitDiscretiser(test::pocl(), part, {9, Layout::cpu}), InputError);
+}
+
+}  // namespace
+}  // namespace voxfield::ocl

@@ -1,0 +1,342 @@
+// Bounded fields of sparse worlds (cl/sparse_field.hpp) on PoCL, in both kernel layouts:
+// equal voxel for voxel to the dense bounded field of the same world (the dense generator with
+// max_distance), every metric, spacing, signed, formats, bounds up to beyond a tile; coarse
+// distances are lower bounds; updates after random brushes equal recomputation.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+
+#include "cl_test_util.hpp"
+#include "voxfield/cl/sparse_field.hpp"
+#include "voxfield/core/brush.hpp"
+#include "voxfield/core/error.hpp"
+#include "voxfield/core/reference.hpp"
+
+namespace voxfield {
+namespace {
+
+using ocl::Layout;
+using test::pocl;
+
+// Solid boxes scattered in empty space (empty tiles between solid ones), plus noise.
+World blob_world(Dims d, int blobs, double noise, std::mt19937& rng) {
+    World w(d);
+    for (int b = 0; b < blobs; ++b) {
+        const auto cx = std::uniform_int_distribution<std::uint32_t>(0, d.x - 1)(rng);
+        const auto cy = std::uniform_int_distribution<std::uint32_t>(0, d.y - 1)(rng);
+        const auto cz = std::uniform_int_distribution<std::uint32_t>(0, d.z - 1)(rng);
+        const auto r = std::uniform_int_distribution<std::uint32_t>(0, 9)(rng);
+        const auto m = static_cast<std::uint8_t>(std::uniform_int_distribution<int>(1, 255)(rng));
+        for (std::uint32_t z = cz > r ? cz - r : 0; z <= std::min(d.z - 1, cz + r); ++z) {
+            for (std::uint32_t y = cy > r ? cy - r : 0; y <= std::min(d.y - 1, cy + r); ++y) {
+                for (std::uint32_t x = cx > r ? cx - r : 0; x <= std::min(d.x - 1, cx + r); ++x) {
+                    w.set(x, y, z, m);
+                }
+            }
+        }
+    }
+    std::bernoulli_distribution solid(noise);
+    for (auto& v : w.voxels()) {
+        if (solid(rng)) {
+            v = 7;
+        }
+    }
+    return w;
+}
+
+struct Case {
+    Metric metric = Metric::manhattan;
+    Spacing spacing;
+    bool signed_field = false;
+    Format format = Format::u16;
+    Layout layout = Layout::cpu;
+    double bound = 16;
+};
+
+std::string describe(const Case& c, Dims d) {
+    return to_string(c.metric) + " spacing " + c.spacing.to_string() +
+           (c.signed_field ? " signed" : "") + " " + to_string(c.format) + " layout " +
+           (c.layout == Layout::cpu ? "cpu" : "gpu") + " D " + std::to_string(c.bound) + " world " +
+           d.to_string();
+}
+
+ocl::GeneratorOptions options_of(const Case& c) {
+    ocl::GeneratorOptions o;
+    o.metric = c.metric;
+    o.spacing = c.spacing;
+    o.signed_field = c.signed_field;
+    o.format = c.format;
+    o.layout = c.layout;
+    o.max_distance = c.bound;
+    return ocl::resolve_sparse_options(o, true);
+}
+
+std::vector<std::uint8_t> dense_field(const World& w, const Palette& p, const Case& c) {
+    return ocl::generate(pocl(), w, p, options_of(c)).bytes;
+}
+
+// Byte for byte; on a difference, where and both values.
+void expect_same(const std::vector<std::uint8_t>& got, const std::vector<std::uint8_t>& want,
+                 const Case& c, Dims d, const std::string& what) {
+    ASSERT_EQ(got.size(), want.size()) << what;
+    if (got == want) {
+        return;
+    }
+    const std::size_t e = element_size(c.format);
+    std::size_t i = 0;
+    while (std::equal(got.begin() + static_cast<long>(i * e),
+                      got.begin() + static_cast<long>((i + 1) * e),
+                      want.begin() + static_cast<long>(i * e))) {
+        ++i;
+    }
+    FAIL() << what << " " << describe(c, d) << ": first difference at voxel (" << i % d.x << ","
+           << i / d.x % d.y << "," << i / d.x / d.y << "): got " << decode_value(got, c.format, i)
+           << ", want " << decode_value(want, c.format, i);
+}
+
+// Every coarse distance is at most the field's distance to a solid (the value, its positive
+// part when signed) at each voxel of its node or tile.
+void expect_coarse_bounds(ocl::SparseField& f, const std::vector<std::uint8_t>& field,
+                          const Case& c, Dims d) {
+    const Int3 nodes{(d.x + 15) / 16, (d.y + 15) / 16, (d.z + 15) / 16};
+    std::vector<double> node_min(static_cast<std::size_t>(nodes.x * nodes.y * nodes.z),
+                                 std::numeric_limits<double>::infinity());
+    for (std::uint32_t z = 0; z < d.z; ++z) {
+        for (std::uint32_t y = 0; y < d.y; ++y) {
+            for (std::uint32_t x = 0; x < d.x; ++x) {
+                const double v = std::max(0.0, decode_value(field, c.format, d.index(x, y, z)));
+                double& m = node_min[static_cast<std::size_t>(
+                    (z / 16 * nodes.y + y / 16) * nodes.x + x / 16)];
+                m = std::min(m, v);
+            }
+        }
+    }
+    for (std::int64_t z = 0; z < nodes.z; ++z) {
+        for (std::int64_t y = 0; y < nodes.y; ++y) {
+            for (std::int64_t x = 0; x < nodes.x; ++x) {
+                const double m =
+                    node_min[static_cast<std::size_t>((z * nodes.y + y) * nodes.x + x)];
+                const double coarse = f.coarse_node(x, y, z);
+                ASSERT_LE(coarse, m)
+                    << "node " << x << "," << y << "," << z << " " << describe(c, d);
+                ASSERT_LE(f.coarse_tile(x / 4, y / 4, z / 4), coarse);
+            }
+        }
+    }
+}
+
+void check_case(const World& w, const Case& c, bool coarse = false) {
+    const Palette p = Palette::magicavoxel_default();
+    const SparseWorld s = SparseWorld::from_dense(w);
+    ocl::SparseField f(pocl(), s, p, options_of(c));
+    f.run();
+    const auto got = f.read_dense();
+    expect_same(got, dense_field(w, p, c), c, w.dims(), "full field");
+    if (coarse) {
+        expect_coarse_bounds(f, got, c, w.dims());
+    }
+}
+
+const Metric kMetrics[] = {Metric::manhattan, Metric::chebyshev, Metric::euclidean};
+const Layout kLayouts[] = {Layout::cpu, Layout::gpu};
+
+TEST(SparseField, EqualsTheDenseBoundedFieldEveryMetricSignedAndLayout) {
+    std::mt19937 rng(21);
+    const Dims sizes[] = {{100, 50, 70}, {64, 64, 64}, {65, 1, 129}, {150, 20, 40}};
+    int i = 0;
+    for (const Metric m : kMetrics) {
+        for (const bool sgn : {false, true}) {
+            for (const Layout layout : kLayouts) {
+                for (const double bound : {3.0, 9.5, 16.0}) {
+                    const Dims d = sizes[i++ % 4];
+                    Case c;
+                    c.metric = m;
+                    c.signed_field = sgn;
+                    c.layout = layout;
+                    c.bound = bound;
+                    c.format = ocl::default_format(m, c.spacing, sgn);
+                    SCOPED_TRACE(describe(c, d));
+                    check_case(blob_world(d, 10, 0.0005, rng), c, bound == 16.0);
+                }
+            }
+        }
+    }
+}
+
+TEST(SparseField, EveryFormat) {
+    std::mt19937 rng(22);
+    const Dims d{100, 40, 70};
+    const World w = blob_world(d, 8, 0.001, rng);
+    for (const Format f : {Format::u8, Format::u16, Format::u32, Format::packed32, Format::i8,
+                           Format::i16, Format::i32, Format::f32, Format::f64}) {
+        for (const bool sgn : {false, true}) {
+            if (sgn && !holds_sign(f)) {
+                continue;
+            }
+            Case c;
+            c.metric = f == Format::f64 ? Metric::euclidean : Metric::manhattan;
+            c.signed_field = sgn;
+            c.format = f;
+            c.bound = f == Format::i8 || f == Format::u8 || f == Format::packed32 ? 12 : 20.5;
+            SCOPED_TRACE(describe(c, d));
+            check_case(w, c, true);
+        }
+    }
+}
+
+TEST(SparseField, SpacingAndBoundsBeyondATile) {
+    std::mt19937 rng(23);
+    struct Sc {
+        Spacing s;
+        double bound;
+    };
+    // Halos of ceil(D / spacing) voxels: D > 64 gathers from tiles two away.
+    const Sc scs[] = {{{1, 1, 1}, 70}, {{0.5, 1, 2}, 20}, {{1.5, 0.75, 1}, 15}, {{1, 1, 1}, 130}};
+    int i = 0;
+    for (const Sc& sc : scs) {
+        const Metric m = kMetrics[i % 3];
+        Case c;
+        c.metric = m;
+        c.spacing = sc.s;
+        c.bound = sc.bound;
+        c.signed_field = i % 2 == 1;
+        c.layout = kLayouts[i % 2];
+        c.format = ocl::default_format(m, c.spacing, c.signed_field);
+        const Dims d = i == 0 ? Dims{300, 20, 70} : i == 3 ? Dims{150, 10, 30} : Dims{100, 40, 70};
+        ++i;
+        SCOPED_TRACE(describe(c, d));
+        check_case(blob_world(d, 4, 0.0, rng), c, true);
+    }
+}
+
+TEST(SparseField, EmptyFullAndSingleVoxelWorlds) {
+    const Palette p = Palette::magicavoxel_default();
+    for (const bool sgn : {false, true}) {
+        Case c;
+        c.signed_field = sgn;
+        c.format = sgn ? Format::i16 : Format::u16;
+        for (const Dims d : {Dims{1, 1, 1}, Dims{70, 3, 130}}) {
+            SCOPED_TRACE(describe(c, d));
+            check_case(World(d), c, true);
+            World full(d);
+            std::fill(full.voxels().begin(), full.voxels().end(), std::uint8_t{3});
+            check_case(full, c, true);
+            World one(d);
+            one.set(d.x - 1, 0, d.z / 2, 5);
+            check_case(one, c, true);
+        }
+    }
+    // Deep solid: constant tiles, not computed (unsigned: full tiles, 0; signed: full tiles
+    // with a full halo inside the world, -D: the centre one).
+    World deep(Dims{192, 192, 192});
+    std::fill(deep.voxels().begin(), deep.voxels().end(), std::uint8_t{2});
+    for (const int variant : {0, 1, 2}) {
+        Case c;
+        c.signed_field = variant == 1;
+        c.format = c.signed_field ? Format::i16 : Format::u16;
+        c.bound = 5;
+        if (variant == 2) {
+            deep.set(0, 0, 0, 0);
+        }
+        const SparseWorld s = SparseWorld::from_dense(deep);
+        ocl::SparseField f(pocl(), s, p, options_of(c));
+        f.run();
+        EXPECT_EQ(f.dense_tiles(), variant == 0 ? 0u : variant == 1 ? 26u : 1u);
+        const auto got = f.read_dense();
+        expect_same(got, dense_field(deep, p, c), c, deep.dims(), "deep solid");
+        expect_coarse_bounds(f, got, c, deep.dims());
+    }
+}
+
+TEST(SparseField, UpdatesAfterRandomBrushesEqualRecomputation) {
+    std::mt19937 rng(24);
+    const Palette p = Palette::magicavoxel_default();
+    int k = 0;
+    for (const Metric m : kMetrics) {
+        for (const bool sgn : {false, true}) {
+            const Dims d = k % 2 == 0 ? Dims{100, 50, 70} : Dims{64, 100, 65};
+            Case c;
+            c.metric = m;
+            c.signed_field = sgn;
+            c.layout = kLayouts[k % 2];
+            c.bound = k == 2 ? 70 : 9.5;
+            c.format = m == Metric::manhattan && !sgn ? Format::packed32
+                                                      : ocl::default_format(m, c.spacing, sgn);
+            ++k;
+            SCOPED_TRACE(describe(c, d));
+            World w = blob_world(d, 6, 0.0002, rng);
+            SparseWorld s = SparseWorld::from_dense(w);
+            ocl::SparseField f(pocl(), s, p, options_of(c));
+            f.run();
+            for (int e = 0; e < 12; ++e) {
+                Brush b;
+                b.op = static_cast<BrushOp>(std::uniform_int_distribution<int>(0, 2)(rng));
+                b.shape = static_cast<BrushShape>(std::uniform_int_distribution<int>(0, 1)(rng));
+                b.centre = {std::uniform_int_distribution<std::int64_t>(-3, d.x + 3)(rng),
+                            std::uniform_int_distribution<std::int64_t>(-3, d.y + 3)(rng),
+                            std::uniform_int_distribution<std::int64_t>(-3, d.z + 3)(rng)};
+                b.radius = std::uniform_int_distribution<std::int64_t>(0, e == 5 ? 60 : 12)(rng);
+                b.material =
+                    static_cast<std::uint8_t>(std::uniform_int_distribution<int>(1, 255)(rng));
+                apply_brush(w, b);
+                const Box changed = apply_brush(s, b);
+                const auto u = f.update(changed);
+                if (!changed.empty()) {
+                    EXPECT_GT(u.tiles, 0u);
+                }
+                const auto got = f.read_dense();
+                expect_same(got, dense_field(w, p, c), c, d, "after edit " + std::to_string(e));
+                if (e % 4 == 3) {
+                    expect_coarse_bounds(f, got, c, d);
+                }
+            }
+            ocl::SparseField fresh(pocl(), s, p, options_of(c));
+            fresh.run();
+            expect_same(fresh.read_dense(), f.read_dense(), c, d, "recomputed vs updated");
+        }
+    }
+}
+
+TEST(SparseField, CoarseDistancesBoundTheExactDistance) {
+    std::mt19937 rng(25);
+    const Dims d{140, 66, 70};
+    const World w = blob_world(d, 5, 0.0, rng);
+    const auto exact = reference_distance(w, Metric::euclidean, Spacing{});
+    const Palette p = Palette::magicavoxel_default();
+    const SparseWorld s = SparseWorld::from_dense(w);
+    Case c;
+    c.metric = Metric::euclidean;
+    c.format = Format::f32;
+    ocl::SparseField f(pocl(), s, p, options_of(c));
+    f.run();
+    for (std::uint32_t z = 0; z < d.z; ++z) {
+        for (std::uint32_t y = 0; y < d.y; ++y) {
+            for (std::uint32_t x = 0; x < d.x; ++x) {
+                ASSERT_LE(f.coarse_node(x / 16, y / 16, z / 16), exact[d.index(x, y, z)]);
+            }
+        }
+    }
+    // Far from everything the coarse distance is D (rounded down by a float ulp).
+    EXPECT_EQ(f.coarse_tile(100, 100, 100), std::nextafter(16.0f, 0.0f));
+}
+
+TEST(SparseField, OptionsForSparseWorlds) {
+    ocl::GeneratorOptions o;
+    EXPECT_EQ(*ocl::resolve_sparse_options(o, false).max_distance, 16.0);
+    o.indices = true;
+    EXPECT_THROW(ocl::resolve_sparse_options(o, false), InputError);
+    o.indices = false;
+    o.algorithm = ocl::Algorithm::jfa;
+    EXPECT_THROW(ocl::resolve_sparse_options(o, false), InputError);
+    o.algorithm = ocl::Algorithm::exact;
+    o.max_distance = 5000;
+    EXPECT_THROW(ocl::resolve_sparse_options(o, false), InputError);
+    o.max_distance = -1;
+    EXPECT_THROW(ocl::resolve_sparse_options(o, false), InputError);
+}
+
+}  // namespace
+}  // namespace voxfield

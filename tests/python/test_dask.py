@@ -1,0 +1,118 @@
+"""voxfield.dask equals the one-piece results exactly: bounded fields (map_overlap, halos
+larger than a block), unbounded ones (separable passes), chunks that do not divide the array,
+on the threaded scheduler and on a distributed.LocalCluster with two workers."""
+
+import numpy as np
+import pytest
+
+da = pytest.importorskip("dask.array")
+import dask  # noqa: E402
+
+import voxfield  # noqa: E402
+import voxfield.dask as vd  # noqa: E402
+from voxfield import ndimage  # noqa: E402
+
+SHAPE = (23, 19, 29)
+CHUNKS = [(7, 5, 11), (23, 19, 29), (4, 19, 6), (10, 3, 29)]
+
+
+def world(density, seed, dtype=np.uint8):
+    rng = np.random.default_rng(seed)
+    w = np.where(rng.random(SHAPE) < density, rng.integers(1, 300, size=SHAPE), 0)
+    w.flat[rng.integers(0, w.size)] = 5
+    return w.astype(dtype)
+
+
+def threaded(x):
+    return x.compute(scheduler="threads")
+
+
+@pytest.mark.parametrize("chunks", CHUNKS)
+def test_unbounded_equals_one_piece(chunks):
+    w = world(0.01, 1, np.uint16)
+    dw = da.from_array(w, chunks=chunks)
+    for metric in ("manhattan", "chebyshev", "euclidean"):
+        for fmt in (None, "f64", "u8", "i32"):
+            got = threaded(vd.distance_transform(dw, metric=metric, format=fmt))
+            want = voxfield.distance_transform(w, metric=metric, format=fmt)
+            assert got.dtype == want.dtype
+            np.testing.assert_array_equal(got, want, err_msg=f"{metric} {fmt} {chunks}")
+
+
+@pytest.mark.parametrize("chunks", CHUNKS)
+def test_bounded_equals_one_piece_with_halos_larger_than_blocks(chunks):
+    w = world(0.02, 2)
+    dw = da.from_array(w, chunks=chunks)
+    for metric, bound, sampling, signed in (("manhattan", 3, None, False),
+                                            ("euclidean", 7.5, None, False),
+                                            ("chebyshev", 6, (1, 2, 0.5), False),
+                                            ("euclidean", 4, None, True)):
+        got = threaded(vd.distance_transform(dw, metric=metric, max_distance=bound,
+                                             sampling=sampling, signed=signed))
+        want = voxfield.distance_transform(w, metric=metric, max_distance=bound,
+                                           sampling=sampling, signed=signed)
+        np.testing.assert_array_equal(got, want, err_msg=f"{metric} {bound} {chunks}")
+
+
+@pytest.mark.parametrize("chunks", CHUNKS)
+def test_ndimage_functions_equal_one_piece(chunks):
+    a = world(0.9, 3)
+    da_a = da.from_array(a, chunks=chunks)
+    for sampling in (None, (1.5, 0.7, 2.0)):
+        got = threaded(vd.distance_transform_edt(da_a, sampling=sampling))
+        np.testing.assert_array_equal(got, ndimage.distance_transform_edt(a, sampling=sampling))
+    for metric in ("taxicab", "chessboard"):
+        got = threaded(vd.distance_transform_cdt(da_a, metric=metric))
+        np.testing.assert_array_equal(got, ndimage.distance_transform_cdt(a, metric=metric))
+
+
+def test_ndimage_functions_in_one_and_two_dimensions_and_without_zeros():
+    a2 = world(0.9, 4)[0]
+    d2 = da.from_array(a2, chunks=(4, 7))
+    np.testing.assert_array_equal(threaded(vd.distance_transform_edt(d2)),
+                                  ndimage.distance_transform_edt(a2))
+    a1 = a2[3]
+    np.testing.assert_array_equal(threaded(vd.distance_transform_cdt(da.from_array(a1, 6))),
+                                  ndimage.distance_transform_cdt(a1))
+    ones = np.ones((5, 6, 7))
+    d = da.from_array(ones, chunks=(2, 4, 3))
+    np.testing.assert_array_equal(threaded(vd.distance_transform_edt(d, sampling=2)),
+                                  ndimage.distance_transform_edt(ones, sampling=2))
+    np.testing.assert_array_equal(threaded(vd.distance_transform_cdt(d)),
+                                  ndimage.distance_transform_cdt(ones))
+
+
+def test_lazy_and_refusals():
+    dw = da.from_array(world(0.01, 5), chunks=8)
+    out = vd.distance_transform(dw, metric="euclidean")
+    assert isinstance(out, da.Array) and out.chunks == dw.chunks and out.dtype == np.float32
+    with pytest.raises(ValueError, match="max_distance"):
+        vd.distance_transform(dw, signed=True)
+    with pytest.raises(ValueError, match="max_distance"):
+        vd.distance_transform(dw, max_distance=-1)
+    with pytest.raises(TypeError, match="string"):
+        vd.distance_transform(dw, sampling="123")
+    with pytest.raises(ValueError, match="distances only"):
+        vd.distance_transform_edt(dw, return_indices=True)
+    with pytest.raises(TypeError, match="float64"):
+        vd.distance_transform(dw.astype(np.float64))
+
+
+def test_local_cluster_with_two_workers():
+    distributed = pytest.importorskip("distributed")
+    w = world(0.01, 6)
+    dw = da.from_array(w, chunks=(9, 8, 12))
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None, silence_logs=50) as cluster, \
+            distributed.Client(cluster) as client:
+        client.run(lambda: __import__("os").environ.__setitem__("VOXFIELD_DEVICE", "cpu"))
+        bounded = vd.distance_transform(dw, metric="euclidean", max_distance=5)
+        unbounded = vd.distance_transform(dw, metric="manhattan")
+        edt = vd.distance_transform_edt(dw == 0)
+        got_b, got_u, got_e = dask.compute(bounded, unbounded, edt)
+        workers = client.run(lambda: __import__("os").getpid())
+        assert len(workers) == 2
+    np.testing.assert_array_equal(got_b, voxfield.distance_transform(w, metric="euclidean",
+                                                                     max_distance=5))
+    np.testing.assert_array_equal(got_u, voxfield.distance_transform(w))
+    np.testing.assert_array_equal(got_e, ndimage.distance_transform_edt(w == 0))

@@ -1,0 +1,19 @@
+#pragma once
+// `voxfield bench --suite implicit`: discretisation of the gallery's bracket into the tile grid
+// of contrees (cl/implicit.hpp) at effective resolutions 256^3 and 1024^3 for several tile
+// sizes / contree depths, the reference blog's two among them.
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+
+#include "voxfield/cl/runtime.hpp"
+
+namespace voxfield::cli {
+
+// One row per (resolution, tile depth): wall-clock times of `repeat` runs after `warmup`
+// (stopping early past `budget_s` per row), device kernel time, and the structure's counts
+// and bytes.
+nlohmann::json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup,
+                            double budget_s, bool quick);
+
+}  // namespace voxfield::cli

@@ -1,0 +1,30 @@
+#pragma once
+// `voxfield generate --sparse` (and worlds over kSparseAutoVoxels voxels): the world as a tile
+// grid of 64-trees (core/sparse.hpp), its exact bounded field per tile (cl/sparse_field.hpp),
+// written as one dense .npy where it fits one array.
+#include <cstdint>
+#include <string>
+
+#include "cli_util.hpp"
+
+namespace voxfield::cli {
+
+// Worlds with more voxels than this are generated sparse without --sparse.
+inline constexpr std::uint64_t kSparseAutoVoxels = std::uint64_t{1} << 31;
+
+// Whether `input` holds more than kSparseAutoVoxels voxels (a .npy's header says so; other
+// inputs are loaded as dense worlds first).
+bool needs_sparse(const std::string& input);
+
+struct SparseGenerateArgs {
+    GeneratorFlags flags;
+    std::string input, output, device, format, json;
+    bool indices = false, stats = false;
+    std::uint32_t repeat = 1, warmup = 0;
+};
+
+// Prints the summary (and writes --json); InputError for what sparse worlds refuse
+// (--indices, other algorithms, a field too large for one .npy).
+int run_generate_sparse(const SparseGenerateArgs& a);
+
+}  // namespace voxfield::cli
