@@ -187,25 +187,12 @@ std::vector<std::uint16_t> RenderField::read_boxes(const std::vector<Box>& boxes
 }
 
 void update_packed32(ocl::Context& cl, vk::Raymarcher& marcher, const cl::Buffer& field,
-                     const World& world, const std::vector<Box>& regions) {
-    const Dims dims = world.dims();
+                     const cl::Buffer& voxels, Dims dims, const std::vector<Box>& regions) {
     const std::vector<Box> boxes = clipped(regions, dims);
     const std::vector<std::uint32_t> words = read_dense_boxes<std::uint32_t>(
         cl, field, dims, boxes, "reading the changed boxes of the packed32 field");
-    std::vector<std::uint8_t> materials;
-    materials.reserve(words.size());
-    for (const Box& b : boxes) {
-        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
-            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
-                const std::size_t first =
-                    dims.index(static_cast<std::uint32_t>(b.min.x), static_cast<std::uint32_t>(y),
-                               static_cast<std::uint32_t>(z));
-                const auto row = static_cast<std::size_t>(b.max.x - b.min.x);
-                materials.insert(materials.end(), world.voxels().begin() + first,
-                                 world.voxels().begin() + first + row);
-            }
-        }
-    }
+    const std::vector<std::uint8_t> materials = read_dense_boxes<std::uint8_t>(
+        cl, voxels, dims, boxes, "reading the changed boxes of the world's voxels");
     marcher.update_packed32(boxes, words, materials);
 }
 

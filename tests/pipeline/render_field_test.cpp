@@ -156,7 +156,8 @@ TEST(PackedField, RandomEditsCopyOnlyTheirBoxes) {
             }
         }
         const std::uint64_t copied = marcher.bytes_copied();
-        pipeline::update_packed32(pocl(), marcher, field.field_buffer(), field.world(), regions);
+        pipeline::update_packed32(pocl(), marcher, field.field_buffer(), field.voxels_buffer(),
+                                  kDims, regions);
         EXPECT_EQ(marcher.bytes_copied() - copied, 5 * volume_in(regions, world));
     }
     vk::Raymarcher fresh(ctx);

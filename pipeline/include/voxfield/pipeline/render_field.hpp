@@ -25,13 +25,13 @@ vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Contex
                                     vk::SharingPath fastest = vk::SharingPath::opaque_fd);
 
 // The packed32 render format (always copied, path 3) after an edit: reads back only the
-// voxels of `regions` (clipped to the world) of `field` (the packed32 field of `world` on the
-// OpenCL device, x fastest), takes the world's materials there, and copies both into `marcher`
-// in place, ordered behind its frames in flight (vk::Raymarcher::update_packed32): 5 bytes per
-// changed voxel instead of the whole field. `marcher` holds the packed32 field of `world`'s
-// dims (vk::Raymarcher::upload).
+// voxels of `regions` (clipped to the world of `dims`) of `field` (the packed32 field on the
+// OpenCL device, x fastest) and of `voxels` (the world's voxels there, one byte each), and
+// copies both into `marcher` in place, ordered behind its frames in flight
+// (vk::Raymarcher::update_packed32): 5 bytes per changed voxel instead of the whole field.
+// `marcher` holds the packed32 field of a world of `dims` (vk::Raymarcher::upload).
 void update_packed32(ocl::Context& cl, vk::Raymarcher& marcher, const cl::Buffer& field,
-                     const World& world, const std::vector<Box>& regions);
+                     const cl::Buffer& voxels, Dims dims, const std::vector<Box>& regions);
 
 class RenderField {
   public:
