@@ -4,6 +4,7 @@
 #include "voxfield/layout.h"
 
 #include <CL/cl_ext.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -115,8 +116,8 @@ class ExternalAcquire {
 
 CompactWriter::CompactWriter(Context& ctx, const cl::Buffer& field, Format format,
                              const cl::Buffer& voxels, Dims dims, cl::Buffer dst, SlabLayout layout,
-                             bool external, double step)
-    : ctx_(ctx), dims_(dims), dst_(dst), external_(external) {
+                             DstMemory dst_memory, double step)
+    : ctx_(ctx), dims_(dims), dst_(dst), dst_memory_(dst_memory) {
     if (!(step > 0) || !std::isfinite(step)) {
         throw std::invalid_argument("CompactWriter: the voxel step must be positive and finite");
     }
@@ -168,6 +169,17 @@ CompactWriter::CompactWriter(Context& ctx, const cl::Buffer& field, Format forma
     });
 }
 
+CompactWriter::~CompactWriter() {
+    if (mapped_ != nullptr) {
+        // Nothing to report from a destructor: the buffer is released after this anyway.
+        try {
+            ctx_.queue().enqueueUnmapMemObject(dst_, mapped_);
+            ctx_.queue().finish();
+        } catch (const std::exception&) {
+        }
+    }
+}
+
 double CompactWriter::run() {
     return run({Box{{0, 0, 0}, {dims_.x, dims_.y, dims_.z}}});
 }
@@ -179,8 +191,13 @@ double CompactWriter::run(const std::vector<Box>& regions) {
     return cl_call("writing the compact render field", [&] {
         std::vector<cl::Event> events;
         std::optional<ExternalAcquire> acquired;
-        if (external_) {
+        if (dst_memory_ == DstMemory::external) {
             acquired.emplace(ctx_, dst_);
+        }
+        if (mapped_ != nullptr) {
+            // Path 2: the host gives the pages back before the kernels write them.
+            ctx_.queue().enqueueUnmapMemObject(dst_, mapped_);
+            mapped_ = nullptr;
         }
         for (const Box& region : regions) {
             const Box r = intersect(region, world);
@@ -201,6 +218,22 @@ double CompactWriter::run(const std::vector<Box>& regions) {
         }
         if (acquired) {
             acquired->release();
+        }
+        if (dst_memory_ == DstMemory::host) {
+            // Path 2: mapped for reading, the kernels' writes are visible through the host
+            // pointer, which Vulkan reads, until the next run.
+            const std::size_t bytes = dst_.getInfo<CL_MEM_SIZE>();
+            void* host = dst_.getInfo<CL_MEM_HOST_PTR>();
+            mapped_ = ctx_.queue().enqueueMapBuffer(dst_, CL_FALSE, CL_MAP_READ, 0, bytes);
+            if (mapped_ != host) {
+                ctx_.queue().finish();
+                ctx_.queue().enqueueUnmapMemObject(dst_, mapped_);
+                mapped_ = nullptr;
+                ctx_.queue().finish();
+                throw ClError("clEnqueueMapBuffer", CL_INVALID_OPERATION,
+                              "the shared render field was mapped at a copy, not at the host "
+                              "memory Vulkan reads (CL_MEM_USE_HOST_PTR is not zero-copy here)");
+            }
         }
         ctx_.queue().finish();  // Vulkan reads the field only after OpenCL finished writing it
         return events.empty() ? 0.0 : elapsed_ms(events.front(), events.back());
@@ -291,6 +324,15 @@ std::optional<std::array<std::uint8_t, 16>> device_uuid(const Context& ctx) {
 }
 
 cl::Buffer import_opaque_fd(Context& ctx, int fd, std::size_t bytes) {
+    // Ours until a successful import hands it to the OpenCL implementation.
+    struct OwnedFd {
+        int fd;
+        ~OwnedFd() {
+            if (fd >= 0) {
+                close(fd);
+            }
+        }
+    } owned{fd};
     const std::string what = "importing " + std::to_string(bytes) +
                              " bytes of Vulkan memory (opaque fd) into " + ctx.info().name;
     if (!can_import_opaque_fd(ctx)) {
@@ -307,6 +349,7 @@ cl::Buffer import_opaque_fd(Context& ctx, int fd, std::size_t bytes) {
     if (err != CL_SUCCESS || mem == nullptr) {
         throw ClError("clCreateBufferWithProperties", err, what);
     }
+    owned.fd = -1;           // the OpenCL implementation owns it now
     return cl::Buffer(mem);  // takes ownership of the reference
 }
 

@@ -60,12 +60,17 @@ ViewBasis view_basis(const Vec3d& forward) {
     return b;
 }
 
+ImageBasis image_basis(const Vec3d& forward, double fov_deg, double width, double height) {
+    const ViewBasis v = view_basis(forward);
+    const double half = std::tan(fov_deg * kDeg / 2);
+    return ImageBasis{v.forward, scale(v.right, (width / height) * half), scale(v.up, half)};
+}
+
 Vec3d pixel_direction(const Vec3d& forward, double fov_deg, double width, double height, double px,
                       double py) {
-    const ViewBasis b = view_basis(forward);
-    const double half = std::tan(fov_deg * kDeg / 2);
-    const double sx = (px / width * 2 - 1) * (width / height) * half;
-    const double sy = (1 - py / height * 2) * half;
+    const ImageBasis b = image_basis(forward, fov_deg, width, height);
+    const double sx = px / width * 2 - 1;
+    const double sy = 1 - py / height * 2;
     const Vec3d d = add(b.forward, add(scale(b.right, sx), scale(b.up, sy)));
     return scale(d, 1 / length(d));
 }

@@ -1,8 +1,6 @@
 // The compact render field shared between OpenCL and Vulkan (see render_field.hpp).
 #include "voxfield/pipeline/render_field.hpp"
 
-#include <unistd.h>
-
 #include "voxfield/layout.h"
 
 #include <algorithm>
@@ -10,6 +8,53 @@
 #include <exception>
 
 namespace voxfield::pipeline {
+
+namespace {
+
+// The elements of `boxes` (inside `dims`) of a dense buffer (x fastest) of T, box after box and
+// x fastest in each: one rectangle read per box, one wait for them all.
+template <class T>
+std::vector<T> read_dense_boxes(ocl::Context& cl, const cl::Buffer& buffer, Dims dims,
+                                const std::vector<Box>& boxes, const char* what) {
+    std::size_t voxels = 0;
+    for (const Box& b : boxes) {
+        voxels += static_cast<std::size_t>(b.volume());
+    }
+    std::vector<T> out(voxels);
+    ocl::cl_call(what, [&] {
+        std::size_t next = 0;
+        const std::size_t e = sizeof(T), row = e * dims.x, slice = row * dims.y;
+        for (const Box& b : boxes) {
+            const auto w = static_cast<std::size_t>(b.max.x - b.min.x);
+            const auto h = static_cast<std::size_t>(b.max.y - b.min.y);
+            const auto d = static_cast<std::size_t>(b.max.z - b.min.z);
+            const cl::array<cl::size_type, 3> origin{e * static_cast<std::size_t>(b.min.x),
+                                                     static_cast<std::size_t>(b.min.y),
+                                                     static_cast<std::size_t>(b.min.z)};
+            const cl::array<cl::size_type, 3> host{0, 0, 0};
+            const cl::array<cl::size_type, 3> region{e * w, h, d};
+            cl.queue().enqueueReadBufferRect(buffer, CL_FALSE, origin, host, region, row, slice,
+                                             e * w, e * w * h, out.data() + next);
+            next += w * h * d;
+        }
+        cl.queue().finish();
+    });
+    return out;
+}
+
+// `regions` clipped to the world of `dims`, the empty ones dropped.
+std::vector<Box> clipped(const std::vector<Box>& regions, Dims dims) {
+    const Box world{{0, 0, 0}, {dims.x, dims.y, dims.z}};
+    std::vector<Box> boxes;
+    for (const Box& r : regions) {
+        if (const Box b = intersect(r, world); !b.empty()) {
+            boxes.push_back(b);
+        }
+    }
+    return boxes;
+}
+
+}  // namespace
 
 vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Context& vk_ctx,
                                     std::string& why_not, vk::SharingPath fastest) {
@@ -40,7 +85,7 @@ vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Contex
 
 RenderField::RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Raymarcher& marcher,
                          Dims dims, vk::SharingPath fastest)
-    : cl_(cl_ctx), vk_(vk_ctx), dims_(dims), layout_(marcher.plan(dims, vk::FieldFormat::compact)) {
+    : cl_(cl_ctx), dims_(dims), layout_(marcher.plan(dims, vk::FieldFormat::compact)) {
     path_ = choose_sharing_path(cl_ctx, vk_ctx, why_not_, fastest);
     const VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
     // Paths 1/2: the slabs, then the block-minimum table (at a multiple of VF_FIELD_SLAB_ALIGN).
@@ -51,15 +96,13 @@ RenderField::RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Ra
     if (path_ == vk::SharingPath::opaque_fd) {
         try {
             shared_ = vk::ExternalMemory::exportable(vk_ctx, shared_bytes, usage, "shared field");
-            fd_ = shared_.export_fd();
-            cl_field_ = ocl::import_opaque_fd(cl_ctx, fd_, static_cast<std::size_t>(shared_bytes));
+            // The import takes the fd (OpenCL owns it after a successful import, and closes it
+            // after a failed one): never closed here.
+            cl_field_ = ocl::import_opaque_fd(cl_ctx, shared_.export_fd(),
+                                              static_cast<std::size_t>(shared_bytes));
         } catch (const std::exception& e) {
             why_not_ += std::string("path 1 failed: ") + e.what() + "; ";
             cl_field_ = cl::Buffer();
-            if (fd_ >= 0) {
-                close(fd_);
-                fd_ = -1;
-            }
             shared_ = vk::ExternalMemory();
             path_ = vk::supports(vk_ctx, vk::SharingPath::host_pointer) &&
                             ocl::can_use_host_memory(cl_ctx)
@@ -72,9 +115,9 @@ RenderField::RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Ra
         cl_field_ = ocl::wrap_host_memory(cl_ctx, shared_.host_pointer(),
                                           static_cast<std::size_t>(shared_.size()));
     } else if (path_ == vk::SharingPath::copy) {
+        // Dense (one slab, x fastest): boxes of it are read back with one rectangle read each.
         cl_field_ = ocl::cl_call("the compact field buffer", [&] {
-            return cl::Buffer(cl_ctx.context(), CL_MEM_READ_WRITE,
-                              static_cast<std::size_t>(layout_.total_bytes));
+            return cl::Buffer(cl_ctx.context(), CL_MEM_READ_WRITE, 2 * dims.count());
         });
     }
     if (why_not_.size() >= 2) {
@@ -85,24 +128,26 @@ RenderField::RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Ra
 RenderField::~RenderField() {
     writer_.reset();
     cl_field_ = cl::Buffer();
-    if (fd_ >= 0) {
-        close(fd_);
-    }
 }
 
 double RenderField::attach(vk::Raymarcher& marcher, const cl::Buffer& field, Format format,
                            Metric metric, const cl::Buffer& voxels, const Palette& palette,
                            double step) {
-    wait_for_readers();
+    wait_for_readers(marcher);
     writer_.reset();
     const bool copy = path_ == vk::SharingPath::copy;
     writer_.emplace(cl_, field, format, voxels, dims_, cl_field_,
-                    ocl::SlabLayout{layout_.slab_depth, layout_.slab_stride,
-                                    copy ? std::nullopt : std::optional{layout_.total_bytes}},
-                    path_ == vk::SharingPath::opaque_fd, step);
+                    copy ? ocl::SlabLayout{dims_.z, 2 * dims_.count(), std::nullopt}
+                         : ocl::SlabLayout{layout_.slab_depth, layout_.slab_stride,
+                                           std::optional{layout_.total_bytes}},
+                    path_ == vk::SharingPath::opaque_fd      ? ocl::DstMemory::external
+                    : path_ == vk::SharingPath::host_pointer ? ocl::DstMemory::host
+                                                             : ocl::DstMemory::device,
+                    step);
     const double ms = writer_->run();
     if (copy) {
-        marcher.upload_compact(dims_, palette, read_compact());
+        const Box whole{{0, 0, 0}, {dims_.x, dims_.y, dims_.z}};
+        marcher.upload_compact(dims_, palette, read_boxes({whole}));
         marcher.set_block_min(writer_->block_min());
     } else {
         marcher.bind_shared(shared_, layout_, palette);
@@ -113,35 +158,42 @@ double RenderField::attach(vk::Raymarcher& marcher, const cl::Buffer& field, For
 }
 
 double RenderField::update(vk::Raymarcher& marcher, const std::vector<Box>& regions) {
-    wait_for_readers();
+    if (path_ != vk::SharingPath::copy) {
+        // OpenCL overwrites memory the frames in flight read: no Vulkan-side copy can order
+        // that (PoCL has no cl_khr_external_semaphore), so the CPU waits for the fence of the
+        // latest frame that reads the field, not for the device to idle.
+        marcher.wait_for_readers();
+    }
     const double ms = writer_->run(regions);
     if (path_ == vk::SharingPath::copy) {
-        marcher.update_compact(read_compact());
+        // Only the changed voxels and blocks move, copied in place behind the frames in flight.
+        const std::vector<Box> boxes = clipped(regions, dims_);
+        marcher.update_compact(boxes, read_boxes(boxes));
         marcher.update_block_min(writer_->changed_blocks(),
                                  writer_->block_min(writer_->changed_blocks()));
     }
     return ms;
 }
 
-void RenderField::wait_for_readers() {
+void RenderField::wait_for_readers(vk::Raymarcher& marcher) {
     if (path_ != vk::SharingPath::copy) {
-        vk_.wait_frames_in_flight();
+        marcher.wait_for_readers();
     }
 }
 
-std::vector<std::uint16_t> RenderField::read_compact() {
-    // Path 3: read the slabs back (each slab's voxels are contiguous).
-    std::vector<std::uint16_t> compact(dims_.count());
-    const std::size_t plane = std::size_t{dims_.x} * dims_.y;
-    for (std::uint32_t s = 0; s < layout_.slabs; ++s) {
-        const std::size_t z0 = std::size_t{s} * layout_.slab_depth;
-        const std::size_t voxels = plane * std::min<std::size_t>(layout_.slab_depth, dims_.z - z0);
-        ocl::cl_call("reading the compact field", [&] {
-            cl_.queue().enqueueReadBuffer(cl_field_, CL_TRUE, s * layout_.slab_stride, voxels * 2,
-                                          compact.data() + plane * z0);
-        });
-    }
-    return compact;
+std::vector<std::uint16_t> RenderField::read_boxes(const std::vector<Box>& boxes) {
+    return read_dense_boxes<std::uint16_t>(cl_, cl_field_, dims_, boxes,
+                                           "reading the changed boxes of the compact field");
+}
+
+void update_packed32(ocl::Context& cl, vk::Raymarcher& marcher, const cl::Buffer& field,
+                     const cl::Buffer& voxels, Dims dims, const std::vector<Box>& regions) {
+    const std::vector<Box> boxes = clipped(regions, dims);
+    const std::vector<std::uint32_t> words = read_dense_boxes<std::uint32_t>(
+        cl, field, dims, boxes, "reading the changed boxes of the packed32 field");
+    const std::vector<std::uint8_t> materials = read_dense_boxes<std::uint8_t>(
+        cl, voxels, dims, boxes, "reading the changed boxes of the world's voxels");
+    marcher.update_packed32(boxes, words, materials);
 }
 
 }  // namespace voxfield::pipeline

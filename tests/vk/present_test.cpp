@@ -19,6 +19,7 @@
 #include <memory>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -336,6 +337,121 @@ TEST(Presenter, FramesInFlightSurviveFieldChangesRebindingAndResizes) {
     }
     presenter.wait_idle();
     EXPECT_EQ(ctx->retired_in_flight(), 0u);
+}
+
+// A frame that fails after its image was acquired (a ray march that throws while recording, a
+// failed submission) returns the image and consumes the acquire's semaphore before the error
+// propagates: the frames after it acquire into that slot's semaphore and wait on its fence
+// with no validation message and no hang, and show the ray-marched image.
+TEST(Presenter, AFrameThatFailsAfterItsAcquireLeavesTheSlotUsable) {
+    Window window;
+    if (!open_test_window(window)) {
+        return;
+    }
+    const std::unique_ptr<vk::Context> ctx = presenting_context(window.handle);
+    vk::Presenter presenter(*ctx);
+    const World world = make_scene("spheres", Dims{24, 24, 24}, 7);
+    vk::Raymarcher marcher(*ctx);
+    const vk::RenderOptions r = lit_view(world);
+    // No field yet: record() throws std::logic_error after the acquire.
+    EXPECT_THROW(presenter.present_marched(marcher, r, kWidth, kHeight, {}), std::logic_error);
+    marcher.upload_compact(world.dims(), Palette::dissertation(), compact_field(world));
+    const vk::Image want = marcher.render(r);
+    for (int i = 0; i < 5; ++i) {
+        glfwPollEvents();
+        ASSERT_TRUE(presenter.present_marched(marcher, r, kWidth, kHeight, {}));
+    }
+    // A throwing overlay, then a failed submission, each in turn on both slots.
+    for (int i = 0; i < 2; ++i) {
+        const auto throwing = [](VkCommandBuffer) { throw std::runtime_error("overlay failed"); };
+        EXPECT_THROW(presenter.present_marched(marcher, r, kWidth, kHeight, throwing),
+                     std::runtime_error);
+        ASSERT_TRUE(presenter.present_marched(marcher, r, kWidth, kHeight, {}));
+        ctx->fail_next_submit(VK_ERROR_OUT_OF_DEVICE_MEMORY);
+        EXPECT_THROW(presenter.present_marched(marcher, r, kWidth, kHeight, {}), vk::VkError);
+    }
+    for (int i = 0; i < 5; ++i) {
+        glfwPollEvents();
+        if (i == 4) {
+            presenter.capture_next_frame();
+        }
+        ASSERT_TRUE(presenter.present_marched(marcher, r, kWidth, kHeight, {}));
+    }
+    const auto shown = presenter.captured_frame();
+    ASSERT_TRUE(shown.has_value());
+    EXPECT_EQ(differing(shown->rgba, want.rgba), 0u);
+    presenter.wait_idle();
+}
+
+// A resize replaces the swapchain without a device wait, keeping the old swapchain and its
+// render-finished semaphores (which a queued present may still wait on) until the image of the
+// new swapchain's first present came back and that frame finished.
+TEST(Presenter, AReplacedSwapchainLivesUntilThePresentationEngineIsDone) {
+    Window window;
+    if (!open_test_window(window)) {
+        return;
+    }
+    const std::unique_ptr<vk::Context> ctx = presenting_context(window.handle);
+    vk::Presenter presenter(*ctx);
+    const World world = make_scene("spheres", Dims{24, 24, 24}, 7);
+    vk::Raymarcher marcher(*ctx);
+    marcher.upload_compact(world.dims(), Palette::dissertation(), compact_field(world));
+    vk::RenderOptions r = lit_view(world);
+    for (int i = 0; i < 4; ++i) {
+        glfwPollEvents();
+        ASSERT_TRUE(presenter.present_marched(marcher, r, kWidth, kHeight, {}));
+    }
+    EXPECT_EQ(presenter.retired_swapchains(), 0u);
+    const std::vector<VkSemaphore> before = presenter.render_finished_semaphores();
+    glfwSetWindowSize(window.handle, kWidth + 40, kHeight + 30);
+    int fw = 0, fh = 0;
+    for (int i = 0; i < 200 && (fw != int(kWidth) + 40 || fh != int(kHeight) + 30); ++i) {
+        glfwWaitEventsTimeout(0.01);
+        glfwGetFramebufferSize(window.handle, &fw, &fh);
+    }
+    ASSERT_EQ(fw, int(kWidth) + 40) << "the window was not resized";
+    r.width = static_cast<std::uint32_t>(fw);
+    r.height = static_cast<std::uint32_t>(fh);
+    ASSERT_TRUE(presenter.present_marched(marcher, r, r.width, r.height, {}));
+    EXPECT_EQ(presenter.retired_swapchains(), 1u) << "the old swapchain went with no proof";
+    const std::vector<VkSemaphore> after = presenter.render_finished_semaphores();
+    for (const VkSemaphore s : before) {
+        EXPECT_EQ(std::count(after.begin(), after.end(), s), 0) << "an old semaphore was reused";
+    }
+    for (int i = 0; i < 3 * static_cast<int>(presenter.image_count()) + 4 &&
+                    presenter.retired_swapchains() != 0;
+         ++i) {
+        glfwPollEvents();
+        if (i == 0) {
+            presenter.capture_next_frame();
+        }
+        ASSERT_TRUE(presenter.present_marched(marcher, r, r.width, r.height, {}));
+    }
+    EXPECT_EQ(presenter.retired_swapchains(), 0u) << "the old swapchain was never freed";
+    const auto shown = presenter.captured_frame();
+    ASSERT_TRUE(shown.has_value());
+    EXPECT_EQ(differing(shown->rgba, marcher.render(r).rgba), 0u);
+    presenter.wait_idle();
+}
+
+// One device selection for every Vulkan device: a presenter with a device of its own takes
+// $VOXFIELD_VK_DEVICE as the ray marcher's Context does.
+TEST(Presenter, ItsOwnDeviceHonoursVoxfieldVkDevice) {
+    Window window;
+    if (!open_test_window(window)) {
+        return;
+    }
+    vk::PresenterOptions po = presenter_options(window.handle);
+    po.device = "";
+    ::setenv("VOXFIELD_VK_DEVICE", "99", 1);
+    EXPECT_THROW(vk::Presenter{po}, vk::DeviceSelectionError);
+    const std::string index = std::to_string(validated_vulkan().info().index);
+    ::setenv("VOXFIELD_VK_DEVICE", index.c_str(), 1);
+    {
+        vk::Presenter presenter(po);
+        EXPECT_EQ(presenter.device_name(), validated_vulkan().info().name);
+    }
+    ::unsetenv("VOXFIELD_VK_DEVICE");
 }
 
 }  // namespace

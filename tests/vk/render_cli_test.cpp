@@ -65,6 +65,22 @@ TEST_F(RenderCli, BadInputExitsTwoWithOneLineAndNoFile) {
     }
 }
 
+// No Vulkan device serves the request (a device index that does not exist, from the
+// environment as from a machine without a driver): the same "no driver" situation as OpenCL's
+// DeviceSelectionError, so the same exit code 2, one line and no file.
+TEST_F(RenderCli, NoUsableVulkanDeviceExitsTwo) {
+    const std::string out = (dir_ / "out.png").string();
+    for (const char* spec : {"99", "tpu"}) {
+        ::setenv("VOXFIELD_VK_DEVICE", spec, 1);
+        const RunResult r = run_voxfield({"render", kModel.string(), "-o", out}, io_);
+        ::unsetenv("VOXFIELD_VK_DEVICE");
+        EXPECT_EQ(r.code, 2) << spec << describe(r);
+        EXPECT_EQ(split_lines(r.err).size(), 1u) << spec << describe(r);
+        EXPECT_NE(r.err.find("Vulkan"), std::string::npos) << describe(r);
+        EXPECT_TRUE(list_dir(dir_).empty()) << spec;
+    }
+}
+
 TEST_F(RenderCli, WritesPngAndReports) {
     const fs::path out = dir_ / "army.png";
     const RunResult r = run_voxfield({"render", kModel.string(), "-o", out.string(), "--width",

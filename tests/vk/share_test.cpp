@@ -1,8 +1,11 @@
 // DESIGN §2 sharing path 2 on PoCL + lavapipe: one host allocation that OpenCL writes
 // (CL_MEM_USE_HOST_PTR) and the ray marcher reads (VK_EXT_external_memory_host), with no
 // copy in between; and the Vulkan half of path 1 (exporting an opaque fd) where it exists.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
+
+#include <cerrno>
 
 #include <cstring>
 #include <memory>
@@ -276,9 +279,9 @@ TEST(Share, RegeneratedFieldShowsInTheNextRenderWithoutUpload) {
     shared.buffer = ocl::wrap_host_memory(opencl(), shared.memory.host_pointer(),
                                           static_cast<std::size_t>(shared.memory.size()));
     ocl::ExactManhattan exact(opencl(), world, palette, Format::u16);
-    ocl::CompactWriter writer(opencl(), exact.field_buffer(), Format::u16, exact.voxels_buffer(),
-                              dims, shared.buffer,
-                              {layout.slab_depth, layout.slab_stride, std::nullopt});
+    ocl::CompactWriter writer(
+        opencl(), exact.field_buffer(), Format::u16, exact.voxels_buffer(), dims, shared.buffer,
+        {layout.slab_depth, layout.slab_stride, std::nullopt}, ocl::DstMemory::host);
     exact.run();
     writer.run();
     marcher.bind_shared(shared.memory, layout, palette);
@@ -307,6 +310,64 @@ TEST(Share, RegeneratedFieldShowsInTheNextRenderWithoutUpload) {
     EXPECT_EQ(count_colour(after, palette[40]), 0u);
     EXPECT_GT(count_colour(after, palette[77]), 0u);
     EXPECT_EQ(marcher.bytes_copied(), 0u) << "the shared field was copied";
+}
+
+cl_uint map_count(const cl::Buffer& b) {
+    return b.getInfo<CL_MEM_MAP_COUNT>();
+}
+
+// Path 2 by OpenCL's rules: the host (here Vulkan's import of the same pages) may read a
+// CL_MEM_USE_HOST_PTR buffer only while it is mapped, and the kernels may write it only while it
+// is not. The writer keeps it mapped between runs, at the host pointer itself, and unmaps it
+// when it goes.
+TEST(Share, PathTwoReadsTheHostPointerOnlyWhileMapped) {
+    const Dims dims{12, 10, 14};
+    const World world = make_scene("random", dims, 5);
+    const Palette palette;
+    vk::Raymarcher marcher(vulkan());
+    const vk::FieldLayout layout = marcher.plan(dims, vk::FieldFormat::compact);
+    SharedField shared;
+    shared.memory = vk::ExternalMemory::host_allocation(
+        vulkan(), layout.total_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, "test field");
+    shared.buffer = ocl::wrap_host_memory(opencl(), shared.memory.host_pointer(),
+                                          static_cast<std::size_t>(shared.memory.size()));
+    ocl::ExactManhattan exact(opencl(), world, palette, Format::u16);
+    exact.run();
+    {
+        ocl::CompactWriter writer(
+            opencl(), exact.field_buffer(), Format::u16, exact.voxels_buffer(), dims, shared.buffer,
+            {layout.slab_depth, layout.slab_stride, std::nullopt}, ocl::DstMemory::host);
+        EXPECT_EQ(map_count(shared.buffer), 0u);
+        writer.run();
+        EXPECT_EQ(map_count(shared.buffer), 1u) << "Vulkan would read an unmapped buffer";
+        marcher.bind_shared(shared.memory, layout, palette);
+        vk::Raymarcher copy(vulkan());
+        copy.upload_compact(dims, palette, compact_field(world));
+        EXPECT_EQ(marcher.render(view(dims)).rgba, copy.render(view(dims)).rgba);
+        writer.run({Box{{1, 2, 3}, {5, 6, 7}}});
+        EXPECT_EQ(map_count(shared.buffer), 1u) << "mapped again, once";
+        EXPECT_EQ(marcher.render(view(dims)).rgba, copy.render(view(dims)).rgba);
+    }
+    EXPECT_EQ(map_count(shared.buffer), 0u) << "the writer left the buffer mapped";
+    // Without the host protocol (path 3's own memory) nothing is mapped.
+    ocl::CompactWriter plain(opencl(), exact.field_buffer(), Format::u16, exact.voxels_buffer(),
+                             dims, shared.buffer,
+                             {layout.slab_depth, layout.slab_stride, std::nullopt});
+    plain.run();
+    EXPECT_EQ(map_count(shared.buffer), 0u);
+}
+
+// cl_khr_external_memory: a successful import owns the fd, so the caller never closes it; a
+// failed one (PoCL has no opaque-fd import) closes it, so that no way out leaks or double-closes.
+TEST(Share, OpaqueFdImportTakesTheFdOnEveryWayOut) {
+    int fds[2] = {-1, -1};
+    ASSERT_EQ(pipe(fds), 0);
+    close(fds[1]);
+    ASSERT_FALSE(ocl::can_import_opaque_fd(opencl()));
+    EXPECT_THROW(ocl::import_opaque_fd(opencl(), fds[0], 4096), ocl::ClError);
+    errno = 0;
+    EXPECT_EQ(fcntl(fds[0], F_GETFD), -1) << "the failed import left the fd open";
+    EXPECT_EQ(errno, EBADF);
 }
 
 TEST(Share, VulkanHalfOfPathOne) {

@@ -48,7 +48,7 @@ int main(int argc, char** argv) {
         return 1;
     } catch (const vk::DeviceSelectionError& e) {
         std::cerr << "voxfield: " << e.what() << '\n';
-        return 1;
+        return 2;  // as OpenCL's DeviceSelectionError: no device (driver) serves the request
     } catch (const std::bad_alloc&) {
         std::cerr << "voxfield: out of host memory\n";
         return 1;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cstring>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -35,21 +36,6 @@ VkPresentModeKHR to_vk(PresentMode m) {
             break;
     }
     return VK_PRESENT_MODE_FIFO_KHR;
-}
-
-int type_rank(VkPhysicalDeviceType t) {
-    switch (t) {
-        case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU:
-            return 0;
-        case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU:
-            return 1;
-        case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU:
-            return 2;
-        case VK_PHYSICAL_DEVICE_TYPE_CPU:
-            return 3;
-        default:
-            return 4;
-    }
 }
 
 }  // namespace
@@ -87,6 +73,27 @@ struct Presenter::Impl {
     // semaphore is signalled again only after its image was acquired again, i.e. after the
     // presentation that waited on it is done with it.
     std::vector<VkSemaphore> rendered;
+    // Replaced swapchains with their views, framebuffers and render-finished semaphores, kept
+    // until the presentation engine provably finished with them. A present gives no signal
+    // when it has waited on its semaphore, so (as ANGLE does, "Queue Present Wait Semaphore
+    // Management") they go once the image of the new swapchain's first present was acquired
+    // again and the frame that waited on that acquire finished: the presentation engine gave
+    // that image back, so it processed that present, and every present queued before it.
+    struct OldSwapchain {
+        VkSwapchainKHR swapchain = VK_NULL_HANDLE;
+        std::vector<VkImageView> views;
+        std::vector<VkFramebuffer> framebuffers;
+        std::vector<VkSemaphore> rendered;
+    };
+    std::vector<OldSwapchain> old_swapchains;
+    // The image of the new swapchain's first present (none yet), the slot of the frame that
+    // acquired it again, and whether that frame was submitted (its fence then proves it).
+    std::optional<std::uint32_t> first_present;
+    std::optional<std::uint32_t> release_slot;
+    bool release_submitted = false;
+    // More replaced swapchains than this pending: wait for the device and free them (a window
+    // resized continuously would otherwise hold swapchains without bound).
+    static constexpr std::size_t kMaxOldSwapchains = 8;
 
     // A frame slot: its command buffer, the fence of its last submission, the semaphore its
     // acquired image signals, and the staging buffer of present()'s host pixels.
@@ -120,6 +127,7 @@ struct Presenter::Impl {
     ~Impl() {
         if (device != VK_NULL_HANDLE) {
             wait_idle();
+            destroy_old_swapchains();
             destroy_swapchain();
             for (Slot& slot : slots) {
                 destroy_staging(slot);
@@ -162,8 +170,9 @@ struct Presenter::Impl {
         }
     }
     void wait_frames() {
-        for (Slot& slot : slots) {
-            wait(slot.fence);
+        for (std::uint32_t i = 0; i < kFramesInFlight; ++i) {
+            wait(slots[i].fence);
+            release_old_swapchains_after(i);
         }
     }
     void wait_idle() {
@@ -172,7 +181,19 @@ struct Presenter::Impl {
         } else {
             vkDeviceWaitIdle(device);
         }
+        for (std::uint32_t i = 0; i < kFramesInFlight; ++i) {
+            release_old_swapchains_after(i);
+        }
     }
+    // A frame whose image was acquired failed before its submission (a throwing ray march or
+    // overlay, a failed submit): the acquire's semaphore is signalled and the image ours. Both
+    // go back: a submission that waits on the semaphore, clears the image and signals its
+    // render-finished semaphore, then the present of that image, on the slot's fence. If even
+    // that cannot be submitted, the slot gets a fresh fence (signalled) and semaphore, so that
+    // the next frame neither waits forever nor acquires into a signalled semaphore.
+    void abandon_frame(std::uint32_t index) noexcept;
+    // Replaces the current slot's fence (signalled) and acquire semaphore (unsignalled).
+    void renew_slot_sync() noexcept;
 
     // The swapchain's format and the overlay's render pass, the command pool and the frame
     // slots (after the device and surface are known).
@@ -231,21 +252,50 @@ struct Presenter::Impl {
     bool submit_frame(const Source& src, std::uint32_t w, std::uint32_t h, std::uint32_t index,
                       std::uint32_t fb_width, std::uint32_t fb_height,
                       const std::function<void(VkCommandBuffer)>& overlay);
+    // submit_frame's recording and submission into the current slot (no present, the slot
+    // stays current); on a throw the caller abandons the frame.
+    void record_and_submit(const Source& src, std::uint32_t w, std::uint32_t h, std::uint32_t index,
+                           const std::function<void(VkCommandBuffer)>& overlay);
 
-    void destroy_swapchain() {
-        for (VkFramebuffer f : framebuffers)
+    void destroy(OldSwapchain& old) {
+        for (VkFramebuffer f : old.framebuffers)
             vkDestroyFramebuffer(device, f, nullptr);
-        for (VkImageView v : views)
+        for (VkImageView v : old.views)
             vkDestroyImageView(device, v, nullptr);
-        for (VkSemaphore r : rendered)
+        for (VkSemaphore r : old.rendered)
             vkDestroySemaphore(device, r, nullptr);
-        framebuffers.clear();
-        views.clear();
-        images.clear();
-        rendered.clear();
-        if (swapchain)
-            vkDestroySwapchainKHR(device, swapchain, nullptr);
+        if (old.swapchain)
+            vkDestroySwapchainKHR(device, old.swapchain, nullptr);
+        old = OldSwapchain{};
+    }
+    // The current swapchain and what belongs to it, as an OldSwapchain (the members emptied).
+    OldSwapchain take_swapchain() {
+        OldSwapchain old{swapchain, std::move(views), std::move(framebuffers), std::move(rendered)};
         swapchain = VK_NULL_HANDLE;
+        views.clear();
+        framebuffers.clear();
+        rendered.clear();
+        images.clear();
+        return old;
+    }
+    void destroy_swapchain() {
+        OldSwapchain current_one = take_swapchain();
+        destroy(current_one);
+    }
+    void destroy_old_swapchains() {
+        for (OldSwapchain& old : old_swapchains) {
+            destroy(old);
+        }
+        old_swapchains.clear();
+        release_slot.reset();
+        release_submitted = false;
+    }
+    // After waiting for slot `slot`'s fence: frees the replaced swapchains once the frame that
+    // re-acquired the first presented image of the current one has finished.
+    void release_old_swapchains_after(std::uint32_t slot) {
+        if (release_submitted && release_slot == slot) {
+            destroy_old_swapchains();
+        }
     }
 
     std::uint32_t memory_type(std::uint32_t allowed, VkMemoryPropertyFlags flags) const {
@@ -291,8 +341,14 @@ struct Presenter::Impl {
         slot.staging_size = size;
     }
 
+    // Frames in flight may still use the current swapchain's framebuffers and the
+    // presentation engine its semaphores: it is kept (old_swapchains) until both provably
+    // finished, with no wait here.
     void create_swapchain(std::uint32_t w, std::uint32_t h) {
-        wait_idle();
+        if (old_swapchains.size() >= kMaxOldSwapchains) {
+            wait_idle();
+            destroy_old_swapchains();
+        }
         VkSurfaceCapabilitiesKHR caps;
         check(vkGetPhysicalDeviceSurfaceCapabilitiesKHR(physical, surface, &caps),
               "vkGetPhysicalDeviceSurfaceCapabilitiesKHR");
@@ -340,7 +396,10 @@ struct Presenter::Impl {
         VkSwapchainKHR fresh = VK_NULL_HANDLE;
         check(vkCreateSwapchainKHR(device, &s, nullptr, &fresh), "vkCreateSwapchainKHR",
               std::to_string(e.width) + "x" + std::to_string(e.height) + ", " + to_string(mode));
-        destroy_swapchain();
+        old_swapchains.push_back(take_swapchain());
+        first_present.reset();
+        release_slot.reset();
+        release_submitted = false;
         swapchain = fresh;
         extent = e;
         vkGetSwapchainImagesKHR(device, swapchain, &count, nullptr);
@@ -417,58 +476,13 @@ Presenter::Presenter(const PresenterOptions& options) : impl_(std::make_unique<I
     m.instance = m.own_instance.get();
     m.surface = options.make_surface(m.instance);
 
-    // A device with a queue family that does graphics and presents to the surface.
-    std::uint32_t n = 0;
-    vkEnumeratePhysicalDevices(m.instance, &n, nullptr);
-    std::vector<VkPhysicalDevice> devices(n);
-    vkEnumeratePhysicalDevices(m.instance, &n, devices.data());
-    std::string reasons;
-    int best_rank = 1 << 30;
-    for (std::uint32_t i = 0; i < n; ++i) {
-        VkPhysicalDeviceProperties p;
-        vkGetPhysicalDeviceProperties(devices[i], &p);
-        const bool wanted_index = options.device == std::to_string(i);
-        int rank = type_rank(p.deviceType);
-        if (!options.device.empty() && !wanted_index) {
-            if (options.device == "cpu" && p.deviceType != VK_PHYSICAL_DEVICE_TYPE_CPU)
-                continue;
-            if (options.device == "gpu" && p.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU)
-                continue;
-            if (options.device != "cpu" && options.device != "gpu")
-                continue;
-        }
-        std::uint32_t qn = 0;
-        vkGetPhysicalDeviceQueueFamilyProperties(devices[i], &qn, nullptr);
-        std::vector<VkQueueFamilyProperties> qs(qn);
-        vkGetPhysicalDeviceQueueFamilyProperties(devices[i], &qn, qs.data());
-        bool found = false;
-        std::uint32_t family = 0;
-        for (std::uint32_t q = 0; q < qn && !found; ++q) {
-            VkBool32 present = VK_FALSE;
-            vkGetPhysicalDeviceSurfaceSupportKHR(devices[i], q, m.surface, &present);
-            if ((qs[q].queueFlags & VK_QUEUE_GRAPHICS_BIT) && present) {
-                found = true;
-                family = q;
-            }
-        }
-        if (!found) {
-            reasons += std::string(reasons.empty() ? "" : "; ") + p.deviceName +
-                       ": no queue family both draws and presents to this window";
-            continue;
-        }
-        if (rank < best_rank) {
-            best_rank = rank;
-            m.physical = devices[i];
-            m.family = family;
-            m.name = p.deviceName;
-        }
-    }
-    if (m.physical == VK_NULL_HANDLE) {
-        throw DeviceSelectionError(
-            "no Vulkan device can present to the window" +
-            (reasons.empty() ? std::string(" (no device matches '") + options.device + "')"
-                             : ": " + reasons));
-    }
+    // A device with a queue family that does graphics and presents to the surface, chosen as
+    // every Vulkan device of voxfield is ($VOXFIELD_VK_DEVICE included).
+    const DeviceChoice choice =
+        choose_device(m.instance, m.surface, options.device, DevicePurpose::presenting);
+    m.physical = choice.physical;
+    m.family = choice.family;
+    m.name = choice.info.name;
     vkGetPhysicalDeviceMemoryProperties(m.physical, &m.memory);
 
     const float priority = 1;
@@ -631,6 +645,10 @@ std::vector<VkSemaphore> Presenter::render_finished_semaphores() const {
     return impl_->rendered;
 }
 
+std::size_t Presenter::retired_swapchains() const {
+    return impl_->old_swapchains.size();
+}
+
 void Presenter::wait_idle() {
     impl_->wait_idle();
 }
@@ -655,7 +673,12 @@ void Presenter::submit_and_wait(const std::function<void(VkCommandBuffer)>& reco
     s.commandBufferCount = 1;
     s.pCommandBuffers = &slot.cmd;
     check(vkResetFences(m.device, 1, &slot.fence), "vkResetFences");
-    m.submit(s, slot.fence, "presenter");
+    try {
+        m.submit(s, slot.fence, "presenter");
+    } catch (...) {
+        m.renew_slot_sync();  // else the next frame would wait for the unsignalled fence
+        throw;
+    }
     m.wait(slot.fence);
 }
 
@@ -706,6 +729,7 @@ bool Presenter::Impl::begin_frame(std::uint32_t fb_width, std::uint32_t fb_heigh
         return false;  // a zero-size window, e.g. minimised
     }
     m.wait(m.slots[m.current].fence);  // the only wait of a frame: reusing its slot
+    m.release_old_swapchains_after(m.current);
     if (m.swapchain == VK_NULL_HANDLE || m.extent.width != fb_width ||
         m.extent.height != fb_height) {
         m.create_swapchain(fb_width, fb_height);
@@ -719,7 +743,9 @@ bool Presenter::Impl::begin_frame(std::uint32_t fb_width, std::uint32_t fb_heigh
     if (r != VK_SUBOPTIMAL_KHR) {
         check(r, "vkAcquireNextImageKHR");
     }
-
+    if (!m.old_swapchains.empty() && m.first_present == index && !m.release_slot) {
+        m.release_slot = m.current;  // the image of the first present came back
+    }
     return true;
 }
 
@@ -727,6 +753,39 @@ bool Presenter::Impl::submit_frame(const Source& src, std::uint32_t w, std::uint
                                    std::uint32_t index, std::uint32_t fb_width,
                                    std::uint32_t fb_height,
                                    const std::function<void(VkCommandBuffer)>& overlay) {
+    Impl& m = *this;
+    try {
+        record_and_submit(src, w, h, index, overlay);
+    } catch (...) {
+        m.abandon_frame(index);
+        throw;
+    }
+    if (m.release_slot == m.current) {
+        m.release_submitted = true;
+    }
+    if (!m.first_present) {
+        m.first_present = index;
+    }
+    m.current = (m.current + 1) % kFramesInFlight;
+    VkPresentInfoKHR p{};
+    p.sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR;
+    p.waitSemaphoreCount = 1;
+    p.pWaitSemaphores = &m.rendered[index];
+    p.swapchainCount = 1;
+    p.pSwapchains = &m.swapchain;
+    p.pImageIndices = &index;
+    const VkResult r = vkQueuePresentKHR(m.queue, &p);
+    if (r == VK_ERROR_OUT_OF_DATE_KHR || r == VK_SUBOPTIMAL_KHR) {
+        m.create_swapchain(fb_width, fb_height);
+        return true;
+    }
+    check(r, "vkQueuePresentKHR");
+    return true;
+}
+
+void Presenter::Impl::record_and_submit(const Source& src, std::uint32_t w, std::uint32_t h,
+                                        std::uint32_t index,
+                                        const std::function<void(VkCommandBuffer)>& overlay) {
     Impl& m = *this;
     Slot& slot = m.slots[m.current];
     const VkCommandBuffer cmd = slot.cmd;
@@ -817,8 +876,67 @@ bool Presenter::Impl::submit_frame(const Source& src, std::uint32_t w, std::uint
     s.pCommandBuffers = &cmd;
     s.signalSemaphoreCount = 1;
     s.pSignalSemaphores = &m.rendered[index];
+    // Reset last: a failure before the submission leaves the fence signalled (abandon_frame
+    // handles one of the submission itself).
     check(vkResetFences(m.device, 1, &slot.fence), "vkResetFences");
     m.submit(s, slot.fence, "present");
+}
+
+void Presenter::Impl::abandon_frame(std::uint32_t index) noexcept {
+    Impl& m = *this;
+    Slot& slot = m.slots[m.current];
+    try {
+        const VkCommandBuffer cmd = slot.cmd;
+        check(vkResetCommandBuffer(cmd, 0), "vkResetCommandBuffer", "abandoned frame");
+        VkCommandBufferBeginInfo b{};
+        b.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
+        b.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+        check(vkBeginCommandBuffer(cmd, &b), "vkBeginCommandBuffer", "abandoned frame");
+        VkImageMemoryBarrier to_dst{};
+        to_dst.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
+        to_dst.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+        to_dst.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+        to_dst.newLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+        to_dst.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+        to_dst.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+        to_dst.image = m.images[index];
+        to_dst.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
+                             0, nullptr, 0, nullptr, 1, &to_dst);
+        const VkClearColorValue black{{0, 0, 0, 1}};
+        vkCmdClearColorImage(cmd, m.images[index], VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &black, 1,
+                             &to_dst.subresourceRange);
+        VkImageMemoryBarrier to_present = to_dst;
+        to_present.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+        to_present.dstAccessMask = 0;
+        to_present.oldLayout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+        to_present.newLayout = VK_IMAGE_LAYOUT_PRESENT_SRC_KHR;
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                             VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, 0, 0, nullptr, 0, nullptr, 1,
+                             &to_present);
+        check(vkEndCommandBuffer(cmd), "vkEndCommandBuffer", "abandoned frame");
+        const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
+        VkSubmitInfo s{};
+        s.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+        s.waitSemaphoreCount = 1;
+        s.pWaitSemaphores = &slot.acquired;
+        s.pWaitDstStageMask = &wait_stage;
+        s.commandBufferCount = 1;
+        s.pCommandBuffers = &cmd;
+        s.signalSemaphoreCount = 1;
+        s.pSignalSemaphores = &m.rendered[index];
+        check(vkResetFences(m.device, 1, &slot.fence), "vkResetFences", "abandoned frame");
+        m.submit(s, slot.fence, "abandoned frame");
+    } catch (const std::exception&) {
+        m.renew_slot_sync();
+        return;  // the image stays acquired: nothing can return it without a submission
+    }
+    if (m.release_slot == m.current) {
+        m.release_submitted = true;
+    }
+    if (!m.first_present) {
+        m.first_present = index;
+    }
     m.current = (m.current + 1) % kFramesInFlight;
     VkPresentInfoKHR p{};
     p.sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR;
@@ -827,13 +945,28 @@ bool Presenter::Impl::submit_frame(const Source& src, std::uint32_t w, std::uint
     p.swapchainCount = 1;
     p.pSwapchains = &m.swapchain;
     p.pImageIndices = &index;
-    const VkResult r = vkQueuePresentKHR(m.queue, &p);
-    if (r == VK_ERROR_OUT_OF_DATE_KHR || r == VK_SUBOPTIMAL_KHR) {
-        m.create_swapchain(fb_width, fb_height);
-        return true;
+    // Out of date or lost: the next begin_frame finds out again and recreates or throws.
+    vkQueuePresentKHR(m.queue, &p);
+}
+
+void Presenter::Impl::renew_slot_sync() noexcept {
+    Slot& slot = slots[current];
+    // Neither is used by any pending submission (theirs failed), so both may go now.
+    VkFenceCreateInfo fi{};
+    fi.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
+    fi.flags = VK_FENCE_CREATE_SIGNALED_BIT;
+    VkFence fence = VK_NULL_HANDLE;
+    if (vkCreateFence(device, &fi, nullptr, &fence) == VK_SUCCESS) {
+        vkDestroyFence(device, slot.fence, nullptr);
+        slot.fence = fence;
     }
-    check(r, "vkQueuePresentKHR");
-    return true;
+    VkSemaphoreCreateInfo si{};
+    si.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO;
+    VkSemaphore semaphore = VK_NULL_HANDLE;
+    if (vkCreateSemaphore(device, &si, nullptr, &semaphore) == VK_SUCCESS) {
+        vkDestroySemaphore(device, slot.acquired, nullptr);
+        slot.acquired = semaphore;
+    }
 }
 
 bool Presenter::present(const std::uint8_t* rgba, std::uint32_t width, std::uint32_t height,

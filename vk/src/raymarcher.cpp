@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstring>
 #include <stdexcept>
+#include <utility>
 
 #include "raymarch_spv.h"
 #include "voxfield/core/error.hpp"
@@ -72,14 +73,8 @@ std::uint32_t metric_code(Metric m) {
 Vec3 sub(const Vec3& a, const Vec3& b) {
     return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
 }
-Vec3 cross(const Vec3& a, const Vec3& b) {
-    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
 double length(const Vec3& a) {
     return std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-}
-Vec3 scale(const Vec3& a, double s) {
-    return {a[0] * s, a[1] * s, a[2] * s};
 }
 bool finite(const Vec3& a) {
     return std::isfinite(a[0]) && std::isfinite(a[1]) && std::isfinite(a[2]);
@@ -112,23 +107,13 @@ CameraBasis camera_basis(const Camera& camera, std::uint32_t width, std::uint32_
                          " is outside (0, 180) degrees");
     }
     const Vec3 view = sub(camera.target, camera.position);
-    const double len = length(view);
-    if (!(len > 1e-9)) {
+    if (!(length(view) > 1e-9)) {
         throw InputError("camera target equals the camera position: no view direction");
     }
-    CameraBasis b;
-    b.forward = scale(view, 1 / len);
-    Vec3 right = cross(b.forward, Vec3{0, 1, 0});
-    if (length(right) < 1e-9) {
-        right = {1, 0, 0};  // looking straight along +-y: image right is +x
-    }
-    right = scale(right, 1 / length(right));
-    const Vec3 up = cross(right, b.forward);
-    const double half = std::tan(camera.fov_deg * M_PI / 360);
-    const double aspect = static_cast<double>(width) / static_cast<double>(height);
-    b.right = scale(right, aspect * half);
-    b.up = scale(up, half);
-    return b;
+    // The one camera model (core/camera.hpp image_basis, DESIGN §4).
+    const ImageBasis b =
+        image_basis(view, camera.fov_deg, static_cast<double>(width), static_cast<double>(height));
+    return CameraBasis{b.forward, b.right, b.up};
 }
 
 namespace {
@@ -197,6 +182,8 @@ struct Raymarcher::Impl {
     FieldLayout layout;
     SharingPath sharing = SharingPath::copy;
     std::uint64_t copied = 0;
+    // The serial of the latest submission that reads the field (a recorded frame or a render).
+    std::uint64_t last_reader = 0;
     // The offscreen image and its readback buffer, kept while the image size stays (a frame
     // loop would otherwise allocate both, megabytes of pinned memory, every frame).
     struct Target {
@@ -243,6 +230,12 @@ struct Raymarcher::Impl {
     // `bytes`.
     std::vector<Buffer> copy_compact(const FieldLayout& l, std::span<const std::uint16_t> compact,
                                      std::uint64_t& bytes);
+    // Copies `words` (staged, 4-byte words or 2-byte halves) into `dst` at the given regions,
+    // after every earlier use of the buffers in queue order (frames in flight read them, earlier
+    // copies wrote them) and before every later one, without a CPU wait.
+    void copy_in_place(const void* bytes, VkDeviceSize size,
+                       const std::vector<std::pair<VkBuffer, std::vector<VkBufferCopy>>>& regions,
+                       const std::string& what);
     // Takes the new field buffers and points every binding at them.
     void install(std::vector<Buffer> new_field, std::vector<Buffer> new_material,
                  const FieldLayout& new_layout, SharingPath path);
@@ -607,28 +600,230 @@ void Raymarcher::upload_compact(Dims d, const Palette& palette,
 }
 
 void Raymarcher::update_compact(std::span<const std::uint16_t> compact) {
+    const Dims d = impl_->layout.dims;
+    if (compact.size() != d.count()) {
+        throw InputError("compact field has " + std::to_string(compact.size()) +
+                         " elements, the world " + std::to_string(d.count()));
+    }
+    const Box whole{{0, 0, 0}, {d.x, d.y, d.z}};
+    update_compact(std::span<const Box>(&whole, 1), compact);
+}
+
+void Raymarcher::update_compact(std::span<const Box> boxes, std::span<const std::uint16_t> values) {
     Impl& m = *impl_;
     if (m.field.empty() || m.layout.format != FieldFormat::compact ||
         m.sharing != SharingPath::copy) {
         throw std::logic_error("Raymarcher::update_compact: the field is not a copied compact one");
     }
-    if (compact.size() != m.layout.dims.count()) {
-        throw InputError("compact field has " + std::to_string(compact.size()) +
-                         " elements, the world " + std::to_string(m.layout.dims.count()));
+    const FieldLayout& l = m.layout;
+    const Dims d = l.dims;
+    const Box world{{0, 0, 0}, {d.x, d.y, d.z}};
+    std::uint64_t voxels = 0;
+    for (const Box& b : boxes) {
+        if (!b.empty() && intersect(b, world) != b) {
+            throw InputError("compact field update: a box leaves the field of " + d.to_string());
+        }
+        voxels += b.empty() ? 0 : static_cast<std::uint64_t>(b.volume());
     }
-    const FieldLayout l = m.layout;
-    std::uint64_t copied = 0;
-    std::vector<Buffer> field = m.copy_compact(l, compact, copied);
-    m.install(std::move(field), {}, l, SharingPath::copy);
-    m.copied += copied;
+    if (values.size() != voxels) {
+        throw InputError("compact field update: " + std::to_string(values.size()) + " values for " +
+                         std::to_string(voxels) + " voxels in the boxes");
+    }
+    if (voxels == 0) {
+        return;
+    }
+    // One copy region per row of a box inside a slab, rows that continue each other merged
+    // (a box of whole rows or slices is one region per slab).
+    std::vector<std::pair<VkBuffer, std::vector<VkBufferCopy>>> regions(l.slabs);
+    for (std::uint32_t s = 0; s < l.slabs; ++s) {
+        regions[s].first = m.field[s].get();
+    }
+    const VkDeviceSize plane = VkDeviceSize{d.x} * d.y;
+    VkDeviceSize src = 0;
+    for (const Box& b : boxes) {
+        if (b.empty()) {
+            continue;
+        }
+        const VkDeviceSize row = 2 * static_cast<VkDeviceSize>(b.max.x - b.min.x);
+        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
+            const auto slab = static_cast<std::uint32_t>(z / l.slab_depth);
+            const auto local = static_cast<VkDeviceSize>(z - std::int64_t{slab} * l.slab_depth);
+            std::vector<VkBufferCopy>& out = regions[slab].second;
+            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
+                const VkDeviceSize dst = 2 * (local * plane + static_cast<VkDeviceSize>(y) * d.x +
+                                              static_cast<VkDeviceSize>(b.min.x));
+                if (!out.empty() && out.back().srcOffset + out.back().size == src &&
+                    out.back().dstOffset + out.back().size == dst) {
+                    out.back().size += row;
+                } else {
+                    out.push_back(VkBufferCopy{src, dst, row});
+                }
+                src += row;
+            }
+        }
+    }
+    m.copy_in_place(values.data(), 2 * voxels, regions, "compact field update");
+    m.copied += 2 * voxels;
+}
+
+void Raymarcher::update_packed32(std::span<const Box> boxes,
+                                 std::span<const std::uint32_t> packed32,
+                                 std::span<const std::uint8_t> materials) {
+    Impl& m = *impl_;
+    if (m.field.empty() || m.layout.format != FieldFormat::packed32) {
+        throw std::logic_error("Raymarcher::update_packed32: the field is not a packed32 one");
+    }
+    const FieldLayout& l = m.layout;
+    const Dims d = l.dims;
+    const Box world{{0, 0, 0}, {d.x, d.y, d.z}};
+    std::uint64_t voxels = 0;
+    for (const Box& b : boxes) {
+        if (!b.empty() && intersect(b, world) != b) {
+            throw InputError("packed32 field update: a box leaves the field of " + d.to_string());
+        }
+        voxels += b.empty() ? 0 : static_cast<std::uint64_t>(b.volume());
+    }
+    if (packed32.size() != voxels || materials.size() != voxels) {
+        throw InputError("packed32 field update: " + std::to_string(packed32.size()) +
+                         " values and " + std::to_string(materials.size()) + " materials for " +
+                         std::to_string(voxels) + " voxels in the boxes");
+    }
+    if (voxels == 0) {
+        return;
+    }
+    // Staged as the field's words, then the material bytes; one region per row of a box inside
+    // a slab, in each of the slab's two buffers.
+    std::vector<std::uint8_t> staged(5 * voxels);
+    std::memcpy(staged.data(), packed32.data(), 4 * voxels);
+    std::memcpy(staged.data() + 4 * voxels, materials.data(), voxels);
+    std::vector<std::pair<VkBuffer, std::vector<VkBufferCopy>>> regions;
+    for (std::uint32_t s = 0; s < l.slabs; ++s) {
+        regions.push_back({m.field[s].get(), {}});
+    }
+    for (std::uint32_t s = 0; s < l.slabs; ++s) {
+        regions.push_back({m.material[s].get(), {}});
+    }
+    const VkDeviceSize plane = VkDeviceSize{d.x} * d.y;
+    VkDeviceSize n = 0;  // voxels staged so far
+    for (const Box& b : boxes) {
+        if (b.empty()) {
+            continue;
+        }
+        const auto row = static_cast<VkDeviceSize>(b.max.x - b.min.x);
+        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
+            const auto slab = static_cast<std::uint32_t>(z / l.slab_depth);
+            const auto local = static_cast<VkDeviceSize>(z - std::int64_t{slab} * l.slab_depth);
+            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
+                const VkDeviceSize at = local * plane + static_cast<VkDeviceSize>(y) * d.x +
+                                        static_cast<VkDeviceSize>(b.min.x);
+                for (const bool words : {true, false}) {
+                    std::vector<VkBufferCopy>& out = regions[words ? slab : l.slabs + slab].second;
+                    const VkDeviceSize unit = words ? 4 : 1;
+                    const VkDeviceSize src = words ? 4 * n : 4 * voxels + n;
+                    if (!out.empty() && out.back().srcOffset + out.back().size == src &&
+                        out.back().dstOffset + out.back().size == unit * at) {
+                        out.back().size += unit * row;
+                    } else {
+                        out.push_back(VkBufferCopy{src, unit * at, unit * row});
+                    }
+                }
+                n += row;
+            }
+        }
+    }
+    m.copy_in_place(staged.data(), staged.size(), regions, "packed32 field update");
+    m.copied += staged.size();
+}
+
+void Raymarcher::Impl::copy_in_place(
+    const void* bytes, VkDeviceSize size,
+    const std::vector<std::pair<VkBuffer, std::vector<VkBufferCopy>>>& regions,
+    const std::string& what) {
+    Buffer staging =
+        ctx.make_buffer(size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryIntent::upload, what);
+    std::memcpy(staging.data(), bytes, size);
+    ctx.submit_unwaited(
+        [&](VkCommandBuffer cmd) {
+            // After the frames that read the buffers (write after read: an execution
+            // dependency) and earlier copies into them (write after write).
+            VkMemoryBarrier before{};
+            before.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+            before.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+            before.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+            vkCmdPipelineBarrier(
+                cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &before, 0, nullptr, 0, nullptr);
+            for (const auto& [buffer, copies] : regions) {
+                if (!copies.empty()) {
+                    vkCmdCopyBuffer(cmd, staging.get(), buffer,
+                                    static_cast<std::uint32_t>(copies.size()), copies.data());
+                }
+            }
+            // Before every later ray march and copy.
+            VkMemoryBarrier after{};
+            after.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+            after.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+            after.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT |
+                                  VK_ACCESS_TRANSFER_WRITE_BIT;
+            vkCmdPipelineBarrier(
+                cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &after,
+                0, nullptr, 0, nullptr);
+        },
+        what);
+    ctx.retire(std::move(staging));  // read by the copy until it has finished
+}
+
+std::vector<std::uint16_t> Raymarcher::read_compact() {
+    Impl& m = *impl_;
+    if (m.field.empty() || m.layout.format != FieldFormat::compact ||
+        m.sharing != SharingPath::copy) {
+        throw std::logic_error("Raymarcher::read_compact: the field is not a copied compact one");
+    }
+    const FieldLayout& l = m.layout;
+    const Dims d = l.dims;
+    const VkDeviceSize plane = VkDeviceSize{d.x} * d.y;
+    Buffer readback = m.ctx.make_buffer(2 * d.count() + 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                        MemoryIntent::readback, "compact field readback");
+    m.ctx.submit_and_wait(
+        [&](VkCommandBuffer cmd) {
+            VkMemoryBarrier before{};
+            before.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+            before.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+            before.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                 VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &before, 0, nullptr, 0,
+                                 nullptr);
+            for (std::uint32_t s = 0; s < l.slabs; ++s) {
+                const std::uint64_t z0 = std::uint64_t{s} * l.slab_depth;
+                const std::uint64_t nz = std::min<std::uint64_t>(l.slab_depth, d.z - z0);
+                const VkBufferCopy c{0, 2 * z0 * plane, 2 * nz * plane};
+                vkCmdCopyBuffer(cmd, m.field[s].get(), readback.get(), 1, &c);
+            }
+            VkMemoryBarrier to_host{};
+            to_host.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+            to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+            to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0,
+                                 1, &to_host, 0, nullptr, 0, nullptr);
+        },
+        "compact field readback");
+    std::vector<std::uint16_t> out(d.count());
+    std::memcpy(out.data(), readback.data(), 2 * d.count());
+    return out;
+}
+
+void Raymarcher::wait_for_readers() {
+    impl_->ctx.wait_for(impl_->last_reader);
 }
 
 std::vector<Buffer> Raymarcher::Impl::copy_compact(const FieldLayout& l,
                                                    std::span<const std::uint16_t> compact,
                                                    std::uint64_t& bytes) {
     std::vector<Buffer> out;
-    const VkBufferUsageFlags usage =
-        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    const VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                     VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                                     VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
     const Dims d = l.dims;
     const std::size_t slice_voxels = std::size_t{d.x} * d.y;
     for (std::uint32_t s = 0; s < l.slabs; ++s) {
@@ -760,6 +955,7 @@ std::uint32_t Raymarcher::Impl::record(VkCommandBuffer cmd, const RenderOptions&
     const std::uint32_t pair = m.next_pair;
     m.next_pair = (m.next_pair + 1) % kQueryPairs;
     m.pair_serial[pair] = m.ctx.next_serial();
+    m.last_reader = m.ctx.next_serial();
 
     // The previous march's writes and the copy out of the image (an earlier frame, maybe
     // still running) come before the image is written again.
@@ -1023,13 +1219,9 @@ void Raymarcher::update_block_min(std::span<const Box> blocks,
     if (words == 0) {
         return;
     }
-    // The copy rewrites words that frames in flight may still read.
-    m.ctx.wait_frames_in_flight();
-    // One staging buffer, one copy region per row of blocks.
+    // One staged copy, one region per row of blocks (rows that continue each other merged),
+    // ordered after the frames in flight that read the table by the queue: no CPU wait.
     const VkDeviceSize bytes = 4 * words;
-    Buffer staging = m.ctx.make_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                                       MemoryIntent::upload, "block minima staging");
-    std::memcpy(staging.data(), minima.data(), bytes);
     std::vector<VkBufferCopy> rows;
     VkDeviceSize src = 0;
     for (const Box& b : blocks) {
@@ -1040,17 +1232,17 @@ void Raymarcher::update_block_min(std::span<const Box> blocks,
         for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
             for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
                 const auto first = static_cast<VkDeviceSize>((z * g.y + y) * g.x + b.min.x);
-                rows.push_back(VkBufferCopy{src, 4 * first, row});
+                if (!rows.empty() && rows.back().srcOffset + rows.back().size == src &&
+                    rows.back().dstOffset + rows.back().size == 4 * first) {
+                    rows.back().size += row;
+                } else {
+                    rows.push_back(VkBufferCopy{src, 4 * first, row});
+                }
                 src += row;
             }
         }
     }
-    m.ctx.submit_and_wait(
-        [&](VkCommandBuffer cmd) {
-            vkCmdCopyBuffer(cmd, staging.get(), m.block_min.get(),
-                            static_cast<std::uint32_t>(rows.size()), rows.data());
-        },
-        "block minima update");
+    m.copy_in_place(minima.data(), bytes, {{m.block_min.get(), rows}}, "block minima update");
     m.block_min_copied += bytes;
 }
 

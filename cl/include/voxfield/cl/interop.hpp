@@ -32,16 +32,28 @@ struct SlabLayout {
 // `field` holds the field in `format` (DESIGN §3;
 // packed32 contributes its 8-bit distance, so its block minima are at most 255), `voxels` one
 // byte per voxel; both x fastest, dims.count() elements. Holds references to the three
-// buffers; run() again after the field changed. external: dst was imported with
-// import_opaque_fd, so run() acquires it before the kernels and releases it after
-// (clEnqueueAcquire/ReleaseExternalMemObjectsKHR).
+// buffers; run() again after the field changed. `dst_memory` says who else reads dst (below).
+// Where dst is: OpenCL's own memory (path 3: read back with clEnqueueRead*), memory imported
+// with import_opaque_fd (path 1: run() acquires it before the kernels and releases it after,
+// clEnqueueAcquire/ReleaseExternalMemObjectsKHR), or host memory wrapped by wrap_host_memory
+// (path 2: the host, i.e. Vulkan's import of the same pages, may read it only while OpenCL has
+// it mapped, OpenCL 3.0 §5.5.2 "Accessing mapped regions" / CL_MEM_USE_HOST_PTR: run() unmaps
+// it before the kernels write and maps it for reading again after them, so that between runs,
+// and from construction until the writer is destroyed, dst is mapped whole; the mapped pointer
+// is the host pointer itself, checked).
+enum class DstMemory { device, external, host };
+
 class CompactWriter {
   public:
     // `step`: the field's largest voxel spacing; its distances (in the spacing's units) are
     // turned into lower bounds in voxels, floor(d / step), which the ray marcher steps by.
     CompactWriter(Context& ctx, const cl::Buffer& field, Format format, const cl::Buffer& voxels,
-                  Dims dims, cl::Buffer dst, SlabLayout layout, bool external = false,
-                  double step = 1.0);
+                  Dims dims, cl::Buffer dst, SlabLayout layout,
+                  DstMemory dst_memory = DstMemory::device, double step = 1.0);
+    // Path 2: unmaps dst (and waits for that).
+    ~CompactWriter();
+    CompactWriter(const CompactWriter&) = delete;
+    CompactWriter& operator=(const CompactWriter&) = delete;
     // Converts the whole field, or only the voxels of `regions` (boxes clipped to the world;
     // the block minima of every block they touch are recomputed, and no others). Enqueues
     // the kernels and waits for them (clFinish): afterwards Vulkan may read dst, field and
@@ -65,7 +77,8 @@ class CompactWriter {
     cl::Buffer dst_, block_min_;          // block_min_: dst_ itself or the writer's own buffer
     std::uint64_t block_min_offset_ = 0;  // bytes
     cl::Kernel kernel_, block_kernel_;
-    bool external_ = false;
+    DstMemory dst_memory_ = DstMemory::device;
+    void* mapped_ = nullptr;  // path 2: dst mapped for reading (the host pointer)
     std::vector<Box> changed_blocks_;
 };
 
@@ -73,7 +86,9 @@ class CompactWriter {
 // host memory), so this is true exactly for CPU devices.
 bool can_use_host_memory(const Context& ctx);
 // A buffer over `bytes` at `host` (CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR). The memory must
-// stay allocated until the buffer (every copy of the handle) is released.
+// stay allocated until the buffer (every copy of the handle) is released. Anything else that
+// reads `host` (Vulkan) may do so only while the buffer is mapped (CompactWriter with
+// DstMemory::host keeps it so).
 cl::Buffer wrap_host_memory(Context& ctx, void* host, std::size_t bytes);
 
 // Path 1: the device has cl_khr_external_memory_opaque_fd and its platform exports
@@ -82,8 +97,11 @@ bool can_import_opaque_fd(const Context& ctx);
 // CL_DEVICE_UUID_KHR (cl_khr_device_uuid), to match the Vulkan device's deviceUUID.
 std::optional<std::array<std::uint8_t, 16>> device_uuid(const Context& ctx);
 // A buffer over memory exported by Vulkan as an opaque fd
-// (CL_EXTERNAL_MEMORY_HANDLE_OPAQUE_FD_KHR). The caller keeps `fd` open until the buffer is
-// released and closes it afterwards.
+// (CL_EXTERNAL_MEMORY_HANDLE_OPAQUE_FD_KHR). Takes `fd` on every way out: cl_khr_external_memory
+// ("File Descriptor Handle Types") says a successful import transfers the fd's ownership to the
+// OpenCL implementation and the application must not perform any operation on it afterwards
+// (as vkAllocateMemory's import does in Vulkan); when the import fails (or is not attempted) the
+// fd is closed here. The caller never closes it.
 cl::Buffer import_opaque_fd(Context& ctx, int fd, std::size_t bytes);
 // cl_khr_external_memory ordering: enqueue the acquire before OpenCL uses an imported buffer
 // and the release after (the queue is finished before Vulkan reads it).

@@ -4,7 +4,7 @@
 // an orbit mode around the world's centre, and the pinhole rays of DESIGN §4 for picking.
 //
 // Angles are in degrees. yaw 0 looks along +x, yaw 90 along +z; pitch > 0 looks up (+y).
-// The image basis is the renderer's (vk::camera_basis, DESIGN §4): right =
+// The image basis is the renderer's (image_basis, used by vk::camera_basis; DESIGN §4): right =
 // normalize(cross(forward, +y)) (+x when looking straight along +-y), up = cross(right,
 // forward).
 #include <array>
@@ -26,6 +26,16 @@ struct ViewBasis {
     Vec3d forward, right, up;  // unit vectors
 };
 ViewBasis view_basis(const Vec3d& forward);
+
+// The image plane of DESIGN §4, the one camera model of the project: the image point (px, py)
+// (pixels, x right, y down) of a width x height image looks along forward + sx * right +
+// sy * up with sx = px / W * 2 - 1, sy = 1 - py / H * 2, where right and up are view_basis's
+// scaled by aspect * tan(fov/2) and tan(fov/2). The ray marcher's shader gets exactly these
+// (vk::camera_basis); pixel_direction normalises them.
+struct ImageBasis {
+    Vec3d forward, right, up;  // forward unit; right, up scaled
+};
+ImageBasis image_basis(const Vec3d& forward, double fov_deg, double width, double height);
 
 // The unit direction through the image point (px, py) in pixels (x right, y down; the centre
 // of pixel (i, j) is (i + 0.5, j + 0.5)) of a width x height image with vertical field of

@@ -24,6 +24,15 @@ vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Contex
                                     std::string& why_not,
                                     vk::SharingPath fastest = vk::SharingPath::opaque_fd);
 
+// The packed32 render format (always copied, path 3) after an edit: reads back only the
+// voxels of `regions` (clipped to the world of `dims`) of `field` (the packed32 field on the
+// OpenCL device, x fastest) and of `voxels` (the world's voxels there, one byte each), and
+// copies both into `marcher` in place, ordered behind its frames in flight
+// (vk::Raymarcher::update_packed32): 5 bytes per changed voxel instead of the whole field.
+// `marcher` holds the packed32 field of a world of `dims` (vk::Raymarcher::upload).
+void update_packed32(ocl::Context& cl, vk::Raymarcher& marcher, const cl::Buffer& field,
+                     const cl::Buffer& voxels, Dims dims, const std::vector<Box>& regions);
+
 class RenderField {
   public:
     // Allocates the compact field for `dims` as `marcher` plans it, on the first path that
@@ -39,8 +48,8 @@ class RenderField {
     // Converts from a new source (the field in `format` with distances in `metric`, and the
     // world's voxels, both on the OpenCL device; they must stay alive until the next attach)
     // and shows the whole field in `marcher` (bound in place on paths 1/2, copied on path 3),
-    // which then steps by that metric. Paths 1/2: first waits for the Vulkan frames in flight,
-    // which read the memory OpenCL overwrites. Returns the OpenCL time in ms.
+    // which then steps by that metric. Paths 1/2: first waits for the latest Vulkan frame that
+    // reads the memory OpenCL overwrites. Returns the OpenCL time in ms.
     // `step` is the field's largest voxel spacing (1 for unit spacing): its distances are
     // converted into voxels, rounded down, for the ray marcher.
     double attach(vk::Raymarcher& marcher, const cl::Buffer& field, Format format, Metric metric,
@@ -49,10 +58,12 @@ class RenderField {
     // at once); update() needs an attach() after this.
     void detach() { writer_.reset(); }
     // After the source changed inside `regions`: converts those voxels and recomputes the
-    // minima of the blocks they touch. Paths 1/2 copy nothing (they first wait for the frames
-    // in flight, which read the memory OpenCL overwrites; OpenCL has finished writing when
-    // this returns); path 3 copies the field again and only those blocks' minima
-    // (vk::Raymarcher::update_compact, update_block_min). Returns the OpenCL time in ms.
+    // minima of the blocks they touch. Paths 1/2 copy nothing (they first wait, on the CPU, for
+    // the fence of the latest frame that reads the field, which OpenCL overwrites; OpenCL has
+    // finished writing when this returns); path 3 reads back only those regions and blocks and
+    // copies them into the ray marcher in place, ordered behind the frames in flight by the
+    // queue, with no CPU wait (vk::Raymarcher::update_compact, update_block_min). Returns the
+    // OpenCL time in ms.
     double update(vk::Raymarcher& marcher, const std::vector<Box>& regions);
 
     vk::SharingPath path() const { return path_; }
@@ -60,20 +71,20 @@ class RenderField {
     const std::string& why_not() const { return why_not_; }
 
   private:
-    // Paths 1/2: no Vulkan frame in flight reads the shared field any more.
-    void wait_for_readers();
-    // Path 3: the compact field read back from OpenCL.
-    std::vector<std::uint16_t> read_compact();
+    // Paths 1/2: no Vulkan frame in flight reads the shared field any more (the fence of the
+    // latest frame that reads it, vk::Raymarcher::wait_for_readers).
+    void wait_for_readers(vk::Raymarcher& marcher);
+    // Path 3: the voxels of `boxes` (inside the world) read back from OpenCL, box after box
+    // and x fastest in each.
+    std::vector<std::uint16_t> read_boxes(const std::vector<Box>& boxes);
 
     ocl::Context& cl_;
-    vk::Context& vk_;
     Dims dims_;
     vk::FieldLayout layout_;
     vk::SharingPath path_ = vk::SharingPath::copy;
     std::string why_not_;
-    // Release order (reverse): writer, OpenCL buffer, then the fd and the memory it uses.
+    // Release order (reverse): writer (path 2: unmaps), OpenCL buffer, then the memory.
     vk::ExternalMemory shared_;
-    int fd_ = -1;
     cl::Buffer cl_field_;
     std::optional<ocl::CompactWriter> writer_;
 };

@@ -34,7 +34,8 @@ class VkError : public std::runtime_error {
 };
 
 // No Vulkan device can serve the request; the message lists every device and why it was
-// rejected (exit code 1: nothing the user typed is wrong, the machine lacks a driver).
+// rejected. The command line maps it to exit code 2, as OpenCL's DeviceSelectionError (the
+// request cannot be served here: a device spec that matches nothing, or no driver).
 class DeviceSelectionError : public std::runtime_error {
   public:
     using std::runtime_error::runtime_error;
@@ -163,6 +164,23 @@ std::vector<PhysicalDeviceInfo> list_devices();
 // Throws DeviceSelectionError explaining why each device was rejected.
 PhysicalDeviceInfo select_device(const std::string& spec);
 
+// The one device selection of vk/ (Context and Presenter both take it): among the physical
+// devices of `instance`, the one `spec` asks for ("" = $VOXFIELD_VK_DEVICE, else the first
+// discrete GPU, integrated GPU, virtual GPU, then CPU; "gpu", "cpu" or an index from
+// list_devices()), of those that serve `purpose`: the ray marcher's needs
+// (PhysicalDeviceInfo::rejected) or, presenting only, Vulkan 1.1. With a `surface`, also
+// VK_KHR_swapchain and a queue family that does graphics (and compute, for the ray marcher) and
+// presents to it: `family` is that family (else the first compute family). Throws
+// DeviceSelectionError explaining why each device was rejected.
+enum class DevicePurpose { ray_marching, presenting };
+struct DeviceChoice {
+    VkPhysicalDevice physical = VK_NULL_HANDLE;
+    PhysicalDeviceInfo info;  // timestamps: also those of `family`
+    std::uint32_t family = 0;
+};
+DeviceChoice choose_device(VkInstance instance, VkSurfaceKHR surface, const std::string& spec,
+                           DevicePurpose purpose);
+
 // Intent of a buffer's memory: where the GPU reads it fastest, or where the host writes /
 // reads it (host-visible, coherent; readback prefers cached memory).
 enum class MemoryIntent { device_local, upload, readback };
@@ -275,10 +293,19 @@ class Context {
                          const std::string& what,
                          std::chrono::nanoseconds timeout = std::chrono::nanoseconds::max());
 
+    // Records `record` into a fresh command buffer and submits it without waiting: the
+    // command buffer and its fence are retired (freed once it has finished). Whatever `record`
+    // reads or writes is ordered against other work by its own barriers (queue order). Returns
+    // the submission's serial.
+    std::uint64_t submit_unwaited(const std::function<void(VkCommandBuffer)>& record,
+                                  const std::string& what);
     // Submits `info` to the queue, signalling `fence` (which stays the caller's) when it and
     // all work submitted before it have finished. The caller waits for that fence with wait(),
     // never resetting or destroying it before.
     void submit(const VkSubmitInfo& info, VkFence fence, const std::string& what);
+    // For tests of error paths: the next submit() (or submit_and_wait) fails with `result`
+    // (an error code) without submitting anything, as vkQueueSubmit failing would.
+    void fail_next_submit(VkResult result) { injected_failure_ = result; }
     // Waits for a fence of submit() (or an unsubmitted, signalled one) and frees what was
     // retired before that submission.
     void wait(VkFence fence, const std::string& what);
@@ -296,9 +323,12 @@ class Context {
     // `serial` is known to have finished (no wait).
     std::uint64_t next_serial() const { return submitted_ + 1; }
     bool finished(std::uint64_t serial);
-    // Waits until all submitted work has finished (frames in flight included) and frees
-    // everything retired. Call it before OpenCL overwrites memory that submitted frames read
-    // (the shared field of sharing paths 1 and 2).
+    // Waits until submission `serial` (and so every one before it) has finished, on the fence
+    // of the first submission at or after it (no device idle), and frees what they retired.
+    // A serial never submitted (the submission failed) waits for what was submitted.
+    void wait_for(std::uint64_t serial);
+    // Waits until all submitted work has finished (frames in flight included), on the fence of
+    // the latest submission (no device idle), and frees everything retired.
     void wait_frames_in_flight();
     // Retired resources (failed submit_and_wait submissions included) not freed yet.
     std::size_t retired_in_flight();
@@ -333,6 +363,7 @@ class Context {
     std::vector<std::string> enabled_;
     Owned<VkCommandPool> pool_;
     std::uint64_t submitted_ = 0, finished_ = 0;  // serials of submissions
+    VkResult injected_failure_ = VK_SUCCESS;      // fail_next_submit
     std::vector<Pending> pending_;                // submitted, not known to be finished
     std::vector<Retired> retired_;
 };

@@ -9,7 +9,10 @@
 // memory the ray marcher's device exported on the same GPU (present_imported).
 // Frames in flight: kFramesInFlight frame slots, each with a command buffer, a fence and an
 // image-available semaphore, plus one render-finished semaphore per swapchain image; the CPU
-// waits only when it reuses a slot (the frame before last). vk/ stays free of any window
+// waits only when it reuses a slot (the frame before last). A frame that fails after its image
+// was acquired (a throwing ray march or overlay, a failed submission) still returns the image
+// (cleared) and consumes the acquire's semaphore before the error propagates, so the next frame
+// starts clean. vk/ stays free of any window
 // system API: the caller passes the required instance extensions and a function that makes
 // the surface.
 #include <vulkan/vulkan.h>
@@ -71,6 +74,11 @@ class Presenter {
     // What presenting each swapchain image waits on: one semaphore per image (a semaphore is
     // signalled again only once its image came back from the presentation engine).
     std::vector<VkSemaphore> render_finished_semaphores() const;
+    // Swapchains replaced (resize, out of date) but kept with their semaphores, views and
+    // framebuffers until the presentation engine provably finished with them: once the image
+    // of the new swapchain's first present was acquired again and that frame finished (no
+    // device wait on a resize).
+    std::size_t retired_swapchains() const;
 
     // Presents `rgba` (width x height RGBA8 rows, top to bottom; the part outside the
     // swapchain's extent is dropped, uncovered parts are black) at framebuffer size

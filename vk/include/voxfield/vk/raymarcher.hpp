@@ -131,16 +131,38 @@ class Raymarcher {
     // Path 1: every recorded ray march acquires the field from VK_QUEUE_FAMILY_EXTERNAL
     // before reading it and releases it back after. `memory` must outlive this ray marcher or
     // the next upload / bind_shared and the frames in flight then (Context::
-    // wait_frames_in_flight); so must OpenCL's writes into it wait for those frames.
+    // wait_frames_in_flight); OpenCL's writes into it must wait for those frames
+    // (wait_for_readers).
     void bind_shared(const ExternalMemory& memory, const FieldLayout& layout,
                      const Palette& palette);
 
-    // Path 3 after an edit of the compact field it holds: copies the whole of `compact` (the
-    // same dims) like upload_compact, but the palette, the metric and the block-minimum table
-    // stay, so that update_block_min rewrites only the blocks the edit changed (before the
-    // next render, which would otherwise read their old minima). Throws InputError when the
-    // size differs, std::logic_error when the field is not a copied compact one.
+    // Path 3 after an edit of the compact field it holds: copies the values of `boxes` (voxel
+    // boxes inside the field, e.g. the regions an edit changed) into the field in place, box
+    // after box and x fastest in each (`values` holds their voxels in that order). Only those
+    // bytes move (bytes_copied() grows by 2 per voxel), through one staged copy that the queue
+    // orders after the frames in flight that read the field and before the next render: no
+    // CPU wait, no new buffers. The palette, the metric and the block-minimum table stay, so
+    // that update_block_min rewrites only the blocks the edit changed. The second form copies
+    // the whole field (`compact`: dims.count() elements). Throws InputError when a box leaves
+    // the field or the values do not match, std::logic_error when the field is not a copied
+    // compact one.
+    void update_compact(std::span<const Box> boxes, std::span<const std::uint16_t> values);
     void update_compact(std::span<const std::uint16_t> compact);
+    // As update_compact, for the packed32 field of upload(): the field's words and the world's
+    // material bytes of `boxes`, box after box and x fastest in each, copied in place (5 bytes
+    // per voxel). Throws InputError when a box leaves the field or the sizes do not match,
+    // std::logic_error when the field is not a packed32 one.
+    void update_packed32(std::span<const Box> boxes, std::span<const std::uint32_t> packed32,
+                         std::span<const std::uint8_t> materials);
+    // The copied compact field as the shader reads it (dims.count() elements, x fastest), read
+    // back after all work submitted so far (for checks). Throws std::logic_error when the field
+    // is not a copied compact one.
+    std::vector<std::uint16_t> read_compact();
+    // Waits (on the CPU) until the latest submitted frame or render that reads the field has
+    // finished: on its fence, not a device idle (frames that do not read it, e.g. an upload,
+    // are not waited for beyond it). Before OpenCL overwrites a shared field in place (paths
+    // 1/2, where no Vulkan-side copy can order the write).
+    void wait_for_readers();
 
     // Coarse skipping (layout.h VF_RAYMARCH_BLOCK), in its own storage-buffer binding: per
     // block of the current field, the minimum of the unsaturated distance in the field's
@@ -155,9 +177,10 @@ class Raymarcher {
     // After an edit, path 3: copies the minima of `blocks` (boxes in block coordinates, e.g.
     // ocl::CompactWriter::changed_blocks()), box after box and x fastest in each (as
     // CompactWriter::block_min(blocks) reads them), over those words of the table that
-    // set_block_min copied; every other word stays as it was. One staged copy, waited for, so
-    // the next render reads them. Throws InputError when a box leaves the block grid or the
-    // minima do not match the boxes, std::logic_error without a copied table.
+    // set_block_min copied; every other word stays as it was. One staged copy, ordered by the
+    // queue after the frames in flight that read the table and before the next render (no CPU
+    // wait). Throws InputError when a box leaves the block grid or the minima do not match the
+    // boxes, std::logic_error without a copied table.
     void update_block_min(std::span<const Box> blocks, std::span<const std::uint32_t> minima);
     // Paths 1/2: the table lies in `memory` (the shared field's, bound with bind_shared) at
     // byte `offset`, where OpenCL writes it in place (ocl::SlabLayout::block_min_offset):
