@@ -200,7 +200,7 @@ TEST_F(SimulateTest, BadInputExitsTwoAndWritesNothing) {
     expect_rejected(
         {"--steps", "3", "-o", (dir_ / "w.npy").string(), "--json", (dir_ / "w.npy").string()},
         "same file", false);
-    expect_rejected({"--steps", "3", "-o", world_path_.string()}, "overwrite the input", false);
+    expect_rejected({"--steps", "3", "-o", world_path_.string()}, "is the input", false);
     const RunResult r = run_voxfield({"simulate", (dir_ / "missing.npy").string(), "--steps", "2",
                                       "-o", (dir_ / "f.npy").string()},
                                      io_);
