@@ -111,10 +111,12 @@ VoxModel load_vox(const std::filesystem::path& path, const InputOptions&) {
     return read_vox(path);
 }
 
-VoxModel load_npy(const std::filesystem::path& path, const InputOptions&) {
+VoxModel load_npy(const std::filesystem::path& path, const InputOptions& options) {
     const NpyArray array = read_npy(path);
     try {
-        return VoxModel{world_from_npy(array), Palette()};
+        return VoxModel{
+            world_from_npy(array, options.palette_values ? Labels::palette : Labels::solid),
+            Palette()};
     } catch (const InputError& e) {
         throw InputError(path.string() + ": " + e.what());
     }

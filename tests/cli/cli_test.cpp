@@ -195,6 +195,24 @@ TEST_F(CliTest, GenerateUint32NpyInput) {
     EXPECT_EQ(a.data, encode_field(reference_manhattan(w), w, Palette(), Format::u32));
 }
 
+// A label volume (DESIGN §3): uint16 labels above 255 are solid like any nonzero value; the
+// field is the field of the volume's nonzero mask.
+TEST_F(CliTest, GenerateUint16LabelVolumeIsItsNonzeroMask) {
+    const World w = test_world();
+    std::vector<std::uint8_t> labels = widen(w.voxels(), 2);
+    for (std::size_t i = 0; i < w.voxels().size(); ++i) {
+        if (w.voxels()[i] != 0) {
+            labels[2 * i + 1] = static_cast<std::uint8_t>(1 + i % 250);  // labels 256..64255
+        }
+    }
+    const fs::path in = dir_ / "labels_u16.npy";
+    write_npy(in, NpyType::u16, w.dims(), labels);
+    const fs::path out = dir_ / "field.npy";
+    const RunResult r = run({"generate", in.string(), "-o", out.string(), "--device", "cpu"});
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_EQ(read_npy(out).data, encode_field(reference_manhattan(w), w, Palette(), Format::u16));
+}
+
 TEST_F(CliTest, GenerateEveryShippedVoxModel) {
     for (const auto& entry : fs::directory_iterator(fs::path(VOXFIELD_DATA_DIR) / "vox")) {
         if (entry.path().extension() != ".vox") {
@@ -474,7 +492,9 @@ std::vector<BadCase> bad_cases() {
                      data[14] = static_cast<char>(300 & 0xFF);  // element 7 = 300
                      data[15] = static_cast<char>(300 >> 8);
                      write_file(d / "big.npy", raw_npy("<u2", "(2, 2, 3)", data));
-                     return gen(d / "big.npy", o);
+                     // A label volume is solid wherever nonzero; only packed32 (and rendering)
+                     // reads the value as a palette index, so only it refuses 300.
+                     return gen(d / "big.npy", o, {"--format", "packed32"});
                  },
                  {"big.npy", "300"}});
     c.push_back({"UnknownExtension",

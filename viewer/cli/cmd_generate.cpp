@@ -90,7 +90,7 @@ int run_generate(const GenerateOptions& o) {
     std::optional<VoxModel> model;
     auto load_model = [&] {
         const auto t = Clock::now();
-        model = load_world(o.input, InputOptions{o.grid});
+        model = load_world(o.input, InputOptions{o.grid, format == Format::packed32});
         phases.read = ms_since(t);
     };
     if (!npy) {

@@ -55,7 +55,7 @@ struct ViewWorld {
 ViewWorld load_view_world(const ViewCliOptions& o) {
     ViewWorld w;
     if (!o.input.empty()) {
-        w.model = load_world(o.input);
+        w.model = load_world(o.input, InputOptions{.palette_values = true});
         w.name = o.input;
     } else {
         const Dims dims = !o.dims.empty() ? parse_dims(o.dims)
@@ -220,8 +220,7 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             edits.batch.push_back(*brush);
             edits.bench = true;
         }
-        const FrameUpdate update =
-            apply_frame(s, session, o, edits, bench ? &*bench : nullptr);
+        const FrameUpdate update = apply_frame(s, session, o, edits, bench ? &*bench : nullptr);
         frames.render(session, screen.get(), s.render, s.camera, fb_w, fb_h);
         if (screen) {
             screen->overlay().new_frame();

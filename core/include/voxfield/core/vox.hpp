@@ -73,6 +73,10 @@ void write_vox(const std::filesystem::path& path, const World& world, const Pale
 // What the readers may need beyond the path.
 struct InputOptions {
     std::string grid;  // .vdb: the grid to read (empty: the first grid)
+    // .npy label volumes: true when the caller uses values as palette indices (packed32
+    // fields, rendering), so a value outside 0..255 is an InputError naming the voxel; false:
+    // every nonzero value is solid (DESIGN §3, label arrays).
+    bool palette_values = false;
 };
 
 // Loads a world by its file's extension (case-insensitive): .vox, .npy, .vdb. .npy gets the
