@@ -116,7 +116,7 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
         vk::validate(check);  // sizes and field of view
     }
 
-    const VoxModel model = load_world(o.input, InputOptions{.palette_values = true});
+    const VoxModel model = load_world(o.input, InputOptions{.grid = {}, .palette_values = true});
     const World& world = model.world;
     const vk::Camera fallback = vk::default_camera(world, r.width, r.height, r.camera.fov_deg);
     r.camera.position = camera ? *camera : fallback.position;

@@ -55,7 +55,7 @@ struct ViewWorld {
 ViewWorld load_view_world(const ViewCliOptions& o) {
     ViewWorld w;
     if (!o.input.empty()) {
-        w.model = load_world(o.input, InputOptions{.palette_values = true});
+        w.model = load_world(o.input, InputOptions{.grid = {}, .palette_values = true});
         w.name = o.input;
     } else {
         const Dims dims = !o.dims.empty() ? parse_dims(o.dims)

@@ -57,7 +57,7 @@ int run_generate_sparse(const SparseGenerateArgs& a) {
     }
     const auto t_read = Clock::now();
     VoxModel model =
-        load_world(a.input, InputOptions{.palette_values = format == Format::packed32});
+        load_world(a.input, InputOptions{.grid = {}, .palette_values = format == Format::packed32});
     const Dims dims = model.world.dims();
     require_dense_output(dims, a.output);
     ocl::GeneratorOptions flags_options = generator_options(a.flags, format, dims);
