@@ -236,9 +236,12 @@ DeviceInfo select_device(const std::string& requested) {
             }
         }
         if (index == devices.size()) {
+            for (const auto& d : devices) {
+                reasons += (reasons.empty() ? "" : "; ") + describe(d) + ": not index " + trimmed;
+            }
             throw DeviceSelectionError(
                 "no OpenCL device matches " + wanted + ": the indices are 0.." +
-                std::to_string(devices.size() - 1) + " (see `voxfield devices`)");
+                std::to_string(devices.size() - 1) + " (" + reasons + "; see `voxfield devices`)");
         }
         found = consider("", true, index);
     } else {
