@@ -63,10 +63,9 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
                                                       : options.layout == Layout::gpu),
       incremental_(incremental),
       spacing_(options.spacing) {
-    // A full transform on a device that computes in host memory reads the world in place
-    // (no copy); an incremental one keeps its own copy, which its edits rewrite.
-    set_up(world.voxels().data(), !incremental && ctx.computes_in_host_memory(), {}, palette,
-           options);
+    // Uploaded: the generator owns its copy (incremental edits rewrite it), so the world
+    // need not outlive it. Reading in place is the span constructor's explicit choice.
+    set_up(world.voxels().data(), false, {}, palette, options);
 }
 
 ExactSeparable::ExactSeparable(Context& ctx, Dims dims, std::span<const std::uint8_t> voxels,

@@ -151,11 +151,17 @@ int run_generate(const GenerateOptions& o) {
     // faults and kernel set-up, as a one-off user would).
     progress.set("uploading the world");
     const auto t_upload = Clock::now();
+    // The world outlives the job, so an exact separable transform reads it in place where the
+    // device computes in host memory (no copy of the world: DESIGN's memory floor).
+    const ocl::GeneratorOptions resolved = in_place ? options : ocl::resolve_options(options, dims);
     const std::unique_ptr<ocl::Generator> job =
         in_place ? std::make_unique<ocl::ExactManhattan>(
                        ctx, dims, voxels.span(), palette, format, options.layout, options.metric,
                        std::span<std::uint8_t>(), options.max_distance)
-                 : ocl::make_generator(ctx, model->world, palette, options);
+        : resolved.algorithm == ocl::Algorithm::exact && ocl::ExactSeparable::needed(resolved)
+            ? std::make_unique<ocl::ExactSeparable>(ctx, dims, model->world.voxels(), palette,
+                                                    resolved)
+            : ocl::make_generator(ctx, model->world, palette, options);
     phases.upload = ms_since(t_upload);
     std::vector<double> samples;
     StageTimes stage_times;

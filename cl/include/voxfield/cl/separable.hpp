@@ -19,9 +19,8 @@ class ExactSeparable : public Generator {
     // Uploads the world and palette and builds the kernels; options as resolve_options
     // returns them. `incremental` keeps every pass's partial distances (4 bytes per voxel
     // each, twice for signed fields) so that update() can recompute only what an edit
-    // changes. Throws ClError when the device cannot hold the buffers or lacks fp64. A full
-    // (not incremental) transform on a device that computes in host memory reads `world`'s
-    // voxels in place: the world must outlive the generator and not change while it runs.
+    // changes. Throws ClError when the device cannot hold the buffers or lacks fp64. The
+    // world is copied: it need not outlive the generator.
     ExactSeparable(Context& ctx, const World& world, const Palette& palette,
                    const GeneratorOptions& options, bool incremental = false);
     // A full (not incremental) transform of a world in host memory, as ExactManhattan's span
