@@ -451,6 +451,14 @@ float4 eval_d(__global const Instr* tape, const ushort* list, uint n, float x, f
 
 /* ------------------------------------------------------------------ the tile grid */
 
+/* eval_i over the voxels [i, i1) x [j, j1) x [k, k1) of the grid. */
+inline float2 eval_cells(__global const Instr* tape, uint n, Grid g, uint i, uint j, uint k,
+                         uint i1, uint j1, uint k1, uchar* live) {
+    return eval_i(tape, n, (float2)(corner_at(g.x0, g.h, i), corner_at(g.x0, g.h, i1)),
+                  (float2)(corner_at(g.y0, g.h, j), corner_at(g.y0, g.h, j1)),
+                  (float2)(corner_at(g.z0, g.h, k), corner_at(g.z0, g.h, k1)), live);
+}
+
 /* The class of the cell of `edge` voxels at voxel (i, j, k), clipped to the grid: empty when
  * its interval is above 0, full when below, else ambiguous; a cell outside the grid is empty. */
 uint classify_cell(__global const Instr* tape, uint n, Grid g, uint i, uint j, uint k, uint edge) {
@@ -458,9 +466,7 @@ uint classify_cell(__global const Instr* tape, uint n, Grid g, uint i, uint j, u
         return VF_SDF_CELL_EMPTY;
     }
     const uint i1 = min(i + edge, g.nx), j1 = min(j + edge, g.ny), k1 = min(k + edge, g.nz);
-    const float2 r = eval_i(tape, n, (float2)(corner_at(g.x0, g.h, i), corner_at(g.x0, g.h, i1)),
-                            (float2)(corner_at(g.y0, g.h, j), corner_at(g.y0, g.h, j1)),
-                            (float2)(corner_at(g.z0, g.h, k), corner_at(g.z0, g.h, k1)), 0);
+    const float2 r = eval_cells(tape, n, g, i, j, k, i1, j1, k1, 0);
     if (r.x > 0) {
         return VF_SDF_CELL_EMPTY;
     }
@@ -501,9 +507,7 @@ uint specialise(__global const Instr* tape, uint n, Grid g, uint4 o, ushort* lis
         live[i] = 1;
     }
     const uint i1 = min(o.x + 4, g.nx), j1 = min(o.y + 4, g.ny), k1 = min(o.z + 4, g.nz);
-    eval_i(tape, n, (float2)(corner_at(g.x0, g.h, o.x), corner_at(g.x0, g.h, i1)),
-           (float2)(corner_at(g.y0, g.h, o.y), corner_at(g.y0, g.h, j1)),
-           (float2)(corner_at(g.z0, g.h, o.z), corner_at(g.z0, g.h, k1)), live);
+    eval_cells(tape, n, g, o.x, o.y, o.z, i1, j1, k1, live);
     uint m = 0;
     for (uint i = 0; i < n; ++i) {
         if (live[i]) {
