@@ -451,6 +451,14 @@ float4 eval_d(__global const Instr* tape, const ushort* list, uint n, float x, f
 
 /* ------------------------------------------------------------------ the tile grid */
 
+/* eval_i over the voxels [i, i1) x [j, j1) x [k, k1) of the grid. */
+inline float2 eval_cells(__global const Instr* tape, uint n, Grid g, uint i, uint j, uint k,
+                         uint i1, uint j1, uint k1, uchar* live) {
+    return eval_i(tape, n, (float2)(corner_at(g.x0, g.h, i), corner_at(g.x0, g.h, i1)),
+                  (float2)(corner_at(g.y0, g.h, j), corner_at(g.y0, g.h, j1)),
+                  (float2)(corner_at(g.z0, g.h, k), corner_at(g.z0, g.h, k1)), live);
+}
+
 /* The class of the cell of `edge` voxels at voxel (i, j, k), clipped to the grid: empty when
  * its interval is above 0, full when below, else ambiguous; a cell outside the grid is empty. */
 uint classify_cell(__global const Instr* tape, uint n, Grid g, uint i, uint j, uint k, uint edge) {
@@ -458,9 +466,7 @@ uint classify_cell(__global const Instr* tape, uint n, Grid g, uint i, uint j, u
         return VF_SDF_CELL_EMPTY;
     }
     const uint i1 = min(i + edge, g.nx), j1 = min(j + edge, g.ny), k1 = min(k + edge, g.nz);
-    const float2 r = eval_i(tape, n, (float2)(corner_at(g.x0, g.h, i), corner_at(g.x0, g.h, i1)),
-                            (float2)(corner_at(g.y0, g.h, j), corner_at(g.y0, g.h, j1)),
-                            (float2)(corner_at(g.z0, g.h, k), corner_at(g.z0, g.h, k1)), 0);
+    const float2 r = eval_cells(tape, n, g, i, j, k, i1, j1, k1, 0);
     if (r.x > 0) {
         return VF_SDF_CELL_EMPTY;
     }
@@ -501,9 +507,7 @@ uint specialise(__global const Instr* tape, uint n, Grid g, uint4 o, ushort* lis
         live[i] = 1;
     }
     const uint i1 = min(o.x + 4, g.nx), j1 = min(o.y + 4, g.ny), k1 = min(o.z + 4, g.nz);
-    eval_i(tape, n, (float2)(corner_at(g.x0, g.h, o.x), corner_at(g.x0, g.h, i1)),
-           (float2)(corner_at(g.y0, g.h, o.y), corner_at(g.y0, g.h, j1)),
-           (float2)(corner_at(g.z0, g.h, o.z), corner_at(g.z0, g.h, k1)), live);
+    eval_cells(tape, n, g, o.x, o.y, o.z, i1, j1, k1, live);
     uint m = 0;
     for (uint i = 0; i < n; ++i) {
         if (live[i]) {
@@ -526,13 +530,32 @@ inline uint rank_below(const uint* bits, uint i) {
     return r + (i % 32 ? popcount(bits[i / 32] & ((1u << (i % 32)) - 1u)) : 0u);
 }
 
-/* Writes a leaf's node record and, when the reservations fit the capacities, its voxel
- * records (crossed voxels in mask order) and vertex records (its kept corners in index order).
- * counters[0]: vertices reserved, counters[1]: voxel records reserved. */
-inline void leaf_reserve(__global uint* counters, uint kept_count, uint cross_count, uint* voff,
-                         uint* xoff) {
+/* Reserves a leaf's vertex and voxel records (counters[0]: vertices reserved, counters[1]:
+ * voxel records reserved) and writes its node record. When the reservations fit the
+ * capacities, the kernels below then write its voxel records (crossed voxels in mask order)
+ * and vertex records (its kept corners in index order). */
+inline void leaf_reserve(__global uint* counters, __global uint* nodes, uint node, uint kept_count,
+                         uint cross_count, uint2 occ, uint2 solid, uint* voff, uint* xoff) {
     *voff = kept_count ? atomic_add(&counters[0], kept_count) : 0u;
     *xoff = cross_count ? atomic_add(&counters[1], cross_count) : 0u;
+    __global uint* rec = nodes + node * VF_SDF_NODE_WORDS;
+    rec[0] = *xoff;
+    rec[1] = *voff;
+    rec[2] = occ.x;
+    rec[3] = occ.y;
+    rec[4] = solid.x;
+    rec[5] = solid.y;
+}
+
+/* The first two words of voxel v's record: the ranks among the kept corners of its corners
+ * 0..3 and 4..7, a byte each. */
+inline uint2 voxel_corner_words(const uint* kept, uint v) {
+    uint w0 = 0, w1 = 0;
+    for (uint c = 0; c < 4; ++c) {
+        w0 |= rank_below(kept, corner_index(v, c)) << (8 * c);
+        w1 |= rank_below(kept, corner_index(v, c + 4)) << (8 * c);
+    }
+    return (uint2)(w0, w1);
 }
 
 /* CPU layout: one work-item per leaf, its 125 shared corners and 64 centres in one batch. */
@@ -589,14 +612,8 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
         popcount(kept[0]) + popcount(kept[1]) + popcount(kept[2]) + popcount(kept[3]);
     const uint cross_count = popcount(occ[0]) + popcount(occ[1]);
     uint voff, xoff;
-    leaf_reserve(counters, kept_count, cross_count, &voff, &xoff);
-    __global uint* node = nodes + o.w * VF_SDF_NODE_WORDS;
-    node[0] = xoff;
-    node[1] = voff;
-    node[2] = occ[0];
-    node[3] = occ[1];
-    node[4] = solid[0];
-    node[5] = solid[1];
+    leaf_reserve(counters, nodes, o.w, kept_count, cross_count, (uint2)(occ[0], occ[1]),
+                 (uint2)(solid[0], solid[1]), &voff, &xoff);
     if (voff + kept_count > vertex_capacity || xoff + cross_count > voxel_capacity) {
         return; /* the host reruns with the capacities the counters reached */
     }
@@ -612,14 +629,10 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
     uint x = 0;
     for (uint v = 0; v < 64; ++v) {
         if (occ[v / 32] >> (v % 32) & 1u) {
-            uint w0 = 0, w1 = 0;
-            for (uint c = 0; c < 4; ++c) {
-                w0 |= rank_below(kept, corner_index(v, c)) << (8 * c);
-                w1 |= rank_below(kept, corner_index(v, c + 4)) << (8 * c);
-            }
+            const uint2 w = voxel_corner_words(kept, v);
             __global uint* rec = voxels + (xoff + x++) * VF_SDF_VOXEL_WORDS;
-            rec[0] = w0;
-            rec[1] = w1;
+            rec[0] = w.x;
+            rec[1] = w.y;
             rec[2] = mats[v];
         }
     }
@@ -704,16 +717,10 @@ __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_gro
     const uint cross_count = popcount(occ[0]) + popcount(occ[1]);
     if (lid == 0) {
         uint voff, xoff;
-        leaf_reserve(counters, kept_count, cross_count, &voff, &xoff);
+        leaf_reserve(counters, nodes, o.w, kept_count, cross_count, (uint2)(occ[0], occ[1]),
+                     (uint2)(solid[0], solid[1]), &voff, &xoff);
         offsets[0] = voff;
         offsets[1] = xoff;
-        __global uint* node = nodes + o.w * VF_SDF_NODE_WORDS;
-        node[0] = xoff;
-        node[1] = voff;
-        node[2] = occ[0];
-        node[3] = occ[1];
-        node[4] = solid[0];
-        node[5] = solid[1];
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     const uint voff = offsets[0], xoff = offsets[1];
@@ -729,14 +736,10 @@ __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_gro
     }
     if (crossed) {
         uint occ_bits[2] = {occ[0], occ[1]};
-        uint w0 = 0, w1 = 0;
-        for (uint c = 0; c < 4; ++c) {
-            w0 |= rank_below(kept_bits, corner_index(lid, c)) << (8 * c);
-            w1 |= rank_below(kept_bits, corner_index(lid, c + 4)) << (8 * c);
-        }
+        const uint2 w = voxel_corner_words(kept_bits, lid);
         __global uint* rec = voxels + (xoff + rank_below(occ_bits, lid)) * VF_SDF_VOXEL_WORDS;
-        rec[0] = w0;
-        rec[1] = w1;
+        rec[0] = w.x;
+        rec[1] = w.y;
         rec[2] = material;
     }
 }

@@ -142,26 +142,24 @@ VoxModel load_sdf(const std::filesystem::path& path, const InputOptions&) {
     return VoxModel{sdf::solid_world(sdf::load_part(path), path.string()), Palette()};
 }
 
-WorldInfo describe_sdf(const std::filesystem::path& path, const InputOptions& options,
-                       double bound) {
-    const VoxModel model = load_sdf(path, options);
-    TileCensus census(model.world.dims());
-    census.add_world(model.world);
+// The description of a loaded world of kind `kind`, counted voxel by voxel.
+WorldInfo describe_world(const World& world, const char* kind, double bound) {
+    TileCensus census(world.dims());
+    census.add_world(world);
     WorldInfo info;
-    info.kind = "sdf";
+    info.kind = kind;
     census.finish(info, bound);
     return info;
 }
 
+WorldInfo describe_sdf(const std::filesystem::path& path, const InputOptions& options,
+                       double bound) {
+    return describe_world(load_sdf(path, options).world, "sdf", bound);
+}
+
 WorldInfo describe_npy(const std::filesystem::path& path, const InputOptions& options,
                        double bound) {
-    const VoxModel model = load_npy(path, options);
-    TileCensus census(model.world.dims());
-    census.add_world(model.world);
-    WorldInfo info;
-    info.kind = "npy";
-    census.finish(info, bound);
-    return info;
+    return describe_world(load_npy(path, options).world, "npy", bound);
 }
 
 VoxModel load_vdb(const std::filesystem::path& path, const InputOptions& options) {

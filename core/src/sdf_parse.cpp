@@ -75,6 +75,22 @@ class Compiler {
         return a;
     }
 
+    // The field `key` of `obj` (at `where`) read as above, its errors at `where`.key.
+    double number_at(const json& obj, const std::string& where, const char* key) const {
+        return number(field(obj, where, key), where + "." + key);
+    }
+    double positive_at(const json& obj, const std::string& where, const char* key) const {
+        return positive(field(obj, where, key), where + "." + key);
+    }
+    std::array<double, 3> vec3_at(const json& obj, const std::string& where,
+                                  const char* key) const {
+        return vec3(field(obj, where, key), where + "." + key);
+    }
+    std::array<double, 3> positive3_at(const json& obj, const std::string& where,
+                                       const char* key) const {
+        return positive3(field(obj, where, key), where + "." + key);
+    }
+
     // Checks that `obj` (a node's body) has only the keys in `allowed`.
     void only_keys(const json& obj, const std::string& where,
                    std::initializer_list<const char*> allowed) const {
@@ -150,49 +166,49 @@ class Compiler {
         const std::string at = where + "." + kind;
         if (kind == "sphere") {
             only_keys(b, at, {"center", "radius"});
-            const auto c = vec3(field(b, at, "center"), at + ".center");
-            const double r = positive(field(b, at, "radius"), at + ".radius");
+            const auto c = vec3_at(b, at, "center");
+            const double r = positive_at(b, at, "radius");
             emit(VF_SDF_SPHERE, material, {c[0], c[1], c[2], r});
         } else if (kind == "box") {
             only_keys(b, at, {"center", "half_size"});
-            const auto c = vec3(field(b, at, "center"), at + ".center");
-            const auto s = positive3(field(b, at, "half_size"), at + ".half_size");
+            const auto c = vec3_at(b, at, "center");
+            const auto s = positive3_at(b, at, "half_size");
             emit(VF_SDF_BOX, material, {c[0], c[1], c[2], s[0], s[1], s[2]});
         } else if (kind == "round_box") {
             only_keys(b, at, {"center", "half_size", "radius"});
-            const auto c = vec3(field(b, at, "center"), at + ".center");
-            const auto s = positive3(field(b, at, "half_size"), at + ".half_size");
-            const double r = positive(field(b, at, "radius"), at + ".radius");
+            const auto c = vec3_at(b, at, "center");
+            const auto s = positive3_at(b, at, "half_size");
+            const double r = positive_at(b, at, "radius");
             if (r > std::min({s[0], s[1], s[2]})) {
                 fail(at + ".radius", "must not exceed the smallest half_size");
             }
             emit(VF_SDF_ROUND_BOX, material, {c[0], c[1], c[2], s[0], s[1], s[2], r});
         } else if (kind == "cylinder") {
             only_keys(b, at, {"center", "radius", "half_height"});
-            const auto c = vec3(field(b, at, "center"), at + ".center");
-            const double r = positive(field(b, at, "radius"), at + ".radius");
-            const double hh = positive(field(b, at, "half_height"), at + ".half_height");
+            const auto c = vec3_at(b, at, "center");
+            const double r = positive_at(b, at, "radius");
+            const double hh = positive_at(b, at, "half_height");
             emit(VF_SDF_CYLINDER, material, {c[0], c[1], c[2], r, hh});
         } else if (kind == "torus") {
             only_keys(b, at, {"center", "major", "minor"});
-            const auto c = vec3(field(b, at, "center"), at + ".center");
-            const double big = positive(field(b, at, "major"), at + ".major");
-            const double small = positive(field(b, at, "minor"), at + ".minor");
+            const auto c = vec3_at(b, at, "center");
+            const double big = positive_at(b, at, "major");
+            const double small = positive_at(b, at, "minor");
             emit(VF_SDF_TORUS, material, {c[0], c[1], c[2], big, small});
         } else if (kind == "capsule") {
             only_keys(b, at, {"a", "b", "radius"});
-            const auto a = vec3(field(b, at, "a"), at + ".a");
-            const auto e = vec3(field(b, at, "b"), at + ".b");
-            const double r = positive(field(b, at, "radius"), at + ".radius");
+            const auto a = vec3_at(b, at, "a");
+            const auto e = vec3_at(b, at, "b");
+            const double r = positive_at(b, at, "radius");
             emit(VF_SDF_CAPSULE, material, {a[0], a[1], a[2], e[0], e[1], e[2], r});
         } else if (kind == "plane") {
             only_keys(b, at, {"normal", "offset"});
-            const auto nv = vec3(field(b, at, "normal"), at + ".normal");
+            const auto nv = vec3_at(b, at, "normal");
             const double len = std::sqrt(nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]);
             if (!(len > 0)) {
                 fail(at + ".normal", "must not be zero");
             }
-            const double off = number(field(b, at, "offset"), at + ".offset");
+            const double off = number_at(b, at, "offset");
             emit(VF_SDF_PLANE, material, {nv[0] / len, nv[1] / len, nv[2] / len, off});
         } else if (kind == "union" || kind == "intersection") {
             list(b, at, 1, depth, material, kind == "union" ? VF_SDF_MIN : VF_SDF_MAX, {});
@@ -203,7 +219,7 @@ class Compiler {
             list(b, at, 2, depth, material, VF_SDF_DIFF, {});
         } else if (kind == "smooth_union" || kind == "smooth_difference") {
             only_keys(b, at, {"k", "of"});
-            const double k = positive(field(b, at, "k"), at + ".k");
+            const double k = positive_at(b, at, "k");
             const json& of = field(b, at, "of");
             if (kind == "smooth_difference" && (!of.is_array() || of.size() != 2)) {
                 fail(at + ".of", "expected an array of two nodes [A, B], got " + brief(of));
@@ -214,7 +230,7 @@ class Compiler {
             transform(b, at, depth, material);
         } else if (kind == "shell") {
             only_keys(b, at, {"thickness", "of"});
-            const double t = positive(field(b, at, "thickness"), at + ".thickness");
+            const double t = positive_at(b, at, "thickness");
             node(field(b, at, "of"), at + ".of", depth + 1, material);
             emit(VF_SDF_SHELL, 0, {t});
         } else {

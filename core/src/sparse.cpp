@@ -43,6 +43,32 @@ std::size_t local_index(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
     return (std::size_t{z} * kTileSize + y) * kTileSize + x;
 }
 
+// Calls fn(x, y, z, material) for every solid voxel of `tile` (tile-local coordinates), in
+// storage order.
+template <class Fn>
+void for_each_solid(const SparseWorld& world, std::uint32_t tile, Fn&& fn) {
+    const auto& masks = world.node_masks();
+    const auto& offsets = world.node_offsets();
+    const std::uint64_t base = world.node_bases()[tile];
+    const std::uint8_t* mat = world.materials().data() + world.material_bases()[tile];
+    std::uint64_t n16 = base + offsets[base];
+    for (std::uint64_t m = masks[base]; m != 0; m &= m - 1, ++n16) {
+        const auto b16 = static_cast<std::uint32_t>(std::countr_zero(m));
+        const std::uint32_t x16 = (b16 & 3) * 16, y16 = (b16 >> 2 & 3) * 16, z16 = (b16 >> 4) * 16;
+        std::uint64_t n4 = base + offsets[n16];
+        for (std::uint64_t m2 = masks[n16]; m2 != 0; m2 &= m2 - 1, ++n4) {
+            const auto b4 = static_cast<std::uint32_t>(std::countr_zero(m2));
+            const std::uint32_t x4 = x16 + (b4 & 3) * 4, y4 = y16 + (b4 >> 2 & 3) * 4,
+                                z4 = z16 + (b4 >> 4) * 4;
+            const std::uint8_t* leaf = mat + offsets[n4];
+            for (std::uint64_t m3 = masks[n4]; m3 != 0; m3 &= m3 - 1, ++leaf) {
+                const auto bv = static_cast<std::uint32_t>(std::countr_zero(m3));
+                fn(x4 + (bv & 3), y4 + (bv >> 2 & 3), z4 + (bv >> 4), *leaf);
+            }
+        }
+    }
+}
+
 }  // namespace
 
 SparseWorld::SparseWorld(Dims dims) : dims_(dims) {
@@ -231,49 +257,19 @@ std::uint8_t SparseWorld::at(std::uint32_t x, std::uint32_t y, std::uint32_t z) 
 
 void SparseWorld::decode_tile(std::uint32_t tile, std::span<std::uint8_t> out) const {
     std::fill(out.begin(), out.end(), std::uint8_t{0});
-    const std::uint64_t base = node_bases_[tile];
-    const std::uint8_t* mat = materials_.data() + material_bases_[tile];
-    const std::uint64_t root = node_masks_[base];
-    std::uint64_t n16 = base + node_offsets_[base];
-    for (std::uint64_t m = root; m != 0; m &= m - 1, ++n16) {
-        const auto b16 = static_cast<std::uint32_t>(std::countr_zero(m));
-        const std::uint32_t x16 = (b16 & 3) * 16, y16 = (b16 >> 2 & 3) * 16, z16 = (b16 >> 4) * 16;
-        std::uint64_t n4 = base + node_offsets_[n16];
-        for (std::uint64_t m2 = node_masks_[n16]; m2 != 0; m2 &= m2 - 1, ++n4) {
-            const auto b4 = static_cast<std::uint32_t>(std::countr_zero(m2));
-            const std::uint32_t x4 = x16 + (b4 & 3) * 4, y4 = y16 + (b4 >> 2 & 3) * 4,
-                                z4 = z16 + (b4 >> 4) * 4;
-            const std::uint8_t* leaf = mat + node_offsets_[n4];
-            for (std::uint64_t m3 = node_masks_[n4]; m3 != 0; m3 &= m3 - 1, ++leaf) {
-                const auto bv = static_cast<std::uint32_t>(std::countr_zero(m3));
-                out[local_index(x4 + (bv & 3), y4 + (bv >> 2 & 3), z4 + (bv >> 4))] = *leaf;
-            }
-        }
-    }
+    for_each_solid(*this, tile,
+                   [&](std::uint32_t x, std::uint32_t y, std::uint32_t z, std::uint8_t material) {
+                       out[local_index(x, y, z)] = material;
+                   });
 }
 
 Box SparseWorld::solid_bounds(std::uint32_t tile) const {
     const Int3 t = tile_coord(tile);
-    const std::uint64_t base = node_bases_[tile];
     Int3 lo{kTileSize, kTileSize, kTileSize}, hi{0, 0, 0};
-    const std::uint64_t root = node_masks_[base];
-    std::uint64_t n16 = base + node_offsets_[base];
-    for (std::uint64_t m = root; m != 0; m &= m - 1, ++n16) {
-        const auto b16 = static_cast<std::uint32_t>(std::countr_zero(m));
-        const std::int64_t x16 = (b16 & 3) * 16, y16 = (b16 >> 2 & 3) * 16, z16 = (b16 >> 4) * 16;
-        std::uint64_t n4 = base + node_offsets_[n16];
-        for (std::uint64_t m2 = node_masks_[n16]; m2 != 0; m2 &= m2 - 1, ++n4) {
-            const auto b4 = static_cast<std::uint32_t>(std::countr_zero(m2));
-            const std::int64_t x4 = x16 + (b4 & 3) * 4, y4 = y16 + (b4 >> 2 & 3) * 4,
-                               z4 = z16 + (b4 >> 4) * 4;
-            for (std::uint64_t m3 = node_masks_[n4]; m3 != 0; m3 &= m3 - 1) {
-                const auto bv = static_cast<std::uint32_t>(std::countr_zero(m3));
-                const std::int64_t x = x4 + (bv & 3), y = y4 + (bv >> 2 & 3), z = z4 + (bv >> 4);
-                lo = {std::min(lo.x, x), std::min(lo.y, y), std::min(lo.z, z)};
-                hi = {std::max(hi.x, x + 1), std::max(hi.y, y + 1), std::max(hi.z, z + 1)};
-            }
-        }
-    }
+    for_each_solid(*this, tile, [&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint8_t) {
+        lo = {std::min(lo.x, x), std::min(lo.y, y), std::min(lo.z, z)};
+        hi = {std::max(hi.x, x + 1), std::max(hi.y, y + 1), std::max(hi.z, z + 1)};
+    });
     const Int3 o{t.x * kTileSize, t.y * kTileSize, t.z * kTileSize};
     return {{o.x + lo.x, o.y + lo.y, o.z + lo.z}, {o.x + hi.x, o.y + hi.y, o.z + hi.z}};
 }
