@@ -191,7 +191,9 @@ double FramePipeline::publish(std::vector<Box> regions) {
         return 0;
     }
     if (!render_field_) {
-        show(*scene_, options_);
+        // packed32 (path 3): the changed boxes' words and materials, copied in place.
+        update_packed32(cl_, *marcher_, scene_->field_buffer(), scene_->voxels_buffer(), dims_,
+                        regions);
         return 0;
     }
     if (regions.size() > kMaxRegionsPerLaunch) {

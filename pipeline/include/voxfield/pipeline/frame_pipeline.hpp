@@ -26,7 +26,8 @@ namespace voxfield::pipeline {
 
 struct PipelineOptions {
     // What the ray marcher reads: the compact field (16 bits per voxel, written by OpenCL in
-    // place on paths 1/2) or packed32 (the field read back and uploaded, path 3).
+    // place on paths 1/2) or packed32 (the field read back and uploaded, path 3; after a change
+    // only its boxes: update_packed32).
     vk::FieldFormat render_format = vk::FieldFormat::compact;
     // The fastest sharing path the render field may take (tests force the slower ones).
     vk::SharingPath fastest_path = vk::SharingPath::opaque_fd;
