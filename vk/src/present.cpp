@@ -529,27 +529,13 @@ Presenter::Presenter(const PresenterOptions& options) : impl_(std::make_unique<I
     q.queueFamilyIndex = m.family;
     q.queueCount = 1;
     q.pQueuePriorities = &priority;
+    // Importing frames the ray marcher's device exported (same GPU, no host round trip).
     std::vector<const char*> dev_ext = {VK_KHR_SWAPCHAIN_EXTENSION_NAME};
-    {
-        // Importing frames the ray marcher's device exported (same GPU, no host round trip).
-        std::uint32_t en = 0;
-        vkEnumerateDeviceExtensionProperties(m.physical, nullptr, &en, nullptr);
-        std::vector<VkExtensionProperties> available(en);
-        vkEnumerateDeviceExtensionProperties(m.physical, nullptr, &en, available.data());
-        for (const VkExtensionProperties& e : available) {
-            if (std::strcmp(e.extensionName, VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME) == 0) {
-                m.external_memory_fd = true;
-                dev_ext.push_back(VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME);
-            }
-        }
-        VkPhysicalDeviceIDProperties id{};
-        id.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ID_PROPERTIES;
-        VkPhysicalDeviceProperties2 p2{};
-        p2.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2;
-        p2.pNext = &id;
-        vkGetPhysicalDeviceProperties2(m.physical, &p2);
-        std::memcpy(m.uuid.data(), id.deviceUUID, VK_UUID_SIZE);
+    if (choice.info.has_extension(VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME)) {
+        m.external_memory_fd = true;
+        dev_ext.push_back(VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME);
     }
+    m.uuid = choice.info.uuid;
     VkDeviceCreateInfo di{};
     di.sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO;
     di.queueCreateInfoCount = 1;
