@@ -1225,12 +1225,7 @@ void Raymarcher::update_block_min(std::span<const Box> blocks,
         for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
             for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
                 const auto first = static_cast<VkDeviceSize>((z * g.y + y) * g.x + b.min.x);
-                if (!rows.empty() && rows.back().srcOffset + rows.back().size == src &&
-                    rows.back().dstOffset + rows.back().size == 4 * first) {
-                    rows.back().size += row;
-                } else {
-                    rows.push_back(VkBufferCopy{src, 4 * first, row});
-                }
+                append_copy(rows, src, 4 * first, row);
                 src += row;
             }
         }
