@@ -97,7 +97,8 @@ class FramePipeline {
     Dims dims() const { return dims_; }
     Scene& scene();
     const Palette& palette() const { return palette_; }
-    const ocl::GeneratorOptions& options() const { return options_; }
+    // The scene's options (default ones before the first successful rebuild()).
+    const ocl::GeneratorOptions& options() const;
     // The field in options().format, as `generate` writes it.
     std::vector<std::uint8_t> read_field();
     vk::Raymarcher& marcher() { return *marcher_; }
@@ -114,8 +115,8 @@ class FramePipeline {
   private:
     UpdateTimings finish(SceneUpdate u, std::vector<EditResult>* edits);
     double publish(std::vector<Box> regions);
-    // Shows `scene`'s field (built for options) in the ray marcher; returns the OpenCL time.
-    double show(Scene& scene, const ocl::GeneratorOptions& options);
+    // Shows `scene`'s field in the ray marcher; returns the OpenCL time.
+    double show(Scene& scene);
     // The scene, shown: throws std::logic_error before the first successful rebuild().
     Scene& current();
 
@@ -123,7 +124,6 @@ class FramePipeline {
     Palette palette_;
     Dims dims_;
     PipelineOptions pipeline_options_;
-    ocl::GeneratorOptions options_;
     std::unique_ptr<Scene> scene_;
     bool shown_ = false;  // scene_'s field is the one the render field converts
     int failing_shows_ = 0;
