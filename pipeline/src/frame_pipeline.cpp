@@ -25,7 +25,7 @@ std::vector<std::uint32_t> as_words(const std::vector<std::uint8_t>& bytes) {
 
 FramePipeline::FramePipeline(ocl::Context& cl, vk::Context& vkc, Palette palette, Dims dims,
                              PipelineOptions options)
-    : cl_(cl), palette_(palette), dims_(dims), pipeline_options_(options) {
+    : cl_(cl), palette_(palette), dims_(dims) {
     marcher_ = std::make_unique<vk::Raymarcher>(vkc, options.max_binding_bytes);
     if (options.render_format == vk::FieldFormat::compact) {
         render_field_ =

@@ -123,7 +123,6 @@ class FramePipeline {
     ocl::Context& cl_;
     Palette palette_;
     Dims dims_;
-    PipelineOptions pipeline_options_;
     std::unique_ptr<Scene> scene_;
     bool shown_ = false;  // scene_'s field is the one the render field converts
     int failing_shows_ = 0;
