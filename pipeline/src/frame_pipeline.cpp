@@ -25,7 +25,7 @@ std::vector<std::uint32_t> as_words(const std::vector<std::uint8_t>& bytes) {
 
 FramePipeline::FramePipeline(ocl::Context& cl, vk::Context& vkc, Palette palette, Dims dims,
                              PipelineOptions options)
-    : cl_(cl), palette_(palette), dims_(dims), pipeline_options_(options) {
+    : cl_(cl), palette_(palette), dims_(dims) {
     marcher_ = std::make_unique<vk::Raymarcher>(vkc, options.max_binding_bytes);
     if (options.render_format == vk::FieldFormat::compact) {
         render_field_ =
@@ -37,7 +37,8 @@ FramePipeline::~FramePipeline() {
     marcher_.reset();
 }  // before the memory it reads
 
-double FramePipeline::show(Scene& scene, const ocl::GeneratorOptions& options) {
+double FramePipeline::show(Scene& scene) {
+    const ocl::GeneratorOptions& options = scene.options();
     if (failing_shows_ > 0) {
         --failing_shows_;
         throw ocl::ClError("clEnqueueNDRangeKernel", CL_OUT_OF_RESOURCES,
@@ -60,7 +61,7 @@ Scene& FramePipeline::current() {
     if (!shown_) {
         // A failed rebuild could not show the previous field again: shown now, or the update
         // stops here.
-        show(*scene_, options_);
+        show(*scene_);
         shown_ = true;
     }
     return *scene_;
@@ -84,11 +85,11 @@ double FramePipeline::rebuild(World world, const ocl::GeneratorOptions& options)
         shown_ = false;
     }
     try {
-        show(*scene, next);
+        show(*scene);
     } catch (...) {
         if (scene_) {
             try {
-                show(*scene_, options_);
+                show(*scene_);
                 shown_ = true;
             } catch (const std::exception&) {
                 // The first error is the one reported; the next update shows it again.
@@ -98,7 +99,6 @@ double FramePipeline::rebuild(World world, const ocl::GeneratorOptions& options)
     }
     scene_ = std::move(scene);
     shown_ = true;
-    options_ = next;
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
 }
 
@@ -129,9 +129,7 @@ UpdateTimings FramePipeline::step_sand(const SandRules& rules, std::uint64_t see
 }
 
 UpdateTimings FramePipeline::set_focus(const std::optional<Focus>& focus) {
-    UpdateTimings u = finish(current().set_focus(focus), nullptr);
-    options_.focus = focus;
-    return u;
+    return finish(current().set_focus(focus), nullptr);
 }
 
 void FramePipeline::render(const vk::RenderOptions& options, vk::Image& out) {
@@ -147,6 +145,11 @@ const World& FramePipeline::world() const {
         throw std::logic_error("FramePipeline: no world yet (rebuild() has not succeeded)");
     }
     return scene_->world();
+}
+
+const ocl::GeneratorOptions& FramePipeline::options() const {
+    static const ocl::GeneratorOptions none;
+    return scene_ ? scene_->options() : none;
 }
 
 const World& FramePipeline::last_read_world() const {
@@ -191,7 +194,9 @@ double FramePipeline::publish(std::vector<Box> regions) {
         return 0;
     }
     if (!render_field_) {
-        show(*scene_, options_);
+        // packed32 (path 3): the changed boxes' words and materials, copied in place.
+        update_packed32(cl_, *marcher_, scene_->field_buffer(), scene_->voxels_buffer(), dims_,
+                        regions);
         return 0;
     }
     if (regions.size() > kMaxRegionsPerLaunch) {

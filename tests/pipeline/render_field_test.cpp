@@ -52,6 +52,19 @@ std::uint64_t volume_in(const std::vector<Box>& boxes, const Box& world) {
     return v;
 }
 
+// What an edit changed for a render field: the recomputed distances' boxes and the boxes of
+// the voxels the brushes changed (recoloured voxels keep their distance), as pipeline::Scene
+// lists them.
+std::vector<Box> changed_regions(const ocl::UpdateStats& s) {
+    std::vector<Box> regions = s.regions;
+    for (const EditResult& e : s.edits) {
+        if (e.changed()) {
+            regions.push_back(e.bounds);
+        }
+    }
+    return regions;
+}
+
 ocl::GeneratorOptions u16_manhattan() {
     ocl::GeneratorOptions g;
     g.format = Format::u16;
@@ -77,13 +90,7 @@ TEST_P(RenderFieldEdits, RandomEditsWithFramesInFlightShowTheFreshField) {
         SCOPED_TRACE("edit " + std::to_string(i));
         // A frame in flight reads the field while the edit rewrites it.
         ctx.submit_unwaited([&](VkCommandBuffer cmd) { marcher.record(cmd, r); }, "frame");
-        const ocl::UpdateStats s = field.apply({edits.next()});
-        std::vector<Box> regions = s.regions;
-        for (const EditResult& e : s.edits) {
-            if (e.changed()) {
-                regions.push_back(e.bounds);
-            }
-        }
+        const std::vector<Box> regions = changed_regions(field.apply({edits.next()}));
         const std::uint64_t copied = marcher.bytes_copied();
         const std::uint64_t table = marcher.block_min_bytes_copied();
         render.update(marcher, regions);
@@ -148,13 +155,7 @@ TEST(PackedField, RandomEditsCopyOnlyTheirBoxes) {
     for (int i = 0; i < 10; ++i) {
         SCOPED_TRACE("edit " + std::to_string(i));
         ctx.submit_unwaited([&](VkCommandBuffer cmd) { marcher.record(cmd, r); }, "frame");
-        const ocl::UpdateStats s = field.apply({edits.next()});
-        std::vector<Box> regions = s.regions;
-        for (const EditResult& e : s.edits) {
-            if (e.changed()) {
-                regions.push_back(e.bounds);
-            }
-        }
+        const std::vector<Box> regions = changed_regions(field.apply({edits.next()}));
         const std::uint64_t copied = marcher.bytes_copied();
         pipeline::update_packed32(pocl(), marcher, field.field_buffer(), field.voxels_buffer(),
                                   kDims, regions);

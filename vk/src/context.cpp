@@ -8,6 +8,55 @@
 #include "instance.hpp"
 
 namespace voxfield::vk {
+namespace {
+
+// A one-time command buffer and the fence of its submission. Going, it frees the command
+// buffer and destroys the fence: a submission that may still run is retired as one.
+struct OneShot {
+    VkDevice device;
+    VkCommandPool pool;
+    VkCommandBuffer cmd = VK_NULL_HANDLE;
+    Owned<VkFence> fence;
+    OneShot(VkDevice d, VkCommandPool p) : device(d), pool(p) {}
+    OneShot(OneShot&& o) noexcept
+        : device(o.device),
+          pool(o.pool),
+          cmd(std::exchange(o.cmd, VK_NULL_HANDLE)),
+          fence(std::move(o.fence)) {}
+    ~OneShot() {
+        if (cmd != VK_NULL_HANDLE) {
+            vkFreeCommandBuffers(device, pool, 1, &cmd);
+        }
+    }
+};
+
+// `record` recorded into a new one-time command buffer of `pool`, with a new (unsignalled)
+// fence for its submission.
+OneShot record_one_shot(VkDevice device, VkCommandPool pool,
+                        const std::function<void(VkCommandBuffer)>& record,
+                        const std::string& what) {
+    OneShot s(device, pool);
+    VkCommandBufferAllocateInfo alloc{};
+    alloc.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
+    alloc.commandPool = pool;
+    alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    alloc.commandBufferCount = 1;
+    check(vkAllocateCommandBuffers(device, &alloc, &s.cmd), "vkAllocateCommandBuffers", what);
+    VkCommandBufferBeginInfo begin{};
+    begin.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
+    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    check(vkBeginCommandBuffer(s.cmd, &begin), "vkBeginCommandBuffer", what);
+    record(s.cmd);
+    check(vkEndCommandBuffer(s.cmd), "vkEndCommandBuffer", what);
+    VkFenceCreateInfo fence_info{};
+    fence_info.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
+    VkFence fence = VK_NULL_HANDLE;
+    check(vkCreateFence(device, &fence_info, nullptr, &fence), "vkCreateFence", what);
+    s.fence = Owned<VkFence>(device, fence, vkDestroyFence);
+    return s;
+}
+
+}  // namespace
 
 Context::Context(const ContextOptions& options) {
     const bool presenting = static_cast<bool>(options.make_surface);
@@ -262,70 +311,23 @@ void Context::upload(const Buffer& dst, const void* bytes, VkDeviceSize size, Vk
 void Context::submit_and_wait(const std::function<void(VkCommandBuffer)>& record,
                               const std::string& what, std::chrono::nanoseconds timeout) {
     collect_retired(false);
-    VkCommandBufferAllocateInfo alloc{};
-    alloc.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
-    alloc.commandPool = pool_.get();
-    alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-    alloc.commandBufferCount = 1;
-    VkCommandBuffer cmd = VK_NULL_HANDLE;
-    check(vkAllocateCommandBuffers(device_, &alloc, &cmd), "vkAllocateCommandBuffers", what);
-    // Freed on every way out except a failed wait, which retires it instead.
-    struct FreeCmd {
-        VkDevice device;
-        VkCommandPool pool;
-        VkCommandBuffer cmd;
-        ~FreeCmd() {
-            if (cmd != VK_NULL_HANDLE) {
-                vkFreeCommandBuffers(device, pool, 1, &cmd);
-            }
-        }
-    } free_cmd{device_, pool_.get(), cmd};
-    VkCommandBufferBeginInfo begin{};
-    begin.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
-    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    check(vkBeginCommandBuffer(cmd, &begin), "vkBeginCommandBuffer", what);
-    record(cmd);
-    check(vkEndCommandBuffer(cmd), "vkEndCommandBuffer", what);
-
-    VkFenceCreateInfo fence_info{};
-    fence_info.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
-    VkFence fence_handle = VK_NULL_HANDLE;
-    check(vkCreateFence(device_, &fence_info, nullptr, &fence_handle), "vkCreateFence", what);
-    Owned<VkFence> fence(device_, fence_handle, vkDestroyFence);
+    OneShot shot = record_one_shot(device_, pool_.get(), record, what);
     VkSubmitInfo info{};
     info.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
     info.commandBufferCount = 1;
-    info.pCommandBuffers = &cmd;
-    submit(info, fence.get(), what);
+    info.pCommandBuffers = &shot.cmd;
+    submit(info, shot.fence.get(), what);
     const std::uint64_t serial = submitted_;
     const std::uint64_t ns =
         timeout == std::chrono::nanoseconds::max()
             ? UINT64_MAX
             : static_cast<std::uint64_t>(std::max<std::int64_t>(timeout.count(), 0));
-    const VkResult r = vkWaitForFences(device_, 1, &fence_handle, VK_TRUE, ns);
+    const VkFence fence = shot.fence.get();
+    const VkResult r = vkWaitForFences(device_, 1, &fence, VK_TRUE, ns);
     if (r != VK_SUCCESS) {
         // The GPU may still run the command buffer (and read what it refers to): both stay
         // alive until its fence signals.
-        struct Submission {
-            Owned<VkFence> fence;
-            VkDevice device;
-            VkCommandPool pool;
-            VkCommandBuffer cmd;
-            Submission(Owned<VkFence> f, VkDevice d, VkCommandPool p, VkCommandBuffer c)
-                : fence(std::move(f)), device(d), pool(p), cmd(c) {}
-            Submission(Submission&& o) noexcept
-                : fence(std::move(o.fence)),
-                  device(o.device),
-                  pool(o.pool),
-                  cmd(std::exchange(o.cmd, VK_NULL_HANDLE)) {}
-            ~Submission() {
-                if (cmd != VK_NULL_HANDLE) {
-                    vkFreeCommandBuffers(device, pool, 1, &cmd);
-                }
-            }
-        };
-        retire(Submission(std::move(fence), device_, pool_.get(), cmd));
-        free_cmd.cmd = VK_NULL_HANDLE;
+        retire(std::move(shot));
         throw VkError("vkWaitForFences", r, what);
     }
     finish(serial);
@@ -335,46 +337,12 @@ std::uint64_t Context::submit_unwaited(const std::function<void(VkCommandBuffer)
                                        const std::string& what) {
     collect_retired(false);
     // The command buffer and fence of a submission nobody waits for: freed once it finished.
-    struct Unwaited {
-        VkDevice device;
-        VkCommandPool pool;
-        VkCommandBuffer cmd = VK_NULL_HANDLE;
-        Owned<VkFence> fence;
-        Unwaited(VkDevice d, VkCommandPool p) : device(d), pool(p) {}
-        Unwaited(Unwaited&& o) noexcept
-            : device(o.device),
-              pool(o.pool),
-              cmd(std::exchange(o.cmd, VK_NULL_HANDLE)),
-              fence(std::move(o.fence)) {}
-        ~Unwaited() {
-            if (cmd != VK_NULL_HANDLE) {
-                vkFreeCommandBuffers(device, pool, 1, &cmd);
-            }
-        }
-    };
-    Unwaited u(device_, pool_.get());
-    VkCommandBufferAllocateInfo alloc{};
-    alloc.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
-    alloc.commandPool = pool_.get();
-    alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-    alloc.commandBufferCount = 1;
-    check(vkAllocateCommandBuffers(device_, &alloc, &u.cmd), "vkAllocateCommandBuffers", what);
-    VkCommandBufferBeginInfo begin{};
-    begin.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
-    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    check(vkBeginCommandBuffer(u.cmd, &begin), "vkBeginCommandBuffer", what);
-    record(u.cmd);
-    check(vkEndCommandBuffer(u.cmd), "vkEndCommandBuffer", what);
-    VkFenceCreateInfo fence_info{};
-    fence_info.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
-    VkFence fence = VK_NULL_HANDLE;
-    check(vkCreateFence(device_, &fence_info, nullptr, &fence), "vkCreateFence", what);
-    u.fence = Owned<VkFence>(device_, fence, vkDestroyFence);
+    OneShot u = record_one_shot(device_, pool_.get(), record, what);
     VkSubmitInfo info{};
     info.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
     info.commandBufferCount = 1;
     info.pCommandBuffers = &u.cmd;
-    submit(info, fence, what);
+    submit(info, u.fence.get(), what);
     const std::uint64_t serial = submitted_;
     retire(std::move(u));
     return serial;

@@ -192,6 +192,44 @@ struct Presenter::Impl {
     // that cannot be submitted, the slot gets a fresh fence (signalled) and semaphore, so that
     // the next frame neither waits forever nor acquires into a signalled semaphore.
     void abandon_frame(std::uint32_t index) noexcept;
+    // Submits the current slot's `cmd` on its fence: it waits (at transfers) for the slot's
+    // acquired image and signals image `index`'s render-finished semaphore. The fence is reset
+    // last: a failure before the submission leaves it signalled (abandon_frame handles one of
+    // the submission itself).
+    void submit_to_present(VkCommandBuffer cmd, std::uint32_t index, const std::string& what) {
+        Slot& slot = slots[current];
+        const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
+        VkSubmitInfo s{};
+        s.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+        s.waitSemaphoreCount = 1;
+        s.pWaitSemaphores = &slot.acquired;
+        s.pWaitDstStageMask = &wait_stage;
+        s.commandBufferCount = 1;
+        s.pCommandBuffers = &cmd;
+        s.signalSemaphoreCount = 1;
+        s.pSignalSemaphores = &rendered[index];
+        check(vkResetFences(device, 1, &slot.fence), "vkResetFences", what);
+        submit(s, slot.fence, what);
+    }
+    // Moves on to the next slot and queues the present of image `index` (after its
+    // render-finished semaphore), noting what the old swapchains' release waits for.
+    VkResult present(std::uint32_t index) {
+        if (release_slot == current) {
+            release_submitted = true;
+        }
+        if (!first_present) {
+            first_present = index;
+        }
+        current = (current + 1) % kFramesInFlight;
+        VkPresentInfoKHR p{};
+        p.sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR;
+        p.waitSemaphoreCount = 1;
+        p.pWaitSemaphores = &rendered[index];
+        p.swapchainCount = 1;
+        p.pSwapchains = &swapchain;
+        p.pImageIndices = &index;
+        return vkQueuePresentKHR(queue, &p);
+    }
     // Replaces the current slot's fence (signalled) and acquire semaphore (unsignalled).
     void renew_slot_sync() noexcept;
 
@@ -491,27 +529,13 @@ Presenter::Presenter(const PresenterOptions& options) : impl_(std::make_unique<I
     q.queueFamilyIndex = m.family;
     q.queueCount = 1;
     q.pQueuePriorities = &priority;
+    // Importing frames the ray marcher's device exported (same GPU, no host round trip).
     std::vector<const char*> dev_ext = {VK_KHR_SWAPCHAIN_EXTENSION_NAME};
-    {
-        // Importing frames the ray marcher's device exported (same GPU, no host round trip).
-        std::uint32_t en = 0;
-        vkEnumerateDeviceExtensionProperties(m.physical, nullptr, &en, nullptr);
-        std::vector<VkExtensionProperties> available(en);
-        vkEnumerateDeviceExtensionProperties(m.physical, nullptr, &en, available.data());
-        for (const VkExtensionProperties& e : available) {
-            if (std::strcmp(e.extensionName, VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME) == 0) {
-                m.external_memory_fd = true;
-                dev_ext.push_back(VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME);
-            }
-        }
-        VkPhysicalDeviceIDProperties id{};
-        id.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ID_PROPERTIES;
-        VkPhysicalDeviceProperties2 p2{};
-        p2.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2;
-        p2.pNext = &id;
-        vkGetPhysicalDeviceProperties2(m.physical, &p2);
-        std::memcpy(m.uuid.data(), id.deviceUUID, VK_UUID_SIZE);
+    if (choice.info.has_extension(VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME)) {
+        m.external_memory_fd = true;
+        dev_ext.push_back(VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME);
     }
+    m.uuid = choice.info.uuid;
     VkDeviceCreateInfo di{};
     di.sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO;
     di.queueCreateInfoCount = 1;
@@ -760,21 +784,7 @@ bool Presenter::Impl::submit_frame(const Source& src, std::uint32_t w, std::uint
         m.abandon_frame(index);
         throw;
     }
-    if (m.release_slot == m.current) {
-        m.release_submitted = true;
-    }
-    if (!m.first_present) {
-        m.first_present = index;
-    }
-    m.current = (m.current + 1) % kFramesInFlight;
-    VkPresentInfoKHR p{};
-    p.sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR;
-    p.waitSemaphoreCount = 1;
-    p.pWaitSemaphores = &m.rendered[index];
-    p.swapchainCount = 1;
-    p.pSwapchains = &m.swapchain;
-    p.pImageIndices = &index;
-    const VkResult r = vkQueuePresentKHR(m.queue, &p);
+    const VkResult r = m.present(index);
     if (r == VK_ERROR_OUT_OF_DATE_KHR || r == VK_SUBOPTIMAL_KHR) {
         m.create_swapchain(fb_width, fb_height);
         return true;
@@ -866,20 +876,7 @@ void Presenter::Impl::record_and_submit(const Source& src, std::uint32_t w, std:
     }
     check(vkEndCommandBuffer(cmd), "vkEndCommandBuffer");
 
-    const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
-    VkSubmitInfo s{};
-    s.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
-    s.waitSemaphoreCount = 1;
-    s.pWaitSemaphores = &slot.acquired;
-    s.pWaitDstStageMask = &wait_stage;
-    s.commandBufferCount = 1;
-    s.pCommandBuffers = &cmd;
-    s.signalSemaphoreCount = 1;
-    s.pSignalSemaphores = &m.rendered[index];
-    // Reset last: a failure before the submission leaves the fence signalled (abandon_frame
-    // handles one of the submission itself).
-    check(vkResetFences(m.device, 1, &slot.fence), "vkResetFences");
-    m.submit(s, slot.fence, "present");
+    m.submit_to_present(cmd, index, "present");
 }
 
 void Presenter::Impl::abandon_frame(std::uint32_t index) noexcept {
@@ -915,38 +912,13 @@ void Presenter::Impl::abandon_frame(std::uint32_t index) noexcept {
                              VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, 0, 0, nullptr, 0, nullptr, 1,
                              &to_present);
         check(vkEndCommandBuffer(cmd), "vkEndCommandBuffer", "abandoned frame");
-        const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
-        VkSubmitInfo s{};
-        s.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
-        s.waitSemaphoreCount = 1;
-        s.pWaitSemaphores = &slot.acquired;
-        s.pWaitDstStageMask = &wait_stage;
-        s.commandBufferCount = 1;
-        s.pCommandBuffers = &cmd;
-        s.signalSemaphoreCount = 1;
-        s.pSignalSemaphores = &m.rendered[index];
-        check(vkResetFences(m.device, 1, &slot.fence), "vkResetFences", "abandoned frame");
-        m.submit(s, slot.fence, "abandoned frame");
+        m.submit_to_present(cmd, index, "abandoned frame");
     } catch (const std::exception&) {
         m.renew_slot_sync();
         return;  // the image stays acquired: nothing can return it without a submission
     }
-    if (m.release_slot == m.current) {
-        m.release_submitted = true;
-    }
-    if (!m.first_present) {
-        m.first_present = index;
-    }
-    m.current = (m.current + 1) % kFramesInFlight;
-    VkPresentInfoKHR p{};
-    p.sType = VK_STRUCTURE_TYPE_PRESENT_INFO_KHR;
-    p.waitSemaphoreCount = 1;
-    p.pWaitSemaphores = &m.rendered[index];
-    p.swapchainCount = 1;
-    p.pSwapchains = &m.swapchain;
-    p.pImageIndices = &index;
     // Out of date or lost: the next begin_frame finds out again and recreates or throws.
-    vkQueuePresentKHR(m.queue, &p);
+    m.present(index);
 }
 
 void Presenter::Impl::renew_slot_sync() noexcept {

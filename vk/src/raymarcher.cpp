@@ -96,6 +96,56 @@ void to4(float out[4], const Vec3& v) {
     out[3] = 0;
 }
 
+// The voxels in the boxes of an in-place update (`what`) of a field of `d`; a box that leaves
+// the field is bad input.
+std::uint64_t update_voxels(std::span<const Box> boxes, const Dims& d, const std::string& what) {
+    const Box world{{0, 0, 0}, {d.x, d.y, d.z}};
+    std::uint64_t voxels = 0;
+    for (const Box& b : boxes) {
+        if (!b.empty() && intersect(b, world) != b) {
+            throw InputError(what + ": a box leaves the field of " + d.to_string());
+        }
+        voxels += b.empty() ? 0 : static_cast<std::uint64_t>(b.volume());
+    }
+    return voxels;
+}
+
+// Calls row(slab, at, length) for each x row of the boxes, in order (the order in which their
+// values are staged): `at` is the row's first voxel's index in its slab of `l`.
+template <class Row>
+void for_each_row(std::span<const Box> boxes, const FieldLayout& l, Row&& row) {
+    const Dims d = l.dims;
+    const VkDeviceSize plane = VkDeviceSize{d.x} * d.y;
+    for (const Box& b : boxes) {
+        if (b.empty()) {
+            continue;
+        }
+        const auto length = static_cast<VkDeviceSize>(b.max.x - b.min.x);
+        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
+            const auto slab = static_cast<std::uint32_t>(z / l.slab_depth);
+            const auto local = static_cast<VkDeviceSize>(z - std::int64_t{slab} * l.slab_depth);
+            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
+                row(slab,
+                    local * plane + static_cast<VkDeviceSize>(y) * d.x +
+                        static_cast<VkDeviceSize>(b.min.x),
+                    length);
+            }
+        }
+    }
+}
+
+// Appends the copy of `size` bytes from src to dst to `out`, merged into its last region where
+// it continues it.
+void append_copy(std::vector<VkBufferCopy>& out, VkDeviceSize src, VkDeviceSize dst,
+                 VkDeviceSize size) {
+    if (!out.empty() && out.back().srcOffset + out.back().size == src &&
+        out.back().dstOffset + out.back().size == dst) {
+        out.back().size += size;
+    } else {
+        out.push_back(VkBufferCopy{src, dst, size});
+    }
+}
+
 }  // namespace
 
 CameraBasis camera_basis(const Camera& camera, std::uint32_t width, std::uint32_t height) {
@@ -616,15 +666,7 @@ void Raymarcher::update_compact(std::span<const Box> boxes, std::span<const std:
         throw std::logic_error("Raymarcher::update_compact: the field is not a copied compact one");
     }
     const FieldLayout& l = m.layout;
-    const Dims d = l.dims;
-    const Box world{{0, 0, 0}, {d.x, d.y, d.z}};
-    std::uint64_t voxels = 0;
-    for (const Box& b : boxes) {
-        if (!b.empty() && intersect(b, world) != b) {
-            throw InputError("compact field update: a box leaves the field of " + d.to_string());
-        }
-        voxels += b.empty() ? 0 : static_cast<std::uint64_t>(b.volume());
-    }
+    const std::uint64_t voxels = update_voxels(boxes, l.dims, "compact field update");
     if (values.size() != voxels) {
         throw InputError("compact field update: " + std::to_string(values.size()) + " values for " +
                          std::to_string(voxels) + " voxels in the boxes");
@@ -638,30 +680,11 @@ void Raymarcher::update_compact(std::span<const Box> boxes, std::span<const std:
     for (std::uint32_t s = 0; s < l.slabs; ++s) {
         regions[s].first = m.field[s].get();
     }
-    const VkDeviceSize plane = VkDeviceSize{d.x} * d.y;
     VkDeviceSize src = 0;
-    for (const Box& b : boxes) {
-        if (b.empty()) {
-            continue;
-        }
-        const VkDeviceSize row = 2 * static_cast<VkDeviceSize>(b.max.x - b.min.x);
-        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
-            const auto slab = static_cast<std::uint32_t>(z / l.slab_depth);
-            const auto local = static_cast<VkDeviceSize>(z - std::int64_t{slab} * l.slab_depth);
-            std::vector<VkBufferCopy>& out = regions[slab].second;
-            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
-                const VkDeviceSize dst = 2 * (local * plane + static_cast<VkDeviceSize>(y) * d.x +
-                                              static_cast<VkDeviceSize>(b.min.x));
-                if (!out.empty() && out.back().srcOffset + out.back().size == src &&
-                    out.back().dstOffset + out.back().size == dst) {
-                    out.back().size += row;
-                } else {
-                    out.push_back(VkBufferCopy{src, dst, row});
-                }
-                src += row;
-            }
-        }
-    }
+    for_each_row(boxes, l, [&](std::uint32_t slab, VkDeviceSize at, VkDeviceSize length) {
+        append_copy(regions[slab].second, src, 2 * at, 2 * length);
+        src += 2 * length;
+    });
     m.copy_in_place(values.data(), 2 * voxels, regions, "compact field update");
     m.copied += 2 * voxels;
 }
@@ -674,15 +697,7 @@ void Raymarcher::update_packed32(std::span<const Box> boxes,
         throw std::logic_error("Raymarcher::update_packed32: the field is not a packed32 one");
     }
     const FieldLayout& l = m.layout;
-    const Dims d = l.dims;
-    const Box world{{0, 0, 0}, {d.x, d.y, d.z}};
-    std::uint64_t voxels = 0;
-    for (const Box& b : boxes) {
-        if (!b.empty() && intersect(b, world) != b) {
-            throw InputError("packed32 field update: a box leaves the field of " + d.to_string());
-        }
-        voxels += b.empty() ? 0 : static_cast<std::uint64_t>(b.volume());
-    }
+    const std::uint64_t voxels = update_voxels(boxes, l.dims, "packed32 field update");
     if (packed32.size() != voxels || materials.size() != voxels) {
         throw InputError("packed32 field update: " + std::to_string(packed32.size()) +
                          " values and " + std::to_string(materials.size()) + " materials for " +
@@ -703,34 +718,12 @@ void Raymarcher::update_packed32(std::span<const Box> boxes,
     for (std::uint32_t s = 0; s < l.slabs; ++s) {
         regions.push_back({m.material[s].get(), {}});
     }
-    const VkDeviceSize plane = VkDeviceSize{d.x} * d.y;
     VkDeviceSize n = 0;  // voxels staged so far
-    for (const Box& b : boxes) {
-        if (b.empty()) {
-            continue;
-        }
-        const auto row = static_cast<VkDeviceSize>(b.max.x - b.min.x);
-        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
-            const auto slab = static_cast<std::uint32_t>(z / l.slab_depth);
-            const auto local = static_cast<VkDeviceSize>(z - std::int64_t{slab} * l.slab_depth);
-            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
-                const VkDeviceSize at = local * plane + static_cast<VkDeviceSize>(y) * d.x +
-                                        static_cast<VkDeviceSize>(b.min.x);
-                for (const bool words : {true, false}) {
-                    std::vector<VkBufferCopy>& out = regions[words ? slab : l.slabs + slab].second;
-                    const VkDeviceSize unit = words ? 4 : 1;
-                    const VkDeviceSize src = words ? 4 * n : 4 * voxels + n;
-                    if (!out.empty() && out.back().srcOffset + out.back().size == src &&
-                        out.back().dstOffset + out.back().size == unit * at) {
-                        out.back().size += unit * row;
-                    } else {
-                        out.push_back(VkBufferCopy{src, unit * at, unit * row});
-                    }
-                }
-                n += row;
-            }
-        }
-    }
+    for_each_row(boxes, l, [&](std::uint32_t slab, VkDeviceSize at, VkDeviceSize length) {
+        append_copy(regions[slab].second, 4 * n, 4 * at, 4 * length);
+        append_copy(regions[l.slabs + slab].second, 4 * voxels + n, at, length);
+        n += length;
+    });
     m.copy_in_place(staged.data(), staged.size(), regions, "packed32 field update");
     m.copied += staged.size();
 }
@@ -1232,12 +1225,7 @@ void Raymarcher::update_block_min(std::span<const Box> blocks,
         for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
             for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
                 const auto first = static_cast<VkDeviceSize>((z * g.y + y) * g.x + b.min.x);
-                if (!rows.empty() && rows.back().srcOffset + rows.back().size == src &&
-                    rows.back().dstOffset + rows.back().size == 4 * first) {
-                    rows.back().size += row;
-                } else {
-                    rows.push_back(VkBufferCopy{src, 4 * first, row});
-                }
+                append_copy(rows, src, 4 * first, row);
                 src += row;
             }
         }

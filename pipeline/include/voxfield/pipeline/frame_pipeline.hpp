@@ -26,7 +26,8 @@ namespace voxfield::pipeline {
 
 struct PipelineOptions {
     // What the ray marcher reads: the compact field (16 bits per voxel, written by OpenCL in
-    // place on paths 1/2) or packed32 (the field read back and uploaded, path 3).
+    // place on paths 1/2) or packed32 (the field read back and uploaded, path 3; after a change
+    // only its boxes: update_packed32).
     vk::FieldFormat render_format = vk::FieldFormat::compact;
     // The fastest sharing path the render field may take (tests force the slower ones).
     vk::SharingPath fastest_path = vk::SharingPath::opaque_fd;
@@ -96,7 +97,8 @@ class FramePipeline {
     Dims dims() const { return dims_; }
     Scene& scene();
     const Palette& palette() const { return palette_; }
-    const ocl::GeneratorOptions& options() const { return options_; }
+    // The scene's options (default ones before the first successful rebuild()).
+    const ocl::GeneratorOptions& options() const;
     // The field in options().format, as `generate` writes it.
     std::vector<std::uint8_t> read_field();
     vk::Raymarcher& marcher() { return *marcher_; }
@@ -113,16 +115,14 @@ class FramePipeline {
   private:
     UpdateTimings finish(SceneUpdate u, std::vector<EditResult>* edits);
     double publish(std::vector<Box> regions);
-    // Shows `scene`'s field (built for options) in the ray marcher; returns the OpenCL time.
-    double show(Scene& scene, const ocl::GeneratorOptions& options);
+    // Shows `scene`'s field in the ray marcher; returns the OpenCL time.
+    double show(Scene& scene);
     // The scene, shown: throws std::logic_error before the first successful rebuild().
     Scene& current();
 
     ocl::Context& cl_;
     Palette palette_;
     Dims dims_;
-    PipelineOptions pipeline_options_;
-    ocl::GeneratorOptions options_;
     std::unique_ptr<Scene> scene_;
     bool shown_ = false;  // scene_'s field is the one the render field converts
     int failing_shows_ = 0;
