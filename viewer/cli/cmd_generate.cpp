@@ -77,7 +77,7 @@ int run_generate(const GenerateOptions& o) {
                   {{"INPUT", o.input}});
     if (o.sparse || needs_sparse(o.input)) {
         return run_generate_sparse({o.generator, o.input, o.output, o.device, o.format, o.json,
-                                    !o.indices.empty(), o.stats, o.repeat, o.warmup});
+                                    o.grid, !o.indices.empty(), o.stats, o.repeat, o.warmup});
     }
     const Format format = field_format(o.generator, o.format);
     Phases phases;
