@@ -1141,6 +1141,26 @@ TEST_F(CliTest, BenchHelp) {
     }
 }
 
+// DESIGN §4: every command that reads a world reads .npy (any integer or bool labels), .vox
+// scenes, .vdb and .sdf.json, and its help says so.
+TEST_F(CliTest, EveryInputHelpNamesEveryInputKind) {
+    for (const char* command : {"generate", "info", "render", "view", "replay", "simulate"}) {
+        const RunResult r = run({command, "--help"});
+        ASSERT_EQ(r.code, 0) << describe(r);
+        for (const char* word : {".vox", ".npy", "any integer or bool", ".vdb", ".sdf.json"}) {
+            EXPECT_NE(r.out.find(word), std::string::npos) << command << ": " << word;
+        }
+    }
+    const RunResult g = run({"generate", "--help"});
+    for (const char* word : {"--sparse", "--grid", "--max-distance", "--signed", "--indices"}) {
+        EXPECT_NE(g.out.find(word), std::string::npos) << word << "\n" << g.out;
+    }
+    const RunResult b = run({"bench", "--help"});
+    for (const char* word : {"--suite", "implicit", "city", "$VOXFIELD_DEVICE"}) {
+        EXPECT_NE(b.out.find(word), std::string::npos) << word << "\n" << b.out;
+    }
+}
+
 TEST_F(CliTest, NoSubcommandIsUsageError) {
     const RunResult r = run({});
     EXPECT_EQ(r.code, 2) << describe(r);

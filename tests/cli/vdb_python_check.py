@@ -55,6 +55,8 @@ with tempfile.TemporaryDirectory() as tmp:
     print(f"euclidean signed f32, spacing 0.5, D 2.5: {n} active voxels equal")
     n = check_field(tmp, ["--metric", "chebyshev"], 16.0, False, 1.0)
     print(f"chebyshev, default bound 16: {n} active voxels equal")
+    n = check_field(tmp, ["--sparse", "--max-distance", "6"], 6.0, False, 1.0)
+    print(f"--sparse, D 6: {n} active voxels equal")
 
     # The file read back as input: its first grid is the material, i.e. the world's solids.
     info = json.loads(run("info", os.path.join(tmp, "f.vdb"), "--json").stdout)
@@ -71,6 +73,7 @@ with tempfile.TemporaryDirectory() as tmp:
     for args in (["generate", MODEL, "-o", out, "--metric", "euclidean", "--spacing", "1,2,1"],
                  ["generate", bad, "-o", out],
                  ["generate", os.path.join(tmp, "f.vdb"), "--grid", "nope", "-o", out],
+                 ["generate", os.path.join(tmp, "f.vdb"), "--grid", "nope", "--sparse", "-o", out],
                  ["info", bad]):
         r = run(*args)
         assert r.returncode == 2, (args, r.returncode, r.stderr)

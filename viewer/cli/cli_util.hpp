@@ -31,6 +31,15 @@ Command add_render(CLI::App& root);
 Command add_view(CLI::App& root);
 Command add_info(CLI::App& root);
 
+// --help of a world input: the files every command reads (DESIGN §4).
+inline constexpr const char* kWorldInputHelp =
+    "World: MagicaVoxel .vox (scene graph), .npy label volume (Z,Y,X) of any integer or bool "
+    "type (nonzero = solid), OpenVDB .vdb or implicit surface .sdf.json";
+// --help of --device where the command runs OpenCL only (DESIGN §4).
+inline constexpr const char* kDeviceHelp =
+    "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, else the first "
+    "GPU, else the first CPU)";
+
 // Options shared by the subcommands that run generators (--algorithm, --chunk, --focus,
 // --jfa-extra, --metric, --spacing, --signed), as typed, and their registration.
 struct GeneratorFlags {

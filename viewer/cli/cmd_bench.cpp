@@ -232,14 +232,14 @@ Command add_bench(CLI::App& root) {
                     "Chunk size for the dissertation's algorithms (chunk-local semantics); "
                     "exact stays global")
         ->check(CLI::Range(1u, 1u << 20));
-    app->add_option("--device", o->device, "cpu, gpu or an index from `voxfield devices`");
+    app->add_option("--device", o->device, kDeviceHelp);
     app->add_option("--repeat", o->repeat, "Timed runs per size")
         ->check(positive())
         ->capture_default_str();
     app->add_option("--warmup", o->warmup, "Untimed runs before the timed ones")
         ->capture_default_str();
     app->add_option("--scene", o->scene,
-                    "World generator: empty, spheres, terrain, menger, random, sand")
+                    "World generator: empty, spheres, terrain, menger, random, sand, city")
         ->check(CLI::IsMember(scene_names()))
         ->capture_default_str();
     app->add_option("--seed", o->seed, "Scene seed")->capture_default_str();

@@ -77,7 +77,7 @@ int run_generate(const GenerateOptions& o) {
                   {{"INPUT", o.input}});
     if (o.sparse || needs_sparse(o.input)) {
         return run_generate_sparse({o.generator, o.input, o.output, o.device, o.format, o.json,
-                                    !o.indices.empty(), o.stats, o.repeat, o.warmup});
+                                    o.grid, !o.indices.empty(), o.stats, o.repeat, o.warmup});
     }
     const Format format = field_format(o.generator, o.format);
     Phases phases;
@@ -325,10 +325,7 @@ Command add_generate(CLI::App& root) {
     auto o = std::make_shared<GenerateOptions>();
     auto* app = root.add_subcommand(
         "generate", "Generate the distance field of a world into a .npy or .vdb file");
-    app->add_option("INPUT", o->input,
-                    "World: MagicaVoxel .vox (scene graph), uint8/16/32 .npy (Z,Y,X), OpenVDB "
-                    ".vdb or .sdf.json")
-        ->required();
+    app->add_option("INPUT", o->input, kWorldInputHelp)->required();
     app->add_option("--grid", o->grid, ".vdb input: the grid to read (default: the first grid)");
     app->add_option("-o,--output", o->output,
                     "Output .npy of shape (Z,Y,X), or .vdb: OpenVDB grids 'material' and "
@@ -341,9 +338,7 @@ Command add_generate(CLI::App& root) {
                     "Also write the feature transform: int32 .npy of shape (3,Z,Y,X) holding the "
                     "(z,y,x) of a nearest solid voxel of every voxel (-1 without solids; "
                     "unsigned fields, --algorithm exact)");
-    app->add_option("--device", o->device,
-                    "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, "
-                    "else the first GPU, else the first CPU)");
+    app->add_option("--device", o->device, kDeviceHelp);
     add_format_option(*app, o->format);
     app->add_flag("--sparse", o->sparse,
                   "Store the world as a tile grid of 64-trees and compute the exact bounded "

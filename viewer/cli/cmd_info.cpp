@@ -114,7 +114,7 @@ Command add_info(CLI::App& root) {
         "info",
         "Describe a world: dims, solid voxels, 64^3 tiles holding a solid voxel, models and "
         "instances of a .vox scene, and the memory a dense and a sparse field would take");
-    app->add_option("INPUT", o->input, "World: .vox (scene graph), .npy or .vdb")->required();
+    app->add_option("INPUT", o->input, kWorldInputHelp)->required();
     app->add_flag("--json", o->json, "Print the description as JSON");
     app->add_option("--grid", o->grid, ".vdb input: the grid to read (default: the first grid)");
     app->add_option("--format", o->format,

@@ -199,10 +199,10 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
 
 Command add_render(CLI::App& root) {
     auto o = std::make_shared<RenderCliOptions>();
-    auto* app = root.add_subcommand(
-        "render", "Ray-march a .vox or .npy world through its distance field into a PNG image");
-    app->add_option("INPUT", o->input, "World: MagicaVoxel .vox or uint8/16/32 .npy (Z,Y,X)")
-        ->required();
+    auto* app = root.add_subcommand("render",
+                                    "Ray-march a world (.vox, .npy, .vdb or .sdf.json) through its "
+                                    "distance field into a PNG image");
+    app->add_option("INPUT", o->input, kWorldInputHelp)->required();
     app->add_option("-o,--output", o->output, "Output .png image (written atomically)")->required();
     app->add_option("--width", o->width, "Image width in pixels, 1..16384")->capture_default_str();
     app->add_option("--height", o->height, "Image height in pixels, 1..16384")

@@ -114,9 +114,8 @@ int run_replay(const ReplayOptions& o) {
     progress.set("setting up the field");
 
     // The world and its field, edited as every front end edits them (pipeline::Scene).
-    pipeline::Scene field(
-        ctx, model.world, model.palette, options,
-        o.max_margin == 0 ? ocl::IncrementalField::kNoMargin : o.max_margin);
+    pipeline::Scene field(ctx, model.world, model.palette, options,
+                          o.max_margin == 0 ? ocl::IncrementalField::kNoMargin : o.max_margin);
     // The first launch of each update kernel pays its build (PoCL compiles per kernel and
     // work-group shape): one untimed edit toggles voxel (0,0,0), a second restores it (the
     // updates are exact, so the field is as before), and update times measure updates.
@@ -306,16 +305,13 @@ Command add_replay(CLI::App& root) {
                     "Edit file: one edit per line, 'place|erase|paint sphere|cube X Y Z R "
                     "[MATERIAL]', # comments; the whole file is checked before any work")
         ->required();
-    app->add_option("--input", o->input, "World: MagicaVoxel .vox or uint8/16/32 .npy (Z,Y,X)")
-        ->required();
+    app->add_option("--input", o->input, kWorldInputHelp)->required();
     app->add_option("--world-output", o->world_output,
                     "Write the edited world to this uint8 .npy (Z,Y,X) at the end");
     app->add_option("-o,--output", o->output,
                     "Write the final distance field to this .npy (Z,Y,X) at the end");
     add_generator_flags(*app, o->generator);
-    app->add_option("--device", o->device,
-                    "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, "
-                    "else the first GPU, else the first CPU)");
+    app->add_option("--device", o->device, kDeviceHelp);
     add_format_option(*app, o->format);
     app->add_flag("--verify", o->verify,
                   "After every edit, compare the field byte for byte with a full regeneration of "

@@ -299,8 +299,7 @@ Command add_simulate(CLI::App& root) {
         "Falling sand and water: run a block cellular automaton on the world, keeping its "
         "distance field exact after every step by one incremental update of the voxels the "
         "step changed; optionally verify every step and record timings");
-    app->add_option("INPUT", o->input, "World: MagicaVoxel .vox or uint8/16/32 .npy (Z,Y,X)")
-        ->required();
+    app->add_option("INPUT", o->input, kWorldInputHelp)->required();
     app->add_option("--steps", o->steps, "Number of steps to run (>= 0)")->required();
     app->add_option("--sand-material", o->sand,
                     "Material (1..255) that falls as sand: down into air or water (swapping "
@@ -320,9 +319,7 @@ Command add_simulate(CLI::App& root) {
                     "Write the distance field after the last step to this .npy (Z,Y,X)");
     add_metric_flags(*app, o->generator);
     add_format_option(*app, o->format);
-    app->add_option("--device", o->device,
-                    "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, "
-                    "else the first GPU, else the first CPU)");
+    app->add_option("--device", o->device, kDeviceHelp);
     app->add_flag("--verify", o->verify,
                   "After every step, compare the field byte for byte with a full regeneration "
                   "of the current world (same options); exit 1 at the first difference, naming "

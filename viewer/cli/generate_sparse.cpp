@@ -6,13 +6,16 @@
 #include <chrono>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include "voxfield/cl/sparse_field.hpp"
 #include "voxfield/core/accuracy.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/npy.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/sparse.hpp"
 #include "voxfield/core/stats.hpp"
+#include "voxfield/core/vdb.hpp"
 #include "voxfield/core/vox.hpp"
 
 namespace voxfield::cli {
@@ -56,13 +59,14 @@ int run_generate_sparse(const SparseGenerateArgs& a) {
         require_dense_output(NpyReader(a.input).dims(), a.output);
     }
     const auto t_read = Clock::now();
-    VoxModel model =
-        load_world(a.input, InputOptions{.grid = {}, .palette_values = format == Format::packed32});
+    VoxModel model = load_world(a.input, InputOptions{a.grid, format == Format::packed32});
     const Dims dims = model.world.dims();
     require_dense_output(dims, a.output);
     ocl::GeneratorOptions flags_options = generator_options(a.flags, format, dims);
     flags_options.indices = a.indices;
     const ocl::GeneratorOptions options = ocl::resolve_sparse_options(flags_options, true);
+    const std::optional<VdbFieldSpec> vdb =
+        vdb_output_spec(a.output, options.spacing, options.max_distance, options.signed_field);
     const double read_ms = ms_since(t_read);
     const auto t_build = Clock::now();
     const SparseWorld world = SparseWorld::from_dense(model.world);
@@ -86,7 +90,13 @@ int run_generate_sparse(const SparseGenerateArgs& a) {
     const auto t_read_back = Clock::now();
     const std::vector<std::uint8_t> bytes = field.read_dense();
     const double read_back_ms = ms_since(t_read_back);
-    write_npy(a.output, npy_type(format), dims, bytes);
+    // The field and --json go into one batch: a failure leaves neither.
+    OutputBatch outputs;
+    if (vdb) {
+        write_vdb(outputs, a.output, dims, model.world.voxels(), bytes, format, *vdb);
+    } else {
+        write_npy(outputs, a.output, npy_type(format), dims, bytes);
+    }
 
     std::cout << "device:  " << ctx.info().name << " (" << ctx.info().platform << ", "
               << ctx.info().type << ")\n"
@@ -137,8 +147,9 @@ int run_generate_sparse(const SparseGenerateArgs& a) {
         j["under_fraction"] = acc.under_fraction;
     }
     if (!a.json.empty()) {
-        write_json_file(a.json, j);
+        outputs.write(a.json, j.dump(2) + "\n");
     }
+    outputs.commit();
     return 0;
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 // `voxfield generate --sparse` (and worlds over kSparseAutoVoxels voxels): the world as a tile
 // grid of 64-trees (core/sparse.hpp), its exact bounded field per tile (cl/sparse_field.hpp),
-// written as one dense .npy where it fits one array.
+// written as one dense .npy where it fits one array, or as .vdb grids.
 #include <cstdint>
 #include <string>
 
@@ -18,13 +18,14 @@ bool needs_sparse(const std::string& input);
 
 struct SparseGenerateArgs {
     GeneratorFlags flags;
-    std::string input, output, device, format, json;
+    std::string input, output, device, format, json, grid;
     bool indices = false, stats = false;
     std::uint32_t repeat = 1, warmup = 0;
 };
 
 // Prints the summary (and writes --json); InputError for what sparse worlds refuse
-// (--indices, other algorithms, a field too large for one .npy).
+// (--indices, other algorithms, a field too large for one .npy). The outputs' names were
+// checked by the caller (check_outputs).
 int run_generate_sparse(const SparseGenerateArgs& a);
 
 }  // namespace voxfield::cli

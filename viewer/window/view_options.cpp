@@ -14,7 +14,7 @@
 namespace voxfield::cli {
 
 void add_view_options(CLI::App& app, ViewCliOptions& o) {
-    app.add_option("INPUT", o.input, "World: MagicaVoxel .vox or uint8/16/32 .npy (Z,Y,X)");
+    app.add_option("INPUT", o.input, kWorldInputHelp);
     app.add_option("--world", o.world, "Generate a cube world of N^3 voxels (default 128)")
         ->check(CLI::Range(1u, 4096u));
     app.add_option("--dims", o.dims, "Generate a world of X,Y,Z voxels");
