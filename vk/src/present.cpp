@@ -126,7 +126,10 @@ struct Presenter::Impl {
 
     ~Impl() {
         if (device != VK_NULL_HANDLE) {
-            wait_idle();
+            // Teardown waits for the whole device: presents are not fenced, so the frames'
+            // fences (what wait_idle waits for on a shared Context) do not cover the
+            // semaphores a present still holds (VUID-vkDestroySemaphore-semaphore-01137).
+            vkDeviceWaitIdle(device);
             destroy_old_swapchains();
             destroy_swapchain();
             for (Slot& slot : slots) {
