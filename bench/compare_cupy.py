@@ -735,10 +735,11 @@ def main():
         for n in sizes:
             for world_name in args.world_list:
                 rows.extend(run_size(args, cp, cnd, n, f32_ok, small, tmp, world_name))
-            device = rows[-1]["voxfield_device"] or {}
-            common["device"] = device.get("name")  # the string bench/summarize.py prints
-            common["driver"] = device.get("driver")
-            write_all(args, common, rows, small)  # after every size: a later failure keeps these
+                device = rows[-1]["voxfield_device"] or {}
+                common["device"] = device.get("name")  # the string bench/summarize.py prints
+                common["driver"] = device.get("driver")
+                # After every world: a later failure or time limit keeps these.
+                write_all(args, common, rows, small)
 
     device_name = common.get("device")
     print(f"voxfield on: {device_name}; CuPy on: {gpu_name}"
