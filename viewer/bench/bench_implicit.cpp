@@ -7,12 +7,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <iostream>
-#include <sstream>
 #include <string>
 #include <vector>
 
-#include "cli_util.hpp"
 #include "voxfield/cl/implicit.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/sdf.hpp"
@@ -68,7 +65,7 @@ double process_cpu_ms() {
 }  // namespace
 
 json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup, double budget_s,
-                  bool quick) {
+                  bool quick, BenchObserver& observer) {
     const fs::path path = bracket_path();
     json rows = json::array();
     const std::vector<std::uint32_t> resolutions =
@@ -85,6 +82,11 @@ json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup,
             ocl::ImplicitGrid grid;
             const auto start = std::chrono::steady_clock::now();
             for (std::uint32_t i = 0; i < warmup + repeat; ++i) {
+                observer.progress("implicit " + std::to_string(resolution) + "^3 depth " +
+                                  std::to_string(depth) + ": " +
+                                  (i < warmup ? "warm-up " : "run ") +
+                                  std::to_string(i < warmup ? i + 1 : i + 1 - warmup) + "/" +
+                                  std::to_string(i < warmup ? warmup : repeat));
                 const double cpu0 = process_cpu_ms();
                 grid = job.run();
                 if (i >= warmup) {
@@ -102,11 +104,6 @@ json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup,
             const Summary k = summarize(kernel);
             const std::uint64_t solid = grid.solid_count();
             const double effective = double(part.dims.count());
-            std::cerr << "bench: implicit " << resolution << "^3 " << part.dims.to_string()
-                      << " depth " << depth << " (" << grid.tiles.to_string() << " tiles of "
-                      << edge << "^3): " << fixed(s.median, 2) << " ms, " << grid.leaves
-                      << " leaves, " << grid.crossed_count() << " crossed voxels, "
-                      << fixed(double(grid.bytes()) / 1048576.0, 1) << " MiB\n";
             rows.push_back({{"table", "implicit"},
                             {"group", std::to_string(resolution) + "^3"},
                             {"algorithm", "implicit depth " + std::to_string(depth)},
@@ -139,6 +136,7 @@ json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup,
                             {"bytes", grid.bytes()},
                             {"max_error", nullptr},
                             {"mean_error", nullptr}});
+            observer.row(rows.back());
         }
     }
     return rows;
