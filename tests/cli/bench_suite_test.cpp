@@ -3,7 +3,9 @@
 // asserted; only that every row is either timed (finite statistics) or skipped with a reason.
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <map>
 #include <set>
 #include <string>
@@ -175,6 +177,41 @@ TEST_F(BenchSuite, EditsQuickRecordsPerEditTimesAndFullRegeneration) {
     EXPECT_EQ(algorithms,
               (std::set<std::string>{"exact", "brute-chunked", "fim-host", "fim", "jfa-host", "jfa",
                                      "jfa-fim", "lod", "monolithic"}));
+}
+
+// A suite's progress is the progress line (progress.hpp, issue 29): on a terminal (script(1)
+// gives the command one) "\rbench: [i/n] ..." erased before every result line, so that each
+// table line starts a line of its own; with stderr a file, no '\r' at all, the log lines alone.
+TEST_F(BenchSuite, ProgressShowsOnATerminalOnly) {
+    if (!fs::exists("/usr/bin/script")) {
+        GTEST_SKIP() << "/usr/bin/script (bsdutils) is not installed";
+    }
+    const std::vector<std::string> args = {"bench",   "--suite", "edits",    "--world", "32",
+                                           "--edits", "6",       "--device", "cpu"};
+    const RunResult file = run(args);
+    ASSERT_EQ(file.code, 0) << describe(file);
+    EXPECT_EQ(file.err.find('\r'), std::string::npos) << file.err;
+    EXPECT_NE(file.err.find("bench: [1/12] edits exact: setting up\n"), std::string::npos)
+        << file.err;
+    std::string command = kExe.string();
+    for (const std::string& a : args) {
+        command += " " + a;
+    }
+    const fs::path log = io_ / "script.out";
+    const std::string shell =
+        "/usr/bin/script -qec '" + command + "' /dev/null > " + log.string() + " 2>&1";
+    ASSERT_EQ(std::system(shell.c_str()), 0) << read_text(log);
+    const std::string seen = read_text(log);
+    EXPECT_NE(seen.find("\rbench: ["), std::string::npos) << seen;
+    EXPECT_NE(seen.find("\r\033[K"), std::string::npos) << seen;
+    for (const char* row : {"exact          32x32x32", "monolithic     32x32x32"}) {
+        const std::size_t at = seen.find(row);
+        ASSERT_NE(at, std::string::npos) << row << " missing from:\n" << seen;
+        ASSERT_GT(at, 0u);
+        EXPECT_TRUE(seen[at - 1] == '\n' || seen[at - 1] == 'K')
+            << "the table line follows other text: "
+            << seen.substr(at - std::min<std::size_t>(at, 120), 160);
+    }
 }
 
 TEST_F(BenchSuite, RenderTimesFramesOnLavapipe) {
