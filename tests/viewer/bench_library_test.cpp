@@ -1,14 +1,16 @@
-// The benchmark harness as a library (viewer/bench, voxfield_bench): a suite run on PoCL returns
+// The benchmark harness as a library (viewer/bench, voxfield_bench): a run on PoCL returns
 // its rows with their keys and values in range, tells its observer what it does in order, and
 // writes nothing to stdout or stderr (the command line does the printing). Timings are never
 // asserted beyond being finite and positive.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "bench_grid.hpp"
 #include "bench_suites.hpp"
 #include "voxfield/core/error.hpp"
 
@@ -223,6 +225,63 @@ TEST_F(BenchLibrary, EditsRowsCarryTheirKeysAndExactRowsAreExact) {
     EXPECT_EQ(seen.events.front().rfind("stage suite edits", 0), 0u) << seen.events.front();
     EXPECT_EQ(seen.events.back().rfind("stage suite edits done in ", 0), 0u) << seen.events.back();
     EXPECT_FALSE(seen.progress_lines.empty());
+}
+
+// `bench --algorithms exact,brute --sizes 16,200`: exact timed and exact on both sizes, brute
+// timed at 16^3 and skipped (estimated far over a minute) at 200^3, in that order.
+TEST_F(BenchLibrary, GridRowsAreTimedOrSkippedWithTheirReason) {
+    cli::GridOptions o;
+    o.algorithms = {"exact", "brute"};
+    o.sizes = {Dims{16, 16, 16}, Dims{200, 200, 200}};
+    o.repeat = 2;
+    o.warmup = 1;
+    Recorder seen;
+    testing::internal::CaptureStdout();
+    testing::internal::CaptureStderr();
+    const json doc = cli::run_grid(*pocl(), o, seen);
+    EXPECT_EQ(testing::internal::GetCapturedStdout(), "");
+    EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+    for (const char* key : {"device", "commit", "date", "results"}) {
+        EXPECT_TRUE(doc.contains(key)) << key;
+    }
+    const json& rows = doc["results"];
+    ASSERT_EQ(rows.size(), 4u);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        const json& r = rows[i];
+        const std::string where = r.dump().substr(0, 300);
+        EXPECT_EQ(r["algorithm"], i < 2 ? "exact" : "brute") << where;
+        EXPECT_EQ(r["size"][0], i % 2 == 0 ? 16 : 200) << where;
+        EXPECT_TRUE(r["chunk"].is_null()) << where;
+        if (i == 3) {
+            ASSERT_TRUE(r.contains("skipped")) << where;
+            EXPECT_NE(r["skipped"].get<std::string>().find("brute on 200x200x200"),
+                      std::string::npos)
+                << where;
+            continue;
+        }
+        ASSERT_FALSE(r.contains("skipped")) << where;
+        EXPECT_EQ(r["samples_ms"].size(), 2u) << where;
+        for (const char* key : {"median_ms", "mean_ms", "min_ms", "max_ms", "gvox_per_s"}) {
+            EXPECT_TRUE(positive(r[key])) << where << " " << key << " = " << r[key];
+        }
+        EXPECT_LE(r["min_ms"].get<double>(), r["median_ms"].get<double>()) << where;
+        EXPECT_LE(r["median_ms"].get<double>(), r["max_ms"].get<double>()) << where;
+        EXPECT_EQ(r["max_error"], 0) << where;  // both algorithms are exact
+        EXPECT_EQ(r["mean_error"], 0.0) << where;
+        EXPECT_EQ(r["metric"], "manhattan") << where;
+        EXPECT_EQ(r["format"], "u16") << where;
+        EXPECT_FALSE(r["stages"].empty()) << where;
+    }
+    ASSERT_EQ(seen.rows.size(), 4u);
+    EXPECT_EQ(seen.rows[3], rows[3]);
+    EXPECT_EQ(seen.events.front(), "stage exact 16x16x16: building scene 'spheres'");
+    EXPECT_NE(
+        std::find(seen.events.begin(), seen.events.end(),
+                  "stage brute 200x200x200: skipped: " + rows[3]["skipped"].get<std::string>()),
+        seen.events.end());
+    EXPECT_NE(std::find(seen.progress_lines.begin(), seen.progress_lines.end(),
+                        "exact 16x16x16: run 2/2"),
+              seen.progress_lines.end());
 }
 
 TEST_F(BenchLibrary, RefusedOptionsThrowBeforeAnyRow) {

@@ -39,6 +39,31 @@ __attribute__((format(printf, 1, 2))) std::string format_line(const char* format
     return std::string(buffer.data(), static_cast<std::size_t>(n));
 }
 
+// `bench --algorithms ... --sizes ...`: a row, and before it on stderr its kernels' medians.
+std::string grid_line(const json& r) {
+    const std::string algorithm = r["algorithm"], size = size_text(r["size"]);
+    if (r.contains("skipped")) {
+        return format_line("%-14s %-14s skipped: %s\n", algorithm.c_str(), size.c_str(),
+                           r["skipped"].get<std::string>().c_str());
+    }
+    return format_line("%-14s %-14s %-6s %-8s %10.3f %10.3f %10.3f %10s %6u %9u\n",
+                       algorithm.c_str(), size.c_str(), chunk_text(r).c_str(),
+                       r["format"].get<std::string>().c_str(), r["median_ms"].get<double>(),
+                       r["mean_ms"].get<double>(), r["std_ms"].get<double>(),
+                       rate(r["gvox_per_s"].get<double>()).c_str(),
+                       r["iterations"].get<std::uint32_t>(), r["max_error"].get<std::uint32_t>());
+}
+
+std::string grid_kernels_line(const json& r) {
+    std::string text = "bench: " + r["algorithm"].get<std::string>() + " " + size_text(r["size"]) +
+                       ": median per kernel:";
+    for (const json& stage : r["stages"]) {
+        text += " " + stage["kernel"].get<std::string>() + " " +
+                std::to_string(stage["median_ms"].get<double>()) + " ms";
+    }
+    return text + "\n";
+}
+
 std::string dissertation_line(const json& r) {
     const std::string table = r["table"], algorithm = r["algorithm"];
     const std::string size = size_text(r["size"]), chunk = chunk_text(r);
@@ -106,14 +131,18 @@ std::string implicit_line(const json& r) {
 
 }  // namespace
 
-SuitePrinter::SuitePrinter(const std::string& suite) : suite_(suite), progress_("bench") {}
+BenchPrinter::BenchPrinter(const std::string& suite) : suite_(suite), progress_("bench") {}
 
-void SuitePrinter::header() {
+void BenchPrinter::header() {
     if (header_done_) {
         return;
     }
     header_done_ = true;
-    if (suite_ == "dissertation") {
+    if (suite_.empty()) {
+        progress_.print(stdout, format_line("%-14s %-14s %-6s %-8s %10s %10s %10s %10s %6s %9s\n",
+                                            "algorithm", "size", "chunk", "format", "median ms",
+                                            "mean ms", "std ms", "Gvox/s", "iters", "max err"));
+    } else if (suite_ == "dissertation") {
         progress_.print(stdout, format_line("%-11s %-14s %-14s %-6s %-8s %12s %12s %6s %7s %9s\n",
                                             "table", "algorithm", "size", "chunk", "format",
                                             "median ms", "std ms", "iters", "max err", "mean err"));
@@ -124,25 +153,30 @@ void SuitePrinter::header() {
     }
 }
 
-void SuitePrinter::stage(const std::string& text) {
+void BenchPrinter::stage(const std::string& text) {
     progress_.print(stderr, "bench: " + text + "\n");
     header();
 }
 
-void SuitePrinter::progress(const std::string& what) {
+void BenchPrinter::progress(const std::string& what) {
     progress_.set(what);
 }
 
-void SuitePrinter::measured(const json& measurement) {
+void BenchPrinter::measured(const json& measurement) {
     header();
     if (suite_ == "render") {
         progress_.print(stdout, render_line(measurement));
     }
 }
 
-void SuitePrinter::row(const json& row) {
+void BenchPrinter::row(const json& row) {
     header();
-    if (suite_ == "dissertation") {
+    if (suite_.empty()) {
+        if (!row.contains("skipped")) {
+            progress_.print(stderr, grid_kernels_line(row));
+        }
+        progress_.print(stdout, grid_line(row));
+    } else if (suite_ == "dissertation") {
         progress_.print(stdout, dissertation_line(row));
     } else if (suite_ == "edits") {
         // A skipped row is in the log already (stage).
@@ -197,6 +231,29 @@ std::string suite_csv(const json& rows) {
             << num(r, "max_error") << ',' << num(r, "mean_error") << ',' << num(r, "over_fraction")
             << ',' << num(r, "under_fraction") << ',' << num(r, "full_regeneration_ms") << ','
             << (r.contains("skipped") ? quoted(r["skipped"].get<std::string>()) : "") << '\n';
+    }
+    return csv.str();
+}
+
+std::string grid_csv(const json& rows) {
+    std::ostringstream csv;
+    csv << "algorithm,x,y,z,chunk,format,scene,repeat,median_ms,mean_ms,std_ms,ci95_lo_ms,ci95_hi_"
+           "ms,min_ms,max_ms,gvox_per_s,max_error,mean_error\n";
+    for (const json& r : rows) {
+        if (r.contains("skipped")) {
+            continue;
+        }
+        const json& size = r["size"];
+        csv << r["algorithm"].get<std::string>() << ',' << size[0].get<std::uint32_t>() << ','
+            << size[1].get<std::uint32_t>() << ',' << size[2].get<std::uint32_t>() << ','
+            << (r["chunk"].is_null() ? 0u : r["chunk"].get<std::uint32_t>()) << ','
+            << r["format"].get<std::string>() << ',' << r["scene"].get<std::string>() << ','
+            << r["repeat"].get<std::uint32_t>() << ',' << r["median_ms"].get<double>() << ','
+            << r["mean_ms"].get<double>() << ',' << r["std_ms"].get<double>() << ','
+            << r["ci95_ms"][0].get<double>() << ',' << r["ci95_ms"][1].get<double>() << ','
+            << r["min_ms"].get<double>() << ',' << r["max_ms"].get<double>() << ','
+            << r["gvox_per_s"].get<double>() << ',' << r["max_error"].get<std::uint32_t>() << ','
+            << r["mean_error"].get<double>() << '\n';
     }
     return csv.str();
 }

@@ -1,8 +1,8 @@
 #pragma once
-// How `voxfield bench --suite NAME` shows a run of the harness (bench/bench_suites.hpp): the
+// How `voxfield bench` shows a run of the harness (bench/bench_suites.hpp, bench_grid.hpp): the
 // harness's log as "bench: ..." lines on stderr, what it is doing now on the progress line
 // (progress.hpp: on a terminal only), each finished row as a table line on stdout (the
-// implicit suite's on stderr), and the suite's rows as CSV.
+// implicit suite's on stderr), and the rows as CSV.
 #include <nlohmann/json.hpp>
 
 #include <string>
@@ -12,11 +12,12 @@
 
 namespace voxfield::cli {
 
-class SuitePrinter final : public BenchObserver {
+class BenchPrinter final : public BenchObserver {
   public:
-    // Starts the progress line; the table's header line (dissertation, edits) follows the
-    // suite's first log line, so that a suite refusing its options prints no table.
-    explicit SuitePrinter(const std::string& suite);
+    // `suite`: the --suite name, or "" for the grid of --algorithms x --sizes. Starts the
+    // progress line; the table's header line (the grid, dissertation, edits) follows the run's
+    // first log line, so that a suite refusing its options prints no table.
+    explicit BenchPrinter(const std::string& suite);
 
     void stage(const std::string& text) override;
     void progress(const std::string& what) override;
@@ -36,5 +37,7 @@ class SuitePrinter final : public BenchObserver {
 // The suite rows as CSV: one header line and one line per row (a skipped row with its
 // reason, empty cells for what it lacks).
 std::string suite_csv(const nlohmann::json& rows);
+// The grid's rows as CSV: one header line and one line per timed row (chunk 0: global).
+std::string grid_csv(const nlohmann::json& rows);
 
 }  // namespace voxfield::cli
