@@ -21,26 +21,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-// The gallery's bracket: data/parts of the working directory, else of the source tree the
-// binary was built in (build/viewer/voxfield -> build/.. ).
-fs::path bracket_path() {
-    std::error_code ec;
-    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    std::vector<fs::path> candidates = {fs::current_path() / "data" / "parts" / "bracket.sdf.json"};
-    if (!ec) {
-        candidates.push_back(exe.parent_path().parent_path().parent_path() / "data" / "parts" /
-                             "bracket.sdf.json");
-    }
-    for (const fs::path& p : candidates) {
-        if (fs::is_regular_file(p)) {
-            return p;
-        }
-    }
-    throw InputError(
-        "--suite implicit needs data/parts/bracket.sdf.json of the voxfield sources (run from "
-        "the repository root)");
-}
-
 // The part with its voxel size set so that its longest side spans `resolution` voxels.
 sdf::Part at_resolution(const fs::path& path, std::uint32_t resolution) {
     std::ifstream in(path);
@@ -64,9 +44,11 @@ double process_cpu_ms() {
 
 }  // namespace
 
-json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup, double budget_s,
-                  bool quick, BenchObserver& observer) {
-    const fs::path path = bracket_path();
+json run_implicit(ocl::Context& ctx, const fs::path& path, std::uint32_t repeat,
+                  std::uint32_t warmup, double budget_s, bool quick, BenchObserver& observer) {
+    if (!fs::is_regular_file(path)) {
+        throw InputError("--suite implicit: " + path.string() + ": no such file");
+    }
     json rows = json::array();
     const std::vector<std::uint32_t> resolutions =
         quick ? std::vector<std::uint32_t>{256} : std::vector<std::uint32_t>{256, 1024};

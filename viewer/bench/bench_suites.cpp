@@ -802,7 +802,8 @@ json run_suite(ocl::Context& ctx, const SuiteOptions& o, BenchObserver& observer
         rows = run_sand(ctx, o, n, steps, observer);
     } else if (o.suite == "implicit") {
         doc["scene"] = "data/parts/bracket.sdf.json";
-        rows = run_implicit(ctx, plan.repeat, plan.warmup, plan.budget_s, o.quick, observer);
+        rows = run_implicit(ctx, o.implicit_part, plan.repeat, plan.warmup, plan.budget_s, o.quick,
+                            observer);
     } else {
         rows = run_render(ctx, plan, o.quick, observer);
     }

@@ -26,6 +26,7 @@ struct SuiteOptions {
     std::uint32_t edits = 0;     // edits: how many; 0: the suite's default
     std::uint32_t world = 0;     // edits, sand: the world's edge; 0: the suite's default
     std::string format = "u16";  // edits: the field format
+    std::string implicit_part;   // implicit: the part's .sdf.json (data/parts/bracket.sdf.json)
 };
 
 // What a suite reports while it runs, in order; every call is optional to act on.

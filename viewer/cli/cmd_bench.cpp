@@ -5,8 +5,8 @@
 #include <iostream>
 #include <optional>
 
+#include "bench_files.hpp"
 #include "bench_grid.hpp"
-#include "bench_plot.hpp"
 #include "bench_print.hpp"
 #include "bench_suites.hpp"
 #include "cli_util.hpp"
@@ -132,10 +132,14 @@ int run_suite_command(const SuiteOptions& s, const BenchOptions& o) {
         }
     }
     check_outputs({{"--json", json_path}, {"--csv", o.csv}}, {});
+    SuiteOptions suite = s;
+    if (suite.suite == "implicit") {
+        suite.implicit_part = require_implicit_part().string();
+    }
     ocl::Context ctx(ocl::select_device(o.device));
     std::cerr << "bench: device " << ctx.info().name << " (" << ctx.info().platform << ")\n";
     BenchPrinter printer(s.suite);
-    const nlohmann::json doc = run_suite(ctx, s, printer);
+    const nlohmann::json doc = run_suite(ctx, suite, printer);
     printer.stop();
     if (!json_path.empty()) {
         write_json_file(json_path, doc);

@@ -1,5 +1,5 @@
-// `voxfield bench --plot` (bench_plot.hpp).
-#include "bench_plot.hpp"
+// The files `voxfield bench` finds beside its binary (bench_files.hpp).
+#include "bench_files.hpp"
 
 #include <unistd.h>
 
@@ -14,6 +14,19 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// <prefix>/share/voxfield for the binary at <prefix>/bin (build/share/voxfield for
+// build/viewer), or why it is unknown.
+fs::path share_dir(std::string& why) {
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    if (ec) {
+        why = "its path is unknown";
+        return {};
+    }
+    why = exe.string();
+    return exe.parent_path().parent_path() / "share" / "voxfield";
+}
+
 bool python_has_matplotlib(const std::string& python) {
     const std::string cmd = python + " -c 'import matplotlib' >/dev/null 2>&1";
     return std::system(cmd.c_str()) == 0;
@@ -21,23 +34,31 @@ bool python_has_matplotlib(const std::string& python) {
 
 }  // namespace
 
+fs::path require_implicit_part() {
+    const fs::path here = fs::current_path() / "data" / "parts" / "bracket.sdf.json";
+    if (fs::is_regular_file(here)) {
+        return here;
+    }
+    std::string why;
+    const fs::path share = share_dir(why);
+    if (!share.empty() && fs::is_regular_file(share / "parts" / "bracket.sdf.json")) {
+        return share / "parts" / "bracket.sdf.json";
+    }
+    throw InputError(
+        "--suite implicit needs data/parts/bracket.sdf.json in the working directory or "
+        "share/voxfield/parts/ beside the voxfield binary (" +
+        why + "); reinstall voxfield");
+}
+
 Plotter require_plotter() {
-    // The script is installed beside the binary's tree: <prefix>/share/voxfield/plot.py,
-    // which the build tree mirrors (build/share/voxfield/plot.py beside build/viewer/).
     Plotter p;
-    std::error_code ec;
-    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    if (!ec) {
-        const fs::path candidate =
-            exe.parent_path().parent_path() / "share" / "voxfield" / "plot.py";
-        if (fs::is_regular_file(candidate))
-            p.script = candidate.string();
-    }
-    if (p.script.empty()) {
+    std::string why;
+    const fs::path share = share_dir(why);
+    if (share.empty() || !fs::is_regular_file(share / "plot.py")) {
         throw InputError("--plot needs plot.py in share/voxfield/ beside the voxfield binary (" +
-                         (ec ? std::string("its path is unknown") : exe.string()) +
-                         "); reinstall voxfield");
+                         why + "); reinstall voxfield");
     }
+    p.script = (share / "plot.py").string();
     std::vector<std::string> pythons;
     if (const char* env = std::getenv("VOXFIELD_PYTHON"); env != nullptr && *env != '\0') {
         pythons.emplace_back(env);
