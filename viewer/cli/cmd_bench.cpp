@@ -118,7 +118,7 @@ int run_bench(const BenchOptions& o) {
 
 // --suite NAME: the harness (bench_suites.hpp) with its log, progress and table shown here
 // (bench_print.hpp), the document written as JSON and CSV, then plotted.
-int run_suite_command(const SuiteOptions& s, const BenchOptions& o) {
+int run_suite_command(SuiteOptions s, const BenchOptions& o) {
     std::string json_path = o.json;
     std::optional<Plotter> plotter;
     if (!o.plot.empty()) {
@@ -132,14 +132,13 @@ int run_suite_command(const SuiteOptions& s, const BenchOptions& o) {
         }
     }
     check_outputs({{"--json", json_path}, {"--csv", o.csv}}, {});
-    SuiteOptions suite = s;
-    if (suite.suite == "implicit") {
-        suite.implicit_part = require_implicit_part().string();
+    if (s.suite == "implicit") {
+        s.implicit_part = require_implicit_part().string();
     }
     ocl::Context ctx(ocl::select_device(o.device));
     std::cerr << "bench: device " << ctx.info().name << " (" << ctx.info().platform << ")\n";
     BenchPrinter printer(s.suite);
-    const nlohmann::json doc = run_suite(ctx, suite, printer);
+    const nlohmann::json doc = run_suite(ctx, s, printer);
     printer.stop();
     if (!json_path.empty()) {
         write_json_file(json_path, doc);
