@@ -155,6 +155,8 @@ void BenchPrinter::header() {
 
 void BenchPrinter::stage(const std::string& text) {
     progress_.print(stderr, "bench: " + text + "\n");
+    // What starts now, until the harness says more (no stale text from the previous row).
+    progress_.set(text);
     header();
 }
 
