@@ -6,6 +6,7 @@
 #include <bit>
 #include <limits>
 #include <string>
+#include <unordered_map>
 
 #include "voxfield/core/error.hpp"
 
@@ -133,6 +134,43 @@ SparseWorld SparseWorld::from_fill(Dims dims, const BoxFill& fill) {
                 s.store_tile(tx, ty, tz, tile);
             }
         }
+    }
+    return s;
+}
+
+SparseWorld SparseWorld::from_voxels(Dims dims,
+                                     const std::function<void(const VoxelSink&)>& place) {
+    SparseWorld s(dims);
+    // Per tile key, its voxels in the order placed: local index (18 bits), value above it.
+    std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> buckets;
+    place([&](std::uint32_t x, std::uint32_t y, std::uint32_t z, std::uint8_t v) {
+        if (!dims.contains(x, y, z)) {
+            throw InputError("voxel (" + std::to_string(x) + "," + std::to_string(y) + "," +
+                             std::to_string(z) + ") lies outside the world " + dims.to_string());
+        }
+        const auto local =
+            static_cast<std::uint32_t>(local_index(x % kTileSize, y % kTileSize, z % kTileSize));
+        buckets[tile_key(x / kTileSize, y / kTileSize, z / kTileSize)].push_back(
+            local | std::uint32_t{v} << 18);
+    });
+    std::vector<std::uint64_t> keys;
+    keys.reserve(buckets.size());
+    for (const auto& [key, voxels] : buckets) {
+        keys.push_back(key);
+    }
+    std::sort(keys.begin(), keys.end());
+    std::vector<std::uint8_t> tile(kTileVoxels);
+    constexpr std::uint64_t kCoord = (std::uint64_t{1} << 14) - 1;
+    for (const std::uint64_t key : keys) {
+        std::fill(tile.begin(), tile.end(), std::uint8_t{0});
+        std::vector<std::uint32_t>& voxels = buckets[key];
+        for (const std::uint32_t e : voxels) {
+            tile[e & (kTileVoxels - 1)] = static_cast<std::uint8_t>(e >> 18);
+        }
+        std::vector<std::uint32_t>().swap(voxels);
+        s.store_tile(static_cast<std::uint32_t>(key & kCoord),
+                     static_cast<std::uint32_t>(key >> 14 & kCoord),
+                     static_cast<std::uint32_t>(key >> 28 & kCoord), tile);
     }
     return s;
 }
