@@ -134,11 +134,12 @@ int main(int argc, char** argv) {
         }
         const Terrain terrain(seed, dims.y);
         const auto t_build = Clock::now();
-        std::vector<std::uint32_t> heights;
         SparseWorld world =
             SparseWorld::from_fill(dims, [&](const Box& b, std::span<std::uint8_t> out) {
                 const auto nx = static_cast<std::size_t>(b.max.x - b.min.x);
-                heights.assign(nx * static_cast<std::size_t>(b.max.z - b.min.z) * 2, 0);
+                // Per call (from_fill calls this from several threads at once).
+                std::vector<std::uint32_t> heights(nx *
+                                                   static_cast<std::size_t>(b.max.z - b.min.z) * 2);
                 std::uint32_t top = 0;
                 for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
                     for (std::int64_t x = b.min.x; x < b.max.x; ++x) {

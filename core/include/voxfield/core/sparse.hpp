@@ -55,8 +55,10 @@ class SparseWorld {
     // From a dense world (its solid voxels).
     static SparseWorld from_dense(const World& world);
     // Tile by tile from `fill`, called once per tile (its box clipped to the world), so that
-    // no dense array of the world ever exists.
-    static SparseWorld from_fill(Dims dims, const BoxFill& fill);
+    // no dense array of the world ever exists. Tiles are filled and encoded on up to
+    // `threads` threads (0: one per hardware thread), so `fill` may be called concurrently,
+    // each call with its own box and span; the world is the same for any thread count.
+    static SparseWorld from_fill(Dims dims, const BoxFill& fill, unsigned threads = 0);
     // From voxels handed to the sink one by one by `place` (a scene's instances, a grid's
     // active voxels), bucketed by tile (4 bytes per voxel placed): no dense array and no
     // visit of empty tiles. InputError for a voxel outside the world.
@@ -114,6 +116,16 @@ class SparseWorld {
     // inserts or replaces its tile entry; removes the tile when every voxel is 0.
     void store_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t tz,
                     std::span<const std::uint8_t> voxels);
+    // store_tile in two steps: the tile's 64-tree (nodes, offsets, materials; empty when every
+    // voxel is 0), which needs nothing of the world (from_fill encodes tiles on several
+    // threads), then its entry in the world's buffers.
+    struct EncodedTile {
+        std::vector<std::uint64_t> masks;
+        std::vector<std::uint32_t> offsets;
+        std::vector<std::uint8_t> materials;
+    };
+    static EncodedTile encode_tile(std::span<const std::uint8_t> voxels);
+    void put_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t tz, const EncodedTile& e);
     void remove_tile(std::uint32_t tile);
     void hash_insert(std::uint64_t key, std::uint32_t tile);
     std::size_t hash_slot(std::uint64_t key) const;  // the key's slot or the free slot
