@@ -1,9 +1,12 @@
 // End-to-end tests of `voxfield bench --suite ...` (issue 7): the quick suites run to the
 // end on the CPU device and write JSON of the documented structure. Timings are never
 // asserted; only that every row is either timed (finite statistics) or skipped with a reason.
+#include <sys/wait.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <map>
 #include <set>
 #include <string>
@@ -177,6 +180,41 @@ TEST_F(BenchSuite, EditsQuickRecordsPerEditTimesAndFullRegeneration) {
                                      "jfa-fim", "lod", "monolithic"}));
 }
 
+// A suite's progress is the progress line (progress.hpp, issue 29): on a terminal (script(1)
+// gives the command one) "\rbench: [i/n] ..." erased before every result line, so that each
+// table line starts a line of its own; with stderr a file, no '\r' at all, the log lines alone.
+TEST_F(BenchSuite, ProgressShowsOnATerminalOnly) {
+    if (!fs::exists("/usr/bin/script")) {
+        GTEST_SKIP() << "/usr/bin/script (bsdutils) is not installed";
+    }
+    const std::vector<std::string> args = {"bench",   "--suite", "edits",    "--world", "32",
+                                           "--edits", "6",       "--device", "cpu"};
+    const RunResult file = run(args);
+    ASSERT_EQ(file.code, 0) << describe(file);
+    EXPECT_EQ(file.err.find('\r'), std::string::npos) << file.err;
+    EXPECT_NE(file.err.find("bench: [1/12] edits exact: setting up\n"), std::string::npos)
+        << file.err;
+    std::string command = kExe.string();
+    for (const std::string& a : args) {
+        command += " " + a;
+    }
+    const fs::path log = io_ / "script.out";
+    const std::string shell =
+        "/usr/bin/script -qec '" + command + "' /dev/null > " + log.string() + " 2>&1";
+    ASSERT_EQ(std::system(shell.c_str()), 0) << read_text(log);
+    const std::string seen = read_text(log);
+    EXPECT_NE(seen.find("\rbench: ["), std::string::npos) << seen;
+    EXPECT_NE(seen.find("\r\033[K"), std::string::npos) << seen;
+    for (const char* row : {"exact          32x32x32", "monolithic     32x32x32"}) {
+        const std::size_t at = seen.find(row);
+        ASSERT_NE(at, std::string::npos) << row << " missing from:\n" << seen;
+        ASSERT_GT(at, 0u);
+        EXPECT_TRUE(seen[at - 1] == '\n' || seen[at - 1] == 'K')
+            << "the table line follows other text: "
+            << seen.substr(at - std::min<std::size_t>(at, 120), 160);
+    }
+}
+
 TEST_F(BenchSuite, RenderTimesFramesOnLavapipe) {
     const fs::path js = dir_ / "r.json";
     const RunResult r =
@@ -215,6 +253,44 @@ TEST_F(BenchSuite, SandRunsTheSimulationInPlaceAndTimesItBothWays) {
             EXPECT_TRUE(step["wall_ms"].is_number()) << where;
         }
     }
+}
+
+// The implicit suite reads its part from share/voxfield/parts beside the binary when the
+// working directory has no data/parts: a binary copied into a prefix of its own (bin/ and
+// share/voxfield/parts/, as installed) needs no source tree, and without the part it says so.
+TEST_F(BenchSuite, ImplicitFindsItsPartBesideTheBinary) {
+    const fs::path prefix = dir_ / "prefix";
+    fs::create_directories(prefix / "bin");
+    fs::create_directories(prefix / "share" / "voxfield" / "parts");
+    fs::copy_file(kExe, prefix / "bin" / "voxfield");
+    fs::copy_file(
+        kExe.parent_path().parent_path() / "share" / "voxfield" / "parts" / "bracket.sdf.json",
+        prefix / "share" / "voxfield" / "parts" / "bracket.sdf.json");
+    const fs::path js = dir_ / "i.json";
+    const auto run_in_io = [&](const std::string& log) {
+        const std::string command = "cd " + io_.string() + " && " +
+                                    (prefix / "bin" / "voxfield").string() +
+                                    " bench --suite implicit --quick --repeat 1 --warmup 0 "
+                                    "--device cpu --json " +
+                                    js.string() + " > " + log + " 2>&1";
+        const int status = std::system(command.c_str());
+        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    };
+    const std::string log = (io_ / "implicit.log").string();
+    ASSERT_EQ(run_in_io(log), 0) << read_text(log);
+    const json doc = json::parse(read_text(js));
+    expect_common(doc, "implicit");
+    ASSERT_EQ(doc["results"].size(), 4u);  // --quick: 256^3 at tile depths 1-4
+    for (const json& row : doc["results"]) {
+        EXPECT_EQ(row["part"], "bracket.sdf.json");
+        EXPECT_GT(row["median_ms"].get<double>(), 0.0) << row.dump().substr(0, 200);
+        EXPECT_GT(row["leaves"].get<std::uint64_t>(), 0u) << row.dump().substr(0, 200);
+    }
+    fs::remove(js);
+    fs::remove_all(prefix / "share" / "voxfield" / "parts");
+    EXPECT_EQ(run_in_io(log), 2) << read_text(log);
+    EXPECT_NE(read_text(log).find("share/voxfield/parts/"), std::string::npos) << read_text(log);
+    EXPECT_FALSE(fs::exists(js));
 }
 
 TEST_F(BenchSuite, SuiteRefusesGridOptions) {

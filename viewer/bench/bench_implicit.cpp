@@ -7,12 +7,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <iostream>
-#include <sstream>
 #include <string>
 #include <vector>
 
-#include "cli_util.hpp"
 #include "voxfield/cl/implicit.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/sdf.hpp"
@@ -23,26 +20,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-// The gallery's bracket: data/parts of the working directory, else of the source tree the
-// binary was built in (build/viewer/voxfield -> build/.. ).
-fs::path bracket_path() {
-    std::error_code ec;
-    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    std::vector<fs::path> candidates = {fs::current_path() / "data" / "parts" / "bracket.sdf.json"};
-    if (!ec) {
-        candidates.push_back(exe.parent_path().parent_path().parent_path() / "data" / "parts" /
-                             "bracket.sdf.json");
-    }
-    for (const fs::path& p : candidates) {
-        if (fs::is_regular_file(p)) {
-            return p;
-        }
-    }
-    throw InputError(
-        "--suite implicit needs data/parts/bracket.sdf.json of the voxfield sources (run from "
-        "the repository root)");
-}
 
 // The part with its voxel size set so that its longest side spans `resolution` voxels.
 sdf::Part at_resolution(const fs::path& path, std::uint32_t resolution) {
@@ -67,9 +44,11 @@ double process_cpu_ms() {
 
 }  // namespace
 
-json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup, double budget_s,
-                  bool quick) {
-    const fs::path path = bracket_path();
+json run_implicit(ocl::Context& ctx, const fs::path& path, std::uint32_t repeat,
+                  std::uint32_t warmup, double budget_s, bool quick, BenchObserver& observer) {
+    if (!fs::is_regular_file(path)) {
+        throw InputError("--suite implicit: " + path.string() + ": no such file");
+    }
     json rows = json::array();
     const std::vector<std::uint32_t> resolutions =
         quick ? std::vector<std::uint32_t>{256} : std::vector<std::uint32_t>{256, 1024};
@@ -87,6 +66,11 @@ json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup,
             ocl::ImplicitGrid grid;
             const auto start = std::chrono::steady_clock::now();
             for (std::uint32_t i = 0; i < warmup + repeat; ++i) {
+                observer.progress("implicit " + std::to_string(resolution) + "^3 depth " +
+                                  std::to_string(depth) + ": " +
+                                  (i < warmup ? "warm-up " : "run ") +
+                                  std::to_string(i < warmup ? i + 1 : i + 1 - warmup) + "/" +
+                                  std::to_string(i < warmup ? warmup : repeat));
                 const double cpu0 = process_cpu_ms();
                 job.run(grid);
                 if (i == 0) {
@@ -107,11 +91,6 @@ json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup,
             const Summary k = summarize(kernel);
             const std::uint64_t solid = grid.solid_count();
             const double effective = double(part.dims.count());
-            std::cerr << "bench: implicit " << resolution << "^3 " << part.dims.to_string()
-                      << " depth " << depth << " (" << grid.tiles.to_string() << " tiles of "
-                      << edge << "^3): " << fixed(s.median, 2) << " ms, " << grid.leaves
-                      << " leaves, " << grid.crossed_count() << " crossed voxels, "
-                      << fixed(double(grid.bytes()) / 1048576.0, 1) << " MiB\n";
             rows.push_back({{"table", "implicit"},
                             {"group", std::to_string(resolution) + "^3"},
                             {"algorithm", "implicit depth " + std::to_string(depth)},
@@ -145,6 +124,7 @@ json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup,
                             {"bytes", grid.bytes()},
                             {"max_error", nullptr},
                             {"mean_error", nullptr}});
+            observer.row(rows.back());
         }
     }
     return rows;

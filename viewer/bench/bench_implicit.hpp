@@ -5,15 +5,19 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <filesystem>
 
+#include "bench_suites.hpp"
 #include "voxfield/cl/runtime.hpp"
 
 namespace voxfield::cli {
 
-// One row per (resolution, tile depth): wall-clock times of `repeat` runs after `warmup`
+// `part` (the gallery's bracket, data/parts/bracket.sdf.json) discretised: one row per
+// (resolution, tile depth): wall-clock times of `repeat` runs after `warmup`
 // (stopping early past `budget_s` per row), device kernel time, and the structure's counts
-// and bytes.
-nlohmann::json run_implicit(ocl::Context& ctx, std::uint32_t repeat, std::uint32_t warmup,
-                            double budget_s, bool quick);
+// and bytes; each run's progress and each row go to `observer`.
+nlohmann::json run_implicit(ocl::Context& ctx, const std::filesystem::path& part,
+                            std::uint32_t repeat, std::uint32_t warmup, double budget_s, bool quick,
+                            BenchObserver& observer);
 
 }  // namespace voxfield::cli

@@ -1,18 +1,10 @@
 // `voxfield bench --suite NAME` (bench_suites.hpp).
 #include "bench_suites.hpp"
 
-#include <unistd.h>
-
+#include <algorithm>
 #include <chrono>
-#include <cmath>
-#include <cstdio>
-#include <cstdlib>
-#include <ctime>
-#include <filesystem>
-#include <iostream>
 #include <map>
 #include <optional>
-#include <sstream>
 #include <stdexcept>
 #include <utility>
 
@@ -39,7 +31,6 @@
 namespace voxfield::cli {
 namespace {
 
-namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
@@ -231,8 +222,9 @@ struct Previous {
 
 class DissertationSuite {
   public:
-    DissertationSuite(ocl::Context& ctx, const RunPlan& plan, std::size_t total)
-        : ctx_(ctx), plan_(plan), total_(total) {}
+    DissertationSuite(ocl::Context& ctx, const RunPlan& plan, std::size_t total,
+                      BenchObserver& observer)
+        : ctx_(ctx), plan_(plan), total_(total), observer_(observer) {}
 
     json measure(const Group& g, const World& world, const Variant& v) {
         ++index_;
@@ -257,11 +249,7 @@ class DissertationSuite {
                     {"seed", plan_.seed},
                     {"time_budget_s", plan_.budget_s}};
         const auto skip = [&](const std::string& why) {
-            std::cerr << "bench: " << label << ": skipped: " << why << '\n';
-            std::printf("%-11s %-14s %-14s %-6s skipped: %s\n", g.table.c_str(),
-                        v.algorithm.c_str(), dims.to_string().c_str(),
-                        v.chunk == 0 ? "-" : std::to_string(v.chunk).c_str(), why.c_str());
-            std::fflush(stdout);
+            observer_.stage(label + ": skipped: " + why);
             row["skipped"] = why;
             return row;
         };
@@ -284,7 +272,7 @@ class DissertationSuite {
             options.chunk = v.chunk;
             options.focus = v.focus;
             options = ocl::resolve_options(options, dims);
-            std::cerr << "bench: " << label << ": setting up\n";
+            observer_.stage(label + ": setting up");
             job = ocl::make_generator(ctx_, world, Palette::magicavoxel_default(), options);
         } catch (const InputError& e) {
             // Sizes a generator refuses (brute force estimated over a minute) are reported.
@@ -315,9 +303,9 @@ class DissertationSuite {
                         break;
                     }
                 }
-                std::cerr << "\rbench: " << label << ": " << (warm ? "warm-up " : "run ")
-                          << (warm ? i + 1 : i + 1 - plan_.warmup) << "/"
-                          << (warm ? plan_.warmup : plan_.repeat) << "   " << std::flush;
+                observer_.progress(label + ": " + (warm ? "warm-up " : "run ") +
+                                   std::to_string(warm ? i + 1 : i + 1 - plan_.warmup) + "/" +
+                                   std::to_string(warm ? plan_.warmup : plan_.repeat));
                 const auto r0 = Clock::now();
                 const double t = job->run();
                 last_wall = seconds_since(r0);
@@ -327,10 +315,9 @@ class DissertationSuite {
                 }
             }
         } catch (const ocl::ClError& e) {
-            std::cerr << '\n';
             return skip(std::string("device failure: ") + e.what());
         }
-        std::cerr << "\rbench: " << label << ": checking against the CPU reference      \n";
+        observer_.progress(label + ": checking against the CPU reference");
         double download_ms = 0;
         const auto field = job->read(&download_ms);
         const Accuracy a =
@@ -343,7 +330,7 @@ class DissertationSuite {
         row["runs"] = ms.size();
         if (!truncated.empty()) {
             row["budget_truncated"] = truncated;
-            std::cerr << "bench: " << label << ": " << truncated << '\n';
+            observer_.stage(label + ": " + truncated);
         }
         row["gvox_per_s"] =
             median > 0 ? static_cast<double>(dims.count()) / (median * 1e-3) / 1e9 : 0.0;
@@ -353,11 +340,6 @@ class DissertationSuite {
         row["upload_ms"] = job->upload_ms();
         row["download_ms"] = download_ms;
         row["stages"] = stage_times.json();
-        std::printf("%-11s %-14s %-14s %-6s %-8s %12.3f %12.3f %6u %7u %9.4f\n", g.table.c_str(),
-                    v.algorithm.c_str(), dims.to_string().c_str(),
-                    v.chunk == 0 ? "-" : std::to_string(v.chunk).c_str(), g.format.c_str(), median,
-                    row["std_ms"].get<double>(), job->iterations(), a.max_error, a.mean_error);
-        std::fflush(stdout);
         return row;
     }
 
@@ -365,31 +347,34 @@ class DissertationSuite {
     ocl::Context& ctx_;
     RunPlan plan_;
     std::size_t total_ = 0, index_ = 0;
+    BenchObserver& observer_;
     std::map<std::string, Previous> previous_;
 };
 
-json run_dissertation(ocl::Context& ctx, const RunPlan& plan, bool quick) {
+json run_dissertation(ocl::Context& ctx, const RunPlan& plan, bool quick, BenchObserver& observer) {
     const std::vector<Group> groups = dissertation_groups(quick);
     std::size_t total = 0;
     for (const Group& g : groups) {
         total += g.variants.size() + 1;
     }
-    std::cerr << "bench: suite dissertation" << (quick ? " (--quick)" : "") << ": " << groups.size()
-              << " row groups, " << total << " rows, " << plan.repeat << " timed runs after "
-              << plan.warmup << " warm-up, at most ~" << fixed(plan.budget_s, 0) << " s per row\n";
-    std::printf("%-11s %-14s %-14s %-6s %-8s %12s %12s %6s %7s %9s\n", "table", "algorithm", "size",
-                "chunk", "format", "median ms", "std ms", "iters", "max err", "mean err");
-    DissertationSuite suite(ctx, plan, total);
+    observer.stage(std::string("suite dissertation") + (quick ? " (--quick)" : "") + ": " +
+                   std::to_string(groups.size()) + " row groups, " + std::to_string(total) +
+                   " rows, " + std::to_string(plan.repeat) + " timed runs after " +
+                   std::to_string(plan.warmup) + " warm-up, at most ~" + fixed(plan.budget_s, 0) +
+                   " s per row");
+    DissertationSuite suite(ctx, plan, total, observer);
     json rows = json::array();
     const auto t0 = Clock::now();
     for (const Group& g : groups) {
         const World world = make_scene(kScene, g.dims, plan.seed);
-        for (const Variant& v : g.variants) {
+        std::vector<Variant> variants = g.variants;
+        variants.emplace_back("exact");
+        for (const Variant& v : variants) {
             rows.push_back(suite.measure(g, world, v));
+            observer.row(rows.back());
         }
-        rows.push_back(suite.measure(g, world, Variant{"exact"}));
     }
-    std::cerr << "bench: suite dissertation done in " << fixed(seconds_since(t0), 1) << " s\n";
+    observer.stage("suite dissertation done in " + fixed(seconds_since(t0), 1) + " s");
     return rows;
 }
 
@@ -417,7 +402,7 @@ std::vector<EditSpec> make_edit_sequence(Dims dims, std::uint32_t chunk, std::ui
 }
 
 json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Dims dims,
-               std::uint32_t count) {
+               std::uint32_t count, BenchObserver& observer) {
     // exact unbounded and bounded at several D (an edit's update then stays within D of it),
     // then the dissertation's algorithms.
     struct EditRow {
@@ -434,12 +419,11 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
     const World initial = make_scene(kScene, dims, o.seed);
     const Palette palette = Palette::magicavoxel_default();
     const Format format = parse_format(o.format);
-    std::cerr << "bench: suite edits" << (o.quick ? " (--quick)" : "") << ": world "
-              << dims.to_string() << ", " << count << " edits (seed " << o.seed << "), chunk "
-              << o.chunk << ", " << algorithms.size() << " algorithms, at most ~"
-              << fixed(plan.budget_s, 0) << " s each\n";
-    std::printf("%-14s %-14s %-6s %12s %12s %12s %12s %14s %7s\n", "algorithm", "size", "chunk",
-                "median ms", "mean ms", "max ms", "full ms", "recomputed/ed", "max err");
+    observer.stage(std::string("suite edits") + (o.quick ? " (--quick)" : "") + ": world " +
+                   dims.to_string() + ", " + std::to_string(count) + " edits (seed " +
+                   std::to_string(o.seed) + "), chunk " + std::to_string(o.chunk) + ", " +
+                   std::to_string(algorithms.size()) + " algorithms, at most ~" +
+                   fixed(plan.budget_s, 0) + " s each");
     json rows = json::array();
     const auto suite_t0 = Clock::now();
     for (std::size_t ai = 0; ai < algorithms.size(); ++ai) {
@@ -461,6 +445,12 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
                     {"scene", kScene},
                     {"seed", o.seed},
                     {"time_budget_s", plan.budget_s}};
+        const auto skip = [&](const std::string& why) {
+            row["skipped"] = why;
+            observer.stage(label + ": skipped: " + why);
+            rows.push_back(row);
+            observer.row(row);
+        };
         ocl::GeneratorOptions options;
         std::unique_ptr<ocl::IncrementalField> field;
         try {
@@ -472,27 +462,23 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
             if (options.focus) {
                 row["focus"] = focus_json(options.focus);
             }
-            std::cerr << "bench: " << label << ": setting up\n";
+            observer.stage(label + ": setting up");
             field = std::make_unique<ocl::IncrementalField>(ctx, initial, palette, options);
             // Pay the update kernels' builds outside the timings (as `replay` does).
             warm_up_updates(*field);
         } catch (const InputError& e) {
-            std::cerr << "bench: " << label << ": skipped: " << e.what() << '\n';
-            row["skipped"] = e.what();
-            rows.push_back(row);
+            skip(e.what());
             continue;
         } catch (const ocl::ClError& e) {
-            row["skipped"] = std::string("device failure: ") + e.what();
-            std::cerr << "bench: " << label << ": skipped: " << row["skipped"] << '\n';
-            rows.push_back(row);
+            skip(std::string("device failure: ") + e.what());
             continue;
         }
         const auto t0 = Clock::now();
         // Full regeneration of the same world on the same device, in the same run.
         std::vector<double> regen;
         for (std::uint32_t i = 0; i < plan.warmup + plan.repeat; ++i) {
-            std::cerr << "\rbench: " << label << ": full regeneration " << i + 1 << "/"
-                      << plan.warmup + plan.repeat << "   " << std::flush;
+            observer.progress(label + ": full regeneration " + std::to_string(i + 1) + "/" +
+                              std::to_string(plan.warmup + plan.repeat));
             const double t = field->regenerate();
             if (i >= plan.warmup) {
                 regen.push_back(t);
@@ -501,7 +487,6 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
                 break;
             }
         }
-        std::cerr << '\n';
         EditLog log;
         std::string truncated;
         for (std::size_t i = 0; i < edits.size(); ++i) {
@@ -512,8 +497,8 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
                 break;
             }
             if (i % 10 == 0 || i + 1 == edits.size()) {
-                std::cerr << "\rbench: " << label << ": edit " << i + 1 << "/" << edits.size()
-                          << "   " << std::flush;
+                observer.progress(label + ": edit " + std::to_string(i + 1) + "/" +
+                                  std::to_string(edits.size()));
             }
             const EditSpec& e = edits[i];
             const ocl::UpdateStats s = field->apply({e.brush});
@@ -524,8 +509,7 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
             }
             log.add(sample);
         }
-        std::cerr << "\rbench: " << label << ": checking the final field against the CPU "
-                  << "reference\n";
+        observer.progress(label + ": checking the final field against the CPU reference");
         std::vector<std::uint32_t> reference = ocl::exact_reference(field->world(), options);
         if (bound) {
             // A bounded field is the exact one capped at D (D is an integer here).
@@ -550,7 +534,7 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
         row["warmup"] = plan.warmup;
         if (!truncated.empty()) {
             row["budget_truncated"] = truncated;
-            std::cerr << "bench: " << label << ": " << truncated << '\n';
+            observer.stage(label + ": " + truncated);
         }
         row["full_regeneration_ms"] = rs.median;
         row["full_regeneration_ms_samples"] = regen;
@@ -562,15 +546,10 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
                                                   static_cast<double>(log.size());
         row["full_regenerations"] = log.full_regenerations();
         row["edits"] = log.edits_json();
-        const std::string shown = name + (bound ? " D=" + fixed(*bound, 0) : "");
-        std::printf("%-14s %-14s %-6s %12.3f %12.3f %12.3f %12.3f %14.0f %7u\n", shown.c_str(),
-                    dims.to_string().c_str(), chunk == 0 ? "-" : std::to_string(chunk).c_str(),
-                    median, row["mean_ms"].get<double>(), row["max_ms"].get<double>(), rs.median,
-                    row["voxels_recomputed_mean"].get<double>(), a.max_error);
-        std::fflush(stdout);
         rows.push_back(row);
+        observer.row(row);
     }
-    std::cerr << "bench: suite edits done in " << fixed(seconds_since(suite_t0), 1) << " s\n";
+    observer.stage("suite edits done in " + fixed(seconds_since(suite_t0), 1) + " s");
     return rows;
 }
 
@@ -586,7 +565,7 @@ json run_edits(ocl::Context& ctx, const SuiteOptions& o, const RunPlan& plan, Di
 // equals manhattan's: the metric changes how far rays walk per fetch, never which voxel they hit. A
 // row is one world and resolution: manhattan's times at the top level (as before metrics existed),
 // every metric's under "metrics".
-json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
+json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick, BenchObserver& observer) {
     const std::vector<std::uint32_t> sizes =
         quick ? std::vector<std::uint32_t>{32, 64} : std::vector<std::uint32_t>{128, 256, 512};
     const std::vector<std::pair<std::uint32_t, std::uint32_t>> resolutions =
@@ -595,7 +574,7 @@ json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
                     {640, 480}, {1280, 720}, {1920, 1080}};
     const std::vector<Metric> metrics = {Metric::manhattan, Metric::chebyshev, Metric::euclidean};
     vk::Context vk_ctx;
-    std::cerr << "bench: suite render: Vulkan device " << vk_ctx.info().name << '\n';
+    observer.stage("suite render: Vulkan device " + vk_ctx.info().name);
     json rows = json::array();
     const std::size_t total = sizes.size() * metrics.size() * resolutions.size();
     std::size_t k = 0;
@@ -627,9 +606,10 @@ json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
                 std::vector<double> ms;
                 const auto start = std::chrono::steady_clock::now();
                 for (std::uint32_t i = 0; i < plan.warmup + plan.repeat; ++i) {
-                    std::cerr << "\rbench: render [" << k << "/" << total << "] " << label << ": "
-                              << (i < plan.warmup ? "warm-up " : "run ") << i + 1 << "   "
-                              << std::flush;
+                    observer.progress("render [" + std::to_string(k) + "/" + std::to_string(total) +
+                                      "] " + label + ": " +
+                                      (i < plan.warmup ? "warm-up " : "run ") +
+                                      std::to_string(i + 1));
                     const vk::Image image = marcher.render(r);
                     if (image.raymarch_ms < 0) {
                         throw std::runtime_error(
@@ -644,7 +624,6 @@ json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
                         break;
                     }
                 }
-                std::cerr << '\n';
                 // Counted in flat shading: the counters follow the primary rays, which lit
                 // shading does not change, and flat images compare the hit voxels alone (lit
                 // shading's ambient occlusion reads the metric's distances).
@@ -670,14 +649,11 @@ json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
                      {"fetches_per_ray", double(counted.fetches) / rays},
                      {"steps_per_ray", double(counted.steps) / rays},
                      {"same_image_as_manhattan", counted.rgba == reference[res]}});
-                std::printf(
-                    "render %-14s %-9s %5ux%-5u median %8.3f ms  mean %8.3f  std %7.3f  %8.1f "
-                    "Mrays/s  %7.2f fetches  %7.2f steps per ray%s\n",
-                    dims.to_string().c_str(), to_string(metric).c_str(), w, h, sm.median, sm.mean,
-                    sm.std, rays / (sm.median * 1e-3) / 1e6, double(counted.fetches) / rays,
-                    double(counted.steps) / rays,
-                    counted.rgba == reference[res] ? "" : "  IMAGE DIFFERS FROM MANHATTAN'S");
-                std::fflush(stdout);
+                json measurement = per_metric[res].back();
+                measurement["size"] = {n, n, n};
+                measurement["width"] = w;
+                measurement["height"] = h;
+                observer.measured(measurement);
             }
         }
         for (std::size_t res = 0; res < resolutions.size(); ++res) {
@@ -701,60 +677,11 @@ json run_render(ocl::Context& ctx, const RunPlan& plan, bool quick) {
                             {"max_ms", l1["max_ms"]},
                             {"mrays_per_s", l1["mrays_per_s"]},
                             {"metrics", per_metric[res]}});
+            observer.row(rows.back());
         }
     }
     return rows;
 }
-
-void write_csv(const std::string& path, const json& rows) {
-    std::ostringstream csv;
-    csv << "table,group,algorithm,x,y,z,chunk,focus_size,format,median_ms,mean_ms,std_ms,ci95_lo_"
-           "ms,ci95_hi_ms,min_ms,max_ms,iterations,max_error,mean_error,over_fraction,under_"
-           "fraction,full_regeneration_ms,skipped\n";
-    const auto num = [](const json& row, const char* key) -> std::string {
-        if (!row.contains(key) || row[key].is_null()) {
-            return "";
-        }
-        std::ostringstream s;
-        s << row[key].get<double>();
-        return s.str();
-    };
-    const auto quoted = [](std::string s) {
-        std::string out = "\"";
-        for (char c : s) {
-            out += c == '"' ? std::string("\"\"") : std::string(1, c);
-        }
-        return out + "\"";
-    };
-    for (const json& r : rows) {
-        const bool has_size = r.contains("size") && r["size"].is_array();
-        csv << quoted(r.value("table", "")) << ',' << quoted(r.value("group", "")) << ','
-            << (r["algorithm"].is_string() ? r["algorithm"].get<std::string>() : "") << ','
-            << (has_size ? std::to_string(r["size"][0].get<std::uint32_t>()) : "") << ','
-            << (has_size ? std::to_string(r["size"][1].get<std::uint32_t>()) : "") << ','
-            << (has_size ? std::to_string(r["size"][2].get<std::uint32_t>()) : "") << ','
-            << num(r, "chunk") << ','
-            << (r.contains("focus") && r["focus"].is_array()
-                    ? std::to_string(r["focus"][3].get<std::int64_t>())
-                    : "")
-            << ',' << r.value("format", "") << ',' << num(r, "median_ms") << ','
-            << num(r, "mean_ms") << ',' << num(r, "std_ms") << ','
-            << (r.contains("ci95_ms") ? std::to_string(r["ci95_ms"][0].get<double>()) : "") << ','
-            << (r.contains("ci95_ms") ? std::to_string(r["ci95_ms"][1].get<double>()) : "") << ','
-            << num(r, "min_ms") << ',' << num(r, "max_ms") << ',' << num(r, "iterations") << ','
-            << num(r, "max_error") << ',' << num(r, "mean_error") << ',' << num(r, "over_fraction")
-            << ',' << num(r, "under_fraction") << ',' << num(r, "full_regeneration_ms") << ','
-            << (r.contains("skipped") ? quoted(r["skipped"].get<std::string>()) : "") << '\n';
-    }
-    write_text_file(path, csv.str());
-}
-
-bool python_has_matplotlib(const std::string& python) {
-    const std::string cmd = python + " -c 'import matplotlib' >/dev/null 2>&1";
-    return std::system(cmd.c_str()) == 0;
-}
-
-}  // namespace
 
 // ---------------------------------------------------------------------------------------------
 // sand suite
@@ -763,7 +690,8 @@ bool python_has_matplotlib(const std::string& python) {
 // falling from the upper half): `steps` steps with the exact L1 field updated after each, once
 // unbounded and once bounded at D = 16; per step the simulation's and the update's device
 // times and the voxels changed, beside a full regeneration of the starting world.
-json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::uint32_t steps) {
+json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::uint32_t steps,
+              BenchObserver& observer) {
     const Dims dims{n, n, n};
     const World world = scene_sand(dims, o.seed);
     json rows = json::array();
@@ -774,7 +702,7 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
         g = ocl::resolve_options(g, dims);
         const std::string label =
             dims.to_string() + (bound ? " bounded at 16" : " unbounded") + ", L1";
-        std::cerr << "bench: sand " << label << ": set-up\n";
+        observer.stage("sand " + label + ": set-up");
         pipeline::Scene scene(ctx, world, Palette(), g);
         warm_up_updates(scene);
         std::vector<double> full;
@@ -790,11 +718,10 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
         const double full_ms = summarize(full).median;
         const auto records =
             run_sand_steps(scene, SandRules{}, o.seed, steps, [&](const SandStepRecord& r) {
-                std::cerr << "\rbench: sand " << label << ": step " << r.step + 1 << "/" << steps
-                          << "   " << std::flush;
+                observer.progress("sand " + label + ": step " + std::to_string(r.step + 1) + "/" +
+                                  std::to_string(steps));
                 return true;
             });
-        std::cerr << '\n';
         const SandRunSummary sm = summarize_run(records);
         const Summary &ss = sm.simulate, &us = sm.update, &st = sm.step;
         const double device_ms = sm.device_ms, wall_ms = sm.wall_ms;
@@ -802,13 +729,6 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
         const auto count = static_cast<double>(records.size());
         const double rate = device_ms > 0 ? count * 1000.0 / device_ms : 0;
         const double wall_rate = wall_ms > 0 ? count * 1000.0 / wall_ms : 0;
-        std::printf(
-            "sand %-14s %-10s %4zu steps  %8.1f steps/s (device)  %8.1f (wall)  simulate %8.3f "
-            "ms  update %8.3f ms median  full %8.3f ms  step/full %.2f  %zu voxels changed, %zu "
-            "full regenerations\n",
-            dims.to_string().c_str(), bound ? "D=16" : "unbounded", records.size(), rate, wall_rate,
-            ss.median, us.median, full_ms, full_ms > 0 ? st.median / full_ms : 0.0, changed,
-            fallbacks);
         rows.push_back({{"size", {n, n, n}},
                         {"metric", "manhattan"},
                         {"format", "u16"},
@@ -826,9 +746,12 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
                         {"voxels_changed", changed},
                         {"full_regenerations", fallbacks},
                         {"per_step", sm.per_step}});
+        observer.row(rows.back());
     }
     return rows;
 }
+
+}  // namespace
 
 const std::vector<std::string>& suite_names() {
     static const std::vector<std::string> names = {"dissertation", "edits", "render", "sand",
@@ -836,81 +759,12 @@ const std::vector<std::string>& suite_names() {
     return names;
 }
 
-Plotter require_plotter() {
-    // The script is installed beside the binary's tree: <prefix>/share/voxfield/plot.py,
-    // which the build tree mirrors (build/share/voxfield/plot.py beside build/viewer/).
-    Plotter p;
-    std::error_code ec;
-    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    if (!ec) {
-        const fs::path candidate =
-            exe.parent_path().parent_path() / "share" / "voxfield" / "plot.py";
-        if (fs::is_regular_file(candidate))
-            p.script = candidate.string();
-    }
-    if (p.script.empty()) {
-        throw InputError("--plot needs plot.py in share/voxfield/ beside the voxfield binary (" +
-                         (ec ? std::string("its path is unknown") : exe.string()) +
-                         "); reinstall voxfield");
-    }
-    std::vector<std::string> pythons;
-    if (const char* env = std::getenv("VOXFIELD_PYTHON"); env != nullptr && *env != '\0') {
-        pythons.emplace_back(env);
-    }
-    pythons.emplace_back("/usr/bin/python3");
-    pythons.emplace_back("python3");
-    for (const std::string& py : pythons) {
-        if ((py.find('/') == std::string::npos || ::access(py.c_str(), X_OK) == 0) &&
-            python_has_matplotlib(py)) {
-            p.python = py;
-            return p;
-        }
-    }
-    throw InputError(
-        "--plot needs python3 with matplotlib, found none (tried VOXFIELD_PYTHON, "
-        "/usr/bin/python3, python3): apt-get install python3-matplotlib");
-}
-
-void run_plotter(const Plotter& p, const std::string& dir, const std::vector<std::string>& files) {
-    const auto quote = [](const std::string& s) {
-        std::string out = "'";
-        for (char c : s) {
-            out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-        }
-        return out + "'";
-    };
-    std::string cmd = quote(p.python) + " " + quote(p.script) + " --out " + quote(dir);
-    for (const auto& f : files) {
-        cmd += " " + quote(f);
-    }
-    std::cerr << "bench: plotting: " << cmd << '\n';
-    if (std::system(cmd.c_str()) != 0) {
-        throw InputError("plotting failed: " + cmd);
-    }
-}
-
-int run_suite(const SuiteOptions& o) {
-    std::string json_path = o.json;
-    std::optional<Plotter> plotter;
-    if (!o.plot.empty()) {
-        // Checked before the long run starts.
-        plotter = require_plotter();
-        if (!fs::is_directory(o.plot)) {
-            throw InputError("--plot " + o.plot + ": no such folder (create it first)");
-        }
-        if (json_path.empty()) {
-            json_path = (fs::path(o.plot) / (o.suite + ".json")).string();
-        }
-    }
-    check_outputs({{"--json", json_path}, {"--csv", o.csv}}, {});
+json run_suite(ocl::Context& ctx, const SuiteOptions& o, BenchObserver& observer) {
     RunPlan plan;
     plan.seed = o.seed;
     plan.repeat = o.repeat != 0 ? o.repeat : (o.quick ? 3 : (o.suite == "edits" ? 5 : 10));
     plan.warmup = o.warmup ? *o.warmup : (o.quick ? 1u : 2u);
     plan.budget_s = o.budget_s > 0 ? o.budget_s : (o.quick ? 15.0 : 60.0);
-
-    ocl::Context ctx(ocl::select_device(o.device));
-    std::cerr << "bench: device " << ctx.info().name << " (" << ctx.info().platform << ")\n";
     json doc = {{"device", device_json(ctx.info())},
                 {"commit", commit()},
                 {"date", utc_now()},
@@ -924,7 +778,7 @@ int run_suite(const SuiteOptions& o) {
     json rows;
     if (o.suite == "dissertation") {
         doc["mapping"] = dissertation_mapping();
-        rows = run_dissertation(ctx, plan, o.quick);
+        rows = run_dissertation(ctx, plan, o.quick, observer);
     } else if (o.suite == "edits") {
         const std::uint32_t n = o.world != 0 ? o.world : (o.quick ? 64 : 128);
         const std::uint32_t count = o.edits != 0 ? o.edits : (o.quick ? 20 : 200);
@@ -938,33 +792,23 @@ int run_suite(const SuiteOptions& o) {
             "demo's brush), voxel type uniform in 0..11 where 0 (one in 12) erases and 1..11 "
             "place the dissertation's colours; splitmix64 seeded with `seed`, the same sequence "
             "for every algorithm and for view --benchmark; one edit per update";
-        rows = run_edits(ctx, o, plan, dims, count);
+        rows = run_edits(ctx, o, plan, dims, count, observer);
     } else if (o.suite == "sand") {
         const std::uint32_t n = o.world != 0 ? o.world : (o.quick ? 64 : 256);
         const std::uint32_t steps = o.repeat != 0 ? o.repeat : (o.quick ? 10 : 200);
         doc["scene"] = "sand";
         doc["steps"] = steps;
         doc["world"] = n;
-        rows = run_sand(ctx, o, n, steps);
+        rows = run_sand(ctx, o, n, steps, observer);
     } else if (o.suite == "implicit") {
         doc["scene"] = "data/parts/bracket.sdf.json";
-        rows = run_implicit(ctx, plan.repeat, plan.warmup, plan.budget_s, o.quick);
+        rows = run_implicit(ctx, o.implicit_part, plan.repeat, plan.warmup, plan.budget_s, o.quick,
+                            observer);
     } else {
-        rows = run_render(ctx, plan, o.quick);
+        rows = run_render(ctx, plan, o.quick, observer);
     }
     doc["results"] = rows;
-    if (!json_path.empty()) {
-        write_json_file(json_path, doc);
-        std::cerr << "bench: wrote " << json_path << '\n';
-    }
-    if (!o.csv.empty()) {
-        write_csv(o.csv, rows);
-        std::cerr << "bench: wrote " << o.csv << '\n';
-    }
-    if (plotter) {
-        run_plotter(*plotter, o.plot, {json_path});
-    }
-    return 0;
+    return doc;
 }
 
 }  // namespace voxfield::cli

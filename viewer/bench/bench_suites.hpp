@@ -1,16 +1,22 @@
 #pragma once
 // `voxfield bench --suite NAME`: the dissertation's generation-time experiments, its editing
-// protocol headless, and the renderer's frame times, each as one reproducible run that writes
-// DESIGN §4 bench JSON (plus the suite's own fields) and optionally plots it.
+// protocol headless, the renderer's frame times, the falling sand and the implicit parts, each
+// as one reproducible run that returns DESIGN §4 bench JSON (plus the suite's own fields).
+// The harness never prints: what happens while it runs goes to a BenchObserver, which the
+// command line turns into its log, progress line and table (cli/bench_print.hpp).
+#include <nlohmann/json.hpp>
+
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "voxfield/cl/runtime.hpp"
+
 namespace voxfield::cli {
 
 struct SuiteOptions {
-    std::string suite, device, json, csv, plot;
+    std::string suite;
     bool quick = false;
     std::uint32_t repeat = 0;             // 0: the suite's default (full or --quick)
     std::optional<std::uint32_t> warmup;  // none: the suite's default
@@ -20,21 +26,33 @@ struct SuiteOptions {
     std::uint32_t edits = 0;     // edits: how many; 0: the suite's default
     std::uint32_t world = 0;     // edits, sand: the world's edge; 0: the suite's default
     std::string format = "u16";  // edits: the field format
+    std::string implicit_part;   // implicit: the part's .sdf.json (data/parts/bracket.sdf.json)
+};
+
+// What a suite reports while it runs, in order; every call is optional to act on.
+class BenchObserver {
+  public:
+    virtual ~BenchObserver() = default;
+    // A line of the run's log: the plan, a row being set up, a row skipped and why, a row cut
+    // short by its time budget, the suite done ("[3/40] Table 4.2 brute 8x8x8: setting up").
+    virtual void stage(const std::string& /*text*/) {}
+    // What is being done now, replacing the previous one ("[3/40] Table 4.2 brute 8x8x8: run
+    // 2/3"); a suite sends many of these, some per kernel launch.
+    virtual void progress(const std::string& /*what*/) {}
+    // One measurement inside a row that is not complete yet: the render suite's metric at one
+    // resolution (its "metrics" entry plus "size", "width" and "height").
+    virtual void measured(const nlohmann::json& /*measurement*/) {}
+    // A row of "results", measured or skipped (with "skipped": why), as soon as it is done.
+    virtual void row(const nlohmann::json& /*row*/) {}
 };
 
 // "dissertation", "edits", "render", "sand", "implicit".
 const std::vector<std::string>& suite_names();
 
-// The Python interpreter that has matplotlib (VOXFIELD_PYTHON, /usr/bin/python3, python3),
-// and bench/plot.py; throws InputError (exit 2) naming `apt-get install python3-matplotlib`
-// when there is none. Called before any long run starts.
-struct Plotter {
-    std::string python, script;
-};
-Plotter require_plotter();
-// Runs plot.py on the JSON files, writing PNGs into `dir`; throws InputError if it fails.
-void run_plotter(const Plotter& p, const std::string& dir, const std::vector<std::string>& files);
-
-int run_suite(const SuiteOptions& o);
+// Runs suite `o.suite` on `ctx` (the render suite also opens a Vulkan context of its own) and
+// returns its document: {"device", "commit", "date", "suite", "quick", "scene", "seed",
+// "repeat", "warmup", "time_budget_s", the suite's own keys, "results": the rows}. Throws
+// InputError for options the suite cannot take, before its first row.
+nlohmann::json run_suite(ocl::Context& ctx, const SuiteOptions& o, BenchObserver& observer);
 
 }  // namespace voxfield::cli

@@ -1,22 +1,19 @@
-// `voxfield bench`: kernel times of the generators over world sizes, with statistics and
-// accuracy, as a table on stdout and JSON/CSV records (DESIGN §4).
-#include <chrono>
-#include <cstdio>
-#include <ctime>
+// `voxfield bench`: its options, the checks made before any work, and the run of the harness
+// (bench/bench_grid.hpp: --algorithms x --sizes; bench/bench_suites.hpp: --suite) shown as a
+// table on stdout and written as JSON/CSV records (DESIGN §4).
 #include <filesystem>
 #include <iostream>
 #include <optional>
-#include <sstream>
 
+#include "bench_files.hpp"
+#include "bench_grid.hpp"
+#include "bench_print.hpp"
 #include "bench_suites.hpp"
 #include "cli_util.hpp"
-#include "progress.hpp"
 #include "voxfield/cl/generator.hpp"
-#include "voxfield/core/accuracy.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/output.hpp"
 #include "voxfield/core/scenes.hpp"
-#include "voxfield/core/stats.hpp"
 
 namespace voxfield::cli {
 namespace {
@@ -92,123 +89,65 @@ int run_bench(const BenchOptions& o) {
     }
     ocl::Context ctx(device);
     std::cerr << "bench: device " << ctx.info().name << " (" << ctx.info().platform << ")\n";
-
-    nlohmann::json results = nlohmann::json::array();
-    std::ostringstream csv;
-    csv << "algorithm,x,y,z,chunk,format,scene,repeat,median_ms,mean_ms,std_ms,ci95_lo_ms,ci95_hi_"
-           "ms,"
-           "min_ms,max_ms,gvox_per_s,max_error,mean_error\n";
-    std::printf("%-14s %-14s %-6s %-8s %10s %10s %10s %10s %6s %9s\n", "algorithm", "size", "chunk",
-                "format", "median ms", "mean ms", "std ms", "Gvox/s", "iters", "max err");
-    for (const auto& algorithm : o.algorithms) {
-        for (const Dims& dims : sizes) {
-            const std::string label = algorithm + " " + dims.to_string();
-            std::cerr << "bench: " << label << ": building scene '" << o.scene << "'\n";
-            const World world = make_scene(o.scene, dims, o.seed);
-            GeneratorFlags flags = o.field;
-            flags.algorithm = algorithm;
-            flags.chunk = algorithm == "exact" ? 0 : o.chunk;
-            std::unique_ptr<ocl::Generator> generator;
-            ocl::GeneratorOptions options;
-            try {
-                options = generator_options(flags, format, dims);
-                generator =
-                    ocl::make_generator(ctx, world, Palette::magicavoxel_default(), options);
-            } catch (const InputError& e) {
-                // Sizes an algorithm cannot do (brute force on large grids, chunks larger than
-                // the world) are reported, not silently dropped.
-                std::cerr << "bench: " << label << ": skipped: " << e.what() << '\n';
-                std::printf("%-14s %-14s skipped: %s\n", algorithm.c_str(),
-                            dims.to_string().c_str(), e.what());
-                results.push_back(
-                    {{"algorithm", algorithm},
-                     {"size", {dims.x, dims.y, dims.z}},
-                     {"chunk", flags.chunk == 0 ? nlohmann::json() : nlohmann::json(flags.chunk)},
-                     {"skipped", e.what()}});
-                continue;
-            }
-            ocl::Generator& job = *generator;
-            std::vector<double> ms;
-            StageTimes stage_times;
-            Progress progress("bench");
-            for (std::uint32_t i = 0; i < o.warmup + o.repeat; ++i) {
-                progress.set(label + ": " + (i < o.warmup ? "warm-up " : "run ") +
-                             std::to_string(i < o.warmup ? i + 1 : i + 1 - o.warmup) + "/" +
-                             std::to_string(i < o.warmup ? o.warmup : o.repeat));
-                const double t = job.run();
-                if (i >= o.warmup) {
-                    ms.push_back(t);
-                    stage_times.add(job);
-                }
-            }
-            double download_ms = 0;
-            const auto field = job.read(&download_ms);
-            progress.set(label + ": checking against the CPU reference");
-            const Accuracy a = accuracy_of(world, Palette::magicavoxel_default(), options, field);
-            progress.stop();
-            const Summary s = summarize(ms);
-            const nlohmann::json stages = stage_times.json();
-            std::ostringstream stage_text;
-            for (const auto& stage : stages) {
-                stage_text << ' ' << stage["kernel"].get<std::string>() << ' '
-                           << std::to_string(stage["median_ms"].get<double>()) << " ms";
-            }
-            std::cerr << "bench: " << label << ": median per kernel:" << stage_text.str() << '\n';
-            const double gvox = static_cast<double>(dims.count()) / (s.median * 1e-3) / 1e9;
-            results.push_back(
-                {{"algorithm", algorithm},
-                 {"size", {dims.x, dims.y, dims.z}},
-                 {"chunk", options.chunk == 0 ? nlohmann::json() : nlohmann::json(options.chunk)},
-                 {"metric", to_string(options.metric)},
-                 {"spacing", {options.spacing.x, options.spacing.y, options.spacing.z}},
-                 {"signed", options.signed_field},
-                 {"format", to_string(format)},
-                 {"scene", o.scene},
-                 {"seed", o.seed},
-                 {"variant", job.variant()},
-                 {"repeat", o.repeat},
-                 {"warmup", o.warmup},
-                 {"median_ms", s.median},
-                 {"mean_ms", s.mean},
-                 {"std_ms", s.std},
-                 {"ci95_ms", {s.ci95_lo, s.ci95_hi}},
-                 {"min_ms", s.min},
-                 {"max_ms", s.max},
-                 {"gvox_per_s", gvox},
-                 {"iterations", job.iterations()},
-                 {"max_error", a.max_error},
-                 {"mean_error", a.mean_error},
-                 {"over_fraction", a.over_fraction},
-                 {"under_fraction", a.under_fraction},
-                 {"upload_ms", job.upload_ms()},
-                 {"download_ms", download_ms},
-                 {"stages", stages},
-                 {"samples_ms", ms}});
-            csv << algorithm << ',' << dims.x << ',' << dims.y << ',' << dims.z << ','
-                << options.chunk << ',' << to_string(format) << ',' << o.scene << ',' << o.repeat
-                << ',' << s.median << ',' << s.mean << ',' << s.std << ',' << s.ci95_lo << ','
-                << s.ci95_hi << ',' << s.min << ',' << s.max << ',' << gvox << ',' << a.max_error
-                << ',' << a.mean_error << '\n';
-            std::printf("%-14s %-14s %-6s %-8s %10.3f %10.3f %10.3f %10s %6u %9u\n",
-                        algorithm.c_str(), dims.to_string().c_str(),
-                        options.chunk == 0 ? "-" : std::to_string(options.chunk).c_str(),
-                        to_string(format).c_str(), s.median, s.mean, s.std, rate(gvox).c_str(),
-                        job.iterations(), a.max_error);
-            std::fflush(stdout);
-        }
-    }
+    GridOptions grid;
+    grid.algorithms = o.algorithms;
+    grid.sizes = sizes;
+    grid.scene = o.scene;
+    grid.seed = o.seed;
+    grid.field = o.field;
+    grid.format = format;
+    grid.chunk = o.chunk;
+    grid.repeat = o.repeat;
+    grid.warmup = o.warmup;
+    BenchPrinter printer("");
+    const nlohmann::json doc = run_grid(ctx, grid, printer);
+    printer.stop();
     OutputBatch outputs;  // both or neither
     if (!json_path.empty()) {
-        const nlohmann::json doc = {{"device", device_json(ctx.info())},
-                                    {"commit", commit()},
-                                    {"date", utc_now()},
-                                    {"results", results}};
         outputs.write(json_path, doc.dump(2) + "\n");
     }
     if (!o.csv.empty()) {
-        outputs.write(o.csv, csv.str());
+        outputs.write(o.csv, grid_csv(doc["results"]));
     }
     outputs.commit();
+    if (plotter) {
+        run_plotter(*plotter, o.plot, {json_path});
+    }
+    return 0;
+}
+
+// --suite NAME: the harness (bench_suites.hpp) with its log, progress and table shown here
+// (bench_print.hpp), the document written as JSON and CSV, then plotted.
+int run_suite_command(SuiteOptions s, const BenchOptions& o) {
+    std::string json_path = o.json;
+    std::optional<Plotter> plotter;
+    if (!o.plot.empty()) {
+        // Checked before the long run starts.
+        plotter = require_plotter();
+        if (!std::filesystem::is_directory(o.plot)) {
+            throw InputError("--plot " + o.plot + ": no such folder (create it first)");
+        }
+        if (json_path.empty()) {
+            json_path = (std::filesystem::path(o.plot) / (s.suite + ".json")).string();
+        }
+    }
+    check_outputs({{"--json", json_path}, {"--csv", o.csv}}, {});
+    if (s.suite == "implicit") {
+        s.implicit_part = require_implicit_part().string();
+    }
+    ocl::Context ctx(ocl::select_device(o.device));
+    std::cerr << "bench: device " << ctx.info().name << " (" << ctx.info().platform << ")\n";
+    BenchPrinter printer(s.suite);
+    const nlohmann::json doc = run_suite(ctx, s, printer);
+    printer.stop();
+    if (!json_path.empty()) {
+        write_json_file(json_path, doc);
+        std::cerr << "bench: wrote " << json_path << '\n';
+    }
+    if (!o.csv.empty()) {
+        write_text_file(o.csv, suite_csv(doc["results"]));
+        std::cerr << "bench: wrote " << o.csv << '\n';
+    }
     if (plotter) {
         run_plotter(*plotter, o.plot, {json_path});
     }
@@ -299,10 +238,6 @@ Command add_bench(CLI::App& root) {
                 }
                 SuiteOptions s;
                 s.suite = o->suite;
-                s.device = o->device;
-                s.json = o->json;
-                s.csv = o->csv;
-                s.plot = o->plot;
                 s.quick = o->quick;
                 s.repeat = app->count("--repeat") != 0 ? o->repeat : 0;
                 if (app->count("--warmup") != 0) {
@@ -314,7 +249,7 @@ Command add_bench(CLI::App& root) {
                 s.edits = o->edits;
                 s.world = o->world;
                 s.format = o->format.empty() ? "u16" : o->format;
-                return run_suite(s);
+                return run_suite_command(s, *o);
             }};
 }
 

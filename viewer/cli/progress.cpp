@@ -51,6 +51,17 @@ void Progress::stop() {
     }
 }
 
+void Progress::print(std::FILE* stream, const std::string& text) {
+    const std::lock_guard lock(mutex_);
+    if (shown_) {
+        std::fputs("\r\033[K", stderr);
+        std::fflush(stderr);
+        shown_ = false;
+    }
+    std::fputs(text.c_str(), stream);
+    std::fflush(stream);
+}
+
 void Progress::loop() {
     std::unique_lock lock(mutex_);
     if (wake_.wait_until(lock, start_ + kShowAfter, [this] { return stopping_; })) {

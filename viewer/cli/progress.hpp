@@ -5,6 +5,7 @@
 // a terminal.
 #include <chrono>
 #include <condition_variable>
+#include <cstdio>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -23,6 +24,10 @@ class Progress {
     void set(std::string what);
     // Stops and clears the line now (before printing results to stderr).
     void stop();
+    // Writes `text` (whole lines) to `stream` (stdout or stderr) and flushes it, clearing the
+    // line first if it is shown; the line comes back at its next refresh. For results printed
+    // while the work goes on.
+    void print(std::FILE* stream, const std::string& text);
     // Whether stderr is a terminal (the line is shown at all).
     bool enabled() const { return enabled_; }
 
