@@ -5,21 +5,30 @@ the same call on the whole array (:func:`voxfield.distance_transform`,
 :func:`voxfield.ndimage.distance_transform_edt`, :func:`voxfield.ndimage.distance_transform_cdt`),
 on any scheduler (threads, processes, a ``distributed`` cluster).
 
-Two exact schemes:
+Three exact schemes:
 
 * Bounded fields (``distance_transform(..., max_distance=D)``): each block is computed on the
   OpenCL device with a halo of ``ceil(D / sampling)`` voxels per axis (``map_overlap``; Dask
   merges blocks smaller than the halo first). A voxel's value depends only on the solids
   within D, which the halo holds, and everything beyond D saturates at D.
-* Unbounded fields: the separable transform, one axis at a time. The volume is rechunked so
-  that each block spans whole lines of the axis, and the 1-D pass of the compiled core
-  (``voxfield._core.separable_pass``, float64 on the host) runs on every block; after the
-  passes along axes 0, 1 and 2 every voxel holds its exact distance (L2: squared, then one
-  square root). Each line is computed whole, so the result does not depend on the chunks.
+* Unbounded fields with unit sampling (``distance_transform`` without ``max_distance``,
+  ``distance_transform_edt``, ``distance_transform_cdt``): the device transforms every slice
+  along axis 0 alone (a plane of a 3-D input, a row of a 2-D input; a 1-D input whole), in
+  blocks that span the slices whole; then one host pass along axis 0 (the compiled core's
+  1-D pass, on blocks spanning whole lines of that axis) finishes the separable transform. The
+  slices' partial distances are exact integers (L2: squared, recovered exactly from the
+  device's float64 distances), so the result equals the one-piece function bit for bit.
+* Unbounded fields with other sampling: the separable transform on the host, one axis at a
+  time. The volume is rechunked so that each block spans whole lines of the axis, and the
+  1-D pass of the compiled core (``voxfield._core.separable_pass``, float64) runs on every
+  block; after the passes along axes 0, 1 and 2 every voxel holds its exact distance (L2:
+  squared, then one square root).
+
+Each line and slice is computed whole, so no result depends on the chunks.
 
 Each task picks its device when it runs: ``device=`` if given, else ``$VOXFIELD_DEVICE`` as
 the worker's environment has it, else the first GPU, else the first CPU; each worker process
-keeps one OpenCL context per device.
+keeps one OpenCL context per device. A device that a worker does not have fails that task.
 """
 
 import math
@@ -50,6 +59,57 @@ def _spacing(sampling, ndim):
     if not np.all(np.isfinite(s)) or np.any(s <= 0):
         raise ValueError(f"sampling: every value must be positive and finite, got {list(s)}")
     return [float(v) for v in s]
+
+
+# The device stage's blocks hold at most this many elements (64 MiB of float64 partials).
+_SLICE_BLOCK_ELEMENTS = 1 << 23
+
+
+def _check_device(device):
+    """The form of device= (None, a string, a non-negative integer); which device it names
+    is resolved by each task on its worker."""
+    if isinstance(device, bool) or not (device is None
+                                        or isinstance(device, (str, int, np.integer))):
+        raise TypeError("device must be None, 'cpu', 'gpu' or an index from "
+                        f"voxfield.devices(), not {type(device).__name__}")
+    if isinstance(device, (int, np.integer)) and device < 0:
+        raise ValueError(f"device index {device} is negative: use an index from "
+                         "voxfield.devices()")
+
+
+def _slices_on_device(block, metric, device):
+    """Partial distances (L2: squared) of a block of targets (bool): each slice along axis 0
+    transformed alone on the device (a 1-D block: the whole line), in float64."""
+    out = np.empty(block.shape, np.float64)
+    slices = [(Ellipsis, block)] if block.ndim == 1 else enumerate(block)
+    for index, s in slices:
+        if s.size == 0:
+            continue
+        d = _core.distance_transform(s.reshape((1,) * (3 - s.ndim) + s.shape), metric, False,
+                                     None, False, None, "f64", "exact", device)
+        d = d.reshape(s.shape)
+        if metric == "euclidean":
+            # sqrt of an integer below 2**52, squared and rounded: the integer again.
+            d = np.rint(d * d)
+        out[index] = d
+    return out
+
+
+def _device_partials(targets, metric, device):
+    """Lazy partial distances (L2: squared) of a dask array of targets (bool) with unit
+    sampling, chunked as `targets`: the slices along axis 0 on the device, then one host pass
+    along axis 0."""
+    chunks = targets.chunks
+    if targets.ndim == 1:
+        g = targets.rechunk(-1).map_blocks(_slices_on_device, metric, device, dtype=np.float64)
+        return g.rechunk(chunks)
+    slice_elements = math.prod(targets.shape[1:])
+    depth = max(1, min(targets.shape[0], _SLICE_BLOCK_ELEMENTS // max(1, slice_elements)))
+    g = targets.rechunk({a: (depth if a == 0 else -1) for a in range(targets.ndim)})
+    g = g.map_blocks(_slices_on_device, metric, device, dtype=np.float64)
+    g = g.rechunk({a: (-1 if a == 0 else chunks[a]) for a in range(targets.ndim)})
+    g = g.map_blocks(_pass_block, 0, metric, 1.0, False, dtype=np.float64)
+    return g.rechunk(chunks)
 
 
 def _pass_block(block, axis, metric, spacing, first):
@@ -104,12 +164,13 @@ def distance_transform(world, metric="manhattan", signed=False, sampling=None,
         Voxel spacing in array order (z, y, x).
     max_distance : float, optional
         Bounded field: blocks on the device with a halo of ``ceil(max_distance / sampling)``.
-        None: the unbounded field by the separable passes on the host.
+        None: the unbounded field, by slices on the device and a host pass (unit sampling) or
+        by the separable passes on the host (other sampling).
     format : str, optional
         As for :func:`voxfield.distance_transform` (default u16 / i16 / f32 likewise).
     device : None, 'cpu', 'gpu' or int
         The device each task uses (None: ``$VOXFIELD_DEVICE`` of the worker, else its first
-        GPU, else its first CPU); bounded fields only.
+        GPU, else its first CPU); not used by unbounded fields with non-unit sampling.
 
     Returns
     -------
@@ -151,7 +212,11 @@ def distance_transform(world, metric="manhattan", signed=False, sampling=None,
     if fmt == "packed32":
         raise ValueError("format='packed32' on a dask array needs max_distance (the palette "
                          "colour is written by the device)")
-    g = _separable(w, metric, spacing)
+    _check_device(device)
+    if all(v == 1.0 for v in spacing):
+        g = _device_partials(w != 0, metric, device)
+    else:
+        g = _separable(w, metric, spacing)
     d = da.sqrt(g) if metric == "euclidean" else g
     return d.map_blocks(_to_format, fmt, dtype=dtype)
 
@@ -175,7 +240,7 @@ def _refuse_outputs(return_distances, return_indices, distances, indices):
 
 
 def distance_transform_edt(input, sampling=None, return_distances=True, return_indices=False,
-                           distances=None, indices=None):
+                           distances=None, indices=None, *, device=None):
     """:func:`voxfield.ndimage.distance_transform_edt` of a dask array, lazily and exactly.
 
     Parameters
@@ -188,6 +253,10 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
     return_distances, return_indices, distances, indices
         SciPy's signature; only the distances are returned here (``return_indices=True`` or
         output arrays raise ``ValueError``).
+    device : None, 'cpu', 'gpu' or int
+        The device each task uses with unit sampling (None: ``$VOXFIELD_DEVICE`` of the
+        worker, else its first GPU, else its first CPU): the slices along axis 0 run there.
+        Other sampling runs every pass on the host in float64, as the one-piece function does.
 
     Returns
     -------
@@ -196,18 +265,23 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
         :func:`voxfield.ndimage.distance_transform_edt`.
     """
     _refuse_outputs(return_distances, return_indices, distances, indices)
+    _check_device(device)
     a = da.asarray(input)
     if a.ndim < 1 or a.ndim > 3:
         raise ValueError(f"voxfield.dask handles 1-D to 3-D input, got shape {a.shape}")
     spacing = _spacing(sampling, a.ndim)
     targets = a == 0
-    d = da.sqrt(_separable(targets, "euclidean", spacing))
+    if all(v == 1.0 for v in spacing):
+        g = _device_partials(targets, "euclidean", device)
+    else:
+        g = _separable(targets, "euclidean", spacing)
+    d = da.sqrt(g)
     quirk = da.map_blocks(_no_target_edt, targets, spacing, dtype=np.float64)
     return da.where(targets.any(), d, quirk)
 
 
 def distance_transform_cdt(input, metric="chessboard", return_distances=True,
-                           return_indices=False, distances=None, indices=None):
+                           return_indices=False, distances=None, indices=None, *, device=None):
     """:func:`voxfield.ndimage.distance_transform_cdt` of a dask array, lazily and exactly.
 
     Parameters
@@ -217,6 +291,9 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
     metric : {'chessboard', 'taxicab', 'cityblock', 'manhattan'}
     return_distances, return_indices, distances, indices
         SciPy's signature; only the distances are returned here.
+    device : None, 'cpu', 'gpu' or int
+        The device each task uses (None: ``$VOXFIELD_DEVICE`` of the worker, else its first
+        GPU, else its first CPU): the slices along axis 0 run there.
 
     Returns
     -------
@@ -224,6 +301,7 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
         Chunked as ``input``; -1 everywhere when the input has no zero element (as SciPy).
     """
     _refuse_outputs(return_distances, return_indices, distances, indices)
+    _check_device(device)
     a = da.asarray(input)
     if a.ndim < 1 or a.ndim > 3:
         raise ValueError(f"voxfield.dask handles 1-D to 3-D input, got shape {a.shape}")
@@ -234,6 +312,6 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
     else:
         raise RuntimeError("invalid metric provided")
     targets = a == 0
-    g = _separable(targets, m, [1.0] * a.ndim)
+    g = _device_partials(targets, m, device)
     # +inf only where the input has no zero at all: -1 there, as SciPy.
     return da.where(da.isinf(g), -1.0, g).astype(np.int32)
