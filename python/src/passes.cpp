@@ -18,7 +18,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // candidate is least at i (-1: none), val[i] = that value. Work arrays are the caller's.
 struct Line {
     std::vector<double> g, val;
-    std::vector<std::int64_t> site, stack;
+    std::vector<std::int64_t> site, stack, feat;  // feat: the sites' features (optional)
     std::vector<double> cut;
     void resize(std::size_t n) {
         g.resize(n);
@@ -196,48 +196,61 @@ void separable_pass(Metric metric, Shape3 shape, int axis, double spacing,
         stride *= shape.n[a];
     }
     const std::size_t lines = n == 0 ? 0 : count / n;
-    // Line number -> its first element: the axes before `axis` (outer) and after it (inner).
-    auto line_base = [&](std::size_t line) {
-        const std::size_t outer = line / stride, inner = line % stride;
-        return outer * n * stride + inner;
-    };
+    // Lines are taken in tiles of up to kTile neighbours (consecutive in the axes after
+    // `axis`, so position i of every line of a tile is one contiguous run of memory): a pass
+    // along a strided axis then reads and writes whole runs instead of one element per cache
+    // line. Along the last axis (stride 1) a tile is one line.
+    constexpr std::size_t kTile = 32;
     auto work = [&](std::size_t from, std::size_t to) {
-        Line l;
-        l.resize(n);
-        for (std::size_t line = from; line < to; ++line) {
-            const std::size_t base = line_base(line);
+        std::vector<Line> tile(std::min(kTile, stride));
+        for (Line& l : tile) {
+            l.resize(n);
+            if (!feat_out.empty()) {
+                l.feat.resize(n);
+            }
+        }
+        for (std::size_t line = from; line < to;) {
+            const std::size_t outer = line / stride, inner = line % stride;
+            const std::size_t m = std::min({tile.size(), to - line, stride - inner});
+            const std::size_t base = outer * n * stride + inner;  // line t starts at base + t
             for (std::size_t i = 0; i < n; ++i) {
                 const std::size_t at = base + i * stride;
-                l.g[i] = first ? (targets[at] != 0 ? 0.0 : kInf) : g_in[at];
-            }
-            switch (metric) {
-                case Metric::euclidean:
-                    pass_l2(l, n, spacing);
-                    break;
-                case Metric::manhattan:
-                    pass_l1(l, n, spacing);
-                    break;
-                case Metric::chebyshev:
-                    pass_linf(l, n, spacing);
-                    break;
-            }
-            // Features first: with g_out == g_in, the sites' own values are read above only.
-            if (!feat_out.empty()) {
-                std::vector<std::int64_t> f(n);
-                for (std::size_t i = 0; i < n; ++i) {
-                    const std::int64_t j = l.site[i];
-                    f[i] = j < 0 ? -1
-                                 : (first ? static_cast<std::int64_t>(
-                                                base + static_cast<std::size_t>(j) * stride)
-                                          : feat_in[base + static_cast<std::size_t>(j) * stride]);
+                for (std::size_t t = 0; t < m; ++t) {
+                    tile[t].g[i] = first ? (targets[at + t] != 0 ? 0.0 : kInf) : g_in[at + t];
                 }
-                for (std::size_t i = 0; i < n; ++i) {
-                    feat_out[base + i * stride] = f[i];
+            }
+            for (std::size_t t = 0; t < m; ++t) {
+                Line& l = tile[t];
+                switch (metric) {
+                    case Metric::euclidean:
+                        pass_l2(l, n, spacing);
+                        break;
+                    case Metric::manhattan:
+                        pass_l1(l, n, spacing);
+                        break;
+                    case Metric::chebyshev:
+                        pass_linf(l, n, spacing);
+                        break;
+                }
+                // Every feature of the tile is read before any is written (feat_out may be
+                // feat_in).
+                for (std::size_t i = 0; !feat_out.empty() && i < n; ++i) {
+                    const std::int64_t j = l.site[i];
+                    const std::size_t site = base + t + static_cast<std::size_t>(j) * stride;
+                    l.feat[i] =
+                        j < 0 ? -1 : (first ? static_cast<std::int64_t>(site) : feat_in[site]);
                 }
             }
             for (std::size_t i = 0; i < n; ++i) {
-                g_out[base + i * stride] = l.val[i];
+                const std::size_t at = base + i * stride;
+                for (std::size_t t = 0; t < m; ++t) {
+                    g_out[at + t] = tile[t].val[i];
+                    if (!feat_out.empty()) {
+                        feat_out[at + t] = tile[t].feat[i];
+                    }
+                }
             }
+            line += m;
         }
     };
     threads = std::max(

@@ -31,6 +31,7 @@ the worker's environment has it, else the first GPU, else the first CPU; each wo
 keeps one OpenCL context per device. A device that a worker does not have fails that task.
 """
 
+import functools
 import math
 
 import dask.array as da
@@ -61,7 +62,7 @@ def _spacing(sampling, ndim):
     return [float(v) for v in s]
 
 
-# The device stage's blocks hold at most this many elements (64 MiB of float64 partials).
+# The device stage's blocks hold at most this many elements (32 or 64 MiB of partials).
 _SLICE_BLOCK_ELEMENTS = 1 << 23
 
 
@@ -77,10 +78,24 @@ def _check_device(device):
                          "voxfield.devices()")
 
 
-def _slices_on_device(block, metric, device):
+def _exact_partial_dtype(metric, shape):
+    """float32 where every finite partial distance of a slice of `shape` is an integer below
+    2**24 (held exactly), else float64."""
+    extents = [n - 1 for n in shape]
+    if metric == "euclidean":
+        top = sum(e * e for e in extents)
+    elif metric == "manhattan":
+        top = sum(extents)
+    else:
+        top = max(extents, default=0)
+    return np.dtype(np.float32 if top < 1 << 24 else np.float64)
+
+
+def _slices_on_device(block, metric, device, dtype):
     """Partial distances (L2: squared) of a block of targets (bool): each slice along axis 0
-    transformed alone on the device (a 1-D block: the whole line), in float64."""
-    out = np.empty(block.shape, np.float64)
+    transformed alone on the device (a 1-D block: the whole line). Exact integers (+inf
+    where a slice has no target) in `dtype`."""
+    out = np.empty(block.shape, dtype)
     slices = [(Ellipsis, block)] if block.ndim == 1 else enumerate(block)
     for index, s in slices:
         if s.size == 0:
@@ -95,20 +110,33 @@ def _slices_on_device(block, metric, device):
     return out
 
 
-def _device_partials(targets, metric, device):
-    """Lazy partial distances (L2: squared) of a dask array of targets (bool) with unit
-    sampling, chunked as `targets`: the slices along axis 0 on the device, then one host pass
-    along axis 0."""
+def _pass_and_finish(block, metric, finish):
+    """The host pass along axis 0 from partial distances, then `finish` of the result."""
+    return finish(_core.separable_pass(block, 0, metric, 1.0, False, 1))
+
+
+def _finish_slices(block, metric, device, dtype, finish):
+    return finish(_slices_on_device(block, metric, device, dtype).astype(np.float64))
+
+
+def _unit_transform(targets, metric, device, finish, dtype):
+    """Lazy `finish` of the distances (L2: squared) of a dask array of targets (bool) with
+    unit sampling, chunked as `targets` and of `dtype`: the slices along axis 0 on the device,
+    then one host pass along axis 0 (the module docstring's second scheme). `finish` maps a
+    float64 block to `dtype` element by element."""
     chunks = targets.chunks
     if targets.ndim == 1:
-        g = targets.rechunk(-1).map_blocks(_slices_on_device, metric, device, dtype=np.float64)
-        return g.rechunk(chunks)
+        partial = _exact_partial_dtype(metric, targets.shape)
+        whole = targets.rechunk(-1)
+        return whole.map_blocks(_finish_slices, metric, device, partial, finish,
+                                dtype=dtype).rechunk(chunks)
+    partial = _exact_partial_dtype(metric, targets.shape[1:])
     slice_elements = math.prod(targets.shape[1:])
     depth = max(1, min(targets.shape[0], _SLICE_BLOCK_ELEMENTS // max(1, slice_elements)))
     g = targets.rechunk({a: (depth if a == 0 else -1) for a in range(targets.ndim)})
-    g = g.map_blocks(_slices_on_device, metric, device, dtype=np.float64)
+    g = g.map_blocks(_slices_on_device, metric, device, partial, dtype=partial)
     g = g.rechunk({a: (-1 if a == 0 else chunks[a]) for a in range(targets.ndim)})
-    g = g.map_blocks(_pass_block, 0, metric, 1.0, False, dtype=np.float64)
+    g = g.map_blocks(_pass_and_finish, metric, finish, dtype=dtype)
     return g.rechunk(chunks)
 
 
@@ -214,11 +242,15 @@ def distance_transform(world, metric="manhattan", signed=False, sampling=None,
                          "colour is written by the device)")
     _check_device(device)
     if all(v == 1.0 for v in spacing):
-        g = _device_partials(w != 0, metric, device)
-    else:
-        g = _separable(w, metric, spacing)
-    d = da.sqrt(g) if metric == "euclidean" else g
-    return d.map_blocks(_to_format, fmt, dtype=dtype)
+        return _unit_transform(w != 0, metric, device,
+                               functools.partial(_field_of, metric=metric, fmt=fmt), dtype)
+    g = _separable(w, metric, spacing)
+    return g.map_blocks(_field_of, metric, fmt, dtype=dtype)
+
+
+def _field_of(g, metric, fmt):
+    """The field in format `fmt` of partial distances after every pass (L2: squared)."""
+    return _to_format(np.sqrt(g) if metric == "euclidean" else g, fmt)
 
 
 def _no_target_edt(block, spacing, block_info=None):
@@ -272,10 +304,9 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
     spacing = _spacing(sampling, a.ndim)
     targets = a == 0
     if all(v == 1.0 for v in spacing):
-        g = _device_partials(targets, "euclidean", device)
+        d = _unit_transform(targets, "euclidean", device, np.sqrt, np.float64)
     else:
-        g = _separable(targets, "euclidean", spacing)
-    d = da.sqrt(g)
+        d = da.sqrt(_separable(targets, "euclidean", spacing))
     quirk = da.map_blocks(_no_target_edt, targets, spacing, dtype=np.float64)
     return da.where(targets.any(), d, quirk)
 
@@ -311,7 +342,9 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
         m = "chebyshev"
     else:
         raise RuntimeError("invalid metric provided")
-    targets = a == 0
-    g = _device_partials(targets, m, device)
-    # +inf only where the input has no zero at all: -1 there, as SciPy.
-    return da.where(da.isinf(g), -1.0, g).astype(np.int32)
+    return _unit_transform(a == 0, m, device, _cdt_of, np.int32)
+
+
+def _cdt_of(g):
+    """int32 distances; +inf only where the input has no zero at all: -1 there, as SciPy."""
+    return np.where(np.isinf(g), -1.0, g).astype(np.int32)
