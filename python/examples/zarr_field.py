@@ -6,8 +6,7 @@
 
 IN.zarr holds a 3-D label volume (any integer or bool dtype, nonzero = solid; Zarr's chunks
 are Dask's blocks). OUT.zarr gets the field with the same chunks: bounded (--max-distance,
-blocks on the OpenCL device with halos) or unbounded (planes on the device, then one exact
-host pass across them). With
+blocks on the OpenCL device with halos) or unbounded (the exact separable passes). With
 --workers N a distributed.LocalCluster of N single-threaded worker processes runs it, each
 worker using --device (or its $VOXFIELD_DEVICE); without, Dask's threaded scheduler.
 --demo N first writes a random N^3 uint8 volume to IN.zarr.

@@ -11,18 +11,22 @@ Three exact schemes:
   OpenCL device with a halo of ``ceil(D / sampling)`` voxels per axis (``map_overlap``; Dask
   merges blocks smaller than the halo first). A voxel's value depends only on the solids
   within D, which the halo holds, and everything beyond D saturates at D.
-* Unbounded fields with unit sampling (``distance_transform`` without ``max_distance``,
-  ``distance_transform_edt``, ``distance_transform_cdt``): the device transforms every slice
-  along axis 0 alone (a plane of a 3-D input, a row of a 2-D input; a 1-D input whole), in
-  blocks that span the slices whole; then one host pass along axis 0 (the compiled core's
-  1-D pass, on blocks spanning whole lines of that axis) finishes the separable transform. The
-  slices' partial distances are exact integers (L2: squared, recovered exactly from the
-  device's float64 distances), so the result equals the one-piece function bit for bit.
-* Unbounded fields with other sampling: the separable transform on the host, one axis at a
-  time. The volume is rechunked so that each block spans whole lines of the axis, and the
-  1-D pass of the compiled core (``voxfield._core.separable_pass``, float64) runs on every
-  block; after the passes along axes 0, 1 and 2 every voxel holds its exact distance (L2:
-  squared, then one square root).
+* Unbounded ``distance_transform`` (and ``distance_transform_edt`` with non-unit sampling):
+  the separable transform on the host, one axis at a time. The volume is rechunked so that
+  each block spans whole lines of the axis, and the 1-D pass of the compiled core
+  (``voxfield._core.separable_pass``, float64) runs on every block; after the passes along
+  axes 0, 1 and 2 every voxel holds its exact distance (L2: squared, then one square root).
+  Between passes the partial distances are float32 where they are integers below 2**24
+  (unit sampling), else float64. Each rechunk between two passes keeps one axis's chunks,
+  so it moves data within slabs of the volume only.
+* ``distance_transform_edt`` (unit sampling) and ``distance_transform_cdt``: the device
+  transforms every slice along axis 0 alone (a plane of a 3-D input, a row of a 2-D input; a
+  1-D input whole), in blocks that span the slices whole; then one host pass along axis 0
+  (blocks spanning whole lines of it) finishes the separable transform. The slices' partial
+  distances are exact integers (L2: squared, recovered exactly from the device's float64
+  distances), so the result equals the one-piece function bit for bit. The rechunk between
+  the two stages moves the whole volume's partial distances (float32 where exact) at once:
+  a cluster needs that much memory (or room to spill) across its workers.
 
 Each line and slice is computed whole, so no result depends on the chunks.
 
@@ -122,7 +126,7 @@ def _finish_slices(block, metric, device, dtype, finish):
 def _unit_transform(targets, metric, device, finish, dtype):
     """Lazy `finish` of the distances (L2: squared) of a dask array of targets (bool) with
     unit sampling, chunked as `targets` and of `dtype`: the slices along axis 0 on the device,
-    then one host pass along axis 0 (the module docstring's second scheme). `finish` maps a
+    then one host pass along axis 0 (the module docstring's third scheme). `finish` maps a
     float64 block to `dtype` element by element."""
     chunks = targets.chunks
     if targets.ndim == 1:
@@ -140,18 +144,26 @@ def _unit_transform(targets, metric, device, finish, dtype):
     return g.rechunk(chunks)
 
 
-def _pass_block(block, axis, metric, spacing, first):
-    return _core.separable_pass(block, axis, metric, spacing, first, 1)
+def _pass_block(block, axis, metric, spacing, first, partial, finish):
+    """One host pass along `axis`; its result in `partial`, or `finish` of it (last pass)."""
+    g = _core.separable_pass(block, axis, metric, spacing, first, 1)
+    return finish(g) if finish is not None else g.astype(partial, copy=False)
 
 
-def _separable(targets, metric, spacing):
-    """Lazy partial distances (L2: squared) of a dask array of targets (nonzero = target),
-    in float64, chunked as `targets`."""
+def _separable(targets, metric, spacing, finish, dtype):
+    """Lazy `finish` of the distances (L2: squared) of a dask array of targets (nonzero =
+    target), chunked as `targets` and of `dtype`: one host pass per axis on a rechunk whose
+    blocks span that axis. Partials between passes in float32 where they are integers below
+    2**24 (unit sampling), else float64."""
     chunks = targets.chunks
+    unit = all(v == 1.0 for v in spacing)
+    partial = _exact_partial_dtype(metric, targets.shape) if unit else np.dtype(np.float64)
     g = targets
     for axis in range(targets.ndim):
+        last = axis == targets.ndim - 1
         g = g.rechunk({a: (-1 if a == axis else chunks[a]) for a in range(targets.ndim)})
-        g = g.map_blocks(_pass_block, axis, metric, spacing[axis], axis == 0, dtype=np.float64)
+        g = g.map_blocks(_pass_block, axis, metric, spacing[axis], axis == 0, partial,
+                         finish if last else None, dtype=dtype if last else partial)
     return g.rechunk(chunks)
 
 
@@ -192,13 +204,12 @@ def distance_transform(world, metric="manhattan", signed=False, sampling=None,
         Voxel spacing in array order (z, y, x).
     max_distance : float, optional
         Bounded field: blocks on the device with a halo of ``ceil(max_distance / sampling)``.
-        None: the unbounded field, by slices on the device and a host pass (unit sampling) or
-        by the separable passes on the host (other sampling).
+        None: the unbounded field by the separable passes on the host.
     format : str, optional
         As for :func:`voxfield.distance_transform` (default u16 / i16 / f32 likewise).
     device : None, 'cpu', 'gpu' or int
         The device each task uses (None: ``$VOXFIELD_DEVICE`` of the worker, else its first
-        GPU, else its first CPU); not used by unbounded fields with non-unit sampling.
+        GPU, else its first CPU); bounded fields only.
 
     Returns
     -------
@@ -240,12 +251,8 @@ def distance_transform(world, metric="manhattan", signed=False, sampling=None,
     if fmt == "packed32":
         raise ValueError("format='packed32' on a dask array needs max_distance (the palette "
                          "colour is written by the device)")
-    _check_device(device)
-    if all(v == 1.0 for v in spacing):
-        return _unit_transform(w != 0, metric, device,
-                               functools.partial(_field_of, metric=metric, fmt=fmt), dtype)
-    g = _separable(w, metric, spacing)
-    return g.map_blocks(_field_of, metric, fmt, dtype=dtype)
+    return _separable(w, metric, spacing, functools.partial(_field_of, metric=metric, fmt=fmt),
+                      dtype)
 
 
 def _field_of(g, metric, fmt):
@@ -306,7 +313,7 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
     if all(v == 1.0 for v in spacing):
         d = _unit_transform(targets, "euclidean", device, np.sqrt, np.float64)
     else:
-        d = da.sqrt(_separable(targets, "euclidean", spacing))
+        d = _separable(targets, "euclidean", spacing, np.sqrt, np.float64)
     quirk = da.map_blocks(_no_target_edt, targets, spacing, dtype=np.float64)
     return da.where(targets.any(), d, quirk)
 
