@@ -173,8 +173,9 @@ class Field(_core.Field):
         """Take back the newest :meth:`edit` or :meth:`apply_edits` call not undone yet.
 
         The voxels it changed get their values from before it, and the field is updated
-        exactly as for an edit. Undo history: the last 256 calls (at most 64 Mi voxel
-        changes); :meth:`step_sand` steps are not in it and are never undone.
+        exactly as for an edit. Undo history: the last 256 calls, at most 64 Mi voxel
+        changes (16 bytes each on the host); :meth:`step_sand` steps are not in it and are
+        never undone.
 
         Returns
         -------
