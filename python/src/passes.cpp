@@ -99,6 +99,65 @@ void pass_l2(Line& l, std::size_t n, double s) {
     }
 }
 
+// L2 with unit spacing and integer partials (below 2^52), values only: the second phase of
+// Meijster, Roerdink & Hesselink (2000) in exact integer arithmetic over the line's finite
+// sites, no neighbour checks needed. Returns false, writing nothing, when a partial is not
+// such an integer (the caller then takes pass_l2).
+bool pass_l2_unit(Line& l, std::size_t n) {
+    constexpr double kLimit = 4503599627370496.0;  // 2^52
+    std::vector<std::int64_t>& g = l.feat;         // the partials as integers
+    g.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        const double v = l.g[i];
+        if (v == kInf) {
+            continue;
+        }
+        if (!(v >= 0 && v < kLimit) || std::floor(v) != v) {
+            return false;
+        }
+        g[i] = static_cast<std::int64_t>(v);
+    }
+    const auto sn = static_cast<std::int64_t>(n);
+    std::int64_t* const site = l.stack.data();
+    std::int64_t* const start = l.site.data();  // where each envelope site starts to be least
+    const auto f = [&](std::int64_t x, std::int64_t i) { return (x - i) * (x - i) + g[i]; };
+    // The first x at which site u (> i) is strictly less than site i.
+    const auto first_better = [&](std::int64_t i, std::int64_t u) {
+        const std::int64_t num = u * u - i * i + g[u] - g[i], den = 2 * (u - i);
+        const std::int64_t q = num / den;
+        return (q * den > num ? q - 1 : q) + 1;  // floor(num / den) + 1
+    };
+    std::int64_t k = -1;
+    for (std::int64_t u = 0; u < sn; ++u) {
+        if (l.g[static_cast<std::size_t>(u)] == kInf) {
+            continue;
+        }
+        while (k >= 0 && f(start[k], site[k]) > f(start[k], u)) {
+            --k;
+        }
+        if (k < 0) {
+            k = 0;
+            site[0] = u;
+            start[0] = 0;
+        } else if (const std::int64_t w = first_better(site[k], u); w < sn) {
+            ++k;
+            site[k] = u;
+            start[k] = w;
+        }
+    }
+    if (k < 0) {
+        std::fill(l.val.begin(), l.val.begin() + static_cast<std::ptrdiff_t>(n), kInf);
+        return true;
+    }
+    for (std::int64_t x = sn - 1; x >= 0; --x) {
+        l.val[static_cast<std::size_t>(x)] = static_cast<double>(f(x, site[k]));
+        if (x == start[k]) {
+            --k;
+        }
+    }
+    return true;
+}
+
 // L1: the order of two sites' candidates is the same at every position beyond both, so a
 // forward and a backward sweep, each keeping its best site, find the least candidate.
 void pass_l1(Line& l, std::size_t n, double s) {
@@ -223,7 +282,9 @@ void separable_pass(Metric metric, Shape3 shape, int axis, double spacing,
                 Line& l = tile[t];
                 switch (metric) {
                     case Metric::euclidean:
-                        pass_l2(l, n, spacing);
+                        if (spacing != 1.0 || !feat_out.empty() || !pass_l2_unit(l, n)) {
+                            pass_l2(l, n, spacing);
+                        }
                         break;
                     case Metric::manhattan:
                         pass_l1(l, n, spacing);

@@ -112,6 +112,27 @@ def test_ndimage_functions_take_a_device():
             threaded(vd.distance_transform_edt(d, device="gpu"))
 
 
+def test_host_pass_equals_brute_force_on_partials():
+    # The passes between blocks take partial distances: integer ones with unit spacing (the
+    # exact integer L2 pass), any others with any spacing; +inf where a line has no target.
+    rng = np.random.default_rng(8)
+    for trial in range(200):
+        n, m = int(rng.integers(1, 40)), int(rng.integers(1, 6))
+        spacing = 1.0 if trial % 4 else float(rng.uniform(0.3, 3.0))
+        g = rng.integers(0, int(rng.choice([2, 10, 1000, 10**6])), size=(m, n)).astype(float)
+        if trial % 7 == 0:
+            g += 0.5
+        g[rng.random((m, n)) < rng.random()] = np.inf
+        i = np.arange(n)
+        for metric, cost in (("euclidean", lambda d: (spacing * d) ** 2),
+                             ("manhattan", lambda d: spacing * np.abs(d))):
+            got = voxfield._core.separable_pass(g, 1, metric, spacing, False)
+            want = np.min(g[:, None, :] + cost(i[:, None] - i[None, :]), axis=2)
+            np.testing.assert_allclose(got, want, rtol=1e-12, err_msg=f"{metric} {g}")
+            if spacing == 1.0:
+                np.testing.assert_array_equal(got, want)
+
+
 def test_lazy_and_refusals():
     dw = da.from_array(world(0.01, 5), chunks=8)
     out = vd.distance_transform(dw, metric="euclidean")
