@@ -11,7 +11,7 @@ Writes the floor + spheres world (bench/worlds.py; N^3 uint8, seeded) to a Zarr 
 the unbounded one (euclidean f32): the wall time of reading the Zarr volume, computing on the
 cluster (--workers single-threaded worker processes, each with $VOXFIELD_DEVICE and
 --memory-limit, past which distributed spills to --dir) and writing the field to Zarr; the
-peak resident memory of each worker (ru_maxrss, workers restarted between runs); the
+peak resident memory of each worker (VmHWM, workers restarted between runs); the
 one-piece voxfield.distance_transform of the whole array in this process (wall time, array
 already in memory, its kernels built first on one block); and whether the two are equal, compared slab by slab (one block thick)
 so that the Dask field is never read whole. The JSON also records the device, the date, the
@@ -43,6 +43,20 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def peak_rss_bytes():
+    """This process's peak resident memory: VmHWM, the high-water mark of its own address
+    space. (ru_maxrss is not used: Linux carries the parent's high-water mark into a child
+    across exec, so a worker spawned by a big parent reports the parent's peak.)"""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+def rusage_peak_bytes():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
@@ -103,6 +117,7 @@ def main():
             da.to_zarr(field, out, overwrite=True)
             wall = time.perf_counter() - t
             peaks = list(client.run(peak_rss_bytes).values())
+            rusage_peaks = list(client.run(rusage_peak_bytes).values())
             load_between = load()
             # Kernels built before the clock starts (PoCL builds a kernel per process).
             voxfield.distance_transform(world[:b, :b, :b], metric="euclidean",
@@ -113,7 +128,8 @@ def main():
             equal = equal_by_slabs(out, one, b)
             rows.append({"field": name, "max_distance": bound, "dask_wall_s": wall,
                          "one_piece_wall_s": one_wall, "ratio": wall / one_wall,
-                         "worker_peak_rss_bytes": peaks, "equal": equal,
+                         "worker_peak_rss_bytes": peaks,
+                         "worker_ru_maxrss_bytes": rusage_peaks, "equal": equal,
                          "load_average_before": load_before,
                          "load_average_between": load_between,
                          "load_average_after": load()})
