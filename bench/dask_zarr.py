@@ -3,16 +3,19 @@
 one-piece module on the same machine.
 
 Usage (module built into build/python, or installed by pip):
-    PYTHONPATH=build/python VOXFIELD_DEVICE=cpu python3 bench/dask_zarr.py --size 512 \
-        --block 128 --json bench/results/pocl-dask-zarr-512.json
+    PYTHONPATH=build/python VOXFIELD_DEVICE=cpu nice -n 19 python3 bench/dask_zarr.py \
+        --size 1024 --block 128 --json bench/results/pocl-dask-zarr-1024.json
 
 Writes the floor + spheres world (bench/worlds.py; N^3 uint8, seeded) to a Zarr volume of
 --block^3 chunks in --dir, then for the bounded field (euclidean, --max-distance D, f32) and
 the unbounded one (euclidean f32): the wall time of reading the Zarr volume, computing on the
-cluster (--workers single-threaded worker processes, each with $VOXFIELD_DEVICE) and writing
-the field to Zarr; the peak resident memory of each worker (ru_maxrss; workers restarted
-between runs); the one-piece voxfield.distance_transform of the whole array in this process
-(wall time, array already in memory); and whether the two are equal.
+cluster (--workers single-threaded worker processes, each with $VOXFIELD_DEVICE and
+--memory-limit, past which distributed spills to --dir) and writing the field to Zarr; the
+peak resident memory of each worker (VmHWM, workers restarted between runs); the
+one-piece voxfield.distance_transform of the whole array in this process (wall time, array
+already in memory, its kernels built first on one block); and whether the two are equal, compared slab by slab (one block thick)
+so that the Dask field is never read whole. The JSON also records the device, the date, the
+commit, the load average before and after each run and this process's peak memory.
 """
 
 import argparse
@@ -40,6 +43,20 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def peak_rss_bytes():
+    """This process's peak resident memory: VmHWM, the high-water mark of its own address
+    space. (ru_maxrss is not used: Linux carries the parent's high-water mark into a child
+    across exec, so a worker spawned by a big parent reports the parent's peak.)"""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+def rusage_peak_bytes():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
@@ -51,12 +68,27 @@ def commit():
         return "unknown"
 
 
+def equal_by_slabs(path, want, depth):
+    """Whether the Zarr array at `path` equals `want`, read `depth` planes at a time."""
+    got = zarr.open(path, mode="r")
+    if got.shape != want.shape or got.dtype != want.dtype:
+        return False
+    return all(np.array_equal(got[z:z + depth], want[z:z + depth])
+               for z in range(0, want.shape[0], depth))
+
+
+def load():
+    return [round(x, 2) for x in os.getloadavg()]
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--size", type=int, default=512)
     p.add_argument("--block", type=int, default=128)
     p.add_argument("--max-distance", type=float, default=16)
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--memory-limit", default="2GiB",
+                   help="each worker's memory_limit (distributed spills to disk past 60%%)")
     p.add_argument("--dir", default="/tmp/voxfield-dask-bench")
     p.add_argument("--json", default="")
     args = p.parse_args()
@@ -69,6 +101,8 @@ def main():
     device = os.environ.get("VOXFIELD_DEVICE", "")
     rows = []
     with distributed.LocalCluster(n_workers=args.workers, threads_per_worker=1,
+                                  memory_limit=args.memory_limit,
+                                  local_directory=os.path.join(args.dir, "workers"),
                                   dashboard_address=None, silence_logs=40) as cluster, \
             distributed.Client(cluster) as client:
         for name, bound in (("bounded", args.max_distance), ("unbounded", None)):
@@ -76,29 +110,42 @@ def main():
             if device:
                 client.run(lambda: os.environ.__setitem__("VOXFIELD_DEVICE", device))
             out = os.path.join(args.dir, f"{name}.zarr")
+            load_before = load()
             t = time.perf_counter()
             field = vd.distance_transform(da.from_zarr(src), metric="euclidean",
                                           max_distance=bound)
             da.to_zarr(field, out, overwrite=True)
             wall = time.perf_counter() - t
             peaks = list(client.run(peak_rss_bytes).values())
+            rusage_peaks = list(client.run(rusage_peak_bytes).values())
+            load_between = load()
+            # Kernels built before the clock starts (PoCL builds a kernel per process).
+            voxfield.distance_transform(world[:b, :b, :b], metric="euclidean",
+                                        max_distance=bound)
             t = time.perf_counter()
             one = voxfield.distance_transform(world, metric="euclidean", max_distance=bound)
             one_wall = time.perf_counter() - t
-            equal = bool(np.array_equal(zarr.open(out)[...], one))
+            equal = equal_by_slabs(out, one, b)
             rows.append({"field": name, "max_distance": bound, "dask_wall_s": wall,
                          "one_piece_wall_s": one_wall, "ratio": wall / one_wall,
-                         "worker_peak_rss_bytes": peaks, "equal": equal})
+                         "worker_peak_rss_bytes": peaks,
+                         "worker_ru_maxrss_bytes": rusage_peaks, "equal": equal,
+                         "load_average_before": load_before,
+                         "load_average_between": load_between,
+                         "load_average_after": load()})
             print(f"{name:9s} dask {wall:7.2f} s  one piece {one_wall:6.2f} s  "
                   f"x{wall / one_wall:.2f}  worker peaks "
-                  f"{[round(x / 2**30, 2) for x in peaks]} GiB  equal {equal}")
+                  f"{[round(x / 2**30, 2) for x in peaks]} GiB  equal {equal}  "
+                  f"load {load_before} -> {load()}", flush=True)
             del one
+            shutil.rmtree(out, ignore_errors=True)
     devs = voxfield.devices()
     dev = next((d for d in devs if str(d["index"]) == device or d["type"] == device), devs[0])
     result = {"device": dev, "date": datetime.datetime.now(datetime.timezone.utc).isoformat(),
               "commit": commit(), "size": [n, n, n], "block": [b, b, b], "dtype": "uint8",
-              "workers": args.workers, "threads_per_worker": 1, "cpus": os.cpu_count(),
-              "results": rows}
+              "workers": args.workers, "threads_per_worker": 1,
+              "worker_memory_limit": args.memory_limit, "cpus": os.cpu_count(),
+              "nice": os.nice(0), "main_peak_rss_bytes": peak_rss_bytes(), "results": rows}
     if args.json:
         with open(args.json, "w") as f:
             json.dump(result, f, indent=1)

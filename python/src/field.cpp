@@ -1,4 +1,5 @@
-// voxfield.Field (DESIGN §4): a world and its field kept on the device across edits.
+// voxfield.Field (DESIGN §4): a thin front end over pipeline::Scene, the one owner of a world,
+// its device copy, the incremental field, the undo history and the falling-sand simulation.
 #include <cstring>
 #include <sstream>
 
@@ -11,17 +12,13 @@ namespace voxfield::python {
 
 namespace {
 
-py::dict stats_dict(const ocl::UpdateStats& s) {
-    std::size_t changed = 0;
-    for (const EditResult& e : s.edits) {
-        changed += e.changes.size();
-    }
+py::dict stats_dict(const pipeline::SceneUpdate& u) {
     py::dict out;
-    out["edits"] = s.edits.size();
-    out["voxels_changed"] = changed;
-    out["voxels_recomputed"] = s.voxels_recomputed;
-    out["update_ms"] = s.update_ms;
-    out["full_regeneration"] = s.full_regeneration;
+    out["edits"] = u.stats.edits.size();
+    out["voxels_changed"] = u.voxels_changed;
+    out["voxels_recomputed"] = u.stats.voxels_recomputed;
+    out["update_ms"] = u.stats.update_ms;
+    out["full_regeneration"] = u.stats.full_regeneration;
     return out;
 }
 
@@ -41,6 +38,14 @@ BrushShape parse_shape(const std::string& shape) {
         }
     }
     throw InputError("unknown brush shape '" + shape + "': expected sphere or cube");
+}
+
+std::uint8_t sand_material(std::int64_t value, const char* name) {
+    if (value < 1 || value > 255) {
+        throw py::value_error(std::string(name) + " must be a material 1..255, got " +
+                              std::to_string(value));
+    }
+    return static_cast<std::uint8_t>(value);
 }
 
 }  // namespace
@@ -67,8 +72,8 @@ Field::Field(const py::object& world, const std::string& metric, const py::objec
     py::gil_scoped_release release;
     World vox = make_world(w, labels);
     const std::lock_guard<std::mutex> lock(device_->mutex);
-    field_ = std::make_unique<ocl::IncrementalField>(device_->context, std::move(vox), Palette{},
-                                                     options);
+    scene_ =
+        std::make_unique<pipeline::Scene>(device_->context, std::move(vox), Palette{}, options);
 }
 
 py::dict Field::edit(const std::string& op, const std::string& shape,
@@ -100,35 +105,101 @@ py::dict Field::apply_edits(const std::string& text) {
     return apply(batch);
 }
 
+py::dict Field::undo() {
+    pipeline::SceneUpdate u;
+    {
+        py::gil_scoped_release release;
+        const std::lock_guard<std::mutex> lock(device_->mutex);
+        u = scene_->undo();
+    }
+    return stats_dict(u);
+}
+
+py::dict Field::redo() {
+    pipeline::SceneUpdate u;
+    {
+        py::gil_scoped_release release;
+        const std::lock_guard<std::mutex> lock(device_->mutex);
+        u = scene_->redo();
+    }
+    return stats_dict(u);
+}
+
+bool Field::can_undo() const {
+    return scene_->history().can_undo();
+}
+
+bool Field::can_redo() const {
+    return scene_->history().can_redo();
+}
+
+py::dict Field::step_sand(std::int64_t steps, std::uint64_t seed, std::int64_t sand,
+                          std::int64_t water) {
+    if (steps < 0) {
+        throw py::value_error("steps must be a step count >= 0, got " + std::to_string(steps));
+    }
+    const SandRules rules{sand_material(sand, "sand"), sand_material(water, "water")};
+    check_sand_rules(rules);
+    std::uint64_t changed = 0, recomputed = 0, regenerations = 0;
+    double simulate_ms = 0, update_ms = 0;
+    {
+        py::gil_scoped_release release;
+        const std::lock_guard<std::mutex> lock(device_->mutex);
+        for (std::int64_t i = 0; i < steps; ++i) {
+            const pipeline::SceneUpdate u = scene_->step_sand(rules, seed, sand_steps_);
+            ++sand_steps_;
+            changed += u.voxels_changed;
+            recomputed += u.stats.voxels_recomputed;
+            regenerations += u.stats.full_regeneration ? 1 : 0;
+            simulate_ms += u.simulate_ms;
+            update_ms += u.stats.update_ms;
+        }
+    }
+    py::dict out;
+    out["steps"] = steps;
+    out["voxels_changed"] = changed;
+    out["voxels_recomputed"] = recomputed;
+    out["simulate_ms"] = simulate_ms;
+    out["update_ms"] = update_ms;
+    out["full_regenerations"] = regenerations;
+    return out;
+}
+
 py::array Field::distances() {
-    const Dims d = field_->world().dims();
+    const Dims d = scene_->dims();
     py::array out = empty_field(d, format_);
     void* data = out.mutable_data();
     const std::size_t bytes = d.count() * element_size(format_);
     py::gil_scoped_release release;
     const std::lock_guard<std::mutex> lock(device_->mutex);
-    read_into(*device_, field_->field_buffer(), data, bytes, d);
+    read_into(*device_, scene_->field_buffer(), data, bytes, d);
     return out;
 }
 
 py::array Field::world() {
-    const Dims d = field_->world().dims();
+    const Dims d = scene_->dims();
     py::array_t<std::uint8_t> out(std::vector<py::ssize_t>{d.z, d.y, d.x});
     std::uint8_t* data = out.mutable_data();
     py::gil_scoped_release release;
     const std::lock_guard<std::mutex> lock(device_->mutex);
-    std::memcpy(data, field_->world().voxels().data(), field_->world().size());
+    const World& w = scene_->world();
+    std::memcpy(data, w.voxels().data(), w.size());
     return out;
 }
 
 py::dict Field::apply(const std::vector<Brush>& batch) {
-    ocl::UpdateStats stats;
+    pipeline::SceneUpdate u;
     {
         py::gil_scoped_release release;
         const std::lock_guard<std::mutex> lock(device_->mutex);
-        stats = field_->apply(batch);
+        u = scene_->apply(batch);
+        // The whole batch is one stroke: one undo() takes all of it back.
+        for (const EditResult& e : u.stats.edits) {
+            scene_->history().record(e);
+        }
+        scene_->history().end_stroke();
     }
-    return stats_dict(stats);
+    return stats_dict(u);
 }
 
 }  // namespace voxfield::python

@@ -182,6 +182,18 @@ PYBIND11_MODULE(_core, m) {
         .def("edit", &vp::Field::edit, py::arg("op"), py::arg("shape"), py::arg("center"),
              py::arg("radius"), py::arg("material") = 1)
         .def("apply_edits", &vp::Field::apply_edits, py::arg("text"))
+        .def("undo", &vp::Field::undo)
+        .def("redo", &vp::Field::redo)
+        .def_property_readonly("can_undo", &vp::Field::can_undo,
+                               "bool: Whether undo() has an edit call to take back.")
+        .def_property_readonly("can_redo", &vp::Field::can_redo,
+                               "bool: Whether redo() has an undone call to apply again.")
+        .def("step_sand", &vp::Field::step_sand, py::arg("steps") = 1, py::kw_only(),
+             py::arg("seed") = 1, py::arg("sand") = voxfield::SandRules{}.sand,
+             py::arg("water") = voxfield::SandRules{}.water)
+        .def_property_readonly(
+            "sand_steps", &vp::Field::sand_steps,
+            "int: How many step_sand() steps this Field has run (the next step's number).")
         .def("distances", &vp::Field::distances)
         .def("world", &vp::Field::world);
     m.def("load_vox", &vp::load_vox, py::arg("path"), "load_vox(path) -> (world, palette)");

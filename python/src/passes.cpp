@@ -18,7 +18,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // candidate is least at i (-1: none), val[i] = that value. Work arrays are the caller's.
 struct Line {
     std::vector<double> g, val;
-    std::vector<std::int64_t> site, stack;
+    std::vector<std::int64_t> site, stack, feat;  // feat: the sites' features (optional)
     std::vector<double> cut;
     void resize(std::size_t n) {
         g.resize(n);
@@ -97,6 +97,65 @@ void pass_l2(Line& l, std::size_t n, double s) {
         l.site[ii] = best;
         l.val[ii] = value;
     }
+}
+
+// L2 with unit spacing and integer partials (below 2^52), values only: the second phase of
+// Meijster, Roerdink & Hesselink (2000) in exact integer arithmetic over the line's finite
+// sites, no neighbour checks needed. Returns false, writing nothing, when a partial is not
+// such an integer (the caller then takes pass_l2).
+bool pass_l2_unit(Line& l, std::size_t n) {
+    constexpr double kLimit = 4503599627370496.0;  // 2^52
+    std::vector<std::int64_t>& g = l.feat;         // the partials as integers
+    g.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        const double v = l.g[i];
+        if (v == kInf) {
+            continue;
+        }
+        if (!(v >= 0 && v < kLimit) || std::floor(v) != v) {
+            return false;
+        }
+        g[i] = static_cast<std::int64_t>(v);
+    }
+    const auto sn = static_cast<std::int64_t>(n);
+    std::int64_t* const site = l.stack.data();
+    std::int64_t* const start = l.site.data();  // where each envelope site starts to be least
+    const auto f = [&](std::int64_t x, std::int64_t i) { return (x - i) * (x - i) + g[i]; };
+    // The first x at which site u (> i) is strictly less than site i.
+    const auto first_better = [&](std::int64_t i, std::int64_t u) {
+        const std::int64_t num = u * u - i * i + g[u] - g[i], den = 2 * (u - i);
+        const std::int64_t q = num / den;
+        return (q * den > num ? q - 1 : q) + 1;  // floor(num / den) + 1
+    };
+    std::int64_t k = -1;
+    for (std::int64_t u = 0; u < sn; ++u) {
+        if (l.g[static_cast<std::size_t>(u)] == kInf) {
+            continue;
+        }
+        while (k >= 0 && f(start[k], site[k]) > f(start[k], u)) {
+            --k;
+        }
+        if (k < 0) {
+            k = 0;
+            site[0] = u;
+            start[0] = 0;
+        } else if (const std::int64_t w = first_better(site[k], u); w < sn) {
+            ++k;
+            site[k] = u;
+            start[k] = w;
+        }
+    }
+    if (k < 0) {
+        std::fill(l.val.begin(), l.val.begin() + static_cast<std::ptrdiff_t>(n), kInf);
+        return true;
+    }
+    for (std::int64_t x = sn - 1; x >= 0; --x) {
+        l.val[static_cast<std::size_t>(x)] = static_cast<double>(f(x, site[k]));
+        if (x == start[k]) {
+            --k;
+        }
+    }
+    return true;
 }
 
 // L1: the order of two sites' candidates is the same at every position beyond both, so a
@@ -196,48 +255,63 @@ void separable_pass(Metric metric, Shape3 shape, int axis, double spacing,
         stride *= shape.n[a];
     }
     const std::size_t lines = n == 0 ? 0 : count / n;
-    // Line number -> its first element: the axes before `axis` (outer) and after it (inner).
-    auto line_base = [&](std::size_t line) {
-        const std::size_t outer = line / stride, inner = line % stride;
-        return outer * n * stride + inner;
-    };
+    // Lines are taken in tiles of up to kTile neighbours (consecutive in the axes after
+    // `axis`, so position i of every line of a tile is one contiguous run of memory): a pass
+    // along a strided axis then reads and writes whole runs instead of one element per cache
+    // line. Along the last axis (stride 1) a tile is one line.
+    constexpr std::size_t kTile = 32;
     auto work = [&](std::size_t from, std::size_t to) {
-        Line l;
-        l.resize(n);
-        for (std::size_t line = from; line < to; ++line) {
-            const std::size_t base = line_base(line);
+        std::vector<Line> tile(std::min(kTile, stride));
+        for (Line& l : tile) {
+            l.resize(n);
+            if (!feat_out.empty()) {
+                l.feat.resize(n);
+            }
+        }
+        for (std::size_t line = from; line < to;) {
+            const std::size_t outer = line / stride, inner = line % stride;
+            const std::size_t m = std::min({tile.size(), to - line, stride - inner});
+            const std::size_t base = outer * n * stride + inner;  // line t starts at base + t
             for (std::size_t i = 0; i < n; ++i) {
                 const std::size_t at = base + i * stride;
-                l.g[i] = first ? (targets[at] != 0 ? 0.0 : kInf) : g_in[at];
-            }
-            switch (metric) {
-                case Metric::euclidean:
-                    pass_l2(l, n, spacing);
-                    break;
-                case Metric::manhattan:
-                    pass_l1(l, n, spacing);
-                    break;
-                case Metric::chebyshev:
-                    pass_linf(l, n, spacing);
-                    break;
-            }
-            // Features first: with g_out == g_in, the sites' own values are read above only.
-            if (!feat_out.empty()) {
-                std::vector<std::int64_t> f(n);
-                for (std::size_t i = 0; i < n; ++i) {
-                    const std::int64_t j = l.site[i];
-                    f[i] = j < 0 ? -1
-                                 : (first ? static_cast<std::int64_t>(
-                                                base + static_cast<std::size_t>(j) * stride)
-                                          : feat_in[base + static_cast<std::size_t>(j) * stride]);
+                for (std::size_t t = 0; t < m; ++t) {
+                    tile[t].g[i] = first ? (targets[at + t] != 0 ? 0.0 : kInf) : g_in[at + t];
                 }
-                for (std::size_t i = 0; i < n; ++i) {
-                    feat_out[base + i * stride] = f[i];
+            }
+            for (std::size_t t = 0; t < m; ++t) {
+                Line& l = tile[t];
+                switch (metric) {
+                    case Metric::euclidean:
+                        if (spacing != 1.0 || !feat_out.empty() || !pass_l2_unit(l, n)) {
+                            pass_l2(l, n, spacing);
+                        }
+                        break;
+                    case Metric::manhattan:
+                        pass_l1(l, n, spacing);
+                        break;
+                    case Metric::chebyshev:
+                        pass_linf(l, n, spacing);
+                        break;
+                }
+                // Every feature of the tile is read before any is written (feat_out may be
+                // feat_in).
+                for (std::size_t i = 0; !feat_out.empty() && i < n; ++i) {
+                    const std::int64_t j = l.site[i];
+                    const std::size_t site = base + t + static_cast<std::size_t>(j) * stride;
+                    l.feat[i] =
+                        j < 0 ? -1 : (first ? static_cast<std::int64_t>(site) : feat_in[site]);
                 }
             }
             for (std::size_t i = 0; i < n; ++i) {
-                g_out[base + i * stride] = l.val[i];
+                const std::size_t at = base + i * stride;
+                for (std::size_t t = 0; t < m; ++t) {
+                    g_out[at + t] = tile[t].val[i];
+                    if (!feat_out.empty()) {
+                        feat_out[at + t] = tile[t].feat[i];
+                    }
+                }
             }
+            line += m;
         }
     };
     threads = std::max(

@@ -98,8 +98,11 @@ def distance_transform(world, metric="manhattan", signed=False, sampling=None,
 class Field(_core.Field):
     """A copy of a world and its distance field kept on the device across edits.
 
-    Each edit uploads only the changed voxels and recomputes only what it can change,
-    exactly (``voxfield replay``); :meth:`distances` always equals
+    A front end over the library's scene (``pipeline::Scene``, as ``voxfield replay`` and
+    ``voxfield simulate`` are): each edit uploads only the changed voxels and recomputes only
+    what it can change, exactly; each :meth:`edit` or :meth:`apply_edits` call can be taken
+    back with :meth:`undo` (and :meth:`redo`); :meth:`step_sand` runs the falling-sand
+    simulation in place on the device. :meth:`distances` always equals
     :func:`distance_transform` of :meth:`world` with the same arguments.
 
     A Field belongs to the thread that made it: its methods release the GIL while the device
@@ -166,6 +169,75 @@ class Field(_core.Field):
         """
         return super().apply_edits(text)
 
+    def undo(self):
+        """Take back the newest :meth:`edit` or :meth:`apply_edits` call not undone yet.
+
+        The voxels it changed get their values from before it, and the field is updated
+        exactly as for an edit. Undo history: the last 256 calls, at most 64 Mi voxel
+        changes (16 bytes each on the host); :meth:`step_sand` steps are not in it and are
+        never undone.
+
+        Returns
+        -------
+        dict
+            The update's stats, as :meth:`edit` returns them; ``edits`` is 0 when there was
+            nothing to undo.
+
+        Raises
+        ------
+        ValueError
+            A sand step since moved a voxel of that call: nothing changes, and the undo and
+            redo history is cleared.
+        """
+        return super().undo()
+
+    def redo(self):
+        """Apply again the newest call that :meth:`undo` took back.
+
+        A new :meth:`edit` or :meth:`apply_edits` call clears what can be redone.
+
+        Returns
+        -------
+        dict
+            As :meth:`undo` (``edits`` 0 when there was nothing to redo).
+
+        Raises
+        ------
+        ValueError
+            As :meth:`undo`.
+        """
+        return super().redo()
+
+    def step_sand(self, steps=1, *, seed=1, sand=2, water=3):
+        """Run steps of the falling-sand simulation on the device, updating the field.
+
+        The block automaton of ``voxfield simulate`` (DESIGN §4): sand falls, also diagonally,
+        and sinks through water; water falls and spreads sideways; every other material stays.
+        Each material's voxel count is kept. The steps run in place on the device's copy of
+        the world and hand the field update their changes there; :meth:`world` reads the
+        result back. Steps are numbered on from the Field's previous ones, so
+        ``step_sand(n, seed=s)`` on a new Field gives the world of ``voxfield simulate
+        --steps n --seed s``, and ``step_sand(a)`` then ``step_sand(b)`` equals
+        ``step_sand(a + b)``.
+
+        Parameters
+        ----------
+        steps : int
+            How many steps (>= 0).
+        seed : int
+            The simulation's seed, 0..2**64-1.
+        sand, water : int
+            The sand and the water materials: different, each 1..255.
+
+        Returns
+        -------
+        dict
+            ``steps``, ``voxels_changed`` and ``voxels_recomputed`` (summed over the steps),
+            ``simulate_ms`` and ``update_ms`` (summed device times) and
+            ``full_regenerations`` (steps whose update regenerated the whole field).
+        """
+        return super().step_sand(steps, seed=seed, sand=sand, water=water)
+
     def distances(self):
         """Return the current field.
 
@@ -178,6 +250,8 @@ class Field(_core.Field):
 
     def world(self):
         """Return a copy of the current world.
+
+        Where sand steps changed it on the device, the changed region is read back first.
 
         Returns
         -------

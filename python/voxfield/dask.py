@@ -5,23 +5,37 @@ the same call on the whole array (:func:`voxfield.distance_transform`,
 :func:`voxfield.ndimage.distance_transform_edt`, :func:`voxfield.ndimage.distance_transform_cdt`),
 on any scheduler (threads, processes, a ``distributed`` cluster).
 
-Two exact schemes:
+Three exact schemes:
 
 * Bounded fields (``distance_transform(..., max_distance=D)``): each block is computed on the
   OpenCL device with a halo of ``ceil(D / sampling)`` voxels per axis (``map_overlap``; Dask
   merges blocks smaller than the halo first). A voxel's value depends only on the solids
   within D, which the halo holds, and everything beyond D saturates at D.
-* Unbounded fields: the separable transform, one axis at a time. The volume is rechunked so
-  that each block spans whole lines of the axis, and the 1-D pass of the compiled core
-  (``voxfield._core.separable_pass``, float64 on the host) runs on every block; after the
-  passes along axes 0, 1 and 2 every voxel holds its exact distance (L2: squared, then one
-  square root). Each line is computed whole, so the result does not depend on the chunks.
+* Unbounded ``distance_transform`` (and ``distance_transform_edt`` with non-unit sampling):
+  the separable transform on the host, one axis at a time. The volume is rechunked so that
+  each block spans whole lines of the axis, and the 1-D pass of the compiled core
+  (``voxfield._core.separable_pass``, float64) runs on every block; after the passes along
+  axes 0, 1 and 2 every voxel holds its exact distance (L2: squared, then one square root).
+  Between passes the partial distances are float32 where they are integers below 2**24
+  (unit sampling), else float64. Each rechunk between two passes keeps one axis's chunks,
+  so it moves data within slabs of the volume only.
+* ``distance_transform_edt`` (unit sampling) and ``distance_transform_cdt``: the device
+  transforms every slice along axis 0 alone (a plane of a 3-D input, a row of a 2-D input; a
+  1-D input whole), in blocks that span the slices whole; then one host pass along axis 0
+  (blocks spanning whole lines of it) finishes the separable transform. The slices' partial
+  distances are exact integers (L2: squared, recovered exactly from the device's float64
+  distances), so the result equals the one-piece function bit for bit. The rechunk between
+  the two stages moves the whole volume's partial distances (float32 where exact) at once:
+  a cluster needs that much memory (or room to spill) across its workers.
+
+Each line and slice is computed whole, so no result depends on the chunks.
 
 Each task picks its device when it runs: ``device=`` if given, else ``$VOXFIELD_DEVICE`` as
 the worker's environment has it, else the first GPU, else the first CPU; each worker process
-keeps one OpenCL context per device.
+keeps one OpenCL context per device. A device that a worker does not have fails that task.
 """
 
+import functools
 import math
 
 import dask.array as da
@@ -52,18 +66,104 @@ def _spacing(sampling, ndim):
     return [float(v) for v in s]
 
 
-def _pass_block(block, axis, metric, spacing, first):
-    return _core.separable_pass(block, axis, metric, spacing, first, 1)
+# The device stage's blocks hold at most this many elements (32 or 64 MiB of partials).
+_SLICE_BLOCK_ELEMENTS = 1 << 23
 
 
-def _separable(targets, metric, spacing):
-    """Lazy partial distances (L2: squared) of a dask array of targets (nonzero = target),
-    in float64, chunked as `targets`."""
+def _check_device(device):
+    """The form of device= (None, a string, a non-negative integer); which device it names
+    is resolved by each task on its worker."""
+    if isinstance(device, bool) or not (device is None
+                                        or isinstance(device, (str, int, np.integer))):
+        raise TypeError("device must be None, 'cpu', 'gpu' or an index from "
+                        f"voxfield.devices(), not {type(device).__name__}")
+    if isinstance(device, (int, np.integer)) and device < 0:
+        raise ValueError(f"device index {device} is negative: use an index from "
+                         "voxfield.devices()")
+
+
+def _exact_partial_dtype(metric, shape):
+    """float32 where every finite partial distance of a slice of `shape` is an integer below
+    2**24 (held exactly), else float64."""
+    extents = [n - 1 for n in shape]
+    if metric == "euclidean":
+        top = sum(e * e for e in extents)
+    elif metric == "manhattan":
+        top = sum(extents)
+    else:
+        top = max(extents, default=0)
+    return np.dtype(np.float32 if top < 1 << 24 else np.float64)
+
+
+def _slices_on_device(block, metric, device, dtype):
+    """Partial distances (L2: squared) of a block of targets (bool): each slice along axis 0
+    transformed alone on the device (a 1-D block: the whole line). Exact integers (+inf
+    where a slice has no target) in `dtype`."""
+    out = np.empty(block.shape, dtype)
+    slices = [(Ellipsis, block)] if block.ndim == 1 else enumerate(block)
+    for index, s in slices:
+        if s.size == 0:
+            continue
+        d = _core.distance_transform(s.reshape((1,) * (3 - s.ndim) + s.shape), metric, False,
+                                     None, False, None, "f64", "exact", device)
+        d = d.reshape(s.shape)
+        if metric == "euclidean":
+            # sqrt of an integer below 2**52, squared and rounded: the integer again.
+            d = np.rint(d * d)
+        out[index] = d
+    return out
+
+
+def _pass_and_finish(block, metric, finish):
+    """The host pass along axis 0 from partial distances, then `finish` of the result."""
+    return finish(_core.separable_pass(block, 0, metric, 1.0, False, 1))
+
+
+def _finish_slices(block, metric, device, dtype, finish):
+    return finish(_slices_on_device(block, metric, device, dtype).astype(np.float64))
+
+
+def _unit_transform(targets, metric, device, finish, dtype):
+    """Lazy `finish` of the distances (L2: squared) of a dask array of targets (bool) with
+    unit sampling, chunked as `targets` and of `dtype`: the slices along axis 0 on the device,
+    then one host pass along axis 0 (the module docstring's third scheme). `finish` maps a
+    float64 block to `dtype` element by element."""
     chunks = targets.chunks
+    if targets.ndim == 1:
+        partial = _exact_partial_dtype(metric, targets.shape)
+        whole = targets.rechunk(-1)
+        return whole.map_blocks(_finish_slices, metric, device, partial, finish,
+                                dtype=dtype).rechunk(chunks)
+    partial = _exact_partial_dtype(metric, targets.shape[1:])
+    slice_elements = math.prod(targets.shape[1:])
+    depth = max(1, min(targets.shape[0], _SLICE_BLOCK_ELEMENTS // max(1, slice_elements)))
+    g = targets.rechunk({a: (depth if a == 0 else -1) for a in range(targets.ndim)})
+    g = g.map_blocks(_slices_on_device, metric, device, partial, dtype=partial)
+    g = g.rechunk({a: (-1 if a == 0 else chunks[a]) for a in range(targets.ndim)})
+    g = g.map_blocks(_pass_and_finish, metric, finish, dtype=dtype)
+    return g.rechunk(chunks)
+
+
+def _pass_block(block, axis, metric, spacing, first, partial, finish):
+    """One host pass along `axis`; its result in `partial`, or `finish` of it (last pass)."""
+    g = _core.separable_pass(block, axis, metric, spacing, first, 1)
+    return finish(g) if finish is not None else g.astype(partial, copy=False)
+
+
+def _separable(targets, metric, spacing, finish, dtype):
+    """Lazy `finish` of the distances (L2: squared) of a dask array of targets (nonzero =
+    target), chunked as `targets` and of `dtype`: one host pass per axis on a rechunk whose
+    blocks span that axis. Partials between passes in float32 where they are integers below
+    2**24 (unit sampling), else float64."""
+    chunks = targets.chunks
+    unit = all(v == 1.0 for v in spacing)
+    partial = _exact_partial_dtype(metric, targets.shape) if unit else np.dtype(np.float64)
     g = targets
     for axis in range(targets.ndim):
+        last = axis == targets.ndim - 1
         g = g.rechunk({a: (-1 if a == axis else chunks[a]) for a in range(targets.ndim)})
-        g = g.map_blocks(_pass_block, axis, metric, spacing[axis], axis == 0, dtype=np.float64)
+        g = g.map_blocks(_pass_block, axis, metric, spacing[axis], axis == 0, partial,
+                         finish if last else None, dtype=dtype if last else partial)
     return g.rechunk(chunks)
 
 
@@ -151,9 +251,13 @@ def distance_transform(world, metric="manhattan", signed=False, sampling=None,
     if fmt == "packed32":
         raise ValueError("format='packed32' on a dask array needs max_distance (the palette "
                          "colour is written by the device)")
-    g = _separable(w, metric, spacing)
-    d = da.sqrt(g) if metric == "euclidean" else g
-    return d.map_blocks(_to_format, fmt, dtype=dtype)
+    return _separable(w, metric, spacing, functools.partial(_field_of, metric=metric, fmt=fmt),
+                      dtype)
+
+
+def _field_of(g, metric, fmt):
+    """The field in format `fmt` of partial distances after every pass (L2: squared)."""
+    return _to_format(np.sqrt(g) if metric == "euclidean" else g, fmt)
 
 
 def _no_target_edt(block, spacing, block_info=None):
@@ -175,7 +279,7 @@ def _refuse_outputs(return_distances, return_indices, distances, indices):
 
 
 def distance_transform_edt(input, sampling=None, return_distances=True, return_indices=False,
-                           distances=None, indices=None):
+                           distances=None, indices=None, *, device=None):
     """:func:`voxfield.ndimage.distance_transform_edt` of a dask array, lazily and exactly.
 
     Parameters
@@ -188,6 +292,10 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
     return_distances, return_indices, distances, indices
         SciPy's signature; only the distances are returned here (``return_indices=True`` or
         output arrays raise ``ValueError``).
+    device : None, 'cpu', 'gpu' or int
+        The device each task uses with unit sampling (None: ``$VOXFIELD_DEVICE`` of the
+        worker, else its first GPU, else its first CPU): the slices along axis 0 run there.
+        Other sampling runs every pass on the host in float64, as the one-piece function does.
 
     Returns
     -------
@@ -196,18 +304,22 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
         :func:`voxfield.ndimage.distance_transform_edt`.
     """
     _refuse_outputs(return_distances, return_indices, distances, indices)
+    _check_device(device)
     a = da.asarray(input)
     if a.ndim < 1 or a.ndim > 3:
         raise ValueError(f"voxfield.dask handles 1-D to 3-D input, got shape {a.shape}")
     spacing = _spacing(sampling, a.ndim)
     targets = a == 0
-    d = da.sqrt(_separable(targets, "euclidean", spacing))
+    if all(v == 1.0 for v in spacing):
+        d = _unit_transform(targets, "euclidean", device, np.sqrt, np.float64)
+    else:
+        d = _separable(targets, "euclidean", spacing, np.sqrt, np.float64)
     quirk = da.map_blocks(_no_target_edt, targets, spacing, dtype=np.float64)
     return da.where(targets.any(), d, quirk)
 
 
 def distance_transform_cdt(input, metric="chessboard", return_distances=True,
-                           return_indices=False, distances=None, indices=None):
+                           return_indices=False, distances=None, indices=None, *, device=None):
     """:func:`voxfield.ndimage.distance_transform_cdt` of a dask array, lazily and exactly.
 
     Parameters
@@ -217,6 +329,9 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
     metric : {'chessboard', 'taxicab', 'cityblock', 'manhattan'}
     return_distances, return_indices, distances, indices
         SciPy's signature; only the distances are returned here.
+    device : None, 'cpu', 'gpu' or int
+        The device each task uses (None: ``$VOXFIELD_DEVICE`` of the worker, else its first
+        GPU, else its first CPU): the slices along axis 0 run there.
 
     Returns
     -------
@@ -224,6 +339,7 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
         Chunked as ``input``; -1 everywhere when the input has no zero element (as SciPy).
     """
     _refuse_outputs(return_distances, return_indices, distances, indices)
+    _check_device(device)
     a = da.asarray(input)
     if a.ndim < 1 or a.ndim > 3:
         raise ValueError(f"voxfield.dask handles 1-D to 3-D input, got shape {a.shape}")
@@ -233,7 +349,9 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
         m = "chebyshev"
     else:
         raise RuntimeError("invalid metric provided")
-    targets = a == 0
-    g = _separable(targets, m, [1.0] * a.ndim)
-    # +inf only where the input has no zero at all: -1 there, as SciPy.
-    return da.where(da.isinf(g), -1.0, g).astype(np.int32)
+    return _unit_transform(a == 0, m, device, _cdt_of, np.int32)
+
+
+def _cdt_of(g):
+    """int32 distances; +inf only where the input has no zero at all: -1 there, as SciPy."""
+    return np.where(np.isinf(g), -1.0, g).astype(np.int32)

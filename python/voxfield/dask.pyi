@@ -21,6 +21,8 @@ def distance_transform_edt(
     return_indices: bool = ...,
     distances: Any = ...,
     indices: Any = ...,
+    *,
+    device: _Device = ...,
 ) -> da.Array: ...
 def distance_transform_cdt(
     input: da.Array | npt.ArrayLike,
@@ -29,4 +31,6 @@ def distance_transform_cdt(
     return_indices: bool = ...,
     distances: Any = ...,
     indices: Any = ...,
+    *,
+    device: _Device = ...,
 ) -> da.Array: ...

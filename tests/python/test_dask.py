@@ -82,6 +82,57 @@ def test_ndimage_functions_in_one_and_two_dimensions_and_without_zeros():
                                   ndimage.distance_transform_cdt(ones))
 
 
+def test_ndimage_functions_take_a_device():
+    a = world(0.85, 7)
+    d = da.from_array(a, chunks=(6, 19, 8))
+    cpu = next(dev["index"] for dev in voxfield.devices() if dev["type"] == "cpu")
+    want_edt = ndimage.distance_transform_edt(a)
+    want_cdt = ndimage.distance_transform_cdt(a, metric="taxicab")
+    for device in ("cpu", cpu, str(cpu), np.int64(cpu)):
+        np.testing.assert_array_equal(threaded(vd.distance_transform_edt(d, device=device)),
+                                      want_edt)
+        np.testing.assert_array_equal(
+            threaded(vd.distance_transform_cdt(d, metric="taxicab", device=device)), want_cdt)
+    for x in (a[0], a[0, 2]):  # rows of a 2-D input, a 1-D input whole
+        dx = da.from_array(x, chunks=5)
+        np.testing.assert_array_equal(threaded(vd.distance_transform_edt(dx, device="cpu")),
+                                      ndimage.distance_transform_edt(x))
+        np.testing.assert_array_equal(threaded(vd.distance_transform_cdt(dx, device="cpu")),
+                                      ndimage.distance_transform_cdt(x))
+    # The form is checked at once, the device by the task that uses it.
+    for bad, error in ((True, TypeError), (1.5, TypeError), (-1, ValueError)):
+        for function in (vd.distance_transform_edt, vd.distance_transform_cdt):
+            with pytest.raises(error, match="device"):
+                function(d, device=bad)
+    lazy = vd.distance_transform_cdt(d, device="no-such-device")
+    with pytest.raises(ValueError, match="no-such-device"):
+        threaded(lazy)
+    if not any(dev["type"] == "gpu" for dev in voxfield.devices()):
+        with pytest.raises(ValueError, match="gpu"):
+            threaded(vd.distance_transform_edt(d, device="gpu"))
+
+
+def test_host_pass_equals_brute_force_on_partials():
+    # The passes between blocks take partial distances: integer ones with unit spacing (the
+    # exact integer L2 pass), any others with any spacing; +inf where a line has no target.
+    rng = np.random.default_rng(8)
+    for trial in range(200):
+        n, m = int(rng.integers(1, 40)), int(rng.integers(1, 6))
+        spacing = 1.0 if trial % 4 else float(rng.uniform(0.3, 3.0))
+        g = rng.integers(0, int(rng.choice([2, 10, 1000, 10**6])), size=(m, n)).astype(float)
+        if trial % 7 == 0:
+            g += 0.5
+        g[rng.random((m, n)) < rng.random()] = np.inf
+        i = np.arange(n)
+        for metric, cost in (("euclidean", lambda d: (spacing * d) ** 2),
+                             ("manhattan", lambda d: spacing * np.abs(d))):
+            got = voxfield._core.separable_pass(g, 1, metric, spacing, False)
+            want = np.min(g[:, None, :] + cost(i[:, None] - i[None, :]), axis=2)
+            np.testing.assert_allclose(got, want, rtol=1e-12, err_msg=f"{metric} {g}")
+            if spacing == 1.0:
+                np.testing.assert_array_equal(got, want)
+
+
 def test_lazy_and_refusals():
     dw = da.from_array(world(0.01, 5), chunks=8)
     out = vd.distance_transform(dw, metric="euclidean")
@@ -109,10 +160,19 @@ def test_local_cluster_with_two_workers():
         bounded = vd.distance_transform(dw, metric="euclidean", max_distance=5)
         unbounded = vd.distance_transform(dw, metric="manhattan")
         edt = vd.distance_transform_edt(dw == 0)
-        got_b, got_u, got_e = dask.compute(bounded, unbounded, edt)
+        cdt = vd.distance_transform_cdt(dw == 0, metric="chessboard")
+        got_b, got_u, got_e, got_c = dask.compute(bounded, unbounded, edt, cdt)
         workers = client.run(lambda: __import__("os").getpid())
         assert len(workers) == 2
+        # Each task reads its worker's $VOXFIELD_DEVICE (this process keeps "cpu"); device=
+        # overrides it.
+        client.run(lambda: __import__("os").environ.__setitem__("VOXFIELD_DEVICE", "bogus"))
+        with pytest.raises(ValueError, match="bogus"):
+            vd.distance_transform_cdt(dw == 0).compute()
+        got_d = vd.distance_transform_edt(dw == 0, device="cpu").compute()
     np.testing.assert_array_equal(got_b, voxfield.distance_transform(w, metric="euclidean",
                                                                      max_distance=5))
     np.testing.assert_array_equal(got_u, voxfield.distance_transform(w))
     np.testing.assert_array_equal(got_e, ndimage.distance_transform_edt(w == 0))
+    np.testing.assert_array_equal(got_d, got_e)
+    np.testing.assert_array_equal(got_c, ndimage.distance_transform_cdt(w == 0))
