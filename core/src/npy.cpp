@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <span>
@@ -421,39 +422,66 @@ void write_npy_shape(const std::filesystem::path& path, NpyType type,
     batch.commit();
 }
 
-void write_npy_shape(OutputBatch& batch, const std::filesystem::path& path, NpyType type,
-                     const std::vector<std::uint64_t>& shape, std::span<const std::uint8_t> data) {
-    const std::string file = path.string();
+namespace {
+
+// Elements of an array of `shape` and its shape as the header writes it: "(a, b, c)", "(a,)".
+std::uint64_t shape_count(const std::vector<std::uint64_t>& shape, std::string& text) {
     std::uint64_t count = 1;
-    std::string dims_text;
+    text.clear();
     for (std::uint64_t n : shape) {
         count *= n;
-        dims_text += std::to_string(n) + ", ";
-    }
-    if (data.size() != count * elem_size(type)) {
-        throw InputError("cannot write '" + file + "': " + std::to_string(data.size()) +
-                         " bytes do not match shape (" + dims_text + ") of " + type_name(type));
+        text += std::to_string(n) + ", ";
     }
     if (shape.size() > 1) {
-        dims_text.resize(dims_text.size() - 1);  // "(a, b, c)"; one axis keeps "(a,)"
-        dims_text.resize(dims_text.size() - 1);
+        text.resize(text.size() - 2);
     }
+    return count;
+}
+
+}  // namespace
+
+void write_npy_shape(OutputBatch& batch, const std::filesystem::path& path, NpyType type,
+                     const std::vector<std::uint64_t>& shape, std::span<const std::uint8_t> data) {
+    std::string dims_text;
+    if (data.size() != shape_count(shape, dims_text) * elem_size(type)) {
+        throw InputError("cannot write '" + path.string() + "': " + std::to_string(data.size()) +
+                         " bytes do not match shape (" + dims_text + ") of " + type_name(type));
+    }
+    write_npy_shape(batch, path, type, shape, [&](const OutputBatch::Sink& sink) { sink(data); });
+}
+
+void write_npy_shape(OutputBatch& batch, const std::filesystem::path& path, NpyType type,
+                     const std::vector<std::uint64_t>& shape,
+                     const std::function<void(const OutputBatch::Sink&)>& produce) {
+    std::string dims_text;
+    const std::uint64_t data_bytes = shape_count(shape, dims_text) * elem_size(type);
     std::string header = std::string("{'descr': '") + descr_of(type) +
                          "', 'fortran_order': False, 'shape': (" + dims_text + "), }";
     const std::size_t unpadded = 10 + header.size() + 1;  // + '\n'
     header.append((64 - unpadded % 64) % 64, ' ');
     header += '\n';
-    std::vector<std::uint8_t> bytes;
-    bytes.reserve(10 + header.size());
-    const char magic[] = "\x93NUMPY";
-    bytes.insert(bytes.end(), magic, magic + 6);
-    bytes.push_back(1);
-    bytes.push_back(0);
-    bytes.push_back(static_cast<std::uint8_t>(header.size() & 0xFF));
-    bytes.push_back(static_cast<std::uint8_t>(header.size() >> 8));
-    bytes.insert(bytes.end(), header.begin(), header.end());
+    // Magic, version 1.0, the header's length (little-endian u16), the header.
+    std::string prefix("\x93NUMPY\x01\x00", 8);
+    prefix += static_cast<char>(header.size() & 0xFF);
+    prefix += static_cast<char>(header.size() >> 8);
+    prefix += header;
+    const std::span<const std::uint8_t> bytes(reinterpret_cast<const std::uint8_t*>(prefix.data()),
+                                              prefix.size());
 
-    batch.write(path, {bytes, data});
+    batch.write(path, [&](const OutputBatch::Sink& sink) {
+        sink(bytes);
+        std::uint64_t written = 0;
+        produce([&](std::span<const std::uint8_t> piece) {
+            written += piece.size();
+            if (written > data_bytes) {
+                throw std::logic_error("write_npy_shape: more data than the shape holds");
+            }
+            sink(piece);
+        });
+        if (written != data_bytes) {
+            throw std::logic_error("write_npy_shape: less data than the shape holds");
+        }
+    });
 }
 
 namespace {
