@@ -15,8 +15,10 @@ the whole process (start to exit, the output written) in R rounds of three condi
 PoCL keeps its own cache of compiled kernels ($POCL_CACHE_DIR, pointed at one folder warmed
 before the rounds), so every condition finds PoCL's kernels compiled, as a user's second run of
 anything would; "cold" adds one run with both caches empty (a first run on a fresh machine).
-The world's pages are warmed by an untimed run. Prints medians and writes them, every sample,
-the device, date, commit and load average to --json.
+The world's pages are warmed by an untimed run. Each run also reports its set-up and upload
+phases (generate --json phases_ms setup + upload: device, kernel build and upload, where the
+cache acts), less noisy than the whole process on a shared machine. Prints medians and writes
+them, every sample, the device, date, commit and load average to --json.
 """
 
 import argparse
@@ -66,14 +68,14 @@ def main():
         pocl_warm = os.path.join(tmp, "pocl-warm")
         os.makedirs(pocl_warm)
 
-        def run(flags, xdg, pocl, off=False, report=None):
+        def run(flags, xdg, pocl, off=False):
             env = dict(os.environ, XDG_CACHE_HOME=xdg, POCL_CACHE_DIR=pocl)
             env.pop("VOXFIELD_NO_PROGRAM_CACHE", None)
             if off:
                 env["VOXFIELD_NO_PROGRAM_CACHE"] = "1"
-            cmd = [args.voxfield, "generate", world, "-o", field, "--device", args.device] + flags
-            if report:
-                cmd += ["--json", report]
+            report = os.path.join(tmp, "report.json")
+            cmd = [args.voxfield, "generate", world, "-o", field, "--device", args.device,
+                   "--json", report] + flags
             t0 = time.perf_counter()
             proc = subprocess.run(cmd, env=env, stdout=subprocess.DEVNULL,
                                   stderr=subprocess.PIPE, text=True)
@@ -81,7 +83,9 @@ def main():
             if proc.returncode != 0:
                 sys.stderr.write(proc.stderr)
                 sys.exit(f"program_cache: failed (exit {proc.returncode}): {' '.join(cmd)}")
-            return wall
+            with open(report) as f:
+                r = json.load(f)
+            return wall, r["phases_ms"]["setup"] + r["phases_ms"]["upload"], r["device"]
 
         def fresh(name):
             path = os.path.join(tmp, name)
@@ -93,25 +97,27 @@ def main():
         device = None
         for job, flags in JOBS.items():
             # Cold: both caches empty. Then PoCL's kernels stay compiled in pocl_warm.
-            cold = run(flags, fresh("xdg-cold"), fresh("pocl-cold"))
-            report = os.path.join(tmp, "report.json")
-            run(flags, fresh("xdg-warmup"), pocl_warm, report=report)
-            with open(report) as f:
-                d = json.load(f)["device"]
+            cold, cold_setup, _ = run(flags, fresh("xdg-cold"), fresh("pocl-cold"))
+            _, _, d = run(flags, fresh("xdg-warmup"), pocl_warm)
             device = {k: d[k] for k in ("name", "platform", "driver", "type", "compute_units")}
-            samples = {"first": [], "cached": [], "off": []}
+            walls = {"first": [], "cached": [], "off": []}
+            setups = {"first": [], "cached": [], "off": []}
             for _ in range(args.repeat):
                 xdg = fresh("xdg-round")
-                samples["first"].append(run(flags, xdg, pocl_warm))
-                samples["cached"].append(run(flags, xdg, pocl_warm))
-                samples["off"].append(run(flags, xdg, pocl_warm, off=True))
-            medians = {k: statistics.median(v) for k, v in samples.items()}
-            results[job] = {"flags": flags, "cold_ms": cold, "median_ms": medians,
-                            "samples_ms": samples}
-            print(f"{job}: {args.size}^3 generate, whole process: cold {cold:7.1f} ms, first "
-                  f"{medians['first']:6.1f} ms, cached {medians['cached']:6.1f} ms, off "
-                  f"{medians['off']:6.1f} ms (median of {args.repeat}); cached saves "
-                  f"{medians['first'] - medians['cached']:5.1f} ms", flush=True)
+                for name, off in (("first", False), ("cached", False), ("off", True)):
+                    wall, setup, _ = run(flags, xdg, pocl_warm, off=off)
+                    walls[name].append(wall)
+                    setups[name].append(setup)
+            wall_med = {k: statistics.median(v) for k, v in walls.items()}
+            setup_med = {k: statistics.median(v) for k, v in setups.items()}
+            results[job] = {"flags": flags, "cold_ms": cold, "cold_setup_upload_ms": cold_setup,
+                            "median_ms": wall_med, "median_setup_upload_ms": setup_med,
+                            "samples_ms": walls, "samples_setup_upload_ms": setups}
+            print(f"{job}: {args.size}^3 generate, whole process (median of {args.repeat}): "
+                  f"cold {cold:.0f} ms, first {wall_med['first']:.0f}, cached "
+                  f"{wall_med['cached']:.0f}, off {wall_med['off']:.0f}; setup+upload: cold "
+                  f"{cold_setup:.0f} ms, first {setup_med['first']:.1f}, cached "
+                  f"{setup_med['cached']:.1f}, off {setup_med['off']:.1f}", flush=True)
 
     if args.json:
         record = {
