@@ -12,8 +12,8 @@ instead (each in the form bench/summarize.py tabulates). Every file holds the de
 voxfield binary's commit (`voxfield --version`) and every timing sample. --cases picks a subset.
 
 In one run, on one machine, for each size N of --sizes (or the single --size):
-  1. builds the floor + spheres world of compare_scipy.py (bench/worlds.py; N^3, seeded) and
-     saves it as .npy;
+  1. builds each world of --worlds (bench/worlds.py's set, seeded; default the floor + spheres
+     world of compare_scipy.py, N^3) and saves it as .npy;
   2. runs `voxfield generate WORLD.npy --device gpu --warmup W --repeat R --json J` for each case
      and takes the median of the R kernel times (OpenCL profiling events), recording the
      end-to-end time its JSON gives as well:
@@ -80,7 +80,7 @@ try:
 except ImportError:
     fail("numpy is missing (Debian: apt-get install python3-numpy)")
 
-from worlds import make_world  # noqa: E402  (needs numpy)
+from worlds import WORLDS, make_named, make_world  # noqa: E402  (needs numpy)
 
 
 def import_cupy():
@@ -397,10 +397,10 @@ PEER_CALLS = {
 }
 
 
-def run_size(args, cp, cnd, n, f32_ok, small, tmp):
-    """Every case at N^3: a list of row dicts."""
-    progress(f"N={n}: building the world")
-    world = make_world(n, args.seed)
+def run_size(args, cp, cnd, n, f32_ok, small, tmp, world_name="floor-spheres"):
+    """Every case at N^3 on the named world of bench/worlds.py: a list of row dicts."""
+    progress(f"N={n}: building the world {world_name}")
+    world = make_named(world_name, n, args.seed)
     shape = world.shape
     solid = int(np.count_nonzero(world))
     world_path = os.path.join(tmp, f"world-{n}.npy")
@@ -508,6 +508,7 @@ def run_size(args, cp, cnd, n, f32_ok, small, tmp):
             "case": name,
             "size": [int(shape[2]), int(shape[1]), int(shape[0])],
             "n": n,
+            "world": world_name,
             "voxels": int(np.prod(shape)),
             "solid": solid,
             "voxfield_flags": flags + (["--indices"] if name == "euclidean-indices" else []),
@@ -544,7 +545,7 @@ def run_size(args, cp, cnd, n, f32_ok, small, tmp):
 # ---------------------------------------------------------------------------- output
 
 
-HEADER = (f"{'case':<18} {'N':>5} {'format':>6} {'voxfield ms':>11} {'e2e ms':>9}"
+HEADER = (f"{'world':<13} {'case':<18} {'N':>5} {'format':>6} {'voxfield ms':>11} {'e2e ms':>9}"
           f" {'CuPy f64 ms':>11} {'CuPy f32 ms':>11} {'f64/ours':>8} {'f32/ours':>8}  check")
 
 
@@ -559,7 +560,7 @@ def print_row(r):
     f64 = r["cupy_f64_ms"]["median"] if r["cupy_f64_ms"] else None
     f32 = r["cupy_f32_ms"]["median"] if r["cupy_f32_ms"] else None
     status = "ok" if r["check_ok"] else ("skipped" if r["check_ok"] is None else "FAILED")
-    print(f"{r['case']:<18} {r['n']:>5} {r['format'] or '-':>6} {r['kernel_ms_median']:>11.3f}"
+    print(f"{r['world']:<13} {r['case']:<18} {r['n']:>5} {r['format'] or '-':>6} {r['kernel_ms_median']:>11.3f}"
           f" {fmt(r['end_to_end_ms'], '>9.1f')} {fmt(f64, '>11.3f')} {fmt(f32, '>11.3f')}"
           f" {fmt(r['ratio_cupy_f64_over_kernel'], '>8.2f')}"
           f" {fmt(r['ratio_cupy_f32_over_kernel'], '>8.2f')}  {status}: {r['check']}", flush=True)
@@ -599,7 +600,7 @@ def write_json(path, common, rows, small):
         "all_checks_pass": not any_failed(rows, small),
         "rows": rows,
     })
-    if len(sizes) == 1:
+    if len(sizes) == 1 and len({r["world"] for r in rows}) == 1:
         record.update(legacy_summary(rows, small))
     tmp_path = path + ".partial"
     with open(tmp_path, "w") as f:
@@ -646,6 +647,9 @@ def main():
                     help="edge of the small world checked against SciPy (default 64)")
     ap.add_argument("--tmpdir", help="folder for the world and the fields (default: the system's; "
                     "1024^3 needs about 18 GB free at the peak, the indices case)")
+    ap.add_argument("--worlds", default="floor-spheres",
+                    help=f"comma-separated worlds of bench/worlds.py ({','.join(WORLDS).replace('%', '%%')}) or 'all', "
+                    "each run at every size (default: floor-spheres)")
     ap.add_argument("--json", help="write the comparison to this JSON file; '{size}' in the name "
                     "writes one file per size")
     args = ap.parse_args()
@@ -657,6 +661,11 @@ def main():
         ap.error(f"--sizes: repeated size in {sizes}")
     if args.repeat < 1 or min(sizes) < 1 or args.check_size < 1 or args.warmup < 0:
         ap.error("sizes, --repeat and --check-size must be at least 1, --warmup at least 0")
+    args.world_list = WORLDS if args.worlds == "all" else [w for w in args.worlds.split(",") if w]
+    bad_worlds = [w for w in args.world_list if w not in WORLDS]
+    if bad_worlds or not args.world_list:
+        ap.error(f"--worlds: unknown {','.join(bad_worlds) or '(none given)'}; expected "
+                 f"{','.join(WORLDS)} or all")
     args.case_list = [c for c in args.cases.split(",") if c]
     unknown = [c for c in args.case_list if c not in CASES]
     if unknown or not args.case_list:
@@ -697,7 +706,8 @@ def main():
         "cupy_device": gpu_name,
         "nvidia_smi": smi,
         "voxfield_devices": voxfield_devices(args.voxfield),
-        "world": f"floor+spheres seed={args.seed} (bench/worlds.py)",
+        "world": f"{','.join(args.world_list)} seed={args.seed} (bench/worlds.py)",
+        "worlds": args.world_list,
         "seed": args.seed,
         "repeat": args.repeat,
         "warmup": args.warmup,
@@ -723,11 +733,13 @@ def main():
                if small.get("cupy_edt_vs_scipy_max_abs_diff") is not None else ""), flush=True)
         print(HEADER, flush=True)
         for n in sizes:
-            rows.extend(run_size(args, cp, cnd, n, f32_ok, small, tmp))
-            device = rows[-1]["voxfield_device"] or {}
-            common["device"] = device.get("name")  # the string bench/summarize.py prints
-            common["driver"] = device.get("driver")
-            write_all(args, common, rows, small)  # after every size: a later failure keeps these
+            for world_name in args.world_list:
+                rows.extend(run_size(args, cp, cnd, n, f32_ok, small, tmp, world_name))
+                device = rows[-1]["voxfield_device"] or {}
+                common["device"] = device.get("name")  # the string bench/summarize.py prints
+                common["driver"] = device.get("driver")
+                # After every world: a later failure or time limit keeps these.
+                write_all(args, common, rows, small)
 
     device_name = common.get("device")
     print(f"voxfield on: {device_name}; CuPy on: {gpu_name}"

@@ -1,14 +1,16 @@
 // Sparse worlds at scale (issue 24): builds a seeded terrain-and-blocks world tile by tile from
 // a box-filling callback (no dense array), computes its whole exact bounded field per tile
-// (cl/sparse_field.hpp) and times radius-8 sphere edits, recording peak memory. Writes JSON
+// (cl/sparse_field.hpp) and times radius-8 sphere edits, recording peak memory; with --peer,
+// OpenVDB's fast sweeping on the same world in the same run (openvdb_peer.hpp). Writes JSON
 // with device, date and commit.
-//   sparse_bench [--size X,Y,Z] [--max-distance D] [--format F] [--device D] [--edits N]
-//                [--seed S] [--commit C] [--json FILE]
+//   sparse_bench [--size X,Y,Z] [--max-distance D] [--metric M] [--format F] [--device D]
+//                [--edits N] [--seed S] [--peer] [--commit C] [--json FILE]
 #include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <ctime>
 #include <fstream>
 #include <iostream>
@@ -18,9 +20,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include "openvdb_peer.hpp"
 #include "voxfield/cl/sparse_field.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/format.hpp"
+#include "voxfield/core/metric.hpp"
 #include "voxfield/core/sparse.hpp"
 #include "voxfield/core/stats.hpp"
 
@@ -86,7 +90,9 @@ int main(int argc, char** argv) {
     try {
         Dims dims{4096, 512, 4096};
         double bound = 8;
-        std::string format_name = "u8", device, json_path, commit = "unknown";
+        std::string format_name = "u8", metric_name = "manhattan", device, json_path,
+                    commit = "unknown";
+        bool peer = false;
         int edits = 30;
         std::uint64_t seed = 1;
         for (int i = 1; i < argc; ++i) {
@@ -101,6 +107,10 @@ int main(int argc, char** argv) {
                 dims = parse_dims(next());
             } else if (a == "--max-distance") {
                 bound = std::stod(next());
+            } else if (a == "--metric") {
+                metric_name = next();
+            } else if (a == "--peer") {
+                peer = true;
             } else if (a == "--format") {
                 format_name = next();
             } else if (a == "--device") {
@@ -117,13 +127,19 @@ int main(int argc, char** argv) {
                 throw InputError("unknown option " + a);
             }
         }
+        if (peer && (metric_name != "euclidean" || format_name != "f32")) {
+            throw InputError(
+                "--peer compares with the exact Euclidean field: give --metric "
+                "euclidean --format f32");
+        }
         const Terrain terrain(seed, dims.y);
         const auto t_build = Clock::now();
-        std::vector<std::uint32_t> heights;
         SparseWorld world =
             SparseWorld::from_fill(dims, [&](const Box& b, std::span<std::uint8_t> out) {
                 const auto nx = static_cast<std::size_t>(b.max.x - b.min.x);
-                heights.assign(nx * static_cast<std::size_t>(b.max.z - b.min.z) * 2, 0);
+                // Per call (from_fill calls this from several threads at once).
+                std::vector<std::uint32_t> heights(nx *
+                                                   static_cast<std::size_t>(b.max.z - b.min.z) * 2);
                 std::uint32_t top = 0;
                 for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
                     for (std::int64_t x = b.min.x; x < b.max.x; ++x) {
@@ -159,6 +175,7 @@ int main(int argc, char** argv) {
         ocl::Context ctx(ocl::select_device(device));
         ocl::GeneratorOptions o;
         o.format = parse_format(format_name);
+        o.metric = parse_metric(metric_name);
         o.max_distance = bound;
         o = ocl::resolve_sparse_options(o, true);
         const Palette palette = Palette::magicavoxel_default();
@@ -168,6 +185,31 @@ int main(int argc, char** argv) {
         const double field_wall_ms = ms_since(t_field);
         std::cerr << "field: " << field.dense_tiles() << " field tiles, kernels " << field_kernel_ms
                   << " ms, wall " << field_wall_ms << " ms\n";
+
+        nlohmann::json peer_json;
+        if (peer) {
+            const bench::OpenVdbPeer p = bench::run_openvdb_peer(
+                world, bound,
+                [&](const Box& b) {
+                    const std::vector<std::uint8_t> bytes = field.read_box(b);
+                    std::vector<float> out(bytes.size() / sizeof(float));
+                    std::memcpy(out.data(), bytes.data(), out.size() * sizeof(float));
+                    return out;
+                },
+                64);
+            std::cerr << "OpenVDB fogToSdf: band " << p.band_voxels << " voxels, topology "
+                      << p.topology_ms << " ms, sweep " << p.sweep_ms << " ms; error vs exact "
+                      << "(" << p.compared << " voxels) mean " << p.mean_abs_error << ", max "
+                      << p.max_abs_error << "\n";
+            peer_json = {{"name", "OpenVDB tools::fogToSdf (fast sweeping, 1 iteration)"},
+                         {"openvdb_version", p.version},
+                         {"band_voxels", p.band_voxels},
+                         {"topology_ms", p.topology_ms},
+                         {"sweep_ms", p.sweep_ms},
+                         {"compared_voxels", p.compared},
+                         {"mean_abs_error_voxels", p.mean_abs_error},
+                         {"max_abs_error_voxels", p.max_abs_error}};
+        }
 
         // Radius-8 sphere edits (place and erase alternately) at random surface points.
         std::mt19937_64 rng(seed + 1);
@@ -211,6 +253,7 @@ int main(int argc, char** argv) {
             {"seed", seed},
             {"max_distance", bound},
             {"format", format_name},
+            {"metric", metric_name},
             {"tiles_stored", world.tile_count()},
             {"solid_voxels", world.solid_count()},
             {"stored_voxels", stored_voxels},
@@ -229,6 +272,9 @@ int main(int argc, char** argv) {
             {"peak_rss_bytes", peak},
             {"rss_after_build_bytes", rss_after_build},
             {"peak_bytes_per_stored_voxel", peak / stored_voxels}};
+        if (peer) {
+            j["peer"] = peer_json;
+        }
         if (!json_path.empty()) {
             std::ofstream(json_path) << j.dump(2) << '\n';
         }

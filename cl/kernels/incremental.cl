@@ -804,27 +804,42 @@ kernel void inc_field_sweep(global uint* f, int4 n, int axis) {
 
 // The least f over each of the 27 parts of B's boundary (vf_least's order: part (side.z * 3 +
 // side.y) * 3 + side.x, per axis 0 the low face, 1 any coordinate, 2 the high face), into
-// f[n.x * n.y * n.z + part]; a work-item per part.
-kernel void inc_field_least(global uint* f, int4 n) {
-    const int part = (int)get_global_id(0);
-    if (part >= 27) {
-        return;
-    }
-    int lo[3], hi[3];
-    const int size[3] = {n.x, n.y, n.z};
-    for (int a = 0, side = part; a < 3; ++a, side /= 3) {
-        lo[a] = side % 3 == 2 ? size[a] - 1 : 0;
-        hi[a] = side % 3 == 0 ? 1 : size[a];
-    }
+// f[n.x * n.y * n.z + part], which holds VF_FAR before. `lanes` work-items per part (a multiple
+// of the work-group size, 64): part = id / lanes, each lane strides over the part's voxels (the
+// part across B on every axis is all of B, too large for one work-item), the group reduces
+// its lanes in local memory and one atomic per group merges the result.
+kernel void inc_field_least(global uint* f, int4 n, uint lanes) {
+    local uint group_least[64];
+    const size_t id = get_global_id(0);
+    const uint part = (uint)(id / lanes), lane = (uint)(id % lanes), l = (uint)get_local_id(0);
     uint least = VF_FAR;
-    for (int z = lo[2]; z < hi[2]; ++z) {
-        for (int y = lo[1]; y < hi[1]; ++y) {
-            for (int x = lo[0]; x < hi[0]; ++x) {
-                least = min(least, f[((size_t)z * (size_t)n.y + (size_t)y) * (size_t)n.x + x]);
-            }
+    if (part < 27u) {
+        int lo[3], extent[3];
+        const int size[3] = {n.x, n.y, n.z};
+        for (int a = 0, side = (int)part; a < 3; ++a, side /= 3) {
+            lo[a] = side % 3 == 2 ? size[a] - 1 : 0;
+            extent[a] = side % 3 == 1 ? size[a] : 1;
+        }
+        const size_t count = (size_t)extent[0] * (size_t)extent[1] * (size_t)extent[2];
+        for (size_t k = lane; k < count; k += lanes) {
+            const size_t x = lo[0] + k % (size_t)extent[0];
+            const size_t rest = k / (size_t)extent[0];
+            const size_t y = lo[1] + rest % (size_t)extent[1];
+            const size_t z = lo[2] + rest / (size_t)extent[1];
+            least = min(least, f[(z * (size_t)n.y + y) * (size_t)n.x + x]);
         }
     }
-    f[(size_t)n.x * (size_t)n.y * (size_t)n.z + (size_t)part] = least;
+    group_least[l] = least;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint width = 32; width > 0; width >>= 1) {
+        if (l < width) {
+            group_least[l] = min(group_least[l], group_least[l + width]);
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (l == 0 && part < 27u && group_least[0] != VF_FAR) {
+        atomic_min(f + (size_t)n.x * (size_t)n.y * (size_t)n.z + part, group_least[0]);
+    }
 }
 
 // Chunk-local fields: the chunks (`chunk` voxels per axis, nc per axis of the grid) holding a

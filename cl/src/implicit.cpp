@@ -6,6 +6,7 @@
 // than the whole discretisation of a gallery part.
 #include "voxfield/cl/implicit.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <chrono>
 #include <functional>
@@ -73,11 +74,31 @@ ImplicitDiscretiser::ImplicitDiscretiser(Context& ctx, const sdf::Part& part,
 }
 
 ImplicitGrid ImplicitDiscretiser::run() {
+    ImplicitGrid out;
+    run(out);
+    return out;
+}
+
+void ImplicitDiscretiser::grow(cl::Buffer& buffer, std::size_t& capacity, std::size_t bytes,
+                               cl_mem_flags flags) {
+    if (bytes > capacity || buffer.get() == nullptr) {
+        capacity = std::max(bytes, capacity + capacity / 2);
+        buffer = cl::Buffer(ctx_.context(), flags, std::max<std::size_t>(capacity, 1));
+    }
+}
+
+void ImplicitDiscretiser::run(ImplicitGrid& out) {
     const auto t0 = std::chrono::steady_clock::now();
     timing_ = {};
     const cl_uint n = static_cast<cl_uint>(part_.tape.code.size());
     const GridArg g = grid_arg(part_);
-    ImplicitGrid out;
+    if (!kernels_made_) {
+        classify_tiles_ = cl::Kernel(program_, "classify_tiles");
+        classify_children_ = cl::Kernel(program_, "classify_children");
+        sample_leaves_ =
+            cl::Kernel(program_, gpu_layout_ ? "sample_leaves_group" : "sample_leaves_seq");
+        kernels_made_ = true;
+    }
     out.dims = part_.dims;
     out.tile_depth = options_.tile_depth;
     out.tile_edge = 1u << (2 * (options_.tile_depth + 1));
@@ -92,12 +113,15 @@ ImplicitGrid ImplicitDiscretiser::run() {
     };
 
     // Tiles: one interval test each.
-    std::vector<cl_uchar> classes(tiles);
-    std::vector<cl_uint4> frontier;
+    std::vector<cl_uchar>& classes = classes_;
+    classes.resize(tiles);
+    std::vector<cl_uint4>& frontier = frontier_;
+    frontier.clear();
     std::uint32_t nodes = 0;
     cl_call(ctx_of("classify_tiles"), [&] {
-        cl::Buffer buf(ctx_.context(), CL_MEM_WRITE_ONLY, tiles);
-        cl::Kernel k(program_, "classify_tiles");
+        grow(classes_buf_, classes_cap_, tiles, CL_MEM_WRITE_ONLY);
+        cl::Buffer& buf = classes_buf_;
+        cl::Kernel& k = classify_tiles_;
         k.setArg(0, tape_);
         k.setArg(1, n);
         k.setArg(2, g);
@@ -113,6 +137,7 @@ ImplicitGrid ImplicitDiscretiser::run() {
         timing_.kernel_ms += event_ms(e);
     });
     out.tile_table.resize(tiles);
+    out.nodes.clear();
     for (std::size_t t = 0; t < tiles; ++t) {
         if (classes[t] == VF_SDF_CELL_EMPTY) {
             out.tile_table[t] = VF_SDF_TILE_EMPTY;
@@ -134,10 +159,13 @@ ImplicitGrid ImplicitDiscretiser::run() {
         const std::size_t count = frontier.size();
         classes.resize(count * 64);
         cl_call(ctx_of("classify_children"), [&] {
-            cl::Buffer origins(ctx_.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                               count * sizeof(cl_uint4), frontier.data());
-            cl::Buffer buf(ctx_.context(), CL_MEM_WRITE_ONLY, count * 64);
-            cl::Kernel k(program_, "classify_children");
+            grow(origins_buf_, origins_cap_, count * sizeof(cl_uint4), CL_MEM_READ_ONLY);
+            q.enqueueWriteBuffer(origins_buf_, CL_FALSE, 0, count * sizeof(cl_uint4),
+                                 frontier.data());
+            const cl::Buffer& origins = origins_buf_;
+            grow(classes_buf_, classes_cap_, count * 64, CL_MEM_WRITE_ONLY);
+            cl::Buffer& buf = classes_buf_;
+            cl::Kernel& k = classify_children_;
             k.setArg(0, tape_);
             k.setArg(1, n);
             k.setArg(2, g);
@@ -151,7 +179,8 @@ ImplicitGrid ImplicitDiscretiser::run() {
             q.enqueueReadBuffer(buf, CL_TRUE, 0, count * 64, classes.data());
             timing_.kernel_ms += event_ms(e);
         });
-        std::vector<cl_uint4> next;
+        std::vector<cl_uint4>& next = next_;
+        next.clear();
         out.nodes.resize(std::size_t{nodes} * VF_SDF_NODE_WORDS);
         for (std::size_t f = 0; f < count; ++f) {
             std::uint64_t occ = 0, solid = 0;
@@ -176,11 +205,15 @@ ImplicitGrid ImplicitDiscretiser::run() {
             rec[4] = static_cast<std::uint32_t>(solid);
             rec[5] = static_cast<std::uint32_t>(solid >> 32);
         }
-        frontier = std::move(next);
+        std::swap(frontier, next);
     }
 
     // Leaves: the nodes of the last level, allocated last (indices first_leaf..nodes).
     out.leaves = frontier.size();
+    if (frontier.empty()) {
+        out.voxels.clear();
+        out.vertices.clear();
+    }
     out.nodes.resize(std::size_t{nodes} * VF_SDF_NODE_WORDS);
     if (!frontier.empty()) {
         const std::size_t count = frontier.size();
@@ -188,22 +221,29 @@ ImplicitGrid ImplicitDiscretiser::run() {
         for (auto& o : frontier) {
             o.s[3] -= first_leaf;
         }
-        std::size_t vcap = std::max<std::size_t>(1024, count * 48);
-        std::size_t xcap = std::max<std::size_t>(1024, count * 24);
+        // Room for the crossed voxels and kept corners: the last run's counts when they were
+        // larger than the estimate (a second pass only when even those overflow).
+        std::size_t vcap = std::max({std::size_t{1024}, count * 48, last_vertices_});
+        std::size_t xcap = std::max({std::size_t{1024}, count * 24, last_voxels_});
         cl_call(ctx_of(gpu_layout_ ? "sample_leaves_group" : "sample_leaves_seq"), [&] {
-            cl::Buffer origins(ctx_.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                               count * sizeof(cl_uint4), frontier.data());
-            cl::Buffer leaf_nodes(ctx_.context(), CL_MEM_WRITE_ONLY,
-                                  count * VF_SDF_NODE_WORDS * sizeof(cl_uint));
-            cl::Buffer counters(ctx_.context(), CL_MEM_READ_WRITE, 2 * sizeof(cl_uint));
-            cl::Kernel k(program_, gpu_layout_ ? "sample_leaves_group" : "sample_leaves_seq");
+            grow(origins_buf_, origins_cap_, count * sizeof(cl_uint4), CL_MEM_READ_ONLY);
+            q.enqueueWriteBuffer(origins_buf_, CL_FALSE, 0, count * sizeof(cl_uint4),
+                                 frontier.data());
+            const cl::Buffer& origins = origins_buf_;
+            grow(leaf_nodes_buf_, leaf_nodes_cap_, count * VF_SDF_NODE_WORDS * sizeof(cl_uint),
+                 CL_MEM_WRITE_ONLY);
+            const cl::Buffer& leaf_nodes = leaf_nodes_buf_;
+            grow(counters_buf_, counters_cap_, 2 * sizeof(cl_uint), CL_MEM_READ_WRITE);
+            const cl::Buffer& counters = counters_buf_;
+            cl::Kernel& k = sample_leaves_;
             cl_uint reached[2] = {0, 0};
-            cl::Buffer voxels, vertices;
             while (true) {
-                voxels = cl::Buffer(ctx_.context(), CL_MEM_WRITE_ONLY,
-                                    xcap * VF_SDF_VOXEL_WORDS * sizeof(cl_uint));
-                vertices = cl::Buffer(ctx_.context(), CL_MEM_WRITE_ONLY,
-                                      vcap * VF_SDF_VERTEX_FLOATS * sizeof(cl_float));
+                grow(voxels_buf_, voxels_cap_, xcap * VF_SDF_VOXEL_WORDS * sizeof(cl_uint),
+                     CL_MEM_WRITE_ONLY);
+                grow(vertices_buf_, vertices_cap_, vcap * VF_SDF_VERTEX_FLOATS * sizeof(cl_float),
+                     CL_MEM_WRITE_ONLY);
+                const cl::Buffer& voxels = voxels_buf_;
+                const cl::Buffer& vertices = vertices_buf_;
                 const cl_uint zero[2] = {0, 0};
                 q.enqueueWriteBuffer(counters, CL_FALSE, 0, sizeof(zero), zero);
                 k.setArg(0, tape_);
@@ -235,6 +275,10 @@ ImplicitGrid ImplicitDiscretiser::run() {
                 vcap = std::max<std::size_t>(vcap, reached[0]);
                 xcap = std::max<std::size_t>(xcap, reached[1]);
             }
+            last_vertices_ = reached[0];
+            last_voxels_ = reached[1];
+            const cl::Buffer& voxels = voxels_buf_;
+            const cl::Buffer& vertices = vertices_buf_;
             q.enqueueReadBuffer(leaf_nodes, CL_FALSE, 0,
                                 count * VF_SDF_NODE_WORDS * sizeof(cl_uint),
                                 &out.nodes[std::size_t{first_leaf} * VF_SDF_NODE_WORDS]);
@@ -253,7 +297,6 @@ ImplicitGrid ImplicitDiscretiser::run() {
     }
     timing_.total_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    return out;
 }
 
 std::vector<float> ImplicitDiscretiser::sample_corners() {

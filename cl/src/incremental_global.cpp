@@ -212,7 +212,7 @@ class GlobalEngine : public Engine {
         const std::size_t slot = (volume + 27 + 7) / 8;
         reserve(changes, changes_capacity, 4 * 8 * (slot + 1));
         events.emplace_back();
-        q.enqueueFillBuffer(changes, kFar, 0, 4 * volume, nullptr, &events.back());
+        q.enqueueFillBuffer(changes, kFar, 0, 4 * (volume + 27), nullptr, &events.back());
         events.emplace_back();
         q.enqueueFillBuffer(changes, cl_uint{0}, 4 * 8 * slot, 4 * 8, nullptr, &events.back());
         const auto count = static_cast<std::size_t>(c.count);
@@ -237,7 +237,11 @@ class GlobalEngine : public Engine {
         cl::Kernel& least = kernel("inc_field_least");
         least.setArg(0, changes);
         least.setArg(1, int4_of(n));
-        enqueue(events, least, cl::NDRange(27));
+        // Lanes per part: about 32 voxels each over all of B, 64 to 16384 of them.
+        const std::size_t lanes =
+            std::clamp<std::size_t>((volume / 32 + 63) / 64 * 64, 64, std::size_t{16384});
+        least.setArg(2, static_cast<cl_uint>(lanes));
+        enqueue(events, least, cl::NDRange(27 * lanes));
         enqueue_sweeps(events, b, 0, slot, 0, 0);
         if (packed) {
             encode_box(events, c.bounds);  // colours of recoloured voxels

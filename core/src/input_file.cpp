@@ -14,6 +14,7 @@
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/sdf.hpp"
+#include "voxfield/core/sparse.hpp"
 #include "voxfield/core/vdb.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/core/world_info.hpp"
@@ -142,6 +143,20 @@ VoxModel load_sdf(const std::filesystem::path& path, const InputOptions&) {
     return VoxModel{sdf::solid_world(sdf::load_part(path), path.string()), Palette()};
 }
 
+SparseModel sparse_vox(const std::filesystem::path& path, const InputOptions&) {
+    const VoxScene scene = read_vox_scene(path);
+    return SparseModel{
+        SparseWorld::from_voxels(scene.dims, [&](const VoxelSink& sink) { scene.place(sink); }),
+        scene.palette};
+}
+
+// Inputs read dense first: the dense world, tiled.
+template <VoxModel (*Load)(const std::filesystem::path&, const InputOptions&)>
+SparseModel sparse_from_dense(const std::filesystem::path& path, const InputOptions& options) {
+    const VoxModel model = Load(path, options);
+    return SparseModel{SparseWorld::from_dense(model.world), model.palette};
+}
+
 // The description of a loaded world of kind `kind`, counted voxel by voxel.
 WorldInfo describe_world(const World& world, const char* kind, double bound) {
     TileCensus census(world.dims());
@@ -171,21 +186,28 @@ WorldInfo describe_vdb_file(const std::filesystem::path& path, const InputOption
     return describe_vdb(path, options.grid, bound);
 }
 
-// The input formats, by lower-case extension: how to load one and how to describe one.
+SparseModel sparse_vdb(const std::filesystem::path& path, const InputOptions& options) {
+    return SparseModel{read_vdb_sparse(path, options.grid), Palette()};
+}
+
+// The input formats, by lower-case extension: how to load one (dense or sparse) and how to
+// describe one.
 struct InputFormat {
     std::string_view extension;
     VoxModel (*load)(const std::filesystem::path&, const InputOptions&);
+    SparseModel (*load_sparse)(const std::filesystem::path&, const InputOptions&);
     WorldInfo (*describe)(const std::filesystem::path&, const InputOptions&, double);
 };
 constexpr InputFormat kInputFormats[] = {
-    {".vox", load_vox, describe_vox},
-    {".npy", load_npy, describe_npy},
-    {".vdb", load_vdb, describe_vdb_file},
+    {".vox", load_vox, sparse_vox, describe_vox},
+    {".npy", load_npy, sparse_from_dense<load_npy>, describe_npy},
+    {".vdb", load_vdb, sparse_vdb, describe_vdb_file},
 };
 
 const InputFormat& input_format(const std::filesystem::path& path) {
     // `.sdf.json` is named by two suffixes, so it is matched by name before the table.
-    static constexpr InputFormat sdf_format{".sdf.json", load_sdf, describe_sdf};
+    static constexpr InputFormat sdf_format{".sdf.json", load_sdf, sparse_from_dense<load_sdf>,
+                                            describe_sdf};
     if (sdf::is_sdf_path(path)) {
         return sdf_format;
     }
@@ -208,6 +230,10 @@ const InputFormat& input_format(const std::filesystem::path& path) {
 
 VoxModel load_world(const std::filesystem::path& path, const InputOptions& options) {
     return input_format(path).load(path, options);
+}
+
+SparseModel load_sparse_world(const std::filesystem::path& path, const InputOptions& options) {
+    return input_format(path).load_sparse(path, options);
 }
 
 WorldInfo describe_input(const std::filesystem::path& path, const InputOptions& options,

@@ -3,9 +3,14 @@
 #include "voxfield/core/sparse.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
+#include <exception>
 #include <limits>
+#include <mutex>
 #include <string>
+#include <thread>
+#include <unordered_map>
 
 #include "voxfield/core/error.hpp"
 
@@ -99,40 +104,127 @@ SparseWorld SparseWorld::from_dense(const World& world) {
     });
 }
 
-SparseWorld SparseWorld::from_fill(Dims dims, const BoxFill& fill) {
+SparseWorld SparseWorld::from_fill(Dims dims, const BoxFill& fill, unsigned threads) {
     SparseWorld s(dims);
-    std::vector<std::uint8_t> box_voxels(kTileVoxels);
-    std::vector<std::uint8_t> tile(kTileVoxels);
-    for (std::uint32_t tz = 0; tz < s.grid_.z; ++tz) {
-        for (std::uint32_t ty = 0; ty < s.grid_.y; ++ty) {
-            for (std::uint32_t tx = 0; tx < s.grid_.x; ++tx) {
-                const Box box{{std::int64_t{tx} * kTileSize, std::int64_t{ty} * kTileSize,
-                               std::int64_t{tz} * kTileSize},
-                              {std::min<std::int64_t>(std::int64_t{tx + 1} * kTileSize, dims.x),
-                               std::min<std::int64_t>(std::int64_t{ty + 1} * kTileSize, dims.y),
-                               std::min<std::int64_t>(std::int64_t{tz + 1} * kTileSize, dims.z)}};
-                const auto n = static_cast<std::size_t>(box.volume());
-                fill(box, std::span<std::uint8_t>(box_voxels.data(), n));
-                if (std::all_of(box_voxels.begin(), box_voxels.begin() + static_cast<long>(n),
-                                [](std::uint8_t v) { return v == 0; })) {
-                    continue;
-                }
-                const auto bx = static_cast<std::size_t>(box.max.x - box.min.x);
-                const auto by = static_cast<std::uint32_t>(box.max.y - box.min.y);
-                const auto bz = static_cast<std::uint32_t>(box.max.z - box.min.z);
-                if (bx != kTileSize || by != kTileSize || bz != kTileSize) {
-                    std::fill(tile.begin(), tile.end(), std::uint8_t{0});
-                }
-                for (std::uint32_t z = 0; z < bz; ++z) {
-                    for (std::uint32_t y = 0; y < by; ++y) {
-                        std::copy_n(box_voxels.begin() +
+    if (threads == 0) {
+        threads = std::max(1u, std::thread::hardware_concurrency());
+    }
+    // Rows of tiles (fixed tz, ty; every tx) in batches: each thread fills and encodes whole
+    // rows, then the batch is stored in row order, so tiles are numbered as one thread would.
+    const std::uint64_t rows = std::uint64_t{s.grid_.y} * s.grid_.z;
+    const std::uint64_t batch = std::uint64_t{threads} * 4;
+    std::vector<std::vector<EncodedTile>> encoded(batch);
+    for (std::uint64_t first = 0; first < rows; first += batch) {
+        const std::uint64_t count = std::min(batch, rows - first);
+        std::atomic<std::uint64_t> next{0};
+        std::exception_ptr failure;
+        std::mutex failure_mutex;
+        auto work = [&] {
+            std::vector<std::uint8_t> box_voxels(kTileVoxels), tile(kTileVoxels);
+            for (std::uint64_t r = next++; r < count; r = next++) {
+                const auto ty = static_cast<std::uint32_t>((first + r) % s.grid_.y);
+                const auto tz = static_cast<std::uint32_t>((first + r) / s.grid_.y);
+                std::vector<EncodedTile>& out = encoded[r];
+                out.assign(s.grid_.x, EncodedTile{});
+                try {
+                    for (std::uint32_t tx = 0; tx < s.grid_.x; ++tx) {
+                        const Box box{
+                            {std::int64_t{tx} * kTileSize, std::int64_t{ty} * kTileSize,
+                             std::int64_t{tz} * kTileSize},
+                            {std::min<std::int64_t>(std::int64_t{tx + 1} * kTileSize, dims.x),
+                             std::min<std::int64_t>(std::int64_t{ty + 1} * kTileSize, dims.y),
+                             std::min<std::int64_t>(std::int64_t{tz + 1} * kTileSize, dims.z)}};
+                        const auto n = static_cast<std::size_t>(box.volume());
+                        fill(box, std::span<std::uint8_t>(box_voxels.data(), n));
+                        if (std::all_of(box_voxels.begin(),
+                                        box_voxels.begin() + static_cast<long>(n),
+                                        [](std::uint8_t v) { return v == 0; })) {
+                            continue;
+                        }
+                        const auto bx = static_cast<std::size_t>(box.max.x - box.min.x);
+                        const auto by = static_cast<std::uint32_t>(box.max.y - box.min.y);
+                        const auto bz = static_cast<std::uint32_t>(box.max.z - box.min.z);
+                        if (bx != kTileSize || by != kTileSize || bz != kTileSize) {
+                            std::fill(tile.begin(), tile.end(), std::uint8_t{0});
+                        }
+                        for (std::uint32_t z = 0; z < bz; ++z) {
+                            for (std::uint32_t y = 0; y < by; ++y) {
+                                std::copy_n(
+                                    box_voxels.begin() +
                                         static_cast<std::ptrdiff_t>((std::size_t{z} * by + y) * bx),
                                     bx, tile.begin() + static_cast<long>(local_index(0, y, z)));
+                            }
+                        }
+                        out[tx] = encode_tile(tile);
                     }
+                } catch (...) {
+                    const std::lock_guard<std::mutex> lock(failure_mutex);
+                    if (!failure) {
+                        failure = std::current_exception();
+                    }
+                    next = count;  // the other threads stop at their next row
                 }
-                s.store_tile(tx, ty, tz, tile);
             }
+        };
+        std::vector<std::thread> pool;
+        const auto helpers = static_cast<unsigned>(std::min<std::uint64_t>(threads, count)) - 1;
+        for (unsigned t = 0; t < helpers; ++t) {
+            pool.emplace_back(work);
         }
+        work();
+        for (std::thread& t : pool) {
+            t.join();
+        }
+        if (failure) {
+            std::rethrow_exception(failure);
+        }
+        for (std::uint64_t r = 0; r < count; ++r) {
+            const auto ty = static_cast<std::uint32_t>((first + r) % s.grid_.y);
+            const auto tz = static_cast<std::uint32_t>((first + r) / s.grid_.y);
+            for (std::uint32_t tx = 0; tx < s.grid_.x; ++tx) {
+                if (!encoded[r][tx].masks.empty()) {
+                    s.put_tile(tx, ty, tz, encoded[r][tx]);
+                }
+            }
+            std::vector<EncodedTile>().swap(encoded[r]);
+        }
+    }
+    return s;
+}
+
+SparseWorld SparseWorld::from_voxels(Dims dims,
+                                     const std::function<void(const VoxelSink&)>& place) {
+    SparseWorld s(dims);
+    // Per tile key, its voxels in the order placed: local index (18 bits), value above it.
+    std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> buckets;
+    place([&](std::uint32_t x, std::uint32_t y, std::uint32_t z, std::uint8_t v) {
+        if (!dims.contains(x, y, z)) {
+            throw InputError("voxel (" + std::to_string(x) + "," + std::to_string(y) + "," +
+                             std::to_string(z) + ") lies outside the world " + dims.to_string());
+        }
+        const auto local =
+            static_cast<std::uint32_t>(local_index(x % kTileSize, y % kTileSize, z % kTileSize));
+        buckets[tile_key(x / kTileSize, y / kTileSize, z / kTileSize)].push_back(
+            local | std::uint32_t{v} << 18);
+    });
+    std::vector<std::uint64_t> keys;
+    keys.reserve(buckets.size());
+    for (const auto& [key, voxels] : buckets) {
+        keys.push_back(key);
+    }
+    std::sort(keys.begin(), keys.end());
+    std::vector<std::uint8_t> tile(kTileVoxels);
+    constexpr std::uint64_t kCoord = (std::uint64_t{1} << 14) - 1;
+    for (const std::uint64_t key : keys) {
+        std::fill(tile.begin(), tile.end(), std::uint8_t{0});
+        std::vector<std::uint32_t>& voxels = buckets[key];
+        for (const std::uint32_t e : voxels) {
+            tile[e & (kTileVoxels - 1)] = static_cast<std::uint8_t>(e >> 18);
+        }
+        std::vector<std::uint32_t>().swap(voxels);
+        s.store_tile(static_cast<std::uint32_t>(key & kCoord),
+                     static_cast<std::uint32_t>(key >> 14 & kCoord),
+                     static_cast<std::uint32_t>(key >> 28 & kCoord), tile);
     }
     return s;
 }
@@ -274,13 +366,12 @@ Box SparseWorld::solid_bounds(std::uint32_t tile) const {
     return {{o.x + lo.x, o.y + lo.y, o.z + lo.z}, {o.x + hi.x, o.y + hi.y, o.z + hi.z}};
 }
 
-void SparseWorld::store_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t tz,
-                             std::span<const std::uint8_t> voxels) {
+SparseWorld::EncodedTile SparseWorld::encode_tile(std::span<const std::uint8_t> voxels) {
     // Leaf masks per (16^3 child, 4^3 child), and the 16^3 children's masks.
     std::uint64_t leaf[64][64];
     std::uint64_t mid[64];
     std::uint64_t root = 0;
-    std::uint64_t solid = 0;
+    EncodedTile e;
     for (std::uint32_t b16 = 0; b16 < 64; ++b16) {
         const std::uint32_t x16 = (b16 & 3) * 16, y16 = (b16 >> 2 & 3) * 16, z16 = (b16 >> 4) * 16;
         mid[b16] = 0;
@@ -298,21 +389,63 @@ void SparseWorld::store_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t t
             }
             leaf[b16][b4] = m;
             mid[b16] |= std::uint64_t{m != 0} << b4;
-            solid += static_cast<std::uint64_t>(std::popcount(m));
         }
         root |= std::uint64_t{mid[b16] != 0} << b16;
     }
+    if (root == 0) {
+        return e;
+    }
+    const auto n16 = static_cast<std::uint32_t>(std::popcount(root));
+    // Root, then the 16^3 children, then their 4^3 children grouped by parent.
+    e.masks.push_back(root);
+    e.offsets.push_back(1);
+    std::uint32_t next4 = 1 + n16;
+    for (std::uint64_t m = root; m != 0; m &= m - 1) {
+        const auto b16 = static_cast<std::uint32_t>(std::countr_zero(m));
+        e.masks.push_back(mid[b16]);
+        e.offsets.push_back(next4);
+        next4 += static_cast<std::uint32_t>(std::popcount(mid[b16]));
+    }
+    std::uint32_t next_material = 0;
+    for (std::uint64_t m = root; m != 0; m &= m - 1) {
+        const auto b16 = static_cast<std::uint32_t>(std::countr_zero(m));
+        const std::uint32_t x16 = (b16 & 3) * 16, y16 = (b16 >> 2 & 3) * 16, z16 = (b16 >> 4) * 16;
+        for (std::uint64_t m2 = mid[b16]; m2 != 0; m2 &= m2 - 1) {
+            const auto b4 = static_cast<std::uint32_t>(std::countr_zero(m2));
+            const std::uint32_t x4 = x16 + (b4 & 3) * 4, y4 = y16 + (b4 >> 2 & 3) * 4,
+                                z4 = z16 + (b4 >> 4) * 4;
+            e.masks.push_back(leaf[b16][b4]);
+            e.offsets.push_back(next_material);
+            for (std::uint64_t m3 = leaf[b16][b4]; m3 != 0; m3 &= m3 - 1) {
+                const auto bv = static_cast<std::uint32_t>(std::countr_zero(m3));
+                e.materials.push_back(
+                    voxels[local_index(x4 + (bv & 3), y4 + (bv >> 2 & 3), z4 + (bv >> 4))]);
+                ++next_material;
+            }
+        }
+    }
+    return e;
+}
+
+void SparseWorld::store_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t tz,
+                             std::span<const std::uint8_t> voxels) {
+    put_tile(tx, ty, tz, encode_tile(voxels));
+}
+
+void SparseWorld::put_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t tz,
+                           const EncodedTile& e) {
+    const bool empty = e.masks.empty();
     const std::uint64_t key = tile_key(tx, ty, tz);
     std::uint32_t tile = find_tile(tx, ty, tz);
     if (tile != kNoTile) {
         garbage_nodes_ += node_counts_[tile];
         garbage_materials_ += material_counts_[tile];
-        if (solid == 0) {
+        if (empty) {
             remove_tile(tile);
             compact_if_needed();
             return;
         }
-    } else if (solid == 0) {
+    } else if (empty) {
         return;
     }
     if (tile == kNoTile) {
@@ -324,41 +457,13 @@ void SparseWorld::store_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t t
         material_counts_.push_back(0);
         hash_insert(key, tile);
     }
-    const std::uint64_t base = node_masks_.size();
-    const std::uint64_t mbase = materials_.size();
-    const auto n16 = static_cast<std::uint32_t>(std::popcount(root));
-    // Root, then the 16^3 children, then their 4^3 children grouped by parent.
-    node_masks_.push_back(root);
-    node_offsets_.push_back(1);
-    std::uint32_t next4 = 1 + n16;
-    for (std::uint64_t m = root; m != 0; m &= m - 1) {
-        const auto b16 = static_cast<std::uint32_t>(std::countr_zero(m));
-        node_masks_.push_back(mid[b16]);
-        node_offsets_.push_back(next4);
-        next4 += static_cast<std::uint32_t>(std::popcount(mid[b16]));
-    }
-    std::uint32_t next_material = 0;
-    for (std::uint64_t m = root; m != 0; m &= m - 1) {
-        const auto b16 = static_cast<std::uint32_t>(std::countr_zero(m));
-        const std::uint32_t x16 = (b16 & 3) * 16, y16 = (b16 >> 2 & 3) * 16, z16 = (b16 >> 4) * 16;
-        for (std::uint64_t m2 = mid[b16]; m2 != 0; m2 &= m2 - 1) {
-            const auto b4 = static_cast<std::uint32_t>(std::countr_zero(m2));
-            const std::uint32_t x4 = x16 + (b4 & 3) * 4, y4 = y16 + (b4 >> 2 & 3) * 4,
-                                z4 = z16 + (b4 >> 4) * 4;
-            node_masks_.push_back(leaf[b16][b4]);
-            node_offsets_.push_back(next_material);
-            for (std::uint64_t m3 = leaf[b16][b4]; m3 != 0; m3 &= m3 - 1) {
-                const auto bv = static_cast<std::uint32_t>(std::countr_zero(m3));
-                materials_.push_back(
-                    voxels[local_index(x4 + (bv & 3), y4 + (bv >> 2 & 3), z4 + (bv >> 4))]);
-                ++next_material;
-            }
-        }
-    }
-    node_bases_[tile] = base;
-    material_bases_[tile] = mbase;
-    node_counts_[tile] = next4;
-    material_counts_[tile] = next_material;
+    node_bases_[tile] = node_masks_.size();
+    material_bases_[tile] = materials_.size();
+    node_masks_.insert(node_masks_.end(), e.masks.begin(), e.masks.end());
+    node_offsets_.insert(node_offsets_.end(), e.offsets.begin(), e.offsets.end());
+    materials_.insert(materials_.end(), e.materials.begin(), e.materials.end());
+    node_counts_[tile] = static_cast<std::uint32_t>(e.masks.size());
+    material_counts_[tile] = static_cast<std::uint32_t>(e.materials.size());
     compact_if_needed();
 }
 

@@ -102,11 +102,10 @@ using ReadableGrids = openvdb::TypeList<openvdb::FloatGrid, openvdb::DoubleGrid,
 
 // Calls start(dims) once, then f(x, y, z, material) for every solid voxel of the grid, in world
 // coordinates (origin at the active bounding box's minimum corner).
-template <typename S, typename F>
-void walk_solid(const OpenGrid& g, const std::string& file, S&& start, F&& f) {
-    const openvdb::GridBase& grid = *g.grid;
+// The grid's active bounding box; InputError when it is empty or over kVoxMaxSceneAxis.
+openvdb::CoordBBox solid_box(const OpenGrid& g, const std::string& file) {
     const std::string where = file + ": grid '" + g.name + "'";
-    const openvdb::CoordBBox box = grid.evalActiveVoxelBoundingBox();
+    const openvdb::CoordBBox box = g.grid->evalActiveVoxelBoundingBox();
     if (box.empty()) {
         throw InputError(where + " has no active voxels");
     }
@@ -118,8 +117,21 @@ void walk_solid(const OpenGrid& g, const std::string& file, S&& start, F&& f) {
                              std::to_string(kVoxMaxSceneAxis) + " per axis");
         }
     }
-    start(Dims{static_cast<std::uint32_t>(n[0]), static_cast<std::uint32_t>(n[1]),
-               static_cast<std::uint32_t>(n[2])});
+    return box;
+}
+
+Dims dims_of(const openvdb::CoordBBox& box) {
+    const openvdb::Coord n = box.dim();
+    return Dims{static_cast<std::uint32_t>(n[0]), static_cast<std::uint32_t>(n[1]),
+                static_cast<std::uint32_t>(n[2])};
+}
+
+template <typename S, typename F>
+void walk_solid(const OpenGrid& g, const std::string& file, S&& start, F&& f) {
+    const openvdb::GridBase& grid = *g.grid;
+    const std::string where = file + ": grid '" + g.name + "'";
+    const openvdb::CoordBBox box = solid_box(g, file);
+    start(dims_of(box));
     const openvdb::Coord lo = box.min();
     auto emit = [&](const openvdb::CoordBBox& b, std::uint8_t material) {
         const openvdb::CoordBBox c(openvdb::Coord::maxComponent(b.min(), box.min()),
@@ -199,6 +211,19 @@ VoxModel read_vdb(const std::filesystem::path& path, const std::string& grid) {
     return VoxModel{std::move(*world), Palette()};
 }
 
+SparseWorld read_vdb_sparse(const std::filesystem::path& path, const std::string& grid) {
+    const OpenGrid g = read_grid(path, grid);
+    return SparseWorld::from_voxels(dims_of(solid_box(g, path.string())),
+                                    [&](const VoxelSink& sink) {
+                                        walk_solid(
+                                            g, path.string(), [](Dims) {}, sink);
+                                    });
+}
+
+Dims vdb_extent(const std::filesystem::path& path, const std::string& grid) {
+    return dims_of(solid_box(read_grid(path, grid), path.string()));
+}
+
 WorldInfo describe_vdb(const std::filesystem::path& path, const std::string& grid,
                        double max_distance) {
     const OpenGrid g = read_grid(path, grid);
@@ -239,9 +264,9 @@ std::optional<VdbFieldSpec> vdb_output_spec(const std::filesystem::path& output,
 
 namespace {
 
-// The .vdb file's bytes: OpenVDB's io::Stream keeps the grids in the order given.
-std::string vdb_bytes(Dims dims, std::span<const std::uint8_t> voxels,
-                      std::span<const std::uint8_t> field, Format format,
+// The .vdb file's bytes, from boxes of the world and its field: OpenVDB's io::Stream keeps
+// the grids in the order given.
+std::string vdb_bytes(const std::function<bool(VdbBox&)>& next, Format format,
                       const VdbFieldSpec& spec) {
     init_openvdb();
     const auto d = static_cast<float>(spec.background);
@@ -256,25 +281,30 @@ std::string vdb_bytes(Dims dims, std::span<const std::uint8_t> voxels,
     auto mat = material->getAccessor();
     auto dist = distance->getAccessor();
     const std::size_t es = element_size(format);
-    std::vector<std::uint8_t> row(std::size_t{dims.x} * es);  // decode_value reads vectors
-    for (std::uint32_t z = 0; z < dims.z; ++z) {
-        for (std::uint32_t y = 0; y < dims.y; ++y) {
-            const std::size_t base = dims.index(0, y, z);
-            std::copy_n(field.begin() + static_cast<std::ptrdiff_t>(base * es), row.size(),
-                        row.begin());
-            for (std::uint32_t x = 0; x < dims.x; ++x) {
-                const openvdb::Coord ijk(static_cast<openvdb::Int32>(x),
-                                         static_cast<openvdb::Int32>(y),
-                                         static_cast<openvdb::Int32>(z));
-                const std::uint8_t m = voxels[base + x];
-                if (m != 0) {
-                    mat.setValue(ijk, m);
-                }
-                const double v = decode_value(row, format, x);
-                if (std::fabs(v) < spec.background) {
-                    dist.setValue(ijk, static_cast<float>(v));
-                } else if (v < 0) {
-                    dist.setValueOff(ijk, -d);
+    std::vector<std::uint8_t> row;  // decode_value reads vectors
+    VdbBox b;
+    while (next(b)) {
+        const auto nx = static_cast<std::size_t>(b.box.max.x - b.box.min.x);
+        row.resize(nx * es);
+        std::size_t base = 0;
+        for (std::int64_t z = b.box.min.z; z < b.box.max.z; ++z) {
+            for (std::int64_t y = b.box.min.y; y < b.box.max.y; ++y, base += nx) {
+                std::copy_n(b.field.begin() + static_cast<std::ptrdiff_t>(base * es), row.size(),
+                            row.begin());
+                for (std::size_t i = 0; i < nx; ++i) {
+                    const openvdb::Coord ijk(
+                        static_cast<openvdb::Int32>(b.box.min.x) + static_cast<openvdb::Int32>(i),
+                        static_cast<openvdb::Int32>(y), static_cast<openvdb::Int32>(z));
+                    const std::uint8_t m = b.voxels[base + i];
+                    if (m != 0) {
+                        mat.setValue(ijk, m);
+                    }
+                    const double v = decode_value(row, format, i);
+                    if (std::fabs(v) < spec.background) {
+                        dist.setValue(ijk, static_cast<float>(v));
+                    } else if (v < 0) {
+                        dist.setValueOff(ijk, -d);
+                    }
                 }
             }
         }
@@ -286,6 +316,19 @@ std::string vdb_bytes(Dims dims, std::span<const std::uint8_t> voxels,
     return out.str();
 }
 
+// The whole world as one box.
+std::function<bool(VdbBox&)> one_box(Dims dims, std::span<const std::uint8_t> voxels,
+                                     std::span<const std::uint8_t> field) {
+    return [dims, voxels, field, done = false](VdbBox& b) mutable {
+        if (done) {
+            return false;
+        }
+        done = true;
+        b = VdbBox{Box{{0, 0, 0}, {dims.x, dims.y, dims.z}}, voxels, field};
+        return true;
+    };
+}
+
 std::span<const std::uint8_t> as_bytes(const std::string& s) {
     return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
 }
@@ -294,14 +337,20 @@ std::span<const std::uint8_t> as_bytes(const std::string& s) {
 
 void write_vdb(const std::filesystem::path& path, Dims dims, std::span<const std::uint8_t> voxels,
                std::span<const std::uint8_t> field, Format format, const VdbFieldSpec& spec) {
-    const std::string bytes = vdb_bytes(dims, voxels, field, format, spec);
+    const std::string bytes = vdb_bytes(one_box(dims, voxels, field), format, spec);
     detail::write_file_atomic(path, {as_bytes(bytes)});
 }
 
 void write_vdb(OutputBatch& batch, const std::filesystem::path& path, Dims dims,
                std::span<const std::uint8_t> voxels, std::span<const std::uint8_t> field,
                Format format, const VdbFieldSpec& spec) {
-    const std::string bytes = vdb_bytes(dims, voxels, field, format, spec);
+    const std::string bytes = vdb_bytes(one_box(dims, voxels, field), format, spec);
+    batch.write(path, {as_bytes(bytes)});
+}
+
+void write_vdb(OutputBatch& batch, const std::filesystem::path& path,
+               const std::function<bool(VdbBox&)>& next, Format format, const VdbFieldSpec& spec) {
+    const std::string bytes = vdb_bytes(next, format, spec);
     batch.write(path, {as_bytes(bytes)});
 }
 

@@ -25,7 +25,7 @@ std::vector<std::uint32_t> as_words(const std::vector<std::uint8_t>& bytes) {
 
 FramePipeline::FramePipeline(ocl::Context& cl, vk::Context& vkc, Palette palette, Dims dims,
                              PipelineOptions options)
-    : cl_(cl), palette_(palette), dims_(dims) {
+    : cl_(cl), vk_(vkc), palette_(palette), dims_(dims) {
     marcher_ = std::make_unique<vk::Raymarcher>(vkc, options.max_binding_bytes);
     if (options.render_format == vk::FieldFormat::compact) {
         render_field_ =
@@ -138,6 +138,17 @@ void FramePipeline::render(const vk::RenderOptions& options, vk::Image& out) {
 
 double FramePipeline::render_to(const vk::RenderOptions& options, const vk::ExternalMemory& frame) {
     return marcher_->render_to(options, frame);
+}
+
+double FramePipeline::march(const vk::RenderOptions& options) {
+    std::erase_if(marched_, [&](std::uint64_t serial) { return vk_.finished(serial); });
+    if (marched_.size() >= kFramesInFlight) {
+        vk_.wait_for(marched_.front());
+        marched_.erase(marched_.begin());
+    }
+    marched_.push_back(vk_.submit_unwaited(
+        [&](VkCommandBuffer cmd) { marcher_->record(cmd, options); }, "a headless frame"));
+    return marcher_->finished_raymarch_ms();
 }
 
 const World& FramePipeline::world() const {

@@ -3,9 +3,12 @@
 // corner values and gradients equal the CPU evaluators', on random trees and the gallery.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "cl_test_util.hpp"
@@ -112,6 +115,31 @@ Check check(const sdf::Part& part, ImplicitOptions options, const std::string& w
     return check(part, options, what, brute_force(part));
 }
 
+// Two grids of one part hold the same discretisation: flags per voxel, and every crossed
+// voxel's material and corners (the leaves append crossed voxels in no fixed order).
+void expect_same_grid(const ImplicitGrid& got, const ImplicitGrid& want) {
+    EXPECT_EQ(got.dims, want.dims);
+    EXPECT_EQ(got.tiles, want.tiles);
+    EXPECT_EQ(got.tile_edge, want.tile_edge);
+    EXPECT_EQ(got.leaves, want.leaves);
+    EXPECT_EQ(got.flags(), want.flags());
+    auto sorted = [](std::vector<ImplicitGrid::Crossed> c) {
+        std::sort(c.begin(), c.end(), [](const auto& a, const auto& b) {
+            return std::tie(a.z, a.y, a.x) < std::tie(b.z, b.y, b.x);
+        });
+        return c;
+    };
+    const auto a = sorted(got.crossed()), b = sorted(want.crossed());
+    ASSERT_EQ(a.size(), b.size());
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        differ += a[i].x != b[i].x || a[i].y != b[i].y || a[i].z != b[i].z ||
+                  a[i].material != b[i].material ||
+                  std::memcmp(a[i].corner, b[i].corner, sizeof a[i].corner) != 0;
+    }
+    EXPECT_EQ(differ, 0u);
+}
+
 class ImplicitLayouts : public ::testing::TestWithParam<Layout> {};
 
 TEST_P(ImplicitLayouts, RandomTreesEqualBruteForce) {
@@ -158,9 +186,36 @@ TEST_P(ImplicitLayouts, CapacityOverflowRerunsWithTheReachedSizes) {
                          {"shell": {"thickness": 0.001, "of": {"sphere": {"center": [0, 0, 0], "radius": 0.59}}}}]}]}})",
         "shells");
     ImplicitDiscretiser job(test::pocl(), part, {1, GetParam()});
-    job.run();
+    const ImplicitGrid first = job.run();
     EXPECT_EQ(job.timing().passes, 2u);
     check(part, {1, GetParam()}, "shells");
+    // The next run starts from the reached sizes: one pass, the same grid.
+    ImplicitGrid again;
+    job.run(again);
+    EXPECT_EQ(job.timing().passes, 1u);
+    expect_same_grid(again, first);
+}
+
+// A grid reused by run(out) holds nothing of what it held before: a larger part's grid, then a
+// gallery part's, equals the gallery part's fresh grid.
+TEST_P(ImplicitLayouts, RunsIntoAReusedGridEqualFreshOnes) {
+    const sdf::Part big = sdf::parse_part(
+        R"({"version": 1, "voxel_size": 0.02, "bounds": [[-1, -1, -1], [1, 1, 1]],
+            "shape": {"shell": {"thickness": 0.001, "of": {"sphere": {"center": [0, 0, 0], "radius": 0.7}}}}})",
+        "big");
+    const sdf::Part part =
+        sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" / "bracket.sdf.json");
+    ImplicitGrid reused;
+    ImplicitDiscretiser(test::pocl(), big, {1, GetParam()}).run(reused);
+    ASSERT_GT(reused.crossed_count(), 0u);
+    ImplicitDiscretiser job(test::pocl(), part, {2, GetParam()});
+    job.run(reused);
+    const ImplicitGrid fresh = ImplicitDiscretiser(test::pocl(), part, {2, GetParam()}).run();
+    expect_same_grid(reused, fresh);
+    EXPECT_EQ(reused.tile_table, fresh.tile_table);
+    // And the same discretiser again into its own output.
+    job.run(reused);
+    expect_same_grid(reused, fresh);
 }
 
 TEST_P(ImplicitLayouts, TapesTooLongToSpecialiseRunWhole) {

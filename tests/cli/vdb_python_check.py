@@ -65,6 +65,38 @@ with tempfile.TemporaryDirectory() as tmp:
     assert info["solid_voxels"] == solid, (info["solid_voxels"], solid)
     print(f"info on the .vdb: grid 'material', {solid} solid voxels")
 
+    # A grid too wide for a dense world (extent about 1e6 x 6 x 9e5 voxels): generated sparse
+    # without --sparse, read and written tile by tile; around each of its two solid voxels the
+    # field is the Manhattan distance below the bound, and nothing else is active.
+    wide_in, wide_out = os.path.join(tmp, "wide_in.vdb"), os.path.join(tmp, "wide_out.vdb")
+    fog = vdb.FloatGrid()
+    fog.name = "fog"
+    solids = [(0, 0, 0), (1000000, 5, 900000)]
+    acc = fog.getAccessor()
+    for ijk in solids:
+        acc.setValueOn(ijk, 1.0)
+    vdb.write(wide_in, grids=[fog])
+    r = run("generate", wide_in, "-o", wide_out, "--device", "cpu", "--max-distance", "4")
+    assert r.returncode == 0, r.stderr
+    grid = vdb.read(wide_out, "distance")
+    racc = grid.getConstAccessor()
+    want_on = 0
+    for sx, sy, sz in solids:
+        for dz in range(-4, 5):
+            for dy in range(-4, 5):
+                for dx in range(-4, 5):
+                    x, y, z = sx + dx, sy + dy, sz + dz
+                    if not (0 <= x <= 1000000 and 0 <= y <= 5 and 0 <= z <= 900000):
+                        continue
+                    d = abs(dx) + abs(dy) + abs(dz)
+                    value, on = racc.probeValue((x, y, z))
+                    assert on == (d < 4), ((x, y, z), d, value, on)
+                    assert value == (d if d < 4 else 4), ((x, y, z), d, value)
+                    want_on += d < 4
+    on = sum(item.count for item in grid.citerOnValues())
+    assert on == want_on, (on, want_on)
+    print(f"wide .vdb input (1e6 x 6 x 9e5, auto sparse): {on} active voxels, all exact")
+
     # Refused before any output: non-uniform spacing, unreadable .vdb input, missing grid.
     bad = os.path.join(tmp, "bad.vdb")
     with open(bad, "w") as f:

@@ -2,7 +2,9 @@
 // the tile hash and edits, against dense worlds.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <bit>
+#include <mutex>
 #include <random>
 #include <vector>
 
@@ -144,8 +146,12 @@ TEST(SparseWorld, RoundTripsBlobsWithEmptyTilesBetween) {
 TEST(SparseWorld, BuildsFromABoxFillTileByTile) {
     const Dims d{200, 90, 131};
     std::vector<Box> boxes;
+    std::mutex boxes_mutex;  // from_fill calls the fill from several threads
     const SparseWorld s = SparseWorld::from_fill(d, [&](const Box& b, std::span<std::uint8_t> out) {
-        boxes.push_back(b);
+        {
+            const std::lock_guard<std::mutex> lock(boxes_mutex);
+            boxes.push_back(b);
+        }
         ASSERT_EQ(out.size(), static_cast<std::size_t>(b.volume()));
         std::size_t i = 0;
         for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
@@ -174,6 +180,50 @@ TEST(SparseWorld, BuildsFromABoxFillTileByTile) {
         }
     }
     expect_consistent(s, w);
+}
+
+// The tiles are filled and encoded on several threads: any thread count gives the same
+// buffers, tile for tile, as one thread (a world of 7 x 3 x 5 tiles, cut by its edges).
+TEST(SparseWorld, FromFillIsTheSameOnAnyNumberOfThreads) {
+    const Dims d{420, 150, 300};
+    auto fill = [&](const Box& b, std::span<std::uint8_t> out) {
+        std::size_t i = 0;
+        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
+            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
+                for (std::int64_t x = b.min.x; x < b.max.x; ++x) {
+                    const std::int64_t h = 10 + (x * 13 + z * 7) % 90;
+                    out[i++] = y < h && (x / 64 + z / 64) % 3 != 1
+                                   ? static_cast<std::uint8_t>(1 + (x + y) % 9)
+                                   : 0;
+                }
+            }
+        }
+    };
+    const SparseWorld one = SparseWorld::from_fill(d, fill, 1);
+    EXPECT_GT(one.tile_count(), 20u);
+    for (unsigned threads : {2u, 3u, 8u}) {
+        SCOPED_TRACE(threads);
+        const SparseWorld many = SparseWorld::from_fill(d, fill, threads);
+        EXPECT_EQ(many.tile_coords(), one.tile_coords());
+        EXPECT_EQ(many.node_masks(), one.node_masks());
+        EXPECT_EQ(many.node_offsets(), one.node_offsets());
+        EXPECT_EQ(many.materials(), one.materials());
+        EXPECT_EQ(many.node_bases(), one.node_bases());
+    }
+}
+
+// A fill that throws on some tile: from_fill rethrows it (whichever thread met it).
+TEST(SparseWorld, FromFillPassesOnAFillsError) {
+    const Dims d{300, 64, 300};
+    auto fill = [&](const Box& b, std::span<std::uint8_t> out) {
+        if (b.min.x == 128 && b.min.z == 192) {
+            throw InputError("tile (2, 0, 3) cannot be filled");
+        }
+        std::fill(out.begin(), out.end(), std::uint8_t{1});
+    };
+    for (unsigned threads : {1u, 4u}) {
+        EXPECT_THROW(SparseWorld::from_fill(d, fill, threads), InputError);
+    }
 }
 
 TEST(SparseWorld, EncodesTheBlogsNodeLayout) {

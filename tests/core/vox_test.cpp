@@ -8,12 +8,15 @@
 #include <cstdint>
 #include <filesystem>
 #include <iostream>
+#include <iterator>
+#include <map>
 #include <random>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "test_util.hpp"
+#include "voxfield/core/sparse.hpp"
 #include "voxfield/core/vox.hpp"
 
 namespace voxfield {
@@ -856,6 +859,12 @@ TEST(VoxScene, RandomTreesMatchTheIndependentPlacement) {
         ASSERT_EQ(scene.instances.size(), sb.visible.size());
         const World want = sb.expected();
         expect_same_world(read_vox(dir / "rand.vox").world, want);
+        const SparseModel sparse = load_sparse_world(dir / "rand.vox");
+        expect_same_world(sparse.world.to_dense(), want);
+        for (int c = 0; c < 256; ++c) {
+            EXPECT_EQ(sparse.palette[static_cast<std::uint8_t>(c)],
+                      scene.palette[static_cast<std::uint8_t>(c)]);
+        }
         std::size_t placed = 0;
         for (const auto& p : sb.visible) {
             placed += sb.models[p.model].voxels.size();
@@ -863,6 +872,47 @@ TEST(VoxScene, RandomTreesMatchTheIndependentPlacement) {
         overlapping += want.solid_count() < placed;
     }
     EXPECT_GT(overlapping, 5u);  // the overlap rule was exercised
+}
+
+// A scene too wide for a dense world: its instances 600000 voxels apart on two axes (about
+// 3.6e11 voxels of extent) load sparse, tile by tile, each voxel where the scene places it.
+TEST(VoxScene, WideScenesLoadSparseWithoutADenseWorld) {
+    TempDir dir;
+    SceneBuilder sb;
+    sb.models.push_back(asymmetric_model(5, 70, 3, 10, 5));  // crosses tile edges in y
+    sb.models.push_back(asymmetric_model(66, 4, 9, 99, 6));
+    sb.next_id = 2;
+    std::vector<std::uint32_t> kids;
+    const std::vector<Mat> rots = all_rotations();
+    const Vec ts[] = {{-300000, -300000, 0},
+                      {300000, 300000, 5},
+                      {300000, -300000, 70},
+                      {-300000, 300000, 64},
+                      {17, 63, 2}};
+    for (std::size_t i = 0; i < std::size(ts); ++i) {
+        std::uint32_t tid = 0;
+        sb.instance(static_cast<std::uint32_t>(i % 2), kIdentity, {0, 0, 0}, rots[i * 7], ts[i],
+                    false, tid);
+        kids.push_back(tid);
+    }
+    sb.transform(0, 1, kIdentity, {0, 0, 0});
+    sb.group(1, kids);
+    write_bytes(dir / "wide.vox", sb.bytes());
+    expect_input_error([&] { read_vox(dir / "wide.vox"); }, {"2^31"});
+    const VoxScene scene = read_vox_scene(dir / "wide.vox");
+    const SparseModel sparse = load_sparse_world(dir / "wide.vox");
+    ASSERT_EQ(sparse.world.dims(), scene.dims);
+    std::map<std::array<std::uint32_t, 3>, std::uint8_t> want;
+    scene.place([&](std::uint32_t x, std::uint32_t y, std::uint32_t z, std::uint8_t v) {
+        want[{x, y, z}] = v;
+    });
+    EXPECT_EQ(sparse.world.solid_count(), want.size());
+    std::size_t wrong = 0;
+    for (const auto& [p, v] : want) {
+        wrong += sparse.world.at(p[0], p[1], p[2]) != v;
+    }
+    EXPECT_EQ(wrong, 0u);
+    EXPECT_GT(sparse.world.tile_count(), 4u);
 }
 
 TEST(VoxScene, SharedShapeNodesAreInstancedPerPath) {

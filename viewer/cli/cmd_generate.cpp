@@ -75,7 +75,7 @@ std::size_t count_solid(std::span<const std::uint8_t> voxels) {
 int run_generate(const GenerateOptions& o) {
     check_outputs({{"-o", o.output}, {"--indices", o.indices}, {"--json", o.json}},
                   {{"INPUT", o.input}});
-    if (o.sparse || needs_sparse(o.input)) {
+    if (o.sparse || needs_sparse(o.input, o.grid)) {
         return run_generate_sparse({o.generator, o.input, o.output, o.device, o.format, o.json,
                                     o.grid, !o.indices.empty(), o.stats, o.repeat, o.warmup});
     }

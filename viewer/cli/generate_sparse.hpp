@@ -12,9 +12,10 @@ namespace voxfield::cli {
 // Worlds with more voxels than this are generated sparse without --sparse.
 inline constexpr std::uint64_t kSparseAutoVoxels = std::uint64_t{1} << 31;
 
-// Whether `input` holds more than kSparseAutoVoxels voxels (a .npy's header says so; other
-// inputs are loaded as dense worlds first).
-bool needs_sparse(const std::string& input);
+// Whether `input` holds more than kSparseAutoVoxels voxels: a .npy's header, a .vox scene's
+// extent or a .vdb grid's (`grid`: its name, empty for the first) says so; .sdf.json parts are
+// generated dense.
+bool needs_sparse(const std::string& input, const std::string& grid);
 
 struct SparseGenerateArgs {
     GeneratorFlags flags;

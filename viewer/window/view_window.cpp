@@ -293,6 +293,9 @@ void Frames::render(pipeline::FramePipeline& session, Screen* screen, vk::Render
             presenter.import_frame(memory_.export_fd(), memory_.size(), memory_.memory_type());
         }
         raymarch_ms_ = session.render_to(r, memory_);
+    } else if (screen == nullptr) {
+        raymarch_ms_ = session.march(r);  // headless: the frame stays on the device
+        marched_ = r;
     } else {
         session.render(r, image_);
         raymarch_ms_ = image_.raymarch_ms;
@@ -318,7 +321,10 @@ void Frames::present(pipeline::FramePipeline& session, Screen& screen, const vk:
 
 const vk::Image& Frames::host_image(pipeline::FramePipeline& session, const Screen* screen,
                                     const vk::RenderOptions& r) {
-    if (screen != nullptr && screen->path() != FramePath::host && rendered_) {
+    if (screen == nullptr && marched_) {
+        session.render(*marched_, image_);  // the last headless frame, marched again
+        marched_.reset();
+    } else if (screen != nullptr && screen->path() != FramePath::host && rendered_) {
         vk::RenderOptions host = r;
         host.bgra = false;
         session.render(host, image_);

@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "view_input.hpp"
@@ -105,7 +106,8 @@ class Frames {
   public:
     explicit Frames(vk::Context& marcher) : ctx_(marcher) {}
     // Sets the render options' size (framebuffer pixels; an empty one renders nothing) and
-    // camera, and ray-marches the frame on `screen`'s path (headless without one); one device:
+    // camera, and ray-marches the frame on `screen`'s path (headless without one: on the device
+    // only, nothing read back unless host_image asks); one device:
     // it is recorded with the present and its time comes a frame or two later.
     void render(pipeline::FramePipeline& session, Screen* screen, vk::RenderOptions& r,
                 const ViewCamera& camera, std::uint32_t fb_width, std::uint32_t fb_height);
@@ -123,6 +125,8 @@ class Frames {
     vk::Context& ctx_;
     vk::ExternalMemory memory_;  // the imported path's frame
     vk::Image image_;
+    // The options of the last headless frame while image_ does not hold it yet.
+    std::optional<vk::RenderOptions> marched_;
     bool rendered_ = false;
     double raymarch_ms_ = -1;
 };

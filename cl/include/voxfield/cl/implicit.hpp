@@ -63,6 +63,9 @@ class ImplicitDiscretiser {
     ImplicitDiscretiser(Context& ctx, const sdf::Part& part, ImplicitOptions options = {});
 
     ImplicitGrid run();
+    // The same into `out`, reusing its arrays' storage (and this discretiser's device buffers
+    // and kernels, as every run does): repeated discretisations allocate nothing once warm.
+    void run(ImplicitGrid& out);
     const ImplicitTiming& timing() const { return timing_; }
     bool gpu_layout() const { return gpu_layout_; }
 
@@ -79,6 +82,18 @@ class ImplicitDiscretiser {
     cl::Program program_;
     cl::Buffer tape_;
     ImplicitTiming timing_;
+    // Kept across runs: kernels, device buffers (grown, never shrunk), host scratch, and the
+    // last run's output counts (the next run's first guess of the room it needs).
+    void grow(cl::Buffer& buffer, std::size_t& capacity, std::size_t bytes, cl_mem_flags flags);
+    bool kernels_made_ = false;
+    cl::Kernel classify_tiles_, classify_children_, sample_leaves_;
+    cl::Buffer classes_buf_, origins_buf_, leaf_nodes_buf_, counters_buf_, voxels_buf_,
+        vertices_buf_;
+    std::size_t classes_cap_ = 0, origins_cap_ = 0, leaf_nodes_cap_ = 0, counters_cap_ = 0,
+                voxels_cap_ = 0, vertices_cap_ = 0;
+    std::vector<cl_uchar> classes_;
+    std::vector<cl_uint4> frontier_, next_;
+    std::size_t last_vertices_ = 0, last_voxels_ = 0;
 };
 
 }  // namespace voxfield::ocl

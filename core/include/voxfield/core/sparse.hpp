@@ -26,6 +26,7 @@
 
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/chunks.hpp"
+#include "voxfield/core/vox.hpp"
 #include "voxfield/core/world.hpp"
 #include "voxfield/core/world_info.hpp"  // kTileSize, 64 voxels per tile edge
 
@@ -44,6 +45,8 @@ inline std::uint64_t tile_key(std::uint32_t tx, std::uint32_t ty, std::uint32_t 
 
 // Fills `out` (box.volume() bytes, x fastest, then y, then z) with the voxels of `box`.
 using BoxFill = std::function<void(const Box& box, std::span<std::uint8_t> out)>;
+// Takes one voxel (x, y, z, value); a later voxel at the same place replaces an earlier one.
+using VoxelSink = std::function<void(std::uint32_t, std::uint32_t, std::uint32_t, std::uint8_t)>;
 
 class SparseWorld {
   public:
@@ -52,8 +55,14 @@ class SparseWorld {
     // From a dense world (its solid voxels).
     static SparseWorld from_dense(const World& world);
     // Tile by tile from `fill`, called once per tile (its box clipped to the world), so that
-    // no dense array of the world ever exists.
-    static SparseWorld from_fill(Dims dims, const BoxFill& fill);
+    // no dense array of the world ever exists. Tiles are filled and encoded on up to
+    // `threads` threads (0: one per hardware thread), so `fill` may be called concurrently,
+    // each call with its own box and span; the world is the same for any thread count.
+    static SparseWorld from_fill(Dims dims, const BoxFill& fill, unsigned threads = 0);
+    // From voxels handed to the sink one by one by `place` (a scene's instances, a grid's
+    // active voxels), bucketed by tile (4 bytes per voxel placed): no dense array and no
+    // visit of empty tiles. InputError for a voxel outside the world.
+    static SparseWorld from_voxels(Dims dims, const std::function<void(const VoxelSink&)>& place);
     // The dense world (every voxel); throws InputError above kMaxDenseVoxels voxels.
     World to_dense() const;
 
@@ -107,6 +116,16 @@ class SparseWorld {
     // inserts or replaces its tile entry; removes the tile when every voxel is 0.
     void store_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t tz,
                     std::span<const std::uint8_t> voxels);
+    // store_tile in two steps: the tile's 64-tree (nodes, offsets, materials; empty when every
+    // voxel is 0), which needs nothing of the world (from_fill encodes tiles on several
+    // threads), then its entry in the world's buffers.
+    struct EncodedTile {
+        std::vector<std::uint64_t> masks;
+        std::vector<std::uint32_t> offsets;
+        std::vector<std::uint8_t> materials;
+    };
+    static EncodedTile encode_tile(std::span<const std::uint8_t> voxels);
+    void put_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t tz, const EncodedTile& e);
     void remove_tile(std::uint32_t tile);
     void hash_insert(std::uint64_t key, std::uint32_t tile);
     std::size_t hash_slot(std::uint64_t key) const;  // the key's slot or the free slot
@@ -133,5 +152,17 @@ class SparseWorld {
 // returns the bounding box of the voxels it changed (Box{} when none). Throws InputError as
 // apply_brush does (radius out of range, material 0 with place or paint).
 Box apply_brush(SparseWorld& world, const Brush& brush);
+
+// A world in sparse storage and its palette, as load_sparse_world returns it.
+struct SparseModel {
+    SparseWorld world;
+    Palette palette;
+};
+
+// Loads a world as load_world (vox.hpp) does, into sparse storage. A .vox scene and a .vdb grid
+// are placed voxel by voxel (SparseWorld::from_voxels), never as one dense array, so their
+// extent may reach kMaxSparseAxis per axis; .npy arrays and .sdf.json parts are read dense first
+// (their limits apply). InputError as load_world.
+SparseModel load_sparse_world(const std::filesystem::path& path, const InputOptions& options = {});
 
 }  // namespace voxfield

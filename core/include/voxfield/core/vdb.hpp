@@ -3,6 +3,7 @@
 // API. Index (i, j, k) of a grid is our voxel (x, y, z).
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -10,6 +11,7 @@
 #include "voxfield/core/format.hpp"
 #include "voxfield/core/metric.hpp"
 #include "voxfield/core/output.hpp"
+#include "voxfield/core/sparse.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/core/world_info.hpp"
 
@@ -24,6 +26,11 @@ namespace voxfield {
 // (points, strings), no active voxels, over kVoxMaxSceneAxis per axis, or a dense world over
 // 2^31 voxels.
 VoxModel read_vdb(const std::filesystem::path& path, const std::string& grid);
+// The same grid into sparse storage, voxel by voxel (no dense world: up to kVoxMaxSceneAxis per
+// axis); the same InputErrors except the dense limit.
+SparseWorld read_vdb_sparse(const std::filesystem::path& path, const std::string& grid);
+// The extent of the grid's active voxels (the world read_vdb makes), without reading them.
+Dims vdb_extent(const std::filesystem::path& path, const std::string& grid);
 
 // The same grid counted into a TileCensus without a dense world (kind "vdb", grid, class).
 WorldInfo describe_vdb(const std::filesystem::path& path, const std::string& grid,
@@ -56,5 +63,19 @@ void write_vdb(const std::filesystem::path& path, Dims dims, std::span<const std
 void write_vdb(OutputBatch& batch, const std::filesystem::path& path, Dims dims,
                std::span<const std::uint8_t> voxels, std::span<const std::uint8_t> field,
                Format format, const VdbFieldSpec& spec);
+
+// One box of a world and of its field (box.volume() values each, x fastest), for the box-wise
+// write_vdb.
+struct VdbBox {
+    Box box;
+    std::span<const std::uint8_t> voxels;
+    std::span<const std::uint8_t> field;
+};
+// write_vdb of a world handed out box by box: `next` fills in the next box and returns true,
+// or returns false when there are no more (each call may reuse the previous box's storage).
+// Voxels in no box are empty and their field is the background (beyond the bound): a sparse
+// world's field is written tile by tile, never as one dense array.
+void write_vdb(OutputBatch& batch, const std::filesystem::path& path,
+               const std::function<bool(VdbBox&)>& next, Format format, const VdbFieldSpec& spec);
 
 }  // namespace voxfield

@@ -88,6 +88,11 @@ class FramePipeline {
     // Ray-marches one frame into exported memory for a presenter on another VkDevice; returns
     // the dispatch's GPU time in ms (-1: not available).
     double render_to(const vk::RenderOptions& options, const vk::ExternalMemory& frame);
+    // Ray-marches one frame on the device only (headless frames: nothing read back, nothing
+    // presented) without waiting for it, at most kFramesInFlight frames queued; returns the
+    // ray march GPU time in ms of the latest frame known to have finished (-1: none yet).
+    double march(const vk::RenderOptions& options);
+    static constexpr std::size_t kFramesInFlight = 2;
 
     // The scene's world (brought up to date from the device where the simulation moved it).
     const World& world() const;
@@ -121,6 +126,8 @@ class FramePipeline {
     Scene& current();
 
     ocl::Context& cl_;
+    vk::Context& vk_;
+    std::vector<std::uint64_t> marched_;  // submissions of march() not known to be finished
     Palette palette_;
     Dims dims_;
     std::unique_ptr<Scene> scene_;
