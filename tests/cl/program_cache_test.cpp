@@ -4,10 +4,12 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <memory>
 #include <optional>
 #include <string>
@@ -157,6 +159,44 @@ TEST_F(DiskProgramCache, ACorruptEntryIsRebuiltAndRewritten) {
     const auto stats = build_and_run(source, 7);
     EXPECT_EQ(stats.built, 1u);
     EXPECT_EQ(stats.stored, 0u) << "a folder in the way is left alone";
+}
+
+// An entry whose header and checksum are right but whose binary the driver refuses (written by
+// another build of a driver that kept its version string, say): built from source.
+TEST_F(DiskProgramCache, ABinaryTheDriverRefusesIsRebuilt) {
+    build_and_run(source, 7);
+    ASSERT_EQ(entries().size(), 1u);
+    const std::filesystem::path entry = entries()[0];
+    std::ifstream in(entry, std::ios::binary);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    in.close();
+    // The entry's five header lines (magic, what, digest, size, checksum), then the binary.
+    std::size_t pos = 0;
+    std::vector<std::string> lines;
+    for (int i = 0; i < 5; ++i) {
+        const std::size_t end = text.find('\n', pos);
+        ASSERT_NE(end, std::string::npos);
+        lines.push_back(text.substr(pos, end - pos));
+        pos = end + 1;
+    }
+    const std::string junk(4096, '\x5a');
+    std::uint64_t h = 0xcbf29ce484222325ULL;  // FNV-1a 64, the entry's checksum
+    for (const char c : junk) {
+        h = (h ^ static_cast<unsigned char>(c)) * 0x100000001b3ULL;
+    }
+    char sum[17];
+    std::snprintf(sum, sizeof sum, "%016llx", static_cast<unsigned long long>(h));
+    std::ofstream(entry, std::ios::binary | std::ios::trunc) << lines[0] << '\n'
+                                                             << lines[1] << '\n'
+                                                             << lines[2] << '\n'
+                                                             << junk.size() << '\n'
+                                                             << sum << '\n'
+                                                             << junk;
+    const auto stats = build_and_run(source, 7);
+    EXPECT_EQ(stats.rejected, 1u);
+    EXPECT_EQ(stats.built, 1u);
+    EXPECT_EQ(stats.stored, 1u);
+    EXPECT_EQ(build_and_run(source, 7).loaded, 1u);
 }
 
 TEST_F(DiskProgramCache, WritesLeaveNoTemporaries) {
