@@ -17,15 +17,14 @@ inline uint voxel_steps(uint d, float inv_step) {
 // slab is one Vulkan storage-buffer binding inside a single shared allocation.
 __kernel void to_compact(__global const VF_SRC_T* restrict dist, __global const uchar* restrict vox,
                          __global ushort* restrict out, uint4 d, uint slab_depth, ulong slab_stride,
-                         uint4 lo, uint4 size, ulong count, float inv_step) {
-    const ulong k = get_global_id(0);
-    if (k >= count) {
+                         uint4 lo, uint4 size, float inv_step) {
+    // One work-item per voxel of the box at `lo` of `size` voxels: (x, y, z) from the 3-D
+    // range (no divisions), x padded to the work-group size.
+    const uint gx = (uint)get_global_id(0);
+    if (gx >= size.x) {
         return;
     }
-    const ulong row = k / size.x;
-    const uint x = lo.x + (uint)(k - row * size.x);
-    const uint y = lo.y + (uint)(row % size.y);
-    const uint z = lo.z + (uint)(row / size.y);
+    const uint x = lo.x + gx, y = lo.y + (uint)get_global_id(1), z = lo.z + (uint)get_global_id(2);
     const ulong i = ((ulong)z * d.y + y) * d.x + x;
     const uint slab = z / slab_depth;
     const ulong local_i = ((ulong)(z - slab * slab_depth) * d.y + y) * d.x + x;

@@ -156,7 +156,7 @@ CompactWriter::CompactWriter(Context& ctx, const cl::Buffer& field, Format forma
         kernel_.setArg(3, d);
         kernel_.setArg(4, cl_uint{layout.slab_depth});
         kernel_.setArg(5, static_cast<cl_ulong>(layout.slab_stride_bytes / 2));
-        kernel_.setArg(9, inv_step);
+        kernel_.setArg(8, inv_step);
         block_min_ = layout.block_min_offset
                          ? dst
                          : cl::Buffer(ctx.context(), CL_MEM_READ_WRITE, table_bytes);
@@ -204,10 +204,16 @@ double CompactWriter::run(const std::vector<Box>& regions) {
             if (r.empty()) {
                 continue;
             }
+            const auto u = [](std::int64_t v) { return static_cast<cl_uint>(v); };
+            const Int3 n{r.max.x - r.min.x, r.max.y - r.min.y, r.max.z - r.min.z};
+            kernel_.setArg(6, cl_uint4{{u(r.min.x), u(r.min.y), u(r.min.z), 0}});
+            kernel_.setArg(7, cl_uint4{{u(n.x), u(n.y), u(n.z), 0}});
             events.emplace_back();
-            ctx_.queue().enqueueNDRangeKernel(kernel_, cl::NullRange,
-                                              cl::NDRange(set_box(kernel_, 6, r.min, r.max)),
-                                              cl::NDRange(kLocal), nullptr, &events.back());
+            ctx_.queue().enqueueNDRangeKernel(
+                kernel_, cl::NullRange,
+                cl::NDRange(round_up(static_cast<std::size_t>(n.x), kLocal),
+                            static_cast<std::size_t>(n.y), static_cast<std::size_t>(n.z)),
+                cl::NDRange(kLocal, 1, 1), nullptr, &events.back());
             const Int3 lo{r.min.x / b, r.min.y / b, r.min.z / b};
             const Int3 hi{(r.max.x + b - 1) / b, (r.max.y + b - 1) / b, (r.max.z + b - 1) / b};
             changed_blocks_.push_back(Box{lo, hi});

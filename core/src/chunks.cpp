@@ -33,6 +33,57 @@ Box hull(const Box& a, const Box& b) {
         {std::max(a.max.x, b.max.x), std::max(a.max.y, b.max.y), std::max(a.max.z, b.max.z)}};
 }
 
+std::vector<Box> merge_for_launches(std::vector<Box> boxes, std::int64_t launch_voxels,
+                                    std::size_t max_boxes) {
+    std::erase_if(boxes, [](const Box& b) { return b.empty(); });
+    max_boxes = std::max<std::size_t>(max_boxes, 1);
+    if (boxes.size() > 2 * max_boxes) {
+        Box all = boxes.front();
+        for (const Box& b : boxes) {
+            all = hull(all, b);
+        }
+        return {all};
+    }
+    // extra[i][j]: the voxels the hull of boxes i and j adds to theirs (overlaps counted twice
+    // in the boxes, so it may be negative).
+    const auto added = [&](std::size_t i, std::size_t j) {
+        return hull(boxes[i], boxes[j]).volume() - boxes[i].volume() - boxes[j].volume();
+    };
+    std::vector<std::vector<std::int64_t>> extra(boxes.size(),
+                                                 std::vector<std::int64_t>(boxes.size()));
+    for (std::size_t i = 0; i < boxes.size(); ++i) {
+        for (std::size_t j = i + 1; j < boxes.size(); ++j) {
+            extra[i][j] = added(i, j);
+        }
+    }
+    while (boxes.size() > 1) {
+        std::size_t bi = 0, bj = 1;
+        for (std::size_t i = 0; i < boxes.size(); ++i) {
+            for (std::size_t j = i + 1; j < boxes.size(); ++j) {
+                if (extra[i][j] < extra[bi][bj]) {
+                    bi = i;
+                    bj = j;
+                }
+            }
+        }
+        if (boxes.size() <= max_boxes && extra[bi][bj] > launch_voxels) {
+            break;
+        }
+        boxes[bi] = hull(boxes[bi], boxes[bj]);
+        boxes.erase(boxes.begin() + static_cast<std::ptrdiff_t>(bj));
+        extra.erase(extra.begin() + static_cast<std::ptrdiff_t>(bj));
+        for (auto& row : extra) {
+            row.erase(row.begin() + static_cast<std::ptrdiff_t>(bj));
+        }
+        for (std::size_t k = 0; k < boxes.size(); ++k) {
+            if (k != bi) {
+                extra[std::min(k, bi)][std::max(k, bi)] = added(std::min(k, bi), std::max(k, bi));
+            }
+        }
+    }
+    return boxes;
+}
+
 std::int64_t floor_div(std::int64_t a, std::int64_t b) {
     if (b == 0) {
         throw std::invalid_argument("floor_div: division by zero");

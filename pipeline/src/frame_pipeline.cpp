@@ -12,7 +12,7 @@
 namespace voxfield::pipeline {
 namespace {
 
-// Many small boxes (a long stroke, many chunks) are converted as one launch over their hull.
+// The most boxes converted one launch each (a long stroke, many chunks): more are merged.
 constexpr std::size_t kMaxRegionsPerLaunch = 64;
 
 std::vector<std::uint32_t> as_words(const std::vector<std::uint8_t>& bytes) {
@@ -210,17 +210,11 @@ double FramePipeline::publish(std::vector<Box> regions) {
                         regions);
         return 0;
     }
-    if (regions.size() > kMaxRegionsPerLaunch) {
-        Box hull = regions.front();
-        for (const Box& b : regions) {
-            hull.min = {std::min(hull.min.x, b.min.x), std::min(hull.min.y, b.min.y),
-                        std::min(hull.min.z, b.min.z)};
-            hull.max = {std::max(hull.max.x, b.max.x), std::max(hull.max.y, b.max.y),
-                        std::max(hull.max.z, b.max.z)};
-        }
-        regions = {hull};
-    }
-    return render_field_->update(*marcher_, regions);
+    // Two launches per box: boxes merge while that converts fewer extra voxels than a launch
+    // costs (about 100 us on a CPU device, 5 us on a GPU, in voxels of conversion).
+    const std::int64_t launch_voxels = cl_.is_cpu() ? std::int64_t{1} << 16 : std::int64_t{1} << 19;
+    return render_field_->update(
+        *marcher_, merge_for_launches(std::move(regions), launch_voxels, kMaxRegionsPerLaunch));
 }
 
 }  // namespace voxfield::pipeline

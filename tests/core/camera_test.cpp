@@ -31,8 +31,9 @@ TEST(Camera, AnglesFollowTheConvention) {
 }
 
 TEST(Camera, BasisFollowsTheDesignFormula) {
-    // DESIGN §4: right = cross(forward, +y), up = cross(right, forward). (That the renderer's
-    // host side uses this basis is for a test that links the renderer, not core's.)
+    // DESIGN §4: right = cross(forward, +y), up = cross(right, forward). That the ray marcher
+    // hands its shader exactly this basis (image_basis below) is checked where the renderer is
+    // linked: tests/vk march_params_test, MarchParams.PushConstantsCarryCoresImageBasis.
     ViewBasis b = view_basis({0, 0, 2});
     expect_near(b.forward, {0, 0, 1});
     expect_near(b.right, {-1, 0, 0});
@@ -42,6 +43,18 @@ TEST(Camera, BasisFollowsTheDesignFormula) {
     b = view_basis({0, -3, 0});  // straight down: right is +x
     expect_near(b.right, {1, 0, 0});
     expect_near(b.up, {0, 0, -1});
+}
+
+TEST(Camera, ImageBasisScalesTheViewBasis) {
+    // right by aspect * tan(fov/2), up by tan(fov/2), forward unit: what the shader gets.
+    const Vec3d f = {0.3, -0.5, 0.8};
+    const ViewBasis v = view_basis(f);
+    const ImageBasis b = image_basis(f, 70, 800, 600);
+    const double t = std::tan(35 * M_PI / 180);
+    expect_near(b.forward, v.forward);
+    expect_near(b.right, {v.right[0] * 4 / 3 * t, v.right[1] * 4 / 3 * t, v.right[2] * 4 / 3 * t});
+    expect_near(b.up, {v.up[0] * t, v.up[1] * t, v.up[2] * t});
+    EXPECT_NEAR(length(b.forward), 1, 1e-12);
 }
 
 TEST(Camera, PixelDirectionsFollowDesign) {

@@ -1,7 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <random>
 #include <stdexcept>
+#include <vector>
 
 #include "test_util.hpp"
 #include "voxfield/core/chunks.hpp"
@@ -40,6 +42,66 @@ TEST(Chunks, BoxVolumeAndIntersect) {
     const Box d = intersect(a, Box{{4, 0, 0}, {8, 5, 6}});
     EXPECT_TRUE(d.empty());
     EXPECT_EQ(d.volume(), 0);
+}
+
+// Every voxel of `boxes` lies in some box of `merged`.
+bool covers(const std::vector<Box>& merged, const std::vector<Box>& boxes) {
+    for (const Box& b : boxes) {
+        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
+            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
+                for (std::int64_t x = b.min.x; x < b.max.x; ++x) {
+                    bool in = false;
+                    for (const Box& m : merged) {
+                        in |= x >= m.min.x && x < m.max.x && y >= m.min.y && y < m.max.y &&
+                              z >= m.min.z && z < m.max.z;
+                    }
+                    if (!in) {
+                        return false;
+                    }
+                }
+            }
+        }
+    }
+    return true;
+}
+
+TEST(Box, MergeForLaunchesCoversEveryBoxAndStopsWhenMergesCostMore) {
+    // Near boxes merge (their hull adds less than a launch), far ones stay apart.
+    const std::vector<Box> near_far = {{{0, 0, 0}, {4, 4, 4}},
+                                       {{5, 0, 0}, {9, 4, 4}},
+                                       {{100, 100, 100}, {104, 104, 104}},
+                                       {{}, {}}};
+    const std::vector<Box> m = merge_for_launches(near_far, 64, 64);
+    ASSERT_EQ(m.size(), 2u);
+    EXPECT_TRUE(covers(m, near_far));
+    EXPECT_EQ(m[0], (Box{{0, 0, 0}, {9, 4, 4}}));
+    // A launch worth no voxels: nothing merges; worth the world: everything does.
+    EXPECT_EQ(merge_for_launches(near_far, -1, 64).size(), 3u);
+    EXPECT_EQ(merge_for_launches(near_far, 1 << 30, 64),
+              (std::vector<Box>{{{0, 0, 0}, {104, 104, 104}}}));
+    // Random boxes: always at most max_boxes, always covering; more than twice that: the hull.
+    std::mt19937_64 rng(5);
+    for (int trial = 0; trial < 40; ++trial) {
+        std::vector<Box> boxes;
+        const int n = 1 + static_cast<int>(rng() % 150);
+        for (int i = 0; i < n; ++i) {
+            const Int3 lo{static_cast<std::int64_t>(rng() % 40),
+                          static_cast<std::int64_t>(rng() % 40),
+                          static_cast<std::int64_t>(rng() % 40)};
+            boxes.push_back({lo,
+                             {lo.x + 1 + static_cast<std::int64_t>(rng() % 6),
+                              lo.y + 1 + static_cast<std::int64_t>(rng() % 6),
+                              lo.z + 1 + static_cast<std::int64_t>(rng() % 6)}});
+        }
+        const std::size_t max_boxes = 1 + rng() % 40;
+        const std::vector<Box> merged =
+            merge_for_launches(boxes, static_cast<std::int64_t>(rng() % 500), max_boxes);
+        EXPECT_LE(merged.size(), max_boxes);
+        EXPECT_TRUE(covers(merged, boxes));
+        if (boxes.size() > 2 * max_boxes) {
+            EXPECT_EQ(merged.size(), 1u);
+        }
+    }
 }
 
 TEST(Box, HullHoldsBothAndIgnoresEmptyBoxes) {

@@ -65,9 +65,10 @@ Context::Context(const ContextOptions& options) {
         if (presenting) {
             surface_ = options.make_surface(instance_.get());
         }
-        // Presenting: the window's surface from a queue that also ray-marches.
+        // Presenting: the window's surface from a queue that also ray-marches (unless the
+        // context only presents).
         const DeviceChoice choice =
-            choose_device(instance_.get(), surface_, options.device, DevicePurpose::ray_marching);
+            choose_device(instance_.get(), surface_, options.device, options.purpose);
         info_ = choice.info;
         physical_ = choice.physical;
         family_ = choice.family;

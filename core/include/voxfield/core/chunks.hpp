@@ -1,7 +1,9 @@
 #pragma once
 // Chunk geometry: a world cut into cubes of C voxels per side (C a power of two); chunks
 // at the far faces are clipped to the world.
+#include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "voxfield/core/world.hpp"
 
@@ -23,6 +25,14 @@ struct Box {
 Box intersect(const Box& a, const Box& b);
 // The smallest box holding both (an empty one adds nothing).
 Box hull(const Box& a, const Box& b);
+
+// Boxes to process one launch each, merged while a merge adds fewer voxels than a launch costs
+// (`launch_voxels`: a launch's overhead in voxels of work) and always down to `max_boxes`: the
+// result covers every voxel of `boxes` (and possibly more). Empty boxes are dropped. Greedy:
+// the pair whose hull adds the fewest voxels first. More than 2 * max_boxes boxes give their
+// hull at once.
+std::vector<Box> merge_for_launches(std::vector<Box> boxes, std::int64_t launch_voxels,
+                                    std::size_t max_boxes);
 
 // Floor division for negative coordinates too (floor_div(-1, 8) == -1).
 std::int64_t floor_div(std::int64_t a, std::int64_t b);

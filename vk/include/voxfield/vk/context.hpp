@@ -233,6 +233,9 @@ struct ContextOptions {
     // VK_KHR_swapchain, which it enables.
     std::vector<std::string> instance_extensions = {};
     std::function<VkSurfaceKHR(VkInstance)> make_surface = nullptr;
+    // What the device serves (choose_device): the ray marcher, or, for a Presenter on a device
+    // of its own, presenting only (the queue family then need not compute).
+    DevicePurpose purpose = DevicePurpose::ray_marching;
 };
 
 // Owns the instance (and the surface when presenting), one logical device with one queue and

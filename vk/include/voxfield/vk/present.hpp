@@ -4,9 +4,12 @@
 // Context's instance, surface, device and queue: each frame records the Raymarcher's
 // dispatch, the copy of its image into the acquired swapchain image and an overlay render pass
 // (Dear ImGui draws there) into one command buffer, with no export, import or host round
-// trip. Built on its own (PresenterOptions) it has its own instance and device, for when the
-// ray marcher's device cannot present: frames then come from the host (present) or from
-// memory the ray marcher's device exported on the same GPU (present_imported).
+// trip. Built on its own (PresenterOptions) it makes a Context of its own for presenting
+// (ContextOptions::purpose; the same instance creation and device selection, $VOXFIELD_VK_DEVICE
+// included), for when the ray marcher's device cannot present: frames then come from the host
+// (present) or from memory the ray marcher's device exported on the same GPU
+// (present_imported). Either way every submission and wait goes through that Context and
+// every Vulkan object is held by an RAII handle (Owned, Buffer).
 // Frames in flight: kFramesInFlight frame slots, each with a command buffer, a fence and an
 // image-available semaphore, plus one render-finished semaphore per swapchain image; the CPU
 // waits only when it reuses a slot (the frame before last). A frame that fails after its image
@@ -50,14 +53,15 @@ class Presenter {
     // preferring `modes` in order (FIFO is the fallback). Throws std::logic_error when `ctx`
     // does not present.
     explicit Presenter(Context& ctx, std::vector<PresentMode> modes = {PresentMode::fifo});
-    // With its own instance and device (options.make_surface and instance_extensions).
+    // On a Context of its own (options.make_surface and instance_extensions), whose device only
+    // needs to present. Throws DeviceSelectionError as Context does.
     explicit Presenter(const PresenterOptions& options);
     ~Presenter();
     Presenter(const Presenter&) = delete;
     Presenter& operator=(const Presenter&) = delete;
 
     VkInstance instance() const;
-    // Whether it presents on a Context (its device and queue) rather than its own device.
+    // Whether it presents on the Context it was given (the ray marcher's) rather than its own.
     bool shares_context() const;
     // How many frames may be recorded and submitted before the CPU waits for the oldest.
     std::uint32_t frames_in_flight() const;
