@@ -10,7 +10,8 @@ world array loaded before either.
 
   case           command
   l2-f32         generate W.npy -o F.npy --metric euclidean            (floor: 1 in + 4 out)
-  l2-f32-indices ... --indices I.npy                                   (floor: 1 + 4 + 12)
+  l2-f32-indices ... --indices I.npy                                   (floor: 1 + 4 + 12;
+                                                                        target <= 19, issue 29)
   l1-u16         generate W.npy -o F.npy                                (floor: 1 + 2)
 
 Needs Debian's python3-numpy, /usr/bin/time and the built voxfield (and module for the module
@@ -72,6 +73,16 @@ def peak_kb(cmd):
     sys.exit("peak_memory: /usr/bin/time printed no maximum resident set size")
 
 
+def device_of(voxfield, world, tmp):
+    """The device `generate --device cpu` runs on: name, platform, driver, compute units."""
+    report = os.path.join(tmp, "device.json")
+    subprocess.run([voxfield, "generate", world, "-o", os.path.join(tmp, "device.npy"),
+                    "--device", "cpu", "--json", report], check=True, stdout=subprocess.DEVNULL)
+    with open(report) as f:
+        d = json.load(f)["device"]
+    return {k: d[k] for k in ("name", "platform", "driver", "type", "compute_units")}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="256,512", help="world edges (default 256,512)")
@@ -86,6 +97,7 @@ def main():
     with tempfile.TemporaryDirectory(prefix="voxfield_mem_") as tmp:
         tiny = os.path.join(tmp, "tiny.npy")
         np.save(tiny, make_world(8, args.seed))
+        device = device_of(args.voxfield, tiny, tmp)
         field = os.path.join(tmp, "field.npy")
         idx = os.path.join(tmp, "indices.npy")
 
@@ -123,6 +135,7 @@ def main():
             "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
             "commit": git_commit(),
             "device_arg": "cpu",
+            "device": device,
             "world": f"floor+spheres seed={args.seed}",
             "loadavg": os.getloadavg(),
             "rows": rows,

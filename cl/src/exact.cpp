@@ -269,6 +269,12 @@ void ExactManhattan::set_up_kernels() {
     };
     const cl::Program base = program(32, 1);
     const std::size_t plane = std::size_t{dims_.x} * dims_.y;
+    std::uint32_t seg_used = 0;  // the segment length of the last cols_seg that columns() made
+    auto add = [&](const KernelLaunch& launch) {
+        stages_.push_back(launch);
+        path_.push_back(launch.name == "cols_seg" ? "cols_seg/" + std::to_string(seg_used)
+                                                  : launch.name);
+    };
     cl_call("setting up kernels, " + sizes, [&] {
         // Columns of length len with element stride `stride`, lines of columns `m_count`
         // apart by `m_stride`; `final` writes the output format.
@@ -306,6 +312,7 @@ void ExactManhattan::set_up_kernels() {
                     seg.setArg(8, cl_uint{final ? 1u : 0u});
                     seg.setArg(9, cl::Local(std::size_t{cw} * segs * word));
                     seg.setArg(10, cl::Local(std::size_t{cw} * segs * word));
+                    seg_used = k;
                     return {"cols_seg", seg, cl::NDRange(round_up(dims_.x / vw, cw), segs, m_count),
                             cl::NDRange(cw, segs, 1)};
                 }
@@ -340,8 +347,8 @@ void ExactManhattan::set_up_kernels() {
         bool rows_on_gpu = false;
         if (gpu_layout_) {
             if (auto rows = gpu_x_rows(ctx_, dims_, format_, voxels_, work_, cap_)) {
-                stages_.push_back(*rows);
-                stages_.push_back(columns(dims_.y, dims_.x, plane, dims_.z, false));
+                add(*rows);
+                add(columns(dims_.y, dims_.x, plane, dims_.z, false));
                 rows_on_gpu = true;
             }
         }
@@ -360,8 +367,8 @@ void ExactManhattan::set_up_kernels() {
             xy.setArg(3, dims_.y);
             xy.setArg(4, static_cast<cl_uint>(pad));
             xy.setArg(5, cl::Local(scratch));
-            stages_.push_back({"xy_slices_seq", xy, cl::NDRange(dims_.z),
-                               gpu_layout_ ? cl::NullRange : cl::NDRange(1)});
+            add({"xy_slices_seq", xy, cl::NDRange(dims_.z),
+                 gpu_layout_ ? cl::NullRange : cl::NDRange(1)});
         }
         if (metric_ == Metric::chebyshev) {
             // The three z sweeps of L-inf's sheets (shear -1, 0, +1), one work-item per sheet,
@@ -382,10 +389,10 @@ void ExactManhattan::set_up_kernels() {
                 if (local) {
                     k.setArg(9, cl::Local(sheet));
                 }
-                stages_.push_back({"z_sheets", k, cl::NDRange(dims_.y), cl::NDRange(1)});
+                add({"z_sheets", k, cl::NDRange(dims_.y), cl::NDRange(1)});
             }
         } else {
-            stages_.push_back(columns(dims_.z, plane, dims_.x, dims_.y, true));
+            add(columns(dims_.z, plane, dims_.x, dims_.y, true));
         }
     });
 }

@@ -188,6 +188,70 @@ std::vector<std::int32_t> Generator::read_indices() {
     });
 }
 
+namespace {
+
+// A region of a buffer mapped for reading; unmapped when destroyed (a failing unmap has no one
+// left to report to: the exception that ends the read is the one to report).
+class MappedSlab {
+  public:
+    MappedSlab(cl::CommandQueue& queue, const cl::Buffer& buffer, std::size_t offset,
+               std::size_t bytes)
+        : queue_(queue), buffer_(buffer), offset_(offset), size_(bytes) {
+        data_ = static_cast<const std::uint8_t*>(queue_.enqueueMapBuffer(
+            buffer_, CL_FALSE, CL_MAP_READ, offset, bytes, nullptr, &ready_));
+    }
+    ~MappedSlab() {
+        try {
+            queue_.enqueueUnmapMemObject(buffer_, const_cast<std::uint8_t*>(data_));
+        } catch (const cl::Error&) {
+        }
+    }
+    MappedSlab(const MappedSlab&) = delete;
+    MappedSlab& operator=(const MappedSlab&) = delete;
+
+    std::size_t end() const { return offset_ + size_; }
+    // Waits for the map; the slab's bytes.
+    std::span<const std::uint8_t> bytes() {
+        ready_.wait();
+        return {data_, size_};
+    }
+
+  private:
+    cl::CommandQueue& queue_;
+    const cl::Buffer& buffer_;
+    std::size_t offset_, size_;
+    const std::uint8_t* data_ = nullptr;
+    cl::Event ready_;
+};
+
+}  // namespace
+
+void Generator::read_indices(const IndexSink& sink, std::size_t slab_bytes) {
+    if (indices_() == nullptr) {
+        throw std::logic_error("read_indices: this generator was made without indices");
+    }
+    if (slab_bytes == 0) {
+        throw std::invalid_argument("read_indices: slab_bytes must be positive");
+    }
+    const std::size_t total = 3 * dims_.count() * sizeof(std::int32_t);
+    cl_call("reading the feature transform of " + dims_.to_string(), [&] {
+        auto& q = ctx_.queue();
+        auto map_from = [&](std::size_t offset) {
+            return offset < total ? std::make_unique<MappedSlab>(
+                                        q, indices_, offset, std::min(slab_bytes, total - offset))
+                                  : nullptr;
+        };
+        std::unique_ptr<MappedSlab> slab = map_from(0);
+        while (slab) {
+            const std::span<const std::uint8_t> bytes = slab->bytes();
+            std::unique_ptr<MappedSlab> next = map_from(slab->end());
+            sink(bytes);
+            slab = std::move(next);  // unmaps the slab just written
+        }
+        q.finish();
+    });
+}
+
 std::vector<std::uint32_t> exact_reference(const World& world, const GeneratorOptions& options) {
     return options.chunk == 0 ? reference_manhattan(world)
                               : reference_manhattan_chunked(world, options.chunk);

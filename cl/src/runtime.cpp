@@ -1,12 +1,20 @@
 #include "voxfield/cl/runtime.hpp"
 
+#include <fcntl.h>
 #include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstdio>
 #include <cstdlib>
 #include <new>
+#include <optional>
 #include <sstream>
 #include <utility>
+
+#include "voxfield/core/output.hpp"
 
 namespace voxfield::ocl {
 namespace {
@@ -117,7 +125,10 @@ bool DeviceInfo::has_extension(const std::string& ext) const {
     return std::find(extensions.begin(), extensions.end(), ext) != extensions.end();
 }
 
-std::vector<DeviceInfo> list_devices() {
+namespace {
+
+// Every platform the ICD loader knows; empty without any.
+std::vector<cl::Platform> all_platforms() {
     std::vector<cl::Platform> platforms;
     try {
         cl::Platform::get(&platforms);
@@ -127,42 +138,102 @@ std::vector<DeviceInfo> list_devices() {
         }
         throw ClError(e.what(), e.err(), "listing OpenCL platforms");
     }
-    std::vector<DeviceInfo> out;
-    for (auto& platform : platforms) {
-        std::vector<cl::Device> devices;
-        try {
-            platform.getDevices(CL_DEVICE_TYPE_ALL, &devices);
-        } catch (const cl::Error& e) {
-            if (e.err() == CL_DEVICE_NOT_FOUND) {
-                continue;
-            }
-            throw ClError(e.what(), e.err(), "listing devices");
+    return platforms;
+}
+
+std::vector<cl::Device> devices_of(const cl::Platform& platform) {
+    std::vector<cl::Device> devices;
+    try {
+        platform.getDevices(CL_DEVICE_TYPE_ALL, &devices);
+    } catch (const cl::Error& e) {
+        if (e.err() == CL_DEVICE_NOT_FOUND) {
+            return {};
         }
-        for (auto& dev : devices) {
-            cl_call("querying device info", [&] {
-                DeviceInfo d;
-                d.index = out.size();
-                d.device = dev;
-                d.name = trim(dev.getInfo<CL_DEVICE_NAME>());
-                d.vendor = trim(dev.getInfo<CL_DEVICE_VENDOR>());
-                d.platform = trim(platform.getInfo<CL_PLATFORM_NAME>());
-                d.version = trim(dev.getInfo<CL_DEVICE_VERSION>());
-                d.driver = trim(dev.getInfo<CL_DRIVER_VERSION>());
-                d.type = type_name(dev.getInfo<CL_DEVICE_TYPE>());
-                d.compute_units = dev.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
-                d.global_mem = dev.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
-                d.max_alloc = dev.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
-                d.local_mem = dev.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
-                d.max_work_group = dev.getInfo<CL_DEVICE_MAX_WORK_GROUP_SIZE>();
-                d.available = dev.getInfo<CL_DEVICE_AVAILABLE>() != CL_FALSE;
-                d.compiler_available = dev.getInfo<CL_DEVICE_COMPILER_AVAILABLE>() != CL_FALSE;
-                d.host_unified_memory = dev.getInfo<CL_DEVICE_HOST_UNIFIED_MEMORY>() != CL_FALSE;
-                std::istringstream ext(dev.getInfo<CL_DEVICE_EXTENSIONS>());
-                for (std::string e; ext >> e;) {
-                    d.extensions.push_back(e);
+        throw ClError(e.what(), e.err(), "listing devices");
+    }
+    return devices;
+}
+
+DeviceInfo info_of(const cl::Platform& platform, const cl::Device& dev, std::size_t index) {
+    return cl_call("querying device info", [&] {
+        DeviceInfo d;
+        d.index = index;
+        d.device = dev;
+        d.name = trim(dev.getInfo<CL_DEVICE_NAME>());
+        d.vendor = trim(dev.getInfo<CL_DEVICE_VENDOR>());
+        d.platform = trim(platform.getInfo<CL_PLATFORM_NAME>());
+        d.version = trim(dev.getInfo<CL_DEVICE_VERSION>());
+        d.driver = trim(dev.getInfo<CL_DRIVER_VERSION>());
+        d.type = type_name(dev.getInfo<CL_DEVICE_TYPE>());
+        d.compute_units = dev.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
+        d.global_mem = dev.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
+        d.max_alloc = dev.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
+        d.local_mem = dev.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
+        d.max_work_group = dev.getInfo<CL_DEVICE_MAX_WORK_GROUP_SIZE>();
+        d.available = dev.getInfo<CL_DEVICE_AVAILABLE>() != CL_FALSE;
+        d.compiler_available = dev.getInfo<CL_DEVICE_COMPILER_AVAILABLE>() != CL_FALSE;
+        d.host_unified_memory = dev.getInfo<CL_DEVICE_HOST_UNIFIED_MEMORY>() != CL_FALSE;
+        std::istringstream ext(dev.getInfo<CL_DEVICE_EXTENSIONS>());
+        for (std::string e; ext >> e;) {
+            d.extensions.push_back(e);
+        }
+        return d;
+    });
+}
+
+// The platforms walked in order, each asked for its devices only when the walk reaches it:
+// selection stops at the platform holding the device asked for, so the platforms after it
+// (another vendor's driver, which may take long to start) are never asked.
+class PlatformWalk {
+  public:
+    explicit PlatformWalk(std::vector<cl::Platform> platforms)
+        : platforms_(std::move(platforms)), devices_(platforms_.size()) {}
+
+    // The first device, in list_devices() order, that `accept(device)` takes; its full info.
+    template <class Accept>
+    std::optional<DeviceInfo> find(Accept&& accept) {
+        std::size_t index = 0;
+        for (std::size_t p = 0; p < platforms_.size(); ++p) {
+            const std::vector<cl::Device>& devices = devices_on(p);
+            for (const cl::Device& dev : devices) {
+                if (accept(dev, index)) {
+                    return info_of(platforms_[p], dev, index);
                 }
-                out.push_back(std::move(d));
-            });
+                ++index;
+            }
+        }
+        return std::nullopt;
+    }
+
+  private:
+    const std::vector<cl::Device>& devices_on(std::size_t p) {
+        if (!devices_[p]) {
+            devices_[p] = devices_of(platforms_[p]);
+        }
+        return *devices_[p];
+    }
+
+    std::vector<cl::Platform> platforms_;
+    std::vector<std::optional<std::vector<cl::Device>>> devices_;
+};
+
+// Whether `dev` is usable and of `type` ("" for any): the queries unusable() and the type
+// filter of select_device need, without the rest of the device's info.
+bool usable_of_type(const cl::Device& dev, const std::string& type) {
+    return cl_call("querying device info", [&] {
+        return (type.empty() || type_name(dev.getInfo<CL_DEVICE_TYPE>()) == type) &&
+               dev.getInfo<CL_DEVICE_AVAILABLE>() != CL_FALSE &&
+               dev.getInfo<CL_DEVICE_COMPILER_AVAILABLE>() != CL_FALSE;
+    });
+}
+
+}  // namespace
+
+std::vector<DeviceInfo> list_devices() {
+    std::vector<DeviceInfo> out;
+    for (const cl::Platform& platform : all_platforms()) {
+        for (const cl::Device& dev : devices_of(platform)) {
+            out.push_back(info_of(platform, dev, out.size()));
         }
     }
     return out;
@@ -183,6 +254,34 @@ DeviceInfo select_device(const std::string& requested) {
         throw DeviceSelectionError(origin + " '" + spec +
                                    "' is not a device: use cpu, gpu or an index from "
                                    "`voxfield devices`");
+    }
+    // The device asked for, found by walking the platforms only as far as the one holding it;
+    // the walk picks what the rules below would pick from the whole list. Only when it finds
+    // nothing is every device listed, to say why each was rejected.
+    PlatformWalk walk(all_platforms());
+    std::optional<DeviceInfo> quick;
+    if (is_index) {
+        const std::size_t first = spec.find_first_not_of('0');
+        const std::string digits = first == std::string::npos ? "0" : spec.substr(first);
+        if (digits.size() <= 9) {
+            const std::size_t want = std::stoul(digits);
+            quick = walk.find([&](const cl::Device& dev, std::size_t index) {
+                return index == want && usable_of_type(dev, "");
+            });
+        }
+    } else {
+        const std::vector<std::string> types =
+            spec.empty() ? std::vector<std::string>{"gpu", "cpu", ""} : std::vector{spec};
+        for (const std::string& type : types) {
+            quick = walk.find(
+                [&](const cl::Device& dev, std::size_t) { return usable_of_type(dev, type); });
+            if (quick) {
+                break;
+            }
+        }
+    }
+    if (quick) {
+        return *quick;
     }
     const auto devices = list_devices();
     if (devices.empty()) {
@@ -254,7 +353,103 @@ DeviceInfo select_device(const std::string& requested) {
     return *found;
 }
 
-Context::Context(DeviceInfo device) : info_(std::move(device)) {
+namespace {
+
+// The disk cache's entry format; a change of it makes every old entry a miss.
+constexpr const char* kCacheMagic = "voxfield program cache 1\n";
+// An entry larger than this is not read (no program binary comes near it).
+constexpr std::size_t kMaxEntryBytes = std::size_t{512} << 20;
+
+std::uint64_t fnv1a(std::uint64_t h, const void* data, std::size_t size) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < size; ++i) {
+        h = (h ^ p[i]) * 0x100000001b3ULL;
+    }
+    return h;
+}
+
+std::string hex(std::uint64_t v) {
+    char text[17];
+    std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(v));
+    return text;
+}
+
+// 128 bits over every part, each preceded by its length (so that no two keys run together):
+// two FNV-1a passes from different offsets, named in hex.
+std::string digest_of(const std::vector<std::string>& parts) {
+    std::uint64_t a = 0xcbf29ce484222325ULL, b = 0x84222325cbf29ce4ULL;
+    for (const std::string& part : parts) {
+        const std::uint64_t n = part.size();
+        a = fnv1a(fnv1a(a, &n, sizeof n), part.data(), part.size());
+        b = fnv1a(fnv1a(b, part.data(), part.size()), &n, sizeof n);
+    }
+    return hex(a) + hex(b);
+}
+
+// The whole content of a regular file, nullopt when it is missing, not a regular file (never
+// blocks on a FIFO), too large or unreadable.
+std::optional<std::string> read_entry(const std::filesystem::path& path) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) {
+        return std::nullopt;
+    }
+    std::optional<std::string> out;
+    struct stat st {};
+    if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) &&
+        static_cast<std::size_t>(st.st_size) <= kMaxEntryBytes) {
+        std::string bytes(static_cast<std::size_t>(st.st_size), '\0');
+        std::size_t done = 0;
+        while (done < bytes.size()) {
+            const ssize_t r = ::read(fd, bytes.data() + done, bytes.size() - done);
+            if (r < 0 && errno == EINTR) {
+                continue;
+            }
+            if (r <= 0) {
+                break;
+            }
+            done += static_cast<std::size_t>(r);
+        }
+        if (done == bytes.size()) {
+            out = std::move(bytes);
+        }
+    }
+    ::close(fd);
+    return out;
+}
+
+// One line of `text` from `pos` (without its newline), advancing `pos`; nullopt at the end.
+std::optional<std::string> next_line(const std::string& text, std::size_t& pos) {
+    const std::size_t end = text.find('\n', pos);
+    if (end == std::string::npos) {
+        return std::nullopt;
+    }
+    std::string line = text.substr(pos, end - pos);
+    pos = end + 1;
+    return line;
+}
+
+bool cache_disabled() {
+    const char* off = std::getenv("VOXFIELD_NO_PROGRAM_CACHE");
+    return off != nullptr && *off != '\0' && std::string(off) != "0";
+}
+
+}  // namespace
+
+std::filesystem::path program_cache_dir() {
+    if (cache_disabled()) {
+        return {};
+    }
+    // XDG: a relative $XDG_CACHE_HOME is invalid and ignored.
+    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg != nullptr && xdg[0] == '/') {
+        return std::filesystem::path(xdg) / "voxfield" / "programs";
+    }
+    if (const char* home = std::getenv("HOME"); home != nullptr && home[0] == '/') {
+        return std::filesystem::path(home) / ".cache" / "voxfield" / "programs";
+    }
+    return {};
+}
+
+Context::Context(DeviceInfo device) : info_(std::move(device)), cache_dir_(program_cache_dir()) {
     cl_call("creating a context on " + info_.name, [&] {
         context_ = cl::Context(info_.device);
         queue_ = cl::CommandQueue(context_, info_.device, CL_QUEUE_PROFILING_ENABLE);
@@ -266,6 +461,20 @@ cl::Program Context::program(const std::string& name, const std::vector<std::str
     auto key = std::make_tuple(name, options, sources);
     if (auto it = programs_.find(key); it != programs_.end()) {
         return it->second;
+    }
+    std::string digest;
+    std::filesystem::path entry;
+    if (!cache_dir_.empty()) {
+        std::vector<std::string> parts = {kCacheMagic,  options,        info_.name,  info_.version,
+                                          info_.driver, info_.platform, info_.vendor};
+        parts.insert(parts.end(), sources.begin(), sources.end());
+        digest = digest_of(parts);
+        entry = cache_dir_ / (digest + ".bin");
+        if (std::optional<cl::Program> cached = load_program(entry, digest, options)) {
+            ++cache_stats_.loaded;
+            programs_.emplace(std::move(key), *cached);
+            return *cached;
+        }
     }
     cl::Program program = cl_call("creating program " + name, [&] {
         return cl::Program(context_, cl::Program::Sources(sources.begin(), sources.end()));
@@ -283,8 +492,79 @@ cl::Program Context::program(const std::string& name, const std::vector<std::str
                          "' failed on " + info_.name + " (" + info_.platform +
                          "): " + error_name(e.err()) + "\nbuild log:\n" + log);
     }
+    ++cache_stats_.built;
+    if (!entry.empty()) {
+        store_program(entry, digest, name, options, program);
+    }
     programs_.emplace(std::move(key), program);
     return program;
+}
+
+std::optional<cl::Program> Context::load_program(const std::filesystem::path& entry,
+                                                 const std::string& digest,
+                                                 const std::string& options) {
+    const std::optional<std::string> text = read_entry(entry);
+    if (!text) {
+        return std::nullopt;  // a miss, not a rejection
+    }
+    // magic, "what: ..." (for people), digest, binary size, binary checksum, the binary.
+    std::size_t pos = std::string(kCacheMagic).size();
+    std::optional<std::string> what, stored_digest, size_text, sum_text;
+    if (text->compare(0, pos, kCacheMagic) == 0) {
+        what = next_line(*text, pos);
+        stored_digest = next_line(*text, pos);
+        size_text = next_line(*text, pos);
+        sum_text = next_line(*text, pos);
+    }
+    const bool header_ok = sum_text && *stored_digest == digest && !size_text->empty() &&
+                           size_text->size() <= 12 &&
+                           size_text->find_first_not_of("0123456789") == std::string::npos;
+    if (!header_ok || std::stoull(*size_text) != text->size() - pos ||
+        hex(fnv1a(0xcbf29ce484222325ULL, text->data() + pos, text->size() - pos)) != *sum_text) {
+        ++cache_stats_.rejected;
+        return std::nullopt;
+    }
+    try {
+        const cl::Program::Binaries binaries = {std::vector<unsigned char>(
+            text->begin() + static_cast<std::ptrdiff_t>(pos), text->end())};
+        std::vector<cl_int> status;
+        cl::Program program(context_, {info_.device}, binaries, &status);
+        if (status.size() != 1 || status[0] != CL_SUCCESS) {
+            ++cache_stats_.rejected;
+            return std::nullopt;
+        }
+        program.build({info_.device}, options.c_str());
+        return program;
+    } catch (const cl::Error&) {
+        ++cache_stats_.rejected;
+        return std::nullopt;
+    }
+}
+
+void Context::store_program(const std::filesystem::path& entry, const std::string& digest,
+                            const std::string& name, const std::string& options,
+                            const cl::Program& program) {
+    // Best effort: a cache that cannot be written (read-only home, full disk, a driver
+    // without binaries) costs the next run a build, nothing more.
+    try {
+        const auto binaries = program.getInfo<CL_PROGRAM_BINARIES>();
+        if (binaries.size() != 1 || binaries[0].empty()) {
+            return;
+        }
+        const std::vector<unsigned char>& binary = binaries[0];
+        std::string what = "what: " + name + " [" + options + "] on " + info_.name + " (" +
+                           info_.platform + ", driver " + info_.driver + ")";
+        std::replace(what.begin(), what.end(), '\n', ' ');
+        const std::string header =
+            kCacheMagic + what + "\n" + digest + "\n" + std::to_string(binary.size()) + "\n" +
+            hex(fnv1a(0xcbf29ce484222325ULL, binary.data(), binary.size())) + "\n";
+        std::filesystem::create_directories(entry.parent_path());
+        write_output_file(
+            entry, {std::span(reinterpret_cast<const std::uint8_t*>(header.data()), header.size()),
+                    std::span<const std::uint8_t>(binary.data(), binary.size())});
+        ++cache_stats_.stored;
+    } catch (const std::exception&) {
+    }
 }
 
 double elapsed_ms(const cl::Event& first, const cl::Event& last) {

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <span>
@@ -69,9 +70,10 @@ const char* descr_of(NpyType t) {
     return type_info(t).descr;
 }
 
-// A Python literal as found in a .npy header: a string, a bool, an int or a tuple of ints.
+// A Python literal as found in a .npy header: a string, a bool, an int, a tuple of ints, or a
+// list (a structured dtype's fields, kept as written).
 struct Value {
-    enum class Kind { string, boolean, integer, tuple, none } kind = Kind::none;
+    enum class Kind { string, boolean, integer, tuple, list, none } kind = Kind::none;
     std::string text;                  // string
     bool flag = false;                 // boolean
     std::uint64_t number = 0;          // integer
@@ -198,17 +200,82 @@ class HeaderParser {
         } else if (is_digit(c)) {
             v.kind = Value::Kind::integer;
             v.number = parse_int();
+        } else if (c == '[') {
+            skip_list();
+            v.kind = Value::Kind::list;
         } else {
-            fail_here("expected a string, True, False, an integer or a tuple");
+            fail_here("expected a string, True, False, an integer, a tuple or a list");
         }
         v.source = s_.substr(start, i_ - start);
         return v;
+    }
+
+    // Past a list and everything nested in it (brackets, parentheses, quoted strings).
+    void skip_list() {
+        const std::size_t start = i_;
+        int depth = 0;
+        do {
+            const char c = peek();
+            if (c == '\0' && i_ >= s_.size()) {
+                fail("unterminated list starting at column " + std::to_string(start + 1));
+            }
+            if (c == '\'' || c == '"') {
+                const std::size_t end = s_.find(c, i_ + 1);
+                if (end == std::string::npos) {
+                    fail("unterminated string starting at column " + std::to_string(i_ + 1));
+                }
+                i_ = end;
+            } else if (c == '[' || c == '(') {
+                ++depth;
+            } else if (c == ']' || c == ')') {
+                --depth;
+            }
+            ++i_;
+        } while (depth > 0);
     }
 
     std::string file_;
     std::string s_;
     std::size_t i_ = 0;
 };
+
+// What every dtype rejection says a world .npy must hold (the reader also takes float32 and
+// float64, for fields read back, but every input a command reads is a world).
+constexpr const char* kWorldDtypes =
+    "a world is a bool or integer array (a label volume: 0 = empty, nonzero = solid)";
+
+// NumPy's name of a dtype kind ("c8" -> "complex64", "U3" -> "str"), "" when unknown.
+std::string numpy_name(const std::string& kind) {
+    static const std::pair<const char*, const char*> names[] = {
+        {"b1", "bool"},      {"i1", "int8"},      {"i2", "int16"},       {"i4", "int32"},
+        {"i8", "int64"},     {"u1", "uint8"},     {"u2", "uint16"},      {"u4", "uint32"},
+        {"u8", "uint64"},    {"f2", "float16"},   {"f4", "float32"},     {"f8", "float64"},
+        {"f16", "float128"}, {"c8", "complex64"}, {"c16", "complex128"}, {"c32", "complex256"},
+        {"O", "object"},     {"O8", "object"},    {"?", "bool"}};
+    for (const auto& [k, name] : names) {
+        if (kind == k) {
+            return name;
+        }
+    }
+    if (kind.empty()) {
+        return "";
+    }
+    switch (kind[0]) {
+        case 'U':
+            return "str";
+        case 'S':
+        case 'a':
+            return "bytes";
+        case 'V':
+            return "void";
+        case 'M':
+            return "datetime64";
+        case 'm':
+            return "timedelta64";
+        default:
+            return "";
+    }
+}
 
 std::string shape_text(const std::vector<std::uint64_t>& shape) {
     std::string s = "(";
@@ -299,7 +366,8 @@ NpyReader::NpyReader(const std::filesystem::path& path) : file_(std::make_unique
     }
     if (descr->kind != Value::Kind::string) {
         throw InputError(file + ": dtype " + descr->source +
-                         " is not supported (expected uint8, uint16 or uint32)");
+                         (descr->kind == Value::Kind::list ? " (a structured array)" : "") +
+                         " is not supported: " + kWorldDtypes);
     }
     if (fortran->kind != Value::Kind::boolean) {
         throw InputError(file + ": malformed header: fortran_order is " + fortran->source +
@@ -320,16 +388,21 @@ NpyReader::NpyReader(const std::filesystem::path& path) : file_(std::make_unique
         }
     }
     const bool one_byte = found != nullptr && found->size == 1;
-    if (found != nullptr && !one_byte && order == '>') {
-        throw InputError(file + ": dtype '" + d + "' is big-endian (only little-endian '<" + kind +
-                         "' is supported)");
+    const bool is_float =
+        found != nullptr && (found->type == NpyType::f32 || found->type == NpyType::f64);
+    if (found != nullptr && !one_byte && !is_float && order == '>') {
+        throw InputError(file + ": dtype '" + d + "' (" + found->name +
+                         ", big-endian) is not supported: only little-endian arrays are read "
+                         "(save it with a.astype('<" +
+                         kind + "'))");
     }
     const bool order_ok = d.size() == 2 || order == '<' || order == '=' ||
                           (one_byte && (order == '|' || order == '>'));
-    if (found == nullptr || !order_ok) {
-        throw InputError(file + ": dtype '" + d +
-                         "' is not supported (expected bool or an integer type for worlds; "
-                         "float32 or float64 for fields)");
+    if (found == nullptr || !order_ok || (is_float && order == '>')) {
+        const bool ordered = !d.empty() && std::string("<>|=").find(d[0]) != std::string::npos;
+        const std::string name = numpy_name(ordered ? d.substr(1) : d);
+        throw InputError(file + ": dtype '" + d + "'" + (name.empty() ? "" : " (" + name + ")") +
+                         " is not supported: " + kWorldDtypes);
     }
     type_ = found->type;
     if (fortran->flag) {
@@ -421,39 +494,66 @@ void write_npy_shape(const std::filesystem::path& path, NpyType type,
     batch.commit();
 }
 
-void write_npy_shape(OutputBatch& batch, const std::filesystem::path& path, NpyType type,
-                     const std::vector<std::uint64_t>& shape, std::span<const std::uint8_t> data) {
-    const std::string file = path.string();
+namespace {
+
+// Elements of an array of `shape` and its shape as the header writes it: "(a, b, c)", "(a,)".
+std::uint64_t shape_count(const std::vector<std::uint64_t>& shape, std::string& text) {
     std::uint64_t count = 1;
-    std::string dims_text;
+    text.clear();
     for (std::uint64_t n : shape) {
         count *= n;
-        dims_text += std::to_string(n) + ", ";
-    }
-    if (data.size() != count * elem_size(type)) {
-        throw InputError("cannot write '" + file + "': " + std::to_string(data.size()) +
-                         " bytes do not match shape (" + dims_text + ") of " + type_name(type));
+        text += std::to_string(n) + ", ";
     }
     if (shape.size() > 1) {
-        dims_text.resize(dims_text.size() - 1);  // "(a, b, c)"; one axis keeps "(a,)"
-        dims_text.resize(dims_text.size() - 1);
+        text.resize(text.size() - 2);
     }
+    return count;
+}
+
+}  // namespace
+
+void write_npy_shape(OutputBatch& batch, const std::filesystem::path& path, NpyType type,
+                     const std::vector<std::uint64_t>& shape, std::span<const std::uint8_t> data) {
+    std::string dims_text;
+    if (data.size() != shape_count(shape, dims_text) * elem_size(type)) {
+        throw InputError("cannot write '" + path.string() + "': " + std::to_string(data.size()) +
+                         " bytes do not match shape (" + dims_text + ") of " + type_name(type));
+    }
+    write_npy_shape(batch, path, type, shape, [&](const OutputBatch::Sink& sink) { sink(data); });
+}
+
+void write_npy_shape(OutputBatch& batch, const std::filesystem::path& path, NpyType type,
+                     const std::vector<std::uint64_t>& shape,
+                     const std::function<void(const OutputBatch::Sink&)>& produce) {
+    std::string dims_text;
+    const std::uint64_t data_bytes = shape_count(shape, dims_text) * elem_size(type);
     std::string header = std::string("{'descr': '") + descr_of(type) +
                          "', 'fortran_order': False, 'shape': (" + dims_text + "), }";
     const std::size_t unpadded = 10 + header.size() + 1;  // + '\n'
     header.append((64 - unpadded % 64) % 64, ' ');
     header += '\n';
-    std::vector<std::uint8_t> bytes;
-    bytes.reserve(10 + header.size());
-    const char magic[] = "\x93NUMPY";
-    bytes.insert(bytes.end(), magic, magic + 6);
-    bytes.push_back(1);
-    bytes.push_back(0);
-    bytes.push_back(static_cast<std::uint8_t>(header.size() & 0xFF));
-    bytes.push_back(static_cast<std::uint8_t>(header.size() >> 8));
-    bytes.insert(bytes.end(), header.begin(), header.end());
+    // Magic, version 1.0, the header's length (little-endian u16), the header.
+    std::string prefix("\x93NUMPY\x01\x00", 8);
+    prefix += static_cast<char>(header.size() & 0xFF);
+    prefix += static_cast<char>(header.size() >> 8);
+    prefix += header;
+    const std::span<const std::uint8_t> bytes(reinterpret_cast<const std::uint8_t*>(prefix.data()),
+                                              prefix.size());
 
-    batch.write(path, {bytes, data});
+    batch.write(path, [&](const OutputBatch::Sink& sink) {
+        sink(bytes);
+        std::uint64_t written = 0;
+        produce([&](std::span<const std::uint8_t> piece) {
+            written += piece.size();
+            if (written > data_bytes) {
+                throw std::logic_error("write_npy_shape: more data than the shape holds");
+            }
+            sink(piece);
+        });
+        if (written != data_bytes) {
+            throw std::logic_error("write_npy_shape: less data than the shape holds");
+        }
+    });
 }
 
 namespace {
@@ -500,9 +600,8 @@ std::size_t npy_element_size(NpyType type) {
 World world_from_labels(NpyType type, Dims dims, std::span<const std::uint8_t> data,
                         Labels labels) {
     if (type == NpyType::f32 || type == NpyType::f64) {
-        throw InputError(std::string("a world is a bool or integer array (a label volume: 0 = "
-                                     "empty, nonzero = solid), not dtype ") +
-                         type_name(type));
+        throw InputError(std::string("dtype '") + descr_of(type) + "' (" + type_name(type) +
+                         ") is not supported: " + kWorldDtypes);
     }
     const std::size_t es = elem_size(type);
     World world(dims);

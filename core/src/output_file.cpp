@@ -104,24 +104,42 @@ Target classify(const fs::path& path, std::string& resolved) {
     return Target::file;
 }
 
-void write_all(int fd, const std::string& file,
-               std::initializer_list<std::span<const std::uint8_t>> parts) {
-    for (const auto& part : parts) {
-        const std::uint8_t* p = part.data();
-        std::size_t n = part.size();
-        while (n > 0) {
-            const ssize_t w = ::write(fd, p, n);
-            if (w < 0 && errno == EINTR) {
-                continue;
-            }
-            if (w <= 0) {
-                const int e = w < 0 ? errno : EIO;
-                ::close(fd);
-                fail(file, "write failed", e);
-            }
-            p += w;
-            n -= static_cast<std::size_t>(w);
+// Closes its descriptor when a write fails or a producer throws part-way.
+class Fd {
+  public:
+    explicit Fd(int fd) : fd_(fd) {}
+    ~Fd() {
+        if (fd_ >= 0) {
+            ::close(fd_);
         }
+    }
+    Fd(const Fd&) = delete;
+    Fd& operator=(const Fd&) = delete;
+    int get() const { return fd_; }
+    // Closes it now; the close's errno when it fails, else 0.
+    int close() {
+        const int rc = ::close(fd_);
+        fd_ = -1;
+        return rc == 0 ? 0 : errno;
+    }
+
+  private:
+    int fd_;
+};
+
+void write_all(int fd, const std::string& file, std::span<const std::uint8_t> part) {
+    const std::uint8_t* p = part.data();
+    std::size_t n = part.size();
+    while (n > 0) {
+        const ssize_t w = ::write(fd, p, n);
+        if (w < 0 && errno == EINTR) {
+            continue;
+        }
+        if (w <= 0) {
+            fail(file, "write failed", w < 0 ? errno : EIO);
+        }
+        p += w;
+        n -= static_cast<std::size_t>(w);
     }
 }
 
@@ -220,27 +238,35 @@ OutputBatch::~OutputBatch() {
 
 void OutputBatch::write(const fs::path& path,
                         std::initializer_list<std::span<const std::uint8_t>> parts) {
+    write(path, [&](const Sink& sink) {
+        for (const auto& part : parts) {
+            sink(part);
+        }
+    });
+}
+
+void OutputBatch::write(const fs::path& path, const std::function<void(const Sink&)>& produce) {
     const std::string file = path.string();
     std::string target;
     if (classify(path, target) == Target::direct) {
-        const int fd = ::open(file.c_str(), O_WRONLY | O_CLOEXEC);
-        if (fd < 0) {
+        Fd fd(::open(file.c_str(), O_WRONLY | O_CLOEXEC));
+        if (fd.get() < 0) {
             fail(file, "cannot open", errno);
         }
-        write_all(fd, file, parts);
-        if (::close(fd) != 0) {
-            fail(file, "close failed", errno);
+        produce([&](std::span<const std::uint8_t> part) { write_all(fd.get(), file, part); });
+        if (const int e = fd.close(); e != 0) {
+            fail(file, "close failed", e);
         }
         return;
     }
     std::string tmp;
-    const int fd = create_temporary(file, target, tmp);
+    Fd fd(create_temporary(file, target, tmp));
     pending_.emplace_back(tmp, target);
-    write_all(fd, file, parts);
+    produce([&](std::span<const std::uint8_t> part) { write_all(fd.get(), file, part); });
     // Not forced to disk (no fsync, as numpy.save and cp do not): the rename makes the file
     // whole or absent for readers; its data reach the disk with the page cache's writeback.
-    if (::close(fd) != 0) {
-        fail(file, "close failed", errno);
+    if (const int e = fd.close(); e != 0) {
+        fail(file, "close failed", e);
     }
 }
 

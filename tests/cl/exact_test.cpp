@@ -4,6 +4,8 @@
 #include <filesystem>
 #include <memory>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "cl_test_util.hpp"
 #include "voxfield/cl/exact.hpp"
@@ -85,13 +87,57 @@ TEST(ExactManhattan, LongDistancesSaturate) {
     expect_exact(w, Palette(), "far single voxel");
 }
 
+// The kernels a generator of `world` launches in `layout` (ExactManhattan::kernel_path), and
+// a check that its run() launched those (stage names in order).
+std::vector<std::string> kernel_path(const World& world, Format f, Layout layout) {
+    auto job = ocl::make_generator(pocl(), world, Palette(), exact_options(f, layout));
+    const auto* exact = dynamic_cast<const ocl::ExactManhattan*>(job.get());
+    if (exact == nullptr) {
+        ADD_FAILURE() << "not an ExactManhattan";
+        return {};
+    }
+    job->run();
+    std::vector<std::string> ran;
+    for (const auto& [name, ms] : job->stage_ms()) {
+        ran.push_back(name);
+    }
+    std::vector<std::string> names;
+    for (const std::string& step : exact->kernel_path()) {
+        const std::string name = step.substr(0, step.find('/'));
+        if (names.empty() || names.back() != name) {
+            names.push_back(name);
+        }
+    }
+    EXPECT_EQ(ran, names) << "stage_ms names a kernel of each launch, repeats summed";
+    return exact->kernel_path();
+}
+
 TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
-    // Columns longer than 512 and 2048 voxels take the other cols_seg width and the strip
-    // fallback of the GPU layout.
-    World w = scene_random(Dims{3, 700, 2}, 0.002, 5);
-    expect_exact(w, Palette(), "tall");
-    World deep = scene_random(Dims{2, 2, 2100}, 0.001, 6);
+    // Columns up to 512 voxels take cols_seg with segments of 16, up to 2048 segments of 64,
+    // longer ones the strip fallback of the GPU layout; the CPU layout sweeps xy slices and
+    // strips of columns.
+    using Path = std::vector<std::string>;
+    const World tall = scene_random(Dims{3, 700, 2}, 0.002, 5);
+    const World deep = scene_random(Dims{2, 2, 2100}, 0.001, 6);
+    const World wide = scene_random(Dims{32, 40, 30}, 0.01, 7);
+    for (Format f : kFormats) {
+        EXPECT_EQ(kernel_path(tall, f, Layout::gpu),
+                  (Path{"x_rows_local", "cols_seg/64", "cols_seg/16"}))
+            << to_string(f);
+        EXPECT_EQ(kernel_path(deep, f, Layout::gpu),
+                  (Path{"x_rows_local", "cols_seg/16", "cols_strip_final"}))
+            << to_string(f);
+        EXPECT_EQ(kernel_path(wide, f, Layout::gpu),
+                  (Path{"x_rows_seg", "cols_seg/16", "cols_seg/16"}))
+            << to_string(f);
+        for (const World* w : {&tall, &deep, &wide}) {
+            EXPECT_EQ(kernel_path(*w, f, Layout::cpu), (Path{"xy_slices_seq", "cols_strip_final"}))
+                << to_string(f);
+        }
+    }
+    expect_exact(tall, Palette(), "tall");
     expect_exact(deep, Palette(), "deep");
+    expect_exact(wide, Palette(), "wide");
 }
 
 TEST(ExactManhattan, LongColumnsSaturatePerLane) {

@@ -252,6 +252,54 @@ TEST(ExactSeparable, IndicesNameANearestSolid) {
     }
 }
 
+// The streaming read hands the same bytes as the whole read, in order, in slabs of at most
+// the size asked for (a last short one included), and survives a sink that throws.
+TEST(ExactSeparable, IndicesStreamInSlabs) {
+    std::mt19937_64 rng(7);
+    const World w = scene_random(Dims{23, 17, 31}, 0.01, rng());
+    const std::size_t bytes = 3 * w.dims().count() * sizeof(std::int32_t);
+    for (Layout layout : kLayouts) {
+        auto job = ocl::make_generator(
+            pocl(), w, Palette(),
+            options(Metric::euclidean, Spacing{}, false, Format::f32, layout, true));
+        job->run();
+        const std::vector<std::int32_t> whole = job->read_indices();
+        ASSERT_EQ(whole.size() * sizeof(std::int32_t), bytes);
+        const auto* want = reinterpret_cast<const std::uint8_t*>(whole.data());
+        for (std::size_t slab : {std::size_t{60}, std::size_t{4096}, std::size_t{5000}, bytes - 1,
+                                 bytes, ocl::Generator::kIndexSlabBytes}) {
+            std::vector<std::uint8_t> got;
+            std::size_t pieces = 0;
+            job->read_indices(
+                [&](std::span<const std::uint8_t> piece) {
+                    ASSERT_LE(piece.size(), slab);
+                    ASSERT_FALSE(piece.empty());
+                    got.insert(got.end(), piece.begin(), piece.end());
+                    ++pieces;
+                },
+                slab);
+            ASSERT_EQ(got.size(), bytes) << "slab " << slab;
+            EXPECT_TRUE(std::equal(got.begin(), got.end(), want)) << "slab " << slab;
+            EXPECT_EQ(pieces, (bytes + slab - 1) / slab) << "slab " << slab;
+        }
+        int calls = 0;
+        EXPECT_THROW(job->read_indices(
+                         [&](std::span<const std::uint8_t>) {
+                             if (++calls == 3) {
+                                 throw std::runtime_error("sink failed");
+                             }
+                         },
+                         1024),
+                     std::runtime_error);
+        EXPECT_EQ(calls, 3);
+        EXPECT_EQ(job->read_indices(), whole) << "after a sink threw";
+    }
+    auto plain =
+        ocl::make_generator(pocl(), w, Palette(),
+                            options(Metric::euclidean, Spacing{}, false, Format::f32, Layout::cpu));
+    EXPECT_THROW(plain->read_indices([](std::span<const std::uint8_t>) {}), std::logic_error);
+}
+
 TEST(ExactSeparable, BundledModels) {
     const std::filesystem::path dir = std::filesystem::path(VOXFIELD_DATA_DIR) / "vox";
     for (const char* file : {"chr_army1.vox", "veh_car1.vox", "obj_house4.vox"}) {

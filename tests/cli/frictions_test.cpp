@@ -1,7 +1,12 @@
-// Frictions a user meets: what --help offers works, devices --json names the sharing path.
+// Frictions a user meets: what --help offers works, devices --json names the sharing path,
+// simulate is quiet when stderr is no terminal, every .npy dtype refusal reads the same.
 #include <nlohmann/json.hpp>
 
+#include <chrono>
+
 #include "cli_test_util.hpp"
+#include "voxfield/core/npy.hpp"
+#include "voxfield/core/sand.hpp"
 
 namespace voxfield::test {
 namespace {
@@ -59,6 +64,88 @@ TEST_F(FrictionsCli, SimulateHelpOffersNoAlgorithm) {
     EXPECT_EQ(r.out.find("--algorithm"), std::string::npos) << r.out;
     const RunResult g = run({"generate", "--help"});
     EXPECT_NE(option_help(g.out, "--metric").find("--algorithm exact"), std::string::npos) << g.out;
+}
+
+TEST_F(FrictionsCli, SimulateShowsNoProgressWhenStderrIsNotATerminal) {
+    // run_voxfield sends stderr to a file. Steps grow until the run lasts well past the
+    // second after which progress shows on a terminal, so the check means something.
+    const fs::path world = io / "sand.npy";
+    const NpyArray a = npy_from_world(scene_sand(Dims{32, 24, 28}, 11));
+    write_npy(world, a.type, a.dims, a.data);
+    RunResult r;
+    double seconds = 0;
+    for (int steps = 100; seconds < 2.5 && steps <= 25600; steps *= 4) {
+        const auto t0 = std::chrono::steady_clock::now();
+        r = run({"simulate", world.string(), "--steps", std::to_string(steps), "--verify",
+                 "--device", "cpu"});
+        seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        ASSERT_EQ(r.code, 0) << describe(r);
+    }
+    ASSERT_GE(seconds, 2.5) << "no run lasted long enough for progress to show";
+    EXPECT_EQ(r.err.find('\r'), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("simulate:"), std::string::npos) << r.err;
+    EXPECT_TRUE(r.err.empty()) << r.err;
+}
+
+// A .npy of `descr` (as the header writes it) and shape (2, 2, 2) with `bytes` of data.
+void write_raw_npy(const fs::path& path, const std::string& descr, std::size_t bytes) {
+    std::string header = "{'descr': " + descr + ", 'fortran_order': False, 'shape': (2, 2, 2), }";
+    header.append((64 - (10 + header.size() + 1) % 64) % 64, ' ');
+    header += '\n';
+    std::string file("\x93NUMPY\x01\x00", 8);
+    file += static_cast<char>(header.size() & 0xFF);
+    file += static_cast<char>(header.size() >> 8);
+    file += header;
+    file.append(bytes, '\0');
+    write_file(path, file);
+}
+
+TEST_F(FrictionsCli, NpyDtypeRefusalsReadTheSame) {
+    // Every dtype a world cannot have: "FILE: dtype D (numpy's name) is not supported: " and
+    // what a world is; big-endian integers say how to save them instead.
+    const std::string world_is =
+        "is not supported: a world is a bool or integer array (a label volume: 0 = empty, "
+        "nonzero = solid)";
+    struct Case {
+        std::string file, descr, shown;
+        std::size_t bytes;
+    };
+    const std::vector<Case> cases = {
+        {"f32.npy", "'<f4'", "dtype '<f4' (float32) ", 32},
+        {"f64.npy", "'<f8'", "dtype '<f8' (float64) ", 64},
+        {"f16.npy", "'<f2'", "dtype '<f2' (float16) ", 16},
+        {"c8.npy", "'<c8'", "dtype '<c8' (complex64) ", 64},
+        {"str.npy", "'<U1'", "dtype '<U1' (str) ", 32},
+        {"obj.npy", "'|O'", "dtype '|O' (object) ", 64},
+        {"time.npy", "'<M8[s]'", "dtype '<M8[s]' (datetime64) ", 64},
+        {"void.npy", "'|V2'", "dtype '|V2' (void) ", 16},
+        {"be_f4.npy", "'>f4'", "dtype '>f4' (float32) ", 32},
+        {"rec.npy", "[('a', '|u1'), ('b', '|u1')]",
+         "dtype [('a', '|u1'), ('b', '|u1')] (a structured array) ", 16},
+    };
+    for (const char* command : {"generate", "info"}) {
+        for (const Case& c : cases) {
+            write_raw_npy(io / c.file, c.descr, c.bytes);
+            const std::string path = (io / c.file).string();
+            const RunResult r =
+                std::string(command) == "generate"
+                    ? run({"generate", path, "-o", (io / "out.npy").string(), "--device", "cpu"})
+                    : run({"info", path});
+            EXPECT_EQ(r.code, 2) << describe(r);
+            EXPECT_EQ(r.err, "voxfield: " + path + ": " + c.shown + world_is + "\n") << command;
+        }
+        write_raw_npy(io / "be_u2.npy", "'>u2'", 16);
+        const std::string path = (io / "be_u2.npy").string();
+        const RunResult r =
+            std::string(command) == "generate"
+                ? run({"generate", path, "-o", (io / "out.npy").string(), "--device", "cpu"})
+                : run({"info", path});
+        EXPECT_EQ(r.code, 2) << describe(r);
+        EXPECT_NE(r.err.find("dtype '>u2' (uint16, big-endian) is not supported: only "
+                             "little-endian arrays are read (save it with a.astype('<u2'))"),
+                  std::string::npos)
+            << r.err;
+    }
 }
 
 }  // namespace

@@ -88,6 +88,31 @@ TEST_F(OutputCli, AFifoGetsTheFieldAndStaysAFifo) {
     EXPECT_TRUE(S_ISFIFO(st.st_mode));
 }
 
+// The indices are streamed from the device a slab at a time: a target that fails part-way
+// still leaves no field, and a FIFO gets the same bytes as a file.
+TEST_F(OutputCli, StreamedIndicesFailingLeaveNoFieldBehind) {
+    if (!char_device("full", 1, 7)) {
+        GTEST_SKIP() << "mknod c 1 7 needs root: " << std::strerror(errno);
+    }
+    const RunResult r = run({"generate", in("w.npy"), "-o", in("o.npy"), "--indices", in("full"),
+                             "--metric", "euclidean", "--device", "cpu"});
+    EXPECT_EQ(r.code, 1) << describe(r);
+    EXPECT_NE(r.err.find("cannot write '" + in("full") + "'"), std::string::npos) << r.err;
+    EXPECT_EQ(list_dir(dir), (std::set<std::string>{"full", "w.npy"}));
+}
+
+TEST_F(OutputCli, AFifoGetsTheIndicesAFileGets) {
+    const RunResult f = run({"generate", in("w.npy"), "-o", in("o.npy"), "--indices", in("i.npy"),
+                             "--metric", "euclidean", "--device", "cpu"});
+    ASSERT_EQ(f.code, 0) << describe(f);
+    ASSERT_EQ(::mkfifo(in("pipe").c_str(), 0600), 0) << std::strerror(errno);
+    auto reader = std::async(std::launch::async, [&] { return read_bytes(in("pipe")); });
+    const RunResult r = run({"generate", in("w.npy"), "-o", in("p.npy"), "--indices", in("pipe"),
+                             "--metric", "euclidean", "--device", "cpu"});
+    EXPECT_EQ(r.code, 0) << describe(r);
+    EXPECT_EQ(reader.get(), read_bytes(in("i.npy")));
+}
+
 TEST_F(OutputCli, BadOutputPathsAreRefusedBeforeAnyWork) {
     fs::create_directory(dir / "adir");
     write_file(dir / "g.json.tmp", "a user's file");

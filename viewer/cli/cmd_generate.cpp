@@ -185,10 +185,6 @@ int run_generate(const GenerateOptions& o) {
     progress.set("downloading the field");
     const auto t_download = Clock::now();
     const ocl::MappedBuffer field(ctx, job->field_buffer(), dims.count() * element_size(format));
-    std::vector<std::int32_t> indices;
-    if (options.indices) {
-        indices = job->read_indices();
-    }
     phases.download = ms_since(t_download);
     ocl::FieldTiming timing;
     timing.upload_ms = job->upload_ms();
@@ -209,10 +205,10 @@ int run_generate(const GenerateOptions& o) {
         write_npy(outputs, o.output, npy_type(format), dims, field.bytes());
     }
     if (options.indices) {
-        write_npy_shape(
-            outputs, o.indices, NpyType::i32, {3, dims.z, dims.y, dims.x},
-            std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(indices.data()),
-                                          indices.size() * sizeof(std::int32_t)));
+        // Streamed from the device's planes a slab at a time (read while written: part of the
+        // write phase), never whole on the host beside them.
+        write_npy_shape(outputs, o.indices, NpyType::i32, {3, dims.z, dims.y, dims.x},
+                        [&](const OutputBatch::Sink& sink) { job->read_indices(sink); });
     }
     phases.write = ms_since(t_write);
     phases.wall = ms_since(kProgramStart);

@@ -4,7 +4,6 @@
 // regeneration and per-step timings.
 #include <algorithm>
 #include <charconv>
-#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <iostream>
@@ -16,6 +15,7 @@
 #include <vector>
 
 #include "cli_util.hpp"
+#include "progress.hpp"
 #include "sand_run.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/core/error.hpp"
@@ -30,15 +30,9 @@
 namespace voxfield::cli {
 namespace {
 
-namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-
 // The full regeneration of the starting world: untimed warm-up, then the median of these.
 constexpr std::uint32_t kRegenerateWarmup = 1;
 constexpr std::uint32_t kRegenerateRepeat = 5;
-// Progress on stderr once a run has taken this long, at most this often.
-constexpr double kProgressAfterS = 1.0;
-constexpr double kProgressEveryS = 0.5;
 
 struct SimulateOptions {
     GeneratorFlags generator;  // --metric, --spacing and --max-distance only
@@ -125,10 +119,15 @@ int run_simulate(const SimulateOptions& o) {
     const VoxModel model = load_world(o.input);
     const Dims dims = model.world.dims();
     const ocl::GeneratorOptions options = generator_options(o.generator, format, dims);
+    // One updating line on a terminal once the run has taken a second; quiet otherwise.
+    Progress progress("simulate");
+    progress.set("setting up the device");
     ocl::Context ctx(ocl::select_device(o.device));
 
+    progress.set("setting up the field");
     pipeline::Scene scene(ctx, model.world, model.palette, options);
     warm_up_updates(scene);
+    progress.set("timing full regenerations");
 
     // Full regeneration of the starting world on this device: warm-up, then the median.
     std::vector<double> regen_samples;
@@ -143,7 +142,6 @@ int run_simulate(const SimulateOptions& o) {
     }
     const double full_ms = summarize(regen_samples).median;
 
-    bool progress_open = false;
     // --verify: a fresh generator on the current world, same options, byte for byte.
     auto verify = [&](const std::string& when) {
         const std::vector<std::uint8_t> full =
@@ -152,9 +150,7 @@ int run_simulate(const SimulateOptions& o) {
         if (diff.empty()) {
             return true;
         }
-        if (progress_open) {
-            std::cerr << '\n';
-        }
+        progress.stop();
         std::cerr << "voxfield: simulate --verify failed " << when
                   << ": the incremental field differs from a full regeneration ("
                   << to_string(options.metric) << ", " << to_string(format) << "): " << diff
@@ -166,8 +162,6 @@ int run_simulate(const SimulateOptions& o) {
     }
 
     const auto steps = static_cast<std::uint64_t>(o.steps);
-    const auto start = Clock::now();
-    auto last_progress = start;
     bool verified = true;
     const std::vector<SandStepRecord> records =
         run_sand_steps(scene, rules, seed, steps, [&](const SandStepRecord& r) {
@@ -175,23 +169,14 @@ int run_simulate(const SimulateOptions& o) {
                 verified = false;
                 return false;
             }
-            const auto now = Clock::now();
-            if (std::chrono::duration<double>(now - start).count() >= kProgressAfterS &&
-                std::chrono::duration<double>(now - last_progress).count() >= kProgressEveryS) {
-                std::cerr << "\rsimulate: step " << r.step + 1 << "/" << steps
-                          << (o.verify ? " (verifying)" : "") << "   " << std::flush;
-                progress_open = true;
-                last_progress = now;
-            }
+            progress.set("step " + std::to_string(r.step + 1) + "/" + std::to_string(steps) +
+                         (o.verify ? " (verifying)" : ""));
             return true;
         });
     if (!verified) {
         return 1;
     }
-    if (progress_open) {
-        std::cerr << "\rsimulate: " << steps << "/" << steps << " steps"
-                  << (o.verify ? " verified" : "") << "        \n";
-    }
+    progress.set("writing the outputs");
 
     // Outputs only now, in one batch renamed onto their targets once all are written.
     OutputBatch outputs;
@@ -214,6 +199,7 @@ int run_simulate(const SimulateOptions& o) {
         return ms > 0 ? fixed(static_cast<double>(steps) * 1000.0 / ms, 1) : std::string("-");
     };
     const bool has_ratio = !records.empty() && full_ms > 0;
+    progress.stop();
     std::cout << "device:   " << ctx.info().name << " (" << ctx.info().platform << ", "
               << ctx.info().type << "), sand kernel " << scene.sand_variant() << '\n'
               << "world:    " << o.input << "  " << dims.to_string() << ", sand material "

@@ -53,6 +53,9 @@ class ExactManhattan : public Generator {
 
     double run() override;
     std::string variant() const override;  // "cpu layout" or "gpu layout"
+    // The kernels run() launches, in order, cols_seg with its segment length ("x_rows_local",
+    // "cols_seg/64", "cols_strip_final", ...): which path a world's shape takes.
+    const std::vector<std::string>& kernel_path() const { return path_; }
     // The world on the device (uint8 per voxel); writes to it show in the next run().
     const cl::Buffer& voxels_buffer() const { return voxels_; }
 
@@ -69,6 +72,7 @@ class ExactManhattan : public Generator {
     cl::Buffer voxels_, rgb_, work_;
     // The kernels of one transform, in enqueue order.
     std::vector<KernelLaunch> stages_;
+    std::vector<std::string> path_;  // kernel_path(), beside stages_
 };
 
 }  // namespace voxfield::ocl

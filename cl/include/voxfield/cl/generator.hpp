@@ -1,9 +1,12 @@
 #pragma once
 // Every distance-field generator behind one interface: `exact` (ours) and the family of the
 // dissertation (chapter 4), selected by name as DESIGN §4 lists them.
+#include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -107,6 +110,15 @@ class Generator {
     // every voxel (shape (3, Z, Y, X)), -1 where there is none. Only for generators made
     // with options.indices; std::logic_error otherwise.
     std::vector<std::int32_t> read_indices();
+    // The same bytes (little-endian int32, plane z, then y, then x) handed to `sink` in order,
+    // a slab of at most `slab_bytes` at a time, mapped rather than copied: in place on a
+    // device that computes in host memory, else into the driver's host copy of that slab. The
+    // next slab's map is queued while `sink` takes one, so the host holds at most two slabs
+    // besides the device's buffer (a caller can write the planes out without a whole-volume
+    // copy). Only for generators made with options.indices; std::logic_error otherwise.
+    using IndexSink = std::function<void(std::span<const std::uint8_t>)>;
+    static constexpr std::size_t kIndexSlabBytes = std::size_t{32} << 20;
+    void read_indices(const IndexSink& sink, std::size_t slab_bytes = kIndexSlabBytes);
 
     double upload_ms() const { return upload_ms_; }
     // Per-kernel time of the last run(), in first-enqueue order, summed over repeated

@@ -1,14 +1,16 @@
 #pragma once
 // OpenCL runtime: errors, device enumeration and selection, a context with a profiling
-// queue, a program cache keyed by device, source and build options, and host memory that
-// buffers can use in place.
+// queue, a program cache keyed by device, source and build options (in memory, and on disk
+// across runs), and host memory that buffers can use in place.
 #include <CL/opencl.hpp>
 
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
+#include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -63,7 +65,27 @@ std::vector<DeviceInfo> list_devices();
 
 // spec: "cpu", "gpu", a decimal index, or "" for the default: $VOXFIELD_DEVICE if set, else
 // the first GPU, else the first CPU. Throws DeviceSelectionError explaining each rejection.
+// Walks the platforms in order only as far as the one holding the device asked for (the
+// platforms after it are never asked for devices) and reads the full info of that device
+// alone; every device is listed only to explain a failure.
 DeviceInfo select_device(const std::string& spec);
+
+// Built programs kept across runs on disk: one file per program, named by a digest of the
+// kernel sources, the build options, the device's name and version, the driver version and
+// the platform, under $XDG_CACHE_HOME/voxfield/programs (else ~/.cache/voxfield/programs).
+// Off when $VOXFIELD_NO_PROGRAM_CACHE is set to anything but "" or "0" (or without a home).
+// An entry that cannot be read, fails its checksum or does not load is built from source and
+// written again; entries are written atomically (a temporary renamed onto the name), so a
+// reader sees a whole entry or none. The folder it uses, empty when off (read per call).
+std::filesystem::path program_cache_dir();
+
+// What a context's programs came from (for reports and tests).
+struct ProgramCacheStats {
+    std::size_t loaded = 0;    // from a disk entry
+    std::size_t built = 0;     // from source
+    std::size_t stored = 0;    // disk entries written
+    std::size_t rejected = 0;  // disk entries found unusable, rebuilt
+};
 
 // One device with its own context and in-order profiling queue.
 class Context {
@@ -80,17 +102,29 @@ class Context {
     bool computes_in_host_memory() const { return is_cpu() || info_.host_unified_memory; }
 
     // Builds (or returns the cached) program from embedded sources; BuildError on failure.
+    // Cached in this context, and on disk across runs (program_cache_dir(), as it was when
+    // the context was made).
     cl::Program program(const std::string& name, const std::vector<std::string>& sources,
                         const std::string& options);
+    const ProgramCacheStats& program_cache_stats() const { return cache_stats_; }
 
   private:
+    // The program of a disk entry, built for the device; nullopt when there is none or it is
+    // unusable (counted as rejected).
+    std::optional<cl::Program> load_program(const std::filesystem::path& entry,
+                                            const std::string& digest, const std::string& options);
+    void store_program(const std::filesystem::path& entry, const std::string& digest,
+                       const std::string& name, const std::string& options,
+                       const cl::Program& program);
+
     DeviceInfo info_;
     cl::Context context_;
     cl::CommandQueue queue_;
+    std::filesystem::path cache_dir_;
+    ProgramCacheStats cache_stats_;
     // Keyed by (name, options, sources): two programs of one name built from different
     // sources are two programs.
-    std::map<std::tuple<std::string, std::string, std::vector<std::string>>, cl::Program>
-        programs_;
+    std::map<std::tuple<std::string, std::string, std::vector<std::string>>, cl::Program> programs_;
 };
 
 // Runs `body`, turning a cl::Error into a ClError with `context`.

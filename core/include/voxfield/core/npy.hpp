@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <span>
 #include <vector>
@@ -76,6 +77,11 @@ void write_npy_shape(const std::filesystem::path& path, NpyType type,
                      const std::vector<std::uint8_t>& data);
 void write_npy_shape(OutputBatch& batch, const std::filesystem::path& path, NpyType type,
                      const std::vector<std::uint64_t>& shape, std::span<const std::uint8_t> data);
+// The same with the data made piece by piece (OutputBatch's streaming write): `produce` hands
+// the pieces, in order, to its sink; std::logic_error when they do not add up to the shape.
+void write_npy_shape(OutputBatch& batch, const std::filesystem::path& path, NpyType type,
+                     const std::vector<std::uint64_t>& shape,
+                     const std::function<void(const OutputBatch::Sink&)>& produce);
 
 // How a label volume's values become a world's voxels (DESIGN §3). Any integer or bool array
 // is a world: 0 is empty, every other value solid, and values 1..255 stay the voxel's palette

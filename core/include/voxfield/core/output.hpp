@@ -14,6 +14,7 @@
 // error, a reader that went away): OutputError (exit 1), naming the path and the reason.
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <initializer_list>
 #include <span>
 #include <stdexcept>
@@ -50,6 +51,9 @@ void check_outputs(const std::vector<NamedPath>& outputs, const std::vector<Name
 // exception between two writes) leaves none of its outputs and no temporary behind.
 class OutputBatch {
   public:
+    // Takes one piece of a file's content, appended after the pieces before it.
+    using Sink = std::function<void(std::span<const std::uint8_t>)>;
+
     OutputBatch() = default;
     ~OutputBatch();
     OutputBatch(const OutputBatch&) = delete;
@@ -60,6 +64,11 @@ class OutputBatch {
     void write(const std::filesystem::path& path,
                std::initializer_list<std::span<const std::uint8_t>> parts);
     void write(const std::filesystem::path& path, const std::string& text);
+    // The content of `path` made piece by piece: `produce` hands each piece, in order, to the
+    // sink it is given, which writes it out at once (a file larger than any buffer the
+    // program holds, e.g. a device buffer read in slabs). An exception from `produce` leaves
+    // no temporary behind.
+    void write(const std::filesystem::path& path, const std::function<void(const Sink&)>& produce);
     void commit();
 
   private:
