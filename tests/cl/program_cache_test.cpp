@@ -45,13 +45,18 @@ TEST(ProgramCache, OneNameFromTwoSourcesIsTwoPrograms) {
 }
 
 // The disk cache (program_cache_dir): each test points $XDG_CACHE_HOME at a folder of its own
-// and makes fresh contexts, as separate runs would.
+// and makes fresh contexts, as separate runs would. PoCL keeps its own cache under the
+// $XDG_CACHE_HOME it saw first in the process, so the folders live until the suite ends (when
+// the tests run in one process) and a test removes only voxfield's part of its own.
 class DiskProgramCache : public ::testing::Test {
   protected:
+    static std::filesystem::path root() {
+        return std::filesystem::temp_directory_path() /
+               ("voxfield_program_cache_" + std::to_string(::getpid()));
+    }
+    static void TearDownTestSuite() { std::filesystem::remove_all(root()); }
     void SetUp() override {
-        dir = std::filesystem::temp_directory_path() /
-              ("voxfield_program_cache_" + std::to_string(::getpid()) + "_" +
-               ::testing::UnitTest::GetInstance()->current_test_info()->name());
+        dir = root() / ::testing::UnitTest::GetInstance()->current_test_info()->name();
         std::filesystem::remove_all(dir);
         std::filesystem::create_directories(dir);
         save("XDG_CACHE_HOME", xdg);
@@ -62,7 +67,7 @@ class DiskProgramCache : public ::testing::Test {
     void TearDown() override {
         restore("XDG_CACHE_HOME", xdg);
         restore("VOXFIELD_NO_PROGRAM_CACHE", off);
-        std::filesystem::remove_all(dir);
+        std::filesystem::remove_all(dir / "voxfield");
     }
     static void save(const char* name, std::optional<std::string>& value) {
         const char* v = std::getenv(name);
@@ -151,7 +156,10 @@ TEST_F(DiskProgramCache, ACorruptEntryIsRebuiltAndRewritten) {
         EXPECT_EQ(stats.built, 1u);
         EXPECT_EQ(stats.loaded, 0u);
         EXPECT_EQ(stats.stored, 1u) << "rewritten";
-        EXPECT_EQ(std::filesystem::file_size(entry), whole);
+        // Rewritten whole (PoCL's binary may grow by the work-group functions compiled when
+        // the kernel ran, so its size is not the first entry's): a regular file that loads.
+        EXPECT_TRUE(std::filesystem::is_regular_file(entry));
+        EXPECT_GT(std::filesystem::file_size(entry), whole / 2);
         EXPECT_EQ(build_and_run(source, 7).loaded, 1u) << "the rewritten entry loads";
     }
     std::filesystem::remove(entry);
