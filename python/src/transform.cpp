@@ -8,6 +8,7 @@
 // from the device buffer into it; the feature transform goes through one host copy
 // (Generator only hands it out as a vector).
 #include <cstring>
+#include <span>
 #include <utility>
 
 #include "common.hpp"
@@ -108,8 +109,12 @@ py::object distance_transform(const py::object& world, const std::string& metric
             job->run();
             read_into(*dev, job->field_buffer(), field_out, field_bytes, w.dims);
             if (indices_out != nullptr) {
-                const std::vector<std::int32_t> idx = job->read_indices();
-                std::memcpy(indices_out, idx.data(), idx.size() * sizeof(std::int32_t));
+                // Slab by slab into the numpy array: no whole-volume copy on the host.
+                auto* dst = reinterpret_cast<std::uint8_t*>(indices_out);
+                job->read_indices([&](std::span<const std::uint8_t> slab) {
+                    std::memcpy(dst, slab.data(), slab.size());
+                    dst += slab.size();
+                });
             }
         }
     }
