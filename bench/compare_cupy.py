@@ -59,7 +59,6 @@ import subprocess
 import sys
 import tempfile
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CASES = ["manhattan", "euclidean", "chebyshev", "signed-euclidean", "euclidean-indices"]
 TOL = 2.0 ** -23          # relative tolerance of the float32 comparisons (one float32 ulp)
 SLAB_VOXELS = 1 << 25     # voxels per z-slab uploaded for a check (32 Mi: bounded GPU memory)
@@ -80,6 +79,7 @@ try:
 except ImportError:
     fail("numpy is missing (Debian: apt-get install python3-numpy)")
 
+from repo import REPO, git_commit  # noqa: E402
 from worlds import WORLDS, make_named, make_world  # noqa: E402  (needs numpy)
 
 
@@ -108,15 +108,6 @@ def import_scipy_ndimage():
 
 
 # ---------------------------------------------------------------------------- the machine
-
-
-def git_commit():
-    try:
-        out = subprocess.run(["git", "-C", REPO, "rev-parse", "HEAD"], check=True,
-                             capture_output=True, text=True)
-        return out.stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def voxfield_version(exe):

@@ -31,7 +31,7 @@ import sys
 import tempfile
 import time
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from repo import REPO, git_commit  # noqa: E402
 
 SCIPY_JOB = r"""
 import json, sys, time
@@ -45,15 +45,6 @@ np.save(sys.argv[2], field)
 t2 = time.perf_counter()
 print(json.dumps({"import_s": t1 - t0, "job_s": t2 - t1}))
 """
-
-
-def git_commit():
-    try:
-        out = subprocess.run(["git", "-C", REPO, "rev-parse", "HEAD"], check=True,
-                             capture_output=True, text=True)
-        return out.stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def spread(samples):

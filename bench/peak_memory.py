@@ -30,7 +30,7 @@ import numpy as np
 
 from worlds import make_world
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from repo import REPO, git_commit  # noqa: E402
 CASES = {
     "l2-f32": (["--metric", "euclidean"], False, 5),
     "l2-f32-indices": (["--metric", "euclidean"], True, 17),
@@ -48,15 +48,6 @@ voxfield.distance_transform(w, metric='euclidean', device='cpu')
 after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 print(before, after)
 """
-
-
-def git_commit():
-    try:
-        out = subprocess.run(["git", "-C", REPO, "rev-parse", "HEAD"], check=True,
-                             capture_output=True, text=True)
-        return out.stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def peak_kb(cmd):

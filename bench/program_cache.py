@@ -36,17 +36,8 @@ import numpy as np
 
 from worlds import make_world
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from repo import REPO, git_commit  # noqa: E402
 JOBS = {"l1-u16": [], "l2-f32": ["--metric", "euclidean"]}
-
-
-def git_commit():
-    try:
-        out = subprocess.run(["git", "-C", REPO, "rev-parse", "HEAD"], check=True,
-                             capture_output=True, text=True)
-        return out.stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def main():
