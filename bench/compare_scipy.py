@@ -54,20 +54,11 @@ import time
 import numpy as np
 from scipy import ndimage
 
+from repo import REPO, git_commit  # noqa: E402
 from worlds import WORLDS, make_named, make_world
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CASES = ["manhattan", "manhattan-indices", "chebyshev", "euclidean", "euclidean-sampling",
          "euclidean-sampling-f64", "euclidean-indices", "signed-manhattan", "signed-euclidean"]
-
-
-def git_commit():
-    try:
-        out = subprocess.run(["git", "-C", REPO, "rev-parse", "HEAD"], check=True,
-                             capture_output=True, text=True)
-        return out.stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def spread(samples):
@@ -386,7 +377,7 @@ def main():
     ap.add_argument("--seed", type=int, default=6683787, help="world seed")
     ap.add_argument("--input", help="use this (Z,Y,X) uint8/16/32 .npy world instead")
     ap.add_argument("--worlds",
-                    help=f"comma-separated worlds of bench/worlds.py ({','.join(WORLDS)}) or "
+                    help=f"comma-separated worlds of bench/worlds.py ({','.join(WORLDS).replace('%', '%%')}) or "
                          f"'all': run every case on each (instead of the one world)")
     ap.add_argument("--voxfield", default=os.path.join(REPO, "build", "viewer", "voxfield"),
                     help="voxfield binary (default: build/viewer/voxfield)")
