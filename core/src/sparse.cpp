@@ -214,7 +214,6 @@ SparseWorld SparseWorld::from_voxels(Dims dims,
     }
     std::sort(keys.begin(), keys.end());
     std::vector<std::uint8_t> tile(kTileVoxels);
-    constexpr std::uint64_t kCoord = (std::uint64_t{1} << 14) - 1;
     for (const std::uint64_t key : keys) {
         std::fill(tile.begin(), tile.end(), std::uint8_t{0});
         std::vector<std::uint32_t>& voxels = buckets[key];
@@ -222,9 +221,9 @@ SparseWorld SparseWorld::from_voxels(Dims dims,
             tile[e & (kTileVoxels - 1)] = static_cast<std::uint8_t>(e >> 18);
         }
         std::vector<std::uint32_t>().swap(voxels);
-        s.store_tile(static_cast<std::uint32_t>(key & kCoord),
-                     static_cast<std::uint32_t>(key >> 14 & kCoord),
-                     static_cast<std::uint32_t>(key >> 28 & kCoord), tile);
+        const Int3 t = tile_of_key(key);
+        s.store_tile(static_cast<std::uint32_t>(t.x), static_cast<std::uint32_t>(t.y),
+                     static_cast<std::uint32_t>(t.z), tile);
     }
     return s;
 }

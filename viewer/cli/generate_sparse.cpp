@@ -28,18 +28,15 @@ double ms_since(Clock::time_point t) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
 
-bool is_npy(const std::string& input) {
-    std::string ext = std::filesystem::path(input).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return ext == ".npy";
-}
-
 bool has_extension(const std::string& input, const char* ext) {
     std::string e = std::filesystem::path(input).extension().string();
     std::transform(e.begin(), e.end(), e.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
     return e == ext;
+}
+
+bool is_npy(const std::string& input) {
+    return has_extension(input, ".npy");
 }
 
 // The field as .vdb grids, read from the device tile by tile: every tile of the world and the
@@ -74,15 +71,12 @@ void write_vdb_tiles(OutputBatch& outputs, const std::string& path, const Sparse
             if (key == keys.end()) {
                 return false;
             }
-            constexpr std::uint64_t kCoord = (std::uint64_t{1} << 14) - 1;
-            const std::int64_t s = kTileSize, tx = static_cast<std::int64_t>(*key & kCoord),
-                               ty = static_cast<std::int64_t>(*key >> 14 & kCoord),
-                               tz = static_cast<std::int64_t>(*key >> 28 & kCoord);
-            ++key;
-            const Box box{{tx * s, ty * s, tz * s},
-                          {std::min<std::int64_t>((tx + 1) * s, d.x),
-                           std::min<std::int64_t>((ty + 1) * s, d.y),
-                           std::min<std::int64_t>((tz + 1) * s, d.z)}};
+            const Int3 t = tile_of_key(*key++);
+            const std::int64_t s = kTileSize;
+            const Box box{{t.x * s, t.y * s, t.z * s},
+                          {std::min<std::int64_t>((t.x + 1) * s, d.x),
+                           std::min<std::int64_t>((t.y + 1) * s, d.y),
+                           std::min<std::int64_t>((t.z + 1) * s, d.z)}};
             voxels.resize(static_cast<std::size_t>(box.volume()));
             world.read_box(box, voxels);
             values = field.read_box(box);

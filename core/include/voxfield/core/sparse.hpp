@@ -42,6 +42,12 @@ inline constexpr std::uint64_t kMaxDenseVoxels = std::uint64_t{1} << 32;
 inline std::uint64_t tile_key(std::uint32_t tx, std::uint32_t ty, std::uint32_t tz) {
     return (std::uint64_t{tz} << 28) | (std::uint64_t{ty} << 14) | tx;
 }
+// The tile grid coordinates a key packs (tile_key's inverse).
+inline Int3 tile_of_key(std::uint64_t key) {
+    constexpr std::uint64_t kCoord = (std::uint64_t{1} << 14) - 1;
+    return {static_cast<std::int64_t>(key & kCoord), static_cast<std::int64_t>(key >> 14 & kCoord),
+            static_cast<std::int64_t>(key >> 28 & kCoord)};
+}
 
 // Fills `out` (box.volume() bytes, x fastest, then y, then z) with the voxels of `box`.
 using BoxFill = std::function<void(const Box& box, std::span<std::uint8_t> out)>;
