@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <iostream>
 #include <optional>
 #include <string>
 #include <vector>
@@ -377,6 +378,126 @@ TEST(ImplicitTrace, BoxOffTheGridPlanes) {
 
 TEST(ImplicitTrace, TorusMatchesTheAnalyticTorus) {
     check_shape(torus(), "torus");
+}
+
+// Lit shading lights the smooth surface as voxel worlds are lit: a floor under a floating
+// sphere is in the sphere's shadow exactly where the analytic ray from the floor toward the
+// sun meets the analytic sphere.
+TEST(ImplicitTrace, LitSurfaceCastsShadows) {
+    Shape scene = sphere();
+    scene.json = R"({"version": 1, "voxel_size": 0.25, "bounds": [[-8, -1, -8], [8, 8, 8]],
+        "shape": {"union": [{"box": {"center": [0, -0.5, 0], "half_size": [7.5, 0.5, 7.5]}},
+                            {"sphere": {"center": [0, 5, 0], "radius": 2}}]}})";
+    const Traced t = discretise(scene);
+    vk::Raymarcher marcher(validated_vulkan());
+    marcher.upload_compact(t.world.dims(), Palette(), compact_field(t.world));
+    marcher.set_implicit(surface_of(t.grid));
+    vk::RenderOptions r;
+    r.width = 96;
+    r.height = 72;
+    r.shading = vk::Shading::lit;
+    r.surface = true;
+    const Dims d = t.world.dims();
+    r.camera.position = {0.5 * d.x, 3.0 * d.y, -0.4 * d.z};
+    r.camera.target = {0.5 * d.x, 0, 0.5 * d.z};
+    const vk::Image img = marcher.render(r);
+    const double h = t.part.voxel_size;
+    const D3 lo{t.part.lo[0], t.part.lo[1], t.part.lo[2]};
+    const D3 sun{1 / std::sqrt(3.0), 1 / std::sqrt(3.0), 1 / std::sqrt(3.0)};
+    const D3 centre{0, 5, 0};
+    int shadowed_max = -1, lit_min = 256, shadowed = 0, lit = 0;
+    for (std::size_t p = 0; p < img.surface.size(); ++p) {
+        const vk::SurfaceHit& hit = img.surface[p];
+        const D3 at = add(lo, mul(D3{hit.x, hit.y, hit.z}, h));
+        // Floor points (the box's top face), clearly in or out of the shadow (the analytic
+        // shadow ray passes the sphere's surface more than a voxel away).
+        if (hit.kind != VF_TRACE_SMOOTH || std::abs(at[1]) > 0.01 || hit.ny < 0.99 ||
+            std::abs(at[0]) > 6 || std::abs(at[2]) > 6) {
+            continue;
+        }
+        const D3 oc = sub(at, centre);
+        const double b = dot(oc, sun);
+        const double miss = norm(sub(oc, mul(sun, b))) - 2;  // closest approach - radius
+        if (std::abs(miss) < h || b > 0) {
+            continue;
+        }
+        const int red = img.rgba[4 * p];
+        if (miss < 0) {
+            ++shadowed;
+            shadowed_max = std::max(shadowed_max, red);
+        } else {
+            ++lit;
+            lit_min = std::min(lit_min, red);
+        }
+    }
+    EXPECT_GT(shadowed, 20);
+    EXPECT_GT(lit, 200);
+    EXPECT_LT(shadowed_max, lit_min);
+}
+
+// Hit records of a voxel world: cube faces; the surface of another grid's dims is not traced.
+TEST(ImplicitTrace, VoxelWorldsKeepCubes) {
+    const Traced t = discretise(sphere());
+    vk::Raymarcher marcher(validated_vulkan());
+    World world(Dims{8, 8, 8});
+    world.set(3, 3, 3, 5);
+    marcher.upload_compact(world.dims(), Palette(), compact_field(world));
+    marcher.set_implicit(surface_of(t.grid));  // 32^3: not this field's
+    vk::RenderOptions r;
+    r.width = r.height = 16;
+    r.camera.position = {3.5, 3.5, -10};
+    r.camera.target = {3.5, 3.5, 3.5};
+    r.camera.fov_deg = 10;
+    r.surface = true;
+    const vk::Image img = marcher.render(r);
+    const vk::SurfaceHit& centre = img.surface[8 * 16 + 8];
+    EXPECT_EQ(centre.kind, float(VF_TRACE_CUBE));
+    EXPECT_EQ(centre.nz, -1.0f);
+    EXPECT_FLOAT_EQ(centre.z, 3.0f);
+    EXPECT_NEAR(centre.t, 13.0, 1e-3);
+    EXPECT_EQ(img.surface[0].kind, float(VF_TRACE_MISS));
+    marcher.clear_implicit();
+    EXPECT_FALSE(marcher.has_implicit());
+    EXPECT_EQ(marcher.implicit_bytes(), 0u);
+    // A frame of the swapchain records no hits.
+    EXPECT_THROW(static_cast<void>(marcher.render_to(r, vk::ExternalMemory())), std::logic_error);
+}
+
+// A grid whose arrays do not fit its tiles or point past each other is refused, and the surface
+// held before stays.
+TEST(ImplicitTrace, RefusesInconsistentGrids) {
+    const Traced t = discretise(sphere());
+    vk::Raymarcher marcher(validated_vulkan());
+    marcher.set_implicit(surface_of(t.grid));
+    const std::uint64_t bytes = marcher.implicit_bytes();
+    auto refused = [&](const std::function<void(vk::ImplicitSurface&, ocl::ImplicitGrid&)>& spoil) {
+        ocl::ImplicitGrid g = t.grid;
+        vk::ImplicitSurface s = surface_of(g);
+        spoil(s, g);
+        EXPECT_THROW(marcher.set_implicit(s), InputError);
+        EXPECT_EQ(marcher.implicit_bytes(), bytes);
+    };
+    refused([](vk::ImplicitSurface& s, ocl::ImplicitGrid&) { s.tile_depth = 1; });
+    refused([](vk::ImplicitSurface& s, ocl::ImplicitGrid&) { s.dims.x += 64; });
+    refused([](vk::ImplicitSurface& s, ocl::ImplicitGrid& g) {
+        g.tile_table[0] = static_cast<std::uint32_t>(g.node_count());
+        s.tile_table = g.tile_table;
+    });
+    refused([](vk::ImplicitSurface& s, ocl::ImplicitGrid& g) {
+        // A leaf with crossed voxels whose records would run past the last one.
+        for (std::size_t n = 0; n < g.node_count(); ++n) {
+            std::uint32_t* rec = &g.nodes[n * VF_SDF_NODE_WORDS];
+            if (rec[1] != VF_SDF_NOT_LEAF && (rec[2] | rec[3]) != 0) {
+                rec[0] = static_cast<std::uint32_t>(g.crossed_count());
+                break;
+            }
+        }
+        s.nodes = g.nodes;
+    });
+    refused([](vk::ImplicitSurface& s, ocl::ImplicitGrid& g) {
+        s.vertices = std::span<const float>(g.vertices).first(g.vertices.size() - 4);
+    });
+    refused([](vk::ImplicitSurface& s, ocl::ImplicitGrid&) { s.voxels = s.voxels.first(1); });
 }
 
 }  // namespace
