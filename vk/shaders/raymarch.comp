@@ -8,6 +8,7 @@
 // al., "Fast and Accurate Ray-Voxel Intersection Techniques for Iso-Surface Ray Tracing", VMV
 // 2004), shaded with the interpolated gradient.
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_control_flow_attributes : require
 #include "voxfield/core/sdf_layout.hpp"
 #include "voxfield/layout.h"
 #include "voxfield/vk/trace_layout.h"
@@ -243,10 +244,9 @@ bool g_coarse;
 uvec3 g_blocks;
 
 // kImplicit: the latest march's hit was on the trilinear interpolant (g_smooth), with the
-// normalised interpolated gradient g_normal; the corners of the crossed voxel being tested.
+// normalised interpolated gradient g_normal.
 bool g_smooth;
 vec3 g_normal;
-vec4 g_corner[8];  // corner c = x + 2 y + 4 z: grad f, f
 
 const uint kNoRecord = 0xFFFFFFFFu;
 
@@ -293,42 +293,29 @@ uint crossed_record(ivec3 c, out uint vertex_base) {
     }
 }
 
-void load_corners(uint record, uint vertex_base) {
-    uint base = record * uint(VF_SDF_VOXEL_WORDS);
-    uint w0 = voxel_records[base], w1 = voxel_records[base + 1u];
-    for (uint c = 0u; c < 8u; ++c) {
-        uint local = ((c < 4u ? w0 : w1) >> (8u * (c & 3u))) & 0xFFu;
-        g_corner[c] = vertices[vertex_base + local];
-    }
-}
-
-// The trilinear interpolant of the corners' (grad f, f) at q in the unit cell.
-vec4 trilinear(vec3 q) {
-    q = clamp(q, 0.0, 1.0);
-    vec4 x00 = mix(g_corner[0], g_corner[1], q.x), x10 = mix(g_corner[2], g_corner[3], q.x);
-    vec4 x01 = mix(g_corner[4], g_corner[5], q.x), x11 = mix(g_corner[6], g_corner[7], q.x);
-    return mix(mix(x00, x10, q.y), mix(x01, x11, q.y), q.z);
-}
-
-float trilinear_f(vec3 q) {
-    q = clamp(q, 0.0, 1.0);
-    float x00 = mix(g_corner[0].w, g_corner[1].w, q.x), x10 = mix(g_corner[2].w, g_corner[3].w, q.x);
-    float x01 = mix(g_corner[4].w, g_corner[5].w, q.x), x11 = mix(g_corner[6].w, g_corner[7].w, q.x);
-    return mix(mix(x00, x10, q.y), mix(x01, x11, q.y), q.z);
-}
-
-// The first s in [0, len] where the interpolant along p + s dir (p in the unit cell) is < 0,
-// refined to where it reaches 0; false when it stays >= 0. Along the ray the interpolant is a
+// The first s in [0, len] where the trilinear interpolant of crossed voxel `record`'s corners
+// (its leaf's vertices from vertex_base) along p + s dir (p in the unit cell) is < 0, refined
+// to where it reaches 0 (within len / 2^10, then a secant step), and the interpolated gradient
+// there; false when it stays >= 0. Along the ray the interpolant is a
 // cubic k0 + k1 s + k2 s^2 + k3 s^3; between consecutive roots of its derivative it is
 // monotone, so each such piece holds a root exactly when its ends differ in sign (a thin
 // crossing between two samples is never stepped over), and bisection keeps it bracketed.
-bool cell_root(vec3 p, vec3 dir, float len, out float s_hit) {
+bool cell_root(uint record, uint vertex_base, vec3 p, vec3 dir, float len, out float s_hit,
+               out vec3 grad) {
     s_hit = 0.0;
-    if (trilinear_f(p) < 0.0) {
-        return true;
+    grad = vec3(0.0);
+    // The corners (c = x + 2 y + 4 z: grad f, f), in a local array that unrolled loops index by
+    // constants only (a CPU driver keeps it in registers).
+    vec4 corner[8];
+    uint base = record * uint(VF_SDF_VOXEL_WORDS);
+    uint w0 = voxel_records[base], w1 = voxel_records[base + 1u];
+    [[unroll]] for (uint c = 0u; c < 8u; ++c) {
+        uint local = ((c < 4u ? w0 : w1) >> (8u * (c & 3u))) & 0xFFu;
+        corner[c] = vertices[vertex_base + local];
     }
+    p = clamp(p, 0.0, 1.0);
     vec4 k = vec4(0.0);  // k0..k3
-    for (uint c = 0u; c < 8u; ++c) {
+    [[unroll]] for (uint c = 0u; c < 8u; ++c) {
         // Each axis' weight is linear in s: (a, b) = a + b s.
         vec2 wx = (c & 1u) != 0u ? vec2(p.x, dir.x) : vec2(1.0 - p.x, -dir.x);
         vec2 wy = (c & 2u) != 0u ? vec2(p.y, dir.y) : vec2(1.0 - p.y, -dir.y);
@@ -337,8 +324,9 @@ bool cell_root(vec3 p, vec3 dir, float len, out float s_hit) {
                          wx.y * wy.x * wz.x + wx.x * wy.y * wz.x + wx.x * wy.x * wz.y,
                          wx.y * wy.y * wz.x + wx.y * wy.x * wz.y + wx.x * wy.y * wz.y,
                          wx.y * wy.y * wz.y);
-        k += g_corner[c].w * prod;
+        k += corner[c].w * prod;
     }
+    bool found = k.x < 0.0;  // already inside where the ray enters the cell
     // Roots of the derivative 3 k3 s^2 + 2 k2 s + k1 inside (0, len), in order.
     float a = 3.0 * k.w, b = 2.0 * k.z, cc = k.y;
     float split0 = len, split1 = len;
@@ -355,26 +343,36 @@ bool cell_root(vec3 p, vec3 dir, float len, out float s_hit) {
     }
     split0 = split0 > 0.0 && split0 < len ? split0 : len;
     split1 = split1 > split0 && split1 < len ? split1 : len;
-    float ends[3] = float[3](split0, split1, len);
     float lo = 0.0;
-    for (int i = 0; i < 3; ++i) {
-        float hi = ends[i];
-        if (hi > lo && trilinear_f(p + dir * hi) < 0.0) {
-            // f(lo) >= 0 > f(hi): bisect.
-            for (int it = 0; it < 24; ++it) {
+    for (int i = 0; i < 3 && !found; ++i) {
+        float hi = i == 0 ? split0 : (i == 1 ? split1 : len);
+        if (hi > lo && ((k.w * hi + k.z) * hi + k.y) * hi + k.x < 0.0) {
+            // f(lo) >= 0 > f(hi): bisect, then one secant step between the bracket's ends.
+            float flo = ((k.w * lo + k.z) * lo + k.y) * lo + k.x;
+            float fhi = ((k.w * hi + k.z) * hi + k.y) * hi + k.x;
+            for (int it = 0; it < 10; ++it) {
                 float mid = 0.5 * (lo + hi);
-                if (trilinear_f(p + dir * mid) < 0.0) {
+                float fm = ((k.w * mid + k.z) * mid + k.y) * mid + k.x;
+                if (fm < 0.0) {
                     hi = mid;
+                    fhi = fm;
                 } else {
                     lo = mid;
+                    flo = fm;
                 }
             }
-            s_hit = 0.5 * (lo + hi);
-            return true;
+            s_hit = flo > fhi ? lo + (hi - lo) * flo / (flo - fhi) : hi;
+            found = true;
         }
         lo = max(lo, hi);
     }
-    return false;
+    if (found) {
+        vec3 q = clamp(p + dir * s_hit, 0.0, 1.0);
+        vec4 x00 = mix(corner[0], corner[1], q.x), x10 = mix(corner[2], corner[3], q.x);
+        vec4 x01 = mix(corner[4], corner[5], q.x), x11 = mix(corner[6], corner[7], q.x);
+        grad = mix(mix(x00, x10, q.y), mix(x01, x11, q.y), q.z).xyz;
+    }
+    return found;
 }
 
 // Marches the ray o + t dir (dir normalised, tiny components zeroed) from where it enters the
@@ -456,95 +454,108 @@ bool march(vec3 o, vec3 dir, out ivec3 cell, out ivec3 face, out vec3 point, ino
         // d >= 255; the minimum distance over the cell's 8^3 block (same metric, unsaturated)
         // is also a lower bound of the cell's distance, so the rule applies to
         // d = max(255, that minimum).
+        // kImplicit: the walk stops at every cell of distance 0; a cell the surface crosses is
+        // then tested for a root of its interpolant outside the walk's loop (which stays as
+        // small as it is for voxel worlds), and the walk resumes one step on when there is
+        // none. Voxel worlds run the outer loop once.
+        bool resume = false;
         for (;;) {
-            // VF_PACKED_DISTANCE_* and VF_COMPACT_DISTANCE_* agree (static_assert'ed on the host).
-            uint d = (read_cell(cell) >> VF_PACKED_DISTANCE_SHIFT) & VF_PACKED_DISTANCE_MAX;
-            if (kCount) {
-                ++fetches;
-            }
-            if (d == 0u) {
-                float t_in = 0.0;
-                if (cell != entry) {
-                    // Entered through the face it stepped across: that boundary plane's t,
-                    // from the same expression t_next held for it.
-                    // (Component selects, not a dynamic index: GPUs keep vectors in registers.)
-                    vec3 t_face = (vec3(cell + max(-stp, ivec3(0))) - start) * inv;
-                    t_in = face.x != 0 ? t_face.x : (face.y != 0 ? t_face.y : t_face.z);
-                }
-                bool crossed = false;
-                if (kImplicit) {
-                    uint vertex_base;
-                    uint record = crossed_record(cell, vertex_base);
-                    if (record != kNoRecord) {
-                        // The ray's segment inside the cell, from t_in to the next boundary.
-                        crossed = true;
-                        load_corners(record, vertex_base);
-                        float t_out = min(min(t_next.x, t_next.y), t_next.z);
-                        vec3 p = start + dir * t_in - vec3(cell);
-                        float s;
-                        if (cell_root(p, dir, max(t_out - t_in, 0.0), s)) {
-                            hit = true;
-                            point = start + dir * (t_in + s);
-                            vec3 grad = trilinear(point - vec3(cell)).xyz;
-                            float len = length(grad);
-                            g_smooth = true;
-                            g_normal = len > 0.0 ? grad / len : -dir;
-                            break;
-                        }
-                        d = 1u;  // no root: on to the next cell
-                    }
-                }
-                if (!crossed) {
-                    hit = true;
-                    point = cell != entry ? start + dir * t_in : start;
-                    break;
-                }
-            }
-            if (coarse && d == VF_PACKED_DISTANCE_MAX) {
-                uvec3 b = uvec3(cell) / uvec3(VF_RAYMARCH_BLOCK);
-                d = max(d, block_min[(b.z * blocks.y + b.y) * blocks.x + b.x]);
-            }
-            uvec3 off = uvec3(0u);  // L-inf, L2: |o_i|, steps along each axis since the fetch
-            uint off1 = 0u;         // L1: |o|_1, the steps since the fetch
-            uint off2 = 0u;         // L2: |o|^2
-            uint clamped = min(d, 65535u);
-            uint d2 = clamped * clamped;
-            bool inside = true;
             for (;;) {
-                // The axis whose boundary comes first (ties: x, then y, then z).
-                bool bx = t_next.x <= t_next.y && t_next.x <= t_next.z;
-                bool by = !bx && t_next.y <= t_next.z;
-                ivec3 m = ivec3(bx, by, !bx && !by);
-                face = m * stp;
-                cell += face;
-                if (kCount) {
-                    ++steps;
+                uint d = 1u;
+                if (!(kImplicit && resume)) {
+                    // VF_PACKED_DISTANCE_* and VF_COMPACT_DISTANCE_* agree (static_assert'ed
+                    // on the host).
+                    d = (read_cell(cell) >> VF_PACKED_DISTANCE_SHIFT) & VF_PACKED_DISTANCE_MAX;
+                    if (kCount) {
+                        ++fetches;
+                    }
+                    if (d == 0u) {
+                        hit = true;
+                        break;
+                    }
+                    if (coarse && d == VF_PACKED_DISTANCE_MAX) {
+                        uvec3 b = uvec3(cell) / uvec3(VF_RAYMARCH_BLOCK);
+                        d = max(d, block_min[(b.z * blocks.y + b.y) * blocks.x + b.x]);
+                    }
                 }
-                if (any(lessThan(cell, ivec3(0))) || any(greaterThanEqual(cell, dims))) {
-                    inside = false;
+                resume = false;
+                uvec3 off = uvec3(0u);  // L-inf, L2: |o_i|, steps along each axis since the fetch
+                uint off1 = 0u;         // L1: |o|_1, the steps since the fetch
+                uint off2 = 0u;         // L2: |o|^2
+                uint clamped = min(d, 65535u);
+                uint d2 = clamped * clamped;
+                bool inside = true;
+                for (;;) {
+                    // The axis whose boundary comes first (ties: x, then y, then z).
+                    bool bx = t_next.x <= t_next.y && t_next.x <= t_next.z;
+                    bool by = !bx && t_next.y <= t_next.z;
+                    ivec3 m = ivec3(bx, by, !bx && !by);
+                    face = m * stp;
+                    cell += face;
+                    if (kCount) {
+                        ++steps;
+                    }
+                    if (any(lessThan(cell, ivec3(0))) || any(greaterThanEqual(cell, dims))) {
+                        inside = false;
+                        break;
+                    }
+                    t_next =
+                        mix(t_next, (vec3(cell + max(stp, ivec3(0))) - start) * inv, bvec3(m));
+                    bool beyond;
+                    if (kMetric == kChebyshev || kMetric == kEuclidean) {
+                        uint along = bx ? off.x : (by ? off.y : off.z);
+                        off += uvec3(m);
+                        if (kMetric == kChebyshev) {
+                            beyond = along + 1u >= d;
+                        } else {
+                            off2 += 2u * along + 1u;
+                            beyond = off2 >= d2;
+                        }
+                    } else {
+                        beyond = ++off1 >= d;
+                    }
+                    if (beyond) {
+                        break;  // the first cell outside the empty region: fetch it
+                    }
+                }
+                if (!inside) {
                     break;
                 }
-                t_next = mix(t_next, (vec3(cell + max(stp, ivec3(0))) - start) * inv, bvec3(m));
-                bool beyond;
-                if (kMetric == kChebyshev || kMetric == kEuclidean) {
-                    uint along = bx ? off.x : (by ? off.y : off.z);
-                    off += uvec3(m);
-                    if (kMetric == kChebyshev) {
-                        beyond = along + 1u >= d;
-                    } else {
-                        off2 += 2u * along + 1u;
-                        beyond = off2 >= d2;
-                    }
-                } else {
-                    beyond = ++off1 >= d;
-                }
-                if (beyond) {
-                    break;  // the first cell outside the empty region: fetch it
-                }
             }
-            if (!inside) {
+            if (!hit) {
                 break;
             }
+            float t_in = 0.0;
+            if (cell != entry) {
+                // Entered through the face it stepped across: that boundary plane's t, from
+                // the same expression t_next held for it.
+                // (Component selects, not a dynamic index: GPUs keep vectors in registers.)
+                vec3 t_face = (vec3(cell + max(-stp, ivec3(0))) - start) * inv;
+                t_in = face.x != 0 ? t_face.x : (face.y != 0 ? t_face.y : t_face.z);
+            }
+            if (kImplicit) {
+                uint vertex_base;
+                uint record = crossed_record(cell, vertex_base);
+                if (record != kNoRecord) {
+                    // The ray's segment inside the cell, from t_in to the next boundary.
+                    float t_out = min(min(t_next.x, t_next.y), t_next.z);
+                    vec3 p = start + dir * t_in - vec3(cell);
+                    float s;
+                    vec3 grad;
+                    if (cell_root(record, vertex_base, p, dir, max(t_out - t_in, 0.0), s, grad)) {
+                        point = start + dir * (t_in + s);
+                        float len = length(grad);
+                        g_smooth = true;
+                        g_normal = len > 0.0 ? grad / len : -dir;
+                        break;
+                    }
+                    hit = false;  // no root: on to the next cell
+                    resume = true;
+                    continue;
+                }
+            }
+            point = cell != entry ? start + dir * t_in : start;
+            break;
         }
     }
     return hit;
