@@ -463,6 +463,57 @@ TEST(ImplicitTrace, VoxelWorldsKeepCubes) {
     EXPECT_THROW(static_cast<void>(marcher.render_to(r, vk::ExternalMemory())), std::logic_error);
 }
 
+// A crossing narrower than any fixed sampling of the segment: one crossed voxel whose
+// interpolant along the ray is 0.225 (1 - 2x)^2 + c, x the ray's progress through the voxel.
+// With c = -0.001 it dips below 0 only for |1 - 2x| < 0.067 (both ends of the segment at
+// +0.224): the root at x = 0.4667 is found; with c = +0.001 the ray passes.
+TEST(ImplicitTrace, ThinCrossingInsideOneVoxel) {
+    for (const double c : {-0.001, 0.001}) {
+        // f(x, y, z) = -(1 - 2x)(1 - 2y) / 4 + c over the voxel (1, 1, 1) of a 4^3 grid: one
+        // tile of depth 0, one leaf, one crossed voxel (child 1 + 4 + 16).
+        std::vector<float> vertices;
+        for (std::uint32_t k = 0; k < 8; ++k) {
+            const double x = k & 1, y = k >> 1 & 1;
+            const double f = -(1 - 2 * x) * (1 - 2 * y) / 4 + c;
+            const double gx = (1 - 2 * y) / 2, gy = (1 - 2 * x) / 2;
+            vertices.insert(vertices.end(), {float(gx), float(gy), 0.0f, float(f)});
+        }
+        const std::vector<std::uint32_t> tiles = {0};
+        const std::vector<std::uint32_t> nodes = {0, 0, 1u << 21, 0, 0, 0};
+        const std::vector<std::uint32_t> voxels = {0x03020100u, 0x07060504u, 1};
+        vk::ImplicitSurface surface;
+        surface.dims = Dims{4, 4, 4};
+        surface.tiles = Dims{1, 1, 1};
+        surface.tile_depth = 0;
+        surface.tile_table = tiles;
+        surface.nodes = nodes;
+        surface.voxels = voxels;
+        surface.vertices = vertices;
+        World world(Dims{4, 4, 4});
+        world.set(1, 1, 1, 1);
+        vk::Raymarcher marcher(validated_vulkan());
+        marcher.upload_compact(world.dims(), Palette(), compact_field(world));
+        marcher.set_implicit(surface);
+        // The ray y = 1.95 - 0.9 (x - 1) in the plane z = 1.5, through (1.5, 1.5, 1.5).
+        const D3 dir = mul(D3{1, -0.9, 0}, 1 / std::hypot(1.0, 0.9));
+        vk::RenderOptions r;
+        r.width = r.height = 1;
+        r.camera.target = {1.5, 1.5, 1.5};
+        r.camera.position = sub(r.camera.target, mul(dir, 10));
+        r.surface = true;
+        const vk::SurfaceHit hit = marcher.render(r).surface.at(0);
+        if (c > 0) {
+            EXPECT_EQ(hit.kind, float(VF_TRACE_MISS));
+            continue;
+        }
+        ASSERT_EQ(hit.kind, float(VF_TRACE_SMOOTH));
+        const double x = 0.5 - std::sqrt(0.001 / 0.225) / 2;  // the first root
+        EXPECT_NEAR(hit.x, 1 + x, 1e-4);
+        EXPECT_NEAR(hit.y, 1.95 - 0.9 * x, 1e-4);
+        EXPECT_NEAR(hit.z, 1.5, 1e-5);
+    }
+}
+
 // A grid whose arrays do not fit its tiles or point past each other is refused, and the surface
 // held before stays.
 TEST(ImplicitTrace, RefusesInconsistentGrids) {
