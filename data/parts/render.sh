@@ -1,7 +1,7 @@
 #!/bin/sh
-# Renders the README's pictures of the implicit-part gallery: each part's discretised solid
-# (voxel cubes at the part's voxel_size; the smooth tracing of the corner data is not built),
-# lit, from the default camera, 480x360, into this folder.
+# Renders the README's pictures of the implicit-part gallery: each part discretised at its
+# voxel_size and traced on the trilinear interpolant of its crossed voxels' corners, lit, from
+# the default camera, 480x360, into this folder.
 # Usage: data/parts/render.sh [VOXFIELD]   (default: build/viewer/voxfield)
 set -eu
 here=$(dirname "$0")

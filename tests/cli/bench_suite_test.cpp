@@ -280,11 +280,18 @@ TEST_F(BenchSuite, ImplicitFindsItsPartBesideTheBinary) {
     ASSERT_EQ(run_in_io(log), 0) << read_text(log);
     const json doc = json::parse(read_text(js));
     expect_common(doc, "implicit");
-    ASSERT_EQ(doc["results"].size(), 4u);  // --quick: 256^3 at tile depths 1-4
+    // --quick: 256^3 at tile depths 1-4, then the part traced at 1920x1080, lit and flat.
+    ASSERT_EQ(doc["results"].size(), 6u);
     for (const json& row : doc["results"]) {
         EXPECT_EQ(row["part"], "bracket.sdf.json");
         EXPECT_GT(row["median_ms"].get<double>(), 0.0) << row.dump().substr(0, 200);
-        EXPECT_GT(row["leaves"].get<std::uint64_t>(), 0u) << row.dump().substr(0, 200);
+        if (row["table"] == "implicit") {
+            EXPECT_GT(row["leaves"].get<std::uint64_t>(), 0u) << row.dump().substr(0, 200);
+        } else {
+            EXPECT_EQ(row["table"], "implicit_trace");
+            EXPECT_EQ(row["width"], 1920);
+            EXPECT_GT(row["crossed_voxels"].get<std::uint64_t>(), 0u);
+        }
     }
     fs::remove(js);
     fs::remove_all(prefix / "share" / "voxfield" / "parts");

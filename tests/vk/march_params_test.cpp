@@ -118,6 +118,13 @@ TEST(MarchParams, PushConstantsCarryTheImageAndTheField) {
     o.shading = vk::Shading::lit;
     pc = vk::push_constants(o, l, false);
     EXPECT_EQ(pc.image[2], std::uint32_t{VF_RAYMARCH_FLAG_LIT | VF_RAYMARCH_FLAG_SKY_GRADIENT});
+    // An implicit surface's tile grid rides along; zeros without one.
+    EXPECT_EQ(pc.implicit[0] | pc.implicit[1] | pc.implicit[2] | pc.implicit[3], 0u);
+    pc = vk::push_constants(o, l, false, {3, 2, 5, 1});
+    EXPECT_EQ(pc.implicit[0], 3u);
+    EXPECT_EQ(pc.implicit[1], 2u);
+    EXPECT_EQ(pc.implicit[2], 5u);
+    EXPECT_EQ(pc.implicit[3], 1u);
     // Bad options are bad input, as for a render.
     o.camera.target = o.camera.position;
     EXPECT_THROW(vk::push_constants(o, l, false), InputError);

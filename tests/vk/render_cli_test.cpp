@@ -158,6 +158,57 @@ TEST_F(RenderCli, SpacingGivesTheSameImage) {
     EXPECT_FALSE(fs::exists(dir_ / "p.png"));
 }
 
+// A part (.sdf.json) is traced on the trilinear surface of its discretisation: the report says
+// so, every metric and field format gives the same image (the walk decides where a ray meets a
+// crossed voxel, never whether), and `view` shows the same frame.
+TEST_F(RenderCli, PartsAreTracedOnTheirSurface) {
+    const fs::path part = fs::path(VOXFIELD_DATA_DIR) / "parts" / "gear_ring.sdf.json";
+    const fs::path reference = dir_ / "part.png";
+    RunResult r = run_voxfield(
+        {"render", part.string(), "-o", reference.string(), "--width", "64", "--height", "48"},
+        io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_NE(r.out.find("implicit: "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("crossed voxels traced on the trilinear interpolant"), std::string::npos)
+        << r.out;
+    for (const std::string metric : {"chebyshev", "euclidean"}) {
+        for (const std::string field : {"compact", "packed32"}) {
+            const fs::path out = dir_ / (metric + "-" + field + ".png");
+            r = run_voxfield({"render", part.string(), "-o", out.string(), "--width", "64",
+                              "--height", "48", "--metric", metric, "--field", field},
+                             io_);
+            ASSERT_EQ(r.code, 0) << describe(r);
+            EXPECT_EQ(read_bytes(out), read_bytes(reference)) << metric << " " << field;
+        }
+    }
+    // view's headless frame (no display): the same default camera and the same surface.
+    const fs::path shown = dir_ / "view.png";
+    const char* display = std::getenv("DISPLAY");
+    const std::string saved = display ? display : "";
+    ::unsetenv("DISPLAY");
+    r = run_voxfield({"view", part.string(), "--shading", "flat", "--width", "64", "--height", "48",
+                      "--fallback-png", shown.string()},
+                     io_);
+    if (!saved.empty()) {
+        ::setenv("DISPLAY", saved.c_str(), 1);
+    }
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_EQ(read_bytes(shown), read_bytes(reference));
+}
+
+// A malformed part: one line, exit 2, no image.
+TEST_F(RenderCli, BadPartExitsTwo) {
+    write_file(dir_ / "bad.sdf.json",
+               R"({"version": 1, "voxel_size": 0.5, "bounds": [[0, 0, 0], [4, 4, 4]],
+                   "shape": {"teapot": {}}})");
+    const fs::path out = dir_ / "bad.png";
+    const RunResult r =
+        run_voxfield({"render", (dir_ / "bad.sdf.json").string(), "-o", out.string()}, io_);
+    EXPECT_EQ(r.code, 2) << describe(r);
+    EXPECT_EQ(split_lines(r.err).size(), 1u) << describe(r);
+    EXPECT_FALSE(fs::exists(out));
+}
+
 TEST_F(RenderCli, HelpListsEveryOption) {
     const RunResult r = run_voxfield({"render", "--help"}, io_);
     ASSERT_EQ(r.code, 0) << describe(r);

@@ -10,10 +10,15 @@
 #include <string>
 #include <vector>
 
+#include "cli_util.hpp"
+#include "traced_part.hpp"
 #include "voxfield/cl/implicit.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/sdf.hpp"
 #include "voxfield/core/stats.hpp"
+#include "voxfield/pipeline/frame_pipeline.hpp"
+#include "voxfield/vk/context.hpp"
+#include "voxfield/vk/raymarcher.hpp"
 
 namespace voxfield::cli {
 namespace {
@@ -40,6 +45,87 @@ double process_cpu_ms() {
     getrusage(RUSAGE_SELF, &u);
     return (double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) * 1e3) +
            double(u.ru_utime.tv_usec + u.ru_stime.tv_usec) * 1e-3;
+}
+
+// The part as committed (its own voxel size), discretised with the default tile depth and traced
+// by the ray marcher at 1920x1080 from render's default camera, lit (shadow rays, occlusion)
+// and flat, through the frame pipeline that render and view use: one row per shading, each
+// frame's dispatch timed by GPU timestamps.
+json trace_rows(ocl::Context& ctx, const fs::path& path, std::uint32_t repeat, std::uint32_t warmup,
+                double budget_s, BenchObserver& observer) {
+    constexpr std::uint32_t kWidth = 1920, kHeight = 1080;
+    const sdf::Part source = sdf::load_part(path);
+    const TracedPart part = load_traced_part(ctx, source, path.string());
+    const Dims dims = part.model.world.dims();
+    vk::Context vk_ctx;
+    observer.stage("suite implicit: ray march of " + path.filename().string() + " " +
+                   dims.to_string() + " at " + std::to_string(kWidth) + "x" +
+                   std::to_string(kHeight) + " on " + vk_ctx.info().name);
+    pipeline::FramePipeline frames(ctx, vk_ctx, part.model.palette, dims);
+    ocl::GeneratorOptions g;
+    g.format = Format::u16;
+    frames.rebuild(World(part.model.world), g);
+    vk::Raymarcher& marcher = frames.marcher();
+    marcher.set_implicit(part.surface());
+    json rows = json::array();
+    for (const vk::Shading shading : {vk::Shading::lit, vk::Shading::flat}) {
+        const std::string name = shading == vk::Shading::lit ? "lit" : "flat";
+        vk::RenderOptions r;
+        r.width = kWidth;
+        r.height = kHeight;
+        r.camera = vk::default_camera(part.model.world, kWidth, kHeight);
+        r.shading = shading;
+        r.sky_gradient = shading == vk::Shading::lit;
+        std::vector<double> ms;
+        const auto start = std::chrono::steady_clock::now();
+        vk::Image image;
+        for (std::uint32_t i = 0; i < warmup + repeat; ++i) {
+            observer.progress("implicit ray march " + name + ": " +
+                              (i < warmup ? "warm-up " : "run ") + std::to_string(i + 1));
+            marcher.render(r, image);
+            if (image.raymarch_ms < 0) {
+                throw std::runtime_error(vk_ctx.info().name +
+                                         " has no compute timestamps to time the ray march");
+            }
+            if (i >= warmup) {
+                ms.push_back(image.raymarch_ms);
+            }
+            if (i >= warmup &&
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() >
+                    budget_s) {
+                break;
+            }
+        }
+        const Summary s = summarize(ms);
+        const double rays = double(kWidth) * double(kHeight);
+        rows.push_back({{"table", "implicit_trace"},
+                        {"group", std::to_string(kWidth) + "x" + std::to_string(kHeight)},
+                        {"algorithm", "trace " + name},
+                        {"part", path.filename().string()},
+                        {"voxel_size", source.voxel_size},
+                        {"size", {dims.x, dims.y, dims.z}},
+                        {"width", kWidth},
+                        {"height", kHeight},
+                        {"shading", name},
+                        {"vulkan_device", vk_ctx.info().name},
+                        {"tile_depth", part.grid.tile_depth},
+                        {"crossed_voxels", part.grid.crossed_count()},
+                        {"implicit_bytes", marcher.implicit_bytes()},
+                        {"median_ms", s.median},
+                        {"mean_ms", s.mean},
+                        {"std_ms", s.std},
+                        {"ci95_ms", {s.ci95_lo, s.ci95_hi}},
+                        {"min_ms", s.min},
+                        {"max_ms", s.max},
+                        {"iterations", s.n},
+                        {"mrays_per_s", rays / (s.median * 1e-3) / 1e6},
+                        {"max_error", nullptr},
+                        {"mean_error", nullptr}});
+        observer.stage("implicit: ray march " + name + " " + std::to_string(kWidth) + "x" +
+                       std::to_string(kHeight) + ": median " + fixed(s.median, 3) +
+                       " ms (GPU timestamps, " + std::to_string(s.n) + " runs)");
+    }
+    return rows;
 }
 
 }  // namespace
@@ -126,6 +212,10 @@ json run_implicit(ocl::Context& ctx, const fs::path& path, std::uint32_t repeat,
                             {"mean_error", nullptr}});
             observer.row(rows.back());
         }
+    }
+    // The trace rows go to the JSON and the log (stage), not to the discretisation table.
+    for (json& row : trace_rows(ctx, path, repeat, warmup, budget_s, observer)) {
+        rows.push_back(std::move(row));
     }
     return rows;
 }

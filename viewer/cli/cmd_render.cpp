@@ -16,10 +16,12 @@
 
 #include "cli_util.hpp"
 #include "png.hpp"
+#include "traced_part.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/metric.hpp"
 #include "voxfield/core/output.hpp"
+#include "voxfield/core/sdf.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/pipeline/frame_pipeline.hpp"
 #include "voxfield/vk/raymarcher.hpp"
@@ -116,7 +118,21 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
         vk::validate(check);  // sizes and field of view
     }
 
-    const VoxModel model = load_world(o.input, InputOptions{.grid = {}, .palette_values = true});
+    // A part (.sdf.json) is discretised on the OpenCL device and traced on its trilinear
+    // surface; any other input is read as voxels.
+    std::optional<sdf::Part> part;
+    std::optional<VoxModel> loaded;
+    if (sdf::is_sdf_path(o.input)) {
+        part = sdf::load_part(o.input);
+    } else {
+        loaded = load_world(o.input, InputOptions{.grid = {}, .palette_values = true});
+    }
+    ocl::Context cl_ctx(ocl::select_device(o.device));
+    std::optional<TracedPart> traced;
+    if (part) {
+        traced = load_traced_part(cl_ctx, *part, o.input);
+    }
+    const VoxModel& model = traced ? traced->model : *loaded;
     const World& world = model.world;
     const vk::Camera fallback = vk::default_camera(world, r.width, r.height, r.camera.fov_deg);
     r.camera.position = camera ? *camera : fallback.position;
@@ -138,7 +154,6 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
     }
     g.format = format == vk::FieldFormat::packed32 ? Format::packed32 : Format::u16;
     g = ocl::resolve_options(g, world.dims());
-    ocl::Context cl_ctx(ocl::select_device(o.device));
     vk::Context vk_ctx(vk::ContextOptions{"", validation});
     // The frame pipeline that view and bench use too. compact: OpenCL converts the u16 field
     // and the world's voxels into the compact format where Vulkan reads it (paths 1, 2) or
@@ -148,6 +163,9 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
     po.render_format = format;
     pipeline::FramePipeline frames(cl_ctx, vk_ctx, model.palette, world.dims(), po);
     const double build_ms = frames.rebuild(World(world), g);
+    if (traced) {
+        frames.marcher().set_implicit(traced->surface());
+    }
     const vk::Raymarcher& marcher = frames.marcher();
     const std::string why_not = frames.why_not();
     vk::Image image;
@@ -164,7 +182,19 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
               << "vulkan:  " << vk_ctx.info().name << " (" << vk_ctx.info().type << ", Vulkan "
               << vk_ctx.info().api << ")\n"
               << "world:   " << o.input << "  " << world.dims().to_string() << " = " << world.size()
-              << " voxels, " << world.solid_count() << " solid\n"
+              << " voxels, "
+              << (traced ? std::to_string(traced->solid) + " solid at the centre, " +
+                               std::to_string(world.solid_count() - traced->solid) +
+                               " more crossed by the surface\n"
+                         : std::to_string(world.solid_count()) + " solid\n")
+              << (traced
+                      ? "implicit: " + std::to_string(traced->grid.crossed_count()) +
+                            " crossed voxels traced on the trilinear interpolant of their "
+                            "corners (tile depth " +
+                            std::to_string(traced->grid.tile_depth) + ", " +
+                            std::to_string(marcher.implicit_bytes()) + " bytes), discretised in " +
+                            fixed(traced->discretise_ms, 1) + " ms\n"
+                      : std::string())
               << "sharing: " << marcher.sharing_path()
               << (why_not.empty() ? std::string() : " [" + why_not + "]") << "; field in "
               << marcher.field_bindings() << " storage-buffer binding"
@@ -218,7 +248,8 @@ Command add_render(CLI::App& root) {
         ->capture_default_str();
     app->add_option("--shading", o->shading,
                     "flat: the hit voxel's palette colour exactly, unlit, misses the --sky "
-                    "colour; lit: face normal, sun (shadows by a ray marched toward it) and "
+                    "colour; lit: face normal (an implicit part's surface: the interpolated "
+                    "gradient), sun (shadows by a ray marched toward it) and "
                     "ambient light (occlusion from the field), sRGB-correct, misses the "
                     "sky gradient and sun disc unless --sky is given")
         ->check(CLI::IsMember({"flat", "lit"}))

@@ -17,6 +17,7 @@
 
 #include "cli_util.hpp"
 #include "png.hpp"
+#include "traced_part.hpp"
 #include "view_benchmark.hpp"
 #include "view_input.hpp"
 #include "view_options.hpp"
@@ -26,6 +27,7 @@
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/sand.hpp"
 #include "voxfield/core/scenes.hpp"
+#include "voxfield/core/sdf.hpp"
 #include "voxfield/core/vox.hpp"
 
 namespace voxfield::cli {
@@ -46,15 +48,21 @@ std::string timestamp() {
     return buf;
 }
 
-// The world to view: INPUT, or a generated scene; named for the reports.
+// The world to view: INPUT, or a generated scene; named for the reports. A part (.sdf.json)
+// is read here and discretised once the OpenCL device is open (traced_part.hpp).
 struct ViewWorld {
     VoxModel model{World(Dims{1, 1, 1}), Palette::dissertation()};
     std::string name;
+    std::optional<sdf::Part> part;
 };
 
 ViewWorld load_view_world(const ViewCliOptions& o) {
     ViewWorld w;
-    if (!o.input.empty()) {
+    if (!o.input.empty() && sdf::is_sdf_path(o.input)) {
+        w.part = sdf::load_part(o.input);
+        w.model.world = World(w.part->dims);
+        w.name = o.input;
+    } else if (!o.input.empty()) {
         w.model = load_world(o.input, InputOptions{.grid = {}, .palette_values = true});
         w.name = o.input;
     } else {
@@ -153,9 +161,19 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     const std::unique_ptr<vk::Context> vk_ctx =
         marcher_context(window.handle(), validation, why_not_one_device);
     Frames frames(*vk_ctx);
+    std::optional<TracedPart> traced;
+    if (world.part) {
+        traced = load_traced_part(cl_ctx, *world.part, o.input);
+        world.model = traced->model;
+    }
     pipeline::FramePipeline session(cl_ctx, *vk_ctx, world.model.palette, dims);
     const Framing framing = solid_framing(world.model.world);  // the default camera's view
     const double build_ms = session.rebuild(std::move(world.model.world), gopts);
+    if (traced) {
+        // Traced on its trilinear surface until an edit changes the world (view_session).
+        session.marcher().set_implicit(traced->surface());
+        traced.reset();
+    }
     print_start(cl_ctx, *vk_ctx, session, world.name, build_ms);
     std::unique_ptr<Screen> screen;
     std::unique_ptr<Overlay> overlay;

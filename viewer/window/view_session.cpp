@@ -166,6 +166,9 @@ void switch_field(ViewState& s, pipeline::FramePipeline& session, const SwitchRe
                              scene_seed)
                 : World(session.world());
         const double ms = session.rebuild(std::move(world), next);
+        if (request.scene) {
+            session.marcher().clear_implicit();  // an implicit part's surface is not the scene's
+        }
         s.switch_error.clear();
         std::cout << "regenerated: " << ocl::to_string(next.algorithm)
                   << (next.chunk ? ", chunk " + std::to_string(next.chunk)
@@ -261,6 +264,11 @@ FrameUpdate apply_frame(ViewState& s, pipeline::FramePipeline& session, const Vi
     }
     if (update.timings.total_ms() > 0) {
         s.last_update = update.timings;
+    }
+    // An implicit part's surface describes the world as loaded: any change shows voxels.
+    if ((edits.history != History::none || !edits.batch.empty() || o.simulate) &&
+        session.marcher().has_implicit()) {
+        session.marcher().clear_implicit();
     }
     return update;
 }

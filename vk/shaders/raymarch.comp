@@ -2,9 +2,16 @@
 // DDA ray marcher over a packed32 or compact Manhattan, Chebyshev or Euclidean distance field.
 // Traversal: Amanatides & Woo, "A Fast Voxel Traversal Algorithm for Ray Tracing" (Eurographics
 // 1987); empty-space skipping by the distance field as in the dissertation's viewer (chapter 5),
-// without its step cap.
+// without its step cap. Implicit surfaces: in a voxel the surface crosses, the first root of the
+// trilinear interpolant of its corner values along the ray (a cubic in the ray parameter, split
+// into monotone pieces at the roots of its derivative, each bracketed and bisected: Marmitt et
+// al., "Fast and Accurate Ray-Voxel Intersection Techniques for Iso-Surface Ray Tracing", VMV
+// 2004), shaded with the interpolated gradient.
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_control_flow_attributes : require
+#include "voxfield/core/sdf_layout.hpp"
 #include "voxfield/layout.h"
+#include "voxfield/vk/trace_layout.h"
 
 layout(local_size_x = VF_RAYMARCH_LOCAL_SIZE, local_size_y = VF_RAYMARCH_LOCAL_SIZE) in;
 
@@ -23,6 +30,11 @@ layout(constant_id = 3) const bool kOneSlab = false;
 // Whether the field is compact (16 bits per cell) rather than packed32 with material bytes at
 // VF_RAYMARCH_BINDING_MATERIAL.
 layout(constant_id = 4) const bool kCompact = true;
+// Whether an implicit surface is traced (its grid at VF_TRACE_BINDING_*): a solid cell the
+// surface crosses is hit where the trilinear interpolant of its corners first reaches f < 0.
+layout(constant_id = 5) const bool kImplicit = false;
+// Whether each primary ray records its hit point and normal (VF_TRACE_BINDING_SURFACE).
+layout(constant_id = 6) const bool kSurface = false;
 
 // One RGBA8 pixel per texel, r | g << 8 | b << 16 | a << 24 (bytes R, G, B, A in memory), so
 // flat colours are written bit-exactly (no float -> unorm rounding).
@@ -96,14 +108,33 @@ layout(std430, binding = VF_RAYMARCH_BINDING_MATERIAL + VF_RAYMARCH_MAX_SLABS) w
     uvec2 counters[];
 };
 
-// Mirrors PushConstants in vk/src/raymarcher.cpp (static_asserts there).
+// With kImplicit: an ocl::ImplicitGrid's arrays (core/sdf_layout.hpp); placeholders otherwise.
+layout(std430, binding = VF_TRACE_BINDING_TILES) readonly buffer TileBuf {
+    uint tile_table[];
+};
+layout(std430, binding = VF_TRACE_BINDING_NODES) readonly buffer NodeBuf {
+    uint nodes[];
+};
+layout(std430, binding = VF_TRACE_BINDING_VOXELS) readonly buffer VoxelBuf {
+    uint voxel_records[];
+};
+layout(std430, binding = VF_TRACE_BINDING_VERTICES) readonly buffer VertexBuf {
+    vec4 vertices[];  // grad f (x, y, z), f
+};
+// With kSurface: per pixel (row by row) (point, kind), (normal, t) (trace_layout.h).
+layout(std430, binding = VF_TRACE_BINDING_SURFACE) writeonly buffer SurfaceBuf {
+    vec4 surface_hits[];
+};
+
+// Mirrors PushConstants in vk/src/march_params.hpp (static_asserts there).
 layout(push_constant) uniform Params {
-    vec4 origin;   // camera position (xyz)
-    vec4 forward;  // unit view direction
-    vec4 right;    // camera right * aspect * tan(fov / 2)
-    vec4 up;       // camera up * tan(fov / 2)
-    uvec4 dims;    // world X, Y, Z; z-slices per slab
-    uvec4 image;   // width, height, VF_RAYMARCH_FLAG_*, flat sky colour (packed RGBA8)
+    vec4 origin;     // camera position (xyz)
+    vec4 forward;    // unit view direction
+    vec4 right;      // camera right * aspect * tan(fov / 2)
+    vec4 up;         // camera up * tan(fov / 2)
+    uvec4 dims;      // world X, Y, Z; z-slices per slab
+    uvec4 image;     // width, height, VF_RAYMARCH_FLAG_*, flat sky colour (packed RGBA8)
+    uvec4 implicit;  // kImplicit: the surface's tiles X, Y, Z and tile depth
 }
 pc;
 
@@ -212,6 +243,138 @@ vec3 sky_srgb(vec3 dir) {
 bool g_coarse;
 uvec3 g_blocks;
 
+// kImplicit: the latest march's hit was on the trilinear interpolant (g_smooth), with the
+// normalised interpolated gradient g_normal.
+bool g_smooth;
+vec3 g_normal;
+
+const uint kNoRecord = 0xFFFFFFFFu;
+
+// The record of cell c among the crossed voxels, and its leaf's first vertex, when the surface
+// crosses c; kNoRecord otherwise (an empty or full tile, cell, or a voxel of a leaf that the
+// surface does not cross). Walks the tile's contree: a child's rank among the occupied bits
+// gives its position among its siblings.
+uint crossed_record(ivec3 c, out uint vertex_base) {
+    vertex_base = 0u;
+    uvec3 u = uvec3(c);
+    uint depth = pc.implicit.w;
+    uvec3 t = u >> (2u * (depth + 1u));
+    uint node = tile_table[(t.z * pc.implicit.y + t.y) * pc.implicit.x + t.x];
+    if (node == VF_SDF_TILE_EMPTY || node == VF_SDF_TILE_FULL) {
+        return kNoRecord;
+    }
+    for (uint shift = 2u * depth;; shift -= 2u) {
+        uvec3 l = (u >> shift) & 3u;
+        uint child = l.x + 4u * l.y + 16u * l.z;
+        uint base = node * uint(VF_SDF_NODE_WORDS);
+        uint lo = nodes[base + 2u], hi = nodes[base + 3u];
+        uint rank;
+        if (child < 32u) {
+            if (((lo >> child) & 1u) == 0u) {
+                return kNoRecord;
+            }
+            rank = uint(bitCount(lo & ((1u << child) - 1u)));
+        } else {
+            if (((hi >> (child - 32u)) & 1u) == 0u) {
+                return kNoRecord;
+            }
+            rank = uint(bitCount(lo)) + uint(bitCount(hi & ((1u << (child - 32u)) - 1u)));
+        }
+        uint first = nodes[base];
+        uint leaf_vertex = nodes[base + 1u];
+        if (leaf_vertex != VF_SDF_NOT_LEAF) {
+            vertex_base = leaf_vertex;
+            return first + rank;
+        }
+        if (shift == 0u) {
+            return kNoRecord;  // a tree deeper than its tiles: never built
+        }
+        node = first + rank;
+    }
+}
+
+// The first s in [0, len] where the trilinear interpolant of crossed voxel `record`'s corners
+// (its leaf's vertices from vertex_base) along p + s dir (p in the unit cell) is < 0, refined
+// to where it reaches 0 (within len / 2^10, then a secant step), and the interpolated gradient
+// there; false when it stays >= 0. Along the ray the interpolant is a
+// cubic k0 + k1 s + k2 s^2 + k3 s^3; between consecutive roots of its derivative it is
+// monotone, so each such piece holds a root exactly when its ends differ in sign (a thin
+// crossing between two samples is never stepped over), and bisection keeps it bracketed.
+bool cell_root(uint record, uint vertex_base, vec3 p, vec3 dir, float len, out float s_hit,
+               out vec3 grad) {
+    s_hit = 0.0;
+    grad = vec3(0.0);
+    // The corners (c = x + 2 y + 4 z: grad f, f), in a local array that unrolled loops index by
+    // constants only (a CPU driver keeps it in registers).
+    vec4 corner[8];
+    uint base = record * uint(VF_SDF_VOXEL_WORDS);
+    uint w0 = voxel_records[base], w1 = voxel_records[base + 1u];
+    [[unroll]] for (uint c = 0u; c < 8u; ++c) {
+        uint local = ((c < 4u ? w0 : w1) >> (8u * (c & 3u))) & 0xFFu;
+        corner[c] = vertices[vertex_base + local];
+    }
+    p = clamp(p, 0.0, 1.0);
+    vec4 k = vec4(0.0);  // k0..k3
+    [[unroll]] for (uint c = 0u; c < 8u; ++c) {
+        // Each axis' weight is linear in s: (a, b) = a + b s.
+        vec2 wx = (c & 1u) != 0u ? vec2(p.x, dir.x) : vec2(1.0 - p.x, -dir.x);
+        vec2 wy = (c & 2u) != 0u ? vec2(p.y, dir.y) : vec2(1.0 - p.y, -dir.y);
+        vec2 wz = (c & 4u) != 0u ? vec2(p.z, dir.z) : vec2(1.0 - p.z, -dir.z);
+        vec4 prod = vec4(wx.x * wy.x * wz.x,
+                         wx.y * wy.x * wz.x + wx.x * wy.y * wz.x + wx.x * wy.x * wz.y,
+                         wx.y * wy.y * wz.x + wx.y * wy.x * wz.y + wx.x * wy.y * wz.y,
+                         wx.y * wy.y * wz.y);
+        k += corner[c].w * prod;
+    }
+    bool found = k.x < 0.0;  // already inside where the ray enters the cell
+    // Roots of the derivative 3 k3 s^2 + 2 k2 s + k1 inside (0, len), in order.
+    float a = 3.0 * k.w, b = 2.0 * k.z, cc = k.y;
+    float split0 = len, split1 = len;
+    if (a != 0.0) {
+        float disc = b * b - 4.0 * a * cc;
+        if (disc >= 0.0) {
+            float q = -0.5 * (b + (b >= 0.0 ? sqrt(disc) : -sqrt(disc)));
+            float r0 = q / a, r1 = q != 0.0 ? cc / q : r0;
+            split0 = min(r0, r1);
+            split1 = max(r0, r1);
+        }
+    } else if (b != 0.0) {
+        split0 = -cc / b;
+    }
+    split0 = split0 > 0.0 && split0 < len ? split0 : len;
+    split1 = split1 > split0 && split1 < len ? split1 : len;
+    float lo = 0.0;
+    for (int i = 0; i < 3 && !found; ++i) {
+        float hi = i == 0 ? split0 : (i == 1 ? split1 : len);
+        if (hi > lo && ((k.w * hi + k.z) * hi + k.y) * hi + k.x < 0.0) {
+            // f(lo) >= 0 > f(hi): bisect, then one secant step between the bracket's ends.
+            float flo = ((k.w * lo + k.z) * lo + k.y) * lo + k.x;
+            float fhi = ((k.w * hi + k.z) * hi + k.y) * hi + k.x;
+            for (int it = 0; it < 10; ++it) {
+                float mid = 0.5 * (lo + hi);
+                float fm = ((k.w * mid + k.z) * mid + k.y) * mid + k.x;
+                if (fm < 0.0) {
+                    hi = mid;
+                    fhi = fm;
+                } else {
+                    lo = mid;
+                    flo = fm;
+                }
+            }
+            s_hit = flo > fhi ? lo + (hi - lo) * flo / (flo - fhi) : hi;
+            found = true;
+        }
+        lo = max(lo, hi);
+    }
+    if (found) {
+        vec3 q = clamp(p + dir * s_hit, 0.0, 1.0);
+        vec4 x00 = mix(corner[0], corner[1], q.x), x10 = mix(corner[2], corner[3], q.x);
+        vec4 x01 = mix(corner[4], corner[5], q.x), x11 = mix(corner[6], corner[7], q.x);
+        grad = mix(mix(x00, x10, q.y), mix(x01, x11, q.y), q.z).xyz;
+    }
+    return found;
+}
+
 // Marches the ray o + t dir (dir normalised, tiny components zeroed) from where it enters the
 // world until it hits a solid cell (true: `cell`, the step `face` that entered it, 0 when the
 // ray started in it, and the entry point `point` on that face) or leaves the world (false).
@@ -241,6 +404,9 @@ bool march(vec3 o, vec3 dir, out ivec3 cell, out ivec3 face, out vec3 point, ino
     face = ivec3(0);
     cell = ivec3(0);
     point = o;
+    if (kImplicit) {
+        g_smooth = false;
+    }
     if (!parallel_outside && t_enter < t_exit) {
         if (t_enter > 0.0) {
             // Entered through the face of the largest tnear (ties: x, then y, then z).
@@ -288,71 +454,108 @@ bool march(vec3 o, vec3 dir, out ivec3 cell, out ivec3 face, out vec3 point, ino
         // d >= 255; the minimum distance over the cell's 8^3 block (same metric, unsaturated)
         // is also a lower bound of the cell's distance, so the rule applies to
         // d = max(255, that minimum).
+        // kImplicit: the walk stops at every cell of distance 0; a cell the surface crosses is
+        // then tested for a root of its interpolant outside the walk's loop (which stays as
+        // small as it is for voxel worlds), and the walk resumes one step on when there is
+        // none. Voxel worlds run the outer loop once.
+        bool resume = false;
         for (;;) {
-            // VF_PACKED_DISTANCE_* and VF_COMPACT_DISTANCE_* agree (static_assert'ed on the host).
-            uint d = (read_cell(cell) >> VF_PACKED_DISTANCE_SHIFT) & VF_PACKED_DISTANCE_MAX;
-            if (kCount) {
-                ++fetches;
-            }
-            if (d == 0u) {
-                hit = true;
-                if (cell != entry) {
-                    // Entered through the face it stepped across: that boundary plane's t,
-                    // from the same expression t_next held for it.
-                    // (Component selects, not a dynamic index: GPUs keep vectors in registers.)
-                    vec3 t_face = (vec3(cell + max(-stp, ivec3(0))) - start) * inv;
-                    float t = face.x != 0 ? t_face.x : (face.y != 0 ? t_face.y : t_face.z);
-                    point = start + dir * t;
-                } else {
-                    point = start;
-                }
-                break;
-            }
-            if (coarse && d == VF_PACKED_DISTANCE_MAX) {
-                uvec3 b = uvec3(cell) / uvec3(VF_RAYMARCH_BLOCK);
-                d = max(d, block_min[(b.z * blocks.y + b.y) * blocks.x + b.x]);
-            }
-            uvec3 off = uvec3(0u);  // L-inf, L2: |o_i|, steps along each axis since the fetch
-            uint off1 = 0u;         // L1: |o|_1, the steps since the fetch
-            uint off2 = 0u;         // L2: |o|^2
-            uint clamped = min(d, 65535u);
-            uint d2 = clamped * clamped;
-            bool inside = true;
             for (;;) {
-                // The axis whose boundary comes first (ties: x, then y, then z).
-                bool bx = t_next.x <= t_next.y && t_next.x <= t_next.z;
-                bool by = !bx && t_next.y <= t_next.z;
-                ivec3 m = ivec3(bx, by, !bx && !by);
-                face = m * stp;
-                cell += face;
-                if (kCount) {
-                    ++steps;
+                uint d = 1u;
+                if (!(kImplicit && resume)) {
+                    // VF_PACKED_DISTANCE_* and VF_COMPACT_DISTANCE_* agree (static_assert'ed
+                    // on the host).
+                    d = (read_cell(cell) >> VF_PACKED_DISTANCE_SHIFT) & VF_PACKED_DISTANCE_MAX;
+                    if (kCount) {
+                        ++fetches;
+                    }
+                    if (d == 0u) {
+                        hit = true;
+                        break;
+                    }
+                    if (coarse && d == VF_PACKED_DISTANCE_MAX) {
+                        uvec3 b = uvec3(cell) / uvec3(VF_RAYMARCH_BLOCK);
+                        d = max(d, block_min[(b.z * blocks.y + b.y) * blocks.x + b.x]);
+                    }
                 }
-                if (any(lessThan(cell, ivec3(0))) || any(greaterThanEqual(cell, dims))) {
-                    inside = false;
+                resume = false;
+                uvec3 off = uvec3(0u);  // L-inf, L2: |o_i|, steps along each axis since the fetch
+                uint off1 = 0u;         // L1: |o|_1, the steps since the fetch
+                uint off2 = 0u;         // L2: |o|^2
+                uint clamped = min(d, 65535u);
+                uint d2 = clamped * clamped;
+                bool inside = true;
+                for (;;) {
+                    // The axis whose boundary comes first (ties: x, then y, then z).
+                    bool bx = t_next.x <= t_next.y && t_next.x <= t_next.z;
+                    bool by = !bx && t_next.y <= t_next.z;
+                    ivec3 m = ivec3(bx, by, !bx && !by);
+                    face = m * stp;
+                    cell += face;
+                    if (kCount) {
+                        ++steps;
+                    }
+                    if (any(lessThan(cell, ivec3(0))) || any(greaterThanEqual(cell, dims))) {
+                        inside = false;
+                        break;
+                    }
+                    t_next =
+                        mix(t_next, (vec3(cell + max(stp, ivec3(0))) - start) * inv, bvec3(m));
+                    bool beyond;
+                    if (kMetric == kChebyshev || kMetric == kEuclidean) {
+                        uint along = bx ? off.x : (by ? off.y : off.z);
+                        off += uvec3(m);
+                        if (kMetric == kChebyshev) {
+                            beyond = along + 1u >= d;
+                        } else {
+                            off2 += 2u * along + 1u;
+                            beyond = off2 >= d2;
+                        }
+                    } else {
+                        beyond = ++off1 >= d;
+                    }
+                    if (beyond) {
+                        break;  // the first cell outside the empty region: fetch it
+                    }
+                }
+                if (!inside) {
                     break;
                 }
-                t_next = mix(t_next, (vec3(cell + max(stp, ivec3(0))) - start) * inv, bvec3(m));
-                bool beyond;
-                if (kMetric == kChebyshev || kMetric == kEuclidean) {
-                    uint along = bx ? off.x : (by ? off.y : off.z);
-                    off += uvec3(m);
-                    if (kMetric == kChebyshev) {
-                        beyond = along + 1u >= d;
-                    } else {
-                        off2 += 2u * along + 1u;
-                        beyond = off2 >= d2;
-                    }
-                } else {
-                    beyond = ++off1 >= d;
-                }
-                if (beyond) {
-                    break;  // the first cell outside the empty region: fetch it
-                }
             }
-            if (!inside) {
+            if (!hit) {
                 break;
             }
+            float t_in = 0.0;
+            if (cell != entry) {
+                // Entered through the face it stepped across: that boundary plane's t, from
+                // the same expression t_next held for it.
+                // (Component selects, not a dynamic index: GPUs keep vectors in registers.)
+                vec3 t_face = (vec3(cell + max(-stp, ivec3(0))) - start) * inv;
+                t_in = face.x != 0 ? t_face.x : (face.y != 0 ? t_face.y : t_face.z);
+            }
+            if (kImplicit) {
+                uint vertex_base;
+                uint record = crossed_record(cell, vertex_base);
+                if (record != kNoRecord) {
+                    // The ray's segment inside the cell, from t_in to the next boundary.
+                    float t_out = min(min(t_next.x, t_next.y), t_next.z);
+                    vec3 p = start + dir * t_in - vec3(cell);
+                    float s;
+                    vec3 grad;
+                    if (cell_root(record, vertex_base, p, dir, max(t_out - t_in, 0.0), s, grad)) {
+                        point = start + dir * (t_in + s);
+                        float len = length(grad);
+                        g_smooth = true;
+                        g_normal = len > 0.0 ? grad / len : -dir;
+                        break;
+                    }
+                    hit = false;  // no root: on to the next cell
+                    resume = true;
+                    continue;
+                }
+            }
+            point = cell != entry ? start + dir * t_in : start;
+            break;
         }
     }
     return hit;
@@ -375,6 +578,19 @@ float ambient_occlusion(ivec3 cell, ivec3 n) {
     float occlusion = 0.0;
     for (int k = 2; k <= 5; ++k) {
         uint d = min(distance_at(cell + n * k, uint(k)), uint(k));
+        occlusion += weights[k - 2] * float(uint(k) - d) / float(k);
+    }
+    return 1.0 - 0.7 * occlusion;
+}
+
+// ambient_occlusion for a point on an implicit surface with unit normal n: the taps are the
+// cells k = 2..5 voxels out along n from the point, one voxel further than a face's (the
+// crossed voxels around the surface are solid in the field).
+float smooth_occlusion(vec3 point, vec3 n) {
+    const float weights[4] = float[4](0.4, 0.3, 0.2, 0.1);
+    float occlusion = 0.0;
+    for (int k = 2; k <= 5; ++k) {
+        uint d = min(distance_at(ivec3(floor(point + n * float(k + 1))), uint(k)), uint(k));
         occlusion += weights[k - 2] * float(uint(k) - d) / float(k);
     }
     return 1.0 - 0.7 * occlusion;
@@ -406,6 +622,16 @@ void main() {
         counters[pix.y * width + pix.x] = uvec2(fetches, steps);
     }
 
+    bool smooth_hit = kImplicit && hit && g_smooth;
+    vec3 smooth_normal = kImplicit ? g_normal : vec3(0.0);
+    if (kSurface) {
+        vec3 n = smooth_hit ? smooth_normal : (face != ivec3(0) ? -vec3(face) : -dir);
+        uint kind = !hit ? VF_TRACE_MISS : (smooth_hit ? VF_TRACE_SMOOTH : VF_TRACE_CUBE);
+        uint at = 2u * (pix.y * width + pix.x);
+        surface_hits[at] = vec4(point, float(kind));
+        surface_hits[at + 1u] = vec4(n, hit ? dot(point - pc.origin.xyz, dir) : 0.0);
+    }
+
     uint colour;
     if (hit) {
         uint material;
@@ -419,11 +645,24 @@ void main() {
         if (!lit) {
             colour = (rgba & 0x00FFFFFFu) | 0xFF000000u;
         } else {
-            vec3 n = face != ivec3(0) ? -vec3(face) : -dir;
+            vec3 n = smooth_hit ? smooth_normal : (face != ivec3(0) ? -vec3(face) : -dir);
             vec3 base = srgb_to_linear(unpack_rgb(rgba));
             float diffuse = max(dot(n, kSun), 0.0);
             float ambient = 0.18 + 0.12 * n.y;
-            if (face != ivec3(0)) {
+            if (smooth_hit) {
+                // As for a face below, from just above the surface along its normal.
+                if (kShadows && diffuse > 0.0) {
+                    ivec3 c2, f2;
+                    vec3 p2;
+                    uint fetches2 = 0u, steps2 = 0u;
+                    if (march(point + n * 0.05, kSun, c2, f2, p2, fetches2, steps2)) {
+                        diffuse = 0.0;
+                    }
+                }
+                if (kShadows) {
+                    ambient *= smooth_occlusion(point, n);
+                }
+            } else if (face != ivec3(0)) {
                 // The sun's light reaches the face unless the ray from just outside it
                 // toward the sun hits a solid (the sun is a direction: no distance limit).
                 ivec3 out_n = -face;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -11,6 +12,7 @@
 
 #include "march_params.hpp"
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/sdf_layout.hpp"
 #include "voxfield/layout.h"
 
 namespace voxfield::vk {
@@ -106,6 +108,7 @@ FieldResidency::FieldResidency(Context& ctx, VkDeviceSize max_binding)
         256 * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
         MemoryIntent::device_local, "palette");
     bind_block_min(no_table(), false, false);
+    clear_implicit();
 }
 
 FieldLayout FieldResidency::plan(Dims d, FieldFormat format) const {
@@ -525,6 +528,118 @@ void FieldResidency::bind_shared_block_min(const ExternalMemory& memory, std::ui
                                              memory.handle_type(), "shared block minima");
     ctx_.bind(table, memory.memory(), offset, "shared block minima");
     bind_block_min(std::move(table), true, true);
+}
+
+}  // namespace voxfield::vk
+
+namespace voxfield::vk {
+namespace {
+
+std::uint32_t popcount64(std::uint32_t lo, std::uint32_t hi) {
+    return static_cast<std::uint32_t>(std::popcount(lo) + std::popcount(hi));
+}
+
+// Checks that every index in the grid stays inside its array (the shader follows them without
+// bounds checks): tile roots, children, leaves' voxel records and their corners' vertices.
+void check_implicit(const ImplicitSurface& s) {
+    const auto bad = [](const std::string& why) { throw InputError("implicit surface: " + why); };
+    if (s.tile_depth > 8) {
+        bad("tile depth " + std::to_string(s.tile_depth) + " is out of range (0..8)");
+    }
+    const std::uint32_t edge = 1u << (2 * (s.tile_depth + 1));
+    const Dims want{(s.dims.x + edge - 1) / edge, (s.dims.y + edge - 1) / edge,
+                    (s.dims.z + edge - 1) / edge};
+    if (s.dims.count() == 0 || !(s.tiles == want) || s.tile_table.size() != want.count()) {
+        bad("the tile grid " + s.tiles.to_string() + " (" + std::to_string(s.tile_table.size()) +
+            " tiles) does not cover " + s.dims.to_string() + " in tiles of " +
+            std::to_string(edge) + "^3");
+    }
+    if (s.nodes.size() % VF_SDF_NODE_WORDS != 0 || s.voxels.size() % VF_SDF_VOXEL_WORDS != 0 ||
+        s.vertices.size() % VF_SDF_VERTEX_FLOATS != 0) {
+        bad("an array is not a whole number of records");
+    }
+    const std::size_t nodes = s.nodes.size() / VF_SDF_NODE_WORDS;
+    const std::size_t voxels = s.voxels.size() / VF_SDF_VOXEL_WORDS;
+    const std::size_t vertices = s.vertices.size() / VF_SDF_VERTEX_FLOATS;
+    for (const std::uint32_t t : s.tile_table) {
+        if (t != VF_SDF_TILE_EMPTY && t != VF_SDF_TILE_FULL && t >= nodes) {
+            bad("a tile's root node " + std::to_string(t) + " is past the " +
+                std::to_string(nodes) + " nodes");
+        }
+    }
+    for (std::size_t n = 0; n < nodes; ++n) {
+        const std::uint32_t* rec = &s.nodes[n * VF_SDF_NODE_WORDS];
+        const std::uint64_t end = std::uint64_t{rec[0]} + popcount64(rec[2], rec[3]);
+        if (rec[1] == VF_SDF_NOT_LEAF) {
+            if (end > nodes) {
+                bad("node " + std::to_string(n) + "'s children run past the nodes");
+            }
+            continue;
+        }
+        if (end > voxels) {
+            bad("leaf " + std::to_string(n) + "'s voxel records run past the records");
+        }
+        for (std::uint64_t v = rec[0]; v < end; ++v) {
+            const std::uint32_t* vox = &s.voxels[v * VF_SDF_VOXEL_WORDS];
+            for (std::uint32_t c = 0; c < 8; ++c) {
+                const std::uint32_t local = vox[c / 4] >> (8 * (c % 4)) & 0xFFu;
+                if (std::uint64_t{rec[1]} + local >= vertices) {
+                    bad("voxel record " + std::to_string(v) + "'s corner " + std::to_string(c) +
+                        " is past the vertices");
+                }
+            }
+        }
+    }
+}
+
+}  // namespace
+
+void FieldResidency::set_implicit(const ImplicitSurface& s) {
+    check_implicit(s);
+    const std::array<std::pair<const void*, std::size_t>, 4> arrays = {
+        std::pair<const void*, std::size_t>{s.tile_table.data(), s.tile_table.size_bytes()},
+        {s.nodes.data(), s.nodes.size_bytes()},
+        {s.voxels.data(), s.voxels.size_bytes()},
+        {s.vertices.data(), s.vertices.size_bytes()}};
+    static constexpr const char* kNames[4] = {"implicit tile table", "implicit nodes",
+                                              "implicit voxel records", "implicit vertices"};
+    // Built aside: a failure keeps the current surface.
+    std::array<Buffer, 4> buffers;
+    std::uint64_t bytes = 0;
+    for (std::size_t i = 0; i < 4; ++i) {
+        const auto [data, size] = arrays[i];
+        if (size > max_binding_) {
+            throw InputError(std::string(kNames[i]) + " (" + std::to_string(size) +
+                             " bytes) exceed the Vulkan device's storage-buffer binding limit of " +
+                             std::to_string(max_binding_) + " bytes");
+        }
+        buffers[i] = ctx_.make_buffer(std::max<VkDeviceSize>(size, 16), kTableUsage,
+                                      MemoryIntent::device_local, kNames[i]);
+        if (size > 0) {
+            ctx_.upload(buffers[i], data, size);
+        }
+        bytes += size;
+    }
+    for (std::size_t i = 0; i < 4; ++i) {
+        ctx_.retire(std::move(implicit_[i]));  // frames in flight may still read it
+        implicit_[i] = std::move(buffers[i]);
+    }
+    implicit_dims_ = s.dims;
+    implicit_grid_ = {s.tiles.x, s.tiles.y, s.tiles.z, s.tile_depth};
+    implicit_bytes_ = bytes;
+    ++generation_;
+}
+
+void FieldResidency::clear_implicit() {
+    for (Buffer& b : implicit_) {
+        ctx_.retire(std::move(b));
+        // A placeholder per binding (a vec4 for the vertices'), never read.
+        b = ctx_.make_buffer(16, kTableUsage, MemoryIntent::device_local, "no implicit surface");
+    }
+    implicit_dims_ = Dims{0, 0, 0};
+    implicit_grid_ = {};
+    implicit_bytes_ = 0;
+    ++generation_;
 }
 
 }  // namespace voxfield::vk

@@ -6,6 +6,7 @@
 // ray march: the dispatch (raymarcher.cpp) binds what it holds, re-writing its descriptors when
 // generation() moved, and notes each submission that reads it (note_reader). Buffers that
 // frames in flight may still read when they are replaced are retired through the Context.
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -41,6 +42,9 @@ class FieldResidency {
     void update_block_min(std::span<const Box> blocks, std::span<const std::uint32_t> minima);
     void bind_shared_block_min(const ExternalMemory& memory, std::uint64_t offset);
     void set_metric(Metric m) { metric_ = m; }
+    // As Raymarcher::set_implicit / clear_implicit.
+    void set_implicit(const ImplicitSurface& surface);
+    void clear_implicit();
 
     // Submission `serial` (Context::next_serial() when a ray march is recorded) reads the
     // buffers: they are replaced, not overwritten, until it has finished.
@@ -65,6 +69,14 @@ class FieldResidency {
     Metric metric() const { return metric_; }
     std::uint64_t bytes_copied() const { return copied_; }
     std::uint64_t block_min_bytes_copied() const { return block_min_copied_; }
+    // The implicit surface's buffers (tile table, nodes, voxel records, vertices; one
+    // placeholder word each without a surface), whether one is held and applies to the
+    // current field (same dims), its tile grid (tiles x, y, z, tile depth) and device bytes.
+    const std::array<Buffer, 4>& implicit_buffers() const { return implicit_; }
+    bool has_implicit() const { return implicit_dims_.count() > 0; }
+    bool implicit_active() const { return has_implicit() && implicit_dims_ == layout_.dims; }
+    const std::array<std::uint32_t, 4>& implicit_grid() const { return implicit_grid_; }
+    std::uint64_t implicit_bytes() const { return implicit_bytes_; }
 
   private:
     // Whether a submission that reads the buffers may not have finished (no wait).
@@ -106,6 +118,10 @@ class FieldResidency {
     std::uint64_t copied_ = 0;
     std::uint64_t last_reader_ = 0;  // the serial of the latest submission that reads them
     std::uint64_t generation_ = 0;
+    std::array<Buffer, 4> implicit_;
+    Dims implicit_dims_{0, 0, 0};
+    std::array<std::uint32_t, 4> implicit_grid_{};
+    std::uint64_t implicit_bytes_ = 0;
 };
 
 }  // namespace voxfield::vk

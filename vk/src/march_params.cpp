@@ -83,7 +83,8 @@ std::uint32_t pack_rgba(Rgba c) {
            (std::uint32_t{c.a} << 24);
 }
 
-PushConstants push_constants(const RenderOptions& o, const FieldLayout& layout, bool block_min) {
+PushConstants push_constants(const RenderOptions& o, const FieldLayout& layout, bool block_min,
+                             const std::array<std::uint32_t, 4>& implicit) {
     validate(o);
     const CameraBasis basis = camera_basis(o.camera, o.width, o.height);
     PushConstants pc{};
@@ -102,6 +103,9 @@ PushConstants push_constants(const RenderOptions& o, const FieldLayout& layout, 
         (o.shading == Shading::lit && o.sky_gradient ? VF_RAYMARCH_FLAG_SKY_GRADIENT : 0u) |
         (block_min ? VF_RAYMARCH_FLAG_BLOCK_MIN : 0u) | (o.bgra ? VF_RAYMARCH_FLAG_BGRA : 0u);
     pc.image[3] = pack_rgba(o.sky);
+    for (std::size_t i = 0; i < 4; ++i) {
+        pc.implicit[i] = implicit[i];
+    }
     return pc;
 }
 

@@ -26,18 +26,25 @@ static_assert(VF_COMPACT_DISTANCE_MAX == VF_PACKED_DISTANCE_MAX);
 // the material slabs.
 constexpr std::uint32_t kCounterBinding = kBindings;
 static_assert(VF_RAYMARCH_BINDING_BLOCK_MIN == kCounterBinding + 1);
+// The implicit surface's bindings (trace_layout.h) follow the block minima.
+static_assert(VF_TRACE_BINDING_TILES == VF_RAYMARCH_BINDING_BLOCK_MIN + 1);
 
 // raymarch.comp's specialization constants: constant_id 0 the metric (kManhattan,
 // kChebyshev, kEuclidean = 0, 1, 2), constant_id 1 whether rays count, constant_id 2 whether
 // lit shading marches shadow rays, constant_id 3 whether the field lies in one binding,
-// constant_id 4 whether it is compact (VkBool32s).
+// constant_id 4 whether it is compact, constant_id 5 whether an implicit surface is traced,
+// constant_id 6 whether rays record their hits (VkBool32s).
 struct Specialization {
     std::uint32_t metric;
     VkBool32 count;
     VkBool32 shadows;
     VkBool32 one_slab;
     VkBool32 compact;
+    VkBool32 implicit;
+    VkBool32 surface;
 };
+// Pipelines per metric: one per combination of the six flags.
+constexpr std::size_t kVariants = 64;
 constexpr std::size_t kMetrics = 3;
 // Timestamp pairs used in turn by recorded ray marches (more than the frames that can be in
 // flight, so that a finished frame's pair is read before it is reused).
@@ -74,10 +81,10 @@ struct Raymarcher::Impl {
     Owned<VkDescriptorSetLayout> set_layout;
     Owned<VkPipelineLayout> pipeline_layout;
     Owned<VkShaderModule> shader;
-    // One pipeline per metric and combination of the specialization flags (bits 0..3 of its
-    // index among the metric's 16: counting, shadow rays, one binding, compact), built on first
-    // use.
-    std::array<Owned<VkPipeline>, kMetrics * 16> pipelines;
+    // One pipeline per metric and combination of the specialization flags (bits 0..5 of its
+    // index among the metric's kVariants: counting, shadow rays, one binding, compact, implicit
+    // surface, hit records), built on first use.
+    std::array<Owned<VkPipeline>, kMetrics * kVariants> pipelines;
     // The descriptor set, in a pool of its own: when the bindings change while work that uses
     // the set may be in flight, the pool is retired and a fresh set written.
     Owned<VkDescriptorPool> pool;
@@ -92,6 +99,8 @@ struct Raymarcher::Impl {
     double reported_ms = -1;
     // RenderOptions::count: one uvec2 (fetches, steps) per pixel; a single one otherwise.
     Buffer counters;
+    // RenderOptions::surface: one SurfaceHit per pixel; a single one otherwise.
+    Buffer surface;
     // The offscreen image and its readback buffer, kept while the image size stays (a frame
     // loop would otherwise allocate both, megabytes of pinned memory, every frame).
     struct Target {
@@ -118,9 +127,12 @@ struct Raymarcher::Impl {
     // use), with every binding written.
     void write_set();
     // The pipeline of `metric`, with or without counting (built when first asked for).
-    VkPipeline pipeline_for(Metric metric, bool count, bool shadows, bool one_slab, bool compact);
+    VkPipeline pipeline_for(Metric metric, bool count, bool shadows, bool one_slab, bool compact,
+                            bool implicit, bool surface);
     // Makes `counters` hold at least `pixels` counters and points its binding at it.
     void prepare_counters(std::size_t pixels);
+    // Makes `surface` hold at least `pixels` hits and points its binding at it.
+    void prepare_surface(std::size_t pixels);
     // The dispatch time recorded in timestamp pair `pair` (-1 without timestamp queries);
     // wait: until it is available, else -1 when it is not yet.
     double pair_ms(std::uint32_t pair, bool wait);
@@ -134,7 +146,7 @@ Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
     const VkDevice dev = ctx.device();
 
     std::vector<VkDescriptorSetLayoutBinding> bindings;
-    for (std::uint32_t b = 0; b <= VF_RAYMARCH_BINDING_BLOCK_MIN; ++b) {
+    for (std::uint32_t b = 0; b <= VF_TRACE_LAST_BINDING; ++b) {
         if (b >= VF_RAYMARCH_BINDING_FIELD + VF_RAYMARCH_MAX_SLABS &&
             b < VF_RAYMARCH_BINDING_MATERIAL) {
             continue;
@@ -189,6 +201,7 @@ Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
         m.queries = Owned<VkQueryPool>(dev, q, vkDestroyQueryPool);
     }
     m.prepare_counters(1);
+    m.prepare_surface(1);
 }
 
 Raymarcher::~Raymarcher() {
@@ -204,8 +217,7 @@ void Raymarcher::Impl::write_set() {
         }
         const std::array<VkDescriptorPoolSize, 2> sizes = {
             VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
-            VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-                                 VF_RAYMARCH_BINDING_BLOCK_MIN + 1}};
+            VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VF_TRACE_LAST_BINDING + 1}};
         VkDescriptorPoolCreateInfo dp{};
         dp.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO;
         dp.maxSets = 1;
@@ -225,7 +237,7 @@ void Raymarcher::Impl::write_set() {
         set_recorded = false;
     }
     std::vector<VkDescriptorBufferInfo> infos;
-    infos.reserve(VF_RAYMARCH_BINDING_BLOCK_MIN + 1);
+    infos.reserve(VF_TRACE_LAST_BINDING + 1);
     std::vector<VkWriteDescriptorSet> writes;
     auto write = [&](std::uint32_t binding, VkDescriptorType type) {
         VkWriteDescriptorSet w{};
@@ -248,6 +260,10 @@ void Raymarcher::Impl::write_set() {
     add(VF_RAYMARCH_BINDING_PALETTE, field.palette(), VK_WHOLE_SIZE);
     add(kCounterBinding, counters, VK_WHOLE_SIZE);
     add(VF_RAYMARCH_BINDING_BLOCK_MIN, field.block_min(), VK_WHOLE_SIZE);
+    add(VF_TRACE_BINDING_SURFACE, surface, VK_WHOLE_SIZE);
+    for (std::uint32_t i = 0; i < 4; ++i) {
+        add(VF_TRACE_BINDING_TILES + i, field.implicit_buffers()[i], VK_WHOLE_SIZE);
+    }
     const FieldLayout& layout = field.layout();
     const std::vector<Buffer>& slabs = field.field();
     const std::vector<Buffer>& material = field.material();
@@ -275,22 +291,26 @@ void Raymarcher::Impl::write_set() {
 }
 
 VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count, bool shadows, bool one_slab,
-                                          bool compact) {
+                                          bool compact, bool implicit, bool surface_hits) {
     const std::uint32_t code = metric_code(which);
-    const std::size_t flags =
-        (count ? 1u : 0u) | (shadows ? 2u : 0u) | (one_slab ? 4u : 0u) | (compact ? 8u : 0u);
-    Owned<VkPipeline>& slot = pipelines[code * 16 + flags];
+    const std::size_t flags = (count ? 1u : 0u) | (shadows ? 2u : 0u) | (one_slab ? 4u : 0u) |
+                              (compact ? 8u : 0u) | (implicit ? 16u : 0u) |
+                              (surface_hits ? 32u : 0u);
+    Owned<VkPipeline>& slot = pipelines[code * kVariants + flags];
     if (slot) {
         return slot.get();
     }
     const auto flag = [](bool b) { return b ? VkBool32{VK_TRUE} : VkBool32{VK_FALSE}; };
-    const Specialization data{code, flag(count), flag(shadows), flag(one_slab), flag(compact)};
-    const std::array<VkSpecializationMapEntry, 5> entries = {
+    const Specialization data{code,          flag(count),    flag(shadows),     flag(one_slab),
+                              flag(compact), flag(implicit), flag(surface_hits)};
+    const std::array<VkSpecializationMapEntry, 7> entries = {
         VkSpecializationMapEntry{0, offsetof(Specialization, metric), sizeof data.metric},
         VkSpecializationMapEntry{1, offsetof(Specialization, count), sizeof data.count},
         VkSpecializationMapEntry{2, offsetof(Specialization, shadows), sizeof data.shadows},
         VkSpecializationMapEntry{3, offsetof(Specialization, one_slab), sizeof data.one_slab},
-        VkSpecializationMapEntry{4, offsetof(Specialization, compact), sizeof data.compact}};
+        VkSpecializationMapEntry{4, offsetof(Specialization, compact), sizeof data.compact},
+        VkSpecializationMapEntry{5, offsetof(Specialization, implicit), sizeof data.implicit},
+        VkSpecializationMapEntry{6, offsetof(Specialization, surface), sizeof data.surface}};
     VkSpecializationInfo spec{};
     spec.mapEntryCount = static_cast<std::uint32_t>(entries.size());
     spec.pMapEntries = entries.data();
@@ -310,7 +330,8 @@ VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count, bool shadows
           "vkCreateComputePipelines",
           "raymarch.comp, " + to_string(which) + (count ? ", counting" : "") +
               (shadows ? ", shadows" : "") + (one_slab ? ", one binding" : "") +
-              (compact ? ", compact" : ", packed32"));
+              (compact ? ", compact" : ", packed32") + (implicit ? ", implicit surface" : "") +
+              (surface_hits ? ", hit records" : ""));
     slot = Owned<VkPipeline>(dev, pipeline, vkDestroyPipeline);
     return pipeline;
 }
@@ -323,6 +344,17 @@ void Raymarcher::Impl::prepare_counters(std::size_t pixels) {
     ctx.retire(std::move(counters));
     counters = ctx.make_buffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryIntent::readback,
                                "ray counters");
+    write_set();
+}
+
+void Raymarcher::Impl::prepare_surface(std::size_t pixels) {
+    const VkDeviceSize bytes = VkDeviceSize{sizeof(SurfaceHit)} * pixels;
+    if (surface.get() != VK_NULL_HANDLE && surface.size() >= bytes) {
+        return;
+    }
+    ctx.retire(std::move(surface));
+    surface = ctx.make_buffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryIntent::readback,
+                              "surface hits");
     write_set();
 }
 
@@ -384,19 +416,25 @@ std::uint32_t Raymarcher::Impl::record(VkCommandBuffer cmd, const RenderOptions&
         throw std::logic_error("Raymarcher::render before upload");
     }
     const FieldLayout& layout = m.field.layout();
-    const PushConstants pc = push_constants(o, layout, m.field.coarse());
+    const bool implicit = m.field.implicit_active();
+    const PushConstants pc =
+        push_constants(o, layout, m.field.coarse(),
+                       implicit ? m.field.implicit_grid() : std::array<std::uint32_t, 4>{});
     const std::string what = "ray march " + std::to_string(o.width) + "x" +
                              std::to_string(o.height) + " of " + layout.dims.to_string();
     m.prepare_target(o.width, o.height, what);
     if (o.count) {
         m.prepare_counters(std::size_t{o.width} * o.height);
     }
+    if (o.surface) {
+        m.prepare_surface(std::size_t{o.width} * o.height);
+    }
     if (m.set_generation != m.field.generation()) {
         m.write_set();  // the field residency replaced a buffer
     }
     const VkPipeline pipeline =
         m.pipeline_for(m.field.metric(), o.count, o.shading == Shading::lit, layout.slabs <= 1,
-                       layout.format == FieldFormat::compact);
+                       layout.format == FieldFormat::compact, implicit, o.surface);
     const VkImage image_handle = m.target.image.get();
 
     const std::uint32_t pair = m.next_pair;
@@ -478,7 +516,7 @@ std::uint32_t Raymarcher::Impl::record(VkCommandBuffer cmd, const RenderOptions&
             cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, 0, 0,
             nullptr, static_cast<std::uint32_t>(ownership.size()), ownership.data(), 0, nullptr);
     }
-    if (o.count) {
+    if (o.count || o.surface) {
         VkMemoryBarrier counted{};
         counted.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
         counted.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
@@ -571,13 +609,18 @@ void Raymarcher::render(const RenderOptions& o, Image& out) {
             out.steps += c[2 * i + 1];
         }
     }
+    out.surface.clear();
+    if (o.surface) {
+        const auto* hits = static_cast<const SurfaceHit*>(m.surface.data());
+        out.surface.assign(hits, hits + std::size_t{o.width} * o.height);
+    }
 }
 
 double Raymarcher::render_to(const RenderOptions& o, const ExternalMemory& frame) {
     Impl& m = *impl_;
     const VkDeviceSize bytes = VkDeviceSize{o.width} * o.height * 4;
-    if (o.count) {
-        throw std::logic_error("Raymarcher::render_to does not count; use render()");
+    if (o.count || o.surface) {
+        throw std::logic_error("Raymarcher::render_to does not count or record hits; use render()");
     }
     if (frame.path() != SharingPath::opaque_fd || frame.size() < bytes) {
         throw std::logic_error("Raymarcher::render_to needs exportable memory of " +
@@ -594,8 +637,8 @@ double Raymarcher::render_to(const RenderOptions& o, const ExternalMemory& frame
 }
 
 VkImage Raymarcher::record(VkCommandBuffer cmd, const RenderOptions& o) {
-    if (o.count) {
-        throw std::logic_error("Raymarcher::record does not count; use render()");
+    if (o.count || o.surface) {
+        throw std::logic_error("Raymarcher::record does not count or record hits; use render()");
     }
     impl_->record(cmd, o);
     return impl_->target.image.get();
@@ -674,6 +717,22 @@ void Raymarcher::bind_shared_block_min(const ExternalMemory& memory, std::uint64
 
 std::uint64_t Raymarcher::block_min_bytes_copied() const {
     return impl_->field.block_min_bytes_copied();
+}
+
+void Raymarcher::set_implicit(const ImplicitSurface& surface) {
+    impl_->field.set_implicit(surface);
+}
+
+void Raymarcher::clear_implicit() {
+    impl_->field.clear_implicit();
+}
+
+bool Raymarcher::has_implicit() const {
+    return impl_->field.has_implicit();
+}
+
+std::uint64_t Raymarcher::implicit_bytes() const {
+    return impl_->field.implicit_bytes();
 }
 
 void Raymarcher::set_metric(Metric metric) {

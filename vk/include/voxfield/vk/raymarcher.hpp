@@ -18,6 +18,7 @@
 #include "voxfield/core/world.hpp"
 #include "voxfield/vk/context.hpp"
 #include "voxfield/vk/shared.hpp"
+#include "voxfield/vk/trace_layout.h"
 
 namespace voxfield::vk {
 
@@ -63,7 +64,21 @@ struct RenderOptions {
     // shading's shadow rays are not counted), through a pipeline variant that writes a
     // counter per pixel: for benchmarks, render() only.
     bool count = false;
+    // Also record each primary ray's hit point and normal (Image::surface), through a pipeline
+    // variant that writes them per pixel: for checks, render() only.
+    bool surface = false;
 };
+
+// A primary ray's hit (RenderOptions::surface): kind VF_TRACE_MISS, VF_TRACE_CUBE (a voxel's
+// face; normal the face's, or -direction when the camera's own cell is solid) or
+// VF_TRACE_SMOOTH (the trilinear interpolant of an implicit surface's crossed voxel: normal the
+// normalised trilinear interpolation of its corner gradients); point in voxel units (world
+// coordinates of the field's grid); t the distance from the camera along the unit ray.
+struct SurfaceHit {
+    float x, y, z, kind;
+    float nx, ny, nz, t;
+};
+static_assert(sizeof(SurfaceHit) == 32);
 
 struct Image {
     std::uint32_t width = 0, height = 0;
@@ -72,6 +87,21 @@ struct Image {
     // With RenderOptions::count: field fetches and DDA steps summed over all width * height
     // rays (a ray that misses the world box has none).
     std::uint64_t fetches = 0, steps = 0;
+    // With RenderOptions::surface: width * height hits, rows top to bottom.
+    std::vector<SurfaceHit> surface;
+};
+
+// An implicit part's discretisation laid over the field's voxel grid (ocl::ImplicitGrid's
+// arrays, core/sdf_layout.hpp; vk/ does not include cl/): the ray marcher's hits in the voxels
+// the surface crosses intersect the trilinear interpolant of their 8 corner values instead of
+// the cube. The field the surface is traced over must be that of a world whose voxels are
+// solid where the part is solid or crossed (the march stops only at distance 0).
+struct ImplicitSurface {
+    Dims dims;   // voxels: the field's dims
+    Dims tiles;  // ceil(dims / tile_edge)
+    std::uint32_t tile_depth = 0;
+    std::span<const std::uint32_t> tile_table, nodes, voxels;
+    std::span<const float> vertices;  // VF_SDF_VERTEX_FLOATS per corner vertex
 };
 
 // Throws InputError for sizes outside 1..kMaxImageSize or a bad camera.
@@ -199,6 +229,16 @@ class Raymarcher {
     // slower), while a larger metric's step over another field could skip solids.
     void set_metric(Metric metric);
     Metric metric() const;
+    // Traces `surface` in the voxels it crosses (copied into buffers of the ray marcher's own,
+    // about the grid's bytes) in every later ray march of a field of the same dims; fields of
+    // other dims are marched as voxels. Throws InputError when the arrays do not match
+    // (sizes, tile grid) or one exceeds a storage-buffer binding.
+    void set_implicit(const ImplicitSurface& surface);
+    // Back to voxels only (e.g. after an edit that the surface no longer describes).
+    void clear_implicit();
+    // Whether an implicit surface is held, and its device bytes.
+    bool has_implicit() const;
+    std::uint64_t implicit_bytes() const;
     // Ray-marches one image and reads it back. The offscreen image and readback buffer are
     // kept while the size stays; the second form also reuses out.rgba's storage.
     Image render(const RenderOptions& options);
@@ -210,7 +250,7 @@ class Raymarcher {
     // Context::submit before any other submission and before this ray marcher changes (a
     // new field, another image size): earlier frames may still be in flight meanwhile, the
     // next record() orders itself after them. Throws std::logic_error for options.count or
-    // before a field was given, InputError for bad options.
+    // options.surface or before a field was given, InputError for bad options.
     VkImage record(VkCommandBuffer cmd, const RenderOptions& options);
     // The GPU time in ms of the ray march of the latest recorded frame whose submission is
     // known to have finished (by Context::wait, no wait here): in a frame loop that is the
@@ -221,7 +261,7 @@ class Raymarcher {
     // Presenter on another VkDevice of this GPU that imported it (Presenter::import_frame).
     // The buffer is released to VK_QUEUE_FAMILY_EXTERNAL and the work has finished when this
     // returns. Returns the dispatch's GPU time in ms (-1: not available). Throws
-    // std::logic_error for options.count.
+    // std::logic_error for options.count or options.surface.
     double render_to(const RenderOptions& options, const ExternalMemory& frame);
 
     // The field format and layout in use, and the bytes copied into field / material buffers

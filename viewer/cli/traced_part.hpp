@@ -1,0 +1,31 @@
+#pragma once
+// An implicit part (`.sdf.json`) as `render` and `view` show it: discretised on the OpenCL
+// device into the tile grid of contrees (ocl::ImplicitDiscretiser), the world the ray marcher's
+// field is built from (solid where f < 0 at a voxel's centre, as load_world reads a part, plus
+// every voxel the surface crosses, so that the march stops there), and that grid for the ray
+// marcher to trace the trilinear surface in the crossed voxels (vk::Raymarcher::set_implicit).
+#include <cstdint>
+#include <string>
+
+#include "voxfield/cl/implicit.hpp"
+#include "voxfield/cl/runtime.hpp"
+#include "voxfield/core/sdf.hpp"
+#include "voxfield/core/vox.hpp"
+#include "voxfield/vk/raymarcher.hpp"
+
+namespace voxfield::cli {
+
+struct TracedPart {
+    VoxModel model;  // the world to build the field of, and the default palette
+    ocl::ImplicitGrid grid;
+    double discretise_ms = 0;  // the discretisation's wall time
+    std::uint64_t solid = 0;   // voxels solid at their centre (the rest of the world: crossed)
+
+    // The grid as the ray marcher takes it (views of `grid`'s arrays).
+    vk::ImplicitSurface surface() const;
+};
+
+// Discretises `part` (read from the file `name`) on `ctx`.
+TracedPart load_traced_part(ocl::Context& ctx, const sdf::Part& part, const std::string& name);
+
+}  // namespace voxfield::cli
