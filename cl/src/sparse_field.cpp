@@ -23,7 +23,6 @@ namespace voxfield::ocl {
 namespace {
 
 constexpr std::uint32_t kInsideTile = 0xFFFFFFFEu;
-constexpr std::uint64_t kNoRef = std::numeric_limits<std::uint64_t>::max();
 // Voxels of one batch of stacked blocks (and the most of one update block).
 constexpr std::int64_t kBatchVoxels = std::int64_t{1} << 25;
 // Rows per work-group of the gather and scatter kernels (a work-item per row).
@@ -186,9 +185,21 @@ struct SparseField::Batch {
     std::size_t refs_cap = 0, slots_cap = 0;
 };
 
+SparseField::SparseField(Context& ctx, SparseWorld& world, const Palette& palette,
+                         const GeneratorOptions& options)
+    : SparseField(ctx, static_cast<const SparseWorld&>(world), palette, options, &world) {}
+
 SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& palette,
                          const GeneratorOptions& options)
-    : ctx_(ctx), world_(world), palette_(palette), options_(options) {
+    : SparseField(ctx, world, palette, options, nullptr) {}
+
+SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& palette,
+                         const GeneratorOptions& options, SparseWorld* editable)
+    : ctx_(ctx),
+      world_(world),
+      palette_(palette),
+      options_(options),
+      device_world_(ctx, world, editable) {
     if (!options_.max_distance) {
         throw std::invalid_argument("SparseField: options without max_distance");
     }
@@ -218,42 +229,6 @@ std::uint64_t SparseField::field_bytes() const {
 
 std::vector<std::uint8_t> SparseField::constant_value(std::uint32_t entry) const {
     return entry == kInsideTile ? inside_ : far_;
-}
-
-void SparseField::sync_world() {
-    auto& q = ctx_.queue();
-    const auto& masks = world_.node_masks();
-    const auto& offsets = world_.node_offsets();
-    const auto& materials = world_.materials();
-    const std::uint64_t nodes = masks.size(), mats = materials.size();
-    const bool whole = !world_on_device_ || world_.layout_generation() != synced_generation_ ||
-                       nodes * 8 > masks_.getInfo<CL_MEM_SIZE>() ||
-                       std::max<std::uint64_t>(mats, 1) > materials_.getInfo<CL_MEM_SIZE>() ||
-                       nodes < synced_nodes_ || mats < synced_materials_;
-    cl_call("uploading the sparse world", [&] {
-        if (whole) {
-            const std::uint64_t ncap = nodes + nodes / 4 + 4096, mcap = mats + mats / 4 + 4096;
-            masks_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, ncap * 8);
-            offsets_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, ncap * 4);
-            materials_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, mcap);
-            synced_nodes_ = synced_materials_ = 0;
-        }
-        if (nodes > synced_nodes_) {
-            q.enqueueWriteBuffer(masks_, CL_FALSE, synced_nodes_ * 8, (nodes - synced_nodes_) * 8,
-                                 masks.data() + synced_nodes_);
-            q.enqueueWriteBuffer(offsets_, CL_FALSE, synced_nodes_ * 4, (nodes - synced_nodes_) * 4,
-                                 offsets.data() + synced_nodes_);
-        }
-        if (mats > synced_materials_) {
-            q.enqueueWriteBuffer(materials_, CL_FALSE, synced_materials_, mats - synced_materials_,
-                                 materials.data() + synced_materials_);
-        }
-        q.finish();
-    });
-    synced_nodes_ = nodes;
-    synced_materials_ = mats;
-    synced_generation_ = world_.layout_generation();
-    world_on_device_ = true;
 }
 
 void SparseField::ensure_slots(std::size_t slots) {
@@ -350,9 +325,9 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                          {job.origin.x, job.origin.y, job.origin.z, span.first.x, span.first.y,
                           span.first.z, span.packed(), static_cast<std::int64_t>(refs.size() / 2)});
             for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
-                const std::uint32_t t = world_.find_tile(tx, ty, tz);
-                refs.push_back(t == kNoTile ? kNoRef : world_.node_bases()[t]);
-                refs.push_back(t == kNoTile ? 0 : world_.material_bases()[t]);
+                const auto [node_base, material_base] = device_world_.ref(tx, ty, tz);
+                refs.push_back(node_base);
+                refs.push_back(material_base);
             });
             const TileSpan rspan = tiles_of(job.region);
             sjobs.insert(sjobs.end(), {job.region.min.x, job.region.min.y, job.region.min.z,
@@ -390,19 +365,16 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                     q.enqueueWriteBuffer(batch.regions, CL_FALSE, 0, regions.size() * 8,
                                          regions.data());
                     q.enqueueWriteBuffer(batch.slots, CL_FALSE, 0, slots.size() * 4, slots.data());
-                    cl::Kernel gather(program_, "gather");
-                    gather.setArg(0, masks_);
-                    gather.setArg(1, offsets_);
-                    gather.setArg(2, materials_);
-                    gather.setArg(3, batch.jobs);
-                    gather.setArg(4, batch.refs);
-                    gather.setArg(5, batch.voxels);
-                    gather.setArg(6, block.x);
-                    gather.setArg(7, block.y);
-                    gather.setArg(8, block.z);
-                    gather.setArg(9, static_cast<cl_long>(wd.x));
-                    gather.setArg(10, static_cast<cl_long>(wd.y));
-                    gather.setArg(11, static_cast<cl_long>(wd.z));
+                    cl::Kernel gather = device_world_.gather_kernel();
+                    gather.setArg(6, batch.jobs);
+                    gather.setArg(7, batch.refs);
+                    gather.setArg(8, batch.voxels);
+                    gather.setArg(9, block.x);
+                    gather.setArg(10, block.y);
+                    gather.setArg(11, block.z);
+                    gather.setArg(12, static_cast<cl_long>(wd.x));
+                    gather.setArg(13, static_cast<cl_long>(wd.y));
+                    gather.setArg(14, static_cast<cl_long>(wd.z));
                     cl::Event ev_gather, ev_scatter;
                     // Fixed work-group sizes: PoCL compiles a kernel once per local size.
                     q.enqueueNDRangeKernel(
@@ -481,7 +453,7 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double
 }
 
 double SparseField::run() {
-    sync_world();
+    device_world_.refresh();
     tiles_.clear();
     slot_keys_.clear();
     const Dims wd = world_.dims();
@@ -565,12 +537,23 @@ double SparseField::run() {
 }
 
 SparseField::Update SparseField::update(const Box& changed) {
+    device_world_.host_edited(changed);
+    return recompute(changed);
+}
+
+SparseField::Update SparseField::apply_brush(const Brush& brush) {
+    const Box changed = device_world_.apply_brush(brush);
+    Update result = recompute(changed);
+    result.kernel_ms += device_world_.last_edit_kernel_ms();
+    return result;
+}
+
+SparseField::Update SparseField::recompute(const Box& changed) {
     Update result;
     const Box all = world_box(world_.dims());
     if (intersect(changed, all).empty()) {
         return result;
     }
-    sync_world();
     const Box region = intersect(grow(intersect(changed, all), halo_), all);
     std::vector<std::uint32_t> slots;
     for_each_tile(tiles_of(region), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
