@@ -544,7 +544,8 @@ SparseField::Update SparseField::update(const Box& changed) {
 SparseField::Update SparseField::apply_brush(const Brush& brush) {
     const Box changed = device_world_.apply_brush(brush);
     Update result = recompute(changed);
-    result.kernel_ms += device_world_.last_edit_kernel_ms();
+    result.edit_kernel_ms = device_world_.last_edit_kernel_ms();
+    result.kernel_ms += result.edit_kernel_ms;
     return result;
 }
 

@@ -57,6 +57,7 @@ class SparseField {
         Box recomputed;           // the voxels whose field was recomputed (Box{} when none)
         std::uint32_t tiles = 0;  // field tiles written
         double kernel_ms = 0;
+        double edit_kernel_ms = 0;  // of which apply_brush's decoding, brush and encoding
     };
     // After the world's voxels inside `changed` were edited on the host (SparseWorld::edit /
     // apply_brush return that box), brings the device's world and the field up to date:
