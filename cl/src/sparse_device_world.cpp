@@ -59,16 +59,16 @@ std::uint64_t key_of(std::int64_t tx, std::int64_t ty, std::int64_t tz) {
                     static_cast<std::uint32_t>(tz));
 }
 
-// Enqueues encode_count and encode_write over `tiles` dense tiles of `vox` into the slots
-// listed in `slots`; appends their events to `events`.
-void enqueue_encode(cl::CommandQueue& q, const cl::Program& program, const cl::Buffer& vox,
-                    const cl::Buffer& leaf_masks, const cl::Buffer& mid_masks,
-                    const cl::Buffer& mid_counts, const cl::Buffer& slots,
-                    const cl::Buffer& slot_masks, const cl::Buffer& slot_offsets,
-                    const cl::Buffer& slot_materials, const cl::Buffer& slot_counts,
-                    std::uint32_t tiles, std::vector<cl::Event>& events) {
+// Enqueues encode_count and encode_write (`count`, `write`) over `tiles` dense tiles of `vox`
+// into the slots listed in `slots`; appends their events to `events`.
+void enqueue_encode(cl::CommandQueue& q, cl::Kernel& count, cl::Kernel& write,
+                    const cl::Buffer& vox, const cl::Buffer& leaf_masks,
+                    const cl::Buffer& mid_masks, const cl::Buffer& mid_counts,
+                    const cl::Buffer& slots, const cl::Buffer& slot_masks,
+                    const cl::Buffer& slot_offsets, const cl::Buffer& slot_materials,
+                    const cl::Buffer& slot_counts, std::uint32_t tiles,
+                    std::vector<cl::Event>& events) {
     const cl::NDRange global(std::size_t{tiles} * 64), local(kGroupNodes);
-    cl::Kernel count(program, "encode_count");
     count.setArg(0, vox);
     count.setArg(1, leaf_masks);
     count.setArg(2, mid_masks);
@@ -76,7 +76,6 @@ void enqueue_encode(cl::CommandQueue& q, const cl::Program& program, const cl::B
     count.setArg(4, tiles);
     events.emplace_back();
     q.enqueueNDRangeKernel(count, cl::NullRange, global, local, nullptr, &events.back());
-    cl::Kernel write(program, "encode_write");
     write.setArg(0, vox);
     write.setArg(1, leaf_masks);
     write.setArg(2, mid_masks);
@@ -123,8 +122,9 @@ std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
         cl::Buffer materials(c, CL_MEM_READ_WRITE, voxels.size());
         cl::Buffer counts(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 8);
         std::vector<cl::Event> events;
-        enqueue_encode(q, program, vox, leaf, mid, mid_counts, slot_list, masks, offsets, materials,
-                       counts, tiles, events);
+        cl::Kernel count(program, "encode_count"), write(program, "encode_write");
+        enqueue_encode(q, count, write, vox, leaf, mid, mid_counts, slot_list, masks, offsets,
+                       materials, counts, tiles, events);
         std::vector<std::uint32_t> n(2 * std::size_t{tiles});
         q.enqueueReadBuffer(counts, CL_TRUE, 0, n.size() * 4, n.data());
         for (std::uint32_t t = 0; t < tiles; ++t) {
@@ -153,6 +153,12 @@ SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, Spa
     if (editable != nullptr && editable != &world) {
         throw std::invalid_argument("SparseDeviceWorld: `editable` is not the world");
     }
+    cl_call("making the sparse world's kernels", [&] {
+        gather_ = cl::Kernel(program_, "gather");
+        brush_ = cl::Kernel(program_, "brush_tiles");
+        count_ = cl::Kernel(program_, "encode_count");
+        write_ = cl::Kernel(program_, "encode_write");
+    });
     ensure_slot_capacity(1);
     upload_whole();
 }
@@ -434,7 +440,7 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
         q.enqueueNDRangeKernel(gather, cl::NullRange,
                                cl::NDRange(kTileSize, std::size_t{kTileSize} * n),
                                cl::NDRange(kGroupRows, 1), nullptr, &edit_events_.back());
-        cl::Kernel brush_k(program_, "brush_tiles");
+        cl::Kernel& brush_k = brush_;
         brush_k.setArg(0, scratch_);
         brush_k.setArg(1, edit_origins_);
         brush_k.setArg(2, static_cast<cl_uint>(brush.op == BrushOp::place   ? 0
@@ -453,8 +459,9 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
         q.enqueueNDRangeKernel(brush_k, cl::NullRange,
                                cl::NDRange(std::size_t{kTileSize} * kTileSize, n),
                                cl::NDRange(kGroupNodes, 1), nullptr, &edit_events_.back());
-        enqueue_encode(q, program_, scratch_, leaf_masks_, mid_masks_, mid_counts_, edit_slots_,
-                       slot_masks_, slot_offsets_, slot_materials_, slot_counts_, n, edit_events_);
+        enqueue_encode(q, count_, write_, scratch_, leaf_masks_, mid_masks_, mid_counts_,
+                       edit_slots_, slot_masks_, slot_offsets_, slot_materials_, slot_counts_, n,
+                       edit_events_);
     });
     for (std::size_t i = 0; i < keys.size(); ++i) {
         dir_[keys[i]] = {kSlotRef | host_slots_[i] * std::uint64_t{kTileMaxNodes},
@@ -474,9 +481,9 @@ double SparseDeviceWorld::last_edit_kernel_ms() const {
     return ms;
 }
 
-cl::Kernel SparseDeviceWorld::gather_kernel() const {
+cl::Kernel SparseDeviceWorld::gather_kernel() {
     return cl_call("setting up the gather kernel", [&] {
-        cl::Kernel k(program_, "gather");
+        cl::Kernel& k = gather_;
         k.setArg(0, masks_);
         k.setArg(1, offsets_);
         k.setArg(2, materials_);

@@ -214,6 +214,10 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
     inside_ = encode_real_field({options_.signed_field ? -d : 0.0}, one, palette_, options_.format);
     program_ = ctx_.program("sparse_field.cl", {cl_sources::sparse_field_cl},
                             elem_options(options_.format));
+    cl_call("making the sparse field's kernels", [&] {
+        scatter_ = cl::Kernel(program_, "scatter");
+        node_minima_ = cl::Kernel(program_, "node_minima");
+    });
 }
 
 SparseField::~SparseField() {
@@ -235,7 +239,7 @@ void SparseField::ensure_slots(std::size_t slots) {
     if (slots <= pool_slots_) {
         return;
     }
-    const std::size_t cap = std::max({slots, pool_slots_ + pool_slots_ / 2, std::size_t{16}});
+    const std::size_t cap = std::max({slots, pool_slots_ + pool_slots_ / 4, std::size_t{16}});
     cl_call("allocating " + std::to_string(cap) + " field tiles", [&] {
         cl::Buffer pool(ctx_.context(), CL_MEM_READ_WRITE, cap * kTileVoxels * elem_);
         cl::Buffer coarse(ctx_.context(), CL_MEM_READ_WRITE, cap * 64 * elem_);
@@ -384,7 +388,7 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                     ev_gather.wait();
                     ms += elapsed_ms(ev_gather, ev_gather);
                     ms += batch.generator->run();
-                    cl::Kernel scatter(program_, "scatter");
+                    cl::Kernel& scatter = scatter_;
                     scatter.setArg(0, batch.generator->field_buffer());
                     scatter.setArg(1, pool_);
                     scatter.setArg(2, batch.scatter_jobs);
@@ -421,12 +425,17 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double
                                        static_cast<std::uint32_t>(key >> 14 & 0x3FFF),
                                        static_cast<std::uint32_t>(key >> 28)});
         }
-        cl::Buffer list(ctx_.context(), CL_MEM_READ_ONLY, slots.size() * 4);
-        cl::Buffer coords(ctx_.context(), CL_MEM_READ_ONLY, tiles.size() * 4);
+        if (slots.size() > minima_list_cap_) {
+            minima_list_cap_ = std::max(slots.size(), std::size_t{64});
+            minima_list_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, minima_list_cap_ * 4);
+            minima_coords_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, minima_list_cap_ * 12);
+        }
+        cl::Buffer& list = minima_list_;
+        cl::Buffer& coords = minima_coords_;
         q.enqueueWriteBuffer(list, CL_FALSE, 0, slots.size() * 4, slots.data());
         q.enqueueWriteBuffer(coords, CL_FALSE, 0, tiles.size() * 4, tiles.data());
         const Dims wd = world_.dims();
-        cl::Kernel k(program_, "node_minima");
+        cl::Kernel& k = node_minima_;
         k.setArg(0, pool_);
         k.setArg(1, list);
         k.setArg(2, coords);
@@ -512,7 +521,9 @@ double SparseField::run() {
         }
     }
     std::sort(keys.begin(), keys.end());
-    ensure_slots(keys.size());
+    // Headroom for the field tiles that edits add: growing the pool copies it whole (seconds
+    // and twice its memory on a large world), so an edit should rarely have to.
+    ensure_slots(keys.size() + keys.size() / 16 + 16);
     std::vector<Job> jobs;
     std::vector<std::uint32_t> slots;
     jobs.reserve(keys.size());

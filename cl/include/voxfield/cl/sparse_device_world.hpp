@@ -63,7 +63,7 @@ class SparseDeviceWorld {
 
     // The gather kernel (sparse_world.cl) with the world's buffers as its arguments 0-5; the
     // caller sets the job arguments 6-14.
-    cl::Kernel gather_kernel() const;
+    cl::Kernel gather_kernel();
     // A tile's node base and material base for gather's refs (kNoRef, 0 when not stored).
     static constexpr std::uint64_t kNoRef = ~std::uint64_t{0};
     std::pair<std::uint64_t, std::uint64_t> ref(std::int64_t tx, std::int64_t ty,
@@ -84,6 +84,7 @@ class SparseDeviceWorld {
     const SparseWorld& world_;
     SparseWorld* editable_ = nullptr;
     cl::Program program_;
+    cl::Kernel gather_, brush_, count_, write_;  // made once, arguments set per launch
     // Main buffers: the host world as uploaded; dir_: per stored tile key, its refs.
     cl::Buffer masks_, offsets_, materials_;
     std::unordered_map<std::uint64_t, std::pair<std::uint64_t, std::uint64_t>> dir_;
