@@ -59,9 +59,11 @@ __kernel void scatter(__global const ELEM* restrict field, __global ELEM* restri
 // One work-item per 16^3 node of the listed slots: the least KEY over its voxels inside the
 // world (a tile cut by the world's edge holds no values beyond it), starting from the far
 // value, which no value exceeds. `tiles`: per listed slot its tile's coordinates (3 uints).
+// Written per slot into `minima` and in list order into `listed` (one read for the host).
 __kernel void node_minima(__global const ELEM* restrict pool, __global const uint* restrict slots,
                           __global const uint* restrict tiles, uint count,
-                          __global ELEM* restrict minima, ELEM far, uint wx, uint wy, uint wz) {
+                          __global ELEM* restrict minima, ELEM far, uint wx, uint wy, uint wz,
+                          __global ELEM* restrict listed) {
     const size_t i = get_global_id(0);
     if (i >= (size_t)count * 64) {
         return;
@@ -86,4 +88,5 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
         }
     }
     minima[slot * 64 + node] = best;
+    listed[i] = best;
 }

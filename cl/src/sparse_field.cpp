@@ -385,9 +385,8 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                         gather, cl::NullRange,
                         cl::NDRange(round_up(block.y, kGroupRows), std::size_t{block.z} * n),
                         cl::NDRange(kGroupRows, 1), nullptr, &ev_gather);
-                    ev_gather.wait();
+                    ms += batch.generator->run();  // waits for the queue, the gather too
                     ms += elapsed_ms(ev_gather, ev_gather);
-                    ms += batch.generator->run();
                     cl::Kernel& scatter = scatter_;
                     scatter.setArg(0, batch.generator->field_buffer());
                     scatter.setArg(1, pool_);
@@ -429,6 +428,8 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double
             minima_list_cap_ = std::max(slots.size(), std::size_t{64});
             minima_list_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, minima_list_cap_ * 4);
             minima_coords_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, minima_list_cap_ * 12);
+            minima_listed_ =
+                cl::Buffer(ctx_.context(), CL_MEM_WRITE_ONLY, minima_list_cap_ * 64 * elem_);
         }
         cl::Buffer& list = minima_list_;
         cl::Buffer& coords = minima_coords_;
@@ -445,17 +446,16 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double
         k.setArg(6, wd.x);
         k.setArg(7, wd.y);
         k.setArg(8, wd.z);
+        k.setArg(9, minima_listed_);
         cl::Event ev;
         q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(slots.size() * 64), cl::NDRange(64),
                                nullptr, &ev);
         const std::size_t per = 64 * elem_;
-        if (slots.size() == slot_keys_.size()) {
-            q.enqueueReadBuffer(coarse_, CL_TRUE, 0, slots.size() * per, coarse_host_.data());
-        } else {
-            for (std::uint32_t s : slots) {
-                q.enqueueReadBuffer(coarse_, CL_FALSE, s * per, per, coarse_host_.data() + s * per);
-            }
-            q.finish();
+        std::vector<std::uint8_t> listed(slots.size() * per);
+        q.enqueueReadBuffer(minima_listed_, CL_TRUE, 0, listed.size(), listed.data());
+        for (std::size_t i = 0; i < slots.size(); ++i) {
+            std::memcpy(coarse_host_.data() + std::size_t{slots[i]} * per, listed.data() + i * per,
+                        per);
         }
         *ms += elapsed_ms(ev, ev);
     });

@@ -123,9 +123,10 @@ class SparseField {
     std::size_t elem_ = 0;
     std::vector<std::uint8_t> far_, inside_;
     cl::Program program_;
-    cl::Kernel scatter_, node_minima_;        // made once, arguments set per launch
-    SparseDeviceWorld device_world_;          // the world's 64-trees on the device
-    cl::Buffer minima_list_, minima_coords_;  // node_minima's slots and tile coordinates
+    cl::Kernel scatter_, node_minima_;  // made once, arguments set per launch
+    SparseDeviceWorld device_world_;    // the world's 64-trees on the device
+    // node_minima's slots, tile coordinates and minima in list order.
+    cl::Buffer minima_list_, minima_coords_, minima_listed_;
     std::size_t minima_list_cap_ = 0;
     // Field tiles: key -> slot on the device, or kInsideTile (constant inside value).
     std::unordered_map<std::uint64_t, std::uint32_t> tiles_;
