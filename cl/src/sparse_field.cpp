@@ -579,9 +579,22 @@ SparseField::Update SparseField::recompute(const Box& changed) {
     // Extents rounded up to a multiple of 16 (more empty space beyond the world, or more of
     // the world, changes no value inside), so that edits of about one size share a block
     // shape and its dense generator instead of setting one up each.
-    block_box.max = {block_box.min.x + round_up_to(block_box.max.x - block_box.min.x, 16),
-                     block_box.min.y + round_up_to(block_box.max.y - block_box.min.y, 16),
-                     block_box.min.z + round_up_to(block_box.max.z - block_box.min.z, 16)};
+    Int3 size{round_up_to(block_box.max.x - block_box.min.x, 16),
+              round_up_to(block_box.max.y - block_box.min.y, 16),
+              round_up_to(block_box.max.z - block_box.min.z, 16)};
+    // An edit near the world's edge (a smaller block) takes a shape set up already when that
+    // holds it with at most twice the voxels: no generator set up, and no eviction of others.
+    const Int3 need = size;
+    std::int64_t best = 2 * need.x * need.y * need.z + 1;
+    for (const auto& [shape, batch] : batches_) {
+        const auto& [bx, by, bz, n] = shape;
+        const std::int64_t v = std::int64_t{bx} * by * bz;
+        if (n == 1 && bx >= need.x && by >= need.y && bz >= need.z && v < best) {
+            best = v;
+            size = {bx, by, bz};
+        }
+    }
+    block_box.max = {block_box.min.x + size.x, block_box.min.y + size.y, block_box.min.z + size.z};
     std::vector<Job> jobs;
     Dims block{};
     if (block_box.volume() <= kBatchVoxels) {
