@@ -60,10 +60,12 @@ __kernel void scatter(__global const ELEM* restrict field, __global ELEM* restri
 // world (a tile cut by the world's edge holds no values beyond it), starting from the far
 // value, which no value exceeds. `tiles`: per listed slot its tile's coordinates (3 uints).
 // Written per slot into `minima` and in list order into `listed` (one read for the host).
+// Only the nodes set in `nodes` (per listed slot, bit z << 4 | y << 2 | x) are computed; the
+// others keep their minima (copied into `listed`).
 __kernel void node_minima(__global const ELEM* restrict pool, __global const uint* restrict slots,
                           __global const uint* restrict tiles, uint count,
                           __global ELEM* restrict minima, ELEM far, uint wx, uint wy, uint wz,
-                          __global ELEM* restrict listed) {
+                          __global ELEM* restrict listed, __global const ulong* restrict nodes) {
     const size_t i = get_global_id(0);
     if (i >= (size_t)count * 64) {
         return;
@@ -71,6 +73,10 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
     const size_t slot = slots[i / 64];
     __global const uint* t = tiles + 3 * (i / 64);
     const uint node = (uint)(i % 64);
+    if ((nodes[i / 64] >> node & 1ul) == 0) {
+        listed[i] = minima[slot * 64 + node];
+        return;
+    }
     const uint x0 = (node & 3) * 16, y0 = ((node >> 2) & 3) * 16, z0 = (node >> 4) * 16;
     // Voxels of the node inside the world: [0, n) along each axis.
     const long ox = (long)t[0] * TILE + x0, oy = (long)t[1] * TILE + y0, oz = (long)t[2] * TILE + z0;

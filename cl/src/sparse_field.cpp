@@ -410,7 +410,8 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
     return ms;
 }
 
-void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double* ms) {
+void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots,
+                                 const std::vector<std::uint64_t>& nodes, double* ms) {
     if (slots.empty()) {
         return;
     }
@@ -430,11 +431,13 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double
             minima_coords_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, minima_list_cap_ * 12);
             minima_listed_ =
                 cl::Buffer(ctx_.context(), CL_MEM_WRITE_ONLY, minima_list_cap_ * 64 * elem_);
+            minima_nodes_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, minima_list_cap_ * 8);
         }
         cl::Buffer& list = minima_list_;
         cl::Buffer& coords = minima_coords_;
         q.enqueueWriteBuffer(list, CL_FALSE, 0, slots.size() * 4, slots.data());
         q.enqueueWriteBuffer(coords, CL_FALSE, 0, tiles.size() * 4, tiles.data());
+        q.enqueueWriteBuffer(minima_nodes_, CL_FALSE, 0, nodes.size() * 8, nodes.data());
         const Dims wd = world_.dims();
         cl::Kernel& k = node_minima_;
         k.setArg(0, pool_);
@@ -447,6 +450,7 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double
         k.setArg(7, wd.y);
         k.setArg(8, wd.z);
         k.setArg(9, minima_listed_);
+        k.setArg(10, minima_nodes_);
         cl::Event ev;
         q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(slots.size() * 64), cl::NDRange(64),
                                nullptr, &ev);
@@ -543,7 +547,7 @@ double SparseField::run() {
     }
     coarse_host_.assign(slot_keys_.size() * 64 * elem_, 0);
     double ms = compute(jobs, block);
-    refresh_coarse(slots, &ms);
+    refresh_coarse(slots, std::vector<std::uint64_t>(slots.size(), ~std::uint64_t{0}), &ms);
     return ms;
 }
 
@@ -568,10 +572,30 @@ SparseField::Update SparseField::recompute(const Box& changed) {
     }
     const Box region = intersect(grow(intersect(changed, all), halo_), all);
     std::vector<std::uint32_t> slots;
+    std::vector<std::uint64_t> nodes;  // per slot, its 16^3 nodes whose minima may change
     for_each_tile(tiles_of(region), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
-        slots.push_back(
-            dense_slot(tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
-                                static_cast<std::uint32_t>(z))));
+        const std::uint64_t key =
+            tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                     static_cast<std::uint32_t>(z));
+        const auto it = tiles_.find(key);
+        const bool fresh = it == tiles_.end() || it->second == kInsideTile;
+        slots.push_back(dense_slot(key));
+        std::uint64_t mask = 0;
+        const std::int64_t s = kTileSize;
+        const Box part =
+            intersect(region, Box{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}});
+        for (std::int64_t nz = (part.min.z - z * s) / 16; nz <= (part.max.z - 1 - z * s) / 16;
+             ++nz) {
+            for (std::int64_t ny = (part.min.y - y * s) / 16; ny <= (part.max.y - 1 - y * s) / 16;
+                 ++ny) {
+                for (std::int64_t nx = (part.min.x - x * s) / 16;
+                     nx <= (part.max.x - 1 - x * s) / 16; ++nx) {
+                    mask |= std::uint64_t{1} << (nz << 4 | ny << 2 | nx);
+                }
+            }
+        }
+        // A tile made dense now has no minima yet: all of its nodes.
+        nodes.push_back(fresh ? ~std::uint64_t{0} : mask);
     });
     const Dims wd = world_.dims();
     Box block_box =
@@ -611,7 +635,7 @@ SparseField::Update SparseField::recompute(const Box& changed) {
         });
     }
     result.kernel_ms = compute(jobs, block);
-    refresh_coarse(slots, &result.kernel_ms);
+    refresh_coarse(slots, nodes, &result.kernel_ms);
     result.recomputed = region;
     result.tiles = static_cast<std::uint32_t>(slots.size());
     return result;

@@ -112,7 +112,9 @@ class SparseField {
     // The slot of field tile `key`, made dense (filled with its constant) when it was not.
     std::uint32_t dense_slot(std::uint64_t key);
     void ensure_slots(std::size_t slots);
-    void refresh_coarse(const std::vector<std::uint32_t>& slots, double* ms);
+    // The node minima of the listed field slots: per slot, the nodes set in `nodes`.
+    void refresh_coarse(const std::vector<std::uint32_t>& slots,
+                        const std::vector<std::uint64_t>& nodes, double* ms);
     std::vector<std::uint8_t> constant_value(std::uint32_t entry) const;
 
     Context& ctx_;
@@ -126,7 +128,7 @@ class SparseField {
     cl::Kernel scatter_, node_minima_;  // made once, arguments set per launch
     SparseDeviceWorld device_world_;    // the world's 64-trees on the device
     // node_minima's slots, tile coordinates and minima in list order.
-    cl::Buffer minima_list_, minima_coords_, minima_listed_;
+    cl::Buffer minima_list_, minima_coords_, minima_listed_, minima_nodes_;
     std::size_t minima_list_cap_ = 0;
     // Field tiles: key -> slot on the device, or kInsideTile (constant inside value).
     std::unordered_map<std::uint64_t, std::uint32_t> tiles_;
