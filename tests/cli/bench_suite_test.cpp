@@ -324,7 +324,7 @@ TEST_F(BenchSuite, SparseTimesTheFieldAndDeviceEditsAndChecksThemExact) {
         for (const char* key :
              {"median_ms", "mean_ms", "std_ms", "min_ms", "max_ms", "field_wall_ms",
               "field_kernel_ms", "edit_kernel_ms_median", "edit_world_kernel_ms_median", "build_ms",
-              "peak_rss_bytes", "peak_bytes_per_stored_voxel", "world_bytes",
+              "world_upload_ms", "peak_rss_bytes", "peak_bytes_per_stored_voxel", "world_bytes",
               "world_bytes_per_stored_voxel", "world_bytes_per_solid_voxel", "field_bytes",
               "stored_voxels", "host_sync_ms"}) {
             ASSERT_TRUE(row.contains(key)) << where << " lacks " << key;
