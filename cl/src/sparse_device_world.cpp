@@ -163,6 +163,13 @@ SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, Spa
     upload_whole();
 }
 
+SparseDeviceWorld::~SparseDeviceWorld() {
+    try {
+        ctx_.queue().finish();
+    } catch (const cl::Error&) {
+    }
+}
+
 void SparseDeviceWorld::host_changed_seen() {
     seen_nodes_ = world_.node_masks().size();
     seen_materials_ = world_.materials().size();

@@ -37,6 +37,8 @@ class SparseDeviceWorld {
     // world is edited on the device and lags behind it after apply_brush until world() is
     // called; without it apply_brush throws logic_error.
     SparseDeviceWorld(Context& ctx, const SparseWorld& world, SparseWorld* editable = nullptr);
+    // Waits for the queue (an edit's tables may still be on their way to the device).
+    ~SparseDeviceWorld();
     SparseDeviceWorld(const SparseDeviceWorld&) = delete;
     SparseDeviceWorld& operator=(const SparseDeviceWorld&) = delete;
 
