@@ -23,7 +23,6 @@ namespace voxfield::ocl {
 namespace {
 
 constexpr std::uint32_t kInsideTile = 0xFFFFFFFEu;
-constexpr std::uint64_t kNoRef = std::numeric_limits<std::uint64_t>::max();
 // Voxels of one batch of stacked blocks (and the most of one update block).
 constexpr std::int64_t kBatchVoxels = std::int64_t{1} << 25;
 // Rows per work-group of the gather and scatter kernels (a work-item per row).
@@ -186,9 +185,21 @@ struct SparseField::Batch {
     std::size_t refs_cap = 0, slots_cap = 0;
 };
 
+SparseField::SparseField(Context& ctx, SparseWorld& world, const Palette& palette,
+                         const GeneratorOptions& options)
+    : SparseField(ctx, static_cast<const SparseWorld&>(world), palette, options, &world) {}
+
 SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& palette,
                          const GeneratorOptions& options)
-    : ctx_(ctx), world_(world), palette_(palette), options_(options) {
+    : SparseField(ctx, world, palette, options, nullptr) {}
+
+SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& palette,
+                         const GeneratorOptions& options, SparseWorld* editable)
+    : ctx_(ctx),
+      world_(world),
+      palette_(palette),
+      options_(options),
+      device_world_(ctx, world, editable) {
     if (!options_.max_distance) {
         throw std::invalid_argument("SparseField: options without max_distance");
     }
@@ -203,6 +214,10 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
     inside_ = encode_real_field({options_.signed_field ? -d : 0.0}, one, palette_, options_.format);
     program_ = ctx_.program("sparse_field.cl", {cl_sources::sparse_field_cl},
                             elem_options(options_.format));
+    cl_call("making the sparse field's kernels", [&] {
+        scatter_ = cl::Kernel(program_, "scatter");
+        node_minima_ = cl::Kernel(program_, "node_minima");
+    });
 }
 
 SparseField::~SparseField() {
@@ -220,47 +235,11 @@ std::vector<std::uint8_t> SparseField::constant_value(std::uint32_t entry) const
     return entry == kInsideTile ? inside_ : far_;
 }
 
-void SparseField::sync_world() {
-    auto& q = ctx_.queue();
-    const auto& masks = world_.node_masks();
-    const auto& offsets = world_.node_offsets();
-    const auto& materials = world_.materials();
-    const std::uint64_t nodes = masks.size(), mats = materials.size();
-    const bool whole = !world_on_device_ || world_.layout_generation() != synced_generation_ ||
-                       nodes * 8 > masks_.getInfo<CL_MEM_SIZE>() ||
-                       std::max<std::uint64_t>(mats, 1) > materials_.getInfo<CL_MEM_SIZE>() ||
-                       nodes < synced_nodes_ || mats < synced_materials_;
-    cl_call("uploading the sparse world", [&] {
-        if (whole) {
-            const std::uint64_t ncap = nodes + nodes / 4 + 4096, mcap = mats + mats / 4 + 4096;
-            masks_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, ncap * 8);
-            offsets_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, ncap * 4);
-            materials_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, mcap);
-            synced_nodes_ = synced_materials_ = 0;
-        }
-        if (nodes > synced_nodes_) {
-            q.enqueueWriteBuffer(masks_, CL_FALSE, synced_nodes_ * 8, (nodes - synced_nodes_) * 8,
-                                 masks.data() + synced_nodes_);
-            q.enqueueWriteBuffer(offsets_, CL_FALSE, synced_nodes_ * 4, (nodes - synced_nodes_) * 4,
-                                 offsets.data() + synced_nodes_);
-        }
-        if (mats > synced_materials_) {
-            q.enqueueWriteBuffer(materials_, CL_FALSE, synced_materials_, mats - synced_materials_,
-                                 materials.data() + synced_materials_);
-        }
-        q.finish();
-    });
-    synced_nodes_ = nodes;
-    synced_materials_ = mats;
-    synced_generation_ = world_.layout_generation();
-    world_on_device_ = true;
-}
-
 void SparseField::ensure_slots(std::size_t slots) {
     if (slots <= pool_slots_) {
         return;
     }
-    const std::size_t cap = std::max({slots, pool_slots_ + pool_slots_ / 2, std::size_t{16}});
+    const std::size_t cap = std::max({slots, pool_slots_ + pool_slots_ / 4, std::size_t{16}});
     cl_call("allocating " + std::to_string(cap) + " field tiles", [&] {
         cl::Buffer pool(ctx_.context(), CL_MEM_READ_WRITE, cap * kTileVoxels * elem_);
         cl::Buffer coarse(ctx_.context(), CL_MEM_READ_WRITE, cap * 64 * elem_);
@@ -350,9 +329,9 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                          {job.origin.x, job.origin.y, job.origin.z, span.first.x, span.first.y,
                           span.first.z, span.packed(), static_cast<std::int64_t>(refs.size() / 2)});
             for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
-                const std::uint32_t t = world_.find_tile(tx, ty, tz);
-                refs.push_back(t == kNoTile ? kNoRef : world_.node_bases()[t]);
-                refs.push_back(t == kNoTile ? 0 : world_.material_bases()[t]);
+                const auto [node_base, material_base] = device_world_.ref(tx, ty, tz);
+                refs.push_back(node_base);
+                refs.push_back(material_base);
             });
             const TileSpan rspan = tiles_of(job.region);
             sjobs.insert(sjobs.end(), {job.region.min.x, job.region.min.y, job.region.min.z,
@@ -390,29 +369,25 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                     q.enqueueWriteBuffer(batch.regions, CL_FALSE, 0, regions.size() * 8,
                                          regions.data());
                     q.enqueueWriteBuffer(batch.slots, CL_FALSE, 0, slots.size() * 4, slots.data());
-                    cl::Kernel gather(program_, "gather");
-                    gather.setArg(0, masks_);
-                    gather.setArg(1, offsets_);
-                    gather.setArg(2, materials_);
-                    gather.setArg(3, batch.jobs);
-                    gather.setArg(4, batch.refs);
-                    gather.setArg(5, batch.voxels);
-                    gather.setArg(6, block.x);
-                    gather.setArg(7, block.y);
-                    gather.setArg(8, block.z);
-                    gather.setArg(9, static_cast<cl_long>(wd.x));
-                    gather.setArg(10, static_cast<cl_long>(wd.y));
-                    gather.setArg(11, static_cast<cl_long>(wd.z));
+                    cl::Kernel gather = device_world_.gather_kernel();
+                    gather.setArg(6, batch.jobs);
+                    gather.setArg(7, batch.refs);
+                    gather.setArg(8, batch.voxels);
+                    gather.setArg(9, block.x);
+                    gather.setArg(10, block.y);
+                    gather.setArg(11, block.z);
+                    gather.setArg(12, static_cast<cl_long>(wd.x));
+                    gather.setArg(13, static_cast<cl_long>(wd.y));
+                    gather.setArg(14, static_cast<cl_long>(wd.z));
                     cl::Event ev_gather, ev_scatter;
                     // Fixed work-group sizes: PoCL compiles a kernel once per local size.
                     q.enqueueNDRangeKernel(
                         gather, cl::NullRange,
                         cl::NDRange(round_up(block.y, kGroupRows), std::size_t{block.z} * n),
                         cl::NDRange(kGroupRows, 1), nullptr, &ev_gather);
-                    ev_gather.wait();
+                    ms += batch.generator->run();  // waits for the queue, the gather too
                     ms += elapsed_ms(ev_gather, ev_gather);
-                    ms += batch.generator->run();
-                    cl::Kernel scatter(program_, "scatter");
+                    cl::Kernel& scatter = scatter_;
                     scatter.setArg(0, batch.generator->field_buffer());
                     scatter.setArg(1, pool_);
                     scatter.setArg(2, batch.scatter_jobs);
@@ -435,7 +410,8 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
     return ms;
 }
 
-void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double* ms) {
+void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots,
+                                 const std::vector<std::uint64_t>& nodes, double* ms) {
     if (slots.empty()) {
         return;
     }
@@ -449,12 +425,21 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double
                                        static_cast<std::uint32_t>(key >> 14 & 0x3FFF),
                                        static_cast<std::uint32_t>(key >> 28)});
         }
-        cl::Buffer list(ctx_.context(), CL_MEM_READ_ONLY, slots.size() * 4);
-        cl::Buffer coords(ctx_.context(), CL_MEM_READ_ONLY, tiles.size() * 4);
+        if (slots.size() > minima_list_cap_) {
+            minima_list_cap_ = std::max(slots.size(), std::size_t{64});
+            minima_list_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, minima_list_cap_ * 4);
+            minima_coords_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, minima_list_cap_ * 12);
+            minima_listed_ =
+                cl::Buffer(ctx_.context(), CL_MEM_WRITE_ONLY, minima_list_cap_ * 64 * elem_);
+            minima_nodes_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, minima_list_cap_ * 8);
+        }
+        cl::Buffer& list = minima_list_;
+        cl::Buffer& coords = minima_coords_;
         q.enqueueWriteBuffer(list, CL_FALSE, 0, slots.size() * 4, slots.data());
         q.enqueueWriteBuffer(coords, CL_FALSE, 0, tiles.size() * 4, tiles.data());
+        q.enqueueWriteBuffer(minima_nodes_, CL_FALSE, 0, nodes.size() * 8, nodes.data());
         const Dims wd = world_.dims();
-        cl::Kernel k(program_, "node_minima");
+        cl::Kernel& k = node_minima_;
         k.setArg(0, pool_);
         k.setArg(1, list);
         k.setArg(2, coords);
@@ -464,24 +449,24 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots, double
         k.setArg(6, wd.x);
         k.setArg(7, wd.y);
         k.setArg(8, wd.z);
+        k.setArg(9, minima_listed_);
+        k.setArg(10, minima_nodes_);
         cl::Event ev;
         q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(slots.size() * 64), cl::NDRange(64),
                                nullptr, &ev);
         const std::size_t per = 64 * elem_;
-        if (slots.size() == slot_keys_.size()) {
-            q.enqueueReadBuffer(coarse_, CL_TRUE, 0, slots.size() * per, coarse_host_.data());
-        } else {
-            for (std::uint32_t s : slots) {
-                q.enqueueReadBuffer(coarse_, CL_FALSE, s * per, per, coarse_host_.data() + s * per);
-            }
-            q.finish();
+        std::vector<std::uint8_t> listed(slots.size() * per);
+        q.enqueueReadBuffer(minima_listed_, CL_TRUE, 0, listed.size(), listed.data());
+        for (std::size_t i = 0; i < slots.size(); ++i) {
+            std::memcpy(coarse_host_.data() + std::size_t{slots[i]} * per, listed.data() + i * per,
+                        per);
         }
         *ms += elapsed_ms(ev, ev);
     });
 }
 
 double SparseField::run() {
-    sync_world();
+    device_world_.refresh();
     tiles_.clear();
     slot_keys_.clear();
     const Dims wd = world_.dims();
@@ -540,7 +525,9 @@ double SparseField::run() {
         }
     }
     std::sort(keys.begin(), keys.end());
-    ensure_slots(keys.size());
+    // Headroom for the field tiles that edits add: growing the pool copies it whole (seconds
+    // and twice its memory on a large world), so an edit should rarely have to.
+    ensure_slots(keys.size() + keys.size() / 16 + 16);
     std::vector<Job> jobs;
     std::vector<std::uint32_t> slots;
     jobs.reserve(keys.size());
@@ -560,23 +547,55 @@ double SparseField::run() {
     }
     coarse_host_.assign(slot_keys_.size() * 64 * elem_, 0);
     double ms = compute(jobs, block);
-    refresh_coarse(slots, &ms);
+    refresh_coarse(slots, std::vector<std::uint64_t>(slots.size(), ~std::uint64_t{0}), &ms);
     return ms;
 }
 
 SparseField::Update SparseField::update(const Box& changed) {
+    device_world_.host_edited(changed);
+    return recompute(changed);
+}
+
+SparseField::Update SparseField::apply_brush(const Brush& brush) {
+    const Box changed = device_world_.apply_brush(brush);
+    Update result = recompute(changed);
+    result.edit_kernel_ms = device_world_.last_edit_kernel_ms();
+    result.kernel_ms += result.edit_kernel_ms;
+    return result;
+}
+
+SparseField::Update SparseField::recompute(const Box& changed) {
     Update result;
     const Box all = world_box(world_.dims());
     if (intersect(changed, all).empty()) {
         return result;
     }
-    sync_world();
     const Box region = intersect(grow(intersect(changed, all), halo_), all);
     std::vector<std::uint32_t> slots;
+    std::vector<std::uint64_t> nodes;  // per slot, its 16^3 nodes whose minima may change
     for_each_tile(tiles_of(region), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
-        slots.push_back(
-            dense_slot(tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
-                                static_cast<std::uint32_t>(z))));
+        const std::uint64_t key =
+            tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                     static_cast<std::uint32_t>(z));
+        const auto it = tiles_.find(key);
+        const bool fresh = it == tiles_.end() || it->second == kInsideTile;
+        slots.push_back(dense_slot(key));
+        std::uint64_t mask = 0;
+        const std::int64_t s = kTileSize;
+        const Box part =
+            intersect(region, Box{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}});
+        for (std::int64_t nz = (part.min.z - z * s) / 16; nz <= (part.max.z - 1 - z * s) / 16;
+             ++nz) {
+            for (std::int64_t ny = (part.min.y - y * s) / 16; ny <= (part.max.y - 1 - y * s) / 16;
+                 ++ny) {
+                for (std::int64_t nx = (part.min.x - x * s) / 16;
+                     nx <= (part.max.x - 1 - x * s) / 16; ++nx) {
+                    mask |= std::uint64_t{1} << (nz << 4 | ny << 2 | nx);
+                }
+            }
+        }
+        // A tile made dense now has no minima yet: all of its nodes.
+        nodes.push_back(fresh ? ~std::uint64_t{0} : mask);
     });
     const Dims wd = world_.dims();
     Box block_box =
@@ -584,9 +603,22 @@ SparseField::Update SparseField::update(const Box& changed) {
     // Extents rounded up to a multiple of 16 (more empty space beyond the world, or more of
     // the world, changes no value inside), so that edits of about one size share a block
     // shape and its dense generator instead of setting one up each.
-    block_box.max = {block_box.min.x + round_up_to(block_box.max.x - block_box.min.x, 16),
-                     block_box.min.y + round_up_to(block_box.max.y - block_box.min.y, 16),
-                     block_box.min.z + round_up_to(block_box.max.z - block_box.min.z, 16)};
+    Int3 size{round_up_to(block_box.max.x - block_box.min.x, 16),
+              round_up_to(block_box.max.y - block_box.min.y, 16),
+              round_up_to(block_box.max.z - block_box.min.z, 16)};
+    // An edit near the world's edge (a smaller block) takes a shape set up already when that
+    // holds it with at most twice the voxels: no generator set up, and no eviction of others.
+    const Int3 need = size;
+    std::int64_t best = 2 * need.x * need.y * need.z + 1;
+    for (const auto& [shape, batch] : batches_) {
+        const auto& [bx, by, bz, n] = shape;
+        const std::int64_t v = std::int64_t{bx} * by * bz;
+        if (n == 1 && bx >= need.x && by >= need.y && bz >= need.z && v < best) {
+            best = v;
+            size = {bx, by, bz};
+        }
+    }
+    block_box.max = {block_box.min.x + size.x, block_box.min.y + size.y, block_box.min.z + size.z};
     std::vector<Job> jobs;
     Dims block{};
     if (block_box.volume() <= kBatchVoxels) {
@@ -603,7 +635,7 @@ SparseField::Update SparseField::update(const Box& changed) {
         });
     }
     result.kernel_ms = compute(jobs, block);
-    refresh_coarse(slots, &result.kernel_ms);
+    refresh_coarse(slots, nodes, &result.kernel_ms);
     result.recomputed = region;
     result.tiles = static_cast<std::uint32_t>(slots.size());
     return result;

@@ -8,6 +8,7 @@
 #include <exception>
 #include <limits>
 #include <mutex>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <unordered_map>
@@ -433,6 +434,10 @@ void SparseWorld::store_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t t
 
 void SparseWorld::put_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t tz,
                            const EncodedTile& e) {
+    if (tx >= grid_.x || ty >= grid_.y || tz >= grid_.z || e.masks.size() != e.offsets.size()) {
+        throw std::invalid_argument("SparseWorld::put_tile: tile outside the grid " +
+                                    grid_.to_string() + " or nodes without offsets");
+    }
     const bool empty = e.masks.empty();
     const std::uint64_t key = tile_key(tx, ty, tz);
     std::uint32_t tile = find_tile(tx, ty, tz);

@@ -308,6 +308,163 @@ TEST(SparseField, UpdatesAfterRandomBrushesEqualRecomputation) {
     }
 }
 
+// A tile's stored 64-tree (nodes and materials from its bases).
+SparseWorld::EncodedTile stored_tile(const SparseWorld& s, std::uint32_t t) {
+    SparseWorld::EncodedTile e;
+    const auto nb = static_cast<long>(s.node_bases()[t]);
+    const auto mb = static_cast<long>(s.material_bases()[t]);
+    e.masks.assign(s.node_masks().begin() + nb, s.node_masks().begin() + nb + s.node_counts()[t]);
+    e.offsets.assign(s.node_offsets().begin() + nb,
+                     s.node_offsets().begin() + nb + s.node_counts()[t]);
+    e.materials.assign(s.materials().begin() + mb,
+                       s.materials().begin() + mb + s.material_counts()[t]);
+    return e;
+}
+
+TEST(SparseDeviceWorld, EncodesTilesBitForBitAsCore) {
+    std::mt19937 rng(31);
+    std::vector<std::vector<std::uint8_t>> tiles;
+    tiles.emplace_back(kTileVoxels, 0);
+    tiles.emplace_back(kTileVoxels, 255);
+    for (const double density : {0.0001, 0.01, 0.2, 0.5, 0.9, 0.9999}) {
+        std::bernoulli_distribution solid(density);
+        std::uniform_int_distribution<int> material(1, 255);
+        std::vector<std::uint8_t> t(kTileVoxels);
+        for (auto& v : t) {
+            v = solid(rng) ? static_cast<std::uint8_t>(material(rng)) : 0;
+        }
+        tiles.push_back(std::move(t));
+    }
+    for (std::uint32_t corner = 0; corner < 8; ++corner) {
+        std::vector<std::uint8_t> t(kTileVoxels, 0);
+        const std::uint32_t x = corner & 1 ? 63 : 0, y = corner & 2 ? 63 : 0,
+                            z = corner & 4 ? 63 : 0;
+        t[(z * 64 + y) * 64 + x] = static_cast<std::uint8_t>(corner + 1);
+        tiles.push_back(std::move(t));
+    }
+    {
+        // One solid 4^3 leaf per 16^3 node, and one 16^3 node full.
+        std::vector<std::uint8_t> t(kTileVoxels, 0);
+        for (std::uint32_t n = 0; n < 64; ++n) {
+            const std::uint32_t x = (n & 3) * 16 + 4, y = (n >> 2 & 3) * 16 + 8, z = (n >> 4) * 16;
+            t[(z * 64 + y) * 64 + x] = 9;
+        }
+        for (std::uint32_t z = 16; z < 32; ++z) {
+            for (std::uint32_t y = 32; y < 48; ++y) {
+                for (std::uint32_t x = 48; x < 64; ++x) {
+                    t[(z * 64 + y) * 64 + x] = static_cast<std::uint8_t>(x + y + z);
+                }
+            }
+        }
+        tiles.push_back(std::move(t));
+    }
+    std::vector<std::uint8_t> all;
+    for (const auto& t : tiles) {
+        all.insert(all.end(), t.begin(), t.end());
+    }
+    const auto got = ocl::encode_tiles(pocl(), all);
+    ASSERT_EQ(got.size(), tiles.size());
+    for (std::size_t i = 0; i < tiles.size(); ++i) {
+        const auto want = SparseWorld::encode_tile(tiles[i]);
+        EXPECT_EQ(got[i].masks, want.masks) << "tile " << i;
+        EXPECT_EQ(got[i].offsets, want.offsets) << "tile " << i;
+        EXPECT_EQ(got[i].materials, want.materials) << "tile " << i;
+    }
+}
+
+// Random brushes applied on the device (no host re-encoding): after each the field equals the
+// dense bounded field of the same edits on a dense world, and the host world, once read, holds
+// the dense world's voxels, every tile stored as encode_tile would store it. Host edits (update)
+// mixed in, and a brush over more tiles than a device edit takes.
+TEST(SparseDeviceWorld, BrushesOnTheDeviceEqualTheDenseReference) {
+    std::mt19937 rng(32);
+    const Palette p = Palette::magicavoxel_default();
+    int k = 0;
+    for (const Metric m : kMetrics) {
+        for (const bool sgn : {false, true}) {
+            const Dims d = k % 3 == 0   ? Dims{100, 50, 70}
+                           : k % 3 == 1 ? Dims{64, 100, 65}
+                                        : Dims{130, 20, 129};
+            Case c;
+            c.metric = m;
+            c.signed_field = sgn;
+            c.layout = kLayouts[k % 2];
+            c.bound = k == 2 ? 70 : 9.5;
+            c.format = m == Metric::manhattan && !sgn ? Format::packed32
+                                                      : ocl::default_format(m, c.spacing, sgn);
+            ++k;
+            SCOPED_TRACE(describe(c, d));
+            World w = blob_world(d, 6, 0.0002, rng);
+            SparseWorld s = SparseWorld::from_dense(w);
+            ocl::SparseField f(pocl(), s, p, options_of(c));
+            f.run();
+            for (int e = 0; e < 14; ++e) {
+                Brush b;
+                b.op = static_cast<BrushOp>(std::uniform_int_distribution<int>(0, 2)(rng));
+                b.shape = static_cast<BrushShape>(std::uniform_int_distribution<int>(0, 1)(rng));
+                b.centre = {std::uniform_int_distribution<std::int64_t>(-3, d.x + 3)(rng),
+                            std::uniform_int_distribution<std::int64_t>(-3, d.y + 3)(rng),
+                            std::uniform_int_distribution<std::int64_t>(-3, d.z + 3)(rng)};
+                b.radius = std::uniform_int_distribution<std::int64_t>(0, e == 5 ? 60 : 12)(rng);
+                b.material =
+                    static_cast<std::uint8_t>(std::uniform_int_distribution<int>(1, 255)(rng));
+                apply_brush(w, b);
+                if (e % 5 == 4) {
+                    // On the host: the world read (brought up to date) and edited there.
+                    f.world();
+                    f.update(apply_brush(s, b));
+                } else {
+                    const auto u = f.apply_brush(b);
+                    EXPECT_EQ(u.tiles > 0, !brush_bounds(b, d).empty());
+                }
+                const auto got = f.read_dense();
+                expect_same(got, dense_field(w, p, c), c, d, "after edit " + std::to_string(e));
+                if (e % 4 == 3) {
+                    expect_coarse_bounds(f, got, c, d);
+                }
+            }
+            EXPECT_GT(f.device_world().slots_used(), 0u);
+            const SparseWorld& host = f.world();
+            ASSERT_EQ(host.to_dense().voxels(), w.voxels());
+            std::vector<std::uint8_t> tile(kTileVoxels);
+            for (std::uint32_t t = 0; t < host.tile_count(); ++t) {
+                host.decode_tile(t, tile);
+                ASSERT_EQ(stored_tile(host, t), SparseWorld::encode_tile(tile)) << "tile " << t;
+            }
+            ocl::SparseField fresh(pocl(), s, p, options_of(c));
+            fresh.run();
+            expect_same(fresh.read_dense(), f.read_dense(), c, d, "recomputed vs updated");
+        }
+    }
+}
+
+TEST(SparseDeviceWorld, LargeBrushesAndReadOnlyWorlds) {
+    std::mt19937 rng(33);
+    const Palette p = Palette::magicavoxel_default();
+    const Dims d{600, 40, 600};  // 10 x 1 x 10 tiles
+    World w = blob_world(d, 30, 0.0, rng);
+    SparseWorld s = SparseWorld::from_dense(w);
+    Case c;
+    c.bound = 6;
+    ocl::SparseField f(pocl(), s, p, options_of(c));
+    f.run();
+    Brush small{BrushOp::place, BrushShape::cube, {300, 20, 300}, 5, 7};
+    Brush large{BrushOp::erase, BrushShape::sphere, {250, 10, 280}, 290, 1};
+    Brush paint{BrushOp::paint, BrushShape::sphere, {310, 20, 300}, 9, 42};
+    for (const Brush& b : {small, large, paint}) {
+        apply_brush(w, b);
+        f.apply_brush(b);
+        expect_same(f.read_dense(), dense_field(w, p, c), c, d, "after " + to_string(b.op));
+    }
+    EXPECT_EQ(f.world().to_dense().voxels(), w.voxels());
+    Brush bad = small;
+    bad.material = 0;
+    EXPECT_THROW(f.apply_brush(bad), InputError);
+    const SparseWorld& read_only = s;
+    ocl::SparseField g(pocl(), read_only, p, options_of(c));
+    EXPECT_THROW(g.apply_brush(small), std::logic_error);
+}
+
 TEST(SparseField, CoarseDistancesBoundTheExactDistance) {
     std::mt19937 rng(25);
     const Dims d{140, 66, 70};

@@ -300,6 +300,68 @@ TEST_F(BenchSuite, ImplicitFindsItsPartBesideTheBinary) {
     EXPECT_FALSE(fs::exists(js));
 }
 
+// The sparse suite on small city worlds: one row per --sizes entry, none skipped, the whole
+// field and the device edits timed, the edited regions equal to the dense bounded field, the
+// memory records present; bad sizes and options refused before any work.
+TEST_F(BenchSuite, SparseTimesTheFieldAndDeviceEditsAndChecksThemExact) {
+    const fs::path js = dir_ / "sparse.json";
+    const RunResult r =
+        run({"bench", "--suite", "sparse", "--sizes", "200x70x150,130x40x64", "--max-distance", "6",
+             "--edits", "3", "--warmup", "1", "--device", "cpu", "--json", js.string()});
+    ASSERT_EQ(r.code, 0) << describe(r);
+    const json doc = json::parse(read_text(js));
+    expect_common(doc, "sparse");
+    EXPECT_EQ(doc["scene"], "city");
+    ASSERT_EQ(doc["results"].size(), 2u);
+    const std::vector<std::vector<std::uint32_t>> sizes = {{200, 70, 150}, {130, 40, 64}};
+    for (std::size_t i = 0; i < 2; ++i) {
+        const json& row = doc["results"][i];
+        const std::string where = row.dump().substr(0, 200);
+        EXPECT_FALSE(row.contains("skipped")) << where;
+        EXPECT_EQ(row["size"], sizes[i]) << where;
+        EXPECT_EQ(row["max_distance"], 6.0) << where;
+        EXPECT_EQ(row["format"], "u8") << where;
+        EXPECT_EQ(row["metric"], "manhattan") << where;
+        EXPECT_EQ(row["exact"], true) << where;
+        EXPECT_GT(row["exact_checked_voxels"].get<std::uint64_t>(), 0u) << where;
+        EXPECT_EQ(row["exact_differing_voxels"], 0) << where;
+        EXPECT_EQ(row["edits"], 3) << where;
+        EXPECT_EQ(row["edit_radius"], 8) << where;
+        ASSERT_EQ(row["samples_ms"].size(), 3u) << where;
+        for (const char* key :
+             {"median_ms", "mean_ms", "std_ms", "min_ms", "max_ms", "field_wall_ms",
+              "field_kernel_ms", "edit_kernel_ms_median", "edit_world_kernel_ms_median", "build_ms",
+              "world_upload_ms", "peak_rss_bytes", "peak_bytes_per_stored_voxel", "world_bytes",
+              "world_bytes_per_stored_voxel", "world_bytes_per_solid_voxel", "field_bytes",
+              "stored_voxels", "host_sync_ms"}) {
+            ASSERT_TRUE(row.contains(key)) << where << " lacks " << key;
+            EXPECT_TRUE(finite_number(row[key])) << where << " " << key;
+        }
+        EXPECT_GT(row["median_ms"].get<double>(), 0.0) << where;
+        EXPECT_GT(row["field_kernel_ms"].get<double>(), 0.0) << where;
+        EXPECT_GT(row["tiles_stored"].get<std::uint32_t>(), 0u) << where;
+        EXPECT_GT(row["solid_voxels"].get<std::uint64_t>(), 0u) << where;
+        EXPECT_EQ(row["peak_within_target"].is_boolean(), true) << where;
+        EXPECT_TRUE(row.contains("load_average_start")) << where;
+    }
+    for (const std::vector<std::string>& bad : {std::vector<std::string>{"--sizes", "2000000x8x8"},
+                                                {"--chunk", "8"},
+                                                {"--max-distance", "0", "--format", "u8"},
+                                                {"--metric", "cosine"}}) {
+        std::vector<std::string> args = {"bench",
+                                         "--suite",
+                                         "sparse",
+                                         "--device",
+                                         "cpu",
+                                         "--json",
+                                         (dir_ / "bad.json").string()};
+        args.insert(args.end(), bad.begin(), bad.end());
+        const RunResult b = run(args);
+        EXPECT_EQ(b.code, 2) << describe(b);
+        EXPECT_FALSE(fs::exists(dir_ / "bad.json")) << bad[0];
+    }
+}
+
 TEST_F(BenchSuite, SuiteRefusesGridOptions) {
     const RunResult r = run({"bench", "--suite", "dissertation", "--sizes", "64"});
     EXPECT_EQ(r.code, 2) << describe(r);

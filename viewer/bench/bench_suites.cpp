@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "bench_implicit.hpp"
+#include "bench_sparse.hpp"
 #include "cli_util.hpp"
 #include "edit_log.hpp"
 #include "sand_run.hpp"
@@ -754,8 +755,8 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
 }  // namespace
 
 const std::vector<std::string>& suite_names() {
-    static const std::vector<std::string> names = {"dissertation", "edits", "render", "sand",
-                                                   "implicit"};
+    static const std::vector<std::string> names = {"dissertation", "edits",    "render",
+                                                   "sand",         "implicit", "sparse"};
     return names;
 }
 
@@ -804,6 +805,11 @@ json run_suite(ocl::Context& ctx, const SuiteOptions& o, BenchObserver& observer
         doc["scene"] = "data/parts/bracket.sdf.json";
         rows = run_implicit(ctx, o.implicit_part, plan.repeat, plan.warmup, plan.budget_s, o.quick,
                             observer);
+    } else if (o.suite == "sparse") {
+        // The whole field runs once unless --repeat asks for more (minutes on a CPU).
+        doc["scene"] = "city";
+        doc["repeat"] = o.repeat != 0 ? o.repeat : 1;
+        rows = run_sparse(ctx, o, doc["repeat"].get<std::uint32_t>(), plan.warmup, observer);
     } else {
         rows = run_render(ctx, plan, o.quick, observer);
     }

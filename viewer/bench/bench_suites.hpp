@@ -11,7 +11,9 @@
 #include <string>
 #include <vector>
 
+#include "cli_util.hpp"
 #include "voxfield/cl/runtime.hpp"
+#include "voxfield/core/world.hpp"
 
 namespace voxfield::cli {
 
@@ -27,6 +29,8 @@ struct SuiteOptions {
     std::uint32_t world = 0;     // edits, sand: the world's edge; 0: the suite's default
     std::string format = "u16";  // edits: the field format
     std::string implicit_part;   // implicit: the part's .sdf.json (data/parts/bracket.sdf.json)
+    std::vector<Dims> sizes;     // sparse: the worlds (empty: the suite's default)
+    GeneratorFlags field;        // sparse: metric, spacing, sign, --max-distance
 };
 
 // What a suite reports while it runs, in order; every call is optional to act on.
@@ -46,7 +50,7 @@ class BenchObserver {
     virtual void row(const nlohmann::json& /*row*/) {}
 };
 
-// "dissertation", "edits", "render", "sand", "implicit".
+// "dissertation", "edits", "render", "sand", "implicit", "sparse".
 const std::vector<std::string>& suite_names();
 
 // Runs suite `o.suite` on `ctx` (the render suite also opens a Vulkan context of its own) and

@@ -198,7 +198,11 @@ Command add_bench(CLI::App& root) {
                     "times of every metric), sand (falling sand with the exact field updated "
                     "every step; --repeat is its step count, default 200, --quick 10), implicit "
                     "(discretising data/parts/bracket.sdf.json into tile grids of contrees at "
-                    "256^3 and 1024^3, --quick 256^3)")
+                    "256^3 and 1024^3, --quick 256^3), sparse (the city scene as a sparse world "
+                    "per --sizes XxYxZ, default 1024x256x1024, --quick 256x128x256: whole "
+                    "bounded field at --max-distance, default 16, --repeat times, default 1; "
+                    "--edits radius-8 edits on the device, default 30, --quick 6; --format "
+                    "default u8; --metric, --spacing, --signed)")
         ->check(CLI::IsMember(suite_names()));
     app->add_flag("--quick", o->quick,
                   "Suites: smaller sizes and fewer runs (minutes on a 2-core CPU; what CI runs)");
@@ -206,7 +210,9 @@ Command add_bench(CLI::App& root) {
                     "Suites: wall-clock seconds per row; a row stops after the run that passes "
                     "it, larger sizes predicted to pass it are skipped (default 60, --quick 15)")
         ->check(positive());
-    app->add_option("--edits", o->edits, "Suite edits: number of edits (default 200, --quick 20)")
+    app->add_option("--edits", o->edits,
+                    "Suites edits and sparse: number of edits (edits: default 200, --quick 20; "
+                    "sparse: 30, --quick 6)")
         ->check(positive());
     app->add_option("--world", o->world,
                     "Suites edits and sand: world edge N (edits: default 128, --quick 64; sand: "
@@ -221,18 +227,23 @@ Command add_bench(CLI::App& root) {
                     }
                     return run_bench(*o);
                 }
+                const bool sparse = o->suite == "sparse";
                 for (const char* flag : {"--algorithms", "--sizes", "--scene"}) {
-                    if (app->count(flag) != 0) {
+                    if (app->count(flag) != 0 && !(sparse && std::string(flag) == "--sizes")) {
                         throw InputError(std::string(flag) +
                                          " does not apply to --suite (a suite fixes its "
-                                         "algorithms, sizes and scene)");
+                                         "algorithms, sizes and scene; --suite sparse takes "
+                                         "--sizes)");
                     }
                 }
-                if ((o->suite != "edits") &&
-                    (app->count("--edits") != 0 || app->count("--chunk") != 0 ||
-                     app->count("--format") != 0)) {
-                    throw InputError("--edits, --chunk and --format apply to --suite edits only");
+                if (o->suite != "edits" && app->count("--chunk") != 0) {
+                    throw InputError("--chunk applies to --suite edits only");
                 }
+                if (o->suite != "edits" && !sparse &&
+                    (app->count("--edits") != 0 || app->count("--format") != 0)) {
+                    throw InputError("--edits and --format apply to --suite edits and sparse only");
+                }
+
                 if (o->suite != "edits" && o->suite != "sand" && app->count("--world") != 0) {
                     throw InputError("--world applies to --suite edits and sand only");
                 }
@@ -248,7 +259,13 @@ Command add_bench(CLI::App& root) {
                 s.chunk = o->chunk != 0 ? o->chunk : 16;
                 s.edits = o->edits;
                 s.world = o->world;
-                s.format = o->format.empty() ? "u16" : o->format;
+                s.format = o->format.empty() ? (sparse ? "u8" : "u16") : o->format;
+                if (sparse) {
+                    for (const auto& size : o->sizes) {
+                        s.sizes.push_back(parse_size(size));
+                    }
+                    s.field = o->field;
+                }
                 return run_suite_command(s, *o);
             }};
 }

@@ -1,11 +1,12 @@
 #pragma once
 // Exact bounded distance fields of sparse worlds (core/sparse.hpp), tile by tile, on any
-// OpenCL device (kernels: cl/kernels/sparse_field.cl; the transforms: exact.hpp and
-// separable.hpp). Each tile to compute is gathered with a halo of ceil(D / spacing) voxels
-// per axis from its neighbour tiles into a dense block; blocks are stacked along z into one
-// dense world and transformed by the dense bounded generator, and each block's interior is
-// scattered into the field tiles. A voxel within D of another depends on nothing outside the
-// block, so the result equals the dense bounded field voxel for voxel.
+// OpenCL device (kernels: cl/kernels/sparse_field.cl, the world's 64-trees on the device:
+// sparse_device_world.hpp; the transforms: exact.hpp and separable.hpp). Each tile to compute is
+// gathered with a halo of ceil(D / spacing) voxels per axis from its neighbour tiles into a dense
+// block; blocks are stacked along z into one dense world and transformed by the dense bounded
+// generator, and each block's interior is scattered into the field tiles. A voxel within D of
+// another depends on nothing outside the block, so the result equals the dense bounded field voxel
+// for voxel.
 //
 // Field tiles: 64^3 values in the output format, in a pool of slots on the device, stored for
 // every tile within D of a solid voxel; tiles beyond D hold the far value (D in the format)
@@ -20,6 +21,7 @@
 #include <vector>
 
 #include "voxfield/cl/generator.hpp"
+#include "voxfield/cl/sparse_device_world.hpp"
 #include "voxfield/core/sparse.hpp"
 
 namespace voxfield::ocl {
@@ -35,8 +37,13 @@ GeneratorOptions resolve_sparse_options(const GeneratorOptions& options, bool fo
 class SparseField {
   public:
     // Uploads the world's buffers; `world` and `palette` must outlive the field (update()
-    // reads the world's edits). Options as resolve_sparse_options returns them.
+    // reads the world's edits). Options as resolve_sparse_options returns them. A read-only
+    // world takes no apply_brush.
     SparseField(Context& ctx, const SparseWorld& world, const Palette& palette,
+                const GeneratorOptions& options);
+    // The same, with a world the field edits on the device (apply_brush): `world` lags behind
+    // the device until it is read through world().
+    SparseField(Context& ctx, SparseWorld& world, const Palette& palette,
                 const GeneratorOptions& options);
     ~SparseField();
     SparseField(const SparseField&) = delete;
@@ -50,11 +57,21 @@ class SparseField {
         Box recomputed;           // the voxels whose field was recomputed (Box{} when none)
         std::uint32_t tiles = 0;  // field tiles written
         double kernel_ms = 0;
+        double edit_kernel_ms = 0;  // of which apply_brush's decoding, brush and encoding
     };
-    // After the world's voxels inside `changed` were edited (SparseWorld::edit / apply_brush
-    // return that box), brings the field up to date: recomputes the voxels within D of
-    // `changed` only, in the tiles they lie in.
+    // After the world's voxels inside `changed` were edited on the host (SparseWorld::edit /
+    // apply_brush return that box), brings the device's world and the field up to date:
+    // uploads the tiles `changed` overlaps and recomputes the voxels within D of `changed`
+    // only, in the tiles they lie in.
     Update update(const Box& changed);
+    // Applies `brush` to the world on the device (SparseDeviceWorld::apply_brush: decoded,
+    // brushed and encoded there, nothing read back) and updates the field as update() does
+    // for the brush's bounds; kernel_ms includes the edit's kernels. InputError as core's
+    // apply_brush; logic_error for a read-only world.
+    Update apply_brush(const Brush& brush);
+    // The world, brought up to date with the device's edits first.
+    const SparseWorld& world() { return device_world_.world(); }
+    const SparseDeviceWorld& device_world() const { return device_world_; }
 
     const GeneratorOptions& options() const { return options_; }
     std::uint32_t halo(int axis) const { return halo_[axis]; }
@@ -80,6 +97,8 @@ class SparseField {
     double coarse_node(std::int64_t nx, std::int64_t ny, std::int64_t nz);
 
   private:
+    SparseField(Context& ctx, const SparseWorld& world, const Palette& palette,
+                const GeneratorOptions& options, SparseWorld* editable);
     struct Job {
         Box region;   // voxels written: inside one block, clipped to the world
         Int3 origin;  // world coordinates of the block's first voxel
@@ -88,11 +107,14 @@ class SparseField {
     Batch& batch_for(Dims block, std::uint32_t blocks);
     // Computes `jobs` (each block: block dims) in batches; returns kernel ms.
     double compute(const std::vector<Job>& jobs, Dims block);
-    void sync_world();
+    // Recomputes the voxels within D of `changed` (the device's world already edited).
+    Update recompute(const Box& changed);
     // The slot of field tile `key`, made dense (filled with its constant) when it was not.
     std::uint32_t dense_slot(std::uint64_t key);
     void ensure_slots(std::size_t slots);
-    void refresh_coarse(const std::vector<std::uint32_t>& slots, double* ms);
+    // The node minima of the listed field slots: per slot, the nodes set in `nodes`.
+    void refresh_coarse(const std::vector<std::uint32_t>& slots,
+                        const std::vector<std::uint64_t>& nodes, double* ms);
     std::vector<std::uint8_t> constant_value(std::uint32_t entry) const;
 
     Context& ctx_;
@@ -103,10 +125,11 @@ class SparseField {
     std::size_t elem_ = 0;
     std::vector<std::uint8_t> far_, inside_;
     cl::Program program_;
-    // The world on the device: node masks, node offsets, materials; what was uploaded.
-    cl::Buffer masks_, offsets_, materials_;
-    std::uint64_t synced_nodes_ = 0, synced_materials_ = 0, synced_generation_ = 0;
-    bool world_on_device_ = false;
+    cl::Kernel scatter_, node_minima_;  // made once, arguments set per launch
+    SparseDeviceWorld device_world_;    // the world's 64-trees on the device
+    // node_minima's slots, tile coordinates and minima in list order.
+    cl::Buffer minima_list_, minima_coords_, minima_listed_, minima_nodes_;
+    std::size_t minima_list_cap_ = 0;
     // Field tiles: key -> slot on the device, or kInsideTile (constant inside value).
     std::unordered_map<std::uint64_t, std::uint32_t> tiles_;
     std::vector<std::uint64_t> slot_keys_;  // per slot, its tile key

@@ -117,21 +117,26 @@ class SparseWorld {
     // whole; between two compactions edits only append to the node and material buffers).
     std::uint64_t layout_generation() const { return generation_; }
 
-  private:
-    // Encodes 64^3 voxels (tile-local) as tile (tx, ty, tz): appends its nodes and materials,
-    // inserts or replaces its tile entry; removes the tile when every voxel is 0.
-    void store_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t tz,
-                    std::span<const std::uint8_t> voxels);
-    // store_tile in two steps: the tile's 64-tree (nodes, offsets, materials; empty when every
-    // voxel is 0), which needs nothing of the world (from_fill encodes tiles on several
-    // threads), then its entry in the world's buffers.
+    // One tile's 64-tree: its nodes (masks, tile-relative offsets) and materials, as they lie
+    // from the tile's node_base and material_base; empty when every voxel is 0.
     struct EncodedTile {
         std::vector<std::uint64_t> masks;
         std::vector<std::uint32_t> offsets;
         std::vector<std::uint8_t> materials;
+        friend bool operator==(const EncodedTile&, const EncodedTile&) = default;
     };
+    // The 64-tree of 64^3 voxels (tile-local, x fastest); needs nothing of a world (from_fill
+    // encodes tiles on several threads; cl/sparse_device_world.hpp's kernels equal it).
     static EncodedTile encode_tile(std::span<const std::uint8_t> voxels);
+    // Stores an encoded tile as tile (tx, ty, tz) (in tile units, inside the tile grid):
+    // appends its nodes and materials, inserts or replaces its tile entry; removes the tile
+    // when `e` is empty.
     void put_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t tz, const EncodedTile& e);
+
+  private:
+    // Encodes 64^3 voxels (tile-local) as tile (tx, ty, tz): encode_tile, then put_tile.
+    void store_tile(std::uint32_t tx, std::uint32_t ty, std::uint32_t tz,
+                    std::span<const std::uint8_t> voxels);
     void remove_tile(std::uint32_t tile);
     void hash_insert(std::uint64_t key, std::uint32_t tile);
     std::size_t hash_slot(std::uint64_t key) const;  // the key's slot or the free slot

@@ -1,0 +1,115 @@
+#pragma once
+// A sparse world's 64-trees on an OpenCL device (core/sparse.hpp's layout; kernels:
+// cl/kernels/sparse_world.cl), edited there: a brush's tiles are gathered into dense tiles,
+// brushed and encoded again on the device, bit for bit as core's SparseWorld::encode_tile,
+// so that an edit neither reads anything back nor encodes on the host. The host world is
+// brought up to date (the edited tiles read back and stored) only when it is read: world().
+//
+// Where the trees lie: the main buffers hold the host world's buffers as uploaded; a tile
+// encoded since (on the device, or on the host and uploaded by host_edited) lives in a slot
+// of its own, sized for the worst case (kTileMaxNodes nodes, kTileVoxels materials), which it
+// keeps while it is edited again: variable-size output without a count read back. Slots
+// taking more than a quarter of the main buffers' bytes (at least 256 MiB) bring the host world
+// up to date and upload it again whole, which frees them.
+#include <cstdint>
+#include <span>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "voxfield/cl/runtime.hpp"
+#include "voxfield/core/brush.hpp"
+#include "voxfield/core/sparse.hpp"
+
+namespace voxfield::ocl {
+
+// The most nodes of one tile's 64-tree: the root, 64 children of 16^3, 4096 of 4^3.
+inline constexpr std::uint32_t kTileMaxNodes = 1 + 64 + 4096;
+
+// Encodes dense tiles on the device (`voxels`: whole tiles of kTileVoxels bytes each,
+// tile-local, x fastest): the 64-tree of each, as SparseWorld::encode_tile returns it.
+std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
+                                                   std::span<const std::uint8_t> voxels);
+
+class SparseDeviceWorld {
+  public:
+    // Uploads `world` (its buffers as they are). With `editable` (null, or `world` itself) the
+    // world is edited on the device and lags behind it after apply_brush until world() is
+    // called; without it apply_brush throws logic_error.
+    SparseDeviceWorld(Context& ctx, const SparseWorld& world, SparseWorld* editable = nullptr);
+    // Waits for the queue (an edit's tables may still be on their way to the device).
+    ~SparseDeviceWorld();
+    SparseDeviceWorld(const SparseDeviceWorld&) = delete;
+    SparseDeviceWorld& operator=(const SparseDeviceWorld&) = delete;
+
+    // The host world, brought up to date with the device's edits first (the tiles edited on
+    // the device read back and stored with SparseWorld::put_tile).
+    const SparseWorld& world();
+    bool host_lags() const { return !lagging_.empty(); }
+
+    // After the host world's voxels inside `changed` were edited on the host (SparseWorld::edit
+    // returns that box): uploads the tiles that box overlaps (or, for many, the whole world).
+    void host_edited(const Box& changed);
+    // Uploads the whole host world again when it changed since the device last saw it (an edit
+    // not reported through host_edited).
+    void refresh();
+
+    // Applies `brush` (core/brush.hpp semantics, clipped to the world) on the device and
+    // returns the box of voxels it may have changed (its bounds in the world; Box{} when
+    // none). A brush over more than kMaxEditTiles tiles is applied to the host world (brought up
+    // to date first) and uploaded. InputError as core's apply_brush; logic_error when read only.
+    Box apply_brush(const Brush& brush);
+    static constexpr std::uint32_t kMaxEditTiles = 64;
+    // Device time of the kernels of the last apply_brush (ms; valid once the queue finished).
+    double last_edit_kernel_ms() const;
+
+    // The gather kernel (sparse_world.cl) with the world's buffers as its arguments 0-5; the
+    // caller sets the job arguments 6-14.
+    cl::Kernel gather_kernel();
+    // A tile's node base and material base for gather's refs (kNoRef, 0 when not stored).
+    static constexpr std::uint64_t kNoRef = ~std::uint64_t{0};
+    std::pair<std::uint64_t, std::uint64_t> ref(std::int64_t tx, std::int64_t ty,
+                                                std::int64_t tz) const;
+    // Slots in use (tiles encoded since the last whole upload).
+    std::size_t slots_used() const { return slot_of_.size(); }
+
+  private:
+    void upload_whole();
+    std::uint32_t slot_for(std::uint64_t key);
+    void ensure_slot_capacity(std::size_t slots);
+    void ensure_scratch(std::size_t tiles);
+    void release_slots_if_needed();
+    void host_changed_seen();
+    Box host_apply_brush(const Brush& brush);
+
+    Context& ctx_;
+    const SparseWorld& world_;
+    SparseWorld* editable_ = nullptr;
+    cl::Program program_;
+    cl::Kernel gather_, brush_, count_, write_;  // made once, arguments set per launch
+    // Main buffers: the host world as uploaded; dir_: per stored tile key, its refs.
+    cl::Buffer masks_, offsets_, materials_;
+    std::unordered_map<std::uint64_t, std::pair<std::uint64_t, std::uint64_t>> dir_;
+    // Slots: buffers of slot_capacity_ worst-case tiles, per slot its node and material counts.
+    cl::Buffer slot_masks_, slot_offsets_, slot_materials_, slot_counts_;
+    std::size_t slot_capacity_ = 0;
+    std::unordered_map<std::uint64_t, std::uint32_t> slot_of_;
+    std::vector<std::uint32_t> free_slots_;
+    std::size_t slots_made_ = 0;
+    // Tiles edited on the device that the host world lacks.
+    std::unordered_set<std::uint64_t> lagging_;
+    // What the host world's buffers were when the device last matched it.
+    std::uint64_t seen_nodes_ = 0, seen_materials_ = 0, seen_generation_ = 0;
+    std::uint32_t seen_tiles_ = 0;
+    // An edit's dense tiles and encoding scratch, for up to scratch_tiles_ tiles.
+    cl::Buffer scratch_, leaf_masks_, mid_masks_, mid_counts_, edit_jobs_, edit_refs_,
+        edit_origins_, edit_slots_;
+    std::size_t scratch_tiles_ = 0;
+    // The last edit's tables (kept until their writes are done) and kernels.
+    std::vector<std::int64_t> host_jobs_, host_origins_;
+    std::vector<std::uint64_t> host_refs_;
+    std::vector<std::uint32_t> host_slots_;
+    std::vector<cl::Event> edit_writes_, edit_events_;
+};
+
+}  // namespace voxfield::ocl

@@ -1,0 +1,238 @@
+// Sparse worlds' 64-trees on the device (cl/src/sparse_device_world.cpp; the tile grid of
+// contrees of the implicit-surface rendering blog, core/sparse.hpp's layout): gathers tiles
+// into dense blocks, applies brushes to dense tiles and encodes dense tiles into 64-trees bit
+// for bit as core's SparseWorld::encode_tile does. No build options.
+//
+// A tile's 64-tree lies either in the main buffers (the host world as uploaded) or in a slot
+// of the slot buffers (tiles encoded since: TILE_MAX_NODES nodes and TILE_VOXELS materials
+// per slot); a reference to a slot has SLOT_REF set in its node base.
+
+#define TILE 64
+#define TILE_VOXELS 262144
+#define TILE_MAX_NODES 4161
+#define NO_TILE 0xFFFFFFFFFFFFFFFFul
+#define SLOT_REF 0x8000000000000000ul
+
+// Set bits of m below bit b.
+inline uint rank_below(ulong m, uint b) {
+    return (uint)popcount(m & ((1ul << b) - 1ul));
+}
+
+// The lowest set bit of m (m != 0).
+inline uint lowest_bit(ulong m) {
+    return (uint)popcount((m & (~m + 1ul)) - 1ul);
+}
+
+// A job is 8 longs: a block's first voxel x, y, z; the first tile x, y, z of the tiles it
+// overlaps; their counts (x | y << 16 | z << 32); its first entry in `refs` (per tile, x
+// fastest, its node base and material base, NO_TILE when not stored).
+
+// One work-item per row (along x) of blocks bx x by x bz stacked along z (global id 1 =
+// block * bz + z): the world's voxels there (0 outside the world and in tiles that are not
+// stored). Along a row, the tile is looked up once per 64 voxels and the leaf once per 4.
+__kernel void gather(__global const ulong* restrict masks, __global const uint* restrict offsets,
+                     __global const uchar* restrict materials,
+                     __global const ulong* restrict slot_masks,
+                     __global const uint* restrict slot_offsets,
+                     __global const uchar* restrict slot_materials,
+                     __global const long* restrict jobs, __global const ulong* restrict refs,
+                     __global uchar* restrict vox, uint bx, uint by, uint bz, long wx, long wy,
+                     long wz) {
+    const uint y = (uint)get_global_id(0);
+    const size_t gz = get_global_id(1);
+    if (y >= by) {
+        return;
+    }
+    const size_t j = gz / bz;
+    const uint z = (uint)(gz - j * bz);
+    __global const long* job = jobs + 8 * j;
+    __global uchar* out = vox + (gz * by + y) * bx;
+    const long py = job[1] + y, pz = job[2] + z;
+    if (py < 0 || pz < 0 || py >= wy || pz >= wz) {
+        for (uint x = 0; x < bx; ++x) {
+            out[x] = 0;
+        }
+        return;
+    }
+    const long nt = job[6];
+    const long ntx = nt & 0xFFFF, nty = (nt >> 16) & 0xFFFF;
+    const long ry = (py >> 6) - job[4], rz = (pz >> 6) - job[5];
+    const uint ly = (uint)(py & 63), lz = (uint)(pz & 63);
+    uint x = 0;
+    while (x < bx) {
+        const long px = job[0] + x;
+        if (px < 0 || px >= wx) {
+            out[x++] = 0;
+            continue;
+        }
+        // The voxels of this row in tile px >> 6.
+        const uint lx0 = (uint)(px & 63);
+        const uint end = min(bx, x + (TILE - lx0));
+        const size_t r = (size_t)(job[7] + (rz * nty + ry) * ntx + ((px >> 6) - job[3]));
+        ulong base = refs[2 * r];
+        if (base == NO_TILE) {
+            for (; x < end; ++x) {
+                out[x] = 0;
+            }
+            continue;
+        }
+        const bool slot = (base & SLOT_REF) != 0;
+        base &= ~SLOT_REF;
+        __global const ulong* m = slot ? slot_masks : masks;
+        __global const uint* o = slot ? slot_offsets : offsets;
+        __global const uchar* mat = slot ? slot_materials : materials;
+        const ulong mbase = refs[2 * r + 1];
+        const ulong root = m[base];
+        for (uint lx = lx0; x < end; lx += 4) {
+            // The leaf of voxels lx..lx+3 (from lx0, which may not be a multiple of 4).
+            const uint group_end = min(end, x + (4 - (lx & 3)));
+            ulong m4 = 0, first = 0;
+            const uint b16 = (lz >> 4) << 4 | (ly >> 4) << 2 | (lx >> 4);
+            if ((root >> b16 & 1ul) != 0) {
+                const ulong n16 = base + o[base] + rank_below(root, b16);
+                const uint b4 = ((lz >> 2) & 3) << 4 | ((ly >> 2) & 3) << 2 | ((lx >> 2) & 3);
+                const ulong m16 = m[n16];
+                if ((m16 >> b4 & 1ul) != 0) {
+                    const ulong n4 = base + o[n16] + rank_below(m16, b4);
+                    m4 = m[n4];
+                    first = mbase + o[n4];
+                }
+            }
+            for (uint v = lx & 3; x < group_end; ++x, ++v) {
+                const uint bv = (lz & 3) << 4 | (ly & 3) << 2 | v;
+                out[x] = (m4 >> bv & 1ul) != 0 ? mat[first + rank_below(m4, bv)] : 0;
+            }
+            lx &= ~3u;
+        }
+    }
+}
+
+// One work-item per row (y | z << 6) of each dense tile (global id 1: the tile, whose first
+// voxel is origins[3 t..3 t+2]): core/brush.hpp's brush on the row's voxels inside the world
+// (op 0 place, 1 erase, 2 paint; shape 0 sphere, 1 cube).
+__kernel void brush_tiles(__global uchar* restrict vox, __global const long* restrict origins,
+                          uint op, uint shape, long cx, long cy, long cz, ulong radius,
+                          uchar material, long wx, long wy, long wz) {
+    const uint row = (uint)get_global_id(0);
+    const size_t t = get_global_id(1);
+    const long py = origins[3 * t + 1] + (row & 63), pz = origins[3 * t + 2] + (row >> 6);
+    if (row >= TILE * TILE || py >= wy || pz >= wz) {
+        return;
+    }
+    const ulong ay = (ulong)(py > cy ? py - cy : cy - py), az = (ulong)(pz > cz ? pz - cz : cz - pz);
+    if (ay > radius || az > radius) {
+        return;
+    }
+    __global uchar* out = vox + t * TILE_VOXELS + (size_t)row * TILE;
+    const long x0 = origins[3 * t];
+    for (uint x = 0; x < TILE && x0 + x < wx; ++x) {
+        const long px = x0 + x;
+        const ulong ax = (ulong)(px > cx ? px - cx : cx - px);
+        if (ax > radius || (shape == 0 && ax * ax + ay * ay + az * az > radius * radius)) {
+            continue;
+        }
+        const uchar v = out[x];
+        out[x] = op == 0 ? material : op == 1 ? (uchar)0 : v != 0 ? material : v;
+    }
+}
+
+// Encoding, pass 1: one work-item per 16^3 node (global id: tile * 64 + its child bit) of the
+// dense tiles `vox`: its 64 leaf masks (occupancy of each 4^3 child), its own mask and its
+// solid voxel count.
+__kernel void encode_count(__global const uchar* restrict vox, __global ulong* restrict leaf_masks,
+                           __global ulong* restrict mid_masks, __global uint* restrict mid_counts,
+                           uint tiles) {
+    const size_t i = get_global_id(0);
+    if (i >= (size_t)tiles * 64) {
+        return;
+    }
+    const uint b16 = (uint)(i & 63);
+    __global const uchar* tile = vox + (i >> 6) * TILE_VOXELS;
+    const uint x16 = (b16 & 3) * 16, y16 = (b16 >> 2 & 3) * 16, z16 = (b16 >> 4) * 16;
+    ulong mid = 0;
+    uint count = 0;
+    for (uint b4 = 0; b4 < 64; ++b4) {
+        const uint x4 = x16 + (b4 & 3) * 4, y4 = y16 + (b4 >> 2 & 3) * 4, z4 = z16 + (b4 >> 4) * 4;
+        ulong m = 0;
+        for (uint z = 0; z < 4; ++z) {
+            for (uint y = 0; y < 4; ++y) {
+                const uchar4 r = vload4(0, tile + ((z4 + z) * TILE + y4 + y) * TILE + x4);
+                const ulong bits = (ulong)(r.x != 0) | (ulong)(r.y != 0) << 1 |
+                                   (ulong)(r.z != 0) << 2 | (ulong)(r.w != 0) << 3;
+                m |= bits << (z << 4 | y << 2);
+            }
+        }
+        leaf_masks[i * 64 + b4] = m;
+        mid |= (ulong)(m != 0) << b4;
+        count += (uint)popcount(m);
+    }
+    mid_masks[i] = mid;
+    mid_counts[i] = count;
+}
+
+// Encoding, pass 2: one work-item per 16^3 node, as pass 1. Tile t's 64-tree goes to slot
+// slots[t] (nodes from slot * TILE_MAX_NODES, materials from slot * TILE_VOXELS): the root
+// (written by child 0, mask 0 when the tile is empty), its 16^3 children in mask order, then
+// their 4^3 children grouped by parent and the materials of their voxels in mask order; each
+// node's place and offset are prefix sums of pass 1's counts of the children before it.
+// counts[2 slot], counts[2 slot + 1]: the tile's nodes and materials (0, 0 when empty).
+__kernel void encode_write(__global const uchar* restrict vox,
+                           __global const ulong* restrict leaf_masks,
+                           __global const ulong* restrict mid_masks,
+                           __global const uint* restrict mid_counts,
+                           __global const uint* restrict slots, __global ulong* restrict masks,
+                           __global uint* restrict offsets, __global uchar* restrict materials,
+                           __global uint* restrict counts, uint tiles) {
+    const size_t i = get_global_id(0);
+    if (i >= (size_t)tiles * 64) {
+        return;
+    }
+    const uint b16 = (uint)(i & 63);
+    const size_t t = i >> 6;
+    __global const ulong* mids = mid_masks + t * 64;
+    __global const uint* mats = mid_counts + t * 64;
+    ulong root = 0;
+    uint leaves_before = 0, materials_before = 0, leaves = 0, solid = 0;
+    for (uint j = 0; j < 64; ++j) {
+        const uint p = (uint)popcount(mids[j]);
+        root |= (ulong)(p != 0) << j;
+        if (j < b16) {
+            leaves_before += p;
+            materials_before += mats[j];
+        }
+        leaves += p;
+        solid += mats[j];
+    }
+    const uint n16 = (uint)popcount(root);
+    const size_t slot = slots[t];
+    const size_t nb = slot * TILE_MAX_NODES, mb = slot * TILE_VOXELS;
+    if (b16 == 0) {
+        masks[nb] = root;
+        offsets[nb] = 1;
+        counts[2 * slot] = root != 0 ? 1 + n16 + leaves : 0;
+        counts[2 * slot + 1] = solid;
+    }
+    const ulong mid = mids[b16];
+    if (mid == 0) {
+        return;
+    }
+    const uint r16 = rank_below(root, b16);
+    masks[nb + 1 + r16] = mid;
+    offsets[nb + 1 + r16] = 1 + n16 + leaves_before;
+    __global const uchar* tile = vox + t * TILE_VOXELS;
+    const uint x16 = (b16 & 3) * 16, y16 = (b16 >> 2 & 3) * 16, z16 = (b16 >> 4) * 16;
+    size_t node = nb + 1 + n16 + leaves_before;
+    uint material = materials_before;
+    for (ulong m2 = mid; m2 != 0; m2 &= m2 - 1, ++node) {
+        const uint b4 = lowest_bit(m2);
+        const uint x4 = x16 + (b4 & 3) * 4, y4 = y16 + (b4 >> 2 & 3) * 4, z4 = z16 + (b4 >> 4) * 4;
+        const ulong leaf = leaf_masks[i * 64 + b4];
+        masks[node] = leaf;
+        offsets[node] = material;
+        for (ulong m3 = leaf; m3 != 0; m3 &= m3 - 1) {
+            const uint bv = lowest_bit(m3);
+            materials[mb + material++] =
+                tile[((z4 + (bv >> 4)) * TILE + y4 + (bv >> 2 & 3)) * TILE + x4 + (bv & 3)];
+        }
+    }
+}

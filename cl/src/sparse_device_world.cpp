@@ -1,0 +1,514 @@
+// A sparse world's 64-trees on the device, edited there (issue 24; the implicit-surface
+// rendering blog's tile grid of contrees, "Serializing the contree", encoded by kernels).
+#include "voxfield/cl/sparse_device_world.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+#include "util.hpp"
+#include "voxfield/core/error.hpp"
+
+namespace voxfield::cl_sources {
+extern const char* const sparse_world_cl;
+}  // namespace voxfield::cl_sources
+
+namespace voxfield::ocl {
+namespace {
+
+constexpr std::uint64_t kSlotRef = std::uint64_t{1} << 63;
+// Work-items per work-group of the kernels (fixed: PoCL compiles a kernel once per size).
+constexpr std::size_t kGroupRows = 8;
+constexpr std::size_t kGroupNodes = 64;
+// Bytes of one slot: its worst-case nodes (mask and offset) and materials.
+constexpr std::uint64_t kSlotBytes = std::uint64_t{kTileMaxNodes} * 12 + kTileVoxels;
+// Host-edited boxes over more tiles than this upload the whole world instead.
+constexpr std::size_t kMaxHostEditTiles = 256;
+
+cl::Program world_program(Context& ctx) {
+    return ctx.program("sparse_world.cl", {cl_sources::sparse_world_cl}, "-cl-std=CL1.2");
+}
+
+struct Span {
+    Int3 first, count;
+    std::int64_t size() const { return count.x * count.y * count.z; }
+};
+
+// The tiles a non-empty box inside the world overlaps.
+Span tiles_of(const Box& b) {
+    const std::int64_t s = kTileSize;
+    const Int3 lo{b.min.x / s, b.min.y / s, b.min.z / s};
+    return {
+        lo,
+        {(b.max.x - 1) / s - lo.x + 1, (b.max.y - 1) / s - lo.y + 1, (b.max.z - 1) / s - lo.z + 1}};
+}
+
+template <class F>
+void for_each_tile(const Span& span, F&& f) {
+    for (std::int64_t z = 0; z < span.count.z; ++z) {
+        for (std::int64_t y = 0; y < span.count.y; ++y) {
+            for (std::int64_t x = 0; x < span.count.x; ++x) {
+                f(span.first.x + x, span.first.y + y, span.first.z + z);
+            }
+        }
+    }
+}
+
+std::uint64_t key_of(std::int64_t tx, std::int64_t ty, std::int64_t tz) {
+    return tile_key(static_cast<std::uint32_t>(tx), static_cast<std::uint32_t>(ty),
+                    static_cast<std::uint32_t>(tz));
+}
+
+// Enqueues encode_count and encode_write (`count`, `write`) over `tiles` dense tiles of `vox`
+// into the slots listed in `slots`; appends their events to `events`.
+void enqueue_encode(cl::CommandQueue& q, cl::Kernel& count, cl::Kernel& write,
+                    const cl::Buffer& vox, const cl::Buffer& leaf_masks,
+                    const cl::Buffer& mid_masks, const cl::Buffer& mid_counts,
+                    const cl::Buffer& slots, const cl::Buffer& slot_masks,
+                    const cl::Buffer& slot_offsets, const cl::Buffer& slot_materials,
+                    const cl::Buffer& slot_counts, std::uint32_t tiles,
+                    std::vector<cl::Event>& events) {
+    const cl::NDRange global(std::size_t{tiles} * 64), local(kGroupNodes);
+    count.setArg(0, vox);
+    count.setArg(1, leaf_masks);
+    count.setArg(2, mid_masks);
+    count.setArg(3, mid_counts);
+    count.setArg(4, tiles);
+    events.emplace_back();
+    q.enqueueNDRangeKernel(count, cl::NullRange, global, local, nullptr, &events.back());
+    write.setArg(0, vox);
+    write.setArg(1, leaf_masks);
+    write.setArg(2, mid_masks);
+    write.setArg(3, mid_counts);
+    write.setArg(4, slots);
+    write.setArg(5, slot_masks);
+    write.setArg(6, slot_offsets);
+    write.setArg(7, slot_materials);
+    write.setArg(8, slot_counts);
+    write.setArg(9, tiles);
+    events.emplace_back();
+    q.enqueueNDRangeKernel(write, cl::NullRange, global, local, nullptr, &events.back());
+}
+
+}  // namespace
+
+std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
+                                                   std::span<const std::uint8_t> voxels) {
+    if (voxels.size() % kTileVoxels != 0) {
+        throw std::invalid_argument("encode_tiles: not a whole number of 64^3 tiles");
+    }
+    const auto tiles = static_cast<std::uint32_t>(voxels.size() / kTileVoxels);
+    std::vector<SparseWorld::EncodedTile> out(tiles);
+    if (tiles == 0) {
+        return out;
+    }
+    return cl_call("encoding " + std::to_string(tiles) + " tiles on the device", [&] {
+        auto& c = ctx.context();
+        auto& q = ctx.queue();
+        const cl::Program program = world_program(ctx);
+        std::vector<std::uint32_t> slots(tiles);
+        for (std::uint32_t t = 0; t < tiles; ++t) {
+            slots[t] = t;
+        }
+        cl::Buffer vox(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, voxels.size(),
+                       const_cast<std::uint8_t*>(voxels.data()));
+        cl::Buffer slot_list(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, slots.size() * 4,
+                             slots.data());
+        cl::Buffer leaf(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 4096 * 8);
+        cl::Buffer mid(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 8);
+        cl::Buffer mid_counts(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 4);
+        cl::Buffer masks(c, CL_MEM_READ_WRITE, std::size_t{tiles} * kTileMaxNodes * 8);
+        cl::Buffer offsets(c, CL_MEM_READ_WRITE, std::size_t{tiles} * kTileMaxNodes * 4);
+        cl::Buffer materials(c, CL_MEM_READ_WRITE, voxels.size());
+        cl::Buffer counts(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 8);
+        std::vector<cl::Event> events;
+        cl::Kernel count(program, "encode_count"), write(program, "encode_write");
+        enqueue_encode(q, count, write, vox, leaf, mid, mid_counts, slot_list, masks, offsets,
+                       materials, counts, tiles, events);
+        std::vector<std::uint32_t> n(2 * std::size_t{tiles});
+        q.enqueueReadBuffer(counts, CL_TRUE, 0, n.size() * 4, n.data());
+        for (std::uint32_t t = 0; t < tiles; ++t) {
+            SparseWorld::EncodedTile& e = out[t];
+            e.masks.resize(n[2 * t]);
+            e.offsets.resize(n[2 * t]);
+            e.materials.resize(n[2 * t + 1]);
+            if (!e.masks.empty()) {
+                q.enqueueReadBuffer(masks, CL_FALSE, std::size_t{t} * kTileMaxNodes * 8,
+                                    e.masks.size() * 8, e.masks.data());
+                q.enqueueReadBuffer(offsets, CL_FALSE, std::size_t{t} * kTileMaxNodes * 4,
+                                    e.offsets.size() * 4, e.offsets.data());
+            }
+            if (!e.materials.empty()) {
+                q.enqueueReadBuffer(materials, CL_FALSE, std::size_t{t} * kTileVoxels,
+                                    e.materials.size(), e.materials.data());
+            }
+        }
+        q.finish();
+        return out;
+    });
+}
+
+SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, SparseWorld* editable)
+    : ctx_(ctx), world_(world), editable_(editable), program_(world_program(ctx)) {
+    if (editable != nullptr && editable != &world) {
+        throw std::invalid_argument("SparseDeviceWorld: `editable` is not the world");
+    }
+    cl_call("making the sparse world's kernels", [&] {
+        gather_ = cl::Kernel(program_, "gather");
+        brush_ = cl::Kernel(program_, "brush_tiles");
+        count_ = cl::Kernel(program_, "encode_count");
+        write_ = cl::Kernel(program_, "encode_write");
+    });
+    ensure_slot_capacity(1);
+    upload_whole();
+}
+
+SparseDeviceWorld::~SparseDeviceWorld() {
+    try {
+        ctx_.queue().finish();
+    } catch (const cl::Error&) {
+    }
+}
+
+void SparseDeviceWorld::host_changed_seen() {
+    seen_nodes_ = world_.node_masks().size();
+    seen_materials_ = world_.materials().size();
+    seen_generation_ = world_.layout_generation();
+    seen_tiles_ = world_.tile_count();
+}
+
+void SparseDeviceWorld::upload_whole() {
+    const auto& masks = world_.node_masks();
+    const auto& offsets = world_.node_offsets();
+    const auto& materials = world_.materials();
+    cl_call("uploading the sparse world", [&] {
+        auto& c = ctx_.context();
+        auto& q = ctx_.queue();
+        const std::size_t nodes = std::max<std::size_t>(masks.size(), 1);
+        masks_ = cl::Buffer(c, CL_MEM_READ_ONLY, nodes * 8);
+        offsets_ = cl::Buffer(c, CL_MEM_READ_ONLY, nodes * 4);
+        materials_ = cl::Buffer(c, CL_MEM_READ_ONLY, std::max<std::size_t>(materials.size(), 1));
+        if (!masks.empty()) {
+            q.enqueueWriteBuffer(masks_, CL_FALSE, 0, masks.size() * 8, masks.data());
+            q.enqueueWriteBuffer(offsets_, CL_FALSE, 0, offsets.size() * 4, offsets.data());
+        }
+        if (!materials.empty()) {
+            q.enqueueWriteBuffer(materials_, CL_FALSE, 0, materials.size(), materials.data());
+        }
+        q.finish();
+    });
+    dir_.clear();
+    dir_.reserve(world_.tile_count());
+    for (std::uint32_t t = 0; t < world_.tile_count(); ++t) {
+        const Int3 c = world_.tile_coord(t);
+        dir_[key_of(c.x, c.y, c.z)] = {world_.node_bases()[t], world_.material_bases()[t]};
+    }
+    slot_of_.clear();
+    free_slots_.clear();
+    slots_made_ = 0;
+    host_changed_seen();
+}
+
+void SparseDeviceWorld::ensure_slot_capacity(std::size_t slots) {
+    if (slots <= slot_capacity_) {
+        return;
+    }
+    const std::size_t cap = std::max({slots, 2 * slot_capacity_, std::size_t{16}});
+    cl_call("allocating " + std::to_string(cap) + " tile slots", [&] {
+        auto& c = ctx_.context();
+        cl::Buffer m(c, CL_MEM_READ_WRITE, cap * kTileMaxNodes * 8);
+        cl::Buffer o(c, CL_MEM_READ_WRITE, cap * kTileMaxNodes * 4);
+        cl::Buffer mat(c, CL_MEM_READ_WRITE, cap * kTileVoxels);
+        cl::Buffer n(c, CL_MEM_READ_WRITE, cap * 8);
+        if (slot_capacity_ != 0) {
+            auto& q = ctx_.queue();
+            q.enqueueCopyBuffer(slot_masks_, m, 0, 0, slot_capacity_ * kTileMaxNodes * 8);
+            q.enqueueCopyBuffer(slot_offsets_, o, 0, 0, slot_capacity_ * kTileMaxNodes * 4);
+            q.enqueueCopyBuffer(slot_materials_, mat, 0, 0, slot_capacity_ * kTileVoxels);
+            q.enqueueCopyBuffer(slot_counts_, n, 0, 0, slot_capacity_ * 8);
+        }
+        slot_masks_ = m;
+        slot_offsets_ = o;
+        slot_materials_ = mat;
+        slot_counts_ = n;
+    });
+    slot_capacity_ = cap;
+}
+
+std::uint32_t SparseDeviceWorld::slot_for(std::uint64_t key) {
+    if (const auto it = slot_of_.find(key); it != slot_of_.end()) {
+        return it->second;
+    }
+    std::uint32_t slot = 0;
+    if (!free_slots_.empty()) {
+        slot = free_slots_.back();
+        free_slots_.pop_back();
+    } else {
+        slot = static_cast<std::uint32_t>(slots_made_++);
+        ensure_slot_capacity(slots_made_);
+    }
+    slot_of_[key] = slot;
+    return slot;
+}
+
+void SparseDeviceWorld::release_slots_if_needed() {
+    const std::uint64_t main_bytes = world_.node_masks().size() * 12 + world_.materials().size();
+    const std::uint64_t cap = std::max<std::uint64_t>(std::uint64_t{256} << 20, main_bytes / 4);
+    if (slots_made_ * kSlotBytes <= cap) {
+        return;
+    }
+    world();
+    upload_whole();
+}
+
+const SparseWorld& SparseDeviceWorld::world() {
+    if (lagging_.empty()) {
+        return world_;
+    }
+    cl_call("reading back the tiles edited on the device", [&] {
+        auto& q = ctx_.queue();
+        std::vector<std::uint32_t> counts(2 * slots_made_);
+        q.enqueueReadBuffer(slot_counts_, CL_TRUE, 0, counts.size() * 4, counts.data());
+        std::vector<std::uint64_t> keys(lagging_.begin(), lagging_.end());
+        std::sort(keys.begin(), keys.end());
+        for (const std::uint64_t key : keys) {
+            const std::size_t slot = slot_of_.at(key);
+            SparseWorld::EncodedTile e;
+            e.masks.resize(counts[2 * slot]);
+            e.offsets.resize(counts[2 * slot]);
+            e.materials.resize(counts[2 * slot + 1]);
+            if (!e.masks.empty()) {
+                q.enqueueReadBuffer(slot_masks_, CL_FALSE, slot * kTileMaxNodes * 8,
+                                    e.masks.size() * 8, e.masks.data());
+                q.enqueueReadBuffer(slot_offsets_, CL_FALSE, slot * kTileMaxNodes * 4,
+                                    e.offsets.size() * 4, e.offsets.data());
+                q.enqueueReadBuffer(slot_materials_, CL_FALSE, slot * std::size_t{kTileVoxels},
+                                    e.materials.size(), e.materials.data());
+                q.finish();
+            }
+            const Int3 t = tile_of_key(key);
+            editable_->put_tile(static_cast<std::uint32_t>(t.x), static_cast<std::uint32_t>(t.y),
+                                static_cast<std::uint32_t>(t.z), e);
+        }
+    });
+    lagging_.clear();
+    host_changed_seen();
+    return world_;
+}
+
+void SparseDeviceWorld::refresh() {
+    world();
+    if (world_.node_masks().size() != seen_nodes_ || world_.materials().size() != seen_materials_ ||
+        world_.layout_generation() != seen_generation_ || world_.tile_count() != seen_tiles_) {
+        upload_whole();
+    }
+}
+
+void SparseDeviceWorld::host_edited(const Box& changed) {
+    if (!lagging_.empty()) {
+        throw std::logic_error(
+            "SparseDeviceWorld::host_edited: the host world was edited while it lagged behind "
+            "the device's edits (read it through world() first)");
+    }
+    const Dims d = world_.dims();
+    const Box b = intersect(changed, Box{{0, 0, 0}, {d.x, d.y, d.z}});
+    if (b.empty()) {
+        return;
+    }
+    const Span span = tiles_of(b);
+    if (static_cast<std::size_t>(span.size()) > kMaxHostEditTiles) {
+        upload_whole();
+        return;
+    }
+    cl_call("uploading the tiles edited on the host", [&] {
+        auto& q = ctx_.queue();
+        for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
+            const std::uint64_t key = key_of(tx, ty, tz);
+            const std::uint32_t t = world_.find_tile(tx, ty, tz);
+            if (t == kNoTile) {
+                dir_.erase(key);
+                if (const auto it = slot_of_.find(key); it != slot_of_.end()) {
+                    free_slots_.push_back(it->second);
+                    slot_of_.erase(it);
+                }
+                return;
+            }
+            const std::size_t slot = slot_for(key);
+            const std::size_t nodes = world_.node_counts()[t], mats = world_.material_counts()[t];
+            const std::size_t nb = world_.node_bases()[t], mb = world_.material_bases()[t];
+            q.enqueueWriteBuffer(slot_masks_, CL_FALSE, slot * kTileMaxNodes * 8, nodes * 8,
+                                 world_.node_masks().data() + nb);
+            q.enqueueWriteBuffer(slot_offsets_, CL_FALSE, slot * kTileMaxNodes * 4, nodes * 4,
+                                 world_.node_offsets().data() + nb);
+            q.enqueueWriteBuffer(slot_materials_, CL_FALSE, slot * std::size_t{kTileVoxels}, mats,
+                                 world_.materials().data() + mb);
+            const std::uint32_t counts[2] = {static_cast<std::uint32_t>(nodes),
+                                             static_cast<std::uint32_t>(mats)};
+            q.enqueueWriteBuffer(slot_counts_, CL_TRUE, slot * 8, 8, counts);
+            dir_[key] = {kSlotRef | slot * kTileMaxNodes, slot * std::uint64_t{kTileVoxels}};
+        });
+    });
+    host_changed_seen();
+    release_slots_if_needed();
+}
+
+void SparseDeviceWorld::ensure_scratch(std::size_t tiles) {
+    if (tiles <= scratch_tiles_) {
+        return;
+    }
+    const std::size_t cap = std::max<std::size_t>(tiles, 8);
+    cl_call("allocating an edit's scratch", [&] {
+        auto& c = ctx_.context();
+        scratch_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * kTileVoxels);
+        leaf_masks_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 4096 * 8);
+        mid_masks_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 8);
+        mid_counts_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 4);
+        edit_jobs_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 8 * 8);
+        edit_refs_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 2 * 8);
+        edit_origins_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 3 * 8);
+        edit_slots_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 4);
+    });
+    scratch_tiles_ = cap;
+}
+
+Box SparseDeviceWorld::host_apply_brush(const Brush& brush) {
+    world();
+    const Box changed = voxfield::apply_brush(*editable_, brush);
+    host_edited(changed);
+    edit_events_.clear();
+    return changed;
+}
+
+Box SparseDeviceWorld::apply_brush(const Brush& brush) {
+    if (editable_ == nullptr) {
+        throw std::logic_error("SparseDeviceWorld::apply_brush on a read-only world");
+    }
+    if ((brush.op == BrushOp::place || brush.op == BrushOp::paint) && brush.material == 0) {
+        throw InputError(to_string(brush.op) + " needs a material 1..255, not 0");
+    }
+    const Dims d = world_.dims();
+    const Box bounds = brush_bounds(brush, d);  // checks the radius
+    if (bounds.empty()) {
+        return Box{};
+    }
+    const Span span = tiles_of(bounds);
+    if (span.size() > kMaxEditTiles) {
+        return host_apply_brush(brush);
+    }
+    const auto n = static_cast<std::uint32_t>(span.size());
+    // The previous edit's tables may still be on their way to the device.
+    if (!edit_writes_.empty()) {
+        cl::Event::waitForEvents(edit_writes_);
+        edit_writes_.clear();
+    }
+    host_jobs_.clear();
+    host_refs_.clear();
+    host_origins_.clear();
+    host_slots_.clear();
+    std::vector<std::uint64_t> keys;
+    for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
+        const std::int64_t s = kTileSize;
+        const std::uint64_t key = key_of(tx, ty, tz);
+        const auto [node_base, material_base] = ref(tx, ty, tz);
+        host_jobs_.insert(host_jobs_.end(),
+                          {tx * s, ty * s, tz * s, tx, ty, tz, 1 | 1ll << 16 | 1ll << 32,
+                           static_cast<std::int64_t>(host_refs_.size() / 2)});
+        host_refs_.insert(host_refs_.end(), {node_base, material_base});
+        host_origins_.insert(host_origins_.end(), {tx * s, ty * s, tz * s});
+        keys.push_back(key);
+    });
+    for (const std::uint64_t key : keys) {
+        host_slots_.push_back(slot_for(key));  // may grow the slot buffers (copied in order)
+    }
+    ensure_scratch(n);
+    edit_events_.clear();
+    cl_call("editing " + std::to_string(n) + " tiles on the device", [&] {
+        auto& q = ctx_.queue();
+        edit_writes_.resize(4);
+        q.enqueueWriteBuffer(edit_jobs_, CL_FALSE, 0, host_jobs_.size() * 8, host_jobs_.data(),
+                             nullptr, &edit_writes_[0]);
+        q.enqueueWriteBuffer(edit_refs_, CL_FALSE, 0, host_refs_.size() * 8, host_refs_.data(),
+                             nullptr, &edit_writes_[1]);
+        q.enqueueWriteBuffer(edit_origins_, CL_FALSE, 0, host_origins_.size() * 8,
+                             host_origins_.data(), nullptr, &edit_writes_[2]);
+        q.enqueueWriteBuffer(edit_slots_, CL_FALSE, 0, host_slots_.size() * 4, host_slots_.data(),
+                             nullptr, &edit_writes_[3]);
+        cl::Kernel gather = gather_kernel();
+        gather.setArg(6, edit_jobs_);
+        gather.setArg(7, edit_refs_);
+        gather.setArg(8, scratch_);
+        gather.setArg(9, kTileSize);
+        gather.setArg(10, kTileSize);
+        gather.setArg(11, kTileSize);
+        gather.setArg(12, static_cast<cl_long>(d.x));
+        gather.setArg(13, static_cast<cl_long>(d.y));
+        gather.setArg(14, static_cast<cl_long>(d.z));
+        edit_events_.emplace_back();
+        q.enqueueNDRangeKernel(gather, cl::NullRange,
+                               cl::NDRange(kTileSize, std::size_t{kTileSize} * n),
+                               cl::NDRange(kGroupRows, 1), nullptr, &edit_events_.back());
+        cl::Kernel& brush_k = brush_;
+        brush_k.setArg(0, scratch_);
+        brush_k.setArg(1, edit_origins_);
+        brush_k.setArg(2, static_cast<cl_uint>(brush.op == BrushOp::place   ? 0
+                                               : brush.op == BrushOp::erase ? 1
+                                                                            : 2));
+        brush_k.setArg(3, static_cast<cl_uint>(brush.shape == BrushShape::sphere ? 0 : 1));
+        brush_k.setArg(4, static_cast<cl_long>(brush.centre.x));
+        brush_k.setArg(5, static_cast<cl_long>(brush.centre.y));
+        brush_k.setArg(6, static_cast<cl_long>(brush.centre.z));
+        brush_k.setArg(7, static_cast<cl_ulong>(brush.radius));
+        brush_k.setArg(8, static_cast<cl_uchar>(brush.material));
+        brush_k.setArg(9, static_cast<cl_long>(d.x));
+        brush_k.setArg(10, static_cast<cl_long>(d.y));
+        brush_k.setArg(11, static_cast<cl_long>(d.z));
+        edit_events_.emplace_back();
+        q.enqueueNDRangeKernel(brush_k, cl::NullRange,
+                               cl::NDRange(std::size_t{kTileSize} * kTileSize, n),
+                               cl::NDRange(kGroupNodes, 1), nullptr, &edit_events_.back());
+        enqueue_encode(q, count_, write_, scratch_, leaf_masks_, mid_masks_, mid_counts_,
+                       edit_slots_, slot_masks_, slot_offsets_, slot_materials_, slot_counts_, n,
+                       edit_events_);
+    });
+    for (std::size_t i = 0; i < keys.size(); ++i) {
+        dir_[keys[i]] = {kSlotRef | host_slots_[i] * std::uint64_t{kTileMaxNodes},
+                         host_slots_[i] * std::uint64_t{kTileVoxels}};
+        lagging_.insert(keys[i]);
+    }
+    release_slots_if_needed();
+    return bounds;
+}
+
+double SparseDeviceWorld::last_edit_kernel_ms() const {
+    double ms = 0;
+    for (const cl::Event& e : edit_events_) {
+        cl_call("waiting for an edit's kernels", [&] { e.wait(); });
+        ms += elapsed_ms(e, e);
+    }
+    return ms;
+}
+
+cl::Kernel SparseDeviceWorld::gather_kernel() {
+    return cl_call("setting up the gather kernel", [&] {
+        cl::Kernel& k = gather_;
+        k.setArg(0, masks_);
+        k.setArg(1, offsets_);
+        k.setArg(2, materials_);
+        k.setArg(3, slot_masks_);
+        k.setArg(4, slot_offsets_);
+        k.setArg(5, slot_materials_);
+        return k;
+    });
+}
+
+std::pair<std::uint64_t, std::uint64_t> SparseDeviceWorld::ref(std::int64_t tx, std::int64_t ty,
+                                                               std::int64_t tz) const {
+    const Dims g = world_.tile_grid();
+    if (tx < 0 || ty < 0 || tz < 0 || tx >= g.x || ty >= g.y || tz >= g.z) {
+        return {kNoRef, 0};
+    }
+    const auto it = dir_.find(key_of(tx, ty, tz));
+    return it == dir_.end() ? std::pair<std::uint64_t, std::uint64_t>{kNoRef, 0} : it->second;
+}
+
+}  // namespace voxfield::ocl

@@ -1,0 +1,334 @@
+// `voxfield bench --suite sparse` (bench_sparse.hpp).
+#include "bench_sparse.hpp"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <string>
+
+#include "cli_util.hpp"
+#include "edit_log.hpp"
+#include "voxfield/cl/generator.hpp"
+#include "voxfield/cl/sparse_field.hpp"
+#include "voxfield/core/error.hpp"
+#include "voxfield/core/format.hpp"
+#include "voxfield/core/palette.hpp"
+#include "voxfield/core/scenes.hpp"
+#include "voxfield/core/sparse.hpp"
+#include "voxfield/core/stats.hpp"
+
+namespace voxfield::cli {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using nlohmann::json;
+
+constexpr std::int64_t kEditRadius = 8;
+
+double ms_since(Clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+double peak_rss_bytes() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return static_cast<double>(u.ru_maxrss) * 1024.0;
+}
+
+// The machine's load averages (1, 5, 15 minutes; /proc/loadavg), null where unreadable: other
+// work on the machine slows a CPU device's run.
+json load_average() {
+    std::ifstream in("/proc/loadavg");
+    double a = 0, b = 0, c = 0;
+    if (!(in >> a >> b >> c)) {
+        return json();
+    }
+    return {a, b, c};
+}
+
+// The options of the row: the bench flags' metric, spacing, sign and bound, the format given.
+ocl::GeneratorOptions sparse_options(const SuiteOptions& o) {
+    GeneratorFlags flags = o.field;
+    flags.algorithm = "exact";
+    flags.chunk = 0;
+    return ocl::resolve_sparse_options(
+        generator_options(flags, parse_format(o.format), Dims{1, 1, 1}), true);
+}
+
+// The highest solid voxel of column (x, z), or 0.
+std::int64_t surface(const SparseWorld& w, std::uint32_t x, std::uint32_t z) {
+    for (std::uint32_t y = w.dims().y; y-- > 0;) {
+        if (w.at(x, y, z) != 0) {
+            return y;
+        }
+    }
+    return 0;
+}
+
+// Radius-8 spheres at random surface points, placing material 5 and erasing alternately.
+std::vector<Brush> surface_edits(const SparseWorld& w, std::size_t count, std::uint64_t seed) {
+    std::mt19937_64 rng(seed + 1);
+    const Dims d = w.dims();
+    std::uniform_int_distribution<std::uint32_t> px(0, d.x - 1), pz(0, d.z - 1);
+    std::vector<Brush> edits;
+    for (std::size_t e = 0; e < count; ++e) {
+        Brush b;
+        b.op = e % 2 == 0 ? BrushOp::place : BrushOp::erase;
+        b.shape = BrushShape::sphere;
+        b.radius = kEditRadius;
+        b.material = 5;
+        const std::uint32_t x = px(rng), z = pz(rng);
+        b.centre = {x, surface(w, x, z), z};
+        edits.push_back(b);
+    }
+    return edits;
+}
+
+// Compares the sparse field over each edit's recomputed box with the dense bounded field of the
+// same voxels: a window around the box (the box with twice the halo, moved inside the world,
+// one shape for all edits) generated densely; the box lies at least a halo inside the window
+// wherever the window does not end at the world's edge, so its values are the world's.
+struct ExactCheck {
+    std::uint64_t voxels = 0, differing = 0;
+    double max_error = 0, sum_error = 0;
+};
+
+ExactCheck check_edits(ocl::Context& ctx, ocl::SparseField& field, const Palette& palette,
+                       const ocl::GeneratorOptions& options, const std::vector<Brush>& edits,
+                       BenchObserver& observer, const std::string& label) {
+    ExactCheck check;
+    const SparseWorld& world = field.world();
+    const Dims d = world.dims();
+    const std::int64_t extent[3] = {d.x, d.y, d.z};
+    std::int64_t size[3];
+    for (int a = 0; a < 3; ++a) {
+        size[a] = std::min<std::int64_t>(extent[a], 2 * kEditRadius + 1 + 4 * field.halo(a));
+    }
+    const Dims wd{static_cast<std::uint32_t>(size[0]), static_cast<std::uint32_t>(size[1]),
+                  static_cast<std::uint32_t>(size[2])};
+    const ocl::GeneratorOptions dense_options = ocl::resolve_options(options, wd);
+    const Format f = options.format;
+    const std::size_t elem = element_size(f);
+    for (std::size_t e = 0; e < edits.size(); ++e) {
+        observer.progress(label + ": checking edit " + std::to_string(e + 1) + "/" +
+                          std::to_string(edits.size()) + " against the dense field");
+        const Box bounds = brush_bounds(edits[e], d);
+        if (bounds.empty()) {
+            continue;
+        }
+        const std::int64_t lo[3] = {bounds.min.x, bounds.min.y, bounds.min.z};
+        std::int64_t origin[3];
+        Box box;
+        std::int64_t* box_lo[3] = {&box.min.x, &box.min.y, &box.min.z};
+        std::int64_t* box_hi[3] = {&box.max.x, &box.max.y, &box.max.z};
+        const std::int64_t hi[3] = {bounds.max.x, bounds.max.y, bounds.max.z};
+        for (int a = 0; a < 3; ++a) {
+            const std::int64_t h = field.halo(a);
+            origin[a] = std::clamp<std::int64_t>(lo[a] - 2 * h, 0, extent[a] - size[a]);
+            *box_lo[a] = std::max<std::int64_t>(lo[a] - h, 0);
+            *box_hi[a] = std::min<std::int64_t>(hi[a] + h, extent[a]);
+        }
+        const Box window{{origin[0], origin[1], origin[2]},
+                         {origin[0] + size[0], origin[1] + size[1], origin[2] + size[2]}};
+        World dense_world(wd);
+        world.read_box(window, dense_world.voxels());
+        const auto dense = ocl::generate(ctx, dense_world, palette, dense_options).bytes;
+        const std::vector<std::uint8_t> got = field.read_box(box);
+        const std::int64_t bx = box.max.x - box.min.x, by = box.max.y - box.min.y;
+        for (std::int64_t z = box.min.z; z < box.max.z; ++z) {
+            for (std::int64_t y = box.min.y; y < box.max.y; ++y) {
+                for (std::int64_t x = box.min.x; x < box.max.x; ++x) {
+                    const auto i = static_cast<std::size_t>(
+                        ((z - box.min.z) * by + (y - box.min.y)) * bx + (x - box.min.x));
+                    const auto j = static_cast<std::size_t>(
+                        ((z - origin[2]) * size[1] + (y - origin[1])) * size[0] + (x - origin[0]));
+                    ++check.voxels;
+                    if (!std::equal(got.begin() + static_cast<long>(i * elem),
+                                    got.begin() + static_cast<long>((i + 1) * elem),
+                                    dense.begin() + static_cast<long>(j * elem))) {
+                        ++check.differing;
+                        const double err =
+                            std::abs(decode_value(got, f, i) - decode_value(dense, f, j));
+                        check.max_error = std::max(check.max_error, err);
+                        check.sum_error += err;
+                    }
+                }
+            }
+        }
+    }
+    return check;
+}
+
+json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32_t repeat,
+                std::uint32_t warmup, std::uint32_t edit_count, BenchObserver& observer) {
+    const std::string label = "sparse " + dims.to_string();
+    const ocl::GeneratorOptions options = sparse_options(o);
+    const json load_start = load_average();
+    observer.stage(label + ": building the city scene tile by tile");
+    const auto t_build = Clock::now();
+    const CityScene scene(dims, o.seed);
+    SparseWorld world = SparseWorld::from_fill(
+        dims, [&](const Box& box, std::span<std::uint8_t> out) { scene.fill(box, out); });
+    const double build_ms = ms_since(t_build);
+    const double rss_after_build = peak_rss_bytes();
+    const std::vector<Brush> edits = surface_edits(world, warmup + edit_count, o.seed);
+    const std::uint32_t tiles = world.tile_count();
+    const std::uint64_t solid_count = world.solid_count(), world_bytes = world.bytes();
+    const Palette palette = Palette::magicavoxel_default();
+
+    observer.stage(label + ": " + std::to_string(tiles) + " tiles, " + std::to_string(solid_count) +
+                   " solid voxels; whole bounded field");
+    const auto t_upload = Clock::now();
+    ocl::SparseField field(ctx, world, palette, options);  // uploads the world's 64-trees
+    const double upload_ms = ms_since(t_upload);
+    std::vector<double> field_wall, field_kernel;
+    for (std::uint32_t i = 0; i < repeat; ++i) {
+        observer.progress(label + ": whole bounded field, run " + std::to_string(i + 1) + "/" +
+                          std::to_string(repeat));
+        const auto t0 = Clock::now();
+        field_kernel.push_back(field.run());
+        field_wall.push_back(ms_since(t0));
+    }
+    const Summary fw = summarize(field_wall), fk = summarize(field_kernel);
+    observer.stage(label + ": whole field in " + fixed(fw.median, 1) + " ms (kernels " +
+                   fixed(fk.median, 1) + " ms), " + std::to_string(field.dense_tiles()) +
+                   " field tiles; radius-8 edits on the device");
+
+    std::vector<double> edit_wall, edit_kernel, edit_encode;
+    std::uint64_t recomputed = 0;
+    for (std::size_t e = 0; e < edits.size(); ++e) {
+        const bool warm = e < warmup;
+        observer.progress(label + ": " + (warm ? "warm-up edit " : "edit ") +
+                          std::to_string(warm ? e + 1 : e + 1 - warmup) + "/" +
+                          std::to_string(warm ? warmup : edit_count));
+        const auto t0 = Clock::now();
+        const auto u = field.apply_brush(edits[e]);
+        const double wall = ms_since(t0);
+        if (!warm) {
+            edit_wall.push_back(wall);
+            edit_kernel.push_back(u.kernel_ms);
+            edit_encode.push_back(u.edit_kernel_ms);
+            recomputed +=
+                u.recomputed.empty() ? 0 : static_cast<std::uint64_t>(u.recomputed.volume());
+        }
+    }
+    const double peak = peak_rss_bytes();
+    const auto t_sync = Clock::now();
+    field.world();
+    const double host_sync_ms = ms_since(t_sync);
+    const ExactCheck check = check_edits(ctx, field, palette, options, edits, observer, label);
+    const json load_end = load_average();
+
+    const double stored_voxels = static_cast<double>(tiles) * kTileVoxels;
+    const double solid = static_cast<double>(solid_count);
+    const double peak_target = 3 * stored_voxels + 256.0 * 1048576.0;
+    json row = {
+        {"table", "sparse"},
+        {"group", dims.to_string()},
+        {"algorithm", "exact (sparse tiles)"},
+        {"size", {dims.x, dims.y, dims.z}},
+        {"voxels", static_cast<double>(dims.count())},
+        {"chunk", nullptr},
+        {"tile", kTileSize},
+        {"metric", to_string(options.metric)},
+        {"spacing", options.spacing.to_string()},
+        {"signed", options.signed_field},
+        {"format", to_string(options.format)},
+        {"max_distance", *options.max_distance},
+        {"scene", "city"},
+        {"seed", o.seed},
+        {"build_ms", build_ms},
+        {"tiles_stored", tiles},
+        {"solid_voxels", solid_count},
+        {"stored_voxels", stored_voxels},
+        {"world_bytes", world_bytes},
+        {"world_bytes_per_solid_voxel", solid > 0 ? json(double(world_bytes) / solid) : json()},
+        {"world_bytes_per_stored_voxel", double(world_bytes) / stored_voxels},
+        {"field_tiles", field.dense_tiles()},
+        {"field_bytes", field.field_bytes()},
+        {"field_bytes_per_stored_voxel", double(field.field_bytes()) / stored_voxels},
+        {"world_upload_ms", upload_ms},
+        {"field_runs", field_wall.size()},
+        {"field_wall_ms", fw.median},
+        {"field_kernel_ms", fk.median},
+        {"field_wall_ms_samples", field_wall},
+        {"field_kernel_ms_samples", field_kernel},
+        {"gvox_per_s", double(dims.count()) / (fw.median * 1e-3) / 1e9},
+        {"iterations", nullptr},
+        {"edit_radius", kEditRadius},
+        {"edit_shape", "sphere"},
+        {"edit_path", "device (decoded, brushed and encoded by kernels; host world lags)"},
+        {"edits", edit_wall.size()},
+        {"edit_warmup", warmup},
+        {"timed",
+         "median_ms..max_ms: one radius-8 edit, wall clock until the field is "
+         "up to date"},
+        {"edit_kernel_ms_median", summarize(edit_kernel).median},
+        {"edit_kernel_ms_samples", edit_kernel},
+        {"edit_world_kernel_ms_median", summarize(edit_encode).median},
+        {"samples_ms", edit_wall},
+        {"edit_voxels_recomputed_mean",
+         edit_wall.empty() ? 0.0 : double(recomputed) / double(edit_wall.size())},
+        {"host_sync_ms", host_sync_ms},
+        {"exact", check.differing == 0 && check.voxels > 0},
+        {"exact_checked_voxels", check.voxels},
+        {"exact_differing_voxels", check.differing},
+        {"exact_check",
+         "after all edits, each edit's recomputed box against the dense bounded field of "
+         "a window of the same voxels (same device, same options)"},
+        {"max_error", check.max_error},
+        {"mean_error", check.voxels > 0 ? check.sum_error / double(check.voxels) : 0.0},
+        {"peak_rss_bytes", peak},
+        {"rss_after_build_bytes", rss_after_build},
+        {"peak_bytes_per_stored_voxel", peak / stored_voxels},
+        {"peak_target_bytes", peak_target},
+        {"peak_within_target", peak <= peak_target},
+        {"load_average_start", load_start},
+        {"load_average_end", load_end}};
+    put_summary(row, summarize(edit_wall));
+    return row;
+}
+
+}  // namespace
+
+json run_sparse(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t repeat,
+                std::uint32_t warmup, BenchObserver& observer) {
+    const std::vector<Dims> sizes =
+        !o.sizes.empty() ? o.sizes
+                         : std::vector<Dims>{o.quick ? Dims{256, 128, 256} : Dims{1024, 256, 1024}};
+    const std::uint32_t edits = o.edits != 0 ? o.edits : (o.quick ? 6 : 30);
+    sparse_options(o);  // bad options refused before the first row
+    json rows = json::array();
+    for (const Dims& dims : sizes) {
+        if (dims.x > kMaxSparseAxis || dims.y > kMaxSparseAxis || dims.z > kMaxSparseAxis) {
+            throw InputError("--sizes " + dims.to_string() + ": a sparse world takes at most " +
+                             std::to_string(kMaxSparseAxis) + " voxels per axis");
+        }
+    }
+    for (const Dims& dims : sizes) {
+        rows.push_back(sparse_row(ctx, o, dims, repeat, warmup, edits, observer));
+        const json& r = rows.back();
+        observer.stage(
+            "sparse " + dims.to_string() + ": whole field " +
+            fixed(r["field_wall_ms"].get<double>() / 1e3, 2) + " s wall (" +
+            fixed(r["field_kernel_ms"].get<double>() / 1e3, 2) +
+            " s kernels); radius-8 edit median " + fixed(r["median_ms"].get<double>(), 3) +
+            " ms (min " + fixed(r["min_ms"].get<double>(), 3) + ", max " +
+            fixed(r["max_ms"].get<double>(), 3) + "; kernels " +
+            fixed(r["edit_kernel_ms_median"].get<double>(), 3) + " ms); peak " +
+            fixed(r["peak_rss_bytes"].get<double>() / 1048576.0, 0) +
+            " MiB = " + fixed(r["peak_bytes_per_stored_voxel"].get<double>(), 3) +
+            " B per stored voxel; world " +
+            fixed(r["world_bytes_per_stored_voxel"].get<double>(), 3) +
+            " B per stored voxel; exact " + (r["exact"].get<bool>() ? "yes" : "NO") + " (" +
+            std::to_string(r["exact_checked_voxels"].get<std::uint64_t>()) + " voxels checked)");
+        observer.row(r);
+    }
+    return rows;
+}
+
+}  // namespace voxfield::cli

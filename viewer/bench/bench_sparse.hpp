@@ -1,0 +1,23 @@
+#pragma once
+// `voxfield bench --suite sparse`: sparse worlds at scale (issue 24). Per size, core's
+// terrain-and-city scene (CityScene) built tile by tile into a SparseWorld (no dense array),
+// its whole exact bounded field (cl/sparse_field.hpp) timed, radius-8 sphere edits applied on
+// the device and timed, the edited regions checked against the dense bounded field of the same
+// voxels, peak memory and bytes per stored voxel recorded.
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <vector>
+
+#include "bench_suites.hpp"
+#include "voxfield/cl/runtime.hpp"
+
+namespace voxfield::cli {
+
+// One row per size in `o.sizes` (default 1024x256x1024, --quick 256x128x256): `o.field`'s
+// metric, spacing, sign and --max-distance (default 16), `o.format` (default u8); `o.edits`
+// timed edits (default 30, --quick 6) after `warmup` untimed ones; `repeat` whole-field runs.
+nlohmann::json run_sparse(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t repeat,
+                          std::uint32_t warmup, BenchObserver& observer);
+
+}  // namespace voxfield::cli
