@@ -107,8 +107,8 @@ double FramePipeline::switch_field(const ocl::GeneratorOptions& options) {
 }
 
 UpdateTimings FramePipeline::apply(const std::vector<Brush>& batch, std::vector<EditResult>* edits,
-                                   bool undoable) {
-    return finish(current().apply(batch, undoable), edits);
+                                   std::size_t undoable) {
+    return finish(current().apply_stroke(batch, undoable), edits);
 }
 
 UpdateTimings FramePipeline::apply_changes(const VoxelChanges& changes) {

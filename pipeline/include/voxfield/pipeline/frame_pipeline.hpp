@@ -7,6 +7,7 @@
 // is one ray march. Switching the world, algorithm or metric is transactional: the new field is
 // built completely before the old one goes, and a failure (refused options, a device error)
 // leaves the pipeline as it was. Nothing here prints.
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -68,9 +69,10 @@ class FramePipeline {
     double switch_field(const ocl::GeneratorOptions& options);
 
     // One batch of brushes (one frame's edits), applied in order; `edits` receives what each
-    // brush changed; `undoable`: the first brush joins the history's stroke (Scene::apply).
+    // brush changed; the first `undoable` brushes join the history's open stroke
+    // (Scene::apply_stroke: view passes its stroke's brush first, 1, or 0 without a stroke).
     UpdateTimings apply(const std::vector<Brush>& batch, std::vector<EditResult>* edits = nullptr,
-                        bool undoable = false);
+                        std::size_t undoable = 0);
     // Explicit voxel changes as one edit.
     UpdateTimings apply_changes(const VoxelChanges& changes);
     // The scene's history: Scene::undo / redo, then the render field.
