@@ -186,6 +186,14 @@ std::string FramePipeline::why_not() const {
     return render_field_ ? render_field_->why_not() : "packed32 is always copied (path 3)";
 }
 
+FieldSync FramePipeline::sync() const {
+    return render_field_ ? render_field_->sync() : FieldSync::queue;
+}
+
+std::string FramePipeline::sync_why_not() const {
+    return render_field_ ? render_field_->sync_why_not() : "packed32 is always copied (path 3)";
+}
+
 UpdateTimings FramePipeline::finish(SceneUpdate s, std::vector<EditResult>* edits) {
     UpdateTimings u;
     u.field_ms = s.stats.update_ms;

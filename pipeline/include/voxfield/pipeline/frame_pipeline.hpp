@@ -41,7 +41,8 @@ struct PipelineOptions {
 struct UpdateTimings {
     double field_ms = 0;    // the incremental update of the distance field
     double convert_ms = 0;  // writing the changed voxels into the render field (and copying
-                            // them on path 3)
+                            // them on path 3); FieldSync::semaphore: the conversions found
+                            // finished since the last update (RenderField::update)
     std::uint64_t voxels_recomputed = 0;
     bool full_regeneration = false;
     double simulate_ms = -1;           // a simulation step's device time (-1: none)
@@ -114,6 +115,10 @@ class FramePipeline {
     // is always copied: path 3).
     vk::SharingPath sharing() const;
     std::string why_not() const;
+    // How edits are ordered against the frames that read the field (RenderField::sync:
+    // semaphore, fence or queue; packed32: queue) and why not by semaphores ("" when they are).
+    FieldSync sync() const;
+    std::string sync_why_not() const;
 
     // Test seam: the next `count` times the pipeline shows a field in the ray marcher, it
     // throws ocl::ClError (CL_OUT_OF_RESOURCES) first, as a failing conversion would.
