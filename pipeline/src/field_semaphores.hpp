@@ -28,7 +28,8 @@ class FieldSemaphores {
     // One update of the shared field by `writer` (its destination imported from Vulkan),
     // ordered by the semaphores: returns ocl::CompactWriter::run_ordered's time. A failure part
     // way leaves a semaphore signalled that nothing will wait for: the pair is then broken()
-    // for good (OpenCL finished what it enqueued) and the caller takes the fence path.
+    // for good (OpenCL finished what it enqueued) and the caller converts again on the fence
+    // path. A failure before (the "read" batch not submitted) leaves it usable.
     double update(ocl::CompactWriter& writer, const std::vector<Box>& regions);
     bool broken() const { return broken_; }
 

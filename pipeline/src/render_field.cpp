@@ -209,11 +209,13 @@ double RenderField::update(vk::Raymarcher& marcher, const std::vector<Box>& regi
         try {
             return semaphores_->update(*writer_, regions);
         } catch (const std::exception& e) {
-            if (semaphores_->broken()) {
-                sync_ = FieldSync::fence;
-                sync_why_not_ = std::string("the semaphores failed: ") + e.what();
+            if (!semaphores_->broken()) {
+                throw;  // nothing was enqueued: a Vulkan submission failed
             }
-            throw;
+            // A driver refused part way (OpenCL finished what it had enqueued): this update and
+            // every later one take the fence path below, and sync() says so.
+            sync_ = FieldSync::fence;
+            sync_why_not_ = std::string("the semaphores failed: ") + e.what();
         }
     }
     if (path_ != vk::SharingPath::copy) {

@@ -81,7 +81,8 @@ class RenderField {
     // conversions found finished since the last update (an update's own usually counts at the
     // next). With FieldSync::fence the CPU first waits for the fence of the latest frame that
     // reads the field, which OpenCL overwrites, and OpenCL has finished writing when this
-    // returns (also after the semaphores failed once: they are not used again). Path 3 reads
+    // returns (also from the update where the semaphores failed part way on: they are not
+    // used again, sync() turns to fence and sync_why_not() says why). Path 3 reads
     // back only those regions and blocks and copies them into the ray marcher in place, ordered
     // behind the frames in flight by the queue, with no CPU wait (vk::Raymarcher::
     // update_compact, update_block_min). Returns the OpenCL time in ms.
