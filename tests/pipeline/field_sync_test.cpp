@@ -203,8 +203,8 @@ void alternate(vk::Context& vk, VkSemaphore s) {
 }
 
 TEST(FieldSync, VulkanSemaphoreBatchesAlternate) {
-    // Vulkan's half alone. A semaphore of Vulkan's own first: the validation layer tracks it
-    // and would report a wait without a signal or a signal of a signalled semaphore.
+    // Vulkan's half alone, on a semaphore of Vulkan's own: the validation layer tracks it and
+    // would report a wait without a signal or a signal of a signalled semaphore.
     vk::Context& vk = validated_vulkan();
     VkSemaphoreCreateInfo info{};
     info.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO;
@@ -212,8 +212,12 @@ TEST(FieldSync, VulkanSemaphoreBatchesAlternate) {
     ASSERT_EQ(vkCreateSemaphore(vk.device(), &info, nullptr, &plain), VK_SUCCESS);
     alternate(vk, plain);
     vkDestroySemaphore(vk.device(), plain, nullptr);
-    // Then an exportable one, as path 1 uses (its state is OpenCL's too, so the layer no longer
-    // tracks it once exported).
+}
+
+TEST(FieldSync, ExportedSemaphoreBatchesAlternate) {
+    // An exportable semaphore, as path 1 uses (its state is OpenCL's too, so the layer no
+    // longer tracks it once exported).
+    vk::Context& vk = validated_vulkan();
     if (!vk::can_export_semaphore_fd(vk)) {
         GTEST_SKIP() << vk.info().name << " cannot export semaphores as opaque fds";
     }
