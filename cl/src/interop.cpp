@@ -221,6 +221,16 @@ double CompactWriter::run_ordered(const std::vector<Box>& regions, const Externa
             "CompactWriter::run_ordered: the destination is not imported memory");
     }
     return cl_call("writing the compact render field (ordered by semaphores)", [&] {
+        // The times of the earlier ordered runs that have finished (a failed one counts
+        // nothing), before anything is enqueued: a failing query then changes no semaphore.
+        double ms = 0;
+        std::erase_if(ordered_, [&](const std::pair<cl::Event, cl::Event>& run) {
+            const cl_int status = run.second.getInfo<CL_EVENT_COMMAND_EXECUTION_STATUS>();
+            if (status == CL_COMPLETE) {
+                ms += elapsed_ms(run.first, run.second);
+            }
+            return status == CL_COMPLETE || status < 0;
+        });
         std::vector<cl::Event> events;
         if (wait != nullptr) {
             wait->enqueue_wait(ctx_);  // the frames that read dst have finished
@@ -235,15 +245,6 @@ double CompactWriter::run_ordered(const std::vector<Box>& regions, const Externa
         if (!events.empty()) {
             ordered_.emplace_back(events.front(), events.back());
         }
-        // The times of the ordered runs that have finished (a failed one counts nothing).
-        double ms = 0;
-        std::erase_if(ordered_, [&](const std::pair<cl::Event, cl::Event>& run) {
-            const cl_int status = run.second.getInfo<CL_EVENT_COMMAND_EXECUTION_STATUS>();
-            if (status == CL_COMPLETE) {
-                ms += elapsed_ms(run.first, run.second);
-            }
-            return status == CL_COMPLETE || status < 0;
-        });
         return ms;
     });
 }

@@ -69,9 +69,9 @@ class CompactWriter {
     // as run(regions), but the kernels first wait for `wait` (when given: Vulkan signalled it
     // after the frames that read dst), and `signal` is signalled after dst's release, for the
     // frames that read next to wait for. Nothing is waited for on the host (the queue is
-    // flushed). Returns the kernels' time in ms of the ordered runs found finished now (event
-    // status, no wait): a run's own time counts at a later call, usually the next. Throws
-    // std::logic_error unless dst is external memory.
+    // flushed). Returns the kernels' time in ms of the earlier ordered runs found finished
+    // when it is called (event status, no wait): a run's time counts at a later call, usually
+    // the next. Throws std::logic_error unless dst is external memory.
     double run_ordered(const std::vector<Box>& regions, const ExternalSemaphore* wait,
                        const ExternalSemaphore& signal);
     // The blocks whose minima the last run() recomputed: per region that met the world, the
