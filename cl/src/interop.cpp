@@ -184,10 +184,72 @@ double CompactWriter::run() {
     return run({Box{{0, 0, 0}, {dims_.x, dims_.y, dims_.z}}});
 }
 
-double CompactWriter::run(const std::vector<Box>& regions) {
+void CompactWriter::enqueue_regions(const std::vector<Box>& regions,
+                                    std::vector<cl::Event>& events) {
     const Box world{{0, 0, 0}, {dims_.x, dims_.y, dims_.z}};
     const std::int64_t b = VF_RAYMARCH_BLOCK;
     changed_blocks_.clear();
+    for (const Box& region : regions) {
+        const Box r = intersect(region, world);
+        if (r.empty()) {
+            continue;
+        }
+        const auto u = [](std::int64_t v) { return static_cast<cl_uint>(v); };
+        const Int3 n{r.max.x - r.min.x, r.max.y - r.min.y, r.max.z - r.min.z};
+        kernel_.setArg(6, cl_uint4{{u(r.min.x), u(r.min.y), u(r.min.z), 0}});
+        kernel_.setArg(7, cl_uint4{{u(n.x), u(n.y), u(n.z), 0}});
+        events.emplace_back();
+        ctx_.queue().enqueueNDRangeKernel(
+            kernel_, cl::NullRange,
+            cl::NDRange(round_up(static_cast<std::size_t>(n.x), kLocal),
+                        static_cast<std::size_t>(n.y), static_cast<std::size_t>(n.z)),
+            cl::NDRange(kLocal, 1, 1), nullptr, &events.back());
+        const Int3 lo{r.min.x / b, r.min.y / b, r.min.z / b};
+        const Int3 hi{(r.max.x + b - 1) / b, (r.max.y + b - 1) / b, (r.max.z + b - 1) / b};
+        changed_blocks_.push_back(Box{lo, hi});
+        events.emplace_back();
+        ctx_.queue().enqueueNDRangeKernel(block_kernel_, cl::NullRange,
+                                          cl::NDRange(set_box(block_kernel_, 3, lo, hi)),
+                                          cl::NDRange(kLocal), nullptr, &events.back());
+    }
+}
+
+double CompactWriter::run_ordered(const std::vector<Box>& regions, const ExternalSemaphore* wait,
+                                  const ExternalSemaphore& signal) {
+    if (dst_memory_ != DstMemory::external) {
+        throw std::logic_error(
+            "CompactWriter::run_ordered: the destination is not imported memory");
+    }
+    return cl_call("writing the compact render field (ordered by semaphores)", [&] {
+        // The times of the earlier ordered runs that have finished (a failed one counts
+        // nothing), before anything is enqueued: a failing query then changes no semaphore.
+        double ms = 0;
+        std::erase_if(ordered_, [&](const std::pair<cl::Event, cl::Event>& run) {
+            const cl_int status = run.second.getInfo<CL_EVENT_COMMAND_EXECUTION_STATUS>();
+            if (status == CL_COMPLETE) {
+                ms += elapsed_ms(run.first, run.second);
+            }
+            return status == CL_COMPLETE || status < 0;
+        });
+        std::vector<cl::Event> events;
+        if (wait != nullptr) {
+            wait->enqueue_wait(ctx_);  // the frames that read dst have finished
+        }
+        {
+            ExternalAcquire acquired(ctx_, dst_);
+            enqueue_regions(regions, events);
+            acquired.release();
+        }
+        signal.enqueue_signal(ctx_);  // after the release: the next frames may read dst
+        ctx_.queue().flush();
+        if (!events.empty()) {
+            ordered_.emplace_back(events.front(), events.back());
+        }
+        return ms;
+    });
+}
+
+double CompactWriter::run(const std::vector<Box>& regions) {
     return cl_call("writing the compact render field", [&] {
         std::vector<cl::Event> events;
         std::optional<ExternalAcquire> acquired;
@@ -199,29 +261,7 @@ double CompactWriter::run(const std::vector<Box>& regions) {
             ctx_.queue().enqueueUnmapMemObject(dst_, mapped_);
             mapped_ = nullptr;
         }
-        for (const Box& region : regions) {
-            const Box r = intersect(region, world);
-            if (r.empty()) {
-                continue;
-            }
-            const auto u = [](std::int64_t v) { return static_cast<cl_uint>(v); };
-            const Int3 n{r.max.x - r.min.x, r.max.y - r.min.y, r.max.z - r.min.z};
-            kernel_.setArg(6, cl_uint4{{u(r.min.x), u(r.min.y), u(r.min.z), 0}});
-            kernel_.setArg(7, cl_uint4{{u(n.x), u(n.y), u(n.z), 0}});
-            events.emplace_back();
-            ctx_.queue().enqueueNDRangeKernel(
-                kernel_, cl::NullRange,
-                cl::NDRange(round_up(static_cast<std::size_t>(n.x), kLocal),
-                            static_cast<std::size_t>(n.y), static_cast<std::size_t>(n.z)),
-                cl::NDRange(kLocal, 1, 1), nullptr, &events.back());
-            const Int3 lo{r.min.x / b, r.min.y / b, r.min.z / b};
-            const Int3 hi{(r.max.x + b - 1) / b, (r.max.y + b - 1) / b, (r.max.z + b - 1) / b};
-            changed_blocks_.push_back(Box{lo, hi});
-            events.emplace_back();
-            ctx_.queue().enqueueNDRangeKernel(block_kernel_, cl::NullRange,
-                                              cl::NDRange(set_box(block_kernel_, 3, lo, hi)),
-                                              cl::NDRange(kLocal), nullptr, &events.back());
-        }
+        enqueue_regions(regions, events);
         if (acquired) {
             acquired->release();
         }
@@ -357,6 +397,135 @@ cl::Buffer import_opaque_fd(Context& ctx, int fd, std::size_t bytes) {
     }
     owned.fd = -1;           // the OpenCL implementation owns it now
     return cl::Buffer(mem);  // takes ownership of the reference
+}
+
+bool can_import_semaphore_fd(const Context& ctx) {
+    const DeviceInfo& info = ctx.info();
+    if (!info.has_extension("cl_khr_external_semaphore") ||
+        !info.has_extension("cl_khr_external_semaphore_opaque_fd")) {
+        return false;
+    }
+    // A list of cl_uint values of the device (nullopt: the query is not answered).
+    const auto device_list = [&](cl_device_info what) -> std::optional<std::vector<cl_uint>> {
+        std::size_t bytes = 0;
+        if (clGetDeviceInfo(info.device(), what, 0, nullptr, &bytes) != CL_SUCCESS) {
+            return std::nullopt;
+        }
+        std::vector<cl_uint> values(bytes / sizeof(cl_uint));
+        if (!values.empty() && clGetDeviceInfo(info.device(), what, values.size() * sizeof(cl_uint),
+                                               values.data(), nullptr) != CL_SUCCESS) {
+            return std::nullopt;
+        }
+        return values;
+    };
+    const auto has = [](const std::optional<std::vector<cl_uint>>& values, cl_uint v) {
+        return values && std::find(values->begin(), values->end(), v) != values->end();
+    };
+    // Binary semaphores are cl_khr_semaphore's one type: refused only where the device lists
+    // its types without it.
+    const auto types = device_list(CL_DEVICE_SEMAPHORE_TYPES_KHR);
+    return has(device_list(CL_DEVICE_SEMAPHORE_IMPORT_HANDLE_TYPES_KHR),
+               CL_SEMAPHORE_HANDLE_OPAQUE_FD_KHR) &&
+           (!types || has(types, CL_SEMAPHORE_TYPE_BINARY_KHR)) &&
+           extension_function<clCreateSemaphoreWithPropertiesKHR_fn>(
+               ctx, "clCreateSemaphoreWithPropertiesKHR") != nullptr &&
+           extension_function<clEnqueueWaitSemaphoresKHR_fn>(ctx, "clEnqueueWaitSemaphoresKHR") !=
+               nullptr &&
+           extension_function<clEnqueueSignalSemaphoresKHR_fn>(
+               ctx, "clEnqueueSignalSemaphoresKHR") != nullptr &&
+           extension_function<clReleaseSemaphoreKHR_fn>(ctx, "clReleaseSemaphoreKHR") != nullptr;
+}
+
+ExternalSemaphore::ExternalSemaphore(Context& ctx, int fd) : platform_(platform_of(ctx)) {
+    // Ours until a successful import hands it to the OpenCL implementation
+    // (cl_khr_external_semaphore, "File Descriptor Handle Types").
+    struct OwnedFd {
+        int fd;
+        ~OwnedFd() {
+            if (fd >= 0) {
+                close(fd);
+            }
+        }
+    } owned{fd};
+    const std::string what = "importing a Vulkan semaphore (opaque fd) into " + ctx.info().name;
+    if (!can_import_semaphore_fd(ctx)) {
+        throw ClError("clCreateSemaphoreWithPropertiesKHR", CL_INVALID_OPERATION,
+                      what + ": the device lacks cl_khr_external_semaphore_opaque_fd");
+    }
+    auto create = extension_function<clCreateSemaphoreWithPropertiesKHR_fn>(
+        ctx, "clCreateSemaphoreWithPropertiesKHR");
+    // The context's one device named as well (CL_SEMAPHORE_DEVICE_HANDLE_LIST_KHR, the value
+    // of cl_khr_external_memory's CL_DEVICE_HANDLE_LIST_KHR, which Debian's header defines), as
+    // the Khronos conformance tests import Vulkan's semaphores.
+    const cl_semaphore_properties_khr props[] = {
+        static_cast<cl_semaphore_properties_khr>(CL_SEMAPHORE_TYPE_KHR),
+        static_cast<cl_semaphore_properties_khr>(CL_SEMAPHORE_TYPE_BINARY_KHR),
+        static_cast<cl_semaphore_properties_khr>(CL_SEMAPHORE_HANDLE_OPAQUE_FD_KHR),
+        static_cast<cl_semaphore_properties_khr>(fd),
+        static_cast<cl_semaphore_properties_khr>(CL_DEVICE_HANDLE_LIST_KHR),
+        reinterpret_cast<cl_semaphore_properties_khr>(ctx.info().device()),
+        static_cast<cl_semaphore_properties_khr>(CL_DEVICE_HANDLE_LIST_END_KHR),
+        0};
+    cl_int err = CL_SUCCESS;
+    cl_semaphore_khr semaphore = create(ctx.context()(), props, &err);
+    if (err != CL_SUCCESS || semaphore == nullptr) {
+        throw ClError("clCreateSemaphoreWithPropertiesKHR", err, what);
+    }
+    owned.fd = -1;  // the OpenCL implementation owns it now
+    semaphore_ = semaphore;
+}
+
+ExternalSemaphore::~ExternalSemaphore() {
+    release();
+}
+
+ExternalSemaphore::ExternalSemaphore(ExternalSemaphore&& o) noexcept
+    : semaphore_(std::exchange(o.semaphore_, nullptr)), platform_(o.platform_) {}
+
+ExternalSemaphore& ExternalSemaphore::operator=(ExternalSemaphore&& o) noexcept {
+    if (this != &o) {
+        release();
+        semaphore_ = std::exchange(o.semaphore_, nullptr);
+        platform_ = o.platform_;
+    }
+    return *this;
+}
+
+void ExternalSemaphore::release() noexcept {
+    if (semaphore_ != nullptr) {
+        auto release = reinterpret_cast<clReleaseSemaphoreKHR_fn>(
+            clGetExtensionFunctionAddressForPlatform(platform_, "clReleaseSemaphoreKHR"));
+        if (release != nullptr) {
+            release(semaphore_);
+        }
+        semaphore_ = nullptr;
+    }
+}
+
+void ExternalSemaphore::enqueue_wait(Context& ctx) const {
+    auto wait =
+        extension_function<clEnqueueWaitSemaphoresKHR_fn>(ctx, "clEnqueueWaitSemaphoresKHR");
+    if (wait == nullptr || semaphore_ == nullptr) {
+        throw ClError("clEnqueueWaitSemaphoresKHR", CL_INVALID_OPERATION,
+                      "no imported semaphore or entry point on " + ctx.info().name);
+    }
+    const cl_int err = wait(ctx.queue()(), 1, &semaphore_, nullptr, 0, nullptr, nullptr);
+    if (err != CL_SUCCESS) {
+        throw ClError("clEnqueueWaitSemaphoresKHR", err, "the frames reading the render field");
+    }
+}
+
+void ExternalSemaphore::enqueue_signal(Context& ctx) const {
+    auto signal =
+        extension_function<clEnqueueSignalSemaphoresKHR_fn>(ctx, "clEnqueueSignalSemaphoresKHR");
+    if (signal == nullptr || semaphore_ == nullptr) {
+        throw ClError("clEnqueueSignalSemaphoresKHR", CL_INVALID_OPERATION,
+                      "no imported semaphore or entry point on " + ctx.info().name);
+    }
+    const cl_int err = signal(ctx.queue()(), 1, &semaphore_, nullptr, 0, nullptr, nullptr);
+    if (err != CL_SUCCESS) {
+        throw ClError("clEnqueueSignalSemaphoresKHR", err, "the render field written");
+    }
 }
 
 void acquire_external(Context& ctx, const cl::Buffer& buffer) {

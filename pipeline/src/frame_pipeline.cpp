@@ -107,8 +107,8 @@ double FramePipeline::switch_field(const ocl::GeneratorOptions& options) {
 }
 
 UpdateTimings FramePipeline::apply(const std::vector<Brush>& batch, std::vector<EditResult>* edits,
-                                   bool undoable) {
-    return finish(current().apply(batch, undoable), edits);
+                                   std::size_t undoable) {
+    return finish(current().apply_stroke(batch, undoable), edits);
 }
 
 UpdateTimings FramePipeline::apply_changes(const VoxelChanges& changes) {
@@ -184,6 +184,14 @@ vk::SharingPath FramePipeline::sharing() const {
 
 std::string FramePipeline::why_not() const {
     return render_field_ ? render_field_->why_not() : "packed32 is always copied (path 3)";
+}
+
+FieldSync FramePipeline::sync() const {
+    return render_field_ ? render_field_->sync() : FieldSync::queue;
+}
+
+std::string FramePipeline::sync_why_not() const {
+    return render_field_ ? render_field_->sync_why_not() : "packed32 is always copied (path 3)";
 }
 
 UpdateTimings FramePipeline::finish(SceneUpdate s, std::vector<EditResult>* edits) {

@@ -5,7 +5,10 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <cstdlib>
 #include <exception>
+
+#include "field_semaphores.hpp"
 
 namespace voxfield::pipeline {
 
@@ -83,6 +86,40 @@ vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Contex
     return vk::SharingPath::copy;
 }
 
+std::string to_string(FieldSync sync) {
+    switch (sync) {
+        case FieldSync::semaphore:
+            return "semaphore";
+        case FieldSync::fence:
+            return "fence";
+        case FieldSync::queue:
+            break;
+    }
+    return "queue";
+}
+
+FieldSync choose_field_sync(const ocl::Context& cl_ctx, const vk::Context& vk_ctx,
+                            vk::SharingPath path, std::string& why_not) {
+    why_not.clear();
+    if (path == vk::SharingPath::copy) {
+        why_not = "path 3 copies in the Vulkan queue's order";
+        return FieldSync::queue;
+    }
+    const char* off = std::getenv("VOXFIELD_NO_CL_SEMAPHORE");
+    if (path != vk::SharingPath::opaque_fd) {
+        why_not = "semaphores order path 1 only";
+    } else if (off != nullptr && *off != '\0' && std::string(off) != "0") {
+        why_not = "$VOXFIELD_NO_CL_SEMAPHORE is set";
+    } else if (!vk::can_export_semaphore_fd(vk_ctx)) {
+        why_not = "the Vulkan device cannot export semaphores (VK_KHR_external_semaphore_fd)";
+    } else if (!ocl::can_import_semaphore_fd(cl_ctx)) {
+        why_not = "the OpenCL device lacks cl_khr_external_semaphore_opaque_fd";
+    } else {
+        return FieldSync::semaphore;
+    }
+    return FieldSync::fence;
+}
+
 RenderField::RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Raymarcher& marcher,
                          Dims dims, vk::SharingPath fastest)
     : cl_(cl_ctx), dims_(dims), layout_(marcher.plan(dims, vk::FieldFormat::compact)) {
@@ -123,9 +160,19 @@ RenderField::RenderField(ocl::Context& cl_ctx, vk::Context& vk_ctx, const vk::Ra
     if (why_not_.size() >= 2) {
         why_not_.resize(why_not_.size() - 2);
     }
+    sync_ = choose_field_sync(cl_ctx, vk_ctx, path_, sync_why_not_);
+    if (sync_ == FieldSync::semaphore) {
+        try {
+            semaphores_ = std::make_unique<FieldSemaphores>(cl_ctx, vk_ctx);
+        } catch (const std::exception& e) {
+            sync_ = FieldSync::fence;
+            sync_why_not_ = std::string("the semaphores failed: ") + e.what();
+        }
+    }
 }
 
 RenderField::~RenderField() {
+    semaphores_.reset();
     writer_.reset();
     cl_field_ = cl::Buffer();
 }
@@ -158,9 +205,22 @@ double RenderField::attach(vk::Raymarcher& marcher, const cl::Buffer& field, For
 }
 
 double RenderField::update(vk::Raymarcher& marcher, const std::vector<Box>& regions) {
+    if (semaphores_ && !semaphores_->broken()) {
+        try {
+            return semaphores_->update(*writer_, regions);
+        } catch (const std::exception& e) {
+            if (!semaphores_->broken()) {
+                throw;  // nothing was enqueued: a Vulkan submission failed
+            }
+            // A driver refused part way (OpenCL finished what it had enqueued): this update and
+            // every later one take the fence path below, and sync() says so.
+            sync_ = FieldSync::fence;
+            sync_why_not_ = std::string("the semaphores failed: ") + e.what();
+        }
+    }
     if (path_ != vk::SharingPath::copy) {
         // OpenCL overwrites memory the frames in flight read: no Vulkan-side copy can order
-        // that (PoCL has no cl_khr_external_semaphore), so the CPU waits for the fence of the
+        // that without semaphores (PoCL has none), so the CPU waits for the fence of the
         // latest frame that reads the field, not for the device to idle.
         marcher.wait_for_readers();
     }

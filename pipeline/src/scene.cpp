@@ -2,6 +2,7 @@
 // (scene.hpp).
 #include "voxfield/pipeline/scene.hpp"
 
+#include <algorithm>
 #include <utility>
 
 #include "voxfield/core/error.hpp"
@@ -52,9 +53,16 @@ SceneUpdate Scene::finish(ocl::UpdateStats stats) {
 }
 
 SceneUpdate Scene::apply(const std::vector<Brush>& batch, bool undoable) {
+    return apply_stroke(batch, undoable ? batch.size() : 0);
+}
+
+SceneUpdate Scene::apply_stroke(const std::vector<Brush>& batch, std::size_t undoable) {
     SceneUpdate u = finish(storage_->apply(batch));
-    if (undoable && !u.stats.edits.empty()) {
-        history_.record(u.stats.edits.front());
+    // Every recorded brush, in order: the stroke merges them per voxel (first before, last
+    // after), so that one undo restores what the batch found.
+    const std::size_t n = std::min(undoable, u.stats.edits.size());
+    for (std::size_t i = 0; i < n; ++i) {
+        history_.record(u.stats.edits[i]);
     }
     return u;
 }

@@ -13,7 +13,9 @@
 #include "../cl/cl_test_util.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/format.hpp"
 #include "voxfield/core/palette.hpp"
+#include "voxfield/core/reference.hpp"
 #include "voxfield/core/sand.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/pipeline/scene.hpp"
@@ -96,6 +98,74 @@ TEST(Scene, StrokesUndoAndRedoThroughTheScene) {
     EXPECT_EQ(scene.world().voxels(), edited.voxels());
     EXPECT_EQ(scene.read_field(), ocl::generate(pocl(), edited, Palette(), o).bytes);
     EXPECT_TRUE(scene.redo().changed.empty());  // nothing left to redo
+}
+
+TEST(Scene, OneUndoRevertsAWholeBatch) {
+    // Three brushes far apart in one undoable batch (one field update): one undo restores the
+    // world and the field the batch found, for every metric, checked against the CPU reference;
+    // redo brings the whole batch back.
+    const Palette palette = Palette::magicavoxel_default();
+    const World start = make_scene("spheres", Dims{48, 40, 44}, 5);
+    std::vector<Brush> batch{{BrushOp::place, BrushShape::sphere, {6, 30, 6}, 4, 201},
+                             {BrushOp::place, BrushShape::cube, {41, 8, 38}, 3, 202}};
+    // The middle brush erases around a solid voxel of the scene.
+    for (std::size_t i = start.voxels().size() / 2; i < start.voxels().size(); ++i) {
+        if (start.voxels()[i] != 0) {
+            const Dims d = start.dims();
+            const auto at = [](std::size_t v) { return static_cast<std::int64_t>(v); };
+            const Int3 p{at(i % d.x), at(i / d.x % d.y), at(i / d.x / d.y)};
+            batch.insert(batch.begin() + 1, Brush{BrushOp::erase, BrushShape::cube, p, 3, 0});
+            break;
+        }
+    }
+    ASSERT_EQ(batch.size(), 3u);
+    World edited = start;
+    for (const Brush& b : batch) {
+        ASSERT_TRUE(apply_brush(edited, b).changed());
+    }
+    for (const auto& [metric, format] :
+         {std::pair{Metric::manhattan, Format::u16}, std::pair{Metric::chebyshev, Format::u8},
+          std::pair{Metric::euclidean, Format::f32}}) {
+        const ocl::GeneratorOptions o = options_for(metric, format, start.dims());
+        const auto reference = [&](const World& w) {
+            return encode_real_field(reference_distance(w, metric, o.spacing), w, palette, format);
+        };
+        pipeline::Scene scene(pocl(), start, palette, o);
+        scene.history().begin_stroke();
+        scene.apply(batch, true);
+        EXPECT_TRUE(scene.history().end_stroke());
+        ASSERT_TRUE(scene.world().voxels() == edited.voxels()) << to_string(metric);
+        EXPECT_FALSE(scene.undo().changed.empty());
+        EXPECT_TRUE(scene.world().voxels() == start.voxels()) << to_string(metric);
+        EXPECT_EQ(first_difference(scene.read_field(), reference(start), format, start.dims()), "")
+            << to_string(metric) << ", after the undo";
+        EXPECT_FALSE(scene.history().can_undo());
+        scene.redo();
+        EXPECT_TRUE(scene.world().voxels() == edited.voxels()) << to_string(metric);
+        EXPECT_EQ(first_difference(scene.read_field(), reference(edited), format, start.dims()), "")
+            << to_string(metric) << ", after the redo";
+    }
+}
+
+TEST(Scene, OnlyTheStrokesBrushesOfABatchAreRecorded) {
+    // apply_stroke: the first brush is the stroke's, the second a scripted edit of the same
+    // frame; the undo reverts the first alone.
+    const World start = make_scene("spheres", Dims{32, 24, 28}, 2);
+    const ocl::GeneratorOptions o = options_for(Metric::manhattan, Format::u16, start.dims());
+    pipeline::Scene scene(pocl(), start, Palette(), o);
+    const Brush stroke{BrushOp::place, BrushShape::cube, {5, 18, 5}, 3, 4};
+    const Brush scripted{BrushOp::place, BrushShape::cube, {26, 4, 22}, 3, 6};
+    scene.history().begin_stroke();
+    scene.apply_stroke({stroke, scripted}, 1);
+    scene.history().end_stroke();
+    World want = start;
+    apply_brush(want, scripted);
+    scene.undo();
+    EXPECT_TRUE(scene.world().voxels() == want.voxels());
+    EXPECT_EQ(first_difference(scene.read_field(),
+                               encode_field(reference_manhattan(want), want, Palette(), o.format),
+                               o.format, want.dims()),
+              "");
 }
 
 TEST(Scene, UndoOfAStrokeTheSandMovedClearsTheHistory) {

@@ -17,6 +17,7 @@ namespace {
 // (what `render --field compact` would use), or why it cannot be said.
 struct Sharing {
     std::string path, vulkan, why_not;
+    std::string sync;  // pipeline::FieldSync: how that path orders edits ("" unknown)
 };
 
 Sharing sharing_of(const ocl::DeviceInfo& device) {
@@ -25,10 +26,14 @@ Sharing sharing_of(const ocl::DeviceInfo& device) {
         vk::Context vk_ctx;
         std::string why_not;
         const vk::SharingPath path = pipeline::choose_sharing_path(cl_ctx, vk_ctx, why_not);
+        std::string sync_why_not;
+        const pipeline::FieldSync sync =
+            pipeline::choose_field_sync(cl_ctx, vk_ctx, path, sync_why_not);
         return {vk::describe(path), vk_ctx.info().name,
-                why_not.empty() ? "" : why_not.substr(0, why_not.size() - 2)};
+                why_not.empty() ? "" : why_not.substr(0, why_not.size() - 2),
+                pipeline::to_string(sync)};
     } catch (const std::exception& e) {
-        return {"none", "", e.what()};
+        return {"none", "", e.what(), ""};
     }
 }
 
@@ -54,7 +59,7 @@ Command add_devices(CLI::App& root) {
     auto json = std::make_shared<bool>(false);
     app->add_flag("--json", *json,
                   "Print the list as JSON, each device with its sharing path to the default "
-                  "Vulkan device (path, vulkan_device, why_not)");
+                  "Vulkan device (path, vulkan_device, why_not, sync)");
     return {app, [json] {
                 const auto devices = ocl::list_devices();
                 if (*json) {
@@ -66,7 +71,8 @@ Command add_devices(CLI::App& root) {
                             {"path", s.path},
                             {"vulkan_device",
                              s.vulkan.empty() ? nlohmann::json() : nlohmann::json(s.vulkan)},
-                            {"why_not", s.why_not}};
+                            {"why_not", s.why_not},
+                            {"sync", s.sync.empty() ? nlohmann::json() : nlohmann::json(s.sync)}};
                         out.push_back(std::move(j));
                     }
                     std::cout << out.dump(2) << '\n';

@@ -103,6 +103,7 @@ void report_benchmark(const ViewCliOptions& o, const BenchmarkSetup& setup,
         j["image"] = {ropts.width, ropts.height};
         j["present"] = setup.present ? vk::to_string(*setup.present) : "headless";
         j["sharing"] = session.marcher().sharing_path();
+        j["sync"] = pipeline::to_string(session.sync());
         j["simulate"] = o.simulate;
         j["summary"] = {{"frame", summary_json(sf)},
                         {"field_update", summary_json(o.simulate ? ssu : su)},

@@ -83,14 +83,16 @@ Context::Context(const ContextOptions& options) {
         q.queueFamilyIndex = family_;
         q.queueCount = 1;
         q.pQueuePriorities = &priority;
-        // External memory (DESIGN §2 sharing paths 1 and 2) where the device has it.
+        // External memory (DESIGN §2 sharing paths 1 and 2) and semaphores (path 1's ordering)
+        // where the device has them.
         std::vector<const char*> extensions;
         if (presenting) {
             extensions.push_back(VK_KHR_SWAPCHAIN_EXTENSION_NAME);
             enabled_.emplace_back(VK_KHR_SWAPCHAIN_EXTENSION_NAME);
         }
-        for (const char* ext : {VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME,
-                                VK_EXT_EXTERNAL_MEMORY_HOST_EXTENSION_NAME}) {
+        for (const char* ext :
+             {VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME, VK_EXT_EXTERNAL_MEMORY_HOST_EXTENSION_NAME,
+              VK_KHR_EXTERNAL_SEMAPHORE_FD_EXTENSION_NAME}) {
             if (info_.has_extension(ext)) {
                 extensions.push_back(ext);
                 enabled_.emplace_back(ext);
@@ -346,6 +348,50 @@ std::uint64_t Context::submit_unwaited(const std::function<void(VkCommandBuffer)
     submit(info, u.fence.get(), what);
     const std::uint64_t serial = submitted_;
     retire(std::move(u));
+    return serial;
+}
+
+std::uint64_t Context::signal_semaphore(VkSemaphore semaphore, const std::string& what) {
+    collect_retired(false);
+    // One execution barrier over all commands: the batch's signal then also follows the waits
+    // of earlier batches (through the commands after them), not only their commands.
+    OneShot shot = record_one_shot(
+        device_, pool_.get(),
+        [](VkCommandBuffer cmd) {
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
+                                 VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 0, nullptr, 0, nullptr, 0,
+                                 nullptr);
+        },
+        what);
+    VkSubmitInfo info{};
+    info.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+    info.commandBufferCount = 1;
+    info.pCommandBuffers = &shot.cmd;
+    info.signalSemaphoreCount = 1;
+    info.pSignalSemaphores = &semaphore;
+    submit(info, shot.fence.get(), what);
+    const std::uint64_t serial = submitted_;
+    retire(std::move(shot));
+    return serial;
+}
+
+std::uint64_t Context::wait_semaphore(VkSemaphore semaphore, const std::string& what) {
+    collect_retired(false);
+    OneShot shot(device_, pool_.get());
+    VkFenceCreateInfo fence_info{};
+    fence_info.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
+    VkFence fence = VK_NULL_HANDLE;
+    check(vkCreateFence(device_, &fence_info, nullptr, &fence), "vkCreateFence", what);
+    shot.fence = Owned<VkFence>(device_, fence, vkDestroyFence);
+    const VkPipelineStageFlags stage = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT;
+    VkSubmitInfo info{};
+    info.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+    info.waitSemaphoreCount = 1;
+    info.pWaitSemaphores = &semaphore;
+    info.pWaitDstStageMask = &stage;
+    submit(info, fence, what);
+    const std::uint64_t serial = submitted_;
+    retire(std::move(shot));
     return serial;
 }
 

@@ -194,4 +194,50 @@ int ExternalMemory::export_fd() const {
     return fd;
 }
 
+bool can_export_semaphore_fd(const Context& ctx) {
+    if (!ctx.enabled(VK_KHR_EXTERNAL_SEMAPHORE_FD_EXTENSION_NAME)) {
+        return false;
+    }
+    VkPhysicalDeviceExternalSemaphoreInfo query{};
+    query.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_EXTERNAL_SEMAPHORE_INFO;
+    query.handleType = VK_EXTERNAL_SEMAPHORE_HANDLE_TYPE_OPAQUE_FD_BIT;
+    VkExternalSemaphoreProperties props{};
+    props.sType = VK_STRUCTURE_TYPE_EXTERNAL_SEMAPHORE_PROPERTIES;
+    vkGetPhysicalDeviceExternalSemaphoreProperties(ctx.physical(), &query, &props);
+    return (props.externalSemaphoreFeatures & VK_EXTERNAL_SEMAPHORE_FEATURE_EXPORTABLE_BIT) != 0;
+}
+
+ExportedSemaphore::ExportedSemaphore(Context& ctx, const std::string& what)
+    : ctx_(&ctx), what_(what) {
+    if (!can_export_semaphore_fd(ctx)) {
+        throw VkError(
+            "vkCreateSemaphore", VK_ERROR_EXTENSION_NOT_PRESENT,
+            what + ": " + ctx.info().name +
+                " cannot export a semaphore as an opaque fd (VK_KHR_external_semaphore_fd)");
+    }
+    VkExportSemaphoreCreateInfo exported{};
+    exported.sType = VK_STRUCTURE_TYPE_EXPORT_SEMAPHORE_CREATE_INFO;
+    exported.handleTypes = VK_EXTERNAL_SEMAPHORE_HANDLE_TYPE_OPAQUE_FD_BIT;
+    VkSemaphoreCreateInfo info{};
+    info.sType = VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO;
+    info.pNext = &exported;
+    VkSemaphore semaphore = VK_NULL_HANDLE;
+    check(vkCreateSemaphore(ctx.device(), &info, nullptr, &semaphore), "vkCreateSemaphore", what);
+    semaphore_ = Owned<VkSemaphore>(ctx.device(), semaphore, vkDestroySemaphore);
+}
+
+int ExportedSemaphore::export_fd() const {
+    if (!semaphore_ || ctx_ == nullptr) {
+        throw std::logic_error("ExportedSemaphore::export_fd without a semaphore");
+    }
+    auto get_fd = device_function<PFN_vkGetSemaphoreFdKHR>(*ctx_, "vkGetSemaphoreFdKHR");
+    VkSemaphoreGetFdInfoKHR info{};
+    info.sType = VK_STRUCTURE_TYPE_SEMAPHORE_GET_FD_INFO_KHR;
+    info.semaphore = semaphore_.get();
+    info.handleType = VK_EXTERNAL_SEMAPHORE_HANDLE_TYPE_OPAQUE_FD_BIT;
+    int fd = -1;
+    check(get_fd(ctx_->device(), &info, &fd), "vkGetSemaphoreFdKHR", what_);
+    return fd;
+}
+
 }  // namespace voxfield::vk

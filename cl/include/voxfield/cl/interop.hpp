@@ -5,7 +5,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <utility>
 #include <vector>
+
+#include <CL/cl_ext.h>
 
 #include "voxfield/cl/runtime.hpp"
 #include "voxfield/core/chunks.hpp"
@@ -43,6 +46,8 @@ struct SlabLayout {
 // is the host pointer itself, checked).
 enum class DstMemory { device, external, host };
 
+class ExternalSemaphore;
+
 class CompactWriter {
   public:
     // `step`: the field's largest voxel spacing; its distances (in the spacing's units) are
@@ -60,6 +65,15 @@ class CompactWriter {
     // table. Returns the kernels' time in ms (profiling events).
     double run();
     double run(const std::vector<Box>& regions);
+    // Path 1 ordered on the devices (cl_khr_external_semaphore, DESIGN §2 "Synchronisation"):
+    // as run(regions), but the kernels first wait for `wait` (when given: Vulkan signalled it
+    // after the frames that read dst), and `signal` is signalled after dst's release, for the
+    // frames that read next to wait for. Nothing is waited for on the host (the queue is
+    // flushed). Returns the kernels' time in ms of the earlier ordered runs found finished
+    // when it is called (event status, no wait): a run's time counts at a later call, usually
+    // the next. Throws std::logic_error unless dst is external memory.
+    double run_ordered(const std::vector<Box>& regions, const ExternalSemaphore* wait,
+                       const ExternalSemaphore& signal);
     // The blocks whose minima the last run() recomputed: per region that met the world, the
     // box of blocks covering it (block coordinates over ceil(dims / VF_RAYMARCH_BLOCK); boxes
     // of overlapping regions may overlap).
@@ -72,6 +86,10 @@ class CompactWriter {
     std::vector<std::uint32_t> block_min(const std::vector<Box>& blocks);
 
   private:
+    // Enqueues the two kernels per region that meets the world (their events in `events`) and
+    // notes the blocks they recompute.
+    void enqueue_regions(const std::vector<Box>& regions, std::vector<cl::Event>& events);
+
     Context& ctx_;
     Dims dims_, blocks_;
     cl::Buffer dst_, block_min_;          // block_min_: dst_ itself or the writer's own buffer
@@ -80,6 +98,8 @@ class CompactWriter {
     DstMemory dst_memory_ = DstMemory::device;
     void* mapped_ = nullptr;  // path 2: dst mapped for reading (the host pointer)
     std::vector<Box> changed_blocks_;
+    // run_ordered: the first and last kernel event of the runs whose time is not counted yet.
+    std::vector<std::pair<cl::Event, cl::Event>> ordered_;
 };
 
 // Path 2: CL_MEM_USE_HOST_PTR is zero-copy on CPU devices (PoCL's pthread device computes in
@@ -107,5 +127,41 @@ cl::Buffer import_opaque_fd(Context& ctx, int fd, std::size_t bytes);
 // and the release after (the queue is finished before Vulkan reads it).
 void acquire_external(Context& ctx, const cl::Buffer& buffer);
 void release_external(Context& ctx, const cl::Buffer& buffer);
+
+// Path 1's ordering without a CPU wait: binary semaphores that Vulkan created and exported as
+// opaque fds (vk::ExportedSemaphore), imported here. The device has cl_khr_external_semaphore
+// and cl_khr_external_semaphore_opaque_fd, imports CL_SEMAPHORE_HANDLE_OPAQUE_FD_KHR
+// (CL_DEVICE_SEMAPHORE_IMPORT_HANDLE_TYPES_KHR) and binary semaphores, and its platform exports
+// the cl_khr_semaphore entry points.
+bool can_import_semaphore_fd(const Context& ctx);
+
+// A binary semaphore imported from an opaque fd (CL_SEMAPHORE_HANDLE_OPAQUE_FD_KHR) into the
+// context's one device. Move-only; released (clReleaseSemaphoreKHR) when destroyed, which the
+// owner does after the queue finished every command using it and before the exporting API
+// destroys its semaphore.
+class ExternalSemaphore {
+  public:
+    ExternalSemaphore() = default;
+    // Takes `fd` on every way out, as import_opaque_fd does: cl_khr_external_semaphore ("File
+    // Descriptor Handle Types") says importing a semaphore payload from a file descriptor
+    // transfers its ownership to the OpenCL implementation and the application must not perform
+    // any operation on it after a successful import; when the import fails (or is not
+    // attempted) the fd is closed here. The caller never closes it.
+    ExternalSemaphore(Context& ctx, int fd);
+    ~ExternalSemaphore();
+    ExternalSemaphore(ExternalSemaphore&& o) noexcept;
+    ExternalSemaphore& operator=(ExternalSemaphore&& o) noexcept;
+    ExternalSemaphore(const ExternalSemaphore&) = delete;
+    ExternalSemaphore& operator=(const ExternalSemaphore&) = delete;
+    // clEnqueueWaitSemaphoresKHR / clEnqueueSignalSemaphoresKHR on the context's queue.
+    void enqueue_wait(Context& ctx) const;
+    void enqueue_signal(Context& ctx) const;
+
+  private:
+    void release() noexcept;
+
+    cl_semaphore_khr semaphore_ = nullptr;
+    cl_platform_id platform_ = nullptr;
+};
 
 }  // namespace voxfield::ocl

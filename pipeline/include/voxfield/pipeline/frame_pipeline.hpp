@@ -7,6 +7,7 @@
 // is one ray march. Switching the world, algorithm or metric is transactional: the new field is
 // built completely before the old one goes, and a failure (refused options, a device error)
 // leaves the pipeline as it was. Nothing here prints.
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -40,7 +41,8 @@ struct PipelineOptions {
 struct UpdateTimings {
     double field_ms = 0;    // the incremental update of the distance field
     double convert_ms = 0;  // writing the changed voxels into the render field (and copying
-                            // them on path 3)
+                            // them on path 3); FieldSync::semaphore: the conversions found
+                            // finished since the last update (RenderField::update)
     std::uint64_t voxels_recomputed = 0;
     bool full_regeneration = false;
     double simulate_ms = -1;           // a simulation step's device time (-1: none)
@@ -68,9 +70,10 @@ class FramePipeline {
     double switch_field(const ocl::GeneratorOptions& options);
 
     // One batch of brushes (one frame's edits), applied in order; `edits` receives what each
-    // brush changed; `undoable`: the first brush joins the history's stroke (Scene::apply).
+    // brush changed; the first `undoable` brushes join the history's open stroke
+    // (Scene::apply_stroke: view passes its stroke's brush first, 1, or 0 without a stroke).
     UpdateTimings apply(const std::vector<Brush>& batch, std::vector<EditResult>* edits = nullptr,
-                        bool undoable = false);
+                        std::size_t undoable = 0);
     // Explicit voxel changes as one edit.
     UpdateTimings apply_changes(const VoxelChanges& changes);
     // The scene's history: Scene::undo / redo, then the render field.
@@ -112,6 +115,10 @@ class FramePipeline {
     // is always copied: path 3).
     vk::SharingPath sharing() const;
     std::string why_not() const;
+    // How edits are ordered against the frames that read the field (RenderField::sync:
+    // semaphore, fence or queue; packed32: queue) and why not by semaphores ("" when they are).
+    FieldSync sync() const;
+    std::string sync_why_not() const;
 
     // Test seam: the next `count` times the pipeline shows a field in the ray marcher, it
     // throws ocl::ClError (CL_OUT_OF_RESOURCES) first, as a failing conversion would.

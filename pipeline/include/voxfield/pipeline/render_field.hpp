@@ -24,6 +24,23 @@ vk::SharingPath choose_sharing_path(const ocl::Context& cl_ctx, const vk::Contex
                                     std::string& why_not,
                                     vk::SharingPath fastest = vk::SharingPath::opaque_fd);
 
+// How OpenCL's writes into the render field are ordered against the frames that read it
+// (DESIGN §2 "Synchronisation"). semaphore: path 1 with OpenCL <-> Vulkan semaphores, no CPU
+// wait; fence: paths 1/2, the CPU waits for the fence of the latest frame that reads the field
+// and OpenCL finishes before the update returns; queue: path 3 (and packed32), copies ordered
+// by the Vulkan queue.
+enum class FieldSync { semaphore, fence, queue };
+std::string to_string(FieldSync sync);  // "semaphore", "fence", "queue"
+
+// The ordering `path` gets between these devices: semaphore where the path is 1, the Vulkan
+// device exports semaphores as opaque fds (vk::can_export_semaphore_fd), the OpenCL device
+// imports them (ocl::can_import_semaphore_fd) and $VOXFIELD_NO_CL_SEMAPHORE is unset (or empty
+// or 0); else fence (paths 1/2) or queue (path 3), with why not semaphores in `why_not`.
+FieldSync choose_field_sync(const ocl::Context& cl_ctx, const vk::Context& vk_ctx,
+                            vk::SharingPath path, std::string& why_not);
+
+class FieldSemaphores;
+
 // The packed32 render format (always copied, path 3) after an edit: reads back only the
 // voxels of `regions` (clipped to the world of `dims`) of `field` (the packed32 field on the
 // OpenCL device, x fastest) and of `voxels` (the world's voxels there, one byte each), and
@@ -58,15 +75,23 @@ class RenderField {
     // at once); update() needs an attach() after this.
     void detach() { writer_.reset(); }
     // After the source changed inside `regions`: converts those voxels and recomputes the
-    // minima of the blocks they touch. Paths 1/2 copy nothing (they first wait, on the CPU, for
-    // the fence of the latest frame that reads the field, which OpenCL overwrites; OpenCL has
-    // finished writing when this returns); path 3 reads back only those regions and blocks and
-    // copies them into the ray marcher in place, ordered behind the frames in flight by the
-    // queue, with no CPU wait (vk::Raymarcher::update_compact, update_block_min). Returns the
-    // OpenCL time in ms.
+    // minima of the blocks they touch. Paths 1/2 copy nothing. With FieldSync::semaphore
+    // (path 1) OpenCL waits on the device for the frames in flight and the later frames wait
+    // on the device for OpenCL: nothing waits on the CPU, and the returned time is that of the
+    // conversions found finished since the last update (an update's own usually counts at the
+    // next). With FieldSync::fence the CPU first waits for the fence of the latest frame that
+    // reads the field, which OpenCL overwrites, and OpenCL has finished writing when this
+    // returns (also from the update where the semaphores failed part way on: they are not
+    // used again, sync() turns to fence and sync_why_not() says why). Path 3 reads
+    // back only those regions and blocks and copies them into the ray marcher in place, ordered
+    // behind the frames in flight by the queue, with no CPU wait (vk::Raymarcher::
+    // update_compact, update_block_min). Returns the OpenCL time in ms.
     double update(vk::Raymarcher& marcher, const std::vector<Box>& regions);
 
     vk::SharingPath path() const { return path_; }
+    FieldSync sync() const { return sync_; }
+    // Why the edits are not ordered by semaphores ("" when they are).
+    const std::string& sync_why_not() const { return sync_why_not_; }
     // Why faster paths are not in use ("" on path 1).
     const std::string& why_not() const { return why_not_; }
 
@@ -83,10 +108,14 @@ class RenderField {
     vk::FieldLayout layout_;
     vk::SharingPath path_ = vk::SharingPath::copy;
     std::string why_not_;
+    FieldSync sync_ = FieldSync::queue;
+    std::string sync_why_not_;
     // Release order (reverse): writer (path 2: unmaps), OpenCL buffer, then the memory.
     vk::ExternalMemory shared_;
     cl::Buffer cl_field_;
     std::optional<ocl::CompactWriter> writer_;
+    // Path 1 with FieldSync::semaphore; destroyed first (it waits for both queues).
+    std::unique_ptr<FieldSemaphores> semaphores_;
 };
 
 }  // namespace voxfield::pipeline

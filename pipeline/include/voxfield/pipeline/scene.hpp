@@ -7,6 +7,7 @@
 // update their change list on the device, so nothing of theirs crosses to the host. The host
 // world is brought up to date lazily, when something reads it (world(): a save, a brush, an
 // undo), by reading back the box the device changed. Nothing here prints.
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -97,9 +98,14 @@ class Scene {
     // exact.
     const World& last_read_world() const { return storage_->last_read_world(); }
 
-    // The edit protocol. A batch of brushes in order, one field update; with `undoable` the
-    // first brush's result joins the history's open stroke (UndoStack::record).
+    // The edit protocol. A batch of brushes in order, one field update; with `undoable` every
+    // brush's result joins the history's open stroke (UndoStack::record), so that one undo
+    // reverts the whole batch.
     SceneUpdate apply(const std::vector<Brush>& batch, bool undoable = false);
+    // As apply(), the results of the first `undoable` brushes joining the open stroke and the
+    // others not recorded (view: a stroke's brush first, then scripted or benchmark edits of
+    // the same frame, in one field update).
+    SceneUpdate apply_stroke(const std::vector<Brush>& batch, std::size_t undoable);
     // Explicit voxel changes as one edit; InputError, changing nothing, where a voxel does not
     // hold its `before`.
     SceneUpdate apply_changes(const VoxelChanges& changes);

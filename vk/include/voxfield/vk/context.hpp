@@ -265,8 +265,9 @@ class Context {
 
     Buffer make_buffer(VkDeviceSize size, VkBufferUsageFlags usage, MemoryIntent intent,
                        const std::string& what);
-    // Device extensions enabled on the logical device (VK_KHR_external_memory_fd and
-    // VK_EXT_external_memory_host, where the physical device has them).
+    // Device extensions enabled on the logical device (VK_KHR_external_memory_fd,
+    // VK_EXT_external_memory_host and VK_KHR_external_semaphore_fd, where the physical device
+    // has them).
     bool enabled(const std::string& extension) const;
     // A buffer without memory, created for external memory of `handle_types`; bind() it.
     Buffer make_external_buffer(VkDeviceSize size, VkBufferUsageFlags usage,
@@ -302,6 +303,18 @@ class Context {
     // the submission's serial.
     std::uint64_t submit_unwaited(const std::function<void(VkCommandBuffer)>& record,
                                   const std::string& what);
+    // Binary semaphores shared with OpenCL (ExportedSemaphore, DESIGN §2 "Synchronisation"),
+    // each in a batch of its own, tracked like submit_unwaited (returns the serial).
+    // signal_semaphore: a batch that signals `semaphore` once every command submitted before it
+    // has finished (Vulkan: a queue submission's signal covers all commands earlier in
+    // submission order; its one execution barrier over all commands orders the waits of
+    // earlier batches before the signal too). wait_semaphore: a batch of no commands that waits
+    // for `semaphore` at every stage, so that no command submitted after it starts before the
+    // signal (a submission's wait covers all commands later in submission order). The caller
+    // keeps a binary semaphore's signals and waits alternating, each wait after its signal was
+    // submitted (or enqueued by OpenCL).
+    std::uint64_t signal_semaphore(VkSemaphore semaphore, const std::string& what);
+    std::uint64_t wait_semaphore(VkSemaphore semaphore, const std::string& what);
     // Submits `info` to the queue, signalling `fence` (which stays the caller's) when it and
     // all work submitted before it have finished. The caller waits for that fence with wait(),
     // never resetting or destroying it before.

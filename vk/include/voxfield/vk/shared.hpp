@@ -65,4 +65,31 @@ class ExternalMemory {
     void* host_ = nullptr;  // freed after memory_
 };
 
+// Ordering OpenCL's writes into path 1's memory against the frames that read it, without a
+// CPU wait (DESIGN §2 "Synchronisation"): binary semaphores created here, exported as opaque
+// fds (VK_KHR_external_semaphore_fd) and imported by OpenCL (cl_khr_external_semaphore_opaque_fd,
+// ocl::ExternalSemaphore); Context::signal_semaphore / wait_semaphore use them on the queue.
+// Whether this device can: the extension is enabled and a binary semaphore can be exported as
+// an opaque fd (vkGetPhysicalDeviceExternalSemaphoreProperties).
+bool can_export_semaphore_fd(const Context& ctx);
+
+// A binary semaphore exportable as an opaque fd. Move-only; destroyed with vkDestroySemaphore,
+// which the owner calls only after every batch and every OpenCL command that uses it has
+// finished, and after OpenCL released its import.
+class ExportedSemaphore {
+  public:
+    ExportedSemaphore() = default;
+    // Throws VkError when the device cannot (can_export_semaphore_fd).
+    ExportedSemaphore(Context& ctx, const std::string& what);
+    VkSemaphore get() const { return semaphore_.get(); }
+    // A new file descriptor for the semaphore (vkGetSemaphoreFdKHR); the caller owns it (an
+    // import elsewhere may take it over, ocl::ExternalSemaphore does).
+    int export_fd() const;
+
+  private:
+    Context* ctx_ = nullptr;
+    Owned<VkSemaphore> semaphore_;
+    std::string what_;
+};
+
 }  // namespace voxfield::vk
