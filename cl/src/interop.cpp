@@ -454,18 +454,14 @@ ExternalSemaphore::ExternalSemaphore(Context& ctx, int fd) : platform_(platform_
     }
     auto create = extension_function<clCreateSemaphoreWithPropertiesKHR_fn>(
         ctx, "clCreateSemaphoreWithPropertiesKHR");
-    // The context's one device named as well (CL_SEMAPHORE_DEVICE_HANDLE_LIST_KHR, the value
-    // of cl_khr_external_memory's CL_DEVICE_HANDLE_LIST_KHR, which Debian's header defines), as
-    // the Khronos conformance tests import Vulkan's semaphores.
+    // No device list: the context has one device, for which the list is optional; its
+    // property's value differs between the provisional extension that Debian's header
+    // describes (CL_DEVICE_HANDLE_LIST_KHR, 0x2051) and the final one (0x2053).
     const cl_semaphore_properties_khr props[] = {
         static_cast<cl_semaphore_properties_khr>(CL_SEMAPHORE_TYPE_KHR),
         static_cast<cl_semaphore_properties_khr>(CL_SEMAPHORE_TYPE_BINARY_KHR),
         static_cast<cl_semaphore_properties_khr>(CL_SEMAPHORE_HANDLE_OPAQUE_FD_KHR),
-        static_cast<cl_semaphore_properties_khr>(fd),
-        static_cast<cl_semaphore_properties_khr>(CL_DEVICE_HANDLE_LIST_KHR),
-        reinterpret_cast<cl_semaphore_properties_khr>(ctx.info().device()),
-        static_cast<cl_semaphore_properties_khr>(CL_DEVICE_HANDLE_LIST_END_KHR),
-        0};
+        static_cast<cl_semaphore_properties_khr>(fd), 0};
     cl_int err = CL_SUCCESS;
     cl_semaphore_khr semaphore = create(ctx.context()(), props, &err);
     if (err != CL_SUCCESS || semaphore == nullptr) {
