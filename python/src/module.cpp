@@ -7,6 +7,7 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <algorithm>
+#include <limits>
 #include <thread>
 
 #include "common.hpp"
@@ -74,6 +75,45 @@ py::array_t<double> pass_of(const py::object& input, int axis, const std::string
             {}, t);
     }
     return out;
+}
+
+// The first pass's distances along axis 0 of a slab of a longer array (see passes.hpp):
+// uint16 where every distance of an array of `length` along axis 0 fits below 65535, else
+// uint32; the type's largest value where a line has no target.
+py::array axis0_distances_of(const py::object& input, const py::object& before,
+                             const py::object& after, std::int64_t z0, std::int64_t length) {
+    const py::module_ np = py::module_::import("numpy");
+    py::array a = np.attr("ascontiguousarray")(input);
+    const char kind = a.dtype().kind();
+    if (a.dtype().itemsize() != 1 || (kind != 'b' && kind != 'u')) {
+        a = np.attr("ascontiguousarray")(np.attr("not_equal")(a, 0));  // bool/uint8 in place
+    }
+    const Shape3 s = shape3(a, "the slab");
+    const py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> b(before), e(after);
+    const std::size_t lines = s.n[1] * s.n[2];
+    if (static_cast<std::size_t>(b.size()) != lines ||
+        static_cast<std::size_t>(e.size()) != lines) {
+        throw py::value_error("before and after must hold one position per line of the slab");
+    }
+    if (z0 < 0 || length < z0 + static_cast<std::int64_t>(s.n[0])) {
+        throw py::value_error("the slab must lie within [0, length)");
+    }
+    std::vector<py::ssize_t> shape(a.shape(), a.shape() + a.ndim());
+    const std::size_t n = s.count();
+    const std::span<const std::uint8_t> t(static_cast<const std::uint8_t*>(a.data()), n);
+    const std::span<const std::int64_t> bs(b.data(), lines), es(e.data(), lines);
+    const auto run = [&](auto none) -> py::array {
+        using T = decltype(none);
+        py::array_t<T> out(shape);
+        const std::span<T> o(out.mutable_data(), n);
+        py::gil_scoped_release release;
+        voxfield::python::axis0_distances<T>(s, z0, t, bs, es, none, o);
+        return out;
+    };
+    if (length < 65535) {
+        return run(std::numeric_limits<std::uint16_t>::max());
+    }
+    return run(std::numeric_limits<std::uint32_t>::max());
 }
 
 // The whole separable transform of targets (1 to 3 axes) on the host: partial distances
@@ -205,6 +245,14 @@ PYBIND11_MODULE(_core, m) {
           "One 1-D pass of the separable transform along `axis` of a 1- to 3-D array, on the "
           "host in float64: from targets (nonzero = target) when `first`, else from the "
           "previous pass's partial distances (L2: squared).");
+    m.def("axis0_distances", &vp::axis0_distances_of, py::arg("targets"), py::arg("before"),
+          py::arg("after"), py::arg("z0"), py::arg("length"),
+          "axis0_distances(targets, before, after, z0, length) -> ndarray\n\n"
+          "The distance along axis 0, in voxels, from every element of a slab [z0, z0 + n) of "
+          "an array of `length` along axis 0 to the nearest target (nonzero) on its line, given "
+          "per line the nearest target's position before the slab and after it (negative: "
+          "none): uint16 where length < 65535, else uint32, the type's largest value where "
+          "the line has none.");
     m.def("host_transform", &vp::transform_on_host, py::arg("input"), py::arg("metric"),
           py::arg("sampling"), py::arg("features"), py::arg("threads") = py::none(),
           "host_transform(input, metric, sampling, features, threads=None) -> (g, features)\n\n"

@@ -36,4 +36,15 @@ void separable_pass(Metric metric, Shape3 shape, int axis, double spacing,
                     std::span<double> g_out, std::span<const std::int64_t> feat_in,
                     std::span<std::int64_t> feat_out, unsigned threads);
 
+// The first pass's distances along axis 0, in voxels, of a slab [z0, z0 + shape.n[0]) of a
+// longer array (voxfield.dask's unbounded scheme): for every voxel the distance to the nearest
+// target on its line, from the slab's `targets` (nonzero = target) and, per line of the slab
+// (shape.n[1] * shape.n[2] of them, in order), the global position of the nearest target
+// before the slab (`before`, negative: none) and after it (`after`, negative: none). `out`
+// gets the distance, or `none` (which must exceed every distance) where the line has no target.
+template <typename T>
+void axis0_distances(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t> targets,
+                     std::span<const std::int64_t> before, std::span<const std::int64_t> after,
+                     T none, std::span<T> out);
+
 }  // namespace voxfield::python

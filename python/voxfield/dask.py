@@ -40,6 +40,7 @@ import math
 
 import dask.array as da
 import numpy as np
+from dask.array.reductions import cumreduction
 
 from voxfield import _core
 
@@ -144,26 +145,82 @@ def _unit_transform(targets, metric, device, finish, dtype):
     return g.rechunk(chunks)
 
 
-def _pass_block(block, axis, metric, spacing, first, partial, finish):
-    """One host pass along `axis`; its result in `partial`, or `finish` of it (last pass)."""
-    g = _core.separable_pass(block, axis, metric, spacing, first, 1)
-    return finish(g) if finish is not None else g.astype(partial, copy=False)
+# A slab of the unbounded scheme holds at most this many elements (unless one plane is
+# larger); its passes after the first run on this many elements at a time (float64).
+_SLAB_ELEMENTS = 1 << 27
+_PASS_ELEMENTS = 1 << 21
+_NONE = np.iinfo(np.int64).max  # "no target" in the cumulative minimum of first targets
+
+
+def _line_ends(block, block_info=None):
+    """Per line along axis 0 of a block of targets (bool): the global positions of its first
+    and last target (-1: none), stacked as a (2, ...) int64 block."""
+    z0 = block_info[0]["array-location"][0][0]
+    n = block.shape[0]
+    has = block.any(axis=0)
+    first = np.where(has, block.argmax(axis=0) + z0, -1)
+    last = np.where(has, n - 1 - block[::-1].argmax(axis=0) + z0, -1)
+    return np.stack([first, last]).astype(np.int64)
+
+
+def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, block_info=None):
+    """`finish` of the distances (L2: squared) of a slab spanning every axis but axis 0: the
+    first pass along axis 0 from the slab's targets and the nearest targets before and after
+    it on every line (`before`, `after`: one block along axis 0, -1: none), then the host
+    passes along the other axes, a few planes at a time."""
+    z0 = block_info[0]["array-location"][0][0]
+    d = _core.axis0_distances(slab, before[0], after[0], z0, length)
+    none = np.iinfo(d.dtype).max
+    out = np.empty(slab.shape, dtype)
+    plane = max(1, math.prod(slab.shape[1:]))
+    step = max(1, _PASS_ELEMENTS // plane)
+    for a in range(0, slab.shape[0], step):
+        part = d[a:a + step]
+        o = spacing[0] * part.astype(np.float64)
+        g = o * o if metric == "euclidean" else o
+        g[part == none] = np.inf
+        for axis in range(1, slab.ndim):
+            g = _core.separable_pass(g, axis, metric, spacing[axis], False, 1)
+        out[a:a + step] = finish(g)
+    return out
+
+
+def _shift(x, fill, forward):
+    """x (one element per block along axis 0) moved one element along axis 0, `fill`
+    entering at the front (forward) or the back."""
+    edge = da.full((1,) + x.shape[1:], fill, dtype=x.dtype, chunks=((1,),) + x.chunks[1:])
+    if x.shape[0] == 1:
+        return edge
+    return da.concatenate([edge, x[:-1]] if forward else [x[1:], edge], axis=0)
 
 
 def _separable(targets, metric, spacing, finish, dtype):
-    """Lazy `finish` of the distances (L2: squared) of a dask array of targets (nonzero =
-    target), chunked as `targets` and of `dtype`: one host pass per axis on a rechunk whose
-    blocks span that axis. Partials between passes in float32 where they are integers below
-    2**24 (unit sampling), else float64."""
+    """Lazy `finish` of the distances (L2: squared) of a dask array of targets (bool),
+    chunked as `targets` and of `dtype`, by slabs along axis 0 (the module docstring's second
+    scheme): each slab's first pass needs, per line, only the nearest targets before and after
+    it, which a cumulative maximum / minimum of the blocks' first and last targets gives."""
     chunks = targets.chunks
-    unit = all(v == 1.0 for v in spacing)
-    partial = _exact_partial_dtype(metric, targets.shape) if unit else np.dtype(np.float64)
-    g = targets
-    for axis in range(targets.ndim):
-        last = axis == targets.ndim - 1
-        g = g.rechunk({a: (-1 if a == axis else chunks[a]) for a in range(targets.ndim)})
-        g = g.map_blocks(_pass_block, axis, metric, spacing[axis], axis == 0, partial,
-                         finish if last else None, dtype=dtype if last else partial)
+    if targets.dtype != bool:
+        targets = targets != 0
+    if targets.size == 0:
+        return da.zeros(targets.shape, dtype, chunks=chunks)
+    plane = max(1, math.prod(targets.shape[1:]))
+    depth = max(1, _SLAB_ELEMENTS // plane)
+    slab_chunks = tuple(p for c in chunks[0] for p in [depth] * (c // depth) + [c % depth] if p)
+    t = targets.rechunk({0: slab_chunks})
+    ends = t.map_blocks(_line_ends, dtype=np.int64,
+                        chunks=((2,) * len(slab_chunks),) + t.chunks[1:])
+    first, last = ends[0::2], ends[1::2]
+    before = _shift(cumreduction(np.maximum.accumulate, np.maximum, -1, last, axis=0,
+                                    dtype=np.int64), -1, True)
+    first = da.where(first < 0, _NONE, first)
+    after = cumreduction(np.minimum.accumulate, np.minimum, _NONE, first[::-1], axis=0,
+                            dtype=np.int64)[::-1]
+    after = _shift(da.where(after == _NONE, -1, after), -1, False)
+    whole = {a: -1 for a in range(1, targets.ndim)}
+    g = t.rechunk(whole).map_blocks(
+        _slab_block, before.rechunk(whole), after.rechunk(whole), metric, spacing, finish,
+        dtype, targets.shape[0], dtype=dtype)
     return g.rechunk(chunks)
 
 
