@@ -116,6 +116,56 @@ py::array axis0_distances_of(const py::object& input, const py::object& before,
     return run(std::numeric_limits<std::uint32_t>::max());
 }
 
+// The separable transform of a part of a slab from its first pass's distances along axis 0
+// (axis0_distances' output, whole planes): the partials after the passes along every axis.
+py::array_t<double> slab_passes_of(const py::array& dist, const std::string& metric,
+                                   const std::vector<double>& spacing, const py::object& into) {
+    const Metric m = parse_metric(metric);
+    const Shape3 s = shape3(dist, "the distances");
+    if (spacing.size() != static_cast<std::size_t>(dist.ndim())) {
+        throw py::value_error("sampling must have one value per axis");
+    }
+    if (!(dist.flags() & py::array::c_style)) {
+        throw py::value_error("the distances must be C-contiguous");
+    }
+    const std::size_t n = s.count();
+    std::vector<py::ssize_t> shape(dist.shape(), dist.shape() + dist.ndim());
+    py::array_t<double> out;
+    if (into.is_none()) {
+        out = py::array_t<double>(shape);
+    } else {
+        out = into.cast<py::array_t<double>>();
+        const py::array o = into;
+        if (!py::isinstance<py::array_t<double>>(into) || !(o.flags() & py::array::c_style) ||
+            !o.writeable() || std::vector<py::ssize_t>(o.shape(), o.shape() + o.ndim()) != shape) {
+            throw py::value_error("out must be a writable C-contiguous float64 array of shape " +
+                                  shape_text(dist));
+        }
+    }
+    const std::span<double> g(out.mutable_data(), n);
+    const auto first = [&](auto none) {
+        using T = decltype(none);
+        const std::span<const T> d(static_cast<const T*>(dist.data()), n);
+        voxfield::python::first_pass_values<T>(m, spacing[0], d, none, g);
+    };
+    const bool u16 = py::isinstance<py::array_t<std::uint16_t>>(dist);
+    if (!u16 && !py::isinstance<py::array_t<std::uint32_t>>(dist)) {
+        throw py::type_error("the distances must be uint16 or uint32 (axis0_distances)");
+    }
+    py::gil_scoped_release release;
+    if (u16) {
+        first(std::numeric_limits<std::uint16_t>::max());
+    } else {
+        first(std::numeric_limits<std::uint32_t>::max());
+    }
+    const int offset = 3 - static_cast<int>(dist.ndim());
+    for (int axis = 1; axis < static_cast<int>(dist.ndim()); ++axis) {
+        voxfield::python::separable_pass(
+            m, s, axis + offset, spacing[static_cast<std::size_t>(axis)], {}, g, g, {}, {}, 1);
+    }
+    return out;
+}
+
 // The whole separable transform of targets (1 to 3 axes) on the host: partial distances
 // (L2: squared) after passes along every axis in order 0, 1, 2, and the linear index of each
 // element's nearest target (-1 without one) when asked.
@@ -253,6 +303,13 @@ PYBIND11_MODULE(_core, m) {
           "per line the nearest target's position before the slab and after it (negative: "
           "none): uint16 where length < 65535, else uint32, the type's largest value where "
           "the line has none.");
+    m.def("slab_passes", &vp::slab_passes_of, py::arg("distances"), py::arg("metric"),
+          py::arg("sampling"), py::arg("out") = py::none(),
+          "slab_passes(distances, metric, sampling, out=None) -> ndarray\n\n"
+          "The partial distances (L2: squared), float64, after every pass of the separable "
+          "transform of whole planes of a slab, from axis0_distances' output for them: the "
+          "first pass's values along axis 0, then a host pass along each other axis; into "
+          "`out` (float64, the distances' shape) when given.");
     m.def("host_transform", &vp::transform_on_host, py::arg("input"), py::arg("metric"),
           py::arg("sampling"), py::arg("features"), py::arg("threads") = py::none(),
           "host_transform(input, metric, sampling, features, threads=None) -> (g, features)\n\n"

@@ -370,6 +370,23 @@ void axis0_distances(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t
     }
 }
 
+template <typename T>
+void first_pass_values(Metric metric, double spacing, std::span<const T> d, T none,
+                       std::span<double> g) {
+    if (g.size() != d.size()) {
+        throw std::invalid_argument("first_pass_values: array sizes do not match");
+    }
+    const bool squared = metric == Metric::euclidean;
+    for (std::size_t i = 0; i < d.size(); ++i) {
+        const double o = spacing * static_cast<double>(d[i]);
+        g[i] = d[i] == none ? kInf : (squared ? o * o : o);
+    }
+}
+
+template void first_pass_values<std::uint16_t>(Metric, double, std::span<const std::uint16_t>,
+                                               std::uint16_t, std::span<double>);
+template void first_pass_values<std::uint32_t>(Metric, double, std::span<const std::uint32_t>,
+                                               std::uint32_t, std::span<double>);
 template void axis0_distances<std::uint16_t>(Shape3, std::int64_t, std::span<const std::uint8_t>,
                                              std::span<const std::int64_t>,
                                              std::span<const std::int64_t>, std::uint16_t,

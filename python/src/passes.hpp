@@ -47,4 +47,10 @@ void axis0_distances(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t
                      std::span<const std::int64_t> before, std::span<const std::int64_t> after,
                      T none, std::span<T> out);
 
+// The first pass's partial distances from those distances in voxels along its axis (`none`:
+// no target, +inf): L2 (spacing d)^2, L1 and L-inf spacing d, as separable_pass computes them.
+template <typename T>
+void first_pass_values(Metric metric, double spacing, std::span<const T> d, T none,
+                       std::span<double> g);
+
 }  // namespace voxfield::python

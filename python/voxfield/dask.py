@@ -41,6 +41,7 @@ import math
 import dask.array as da
 import numpy as np
 from dask.array.reductions import cumreduction
+from dask.graph_manipulation import clone
 
 from voxfield import _core
 
@@ -115,13 +116,20 @@ def _slices_on_device(block, metric, device, dtype):
     return out
 
 
-def _pass_and_finish(block, metric, finish):
+def _finished(g, finish, dtype):
+    out = np.empty(g.shape, dtype)
+    finish(g, out)
+    return out
+
+
+def _pass_and_finish(block, metric, finish, dtype):
     """The host pass along axis 0 from partial distances, then `finish` of the result."""
-    return finish(_core.separable_pass(block, 0, metric, 1.0, False, 1))
+    return _finished(_core.separable_pass(block, 0, metric, 1.0, False, 1), finish, dtype)
 
 
-def _finish_slices(block, metric, device, dtype, finish):
-    return finish(_slices_on_device(block, metric, device, dtype).astype(np.float64))
+def _finish_slices(block, metric, device, partial, finish, dtype):
+    g = _slices_on_device(block, metric, device, partial).astype(np.float64)
+    return _finished(g, finish, dtype)
 
 
 def _unit_transform(targets, metric, device, finish, dtype):
@@ -133,7 +141,7 @@ def _unit_transform(targets, metric, device, finish, dtype):
     if targets.ndim == 1:
         partial = _exact_partial_dtype(metric, targets.shape)
         whole = targets.rechunk(-1)
-        return whole.map_blocks(_finish_slices, metric, device, partial, finish,
+        return whole.map_blocks(_finish_slices, metric, device, partial, finish, dtype,
                                 dtype=dtype).rechunk(chunks)
     partial = _exact_partial_dtype(metric, targets.shape[1:])
     slice_elements = math.prod(targets.shape[1:])
@@ -141,7 +149,7 @@ def _unit_transform(targets, metric, device, finish, dtype):
     g = targets.rechunk({a: (depth if a == 0 else -1) for a in range(targets.ndim)})
     g = g.map_blocks(_slices_on_device, metric, device, partial, dtype=partial)
     g = g.rechunk({a: (-1 if a == 0 else chunks[a]) for a in range(targets.ndim)})
-    g = g.map_blocks(_pass_and_finish, metric, finish, dtype=dtype)
+    g = g.map_blocks(_pass_and_finish, metric, finish, dtype, dtype=dtype)
     return g.rechunk(chunks)
 
 
@@ -170,18 +178,14 @@ def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, blo
     passes along the other axes, a few planes at a time."""
     z0 = block_info[0]["array-location"][0][0]
     d = _core.axis0_distances(slab, before[0], after[0], z0, length)
-    none = np.iinfo(d.dtype).max
     out = np.empty(slab.shape, dtype)
     plane = max(1, math.prod(slab.shape[1:]))
     step = max(1, _PASS_ELEMENTS // plane)
+    scratch = np.empty((min(step, slab.shape[0]),) + slab.shape[1:])  # filled afresh each time
     for a in range(0, slab.shape[0], step):
         part = d[a:a + step]
-        o = spacing[0] * part.astype(np.float64)
-        g = o * o if metric == "euclidean" else o
-        g[part == none] = np.inf
-        for axis in range(1, slab.ndim):
-            g = _core.separable_pass(g, axis, metric, spacing[axis], False, 1)
-        out[a:a + step] = finish(g)
+        g = _core.slab_passes(part, metric, spacing, scratch[:len(part)])
+        finish(g, out[a:a + step])
     return out
 
 
@@ -208,7 +212,9 @@ def _separable(targets, metric, spacing, finish, dtype):
     depth = max(1, _SLAB_ELEMENTS // plane)
     slab_chunks = tuple(p for c in chunks[0] for p in [depth] * (c // depth) + [c % depth] if p)
     t = targets.rechunk({0: slab_chunks})
-    ends = t.map_blocks(_line_ends, dtype=np.int64,
+    # The ends come from a clone of the input's graph (read twice), so that no worker holds
+    # the input blocks from the ends' computation until the slabs' turn comes.
+    ends = clone(t).map_blocks(_line_ends, dtype=np.int64,
                         chunks=((2,) * len(slab_chunks),) + t.chunks[1:])
     first, last = ends[0::2], ends[1::2]
     before = _shift(cumreduction(np.maximum.accumulate, np.maximum, -1, last, axis=0,
@@ -224,14 +230,13 @@ def _separable(targets, metric, spacing, finish, dtype):
     return g.rechunk(chunks)
 
 
-def _to_format(d, fmt):
-    """A float64 distance block in a field format, as the kernels store it: unsigned integers
-    rounded down and saturated, signed toward zero, floats rounded to nearest."""
-    dtype = np.dtype(_FORMAT_DTYPES[fmt])
-    if dtype.kind == "f":
-        return d.astype(dtype)
-    top = float(np.iinfo(dtype).max)
-    return np.where(d >= top, top, np.floor(d)).astype(dtype)
+def _store(d, out):
+    """A float64 block of distances (>= 0; overwritten) into `out` in a field format, as the
+    kernels store it: integers rounded down and saturated, floats rounded to nearest."""
+    if out.dtype.kind != "f":
+        np.floor(d, out=d)
+        np.minimum(d, float(np.iinfo(out.dtype).max), out=d)
+    out[...] = d
 
 
 def _default_format(metric, spacing, signed):
@@ -308,13 +313,16 @@ def distance_transform(world, metric="manhattan", signed=False, sampling=None,
     if fmt == "packed32":
         raise ValueError("format='packed32' on a dask array needs max_distance (the palette "
                          "colour is written by the device)")
-    return _separable(w, metric, spacing, functools.partial(_field_of, metric=metric, fmt=fmt),
+    return _separable(w, metric, spacing, functools.partial(_field_of, metric=metric),
                       dtype)
 
 
-def _field_of(g, metric, fmt):
-    """The field in format `fmt` of partial distances after every pass (L2: squared)."""
-    return _to_format(np.sqrt(g) if metric == "euclidean" else g, fmt)
+def _field_of(g, out, metric):
+    """The field (into `out`, in its format) of partial distances after every pass (L2:
+    squared; `g` is overwritten)."""
+    if metric == "euclidean":
+        np.sqrt(g, out=g)
+    _store(g, out)
 
 
 def _no_target_edt(block, spacing, block_info=None):
@@ -409,6 +417,7 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
     return _unit_transform(a == 0, m, device, _cdt_of, np.int32)
 
 
-def _cdt_of(g):
-    """int32 distances; +inf only where the input has no zero at all: -1 there, as SciPy."""
-    return np.where(np.isinf(g), -1.0, g).astype(np.int32)
+def _cdt_of(g, out):
+    """int32 distances (into `out`); +inf only where the input has no zero at all: -1 there,
+    as SciPy."""
+    out[...] = np.where(np.isinf(g), -1.0, g)
