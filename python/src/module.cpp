@@ -88,7 +88,12 @@ py::array axis0_distances_of(const py::object& input, const py::object& before,
     if (a.dtype().itemsize() != 1 || (kind != 'b' && kind != 'u')) {
         a = np.attr("ascontiguousarray")(np.attr("not_equal")(a, 0));  // bool/uint8 in place
     }
-    const Shape3 s = shape3(a, "the slab");
+    shape3(a, "the slab");  // 1 to 3 axes
+    Shape3 s;               // axis 0, then the lines
+    s.n[0] = static_cast<std::size_t>(a.shape(0));
+    for (py::ssize_t i = 1; i < a.ndim(); ++i) {
+        s.n[1] *= static_cast<std::size_t>(a.shape(i));
+    }
     const py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> b(before), e(after);
     const std::size_t lines = s.n[1] * s.n[2];
     if (static_cast<std::size_t>(b.size()) != lines ||

@@ -12,13 +12,17 @@ Three exact schemes:
   merges blocks smaller than the halo first). A voxel's value depends only on the solids
   within D, which the halo holds, and everything beyond D saturates at D.
 * Unbounded ``distance_transform`` (and ``distance_transform_edt`` with non-unit sampling):
-  the separable transform on the host, one axis at a time. The volume is rechunked so that
-  each block spans whole lines of the axis, and the 1-D pass of the compiled core
-  (``voxfield._core.separable_pass``, float64) runs on every block; after the passes along
-  axes 0, 1 and 2 every voxel holds its exact distance (L2: squared, then one square root).
-  Between passes the partial distances are float32 where they are integers below 2**24
-  (unit sampling), else float64. Each rechunk between two passes keeps one axis's chunks,
-  so it moves data within slabs of the volume only.
+  the separable transform on the host in slabs along axis 0 (blocks spanning every other
+  axis, split where one would pass 2**27 elements). Along axis 0 the first pass of a line
+  needs only the nearest target before and after each slab, so every block first gives the
+  first and last target of each of its lines (from a clone of the input's graph: the input is
+  read twice, and nothing waits in memory for the slabs), a cumulative maximum / minimum over
+  the blocks carries them along axis 0, and each slab then computes its first pass
+  (``voxfield._core.axis0_distances``) and the passes along the other axes, a few planes at a
+  time (``voxfield._core.slab_passes``, float64), and writes the format. No partial distance
+  moves between workers; the slabs are split back into the input's chunks. With unit sampling
+  every partial is an exact integer; the passes run along axes 0, 1, 2 in turn, so sampled
+  sums are SciPy's.
 * ``distance_transform_edt`` (unit sampling) and ``distance_transform_cdt``: the device
   transforms every slice along axis 0 alone (a plane of a 3-D input, a row of a 2-D input; a
   1-D input whole), in blocks that span the slices whole; then one host pass along axis 0
