@@ -77,11 +77,9 @@ py::array_t<double> pass_of(const py::object& input, int axis, const std::string
     return out;
 }
 
-// The first pass's distances along axis 0 of a slab of a longer array (see passes.hpp):
-// uint16 where every distance of an array of `length` along axis 0 fits below 65535, else
-// uint32; the type's largest value where a line has no target.
-py::array axis0_distances_of(const py::object& input, const py::object& before,
-                             const py::object& after, std::int64_t z0, std::int64_t length) {
+// A C-contiguous bool/uint8 view of targets (nonzero = target) of 1 to 3 axes, seen as
+// axis 0 and the lines along it.
+py::array slab_targets(const py::object& input, Shape3& s) {
     const py::module_ np = py::module_::import("numpy");
     py::array a = np.attr("ascontiguousarray")(input);
     const char kind = a.dtype().kind();
@@ -89,11 +87,40 @@ py::array axis0_distances_of(const py::object& input, const py::object& before,
         a = np.attr("ascontiguousarray")(np.attr("not_equal")(a, 0));  // bool/uint8 in place
     }
     shape3(a, "the slab");  // 1 to 3 axes
-    Shape3 s;               // axis 0, then the lines
+    s = Shape3{};
     s.n[0] = static_cast<std::size_t>(a.shape(0));
     for (py::ssize_t i = 1; i < a.ndim(); ++i) {
         s.n[1] *= static_cast<std::size_t>(a.shape(i));
     }
+    return a;
+}
+
+// The first and last target along axis 0 of every line of a block (see passes.hpp), stacked
+// as a (2, ...) int64 array.
+py::array_t<std::int64_t> axis0_ends_of(const py::object& input, std::int64_t z0) {
+    Shape3 s;
+    const py::array a = slab_targets(input, s);
+    std::vector<py::ssize_t> shape{2};
+    shape.insert(shape.end(), a.shape() + 1, a.shape() + a.ndim());
+    py::array_t<std::int64_t> out(shape);
+    const std::size_t lines = s.n[1];
+    const std::span<const std::uint8_t> t(static_cast<const std::uint8_t*>(a.data()), s.count());
+    std::int64_t* o = out.mutable_data();
+    {
+        py::gil_scoped_release release;
+        voxfield::python::axis0_ends(s, z0, t, {o, lines}, {o + lines, lines});
+    }
+    return out;
+}
+
+// The first pass's distances along axis 0 of a slab of a longer array (see passes.hpp):
+// uint16 where every distance of an array of `length` along axis 0 fits below 65535, else
+// uint32; the type's largest value where a line has no target.
+py::array axis0_distances_of(const py::object& input, const py::object& before,
+                             const py::object& after, std::int64_t z0, std::int64_t length,
+                             const py::object& into) {
+    Shape3 s;
+    const py::array a = slab_targets(input, s);
     const py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> b(before), e(after);
     const std::size_t lines = s.n[1] * s.n[2];
     if (static_cast<std::size_t>(b.size()) != lines ||
@@ -109,7 +136,20 @@ py::array axis0_distances_of(const py::object& input, const py::object& before,
     const std::span<const std::int64_t> bs(b.data(), lines), es(e.data(), lines);
     const auto run = [&](auto none) -> py::array {
         using T = decltype(none);
-        py::array_t<T> out(shape);
+        py::array_t<T> out;
+        if (into.is_none()) {
+            out = py::array_t<T>(shape);
+        } else {
+            const py::array o = into;
+            if (!py::isinstance<py::array_t<T>>(into) || !(o.flags() & py::array::c_style) ||
+                !o.writeable() ||
+                std::vector<py::ssize_t>(o.shape(), o.shape() + o.ndim()) != shape) {
+                throw py::value_error(std::string("out must be a writable C-contiguous ") +
+                                      (sizeof(T) == 2 ? "uint16" : "uint32") +
+                                      " array of the slab's shape");
+            }
+            out = into.cast<py::array_t<T>>();
+        }
         const std::span<T> o(out.mutable_data(), n);
         py::gil_scoped_release release;
         voxfield::python::axis0_distances<T>(s, z0, t, bs, es, none, o);
@@ -139,13 +179,13 @@ py::array_t<double> slab_passes_of(const py::array& dist, const std::string& met
     if (into.is_none()) {
         out = py::array_t<double>(shape);
     } else {
-        out = into.cast<py::array_t<double>>();
         const py::array o = into;
         if (!py::isinstance<py::array_t<double>>(into) || !(o.flags() & py::array::c_style) ||
             !o.writeable() || std::vector<py::ssize_t>(o.shape(), o.shape() + o.ndim()) != shape) {
             throw py::value_error("out must be a writable C-contiguous float64 array of shape " +
                                   shape_text(dist));
         }
+        out = into.cast<py::array_t<double>>();
     }
     const std::span<double> g(out.mutable_data(), n);
     const auto first = [&](auto none) {
@@ -301,13 +341,18 @@ PYBIND11_MODULE(_core, m) {
           "host in float64: from targets (nonzero = target) when `first`, else from the "
           "previous pass's partial distances (L2: squared).");
     m.def("axis0_distances", &vp::axis0_distances_of, py::arg("targets"), py::arg("before"),
-          py::arg("after"), py::arg("z0"), py::arg("length"),
-          "axis0_distances(targets, before, after, z0, length) -> ndarray\n\n"
+          py::arg("after"), py::arg("z0"), py::arg("length"), py::arg("out") = py::none(),
+          "axis0_distances(targets, before, after, z0, length, out=None) -> ndarray\n\n"
           "The distance along axis 0, in voxels, from every element of a slab [z0, z0 + n) of "
           "an array of `length` along axis 0 to the nearest target (nonzero) on its line, given "
           "per line the nearest target's position before the slab and after it (negative: "
           "none): uint16 where length < 65535, else uint32, the type's largest value where "
-          "the line has none.");
+          "the line has none; into `out` (that type, the slab's shape) when given.");
+    m.def("axis0_ends", &vp::axis0_ends_of, py::arg("targets"), py::arg("z0"),
+          "axis0_ends(targets, z0) -> ndarray\n\n"
+          "The first and the last target (nonzero) along axis 0 of every line of a block whose "
+          "plane 0 is plane z0 of a longer array, as positions in that array (-1: none), "
+          "stacked as a (2, ...) int64 array.");
     m.def("slab_passes", &vp::slab_passes_of, py::arg("distances"), py::arg("metric"),
           py::arg("sampling"), py::arg("out") = py::none(),
           "slab_passes(distances, metric, sampling, out=None) -> ndarray\n\n"

@@ -370,6 +370,34 @@ void axis0_distances(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t
     }
 }
 
+void axis0_ends(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t> targets,
+                std::span<std::int64_t> first, std::span<std::int64_t> last) {
+    const std::size_t planes = shape.n[0], lines = shape.n[1] * shape.n[2];
+    if (targets.size() != planes * lines || first.size() != lines || last.size() != lines) {
+        throw std::invalid_argument("axis0_ends: array sizes do not match the shape");
+    }
+    std::fill(first.begin(), first.end(), -1);
+    std::fill(last.begin(), last.end(), -1);
+    for (std::size_t p = 0; p < planes; ++p) {
+        const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+        const std::uint8_t* t = targets.data() + p * lines;
+        for (std::size_t q = 0; q < lines; ++q) {
+            if (t[q] != 0) {
+                last[q] = z;
+            }
+        }
+    }
+    for (std::size_t p = planes; p-- > 0;) {
+        const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+        const std::uint8_t* t = targets.data() + p * lines;
+        for (std::size_t q = 0; q < lines; ++q) {
+            if (t[q] != 0) {
+                first[q] = z;
+            }
+        }
+    }
+}
+
 template <typename T>
 void first_pass_values(Metric metric, double spacing, std::span<const T> d, T none,
                        std::span<double> g) {

@@ -47,6 +47,12 @@ void axis0_distances(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t
                      std::span<const std::int64_t> before, std::span<const std::int64_t> after,
                      T none, std::span<T> out);
 
+// The first and the last target (nonzero) along axis 0 of every line of a block of
+// shape.n[0] planes of shape.n[1] * shape.n[2] lines, as global positions z0 + plane; -1
+// where a line has none.
+void axis0_ends(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t> targets,
+                std::span<std::int64_t> first, std::span<std::int64_t> last);
+
 // The first pass's partial distances from those distances in voxels along its axis (`none`:
 // no target, +inf): L2 (spacing d)^2, L1 and L-inf spacing d, as separable_pass computes them.
 template <typename T>

@@ -167,12 +167,7 @@ _NONE = np.iinfo(np.int64).max  # "no target" in the cumulative minimum of first
 def _line_ends(block, block_info=None):
     """Per line along axis 0 of a block of targets (bool): the global positions of its first
     and last target (-1: none), stacked as a (2, ...) int64 block."""
-    z0 = block_info[0]["array-location"][0][0]
-    n = block.shape[0]
-    has = block.any(axis=0)
-    first = np.where(has, block.argmax(axis=0) + z0, -1)
-    last = np.where(has, n - 1 - block[::-1].argmax(axis=0) + z0, -1)
-    return np.stack([first, last]).astype(np.int64)
+    return _core.axis0_ends(block, block_info[0]["array-location"][0][0])
 
 
 def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, block_info=None):
@@ -181,8 +176,15 @@ def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, blo
     it on every line (`before`, `after`: one block along axis 0, -1: none), then the host
     passes along the other axes, a few planes at a time."""
     z0 = block_info[0]["array-location"][0][0]
-    d = _core.axis0_distances(slab, before[0], after[0], z0, length)
     out = np.empty(slab.shape, dtype)
+    # The first pass's distances live in the tail of `out` where they fit: the planes written
+    # so far end before the distances of the planes still to read begin.
+    d_dtype = np.dtype(np.uint16 if length < 65535 else np.uint32)
+    tail = None
+    if out.itemsize >= d_dtype.itemsize and out.itemsize % d_dtype.itemsize == 0:
+        tail = out.reshape(-1).view(np.uint8)[out.nbytes - d_dtype.itemsize * out.size:]
+        tail = tail.view(d_dtype).reshape(slab.shape)
+    d = _core.axis0_distances(slab, before[0], after[0], z0, length, tail)
     plane = max(1, math.prod(slab.shape[1:]))
     step = max(1, _PASS_ELEMENTS // plane)
     scratch = np.empty((min(step, slab.shape[0]),) + slab.shape[1:])  # filled afresh each time

@@ -259,6 +259,14 @@ def test_axis0_distances_and_slab_passes_equal_brute_force():
         nearest = np.min(np.where(full[:, None], gap, big), axis=0)
         none = np.iinfo(d.dtype).max
         np.testing.assert_array_equal(d, np.where(nearest == big, none, nearest))
+        into = np.full(slab.shape, 7, d.dtype)
+        core.axis0_distances(slab, before, after, z0, length if trial % 2 else 70000, into)
+        np.testing.assert_array_equal(into, d)
+        ends = core.axis0_ends(slab, z0)
+        has = slab.any(axis=0)
+        zs = np.arange(z0, z0 + n0)[:, None, None]
+        np.testing.assert_array_equal(ends[0], np.where(has, np.min(np.where(slab, zs, big), 0), -1))
+        np.testing.assert_array_equal(ends[1], np.max(np.where(slab, zs, -1), axis=0))
         s = [float(v) for v in rng.uniform(0.3, 3.0, size=3)] if trial % 3 else [1.0] * 3
         for metric in ("manhattan", "chebyshev", "euclidean"):
             out = np.empty(d.shape)
@@ -273,6 +281,9 @@ def test_axis0_distances_and_slab_passes_equal_brute_force():
         core.axis0_distances(np.ones((2, 3, 4), bool), np.zeros(3), np.zeros(12), 0, 2)
     with pytest.raises(ValueError, match="within"):
         core.axis0_distances(np.ones((2, 3, 4), bool), np.zeros(12), np.zeros(12), 1, 2)
+    with pytest.raises(ValueError, match="out must be"):
+        core.axis0_distances(np.ones((2, 3), bool), np.zeros(3), np.zeros(3), 0, 2,
+                             np.empty((2, 3), np.uint32))
     with pytest.raises(TypeError, match="uint16 or uint32"):
         core.slab_passes(np.zeros((2, 3), np.int16), "manhattan", [1.0, 1.0])
     with pytest.raises(ValueError, match="out must be"):
