@@ -265,7 +265,8 @@ def test_axis0_distances_and_slab_passes_equal_brute_force():
         ends = core.axis0_ends(slab, z0)
         has = slab.any(axis=0)
         zs = np.arange(z0, z0 + n0)[:, None, None]
-        np.testing.assert_array_equal(ends[0], np.where(has, np.min(np.where(slab, zs, big), 0), -1))
+        first = np.min(np.where(slab, zs, big), axis=0)
+        np.testing.assert_array_equal(ends[0], np.where(has, first, -1))
         np.testing.assert_array_equal(ends[1], np.max(np.where(slab, zs, -1), axis=0))
         s = [float(v) for v in rng.uniform(0.3, 3.0, size=3)] if trial % 3 else [1.0] * 3
         for metric in ("manhattan", "chebyshev", "euclidean"):
