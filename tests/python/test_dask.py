@@ -198,7 +198,7 @@ def test_unbounded_slabs_across_many_blocks(chunks, monkeypatch):
         # case 3: no solid at all
         dw = da.from_array(w, chunks=chunks)
         for metric in ("manhattan", "chebyshev", "euclidean"):
-            for fmt in (None, "f64", "u8"):
+            for fmt in (None, "u8"):
                 got = threaded(vd.distance_transform(dw, metric=metric, format=fmt))
                 want = voxfield.distance_transform(w, metric=metric, format=fmt)
                 np.testing.assert_array_equal(got, want, err_msg=f"{case} {metric} {fmt}")
