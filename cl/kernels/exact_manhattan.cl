@@ -330,6 +330,21 @@ __kernel void x_rows_local(__global const uchar* restrict vox, __global T* restr
     }
 }
 
+// Inclusive min-plus scans of a line's segment summaries, in place in local memory: after
+// them fo[s] = min over t <= s of fo[t] + K (s - t) (the forward sweep's value at the end of
+// segment s) and bo[s] = min over t >= s of bo[t] + K (t - s), by Hillis-Steele steps (log2 of
+// the segments, not one step per segment). IDX maps a segment to its local slot.
+#define SCAN_SEGS(TY, fo, bo, IDX, s, segs, K)                                             \
+    for (uint d_ = 1; d_ < (segs); d_ <<= 1) {                                             \
+        const TY step_ = (TY)min((uint)(K)*d_, (uint)T_MAX); /* no wrap in narrow types */ \
+        const TY f_ = (s) >= d_ ? add_sat(fo[IDX((s)-d_)], step_) : (TY)T_MAX;             \
+        const TY b_ = (s) + d_ < (segs) ? add_sat(bo[IDX((s) + d_)], step_) : (TY)T_MAX;   \
+        barrier(CLK_LOCAL_MEM_FENCE);                                                      \
+        fo[IDX(s)] = min(fo[IDX(s)], f_);                                                  \
+        bo[IDX(s)] = min(bo[IDX(s)], b_);                                                  \
+        barrier(CLK_LOCAL_MEM_FENCE);                                                      \
+    }
+
 // The work vector of cols_seg: VW adjacent columns per work-item (VW = 1, 2 or 4), loaded
 // and stored as one aligned word.
 #define VEC_(t, n) t##n
@@ -359,8 +374,9 @@ inline void store_final_vec(__global uint* restrict out, __global const uchar* r
 // Columns of length N <= SEG_K * get_local_size(1): work-item (c, s) of a work-group holds
 // values [s*SEG_K, (s+1)*SEG_K) of the VW columns at x = VW * (group * cw + c) in
 // registers (X is a multiple of VW). Each segment publishes the value its forward sweep
-// reaches at its end and its backward sweep at its start (with no carry), every work-item
-// folds the segments before and after it into its carries, and sweeps again. Every loop over
+// reaches at its end and its backward sweep at its start (with no carry), SCAN_SEGS folds
+// every segment's into the later (earlier) ones' in log2(segments) steps, and each work-item
+// sweeps again from the carries of its neighbours. Every loop over
 // v has a constant trip count and is unrolled, so v stays in registers. T_MAX is the type's
 // maximum, so add_sat saturates exactly there.
 __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
@@ -391,19 +407,15 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
     fout[s * cw + lc] = fo;
     bout[s * cw + lc] = bo;
     barrier(CLK_LOCAL_MEM_FENCE);
-    TV c = (TV)T_MAX;
-    for (uint t = 0; t < s; ++t) {
-        c = min(add_sat(c, (TV)SEG_K), fout[t * cw + lc]);
-    }
+#define COL_SLOT(t) ((t)*cw + lc)
+    SCAN_SEGS(TV, fout, bout, COL_SLOT, s, segs, SEG_K)
+    TV c = s > 0 ? fout[COL_SLOT(s - 1)] : (TV)T_MAX;
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {
         c = min(v[k], add_sat(c, (TV)1));
         v[k] = c;
     }
-    c = (TV)T_MAX;
-    for (uint t = segs - 1; t > s; --t) {
-        c = min(add_sat(c, (TV)SEG_K), bout[t * cw + lc]);
-    }
+    c = s + 1 < segs ? bout[COL_SLOT(s + 1)] : (TV)T_MAX;
 #pragma unroll
     for (uint j = 0; j < SEG_K; ++j) {
         c = min(v[SEG_K - 1 - j], add_sat(c, (TV)1));
@@ -467,19 +479,15 @@ __kernel void x_rows_seg(__global const uchar* restrict vox, __global T* restric
     fout[r * segs + s] = fo;
     bout[r * segs + s] = bo;
     barrier(CLK_LOCAL_MEM_FENCE);
-    T c = (T)T_MAX;
-    for (uint t = 0; t < s; ++t) {
-        c = min(add_sat(c, (T)XK), fout[r * segs + t]);
-    }
+#define ROW_SLOT(t) (r * segs + (t))
+    SCAN_SEGS(T, fout, bout, ROW_SLOT, s, segs, XK)
+    T c = s > 0 ? fout[ROW_SLOT(s - 1)] : (T)T_MAX;
 #pragma unroll
     for (uint k = 0; k < XK; ++k) {
         c = min(v[k], add_sat(c, (T)1));
         v[k] = c;
     }
-    c = (T)T_MAX;
-    for (uint t = segs - 1; t > s; --t) {
-        c = min(add_sat(c, (T)XK), bout[r * segs + t]);
-    }
+    c = s + 1 < segs ? bout[ROW_SLOT(s + 1)] : (T)T_MAX;
 #pragma unroll
     for (uint j = 0; j < XK; ++j) {
         c = min(v[XK - 1 - j], add_sat(c, (T)1));

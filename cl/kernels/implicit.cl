@@ -1,132 +1,9 @@
 /* Implicit surfaces discretised into a tile grid of contrees (the reference blog, farfa.dev
  * "implicit surface rendering for CAD": recursive interval pruning, then 5^3 shared corner
- * samples per leaf of 4^3 voxels). The tape (sdf_layout.hpp, prepended) is interpreted here
- * in floats, intervals and forward-mode dual numbers, in the same operation order as
- * core/src/sdf_eval.cpp. Distance bounds after Inigo Quilez's "distance functions" article. */
-#pragma OPENCL FP_CONTRACT OFF
-
-typedef struct {
-    uint op;
-    uint material;
-    float p[VF_SDF_INSTR_PARAMS];
-} Instr;
-
-/* The grid: x0 + i h per axis, dims voxels. */
-typedef struct {
-    float x0, y0, z0, h;
-    uint nx, ny, nz, pad;
-} Grid;
-
-inline float corner_at(float x0, float h, uint i) {
-    return x0 + (float)i * h;
-}
-inline float centre_at(float x0, float h, uint i) {
-    return x0 + ((float)i + 0.5f) * h;
-}
-
-/* ---------------------------------------------------------------- floats */
-
-inline float f_len2(float a, float b) {
-    return sqrt(fmax(a * a + b * b, 0.0f));
-}
-inline float f_len3(float a, float b, float c) {
-    return sqrt(fmax(a * a + b * b + c * c, 0.0f));
-}
-
-inline float f_box(float dx, float dy, float dz, float sx, float sy, float sz) {
-    const float qx = fabs(dx) - sx, qy = fabs(dy) - sy, qz = fabs(dz) - sz;
-    const float outside = f_len3(fmax(qx, 0.0f), fmax(qy, 0.0f), fmax(qz, 0.0f));
-    return outside + fmin(fmax(qx, fmax(qy, qz)), 0.0f);
-}
-
-inline float f_primitive(__global const Instr* in, float x, float y, float z) {
-    __global const float* p = in->p;
-    switch (in->op) {
-        case VF_SDF_SPHERE:
-            return f_len3(x - p[0], y - p[1], z - p[2]) - p[3];
-        case VF_SDF_BOX:
-            return f_box(x - p[0], y - p[1], z - p[2], p[3], p[4], p[5]);
-        case VF_SDF_ROUND_BOX:
-            return f_box(x - p[0], y - p[1], z - p[2], p[3] - p[6], p[4] - p[6], p[5] - p[6]) -
-                   p[6];
-        case VF_SDF_CYLINDER: {
-            const float a = f_len2(x - p[0], z - p[2]) - p[3], b = fabs(y - p[1]) - p[4];
-            return fmin(fmax(a, b), 0.0f) + f_len2(fmax(a, 0.0f), fmax(b, 0.0f));
-        }
-        case VF_SDF_TORUS: {
-            const float a = f_len2(x - p[0], z - p[2]) - p[3];
-            return f_len2(a, y - p[1]) - p[4];
-        }
-        case VF_SDF_CAPSULE: {
-            const float bx = p[3] - p[0], by = p[4] - p[1], bz = p[5] - p[2];
-            const float dd = bx * bx + by * by + bz * bz;
-            const float ax = x - p[0], ay = y - p[1], az = z - p[2];
-            const float dot = bx * ax + by * ay + bz * az;
-            const float h = dd > 0 ? fmin(fmax(dot / dd, 0.0f), 1.0f) : 0.0f * dot;
-            return f_len3(ax - bx * h, ay - by * h, az - bz * h) - p[6];
-        }
-        default: /* VF_SDF_PLANE */
-            return p[0] * x + p[1] * y + p[2] * z - p[3];
-    }
-}
-
-inline float f_smooth_min(float a, float b, float k) {
-    const float h = fmax(k - fabs(a - b), 0.0f) / k;
-    return fmin(a, b) - h * h * k * 0.25f;
-}
-
-/* The value at (x, y, z) and the material there (sdf.hpp's rules), running the instructions
- * list[0..n) (a leaf's specialised tape), or 0..n when list is 0. */
-float eval_f(__global const Instr* tape, const ushort* list, uint n, float x, float y, float z,
-             uint* material) {
-    float v[VF_SDF_STACK];
-    uchar m[VF_SDF_STACK];
-    float px[VF_SDF_STACK], py[VF_SDF_STACK], pz[VF_SDF_STACK];
-    int nv = 0, np = 0;
-    px[0] = x;
-    py[0] = y;
-    pz[0] = z;
-    for (uint t = 0; t < n; ++t) {
-        __global const Instr* in = tape + (list ? list[t] : t);
-        const uint op = in->op;
-        if (op <= VF_SDF_PLANE) {
-            v[nv] = f_primitive(in, px[np], py[np], pz[np]);
-            m[nv++] = (uchar)in->material;
-        } else if (op <= VF_SDF_SMOOTH_DIFF) {
-            const float b = v[--nv], a = v[nv - 1];
-            const float k = in->p[0];
-            if (op == VF_SDF_MIN) {
-                m[nv - 1] = a <= b ? m[nv - 1] : m[nv];
-                v[nv - 1] = fmin(a, b);
-            } else if (op == VF_SDF_MAX) {
-                m[nv - 1] = a >= b ? m[nv - 1] : m[nv];
-                v[nv - 1] = fmax(a, b);
-            } else if (op == VF_SDF_DIFF) {
-                v[nv - 1] = fmax(a, -b);
-            } else if (op == VF_SDF_SMOOTH_MIN) {
-                m[nv - 1] = a <= b ? m[nv - 1] : m[nv];
-                v[nv - 1] = f_smooth_min(a, b, k);
-            } else {
-                v[nv - 1] = -f_smooth_min(-a, b, k);
-            }
-        } else if (op == VF_SDF_SHELL) {
-            v[nv - 1] = fabs(v[nv - 1]) - in->p[0];
-        } else if (op == VF_SDF_PUSH_POINT) {
-            __global const float* p = in->p;
-            const float dx = px[np] - p[9], dy = py[np] - p[10], dz = pz[np] - p[11];
-            ++np;
-            px[np] = p[0] * dx + p[1] * dy + p[2] * dz;
-            py[np] = p[3] * dx + p[4] * dy + p[5] * dz;
-            pz[np] = p[6] * dx + p[7] * dy + p[8] * dz;
-        } else { /* VF_SDF_POP_POINT */
-            --np;
-            v[nv - 1] = v[nv - 1] * in->p[0];
-        }
-    }
-    *material = m[0];
-    return v[0];
-}
-
+ * samples per leaf of 4^3 voxels). The tape (sdf_layout.hpp and implicit_tape.cl, prepended)
+ * is interpreted here in intervals, and in floats and forward-mode dual numbers by
+ * implicit_eval.cl (prepended twice: scalar, and EV_W lanes for the CPU layout), in the same
+ * operation order as core/src/sdf_eval.cpp. Distance bounds after Inigo Quilez's "distance functions" article. */
 /* ------------------------------------------------------------- intervals (lo, hi) */
 
 inline float2 i_sub(float2 a, float2 b) {
@@ -317,138 +194,6 @@ float2 eval_i(__global const Instr* tape, uint n, float2 x, float2 y, float2 z, 
     return v[0];
 }
 
-/* ------------------------------------------------- dual numbers: (grad x, y, z, value) */
-
-inline float4 d_sub(float4 a, float4 b) {
-    return a - b;
-}
-inline float4 d_subs(float4 a, float s) {
-    return (float4)(a.xyz, a.w - s);
-}
-inline float4 d_mul(float4 a, float4 b) {
-    return (float4)(a.w * b.xyz + b.w * a.xyz, a.w * b.w);
-}
-inline float4 d_abs(float4 a) {
-    return a.w < 0 ? -a : a;
-}
-inline float4 d_sq(float4 a) {
-    return d_mul(a, a);
-}
-inline float4 d_sqrt(float4 a) {
-    const float r = sqrt(fmax(a.w, 0.0f));
-    return (float4)(r > 0 ? (0.5f / r) * a.xyz : (float3)(0.0f), r);
-}
-inline float4 d_min(float4 a, float4 b) {
-    return a.w <= b.w ? a : b;
-}
-inline float4 d_max(float4 a, float4 b) {
-    return a.w >= b.w ? a : b;
-}
-inline float4 d_mins(float4 a, float s) {
-    return a.w <= s ? a : (float4)(0.0f, 0.0f, 0.0f, s);
-}
-inline float4 d_maxs(float4 a, float s) {
-    return a.w >= s ? a : (float4)(0.0f, 0.0f, 0.0f, s);
-}
-inline float4 d_len2(float4 a, float4 b) {
-    return d_sqrt(d_sq(a) + d_sq(b));
-}
-inline float4 d_len3(float4 a, float4 b, float4 c) {
-    return d_sqrt(d_sq(a) + d_sq(b) + d_sq(c));
-}
-
-inline float4 d_box(float4 dx, float4 dy, float4 dz, float sx, float sy, float sz) {
-    const float4 qx = d_subs(d_abs(dx), sx), qy = d_subs(d_abs(dy), sy), qz = d_subs(d_abs(dz), sz);
-    const float4 outside = d_len3(d_maxs(qx, 0.0f), d_maxs(qy, 0.0f), d_maxs(qz, 0.0f));
-    return outside + d_mins(d_max(qx, d_max(qy, qz)), 0.0f);
-}
-
-inline float4 d_primitive(__global const Instr* in, float4 x, float4 y, float4 z) {
-    __global const float* p = in->p;
-    switch (in->op) {
-        case VF_SDF_SPHERE:
-            return d_subs(d_len3(d_subs(x, p[0]), d_subs(y, p[1]), d_subs(z, p[2])), p[3]);
-        case VF_SDF_BOX:
-            return d_box(d_subs(x, p[0]), d_subs(y, p[1]), d_subs(z, p[2]), p[3], p[4], p[5]);
-        case VF_SDF_ROUND_BOX:
-            return d_subs(d_box(d_subs(x, p[0]), d_subs(y, p[1]), d_subs(z, p[2]), p[3] - p[6],
-                                p[4] - p[6], p[5] - p[6]),
-                          p[6]);
-        case VF_SDF_CYLINDER: {
-            const float4 a = d_subs(d_len2(d_subs(x, p[0]), d_subs(z, p[2])), p[3]);
-            const float4 b = d_subs(d_abs(d_subs(y, p[1])), p[4]);
-            return d_mins(d_max(a, b), 0.0f) + d_len2(d_maxs(a, 0.0f), d_maxs(b, 0.0f));
-        }
-        case VF_SDF_TORUS: {
-            const float4 a = d_subs(d_len2(d_subs(x, p[0]), d_subs(z, p[2])), p[3]);
-            return d_subs(d_len2(a, d_subs(y, p[1])), p[4]);
-        }
-        case VF_SDF_CAPSULE: {
-            const float bx = p[3] - p[0], by = p[4] - p[1], bz = p[5] - p[2];
-            const float dd = bx * bx + by * by + bz * bz;
-            const float4 ax = d_subs(x, p[0]), ay = d_subs(y, p[1]), az = d_subs(z, p[2]);
-            const float4 dot = bx * ax + by * ay + bz * az;
-            const float4 h = dd > 0 ? d_mins(d_maxs(dot / dd, 0.0f), 1.0f) : 0.0f * dot;
-            return d_subs(d_len3(ax - bx * h, ay - by * h, az - bz * h), p[6]);
-        }
-        default:
-            return d_subs(p[0] * x + p[1] * y + p[2] * z, p[3]);
-    }
-}
-
-inline float4 d_smooth_min(float4 a, float4 b, float k) {
-    const float h = fmax(k - fabs(a.w - b.w), 0.0f) / k;
-    const float4 lo = a.w <= b.w ? a : b;
-    const float4 other = a.w <= b.w ? b : a;
-    return (float4)((1.0f - 0.5f * h) * lo.xyz + (0.5f * h) * other.xyz,
-                    fmin(a.w, b.w) - h * h * k * 0.25f);
-}
-
-/* The value and its gradient at (x, y, z) (list as for eval_f). */
-float4 eval_d(__global const Instr* tape, const ushort* list, uint n, float x, float y, float z) {
-    float4 v[VF_SDF_STACK];
-    float4 px[VF_SDF_STACK], py[VF_SDF_STACK], pz[VF_SDF_STACK];
-    int nv = 0, np = 0;
-    px[0] = (float4)(1.0f, 0.0f, 0.0f, x);
-    py[0] = (float4)(0.0f, 1.0f, 0.0f, y);
-    pz[0] = (float4)(0.0f, 0.0f, 1.0f, z);
-    for (uint t = 0; t < n; ++t) {
-        __global const Instr* in = tape + (list ? list[t] : t);
-        const uint op = in->op;
-        if (op <= VF_SDF_PLANE) {
-            v[nv++] = d_primitive(in, px[np], py[np], pz[np]);
-        } else if (op <= VF_SDF_SMOOTH_DIFF) {
-            const float4 b = v[--nv], a = v[nv - 1];
-            const float k = in->p[0];
-            if (op == VF_SDF_MIN) {
-                v[nv - 1] = d_min(a, b);
-            } else if (op == VF_SDF_MAX) {
-                v[nv - 1] = d_max(a, b);
-            } else if (op == VF_SDF_DIFF) {
-                v[nv - 1] = d_max(a, -b);
-            } else if (op == VF_SDF_SMOOTH_MIN) {
-                v[nv - 1] = d_smooth_min(a, b, k);
-            } else {
-                v[nv - 1] = -d_smooth_min(-a, b, k);
-            }
-        } else if (op == VF_SDF_SHELL) {
-            v[nv - 1] = d_subs(d_abs(v[nv - 1]), in->p[0]);
-        } else if (op == VF_SDF_PUSH_POINT) {
-            __global const float* p = in->p;
-            const float4 dx = d_subs(px[np], p[9]), dy = d_subs(py[np], p[10]),
-                         dz = d_subs(pz[np], p[11]);
-            ++np;
-            px[np] = p[0] * dx + p[1] * dy + p[2] * dz;
-            py[np] = p[3] * dx + p[4] * dy + p[5] * dz;
-            pz[np] = p[6] * dx + p[7] * dy + p[8] * dz;
-        } else {
-            --np;
-            v[nv - 1] = v[nv - 1] * in->p[0];
-        }
-    }
-    return v[0];
-}
-
 /* ------------------------------------------------------------------ the tile grid */
 
 /* eval_i over the voxels [i, i1) x [j, j1) x [k, k1) of the grid. */
@@ -558,7 +303,16 @@ inline uint2 voxel_corner_words(const uint* kept, uint v) {
     return (uint2)(w0, w1);
 }
 
-/* CPU layout: one work-item per leaf, its 125 shared corners and 64 centres in one batch. */
+/* corner_at and centre_at per lane. */
+inline FTV corner_at_v(float x0, float h, UTV i) {
+    return x0 + EV_CONVERT(i) * h;
+}
+inline FTV centre_at_v(float x0, float h, UTV i) {
+    return x0 + (EV_CONVERT(i) + 0.5f) * h;
+}
+
+/* CPU layout: one work-item per leaf, its 125 shared corners and 64 centres in one batch,
+ * EV_W points per instruction fetch (eval_f_v: the vector instance of implicit_eval.cl). */
 __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
                                 __global const uint4* leaves, uint count, __global uint* nodes,
                                 __global uint* voxels, uint voxel_capacity,
@@ -573,12 +327,26 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
     const bool special = n <= VF_SDF_SPECIALISE_MAX;
     const uint m = special ? specialise(tape, n, g, o, list) : n;
     const ushort* run = special ? list : 0;
-    float f[125];
-    uint material;
-    for (uint c = 0; c < 125; ++c) {
-        const uint i = o.x + c % 5, j = o.y + c / 5 % 5, k = o.z + c / 25;
-        f[c] = eval_f(tape, run, m, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
-                      corner_at(g.z0, g.h, k), &material);
+    /* Lanes past the last corner or centre evaluate a repeat of it into the padding. */
+    float f[128 + EV_W];
+    float centre_f[64];
+    int centre_mat[64];
+    for (uint c0 = 0; c0 < 125; c0 += EV_W) {
+        const UTV c = min(c0 + EV_IOTA, (UTV)124u);
+        MTV mat;
+        const FTV fv = eval_f_v(tape, run, m, corner_at_v(g.x0, g.h, o.x + c % 5u),
+                                corner_at_v(g.y0, g.h, o.y + c / 5u % 5u),
+                                corner_at_v(g.z0, g.h, o.z + c / 25u), &mat);
+        EV_STORE(fv, 0, f + c0);
+    }
+    for (uint v0 = 0; v0 < 64; v0 += EV_W) {
+        const UTV v = v0 + EV_IOTA;
+        MTV mat;
+        const FTV fv = eval_f_v(tape, run, m, centre_at_v(g.x0, g.h, o.x + (v & 3u)),
+                                centre_at_v(g.y0, g.h, o.y + (v >> 2 & 3u)),
+                                centre_at_v(g.z0, g.h, o.z + (v >> 4)), &mat);
+        EV_STORE(fv, 0, centre_f + v0);
+        EV_STORE(mat, 0, centre_mat + v0);
     }
     uint occ[2] = {0u, 0u}, solid[2] = {0u, 0u}, kept[4] = {0u, 0u, 0u, 0u};
     uchar mats[64];
@@ -588,9 +356,8 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
         if (i >= g.nx || j >= g.ny || k >= g.nz) {
             continue;
         }
-        const float fc = eval_f(tape, run, m, centre_at(g.x0, g.h, i), centre_at(g.y0, g.h, j),
-                                centre_at(g.z0, g.h, k), &material);
-        mats[v] = (uchar)material;
+        const float fc = centre_f[v];
+        mats[v] = (uchar)centre_mat[v];
         uint inside = fc < 0 ? 1u : 0u, outside = fc < 0 ? 0u : 1u;
         for (uint c = 0; c < 8; ++c) {
             const float fv = f[corner_index(v, c)];
@@ -617,13 +384,29 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
     if (voff + kept_count > vertex_capacity || xoff + cross_count > voxel_capacity) {
         return; /* the host reruns with the capacities the counters reached */
     }
+    /* The kept corners in index order, EV_W gradients per instruction fetch (the last batch
+     * repeats the last corner). */
+    uint kept_list[128 + EV_W];
     uint r = 0;
     for (uint c = 0; c < 125; ++c) {
         if (kept[c / 32] >> (c % 32) & 1u) {
-            const uint i = o.x + c % 5, j = o.y + c / 5 % 5, k = o.z + c / 25;
-            const float4 d = eval_d(tape, run, m, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
-                                    corner_at(g.z0, g.h, k));
-            vertices[voff + r++] = (float4)(d.xyz, f[c]);
+            kept_list[r++] = c;
+        }
+    }
+    for (uint q = r; q < r + EV_W; ++q) {
+        kept_list[q] = r ? kept_list[r - 1] : 0u;
+    }
+    for (uint r0 = 0; r0 < r; r0 += EV_W) {
+        const UTV c = EV_LOAD(0, kept_list + r0);
+        const Dual_v d = eval_d_v(tape, run, m, corner_at_v(g.x0, g.h, o.x + c % 5u),
+                                  corner_at_v(g.y0, g.h, o.y + c / 5u % 5u),
+                                  corner_at_v(g.z0, g.h, o.z + c / 25u));
+        float gx[EV_W], gy[EV_W], gz[EV_W];
+        EV_STORE(d.x, 0, gx);
+        EV_STORE(d.y, 0, gy);
+        EV_STORE(d.z, 0, gz);
+        for (uint l = 0; l < EV_W && r0 + l < r; ++l) {
+            vertices[voff + r0 + l] = (float4)(gx[l], gy[l], gz[l], f[kept_list[r0 + l]]);
         }
     }
     uint x = 0;
@@ -730,9 +513,9 @@ __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_gro
     uint kept_bits[4] = {kept[0], kept[1], kept[2], kept[3]};
     if (lid < 125 && (kept_bits[lid / 32] >> (lid % 32) & 1u)) {
         const uint i = o.x + lid % 5, j = o.y + lid / 5 % 5, k = o.z + lid / 25;
-        const float4 d = eval_d(tape, run, m, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
-                                corner_at(g.z0, g.h, k));
-        vertices[voff + rank_below(kept_bits, lid)] = (float4)(d.xyz, f[lid]);
+        const Dual d = eval_d(tape, run, m, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
+                              corner_at(g.z0, g.h, k));
+        vertices[voff + rank_below(kept_bits, lid)] = (float4)(d.x, d.y, d.z, f[lid]);
     }
     if (crossed) {
         uint occ_bits[2] = {occ[0], occ[1]};

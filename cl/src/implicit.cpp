@@ -17,11 +17,41 @@
 
 namespace voxfield::cl_sources {
 extern const char* const sdf_layout_h;
+extern const char* const implicit_tape_cl;
+extern const char* const implicit_eval_cl;
 extern const char* const implicit_cl;
 }  // namespace voxfield::cl_sources
 
 namespace voxfield::ocl {
 namespace {
+
+// Points the CPU layout evaluates per instruction fetch (one AVX2 register of floats).
+constexpr int kLanes = 8;
+
+// implicit.cl after the tape's types and implicit_eval.cl twice: the scalar evaluator
+// (eval_f) and the kLanes-wide one (eval_f_v), with the vector types the CPU layout uses.
+std::vector<std::string> program_sources() {
+    const std::string w = std::to_string(kLanes);
+    std::string iota = "(uint" + w + ")(";
+    for (int i = 0; i < kLanes; ++i) {
+        iota += (i ? ", " : "") + std::to_string(i);
+    }
+    iota += ")";
+    const std::string undef = "#undef FT\n#undef MT\n#undef EV_SUF\n";
+    return {cl_sources::sdf_layout_h,
+            cl_sources::implicit_tape_cl,
+            "#define FT float\n#define MT uint\n#define EV_SUF\n",
+            cl_sources::implicit_eval_cl,
+            undef,
+            "#define FT float" + w + "\n#define MT int" + w + "\n#define EV_SUF _v\n",
+            cl_sources::implicit_eval_cl,
+            undef,
+            "#define EV_W " + w + "\n#define FTV float" + w + "\n#define MTV int" + w +
+                "\n#define UTV uint" + w + "\n#define EV_CONVERT convert_float" + w +
+                "\n#define EV_STORE vstore" + w + "\n#define EV_LOAD vload" + w +
+                "\n#define EV_IOTA " + iota + "\n",
+            cl_sources::implicit_cl};
+}
 
 struct GridArg {
     cl_float x0, y0, z0, h;
@@ -64,7 +94,7 @@ ImplicitDiscretiser::ImplicitDiscretiser(Context& ctx, const sdf::Part& part,
         throw InputError("implicit tile depth " + std::to_string(options.tile_depth) +
                          " is out of range (0.." + std::to_string(kMaxDepth) + ")");
     }
-    program_ = ctx.program("implicit.cl", {cl_sources::sdf_layout_h, cl_sources::implicit_cl},
+    program_ = ctx.program("implicit.cl", program_sources(),
                            "-cl-std=CL1.2 -cl-fp32-correctly-rounded-divide-sqrt");
     tape_ = cl_call("uploading the implicit tape", [&] {
         return cl::Buffer(ctx.context(), CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,

@@ -113,16 +113,16 @@ std::vector<std::string> kernel_path(const World& world, Format f, Layout layout
 }
 
 TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
-    // Columns up to 512 voxels take cols_seg with segments of 16, up to 2048 segments of 64,
+    // Columns up to 1024 voxels take cols_seg with segments of 16, up to 2048 segments of 32,
     // longer ones the strip fallback of the GPU layout; the CPU layout sweeps xy slices and
     // strips of columns.
     using Path = std::vector<std::string>;
-    const World tall = scene_random(Dims{3, 700, 2}, 0.002, 5);
+    const World tall = scene_random(Dims{3, 1100, 2}, 0.002, 5);
     const World deep = scene_random(Dims{2, 2, 2100}, 0.001, 6);
     const World wide = scene_random(Dims{32, 40, 30}, 0.01, 7);
     for (Format f : kFormats) {
         EXPECT_EQ(kernel_path(tall, f, Layout::gpu),
-                  (Path{"x_rows_local", "cols_seg/64", "cols_seg/16"}))
+                  (Path{"x_rows_local", "cols_seg/32", "cols_seg/16"}))
             << to_string(f);
         EXPECT_EQ(kernel_path(deep, f, Layout::gpu),
                   (Path{"x_rows_local", "cols_seg/16", "cols_strip_final"}))
