@@ -219,20 +219,20 @@ def _separable(targets, metric, spacing, finish, dtype):
     slab_chunks = tuple(p for c in chunks[0] for p in [depth] * (c // depth) + [c % depth] if p)
     t = targets.rechunk({0: slab_chunks})
     # The ends come from a clone of the input's graph (read twice), so that no worker holds
-    # the input blocks from the ends' computation until the slabs' turn comes.
+    # the input blocks from the ends' computation until the slabs' turn comes; merged to one
+    # block per slab at once, so that the scans below take a few tasks per slab.
+    whole = {a: -1 for a in range(1, targets.ndim)}
     ends = clone(t).map_blocks(_line_ends, dtype=np.int64,
-                        chunks=((2,) * len(slab_chunks),) + t.chunks[1:])
+                               chunks=((2,) * len(slab_chunks),) + t.chunks[1:]).rechunk(whole)
     first, last = ends[0::2], ends[1::2]
-    before = _shift(cumreduction(np.maximum.accumulate, np.maximum, -1, last, axis=0,
-                                    dtype=np.int64), -1, True)
+    before = cumreduction(np.maximum.accumulate, np.maximum, -1, last, axis=0, dtype=np.int64)
+    before = _shift(before, -1, True)
     first = da.where(first < 0, _NONE, first)
     after = cumreduction(np.minimum.accumulate, np.minimum, _NONE, first[::-1], axis=0,
-                            dtype=np.int64)[::-1]
+                         dtype=np.int64)[::-1]
     after = _shift(da.where(after == _NONE, -1, after), -1, False)
-    whole = {a: -1 for a in range(1, targets.ndim)}
-    g = t.rechunk(whole).map_blocks(
-        _slab_block, before.rechunk(whole), after.rechunk(whole), metric, spacing, finish,
-        dtype, targets.shape[0], dtype=dtype)
+    g = t.rechunk(whole).map_blocks(_slab_block, before, after, metric, spacing, finish, dtype,
+                                    targets.shape[0], dtype=dtype)
     return g.rechunk(chunks)
 
 
