@@ -7,8 +7,10 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <thread>
+#include <type_traits>
 
 #include "common.hpp"
 #include "passes.hpp"
@@ -164,7 +166,8 @@ py::array axis0_distances_of(const py::object& input, const py::object& before,
 // The separable transform of a part of a slab from its first pass's distances along axis 0
 // (axis0_distances' output, whole planes): the partials after the passes along every axis.
 py::array_t<double> slab_passes_of(const py::array& dist, const std::string& metric,
-                                   const std::vector<double>& spacing, const py::object& into) {
+                                   const std::vector<double>& spacing, const py::object& into,
+                                   const py::object& field) {
     const Metric m = parse_metric(metric);
     const Shape3 s = shape3(dist, "the distances");
     if (spacing.size() != static_cast<std::size_t>(dist.ndim())) {
@@ -187,6 +190,18 @@ py::array_t<double> slab_passes_of(const py::array& dist, const std::string& met
         }
         out = into.cast<py::array_t<double>>();
     }
+    const bool f32 = py::isinstance<py::array_t<float>>(field);
+    if (!field.is_none()) {
+        const py::array f = field;
+        if ((!f32 && !py::isinstance<py::array_t<double>>(field)) ||
+            !(f.flags() & py::array::c_style) || !f.writeable() ||
+            std::vector<py::ssize_t>(f.shape(), f.shape() + f.ndim()) != shape) {
+            throw py::value_error(
+                "field must be a writable C-contiguous float32 or float64 array of shape " +
+                shape_text(dist));
+        }
+    }
+    void* const field_out = field.is_none() ? nullptr : py::array(field).mutable_data();
     const std::span<double> g(out.mutable_data(), n);
     const auto first = [&](auto none) {
         using T = decltype(none);
@@ -207,6 +222,18 @@ py::array_t<double> slab_passes_of(const py::array& dist, const std::string& met
     for (int axis = 1; axis < static_cast<int>(dist.ndim()); ++axis) {
         voxfield::python::separable_pass(
             m, s, axis + offset, spacing[static_cast<std::size_t>(axis)], {}, g, g, {}, {}, 1);
+    }
+    // The field as the kernels store a float format: L2 the square root, rounded once.
+    const auto store = [&](auto* f) {
+        using T = std::remove_pointer_t<decltype(f)>;
+        for (std::size_t i = 0; i < n; ++i) {
+            f[i] = static_cast<T>(m == Metric::euclidean ? std::sqrt(g[i]) : g[i]);
+        }
+    };
+    if (field_out != nullptr && f32) {
+        store(static_cast<float*>(field_out));
+    } else if (field_out != nullptr) {
+        store(static_cast<double*>(field_out));
     }
     return out;
 }
@@ -354,12 +381,13 @@ PYBIND11_MODULE(_core, m) {
           "plane 0 is plane z0 of a longer array, as positions in that array (-1: none), "
           "stacked as a (2, ...) int64 array.");
     m.def("slab_passes", &vp::slab_passes_of, py::arg("distances"), py::arg("metric"),
-          py::arg("sampling"), py::arg("out") = py::none(),
-          "slab_passes(distances, metric, sampling, out=None) -> ndarray\n\n"
+          py::arg("sampling"), py::arg("out") = py::none(), py::arg("field") = py::none(),
+          "slab_passes(distances, metric, sampling, out=None, field=None) -> ndarray\n\n"
           "The partial distances (L2: squared), float64, after every pass of the separable "
           "transform of whole planes of a slab, from axis0_distances' output for them: the "
           "first pass's values along axis 0, then a host pass along each other axis; into "
-          "`out` (float64, the distances' shape) when given.");
+          "`out` (float64, the distances' shape) when given; `field` (float32 or float64, that "
+          "shape): also the field there (L2: the square root), rounded once.");
     m.def("host_transform", &vp::transform_on_host, py::arg("input"), py::arg("metric"),
           py::arg("sampling"), py::arg("features"), py::arg("threads") = py::none(),
           "host_transform(input, metric, sampling, features, threads=None) -> (g, features)\n\n"

@@ -190,8 +190,11 @@ def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, blo
     scratch = np.empty((min(step, slab.shape[0]),) + slab.shape[1:])  # filled afresh each time
     for a in range(0, slab.shape[0], step):
         part = d[a:a + step]
-        g = _core.slab_passes(part, metric, spacing, scratch[:len(part)])
-        finish(g, out[a:a + step])
+        if out.dtype.kind == "f" and getattr(finish, "func", None) is _field_of:  # straight in
+            _core.slab_passes(part, metric, spacing, scratch[:len(part)], out[a:a + step])
+        else:
+            finish(_core.slab_passes(part, metric, spacing, scratch[:len(part)]),
+                   out[a:a + step])
     return out
 
 
@@ -384,7 +387,8 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
     if all(v == 1.0 for v in spacing):
         d = _unit_transform(targets, "euclidean", device, np.sqrt, np.float64)
     else:
-        d = _separable(targets, "euclidean", spacing, np.sqrt, np.float64)
+        d = _separable(targets, "euclidean", spacing,
+                       functools.partial(_field_of, metric="euclidean"), np.float64)
     quirk = da.map_blocks(_no_target_edt, targets, spacing, dtype=np.float64)
     return da.where(targets.any(), d, quirk)
 

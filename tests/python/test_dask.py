@@ -278,6 +278,11 @@ def test_axis0_distances_and_slab_passes_equal_brute_force():
             for axis in (1, 2):
                 g = core.separable_pass(g, axis, metric, s[axis], False)
             np.testing.assert_array_equal(out, g, err_msg=f"{metric} {s}")
+            field = np.sqrt(g) if metric == "euclidean" else g
+            for dtype in (np.float32, np.float64):
+                f = np.empty(d.shape, dtype)
+                core.slab_passes(d, metric, s, out, f)
+                np.testing.assert_array_equal(f, field.astype(dtype))
     with pytest.raises(ValueError, match="one position per line"):
         core.axis0_distances(np.ones((2, 3, 4), bool), np.zeros(3), np.zeros(12), 0, 2)
     with pytest.raises(ValueError, match="within"):
@@ -287,5 +292,8 @@ def test_axis0_distances_and_slab_passes_equal_brute_force():
                              np.empty((2, 3), np.uint32))
     with pytest.raises(TypeError, match="uint16 or uint32"):
         core.slab_passes(np.zeros((2, 3), np.int16), "manhattan", [1.0, 1.0])
+    with pytest.raises(ValueError, match="field must be"):
+        core.slab_passes(np.zeros((2, 3), np.uint16), "manhattan", [1.0, 1.0], None,
+                         np.empty((2, 3), np.int32))
     with pytest.raises(ValueError, match="out must be"):
         core.slab_passes(np.zeros((2, 3), np.uint16), "manhattan", [1.0, 1.0], np.empty((3, 2)))
