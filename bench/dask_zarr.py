@@ -11,11 +11,13 @@ Writes the floor + spheres world (bench/worlds.py; N^3 uint8, seeded) to a Zarr 
 the unbounded one (euclidean f32): the wall time of reading the Zarr volume, computing on the
 cluster (--workers single-threaded worker processes, each with $VOXFIELD_DEVICE and
 --memory-limit, past which distributed spills to --dir) and writing the field to Zarr; the
-peak resident memory of each worker (VmHWM, workers restarted between runs); the
-one-piece voxfield.distance_transform of the whole array in this process (wall time, array
-already in memory, its kernels built first on one block); and whether the two are equal, compared slab by slab (one block thick)
-so that the Dask field is never read whole. The JSON also records the device, the date, the
-commit, the load average before and after each run and this process's peak memory.
+peak resident memory of each worker (VmHWM, workers restarted between runs) and the CPU time
+each used; the one-piece voxfield.distance_transform of the whole array in this process (wall
+and CPU time, array already in memory, its kernels built first on one block); and whether
+the two are equal, compared slab by slab (one block thick) so that the Dask field is never
+read whole. --fields picks the runs. The JSON also records the device, the date, the commit,
+the load average before and after each run and this process's peak memory. CPU times say
+what the load average hides: on a shared machine the wall times follow the other work.
 """
 
 import argparse
@@ -56,6 +58,11 @@ def peak_rss_bytes():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
+def cpu_seconds():
+    """CPU time (user + system, all threads) this process has used."""
+    return time.process_time()
+
+
 def rusage_peak_bytes():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
@@ -90,6 +97,8 @@ def main():
     p.add_argument("--memory-limit", default="2GiB",
                    help="each worker's memory_limit (distributed spills to disk past 60%%)")
     p.add_argument("--dir", default="/tmp/voxfield-dask-bench")
+    p.add_argument("--fields", default="bounded,unbounded",
+                   help="which fields to run, comma-separated (bounded, unbounded)")
     p.add_argument("--json", default="")
     args = p.parse_args()
     n, b = args.size, args.block
@@ -105,7 +114,9 @@ def main():
                                   local_directory=os.path.join(args.dir, "workers"),
                                   dashboard_address=None, silence_logs=40) as cluster, \
             distributed.Client(cluster) as client:
-        for name, bound in (("bounded", args.max_distance), ("unbounded", None)):
+        runs = {"bounded": args.max_distance, "unbounded": None}
+        for name in args.fields.split(","):
+            bound = runs[name]
             client.restart()
             if device:
                 client.run(lambda: os.environ.__setitem__("VOXFIELD_DEVICE", device))
@@ -117,24 +128,27 @@ def main():
             da.to_zarr(field, out, overwrite=True)
             wall = time.perf_counter() - t
             peaks = list(client.run(peak_rss_bytes).values())
+            worker_cpu = list(client.run(cpu_seconds).values())
             rusage_peaks = list(client.run(rusage_peak_bytes).values())
             load_between = load()
             # Kernels built before the clock starts (PoCL builds a kernel per process).
             voxfield.distance_transform(world[:b, :b, :b], metric="euclidean",
                                         max_distance=bound)
-            t = time.perf_counter()
+            t, cpu = time.perf_counter(), time.process_time()
             one = voxfield.distance_transform(world, metric="euclidean", max_distance=bound)
-            one_wall = time.perf_counter() - t
+            one_wall, one_cpu = time.perf_counter() - t, time.process_time() - cpu
             equal = equal_by_slabs(out, one, b)
             rows.append({"field": name, "max_distance": bound, "dask_wall_s": wall,
                          "one_piece_wall_s": one_wall, "ratio": wall / one_wall,
+                         "worker_cpu_s": worker_cpu, "one_piece_cpu_s": one_cpu,
                          "worker_peak_rss_bytes": peaks,
                          "worker_ru_maxrss_bytes": rusage_peaks, "equal": equal,
                          "load_average_before": load_before,
                          "load_average_between": load_between,
                          "load_average_after": load()})
             print(f"{name:9s} dask {wall:7.2f} s  one piece {one_wall:6.2f} s  "
-                  f"x{wall / one_wall:.2f}  worker peaks "
+                  f"x{wall / one_wall:.2f}  cpu {[round(c, 1) for c in worker_cpu]} / "
+                  f"{one_cpu:.1f} s  worker peaks "
                   f"{[round(x / 2**30, 2) for x in peaks]} GiB  equal {equal}  "
                   f"load {load_before} -> {load()}", flush=True)
             del one

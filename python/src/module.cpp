@@ -7,7 +7,10 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <thread>
+#include <type_traits>
 
 #include "common.hpp"
 #include "passes.hpp"
@@ -72,6 +75,165 @@ py::array_t<double> pass_of(const py::object& input, int axis, const std::string
             first ? std::span<const std::uint8_t>(targets, n) : std::span<const std::uint8_t>(),
             first ? std::span<const double>() : std::span<const double>(g_in, n), {g_out, n}, {},
             {}, t);
+    }
+    return out;
+}
+
+// A C-contiguous bool/uint8 view of targets (nonzero = target) of 1 to 3 axes, seen as
+// axis 0 and the lines along it.
+py::array slab_targets(const py::object& input, Shape3& s) {
+    const py::module_ np = py::module_::import("numpy");
+    py::array a = np.attr("ascontiguousarray")(input);
+    const char kind = a.dtype().kind();
+    if (a.dtype().itemsize() != 1 || (kind != 'b' && kind != 'u')) {
+        a = np.attr("ascontiguousarray")(np.attr("not_equal")(a, 0));  // bool/uint8 in place
+    }
+    shape3(a, "the slab");  // 1 to 3 axes
+    s = Shape3{};
+    s.n[0] = static_cast<std::size_t>(a.shape(0));
+    for (py::ssize_t i = 1; i < a.ndim(); ++i) {
+        s.n[1] *= static_cast<std::size_t>(a.shape(i));
+    }
+    return a;
+}
+
+// The first and last target along axis 0 of every line of a block (see passes.hpp), stacked
+// as a (2, ...) int64 array.
+py::array_t<std::int64_t> axis0_ends_of(const py::object& input, std::int64_t z0) {
+    Shape3 s;
+    const py::array a = slab_targets(input, s);
+    std::vector<py::ssize_t> shape{2};
+    shape.insert(shape.end(), a.shape() + 1, a.shape() + a.ndim());
+    py::array_t<std::int64_t> out(shape);
+    const std::size_t lines = s.n[1];
+    const std::span<const std::uint8_t> t(static_cast<const std::uint8_t*>(a.data()), s.count());
+    std::int64_t* o = out.mutable_data();
+    {
+        py::gil_scoped_release release;
+        voxfield::python::axis0_ends(s, z0, t, {o, lines}, {o + lines, lines});
+    }
+    return out;
+}
+
+// The first pass's distances along axis 0 of a slab of a longer array (see passes.hpp):
+// uint16 where every distance of an array of `length` along axis 0 fits below 65535, else
+// uint32; the type's largest value where a line has no target.
+py::array axis0_distances_of(const py::object& input, const py::object& before,
+                             const py::object& after, std::int64_t z0, std::int64_t length,
+                             const py::object& into) {
+    Shape3 s;
+    const py::array a = slab_targets(input, s);
+    const py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> b(before), e(after);
+    const std::size_t lines = s.n[1] * s.n[2];
+    if (static_cast<std::size_t>(b.size()) != lines ||
+        static_cast<std::size_t>(e.size()) != lines) {
+        throw py::value_error("before and after must hold one position per line of the slab");
+    }
+    if (z0 < 0 || length < z0 + static_cast<std::int64_t>(s.n[0])) {
+        throw py::value_error("the slab must lie within [0, length)");
+    }
+    std::vector<py::ssize_t> shape(a.shape(), a.shape() + a.ndim());
+    const std::size_t n = s.count();
+    const std::span<const std::uint8_t> t(static_cast<const std::uint8_t*>(a.data()), n);
+    const std::span<const std::int64_t> bs(b.data(), lines), es(e.data(), lines);
+    const auto run = [&](auto none) -> py::array {
+        using T = decltype(none);
+        py::array_t<T> out;
+        if (into.is_none()) {
+            out = py::array_t<T>(shape);
+        } else {
+            const py::array o = into;
+            if (!py::isinstance<py::array_t<T>>(into) || !(o.flags() & py::array::c_style) ||
+                !o.writeable() ||
+                std::vector<py::ssize_t>(o.shape(), o.shape() + o.ndim()) != shape) {
+                throw py::value_error(std::string("out must be a writable C-contiguous ") +
+                                      (sizeof(T) == 2 ? "uint16" : "uint32") +
+                                      " array of the slab's shape");
+            }
+            out = into.cast<py::array_t<T>>();
+        }
+        const std::span<T> o(out.mutable_data(), n);
+        py::gil_scoped_release release;
+        voxfield::python::axis0_distances<T>(s, z0, t, bs, es, none, o);
+        return out;
+    };
+    if (length < 65535) {
+        return run(std::numeric_limits<std::uint16_t>::max());
+    }
+    return run(std::numeric_limits<std::uint32_t>::max());
+}
+
+// The separable transform of a part of a slab from its first pass's distances along axis 0
+// (axis0_distances' output, whole planes): the partials after the passes along every axis.
+py::array_t<double> slab_passes_of(const py::array& dist, const std::string& metric,
+                                   const std::vector<double>& spacing, const py::object& into,
+                                   const py::object& field) {
+    const Metric m = parse_metric(metric);
+    const Shape3 s = shape3(dist, "the distances");
+    if (spacing.size() != static_cast<std::size_t>(dist.ndim())) {
+        throw py::value_error("sampling must have one value per axis");
+    }
+    if (!(dist.flags() & py::array::c_style)) {
+        throw py::value_error("the distances must be C-contiguous");
+    }
+    const std::size_t n = s.count();
+    std::vector<py::ssize_t> shape(dist.shape(), dist.shape() + dist.ndim());
+    py::array_t<double> out;
+    if (into.is_none()) {
+        out = py::array_t<double>(shape);
+    } else {
+        const py::array o = into;
+        if (!py::isinstance<py::array_t<double>>(into) || !(o.flags() & py::array::c_style) ||
+            !o.writeable() || std::vector<py::ssize_t>(o.shape(), o.shape() + o.ndim()) != shape) {
+            throw py::value_error("out must be a writable C-contiguous float64 array of shape " +
+                                  shape_text(dist));
+        }
+        out = into.cast<py::array_t<double>>();
+    }
+    const bool f32 = py::isinstance<py::array_t<float>>(field);
+    if (!field.is_none()) {
+        const py::array f = field;
+        if ((!f32 && !py::isinstance<py::array_t<double>>(field)) ||
+            !(f.flags() & py::array::c_style) || !f.writeable() ||
+            std::vector<py::ssize_t>(f.shape(), f.shape() + f.ndim()) != shape) {
+            throw py::value_error(
+                "field must be a writable C-contiguous float32 or float64 array of shape " +
+                shape_text(dist));
+        }
+    }
+    void* const field_out = field.is_none() ? nullptr : py::array(field).mutable_data();
+    const std::span<double> g(out.mutable_data(), n);
+    const auto first = [&](auto none) {
+        using T = decltype(none);
+        const std::span<const T> d(static_cast<const T*>(dist.data()), n);
+        voxfield::python::first_pass_values<T>(m, spacing[0], d, none, g);
+    };
+    const bool u16 = py::isinstance<py::array_t<std::uint16_t>>(dist);
+    if (!u16 && !py::isinstance<py::array_t<std::uint32_t>>(dist)) {
+        throw py::type_error("the distances must be uint16 or uint32 (axis0_distances)");
+    }
+    py::gil_scoped_release release;
+    if (u16) {
+        first(std::numeric_limits<std::uint16_t>::max());
+    } else {
+        first(std::numeric_limits<std::uint32_t>::max());
+    }
+    const int offset = 3 - static_cast<int>(dist.ndim());
+    for (int axis = 1; axis < static_cast<int>(dist.ndim()); ++axis) {
+        voxfield::python::separable_pass(
+            m, s, axis + offset, spacing[static_cast<std::size_t>(axis)], {}, g, g, {}, {}, 1);
+    }
+    // The field as the kernels store a float format: L2 the square root, rounded once.
+    const auto store = [&](auto* f) {
+        using T = std::remove_pointer_t<decltype(f)>;
+        for (std::size_t i = 0; i < n; ++i) {
+            f[i] = static_cast<T>(m == Metric::euclidean ? std::sqrt(g[i]) : g[i]);
+        }
+    };
+    if (field_out != nullptr && f32) {
+        store(static_cast<float*>(field_out));
+    } else if (field_out != nullptr) {
+        store(static_cast<double*>(field_out));
     }
     return out;
 }
@@ -205,6 +367,27 @@ PYBIND11_MODULE(_core, m) {
           "One 1-D pass of the separable transform along `axis` of a 1- to 3-D array, on the "
           "host in float64: from targets (nonzero = target) when `first`, else from the "
           "previous pass's partial distances (L2: squared).");
+    m.def("axis0_distances", &vp::axis0_distances_of, py::arg("targets"), py::arg("before"),
+          py::arg("after"), py::arg("z0"), py::arg("length"), py::arg("out") = py::none(),
+          "axis0_distances(targets, before, after, z0, length, out=None) -> ndarray\n\n"
+          "The distance along axis 0, in voxels, from every element of a slab [z0, z0 + n) of "
+          "an array of `length` along axis 0 to the nearest target (nonzero) on its line, given "
+          "per line the nearest target's position before the slab and after it (negative: "
+          "none): uint16 where length < 65535, else uint32, the type's largest value where "
+          "the line has none; into `out` (that type, the slab's shape) when given.");
+    m.def("axis0_ends", &vp::axis0_ends_of, py::arg("targets"), py::arg("z0"),
+          "axis0_ends(targets, z0) -> ndarray\n\n"
+          "The first and the last target (nonzero) along axis 0 of every line of a block whose "
+          "plane 0 is plane z0 of a longer array, as positions in that array (-1: none), "
+          "stacked as a (2, ...) int64 array.");
+    m.def("slab_passes", &vp::slab_passes_of, py::arg("distances"), py::arg("metric"),
+          py::arg("sampling"), py::arg("out") = py::none(), py::arg("field") = py::none(),
+          "slab_passes(distances, metric, sampling, out=None, field=None) -> ndarray\n\n"
+          "The partial distances (L2: squared), float64, after every pass of the separable "
+          "transform of whole planes of a slab, from axis0_distances' output for them: the "
+          "first pass's values along axis 0, then a host pass along each other axis; into "
+          "`out` (float64, the distances' shape) when given; `field` (float32 or float64, that "
+          "shape): also the field there (L2: the square root), rounded once.");
     m.def("host_transform", &vp::transform_on_host, py::arg("input"), py::arg("metric"),
           py::arg("sampling"), py::arg("features"), py::arg("threads") = py::none(),
           "host_transform(input, metric, sampling, features, threads=None) -> (g, features)\n\n"

@@ -331,4 +331,97 @@ void separable_pass(Metric metric, Shape3 shape, int axis, double spacing,
     }
 }
 
+template <typename T>
+void axis0_distances(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t> targets,
+                     std::span<const std::int64_t> before, std::span<const std::int64_t> after,
+                     T none, std::span<T> out) {
+    const std::size_t planes = shape.n[0], lines = shape.n[1] * shape.n[2];
+    if (targets.size() != planes * lines || out.size() != targets.size() ||
+        before.size() != lines || after.size() != lines) {
+        throw std::invalid_argument("axis0_distances: array sizes do not match the shape");
+    }
+    // Forward: the last target at or before each plane; backward: the next one at or after,
+    // each line's position kept per line so that every sweep reads and writes whole planes.
+    std::vector<std::int64_t> at(before.begin(), before.end());
+    for (std::size_t p = 0; p < planes; ++p) {
+        const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+        const std::uint8_t* t = targets.data() + p * lines;
+        T* o = out.data() + p * lines;
+        for (std::size_t q = 0; q < lines; ++q) {
+            if (t[q] != 0) {
+                at[q] = z;
+            }
+            o[q] = at[q] < 0 ? none : static_cast<T>(z - at[q]);
+        }
+    }
+    std::copy(after.begin(), after.end(), at.begin());
+    for (std::size_t p = planes; p-- > 0;) {
+        const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+        const std::uint8_t* t = targets.data() + p * lines;
+        T* o = out.data() + p * lines;
+        for (std::size_t q = 0; q < lines; ++q) {
+            if (t[q] != 0) {
+                at[q] = z;
+            }
+            if (at[q] >= 0) {
+                o[q] = std::min(o[q], static_cast<T>(at[q] - z));
+            }
+        }
+    }
+}
+
+void axis0_ends(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t> targets,
+                std::span<std::int64_t> first, std::span<std::int64_t> last) {
+    const std::size_t planes = shape.n[0], lines = shape.n[1] * shape.n[2];
+    if (targets.size() != planes * lines || first.size() != lines || last.size() != lines) {
+        throw std::invalid_argument("axis0_ends: array sizes do not match the shape");
+    }
+    std::fill(first.begin(), first.end(), -1);
+    std::fill(last.begin(), last.end(), -1);
+    for (std::size_t p = 0; p < planes; ++p) {
+        const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+        const std::uint8_t* t = targets.data() + p * lines;
+        for (std::size_t q = 0; q < lines; ++q) {
+            if (t[q] != 0) {
+                last[q] = z;
+            }
+        }
+    }
+    for (std::size_t p = planes; p-- > 0;) {
+        const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+        const std::uint8_t* t = targets.data() + p * lines;
+        for (std::size_t q = 0; q < lines; ++q) {
+            if (t[q] != 0) {
+                first[q] = z;
+            }
+        }
+    }
+}
+
+template <typename T>
+void first_pass_values(Metric metric, double spacing, std::span<const T> d, T none,
+                       std::span<double> g) {
+    if (g.size() != d.size()) {
+        throw std::invalid_argument("first_pass_values: array sizes do not match");
+    }
+    const bool squared = metric == Metric::euclidean;
+    for (std::size_t i = 0; i < d.size(); ++i) {
+        const double o = spacing * static_cast<double>(d[i]);
+        g[i] = d[i] == none ? kInf : (squared ? o * o : o);
+    }
+}
+
+template void first_pass_values<std::uint16_t>(Metric, double, std::span<const std::uint16_t>,
+                                               std::uint16_t, std::span<double>);
+template void first_pass_values<std::uint32_t>(Metric, double, std::span<const std::uint32_t>,
+                                               std::uint32_t, std::span<double>);
+template void axis0_distances<std::uint16_t>(Shape3, std::int64_t, std::span<const std::uint8_t>,
+                                             std::span<const std::int64_t>,
+                                             std::span<const std::int64_t>, std::uint16_t,
+                                             std::span<std::uint16_t>);
+template void axis0_distances<std::uint32_t>(Shape3, std::int64_t, std::span<const std::uint8_t>,
+                                             std::span<const std::int64_t>,
+                                             std::span<const std::int64_t>, std::uint32_t,
+                                             std::span<std::uint32_t>);
+
 }  // namespace voxfield::python

@@ -36,4 +36,27 @@ void separable_pass(Metric metric, Shape3 shape, int axis, double spacing,
                     std::span<double> g_out, std::span<const std::int64_t> feat_in,
                     std::span<std::int64_t> feat_out, unsigned threads);
 
+// The first pass's distances along axis 0, in voxels, of a slab [z0, z0 + shape.n[0]) of a
+// longer array (voxfield.dask's unbounded scheme): for every voxel the distance to the nearest
+// target on its line, from the slab's `targets` (nonzero = target) and, per line of the slab
+// (shape.n[1] * shape.n[2] of them, in order), the global position of the nearest target
+// before the slab (`before`, negative: none) and after it (`after`, negative: none). `out`
+// gets the distance, or `none` (which must exceed every distance) where the line has no target.
+template <typename T>
+void axis0_distances(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t> targets,
+                     std::span<const std::int64_t> before, std::span<const std::int64_t> after,
+                     T none, std::span<T> out);
+
+// The first and the last target (nonzero) along axis 0 of every line of a block of
+// shape.n[0] planes of shape.n[1] * shape.n[2] lines, as global positions z0 + plane; -1
+// where a line has none.
+void axis0_ends(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t> targets,
+                std::span<std::int64_t> first, std::span<std::int64_t> last);
+
+// The first pass's partial distances from those distances in voxels along its axis (`none`:
+// no target, +inf): L2 (spacing d)^2, L1 and L-inf spacing d, as separable_pass computes them.
+template <typename T>
+void first_pass_values(Metric metric, double spacing, std::span<const T> d, T none,
+                       std::span<double> g);
+
 }  // namespace voxfield::python

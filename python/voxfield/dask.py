@@ -12,13 +12,17 @@ Three exact schemes:
   merges blocks smaller than the halo first). A voxel's value depends only on the solids
   within D, which the halo holds, and everything beyond D saturates at D.
 * Unbounded ``distance_transform`` (and ``distance_transform_edt`` with non-unit sampling):
-  the separable transform on the host, one axis at a time. The volume is rechunked so that
-  each block spans whole lines of the axis, and the 1-D pass of the compiled core
-  (``voxfield._core.separable_pass``, float64) runs on every block; after the passes along
-  axes 0, 1 and 2 every voxel holds its exact distance (L2: squared, then one square root).
-  Between passes the partial distances are float32 where they are integers below 2**24
-  (unit sampling), else float64. Each rechunk between two passes keeps one axis's chunks,
-  so it moves data within slabs of the volume only.
+  the separable transform on the host in slabs along axis 0 (blocks spanning every other
+  axis, split where one would pass 2**27 elements). Along axis 0 the first pass of a line
+  needs only the nearest target before and after each slab, so every block first gives the
+  first and last target of each of its lines (from a clone of the input's graph: the input is
+  read twice, and nothing waits in memory for the slabs), a cumulative maximum / minimum over
+  the blocks carries them along axis 0, and each slab then computes its first pass
+  (``voxfield._core.axis0_distances``) and the passes along the other axes, a few planes at a
+  time (``voxfield._core.slab_passes``, float64), and writes the format. No partial distance
+  moves between workers; the slabs are split back into the input's chunks. With unit sampling
+  every partial is an exact integer; the passes run along axes 0, 1, 2 in turn, so sampled
+  sums are SciPy's.
 * ``distance_transform_edt`` (unit sampling) and ``distance_transform_cdt``: the device
   transforms every slice along axis 0 alone (a plane of a 3-D input, a row of a 2-D input; a
   1-D input whole), in blocks that span the slices whole; then one host pass along axis 0
@@ -40,6 +44,8 @@ import math
 
 import dask.array as da
 import numpy as np
+from dask.array.reductions import cumreduction
+from dask.graph_manipulation import clone
 
 from voxfield import _core
 
@@ -114,13 +120,20 @@ def _slices_on_device(block, metric, device, dtype):
     return out
 
 
-def _pass_and_finish(block, metric, finish):
+def _finished(g, finish, dtype):
+    out = np.empty(g.shape, dtype)
+    finish(g, out)
+    return out
+
+
+def _pass_and_finish(block, metric, finish, dtype):
     """The host pass along axis 0 from partial distances, then `finish` of the result."""
-    return finish(_core.separable_pass(block, 0, metric, 1.0, False, 1))
+    return _finished(_core.separable_pass(block, 0, metric, 1.0, False, 1), finish, dtype)
 
 
-def _finish_slices(block, metric, device, dtype, finish):
-    return finish(_slices_on_device(block, metric, device, dtype).astype(np.float64))
+def _finish_slices(block, metric, device, partial, finish, dtype):
+    g = _slices_on_device(block, metric, device, partial).astype(np.float64)
+    return _finished(g, finish, dtype)
 
 
 def _unit_transform(targets, metric, device, finish, dtype):
@@ -132,7 +145,7 @@ def _unit_transform(targets, metric, device, finish, dtype):
     if targets.ndim == 1:
         partial = _exact_partial_dtype(metric, targets.shape)
         whole = targets.rechunk(-1)
-        return whole.map_blocks(_finish_slices, metric, device, partial, finish,
+        return whole.map_blocks(_finish_slices, metric, device, partial, finish, dtype,
                                 dtype=dtype).rechunk(chunks)
     partial = _exact_partial_dtype(metric, targets.shape[1:])
     slice_elements = math.prod(targets.shape[1:])
@@ -140,41 +153,99 @@ def _unit_transform(targets, metric, device, finish, dtype):
     g = targets.rechunk({a: (depth if a == 0 else -1) for a in range(targets.ndim)})
     g = g.map_blocks(_slices_on_device, metric, device, partial, dtype=partial)
     g = g.rechunk({a: (-1 if a == 0 else chunks[a]) for a in range(targets.ndim)})
-    g = g.map_blocks(_pass_and_finish, metric, finish, dtype=dtype)
+    g = g.map_blocks(_pass_and_finish, metric, finish, dtype, dtype=dtype)
     return g.rechunk(chunks)
 
 
-def _pass_block(block, axis, metric, spacing, first, partial, finish):
-    """One host pass along `axis`; its result in `partial`, or `finish` of it (last pass)."""
-    g = _core.separable_pass(block, axis, metric, spacing, first, 1)
-    return finish(g) if finish is not None else g.astype(partial, copy=False)
+# A slab of the unbounded scheme holds at most this many elements (unless one plane is
+# larger); its passes after the first run on this many elements at a time (float64).
+_SLAB_ELEMENTS = 1 << 27
+_PASS_ELEMENTS = 1 << 21
+_NONE = np.iinfo(np.int64).max  # "no target" in the cumulative minimum of first targets
+
+
+def _line_ends(block, block_info=None):
+    """Per line along axis 0 of a block of targets (bool): the global positions of its first
+    and last target (-1: none), stacked as a (2, ...) int64 block."""
+    return _core.axis0_ends(block, block_info[0]["array-location"][0][0])
+
+
+def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, block_info=None):
+    """`finish` of the distances (L2: squared) of a slab spanning every axis but axis 0: the
+    first pass along axis 0 from the slab's targets and the nearest targets before and after
+    it on every line (`before`, `after`: one block along axis 0, -1: none), then the host
+    passes along the other axes, a few planes at a time."""
+    z0 = block_info[0]["array-location"][0][0]
+    out = np.empty(slab.shape, dtype)
+    # The first pass's distances live in the tail of `out` where they fit: the planes written
+    # so far end before the distances of the planes still to read begin.
+    d_dtype = np.dtype(np.uint16 if length < 65535 else np.uint32)
+    tail = None
+    if out.itemsize >= d_dtype.itemsize and out.itemsize % d_dtype.itemsize == 0:
+        tail = out.reshape(-1).view(np.uint8)[out.nbytes - d_dtype.itemsize * out.size:]
+        tail = tail.view(d_dtype).reshape(slab.shape)
+    d = _core.axis0_distances(slab, before[0], after[0], z0, length, tail)
+    plane = max(1, math.prod(slab.shape[1:]))
+    step = max(1, _PASS_ELEMENTS // plane)
+    scratch = np.empty((min(step, slab.shape[0]),) + slab.shape[1:])  # filled afresh each time
+    for a in range(0, slab.shape[0], step):
+        part = d[a:a + step]
+        if out.dtype.kind == "f" and getattr(finish, "func", None) is _field_of:  # straight in
+            _core.slab_passes(part, metric, spacing, scratch[:len(part)], out[a:a + step])
+        else:
+            finish(_core.slab_passes(part, metric, spacing, scratch[:len(part)]),
+                   out[a:a + step])
+    return out
+
+
+def _shift(x, fill, forward):
+    """x (one element per block along axis 0) moved one element along axis 0, `fill`
+    entering at the front (forward) or the back."""
+    edge = da.full((1,) + x.shape[1:], fill, dtype=x.dtype, chunks=((1,),) + x.chunks[1:])
+    if x.shape[0] == 1:
+        return edge
+    return da.concatenate([edge, x[:-1]] if forward else [x[1:], edge], axis=0)
 
 
 def _separable(targets, metric, spacing, finish, dtype):
-    """Lazy `finish` of the distances (L2: squared) of a dask array of targets (nonzero =
-    target), chunked as `targets` and of `dtype`: one host pass per axis on a rechunk whose
-    blocks span that axis. Partials between passes in float32 where they are integers below
-    2**24 (unit sampling), else float64."""
+    """Lazy `finish` of the distances (L2: squared) of a dask array of targets (bool),
+    chunked as `targets` and of `dtype`, by slabs along axis 0 (the module docstring's second
+    scheme): each slab's first pass needs, per line, only the nearest targets before and after
+    it, which a cumulative maximum / minimum of the blocks' first and last targets gives."""
     chunks = targets.chunks
-    unit = all(v == 1.0 for v in spacing)
-    partial = _exact_partial_dtype(metric, targets.shape) if unit else np.dtype(np.float64)
-    g = targets
-    for axis in range(targets.ndim):
-        last = axis == targets.ndim - 1
-        g = g.rechunk({a: (-1 if a == axis else chunks[a]) for a in range(targets.ndim)})
-        g = g.map_blocks(_pass_block, axis, metric, spacing[axis], axis == 0, partial,
-                         finish if last else None, dtype=dtype if last else partial)
+    if targets.dtype != bool:
+        targets = targets != 0
+    if targets.size == 0:
+        return da.zeros(targets.shape, dtype, chunks=chunks)
+    plane = max(1, math.prod(targets.shape[1:]))
+    depth = max(1, _SLAB_ELEMENTS // plane)
+    slab_chunks = tuple(p for c in chunks[0] for p in [depth] * (c // depth) + [c % depth] if p)
+    t = targets.rechunk({0: slab_chunks})
+    # The ends come from a clone of the input's graph (read twice), so that no worker holds
+    # the input blocks from the ends' computation until the slabs' turn comes; merged to one
+    # block per slab at once, so that the scans below take a few tasks per slab.
+    whole = {a: -1 for a in range(1, targets.ndim)}
+    ends = clone(t).map_blocks(_line_ends, dtype=np.int64,
+                               chunks=((2,) * len(slab_chunks),) + t.chunks[1:]).rechunk(whole)
+    first, last = ends[0::2], ends[1::2]
+    before = cumreduction(np.maximum.accumulate, np.maximum, -1, last, axis=0, dtype=np.int64)
+    before = _shift(before, -1, True)
+    first = da.where(first < 0, _NONE, first)
+    after = cumreduction(np.minimum.accumulate, np.minimum, _NONE, first[::-1], axis=0,
+                         dtype=np.int64)[::-1]
+    after = _shift(da.where(after == _NONE, -1, after), -1, False)
+    g = t.rechunk(whole).map_blocks(_slab_block, before, after, metric, spacing, finish, dtype,
+                                    targets.shape[0], dtype=dtype)
     return g.rechunk(chunks)
 
 
-def _to_format(d, fmt):
-    """A float64 distance block in a field format, as the kernels store it: unsigned integers
-    rounded down and saturated, signed toward zero, floats rounded to nearest."""
-    dtype = np.dtype(_FORMAT_DTYPES[fmt])
-    if dtype.kind == "f":
-        return d.astype(dtype)
-    top = float(np.iinfo(dtype).max)
-    return np.where(d >= top, top, np.floor(d)).astype(dtype)
+def _store(d, out):
+    """A float64 block of distances (>= 0; overwritten) into `out` in a field format, as the
+    kernels store it: integers rounded down and saturated, floats rounded to nearest."""
+    if out.dtype.kind != "f":
+        np.floor(d, out=d)
+        np.minimum(d, float(np.iinfo(out.dtype).max), out=d)
+    out[...] = d
 
 
 def _default_format(metric, spacing, signed):
@@ -251,13 +322,16 @@ def distance_transform(world, metric="manhattan", signed=False, sampling=None,
     if fmt == "packed32":
         raise ValueError("format='packed32' on a dask array needs max_distance (the palette "
                          "colour is written by the device)")
-    return _separable(w, metric, spacing, functools.partial(_field_of, metric=metric, fmt=fmt),
+    return _separable(w, metric, spacing, functools.partial(_field_of, metric=metric),
                       dtype)
 
 
-def _field_of(g, metric, fmt):
-    """The field in format `fmt` of partial distances after every pass (L2: squared)."""
-    return _to_format(np.sqrt(g) if metric == "euclidean" else g, fmt)
+def _field_of(g, out, metric):
+    """The field (into `out`, in its format) of partial distances after every pass (L2:
+    squared; `g` is overwritten)."""
+    if metric == "euclidean":
+        np.sqrt(g, out=g)
+    _store(g, out)
 
 
 def _no_target_edt(block, spacing, block_info=None):
@@ -313,7 +387,8 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
     if all(v == 1.0 for v in spacing):
         d = _unit_transform(targets, "euclidean", device, np.sqrt, np.float64)
     else:
-        d = _separable(targets, "euclidean", spacing, np.sqrt, np.float64)
+        d = _separable(targets, "euclidean", spacing,
+                       functools.partial(_field_of, metric="euclidean"), np.float64)
     quirk = da.map_blocks(_no_target_edt, targets, spacing, dtype=np.float64)
     return da.where(targets.any(), d, quirk)
 
@@ -352,6 +427,7 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
     return _unit_transform(a == 0, m, device, _cdt_of, np.int32)
 
 
-def _cdt_of(g):
-    """int32 distances; +inf only where the input has no zero at all: -1 there, as SciPy."""
-    return np.where(np.isinf(g), -1.0, g).astype(np.int32)
+def _cdt_of(g, out):
+    """int32 distances (into `out`); +inf only where the input has no zero at all: -1 there,
+    as SciPy."""
+    out[...] = np.where(np.isinf(g), -1.0, g)

@@ -176,3 +176,124 @@ def test_local_cluster_with_two_workers():
     np.testing.assert_array_equal(got_e, ndimage.distance_transform_edt(w == 0))
     np.testing.assert_array_equal(got_d, got_e)
     np.testing.assert_array_equal(got_c, ndimage.distance_transform_cdt(w == 0))
+
+
+@pytest.mark.parametrize("chunks", [(1, 19, 29), (5, 4, 29), (23, 1, 7)])
+def test_unbounded_slabs_across_many_blocks(chunks, monkeypatch):
+    # Slabs one to a few planes thick (the cap split below a block's depth), the passes a
+    # plane or two at a time with a shorter last group, and targets far away along axis 0:
+    # the nearest target before / after each slab comes from slabs several blocks away.
+    monkeypatch.setattr(vd, "_SLAB_ELEMENTS", 19 * 29 * 3)
+    monkeypatch.setattr(vd, "_PASS_ELEMENTS", 19 * 29 * 2)
+    rng = np.random.default_rng(11)
+    for case in range(4):
+        w = np.zeros(SHAPE, np.uint8)
+        if case == 0:
+            w[rng.integers(0, 2), rng.integers(0, 19), rng.integers(0, 29)] = 1
+        elif case == 1:
+            w[[0, 22], 3, 4] = 1
+            w[11, :, 7] = 2
+        elif case == 2:
+            w[rng.random(SHAPE) < 0.002] = 9
+        # case 3: no solid at all
+        dw = da.from_array(w, chunks=chunks)
+        for metric in ("manhattan", "chebyshev", "euclidean"):
+            for fmt in (None, "u8"):
+                got = threaded(vd.distance_transform(dw, metric=metric, format=fmt))
+                want = voxfield.distance_transform(w, metric=metric, format=fmt)
+                np.testing.assert_array_equal(got, want, err_msg=f"{case} {metric} {fmt}")
+
+
+def test_unbounded_with_sampling_equals_the_host_transform():
+    # With non-unit sampling the one-piece device field carries float32 partials; the Dask
+    # field is the float64 separable transform (passes along axes 0, 1, 2) rounded once.
+    w = world(0.01, 12)
+    for chunks in ((7, 5, 11), (23, 19, 29)):
+        dw = da.from_array(w, chunks=chunks)
+        for sampling in ((1.5, 0.7, 2.0), 0.3):
+            s = [float(v) for v in np.broadcast_to(sampling, 3)]
+            for metric in ("manhattan", "chebyshev", "euclidean"):
+                g, _ = voxfield._core.host_transform(w, metric, s, False)
+                want = np.sqrt(g) if metric == "euclidean" else g
+                got = threaded(vd.distance_transform(dw, metric=metric, sampling=sampling,
+                                                     format="f64"))
+                np.testing.assert_array_equal(got, want, err_msg=f"{metric} {sampling}")
+                got32 = threaded(vd.distance_transform(dw, metric=metric, sampling=sampling))
+                np.testing.assert_array_equal(got32, want.astype(np.float32))
+
+
+def test_edt_with_sampling_in_one_two_and_three_dimensions():
+    rng = np.random.default_rng(13)
+    for shape, chunks, sampling in (((37,), (5,), 0.7), ((37,), (37,), 2.5),
+                                    ((17, 23), (4, 23), (1.5, 0.4)),
+                                    ((17, 23), (17, 5), (0.9, 3.0)),
+                                    ((9, 11, 13), (2, 4, 13), (2.0, 1.0, 0.5)),
+                                    ((0, 5), (1, 5), 2.0), ((4, 0, 3), (1, 1, 1), 0.5)):
+        a = rng.random(shape) < 0.9
+        if a.size:
+            a.flat[rng.integers(0, a.size)] = 0
+        got = threaded(vd.distance_transform_edt(da.from_array(a, chunks=chunks),
+                                                 sampling=sampling))
+        np.testing.assert_array_equal(got, ndimage.distance_transform_edt(a, sampling=sampling),
+                                      err_msg=f"{shape} {chunks} {sampling}")
+
+
+def test_axis0_distances_and_slab_passes_equal_brute_force():
+    rng = np.random.default_rng(14)
+    core = voxfield._core
+    for trial in range(60):
+        n0, n1, n2 = (int(v) for v in rng.integers(1, 9, size=3))
+        length = int(rng.integers(n0, n0 + 20))
+        z0 = int(rng.integers(0, length - n0 + 1))
+        full = rng.random((length, n1, n2)) < rng.choice([0.0, 0.05, 0.3])
+        slab = full[z0:z0 + n0]
+        pos = np.arange(length)[:, None, None]
+        big = np.iinfo(np.int64).max
+        before = np.max(np.where(full[:z0], pos[:z0], -1), axis=0, initial=-1)
+        after = np.min(np.where(full[z0 + n0:], pos[z0 + n0:], big), axis=0, initial=big)
+        after = np.where(after == big, -1, after)
+        d = core.axis0_distances(slab.astype(np.uint8) * 3, before, after, z0,
+                                 length if trial % 2 else 70000)
+        assert d.dtype == (np.uint16 if trial % 2 else np.uint32)
+        gap = np.abs(pos[:, None] - np.arange(z0, z0 + n0)[None, :, None, None])
+        nearest = np.min(np.where(full[:, None], gap, big), axis=0)
+        none = np.iinfo(d.dtype).max
+        np.testing.assert_array_equal(d, np.where(nearest == big, none, nearest))
+        into = np.full(slab.shape, 7, d.dtype)
+        core.axis0_distances(slab, before, after, z0, length if trial % 2 else 70000, into)
+        np.testing.assert_array_equal(into, d)
+        ends = core.axis0_ends(slab, z0)
+        has = slab.any(axis=0)
+        zs = np.arange(z0, z0 + n0)[:, None, None]
+        first = np.min(np.where(slab, zs, big), axis=0)
+        np.testing.assert_array_equal(ends[0], np.where(has, first, -1))
+        np.testing.assert_array_equal(ends[1], np.max(np.where(slab, zs, -1), axis=0))
+        s = [float(v) for v in rng.uniform(0.3, 3.0, size=3)] if trial % 3 else [1.0] * 3
+        for metric in ("manhattan", "chebyshev", "euclidean"):
+            out = np.empty(d.shape)
+            got = core.slab_passes(d, metric, s, out)
+            assert got is not None and np.shares_memory(got, out)
+            g0 = s[0] * d.astype(np.float64)
+            g = np.where(d == none, np.inf, g0 * g0 if metric == "euclidean" else g0)
+            for axis in (1, 2):
+                g = core.separable_pass(g, axis, metric, s[axis], False)
+            np.testing.assert_array_equal(out, g, err_msg=f"{metric} {s}")
+            field = np.sqrt(g) if metric == "euclidean" else g
+            for dtype in (np.float32, np.float64):
+                f = np.empty(d.shape, dtype)
+                core.slab_passes(d, metric, s, out, f)
+                np.testing.assert_array_equal(f, field.astype(dtype))
+    with pytest.raises(ValueError, match="one position per line"):
+        core.axis0_distances(np.ones((2, 3, 4), bool), np.zeros(3), np.zeros(12), 0, 2)
+    with pytest.raises(ValueError, match="within"):
+        core.axis0_distances(np.ones((2, 3, 4), bool), np.zeros(12), np.zeros(12), 1, 2)
+    with pytest.raises(ValueError, match="out must be"):
+        core.axis0_distances(np.ones((2, 3), bool), np.zeros(3), np.zeros(3), 0, 2,
+                             np.empty((2, 3), np.uint32))
+    with pytest.raises(TypeError, match="uint16 or uint32"):
+        core.slab_passes(np.zeros((2, 3), np.int16), "manhattan", [1.0, 1.0])
+    with pytest.raises(ValueError, match="field must be"):
+        core.slab_passes(np.zeros((2, 3), np.uint16), "manhattan", [1.0, 1.0], None,
+                         np.empty((2, 3), np.int32))
+    with pytest.raises(ValueError, match="out must be"):
+        core.slab_passes(np.zeros((2, 3), np.uint16), "manhattan", [1.0, 1.0], np.empty((3, 2)))
