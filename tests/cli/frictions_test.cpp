@@ -58,6 +58,22 @@ TEST_F(FrictionsCli, ViewOffersOnlyTheFormatsItRenders) {
     EXPECT_EQ(f.code, 2) << describe(f);
 }
 
+TEST_F(FrictionsCli, RenderAndViewHelpNameEachOthersDefaultShading) {
+    // render draws flat by default (its images are compared pixel for pixel) and view opens
+    // lit; changing either default would change a valid command's output, so each --help says
+    // what the other does.
+    const RunResult r = run({"render", "--help"});
+    ASSERT_EQ(r.code, 0) << describe(r);
+    const std::string render = option_help(r.out, "--shading");
+    EXPECT_NE(render.find("render defaults to flat"), std::string::npos) << render;
+    EXPECT_NE(render.find("view opens lit"), std::string::npos) << render;
+    const RunResult v = run({"view", "--help"});
+    ASSERT_EQ(v.code, 0) << describe(v);
+    const std::string view = option_help(v.out, "--shading");
+    EXPECT_NE(view.find("as render draws by default"), std::string::npos) << view;
+    EXPECT_NE(view.find("view's default"), std::string::npos) << view;
+}
+
 TEST_F(FrictionsCli, SimulateHelpOffersNoAlgorithm) {
     const RunResult r = run({"simulate", "--help"});
     ASSERT_EQ(r.code, 0) << describe(r);

@@ -251,7 +251,8 @@ Command add_render(CLI::App& root) {
                     "colour; lit: face normal (an implicit part's surface: the interpolated "
                     "gradient), sun (shadows by a ray marched toward it) and "
                     "ambient light (occlusion from the field), sRGB-correct, misses the "
-                    "sky gradient and sun disc unless --sky is given")
+                    "sky gradient and sun disc unless --sky is given. render defaults to flat "
+                    "(exact colours, comparable pixel for pixel); view opens lit")
         ->check(CLI::IsMember({"flat", "lit"}))
         ->capture_default_str();
     app->add_option("--sky", o->sky, "Colour of rays that miss, hex RRGGBB (flat default: 000000)");

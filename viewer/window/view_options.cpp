@@ -25,7 +25,9 @@ void add_view_options(CLI::App& app, ViewCliOptions& o) {
     app.add_option("--device", o.device,
                    "OpenCL device: cpu, gpu or an index from `voxfield devices` (Vulkan: "
                    "$VOXFIELD_VK_DEVICE)");
-    app.add_option("--shading", o.shading, "flat or lit")
+    app.add_option("--shading", o.shading,
+                   "flat (the palette colours, as render draws by default) or lit (sun, "
+                   "shadows and occlusion: view's default)")
         ->check(CLI::IsMember({"flat", "lit"}))
         ->capture_default_str();
     app.add_option("--width", o.width, "Window (or headless image) width")
