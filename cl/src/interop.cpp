@@ -498,30 +498,34 @@ void ExternalSemaphore::release() noexcept {
     }
 }
 
-void ExternalSemaphore::enqueue_wait(Context& ctx) const {
-    auto wait =
-        extension_function<clEnqueueWaitSemaphoresKHR_fn>(ctx, "clEnqueueWaitSemaphoresKHR");
-    if (wait == nullptr || semaphore_ == nullptr) {
-        throw ClError("clEnqueueWaitSemaphoresKHR", CL_INVALID_OPERATION,
+namespace {
+
+// clEnqueueWaitSemaphoresKHR or clEnqueueSignalSemaphoresKHR (the same signature) of one
+// semaphore on ctx's queue; `what` names the work it orders.
+template <typename Fn>
+void enqueue_semaphore(Context& ctx, const char* name, cl_semaphore_khr semaphore,
+                       const std::string& what) {
+    auto fn = extension_function<Fn>(ctx, name);
+    if (fn == nullptr || semaphore == nullptr) {
+        throw ClError(name, CL_INVALID_OPERATION,
                       "no imported semaphore or entry point on " + ctx.info().name);
     }
-    const cl_int err = wait(ctx.queue()(), 1, &semaphore_, nullptr, 0, nullptr, nullptr);
+    const cl_int err = fn(ctx.queue()(), 1, &semaphore, nullptr, 0, nullptr, nullptr);
     if (err != CL_SUCCESS) {
-        throw ClError("clEnqueueWaitSemaphoresKHR", err, "the frames reading the render field");
+        throw ClError(name, err, what);
     }
 }
 
+}  // namespace
+
+void ExternalSemaphore::enqueue_wait(Context& ctx) const {
+    enqueue_semaphore<clEnqueueWaitSemaphoresKHR_fn>(ctx, "clEnqueueWaitSemaphoresKHR", semaphore_,
+                                                     "the frames reading the render field");
+}
+
 void ExternalSemaphore::enqueue_signal(Context& ctx) const {
-    auto signal =
-        extension_function<clEnqueueSignalSemaphoresKHR_fn>(ctx, "clEnqueueSignalSemaphoresKHR");
-    if (signal == nullptr || semaphore_ == nullptr) {
-        throw ClError("clEnqueueSignalSemaphoresKHR", CL_INVALID_OPERATION,
-                      "no imported semaphore or entry point on " + ctx.info().name);
-    }
-    const cl_int err = signal(ctx.queue()(), 1, &semaphore_, nullptr, 0, nullptr, nullptr);
-    if (err != CL_SUCCESS) {
-        throw ClError("clEnqueueSignalSemaphoresKHR", err, "the render field written");
-    }
+    enqueue_semaphore<clEnqueueSignalSemaphoresKHR_fn>(ctx, "clEnqueueSignalSemaphoresKHR",
+                                                       semaphore_, "the render field written");
 }
 
 void acquire_external(Context& ctx, const cl::Buffer& buffer) {

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "cl_test_util.hpp"
+#include "traced_part.hpp"
 #include "voxfield/cl/implicit.hpp"
 #include "voxfield/core/camera.hpp"
 #include "voxfield/core/error.hpp"
@@ -193,37 +194,19 @@ Shape torus() {
     return s;
 }
 
-// The part discretised on PoCL and the world the ray marcher's field is built from: solid
-// where f < 0 at a voxel's centre or where the surface crosses the voxel (as `render` does).
+// The part discretised on PoCL and the world the ray marcher's field is built from, as
+// `render` builds them (cli::load_traced_part).
 struct Traced {
     sdf::Part part;
-    ocl::ImplicitGrid grid;
-    World world{Dims{1, 1, 1}};
+    cli::TracedPart traced;
+    const ocl::ImplicitGrid& grid() const { return traced.grid; }
+    const World& world() const { return traced.model.world; }
 };
 
 Traced discretise(const Shape& shape) {
-    Traced t{sdf::parse_part(shape.json, "test part"), {}, World(Dims{1, 1, 1})};
-    t.grid = ocl::ImplicitDiscretiser(pocl(), t.part).run();
-    t.world = sdf::solid_world(t.part, "test part");
-    for (const auto& c : t.grid.crossed()) {
-        std::uint8_t& v = t.world.voxels()[t.world.dims().index(c.x, c.y, c.z)];
-        if (v == 0) {
-            v = static_cast<std::uint8_t>(c.material);
-        }
-    }
-    return t;
-}
-
-vk::ImplicitSurface surface_of(const ocl::ImplicitGrid& g) {
-    vk::ImplicitSurface s;
-    s.dims = g.dims;
-    s.tiles = g.tiles;
-    s.tile_depth = g.tile_depth;
-    s.tile_table = g.tile_table;
-    s.nodes = g.nodes;
-    s.voxels = g.voxels;
-    s.vertices = g.vertices;
-    return s;
+    sdf::Part part = sdf::parse_part(shape.json, "test part");
+    cli::TracedPart traced = cli::load_traced_part(pocl(), part, "test part");
+    return Traced{std::move(part), std::move(traced)};
 }
 
 // The exact Manhattan field of the world, compact (distance << 8 | material).
@@ -267,7 +250,7 @@ Stats compare(vk::Raymarcher& marcher, const Traced& t, const Shape& shape, cons
     r.shading = vk::Shading::flat;
     r.camera.fov_deg = 35;
     r.sky = Rgba{255, 0, 255, 255};  // the default palette's material 1 is white
-    const Dims d = t.world.dims();
+    const Dims d = t.world().dims();
     r.camera.position = camera;
     r.camera.target = {d.x / 2.0, d.y / 2.0, d.z / 2.0};
     r.surface = true;
@@ -325,11 +308,11 @@ struct Expect {
 void check_shape(const Shape& shape, const std::string& name, Expect expect = {}) {
     const Traced t = discretise(shape);
     vk::Raymarcher marcher(validated_vulkan());
-    marcher.upload_compact(t.world.dims(), Palette(), compact_field(t.world));
-    marcher.set_implicit(surface_of(t.grid));
+    marcher.upload_compact(t.world().dims(), Palette(), compact_field(t.world()));
+    marcher.set_implicit(cli::surface_of(t.grid()));
     EXPECT_TRUE(marcher.has_implicit());
     EXPECT_GT(marcher.implicit_bytes(), 0u);
-    const Dims d = t.world.dims();
+    const Dims d = t.world().dims();
     const double x = d.x, y = d.y, z = d.z;
     // Views from several sides, near and far, one nearly along an axis.
     const std::vector<D3> cameras = {{-0.6 * x, 1.4 * y, -0.9 * z},
@@ -390,14 +373,14 @@ TEST(ImplicitTrace, LitSurfaceCastsShadows) {
                             {"sphere": {"center": [0, 5, 0], "radius": 2}}]}})";
     const Traced t = discretise(scene);
     vk::Raymarcher marcher(validated_vulkan());
-    marcher.upload_compact(t.world.dims(), Palette(), compact_field(t.world));
-    marcher.set_implicit(surface_of(t.grid));
+    marcher.upload_compact(t.world().dims(), Palette(), compact_field(t.world()));
+    marcher.set_implicit(cli::surface_of(t.grid()));
     vk::RenderOptions r;
     r.width = 96;
     r.height = 72;
     r.shading = vk::Shading::lit;
     r.surface = true;
-    const Dims d = t.world.dims();
+    const Dims d = t.world().dims();
     r.camera.position = {0.5 * d.x, 3.0 * d.y, -0.4 * d.z};
     r.camera.target = {0.5 * d.x, 0, 0.5 * d.z};
     const vk::Image img = marcher.render(r);
@@ -442,7 +425,7 @@ TEST(ImplicitTrace, VoxelWorldsKeepCubes) {
     World world(Dims{8, 8, 8});
     world.set(3, 3, 3, 5);
     marcher.upload_compact(world.dims(), Palette(), compact_field(world));
-    marcher.set_implicit(surface_of(t.grid));  // 32^3: not this field's
+    marcher.set_implicit(cli::surface_of(t.grid()));  // 32^3: not this field's
     vk::RenderOptions r;
     r.width = r.height = 16;
     r.camera.position = {3.5, 3.5, -10};
@@ -519,11 +502,11 @@ TEST(ImplicitTrace, ThinCrossingInsideOneVoxel) {
 TEST(ImplicitTrace, RefusesInconsistentGrids) {
     const Traced t = discretise(sphere());
     vk::Raymarcher marcher(validated_vulkan());
-    marcher.set_implicit(surface_of(t.grid));
+    marcher.set_implicit(cli::surface_of(t.grid()));
     const std::uint64_t bytes = marcher.implicit_bytes();
     auto refused = [&](const std::function<void(vk::ImplicitSurface&, ocl::ImplicitGrid&)>& spoil) {
-        ocl::ImplicitGrid g = t.grid;
-        vk::ImplicitSurface s = surface_of(g);
+        ocl::ImplicitGrid g = t.grid();
+        vk::ImplicitSurface s = cli::surface_of(g);
         spoil(s, g);
         EXPECT_THROW(marcher.set_implicit(s), InputError);
         EXPECT_EQ(marcher.implicit_bytes(), bytes);

@@ -3,7 +3,7 @@
 
 namespace voxfield::cli {
 
-vk::ImplicitSurface TracedPart::surface() const {
+vk::ImplicitSurface surface_of(const ocl::ImplicitGrid& grid) {
     vk::ImplicitSurface s;
     s.dims = grid.dims;
     s.tiles = grid.tiles;
@@ -13,6 +13,10 @@ vk::ImplicitSurface TracedPart::surface() const {
     s.voxels = grid.voxels;
     s.vertices = grid.vertices;
     return s;
+}
+
+vk::ImplicitSurface TracedPart::surface() const {
+    return surface_of(grid);
 }
 
 TracedPart load_traced_part(ocl::Context& ctx, const sdf::Part& part, const std::string& name) {

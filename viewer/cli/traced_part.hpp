@@ -21,9 +21,12 @@ struct TracedPart {
     double discretise_ms = 0;  // the discretisation's wall time
     std::uint64_t solid = 0;   // voxels solid at their centre (the rest of the world: crossed)
 
-    // The grid as the ray marcher takes it (views of `grid`'s arrays).
+    // The grid as the ray marcher takes it (surface_of(grid)).
     vk::ImplicitSurface surface() const;
 };
+
+// An implicit grid as the ray marcher takes it (vk::Raymarcher::set_implicit).
+vk::ImplicitSurface surface_of(const ocl::ImplicitGrid& grid);
 
 // Discretises `part` (read from the file `name`) on `ctx`.
 TracedPart load_traced_part(ocl::Context& ctx, const sdf::Part& part, const std::string& name);
