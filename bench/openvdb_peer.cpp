@@ -7,17 +7,12 @@
 #include <openvdb/tools/ValueTransformer.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
+
+#include "voxfield/core/clock.hpp"
 
 namespace voxfield::bench {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 // Sets each active fog voxel to 1 where the world is solid, else 0 (one accessor per thread).
 struct FogValue {

@@ -15,6 +15,7 @@
 
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/incremental.hpp"
+#include "voxfield/core/clock.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/undo.hpp"
 #include "voxfield/pipeline/render_field.hpp"
@@ -22,11 +23,6 @@
 namespace {
 
 using namespace voxfield;
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 double median(std::vector<double> v) {
     std::sort(v.begin(), v.end());
@@ -90,8 +86,9 @@ int main(int argc, char** argv) {
     }
     const double p = median(plain), e = median(edited), a = median(whole);
     const nlohmann::json out = {
-        {"what", "path 3 frame cost of an edit (incremental update + RenderField::update + "
-                 "ray march read back), lit, RandomEdits(chunk 16)"},
+        {"what",
+         "path 3 frame cost of an edit (incremental update + RenderField::update + "
+         "ray march read back), lit, RandomEdits(chunk 16)"},
         {"opencl_device", cl.info().name},
         {"vulkan_device", vkc.info().name},
         {"size", {n, n, n}},

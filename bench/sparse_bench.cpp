@@ -23,6 +23,7 @@
 
 #include "openvdb_peer.hpp"
 #include "voxfield/cl/sparse_field.hpp"
+#include "voxfield/core/clock.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/format.hpp"
 #include "voxfield/core/metric.hpp"
@@ -32,11 +33,6 @@
 namespace {
 
 using namespace voxfield;
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 double peak_rss_bytes() {
     rusage u{};

@@ -14,6 +14,7 @@
 #include "edit_log.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/sparse_field.hpp"
+#include "voxfield/core/clock.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/format.hpp"
 #include "voxfield/core/palette.hpp"
@@ -24,14 +25,9 @@
 namespace voxfield::cli {
 namespace {
 
-using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
 constexpr std::int64_t kEditRadius = 8;
-
-double ms_since(Clock::time_point t) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 double peak_rss_bytes() {
     rusage u{};

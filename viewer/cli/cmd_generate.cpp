@@ -16,6 +16,7 @@
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/separable.hpp"
 #include "voxfield/core/accuracy.hpp"
+#include "voxfield/core/clock.hpp"
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/output.hpp"
 #include "voxfield/core/stats.hpp"
@@ -25,14 +26,8 @@
 namespace voxfield::cli {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
 // When the program started (static initialisation, before main): the origin of the wall time.
 const Clock::time_point kProgramStart = Clock::now();
-
-double ms_since(Clock::time_point t) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 struct GenerateOptions {
     GeneratorFlags generator;

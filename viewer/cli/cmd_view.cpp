@@ -24,6 +24,7 @@
 #include "view_overlay.hpp"
 #include "view_session.hpp"
 #include "view_window.hpp"
+#include "voxfield/core/clock.hpp"
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/sand.hpp"
 #include "voxfield/core/scenes.hpp"
@@ -32,12 +33,6 @@
 
 namespace voxfield::cli {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 std::string timestamp() {
     const std::time_t t = std::time(nullptr);

@@ -11,6 +11,7 @@
 
 #include "voxfield/cl/sparse_field.hpp"
 #include "voxfield/core/accuracy.hpp"
+#include "voxfield/core/clock.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/output.hpp"
@@ -21,12 +22,6 @@
 
 namespace voxfield::cli {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 bool has_extension(const std::string& input, const char* ext) {
     std::string e = std::filesystem::path(input).extension().string();
