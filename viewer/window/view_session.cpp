@@ -241,7 +241,8 @@ FrameUpdate apply_frame(ViewState& s, pipeline::FramePipeline& session, const Vi
     if (!edits.batch.empty()) {
         std::vector<EditResult> results;
         // Only the stroke's brush (the first of the batch) is undoable.
-        const pipeline::UpdateTimings u = session.apply(edits.batch, &results, edits.stroke ? 1 : 0);
+        const pipeline::UpdateTimings u =
+            session.apply(edits.batch, &results, edits.stroke ? 1 : 0);
         add(u);
         if (edits.bench && bench != nullptr && !results.empty()) {
             bench->record(edits.batch.back(), u, results.back());

@@ -216,7 +216,8 @@ class Raymarcher {
     // byte `offset`, where OpenCL writes it in place (ocl::SlabLayout::block_min_offset):
     // nothing is copied, ever. The field's writer orders OpenCL's writes before the next
     // render (a clFinish before it returns, or on path 1 the "written" semaphore that Vulkan
-    // waits for), so the next render reads them; the caller must not run the two at once. `memory` must outlive this ray marcher or the next upload / bind_shared.
+    // waits for), so the next render reads them; the caller must not run the two at once.
+    // `memory` must outlive this ray marcher or the next upload / bind_shared.
     // Throws std::logic_error when no field is shared or the table does not fit in `memory`.
     void bind_shared_block_min(const ExternalMemory& memory, std::uint64_t offset);
     // Bytes of block minima copied into the ray marcher's table so far (set_block_min and
