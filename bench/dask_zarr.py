@@ -26,7 +26,6 @@ import json
 import os
 import resource
 import shutil
-import subprocess
 import sys
 import time
 
@@ -36,12 +35,11 @@ import numpy as np
 import zarr
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from repo import git_commit  # noqa: E402
 from worlds import make_world  # noqa: E402
 
 import voxfield  # noqa: E402
 import voxfield.dask as vd  # noqa: E402
-
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def peak_rss_bytes():
@@ -65,14 +63,6 @@ def cpu_seconds():
 
 def rusage_peak_bytes():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-
-
-def commit():
-    try:
-        return subprocess.run(["git", "-C", REPO, "rev-parse", "HEAD"], capture_output=True,
-                              text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def equal_by_slabs(path, want, depth):
@@ -156,7 +146,7 @@ def main():
     devs = voxfield.devices()
     dev = next((d for d in devs if str(d["index"]) == device or d["type"] == device), devs[0])
     result = {"device": dev, "date": datetime.datetime.now(datetime.timezone.utc).isoformat(),
-              "commit": commit(), "size": [n, n, n], "block": [b, b, b], "dtype": "uint8",
+              "commit": git_commit(), "size": [n, n, n], "block": [b, b, b], "dtype": "uint8",
               "workers": args.workers, "threads_per_worker": 1,
               "worker_memory_limit": args.memory_limit, "cpus": os.cpu_count(),
               "nice": os.nice(0), "main_peak_rss_bytes": peak_rss_bytes(), "results": rows}
