@@ -369,16 +369,24 @@ std::optional<std::array<std::uint8_t, 16>> device_uuid(const Context& ctx) {
     return uuid;
 }
 
+namespace {
+
+// A file descriptor closed when it goes out of scope unless released (fd = -1): an imported
+// handle is ours until a successful import hands it to the OpenCL implementation.
+struct OwnedFd {
+    int fd;
+    ~OwnedFd() {
+        if (fd >= 0) {
+            close(fd);
+        }
+    }
+};
+
+}  // namespace
+
 cl::Buffer import_opaque_fd(Context& ctx, int fd, std::size_t bytes) {
     // Ours until a successful import hands it to the OpenCL implementation.
-    struct OwnedFd {
-        int fd;
-        ~OwnedFd() {
-            if (fd >= 0) {
-                close(fd);
-            }
-        }
-    } owned{fd};
+    OwnedFd owned{fd};
     const std::string what = "importing " + std::to_string(bytes) +
                              " bytes of Vulkan memory (opaque fd) into " + ctx.info().name;
     if (!can_import_opaque_fd(ctx)) {
@@ -439,14 +447,7 @@ bool can_import_semaphore_fd(const Context& ctx) {
 ExternalSemaphore::ExternalSemaphore(Context& ctx, int fd) : platform_(platform_of(ctx)) {
     // Ours until a successful import hands it to the OpenCL implementation
     // (cl_khr_external_semaphore, "File Descriptor Handle Types").
-    struct OwnedFd {
-        int fd;
-        ~OwnedFd() {
-            if (fd >= 0) {
-                close(fd);
-            }
-        }
-    } owned{fd};
+    OwnedFd owned{fd};
     const std::string what = "importing a Vulkan semaphore (opaque fd) into " + ctx.info().name;
     if (!can_import_semaphore_fd(ctx)) {
         throw ClError("clCreateSemaphoreWithPropertiesKHR", CL_INVALID_OPERATION,
