@@ -43,6 +43,24 @@ Dims parse_size(const std::string& text) {
     return parse_dims(s);
 }
 
+// Before the long run starts: --plot's plotter and folder, then every output path (with
+// --plot and no --json, the JSON goes to the plot folder as `json_name`, into `json_path`).
+std::optional<Plotter> check_bench_outputs(const BenchOptions& o, const std::string& json_name,
+                                           std::string& json_path) {
+    std::optional<Plotter> plotter;
+    if (!o.plot.empty()) {
+        plotter = require_plotter();
+        if (!std::filesystem::is_directory(o.plot)) {
+            throw InputError("--plot " + o.plot + ": no such folder (create it first)");
+        }
+        if (json_path.empty()) {
+            json_path = (std::filesystem::path(o.plot) / json_name).string();
+        }
+    }
+    check_outputs({{"--json", json_path}, {"--csv", o.csv}}, {});
+    return plotter;
+}
+
 int run_bench(const BenchOptions& o) {
     const Format format = field_format(o.field, o.format);
     std::vector<Dims> sizes;
@@ -50,18 +68,7 @@ int run_bench(const BenchOptions& o) {
         sizes.push_back(parse_size(s));
     }
     std::string json_path = o.json;
-    std::optional<Plotter> plotter;
-    if (!o.plot.empty()) {
-        // Checked before the long run starts.
-        plotter = require_plotter();
-        if (!std::filesystem::is_directory(o.plot)) {
-            throw InputError("--plot " + o.plot + ": no such folder (create it first)");
-        }
-        if (json_path.empty()) {
-            json_path = (std::filesystem::path(o.plot) / "bench.json").string();
-        }
-    }
-    check_outputs({{"--json", json_path}, {"--csv", o.csv}}, {});
+    const std::optional<Plotter> plotter = check_bench_outputs(o, "bench.json", json_path);
     // What generate refuses, bench refuses too, before any work: options that no size can
     // take (a chunk that is not a power of two, a metric an algorithm lacks) exit 2; a size
     // that only some algorithms cannot do (brute force on a large grid) becomes a skipped row.
@@ -120,18 +127,7 @@ int run_bench(const BenchOptions& o) {
 // (bench_print.hpp), the document written as JSON and CSV, then plotted.
 int run_suite_command(SuiteOptions s, const BenchOptions& o) {
     std::string json_path = o.json;
-    std::optional<Plotter> plotter;
-    if (!o.plot.empty()) {
-        // Checked before the long run starts.
-        plotter = require_plotter();
-        if (!std::filesystem::is_directory(o.plot)) {
-            throw InputError("--plot " + o.plot + ": no such folder (create it first)");
-        }
-        if (json_path.empty()) {
-            json_path = (std::filesystem::path(o.plot) / (s.suite + ".json")).string();
-        }
-    }
-    check_outputs({{"--json", json_path}, {"--csv", o.csv}}, {});
+    const std::optional<Plotter> plotter = check_bench_outputs(o, s.suite + ".json", json_path);
     if (s.suite == "implicit") {
         s.implicit_part = require_implicit_part().string();
     }
