@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "cli_util.hpp"
+#include "edit_log.hpp"
 #include "traced_part.hpp"
 #include "voxfield/cl/implicit.hpp"
 #include "voxfield/core/error.hpp"
@@ -111,16 +112,11 @@ json trace_rows(ocl::Context& ctx, const fs::path& path, std::uint32_t repeat, s
                         {"tile_depth", part.grid.tile_depth},
                         {"crossed_voxels", part.grid.crossed_count()},
                         {"implicit_bytes", marcher.implicit_bytes()},
-                        {"median_ms", s.median},
-                        {"mean_ms", s.mean},
-                        {"std_ms", s.std},
-                        {"ci95_ms", {s.ci95_lo, s.ci95_hi}},
-                        {"min_ms", s.min},
-                        {"max_ms", s.max},
                         {"iterations", s.n},
                         {"mrays_per_s", rays / (s.median * 1e-3) / 1e6},
                         {"max_error", nullptr},
                         {"mean_error", nullptr}});
+        put_summary(rows.back(), s);
         observer.stage("implicit: ray march " + name + " " + std::to_string(kWidth) + "x" +
                        std::to_string(kHeight) + ": median " + fixed(s.median, 3) +
                        " ms (GPU timestamps, " + std::to_string(s.n) + " runs)");
@@ -190,12 +186,6 @@ json run_implicit(ocl::Context& ctx, const fs::path& path, std::uint32_t repeat,
                             {"tile_edge", edge},
                             {"tiles", {grid.tiles.x, grid.tiles.y, grid.tiles.z}},
                             {"layout", job.gpu_layout() ? "gpu" : "cpu"},
-                            {"median_ms", s.median},
-                            {"mean_ms", s.mean},
-                            {"std_ms", s.std},
-                            {"ci95_ms", {s.ci95_lo, s.ci95_hi}},
-                            {"min_ms", s.min},
-                            {"max_ms", s.max},
                             {"kernel_median_ms", k.median},
                             {"first_ms", first_ms},
                             {"cpu_median_ms", summarize(cpu).median},
@@ -210,6 +200,7 @@ json run_implicit(ocl::Context& ctx, const fs::path& path, std::uint32_t repeat,
                             {"bytes", grid.bytes()},
                             {"max_error", nullptr},
                             {"mean_error", nullptr}});
+            put_summary(rows.back(), s);
             observer.row(rows.back());
         }
     }
