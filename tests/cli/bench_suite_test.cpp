@@ -285,6 +285,12 @@ TEST_F(BenchSuite, ImplicitFindsItsPartBesideTheBinary) {
     for (const json& row : doc["results"]) {
         EXPECT_EQ(row["part"], "bracket.sdf.json");
         EXPECT_GT(row["median_ms"].get<double>(), 0.0) << row.dump().substr(0, 200);
+        // DESIGN §4's keys of every bench result.
+        for (const char* key :
+             {"algorithm", "size", "chunk", "metric", "median_ms", "mean_ms", "std_ms", "ci95_ms",
+              "gvox_per_s", "iterations", "max_error", "mean_error"}) {
+            EXPECT_TRUE(row.contains(key)) << key << " in " << row.dump().substr(0, 200);
+        }
         if (row["table"] == "implicit") {
             EXPECT_GT(row["leaves"].get<std::uint64_t>(), 0u) << row.dump().substr(0, 200);
         } else {

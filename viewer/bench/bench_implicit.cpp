@@ -102,6 +102,9 @@ json trace_rows(ocl::Context& ctx, const fs::path& path, std::uint32_t repeat, s
         rows.push_back({{"table", "implicit_trace"},
                         {"group", std::to_string(kWidth) + "x" + std::to_string(kHeight)},
                         {"algorithm", "trace " + name},
+                        {"chunk", nullptr},
+                        {"metric", "manhattan"},  // the compact field the march steps through
+                        {"gvox_per_s", nullptr},  // a frame, not a field: mrays_per_s below
                         {"part", path.filename().string()},
                         {"voxel_size", source.voxel_size},
                         {"size", {dims.x, dims.y, dims.z}},
