@@ -145,16 +145,19 @@ inline void decide(__global const Instr* in, uint i, float2 a, float2 b, uchar* 
     }
 }
 
-/* An enclosure of the value over the box x * y * z; with `live` (tapes up to
- * VF_SDF_SPECIALISE_MAX), also marks the instructions the box does not need. */
-float2 eval_i(__global const Instr* tape, uint n, float2 x, float2 y, float2 z, uchar* live) {
+/* An enclosure of the value over the box x * y * z, running the instructions list[0..m) (or
+ * 0..m when list is 0); with `live` (indexed by instruction, tapes up to
+ * VF_SDF_SPECIALISE_MAX), also clears the instructions the box does not need. */
+float2 eval_i(__global const Instr* tape, const ushort* list, uint m, float2 x, float2 y,
+              float2 z, uchar* live) {
     float2 v[VF_SDF_STACK];
     float2 px[VF_SDF_STACK], py[VF_SDF_STACK], pz[VF_SDF_STACK];
     int nv = 0, np = 0;
     px[0] = x;
     py[0] = y;
     pz[0] = z;
-    for (uint i = 0; i < n; ++i) {
+    for (uint t = 0; t < m; ++t) {
+        const uint i = list ? list[t] : t;
         __global const Instr* in = tape + i;
         const uint op = in->op;
         if (op <= VF_SDF_PLANE) {
@@ -197,21 +200,22 @@ float2 eval_i(__global const Instr* tape, uint n, float2 x, float2 y, float2 z, 
 /* ------------------------------------------------------------------ the tile grid */
 
 /* eval_i over the voxels [i, i1) x [j, j1) x [k, k1) of the grid. */
-inline float2 eval_cells(__global const Instr* tape, uint n, Grid g, uint i, uint j, uint k,
-                         uint i1, uint j1, uint k1, uchar* live) {
-    return eval_i(tape, n, (float2)(corner_at(g.x0, g.h, i), corner_at(g.x0, g.h, i1)),
+inline float2 eval_cells(__global const Instr* tape, const ushort* list, uint m, Grid g, uint i,
+                         uint j, uint k, uint i1, uint j1, uint k1, uchar* live) {
+    return eval_i(tape, list, m, (float2)(corner_at(g.x0, g.h, i), corner_at(g.x0, g.h, i1)),
                   (float2)(corner_at(g.y0, g.h, j), corner_at(g.y0, g.h, j1)),
                   (float2)(corner_at(g.z0, g.h, k), corner_at(g.z0, g.h, k1)), live);
 }
 
 /* The class of the cell of `edge` voxels at voxel (i, j, k), clipped to the grid: empty when
  * its interval is above 0, full when below, else ambiguous; a cell outside the grid is empty. */
-uint classify_cell(__global const Instr* tape, uint n, Grid g, uint i, uint j, uint k, uint edge) {
+uint classify_cell(__global const Instr* tape, const ushort* list, uint m, Grid g, uint i, uint j,
+                   uint k, uint edge) {
     if (i >= g.nx || j >= g.ny || k >= g.nz) {
         return VF_SDF_CELL_EMPTY;
     }
     const uint i1 = min(i + edge, g.nx), j1 = min(j + edge, g.ny), k1 = min(k + edge, g.nz);
-    const float2 r = eval_cells(tape, n, g, i, j, k, i1, j1, k1, 0);
+    const float2 r = eval_cells(tape, list, m, g, i, j, k, i1, j1, k1, 0);
     if (r.x > 0) {
         return VF_SDF_CELL_EMPTY;
     }
@@ -225,41 +229,81 @@ __kernel void classify_tiles(__global const Instr* tape, uint n, Grid g, uint tx
     if (t >= tiles) {
         return;
     }
-    out[t] = (uchar)classify_cell(tape, n, g, t % tx * edge, t / tx % ty * edge, t / tx / ty * edge,
-                                  edge);
+    out[t] = (uchar)classify_cell(tape, 0, n, g, t % tx * edge, t / tx % ty * edge,
+                                  t / tx / ty * edge, edge);
 }
 
-/* One work-item per child (64 per node) of the nodes whose origins (voxels) are listed. */
-__kernel void classify_children(__global const Instr* tape, uint n, Grid g,
-                                __global const uint4* origins, uint count, uint child_edge,
-                                __global uchar* out) {
-    const uint id = get_global_id(0);
-    if (id >= count * 64) {
-        return;
-    }
-    const uint4 o = origins[id / 64];
-    const uint c = id % 64;
-    out[id] = (uchar)classify_cell(tape, n, g, o.x + (c & 3) * child_edge,
-                                   o.y + (c >> 2 & 3) * child_edge, o.z + (c >> 4) * child_edge,
-                                   child_edge);
-}
-
-/* The leaf at voxel o's specialised tape: the instructions its box (clipped to the grid, which
- * holds every corner it keeps) needs, in order, into list; returns how many. */
-uint specialise(__global const Instr* tape, uint n, Grid g, uint4 o, ushort* list) {
+/* The specialised tape of the node of `edge` voxels at voxel o (tapes up to
+ * VF_SDF_SPECIALISE_MAX): its parent's (slot `parent` of parent_lists: VF_SDF_LIST_STRIDE
+ * ushorts, the count then the instructions; the whole tape for VF_SDF_NO_PARENT) less the
+ * operands its box (clipped to the grid, which holds every corner it samples) shows are never
+ * selected there, in order, into list; returns how many. A child's box lies in its parent's,
+ * so what the parent dropped the child never selects either. */
+uint specialise(__global const Instr* tape, uint n, __global const ushort* parent_lists,
+                uint parent, Grid g, uint4 o, uint edge, ushort* list) {
     uchar live[VF_SDF_SPECIALISE_MAX];
-    for (uint i = 0; i < n; ++i) {
-        live[i] = 1;
-    }
-    const uint i1 = min(o.x + 4, g.nx), j1 = min(o.y + 4, g.ny), k1 = min(o.z + 4, g.nz);
-    eval_cells(tape, n, g, o.x, o.y, o.z, i1, j1, k1, live);
-    uint m = 0;
-    for (uint i = 0; i < n; ++i) {
-        if (live[i]) {
-            list[m++] = (ushort)i;
+    uint m = n;
+    if (parent == VF_SDF_NO_PARENT) {
+        for (uint t = 0; t < n; ++t) {
+            list[t] = (ushort)t;
+        }
+    } else {
+        __global const ushort* p = parent_lists + (size_t)parent * VF_SDF_LIST_STRIDE;
+        m = p[0];
+        for (uint t = 0; t < m; ++t) {
+            list[t] = p[1 + t];
         }
     }
-    return m;
+    for (uint t = 0; t < m; ++t) {
+        live[list[t]] = 1;
+    }
+    const uint i1 = min(o.x + edge, g.nx), j1 = min(o.y + edge, g.ny), k1 = min(o.z + edge, g.nz);
+    eval_cells(tape, list, m, g, o.x, o.y, o.z, i1, j1, k1, live);
+    uint kept = 0;
+    for (uint t = 0; t < m; ++t) {
+        if (live[list[t]]) {
+            list[kept++] = list[t];
+        }
+    }
+    return kept;
+}
+
+/* A work-group of 64 per node of `edge` voxels (origins: voxel, node index in w; parents: its
+ * parent's slot in parent_lists): work-item 0 specialises the node's tape (kept in slot f of
+ * lists for its children), then work-item c tests child c with it. */
+__kernel __attribute__((reqd_work_group_size(64, 1, 1))) void classify_children(
+    __global const Instr* tape, uint n, Grid g, __global const uint4* origins,
+    __global const uint* parents, __global const ushort* parent_lists, uint count, uint edge,
+    __global ushort* lists, __global uchar* out) {
+    __local ushort shared_list[VF_SDF_SPECIALISE_MAX];
+    __local uint shared_count;
+    const uint f = get_group_id(0), c = get_local_id(0);
+    if (f >= count) {
+        return;
+    }
+    const uint4 o = origins[f];
+    const bool special = n <= VF_SDF_SPECIALISE_MAX;
+    if (special && c == 0) {
+        ushort l[VF_SDF_SPECIALISE_MAX];
+        const uint m = specialise(tape, n, parent_lists, parents[f], g, o, edge, l);
+        __global ushort* dst = lists + (size_t)f * VF_SDF_LIST_STRIDE;
+        dst[0] = (ushort)m;
+        for (uint t = 0; t < m; ++t) {
+            shared_list[t] = l[t];
+            dst[1 + t] = l[t];
+        }
+        shared_count = m;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    ushort list[VF_SDF_SPECIALISE_MAX];
+    const uint m = special ? shared_count : n;
+    for (uint t = 0; special && t < m; ++t) {
+        list[t] = shared_list[t];
+    }
+    const uint e = edge / 4;
+    out[f * 64 + c] =
+        (uchar)classify_cell(tape, special ? list : 0, m, g, o.x + (c & 3) * e,
+                             o.y + (c >> 2 & 3) * e, o.z + (c >> 4) * e, e);
 }
 
 inline uint corner_index(uint v, uint c) {
@@ -311,13 +355,29 @@ inline FTV centre_at_v(float x0, float h, UTV i) {
     return x0 + (EV_CONVERT(i) + 0.5f) * h;
 }
 
-/* CPU layout: one work-item per leaf, its 125 shared corners and 64 centres in one batch,
- * EV_W points per instruction fetch (eval_f_v: the vector instance of implicit_eval.cl). */
+/* Of a leaf's corner rows (row r = y + 5 z: bits x = 0..4), the 4 voxels of voxel row (y, z)
+ * (bits x = 0..3) any / all of whose 8 corners have their bit set. */
+inline uint row_any(const uchar* rows, uint y, uint z) {
+    const uint r = y + 5 * z;
+    const uint a = rows[r] | rows[r + 1] | rows[r + 5] | rows[r + 6];
+    return (a | a >> 1) & 15u;
+}
+inline uint row_all(const uchar* rows, uint y, uint z) {
+    const uint r = y + 5 * z;
+    const uint a = rows[r] & rows[r + 1] & rows[r + 5] & rows[r + 6];
+    return a & a >> 1 & 15u;
+}
+
+/* CPU layout: one work-item per leaf, its 125 shared corners in one batch, then the centres
+ * its corners leave open, EV_W points per instruction fetch (eval_f_v: the vector instance of
+ * implicit_eval.cl). A voxel's class is read from bit masks: corner rows of 5 bits (outside,
+ * far inside, far outside), voxel rows of 4. */
 __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
-                                __global const uint4* leaves, uint count, __global uint* nodes,
-                                __global uint* voxels, uint voxel_capacity,
+                                __global const uint4* leaves, __global const uint* parents,
+                                __global const ushort* parent_lists, uint count,
+                                __global uint* nodes, __global uint* voxels, uint voxel_capacity,
                                 __global float4* vertices, uint vertex_capacity,
-                                __global uint* counters) {
+                                __global uint* counters, float decided) {
     const uint id = get_global_id(0);
     if (id >= count) {
         return;
@@ -325,12 +385,10 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
     const uint4 o = leaves[id]; /* origin, node index in w */
     ushort list[VF_SDF_SPECIALISE_MAX];
     const bool special = n <= VF_SDF_SPECIALISE_MAX;
-    const uint m = special ? specialise(tape, n, g, o, list) : n;
+    const uint m = special ? specialise(tape, n, parent_lists, parents[id], g, o, 4, list) : n;
     const ushort* run = special ? list : 0;
-    /* Lanes past the last corner or centre evaluate a repeat of it into the padding. */
+    /* Lanes past the last corner evaluate a repeat of it into the padding. */
     float f[128 + EV_W];
-    float centre_f[64];
-    int centre_mat[64];
     for (uint c0 = 0; c0 < 125; c0 += EV_W) {
         const UTV c = min(c0 + EV_IOTA, (UTV)124u);
         MTV mat;
@@ -339,48 +397,97 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
                                 corner_at_v(g.z0, g.h, o.z + c / 25u), &mat);
         EV_STORE(fv, 0, f + c0);
     }
-    for (uint v0 = 0; v0 < 64; v0 += EV_W) {
-        const UTV v = v0 + EV_IOTA;
+    /* f is a 1-Lipschitz distance bound: a corner with |f| > `decided` (half the voxel's
+     * diagonal plus a rounding margin) gives the voxel's centre its sign. */
+    uchar neg[25], far[25];
+    for (uint r = 0; r < 25; ++r) {
+        uint a = 0, b = 0;
+        for (uint x = 0; x < 5; ++x) {
+            const float fv = f[5 * r + x];
+            a |= (fv < 0 ? 1u : 0u) << x;
+            b |= (fabs(fv) > decided ? 1u : 0u) << x;
+        }
+        neg[r] = (uchar)a;
+        far[r] = (uchar)b;
+    }
+    /* Voxel masks (bit v = x + 4 y + 16 z): in the grid, some corner inside, every corner
+     * inside, some corner far. */
+    const uint xs = g.nx - o.x >= 4 ? 15u : (1u << (g.nx - o.x)) - 1u;
+    ulong grid = 0, any_in = 0, all_in = 0, any_far = 0;
+    for (uint z = 0; z < 4; ++z) {
+        for (uint y = 0; y < 4; ++y) {
+            const uint s = 4 * y + 16 * z;
+            if (o.y + y < g.ny && o.z + z < g.nz) {
+                grid |= (ulong)xs << s;
+            }
+            any_in |= (ulong)row_any(neg, y, z) << s;
+            all_in |= (ulong)row_all(neg, y, z) << s;
+            any_far |= (ulong)row_any(far, y, z) << s;
+        }
+    }
+    /* Crossed: the corners disagree, or (sampled below) the centre disagrees with them.
+     * Solid: every corner inside and one far; else the centre decides. */
+    ulong occ = any_in & ~all_in & grid;
+    ulong solid = all_in & any_far & grid;
+    ulong need = (occ | ~any_far) & grid;
+    uchar mats[64];
+    uint need_list[64 + EV_W];
+    uint needed = 0;
+    for (ulong b = need; b; b &= b - 1) {
+        need_list[needed++] = (uint)(63 - clz(b & (~b + 1)));
+    }
+    for (uint q = needed; q < needed + EV_W; ++q) {
+        need_list[q] = needed ? need_list[needed - 1] : 0u;
+    }
+    for (uint q0 = 0; q0 < needed; q0 += EV_W) {
+        const UTV v = EV_LOAD(0, need_list + q0);
         MTV mat;
         const FTV fv = eval_f_v(tape, run, m, centre_at_v(g.x0, g.h, o.x + (v & 3u)),
                                 centre_at_v(g.y0, g.h, o.y + (v >> 2 & 3u)),
                                 centre_at_v(g.z0, g.h, o.z + (v >> 4)), &mat);
-        EV_STORE(fv, 0, centre_f + v0);
-        EV_STORE(mat, 0, centre_mat + v0);
-    }
-    uint occ[2] = {0u, 0u}, solid[2] = {0u, 0u}, kept[4] = {0u, 0u, 0u, 0u};
-    uchar mats[64];
-    for (uint v = 0; v < 64; ++v) {
-        const uint i = o.x + (v & 3), j = o.y + (v >> 2 & 3), k = o.z + (v >> 4);
-        mats[v] = 0;
-        if (i >= g.nx || j >= g.ny || k >= g.nz) {
-            continue;
-        }
-        const float fc = centre_f[v];
-        mats[v] = (uchar)centre_mat[v];
-        uint inside = fc < 0 ? 1u : 0u, outside = fc < 0 ? 0u : 1u;
-        for (uint c = 0; c < 8; ++c) {
-            const float fv = f[corner_index(v, c)];
-            inside |= fv < 0 ? 1u : 0u;
-            outside |= fv < 0 ? 0u : 1u;
-        }
-        if (fc < 0) {
-            solid[v / 32] |= 1u << (v % 32);
-        }
-        if (inside && outside) {
-            occ[v / 32] |= 1u << (v % 32);
-            for (uint c = 0; c < 8; ++c) {
-                const uint ci = corner_index(v, c);
-                kept[ci / 32] |= 1u << (ci % 32);
+        float fc[EV_W];
+        int mc[EV_W];
+        EV_STORE(fv, 0, fc);
+        EV_STORE(mat, 0, mc);
+        for (uint l = 0; l < EV_W && q0 + l < needed; ++l) {
+            const uint w = need_list[q0 + l];
+            const ulong bit = (ulong)1 << w;
+            mats[w] = (uchar)mc[l];
+            if (fc[l] < 0) {
+                solid |= bit;
+            }
+            if ((fc[l] < 0 ? ~any_in : all_in) & bit) {
+                occ |= bit; /* all 8 corners outside with the centre in, or the reverse */
             }
         }
     }
-    const uint kept_count =
-        popcount(kept[0]) + popcount(kept[1]) + popcount(kept[2]) + popcount(kept[3]);
-    const uint cross_count = popcount(occ[0]) + popcount(occ[1]);
+    /* Kept corners: the 8 of every crossed voxel, as corner rows; their ranks by row. */
+    uchar kept[25];
+    for (uint r = 0; r < 25; ++r) {
+        kept[r] = 0;
+    }
+    for (uint z = 0; z < 4; ++z) {
+        for (uint y = 0; y < 4; ++y) {
+            const uint x4 = (uint)(occ >> (4 * y + 16 * z)) & 15u;
+            const uchar k = (uchar)(x4 | x4 << 1);
+            const uint r = y + 5 * z;
+            kept[r] |= k;
+            kept[r + 1] |= k;
+            kept[r + 5] |= k;
+            kept[r + 6] |= k;
+        }
+    }
+    uchar base[25];
+    uint kept_count = 0;
+    for (uint r = 0; r < 25; ++r) {
+        base[r] = (uchar)kept_count;
+        kept_count += popcount((uint)kept[r]);
+    }
+    const uint cross_count = popcount(occ);
     uint voff, xoff;
-    leaf_reserve(counters, nodes, o.w, kept_count, cross_count, (uint2)(occ[0], occ[1]),
-                 (uint2)(solid[0], solid[1]), &voff, &xoff);
+    leaf_reserve(counters, nodes, o.w, kept_count, cross_count,
+                 (uint2)((uint)occ, (uint)(occ >> 32)), (uint2)((uint)solid, (uint)(solid >> 32)),
+                 &voff, &xoff);
     if (voff + kept_count > vertex_capacity || xoff + cross_count > voxel_capacity) {
         return; /* the host reruns with the capacities the counters reached */
     }
@@ -388,9 +495,9 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
      * repeats the last corner). */
     uint kept_list[128 + EV_W];
     uint r = 0;
-    for (uint c = 0; c < 125; ++c) {
-        if (kept[c / 32] >> (c % 32) & 1u) {
-            kept_list[r++] = c;
+    for (uint row = 0; row < 25; ++row) {
+        for (uint b = kept[row]; b; b &= b - 1) {
+            kept_list[r++] = 5 * row + (31 - clz(b & (~b + 1)));
         }
     }
     for (uint q = r; q < r + EV_W; ++q) {
@@ -410,21 +517,27 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
         }
     }
     uint x = 0;
-    for (uint v = 0; v < 64; ++v) {
-        if (occ[v / 32] >> (v % 32) & 1u) {
-            const uint2 w = voxel_corner_words(kept, v);
-            __global uint* rec = voxels + (xoff + x++) * VF_SDF_VOXEL_WORDS;
-            rec[0] = w.x;
-            rec[1] = w.y;
-            rec[2] = mats[v];
+    for (ulong b = occ; b; b &= b - 1) {
+        const uint v = (uint)(63 - clz(b & (~b + 1)));
+        uint w[2] = {0u, 0u};
+        for (uint c = 0; c < 8; ++c) {
+            const uint row = (v >> 2 & 3) + (c >> 1 & 1) + 5 * ((v >> 4) + (c >> 2));
+            const uint cx = (v & 3) + (c & 1);
+            const uint rank = base[row] + popcount((uint)kept[row] & ((1u << cx) - 1u));
+            w[c / 4] |= rank << (8 * (c % 4));
         }
+        __global uint* rec = voxels + (xoff + x++) * VF_SDF_VOXEL_WORDS;
+        rec[0] = w[0];
+        rec[1] = w[1];
+        rec[2] = mats[v];
     }
 }
 
 /* GPU layout: one work-group of 128 per leaf; work-item c < 125 samples corner c, v < 64 the
  * centre of voxel v, sharing them in local memory. */
 __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_group(
-    __global const Instr* tape, uint n, Grid g, __global const uint4* leaves, uint count,
+    __global const Instr* tape, uint n, Grid g, __global const uint4* leaves,
+    __global const uint* parents, __global const ushort* parent_lists, uint count,
     __global uint* nodes, __global uint* voxels, uint voxel_capacity, __global float4* vertices,
     uint vertex_capacity, __global uint* counters) {
     __local float f[125];
@@ -438,7 +551,7 @@ __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_gro
     const bool special = n <= VF_SDF_SPECIALISE_MAX;
     if (special && lid == 0) {
         ushort l[VF_SDF_SPECIALISE_MAX];
-        special_count = specialise(tape, n, g, o, l);
+        special_count = specialise(tape, n, parent_lists, parents[id], g, o, 4, l);
         for (uint t = 0; t < special_count; ++t) {
             special_list[t] = l[t];
         }

@@ -9,9 +9,12 @@
 #include <algorithm>
 #include <bit>
 #include <chrono>
+#include <cmath>
+#include <cstring>
 #include <functional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "util.hpp"
 
@@ -71,6 +74,41 @@ GridArg grid_arg(const sdf::Part& part) {
             0};
 }
 
+// The CPU layout's `decided`: a corner whose |f| exceeds it gives its voxel's centre its sign.
+// Every primitive and operator of a part is a 1-Lipschitz distance bound (planes' normals are
+// normalised, transforms scale uniformly), so f changes by at most half the voxel's diagonal
+// between a corner and the centre; the margin covers float rounding: 2^-10 of that distance
+// plus 2^-12 of the largest magnitude the evaluation meets (grid coordinates and the tape's
+// parameters, each times the scale of the transforms around it).
+float centre_decided(const sdf::Part& part) {
+    double mag = 0;
+    for (int a = 0; a < 3; ++a) {
+        const std::uint32_t n = a == 0 ? part.dims.x : (a == 1 ? part.dims.y : part.dims.z);
+        mag = std::max({mag, std::abs(part.lo[a]), std::abs(part.lo[a] + n * part.voxel_size)});
+    }
+    std::vector<double> scale{1.0};
+    for (const sdf::Instr& in : part.tape.code) {
+        if (in.op == VF_SDF_PUSH_POINT) {
+            for (int i = 9; i < 12; ++i) {
+                mag = std::max(mag, std::abs(double(in.p[i])) * scale.back());
+            }
+            const double row = std::sqrt(double(in.p[0]) * in.p[0] + double(in.p[1]) * in.p[1] +
+                                         double(in.p[2]) * in.p[2]);
+            scale.push_back(scale.back() / row);
+        } else if (in.op == VF_SDF_POP_POINT) {
+            scale.pop_back();
+        } else if (in.op <= VF_SDF_PLANE || in.op == VF_SDF_SHELL) {
+            for (int i = 0; i < 7; ++i) {
+                mag = std::max(mag, std::abs(double(in.p[i])) * scale.back());
+            }
+        } else {
+            mag = std::max(mag, std::abs(double(in.p[0])) * scale.back());
+        }
+    }
+    const double half_diagonal = 0.5 * std::sqrt(3.0) * part.voxel_size;
+    return static_cast<float>(half_diagonal * (1 + 0x1p-10) + mag * 0x1p-12);
+}
+
 double event_ms(const cl::Event& e) {
     return elapsed_ms(e, e);
 }
@@ -89,7 +127,9 @@ ImplicitDiscretiser::ImplicitDiscretiser(Context& ctx, const sdf::Part& part,
       part_(part),
       options_(options),
       gpu_layout_(options.layout == Layout::automatic ? !ctx.is_cpu()
-                                                      : options.layout == Layout::gpu) {
+                                                      : options.layout == Layout::gpu),
+      decided_(centre_decided(part)),
+      staged_(!ctx.computes_in_host_memory()) {
     if (options.tile_depth > kMaxDepth) {
         throw InputError("implicit tile depth " + std::to_string(options.tile_depth) +
                          " is out of range (0.." + std::to_string(kMaxDepth) + ")");
@@ -102,6 +142,77 @@ ImplicitDiscretiser::ImplicitDiscretiser(Context& ctx, const sdf::Part& part,
                           const_cast<sdf::Instr*>(part.tape.code.data()));
     });
 }
+
+ImplicitDiscretiser::~ImplicitDiscretiser() {
+    try {
+        unmap(small_stage_);
+        unmap(out_stage_);
+        ctx_.queue().finish();
+    } catch (const std::exception&) {
+        // a failing device at teardown: the context's release frees what is left
+    }
+}
+
+void ImplicitDiscretiser::unmap(Pinned& p) {
+    if (p.data != nullptr) {
+        ctx_.queue().enqueueUnmapMemObject(p.buffer, p.data);
+        p.data = nullptr;
+    }
+}
+
+std::uint8_t* ImplicitDiscretiser::pinned(Pinned& p, std::size_t bytes) {
+    if (bytes > p.capacity || p.data == nullptr) {
+        unmap(p);
+        p.capacity = std::max({bytes, p.capacity + p.capacity / 2, std::size_t{4096}});
+        p.buffer =
+            cl::Buffer(ctx_.context(), CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, p.capacity);
+        p.data = static_cast<std::uint8_t*>(ctx_.queue().enqueueMapBuffer(
+            p.buffer, CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, p.capacity));
+    }
+    return p.data;
+}
+
+namespace {
+
+// memcpy of several arrays, split over a few threads when large (page-locked staging to the
+// grid's arrays: one thread copies at a fraction of the memory bandwidth).
+struct Copy {
+    void* dst;
+    const void* src;
+    std::size_t bytes;
+};
+void copy_all(const std::vector<Copy>& copies) {
+    std::size_t total = 0;
+    for (const Copy& c : copies) {
+        total += c.bytes;
+    }
+    constexpr std::size_t kPerThread = std::size_t{2} << 20;
+    const unsigned threads = static_cast<unsigned>(std::min<std::size_t>(
+        {std::max(1u, std::thread::hardware_concurrency()), 8, total / kPerThread + 1}));
+    auto part = [&](unsigned t) {
+        // Thread t copies bytes [t total / threads, (t + 1) total / threads) of the concatenation.
+        const std::size_t lo = total * t / threads, hi = total * (t + 1) / threads;
+        std::size_t at = 0;
+        for (const Copy& c : copies) {
+            const std::size_t a = std::max(lo, at), b = std::min(hi, at + c.bytes);
+            if (a < b) {
+                std::memcpy(static_cast<std::uint8_t*>(c.dst) + (a - at),
+                            static_cast<const std::uint8_t*>(c.src) + (a - at), b - a);
+            }
+            at += c.bytes;
+        }
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < threads; ++t) {
+        pool.emplace_back(part, t);
+    }
+    part(0);
+    for (std::thread& th : pool) {
+        th.join();
+    }
+}
+
+}  // namespace
 
 ImplicitGrid ImplicitDiscretiser::run() {
     ImplicitGrid out;
@@ -142,11 +253,26 @@ void ImplicitDiscretiser::run(ImplicitGrid& out) {
                out.dims.to_string() + ", tile depth " + std::to_string(options_.tile_depth) + ")";
     };
 
+    // Blocking reads of the cells' classes: into `classes` (through the pinned stage on a GPU).
+    const cl_uchar* classes = nullptr;
+    auto read_classes = [&](const cl::Buffer& buf, std::size_t bytes) {
+        std::uint8_t* dst = nullptr;
+        if (staged_) {
+            dst = pinned(small_stage_, bytes);
+        } else {
+            classes_.resize(bytes);
+            dst = classes_.data();
+        }
+        q.enqueueReadBuffer(buf, CL_TRUE, 0, bytes, dst);
+        ++timing_.syncs;
+        classes = dst;
+    };
+
     // Tiles: one interval test each.
-    std::vector<cl_uchar>& classes = classes_;
-    classes.resize(tiles);
     std::vector<cl_uint4>& frontier = frontier_;
+    std::vector<cl_uint>& parents = parents_;
     frontier.clear();
+    parents.clear();
     std::uint32_t nodes = 0;
     cl_call(ctx_of("classify_tiles"), [&] {
         grow(classes_buf_, classes_cap_, tiles, CL_MEM_WRITE_ONLY);
@@ -163,7 +289,7 @@ void ImplicitDiscretiser::run(ImplicitGrid& out) {
         cl::Event e;
         q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(tiles, kGroup)),
                                cl::NDRange(kGroup), nullptr, &e);
-        q.enqueueReadBuffer(buf, CL_TRUE, 0, tiles, classes.data());
+        read_classes(buf, tiles);
         timing_.kernel_ms += event_ms(e);
     });
     out.tile_table.resize(tiles);
@@ -179,38 +305,61 @@ void ImplicitDiscretiser::run(ImplicitGrid& out) {
             const auto y = static_cast<cl_uint>(t / out.tiles.x % out.tiles.y * edge);
             const auto z = static_cast<cl_uint>(t / out.tiles.x / out.tiles.y * edge);
             frontier.push_back({{x, y, z, nodes++}});
+            parents.push_back(VF_SDF_NO_PARENT);
         }
     }
 
-    // Interior levels: every child of the frontier tested, ambiguous children become nodes of
-    // the next level, densely packed in mask order.
-    for (std::uint32_t level = 0; level < options_.tile_depth && !frontier.empty(); ++level) {
-        const cl_uint child_edge = edge >> (2 * (level + 1));
+    // The frontier's origins and parents' slots, to the device before each level's kernel.
+    auto upload_frontier = [&] {
         const std::size_t count = frontier.size();
-        classes.resize(count * 64);
+        grow(origins_buf_, origins_cap_, count * sizeof(cl_uint4), CL_MEM_READ_ONLY);
+        grow(parents_buf_, parents_cap_, count * sizeof(cl_uint), CL_MEM_READ_ONLY);
+        q.enqueueWriteBuffer(origins_buf_, CL_FALSE, 0, count * sizeof(cl_uint4), frontier.data());
+        q.enqueueWriteBuffer(parents_buf_, CL_FALSE, 0, count * sizeof(cl_uint), parents.data());
+    };
+    // Specialised tapes: the level being classified writes lists_buf_[cur], reading its
+    // parents' from lists_buf_[cur ^ 1].
+    const std::size_t list_bytes = VF_SDF_LIST_STRIDE * sizeof(cl_ushort);
+    const bool special = n <= VF_SDF_SPECIALISE_MAX;
+    std::size_t cur = 0;
+    for (int i = 0; i < 2; ++i) {
+        grow(lists_buf_[i], lists_cap_[i], list_bytes, CL_MEM_READ_WRITE);
+    }
+
+    // Interior levels: every node specialises its tape and tests its 64 children; ambiguous
+    // children become nodes of the next level, densely packed in mask order.
+    for (std::uint32_t level = 0; level < options_.tile_depth && !frontier.empty(); ++level) {
+        const cl_uint node_edge = edge >> (2 * level);
+        const cl_uint child_edge = node_edge / 4;
+        const std::size_t count = frontier.size();
         cl_call(ctx_of("classify_children"), [&] {
-            grow(origins_buf_, origins_cap_, count * sizeof(cl_uint4), CL_MEM_READ_ONLY);
-            q.enqueueWriteBuffer(origins_buf_, CL_FALSE, 0, count * sizeof(cl_uint4),
-                                 frontier.data());
-            const cl::Buffer& origins = origins_buf_;
+            upload_frontier();
             grow(classes_buf_, classes_cap_, count * 64, CL_MEM_WRITE_ONLY);
+            if (special) {
+                grow(lists_buf_[cur], lists_cap_[cur], count * list_bytes, CL_MEM_READ_WRITE);
+            }
             cl::Buffer& buf = classes_buf_;
             cl::Kernel& k = classify_children_;
             k.setArg(0, tape_);
             k.setArg(1, n);
             k.setArg(2, g);
-            k.setArg(3, origins);
-            k.setArg(4, static_cast<cl_uint>(count));
-            k.setArg(5, child_edge);
-            k.setArg(6, buf);
+            k.setArg(3, origins_buf_);
+            k.setArg(4, parents_buf_);
+            k.setArg(5, lists_buf_[cur ^ 1]);
+            k.setArg(6, static_cast<cl_uint>(count));
+            k.setArg(7, node_edge);
+            k.setArg(8, lists_buf_[cur]);
+            k.setArg(9, buf);
             cl::Event e;
-            q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(count * 64), cl::NDRange(kGroup),
+            q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(count * 64), cl::NDRange(64),
                                    nullptr, &e);
-            q.enqueueReadBuffer(buf, CL_TRUE, 0, count * 64, classes.data());
+            read_classes(buf, count * 64);
             timing_.kernel_ms += event_ms(e);
         });
         std::vector<cl_uint4>& next = next_;
+        std::vector<cl_uint>& next_parents = next_parents_;
         next.clear();
+        next_parents.clear();
         out.nodes.resize(std::size_t{nodes} * VF_SDF_NODE_WORDS);
         for (std::size_t f = 0; f < count; ++f) {
             std::uint64_t occ = 0, solid = 0;
@@ -225,6 +374,7 @@ void ImplicitDiscretiser::run(ImplicitGrid& out) {
                     next.push_back(
                         {{o.s[0] + (c & 3) * child_edge, o.s[1] + (c >> 2 & 3) * child_edge,
                           o.s[2] + (c >> 4) * child_edge, nodes++}});
+                    next_parents.push_back(static_cast<cl_uint>(f));
                 }
             }
             std::uint32_t* rec = &out.nodes[std::size_t{frontier[f].s[3]} * VF_SDF_NODE_WORDS];
@@ -236,6 +386,8 @@ void ImplicitDiscretiser::run(ImplicitGrid& out) {
             rec[5] = static_cast<std::uint32_t>(solid >> 32);
         }
         std::swap(frontier, next);
+        std::swap(parents, next_parents);
+        cur ^= 1;
     }
 
     // Leaves: the nodes of the last level, allocated last (indices first_leaf..nodes).
@@ -256,10 +408,7 @@ void ImplicitDiscretiser::run(ImplicitGrid& out) {
         std::size_t vcap = std::max({std::size_t{1024}, count * 48, last_vertices_});
         std::size_t xcap = std::max({std::size_t{1024}, count * 24, last_voxels_});
         cl_call(ctx_of(gpu_layout_ ? "sample_leaves_group" : "sample_leaves_seq"), [&] {
-            grow(origins_buf_, origins_cap_, count * sizeof(cl_uint4), CL_MEM_READ_ONLY);
-            q.enqueueWriteBuffer(origins_buf_, CL_FALSE, 0, count * sizeof(cl_uint4),
-                                 frontier.data());
-            const cl::Buffer& origins = origins_buf_;
+            upload_frontier();
             grow(leaf_nodes_buf_, leaf_nodes_cap_, count * VF_SDF_NODE_WORDS * sizeof(cl_uint),
                  CL_MEM_WRITE_ONLY);
             const cl::Buffer& leaf_nodes = leaf_nodes_buf_;
@@ -279,24 +428,33 @@ void ImplicitDiscretiser::run(ImplicitGrid& out) {
                 k.setArg(0, tape_);
                 k.setArg(1, n);
                 k.setArg(2, g);
-                k.setArg(3, origins);
-                k.setArg(4, static_cast<cl_uint>(count));
-                k.setArg(5, leaf_nodes);
-                k.setArg(6, voxels);
-                k.setArg(7, static_cast<cl_uint>(xcap));
-                k.setArg(8, vertices);
-                k.setArg(9, static_cast<cl_uint>(vcap));
-                k.setArg(10, counters);
+                k.setArg(3, origins_buf_);
+                k.setArg(4, parents_buf_);
+                k.setArg(5, lists_buf_[cur ^ 1]);
+                k.setArg(6, static_cast<cl_uint>(count));
+                k.setArg(7, leaf_nodes);
+                k.setArg(8, voxels);
+                k.setArg(9, static_cast<cl_uint>(xcap));
+                k.setArg(10, vertices);
+                k.setArg(11, static_cast<cl_uint>(vcap));
+                k.setArg(12, counters);
                 cl::Event e;
                 if (gpu_layout_) {
                     q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(count * 128),
                                            cl::NDRange(128), nullptr, &e);
                 } else {
+                    k.setArg(13, decided_);
                     q.enqueueNDRangeKernel(k, cl::NullRange,
                                            cl::NDRange(round_up(count, kLeafGroup)),
                                            cl::NDRange(kLeafGroup), nullptr, &e);
                 }
-                q.enqueueReadBuffer(counters, CL_TRUE, 0, sizeof(reached), reached);
+                cl_uint* got =
+                    staged_ ? reinterpret_cast<cl_uint*>(pinned(small_stage_, sizeof(reached)))
+                            : reached;
+                q.enqueueReadBuffer(counters, CL_TRUE, 0, sizeof(reached), got);
+                ++timing_.syncs;
+                reached[0] = got[0];
+                reached[1] = got[1];
                 timing_.kernel_ms += event_ms(e);
                 ++timing_.passes;
                 if (reached[0] <= vcap && reached[1] <= xcap) {
@@ -309,20 +467,36 @@ void ImplicitDiscretiser::run(ImplicitGrid& out) {
             last_voxels_ = reached[1];
             const cl::Buffer& voxels = voxels_buf_;
             const cl::Buffer& vertices = vertices_buf_;
-            q.enqueueReadBuffer(leaf_nodes, CL_FALSE, 0,
-                                count * VF_SDF_NODE_WORDS * sizeof(cl_uint),
-                                &out.nodes[std::size_t{first_leaf} * VF_SDF_NODE_WORDS]);
             out.voxels.resize(std::size_t{reached[1]} * VF_SDF_VOXEL_WORDS);
             out.vertices.resize(std::size_t{reached[0]} * VF_SDF_VERTEX_FLOATS);
-            if (reached[1] > 0) {
-                q.enqueueReadBuffer(voxels, CL_FALSE, 0, out.voxels.size() * sizeof(cl_uint),
-                                    out.voxels.data());
+            // The leaves' node records, voxel records and vertices: three reads, one wait.
+            const std::vector<Copy> parts = {
+                {&out.nodes[std::size_t{first_leaf} * VF_SDF_NODE_WORDS], nullptr,
+                 count * VF_SDF_NODE_WORDS * sizeof(cl_uint)},
+                {out.voxels.data(), nullptr, out.voxels.size() * sizeof(cl_uint)},
+                {out.vertices.data(), nullptr, out.vertices.size() * sizeof(cl_float)}};
+            const cl::Buffer* sources[3] = {&leaf_nodes, &voxels, &vertices};
+            std::size_t total = 0;
+            for (const Copy& c : parts) {
+                total += c.bytes;
             }
-            if (reached[0] > 0) {
-                q.enqueueReadBuffer(vertices, CL_FALSE, 0, out.vertices.size() * sizeof(cl_float),
-                                    out.vertices.data());
+            std::uint8_t* stage = staged_ ? pinned(out_stage_, total) : nullptr;
+            std::vector<Copy> copies;
+            std::size_t at = 0;
+            for (int i = 0; i < 3; ++i) {
+                if (parts[i].bytes == 0) {
+                    continue;
+                }
+                void* dst = staged_ ? stage + at : parts[i].dst;
+                q.enqueueReadBuffer(*sources[i], CL_FALSE, 0, parts[i].bytes, dst);
+                copies.push_back({parts[i].dst, dst, parts[i].bytes});
+                at += parts[i].bytes;
             }
             q.finish();
+            ++timing_.syncs;
+            if (staged_) {
+                copy_all(copies);
+            }
         });
     }
     timing_.total_ms =

@@ -158,6 +158,43 @@ TEST_P(ImplicitLayouts, RandomTreesEqualBruteForce) {
     EXPECT_GT(solid, 10000u);
 }
 
+// Coarse voxels against the features: many voxels whose corners lie within a voxel of the
+// surface, where the CPU layout samples a centre only when no corner decides its sign (the
+// 1-Lipschitz bound) and every level specialises its parent's tape.
+TEST_P(ImplicitLayouts, CoarseRandomTreesEqualBruteForce) {
+    test::RandomPart gen(77);
+    std::size_t crossed = 0;
+    for (int t = 0; t < 160; ++t) {
+        const double h = gen.real(0.06, 0.2);
+        const sdf::Part part = sdf::parse_part(gen.part(5, h), "random");
+        const std::uint32_t depth = static_cast<std::uint32_t>(t % 2);
+        crossed += check(part, {depth, GetParam()},
+                         "coarse tree " + std::to_string(t) + " depth " + std::to_string(depth))
+                       .crossed;
+    }
+    EXPECT_GT(crossed, 5000u);
+}
+
+// The readback through page-locked staging memory (a GPU's default) gives the direct
+// readback's grid, run after run into one reused grid; a run waits for the device once per
+// level, once for the leaves' counts and once for their records.
+TEST_P(ImplicitLayouts, PinnedReadbackEqualsDirect) {
+    const sdf::Part part =
+        sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" / "bracket.sdf.json");
+    ImplicitDiscretiser direct(test::pocl(), part, {2, GetParam()});
+    EXPECT_FALSE(direct.pinned_readback());  // PoCL computes in host memory
+    const ImplicitGrid want = direct.run();
+    ImplicitDiscretiser job(test::pocl(), part, {2, GetParam()});
+    job.set_pinned_readback(true);
+    ImplicitGrid got;
+    for (int i = 0; i < 2; ++i) {
+        job.run(got);
+        expect_same_grid(got, want);
+        EXPECT_EQ(got.tile_table, want.tile_table);
+        EXPECT_EQ(job.timing().syncs, 1u + 2u + 2u);
+    }
+}
+
 TEST_P(ImplicitLayouts, GalleryEqualsBruteForceAndPrunes) {
     for (const char* name : {"bracket", "gear_ring", "pipe_elbow"}) {
         const sdf::Part part = sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" /

@@ -55,18 +55,26 @@ struct ImplicitGrid {
 struct ImplicitTiming {
     double total_ms = 0;       // from the first enqueue to the host arrays filled
     double kernel_ms = 0;      // sum of the kernels' device times
+    std::uint32_t syncs = 0;   // times the host waited for the device
     std::uint32_t passes = 0;  // sample_leaves runs (2 when the first capacities overflowed)
 };
 
 class ImplicitDiscretiser {
   public:
     ImplicitDiscretiser(Context& ctx, const sdf::Part& part, ImplicitOptions options = {});
+    ~ImplicitDiscretiser();
+    ImplicitDiscretiser(const ImplicitDiscretiser&) = delete;
+    ImplicitDiscretiser& operator=(const ImplicitDiscretiser&) = delete;
 
     ImplicitGrid run();
     // The same into `out`, reusing its arrays' storage (and this discretiser's device buffers
     // and kernels, as every run does): repeated discretisations allocate nothing once warm.
     void run(ImplicitGrid& out);
     const ImplicitTiming& timing() const { return timing_; }
+    // Read back through page-locked staging memory (see Pinned below): by default on devices
+    // that do not compute in host memory; settable to test both paths on any device.
+    void set_pinned_readback(bool on) { staged_ = on; }
+    bool pinned_readback() const { return staged_; }
     bool gpu_layout() const { return gpu_layout_; }
 
     // Brute force, for checking: f at every grid corner ((X+1)(Y+1)(Z+1), x fastest) and at
@@ -79,6 +87,7 @@ class ImplicitDiscretiser {
     sdf::Part part_;  // a copy: the caller's part may go
     ImplicitOptions options_;
     bool gpu_layout_;
+    float decided_;  // the CPU layout's corner |f| that decides a centre's sign
     cl::Program program_;
     cl::Buffer tape_;
     ImplicitTiming timing_;
@@ -87,13 +96,27 @@ class ImplicitDiscretiser {
     void grow(cl::Buffer& buffer, std::size_t& capacity, std::size_t bytes, cl_mem_flags flags);
     bool kernels_made_ = false;
     cl::Kernel classify_tiles_, classify_children_, sample_leaves_;
-    cl::Buffer classes_buf_, origins_buf_, leaf_nodes_buf_, counters_buf_, voxels_buf_,
-        vertices_buf_;
-    std::size_t classes_cap_ = 0, origins_cap_ = 0, leaf_nodes_cap_ = 0, counters_cap_ = 0,
-                voxels_cap_ = 0, vertices_cap_ = 0;
+    cl::Buffer classes_buf_, origins_buf_, parents_buf_, leaf_nodes_buf_, counters_buf_,
+        voxels_buf_, vertices_buf_;
+    cl::Buffer lists_buf_[2];  // specialised tapes of two consecutive levels' nodes
+    std::size_t classes_cap_ = 0, origins_cap_ = 0, parents_cap_ = 0, leaf_nodes_cap_ = 0,
+                counters_cap_ = 0, voxels_cap_ = 0, vertices_cap_ = 0, lists_cap_[2] = {0, 0};
     std::vector<cl_uchar> classes_;
-    std::vector<cl_uint4> frontier_, next_;
+    std::vector<cl_uint4> frontier_, next_;        // origin (voxel), node index in w
+    std::vector<cl_uint> parents_, next_parents_;  // the parent's index in its level
     std::size_t last_vertices_ = 0, last_voxels_ = 0;
+    // A device outside host memory (a GPU) reads back through page-locked host memory: a
+    // CL_MEM_ALLOC_HOST_PTR buffer mapped once and kept mapped (full-speed DMA, no driver
+    // bounce buffer), then copied into the grid's arrays. Host-memory devices read directly.
+    struct Pinned {
+        cl::Buffer buffer;
+        std::uint8_t* data = nullptr;
+        std::size_t capacity = 0;
+    };
+    std::uint8_t* pinned(Pinned& p, std::size_t bytes);
+    void unmap(Pinned& p);
+    bool staged_;
+    Pinned small_stage_, out_stage_;  // classes and counters; the leaves' outputs
 };
 
 }  // namespace voxfield::ocl

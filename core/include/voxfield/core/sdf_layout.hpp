@@ -37,6 +37,10 @@
 
 /* Tapes up to this long are specialised per leaf (operands never selected there skipped). */
 #define VF_SDF_SPECIALISE_MAX 256
+/* A node's specialised tape as the discretiser keeps it for its children: a count, then that
+ * many instruction indices (16 bits each). VF_SDF_NO_PARENT: a tile's root runs the whole tape. */
+#define VF_SDF_LIST_STRIDE (VF_SDF_SPECIALISE_MAX + 1)
+#define VF_SDF_NO_PARENT 0xFFFFFFFFu
 
 /* Nesting limit of a part (nodes on the longest root-to-leaf path); the stacks hold one more. */
 #define VF_SDF_MAX_DEPTH 32
