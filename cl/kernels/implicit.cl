@@ -513,7 +513,8 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
         EV_STORE(d.y, 0, gy);
         EV_STORE(d.z, 0, gz);
         for (uint l = 0; l < EV_W && r0 + l < r; ++l) {
-            vertices[voff + r0 + l] = (float4)(gx[l], gy[l], gz[l], f[kept_list[r0 + l]]);
+            vertices[voff + r0 + l] =
+                (float4)(gx[l] * g.h, gy[l] * g.h, gz[l] * g.h, f[kept_list[r0 + l]]);
         }
     }
     uint x = 0;
@@ -628,7 +629,8 @@ __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_gro
         const uint i = o.x + lid % 5, j = o.y + lid / 5 % 5, k = o.z + lid / 25;
         const Dual d = eval_d(tape, run, m, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
                               corner_at(g.z0, g.h, k));
-        vertices[voff + rank_below(kept_bits, lid)] = (float4)(d.x, d.y, d.z, f[lid]);
+        vertices[voff + rank_below(kept_bits, lid)] =
+            (float4)(d.x * g.h, d.y * g.h, d.z * g.h, f[lid]);
     }
     if (crossed) {
         uint occ_bits[2] = {occ[0], occ[1]};

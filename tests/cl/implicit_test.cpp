@@ -101,9 +101,11 @@ Check check(const sdf::Part& part, ImplicitOptions options, const std::string& w
             const sdf::ValueGradient cpu = sdf::evaluate_gradient(part.tape, part.corner(i, j, l));
             const float scale = 1 + std::abs(cpu.value);
             r.max_value_error = std::max(r.max_value_error, std::abs(v[3] - cpu.value) / scale);
-            r.max_gradient_error =
-                std::max({r.max_gradient_error, std::abs(v[0] - cpu.gradient.x),
-                          std::abs(v[1] - cpu.gradient.y), std::abs(v[2] - cpu.gradient.z)});
+            // The stored gradient is per voxel: h grad f.
+            const auto h = static_cast<float>(part.voxel_size);
+            r.max_gradient_error = std::max(
+                {r.max_gradient_error, std::abs(v[0] / h - cpu.gradient.x),
+                 std::abs(v[1] / h - cpu.gradient.y), std::abs(v[2] / h - cpu.gradient.z)});
         }
     }
     EXPECT_LE(r.max_value_error, 4 * 1.2e-7f) << what;

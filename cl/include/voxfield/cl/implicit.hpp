@@ -31,7 +31,7 @@ struct ImplicitGrid {
     std::vector<std::uint32_t> tile_table;  // root node, VF_SDF_TILE_EMPTY or VF_SDF_TILE_FULL
     std::vector<std::uint32_t> nodes;       // VF_SDF_NODE_WORDS per node
     std::vector<std::uint32_t> voxels;      // VF_SDF_VOXEL_WORDS per crossed voxel
-    std::vector<float> vertices;            // VF_SDF_VERTEX_FLOATS per kept corner
+    std::vector<float> vertices;            // VF_SDF_VERTEX_FLOATS per kept corner: h grad f, f
     std::uint64_t leaves = 0;               // leaf nodes
 
     std::size_t node_count() const { return nodes.size() / VF_SDF_NODE_WORDS; }
@@ -46,7 +46,7 @@ struct ImplicitGrid {
     // Every crossed voxel: its coordinates, material and its 8 corners' (grad x, y, z, f).
     struct Crossed {
         std::uint32_t x, y, z, material;
-        float corner[8][4];  // corner c = cx + 2 cy + 4 cz
+        float corner[8][4];  // corner c = cx + 2 cy + 4 cz: h grad f (x, y, z), f
     };
     std::vector<Crossed> crossed() const;
 };

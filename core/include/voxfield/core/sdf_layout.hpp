@@ -61,7 +61,8 @@
  * the leaf's first vertex, one byte each (corner c = x + 2 y + 4 z; corners 0-3 in word 0, low
  * byte first, 4-7 in word 1), then its material. */
 #define VF_SDF_VOXEL_WORDS 3
-/* Vertex record: 4 floats: grad f (x, y, z), f. */
+/* Vertex record: 4 floats: h grad f (x, y, z), f, with h the voxel size: f's first-order change
+ * over one voxel along each axis, so that the tracer works in voxel units. */
 #define VF_SDF_VERTEX_FLOATS 4
 
 /* Cell classes of the interval test. */
