@@ -660,4 +660,40 @@ std::vector<ImplicitGrid::Crossed> ImplicitGrid::crossed() const {
     return out;
 }
 
+std::size_t ImplicitGrid::drop_crossed(
+    const std::function<bool(std::uint32_t, std::uint32_t, std::uint32_t)>& drop) {
+    // Leaves' voxel records are rewritten in walk order, each leaf's kept ones contiguous in
+    // mask order as before.
+    std::vector<std::uint32_t> kept;
+    kept.reserve(voxels.size());
+    std::size_t dropped = 0;
+    walk(
+        *this,
+        [&](std::uint32_t index, std::uint32_t x, std::uint32_t y, std::uint32_t z, std::uint32_t) {
+            std::uint32_t* rec = &nodes[std::size_t{index} * VF_SDF_NODE_WORDS];
+            const std::uint64_t occ = rec[2] | std::uint64_t{rec[3]} << 32;
+            std::uint64_t left = occ;
+            const std::uint32_t first = rec[0];
+            rec[0] = static_cast<std::uint32_t>(kept.size() / VF_SDF_VOXEL_WORDS);
+            std::uint32_t r = 0;
+            for (std::uint32_t v = 0; v < 64; ++v) {
+                if (!(occ >> v & 1)) {
+                    continue;
+                }
+                const std::uint32_t* vox = &voxels[std::size_t{first + r++} * VF_SDF_VOXEL_WORDS];
+                if (drop(x + (v & 3), y + (v >> 2 & 3), z + (v >> 4))) {
+                    left &= ~(std::uint64_t{1} << v);
+                    ++dropped;
+                } else {
+                    kept.insert(kept.end(), vox, vox + VF_SDF_VOXEL_WORDS);
+                }
+            }
+            rec[2] = static_cast<std::uint32_t>(left);
+            rec[3] = static_cast<std::uint32_t>(left >> 32);
+        },
+        [](std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t) {});
+    voxels = std::move(kept);
+    return dropped;
+}
+
 }  // namespace voxfield::ocl

@@ -13,6 +13,7 @@
 
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/npy.hpp"
+#include "voxfield/core/scene_file.hpp"
 #include "voxfield/core/sdf.hpp"
 #include "voxfield/core/sparse.hpp"
 #include "voxfield/core/vdb.hpp"
@@ -143,6 +144,11 @@ VoxModel load_sdf(const std::filesystem::path& path, const InputOptions&) {
     return VoxModel{sdf::solid_world(sdf::load_part(path), path.string()), Palette()};
 }
 
+VoxModel load_scene_world(const std::filesystem::path& path, const InputOptions&) {
+    const scene::Scene s = scene::load_scene(path);
+    return VoxModel{s.world(path.string()), s.palette};
+}
+
 SparseModel sparse_vox(const std::filesystem::path& path, const InputOptions&) {
     const VoxScene scene = read_vox_scene(path);
     return SparseModel{
@@ -170,6 +176,11 @@ WorldInfo describe_world(const World& world, const char* kind, double bound) {
 WorldInfo describe_sdf(const std::filesystem::path& path, const InputOptions& options,
                        double bound) {
     return describe_world(load_sdf(path, options).world, "sdf", bound);
+}
+
+WorldInfo describe_scene(const std::filesystem::path& path, const InputOptions& options,
+                         double bound) {
+    return describe_world(load_scene_world(path, options).world, "scene", bound);
 }
 
 WorldInfo describe_npy(const std::filesystem::path& path, const InputOptions& options,
@@ -208,8 +219,13 @@ const InputFormat& input_format(const std::filesystem::path& path) {
     // `.sdf.json` is named by two suffixes, so it is matched by name before the table.
     static constexpr InputFormat sdf_format{".sdf.json", load_sdf, sparse_from_dense<load_sdf>,
                                             describe_sdf};
+    static constexpr InputFormat scene_format{".scene.json", load_scene_world,
+                                              sparse_from_dense<load_scene_world>, describe_scene};
     if (sdf::is_sdf_path(path)) {
         return sdf_format;
+    }
+    if (scene::is_scene_path(path)) {
+        return scene_format;
     }
     std::string ext = path.extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(),
@@ -223,7 +239,7 @@ const InputFormat& input_format(const std::filesystem::path& path) {
     }
     throw InputError("'" + path.string() + "': unsupported file type " +
                      (ext.empty() ? std::string("(no extension)") : "'" + ext + "'") +
-                     " (expected one of " + accepted + ", .sdf.json)");
+                     " (expected one of " + accepted + ", .sdf.json, .scene.json)");
 }
 
 }  // namespace

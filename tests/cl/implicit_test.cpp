@@ -301,6 +301,47 @@ TEST(Implicit, FullAndEmptyTilesAreNotSubdivided) {
     check(part, {1, Layout::cpu}, "plane");
 }
 
+// drop_crossed forgets exactly the crossed voxels it is asked to: their occupied bits and
+// records; every other crossed voxel keeps its record (material and corners).
+TEST(Implicit, DropCrossedForgetsOnlyThoseVoxels) {
+    const sdf::Part part =
+        sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" / "gear_ring.sdf.json");
+    ImplicitGrid grid = ImplicitDiscretiser(test::pocl(), part, {1, Layout::cpu}).run();
+    const auto before = grid.crossed();
+    const std::vector<std::uint8_t> flags = grid.flags();
+    auto dropped = [](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+        return (x + 2 * y + 3 * z) % 3 == 0;
+    };
+    const std::size_t n = grid.drop_crossed(dropped);
+    std::vector<ImplicitGrid::Crossed> want;
+    for (const auto& c : before) {
+        if (!dropped(c.x, c.y, c.z)) {
+            want.push_back(c);
+        }
+    }
+    EXPECT_EQ(n, before.size() - want.size());
+    EXPECT_GT(n, 1000u);
+    EXPECT_EQ(grid.crossed_count(), want.size());
+    const auto after = grid.crossed();
+    ASSERT_EQ(after.size(), want.size());
+    for (std::size_t i = 0; i < want.size(); ++i) {
+        EXPECT_TRUE(after[i].x == want[i].x && after[i].y == want[i].y && after[i].z == want[i].z &&
+                    after[i].material == want[i].material &&
+                    std::memcmp(after[i].corner, want[i].corner, sizeof want[i].corner) == 0)
+            << i;
+    }
+    const std::vector<std::uint8_t> now = grid.flags();
+    const Dims d = part.dims;
+    for (std::size_t i = 0; i < now.size(); ++i) {
+        const auto x = static_cast<std::uint32_t>(i % d.x),
+                   y = static_cast<std::uint32_t>(i / d.x % d.y),
+                   z = static_cast<std::uint32_t>(i / d.x / d.y);
+        const std::uint8_t expect =
+            (flags[i] & 2) && dropped(x, y, z) ? std::uint8_t(flags[i] & 1) : flags[i];
+        ASSERT_EQ(now[i], expect) << x << "," << y << "," << z;
+    }
+}
+
 TEST(Implicit, RejectsATileDepthOutOfRange) {
     const sdf::Part part = sdf::parse_part(
         R"({"version": 1, "voxel_size": 0.1, "bounds": [[0, 0, 0], [1, 1, 1]],

@@ -6,11 +6,14 @@
 // of the analytic shape (sphere: closed form; boxes: slabs; torus: dense sampling of its exact
 // distance along the ray, then bisection) on >= 99.5% of the pixels.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
+#include <fstream>
 #include <functional>
 #include <iostream>
 #include <optional>
@@ -23,13 +26,16 @@
 #include "voxfield/core/camera.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/reference.hpp"
+#include "voxfield/core/scene_file.hpp"
 #include "voxfield/core/sdf.hpp"
+#include "voxfield/core/vox.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 #include "vulkan_env.hpp"
 
 namespace voxfield::test {
 namespace {
 
+namespace fs = std::filesystem;
 using D3 = std::array<double, 3>;
 
 D3 add(const D3& a, const D3& b) {
@@ -537,6 +543,76 @@ TEST(ImplicitTrace, VoxelWorldsKeepCubes) {
     EXPECT_EQ(marcher.implicit_bytes(), 0u);
     // A frame of the swapchain records no hits.
     EXPECT_THROW(static_cast<void>(marcher.render_to(r, vk::ExternalMemory())), std::logic_error);
+}
+
+// A mixed scene (.scene.json): a sphere part and a .vox block overlapping its side. Rays that
+// meet the block first hit cubes (the block's voxels win; the sphere's crossed voxels under the
+// block are dropped from the grid), the others the sphere's smooth surface, and every hit
+// agrees with the union of the analytic sphere and the block's box.
+TEST(ImplicitTrace, MixedSceneTracesPartsAndModels) {
+    const fs::path dir =
+        fs::temp_directory_path() / ("voxfield-mixed-" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    World block(Dims{6, 10, 6});
+    for (std::uint32_t z = 0; z < 6; ++z) {
+        for (std::uint32_t y = 0; y < 10; ++y) {
+            for (std::uint32_t x = 0; x < 6; ++x) {
+                block.set(x, y, z, 5);
+            }
+        }
+    }
+    write_vox(dir / "block.vox", block, Palette());
+    const Shape ball = sphere();
+    std::ofstream(dir / "ball.sdf.json") << ball.json;
+    // The block: x from 2.5 to 4 (into the sphere's side: it reaches 3.3), y -1.25..1.25,
+    // z -0.75..0.75, voxel size 0.25.
+    std::ofstream(dir / "mixed.scene.json") << R"({"version": 1, "voxel_size": 0.25, "items": [
+        {"sdf": "ball.sdf.json"}, {"vox": "block.vox", "translate": [2.5, -1.25, -0.75]}]})";
+    const scene::Scene sc = scene::load_scene(dir / "mixed.scene.json");
+    fs::remove_all(dir);
+    ASSERT_TRUE(sc.part);
+    const cli::TracedPart traced = cli::load_traced_scene(pocl(), sc, "mixed");
+    const World& world = traced.model.world;
+    const double h = sc.voxel_size;
+    const D3 lo{sc.lo[0], sc.lo[1], sc.lo[2]};
+    const auto in_block = [&](const D3& p) {
+        return p[0] >= 2.5 - 1e-4 && p[0] <= 4 + 1e-4 && std::abs(p[1]) <= 1.25 + 1e-4 &&
+               std::abs(p[2]) <= 0.75 + 1e-4;
+    };
+    for (const auto& c : traced.grid.crossed()) {
+        const D3 centre = add(lo, mul(D3{c.x + 0.5, c.y + 0.5, c.z + 0.5}, h));
+        EXPECT_FALSE(in_block(centre)) << c.x << "," << c.y << "," << c.z;
+    }
+    vk::Raymarcher marcher(validated_vulkan());
+    marcher.upload_compact(world.dims(), traced.model.palette, compact_field(world));
+    marcher.set_implicit(traced.surface());
+    vk::RenderOptions r;
+    r.width = 96;
+    r.height = 72;
+    r.shading = vk::Shading::flat;
+    r.surface = true;
+    r.camera.fov_deg = 35;
+    const Dims d = world.dims();
+    r.camera.position = {2.2 * d.x, 0.8 * d.y, 0.3 * d.z};
+    r.camera.target = {0.5 * d.x, 0.5 * d.y, 0.5 * d.z};
+    const vk::Image img = marcher.render(r);
+    std::size_t cubes = 0, smooth = 0;
+    for (const vk::SurfaceHit& hit : img.surface) {
+        if (hit.kind == VF_TRACE_MISS) {
+            continue;
+        }
+        const D3 at = add(lo, mul(D3{hit.x, hit.y, hit.z}, h));
+        if (hit.kind == VF_TRACE_CUBE) {
+            ++cubes;
+            EXPECT_TRUE(in_block(at)) << at[0] << "," << at[1] << "," << at[2];
+        } else {
+            ++smooth;
+            EXPECT_LE(std::abs(ball.distance(at)) / h, 0.05);
+            EXPECT_FALSE(in_block(at));
+        }
+    }
+    EXPECT_GT(cubes, 100u);
+    EXPECT_GT(smooth, 500u);
 }
 
 // A crossing narrower than any fixed sampling of the segment: one crossed voxel whose

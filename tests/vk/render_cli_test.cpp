@@ -209,6 +209,32 @@ TEST_F(RenderCli, BadPartExitsTwo) {
     EXPECT_FALSE(fs::exists(out));
 }
 
+// A mixed scene (.scene.json): parts traced on their surface beside .vox models' cubes, and
+// `generate` reads the same world; a malformed scene is one line, exit 2, no image.
+TEST_F(RenderCli, MixedScenesRenderAndGenerate) {
+    const fs::path scene = fs::path(VOXFIELD_DATA_DIR) / "scenes" / "workshop.scene.json";
+    const fs::path out = dir_ / "scene.png";
+    RunResult r = run_voxfield(
+        {"render", scene.string(), "-o", out.string(), "--width", "64", "--height", "48"}, io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_TRUE(fs::exists(out));
+    EXPECT_NE(r.out.find("implicit: "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("128x88x196"), std::string::npos) << r.out;
+    const fs::path field = dir_ / "scene.npy";
+    r = run_voxfield({"generate", scene.string(), "-o", field.string()}, io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_TRUE(fs::exists(field));
+
+    write_file(dir_ / "bad.scene.json",
+               R"({"version": 1, "voxel_size": 0.5, "items": [{"vox": "nowhere.vox"}]})");
+    const fs::path bad = dir_ / "bad.png";
+    r = run_voxfield({"render", (dir_ / "bad.scene.json").string(), "-o", bad.string()}, io_);
+    EXPECT_EQ(r.code, 2) << describe(r);
+    EXPECT_EQ(split_lines(r.err).size(), 1u) << describe(r);
+    EXPECT_NE(r.err.find("items[0]"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(bad));
+}
+
 TEST_F(RenderCli, HelpListsEveryOption) {
     const RunResult r = run_voxfield({"render", "--help"}, io_);
     ASSERT_EQ(r.code, 0) << describe(r);

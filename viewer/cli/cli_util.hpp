@@ -34,7 +34,8 @@ Command add_info(CLI::App& root);
 // --help of a world input: the files every command reads (DESIGN §4).
 inline constexpr const char* kWorldInputHelp =
     "World: MagicaVoxel .vox (scene graph), .npy label volume (Z,Y,X) of any integer or bool "
-    "type (nonzero = solid), OpenVDB .vdb or implicit surface .sdf.json";
+    "type (nonzero = solid), OpenVDB .vdb, implicit surface .sdf.json or mixed scene "
+    ".scene.json (.vox models and .sdf.json parts placed together)";
 // --help of --device where the command runs OpenCL only (DESIGN §4).
 inline constexpr const char* kDeviceHelp =
     "cpu, gpu or an index from `voxfield devices` (default: $VOXFIELD_DEVICE, else the first "

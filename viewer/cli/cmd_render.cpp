@@ -118,12 +118,18 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
         vk::validate(check);  // sizes and field of view
     }
 
-    // A part (.sdf.json) is discretised on the OpenCL device and traced on its trilinear
-    // surface; any other input is read as voxels.
+    // A part (.sdf.json), or the parts of a mixed scene (.scene.json), is discretised on the
+    // OpenCL device and traced on its smooth surface; any other input is read as voxels.
     std::optional<sdf::Part> part;
+    std::optional<scene::Scene> mixed;
     std::optional<VoxModel> loaded;
     if (sdf::is_sdf_path(o.input)) {
         part = sdf::load_part(o.input);
+    } else if (scene::is_scene_path(o.input)) {
+        mixed = scene::load_scene(o.input);
+        if (!mixed->part) {
+            loaded = VoxModel{mixed->world(o.input), mixed->palette};
+        }
     } else {
         loaded = load_world(o.input, InputOptions{.grid = {}, .palette_values = true});
     }
@@ -131,6 +137,8 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
     std::optional<TracedPart> traced;
     if (part) {
         traced = load_traced_part(cl_ctx, *part, o.input);
+    } else if (mixed && mixed->part) {
+        traced = load_traced_scene(cl_ctx, *mixed, o.input);
     }
     const VoxModel& model = traced ? traced->model : *loaded;
     const World& world = model.world;
@@ -229,9 +237,10 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
 
 Command add_render(CLI::App& root) {
     auto o = std::make_shared<RenderCliOptions>();
-    auto* app = root.add_subcommand("render",
-                                    "Ray-march a world (.vox, .npy, .vdb or .sdf.json) through its "
-                                    "distance field into a PNG image");
+    auto* app = root.add_subcommand(
+        "render",
+        "Ray-march a world (.vox, .npy, .vdb, .sdf.json or .scene.json) through its "
+        "distance field into a PNG image");
     app->add_option("INPUT", o->input, kWorldInputHelp)->required();
     app->add_option("-o,--output", o->output, "Output .png image (written atomically)")->required();
     app->add_option("--width", o->width, "Image width in pixels, 1..16384")->capture_default_str();

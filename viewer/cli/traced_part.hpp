@@ -9,6 +9,7 @@
 
 #include "voxfield/cl/implicit.hpp"
 #include "voxfield/cl/runtime.hpp"
+#include "voxfield/core/scene_file.hpp"
 #include "voxfield/core/sdf.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/vk/raymarcher.hpp"
@@ -30,5 +31,10 @@ vk::ImplicitSurface surface_of(const ocl::ImplicitGrid& grid);
 
 // Discretises `part` (read from the file `name`) on `ctx`.
 TracedPart load_traced_part(ocl::Context& ctx, const sdf::Part& part, const std::string& name);
+
+// A mixed scene (scene_file.hpp) with parts: its parts discretised as one on `ctx`, the world
+// its voxels (parts' solid voxels, .vox voxels over them) plus the parts' crossed voxels; a
+// crossed voxel under a .vox voxel is dropped from the grid, so the model's cube is drawn there.
+TracedPart load_traced_scene(ocl::Context& ctx, const scene::Scene& scene, const std::string& name);
 
 }  // namespace voxfield::cli

@@ -8,6 +8,7 @@
 // taken as f < 0 or not, differs among its 8 corners and its centre), f and grad f at its
 // corners. Layouts of the records: core/sdf_layout.hpp.
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "voxfield/cl/generator.hpp"
@@ -49,6 +50,11 @@ struct ImplicitGrid {
         float corner[8][4];  // corner c = cx + 2 cy + 4 cz: h grad f (x, y, z), f
     };
     std::vector<Crossed> crossed() const;
+    // Forgets the crossed voxels at which `drop(x, y, z)` is true (their occupied bits and
+    // records; the solid bits and the vertices stay): a tracer then treats them as the world's
+    // voxels say (a scene's .vox voxel over a part: a cube). Returns how many were dropped.
+    std::size_t drop_crossed(
+        const std::function<bool(std::uint32_t, std::uint32_t, std::uint32_t)>& drop);
 };
 
 // Timing of one discretisation (wall clock on the host, all phases).
