@@ -209,8 +209,9 @@ TEST_F(RenderCli, BadPartExitsTwo) {
     EXPECT_FALSE(fs::exists(out));
 }
 
-// A mixed scene (.scene.json): parts traced on their surface beside .vox models' cubes, and
-// `generate` reads the same world; a malformed scene is one line, exit 2, no image.
+// A mixed scene (.scene.json): parts traced on their surface beside .vox models' cubes (`view`
+// shows the same frame), and `generate` reads the same world; a malformed scene is one line,
+// exit 2, no image.
 TEST_F(RenderCli, MixedScenesRenderAndGenerate) {
     const fs::path scene = fs::path(VOXFIELD_DATA_DIR) / "scenes" / "workshop.scene.json";
     const fs::path out = dir_ / "scene.png";
@@ -220,6 +221,24 @@ TEST_F(RenderCli, MixedScenesRenderAndGenerate) {
     EXPECT_TRUE(fs::exists(out));
     EXPECT_NE(r.out.find("implicit: "), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("128x88x196"), std::string::npos) << r.out;
+    // view's headless frame: the same default camera and the same surfaces.
+    const fs::path shown = dir_ / "view.png";
+    const char* display = std::getenv("DISPLAY");
+    const std::string saved = display ? display : "";
+    ::unsetenv("DISPLAY");
+    r = run_voxfield({"view", scene.string(), "--shading", "flat", "--width", "64", "--height",
+                      "48", "--fallback-png", shown.string()},
+                     io_);
+    if (!saved.empty()) {
+        ::setenv("DISPLAY", saved.c_str(), 1);
+    }
+    ASSERT_EQ(r.code, 0) << describe(r);
+    const fs::path flat = dir_ / "flat.png";
+    r = run_voxfield({"render", scene.string(), "-o", flat.string(), "--width", "64", "--height",
+                      "48", "--shading", "flat"},
+                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_EQ(read_bytes(shown), read_bytes(flat));
     const fs::path field = dir_ / "scene.npy";
     r = run_voxfield({"generate", scene.string(), "-o", field.string()}, io_);
     ASSERT_EQ(r.code, 0) << describe(r);

@@ -43,12 +43,14 @@ std::string timestamp() {
     return buf;
 }
 
-// The world to view: INPUT, or a generated scene; named for the reports. A part (.sdf.json)
-// is read here and discretised once the OpenCL device is open (traced_part.hpp).
+// The world to view: INPUT, or a generated scene; named for the reports. A part (.sdf.json),
+// or a mixed scene (.scene.json) with parts, is read here and discretised once the OpenCL
+// device is open (traced_part.hpp).
 struct ViewWorld {
     VoxModel model{World(Dims{1, 1, 1}), Palette::dissertation()};
     std::string name;
     std::optional<sdf::Part> part;
+    std::optional<scene::Scene> mixed;
 };
 
 ViewWorld load_view_world(const ViewCliOptions& o) {
@@ -56,6 +58,15 @@ ViewWorld load_view_world(const ViewCliOptions& o) {
     if (!o.input.empty() && sdf::is_sdf_path(o.input)) {
         w.part = sdf::load_part(o.input);
         w.model.world = World(w.part->dims);
+        w.name = o.input;
+    } else if (!o.input.empty() && scene::is_scene_path(o.input)) {
+        w.mixed = scene::load_scene(o.input);
+        if (w.mixed->part) {
+            w.model.world = World(w.mixed->dims);
+        } else {
+            w.model = VoxModel{w.mixed->world(o.input), w.mixed->palette};
+            w.mixed.reset();
+        }
         w.name = o.input;
     } else if (!o.input.empty()) {
         w.model = load_world(o.input, InputOptions{.grid = {}, .palette_values = true});
@@ -159,6 +170,9 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     std::optional<TracedPart> traced;
     if (world.part) {
         traced = load_traced_part(cl_ctx, *world.part, o.input);
+        world.model = traced->model;
+    } else if (world.mixed) {
+        traced = load_traced_scene(cl_ctx, *world.mixed, o.input);
         world.model = traced->model;
     }
     pipeline::FramePipeline session(cl_ctx, *vk_ctx, world.model.palette, dims);
