@@ -330,7 +330,7 @@ int run_generate(const GenerateOptions& o) {
         outputs.write(o.json, j.dump(2) + "\n");
     }
     outputs.commit();
-    return 0;
+    exit_now(0);
 }
 
 }  // namespace
