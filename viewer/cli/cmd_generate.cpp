@@ -330,7 +330,7 @@ int run_generate(const GenerateOptions& o) {
         outputs.write(o.json, j.dump(2) + "\n");
     }
     outputs.commit();
-    exit_now(0);
+    return 0;
 }
 
 }  // namespace
