@@ -62,6 +62,11 @@ std::vector<Range> cut(const std::vector<std::uint64_t>& bases,
     chunk_of.assign(bases.size(), 0);
     std::vector<Range> ranges;
     for (const std::uint32_t t : order) {
+        if (counts[t] > limit) {
+            throw InputError("sparse tracer: a tile of " + std::to_string(counts[t]) +
+                             " elements exceeds one storage-buffer binding (" +
+                             std::to_string(limit) + " elements)");
+        }
         const std::uint64_t end = bases[t] + counts[t];
         if (ranges.empty() || end - ranges.back().begin > limit) {
             ranges.push_back(Range{bases[t], end});
