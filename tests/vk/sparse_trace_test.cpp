@@ -21,9 +21,11 @@
 #include "../cli/cli_test_util.hpp"
 #include "voxfield/core/camera.hpp"
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/core/reference.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/sparse.hpp"
+#include "voxfield/core/vdb.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 #include "voxfield/vk/sparse_trace_layout.h"
 #include "voxfield/vk/sparse_tracer.hpp"
@@ -747,6 +749,37 @@ TEST_F(SparseRenderCli, DefaultCameraAndLitShading) {
     ASSERT_EQ(r.code, 0) << describe(r);
     EXPECT_EQ(read_text(out).substr(1, 3), "PNG");
     EXPECT_EQ(list_dir(dir_), std::set<std::string>{"lit.png"});
+}
+
+// A .vdb grid of two 4^3 cubes 600000 voxels apart: 1.2e12 voxels, sparse without --sparse.
+TEST_F(SparseRenderCli, HugeVdbGridIsRenderedSparse) {
+    const fs::path grid = io_ / "far.vdb";
+    const std::vector<std::uint8_t> a(64, 5), b(64, 9), field(64, 0);
+    const std::array<Box, 2> boxes = {Box{{0, 0, 0}, {4, 4, 4}},
+                                      Box{{600000, 0, 500000}, {600004, 4, 500004}}};
+    std::size_t next = 0;
+    OutputBatch batch;
+    write_vdb(
+        batch, grid,
+        [&](VdbBox& box) {
+            if (next == boxes.size()) {
+                return false;
+            }
+            box = VdbBox{boxes[next], next == 0 ? a : b, field};
+            ++next;
+            return true;
+        },
+        Format::u8, VdbFieldSpec{});
+    batch.commit();
+    const fs::path out = dir_ / "far.png";
+    const RunResult r =
+        run_voxfield({"render", grid.string(), "-o", out.string(), "--camera", "600010,9,499990",
+                      "--target", "600002,2,500002", "--width", "64", "--height", "48"},
+                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_NE(r.out.find("600004x4x500004"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("128 solid in 2 tiles"), std::string::npos) << r.out;
+    EXPECT_EQ(read_text(out).substr(1, 3), "PNG");
 }
 
 TEST_F(SparseRenderCli, BadInputExitsTwoWithOneLineAndNoFile) {
