@@ -456,6 +456,14 @@ TEST(SparseTrace, ChunksCutAtTileBoundaries) {
     EXPECT_GT(sky_pixels(want.rgba, r.sky), 0u);
     EXPECT_LT(sky_pixels(want.rgba, r.sky), std::size_t{r.width} * r.height);
 
+    // Nodes in one binding, materials in several (the pipeline without the node switch).
+    const std::uint64_t nodes = sparse.node_masks().size() * 8;
+    vk::SparseTracer mixed(*ctx, std::max(nodes, widest) + 8);
+    mixed.upload(sparse, Palette());
+    EXPECT_EQ(mixed.stats().node_chunks, 1u);
+    EXPECT_GE(mixed.stats().material_chunks, 2u) << nodes << " node bytes, " << widest;
+    EXPECT_EQ(differing(mixed.render(r).rgba, want.rgba), 0u);
+
     vk::SparseTracer tiny(*ctx, 64);
     EXPECT_THROW(tiny.upload(sparse, Palette()), InputError);
 }

@@ -17,11 +17,12 @@
 layout(local_size_x = VF_SPARSE_LOCAL_SIZE, local_size_y = VF_SPARSE_LOCAL_SIZE) in;
 
 // Specialization constants (mirrored by vk/src/sparse_tracer.cpp): whether lit shading traces
-// shadow rays and occlusion taps, whether nodes and materials each lie in one binding (no
-// switch over the chunks), whether each ray counts its node visits and exits.
+// shadow rays and occlusion taps, whether each ray counts its node visits and exits, whether
+// the nodes lie in one binding and whether the materials do (no switch over the chunks).
 layout(constant_id = 0) const bool kShadows = true;
-layout(constant_id = 1) const bool kOneChunk = false;
-layout(constant_id = 2) const bool kCount = false;
+layout(constant_id = 1) const bool kCount = false;
+layout(constant_id = 2) const bool kOneNodeChunk = false;
+layout(constant_id = 3) const bool kOneMaterialChunk = false;
 
 // One RGBA8 pixel per texel, r | g << 8 | b << 16 | a << 24.
 layout(binding = VF_SPARSE_BINDING_IMAGE, r32ui) uniform writeonly uimage2D out_image;
@@ -71,7 +72,7 @@ layout(push_constant) uniform Params {
 pc;
 
 uvec2 node_mask(uint chunk, uint i) {
-    if (kOneChunk) {
+    if (kOneNodeChunk) {
         return k0[i];
     }
     switch (chunk) {
@@ -87,7 +88,7 @@ uvec2 node_mask(uint chunk, uint i) {
 }
 
 uint node_offset(uint chunk, uint i) {
-    if (kOneChunk) {
+    if (kOneNodeChunk) {
         return o0[i];
     }
     switch (chunk) {
@@ -103,7 +104,7 @@ uint node_offset(uint chunk, uint i) {
 }
 
 uint material_word(uint chunk, uint i) {
-    if (kOneChunk) {
+    if (kOneMaterialChunk) {
         return m0[i];
     }
     switch (chunk) {
@@ -213,13 +214,21 @@ uint hit_material() {
     return material_at(g_tile.w, first + rank_below(g_mask2, g_bit));
 }
 
-// The material of cell c (0: empty or outside the world), looked up from the top.
-uint material_of(ivec3 c) {
+// The material of cell c (0: empty or outside the world), looked up from the top, or from the
+// 16^3 level when c lies in the tile whose record and root mask are `tile` and `root` at tile
+// coordinates `tile_at` (the hit's: most occlusion taps are there).
+uint material_of(ivec3 c, ivec3 tile_at, uvec4 tile, uvec2 root) {
     if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, ivec3(pc.dims.xyz)))) {
         return 0u;
     }
     uvec3 u = uvec3(c);
-    for (uint level = 0u; level <= kVoxelLevel; ++level) {
+    uint level = 0u;
+    if ((c >> 6) == tile_at) {
+        g_tile = tile;
+        g_mask0 = root;
+        level = 2u;
+    }
+    for (; level <= kVoxelLevel; ++level) {
         if (!enter(level, u)) {
             return 0u;
         }
@@ -340,17 +349,23 @@ bool trace(vec3 o, vec3 dir, out ivec3 cell, out ivec3 face, out vec3 point, out
 // Ambient occlusion of the face of solid `cell` with outward normal n, from the 64-trees: at
 // heights k = 1..4 along n, the cell straight out and the four k cells aside along the face's
 // axes (a 45 degree cone); the more of them are solid, the more the face is enclosed (nearer
-// heights weigh more, as the dense ray marcher's taps).
+// heights weigh more, as the dense ray marcher's taps). Call it right after the trace that hit
+// `cell` (its tile's record and root mask are still the walk's).
 float occlusion(ivec3 cell, ivec3 n) {
     const float weights[4] = float[4](0.4, 0.3, 0.2, 0.1);
     ivec3 t1 = n.x != 0 ? ivec3(0, 1, 0) : ivec3(1, 0, 0);
     ivec3 t2 = n.z != 0 ? ivec3(0, 1, 0) : ivec3(0, 0, 1);
+    ivec3 tile_at = cell >> 6;
+    uvec4 tile = g_tile;
+    uvec2 root = g_mask0;
     float sum = 0.0;
     for (int k = 1; k <= 4; ++k) {
         ivec3 c = cell + n * k;
-        uint solid = uint(material_of(c) != 0u) + uint(material_of(c + t1 * k) != 0u) +
-                     uint(material_of(c - t1 * k) != 0u) + uint(material_of(c + t2 * k) != 0u) +
-                     uint(material_of(c - t2 * k) != 0u);
+        uint solid = uint(material_of(c, tile_at, tile, root) != 0u) +
+                     uint(material_of(c + t1 * k, tile_at, tile, root) != 0u) +
+                     uint(material_of(c - t1 * k, tile_at, tile, root) != 0u) +
+                     uint(material_of(c + t2 * k, tile_at, tile, root) != 0u) +
+                     uint(material_of(c - t2 * k, tile_at, tile, root) != 0u);
         sum += weights[k - 1] * float(solid) / 5.0;
     }
     return 1.0 - 0.7 * sum;
@@ -384,8 +399,11 @@ void main() {
             float diffuse = max(dot(n, kSun), 0.0);
             float ambient = 0.18 + 0.12 * n.y;
             if (face != ivec3(0)) {
-                // Sunlit unless the ray from just outside the face toward the sun hits a solid.
                 ivec3 out_n = -face;
+                if (kShadows) {
+                    ambient *= occlusion(cell, out_n);
+                }
+                // Sunlit unless the ray from just outside the face toward the sun hits a solid.
                 if (kShadows && diffuse > 0.0) {
                     ivec3 c2, f2;
                     vec3 p2;
@@ -393,9 +411,6 @@ void main() {
                     if (trace(point + vec3(out_n) * 0.01, kSun, c2, f2, p2, m2, v2, e2)) {
                         diffuse = 0.0;
                     }
-                }
-                if (kShadows) {
-                    ambient *= occlusion(cell, out_n);
                 }
             }
             colour = pack_rgb(linear_to_srgb(base * (ambient + 0.8 * diffuse)));

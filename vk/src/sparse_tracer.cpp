@@ -38,11 +38,13 @@ struct SparsePushConstants {
 };
 static_assert(sizeof(SparsePushConstants) == 112);
 
-// sparse_trace.comp's specialization constants 0..2: shadows, one chunk, counting.
+// sparse_trace.comp's specialization constants 0..3: shadows, counting, one node chunk, one
+// material chunk.
 struct Specialization {
     VkBool32 shadows;
-    VkBool32 one_chunk;
     VkBool32 count;
+    VkBool32 one_node_chunk;
+    VkBool32 one_material_chunk;
 };
 
 // A contiguous range [begin, end) of a node or material buffer bound as one chunk.
@@ -112,7 +114,8 @@ struct SparseTracer::Impl {
     Owned<VkDescriptorSetLayout> set_layout;
     Owned<VkPipelineLayout> pipeline_layout;
     Owned<VkShaderModule> shader;
-    std::array<Owned<VkPipeline>, 8> pipelines;  // by shadows | one chunk << 1 | count << 2
+    // By shadows | count << 1 | one node chunk << 2 | one material chunk << 3.
+    std::array<Owned<VkPipeline>, 16> pipelines;
     Owned<VkDescriptorPool> pool;
     VkDescriptorSet set = VK_NULL_HANDLE;
     Owned<VkQueryPool> queries;  // one pair: dispatch start, end
@@ -145,7 +148,7 @@ struct SparseTracer::Impl {
         return b;
     }
     void write_set();
-    VkPipeline pipeline_for(bool shadows, bool one_chunk, bool count);
+    VkPipeline pipeline_for(bool shadows, bool count, bool one_node_chunk, bool one_material_chunk);
     void prepare_target(std::uint32_t width, std::uint32_t height);
 };
 
@@ -383,18 +386,23 @@ void SparseTracer::Impl::write_set() {
                            0, nullptr);
 }
 
-VkPipeline SparseTracer::Impl::pipeline_for(bool shadows, bool one_chunk, bool count) {
+VkPipeline SparseTracer::Impl::pipeline_for(bool shadows, bool count, bool one_node_chunk,
+                                            bool one_material_chunk) {
     Owned<VkPipeline>& slot =
-        pipelines[(shadows ? 1u : 0u) | (one_chunk ? 2u : 0u) | (count ? 4u : 0u)];
+        pipelines[(shadows ? 1u : 0u) | (count ? 2u : 0u) | (one_node_chunk ? 4u : 0u) |
+                  (one_material_chunk ? 8u : 0u)];
     if (slot) {
         return slot.get();
     }
     const auto flag = [](bool b) { return b ? VkBool32{VK_TRUE} : VkBool32{VK_FALSE}; };
-    const Specialization data{flag(shadows), flag(one_chunk), flag(count)};
-    const std::array<VkSpecializationMapEntry, 3> entries = {
+    const Specialization data{flag(shadows), flag(count), flag(one_node_chunk),
+                              flag(one_material_chunk)};
+    const std::array<VkSpecializationMapEntry, 4> entries = {
         VkSpecializationMapEntry{0, offsetof(Specialization, shadows), sizeof(VkBool32)},
-        VkSpecializationMapEntry{1, offsetof(Specialization, one_chunk), sizeof(VkBool32)},
-        VkSpecializationMapEntry{2, offsetof(Specialization, count), sizeof(VkBool32)}};
+        VkSpecializationMapEntry{1, offsetof(Specialization, count), sizeof(VkBool32)},
+        VkSpecializationMapEntry{2, offsetof(Specialization, one_node_chunk), sizeof(VkBool32)},
+        VkSpecializationMapEntry{3, offsetof(Specialization, one_material_chunk),
+                                 sizeof(VkBool32)}};
     VkSpecializationInfo spec{};
     spec.mapEntryCount = static_cast<std::uint32_t>(entries.size());
     spec.pMapEntries = entries.data();
@@ -501,8 +509,8 @@ void SparseTracer::render(const RenderOptions& o, Image& out) {
         m.write_set();
     }
     m.prepare_target(o.width, o.height);
-    const VkPipeline pipeline = m.pipeline_for(
-        o.shading == Shading::lit, m.masks.size() <= 1 && m.materials.size() <= 1, o.count);
+    const VkPipeline pipeline = m.pipeline_for(o.shading == Shading::lit, o.count,
+                                               m.masks.size() <= 1, m.materials.size() <= 1);
     const VkImage image = m.target.image.get();
     const VkQueryPool timer = m.queries.get();
     m.ctx.submit_and_wait(
