@@ -427,6 +427,13 @@ TEST(SparseTrace, EmptyWorldIsAllSky) {
     const vk::Image img = tracer.render(r);
     EXPECT_EQ(sky_pixels(img.rgba, r.sky), 32u * 24u);
     EXPECT_EQ(tracer.stats().pages, 0u);
+    // The same tracer takes another world.
+    const World world = islands();
+    tracer.upload(SparseWorld::from_dense(world), Palette());
+    const vk::RenderOptions view = options(48, 36, {-80, 90, -60}, {150, 20, 100});
+    const vk::Image second = tracer.render(view);
+    EXPECT_EQ(differing(second.rgba, dense_image(*ctx, world, Palette(), view).rgba), 0u);
+    EXPECT_GT(tracer.stats().pages, 0u);
 }
 
 // Nodes and materials cut into several bindings give the same image; too many are refused.
@@ -682,6 +689,13 @@ TEST(SparseTrace, SkyGradientAndBgra) {
         ASSERT_EQ(bgra.rgba[p + 2], lit.rgba[p]);
         ASSERT_EQ(bgra.rgba[p + 3], 255);
     }
+    // Another size from the same tracer: a new target, the flat image as a fresh tracer's.
+    const vk::RenderOptions small = options(33, 17, {-30, 90, -40}, {32, 20, 32});
+    const vk::Image again = tracer.render(small);
+    vk::SparseTracer fresh(*ctx);
+    fresh.upload(SparseWorld::from_dense(world), Palette());
+    EXPECT_EQ(again.rgba, fresh.render(small).rgba);
+    EXPECT_EQ(again.rgba.size(), 33u * 17u * 4u);
 }
 
 TEST(SparseTrace, DefaultCameraFramesTheSolids) {
