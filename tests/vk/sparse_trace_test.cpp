@@ -26,6 +26,7 @@
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/sparse.hpp"
 #include "voxfield/core/vdb.hpp"
+#include "voxfield/core/vox.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 #include "voxfield/vk/sparse_trace_layout.h"
 #include "voxfield/vk/sparse_tracer.hpp"
@@ -416,6 +417,27 @@ TEST(SparseTrace, CityScene) {
     vk::RenderOptions r = options(128, 96, {}, {});
     r.camera = vk::default_camera(world.dims());
     expect_flat_matches(*ctx, world, Palette(), r);
+}
+
+// The models in data/vox, loaded dense and loaded sparse (load_sparse_world places a scene's
+// instances into the tiles voxel by voxel): the same images, the dense ray marcher's.
+TEST(SparseTrace, ModelsInDataVox) {
+    REQUIRE_VULKAN(ctx);
+    for (const char* name :
+         {"chr_army1.vox", "obj_house4.vox", "scene_store8.vox", "veh_car1.vox"}) {
+        SCOPED_TRACE(name);
+        const fs::path path = fs::path(VOXFIELD_DATA_DIR) / "vox" / name;
+        const VoxModel dense = load_world(path, InputOptions{.grid = {}, .palette_values = true});
+        const SparseModel sparse =
+            load_sparse_world(path, InputOptions{.grid = {}, .palette_values = true});
+        ASSERT_EQ(sparse.world.dims(), dense.world.dims());
+        vk::RenderOptions r = options(96, 72, {}, {});
+        r.camera = vk::default_camera(dense.world, r.width, r.height);
+        const vk::Image want = expect_flat_matches(*ctx, dense.world, dense.palette, r);
+        vk::SparseTracer tracer(*ctx);
+        tracer.upload(sparse.world, sparse.palette);
+        EXPECT_EQ(differing(tracer.render(r).rgba, want.rgba), 0u);
+    }
 }
 
 TEST(SparseTrace, EmptyWorldIsAllSky) {
