@@ -826,6 +826,24 @@ TEST_F(SparseRenderCli, HugeVdbGridIsRenderedSparse) {
     EXPECT_EQ(read_text(out).substr(1, 3), "PNG");
 }
 
+// `bench --suite sparse` traces each row's world at 1920x1080 (flat and lit, GPU timestamps).
+TEST_F(SparseRenderCli, SparseBenchTimesTheTrace) {
+    const fs::path js = dir_ / "sparse.json";
+    const RunResult r =
+        run_voxfield({"bench", "--suite", "sparse", "--sizes", "130x40x64", "--max-distance", "4",
+                      "--edits", "1", "--warmup", "0", "--device", "cpu", "--json", js.string()},
+                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_NE(r.err.find("traced 1920x1080"), std::string::npos) << r.err;
+    const std::string text = read_text(js);
+    for (const char* key :
+         {"\"trace_flat_ms\"", "\"trace_lit_ms\"", "\"trace_lit_ms_samples\"",
+          "\"trace_node_visits_per_ray\"", "\"trace_width\": 1920", "\"trace_height\": 1080"}) {
+        EXPECT_NE(text.find(key), std::string::npos) << key << " missing in " << text;
+    }
+    EXPECT_EQ(text.find("trace_skipped"), std::string::npos) << text;
+}
+
 TEST_F(SparseRenderCli, BadInputExitsTwoWithOneLineAndNoFile) {
     write_file(dir_ / "world.txt", "not a world");
     write_file(dir_ / "part.sdf.json", "{}");
