@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <iostream>
 
 #include <unistd.h>
 #include <vector>
@@ -319,6 +320,13 @@ nlohmann::json StageTimes::json() const {
         rows.push_back({{"kernel", name}, {"median_ms", summarize(samples).median}});
     }
     return rows;
+}
+
+void exit_now(int code) {
+    std::cout.flush();
+    std::cerr.flush();
+    std::fflush(nullptr);
+    std::_Exit(code);
 }
 
 }  // namespace voxfield::cli

@@ -94,6 +94,12 @@ class StageTimes {
     std::vector<std::pair<std::string, std::vector<double>>> kernels_;
 };
 std::string commit();
+
+// Ends the process with `code` once a command's outputs are committed: flushes stdout and
+// stderr and exits without running destructors, since the operating system reclaims the
+// device's contexts and memory at once, where releasing them one by one takes the NVIDIA
+// driver about 150 ms (measured on the H200 with strace). Nothing may be left unwritten.
+[[noreturn]] void exit_now(int code);
 // Now in UTC, ISO 8601 ("2026-11-22T05:16:00Z"), for benchmark records.
 std::string utc_now();
 // `v` with `digits` decimals ("%.*f").
