@@ -487,6 +487,54 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
 }
 #endif
 
+#if METRIC == 2 && UNIT && !WIDE && !INDICES
+// Unit-spacing L2 of the cw <= 16 lines of a tile 16 lines wide (element (p, c) at
+// p * 16 + c), a full transform, by windowed minima with the lines side by side: position p takes the least
+// g_u + (p - u)^2 over the sites u with |p - u| <= r, where r bounds the distance at p of
+// every line that has a site: the site of p - 1 is at most sqrt(d(p - 1)) + 1 from p, so
+// d(p) <= (sqrt(d(p - 1)) + 1)^2 and no site further than that can be nearer (r is the
+// largest such bound over the lines, plus one for the float square root; the first position
+// takes every site). No stack and no data-dependent branch per site: the inner loop is one
+// vector add and minimum per site, and the cost depends only on the distances. Returns false
+// (tin as it came, tout undefined) where r passes WINDOW_MAX, for the envelope to take the
+// tile. `pad` adds the virtual empty sites at -1 and n. Empty sites (G_INF) become L2_FAR in
+// tin, which sums with any square below 2^30 without wrapping (the partials stay below 2^30
+// here, WIDE otherwise).
+#define L2_FAR 0x80000000u
+#define WINDOW_MAX 48
+inline bool tile_window_l2(__global GT* tin, __global GT* tout, int cw, int n, int pad,
+                           GT cap) {
+    for (int i = 0; i < n * 16; ++i) {
+        tin[i] = i % 16 < cw ? min(tin[i], L2_FAR) : L2_FAR;
+    }
+    int r = n;
+    for (int p = 0; p < n; ++p) {
+        const uint edge = pad ? (uint)min((p + 1) * (p + 1), (n - p) * (n - p)) : L2_FAR;
+        uint16 best = (uint16)edge;
+        const int lo = max(0, p - r), hi = min(n - 1, p + r);
+        for (int u = lo; u <= hi; ++u) {
+            const uint k2 = (uint)((p - u) * (p - u));
+            best = min(best, vload16(u, tin) + k2);
+        }
+        const uint16 far = as_uint16(best >= (uint16)L2_FAR);
+        vstore16(select(min(best, (uint16)cap), (uint16)G_INF, far), p, tout);
+        const uint16 real = best & ~far;
+        const uint8 h8 = max(real.lo, real.hi);
+        const uint4 h4 = max(h8.lo, h8.hi);
+        const uint2 h2 = max(h4.lo, h4.hi);
+        const uint m = max(h2.x, h2.y);
+        r = (int)sqrt((float)m) + 2;
+        if (r > WINDOW_MAX) {
+            for (int i = 0; i < n * 16; ++i) {
+                tin[i] = tin[i] >= L2_FAR ? G_INF : tin[i];
+            }
+            return false;
+        }
+    }
+    return true;
+}
+#endif
+
 // Lines of length n and element stride `stride` along `axis` (1: y, 2: z): line l has x =
 // lo_x + l % count_x and the other coordinate lo_o + l / count_x, and starts at
 // other * mstride + x; positions [o0, o1) from the sites [i0, i1), partials capped at `cap`.
@@ -560,6 +608,11 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
 #if METRIC == 0 && UNIT
                 if (box == 0) {
                     tile_sweep_l1(tin, tout, tile_w, cw, (int)n, cls, ftin, ftout, cap);
+                } else
+#endif
+#if METRIC == 2 && UNIT && !WIDE && !INDICES
+                if (box == 0 && tile_w == 16 &&
+                    tile_window_l2(tin, tout, cw, (int)n, cls, cap)) {
                 } else
 #endif
                 for (int c = 0; c < cw; ++c) {
