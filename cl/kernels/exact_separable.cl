@@ -489,32 +489,52 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
 
 #if METRIC == 2 && UNIT && !WIDE && !INDICES
 // Unit-spacing L2 of the cw <= 16 lines of a tile 16 lines wide (element (p, c) at
-// p * 16 + c), a full transform, by windowed minima with the lines side by side: position p takes the least
-// g_u + (p - u)^2 over the sites u with |p - u| <= r, where r bounds the distance at p of
-// every line that has a site: the site of p - 1 is at most sqrt(d(p - 1)) + 1 from p, so
-// d(p) <= (sqrt(d(p - 1)) + 1)^2 and no site further than that can be nearer (r is the
-// largest such bound over the lines, plus one for the float square root; the first position
-// takes every site). No stack and no data-dependent branch per site: the inner loop is one
-// vector add and minimum per site, and the cost depends only on the distances. Returns false
-// (tin as it came, tout undefined) where r passes WINDOW_MAX, for the envelope to take the
-// tile. `pad` adds the virtual empty sites at -1 and n. Empty sites (G_INF) become L2_FAR in
-// tin, which sums with any square below 2^30 without wrapping (the partials stay below 2^30
-// here, WIDE otherwise).
+// p * 16 + c), a full transform, by windowed minima with the lines side by side: position p
+// takes the least g_u + (p - u)^2 over the sites u near enough to matter, all 16 lines in one
+// vector add and minimum per site (no stack, no data-dependent branch per site). The bound:
+// the site of p - 1 is one step further from p, so d(p) <= (sqrt(d(p - 1)) + 1)^2 <= U =
+// (s + 2)^2 with s = floor(sqrt(m)), m the largest d(p - 1) of the lines that have a site,
+// and a site u can only be nearer where g_u + (p - u)^2 <= U: within r = s + 2 of p, and
+// in a block of 16 sites only where the block's least partial (over its sites and lines)
+// plus its nearest squared offset stays within U. The first position takes every site.
+// The blocks' least partials go to `bmin` (n / 16 + 1 entries). Returns false (tin as it
+// came) where r passes WINDOW_MAX, for the envelope to take the tile. `pad` adds the
+// virtual empty sites at -1 and n. Empty sites (G_INF) become L2_FAR in tin, which sums with
+// any square below 2^30 without wrapping (the partials stay below 2^30 here, WIDE otherwise).
 #define L2_FAR 0x80000000u
-#define WINDOW_MAX 48
-inline bool tile_window_l2(__global GT* tin, __global GT* tout, int cw, int n, int pad,
-                           GT cap) {
-    for (int i = 0; i < n * 16; ++i) {
-        tin[i] = i % 16 < cw ? min(tin[i], L2_FAR) : L2_FAR;
+#define WINDOW_MAX 256
+inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* bmin, int cw,
+                           int n, int pad, GT cap) {
+    for (int b = 0; b * 16 < n; ++b) {
+        uint16 lo = (uint16)L2_FAR;
+        for (int u = b * 16; u < min(n, b * 16 + 16); ++u) {
+            const uint16 v = min(vload16(u, tin), (uint16)L2_FAR);
+            const uint16 lane = (uint16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+            const uint16 w = select((uint16)L2_FAR, v, lane < (uint16)cw);
+            vstore16(w, u, tin);
+            lo = min(lo, w);
+        }
+        const uint8 l8 = min(lo.lo, lo.hi);
+        const uint4 l4 = min(l8.lo, l8.hi);
+        const uint2 l2 = min(l4.lo, l4.hi);
+        bmin[b] = min(l2.x, l2.y);
     }
     int r = n;
+    uint bound = UINT_MAX;
     for (int p = 0; p < n; ++p) {
         const uint edge = pad ? (uint)min((p + 1) * (p + 1), (n - p) * (n - p)) : L2_FAR;
         uint16 best = (uint16)edge;
         const int lo = max(0, p - r), hi = min(n - 1, p + r);
-        for (int u = lo; u <= hi; ++u) {
-            const uint k2 = (uint)((p - u) * (p - u));
-            best = min(best, vload16(u, tin) + k2);
+        for (int b = lo / 16; b <= hi / 16; ++b) {
+            const int b0 = b * 16, b1 = b0 + 15;
+            const int off = p < b0 ? b0 - p : p > b1 ? p - b1 : 0;
+            if (bmin[b] + (uint)(off * off) > bound) {
+                continue;
+            }
+            for (int u = max(lo, b0); u <= min(hi, b1); ++u) {
+                const uint k2 = (uint)((p - u) * (p - u));
+                best = min(best, vload16(u, tin) + k2);
+            }
         }
         const uint16 far = as_uint16(best >= (uint16)L2_FAR);
         vstore16(select(min(best, (uint16)cap), (uint16)G_INF, far), p, tout);
@@ -523,7 +543,12 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, int cw, int n, i
         const uint4 h4 = max(h8.lo, h8.hi);
         const uint2 h2 = max(h4.lo, h4.hi);
         const uint m = max(h2.x, h2.y);
-        r = (int)sqrt((float)m) + 2;
+        // s = floor(sqrt(m)) exactly, from the float root (off by at most one).
+        int sr = (int)sqrt((float)m);
+        sr -= (uint)(sr * sr) > m;
+        sr += (uint)((sr + 1) * (sr + 1)) <= m;
+        r = sr + 2;
+        bound = (uint)(r * r);
         if (r > WINDOW_MAX) {
             for (int i = 0; i < n * 16; ++i) {
                 tin[i] = tin[i] >= L2_FAR ? G_INF : tin[i];
@@ -612,7 +637,7 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
 #endif
 #if METRIC == 2 && UNIT && !WIDE && !INDICES
                 if (box == 0 && tile_w == 16 &&
-                    tile_window_l2(tin, tout, cw, (int)n, cls, cap)) {
+                    tile_window_l2(tin, tout, (__global uint*)s, cw, (int)n, cls, cap)) {
                 } else
 #endif
                 for (int c = 0; c < cw; ++c) {
