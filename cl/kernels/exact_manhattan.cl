@@ -130,49 +130,61 @@ inline uint sheet_next(uint y, int shear, uint Y) {
     return (uint)(((int)y + shear + (int)Y) % (int)Y);
 }
 
-// The L-inf z moves (a, shear, +-1), a in {-1,0,1}: work-item y0 sweeps the sheet of rows
-// (z, (y0 + shear * z) mod Y) forward and backward in z, each row by KING_STEP from the
+// The L-inf z moves (a, shear, +-1), a in {-1,0,1}: the sheet y0 is the rows
+// (z, (y0 + shear * z) mod Y), swept forward and backward in z, each row by KING_STEP from the
 // sheet's previous row where the two are neighbours. Every (row, z) belongs to one sheet, so
-// the work-items never touch each other's rows. The rows are copied to `scratch` (Z * X
-// elements, contiguous) during the forward sweep, so that the backward sweep reads them from
-// cache; `final` writes the output format.
+// the sheets never touch each other's rows. Work-item w sweeps the `group` sheets y0 =
+// w * group + k side by side, z outermost: their rows at one z are consecutive in memory (up
+// to a wrap around Y), so a z step reads and writes one run of group * X elements instead of
+// rows a plane apart. The rows are copied to `scratch` (group * Z * X elements, contiguous)
+// during the forward sweep, so that the backward sweep reads them from cache; `final` writes
+// the output format.
 __kernel void z_sheets(__global T* restrict work, __global uint* restrict out,
                        __global const uchar* restrict vox, __constant uchar* rgb, uint X, uint Y,
-                       uint Z, int shear, uint final, __local T* restrict scratch) {
-    const uint y0 = (uint)get_global_id(0);
-    if (y0 >= Y) {
+                       uint Z, int shear, uint final, uint group, __local T* restrict scratch) {
+    const uint s0 = (uint)get_global_id(0) * group;
+    if (s0 >= Y) {
         return;
     }
+    const uint G = min(group, Y - s0);
     const size_t plane = (size_t)X * Y;
-    uint y = y0;
-    for (uint x = 0; x < X; ++x) {
-        scratch[x] = work[(size_t)y * X + x];
-    }
-    for (uint z = 1; z < Z; ++z) {
-        const bool joins = sheet_joins(y, shear, Y);
-        y = sheet_next(y, shear, Y);
-        __local T* cur = scratch + (size_t)z * X;
-        const size_t row = z * plane + (size_t)y * X;
+    for (uint k = 0; k < G; ++k) {
         for (uint x = 0; x < X; ++x) {
-            cur[x] = work[row + x];
+            scratch[(size_t)k * X + x] = work[(size_t)(s0 + k) * X + x];
         }
-        if (joins) {
-            KING_STEP(cur, cur - X, X);
+    }
+    uint y = s0;  // the first sheet's row at z; sheet k's is (y + k) mod Y
+    for (uint z = 1; z < Z; ++z) {
+        const uint from = y;
+        y = sheet_next(y, shear, Y);
+        for (uint k = 0; k < G; ++k) {
+            const uint yk = (y + k) % Y;
+            __local T* cur = scratch + ((size_t)z * G + k) * X;
+            const size_t row = z * plane + (size_t)yk * X;
+            for (uint x = 0; x < X; ++x) {
+                cur[x] = work[row + x];
+            }
+            if (sheet_joins((from + k) % Y, shear, Y)) {
+                KING_STEP(cur, cur - (size_t)G * X, X);
+            }
         }
     }
     for (uint z = Z; z-- > 0;) {
-        __local T* cur = scratch + (size_t)z * X;
-        if (z + 1 < Z && sheet_joins(y, shear, Y)) {
-            KING_STEP(cur, cur + X, X);
-        }
-        const size_t row = z * plane + (size_t)y * X;
-        if (final) {
-            for (uint x = 0; x < X; ++x) {
-                STORE_FINAL(row + x, cur[x]);
+        for (uint k = 0; k < G; ++k) {
+            const uint yk = (y + k) % Y;
+            __local T* cur = scratch + ((size_t)z * G + k) * X;
+            if (z + 1 < Z && sheet_joins(yk, shear, Y)) {
+                KING_STEP(cur, cur + (size_t)G * X, X);
             }
-        } else {
-            for (uint x = 0; x < X; ++x) {
-                work[row + x] = cur[x];
+            const size_t row = z * plane + (size_t)yk * X;
+            if (final) {
+                for (uint x = 0; x < X; ++x) {
+                    STORE_FINAL(row + x, cur[x]);
+                }
+            } else {
+                for (uint x = 0; x < X; ++x) {
+                    work[row + x] = cur[x];
+                }
             }
         }
         y = sheet_next(y, -shear, Y);
@@ -182,28 +194,35 @@ __kernel void z_sheets(__global T* restrict work, __global uint* restrict out,
 // z_sheets for sheets too large for local memory: the same sweeps in place in `work`.
 __kernel void z_sheets_global(__global T* restrict work, __global uint* restrict out,
                               __global const uchar* restrict vox, __constant uchar* rgb, uint X,
-                              uint Y, uint Z, int shear, uint final) {
-    const uint y0 = (uint)get_global_id(0);
-    if (y0 >= Y) {
+                              uint Y, uint Z, int shear, uint final, uint group) {
+    const uint s0 = (uint)get_global_id(0) * group;
+    if (s0 >= Y) {
         return;
     }
+    const uint G = min(group, Y - s0);
     const size_t plane = (size_t)X * Y;
-    uint y = y0;
+    uint y = s0;
     for (uint z = 1; z < Z; ++z) {
-        const bool joins = sheet_joins(y, shear, Y);
-        const size_t prev = (z - 1) * plane + (size_t)y * X;
+        const uint from = y;
         y = sheet_next(y, shear, Y);
-        if (joins) {
-            KING_STEP(work + z * plane + (size_t)y * X, work + prev, X);
+        for (uint k = 0; k < G; ++k) {
+            const uint yf = (from + k) % Y;
+            if (sheet_joins(yf, shear, Y)) {
+                KING_STEP(work + z * plane + (size_t)((y + k) % Y) * X,
+                          work + (z - 1) * plane + (size_t)yf * X, X);
+            }
         }
     }
     for (uint z = Z; z-- > 0;) {
-        const size_t row = z * plane + (size_t)y * X;
-        if (z + 1 < Z && sheet_joins(y, shear, Y)) {
-            KING_STEP(work + row, work + row + plane + (size_t)shear * X, X);
-        }
-        for (uint x = 0; final && x < X; ++x) {
-            STORE_FINAL(row + x, work[row + x]);
+        for (uint k = 0; k < G; ++k) {
+            const uint yk = (y + k) % Y;
+            const size_t row = z * plane + (size_t)yk * X;
+            if (z + 1 < Z && sheet_joins(yk, shear, Y)) {
+                KING_STEP(work + row, work + row + plane + (size_t)shear * X, X);
+            }
+            for (uint x = 0; final && x < X; ++x) {
+                STORE_FINAL(row + x, work[row + x]);
+            }
         }
         y = sheet_next(y, -shear, Y);
     }

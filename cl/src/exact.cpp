@@ -373,10 +373,17 @@ void ExactManhattan::set_up_kernels() {
                  gpu_layout_ ? cl::NullRange : cl::NDRange(1)});
         }
         if (metric_ == Metric::chebyshev) {
-            // The three z sweeps of L-inf's sheets (shear -1, 0, +1), one work-item per sheet,
-            // the rows in local scratch where they fit.
+            // The three z sweeps of L-inf's sheets (shear -1, 0, +1), `group` consecutive
+            // sheets per work-item (their rows at one z adjacent in memory), up to 16 while
+            // 4 work-items per compute unit remain; the rows in local scratch where the
+            // group's sheets fit, else swept in place.
             const std::size_t sheet = std::size_t{dims_.x} * dims_.z * wt.bytes;
-            const bool local = sheet <= std::min<std::size_t>(info.local_mem / 2, 512 * 1024);
+            const std::size_t budget = std::min<std::size_t>(info.local_mem / 2, 512 * 1024);
+            const std::size_t spread =
+                std::max<std::size_t>(1, dims_.y / (4 * std::size_t{info.compute_units}));
+            const std::size_t want = std::min<std::size_t>(16, spread);
+            const bool local = want * sheet <= budget;
+            const auto group = static_cast<cl_uint>(want);
             for (const cl_int shear : {-1, 0, 1}) {
                 cl::Kernel k(base, local ? "z_sheets" : "z_sheets_global");
                 k.setArg(0, work_);
@@ -388,10 +395,11 @@ void ExactManhattan::set_up_kernels() {
                 k.setArg(6, dims_.z);
                 k.setArg(7, shear);
                 k.setArg(8, cl_uint{shear == 1 ? 1u : 0u});
+                k.setArg(9, group);
                 if (local) {
-                    k.setArg(9, cl::Local(sheet));
+                    k.setArg(10, cl::Local(group * sheet));
                 }
-                add({"z_sheets", k, cl::NDRange(dims_.y), cl::NDRange(1)});
+                add({"z_sheets", k, cl::NDRange((dims_.y + group - 1) / group), cl::NDRange(1)});
             }
         } else {
             add(columns(dims_.z, plane, dims_.x, dims_.y, true));
