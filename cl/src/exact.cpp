@@ -373,34 +373,20 @@ void ExactManhattan::set_up_kernels() {
                  gpu_layout_ ? cl::NullRange : cl::NDRange(1)});
         }
         if (metric_ == Metric::chebyshev) {
-            // The three z sweeps of L-inf's sheets (shear -1, 0, +1), `group` consecutive
-            // sheets per work-item (their rows at one z adjacent in memory), up to 16 while
-            // 4 work-items per compute unit remain; the rows in local scratch where the
-            // group's sheets fit, else swept in place.
-            const std::size_t sheet = std::size_t{dims_.x} * dims_.z * wt.bytes;
-            const std::size_t budget = std::min<std::size_t>(info.local_mem / 2, 512 * 1024);
-            const std::size_t spread =
-                std::max<std::size_t>(1, dims_.y / (4 * std::size_t{info.compute_units}));
-            const std::size_t want = std::min<std::size_t>(16, spread);
-            const bool local = want * sheet <= budget;
-            const auto group = static_cast<cl_uint>(want);
-            for (const cl_int shear : {-1, 0, 1}) {
-                cl::Kernel k(base, local ? "z_sheets" : "z_sheets_global");
-                k.setArg(0, work_);
-                k.setArg(1, out_);
-                k.setArg(2, voxels_);
-                k.setArg(3, rgb_);
-                k.setArg(4, dims_.x);
-                k.setArg(5, dims_.y);
-                k.setArg(6, dims_.z);
-                k.setArg(7, shear);
-                k.setArg(8, cl_uint{shear == 1 ? 1u : 0u});
-                k.setArg(9, group);
-                if (local) {
-                    k.setArg(10, cl::Local(group * sheet));
-                }
-                add({"z_sheets", k, cl::NDRange((dims_.y + group - 1) / group), cl::NDRange(1)});
-            }
+            // L-inf's nine z moves in one sweep over the planes each way, in one work-item
+            // (the planes depend on each other in turn); a row's column minima in local
+            // memory.
+            cl::Kernel k(base, "z_king");
+            k.setArg(0, work_);
+            k.setArg(1, out_);
+            k.setArg(2, voxels_);
+            k.setArg(3, rgb_);
+            k.setArg(4, dims_.x);
+            k.setArg(5, dims_.y);
+            k.setArg(6, dims_.z);
+            k.setArg(7, cl_uint{1});
+            k.setArg(8, cl::Local((std::size_t{dims_.x} + 2) * wt.bytes));
+            add({"z_king", k, cl::NDRange(1), cl::NDRange(1)});
         } else {
             add(columns(dims_.z, plane, dims_.x, dims_.y, true));
         }
