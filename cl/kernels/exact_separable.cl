@@ -537,8 +537,8 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
 #endif
 
 #if METRIC == 2 && UNIT && !WIDE && !INDICES
-// Unit-spacing L2 of the cw <= 16 lines of a tile 16 lines wide (element (p, c) at
-// p * 16 + c), a full transform, by windowed minima with the lines side by side: position p
+// Unit-spacing L2 of cw <= 16 lines of a tile (element (p, c) at p * tw + c, tw a multiple
+// of 16, the lines from c = 0 to 15 ours), a full transform, by windowed minima with the lines side by side: position p
 // takes the least g_u + (p - u)^2 over the sites u near enough to matter, all 16 lines in one
 // vector add and minimum per site (no stack, no data-dependent branch per site). The bound:
 // the site of p - 1 is one step further from p, so d(p) <= (sqrt(d(p - 1)) + 1)^2 <= U =
@@ -546,21 +546,23 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
 // and a site u can only be nearer where g_u + (p - u)^2 <= U: within r = s + 2 of p, and
 // in a block of 16 sites only where the block's least partial (over its sites and lines)
 // plus its nearest squared offset stays within U. The first position takes every site.
-// The blocks' least partials go to `bmin` (n / 16 + 1 entries). Returns false (tin as it
+// The blocks' least partials go to `bmin`, and `live` (n / 16 + 2 entries each) leads the
+// loop past blocks without a site. Returns false (tin as it
 // came) where r passes WINDOW_MAX, for the envelope to take the tile. `pad` adds the
 // virtual empty sites at -1 and n. Empty sites (G_INF) become L2_FAR in tin, which sums with
 // any square below 2^30 without wrapping (the partials stay below 2^30 here, WIDE otherwise).
 #define L2_FAR 0x80000000u
 #define WINDOW_MAX 256
-inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* bmin, int cw,
-                           int n, int pad, GT cap) {
-    for (int b = 0; b * 16 < n; ++b) {
+inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* bmin,
+                           __global int* live, int tw, int cw, int n, int pad, GT cap) {
+    const int nb = (n + 15) / 16;
+    for (int b = 0; b < nb; ++b) {
         uint16 lo = (uint16)L2_FAR;
         for (int u = b * 16; u < min(n, b * 16 + 16); ++u) {
-            const uint16 v = min(vload16(u, tin), (uint16)L2_FAR);
+            const uint16 v = min(vload16(0, tin + u * tw), (uint16)L2_FAR);
             const uint16 lane = (uint16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
             const uint16 w = select((uint16)L2_FAR, v, lane < (uint16)cw);
-            vstore16(w, u, tin);
+            vstore16(w, 0, tin + u * tw);
             lo = min(lo, w);
         }
         const uint8 l8 = min(lo.lo, lo.hi);
@@ -568,13 +570,24 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
         const uint2 l2 = min(l4.lo, l4.hi);
         bmin[b] = min(l2.x, l2.y);
     }
+    // live[b]: the first block from b on that holds a site (nb: none).
+    live[nb] = nb;
+    for (int b = nb; b-- > 0;) {
+        live[b] = bmin[b] < L2_FAR ? b : live[b + 1];
+    }
+    if (live[0] == nb && !pad) {
+        for (int p = 0; p < n; ++p) {
+            vstore16((uint16)G_INF, 0, tout + p * tw);
+        }
+        return true;
+    }
     int r = n;
     uint bound = UINT_MAX;
     for (int p = 0; p < n; ++p) {
         const uint edge = pad ? (uint)min((p + 1) * (p + 1), (n - p) * (n - p)) : L2_FAR;
         uint16 best = (uint16)edge;
         const int lo = max(0, p - r), hi = min(n - 1, p + r);
-        for (int b = lo / 16; b <= hi / 16; ++b) {
+        for (int b = live[lo / 16]; b <= hi / 16; b = live[b + 1]) {
             const int b0 = b * 16, b1 = b0 + 15;
             const int off = p < b0 ? b0 - p : p > b1 ? p - b1 : 0;
             if (bmin[b] + (uint)(off * off) > bound) {
@@ -582,11 +595,11 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
             }
             for (int u = max(lo, b0); u <= min(hi, b1); ++u) {
                 const uint k2 = (uint)((p - u) * (p - u));
-                best = min(best, vload16(u, tin) + k2);
+                best = min(best, vload16(0, tin + u * tw) + k2);
             }
         }
         const uint16 far = as_uint16(best >= (uint16)L2_FAR);
-        vstore16(select(min(best, (uint16)cap), (uint16)G_INF, far), p, tout);
+        vstore16(select(min(best, (uint16)cap), (uint16)G_INF, far), 0, tout + p * tw);
         const uint16 real = best & ~far;
         const uint8 h8 = max(real.lo, real.hi);
         const uint4 h4 = max(h8.lo, h8.hi);
@@ -599,8 +612,9 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
         r = sr + 2;
         bound = (uint)(r * r);
         if (r > WINDOW_MAX) {
-            for (int i = 0; i < n * 16; ++i) {
-                tin[i] = tin[i] >= L2_FAR ? G_INF : tin[i];
+            for (int u = 0; u < n; ++u) {
+                const uint16 v = vload16(0, tin + u * tw);
+                vstore16(select(v, (uint16)G_INF, as_uint16(v >= (uint16)L2_FAR)), 0, tin + u * tw);
             }
             return false;
         }
@@ -681,18 +695,28 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                 }
 #if METRIC == 0 && UNIT
                 if (box == 0) {
-                    tile_sweep_l1(tin, tout, tile_w, cw, (int)n, cls, ftin, ftout, cap);
+                    for (int c0 = 0; c0 < cw; c0 += 16) {
+                        tile_sweep_l1(tin + c0, tout + c0, tile_w, min(16, cw - c0), (int)n, cls,
+                                      ftin + c0, ftout + c0, cap);
+                    }
                 } else
 #endif
+                for (int c0 = 0; c0 < cw; c0 += 16) {
+                    // Sub-tiles of 16 lines; the envelope per line where no vector path
+                    // takes them.
+                    const int c1 = min(c0 + 16, cw);
 #if METRIC == 2 && UNIT && !WIDE && !INDICES
-                if (box == 0 && tile_w == 16 &&
-                    tile_window_l2(tin, tout, (__global uint*)s, cw, (int)n, cls, cap)) {
-                } else
+                    if (box == 0 && tile_w % 16 == 0 &&
+                        tile_window_l2(tin + c0, tout + c0, (__global uint*)s, t, tile_w,
+                                       c1 - c0, (int)n, cls, cap)) {
+                        continue;
+                    }
 #endif
-                for (int c = 0; c < cw; ++c) {
-                    line_pass(tin, tout, (size_t)c, (size_t)tile_w, (int)n, cls, sp, s, t, d,
-                              kstride, ftin, ftout, box, x0 + c, other, axis, o0, o1, i0, i1,
-                              cap);
+                    for (int c = c0; c < c1; ++c) {
+                        line_pass(tin, tout, (size_t)c, (size_t)tile_w, (int)n, cls, sp, s, t, d,
+                                  kstride, ftin, ftout, box, x0 + c, other, axis, o0, o1, i0, i1,
+                                  cap);
+                    }
                 }
                 for (int u = o0; u < o1; ++u) {
                     for (int c = 0; c < cw; ++c) {

@@ -159,11 +159,11 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     max_items_ = std::max<std::size_t>(32, 16 * std::size_t{info.compute_units});
     for (int a = 0; a < 2; ++a) {
         const std::size_t len = a == 0 ? Y : Z;
-        // Tiles of up to 16 lines within about 2 MiB per work-item, at least one line.
-        tile_w_[a] = gpu_layout_
-                         ? 0
-                         : static_cast<int>(std::clamp<std::size_t>(
-                               (std::size_t{2} << 20) / (len * 2 * (gt_bytes_ + 4)), 1, 16));
+        // Tiles of up to 64 lines within about 2 MiB per work-item, at least one line; a
+        // multiple of 16 from 16 on (the kernels' vector paths take sub-tiles of 16 lines).
+        const std::size_t fit =
+            std::clamp<std::size_t>((std::size_t{2} << 20) / (len * 2 * (gt_bytes_ + 4)), 1, 64);
+        tile_w_[a] = gpu_layout_ ? 0 : static_cast<int>(fit < 16 ? fit : fit / 16 * 16);
         const std::size_t tile = static_cast<std::size_t>(tile_w_[a]) * len;
         col_stride_[a] =
             3 * (len + 2) + 2 * tile * gt_bytes_ / 4 + (options.indices ? 2 * tile : 0);
