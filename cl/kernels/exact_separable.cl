@@ -538,19 +538,19 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
 
 #if METRIC == 2 && UNIT && !WIDE && !INDICES
 // Unit-spacing L2 of cw <= 16 lines of a tile (element (p, c) at p * tw + c, tw a multiple
-// of 16, the lines from c = 0 to 15 ours), a full transform, by windowed minima with the lines side by side: position p
-// takes the least g_u + (p - u)^2 over the sites u near enough to matter, all 16 lines in one
-// vector add and minimum per site (no stack, no data-dependent branch per site). The bound:
-// the site of p - 1 is one step further from p, so d(p) <= (sqrt(d(p - 1)) + 1)^2 <= U =
-// (s + 2)^2 with s = floor(sqrt(m)), m the largest d(p - 1) of the lines that have a site,
-// and a site u can only be nearer where g_u + (p - u)^2 <= U: within r = s + 2 of p, and
-// in a block of 16 sites only where the block's least partial (over its sites and lines)
-// plus its nearest squared offset stays within U. The first position takes every site.
-// The blocks' least partials go to `bmin`, and `live` (n / 16 + 2 entries each) leads the
-// loop past blocks without a site. Returns false (tin as it
-// came) where r passes WINDOW_MAX, for the envelope to take the tile. `pad` adds the
-// virtual empty sites at -1 and n. Empty sites (G_INF) become L2_FAR in tin, which sums with
-// any square below 2^30 without wrapping (the partials stay below 2^30 here, WIDE otherwise).
+// of 16, the lines c = 0..15 ours), a full transform, by windowed minima with the lines side
+// by side: position p takes the least g_u + (p - u)^2 over the sites u near enough to
+// matter, all 16 lines in one vector add and minimum per site (no stack, no data-dependent
+// branch per site). The bound: the site of p - 1 is one step further from p, so d(p) <=
+// (sqrt(d(p - 1)) + 1)^2 <= U = (s + 2)^2 with s = floor(sqrt(m)), m the largest d(p - 1) of
+// the lines that have a site, and a site u can only be nearer where g_u + (p - u)^2 <= U:
+// within r = s + 2 of p, and in a block of 16 sites only where the block's least partial
+// (over its sites and lines) plus its nearest squared offset stays within U. The first
+// position takes every site. The blocks' least partials go to `bmin`, and `live` (n / 16 + 2
+// entries each) leads the loop past blocks without a site. Returns false (tin as it came)
+// where r passes WINDOW_MAX, for the envelope to take the tile. `pad` adds the virtual empty
+// sites at -1 and n. Empty sites (G_INF) become L2_FAR in tin, which sums with any square
+// below 2^30 without wrapping (the partials stay below 2^30 here, WIDE otherwise).
 #define L2_FAR 0x80000000u
 #define WINDOW_MAX 256
 inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* bmin,
@@ -614,7 +614,8 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
         if (r > WINDOW_MAX) {
             for (int u = 0; u < n; ++u) {
                 const uint16 v = vload16(0, tin + u * tw);
-                vstore16(select(v, (uint16)G_INF, as_uint16(v >= (uint16)L2_FAR)), 0, tin + u * tw);
+                const uint16 empty = as_uint16(v >= (uint16)L2_FAR);
+                vstore16(select(v, (uint16)G_INF, empty), 0, tin + u * tw);
             }
             return false;
         }
