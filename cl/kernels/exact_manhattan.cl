@@ -9,11 +9,11 @@
 // toward the target (the path stays inside the world). The 13 kinds of move are composed by
 // min-plus sweeps like L1's: x moves (the rows' doubling), the y moves (a, 1, 0) for a in
 // {-1,0,1} together in one y sweep that takes the minimum of the three predecessors
-// x-1, x, x+1 (a chamfer step, Rosenfeld & Pfaltz 1966, within one slice), and the z moves
-// (a, b, 1) in three sweeps along z, one per b, each over "sheets" of rows whose y advances by
-// b per z step (wrapping around Y starts a new sheet), again with the three x predecessors.
-// A sweep with three predecessors composes its three move kinds (a forward then a backward
-// sweep covers every count of each, with either sign), so the whole is exact.
+// x-1, x, x+1 (a chamfer step, Rosenfeld & Pfaltz 1966, within one slice), and the nine z
+// moves (a, b, 1) together in one z sweep over whole planes that takes the minimum of the
+// nine predecessors (x+a, y+b) in the plane before. A sweep with several predecessors
+// composes their move kinds (a forward then a backward sweep covers every count of each,
+// with either sign), so the whole is exact.
 //
 // Build options: T (work element: uchar, ushort or uint), T_MAX (its maximum), PACKED (1 when
 // the output is packed32 and T is a separate uchar work buffer), SEG_K (values per column and
@@ -25,7 +25,7 @@
 // - CPU (PoCL): xy_slices_seq gives each work-item a whole z-slice (x sweeps, then y sweeps
 //   whose inner loop runs along x and vectorises), cols_strip sweeps z over strips of rows;
 //   each work-item's data stays in its core's L2 between the forward and backward sweeps.
-//   L-inf: z_sheets gives each work-item a sheet (its rows in local scratch when they fit).
+//   L-inf: z_king sweeps the z planes in one work-item (each plane from the one before).
 // - GPU: x_rows_seg gives each work-item 16 consecutive voxels of a row in registers (one
 //   16-byte load, one vector store) and joins a row's segments through local memory; ragged
 //   rows (X not a multiple of 16) take x_rows_local, which stages a row in local memory
@@ -120,94 +120,51 @@ __kernel void xy_slices_seq(__global const uchar* restrict vox, __global T* rest
 }
 
 #if CHEBYSHEV
-// Whether the sheet's step from row y (at z) to the next row (at z + 1) joins neighbours:
-// moving by `shear` in y without wrapping around Y.
-inline bool sheet_joins(uint y, int shear, uint Y) {
-    return shear == 0 || (shear > 0 ? y + 1 < Y : y > 0);
-}
-
-inline uint sheet_next(uint y, int shear, uint Y) {
-    return (uint)(((int)y + shear + (int)Y) % (int)Y);
-}
-
-// The L-inf z moves (a, shear, +-1), a in {-1,0,1}: work-item y0 sweeps the sheet of rows
-// (z, (y0 + shear * z) mod Y) forward and backward in z, each row by KING_STEP from the
-// sheet's previous row where the two are neighbours. Every (row, z) belongs to one sheet, so
-// the work-items never touch each other's rows. The rows are copied to `scratch` (Z * X
-// elements, contiguous) during the forward sweep, so that the backward sweep reads them from
-// cache; `final` writes the output format.
-__kernel void z_sheets(__global T* restrict work, __global uint* restrict out,
-                       __global const uchar* restrict vox, __constant uchar* rgb, uint X, uint Y,
-                       uint Z, int shear, uint final, __local T* restrict scratch) {
-    const uint y0 = (uint)get_global_id(0);
-    if (y0 >= Y) {
+// The L-inf z moves (a, b, +-1), a, b in {-1,0,1}, all nine at once: a forward sweep over
+// the z planes, each voxel taking 1 + the least of the nine voxels around it in the plane
+// before (those inside the world), then the mirrored backward sweep. Unrolled, the forward
+// sweep gives min over k >= 0 of k + the xy value of a voxel within k of (x, y) in both
+// coordinates at z - k, which for a target k planes below is max(k, |dx|, |dy|), its L-inf
+// distance; the backward sweep adds the targets above. The planes depend on each other in
+// turn, so one work-item walks the whole volume; the loops over a row vectorise, and the
+// column minima of the previous plane's three rows go through `cm` (X + 2 elements, T_MAX at
+// both ends). `final` writes the output format.
+__kernel void z_king(__global T* restrict work, __global uint* restrict out,
+                     __global const uchar* restrict vox, __constant uchar* rgb, uint X, uint Y,
+                     uint Z, uint final, __local T* restrict cm) {
+    if (get_global_id(0) != 0) {
         return;
     }
     const size_t plane = (size_t)X * Y;
-    uint y = y0;
-    for (uint x = 0; x < X; ++x) {
-        scratch[x] = work[(size_t)y * X + x];
-    }
-    for (uint z = 1; z < Z; ++z) {
-        const bool joins = sheet_joins(y, shear, Y);
-        y = sheet_next(y, shear, Y);
-        __local T* cur = scratch + (size_t)z * X;
-        const size_t row = z * plane + (size_t)y * X;
-        for (uint x = 0; x < X; ++x) {
-            cur[x] = work[row + x];
-        }
-        if (joins) {
-            KING_STEP(cur, cur - X, X);
-        }
-    }
-    for (uint z = Z; z-- > 0;) {
-        __local T* cur = scratch + (size_t)z * X;
-        if (z + 1 < Z && sheet_joins(y, shear, Y)) {
-            KING_STEP(cur, cur + X, X);
-        }
-        const size_t row = z * plane + (size_t)y * X;
-        if (final) {
-            for (uint x = 0; x < X; ++x) {
-                STORE_FINAL(row + x, cur[x]);
-            }
-        } else {
-            for (uint x = 0; x < X; ++x) {
-                work[row + x] = cur[x];
+    __local T* c = cm + 1;
+    c[-1] = (T)T_MAX;
+    c[X] = (T)T_MAX;
+    for (uint dir = 0; dir < 2; ++dir) {
+        for (uint i = 1; i < Z; ++i) {
+            const uint z = dir == 0 ? i : Z - 1 - i;
+            __global T* cur = work + z * plane;
+            __global const T* prev = dir == 0 ? cur - plane : cur + plane;
+            for (uint y = 0; y < Y; ++y) {
+                __global const T* p0 = prev + (size_t)y * X;
+                __global const T* pl = y > 0 ? p0 - X : p0;
+                __global const T* ph = y + 1 < Y ? p0 + X : p0;
+                for (uint x = 0; x < X; ++x) {
+                    c[x] = min(min(pl[x], p0[x]), ph[x]);
+                }
+                __global T* r = cur + (size_t)y * X;
+                for (uint x = 0; x < X; ++x) {
+                    r[x] = min(r[x], inc_t(min(min(c[(int)x - 1], c[x]), c[x + 1])));
+                }
             }
         }
-        y = sheet_next(y, -shear, Y);
     }
+#if PACKED
+    for (size_t i = 0; final && i < plane * Z; ++i) {
+        STORE_FINAL(i, work[i]);
+    }
+#endif
 }
 
-// z_sheets for sheets too large for local memory: the same sweeps in place in `work`.
-__kernel void z_sheets_global(__global T* restrict work, __global uint* restrict out,
-                              __global const uchar* restrict vox, __constant uchar* rgb, uint X,
-                              uint Y, uint Z, int shear, uint final) {
-    const uint y0 = (uint)get_global_id(0);
-    if (y0 >= Y) {
-        return;
-    }
-    const size_t plane = (size_t)X * Y;
-    uint y = y0;
-    for (uint z = 1; z < Z; ++z) {
-        const bool joins = sheet_joins(y, shear, Y);
-        const size_t prev = (z - 1) * plane + (size_t)y * X;
-        y = sheet_next(y, shear, Y);
-        if (joins) {
-            KING_STEP(work + z * plane + (size_t)y * X, work + prev, X);
-        }
-    }
-    for (uint z = Z; z-- > 0;) {
-        const size_t row = z * plane + (size_t)y * X;
-        if (z + 1 < Z && sheet_joins(y, shear, Y)) {
-            KING_STEP(work + row, work + row + plane + (size_t)shear * X, X);
-        }
-        for (uint x = 0; final && x < X; ++x) {
-            STORE_FINAL(row + x, work[row + x]);
-        }
-        y = sheet_next(y, -shear, Y);
-    }
-}
 #endif
 
 // Sweeps columns of length N (element stride `stride`) over a strip of `strip` adjacent x

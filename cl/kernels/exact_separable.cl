@@ -15,6 +15,7 @@
 //   SIGNED   1: also the transform to the empty voxels, the world surrounded by empty space
 //            (virtual empty sites at -1 and N on every line); the output is signed
 //   INDICES  1: carry the linear index of the nearest solid and write (z, y, x) planes
+//   CPU_LAYOUT 1: the CPU layout (x_pass's scratch holds row_doubling's rows)
 //   OUT_KIND 0 unsigned integer (floor, saturate at OUT_MAX), 1 signed integer (toward zero,
 //            saturate at +-OUT_MAX), 2 float, 3 double, 4 packed32; OUT_T its element type
 // Final values are computed in double (cl_khr_fp64), so the L2 field of unit spacing is the
@@ -357,9 +358,50 @@ inline void row_full(__global const uchar* vox, size_t base, int X, int want, in
     }
 }
 
+#if !INDICES && CPU_LAYOUT
+// A whole row of a full transform without change tracking or features: each voxel's 1-D
+// distance to its nearest target by doubling, vectorised along the row (as xy_slices_seq
+// of exact_manhattan.cl does): after the steps 1, 2, 4, ... < X, d[x] = min(d[x],
+// d[x - s] + s, d[x + s] + s) has taken every offset below 2 s as a sum of distinct powers
+// of two, the exact 1-D distance, in about 3 vector operations per voxel and step instead
+// of a dependent select per voxel. `buf` holds two rows of X + 2 P ints (P = the largest
+// step), padded on both sides with ROW_NONE, or with `pad` with targets (the virtual ones at
+// -1 and X; those further out are never nearer).
+inline void row_doubling(__global const uchar* vox, size_t base, int X, int want, int pad,
+                         ST sx, __global GT* g, __global int* buf, GT cap) {
+    const int P = X > 1 ? 1 << (31 - clz(X - 1)) : 0;
+    const int span = X + 2 * P;
+    __global int* a = buf + P;
+    __global int* b = buf + span + P;
+    const int outside = pad ? 0 : ROW_NONE;
+    for (int i = 0; i < P; ++i) {
+        a[i - P] = outside;
+        a[X + i] = outside;
+        b[i - P] = outside;
+        b[X + i] = outside;
+    }
+    for (int x = 0; x < X; ++x) {
+        a[x] = (vox[base + x] != 0) == want ? 0 : ROW_NONE;
+    }
+    for (int s = 1; s < X; s <<= 1) {
+        for (int x = 0; x < X; ++x) {
+            b[x] = min(a[x], min(a[x - s], a[x + s]) + s);
+        }
+        __global int* t = a;
+        a = b;
+        b = t;
+    }
+    for (int x = 0; x < X; ++x) {
+        const int d = a[x];
+        g[base + x] = d >= ROW_NONE ? G_INF : min(offset_part(d, sx), cap);
+    }
+}
+#endif
+
 // Rows y in [lo.y, lo.y + size.y), z in [lo.z, lo.z + size.z), `per_item` per work-item,
 // their voxels x in [lo.x, lo.x + size.x) from the voxels [i0, i1); `left` is each
-// work-item's scratch of X ints (at scratch + item * istride).
+// work-item's scratch of X ints (at scratch + item * istride; full transforms without
+// features use 2 (X + 2 P) of them, row_doubling's two padded rows).
 __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g,
                      __global GT* restrict h, __global uint* restrict feat, uint X, uint Y,
                      int4 lo, int4 size, uint per_item, ST sx, __global int* restrict scratch,
@@ -371,9 +413,16 @@ __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g
         const int y = lo.y + (int)(r % size.y), z = lo.z + (int)(r / size.y);
         const size_t base = ((size_t)z * Y + y) * X;
         if (box == 0 && i0 == 0 && i1 == (int)X && lo.x == 0 && size.x == (int)X) {
+#if INDICES || !CPU_LAYOUT
             row_full(vox, base, (int)X, 1, 0, sx, g, feat, cap);
 #if SIGNED
             row_full(vox, base, (int)X, 0, 1, sx, h, feat, cap);
+#endif
+#else
+            row_doubling(vox, base, (int)X, 1, 0, sx, g, left, cap);
+#if SIGNED
+            row_doubling(vox, base, (int)X, 0, 1, sx, h, left, cap);
+#endif
 #endif
             continue;
         }
@@ -487,6 +536,94 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
 }
 #endif
 
+#if METRIC == 2 && UNIT && !WIDE && !INDICES
+// Unit-spacing L2 of cw <= 16 lines of a tile (element (p, c) at p * tw + c, tw a multiple
+// of 16, the lines c = 0..15 ours), a full transform, by windowed minima with the lines side
+// by side: position p takes the least g_u + (p - u)^2 over the sites u near enough to
+// matter, all 16 lines in one vector add and minimum per site (no stack, no data-dependent
+// branch per site). The bound: the site of p - 1 is one step further from p, so d(p) <=
+// (sqrt(d(p - 1)) + 1)^2 <= U = (s + 2)^2 with s = floor(sqrt(m)), m the largest d(p - 1) of
+// the lines that have a site, and a site u can only be nearer where g_u + (p - u)^2 <= U:
+// within r = s + 2 of p, and in a block of 16 sites only where the block's least partial
+// (over its sites and lines) plus its nearest squared offset stays within U. The first
+// position takes every site. The blocks' least partials go to `bmin`, and `live` (n / 16 + 2
+// entries each) leads the loop past blocks without a site. Returns false (tin as it came)
+// where r passes WINDOW_MAX, for the envelope to take the tile. `pad` adds the virtual empty
+// sites at -1 and n. Empty sites (G_INF) become L2_FAR in tin, which sums with any square
+// below 2^30 without wrapping (the partials stay below 2^30 here, WIDE otherwise).
+#define L2_FAR 0x80000000u
+#define WINDOW_MAX 256
+inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* bmin,
+                           __global int* live, int tw, int cw, int n, int pad, GT cap) {
+    const int nb = (n + 15) / 16;
+    for (int b = 0; b < nb; ++b) {
+        uint16 lo = (uint16)L2_FAR;
+        for (int u = b * 16; u < min(n, b * 16 + 16); ++u) {
+            const uint16 v = min(vload16(0, tin + u * tw), (uint16)L2_FAR);
+            const uint16 lane = (uint16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+            const uint16 w = select((uint16)L2_FAR, v, lane < (uint16)cw);
+            vstore16(w, 0, tin + u * tw);
+            lo = min(lo, w);
+        }
+        const uint8 l8 = min(lo.lo, lo.hi);
+        const uint4 l4 = min(l8.lo, l8.hi);
+        const uint2 l2 = min(l4.lo, l4.hi);
+        bmin[b] = min(l2.x, l2.y);
+    }
+    // live[b]: the first block from b on that holds a site (nb: none).
+    live[nb] = nb;
+    for (int b = nb; b-- > 0;) {
+        live[b] = bmin[b] < L2_FAR ? b : live[b + 1];
+    }
+    if (live[0] == nb && !pad) {
+        for (int p = 0; p < n; ++p) {
+            vstore16((uint16)G_INF, 0, tout + p * tw);
+        }
+        return true;
+    }
+    int r = n;
+    uint bound = UINT_MAX;
+    for (int p = 0; p < n; ++p) {
+        const uint edge = pad ? (uint)min((p + 1) * (p + 1), (n - p) * (n - p)) : L2_FAR;
+        uint16 best = (uint16)edge;
+        const int lo = max(0, p - r), hi = min(n - 1, p + r);
+        for (int b = live[lo / 16]; b <= hi / 16; b = live[b + 1]) {
+            const int b0 = b * 16, b1 = b0 + 15;
+            const int off = p < b0 ? b0 - p : p > b1 ? p - b1 : 0;
+            if (bmin[b] + (uint)(off * off) > bound) {
+                continue;
+            }
+            for (int u = max(lo, b0); u <= min(hi, b1); ++u) {
+                const uint k2 = (uint)((p - u) * (p - u));
+                best = min(best, vload16(0, tin + u * tw) + k2);
+            }
+        }
+        const uint16 far = as_uint16(best >= (uint16)L2_FAR);
+        vstore16(select(min(best, (uint16)cap), (uint16)G_INF, far), 0, tout + p * tw);
+        const uint16 real = best & ~far;
+        const uint8 h8 = max(real.lo, real.hi);
+        const uint4 h4 = max(h8.lo, h8.hi);
+        const uint2 h2 = max(h4.lo, h4.hi);
+        const uint m = max(h2.x, h2.y);
+        // s = floor(sqrt(m)) exactly, from the float root (off by at most one).
+        int sr = (int)sqrt((float)m);
+        sr -= (uint)(sr * sr) > m;
+        sr += (uint)((sr + 1) * (sr + 1)) <= m;
+        r = sr + 2;
+        bound = (uint)(r * r);
+        if (r > WINDOW_MAX) {
+            for (int u = 0; u < n; ++u) {
+                const uint16 v = vload16(0, tin + u * tw);
+                const uint16 empty = as_uint16(v >= (uint16)L2_FAR);
+                vstore16(select(v, (uint16)G_INF, empty), 0, tin + u * tw);
+            }
+            return false;
+        }
+    }
+    return true;
+}
+#endif
+
 // Lines of length n and element stride `stride` along `axis` (1: y, 2: z): line l has x =
 // lo_x + l % count_x and the other coordinate lo_o + l / count_x, and starts at
 // other * mstride + x; positions [o0, o1) from the sites [i0, i1), partials capped at `cap`.
@@ -559,13 +696,28 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                 }
 #if METRIC == 0 && UNIT
                 if (box == 0) {
-                    tile_sweep_l1(tin, tout, tile_w, cw, (int)n, cls, ftin, ftout, cap);
+                    for (int c0 = 0; c0 < cw; c0 += 16) {
+                        tile_sweep_l1(tin + c0, tout + c0, tile_w, min(16, cw - c0), (int)n, cls,
+                                      ftin + c0, ftout + c0, cap);
+                    }
                 } else
 #endif
-                for (int c = 0; c < cw; ++c) {
-                    line_pass(tin, tout, (size_t)c, (size_t)tile_w, (int)n, cls, sp, s, t, d,
-                              kstride, ftin, ftout, box, x0 + c, other, axis, o0, o1, i0, i1,
-                              cap);
+                for (int c0 = 0; c0 < cw; c0 += 16) {
+                    // Sub-tiles of 16 lines; the envelope per line where no vector path
+                    // takes them.
+                    const int c1 = min(c0 + 16, cw);
+#if METRIC == 2 && UNIT && !WIDE && !INDICES
+                    if (box == 0 && tile_w % 16 == 0 &&
+                        tile_window_l2(tin + c0, tout + c0, (__global uint*)s, t, tile_w,
+                                       c1 - c0, (int)n, cls, cap)) {
+                        continue;
+                    }
+#endif
+                    for (int c = c0; c < c1; ++c) {
+                        line_pass(tin, tout, (size_t)c, (size_t)tile_w, (int)n, cls, sp, s, t, d,
+                                  kstride, ftin, ftout, box, x0 + c, other, axis, o0, o1, i0, i1,
+                                  cap);
+                    }
                 }
                 for (int u = o0; u < o1; ++u) {
                     for (int c = 0; c < cw; ++c) {

@@ -373,26 +373,20 @@ void ExactManhattan::set_up_kernels() {
                  gpu_layout_ ? cl::NullRange : cl::NDRange(1)});
         }
         if (metric_ == Metric::chebyshev) {
-            // The three z sweeps of L-inf's sheets (shear -1, 0, +1), one work-item per sheet,
-            // the rows in local scratch where they fit.
-            const std::size_t sheet = std::size_t{dims_.x} * dims_.z * wt.bytes;
-            const bool local = sheet <= std::min<std::size_t>(info.local_mem / 2, 512 * 1024);
-            for (const cl_int shear : {-1, 0, 1}) {
-                cl::Kernel k(base, local ? "z_sheets" : "z_sheets_global");
-                k.setArg(0, work_);
-                k.setArg(1, out_);
-                k.setArg(2, voxels_);
-                k.setArg(3, rgb_);
-                k.setArg(4, dims_.x);
-                k.setArg(5, dims_.y);
-                k.setArg(6, dims_.z);
-                k.setArg(7, shear);
-                k.setArg(8, cl_uint{shear == 1 ? 1u : 0u});
-                if (local) {
-                    k.setArg(9, cl::Local(sheet));
-                }
-                add({"z_sheets", k, cl::NDRange(dims_.y), cl::NDRange(1)});
-            }
+            // L-inf's nine z moves in one sweep over the planes each way, in one work-item
+            // (the planes depend on each other in turn); a row's column minima in local
+            // memory.
+            cl::Kernel k(base, "z_king");
+            k.setArg(0, work_);
+            k.setArg(1, out_);
+            k.setArg(2, voxels_);
+            k.setArg(3, rgb_);
+            k.setArg(4, dims_.x);
+            k.setArg(5, dims_.y);
+            k.setArg(6, dims_.z);
+            k.setArg(7, cl_uint{1});
+            k.setArg(8, cl::Local((std::size_t{dims_.x} + 2) * wt.bytes));
+            add({"z_king", k, cl::NDRange(1), cl::NDRange(1)});
         } else {
             add(columns(dims_.z, plane, dims_.x, dims_.y, true));
         }

@@ -49,6 +49,12 @@ OutType out_type(Format f) {
     return {0, "uint", "4294967295u"};
 }
 
+// x_pass's scratch ints per work-item: in the CPU layout row_doubling's two rows of X + 2 P
+// (P: the largest power of two below X), in the GPU layout row_nearest's X.
+std::size_t x_stride(bool gpu_layout, std::size_t X) {
+    return gpu_layout ? X : 2 * (X + (X > 1 ? next_pow2(X) : 0));
+}
+
 }  // namespace
 
 bool ExactSeparable::needed(const GeneratorOptions& o) {
@@ -123,7 +129,8 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         std::string("-DMETRIC=") + std::to_string(static_cast<int>(options.metric)) +
         " -DUNIT=" + (unit ? "1" : "0") + " -DWIDE=" + (wide_ ? "1" : "0") +
         " -DFP64=" + (fp64_ ? "1" : "0") + " -DSIGNED=" + (options.signed_field ? "1" : "0") +
-        " -DINDICES=" + (options.indices ? "1" : "0") + " -DOUT_KIND=" + std::to_string(ot.kind) +
+        " -DINDICES=" + (options.indices ? "1" : "0") +
+        " -DCPU_LAYOUT=" + (gpu_layout_ ? "0" : "1") + " -DOUT_KIND=" + std::to_string(ot.kind) +
         " -DOUT_T=" + ot.type + " -DOUT_MAX=" + ot.max + " -cl-std=CL1.2";
     program_ = ctx.program("exact_separable.cl",
                            {cl_sources::layout_h, cl_sources::exact_separable_cl}, build);
@@ -152,11 +159,11 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     max_items_ = std::max<std::size_t>(32, 16 * std::size_t{info.compute_units});
     for (int a = 0; a < 2; ++a) {
         const std::size_t len = a == 0 ? Y : Z;
-        // Tiles of up to 16 lines within about 2 MiB per work-item, at least one line.
-        tile_w_[a] = gpu_layout_
-                         ? 0
-                         : static_cast<int>(std::clamp<std::size_t>(
-                               (std::size_t{2} << 20) / (len * 2 * (gt_bytes_ + 4)), 1, 16));
+        // Tiles of up to 64 lines within about 2 MiB per work-item, at least one line; a
+        // multiple of 16 from 16 on (the kernels' vector paths take sub-tiles of 16 lines).
+        const std::size_t fit =
+            std::clamp<std::size_t>((std::size_t{2} << 20) / (len * 2 * (gt_bytes_ + 4)), 1, 64);
+        tile_w_[a] = gpu_layout_ ? 0 : static_cast<int>(fit < 16 ? fit : fit / 16 * 16);
         const std::size_t tile = static_cast<std::size_t>(tile_w_[a]) * len;
         col_stride_[a] =
             3 * (len + 2) + 2 * tile * gt_bytes_ / 4 + (options.indices ? 2 * tile : 0);
@@ -171,7 +178,8 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     const Box all{{0, 0, 0}, {X, Y, Z}};
     const Span xs{0, X}, ys{0, Y}, zs{0, Z};
     const std::size_t scratch_ints =
-        std::max({(gpu_layout_ ? x_items(all) : std::min<std::size_t>(Z, max_items_)) * X,
+        std::max({(gpu_layout_ ? x_items(all) : std::min<std::size_t>(Z, max_items_)) *
+                      x_stride(gpu_layout_, X),
                   col_scratch(1, X, Z), col_scratch(2, X, Y)});
 
     cl_call("allocating and uploading, " + sizes, [&] {
@@ -391,7 +399,7 @@ cl::Kernel ExactSeparable::x_kernel(const Box& rows, Span in, const cl::Buffer& 
     k.setArg(8, static_cast<cl_uint>(x_per_item(rows)));
     set_spacing(k, 9, spacing_.x);
     k.setArg(10, scratch_);
-    k.setArg(11, static_cast<cl_ulong>(dims_.x));
+    k.setArg(11, static_cast<cl_ulong>(x_stride(gpu_layout_, dims_.x)));
     k.setArg(12, box);
     k.setArg(13, static_cast<cl_int>(in.lo));
     k.setArg(14, static_cast<cl_int>(in.hi));

@@ -291,9 +291,12 @@ TEST(ExactChebyshevSweeps, SingleVoxelsDiagonalsAndSaturation) {
     expect_chebyshev(far, Palette(), "far single voxel");
 }
 
-TEST(ExactChebyshevSweeps, SheetsTooLargeForLocalMemory) {
-    // X * Z elements per sheet beyond the local scratch: z_sheets_global.
+TEST(ExactChebyshevSweeps, WideAndLongWorlds) {
+    // Wide planes and long axes: z_king walks every plane of each in turn.
     expect_chebyshev(scene_random(Dims{700, 3, 400}, 0.0005, 8), Palette(), "wide");
+    expect_chebyshev(scene_random(Dims{5, 4, 900}, 0.002, 9), Palette(), "long z");
+    expect_chebyshev(scene_random(Dims{6, 900, 3}, 0.002, 10), Palette(), "long y");
+    expect_chebyshev(scene_random(Dims{900, 2, 5}, 0.002, 11), Palette(), "long x");
 }
 
 TEST(ExactChebyshevSweeps, RoutedByLayout) {

@@ -188,6 +188,55 @@ TEST(ExactSeparable, BoundedFieldsAreTheExactFieldCappedAtD) {
     }
 }
 
+// The CPU layout's unit L2 columns by vector windows (sub-tiles of 16 lines): lines whose
+// sites lie hundreds of voxels apart pass the window's limit and fall back to the envelope
+// (from the start, or midway) while other tiles stay on the windows; planes without any
+// site; the last sub-tile of a row only partly filled. Unsigned and signed, both layouts.
+TEST(ExactSeparable, EuclideanWindowsAndTheirFallback) {
+    std::mt19937_64 rng(20261226);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    // y long: plane z = 0 has solids only at y = 0 (its y lines fall back), z = 1 random 3%
+    // (windows), z = 2 none.
+    World ylong(Dims{37, 700, 3});
+    for (std::uint32_t x = 0; x < 37; x += 3) {
+        ylong.set(x, 0, 0, 1);
+    }
+    // z long: solids at z = 0 and random beyond z = 420, none between (the z lines fall back
+    // midway).
+    World zlong(Dims{21, 2, 650});
+    zlong.set(4, 1, 0, 2);
+    zlong.set(17, 0, 0, 2);
+    // A cube: random solids only at x >= 32 (the first two sub-tiles of each row far).
+    World cube(Dims{50, 300, 40});
+    for (std::uint32_t z = 0; z < 650; ++z) {
+        for (std::uint32_t y = 0; y < 700; ++y) {
+            for (std::uint32_t x = 0; x < 50; ++x) {
+                if (z == 1 && y < 700 && x < 37 && u(rng) < 0.03) {
+                    ylong.set(x, y, z, 1);
+                }
+                if (z > 420 && y < 2 && x < 21 && u(rng) < 0.03) {
+                    zlong.set(x, y, z, 1);
+                }
+                if (z < 40 && y < 300 && x >= 32 && u(rng) < 0.03) {
+                    cube.set(x, y, z, 1);
+                }
+            }
+        }
+    }
+    for (const World* w : {&ylong, &zlong, &cube}) {
+        for (bool sgn : {false, true}) {
+            const auto o0 = options(Metric::euclidean, Spacing{}, sgn,
+                                    float_or(Metric::euclidean, Spacing{}, sgn), Layout::cpu);
+            const auto ref = reference(*w, o0);
+            for (Layout layout : kLayouts) {
+                auto o = o0;
+                o.layout = layout;
+                expect_matches(*w, Palette(), o, ref, "window fallback");
+            }
+        }
+    }
+}
+
 TEST(ExactSeparable, SaturatesLongDistances) {
     // A lone voxel in a long world: distances beyond 255 saturate u8 and i8.
     World w(Dims{300, 2, 3});
