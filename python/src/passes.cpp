@@ -342,30 +342,32 @@ void axis0_distances(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t
         throw std::invalid_argument("axis0_distances: array sizes do not match the shape");
     }
     // Forward: the last target at or before each plane; backward: the next one at or after,
-    // each line's position kept per line so that every sweep reads and writes whole planes.
-    std::vector<std::int64_t> at(before.begin(), before.end());
-    for (std::size_t p = 0; p < planes; ++p) {
-        const std::int64_t z = z0 + static_cast<std::int64_t>(p);
-        const std::uint8_t* t = targets.data() + p * lines;
-        T* o = out.data() + p * lines;
-        for (std::size_t q = 0; q < lines; ++q) {
-            if (t[q] != 0) {
-                at[q] = z;
+    // each line's position kept per line. Lines go kLines at a time through every plane, so
+    // that their positions stay in the core's cache while each plane is read in whole runs.
+    constexpr std::size_t kLines = 8192;
+    std::vector<std::int64_t> at(std::min(lines, kLines));
+    for (std::size_t q0 = 0; q0 < lines; q0 += kLines) {
+        const std::size_t m = std::min(kLines, lines - q0);
+        std::copy(before.begin() + static_cast<std::ptrdiff_t>(q0),
+                  before.begin() + static_cast<std::ptrdiff_t>(q0 + m), at.begin());
+        for (std::size_t p = 0; p < planes; ++p) {
+            const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+            const std::uint8_t* t = targets.data() + p * lines + q0;
+            T* o = out.data() + p * lines + q0;
+            for (std::size_t q = 0; q < m; ++q) {
+                at[q] = t[q] != 0 ? z : at[q];
+                o[q] = at[q] < 0 ? none : static_cast<T>(z - at[q]);
             }
-            o[q] = at[q] < 0 ? none : static_cast<T>(z - at[q]);
         }
-    }
-    std::copy(after.begin(), after.end(), at.begin());
-    for (std::size_t p = planes; p-- > 0;) {
-        const std::int64_t z = z0 + static_cast<std::int64_t>(p);
-        const std::uint8_t* t = targets.data() + p * lines;
-        T* o = out.data() + p * lines;
-        for (std::size_t q = 0; q < lines; ++q) {
-            if (t[q] != 0) {
-                at[q] = z;
-            }
-            if (at[q] >= 0) {
-                o[q] = std::min(o[q], static_cast<T>(at[q] - z));
+        std::copy(after.begin() + static_cast<std::ptrdiff_t>(q0),
+                  after.begin() + static_cast<std::ptrdiff_t>(q0 + m), at.begin());
+        for (std::size_t p = planes; p-- > 0;) {
+            const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+            const std::uint8_t* t = targets.data() + p * lines + q0;
+            T* o = out.data() + p * lines + q0;
+            for (std::size_t q = 0; q < m; ++q) {
+                at[q] = t[q] != 0 ? z : at[q];
+                o[q] = at[q] >= 0 ? std::min(o[q], static_cast<T>(at[q] - z)) : o[q];
             }
         }
     }
@@ -611,24 +613,15 @@ void axis0_ends(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t> tar
     if (targets.size() != planes * lines || first.size() != lines || last.size() != lines) {
         throw std::invalid_argument("axis0_ends: array sizes do not match the shape");
     }
+    // One sweep: every target is the last so far; the first is kept once set.
     std::fill(first.begin(), first.end(), -1);
     std::fill(last.begin(), last.end(), -1);
     for (std::size_t p = 0; p < planes; ++p) {
         const std::int64_t z = z0 + static_cast<std::int64_t>(p);
         const std::uint8_t* t = targets.data() + p * lines;
         for (std::size_t q = 0; q < lines; ++q) {
-            if (t[q] != 0) {
-                last[q] = z;
-            }
-        }
-    }
-    for (std::size_t p = planes; p-- > 0;) {
-        const std::int64_t z = z0 + static_cast<std::int64_t>(p);
-        const std::uint8_t* t = targets.data() + p * lines;
-        for (std::size_t q = 0; q < lines; ++q) {
-            if (t[q] != 0) {
-                first[q] = z;
-            }
+            last[q] = t[q] != 0 ? z : last[q];
+            first[q] = t[q] != 0 && first[q] < 0 ? z : first[q];
         }
     }
 }
