@@ -13,7 +13,7 @@ Two exact schemes:
   within D, which the halo holds, and everything beyond D saturates at D.
 * Unbounded fields (``distance_transform`` without ``max_distance``,
   ``distance_transform_edt`` and ``distance_transform_cdt``): the separable transform on the
-  host in slabs along axis 0 (blocks spanning every other axis, about 320 MiB of targets,
+  host in slabs along axis 0 (blocks spanning every other axis, about 640 MiB of targets,
   output and first pass each at most). Along axis 0 the first pass of a line needs only the
   nearest target before and after each slab, so every block first gives the first and last
   target of each of its lines (from a clone of the input's graph: the input is read twice,
@@ -80,9 +80,11 @@ def _check_device(device):
 
 
 # A slab of the unbounded scheme holds at most this many bytes of targets, output and first
-# pass (unless one plane is larger); with non-unit sampling its passes after the first run on
-# this many elements at a time (float64).
-_SLAB_BYTES = 5 << 26
+# pass (unless one plane is larger): a 128-plane chunk row of a 1024^2 float32 field whole. A
+# slab thinner than its input chunk costs a merge (a transfer between workers) when the output
+# goes back into the input's chunks, so halving this measured slower. With non-unit sampling
+# the passes after the first run on _PASS_ELEMENTS elements at a time (float64).
+_SLAB_BYTES = 5 << 27
 _PASS_ELEMENTS = 1 << 21
 _NONE = np.iinfo(np.int64).max  # "no target" in the cumulative minimum of first targets
 
