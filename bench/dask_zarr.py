@@ -7,8 +7,9 @@ Usage (module built into build/python, or installed by pip):
         --size 1024 --block 128 --json bench/results/pocl-dask-zarr-1024.json
 
 Writes the floor + spheres world (bench/worlds.py; N^3 uint8, seeded) to a Zarr volume of
---block^3 chunks in --dir, then for the bounded field (euclidean, --max-distance D, f32) and
-the unbounded one (euclidean f32): the wall time of reading the Zarr volume, computing on the
+--block^3 chunks in --dir, then for the bounded field (euclidean, --max-distance D, f32), the
+unbounded one (euclidean f32), and the drop-ins `edt` (distance_transform_edt of world == 0,
+float64) and `cdt` (distance_transform_cdt of world == 0, taxicab, int32): the wall time of reading the Zarr volume, computing on the
 cluster (--workers single-threaded worker processes, each with $VOXFIELD_DEVICE and
 --memory-limit, past which distributed spills to --dir) and writing the field to Zarr; the
 peak resident memory of each worker (VmHWM, workers restarted between runs) and the CPU time
@@ -40,6 +41,7 @@ from worlds import make_world  # noqa: E402
 
 import voxfield  # noqa: E402
 import voxfield.dask as vd  # noqa: E402
+from voxfield import ndimage  # noqa: E402
 
 
 def peak_rss_bytes():
@@ -74,6 +76,24 @@ def equal_by_slabs(path, want, depth):
                for z in range(0, want.shape[0], depth))
 
 
+def dask_field(name, world, bound):
+    """The lazy field of run `name` of a dask world."""
+    if name == "edt":
+        return vd.distance_transform_edt(world == 0)
+    if name == "cdt":
+        return vd.distance_transform_cdt(world == 0, metric="taxicab")
+    return vd.distance_transform(world, metric="euclidean", max_distance=bound)
+
+
+def one_piece(name, world, bound):
+    """The same field of a numpy world by the one-piece module."""
+    if name == "edt":
+        return ndimage.distance_transform_edt(world == 0)
+    if name == "cdt":
+        return ndimage.distance_transform_cdt(world == 0, metric="taxicab")
+    return voxfield.distance_transform(world, metric="euclidean", max_distance=bound)
+
+
 def load():
     return [round(x, 2) for x in os.getloadavg()]
 
@@ -88,7 +108,7 @@ def main():
                    help="each worker's memory_limit (distributed spills to disk past 60%%)")
     p.add_argument("--dir", default="/tmp/voxfield-dask-bench")
     p.add_argument("--fields", default="bounded,unbounded",
-                   help="which fields to run, comma-separated (bounded, unbounded)")
+                   help="which fields to run, comma-separated (bounded, unbounded, edt, cdt)")
     p.add_argument("--json", default="")
     args = p.parse_args()
     n, b = args.size, args.block
@@ -104,17 +124,16 @@ def main():
                                   local_directory=os.path.join(args.dir, "workers"),
                                   dashboard_address=None, silence_logs=40) as cluster, \
             distributed.Client(cluster) as client:
-        runs = {"bounded": args.max_distance, "unbounded": None}
+        bound_of = {"bounded": args.max_distance, "unbounded": None, "edt": None, "cdt": None}
         for name in args.fields.split(","):
-            bound = runs[name]
+            bound = bound_of[name]
             client.restart()
             if device:
                 client.run(lambda: os.environ.__setitem__("VOXFIELD_DEVICE", device))
             out = os.path.join(args.dir, f"{name}.zarr")
             load_before = load()
             t = time.perf_counter()
-            field = vd.distance_transform(da.from_zarr(src), metric="euclidean",
-                                          max_distance=bound)
+            field = dask_field(name, da.from_zarr(src), bound)
             da.to_zarr(field, out, overwrite=True)
             wall = time.perf_counter() - t
             peaks = list(client.run(peak_rss_bytes).values())
@@ -122,10 +141,9 @@ def main():
             rusage_peaks = list(client.run(rusage_peak_bytes).values())
             load_between = load()
             # Kernels built before the clock starts (PoCL builds a kernel per process).
-            voxfield.distance_transform(world[:b, :b, :b], metric="euclidean",
-                                        max_distance=bound)
+            one_piece(name, world[:b, :b, :b], bound)
             t, cpu = time.perf_counter(), time.process_time()
-            one = voxfield.distance_transform(world, metric="euclidean", max_distance=bound)
+            one = one_piece(name, world, bound)
             one_wall, one_cpu = time.perf_counter() - t, time.process_time() - cpu
             equal = equal_by_slabs(out, one, b)
             rows.append({"field": name, "max_distance": bound, "dask_wall_s": wall,
@@ -149,7 +167,8 @@ def main():
               "commit": git_commit(), "size": [n, n, n], "block": [b, b, b], "dtype": "uint8",
               "workers": args.workers, "threads_per_worker": 1,
               "worker_memory_limit": args.memory_limit, "cpus": os.cpu_count(),
-              "nice": os.nice(0), "main_peak_rss_bytes": peak_rss_bytes(), "results": rows}
+              "nice": os.nice(0), "module": os.path.dirname(voxfield.__file__),
+              "main_peak_rss_bytes": peak_rss_bytes(), "results": rows}
     if args.json:
         with open(args.json, "w") as f:
             json.dump(result, f, indent=1)

@@ -9,9 +9,11 @@ On the floor + spheres world of compare_scipy.py (bench/worlds.py; N^3, seeded),
 is `world == 0` (nonzero where empty, so both measure from the empty voxels to the nearest
 solid). After one untimed call each, the median of --repeat wall-time calls of
 distance_transform_edt (float64) and distance_transform_cdt (taxicab, chessboard; int32),
-SciPy's and voxfield's, the edt with return_indices too. Checks: edt equal bit for bit, cdt
+SciPy's and voxfield's, the edt with return_indices too, and the edt into a caller's
+distances= array (voxfield writes a C-contiguous one in place). Checks: edt equal bit for bit, cdt
 equal, indices naming a nearest zero; records the share of indices that break ties as SciPy's.
-Writes device, date, commit and every sample to --json.
+Writes device, date, commit, the module's path, the load averages before and after, and every
+sample to --json. To compare two builds, run the script once with each on PYTHONPATH.
 """
 
 import argparse
@@ -73,12 +75,22 @@ def main():
         devs = voxfield.devices()
         device = next((d for d in devs if d["type"] == kind), devs[0])
     rows = []
+    load_before = [round(x, 2) for x in os.getloadavg()]
 
     want, t_sp = timed(lambda: sp.distance_transform_edt(a), args.repeat)
     got, t_vf = timed(lambda: vf.distance_transform_edt(a), args.repeat)
     assert np.array_equal(got, want), "edt differs from SciPy"
     rows.append({"function": "distance_transform_edt", "scipy": t_sp, "voxfield": t_vf,
                  "speedup": t_sp["median_ms"] / t_vf["median_ms"], "bit_for_bit": True})
+
+    out_sp, out_vf = np.empty(a.shape), np.empty(a.shape)
+    _, t_sp = timed(lambda: sp.distance_transform_edt(a, distances=out_sp), args.repeat)
+    _, t_vf = timed(lambda: vf.distance_transform_edt(a, distances=out_vf), args.repeat)
+    assert np.array_equal(out_vf, out_sp), "edt into distances= differs from SciPy"
+    rows.append({"function": "distance_transform_edt(distances=out)", "scipy": t_sp,
+                 "voxfield": t_vf, "speedup": t_sp["median_ms"] / t_vf["median_ms"],
+                 "bit_for_bit": True})
+    del out_sp, out_vf
 
     (wd, wi), t_sp = timed(lambda: sp.distance_transform_edt(a, return_indices=True),
                            args.repeat)
@@ -108,7 +120,9 @@ def main():
               f"{r['voxfield']['median_ms']:8.1f} ms  x{r['speedup']:.1f}")
     out = {"device": device, "date": datetime.datetime.now(datetime.timezone.utc).isoformat(),
            "commit": commit(), "size": [n, n, n], "repeat": args.repeat,
-           "cpus": os.cpu_count(), "results": rows}
+           "cpus": os.cpu_count(), "module": os.path.dirname(voxfield.__file__),
+           "load_average_before": load_before,
+           "load_average_after": [round(x, 2) for x in os.getloadavg()], "results": rows}
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)

@@ -235,6 +235,28 @@ py::array host_field(Dims d, Format f, std::uint8_t*& data) {
                      data, owner);
 }
 
+py::array caller_field(const py::object& out, Dims d, Format f) {
+    if (!py::isinstance<py::array>(out)) {
+        throw py::type_error("out must be a numpy array");
+    }
+    py::array a = py::reinterpret_borrow<py::array>(out);
+    const std::vector<py::ssize_t> want{d.z, d.y, d.x};
+    if (!a.dtype().is(dtype_of(f)) && !a.dtype().equal(dtype_of(f))) {
+        throw py::value_error("out must be of dtype " + dtype_name(dtype_of(f)) + ", not " +
+                              dtype_name(a.dtype()));
+    }
+    if (std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()) != want) {
+        throw py::value_error("out must have the field's shape (" + std::to_string(d.z) + ", " +
+                              std::to_string(d.y) + ", " + std::to_string(d.x) + "), not " +
+                              shape_text(a));
+    }
+    if (!(a.flags() & py::array::c_style) || !a.writeable() ||
+        !(a.flags() & py::detail::npy_api::NPY_ARRAY_ALIGNED_)) {
+        throw py::value_error("out must be a writable, aligned, C-contiguous array");
+    }
+    return a;
+}
+
 void read_into(Device& device, const cl::Buffer& buffer, void* out, std::size_t bytes, Dims dims) {
     ocl::cl_call("reading the field of " + dims.to_string(),
                  [&] { device.context.queue().enqueueReadBuffer(buffer, CL_TRUE, 0, bytes, out); });

@@ -83,6 +83,9 @@ py::array empty_field(Dims d, Format f);
 // The same over ocl::HostMemory (aligned, huge-page advised, so that a CPU device writes it
 // in place), freed with the array; `data` is set to its memory.
 py::array host_field(Dims d, Format f, std::uint8_t*& data);
+// The caller's output array `out` checked as a (Z, Y, X) field of format f: C-contiguous,
+// writable, aligned, of the format's dtype (ValueError naming what differs).
+py::array caller_field(const py::object& out, Dims d, Format f);
 // Blocking read of a device buffer into host memory.
 void read_into(Device& device, const cl::Buffer& buffer, void* out, std::size_t bytes, Dims dims);
 

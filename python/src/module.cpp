@@ -238,6 +238,71 @@ py::array_t<double> slab_passes_of(const py::array& dist, const std::string& met
     return out;
 }
 
+// The field of a part of a slab with unit spacing from its first pass's distances along axis 0
+// (axis0_distances' output, whole planes), written into `out` (see unit_slab_field), which
+// may hold the distances in its tail.
+void slab_field_of(const py::array& dist, const std::string& metric, py::array out,
+                   bool minus_one) {
+    const Metric m = parse_metric(metric);
+    shape3(dist, "the distances");
+    const std::vector<py::ssize_t> shape(dist.shape(), dist.shape() + dist.ndim());
+    if (!(dist.flags() & py::array::c_style)) {
+        throw py::value_error("the distances must be C-contiguous");
+    }
+    if (!(out.flags() & py::array::c_style) || !out.writeable() ||
+        std::vector<py::ssize_t>(out.shape(), out.shape() + out.ndim()) != shape) {
+        throw py::value_error("out must be a writable C-contiguous array of shape " +
+                              shape_text(dist));
+    }
+    // Planes along axis 0 of the other axes' lines: (n1, n2) for 3 axes, (1, n1) for 2.
+    Shape3 s;
+    s.n[0] = static_cast<std::size_t>(dist.shape(0));
+    if (dist.ndim() == 3) {
+        s.n[1] = static_cast<std::size_t>(dist.shape(1));
+    }
+    if (dist.ndim() >= 2) {
+        s.n[2] = static_cast<std::size_t>(dist.shape(dist.ndim() - 1));
+    }
+    const auto with_out = [&](auto none) {
+        using D = decltype(none);
+        const D* d = static_cast<const D*>(dist.data());
+        const auto run = [&](auto* o) {
+            py::gil_scoped_release release;
+            voxfield::python::unit_slab_field(m, s, d, none, o, minus_one);
+        };
+        void* o = out.mutable_data();
+        if (py::isinstance<py::array_t<float>>(out)) {
+            run(static_cast<float*>(o));
+        } else if (py::isinstance<py::array_t<double>>(out)) {
+            run(static_cast<double*>(o));
+        } else if (py::isinstance<py::array_t<std::uint8_t>>(out)) {
+            run(static_cast<std::uint8_t*>(o));
+        } else if (py::isinstance<py::array_t<std::uint16_t>>(out)) {
+            run(static_cast<std::uint16_t*>(o));
+        } else if (py::isinstance<py::array_t<std::uint32_t>>(out)) {
+            run(static_cast<std::uint32_t*>(o));
+        } else if (py::isinstance<py::array_t<std::int8_t>>(out)) {
+            run(static_cast<std::int8_t*>(o));
+        } else if (py::isinstance<py::array_t<std::int16_t>>(out)) {
+            run(static_cast<std::int16_t*>(o));
+        } else if (py::isinstance<py::array_t<std::int32_t>>(out)) {
+            run(static_cast<std::int32_t*>(o));
+        } else {
+            throw py::type_error(
+                "out must be float32, float64 or an integer type of 1 to 4 "
+                "bytes, not " +
+                dtype_name(out.dtype()));
+        }
+    };
+    if (py::isinstance<py::array_t<std::uint16_t>>(dist)) {
+        with_out(std::numeric_limits<std::uint16_t>::max());
+    } else if (py::isinstance<py::array_t<std::uint32_t>>(dist)) {
+        with_out(std::numeric_limits<std::uint32_t>::max());
+    } else {
+        throw py::type_error("the distances must be uint16 or uint32 (axis0_distances)");
+    }
+}
+
 // The whole separable transform of targets (1 to 3 axes) on the host: partial distances
 // (L2: squared) after passes along every axis in order 0, 1, 2, and the linear index of each
 // element's nearest target (-1 without one) when asked.
@@ -329,10 +394,13 @@ PYBIND11_MODULE(_core, m) {
           py::arg("sampling") = py::none(), py::arg("return_indices") = false,
           py::arg("max_distance") = py::none(), py::arg("format") = py::none(),
           py::arg("algorithm") = "exact", py::arg("device") = py::none(),
+          py::arg("out") = py::none(),
           "distance_transform(world, metric='manhattan', signed=False, sampling=None, "
           "return_indices=False, max_distance=None, format=None, algorithm='exact', "
-          "device=None) -> ndarray, or (ndarray, indices)\n\n"
-          "See voxfield.distance_transform.");
+          "device=None, out=None) -> ndarray, or (ndarray, indices)\n\n"
+          "See voxfield.distance_transform. `out`: a writable C-contiguous array of the "
+          "field's shape and dtype that receives the field (and is returned) instead of a new "
+          "one.");
     py::class_<vp::Field>(m, "Field", "See voxfield.Field.")
         .def(py::init<const py::object&, const std::string&, const py::object&, const std::string&,
                       const std::optional<std::string>&, const py::object&, bool,
@@ -388,6 +456,14 @@ PYBIND11_MODULE(_core, m) {
           "first pass's values along axis 0, then a host pass along each other axis; into "
           "`out` (float64, the distances' shape) when given; `field` (float32 or float64, that "
           "shape): also the field there (L2: the square root), rounded once.");
+    m.def("slab_field", &vp::slab_field_of, py::arg("distances"), py::arg("metric"), py::arg("out"),
+          py::arg("minus_one") = false,
+          "slab_field(distances, metric, out, minus_one=False) -> None\n\n"
+          "The field of whole planes of a slab with unit sampling, from axis0_distances' "
+          "output for them: the passes along the other axes in exact integer arithmetic, "
+          "written into `out` (the distances' shape; float32, float64 or an integer type) as "
+          "the kernels store that format; `minus_one`: -1 where no target is reachable (SciPy's "
+          "cdt). `out` may hold the distances in its tail.");
     m.def("host_transform", &vp::transform_on_host, py::arg("input"), py::arg("metric"),
           py::arg("sampling"), py::arg("features"), py::arg("threads") = py::none(),
           "host_transform(input, metric, sampling, features, threads=None) -> (g, features)\n\n"

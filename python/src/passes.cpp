@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 namespace voxfield::python {
@@ -341,34 +342,270 @@ void axis0_distances(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t
         throw std::invalid_argument("axis0_distances: array sizes do not match the shape");
     }
     // Forward: the last target at or before each plane; backward: the next one at or after,
-    // each line's position kept per line so that every sweep reads and writes whole planes.
-    std::vector<std::int64_t> at(before.begin(), before.end());
-    for (std::size_t p = 0; p < planes; ++p) {
-        const std::int64_t z = z0 + static_cast<std::int64_t>(p);
-        const std::uint8_t* t = targets.data() + p * lines;
-        T* o = out.data() + p * lines;
-        for (std::size_t q = 0; q < lines; ++q) {
-            if (t[q] != 0) {
-                at[q] = z;
+    // each line's position kept per line. Lines go kLines at a time through every plane, so
+    // that their positions stay in the core's cache while each plane is read in whole runs.
+    constexpr std::size_t kLines = 8192;
+    std::vector<std::int64_t> at(std::min(lines, kLines));
+    for (std::size_t q0 = 0; q0 < lines; q0 += kLines) {
+        const std::size_t m = std::min(kLines, lines - q0);
+        std::copy(before.begin() + static_cast<std::ptrdiff_t>(q0),
+                  before.begin() + static_cast<std::ptrdiff_t>(q0 + m), at.begin());
+        for (std::size_t p = 0; p < planes; ++p) {
+            const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+            const std::uint8_t* t = targets.data() + p * lines + q0;
+            T* o = out.data() + p * lines + q0;
+            for (std::size_t q = 0; q < m; ++q) {
+                at[q] = t[q] != 0 ? z : at[q];
+                o[q] = at[q] < 0 ? none : static_cast<T>(z - at[q]);
             }
-            o[q] = at[q] < 0 ? none : static_cast<T>(z - at[q]);
         }
-    }
-    std::copy(after.begin(), after.end(), at.begin());
-    for (std::size_t p = planes; p-- > 0;) {
-        const std::int64_t z = z0 + static_cast<std::int64_t>(p);
-        const std::uint8_t* t = targets.data() + p * lines;
-        T* o = out.data() + p * lines;
-        for (std::size_t q = 0; q < lines; ++q) {
-            if (t[q] != 0) {
-                at[q] = z;
-            }
-            if (at[q] >= 0) {
-                o[q] = std::min(o[q], static_cast<T>(at[q] - z));
+        std::copy(after.begin() + static_cast<std::ptrdiff_t>(q0),
+                  after.begin() + static_cast<std::ptrdiff_t>(q0 + m), at.begin());
+        for (std::size_t p = planes; p-- > 0;) {
+            const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+            const std::uint8_t* t = targets.data() + p * lines + q0;
+            T* o = out.data() + p * lines + q0;
+            for (std::size_t q = 0; q < m; ++q) {
+                at[q] = t[q] != 0 ? z : at[q];
+                o[q] = at[q] >= 0 ? std::min(o[q], static_cast<T>(at[q] - z)) : o[q];
             }
         }
     }
 }
+
+namespace {
+
+// Unit-spacing partials of unit_slab_field: exact integers of type G (int32 where every
+// distance fits, else int64), kNone<G> where no target.
+template <typename G>
+constexpr G kNone = std::numeric_limits<G>::max();
+
+// floor(num / den) for den > 0: a double division where the quotient's rounding cannot cross
+// an integer (|num| < 2^31, den < 2^22: the error is below 2^-22 <= 1 / den), else integers.
+inline std::int64_t floor_div(std::int64_t num, std::int64_t den) {
+    if (num > -(std::int64_t{1} << 31) && num < (std::int64_t{1} << 31) &&
+        den < (std::int64_t{1} << 22)) {
+        // Truncated, then one down below zero (std::floor is a library call on x86-64).
+        const double r = static_cast<double>(num) / static_cast<double>(den);
+        const auto q = static_cast<std::int64_t>(r);
+        return static_cast<double>(q) > r ? q - 1 : q;
+    }
+    const std::int64_t q = num / den;
+    return q * den > num ? q - 1 : q;
+}
+
+// Meijster's F(x, i) and Sep(i, u) (i < u: the last x at which site i is no farther than u).
+template <Metric M>
+inline std::int64_t cost(std::int64_t x, std::int64_t i, std::int64_t gi) {
+    const std::int64_t o = x > i ? x - i : i - x;
+    if constexpr (M == Metric::euclidean) {
+        return o * o + gi;
+    } else {
+        return std::max(o, gi);
+    }
+}
+
+template <Metric M>
+inline std::int64_t separator(std::int64_t i, std::int64_t gi, std::int64_t u, std::int64_t gu) {
+    if constexpr (M == Metric::euclidean) {
+        return floor_div(u * u - i * i + gu - gi, 2 * (u - i));
+    } else {
+        const std::int64_t mid = floor_div(i + u, 2);
+        return gi <= gu ? std::max(i + gu, mid) : std::min(u - gi, mid);
+    }
+}
+
+// One line of n partials g[i * st] (kNone: no site) into out[i * st]: the lower envelope by
+// Meijster's stack (L2, L-inf) or the two sweeps (L1); `site` and `start` hold n ints each.
+template <Metric M, typename G>
+void unit_line(const G* g, std::int64_t n, std::int64_t st, G* out, std::int64_t* site,
+               std::int64_t* start) {
+    constexpr G none = kNone<G>;
+    if constexpr (M == Metric::manhattan) {
+        G run = none;
+        for (std::int64_t x = 0; x < n; ++x) {
+            run = std::min(g[x * st], run == none ? none : static_cast<G>(run + 1));
+            out[x * st] = run;
+        }
+        run = none;
+        for (std::int64_t x = n; x-- > 0;) {
+            run = std::min(out[x * st], run == none ? none : static_cast<G>(run + 1));
+            out[x * st] = run;
+        }
+    } else {
+        std::int64_t k = -1;
+        for (std::int64_t u = 0; u < n; ++u) {
+            const std::int64_t gu = g[u * st];
+            if (gu == none) {
+                continue;
+            }
+            while (k >= 0 &&
+                   cost<M>(start[k], site[k], g[site[k] * st]) > cost<M>(start[k], u, gu)) {
+                --k;
+            }
+            if (k < 0) {
+                k = 0;
+                site[0] = u;
+                start[0] = 0;
+            } else if (const std::int64_t w = separator<M>(site[k], g[site[k] * st], u, gu) + 1;
+                       w < n) {
+                ++k;
+                site[k] = u;
+                start[k] = w;
+            }
+        }
+        if (k < 0) {
+            for (std::int64_t x = 0; x < n; ++x) {
+                out[x * st] = none;
+            }
+            return;
+        }
+        for (std::int64_t x = n; x-- > 0;) {
+            out[x * st] = static_cast<G>(cost<M>(x, site[k], g[site[k] * st]));
+            if (x == start[k]) {
+                --k;
+            }
+        }
+    }
+}
+
+// A final partial as format T (see unit_slab_field).
+template <Metric M, typename T, typename G>
+inline T stored(G v, bool minus_one) {
+    if (v == kNone<G>) {
+        if constexpr (std::is_floating_point_v<T>) {
+            return std::numeric_limits<T>::infinity();
+        } else {
+            return minus_one ? T(-1) : std::numeric_limits<T>::max();
+        }
+    }
+    if constexpr (M == Metric::euclidean) {
+        const double d = std::sqrt(static_cast<double>(v));
+        if constexpr (std::is_floating_point_v<T>) {
+            return static_cast<T>(d);
+        } else {
+            const double top = static_cast<double>(std::numeric_limits<T>::max());
+            return d >= top ? std::numeric_limits<T>::max() : static_cast<T>(std::floor(d));
+        }
+    } else if constexpr (std::is_floating_point_v<T>) {
+        return static_cast<T>(v);
+    } else {
+        const auto top = static_cast<std::int64_t>(std::numeric_limits<T>::max());
+        return static_cast<T>(std::min(static_cast<std::int64_t>(v), top));
+    }
+}
+
+template <Metric M, typename G, typename D, typename T>
+void unit_slab(Shape3 shape, const D* dist, D none, T* out, bool minus_one) {
+    const auto n1 = static_cast<std::int64_t>(shape.n[1]);
+    const auto n2 = static_cast<std::int64_t>(shape.n[2]);
+    const std::size_t plane = shape.n[1] * shape.n[2];
+    constexpr std::int64_t kCols = 16;  // columns of a plane taken together along axis 1
+    const std::size_t longest = static_cast<std::size_t>(std::max(n1, n2));
+    std::vector<G> g1(plane), cols(kCols * shape.n[1]), res(kCols * shape.n[1]);
+    std::vector<G> row(shape.n[2]);
+    std::vector<std::int64_t> site(longest), start(longest);
+    const auto part = [none](D d) -> G {
+        if (d == none) {
+            return kNone<G>;
+        }
+        const auto v = static_cast<G>(d);
+        return M == Metric::euclidean ? static_cast<G>(v * v) : v;
+    };
+    for (std::size_t p = 0; p < shape.n[0]; ++p) {
+        const D* dp = dist + p * plane;
+        // Along axis 1, kCols columns at a time: their rows' runs copied side by side into
+        // `cols` (column c at cols[y * kCols + c]), transformed there, copied into g1.
+        for (std::int64_t x0 = 0; x0 < n2; x0 += kCols) {
+            const std::int64_t w = std::min(kCols, n2 - x0);
+            for (std::int64_t y = 0; y < n1; ++y) {
+                const D* src = dp + y * n2 + x0;
+                G* dst = cols.data() + y * kCols;
+                for (std::int64_t c = 0; c < w; ++c) {
+                    dst[c] = part(src[c]);
+                }
+            }
+            if (n1 > 1) {
+                for (std::int64_t c = 0; c < w; ++c) {
+                    unit_line<M, G>(cols.data() + c, n1, kCols, res.data() + c, site.data(),
+                                    start.data());
+                }
+            } else {
+                std::copy(cols.begin(), cols.begin() + w, res.begin());
+            }
+            for (std::int64_t y = 0; y < n1; ++y) {
+                std::copy(res.data() + y * kCols, res.data() + y * kCols + w,
+                          g1.data() + y * n2 + x0);
+            }
+        }
+        // Along axis 2, each row contiguous, stored in the output format.
+        T* op = out + p * plane;
+        for (std::int64_t y = 0; y < n1; ++y) {
+            const G* line = g1.data() + y * n2;
+            if (n2 > 1) {
+                unit_line<M, G>(line, n2, 1, row.data(), site.data(), start.data());
+                line = row.data();
+            }
+            T* o = op + y * n2;
+            for (std::int64_t x = 0; x < n2; ++x) {
+                o[x] = stored<M, T, G>(line[x], minus_one);
+            }
+        }
+    }
+}
+
+}  // namespace
+
+template <Metric M, typename D, typename T>
+void unit_slab_of(Shape3 shape, const D* dist, D none, T* out, bool minus_one) {
+    // The largest finite partial: the largest distance along axis 0, then the passes add at
+    // most the other axes' extents (L2 their squares).
+    D most = 0;
+    for (std::size_t i = 0; i < shape.count(); ++i) {
+        most = dist[i] != none ? std::max(most, dist[i]) : most;
+    }
+    const auto d = static_cast<std::uint64_t>(most);
+    const std::uint64_t e1 = shape.n[1] - 1, e2 = shape.n[2] - 1;
+    const std::uint64_t top = M == Metric::euclidean   ? d * d + e1 * e1 + e2 * e2
+                              : M == Metric::manhattan ? d + e1 + e2
+                                                       : std::max({d, e1, e2});
+    if (top < static_cast<std::uint64_t>(kNone<std::int32_t>)) {
+        unit_slab<M, std::int32_t>(shape, dist, none, out, minus_one);
+    } else {
+        unit_slab<M, std::int64_t>(shape, dist, none, out, minus_one);
+    }
+}
+
+template <typename D, typename T>
+void unit_slab_field(Metric metric, Shape3 shape, const D* dist, D none, T* out, bool minus_one) {
+    switch (metric) {
+        case Metric::euclidean:
+            unit_slab_of<Metric::euclidean>(shape, dist, none, out, minus_one);
+            break;
+        case Metric::manhattan:
+            unit_slab_of<Metric::manhattan>(shape, dist, none, out, minus_one);
+            break;
+        case Metric::chebyshev:
+            unit_slab_of<Metric::chebyshev>(shape, dist, none, out, minus_one);
+            break;
+    }
+}
+
+#define VOXFIELD_UNIT_SLAB(D, T) \
+    template void unit_slab_field<D, T>(Metric, Shape3, const D*, D, T*, bool);
+#define VOXFIELD_UNIT_SLABS(D)           \
+    VOXFIELD_UNIT_SLAB(D, float)         \
+    VOXFIELD_UNIT_SLAB(D, double)        \
+    VOXFIELD_UNIT_SLAB(D, std::uint8_t)  \
+    VOXFIELD_UNIT_SLAB(D, std::uint16_t) \
+    VOXFIELD_UNIT_SLAB(D, std::uint32_t) \
+    VOXFIELD_UNIT_SLAB(D, std::int8_t)   \
+    VOXFIELD_UNIT_SLAB(D, std::int16_t)  \
+    VOXFIELD_UNIT_SLAB(D, std::int32_t)
+VOXFIELD_UNIT_SLABS(std::uint16_t)
+VOXFIELD_UNIT_SLABS(std::uint32_t)
+#undef VOXFIELD_UNIT_SLABS
+#undef VOXFIELD_UNIT_SLAB
 
 void axis0_ends(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t> targets,
                 std::span<std::int64_t> first, std::span<std::int64_t> last) {
@@ -376,24 +613,15 @@ void axis0_ends(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t> tar
     if (targets.size() != planes * lines || first.size() != lines || last.size() != lines) {
         throw std::invalid_argument("axis0_ends: array sizes do not match the shape");
     }
+    // One sweep: every target is the last so far; the first is kept once set.
     std::fill(first.begin(), first.end(), -1);
     std::fill(last.begin(), last.end(), -1);
     for (std::size_t p = 0; p < planes; ++p) {
         const std::int64_t z = z0 + static_cast<std::int64_t>(p);
         const std::uint8_t* t = targets.data() + p * lines;
         for (std::size_t q = 0; q < lines; ++q) {
-            if (t[q] != 0) {
-                last[q] = z;
-            }
-        }
-    }
-    for (std::size_t p = planes; p-- > 0;) {
-        const std::int64_t z = z0 + static_cast<std::int64_t>(p);
-        const std::uint8_t* t = targets.data() + p * lines;
-        for (std::size_t q = 0; q < lines; ++q) {
-            if (t[q] != 0) {
-                first[q] = z;
-            }
+            last[q] = t[q] != 0 ? z : last[q];
+            first[q] = t[q] != 0 && first[q] < 0 ? z : first[q];
         }
     }
 }

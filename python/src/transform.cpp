@@ -4,9 +4,9 @@
 // Copies: a C-contiguous uint8 or bool world is read in place by a device that computes in
 // host memory (and uploaded from where it is elsewhere); other layouts are made C-contiguous
 // by numpy first, and wider label volumes are turned into a World voxel by voxel. Fields are
-// written by the device straight into the memory of the returned array (CPU devices) or read
-// from the device buffer into it; the feature transform goes through one host copy
-// (Generator only hands it out as a vector).
+// written by the device straight into the memory of the returned array (CPU devices; the
+// caller's `out` array when given) or read from the device buffer into it; the feature
+// transform goes through one host copy (Generator only hands it out as a vector).
 #include <cstring>
 #include <span>
 #include <utility>
@@ -55,7 +55,8 @@ py::object distance_transform(const py::object& world, const std::string& metric
                               const py::object& sampling, bool return_indices,
                               const py::object& max_distance,
                               const std::optional<std::string>& format,
-                              const std::string& algorithm, const py::object& device) {
+                              const std::string& algorithm, const py::object& device,
+                              const py::object& out) {
     const WorldArray w = world_array(world, true);
     ocl::GeneratorOptions o;
     o.max_distance = bound_of(max_distance);
@@ -77,16 +78,25 @@ py::object distance_transform(const py::object& world, const std::string& metric
         check_device_bytes(*dev, std::max(field_bytes, index_bytes),
                            w.count + field_bytes + index_bytes,
                            "the field of " + w.dims.to_string());
-        check_host_bytes(field_bytes + index_bytes + (w.bytes_are_voxels() ? 0 : w.count),
-                         "the field of " + w.dims.to_string());
+        check_host_bytes(
+            (out.is_none() ? field_bytes : 0) + index_bytes + (w.bytes_are_voxels() ? 0 : w.count),
+            "the field of " + w.dims.to_string());
     }
     // `exact` reads a uint8/bool array in place and writes the field into the returned array
     // (indices come back through the generator's own buffers).
     const bool sweeps = w.bytes_are_voxels() && options.algorithm == ocl::Algorithm::exact &&
                         !return_indices && labels == Labels::solid;
     std::uint8_t* sweep_out = nullptr;
-    py::array field = sweeps ? host_field(w.dims, options.format, sweep_out)
-                             : empty_field(w.dims, options.format);
+    py::array field;
+    if (!out.is_none()) {
+        // The caller's array: written in place (by the device where it computes in host
+        // memory), no field allocated here.
+        field = caller_field(out, w.dims, options.format);
+        sweep_out = static_cast<std::uint8_t*>(field.mutable_data());
+    } else {
+        field = sweeps ? host_field(w.dims, options.format, sweep_out)
+                       : empty_field(w.dims, options.format);
+    }
     py::array_t<std::int32_t> indices;
     if (return_indices) {
         indices =

@@ -14,7 +14,8 @@ py::object distance_transform(const py::object& world, const std::string& metric
                               const py::object& sampling, bool return_indices,
                               const py::object& max_distance,
                               const std::optional<std::string>& format,
-                              const std::string& algorithm, const py::object& device);
+                              const std::string& algorithm, const py::object& device,
+                              const py::object& out = py::none());
 
 py::tuple load_vox(const std::filesystem::path& path);
 void save_vox(const std::filesystem::path& path, const py::object& world,

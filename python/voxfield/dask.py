@@ -5,38 +5,33 @@ the same call on the whole array (:func:`voxfield.distance_transform`,
 :func:`voxfield.ndimage.distance_transform_edt`, :func:`voxfield.ndimage.distance_transform_cdt`),
 on any scheduler (threads, processes, a ``distributed`` cluster).
 
-Three exact schemes:
+Two exact schemes:
 
 * Bounded fields (``distance_transform(..., max_distance=D)``): each block is computed on the
   OpenCL device with a halo of ``ceil(D / sampling)`` voxels per axis (``map_overlap``; Dask
   merges blocks smaller than the halo first). A voxel's value depends only on the solids
   within D, which the halo holds, and everything beyond D saturates at D.
-* Unbounded ``distance_transform`` (and ``distance_transform_edt`` with non-unit sampling):
-  the separable transform on the host in slabs along axis 0 (blocks spanning every other
-  axis, split where one would pass 2**27 elements). Along axis 0 the first pass of a line
-  needs only the nearest target before and after each slab, so every block first gives the
-  first and last target of each of its lines (from a clone of the input's graph: the input is
-  read twice, and nothing waits in memory for the slabs), a cumulative maximum / minimum over
-  the blocks carries them along axis 0, and each slab then computes its first pass
-  (``voxfield._core.axis0_distances``) and the passes along the other axes, a few planes at a
-  time (``voxfield._core.slab_passes``, float64), and writes the format. No partial distance
-  moves between workers; the slabs are split back into the input's chunks. With unit sampling
-  every partial is an exact integer; the passes run along axes 0, 1, 2 in turn, so sampled
-  sums are SciPy's.
-* ``distance_transform_edt`` (unit sampling) and ``distance_transform_cdt``: the device
-  transforms every slice along axis 0 alone (a plane of a 3-D input, a row of a 2-D input; a
-  1-D input whole), in blocks that span the slices whole; then one host pass along axis 0
-  (blocks spanning whole lines of it) finishes the separable transform. The slices' partial
-  distances are exact integers (L2: squared, recovered exactly from the device's float64
-  distances), so the result equals the one-piece function bit for bit. The rechunk between
-  the two stages moves the whole volume's partial distances (float32 where exact) at once:
-  a cluster needs that much memory (or room to spill) across its workers.
+* Unbounded fields (``distance_transform`` without ``max_distance``,
+  ``distance_transform_edt`` and ``distance_transform_cdt``): the separable transform on the
+  host in slabs along axis 0 (blocks spanning every other axis, about 640 MiB of targets,
+  output and first pass each at most). Along axis 0 the first pass of a line needs only the
+  nearest target before and after each slab, so every block first gives the first and last
+  target of each of its lines (from a clone of the input's graph: the input is read twice,
+  and nothing waits in memory for the slabs), a cumulative maximum / minimum over the blocks
+  carries them along axis 0, and each slab then computes its first pass
+  (``voxfield._core.axis0_distances``) and the passes along the other axes. With unit
+  sampling these run in exact integer arithmetic and write the output format directly
+  (``voxfield._core.slab_field``: L2 the square root of the exact squared distance, rounded
+  once, so edt equals the one-piece function bit for bit); with other sampling in float64 a
+  few planes at a time (``voxfield._core.slab_passes``, axes 0, 1, 2 in turn, so sampled sums
+  are SciPy's). No partial distance moves between workers; the slabs are split back into the
+  input's chunks. Each line is computed whole, so no result depends on the chunks.
 
-Each line and slice is computed whole, so no result depends on the chunks.
-
-Each task picks its device when it runs: ``device=`` if given, else ``$VOXFIELD_DEVICE`` as
-the worker's environment has it, else the first GPU, else the first CPU; each worker process
-keeps one OpenCL context per device. A device that a worker does not have fails that task.
+Each bounded task picks its device when it runs: ``device=`` if given, else
+``$VOXFIELD_DEVICE`` as the worker's environment has it, else the first GPU, else the first
+CPU; each worker process keeps one OpenCL context per device. A device that a worker does not
+have fails that task. The unbounded scheme uses no device (``distance_transform_edt`` and
+``distance_transform_cdt`` take ``device=`` for the drop-in signature and check its form).
 """
 
 import functools
@@ -72,10 +67,6 @@ def _spacing(sampling, ndim):
     return [float(v) for v in s]
 
 
-# The device stage's blocks hold at most this many elements (32 or 64 MiB of partials).
-_SLICE_BLOCK_ELEMENTS = 1 << 23
-
-
 def _check_device(device):
     """The form of device= (None, a string, a non-negative integer); which device it names
     is resolved by each task on its worker."""
@@ -88,103 +79,48 @@ def _check_device(device):
                          "voxfield.devices()")
 
 
-def _exact_partial_dtype(metric, shape):
-    """float32 where every finite partial distance of a slice of `shape` is an integer below
-    2**24 (held exactly), else float64."""
-    extents = [n - 1 for n in shape]
-    if metric == "euclidean":
-        top = sum(e * e for e in extents)
-    elif metric == "manhattan":
-        top = sum(extents)
-    else:
-        top = max(extents, default=0)
-    return np.dtype(np.float32 if top < 1 << 24 else np.float64)
-
-
-def _slices_on_device(block, metric, device, dtype):
-    """Partial distances (L2: squared) of a block of targets (bool): each slice along axis 0
-    transformed alone on the device (a 1-D block: the whole line). Exact integers (+inf
-    where a slice has no target) in `dtype`."""
-    out = np.empty(block.shape, dtype)
-    slices = [(Ellipsis, block)] if block.ndim == 1 else enumerate(block)
-    for index, s in slices:
-        if s.size == 0:
-            continue
-        d = _core.distance_transform(s.reshape((1,) * (3 - s.ndim) + s.shape), metric, False,
-                                     None, False, None, "f64", "exact", device)
-        d = d.reshape(s.shape)
-        if metric == "euclidean":
-            # sqrt of an integer below 2**52, squared and rounded: the integer again.
-            d = np.rint(d * d)
-        out[index] = d
-    return out
-
-
-def _finished(g, finish, dtype):
-    out = np.empty(g.shape, dtype)
-    finish(g, out)
-    return out
-
-
-def _pass_and_finish(block, metric, finish, dtype):
-    """The host pass along axis 0 from partial distances, then `finish` of the result."""
-    return _finished(_core.separable_pass(block, 0, metric, 1.0, False, 1), finish, dtype)
-
-
-def _finish_slices(block, metric, device, partial, finish, dtype):
-    g = _slices_on_device(block, metric, device, partial).astype(np.float64)
-    return _finished(g, finish, dtype)
-
-
-def _unit_transform(targets, metric, device, finish, dtype):
-    """Lazy `finish` of the distances (L2: squared) of a dask array of targets (bool) with
-    unit sampling, chunked as `targets` and of `dtype`: the slices along axis 0 on the device,
-    then one host pass along axis 0 (the module docstring's third scheme). `finish` maps a
-    float64 block to `dtype` element by element."""
-    chunks = targets.chunks
-    if targets.ndim == 1:
-        partial = _exact_partial_dtype(metric, targets.shape)
-        whole = targets.rechunk(-1)
-        return whole.map_blocks(_finish_slices, metric, device, partial, finish, dtype,
-                                dtype=dtype).rechunk(chunks)
-    partial = _exact_partial_dtype(metric, targets.shape[1:])
-    slice_elements = math.prod(targets.shape[1:])
-    depth = max(1, min(targets.shape[0], _SLICE_BLOCK_ELEMENTS // max(1, slice_elements)))
-    g = targets.rechunk({a: (depth if a == 0 else -1) for a in range(targets.ndim)})
-    g = g.map_blocks(_slices_on_device, metric, device, partial, dtype=partial)
-    g = g.rechunk({a: (-1 if a == 0 else chunks[a]) for a in range(targets.ndim)})
-    g = g.map_blocks(_pass_and_finish, metric, finish, dtype, dtype=dtype)
-    return g.rechunk(chunks)
-
-
-# A slab of the unbounded scheme holds at most this many elements (unless one plane is
-# larger); its passes after the first run on this many elements at a time (float64).
-_SLAB_ELEMENTS = 1 << 27
+# A slab of the unbounded scheme holds at most this many bytes of targets, output and first
+# pass (unless one plane is larger): a 128-plane chunk row of a 1024^2 float32 field whole. A
+# slab thinner than its input chunk costs a merge (a transfer between workers) when the output
+# goes back into the input's chunks, so halving this measured slower. With non-unit sampling
+# the passes after the first run on _PASS_ELEMENTS elements at a time (float64).
+_SLAB_BYTES = 5 << 27
 _PASS_ELEMENTS = 1 << 21
 _NONE = np.iinfo(np.int64).max  # "no target" in the cumulative minimum of first targets
 
 
 def _line_ends(block, block_info=None):
-    """Per line along axis 0 of a block of targets (bool): the global positions of its first
-    and last target (-1: none), stacked as a (2, ...) int64 block."""
+    """Per line along axis 0 of a block of targets (nonzero): the global positions of its
+    first and last target (-1: none), stacked as a (2, ...) int64 block."""
     return _core.axis0_ends(block, block_info[0]["array-location"][0][0])
 
 
-def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, block_info=None):
-    """`finish` of the distances (L2: squared) of a slab spanning every axis but axis 0: the
-    first pass along axis 0 from the slab's targets and the nearest targets before and after
-    it on every line (`before`, `after`: one block along axis 0, -1: none), then the host
-    passes along the other axes, a few planes at a time."""
+def _distance_bytes(length):
+    """Bytes per element of axis0_distances' output for an axis 0 of `length`."""
+    return 2 if length < 65535 else 4
+
+
+def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, minus_one,
+                block_info=None):
+    """The field of a slab spanning every axis but axis 0, in `dtype`: the first pass along
+    axis 0 from the slab's targets (nonzero) and the nearest targets before and after it on
+    every line (`before`, `after`: one block along axis 0, -1: none), then the passes along
+    the other axes: with unit sampling ``slab_field`` (exact integers, the format written as
+    the kernels write it; `minus_one`: -1 where nothing is reachable), else the float64
+    ``slab_passes`` a few planes at a time and `finish` of their result."""
     z0 = block_info[0]["array-location"][0][0]
     out = np.empty(slab.shape, dtype)
     # The first pass's distances live in the tail of `out` where they fit: the planes written
     # so far end before the distances of the planes still to read begin.
-    d_dtype = np.dtype(np.uint16 if length < 65535 else np.uint32)
+    d_dtype = np.dtype(np.uint16 if _distance_bytes(length) == 2 else np.uint32)
     tail = None
     if out.itemsize >= d_dtype.itemsize and out.itemsize % d_dtype.itemsize == 0:
         tail = out.reshape(-1).view(np.uint8)[out.nbytes - d_dtype.itemsize * out.size:]
         tail = tail.view(d_dtype).reshape(slab.shape)
     d = _core.axis0_distances(slab, before[0], after[0], z0, length, tail)
+    if all(v == 1.0 for v in spacing):
+        _core.slab_field(d, metric, out, minus_one)
+        return out
     plane = max(1, math.prod(slab.shape[1:]))
     step = max(1, _PASS_ELEMENTS // plane)
     scratch = np.empty((min(step, slab.shape[0]),) + slab.shape[1:])  # filled afresh each time
@@ -207,18 +143,23 @@ def _shift(x, fill, forward):
     return da.concatenate([edge, x[:-1]] if forward else [x[1:], edge], axis=0)
 
 
-def _separable(targets, metric, spacing, finish, dtype):
-    """Lazy `finish` of the distances (L2: squared) of a dask array of targets (bool),
-    chunked as `targets` and of `dtype`, by slabs along axis 0 (the module docstring's second
-    scheme): each slab's first pass needs, per line, only the nearest targets before and after
-    it, which a cumulative maximum / minimum of the blocks' first and last targets gives."""
+def _separable(targets, metric, spacing, dtype, finish=None, minus_one=False):
+    """The lazy field of a dask array of targets (nonzero), chunked as `targets` and of
+    `dtype`, by slabs along axis 0 (the module docstring's second scheme): each slab's first
+    pass needs, per line, only the nearest targets before and after it, which a cumulative
+    maximum / minimum of the blocks' first and last targets gives. With unit sampling the
+    slabs write `dtype` themselves (`minus_one`: -1 where nothing is reachable); otherwise
+    `finish` maps their float64 partials (L2: squared) into it."""
     chunks = targets.chunks
-    if targets.dtype != bool:
-        targets = targets != 0
+    if targets.dtype.itemsize != 1 or targets.dtype.kind not in "bu":
+        targets = targets != 0  # bool and uint8 blocks are read as they are
     if targets.size == 0:
         return da.zeros(targets.shape, dtype, chunks=chunks)
     plane = max(1, math.prod(targets.shape[1:]))
-    depth = max(1, _SLAB_ELEMENTS // plane)
+    item = np.dtype(dtype).itemsize
+    dbytes = _distance_bytes(targets.shape[0])
+    per_element = 1 + item + (0 if item >= dbytes and item % dbytes == 0 else dbytes)
+    depth = max(1, _SLAB_BYTES // (plane * per_element))
     slab_chunks = tuple(p for c in chunks[0] for p in [depth] * (c // depth) + [c % depth] if p)
     t = targets.rechunk({0: slab_chunks})
     # The ends come from a clone of the input's graph (read twice), so that no worker holds
@@ -235,7 +176,7 @@ def _separable(targets, metric, spacing, finish, dtype):
                          dtype=np.int64)[::-1]
     after = _shift(da.where(after == _NONE, -1, after), -1, False)
     g = t.rechunk(whole).map_blocks(_slab_block, before, after, metric, spacing, finish, dtype,
-                                    targets.shape[0], dtype=dtype)
+                                    targets.shape[0], minus_one, dtype=dtype)
     return g.rechunk(chunks)
 
 
@@ -322,8 +263,7 @@ def distance_transform(world, metric="manhattan", signed=False, sampling=None,
     if fmt == "packed32":
         raise ValueError("format='packed32' on a dask array needs max_distance (the palette "
                          "colour is written by the device)")
-    return _separable(w, metric, spacing, functools.partial(_field_of, metric=metric),
-                      dtype)
+    return _separable(w, metric, spacing, dtype, functools.partial(_field_of, metric=metric))
 
 
 def _field_of(g, out, metric):
@@ -334,12 +274,15 @@ def _field_of(g, out, metric):
     _store(g, out)
 
 
-def _no_target_edt(block, spacing, block_info=None):
-    """SciPy's edt of an input without zeros: measured to the point (-1, 0, ..., 0)."""
+def _or_no_target_edt(d, spacing, block_info=None):
+    """A block of edt distances, or where the input has no zero at all (the block is +inf
+    then, as every block is) SciPy's edt of it: measured to the point (-1, 0, ..., 0)."""
+    if d.size == 0 or not np.isinf(d.flat[0]):
+        return d
     loc = block_info[0]["array-location"]
-    grids = np.indices(block.shape, dtype=np.float64)
-    total = np.zeros(block.shape, np.float64)
-    for axis in range(block.ndim):
+    grids = np.indices(d.shape, dtype=np.float64)
+    total = np.zeros(d.shape, np.float64)
+    for axis in range(d.ndim):
         coord = grids[axis] + loc[axis][0]
         t = (coord + 1 if axis == 0 else coord) * spacing[axis]
         total += t * t
@@ -367,9 +310,9 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
         SciPy's signature; only the distances are returned here (``return_indices=True`` or
         output arrays raise ``ValueError``).
     device : None, 'cpu', 'gpu' or int
-        The device each task uses with unit sampling (None: ``$VOXFIELD_DEVICE`` of the
-        worker, else its first GPU, else its first CPU): the slices along axis 0 run there.
-        Other sampling runs every pass on the host in float64, as the one-piece function does.
+        Checked for its form only (:func:`voxfield.ndimage.distance_transform_edt`'s
+        signature): the slabs run on the host, exact integers with unit sampling, float64
+        with other sampling (as the one-piece function does).
 
     Returns
     -------
@@ -384,13 +327,9 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
         raise ValueError(f"voxfield.dask handles 1-D to 3-D input, got shape {a.shape}")
     spacing = _spacing(sampling, a.ndim)
     targets = a == 0
-    if all(v == 1.0 for v in spacing):
-        d = _unit_transform(targets, "euclidean", device, np.sqrt, np.float64)
-    else:
-        d = _separable(targets, "euclidean", spacing,
-                       functools.partial(_field_of, metric="euclidean"), np.float64)
-    quirk = da.map_blocks(_no_target_edt, targets, spacing, dtype=np.float64)
-    return da.where(targets.any(), d, quirk)
+    d = _separable(targets, "euclidean", spacing, np.float64,
+                   functools.partial(_field_of, metric="euclidean"))
+    return d.map_blocks(_or_no_target_edt, spacing, dtype=np.float64)
 
 
 def distance_transform_cdt(input, metric="chessboard", return_distances=True,
@@ -405,8 +344,8 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
     return_distances, return_indices, distances, indices
         SciPy's signature; only the distances are returned here.
     device : None, 'cpu', 'gpu' or int
-        The device each task uses (None: ``$VOXFIELD_DEVICE`` of the worker, else its first
-        GPU, else its first CPU): the slices along axis 0 run there.
+        Checked for its form only (the one-piece function's signature): the slabs run on
+        the host in exact integer arithmetic.
 
     Returns
     -------
@@ -424,10 +363,5 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
         m = "chebyshev"
     else:
         raise RuntimeError("invalid metric provided")
-    return _unit_transform(a == 0, m, device, _cdt_of, np.int32)
-
-
-def _cdt_of(g, out):
-    """int32 distances (into `out`); +inf only where the input has no zero at all: -1 there,
-    as SciPy."""
-    out[...] = np.where(np.isinf(g), -1.0, g)
+    # -1 where nothing is reachable: everywhere when the input has no zero (as SciPy).
+    return _separable(a == 0, m, [1.0] * a.ndim, np.int32, minus_one=True)

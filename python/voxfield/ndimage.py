@@ -158,12 +158,26 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
 
     targets = np.equal(a, 0)
     ft = None
+    unit = s is None or bool(np.all(s == 1.0))
+    device_path = unit and not (return_indices and _core.device_type(device) == "cpu")
+    out = None
     if a.size == 0:
         dt = np.zeros(shape, np.float64)
         ft = np.zeros((a.ndim,) + shape, np.int32)
-    elif not targets.any():
-        # SciPy's feature transform without any zero: -1 on axis 0, 0 on the others, and the
-        # distances measured to that point.
+    elif device_path:
+        # Straight into the caller's distances where the device can write them in place.
+        into = _writable_in_place(distances) if dt_inplace and return_distances else None
+        out = _core.distance_transform(_as_3d(targets), "euclidean", False, None,
+                                       bool(return_indices), None, "f64", "exact", device,
+                                       out=None if into is None else _as_3d(into))
+        field = out[0] if return_indices else out
+        if return_indices:
+            ft = out[1][3 - a.ndim:].reshape((a.ndim,) + shape)
+        dt = field.reshape(shape)
+    if a.size != 0 and (not device_path and not targets.any() or
+                        device_path and np.isinf(dt.flat[0])):
+        # No zero at all (the device's field is +inf then): SciPy's feature transform is -1
+        # on axis 0, 0 on the others, and the distances are measured to that point.
         ft = np.zeros((a.ndim,) + shape, np.int32)
         ft[0] = -1
         d = (ft - np.indices(shape, dtype=np.int32)).astype(np.float64)
@@ -172,17 +186,7 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
                 d[axis] *= s[axis]
         np.multiply(d, d, d)
         dt = np.sqrt(np.add.reduce(d, axis=0))
-    elif (s is None or np.all(s == 1.0)) and not (return_indices
-                                                  and _core.device_type(device) == "cpu"):
-        out = _core.distance_transform(_as_3d(targets), "euclidean", False, None,
-                                       bool(return_indices), None, "f64", "exact", device)
-        if return_indices:
-            field, idx = out
-            ft = idx[3 - a.ndim:].reshape((a.ndim,) + shape)
-        else:
-            field = out
-        dt = field.reshape(shape)
-    else:
+    elif a.size != 0 and not device_path:
         spacing = [1.0] * a.ndim if s is None else [float(v) for v in s]
         g, feat = _core.host_transform(targets, "euclidean", spacing,
                                        bool(return_indices))
@@ -190,11 +194,20 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
         if return_indices:
             ft = _indices_from_linear(feat, shape)
 
-    if dt_inplace and return_distances:
+    if dt_inplace and return_distances and not np.may_share_memory(dt, distances):
         np.copyto(distances, dt)
     if ft_inplace and return_indices:
         np.copyto(indices, ft)
     return _result(return_distances, dt, dt_inplace, return_indices, ft, ft_inplace)
+
+
+def _writable_in_place(array):
+    """`array` when the device can write it as it is (C-contiguous, aligned, writable),
+    else None (the result is then copied into it)."""
+    flags = array.flags
+    if flags.c_contiguous and flags.aligned and flags.writeable:
+        return array
+    return None
 
 
 def _cdt_metric(metric, ndim):
@@ -285,14 +298,17 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
 
     targets = np.equal(a, 0)
     ft = None
-    if a.size == 0 or not targets.any():
+    if a.size == 0 or return_indices and not targets.any():
         dt = np.full(shape, -1, np.int32)
         ft = np.indices(shape, dtype=np.int32)
     else:
         # u32 (the sweeps' format; i32 would take the slower separable kernels): with a zero
-        # in the input every distance is below 2^31, so its bits are the int32 values.
+        # in the input every distance is below 2^31, so its bits are the int32 values; with
+        # none every element saturates at 2^32 - 1, which is SciPy's -1.
+        into = _writable_in_place(distances) if dt_inplace and return_distances else None
         out = _core.distance_transform(_as_3d(targets), m, False, None, bool(return_indices),
-                                       None, "u32", "exact", device)
+                                       None, "u32", "exact", device,
+                                       out=None if into is None else _as_3d(into.view(np.uint32)))
         if return_indices:
             field, idx = out
             ft = idx[3 - a.ndim:].reshape((a.ndim,) + shape)
@@ -300,7 +316,7 @@ def distance_transform_cdt(input, metric="chessboard", return_distances=True,
             field = out
         dt = field.view(np.int32).reshape(shape)
 
-    if dt_inplace and return_distances:
+    if dt_inplace and return_distances and not np.may_share_memory(dt, distances):
         np.copyto(distances, dt)
     if ft_inplace and return_indices:
         np.copyto(indices, ft)

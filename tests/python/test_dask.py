@@ -82,7 +82,9 @@ def test_ndimage_functions_in_one_and_two_dimensions_and_without_zeros():
                                   ndimage.distance_transform_cdt(ones))
 
 
-def test_ndimage_functions_take_a_device():
+def test_ndimage_functions_check_the_form_of_device():
+    # Their unbounded scheme runs on the host: device= is SciPy-drop-in signature, its form
+    # checked at once.
     a = world(0.85, 7)
     d = da.from_array(a, chunks=(6, 19, 8))
     cpu = next(dev["index"] for dev in voxfield.devices() if dev["type"] == "cpu")
@@ -93,23 +95,17 @@ def test_ndimage_functions_take_a_device():
                                       want_edt)
         np.testing.assert_array_equal(
             threaded(vd.distance_transform_cdt(d, metric="taxicab", device=device)), want_cdt)
-    for x in (a[0], a[0, 2]):  # rows of a 2-D input, a 1-D input whole
+    for x in (a[0], a[0, 2]):  # a 2-D input, a 1-D input
         dx = da.from_array(x, chunks=5)
-        np.testing.assert_array_equal(threaded(vd.distance_transform_edt(dx, device="cpu")),
+        np.testing.assert_array_equal(threaded(vd.distance_transform_edt(dx)),
                                       ndimage.distance_transform_edt(x))
-        np.testing.assert_array_equal(threaded(vd.distance_transform_cdt(dx, device="cpu")),
-                                      ndimage.distance_transform_cdt(x))
-    # The form is checked at once, the device by the task that uses it.
+        for metric in ("taxicab", "chessboard"):
+            np.testing.assert_array_equal(threaded(vd.distance_transform_cdt(dx, metric=metric)),
+                                          ndimage.distance_transform_cdt(x, metric=metric))
     for bad, error in ((True, TypeError), (1.5, TypeError), (-1, ValueError)):
         for function in (vd.distance_transform_edt, vd.distance_transform_cdt):
             with pytest.raises(error, match="device"):
                 function(d, device=bad)
-    lazy = vd.distance_transform_cdt(d, device="no-such-device")
-    with pytest.raises(ValueError, match="no-such-device"):
-        threaded(lazy)
-    if not any(dev["type"] == "gpu" for dev in voxfield.devices()):
-        with pytest.raises(ValueError, match="gpu"):
-            threaded(vd.distance_transform_edt(d, device="gpu"))
 
 
 def test_host_pass_equals_brute_force_on_partials():
@@ -164,17 +160,18 @@ def test_local_cluster_with_two_workers():
         got_b, got_u, got_e, got_c = dask.compute(bounded, unbounded, edt, cdt)
         workers = client.run(lambda: __import__("os").getpid())
         assert len(workers) == 2
-        # Each task reads its worker's $VOXFIELD_DEVICE (this process keeps "cpu"); device=
-        # overrides it.
+        # Each device task reads its worker's $VOXFIELD_DEVICE (this process keeps "cpu");
+        # device= overrides it.
         client.run(lambda: __import__("os").environ.__setitem__("VOXFIELD_DEVICE", "bogus"))
         with pytest.raises(ValueError, match="bogus"):
-            vd.distance_transform_cdt(dw == 0).compute()
-        got_d = vd.distance_transform_edt(dw == 0, device="cpu").compute()
+            vd.distance_transform(dw, metric="euclidean", max_distance=5).compute()
+        got_d = vd.distance_transform(dw, metric="euclidean", max_distance=5,
+                                      device="cpu").compute()
     np.testing.assert_array_equal(got_b, voxfield.distance_transform(w, metric="euclidean",
                                                                      max_distance=5))
     np.testing.assert_array_equal(got_u, voxfield.distance_transform(w))
     np.testing.assert_array_equal(got_e, ndimage.distance_transform_edt(w == 0))
-    np.testing.assert_array_equal(got_d, got_e)
+    np.testing.assert_array_equal(got_d, got_b)
     np.testing.assert_array_equal(got_c, ndimage.distance_transform_cdt(w == 0))
 
 
@@ -183,7 +180,7 @@ def test_unbounded_slabs_across_many_blocks(chunks, monkeypatch):
     # Slabs one to a few planes thick (the cap split below a block's depth), the passes a
     # plane or two at a time with a shorter last group, and targets far away along axis 0:
     # the nearest target before / after each slab comes from slabs several blocks away.
-    monkeypatch.setattr(vd, "_SLAB_ELEMENTS", 19 * 29 * 3)
+    monkeypatch.setattr(vd, "_SLAB_BYTES", 19 * 29 * 3 * 4)
     monkeypatch.setattr(vd, "_PASS_ELEMENTS", 19 * 29 * 2)
     rng = np.random.default_rng(11)
     for case in range(4):
@@ -202,6 +199,13 @@ def test_unbounded_slabs_across_many_blocks(chunks, monkeypatch):
                 got = threaded(vd.distance_transform(dw, metric=metric, format=fmt))
                 want = voxfield.distance_transform(w, metric=metric, format=fmt)
                 np.testing.assert_array_equal(got, want, err_msg=f"{case} {metric} {fmt}")
+        a = w == 0
+        np.testing.assert_array_equal(threaded(vd.distance_transform_edt(dw == 0)),
+                                      ndimage.distance_transform_edt(a), err_msg=f"{case}")
+        for metric in ("taxicab", "chessboard"):
+            np.testing.assert_array_equal(
+                threaded(vd.distance_transform_cdt(dw == 0, metric=metric)),
+                ndimage.distance_transform_cdt(a, metric=metric), err_msg=f"{case} {metric}")
 
 
 def test_unbounded_with_sampling_equals_the_host_transform():
@@ -297,3 +301,71 @@ def test_axis0_distances_and_slab_passes_equal_brute_force():
                          np.empty((2, 3), np.int32))
     with pytest.raises(ValueError, match="out must be"):
         core.slab_passes(np.zeros((2, 3), np.uint16), "manhattan", [1.0, 1.0], np.empty((3, 2)))
+
+
+def brute_force(targets, metric):
+    """Distances from every element to the nearest target (inf: none), by brute force."""
+    pts = np.argwhere(targets)
+    grid = np.indices(targets.shape).reshape(targets.ndim, -1).T
+    if len(pts) == 0:
+        return np.full(targets.shape, np.inf)
+    diff = np.abs(grid[:, None, :] - pts[None, :, :])
+    if metric == "euclidean":
+        v = np.sqrt((diff * diff).sum(axis=-1).min(axis=1).astype(np.float64))
+    elif metric == "manhattan":
+        v = diff.sum(axis=-1).min(axis=1).astype(np.float64)
+    else:
+        v = diff.max(axis=-1).min(axis=1).astype(np.float64)
+    return v.reshape(targets.shape)
+
+
+def test_slab_field_equals_brute_force():
+    # Unit sampling, exact integers: every metric, 1 to 3 axes, every output type as the
+    # kernels store it, -1 where nothing is reachable for cdt, the distances in the output's
+    # tail; int64 partials where squared distances pass 2**31.
+    rng = np.random.default_rng(15)
+    core = voxfield._core
+    for trial in range(150):
+        shape = tuple(int(v) for v in rng.integers(1, 12, size=int(rng.integers(1, 4))))
+        t = rng.random(shape) < rng.choice([0.0, 0.01, 0.1, 0.5, 0.9])
+        none = np.full(shape[1:], -1, np.int64)
+        d = core.axis0_distances(t, none, none, 0, shape[0])
+        for metric in ("euclidean", "manhattan", "chebyshev"):
+            v = brute_force(t, metric)
+            for dtype in (np.float64, np.float32, np.uint8, np.uint16, np.int8, np.int32):
+                out = np.empty(shape, dtype)
+                core.slab_field(d, metric, out)
+                if np.dtype(dtype).kind == "f":
+                    want = v.astype(dtype)
+                else:
+                    want = np.minimum(np.floor(v), np.iinfo(dtype).max).astype(dtype)
+                np.testing.assert_array_equal(out, want, err_msg=f"{shape} {metric} {dtype}")
+            cdt = np.empty(shape, np.int32)
+            core.slab_field(d, metric, cdt, True)
+            np.testing.assert_array_equal(cdt, np.where(np.isinf(v), -1, v).astype(np.int32))
+            if len(shape) == 3:
+                tail_of = np.empty(shape, np.float32)
+                tail = tail_of.reshape(-1).view(np.uint8)[tail_of.nbytes // 2:]
+                tail = tail.view(np.uint16).reshape(shape)
+                core.axis0_distances(t, none, none, 0, shape[0], tail)
+                core.slab_field(tail, metric, tail_of)
+                np.testing.assert_array_equal(tail_of, v.astype(np.float32))
+    # A slab of a long axis 0 whose targets lie 60000 planes away: squares past 2**31.
+    t = np.zeros((2, 3, 4), bool)
+    t[1, 2, 3] = True
+    after = np.full((3, 4), -1, np.int64)
+    after[0, 0] = 60001
+    d = core.axis0_distances(t, np.full((3, 4), -1, np.int64), after, 0, 70000)
+    assert d.dtype == np.uint32
+    out = np.empty(t.shape)
+    core.slab_field(d, "euclidean", out)
+    z, y, x = np.indices(t.shape)
+    want = np.minimum((z - 1) ** 2 + (y - 2) ** 2 + (x - 3) ** 2,
+                      (60001 - z) ** 2.0 + y ** 2 + x ** 2)
+    np.testing.assert_array_equal(out, np.sqrt(want))
+    with pytest.raises(TypeError, match="uint16 or uint32"):
+        core.slab_field(np.zeros((2, 3), np.int16), "manhattan", np.empty((2, 3)))
+    with pytest.raises(ValueError, match="out must be"):
+        core.slab_field(np.zeros((2, 3), np.uint16), "manhattan", np.empty((3, 2)))
+    with pytest.raises(TypeError, match="out must be"):
+        core.slab_field(np.zeros((2, 3), np.uint16), "manhattan", np.empty((2, 3), np.int64))

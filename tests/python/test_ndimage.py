@@ -143,6 +143,41 @@ def test_output_arrays_as_scipy():
     np.testing.assert_array_equal(got, sp.distance_transform_cdt(a, metric="taxicab"))
 
 
+def test_output_arrays_written_in_place_or_copied_into():
+    # C-contiguous output arrays are the device's output; other layouts get a copy. Either way
+    # they hold SciPy's values, with and without a zero in the input, in 1 to 3 dimensions.
+    for shape in ((13,), (6, 9), (5, 7, 8)):
+        for density in (0.8, 1.0):
+            a = random_input(shape, density, 6) if density < 1 else np.ones(shape, np.uint8)
+            want_e = sp.distance_transform_edt(a)
+            for metric in ("taxicab", "chessboard"):
+                want_c = sp.distance_transform_cdt(a, metric=metric)
+                for name, cd in layouts(np.zeros(shape, np.int32)):
+                    cd[...] = 7
+                    assert vf.distance_transform_cdt(a, metric=metric, distances=cd) is None
+                    np.testing.assert_array_equal(cd, want_c, err_msg=f"{name} {metric}")
+                np.testing.assert_array_equal(vf.distance_transform_cdt(a, metric=metric),
+                                              want_c)
+            for name, dist in layouts(np.zeros(shape)):
+                dist[...] = 7
+                assert vf.distance_transform_edt(a, distances=dist) is None
+                np.testing.assert_array_equal(dist, want_e, err_msg=f"{name} {shape}")
+            np.testing.assert_array_equal(vf.distance_transform_edt(a), want_e)
+    core = __import__("voxfield")._core
+    world = np.zeros((2, 3, 4), np.uint8)
+    world[1, 2, 3] = 1
+    into = np.empty((2, 3, 4), np.float32)
+    got = core.distance_transform(world, "euclidean", format="f32", out=into)
+    assert got is into or np.shares_memory(got, into)
+    np.testing.assert_array_equal(into, sp.distance_transform_edt(world == 0).astype(np.float32))
+    for bad, error, match in ((np.empty((2, 3, 4)), ValueError, "dtype"),
+                              (np.empty((2, 4, 3), np.float32), ValueError, "shape"),
+                              (np.empty((4, 3, 2), np.float32).T, ValueError, "C-contiguous"),
+                              ([0.0] * 24, TypeError, "numpy array")):
+        with pytest.raises(error, match=match):
+            core.distance_transform(world, "euclidean", format="f32", out=bad)
+
+
 def test_zero_size_and_no_zero_inputs_as_scipy():
     for shape in ((0,), (0, 3), (2, 0, 4)):
         a = np.zeros(shape)
