@@ -387,6 +387,10 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                         cl::NDRange(kGroupRows, 1), nullptr, &ev_gather);
                     ms += batch.generator->run();  // waits for the queue, the gather too
                     ms += elapsed_ms(ev_gather, ev_gather);
+                    add_stage("gather", elapsed_ms(ev_gather, ev_gather));
+                    for (const auto& [name, stage_ms] : batch.generator->stage_ms()) {
+                        add_stage(name, stage_ms);
+                    }
                     cl::Kernel& scatter = scatter_;
                     scatter.setArg(0, batch.generator->field_buffer());
                     scatter.setArg(1, pool_);
@@ -405,6 +409,7 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                         cl::NDRange(kGroupRows, 1), nullptr, &ev_scatter);
                     ev_scatter.wait();
                     ms += elapsed_ms(ev_scatter, ev_scatter);
+                    add_stage("scatter", elapsed_ms(ev_scatter, ev_scatter));
                 });
     }
     return ms;
@@ -462,10 +467,22 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots,
                         per);
         }
         *ms += elapsed_ms(ev, ev);
+        add_stage("node_minima", elapsed_ms(ev, ev));
     });
 }
 
+void SparseField::add_stage(const std::string& name, double ms) {
+    const auto it = std::find_if(stages_.begin(), stages_.end(),
+                                 [&](const auto& s) { return s.first == name; });
+    if (it == stages_.end()) {
+        stages_.emplace_back(name, ms);
+    } else {
+        it->second += ms;
+    }
+}
+
 double SparseField::run() {
+    stages_.clear();
     device_world_.refresh();
     tiles_.clear();
     slot_keys_.clear();
@@ -559,13 +576,19 @@ SparseField::Update SparseField::update(const Box& changed) {
 SparseField::Update SparseField::apply_brush(const Brush& brush) {
     const Box changed = device_world_.apply_brush(brush);
     Update result = recompute(changed);
-    result.edit_kernel_ms = device_world_.last_edit_kernel_ms();
+    std::vector<std::pair<std::string, double>> stages = device_world_.last_edit_stages();
+    for (const auto& [name, ms] : stages) {
+        result.edit_kernel_ms += ms;
+    }
     result.kernel_ms += result.edit_kernel_ms;
+    stages.insert(stages.end(), result.stages.begin(), result.stages.end());
+    result.stages = std::move(stages);
     return result;
 }
 
 SparseField::Update SparseField::recompute(const Box& changed) {
     Update result;
+    stages_.clear();
     const Box all = world_box(world_.dims());
     if (intersect(changed, all).empty()) {
         return result;
@@ -638,6 +661,7 @@ SparseField::Update SparseField::recompute(const Box& changed) {
     refresh_coarse(slots, nodes, &result.kernel_ms);
     result.recomputed = region;
     result.tiles = static_cast<std::uint32_t>(slots.size());
+    result.stages = stages_;
     return result;
 }
 

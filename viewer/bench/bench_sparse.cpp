@@ -194,7 +194,8 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
                    fixed(fk.median, 1) + " ms), " + std::to_string(field.dense_tiles()) +
                    " field tiles; radius-8 edits on the device");
 
-    std::vector<double> edit_wall, edit_kernel, edit_encode;
+    std::vector<double> edit_wall, edit_kernel, edit_encode, edit_gap;
+    std::vector<std::pair<std::string, std::vector<double>>> edit_stages;  // per kernel name
     std::uint64_t recomputed = 0;
     for (std::size_t e = 0; e < edits.size(); ++e) {
         const bool warm = e < warmup;
@@ -208,9 +209,26 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
             edit_wall.push_back(wall);
             edit_kernel.push_back(u.kernel_ms);
             edit_encode.push_back(u.edit_kernel_ms);
+            edit_gap.push_back(wall - u.kernel_ms);
+            for (const auto& [name, ms] : u.stages) {
+                auto it = std::find_if(edit_stages.begin(), edit_stages.end(),
+                                       [&](const auto& s) { return s.first == name; });
+                if (it == edit_stages.end()) {
+                    edit_stages.emplace_back(name, std::vector<double>(edit_wall.size() - 1, 0.0));
+                    it = edit_stages.end() - 1;
+                }
+                it->second.push_back(ms);
+            }
+            for (auto& [name, samples] : edit_stages) {
+                samples.resize(edit_wall.size(), 0.0);
+            }
             recomputed +=
                 u.recomputed.empty() ? 0 : static_cast<std::uint64_t>(u.recomputed.volume());
         }
+    }
+    json stage_medians = json::object();
+    for (const auto& [name, samples] : edit_stages) {
+        stage_medians[name] = summarize(samples).median;
     }
     const double peak = peak_rss_bytes();
     const auto t_sync = Clock::now();
@@ -266,6 +284,8 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"edit_kernel_ms_median", summarize(edit_kernel).median},
         {"edit_kernel_ms_samples", edit_kernel},
         {"edit_world_kernel_ms_median", summarize(edit_encode).median},
+        {"edit_stage_ms_median", stage_medians},
+        {"edit_outside_kernels_ms_median", summarize(edit_gap).median},
         {"samples_ms", edit_wall},
         {"edit_voxels_recomputed_mean",
          edit_wall.empty() ? 0.0 : double(recomputed) / double(edit_wall.size())},

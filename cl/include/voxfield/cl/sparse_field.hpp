@@ -17,7 +17,9 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "voxfield/cl/generator.hpp"
@@ -58,6 +60,8 @@ class SparseField {
         std::uint32_t tiles = 0;  // field tiles written
         double kernel_ms = 0;
         double edit_kernel_ms = 0;  // of which apply_brush's decoding, brush and encoding
+        // kernel_ms by kernel (name, ms; summed per name), in first-launch order.
+        std::vector<std::pair<std::string, double>> stages;
     };
     // After the world's voxels inside `changed` were edited on the host (SparseWorld::edit /
     // apply_brush return that box), brings the device's world and the field up to date:
@@ -105,8 +109,10 @@ class SparseField {
     };
     struct Batch;  // a dense generator of one block shape and its buffers
     Batch& batch_for(Dims block, std::uint32_t blocks);
-    // Computes `jobs` (each block: block dims) in batches; returns kernel ms.
+    // Computes `jobs` (each block: block dims) in batches; returns kernel ms and adds them per
+    // kernel to stages_.
     double compute(const std::vector<Job>& jobs, Dims block);
+    void add_stage(const std::string& name, double ms);
     // Recomputes the voxels within D of `changed` (the device's world already edited).
     Update recompute(const Box& changed);
     // The slot of field tile `key`, made dense (filled with its constant) when it was not.
@@ -140,6 +146,7 @@ class SparseField {
     std::map<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>,
              std::unique_ptr<Batch>>
         batches_;
+    std::vector<std::pair<std::string, double>> stages_;  // of the running run() or update
 };
 
 }  // namespace voxfield::ocl
