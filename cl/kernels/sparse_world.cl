@@ -276,8 +276,13 @@ __kernel void encode_write(__global const uchar* restrict vox, __global const ul
         }
         __global const uchar* in = om8 + refs[2 * t + 1] + from;
         __global uchar* out = slot_materials + mb + materials_before;
+        // 16 bytes at a time (vload16 takes any uchar address), then the rest.
         const uint c = mats[b16];
-        for (uint k = 0; k < c; ++k) {
+        uint k = 0;
+        for (; k + 16 <= c; k += 16) {
+            vstore16(vload16(0, in + k), 0, out + k);
+        }
+        for (; k < c; ++k) {
             out[k] = in[k];
         }
         return;

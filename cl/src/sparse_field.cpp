@@ -379,7 +379,7 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                     gather.setArg(12, static_cast<cl_long>(wd.x));
                     gather.setArg(13, static_cast<cl_long>(wd.y));
                     gather.setArg(14, static_cast<cl_long>(wd.z));
-                    cl::Event ev_gather, ev_scatter;
+                    cl::Event ev_gather;
                     // Fixed work-group sizes: PoCL compiles a kernel once per local size.
                     q.enqueueNDRangeKernel(
                         gather, cl::NullRange,
@@ -406,10 +406,7 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                         scatter, cl::NullRange,
                         cl::NDRange(round_up(static_cast<std::size_t>(largest.y), kGroupRows),
                                     static_cast<std::size_t>(largest.z) * n),
-                        cl::NDRange(kGroupRows, 1), nullptr, &ev_scatter);
-                    ev_scatter.wait();
-                    ms += elapsed_ms(ev_scatter, ev_scatter);
-                    add_stage("scatter", elapsed_ms(ev_scatter, ev_scatter));
+                        cl::NDRange(kGroupRows, 1), nullptr, &scatters_.emplace_back());
                 });
     }
     return ms;
@@ -469,6 +466,19 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots,
         *ms += elapsed_ms(ev, ev);
         add_stage("node_minima", elapsed_ms(ev, ev));
     });
+}
+
+double SparseField::settle_scatters() {
+    double ms = 0;
+    for (const cl::Event& e : scatters_) {
+        cl_call("waiting for the field's scatter", [&] { e.wait(); });
+        ms += elapsed_ms(e, e);
+    }
+    if (!scatters_.empty()) {
+        add_stage("scatter", ms);
+    }
+    scatters_.clear();
+    return ms;
 }
 
 void SparseField::add_stage(const std::string& name, double ms) {
@@ -565,7 +575,7 @@ double SparseField::run() {
     coarse_host_.assign(slot_keys_.size() * 64 * elem_, 0);
     double ms = compute(jobs, block);
     refresh_coarse(slots, std::vector<std::uint64_t>(slots.size(), ~std::uint64_t{0}), &ms);
-    return ms;
+    return ms + settle_scatters();
 }
 
 SparseField::Update SparseField::update(const Box& changed) {
@@ -623,12 +633,13 @@ SparseField::Update SparseField::recompute(const Box& changed) {
     const Dims wd = world_.dims();
     Box block_box =
         intersect(grow(region, halo_), Box{{-1, -1, -1}, {wd.x + 1, wd.y + 1, wd.z + 1}});
-    // Extents rounded up to a multiple of 16 (more empty space beyond the world, or more of
+    // Extents rounded up to a multiple of 4 (more empty space beyond the world, or more of
     // the world, changes no value inside), so that edits of about one size share a block
-    // shape and its dense generator instead of setting one up each.
-    Int3 size{round_up_to(block_box.max.x - block_box.min.x, 16),
-              round_up_to(block_box.max.y - block_box.min.y, 16),
-              round_up_to(block_box.max.z - block_box.min.z, 16)};
+    // shape and its dense generator instead of setting one up each (16 cost radius-8 edits
+    // 64^3 blocks instead of 52^3: 1.9x the voxels).
+    Int3 size{round_up_to(block_box.max.x - block_box.min.x, 4),
+              round_up_to(block_box.max.y - block_box.min.y, 4),
+              round_up_to(block_box.max.z - block_box.min.z, 4)};
     // An edit near the world's edge (a smaller block) takes a shape set up already when that
     // holds it with at most twice the voxels: no generator set up, and no eviction of others.
     const Int3 need = size;
@@ -659,6 +670,7 @@ SparseField::Update SparseField::recompute(const Box& changed) {
     }
     result.kernel_ms = compute(jobs, block);
     refresh_coarse(slots, nodes, &result.kernel_ms);
+    result.kernel_ms += settle_scatters();
     result.recomputed = region;
     result.tiles = static_cast<std::uint32_t>(slots.size());
     result.stages = stages_;

@@ -110,8 +110,10 @@ class SparseField {
     struct Batch;  // a dense generator of one block shape and its buffers
     Batch& batch_for(Dims block, std::uint32_t blocks);
     // Computes `jobs` (each block: block dims) in batches; returns kernel ms and adds them per
-    // kernel to stages_.
+    // kernel to stages_, except the last scatters', which are left in scatters_ (nothing waits
+    // for them): settle_scatters() waits and returns their ms.
     double compute(const std::vector<Job>& jobs, Dims block);
+    double settle_scatters();
     void add_stage(const std::string& name, double ms);
     // Recomputes the voxels within D of `changed` (the device's world already edited).
     Update recompute(const Box& changed);
@@ -147,6 +149,7 @@ class SparseField {
              std::unique_ptr<Batch>>
         batches_;
     std::vector<std::pair<std::string, double>> stages_;  // of the running run() or update
+    std::vector<cl::Event> scatters_;
 };
 
 }  // namespace voxfield::ocl
