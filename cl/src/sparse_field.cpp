@@ -316,6 +316,9 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
     double ms = 0;
     for (std::size_t first = 0; first < jobs.size(); first += per_batch) {
         const std::size_t n = std::min<std::size_t>(per_batch, jobs.size() - first);
+        ++work_.batches;
+        work_.blocks += n;
+        work_.block_voxels += static_cast<std::uint64_t>(per_block) * n;
         std::vector<std::int64_t> gjobs, sjobs, regions;
         std::vector<std::uint64_t> refs;
         std::vector<std::uint32_t> slots;
@@ -347,6 +350,7 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
                             job.region.max.z - job.region.min.z};
             regions.insert(regions.end(),
                            {size.x, size.y, size.z, job.origin.x, job.origin.y, job.origin.z});
+            work_.region_voxels += static_cast<std::uint64_t>(size.x * size.y * size.z);
             largest = {std::max(largest.x, size.x), std::max(largest.y, size.y),
                        std::max(largest.z, size.z)};
         }
@@ -493,6 +497,7 @@ void SparseField::add_stage(const std::string& name, double ms) {
 
 double SparseField::run() {
     stages_.clear();
+    work_ = Work{};
     device_world_.refresh();
     tiles_.clear();
     slot_keys_.clear();
@@ -599,6 +604,7 @@ SparseField::Update SparseField::apply_brush(const Brush& brush) {
 SparseField::Update SparseField::recompute(const Box& changed) {
     Update result;
     stages_.clear();
+    work_ = Work{};
     const Box all = world_box(world_.dims());
     if (intersect(changed, all).empty()) {
         return result;

@@ -356,12 +356,38 @@ void SparseWorld::decode_tile(std::uint32_t tile, std::span<std::uint8_t> out) c
 }
 
 Box SparseWorld::solid_bounds(std::uint32_t tile) const {
+    // From the masks: per 4^3 leaf, the x, y and z of its solid voxels by folding its mask.
     const Int3 t = tile_coord(tile);
     Int3 lo{kTileSize, kTileSize, kTileSize}, hi{0, 0, 0};
-    for_each_solid(*this, tile, [&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint8_t) {
-        lo = {std::min(lo.x, x), std::min(lo.y, y), std::min(lo.z, z)};
-        hi = {std::max(hi.x, x + 1), std::max(hi.y, y + 1), std::max(hi.z, z + 1)};
-    });
+    const std::uint64_t base = node_bases_[tile];
+    std::uint64_t child = base + node_offsets_[base];
+    for (std::uint64_t r = node_masks_[base]; r != 0; r &= r - 1, ++child) {
+        const int b16 = std::countr_zero(r);
+        std::uint64_t leaf = base + node_offsets_[child];
+        for (std::uint64_t m = node_masks_[child]; m != 0; m &= m - 1, ++leaf) {
+            const int b4 = std::countr_zero(m);
+            const std::uint64_t v = node_masks_[leaf];
+            const std::int64_t ox = (b16 & 3) * 16 + (b4 & 3) * 4;
+            const std::int64_t oy = (b16 >> 2 & 3) * 16 + (b4 >> 2 & 3) * 4;
+            const std::int64_t oz = (b16 >> 4) * 16 + (b4 >> 4) * 4;
+            // Bit k of zs / ys / xs: some solid voxel at z / y / x = k.
+            unsigned zs = 0, ys = 0;
+            for (unsigned k = 0; k < 4; ++k) {
+                zs |= unsigned{(v >> (16 * k) & 0xFFFF) != 0} << k;
+            }
+            const std::uint64_t yx = (v | v >> 16 | v >> 32 | v >> 48) & 0xFFFF;
+            for (unsigned k = 0; k < 4; ++k) {
+                ys |= unsigned{(yx >> (4 * k) & 0xF) != 0} << k;
+            }
+            const auto xs = static_cast<unsigned>((yx | yx >> 4 | yx >> 8 | yx >> 12) & 0xF);
+            lo = {std::min<std::int64_t>(lo.x, ox + std::countr_zero(xs)),
+                  std::min<std::int64_t>(lo.y, oy + std::countr_zero(ys)),
+                  std::min<std::int64_t>(lo.z, oz + std::countr_zero(zs))};
+            hi = {std::max<std::int64_t>(hi.x, ox + std::bit_width(xs)),
+                  std::max<std::int64_t>(hi.y, oy + std::bit_width(ys)),
+                  std::max<std::int64_t>(hi.z, oz + std::bit_width(zs))};
+        }
+    }
     const Int3 o{t.x * kTileSize, t.y * kTileSize, t.z * kTileSize};
     return {{o.x + lo.x, o.y + lo.y, o.z + lo.z}, {o.x + hi.x, o.y + hi.y, o.z + hi.z}};
 }

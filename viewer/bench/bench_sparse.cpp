@@ -190,6 +190,11 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         field_wall.push_back(ms_since(t0));
     }
     const Summary fw = summarize(field_wall), fk = summarize(field_kernel);
+    json field_stages = json::object();
+    for (const auto& [name, ms] : field.last_stages()) {
+        field_stages[name] = ms;
+    }
+    const ocl::SparseField::Work field_work = field.last_work();
     observer.stage(label + ": whole field in " + fixed(fw.median, 1) + " ms (kernels " +
                    fixed(fk.median, 1) + " ms), " + std::to_string(field.dense_tiles()) +
                    " field tiles; radius-8 edits on the device");
@@ -271,6 +276,14 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"field_kernel_ms", fk.median},
         {"field_wall_ms_samples", field_wall},
         {"field_kernel_ms_samples", field_kernel},
+        {"field_stage_ms", field_stages},
+        {"field_blocks", field_work.blocks},
+        {"field_batches", field_work.batches},
+        {"field_block_voxels", field_work.block_voxels},
+        {"field_region_voxels", field_work.region_voxels},
+        {"field_halo_factor", field_work.region_voxels > 0 ? double(field_work.block_voxels) /
+                                                                 double(field_work.region_voxels)
+                                                           : 0.0},
         {"gvox_per_s", double(dims.count()) / (fw.median * 1e-3) / 1e9},
         {"iterations", nullptr},
         {"edit_radius", kEditRadius},

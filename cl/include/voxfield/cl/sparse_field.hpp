@@ -77,6 +77,15 @@ class SparseField {
     const SparseWorld& world() { return device_world_.world(); }
     const SparseDeviceWorld& device_world() const { return device_world_; }
 
+    // The last run()'s or update's work: dense blocks and batches, voxels gathered and
+    // transformed (halos included) and voxels written (the blocks' regions); kernel ms per
+    // kernel (name, ms; summed per name) in first-launch order.
+    struct Work {
+        std::uint64_t blocks = 0, batches = 0, block_voxels = 0, region_voxels = 0;
+    };
+    const Work& last_work() const { return work_; }
+    const std::vector<std::pair<std::string, double>>& last_stages() const { return stages_; }
+
     const GeneratorOptions& options() const { return options_; }
     std::uint32_t halo(int axis) const { return halo_[axis]; }
     // Field tiles with values of their own on the device, and all field tiles (constant
@@ -150,6 +159,7 @@ class SparseField {
         batches_;
     std::vector<std::pair<std::string, double>> stages_;  // of the running run() or update
     std::vector<cl::Event> scatters_;
+    Work work_;
 };
 
 }  // namespace voxfield::ocl
