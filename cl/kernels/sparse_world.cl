@@ -110,6 +110,60 @@ __kernel void gather(__global const ulong* restrict masks, __global const uint* 
     }
 }
 
+// gather's values with one work-item per voxel (global ids x, y and block * bz + z): the GPU
+// layout's, where neighbouring work-items write neighbouring bytes and share the tree's nodes.
+__kernel void gather_voxels(__global const ulong* restrict masks,
+                            __global const uint* restrict offsets,
+                            __global const uchar* restrict materials,
+                            __global const ulong* restrict slot_masks,
+                            __global const uint* restrict slot_offsets,
+                            __global const uchar* restrict slot_materials,
+                            __global const long* restrict jobs, __global const ulong* restrict refs,
+                            __global uchar* restrict vox, uint bx, uint by, uint bz, long wx,
+                            long wy, long wz) {
+    const uint x = (uint)get_global_id(0), y = (uint)get_global_id(1);
+    const size_t gz = get_global_id(2);
+    if (x >= bx || y >= by) {
+        return;
+    }
+    const size_t j = gz / bz;
+    const uint z = (uint)(gz - j * bz);
+    __global const long* job = jobs + 8 * j;
+    const long px = job[0] + x, py = job[1] + y, pz = job[2] + z;
+    uchar v = 0;
+    if (px >= 0 && py >= 0 && pz >= 0 && px < wx && py < wy && pz < wz) {
+        const long nt = job[6];
+        const long ntx = nt & 0xFFFF, nty = (nt >> 16) & 0xFFFF;
+        const size_t r = (size_t)(job[7] + (((pz >> 6) - job[5]) * nty + ((py >> 6) - job[4])) * ntx +
+                                  ((px >> 6) - job[3]));
+        ulong base = refs[2 * r];
+        if (base != NO_TILE) {
+            const bool slot = (base & SLOT_REF) != 0;
+            base &= ~SLOT_REF;
+            __global const ulong* m = slot ? slot_masks : masks;
+            __global const uint* o = slot ? slot_offsets : offsets;
+            __global const uchar* mat = slot ? slot_materials : materials;
+            const uint lx = (uint)(px & 63), ly = (uint)(py & 63), lz = (uint)(pz & 63);
+            const ulong root = m[base];
+            const uint b16 = (lz >> 4) << 4 | (ly >> 4) << 2 | (lx >> 4);
+            if ((root >> b16 & 1ul) != 0) {
+                const ulong n16 = base + o[base] + rank_below(root, b16);
+                const uint b4 = ((lz >> 2) & 3) << 4 | ((ly >> 2) & 3) << 2 | ((lx >> 2) & 3);
+                const ulong m16 = m[n16];
+                if ((m16 >> b4 & 1ul) != 0) {
+                    const ulong n4 = base + o[n16] + rank_below(m16, b4);
+                    const ulong m4 = m[n4];
+                    const uint bv = (lz & 3) << 4 | (ly & 3) << 2 | (lx & 3);
+                    if ((m4 >> bv & 1ul) != 0) {
+                        v = mat[refs[2 * r + 1] + o[n4] + rank_below(m4, bv)];
+                    }
+                }
+            }
+        }
+    }
+    vox[(gz * by + y) * bx + x] = v;
+}
+
 // One work-item per row (y | z << 4) of each dense 16^3 node block (global id 1: the block,
 // whose first voxel is origins[3 b..3 b+2]): core/brush.hpp's brush on the row's voxels inside
 // the world (op 0 place, 1 erase, 2 paint; shape 0 sphere, 1 cube).

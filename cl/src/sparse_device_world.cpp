@@ -195,6 +195,7 @@ SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, Spa
     }
     cl_call("making the sparse world's kernels", [&] {
         gather_ = cl::Kernel(program_, "gather");
+        gather_voxels_ = cl::Kernel(program_, "gather_voxels");
         brush_ = cl::Kernel(program_, "brush_nodes");
         count_ = cl::Kernel(program_, "encode_count");
         write_ = cl::Kernel(program_, "encode_write");
@@ -587,9 +588,9 @@ std::vector<std::pair<std::string, double>> SparseDeviceWorld::last_edit_stages(
     return stages;
 }
 
-cl::Kernel SparseDeviceWorld::gather_kernel() {
+cl::Kernel SparseDeviceWorld::gather_kernel(bool per_voxel) {
     return cl_call("setting up the gather kernel", [&] {
-        cl::Kernel& k = gather_;
+        cl::Kernel& k = per_voxel ? gather_voxels_ : gather_;
         k.setArg(0, masks_);
         k.setArg(1, offsets_);
         k.setArg(2, materials_);

@@ -27,6 +27,8 @@ constexpr std::uint32_t kInsideTile = 0xFFFFFFFEu;
 constexpr std::int64_t kBatchVoxels = std::int64_t{1} << 25;
 // Rows per work-group of the gather and scatter kernels (a work-item per row).
 constexpr std::size_t kGroupRows = 8;
+// Work-items per work-group of the GPU layout's gather and scatter (a work-item per voxel).
+constexpr std::size_t kGroupVoxels = 64;
 // The largest halo (voxels): blocks beyond are larger than a batch.
 constexpr std::uint32_t kMaxHalo = 512;
 
@@ -209,6 +211,8 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
         halo_[a] = static_cast<std::uint32_t>(std::ceil(d / step[a]));
     }
     elem_ = element_size(options_.format);
+    gpu_layout_ =
+        options_.layout == Layout::automatic ? !ctx_.is_cpu() : options_.layout == Layout::gpu;
     const World one(Dims{1, 1, 1});
     far_ = encode_real_field({d}, one, palette_, options_.format);
     inside_ = encode_real_field({options_.signed_field ? -d : 0.0}, one, palette_, options_.format);
@@ -216,6 +220,7 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
                             elem_options(options_.format));
     cl_call("making the sparse field's kernels", [&] {
         scatter_ = cl::Kernel(program_, "scatter");
+        scatter_voxels_ = cl::Kernel(program_, "scatter_voxels");
         node_minima_ = cl::Kernel(program_, "node_minima");
     });
 }
@@ -354,64 +359,82 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
             largest = {std::max(largest.x, size.x), std::max(largest.y, size.y),
                        std::max(largest.z, size.z)};
         }
-        cl_call("computing a sparse field batch of " + std::to_string(n) + " blocks of " +
-                    block.to_string(),
-                [&] {
-                    auto& c = ctx_.context();
-                    if (refs.size() * 8 > batch.refs_cap) {
-                        batch.refs_cap = refs.size() * 8;
-                        batch.refs = cl::Buffer(c, CL_MEM_READ_ONLY, batch.refs_cap);
-                    }
-                    if (slots.size() * 4 > batch.slots_cap) {
-                        batch.slots_cap = slots.size() * 4;
-                        batch.slots = cl::Buffer(c, CL_MEM_READ_ONLY, batch.slots_cap);
-                    }
-                    q.enqueueWriteBuffer(batch.jobs, CL_FALSE, 0, gjobs.size() * 8, gjobs.data());
-                    q.enqueueWriteBuffer(batch.refs, CL_FALSE, 0, refs.size() * 8, refs.data());
-                    q.enqueueWriteBuffer(batch.scatter_jobs, CL_FALSE, 0, sjobs.size() * 8,
-                                         sjobs.data());
-                    q.enqueueWriteBuffer(batch.regions, CL_FALSE, 0, regions.size() * 8,
-                                         regions.data());
-                    q.enqueueWriteBuffer(batch.slots, CL_FALSE, 0, slots.size() * 4, slots.data());
-                    cl::Kernel gather = device_world_.gather_kernel();
-                    gather.setArg(6, batch.jobs);
-                    gather.setArg(7, batch.refs);
-                    gather.setArg(8, batch.voxels);
-                    gather.setArg(9, block.x);
-                    gather.setArg(10, block.y);
-                    gather.setArg(11, block.z);
-                    gather.setArg(12, static_cast<cl_long>(wd.x));
-                    gather.setArg(13, static_cast<cl_long>(wd.y));
-                    gather.setArg(14, static_cast<cl_long>(wd.z));
-                    cl::Event ev_gather;
-                    // Fixed work-group sizes: PoCL compiles a kernel once per local size.
+        cl_call(
+            "computing a sparse field batch of " + std::to_string(n) + " blocks of " +
+                block.to_string(),
+            [&] {
+                auto& c = ctx_.context();
+                if (refs.size() * 8 > batch.refs_cap) {
+                    batch.refs_cap = refs.size() * 8;
+                    batch.refs = cl::Buffer(c, CL_MEM_READ_ONLY, batch.refs_cap);
+                }
+                if (slots.size() * 4 > batch.slots_cap) {
+                    batch.slots_cap = slots.size() * 4;
+                    batch.slots = cl::Buffer(c, CL_MEM_READ_ONLY, batch.slots_cap);
+                }
+                q.enqueueWriteBuffer(batch.jobs, CL_FALSE, 0, gjobs.size() * 8, gjobs.data());
+                q.enqueueWriteBuffer(batch.refs, CL_FALSE, 0, refs.size() * 8, refs.data());
+                q.enqueueWriteBuffer(batch.scatter_jobs, CL_FALSE, 0, sjobs.size() * 8,
+                                     sjobs.data());
+                q.enqueueWriteBuffer(batch.regions, CL_FALSE, 0, regions.size() * 8,
+                                     regions.data());
+                q.enqueueWriteBuffer(batch.slots, CL_FALSE, 0, slots.size() * 4, slots.data());
+                cl::Kernel gather = device_world_.gather_kernel(gpu_layout_);
+                gather.setArg(6, batch.jobs);
+                gather.setArg(7, batch.refs);
+                gather.setArg(8, batch.voxels);
+                gather.setArg(9, block.x);
+                gather.setArg(10, block.y);
+                gather.setArg(11, block.z);
+                gather.setArg(12, static_cast<cl_long>(wd.x));
+                gather.setArg(13, static_cast<cl_long>(wd.y));
+                gather.setArg(14, static_cast<cl_long>(wd.z));
+                cl::Event ev_gather;
+                // Fixed work-group sizes: PoCL compiles a kernel once per local size.
+                if (gpu_layout_) {
+                    q.enqueueNDRangeKernel(gather, cl::NullRange,
+                                           cl::NDRange(round_up(block.x, kGroupVoxels), block.y,
+                                                       std::size_t{block.z} * n),
+                                           cl::NDRange(kGroupVoxels, 1, 1), nullptr, &ev_gather);
+                } else {
                     q.enqueueNDRangeKernel(
                         gather, cl::NullRange,
                         cl::NDRange(round_up(block.y, kGroupRows), std::size_t{block.z} * n),
                         cl::NDRange(kGroupRows, 1), nullptr, &ev_gather);
-                    ms += batch.generator->run();  // waits for the queue, the gather too
-                    ms += elapsed_ms(ev_gather, ev_gather);
-                    add_stage("gather", elapsed_ms(ev_gather, ev_gather));
-                    for (const auto& [name, stage_ms] : batch.generator->stage_ms()) {
-                        add_stage(name, stage_ms);
-                    }
-                    cl::Kernel& scatter = scatter_;
-                    scatter.setArg(0, batch.generator->field_buffer());
-                    scatter.setArg(1, pool_);
-                    scatter.setArg(2, batch.scatter_jobs);
-                    scatter.setArg(3, batch.regions);
-                    scatter.setArg(4, batch.slots);
-                    scatter.setArg(5, block.x);
-                    scatter.setArg(6, block.y);
-                    scatter.setArg(7, block.z);
-                    scatter.setArg(8, static_cast<cl_uint>(largest.y));
-                    scatter.setArg(9, static_cast<cl_uint>(largest.z));
+                }
+                ms += batch.generator->run();  // waits for the queue, the gather too
+                ms += elapsed_ms(ev_gather, ev_gather);
+                add_stage("gather", elapsed_ms(ev_gather, ev_gather));
+                for (const auto& [name, stage_ms] : batch.generator->stage_ms()) {
+                    add_stage(name, stage_ms);
+                }
+                cl::Kernel& scatter = gpu_layout_ ? scatter_voxels_ : scatter_;
+                scatter.setArg(0, batch.generator->field_buffer());
+                scatter.setArg(1, pool_);
+                scatter.setArg(2, batch.scatter_jobs);
+                scatter.setArg(3, batch.regions);
+                scatter.setArg(4, batch.slots);
+                scatter.setArg(5, block.x);
+                scatter.setArg(6, block.y);
+                scatter.setArg(7, block.z);
+                const auto sx = static_cast<std::size_t>(largest.x);
+                const auto sy = static_cast<std::size_t>(largest.y);
+                const auto sz = static_cast<std::size_t>(largest.z);
+                if (gpu_layout_) {
+                    scatter.setArg(8, static_cast<cl_uint>(sx));
+                    scatter.setArg(9, static_cast<cl_uint>(sy));
+                    scatter.setArg(10, static_cast<cl_uint>(sz));
                     q.enqueueNDRangeKernel(
-                        scatter, cl::NullRange,
-                        cl::NDRange(round_up(static_cast<std::size_t>(largest.y), kGroupRows),
-                                    static_cast<std::size_t>(largest.z) * n),
+                        scatter, cl::NullRange, cl::NDRange(round_up(sx, kGroupVoxels), sy, sz * n),
+                        cl::NDRange(kGroupVoxels, 1, 1), nullptr, &scatters_.emplace_back());
+                } else {
+                    scatter.setArg(8, static_cast<cl_uint>(sy));
+                    scatter.setArg(9, static_cast<cl_uint>(sz));
+                    q.enqueueNDRangeKernel(
+                        scatter, cl::NullRange, cl::NDRange(round_up(sy, kGroupRows), sz * n),
                         cl::NDRange(kGroupRows, 1), nullptr, &scatters_.emplace_back());
-                });
+                }
+            });
     }
     return ms;
 }

@@ -70,9 +70,9 @@ class SparseDeviceWorld {
     // The same per kernel (name, ms), in launch order.
     std::vector<std::pair<std::string, double>> last_edit_stages() const;
 
-    // The gather kernel (sparse_world.cl) with the world's buffers as its arguments 0-5; the
-    // caller sets the job arguments 6-14.
-    cl::Kernel gather_kernel();
+    // The gather kernel (sparse_world.cl; `per_voxel`: gather_voxels, the GPU layout's) with
+    // the world's buffers as its arguments 0-5; the caller sets the job arguments 6-14.
+    cl::Kernel gather_kernel(bool per_voxel = false);
     // A tile's node base and material base for gather's refs (kNoRef, 0 when not stored).
     static constexpr std::uint64_t kNoRef = ~std::uint64_t{0};
     std::pair<std::uint64_t, std::uint64_t> ref(std::int64_t tx, std::int64_t ty,
@@ -93,7 +93,7 @@ class SparseDeviceWorld {
     const SparseWorld& world_;
     SparseWorld* editable_ = nullptr;
     cl::Program program_;
-    cl::Kernel gather_, brush_, count_, write_;  // made once, arguments set per launch
+    cl::Kernel gather_, gather_voxels_, brush_, count_, write_;  // arguments set per launch
     // Main buffers: the host world as uploaded; dir_: per stored tile key, its refs.
     cl::Buffer masks_, offsets_, materials_;
     std::unordered_map<std::uint64_t, std::pair<std::uint64_t, std::uint64_t>> dir_;

@@ -142,8 +142,10 @@ class SparseField {
     std::size_t elem_ = 0;
     std::vector<std::uint8_t> far_, inside_;
     cl::Program program_;
-    cl::Kernel scatter_, node_minima_;  // made once, arguments set per launch
-    SparseDeviceWorld device_world_;    // the world's 64-trees on the device
+    // Whether gather and scatter take a work-item per voxel (GPU layout) or per row.
+    bool gpu_layout_ = false;
+    cl::Kernel scatter_, scatter_voxels_, node_minima_;  // arguments set per launch
+    SparseDeviceWorld device_world_;                     // the world's 64-trees on the device
     // node_minima's slots, tile coordinates and minima in list order.
     cl::Buffer minima_list_, minima_coords_, minima_listed_, minima_nodes_;
     std::size_t minima_list_cap_ = 0;
