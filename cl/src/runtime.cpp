@@ -6,12 +6,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <new>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <utility>
 
 #include "voxfield/core/output.hpp"
@@ -606,6 +608,60 @@ MappedBuffer::~MappedBuffer() {
         queue_.finish();
     } catch (const cl::Error&) {
     }
+}
+
+double read_streamed(Context& ctx, const cl::Buffer& buffer, std::size_t bytes,
+                     const std::function<void(std::span<const std::uint8_t>)>& sink,
+                     std::size_t piece, bool staged) {
+    if (bytes == 0) {
+        return 0;
+    }
+    if (piece == 0) {
+        throw std::invalid_argument("read_streamed: pieces of 0 bytes");
+    }
+    if (ctx.computes_in_host_memory() && !staged) {
+        const MappedBuffer mapped(ctx, buffer, bytes);
+        sink(mapped.bytes());
+        return mapped.map_ms();
+    }
+    piece = std::min(piece, bytes);
+    cl::CommandQueue queue = ctx.queue();
+    std::array<cl::Buffer, 2> staging;
+    std::array<std::uint8_t*, 2> host{};
+    cl_call("pinned staging of 2 x " + std::to_string(piece) + " bytes", [&] {
+        for (std::size_t i = 0; i < 2; ++i) {
+            staging[i] = cl::Buffer(ctx.context(), CL_MEM_ALLOC_HOST_PTR, piece);
+            host[i] = static_cast<std::uint8_t*>(
+                queue.enqueueMapBuffer(staging[i], CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, piece));
+        }
+    });
+    const std::size_t pieces = (bytes + piece - 1) / piece;
+    std::array<cl::Event, 2> done;
+    double ms = 0;
+    auto enqueue = [&](std::size_t k) {
+        const std::size_t offset = k * piece, n = std::min(piece, bytes - offset);
+        cl_call("downloading bytes " + std::to_string(offset) + ".." + std::to_string(offset + n),
+                [&] {
+                    queue.enqueueReadBuffer(buffer, CL_FALSE, offset, n, host[k % 2], nullptr,
+                                            &done[k % 2]);
+                });
+    };
+    enqueue(0);
+    for (std::size_t k = 0; k < pieces; ++k) {
+        cl_call("waiting for a download", [&] { done[k % 2].wait(); });
+        ms += elapsed_ms(done[k % 2], done[k % 2]);
+        if (k + 1 < pieces) {
+            enqueue(k + 1);
+        }
+        sink({host[k % 2], std::min(piece, bytes - k * piece)});
+    }
+    cl_call("unmapping the staging", [&] {
+        for (std::size_t i = 0; i < 2; ++i) {
+            queue.enqueueUnmapMemObject(staging[i], host[i]);
+        }
+        queue.finish();
+    });
+    return ms;
 }
 
 }  // namespace voxfield::ocl

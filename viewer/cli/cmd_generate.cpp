@@ -101,15 +101,16 @@ int run_generate(const GenerateOptions& o) {
     // device whose layout they lack for it (chebyshev on a GPU) gets a World after the read.
     bool in_place = npy && options.algorithm == ocl::Algorithm::exact &&
                     ocl::ExactManhattan::handles(options, options.layout == ocl::Layout::gpu);
-    if (npy && !in_place) {
-        npy.reset();
-        load_model();
-    }
-    const Palette palette = model ? model->palette : Palette();
-
     ocl::HostMemory voxels;
     std::size_t solid = 0;
     std::future<double> reading;
+    // A uint8 .npy that the kernels do not read in place is loaded as a World on a second
+    // thread too, while the device is set up.
+    std::future<void> loading;
+    if (npy && !in_place) {
+        npy.reset();
+        loading = std::async(std::launch::async, load_model);
+    }
     if (in_place) {
         voxels = ocl::HostMemory(dims.count());
         reading = std::async(std::launch::async, [&] {
@@ -121,6 +122,7 @@ int run_generate(const GenerateOptions& o) {
     }
     progress.set("setting up the device");
     const auto t_setup = Clock::now();
+    // (An exception here leaves through `loading`'s destructor, which waits for the read.)
     ocl::Context ctx(ocl::select_device(o.device));
     double build_ms = 0;  // kernel build, where it is not part of the upload
     if (in_place && !ocl::ExactManhattan::handles(ctx, options)) {
@@ -141,6 +143,10 @@ int run_generate(const GenerateOptions& o) {
     } else {
         phases.setup = ms_since(t_setup);
     }
+    if (loading.valid()) {
+        loading.get();  // phases.read: the load, beside setup
+    }
+    const Palette palette = model ? model->palette : Palette();
 
     // End to end = kernel build + upload + first run + download (the first run pays page
     // faults and kernel set-up, as a one-off user would).
@@ -177,14 +183,21 @@ int run_generate(const GenerateOptions& o) {
         }
     }
     phases.kernels = ms_since(t_kernels);
-    progress.set("downloading the field");
-    const auto t_download = Clock::now();
-    const ocl::MappedBuffer field(ctx, job->field_buffer(), dims.count() * element_size(format));
-    phases.download = ms_since(t_download);
+    // A plain .npy output streams the field from the device into the file (the download of
+    // one piece beside the write of the one before); a .vdb output and --stats need it whole.
+    const std::size_t field_bytes = dims.count() * element_size(format);
+    const bool streamed = !vdb && !o.stats;
+    std::optional<ocl::MappedBuffer> field;
     ocl::FieldTiming timing;
     timing.upload_ms = job->upload_ms();
     timing.kernel_ms = summarize(samples).median;
-    timing.download_ms = field.map_ms();
+    if (!streamed) {
+        progress.set("downloading the field");
+        const auto t_download = Clock::now();
+        field.emplace(ctx, job->field_buffer(), field_bytes);
+        phases.download = ms_since(t_download);
+        timing.download_ms = field->map_ms();
+    }
     const double end_to_end_ms = build_ms + phases.upload + first_run_ms + phases.download;
 
     // Every output goes into one batch, renamed onto its target only once all are written:
@@ -194,10 +207,16 @@ int run_generate(const GenerateOptions& o) {
     const auto t_write = Clock::now();
     if (vdb) {
         write_vdb(outputs, o.output, dims,
-                  in_place ? voxels.span() : std::span(model->world.voxels()), field.bytes(),
+                  in_place ? voxels.span() : std::span(model->world.voxels()), field->bytes(),
                   format, *vdb);
+    } else if (streamed) {
+        write_npy_shape(outputs, o.output, npy_type(format), {dims.z, dims.y, dims.x},
+                        [&](const OutputBatch::Sink& sink) {
+                            timing.download_ms =
+                                ocl::read_streamed(ctx, job->field_buffer(), field_bytes, sink);
+                        });
     } else {
-        write_npy(outputs, o.output, npy_type(format), dims, field.bytes());
+        write_npy(outputs, o.output, npy_type(format), dims, field->bytes());
     }
     if (options.indices) {
         // Streamed from the device's planes a slab at a time (read while written: part of the
@@ -226,7 +245,10 @@ int run_generate(const GenerateOptions& o) {
               << (in_place ? "kernel build " + fixed(build_ms, 1) + " + upload "
                            : std::string("upload (incl. kernel build) "))
               << fixed(phases.upload, 1) << " + first run " << fixed(first_run_ms, 1)
-              << " + download " << fixed(phases.download, 1) << " ms (wall)\n";
+              << (streamed ? " ms (wall); the download (" + fixed(timing.download_ms, 1) +
+                                 " ms of transfers) streamed into the write"
+                           : " + download " + fixed(phases.download, 1) + " ms (wall)")
+              << '\n';
 
     nlohmann::json j = {
         {"device", device_json(ctx.info())},
@@ -248,6 +270,7 @@ int run_generate(const GenerateOptions& o) {
         {"download_ms", timing.download_ms},
         {"end_to_end_ms", end_to_end_ms},
         {"world_read_in_place", in_place},
+        {"field_streamed", streamed},
         {"phases_ms",
          {{"read", phases.read},
           {"setup", phases.setup},
@@ -286,7 +309,7 @@ int run_generate(const GenerateOptions& o) {
                          std::vector<std::uint8_t>(voxels.span().begin(), voxels.span().end()));
         }
         const World& world = model ? model->world : *copy;
-        const std::vector<std::uint8_t> bytes(field.bytes().begin(), field.bytes().end());
+        const std::vector<std::uint8_t> bytes(field->bytes().begin(), field->bytes().end());
         Progress checking("generate");
         checking.set("checking against the CPU reference");
         const Accuracy a = accuracy_of(world, palette, options, bytes);

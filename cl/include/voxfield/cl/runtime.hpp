@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -183,5 +184,15 @@ class MappedBuffer {
     std::size_t size_ = 0;
     double map_ms_ = 0;
 };
+
+// Hands the first `bytes` of `buffer` to `sink` in order, piece by piece, after the work queued
+// before. On a device that computes in host memory: one map (in place where the buffer lies over
+// host memory). Elsewhere through two pinned staging buffers (CL_MEM_ALLOC_HOST_PTR) of at most
+// `piece` bytes each: the download of a piece overlaps the sink's work on the one before, so a
+// sink that writes a file hides the download. Returns the transfers' device time (profiling
+// events) in ms. `staged`: the staging path on any device (for tests on a CPU device).
+double read_streamed(Context& ctx, const cl::Buffer& buffer, std::size_t bytes,
+                     const std::function<void(std::span<const std::uint8_t>)>& sink,
+                     std::size_t piece = std::size_t{32} << 20, bool staged = false);
 
 }  // namespace voxfield::ocl
