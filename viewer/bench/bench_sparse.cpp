@@ -1,5 +1,6 @@
 // `voxfield bench --suite sparse` (bench_sparse.hpp).
 #include "bench_sparse.hpp"
+#include "bench_sparse_trace.hpp"
 
 #include <sys/resource.h>
 
@@ -240,6 +241,10 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
     field.world();
     const double host_sync_ms = ms_since(t_sync);
     const ExactCheck check = check_edits(ctx, field, palette, options, edits, observer, label);
+    // After the peak memory was read: the trace's copy of the world is not in it.
+    observer.stage(label + ": tracing the edited world at 1920x1080 (Vulkan, flat and lit)");
+    const json trace = sparse_trace_keys(field.world(), palette, repeat);
+    observer.stage(label + ": " + describe_sparse_trace(trace));
     const json load_end = load_average();
 
     const double stored_voxels = static_cast<double>(tiles) * kTileVoxels;
@@ -319,6 +324,7 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"load_average_start", load_start},
         {"load_average_end", load_end}};
     put_summary(row, summarize(edit_wall));
+    row.update(trace);
     return row;
 }
 

@@ -1,6 +1,7 @@
 // `voxfield render INPUT -o OUT.png`: the exact field of a metric on the OpenCL device,
 // ray-marched by the Vulkan DDA (vk/shaders/raymarch.comp) into an offscreen image, written as
-// PNG.
+// PNG; a sparse world (--sparse, or generate's rule) is traced through its 64-trees by
+// vk/shaders/sparse_trace.comp instead, with no field.
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "cli_util.hpp"
+#include "generate_sparse.hpp"
 #include "png.hpp"
 #include "traced_part.hpp"
 #include "voxfield/cl/generator.hpp"
@@ -22,10 +24,12 @@
 #include "voxfield/core/metric.hpp"
 #include "voxfield/core/output.hpp"
 #include "voxfield/core/sdf.hpp"
+#include "voxfield/core/sparse.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/pipeline/frame_pipeline.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 #include "voxfield/vk/shared.hpp"
+#include "voxfield/vk/sparse_tracer.hpp"
 
 namespace voxfield::cli {
 namespace {
@@ -35,7 +39,9 @@ struct RenderCliOptions {
                                                spacing, metric = "manhattan";
     std::uint32_t width = 800, height = 600;
     double fov = 60;
-    bool stats = false, validate = false;
+    bool stats = false, validate = false, sparse = false;
+    // The field options given on the command line (refused for sparse worlds).
+    std::vector<std::string> field_options;
 };
 
 // "X,Y,Z" (finite decimal numbers, world voxel units).
@@ -85,6 +91,67 @@ std::string point(const vk::Vec3& v) {
     return "(" + fixed(v[0], 2) + ", " + fixed(v[1], 2) + ", " + fixed(v[2], 2) + ")";
 }
 
+// A sparse world (core/sparse.hpp) traced through its 64-trees (vk::SparseTracer): no OpenCL
+// device and no distance field, so the field options do not apply.
+int run_render_sparse(const RenderCliOptions& o, vk::RenderOptions r,
+                      const std::optional<vk::Vec3>& camera, const std::optional<vk::Vec3>& target,
+                      const std::shared_ptr<vk::ValidationLog>& validation) {
+    if (!o.field_options.empty()) {
+        throw InputError(o.field_options.front() +
+                         " does not apply to a sparse world: it is traced through its 64-trees, "
+                         "with no distance field or OpenCL device");
+    }
+    if (sdf::is_sdf_path(o.input)) {
+        throw InputError(
+            "--sparse: an .sdf.json part is rendered on its implicit surface, "
+            "which needs the dense field (drop --sparse)");
+    }
+    const SparseModel model =
+        load_sparse_world(o.input, InputOptions{.grid = {}, .palette_values = true});
+    const SparseWorld& world = model.world;
+    const vk::Camera fallback = vk::default_camera(world, r.width, r.height, r.camera.fov_deg);
+    r.camera.position = camera ? *camera : fallback.position;
+    r.camera.target = target ? *target : fallback.target;
+    vk::validate(r);
+    vk::Context vk_ctx(vk::ContextOptions{"", validation});
+    vk::SparseTracer tracer(vk_ctx);
+    tracer.upload(world, model.palette);
+    const vk::Image image = tracer.render(r);
+    write_png(o.output, image);
+    const vk::SparseDeviceStats& device = tracer.stats();
+    std::cout << "vulkan:  " << vk_ctx.info().name << " (" << vk_ctx.info().type << ", Vulkan "
+              << vk_ctx.info().api << ")\n"
+              << "world:   " << o.input << "  " << world.dims().to_string() << " = "
+              << world.dims().count() << " voxels, " << world.solid_count() << " solid in "
+              << world.tile_count() << " tiles of 64^3 (sparse)\n"
+              << "sparse:  traced through the 64-trees: " << device.bytes
+              << " bytes on the device, nodes in " << device.node_chunks << " and materials in "
+              << device.material_chunks << " storage-buffer binding(s), directory of "
+              << device.blocks << " blocks of 512^3 voxels and " << device.pages
+              << " tile page(s)\n"
+              << "image:   " << image.width << "x" << image.height << ", " << o.shading
+              << " shading, camera " << point(r.camera.position) << " -> " << point(r.camera.target)
+              << ", fov " << fixed(r.camera.fov_deg, 1) << " -> " << o.output << '\n';
+    if (o.stats) {
+        if (image.raymarch_ms >= 0) {
+            const double rays = double(image.width) * double(image.height);
+            std::cout << "stats:   trace " << fixed(image.raymarch_ms, 3)
+                      << " ms (GPU timestamps), "
+                      << fixed(rays / (image.raymarch_ms * 1e-3) / 1e6, 1) << " Mrays/s\n";
+        } else {
+            std::cout << "stats:   the Vulkan device has no compute timestamps\n";
+        }
+        vk::RenderOptions counting = r;
+        counting.count = true;
+        const vk::Image counted = tracer.render(counting);
+        const double rays = double(counted.width) * double(counted.height);
+        std::cout << "stats:   per ray " << fixed(double(counted.fetches) / rays, 2)
+                  << " node visits, " << fixed(double(counted.steps) / rays, 2)
+                  << " node exits (blocks, tiles, 16^3 and 4^3 nodes, voxels)\n";
+    }
+    return 0;
+}
+
 int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLog>& validation) {
     // Everything the user typed is checked before any file is read or device touched.
     require_png_name("-o", o.output);
@@ -118,6 +185,9 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
         vk::validate(check);  // sizes and field of view
     }
 
+    if (o.sparse || (!sdf::is_sdf_path(o.input) && needs_sparse(o.input, ""))) {
+        return run_render_sparse(o, r, camera, target, validation);
+    }
     // A part (.sdf.json) is discretised on the OpenCL device and traced on its trilinear
     // surface; any other input is read as voxels.
     std::optional<sdf::Part> part;
@@ -231,7 +301,8 @@ Command add_render(CLI::App& root) {
     auto o = std::make_shared<RenderCliOptions>();
     auto* app = root.add_subcommand("render",
                                     "Ray-march a world (.vox, .npy, .vdb or .sdf.json) through its "
-                                    "distance field into a PNG image");
+                                    "distance field (a sparse world: through its 64-trees) "
+                                    "into a PNG image");
     app->add_option("INPUT", o->input, kWorldInputHelp)->required();
     app->add_option("-o,--output", o->output, "Output .png image (written atomically)")->required();
     app->add_option("--width", o->width, "Image width in pixels, 1..16384")->capture_default_str();
@@ -278,15 +349,28 @@ Command add_render(CLI::App& root) {
                     "in those units and turned into voxel steps (divided by the largest, rounded "
                     "down) for the ray marcher; the image is the same, the steps per ray are not "
                     "(--field compact only)");
+    app->add_flag("--sparse", o->sparse,
+                  "Store the world as a tile grid of 64-trees and trace it through them (no "
+                  "distance field, no OpenCL device: --field, --metric, --spacing and --device "
+                  "are refused); automatic for a .npy, .vox scene or .vdb grid of more than 2^31 "
+                  "voxels. Flat images equal the dense ray marcher's pixel for pixel; lit "
+                  "shading takes its ambient occlusion from 20 voxels around the hit face");
     app->add_flag("--stats", o->stats,
                   "Report the ray-march dispatch time (GPU timestamps), Mrays/s, and the field "
-                  "fetches and DDA steps per ray (from one more, counting frame)");
+                  "fetches and DDA steps per ray (from one more, counting frame; sparse: node "
+                  "visits and exits per ray)");
     app->add_flag("--validate", o->validate,
                   "Run with the Vulkan validation layer (synchronisation validation included; "
                   "Debian: vulkan-validationlayers): each message is printed to stderr and any "
                   "makes the command exit 1")
         ->envname("VOXFIELD_VALIDATE");
-    return {app, [o] {
+    return {app, [o, app] {
+                o->field_options.clear();
+                for (const char* name : {"--field", "--metric", "--spacing", "--device"}) {
+                    if (app->count(name) > 0) {
+                        o->field_options.emplace_back(name);
+                    }
+                }
                 std::shared_ptr<vk::ValidationLog> log;
                 if (o->validate) {
                     log = std::make_shared<vk::ValidationLog>([](const std::string& m) {

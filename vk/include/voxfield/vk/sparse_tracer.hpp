@@ -1,0 +1,64 @@
+#pragma once
+// Ray tracing of sparse worlds (core/sparse.hpp's tile grid of 64-trees) by
+// vk/shaders/sparse_trace.comp into an offscreen image read back as RGBA8: one hierarchical
+// Amanatides & Woo walk per ray over blocks of 8^3 tiles, tiles, 16^3 nodes, 4^3 nodes and
+// voxels, leaving every empty node in one step. The camera, options and image are the ray
+// marcher's (raymarcher.hpp); flat shading writes the hit voxel's palette colour exactly, pixel
+// for pixel the dense ray marcher's image of the same world. Lit shading: the ray marcher's
+// face normal, sun and ambient terms, shadows by a ray traced toward the sun through the same
+// walk, ambient occlusion from 20 voxel look-ups in the 64-trees (not a distance field).
+#include <cstdint>
+#include <memory>
+
+#include "voxfield/core/palette.hpp"
+#include "voxfield/core/sparse.hpp"
+#include "voxfield/vk/context.hpp"
+#include "voxfield/vk/raymarcher.hpp"
+
+namespace voxfield::vk {
+
+// `render`'s default camera for a sparse world: the ray marcher's framing (core's
+// framing_position, from the front-left and above the -z side) of the box of the world's solid
+// voxels (the union of its tiles' solid bounds; the whole world when it has none), for a width x
+// height image.
+Camera default_camera(const SparseWorld& world, std::uint32_t width, std::uint32_t height,
+                      double fov_deg = 60);
+
+// What an upload put on the device.
+struct SparseDeviceStats {
+    std::uint64_t bytes = 0;  // every buffer the tracer reads
+    std::uint32_t node_chunks = 0, material_chunks = 0;
+    std::uint64_t blocks = 0, pages = 0;  // block table entries, pages of tile indices
+};
+
+class SparseTracer {
+  public:
+    // max_binding_bytes: cut nodes and materials into storage-buffer bindings of at most this
+    // many bytes (0: the device's maxStorageBufferRange). Tests lower it to exercise the cut.
+    explicit SparseTracer(Context& ctx, std::uint64_t max_binding_bytes = 0);
+    ~SparseTracer();
+    SparseTracer(const SparseTracer&) = delete;
+    SparseTracer& operator=(const SparseTracer&) = delete;
+
+    // Copies the world's 64-trees (its buffers as they are, cut at tile boundaries into at most
+    // VF_SPARSE_MAX_NODE_CHUNKS node and VF_SPARSE_MAX_MATERIAL_CHUNKS material bindings), a
+    // directory of its tiles (sparse_trace_layout.h) and the palette onto the device. Throws
+    // InputError when the nodes or materials need more bindings than that, or the block table
+    // or the pages exceed one binding; the message says the limit.
+    void upload(const SparseWorld& world, const Palette& palette);
+
+    // Traces one image and reads it back (Image::raymarch_ms: the dispatch by GPU timestamps).
+    // options.count: Image::fetches counts node visits and Image::steps node exits (every level
+    // from blocks to voxels), over all primary rays. options.surface is not supported
+    // (std::logic_error), nor rendering before an upload. InputError for bad options.
+    Image render(const RenderOptions& options);
+    void render(const RenderOptions& options, Image& out);
+
+    const SparseDeviceStats& stats() const;
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace voxfield::vk
