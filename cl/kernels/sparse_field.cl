@@ -56,6 +56,32 @@ __kernel void scatter(__global const ELEM* restrict field, __global ELEM* restri
     }
 }
 
+// scatter with one work-item per voxel (global ids x, y and job * sz + z of the largest region,
+// sx x sy x sz): the GPU layout's, where neighbouring work-items copy neighbouring values.
+__kernel void scatter_voxels(__global const ELEM* restrict field, __global ELEM* restrict pool,
+                             __global const long* restrict jobs,
+                             __global const long* restrict regions,
+                             __global const uint* restrict slots, uint bx, uint by, uint bz,
+                             uint sx, uint sy, uint sz) {
+    const uint x = (uint)get_global_id(0), y = (uint)get_global_id(1);
+    const size_t gz = get_global_id(2);
+    const size_t j = gz / sz;
+    const uint z = (uint)(gz - j * sz);
+    __global const long* job = jobs + 8 * j;
+    __global const long* reg = regions + 6 * j;
+    if (x >= sx || y >= sy || x >= reg[0] || y >= reg[1] || z >= reg[2]) {
+        return;
+    }
+    const long px = job[0] + x, py = job[1] + y, pz = job[2] + z;
+    const long nt = job[6];
+    const long ntx = nt & 0xFFFF, nty = (nt >> 16) & 0xFFFF;
+    const size_t slot = slots[job[7] + (((pz >> 6) - job[5]) * nty + ((py >> 6) - job[4])) * ntx +
+                              ((px >> 6) - job[3])];
+    pool[slot * TILE_VOXELS + (size_t)(((pz & 63) * TILE + (py & 63)) * TILE + (px & 63))] =
+        field[((j * bz + (size_t)(pz - reg[5])) * by + (size_t)(py - reg[4])) * bx +
+              (size_t)(px - reg[3])];
+}
+
 // One work-item per 16^3 node of the listed slots: the least KEY over its voxels inside the
 // world (a tile cut by the world's edge holds no values beyond it), starting from the far
 // value, which no value exceeds. `tiles`: per listed slot its tile's coordinates (3 uints).

@@ -1,7 +1,8 @@
 // Sparse worlds' 64-trees on the device (cl/src/sparse_device_world.cpp; the tile grid of
 // contrees of the implicit-surface rendering blog, core/sparse.hpp's layout): gathers tiles
-// into dense blocks, applies brushes to dense tiles and encodes dense tiles into 64-trees bit
-// for bit as core's SparseWorld::encode_tile does. No build options.
+// into dense blocks, applies brushes to dense 16^3 nodes and encodes tiles into 64-trees bit for
+// bit as core's SparseWorld::encode_tile does, re-encoding only the 16^3 nodes an edit touched
+// and copying the others from the tile's previous tree. No build options.
 //
 // A tile's 64-tree lies either in the main buffers (the host world as uploaded) or in a slot
 // of the slot buffers (tiles encoded since: TILE_MAX_NODES nodes and TILE_VOXELS materials
@@ -10,6 +11,8 @@
 #define TILE 64
 #define TILE_VOXELS 262144
 #define TILE_MAX_NODES 4161
+#define NODE 16
+#define NODE_VOXELS 4096
 #define NO_TILE 0xFFFFFFFFFFFFFFFFul
 #define SLOT_REF 0x8000000000000000ul
 
@@ -107,25 +110,79 @@ __kernel void gather(__global const ulong* restrict masks, __global const uint* 
     }
 }
 
-// One work-item per row (y | z << 6) of each dense tile (global id 1: the tile, whose first
-// voxel is origins[3 t..3 t+2]): core/brush.hpp's brush on the row's voxels inside the world
-// (op 0 place, 1 erase, 2 paint; shape 0 sphere, 1 cube).
-__kernel void brush_tiles(__global uchar* restrict vox, __global const long* restrict origins,
+// gather's values with one work-item per voxel (global ids x, y and block * bz + z): the GPU
+// layout's, where neighbouring work-items write neighbouring bytes and share the tree's nodes.
+__kernel void gather_voxels(__global const ulong* restrict masks,
+                            __global const uint* restrict offsets,
+                            __global const uchar* restrict materials,
+                            __global const ulong* restrict slot_masks,
+                            __global const uint* restrict slot_offsets,
+                            __global const uchar* restrict slot_materials,
+                            __global const long* restrict jobs, __global const ulong* restrict refs,
+                            __global uchar* restrict vox, uint bx, uint by, uint bz, long wx,
+                            long wy, long wz) {
+    const uint x = (uint)get_global_id(0), y = (uint)get_global_id(1);
+    const size_t gz = get_global_id(2);
+    if (x >= bx || y >= by) {
+        return;
+    }
+    const size_t j = gz / bz;
+    const uint z = (uint)(gz - j * bz);
+    __global const long* job = jobs + 8 * j;
+    const long px = job[0] + x, py = job[1] + y, pz = job[2] + z;
+    uchar v = 0;
+    if (px >= 0 && py >= 0 && pz >= 0 && px < wx && py < wy && pz < wz) {
+        const long nt = job[6];
+        const long ntx = nt & 0xFFFF, nty = (nt >> 16) & 0xFFFF;
+        const size_t r = (size_t)(job[7] + (((pz >> 6) - job[5]) * nty + ((py >> 6) - job[4])) * ntx +
+                                  ((px >> 6) - job[3]));
+        ulong base = refs[2 * r];
+        if (base != NO_TILE) {
+            const bool slot = (base & SLOT_REF) != 0;
+            base &= ~SLOT_REF;
+            __global const ulong* m = slot ? slot_masks : masks;
+            __global const uint* o = slot ? slot_offsets : offsets;
+            __global const uchar* mat = slot ? slot_materials : materials;
+            const uint lx = (uint)(px & 63), ly = (uint)(py & 63), lz = (uint)(pz & 63);
+            const ulong root = m[base];
+            const uint b16 = (lz >> 4) << 4 | (ly >> 4) << 2 | (lx >> 4);
+            if ((root >> b16 & 1ul) != 0) {
+                const ulong n16 = base + o[base] + rank_below(root, b16);
+                const uint b4 = ((lz >> 2) & 3) << 4 | ((ly >> 2) & 3) << 2 | ((lx >> 2) & 3);
+                const ulong m16 = m[n16];
+                if ((m16 >> b4 & 1ul) != 0) {
+                    const ulong n4 = base + o[n16] + rank_below(m16, b4);
+                    const ulong m4 = m[n4];
+                    const uint bv = (lz & 3) << 4 | (ly & 3) << 2 | (lx & 3);
+                    if ((m4 >> bv & 1ul) != 0) {
+                        v = mat[refs[2 * r + 1] + o[n4] + rank_below(m4, bv)];
+                    }
+                }
+            }
+        }
+    }
+    vox[(gz * by + y) * bx + x] = v;
+}
+
+// One work-item per row (y | z << 4) of each dense 16^3 node block (global id 1: the block,
+// whose first voxel is origins[3 b..3 b+2]): core/brush.hpp's brush on the row's voxels inside
+// the world (op 0 place, 1 erase, 2 paint; shape 0 sphere, 1 cube).
+__kernel void brush_nodes(__global uchar* restrict vox, __global const long* restrict origins,
                           uint op, uint shape, long cx, long cy, long cz, ulong radius,
                           uchar material, long wx, long wy, long wz) {
     const uint row = (uint)get_global_id(0);
-    const size_t t = get_global_id(1);
-    const long py = origins[3 * t + 1] + (row & 63), pz = origins[3 * t + 2] + (row >> 6);
-    if (row >= TILE * TILE || py >= wy || pz >= wz) {
+    const size_t b = get_global_id(1);
+    const long py = origins[3 * b + 1] + (row & 15), pz = origins[3 * b + 2] + (row >> 4);
+    if (row >= NODE * NODE || py >= wy || pz >= wz) {
         return;
     }
     const ulong ay = (ulong)(py > cy ? py - cy : cy - py), az = (ulong)(pz > cz ? pz - cz : cz - pz);
     if (ay > radius || az > radius) {
         return;
     }
-    __global uchar* out = vox + t * TILE_VOXELS + (size_t)row * TILE;
-    const long x0 = origins[3 * t];
-    for (uint x = 0; x < TILE && x0 + x < wx; ++x) {
+    __global uchar* out = vox + b * NODE_VOXELS + (size_t)row * NODE;
+    const long x0 = origins[3 * b];
+    for (uint x = 0; x < NODE && x0 + x < wx; ++x) {
         const long px = x0 + x;
         const ulong ax = (ulong)(px > cx ? px - cx : cx - px);
         if (ax > radius || (shape == 0 && ax * ax + ay * ay + az * az > radius * radius)) {
@@ -136,27 +193,63 @@ __kernel void brush_tiles(__global uchar* restrict vox, __global const long* res
     }
 }
 
-// Encoding, pass 1: one work-item per 16^3 node (global id: tile * 64 + its child bit) of the
-// dense tiles `vox`: its 64 leaf masks (occupancy of each 4^3 child), its own mask and its
-// solid voxel count.
-__kernel void encode_count(__global const uchar* restrict vox, __global ulong* restrict leaf_masks,
-                           __global ulong* restrict mid_masks, __global uint* restrict mid_counts,
+// Encoding a tile whose 16^3 nodes are each either dense (re-encoded from voxels) or kept (copied
+// from the tile's previous 64-tree). Per tile t: refs[2 t], refs[2 t + 1] its previous tree's node
+// base (NO_TILE: none, SLOT_REF: in the slot buffers) and material base; per node (t * 64 + its
+// child bit) src[...]: the index in `vox` of its first voxel (rows of `pitch_y`, slices of
+// `pitch_z` voxels), or NO_TILE to keep it.
+
+// The previous tree's buffers of tile t, and its root (0 when none).
+#define PREVIOUS(t)                                                   \
+    ulong base = refs[2 * (t)];                                       \
+    const bool none = base == NO_TILE;                                \
+    const bool in_slot = !none && (base & SLOT_REF) != 0;             \
+    base &= ~SLOT_REF;                                                \
+    __global const ulong* om = in_slot ? slot_masks : masks;          \
+    __global const uint* oo = in_slot ? slot_offsets : offsets;       \
+    const ulong root0 = none ? 0ul : om[base];
+
+// Pass 1: one work-item per 16^3 node: its mask, its solid voxel count and where its leaves
+// lie; a dense node also its 64 leaf masks (occupancy of each 4^3 child) into leaf_masks; a kept
+// node its previous leaves' first index into kept (in the buffer the tile's refs name).
+__kernel void encode_count(__global const uchar* restrict vox, __global const ulong* restrict src,
+                           uint pitch_y, uint pitch_z, __global const ulong* restrict refs,
+                           __global const ulong* masks, __global const uint* offsets,
+                           __global const ulong* slot_masks, __global const uint* slot_offsets,
+                           __global ulong* restrict leaf_masks, __global ulong* restrict mid_masks,
+                           __global uint* restrict mid_counts, __global ulong* restrict kept,
                            uint tiles) {
     const size_t i = get_global_id(0);
     if (i >= (size_t)tiles * 64) {
         return;
     }
     const uint b16 = (uint)(i & 63);
-    __global const uchar* tile = vox + (i >> 6) * TILE_VOXELS;
-    const uint x16 = (b16 & 3) * 16, y16 = (b16 >> 2 & 3) * 16, z16 = (b16 >> 4) * 16;
+    const ulong first = src[i];
     ulong mid = 0;
     uint count = 0;
+    if (first == NO_TILE) {
+        PREVIOUS(i >> 6)
+        if ((root0 >> b16 & 1ul) != 0) {
+            const ulong n16 = base + oo[base] + rank_below(root0, b16);
+            mid = om[n16];
+            const ulong leaf = base + oo[n16];
+            kept[i] = leaf;
+            const uint n = (uint)popcount(mid);
+            for (uint k = 0; k < n; ++k) {
+                count += (uint)popcount(om[leaf + k]);
+            }
+        }
+        mid_masks[i] = mid;
+        mid_counts[i] = count;
+        return;
+    }
+    __global const uchar* node = vox + first;
     for (uint b4 = 0; b4 < 64; ++b4) {
-        const uint x4 = x16 + (b4 & 3) * 4, y4 = y16 + (b4 >> 2 & 3) * 4, z4 = z16 + (b4 >> 4) * 4;
+        const uint x4 = (b4 & 3) * 4, y4 = (b4 >> 2 & 3) * 4, z4 = (b4 >> 4) * 4;
         ulong m = 0;
         for (uint z = 0; z < 4; ++z) {
             for (uint y = 0; y < 4; ++y) {
-                const uchar4 r = vload4(0, tile + ((z4 + z) * TILE + y4 + y) * TILE + x4);
+                const uchar4 r = vload4(0, node + (size_t)(z4 + z) * pitch_z + (y4 + y) * pitch_y + x4);
                 const ulong bits = (ulong)(r.x != 0) | (ulong)(r.y != 0) << 1 |
                                    (ulong)(r.z != 0) << 2 | (ulong)(r.w != 0) << 3;
                 m |= bits << (z << 4 | y << 2);
@@ -170,19 +263,23 @@ __kernel void encode_count(__global const uchar* restrict vox, __global ulong* r
     mid_counts[i] = count;
 }
 
-// Encoding, pass 2: one work-item per 16^3 node, as pass 1. Tile t's 64-tree goes to slot
-// slots[t] (nodes from slot * TILE_MAX_NODES, materials from slot * TILE_VOXELS): the root
-// (written by child 0, mask 0 when the tile is empty), its 16^3 children in mask order, then
-// their 4^3 children grouped by parent and the materials of their voxels in mask order; each
-// node's place and offset are prefix sums of pass 1's counts of the children before it.
-// counts[2 slot], counts[2 slot + 1]: the tile's nodes and materials (0, 0 when empty).
-__kernel void encode_write(__global const uchar* restrict vox,
-                           __global const ulong* restrict leaf_masks,
+// Pass 2: one work-item per 16^3 node, as pass 1. Tile t's 64-tree goes to slot slots[t] (nodes
+// from slot * TILE_MAX_NODES, materials from slot * TILE_VOXELS; never the slot its previous tree
+// lies in): the root (written by child 0, mask 0 when the tile is empty), its 16^3 children in
+// mask order, then their 4^3 children grouped by parent and the materials of their voxels in mask
+// order; each node's place and offset are prefix sums of pass 1's counts of the nodes before it.
+// A kept node's leaves and materials are copied, its leaves' offsets moved by where its materials
+// now start. counts[2 slot], counts[2 slot + 1]: the tile's nodes and materials (0, 0 when empty).
+__kernel void encode_write(__global const uchar* restrict vox, __global const ulong* restrict src,
+                           uint pitch_y, uint pitch_z, __global const ulong* restrict refs,
+                           __global const ulong* masks, __global const uint* offsets,
+                           __global const uchar* materials, __global const ulong* restrict leaf_masks,
                            __global const ulong* restrict mid_masks,
                            __global const uint* restrict mid_counts,
-                           __global const uint* restrict slots, __global ulong* restrict masks,
-                           __global uint* restrict offsets, __global uchar* restrict materials,
-                           __global uint* restrict counts, uint tiles) {
+                           __global const ulong* restrict kept, __global const uint* restrict slots,
+                           __global ulong* slot_masks, __global uint* slot_offsets,
+                           __global uchar* slot_materials, __global uint* restrict counts,
+                           uint tiles) {
     const size_t i = get_global_id(0);
     if (i >= (size_t)tiles * 64) {
         return;
@@ -207,8 +304,8 @@ __kernel void encode_write(__global const uchar* restrict vox,
     const size_t slot = slots[t];
     const size_t nb = slot * TILE_MAX_NODES, mb = slot * TILE_VOXELS;
     if (b16 == 0) {
-        masks[nb] = root;
-        offsets[nb] = 1;
+        slot_masks[nb] = root;
+        slot_offsets[nb] = 1;
         counts[2 * slot] = root != 0 ? 1 + n16 + leaves : 0;
         counts[2 * slot + 1] = solid;
     }
@@ -217,22 +314,46 @@ __kernel void encode_write(__global const uchar* restrict vox,
         return;
     }
     const uint r16 = rank_below(root, b16);
-    masks[nb + 1 + r16] = mid;
-    offsets[nb + 1 + r16] = 1 + n16 + leaves_before;
-    __global const uchar* tile = vox + t * TILE_VOXELS;
-    const uint x16 = (b16 & 3) * 16, y16 = (b16 >> 2 & 3) * 16, z16 = (b16 >> 4) * 16;
+    slot_masks[nb + 1 + r16] = mid;
+    slot_offsets[nb + 1 + r16] = 1 + n16 + leaves_before;
     size_t node = nb + 1 + n16 + leaves_before;
+    const ulong first = src[i];
+    if (first == NO_TILE) {
+        PREVIOUS(t)
+        __global const uchar* om8 = in_slot ? slot_materials : materials;
+        const ulong leaf = kept[i];
+        const uint n = (uint)popcount(mid);
+        const uint from = oo[leaf];
+        for (uint k = 0; k < n; ++k) {
+            slot_masks[node + k] = om[leaf + k];
+            slot_offsets[node + k] = oo[leaf + k] - from + materials_before;
+        }
+        __global const uchar* in = om8 + refs[2 * t + 1] + from;
+        __global uchar* out = slot_materials + mb + materials_before;
+        // 16 bytes at a time (vload16 takes any uchar address), then the rest.
+        const uint c = mats[b16];
+        uint k = 0;
+        for (; k + 16 <= c; k += 16) {
+            vstore16(vload16(0, in + k), 0, out + k);
+        }
+        for (; k < c; ++k) {
+            out[k] = in[k];
+        }
+        return;
+    }
+    __global const uchar* vnode = vox + first;
     uint material = materials_before;
     for (ulong m2 = mid; m2 != 0; m2 &= m2 - 1, ++node) {
         const uint b4 = lowest_bit(m2);
-        const uint x4 = x16 + (b4 & 3) * 4, y4 = y16 + (b4 >> 2 & 3) * 4, z4 = z16 + (b4 >> 4) * 4;
+        const uint x4 = (b4 & 3) * 4, y4 = (b4 >> 2 & 3) * 4, z4 = (b4 >> 4) * 4;
         const ulong leaf = leaf_masks[i * 64 + b4];
-        masks[node] = leaf;
-        offsets[node] = material;
+        slot_masks[node] = leaf;
+        slot_offsets[node] = material;
         for (ulong m3 = leaf; m3 != 0; m3 &= m3 - 1) {
             const uint bv = lowest_bit(m3);
-            materials[mb + material++] =
-                tile[((z4 + (bv >> 4)) * TILE + y4 + (bv >> 2 & 3)) * TILE + x4 + (bv & 3)];
+            slot_materials[mb + material++] =
+                vnode[(size_t)(z4 + (bv >> 4)) * pitch_z + (y4 + (bv >> 2 & 3)) * pitch_y + x4 +
+                      (bv & 3)];
         }
     }
 }

@@ -22,6 +22,10 @@ constexpr std::size_t kGroupRows = 8;
 constexpr std::size_t kGroupNodes = 64;
 // Bytes of one slot: its worst-case nodes (mask and offset) and materials.
 constexpr std::uint64_t kSlotBytes = std::uint64_t{kTileMaxNodes} * 12 + kTileVoxels;
+// Voxels of a 16^3 node; an edit's scratch holds its nodes' voxels, one after another.
+constexpr std::uint64_t kNodeVoxels = 16 * 16 * 16;
+// encode_count's "keep this node" (sparse_world.cl NO_TILE).
+constexpr std::uint64_t kKeep = ~std::uint64_t{0};
 // Host-edited boxes over more tiles than this upload the whole world instead.
 constexpr std::size_t kMaxHostEditTiles = 256;
 
@@ -59,35 +63,50 @@ std::uint64_t key_of(std::int64_t tx, std::int64_t ty, std::int64_t tz) {
                     static_cast<std::uint32_t>(tz));
 }
 
-// Enqueues encode_count and encode_write (`count`, `write`) over `tiles` dense tiles of `vox`
-// into the slots listed in `slots`; appends their events to `events`.
+// What encode_count and encode_write read and write (sparse_world.cl): the dense nodes' voxels
+// and, per node, its first voxel there or kKeep; per tile its previous tree's refs; the previous
+// trees' buffers (main and slot); scratch; the output slots.
+struct EncodeBuffers {
+    cl::Buffer vox, src;
+    cl_uint pitch_y = 0, pitch_z = 0;
+    cl::Buffer refs, masks, offsets, materials;
+    cl::Buffer leaf_masks, mid_masks, mid_counts, kept;
+    cl::Buffer slots, slot_masks, slot_offsets, slot_materials, slot_counts;
+};
+
+// Enqueues encode_count and encode_write (`count`, `write`) over `tiles` tiles; appends their
+// events to `events`.
 void enqueue_encode(cl::CommandQueue& q, cl::Kernel& count, cl::Kernel& write,
-                    const cl::Buffer& vox, const cl::Buffer& leaf_masks,
-                    const cl::Buffer& mid_masks, const cl::Buffer& mid_counts,
-                    const cl::Buffer& slots, const cl::Buffer& slot_masks,
-                    const cl::Buffer& slot_offsets, const cl::Buffer& slot_materials,
-                    const cl::Buffer& slot_counts, std::uint32_t tiles,
-                    std::vector<cl::Event>& events) {
+                    const EncodeBuffers& b, std::uint32_t tiles,
+                    std::vector<std::pair<std::string, cl::Event>>& events) {
     const cl::NDRange global(std::size_t{tiles} * 64), local(kGroupNodes);
-    count.setArg(0, vox);
-    count.setArg(1, leaf_masks);
-    count.setArg(2, mid_masks);
-    count.setArg(3, mid_counts);
-    count.setArg(4, tiles);
-    events.emplace_back();
-    q.enqueueNDRangeKernel(count, cl::NullRange, global, local, nullptr, &events.back());
-    write.setArg(0, vox);
-    write.setArg(1, leaf_masks);
-    write.setArg(2, mid_masks);
-    write.setArg(3, mid_counts);
-    write.setArg(4, slots);
-    write.setArg(5, slot_masks);
-    write.setArg(6, slot_offsets);
-    write.setArg(7, slot_materials);
-    write.setArg(8, slot_counts);
-    write.setArg(9, tiles);
-    events.emplace_back();
-    q.enqueueNDRangeKernel(write, cl::NullRange, global, local, nullptr, &events.back());
+    cl_uint arg = 0;
+    for (const auto* buffer : {&b.vox, &b.src}) {
+        count.setArg(arg++, *buffer);
+    }
+    count.setArg(arg++, b.pitch_y);
+    count.setArg(arg++, b.pitch_z);
+    for (const auto* buffer : {&b.refs, &b.masks, &b.offsets, &b.slot_masks, &b.slot_offsets,
+                               &b.leaf_masks, &b.mid_masks, &b.mid_counts, &b.kept}) {
+        count.setArg(arg++, *buffer);
+    }
+    count.setArg(arg, tiles);
+    events.emplace_back("encode_count", cl::Event());
+    q.enqueueNDRangeKernel(count, cl::NullRange, global, local, nullptr, &events.back().second);
+    arg = 0;
+    for (const auto* buffer : {&b.vox, &b.src}) {
+        write.setArg(arg++, *buffer);
+    }
+    write.setArg(arg++, b.pitch_y);
+    write.setArg(arg++, b.pitch_z);
+    for (const auto* buffer :
+         {&b.refs, &b.masks, &b.offsets, &b.materials, &b.leaf_masks, &b.mid_masks, &b.mid_counts,
+          &b.kept, &b.slots, &b.slot_masks, &b.slot_offsets, &b.slot_materials, &b.slot_counts}) {
+        write.setArg(arg++, *buffer);
+    }
+    write.setArg(arg, tiles);
+    events.emplace_back("encode_write", cl::Event());
+    q.enqueueNDRangeKernel(write, cl::NullRange, global, local, nullptr, &events.back().second);
 }
 
 }  // namespace
@@ -106,25 +125,46 @@ std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
         auto& c = ctx.context();
         auto& q = ctx.queue();
         const cl::Program program = world_program(ctx);
+        // Every node dense (its first voxel in its tile), no previous trees.
         std::vector<std::uint32_t> slots(tiles);
+        std::vector<std::uint64_t> src(std::size_t{tiles} * 64), refs(2 * std::size_t{tiles});
         for (std::uint32_t t = 0; t < tiles; ++t) {
             slots[t] = t;
+            refs[2 * t] = SparseDeviceWorld::kNoRef;
+            for (std::uint32_t b = 0; b < 64; ++b) {
+                const std::uint64_t x = (b & 3) * 16, y = (b >> 2 & 3) * 16, z = (b >> 4) * 16;
+                src[std::size_t{t} * 64 + b] =
+                    std::uint64_t{t} * kTileVoxels + (z * kTileSize + y) * kTileSize + x;
+            }
         }
-        cl::Buffer vox(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, voxels.size(),
-                       const_cast<std::uint8_t*>(voxels.data()));
-        cl::Buffer slot_list(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, slots.size() * 4,
-                             slots.data());
-        cl::Buffer leaf(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 4096 * 8);
-        cl::Buffer mid(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 8);
-        cl::Buffer mid_counts(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 4);
-        cl::Buffer masks(c, CL_MEM_READ_WRITE, std::size_t{tiles} * kTileMaxNodes * 8);
-        cl::Buffer offsets(c, CL_MEM_READ_WRITE, std::size_t{tiles} * kTileMaxNodes * 4);
-        cl::Buffer materials(c, CL_MEM_READ_WRITE, voxels.size());
-        cl::Buffer counts(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 8);
-        std::vector<cl::Event> events;
+        auto copy_of = [&](const auto& v) {
+            return cl::Buffer(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, v.size() * sizeof(v[0]),
+                              const_cast<void*>(static_cast<const void*>(v.data())));
+        };
+        EncodeBuffers b;
+        b.vox = cl::Buffer(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, voxels.size(),
+                           const_cast<std::uint8_t*>(voxels.data()));
+        b.src = copy_of(src);
+        b.pitch_y = kTileSize;
+        b.pitch_z = kTileSize * kTileSize;
+        b.refs = copy_of(refs);
+        b.masks = b.materials = b.offsets = cl::Buffer(c, CL_MEM_READ_ONLY, 8);
+        b.slots = copy_of(slots);
+        b.leaf_masks = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 4096 * 8);
+        b.mid_masks = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 8);
+        b.mid_counts = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 4);
+        b.kept = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 8);
+        b.slot_masks = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * kTileMaxNodes * 8);
+        b.slot_offsets = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * kTileMaxNodes * 4);
+        b.slot_materials = cl::Buffer(c, CL_MEM_READ_WRITE, voxels.size());
+        b.slot_counts = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 8);
+        const cl::Buffer& masks = b.slot_masks;
+        const cl::Buffer& offsets = b.slot_offsets;
+        const cl::Buffer& materials = b.slot_materials;
+        const cl::Buffer& counts = b.slot_counts;
+        std::vector<std::pair<std::string, cl::Event>> events;
         cl::Kernel count(program, "encode_count"), write(program, "encode_write");
-        enqueue_encode(q, count, write, vox, leaf, mid, mid_counts, slot_list, masks, offsets,
-                       materials, counts, tiles, events);
+        enqueue_encode(q, count, write, b, tiles, events);
         std::vector<std::uint32_t> n(2 * std::size_t{tiles});
         q.enqueueReadBuffer(counts, CL_TRUE, 0, n.size() * 4, n.data());
         for (std::uint32_t t = 0; t < tiles; ++t) {
@@ -155,7 +195,8 @@ SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, Spa
     }
     cl_call("making the sparse world's kernels", [&] {
         gather_ = cl::Kernel(program_, "gather");
-        brush_ = cl::Kernel(program_, "brush_tiles");
+        gather_voxels_ = cl::Kernel(program_, "gather_voxels");
+        brush_ = cl::Kernel(program_, "brush_nodes");
         count_ = cl::Kernel(program_, "encode_count");
         write_ = cl::Kernel(program_, "encode_write");
     });
@@ -352,23 +393,27 @@ void SparseDeviceWorld::host_edited(const Box& changed) {
     release_slots_if_needed();
 }
 
-void SparseDeviceWorld::ensure_scratch(std::size_t tiles) {
-    if (tiles <= scratch_tiles_) {
+void SparseDeviceWorld::ensure_scratch(std::size_t tiles, std::size_t nodes) {
+    if (tiles <= scratch_tiles_ && nodes <= scratch_nodes_) {
         return;
     }
-    const std::size_t cap = std::max<std::size_t>(tiles, 8);
+    const std::size_t cap = std::max({tiles, scratch_tiles_, std::size_t{8}});
+    const std::size_t node_cap = std::max({nodes, scratch_nodes_, std::size_t{64}});
     cl_call("allocating an edit's scratch", [&] {
         auto& c = ctx_.context();
-        scratch_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * kTileVoxels);
+        scratch_ = cl::Buffer(c, CL_MEM_READ_WRITE, node_cap * kNodeVoxels);
+        edit_src_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 64 * 8);
         leaf_masks_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 4096 * 8);
         mid_masks_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 8);
         mid_counts_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 4);
-        edit_jobs_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 8 * 8);
+        kept_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 8);
+        edit_jobs_ = cl::Buffer(c, CL_MEM_READ_ONLY, node_cap * 8 * 8);
         edit_refs_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 2 * 8);
-        edit_origins_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 3 * 8);
+        edit_origins_ = cl::Buffer(c, CL_MEM_READ_ONLY, node_cap * 3 * 8);
         edit_slots_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 4);
     });
     scratch_tiles_ = cap;
+    scratch_nodes_ = node_cap;
 }
 
 Box SparseDeviceWorld::host_apply_brush(const Brush& brush) {
@@ -405,26 +450,57 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
     host_refs_.clear();
     host_origins_.clear();
     host_slots_.clear();
+    host_src_.assign(std::size_t{n} * 64, kKeep);
     std::vector<std::uint64_t> keys;
+    // Per tile its refs; per 16^3 node the brush's bounds overlap, a job of gather (a 16^3
+    // block) and a block of scratch.
+    std::int64_t tile = 0;
     for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
         const std::int64_t s = kTileSize;
-        const std::uint64_t key = key_of(tx, ty, tz);
         const auto [node_base, material_base] = ref(tx, ty, tz);
-        host_jobs_.insert(host_jobs_.end(),
-                          {tx * s, ty * s, tz * s, tx, ty, tz, 1 | 1ll << 16 | 1ll << 32,
-                           static_cast<std::int64_t>(host_refs_.size() / 2)});
         host_refs_.insert(host_refs_.end(), {node_base, material_base});
-        host_origins_.insert(host_origins_.end(), {tx * s, ty * s, tz * s});
-        keys.push_back(key);
+        keys.push_back(key_of(tx, ty, tz));
+        const Box part = intersect(
+            bounds, Box{{tx * s, ty * s, tz * s}, {(tx + 1) * s, (ty + 1) * s, (tz + 1) * s}});
+        for (std::int64_t z = part.min.z / 16; z <= (part.max.z - 1) / 16; ++z) {
+            for (std::int64_t y = part.min.y / 16; y <= (part.max.y - 1) / 16; ++y) {
+                for (std::int64_t x = part.min.x / 16; x <= (part.max.x - 1) / 16; ++x) {
+                    const std::int64_t bit = (z % 4) << 4 | (y % 4) << 2 | (x % 4);
+                    host_src_[static_cast<std::size_t>(tile * 64 + bit)] =
+                        host_origins_.size() / 3 * kNodeVoxels;
+                    host_jobs_.insert(host_jobs_.end(), {x * 16, y * 16, z * 16, tx, ty, tz,
+                                                         1 | 1ll << 16 | 1ll << 32, tile});
+                    host_origins_.insert(host_origins_.end(), {x * 16, y * 16, z * 16});
+                }
+            }
+        }
+        ++tile;
     });
+    const std::size_t nodes = host_origins_.size() / 3;
+    // Every tile into a slot of its own, never the one its previous tree lies in (read while
+    // writing): slots freed by this edit are taken by later ones only.
+    std::vector<std::uint32_t> freed;
     for (const std::uint64_t key : keys) {
-        host_slots_.push_back(slot_for(key));  // may grow the slot buffers (copied in order)
+        std::uint32_t slot = 0;
+        if (!free_slots_.empty()) {
+            slot = free_slots_.back();
+            free_slots_.pop_back();
+        } else {
+            slot = static_cast<std::uint32_t>(slots_made_++);
+            ensure_slot_capacity(slots_made_);  // copies the slot buffers in queue order
+        }
+        if (const auto it = slot_of_.find(key); it != slot_of_.end()) {
+            freed.push_back(it->second);
+        }
+        slot_of_[key] = slot;
+        host_slots_.push_back(slot);
     }
-    ensure_scratch(n);
+    free_slots_.insert(free_slots_.end(), freed.begin(), freed.end());
+    ensure_scratch(n, nodes);
     edit_events_.clear();
     cl_call("editing " + std::to_string(n) + " tiles on the device", [&] {
         auto& q = ctx_.queue();
-        edit_writes_.resize(4);
+        edit_writes_.resize(5);
         q.enqueueWriteBuffer(edit_jobs_, CL_FALSE, 0, host_jobs_.size() * 8, host_jobs_.data(),
                              nullptr, &edit_writes_[0]);
         q.enqueueWriteBuffer(edit_refs_, CL_FALSE, 0, host_refs_.size() * 8, host_refs_.data(),
@@ -433,20 +509,21 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
                              host_origins_.data(), nullptr, &edit_writes_[2]);
         q.enqueueWriteBuffer(edit_slots_, CL_FALSE, 0, host_slots_.size() * 4, host_slots_.data(),
                              nullptr, &edit_writes_[3]);
+        q.enqueueWriteBuffer(edit_src_, CL_FALSE, 0, host_src_.size() * 8, host_src_.data(),
+                             nullptr, &edit_writes_[4]);
         cl::Kernel gather = gather_kernel();
         gather.setArg(6, edit_jobs_);
         gather.setArg(7, edit_refs_);
         gather.setArg(8, scratch_);
-        gather.setArg(9, kTileSize);
-        gather.setArg(10, kTileSize);
-        gather.setArg(11, kTileSize);
+        gather.setArg(9, cl_uint{16});
+        gather.setArg(10, cl_uint{16});
+        gather.setArg(11, cl_uint{16});
         gather.setArg(12, static_cast<cl_long>(d.x));
         gather.setArg(13, static_cast<cl_long>(d.y));
         gather.setArg(14, static_cast<cl_long>(d.z));
-        edit_events_.emplace_back();
-        q.enqueueNDRangeKernel(gather, cl::NullRange,
-                               cl::NDRange(kTileSize, std::size_t{kTileSize} * n),
-                               cl::NDRange(kGroupRows, 1), nullptr, &edit_events_.back());
+        edit_events_.emplace_back("edit_gather", cl::Event());
+        q.enqueueNDRangeKernel(gather, cl::NullRange, cl::NDRange(16, 16 * nodes),
+                               cl::NDRange(kGroupRows, 1), nullptr, &edit_events_.back().second);
         cl::Kernel& brush_k = brush_;
         brush_k.setArg(0, scratch_);
         brush_k.setArg(1, edit_origins_);
@@ -462,13 +539,28 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
         brush_k.setArg(9, static_cast<cl_long>(d.x));
         brush_k.setArg(10, static_cast<cl_long>(d.y));
         brush_k.setArg(11, static_cast<cl_long>(d.z));
-        edit_events_.emplace_back();
-        q.enqueueNDRangeKernel(brush_k, cl::NullRange,
-                               cl::NDRange(std::size_t{kTileSize} * kTileSize, n),
-                               cl::NDRange(kGroupNodes, 1), nullptr, &edit_events_.back());
-        enqueue_encode(q, count_, write_, scratch_, leaf_masks_, mid_masks_, mid_counts_,
-                       edit_slots_, slot_masks_, slot_offsets_, slot_materials_, slot_counts_, n,
-                       edit_events_);
+        edit_events_.emplace_back("brush_nodes", cl::Event());
+        q.enqueueNDRangeKernel(brush_k, cl::NullRange, cl::NDRange(16 * 16, nodes),
+                               cl::NDRange(kGroupNodes, 1), nullptr, &edit_events_.back().second);
+        EncodeBuffers b;
+        b.vox = scratch_;
+        b.src = edit_src_;
+        b.pitch_y = 16;
+        b.pitch_z = 16 * 16;
+        b.refs = edit_refs_;
+        b.masks = masks_;
+        b.offsets = offsets_;
+        b.materials = materials_;
+        b.leaf_masks = leaf_masks_;
+        b.mid_masks = mid_masks_;
+        b.mid_counts = mid_counts_;
+        b.kept = kept_;
+        b.slots = edit_slots_;
+        b.slot_masks = slot_masks_;
+        b.slot_offsets = slot_offsets_;
+        b.slot_materials = slot_materials_;
+        b.slot_counts = slot_counts_;
+        enqueue_encode(q, count_, write_, b, n, edit_events_);
     });
     for (std::size_t i = 0; i < keys.size(); ++i) {
         dir_[keys[i]] = {kSlotRef | host_slots_[i] * std::uint64_t{kTileMaxNodes},
@@ -481,16 +573,24 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
 
 double SparseDeviceWorld::last_edit_kernel_ms() const {
     double ms = 0;
-    for (const cl::Event& e : edit_events_) {
-        cl_call("waiting for an edit's kernels", [&] { e.wait(); });
-        ms += elapsed_ms(e, e);
+    for (const auto& [name, ms_of] : last_edit_stages()) {
+        ms += ms_of;
     }
     return ms;
 }
 
-cl::Kernel SparseDeviceWorld::gather_kernel() {
+std::vector<std::pair<std::string, double>> SparseDeviceWorld::last_edit_stages() const {
+    std::vector<std::pair<std::string, double>> stages;
+    for (const auto& [name, e] : edit_events_) {
+        cl_call("waiting for an edit's kernels", [&] { e.wait(); });
+        stages.emplace_back(name, elapsed_ms(e, e));
+    }
+    return stages;
+}
+
+cl::Kernel SparseDeviceWorld::gather_kernel(bool per_voxel) {
     return cl_call("setting up the gather kernel", [&] {
-        cl::Kernel& k = gather_;
+        cl::Kernel& k = per_voxel ? gather_voxels_ : gather_;
         k.setArg(0, masks_);
         k.setArg(1, offsets_);
         k.setArg(2, materials_);

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <string>
@@ -213,9 +214,25 @@ std::uint64_t CityScene::hash(std::uint64_t a, std::uint64_t b, std::uint64_t c)
     return splitmix(seed_ ^ splitmix(a ^ splitmix(b ^ splitmix(c))));
 }
 
+// One noise cell's corner values (a noise field's last cell, reused by the next column).
+struct CityScene::Corners {
+    double ix = std::numeric_limits<double>::quiet_NaN(), iz = 0;
+    double a = 0, b = 0, c = 0, d = 0;
+};
+
+// What one fill call reuses between columns: the terrain octaves' last cells (columns along x
+// share them) and the last city block's values (its city noise and ground height).
+struct CityScene::Cache {
+    Corners octaves[4];
+    std::int64_t bx = -1, bz = -1;
+    double city = 0, block_ground = 0;
+};
+
 // Value noise in [0, 1): hashed values at the corners of `cell`-sized squares, smoothly
-// interpolated; `salt` picks an independent field.
-double CityScene::noise(double x, double z, std::uint64_t salt, double cell) const {
+// interpolated; `salt` picks an independent field. `corners`: the cell last used for this
+// salt and cell size (reused when the point lies in it, else replaced), or null.
+double CityScene::noise(double x, double z, std::uint64_t salt, double cell,
+                        Corners* corners) const {
     const double fx = x / cell, fz = z / cell;
     const double ix = std::floor(fx), iz = std::floor(fz);
     const double tx = smooth(fx - ix), tz = smooth(fz - iz);
@@ -223,8 +240,13 @@ double CityScene::noise(double x, double z, std::uint64_t salt, double cell) con
         return unit_of(hash(salt, static_cast<std::uint64_t>(static_cast<std::int64_t>(i)),
                             static_cast<std::uint64_t>(static_cast<std::int64_t>(k))));
     };
-    const double a = at(ix, iz), b = at(ix + 1, iz), c = at(ix, iz + 1), d = at(ix + 1, iz + 1);
-    return (a + (b - a) * tx) + ((c + (d - c) * tx) - (a + (b - a) * tx)) * tz;
+    Corners local;
+    Corners& c = corners != nullptr ? *corners : local;
+    if (!(c.ix == ix && c.iz == iz)) {
+        c = {ix, iz, at(ix, iz), at(ix + 1, iz), at(ix, iz + 1), at(ix + 1, iz + 1)};
+    }
+    const double a = c.a, b = c.b, cc = c.c, d = c.d;
+    return (a + (b - a) * tx) + ((cc + (d - cc) * tx) - (a + (b - a) * tx)) * tz;
 }
 
 CityScene::CityScene(Dims dims, std::uint64_t seed) : dims_(dims), seed_(seed) {
@@ -236,19 +258,22 @@ CityScene::CityScene(Dims dims, std::uint64_t seed) : dims_(dims), seed_(seed) {
     cell_ = std::clamp(static_cast<double>(std::max(dims.x, dims.z)) / 2, 32.0, 1024.0);
 }
 
-CityScene::Column CityScene::column(std::uint32_t x, std::uint32_t z) const {
+// The terrain's height at (x, z): four octaves of noise.
+double CityScene::terrain(double x, double z, Cache* cache) const {
     const double ny = dims_.y;
-    auto terrain = [&](double px, double pz) {
-        double h = 0, amp = 0.5, cell = cell_;
-        for (std::uint64_t octave = 0; octave < 4; ++octave) {
-            h += amp * noise(px, pz, octave, cell);
-            amp *= 0.5;
-            cell *= 0.5;
-        }
-        return std::clamp(std::floor(ny * (0.06 + 0.3 * h)), 1.0, ny);  // h in [0, 0.94)
-    };
+    double h = 0, amp = 0.5, cell = cell_;
+    for (std::uint64_t octave = 0; octave < 4; ++octave) {
+        h += amp * noise(x, z, octave, cell, cache != nullptr ? &cache->octaves[octave] : nullptr);
+        amp *= 0.5;
+        cell *= 0.5;
+    }
+    return std::clamp(std::floor(ny * (0.06 + 0.3 * h)), 1.0, ny);  // h in [0, 0.94)
+}
+
+CityScene::Column CityScene::column(std::uint32_t x, std::uint32_t z, Cache& cache) const {
+    const double ny = dims_.y;
     Column c;
-    c.ground = static_cast<std::uint32_t>(terrain(x, z));
+    c.ground = static_cast<std::uint32_t>(terrain(x, z, &cache));
     const auto lake = static_cast<std::uint32_t>(std::floor(ny * 0.17));
     c.water = std::max(c.ground, std::min(lake, dims_.y));
     c.top = c.ground > ny * 0.3 ? kWhite : kGreen;
@@ -256,8 +281,14 @@ CityScene::Column CityScene::column(std::uint32_t x, std::uint32_t z) const {
     const std::uint32_t bx = x / kBlock, bz = z / kBlock;
     const std::uint32_t lx = x % kBlock, lz = z % kBlock;
     const double cx = bx * double{kBlock} + kBlock / 2.0, cz = bz * double{kBlock} + kBlock / 2.0;
-    const double city = noise(cx, cz, 100, 4 * cell_);
-    const double block_ground = terrain(cx, cz);
+    if (cache.bx != bx || cache.bz != bz) {
+        cache.city = noise(cx, cz, 100, 4 * cell_, nullptr);
+        cache.block_ground = terrain(cx, cz, nullptr);
+        cache.bx = bx;
+        cache.bz = bz;
+    }
+    const double city = cache.city;
+    const double block_ground = cache.block_ground;
     if (city < 0.45 || block_ground <= lake) {
         return c;
     }
@@ -317,14 +348,27 @@ void CityScene::fill(const Box& box, std::span<std::uint8_t> out) const {
                          " bytes does not fit the world " + dims_.to_string());
     }
     const auto sx = static_cast<std::size_t>(box.max.x - box.min.x);
-    const auto sy = static_cast<std::size_t>(box.max.y - box.min.y);
-    std::size_t z_offset = 0;
-    for (std::int64_t z = box.min.z; z < box.max.z; ++z, z_offset += sx * sy) {
-        for (std::int64_t x = box.min.x; x < box.max.x; ++x) {
-            const Column c = column(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(z));
-            std::uint8_t* o = out.data() + z_offset + static_cast<std::size_t>(x - box.min.x);
-            for (std::int64_t y = box.min.y; y < box.max.y; ++y, o += sx) {
-                const auto wy = static_cast<std::uint32_t>(y);
+    // Per z, the row of columns first, then the voxels row by row (sequential writes); rows
+    // above every column's top are empty.
+    std::vector<Column> columns(sx);
+    Cache cache;
+    std::uint8_t* o = out.data();
+    for (std::int64_t z = box.min.z; z < box.max.z; ++z) {
+        std::int64_t top = 0;  // above every column's content
+        for (std::size_t i = 0; i < sx; ++i) {
+            const Column& c = columns[i] =
+                column(static_cast<std::uint32_t>(box.min.x) + static_cast<std::uint32_t>(i),
+                       static_cast<std::uint32_t>(z), cache);
+            top = std::max<std::int64_t>({top, c.ground, c.water, c.roof});
+        }
+        for (std::int64_t y = box.min.y; y < box.max.y; ++y, o += sx) {
+            if (y >= top) {
+                std::fill_n(o, sx, std::uint8_t{0});
+                continue;
+            }
+            const auto wy = static_cast<std::uint32_t>(y);
+            for (std::size_t i = 0; i < sx; ++i) {
+                const Column& c = columns[i];
                 std::uint8_t v = 0;
                 if (wy < c.roof && wy >= c.base) {
                     const std::uint32_t floor = wy >= c.level ? (wy - c.level) % 5 : 0;
@@ -338,7 +382,7 @@ void CityScene::fill(const Box& box, std::span<std::uint8_t> out) const {
                 } else if (wy < c.water) {
                     v = kBlue;
                 }
-                *o = v;
+                o[i] = v;
             }
         }
     }

@@ -110,60 +110,82 @@ SparseWorld SparseWorld::from_fill(Dims dims, const BoxFill& fill, unsigned thre
     if (threads == 0) {
         threads = std::max(1u, std::thread::hardware_concurrency());
     }
-    // Rows of tiles (fixed tz, ty; every tx) in batches: each thread fills and encodes whole
-    // rows, then the batch is stored in row order, so tiles are numbered as one thread would.
-    const std::uint64_t rows = std::uint64_t{s.grid_.y} * s.grid_.z;
-    const std::uint64_t batch = std::uint64_t{threads} * 4;
-    std::vector<std::vector<EncodedTile>> encoded(batch);
-    for (std::uint64_t first = 0; first < rows; first += batch) {
-        const std::uint64_t count = std::min(batch, rows - first);
+    // Work units: a column of tiles (fixed tz, tx) over up to kStack tiles along y, filled as
+    // one box (a fill computing per (x, z) column, such as the city's, computes each once per
+    // kStack tiles instead of once per tile). Slabs of tiles (fixed tz) in batches: the
+    // threads fill and encode a batch's units, then its tiles are stored in (tz, ty, tx)
+    // order, so tiles are numbered as one thread would.
+    constexpr std::uint32_t kStack = 16;
+    const std::uint32_t stacks = (s.grid_.y + kStack - 1) / kStack;
+    const std::uint64_t per_slab = std::uint64_t{s.grid_.x} * stacks;
+    const auto slabs_per_batch = static_cast<std::uint32_t>(
+        std::max<std::uint64_t>(1, (std::uint64_t{threads} * 4 + per_slab - 1) / per_slab));
+    const std::uint64_t slab_tiles = std::uint64_t{s.grid_.x} * s.grid_.y;
+    std::vector<EncodedTile> encoded;
+    for (std::uint32_t first = 0; first < s.grid_.z; first += slabs_per_batch) {
+        const std::uint32_t slabs = std::min(slabs_per_batch, s.grid_.z - first);
+        const std::uint64_t count = per_slab * slabs;
+        encoded.assign(slab_tiles * slabs, EncodedTile{});
         std::atomic<std::uint64_t> next{0};
         std::exception_ptr failure;
         std::mutex failure_mutex;
         auto work = [&] {
-            std::vector<std::uint8_t> box_voxels(kTileVoxels), tile(kTileVoxels);
-            for (std::uint64_t r = next++; r < count; r = next++) {
-                const auto ty = static_cast<std::uint32_t>((first + r) % s.grid_.y);
-                const auto tz = static_cast<std::uint32_t>((first + r) / s.grid_.y);
-                std::vector<EncodedTile>& out = encoded[r];
-                out.assign(s.grid_.x, EncodedTile{});
+            std::vector<std::uint8_t> box_voxels, tile(kTileVoxels);
+            for (std::uint64_t u = next++; u < count; u = next++) {
+                const auto slab = static_cast<std::uint32_t>(u / per_slab);
+                const auto tz = first + slab;
+                const auto tx = static_cast<std::uint32_t>(u % per_slab % s.grid_.x);
+                const auto ty0 = static_cast<std::uint32_t>(u % per_slab / s.grid_.x) * kStack;
+                const std::uint32_t ty1 = std::min(ty0 + kStack, s.grid_.y);
                 try {
-                    for (std::uint32_t tx = 0; tx < s.grid_.x; ++tx) {
-                        const Box box{
-                            {std::int64_t{tx} * kTileSize, std::int64_t{ty} * kTileSize,
-                             std::int64_t{tz} * kTileSize},
-                            {std::min<std::int64_t>(std::int64_t{tx + 1} * kTileSize, dims.x),
-                             std::min<std::int64_t>(std::int64_t{ty + 1} * kTileSize, dims.y),
-                             std::min<std::int64_t>(std::int64_t{tz + 1} * kTileSize, dims.z)}};
-                        const auto n = static_cast<std::size_t>(box.volume());
-                        fill(box, std::span<std::uint8_t>(box_voxels.data(), n));
-                        if (std::all_of(box_voxels.begin(),
-                                        box_voxels.begin() + static_cast<long>(n),
-                                        [](std::uint8_t v) { return v == 0; })) {
+                    const Box box{
+                        {std::int64_t{tx} * kTileSize, std::int64_t{ty0} * kTileSize,
+                         std::int64_t{tz} * kTileSize},
+                        {std::min<std::int64_t>(std::int64_t{tx + 1} * kTileSize, dims.x),
+                         std::min<std::int64_t>(std::int64_t{ty1} * kTileSize, dims.y),
+                         std::min<std::int64_t>(std::int64_t{tz + 1} * kTileSize, dims.z)}};
+                    box_voxels.resize(static_cast<std::size_t>(box.volume()));
+                    fill(box, box_voxels);
+                    const auto bx = static_cast<std::size_t>(box.max.x - box.min.x);
+                    const auto by = static_cast<std::size_t>(box.max.y - box.min.y);
+                    const auto bz = static_cast<std::uint32_t>(box.max.z - box.min.z);
+                    for (std::uint32_t ty = ty0; ty < ty1; ++ty) {
+                        // Tile ty's rows: y in [y0, y1) of the box.
+                        const std::size_t y0 = std::size_t{ty - ty0} * kTileSize;
+                        const std::size_t y1 = std::min(y0 + kTileSize, by);
+                        bool any = false;
+                        for (std::uint32_t z = 0; z < bz && !any; ++z) {
+                            const auto row = box_voxels.begin() +
+                                             static_cast<std::ptrdiff_t>((z * by + y0) * bx);
+                            any =
+                                std::any_of(row, row + static_cast<std::ptrdiff_t>((y1 - y0) * bx),
+                                            [](std::uint8_t v) { return v != 0; });
+                        }
+                        if (!any) {
                             continue;
                         }
-                        const auto bx = static_cast<std::size_t>(box.max.x - box.min.x);
-                        const auto by = static_cast<std::uint32_t>(box.max.y - box.min.y);
-                        const auto bz = static_cast<std::uint32_t>(box.max.z - box.min.z);
-                        if (bx != kTileSize || by != kTileSize || bz != kTileSize) {
+                        if (bx != kTileSize || y1 - y0 != kTileSize || bz != kTileSize) {
                             std::fill(tile.begin(), tile.end(), std::uint8_t{0});
                         }
                         for (std::uint32_t z = 0; z < bz; ++z) {
-                            for (std::uint32_t y = 0; y < by; ++y) {
+                            for (std::size_t y = y0; y < y1; ++y) {
                                 std::copy_n(
                                     box_voxels.begin() +
-                                        static_cast<std::ptrdiff_t>((std::size_t{z} * by + y) * bx),
-                                    bx, tile.begin() + static_cast<long>(local_index(0, y, z)));
+                                        static_cast<std::ptrdiff_t>((z * by + y) * bx),
+                                    bx,
+                                    tile.begin() + static_cast<long>(local_index(
+                                                       0, static_cast<std::uint32_t>(y - y0), z)));
                             }
                         }
-                        out[tx] = encode_tile(tile);
+                        encoded[slab * slab_tiles + std::uint64_t{ty} * s.grid_.x + tx] =
+                            encode_tile(tile);
                     }
                 } catch (...) {
                     const std::lock_guard<std::mutex> lock(failure_mutex);
                     if (!failure) {
                         failure = std::current_exception();
                     }
-                    next = count;  // the other threads stop at their next row
+                    next = count;  // the other threads stop at their next unit
                 }
             }
         };
@@ -179,15 +201,13 @@ SparseWorld SparseWorld::from_fill(Dims dims, const BoxFill& fill, unsigned thre
         if (failure) {
             std::rethrow_exception(failure);
         }
-        for (std::uint64_t r = 0; r < count; ++r) {
-            const auto ty = static_cast<std::uint32_t>((first + r) % s.grid_.y);
-            const auto tz = static_cast<std::uint32_t>((first + r) / s.grid_.y);
-            for (std::uint32_t tx = 0; tx < s.grid_.x; ++tx) {
-                if (!encoded[r][tx].masks.empty()) {
-                    s.put_tile(tx, ty, tz, encoded[r][tx]);
-                }
+        for (std::uint64_t i = 0; i < encoded.size(); ++i) {
+            if (!encoded[i].masks.empty()) {
+                const std::uint64_t in_slab = i % slab_tiles;
+                s.put_tile(static_cast<std::uint32_t>(in_slab % s.grid_.x),
+                           static_cast<std::uint32_t>(in_slab / s.grid_.x),
+                           first + static_cast<std::uint32_t>(i / slab_tiles), encoded[i]);
             }
-            std::vector<EncodedTile>().swap(encoded[r]);
         }
     }
     return s;
@@ -356,12 +376,38 @@ void SparseWorld::decode_tile(std::uint32_t tile, std::span<std::uint8_t> out) c
 }
 
 Box SparseWorld::solid_bounds(std::uint32_t tile) const {
+    // From the masks: per 4^3 leaf, the x, y and z of its solid voxels by folding its mask.
     const Int3 t = tile_coord(tile);
     Int3 lo{kTileSize, kTileSize, kTileSize}, hi{0, 0, 0};
-    for_each_solid(*this, tile, [&](std::int64_t x, std::int64_t y, std::int64_t z, std::uint8_t) {
-        lo = {std::min(lo.x, x), std::min(lo.y, y), std::min(lo.z, z)};
-        hi = {std::max(hi.x, x + 1), std::max(hi.y, y + 1), std::max(hi.z, z + 1)};
-    });
+    const std::uint64_t base = node_bases_[tile];
+    std::uint64_t child = base + node_offsets_[base];
+    for (std::uint64_t r = node_masks_[base]; r != 0; r &= r - 1, ++child) {
+        const int b16 = std::countr_zero(r);
+        std::uint64_t leaf = base + node_offsets_[child];
+        for (std::uint64_t m = node_masks_[child]; m != 0; m &= m - 1, ++leaf) {
+            const int b4 = std::countr_zero(m);
+            const std::uint64_t v = node_masks_[leaf];
+            const std::int64_t ox = (b16 & 3) * 16 + (b4 & 3) * 4;
+            const std::int64_t oy = (b16 >> 2 & 3) * 16 + (b4 >> 2 & 3) * 4;
+            const std::int64_t oz = (b16 >> 4) * 16 + (b4 >> 4) * 4;
+            // Bit k of zs / ys / xs: some solid voxel at z / y / x = k.
+            unsigned zs = 0, ys = 0;
+            for (unsigned k = 0; k < 4; ++k) {
+                zs |= unsigned{(v >> (16 * k) & 0xFFFF) != 0} << k;
+            }
+            const std::uint64_t yx = (v | v >> 16 | v >> 32 | v >> 48) & 0xFFFF;
+            for (unsigned k = 0; k < 4; ++k) {
+                ys |= unsigned{(yx >> (4 * k) & 0xF) != 0} << k;
+            }
+            const auto xs = static_cast<unsigned>((yx | yx >> 4 | yx >> 8 | yx >> 12) & 0xF);
+            lo = {std::min<std::int64_t>(lo.x, ox + std::countr_zero(xs)),
+                  std::min<std::int64_t>(lo.y, oy + std::countr_zero(ys)),
+                  std::min<std::int64_t>(lo.z, oz + std::countr_zero(zs))};
+            hi = {std::max<std::int64_t>(hi.x, ox + std::bit_width(xs)),
+                  std::max<std::int64_t>(hi.y, oy + std::bit_width(ys)),
+                  std::max<std::int64_t>(hi.z, oz + std::bit_width(zs))};
+        }
+    }
     const Int3 o{t.x * kTileSize, t.y * kTileSize, t.z * kTileSize};
     return {{o.x + lo.x, o.y + lo.y, o.z + lo.z}, {o.x + hi.x, o.y + hi.y, o.z + hi.z}};
 }

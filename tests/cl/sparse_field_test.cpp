@@ -438,6 +438,76 @@ TEST(SparseDeviceWorld, BrushesOnTheDeviceEqualTheDenseReference) {
     }
 }
 
+// Device edits re-encode only the 16^3 nodes a brush touches and copy the others: many small
+// brushes on a few tiles of solid ground (full nodes: long material runs to copy), centred on
+// 16^3 node and 64^3 tile borders and at the world's edges, each tile re-edited many times
+// (its previous tree in a slot). Every few edits the host world, read back, holds every tile as
+// encode_tile stores it and the dense world's voxels; the field equals the dense bounded field.
+TEST(SparseDeviceWorld, RepeatedSmallEditsKeepTheUntouchedNodes) {
+    std::mt19937 rng(34);
+    const Palette p = Palette::magicavoxel_default();
+    const Dims d{150, 90, 140};  // 3 x 2 x 3 tiles, cut by the world's edge
+    World w(d);
+    for (std::uint32_t z = 0; z < d.z; ++z) {
+        for (std::uint32_t y = 0; y < d.y; ++y) {
+            for (std::uint32_t x = 0; x < d.x; ++x) {
+                const std::uint32_t ground = 40 + (x * 3 + z * 5) % 30;
+                if (y < ground) {
+                    w.set(x, y, z, static_cast<std::uint8_t>(1 + (x + 2 * y + 3 * z) % 200));
+                }
+            }
+        }
+    }
+    int k = 0;
+    for (const Metric m : kMetrics) {
+        for (const bool sgn : {false, true}) {
+            Case c;
+            c.metric = m;
+            c.signed_field = sgn;
+            c.layout = kLayouts[k % 2];
+            c.bound = 5;
+            c.format = ocl::default_format(m, c.spacing, sgn);
+            ++k;
+            SCOPED_TRACE(describe(c, d));
+            World dense = w;
+            SparseWorld s = SparseWorld::from_dense(dense);
+            ocl::SparseField f(pocl(), s, p, options_of(c));
+            f.run();
+            auto border = [&](std::uint32_t extent) {
+                // A 16^3 or 64^3 border (or the world's edge), moved by -2..2.
+                const std::int64_t step = std::bernoulli_distribution(0.5)(rng) ? 16 : 64;
+                const std::int64_t n = extent / step + 1;
+                const std::int64_t at =
+                    std::uniform_int_distribution<std::int64_t>(0, n)(rng) * step;
+                return std::min<std::int64_t>(at, extent) +
+                       std::uniform_int_distribution<std::int64_t>(-2, 2)(rng);
+            };
+            for (int e = 0; e < 24; ++e) {
+                Brush b;
+                b.op = static_cast<BrushOp>(e % 3);
+                b.shape = static_cast<BrushShape>(e / 3 % 2);
+                b.centre = {border(d.x), border(d.y), border(d.z)};
+                b.radius = std::uniform_int_distribution<std::int64_t>(0, 6)(rng);
+                b.material = static_cast<std::uint8_t>(1 + e);
+                apply_brush(dense, b);
+                f.apply_brush(b);
+                if (e % 8 == 7) {
+                    expect_same(f.read_dense(), dense_field(dense, p, c), c, d,
+                                "after edit " + std::to_string(e));
+                    const SparseWorld& host = f.world();
+                    ASSERT_EQ(host.to_dense().voxels(), dense.voxels()) << "after edit " << e;
+                    std::vector<std::uint8_t> tile(kTileVoxels);
+                    for (std::uint32_t t = 0; t < host.tile_count(); ++t) {
+                        host.decode_tile(t, tile);
+                        ASSERT_EQ(stored_tile(host, t), SparseWorld::encode_tile(tile))
+                            << "tile " << t << " after edit " << e;
+                    }
+                }
+            }
+        }
+    }
+}
+
 TEST(SparseDeviceWorld, LargeBrushesAndReadOnlyWorlds) {
     std::mt19937 rng(33);
     const Palette p = Palette::magicavoxel_default();

@@ -163,19 +163,62 @@ TEST(SparseWorld, BuildsFromABoxFillTileByTile) {
             }
         }
     });
-    EXPECT_EQ(boxes.size(), 4u * 2u * 3u);  // every tile once, clipped to the world
+    // Every column of tiles (x, z) once, all its 2 tiles along y in one box, clipped.
+    EXPECT_EQ(boxes.size(), 4u * 3u);
+    std::int64_t volume = 0;
     for (const Box& b : boxes) {
         EXPECT_LE(b.max.x - b.min.x, 64);
+        EXPECT_LE(b.max.z - b.min.z, 64);
+        EXPECT_EQ(b.min.y, 0);
         EXPECT_LE(b.max.x, d.x);
-        EXPECT_LE(b.max.y, d.y);
+        EXPECT_EQ(b.max.y, d.y);
         EXPECT_LE(b.max.z, d.z);
+        volume += b.volume();
     }
+    EXPECT_EQ(volume, static_cast<std::int64_t>(d.count()));
     World w(d);
     for (std::uint32_t z = 0; z < d.z; ++z) {
         for (std::uint32_t y = 0; y < d.y; ++y) {
             for (std::uint32_t x = 0; x < d.x; ++x) {
                 w.set(x, y, z,
                       y < 20 + (x * 7 + z * 3) % 40 ? static_cast<std::uint8_t>(1 + x % 7) : 0);
+            }
+        }
+    }
+    expect_consistent(s, w);
+}
+
+// A world taller than 16 tiles: its columns of tiles are filled 16 tiles at a time.
+TEST(SparseWorld, BuildsTallWorldsSixteenTilesAtATime) {
+    const Dims d{70, 1100, 10};
+    std::vector<Box> boxes;
+    std::mutex boxes_mutex;
+    auto value = [](std::int64_t x, std::int64_t y, std::int64_t z) -> std::uint8_t {
+        return (x + 3 * y + 5 * z) % 11 < 2 ? static_cast<std::uint8_t>(1 + y % 9) : 0;
+    };
+    const SparseWorld s = SparseWorld::from_fill(d, [&](const Box& b, std::span<std::uint8_t> out) {
+        {
+            const std::lock_guard<std::mutex> lock(boxes_mutex);
+            boxes.push_back(b);
+        }
+        std::size_t i = 0;
+        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
+            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
+                for (std::int64_t x = b.min.x; x < b.max.x; ++x) {
+                    out[i++] = value(x, y, z);
+                }
+            }
+        }
+    });
+    EXPECT_EQ(boxes.size(), 2u * 2u);  // 2 columns along x, 18 tiles along y in 16 + 2
+    for (const Box& b : boxes) {
+        EXPECT_TRUE(b.min.y == 0 ? b.max.y == 1024 : b.min.y == 1024 && b.max.y == d.y);
+    }
+    World w(d);
+    for (std::uint32_t z = 0; z < d.z; ++z) {
+        for (std::uint32_t y = 0; y < d.y; ++y) {
+            for (std::uint32_t x = 0; x < d.x; ++x) {
+                w.set(x, y, z, value(x, y, z));
             }
         }
     }

@@ -191,11 +191,17 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         field_wall.push_back(ms_since(t0));
     }
     const Summary fw = summarize(field_wall), fk = summarize(field_kernel);
+    json field_stages = json::object();
+    for (const auto& [name, ms] : field.last_stages()) {
+        field_stages[name] = ms;
+    }
+    const ocl::SparseField::Work field_work = field.last_work();
     observer.stage(label + ": whole field in " + fixed(fw.median, 1) + " ms (kernels " +
                    fixed(fk.median, 1) + " ms), " + std::to_string(field.dense_tiles()) +
                    " field tiles; radius-8 edits on the device");
 
-    std::vector<double> edit_wall, edit_kernel, edit_encode;
+    std::vector<double> edit_wall, edit_kernel, edit_encode, edit_gap;
+    std::vector<std::pair<std::string, std::vector<double>>> edit_stages;  // per kernel name
     std::uint64_t recomputed = 0;
     for (std::size_t e = 0; e < edits.size(); ++e) {
         const bool warm = e < warmup;
@@ -209,9 +215,26 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
             edit_wall.push_back(wall);
             edit_kernel.push_back(u.kernel_ms);
             edit_encode.push_back(u.edit_kernel_ms);
+            edit_gap.push_back(wall - u.kernel_ms);
+            for (const auto& [name, ms] : u.stages) {
+                auto it = std::find_if(edit_stages.begin(), edit_stages.end(),
+                                       [&](const auto& s) { return s.first == name; });
+                if (it == edit_stages.end()) {
+                    edit_stages.emplace_back(name, std::vector<double>(edit_wall.size() - 1, 0.0));
+                    it = edit_stages.end() - 1;
+                }
+                it->second.push_back(ms);
+            }
+            for (auto& [name, samples] : edit_stages) {
+                samples.resize(edit_wall.size(), 0.0);
+            }
             recomputed +=
                 u.recomputed.empty() ? 0 : static_cast<std::uint64_t>(u.recomputed.volume());
         }
+    }
+    json stage_medians = json::object();
+    for (const auto& [name, samples] : edit_stages) {
+        stage_medians[name] = summarize(samples).median;
     }
     const double peak = peak_rss_bytes();
     const auto t_sync = Clock::now();
@@ -258,6 +281,14 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"field_kernel_ms", fk.median},
         {"field_wall_ms_samples", field_wall},
         {"field_kernel_ms_samples", field_kernel},
+        {"field_stage_ms", field_stages},
+        {"field_blocks", field_work.blocks},
+        {"field_batches", field_work.batches},
+        {"field_block_voxels", field_work.block_voxels},
+        {"field_region_voxels", field_work.region_voxels},
+        {"field_halo_factor", field_work.region_voxels > 0 ? double(field_work.block_voxels) /
+                                                                 double(field_work.region_voxels)
+                                                           : 0.0},
         {"gvox_per_s", double(dims.count()) / (fw.median * 1e-3) / 1e9},
         {"iterations", nullptr},
         {"edit_radius", kEditRadius},
@@ -271,6 +302,8 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"edit_kernel_ms_median", summarize(edit_kernel).median},
         {"edit_kernel_ms_samples", edit_kernel},
         {"edit_world_kernel_ms_median", summarize(edit_encode).median},
+        {"edit_stage_ms_median", stage_medians},
+        {"edit_outside_kernels_ms_median", summarize(edit_gap).median},
         {"samples_ms", edit_wall},
         {"edit_voxels_recomputed_mean",
          edit_wall.empty() ? 0.0 : double(recomputed) / double(edit_wall.size())},

@@ -1,20 +1,25 @@
 #pragma once
 // A sparse world's 64-trees on an OpenCL device (core/sparse.hpp's layout; kernels:
-// cl/kernels/sparse_world.cl), edited there: a brush's tiles are gathered into dense tiles,
-// brushed and encoded again on the device, bit for bit as core's SparseWorld::encode_tile,
-// so that an edit neither reads anything back nor encodes on the host. The host world is
-// brought up to date (the edited tiles read back and stored) only when it is read: world().
+// cl/kernels/sparse_world.cl), edited there: the 16^3 nodes a brush's bounds overlap are gathered
+// into dense blocks, brushed, and their tiles encoded again on the device (those nodes from the
+// blocks, the others copied from the tile's previous tree), bit for bit as core's
+// SparseWorld::encode_tile, so that an edit neither reads anything back nor encodes on the host.
+// The host world is brought up to date (the edited tiles read back and stored) only when it is
+// read: world().
 //
 // Where the trees lie: the main buffers hold the host world's buffers as uploaded; a tile
 // encoded since (on the device, or on the host and uploaded by host_edited) lives in a slot
-// of its own, sized for the worst case (kTileMaxNodes nodes, kTileVoxels materials), which it
-// keeps while it is edited again: variable-size output without a count read back. Slots
+// of its own, sized for the worst case (kTileMaxNodes nodes, kTileVoxels materials):
+// variable-size output without a count read back. A device edit writes each tile into another
+// slot (its previous one is read meanwhile) and frees the previous one for later edits. Slots
 // taking more than a quarter of the main buffers' bytes (at least 256 MiB) bring the host world
 // up to date and upload it again whole, which frees them.
 #include <cstdint>
 #include <span>
+#include <string>
 #include <unordered_map>
 #include <unordered_set>
+#include <utility>
 #include <vector>
 
 #include "voxfield/cl/runtime.hpp"
@@ -62,10 +67,12 @@ class SparseDeviceWorld {
     static constexpr std::uint32_t kMaxEditTiles = 64;
     // Device time of the kernels of the last apply_brush (ms; valid once the queue finished).
     double last_edit_kernel_ms() const;
+    // The same per kernel (name, ms), in launch order.
+    std::vector<std::pair<std::string, double>> last_edit_stages() const;
 
-    // The gather kernel (sparse_world.cl) with the world's buffers as its arguments 0-5; the
-    // caller sets the job arguments 6-14.
-    cl::Kernel gather_kernel();
+    // The gather kernel (sparse_world.cl; `per_voxel`: gather_voxels, the GPU layout's) with
+    // the world's buffers as its arguments 0-5; the caller sets the job arguments 6-14.
+    cl::Kernel gather_kernel(bool per_voxel = false);
     // A tile's node base and material base for gather's refs (kNoRef, 0 when not stored).
     static constexpr std::uint64_t kNoRef = ~std::uint64_t{0};
     std::pair<std::uint64_t, std::uint64_t> ref(std::int64_t tx, std::int64_t ty,
@@ -77,7 +84,7 @@ class SparseDeviceWorld {
     void upload_whole();
     std::uint32_t slot_for(std::uint64_t key);
     void ensure_slot_capacity(std::size_t slots);
-    void ensure_scratch(std::size_t tiles);
+    void ensure_scratch(std::size_t tiles, std::size_t nodes);
     void release_slots_if_needed();
     void host_changed_seen();
     Box host_apply_brush(const Brush& brush);
@@ -86,7 +93,7 @@ class SparseDeviceWorld {
     const SparseWorld& world_;
     SparseWorld* editable_ = nullptr;
     cl::Program program_;
-    cl::Kernel gather_, brush_, count_, write_;  // made once, arguments set per launch
+    cl::Kernel gather_, gather_voxels_, brush_, count_, write_;  // arguments set per launch
     // Main buffers: the host world as uploaded; dir_: per stored tile key, its refs.
     cl::Buffer masks_, offsets_, materials_;
     std::unordered_map<std::uint64_t, std::pair<std::uint64_t, std::uint64_t>> dir_;
@@ -101,15 +108,17 @@ class SparseDeviceWorld {
     // What the host world's buffers were when the device last matched it.
     std::uint64_t seen_nodes_ = 0, seen_materials_ = 0, seen_generation_ = 0;
     std::uint32_t seen_tiles_ = 0;
-    // An edit's dense tiles and encoding scratch, for up to scratch_tiles_ tiles.
-    cl::Buffer scratch_, leaf_masks_, mid_masks_, mid_counts_, edit_jobs_, edit_refs_,
-        edit_origins_, edit_slots_;
-    std::size_t scratch_tiles_ = 0;
+    // An edit's dense 16^3 nodes and encoding scratch, for up to scratch_tiles_ tiles and
+    // scratch_nodes_ nodes.
+    cl::Buffer scratch_, edit_src_, leaf_masks_, mid_masks_, mid_counts_, kept_, edit_jobs_,
+        edit_refs_, edit_origins_, edit_slots_;
+    std::size_t scratch_tiles_ = 0, scratch_nodes_ = 0;
     // The last edit's tables (kept until their writes are done) and kernels.
     std::vector<std::int64_t> host_jobs_, host_origins_;
-    std::vector<std::uint64_t> host_refs_;
+    std::vector<std::uint64_t> host_refs_, host_src_;
     std::vector<std::uint32_t> host_slots_;
-    std::vector<cl::Event> edit_writes_, edit_events_;
+    std::vector<cl::Event> edit_writes_;
+    std::vector<std::pair<std::string, cl::Event>> edit_events_;
 };
 
 }  // namespace voxfield::ocl

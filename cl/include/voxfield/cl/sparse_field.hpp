@@ -17,7 +17,9 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "voxfield/cl/generator.hpp"
@@ -58,6 +60,8 @@ class SparseField {
         std::uint32_t tiles = 0;  // field tiles written
         double kernel_ms = 0;
         double edit_kernel_ms = 0;  // of which apply_brush's decoding, brush and encoding
+        // kernel_ms by kernel (name, ms; summed per name), in first-launch order.
+        std::vector<std::pair<std::string, double>> stages;
     };
     // After the world's voxels inside `changed` were edited on the host (SparseWorld::edit /
     // apply_brush return that box), brings the device's world and the field up to date:
@@ -72,6 +76,15 @@ class SparseField {
     // The world, brought up to date with the device's edits first.
     const SparseWorld& world() { return device_world_.world(); }
     const SparseDeviceWorld& device_world() const { return device_world_; }
+
+    // The last run()'s or update's work: dense blocks and batches, voxels gathered and
+    // transformed (halos included) and voxels written (the blocks' regions); kernel ms per
+    // kernel (name, ms; summed per name) in first-launch order.
+    struct Work {
+        std::uint64_t blocks = 0, batches = 0, block_voxels = 0, region_voxels = 0;
+    };
+    const Work& last_work() const { return work_; }
+    const std::vector<std::pair<std::string, double>>& last_stages() const { return stages_; }
 
     const GeneratorOptions& options() const { return options_; }
     std::uint32_t halo(int axis) const { return halo_[axis]; }
@@ -105,8 +118,12 @@ class SparseField {
     };
     struct Batch;  // a dense generator of one block shape and its buffers
     Batch& batch_for(Dims block, std::uint32_t blocks);
-    // Computes `jobs` (each block: block dims) in batches; returns kernel ms.
+    // Computes `jobs` (each block: block dims) in batches; returns kernel ms and adds them per
+    // kernel to stages_, except the last scatters', which are left in scatters_ (nothing waits
+    // for them): settle_scatters() waits and returns their ms.
     double compute(const std::vector<Job>& jobs, Dims block);
+    double settle_scatters();
+    void add_stage(const std::string& name, double ms);
     // Recomputes the voxels within D of `changed` (the device's world already edited).
     Update recompute(const Box& changed);
     // The slot of field tile `key`, made dense (filled with its constant) when it was not.
@@ -125,8 +142,10 @@ class SparseField {
     std::size_t elem_ = 0;
     std::vector<std::uint8_t> far_, inside_;
     cl::Program program_;
-    cl::Kernel scatter_, node_minima_;  // made once, arguments set per launch
-    SparseDeviceWorld device_world_;    // the world's 64-trees on the device
+    // Whether gather and scatter take a work-item per voxel (GPU layout) or per row.
+    bool gpu_layout_ = false;
+    cl::Kernel scatter_, scatter_voxels_, node_minima_;  // arguments set per launch
+    SparseDeviceWorld device_world_;                     // the world's 64-trees on the device
     // node_minima's slots, tile coordinates and minima in list order.
     cl::Buffer minima_list_, minima_coords_, minima_listed_, minima_nodes_;
     std::size_t minima_list_cap_ = 0;
@@ -140,6 +159,9 @@ class SparseField {
     std::map<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>,
              std::unique_ptr<Batch>>
         batches_;
+    std::vector<std::pair<std::string, double>> stages_;  // of the running run() or update
+    std::vector<cl::Event> scatters_;
+    Work work_;
 };
 
 }  // namespace voxfield::ocl

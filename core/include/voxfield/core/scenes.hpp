@@ -37,8 +37,11 @@ class CityScene {
 
   private:
     struct Column;
-    Column column(std::uint32_t x, std::uint32_t z) const;
-    double noise(double x, double z, std::uint64_t salt, double cell) const;
+    struct Cache;
+    Column column(std::uint32_t x, std::uint32_t z, Cache& cache) const;
+    double terrain(double x, double z, Cache* cache) const;
+    struct Corners;
+    double noise(double x, double z, std::uint64_t salt, double cell, Corners* corners) const;
     std::uint64_t hash(std::uint64_t a, std::uint64_t b, std::uint64_t c) const;
 
     Dims dims_;

@@ -60,8 +60,9 @@ class SparseWorld {
     explicit SparseWorld(Dims dims);
     // From a dense world (its solid voxels).
     static SparseWorld from_dense(const World& world);
-    // Tile by tile from `fill`, called once per tile (its box clipped to the world), so that
-    // no dense array of the world ever exists. Tiles are filled and encoded on up to
+    // Tile by tile from `fill`, called once per column of tiles (a tile's x and z extents,
+    // up to 16 tiles along y, clipped to the world: a fill that computes per (x, z) column
+    // does so once per 16 tiles), so that no dense array of the world ever exists. Tiles are filled and encoded on up to
     // `threads` threads (0: one per hardware thread), so `fill` may be called concurrently,
     // each call with its own box and span; the world is the same for any thread count.
     static SparseWorld from_fill(Dims dims, const BoxFill& fill, unsigned threads = 0);
