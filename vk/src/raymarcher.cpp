@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "compute_pipeline.hpp"
 #include "field_residency.hpp"
 #include "march_params.hpp"
 #include "raymarch_spv.h"
@@ -103,13 +104,7 @@ struct Raymarcher::Impl {
     Buffer surface;
     // The offscreen image and its readback buffer, kept while the image size stays (a frame
     // loop would otherwise allocate both, megabytes of pinned memory, every frame).
-    struct Target {
-        std::uint32_t width = 0, height = 0;
-        Owned<VkDeviceMemory> memory;  // declared first: freed after the image is destroyed
-        Owned<VkImage> image;
-        Owned<VkImageView> view;
-        Buffer readback;
-    } target;
+    OffscreenTarget target;
     // render_to's buffer over the caller's exportable memory (rebound when that changes).
     Buffer frame;
     VkDeviceMemory frame_memory = VK_NULL_HANDLE;
@@ -151,54 +146,19 @@ Raymarcher::Raymarcher(Context& ctx, std::uint64_t max_binding_bytes)
             b < VF_RAYMARCH_BINDING_MATERIAL) {
             continue;
         }
-        VkDescriptorSetLayoutBinding x{};
-        x.binding = b;
-        x.descriptorType = b == VF_RAYMARCH_BINDING_IMAGE ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE
-                                                          : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-        x.descriptorCount = 1;
-        x.stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
-        bindings.push_back(x);
+        bindings.push_back(compute_binding(b, b == VF_RAYMARCH_BINDING_IMAGE
+                                                  ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE
+                                                  : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER));
     }
-    VkDescriptorSetLayoutCreateInfo sl{};
-    sl.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO;
-    sl.bindingCount = static_cast<std::uint32_t>(bindings.size());
-    sl.pBindings = bindings.data();
-    VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
-    check(vkCreateDescriptorSetLayout(dev, &sl, nullptr, &set_layout),
-          "vkCreateDescriptorSetLayout", "ray marcher");
-    m.set_layout = Owned<VkDescriptorSetLayout>(dev, set_layout, vkDestroyDescriptorSetLayout);
-
-    VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(PushConstants)};
-    VkPipelineLayoutCreateInfo pl{};
-    pl.sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO;
-    pl.setLayoutCount = 1;
-    pl.pSetLayouts = &set_layout;
-    pl.pushConstantRangeCount = 1;
-    pl.pPushConstantRanges = &range;
-    VkPipelineLayout pipeline_layout = VK_NULL_HANDLE;
-    check(vkCreatePipelineLayout(dev, &pl, nullptr, &pipeline_layout), "vkCreatePipelineLayout",
-          "ray marcher");
-    m.pipeline_layout = Owned<VkPipelineLayout>(dev, pipeline_layout, vkDestroyPipelineLayout);
-
-    VkShaderModuleCreateInfo sm{};
-    sm.sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO;
-    sm.codeSize = sizeof(vf_raymarch_spv);
-    sm.pCode = vf_raymarch_spv;
-    VkShaderModule shader = VK_NULL_HANDLE;
-    check(vkCreateShaderModule(dev, &sm, nullptr, &shader), "vkCreateShaderModule",
-          "raymarch.comp");
-    m.shader = Owned<VkShaderModule>(dev, shader, vkDestroyShaderModule);
+    m.set_layout = make_set_layout(dev, bindings, "ray marcher");
+    m.pipeline_layout =
+        make_pipeline_layout(dev, m.set_layout.get(), sizeof(PushConstants), "ray marcher");
+    m.shader = make_shader(dev, vf_raymarch_spv, sizeof(vf_raymarch_spv), "raymarch.comp");
 
     m.write_set();
 
     if (ctx.info().timestamps) {
-        VkQueryPoolCreateInfo qp{};
-        qp.sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO;
-        qp.queryType = VK_QUERY_TYPE_TIMESTAMP;
-        qp.queryCount = 2 * kQueryPairs;
-        VkQueryPool q = VK_NULL_HANDLE;
-        check(vkCreateQueryPool(dev, &qp, nullptr, &q), "vkCreateQueryPool", "ray marcher");
-        m.queries = Owned<VkQueryPool>(dev, q, vkDestroyQueryPool);
+        m.queries = make_timestamp_pool(dev, 2 * kQueryPairs, "ray marcher");
     }
     m.prepare_counters(1);
     m.prepare_surface(1);
@@ -215,45 +175,19 @@ void Raymarcher::Impl::write_set() {
         if (pool) {
             ctx.retire(std::move(pool));  // frees the set once the frames using it finished
         }
-        const std::array<VkDescriptorPoolSize, 2> sizes = {
-            VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
-            VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VF_TRACE_LAST_BINDING + 1}};
-        VkDescriptorPoolCreateInfo dp{};
-        dp.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO;
-        dp.maxSets = 1;
-        dp.poolSizeCount = static_cast<std::uint32_t>(sizes.size());
-        dp.pPoolSizes = sizes.data();
-        VkDescriptorPool handle = VK_NULL_HANDLE;
-        check(vkCreateDescriptorPool(dev, &dp, nullptr, &handle), "vkCreateDescriptorPool",
-              "ray marcher");
-        pool = Owned<VkDescriptorPool>(dev, handle, vkDestroyDescriptorPool);
-        const VkDescriptorSetLayout layout_handle = set_layout.get();
-        VkDescriptorSetAllocateInfo da{};
-        da.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO;
-        da.descriptorPool = handle;
-        da.descriptorSetCount = 1;
-        da.pSetLayouts = &layout_handle;
-        check(vkAllocateDescriptorSets(dev, &da, &set), "vkAllocateDescriptorSets", "ray marcher");
+        pool = make_set_pool(dev, VF_TRACE_LAST_BINDING + 1, "ray marcher");
+        set = allocate_set(dev, pool.get(), set_layout.get(), "ray marcher");
         set_recorded = false;
     }
     std::vector<VkDescriptorBufferInfo> infos;
     infos.reserve(VF_TRACE_LAST_BINDING + 1);
     std::vector<VkWriteDescriptorSet> writes;
-    auto write = [&](std::uint32_t binding, VkDescriptorType type) {
-        VkWriteDescriptorSet w{};
-        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-        w.dstSet = set;
-        w.dstBinding = binding;
-        w.descriptorCount = 1;
-        w.descriptorType = type;
-        return w;
-    };
     auto add = [&](std::uint32_t binding, const Buffer& b, VkDeviceSize range) {
         if (b.get() == VK_NULL_HANDLE) {
             return;
         }
         infos.push_back(VkDescriptorBufferInfo{b.get(), 0, range});
-        VkWriteDescriptorSet w = write(binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
+        VkWriteDescriptorSet w = descriptor_write(set, binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
         w.pBufferInfo = &infos.back();
         writes.push_back(w);
     };
@@ -282,7 +216,8 @@ void Raymarcher::Impl::write_set() {
     const VkDescriptorImageInfo image_info{VK_NULL_HANDLE, target.view.get(),
                                            VK_IMAGE_LAYOUT_GENERAL};
     if (target.view) {
-        VkWriteDescriptorSet w = write(VF_RAYMARCH_BINDING_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE);
+        VkWriteDescriptorSet w =
+            descriptor_write(set, VF_RAYMARCH_BINDING_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE);
         w.pImageInfo = &image_info;
         writes.push_back(w);
     }
@@ -316,24 +251,13 @@ VkPipeline Raymarcher::Impl::pipeline_for(Metric which, bool count, bool shadows
     spec.pMapEntries = entries.data();
     spec.dataSize = sizeof data;
     spec.pData = &data;
-    VkComputePipelineCreateInfo cp{};
-    cp.sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO;
-    cp.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
-    cp.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-    cp.stage.module = shader.get();
-    cp.stage.pName = "main";
-    cp.stage.pSpecializationInfo = &spec;
-    cp.layout = pipeline_layout.get();
-    const VkDevice dev = ctx.device();
-    VkPipeline pipeline = VK_NULL_HANDLE;
-    check(vkCreateComputePipelines(dev, VK_NULL_HANDLE, 1, &cp, nullptr, &pipeline),
-          "vkCreateComputePipelines",
-          "raymarch.comp, " + to_string(which) + (count ? ", counting" : "") +
-              (shadows ? ", shadows" : "") + (one_slab ? ", one binding" : "") +
-              (compact ? ", compact" : ", packed32") + (implicit ? ", implicit surface" : "") +
-              (surface_hits ? ", hit records" : ""));
-    slot = Owned<VkPipeline>(dev, pipeline, vkDestroyPipeline);
-    return pipeline;
+    slot = make_compute_pipeline(
+        ctx.device(), shader.get(), pipeline_layout.get(), spec,
+        "raymarch.comp, " + to_string(which) + (count ? ", counting" : "") +
+            (shadows ? ", shadows" : "") + (one_slab ? ", one binding" : "") +
+            (compact ? ", compact" : ", packed32") + (implicit ? ", implicit surface" : "") +
+            (surface_hits ? ", hit records" : ""));
+    return slot.get();
 }
 
 void Raymarcher::Impl::prepare_counters(std::size_t pixels) {
@@ -363,44 +287,11 @@ void Raymarcher::Impl::prepare_target(std::uint32_t width, std::uint32_t height,
     if (target.width == width && target.height == height) {
         return;
     }
-    const VkDevice dev = ctx.device();
     // Frames in flight may still use the old target (view, image, then its memory go).
     ctx.retire(std::move(target));
-    target = Target{};
+    target = OffscreenTarget{};
     // Offscreen target: one r32ui texel per RGBA8 pixel, read back through a buffer.
-    VkImageCreateInfo ii{};
-    ii.sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO;
-    ii.imageType = VK_IMAGE_TYPE_2D;
-    ii.format = VK_FORMAT_R32_UINT;
-    ii.extent = {width, height, 1};
-    ii.mipLevels = 1;
-    ii.arrayLayers = 1;
-    ii.samples = VK_SAMPLE_COUNT_1_BIT;
-    ii.tiling = VK_IMAGE_TILING_OPTIMAL;
-    ii.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
-    ii.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-    ii.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-    VkImage image_handle = VK_NULL_HANDLE;
-    check(vkCreateImage(dev, &ii, nullptr, &image_handle), "vkCreateImage", what);
-    target.image = Owned<VkImage>(dev, image_handle, vkDestroyImage);
-    VkMemoryRequirements req{};
-    vkGetImageMemoryRequirements(dev, image_handle, &req);
-    target.memory = ctx.allocate(req, MemoryIntent::device_local, "offscreen image");
-    check(vkBindImageMemory(dev, image_handle, target.memory.get(), 0), "vkBindImageMemory", what);
-    VkImageViewCreateInfo vi{};
-    vi.sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO;
-    vi.image = image_handle;
-    vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
-    vi.format = VK_FORMAT_R32_UINT;
-    vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-    VkImageView view_handle = VK_NULL_HANDLE;
-    check(vkCreateImageView(dev, &vi, nullptr, &view_handle), "vkCreateImageView", what);
-    target.view = Owned<VkImageView>(dev, view_handle, vkDestroyImageView);
-    target.readback =
-        ctx.make_buffer(VkDeviceSize{width} * height * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                        MemoryIntent::readback, "image readback");
-    target.width = width;
-    target.height = height;
+    target = make_offscreen_target(ctx, width, height, what, "offscreen image", "image readback");
     write_set();
 }
 

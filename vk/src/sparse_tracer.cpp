@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "compute_pipeline.hpp"
 #include "march_params.hpp"
 #include "sparse_trace_spv.h"
 #include "voxfield/core/camera.hpp"
@@ -127,13 +128,7 @@ struct SparseTracer::Impl {
     std::vector<Buffer> masks, offsets, materials;
     SparseDeviceStats stats;
 
-    struct Target {
-        std::uint32_t width = 0, height = 0;
-        Owned<VkDeviceMemory> memory;  // declared first: freed after the image is destroyed
-        Owned<VkImage> image;
-        Owned<VkImageView> view;
-        Buffer readback;
-    } target;
+    OffscreenTarget target;
 
     Impl(Context& c, VkDeviceSize l) : ctx(c), limit(l) {}
 
@@ -162,71 +157,20 @@ SparseTracer::SparseTracer(Context& ctx, std::uint64_t max_binding_bytes) {
     const VkDevice dev = ctx.device();
     std::vector<VkDescriptorSetLayoutBinding> bindings;
     for (std::uint32_t b = 0; b <= VF_SPARSE_LAST_BINDING; ++b) {
-        VkDescriptorSetLayoutBinding x{};
-        x.binding = b;
-        x.descriptorType = b == VF_SPARSE_BINDING_IMAGE ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE
-                                                        : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-        x.descriptorCount = 1;
-        x.stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
-        bindings.push_back(x);
+        bindings.push_back(compute_binding(b, b == VF_SPARSE_BINDING_IMAGE
+                                                  ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE
+                                                  : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER));
     }
-    VkDescriptorSetLayoutCreateInfo sl{};
-    sl.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO;
-    sl.bindingCount = static_cast<std::uint32_t>(bindings.size());
-    sl.pBindings = bindings.data();
-    VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
-    check(vkCreateDescriptorSetLayout(dev, &sl, nullptr, &set_layout),
-          "vkCreateDescriptorSetLayout", "sparse tracer");
-    m.set_layout = Owned<VkDescriptorSetLayout>(dev, set_layout, vkDestroyDescriptorSetLayout);
-
-    VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(SparsePushConstants)};
-    VkPipelineLayoutCreateInfo pl{};
-    pl.sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO;
-    pl.setLayoutCount = 1;
-    pl.pSetLayouts = &set_layout;
-    pl.pushConstantRangeCount = 1;
-    pl.pPushConstantRanges = &range;
-    VkPipelineLayout pipeline_layout = VK_NULL_HANDLE;
-    check(vkCreatePipelineLayout(dev, &pl, nullptr, &pipeline_layout), "vkCreatePipelineLayout",
-          "sparse tracer");
-    m.pipeline_layout = Owned<VkPipelineLayout>(dev, pipeline_layout, vkDestroyPipelineLayout);
-
-    VkShaderModuleCreateInfo sm{};
-    sm.sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO;
-    sm.codeSize = sizeof(vf_sparse_trace_spv);
-    sm.pCode = vf_sparse_trace_spv;
-    VkShaderModule shader = VK_NULL_HANDLE;
-    check(vkCreateShaderModule(dev, &sm, nullptr, &shader), "vkCreateShaderModule",
-          "sparse_trace.comp");
-    m.shader = Owned<VkShaderModule>(dev, shader, vkDestroyShaderModule);
-
-    const std::array<VkDescriptorPoolSize, 2> sizes = {
-        VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1},
-        VkDescriptorPoolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VF_SPARSE_LAST_BINDING}};
-    VkDescriptorPoolCreateInfo dp{};
-    dp.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO;
-    dp.maxSets = 1;
-    dp.poolSizeCount = static_cast<std::uint32_t>(sizes.size());
-    dp.pPoolSizes = sizes.data();
-    VkDescriptorPool pool = VK_NULL_HANDLE;
-    check(vkCreateDescriptorPool(dev, &dp, nullptr, &pool), "vkCreateDescriptorPool",
-          "sparse tracer");
-    m.pool = Owned<VkDescriptorPool>(dev, pool, vkDestroyDescriptorPool);
-    VkDescriptorSetAllocateInfo da{};
-    da.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO;
-    da.descriptorPool = pool;
-    da.descriptorSetCount = 1;
-    da.pSetLayouts = &set_layout;
-    check(vkAllocateDescriptorSets(dev, &da, &m.set), "vkAllocateDescriptorSets", "sparse tracer");
+    m.set_layout = make_set_layout(dev, bindings, "sparse tracer");
+    m.pipeline_layout =
+        make_pipeline_layout(dev, m.set_layout.get(), sizeof(SparsePushConstants), "sparse tracer");
+    m.shader =
+        make_shader(dev, vf_sparse_trace_spv, sizeof(vf_sparse_trace_spv), "sparse_trace.comp");
+    m.pool = make_set_pool(dev, VF_SPARSE_LAST_BINDING, "sparse tracer");
+    m.set = allocate_set(dev, m.pool.get(), m.set_layout.get(), "sparse tracer");
 
     if (ctx.info().timestamps) {
-        VkQueryPoolCreateInfo qp{};
-        qp.sType = VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO;
-        qp.queryType = VK_QUERY_TYPE_TIMESTAMP;
-        qp.queryCount = 2;
-        VkQueryPool q = VK_NULL_HANDLE;
-        check(vkCreateQueryPool(dev, &qp, nullptr, &q), "vkCreateQueryPool", "sparse tracer");
-        m.queries = Owned<VkQueryPool>(dev, q, vkDestroyQueryPool);
+        m.queries = make_timestamp_pool(dev, 2, "sparse tracer");
     }
     m.counters = ctx.make_buffer(8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryIntent::readback,
                                  "sparse ray counters");
@@ -345,12 +289,7 @@ void SparseTracer::Impl::write_set() {
     std::vector<VkWriteDescriptorSet> writes;
     auto add = [&](std::uint32_t binding, const Buffer& b) {
         infos.push_back(VkDescriptorBufferInfo{b.get(), 0, VK_WHOLE_SIZE});
-        VkWriteDescriptorSet w{};
-        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-        w.dstSet = set;
-        w.dstBinding = binding;
-        w.descriptorCount = 1;
-        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        VkWriteDescriptorSet w = descriptor_write(set, binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
         w.pBufferInfo = &infos.back();
         writes.push_back(w);
     };
@@ -373,12 +312,8 @@ void SparseTracer::Impl::write_set() {
     const VkDescriptorImageInfo image_info{VK_NULL_HANDLE, target.view.get(),
                                            VK_IMAGE_LAYOUT_GENERAL};
     if (target.view) {
-        VkWriteDescriptorSet w{};
-        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-        w.dstSet = set;
-        w.dstBinding = VF_SPARSE_BINDING_IMAGE;
-        w.descriptorCount = 1;
-        w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+        VkWriteDescriptorSet w =
+            descriptor_write(set, VF_SPARSE_BINDING_IMAGE, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE);
         w.pImageInfo = &image_info;
         writes.push_back(w);
     }
@@ -408,62 +343,19 @@ VkPipeline SparseTracer::Impl::pipeline_for(bool shadows, bool count, bool one_n
     spec.pMapEntries = entries.data();
     spec.dataSize = sizeof data;
     spec.pData = &data;
-    VkComputePipelineCreateInfo cp{};
-    cp.sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO;
-    cp.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
-    cp.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-    cp.stage.module = shader.get();
-    cp.stage.pName = "main";
-    cp.stage.pSpecializationInfo = &spec;
-    cp.layout = pipeline_layout.get();
-    VkPipeline pipeline = VK_NULL_HANDLE;
-    check(vkCreateComputePipelines(ctx.device(), VK_NULL_HANDLE, 1, &cp, nullptr, &pipeline),
-          "vkCreateComputePipelines", "sparse_trace.comp");
-    slot = Owned<VkPipeline>(ctx.device(), pipeline, vkDestroyPipeline);
-    return pipeline;
+    slot = make_compute_pipeline(ctx.device(), shader.get(), pipeline_layout.get(), spec,
+                                 "sparse_trace.comp");
+    return slot.get();
 }
 
 void SparseTracer::Impl::prepare_target(std::uint32_t width, std::uint32_t height) {
     if (target.width == width && target.height == height) {
         return;
     }
-    const VkDevice dev = ctx.device();
-    target = Target{};
+    target = OffscreenTarget{};
     const std::string what =
         "sparse trace image " + std::to_string(width) + "x" + std::to_string(height);
-    VkImageCreateInfo ii{};
-    ii.sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO;
-    ii.imageType = VK_IMAGE_TYPE_2D;
-    ii.format = VK_FORMAT_R32_UINT;
-    ii.extent = {width, height, 1};
-    ii.mipLevels = 1;
-    ii.arrayLayers = 1;
-    ii.samples = VK_SAMPLE_COUNT_1_BIT;
-    ii.tiling = VK_IMAGE_TILING_OPTIMAL;
-    ii.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
-    ii.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-    ii.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-    VkImage image = VK_NULL_HANDLE;
-    check(vkCreateImage(dev, &ii, nullptr, &image), "vkCreateImage", what);
-    target.image = Owned<VkImage>(dev, image, vkDestroyImage);
-    VkMemoryRequirements req{};
-    vkGetImageMemoryRequirements(dev, image, &req);
-    target.memory = ctx.allocate(req, MemoryIntent::device_local, what);
-    check(vkBindImageMemory(dev, image, target.memory.get(), 0), "vkBindImageMemory", what);
-    VkImageViewCreateInfo vi{};
-    vi.sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO;
-    vi.image = image;
-    vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
-    vi.format = VK_FORMAT_R32_UINT;
-    vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-    VkImageView view = VK_NULL_HANDLE;
-    check(vkCreateImageView(dev, &vi, nullptr, &view), "vkCreateImageView", what);
-    target.view = Owned<VkImageView>(dev, view, vkDestroyImageView);
-    target.readback =
-        ctx.make_buffer(VkDeviceSize{width} * height * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                        MemoryIntent::readback, "sparse trace readback");
-    target.width = width;
-    target.height = height;
+    target = make_offscreen_target(ctx, width, height, what, what, "sparse trace readback");
     write_set();
 }
 
