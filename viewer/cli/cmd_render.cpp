@@ -93,6 +93,27 @@ std::string point(const vk::Vec3& v) {
 
 // A sparse world (core/sparse.hpp) traced through its 64-trees (vk::SparseTracer): no OpenCL
 // device and no distance field, so the field options do not apply.
+// The "image:" line of the report: the size, shading, camera and output of a render.
+std::string image_line(const vk::Image& image, const RenderCliOptions& o,
+                       const vk::RenderOptions& r) {
+    return "image:   " + std::to_string(image.width) + "x" + std::to_string(image.height) + ", " +
+           o.shading + " shading, camera " + point(r.camera.position) + " -> " +
+           point(r.camera.target) + ", fov " + fixed(r.camera.fov_deg, 1) + " -> " + o.output +
+           '\n';
+}
+
+// --stats' timing line: `what` (the trace, the ray march) by the GPU timestamps of `image`.
+void print_timing(const vk::Image& image, const std::string& what) {
+    if (image.raymarch_ms >= 0) {
+        const double rays = double(image.width) * double(image.height);
+        std::cout << "stats:   " << what << ' ' << fixed(image.raymarch_ms, 3)
+                  << " ms (GPU timestamps), " << fixed(rays / (image.raymarch_ms * 1e-3) / 1e6, 1)
+                  << " Mrays/s\n";
+    } else {
+        std::cout << "stats:   the Vulkan device has no compute timestamps\n";
+    }
+}
+
 int run_render_sparse(const RenderCliOptions& o, vk::RenderOptions r,
                       const std::optional<vk::Vec3>& camera, const std::optional<vk::Vec3>& target,
                       const std::shared_ptr<vk::ValidationLog>& validation) {
@@ -129,18 +150,9 @@ int run_render_sparse(const RenderCliOptions& o, vk::RenderOptions r,
               << device.material_chunks << " storage-buffer binding(s), directory of "
               << device.blocks << " blocks of 512^3 voxels and " << device.pages
               << " tile page(s)\n"
-              << "image:   " << image.width << "x" << image.height << ", " << o.shading
-              << " shading, camera " << point(r.camera.position) << " -> " << point(r.camera.target)
-              << ", fov " << fixed(r.camera.fov_deg, 1) << " -> " << o.output << '\n';
+              << image_line(image, o, r);
     if (o.stats) {
-        if (image.raymarch_ms >= 0) {
-            const double rays = double(image.width) * double(image.height);
-            std::cout << "stats:   trace " << fixed(image.raymarch_ms, 3)
-                      << " ms (GPU timestamps), "
-                      << fixed(rays / (image.raymarch_ms * 1e-3) / 1e6, 1) << " Mrays/s\n";
-        } else {
-            std::cout << "stats:   the Vulkan device has no compute timestamps\n";
-        }
+        print_timing(image, "trace");
         vk::RenderOptions counting = r;
         counting.count = true;
         const vk::Image counted = tracer.render(counting);
@@ -278,18 +290,9 @@ int run_render(const RenderCliOptions& o, const std::shared_ptr<vk::ValidationLo
               << marcher.field_bindings() << " storage-buffer binding"
               << (marcher.field_bindings() == 1 ? "" : "s") << " of up to " << marcher.slab_depth()
               << " z-slices\n"
-              << "image:   " << image.width << "x" << image.height << ", " << o.shading
-              << " shading, camera " << point(r.camera.position) << " -> " << point(r.camera.target)
-              << ", fov " << fixed(r.camera.fov_deg, 1) << " -> " << o.output << '\n';
+              << image_line(image, o, r);
     if (o.stats) {
-        if (image.raymarch_ms >= 0) {
-            const double rays = double(image.width) * double(image.height);
-            std::cout << "stats:   ray march " << fixed(image.raymarch_ms, 3)
-                      << " ms (GPU timestamps), "
-                      << fixed(rays / (image.raymarch_ms * 1e-3) / 1e6, 1) << " Mrays/s\n";
-        } else {
-            std::cout << "stats:   the Vulkan device has no compute timestamps\n";
-        }
+        print_timing(image, "ray march");
         // One more frame through the counting pipeline (not timed).
         vk::RenderOptions counting = r;
         counting.count = true;
