@@ -118,6 +118,35 @@ VkWriteDescriptorSet descriptor_write(VkDescriptorSet set, std::uint32_t binding
     return w;
 }
 
+VkImageMemoryBarrier color_barrier(VkImage image, VkAccessFlags src, VkAccessFlags dst,
+                                   VkImageLayout from, VkImageLayout to) {
+    VkImageMemoryBarrier b{};
+    b.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
+    b.srcAccessMask = src;
+    b.dstAccessMask = dst;
+    b.oldLayout = from;
+    b.newLayout = to;
+    b.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    b.image = image;
+    b.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    return b;
+}
+
+double timestamp_pair_ms(Context& ctx, VkQueryPool pool, std::uint32_t first, bool wait,
+                         const std::string& what) {
+    std::array<std::uint64_t, 2> ts{};
+    const VkResult r = vkGetQueryPoolResults(
+        ctx.device(), pool, first, 2, sizeof ts, ts.data(), sizeof(std::uint64_t),
+        wait ? VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT : VK_QUERY_RESULT_64_BIT);
+    if (r == VK_NOT_READY) {
+        return -1;
+    }
+    check(r, "vkGetQueryPoolResults", what);
+    return static_cast<double>(ts[1] - ts[0]) * static_cast<double>(ctx.timestamp_period_ns()) *
+           1e-6;
+}
+
 OffscreenTarget make_offscreen_target(Context& ctx, std::uint32_t width, std::uint32_t height,
                                       const std::string& what, const std::string& memory_what,
                                       const std::string& readback_what) {

@@ -1,7 +1,8 @@
 // The Vulkan steps that the compute passes (raymarcher.cpp, sparse_tracer.cpp) share: a
 // descriptor-set layout of compute bindings, a pipeline layout with one push-constant range, a
-// shader module, a pool of one set, a timestamp query pool, a compute pipeline, descriptor
-// writes and the offscreen r32ui image read back through a buffer. Internal to vk/.
+// shader module, a pool of one set, a timestamp query pool and its read-out, a compute pipeline,
+// descriptor writes, colour-image barriers (present.cpp uses those too) and the offscreen r32ui
+// image read back through a buffer. Internal to vk/.
 #pragma once
 
 #include <cstddef>
@@ -47,6 +48,16 @@ Owned<VkPipeline> make_compute_pipeline(VkDevice dev, VkShaderModule shader,
 // A write of one descriptor of `type` at `binding` of `set` (the caller points it at its info).
 VkWriteDescriptorSet descriptor_write(VkDescriptorSet set, std::uint32_t binding,
                                       VkDescriptorType type);
+
+// A barrier over the whole colour image `image` from layout `from` to `to`, queue families
+// ignored.
+VkImageMemoryBarrier color_barrier(VkImage image, VkAccessFlags src, VkAccessFlags dst,
+                                   VkImageLayout from, VkImageLayout to);
+
+// The milliseconds between timestamps `first` and `first + 1` of `pool`; wait: until they are
+// available, else -1 when they are not yet. `what` names them in errors.
+double timestamp_pair_ms(Context& ctx, VkQueryPool pool, std::uint32_t first, bool wait,
+                         const std::string& what);
 
 // An offscreen image of one r32ui texel per RGBA8 pixel, storage and copy source, with its view
 // and a readback buffer of the same bytes.

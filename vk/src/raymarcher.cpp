@@ -335,16 +335,9 @@ std::uint32_t Raymarcher::Impl::record(VkCommandBuffer cmd, const RenderOptions&
 
     // The previous march's writes and the copy out of the image (an earlier frame, maybe
     // still running) come before the image is written again.
-    VkImageMemoryBarrier to_general{};
-    to_general.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
-    to_general.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-    to_general.dstAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-    to_general.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-    to_general.newLayout = VK_IMAGE_LAYOUT_GENERAL;
-    to_general.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-    to_general.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-    to_general.image = image_handle;
-    to_general.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    const VkImageMemoryBarrier to_general =
+        color_barrier(image_handle, VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_SHADER_WRITE_BIT,
+                      VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL);
     // Host writes to mapped buffers are visible to the device at submission; staged uploads
     // finished (and were waited for) before it.
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
@@ -415,11 +408,9 @@ std::uint32_t Raymarcher::Impl::record(VkCommandBuffer cmd, const RenderOptions&
         vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT,
                              0, 1, &counted, 0, nullptr, 0, nullptr);
     }
-    VkImageMemoryBarrier to_copy = to_general;
-    to_copy.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-    to_copy.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-    to_copy.oldLayout = VK_IMAGE_LAYOUT_GENERAL;
-    to_copy.newLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+    const VkImageMemoryBarrier to_copy =
+        color_barrier(image_handle, VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_TRANSFER_READ_BIT,
+                      VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
                          0, 0, nullptr, 0, nullptr, 1, &to_copy);
     return pair;
@@ -471,16 +462,7 @@ double Raymarcher::Impl::pair_ms(std::uint32_t pair, bool wait) {
     if (!queries) {
         return -1;
     }
-    std::array<std::uint64_t, 2> ts{};
-    const VkResult r = vkGetQueryPoolResults(
-        ctx.device(), queries.get(), 2 * pair, 2, sizeof ts, ts.data(), sizeof(std::uint64_t),
-        wait ? VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT : VK_QUERY_RESULT_64_BIT);
-    if (r == VK_NOT_READY) {
-        return -1;
-    }
-    check(r, "vkGetQueryPoolResults", "ray march timestamps");
-    return static_cast<double>(ts[1] - ts[0]) * static_cast<double>(ctx.timestamp_period_ns()) *
-           1e-6;
+    return timestamp_pair_ms(ctx, queries.get(), 2 * pair, wait, "ray march timestamps");
 }
 
 void Raymarcher::render(const RenderOptions& o, Image& out) {

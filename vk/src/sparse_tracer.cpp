@@ -407,16 +407,9 @@ void SparseTracer::render(const RenderOptions& o, Image& out) {
     const VkQueryPool timer = m.queries.get();
     m.ctx.submit_and_wait(
         [&](VkCommandBuffer cmd) {
-            VkImageMemoryBarrier to_general{};
-            to_general.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
-            to_general.srcAccessMask = 0;
-            to_general.dstAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-            to_general.oldLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-            to_general.newLayout = VK_IMAGE_LAYOUT_GENERAL;
-            to_general.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-            to_general.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-            to_general.image = image;
-            to_general.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+            const VkImageMemoryBarrier to_general =
+                color_barrier(image, 0, VK_ACCESS_SHADER_WRITE_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                              VK_IMAGE_LAYOUT_GENERAL);
             // After the previous render's copy out of the image and its dispatch.
             vkCmdPipelineBarrier(
                 cmd, VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
@@ -435,11 +428,9 @@ void SparseTracer::render(const RenderOptions& o, Image& out) {
             if (timer != VK_NULL_HANDLE) {
                 vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, timer, 1);
             }
-            VkImageMemoryBarrier to_copy = to_general;
-            to_copy.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-            to_copy.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-            to_copy.oldLayout = VK_IMAGE_LAYOUT_GENERAL;
-            to_copy.newLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+            const VkImageMemoryBarrier to_copy = color_barrier(
+                to_general.image, VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_TRANSFER_READ_BIT,
+                VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
             vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
                                  VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr, 1,
                                  &to_copy);
@@ -463,13 +454,7 @@ void SparseTracer::render(const RenderOptions& o, Image& out) {
     std::memcpy(out.rgba.data(), m.target.readback.data(), pixels * 4);
     out.raymarch_ms = -1;
     if (timer != VK_NULL_HANDLE) {
-        std::array<std::uint64_t, 2> ts{};
-        check(vkGetQueryPoolResults(m.ctx.device(), timer, 0, 2, sizeof ts, ts.data(),
-                                    sizeof(std::uint64_t),
-                                    VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
-              "vkGetQueryPoolResults", "sparse trace timestamps");
-        out.raymarch_ms = static_cast<double>(ts[1] - ts[0]) *
-                          static_cast<double>(m.ctx.timestamp_period_ns()) * 1e-6;
+        out.raymarch_ms = timestamp_pair_ms(m.ctx, timer, 0, true, "sparse trace timestamps");
     }
     out.fetches = out.steps = 0;
     if (o.count) {
