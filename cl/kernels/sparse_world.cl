@@ -21,6 +21,23 @@ inline uint rank_below(ulong m, uint b) {
     return (uint)popcount(m & ((1ul << b) - 1ul));
 }
 
+// The 4^3 leaf node that holds voxel (lx, ly, lz) of the tile tree at node `base` (its root
+// mask `root`; masks m, offsets o), or NO_TILE when that leaf is empty.
+inline ulong leaf_node(__global const ulong* m, __global const uint* o, ulong base, ulong root,
+                       uint lx, uint ly, uint lz) {
+    const uint b16 = (lz >> 4) << 4 | (ly >> 4) << 2 | (lx >> 4);
+    if ((root >> b16 & 1ul) == 0) {
+        return NO_TILE;
+    }
+    const ulong n16 = base + o[base] + rank_below(root, b16);
+    const uint b4 = ((lz >> 2) & 3) << 4 | ((ly >> 2) & 3) << 2 | ((lx >> 2) & 3);
+    const ulong m16 = m[n16];
+    if ((m16 >> b4 & 1ul) == 0) {
+        return NO_TILE;
+    }
+    return base + o[n16] + rank_below(m16, b4);
+}
+
 // The lowest set bit of m (m != 0).
 inline uint lowest_bit(ulong m) {
     return (uint)popcount((m & (~m + 1ul)) - 1ul);
@@ -90,16 +107,10 @@ __kernel void gather(__global const ulong* restrict masks, __global const uint* 
             // The leaf of voxels lx..lx+3 (from lx0, which may not be a multiple of 4).
             const uint group_end = min(end, x + (4 - (lx & 3)));
             ulong m4 = 0, first = 0;
-            const uint b16 = (lz >> 4) << 4 | (ly >> 4) << 2 | (lx >> 4);
-            if ((root >> b16 & 1ul) != 0) {
-                const ulong n16 = base + o[base] + rank_below(root, b16);
-                const uint b4 = ((lz >> 2) & 3) << 4 | ((ly >> 2) & 3) << 2 | ((lx >> 2) & 3);
-                const ulong m16 = m[n16];
-                if ((m16 >> b4 & 1ul) != 0) {
-                    const ulong n4 = base + o[n16] + rank_below(m16, b4);
-                    m4 = m[n4];
-                    first = mbase + o[n4];
-                }
+            const ulong n4 = leaf_node(m, o, base, root, lx, ly, lz);
+            if (n4 != NO_TILE) {
+                m4 = m[n4];
+                first = mbase + o[n4];
             }
             for (uint v = lx & 3; x < group_end; ++x, ++v) {
                 const uint bv = (lz & 3) << 4 | (ly & 3) << 2 | v;
@@ -144,19 +155,12 @@ __kernel void gather_voxels(__global const ulong* restrict masks,
             __global const uint* o = slot ? slot_offsets : offsets;
             __global const uchar* mat = slot ? slot_materials : materials;
             const uint lx = (uint)(px & 63), ly = (uint)(py & 63), lz = (uint)(pz & 63);
-            const ulong root = m[base];
-            const uint b16 = (lz >> 4) << 4 | (ly >> 4) << 2 | (lx >> 4);
-            if ((root >> b16 & 1ul) != 0) {
-                const ulong n16 = base + o[base] + rank_below(root, b16);
-                const uint b4 = ((lz >> 2) & 3) << 4 | ((ly >> 2) & 3) << 2 | ((lx >> 2) & 3);
-                const ulong m16 = m[n16];
-                if ((m16 >> b4 & 1ul) != 0) {
-                    const ulong n4 = base + o[n16] + rank_below(m16, b4);
-                    const ulong m4 = m[n4];
-                    const uint bv = (lz & 3) << 4 | (ly & 3) << 2 | (lx & 3);
-                    if ((m4 >> bv & 1ul) != 0) {
-                        v = mat[refs[2 * r + 1] + o[n4] + rank_below(m4, bv)];
-                    }
+            const ulong n4 = leaf_node(m, o, base, m[base], lx, ly, lz);
+            if (n4 != NO_TILE) {
+                const ulong m4 = m[n4];
+                const uint bv = (lz & 3) << 4 | (ly & 3) << 2 | (lx & 3);
+                if ((m4 >> bv & 1ul) != 0) {
+                    v = mat[refs[2 * r + 1] + o[n4] + rank_below(m4, bv)];
                 }
             }
         }

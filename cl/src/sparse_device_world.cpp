@@ -280,15 +280,19 @@ std::uint32_t SparseDeviceWorld::slot_for(std::uint64_t key) {
     if (const auto it = slot_of_.find(key); it != slot_of_.end()) {
         return it->second;
     }
-    std::uint32_t slot = 0;
-    if (!free_slots_.empty()) {
-        slot = free_slots_.back();
-        free_slots_.pop_back();
-    } else {
-        slot = static_cast<std::uint32_t>(slots_made_++);
-        ensure_slot_capacity(slots_made_);
-    }
+    const std::uint32_t slot = take_slot();
     slot_of_[key] = slot;
+    return slot;
+}
+
+std::uint32_t SparseDeviceWorld::take_slot() {
+    if (!free_slots_.empty()) {
+        const std::uint32_t slot = free_slots_.back();
+        free_slots_.pop_back();
+        return slot;
+    }
+    const auto slot = static_cast<std::uint32_t>(slots_made_++);
+    ensure_slot_capacity(slots_made_);  // copies the slot buffers in queue order
     return slot;
 }
 
@@ -481,14 +485,7 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
     // writing): slots freed by this edit are taken by later ones only.
     std::vector<std::uint32_t> freed;
     for (const std::uint64_t key : keys) {
-        std::uint32_t slot = 0;
-        if (!free_slots_.empty()) {
-            slot = free_slots_.back();
-            free_slots_.pop_back();
-        } else {
-            slot = static_cast<std::uint32_t>(slots_made_++);
-            ensure_slot_capacity(slots_made_);  // copies the slot buffers in queue order
-        }
+        const std::uint32_t slot = take_slot();
         if (const auto it = slot_of_.find(key); it != slot_of_.end()) {
             freed.push_back(it->second);
         }

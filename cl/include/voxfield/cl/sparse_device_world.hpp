@@ -83,6 +83,8 @@ class SparseDeviceWorld {
   private:
     void upload_whole();
     std::uint32_t slot_for(std::uint64_t key);
+    // A slot no tile holds: a freed one, else a new one (the slot buffers grow to fit it).
+    std::uint32_t take_slot();
     void ensure_slot_capacity(std::size_t slots);
     void ensure_scratch(std::size_t tiles, std::size_t nodes);
     void release_slots_if_needed();
