@@ -401,11 +401,13 @@ inline void row_doubling(__global const uchar* vox, size_t base, int X, int want
 // Rows y in [lo.y, lo.y + size.y), z in [lo.z, lo.z + size.z), `per_item` per work-item,
 // their voxels x in [lo.x, lo.x + size.x) from the voxels [i0, i1); `left` is each
 // work-item's scratch of X ints (at scratch + item * istride; full transforms without
-// features use 2 (X + 2 P) of them, row_doubling's two padded rows).
+// features use 2 (X + 2 P) of them, row_doubling's two padded rows). `solid` 1: g's targets
+// are the nonzero voxels; 0: the zero ones (SciPy's convention, no inverted copy of the
+// input needed).
 __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g,
                      __global GT* restrict h, __global uint* restrict feat, uint X, uint Y,
                      int4 lo, int4 size, uint per_item, ST sx, __global int* restrict scratch,
-                     ulong istride, __global int* box, int i0, int i1, GT cap) {
+                     ulong istride, __global int* box, int i0, int i1, GT cap, int solid) {
     const size_t rows = (size_t)size.y * size.z;
     __global int* left = scratch + get_global_id(0) * istride;
     const size_t r0 = get_global_id(0) * per_item;
@@ -414,20 +416,20 @@ __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g
         const size_t base = ((size_t)z * Y + y) * X;
         if (box == 0 && i0 == 0 && i1 == (int)X && lo.x == 0 && size.x == (int)X) {
 #if INDICES || !CPU_LAYOUT
-            row_full(vox, base, (int)X, 1, 0, sx, g, feat, cap);
+            row_full(vox, base, (int)X, solid, 0, sx, g, feat, cap);
 #if SIGNED
             row_full(vox, base, (int)X, 0, 1, sx, h, feat, cap);
 #endif
 #else
-            row_doubling(vox, base, (int)X, 1, 0, sx, g, left, cap);
+            row_doubling(vox, base, (int)X, solid, 0, sx, g, left, cap);
 #if SIGNED
             row_doubling(vox, base, (int)X, 0, 1, sx, h, left, cap);
 #endif
 #endif
             continue;
         }
-        row_nearest(vox, base, (int)X, 1, 0, sx, g, feat, left, box, y, z, lo.x, lo.x + size.x,
-                    i0, i1, cap);
+        row_nearest(vox, base, (int)X, solid, 0, sx, g, feat, left, box, y, z, lo.x,
+                    lo.x + size.x, i0, i1, cap);
 #if SIGNED
         row_nearest(vox, base, (int)X, 0, 1, sx, h, feat, left, box, y, z, lo.x, lo.x + size.x,
                     i0, i1, cap);
@@ -624,6 +626,44 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
 }
 #endif
 
+// ---- output ----
+
+// The real distance of a partial.
+inline double distance_of(GT p) {
+    if (p == G_INF) {
+        return INFINITY;
+    }
+    return METRIC == 2 ? sqrt((double)p) : (double)p;
+}
+
+inline void store(__global OUT_T* out, __constant uchar* rgb, uchar v, size_t i, double d) {
+#if OUT_KIND == 0
+    out[i] = (OUT_T)(d >= (double)OUT_MAX ? OUT_MAX : (uint)floor(d));
+#elif OUT_KIND == 1
+    const double c = clamp(trunc(d), -(double)OUT_MAX, (double)OUT_MAX);
+    out[i] = (OUT_T)(int)c;
+#elif OUT_KIND == 2
+    out[i] = (float)d;
+#elif OUT_KIND == 3
+    out[i] = d;
+#else
+    const uint q = d >= 255.0 ? 255u : (uint)floor(d);
+    out[i] = (q << VF_PACKED_DISTANCE_SHIFT) | rgb[v];
+#endif
+}
+
+// floor(f / d) from a double reciprocal, corrected by one step either way: integer division
+// by a run-time divisor costs tens of cycles, three per voxel in `finish`.
+inline uint quotient(uint f, uint d, double inv) {
+    uint q = (uint)min((double)f * inv, 4294967295.0);
+    if ((ulong)q * d > f) {
+        --q;
+    } else if (((ulong)q + 1) * d <= f) {
+        ++q;
+    }
+    return q;
+}
+
 // Lines of length n and element stride `stride` along `axis` (1: y, 2: z): line l has x =
 // lo_x + l % count_x and the other coordinate lo_o + l / count_x, and starts at
 // other * mstride + x; positions [o0, o1) from the sites [i0, i1), partials capped at `cap`.
@@ -637,12 +677,21 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
 // of two apart in power-of-two worlds, all in one cache set) are read from memory once, a
 // cache line at a time. Every line is read whole before any of it is written, so the input
 // and output buffers may be the same (the passes then run in place): hence no `restrict`.
+//
+// `final` (the z pass of a full transform with tiles, not SIGNED): the tile goes out as the
+// output format (`store`, as `finish` writes it) into `out` instead of partials into gout,
+// and with INDICES the features as the index planes z, y, x into `idx` (the first plane
+// may be `fout` itself: each line's features are in the tile before any is written), so no
+// `finish` pass reads the partials again. The z pass's lines are X * Y = stride apart and X =
+// mstride. `out` may be `g` (elements as wide): no `restrict`.
 __kernel void col_pass(__global const GT* g, __global GT* gout, __global const GT* h,
                        __global GT* hout, __global const uint* fin, __global uint* fout,
                        __global int* restrict scratch, uint n, ulong stride, ulong mstride,
                        int lo_x, int count_x, int lo_o, int count_o, uint per_item, ulong kstride,
                        ulong istride, ST sp, int axis, __global const int* skip,
-                       __global int* box, int o0, int o1, int i0, int i1, GT cap, int tile_w) {
+                       __global int* box, int o0, int o1, int i0, int i1, GT cap, int tile_w,
+                       int final, __global OUT_T* out, __global const uchar* vox,
+                       __constant uchar* rgb, __global int* idx, double dmax) {
     const size_t w = get_global_id(0);
     __global int* s = scratch + w * istride;
     __global int* t = s + (size_t)(n + 2) * kstride;
@@ -719,6 +768,22 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                                   cap);
                     }
                 }
+#if !SIGNED
+                if (final) {
+                    for (int u = o0; u < o1; ++u) {
+                        for (int c = 0; c < cw; ++c) {
+                            const size_t i = base + (size_t)u * stride + c;
+#if OUT_KIND == 4
+                            const uchar cls = vox[i];
+#else
+                            const uchar cls = 0;
+#endif
+                            store(out, rgb, cls, i, min(distance_of(tout[u * tile_w + c]), dmax));
+                        }
+                    }
+                    continue;
+                }
+#endif
                 for (int u = o0; u < o1; ++u) {
                     for (int c = 0; c < cw; ++c) {
                         dst[base + (size_t)u * stride + c] = tout[u * tile_w + c];
@@ -726,6 +791,26 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                 }
             }
 #if INDICES
+            if (final) {
+                // Linear index f = (zf * Y + yf) * X + xf of the nearest target (UINT_MAX:
+                // none) to its coordinates; the z pass's positions u are z.
+                const uint xy = (uint)stride, xn = (uint)mstride;
+                const double inv_xy = 1.0 / (double)xy, inv_x = 1.0 / (double)xn;
+                const size_t count = (size_t)n * stride;
+                for (int u = o0; u < o1; ++u) {
+                    for (int c = 0; c < cw; ++c) {
+                        const size_t i = base + (size_t)u * stride + c;
+                        const uint f = ftout[u * tile_w + c];
+                        const uint zf = quotient(f, xy, inv_xy);
+                        const uint r = f - zf * xy;
+                        const uint yf = quotient(r, xn, inv_x);
+                        idx[i] = f == UINT_MAX ? -1 : (int)zf;
+                        idx[count + i] = f == UINT_MAX ? -1 : (int)yf;
+                        idx[2 * count + i] = f == UINT_MAX ? -1 : (int)(r - yf * xn);
+                    }
+                }
+                continue;
+            }
             for (int u = o0; u < o1; ++u) {
                 for (int c = 0; c < cw; ++c) {
                     fout[base + (size_t)u * stride + c] = ftout[u * tile_w + c];
@@ -753,44 +838,6 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                   other, axis, o0, o1, i0, i1, cap);
 #endif
     }
-}
-
-// ---- output ----
-
-// The real distance of a partial.
-inline double distance_of(GT p) {
-    if (p == G_INF) {
-        return INFINITY;
-    }
-    return METRIC == 2 ? sqrt((double)p) : (double)p;
-}
-
-inline void store(__global OUT_T* out, __constant uchar* rgb, uchar v, size_t i, double d) {
-#if OUT_KIND == 0
-    out[i] = (OUT_T)(d >= (double)OUT_MAX ? OUT_MAX : (uint)floor(d));
-#elif OUT_KIND == 1
-    const double c = clamp(trunc(d), -(double)OUT_MAX, (double)OUT_MAX);
-    out[i] = (OUT_T)(int)c;
-#elif OUT_KIND == 2
-    out[i] = (float)d;
-#elif OUT_KIND == 3
-    out[i] = d;
-#else
-    const uint q = d >= 255.0 ? 255u : (uint)floor(d);
-    out[i] = (q << VF_PACKED_DISTANCE_SHIFT) | rgb[v];
-#endif
-}
-
-// floor(f / d) from a double reciprocal, corrected by one step either way: integer division
-// by a run-time divisor costs tens of cycles, three per voxel in `finish`.
-inline uint quotient(uint f, uint d, double inv) {
-    uint q = (uint)min((double)f * inv, 4294967295.0);
-    if ((ulong)q * d > f) {
-        --q;
-    } else if (((ulong)q + 1) * d <= f) {
-        ++q;
-    }
-    return q;
 }
 
 // Writes the output format from the final partials (and the index planes: z, y, x of the
