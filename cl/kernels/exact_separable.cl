@@ -538,7 +538,7 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
 }
 #endif
 
-#if METRIC == 2 && UNIT && !WIDE && !INDICES
+#if METRIC == 2 && UNIT && !WIDE
 // Unit-spacing L2 of cw <= 16 lines of a tile (element (p, c) at p * tw + c, tw a multiple
 // of 16, the lines c = 0..15 ours), a full transform, by windowed minima with the lines side
 // by side: position p takes the least g_u + (p - u)^2 over the sites u near enough to
@@ -552,11 +552,15 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
 // entries each) leads the loop past blocks without a site. Returns false (tin as it came)
 // where r passes WINDOW_MAX, for the envelope to take the tile. `pad` adds the virtual empty
 // sites at -1 and n. Empty sites (G_INF) become L2_FAR in tin, which sums with any square
-// below 2^30 without wrapping (the partials stay below 2^30 here, WIDE otherwise).
+// below 2^30 without wrapping (the partials stay below 2^30 here, WIDE otherwise). The sites
+// of a window go through two accumulators (even and odd sites), halving the dependent chain
+// of minima. With INDICES each lane also keeps its nearest site (the lowest of equally near
+// ones, as SciPy breaks ties along a line), whose feature (fin, same layout) goes to fout.
 #define L2_FAR 0x80000000u
 #define WINDOW_MAX 256
 inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* bmin,
-                           __global int* live, int tw, int cw, int n, int pad, GT cap) {
+                           __global int* live, int tw, int cw, int n, int pad, GT cap,
+                           __global const uint* fin, __global uint* fout) {
     const int nb = (n + 15) / 16;
     for (int b = 0; b < nb; ++b) {
         uint16 lo = (uint16)L2_FAR;
@@ -580,6 +584,11 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
     if (live[0] == nb && !pad) {
         for (int p = 0; p < n; ++p) {
             vstore16((uint16)G_INF, 0, tout + p * tw);
+#if INDICES
+            for (int c = 0; c < cw; ++c) {
+                fout[p * tw + c] = UINT_MAX;
+            }
+#endif
         }
         return true;
     }
@@ -587,7 +596,10 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
     uint bound = UINT_MAX;
     for (int p = 0; p < n; ++p) {
         const uint edge = pad ? (uint)min((p + 1) * (p + 1), (n - p) * (n - p)) : L2_FAR;
-        uint16 best = (uint16)edge;
+        uint16 best = (uint16)edge, best1 = (uint16)L2_FAR;
+#if INDICES
+        uint16 own = (uint16)UINT_MAX, own1 = (uint16)UINT_MAX;
+#endif
         const int lo = max(0, p - r), hi = min(n - 1, p + r);
         for (int b = live[lo / 16]; b <= hi / 16; b = live[b + 1]) {
             const int b0 = b * 16, b1 = b0 + 15;
@@ -595,12 +607,42 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
             if (bmin[b] + (uint)(off * off) > bound) {
                 continue;
             }
-            for (int u = max(lo, b0); u <= min(hi, b1); ++u) {
-                const uint k2 = (uint)((p - u) * (p - u));
-                best = min(best, vload16(0, tin + u * tw) + k2);
+            const int ue = min(hi, b1);
+            int u = max(lo, b0);
+            for (; u < ue; u += 2) {
+                const uint k0 = (uint)((p - u) * (p - u));
+                const uint k1 = (uint)((p - u - 1) * (p - u - 1));
+                const uint16 c0 = vload16(0, tin + u * tw) + k0;
+                const uint16 c1 = vload16(0, tin + (u + 1) * tw) + k1;
+#if INDICES
+                own = select(own, (uint16)u, c0 < best);
+                own1 = select(own1, (uint16)(u + 1), c1 < best1);
+#endif
+                best = min(best, c0);
+                best1 = min(best1, c1);
+            }
+            if (u == ue) {
+                const uint16 c0 = vload16(0, tin + u * tw) + (uint)((p - u) * (p - u));
+#if INDICES
+                own = select(own, (uint16)u, c0 < best);
+#endif
+                best = min(best, c0);
             }
         }
+#if INDICES
+        // The lower site among equally near ones of the two accumulators.
+        own = select(own, own1, (best1 < best) | ((best1 == best) & (own1 < own)));
+        best = min(best, best1);
         const uint16 far = as_uint16(best >= (uint16)L2_FAR);
+        uint ow[16];
+        vstore16(select(own, (uint16)UINT_MAX, far), 0, ow);
+        for (int c = 0; c < cw; ++c) {
+            fout[p * tw + c] = ow[c] == UINT_MAX ? UINT_MAX : fin[ow[c] * tw + c];
+        }
+#else
+        best = min(best, best1);
+        const uint16 far = as_uint16(best >= (uint16)L2_FAR);
+#endif
         vstore16(select(min(best, (uint16)cap), (uint16)G_INF, far), 0, tout + p * tw);
         const uint16 real = best & ~far;
         const uint8 h8 = max(real.lo, real.hi);
@@ -755,10 +797,10 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                     // Sub-tiles of 16 lines; the envelope per line where no vector path
                     // takes them.
                     const int c1 = min(c0 + 16, cw);
-#if METRIC == 2 && UNIT && !WIDE && !INDICES
+#if METRIC == 2 && UNIT && !WIDE
                     if (box == 0 && tile_w % 16 == 0 &&
                         tile_window_l2(tin + c0, tout + c0, (__global uint*)s, t, tile_w,
-                                       c1 - c0, (int)n, cls, cap)) {
+                                       c1 - c0, (int)n, cls, cap, ftin + c0, ftout + c0)) {
                         continue;
                     }
 #endif
