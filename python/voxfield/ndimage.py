@@ -12,13 +12,17 @@ Exactness: ``distance_transform_edt`` with unit sampling is bit for bit SciPy's 
 (exact integer squared distances, then one float64 square root). With other sampling it runs
 the separable passes on the host in float64 (the device's sampled kernels carry float32
 partial distances) and adds the axes' terms in SciPy's order, within 2 ulp of SciPy.
-``indices`` always name a nearest zero element. The host passes break ties as SciPy does
-(axis by axis in SciPy's order, the lowest coordinate among equally near sites), so their
-indices equal SciPy's; they compute the feature transform whenever sampling is not unit or
-the device is a CPU (there they are also faster than the OpenCL feature kernels: 7.8 s
-against 29 s at 256^3 on 2 PoCL cores). A GPU computes the indices with its own kernels,
-whose ties may differ from SciPy's (about 4% of elements on sparse worlds, 27% on dense
-random ones) at no cost in speed.
+``indices`` always name a nearest zero element. With unit sampling the device computes them
+with the distances (its passes along the last axis, then the middle, then the first), and
+among equally near zeros it (nearly always) takes the one whose (first, middle, last)
+coordinates are lowest in that order of priority, where SciPy takes the lowest (last, middle,
+first): on worlds
+with many equally near zeros (dense random ones) up to about half of the elements name a
+different, equally near zero than SciPy's (on sparse or smooth worlds 0.4 to 5%); a GPU's
+kernels may break ties otherwise still. With other sampling the host passes break ties as
+SciPy does (axis by axis in SciPy's order), so their indices equal SciPy's.
+Bool and integer inputs go to the device as they are (a uint8 or bool array is read in place
+on a CPU device, its zero elements the targets); other dtypes as ``input == 0``.
 
 Departures from SciPy: inputs of more than 3 axes raise ``ValueError``; ``cdt`` takes the
 metrics 'chessboard' and 'taxicab' (also as their 3x..x3 structuring elements), other
