@@ -15,7 +15,9 @@ this process imports, labelled "voxfield") runs in a child process on the same w
 after the other per world so that the machine's load falls on them alike: after one untimed
 call each, the median of --repeat wall-time calls of its distance_transform_edt, of the edt
 into a caller's distances= array, and of the edt with return_indices (and with --cdt the
-taxicab and chessboard distance_transform_cdt against SciPy's). Checks, in the child: edt
+taxicab and chessboard distance_transform_cdt against SciPy's), each with its median CPU
+time (user + system of the process, PoCL's threads included: the machine's other load moves
+it far less than the wall time; SciPy's CPU time is its one thread's). Checks, in the child: edt
 equal to SciPy's bit for bit, indices naming a zero element at exactly SciPy's distance; it
 records the share of indices equal to SciPy's (ties may break otherwise). Writes device,
 date, commit, each build's module path and commit, the load averages beside every world,
@@ -26,6 +28,7 @@ import argparse
 import datetime
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -40,17 +43,29 @@ sys.path.insert(0, HERE)
 from worlds import WORLDS, make_named  # noqa: E402
 
 
+def cpu_seconds():
+    """This process's CPU time (user + system, all its threads: PoCL's workers included)."""
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
 def timed(call, repeat, warmup=1):
+    """Median wall time of `repeat` calls after `warmup`, and their median CPU time (which the
+    machine's other load moves far less than the wall time)."""
     for _ in range(warmup):
         call()
     samples = []
+    cpu = []
     out = None
     for _ in range(repeat):
+        c = cpu_seconds()
         t = time.perf_counter()
         out = call()
         samples.append((time.perf_counter() - t) * 1e3)
+        cpu.append((cpu_seconds() - c) * 1e3)
     return out, {"median_ms": statistics.median(samples), "min_ms": min(samples),
-                 "max_ms": max(samples), "samples_ms": samples}
+                 "max_ms": max(samples), "samples_ms": samples,
+                 "cpu_median_ms": statistics.median(cpu), "cpu_samples_ms": cpu}
 
 
 def git_commit(path):
@@ -177,13 +192,17 @@ def parent(args):
                                          ("indices", "scipy_indices")):
                     rows[case]["speedup"] = (entry[scipy_case]["median_ms"] /
                                              rows[case]["median_ms"])
+                    rows[case]["cpu_speedup"] = (entry[scipy_case]["cpu_median_ms"] /
+                                                 rows[case]["cpu_median_ms"])
                 entry["builds"][label] = rows
         entry["load_after"] = load()
         result["worlds"].append(entry)
         line = " ".join(
-            f"{label}: edt {r['edt']['median_ms']:.0f} ms x{r['edt']['speedup']:.1f}, "
+            f"{label}: edt {r['edt']['median_ms']:.0f} ms x{r['edt']['speedup']:.1f} "
+            f"(CPU x{r['edt']['cpu_speedup']:.1f}), "
             f"out x{r['edt_out']['speedup']:.1f}, indices {r['indices']['median_ms']:.0f} ms "
-            f"x{r['indices']['speedup']:.1f};" for label, r in entry["builds"].items())
+            f"x{r['indices']['speedup']:.1f} (CPU x{r['indices']['cpu_speedup']:.1f});"
+            for label, r in entry["builds"].items())
         print(f"{name:14s} SciPy edt {entry['scipy_edt']['median_ms']:.0f} ms, indices "
               f"{entry['scipy_indices']['median_ms']:.0f} ms; {line} load {entry['load_before']}",
               flush=True)
