@@ -80,6 +80,13 @@ __kernel void scatter_voxels(__global const ELEM* restrict field, __global ELEM*
               (size_t)(px - reg[3])];
 }
 
+// A work-item per voxel (global ids x, y, z): field tile `slot` set to `value`. A kernel, not
+// clEnqueueFillBuffer: NVIDIA's driver (580) faults filling a pool at offsets past 2 GiB.
+__kernel void fill_slot(__global ELEM* restrict pool, ulong slot, ELEM value) {
+    pool[slot * TILE_VOXELS +
+         (get_global_id(2) * TILE + get_global_id(1)) * TILE + get_global_id(0)] = value;
+}
+
 // One work-item per 16^3 node of the listed slots: the least KEY over its voxels inside the
 // world (a tile cut by the world's edge holds no values beyond it), starting from the far
 // value, which no value exceeds. `tiles`: per listed slot its tile's coordinates (3 uints).

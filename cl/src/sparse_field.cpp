@@ -129,30 +129,6 @@ void for_each_tile(const TileSpan& span, F&& f) {
     }
 }
 
-// Fills field tile `slot` of `pool` with `value` (one element).
-void fill_tile(cl::CommandQueue& q, const cl::Buffer& pool, std::size_t slot,
-               const std::vector<std::uint8_t>& value) {
-    const std::size_t bytes = std::size_t{kTileVoxels} * value.size();
-    auto fill = [&](auto pattern) {
-        std::memcpy(&pattern, value.data(), sizeof(pattern));
-        q.enqueueFillBuffer(pool, pattern, slot * bytes, bytes);
-    };
-    switch (value.size()) {
-        case 1:
-            fill(std::uint8_t{0});
-            break;
-        case 2:
-            fill(std::uint16_t{0});
-            break;
-        case 4:
-            fill(std::uint32_t{0});
-            break;
-        default:
-            fill(std::uint64_t{0});
-            break;
-    }
-}
-
 }  // namespace
 
 GeneratorOptions resolve_sparse_options(const GeneratorOptions& options, bool format_given) {
@@ -229,6 +205,7 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
         scatter_ = cl::Kernel(program_, "scatter");
         scatter_voxels_ = cl::Kernel(program_, "scatter_voxels");
         node_minima_ = cl::Kernel(program_, "node_minima");
+        fill_slot_ = cl::Kernel(program_, "fill_slot");
         sweep_init_ = cl::Kernel(program_, "sweep_init");
         sweep_l1_ = cl::Kernel(program_, "sweep_l1");
         sweep_finish_ = cl::Kernel(program_, "sweep_finish");
@@ -278,7 +255,14 @@ std::uint32_t SparseField::dense_slot(std::uint64_t key) {
         constant_value(it == tiles_.end() ? kNoTile : it->second);
     const auto slot = static_cast<std::uint32_t>(slot_keys_.size());
     ensure_slots(slot + std::size_t{1});
-    cl_call("filling a field tile", [&] { fill_tile(ctx_.queue(), pool_, slot, value); });
+    cl_call("filling a field tile", [&] {
+        fill_slot_.setArg(0, pool_);
+        fill_slot_.setArg(1, static_cast<cl_ulong>(slot));
+        fill_slot_.setArg(2, value.size(), value.data());
+        ctx_.queue().enqueueNDRangeKernel(fill_slot_, cl::NullRange,
+                                          cl::NDRange(kTileSize, kTileSize, kTileSize),
+                                          cl::NDRange(kTileSize, 1, 1));
+    });
     slot_keys_.push_back(key);
     coarse_host_.resize(slot_keys_.size() * 64 * elem_);
     tiles_[key] = slot;
