@@ -208,6 +208,7 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
         fill_slot_ = cl::Kernel(program_, "fill_slot");
         sweep_init_ = cl::Kernel(program_, "sweep_init");
         sweep_l1_ = cl::Kernel(program_, "sweep_l1");
+        sweep_l1_rows_ = cl::Kernel(program_, "sweep_l1_rows");
         sweep_finish_ = cl::Kernel(program_, "sweep_finish");
     });
 }
@@ -659,10 +660,12 @@ double SparseField::sweep() {
         sweep_init_.setArg(4, refs_buf);
         sweep_init_.setArg(5, pool_);
         sweep_init_.setArg(7, cap);
-        sweep_l1_.setArg(0, pool_);
-        sweep_l1_.setArg(1, nbrs_buf);
-        sweep_l1_.setArg(4, static_cast<cl_uint>(halo_[0]));
-        sweep_l1_.setArg(5, cap);
+        for (cl::Kernel* k : {&sweep_l1_, &sweep_l1_rows_}) {
+            k->setArg(0, pool_);
+            k->setArg(1, nbrs_buf);
+            k->setArg(4, static_cast<cl_uint>(halo_[0]));
+            k->setArg(5, cap);
+        }
         sweep_finish_.setArg(0, pool_);
         sweep_finish_.setArg(2, most);
         sweep_finish_.setArg(3, elem_, far_.data());
@@ -673,16 +676,33 @@ double SparseField::sweep() {
             for (std::size_t first = 0; first < n; first += kSweepSlots) {
                 const std::size_t count = std::min(kSweepSlots, n - first);
                 k.setArg(first_arg, static_cast<cl_uint>(first));
-                const std::size_t depth = per_voxel ? count * kTileSize : count;
-                q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(kTileSize, kTileSize, depth),
-                                       cl::NDRange(kTileSize, 1, 1), nullptr,
+                // Per voxel kernels take 16 voxels along x per work-item.
+                const cl::NDRange global =
+                    per_voxel ? cl::NDRange(kTileSize / 16, kTileSize, count * kTileSize)
+                              : cl::NDRange(kTileSize, kTileSize, count);
+                const cl::NDRange local =
+                    per_voxel ? cl::NDRange(kTileSize / 16, 16, 1) : cl::NDRange(kTileSize, 1, 1);
+                q.enqueueNDRangeKernel(k, cl::NullRange, global, local, nullptr,
                                        &events.emplace_back(stage, cl::Event()).second);
             }
         };
         each_batch("sweep_init", sweep_init_, 6, true);
         for (cl_uint axis = 0; axis < 3; ++axis) {
-            sweep_l1_.setArg(3, axis);
-            each_batch(std::string("sweep_") + "xyz"[axis], sweep_l1_, 2, false);
+            // CPUs take y and z a plane of 64 lines per work-item (sweep_l1_rows).
+            cl::Kernel& k = axis == 0 || gpu_layout_ ? sweep_l1_ : sweep_l1_rows_;
+            k.setArg(3, axis);
+            const std::string stage = std::string("sweep_") + "xyz"[axis];
+            if (&k == &sweep_l1_) {
+                each_batch(stage, k, 2, false);
+                continue;
+            }
+            for (std::size_t first = 0; first < n; first += kSweepSlots) {
+                const std::size_t count = std::min(kSweepSlots, n - first);
+                k.setArg(2, static_cast<cl_uint>(first));
+                q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(kTileSize, count),
+                                       cl::NDRange(kTileSize, 1), nullptr,
+                                       &events.emplace_back(stage, cl::Event()).second);
+            }
         }
         each_batch("sweep_finish", sweep_finish_, 1, true);
         q.finish();
