@@ -4,6 +4,7 @@
 #include "voxfield/cl/sparse_field.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -515,8 +516,15 @@ void SparseField::add_stage(const std::string& name, double ms) {
 
 double SparseField::run() {
     stages_.clear();
+    host_stages_.clear();
     work_ = Work{};
+    auto lap = [this, t = std::chrono::steady_clock::now()](const char* name) mutable {
+        const auto now = std::chrono::steady_clock::now();
+        host_stages_.emplace_back(name, std::chrono::duration<double, std::milli>(now - t).count());
+        t = now;
+    };
     device_world_.refresh();
+    lap("world_refresh");
     tiles_.clear();
     slot_keys_.clear();
     const Dims wd = world_.dims();
@@ -575,9 +583,11 @@ double SparseField::run() {
         }
     }
     std::sort(keys.begin(), keys.end());
+    lap("field_tiles");
     // Headroom for the field tiles that edits add: growing the pool copies it whole (seconds
     // and twice its memory on a large world), so an edit should rarely have to.
     ensure_slots(keys.size() + keys.size() / 16 + 16);
+    lap("pool");
     const bool blocks = run_method() == "blocks";
     std::vector<Job> jobs;
     std::vector<std::uint32_t> slots;
@@ -600,9 +610,13 @@ double SparseField::run() {
         jobs.push_back({region, tile_origin(t.x, t.y, t.z, wd, block, halo_)});
     }
     coarse_host_.assign(slot_keys_.size() * 64 * elem_, 0);
+    lap("jobs");
     double ms = blocks ? compute(jobs, block) : sweep();
+    lap(blocks ? "blocks" : "sweep");
     refresh_coarse(slots, std::vector<std::uint64_t>(slots.size(), ~std::uint64_t{0}), &ms);
-    return ms + settle_scatters();
+    ms += settle_scatters();
+    lap("coarse");
+    return ms;
 }
 
 std::string SparseField::run_method() const {
