@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <string>
+#include <thread>
 
 #include "util.hpp"
 #include "voxfield/cl/exact.hpp"
@@ -536,43 +537,80 @@ double SparseField::run() {
     auto full = [&](std::uint32_t t) {
         return world_.material_counts()[t] == world_.tile_box(t).volume();
     };
-    for (std::uint32_t t = 0; t < world_.tile_count(); ++t) {
-        const Int3 c = world_.tile_coord(t);
-        const Box tb = world_.tile_box(t);
-        bool inside = false;
-        if (!packed && full(t)) {
-            inside = true;
-            if (options_.signed_field) {
-                const Box halo = grow(tb, halo_);
-                inside = intersect(halo, all) == halo;
-                for_each_tile(tiles_of(halo), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
-                    const std::uint32_t n = world_.find_tile(x, y, z);
-                    inside = inside && n != kNoTile && full(n);
-                });
+    // Per stored tile, its entry and the empty tiles within D of its solid voxels: split over
+    // the hardware threads (contiguous ranges), then merged.
+    struct Found {
+        std::vector<std::pair<std::uint64_t, std::uint32_t>> stored;
+        std::vector<std::uint64_t> near;
+    };
+    auto classify = [&](std::uint32_t first, std::uint32_t end, Found& out) {
+        for (std::uint32_t t = first; t < end; ++t) {
+            const Int3 c = world_.tile_coord(t);
+            const Box tb = world_.tile_box(t);
+            bool inside = false;
+            if (!packed && full(t)) {
+                inside = true;
+                if (options_.signed_field) {
+                    const Box halo = grow(tb, halo_);
+                    inside = intersect(halo, all) == halo;
+                    for_each_tile(tiles_of(halo),
+                                  [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+                                      const std::uint32_t n = world_.find_tile(x, y, z);
+                                      inside = inside && n != kNoTile && full(n);
+                                  });
+                }
             }
+            out.stored.emplace_back(
+                tile_key(static_cast<std::uint32_t>(c.x), static_cast<std::uint32_t>(c.y),
+                         static_cast<std::uint32_t>(c.z)),
+                inside ? kInsideTile : kNoTile);
+            const Box sb = world_.solid_bounds(t);
+            const Box reach = intersect(grow(sb, halo_), all);
+            for_each_tile(tiles_of(reach), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+                if (world_.find_tile(x, y, z) != kNoTile) {
+                    return;
+                }
+                const std::int64_t s = kTileSize;
+                auto gap = [](std::int64_t lo, std::int64_t hi, std::int64_t slo,
+                              std::int64_t shi) {
+                    return std::max<std::int64_t>({0, lo - (shi - 1), slo - (hi - 1)});
+                };
+                const std::int64_t gx = gap(x * s, (x + 1) * s, sb.min.x, sb.max.x);
+                const std::int64_t gy = gap(y * s, (y + 1) * s, sb.min.y, sb.max.y);
+                const std::int64_t gz = gap(z * s, (z + 1) * s, sb.min.z, sb.max.z);
+                if (metric_distance(options_.metric, options_.spacing, gx, gy, gz) < d) {
+                    out.near.push_back(tile_key(static_cast<std::uint32_t>(x),
+                                                static_cast<std::uint32_t>(y),
+                                                static_cast<std::uint32_t>(z)));
+                }
+            });
         }
-        tiles_[tile_key(static_cast<std::uint32_t>(c.x), static_cast<std::uint32_t>(c.y),
-                        static_cast<std::uint32_t>(c.z))] = inside ? kInsideTile : kNoTile;
-        const Box sb = world_.solid_bounds(t);
-        const Box reach = intersect(grow(sb, halo_), all);
-        for_each_tile(tiles_of(reach), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
-            if (world_.find_tile(x, y, z) != kNoTile) {
-                return;
-            }
-            const std::int64_t s = kTileSize;
-            auto gap = [](std::int64_t lo, std::int64_t hi, std::int64_t slo, std::int64_t shi) {
-                return std::max<std::int64_t>({0, lo - (shi - 1), slo - (hi - 1)});
-            };
-            const std::int64_t gx = gap(x * s, (x + 1) * s, sb.min.x, sb.max.x);
-            const std::int64_t gy = gap(y * s, (y + 1) * s, sb.min.y, sb.max.y);
-            const std::int64_t gz = gap(z * s, (z + 1) * s, sb.min.z, sb.max.z);
-            if (metric_distance(options_.metric, options_.spacing, gx, gy, gz) < d) {
-                tiles_.emplace(
-                    tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
-                             static_cast<std::uint32_t>(z)),
-                    kNoTile);
-            }
-        });
+    };
+    const std::uint32_t tile_count = world_.tile_count();
+    const std::uint32_t threads = std::clamp<std::uint32_t>(
+        std::min(std::thread::hardware_concurrency(), tile_count / 16), 1, 64);
+    std::vector<Found> found(threads);
+    {
+        std::vector<std::jthread> pool;
+        for (std::uint32_t i = 1; i < threads; ++i) {
+            pool.emplace_back([&, i] {
+                classify(static_cast<std::uint32_t>(std::uint64_t{tile_count} * i / threads),
+                         static_cast<std::uint32_t>(std::uint64_t{tile_count} * (i + 1) / threads),
+                         found[i]);
+            });
+        }
+        classify(0, static_cast<std::uint32_t>(tile_count / threads), found[0]);
+    }
+    tiles_.reserve(tile_count * std::size_t{2});
+    for (const Found& f : found) {
+        for (const auto& [key, entry] : f.stored) {
+            tiles_[key] = entry;
+        }
+    }
+    for (const Found& f : found) {
+        for (const std::uint64_t key : f.near) {
+            tiles_.emplace(key, kNoTile);
+        }
     }
     // Slots for the tiles that are not constant, in key order (z, y, x: blocks near in space
     // lie near in the batches).
