@@ -17,9 +17,10 @@ with the distances (its passes along the last axis, then the middle, then the fi
 among equally near zeros it (nearly always) takes the one whose (first, middle, last)
 coordinates are lowest in that order of priority, where SciPy takes the lowest (last, middle,
 first): on worlds with many equally near zeros (dense random ones) up to 29% of the elements
-(half of the nonzero ones) name a different, equally near zero than SciPy's (on sparse or smooth worlds 0.3 to
-5%, clustered ones 7%); a GPU's kernels may break ties otherwise still. With other sampling the host passes
-break ties as SciPy does (axis by axis in SciPy's order), so their indices equal SciPy's.
+(half of the nonzero ones) name a different, equally near zero than SciPy's (on sparse or
+smooth worlds 0.3 to 5%, clustered ones 7%); a GPU's kernels may break ties otherwise still.
+With other sampling the host passes break ties as SciPy does (axis by axis in SciPy's order),
+so their indices equal SciPy's.
 Bool and integer inputs go to the device as they are (a uint8 or bool array is read in place
 on a CPU device, its zero elements the targets); other dtypes as ``input == 0``.
 
