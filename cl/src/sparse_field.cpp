@@ -661,8 +661,8 @@ std::string SparseField::run_method() const {
     const GeneratorOptions& o = options_;
     const bool unit = o.spacing.x == 1 && o.spacing.y == 1 && o.spacing.z == 1;
     const bool fits = halo_[0] <= kTileSize && halo_[1] <= kTileSize && halo_[2] <= kTileSize;
-    return !force_blocks_ && o.metric == Metric::manhattan && !o.signed_field &&
-                   o.format != Format::packed32 && unit && fits
+    return !force_blocks_ && o.metric == Metric::manhattan && o.format != Format::packed32 &&
+                   unit && fits
                ? "sweep"
                : "blocks";
 }
@@ -699,8 +699,9 @@ double SparseField::sweep() {
             }
         }
     }
-    const auto cap = static_cast<cl_uint>(halo_[0] + 1);
-    const auto most = static_cast<cl_uint>(std::floor(*options_.max_distance));
+    const auto cap = static_cast<cl_int>(halo_[0] + 1);
+    const auto most = static_cast<cl_int>(std::floor(*options_.max_distance));
+    const bool sgn = options_.signed_field;
     double ms = 0;
     cl_call("computing a sparse Manhattan field in its tiles", [&] {
         auto& q = ctx_.queue();
@@ -712,6 +713,7 @@ double SparseField::sweep() {
         sweep_init_.setArg(4, refs_buf);
         sweep_init_.setArg(5, pool_);
         sweep_init_.setArg(7, cap);
+        sweep_init_.setArg(8, sgn ? -cap : cl_int{0});
         for (cl::Kernel* k : {&sweep_l1_, &sweep_l1_rows_}) {
             k->setArg(0, pool_);
             k->setArg(1, nbrs_buf);
@@ -721,6 +723,7 @@ double SparseField::sweep() {
         sweep_finish_.setArg(0, pool_);
         sweep_finish_.setArg(2, most);
         sweep_finish_.setArg(3, elem_, far_.data());
+        sweep_finish_.setArg(4, elem_, inside_.data());
         std::vector<std::pair<std::string, cl::Event>> events;
         // Every launch of a stage before the next stage's (the passes read neighbours).
         auto each_batch = [&](const std::string& stage, cl::Kernel& k, cl_uint first_arg,
@@ -740,8 +743,8 @@ double SparseField::sweep() {
         };
         each_batch("sweep_init", sweep_init_, 6, true);
         for (cl_uint axis = 0; axis < 3; ++axis) {
-            // CPUs take y and z a plane of 64 lines per work-item (sweep_l1_rows).
-            cl::Kernel& k = axis == 0 || gpu_layout_ ? sweep_l1_ : sweep_l1_rows_;
+            // CPUs take y and z a plane of 64 lines per work-item (sweep_l1_rows), unsigned.
+            cl::Kernel& k = axis == 0 || gpu_layout_ || sgn ? sweep_l1_ : sweep_l1_rows_;
             k.setArg(3, axis);
             const std::string stage = std::string("sweep_") + "xyz"[axis];
             if (&k == &sweep_l1_) {

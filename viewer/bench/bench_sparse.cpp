@@ -200,11 +200,11 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
     for (const auto& [name, ms] : field.last_host_stages()) {
         field_host_stages[name] = ms;
     }
-    // The same field by per-tile blocks through the dense generator (the path the sweep
-    // replaced), once, in the same run.
+    // With --compare-blocks, the same field by per-tile blocks through the dense generator (the
+    // path the sweep replaced), once, in the same run.
     const std::string method = field.run_method();
     json blocks_wall = nullptr, blocks_kernel = nullptr;
-    if (method != "blocks") {
+    if (method != "blocks" && o.compare_blocks) {
         observer.progress(label + ": whole bounded field by blocks, for comparison");
         field.force_blocks(true);
         const auto t0 = Clock::now();

@@ -93,11 +93,11 @@ class SparseField {
     }
 
     const GeneratorOptions& options() const { return options_; }
-    // How run() computes the whole field: "sweep" (unsigned Manhattan fields of unit spacing
-    // whose halo fits in one neighbour tile: 1-D passes in the field tiles themselves, see
-    // sparse_field.cl) or "blocks" (every other field, and updates: each tile's block with its
-    // halo through a dense generator). force_blocks(true) makes run() take blocks always
-    // (tests and benchmarks compare the two).
+    // How run() computes the whole field: "sweep" (Manhattan fields, signed or not, of unit
+    // spacing whose halo fits in one neighbour tile, not packed32: 1-D passes in the field
+    // tiles themselves, see sparse_field.cl) or "blocks" (every other field, and updates: each
+    // tile's block with its halo through a dense generator). force_blocks(true) makes run()
+    // take blocks always (tests and benchmarks compare the two).
     std::string run_method() const;
     void force_blocks(bool on) { force_blocks_ = on; }
     std::uint32_t halo(int axis) const { return halo_[axis]; }
