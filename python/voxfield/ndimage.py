@@ -12,15 +12,14 @@ Exactness: ``distance_transform_edt`` with unit sampling is bit for bit SciPy's 
 (exact integer squared distances, then one float64 square root). With other sampling it runs
 the separable passes on the host in float64 (the device's sampled kernels carry float32
 partial distances) and adds the axes' terms in SciPy's order, within 2 ulp of SciPy.
-``indices`` always name a nearest zero element. With unit sampling the device computes them
-with the distances (its passes along the last axis, then the middle, then the first), and
-among equally near zeros it (nearly always) takes the one whose (first, middle, last)
-coordinates are lowest in that order of priority, where SciPy takes the lowest (last, middle,
-first): on worlds with many equally near zeros (dense random ones) up to 29% of the elements
-(half of the nonzero ones) name a different, equally near zero than SciPy's (on sparse or
-smooth worlds 0.3 to 5%, clustered ones 7%); a GPU's kernels may break ties otherwise still.
-With other sampling the host passes break ties as SciPy does (axis by axis in SciPy's order),
-so their indices equal SciPy's.
+``indices`` always name a nearest zero element. The host passes break ties as SciPy does
+(axis by axis in SciPy's order, the lowest coordinate among equally near sites), so their
+indices equal SciPy's; they compute the feature transform whenever sampling is not unit or
+the device is a CPU. A GPU computes the indices with the distances on the device (its passes
+along the last axis, then the middle, then the first), which among equally near zeros takes
+another one than SciPy on up to 29% of the elements of dense random worlds (0.3 to 5% on
+sparse or smooth ones, measured on PoCL through ``_core.distance_transform``): SciPy's ties
+cost a CPU 5 to 10x the device's time, which is why a CPU keeps them.
 Bool and integer inputs go to the device as they are (a uint8 or bool array is read in place
 on a CPU device, its zero elements the targets); other dtypes as ``input == 0``.
 
@@ -162,7 +161,7 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
 
     ft = None
     unit = s is None or bool(np.all(s == 1.0))
-    device_path = unit
+    device_path = unit and not (return_indices and _core.device_type(device) == "cpu")
     out = None
     if a.size == 0:
         dt = np.zeros(shape, np.float64)

@@ -260,12 +260,12 @@ def test_device_keyword():
         np.testing.assert_array_equal(vf.distance_transform_edt(a, device=device), want)
 
 
-def test_indices_with_sampling_break_ties_as_scipy():
-    """With sampling other than 1 the host passes choose SciPy's sites (axes in its order)."""
+def test_indices_break_ties_as_scipy_on_a_cpu_device():
+    """On a CPU device (and with any sampling) the host passes choose SciPy's sites."""
     for i, shape in enumerate(SHAPES + [(16, 16, 16)]):
         for density in (0.5, 0.95):
             a = random_input(shape, density, 200 + i)
-            for sampling in (2.0, (1, 1, 3)[-len(shape):]):
+            for sampling in (None, 2.0, (1, 1, 3)[-len(shape):]):
                 got_d, got_i = vf.distance_transform_edt(a, sampling=sampling,
                                                          return_indices=True, device="cpu")
                 want_d, want_i = sp.distance_transform_edt(a, sampling=sampling,
@@ -276,10 +276,10 @@ def test_indices_with_sampling_break_ties_as_scipy():
 
 @pytest.mark.parametrize("dtype", DTYPES, ids=str)
 def test_indices_on_the_device_over_dtypes_layouts_and_dims(dtype):
-    """Unit sampling: the device's separable passes (the z pass writing the f64 field and the
-    index planes in place; bool and integer inputs read with their zeros as the targets) give
-    SciPy's distances bit for bit and indices naming a zero at exactly that distance; ties
-    (lowest z, then y, then x along the passes) may differ from SciPy's."""
+    """Unit sampling with indices, every dtype, layout and dimension, into given outputs:
+    SciPy's distances bit for bit and indices naming a zero at exactly that distance (on a
+    GPU ties may differ from SciPy's; the device's in-place index planes are tested in
+    tests/cl/separable_test.cpp)."""
     for i, shape in enumerate(SHAPES + [(70, 3, 40), (2, 90, 33)]):
         for density in (0.02, 0.5, 0.97):
             a = random_input(shape, density, 300 + 10 * i + int(density * 10), dtype)
