@@ -35,12 +35,16 @@ have fails that task. The unbounded scheme uses no device (``distance_transform_
 """
 
 import functools
+import itertools
 import math
+import operator
 
 import dask.array as da
 import numpy as np
 from dask.array.reductions import cumreduction
+from dask.base import tokenize
 from dask.graph_manipulation import clone
+from dask.highlevelgraph import HighLevelGraph
 
 from voxfield import _core
 
@@ -100,14 +104,11 @@ def _distance_bytes(length):
     return 2 if length < 65535 else 4
 
 
-def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, minus_one,
-                block_info=None):
-    """The field of a slab spanning every axis but axis 0, in `dtype`: the first pass along
-    axis 0 from the slab's targets (nonzero) and the nearest targets before and after it on
-    every line (`before`, `after`: one block along axis 0, -1: none), then the passes along
-    the other axes: with unit sampling ``slab_field`` (exact integers, the format written as
-    the kernels write it; `minus_one`: -1 where nothing is reachable), else the float64
-    ``slab_passes`` a few planes at a time and `finish` of their result."""
+def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, block_info=None):
+    """The field of a slab spanning every axis but axis 0, in `dtype`, with non-unit sampling:
+    the first pass along axis 0 from the slab's targets (nonzero) and the nearest targets
+    before and after it on every line (`before`, `after`: one block along axis 0, -1: none),
+    then the float64 ``slab_passes`` a few planes at a time and `finish` of their result."""
     z0 = block_info[0]["array-location"][0][0]
     out = np.empty(slab.shape, dtype)
     # The first pass's distances live in the tail of `out` where they fit: the planes written
@@ -118,9 +119,6 @@ def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, min
         tail = out.reshape(-1).view(np.uint8)[out.nbytes - d_dtype.itemsize * out.size:]
         tail = tail.view(d_dtype).reshape(slab.shape)
     d = _core.axis0_distances(slab, before[0], after[0], z0, length, tail)
-    if all(v == 1.0 for v in spacing):
-        _core.slab_field(d, metric, out, minus_one)
-        return out
     plane = max(1, math.prod(slab.shape[1:]))
     step = max(1, _PASS_ELEMENTS // plane)
     scratch = np.empty((min(step, slab.shape[0]),) + slab.shape[1:])  # filled afresh each time
@@ -157,8 +155,11 @@ def _separable(targets, metric, spacing, dtype, finish=None, minus_one=False):
         return da.zeros(targets.shape, dtype, chunks=chunks)
     plane = max(1, math.prod(targets.shape[1:]))
     item = np.dtype(dtype).itemsize
+    unit = all(v == 1.0 for v in spacing)
     dbytes = _distance_bytes(targets.shape[0])
-    per_element = 1 + item + (0 if item >= dbytes and item % dbytes == 0 else dbytes)
+    # Unit sampling: the slab's blocks and pieces (the first pass a few planes at a time);
+    # else targets, output and the first pass (in the output's tail where it fits).
+    per_element = 1 + item + (0 if unit or (item >= dbytes and item % dbytes == 0) else dbytes)
     depth = max(1, _SLAB_BYTES // (plane * per_element))
     slab_chunks = tuple(p for c in chunks[0] for p in [depth] * (c // depth) + [c % depth] if p)
     t = targets.rechunk({0: slab_chunks})
@@ -175,9 +176,48 @@ def _separable(targets, metric, spacing, dtype, finish=None, minus_one=False):
     after = cumreduction(np.minimum.accumulate, np.minimum, _NONE, first[::-1], axis=0,
                          dtype=np.int64)[::-1]
     after = _shift(da.where(after == _NONE, -1, after), -1, False)
-    g = t.rechunk(whole).map_blocks(_slab_block, before, after, metric, spacing, finish, dtype,
-                                    targets.shape[0], minus_one, dtype=dtype)
+    if unit:
+        g = _unit_slabs(t, before, after, metric, dtype, minus_one)
+    else:
+        g = t.rechunk(whole).map_blocks(_slab_block, before, after, metric, spacing, finish,
+                                        dtype, targets.shape[0], dtype=dtype)
     return g.rechunk(chunks)
+
+
+def _slab_pieces(blocks, before, after, z0, length, metric, dtype, y_edges, x_edges, minus_one):
+    """The field of one slab with unit sampling, in `dtype`, from its blocks of targets (a
+    row-major list over the other axes' chunks) and its lines' nearest targets before and
+    after it: a tuple of one C-contiguous piece per block, of the block's shape."""
+    out = [np.empty(b.shape, dtype) for b in blocks]
+    _core.slab_pieces(blocks, before, after, z0, length, metric, out, y_edges, x_edges,
+                      minus_one)
+    return tuple(out)
+
+
+def _unit_slabs(t, before, after, metric, dtype, minus_one):
+    """The lazy field of targets `t` (one chunk row per slab along axis 0) with unit sampling,
+    chunked as `t`: one task per slab computes every piece of it (``_slab_pieces``: the blocks
+    of the slab go in as they are, the pieces come out in the chunks of `t`, so no block is
+    concatenated, split or copied), one key per piece picks it from the slab's tuple."""
+    token = tokenize(t, before, after, metric, np.dtype(dtype), minus_one)
+    slab_name, name = "slab-pieces-" + token, "slab-field-" + token
+    inner = t.chunks[1:]
+    # The other axes seen as (rows, columns) of each plane, as _core.slab_pieces takes them.
+    yx = ([(1,)] * (2 - len(inner)) + list(inner))[-2:]
+    y_edges, x_edges = ([int(e) for e in np.cumsum((0,) + c)] for c in yx)
+    cells = list(itertools.product(*(range(len(c)) for c in inner)))
+    zeros = (0,) * len(inner)
+    offsets = np.cumsum((0,) + t.chunks[0])
+    dsk = {}
+    for s in range(len(t.chunks[0])):
+        dsk[(slab_name, s)] = (_slab_pieces, [(t.name, s) + c for c in cells],
+                               (before.name, s) + zeros, (after.name, s) + zeros,
+                               int(offsets[s]), t.shape[0], metric, np.dtype(dtype), y_edges,
+                               x_edges, minus_one)
+        for i, c in enumerate(cells):
+            dsk[(name, s) + c] = (operator.getitem, (slab_name, s), i)
+    graph = HighLevelGraph.from_collections(name, dsk, dependencies=[t, before, after])
+    return da.Array(graph, name, chunks=t.chunks, dtype=dtype)
 
 
 def _store(d, out):
