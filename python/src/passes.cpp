@@ -506,22 +506,6 @@ inline X* piece_row(const Pieces<X>& pieces, std::size_t j, std::size_t k, std::
     return pieces.data[j * nk + k] + (p * h + (y - y0)) * w;
 }
 
-// Calls f(run, x0, x1) for every run of plane p of `pieces` in row-major order: row y's
-// columns [x0, x1) at `run`, line index y * n2 + x0 of the plane.
-template <typename X, typename F>
-inline void for_runs(const Pieces<X>& pieces, std::size_t p, F&& f) {
-    const std::size_t nj = pieces.y_edges.size() - 1, nk = pieces.x_edges.size() - 1;
-    const std::size_t n2 = pieces.x_edges[nk];
-    for (std::size_t j = 0; j < nj; ++j) {
-        for (std::size_t y = pieces.y_edges[j]; y < pieces.y_edges[j + 1]; ++y) {
-            for (std::size_t k = 0; k < nk; ++k) {
-                f(piece_row(pieces, j, k, p, y), y * n2 + pieces.x_edges[k],
-                  pieces.x_edges[k + 1] - pieces.x_edges[k]);
-            }
-        }
-    }
-}
-
 // The passes along axes 1 and 2 of one plane of first-pass distances `dp` (n1 x n2, `none`:
 // no target), stored into plane p of `out` (see unit_slab_pieces). The work buffers are the
 // caller's, sized by unit_slab_groups.
@@ -597,69 +581,102 @@ struct UnitPlane {
 
 // unit_slab_pieces for one metric, partial type G and first-pass distance type D: the first
 // pass a group of planes at a time (the nearest target after each group found first by one
-// backward sweep), each group's planes then through UnitPlane.
+// backward sweep), each group's planes then through UnitPlane. The sweeps along axis 0 go
+// piece by piece, their per-line positions kept in the pieces' order (piece i's lines at
+// base[i] + its row * its width + its column), so that a piece's positions stay in the
+// core's cache while its planes stream by.
 template <Metric M, typename G, typename D, typename T>
 void unit_slab_groups(Shape3 shape, std::int64_t z0, const Pieces<const std::uint8_t>& targets,
                       std::span<const std::int64_t> before, std::span<const std::int64_t> after,
                       const Pieces<T>& out, bool minus_one) {
     constexpr D none = std::numeric_limits<D>::max();
-    const std::size_t planes = shape.n[0], lines = shape.n[1] * shape.n[2];
+    const std::size_t planes = shape.n[0], n2 = shape.n[2], lines = shape.n[1] * n2;
+    const std::size_t nj = targets.y_edges.size() - 1, nk = targets.x_edges.size() - 1;
     // Groups of `depth` planes: the after-group positions (8 bytes a line per group) and a
     // group's distances (sizeof(D) a line per plane) weigh about the same.
     const auto groups = static_cast<std::size_t>(
         std::clamp(std::lround(std::sqrt(static_cast<double>(planes) * sizeof(D) / 8.0)), 1L,
-                   static_cast<long>(std::max<std::size_t>(planes, 1))));
+                   static_cast<long>(planes)));
     const std::size_t depth = (planes + groups - 1) / groups;
-    std::vector<std::int64_t> next(groups * lines), last(before.begin(), before.end());
-    {
-        // next[g]: per line the nearest target at or after the end of group g (-1: none).
-        std::vector<std::int64_t> at(after.begin(), after.end());
-        for (std::size_t p = planes; p-- > 0;) {
-            if ((p + 1) % depth == 0 || p + 1 == planes) {
-                std::copy(at.begin(), at.end(),
-                          next.begin() + static_cast<std::ptrdiff_t>((p / depth) * lines));
-            }
-            const std::int64_t z = z0 + static_cast<std::int64_t>(p);
-            for_runs(targets, p, [&](const std::uint8_t* t, std::size_t q0, std::size_t w) {
-                std::int64_t* a = at.data() + q0;
-                for (std::size_t x = 0; x < w; ++x) {
-                    a[x] = t[x] != 0 ? z : a[x];
-                }
-            });
+    // Piece (j, k): its first line in the pieces' order, first row and column, height, width.
+    struct Cell {
+        std::size_t base, y0, x0, h, w;
+    };
+    std::vector<Cell> cells;
+    for (std::size_t j = 0, base = 0; j < nj; ++j) {
+        for (std::size_t k = 0; k < nk; ++k) {
+            const std::size_t y0 = targets.y_edges[j], x0 = targets.x_edges[k];
+            const std::size_t h = targets.y_edges[j + 1] - y0, w = targets.x_edges[k + 1] - x0;
+            cells.push_back({base, y0, x0, h, w});
+            base += h * w;
         }
     }
+    // Calls f(piece's targets, its cell) for every piece.
+    const auto each = [&](auto&& f) {
+        for (std::size_t i = 0; i < cells.size(); ++i) {
+            f(targets.data[i], cells[i]);
+        }
+    };
+    // A per-line array of the lines' order as the pieces' order.
+    const auto in_pieces = [&](std::span<const std::int64_t> v, std::int64_t* o) {
+        each([&](const std::uint8_t*, const Cell& c) {
+            for (std::size_t r = 0; r < c.h; ++r) {
+                std::copy_n(v.data() + (c.y0 + r) * n2 + c.x0, c.w, o + c.base + r * c.w);
+            }
+        });
+    };
+    std::vector<std::int64_t> next(groups * lines), last(lines), at(lines);
+    in_pieces(before, last.data());
+    in_pieces(after, at.data());
+    // next[g]: per line the nearest target at or after the end of group g (-1: none).
+    each([&](const std::uint8_t* t, const Cell& c) {
+        const std::size_t m = c.h * c.w;
+        std::int64_t* a = at.data() + c.base;
+        for (std::size_t p = planes; p-- > 0;) {
+            if ((p + 1) % depth == 0 || p + 1 == planes) {
+                std::copy_n(a, m, next.data() + (p / depth) * lines + c.base);
+            }
+            const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+            const std::uint8_t* tp = t + p * m;
+            for (std::size_t q = 0; q < m; ++q) {
+                a[q] = tp[q] != 0 ? z : a[q];
+            }
+        }
+    });
     std::vector<D> dist(std::min(depth, planes) * lines);
-    std::vector<std::int64_t> at(lines);
-    UnitPlane<M, G, D, T> plane(shape.n[1], shape.n[2]);
+    UnitPlane<M, G, D, T> plane(shape.n[1], n2);
     for (std::size_t p0 = 0, g = 0; p0 < planes; p0 += depth, ++g) {
         const std::size_t p1 = std::min(planes, p0 + depth);
-        // Forward: the last target at or before each plane; backward: the next at or after.
-        for (std::size_t p = p0; p < p1; ++p) {
-            const std::int64_t z = z0 + static_cast<std::int64_t>(p);
-            D* dp = dist.data() + (p - p0) * lines;
-            for_runs(targets, p, [&](const std::uint8_t* t, std::size_t q0, std::size_t w) {
-                std::int64_t* l = last.data() + q0;
-                D* o = dp + q0;
-                for (std::size_t x = 0; x < w; ++x) {
-                    l[x] = t[x] != 0 ? z : l[x];
-                    o[x] = l[x] < 0 ? none : static_cast<D>(z - l[x]);
+        each([&](const std::uint8_t* t, const Cell& c) {
+            const std::size_t m = c.h * c.w;
+            // Forward: the last target at or before each plane; backward: the next at or
+            // after. Distances go to the group's planes in the planes' own order.
+            std::int64_t* l = last.data() + c.base;
+            for (std::size_t p = p0; p < p1; ++p) {
+                const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+                const std::uint8_t* tp = t + p * m;
+                D* dp = dist.data() + (p - p0) * lines + c.y0 * n2 + c.x0;
+                for (std::size_t r = 0, q = 0; r < c.h; ++r) {
+                    for (std::size_t x = 0; x < c.w; ++x, ++q) {
+                        l[q] = tp[q] != 0 ? z : l[q];
+                        dp[r * n2 + x] = l[q] < 0 ? none : static_cast<D>(z - l[q]);
+                    }
                 }
-            });
-        }
-        std::copy(next.begin() + static_cast<std::ptrdiff_t>(g * lines),
-                  next.begin() + static_cast<std::ptrdiff_t>((g + 1) * lines), at.begin());
-        for (std::size_t p = p1; p-- > p0;) {
-            const std::int64_t z = z0 + static_cast<std::int64_t>(p);
-            D* dp = dist.data() + (p - p0) * lines;
-            for_runs(targets, p, [&](const std::uint8_t* t, std::size_t q0, std::size_t w) {
-                std::int64_t* a = at.data() + q0;
-                D* o = dp + q0;
-                for (std::size_t x = 0; x < w; ++x) {
-                    a[x] = t[x] != 0 ? z : a[x];
-                    o[x] = a[x] >= 0 ? std::min(o[x], static_cast<D>(a[x] - z)) : o[x];
+            }
+            std::int64_t* a = next.data() + g * lines + c.base;
+            for (std::size_t p = p1; p-- > p0;) {
+                const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+                const std::uint8_t* tp = t + p * m;
+                D* dp = dist.data() + (p - p0) * lines + c.y0 * n2 + c.x0;
+                for (std::size_t r = 0, q = 0; r < c.h; ++r) {
+                    for (std::size_t x = 0; x < c.w; ++x, ++q) {
+                        a[q] = tp[q] != 0 ? z : a[q];
+                        D& o = dp[r * n2 + x];
+                        o = a[q] >= 0 ? std::min(o, static_cast<D>(a[q] - z)) : o;
+                    }
                 }
-            });
-        }
+            }
+        });
         for (std::size_t p = p0; p < p1; ++p) {
             plane.run(dist.data() + (p - p0) * lines, none, out, p, minus_one);
         }

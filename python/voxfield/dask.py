@@ -13,19 +13,22 @@ Two exact schemes:
   within D, which the halo holds, and everything beyond D saturates at D.
 * Unbounded fields (``distance_transform`` without ``max_distance``,
   ``distance_transform_edt`` and ``distance_transform_cdt``): the separable transform on the
-  host in slabs along axis 0 (blocks spanning every other axis, about 640 MiB of targets,
-  output and first pass each at most). Along axis 0 the first pass of a line needs only the
-  nearest target before and after each slab, so every block first gives the first and last
-  target of each of its lines (from a clone of the input's graph: the input is read twice,
-  and nothing waits in memory for the slabs), a cumulative maximum / minimum over the blocks
-  carries them along axis 0, and each slab then computes its first pass
-  (``voxfield._core.axis0_distances``) and the passes along the other axes. With unit
-  sampling these run in exact integer arithmetic and write the output format directly
-  (``voxfield._core.slab_field``: L2 the square root of the exact squared distance, rounded
-  once, so edt equals the one-piece function bit for bit); with other sampling in float64 a
-  few planes at a time (``voxfield._core.slab_passes``, axes 0, 1, 2 in turn, so sampled sums
-  are SciPy's). No partial distance moves between workers; the slabs are split back into the
-  input's chunks. Each line is computed whole, so no result depends on the chunks.
+  host in slabs along axis 0 (a chunk row of blocks spanning every other axis, about 640
+  MiB of targets and output each at most). Along axis 0 the first pass of a line needs only
+  the nearest target before and after each slab, so every block first gives the first and
+  last target of each of its lines (from a clone of the input's graph: the input is read
+  twice, and nothing waits in memory for the slabs), a cumulative maximum / minimum over the
+  blocks carries them along axis 0, and each slab then computes its first pass and the
+  passes along the other axes. With unit sampling one task per slab
+  (``voxfield._core.slab_pieces``) takes the slab's blocks as they are, runs every pass in
+  exact integer arithmetic a group of planes at a time and writes the output format straight
+  into one piece per output chunk (L2 the square root of the exact squared distance, rounded
+  once, so edt equals the one-piece function bit for bit): no block is concatenated, no slab
+  is split, and each chunk of the result is its own piece of the slab's tuple. With other
+  sampling the slab's first pass (``voxfield._core.axis0_distances``) and float64 passes a
+  few planes at a time (``voxfield._core.slab_passes``, axes 0, 1, 2 in turn, so sampled
+  sums are SciPy's), the slab split back into the input's chunks. No partial distance moves
+  between workers. Each line is computed whole, so no result depends on the chunks.
 
 Each bounded task picks its device when it runs: ``device=`` if given, else
 ``$VOXFIELD_DEVICE`` as the worker's environment has it, else the first GPU, else the first
@@ -83,11 +86,12 @@ def _check_device(device):
                          "voxfield.devices()")
 
 
-# A slab of the unbounded scheme holds at most this many bytes of targets, output and first
-# pass (unless one plane is larger): a 128-plane chunk row of a 1024^2 float32 field whole. A
-# slab thinner than its input chunk costs a merge (a transfer between workers) when the output
-# goes back into the input's chunks, so halving this measured slower. With non-unit sampling
-# the passes after the first run on _PASS_ELEMENTS elements at a time (float64).
+# A slab of the unbounded scheme holds at most this many bytes of targets and output (and,
+# with non-unit sampling, first pass) unless one plane is larger: a 128-plane chunk row of a
+# 1024^2 float32 field whole. A slab thinner than its input chunk costs a merge (a transfer
+# between workers) when the output goes back into the input's chunks, so halving this
+# measured slower. With non-unit sampling the passes after the first run on _PASS_ELEMENTS
+# elements at a time (float64).
 _SLAB_BYTES = 5 << 27
 _PASS_ELEMENTS = 1 << 21
 _NONE = np.iinfo(np.int64).max  # "no target" in the cumulative minimum of first targets
