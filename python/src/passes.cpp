@@ -416,10 +416,11 @@ inline std::int64_t separator(std::int64_t i, std::int64_t gi, std::int64_t u, s
 }
 
 // One line of n partials g[i * st] (kNone: no site) into out[i * st]: the lower envelope by
-// Meijster's stack (L2, L-inf) or the two sweeps (L1); `site` and `start` hold n ints each.
+// Meijster's stack (L2, L-inf) or the two sweeps (L1); `site`, `start` and `value` (the
+// sites' partials) hold n ints each.
 template <Metric M, typename G>
 void unit_line(const G* g, std::int64_t n, std::int64_t st, G* out, std::int64_t* site,
-               std::int64_t* start) {
+               std::int64_t* start, std::int64_t* value) {
     constexpr G none = kNone<G>;
     if constexpr (M == Metric::manhattan) {
         G run = none;
@@ -439,19 +440,19 @@ void unit_line(const G* g, std::int64_t n, std::int64_t st, G* out, std::int64_t
             if (gu == none) {
                 continue;
             }
-            while (k >= 0 &&
-                   cost<M>(start[k], site[k], g[site[k] * st]) > cost<M>(start[k], u, gu)) {
+            while (k >= 0 && cost<M>(start[k], site[k], value[k]) > cost<M>(start[k], u, gu)) {
                 --k;
             }
             if (k < 0) {
                 k = 0;
                 site[0] = u;
                 start[0] = 0;
-            } else if (const std::int64_t w = separator<M>(site[k], g[site[k] * st], u, gu) + 1;
-                       w < n) {
+                value[0] = gu;
+            } else if (const std::int64_t w = separator<M>(site[k], value[k], u, gu) + 1; w < n) {
                 ++k;
                 site[k] = u;
                 start[k] = w;
+                value[k] = gu;
             }
         }
         if (k < 0) {
@@ -460,11 +461,13 @@ void unit_line(const G* g, std::int64_t n, std::int64_t st, G* out, std::int64_t
             }
             return;
         }
-        for (std::int64_t x = n; x-- > 0;) {
-            out[x * st] = static_cast<G>(cost<M>(x, site[k], g[site[k] * st]));
-            if (x == start[k]) {
-                --k;
+        // Each envelope site's run [start, end) in one branch-free loop.
+        for (std::int64_t end = n; k >= 0; --k) {
+            const std::int64_t i = site[k], gi = value[k];
+            for (std::int64_t x = start[k]; x < end; ++x) {
+                out[x * st] = static_cast<G>(cost<M>(x, i, gi));
             }
+            end = start[k];
         }
     }
 }
@@ -513,7 +516,7 @@ template <Metric M, typename G, typename D, typename T>
 struct UnitPlane {
     std::size_t n1, n2;
     std::vector<G> g1, cols, res, row;
-    std::vector<std::int64_t> site, start;
+    std::vector<std::int64_t> site, start, value;
     static constexpr std::int64_t kCols = 16;  // columns of a plane taken together along axis 1
 
     UnitPlane(std::size_t rows, std::size_t columns)
@@ -524,7 +527,8 @@ struct UnitPlane {
           res(kCols * rows),
           row(columns),
           site(std::max(rows, columns)),
-          start(std::max(rows, columns)) {}
+          start(std::max(rows, columns)),
+          value(std::max(rows, columns)) {}
 
     void run(const D* dp, D none, const Pieces<T>& out, std::size_t p, bool minus_one) {
         const auto sn1 = static_cast<std::int64_t>(n1), sn2 = static_cast<std::int64_t>(n2);
@@ -549,7 +553,7 @@ struct UnitPlane {
             if (n1 > 1) {
                 for (std::int64_t c = 0; c < w; ++c) {
                     unit_line<M, G>(cols.data() + c, sn1, kCols, res.data() + c, site.data(),
-                                    start.data());
+                                    start.data(), value.data());
                 }
             } else {
                 std::copy(cols.begin(), cols.begin() + w, res.begin());
@@ -565,7 +569,8 @@ struct UnitPlane {
             for (std::size_t y = out.y_edges[j]; y < out.y_edges[j + 1]; ++y) {
                 const G* line = g1.data() + y * n2;
                 if (n2 > 1) {
-                    unit_line<M, G>(line, sn2, 1, row.data(), site.data(), start.data());
+                    unit_line<M, G>(line, sn2, 1, row.data(), site.data(), start.data(),
+                                    value.data());
                     line = row.data();
                 }
                 for (std::size_t k = 0; k < nk; ++k) {
