@@ -16,7 +16,9 @@ peak resident memory of each worker (VmHWM, workers restarted between runs) and 
 each used; the one-piece voxfield.distance_transform of the whole array in this process (wall
 and CPU time, array already in memory, its kernels built first on one block); and whether
 the two are equal, compared slab by slab (one block thick) so that the Dask field is never
-read whole. --fields picks the runs. The JSON also records the device, the date, the commit,
+read whole. --fields picks the runs. The workers' CPU time is also split by task prefix
+(each task's thread CPU time, summed over both workers; "outside tasks": the rest of the
+workers' CPU during the run: transfers, serialization, the event loop). The JSON also records the device, the date, the commit,
 the load average before and after each run and this process's peak memory. CPU times say
 what the load average hides: on a shared machine the wall times follow the other work.
 """
@@ -65,6 +67,35 @@ def cpu_seconds():
 
 def rusage_peak_bytes():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+def count_task_cpu():
+    """In a worker: from now on add each task's thread CPU time to a total per task prefix
+    (distributed.worker.apply_function wrapped); returns the process CPU time so far."""
+    import collections
+
+    import distributed.worker as worker
+    from dask.utils import key_split
+
+    worker.voxfield_task_cpu = collections.defaultdict(float)
+    run = getattr(worker.apply_function, "voxfield_wrapped", worker.apply_function)
+
+    def counted(function, args, kwargs, execution_state, key, *rest, **kw):
+        start = time.thread_time()
+        try:
+            return run(function, args, kwargs, execution_state, key, *rest, **kw)
+        finally:
+            worker.voxfield_task_cpu[key_split(key)] += time.thread_time() - start
+
+    counted.voxfield_wrapped = run
+    worker.apply_function = counted
+    return time.process_time()
+
+
+def task_cpu():
+    """In a worker: the task CPU totals count_task_cpu started, and the process CPU time."""
+    import distributed.worker as worker
+    return dict(worker.voxfield_task_cpu), time.process_time()
 
 
 def equal_by_slabs(path, want, depth):
@@ -131,6 +162,7 @@ def main():
             if device:
                 client.run(lambda: os.environ.__setitem__("VOXFIELD_DEVICE", device))
             out = os.path.join(args.dir, f"{name}.zarr")
+            cpu_at_start = client.run(count_task_cpu)
             load_before = load()
             t = time.perf_counter()
             field = dask_field(name, da.from_zarr(src), bound)
@@ -139,6 +171,13 @@ def main():
             peaks = list(client.run(peak_rss_bytes).values())
             worker_cpu = list(client.run(cpu_seconds).values())
             rusage_peaks = list(client.run(rusage_peak_bytes).values())
+            by_task, during = {}, 0.0
+            for address, (totals, cpu_now) in client.run(task_cpu).items():
+                during += cpu_now - cpu_at_start[address]
+                for prefix, seconds in totals.items():
+                    by_task[prefix] = by_task.get(prefix, 0.0) + seconds
+            by_task = dict(sorted(by_task.items(), key=lambda kv: -kv[1]))
+            by_task["outside tasks"] = during - sum(by_task.values())
             load_between = load()
             # Kernels built before the clock starts (PoCL builds a kernel per process).
             one_piece(name, world[:b, :b, :b], bound)
@@ -150,7 +189,9 @@ def main():
                          "one_piece_wall_s": one_wall, "ratio": wall / one_wall,
                          "worker_cpu_s": worker_cpu, "one_piece_cpu_s": one_cpu,
                          "worker_peak_rss_bytes": peaks,
-                         "worker_ru_maxrss_bytes": rusage_peaks, "equal": equal,
+                         "worker_ru_maxrss_bytes": rusage_peaks,
+                         "worker_cpu_during_run_s": during, "worker_cpu_by_task_s": by_task,
+                         "equal": equal,
                          "load_average_before": load_before,
                          "load_average_between": load_between,
                          "load_average_after": load()})
@@ -159,6 +200,8 @@ def main():
                   f"{one_cpu:.1f} s  worker peaks "
                   f"{[round(x / 2**30, 2) for x in peaks]} GiB  equal {equal}  "
                   f"load {load_before} -> {load()}", flush=True)
+            print("    worker CPU s by task: " + ", ".join(
+                f"{k} {v:.1f}" for k, v in by_task.items() if v >= 0.05), flush=True)
             del one
             shutil.rmtree(out, ignore_errors=True)
     devs = voxfield.devices()

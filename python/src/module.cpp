@@ -238,68 +238,95 @@ py::array_t<double> slab_passes_of(const py::array& dist, const std::string& met
     return out;
 }
 
-// The field of a part of a slab with unit spacing from its first pass's distances along axis 0
-// (axis0_distances' output, whole planes), written into `out` (see unit_slab_field), which
-// may hold the distances in its tail.
-void slab_field_of(const py::array& dist, const std::string& metric, py::array out,
-                   bool minus_one) {
+// voxfield.dask's unbounded slab with unit sampling (see unit_slab_pieces): the slab's
+// targets and its field each as a list of C-contiguous pieces, row-major over the pieces'
+// grid, whose edges along the slab's axes after axis 0 seen as (n1, n2) are `y_edges` and
+// `x_edges`; every piece spans the slab's planes. `out`: float32, float64 or an integer type
+// of 1 to 4 bytes, one type for all.
+void slab_pieces_of(const py::list& blocks, const py::object& before, const py::object& after,
+                    std::int64_t z0, std::int64_t length, const std::string& metric,
+                    const py::list& out, const std::vector<std::size_t>& y_edges,
+                    const std::vector<std::size_t>& x_edges, bool minus_one) {
     const Metric m = parse_metric(metric);
-    shape3(dist, "the distances");
-    const std::vector<py::ssize_t> shape(dist.shape(), dist.shape() + dist.ndim());
-    if (!(dist.flags() & py::array::c_style)) {
-        throw py::value_error("the distances must be C-contiguous");
+    if (y_edges.size() < 2 || x_edges.size() < 2 ||
+        static_cast<std::size_t>(blocks.size()) != (y_edges.size() - 1) * (x_edges.size() - 1) ||
+        out.size() != blocks.size()) {
+        throw py::value_error("blocks and out must hold one piece per cell of the edges' grid");
     }
-    if (!(out.flags() & py::array::c_style) || !out.writeable() ||
-        std::vector<py::ssize_t>(out.shape(), out.shape() + out.ndim()) != shape) {
-        throw py::value_error("out must be a writable C-contiguous array of shape " +
-                              shape_text(dist));
-    }
-    // Planes along axis 0 of the other axes' lines: (n1, n2) for 3 axes, (1, n1) for 2.
     Shape3 s;
-    s.n[0] = static_cast<std::size_t>(dist.shape(0));
-    if (dist.ndim() == 3) {
-        s.n[1] = static_cast<std::size_t>(dist.shape(1));
-    }
-    if (dist.ndim() >= 2) {
-        s.n[2] = static_cast<std::size_t>(dist.shape(dist.ndim() - 1));
-    }
-    const auto with_out = [&](auto none) {
-        using D = decltype(none);
-        const D* d = static_cast<const D*>(dist.data());
-        const auto run = [&](auto* o) {
-            py::gil_scoped_release release;
-            voxfield::python::unit_slab_field(m, s, d, none, o, minus_one);
-        };
-        void* o = out.mutable_data();
-        if (py::isinstance<py::array_t<float>>(out)) {
-            run(static_cast<float*>(o));
-        } else if (py::isinstance<py::array_t<double>>(out)) {
-            run(static_cast<double*>(o));
-        } else if (py::isinstance<py::array_t<std::uint8_t>>(out)) {
-            run(static_cast<std::uint8_t*>(o));
-        } else if (py::isinstance<py::array_t<std::uint16_t>>(out)) {
-            run(static_cast<std::uint16_t*>(o));
-        } else if (py::isinstance<py::array_t<std::uint32_t>>(out)) {
-            run(static_cast<std::uint32_t*>(o));
-        } else if (py::isinstance<py::array_t<std::int8_t>>(out)) {
-            run(static_cast<std::int8_t*>(o));
-        } else if (py::isinstance<py::array_t<std::int16_t>>(out)) {
-            run(static_cast<std::int16_t*>(o));
-        } else if (py::isinstance<py::array_t<std::int32_t>>(out)) {
-            run(static_cast<std::int32_t*>(o));
-        } else {
-            throw py::type_error(
-                "out must be float32, float64 or an integer type of 1 to 4 "
-                "bytes, not " +
-                dtype_name(out.dtype()));
-        }
+    s.n[1] = y_edges.back();
+    s.n[2] = x_edges.back();
+    const std::size_t nk = x_edges.size() - 1;
+    // Each piece's element count must be planes x its cell's rows x columns.
+    const auto cell = [&](std::size_t i) {
+        return (y_edges[i / nk + 1] - y_edges[i / nk]) * (x_edges[i % nk + 1] - x_edges[i % nk]);
     };
-    if (py::isinstance<py::array_t<std::uint16_t>>(dist)) {
-        with_out(std::numeric_limits<std::uint16_t>::max());
-    } else if (py::isinstance<py::array_t<std::uint32_t>>(dist)) {
-        with_out(std::numeric_limits<std::uint32_t>::max());
+    std::vector<py::array> keep;  // the targets' pieces as bool / uint8, alive while we run
+    std::vector<const std::uint8_t*> t_ptr;
+    for (std::size_t i = 0; i < static_cast<std::size_t>(blocks.size()); ++i) {
+        Shape3 b;
+        keep.push_back(slab_targets(blocks[i], b));
+        if (i == 0) {
+            s.n[0] = b.n[0];
+        }
+        if (b.n[0] != s.n[0] || b.count() != s.n[0] * cell(i)) {
+            throw py::value_error("block " + std::to_string(i) + " of shape " +
+                                  shape_text(keep.back()) + " does not fit its cell");
+        }
+        t_ptr.push_back(static_cast<const std::uint8_t*>(keep.back().data()));
+    }
+    const py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> b(before), e(after);
+    const std::size_t lines = s.n[1] * s.n[2];
+    if (static_cast<std::size_t>(b.size()) != lines ||
+        static_cast<std::size_t>(e.size()) != lines) {
+        throw py::value_error("before and after must hold one position per line of the slab");
+    }
+    std::vector<py::array> outs;
+    for (std::size_t i = 0; i < static_cast<std::size_t>(out.size()); ++i) {
+        const py::array o = py::reinterpret_borrow<py::array>(out[i]);
+        if (!py::isinstance<py::array>(out[i]) || !(o.flags() & py::array::c_style) ||
+            !o.writeable() || static_cast<std::size_t>(o.size()) != s.n[0] * cell(i) ||
+            (i > 0 && !o.dtype().is(outs[0].dtype()))) {
+            throw py::value_error("out piece " + std::to_string(i) +
+                                  " must be a writable C-contiguous array of its cell's size, "
+                                  "of the first piece's dtype");
+        }
+        outs.push_back(o);
+    }
+    const Pieces<const std::uint8_t> targets{t_ptr, y_edges, x_edges};
+    const std::span<const std::int64_t> bs(b.data(), lines), es(e.data(), lines);
+    const auto run = [&](auto* tag) {
+        using T = std::remove_pointer_t<decltype(tag)>;
+        std::vector<T*> o_ptr;
+        for (py::array& o : outs) {
+            o_ptr.push_back(static_cast<T*>(o.mutable_data()));
+        }
+        py::gil_scoped_release release;
+        voxfield::python::unit_slab_pieces<T>(m, s, z0, length, targets, bs, es,
+                                              Pieces<T>{o_ptr, y_edges, x_edges}, minus_one);
+    };
+    const py::array& o = outs[0];
+    if (py::isinstance<py::array_t<float>>(o)) {
+        run(static_cast<float*>(nullptr));
+    } else if (py::isinstance<py::array_t<double>>(o)) {
+        run(static_cast<double*>(nullptr));
+    } else if (py::isinstance<py::array_t<std::uint8_t>>(o)) {
+        run(static_cast<std::uint8_t*>(nullptr));
+    } else if (py::isinstance<py::array_t<std::uint16_t>>(o)) {
+        run(static_cast<std::uint16_t*>(nullptr));
+    } else if (py::isinstance<py::array_t<std::uint32_t>>(o)) {
+        run(static_cast<std::uint32_t*>(nullptr));
+    } else if (py::isinstance<py::array_t<std::int8_t>>(o)) {
+        run(static_cast<std::int8_t*>(nullptr));
+    } else if (py::isinstance<py::array_t<std::int16_t>>(o)) {
+        run(static_cast<std::int16_t*>(nullptr));
+    } else if (py::isinstance<py::array_t<std::int32_t>>(o)) {
+        run(static_cast<std::int32_t*>(nullptr));
     } else {
-        throw py::type_error("the distances must be uint16 or uint32 (axis0_distances)");
+        throw py::type_error(
+            "out must be float32, float64 or an integer type of 1 to 4 bytes, "
+            "not " +
+            dtype_name(o.dtype()));
     }
 }
 
@@ -457,14 +484,18 @@ PYBIND11_MODULE(_core, m) {
           "first pass's values along axis 0, then a host pass along each other axis; into "
           "`out` (float64, the distances' shape) when given; `field` (float32 or float64, that "
           "shape): also the field there (L2: the square root), rounded once.");
-    m.def("slab_field", &vp::slab_field_of, py::arg("distances"), py::arg("metric"), py::arg("out"),
-          py::arg("minus_one") = false,
-          "slab_field(distances, metric, out, minus_one=False) -> None\n\n"
-          "The field of whole planes of a slab with unit sampling, from axis0_distances' "
-          "output for them: the passes along the other axes in exact integer arithmetic, "
-          "written into `out` (the distances' shape; float32, float64 or an integer type) as "
-          "the kernels store that format; `minus_one`: -1 where no target is reachable (SciPy's "
-          "cdt). `out` may hold the distances in its tail.");
+    m.def("slab_pieces", &vp::slab_pieces_of, py::arg("blocks"), py::arg("before"),
+          py::arg("after"), py::arg("z0"), py::arg("length"), py::arg("metric"), py::arg("out"),
+          py::arg("y_edges"), py::arg("x_edges"), py::arg("minus_one") = false,
+          "slab_pieces(blocks, before, after, z0, length, metric, out, y_edges, x_edges, "
+          "minus_one=False) -> None\n\n"
+          "The field of a slab [z0, z0 + n) of an array of `length` along axis 0 with unit "
+          "sampling, in exact integer arithmetic: from its targets (nonzero) in `blocks` and "
+          "per line the nearest target before / after the slab (as axis0_distances), the "
+          "passes along every axis, written into the pieces `out` (float32, float64 or an "
+          "integer type) as the kernels store that format. Both lists are row-major over the "
+          "grid of the edges along the other axes seen as (rows, columns); `minus_one`: -1 "
+          "where no target is reachable (SciPy's cdt).");
     m.def("host_transform", &vp::transform_on_host, py::arg("input"), py::arg("metric"),
           py::arg("sampling"), py::arg("features"), py::arg("threads") = py::none(),
           "host_transform(input, metric, sampling, features, threads=None) -> (g, features)\n\n"

@@ -416,10 +416,11 @@ inline std::int64_t separator(std::int64_t i, std::int64_t gi, std::int64_t u, s
 }
 
 // One line of n partials g[i * st] (kNone: no site) into out[i * st]: the lower envelope by
-// Meijster's stack (L2, L-inf) or the two sweeps (L1); `site` and `start` hold n ints each.
+// Meijster's stack (L2, L-inf) or the two sweeps (L1); `site`, `start` and `value` (the
+// sites' partials) hold n ints each.
 template <Metric M, typename G>
 void unit_line(const G* g, std::int64_t n, std::int64_t st, G* out, std::int64_t* site,
-               std::int64_t* start) {
+               std::int64_t* start, std::int64_t* value) {
     constexpr G none = kNone<G>;
     if constexpr (M == Metric::manhattan) {
         G run = none;
@@ -439,19 +440,19 @@ void unit_line(const G* g, std::int64_t n, std::int64_t st, G* out, std::int64_t
             if (gu == none) {
                 continue;
             }
-            while (k >= 0 &&
-                   cost<M>(start[k], site[k], g[site[k] * st]) > cost<M>(start[k], u, gu)) {
+            while (k >= 0 && cost<M>(start[k], site[k], value[k]) > cost<M>(start[k], u, gu)) {
                 --k;
             }
             if (k < 0) {
                 k = 0;
                 site[0] = u;
                 start[0] = 0;
-            } else if (const std::int64_t w = separator<M>(site[k], g[site[k] * st], u, gu) + 1;
-                       w < n) {
+                value[0] = gu;
+            } else if (const std::int64_t w = separator<M>(site[k], value[k], u, gu) + 1; w < n) {
                 ++k;
                 site[k] = u;
                 start[k] = w;
+                value[k] = gu;
             }
         }
         if (k < 0) {
@@ -460,11 +461,13 @@ void unit_line(const G* g, std::int64_t n, std::int64_t st, G* out, std::int64_t
             }
             return;
         }
-        for (std::int64_t x = n; x-- > 0;) {
-            out[x * st] = static_cast<G>(cost<M>(x, site[k], g[site[k] * st]));
-            if (x == start[k]) {
-                --k;
+        // Each envelope site's run [start, end) in one branch-free loop.
+        for (std::int64_t end = n; k >= 0; --k) {
+            const std::int64_t i = site[k], gi = value[k];
+            for (std::int64_t x = start[k]; x < end; ++x) {
+                out[x * st] = static_cast<G>(cost<M>(x, i, gi));
             }
+            end = start[k];
         }
     }
 }
@@ -495,31 +498,53 @@ inline T stored(G v, bool minus_one) {
     }
 }
 
+// Where row y's run of columns [x_edges[k], x_edges[k + 1]) of plane p lies in piece (j, k)
+// of `pieces` (j: the piece row holding y, with its first row y0 and height h).
+template <typename X>
+inline X* piece_row(const Pieces<X>& pieces, std::size_t j, std::size_t k, std::size_t p,
+                    std::size_t y) {
+    const std::size_t nk = pieces.x_edges.size() - 1;
+    const std::size_t y0 = pieces.y_edges[j], h = pieces.y_edges[j + 1] - y0;
+    const std::size_t w = pieces.x_edges[k + 1] - pieces.x_edges[k];
+    return pieces.data[j * nk + k] + (p * h + (y - y0)) * w;
+}
+
+// The passes along axes 1 and 2 of one plane of first-pass distances `dp` (n1 x n2, `none`:
+// no target), stored into plane p of `out` (see unit_slab_pieces). The work buffers are the
+// caller's, sized by unit_slab_groups.
 template <Metric M, typename G, typename D, typename T>
-void unit_slab(Shape3 shape, const D* dist, D none, T* out, bool minus_one) {
-    const auto n1 = static_cast<std::int64_t>(shape.n[1]);
-    const auto n2 = static_cast<std::int64_t>(shape.n[2]);
-    const std::size_t plane = shape.n[1] * shape.n[2];
-    constexpr std::int64_t kCols = 16;  // columns of a plane taken together along axis 1
-    const std::size_t longest = static_cast<std::size_t>(std::max(n1, n2));
-    std::vector<G> g1(plane), cols(kCols * shape.n[1]), res(kCols * shape.n[1]);
-    std::vector<G> row(shape.n[2]);
-    std::vector<std::int64_t> site(longest), start(longest);
-    const auto part = [none](D d) -> G {
-        if (d == none) {
-            return kNone<G>;
-        }
-        const auto v = static_cast<G>(d);
-        return M == Metric::euclidean ? static_cast<G>(v * v) : v;
-    };
-    for (std::size_t p = 0; p < shape.n[0]; ++p) {
-        const D* dp = dist + p * plane;
+struct UnitPlane {
+    std::size_t n1, n2;
+    std::vector<G> g1, cols, res, row;
+    std::vector<std::int64_t> site, start, value;
+    static constexpr std::int64_t kCols = 16;  // columns of a plane taken together along axis 1
+
+    UnitPlane(std::size_t rows, std::size_t columns)
+        : n1(rows),
+          n2(columns),
+          g1(rows * columns),
+          cols(kCols * rows),
+          res(kCols * rows),
+          row(columns),
+          site(std::max(rows, columns)),
+          start(std::max(rows, columns)),
+          value(std::max(rows, columns)) {}
+
+    void run(const D* dp, D none, const Pieces<T>& out, std::size_t p, bool minus_one) {
+        const auto sn1 = static_cast<std::int64_t>(n1), sn2 = static_cast<std::int64_t>(n2);
+        const auto part = [none](D d) -> G {
+            if (d == none) {
+                return kNone<G>;
+            }
+            const auto v = static_cast<G>(d);
+            return M == Metric::euclidean ? static_cast<G>(v * v) : v;
+        };
         // Along axis 1, kCols columns at a time: their rows' runs copied side by side into
         // `cols` (column c at cols[y * kCols + c]), transformed there, copied into g1.
-        for (std::int64_t x0 = 0; x0 < n2; x0 += kCols) {
-            const std::int64_t w = std::min(kCols, n2 - x0);
-            for (std::int64_t y = 0; y < n1; ++y) {
-                const D* src = dp + y * n2 + x0;
+        for (std::int64_t x0 = 0; x0 < sn2; x0 += kCols) {
+            const std::int64_t w = std::min(kCols, sn2 - x0);
+            for (std::int64_t y = 0; y < sn1; ++y) {
+                const D* src = dp + y * sn2 + x0;
                 G* dst = cols.data() + y * kCols;
                 for (std::int64_t c = 0; c < w; ++c) {
                     dst[c] = part(src[c]);
@@ -527,84 +552,220 @@ void unit_slab(Shape3 shape, const D* dist, D none, T* out, bool minus_one) {
             }
             if (n1 > 1) {
                 for (std::int64_t c = 0; c < w; ++c) {
-                    unit_line<M, G>(cols.data() + c, n1, kCols, res.data() + c, site.data(),
-                                    start.data());
+                    unit_line<M, G>(cols.data() + c, sn1, kCols, res.data() + c, site.data(),
+                                    start.data(), value.data());
                 }
             } else {
                 std::copy(cols.begin(), cols.begin() + w, res.begin());
             }
-            for (std::int64_t y = 0; y < n1; ++y) {
+            for (std::int64_t y = 0; y < sn1; ++y) {
                 std::copy(res.data() + y * kCols, res.data() + y * kCols + w,
-                          g1.data() + y * n2 + x0);
+                          g1.data() + y * sn2 + x0);
             }
         }
-        // Along axis 2, each row contiguous, stored in the output format.
-        T* op = out + p * plane;
-        for (std::int64_t y = 0; y < n1; ++y) {
-            const G* line = g1.data() + y * n2;
-            if (n2 > 1) {
-                unit_line<M, G>(line, n2, 1, row.data(), site.data(), start.data());
-                line = row.data();
-            }
-            T* o = op + y * n2;
-            for (std::int64_t x = 0; x < n2; ++x) {
-                o[x] = stored<M, T, G>(line[x], minus_one);
+        // Along axis 2, each row contiguous, stored in the output format into its pieces.
+        const std::size_t nj = out.y_edges.size() - 1, nk = out.x_edges.size() - 1;
+        for (std::size_t j = 0; j < nj; ++j) {
+            for (std::size_t y = out.y_edges[j]; y < out.y_edges[j + 1]; ++y) {
+                const G* line = g1.data() + y * n2;
+                if (n2 > 1) {
+                    unit_line<M, G>(line, sn2, 1, row.data(), site.data(), start.data(),
+                                    value.data());
+                    line = row.data();
+                }
+                for (std::size_t k = 0; k < nk; ++k) {
+                    T* o = piece_row(out, j, k, p, y);
+                    for (std::size_t x = out.x_edges[k]; x < out.x_edges[k + 1]; ++x) {
+                        *o++ = stored<M, T, G>(line[x], minus_one);
+                    }
+                }
             }
         }
+    }
+};
+
+// unit_slab_pieces for one metric, partial type G and first-pass distance type D: the first
+// pass a group of planes at a time (the nearest target after each group found first by one
+// backward sweep), each group's planes then through UnitPlane. The sweeps along axis 0 go
+// piece by piece, their per-line positions kept in the pieces' order (piece i's lines at
+// base[i] + its row * its width + its column), so that a piece's positions stay in the
+// core's cache while its planes stream by.
+template <Metric M, typename G, typename D, typename T>
+void unit_slab_groups(Shape3 shape, std::int64_t z0, const Pieces<const std::uint8_t>& targets,
+                      std::span<const std::int64_t> before, std::span<const std::int64_t> after,
+                      const Pieces<T>& out, bool minus_one) {
+    constexpr D none = std::numeric_limits<D>::max();
+    const std::size_t planes = shape.n[0], n2 = shape.n[2], lines = shape.n[1] * n2;
+    const std::size_t nj = targets.y_edges.size() - 1, nk = targets.x_edges.size() - 1;
+    // Groups of `depth` planes: the after-group positions (8 bytes a line per group) and a
+    // group's distances (sizeof(D) a line per plane) weigh about the same.
+    const auto groups = static_cast<std::size_t>(
+        std::clamp(std::lround(std::sqrt(static_cast<double>(planes) * sizeof(D) / 8.0)), 1L,
+                   static_cast<long>(planes)));
+    const std::size_t depth = (planes + groups - 1) / groups;
+    // Piece (j, k): its first line in the pieces' order, first row and column, height, width.
+    struct Cell {
+        std::size_t base, y0, x0, h, w;
+    };
+    std::vector<Cell> cells;
+    for (std::size_t j = 0, base = 0; j < nj; ++j) {
+        for (std::size_t k = 0; k < nk; ++k) {
+            const std::size_t y0 = targets.y_edges[j], x0 = targets.x_edges[k];
+            const std::size_t h = targets.y_edges[j + 1] - y0, w = targets.x_edges[k + 1] - x0;
+            cells.push_back({base, y0, x0, h, w});
+            base += h * w;
+        }
+    }
+    // Calls f(piece's targets, its cell) for every piece.
+    const auto each = [&](auto&& f) {
+        for (std::size_t i = 0; i < cells.size(); ++i) {
+            f(targets.data[i], cells[i]);
+        }
+    };
+    // A per-line array of the lines' order as the pieces' order.
+    const auto in_pieces = [&](std::span<const std::int64_t> v, std::int64_t* o) {
+        each([&](const std::uint8_t*, const Cell& c) {
+            for (std::size_t r = 0; r < c.h; ++r) {
+                std::copy_n(v.data() + (c.y0 + r) * n2 + c.x0, c.w, o + c.base + r * c.w);
+            }
+        });
+    };
+    std::vector<std::int64_t> next(groups * lines), last(lines), at(lines);
+    in_pieces(before, last.data());
+    in_pieces(after, at.data());
+    // next[g]: per line the nearest target at or after the end of group g (-1: none).
+    each([&](const std::uint8_t* t, const Cell& c) {
+        const std::size_t m = c.h * c.w;
+        std::int64_t* a = at.data() + c.base;
+        for (std::size_t p = planes; p-- > 0;) {
+            if ((p + 1) % depth == 0 || p + 1 == planes) {
+                std::copy_n(a, m, next.data() + (p / depth) * lines + c.base);
+            }
+            const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+            const std::uint8_t* tp = t + p * m;
+            for (std::size_t q = 0; q < m; ++q) {
+                a[q] = tp[q] != 0 ? z : a[q];
+            }
+        }
+    });
+    std::vector<D> dist(std::min(depth, planes) * lines);
+    UnitPlane<M, G, D, T> plane(shape.n[1], n2);
+    for (std::size_t p0 = 0, g = 0; p0 < planes; p0 += depth, ++g) {
+        const std::size_t p1 = std::min(planes, p0 + depth);
+        each([&](const std::uint8_t* t, const Cell& c) {
+            const std::size_t m = c.h * c.w;
+            // Forward: the last target at or before each plane; backward: the next at or
+            // after. Distances go to the group's planes in the planes' own order.
+            std::int64_t* l = last.data() + c.base;
+            for (std::size_t p = p0; p < p1; ++p) {
+                const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+                const std::uint8_t* tp = t + p * m;
+                D* dp = dist.data() + (p - p0) * lines + c.y0 * n2 + c.x0;
+                for (std::size_t r = 0, q = 0; r < c.h; ++r) {
+                    for (std::size_t x = 0; x < c.w; ++x, ++q) {
+                        l[q] = tp[q] != 0 ? z : l[q];
+                        dp[r * n2 + x] = l[q] < 0 ? none : static_cast<D>(z - l[q]);
+                    }
+                }
+            }
+            std::int64_t* a = next.data() + g * lines + c.base;
+            for (std::size_t p = p1; p-- > p0;) {
+                const std::int64_t z = z0 + static_cast<std::int64_t>(p);
+                const std::uint8_t* tp = t + p * m;
+                D* dp = dist.data() + (p - p0) * lines + c.y0 * n2 + c.x0;
+                for (std::size_t r = 0, q = 0; r < c.h; ++r) {
+                    for (std::size_t x = 0; x < c.w; ++x, ++q) {
+                        a[q] = tp[q] != 0 ? z : a[q];
+                        D& o = dp[r * n2 + x];
+                        o = a[q] >= 0 ? std::min(o, static_cast<D>(a[q] - z)) : o;
+                    }
+                }
+            }
+        });
+        for (std::size_t p = p0; p < p1; ++p) {
+            plane.run(dist.data() + (p - p0) * lines, none, out, p, minus_one);
+        }
+    }
+}
+
+template <Metric M, typename T>
+void unit_slab_metric(Shape3 shape, std::int64_t z0, std::int64_t length,
+                      const Pieces<const std::uint8_t>& targets,
+                      std::span<const std::int64_t> before, std::span<const std::int64_t> after,
+                      const Pieces<T>& out, bool minus_one) {
+    // The largest finite partial: the longest distance along axis 0 (length - 1), then the
+    // passes add at most the other axes' extents (L2 their squares).
+    const auto d = static_cast<std::uint64_t>(length > 0 ? length - 1 : 0);
+    const std::uint64_t e1 = shape.n[1] - 1, e2 = shape.n[2] - 1;
+    const std::uint64_t top = M == Metric::euclidean   ? d * d + e1 * e1 + e2 * e2
+                              : M == Metric::manhattan ? d + e1 + e2
+                                                       : std::max({d, e1, e2});
+    const bool narrow = top < static_cast<std::uint64_t>(kNone<std::int32_t>);
+    const auto run = [&](auto g, auto dist) {
+        unit_slab_groups<M, decltype(g), decltype(dist), T>(shape, z0, targets, before, after, out,
+                                                            minus_one);
+    };
+    if (length < 65535) {
+        narrow ? run(std::int32_t{}, std::uint16_t{}) : run(std::int64_t{}, std::uint16_t{});
+    } else {
+        narrow ? run(std::int32_t{}, std::uint32_t{}) : run(std::int64_t{}, std::uint32_t{});
     }
 }
 
 }  // namespace
 
-template <Metric M, typename D, typename T>
-void unit_slab_of(Shape3 shape, const D* dist, D none, T* out, bool minus_one) {
-    // The largest finite partial: the largest distance along axis 0, then the passes add at
-    // most the other axes' extents (L2 their squares).
-    D most = 0;
-    for (std::size_t i = 0; i < shape.count(); ++i) {
-        most = dist[i] != none ? std::max(most, dist[i]) : most;
+template <typename T>
+void unit_slab_pieces(Metric metric, Shape3 shape, std::int64_t z0, std::int64_t length,
+                      Pieces<const std::uint8_t> targets, std::span<const std::int64_t> before,
+                      std::span<const std::int64_t> after, Pieces<T> out, bool minus_one) {
+    const std::size_t lines = shape.n[1] * shape.n[2];
+    const auto edges_fit = [&](const auto& p) {
+        const std::size_t nj = p.y_edges.size(), nk = p.x_edges.size();
+        if (nj < 2 || nk < 2 || p.y_edges.front() != 0 || p.x_edges.front() != 0 ||
+            p.y_edges.back() != shape.n[1] || p.x_edges.back() != shape.n[2] ||
+            p.data.size() != (nj - 1) * (nk - 1)) {
+            return false;
+        }
+        return std::is_sorted(p.y_edges.begin(), p.y_edges.end()) &&
+               std::is_sorted(p.x_edges.begin(), p.x_edges.end());
+    };
+    if (!edges_fit(targets) || !edges_fit(out) || before.size() != lines || after.size() != lines) {
+        throw std::invalid_argument("unit_slab_pieces: pieces or lines do not match the shape");
     }
-    const auto d = static_cast<std::uint64_t>(most);
-    const std::uint64_t e1 = shape.n[1] - 1, e2 = shape.n[2] - 1;
-    const std::uint64_t top = M == Metric::euclidean   ? d * d + e1 * e1 + e2 * e2
-                              : M == Metric::manhattan ? d + e1 + e2
-                                                       : std::max({d, e1, e2});
-    if (top < static_cast<std::uint64_t>(kNone<std::int32_t>)) {
-        unit_slab<M, std::int32_t>(shape, dist, none, out, minus_one);
-    } else {
-        unit_slab<M, std::int64_t>(shape, dist, none, out, minus_one);
+    if (z0 < 0 || length < z0 + static_cast<std::int64_t>(shape.n[0])) {
+        throw std::invalid_argument("unit_slab_pieces: the slab must lie within [0, length)");
     }
-}
-
-template <typename D, typename T>
-void unit_slab_field(Metric metric, Shape3 shape, const D* dist, D none, T* out, bool minus_one) {
+    if (shape.count() == 0) {
+        return;
+    }
     switch (metric) {
         case Metric::euclidean:
-            unit_slab_of<Metric::euclidean>(shape, dist, none, out, minus_one);
+            unit_slab_metric<Metric::euclidean, T>(shape, z0, length, targets, before, after, out,
+                                                   minus_one);
             break;
         case Metric::manhattan:
-            unit_slab_of<Metric::manhattan>(shape, dist, none, out, minus_one);
+            unit_slab_metric<Metric::manhattan, T>(shape, z0, length, targets, before, after, out,
+                                                   minus_one);
             break;
         case Metric::chebyshev:
-            unit_slab_of<Metric::chebyshev>(shape, dist, none, out, minus_one);
+            unit_slab_metric<Metric::chebyshev, T>(shape, z0, length, targets, before, after, out,
+                                                   minus_one);
             break;
     }
 }
 
-#define VOXFIELD_UNIT_SLAB(D, T) \
-    template void unit_slab_field<D, T>(Metric, Shape3, const D*, D, T*, bool);
-#define VOXFIELD_UNIT_SLABS(D)           \
-    VOXFIELD_UNIT_SLAB(D, float)         \
-    VOXFIELD_UNIT_SLAB(D, double)        \
-    VOXFIELD_UNIT_SLAB(D, std::uint8_t)  \
-    VOXFIELD_UNIT_SLAB(D, std::uint16_t) \
-    VOXFIELD_UNIT_SLAB(D, std::uint32_t) \
-    VOXFIELD_UNIT_SLAB(D, std::int8_t)   \
-    VOXFIELD_UNIT_SLAB(D, std::int16_t)  \
-    VOXFIELD_UNIT_SLAB(D, std::int32_t)
-VOXFIELD_UNIT_SLABS(std::uint16_t)
-VOXFIELD_UNIT_SLABS(std::uint32_t)
-#undef VOXFIELD_UNIT_SLABS
+#define VOXFIELD_UNIT_SLAB(T)                                                                    \
+    template void unit_slab_pieces<T>(Metric, Shape3, std::int64_t, std::int64_t,                \
+                                      Pieces<const std::uint8_t>, std::span<const std::int64_t>, \
+                                      std::span<const std::int64_t>, Pieces<T>, bool);
+VOXFIELD_UNIT_SLAB(float)
+VOXFIELD_UNIT_SLAB(double)
+VOXFIELD_UNIT_SLAB(std::uint8_t)
+VOXFIELD_UNIT_SLAB(std::uint16_t)
+VOXFIELD_UNIT_SLAB(std::uint32_t)
+VOXFIELD_UNIT_SLAB(std::int8_t)
+VOXFIELD_UNIT_SLAB(std::int16_t)
+VOXFIELD_UNIT_SLAB(std::int32_t)
 #undef VOXFIELD_UNIT_SLAB
 
 void axis0_ends(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t> targets,

@@ -47,17 +47,28 @@ void axis0_distances(Shape3 shape, std::int64_t z0, std::span<const std::uint8_t
                      std::span<const std::int64_t> before, std::span<const std::int64_t> after,
                      T none, std::span<T> out);
 
-// The rest of the separable transform of a slab with unit spacing, in exact integer
-// arithmetic (voxfield.dask's unbounded scheme): from axis0_distances' output `dist` for
-// shape.n[0] planes of shape.n[1] x shape.n[2] (`none`: no target on the line), the passes
-// along axes 1 and 2 of each plane (Meijster, Roerdink & Hesselink's second phase, 64-bit
-// partials), the result stored into `out` as the kernels store format T: floats the
-// distance (L2: the square root of the exact squared distance, rounded once), integers its
-// floor saturated at T's largest value; with `minus_one` (SciPy's cdt) -1 where no target is
-// reachable. Plane p of `out` may share memory with planes >= p of `dist` (each plane of
-// `dist` is read whole before that plane of `out` is written).
-template <typename D, typename T>
-void unit_slab_field(Metric metric, Shape3 shape, const D* dist, D none, T* out, bool minus_one);
+// An array of shape (n0, n1, n2) held in pieces (voxfield.dask's blocks of a slab): piece
+// j * (x_edges.size() - 1) + k holds rows [y_edges[j], y_edges[j + 1]) and columns
+// [x_edges[k], x_edges[k + 1]) of every plane, C-contiguous (n0, rows, columns).
+template <typename X>
+struct Pieces {
+    std::span<X* const> data;
+    std::span<const std::size_t> y_edges, x_edges;
+};
+
+// voxfield.dask's unbounded slab [z0, z0 + shape.n[0]) of an array of `length` planes, with
+// unit spacing, in exact integer arithmetic: the first pass along axis 0 from the slab's
+// `targets` (nonzero) and each line's nearest targets before / after the slab (`before`,
+// `after`, as for axis0_distances), then the passes along axes 1 and 2 of each plane
+// (Meijster, Roerdink & Hesselink's second phase, 32- or 64-bit partials), a group of planes
+// at a time (no slab-sized buffer), stored into `out` as the kernels store format T: floats
+// the distance (L2: the square root of the exact squared distance, rounded once), integers
+// its floor saturated at T's largest value; with `minus_one` (SciPy's cdt) -1 where no target
+// is reachable. `targets` and `out` may be pieced differently.
+template <typename T>
+void unit_slab_pieces(Metric metric, Shape3 shape, std::int64_t z0, std::int64_t length,
+                      Pieces<const std::uint8_t> targets, std::span<const std::int64_t> before,
+                      std::span<const std::int64_t> after, Pieces<T> out, bool minus_one);
 
 // The first and the last target (nonzero) along axis 0 of every line of a block of
 // shape.n[0] planes of shape.n[1] * shape.n[2] lines, as global positions z0 + plane; -1

@@ -13,19 +13,22 @@ Two exact schemes:
   within D, which the halo holds, and everything beyond D saturates at D.
 * Unbounded fields (``distance_transform`` without ``max_distance``,
   ``distance_transform_edt`` and ``distance_transform_cdt``): the separable transform on the
-  host in slabs along axis 0 (blocks spanning every other axis, about 640 MiB of targets,
-  output and first pass each at most). Along axis 0 the first pass of a line needs only the
-  nearest target before and after each slab, so every block first gives the first and last
-  target of each of its lines (from a clone of the input's graph: the input is read twice,
-  and nothing waits in memory for the slabs), a cumulative maximum / minimum over the blocks
-  carries them along axis 0, and each slab then computes its first pass
-  (``voxfield._core.axis0_distances``) and the passes along the other axes. With unit
-  sampling these run in exact integer arithmetic and write the output format directly
-  (``voxfield._core.slab_field``: L2 the square root of the exact squared distance, rounded
-  once, so edt equals the one-piece function bit for bit); with other sampling in float64 a
-  few planes at a time (``voxfield._core.slab_passes``, axes 0, 1, 2 in turn, so sampled sums
-  are SciPy's). No partial distance moves between workers; the slabs are split back into the
-  input's chunks. Each line is computed whole, so no result depends on the chunks.
+  host in slabs along axis 0 (a chunk row of blocks spanning every other axis, about 640
+  MiB of targets and output each at most). Along axis 0 the first pass of a line needs only
+  the nearest target before and after each slab, so every block first gives the first and
+  last target of each of its lines (from a clone of the input's graph: the input is read
+  twice, and nothing waits in memory for the slabs), a cumulative maximum / minimum over the
+  blocks carries them along axis 0, and each slab then computes its first pass and the
+  passes along the other axes. With unit sampling one task per slab
+  (``voxfield._core.slab_pieces``) takes the slab's blocks as they are, runs every pass in
+  exact integer arithmetic a group of planes at a time and writes the output format straight
+  into one piece per output chunk (L2 the square root of the exact squared distance, rounded
+  once, so edt equals the one-piece function bit for bit): no block is concatenated, no slab
+  is split, and each chunk of the result is its own piece of the slab's tuple. With other
+  sampling the slab's first pass (``voxfield._core.axis0_distances``) and float64 passes a
+  few planes at a time (``voxfield._core.slab_passes``, axes 0, 1, 2 in turn, so sampled
+  sums are SciPy's), the slab split back into the input's chunks. No partial distance moves
+  between workers. Each line is computed whole, so no result depends on the chunks.
 
 Each bounded task picks its device when it runs: ``device=`` if given, else
 ``$VOXFIELD_DEVICE`` as the worker's environment has it, else the first GPU, else the first
@@ -35,12 +38,16 @@ have fails that task. The unbounded scheme uses no device (``distance_transform_
 """
 
 import functools
+import itertools
 import math
+import operator
 
 import dask.array as da
 import numpy as np
 from dask.array.reductions import cumreduction
+from dask.base import tokenize
 from dask.graph_manipulation import clone
+from dask.highlevelgraph import HighLevelGraph
 
 from voxfield import _core
 
@@ -79,11 +86,12 @@ def _check_device(device):
                          "voxfield.devices()")
 
 
-# A slab of the unbounded scheme holds at most this many bytes of targets, output and first
-# pass (unless one plane is larger): a 128-plane chunk row of a 1024^2 float32 field whole. A
-# slab thinner than its input chunk costs a merge (a transfer between workers) when the output
-# goes back into the input's chunks, so halving this measured slower. With non-unit sampling
-# the passes after the first run on _PASS_ELEMENTS elements at a time (float64).
+# A slab of the unbounded scheme holds at most this many bytes of targets and output (and,
+# with non-unit sampling, first pass) unless one plane is larger: a 128-plane chunk row of a
+# 1024^2 float32 field whole. A slab thinner than its input chunk costs a merge (a transfer
+# between workers) when the output goes back into the input's chunks, so halving this
+# measured slower. With non-unit sampling the passes after the first run on _PASS_ELEMENTS
+# elements at a time (float64).
 _SLAB_BYTES = 5 << 27
 _PASS_ELEMENTS = 1 << 21
 _NONE = np.iinfo(np.int64).max  # "no target" in the cumulative minimum of first targets
@@ -100,14 +108,11 @@ def _distance_bytes(length):
     return 2 if length < 65535 else 4
 
 
-def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, minus_one,
-                block_info=None):
-    """The field of a slab spanning every axis but axis 0, in `dtype`: the first pass along
-    axis 0 from the slab's targets (nonzero) and the nearest targets before and after it on
-    every line (`before`, `after`: one block along axis 0, -1: none), then the passes along
-    the other axes: with unit sampling ``slab_field`` (exact integers, the format written as
-    the kernels write it; `minus_one`: -1 where nothing is reachable), else the float64
-    ``slab_passes`` a few planes at a time and `finish` of their result."""
+def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, block_info=None):
+    """The field of a slab spanning every axis but axis 0, in `dtype`, with non-unit sampling:
+    the first pass along axis 0 from the slab's targets (nonzero) and the nearest targets
+    before and after it on every line (`before`, `after`: one block along axis 0, -1: none),
+    then the float64 ``slab_passes`` a few planes at a time and `finish` of their result."""
     z0 = block_info[0]["array-location"][0][0]
     out = np.empty(slab.shape, dtype)
     # The first pass's distances live in the tail of `out` where they fit: the planes written
@@ -118,9 +123,6 @@ def _slab_block(slab, before, after, metric, spacing, finish, dtype, length, min
         tail = out.reshape(-1).view(np.uint8)[out.nbytes - d_dtype.itemsize * out.size:]
         tail = tail.view(d_dtype).reshape(slab.shape)
     d = _core.axis0_distances(slab, before[0], after[0], z0, length, tail)
-    if all(v == 1.0 for v in spacing):
-        _core.slab_field(d, metric, out, minus_one)
-        return out
     plane = max(1, math.prod(slab.shape[1:]))
     step = max(1, _PASS_ELEMENTS // plane)
     scratch = np.empty((min(step, slab.shape[0]),) + slab.shape[1:])  # filled afresh each time
@@ -157,8 +159,11 @@ def _separable(targets, metric, spacing, dtype, finish=None, minus_one=False):
         return da.zeros(targets.shape, dtype, chunks=chunks)
     plane = max(1, math.prod(targets.shape[1:]))
     item = np.dtype(dtype).itemsize
+    unit = all(v == 1.0 for v in spacing)
     dbytes = _distance_bytes(targets.shape[0])
-    per_element = 1 + item + (0 if item >= dbytes and item % dbytes == 0 else dbytes)
+    # Unit sampling: the slab's blocks and pieces (the first pass a few planes at a time);
+    # else targets, output and the first pass (in the output's tail where it fits).
+    per_element = 1 + item + (0 if unit or (item >= dbytes and item % dbytes == 0) else dbytes)
     depth = max(1, _SLAB_BYTES // (plane * per_element))
     slab_chunks = tuple(p for c in chunks[0] for p in [depth] * (c // depth) + [c % depth] if p)
     t = targets.rechunk({0: slab_chunks})
@@ -175,9 +180,48 @@ def _separable(targets, metric, spacing, dtype, finish=None, minus_one=False):
     after = cumreduction(np.minimum.accumulate, np.minimum, _NONE, first[::-1], axis=0,
                          dtype=np.int64)[::-1]
     after = _shift(da.where(after == _NONE, -1, after), -1, False)
-    g = t.rechunk(whole).map_blocks(_slab_block, before, after, metric, spacing, finish, dtype,
-                                    targets.shape[0], minus_one, dtype=dtype)
+    if unit:
+        g = _unit_slabs(t, before, after, metric, dtype, minus_one)
+    else:
+        g = t.rechunk(whole).map_blocks(_slab_block, before, after, metric, spacing, finish,
+                                        dtype, targets.shape[0], dtype=dtype)
     return g.rechunk(chunks)
+
+
+def _slab_pieces(blocks, before, after, z0, length, metric, dtype, y_edges, x_edges, minus_one):
+    """The field of one slab with unit sampling, in `dtype`, from its blocks of targets (a
+    row-major list over the other axes' chunks) and its lines' nearest targets before and
+    after it: a tuple of one C-contiguous piece per block, of the block's shape."""
+    out = [np.empty(b.shape, dtype) for b in blocks]
+    _core.slab_pieces(blocks, before, after, z0, length, metric, out, y_edges, x_edges,
+                      minus_one)
+    return tuple(out)
+
+
+def _unit_slabs(t, before, after, metric, dtype, minus_one):
+    """The lazy field of targets `t` (one chunk row per slab along axis 0) with unit sampling,
+    chunked as `t`: one task per slab computes every piece of it (``_slab_pieces``: the blocks
+    of the slab go in as they are, the pieces come out in the chunks of `t`, so no block is
+    concatenated, split or copied), one key per piece picks it from the slab's tuple."""
+    token = tokenize(t, before, after, metric, np.dtype(dtype), minus_one)
+    slab_name, name = "slab-pieces-" + token, "slab-field-" + token
+    inner = t.chunks[1:]
+    # The other axes seen as (rows, columns) of each plane, as _core.slab_pieces takes them.
+    yx = ([(1,)] * (2 - len(inner)) + list(inner))[-2:]
+    y_edges, x_edges = ([int(e) for e in np.cumsum((0,) + c)] for c in yx)
+    cells = list(itertools.product(*(range(len(c)) for c in inner)))
+    zeros = (0,) * len(inner)
+    offsets = np.cumsum((0,) + t.chunks[0])
+    dsk = {}
+    for s in range(len(t.chunks[0])):
+        dsk[(slab_name, s)] = (_slab_pieces, [(t.name, s) + c for c in cells],
+                               (before.name, s) + zeros, (after.name, s) + zeros,
+                               int(offsets[s]), t.shape[0], metric, np.dtype(dtype), y_edges,
+                               x_edges, minus_one)
+        for i, c in enumerate(cells):
+            dsk[(name, s) + c] = (operator.getitem, (slab_name, s), i)
+    graph = HighLevelGraph.from_collections(name, dsk, dependencies=[t, before, after])
+    return da.Array(graph, name, chunks=t.chunks, dtype=dtype)
 
 
 def _store(d, out):

@@ -319,53 +319,85 @@ def brute_force(targets, metric):
     return v.reshape(targets.shape)
 
 
-def test_slab_field_equals_brute_force():
-    # Unit sampling, exact integers: every metric, 1 to 3 axes, every output type as the
-    # kernels store it, -1 where nothing is reachable for cdt, the distances in the output's
-    # tail; int64 partials where squared distances pass 2**31.
+def _cuts(rng, n):
+    """Random edges splitting [0, n) into pieces (some may be empty)."""
+    return sorted([0, n] + [int(v) for v in rng.integers(0, n + 1, size=int(rng.integers(0, 3)))])
+
+
+def _slab_pieces(core, t, z0, z1, metric, dtype, rng, minus_one=False, length=None):
+    """_core.slab_pieces of planes [z0, z1) of targets t (1 to 3 axes) in random pieces, the
+    nearest targets before / after the slab found by brute force; the pieces put together."""
+    length = t.shape[0] if length is None else length
+    t3 = t.reshape(t.shape[:1] + (1,) * (3 - t.ndim) + t.shape[1:])
+    lines = t3.reshape(t.shape[0], -1)
+    before = np.full(lines.shape[1], -1, np.int64)
+    after = np.full(lines.shape[1], -1, np.int64)
+    for q in range(lines.shape[1]):
+        b, a = np.nonzero(lines[:z0, q])[0], np.nonzero(lines[z1:, q])[0]
+        before[q] = b[-1] if len(b) else -1
+        after[q] = a[0] + z1 if len(a) else -1
+    ye = _cuts(rng, t3.shape[1]) if t.ndim == 3 else [0, 1]
+    xe = _cuts(rng, t3.shape[2]) if t.ndim >= 2 else [0, 1]
+    cells = [(slice(ye[j], ye[j + 1]), slice(xe[k], xe[k + 1]))
+             for j in range(len(ye) - 1) for k in range(len(xe) - 1)]
+    blocks = [np.ascontiguousarray(t3[z0:z1, ys, xs]) for ys, xs in cells]
+    if t.ndim < 3:  # the pieces' own shapes: (planes, columns) or (planes,)
+        blocks = [b.reshape((b.shape[0],) + b.shape[3 - t.ndim:]) for b in blocks]
+    out = [np.full(b.shape, 7, dtype) for b in blocks]
+    core.slab_pieces(blocks, before, after, z0, length, metric, out, ye, xe, minus_one)
+    whole = np.empty((z1 - z0,) + t3.shape[1:], dtype)
+    for (ys, xs), o in zip(cells, out):
+        whole[:, ys, xs] = o.reshape(whole[:, ys, xs].shape)
+    return whole.reshape((z1 - z0,) + t.shape[1:])
+
+
+def test_slab_pieces_equal_brute_force():
+    # Unit sampling, exact integers: every metric, 1 to 3 axes, slabs within a longer axis 0,
+    # random pieces (some empty), every output type as the kernels store it, -1 where nothing
+    # is reachable for cdt; int64 partials where squared distances pass 2**31.
     rng = np.random.default_rng(15)
     core = voxfield._core
-    for trial in range(150):
+    for trial in range(120):
         shape = tuple(int(v) for v in rng.integers(1, 12, size=int(rng.integers(1, 4))))
         t = rng.random(shape) < rng.choice([0.0, 0.01, 0.1, 0.5, 0.9])
-        none = np.full(shape[1:], -1, np.int64)
-        d = core.axis0_distances(t, none, none, 0, shape[0])
+        z0 = int(rng.integers(0, shape[0]))
+        z1 = int(rng.integers(z0 + 1, shape[0] + 1))
         for metric in ("euclidean", "manhattan", "chebyshev"):
-            v = brute_force(t, metric)
+            v = brute_force(t, metric)[z0:z1]
             for dtype in (np.float64, np.float32, np.uint8, np.uint16, np.int8, np.int32):
-                out = np.empty(shape, dtype)
-                core.slab_field(d, metric, out)
+                got = _slab_pieces(core, t, z0, z1, metric, dtype, rng)
                 if np.dtype(dtype).kind == "f":
                     want = v.astype(dtype)
                 else:
                     want = np.minimum(np.floor(v), np.iinfo(dtype).max).astype(dtype)
-                np.testing.assert_array_equal(out, want, err_msg=f"{shape} {metric} {dtype}")
-            cdt = np.empty(shape, np.int32)
-            core.slab_field(d, metric, cdt, True)
+                np.testing.assert_array_equal(got, want, err_msg=f"{shape} {metric} {dtype}")
+            cdt = _slab_pieces(core, t, z0, z1, metric, np.int32, rng, True)
             np.testing.assert_array_equal(cdt, np.where(np.isinf(v), -1, v).astype(np.int32))
-            if len(shape) == 3:
-                tail_of = np.empty(shape, np.float32)
-                tail = tail_of.reshape(-1).view(np.uint8)[tail_of.nbytes // 2:]
-                tail = tail.view(np.uint16).reshape(shape)
-                core.axis0_distances(t, none, none, 0, shape[0], tail)
-                core.slab_field(tail, metric, tail_of)
-                np.testing.assert_array_equal(tail_of, v.astype(np.float32))
-    # A slab of a long axis 0 whose targets lie 60000 planes away: squares past 2**31.
+    # A slab of a long axis 0 whose targets lie 60000 planes away: uint32 first-pass
+    # distances and squares past 2**31.
     t = np.zeros((2, 3, 4), bool)
     t[1, 2, 3] = True
-    after = np.full((3, 4), -1, np.int64)
-    after[0, 0] = 60001
-    d = core.axis0_distances(t, np.full((3, 4), -1, np.int64), after, 0, 70000)
-    assert d.dtype == np.uint32
-    out = np.empty(t.shape)
-    core.slab_field(d, "euclidean", out)
+    after = np.full(12, -1, np.int64)
+    after[0] = 60001
+    out = [np.empty(t.shape)]
+    core.slab_pieces([t], np.full(12, -1, np.int64), after, 0, 70000, "euclidean", out, [0, 3],
+                     [0, 4])
     z, y, x = np.indices(t.shape)
     want = np.minimum((z - 1) ** 2 + (y - 2) ** 2 + (x - 3) ** 2,
                       (60001 - z) ** 2.0 + y ** 2 + x ** 2)
-    np.testing.assert_array_equal(out, np.sqrt(want))
-    with pytest.raises(TypeError, match="uint16 or uint32"):
-        core.slab_field(np.zeros((2, 3), np.int16), "manhattan", np.empty((2, 3)))
-    with pytest.raises(ValueError, match="out must be"):
-        core.slab_field(np.zeros((2, 3), np.uint16), "manhattan", np.empty((3, 2)))
+    np.testing.assert_array_equal(out[0], np.sqrt(want))
+    ends = np.full(12, -1, np.int64)
+    with pytest.raises(ValueError, match="one piece per cell"):
+        core.slab_pieces([t], ends, ends, 0, 2, "manhattan", [], [0, 3], [0, 4])
+    with pytest.raises(ValueError, match="does not fit its cell"):
+        core.slab_pieces([t], ends, ends, 0, 2, "manhattan", [np.empty(t.shape)], [0, 2], [0, 4])
+    with pytest.raises(ValueError, match="out piece 0"):
+        core.slab_pieces([t], ends, ends, 0, 2, "manhattan", [np.empty((2, 3))], [0, 3], [0, 4])
+    with pytest.raises(ValueError, match="one position per line"):
+        core.slab_pieces([t], ends[:3], ends, 0, 2, "manhattan", [np.empty(t.shape)], [0, 3],
+                         [0, 4])
+    with pytest.raises(ValueError, match="within"):
+        core.slab_pieces([t], ends, ends, 1, 2, "manhattan", [np.empty(t.shape)], [0, 3], [0, 4])
     with pytest.raises(TypeError, match="out must be"):
-        core.slab_field(np.zeros((2, 3), np.uint16), "manhattan", np.empty((2, 3), np.int64))
+        core.slab_pieces([t], ends, ends, 0, 2, "manhattan", [np.empty(t.shape, np.int64)],
+                         [0, 3], [0, 4])
