@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -142,6 +143,16 @@ void expect_same_grid(const ImplicitGrid& got, const ImplicitGrid& want) {
     EXPECT_EQ(differ, 0u);
 }
 
+// A tile table's entries as empty, full or a root (roots are numbered in no fixed order).
+std::vector<std::uint32_t> tile_kinds(const ImplicitGrid& g) {
+    std::vector<std::uint32_t> kinds(g.tile_table.size());
+    for (std::size_t t = 0; t < kinds.size(); ++t) {
+        const std::uint32_t e = g.tile_table[t];
+        kinds[t] = e == VF_SDF_TILE_EMPTY || e == VF_SDF_TILE_FULL ? e : 0u;
+    }
+    return kinds;
+}
+
 class ImplicitLayouts : public ::testing::TestWithParam<Layout> {};
 
 TEST_P(ImplicitLayouts, RandomTreesEqualBruteForce) {
@@ -178,23 +189,142 @@ TEST_P(ImplicitLayouts, CoarseRandomTreesEqualBruteForce) {
 }
 
 // The readback through page-locked staging memory (a GPU's default) gives the direct
-// readback's grid, run after run into one reused grid; a run waits for the device once per
-// level, once for the leaves' counts and once for their records.
+// readback's grid, run after run into one reused grid. The first run counts each level on the
+// host (a wait per level, one for the leaves' counts and one for the output); later runs wait
+// once: they zero the counters, launch the tiles, the levels and the leaves, and read the
+// counters, tile table, nodes, voxels and vertices in one go.
 TEST_P(ImplicitLayouts, PinnedReadbackEqualsDirect) {
     const sdf::Part part =
         sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" / "bracket.sdf.json");
-    ImplicitDiscretiser direct(test::pocl(), part, {2, GetParam()});
-    EXPECT_FALSE(direct.pinned_readback());  // PoCL computes in host memory
-    const ImplicitGrid want = direct.run();
-    ImplicitDiscretiser job(test::pocl(), part, {2, GetParam()});
-    job.set_pinned_readback(true);
-    ImplicitGrid got;
-    for (int i = 0; i < 2; ++i) {
-        job.run(got);
-        expect_same_grid(got, want);
-        EXPECT_EQ(got.tile_table, want.tile_table);
-        EXPECT_EQ(job.timing().syncs, 1u + 2u + 2u);
+    for (std::uint32_t depth : {1u, 2u}) {
+        ImplicitDiscretiser direct(test::pocl(), part, {depth, GetParam()});
+        EXPECT_FALSE(direct.pinned_readback());  // PoCL computes in host memory
+        const ImplicitGrid want = direct.run();
+        EXPECT_TRUE(direct.timing().counted);
+        // The tiles, each level, the leaves, the output; and every rerun past a first guess.
+        EXPECT_EQ(direct.timing().syncs, 1u + depth + 1u + 1u + direct.timing().level_reruns +
+                                             (direct.timing().passes - 1u));
+        ImplicitDiscretiser job(test::pocl(), part, {depth, GetParam()});
+        job.set_pinned_readback(true);
+        ImplicitGrid got;
+        for (int i = 0; i < 3; ++i) {
+            job.run(got);
+            expect_same_grid(got, want);
+            EXPECT_EQ(tile_kinds(got), tile_kinds(want));
+            EXPECT_EQ(job.counts(), direct.counts());
+            if (i > 0) {
+                EXPECT_FALSE(job.timing().counted);
+                EXPECT_EQ(job.timing().syncs, 1u);
+                EXPECT_EQ(job.timing().enqueues, 1u + 1u + depth + 1u + 5u);
+                EXPECT_EQ(job.timing().passes, 1u);
+            }
+        }
     }
+}
+
+// Runs after the first (one wait) equal brute force, run after run; so do runs sized from
+// counts that are too small at any one level, or for the leaves' records (the one-wait attempt
+// overflows, and the run is redone counted), and runs sized from larger counts (one wait).
+TEST_P(ImplicitLayouts, OneWaitRunsEqualBruteForceAndOverflowsRerunCounted) {
+    const sdf::Part part =
+        sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" / "pipe_elbow.sdf.json");
+    const Brute brute = brute_force(part);
+    const std::vector<std::uint8_t> want = brute_flags(part.dims, brute.corners, brute.centres);
+    for (std::uint32_t depth : {0u, 1u, 2u}) {
+        const std::string what = "depth " + std::to_string(depth);
+        ImplicitDiscretiser job(test::pocl(), part, {depth, GetParam()});
+        ImplicitGrid grid;
+        job.run(grid);
+        const ImplicitGrid first = grid;
+        const ImplicitCounts counts = job.counts();
+        ASSERT_EQ(counts.nodes.size(), depth + 1u);
+        EXPECT_EQ(counts.nodes.back(), grid.leaves);
+        EXPECT_EQ(counts.voxels, grid.crossed_count());
+        EXPECT_EQ(counts.vertices, grid.vertex_count());
+        EXPECT_EQ(grid.flags(), want) << what;
+        for (int i = 0; i < 2; ++i) {
+            job.run(grid);
+            EXPECT_FALSE(job.timing().counted) << what;
+            EXPECT_EQ(job.timing().syncs, 1u) << what;
+            EXPECT_EQ(grid.flags(), want) << what;
+            expect_same_grid(grid, first);
+        }
+        // Too small: each level in turn, then the vertices and the voxels.
+        std::vector<ImplicitCounts> small;
+        for (std::uint32_t l = 0; l <= depth; ++l) {
+            small.push_back(counts);
+            small.back().nodes[l] /= 2;
+        }
+        small.push_back(counts);
+        small.back().vertices -= 1;
+        small.push_back(counts);
+        small.back().voxels /= 3;
+        for (std::size_t s = 0; s < small.size(); ++s) {
+            job.expect(small[s]);
+            job.run(grid);
+            EXPECT_TRUE(job.timing().counted) << what << " small " << s;
+            EXPECT_GT(job.timing().syncs, 1u + depth) << what << " small " << s;
+            EXPECT_EQ(job.counts(), counts) << what << " small " << s;
+            EXPECT_EQ(grid.flags(), want) << what << " small " << s;
+            expect_same_grid(grid, first);
+        }
+        // Larger: one wait, the same grid, the true counts kept.
+        ImplicitCounts large = counts;
+        for (auto& n : large.nodes) {
+            n = n * 2 + 5;
+        }
+        large.vertices = large.vertices * 2 + 7;
+        large.voxels = large.voxels * 2 + 3;
+        job.expect(large);
+        job.run(grid);
+        EXPECT_FALSE(job.timing().counted) << what;
+        EXPECT_EQ(job.timing().syncs, 1u) << what;
+        EXPECT_EQ(job.counts(), counts) << what;
+        EXPECT_EQ(grid.flags(), want) << what;
+        expect_same_grid(grid, first);
+    }
+}
+
+// A part whose first guesses are far too small (thin slabs every 3 voxels: every tile and
+// every child ambiguous, many kept corners per leaf): the counted first run reruns the tile
+// test (depth 0: 4096 tiles), a level (depth 1: 4096 children of 64 tiles) and the leaves at the
+// counts they reached, and equals brute force; the next run waits once for the same grid.
+TEST_P(ImplicitLayouts, CountedRunsRerunLevelsPastTheirGuesses) {
+    nlohmann::json kids = nlohmann::json::array();
+    const double h = 1.0 / 32;
+    for (int k = 0; k < 21; ++k) {
+        kids.push_back(
+            {{"box", {{"center", {(3 * k + 1.5) * h, 1, 1}}, {"half_size", {0.4 * h, 3, 3}}}}});
+    }
+    const nlohmann::json doc = {{"version", 1},
+                                {"voxel_size", h},
+                                {"bounds", {{0, 0, 0}, {2, 2, 2}}},
+                                {"shape", {{"union", kids}}}};
+    const sdf::Part part = sdf::parse_part(doc.dump(), "slabs");
+    const Brute brute = brute_force(part);
+    for (std::uint32_t depth : {0u, 1u}) {
+        const std::string what = "slabs depth " + std::to_string(depth);
+        ImplicitDiscretiser job(test::pocl(), part, {depth, GetParam()});
+        const ImplicitGrid first = job.run();
+        EXPECT_TRUE(job.timing().counted) << what;
+        EXPECT_EQ(job.timing().level_reruns, 1u) << what;
+        EXPECT_EQ(job.timing().passes, 2u) << what;
+        EXPECT_EQ(job.counts().nodes[depth], depth == 0 ? 4096u : 4096u) << what;
+        check(part, {depth, GetParam()}, what, brute);
+        ImplicitGrid again;
+        job.run(again);
+        EXPECT_EQ(job.timing().syncs, 1u) << what;
+        expect_same_grid(again, first);
+    }
+}
+
+TEST_P(ImplicitLayouts, ExpectRejectsCountsOfAnotherDepth) {
+    const sdf::Part part =
+        sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" / "bracket.sdf.json");
+    ImplicitDiscretiser job(test::pocl(), part, {2, GetParam()});
+    ImplicitCounts c;
+    c.nodes = {1, 2};
+    EXPECT_THROW(job.expect(c), std::invalid_argument);
 }
 
 TEST_P(ImplicitLayouts, GalleryEqualsBruteForceAndPrunes) {
@@ -251,7 +381,7 @@ TEST_P(ImplicitLayouts, RunsIntoAReusedGridEqualFreshOnes) {
     job.run(reused);
     const ImplicitGrid fresh = ImplicitDiscretiser(test::pocl(), part, {2, GetParam()}).run();
     expect_same_grid(reused, fresh);
-    EXPECT_EQ(reused.tile_table, fresh.tile_table);
+    EXPECT_EQ(tile_kinds(reused), tile_kinds(fresh));
     // And the same discretiser again into its own output.
     job.run(reused);
     expect_same_grid(reused, fresh);

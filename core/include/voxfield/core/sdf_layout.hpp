@@ -65,6 +65,15 @@
  * over one voxel along each axis, so that the tracer works in voxel units. */
 #define VF_SDF_VERTEX_FLOATS 4
 
+/* The discretiser's counters on the device (uints): nodes reserved per level (level 0: the
+ * tiles' roots; the last level: the leaves; tile depths up to VF_SDF_MAX_LEVELS - 1), then the
+ * vertex and voxel records the leaves reserved. A kernel stores only what fits its capacities
+ * and counts everything: a count above a capacity is an overflow, seen by the host. */
+#define VF_SDF_MAX_LEVELS 9
+#define VF_SDF_COUNT_VERTICES 9
+#define VF_SDF_COUNT_VOXELS 10
+#define VF_SDF_COUNTERS 11
+
 /* Cell classes of the interval test. */
 #define VF_SDF_CELL_EMPTY 0u
 #define VF_SDF_CELL_FULL 1u
