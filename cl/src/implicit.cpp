@@ -74,7 +74,7 @@ GridArg grid_arg(const sdf::Part& part) {
             0};
 }
 
-// The CPU layout's `decided`: a corner whose |f| exceeds it gives its voxel's centre its sign.
+// The leaves' `decided`: a corner whose |f| exceeds it gives its voxel's centre its sign.
 // Every primitive and operator of a part is a 1-Lipschitz distance bound (planes' normals are
 // normalised, transforms scale uniformly), so f changes by at most half the voxel's diagonal
 // between a corner and the centre; the margin covers float rounding: 2^-10 of that distance

@@ -188,6 +188,35 @@ TEST_P(ImplicitLayouts, CoarseRandomTreesEqualBruteForce) {
     EXPECT_GT(crossed, 5000u);
 }
 
+// The mutation that shows the centre bound matters: a shell thinner than a voxel is crossed
+// at many voxels only by their centres (every corner outside, a corner up to the half diagonal
+// away); leaves that take a corner's sign for the centre from |f| above 0.7 of the half diagonal
+// miss them, and brute force catches it, in both layouts; the default bound does not.
+TEST_P(ImplicitLayouts, ACentreBoundBelowTheHalfDiagonalIsCaught) {
+    const double h = 0.05;
+    const sdf::Part part = sdf::parse_part(
+        R"({"version": 1, "voxel_size": 0.05, "bounds": [[-1, -1, -1], [1, 1, 1]],
+            "shape": {"shell": {"thickness": 0.004,
+              "of": {"sphere": {"center": [0.013, -0.021, 0.007], "radius": 0.61}}}}})",
+        "thin shell");
+    const Brute b = brute_force(part);
+    const std::vector<std::uint8_t> want = brute_flags(part.dims, b.corners, b.centres);
+    for (std::uint32_t depth : {0u, 1u}) {
+        const std::string what = "thin shell depth " + std::to_string(depth);
+        check(part, {depth, GetParam()}, what, b);
+        ImplicitDiscretiser job(test::pocl(), part, {depth, GetParam()});
+        const float half_diagonal = static_cast<float>(0.5 * std::sqrt(3.0) * h);
+        EXPECT_GT(job.centre_bound(), half_diagonal);
+        job.set_centre_bound(0.7f * half_diagonal);
+        const std::vector<std::uint8_t> got = job.run().flags();
+        std::size_t missed = 0;
+        for (std::size_t i = 0; i < want.size(); ++i) {
+            missed += got[i] != want[i];
+        }
+        EXPECT_GT(missed, 20u) << what;
+    }
+}
+
 // The readback through page-locked staging memory (a GPU's default) gives the direct
 // readback's grid, run after run into one reused grid. The first run counts each level on the
 // host (a wait per level, one for the leaves' counts and one for the output); later runs wait

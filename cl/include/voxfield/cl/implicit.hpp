@@ -110,6 +110,11 @@ class ImplicitDiscretiser {
     // that do not compute in host memory; settable to test both paths on any device.
     void set_pinned_readback(bool on) { staged_ = on; }
     bool pinned_readback() const { return staged_; }
+    // The corner |f| past which a leaf takes a corner's sign for its voxel's centre instead of
+    // sampling it: half the voxel's diagonal (f is 1-Lipschitz) plus a rounding margin by
+    // default; settable so that tests can show that a smaller one is caught.
+    float centre_bound() const { return decided_; }
+    void set_centre_bound(float bound) { decided_ = bound; }
     bool gpu_layout() const { return gpu_layout_; }
 
     // Brute force, for checking: f at every grid corner ((X+1)(Y+1)(Z+1), x fastest) and at
