@@ -7,11 +7,13 @@
 #include "voxfield/cl/implicit.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -181,25 +183,64 @@ std::uint8_t* ImplicitDiscretiser::pinned(Pinned& p, std::size_t bytes) {
 namespace {
 
 // memcpy of several arrays, split over a few threads when large (page-locked staging to the
-// grid's arrays: one thread copies at a fraction of the memory bandwidth).
+// grid's arrays: one thread copies at a fraction of the memory bandwidth). The crew's threads
+// start when it is made, before the host waits for the device, so that starting them overlaps
+// the device's work; they copy when run() hands them the arrays (or nothing, at destruction).
 struct Copy {
     void* dst;
     const void* src;
     std::size_t bytes;
 };
-void copy_all(const std::vector<Copy>& copies) {
-    std::size_t total = 0;
-    for (const Copy& c : copies) {
-        total += c.bytes;
+class CopyCrew {
+  public:
+    // For about `bytes` in all.
+    explicit CopyCrew(std::size_t bytes) {
+        constexpr std::size_t kPerThread = std::size_t{2} << 20;
+        threads_ = static_cast<unsigned>(std::min<std::size_t>(
+            {std::max(1u, std::thread::hardware_concurrency()), 8, bytes / kPerThread + 1}));
+        try {
+            for (unsigned t = 1; t < threads_; ++t) {
+                pool_.emplace_back([this, t] {
+                    go_.wait(false);
+                    part(t);
+                });
+            }
+        } catch (...) {
+            finish();
+            throw;
+        }
     }
-    constexpr std::size_t kPerThread = std::size_t{2} << 20;
-    const unsigned threads = static_cast<unsigned>(std::min<std::size_t>(
-        {std::max(1u, std::thread::hardware_concurrency()), 8, total / kPerThread + 1}));
-    auto part = [&](unsigned t) {
-        // Thread t copies bytes [t total / threads, (t + 1) total / threads) of the concatenation.
-        const std::size_t lo = total * t / threads, hi = total * (t + 1) / threads;
+    ~CopyCrew() { finish(); }
+    CopyCrew(const CopyCrew&) = delete;
+    CopyCrew& operator=(const CopyCrew&) = delete;
+
+    // Copies them all (this thread one share), returning when every thread is done.
+    void run(std::vector<Copy> copies) {
+        copies_ = std::move(copies);
+        for (const Copy& c : copies_) {
+            total_ += c.bytes;
+        }
+        finish();
+    }
+
+  private:
+    void finish() {
+        if (done_) {
+            return;
+        }
+        done_ = true;
+        go_ = true;
+        go_.notify_all();
+        part(0);
+        for (std::thread& th : pool_) {
+            th.join();
+        }
+    }
+    // Share t: bytes [t total / threads, (t + 1) total / threads) of the concatenation.
+    void part(unsigned t) const {
+        const std::size_t lo = total_ * t / threads_, hi = total_ * (t + 1) / threads_;
         std::size_t at = 0;
-        for (const Copy& c : copies) {
+        for (const Copy& c : copies_) {
             const std::size_t a = std::max(lo, at), b = std::min(hi, at + c.bytes);
             if (a < b) {
                 std::memcpy(static_cast<std::uint8_t*>(c.dst) + (a - at),
@@ -207,16 +248,14 @@ void copy_all(const std::vector<Copy>& copies) {
             }
             at += c.bytes;
         }
-    };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < threads; ++t) {
-        pool.emplace_back(part, t);
     }
-    part(0);
-    for (std::thread& th : pool) {
-        th.join();
-    }
-}
+    unsigned threads_ = 1;
+    std::vector<Copy> copies_;
+    std::size_t total_ = 0;
+    std::atomic<bool> go_{false};
+    bool done_ = false;
+    std::vector<std::thread> pool_;
+};
 
 }  // namespace
 
@@ -410,6 +449,7 @@ void ImplicitDiscretiser::read_output(ImplicitGrid& out, std::size_t node_words,
         total += p.bytes;
     }
     std::uint8_t* stage = staged_ ? pinned(out_stage_, total) : nullptr;
+    std::optional<CopyCrew> crew;  // started now, to copy the stage after the wait
     void* direct[5] = {host_counters_.data(), out.tile_table.data(), nullptr, nullptr, nullptr};
     if (!staged_) {
         out.nodes.resize(node_words);
@@ -433,6 +473,9 @@ void ImplicitDiscretiser::read_output(ImplicitGrid& out, std::size_t node_words,
         events_.emplace_back(kRead, std::move(e));
         at += parts[i].bytes;
     }
+    if (staged_) {
+        crew.emplace(total);
+    }
     wait();
     const auto c0 = std::chrono::steady_clock::now();
     // What the run produced: no more than the counters say.
@@ -455,10 +498,10 @@ void ImplicitDiscretiser::read_output(ImplicitGrid& out, std::size_t node_words,
     out.voxels.resize(voxel_words);
     out.vertices.resize(vertex_floats);
     if (staged_) {
-        copy_all({{out.tile_table.data(), stage + offset[1], parts[1].bytes},
-                  {out.nodes.data(), stage + offset[2], node_words * sizeof(cl_uint)},
-                  {out.voxels.data(), stage + offset[3], voxel_words * sizeof(cl_uint)},
-                  {out.vertices.data(), stage + offset[4], vertex_floats * sizeof(cl_float)}});
+        crew->run({{out.tile_table.data(), stage + offset[1], parts[1].bytes},
+                   {out.nodes.data(), stage + offset[2], node_words * sizeof(cl_uint)},
+                   {out.voxels.data(), stage + offset[3], voxel_words * sizeof(cl_uint)},
+                   {out.vertices.data(), stage + offset[4], vertex_floats * sizeof(cl_float)}});
     }
     timing_.copy_ms += ms_since(c0);
 }
