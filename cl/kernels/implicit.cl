@@ -234,18 +234,65 @@ inline uint level_base(__global const uint* counters, uint level) {
     return base;
 }
 
+/* The class of the cell of `edge` voxels at voxel (i, j, k) as classify_cell gives it, by the
+ * instructions list[0..m) (the whole tape when list is 0 and m = n); for tapes up to
+ * VF_SDF_SPECIALISE_MAX also the cell's specialised tape: those instructions less the operands its
+ * box (clipped to the grid, which holds every corner it samples) shows are never selected there,
+ * in order, into out, *kept of them (0 for a cell outside the grid). A child's box lies in its
+ * parent's, so what the parent dropped the child never selects either. */
+uint classify_special(__global const Instr* tape, uint n, const ushort* list, uint m, Grid g,
+                      uint i, uint j, uint k, uint edge, ushort* out, uint* kept) {
+    *kept = 0;
+    if (n > VF_SDF_SPECIALISE_MAX) {
+        return classify_cell(tape, 0, n, g, i, j, k, edge);
+    }
+    if (i >= g.nx || j >= g.ny || k >= g.nz) {
+        return VF_SDF_CELL_EMPTY;
+    }
+    uchar live[VF_SDF_SPECIALISE_MAX];
+    for (uint t = 0; t < m; ++t) {
+        live[list ? list[t] : t] = 1;
+    }
+    const uint i1 = min(i + edge, g.nx), j1 = min(j + edge, g.ny), k1 = min(k + edge, g.nz);
+    const float2 r = eval_cells(tape, list, m, g, i, j, k, i1, j1, k1, live);
+    uint count = 0;
+    for (uint t = 0; t < m; ++t) {
+        const uint instr = list ? list[t] : t;
+        if (live[instr]) {
+            out[count++] = (ushort)instr;
+        }
+    }
+    *kept = count;
+    if (r.x > 0) {
+        return VF_SDF_CELL_EMPTY;
+    }
+    return r.y < 0 ? VF_SDF_CELL_FULL : VF_SDF_CELL_AMBIGUOUS;
+}
+
+/* A node's specialised tape as the kernels keep it, slot s of `lists`: n + 1 ushorts, the count
+ * then the instructions. */
+inline void store_list(__global ushort* lists, uint n, uint s, const ushort* list, uint m) {
+    __global ushort* dst = lists + (size_t)s * (n + 1);
+    dst[0] = (ushort)m;
+    for (uint t = 0; t < m; ++t) {
+        dst[1 + t] = list[t];
+    }
+}
+
 /* One work-item per tile of `edge` voxels, tiles (tx, ty, tz) x fastest: its entry in the tile
- * table, and for an ambiguous tile a root node of level 0 (origin with its node index in w, no
- * parent) among the first `capacity`. */
+ * table, and for an ambiguous tile a root node of level 0 (origin with its node index in w, and
+ * its specialised tape in `lists`) among the first `capacity`. */
 __kernel void classify_tiles(__global const Instr* tape, uint n, Grid g, uint tx, uint ty,
                              uint tiles, uint edge, __global uint* table, __global uint4* origins,
-                             __global uint* parents, uint capacity, __global uint* counters) {
+                             __global ushort* lists, uint capacity, __global uint* counters) {
     const uint t = get_global_id(0);
     if (t >= tiles) {
         return;
     }
     const uint x = t % tx * edge, y = t / tx % ty * edge, z = t / tx / ty * edge;
-    const uint cls = classify_cell(tape, 0, n, g, x, y, z, edge);
+    ushort list[VF_SDF_SPECIALISE_MAX];
+    uint m;
+    const uint cls = classify_special(tape, n, 0, n, g, x, y, z, edge, list, &m);
     if (cls == VF_SDF_CELL_EMPTY) {
         table[t] = VF_SDF_TILE_EMPTY;
     } else if (cls == VF_SDF_CELL_FULL) {
@@ -255,44 +302,11 @@ __kernel void classify_tiles(__global const Instr* tape, uint n, Grid g, uint tx
         table[t] = index;
         if (index < capacity) {
             origins[index] = (uint4)(x, y, z, index);
-            parents[index] = VF_SDF_NO_PARENT;
+            if (n <= VF_SDF_SPECIALISE_MAX) {
+                store_list(lists, n, index, list, m);
+            }
         }
     }
-}
-
-/* The specialised tape of the node of `edge` voxels at voxel o (tapes up to
- * VF_SDF_SPECIALISE_MAX): its parent's (slot `parent` of parent_lists: VF_SDF_LIST_STRIDE
- * ushorts, the count then the instructions; the whole tape for VF_SDF_NO_PARENT) less the
- * operands its box (clipped to the grid, which holds every corner it samples) shows are never
- * selected there, in order, into list; returns how many. A child's box lies in its parent's,
- * so what the parent dropped the child never selects either. */
-uint specialise(__global const Instr* tape, uint n, __global const ushort* parent_lists,
-                uint parent, Grid g, uint4 o, uint edge, ushort* list) {
-    uchar live[VF_SDF_SPECIALISE_MAX];
-    uint m = n;
-    if (parent == VF_SDF_NO_PARENT) {
-        for (uint t = 0; t < n; ++t) {
-            list[t] = (ushort)t;
-        }
-    } else {
-        __global const ushort* p = parent_lists + (size_t)parent * VF_SDF_LIST_STRIDE;
-        m = p[0];
-        for (uint t = 0; t < m; ++t) {
-            list[t] = p[1 + t];
-        }
-    }
-    for (uint t = 0; t < m; ++t) {
-        live[list[t]] = 1;
-    }
-    const uint i1 = min(o.x + edge, g.nx), j1 = min(o.y + edge, g.ny), k1 = min(o.z + edge, g.nz);
-    eval_cells(tape, list, m, g, o.x, o.y, o.z, i1, j1, k1, live);
-    uint kept = 0;
-    for (uint t = 0; t < m; ++t) {
-        if (live[list[t]]) {
-            list[kept++] = list[t];
-        }
-    }
-    return kept;
 }
 
 inline uint rank_below(const uint* bits, uint i) {
@@ -303,18 +317,18 @@ inline uint rank_below(const uint* bits, uint i) {
     return r + (i % 32 ? popcount(bits[i / 32] & ((1u << (i % 32)) - 1u)) : 0u);
 }
 
-/* A work-group of 64 per node of level `level` (its first `capacity` nodes of counters[level];
- * origins: voxel, node index in w; parents: its parent's slot in parent_lists), groups striding
- * over the nodes: work-item 0 specialises the node's tape (kept in slot f of lists for its
- * children), work-item c tests child c with it; then the node's record (nodes, up to node_capacity)
- * and its ambiguous children as nodes of the next level (up to next_capacity). */
+/* A work-group of 64 per node of level `level` (its first `capacity` of counters[level]; origins:
+ * voxel, node index in w; lists: its specialised tape), groups striding over the nodes: work-item
+ * c tests child c with the node's tape, specialising it to the child; then the node's record
+ * (nodes, up to node_capacity) and its ambiguous children as nodes of the next level with their
+ * tapes (up to next_capacity). */
 __kernel __attribute__((reqd_work_group_size(64, 1, 1))) void classify_children(
     __global const Instr* tape, uint n, Grid g, __global const uint4* origins,
-    __global const uint* parents, __global const ushort* parent_lists, uint level, uint capacity,
-    uint edge, __global ushort* lists, __global uint4* next_origins, __global uint* next_parents,
-    uint next_capacity, __global uint* counters, __global uint* nodes, uint node_capacity) {
+    __global const ushort* lists, uint level, uint capacity, uint edge,
+    __global uint4* next_origins, __global ushort* next_lists, uint next_capacity,
+    __global uint* counters, __global uint* nodes, uint node_capacity) {
     __local ushort shared_list[VF_SDF_SPECIALISE_MAX];
-    __local uint shared_count, masks[4], first_child; /* occupied lo, hi; solid lo, hi */
+    __local uint masks[4], first_child; /* occupied lo, hi; solid lo, hi */
     const uint c = get_local_id(0);
     const uint count = min(counters[level], capacity);
     const uint next_base = level_base(counters, level + 1);
@@ -322,28 +336,27 @@ __kernel __attribute__((reqd_work_group_size(64, 1, 1))) void classify_children(
     const uint e = edge / 4;
     for (uint f = get_group_id(0); f < count; f += get_num_groups(0)) {
         const uint4 o = origins[f];
-        if (special && c == 0) {
-            ushort l[VF_SDF_SPECIALISE_MAX];
-            const uint m = specialise(tape, n, parent_lists, parents[f], g, o, edge, l);
-            __global ushort* dst = lists + (size_t)f * VF_SDF_LIST_STRIDE;
-            dst[0] = (ushort)m;
-            for (uint t = 0; t < m; ++t) {
-                shared_list[t] = l[t];
-                dst[1 + t] = l[t];
+        uint m = n;
+        if (special) {
+            __global const ushort* src = lists + (size_t)f * (n + 1);
+            m = src[0];
+            for (uint t = c; t < m; t += 64) {
+                shared_list[t] = src[1 + t];
             }
-            shared_count = m;
         }
         if (c < 4) {
             masks[c] = 0;
         }
         barrier(CLK_LOCAL_MEM_FENCE);
         ushort list[VF_SDF_SPECIALISE_MAX];
-        const uint m = special ? shared_count : n;
         for (uint t = 0; special && t < m; ++t) {
             list[t] = shared_list[t];
         }
         const uint cx = o.x + (c & 3) * e, cy = o.y + (c >> 2 & 3) * e, cz = o.z + (c >> 4) * e;
-        const uint cls = classify_cell(tape, special ? list : 0, m, g, cx, cy, cz, e);
+        ushort child_list[VF_SDF_SPECIALISE_MAX];
+        uint kept;
+        const uint cls = classify_special(tape, n, special ? list : 0, m, g, cx, cy, cz, e,
+                                          child_list, &kept);
         if (cls != VF_SDF_CELL_EMPTY) {
             atomic_or(&masks[(cls == VF_SDF_CELL_FULL ? 2 : 0) + c / 32], 1u << (c % 32));
         }
@@ -368,7 +381,9 @@ __kernel __attribute__((reqd_work_group_size(64, 1, 1))) void classify_children(
             const uint index = first_child + rank_below(occ, c);
             if (index < next_capacity) {
                 next_origins[index] = (uint4)(cx, cy, cz, next_base + index);
-                next_parents[index] = f;
+                if (special) {
+                    store_list(next_lists, n, index, child_list, kept);
+                }
             }
         }
         barrier(CLK_LOCAL_MEM_FENCE); /* the local state is the next node's */
@@ -437,14 +452,17 @@ inline uint row_all(const uchar* rows, uint y, uint z) {
  * its corners leave open, EV_W points per instruction fetch (eval_f_v: the vector instance of
  * implicit_eval.cl). A voxel's class is read from bit masks: corner rows of 5 bits (outside,
  * far inside, far outside), voxel rows of 4. */
-inline void sample_leaf_seq(__global const Instr* tape, uint n, Grid g, uint4 o, uint parent,
-                            __global const ushort* parent_lists, __global uint* nodes,
+inline void sample_leaf_seq(__global const Instr* tape, uint n, Grid g, uint4 o,
+                            __global const ushort* own_list, __global uint* nodes,
                             uint node_capacity, __global uint* voxels, uint voxel_capacity,
                             __global float4* vertices, uint vertex_capacity,
                             __global uint* counters, float decided) {
     ushort list[VF_SDF_SPECIALISE_MAX];
     const bool special = n <= VF_SDF_SPECIALISE_MAX;
-    const uint m = special ? specialise(tape, n, parent_lists, parent, g, o, 4, list) : n;
+    const uint m = special ? own_list[0] : n;
+    for (uint t = 0; special && t < m; ++t) {
+        list[t] = own_list[1 + t];
+    }
     const ushort* run = special ? list : 0;
     /* Lanes past the last corner evaluate a repeat of it into the padding. */
     float f[128 + EV_W];
@@ -593,17 +611,17 @@ inline void sample_leaf_seq(__global const Instr* tape, uint n, Grid g, uint4 o,
     }
 }
 
-/* The leaves of level `level` (its first `capacity` of counters[level]; origin, node index in w),
- * work-items striding over them. */
+/* The leaves of level `level` (its first `capacity` of counters[level]; origin, node index in w;
+ * lists: its specialised tape), work-items striding over them. */
 __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
-                                __global const uint4* leaves, __global const uint* parents,
-                                __global const ushort* parent_lists, uint level, uint capacity,
+                                __global const uint4* leaves, __global const ushort* lists,
+                                uint level, uint capacity,
                                 __global uint* nodes, uint node_capacity, __global uint* voxels,
                                 uint voxel_capacity, __global float4* vertices,
                                 uint vertex_capacity, __global uint* counters, float decided) {
     const uint count = min(counters[level], capacity);
     for (uint id = get_global_id(0); id < count; id += get_global_size(0)) {
-        sample_leaf_seq(tape, n, g, leaves[id], parents[id], parent_lists, nodes, node_capacity,
+        sample_leaf_seq(tape, n, g, leaves[id], lists + (size_t)id * (n + 1), nodes, node_capacity,
                         voxels, voxel_capacity, vertices, vertex_capacity, counters, decided);
     }
 }
@@ -616,12 +634,12 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
  * evaluates the gradient of the r-th kept corner. */
 __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_group(
     __global const Instr* tape, uint n, Grid g, __global const uint4* leaves,
-    __global const uint* parents, __global const ushort* parent_lists, uint level, uint capacity,
-    __global uint* nodes, uint node_capacity, __global uint* voxels, uint voxel_capacity,
+    __global const ushort* lists, uint level, uint capacity, __global uint* nodes,
+    uint node_capacity, __global uint* voxels, uint voxel_capacity,
     __global float4* vertices, uint vertex_capacity, __global uint* counters, float decided) {
     __local float f[125];
     /* bits: occupied (crossed) 0-1, solid 2-3, kept corners 4-7 */
-    __local uint bits[8], offsets[2], special_count, needed;
+    __local uint bits[8], offsets[2], needed;
     __local ushort special_list[VF_SDF_SPECIALISE_MAX];
     __local uchar corner_signs[64], need_list[64], kept_list[128];
     const uint lid = get_local_id(0);
@@ -629,11 +647,12 @@ __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_gro
     const bool special = n <= VF_SDF_SPECIALISE_MAX;
     for (uint id = get_group_id(0); id < count; id += get_num_groups(0)) {
         const uint4 o = leaves[id];
-        if (special && lid == 0) {
-            ushort l[VF_SDF_SPECIALISE_MAX];
-            special_count = specialise(tape, n, parent_lists, parents[id], g, o, 4, l);
-            for (uint t = 0; t < special_count; ++t) {
-                special_list[t] = l[t];
+        uint m = n;
+        if (special) {
+            __global const ushort* src = lists + (size_t)id * (n + 1);
+            m = src[0];
+            for (uint t = lid; t < m; t += 128) {
+                special_list[t] = src[1 + t];
             }
         }
         if (lid < 8) {
@@ -644,7 +663,6 @@ __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_gro
         }
         barrier(CLK_LOCAL_MEM_FENCE);
         ushort list[VF_SDF_SPECIALISE_MAX];
-        const uint m = special ? special_count : n;
         for (uint t = 0; special && t < m; ++t) {
             list[t] = special_list[t];
         }

@@ -297,10 +297,6 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-std::size_t list_bytes() {
-    return VF_SDF_LIST_STRIDE * sizeof(cl_ushort);
-}
-
 }  // namespace
 
 void ImplicitDiscretiser::wait() {
@@ -337,7 +333,7 @@ void ImplicitDiscretiser::enqueue_tiles(const ImplicitGrid& out, std::size_t cap
     k.setArg(6, out.tile_edge);
     k.setArg(7, table_buf_);
     k.setArg(8, origins_buf_[0]);
-    k.setArg(9, parents_buf_[0]);
+    k.setArg(9, lists_buf_[0]);
     k.setArg(10, static_cast<cl_uint>(capacity));
     k.setArg(11, counters_buf_);
     cl::Event e;
@@ -354,18 +350,16 @@ void ImplicitDiscretiser::enqueue_level(std::uint32_t level, std::size_t capacit
     const cl_uint edge = (1u << (2 * (options_.tile_depth + 1))) >> (2 * level);
     cl::Kernel& k = classify_children_;
     k.setArg(3, origins_buf_[at]);
-    k.setArg(4, parents_buf_[at]);
-    k.setArg(5, lists_buf_[next]);  // the parents' lists (level - 1)
-    k.setArg(6, static_cast<cl_uint>(level));
-    k.setArg(7, static_cast<cl_uint>(capacity));
-    k.setArg(8, edge);
-    k.setArg(9, lists_buf_[at]);
-    k.setArg(10, origins_buf_[next]);
-    k.setArg(11, parents_buf_[next]);
-    k.setArg(12, static_cast<cl_uint>(next_capacity));
-    k.setArg(13, counters_buf_);
-    k.setArg(14, nodes_buf_);
-    k.setArg(15, static_cast<cl_uint>(node_capacity));
+    k.setArg(4, lists_buf_[at]);
+    k.setArg(5, static_cast<cl_uint>(level));
+    k.setArg(6, static_cast<cl_uint>(capacity));
+    k.setArg(7, edge);
+    k.setArg(8, origins_buf_[next]);
+    k.setArg(9, lists_buf_[next]);
+    k.setArg(10, static_cast<cl_uint>(next_capacity));
+    k.setArg(11, counters_buf_);
+    k.setArg(12, nodes_buf_);
+    k.setArg(13, static_cast<cl_uint>(node_capacity));
     cl::Event e;
     ctx_.queue().enqueueNDRangeKernel(k, cl::NullRange,
                                       cl::NDRange(std::max<std::size_t>(groups, 1) * kGroup),
@@ -380,18 +374,17 @@ void ImplicitDiscretiser::enqueue_leaves(std::size_t capacity, std::size_t node_
     const std::uint32_t level = options_.tile_depth, at = level % 2;
     cl::Kernel& k = sample_leaves_;
     k.setArg(3, origins_buf_[at]);
-    k.setArg(4, parents_buf_[at]);
-    k.setArg(5, lists_buf_[at ^ 1]);  // the parents' lists (level - 1)
-    k.setArg(6, static_cast<cl_uint>(level));
-    k.setArg(7, static_cast<cl_uint>(capacity));
-    k.setArg(8, nodes_buf_);
-    k.setArg(9, static_cast<cl_uint>(node_capacity));
-    k.setArg(10, voxels_buf_);
-    k.setArg(11, static_cast<cl_uint>(voxels));
-    k.setArg(12, vertices_buf_);
-    k.setArg(13, static_cast<cl_uint>(vertices));
-    k.setArg(14, counters_buf_);
-    k.setArg(15, decided_);
+    k.setArg(4, lists_buf_[at]);
+    k.setArg(5, static_cast<cl_uint>(level));
+    k.setArg(6, static_cast<cl_uint>(capacity));
+    k.setArg(7, nodes_buf_);
+    k.setArg(8, static_cast<cl_uint>(node_capacity));
+    k.setArg(9, voxels_buf_);
+    k.setArg(10, static_cast<cl_uint>(voxels));
+    k.setArg(11, vertices_buf_);
+    k.setArg(12, static_cast<cl_uint>(vertices));
+    k.setArg(13, counters_buf_);
+    k.setArg(14, decided_);
     groups = std::max<std::size_t>(groups, 1);
     cl::Event e;
     if (gpu_layout_) {
@@ -407,24 +400,24 @@ void ImplicitDiscretiser::enqueue_leaves(std::size_t capacity, std::size_t node_
     events_.emplace_back(kLeaves, std::move(e));
 }
 
+std::size_t ImplicitDiscretiser::list_bytes() const {
+    const std::size_t n = part_.tape.code.size();
+    return n <= VF_SDF_SPECIALISE_MAX ? (n + 1) * sizeof(cl_ushort) : 0;
+}
+
 void ImplicitDiscretiser::size_levels(const Caps& caps, std::size_t tiles) {
     grow(counters_buf_, counters_cap_, VF_SDF_COUNTERS * sizeof(cl_uint));
     grow(table_buf_, table_cap_, tiles * sizeof(cl_uint));
-    const bool special = part_.tape.code.size() <= VF_SDF_SPECIALISE_MAX;
     std::size_t nodes = 0;
     for (std::size_t l = 0; l < caps.level.size(); ++l) {
         const std::size_t at = l % 2;
         grow(origins_buf_[at], origins_cap_[at], caps.level[l] * sizeof(cl_uint4));
-        grow(parents_buf_[at], parents_cap_[at], caps.level[l] * sizeof(cl_uint));
-        if (special && l + 1 < caps.level.size()) {
-            grow(lists_buf_[at], lists_cap_[at], caps.level[l] * list_bytes());
-        }
+        grow(lists_buf_[at], lists_cap_[at], caps.level[l] * list_bytes());
         nodes += caps.level[l];
     }
     for (int at = 0; at < 2; ++at) {
         grow(origins_buf_[at], origins_cap_[at], sizeof(cl_uint4));
-        grow(parents_buf_[at], parents_cap_[at], sizeof(cl_uint));
-        grow(lists_buf_[at], lists_cap_[at], list_bytes());
+        grow(lists_buf_[at], lists_cap_[at], sizeof(cl_ushort));
     }
     grow(nodes_buf_, nodes_cap_, nodes * VF_SDF_NODE_WORDS * sizeof(cl_uint));
     grow(voxels_buf_, voxels_cap_, caps.voxels * VF_SDF_VOXEL_WORDS * sizeof(cl_uint));
@@ -538,7 +531,6 @@ void ImplicitDiscretiser::attempt_counted(ImplicitGrid& out) {
     timing_.counted = true;
     const std::uint32_t depth = options_.tile_depth;
     const std::size_t tiles = out.tiles.count();
-    const bool special = part_.tape.code.size() <= VF_SDF_SPECIALISE_MAX;
     // First guesses of the room a level needs (a larger expected count when there is one);
     // a level whose count passes its room runs again at that count.
     auto expected = [&](std::uint32_t l) -> std::size_t {
@@ -553,7 +545,7 @@ void ImplicitDiscretiser::attempt_counted(ImplicitGrid& out) {
     std::size_t room = std::min(tiles, std::max({std::size_t{1024}, tiles / 2, expected(0)}));
     auto tiles_at = [&](std::size_t r) {
         grow(origins_buf_[0], origins_cap_[0], r * sizeof(cl_uint4));
-        grow(parents_buf_[0], parents_cap_[0], r * sizeof(cl_uint));
+        grow(lists_buf_[0], lists_cap_[0], r * list_bytes());
         zero_counters(0, VF_SDF_COUNTERS);
         enqueue_tiles(out, r);
         return read_counters()[0];
@@ -566,15 +558,12 @@ void ImplicitDiscretiser::attempt_counted(ImplicitGrid& out) {
     nodes = count[0];
     for (std::uint32_t l = 0; l < depth && count[l] > 0; ++l) {
         const std::uint32_t next = (l + 1) % 2;
-        if (special) {
-            grow(lists_buf_[l % 2], lists_cap_[l % 2], count[l] * list_bytes());
-        }
         // This level's records go after the levels above it (kept when the buffer grows).
         grow(nodes_buf_, nodes_cap_, nodes * VF_SDF_NODE_WORDS * sizeof(cl_uint),
              (nodes - count[l]) * VF_SDF_NODE_WORDS * sizeof(cl_uint));
         auto level_at = [&](std::size_t r) {
             grow(origins_buf_[next], origins_cap_[next], r * sizeof(cl_uint4));
-            grow(parents_buf_[next], parents_cap_[next], r * sizeof(cl_uint));
+            grow(lists_buf_[next], lists_cap_[next], r * list_bytes());
             zero_counters(l + 1, 1);
             enqueue_level(l, count[l], r, nodes, count[l]);
             return read_counters()[l + 1];

@@ -159,11 +159,12 @@ class ImplicitDiscretiser {
     bool kernels_made_ = false;
     cl::Kernel classify_tiles_, classify_children_, sample_leaves_;
     cl::Buffer counters_buf_, table_buf_, nodes_buf_, voxels_buf_, vertices_buf_;
-    cl::Buffer origins_buf_[2], parents_buf_[2];  // the frontier of levels L and L + 1
-    cl::Buffer lists_buf_[2];  // specialised tapes of two consecutive levels' nodes
+    // The frontiers of levels L and L + 1: nodes' origins (node index in w) and their
+    // specialised tapes (list_bytes() each; none for tapes too long to specialise).
+    cl::Buffer origins_buf_[2], lists_buf_[2];
+    std::size_t list_bytes() const;
     std::size_t counters_cap_ = 0, table_cap_ = 0, nodes_cap_ = 0, voxels_cap_ = 0,
-                vertices_cap_ = 0, origins_cap_[2] = {0, 0}, parents_cap_[2] = {0, 0},
-                lists_cap_[2] = {0, 0};
+                vertices_cap_ = 0, origins_cap_[2] = {0, 0}, lists_cap_[2] = {0, 0};
     std::vector<std::pair<int, cl::Event>> events_;  // (stage, event) of this run's commands
     std::vector<cl_uint> host_counters_;
     const std::vector<cl_uint> zeros_ = std::vector<cl_uint>(VF_SDF_COUNTERS, 0);

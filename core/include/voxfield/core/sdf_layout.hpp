@@ -35,12 +35,10 @@
 #define VF_SDF_PUSH_POINT 13u
 #define VF_SDF_POP_POINT 14u
 
-/* Tapes up to this long are specialised per leaf (operands never selected there skipped). */
+/* Tapes up to this long are specialised per node (operands never selected there skipped); the
+ * discretiser keeps a node's specialised tape as n + 1 16-bit words: a count, then that many
+ * instruction indices. */
 #define VF_SDF_SPECIALISE_MAX 256
-/* A node's specialised tape as the discretiser keeps it for its children: a count, then that
- * many instruction indices (16 bits each). VF_SDF_NO_PARENT: a tile's root runs the whole tape. */
-#define VF_SDF_LIST_STRIDE (VF_SDF_SPECIALISE_MAX + 1)
-#define VF_SDF_NO_PARENT 0xFFFFFFFFu
 
 /* Nesting limit of a part (nodes on the longest root-to-leaf path); the stacks hold one more. */
 #define VF_SDF_MAX_DEPTH 32
