@@ -621,7 +621,9 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
                                 uint vertex_capacity, __global uint* counters, float decided) {
     const uint count = min(counters[level], capacity);
     for (uint id = get_global_id(0); id < count; id += get_global_size(0)) {
-        sample_leaf_seq(tape, n, g, leaves[id], lists + (size_t)id * (n + 1), nodes, node_capacity,
+        /* (a tape too long to specialise has no lists) */
+        const size_t slot = n <= VF_SDF_SPECIALISE_MAX ? (size_t)id * (n + 1) : 0;
+        sample_leaf_seq(tape, n, g, leaves[id], lists + slot, nodes, node_capacity,
                         voxels, voxel_capacity, vertices, vertex_capacity, counters, decided);
     }
 }
