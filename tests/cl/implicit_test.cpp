@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <tuple>
@@ -30,9 +31,12 @@ struct Check {
 struct Brute {
     std::vector<float> corners, centres;
 };
-Brute brute_force(const sdf::Part& part) {
-    ImplicitDiscretiser job(test::pocl(), part, {});
+Brute brute_force(Context& ctx, const sdf::Part& part) {
+    ImplicitDiscretiser job(ctx, part, {});
     return {job.sample_corners(), job.sample_centres()};
+}
+Brute brute_force(const sdf::Part& part) {
+    return brute_force(test::pocl(), part);
 }
 
 // Brute-force flags (bit 0: f < 0 at the centre; bit 1: f < 0 differs among the 8 corners and
@@ -61,13 +65,11 @@ std::vector<std::uint8_t> brute_flags(const Dims d, const std::vector<float>& co
     return f;
 }
 
-// Discretises `part` and compares it with brute force; returns counts and the largest errors.
-Check check(const sdf::Part& part, ImplicitOptions options, const std::string& what,
-            const Brute& brute) {
+// Compares a discretisation of `part` with brute force (flags, counts, corner values); returns
+// counts and the largest errors against the CPU evaluators.
+Check compare(const sdf::Part& part, const ImplicitGrid& grid, const std::string& what,
+              const Brute& brute) {
     Check r;
-    ImplicitDiscretiser job(test::pocl(), part, options);
-    EXPECT_EQ(job.gpu_layout(), options.layout == Layout::gpu);
-    const ImplicitGrid grid = job.run();
     r.leaves = grid.leaves;
     r.tile_edge = grid.tile_edge;
     const std::vector<float>& corners = brute.corners;
@@ -109,6 +111,15 @@ Check check(const sdf::Part& part, ImplicitOptions options, const std::string& w
                  std::abs(v[1] / h - cpu.gradient.y), std::abs(v[2] / h - cpu.gradient.z)});
         }
     }
+    return r;
+}
+
+// Discretises `part` on PoCL and compares it with brute force.
+Check check(const sdf::Part& part, ImplicitOptions options, const std::string& what,
+            const Brute& brute) {
+    ImplicitDiscretiser job(test::pocl(), part, options);
+    EXPECT_EQ(job.gpu_layout(), options.layout == Layout::gpu);
+    const Check r = compare(part, job.run(), what, brute);
     EXPECT_LE(r.max_value_error, 4 * 1.2e-7f) << what;
     EXPECT_LE(r.max_gradient_error, 1e-5f) << what;
     return r;
@@ -509,6 +520,46 @@ TEST(Implicit, RejectsATileDepthOutOfRange) {
             "shape": {"sphere": {"center": [0, 0, 0], "radius": 1}}})",
         "s");
     EXPECT_THROW(ImplicitDiscretiser(test::pocl(), part, {9, Layout::cpu}), InputError);
+}
+
+// On a GPU when there is one (the kernel tests run on PoCL; this one checks the device the GPU
+// layout is for): the gallery with the device's defaults (GPU layout, pinned readback), run after
+// run into one grid (the counted first run, then one-wait runs), equals that device's brute force.
+TEST(ImplicitOnGpu, GalleryEqualsBruteForceRunAfterRun) {
+    std::unique_ptr<Context> gpu;
+    for (const DeviceInfo& d : list_devices()) {
+        if (d.type == "gpu" && d.available && d.compiler_available) {
+            gpu = std::make_unique<Context>(d);
+            break;
+        }
+    }
+    if (!gpu) {
+        GTEST_SKIP() << "no OpenCL GPU";
+    }
+    for (const char* name : {"bracket", "gear_ring", "pipe_elbow"}) {
+        const sdf::Part part = sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" /
+                                              (std::string(name) + ".sdf.json"));
+        const Brute brute = brute_force(*gpu, part);
+        for (std::uint32_t depth : {1u, 2u}) {
+            ImplicitDiscretiser job(*gpu, part, {depth, Layout::automatic});
+            EXPECT_TRUE(job.gpu_layout());
+            ImplicitGrid grid;
+            for (int i = 0; i < 3; ++i) {
+                const std::string what = std::string(name) + " depth " + std::to_string(depth) +
+                                         " run " + std::to_string(i) + " on " + gpu->info().name;
+                job.run(grid);
+                EXPECT_EQ(job.timing().counted, i == 0) << what;
+                if (i > 0) {
+                    EXPECT_EQ(job.timing().syncs, 1u) << what;
+                }
+                const Check c = compare(part, grid, what, brute);
+                EXPECT_GT(c.crossed, 1000u) << what;
+                // Against the CPU's float evaluation: a GPU may contract a * b + c into fma.
+                EXPECT_LE(c.max_value_error, 1e-5f) << what;
+                EXPECT_LE(c.max_gradient_error, 1e-4f) << what;
+            }
+        }
+    }
 }
 
 }  // namespace
