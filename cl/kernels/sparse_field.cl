@@ -87,26 +87,31 @@ __kernel void fill_slot(__global ELEM* restrict pool, ulong slot, ELEM value) {
          (get_global_id(2) * TILE + get_global_id(1)) * TILE + get_global_id(0)] = value;
 }
 
-// One work-item per 16^3 node of the listed slots: the least KEY over its voxels inside the
-// world (a tile cut by the world's edge holds no values beyond it), starting from the far
-// value, which no value exceeds. `tiles`: per listed slot its tile's coordinates (3 uints).
-// Written per slot into `minima` and in list order into `listed` (one read for the host).
-// Only the nodes set in `nodes` (per listed slot, bit z << 4 | y << 2 | x) are computed; the
-// others keep their minima (copied into `listed`).
+// A work-group of 64 work-items per 16^3 node of the listed slots (global ids 0: 0..63, 1: list
+// index * 64 + node): the least KEY over its voxels inside the world (a tile cut by the world's
+// edge holds no values beyond it), starting from the far value, which no value exceeds; each
+// work-item takes 4 rows of 16, then the group's least. `tiles`: per listed slot its tile's
+// coordinates (3 uints). Written per slot into `minima` and in list order into `listed` (one
+// read for the host). Only the nodes set in `nodes` (per listed slot, bit z << 4 | y << 2 | x)
+// are computed; the others keep their minima (copied into `listed`).
 __kernel void node_minima(__global const ELEM* restrict pool, __global const uint* restrict slots,
                           __global const uint* restrict tiles, uint count,
                           __global ELEM* restrict minima, ELEM far, uint wx, uint wy, uint wz,
                           __global ELEM* restrict listed, __global const ulong* restrict nodes) {
-    const size_t i = get_global_id(0);
+    __local ELEM least[64];
+    const uint lid = (uint)get_local_id(0);
+    const size_t i = get_global_id(1);
     if (i >= (size_t)count * 64) {
-        return;
+        return;  // the whole group
     }
     const size_t slot = slots[i / 64];
     __global const uint* t = tiles + 3 * (i / 64);
     const uint node = (uint)(i % 64);
     if ((nodes[i / 64] >> node & 1ul) == 0) {
-        listed[i] = minima[slot * 64 + node];
-        return;
+        if (lid == 0) {
+            listed[i] = minima[slot * 64 + node];
+        }
+        return;  // the whole group
     }
     const uint x0 = (node & 3) * 16, y0 = ((node >> 2) & 3) * 16, z0 = (node >> 4) * 16;
     // Voxels of the node inside the world: [0, n) along each axis.
@@ -115,8 +120,10 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
                nz = (uint)clamp((long)wz - oz, 0l, 16l);
     __global const ELEM* tile = pool + slot * TILE_VOXELS;
     ELEM best = KEY(far);
-    for (uint z = 0; z < nz; ++z) {
-        for (uint y = 0; y < ny; ++y) {
+    // Rows lid, lid + 64, lid + 128, lid + 192 of the node's 256 (y fastest).
+    for (uint r = lid; r < 256; r += 64) {
+        const uint y = r & 15, z = r >> 4;
+        if (y < ny && z < nz) {
             __global const ELEM* row = tile + ((z0 + z) * TILE + y0 + y) * TILE + x0;
             for (uint x = 0; x < nx; ++x) {
                 const ELEM k = KEY(row[x]);
@@ -124,10 +131,19 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
             }
         }
     }
-    minima[slot * 64 + node] = best;
-    listed[i] = best;
+    least[lid] = best;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint step = 32; step > 0; step >>= 1) {
+        if (lid < step) {
+            least[lid] = least[lid + step] < least[lid] ? least[lid + step] : least[lid];
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lid == 0) {
+        minima[slot * 64 + node] = least[0];
+        listed[i] = least[0];
+    }
 }
-
 
 // The Manhattan sweep: a whole unsigned bounded L1 field of unit spacing computed in the field
 // tiles themselves, with no dense blocks. Values are small integers (distances, CAP = halo + 1

@@ -475,8 +475,8 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots,
         k.setArg(9, minima_listed_);
         k.setArg(10, minima_nodes_);
         cl::Event ev;
-        q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(slots.size() * 64), cl::NDRange(64),
-                               nullptr, &ev);
+        q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(64, slots.size() * 64),
+                               cl::NDRange(64, 1), nullptr, &ev);
         const std::size_t per = 64 * elem_;
         std::vector<std::uint8_t> listed(slots.size() * per);
         q.enqueueReadBuffer(minima_listed_, CL_TRUE, 0, listed.size(), listed.data());
