@@ -154,31 +154,46 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
 #define NB_EMPTY 0xFFFFFFFFu
 #define NB_INSIDE 0xFFFFFFFEu
 
-// A work-item per voxel of tile slot first + gid2 / 64: 0 where the world's tree (refs: per slot
-// the tile's node base, SLOT_REF in the slot buffers, NO_TILE not stored) holds a solid voxel,
-// CAP elsewhere.
+#define VEC16_(t) t##16
+#define VEC16(t) VEC16_(t)
+typedef VEC16(ELEM) ELEM16;
+
+// A work-item per 16 voxels along x (global ids x / 16, y, and slot - first) * 64 + z) of tile slot
+// first + gid2 / 64: 0 where the world's tree (refs: per slot the tile's node base, SLOT_REF in
+// the slot buffers, NO_TILE not stored) holds a solid voxel, CAP elsewhere.
 __kernel void sweep_init(__global const ulong* restrict masks, __global const uint* restrict offsets,
                          __global const ulong* restrict slot_masks,
                          __global const uint* restrict slot_offsets,
                          __global const ulong* restrict refs, __global ELEM* restrict pool,
                          uint first, uint cap) {
-    const uint x = (uint)get_global_id(0), y = (uint)get_global_id(1);
+    const uint x0 = (uint)get_global_id(0) * 16, y = (uint)get_global_id(1);
     const size_t slot = first + get_global_id(2) / TILE;
     const uint z = (uint)(get_global_id(2) % TILE);
+    ELEM v[16];
+    for (uint k = 0; k < 16; ++k) {
+        v[k] = (ELEM)cap;
+    }
     ulong base = refs[slot];
-    uint v = cap;
     if (base != NO_TILE) {
         const bool in_slot = (base & SLOT_REF) != 0;
         base &= ~SLOT_REF;
         __global const ulong* m = in_slot ? slot_masks : masks;
         __global const uint* o = in_slot ? slot_offsets : offsets;
-        const ulong n4 = leaf_node(m, o, base, m[base], x, y, z);
-        const uint bv = (z & 3) << 4 | (y & 3) << 2 | (x & 3);
-        if (n4 != NO_TILE && (m[n4] >> bv & 1ul) != 0) {
-            v = 0;
+        const ulong root = m[base];
+        for (uint leaf = 0; leaf < 4; ++leaf) {
+            const ulong n4 = leaf_node(m, o, base, root, x0 + 4 * leaf, y, z);
+            if (n4 == NO_TILE) {
+                continue;
+            }
+            const uint row = (uint)(m[n4] >> ((z & 3) << 4 | (y & 3) << 2)) & 15u;
+            for (uint k = 0; k < 4; ++k) {
+                if ((row >> k & 1u) != 0) {
+                    v[4 * leaf + k] = (ELEM)0;
+                }
+            }
         }
     }
-    pool[slot * TILE_VOXELS + ((size_t)z * TILE + y) * TILE + x] = (ELEM)v;
+    vstore16(vload16(0, v), 0, pool + slot * TILE_VOXELS + ((size_t)z * TILE + y) * TILE + x0);
 }
 
 // The value before a line's first voxel (dir -1) or after its last (dir +1) that a scan toward
@@ -242,14 +257,48 @@ __kernel void sweep_l1(__global ELEM* restrict pool, __global const uint* restri
     }
 }
 
-// A work-item per voxel, as sweep_init: distances up to `most` (D rounded down) stay, the others
-// become `far` (D encoded).
-__kernel void sweep_finish(__global ELEM* restrict pool, uint first, uint most, ELEM far) {
-    const size_t i = (first + get_global_id(2) / TILE) * TILE_VOXELS +
-                     ((get_global_id(2) % TILE) * TILE + get_global_id(1)) * TILE +
-                     get_global_id(0);
-    const uint v = (uint)pool[i];
-    if (v > most) {
-        pool[i] = far;
+// sweep_l1 along y or z (axis 1 or 2) for CPUs: a work-item per plane (global id 0: z for y,
+// y for z; global id 1: slot - first) carries its 64 lines along x together, in four 16-wide
+// vectors, so each step reads and writes whole rows.
+__kernel void sweep_l1_rows(__global ELEM* restrict pool, __global const uint* restrict nbrs,
+                            uint first, uint axis, uint halo, uint cap) {
+    const size_t w = get_global_id(0);
+    const size_t slot = first + get_global_id(1);
+    const size_t stride = axis == 1 ? TILE : TILE * TILE;
+    const size_t at = axis == 1 ? w * TILE * TILE : w * TILE;
+    __global ELEM* line = pool + slot * TILE_VOXELS + at;
+    const ELEM16 one = (ELEM16)((ELEM)1);
+    for (uint dir = 0; dir < 2; ++dir) {
+        const uint nb = nbrs[6 * slot + 2 * axis + dir];
+        ELEM16 r[4];
+        for (uint q = 0; q < 4; ++q) {
+            r[q] = (ELEM16)((ELEM)(nb == NB_INSIDE ? 0 : cap));
+        }
+        if (nb != NB_INSIDE && nb != NB_EMPTY) {
+            __global const ELEM* t = pool + (size_t)nb * TILE_VOXELS + at;
+            for (uint k = halo; k-- > 0;) {
+                const uint p = dir == 0 ? TILE - 1 - k : k;
+                for (uint q = 0; q < 4; ++q) {
+                    r[q] = min(vload16(q, t + p * stride), r[q] + one);
+                }
+            }
+        }
+        for (uint step = 0; step < TILE; ++step) {
+            const uint p = dir == 0 ? step : TILE - 1 - step;
+            for (uint q = 0; q < 4; ++q) {
+                r[q] = min(vload16(q, line + p * stride), r[q] + one);
+                vstore16(r[q], q, line + p * stride);
+            }
+        }
     }
+}
+
+// A work-item per 16 voxels, as sweep_init: distances up to `most` (D rounded down) stay, the
+// others become `far` (D encoded).
+__kernel void sweep_finish(__global ELEM* restrict pool, uint first, uint most, ELEM far) {
+    __global ELEM* p = pool + (first + get_global_id(2) / TILE) * TILE_VOXELS +
+                       ((get_global_id(2) % TILE) * TILE + get_global_id(1)) * TILE +
+                       get_global_id(0) * 16;
+    const ELEM16 v = vload16(0, p);
+    vstore16(v > (ELEM16)((ELEM)most) ? (ELEM16)far : v, 0, p);
 }

@@ -267,7 +267,8 @@ TEST(SparseField, EmptyFullAndSingleVoxelWorlds) {
 TEST(SparseField, ManhattanSweepEqualsBlocksAndTheDenseField) {
     std::mt19937 rng(27);
     const Palette p = Palette::magicavoxel_default();
-    const Dims sizes[] = {{130, 70, 200}, {64, 64, 64}, {1, 129, 65}, {200, 3, 5}};
+    // The widest: tiles enough for run() to find the field tiles on two threads.
+    const Dims sizes[] = {{130, 70, 200}, {64, 64, 64}, {1, 129, 65}, {200, 3, 5}, {700, 20, 700}};
     const Format formats[] = {Format::u8, Format::u16, Format::u32, Format::i16, Format::f32};
     const double bounds[] = {1, 2.5, 16, 64, 64.5};
     int i = 0;
