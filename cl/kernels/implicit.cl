@@ -222,93 +222,91 @@ uint classify_cell(__global const Instr* tape, const ushort* list, uint m, Grid 
     return r.y < 0 ? VF_SDF_CELL_FULL : VF_SDF_CELL_AMBIGUOUS;
 }
 
-/* One work-item per tile of `edge` voxels, tiles (tx, ty, tz) x fastest. */
+/* Levels on the device (no host between them): the nodes of level L are numbered from
+ * level_base(L) = the nodes of the levels above it (counters[0..L)), in any order; a node's
+ * children are reserved in one block by one atomic and packed in mask order. Kernels of a level
+ * read its count from counters and store only what fits the capacities the host gave them. */
+inline uint level_base(__global const uint* counters, uint level) {
+    uint base = 0;
+    for (uint l = 0; l < level; ++l) {
+        base += counters[l];
+    }
+    return base;
+}
+
+/* The class of the cell of `edge` voxels at voxel (i, j, k) as classify_cell gives it, by the
+ * instructions list[0..m) (the whole tape when list is 0 and m = n); for tapes up to
+ * VF_SDF_SPECIALISE_MAX also the cell's specialised tape: those instructions less the operands its
+ * box (clipped to the grid, which holds every corner it samples) shows are never selected there,
+ * in order, into out, *kept of them (0 for a cell outside the grid). A child's box lies in its
+ * parent's, so what the parent dropped the child never selects either. */
+uint classify_special(__global const Instr* tape, uint n, const ushort* list, uint m, Grid g,
+                      uint i, uint j, uint k, uint edge, ushort* out, uint* kept) {
+    *kept = 0;
+    if (n > VF_SDF_SPECIALISE_MAX) {
+        return classify_cell(tape, 0, n, g, i, j, k, edge);
+    }
+    if (i >= g.nx || j >= g.ny || k >= g.nz) {
+        return VF_SDF_CELL_EMPTY;
+    }
+    uchar live[VF_SDF_SPECIALISE_MAX];
+    for (uint t = 0; t < m; ++t) {
+        live[list ? list[t] : t] = 1;
+    }
+    const uint i1 = min(i + edge, g.nx), j1 = min(j + edge, g.ny), k1 = min(k + edge, g.nz);
+    const float2 r = eval_cells(tape, list, m, g, i, j, k, i1, j1, k1, live);
+    uint count = 0;
+    for (uint t = 0; t < m; ++t) {
+        const uint instr = list ? list[t] : t;
+        if (live[instr]) {
+            out[count++] = (ushort)instr;
+        }
+    }
+    *kept = count;
+    if (r.x > 0) {
+        return VF_SDF_CELL_EMPTY;
+    }
+    return r.y < 0 ? VF_SDF_CELL_FULL : VF_SDF_CELL_AMBIGUOUS;
+}
+
+/* A node's specialised tape as the kernels keep it, slot s of `lists`: n + 1 ushorts, the count
+ * then the instructions. */
+inline void store_list(__global ushort* lists, uint n, uint s, const ushort* list, uint m) {
+    __global ushort* dst = lists + (size_t)s * (n + 1);
+    dst[0] = (ushort)m;
+    for (uint t = 0; t < m; ++t) {
+        dst[1 + t] = list[t];
+    }
+}
+
+/* One work-item per tile of `edge` voxels, tiles (tx, ty, tz) x fastest: its entry in the tile
+ * table, and for an ambiguous tile a root node of level 0 (origin with its node index in w, and
+ * its specialised tape in `lists`) among the first `capacity`. */
 __kernel void classify_tiles(__global const Instr* tape, uint n, Grid g, uint tx, uint ty,
-                             uint tiles, uint edge, __global uchar* out) {
+                             uint tiles, uint edge, __global uint* table, __global uint4* origins,
+                             __global ushort* lists, uint capacity, __global uint* counters) {
     const uint t = get_global_id(0);
     if (t >= tiles) {
         return;
     }
-    out[t] = (uchar)classify_cell(tape, 0, n, g, t % tx * edge, t / tx % ty * edge,
-                                  t / tx / ty * edge, edge);
-}
-
-/* The specialised tape of the node of `edge` voxels at voxel o (tapes up to
- * VF_SDF_SPECIALISE_MAX): its parent's (slot `parent` of parent_lists: VF_SDF_LIST_STRIDE
- * ushorts, the count then the instructions; the whole tape for VF_SDF_NO_PARENT) less the
- * operands its box (clipped to the grid, which holds every corner it samples) shows are never
- * selected there, in order, into list; returns how many. A child's box lies in its parent's,
- * so what the parent dropped the child never selects either. */
-uint specialise(__global const Instr* tape, uint n, __global const ushort* parent_lists,
-                uint parent, Grid g, uint4 o, uint edge, ushort* list) {
-    uchar live[VF_SDF_SPECIALISE_MAX];
-    uint m = n;
-    if (parent == VF_SDF_NO_PARENT) {
-        for (uint t = 0; t < n; ++t) {
-            list[t] = (ushort)t;
-        }
-    } else {
-        __global const ushort* p = parent_lists + (size_t)parent * VF_SDF_LIST_STRIDE;
-        m = p[0];
-        for (uint t = 0; t < m; ++t) {
-            list[t] = p[1 + t];
-        }
-    }
-    for (uint t = 0; t < m; ++t) {
-        live[list[t]] = 1;
-    }
-    const uint i1 = min(o.x + edge, g.nx), j1 = min(o.y + edge, g.ny), k1 = min(o.z + edge, g.nz);
-    eval_cells(tape, list, m, g, o.x, o.y, o.z, i1, j1, k1, live);
-    uint kept = 0;
-    for (uint t = 0; t < m; ++t) {
-        if (live[list[t]]) {
-            list[kept++] = list[t];
-        }
-    }
-    return kept;
-}
-
-/* A work-group of 64 per node of `edge` voxels (origins: voxel, node index in w; parents: its
- * parent's slot in parent_lists): work-item 0 specialises the node's tape (kept in slot f of
- * lists for its children), then work-item c tests child c with it. */
-__kernel __attribute__((reqd_work_group_size(64, 1, 1))) void classify_children(
-    __global const Instr* tape, uint n, Grid g, __global const uint4* origins,
-    __global const uint* parents, __global const ushort* parent_lists, uint count, uint edge,
-    __global ushort* lists, __global uchar* out) {
-    __local ushort shared_list[VF_SDF_SPECIALISE_MAX];
-    __local uint shared_count;
-    const uint f = get_group_id(0), c = get_local_id(0);
-    if (f >= count) {
-        return;
-    }
-    const uint4 o = origins[f];
-    const bool special = n <= VF_SDF_SPECIALISE_MAX;
-    if (special && c == 0) {
-        ushort l[VF_SDF_SPECIALISE_MAX];
-        const uint m = specialise(tape, n, parent_lists, parents[f], g, o, edge, l);
-        __global ushort* dst = lists + (size_t)f * VF_SDF_LIST_STRIDE;
-        dst[0] = (ushort)m;
-        for (uint t = 0; t < m; ++t) {
-            shared_list[t] = l[t];
-            dst[1 + t] = l[t];
-        }
-        shared_count = m;
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
+    const uint x = t % tx * edge, y = t / tx % ty * edge, z = t / tx / ty * edge;
     ushort list[VF_SDF_SPECIALISE_MAX];
-    const uint m = special ? shared_count : n;
-    for (uint t = 0; special && t < m; ++t) {
-        list[t] = shared_list[t];
+    uint m;
+    const uint cls = classify_special(tape, n, 0, n, g, x, y, z, edge, list, &m);
+    if (cls == VF_SDF_CELL_EMPTY) {
+        table[t] = VF_SDF_TILE_EMPTY;
+    } else if (cls == VF_SDF_CELL_FULL) {
+        table[t] = VF_SDF_TILE_FULL;
+    } else {
+        const uint index = atomic_inc(&counters[0]);
+        table[t] = index;
+        if (index < capacity) {
+            origins[index] = (uint4)(x, y, z, index);
+            if (n <= VF_SDF_SPECIALISE_MAX) {
+                store_list(lists, n, index, list, m);
+            }
+        }
     }
-    const uint e = edge / 4;
-    out[f * 64 + c] =
-        (uchar)classify_cell(tape, special ? list : 0, m, g, o.x + (c & 3) * e,
-                             o.y + (c >> 2 & 3) * e, o.z + (c >> 4) * e, e);
-}
-
-inline uint corner_index(uint v, uint c) {
-    /* voxel v = x + 4 y + 16 z of a leaf, corner c = cx + 2 cy + 4 cz -> x + 5 y + 25 z */
-    return (v & 3) + (c & 1) + 5 * ((v >> 2 & 3) + (c >> 1 & 1)) + 25 * ((v >> 4) + (c >> 2));
 }
 
 inline uint rank_below(const uint* bits, uint i) {
@@ -319,15 +317,97 @@ inline uint rank_below(const uint* bits, uint i) {
     return r + (i % 32 ? popcount(bits[i / 32] & ((1u << (i % 32)) - 1u)) : 0u);
 }
 
-/* Reserves a leaf's vertex and voxel records (counters[0]: vertices reserved, counters[1]:
- * voxel records reserved) and writes its node record. When the reservations fit the
- * capacities, the kernels below then write its voxel records (crossed voxels in mask order)
- * and vertex records (its kept corners in index order). */
-inline void leaf_reserve(__global uint* counters, __global uint* nodes, uint node, uint kept_count,
-                         uint cross_count, uint2 occ, uint2 solid, uint* voff, uint* xoff) {
-    *voff = kept_count ? atomic_add(&counters[0], kept_count) : 0u;
-    *xoff = cross_count ? atomic_add(&counters[1], cross_count) : 0u;
-    __global uint* rec = nodes + node * VF_SDF_NODE_WORDS;
+/* A work-group of 64 per node of level `level` (its first `capacity` of counters[level]; origins:
+ * voxel, node index in w; lists: its specialised tape), groups striding over the nodes: work-item
+ * c tests child c with the node's tape, specialising it to the child; then the node's record
+ * (nodes, up to node_capacity) and its ambiguous children as nodes of the next level with their
+ * tapes (up to next_capacity). */
+__kernel __attribute__((reqd_work_group_size(64, 1, 1))) void classify_children(
+    __global const Instr* tape, uint n, Grid g, __global const uint4* origins,
+    __global const ushort* lists, uint level, uint capacity, uint edge,
+    __global uint4* next_origins, __global ushort* next_lists, uint next_capacity,
+    __global uint* counters, __global uint* nodes, uint node_capacity) {
+    __local ushort shared_list[VF_SDF_SPECIALISE_MAX];
+    __local uint masks[4], first_child; /* occupied lo, hi; solid lo, hi */
+    const uint c = get_local_id(0);
+    const uint count = min(counters[level], capacity);
+    const uint next_base = level_base(counters, level + 1);
+    const bool special = n <= VF_SDF_SPECIALISE_MAX;
+    const uint e = edge / 4;
+    for (uint f = get_group_id(0); f < count; f += get_num_groups(0)) {
+        const uint4 o = origins[f];
+        uint m = n;
+        if (special) {
+            __global const ushort* src = lists + (size_t)f * (n + 1);
+            m = src[0];
+            for (uint t = c; t < m; t += 64) {
+                shared_list[t] = src[1 + t];
+            }
+        }
+        if (c < 4) {
+            masks[c] = 0;
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        ushort list[VF_SDF_SPECIALISE_MAX];
+        for (uint t = 0; special && t < m; ++t) {
+            list[t] = shared_list[t];
+        }
+        const uint cx = o.x + (c & 3) * e, cy = o.y + (c >> 2 & 3) * e, cz = o.z + (c >> 4) * e;
+        ushort child_list[VF_SDF_SPECIALISE_MAX];
+        uint kept;
+        const uint cls = classify_special(tape, n, special ? list : 0, m, g, cx, cy, cz, e,
+                                          child_list, &kept);
+        if (cls != VF_SDF_CELL_EMPTY) {
+            atomic_or(&masks[(cls == VF_SDF_CELL_FULL ? 2 : 0) + c / 32], 1u << (c % 32));
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        const uint occ[2] = {masks[0], masks[1]};
+        if (c == 0) {
+            const uint kids = popcount(occ[0]) + popcount(occ[1]);
+            const uint first = kids ? atomic_add(&counters[level + 1], kids) : 0u;
+            first_child = first;
+            if (o.w < node_capacity) {
+                __global uint* rec = nodes + (size_t)o.w * VF_SDF_NODE_WORDS;
+                rec[0] = next_base + first;
+                rec[1] = VF_SDF_NOT_LEAF;
+                rec[2] = occ[0];
+                rec[3] = occ[1];
+                rec[4] = masks[2];
+                rec[5] = masks[3];
+            }
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        if (cls == VF_SDF_CELL_AMBIGUOUS) {
+            const uint index = first_child + rank_below(occ, c);
+            if (index < next_capacity) {
+                next_origins[index] = (uint4)(cx, cy, cz, next_base + index);
+                if (special) {
+                    store_list(next_lists, n, index, child_list, kept);
+                }
+            }
+        }
+        barrier(CLK_LOCAL_MEM_FENCE); /* the local state is the next node's */
+    }
+}
+
+inline uint corner_index(uint v, uint c) {
+    /* voxel v = x + 4 y + 16 z of a leaf, corner c = cx + 2 cy + 4 cz -> x + 5 y + 25 z */
+    return (v & 3) + (c & 1) + 5 * ((v >> 2 & 3) + (c >> 1 & 1)) + 25 * ((v >> 4) + (c >> 2));
+}
+
+/* Reserves a leaf's vertex and voxel records (counters VF_SDF_COUNT_VERTICES and
+ * VF_SDF_COUNT_VOXELS) and writes its node record (when below node_capacity). When the
+ * reservations fit the capacities, the kernels below then write its voxel records (crossed
+ * voxels in mask order) and vertex records (its kept corners in index order). */
+inline void leaf_reserve(__global uint* counters, __global uint* nodes, uint node_capacity,
+                         uint node, uint kept_count, uint cross_count, uint2 occ, uint2 solid,
+                         uint* voff, uint* xoff) {
+    *voff = kept_count ? atomic_add(&counters[VF_SDF_COUNT_VERTICES], kept_count) : 0u;
+    *xoff = cross_count ? atomic_add(&counters[VF_SDF_COUNT_VOXELS], cross_count) : 0u;
+    if (node >= node_capacity) {
+        return;
+    }
+    __global uint* rec = nodes + (size_t)node * VF_SDF_NODE_WORDS;
     rec[0] = *xoff;
     rec[1] = *voff;
     rec[2] = occ.x;
@@ -372,20 +452,17 @@ inline uint row_all(const uchar* rows, uint y, uint z) {
  * its corners leave open, EV_W points per instruction fetch (eval_f_v: the vector instance of
  * implicit_eval.cl). A voxel's class is read from bit masks: corner rows of 5 bits (outside,
  * far inside, far outside), voxel rows of 4. */
-__kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
-                                __global const uint4* leaves, __global const uint* parents,
-                                __global const ushort* parent_lists, uint count,
-                                __global uint* nodes, __global uint* voxels, uint voxel_capacity,
-                                __global float4* vertices, uint vertex_capacity,
-                                __global uint* counters, float decided) {
-    const uint id = get_global_id(0);
-    if (id >= count) {
-        return;
-    }
-    const uint4 o = leaves[id]; /* origin, node index in w */
+inline void sample_leaf_seq(__global const Instr* tape, uint n, Grid g, uint4 o,
+                            __global const ushort* own_list, __global uint* nodes,
+                            uint node_capacity, __global uint* voxels, uint voxel_capacity,
+                            __global float4* vertices, uint vertex_capacity,
+                            __global uint* counters, float decided) {
     ushort list[VF_SDF_SPECIALISE_MAX];
     const bool special = n <= VF_SDF_SPECIALISE_MAX;
-    const uint m = special ? specialise(tape, n, parent_lists, parents[id], g, o, 4, list) : n;
+    const uint m = special ? own_list[0] : n;
+    for (uint t = 0; special && t < m; ++t) {
+        list[t] = own_list[1 + t];
+    }
     const ushort* run = special ? list : 0;
     /* Lanes past the last corner evaluate a repeat of it into the padding. */
     float f[128 + EV_W];
@@ -485,7 +562,7 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
     }
     const uint cross_count = popcount(occ);
     uint voff, xoff;
-    leaf_reserve(counters, nodes, o.w, kept_count, cross_count,
+    leaf_reserve(counters, nodes, node_capacity, o.w, kept_count, cross_count,
                  (uint2)((uint)occ, (uint)(occ >> 32)), (uint2)((uint)solid, (uint)(solid >> 32)),
                  &voff, &xoff);
     if (voff + kept_count > vertex_capacity || xoff + cross_count > voxel_capacity) {
@@ -534,111 +611,148 @@ __kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
     }
 }
 
-/* GPU layout: one work-group of 128 per leaf; work-item c < 125 samples corner c, v < 64 the
- * centre of voxel v, sharing them in local memory. */
+/* The leaves of level `level` (its first `capacity` of counters[level]; origin, node index in w;
+ * lists: its specialised tape), work-items striding over them. */
+__kernel void sample_leaves_seq(__global const Instr* tape, uint n, Grid g,
+                                __global const uint4* leaves, __global const ushort* lists,
+                                uint level, uint capacity,
+                                __global uint* nodes, uint node_capacity, __global uint* voxels,
+                                uint voxel_capacity, __global float4* vertices,
+                                uint vertex_capacity, __global uint* counters, float decided) {
+    const uint count = min(counters[level], capacity);
+    for (uint id = get_global_id(0); id < count; id += get_global_size(0)) {
+        /* (a tape too long to specialise has no lists) */
+        const size_t slot = n <= VF_SDF_SPECIALISE_MAX ? (size_t)id * (n + 1) : 0;
+        sample_leaf_seq(tape, n, g, leaves[id], lists + slot, nodes, node_capacity,
+                        voxels, voxel_capacity, vertices, vertex_capacity, counters, decided);
+    }
+}
+
+/* GPU layout: one work-group of 128 per leaf (groups striding over the leaves), the work
+ * compacted onto the first work-items at each step: items c < 125 sample corner c; items v < 64
+ * classify voxel v from its corners, and list it when its corners leave its centre open (a
+ * corner with |f| > `decided` gives the centre its sign, as in the CPU layout) or disagree (its
+ * material is the centre's); item q samples the centre of the q-th listed voxel; item r
+ * evaluates the gradient of the r-th kept corner. */
 __kernel __attribute__((reqd_work_group_size(128, 1, 1))) void sample_leaves_group(
     __global const Instr* tape, uint n, Grid g, __global const uint4* leaves,
-    __global const uint* parents, __global const ushort* parent_lists, uint count,
-    __global uint* nodes, __global uint* voxels, uint voxel_capacity, __global float4* vertices,
-    uint vertex_capacity, __global uint* counters) {
+    __global const ushort* lists, uint level, uint capacity, __global uint* nodes,
+    uint node_capacity, __global uint* voxels, uint voxel_capacity,
+    __global float4* vertices, uint vertex_capacity, __global uint* counters, float decided) {
     __local float f[125];
-    __local uint occ[2], solid[2], kept[4], offsets[2], special_count;
+    /* bits: occupied (crossed) 0-1, solid 2-3, kept corners 4-7 */
+    __local uint bits[8], offsets[2], needed;
     __local ushort special_list[VF_SDF_SPECIALISE_MAX];
-    const uint id = get_group_id(0), lid = get_local_id(0);
-    if (id >= count) {
-        return;
-    }
-    const uint4 o = leaves[id];
+    __local uchar corner_signs[64], need_list[64], kept_list[128];
+    const uint lid = get_local_id(0);
+    const uint count = min(counters[level], capacity);
     const bool special = n <= VF_SDF_SPECIALISE_MAX;
-    if (special && lid == 0) {
-        ushort l[VF_SDF_SPECIALISE_MAX];
-        special_count = specialise(tape, n, parent_lists, parents[id], g, o, 4, l);
-        for (uint t = 0; t < special_count; ++t) {
-            special_list[t] = l[t];
-        }
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    ushort list[VF_SDF_SPECIALISE_MAX];
-    const uint m = special ? special_count : n;
-    for (uint t = 0; special && t < m; ++t) {
-        list[t] = special_list[t];
-    }
-    const ushort* run = special ? list : 0;
-    if (lid < 4) {
-        kept[lid] = 0;
-    }
-    if (lid < 2) {
-        occ[lid] = 0;
-        solid[lid] = 0;
-    }
-    uint material = 0;
-    if (lid < 125) {
-        const uint i = o.x + lid % 5, j = o.y + lid / 5 % 5, k = o.z + lid / 25;
-        f[lid] = eval_f(tape, run, m, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
-                        corner_at(g.z0, g.h, k), &material);
-    }
-    float fc = 1.0f;
-    bool in_grid = false;
-    if (lid < 64) {
-        const uint i = o.x + (lid & 3), j = o.y + (lid >> 2 & 3), k = o.z + (lid >> 4);
-        in_grid = i < g.nx && j < g.ny && k < g.nz;
-        if (in_grid) {
-            fc = eval_f(tape, run, m, centre_at(g.x0, g.h, i), centre_at(g.y0, g.h, j),
-                        centre_at(g.z0, g.h, k), &material);
-        }
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    bool crossed = false;
-    if (lid < 64 && in_grid) {
-        uint inside = fc < 0 ? 1u : 0u, outside = fc < 0 ? 0u : 1u;
-        for (uint c = 0; c < 8; ++c) {
-            const float fv = f[corner_index(lid, c)];
-            inside |= fv < 0 ? 1u : 0u;
-            outside |= fv < 0 ? 0u : 1u;
-        }
-        crossed = inside && outside;
-        if (fc < 0) {
-            atomic_or(&solid[lid / 32], 1u << (lid % 32));
-        }
-        if (crossed) {
-            atomic_or(&occ[lid / 32], 1u << (lid % 32));
-            for (uint c = 0; c < 8; ++c) {
-                const uint ci = corner_index(lid, c);
-                atomic_or(&kept[ci / 32], 1u << (ci % 32));
+    for (uint id = get_group_id(0); id < count; id += get_num_groups(0)) {
+        const uint4 o = leaves[id];
+        uint m = n;
+        if (special) {
+            __global const ushort* src = lists + (size_t)id * (n + 1);
+            m = src[0];
+            for (uint t = lid; t < m; t += 128) {
+                special_list[t] = src[1 + t];
             }
         }
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    const uint kept_count =
-        popcount(kept[0]) + popcount(kept[1]) + popcount(kept[2]) + popcount(kept[3]);
-    const uint cross_count = popcount(occ[0]) + popcount(occ[1]);
-    if (lid == 0) {
-        uint voff, xoff;
-        leaf_reserve(counters, nodes, o.w, kept_count, cross_count, (uint2)(occ[0], occ[1]),
-                     (uint2)(solid[0], solid[1]), &voff, &xoff);
-        offsets[0] = voff;
-        offsets[1] = xoff;
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    const uint voff = offsets[0], xoff = offsets[1];
-    if (voff + kept_count > vertex_capacity || xoff + cross_count > voxel_capacity) {
-        return;
-    }
-    uint kept_bits[4] = {kept[0], kept[1], kept[2], kept[3]};
-    if (lid < 125 && (kept_bits[lid / 32] >> (lid % 32) & 1u)) {
-        const uint i = o.x + lid % 5, j = o.y + lid / 5 % 5, k = o.z + lid / 25;
-        const Dual d = eval_d(tape, run, m, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
-                              corner_at(g.z0, g.h, k));
-        vertices[voff + rank_below(kept_bits, lid)] =
-            (float4)(d.x * g.h, d.y * g.h, d.z * g.h, f[lid]);
-    }
-    if (crossed) {
-        uint occ_bits[2] = {occ[0], occ[1]};
-        const uint2 w = voxel_corner_words(kept_bits, lid);
-        __global uint* rec = voxels + (xoff + rank_below(occ_bits, lid)) * VF_SDF_VOXEL_WORDS;
-        rec[0] = w.x;
-        rec[1] = w.y;
-        rec[2] = material;
+        if (lid < 8) {
+            bits[lid] = 0;
+        }
+        if (lid == 0) {
+            needed = 0;
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        ushort list[VF_SDF_SPECIALISE_MAX];
+        for (uint t = 0; special && t < m; ++t) {
+            list[t] = special_list[t];
+        }
+        const ushort* run = special ? list : 0;
+        uint material = 0;
+        if (lid < 125) {
+            const uint i = o.x + lid % 5, j = o.y + lid / 5 % 5, k = o.z + lid / 25;
+            f[lid] = eval_f(tape, run, m, corner_at(g.x0, g.h, i), corner_at(g.y0, g.h, j),
+                            corner_at(g.z0, g.h, k), &material);
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        if (lid < 64) {
+            const uint i = o.x + (lid & 3), j = o.y + (lid >> 2 & 3), k = o.z + (lid >> 4);
+            if (i < g.nx && j < g.ny && k < g.nz) {
+                uint inside = 0, outside = 0, far = 0;
+                for (uint c = 0; c < 8; ++c) {
+                    const float fv = f[corner_index(lid, c)];
+                    inside |= fv < 0 ? 1u : 0u;
+                    outside |= fv < 0 ? 0u : 1u;
+                    far |= fabs(fv) > decided ? 1u : 0u;
+                }
+                corner_signs[lid] = (uchar)(inside | outside << 1);
+                if ((inside && outside) || !far) {
+                    need_list[atomic_inc(&needed)] = (uchar)lid;
+                } else if (inside) {
+                    atomic_or(&bits[2 + lid / 32], 1u << (lid % 32)); /* every corner inside */
+                }
+            }
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        bool crossed = false;
+        uint v = 0;
+        if (lid < needed) {
+            v = need_list[lid];
+            const float fc =
+                eval_f(tape, run, m, centre_at(g.x0, g.h, o.x + (v & 3)),
+                       centre_at(g.y0, g.h, o.y + (v >> 2 & 3)), centre_at(g.z0, g.h, o.z + (v >> 4)),
+                       &material);
+            const uint signs = corner_signs[v] | (fc < 0 ? 1u : 2u);
+            crossed = signs == 3u;
+            if (fc < 0) {
+                atomic_or(&bits[2 + v / 32], 1u << (v % 32));
+            }
+            if (crossed) {
+                atomic_or(&bits[v / 32], 1u << (v % 32));
+                for (uint c = 0; c < 8; ++c) {
+                    const uint ci = corner_index(v, c);
+                    atomic_or(&bits[4 + ci / 32], 1u << (ci % 32));
+                }
+            }
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        const uint occ_bits[2] = {bits[0], bits[1]};
+        const uint kept_bits[4] = {bits[4], bits[5], bits[6], bits[7]};
+        const uint kept_count = popcount(kept_bits[0]) + popcount(kept_bits[1]) +
+                                popcount(kept_bits[2]) + popcount(kept_bits[3]);
+        const uint cross_count = popcount(occ_bits[0]) + popcount(occ_bits[1]);
+        if (lid == 0) {
+            uint voff, xoff;
+            leaf_reserve(counters, nodes, node_capacity, o.w, kept_count, cross_count,
+                         (uint2)(occ_bits[0], occ_bits[1]), (uint2)(bits[2], bits[3]), &voff,
+                         &xoff);
+            offsets[0] = voff;
+            offsets[1] = xoff;
+        }
+        if (lid < 125 && (kept_bits[lid / 32] >> (lid % 32) & 1u)) {
+            kept_list[rank_below(kept_bits, lid)] = (uchar)lid;
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+        const uint voff = offsets[0], xoff = offsets[1];
+        if (voff + kept_count <= vertex_capacity && xoff + cross_count <= voxel_capacity) {
+            if (lid < kept_count) {
+                const uint c = kept_list[lid];
+                const uint i = o.x + c % 5, j = o.y + c / 5 % 5, k = o.z + c / 25;
+                const Dual d = eval_d(tape, run, m, corner_at(g.x0, g.h, i),
+                                      corner_at(g.y0, g.h, j), corner_at(g.z0, g.h, k));
+                vertices[voff + lid] = (float4)(d.x * g.h, d.y * g.h, d.z * g.h, f[c]);
+            }
+            if (crossed) {
+                const uint2 w = voxel_corner_words(kept_bits, v);
+                __global uint* rec =
+                    voxels + (size_t)(xoff + rank_below(occ_bits, v)) * VF_SDF_VOXEL_WORDS;
+                rec[0] = w.x;
+                rec[1] = w.y;
+                rec[2] = material;
+            }
+        } /* else the host reruns with the capacities the counters reached */
+        barrier(CLK_LOCAL_MEM_FENCE); /* the local state is the next leaf's */
     }
 }
 

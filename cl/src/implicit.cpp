@@ -7,11 +7,13 @@
 #include "voxfield/cl/implicit.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -74,7 +76,7 @@ GridArg grid_arg(const sdf::Part& part) {
             0};
 }
 
-// The CPU layout's `decided`: a corner whose |f| exceeds it gives its voxel's centre its sign.
+// The leaves' `decided`: a corner whose |f| exceeds it gives its voxel's centre its sign.
 // Every primitive and operator of a part is a 1-Lipschitz distance bound (planes' normals are
 // normalised, transforms scale uniformly), so f changes by at most half the voxel's diagonal
 // between a corner and the centre; the margin covers float rounding: 2^-10 of that distance
@@ -114,10 +116,13 @@ double event_ms(const cl::Event& e) {
 }
 
 constexpr std::uint32_t kMaxDepth = 8;
+static_assert(kMaxDepth + 1 == VF_SDF_MAX_LEVELS);
 // Work-group sizes, fixed so that a device compiling per work-group size (PoCL) compiles each
 // kernel once: interval tests, and leaves in the CPU layout (one work-item each).
 constexpr std::size_t kGroup = 64;
 constexpr std::size_t kLeafGroup = 8;
+// The GPU layout's leaves: a work-group of 128 (125 corners, 64 centres).
+constexpr std::size_t kLeafGroupGpu = 128;
 
 }  // namespace
 
@@ -129,6 +134,7 @@ ImplicitDiscretiser::ImplicitDiscretiser(Context& ctx, const sdf::Part& part,
       gpu_layout_(options.layout == Layout::automatic ? !ctx.is_cpu()
                                                       : options.layout == Layout::gpu),
       decided_(centre_decided(part)),
+      host_counters_(VF_SDF_COUNTERS, 0),
       staged_(!ctx.computes_in_host_memory()) {
     if (options.tile_depth > kMaxDepth) {
         throw InputError("implicit tile depth " + std::to_string(options.tile_depth) +
@@ -168,6 +174,8 @@ std::uint8_t* ImplicitDiscretiser::pinned(Pinned& p, std::size_t bytes) {
             cl::Buffer(ctx_.context(), CL_MEM_READ_WRITE | CL_MEM_ALLOC_HOST_PTR, p.capacity);
         p.data = static_cast<std::uint8_t*>(ctx_.queue().enqueueMapBuffer(
             p.buffer, CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, p.capacity));
+        timing_.enqueues += 2;  // the unmap (of the smaller stage, if any) and the map
+        ++timing_.syncs;
     }
     return p.data;
 }
@@ -175,25 +183,64 @@ std::uint8_t* ImplicitDiscretiser::pinned(Pinned& p, std::size_t bytes) {
 namespace {
 
 // memcpy of several arrays, split over a few threads when large (page-locked staging to the
-// grid's arrays: one thread copies at a fraction of the memory bandwidth).
+// grid's arrays: one thread copies at a fraction of the memory bandwidth). The crew's threads
+// start when it is made, before the host waits for the device, so that starting them overlaps
+// the device's work; they copy when run() hands them the arrays (or nothing, at destruction).
 struct Copy {
     void* dst;
     const void* src;
     std::size_t bytes;
 };
-void copy_all(const std::vector<Copy>& copies) {
-    std::size_t total = 0;
-    for (const Copy& c : copies) {
-        total += c.bytes;
+class CopyCrew {
+  public:
+    // For about `bytes` in all.
+    explicit CopyCrew(std::size_t bytes) {
+        constexpr std::size_t kPerThread = std::size_t{2} << 20;
+        threads_ = static_cast<unsigned>(std::min<std::size_t>(
+            {std::max(1u, std::thread::hardware_concurrency()), 8, bytes / kPerThread + 1}));
+        try {
+            for (unsigned t = 1; t < threads_; ++t) {
+                pool_.emplace_back([this, t] {
+                    go_.wait(false);
+                    part(t);
+                });
+            }
+        } catch (...) {
+            finish();
+            throw;
+        }
     }
-    constexpr std::size_t kPerThread = std::size_t{2} << 20;
-    const unsigned threads = static_cast<unsigned>(std::min<std::size_t>(
-        {std::max(1u, std::thread::hardware_concurrency()), 8, total / kPerThread + 1}));
-    auto part = [&](unsigned t) {
-        // Thread t copies bytes [t total / threads, (t + 1) total / threads) of the concatenation.
-        const std::size_t lo = total * t / threads, hi = total * (t + 1) / threads;
+    ~CopyCrew() { finish(); }
+    CopyCrew(const CopyCrew&) = delete;
+    CopyCrew& operator=(const CopyCrew&) = delete;
+
+    // Copies them all (this thread one share), returning when every thread is done.
+    void run(std::vector<Copy> copies) {
+        copies_ = std::move(copies);
+        for (const Copy& c : copies_) {
+            total_ += c.bytes;
+        }
+        finish();
+    }
+
+  private:
+    void finish() {
+        if (done_) {
+            return;
+        }
+        done_ = true;
+        go_ = true;
+        go_.notify_all();
+        part(0);
+        for (std::thread& th : pool_) {
+            th.join();
+        }
+    }
+    // Share t: bytes [t total / threads, (t + 1) total / threads) of the concatenation.
+    void part(unsigned t) const {
+        const std::size_t lo = total_ * t / threads_, hi = total_ * (t + 1) / threads_;
         std::size_t at = 0;
-        for (const Copy& c : copies) {
+        for (const Copy& c : copies_) {
             const std::size_t a = std::max(lo, at), b = std::min(hi, at + c.bytes);
             if (a < b) {
                 std::memcpy(static_cast<std::uint8_t*>(c.dst) + (a - at),
@@ -201,16 +248,14 @@ void copy_all(const std::vector<Copy>& copies) {
             }
             at += c.bytes;
         }
-    };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < threads; ++t) {
-        pool.emplace_back(part, t);
     }
-    part(0);
-    for (std::thread& th : pool) {
-        th.join();
-    }
-}
+    unsigned threads_ = 1;
+    std::vector<Copy> copies_;
+    std::size_t total_ = 0;
+    std::atomic<bool> go_{false};
+    bool done_ = false;
+    std::vector<std::thread> pool_;
+};
 
 }  // namespace
 
@@ -221,286 +266,403 @@ ImplicitGrid ImplicitDiscretiser::run() {
 }
 
 void ImplicitDiscretiser::grow(cl::Buffer& buffer, std::size_t& capacity, std::size_t bytes,
-                               cl_mem_flags flags) {
-    if (bytes > capacity || buffer.get() == nullptr) {
-        capacity = std::max(bytes, capacity + capacity / 2);
-        buffer = cl::Buffer(ctx_.context(), flags, std::max<std::size_t>(capacity, 1));
+                               std::size_t keep_bytes) {
+    if (bytes <= capacity && buffer.get() != nullptr) {
+        return;
     }
+    const std::size_t grown_capacity = std::max({bytes, capacity + capacity / 2, std::size_t{64}});
+    cl::Buffer grown(ctx_.context(), CL_MEM_READ_WRITE, grown_capacity);
+    if (keep_bytes > 0) {
+        ctx_.queue().enqueueCopyBuffer(buffer, grown, 0, 0, std::min(keep_bytes, capacity));
+        ++timing_.enqueues;
+    }
+    buffer = std::move(grown);
+    capacity = grown_capacity;
+}
+
+void ImplicitDiscretiser::expect(const ImplicitCounts& expected) {
+    if (expected.nodes.size() != options_.tile_depth + 1) {
+        throw std::invalid_argument("implicit: expected counts of " +
+                                    std::to_string(expected.nodes.size()) + " levels, not " +
+                                    std::to_string(options_.tile_depth + 1));
+    }
+    counts_ = expected;
+}
+
+namespace {
+
+enum Stage { kTiles, kLevels, kLeaves, kRead };
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+void ImplicitDiscretiser::wait() {
+    const auto w0 = std::chrono::steady_clock::now();
+    ctx_.queue().finish();
+    ++timing_.syncs;
+    timing_.wait_ms += ms_since(w0);
+}
+
+void ImplicitDiscretiser::zero_counters(std::uint32_t first, std::uint32_t count) {
+    ctx_.queue().enqueueWriteBuffer(counters_buf_, CL_FALSE, first * sizeof(cl_uint),
+                                    count * sizeof(cl_uint), zeros_.data());
+    ++timing_.enqueues;
+}
+
+const cl_uint* ImplicitDiscretiser::read_counters() {
+    const std::size_t bytes = VF_SDF_COUNTERS * sizeof(cl_uint);
+    cl_uint* dst =
+        staged_ ? reinterpret_cast<cl_uint*>(pinned(small_stage_, bytes)) : host_counters_.data();
+    const auto w0 = std::chrono::steady_clock::now();
+    ctx_.queue().enqueueReadBuffer(counters_buf_, CL_TRUE, 0, bytes, dst);
+    ++timing_.enqueues;
+    ++timing_.syncs;
+    timing_.wait_ms += ms_since(w0);
+    return dst;
+}
+
+void ImplicitDiscretiser::enqueue_tiles(const ImplicitGrid& out, std::size_t capacity) {
+    cl::Kernel& k = classify_tiles_;
+    const std::size_t tiles = out.tiles.count();
+    k.setArg(3, out.tiles.x);
+    k.setArg(4, out.tiles.y);
+    k.setArg(5, static_cast<cl_uint>(tiles));
+    k.setArg(6, out.tile_edge);
+    k.setArg(7, table_buf_);
+    k.setArg(8, origins_buf_[0]);
+    k.setArg(9, lists_buf_[0]);
+    k.setArg(10, static_cast<cl_uint>(capacity));
+    k.setArg(11, counters_buf_);
+    cl::Event e;
+    ctx_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(tiles, kGroup)),
+                                      cl::NDRange(kGroup), nullptr, &e);
+    ++timing_.enqueues;
+    events_.emplace_back(kTiles, std::move(e));
+}
+
+void ImplicitDiscretiser::enqueue_level(std::uint32_t level, std::size_t capacity,
+                                        std::size_t next_capacity, std::size_t node_capacity,
+                                        std::size_t groups) {
+    const std::uint32_t at = level % 2, next = at ^ 1;
+    const cl_uint edge = (1u << (2 * (options_.tile_depth + 1))) >> (2 * level);
+    cl::Kernel& k = classify_children_;
+    k.setArg(3, origins_buf_[at]);
+    k.setArg(4, lists_buf_[at]);
+    k.setArg(5, static_cast<cl_uint>(level));
+    k.setArg(6, static_cast<cl_uint>(capacity));
+    k.setArg(7, edge);
+    k.setArg(8, origins_buf_[next]);
+    k.setArg(9, lists_buf_[next]);
+    k.setArg(10, static_cast<cl_uint>(next_capacity));
+    k.setArg(11, counters_buf_);
+    k.setArg(12, nodes_buf_);
+    k.setArg(13, static_cast<cl_uint>(node_capacity));
+    cl::Event e;
+    ctx_.queue().enqueueNDRangeKernel(k, cl::NullRange,
+                                      cl::NDRange(std::max<std::size_t>(groups, 1) * kGroup),
+                                      cl::NDRange(kGroup), nullptr, &e);
+    ++timing_.enqueues;
+    events_.emplace_back(kLevels, std::move(e));
+}
+
+void ImplicitDiscretiser::enqueue_leaves(std::size_t capacity, std::size_t node_capacity,
+                                         std::size_t vertices, std::size_t voxels,
+                                         std::size_t groups) {
+    const std::uint32_t level = options_.tile_depth, at = level % 2;
+    cl::Kernel& k = sample_leaves_;
+    k.setArg(3, origins_buf_[at]);
+    k.setArg(4, lists_buf_[at]);
+    k.setArg(5, static_cast<cl_uint>(level));
+    k.setArg(6, static_cast<cl_uint>(capacity));
+    k.setArg(7, nodes_buf_);
+    k.setArg(8, static_cast<cl_uint>(node_capacity));
+    k.setArg(9, voxels_buf_);
+    k.setArg(10, static_cast<cl_uint>(voxels));
+    k.setArg(11, vertices_buf_);
+    k.setArg(12, static_cast<cl_uint>(vertices));
+    k.setArg(13, counters_buf_);
+    k.setArg(14, decided_);
+    groups = std::max<std::size_t>(groups, 1);
+    cl::Event e;
+    if (gpu_layout_) {
+        ctx_.queue().enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(groups * kLeafGroupGpu),
+                                          cl::NDRange(kLeafGroupGpu), nullptr, &e);
+    } else {
+        ctx_.queue().enqueueNDRangeKernel(k, cl::NullRange,
+                                          cl::NDRange(round_up(groups, kLeafGroup)),
+                                          cl::NDRange(kLeafGroup), nullptr, &e);
+    }
+    ++timing_.enqueues;
+    ++timing_.passes;
+    events_.emplace_back(kLeaves, std::move(e));
+}
+
+std::size_t ImplicitDiscretiser::list_bytes() const {
+    const std::size_t n = part_.tape.code.size();
+    return n <= VF_SDF_SPECIALISE_MAX ? (n + 1) * sizeof(cl_ushort) : 0;
+}
+
+void ImplicitDiscretiser::size_levels(const Caps& caps, std::size_t tiles) {
+    grow(counters_buf_, counters_cap_, VF_SDF_COUNTERS * sizeof(cl_uint));
+    grow(table_buf_, table_cap_, tiles * sizeof(cl_uint));
+    std::size_t nodes = 0;
+    for (std::size_t l = 0; l < caps.level.size(); ++l) {
+        const std::size_t at = l % 2;
+        grow(origins_buf_[at], origins_cap_[at], caps.level[l] * sizeof(cl_uint4));
+        grow(lists_buf_[at], lists_cap_[at], caps.level[l] * list_bytes());
+        nodes += caps.level[l];
+    }
+    for (int at = 0; at < 2; ++at) {
+        grow(origins_buf_[at], origins_cap_[at], sizeof(cl_uint4));
+        grow(lists_buf_[at], lists_cap_[at], sizeof(cl_ushort));
+    }
+    grow(nodes_buf_, nodes_cap_, nodes * VF_SDF_NODE_WORDS * sizeof(cl_uint));
+    grow(voxels_buf_, voxels_cap_, caps.voxels * VF_SDF_VOXEL_WORDS * sizeof(cl_uint));
+    grow(vertices_buf_, vertices_cap_, caps.vertices * VF_SDF_VERTEX_FLOATS * sizeof(cl_float));
+}
+
+void ImplicitDiscretiser::read_output(ImplicitGrid& out, std::size_t node_words,
+                                      std::size_t voxel_words, std::size_t vertex_floats) {
+    auto& q = ctx_.queue();
+    const std::size_t counter_bytes = VF_SDF_COUNTERS * sizeof(cl_uint);
+    struct Part {
+        const cl::Buffer* src;
+        std::size_t bytes;
+    };
+    const Part parts[5] = {{&counters_buf_, counter_bytes},
+                           {&table_buf_, out.tile_table.size() * sizeof(cl_uint)},
+                           {&nodes_buf_, node_words * sizeof(cl_uint)},
+                           {&voxels_buf_, voxel_words * sizeof(cl_uint)},
+                           {&vertices_buf_, vertex_floats * sizeof(cl_float)}};
+    std::size_t total = 0;
+    for (const Part& p : parts) {
+        total += p.bytes;
+    }
+    std::uint8_t* stage = staged_ ? pinned(out_stage_, total) : nullptr;
+    std::optional<CopyCrew> crew;  // started now, to copy the stage after the wait
+    void* direct[5] = {host_counters_.data(), out.tile_table.data(), nullptr, nullptr, nullptr};
+    if (!staged_) {
+        out.nodes.resize(node_words);
+        out.voxels.resize(voxel_words);
+        out.vertices.resize(vertex_floats);
+        direct[2] = out.nodes.data();
+        direct[3] = out.voxels.data();
+        direct[4] = out.vertices.data();
+    }
+    std::size_t offset[5];
+    std::size_t at = 0;
+    for (int i = 0; i < 5; ++i) {
+        offset[i] = at;
+        if (parts[i].bytes == 0) {
+            continue;
+        }
+        cl::Event e;
+        q.enqueueReadBuffer(*parts[i].src, CL_FALSE, 0, parts[i].bytes,
+                            staged_ ? stage + at : direct[i], nullptr, &e);
+        ++timing_.enqueues;
+        events_.emplace_back(kRead, std::move(e));
+        at += parts[i].bytes;
+    }
+    if (staged_) {
+        crew.emplace(total);
+    }
+    wait();
+    const auto c0 = std::chrono::steady_clock::now();
+    // What the run produced: no more than the counters say.
+    {
+        const auto* c = reinterpret_cast<const cl_uint*>(staged_ ? stage : direct[0]);
+        std::size_t nodes = 0;
+        for (std::uint32_t l = 0; l <= options_.tile_depth; ++l) {
+            nodes += c[l];
+        }
+        if (staged_) {
+            std::memcpy(host_counters_.data(), c, counter_bytes);
+        }
+        node_words = std::min(node_words, nodes * VF_SDF_NODE_WORDS);
+        voxel_words =
+            std::min(voxel_words, std::size_t{c[VF_SDF_COUNT_VOXELS]} * VF_SDF_VOXEL_WORDS);
+        vertex_floats =
+            std::min(vertex_floats, std::size_t{c[VF_SDF_COUNT_VERTICES]} * VF_SDF_VERTEX_FLOATS);
+    }
+    out.nodes.resize(node_words);
+    out.voxels.resize(voxel_words);
+    out.vertices.resize(vertex_floats);
+    if (staged_) {
+        crew->run({{out.tile_table.data(), stage + offset[1], parts[1].bytes},
+                   {out.nodes.data(), stage + offset[2], node_words * sizeof(cl_uint)},
+                   {out.voxels.data(), stage + offset[3], voxel_words * sizeof(cl_uint)},
+                   {out.vertices.data(), stage + offset[4], vertex_floats * sizeof(cl_float)}});
+    }
+    timing_.copy_ms += ms_since(c0);
+}
+
+bool ImplicitDiscretiser::attempt_at_once(ImplicitGrid& out, const Caps& caps) {
+    const std::uint32_t depth = options_.tile_depth;
+    size_levels(caps, out.tiles.count());
+    std::size_t node_capacity = 0;
+    for (std::size_t c : caps.level) {
+        node_capacity += c;
+    }
+    zero_counters(0, VF_SDF_COUNTERS);
+    enqueue_tiles(out, caps.level[0]);
+    for (std::uint32_t l = 0; l < depth; ++l) {
+        enqueue_level(l, caps.level[l], caps.level[l + 1], node_capacity, caps.level[l]);
+    }
+    enqueue_leaves(caps.level[depth], node_capacity, caps.vertices, caps.voxels, caps.level[depth]);
+    read_output(out, node_capacity * VF_SDF_NODE_WORDS, caps.voxels * VF_SDF_VOXEL_WORDS,
+                caps.vertices * VF_SDF_VERTEX_FLOATS);
+    const cl_uint* c = host_counters_.data();
+    bool fits = c[VF_SDF_COUNT_VERTICES] <= caps.vertices && c[VF_SDF_COUNT_VOXELS] <= caps.voxels;
+    for (std::uint32_t l = 0; l <= depth; ++l) {
+        fits = fits && c[l] <= caps.level[l];
+    }
+    if (fits) {
+        counts_.nodes.assign(c, c + depth + 1);
+        counts_.vertices = c[VF_SDF_COUNT_VERTICES];
+        counts_.voxels = c[VF_SDF_COUNT_VOXELS];
+    }
+    return fits;
+}
+
+void ImplicitDiscretiser::attempt_counted(ImplicitGrid& out) {
+    timing_.counted = true;
+    const std::uint32_t depth = options_.tile_depth;
+    const std::size_t tiles = out.tiles.count();
+    // First guesses of the room a level needs (a larger expected count when there is one);
+    // a level whose count passes its room runs again at that count.
+    auto expected = [&](std::uint32_t l) -> std::size_t {
+        return counts_.nodes.size() == depth + 1 ? counts_.nodes[l] : 0;
+    };
+    Caps caps;
+    caps.level.assign(depth + 1, 0);
+    size_levels(caps, tiles);
+    std::vector<std::size_t> count(depth + 1, 0);
+    std::size_t nodes = 0;  // nodes of the levels counted so far
+
+    std::size_t room = std::min(tiles, std::max({std::size_t{1024}, tiles / 2, expected(0)}));
+    auto tiles_at = [&](std::size_t r) {
+        grow(origins_buf_[0], origins_cap_[0], r * sizeof(cl_uint4));
+        grow(lists_buf_[0], lists_cap_[0], r * list_bytes());
+        zero_counters(0, VF_SDF_COUNTERS);
+        enqueue_tiles(out, r);
+        return read_counters()[0];
+    };
+    count[0] = tiles_at(room);
+    if (count[0] > room) {
+        ++timing_.level_reruns;
+        count[0] = tiles_at(count[0]);
+    }
+    nodes = count[0];
+    for (std::uint32_t l = 0; l < depth && count[l] > 0; ++l) {
+        const std::uint32_t next = (l + 1) % 2;
+        // This level's records go after the levels above it (kept when the buffer grows).
+        grow(nodes_buf_, nodes_cap_, nodes * VF_SDF_NODE_WORDS * sizeof(cl_uint),
+             (nodes - count[l]) * VF_SDF_NODE_WORDS * sizeof(cl_uint));
+        auto level_at = [&](std::size_t r) {
+            grow(origins_buf_[next], origins_cap_[next], r * sizeof(cl_uint4));
+            grow(lists_buf_[next], lists_cap_[next], r * list_bytes());
+            zero_counters(l + 1, 1);
+            enqueue_level(l, count[l], r, nodes, count[l]);
+            return read_counters()[l + 1];
+        };
+        room =
+            std::min(64 * count[l], std::max({std::size_t{1024}, 48 * count[l], expected(l + 1)}));
+        count[l + 1] = level_at(room);
+        if (count[l + 1] > room) {
+            ++timing_.level_reruns;
+            count[l + 1] = level_at(count[l + 1]);
+        }
+        nodes += count[l + 1];
+    }
+
+    std::size_t vertices = 0, voxels = 0;
+    const std::size_t leaves = count[depth];
+    if (leaves > 0) {
+        grow(nodes_buf_, nodes_cap_, nodes * VF_SDF_NODE_WORDS * sizeof(cl_uint),
+             (nodes - leaves) * VF_SDF_NODE_WORDS * sizeof(cl_uint));
+        // Room for the crossed voxels and kept corners: a guess per leaf, or the expected
+        // counts when larger (a second pass when even those overflow).
+        std::size_t vcap =
+            std::max({std::size_t{1024}, leaves * 48, std::size_t{counts_.vertices}});
+        std::size_t xcap = std::max({std::size_t{1024}, leaves * 24, std::size_t{counts_.voxels}});
+        while (true) {
+            grow(voxels_buf_, voxels_cap_, xcap * VF_SDF_VOXEL_WORDS * sizeof(cl_uint));
+            grow(vertices_buf_, vertices_cap_, vcap * VF_SDF_VERTEX_FLOATS * sizeof(cl_float));
+            zero_counters(VF_SDF_COUNT_VERTICES, 2);
+            enqueue_leaves(leaves, nodes, vcap, xcap, leaves);
+            const cl_uint* c = read_counters();
+            vertices = c[VF_SDF_COUNT_VERTICES];
+            voxels = c[VF_SDF_COUNT_VOXELS];
+            if (vertices <= vcap && voxels <= xcap) {
+                break;
+            }
+            vcap = std::max(vcap, vertices);
+            xcap = std::max(xcap, voxels);
+        }
+    }
+    read_output(out, nodes * VF_SDF_NODE_WORDS, voxels * VF_SDF_VOXEL_WORDS,
+                vertices * VF_SDF_VERTEX_FLOATS);
+    counts_.nodes.assign(count.begin(), count.end());
+    counts_.vertices = static_cast<std::uint32_t>(vertices);
+    counts_.voxels = static_cast<std::uint32_t>(voxels);
 }
 
 void ImplicitDiscretiser::run(ImplicitGrid& out) {
     const auto t0 = std::chrono::steady_clock::now();
     timing_ = {};
+    events_.clear();
     const cl_uint n = static_cast<cl_uint>(part_.tape.code.size());
     const GridArg g = grid_arg(part_);
-    if (!kernels_made_) {
-        classify_tiles_ = cl::Kernel(program_, "classify_tiles");
-        classify_children_ = cl::Kernel(program_, "classify_children");
-        sample_leaves_ =
-            cl::Kernel(program_, gpu_layout_ ? "sample_leaves_group" : "sample_leaves_seq");
-        kernels_made_ = true;
-    }
     out.dims = part_.dims;
     out.tile_depth = options_.tile_depth;
     out.tile_edge = 1u << (2 * (options_.tile_depth + 1));
     const std::uint32_t edge = out.tile_edge;
     out.tiles = {(out.dims.x + edge - 1) / edge, (out.dims.y + edge - 1) / edge,
                  (out.dims.z + edge - 1) / edge};
-    const std::size_t tiles = out.tiles.count();
-    auto& q = ctx_.queue();
-    auto ctx_of = [&](const std::string& what) {
-        return "implicit " + what + " (" + std::to_string(n) + " instructions, grid " +
-               out.dims.to_string() + ", tile depth " + std::to_string(options_.tile_depth) + ")";
-    };
-
-    // Blocking reads of the cells' classes: into `classes` (through the pinned stage on a GPU).
-    const cl_uchar* classes = nullptr;
-    auto read_classes = [&](const cl::Buffer& buf, std::size_t bytes) {
-        std::uint8_t* dst = nullptr;
-        if (staged_) {
-            dst = pinned(small_stage_, bytes);
-        } else {
-            classes_.resize(bytes);
-            dst = classes_.data();
-        }
-        q.enqueueReadBuffer(buf, CL_TRUE, 0, bytes, dst);
-        ++timing_.syncs;
-        classes = dst;
-    };
-
-    // Tiles: one interval test each.
-    std::vector<cl_uint4>& frontier = frontier_;
-    std::vector<cl_uint>& parents = parents_;
-    frontier.clear();
-    parents.clear();
-    std::uint32_t nodes = 0;
-    cl_call(ctx_of("classify_tiles"), [&] {
-        grow(classes_buf_, classes_cap_, tiles, CL_MEM_WRITE_ONLY);
-        cl::Buffer& buf = classes_buf_;
-        cl::Kernel& k = classify_tiles_;
-        k.setArg(0, tape_);
-        k.setArg(1, n);
-        k.setArg(2, g);
-        k.setArg(3, out.tiles.x);
-        k.setArg(4, out.tiles.y);
-        k.setArg(5, static_cast<cl_uint>(tiles));
-        k.setArg(6, edge);
-        k.setArg(7, buf);
-        cl::Event e;
-        q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(round_up(tiles, kGroup)),
-                               cl::NDRange(kGroup), nullptr, &e);
-        read_classes(buf, tiles);
-        timing_.kernel_ms += event_ms(e);
-    });
-    out.tile_table.resize(tiles);
-    out.nodes.clear();
-    for (std::size_t t = 0; t < tiles; ++t) {
-        if (classes[t] == VF_SDF_CELL_EMPTY) {
-            out.tile_table[t] = VF_SDF_TILE_EMPTY;
-        } else if (classes[t] == VF_SDF_CELL_FULL) {
-            out.tile_table[t] = VF_SDF_TILE_FULL;
-        } else {
-            out.tile_table[t] = nodes;
-            const auto x = static_cast<cl_uint>(t % out.tiles.x * edge);
-            const auto y = static_cast<cl_uint>(t / out.tiles.x % out.tiles.y * edge);
-            const auto z = static_cast<cl_uint>(t / out.tiles.x / out.tiles.y * edge);
-            frontier.push_back({{x, y, z, nodes++}});
-            parents.push_back(VF_SDF_NO_PARENT);
-        }
-    }
-
-    // The frontier's origins and parents' slots, to the device before each level's kernel.
-    auto upload_frontier = [&] {
-        const std::size_t count = frontier.size();
-        grow(origins_buf_, origins_cap_, count * sizeof(cl_uint4), CL_MEM_READ_ONLY);
-        grow(parents_buf_, parents_cap_, count * sizeof(cl_uint), CL_MEM_READ_ONLY);
-        q.enqueueWriteBuffer(origins_buf_, CL_FALSE, 0, count * sizeof(cl_uint4), frontier.data());
-        q.enqueueWriteBuffer(parents_buf_, CL_FALSE, 0, count * sizeof(cl_uint), parents.data());
-    };
-    // Specialised tapes: the level being classified writes lists_buf_[cur], reading its
-    // parents' from lists_buf_[cur ^ 1].
-    const std::size_t list_bytes = VF_SDF_LIST_STRIDE * sizeof(cl_ushort);
-    const bool special = n <= VF_SDF_SPECIALISE_MAX;
-    std::size_t cur = 0;
-    for (int i = 0; i < 2; ++i) {
-        grow(lists_buf_[i], lists_cap_[i], list_bytes, CL_MEM_READ_WRITE);
-    }
-
-    // Interior levels: every node specialises its tape and tests its 64 children; ambiguous
-    // children become nodes of the next level, densely packed in mask order.
-    for (std::uint32_t level = 0; level < options_.tile_depth && !frontier.empty(); ++level) {
-        const cl_uint node_edge = edge >> (2 * level);
-        const cl_uint child_edge = node_edge / 4;
-        const std::size_t count = frontier.size();
-        cl_call(ctx_of("classify_children"), [&] {
-            upload_frontier();
-            grow(classes_buf_, classes_cap_, count * 64, CL_MEM_WRITE_ONLY);
-            if (special) {
-                grow(lists_buf_[cur], lists_cap_[cur], count * list_bytes, CL_MEM_READ_WRITE);
-            }
-            cl::Buffer& buf = classes_buf_;
-            cl::Kernel& k = classify_children_;
-            k.setArg(0, tape_);
-            k.setArg(1, n);
-            k.setArg(2, g);
-            k.setArg(3, origins_buf_);
-            k.setArg(4, parents_buf_);
-            k.setArg(5, lists_buf_[cur ^ 1]);
-            k.setArg(6, static_cast<cl_uint>(count));
-            k.setArg(7, node_edge);
-            k.setArg(8, lists_buf_[cur]);
-            k.setArg(9, buf);
-            cl::Event e;
-            q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(count * 64), cl::NDRange(64),
-                                   nullptr, &e);
-            read_classes(buf, count * 64);
-            timing_.kernel_ms += event_ms(e);
-        });
-        std::vector<cl_uint4>& next = next_;
-        std::vector<cl_uint>& next_parents = next_parents_;
-        next.clear();
-        next_parents.clear();
-        out.nodes.resize(std::size_t{nodes} * VF_SDF_NODE_WORDS);
-        for (std::size_t f = 0; f < count; ++f) {
-            std::uint64_t occ = 0, solid = 0;
-            const std::uint32_t first = nodes;
-            for (std::uint32_t c = 0; c < 64; ++c) {
-                const cl_uchar cls = classes[f * 64 + c];
-                if (cls == VF_SDF_CELL_FULL) {
-                    solid |= std::uint64_t{1} << c;
-                } else if (cls == VF_SDF_CELL_AMBIGUOUS) {
-                    occ |= std::uint64_t{1} << c;
-                    const cl_uint4& o = frontier[f];
-                    next.push_back(
-                        {{o.s[0] + (c & 3) * child_edge, o.s[1] + (c >> 2 & 3) * child_edge,
-                          o.s[2] + (c >> 4) * child_edge, nodes++}});
-                    next_parents.push_back(static_cast<cl_uint>(f));
+    out.tile_table.resize(out.tiles.count());
+    cl_call("implicit discretisation (" + std::to_string(n) + " instructions, grid " +
+                out.dims.to_string() + ", tile depth " + std::to_string(options_.tile_depth) + ")",
+            [&] {
+                if (!kernels_made_) {
+                    classify_tiles_ = cl::Kernel(program_, "classify_tiles");
+                    classify_children_ = cl::Kernel(program_, "classify_children");
+                    sample_leaves_ = cl::Kernel(
+                        program_, gpu_layout_ ? "sample_leaves_group" : "sample_leaves_seq");
+                    for (cl::Kernel* k : {&classify_tiles_, &classify_children_, &sample_leaves_}) {
+                        k->setArg(0, tape_);
+                        k->setArg(1, n);
+                        k->setArg(2, g);
+                    }
+                    kernels_made_ = true;
                 }
-            }
-            std::uint32_t* rec = &out.nodes[std::size_t{frontier[f].s[3]} * VF_SDF_NODE_WORDS];
-            rec[0] = first;
-            rec[1] = VF_SDF_NOT_LEAF;
-            rec[2] = static_cast<std::uint32_t>(occ);
-            rec[3] = static_cast<std::uint32_t>(occ >> 32);
-            rec[4] = static_cast<std::uint32_t>(solid);
-            rec[5] = static_cast<std::uint32_t>(solid >> 32);
-        }
-        std::swap(frontier, next);
-        std::swap(parents, next_parents);
-        cur ^= 1;
-    }
-
-    // Leaves: the nodes of the last level, allocated last (indices first_leaf..nodes).
-    out.leaves = frontier.size();
-    if (frontier.empty()) {
-        out.voxels.clear();
-        out.vertices.clear();
-    }
-    out.nodes.resize(std::size_t{nodes} * VF_SDF_NODE_WORDS);
-    if (!frontier.empty()) {
-        const std::size_t count = frontier.size();
-        const std::uint32_t first_leaf = frontier.front().s[3];
-        for (auto& o : frontier) {
-            o.s[3] -= first_leaf;
-        }
-        // Room for the crossed voxels and kept corners: the last run's counts when they were
-        // larger than the estimate (a second pass only when even those overflow).
-        std::size_t vcap = std::max({std::size_t{1024}, count * 48, last_vertices_});
-        std::size_t xcap = std::max({std::size_t{1024}, count * 24, last_voxels_});
-        cl_call(ctx_of(gpu_layout_ ? "sample_leaves_group" : "sample_leaves_seq"), [&] {
-            upload_frontier();
-            grow(leaf_nodes_buf_, leaf_nodes_cap_, count * VF_SDF_NODE_WORDS * sizeof(cl_uint),
-                 CL_MEM_WRITE_ONLY);
-            const cl::Buffer& leaf_nodes = leaf_nodes_buf_;
-            grow(counters_buf_, counters_cap_, 2 * sizeof(cl_uint), CL_MEM_READ_WRITE);
-            const cl::Buffer& counters = counters_buf_;
-            cl::Kernel& k = sample_leaves_;
-            cl_uint reached[2] = {0, 0};
-            while (true) {
-                grow(voxels_buf_, voxels_cap_, xcap * VF_SDF_VOXEL_WORDS * sizeof(cl_uint),
-                     CL_MEM_WRITE_ONLY);
-                grow(vertices_buf_, vertices_cap_, vcap * VF_SDF_VERTEX_FLOATS * sizeof(cl_float),
-                     CL_MEM_WRITE_ONLY);
-                const cl::Buffer& voxels = voxels_buf_;
-                const cl::Buffer& vertices = vertices_buf_;
-                const cl_uint zero[2] = {0, 0};
-                q.enqueueWriteBuffer(counters, CL_FALSE, 0, sizeof(zero), zero);
-                k.setArg(0, tape_);
-                k.setArg(1, n);
-                k.setArg(2, g);
-                k.setArg(3, origins_buf_);
-                k.setArg(4, parents_buf_);
-                k.setArg(5, lists_buf_[cur ^ 1]);
-                k.setArg(6, static_cast<cl_uint>(count));
-                k.setArg(7, leaf_nodes);
-                k.setArg(8, voxels);
-                k.setArg(9, static_cast<cl_uint>(xcap));
-                k.setArg(10, vertices);
-                k.setArg(11, static_cast<cl_uint>(vcap));
-                k.setArg(12, counters);
-                cl::Event e;
-                if (gpu_layout_) {
-                    q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(count * 128),
-                                           cl::NDRange(128), nullptr, &e);
-                } else {
-                    k.setArg(13, decided_);
-                    q.enqueueNDRangeKernel(k, cl::NullRange,
-                                           cl::NDRange(round_up(count, kLeafGroup)),
-                                           cl::NDRange(kLeafGroup), nullptr, &e);
+                bool done = false;
+                if (counts_.nodes.size() == options_.tile_depth + 1) {
+                    Caps caps;
+                    caps.level.assign(counts_.nodes.begin(), counts_.nodes.end());
+                    caps.vertices = counts_.vertices;
+                    caps.voxels = counts_.voxels;
+                    done = attempt_at_once(out, caps);
                 }
-                cl_uint* got =
-                    staged_ ? reinterpret_cast<cl_uint*>(pinned(small_stage_, sizeof(reached)))
-                            : reached;
-                q.enqueueReadBuffer(counters, CL_TRUE, 0, sizeof(reached), got);
-                ++timing_.syncs;
-                reached[0] = got[0];
-                reached[1] = got[1];
-                timing_.kernel_ms += event_ms(e);
-                ++timing_.passes;
-                if (reached[0] <= vcap && reached[1] <= xcap) {
-                    break;
+                if (!done) {
+                    attempt_counted(out);
                 }
-                vcap = std::max<std::size_t>(vcap, reached[0]);
-                xcap = std::max<std::size_t>(xcap, reached[1]);
-            }
-            last_vertices_ = reached[0];
-            last_voxels_ = reached[1];
-            const cl::Buffer& voxels = voxels_buf_;
-            const cl::Buffer& vertices = vertices_buf_;
-            out.voxels.resize(std::size_t{reached[1]} * VF_SDF_VOXEL_WORDS);
-            out.vertices.resize(std::size_t{reached[0]} * VF_SDF_VERTEX_FLOATS);
-            // The leaves' node records, voxel records and vertices: three reads, one wait.
-            const std::vector<Copy> parts = {
-                {&out.nodes[std::size_t{first_leaf} * VF_SDF_NODE_WORDS], nullptr,
-                 count * VF_SDF_NODE_WORDS * sizeof(cl_uint)},
-                {out.voxels.data(), nullptr, out.voxels.size() * sizeof(cl_uint)},
-                {out.vertices.data(), nullptr, out.vertices.size() * sizeof(cl_float)}};
-            const cl::Buffer* sources[3] = {&leaf_nodes, &voxels, &vertices};
-            std::size_t total = 0;
-            for (const Copy& c : parts) {
-                total += c.bytes;
-            }
-            std::uint8_t* stage = staged_ ? pinned(out_stage_, total) : nullptr;
-            std::vector<Copy> copies;
-            std::size_t at = 0;
-            for (int i = 0; i < 3; ++i) {
-                if (parts[i].bytes == 0) {
-                    continue;
+                out.leaves = counts_.nodes.back();
+                for (const auto& [stage, e] : events_) {
+                    const double ms = event_ms(e);
+                    (stage == kTiles    ? timing_.tiles_ms
+                     : stage == kLevels ? timing_.levels_ms
+                     : stage == kLeaves ? timing_.leaves_ms
+                                        : timing_.read_ms) += ms;
+                    if (stage != kRead) {
+                        timing_.kernel_ms += ms;
+                    }
                 }
-                void* dst = staged_ ? stage + at : parts[i].dst;
-                q.enqueueReadBuffer(*sources[i], CL_FALSE, 0, parts[i].bytes, dst);
-                copies.push_back({parts[i].dst, dst, parts[i].bytes});
-                at += parts[i].bytes;
-            }
-            q.finish();
-            ++timing_.syncs;
-            if (staged_) {
-                copy_all(copies);
-            }
-        });
-    }
-    timing_.total_ms =
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+            });
+    timing_.total_ms = ms_since(t0);
+    timing_.host_ms = timing_.total_ms - timing_.wait_ms - timing_.copy_ms;
 }
 
 std::vector<float> ImplicitDiscretiser::sample_corners() {

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <memory>
+#include <stdexcept>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -29,9 +31,12 @@ struct Check {
 struct Brute {
     std::vector<float> corners, centres;
 };
-Brute brute_force(const sdf::Part& part) {
-    ImplicitDiscretiser job(test::pocl(), part, {});
+Brute brute_force(Context& ctx, const sdf::Part& part) {
+    ImplicitDiscretiser job(ctx, part, {});
     return {job.sample_corners(), job.sample_centres()};
+}
+Brute brute_force(const sdf::Part& part) {
+    return brute_force(test::pocl(), part);
 }
 
 // Brute-force flags (bit 0: f < 0 at the centre; bit 1: f < 0 differs among the 8 corners and
@@ -60,13 +65,11 @@ std::vector<std::uint8_t> brute_flags(const Dims d, const std::vector<float>& co
     return f;
 }
 
-// Discretises `part` and compares it with brute force; returns counts and the largest errors.
-Check check(const sdf::Part& part, ImplicitOptions options, const std::string& what,
-            const Brute& brute) {
+// Compares a discretisation of `part` with brute force (flags, counts, corner values); returns
+// counts and the largest errors against the CPU evaluators.
+Check compare(const sdf::Part& part, const ImplicitGrid& grid, const std::string& what,
+              const Brute& brute) {
     Check r;
-    ImplicitDiscretiser job(test::pocl(), part, options);
-    EXPECT_EQ(job.gpu_layout(), options.layout == Layout::gpu);
-    const ImplicitGrid grid = job.run();
     r.leaves = grid.leaves;
     r.tile_edge = grid.tile_edge;
     const std::vector<float>& corners = brute.corners;
@@ -108,6 +111,15 @@ Check check(const sdf::Part& part, ImplicitOptions options, const std::string& w
                  std::abs(v[1] / h - cpu.gradient.y), std::abs(v[2] / h - cpu.gradient.z)});
         }
     }
+    return r;
+}
+
+// Discretises `part` on PoCL and compares it with brute force.
+Check check(const sdf::Part& part, ImplicitOptions options, const std::string& what,
+            const Brute& brute) {
+    ImplicitDiscretiser job(test::pocl(), part, options);
+    EXPECT_EQ(job.gpu_layout(), options.layout == Layout::gpu);
+    const Check r = compare(part, job.run(), what, brute);
     EXPECT_LE(r.max_value_error, 4 * 1.2e-7f) << what;
     EXPECT_LE(r.max_gradient_error, 1e-5f) << what;
     return r;
@@ -140,6 +152,16 @@ void expect_same_grid(const ImplicitGrid& got, const ImplicitGrid& want) {
                   std::memcmp(a[i].corner, b[i].corner, sizeof a[i].corner) != 0;
     }
     EXPECT_EQ(differ, 0u);
+}
+
+// A tile table's entries as empty, full or a root (roots are numbered in no fixed order).
+std::vector<std::uint32_t> tile_kinds(const ImplicitGrid& g) {
+    std::vector<std::uint32_t> kinds(g.tile_table.size());
+    for (std::size_t t = 0; t < kinds.size(); ++t) {
+        const std::uint32_t e = g.tile_table[t];
+        kinds[t] = e == VF_SDF_TILE_EMPTY || e == VF_SDF_TILE_FULL ? e : 0u;
+    }
+    return kinds;
 }
 
 class ImplicitLayouts : public ::testing::TestWithParam<Layout> {};
@@ -177,24 +199,174 @@ TEST_P(ImplicitLayouts, CoarseRandomTreesEqualBruteForce) {
     EXPECT_GT(crossed, 5000u);
 }
 
+// The mutation that shows the centre bound matters: a shell thinner than a voxel is crossed
+// at many voxels only by their centres (every corner outside, a corner up to the half diagonal
+// away); leaves that take a corner's sign for the centre from |f| above 0.7 of the half diagonal
+// miss them, and brute force catches it, in both layouts; the default bound does not.
+TEST_P(ImplicitLayouts, ACentreBoundBelowTheHalfDiagonalIsCaught) {
+    const double h = 0.05;
+    const sdf::Part part = sdf::parse_part(
+        R"({"version": 1, "voxel_size": 0.05, "bounds": [[-1, -1, -1], [1, 1, 1]],
+            "shape": {"shell": {"thickness": 0.004,
+              "of": {"sphere": {"center": [0.013, -0.021, 0.007], "radius": 0.61}}}}})",
+        "thin shell");
+    const Brute b = brute_force(part);
+    const std::vector<std::uint8_t> want = brute_flags(part.dims, b.corners, b.centres);
+    for (std::uint32_t depth : {0u, 1u}) {
+        const std::string what = "thin shell depth " + std::to_string(depth);
+        check(part, {depth, GetParam()}, what, b);
+        ImplicitDiscretiser job(test::pocl(), part, {depth, GetParam()});
+        const float half_diagonal = static_cast<float>(0.5 * std::sqrt(3.0) * h);
+        EXPECT_GT(job.centre_bound(), half_diagonal);
+        job.set_centre_bound(0.7f * half_diagonal);
+        const std::vector<std::uint8_t> got = job.run().flags();
+        std::size_t missed = 0;
+        for (std::size_t i = 0; i < want.size(); ++i) {
+            missed += got[i] != want[i];
+        }
+        EXPECT_GT(missed, 20u) << what;
+    }
+}
+
 // The readback through page-locked staging memory (a GPU's default) gives the direct
-// readback's grid, run after run into one reused grid; a run waits for the device once per
-// level, once for the leaves' counts and once for their records.
+// readback's grid, run after run into one reused grid. The first run counts each level on the
+// host (a wait per level, one for the leaves' counts and one for the output); later runs wait
+// once: they zero the counters, launch the tiles, the levels and the leaves, and read the
+// counters, tile table, nodes, voxels and vertices in one go.
 TEST_P(ImplicitLayouts, PinnedReadbackEqualsDirect) {
     const sdf::Part part =
         sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" / "bracket.sdf.json");
-    ImplicitDiscretiser direct(test::pocl(), part, {2, GetParam()});
-    EXPECT_FALSE(direct.pinned_readback());  // PoCL computes in host memory
-    const ImplicitGrid want = direct.run();
-    ImplicitDiscretiser job(test::pocl(), part, {2, GetParam()});
-    job.set_pinned_readback(true);
-    ImplicitGrid got;
-    for (int i = 0; i < 2; ++i) {
-        job.run(got);
-        expect_same_grid(got, want);
-        EXPECT_EQ(got.tile_table, want.tile_table);
-        EXPECT_EQ(job.timing().syncs, 1u + 2u + 2u);
+    for (std::uint32_t depth : {1u, 2u}) {
+        ImplicitDiscretiser direct(test::pocl(), part, {depth, GetParam()});
+        EXPECT_FALSE(direct.pinned_readback());  // PoCL computes in host memory
+        const ImplicitGrid want = direct.run();
+        EXPECT_TRUE(direct.timing().counted);
+        // The tiles, each level, the leaves, the output; and every rerun past a first guess.
+        EXPECT_EQ(direct.timing().syncs, 1u + depth + 1u + 1u + direct.timing().level_reruns +
+                                             (direct.timing().passes - 1u));
+        ImplicitDiscretiser job(test::pocl(), part, {depth, GetParam()});
+        job.set_pinned_readback(true);
+        ImplicitGrid got;
+        for (int i = 0; i < 3; ++i) {
+            job.run(got);
+            expect_same_grid(got, want);
+            EXPECT_EQ(tile_kinds(got), tile_kinds(want));
+            EXPECT_EQ(job.counts(), direct.counts());
+            if (i > 0) {
+                EXPECT_FALSE(job.timing().counted);
+                EXPECT_EQ(job.timing().syncs, 1u);
+                EXPECT_EQ(job.timing().enqueues, 1u + 1u + depth + 1u + 5u);
+                EXPECT_EQ(job.timing().passes, 1u);
+            }
+        }
     }
+}
+
+// Runs after the first (one wait) equal brute force, run after run; so do runs sized from
+// counts that are too small at any one level, or for the leaves' records (the one-wait attempt
+// overflows, and the run is redone counted), and runs sized from larger counts (one wait).
+TEST_P(ImplicitLayouts, OneWaitRunsEqualBruteForceAndOverflowsRerunCounted) {
+    const sdf::Part part =
+        sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" / "pipe_elbow.sdf.json");
+    const Brute brute = brute_force(part);
+    const std::vector<std::uint8_t> want = brute_flags(part.dims, brute.corners, brute.centres);
+    for (std::uint32_t depth : {0u, 1u, 2u}) {
+        const std::string what = "depth " + std::to_string(depth);
+        ImplicitDiscretiser job(test::pocl(), part, {depth, GetParam()});
+        job.set_pinned_readback(depth == 1);  // both readbacks
+        ImplicitGrid grid;
+        job.run(grid);
+        const ImplicitGrid first = grid;
+        const ImplicitCounts counts = job.counts();
+        ASSERT_EQ(counts.nodes.size(), depth + 1u);
+        EXPECT_EQ(counts.nodes.back(), grid.leaves);
+        EXPECT_EQ(counts.voxels, grid.crossed_count());
+        EXPECT_EQ(counts.vertices, grid.vertex_count());
+        EXPECT_EQ(grid.flags(), want) << what;
+        for (int i = 0; i < 2; ++i) {
+            job.run(grid);
+            EXPECT_FALSE(job.timing().counted) << what;
+            EXPECT_EQ(job.timing().syncs, 1u) << what;
+            EXPECT_EQ(grid.flags(), want) << what;
+            expect_same_grid(grid, first);
+        }
+        // Too small: each level in turn, then the vertices and the voxels.
+        std::vector<ImplicitCounts> small;
+        for (std::uint32_t l = 0; l <= depth; ++l) {
+            small.push_back(counts);
+            small.back().nodes[l] /= 2;
+        }
+        small.push_back(counts);
+        small.back().vertices -= 1;
+        small.push_back(counts);
+        small.back().voxels /= 3;
+        for (std::size_t s = 0; s < small.size(); ++s) {
+            job.expect(small[s]);
+            job.run(grid);
+            EXPECT_TRUE(job.timing().counted) << what << " small " << s;
+            EXPECT_GT(job.timing().syncs, 1u + depth) << what << " small " << s;
+            EXPECT_EQ(job.counts(), counts) << what << " small " << s;
+            EXPECT_EQ(grid.flags(), want) << what << " small " << s;
+            expect_same_grid(grid, first);
+        }
+        // Larger: one wait, the same grid, the true counts kept.
+        ImplicitCounts large = counts;
+        for (auto& n : large.nodes) {
+            n = n * 2 + 5;
+        }
+        large.vertices = large.vertices * 2 + 7;
+        large.voxels = large.voxels * 2 + 3;
+        job.expect(large);
+        job.run(grid);
+        EXPECT_FALSE(job.timing().counted) << what;
+        // (The pinned stage, grown for the larger sizes, is mapped again: a second wait.)
+        EXPECT_EQ(job.timing().syncs, job.pinned_readback() ? 2u : 1u) << what;
+        EXPECT_EQ(job.counts(), counts) << what;
+        EXPECT_EQ(grid.flags(), want) << what;
+        expect_same_grid(grid, first);
+    }
+}
+
+// A part whose first guesses are far too small (thin slabs every 3 voxels: every tile and
+// every child ambiguous, many kept corners per leaf): the counted first run reruns the tile
+// test (depth 0: 4096 tiles), a level (depth 1: 4096 children of 64 tiles) and the leaves at the
+// counts they reached, and equals brute force; the next run waits once for the same grid.
+TEST_P(ImplicitLayouts, CountedRunsRerunLevelsPastTheirGuesses) {
+    nlohmann::json kids = nlohmann::json::array();
+    const double h = 1.0 / 32;
+    for (int k = 0; k < 21; ++k) {
+        kids.push_back(
+            {{"box", {{"center", {(3 * k + 1.5) * h, 1, 1}}, {"half_size", {0.4 * h, 3, 3}}}}});
+    }
+    const nlohmann::json doc = {{"version", 1},
+                                {"voxel_size", h},
+                                {"bounds", {{0, 0, 0}, {2, 2, 2}}},
+                                {"shape", {{"union", kids}}}};
+    const sdf::Part part = sdf::parse_part(doc.dump(), "slabs");
+    const Brute brute = brute_force(part);
+    for (std::uint32_t depth : {0u, 1u}) {
+        const std::string what = "slabs depth " + std::to_string(depth);
+        ImplicitDiscretiser job(test::pocl(), part, {depth, GetParam()});
+        const ImplicitGrid first = job.run();
+        EXPECT_TRUE(job.timing().counted) << what;
+        EXPECT_EQ(job.timing().level_reruns, 1u) << what;
+        EXPECT_EQ(job.timing().passes, 2u) << what;
+        EXPECT_EQ(job.counts().nodes[depth], depth == 0 ? 4096u : 4096u) << what;
+        check(part, {depth, GetParam()}, what, brute);
+        ImplicitGrid again;
+        job.run(again);
+        EXPECT_EQ(job.timing().syncs, 1u) << what;
+        expect_same_grid(again, first);
+    }
+}
+
+TEST_P(ImplicitLayouts, ExpectRejectsCountsOfAnotherDepth) {
+    const sdf::Part part =
+        sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" / "bracket.sdf.json");
+    ImplicitDiscretiser job(test::pocl(), part, {2, GetParam()});
+    ImplicitCounts c;
+    c.nodes = {1, 2};
+    EXPECT_THROW(job.expect(c), std::invalid_argument);
 }
 
 TEST_P(ImplicitLayouts, GalleryEqualsBruteForceAndPrunes) {
@@ -251,7 +423,7 @@ TEST_P(ImplicitLayouts, RunsIntoAReusedGridEqualFreshOnes) {
     job.run(reused);
     const ImplicitGrid fresh = ImplicitDiscretiser(test::pocl(), part, {2, GetParam()}).run();
     expect_same_grid(reused, fresh);
-    EXPECT_EQ(reused.tile_table, fresh.tile_table);
+    EXPECT_EQ(tile_kinds(reused), tile_kinds(fresh));
     // And the same discretiser again into its own output.
     job.run(reused);
     expect_same_grid(reused, fresh);
@@ -348,6 +520,46 @@ TEST(Implicit, RejectsATileDepthOutOfRange) {
             "shape": {"sphere": {"center": [0, 0, 0], "radius": 1}}})",
         "s");
     EXPECT_THROW(ImplicitDiscretiser(test::pocl(), part, {9, Layout::cpu}), InputError);
+}
+
+// On a GPU when there is one (the kernel tests run on PoCL; this one checks the device the GPU
+// layout is for): the gallery with the device's defaults (GPU layout, pinned readback), run after
+// run into one grid (the counted first run, then one-wait runs), equals that device's brute force.
+TEST(ImplicitOnGpu, GalleryEqualsBruteForceRunAfterRun) {
+    std::unique_ptr<Context> gpu;
+    for (const DeviceInfo& d : list_devices()) {
+        if (d.type == "gpu" && d.available && d.compiler_available) {
+            gpu = std::make_unique<Context>(d);
+            break;
+        }
+    }
+    if (!gpu) {
+        GTEST_SKIP() << "no OpenCL GPU";
+    }
+    for (const char* name : {"bracket", "gear_ring", "pipe_elbow"}) {
+        const sdf::Part part = sdf::load_part(std::filesystem::path(VOXFIELD_DATA_DIR) / "parts" /
+                                              (std::string(name) + ".sdf.json"));
+        const Brute brute = brute_force(*gpu, part);
+        for (std::uint32_t depth : {1u, 2u}) {
+            ImplicitDiscretiser job(*gpu, part, {depth, Layout::automatic});
+            EXPECT_TRUE(job.gpu_layout());
+            ImplicitGrid grid;
+            for (int i = 0; i < 3; ++i) {
+                const std::string what = std::string(name) + " depth " + std::to_string(depth) +
+                                         " run " + std::to_string(i) + " on " + gpu->info().name;
+                job.run(grid);
+                EXPECT_EQ(job.timing().counted, i == 0) << what;
+                if (i > 0) {
+                    EXPECT_EQ(job.timing().syncs, 1u) << what;
+                }
+                const Check c = compare(part, grid, what, brute);
+                EXPECT_GT(c.crossed, 1000u) << what;
+                // Against the CPU's float evaluation: a GPU may contract a * b + c into fma.
+                EXPECT_LE(c.max_value_error, 1e-5f) << what;
+                EXPECT_LE(c.max_gradient_error, 1e-4f) << what;
+            }
+        }
+    }
 }
 
 }  // namespace

@@ -280,8 +280,9 @@ TEST_F(BenchSuite, ImplicitFindsItsPartBesideTheBinary) {
     ASSERT_EQ(run_in_io(log), 0) << read_text(log);
     const json doc = json::parse(read_text(js));
     expect_common(doc, "implicit");
-    // --quick: 256^3 at tile depths 1-4, then the part traced at 1920x1080, lit and flat.
-    ASSERT_EQ(doc["results"].size(), 6u);
+    // --quick: 256^3 at tile depths 1-4 (depth 1 again with the other readback), then the part
+    // traced at 1920x1080, lit and flat.
+    ASSERT_EQ(doc["results"].size(), 7u);
     for (const json& row : doc["results"]) {
         EXPECT_EQ(row["part"], "bracket.sdf.json");
         EXPECT_GT(row["median_ms"].get<double>(), 0.0) << row.dump().substr(0, 200);
@@ -293,6 +294,10 @@ TEST_F(BenchSuite, ImplicitFindsItsPartBesideTheBinary) {
         }
         if (row["table"] == "implicit") {
             EXPECT_GT(row["leaves"].get<std::uint64_t>(), 0u) << row.dump().substr(0, 200);
+            // One run (no warm-up): the first, counted, run: a wait per level and more.
+            EXPECT_TRUE(row["counted"].get<bool>());
+            EXPECT_GT(row["syncs"].get<std::uint32_t>(), row["tile_depth"].get<std::uint32_t>());
+            EXPECT_GT(row["kernel_median_ms"].get<double>(), 0.0);
         } else {
             EXPECT_EQ(row["table"], "implicit_trace");
             EXPECT_EQ(row["width"], 1920);

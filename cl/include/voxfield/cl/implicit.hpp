@@ -9,6 +9,7 @@
 // corners. Layouts of the records: core/sdf_layout.hpp.
 #include <cstdint>
 #include <functional>
+#include <utility>
 #include <vector>
 
 #include "voxfield/cl/generator.hpp"
@@ -59,10 +60,30 @@ struct ImplicitGrid {
 
 // Timing of one discretisation (wall clock on the host, all phases).
 struct ImplicitTiming {
-    double total_ms = 0;       // from the first enqueue to the host arrays filled
-    double kernel_ms = 0;      // sum of the kernels' device times
-    std::uint32_t syncs = 0;   // times the host waited for the device
-    std::uint32_t passes = 0;  // sample_leaves runs (2 when the first capacities overflowed)
+    double total_ms = 0;  // from the first enqueue to the host arrays filled
+    // Device times (OpenCL profiling; reruns included): every kernel, then by stage.
+    double kernel_ms = 0;
+    double tiles_ms = 0, levels_ms = 0, leaves_ms = 0;  // tile tests, interior levels, leaves
+    double read_ms = 0;                                 // the read-backs' transfers
+    // Host times, adding up to total_ms: issuing commands (and growing buffers), blocked on
+    // the device, and filling the grid's arrays after the last wait.
+    double host_ms = 0, wait_ms = 0, copy_ms = 0;
+    std::uint32_t syncs = 0;         // times the host waited for the device
+    std::uint32_t enqueues = 0;      // commands enqueued: kernels, writes, reads and copies
+    std::uint32_t passes = 0;        // sample_leaves runs (2 when the first capacities overflowed)
+    std::uint32_t level_reruns = 0;  // counted runs: tile tests and levels run again at the
+                                     // count they reached (past the first guess of its room)
+    // Whether the levels were sized by reading their counts (a first run, or a rerun after a
+    // steady-state run's capacities overflowed): a wait per level; else one wait in all.
+    bool counted = false;
+};
+
+// What a run produced: nodes per level (level 0: the tiles' roots; the last: the leaves), kept
+// corners (vertices) and crossed voxels. A discretiser sizes its next run from its last one's.
+struct ImplicitCounts {
+    std::vector<std::uint32_t> nodes;
+    std::uint32_t vertices = 0, voxels = 0;
+    bool operator==(const ImplicitCounts&) const = default;
 };
 
 class ImplicitDiscretiser {
@@ -72,15 +93,28 @@ class ImplicitDiscretiser {
     ImplicitDiscretiser(const ImplicitDiscretiser&) = delete;
     ImplicitDiscretiser& operator=(const ImplicitDiscretiser&) = delete;
 
+    // The first run counts each level on the host before launching the next (a wait per
+    // level); later runs launch every level at once, sized from the last run's counts (the
+    // kernels read the true counts on the device and store what fits), and wait once for the
+    // counts and the whole output together; counts above those capacities rerun counted.
     ImplicitGrid run();
     // The same into `out`, reusing its arrays' storage (and this discretiser's device buffers
     // and kernels, as every run does): repeated discretisations allocate nothing once warm.
     void run(ImplicitGrid& out);
     const ImplicitTiming& timing() const { return timing_; }
+    const ImplicitCounts& counts() const { return counts_; }
+    // Sizes the next run from `expected` (e.g. a similar part's counts) as from a last run's:
+    // one wait when they hold. `expected.nodes` has tile_depth + 1 levels.
+    void expect(const ImplicitCounts& expected);
     // Read back through page-locked staging memory (see Pinned below): by default on devices
     // that do not compute in host memory; settable to test both paths on any device.
     void set_pinned_readback(bool on) { staged_ = on; }
     bool pinned_readback() const { return staged_; }
+    // The corner |f| past which a leaf takes a corner's sign for its voxel's centre instead of
+    // sampling it: half the voxel's diagonal (f is 1-Lipschitz) plus a rounding margin by
+    // default; settable so that tests can show that a smaller one is caught.
+    float centre_bound() const { return decided_; }
+    void set_centre_bound(float bound) { decided_ = bound; }
     bool gpu_layout() const { return gpu_layout_; }
 
     // Brute force, for checking: f at every grid corner ((X+1)(Y+1)(Z+1), x fastest) and at
@@ -93,24 +127,47 @@ class ImplicitDiscretiser {
     sdf::Part part_;  // a copy: the caller's part may go
     ImplicitOptions options_;
     bool gpu_layout_;
-    float decided_;  // the CPU layout's corner |f| that decides a centre's sign
+    float decided_;  // a corner |f| that decides its voxel centre's sign
     cl::Program program_;
     cl::Buffer tape_;
     ImplicitTiming timing_;
-    // Kept across runs: kernels, device buffers (grown, never shrunk), host scratch, and the
-    // last run's output counts (the next run's first guess of the room it needs).
-    void grow(cl::Buffer& buffer, std::size_t& capacity, std::size_t bytes, cl_mem_flags flags);
+    ImplicitCounts counts_;  // the last run's; empty before the first
+    // Capacities of one attempt: nodes per level, vertices, voxels.
+    struct Caps {
+        std::vector<std::size_t> level;
+        std::size_t vertices = 0, voxels = 0;
+    };
+    bool attempt_at_once(ImplicitGrid& out, const Caps& caps);
+    void attempt_counted(ImplicitGrid& out);
+    // Enqueueing: the kernels (with their events), zeroing counters, and a wait.
+    void enqueue_tiles(const ImplicitGrid& out, std::size_t capacity);
+    void enqueue_level(std::uint32_t level, std::size_t capacity, std::size_t next_capacity,
+                       std::size_t node_capacity, std::size_t groups);
+    void enqueue_leaves(std::size_t capacity, std::size_t node_capacity, std::size_t vertices,
+                        std::size_t voxels, std::size_t groups);
+    void zero_counters(std::uint32_t first, std::uint32_t count);
+    const cl_uint* read_counters();  // blocking
+    void wait();
+    // The counters and the output (up to these sizes) in one go, one wait, then the grid's
+    // arrays (no more than the counters say).
+    void read_output(ImplicitGrid& out, std::size_t node_words, std::size_t voxel_words,
+                     std::size_t vertex_floats);
+    // Kept across runs: kernels, device buffers (grown, never shrunk).
+    void grow(cl::Buffer& buffer, std::size_t& capacity, std::size_t bytes,
+              std::size_t keep_bytes = 0);
+    void size_levels(const Caps& caps, std::size_t tiles);
     bool kernels_made_ = false;
     cl::Kernel classify_tiles_, classify_children_, sample_leaves_;
-    cl::Buffer classes_buf_, origins_buf_, parents_buf_, leaf_nodes_buf_, counters_buf_,
-        voxels_buf_, vertices_buf_;
-    cl::Buffer lists_buf_[2];  // specialised tapes of two consecutive levels' nodes
-    std::size_t classes_cap_ = 0, origins_cap_ = 0, parents_cap_ = 0, leaf_nodes_cap_ = 0,
-                counters_cap_ = 0, voxels_cap_ = 0, vertices_cap_ = 0, lists_cap_[2] = {0, 0};
-    std::vector<cl_uchar> classes_;
-    std::vector<cl_uint4> frontier_, next_;        // origin (voxel), node index in w
-    std::vector<cl_uint> parents_, next_parents_;  // the parent's index in its level
-    std::size_t last_vertices_ = 0, last_voxels_ = 0;
+    cl::Buffer counters_buf_, table_buf_, nodes_buf_, voxels_buf_, vertices_buf_;
+    // The frontiers of levels L and L + 1: nodes' origins (node index in w) and their
+    // specialised tapes (list_bytes() each; none for tapes too long to specialise).
+    cl::Buffer origins_buf_[2], lists_buf_[2];
+    std::size_t list_bytes() const;
+    std::size_t counters_cap_ = 0, table_cap_ = 0, nodes_cap_ = 0, voxels_cap_ = 0,
+                vertices_cap_ = 0, origins_cap_[2] = {0, 0}, lists_cap_[2] = {0, 0};
+    std::vector<std::pair<int, cl::Event>> events_;  // (stage, event) of this run's commands
+    std::vector<cl_uint> host_counters_;
+    const std::vector<cl_uint> zeros_ = std::vector<cl_uint>(VF_SDF_COUNTERS, 0);
     // A device outside host memory (a GPU) reads back through page-locked host memory: a
     // CL_MEM_ALLOC_HOST_PTR buffer mapped once and kept mapped (full-speed DMA, no driver
     // bounce buffer), then copied into the grid's arrays. Host-memory devices read directly.
@@ -122,7 +179,7 @@ class ImplicitDiscretiser {
     std::uint8_t* pinned(Pinned& p, std::size_t bytes);
     void unmap(Pinned& p);
     bool staged_;
-    Pinned small_stage_, out_stage_;  // classes and counters; the leaves' outputs
+    Pinned small_stage_, out_stage_;  // counters; the whole output
 };
 
 }  // namespace voxfield::ocl

@@ -35,12 +35,10 @@
 #define VF_SDF_PUSH_POINT 13u
 #define VF_SDF_POP_POINT 14u
 
-/* Tapes up to this long are specialised per leaf (operands never selected there skipped). */
+/* Tapes up to this long are specialised per node (operands never selected there skipped); the
+ * discretiser keeps a node's specialised tape as n + 1 16-bit words: a count, then that many
+ * instruction indices. */
 #define VF_SDF_SPECIALISE_MAX 256
-/* A node's specialised tape as the discretiser keeps it for its children: a count, then that
- * many instruction indices (16 bits each). VF_SDF_NO_PARENT: a tile's root runs the whole tape. */
-#define VF_SDF_LIST_STRIDE (VF_SDF_SPECIALISE_MAX + 1)
-#define VF_SDF_NO_PARENT 0xFFFFFFFFu
 
 /* Nesting limit of a part (nodes on the longest root-to-leaf path); the stacks hold one more. */
 #define VF_SDF_MAX_DEPTH 32
@@ -64,6 +62,15 @@
 /* Vertex record: 4 floats: h grad f (x, y, z), f, with h the voxel size: f's first-order change
  * over one voxel along each axis, so that the tracer works in voxel units. */
 #define VF_SDF_VERTEX_FLOATS 4
+
+/* The discretiser's counters on the device (uints): nodes reserved per level (level 0: the
+ * tiles' roots; the last level: the leaves; tile depths up to VF_SDF_MAX_LEVELS - 1), then the
+ * vertex and voxel records the leaves reserved. A kernel stores only what fits its capacities
+ * and counts everything: a count above a capacity is an overflow, seen by the host. */
+#define VF_SDF_MAX_LEVELS 9
+#define VF_SDF_COUNT_VERTICES 9
+#define VF_SDF_COUNT_VOXELS 10
+#define VF_SDF_COUNTERS 11
 
 /* Cell classes of the interval test. */
 #define VF_SDF_CELL_EMPTY 0u
