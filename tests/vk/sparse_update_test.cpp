@@ -5,7 +5,8 @@
 // image of a tracer freshly uploaded from the edited world (flat and lit, several cameras); so
 // does it through arena growth, with nodes and materials cut into several bindings, and where
 // the arena cannot fit (the whole upload it falls back to). Without a Vulkan device the tests
-// skip.
+// skip. The viewer's path too: edits on the OpenCL device (ocl::SparseField::apply_brush on
+// PoCL), the edited tiles read back (SparseField::world), the tracer updated from them.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -15,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "cl_test_util.hpp"
+#include "voxfield/cl/sparse_field.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/scenes.hpp"
@@ -256,6 +259,50 @@ TEST(SparseUpdate, SeveralBindingsAndTheWholeUploadFallback) {
         world, apply_brush(world, brush(BrushOp::place, BrushShape::cube, {100, 30, 90}, 40, 3)));
     EXPECT_TRUE(u.whole);
     expect_as_fresh(*ctx, tight, world, palette, "uploaded whole", binding);
+}
+
+TEST(SparseUpdate, DeviceEditsReadBackEqualAFreshUpload) {
+    REQUIRE_VULKAN(ctx);
+    SparseWorld world = city(Dims{260, 120, 230}, 4);
+    const Palette palette = Palette::dissertation();
+    ocl::GeneratorOptions options;
+    options.format = Format::u8;
+    options.max_distance = 6;
+    ocl::SparseField field(pocl(), world, palette, ocl::resolve_sparse_options(options, true));
+    field.run();
+    vk::SparseTracer tracer(*ctx);
+    tracer.upload(field.world(), palette);
+    // The same brushes again for the host-side check below (draws in a fixed order).
+    const auto brushes = [](std::uint64_t seed) {
+        std::mt19937_64 rng(seed);
+        std::uniform_int_distribution<std::int64_t> px(0, 259), py(0, 119), pz(0, 229),
+            radius(0, 9), op(0, 2);
+        std::vector<Brush> out;
+        for (int e = 0; e < 12; ++e) {
+            const auto o = static_cast<BrushOp>(op(rng));
+            const Int3 c{px(rng), py(rng), pz(rng)};
+            const std::int64_t r = radius(rng);
+            // Places in the air too (tiles made above the city), erases and paints.
+            out.push_back(brush(o, e % 3 == 0 ? BrushShape::cube : BrushShape::sphere, c, r,
+                                static_cast<std::uint8_t>(1 + e)));
+        }
+        return out;
+    };
+    int e = 0;
+    for (const Brush& b : brushes(8)) {
+        field.apply_brush(b);
+        const SparseWorld& edited = field.world();
+        tracer.update_tiles(edited, brush_bounds(b, edited.dims()));
+        if (++e % 4 == 0) {
+            expect_as_fresh(*ctx, tracer, edited, palette, "device edit " + std::to_string(e));
+        }
+    }
+    // The host world the tracer was updated from equals the host-side edits of the same brushes.
+    SparseWorld host = city(Dims{260, 120, 230}, 4);
+    for (const Brush& b : brushes(8)) {
+        apply_brush(host, b);
+    }
+    EXPECT_EQ(host.to_dense().voxels(), field.world().to_dense().voxels());
 }
 
 TEST(SparseUpdate, RefusesBeforeUploadAndOtherWorlds) {
