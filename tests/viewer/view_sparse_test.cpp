@@ -223,6 +223,7 @@ TEST_F(ViewSparse, WhatSparseWorldsRefuseExitsTwo) {
         {"view", "--scene", "city", "--world", "64", "--sparse", "--simulate", "--benchmark"},
         {"view", "--scene", "city", "--world", "64", "--sparse", "--benchmark", "--world-output",
          (dir_ / "w.npy").string()},
+        {"view", "--scene", "city", "--world", "64", "--sparse", "--benchmark", "--present", "gpu"},
         {"view", "--scene", "spheres", "--dims", "70000,8,70000", "--benchmark"},
         {"view", "--scene", "city", "--dims", "2000000,8,8", "--benchmark"}};
     for (const auto& args : refused) {

@@ -81,6 +81,11 @@ void check_sparse_options(const ViewCliOptions& o, const ViewInputs& in) {
     const std::pair<bool, const char*> refused[] = {{o.simulate, "--simulate"},
                                                     {!o.field_output.empty(), "--field-output"},
                                                     {!o.world_output.empty(), "--world-output"}};
+    if (o.present == "gpu") {
+        throw InputError(
+            "--present gpu: a sparse world's frames are read back and go through the "
+            "host (--present auto or host)");
+    }
     for (const auto& [given, what] : refused) {
         if (given) {
             throw InputError(std::string(what) +
@@ -321,6 +326,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
 
     std::unique_ptr<Screen> screen;
     if (window.handle() != nullptr) {
+        o.present = "host";  // the tracer's frames are read back (Screen says so)
         screen =
             std::make_unique<Screen>(window.handle(), *vk_ctx, o, validation, why_not_one_device);
     }

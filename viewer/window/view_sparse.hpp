@@ -21,8 +21,9 @@ bool view_goes_sparse(const ViewCliOptions& o);
 
 // The viewer's loop on a sparse world; `window` is open or the caller chose to run headless.
 // InputError (exit 2) for what sparse worlds do not take: --simulate, --field-output,
-// --world-output, parts (.sdf.json, mixed scenes), generated scenes other than city beyond one
-// dense array, and the script's algorithm, metric and scene selections, save and check.
+// --world-output, --present gpu, parts (.sdf.json, mixed scenes), generated scenes other than
+// city beyond one dense array, and the script's algorithm, metric and scene selections, save
+// and check.
 int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                     const std::shared_ptr<vk::ValidationLog>& validation);
 
