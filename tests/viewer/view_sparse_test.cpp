@@ -153,6 +153,26 @@ TEST_F(ViewSparse, EditedWindowEqualsRenderOfTheEditedWorld) {
     EXPECT_EQ(read_text(shot), read_text(rendered)) << "the window's frame differs from render's";
 }
 
+// The script's click at the crosshair places the brush aimed at on the sparse world (picking
+// through SparseWorld::at), a right click erases; the script's shading select applies.
+TEST_F(ViewSparse, ScriptedClicksEditTheSparseWorld) {
+    if (!have_xvfb()) {
+        GTEST_SKIP() << "xvfb-run is not installed (setup.sh installs it)";
+    }
+    const fs::path world = write_world(test_world(), dir_ / "world.npy");
+    const fs::path script = dir_ / "script.txt";
+    write_file(script, "1 select shading flat\n2 click left\n4 click right\n6 key F2\n7 quit\n");
+    const fs::path shot = dir_ / "shot.png";
+    const int code =
+        run_under_xvfb({"view", world.string(), "--sparse", "--script", script.string(), "--width",
+                        "200", "--height", "150", "--screenshot", shot.string()},
+                       io_ / "xvfb.log");
+    const std::string log = read_text(io_ / "xvfb.log");
+    ASSERT_EQ(code, 0) << log;
+    EXPECT_NE(log.find("frames:  8, edits 2"), std::string::npos) << log;
+    EXPECT_EQ(read_text(shot).substr(1, 3), "PNG");
+}
+
 TEST_F(ViewSparse, HeadlessBenchmarkOnTheCityRecordsEditsAndTiles) {
     const fs::path json = dir_ / "bench.json";
     const RunResult r =

@@ -32,9 +32,6 @@
 namespace voxfield::cli {
 namespace {
 
-// How far the brush aims (voxels along the ray).
-constexpr double kAimDistance = 4096;
-
 // The world to view and its name: INPUT read sparse, or the generated scene (the city tile by
 // tile; another scene dense, then converted, where it fits one array).
 struct SparseView {
@@ -126,108 +123,6 @@ Framing sparse_framing(const SparseWorld& world) {
         f.front = {0, 0, -1};
     }
     return f;
-}
-
-// The first solid voxel along the ray (pick.hpp's semantics: the face entered through), by an
-// Amanatides-Woo walk over the sparse world's voxels, within max_distance.
-std::optional<PickHit> pick_sparse(const SparseWorld& world, const Vec3d& origin, const Vec3d& dir,
-                                   double max_distance) {
-    const Dims d = world.dims();
-    const double size[3] = {double(d.x), double(d.y), double(d.z)};
-    double t0 = 0, t1 = max_distance;
-    int entry = -1;
-    for (int a = 0; a < 3; ++a) {
-        if (!std::isfinite(origin[a]) || !std::isfinite(dir[a])) {
-            return std::nullopt;
-        }
-        if (dir[a] == 0) {
-            if (origin[a] < 0 || origin[a] >= size[a]) {
-                return std::nullopt;
-            }
-            continue;
-        }
-        double lo = (0 - origin[a]) / dir[a], hi = (size[a] - origin[a]) / dir[a];
-        if (lo > hi) {
-            std::swap(lo, hi);
-        }
-        if (lo > t0) {
-            t0 = lo;
-            entry = a;
-        }
-        t1 = std::min(t1, hi);
-    }
-    if (!(t0 < t1)) {
-        return std::nullopt;
-    }
-    std::int64_t cell[3];
-    int step[3];
-    double t_max[3];
-    for (int a = 0; a < 3; ++a) {
-        step[a] = dir[a] > 0 ? 1 : (dir[a] < 0 ? -1 : 0);
-        auto c = static_cast<std::int64_t>(std::floor(origin[a] + t0 * dir[a]));
-        if (a == entry) {
-            c = step[a] > 0 ? 0 : static_cast<std::int64_t>(size[a]) - 1;
-        }
-        cell[a] = std::clamp<std::int64_t>(c, 0, static_cast<std::int64_t>(size[a]) - 1);
-    }
-    const auto crossing = [&](int a) {
-        if (step[a] == 0) {
-            return std::numeric_limits<double>::infinity();
-        }
-        return (double(cell[a] + (step[a] > 0 ? 1 : 0)) - origin[a]) / dir[a];
-    };
-    for (int a = 0; a < 3; ++a) {
-        t_max[a] = crossing(a);
-    }
-    Int3 normal{0, 0, 0};
-    if (entry >= 0) {
-        std::int64_t n[3] = {0, 0, 0};
-        n[entry] = -step[entry];
-        normal = {n[0], n[1], n[2]};
-    }
-    double t = t0;
-    while (true) {
-        if (world.at(static_cast<std::uint32_t>(cell[0]), static_cast<std::uint32_t>(cell[1]),
-                     static_cast<std::uint32_t>(cell[2])) != 0) {
-            return PickHit{{cell[0], cell[1], cell[2]}, normal, t};
-        }
-        int a = 0;
-        if (t_max[1] < t_max[a]) {
-            a = 1;
-        }
-        if (t_max[2] < t_max[a]) {
-            a = 2;
-        }
-        t = t_max[a];
-        if (!(t <= t1) || step[a] == 0) {
-            return std::nullopt;
-        }
-        cell[a] += step[a];
-        if (cell[a] < 0 || cell[a] >= static_cast<std::int64_t>(size[a])) {
-            return std::nullopt;
-        }
-        std::int64_t n[3] = {0, 0, 0};
-        n[a] = -step[a];
-        normal = {n[0], n[1], n[2]};
-        t_max[a] = crossing(a);
-    }
-}
-
-std::optional<Brush> aim_sparse(const SparseWorld& world, const ViewCamera& camera,
-                                const ViewControls& controls, const InputActions& actions) {
-    if (!actions.aim) {
-        return std::nullopt;
-    }
-    const Aim& aim = *actions.aim;
-    const Vec3d dir = pixel_direction(camera.forward(), camera.settings.fov_deg, aim.width,
-                                      aim.height, aim.x, aim.y);
-    const auto hit = pick_sparse(world, camera.position(), dir, kAimDistance);
-    if (!hit) {
-        return std::nullopt;
-    }
-    const Tool tool =
-        actions.right ? Tool::erase : (controls.paint_mode ? Tool::paint : Tool::place);
-    return brush_for_pick(tool, controls.brush, *hit);
 }
 
 // The benchmark's brush on the surface: the protocol's sphere (RandomEdits), its centre moved
@@ -397,7 +292,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                 std::cout << "sparse worlds keep no undo history and are not saved by the viewer "
                              "(`voxfield generate` writes .vdb)\n";
             }
-            preview = aim_sparse(world, camera, controls, a);
+            preview = aimed_brush(world, camera, controls, a);
             // A held button strokes: every frame whose aimed brush differs adds it.
             if ((a.left || a.right) && preview && preview != last_stroke) {
                 batch.push_back(*preview);
