@@ -172,8 +172,7 @@ bool view_goes_sparse(const ViewCliOptions& o) {
         return true;
     }
     if (!o.input.empty()) {
-        return !sdf::is_sdf_path(o.input) && !scene::is_scene_path(o.input) &&
-               needs_sparse(o.input, "");
+        return needs_sparse(o.input, "");  // render's and generate's rule
     }
     return view_dims(o).count() > kSparseAutoVoxels;
 }
