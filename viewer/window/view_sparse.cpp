@@ -3,9 +3,7 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <iostream>
-#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -21,12 +19,10 @@
 #include "voxfield/cl/sparse_field.hpp"
 #include "voxfield/core/clock.hpp"
 #include "voxfield/core/error.hpp"
-#include "voxfield/core/pick.hpp"
 #include "voxfield/core/scene_file.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/sdf.hpp"
 #include "voxfield/core/sparse.hpp"
-#include "voxfield/core/undo.hpp"
 #include "voxfield/vk/sparse_tracer.hpp"
 
 namespace voxfield::cli {
