@@ -171,6 +171,14 @@ TEST_F(ViewSparse, ScriptedClicksEditTheSparseWorld) {
     ASSERT_EQ(code, 0) << log;
     EXPECT_NE(log.find("frames:  8, edits 2"), std::string::npos) << log;
     EXPECT_EQ(read_text(shot).substr(1, 3), "PNG");
+
+    // What a sparse world does not take from a script: one line, exit 2.
+    write_file(script, "1 click left\n3 select algorithm fim\n");
+    EXPECT_EQ(run_under_xvfb({"view", world.string(), "--sparse", "--script", script.string()},
+                             io_ / "refused.log"),
+              2);
+    EXPECT_NE(read_text(io_ / "refused.log").find("--script line 2"), std::string::npos)
+        << read_text(io_ / "refused.log");
 }
 
 TEST_F(ViewSparse, HeadlessBenchmarkOnTheCityRecordsEditsAndTiles) {

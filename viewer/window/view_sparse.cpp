@@ -70,7 +70,7 @@ SparseView load_sparse_view(const ViewCliOptions& o) {
 }
 
 // What sparse worlds do not take, refused before any device is opened.
-void check_sparse_options(const ViewCliOptions& o, const ViewInputs& in) {
+void check_sparse_options(const ViewCliOptions& o) {
     const std::pair<bool, const char*> refused[] = {{o.simulate, "--simulate"},
                                                     {!o.field_output.empty(), "--field-output"},
                                                     {!o.world_output.empty(), "--world-output"}};
@@ -86,18 +86,15 @@ void check_sparse_options(const ViewCliOptions& o, const ViewInputs& in) {
                              "`voxfield generate` for its field)");
         }
     }
-    if (in.script) {
-        ViewScript copy = *in.script;
-        for (std::uint64_t f = 0; f < copy.end_frame(); ++f) {
-            for (const ScriptAction& a : copy.begin_frame(f)) {
-                const bool selects_field = a.kind == ScriptAction::Kind::select &&
-                                           a.what != "shading" && a.what != "colour";
-                if (selects_field || a.kind == ScriptAction::Kind::save ||
-                    a.kind == ScriptAction::Kind::check) {
-                    throw InputError("--script line " + std::to_string(a.line) +
-                                     ": a sparse world takes the script's keys, mouse, shading, "
-                                     "colour and quit only");
-                }
+    if (!o.script.empty()) {
+        for (const ScriptAction& a : read_view_script(o.script)) {
+            const bool selects_field =
+                a.kind == ScriptAction::Kind::select && a.what != "shading" && a.what != "colour";
+            if (selects_field || a.kind == ScriptAction::Kind::save ||
+                a.kind == ScriptAction::Kind::check) {
+                throw InputError("--script line " + std::to_string(a.line) +
+                                 ": a sparse world takes the script's keys, mouse, shading, "
+                                 "colour and quit only");
             }
         }
     }
@@ -175,7 +172,7 @@ bool view_goes_sparse(const ViewCliOptions& o) {
 
 int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                     const std::shared_ptr<vk::ValidationLog>& validation) {
-    check_sparse_options(o, in);
+    check_sparse_options(o);
     const ocl::GeneratorOptions options = ocl::resolve_sparse_options(
         generator_options(o.gen, parse_format(view_format(o, true)), Dims{1, 1, 1}), true);
     std::optional<ViewScript> script_state = in.script;  // played here (in is the checked copy)
