@@ -261,6 +261,38 @@ TEST(SparseUpdate, SeveralBindingsAndTheWholeUploadFallback) {
     expect_as_fresh(*ctx, tight, world, palette, "uploaded whole", binding);
 }
 
+TEST(SparseUpdate, LongSequenceWithSmallBindings) {
+    REQUIRE_VULKAN(ctx);
+    // Bindings of a third of the materials: the arena is remade often and, once its live trees
+    // outgrow a binding, the world is uploaded whole and the arena starts again.
+    SparseWorld world = city(Dims{300, 150, 270}, 55);
+    const Palette palette = Palette::magicavoxel_default();
+    const std::uint64_t binding =
+        std::max<std::uint64_t>(kTileVoxels, world.materials().size() / 3) / 8 * 8 + 8;
+    vk::SparseTracer tracer(*ctx, binding);
+    tracer.upload(world, palette);
+    ASSERT_LT(tracer.stats().material_chunks, std::uint32_t{VF_SPARSE_MAX_MATERIAL_CHUNKS});
+    std::mt19937_64 rng(21);
+    std::uniform_int_distribution<std::int64_t> px(0, 299), py(0, 149), pz(0, 269), radius(0, 40),
+        op(0, 2);
+    int rebuilt = 0, whole = 0;
+    for (int e = 0; e < 48; ++e) {
+        const auto o = static_cast<BrushOp>(op(rng));
+        const Int3 c{px(rng), py(rng), pz(rng)};
+        const std::int64_t r = radius(rng);
+        const vk::SparseTileUpdate u = tracer.update_tiles(
+            world, apply_brush(world, brush(o, BrushShape::cube, c, r,
+                                            static_cast<std::uint8_t>(1 + e % 200))));
+        rebuilt += u.arena_rebuilt ? 1 : 0;
+        whole += u.whole ? 1 : 0;
+        if (e % 12 == 11) {
+            expect_as_fresh(*ctx, tracer, world, palette, "edit " + std::to_string(e), binding);
+        }
+    }
+    EXPECT_GE(rebuilt, 2);
+    EXPECT_GE(whole, 1);
+}
+
 TEST(SparseUpdate, DeviceEditsReadBackEqualAFreshUpload) {
     REQUIRE_VULKAN(ctx);
     SparseWorld world = city(Dims{260, 120, 230}, 4);
