@@ -5,7 +5,7 @@
 // headless (same loop, no window). The loop here wires the pieces: the options
 // (view_options), the window and presenter (view_window), the input mapping (view_input), the
 // session's state and edits (view_session), the overlay (view_overlay) and the benchmark's
-// records (view_benchmark).
+// records (view_benchmark). Sparse worlds take their own loop (view_sparse).
 #include <chrono>
 #include <ctime>
 #include <filesystem>
@@ -23,6 +23,7 @@
 #include "view_options.hpp"
 #include "view_overlay.hpp"
 #include "view_session.hpp"
+#include "view_sparse.hpp"
 #include "view_window.hpp"
 #include "voxfield/core/clock.hpp"
 #include "voxfield/core/npy.hpp"
@@ -72,9 +73,7 @@ ViewWorld load_view_world(const ViewCliOptions& o) {
         w.model = load_world(o.input, InputOptions{.grid = {}, .palette_values = true});
         w.name = o.input;
     } else {
-        const Dims dims = !o.dims.empty() ? parse_dims(o.dims)
-                                          : Dims{o.world ? o.world : 128, o.world ? o.world : 128,
-                                                 o.world ? o.world : 128};
+        const Dims dims = view_dims(o);
         w.model.world = make_scene(o.scene, dims, o.scene_seed);
         w.name = "scene " + o.scene;
     }
@@ -159,9 +158,13 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     if (window.handle() == nullptr && !go_headless(o, script != nullptr, window.why_none())) {
         return no_display(window.why_none());
     }
+    if (view_goes_sparse(o)) {
+        return run_view_sparse(o, in, window, validation);
+    }
     ViewWorld world = load_view_world(o);
     const Dims dims = world.model.world.dims();
-    const ocl::GeneratorOptions gopts = generator_options(o.gen, parse_format(o.format), dims);
+    const ocl::GeneratorOptions gopts =
+        generator_options(o.gen, parse_format(view_format(o, false)), dims);
     ocl::Context cl_ctx(ocl::select_device(o.device));
     std::string why_not_one_device;
     const std::unique_ptr<vk::Context> vk_ctx =

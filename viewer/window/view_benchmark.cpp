@@ -139,4 +139,126 @@ void report_benchmark(const ViewCliOptions& o, const BenchmarkSetup& setup,
     }
 }
 
+void report_sparse_benchmark(const ViewCliOptions& o, const BenchmarkSetup& setup,
+                             const nlohmann::json& world, const vk::RenderOptions& ropts,
+                             const std::vector<FrameRecord>& records,
+                             const std::vector<SparseEditRecord>& edits) {
+    std::vector<double> frame_ms, edit_frame_ms, march_ms, wall, kernel, readback, tracer;
+    for (const FrameRecord& r : records) {
+        frame_ms.push_back(r.frame_ms);
+        if (r.edit) {
+            edit_frame_ms.push_back(r.frame_ms);
+        }
+        if (r.raymarch_ms >= 0) {
+            march_ms.push_back(r.raymarch_ms);
+        }
+    }
+    std::uint64_t written = 0, removed = 0, whole = 0;
+    for (const SparseEditRecord& e : edits) {
+        if (!e.bench) {
+            continue;
+        }
+        wall.push_back(e.wall_ms);
+        kernel.push_back(e.field_kernel_ms);
+        readback.push_back(e.readback_ms);
+        tracer.push_back(e.tracer_ms);
+        written += e.tiles_written;
+        removed += e.tiles_removed;
+        whole += e.tracer_whole ? 1 : 0;
+    }
+    const Summary sf = summarize(frame_ms), sef = summarize(edit_frame_ms),
+                  sm = summarize(march_ms), sw = summarize(wall), sk = summarize(kernel),
+                  sr = summarize(readback), st = summarize(tracer);
+    std::cout << "benchmark: sparse, seed " << o.seed << ", an edit every " << o.interval_ms
+              << " ms for " << o.duration_s << " s, " << records.size() << " frames, "
+              << wall.size() << " edits (" << written << " tiles written, " << removed
+              << " removed in the tracer"
+              << (whole ? ", " + std::to_string(whole) + " whole uploads" : "") << "), "
+              << ropts.width << "x" << ropts.height
+              << (setup.present ? ", present " + vk::to_string(*setup.present)
+                                : std::string(", headless"))
+              << '\n';
+    print_summary("frame (incl. edits)", sf);
+    print_summary("frame with an edit", sef);
+    print_summary("edit (wall: device edit, field, read-back, tracer)", sw);
+    print_summary("edit field kernels (device)", sk);
+    print_summary("edited tiles read back", sr);
+    print_summary("tracer tile update", st);
+    print_summary("trace", sm);
+    if (sf.mean > 0) {
+        std::cout << "  mean FPS " << fixed(1000.0 / sf.mean, 1) << '\n';
+    }
+    if (!o.json.empty()) {
+        nlohmann::json j;
+        j["device"] = device_json(setup.opencl);
+        j["vulkan"] = setup.vulkan;
+        j["commit"] = commit();
+        j["date"] = utc_now();
+        j["world"] = world.at("dims");
+        j["source"] = setup.world_name;
+        j["algorithm"] = "exact (sparse tiles)";
+        j["seed"] = o.seed;
+        j["interval_ms"] = o.interval_ms;
+        j["duration_s"] = o.duration_s;
+        j["image"] = {ropts.width, ropts.height};
+        j["shading"] = ropts.shading == vk::Shading::lit ? "lit" : "flat";
+        j["present"] = setup.present ? vk::to_string(*setup.present) : "headless";
+        j["sparse"] = world;
+        j["summary"] = {{"frame", summary_json(sf)},
+                        {"edit_frame", summary_json(sef)},
+                        {"edit", summary_json(sw)},
+                        {"field_update", summary_json(sw)},
+                        {"edit_field_kernels", summary_json(sk)},
+                        {"readback", summary_json(sr)},
+                        {"tracer_update", summary_json(st)},
+                        {"raymarch", summary_json(sm)}};
+        j["fps_mean"] = sf.mean > 0 ? 1000.0 / sf.mean : 0.0;
+        j["tiles_written"] = written;
+        j["tiles_removed"] = removed;
+        j["tracer_whole_uploads"] = whole;
+        nlohmann::json frames = nlohmann::json::array();
+        for (const FrameRecord& r : records) {
+            frames.push_back({{"time_s", r.time_s},
+                              {"frame_ms", r.frame_ms},
+                              {"update_ms", r.update_ms},
+                              {"raymarch_ms", r.raymarch_ms},
+                              {"edit", r.edit}});
+        }
+        j["frames"] = frames;
+        nlohmann::json list = nlohmann::json::array();
+        for (const SparseEditRecord& e : edits) {
+            const Brush& b = e.brush;
+            list.push_back({{"time_s", e.time_s},
+                            {"benchmark", e.bench},
+                            {"op", to_string(b.op)},
+                            {"shape", to_string(b.shape)},
+                            {"centre", {b.centre.x, b.centre.y, b.centre.z}},
+                            {"radius", b.radius},
+                            {"material", b.material},
+                            {"wall_ms", e.wall_ms},
+                            {"field_kernel_ms", e.field_kernel_ms},
+                            {"edit_kernel_ms", e.edit_kernel_ms},
+                            {"readback_ms", e.readback_ms},
+                            {"tracer_ms", e.tracer_ms},
+                            {"field_tiles", e.field_tiles},
+                            {"tiles_written", e.tiles_written},
+                            {"tiles_removed", e.tiles_removed},
+                            {"tracer_bytes", e.tracer_bytes},
+                            {"tracer_whole", e.tracer_whole}});
+        }
+        j["edits"] = list;
+        write_json_file(o.json, j);
+    }
+    if (!o.csv.empty()) {
+        std::ostringstream csv;
+        csv << "frame,time_s,edit,frame_ms,update_ms,raymarch_ms\n";
+        for (std::size_t i = 0; i < records.size(); ++i) {
+            const FrameRecord& r = records[i];
+            csv << i << ',' << r.time_s << ',' << (r.edit ? 1 : 0) << ',' << r.frame_ms << ','
+                << r.update_ms << ',' << r.raymarch_ms << '\n';
+        }
+        write_text_file(o.csv, csv.str());
+    }
+}
+
 }  // namespace voxfield::cli

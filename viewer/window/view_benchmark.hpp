@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "edit_log.hpp"
 #include "view_options.hpp"
 #include "voxfield/cl/runtime.hpp"
@@ -56,5 +58,27 @@ struct BenchmarkSetup {
 void report_benchmark(const ViewCliOptions& o, const BenchmarkSetup& setup,
                       const pipeline::FramePipeline& session, const vk::RenderOptions& r,
                       const std::vector<FrameRecord>& records, const EditLog& log);
+
+// One edit of the sparse viewer (view_sparse), the benchmark's or any other.
+struct SparseEditRecord {
+    Brush brush;
+    double time_s = 0;
+    bool bench = false;  // the protocol's
+    // Wall time in all (device edit and field update, read-back, tracer update), the field's
+    // kernels (edit_kernel_ms of them the edit's), the edited tiles' read-back into the host
+    // world, the tracer's tile update.
+    double wall_ms = 0, field_kernel_ms = 0, edit_kernel_ms = 0, readback_ms = 0, tracer_ms = 0;
+    std::uint32_t field_tiles = 0;                       // field tiles written
+    std::uint32_t tiles_written = 0, tiles_removed = 0;  // the tracer's
+    std::uint64_t tracer_bytes = 0;                      // copied to the tracer's device
+    bool tracer_whole = false;                           // the tracer uploaded the world whole
+};
+
+// The sparse viewer's benchmark: prints the summary and writes --json (`world`: the sparse
+// world's keys, put under "sparse") and --csv.
+void report_sparse_benchmark(const ViewCliOptions& o, const BenchmarkSetup& setup,
+                             const nlohmann::json& world, const vk::RenderOptions& r,
+                             const std::vector<FrameRecord>& records,
+                             const std::vector<SparseEditRecord>& edits);
 
 }  // namespace voxfield::cli

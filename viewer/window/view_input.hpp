@@ -6,11 +6,14 @@
 // frame they go down (edges), movement keys while held.
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <set>
 
 #include "view_script.hpp"
 #include "voxfield/core/camera.hpp"
+#include "voxfield/core/pick.hpp"
+#include "voxfield/core/sparse.hpp"
 #include "voxfield/core/undo.hpp"
 #include "voxfield/core/world.hpp"
 
@@ -88,6 +91,17 @@ class InputMapper {
 // mode paints, else the brush places in front of the face aimed at. None without an aim or a
 // solid voxel under it.
 std::optional<Brush> aimed_brush(const World& world, const ViewCamera& camera,
+                                 const ViewControls& controls, const InputActions& actions);
+
+// How far the brush aims on a sparse world (voxels along the ray).
+inline constexpr double kSparseAimDistance = 4096;
+// pick_voxel (core/pick.hpp) on a sparse world: the same hit, face and distance for the same
+// voxels, by the same double-precision Amanatides & Woo walk over SparseWorld::at.
+std::optional<PickHit> pick_sparse_voxel(
+    const SparseWorld& world, const Vec3d& origin, const Vec3d& direction,
+    double max_distance = std::numeric_limits<double>::infinity());
+// aimed_brush on a sparse world (the sparse viewer), aiming at most kSparseAimDistance voxels.
+std::optional<Brush> aimed_brush(const SparseWorld& world, const ViewCamera& camera,
                                  const ViewControls& controls, const InputActions& actions);
 
 // Mouse strokes: from a button going down until both are up, one undoable stroke; while a

@@ -62,9 +62,13 @@ void add_view_options(CLI::App& app, ViewCliOptions& o) {
     // from these; the signed and float formats are generate's).
     app.add_option("--format", o.format,
                    "Field format: u8, u16, u32 (distance rounded down, saturated) or packed32 "
-                   "((min(d,255)<<8)|rgb332)")
-        ->check(CLI::IsMember({"u8", "u16", "u32", "packed32"}))
-        ->capture_default_str();
+                   "((min(d,255)<<8)|rgb332); default u16, sparse worlds u8")
+        ->check(CLI::IsMember({"u8", "u16", "u32", "packed32"}));
+    app.add_flag("--sparse", o.sparse,
+                 "View the world as a tile grid of 64-trees (traced through them, edited on the "
+                 "OpenCL device with its bounded field: --max-distance, default 16); automatic "
+                 "for inputs `render` takes sparse and generated worlds over 2^31 voxels. "
+                 "`--scene city` is generated tile by tile, never as one dense array");
     app.add_option("--field-output", o.field_output,
                    "Write the final distance field (in --format, as `generate` writes it) at exit");
     app.add_option("--world-output", o.world_output, "Write the final world (.npy) at exit");
@@ -97,6 +101,18 @@ void add_view_options(CLI::App& app, ViewCliOptions& o) {
         keys << "  " << std::left << std::setw(22) << k[0] << k[1] << '\n';
     }
     app.footer(keys.str());
+}
+
+Dims view_dims(const ViewCliOptions& o) {
+    if (!o.dims.empty()) {
+        return parse_dims(o.dims);
+    }
+    const std::uint32_t n = o.world != 0 ? o.world : 128;
+    return Dims{n, n, n};
+}
+
+std::string view_format(const ViewCliOptions& o, bool sparse) {
+    return !o.format.empty() ? o.format : sparse ? "u8" : "u16";
 }
 
 ViewInputs check_view_options(ViewCliOptions& o) {

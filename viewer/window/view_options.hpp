@@ -25,10 +25,17 @@ struct ViewCliOptions {
     std::uint64_t seed = 6683787;
     double interval_ms = 200, duration_s = 30;
     std::string json, csv;
-    std::string format = "u16", fallback_png, window_screenshot, present = "auto";
+    // format: empty for the default (u16; sparse worlds u8, as `bench --suite sparse`).
+    std::string format, fallback_png, window_screenshot, present = "auto";
     bool validate = false;
     bool simulate = false;  // --simulate: falling sand and water every frame
+    bool sparse = false;    // --sparse: the world as a tile grid of 64-trees (view_sparse)
 };
+
+// The dims of the generated world: --dims, else --world N cubed, else 128^3.
+Dims view_dims(const ViewCliOptions& o);
+// The field format asked for, or the default (u16 for dense worlds, u8 for sparse ones).
+std::string view_format(const ViewCliOptions& o, bool sparse);
 
 // The keys in the window, for F1 and --help: the keys and what they do.
 inline constexpr const char* kViewKeys[][2] = {

@@ -252,8 +252,7 @@ void Overlay::full_panel(ViewState& s, const pipeline::FramePipeline& session,
         "brush: %s %s, size %lld, colour %d  (%s)", s.controls.paint_mode ? "paint" : "place",
         to_string(s.controls.brush.shape).c_str(), static_cast<long long>(s.controls.brush.size),
         s.controls.brush.material, s.camera.mode() == ViewCamera::Mode::orbit ? "orbit" : "fly");
-    ImGui::Text("undo %zu, redo %zu. F1: keys", s.history().undo_count(),
-                s.history().redo_count());
+    ImGui::Text("undo %zu, redo %zu. F1: keys", s.history().undo_count(), s.history().redo_count());
     if (ImGui::CollapsingHeader("palette")) {
         const Palette& pal = session.palette();
         for (int m = 1; m < 256; ++m) {
@@ -278,6 +277,91 @@ void Overlay::full_panel(ViewState& s, const pipeline::FramePipeline& session,
     }
     ImGui::PopTextWrapPos();
     ImGui::End();
+}
+
+namespace {
+
+double mib(std::uint64_t bytes) {
+    return double(bytes) / double(1 << 20);
+}
+
+}  // namespace
+
+void draw_sparse_overlay(const SparseOverlayInfo& info, ViewControls& controls,
+                         const ViewCamera& camera, const std::optional<Brush>& preview,
+                         vk::RenderOptions& render, const Palette& palette, std::uint32_t fb_width,
+                         std::uint32_t fb_height) {
+    const ImGuiIO& io = ImGui::GetIO();
+    ImDrawList* fg = ImGui::GetForegroundDrawList();
+    const ImVec2 c(io.DisplaySize.x / 2, io.DisplaySize.y / 2);
+    fg->AddLine(ImVec2(c.x - 8, c.y), ImVec2(c.x + 9, c.y), IM_COL32(255, 255, 255, 220), 2);
+    fg->AddLine(ImVec2(c.x, c.y - 8), ImVec2(c.x, c.y + 9), IM_COL32(255, 255, 255, 220), 2);
+    if (preview && fb_width > 0 && fb_height > 0) {
+        draw_brush_preview(fg, *preview, camera, fb_width, fb_height, io.DisplaySize, palette);
+    }
+    ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_Always);
+    ImGui::SetNextWindowBgAlpha(0.5f);
+    ImGuiWindowFlags flags = ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize |
+                             ImGuiWindowFlags_NoSavedSettings |
+                             ImGuiWindowFlags_NoFocusOnAppearing | ImGuiWindowFlags_NoNav;
+    if (!controls.full_panel) {
+        flags |= ImGuiWindowFlags_NoInputs;
+    }
+    ImGui::Begin("##sparse", nullptr, flags);
+    ImGui::Text("%.1f FPS  frame %.2f  trace %.3f ms",
+                info.frame_ms > 0 ? 1000.0 / info.frame_ms : 0.0, info.frame_ms, info.trace_ms);
+    ImGui::Text("sparse world: %s %s", info.world.c_str(), info.dims.to_string().c_str());
+    ImGui::Text("  %u tiles of 64^3 stored (%.3g voxels), %.3g solid, 64-trees %.1f MiB",
+                info.tiles, double(info.tiles) * double(kTileVoxels), double(info.solid),
+                mib(info.world_bytes));
+    ImGui::Text("  field: exact, bounded at %g, %s, %u tiles with values, %.1f MiB",
+                info.max_distance, info.format.c_str(), info.field_tiles, mib(info.field_bytes));
+    ImGui::Text("  tracer: %.1f MiB on the device; edit arena %u tiles, %.1f of %.1f MiB",
+                mib(info.tracer.bytes), info.tracer.arena_tiles,
+                mib(info.tracer.arena_nodes * 12 + info.tracer.arena_material_bytes),
+                mib(info.tracer.arena_node_capacity * 12 + info.tracer.arena_material_capacity));
+    ImGui::Text(
+        "edit %llu: %.3f ms (field kernels %.3f, read-back %.3f, tracer %.3f), tiles "
+        "%u written, %u removed",
+        static_cast<unsigned long long>(info.edits), info.edit_ms, info.field_kernel_ms,
+        info.readback_ms, info.tracer_ms, info.tiles_written, info.tiles_removed);
+    ImGui::Text("brush: %s %s, size %lld, colour %d; no undo on sparse worlds",
+                controls.paint_mode ? "paint" : "place", to_string(controls.brush.shape).c_str(),
+                static_cast<long long>(controls.brush.size), controls.brush.material);
+    ImGui::Text("%s + %s; frames through the host; F1 keys, F2 widgets", info.vulkan.c_str(),
+                info.opencl.c_str());
+    if (controls.full_panel) {
+        int shading = render.shading == vk::Shading::lit ? 1 : 0;
+        const char* shadings[] = {"flat", "lit"};
+        if (ImGui::Combo("shading", &shading, shadings, 2)) {
+            set_shading(render, shading == 1 ? vk::Shading::lit : vk::Shading::flat);
+        }
+        for (int m = 1; m < 256; ++m) {
+            const Rgba rgb = palette[static_cast<std::uint8_t>(m)];
+            ImGui::PushID(m);
+            if (ImGui::ColorButton("##colour",
+                                   ImVec4(rgb.r / 255.0f, rgb.g / 255.0f, rgb.b / 255.0f, 1),
+                                   ImGuiColorEditFlags_NoAlpha, ImVec2(14, 14))) {
+                controls.brush.material = static_cast<std::uint8_t>(m);
+            }
+            ImGui::PopID();
+            if (m % 32 != 31) {
+                ImGui::SameLine(0, 2);
+            }
+        }
+        ImGui::NewLine();
+    }
+    ImGui::End();
+    if (controls.show_help) {
+        ImGui::SetNextWindowPos(ImVec2(io.DisplaySize.x / 2, io.DisplaySize.y / 2),
+                                ImGuiCond_Always, ImVec2(0.5f, 0.5f));
+        ImGui::Begin("keys (F1)", &controls.show_help, ImGuiWindowFlags_AlwaysAutoResize);
+        for (const auto& k : kViewKeys) {
+            ImGui::Text("%-20s %s", k[0], k[1]);
+        }
+        ImGui::End();
+    }
+    ImGui::Render();
 }
 
 }  // namespace voxfield::cli

@@ -12,6 +12,7 @@
 
 #include "view_session.hpp"
 #include "voxfield/vk/present.hpp"
+#include "voxfield/vk/sparse_tracer.hpp"
 
 namespace voxfield::cli {
 
@@ -47,5 +48,30 @@ class Overlay {
     std::vector<std::string> scenes_;                          // the scene combo's entries
     std::deque<float> hist_frame_, hist_update_, hist_march_;  // the last 120 frames
 };
+
+// What the sparse viewer's overlay shows (view_sparse): the world as stored, its field, the
+// tracer's device copy, the last frame's and edit's times, the devices.
+struct SparseOverlayInfo {
+    std::string world, vulkan, opencl, format;
+    Dims dims;
+    std::uint32_t tiles = 0, field_tiles = 0;
+    std::uint64_t solid = 0, world_bytes = 0, field_bytes = 0;
+    double max_distance = 0;
+    vk::SparseDeviceStats tracer;
+    double frame_ms = 0, trace_ms = -1;
+    // The last edit: wall time in all, the field's kernels, the tiles' read-back, the tracer's
+    // update, and the tiles it wrote and removed.
+    double edit_ms = 0, field_kernel_ms = 0, readback_ms = 0, tracer_ms = 0;
+    std::uint32_t tiles_written = 0, tiles_removed = 0;
+    std::uint64_t edits = 0;
+};
+
+// The sparse viewer's overlay (ImGui::Render included): crosshair and brush preview as on dense
+// worlds, a box that takes no input with the above (F2 adds the shading and palette widgets,
+// which change `render` and the brush's colour), and the keys (F1).
+void draw_sparse_overlay(const SparseOverlayInfo& info, ViewControls& controls,
+                         const ViewCamera& camera, const std::optional<Brush>& preview,
+                         vk::RenderOptions& render, const Palette& palette, std::uint32_t fb_width,
+                         std::uint32_t fb_height);
 
 }  // namespace voxfield::cli

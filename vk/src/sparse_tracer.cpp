@@ -10,6 +10,7 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -84,6 +85,17 @@ std::string mib(std::uint64_t bytes) {
     return std::to_string(bytes >> 20) + " MiB";
 }
 
+// The edit arena's first capacity: nodes (about 60 worst-case tiles) and material bytes.
+constexpr std::uint64_t kArenaNodes = std::uint64_t{1} << 18;
+constexpr std::uint64_t kArenaMaterials = std::uint64_t{16} << 20;
+
+// A tile whose tree lives in the edit arena: its key, nodes and materials there.
+struct ArenaTile {
+    std::uint64_t key = 0;
+    std::uint64_t node_at = 0, material_at = 0;
+    std::uint32_t nodes = 0, materials = 0;
+};
+
 }  // namespace
 
 Camera default_camera(const SparseWorld& world, std::uint32_t width, std::uint32_t height,
@@ -127,6 +139,28 @@ struct SparseTracer::Impl {
     Buffer palette, block_table, pages, records, counters;
     std::vector<Buffer> masks, offsets, materials;
     SparseDeviceStats stats;
+    std::array<std::uint32_t, 256> colours{};
+
+    // The directory as on the device (update_tiles changes both): block table, pages (pages
+    // in use and freed ones), records (in use and freed), the stored tiles per page, and the
+    // device buffers' capacities (records, pages).
+    std::vector<std::uint32_t> host_blocks, host_pages, host_records, page_fill;
+    std::vector<std::uint32_t> free_records, free_pages;
+    std::uint64_t record_capacity = 0, page_capacity = 0;
+    // The edit arena: the node chunk and material chunk after the upload's (none: -1), their
+    // capacity and use, and the tiles whose trees live there by record.
+    bool arena_room = false;
+    int arena_nodes_chunk = -1, arena_materials_chunk = -1;
+    std::uint64_t arena_node_cap = 0, arena_node_used = 0, arena_mat_cap = 0, arena_mat_used = 0;
+    std::unordered_map<std::uint32_t, ArenaTile> arena;
+    // Copies staged for one submission: into dst at `at` from the staging bytes at `from`.
+    struct Copy {
+        VkBuffer dst;
+        VkDeviceSize at, size, from;
+    };
+    std::vector<std::uint8_t> staged;
+    std::vector<Copy> copies;
+    Buffer staging;
 
     OffscreenTarget target;
 
@@ -139,12 +173,27 @@ struct SparseTracer::Impl {
                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                             MemoryIntent::device_local, what);
         ctx.upload(b, data, data_bytes);
-        stats.bytes += b.size();
         return b;
     }
+    void upload_all(const SparseWorld& world);
+    void stage(const Buffer& dst, VkDeviceSize at, const void* data, VkDeviceSize size);
+    void flush(const std::string& what);
+    void count_bytes();
+    std::uint64_t block_of(const Int3& c) const;
+    std::uint32_t& page_entry(std::uint32_t page, const Int3& c);
+    // Makes the arena hold `nodes` and `materials` more, writing its live tiles (except
+    // `dropping`, about to be rewritten) again into fresh buffers when it must grow; false
+    // when it cannot (no chunk binding left, or more than one binding).
+    bool arena_fit(const SparseWorld& world, std::uint64_t nodes, std::uint64_t material_bytes,
+                   const std::vector<std::uint32_t>& dropping, bool& rebuilt);
+    // Appends tile t's tree to the arena; its record's node and material fields.
+    ArenaTile arena_write(const SparseWorld& world, std::uint32_t t, std::uint64_t key);
+    void record_arena(std::uint32_t record, const ArenaTile& a);
     void write_set();
     VkPipeline pipeline_for(bool shadows, bool count, bool one_node_chunk, bool one_material_chunk);
     void prepare_target(std::uint32_t width, std::uint32_t height);
+    // Traces one image; reads it back into `out` unless null. Returns the GPU time (ms, -1).
+    double dispatch(const RenderOptions& o, Image* out);
 };
 
 SparseTracer::SparseTracer(Context& ctx, std::uint64_t max_binding_bytes) {
@@ -186,6 +235,14 @@ const SparseDeviceStats& SparseTracer::stats() const {
 
 void SparseTracer::upload(const SparseWorld& world, const Palette& palette) {
     Impl& m = *impl_;
+    for (std::size_t i = 0; i < m.colours.size(); ++i) {
+        m.colours[i] = pack_rgba(palette[static_cast<std::uint8_t>(i)]);
+    }
+    m.upload_all(world);
+}
+
+void SparseTracer::Impl::upload_all(const SparseWorld& world) {
+    Impl& m = *this;
     m.ctx.wait_frames_in_flight();  // renders wait for their work; nothing reads the buffers
     m.loaded = false;
     m.stats = SparseDeviceStats{};
@@ -200,21 +257,25 @@ void SparseTracer::upload(const SparseWorld& world, const Palette& palette) {
                          mib(m.limit) + ")");
     }
     // The directory: a page of tile indices per block that holds a stored tile.
-    std::vector<std::uint32_t> block_table(static_cast<std::size_t>(block_count), VF_SPARSE_NONE);
-    std::vector<std::uint32_t> pages;
+    std::vector<std::uint32_t>& table = m.host_blocks;
+    std::vector<std::uint32_t>& pg = m.host_pages;
+    table.assign(static_cast<std::size_t>(block_count), VF_SPARSE_NONE);
+    pg.clear();
+    m.page_fill.clear();
+    m.free_pages.clear();
+    m.free_records.clear();
+    m.arena.clear();
     for (std::uint32_t t = 0; t < world.tile_count(); ++t) {
         const Int3 c = world.tile_coord(t);
-        const auto b = static_cast<std::size_t>(
-            (std::uint64_t(c.z / bt) * m.blocks[1] + std::uint64_t(c.y / bt)) * m.blocks[0] +
-            std::uint64_t(c.x / bt));
-        if (block_table[b] == VF_SPARSE_NONE) {
-            block_table[b] = static_cast<std::uint32_t>(pages.size() / kPageTiles);
-            pages.resize(pages.size() + kPageTiles, VF_SPARSE_NONE);
+        const auto b = static_cast<std::size_t>(m.block_of(c));
+        if (table[b] == VF_SPARSE_NONE) {
+            table[b] = static_cast<std::uint32_t>(pg.size() / kPageTiles);
+            pg.resize(pg.size() + kPageTiles, VF_SPARSE_NONE);
+            m.page_fill.push_back(0);
         }
-        const std::uint64_t local =
-            (std::uint64_t(c.z % bt) * bt + std::uint64_t(c.y % bt)) * bt + std::uint64_t(c.x % bt);
-        pages[std::size_t{block_table[b]} * kPageTiles + local] = t;
-        if (pages.size() * 4 > m.limit) {
+        m.page_entry(table[b], c) = t;
+        ++m.page_fill[table[b]];
+        if (pg.size() * 4 > m.limit) {
             throw InputError("sparse tracer: the directory of the world's " +
                              std::to_string(world.tile_count()) +
                              " tiles exceeds one storage-buffer binding (" + mib(m.limit) + ")");
@@ -238,26 +299,30 @@ void SparseTracer::upload(const SparseWorld& world, const Palette& palette) {
                          std::to_string(VF_SPARSE_MAX_NODE_CHUNKS * (m.limit / 8)) + " nodes, " +
                          mib(VF_SPARSE_MAX_MATERIAL_CHUNKS * m.limit) + " of materials)");
     }
-    std::vector<std::uint32_t> records(std::size_t{world.tile_count()} * 4);
+    std::vector<std::uint32_t>& recs = m.host_records;
+    recs.assign(std::size_t{world.tile_count()} * 4, 0);
     for (std::uint32_t t = 0; t < world.tile_count(); ++t) {
-        records[4 * std::size_t{t}] =
+        recs[4 * std::size_t{t}] =
             static_cast<std::uint32_t>(world.node_bases()[t] - node_ranges[node_chunk[t]].begin);
-        records[4 * std::size_t{t} + 1] = static_cast<std::uint32_t>(
+        recs[4 * std::size_t{t} + 1] = static_cast<std::uint32_t>(
             world.material_bases()[t] - material_ranges[material_chunk[t]].begin);
-        records[4 * std::size_t{t} + 2] = node_chunk[t];
-        records[4 * std::size_t{t} + 3] = material_chunk[t];
+        recs[4 * std::size_t{t} + 2] = node_chunk[t];
+        recs[4 * std::size_t{t} + 3] = material_chunk[t];
     }
 
-    std::array<std::uint32_t, 256> colours{};
-    for (std::size_t i = 0; i < colours.size(); ++i) {
-        colours[i] = pack_rgba(palette[static_cast<std::uint8_t>(i)]);
-    }
-    m.palette = m.storage(sizeof colours, colours.data(), sizeof colours, "sparse palette");
-    m.block_table = m.storage(block_table.size() * 4, block_table.data(), block_table.size() * 4,
-                              "sparse block table");
-    m.pages = m.storage(pages.size() * 4, pages.data(), pages.size() * 4, "sparse tile pages");
+    m.palette = m.storage(sizeof m.colours, m.colours.data(), sizeof m.colours, "sparse palette");
+    m.block_table =
+        m.storage(table.size() * 4, table.data(), table.size() * 4, "sparse block table");
+    // Records and pages with room for the tiles and pages edits add (update_tiles).
+    const std::uint64_t page_count = pg.size() / kPageTiles;
+    m.page_capacity = std::min<std::uint64_t>(
+        page_count + std::max<std::uint64_t>(page_count / 4, 4), m.limit / (4 * kPageTiles));
+    m.pages =
+        m.storage(m.page_capacity * kPageTiles * 4, pg.data(), pg.size() * 4, "sparse tile pages");
+    m.record_capacity = std::min<std::uint64_t>(
+        world.tile_count() + std::max<std::uint64_t>(world.tile_count() / 4, 256), m.limit / 16);
     m.records =
-        m.storage(records.size() * 4, records.data(), records.size() * 4, "sparse tile records");
+        m.storage(m.record_capacity * 16, recs.data(), recs.size() * 4, "sparse tile records");
     m.masks.clear();
     m.offsets.clear();
     m.materials.clear();
@@ -274,13 +339,375 @@ void SparseTracer::upload(const SparseWorld& world, const Palette& palette) {
         m.materials.push_back(
             m.storage((n + 3) / 4 * 4, world.materials().data() + r.begin, n, "sparse materials"));
     }
+    m.arena_room = node_ranges.size() < VF_SPARSE_MAX_NODE_CHUNKS &&
+                   material_ranges.size() < VF_SPARSE_MAX_MATERIAL_CHUNKS;
+    m.arena_nodes_chunk = m.arena_materials_chunk = -1;
+    m.arena_node_cap = m.arena_node_used = m.arena_mat_cap = m.arena_mat_used = 0;
     m.stats.node_chunks = static_cast<std::uint32_t>(node_ranges.size());
     m.stats.material_chunks = static_cast<std::uint32_t>(material_ranges.size());
     m.stats.blocks = block_count;
-    m.stats.pages = pages.size() / kPageTiles;
     m.dims = world.dims();
+    m.count_bytes();
     m.loaded = true;
     m.write_set();
+}
+
+std::uint64_t SparseTracer::Impl::block_of(const Int3& c) const {
+    const std::uint32_t bt = VF_SPARSE_BLOCK_TILES;
+    return (std::uint64_t(c.z / bt) * blocks[1] + std::uint64_t(c.y / bt)) * blocks[0] +
+           std::uint64_t(c.x / bt);
+}
+
+std::uint32_t& SparseTracer::Impl::page_entry(std::uint32_t page, const Int3& c) {
+    const std::uint32_t bt = VF_SPARSE_BLOCK_TILES;
+    const std::uint64_t local =
+        (std::uint64_t(c.z % bt) * bt + std::uint64_t(c.y % bt)) * bt + std::uint64_t(c.x % bt);
+    return host_pages[std::size_t{page} * kPageTiles + local];
+}
+
+void SparseTracer::Impl::count_bytes() {
+    stats.bytes = palette.size() + block_table.size() + pages.size() + records.size();
+    for (const std::vector<Buffer>* chunks : {&masks, &offsets, &materials}) {
+        for (const Buffer& b : *chunks) {
+            stats.bytes += b.size();
+        }
+    }
+    stats.pages = host_pages.size() / kPageTiles - free_pages.size();
+    stats.arena_tiles = static_cast<std::uint32_t>(arena.size());
+    stats.arena_node_chunk =
+        arena_nodes_chunk < 0 ? VF_SPARSE_NONE : static_cast<std::uint32_t>(arena_nodes_chunk);
+    stats.arena_nodes = arena_node_used;
+    stats.arena_material_bytes = arena_mat_used;
+    stats.arena_node_capacity = arena_node_cap;
+    stats.arena_material_capacity = arena_mat_cap;
+}
+
+void SparseTracer::Impl::stage(const Buffer& dst, VkDeviceSize at, const void* data,
+                               VkDeviceSize size) {
+    if (size == 0) {
+        return;
+    }
+    const VkDeviceSize from = staged.size();
+    staged.resize(staged.size() + size);
+    std::memcpy(staged.data() + from, data, size);
+    copies.push_back(Copy{dst.get(), at, size, from});
+}
+
+void SparseTracer::Impl::flush(const std::string& what) {
+    if (copies.empty()) {
+        return;
+    }
+    if (staging.size() < staged.size()) {
+        staging = Buffer{};
+        staging = ctx.make_buffer(std::max<VkDeviceSize>(staged.size(), VkDeviceSize{1} << 20),
+                                  VK_BUFFER_USAGE_TRANSFER_SRC_BIT, MemoryIntent::upload,
+                                  "sparse tracer staging");
+    }
+    std::memcpy(staging.data(), staged.data(), staged.size());
+    ctx.submit_and_wait(
+        [&](VkCommandBuffer cmd) {
+            // After the last trace's reads and the previous update's copies.
+            VkMemoryBarrier before{};
+            before.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+            before.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+            before.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+            vkCmdPipelineBarrier(
+                cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &before, 0, nullptr, 0, nullptr);
+            std::size_t i = 0;
+            while (i < copies.size()) {
+                std::vector<VkBufferCopy> regions;
+                const VkBuffer dst = copies[i].dst;
+                for (; i < copies.size() && copies[i].dst == dst; ++i) {
+                    regions.push_back(VkBufferCopy{copies[i].from, copies[i].at, copies[i].size});
+                }
+                vkCmdCopyBuffer(cmd, staging.get(), dst, static_cast<std::uint32_t>(regions.size()),
+                                regions.data());
+            }
+            // Before the next trace reads them.
+            VkMemoryBarrier after{};
+            after.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+            after.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+            after.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &after, 0, nullptr, 0,
+                                 nullptr);
+        },
+        what);
+    staged.clear();
+    copies.clear();
+}
+
+bool SparseTracer::Impl::arena_fit(const SparseWorld& world, std::uint64_t nodes,
+                                   std::uint64_t material_bytes,
+                                   const std::vector<std::uint32_t>& dropping, bool& rebuilt) {
+    if (!arena_room) {
+        return false;
+    }
+    if (arena_nodes_chunk >= 0 && arena_node_used + nodes <= arena_node_cap &&
+        arena_mat_used + material_bytes <= arena_mat_cap) {
+        return true;
+    }
+    // Grow: fresh buffers twice what stays live plus what comes, the live trees written again.
+    std::uint64_t live_nodes = nodes, live_materials = material_bytes;
+    std::vector<std::uint32_t> keep;
+    for (const auto& [record, a] : arena) {
+        if (std::find(dropping.begin(), dropping.end(), record) == dropping.end()) {
+            live_nodes += a.nodes;
+            live_materials += a.materials;
+            keep.push_back(record);
+        }
+    }
+    const std::uint64_t node_cap = std::max(kArenaNodes, 2 * live_nodes);
+    const std::uint64_t mat_cap = std::max(kArenaMaterials, 2 * live_materials);
+    if (live_nodes * 8 > limit || live_materials > limit) {
+        return false;
+    }
+    const std::uint64_t nodes_fit = std::min(node_cap, limit / 8);
+    const std::uint64_t mats_fit = std::min(mat_cap, limit) / 4 * 4;
+    const auto make = [&](VkDeviceSize bytes, const std::string& what) {
+        return ctx.make_buffer(
+            bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+            MemoryIntent::device_local, what);
+    };
+    Buffer new_masks = make(nodes_fit * 8, "sparse arena node masks");
+    Buffer new_offsets = make(nodes_fit * 4, "sparse arena node offsets");
+    Buffer new_materials = make(mats_fit, "sparse arena materials");
+    if (arena_nodes_chunk < 0) {
+        arena_nodes_chunk = static_cast<int>(masks.size());
+        arena_materials_chunk = static_cast<int>(materials.size());
+        masks.push_back(std::move(new_masks));
+        offsets.push_back(std::move(new_offsets));
+        materials.push_back(std::move(new_materials));
+    } else {
+        masks[static_cast<std::size_t>(arena_nodes_chunk)] = std::move(new_masks);
+        offsets[static_cast<std::size_t>(arena_nodes_chunk)] = std::move(new_offsets);
+        materials[static_cast<std::size_t>(arena_materials_chunk)] = std::move(new_materials);
+    }
+    arena_node_cap = nodes_fit;
+    arena_mat_cap = mats_fit;
+    arena_node_used = arena_mat_used = 0;
+    for (const std::uint32_t record : keep) {
+        const ArenaTile old = arena.at(record);
+        const Int3 c = tile_of_key(old.key);
+        const std::uint32_t t = world.find_tile(c.x, c.y, c.z);
+        const ArenaTile a = arena_write(world, t, old.key);
+        arena[record] = a;
+        record_arena(record, a);
+    }
+    rebuilt = true;
+    return true;
+}
+
+ArenaTile SparseTracer::Impl::arena_write(const SparseWorld& world, std::uint32_t t,
+                                          std::uint64_t key) {
+    ArenaTile a;
+    a.key = key;
+    a.nodes = world.node_counts()[t];
+    a.materials = world.material_counts()[t];
+    a.node_at = arena_node_used;
+    a.material_at = arena_mat_used;
+    const std::uint64_t nb = world.node_bases()[t], mb = world.material_bases()[t];
+    const auto nodes_chunk = static_cast<std::size_t>(arena_nodes_chunk);
+    stage(masks[nodes_chunk], a.node_at * 8, world.node_masks().data() + nb,
+          VkDeviceSize{a.nodes} * 8);
+    stage(offsets[nodes_chunk], a.node_at * 4, world.node_offsets().data() + nb,
+          VkDeviceSize{a.nodes} * 4);
+    stage(materials[static_cast<std::size_t>(arena_materials_chunk)], a.material_at,
+          world.materials().data() + mb, a.materials);
+    arena_node_used += a.nodes;
+    arena_mat_used += a.materials;
+    return a;
+}
+
+void SparseTracer::Impl::record_arena(std::uint32_t record, const ArenaTile& a) {
+    std::uint32_t* r = host_records.data() + 4 * std::size_t{record};
+    r[0] = static_cast<std::uint32_t>(a.node_at);
+    r[1] = static_cast<std::uint32_t>(a.material_at);
+    r[2] = static_cast<std::uint32_t>(arena_nodes_chunk);
+    r[3] = static_cast<std::uint32_t>(arena_materials_chunk);
+}
+
+SparseTileUpdate SparseTracer::update_tiles(const SparseWorld& world, const Box& changed) {
+    Impl& m = *impl_;
+    if (!m.loaded) {
+        throw std::logic_error("SparseTracer::update_tiles before upload");
+    }
+    if (world.dims() != m.dims) {
+        throw std::logic_error("SparseTracer::update_tiles: the world is not the one uploaded");
+    }
+    SparseTileUpdate u;
+    const Dims d = world.dims();
+    const Box box = intersect(changed, Box{{0, 0, 0}, {d.x, d.y, d.z}});
+    if (box.empty()) {
+        return u;
+    }
+    m.ctx.wait_frames_in_flight();
+    // The tiles the box overlaps: each one's tile in the world (or none) and its record.
+    struct Touched {
+        Int3 c;
+        std::uint32_t tile, record;
+    };
+    std::vector<Touched> touched;
+    std::vector<std::uint32_t> dropping;
+    std::uint64_t nodes = 0, materials = 0;
+    const std::int64_t ts = kTileSize;
+    for (std::int64_t tz = box.min.z / ts; tz <= (box.max.z - 1) / ts; ++tz) {
+        for (std::int64_t ty = box.min.y / ts; ty <= (box.max.y - 1) / ts; ++ty) {
+            for (std::int64_t tx = box.min.x / ts; tx <= (box.max.x - 1) / ts; ++tx) {
+                const Int3 c{tx, ty, tz};
+                const std::uint32_t page = m.host_blocks[m.block_of(c)];
+                const std::uint32_t record =
+                    page == VF_SPARSE_NONE ? VF_SPARSE_NONE : m.page_entry(page, c);
+                const std::uint32_t t = world.find_tile(tx, ty, tz);
+                if (t == kNoTile && record == VF_SPARSE_NONE) {
+                    continue;
+                }
+                touched.push_back({c, t, record});
+                if (record != VF_SPARSE_NONE && m.arena.contains(record)) {
+                    dropping.push_back(record);
+                }
+                if (t != kNoTile) {
+                    nodes += world.node_counts()[t];
+                    materials += world.material_counts()[t];
+                }
+            }
+        }
+    }
+    if (touched.empty()) {
+        return u;
+    }
+    if (!m.arena_fit(world, nodes, materials, dropping, u.arena_rebuilt)) {
+        m.staged.clear();
+        m.copies.clear();
+        m.upload_all(world);
+        u.whole = true;
+        u.bytes = m.stats.bytes;
+        u.tiles_written = world.tile_count();
+        return u;
+    }
+    std::vector<std::uint32_t> dirty_records;
+    std::vector<std::uint64_t> dirty_blocks, dirty_entries;  // entries: index into host_pages
+    std::vector<std::uint32_t> new_pages;  // written whole (the device's may hold anything)
+    for (const Touched& k : touched) {
+        const std::uint64_t b = m.block_of(k.c);
+        if (k.tile == kNoTile) {
+            // Emptied: out of the directory; its page freed when it held nothing else.
+            const std::uint32_t page = m.host_blocks[b];
+            std::uint32_t& entry = m.page_entry(page, k.c);
+            dirty_entries.push_back(static_cast<std::uint64_t>(&entry - m.host_pages.data()));
+            entry = VF_SPARSE_NONE;
+            m.arena.erase(k.record);
+            m.free_records.push_back(k.record);
+            if (--m.page_fill[page] == 0) {
+                m.host_blocks[b] = VF_SPARSE_NONE;
+                m.free_pages.push_back(page);
+                dirty_blocks.push_back(b);
+            }
+            ++u.tiles_removed;
+            continue;
+        }
+        std::uint32_t record = k.record;
+        if (record == VF_SPARSE_NONE) {
+            // Made in empty space: a record, and a page for a block that had none.
+            if (!m.free_records.empty()) {
+                record = m.free_records.back();
+                m.free_records.pop_back();
+            } else {
+                record = static_cast<std::uint32_t>(m.host_records.size() / 4);
+                m.host_records.resize(m.host_records.size() + 4, 0);
+            }
+            if (m.host_blocks[b] == VF_SPARSE_NONE) {
+                std::uint32_t page = 0;
+                if (!m.free_pages.empty()) {
+                    page = m.free_pages.back();
+                    m.free_pages.pop_back();
+                } else {
+                    page = static_cast<std::uint32_t>(m.host_pages.size() / kPageTiles);
+                    m.host_pages.resize(m.host_pages.size() + kPageTiles, VF_SPARSE_NONE);
+                    m.page_fill.push_back(0);
+                }
+                m.host_blocks[b] = page;
+                dirty_blocks.push_back(b);
+                new_pages.push_back(page);
+            }
+            const std::uint32_t page = m.host_blocks[b];
+            std::uint32_t& entry = m.page_entry(page, k.c);
+            entry = record;
+            dirty_entries.push_back(static_cast<std::uint64_t>(&entry - m.host_pages.data()));
+            ++m.page_fill[page];
+        }
+        const ArenaTile a = m.arena_write(
+            world, k.tile,
+            tile_key(static_cast<std::uint32_t>(k.c.x), static_cast<std::uint32_t>(k.c.y),
+                     static_cast<std::uint32_t>(k.c.z)));
+        m.arena[record] = a;
+        m.record_arena(record, a);
+        dirty_records.push_back(record);
+        ++u.tiles_written;
+    }
+    if (u.arena_rebuilt) {
+        for (const auto& [record, a] : m.arena) {
+            dirty_records.push_back(record);
+        }
+    }
+    // The directory's changes: whole buffers where they outgrew their capacity.
+    bool rebind = u.arena_rebuilt;
+    const std::uint64_t record_count = m.host_records.size() / 4;
+    if (record_count > m.record_capacity) {
+        if (record_count * 16 > m.limit) {
+            throw InputError("sparse tracer: the directory's " + std::to_string(record_count) +
+                             " tile records exceed one storage-buffer binding (" + mib(m.limit) +
+                             ")");
+        }
+        m.record_capacity = std::min<std::uint64_t>(2 * record_count, m.limit / 16);
+        m.records = Buffer{};
+        m.records =
+            m.ctx.make_buffer(m.record_capacity * 16,
+                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                              MemoryIntent::device_local, "sparse tile records");
+        m.stage(m.records, 0, m.host_records.data(), m.host_records.size() * 4);
+        rebind = true;
+    } else {
+        for (const std::uint32_t r : dirty_records) {
+            m.stage(m.records, VkDeviceSize{r} * 16, m.host_records.data() + 4 * std::size_t{r},
+                    16);
+        }
+    }
+    const std::uint64_t page_count = m.host_pages.size() / kPageTiles;
+    if (page_count > m.page_capacity) {
+        if (m.host_pages.size() * 4 > m.limit) {
+            throw InputError("sparse tracer: the directory's " + std::to_string(page_count) +
+                             " tile pages exceed one storage-buffer binding (" + mib(m.limit) +
+                             ")");
+        }
+        m.page_capacity = std::min<std::uint64_t>(2 * page_count, m.limit / (4 * kPageTiles));
+        m.pages = Buffer{};
+        m.pages =
+            m.ctx.make_buffer(m.page_capacity * kPageTiles * 4,
+                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                              MemoryIntent::device_local, "sparse tile pages");
+        m.stage(m.pages, 0, m.host_pages.data(), m.host_pages.size() * 4);
+        rebind = true;
+    } else {
+        for (const std::uint32_t p : new_pages) {
+            m.stage(m.pages, VkDeviceSize{p} * kPageTiles * 4,
+                    m.host_pages.data() + std::size_t{p} * kPageTiles, kPageTiles * 4);
+        }
+        for (const std::uint64_t e : dirty_entries) {
+            m.stage(m.pages, e * 4, m.host_pages.data() + e, 4);
+        }
+    }
+    for (const std::uint64_t b : dirty_blocks) {
+        m.stage(m.block_table, b * 4, m.host_blocks.data() + b, 4);
+    }
+    u.bytes = m.staged.size();
+    m.flush("sparse tracer tile update");
+    m.count_bytes();
+    if (rebind) {
+        m.write_set();
+    }
+    return u;
 }
 
 void SparseTracer::Impl::write_set() {
@@ -366,7 +793,15 @@ Image SparseTracer::render(const RenderOptions& o) {
 }
 
 void SparseTracer::render(const RenderOptions& o, Image& out) {
-    Impl& m = *impl_;
+    impl_->dispatch(o, &out);
+}
+
+double SparseTracer::trace(const RenderOptions& o) {
+    return impl_->dispatch(o, nullptr);
+}
+
+double SparseTracer::Impl::dispatch(const RenderOptions& o, Image* out) {
+    Impl& m = *this;
     if (o.surface) {
         throw std::logic_error("SparseTracer::render does not record surface hits");
     }
@@ -431,6 +866,9 @@ void SparseTracer::render(const RenderOptions& o, Image& out) {
             const VkImageMemoryBarrier to_copy = color_barrier(
                 to_general.image, VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_TRANSFER_READ_BIT,
                 VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+            if (out == nullptr) {
+                return;  // the image stays on the device
+            }
             vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
                                  VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 0, nullptr, 1,
                                  &to_copy);
@@ -448,23 +886,28 @@ void SparseTracer::render(const RenderOptions& o, Image& out) {
                 VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host, 0, nullptr, 0, nullptr);
         },
         "sparse trace " + std::to_string(o.width) + "x" + std::to_string(o.height));
-    out.width = o.width;
-    out.height = o.height;
-    out.rgba.resize(pixels * 4);
-    std::memcpy(out.rgba.data(), m.target.readback.data(), pixels * 4);
-    out.raymarch_ms = -1;
+    double ms = -1;
     if (timer != VK_NULL_HANDLE) {
-        out.raymarch_ms = timestamp_pair_ms(m.ctx, timer, 0, true, "sparse trace timestamps");
+        ms = timestamp_pair_ms(m.ctx, timer, 0, true, "sparse trace timestamps");
     }
-    out.fetches = out.steps = 0;
+    if (out == nullptr) {
+        return ms;
+    }
+    out->width = o.width;
+    out->height = o.height;
+    out->rgba.resize(pixels * 4);
+    std::memcpy(out->rgba.data(), m.target.readback.data(), pixels * 4);
+    out->raymarch_ms = ms;
+    out->fetches = out->steps = 0;
     if (o.count) {
         const auto* c = static_cast<const std::uint32_t*>(m.counters.data());
         for (std::size_t i = 0; i < pixels; ++i) {
-            out.fetches += c[2 * i];
-            out.steps += c[2 * i + 1];
+            out->fetches += c[2 * i];
+            out->steps += c[2 * i + 1];
         }
     }
-    out.surface.clear();
+    out->surface.clear();
+    return ms;
 }
 
 }  // namespace voxfield::vk

@@ -29,6 +29,21 @@ struct SparseDeviceStats {
     std::uint64_t bytes = 0;  // every buffer the tracer reads
     std::uint32_t node_chunks = 0, material_chunks = 0;
     std::uint64_t blocks = 0, pages = 0;  // block table entries, pages of tile indices
+    // The edit arena (update_tiles): tiles whose trees live there, its nodes and material
+    // bytes in use (live and superseded) and its capacity; arena_node_chunk is VF_SPARSE_NONE
+    // while there is no arena.
+    std::uint32_t arena_tiles = 0, arena_node_chunk = 0xFFFFFFFFu;
+    std::uint64_t arena_nodes = 0, arena_material_bytes = 0;
+    std::uint64_t arena_node_capacity = 0, arena_material_capacity = 0;
+};
+
+// What one update_tiles did.
+struct SparseTileUpdate {
+    std::uint32_t tiles_written = 0;  // tiles whose 64-tree was written into the edit arena
+    std::uint32_t tiles_removed = 0;  // tiles taken out of the directory (now empty)
+    std::uint64_t bytes = 0;          // bytes copied from the host to the device
+    bool arena_rebuilt = false;       // the arena was (re)made: its live tiles written again
+    bool whole = false;               // the world was uploaded whole instead
 };
 
 class SparseTracer {
@@ -47,12 +62,26 @@ class SparseTracer {
     // or the pages exceed one binding; the message says the limit.
     void upload(const SparseWorld& world, const Palette& palette);
 
+    // After the voxels of `changed` were edited in the uploaded world (`world`: the same world,
+    // its edits stored: SparseWorld::edit / put_tile, or ocl::SparseField::world()), makes the
+    // device copy equal a fresh upload of it without uploading it whole: every tile the box
+    // overlaps is written again from `world`, its new 64-tree appended to the edit arena (an
+    // extra node chunk and material chunk, grown by doubling, its superseded trees dropped when
+    // it grows), its directory entry repointed, added (a page made for a block that had none)
+    // or removed (the page freed when it empties). Only when the upload left no chunk binding
+    // for the arena, or the arena would exceed one binding, the world is uploaded whole.
+    // logic_error before an upload or for a world of other dims.
+    SparseTileUpdate update_tiles(const SparseWorld& world, const Box& changed);
+
     // Traces one image and reads it back (Image::raymarch_ms: the dispatch by GPU timestamps).
     // options.count: Image::fetches counts node visits and Image::steps node exits (every level
     // from blocks to voxels), over all primary rays. options.surface is not supported
     // (std::logic_error), nor rendering before an upload. InputError for bad options.
     Image render(const RenderOptions& options);
     void render(const RenderOptions& options, Image& out);
+    // Traces one image and leaves it on the device (a headless viewer's frame); returns the
+    // dispatch's GPU time (ms, -1 without timestamps).
+    double trace(const RenderOptions& options);
 
     const SparseDeviceStats& stats() const;
 

@@ -1,0 +1,266 @@
+// `voxfield view` on sparse worlds end to end (the executable, PoCL and lavapipe, every run with
+// the Vulkan validation layer): the first frame equals `render --sparse`'s image; after edits
+// the window's screenshot equals `render --sparse` of the world edited the same way (the tracer
+// updated tile by tile shows what a fresh upload shows); the headless benchmark on the
+// generated city records frames, edits and tiles updated; a huge grid goes sparse without
+// --sparse; what sparse worlds refuse exits 2 with one line. Without xvfb-run the window test
+// skips.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cstdlib>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "../cli/cli_test_util.hpp"
+#include "voxfield/core/brush.hpp"
+#include "voxfield/core/npy.hpp"
+#include "voxfield/core/output.hpp"
+#include "voxfield/core/vdb.hpp"
+#include "voxfield/core/world.hpp"
+
+namespace voxfield::test {
+namespace {
+
+class ViewSparse : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        dir_ = make_temp_dir("voxfield_view_sparse");
+        io_ = make_temp_dir("voxfield_view_sparse_io");
+        for (const char* v : {"DISPLAY", "WAYLAND_DISPLAY"}) {
+            const char* old = std::getenv(v);
+            saved_.push_back(old ? std::optional<std::string>(old) : std::nullopt);
+        }
+        ::unsetenv("DISPLAY");
+        ::unsetenv("WAYLAND_DISPLAY");
+        ::setenv("VOXFIELD_DEVICE", "cpu", 1);
+        ::setenv("VOXFIELD_VALIDATE", "1", 1);  // any validation message exits 1
+    }
+    void TearDown() override {
+        const char* names[] = {"DISPLAY", "WAYLAND_DISPLAY"};
+        for (std::size_t i = 0; i < 2; ++i) {
+            if (saved_[i]) {
+                ::setenv(names[i], saved_[i]->c_str(), 1);
+            }
+        }
+        fs::remove_all(dir_);
+        fs::remove_all(io_);
+    }
+    fs::path dir_, io_;
+    std::vector<std::optional<std::string>> saved_;
+};
+
+bool have_xvfb() {
+    return std::system("command -v xvfb-run >/dev/null 2>&1") == 0;
+}
+
+int run_under_xvfb(const std::vector<std::string>& args, const fs::path& log) {
+    std::string cmd = "xvfb-run -a -s '-screen 0 640x480x24' '" + kExe.string() + "'";
+    for (const auto& a : args) {
+        cmd += " '" + a + "'";
+    }
+    cmd += " >'" + log.string() + "' 2>&1";
+    const int status = std::system(cmd.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
+}
+
+// A 150 x 40 x 140 world (three tiles along x and z): a floor, a wall and a tower.
+World test_world() {
+    World w(Dims{150, 40, 140});
+    for (std::uint32_t z = 0; z < 140; ++z) {
+        for (std::uint32_t x = 0; x < 150; ++x) {
+            w.set(x, 0, z, static_cast<std::uint8_t>(1 + (x / 16 + z / 16) % 5));
+        }
+    }
+    for (std::uint32_t y = 1; y < 30; ++y) {
+        for (std::uint32_t x = 20; x < 130; ++x) {
+            w.set(x, y, 70, 6);
+        }
+        for (std::uint32_t x = 100; x < 110; ++x) {
+            for (std::uint32_t z = 20; z < 30; ++z) {
+                w.set(x, y + 8, z, 9);
+            }
+        }
+    }
+    return w;
+}
+
+fs::path write_world(const World& w, const fs::path& path) {
+    const NpyArray a = npy_from_world(w);
+    write_npy(path, a.type, a.dims, a.data);
+    return path;
+}
+
+TEST_F(ViewSparse, FirstFrameEqualsRenderSparse) {
+    const fs::path model = fs::path(VOXFIELD_DATA_DIR) / "vox" / "chr_army1.vox";
+    const fs::path viewed = dir_ / "viewed.png", rendered = dir_ / "rendered.png";
+    RunResult r = run_voxfield({"view", model.string(), "--sparse", "--width", "120", "--height",
+                                "90", "--fallback-png", viewed.string()},
+                               io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_NE(r.out.find("(sparse)"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("field:   exact, bounded at 16, u8"), std::string::npos) << r.out;
+    r = run_voxfield({"render", model.string(), "--sparse", "-o", rendered.string(), "--width",
+                      "120", "--height", "90", "--shading", "lit"},
+                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_EQ(read_text(viewed), read_text(rendered)) << "the PNGs differ";
+}
+
+TEST_F(ViewSparse, EditedWindowEqualsRenderOfTheEditedWorld) {
+    if (!have_xvfb()) {
+        GTEST_SKIP() << "xvfb-run is not installed (setup.sh installs it)";
+    }
+    World w = test_world();
+    const fs::path world = write_world(w, dir_ / "world.npy");
+    // Inside the solids' box (the default camera stays the same): tiles repainted, the tower
+    // mostly erased, voxels placed in the air; each edit rewrites the tiles it touches.
+    const std::string edit_text =
+        "paint sphere 60 10 70 12 3\n"
+        "erase cube 104 24 24 12\n"
+        "place sphere 40 30 30 5 8\n"
+        "place cube 140 34 130 3 11\n";
+    const fs::path edits = dir_ / "edits.txt";
+    write_file(edits, edit_text);
+    const fs::path shot = dir_ / "viewed.png";
+    const int code = run_under_xvfb(
+        {"view", world.string(), "--sparse", "--frames", "6", "--edits", edits.string(),
+         "--shading", "flat", "--width", "160", "--height", "120", "--screenshot", shot.string()},
+        io_ / "xvfb.log");
+    const std::string log = read_text(io_ / "xvfb.log");
+    ASSERT_EQ(code, 0) << log;
+    EXPECT_NE(log.find("window:"), std::string::npos) << log;
+    EXPECT_NE(log.find("edits 4"), std::string::npos) << log;
+
+    for (const Brush& b : {Brush{BrushOp::paint, BrushShape::sphere, {60, 10, 70}, 12, 3},
+                           Brush{BrushOp::erase, BrushShape::cube, {104, 24, 24}, 12, 0},
+                           Brush{BrushOp::place, BrushShape::sphere, {40, 30, 30}, 5, 8},
+                           Brush{BrushOp::place, BrushShape::cube, {140, 34, 130}, 3, 11}}) {
+        apply_brush(w, b);
+    }
+    const fs::path edited = write_world(w, dir_ / "edited.npy");
+    const fs::path rendered = dir_ / "rendered.png";
+    // The edits keep the solids' box, so render's default camera is the viewer's.
+    const RunResult r =
+        run_voxfield({"render", edited.string(), "--sparse", "-o", rendered.string(), "--width",
+                      "160", "--height", "120", "--shading", "flat"},
+                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_EQ(read_text(shot), read_text(rendered)) << "the window's frame differs from render's";
+}
+
+// The script's click at the crosshair places the brush aimed at on the sparse world (picking
+// through SparseWorld::at), a right click erases; the script's shading select applies.
+TEST_F(ViewSparse, ScriptedClicksEditTheSparseWorld) {
+    if (!have_xvfb()) {
+        GTEST_SKIP() << "xvfb-run is not installed (setup.sh installs it)";
+    }
+    const fs::path world = write_world(test_world(), dir_ / "world.npy");
+    const fs::path script = dir_ / "script.txt";
+    write_file(script, "1 select shading flat\n2 click left\n4 click right\n6 key F2\n7 quit\n");
+    const fs::path shot = dir_ / "shot.png";
+    const int code =
+        run_under_xvfb({"view", world.string(), "--sparse", "--script", script.string(), "--width",
+                        "200", "--height", "150", "--screenshot", shot.string()},
+                       io_ / "xvfb.log");
+    const std::string log = read_text(io_ / "xvfb.log");
+    ASSERT_EQ(code, 0) << log;
+    EXPECT_NE(log.find("frames:  8, edits 2"), std::string::npos) << log;
+    EXPECT_EQ(read_text(shot).substr(1, 3), "PNG");
+
+    // What a sparse world does not take from a script: one line, exit 2.
+    write_file(script, "1 click left\n3 select algorithm fim\n");
+    EXPECT_EQ(run_under_xvfb({"view", world.string(), "--sparse", "--script", script.string()},
+                             io_ / "refused.log"),
+              2);
+    EXPECT_NE(read_text(io_ / "refused.log").find("--script line 2"), std::string::npos)
+        << read_text(io_ / "refused.log");
+}
+
+TEST_F(ViewSparse, HeadlessBenchmarkOnTheCityRecordsEditsAndTiles) {
+    const fs::path json = dir_ / "bench.json";
+    const RunResult r =
+        run_voxfield({"view", "--scene", "city", "--dims", "200,96,200", "--sparse", "--benchmark",
+                      "--duration-s", "1.5", "--interval-ms", "40", "--width", "64", "--height",
+                      "48", "--max-distance", "6", "--json", json.string()},
+                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_NE(r.out.find("benchmark runs headless"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("benchmark: sparse"), std::string::npos) << r.out;
+    const nlohmann::json j = nlohmann::json::parse(read_text(json));
+    EXPECT_EQ(j.at("world"), nlohmann::json({200, 96, 200}));
+    EXPECT_EQ(j.at("present"), "headless");
+    EXPECT_EQ(j.at("source"), "scene city");
+    const nlohmann::json& s = j.at("sparse");
+    EXPECT_GT(s.at("tiles").get<int>(), 0);
+    EXPECT_EQ(s.at("max_distance").get<double>(), 6.0);
+    EXPECT_EQ(s.at("format"), "u8");
+    EXPECT_GT(s.at("field_tiles").get<int>(), 0);
+    ASSERT_GE(j.at("edits").size(), 1u);
+    std::uint64_t written = 0;
+    for (const nlohmann::json& e : j.at("edits")) {
+        EXPECT_TRUE(e.at("benchmark").get<bool>());
+        EXPECT_GE(e.at("wall_ms").get<double>(), e.at("tracer_ms").get<double>());
+        EXPECT_FALSE(e.at("tracer_whole").get<bool>());
+        written += e.at("tiles_written").get<std::uint64_t>();
+    }
+    EXPECT_GT(written, 0u);
+    EXPECT_EQ(j.at("tiles_written").get<std::uint64_t>(), written);
+    EXPECT_EQ(j.at("frames").size(), j.at("summary").at("frame").at("n").get<std::size_t>());
+    for (const char* key : {"edit", "edit_frame", "readback", "tracer_update", "raymarch"}) {
+        EXPECT_TRUE(j.at("summary").contains(key)) << key;
+    }
+}
+
+// Two 4^3 cubes 600000 voxels apart in a .vdb grid: 1.2e12 voxels, viewed sparse unasked.
+TEST_F(ViewSparse, HugeGridGoesSparseWithoutTheFlag) {
+    const fs::path grid = io_ / "far.vdb";
+    const std::vector<std::uint8_t> a(64, 5), b(64, 9), field(64, 0);
+    const std::array<Box, 2> boxes = {Box{{0, 0, 0}, {4, 4, 4}},
+                                      Box{{600000, 0, 500000}, {600004, 4, 500004}}};
+    std::size_t next = 0;
+    OutputBatch batch;
+    write_vdb(
+        batch, grid,
+        [&](VdbBox& box) {
+            if (next == boxes.size()) {
+                return false;
+            }
+            box = VdbBox{boxes[next], next == 0 ? a : b, field};
+            ++next;
+            return true;
+        },
+        Format::u8, VdbFieldSpec{});
+    batch.commit();
+    const fs::path out = dir_ / "far.png";
+    const RunResult r = run_voxfield({"view", grid.string(), "--width", "64", "--height", "48",
+                                      "--max-distance", "4", "--fallback-png", out.string()},
+                                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_NE(r.out.find("600004x4x500004 (sparse): 2 tiles of 64^3, 128 solid"), std::string::npos)
+        << r.out;
+    EXPECT_EQ(read_text(out).substr(1, 3), "PNG");
+}
+
+TEST_F(ViewSparse, WhatSparseWorldsRefuseExitsTwo) {
+    const std::vector<std::vector<std::string>> refused = {
+        {"view", "--scene", "city", "--world", "64", "--sparse", "--simulate", "--benchmark"},
+        {"view", "--scene", "city", "--world", "64", "--sparse", "--benchmark", "--world-output",
+         (dir_ / "w.npy").string()},
+        {"view", "--scene", "city", "--world", "64", "--sparse", "--benchmark", "--present", "gpu"},
+        {"view", "--scene", "spheres", "--dims", "70000,8,70000", "--benchmark"},
+        {"view", "--scene", "city", "--dims", "2000000,8,8", "--benchmark"}};
+    for (const auto& args : refused) {
+        const RunResult r = run_voxfield(args, io_);
+        EXPECT_EQ(r.code, 2) << describe(r);
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << describe(r);
+    }
+    EXPECT_TRUE(list_dir(dir_).empty());
+}
+
+}  // namespace
+}  // namespace voxfield::test

@@ -1,0 +1,418 @@
+// `voxfield view` on sparse worlds (see view_sparse.hpp).
+#include "view_sparse.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <iostream>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cli_util.hpp"
+#include "generate_sparse.hpp"
+#include "png.hpp"
+#include "view_benchmark.hpp"
+#include "view_input.hpp"
+#include "view_overlay.hpp"
+#include "view_session.hpp"
+#include "voxfield/cl/runtime.hpp"
+#include "voxfield/cl/sparse_field.hpp"
+#include "voxfield/core/clock.hpp"
+#include "voxfield/core/error.hpp"
+#include "voxfield/core/scene_file.hpp"
+#include "voxfield/core/scenes.hpp"
+#include "voxfield/core/sdf.hpp"
+#include "voxfield/core/sparse.hpp"
+#include "voxfield/vk/sparse_tracer.hpp"
+
+namespace voxfield::cli {
+namespace {
+
+// The world to view and its name: INPUT read sparse, or the generated scene (the city tile by
+// tile; another scene dense, then converted, where it fits one array).
+struct SparseView {
+    SparseModel model;
+    std::string name;
+};
+
+SparseView load_sparse_view(const ViewCliOptions& o) {
+    if (!o.input.empty()) {
+        if (sdf::is_sdf_path(o.input) || scene::is_scene_path(o.input)) {
+            throw InputError(o.input +
+                             ": parts and mixed scenes are viewed on their implicit surface, "
+                             "which needs the dense field (drop --sparse)");
+        }
+        return {load_sparse_world(o.input, InputOptions{.grid = {}, .palette_values = true}),
+                o.input};
+    }
+    const Dims dims = view_dims(o);
+    if (dims.x > kMaxSparseAxis || dims.y > kMaxSparseAxis || dims.z > kMaxSparseAxis) {
+        throw InputError("--dims " + dims.to_string() + ": a sparse world takes at most " +
+                         std::to_string(kMaxSparseAxis) + " voxels per axis");
+    }
+    if (o.scene == "city") {
+        const CityScene scene(dims, o.scene_seed);
+        return {SparseModel{SparseWorld::from_fill(
+                                dims, [&](const Box& box,
+                                          std::span<std::uint8_t> out) { scene.fill(box, out); }),
+                            Palette::dissertation()},
+                "scene city"};
+    }
+    if (dims.count() > kMaxDenseVoxels) {
+        throw InputError("--scene " + o.scene + " is generated as one dense array, at most " +
+                         std::to_string(kMaxDenseVoxels) + " voxels (" + dims.to_string() +
+                         " has " + std::to_string(dims.count()) +
+                         "); `--scene city` is generated tile by tile at any size");
+    }
+    return {SparseModel{SparseWorld::from_dense(make_scene(o.scene, dims, o.scene_seed)),
+                        Palette::dissertation()},
+            "scene " + o.scene};
+}
+
+// What sparse worlds do not take, refused before any device is opened.
+void check_sparse_options(const ViewCliOptions& o) {
+    const std::pair<bool, const char*> refused[] = {{o.simulate, "--simulate"},
+                                                    {!o.field_output.empty(), "--field-output"},
+                                                    {!o.world_output.empty(), "--world-output"}};
+    if (o.present == "gpu") {
+        throw InputError(
+            "--present gpu: a sparse world's frames are read back and go through the "
+            "host (--present auto or host)");
+    }
+    for (const auto& [given, what] : refused) {
+        if (given) {
+            throw InputError(std::string(what) +
+                             " does not apply to a sparse world (view it dense, or use "
+                             "`voxfield generate` for its field)");
+        }
+    }
+    if (!o.script.empty()) {
+        for (const ScriptAction& a : read_view_script(o.script)) {
+            const bool selects_field =
+                a.kind == ScriptAction::Kind::select && a.what != "shading" && a.what != "colour";
+            if (selects_field || a.kind == ScriptAction::Kind::save ||
+                a.kind == ScriptAction::Kind::check) {
+                throw InputError("--script line " + std::to_string(a.line) +
+                                 ": a sparse world takes the script's keys, mouse, shading, "
+                                 "colour and quit only");
+            }
+        }
+    }
+}
+
+// The box of the solids (the whole world when there are none) for the start view.
+Framing sparse_framing(const SparseWorld& world) {
+    Box solids{};
+    for (std::uint32_t t = 0; t < world.tile_count(); ++t) {
+        solids = hull(solids, world.solid_bounds(t));
+    }
+    Framing f = world_framing(world.dims());
+    if (!solids.empty()) {
+        f.centre = {double(solids.min.x + solids.max.x) / 2,
+                    double(solids.min.y + solids.max.y) / 2,
+                    double(solids.min.z + solids.max.z) / 2};
+        f.half = {double(solids.max.x - solids.min.x) / 2, double(solids.max.y - solids.min.y) / 2,
+                  double(solids.max.z - solids.min.z) / 2};
+        f.front = {0, 0, -1};
+    }
+    return f;
+}
+
+// The benchmark's brush on the surface: the protocol's sphere (RandomEdits), its centre moved
+// to the highest solid voxel of its (x, z) column (the column's top when it has none), so that
+// edits touch the scene rather than the air above it.
+Brush on_surface(const SparseWorld& world, Brush b) {
+    const auto x = static_cast<std::uint32_t>(b.centre.x);
+    const auto z = static_cast<std::uint32_t>(b.centre.z);
+    b.centre.y = 0;
+    for (std::uint32_t y = world.dims().y; y-- > 0;) {
+        if (world.at(x, y, z) != 0) {
+            b.centre.y = y;
+            break;
+        }
+    }
+    return b;
+}
+
+// One edit through the device: the world and field edited there, the edited tiles read back
+// into the host world, the tracer's tiles rewritten.
+SparseEditRecord apply_edit(ocl::SparseField& field, vk::SparseTracer& tracer, const Brush& brush) {
+    SparseEditRecord e;
+    e.brush = brush;
+    const auto t0 = Clock::now();
+    const ocl::SparseField::Update u = field.apply_brush(brush);
+    e.field_kernel_ms = u.kernel_ms;
+    e.edit_kernel_ms = u.edit_kernel_ms;
+    e.field_tiles = u.tiles;
+    const auto t1 = Clock::now();
+    const SparseWorld& world = field.world();  // reads back the tiles the edit changed
+    e.readback_ms = ms_since(t1);
+    const auto t2 = Clock::now();
+    const vk::SparseTileUpdate tu = tracer.update_tiles(world, brush_bounds(brush, world.dims()));
+    e.tracer_ms = ms_since(t2);
+    e.tiles_written = tu.tiles_written;
+    e.tiles_removed = tu.tiles_removed;
+    e.tracer_bytes = tu.bytes;
+    e.tracer_whole = tu.whole;
+    e.wall_ms = ms_since(t0);
+    return e;
+}
+
+}  // namespace
+
+bool view_goes_sparse(const ViewCliOptions& o) {
+    if (o.sparse) {
+        return true;
+    }
+    if (!o.input.empty()) {
+        return needs_sparse(o.input, "");  // render's and generate's rule
+    }
+    return view_dims(o).count() > kSparseAutoVoxels;
+}
+
+int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
+                    const std::shared_ptr<vk::ValidationLog>& validation) {
+    check_sparse_options(o);
+    const ocl::GeneratorOptions options = ocl::resolve_sparse_options(
+        generator_options(o.gen, parse_format(view_format(o, true)), Dims{1, 1, 1}), true);
+    std::optional<ViewScript> script_state = in.script;  // played here (in is the checked copy)
+    ViewScript* script = script_state ? &*script_state : nullptr;
+
+    const auto t_load = Clock::now();
+    SparseView view = load_sparse_view(o);
+    SparseWorld& world = view.model.world;
+    const Palette& palette = view.model.palette;
+    const double load_ms = ms_since(t_load);
+    const Dims dims = world.dims();
+
+    ocl::Context cl_ctx(ocl::select_device(o.device));
+    std::string why_not_one_device;
+    const std::unique_ptr<vk::Context> vk_ctx =
+        marcher_context(window.handle(), validation, why_not_one_device);
+    ocl::SparseField field(cl_ctx, world, palette, options);
+    const auto t_field = Clock::now();
+    const double field_kernel_ms = field.run();
+    const double field_ms = ms_since(t_field);
+    vk::SparseTracer tracer(*vk_ctx);
+    const auto t_upload = Clock::now();
+    tracer.upload(field.world(), palette);
+    const double upload_ms = ms_since(t_upload);
+
+    std::cout << "opencl:  " << cl_ctx.info().name << " (" << cl_ctx.info().type << ")\n"
+              << "vulkan:  " << vk_ctx->info().name << " (" << vk_ctx->info().type << ")\n"
+              << "world:   " << view.name << " " << dims.to_string()
+              << " (sparse): " << world.tile_count() << " tiles of 64^3, " << world.solid_count()
+              << " solid, " << world.bytes() << " bytes of 64-trees, made in " << fixed(load_ms, 1)
+              << " ms\n"
+              << "field:   exact, bounded at " << options.max_distance.value_or(0) << ", "
+              << to_string(options.format) << ", " << field.dense_tiles() << " tiles with values ("
+              << field.field_bytes() << " bytes) in " << fixed(field_ms, 1) << " ms (kernels "
+              << fixed(field_kernel_ms, 1) << " ms)\n"
+              << "tracer:  " << tracer.stats().bytes << " bytes on the device, uploaded in "
+              << fixed(upload_ms, 1) << " ms; edits rewrite only the tiles they touch\n";
+
+    std::unique_ptr<Screen> screen;
+    if (window.handle() != nullptr) {
+        o.present = "host";  // the tracer's frames are read back (Screen says so)
+        screen =
+            std::make_unique<Screen>(window.handle(), *vk_ctx, o, validation, why_not_one_device);
+    }
+    ViewCamera camera(dims, sparse_framing(field.world()),
+                      double(o.width) / double(std::max(o.height, 1u)));
+    // Fly at a speed that crosses the world in minutes, not hours.
+    camera.settings.speed =
+        std::max(camera.settings.speed, double(std::max({dims.x, dims.y, dims.z})) / 100);
+    ViewControls controls;
+    vk::RenderOptions render;
+    set_shading(render, o.shading == "flat" ? vk::Shading::flat : vk::Shading::lit);
+    render.sky = Rgba{0, 0, 0, 255};
+    std::optional<BenchmarkEdits> bench;
+    if (o.benchmark) {
+        bench.emplace(dims, 0, o.seed, o.interval_ms);
+    }
+    SparseOverlayInfo info;
+    info.world = view.name;
+    info.vulkan = vk_ctx->info().name;
+    info.opencl = cl_ctx.info().name;
+    info.format = to_string(options.format);
+    info.dims = dims;
+    info.max_distance = options.max_distance.value_or(0);
+
+    std::vector<FrameRecord> records;
+    std::vector<SparseEditRecord> edits;
+    InputMapper mapper;
+    std::optional<Brush> preview, last_stroke;
+    vk::Image image;
+    const auto start = Clock::now();
+    auto last = start;
+    std::uint64_t frame = 0;
+    bool running = true;
+    while (running) {
+        const auto t0 = Clock::now();
+        const double dt = script ? 1.0 / 60 : std::chrono::duration<double>(t0 - last).count();
+        last = t0;
+        const double time_s = std::chrono::duration<double>(t0 - start).count();
+        std::uint32_t fb_w = o.width, fb_h = o.height;
+        std::vector<Brush> batch;
+        std::vector<bool> from_bench;
+        const std::vector<ScriptAction> actions =
+            script ? script->begin_frame(frame) : std::vector<ScriptAction>{};
+        for (const ScriptAction& a : actions) {
+            if (a.kind == ScriptAction::Kind::select && a.what == "shading") {
+                set_shading(render, a.value == "lit" ? vk::Shading::lit : vk::Shading::flat);
+            } else if (a.kind == ScriptAction::Kind::select && a.what == "colour") {
+                controls.brush.material = static_cast<std::uint8_t>(std::stoi(a.value));
+            }
+        }
+        if (screen) {
+            if (!window.poll()) {
+                break;
+            }
+            const RawInput raw = window.input(script, frame == 0);
+            fb_w = raw.fb_width;
+            fb_h = raw.fb_height;
+            const InputActions a = mapper.map(raw, controls);
+            running = !a.quit;
+            camera.update(a.camera, dt);
+            if (a.toggle_camera_mode) {
+                camera.toggle_mode();
+            }
+            if (a.reset_camera) {
+                camera.reset();
+            }
+            if (a.history != History::none || a.save) {
+                std::cout << "sparse worlds keep no undo history and are not saved by the viewer "
+                             "(`voxfield generate` writes .vdb)\n";
+            }
+            preview = aimed_brush(world, camera, controls, a);
+            // A held button strokes: every frame whose aimed brush differs adds it.
+            if ((a.left || a.right) && preview && preview != last_stroke) {
+                batch.push_back(*preview);
+                from_bench.push_back(false);
+                last_stroke = preview;
+            } else if (!a.left && !a.right) {
+                last_stroke.reset();
+            }
+            if (a.screenshot && !image.rgba.empty()) {
+                const std::string path = "voxfield-sparse-frame-" + std::to_string(frame) + ".png";
+                write_png(path, image);
+                std::cout << "screenshot " << path << '\n';
+            }
+        }
+        if (frame < in.edits.size()) {
+            batch.push_back(in.edits[frame].brush);
+            from_bench.push_back(false);
+        }
+        if (const auto brush = bench ? bench->due(time_s) : std::nullopt) {
+            batch.push_back(on_surface(world, *brush));
+            from_bench.push_back(true);
+        }
+        double update_ms = 0;
+        for (std::size_t i = 0; i < batch.size(); ++i) {
+            SparseEditRecord e = apply_edit(field, tracer, batch[i]);
+            e.time_s = time_s;
+            e.bench = from_bench[i];
+            update_ms += e.wall_ms;
+            info.edit_ms = e.wall_ms;
+            info.field_kernel_ms = e.field_kernel_ms;
+            info.readback_ms = e.readback_ms;
+            info.tracer_ms = e.tracer_ms;
+            info.tiles_written = e.tiles_written;
+            info.tiles_removed = e.tiles_removed;
+            ++info.edits;
+            edits.push_back(e);
+        }
+        double trace_ms = -1;
+        if (fb_w > 0 && fb_h > 0) {
+            render.width = std::min(fb_w, vk::kMaxImageSize);
+            render.height = std::min(fb_h, vk::kMaxImageSize);
+            render.camera.position = camera.position();
+            render.camera.target = camera.target();
+            render.camera.fov_deg = camera.settings.fov_deg;
+            if (screen) {
+                tracer.render(render, image);
+                trace_ms = image.raymarch_ms;
+                screen->overlay().new_frame();
+                info.frame_ms = records.empty() ? 0 : records.back().frame_ms;
+                info.trace_ms = trace_ms;
+                info.tiles = world.tile_count();
+                info.solid = world.solid_count();
+                info.world_bytes = world.bytes();
+                info.field_tiles = field.dense_tiles();
+                info.field_bytes = field.field_bytes();
+                info.tracer = tracer.stats();
+                draw_sparse_overlay(info, controls, camera, preview, render, palette, fb_w, fb_h);
+                if (!o.window_screenshot.empty() && frame + 1 >= o.frames) {
+                    screen->presenter().capture_next_frame();
+                }
+                screen->presenter().present(image.rgba.data(), image.width, image.height, fb_w,
+                                            fb_h, ImGuiBackend::record);
+            } else {
+                trace_ms = tracer.trace(render);
+            }
+        }
+        records.push_back({time_s, ms_since(t0), update_ms, 0, trace_ms, !batch.empty(), -1, 0});
+        for (const ScriptAction& a : actions) {
+            running = running && a.kind != ScriptAction::Kind::quit;
+        }
+        ++frame;
+        if ((o.frames != 0 && frame >= o.frames) || (o.benchmark && time_s >= o.duration_s)) {
+            running = false;
+        }
+    }
+
+    if (!o.screenshot.empty()) {
+        // The last view traced again and read back (headless frames stay on the device).
+        if (render.width == 0) {
+            throw std::runtime_error("no frame was rendered for --screenshot");
+        }
+        const vk::Image shot = tracer.render(render);
+        write_png(o.screenshot, shot);
+        std::cout << "screenshot " << o.screenshot << " (" << shot.width << "x" << shot.height
+                  << ", frame " << frame << ")\n";
+    }
+    if (!o.window_screenshot.empty()) {
+        const std::optional<vk::Image> shown =
+            screen ? screen->presenter().captured_frame() : std::nullopt;
+        if (!shown) {
+            throw std::runtime_error("--window-screenshot: no window frame was captured");
+        }
+        write_png(o.window_screenshot, *shown);
+        std::cout << "window screenshot " << o.window_screenshot << '\n';
+    }
+    std::cout << "frames:  " << frame << ", edits " << edits.size() << '\n';
+    if (bench) {
+        const SparseWorld& w = field.world();
+        const vk::SparseDeviceStats& ts = tracer.stats();
+        const nlohmann::json keys = {
+            {"dims", {dims.x, dims.y, dims.z}},
+            {"tiles", w.tile_count()},
+            {"stored_voxels", std::uint64_t{w.tile_count()} * kTileVoxels},
+            {"solid_voxels", w.solid_count()},
+            {"world_bytes", w.bytes()},
+            {"format", to_string(options.format)},
+            {"max_distance", options.max_distance.value_or(0)},
+            {"field_tiles", field.dense_tiles()},
+            {"field_bytes", field.field_bytes()},
+            {"field_ms", field_ms},
+            {"field_kernel_ms", field_kernel_ms},
+            {"load_ms", load_ms},
+            {"tracer_upload_ms", upload_ms},
+            {"tracer_bytes", ts.bytes},
+            {"tracer_node_chunks", ts.node_chunks},
+            {"tracer_material_chunks", ts.material_chunks},
+            {"arena_tiles", ts.arena_tiles},
+            {"arena_nodes", ts.arena_nodes},
+            {"arena_material_bytes", ts.arena_material_bytes},
+            {"edit_protocol",
+             "RandomEdits spheres (size 1..15, radius size/2, 1 in 12 erases), centre moved to "
+             "the surface of its column"}};
+        const BenchmarkSetup setup{
+            view.name, cl_ctx.info(), vk_ctx->info().name,
+            screen ? std::optional(screen->presenter().mode()) : std::nullopt};
+        report_sparse_benchmark(o, setup, keys, render, records, edits);
+    }
+    return 0;
+}
+
+}  // namespace voxfield::cli
