@@ -323,12 +323,13 @@ TEST(ExactChebyshevSweeps, RoutedByLayout) {
 }
 
 // The CPU layout's x pass: rows with no solid, with up to 16 solids (row_ramps: runs of
-// solids, solids at the row's ends) and with more (doubling steps that stop early), in rows of
-// lengths around the 16-voxel blocks, for L1 (unsigned and signed) and L-inf.
+// solids, solids at the row's ends) and with more (doubling steps that stop early: runs of 5
+// solids 5 apart), in rows of lengths around the 16-voxel blocks, for L1 (unsigned and
+// signed) and L-inf.
 World rows_world(std::uint32_t X, std::uint32_t seed) {
     std::mt19937_64 rng(seed);
     const std::uint32_t counts[] = {0, 1, 2, 15, 16, 17, 40, X / 2, X};
-    World w(Dims{X, static_cast<std::uint32_t>(std::size(counts)) + 2, 3});
+    World w(Dims{X, static_cast<std::uint32_t>(std::size(counts)) + 3, 3});
     for (std::uint32_t z = 0; z < 3; ++z) {
         for (std::uint32_t r = 0; r < std::size(counts); ++r) {
             for (std::uint32_t i = 0; i < std::min(counts[r], X); ++i) {
@@ -339,6 +340,12 @@ World rows_world(std::uint32_t X, std::uint32_t seed) {
         const std::uint32_t y = static_cast<std::uint32_t>(std::size(counts));
         for (std::uint32_t x : {0u, 1u, X / 2, X / 2 + 1, X / 2 + 2, X - 1}) {
             w.set(std::min(x, X - 1), y, z, 2);
+        }
+        // Runs of 5 solids 5 apart (up to 30 runs), the first from x = z.
+        for (std::uint32_t x = z; x < X; ++x) {
+            if ((x - z) % 10 < 5) {
+                w.set(x, y + 1, z, 3);
+            }
         }
     }
     return w;
