@@ -2,6 +2,7 @@
 // interiors (gathered by sparse_world.cl's gather from a tile grid of 64-trees, the
 // implicit-surface rendering blog's contrees) into 64^3 field tiles, and takes each 16^3
 // node's minimum for ray skipping.
+// The tree's constants and leaf lookup are sparse_tree.cl's, compiled before this source.
 // Build options: ELEM (the field's element type), KEY_KIND (how KEY(v) reads a value's
 // distance to the nearest solid, comparable in ELEM: 0 the value, 1 packed32's distance
 // byte, 2 a signed value's positive part), ELEM_DOUBLE (1 for f64).
@@ -17,9 +18,6 @@
 #else
 #define KEY(v) (v)
 #endif
-
-#define TILE 64
-#define TILE_VOXELS 262144
 
 // One work-item per row (along x) of the largest job region (sy x sz rows, stacked along z
 // per job): copies the transformed block's values into the field tiles that hold them. A
@@ -121,4 +119,114 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
     }
     minima[slot * 64 + node] = best;
     listed[i] = best;
+}
+
+
+// The Manhattan sweep: a whole unsigned bounded L1 field of unit spacing computed in the field
+// tiles themselves, with no dense blocks. Values are small integers (distances, CAP = halo + 1
+// for "farther than the halo") in ELEM; `first` is the first slot of a launch, whose global id 2
+// counts slots (times 64 for a work-item per voxel). A tile's neighbours (nbrs, 6 per slot: x-,
+// x+, y-, y+, z-, z+) are a slot, NB_EMPTY (no solid voxel within the halo: CAP) or NB_INSIDE
+// (all solid: 0).
+#define NB_EMPTY 0xFFFFFFFFu
+#define NB_INSIDE 0xFFFFFFFEu
+
+// A work-item per voxel of tile slot first + gid2 / 64: 0 where the world's tree (refs: per slot
+// the tile's node base, SLOT_REF in the slot buffers, NO_TILE not stored) holds a solid voxel,
+// CAP elsewhere.
+__kernel void sweep_init(__global const ulong* restrict masks, __global const uint* restrict offsets,
+                         __global const ulong* restrict slot_masks,
+                         __global const uint* restrict slot_offsets,
+                         __global const ulong* restrict refs, __global ELEM* restrict pool,
+                         uint first, uint cap) {
+    const uint x = (uint)get_global_id(0), y = (uint)get_global_id(1);
+    const size_t slot = first + get_global_id(2) / TILE;
+    const uint z = (uint)(get_global_id(2) % TILE);
+    ulong base = refs[slot];
+    uint v = cap;
+    if (base != NO_TILE) {
+        const bool in_slot = (base & SLOT_REF) != 0;
+        base &= ~SLOT_REF;
+        __global const ulong* m = in_slot ? slot_masks : masks;
+        __global const uint* o = in_slot ? slot_offsets : offsets;
+        const ulong n4 = leaf_node(m, o, base, m[base], x, y, z);
+        const uint bv = (z & 3) << 4 | (y & 3) << 2 | (x & 3);
+        if (n4 != NO_TILE && (m[n4] >> bv & 1ul) != 0) {
+            v = 0;
+        }
+    }
+    pool[slot * TILE_VOXELS + ((size_t)z * TILE + y) * TILE + x] = (ELEM)v;
+}
+
+// The value before a line's first voxel (dir -1) or after its last (dir +1) that a scan toward
+// the line carries in from its neighbour tile: the least of |distance| + value over the
+// neighbour's `halo` voxels nearest the line (stride apart from `at`).
+inline uint sweep_carry(__global const ELEM* restrict pool, uint nb, size_t at, size_t stride,
+                        int dir, uint halo, uint cap) {
+    if (nb == NB_INSIDE) {
+        return 0;
+    }
+    uint r = cap;
+    if (nb == NB_EMPTY) {
+        return r;
+    }
+    __global const ELEM* t = pool + (size_t)nb * TILE_VOXELS + at;
+    // Toward the line: from the farthest of the halo voxels to the nearest.
+    for (uint k = halo; k-- > 0;) {
+        const uint p = dir < 0 ? TILE - 1 - k : k;
+        r = min((uint)t[p * stride], r + 1);
+    }
+    return r;
+}
+
+// One 1-D pass of the exact L1 transform along `axis` (0 x, 1 y, 2 z), in place: a work-item per
+// line of a tile (global ids 0 and 1 the two other axes, lowest first), a forward and a backward
+// scan over the line and `halo` voxels of each neighbour. Neighbours are read while their own
+// lines are rewritten: a value read is then this pass's result or the previous one, both at
+// least the exact one and at most the previous one, and the 1-D L1 kernel's triangle
+// inequality makes either give the same exact result.
+__kernel void sweep_l1(__global ELEM* restrict pool, __global const uint* restrict nbrs, uint first,
+                       uint axis, uint halo, uint cap) {
+    const size_t u = get_global_id(0), w = get_global_id(1);
+    const size_t slot = first + get_global_id(2);
+    size_t stride, at;
+    if (axis == 0) {
+        stride = 1;
+        at = (w * TILE + u) * TILE;
+    } else if (axis == 1) {
+        stride = TILE;
+        at = w * TILE * TILE + u;
+    } else {
+        stride = TILE * TILE;
+        at = w * TILE + u;
+    }
+    __global ELEM* line = pool + slot * TILE_VOXELS + at;
+    uint r = sweep_carry(pool, nbrs[6 * slot + 2 * axis], at, stride, -1, halo, cap);
+    for (uint p = 0; p < TILE; ++p) {
+        const uint v = (uint)line[p * stride];
+        r = min(v, r + 1);
+        if (r != v) {
+            line[p * stride] = (ELEM)r;
+        }
+    }
+    r = sweep_carry(pool, nbrs[6 * slot + 2 * axis + 1], at, stride, 1, halo, cap);
+    for (uint p = TILE; p-- > 0;) {
+        const uint v = (uint)line[p * stride];
+        r = min(v, r + 1);
+        if (r != v) {
+            line[p * stride] = (ELEM)r;
+        }
+    }
+}
+
+// A work-item per voxel, as sweep_init: distances up to `most` (D rounded down) stay, the others
+// become `far` (D encoded).
+__kernel void sweep_finish(__global ELEM* restrict pool, uint first, uint most, ELEM far) {
+    const size_t i = (first + get_global_id(2) / TILE) * TILE_VOXELS +
+                     ((get_global_id(2) % TILE) * TILE + get_global_id(1)) * TILE +
+                     get_global_id(0);
+    const uint v = (uint)pool[i];
+    if (v > most) {
+        pool[i] = far;
+    }
 }

@@ -6,37 +6,8 @@
 //
 // A tile's 64-tree lies either in the main buffers (the host world as uploaded) or in a slot
 // of the slot buffers (tiles encoded since: TILE_MAX_NODES nodes and TILE_VOXELS materials
-// per slot); a reference to a slot has SLOT_REF set in its node base.
-
-#define TILE 64
-#define TILE_VOXELS 262144
-#define TILE_MAX_NODES 4161
-#define NODE 16
-#define NODE_VOXELS 4096
-#define NO_TILE 0xFFFFFFFFFFFFFFFFul
-#define SLOT_REF 0x8000000000000000ul
-
-// Set bits of m below bit b.
-inline uint rank_below(ulong m, uint b) {
-    return (uint)popcount(m & ((1ul << b) - 1ul));
-}
-
-// The 4^3 leaf node that holds voxel (lx, ly, lz) of the tile tree at node `base` (its root
-// mask `root`; masks m, offsets o), or NO_TILE when that leaf is empty.
-inline ulong leaf_node(__global const ulong* m, __global const uint* o, ulong base, ulong root,
-                       uint lx, uint ly, uint lz) {
-    const uint b16 = (lz >> 4) << 4 | (ly >> 4) << 2 | (lx >> 4);
-    if ((root >> b16 & 1ul) == 0) {
-        return NO_TILE;
-    }
-    const ulong n16 = base + o[base] + rank_below(root, b16);
-    const uint b4 = ((lz >> 2) & 3) << 4 | ((ly >> 2) & 3) << 2 | ((lx >> 2) & 3);
-    const ulong m16 = m[n16];
-    if ((m16 >> b4 & 1ul) == 0) {
-        return NO_TILE;
-    }
-    return base + o[n16] + rank_below(m16, b4);
-}
+// per slot); a reference to a slot has SLOT_REF set in its node base. The tree's constants and
+// leaf lookup are sparse_tree.cl's, compiled before this source.
 
 // The lowest set bit of m (m != 0).
 inline uint lowest_bit(ulong m) {

@@ -10,6 +10,7 @@
 #include "voxfield/core/error.hpp"
 
 namespace voxfield::cl_sources {
+extern const char* const sparse_tree_cl;
 extern const char* const sparse_world_cl;
 }  // namespace voxfield::cl_sources
 
@@ -30,7 +31,8 @@ constexpr std::uint64_t kKeep = ~std::uint64_t{0};
 constexpr std::size_t kMaxHostEditTiles = 256;
 
 cl::Program world_program(Context& ctx) {
-    return ctx.program("sparse_world.cl", {cl_sources::sparse_world_cl}, "-cl-std=CL1.2");
+    return ctx.program("sparse_world.cl", {cl_sources::sparse_tree_cl, cl_sources::sparse_world_cl},
+                       "-cl-std=CL1.2");
 }
 
 struct Span {
@@ -595,6 +597,15 @@ cl::Kernel SparseDeviceWorld::gather_kernel(bool per_voxel) {
         k.setArg(4, slot_offsets_);
         k.setArg(5, slot_materials_);
         return k;
+    });
+}
+
+void SparseDeviceWorld::set_tree_args(cl::Kernel& k, cl_uint first) {
+    cl_call("setting a kernel's tree arguments", [&] {
+        k.setArg(first, masks_);
+        k.setArg(first + 1, offsets_);
+        k.setArg(first + 2, slot_masks_);
+        k.setArg(first + 3, slot_offsets_);
     });
 }
 

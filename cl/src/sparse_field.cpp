@@ -16,6 +16,7 @@
 #include "voxfield/core/format.hpp"
 
 namespace voxfield::cl_sources {
+extern const char* const sparse_tree_cl;
 extern const char* const sparse_field_cl;
 }  // namespace voxfield::cl_sources
 
@@ -31,6 +32,11 @@ constexpr std::size_t kGroupRows = 8;
 constexpr std::size_t kGroupVoxels = 64;
 // The largest halo (voxels): blocks beyond are larger than a batch.
 constexpr std::uint32_t kMaxHalo = 512;
+// Field tiles per launch of the sweep's kernels.
+constexpr std::size_t kSweepSlots = 2048;
+// sparse_field.cl's neighbour codes.
+constexpr std::uint32_t kNbEmpty = 0xFFFFFFFFu;
+constexpr std::uint32_t kNbInside = 0xFFFFFFFEu;
 
 std::string elem_options(Format f) {
     const char* type = "uint";
@@ -216,12 +222,16 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
     const World one(Dims{1, 1, 1});
     far_ = encode_real_field({d}, one, palette_, options_.format);
     inside_ = encode_real_field({options_.signed_field ? -d : 0.0}, one, palette_, options_.format);
-    program_ = ctx_.program("sparse_field.cl", {cl_sources::sparse_field_cl},
-                            elem_options(options_.format));
+    program_ =
+        ctx_.program("sparse_field.cl", {cl_sources::sparse_tree_cl, cl_sources::sparse_field_cl},
+                     elem_options(options_.format));
     cl_call("making the sparse field's kernels", [&] {
         scatter_ = cl::Kernel(program_, "scatter");
         scatter_voxels_ = cl::Kernel(program_, "scatter_voxels");
         node_minima_ = cl::Kernel(program_, "node_minima");
+        sweep_init_ = cl::Kernel(program_, "sweep_init");
+        sweep_l1_ = cl::Kernel(program_, "sweep_l1");
+        sweep_finish_ = cl::Kernel(program_, "sweep_finish");
     });
 }
 
@@ -583,15 +593,19 @@ double SparseField::run() {
     // Headroom for the field tiles that edits add: growing the pool copies it whole (seconds
     // and twice its memory on a large world), so an edit should rarely have to.
     ensure_slots(keys.size() + keys.size() / 16 + 16);
+    const bool blocks = run_method() == "blocks";
     std::vector<Job> jobs;
     std::vector<std::uint32_t> slots;
-    jobs.reserve(keys.size());
+    jobs.reserve(blocks ? keys.size() : 0);
     const Dims block = tile_block(wd, halo_);
     for (std::uint64_t key : keys) {
         const auto slot = static_cast<std::uint32_t>(slot_keys_.size());
         tiles_[key] = slot;
         slot_keys_.push_back(key);
         slots.push_back(slot);
+        if (!blocks) {
+            continue;
+        }
         const Int3 t{static_cast<std::int64_t>(key & 0x3FFF),
                      static_cast<std::int64_t>(key >> 14 & 0x3FFF),
                      static_cast<std::int64_t>(key >> 28)};
@@ -601,9 +615,101 @@ double SparseField::run() {
         jobs.push_back({region, tile_origin(t.x, t.y, t.z, wd, block, halo_)});
     }
     coarse_host_.assign(slot_keys_.size() * 64 * elem_, 0);
-    double ms = compute(jobs, block);
+    double ms = blocks ? compute(jobs, block) : sweep();
     refresh_coarse(slots, std::vector<std::uint64_t>(slots.size(), ~std::uint64_t{0}), &ms);
     return ms + settle_scatters();
+}
+
+std::string SparseField::run_method() const {
+    const GeneratorOptions& o = options_;
+    const bool unit = o.spacing.x == 1 && o.spacing.y == 1 && o.spacing.z == 1;
+    const bool fits = halo_[0] <= kTileSize && halo_[1] <= kTileSize && halo_[2] <= kTileSize;
+    return !force_blocks_ && o.metric == Metric::manhattan && !o.signed_field &&
+                   o.format != Format::packed32 && unit && fits
+               ? "sweep"
+               : "blocks";
+}
+
+double SparseField::sweep() {
+    const std::size_t n = slot_keys_.size();
+    if (n == 0) {
+        return 0;
+    }
+    const Dims grid = world_.tile_grid();
+    std::vector<std::uint64_t> refs(n);
+    std::vector<std::uint32_t> nbrs(6 * n);
+    for (std::size_t slot = 0; slot < n; ++slot) {
+        const std::uint64_t key = slot_keys_[slot];
+        const std::int64_t t[3] = {static_cast<std::int64_t>(key & 0x3FFF),
+                                   static_cast<std::int64_t>(key >> 14 & 0x3FFF),
+                                   static_cast<std::int64_t>(key >> 28)};
+        refs[slot] = device_world_.ref(t[0], t[1], t[2]).first;
+        const std::int64_t extent[3] = {grid.x, grid.y, grid.z};
+        for (int a = 0; a < 3; ++a) {
+            for (int side = 0; side < 2; ++side) {
+                std::int64_t c[3] = {t[0], t[1], t[2]};
+                c[a] += side == 0 ? -1 : 1;
+                std::uint32_t code = kNbEmpty;
+                if (c[a] >= 0 && c[a] < extent[a]) {
+                    const auto it = tiles_.find(tile_key(static_cast<std::uint32_t>(c[0]),
+                                                         static_cast<std::uint32_t>(c[1]),
+                                                         static_cast<std::uint32_t>(c[2])));
+                    if (it != tiles_.end()) {
+                        code = it->second == kInsideTile ? kNbInside : it->second;
+                    }
+                }
+                nbrs[6 * slot + 2 * static_cast<std::size_t>(a) + side] = code;
+            }
+        }
+    }
+    const auto cap = static_cast<cl_uint>(halo_[0] + 1);
+    const auto most = static_cast<cl_uint>(std::floor(*options_.max_distance));
+    double ms = 0;
+    cl_call("computing a sparse Manhattan field in its tiles", [&] {
+        auto& q = ctx_.queue();
+        cl::Buffer refs_buf(ctx_.context(), CL_MEM_READ_ONLY, n * 8);
+        cl::Buffer nbrs_buf(ctx_.context(), CL_MEM_READ_ONLY, nbrs.size() * 4);
+        q.enqueueWriteBuffer(refs_buf, CL_FALSE, 0, n * 8, refs.data());
+        q.enqueueWriteBuffer(nbrs_buf, CL_FALSE, 0, nbrs.size() * 4, nbrs.data());
+        device_world_.set_tree_args(sweep_init_, 0);
+        sweep_init_.setArg(4, refs_buf);
+        sweep_init_.setArg(5, pool_);
+        sweep_init_.setArg(7, cap);
+        sweep_l1_.setArg(0, pool_);
+        sweep_l1_.setArg(1, nbrs_buf);
+        sweep_l1_.setArg(4, static_cast<cl_uint>(halo_[0]));
+        sweep_l1_.setArg(5, cap);
+        sweep_finish_.setArg(0, pool_);
+        sweep_finish_.setArg(2, most);
+        sweep_finish_.setArg(3, elem_, far_.data());
+        std::vector<std::pair<std::string, cl::Event>> events;
+        // Every launch of a stage before the next stage's (the passes read neighbours).
+        auto each_batch = [&](const std::string& stage, cl::Kernel& k, cl_uint first_arg,
+                              bool per_voxel) {
+            for (std::size_t first = 0; first < n; first += kSweepSlots) {
+                const std::size_t count = std::min(kSweepSlots, n - first);
+                k.setArg(first_arg, static_cast<cl_uint>(first));
+                const std::size_t depth = per_voxel ? count * kTileSize : count;
+                q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(kTileSize, kTileSize, depth),
+                                       cl::NDRange(kTileSize, 1, 1), nullptr,
+                                       &events.emplace_back(stage, cl::Event()).second);
+            }
+        };
+        each_batch("sweep_init", sweep_init_, 6, true);
+        for (cl_uint axis = 0; axis < 3; ++axis) {
+            sweep_l1_.setArg(3, axis);
+            each_batch(std::string("sweep_") + "xyz"[axis], sweep_l1_, 2, false);
+        }
+        each_batch("sweep_finish", sweep_finish_, 1, true);
+        q.finish();
+        for (const auto& [stage, e] : events) {
+            const double t = elapsed_ms(e, e);
+            ms += t;
+            add_stage(stage, t);
+        }
+    });
+    work_.region_voxels = std::uint64_t{n} * kTileVoxels;
+    return ms;
 }
 
 SparseField::Update SparseField::update(const Box& changed) {

@@ -1,7 +1,8 @@
 // Bounded fields of sparse worlds (cl/sparse_field.hpp) on PoCL, in both kernel layouts:
 // equal voxel for voxel to the dense bounded field of the same world (the dense generator with
 // max_distance), every metric, spacing, signed, formats, bounds up to beyond a tile; coarse
-// distances are lower bounds; updates after random brushes equal recomputation.
+// distances are lower bounds; updates after random brushes equal recomputation; the Manhattan
+// sweep equals run() by blocks.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -256,6 +257,75 @@ TEST(SparseField, EmptyFullAndSingleVoxelWorlds) {
         const auto got = f.read_dense();
         expect_same(got, dense_field(deep, p, c), c, deep.dims(), "deep solid");
         expect_coarse_bounds(f, got, c, deep.dims());
+    }
+}
+
+// run()'s Manhattan sweep (1-D passes in the field tiles, neighbours read while rewritten)
+// against the dense bounded field and against run() by blocks: formats, bounds up to a whole
+// tile of halo (and just beyond, where run() takes blocks), full tiles beside empty ones,
+// tiles cut by the world's edge, and whole runs after device edits (trees in slots).
+TEST(SparseField, ManhattanSweepEqualsBlocksAndTheDenseField) {
+    std::mt19937 rng(27);
+    const Palette p = Palette::magicavoxel_default();
+    const Dims sizes[] = {{130, 70, 200}, {64, 64, 64}, {1, 129, 65}, {200, 3, 5}};
+    const Format formats[] = {Format::u8, Format::u16, Format::u32, Format::i16, Format::f32};
+    const double bounds[] = {1, 2.5, 16, 64, 64.5};
+    int i = 0;
+    for (const Dims d : sizes) {
+        World w = blob_world(d, 6, 0.0003, rng);
+        if (d.x >= 128 && d.z >= 128) {
+            for (std::uint32_t z = 64; z < 128; ++z) {  // a full tile beside empty ones
+                for (std::uint32_t y = 0; y < std::min<std::uint32_t>(64, d.y); ++y) {
+                    for (std::uint32_t x = 64; x < 128; ++x) {
+                        w.set(x, y, z, 9);
+                    }
+                }
+            }
+        }
+        for (const double bound : bounds) {
+            Case c;
+            c.format = formats[i % 5];
+            c.layout = kLayouts[i % 2];
+            c.bound = bound;
+            ++i;
+            SCOPED_TRACE(describe(c, d));
+            const SparseWorld s = SparseWorld::from_dense(w);
+            ocl::SparseField f(pocl(), s, p, options_of(c));
+            EXPECT_EQ(f.run_method(), bound <= 64 ? "sweep" : "blocks");
+            f.run();
+            const auto got = f.read_dense();
+            expect_same(got, dense_field(w, p, c), c, d, "sweep");
+            if (bound == 16) {
+                expect_coarse_bounds(f, got, c, d);
+            }
+            f.force_blocks(true);
+            EXPECT_EQ(f.run_method(), "blocks");
+            f.run();
+            expect_same(f.read_dense(), got, c, d, "blocks vs sweep");
+        }
+    }
+    // After edits on the device: the trees of edited tiles lie in slots.
+    World w = blob_world(Dims{150, 60, 140}, 8, 0.0005, rng);
+    for (const Layout layout : kLayouts) {
+        SparseWorld s = SparseWorld::from_dense(w);
+        Case c;
+        c.layout = layout;
+        c.bound = 12;
+        ocl::SparseField f(pocl(), s, p, options_of(c));
+        f.run();
+        for (int e = 0; e < 6; ++e) {
+            Brush b;
+            b.op = e % 3 == 1 ? BrushOp::erase : BrushOp::place;
+            b.centre = {std::uniform_int_distribution<std::int64_t>(0, 149)(rng),
+                        std::uniform_int_distribution<std::int64_t>(0, 59)(rng),
+                        std::uniform_int_distribution<std::int64_t>(0, 139)(rng)};
+            b.radius = std::uniform_int_distribution<std::int64_t>(2, 20)(rng);
+            b.material = 4;
+            apply_brush(w, b);
+            f.apply_brush(b);
+        }
+        f.run();
+        expect_same(f.read_dense(), dense_field(w, p, c), c, w.dims(), "sweep after edits");
     }
 }
 

@@ -196,6 +196,20 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         field_stages[name] = ms;
     }
     const ocl::SparseField::Work field_work = field.last_work();
+    // The same field by per-tile blocks through the dense generator (the path the sweep
+    // replaced), once, in the same run.
+    const std::string method = field.run_method();
+    json blocks_wall = nullptr, blocks_kernel = nullptr;
+    if (method != "blocks") {
+        observer.progress(label + ": whole bounded field by blocks, for comparison");
+        field.force_blocks(true);
+        const auto t0 = Clock::now();
+        blocks_kernel = field.run();
+        blocks_wall = ms_since(t0);
+        field.force_blocks(false);
+        observer.stage(label + ": by blocks " + fixed(blocks_wall.get<double>(), 1) +
+                       " ms (kernels " + fixed(blocks_kernel.get<double>(), 1) + " ms)");
+    }
     observer.stage(label + ": whole field in " + fixed(fw.median, 1) + " ms (kernels " +
                    fixed(fk.median, 1) + " ms), " + std::to_string(field.dense_tiles()) +
                    " field tiles; radius-8 edits on the device");
@@ -282,6 +296,9 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"field_wall_ms_samples", field_wall},
         {"field_kernel_ms_samples", field_kernel},
         {"field_stage_ms", field_stages},
+        {"field_method", method},
+        {"field_blocks_wall_ms", blocks_wall},
+        {"field_blocks_kernel_ms", blocks_kernel},
         {"field_blocks", field_work.blocks},
         {"field_batches", field_work.batches},
         {"field_block_voxels", field_work.block_voxels},

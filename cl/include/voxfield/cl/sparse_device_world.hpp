@@ -73,6 +73,9 @@ class SparseDeviceWorld {
     // The gather kernel (sparse_world.cl; `per_voxel`: gather_voxels, the GPU layout's) with
     // the world's buffers as its arguments 0-5; the caller sets the job arguments 6-14.
     cl::Kernel gather_kernel(bool per_voxel = false);
+    // Sets arguments first..first+3 of `k` to the trees' node masks and offsets: the main
+    // buffers', then the slot buffers' (sparse_field.cl's sweep_init).
+    void set_tree_args(cl::Kernel& k, cl_uint first);
     // A tile's node base and material base for gather's refs (kNoRef, 0 when not stored).
     static constexpr std::uint64_t kNoRef = ~std::uint64_t{0};
     std::pair<std::uint64_t, std::uint64_t> ref(std::int64_t tx, std::int64_t ty,

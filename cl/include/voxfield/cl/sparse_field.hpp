@@ -87,6 +87,13 @@ class SparseField {
     const std::vector<std::pair<std::string, double>>& last_stages() const { return stages_; }
 
     const GeneratorOptions& options() const { return options_; }
+    // How run() computes the whole field: "sweep" (unsigned Manhattan fields of unit spacing
+    // whose halo fits in one neighbour tile: 1-D passes in the field tiles themselves, see
+    // sparse_field.cl) or "blocks" (every other field, and updates: each tile's block with its
+    // halo through a dense generator). force_blocks(true) makes run() take blocks always
+    // (tests and benchmarks compare the two).
+    std::string run_method() const;
+    void force_blocks(bool on) { force_blocks_ = on; }
     std::uint32_t halo(int axis) const { return halo_[axis]; }
     // Field tiles with values of their own on the device, and all field tiles (constant
     // ones included).
@@ -122,6 +129,8 @@ class SparseField {
     // kernel to stages_, except the last scatters', which are left in scatters_ (nothing waits
     // for them): settle_scatters() waits and returns their ms.
     double compute(const std::vector<Job>& jobs, Dims block);
+    // run()'s Manhattan sweep over slots [0, slot_keys_.size()); returns kernel ms.
+    double sweep();
     double settle_scatters();
     void add_stage(const std::string& name, double ms);
     // Recomputes the voxels within D of `changed` (the device's world already edited).
@@ -145,7 +154,9 @@ class SparseField {
     // Whether gather and scatter take a work-item per voxel (GPU layout) or per row.
     bool gpu_layout_ = false;
     cl::Kernel scatter_, scatter_voxels_, node_minima_;  // arguments set per launch
-    SparseDeviceWorld device_world_;                     // the world's 64-trees on the device
+    cl::Kernel sweep_init_, sweep_l1_, sweep_finish_;
+    bool force_blocks_ = false;
+    SparseDeviceWorld device_world_;  // the world's 64-trees on the device
     // node_minima's slots, tile coordinates and minima in list order.
     cl::Buffer minima_list_, minima_coords_, minima_listed_, minima_nodes_;
     std::size_t minima_list_cap_ = 0;
