@@ -104,32 +104,42 @@ inline T step_pair(T c, T lo, T hi, T k) {
 // empty, from the run of solids around it).
 #define ROW_KMAX 16
 
-// The positions of the solid voxels of row v (X voxels) in pos, and their number; ROW_KMAX + 1
-// (pos then incomplete) when there are more.
-inline uint row_solids(__global const uchar* restrict v, uint X, uint* pos) {
+// The solid voxels among the 16 from v as a bit mask (bit i: v[i] != 0).
+inline uint solid_mask16(__global const uchar* restrict v) {
     const uchar16 bits = (uchar16)(1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128);
     const ulong gather = 0x0101010101010101UL;  // sums a word's bytes into its top byte
+    const ulong2 h = as_ulong2(as_uchar16(vload16(0, v) != (uchar16)0) & bits);
+    return (uint)((h.s0 * gather) >> 56) | ((uint)((h.s1 * gather) >> 56) << 8);
+}
+
+// The positions of the solid voxels of row v (X voxels) in pos, and their number; ROW_KMAX + 1
+// (pos then unset) when there are more. A first pass only counts (no branch per solid), so
+// that a dense row leaves after its first few blocks.
+inline uint row_solids(__global const uchar* restrict v, uint X, uint* pos) {
+    const uint full = X / 16 * 16;
     uint k = 0;
-    uint x = 0;
-    for (; x + 16 <= X; x += 16) {
-        const ulong2 h = as_ulong2(as_uchar16(vload16(0, v + x) != (uchar16)0) & bits);
-        uint m = (uint)((h.s0 * gather) >> 56) | ((uint)((h.s1 * gather) >> 56) << 8);
-        if (m == 0) {
-            continue;
-        }
-        if (k + popcount(m) > ROW_KMAX) {
+    for (uint x = 0; x < full; x += 16) {
+        k += popcount(solid_mask16(v + x));
+        if (k > ROW_KMAX) {
             return ROW_KMAX + 1;
         }
+    }
+    for (uint x = full; x < X; ++x) {
+        k += v[x] != 0;
+    }
+    if (k == 0 || k > ROW_KMAX) {
+        return min(k, (uint)ROW_KMAX + 1);
+    }
+    k = 0;
+    for (uint x = 0; x < full; x += 16) {
+        uint m = solid_mask16(v + x);
         while (m != 0) {
             pos[k++] = x + 31 - clz(m & (0u - m));
             m &= m - 1;
         }
     }
-    for (; x < X; ++x) {
+    for (uint x = full; x < X; ++x) {
         if (v[x] != 0) {
-            if (k == ROW_KMAX) {
-                return ROW_KMAX + 1;
-            }
             pos[k++] = x;
         }
     }
