@@ -80,26 +80,38 @@ __kernel void scatter_voxels(__global const ELEM* restrict field, __global ELEM*
               (size_t)(px - reg[3])];
 }
 
-// One work-item per 16^3 node of the listed slots: the least KEY over its voxels inside the
-// world (a tile cut by the world's edge holds no values beyond it), starting from the far
-// value, which no value exceeds. `tiles`: per listed slot its tile's coordinates (3 uints).
-// Written per slot into `minima` and in list order into `listed` (one read for the host).
-// Only the nodes set in `nodes` (per listed slot, bit z << 4 | y << 2 | x) are computed; the
-// others keep their minima (copied into `listed`).
+// A work-item per voxel (global ids x, y, z): field tile `slot` set to `value`. A kernel, not
+// clEnqueueFillBuffer: NVIDIA's driver (580) faults filling a pool at offsets past 2 GiB.
+__kernel void fill_slot(__global ELEM* restrict pool, ulong slot, ELEM value) {
+    pool[slot * TILE_VOXELS +
+         (get_global_id(2) * TILE + get_global_id(1)) * TILE + get_global_id(0)] = value;
+}
+
+// A work-group of 64 work-items per 16^3 node of the listed slots (global ids 0: 0..63, 1: list
+// index * 64 + node): the least KEY over its voxels inside the world (a tile cut by the world's
+// edge holds no values beyond it), starting from the far value, which no value exceeds; each
+// work-item takes 4 rows of 16, then the group's least. `tiles`: per listed slot its tile's
+// coordinates (3 uints). Written per slot into `minima` and in list order into `listed` (one
+// read for the host). Only the nodes set in `nodes` (per listed slot, bit z << 4 | y << 2 | x)
+// are computed; the others keep their minima (copied into `listed`).
 __kernel void node_minima(__global const ELEM* restrict pool, __global const uint* restrict slots,
                           __global const uint* restrict tiles, uint count,
                           __global ELEM* restrict minima, ELEM far, uint wx, uint wy, uint wz,
                           __global ELEM* restrict listed, __global const ulong* restrict nodes) {
-    const size_t i = get_global_id(0);
+    __local ELEM least[64];
+    const uint lid = (uint)get_local_id(0);
+    const size_t i = get_global_id(1);
     if (i >= (size_t)count * 64) {
-        return;
+        return;  // the whole group
     }
     const size_t slot = slots[i / 64];
     __global const uint* t = tiles + 3 * (i / 64);
     const uint node = (uint)(i % 64);
     if ((nodes[i / 64] >> node & 1ul) == 0) {
-        listed[i] = minima[slot * 64 + node];
-        return;
+        if (lid == 0) {
+            listed[i] = minima[slot * 64 + node];
+        }
+        return;  // the whole group
     }
     const uint x0 = (node & 3) * 16, y0 = ((node >> 2) & 3) * 16, z0 = (node >> 4) * 16;
     // Voxels of the node inside the world: [0, n) along each axis.
@@ -108,8 +120,10 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
                nz = (uint)clamp((long)wz - oz, 0l, 16l);
     __global const ELEM* tile = pool + slot * TILE_VOXELS;
     ELEM best = KEY(far);
-    for (uint z = 0; z < nz; ++z) {
-        for (uint y = 0; y < ny; ++y) {
+    // Rows lid, lid + 64, lid + 128, lid + 192 of the node's 256 (y fastest).
+    for (uint r = lid; r < 256; r += 64) {
+        const uint y = r & 15, z = r >> 4;
+        if (y < ny && z < nz) {
             __global const ELEM* row = tile + ((z0 + z) * TILE + y0 + y) * TILE + x0;
             for (uint x = 0; x < nx; ++x) {
                 const ELEM k = KEY(row[x]);
@@ -117,10 +131,19 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
             }
         }
     }
-    minima[slot * 64 + node] = best;
-    listed[i] = best;
+    least[lid] = best;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint step = 32; step > 0; step >>= 1) {
+        if (lid < step) {
+            least[lid] = least[lid + step] < least[lid] ? least[lid + step] : least[lid];
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lid == 0) {
+        minima[slot * 64 + node] = least[0];
+        listed[i] = least[0];
+    }
 }
-
 
 // The Manhattan sweep: a whole unsigned bounded L1 field of unit spacing computed in the field
 // tiles themselves, with no dense blocks. Values are small integers (distances, CAP = halo + 1
@@ -131,31 +154,46 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
 #define NB_EMPTY 0xFFFFFFFFu
 #define NB_INSIDE 0xFFFFFFFEu
 
-// A work-item per voxel of tile slot first + gid2 / 64: 0 where the world's tree (refs: per slot
-// the tile's node base, SLOT_REF in the slot buffers, NO_TILE not stored) holds a solid voxel,
-// CAP elsewhere.
+#define VEC16_(t) t##16
+#define VEC16(t) VEC16_(t)
+typedef VEC16(ELEM) ELEM16;
+
+// A work-item per 16 voxels along x (global ids x / 16, y, and slot - first) * 64 + z) of tile slot
+// first + gid2 / 64: 0 where the world's tree (refs: per slot the tile's node base, SLOT_REF in
+// the slot buffers, NO_TILE not stored) holds a solid voxel, CAP elsewhere.
 __kernel void sweep_init(__global const ulong* restrict masks, __global const uint* restrict offsets,
                          __global const ulong* restrict slot_masks,
                          __global const uint* restrict slot_offsets,
                          __global const ulong* restrict refs, __global ELEM* restrict pool,
                          uint first, uint cap) {
-    const uint x = (uint)get_global_id(0), y = (uint)get_global_id(1);
+    const uint x0 = (uint)get_global_id(0) * 16, y = (uint)get_global_id(1);
     const size_t slot = first + get_global_id(2) / TILE;
     const uint z = (uint)(get_global_id(2) % TILE);
+    ELEM v[16];
+    for (uint k = 0; k < 16; ++k) {
+        v[k] = (ELEM)cap;
+    }
     ulong base = refs[slot];
-    uint v = cap;
     if (base != NO_TILE) {
         const bool in_slot = (base & SLOT_REF) != 0;
         base &= ~SLOT_REF;
         __global const ulong* m = in_slot ? slot_masks : masks;
         __global const uint* o = in_slot ? slot_offsets : offsets;
-        const ulong n4 = leaf_node(m, o, base, m[base], x, y, z);
-        const uint bv = (z & 3) << 4 | (y & 3) << 2 | (x & 3);
-        if (n4 != NO_TILE && (m[n4] >> bv & 1ul) != 0) {
-            v = 0;
+        const ulong root = m[base];
+        for (uint leaf = 0; leaf < 4; ++leaf) {
+            const ulong n4 = leaf_node(m, o, base, root, x0 + 4 * leaf, y, z);
+            if (n4 == NO_TILE) {
+                continue;
+            }
+            const uint row = (uint)(m[n4] >> ((z & 3) << 4 | (y & 3) << 2)) & 15u;
+            for (uint k = 0; k < 4; ++k) {
+                if ((row >> k & 1u) != 0) {
+                    v[4 * leaf + k] = (ELEM)0;
+                }
+            }
         }
     }
-    pool[slot * TILE_VOXELS + ((size_t)z * TILE + y) * TILE + x] = (ELEM)v;
+    vstore16(vload16(0, v), 0, pool + slot * TILE_VOXELS + ((size_t)z * TILE + y) * TILE + x0);
 }
 
 // The value before a line's first voxel (dir -1) or after its last (dir +1) that a scan toward
@@ -219,14 +257,48 @@ __kernel void sweep_l1(__global ELEM* restrict pool, __global const uint* restri
     }
 }
 
-// A work-item per voxel, as sweep_init: distances up to `most` (D rounded down) stay, the others
-// become `far` (D encoded).
-__kernel void sweep_finish(__global ELEM* restrict pool, uint first, uint most, ELEM far) {
-    const size_t i = (first + get_global_id(2) / TILE) * TILE_VOXELS +
-                     ((get_global_id(2) % TILE) * TILE + get_global_id(1)) * TILE +
-                     get_global_id(0);
-    const uint v = (uint)pool[i];
-    if (v > most) {
-        pool[i] = far;
+// sweep_l1 along y or z (axis 1 or 2) for CPUs: a work-item per plane (global id 0: z for y,
+// y for z; global id 1: slot - first) carries its 64 lines along x together, in four 16-wide
+// vectors, so each step reads and writes whole rows.
+__kernel void sweep_l1_rows(__global ELEM* restrict pool, __global const uint* restrict nbrs,
+                            uint first, uint axis, uint halo, uint cap) {
+    const size_t w = get_global_id(0);
+    const size_t slot = first + get_global_id(1);
+    const size_t stride = axis == 1 ? TILE : TILE * TILE;
+    const size_t at = axis == 1 ? w * TILE * TILE : w * TILE;
+    __global ELEM* line = pool + slot * TILE_VOXELS + at;
+    const ELEM16 one = (ELEM16)((ELEM)1);
+    for (uint dir = 0; dir < 2; ++dir) {
+        const uint nb = nbrs[6 * slot + 2 * axis + dir];
+        ELEM16 r[4];
+        for (uint q = 0; q < 4; ++q) {
+            r[q] = (ELEM16)((ELEM)(nb == NB_INSIDE ? 0 : cap));
+        }
+        if (nb != NB_INSIDE && nb != NB_EMPTY) {
+            __global const ELEM* t = pool + (size_t)nb * TILE_VOXELS + at;
+            for (uint k = halo; k-- > 0;) {
+                const uint p = dir == 0 ? TILE - 1 - k : k;
+                for (uint q = 0; q < 4; ++q) {
+                    r[q] = min(vload16(q, t + p * stride), r[q] + one);
+                }
+            }
+        }
+        for (uint step = 0; step < TILE; ++step) {
+            const uint p = dir == 0 ? step : TILE - 1 - step;
+            for (uint q = 0; q < 4; ++q) {
+                r[q] = min(vload16(q, line + p * stride), r[q] + one);
+                vstore16(r[q], q, line + p * stride);
+            }
+        }
     }
+}
+
+// A work-item per 16 voxels, as sweep_init: distances up to `most` (D rounded down) stay, the
+// others become `far` (D encoded).
+__kernel void sweep_finish(__global ELEM* restrict pool, uint first, uint most, ELEM far) {
+    __global ELEM* p = pool + (first + get_global_id(2) / TILE) * TILE_VOXELS +
+                       ((get_global_id(2) % TILE) * TILE + get_global_id(1)) * TILE +
+                       get_global_id(0) * 16;
+    const ELEM16 v = vload16(0, p);
+    vstore16(v > (ELEM16)((ELEM)most) ? (ELEM16)far : v, 0, p);
 }

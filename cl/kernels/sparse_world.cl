@@ -241,19 +241,19 @@ __kernel void encode_count(__global const uchar* restrict vox, __global const ul
 // Pass 2: one work-item per 16^3 node, as pass 1. Tile t's 64-tree goes to slot slots[t] (nodes
 // from slot * TILE_MAX_NODES, materials from slot * TILE_VOXELS; never the slot its previous tree
 // lies in): the root (written by child 0, mask 0 when the tile is empty), its 16^3 children in
-// mask order, then their 4^3 children grouped by parent and the materials of their voxels in mask
-// order; each node's place and offset are prefix sums of pass 1's counts of the nodes before it.
-// A kept node's leaves and materials are copied, its leaves' offsets moved by where its materials
-// now start. counts[2 slot], counts[2 slot + 1]: the tile's nodes and materials (0, 0 when empty).
-__kernel void encode_write(__global const uchar* restrict vox, __global const ulong* restrict src,
-                           uint pitch_y, uint pitch_z, __global const ulong* restrict refs,
+// mask order, then their 4^3 children grouped by parent (pass 3 writes the materials of their
+// voxels in mask order); each node's place and offset are prefix sums of pass 1's counts of the
+// nodes before it, its first material's (materials_before) also into node_mats. A kept node's
+// leaves are copied, their offsets moved by where its materials now start. counts[2 slot],
+// counts[2 slot + 1]: the tile's nodes and materials (0, 0 when empty).
+__kernel void encode_write(__global const ulong* restrict src, __global const ulong* restrict refs,
                            __global const ulong* masks, __global const uint* offsets,
-                           __global const uchar* materials, __global const ulong* restrict leaf_masks,
+                           __global const ulong* restrict leaf_masks,
                            __global const ulong* restrict mid_masks,
                            __global const uint* restrict mid_counts,
                            __global const ulong* restrict kept, __global const uint* restrict slots,
                            __global ulong* slot_masks, __global uint* slot_offsets,
-                           __global uchar* slot_materials, __global uint* restrict counts,
+                           __global uint* restrict counts, __global uint* restrict node_mats,
                            uint tiles) {
     const size_t i = get_global_id(0);
     if (i >= (size_t)tiles * 64) {
@@ -277,7 +277,7 @@ __kernel void encode_write(__global const uchar* restrict vox, __global const ul
     }
     const uint n16 = (uint)popcount(root);
     const size_t slot = slots[t];
-    const size_t nb = slot * TILE_MAX_NODES, mb = slot * TILE_VOXELS;
+    const size_t nb = slot * TILE_MAX_NODES;
     if (b16 == 0) {
         slot_masks[nb] = root;
         slot_offsets[nb] = 1;
@@ -291,11 +291,10 @@ __kernel void encode_write(__global const uchar* restrict vox, __global const ul
     const uint r16 = rank_below(root, b16);
     slot_masks[nb + 1 + r16] = mid;
     slot_offsets[nb + 1 + r16] = 1 + n16 + leaves_before;
+    node_mats[i] = materials_before;
     size_t node = nb + 1 + n16 + leaves_before;
-    const ulong first = src[i];
-    if (first == NO_TILE) {
+    if (src[i] == NO_TILE) {
         PREVIOUS(t)
-        __global const uchar* om8 = in_slot ? slot_materials : materials;
         const ulong leaf = kept[i];
         const uint n = (uint)popcount(mid);
         const uint from = oo[leaf];
@@ -303,32 +302,70 @@ __kernel void encode_write(__global const uchar* restrict vox, __global const ul
             slot_masks[node + k] = om[leaf + k];
             slot_offsets[node + k] = oo[leaf + k] - from + materials_before;
         }
-        __global const uchar* in = om8 + refs[2 * t + 1] + from;
-        __global uchar* out = slot_materials + mb + materials_before;
-        // 16 bytes at a time (vload16 takes any uchar address), then the rest.
-        const uint c = mats[b16];
-        uint k = 0;
-        for (; k + 16 <= c; k += 16) {
-            vstore16(vload16(0, in + k), 0, out + k);
-        }
-        for (; k < c; ++k) {
-            out[k] = in[k];
+        return;
+    }
+    uint material = materials_before;
+    for (ulong m2 = mid; m2 != 0; m2 &= m2 - 1, ++node) {
+        const ulong leaf = leaf_masks[i * 64 + lowest_bit(m2)];
+        slot_masks[node] = leaf;
+        slot_offsets[node] = material;
+        material += (uint)popcount(leaf);
+    }
+}
+
+// Pass 3: the materials, a work-item per (k, node) (global ids 0 and 1): the k-th 4^3 leaf of
+// the node in mask order, at most 64 bytes, after the node's materials_before (node_mats, from
+// pass 2). A kept node's leaf copies its previous materials; a dense one's reads its voxels.
+__kernel void encode_materials(__global const uchar* restrict vox, __global const ulong* restrict src,
+                               uint pitch_y, uint pitch_z, __global const ulong* restrict refs,
+                               __global const ulong* masks, __global const uint* offsets,
+                               __global const uchar* materials,
+                               __global const ulong* restrict leaf_masks,
+                               __global const ulong* restrict mid_masks,
+                               __global const ulong* restrict kept,
+                               __global const uint* restrict slots, __global const ulong* slot_masks,
+                               __global const uint* slot_offsets, __global uchar* slot_materials,
+                               __global const uint* restrict node_mats, uint tiles) {
+    const uint k = (uint)get_global_id(0);
+    const size_t i = get_global_id(1);
+    if (i >= (size_t)tiles * 64) {
+        return;
+    }
+    const ulong mid = mid_masks[i];
+    if (k >= (uint)popcount(mid)) {
+        return;
+    }
+    const size_t t = i >> 6;
+    __global uchar* out = slot_materials + (size_t)slots[t] * TILE_VOXELS + node_mats[i];
+    const ulong first = src[i];
+    if (first == NO_TILE) {
+        PREVIOUS(t)
+        __global const uchar* om8 = in_slot ? slot_materials : materials;
+        const ulong leaf = kept[i];
+        const uint from = oo[leaf];
+        const uint at = oo[leaf + k];
+        const uint c = (uint)popcount(om[leaf + k]);
+        __global const uchar* in = om8 + refs[2 * t + 1] + at;
+        out += at - from;
+        for (uint j = 0; j < c; ++j) {
+            out[j] = in[j];
         }
         return;
     }
+    // The k-th set bit of mid, and the materials of the leaves before it.
+    ulong m2 = mid;
+    uint before = 0;
+    for (uint j = 0; j < k; ++j) {
+        before += (uint)popcount(leaf_masks[i * 64 + lowest_bit(m2)]);
+        m2 &= m2 - 1;
+    }
+    const uint b4 = lowest_bit(m2);
+    const uint x4 = (b4 & 3) * 4, y4 = (b4 >> 2 & 3) * 4, z4 = (b4 >> 4) * 4;
     __global const uchar* vnode = vox + first;
-    uint material = materials_before;
-    for (ulong m2 = mid; m2 != 0; m2 &= m2 - 1, ++node) {
-        const uint b4 = lowest_bit(m2);
-        const uint x4 = (b4 & 3) * 4, y4 = (b4 >> 2 & 3) * 4, z4 = (b4 >> 4) * 4;
-        const ulong leaf = leaf_masks[i * 64 + b4];
-        slot_masks[node] = leaf;
-        slot_offsets[node] = material;
-        for (ulong m3 = leaf; m3 != 0; m3 &= m3 - 1) {
-            const uint bv = lowest_bit(m3);
-            slot_materials[mb + material++] =
-                vnode[(size_t)(z4 + (bv >> 4)) * pitch_z + (y4 + (bv >> 2 & 3)) * pitch_y + x4 +
-                      (bv & 3)];
-        }
+    out += before;
+    for (ulong m3 = leaf_masks[i * 64 + b4]; m3 != 0; m3 &= m3 - 1) {
+        const uint bv = lowest_bit(m3);
+        *out++ = vnode[(size_t)(z4 + (bv >> 4)) * pitch_z + (y4 + (bv >> 2 & 3)) * pitch_y + x4 +
+                       (bv & 3)];
     }
 }

@@ -3,6 +3,7 @@
 #include "voxfield/cl/sparse_device_world.hpp"
 
 #include <algorithm>
+#include <initializer_list>
 #include <stdexcept>
 #include <string>
 
@@ -65,50 +66,57 @@ std::uint64_t key_of(std::int64_t tx, std::int64_t ty, std::int64_t tz) {
                     static_cast<std::uint32_t>(tz));
 }
 
-// What encode_count and encode_write read and write (sparse_world.cl): the dense nodes' voxels
-// and, per node, its first voxel there or kKeep; per tile its previous tree's refs; the previous
-// trees' buffers (main and slot); scratch; the output slots.
+// What encode_count, encode_write and encode_materials read and write (sparse_world.cl): the dense
+// nodes' voxels and, per node, its first voxel there or kKeep; per tile its previous tree's refs;
+// the previous trees' buffers (main and slot); scratch; the output slots.
 struct EncodeBuffers {
     cl::Buffer vox, src;
     cl_uint pitch_y = 0, pitch_z = 0;
     cl::Buffer refs, masks, offsets, materials;
-    cl::Buffer leaf_masks, mid_masks, mid_counts, kept;
+    cl::Buffer leaf_masks, mid_masks, mid_counts, kept, node_mats;
     cl::Buffer slots, slot_masks, slot_offsets, slot_materials, slot_counts;
 };
 
-// Enqueues encode_count and encode_write (`count`, `write`) over `tiles` tiles; appends their
-// events to `events`.
-void enqueue_encode(cl::CommandQueue& q, cl::Kernel& count, cl::Kernel& write,
-                    const EncodeBuffers& b, std::uint32_t tiles,
-                    std::vector<std::pair<std::string, cl::Event>>& events) {
+// Enqueues encode_count, encode_write and encode_materials (`k`: those kernels) over `tiles`
+// tiles; appends their events to `events`.
+void enqueue_encode(cl::CommandQueue& q, EncodeKernels& k, const EncodeBuffers& b,
+                    std::uint32_t tiles, std::vector<std::pair<std::string, cl::Event>>& events) {
     const cl::NDRange global(std::size_t{tiles} * 64), local(kGroupNodes);
-    cl_uint arg = 0;
-    for (const auto* buffer : {&b.vox, &b.src}) {
-        count.setArg(arg++, *buffer);
-    }
-    count.setArg(arg++, b.pitch_y);
-    count.setArg(arg++, b.pitch_z);
-    for (const auto* buffer : {&b.refs, &b.masks, &b.offsets, &b.slot_masks, &b.slot_offsets,
-                               &b.leaf_masks, &b.mid_masks, &b.mid_counts, &b.kept}) {
-        count.setArg(arg++, *buffer);
-    }
-    count.setArg(arg, tiles);
+    auto set = [](cl::Kernel& kernel, std::initializer_list<const cl::Buffer*> buffers,
+                  cl_uint arg) {
+        for (const cl::Buffer* buffer : buffers) {
+            kernel.setArg(arg++, *buffer);
+        }
+        return arg;
+    };
+    cl_uint arg = set(k.count, {&b.vox, &b.src}, 0);
+    k.count.setArg(arg++, b.pitch_y);
+    k.count.setArg(arg++, b.pitch_z);
+    arg = set(k.count,
+              {&b.refs, &b.masks, &b.offsets, &b.slot_masks, &b.slot_offsets, &b.leaf_masks,
+               &b.mid_masks, &b.mid_counts, &b.kept},
+              arg);
+    k.count.setArg(arg, tiles);
     events.emplace_back("encode_count", cl::Event());
-    q.enqueueNDRangeKernel(count, cl::NullRange, global, local, nullptr, &events.back().second);
-    arg = 0;
-    for (const auto* buffer : {&b.vox, &b.src}) {
-        write.setArg(arg++, *buffer);
-    }
-    write.setArg(arg++, b.pitch_y);
-    write.setArg(arg++, b.pitch_z);
-    for (const auto* buffer :
-         {&b.refs, &b.masks, &b.offsets, &b.materials, &b.leaf_masks, &b.mid_masks, &b.mid_counts,
-          &b.kept, &b.slots, &b.slot_masks, &b.slot_offsets, &b.slot_materials, &b.slot_counts}) {
-        write.setArg(arg++, *buffer);
-    }
-    write.setArg(arg, tiles);
+    q.enqueueNDRangeKernel(k.count, cl::NullRange, global, local, nullptr, &events.back().second);
+    arg = set(k.write,
+              {&b.src, &b.refs, &b.masks, &b.offsets, &b.leaf_masks, &b.mid_masks, &b.mid_counts,
+               &b.kept, &b.slots, &b.slot_masks, &b.slot_offsets, &b.slot_counts, &b.node_mats},
+              0);
+    k.write.setArg(arg, tiles);
     events.emplace_back("encode_write", cl::Event());
-    q.enqueueNDRangeKernel(write, cl::NullRange, global, local, nullptr, &events.back().second);
+    q.enqueueNDRangeKernel(k.write, cl::NullRange, global, local, nullptr, &events.back().second);
+    arg = set(k.materials, {&b.vox, &b.src}, 0);
+    k.materials.setArg(arg++, b.pitch_y);
+    k.materials.setArg(arg++, b.pitch_z);
+    arg = set(k.materials,
+              {&b.refs, &b.masks, &b.offsets, &b.materials, &b.leaf_masks, &b.mid_masks, &b.kept,
+               &b.slots, &b.slot_masks, &b.slot_offsets, &b.slot_materials, &b.node_mats},
+              arg);
+    k.materials.setArg(arg, tiles);
+    events.emplace_back("encode_materials", cl::Event());
+    q.enqueueNDRangeKernel(k.materials, cl::NullRange, cl::NDRange(64, std::size_t{tiles} * 64),
+                           cl::NDRange(64, 1), nullptr, &events.back().second);
 }
 
 }  // namespace
@@ -156,6 +164,7 @@ std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
         b.mid_masks = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 8);
         b.mid_counts = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 4);
         b.kept = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 8);
+        b.node_mats = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 4);
         b.slot_masks = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * kTileMaxNodes * 8);
         b.slot_offsets = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * kTileMaxNodes * 4);
         b.slot_materials = cl::Buffer(c, CL_MEM_READ_WRITE, voxels.size());
@@ -165,8 +174,9 @@ std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
         const cl::Buffer& materials = b.slot_materials;
         const cl::Buffer& counts = b.slot_counts;
         std::vector<std::pair<std::string, cl::Event>> events;
-        cl::Kernel count(program, "encode_count"), write(program, "encode_write");
-        enqueue_encode(q, count, write, b, tiles, events);
+        EncodeKernels k{cl::Kernel(program, "encode_count"), cl::Kernel(program, "encode_write"),
+                        cl::Kernel(program, "encode_materials")};
+        enqueue_encode(q, k, b, tiles, events);
         std::vector<std::uint32_t> n(2 * std::size_t{tiles});
         q.enqueueReadBuffer(counts, CL_TRUE, 0, n.size() * 4, n.data());
         for (std::uint32_t t = 0; t < tiles; ++t) {
@@ -199,8 +209,8 @@ SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, Spa
         gather_ = cl::Kernel(program_, "gather");
         gather_voxels_ = cl::Kernel(program_, "gather_voxels");
         brush_ = cl::Kernel(program_, "brush_nodes");
-        count_ = cl::Kernel(program_, "encode_count");
-        write_ = cl::Kernel(program_, "encode_write");
+        encode_ = {cl::Kernel(program_, "encode_count"), cl::Kernel(program_, "encode_write"),
+                   cl::Kernel(program_, "encode_materials")};
     });
     ensure_slot_capacity(1);
     upload_whole();
@@ -413,6 +423,7 @@ void SparseDeviceWorld::ensure_scratch(std::size_t tiles, std::size_t nodes) {
         mid_masks_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 8);
         mid_counts_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 4);
         kept_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 8);
+        node_mats_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 4);
         edit_jobs_ = cl::Buffer(c, CL_MEM_READ_ONLY, node_cap * 8 * 8);
         edit_refs_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 2 * 8);
         edit_origins_ = cl::Buffer(c, CL_MEM_READ_ONLY, node_cap * 3 * 8);
@@ -554,12 +565,13 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
         b.mid_masks = mid_masks_;
         b.mid_counts = mid_counts_;
         b.kept = kept_;
+        b.node_mats = node_mats_;
         b.slots = edit_slots_;
         b.slot_masks = slot_masks_;
         b.slot_offsets = slot_offsets_;
         b.slot_materials = slot_materials_;
         b.slot_counts = slot_counts_;
-        enqueue_encode(q, count_, write_, b, n, edit_events_);
+        enqueue_encode(q, encode_, b, n, edit_events_);
     });
     for (std::size_t i = 0; i < keys.size(); ++i) {
         dir_[keys[i]] = {kSlotRef | host_slots_[i] * std::uint64_t{kTileMaxNodes},

@@ -129,30 +129,6 @@ void for_each_tile(const TileSpan& span, F&& f) {
     }
 }
 
-// Fills field tile `slot` of `pool` with `value` (one element).
-void fill_tile(cl::CommandQueue& q, const cl::Buffer& pool, std::size_t slot,
-               const std::vector<std::uint8_t>& value) {
-    const std::size_t bytes = std::size_t{kTileVoxels} * value.size();
-    auto fill = [&](auto pattern) {
-        std::memcpy(&pattern, value.data(), sizeof(pattern));
-        q.enqueueFillBuffer(pool, pattern, slot * bytes, bytes);
-    };
-    switch (value.size()) {
-        case 1:
-            fill(std::uint8_t{0});
-            break;
-        case 2:
-            fill(std::uint16_t{0});
-            break;
-        case 4:
-            fill(std::uint32_t{0});
-            break;
-        default:
-            fill(std::uint64_t{0});
-            break;
-    }
-}
-
 }  // namespace
 
 GeneratorOptions resolve_sparse_options(const GeneratorOptions& options, bool format_given) {
@@ -229,8 +205,10 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
         scatter_ = cl::Kernel(program_, "scatter");
         scatter_voxels_ = cl::Kernel(program_, "scatter_voxels");
         node_minima_ = cl::Kernel(program_, "node_minima");
+        fill_slot_ = cl::Kernel(program_, "fill_slot");
         sweep_init_ = cl::Kernel(program_, "sweep_init");
         sweep_l1_ = cl::Kernel(program_, "sweep_l1");
+        sweep_l1_rows_ = cl::Kernel(program_, "sweep_l1_rows");
         sweep_finish_ = cl::Kernel(program_, "sweep_finish");
     });
 }
@@ -278,7 +256,14 @@ std::uint32_t SparseField::dense_slot(std::uint64_t key) {
         constant_value(it == tiles_.end() ? kNoTile : it->second);
     const auto slot = static_cast<std::uint32_t>(slot_keys_.size());
     ensure_slots(slot + std::size_t{1});
-    cl_call("filling a field tile", [&] { fill_tile(ctx_.queue(), pool_, slot, value); });
+    cl_call("filling a field tile", [&] {
+        fill_slot_.setArg(0, pool_);
+        fill_slot_.setArg(1, static_cast<cl_ulong>(slot));
+        fill_slot_.setArg(2, value.size(), value.data());
+        ctx_.queue().enqueueNDRangeKernel(fill_slot_, cl::NullRange,
+                                          cl::NDRange(kTileSize, kTileSize, kTileSize),
+                                          cl::NDRange(kTileSize, 1, 1));
+    });
     slot_keys_.push_back(key);
     coarse_host_.resize(slot_keys_.size() * 64 * elem_);
     tiles_[key] = slot;
@@ -491,8 +476,8 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots,
         k.setArg(9, minima_listed_);
         k.setArg(10, minima_nodes_);
         cl::Event ev;
-        q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(slots.size() * 64), cl::NDRange(64),
-                               nullptr, &ev);
+        q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(64, slots.size() * 64),
+                               cl::NDRange(64, 1), nullptr, &ev);
         const std::size_t per = 64 * elem_;
         std::vector<std::uint8_t> listed(slots.size() * per);
         q.enqueueReadBuffer(minima_listed_, CL_TRUE, 0, listed.size(), listed.data());
@@ -675,10 +660,12 @@ double SparseField::sweep() {
         sweep_init_.setArg(4, refs_buf);
         sweep_init_.setArg(5, pool_);
         sweep_init_.setArg(7, cap);
-        sweep_l1_.setArg(0, pool_);
-        sweep_l1_.setArg(1, nbrs_buf);
-        sweep_l1_.setArg(4, static_cast<cl_uint>(halo_[0]));
-        sweep_l1_.setArg(5, cap);
+        for (cl::Kernel* k : {&sweep_l1_, &sweep_l1_rows_}) {
+            k->setArg(0, pool_);
+            k->setArg(1, nbrs_buf);
+            k->setArg(4, static_cast<cl_uint>(halo_[0]));
+            k->setArg(5, cap);
+        }
         sweep_finish_.setArg(0, pool_);
         sweep_finish_.setArg(2, most);
         sweep_finish_.setArg(3, elem_, far_.data());
@@ -689,16 +676,33 @@ double SparseField::sweep() {
             for (std::size_t first = 0; first < n; first += kSweepSlots) {
                 const std::size_t count = std::min(kSweepSlots, n - first);
                 k.setArg(first_arg, static_cast<cl_uint>(first));
-                const std::size_t depth = per_voxel ? count * kTileSize : count;
-                q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(kTileSize, kTileSize, depth),
-                                       cl::NDRange(kTileSize, 1, 1), nullptr,
+                // Per voxel kernels take 16 voxels along x per work-item.
+                const cl::NDRange global =
+                    per_voxel ? cl::NDRange(kTileSize / 16, kTileSize, count * kTileSize)
+                              : cl::NDRange(kTileSize, kTileSize, count);
+                const cl::NDRange local =
+                    per_voxel ? cl::NDRange(kTileSize / 16, 16, 1) : cl::NDRange(kTileSize, 1, 1);
+                q.enqueueNDRangeKernel(k, cl::NullRange, global, local, nullptr,
                                        &events.emplace_back(stage, cl::Event()).second);
             }
         };
         each_batch("sweep_init", sweep_init_, 6, true);
         for (cl_uint axis = 0; axis < 3; ++axis) {
-            sweep_l1_.setArg(3, axis);
-            each_batch(std::string("sweep_") + "xyz"[axis], sweep_l1_, 2, false);
+            // CPUs take y and z a plane of 64 lines per work-item (sweep_l1_rows).
+            cl::Kernel& k = axis == 0 || gpu_layout_ ? sweep_l1_ : sweep_l1_rows_;
+            k.setArg(3, axis);
+            const std::string stage = std::string("sweep_") + "xyz"[axis];
+            if (&k == &sweep_l1_) {
+                each_batch(stage, k, 2, false);
+                continue;
+            }
+            for (std::size_t first = 0; first < n; first += kSweepSlots) {
+                const std::size_t count = std::min(kSweepSlots, n - first);
+                k.setArg(2, static_cast<cl_uint>(first));
+                q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(kTileSize, count),
+                                       cl::NDRange(kTileSize, 1), nullptr,
+                                       &events.emplace_back(stage, cl::Event()).second);
+            }
         }
         each_batch("sweep_finish", sweep_finish_, 1, true);
         q.finish();

@@ -36,6 +36,11 @@ inline constexpr std::uint32_t kTileMaxNodes = 1 + 64 + 4096;
 std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
                                                    std::span<const std::uint8_t> voxels);
 
+// sparse_world.cl's three encoding passes (encode_count, encode_write, encode_materials).
+struct EncodeKernels {
+    cl::Kernel count, write, materials;
+};
+
 class SparseDeviceWorld {
   public:
     // Uploads `world` (its buffers as they are). With `editable` (null, or `world` itself) the
@@ -98,7 +103,8 @@ class SparseDeviceWorld {
     const SparseWorld& world_;
     SparseWorld* editable_ = nullptr;
     cl::Program program_;
-    cl::Kernel gather_, gather_voxels_, brush_, count_, write_;  // arguments set per launch
+    cl::Kernel gather_, gather_voxels_, brush_;  // arguments set per launch
+    EncodeKernels encode_;
     // Main buffers: the host world as uploaded; dir_: per stored tile key, its refs.
     cl::Buffer masks_, offsets_, materials_;
     std::unordered_map<std::uint64_t, std::pair<std::uint64_t, std::uint64_t>> dir_;
@@ -116,7 +122,7 @@ class SparseDeviceWorld {
     // An edit's dense 16^3 nodes and encoding scratch, for up to scratch_tiles_ tiles and
     // scratch_nodes_ nodes.
     cl::Buffer scratch_, edit_src_, leaf_masks_, mid_masks_, mid_counts_, kept_, edit_jobs_,
-        edit_refs_, edit_origins_, edit_slots_;
+        edit_refs_, edit_origins_, edit_slots_, node_mats_;
     std::size_t scratch_tiles_ = 0, scratch_nodes_ = 0;
     // The last edit's tables (kept until their writes are done) and kernels.
     std::vector<std::int64_t> host_jobs_, host_origins_;

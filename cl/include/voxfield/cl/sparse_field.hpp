@@ -154,7 +154,7 @@ class SparseField {
     // Whether gather and scatter take a work-item per voxel (GPU layout) or per row.
     bool gpu_layout_ = false;
     cl::Kernel scatter_, scatter_voxels_, node_minima_;  // arguments set per launch
-    cl::Kernel sweep_init_, sweep_l1_, sweep_finish_;
+    cl::Kernel fill_slot_, sweep_init_, sweep_l1_, sweep_l1_rows_, sweep_finish_;
     bool force_blocks_ = false;
     SparseDeviceWorld device_world_;  // the world's 64-trees on the device
     // node_minima's slots, tile coordinates and minima in list order.
