@@ -378,7 +378,8 @@ void ExactManhattan::set_up_kernels() {
             }
         }
         if (!rows_on_gpu) {
-            const std::size_t pad = next_pow2(dims_.x) / 2;
+            // At least 1: a row of one voxel still takes the step to its padding (signed).
+            const std::size_t pad = std::max<std::size_t>(1, next_pow2(dims_.x) / 2);
             const std::size_t scratch = 2 * (std::size_t{dims_.x} + 2 * pad) * wt.bytes;
             if (scratch > info.local_mem) {
                 throw ClError("clEnqueueNDRangeKernel", CL_OUT_OF_RESOURCES,
