@@ -401,11 +401,13 @@ inline void row_doubling(__global const uchar* vox, size_t base, int X, int want
 // Rows y in [lo.y, lo.y + size.y), z in [lo.z, lo.z + size.z), `per_item` per work-item,
 // their voxels x in [lo.x, lo.x + size.x) from the voxels [i0, i1); `left` is each
 // work-item's scratch of X ints (at scratch + item * istride; full transforms without
-// features use 2 (X + 2 P) of them, row_doubling's two padded rows).
+// features use 2 (X + 2 P) of them, row_doubling's two padded rows). `solid` 1: g's targets
+// are the nonzero voxels; 0: the zero ones (SciPy's convention, no inverted copy of the
+// input needed).
 __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g,
                      __global GT* restrict h, __global uint* restrict feat, uint X, uint Y,
                      int4 lo, int4 size, uint per_item, ST sx, __global int* restrict scratch,
-                     ulong istride, __global int* box, int i0, int i1, GT cap) {
+                     ulong istride, __global int* box, int i0, int i1, GT cap, int solid) {
     const size_t rows = (size_t)size.y * size.z;
     __global int* left = scratch + get_global_id(0) * istride;
     const size_t r0 = get_global_id(0) * per_item;
@@ -414,20 +416,20 @@ __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g
         const size_t base = ((size_t)z * Y + y) * X;
         if (box == 0 && i0 == 0 && i1 == (int)X && lo.x == 0 && size.x == (int)X) {
 #if INDICES || !CPU_LAYOUT
-            row_full(vox, base, (int)X, 1, 0, sx, g, feat, cap);
+            row_full(vox, base, (int)X, solid, 0, sx, g, feat, cap);
 #if SIGNED
             row_full(vox, base, (int)X, 0, 1, sx, h, feat, cap);
 #endif
 #else
-            row_doubling(vox, base, (int)X, 1, 0, sx, g, left, cap);
+            row_doubling(vox, base, (int)X, solid, 0, sx, g, left, cap);
 #if SIGNED
             row_doubling(vox, base, (int)X, 0, 1, sx, h, left, cap);
 #endif
 #endif
             continue;
         }
-        row_nearest(vox, base, (int)X, 1, 0, sx, g, feat, left, box, y, z, lo.x, lo.x + size.x,
-                    i0, i1, cap);
+        row_nearest(vox, base, (int)X, solid, 0, sx, g, feat, left, box, y, z, lo.x,
+                    lo.x + size.x, i0, i1, cap);
 #if SIGNED
         row_nearest(vox, base, (int)X, 0, 1, sx, h, feat, left, box, y, z, lo.x, lo.x + size.x,
                     i0, i1, cap);
@@ -536,7 +538,7 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
 }
 #endif
 
-#if METRIC == 2 && UNIT && !WIDE && !INDICES
+#if METRIC == 2 && UNIT && !WIDE
 // Unit-spacing L2 of cw <= 16 lines of a tile (element (p, c) at p * tw + c, tw a multiple
 // of 16, the lines c = 0..15 ours), a full transform, by windowed minima with the lines side
 // by side: position p takes the least g_u + (p - u)^2 over the sites u near enough to
@@ -550,11 +552,15 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
 // entries each) leads the loop past blocks without a site. Returns false (tin as it came)
 // where r passes WINDOW_MAX, for the envelope to take the tile. `pad` adds the virtual empty
 // sites at -1 and n. Empty sites (G_INF) become L2_FAR in tin, which sums with any square
-// below 2^30 without wrapping (the partials stay below 2^30 here, WIDE otherwise).
+// below 2^30 without wrapping (the partials stay below 2^30 here, WIDE otherwise). The sites
+// of a window go through two accumulators (even and odd sites), halving the dependent chain
+// of minima. With INDICES each lane also keeps its nearest site (the lowest of equally near
+// ones, as SciPy breaks ties along a line), whose feature (fin, same layout) goes to fout.
 #define L2_FAR 0x80000000u
 #define WINDOW_MAX 256
 inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* bmin,
-                           __global int* live, int tw, int cw, int n, int pad, GT cap) {
+                           __global int* live, int tw, int cw, int n, int pad, GT cap,
+                           __global const uint* fin, __global uint* fout) {
     const int nb = (n + 15) / 16;
     for (int b = 0; b < nb; ++b) {
         uint16 lo = (uint16)L2_FAR;
@@ -578,6 +584,11 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
     if (live[0] == nb && !pad) {
         for (int p = 0; p < n; ++p) {
             vstore16((uint16)G_INF, 0, tout + p * tw);
+#if INDICES
+            for (int c = 0; c < cw; ++c) {
+                fout[p * tw + c] = UINT_MAX;
+            }
+#endif
         }
         return true;
     }
@@ -585,7 +596,10 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
     uint bound = UINT_MAX;
     for (int p = 0; p < n; ++p) {
         const uint edge = pad ? (uint)min((p + 1) * (p + 1), (n - p) * (n - p)) : L2_FAR;
-        uint16 best = (uint16)edge;
+        uint16 best = (uint16)edge, best1 = (uint16)L2_FAR;
+#if INDICES
+        uint16 own = (uint16)UINT_MAX, own1 = (uint16)UINT_MAX;
+#endif
         const int lo = max(0, p - r), hi = min(n - 1, p + r);
         for (int b = live[lo / 16]; b <= hi / 16; b = live[b + 1]) {
             const int b0 = b * 16, b1 = b0 + 15;
@@ -593,12 +607,42 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
             if (bmin[b] + (uint)(off * off) > bound) {
                 continue;
             }
-            for (int u = max(lo, b0); u <= min(hi, b1); ++u) {
-                const uint k2 = (uint)((p - u) * (p - u));
-                best = min(best, vload16(0, tin + u * tw) + k2);
+            const int ue = min(hi, b1);
+            int u = max(lo, b0);
+            for (; u < ue; u += 2) {
+                const uint k0 = (uint)((p - u) * (p - u));
+                const uint k1 = (uint)((p - u - 1) * (p - u - 1));
+                const uint16 c0 = vload16(0, tin + u * tw) + k0;
+                const uint16 c1 = vload16(0, tin + (u + 1) * tw) + k1;
+#if INDICES
+                own = select(own, (uint16)u, c0 < best);
+                own1 = select(own1, (uint16)(u + 1), c1 < best1);
+#endif
+                best = min(best, c0);
+                best1 = min(best1, c1);
+            }
+            if (u == ue) {
+                const uint16 c0 = vload16(0, tin + u * tw) + (uint)((p - u) * (p - u));
+#if INDICES
+                own = select(own, (uint16)u, c0 < best);
+#endif
+                best = min(best, c0);
             }
         }
+#if INDICES
+        // The lower site among equally near ones of the two accumulators.
+        own = select(own, own1, (best1 < best) | ((best1 == best) & (own1 < own)));
+        best = min(best, best1);
         const uint16 far = as_uint16(best >= (uint16)L2_FAR);
+        uint ow[16];
+        vstore16(select(own, (uint16)UINT_MAX, far), 0, ow);
+        for (int c = 0; c < cw; ++c) {
+            fout[p * tw + c] = ow[c] == UINT_MAX ? UINT_MAX : fin[ow[c] * tw + c];
+        }
+#else
+        best = min(best, best1);
+        const uint16 far = as_uint16(best >= (uint16)L2_FAR);
+#endif
         vstore16(select(min(best, (uint16)cap), (uint16)G_INF, far), 0, tout + p * tw);
         const uint16 real = best & ~far;
         const uint8 h8 = max(real.lo, real.hi);
@@ -624,6 +668,44 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
 }
 #endif
 
+// ---- output ----
+
+// The real distance of a partial.
+inline double distance_of(GT p) {
+    if (p == G_INF) {
+        return INFINITY;
+    }
+    return METRIC == 2 ? sqrt((double)p) : (double)p;
+}
+
+inline void store(__global OUT_T* out, __constant uchar* rgb, uchar v, size_t i, double d) {
+#if OUT_KIND == 0
+    out[i] = (OUT_T)(d >= (double)OUT_MAX ? OUT_MAX : (uint)floor(d));
+#elif OUT_KIND == 1
+    const double c = clamp(trunc(d), -(double)OUT_MAX, (double)OUT_MAX);
+    out[i] = (OUT_T)(int)c;
+#elif OUT_KIND == 2
+    out[i] = (float)d;
+#elif OUT_KIND == 3
+    out[i] = d;
+#else
+    const uint q = d >= 255.0 ? 255u : (uint)floor(d);
+    out[i] = (q << VF_PACKED_DISTANCE_SHIFT) | rgb[v];
+#endif
+}
+
+// floor(f / d) from a double reciprocal, corrected by one step either way: integer division
+// by a run-time divisor costs tens of cycles, three per voxel in `finish`.
+inline uint quotient(uint f, uint d, double inv) {
+    uint q = (uint)min((double)f * inv, 4294967295.0);
+    if ((ulong)q * d > f) {
+        --q;
+    } else if (((ulong)q + 1) * d <= f) {
+        ++q;
+    }
+    return q;
+}
+
 // Lines of length n and element stride `stride` along `axis` (1: y, 2: z): line l has x =
 // lo_x + l % count_x and the other coordinate lo_o + l / count_x, and starts at
 // other * mstride + x; positions [o0, o1) from the sites [i0, i1), partials capped at `cap`.
@@ -637,12 +719,21 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
 // of two apart in power-of-two worlds, all in one cache set) are read from memory once, a
 // cache line at a time. Every line is read whole before any of it is written, so the input
 // and output buffers may be the same (the passes then run in place): hence no `restrict`.
+//
+// `final` (the z pass of a full transform with tiles, not SIGNED): the tile goes out as the
+// output format (`store`, as `finish` writes it) into `out` instead of partials into gout,
+// and with INDICES the features as the index planes z, y, x into `idx` (the first plane
+// may be `fout` itself: each line's features are in the tile before any is written), so no
+// `finish` pass reads the partials again. The z pass's lines are X * Y = stride apart and X =
+// mstride. `out` may be `g` (elements as wide): no `restrict`.
 __kernel void col_pass(__global const GT* g, __global GT* gout, __global const GT* h,
                        __global GT* hout, __global const uint* fin, __global uint* fout,
                        __global int* restrict scratch, uint n, ulong stride, ulong mstride,
                        int lo_x, int count_x, int lo_o, int count_o, uint per_item, ulong kstride,
                        ulong istride, ST sp, int axis, __global const int* skip,
-                       __global int* box, int o0, int o1, int i0, int i1, GT cap, int tile_w) {
+                       __global int* box, int o0, int o1, int i0, int i1, GT cap, int tile_w,
+                       int final, __global OUT_T* out, __global const uchar* vox,
+                       __constant uchar* rgb, __global int* idx, double dmax) {
     const size_t w = get_global_id(0);
     __global int* s = scratch + w * istride;
     __global int* t = s + (size_t)(n + 2) * kstride;
@@ -706,10 +797,10 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                     // Sub-tiles of 16 lines; the envelope per line where no vector path
                     // takes them.
                     const int c1 = min(c0 + 16, cw);
-#if METRIC == 2 && UNIT && !WIDE && !INDICES
+#if METRIC == 2 && UNIT && !WIDE
                     if (box == 0 && tile_w % 16 == 0 &&
                         tile_window_l2(tin + c0, tout + c0, (__global uint*)s, t, tile_w,
-                                       c1 - c0, (int)n, cls, cap)) {
+                                       c1 - c0, (int)n, cls, cap, ftin + c0, ftout + c0)) {
                         continue;
                     }
 #endif
@@ -719,6 +810,22 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                                   cap);
                     }
                 }
+#if !SIGNED
+                if (final) {
+                    for (int u = o0; u < o1; ++u) {
+                        for (int c = 0; c < cw; ++c) {
+                            const size_t i = base + (size_t)u * stride + c;
+#if OUT_KIND == 4
+                            const uchar cls = vox[i];
+#else
+                            const uchar cls = 0;
+#endif
+                            store(out, rgb, cls, i, min(distance_of(tout[u * tile_w + c]), dmax));
+                        }
+                    }
+                    continue;
+                }
+#endif
                 for (int u = o0; u < o1; ++u) {
                     for (int c = 0; c < cw; ++c) {
                         dst[base + (size_t)u * stride + c] = tout[u * tile_w + c];
@@ -726,6 +833,26 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                 }
             }
 #if INDICES
+            if (final) {
+                // Linear index f = (zf * Y + yf) * X + xf of the nearest target (UINT_MAX:
+                // none) to its coordinates; the z pass's positions u are z.
+                const uint xy = (uint)stride, xn = (uint)mstride;
+                const double inv_xy = 1.0 / (double)xy, inv_x = 1.0 / (double)xn;
+                const size_t count = (size_t)n * stride;
+                for (int u = o0; u < o1; ++u) {
+                    for (int c = 0; c < cw; ++c) {
+                        const size_t i = base + (size_t)u * stride + c;
+                        const uint f = ftout[u * tile_w + c];
+                        const uint zf = quotient(f, xy, inv_xy);
+                        const uint r = f - zf * xy;
+                        const uint yf = quotient(r, xn, inv_x);
+                        idx[i] = f == UINT_MAX ? -1 : (int)zf;
+                        idx[count + i] = f == UINT_MAX ? -1 : (int)yf;
+                        idx[2 * count + i] = f == UINT_MAX ? -1 : (int)(r - yf * xn);
+                    }
+                }
+                continue;
+            }
             for (int u = o0; u < o1; ++u) {
                 for (int c = 0; c < cw; ++c) {
                     fout[base + (size_t)u * stride + c] = ftout[u * tile_w + c];
@@ -753,44 +880,6 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                   other, axis, o0, o1, i0, i1, cap);
 #endif
     }
-}
-
-// ---- output ----
-
-// The real distance of a partial.
-inline double distance_of(GT p) {
-    if (p == G_INF) {
-        return INFINITY;
-    }
-    return METRIC == 2 ? sqrt((double)p) : (double)p;
-}
-
-inline void store(__global OUT_T* out, __constant uchar* rgb, uchar v, size_t i, double d) {
-#if OUT_KIND == 0
-    out[i] = (OUT_T)(d >= (double)OUT_MAX ? OUT_MAX : (uint)floor(d));
-#elif OUT_KIND == 1
-    const double c = clamp(trunc(d), -(double)OUT_MAX, (double)OUT_MAX);
-    out[i] = (OUT_T)(int)c;
-#elif OUT_KIND == 2
-    out[i] = (float)d;
-#elif OUT_KIND == 3
-    out[i] = d;
-#else
-    const uint q = d >= 255.0 ? 255u : (uint)floor(d);
-    out[i] = (q << VF_PACKED_DISTANCE_SHIFT) | rgb[v];
-#endif
-}
-
-// floor(f / d) from a double reciprocal, corrected by one step either way: integer division
-// by a run-time divisor costs tens of cycles, three per voxel in `finish`.
-inline uint quotient(uint f, uint d, double inv) {
-    uint q = (uint)min((double)f * inv, 4294967295.0);
-    if ((ulong)q * d > f) {
-        --q;
-    } else if (((ulong)q + 1) * d <= f) {
-        ++q;
-    }
-    return q;
 }
 
 // Writes the output format from the final partials (and the index planes: z, y, x of the

@@ -145,12 +145,14 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
     }
 }
 
-// The Manhattan sweep: a whole unsigned bounded L1 field of unit spacing computed in the field
-// tiles themselves, with no dense blocks. Values are small integers (distances, CAP = halo + 1
-// for "farther than the halo") in ELEM; `first` is the first slot of a launch, whose global id 2
-// counts slots (times 64 for a work-item per voxel). A tile's neighbours (nbrs, 6 per slot: x-,
-// x+, y-, y+, z-, z+) are a slot, NB_EMPTY (no solid voxel within the halo: CAP) or NB_INSIDE
-// (all solid: 0).
+// The Manhattan sweep: a whole bounded L1 field of unit spacing computed in the field tiles
+// themselves, with no dense blocks. Values are small integers in ELEM: an empty voxel's
+// distance to the nearest solid (CAP = halo + 1 for "farther than the halo"), a solid voxel's
+// 0 (unsigned fields) or minus its distance to the nearest empty voxel (signed fields, the
+// world surrounded by empty space; -CAP for farther). `first` is the first slot of a launch,
+// whose global id 2 counts slots (times 64 where a work-item takes voxels). A tile's neighbours
+// (nbrs, 6 per slot: x-, x+, y-, y+, z-, z+) are a slot, NB_EMPTY (empty, no solid voxel within
+// the halo) or NB_INSIDE (all solid, no empty voxel within the halo when signed).
 #define NB_EMPTY 0xFFFFFFFFu
 #define NB_INSIDE 0xFFFFFFFEu
 
@@ -159,13 +161,14 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
 typedef VEC16(ELEM) ELEM16;
 
 // A work-item per 16 voxels along x (global ids x / 16, y, and slot - first) * 64 + z) of tile slot
-// first + gid2 / 64: 0 where the world's tree (refs: per slot the tile's node base, SLOT_REF in
-// the slot buffers, NO_TILE not stored) holds a solid voxel, CAP elsewhere.
+// first + gid2 / 64: `solid` where the world's tree (refs: per slot the tile's node base, SLOT_REF
+// in the slot buffers, NO_TILE not stored) holds a solid voxel (0, or -CAP when signed), CAP
+// elsewhere.
 __kernel void sweep_init(__global const ulong* restrict masks, __global const uint* restrict offsets,
                          __global const ulong* restrict slot_masks,
                          __global const uint* restrict slot_offsets,
                          __global const ulong* restrict refs, __global ELEM* restrict pool,
-                         uint first, uint cap) {
+                         uint first, int cap, int solid) {
     const uint x0 = (uint)get_global_id(0) * 16, y = (uint)get_global_id(1);
     const size_t slot = first + get_global_id(2) / TILE;
     const uint z = (uint)(get_global_id(2) % TILE);
@@ -188,7 +191,7 @@ __kernel void sweep_init(__global const ulong* restrict masks, __global const ui
             const uint row = (uint)(m[n4] >> ((z & 3) << 4 | (y & 3) << 2)) & 15u;
             for (uint k = 0; k < 4; ++k) {
                 if ((row >> k & 1u) != 0) {
-                    v[4 * leaf + k] = (ELEM)0;
+                    v[4 * leaf + k] = (ELEM)solid;
                 }
             }
         }
@@ -196,25 +199,30 @@ __kernel void sweep_init(__global const ulong* restrict masks, __global const ui
     vstore16(vload16(0, v), 0, pool + slot * TILE_VOXELS + ((size_t)z * TILE + y) * TILE + x0);
 }
 
-// The value before a line's first voxel (dir -1) or after its last (dir +1) that a scan toward
-// the line carries in from its neighbour tile: the least of |distance| + value over the
-// neighbour's `halo` voxels nearest the line (stride apart from `at`).
-inline uint sweep_carry(__global const ELEM* restrict pool, uint nb, size_t at, size_t stride,
-                        int dir, uint halo, uint cap) {
-    if (nb == NB_INSIDE) {
-        return 0;
-    }
-    uint r = cap;
-    if (nb == NB_EMPTY) {
-        return r;
+// One scan step over value v: `out` carries the distance to the nearest solid (a solid voxel,
+// v <= 0, is one), `in` the distance to the nearest empty voxel (v > 0); returns what the voxel
+// takes.
+inline int sweep_step(int v, int* out, int* in) {
+    *out = min(max(v, 0), *out + 1);
+    *in = min(max(-v, 0), *in + 1);
+    return v < 0 ? -*in : *out;
+}
+
+// The running values a scan toward a line carries in from its neighbour tile nb: over the
+// neighbour's `halo` voxels nearest the line (stride apart from `at`; dir -1: the line's start).
+inline void sweep_carry(__global const ELEM* restrict pool, uint nb, size_t at, size_t stride,
+                        int dir, uint halo, int cap, int* out, int* in) {
+    *out = nb == NB_INSIDE ? 0 : cap;
+    *in = nb == NB_INSIDE ? cap : 0;
+    if (nb == NB_INSIDE || nb == NB_EMPTY) {
+        return;
     }
     __global const ELEM* t = pool + (size_t)nb * TILE_VOXELS + at;
     // Toward the line: from the farthest of the halo voxels to the nearest.
     for (uint k = halo; k-- > 0;) {
         const uint p = dir < 0 ? TILE - 1 - k : k;
-        r = min((uint)t[p * stride], r + 1);
+        sweep_step((int)t[p * stride], out, in);
     }
-    return r;
 }
 
 // One 1-D pass of the exact L1 transform along `axis` (0 x, 1 y, 2 z), in place: a work-item per
@@ -224,7 +232,7 @@ inline uint sweep_carry(__global const ELEM* restrict pool, uint nb, size_t at, 
 // least the exact one and at most the previous one, and the 1-D L1 kernel's triangle
 // inequality makes either give the same exact result.
 __kernel void sweep_l1(__global ELEM* restrict pool, __global const uint* restrict nbrs, uint first,
-                       uint axis, uint halo, uint cap) {
+                       uint axis, uint halo, int cap) {
     const size_t u = get_global_id(0), w = get_global_id(1);
     const size_t slot = first + get_global_id(2);
     size_t stride, at;
@@ -239,29 +247,26 @@ __kernel void sweep_l1(__global ELEM* restrict pool, __global const uint* restri
         at = w * TILE + u;
     }
     __global ELEM* line = pool + slot * TILE_VOXELS + at;
-    uint r = sweep_carry(pool, nbrs[6 * slot + 2 * axis], at, stride, -1, halo, cap);
-    for (uint p = 0; p < TILE; ++p) {
-        const uint v = (uint)line[p * stride];
-        r = min(v, r + 1);
-        if (r != v) {
-            line[p * stride] = (ELEM)r;
-        }
-    }
-    r = sweep_carry(pool, nbrs[6 * slot + 2 * axis + 1], at, stride, 1, halo, cap);
-    for (uint p = TILE; p-- > 0;) {
-        const uint v = (uint)line[p * stride];
-        r = min(v, r + 1);
-        if (r != v) {
-            line[p * stride] = (ELEM)r;
+    for (int dir = -1; dir <= 1; dir += 2) {
+        int out, in;
+        sweep_carry(pool, nbrs[6 * slot + 2 * axis + (dir > 0)], at, stride, dir, halo, cap, &out,
+                    &in);
+        for (uint step = 0; step < TILE; ++step) {
+            const uint p = dir < 0 ? step : TILE - 1 - step;
+            const int v = (int)line[p * stride];
+            const int r = sweep_step(v, &out, &in);
+            if (r != v) {
+                line[p * stride] = (ELEM)r;
+            }
         }
     }
 }
 
 // sweep_l1 along y or z (axis 1 or 2) for CPUs: a work-item per plane (global id 0: z for y,
 // y for z; global id 1: slot - first) carries its 64 lines along x together, in four 16-wide
-// vectors, so each step reads and writes whole rows.
+// vectors, so each step reads and writes whole rows. Unsigned fields only (`in` not carried).
 __kernel void sweep_l1_rows(__global ELEM* restrict pool, __global const uint* restrict nbrs,
-                            uint first, uint axis, uint halo, uint cap) {
+                            uint first, uint axis, uint halo, int cap) {
     const size_t w = get_global_id(0);
     const size_t slot = first + get_global_id(1);
     const size_t stride = axis == 1 ? TILE : TILE * TILE;
@@ -294,11 +299,15 @@ __kernel void sweep_l1_rows(__global ELEM* restrict pool, __global const uint* r
 }
 
 // A work-item per 16 voxels, as sweep_init: distances up to `most` (D rounded down) stay, the
-// others become `far` (D encoded).
-__kernel void sweep_finish(__global ELEM* restrict pool, uint first, uint most, ELEM far) {
+// others become `far` (D encoded), or `near` (-D encoded) below -most.
+__kernel void sweep_finish(__global ELEM* restrict pool, uint first, int most, ELEM far, ELEM near) {
     __global ELEM* p = pool + (first + get_global_id(2) / TILE) * TILE_VOXELS +
                        ((get_global_id(2) % TILE) * TILE + get_global_id(1)) * TILE +
                        get_global_id(0) * 16;
-    const ELEM16 v = vload16(0, p);
-    vstore16(v > (ELEM16)((ELEM)most) ? (ELEM16)far : v, 0, p);
+    ELEM16 v = vload16(0, p);
+    v = v > (ELEM16)((ELEM)most) ? (ELEM16)far : v;
+#if KEY_KIND == 2
+    v = v < (ELEM16)((ELEM)(-most)) ? (ELEM16)near : v;
+#endif
+    vstore16(v, 0, p);
 }

@@ -71,15 +71,17 @@ ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& 
       spacing_(options.spacing) {
     // Uploaded: the generator owns its copy (incremental edits rewrite it), so the world
     // need not outlive it. Reading in place is the span constructor's explicit choice.
-    set_up(world.voxels().data(), false, {}, palette, options);
+    set_up(world.voxels().data(), false, {}, {}, palette, options);
 }
 
 ExactSeparable::ExactSeparable(Context& ctx, Dims dims, std::span<const std::uint8_t> voxels,
                                const Palette& palette, const GeneratorOptions& options,
-                               std::span<std::uint8_t> field)
+                               std::span<std::uint8_t> field, std::span<std::int32_t> indices,
+                               bool zero_targets)
     : Generator(ctx, dims, options.format),
       gpu_layout_(options.layout == Layout::automatic ? !ctx.is_cpu()
                                                       : options.layout == Layout::gpu),
+      zero_targets_(zero_targets),
       incremental_(false),
       spacing_(options.spacing) {
     if (voxels.size() != dims.count()) {
@@ -91,13 +93,22 @@ ExactSeparable::ExactSeparable(Context& ctx, Dims dims, std::span<const std::uin
                                     " bytes for a " + to_string(options.format) + " field of " +
                                     dims.to_string());
     }
+    if (!indices.empty() && (!options.indices || indices.size() != 3 * dims.count())) {
+        throw std::invalid_argument("ExactSeparable: " + std::to_string(indices.size()) +
+                                    " index elements for a world of " + dims.to_string() +
+                                    (options.indices ? "" : " without options.indices"));
+    }
+    if (zero_targets && options.signed_field) {
+        throw std::invalid_argument("ExactSeparable: zero targets make unsigned fields only");
+    }
     const bool in_place = ctx.computes_in_host_memory();
-    set_up(voxels.data(), in_place, in_place ? field : std::span<std::uint8_t>(), palette, options);
+    set_up(voxels.data(), in_place, in_place ? field : std::span<std::uint8_t>(),
+           in_place ? indices : std::span<std::int32_t>(), palette, options);
 }
 
 void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
-                            std::span<std::uint8_t> field, const Palette& palette,
-                            const GeneratorOptions& options) {
+                            std::span<std::uint8_t> field, std::span<std::int32_t> indices,
+                            const Palette& palette, const GeneratorOptions& options) {
     Context& ctx = ctx_;
     const bool incremental = incremental_;
     const auto& info = ctx.info();
@@ -147,7 +158,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     // cols_banded where the device runs its work-groups of kBandedGroup (its registers may
     // cap them lower) and lines of Y and of Z fit its local memory.
     const bool banded_fits =
-        gpu_layout_ && !incremental && unit && !wide_ && !options.signed_field &&
+        gpu_layout_ && !incremental && !zero_targets_ && unit && !wide_ && !options.signed_field &&
         !options.indices && X < 0xFFFF && Y < kLinkLimit && Z < kLinkLimit &&
         cl::Kernel(program_, "cols_banded")
                 .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
@@ -201,7 +212,9 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             }
         }
         if (options.indices) {
-            indices_ = make_buffer(3 * n * 4, CL_MEM_READ_WRITE);
+            indices_ = indices.empty() ? make_buffer(3 * n * 4, CL_MEM_READ_WRITE)
+                                       : cl::Buffer(c, CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR,
+                                                    3 * n * 4, indices.data());
             feat_[0] = indices_;
             feat_[1] = shared_parts_ ? indices_ : make_buffer(n * 4, CL_MEM_READ_WRITE);
         }
@@ -267,12 +280,18 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         stages_.push_back(items_launch("x_pass", x_kernel(all, xs, none), x_items(all)));
         // Full transforms reuse the x pass's buffer for the z pass; incremental ones keep all.
         const int last = incremental ? 2 : 0;
+        // The CPU layout's tiled z pass of a full unsigned transform writes the output (and
+        // the index planes) itself: no finish pass over the partials.
+        const bool final = !gpu_layout_ && !incremental && !options.signed_field;
         stages_.push_back(items_launch("y_pass", col_kernel(1, 0, 1, xs, zs, ys, ys, none, none),
                                        col_items(X, Z)));
-        stages_.push_back(items_launch("z_pass", col_kernel(2, 1, last, xs, ys, zs, zs, none, none),
+        stages_.push_back(items_launch(final ? "z_pass_out" : "z_pass",
+                                       col_kernel(2, 1, last, xs, ys, zs, zs, none, none, final),
                                        col_items(X, Y)));
-        stages_.push_back({"finish", finish_kernel(last, all), cl::NDRange(round_up(X, 64), Y, Z),
-                           cl::NDRange(64, 1, 1)});
+        if (!final) {
+            stages_.push_back({"finish", finish_kernel(last, all),
+                               cl::NDRange(round_up(X, 64), Y, Z), cl::NDRange(64, 1, 1)});
+        }
     });
 }
 
@@ -404,11 +423,13 @@ cl::Kernel ExactSeparable::x_kernel(const Box& rows, Span in, const cl::Buffer& 
     k.setArg(13, static_cast<cl_int>(in.lo));
     k.setArg(14, static_cast<cl_int>(in.hi));
     set_cap(k, 15);
+    k.setArg(16, cl_int{zero_targets_ ? 0 : 1});
     return k;
 }
 
 cl::Kernel ExactSeparable::col_kernel(int axis, int from, int to, Span xs, Span others, Span out,
-                                      Span in, const cl::Buffer& skip, const cl::Buffer& box) {
+                                      Span in, const cl::Buffer& skip, const cl::Buffer& box,
+                                      bool final) {
     const std::uint32_t X = dims_.x, Y = dims_.y;
     const bool along_y = axis == 1;
     const auto count_x = static_cast<std::size_t>(xs.hi - xs.lo);
@@ -442,6 +463,13 @@ cl::Kernel ExactSeparable::col_kernel(int axis, int from, int to, Span xs, Span 
     k.setArg(24, static_cast<cl_int>(in.hi));
     set_cap(k, 25);
     k.setArg(26, cl_int{tile_w_[axis - 1]});
+    k.setArg(27, cl_int{final ? 1 : 0});
+    k.setArg(28, out_);
+    k.setArg(29, voxels_);
+    k.setArg(30, rgb_);
+    // A valid buffer where there are no index planes (the kernel does not touch it then).
+    k.setArg(31, indices_() != nullptr ? indices_ : out_);
+    k.setArg(32, max_distance_);
     return k;
 }
 

@@ -4,10 +4,12 @@
 #include "voxfield/cl/sparse_field.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <string>
+#include <thread>
 
 #include "util.hpp"
 #include "voxfield/cl/exact.hpp"
@@ -515,8 +517,15 @@ void SparseField::add_stage(const std::string& name, double ms) {
 
 double SparseField::run() {
     stages_.clear();
+    host_stages_.clear();
     work_ = Work{};
+    auto lap = [this, t = std::chrono::steady_clock::now()](const char* name) mutable {
+        const auto now = std::chrono::steady_clock::now();
+        host_stages_.emplace_back(name, std::chrono::duration<double, std::milli>(now - t).count());
+        t = now;
+    };
     device_world_.refresh();
+    lap("world_refresh");
     tiles_.clear();
     slot_keys_.clear();
     const Dims wd = world_.dims();
@@ -528,43 +537,80 @@ double SparseField::run() {
     auto full = [&](std::uint32_t t) {
         return world_.material_counts()[t] == world_.tile_box(t).volume();
     };
-    for (std::uint32_t t = 0; t < world_.tile_count(); ++t) {
-        const Int3 c = world_.tile_coord(t);
-        const Box tb = world_.tile_box(t);
-        bool inside = false;
-        if (!packed && full(t)) {
-            inside = true;
-            if (options_.signed_field) {
-                const Box halo = grow(tb, halo_);
-                inside = intersect(halo, all) == halo;
-                for_each_tile(tiles_of(halo), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
-                    const std::uint32_t n = world_.find_tile(x, y, z);
-                    inside = inside && n != kNoTile && full(n);
-                });
+    // Per stored tile, its entry and the empty tiles within D of its solid voxels: split over
+    // the hardware threads (contiguous ranges), then merged.
+    struct Found {
+        std::vector<std::pair<std::uint64_t, std::uint32_t>> stored;
+        std::vector<std::uint64_t> near;
+    };
+    auto classify = [&](std::uint32_t first, std::uint32_t end, Found& out) {
+        for (std::uint32_t t = first; t < end; ++t) {
+            const Int3 c = world_.tile_coord(t);
+            const Box tb = world_.tile_box(t);
+            bool inside = false;
+            if (!packed && full(t)) {
+                inside = true;
+                if (options_.signed_field) {
+                    const Box halo = grow(tb, halo_);
+                    inside = intersect(halo, all) == halo;
+                    for_each_tile(tiles_of(halo),
+                                  [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+                                      const std::uint32_t n = world_.find_tile(x, y, z);
+                                      inside = inside && n != kNoTile && full(n);
+                                  });
+                }
             }
+            out.stored.emplace_back(
+                tile_key(static_cast<std::uint32_t>(c.x), static_cast<std::uint32_t>(c.y),
+                         static_cast<std::uint32_t>(c.z)),
+                inside ? kInsideTile : kNoTile);
+            const Box sb = world_.solid_bounds(t);
+            const Box reach = intersect(grow(sb, halo_), all);
+            for_each_tile(tiles_of(reach), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+                if (world_.find_tile(x, y, z) != kNoTile) {
+                    return;
+                }
+                const std::int64_t s = kTileSize;
+                auto gap = [](std::int64_t lo, std::int64_t hi, std::int64_t slo,
+                              std::int64_t shi) {
+                    return std::max<std::int64_t>({0, lo - (shi - 1), slo - (hi - 1)});
+                };
+                const std::int64_t gx = gap(x * s, (x + 1) * s, sb.min.x, sb.max.x);
+                const std::int64_t gy = gap(y * s, (y + 1) * s, sb.min.y, sb.max.y);
+                const std::int64_t gz = gap(z * s, (z + 1) * s, sb.min.z, sb.max.z);
+                if (metric_distance(options_.metric, options_.spacing, gx, gy, gz) < d) {
+                    out.near.push_back(tile_key(static_cast<std::uint32_t>(x),
+                                                static_cast<std::uint32_t>(y),
+                                                static_cast<std::uint32_t>(z)));
+                }
+            });
         }
-        tiles_[tile_key(static_cast<std::uint32_t>(c.x), static_cast<std::uint32_t>(c.y),
-                        static_cast<std::uint32_t>(c.z))] = inside ? kInsideTile : kNoTile;
-        const Box sb = world_.solid_bounds(t);
-        const Box reach = intersect(grow(sb, halo_), all);
-        for_each_tile(tiles_of(reach), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
-            if (world_.find_tile(x, y, z) != kNoTile) {
-                return;
-            }
-            const std::int64_t s = kTileSize;
-            auto gap = [](std::int64_t lo, std::int64_t hi, std::int64_t slo, std::int64_t shi) {
-                return std::max<std::int64_t>({0, lo - (shi - 1), slo - (hi - 1)});
-            };
-            const std::int64_t gx = gap(x * s, (x + 1) * s, sb.min.x, sb.max.x);
-            const std::int64_t gy = gap(y * s, (y + 1) * s, sb.min.y, sb.max.y);
-            const std::int64_t gz = gap(z * s, (z + 1) * s, sb.min.z, sb.max.z);
-            if (metric_distance(options_.metric, options_.spacing, gx, gy, gz) < d) {
-                tiles_.emplace(
-                    tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
-                             static_cast<std::uint32_t>(z)),
-                    kNoTile);
-            }
-        });
+    };
+    const std::uint32_t tile_count = world_.tile_count();
+    const std::uint32_t threads = std::clamp<std::uint32_t>(
+        std::min(std::thread::hardware_concurrency(), tile_count / 16), 1, 64);
+    std::vector<Found> found(threads);
+    {
+        std::vector<std::jthread> pool;
+        for (std::uint32_t i = 1; i < threads; ++i) {
+            pool.emplace_back([&, i] {
+                classify(static_cast<std::uint32_t>(std::uint64_t{tile_count} * i / threads),
+                         static_cast<std::uint32_t>(std::uint64_t{tile_count} * (i + 1) / threads),
+                         found[i]);
+            });
+        }
+        classify(0, static_cast<std::uint32_t>(tile_count / threads), found[0]);
+    }
+    tiles_.reserve(tile_count * std::size_t{2});
+    for (const Found& f : found) {
+        for (const auto& [key, entry] : f.stored) {
+            tiles_[key] = entry;
+        }
+    }
+    for (const Found& f : found) {
+        for (const std::uint64_t key : f.near) {
+            tiles_.emplace(key, kNoTile);
+        }
     }
     // Slots for the tiles that are not constant, in key order (z, y, x: blocks near in space
     // lie near in the batches).
@@ -575,9 +621,11 @@ double SparseField::run() {
         }
     }
     std::sort(keys.begin(), keys.end());
+    lap("field_tiles");
     // Headroom for the field tiles that edits add: growing the pool copies it whole (seconds
     // and twice its memory on a large world), so an edit should rarely have to.
     ensure_slots(keys.size() + keys.size() / 16 + 16);
+    lap("pool");
     const bool blocks = run_method() == "blocks";
     std::vector<Job> jobs;
     std::vector<std::uint32_t> slots;
@@ -600,17 +648,21 @@ double SparseField::run() {
         jobs.push_back({region, tile_origin(t.x, t.y, t.z, wd, block, halo_)});
     }
     coarse_host_.assign(slot_keys_.size() * 64 * elem_, 0);
+    lap("jobs");
     double ms = blocks ? compute(jobs, block) : sweep();
+    lap(blocks ? "blocks" : "sweep");
     refresh_coarse(slots, std::vector<std::uint64_t>(slots.size(), ~std::uint64_t{0}), &ms);
-    return ms + settle_scatters();
+    ms += settle_scatters();
+    lap("coarse");
+    return ms;
 }
 
 std::string SparseField::run_method() const {
     const GeneratorOptions& o = options_;
     const bool unit = o.spacing.x == 1 && o.spacing.y == 1 && o.spacing.z == 1;
     const bool fits = halo_[0] <= kTileSize && halo_[1] <= kTileSize && halo_[2] <= kTileSize;
-    return !force_blocks_ && o.metric == Metric::manhattan && !o.signed_field &&
-                   o.format != Format::packed32 && unit && fits
+    return !force_blocks_ && o.metric == Metric::manhattan && o.format != Format::packed32 &&
+                   unit && fits
                ? "sweep"
                : "blocks";
 }
@@ -647,8 +699,9 @@ double SparseField::sweep() {
             }
         }
     }
-    const auto cap = static_cast<cl_uint>(halo_[0] + 1);
-    const auto most = static_cast<cl_uint>(std::floor(*options_.max_distance));
+    const auto cap = static_cast<cl_int>(halo_[0] + 1);
+    const auto most = static_cast<cl_int>(std::floor(*options_.max_distance));
+    const bool sgn = options_.signed_field;
     double ms = 0;
     cl_call("computing a sparse Manhattan field in its tiles", [&] {
         auto& q = ctx_.queue();
@@ -660,6 +713,7 @@ double SparseField::sweep() {
         sweep_init_.setArg(4, refs_buf);
         sweep_init_.setArg(5, pool_);
         sweep_init_.setArg(7, cap);
+        sweep_init_.setArg(8, sgn ? -cap : cl_int{0});
         for (cl::Kernel* k : {&sweep_l1_, &sweep_l1_rows_}) {
             k->setArg(0, pool_);
             k->setArg(1, nbrs_buf);
@@ -669,6 +723,7 @@ double SparseField::sweep() {
         sweep_finish_.setArg(0, pool_);
         sweep_finish_.setArg(2, most);
         sweep_finish_.setArg(3, elem_, far_.data());
+        sweep_finish_.setArg(4, elem_, inside_.data());
         std::vector<std::pair<std::string, cl::Event>> events;
         // Every launch of a stage before the next stage's (the passes read neighbours).
         auto each_batch = [&](const std::string& stage, cl::Kernel& k, cl_uint first_arg,
@@ -688,8 +743,8 @@ double SparseField::sweep() {
         };
         each_batch("sweep_init", sweep_init_, 6, true);
         for (cl_uint axis = 0; axis < 3; ++axis) {
-            // CPUs take y and z a plane of 64 lines per work-item (sweep_l1_rows).
-            cl::Kernel& k = axis == 0 || gpu_layout_ ? sweep_l1_ : sweep_l1_rows_;
+            // CPUs take y and z a plane of 64 lines per work-item (sweep_l1_rows), unsigned.
+            cl::Kernel& k = axis == 0 || gpu_layout_ || sgn ? sweep_l1_ : sweep_l1_rows_;
             k.setArg(3, axis);
             const std::string stage = std::string("sweep_") + "xyz"[axis];
             if (&k == &sweep_l1_) {

@@ -394,13 +394,14 @@ PYBIND11_MODULE(_core, m) {
           py::arg("sampling") = py::none(), py::arg("return_indices") = false,
           py::arg("max_distance") = py::none(), py::arg("format") = py::none(),
           py::arg("algorithm") = "exact", py::arg("device") = py::none(),
-          py::arg("out") = py::none(),
+          py::arg("out") = py::none(), py::arg("targets") = "nonzero",
           "distance_transform(world, metric='manhattan', signed=False, sampling=None, "
           "return_indices=False, max_distance=None, format=None, algorithm='exact', "
-          "device=None, out=None) -> ndarray, or (ndarray, indices)\n\n"
+          "device=None, out=None, targets='nonzero') -> ndarray, or (ndarray, indices)\n\n"
           "See voxfield.distance_transform. `out`: a writable C-contiguous array of the "
           "field's shape and dtype that receives the field (and is returned) instead of a new "
-          "one.");
+          "one. `targets`: 'nonzero' (the world's solid voxels) or 'zero' (the distance to the "
+          "nearest zero voxel, as scipy.ndimage measures it; unsigned fields only).");
     py::class_<vp::Field>(m, "Field", "See voxfield.Field.")
         .def(py::init<const py::object&, const std::string&, const py::object&, const std::string&,
                       const std::optional<std::string>&, const py::object&, bool,

@@ -15,7 +15,8 @@ py::object distance_transform(const py::object& world, const std::string& metric
                               const py::object& max_distance,
                               const std::optional<std::string>& format,
                               const std::string& algorithm, const py::object& device,
-                              const py::object& out = py::none());
+                              const py::object& out = py::none(),
+                              const std::string& targets = "nonzero");
 
 py::tuple load_vox(const std::filesystem::path& path);
 void save_vox(const std::filesystem::path& path, const py::object& world,

@@ -192,51 +192,6 @@ TEST(ExactSeparable, BoundedFieldsAreTheExactFieldCappedAtD) {
 // sites lie hundreds of voxels apart pass the window's limit and fall back to the envelope
 // (from the start, or midway) while other tiles stay on the windows; planes without any
 // site; the last sub-tile of a row only partly filled. Unsigned and signed, both layouts.
-TEST(ExactSeparable, EuclideanWindowsAndTheirFallback) {
-    std::mt19937_64 rng(20261226);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    // y long: plane z = 0 has solids only at y = 0 (its y lines fall back), z = 1 random 3%
-    // (windows), z = 2 none.
-    World ylong(Dims{37, 700, 3});
-    for (std::uint32_t x = 0; x < 37; x += 3) {
-        ylong.set(x, 0, 0, 1);
-    }
-    // z long: solids at z = 0 and random beyond z = 420, none between (the z lines fall back
-    // midway).
-    World zlong(Dims{21, 2, 650});
-    zlong.set(4, 1, 0, 2);
-    zlong.set(17, 0, 0, 2);
-    // A cube: random solids only at x >= 32 (the first two sub-tiles of each row far).
-    World cube(Dims{50, 300, 40});
-    for (std::uint32_t z = 0; z < 650; ++z) {
-        for (std::uint32_t y = 0; y < 700; ++y) {
-            for (std::uint32_t x = 0; x < 50; ++x) {
-                if (z == 1 && y < 700 && x < 37 && u(rng) < 0.03) {
-                    ylong.set(x, y, z, 1);
-                }
-                if (z > 420 && y < 2 && x < 21 && u(rng) < 0.03) {
-                    zlong.set(x, y, z, 1);
-                }
-                if (z < 40 && y < 300 && x >= 32 && u(rng) < 0.03) {
-                    cube.set(x, y, z, 1);
-                }
-            }
-        }
-    }
-    for (const World* w : {&ylong, &zlong, &cube}) {
-        for (bool sgn : {false, true}) {
-            const auto o0 = options(Metric::euclidean, Spacing{}, sgn,
-                                    float_or(Metric::euclidean, Spacing{}, sgn), Layout::cpu);
-            const auto ref = reference(*w, o0);
-            for (Layout layout : kLayouts) {
-                auto o = o0;
-                o.layout = layout;
-                expect_matches(*w, Palette(), o, ref, "window fallback");
-            }
-        }
-    }
-}
-
 TEST(ExactSeparable, SaturatesLongDistances) {
     // A lone voxel in a long world: distances beyond 255 saturate u8 and i8.
     World w(Dims{300, 2, 3});
@@ -280,6 +235,55 @@ void expect_indices(const World& w, const ocl::GeneratorOptions& o, const std::s
     }
 }
 
+TEST(ExactSeparable, EuclideanWindowsAndTheirFallback) {
+    std::mt19937_64 rng(20261226);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    // y long: plane z = 0 has solids only at y = 0 (its y lines fall back), z = 1 random 3%
+    // (windows), z = 2 none.
+    World ylong(Dims{37, 700, 3});
+    for (std::uint32_t x = 0; x < 37; x += 3) {
+        ylong.set(x, 0, 0, 1);
+    }
+    // z long: solids at z = 0 and random beyond z = 420, none between (the z lines fall back
+    // midway).
+    World zlong(Dims{21, 2, 650});
+    zlong.set(4, 1, 0, 2);
+    zlong.set(17, 0, 0, 2);
+    // A cube: random solids only at x >= 32 (the first two sub-tiles of each row far).
+    World cube(Dims{50, 300, 40});
+    for (std::uint32_t z = 0; z < 650; ++z) {
+        for (std::uint32_t y = 0; y < 700; ++y) {
+            for (std::uint32_t x = 0; x < 50; ++x) {
+                if (z == 1 && y < 700 && x < 37 && u(rng) < 0.03) {
+                    ylong.set(x, y, z, 1);
+                }
+                if (z > 420 && y < 2 && x < 21 && u(rng) < 0.03) {
+                    zlong.set(x, y, z, 1);
+                }
+                if (z < 40 && y < 300 && x >= 32 && u(rng) < 0.03) {
+                    cube.set(x, y, z, 1);
+                }
+            }
+        }
+    }
+    for (const World* w : {&ylong, &zlong, &cube}) {
+        for (bool sgn : {false, true}) {
+            const auto o0 = options(Metric::euclidean, Spacing{}, sgn,
+                                    float_or(Metric::euclidean, Spacing{}, sgn), Layout::cpu);
+            const auto ref = reference(*w, o0);
+            for (Layout layout : kLayouts) {
+                auto o = o0;
+                o.layout = layout;
+                expect_matches(*w, Palette(), o, ref, "window fallback");
+            }
+        }
+        // The windows carry each lane's nearest site for the feature transform.
+        expect_indices(*w,
+                       options(Metric::euclidean, Spacing{}, false, Format::f64, Layout::cpu, true),
+                       "window fallback, indices");
+    }
+}
+
 TEST(ExactSeparable, IndicesNameANearestSolid) {
     std::mt19937_64 rng(99);
     std::uniform_int_distribution<std::uint32_t> axis(1, 50);
@@ -299,6 +303,88 @@ TEST(ExactSeparable, IndicesNameANearestSolid) {
             }
         }
     }
+}
+
+// The span constructor as voxfield.ndimage uses it: the world read in place with its zero
+// voxels as the targets (zero_targets), the f64 field and the index planes written into the
+// caller's memory by the z pass (no finish pass), on random grids of every density, against
+// the reference of the inverted world.
+TEST(ExactSeparable, ZeroTargetsInPlaceFieldAndIndices) {
+    std::mt19937_64 rng(2612);
+    std::uniform_int_distribution<std::uint32_t> axis(1, 90);
+    const double densities[] = {0.0, 0.001, 0.02, 0.3, 0.7, 0.98, 1.0};
+    for (int i = 0; i < 14; ++i) {
+        const Dims d = i == 0   ? Dims{1, 1, 77}
+                       : i == 1 ? Dims{1, 83, 1}
+                       : i == 2 ? Dims{91, 1, 1}
+                       : i == 3 ? Dims{64, 48, 1}
+                                : Dims{axis(rng), axis(rng), axis(rng)};
+        const World w = scene_random(d, densities[static_cast<std::size_t>(i) % 7], rng());
+        std::vector<std::uint8_t> inverted(w.voxels().size());
+        for (std::size_t k = 0; k < inverted.size(); ++k) {
+            inverted[k] = w.voxels()[k] == 0 ? 1 : 0;
+        }
+        const World targets(d, inverted);
+        const auto ref = reference_distance(targets, Metric::euclidean, Spacing{});
+        for (bool indices : {false, true}) {
+            for (Layout layout : kLayouts) {
+                const auto o =
+                    options(Metric::euclidean, Spacing{}, false, Format::f64, layout, indices);
+                const std::string what = "zero targets #" + std::to_string(i) +
+                                         (indices ? " indices " : " ") + describe(o, d);
+                ocl::HostMemory field(d.count() * 8);
+                std::vector<std::int32_t> planes(indices ? 3 * d.count() : 0, -7);
+                {
+                    ocl::ExactSeparable job(pocl(), d, w.voxels(), Palette(), o,
+                                            {field.data(), d.count() * 8}, planes, true);
+                    job.run();
+                    const ocl::MappedBuffer mapped(pocl(), job.field_buffer(), d.count() * 8);
+                    ASSERT_EQ(mapped.bytes().data(), field.data()) << what;
+                    if (indices) {
+                        job.read_indices([](std::span<const std::uint8_t>) {});
+                    }
+                }
+                const auto* got = reinterpret_cast<const double*>(field.data());
+                const std::size_t n = d.count();
+                for (std::size_t k = 0; k < n; ++k) {
+                    // Bit for bit: the correctly rounded root of the exact squared distance.
+                    ASSERT_EQ(got[k], ref[k]) << what << " voxel " << k;
+                    if (!indices) {
+                        continue;
+                    }
+                    const std::int32_t z = planes[k], y = planes[n + k], x = planes[2 * n + k];
+                    if (std::isinf(ref[k])) {
+                        ASSERT_TRUE(x == -1 && y == -1 && z == -1) << what << " voxel " << k;
+                        continue;
+                    }
+                    ASSERT_TRUE(d.contains(x, y, z)) << what << " voxel " << k;
+                    ASSERT_EQ(w.at(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                                   static_cast<std::uint32_t>(z)),
+                              0)
+                        << what << " voxel " << k << " names a nonzero voxel";
+                    const long px = static_cast<long>(k % d.x),
+                               py = static_cast<long>(k / d.x % d.y),
+                               pz = static_cast<long>(k / d.x / d.y);
+                    ASSERT_EQ(metric_distance(Metric::euclidean, Spacing{}, px - x, py - y, pz - z),
+                              ref[k])
+                        << what << " voxel " << k;
+                }
+            }
+        }
+    }
+    const World w = scene_random(Dims{5, 6, 7}, 0.2, 1);
+    std::vector<std::int32_t> short_planes(10);
+    ocl::HostMemory field(5 * 6 * 7 * 8);
+    EXPECT_THROW(ocl::ExactSeparable(
+                     pocl(), w.dims(), w.voxels(), Palette(),
+                     options(Metric::euclidean, Spacing{}, false, Format::f64, Layout::cpu, true),
+                     {field.data(), 5 * 6 * 7 * 8}, short_planes, true),
+                 std::invalid_argument);
+    EXPECT_THROW(
+        ocl::ExactSeparable(pocl(), w.dims(), w.voxels(), Palette(),
+                            options(Metric::euclidean, Spacing{}, true, Format::f32, Layout::cpu),
+                            {}, {}, true),
+        std::invalid_argument);
 }
 
 // The streaming read hands the same bytes as the whole read, in order, in slabs of at most

@@ -261,14 +261,17 @@ TEST(SparseField, EmptyFullAndSingleVoxelWorlds) {
 }
 
 // run()'s Manhattan sweep (1-D passes in the field tiles, neighbours read while rewritten)
-// against the dense bounded field and against run() by blocks: formats, bounds up to a whole
-// tile of halo (and just beyond, where run() takes blocks), full tiles beside empty ones,
-// tiles cut by the world's edge, and whole runs after device edits (trees in slots).
+// against the dense bounded field and against run() by blocks: signed or not, formats, bounds
+// up to a whole tile of halo (and just beyond, where run() takes blocks), full tiles beside
+// empty ones, tiles cut by the world's edge, and whole runs after device edits (trees in
+// slots).
 TEST(SparseField, ManhattanSweepEqualsBlocksAndTheDenseField) {
     std::mt19937 rng(27);
     const Palette p = Palette::magicavoxel_default();
-    const Dims sizes[] = {{130, 70, 200}, {64, 64, 64}, {1, 129, 65}, {200, 3, 5}};
+    // The widest: tiles enough for run() to find the field tiles on two threads.
+    const Dims sizes[] = {{130, 70, 200}, {64, 64, 64}, {1, 129, 65}, {200, 3, 5}, {700, 20, 700}};
     const Format formats[] = {Format::u8, Format::u16, Format::u32, Format::i16, Format::f32};
+    const Format signed_formats[] = {Format::i8, Format::i16, Format::i32, Format::f32};
     const double bounds[] = {1, 2.5, 16, 64, 64.5};
     int i = 0;
     for (const Dims d : sizes) {
@@ -284,7 +287,8 @@ TEST(SparseField, ManhattanSweepEqualsBlocksAndTheDenseField) {
         }
         for (const double bound : bounds) {
             Case c;
-            c.format = formats[i % 5];
+            c.signed_field = i % 3 == 1;
+            c.format = c.signed_field ? signed_formats[i % 4] : formats[i % 5];
             c.layout = kLayouts[i % 2];
             c.bound = bound;
             ++i;
@@ -310,6 +314,8 @@ TEST(SparseField, ManhattanSweepEqualsBlocksAndTheDenseField) {
         SparseWorld s = SparseWorld::from_dense(w);
         Case c;
         c.layout = layout;
+        c.signed_field = layout == Layout::gpu;
+        c.format = c.signed_field ? Format::i16 : Format::u16;
         c.bound = 12;
         ocl::SparseField f(pocl(), s, p, options_of(c));
         f.run();

@@ -260,15 +260,63 @@ def test_device_keyword():
         np.testing.assert_array_equal(vf.distance_transform_edt(a, device=device), want)
 
 
-def test_indices_break_ties_as_scipy_on_a_cpu_device():
-    """On a CPU device (and with any sampling) the host passes choose SciPy's sites."""
+def test_indices_with_sampling_break_ties_as_scipy():
+    """With sampling other than 1 the host passes choose SciPy's sites (axes in its order)."""
     for i, shape in enumerate(SHAPES + [(16, 16, 16)]):
         for density in (0.5, 0.95):
             a = random_input(shape, density, 200 + i)
-            for sampling in (None, 2.0, (1, 1, 3)[-len(shape):]):
+            for sampling in (2.0, (1, 1, 3)[-len(shape):]):
                 got_d, got_i = vf.distance_transform_edt(a, sampling=sampling,
                                                          return_indices=True, device="cpu")
                 want_d, want_i = sp.distance_transform_edt(a, sampling=sampling,
                                                            return_indices=True)
                 np.testing.assert_array_equal(got_i, want_i, err_msg=f"{shape} {sampling}")
                 np.testing.assert_array_equal(got_d, want_d)
+
+
+@pytest.mark.parametrize("dtype", DTYPES, ids=str)
+def test_indices_on_the_device_over_dtypes_layouts_and_dims(dtype):
+    """Unit sampling: the device's separable passes (the z pass writing the f64 field and the
+    index planes in place; bool and integer inputs read with their zeros as the targets) give
+    SciPy's distances bit for bit and indices naming a zero at exactly that distance; ties
+    (lowest z, then y, then x along the passes) may differ from SciPy's."""
+    for i, shape in enumerate(SHAPES + [(70, 3, 40), (2, 90, 33)]):
+        for density in (0.02, 0.5, 0.97):
+            a = random_input(shape, density, 300 + 10 * i + int(density * 10), dtype)
+            want = sp.distance_transform_edt(a)
+            for name, b in layouts(a):
+                d, idx = vf.distance_transform_edt(b, return_indices=True, device="cpu")
+                np.testing.assert_array_equal(d, want, err_msg=f"{shape} {name}")
+                check_indices_name_a_nearest_zero(a, idx, d)
+                dist = np.full(shape, 7.0)
+                ind = np.full((len(shape),) + shape, 7, np.int32)
+                assert vf.distance_transform_edt(b, return_indices=True, distances=dist,
+                                                 indices=ind, device="cpu") is None
+                np.testing.assert_array_equal(dist, want, err_msg=f"{shape} {name}")
+                np.testing.assert_array_equal(ind, idx, err_msg=f"{shape} {name}")
+
+
+def test_core_zero_targets():
+    """_core.distance_transform(targets='zero') measures to the zero voxels: read in place
+    (uint8, bool), or through an inverted copy (wider labels, the L1 / L-inf sweeps)."""
+    core = __import__("voxfield")._core
+    rng = np.random.default_rng(17)
+    world = (rng.random((9, 23, 31)) < 0.3) * rng.integers(1, 300, size=(9, 23, 31))
+    for dtype in (np.uint8, np.bool_, np.int16, np.uint32):
+        w = world.astype(dtype)
+        inverted = (w == 0).astype(np.uint8)
+        for metric, fmt in (("euclidean", "f64"), ("euclidean", "f32"), ("manhattan", "u32"),
+                            ("chebyshev", "u16"), ("manhattan", "f64")):
+            want = core.distance_transform(inverted, metric, format=fmt, device="cpu")
+            got = core.distance_transform(w, metric, format=fmt, device="cpu", targets="zero")
+            np.testing.assert_array_equal(got, want, err_msg=f"{dtype} {metric} {fmt}")
+        wd, wi = core.distance_transform(inverted, "euclidean", format="f64",
+                                         return_indices=True, device="cpu")
+        gd, gi = core.distance_transform(w, "euclidean", format="f64", return_indices=True,
+                                         device="cpu", targets="zero")
+        np.testing.assert_array_equal(gd, wd)
+        np.testing.assert_array_equal(gi, wi)
+    with pytest.raises(ValueError, match="targets"):
+        core.distance_transform(inverted, "euclidean", targets="solid")
+    with pytest.raises(ValueError, match="signed=False"):
+        core.distance_transform(inverted, "euclidean", signed=True, targets="zero")

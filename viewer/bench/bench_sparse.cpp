@@ -196,11 +196,15 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         field_stages[name] = ms;
     }
     const ocl::SparseField::Work field_work = field.last_work();
-    // The same field by per-tile blocks through the dense generator (the path the sweep
-    // replaced), once, in the same run.
+    json field_host_stages = json::object();
+    for (const auto& [name, ms] : field.last_host_stages()) {
+        field_host_stages[name] = ms;
+    }
+    // With --compare-blocks, the same field by per-tile blocks through the dense generator (the
+    // path the sweep replaced), once, in the same run.
     const std::string method = field.run_method();
     json blocks_wall = nullptr, blocks_kernel = nullptr;
-    if (method != "blocks") {
+    if (method != "blocks" && o.compare_blocks) {
         observer.progress(label + ": whole bounded field by blocks, for comparison");
         field.force_blocks(true);
         const auto t0 = Clock::now();
@@ -296,6 +300,7 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"field_wall_ms_samples", field_wall},
         {"field_kernel_ms_samples", field_kernel},
         {"field_stage_ms", field_stages},
+        {"field_host_stage_ms", field_host_stages},
         {"field_method", method},
         {"field_blocks_wall_ms", blocks_wall},
         {"field_blocks_kernel_ms", blocks_kernel},

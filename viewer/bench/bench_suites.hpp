@@ -24,13 +24,14 @@ struct SuiteOptions {
     std::optional<std::uint32_t> warmup;  // none: the suite's default
     double budget_s = 0;                  // per-row wall-clock budget; 0: the suite's default
     std::uint64_t seed = 6683787;
-    std::uint32_t chunk = 16;    // edits: the chunk-local algorithms' chunk size
-    std::uint32_t edits = 0;     // edits: how many; 0: the suite's default
-    std::uint32_t world = 0;     // edits, sand: the world's edge; 0: the suite's default
-    std::string format = "u16";  // edits: the field format
-    std::string implicit_part;   // implicit: the part's .sdf.json (data/parts/bracket.sdf.json)
-    std::vector<Dims> sizes;     // sparse: the worlds (empty: the suite's default)
-    GeneratorFlags field;        // sparse: metric, spacing, sign, --max-distance
+    std::uint32_t chunk = 16;     // edits: the chunk-local algorithms' chunk size
+    std::uint32_t edits = 0;      // edits: how many; 0: the suite's default
+    std::uint32_t world = 0;      // edits, sand: the world's edge; 0: the suite's default
+    std::string format = "u16";   // edits: the field format
+    std::string implicit_part;    // implicit: the part's .sdf.json (data/parts/bracket.sdf.json)
+    std::vector<Dims> sizes;      // sparse: the worlds (empty: the suite's default)
+    GeneratorFlags field;         // sparse: metric, spacing, sign, --max-distance
+    bool compare_blocks = false;  // sparse: also time the whole field by blocks (--compare-blocks)
 };
 
 // What a suite reports while it runs, in order; every call is optional to act on.

@@ -27,7 +27,7 @@ struct BenchOptions {
     std::uint64_t seed = 6683787;
     // --suite NAME runs a whole suite (bench_suites.hpp) instead of the grid above.
     std::string suite, plot;
-    bool quick = false;
+    bool quick = false, compare_blocks = false;
     double budget_s = 0;
     std::uint32_t edits = 0, world = 0;
 };
@@ -211,13 +211,17 @@ Command add_bench(CLI::App& root) {
                     "Suites edits and sparse: number of edits (edits: default 200, --quick 20; "
                     "sparse: 30, --quick 6)")
         ->check(positive());
+    app->add_flag("--compare-blocks", o->compare_blocks,
+                  "Suite sparse: where the whole field takes the Manhattan sweep, also time it "
+                  "once by per-tile blocks (the path the sweep replaced) in the same run");
     app->add_option("--world", o->world,
                     "Suites edits and sand: world edge N (edits: default 128, --quick 64; sand: "
                     "256, --quick 64)")
         ->check(positive());
     return {app, [o, app] {
                 if (o->suite.empty()) {
-                    for (const char* flag : {"--quick", "--time-budget", "--edits", "--world"}) {
+                    for (const char* flag :
+                         {"--quick", "--time-budget", "--edits", "--world", "--compare-blocks"}) {
                         if (app->count(flag) != 0) {
                             throw InputError(std::string(flag) + " applies to --suite only");
                         }
@@ -241,6 +245,9 @@ Command add_bench(CLI::App& root) {
                     throw InputError("--edits and --format apply to --suite edits and sparse only");
                 }
 
+                if (!sparse && o->compare_blocks) {
+                    throw InputError("--compare-blocks applies to --suite sparse only");
+                }
                 if (o->suite != "edits" && o->suite != "sand" && app->count("--world") != 0) {
                     throw InputError("--world applies to --suite edits and sand only");
                 }
@@ -262,6 +269,7 @@ Command add_bench(CLI::App& root) {
                         s.sizes.push_back(parse_size(size));
                     }
                     s.field = o->field;
+                    s.compare_blocks = o->compare_blocks;
                 }
                 return run_suite_command(s, *o);
             }};

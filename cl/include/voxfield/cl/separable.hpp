@@ -26,12 +26,16 @@ class ExactSeparable : public Generator {
     // A full (not incremental) transform of a world in host memory, as ExactManhattan's span
     // constructor: on a device that computes in host memory the kernels read `voxels`
     // (dims.count() palette indices) in place and write the field into `field` where given
-    // (dims.count() * element_size(options.format) bytes); elsewhere the world is uploaded
-    // and `field` unused. Both must outlive the generator; std::invalid_argument on a size
-    // mismatch.
+    // (dims.count() * element_size(options.format) bytes), and with options.indices the
+    // index planes into `indices` where given (3 * dims.count() int32, read_indices()'s
+    // layout); elsewhere the world is uploaded and `field`, `indices` unused. All must
+    // outlive the generator; std::invalid_argument on a size mismatch. `zero_targets`: the
+    // distances are to the nearest zero voxel instead of the nearest nonzero one (SciPy's
+    // convention; the world need not be inverted first); unsigned fields only.
     ExactSeparable(Context& ctx, Dims dims, std::span<const std::uint8_t> voxels,
                    const Palette& palette, const GeneratorOptions& options,
-                   std::span<std::uint8_t> field = {});
+                   std::span<std::uint8_t> field = {}, std::span<std::int32_t> indices = {},
+                   bool zero_targets = false);
 
     double run() override;
     std::string variant() const override;  // "cpu layout" or "gpu layout"
@@ -53,7 +57,8 @@ class ExactSeparable : public Generator {
     // The constructors' common part: `voxels` read in place (`in_place`) or uploaded, the
     // field written into `field` when it is not empty.
     void set_up(const std::uint8_t* voxels, bool in_place, std::span<std::uint8_t> field,
-                const Palette& palette, const GeneratorOptions& options);
+                std::span<std::int32_t> indices, const Palette& palette,
+                const GeneratorOptions& options);
 
     // One work-group of cols_banded: kBandedGroup work-items, `banded_lines(n, local_mem)`
     // lines of n positions (0: lines of n do not fit that much local memory); its sites are
@@ -80,8 +85,9 @@ class ExactSeparable : public Generator {
     cl::Kernel x_kernel(const Box& rows, Span in, const cl::Buffer& box);
     // y (axis 1) or z (axis 2) pass from partials g_[from] to g_[to], over the lines at x in
     // `xs` and z (y pass) or y (z pass) in `others`, positions `out` from sites `in`.
+    // `final`: the z pass writes the output (and index planes) itself (col_pass's `final`).
     cl::Kernel col_kernel(int axis, int from, int to, Span xs, Span others, Span out, Span in,
-                          const cl::Buffer& skip, const cl::Buffer& box);
+                          const cl::Buffer& skip, const cl::Buffer& box, bool final = false);
     void set_cap(cl::Kernel& k, cl_uint index) const;
     // A spacing argument in the scans' type (double with fp64_, else float).
     void set_spacing(cl::Kernel& k, cl_uint index, double s) const;
@@ -96,7 +102,8 @@ class ExactSeparable : public Generator {
     std::size_t col_scratch(int axis, std::size_t count_x, std::size_t count_o) const;
 
     bool gpu_layout_;
-    bool banded_ = false;  // the full GPU transform by cols_banded
+    bool zero_targets_ = false;  // targets are the zero voxels (x_pass's `solid` 0)
+    bool banded_ = false;        // the full GPU transform by cols_banded
     bool incremental_;
     Spacing spacing_;
     cl::Program program_;

@@ -85,13 +85,19 @@ class SparseField {
     };
     const Work& last_work() const { return work_; }
     const std::vector<std::pair<std::string, double>>& last_stages() const { return stages_; }
+    // The last run()'s wall clock per step (ms): the world brought up to date on the device,
+    // the field tiles found, the pool allocated, the jobs listed, the field computed (kernels
+    // and waits), the node minima.
+    const std::vector<std::pair<std::string, double>>& last_host_stages() const {
+        return host_stages_;
+    }
 
     const GeneratorOptions& options() const { return options_; }
-    // How run() computes the whole field: "sweep" (unsigned Manhattan fields of unit spacing
-    // whose halo fits in one neighbour tile: 1-D passes in the field tiles themselves, see
-    // sparse_field.cl) or "blocks" (every other field, and updates: each tile's block with its
-    // halo through a dense generator). force_blocks(true) makes run() take blocks always
-    // (tests and benchmarks compare the two).
+    // How run() computes the whole field: "sweep" (Manhattan fields, signed or not, of unit
+    // spacing whose halo fits in one neighbour tile, not packed32: 1-D passes in the field
+    // tiles themselves, see sparse_field.cl) or "blocks" (every other field, and updates: each
+    // tile's block with its halo through a dense generator). force_blocks(true) makes run()
+    // take blocks always (tests and benchmarks compare the two).
     std::string run_method() const;
     void force_blocks(bool on) { force_blocks_ = on; }
     std::uint32_t halo(int axis) const { return halo_[axis]; }
@@ -170,7 +176,8 @@ class SparseField {
     std::map<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>,
              std::unique_ptr<Batch>>
         batches_;
-    std::vector<std::pair<std::string, double>> stages_;  // of the running run() or update
+    std::vector<std::pair<std::string, double>> stages_;       // of the running run() or update
+    std::vector<std::pair<std::string, double>> host_stages_;  // of the last run()
     std::vector<cl::Event> scatters_;
     Work work_;
 };
