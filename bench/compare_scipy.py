@@ -35,6 +35,10 @@ DESIGN §3's "outside the world counts as empty". Signed fields pad the world wi
 on every side first (DESIGN §3). A world with no solid voxel has no zero in the mask (SciPy then
 returns -1 or garbage) and the checks are skipped.
 
+--voxfield-before BIN times a second binary (say, main's) on every case right after the first,
+in the same run and against the same SciPy call; its kernel figures go under each case's
+"before" key, its field is checked too, and --table prints its ratios in a row of their own.
+
 Needs Debian's python3-numpy and python3-scipy (run with /usr/bin/python3) and the built
 `voxfield` executable; the in-process figures need the built module (--no-module skips them).
 Exit status: 0 if every check passed (or was skipped), 1 if one failed, 2 on bad usage or a
@@ -253,6 +257,17 @@ def run_world(world, args, module, cases, sampling):
             command_ms = [run_cli(base) for _ in range(args.command_repeat)]
             ours = np.load(field_path)
             ours_idx = np.load(idx_path) if case.get("indices") else None
+            before = None
+            if args.voxfield_before:
+                # The same case by the other binary, right after (its field checked too).
+                print(f"{name}: voxfield before ({args.voxfield_before}) ...", file=sys.stderr)
+                run_cli([args.voxfield_before] + base[1:] +
+                        ["--json", json_path, "--warmup", "1", "--repeat", str(args.repeat)])
+                with open(json_path) as f:
+                    jb = json.load(f)
+                before = {"binary": args.voxfield_before, "label": args.before_label,
+                          "kernel_ms": spread([float(v) for v in jb["kernel_ms_samples"]]),
+                          "stages_ms": jb.get("stages"), "field": np.load(field_path)}
 
             print(f"{name}: SciPy {case['scipy_call']} ...", file=sys.stderr)
             theirs, scipy_ms = timed(case["scipy"], args.scipy_repeat)
@@ -281,6 +296,17 @@ def run_world(world, args, module, cases, sampling):
                 if module_same is False:
                     ok, detail = False, detail + "; the module's result differs from the CLI's"
 
+            if before is not None:
+                field_before = before.pop("field")
+                if solid == 0:
+                    before["check_ok"], before["check"] = None, "no solid voxel"
+                else:
+                    before["check_ok"], before["check"] = compare(field_before, theirs_field,
+                                                                  case["exact"])
+                    ok = ok if before["check_ok"] else False
+                    if not before["check_ok"]:
+                        detail += "; before: " + before["check"]
+
             kernel = spread([float(v) for v in j["kernel_ms_samples"]])
             command = spread(command_ms) if command_ms else None
             scipy_t = spread(scipy_ms)
@@ -306,6 +332,10 @@ def run_world(world, args, module, cases, sampling):
                 if module_t else None,
                 "loadavg_1min_before_after": [load_before[0], os.getloadavg()[0]],
             })
+            if before is not None:
+                before["ratio_scipy_over_kernel"] = (scipy_t["median"] /
+                                                     before["kernel_ms"]["median"])
+                rows[-1]["before"] = before
     return rows, device_info
 
 
@@ -357,6 +387,21 @@ def print_table(paths):
                          f"{k['min']:.0f}-{k['max']:.0f}; SciPy {r['scipy_ms']['median']:.0f})"
                          + ("" if r["check_ok"] is not False else " FAILED"))
         print(f"| {c} | " + " | ".join(cells) + " |")
+        if any("before" in x for w, _ in worlds for x in w["comparisons"] if x["case"] == c):
+            cells = []
+            for w, _ in worlds:
+                r = next((x for x in w["comparisons"] if x["case"] == c), None)
+                b = r.get("before") if r else None
+                if b is None:
+                    cells.append("-")
+                    continue
+                k = b["kernel_ms"]
+                cells.append(f"{b['ratio_scipy_over_kernel']:.1f}x ({k['median']:.0f} ms, "
+                             f"{k['min']:.0f}-{k['max']:.0f})"
+                             + ("" if b["check_ok"] is not False else " FAILED"))
+            label = next(x["before"]["label"] for w, _ in worlds for x in w["comparisons"]
+                         if x["case"] == c and "before" in x)
+            print(f"| {c} ({label}) | " + " | ".join(cells) + " |")
     loads = [v for w, _ in worlds for r in w["comparisons"]
              for v in r.get("loadavg_1min_before_after", [])]
     records = {id(rec): rec for _, rec in worlds}.values()
@@ -381,6 +426,11 @@ def main():
                          f"'all': run every case on each (instead of the one world)")
     ap.add_argument("--voxfield", default=os.path.join(REPO, "build", "viewer", "voxfield"),
                     help="voxfield binary (default: build/viewer/voxfield)")
+    ap.add_argument("--voxfield-before",
+                    help="a second voxfield binary (say, main's) timed on every case right after "
+                         "the first, in the same run, its field checked against SciPy's too")
+    ap.add_argument("--before-label", default="before",
+                    help="the name of --voxfield-before in the table (default: before)")
     ap.add_argument("--python-dir", default=os.path.join(REPO, "build", "python"),
                     help="folder holding the built voxfield module (default: build/python)")
     ap.add_argument("--no-module", action="store_true", help="skip the in-process comparison")
@@ -417,8 +467,9 @@ def main():
         sampling = ()
     if len(sampling) != 3 or not all(v > 0 and np.isfinite(v) for v in sampling):
         ap.error(f"--sampling '{args.sampling}': expected three positive numbers z,y,x")
-    if not (os.path.isfile(args.voxfield) and os.access(args.voxfield, os.X_OK)):
-        ap.error(f"voxfield binary not found: {args.voxfield} (build it first, or pass --voxfield)")
+    for binary in [args.voxfield] + ([args.voxfield_before] if args.voxfield_before else []):
+        if not (os.path.isfile(binary) and os.access(binary, os.X_OK)):
+            ap.error(f"voxfield binary not found: {binary} (build it first, or pass --voxfield)")
     if args.size < 1:
         ap.error("--size must be at least 1")
     names = []
@@ -488,6 +539,9 @@ def main():
             "cpu_count": os.cpu_count(),
             "numpy": np.__version__,
             "scipy": __import__("scipy").__version__,
+            "voxfield": args.voxfield,
+            "voxfield_before": args.voxfield_before,
+            "before_label": args.before_label if args.voxfield_before else None,
         }
         if names:
             record = dict(common, size_arg=args.size, seed=args.seed,

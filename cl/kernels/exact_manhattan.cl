@@ -15,11 +15,22 @@
 // composes their move kinds (a forward then a backward sweep covers every count of each,
 // with either sign), so the whole is exact.
 //
-// Build options: T (work element: uchar, ushort or uint), T_MAX (its maximum), PACKED (1 when
-// the output is packed32 and T is a separate uchar work buffer), SEG_K (values per column and
-// work-item in cols_seg), VW (adjacent columns per work-item in cols_seg: 1, 2 or 4),
-// CHEBYSHEV (0 or 1). Saturating at T_MAX is exact: min-plus with +1 commutes with
-// min(., T_MAX).
+// Build options: T (work element: uchar, ushort or uint; char, short or int when SIGNED),
+// T_MAX (its maximum), PACKED (1 when the output is packed32 and T is a separate uchar work
+// buffer), SEG_K (values per column and work-item in cols_seg), VW (adjacent columns per
+// work-item in cols_seg: 1, 2 or 4), CHEBYSHEV (0 or 1), SIGNED (0 or 1, CPU layout only).
+// Saturating at T_MAX is exact: min-plus with +1 commutes with min(., T_MAX).
+//
+// SIGNED=1: the signed L1 field in the same passes, one value per voxel. Every voxel is at
+// distance 0 from its own class, so it carries only the other distance: an empty voxel
+// +(distance to the nearest solid), a solid one -(distance to the nearest empty voxel), the
+// output's own encoding. A step from neighbour n reads n's distance to the solids as
+// max(n, 0) and to the empties as max(-n, 0), so an empty voxel c takes
+// min(c, max(n, 0) + k) and a solid one max(c, min(n, 0) - k): both transforms, each exact by
+// the separable argument, in one pass. Empty voxels start at T_MAX, solid ones at -T_MAX (the
+// signed formats saturate at +-T_MAX); the world's surroundings are empty voxels of value
+// T_MAX, which the x pass's padding already is and the y and z sweeps add as a step from
+// T_MAX into the first and last line (a solid voxel there gets -1).
 //
 // Two layouts of the same sweeps, chosen by the host per device:
 // - CPU (PoCL): xy_slices_seq gives each work-item a whole z-slice (x sweeps, then y sweeps
@@ -37,6 +48,30 @@
 
 // A saturating +1 in the work type (saturating byte/short adds vectorise widest on CPUs).
 inline T inc_t(T v) { return add_sat(v, (T)1); }
+
+// One min-plus step of voxel c from a neighbour at distance k holding n (both neighbours lo
+// and hi at once in step_pair); SIGNED: as the header says.
+inline T step_k(T c, T n, T k) {
+#if SIGNED
+    return c > 0 ? min(c, add_sat(max(n, (T)0), k)) : max(c, sub_sat(min(n, (T)0), k));
+#else
+    return min(c, add_sat(n, k));
+#endif
+}
+inline T step_pair(T c, T lo, T hi, T k) {
+#if SIGNED
+    return c > 0 ? min(c, add_sat(max(min(lo, hi), (T)0), k))
+                 : max(c, sub_sat(min(max(lo, hi), (T)0), k));
+#else
+    return min(c, add_sat(min(lo, hi), k));
+#endif
+}
+// A solid voxel's start value (0, or -T_MAX when SIGNED; an empty one starts at T_MAX).
+#if SIGNED
+#define T_SOLID ((T)(-(T_MAX)))
+#else
+#define T_SOLID ((T)0)
+#endif
 
 // One chamfer step of a row of n from its predecessor row: cur[x] = min(cur[x], 1 + the
 // least of prev[x-1], prev[x], prev[x+1]) (those inside the row). A macro: the rows may be
@@ -62,48 +97,171 @@ inline T inc_t(T v) { return add_sat(v, (T)1); }
 #define STORE_FINAL(i, d) work[i] = (T)(d)
 #endif
 
+// Long rows with few solid voxels (at most ROW_KMAX) take their 1-D transform directly:
+// row_solids finds the solids 16 bytes at a time (a bit mask per 16 voxels, one step per
+// solid) and row_ramps writes the distance to the nearest of them, ramps between consecutive
+// ones (SIGNED: a solid voxel's distance to the nearest empty voxel, the row's ends counting
+// as empty, from the run of solids around it).
+#define ROW_KMAX 16
+
+// The solid voxels among the 16 from v as a bit mask (bit i: v[i] != 0).
+inline uint solid_mask16(__global const uchar* restrict v) {
+    const uchar16 bits = (uchar16)(1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128);
+    const ulong gather = 0x0101010101010101UL;  // sums a word's bytes into its top byte
+    const ulong2 h = as_ulong2(as_uchar16(vload16(0, v) != (uchar16)0) & bits);
+    return (uint)((h.s0 * gather) >> 56) | ((uint)((h.s1 * gather) >> 56) << 8);
+}
+
+// The positions of the solid voxels of row v (X voxels) in pos, and their number; ROW_KMAX + 1
+// (pos then unset) when there are more. A first pass only counts (no branch per solid), so
+// that a dense row leaves after its first few blocks.
+inline uint row_solids(__global const uchar* restrict v, uint X, uint* pos) {
+    const uint full = X / 16 * 16;
+    uint k = 0;
+    for (uint x = 0; x < full; x += 16) {
+        k += popcount(solid_mask16(v + x));
+        if (k > ROW_KMAX) {
+            return ROW_KMAX + 1;
+        }
+    }
+    for (uint x = full; x < X; ++x) {
+        k += v[x] != 0;
+    }
+    if (k == 0 || k > ROW_KMAX) {
+        return min(k, (uint)ROW_KMAX + 1);
+    }
+    k = 0;
+    for (uint x = 0; x < full; x += 16) {
+        uint m = solid_mask16(v + x);
+        while (m != 0) {
+            pos[k++] = x + 31 - clz(m & (0u - m));
+            m &= m - 1;
+        }
+    }
+    for (uint x = full; x < X; ++x) {
+        if (v[x] != 0) {
+            pos[k++] = x;
+        }
+    }
+    return k;
+}
+
+inline void row_ramps(__global T* restrict out, uint X, const uint* pos, uint k) {
+    const uint first = pos[0];
+    for (uint x = 0; x < first; ++x) {
+        out[x] = (T)min(first - x, (uint)T_MAX);
+    }
+    for (uint i = 0; i + 1 < k; ++i) {
+        const uint a = pos[i];
+        const uint b = pos[i + 1];
+        for (uint x = a; x < b; ++x) {
+            out[x] = (T)min(min(x - a, b - x), (uint)T_MAX);
+        }
+    }
+    const uint last = pos[k - 1];
+    for (uint x = last; x < X; ++x) {
+        out[x] = (T)min(x - last, (uint)T_MAX);
+    }
+#if SIGNED
+    for (uint i = 0; i < k;) {
+        uint j = i;  // the run of solids pos[i..j]
+        while (j + 1 < k && pos[j + 1] == pos[j] + 1) {
+            ++j;
+        }
+        for (uint r = i; r <= j; ++r) {
+            out[pos[r]] = (T)(-(int)min(min(pos[r] - pos[i], pos[j] - pos[r]) + 1, (uint)T_MAX));
+        }
+        i = j + 1;
+    }
+#endif
+}
+
 // One work-item per z-slice. Along x (the contiguous axis) a sequential sweep is one long
 // dependency chain, so rows are transformed by doubling instead: after the steps 1, 2, 4, ...
 // < X, d[x] = min(d[x], d[x-s] + s, d[x+s] + s) has considered every offset |t| < 2*s as a
 // sum of distinct powers of two, which is the exact 1-D L1 transform; every step is a
 // vectorisable loop over `scratch` (two rows of X elements with T_MAX padding of `pad`
-// >= X/2 on both sides). Then the y sweeps over the slice (inner loops along x, vectorised).
+// >= X/2 on both sides). A row without solids is T_MAX throughout; rows of 1024 voxels or
+// more with at most ROW_KMAX solids take row_ramps instead; and the steps stop once no voxel
+// holds +-T_MAX: after the step s every voxel within 2s - 1 of a target holds its distance
+// and every other one +-T_MAX, so then every voxel is final. Then the y sweeps over the
+// slice (inner loops along x, vectorised).
 __kernel void xy_slices_seq(__global const uchar* restrict vox, __global T* restrict work,
                             uint X, uint Y, uint pad, __local T* restrict scratch) {
     const size_t base = get_global_id(0) * (size_t)X * Y;
     const uint span = X + 2 * pad;
+    // Ramps (two passes over the row's 16-voxel masks, then the fills) took longer than the
+    // doubling's log2(X) vector steps on rows of 256 (random 1%: 12.5 ms against 7.3 ms for
+    // the slices of 256^3); on rows of 4096 with a few solids they took a third of it.
+    const bool ramps = X >= 1024;
     for (uint i = 0; i < 2 * span; ++i) {
         scratch[i] = (T)T_MAX;
     }
     for (uint y = 0; y < Y; ++y) {
         const size_t row = base + (size_t)y * X;
+        uchar any = 0;
+        for (uint x = 0; x < X; ++x) {
+            any |= vox[row + x];
+        }
+        if (any == 0) {
+            for (uint x = 0; x < X; ++x) {
+                work[row + x] = (T)T_MAX;
+            }
+            continue;
+        }
+        if (ramps) {
+            uint pos[ROW_KMAX];
+            const uint k = row_solids(vox + row, X, pos);
+            if (k <= ROW_KMAX) {
+                row_ramps(work + row, X, pos, k);
+                continue;
+            }
+        }
         __local T* a = scratch + pad;
         __local T* b = scratch + span + pad;
         for (uint x = 0; x < X; ++x) {
-            a[x] = vox[row + x] ? (T)0 : (T)T_MAX;
+            a[x] = vox[row + x] ? T_SOLID : (T)T_MAX;
         }
-        for (uint s = 1; s < X; s <<= 1) {
+        for (uint s = 1; s < max(X, 2u); s <<= 1) {  // X = 1: one step to the padding
             const T step = (T)min(s, (uint)T_MAX);
             __local const T* lo = a - s;
             __local const T* hi = a + s;
+            T top = 0;  // the largest |value| of the new row (T_MAX: not all final)
             for (uint x = 0; x < X; ++x) {
-                b[x] = min(a[x], add_sat(min(lo[x], hi[x]), step));
+                const T d = step_pair(a[x], lo[x], hi[x], step);
+                b[x] = d;
+#if SIGNED
+                top = max(top, max(d, (T)(-d)));
+#else
+                top = max(top, d);
+#endif
             }
             __local T* t = a;
             a = b;
             b = t;
+            if (top != (T)T_MAX) {
+                break;
+            }
         }
         for (uint x = 0; x < X; ++x) {
             work[row + x] = a[x];
         }
     }
+#if SIGNED
+    // The empty surroundings before the first and after the last row.
+    for (uint x = 0; x < X; ++x) {
+        work[base + x] = step_k(work[base + x], (T)T_MAX, (T)1);
+        const size_t last = base + (size_t)(Y - 1) * X + x;
+        work[last] = step_k(work[last], (T)T_MAX, (T)1);
+    }
+#endif
     for (uint y = 1; y < Y; ++y) {
         const size_t row = base + (size_t)y * X;
 #if CHEBYSHEV
         KING_STEP(work + row, work + row - X, X);
 #else
         for (uint x = 0; x < X; ++x) {
-            work[row + x] = min(work[row + x], inc_t(work[row - X + x]));
+            work[row + x] = step_k(work[row + x], work[row - X + x], (T)1);
         }
 #endif
     }
@@ -113,7 +271,7 @@ __kernel void xy_slices_seq(__global const uchar* restrict vox, __global T* rest
         KING_STEP(work + row, work + row + X, X);
 #else
         for (uint x = 0; x < X; ++x) {
-            work[row + x] = min(work[row + x], inc_t(work[row + X + x]));
+            work[row + x] = step_k(work[row + x], work[row + X + x], (T)1);
         }
 #endif
     }
@@ -171,7 +329,13 @@ __kernel void z_king(__global T* restrict work, __global uint* restrict out,
 // positions; get_global_id(1) picks the line of columns at offset m * mstride. The forward
 // sweep copies the strip into `scratch` (strip * N elements, contiguous), so the backward
 // sweep reads it from cache: rows of a power-of-two world sit a power-of-two apart and would
-// all fall into the same cache sets. cols_strip_final writes the output format.
+// all fall into the same cache sets. cols_strip_final writes the output format. SIGNED: EDGE
+// adds the empty surroundings' step to the first and last line.
+#if SIGNED
+#define EDGE(v) step_k((v), (T)T_MAX, (T)1)
+#else
+#define EDGE(v) (v)
+#endif
 #define COLS_STRIP(NAME, STORE)                                                            \
     __kernel void NAME(__global T* restrict work, __global uint* restrict out,             \
                        __global const uchar* restrict vox, __constant uchar* rgb, uint X,  \
@@ -181,14 +345,15 @@ __kernel void z_king(__global T* restrict work, __global uint* restrict out,
         const uint w = min(x0 + strip, X) - x0;                                            \
         const size_t base = get_global_id(1) * mstride + x0;                               \
         for (uint i = 0; i < w; ++i) {                                                     \
-            scratch[i] = work[base + i];                                                   \
+            scratch[i] = EDGE(work[base + i]);                                             \
         }                                                                                  \
         for (uint n = 1; n < N; ++n) {                                                     \
             const size_t row = base + n * stride;                                          \
             __local T* cur = scratch + n * w;                                              \
             __local const T* prev = cur - w;                                               \
             for (uint i = 0; i < w; ++i) {                                                 \
-                cur[i] = min(work[row + i], inc_t(prev[i]));                               \
+                const T v = n + 1 == N ? EDGE(work[row + i]) : work[row + i];              \
+                cur[i] = step_k(v, prev[i], (T)1);                                         \
             }                                                                              \
         }                                                                                  \
         {                                                                                  \
@@ -203,7 +368,7 @@ __kernel void z_king(__global T* restrict work, __global uint* restrict out,
             __local T* cur = scratch + n * w;                                              \
             __local const T* next = cur + w;                                               \
             for (uint i = 0; i < w; ++i) {                                                 \
-                const T d = min(cur[i], inc_t(next[i]));                                   \
+                const T d = step_k(cur[i], next[i], (T)1);                                 \
                 cur[i] = d;                                                                \
                 STORE(row + i, d);                                                         \
             }                                                                              \

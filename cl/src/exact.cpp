@@ -22,26 +22,32 @@ struct WorkType {
     const char* name;
     std::uint32_t max;
     std::size_t bytes;
+    bool is_signed;  // a signed field (i8, i16, i32: the CPU layout's SIGNED sweeps)
 };
 
 WorkType work_type(Format f) {
     switch (f) {
         case Format::u8:
         case Format::packed32:
-            return {"uchar", 255u, 1};
+            return {"uchar", 255u, 1, false};
         case Format::u16:
-            return {"ushort", 65535u, 2};
+            return {"ushort", 65535u, 2, false};
         case Format::u32:
-            return {"uint", 0xFFFFFFFFu, 4};
+            return {"uint", 0xFFFFFFFFu, 4, false};
         case Format::i8:
+            return {"char", 127u, 1, true};
         case Format::i16:
+            return {"short", 32767u, 2, true};
         case Format::i32:
+            return {"int", 0x7FFFFFFFu, 4, true};
         case Format::f32:
         case Format::f64:
             break;
     }
-    throw std::invalid_argument("exact_manhattan.cl writes u8, u16, u32 or packed32, not " +
-                                to_string(f) + " (ExactSeparable writes the others)");
+    throw std::invalid_argument(
+        "exact_manhattan.cl writes u8, u16, u32, packed32 or a signed "
+        "field in i8, i16, i32, not " +
+        to_string(f) + " (ExactSeparable writes the others)");
 }
 
 // Values per work-item in cols_seg for a column of n voxels, or 0 when too long for it: 16
@@ -83,9 +89,10 @@ cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t
     const WorkType wt = work_type(f);
     const std::string options =
         "-DT=" + std::string(wt.name) + " -DT_MAX=" + std::to_string(std::min(wt.max, cap)) +
-        "u -DPACKED=" + (f == Format::packed32 ? "1" : "0") + " -DSEG_K=" + std::to_string(k) +
-        " -DVW=" + std::to_string(vw) + " -DCHEBYSHEV=" + (m == Metric::chebyshev ? "1" : "0") +
-        " -cl-std=CL1.2";
+        (wt.is_signed ? "" : "u") + " -DPACKED=" + (f == Format::packed32 ? "1" : "0") +
+        " -DSEG_K=" + std::to_string(k) + " -DVW=" + std::to_string(vw) +
+        " -DCHEBYSHEV=" + (m == Metric::chebyshev ? "1" : "0") +
+        " -DSIGNED=" + (wt.is_signed ? "1" : "0") + " -cl-std=CL1.2";
     return ctx.program("exact_manhattan.cl", {cl_sources::layout_h, cl_sources::exact_manhattan_cl},
                        options);
 }
@@ -172,7 +179,17 @@ bool ExactManhattan::handles(const Context& ctx, const GeneratorOptions& o) {
 bool ExactManhattan::handles(const GeneratorOptions& o, bool gpu_layout) {
     const bool sweepable_format = o.format == Format::u8 || o.format == Format::u16 ||
                                   o.format == Format::u32 || o.format == Format::packed32;
-    if (!sweepable_format || !o.spacing.unit() || o.signed_field || o.indices) {
+    if (!o.spacing.unit() || o.indices) {
+        return false;
+    }
+    if (o.signed_field) {
+        // Signed L1 in one set of sweeps (SIGNED), CPU layout, unbounded, i8/i16/i32.
+        const bool signed_format =
+            o.format == Format::i8 || o.format == Format::i16 || o.format == Format::i32;
+        return signed_format && !gpu_layout && o.metric == Metric::manhattan &&
+               !o.max_distance.has_value();
+    }
+    if (!sweepable_format) {
         return false;
     }
     return o.metric == Metric::manhattan || (o.metric == Metric::chebyshev && !gpu_layout);
@@ -266,6 +283,12 @@ void ExactManhattan::set_up_kernels() {
         throw std::invalid_argument("exact_manhattan.cl computes " + to_string(metric_) +
                                     " fields in the " + variant() + " only through ExactSeparable");
     }
+    if (wt.is_signed && (gpu_layout_ || metric_ != Metric::manhattan || cap_ != 0xFFFFFFFFu)) {
+        throw std::invalid_argument("exact_manhattan.cl computes signed fields (" +
+                                    to_string(format_) +
+                                    ") only unbounded, manhattan, in the cpu layout; the " +
+                                    variant() + " takes them through ExactSeparable");
+    }
     auto program = [&](std::uint32_t k, std::uint32_t vw) {
         return build_program(ctx_, format_, k, vw, metric_, cap_);
     };
@@ -355,7 +378,8 @@ void ExactManhattan::set_up_kernels() {
             }
         }
         if (!rows_on_gpu) {
-            const std::size_t pad = next_pow2(dims_.x) / 2;
+            // At least 1: a row of one voxel still takes the step to its padding (signed).
+            const std::size_t pad = std::max<std::size_t>(1, next_pow2(dims_.x) / 2);
             const std::size_t scratch = 2 * (std::size_t{dims_.x} + 2 * pad) * wt.bytes;
             if (scratch > info.local_mem) {
                 throw ClError("clEnqueueNDRangeKernel", CL_OUT_OF_RESOURCES,

@@ -322,6 +322,138 @@ TEST(ExactChebyshevSweeps, RoutedByLayout) {
         std::invalid_argument);
 }
 
+// The CPU layout's x pass: rows with no solid, with up to 16 solids (row_ramps: runs of
+// solids, solids at the row's ends) and with more (doubling steps that stop early: runs of 5
+// solids 5 apart), in rows of lengths around the 16-voxel blocks, for L1 (unsigned and
+// signed) and L-inf.
+World rows_world(std::uint32_t X, std::uint32_t seed) {
+    std::mt19937_64 rng(seed);
+    const std::uint32_t counts[] = {0, 1, 2, 15, 16, 17, 40, X / 2, X};
+    World w(Dims{X, static_cast<std::uint32_t>(std::size(counts)) + 3, 3});
+    for (std::uint32_t z = 0; z < 3; ++z) {
+        for (std::uint32_t r = 0; r < std::size(counts); ++r) {
+            for (std::uint32_t i = 0; i < std::min(counts[r], X); ++i) {
+                w.set(static_cast<std::uint32_t>(rng() % X), r, z, 1);
+            }
+        }
+        // A row of runs: both ends and a run in the middle.
+        const std::uint32_t y = static_cast<std::uint32_t>(std::size(counts));
+        for (std::uint32_t x : {0u, 1u, X / 2, X / 2 + 1, X / 2 + 2, X - 1}) {
+            w.set(std::min(x, X - 1), y, z, 2);
+        }
+        // Runs of 5 solids 5 apart (up to 30 runs), the first from x = z.
+        for (std::uint32_t x = z; x < X; ++x) {
+            if ((x - z) % 10 < 5) {
+                w.set(x, y + 1, z, 3);
+            }
+        }
+    }
+    return w;
+}
+
+// A signed L1 field (i8, i16, i32) on the CPU layout's SIGNED sweeps against core's
+// reference_signed, voxel by voxel.
+void expect_signed(const World& world, const std::string& what) {
+    const auto exact = reference_signed(world, Metric::manhattan, Spacing{});
+    for (Format f : {Format::i8, Format::i16, Format::i32}) {
+        auto o = exact_options(f, Layout::cpu);
+        o.signed_field = true;
+        auto job = ocl::make_generator(pocl(), world, Palette(), o);
+        ASSERT_NE(dynamic_cast<const ocl::ExactManhattan*>(job.get()), nullptr) << what;
+        job->run();
+        const auto want = encode_real_field(exact, world, Palette(), f);
+        const std::string diff = test::first_difference(job->read(), want, f, world.dims());
+        if (!diff.empty()) {
+            FAIL() << what << " " << world.dims().to_string() << " format " << to_string(f) << ": "
+                   << diff;
+        }
+    }
+}
+
+TEST(ExactManhattanRows, SparseAndDenseRows) {
+    for (std::uint32_t X : {1u, 2u, 15u, 16u, 17u, 33u, 64u, 300u}) {
+        const World w = rows_world(X, X);
+        expect_exact(w, Palette(), "rows");
+        expect_chebyshev(w, Palette(), "rows");
+        expect_signed(w, "rows");
+    }
+}
+
+TEST(ExactSignedSweeps, MatchReferenceOnRandomGrids) {
+    std::mt19937_64 rng(20261203);
+    const double densities[] = {0.0001, 0.001, 0.01, 0.05, 0.2, 0.5, 0.9, 1.0};
+    auto axis = [&] {
+        const std::uint32_t choices[] = {1, 2, 3, 7, 16, 17, 31, 33, 64, 67, 97};
+        return choices[rng() % std::size(choices)];
+    };
+    for (int i = 0; i < 60; ++i) {
+        const Dims dims{axis(), axis(), axis()};
+        const double density = densities[static_cast<std::size_t>(i) % std::size(densities)];
+        expect_signed(scene_random(dims, density, rng()),
+                      "random #" + std::to_string(i) + " density " + std::to_string(density));
+    }
+}
+
+TEST(ExactSignedSweeps, EmptyFullLongAxesAndSaturation) {
+    for (const Dims dims : {Dims{1, 1, 1}, Dims{5, 1, 3}, Dims{17, 9, 4}}) {
+        expect_signed(scene_empty(dims), "empty");
+        World full(dims);
+        std::fill(full.voxels().begin(), full.voxels().end(), std::uint8_t{7});
+        expect_signed(full, "full");
+    }
+    // Long thin axes; a full slab 300 deep (solid distances past i8's 127) and a lone voxel
+    // 300 away (empty distances past 127).
+    expect_signed(scene_random(Dims{700, 3, 2}, 0.004, 3), "long x");
+    expect_signed(scene_random(Dims{2, 700, 3}, 0.004, 4), "long y");
+    expect_signed(scene_random(Dims{3, 2, 700}, 0.004, 5), "long z");
+    World slab(Dims{3, 300, 2});
+    std::fill(slab.voxels().begin(), slab.voxels().end(), std::uint8_t{1});
+    expect_signed(slab, "full long y");
+    World lone(Dims{300, 2, 3});
+    lone.set(0, 1, 1, 1);
+    expect_signed(lone, "far single voxel");
+}
+
+TEST(ExactSignedSweeps, BundledModels) {
+    const std::filesystem::path dir = std::filesystem::path(VOXFIELD_DATA_DIR) / "vox";
+    int models = 0;
+    for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+        if (entry.path().extension() == ".vox") {
+            expect_signed(read_vox(entry.path()).world, entry.path().filename().string());
+            ++models;
+        }
+    }
+    EXPECT_GE(models, 2);
+}
+
+// Signed L1 takes the sweeps only unbounded, in the CPU layout and a signed integer format;
+// ExactSeparable computes the rest.
+TEST(ExactSignedSweeps, RoutedByLayoutFormatAndBound) {
+    auto o = exact_options(Format::i16, Layout::cpu);
+    o.signed_field = true;
+    EXPECT_TRUE(ocl::ExactManhattan::handles(pocl(), o));
+    o.layout = Layout::gpu;
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    o.layout = Layout::cpu;
+    o.format = Format::f32;
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    o.format = Format::i32;
+    o.max_distance = 4.0;
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    o.max_distance.reset();
+    o.metric = Metric::chebyshev;
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    o.metric = Metric::manhattan;
+    o.signed_field = false;  // an unsigned field in a signed format: ExactSeparable
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    const World w = scene_random(Dims{9, 9, 9}, 0.1, 1);
+    EXPECT_THROW(ocl::ExactManhattan(pocl(), w, Palette(), Format::i16, Layout::gpu),
+                 std::invalid_argument);
+    EXPECT_THROW(
+        ocl::ExactManhattan(pocl(), w, Palette(), Format::i16, Layout::cpu, Metric::manhattan, 5.0),
+        std::invalid_argument);
+}
+
 TEST(DeviceSelection, ExplainsRejections) {
     try {
         ocl::select_device("9999");
