@@ -37,21 +37,6 @@ namespace {
 
 using vk::Vec3;
 
-// The validated context of the suite, or nullptr when this machine has no Vulkan device.
-vk::Context* vulkan() {
-    try {
-        return &validated_vulkan();
-    } catch (const vk::DeviceSelectionError&) {
-        return nullptr;
-    }
-}
-
-#define REQUIRE_VULKAN(ctx)                 \
-    vk::Context* ctx = vulkan();            \
-    if (ctx == nullptr) {                   \
-        GTEST_SKIP() << "no Vulkan device"; \
-    }
-
 // ---- The CPU caster: exact voxel traversal in double precision over the dense world. ----
 
 struct CpuHit {
