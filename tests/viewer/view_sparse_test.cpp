@@ -31,42 +31,14 @@ class ViewSparse : public ::testing::Test {
     void SetUp() override {
         dir_ = make_temp_dir("voxfield_view_sparse");
         io_ = make_temp_dir("voxfield_view_sparse_io");
-        for (const char* v : {"DISPLAY", "WAYLAND_DISPLAY"}) {
-            const char* old = std::getenv(v);
-            saved_.push_back(old ? std::optional<std::string>(old) : std::nullopt);
-        }
-        ::unsetenv("DISPLAY");
-        ::unsetenv("WAYLAND_DISPLAY");
-        ::setenv("VOXFIELD_DEVICE", "cpu", 1);
-        ::setenv("VOXFIELD_VALIDATE", "1", 1);  // any validation message exits 1
     }
     void TearDown() override {
-        const char* names[] = {"DISPLAY", "WAYLAND_DISPLAY"};
-        for (std::size_t i = 0; i < 2; ++i) {
-            if (saved_[i]) {
-                ::setenv(names[i], saved_[i]->c_str(), 1);
-            }
-        }
         fs::remove_all(dir_);
         fs::remove_all(io_);
     }
+    HeadlessViewerEnv env_;
     fs::path dir_, io_;
-    std::vector<std::optional<std::string>> saved_;
 };
-
-bool have_xvfb() {
-    return std::system("command -v xvfb-run >/dev/null 2>&1") == 0;
-}
-
-int run_under_xvfb(const std::vector<std::string>& args, const fs::path& log) {
-    std::string cmd = "xvfb-run -a -s '-screen 0 640x480x24' '" + kExe.string() + "'";
-    for (const auto& a : args) {
-        cmd += " '" + a + "'";
-    }
-    cmd += " >'" + log.string() + "' 2>&1";
-    const int status = std::system(cmd.c_str());
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
-}
 
 // A 150 x 40 x 140 world (three tiles along x and z): a floor, a wall and a tower.
 World test_world() {
