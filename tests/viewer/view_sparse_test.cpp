@@ -10,17 +10,15 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <array>
 #include <cstdlib>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "../cli/cli_test_util.hpp"
+#include "../cli/far_grid_util.hpp"
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/npy.hpp"
-#include "voxfield/core/output.hpp"
-#include "voxfield/core/vdb.hpp"
 #include "voxfield/core/world.hpp"
 
 namespace voxfield::test {
@@ -191,23 +189,7 @@ TEST_F(ViewSparse, HeadlessBenchmarkOnTheCityRecordsEditsAndTiles) {
 // Two 4^3 cubes 600000 voxels apart in a .vdb grid: 1.2e12 voxels, viewed sparse unasked.
 TEST_F(ViewSparse, HugeGridGoesSparseWithoutTheFlag) {
     const fs::path grid = io_ / "far.vdb";
-    const std::vector<std::uint8_t> a(64, 5), b(64, 9), field(64, 0);
-    const std::array<Box, 2> boxes = {Box{{0, 0, 0}, {4, 4, 4}},
-                                      Box{{600000, 0, 500000}, {600004, 4, 500004}}};
-    std::size_t next = 0;
-    OutputBatch batch;
-    write_vdb(
-        batch, grid,
-        [&](VdbBox& box) {
-            if (next == boxes.size()) {
-                return false;
-            }
-            box = VdbBox{boxes[next], next == 0 ? a : b, field};
-            ++next;
-            return true;
-        },
-        Format::u8, VdbFieldSpec{});
-    batch.commit();
+    write_far_cubes_vdb(grid);
     const fs::path out = dir_ / "far.png";
     const RunResult r = run_voxfield({"view", grid.string(), "--width", "64", "--height", "48",
                                       "--max-distance", "4", "--fallback-png", out.string()},
