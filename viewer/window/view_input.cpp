@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 
 #include "voxfield/core/pick.hpp"
@@ -135,21 +136,34 @@ InputActions InputMapper::map(const RawInput& in, ViewControls& controls) {
     return a;
 }
 
-std::optional<Brush> aimed_brush(const World& world, const ViewCamera& camera,
-                                 const ViewControls& controls, const InputActions& actions) {
+namespace {
+
+// aimed_brush with `pick`, the world's picking from the camera along a direction.
+std::optional<Brush> aimed_brush_by(
+    const ViewCamera& camera, const ViewControls& controls, const InputActions& actions,
+    const std::function<std::optional<PickHit>(const Vec3d& direction)>& pick) {
     if (!actions.aim) {
         return std::nullopt;
     }
     const Aim& aim = *actions.aim;
     const Vec3d dir = pixel_direction(camera.forward(), camera.settings.fov_deg, aim.width,
                                       aim.height, aim.x, aim.y);
-    const auto hit = pick_voxel(world, camera.position(), dir);
+    const auto hit = pick(dir);
     if (!hit) {
         return std::nullopt;
     }
     const Tool tool =
         actions.right ? Tool::erase : (controls.paint_mode ? Tool::paint : Tool::place);
     return brush_for_pick(tool, controls.brush, *hit);
+}
+
+}  // namespace
+
+std::optional<Brush> aimed_brush(const World& world, const ViewCamera& camera,
+                                 const ViewControls& controls, const InputActions& actions) {
+    return aimed_brush_by(camera, controls, actions, [&](const Vec3d& dir) {
+        return pick_voxel(world, camera.position(), dir);
+    });
 }
 
 std::optional<PickHit> pick_sparse_voxel(const SparseWorld& world, const Vec3d& origin,
@@ -164,19 +178,9 @@ std::optional<PickHit> pick_sparse_voxel(const SparseWorld& world, const Vec3d& 
 
 std::optional<Brush> aimed_brush(const SparseWorld& world, const ViewCamera& camera,
                                  const ViewControls& controls, const InputActions& actions) {
-    if (!actions.aim) {
-        return std::nullopt;
-    }
-    const Aim& aim = *actions.aim;
-    const Vec3d dir = pixel_direction(camera.forward(), camera.settings.fov_deg, aim.width,
-                                      aim.height, aim.x, aim.y);
-    const auto hit = pick_sparse_voxel(world, camera.position(), dir, kSparseAimDistance);
-    if (!hit) {
-        return std::nullopt;
-    }
-    const Tool tool =
-        actions.right ? Tool::erase : (controls.paint_mode ? Tool::paint : Tool::place);
-    return brush_for_pick(tool, controls.brush, *hit);
+    return aimed_brush_by(camera, controls, actions, [&](const Vec3d& dir) {
+        return pick_sparse_voxel(world, camera.position(), dir, kSparseAimDistance);
+    });
 }
 
 std::optional<Brush> Strokes::update(bool held, const std::optional<Brush>& aimed,
