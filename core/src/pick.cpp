@@ -10,7 +10,18 @@ namespace voxfield {
 
 std::optional<PickHit> pick_voxel(const World& world, const Vec3d& origin, const Vec3d& direction,
                                   double max_distance) {
-    const Dims d = world.dims();
+    return pick_solid_voxel(
+        world.dims(),
+        [&world](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+            return world.at(x, y, z) != 0;
+        },
+        origin, direction, max_distance);
+}
+
+std::optional<PickHit> pick_solid_voxel(const Dims& dims, const SolidVoxel& solid,
+                                        const Vec3d& origin, const Vec3d& direction,
+                                        double max_distance) {
+    const Dims d = dims;
     const double size[3] = {double(d.x), double(d.y), double(d.z)};
     for (int a = 0; a < 3; ++a) {
         if (!std::isfinite(origin[a]) || !std::isfinite(direction[a])) {
@@ -78,8 +89,8 @@ std::optional<PickHit> pick_voxel(const World& world, const Vec3d& origin, const
     }
     double t = t0;
     while (true) {
-        if (world.at(static_cast<std::uint32_t>(cell[0]), static_cast<std::uint32_t>(cell[1]),
-                     static_cast<std::uint32_t>(cell[2])) != 0) {
+        if (solid(static_cast<std::uint32_t>(cell[0]), static_cast<std::uint32_t>(cell[1]),
+                  static_cast<std::uint32_t>(cell[2]))) {
             return PickHit{{cell[0], cell[1], cell[2]}, normal, t};
         }
         int a = 0;

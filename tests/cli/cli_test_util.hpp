@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -121,6 +122,54 @@ inline RunResult run_voxfield(const std::vector<std::string>& args, const fs::pa
 inline std::string describe(const RunResult& r) {
     return "exit " + std::to_string(r.code) + "\n--- stdout ---\n" + r.out + "--- stderr ---\n" +
            r.err;
+}
+
+// For the viewer's end-to-end tests, while alive: no display (DISPLAY and WAYLAND_DISPLAY
+// unset, restored afterwards), the CPU Vulkan device and `--validate` for every run (the
+// validation layer's messages, synchronisation validation included, are printed and any
+// makes the viewer exit 1).
+class HeadlessViewerEnv {
+  public:
+    HeadlessViewerEnv() {
+        for (const char* v : kDisplays) {
+            const char* old = std::getenv(v);
+            saved_.push_back(old ? std::optional<std::string>(old) : std::nullopt);
+        }
+        for (const char* v : kDisplays) {
+            ::unsetenv(v);
+        }
+        ::setenv("VOXFIELD_DEVICE", "cpu", 1);
+        ::setenv("VOXFIELD_VALIDATE", "1", 1);
+    }
+    ~HeadlessViewerEnv() {
+        for (std::size_t i = 0; i < 2; ++i) {
+            if (saved_[i]) {
+                ::setenv(kDisplays[i], saved_[i]->c_str(), 1);
+            }
+        }
+    }
+    HeadlessViewerEnv(const HeadlessViewerEnv&) = delete;
+    HeadlessViewerEnv& operator=(const HeadlessViewerEnv&) = delete;
+
+  private:
+    static constexpr const char* kDisplays[2] = {"DISPLAY", "WAYLAND_DISPLAY"};
+    std::vector<std::optional<std::string>> saved_;
+};
+
+inline bool have_xvfb() {
+    return std::system("command -v xvfb-run >/dev/null 2>&1") == 0;
+}
+
+// Runs `voxfield ARGS` under a fresh Xvfb server; returns the exit code, output in `log`.
+inline int run_under_xvfb(const std::vector<std::string>& args, const fs::path& log,
+                          const std::string& screen = "640x480x24") {
+    std::string cmd = "xvfb-run -a -s '-screen 0 " + screen + "' '" + kExe.string() + "'";
+    for (const auto& a : args) {
+        cmd += " '" + a + "'";
+    }
+    cmd += " >'" + log.string() + "' 2>&1";
+    const int status = std::system(cmd.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
 }
 
 }  // namespace voxfield::test

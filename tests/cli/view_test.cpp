@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
-#include <optional>
 #include <regex>
 #include <string>
 #include <utility>
@@ -51,32 +50,16 @@ class ViewTest : public ::testing::Test {
     void SetUp() override {
         dir_ = make_temp_dir("voxfield_view_test");
         io_ = make_temp_dir("voxfield_view_io");
-        for (const char* v : {"DISPLAY", "WAYLAND_DISPLAY"}) {
-            const char* old = std::getenv(v);
-            saved_.push_back(old ? std::optional<std::string>(old) : std::nullopt);
-        }
-        ::unsetenv("DISPLAY");
-        ::unsetenv("WAYLAND_DISPLAY");
-        ::setenv("VOXFIELD_DEVICE", "cpu", 1);
-        // `--validate` for every run: the Vulkan validation layer's messages (synchronisation
-        // validation included) are printed and any makes the viewer exit 1.
-        ::setenv("VOXFIELD_VALIDATE", "1", 1);
     }
     void TearDown() override {
-        const char* names[] = {"DISPLAY", "WAYLAND_DISPLAY"};
-        for (std::size_t i = 0; i < 2; ++i) {
-            if (saved_[i]) {
-                ::setenv(names[i], saved_[i]->c_str(), 1);
-            }
-        }
         fs::remove_all(dir_);
         fs::remove_all(io_);
     }
     void check_shot_and_field(const fs::path& world, const fs::path& edits,
                               const std::string& format, const fs::path& shot,
                               const fs::path& field);
+    HeadlessViewerEnv env_;
     fs::path dir_, io_;
-    std::vector<std::optional<std::string>> saved_;
 };
 
 TEST_F(ViewTest, NoDisplaySaysSoInOneLineAndSuggestsRender) {
@@ -289,22 +272,6 @@ TEST_F(ViewTest, SimulateStepsTheSandEveryFrameAndKeepsTheFieldExact) {
     ASSERT_EQ(r.code, 0) << describe(r);
     EXPECT_TRUE(read_npy(field).data == read_npy(fresh).data)
         << "the viewer's field differs from a fresh one";
-}
-
-bool have_xvfb() {
-    return std::system("command -v xvfb-run >/dev/null 2>&1") == 0;
-}
-
-// Runs `voxfield ARGS` under a fresh Xvfb server; returns the exit code, output in `log`.
-int run_under_xvfb(const std::vector<std::string>& args, const fs::path& log,
-                   const std::string& screen = "640x480x24") {
-    std::string cmd = "xvfb-run -a -s '-screen 0 " + screen + "' '" + kExe.string() + "'";
-    for (const auto& a : args) {
-        cmd += " '" + a + "'";
-    }
-    cmd += " >'" + log.string() + "' 2>&1";
-    const int status = std::system(cmd.c_str());
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
 }
 
 TEST_F(ViewTest, SmokeUnderXvfbShowsTheWorldAndFollowsEdits) {

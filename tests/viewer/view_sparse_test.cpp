@@ -10,17 +10,13 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <array>
-#include <cstdlib>
-#include <optional>
 #include <string>
 #include <vector>
 
 #include "../cli/cli_test_util.hpp"
+#include "../cli/far_grid_util.hpp"
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/npy.hpp"
-#include "voxfield/core/output.hpp"
-#include "voxfield/core/vdb.hpp"
 #include "voxfield/core/world.hpp"
 
 namespace voxfield::test {
@@ -31,42 +27,14 @@ class ViewSparse : public ::testing::Test {
     void SetUp() override {
         dir_ = make_temp_dir("voxfield_view_sparse");
         io_ = make_temp_dir("voxfield_view_sparse_io");
-        for (const char* v : {"DISPLAY", "WAYLAND_DISPLAY"}) {
-            const char* old = std::getenv(v);
-            saved_.push_back(old ? std::optional<std::string>(old) : std::nullopt);
-        }
-        ::unsetenv("DISPLAY");
-        ::unsetenv("WAYLAND_DISPLAY");
-        ::setenv("VOXFIELD_DEVICE", "cpu", 1);
-        ::setenv("VOXFIELD_VALIDATE", "1", 1);  // any validation message exits 1
     }
     void TearDown() override {
-        const char* names[] = {"DISPLAY", "WAYLAND_DISPLAY"};
-        for (std::size_t i = 0; i < 2; ++i) {
-            if (saved_[i]) {
-                ::setenv(names[i], saved_[i]->c_str(), 1);
-            }
-        }
         fs::remove_all(dir_);
         fs::remove_all(io_);
     }
+    HeadlessViewerEnv env_;
     fs::path dir_, io_;
-    std::vector<std::optional<std::string>> saved_;
 };
-
-bool have_xvfb() {
-    return std::system("command -v xvfb-run >/dev/null 2>&1") == 0;
-}
-
-int run_under_xvfb(const std::vector<std::string>& args, const fs::path& log) {
-    std::string cmd = "xvfb-run -a -s '-screen 0 640x480x24' '" + kExe.string() + "'";
-    for (const auto& a : args) {
-        cmd += " '" + a + "'";
-    }
-    cmd += " >'" + log.string() + "' 2>&1";
-    const int status = std::system(cmd.c_str());
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
-}
 
 // A 150 x 40 x 140 world (three tiles along x and z): a floor, a wall and a tower.
 World test_world() {
@@ -219,23 +187,7 @@ TEST_F(ViewSparse, HeadlessBenchmarkOnTheCityRecordsEditsAndTiles) {
 // Two 4^3 cubes 600000 voxels apart in a .vdb grid: 1.2e12 voxels, viewed sparse unasked.
 TEST_F(ViewSparse, HugeGridGoesSparseWithoutTheFlag) {
     const fs::path grid = io_ / "far.vdb";
-    const std::vector<std::uint8_t> a(64, 5), b(64, 9), field(64, 0);
-    const std::array<Box, 2> boxes = {Box{{0, 0, 0}, {4, 4, 4}},
-                                      Box{{600000, 0, 500000}, {600004, 4, 500004}}};
-    std::size_t next = 0;
-    OutputBatch batch;
-    write_vdb(
-        batch, grid,
-        [&](VdbBox& box) {
-            if (next == boxes.size()) {
-                return false;
-            }
-            box = VdbBox{boxes[next], next == 0 ? a : b, field};
-            ++next;
-            return true;
-        },
-        Format::u8, VdbFieldSpec{});
-    batch.commit();
+    write_far_cubes_vdb(grid);
     const fs::path out = dir_ / "far.png";
     const RunResult r = run_voxfield({"view", grid.string(), "--width", "64", "--height", "48",
                                       "--max-distance", "4", "--fallback-png", out.string()},

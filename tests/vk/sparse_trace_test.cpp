@@ -19,13 +19,12 @@
 #include <vector>
 
 #include "../cli/cli_test_util.hpp"
+#include "../cli/far_grid_util.hpp"
 #include "voxfield/core/camera.hpp"
 #include "voxfield/core/error.hpp"
-#include "voxfield/core/output.hpp"
 #include "voxfield/core/reference.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/sparse.hpp"
-#include "voxfield/core/vdb.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/vk/raymarcher.hpp"
 #include "voxfield/vk/sparse_trace_layout.h"
@@ -36,21 +35,6 @@ namespace voxfield::test {
 namespace {
 
 using vk::Vec3;
-
-// The validated context of the suite, or nullptr when this machine has no Vulkan device.
-vk::Context* vulkan() {
-    try {
-        return &validated_vulkan();
-    } catch (const vk::DeviceSelectionError&) {
-        return nullptr;
-    }
-}
-
-#define REQUIRE_VULKAN(ctx)                 \
-    vk::Context* ctx = vulkan();            \
-    if (ctx == nullptr) {                   \
-        GTEST_SKIP() << "no Vulkan device"; \
-    }
 
 // ---- The CPU caster: exact voxel traversal in double precision over the dense world. ----
 
@@ -798,23 +782,7 @@ TEST_F(SparseRenderCli, DefaultCameraAndLitShading) {
 // A .vdb grid of two 4^3 cubes 600000 voxels apart: 1.2e12 voxels, sparse without --sparse.
 TEST_F(SparseRenderCli, HugeVdbGridIsRenderedSparse) {
     const fs::path grid = io_ / "far.vdb";
-    const std::vector<std::uint8_t> a(64, 5), b(64, 9), field(64, 0);
-    const std::array<Box, 2> boxes = {Box{{0, 0, 0}, {4, 4, 4}},
-                                      Box{{600000, 0, 500000}, {600004, 4, 500004}}};
-    std::size_t next = 0;
-    OutputBatch batch;
-    write_vdb(
-        batch, grid,
-        [&](VdbBox& box) {
-            if (next == boxes.size()) {
-                return false;
-            }
-            box = VdbBox{boxes[next], next == 0 ? a : b, field};
-            ++next;
-            return true;
-        },
-        Format::u8, VdbFieldSpec{});
-    batch.commit();
+    write_far_cubes_vdb(grid);
     const fs::path out = dir_ / "far.png";
     const RunResult r =
         run_voxfield({"render", grid.string(), "-o", out.string(), "--camera", "600010,9,499990",

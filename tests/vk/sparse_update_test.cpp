@@ -29,20 +29,6 @@
 namespace voxfield::test {
 namespace {
 
-vk::Context* vulkan() {
-    try {
-        return &validated_vulkan();
-    } catch (const vk::DeviceSelectionError&) {
-        return nullptr;
-    }
-}
-
-#define REQUIRE_VULKAN(ctx)                 \
-    vk::Context* ctx = vulkan();            \
-    if (ctx == nullptr) {                   \
-        GTEST_SKIP() << "no Vulkan device"; \
-    }
-
 // Views of the world: the default framing, one from above, one from a low corner inside.
 std::vector<vk::RenderOptions> views(const SparseWorld& world) {
     const Dims d = world.dims();

@@ -3,6 +3,8 @@
 // synchronisation validation included): every message fails the test that is running, and
 // the global test environment destroys the context after the last test, failing the run on
 // any message its destruction gives (objects still alive, work still in flight).
+#include <gtest/gtest.h>
+
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -13,6 +15,22 @@ namespace voxfield::test {
 
 // Created on first use (inside a test, so that a missing device fails that test).
 vk::Context& validated_vulkan();
+
+// The validated context, or nullptr when this machine has no Vulkan device.
+inline vk::Context* vulkan_or_null() {
+    try {
+        return &validated_vulkan();
+    } catch (const vk::DeviceSelectionError&) {
+        return nullptr;
+    }
+}
+
+// Declares `ctx`, the validated context, or skips the test when there is no Vulkan device.
+#define REQUIRE_VULKAN(ctx)                 \
+    vk::Context* ctx = vulkan_or_null();    \
+    if (ctx == nullptr) {                   \
+        GTEST_SKIP() << "no Vulkan device"; \
+    }
 
 // A log whose every message fails the running test (for further contexts of a test).
 std::shared_ptr<vk::ValidationLog> failing_validation_log();

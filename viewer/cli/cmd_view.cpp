@@ -6,7 +6,6 @@
 // (view_options), the window and presenter (view_window), the input mapping (view_input), the
 // session's state and edits (view_session), the overlay (view_overlay) and the benchmark's
 // records (view_benchmark). Sparse worlds take their own loop (view_sparse).
-#include <chrono>
 #include <ctime>
 #include <filesystem>
 #include <iostream>
@@ -16,6 +15,7 @@
 #include <vector>
 
 #include "cli_util.hpp"
+#include "frame_clock.hpp"
 #include "png.hpp"
 #include "traced_part.hpp"
 #include "view_benchmark.hpp"
@@ -204,16 +204,11 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
     }
     std::vector<FrameRecord> records;
     InputMapper mapper;
-    const auto start = Clock::now();
-    auto last = start;
+    FrameClock frame_clock(script != nullptr);
     std::uint64_t frame = 0;
     bool running = true;
     while (running) {
-        const auto t0 = Clock::now();
-        // Scripted frames advance by a fixed step: the same views on any machine.
-        const double dt = script ? 1.0 / 60 : std::chrono::duration<double>(t0 - last).count();
-        last = t0;
-        const double time_s = std::chrono::duration<double>(t0 - start).count();
+        const auto [t0, dt, time_s] = frame_clock.tick();
         std::uint32_t fb_w = o.width, fb_h = o.height;
         FrameEdits edits;
         // --script: this frame's actions (keys, buttons, cursor and scroll are held in

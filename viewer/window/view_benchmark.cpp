@@ -26,6 +26,30 @@ void print_summary(const std::string& what, const Summary& s) {
               << fixed(s.ci95_hi, 3) << "]\n";
 }
 
+// Prints the mean frame rate of frames summarised by `frames`, when there were any.
+void print_mean_fps(const Summary& frames) {
+    if (frames.mean > 0) {
+        std::cout << "  mean FPS " << fixed(1000.0 / frames.mean, 1) << '\n';
+    }
+}
+
+// The report's keys that describe the run: machine, build, source, protocol and image.
+nlohmann::json run_json(const ViewCliOptions& o, const BenchmarkSetup& setup,
+                        const vk::RenderOptions& ropts) {
+    nlohmann::json j;
+    j["device"] = device_json(setup.opencl);
+    j["vulkan"] = setup.vulkan;
+    j["commit"] = commit();
+    j["date"] = utc_now();
+    j["source"] = setup.world_name;
+    j["seed"] = o.seed;
+    j["interval_ms"] = o.interval_ms;
+    j["duration_s"] = o.duration_s;
+    j["image"] = {ropts.width, ropts.height};
+    j["present"] = setup.present ? vk::to_string(*setup.present) : "headless";
+    return j;
+}
+
 }  // namespace
 
 BenchmarkEdits::BenchmarkEdits(Dims dims, std::uint32_t chunk, std::uint64_t seed,
@@ -83,25 +107,13 @@ void report_benchmark(const ViewCliOptions& o, const BenchmarkSetup& setup,
         print_summary("field update (edit frames)", su);
     }
     print_summary("ray march", sm);
-    if (sf.mean > 0) {
-        std::cout << "  mean FPS " << fixed(1000.0 / sf.mean, 1) << '\n';
-    }
+    print_mean_fps(sf);
     if (!o.json.empty()) {
-        nlohmann::json j;
-        j["device"] = device_json(setup.opencl);
-        j["vulkan"] = setup.vulkan;
-        j["commit"] = commit();
-        j["date"] = utc_now();
+        nlohmann::json j = run_json(o, setup, ropts);
         j["format"] = to_string(session.options().format);
         j["world"] = {dims.x, dims.y, dims.z};
-        j["source"] = setup.world_name;
         j["algorithm"] = ocl::to_string(session.options().algorithm);
         j["chunk"] = session.options().chunk;
-        j["seed"] = o.seed;
-        j["interval_ms"] = o.interval_ms;
-        j["duration_s"] = o.duration_s;
-        j["image"] = {ropts.width, ropts.height};
-        j["present"] = setup.present ? vk::to_string(*setup.present) : "headless";
         j["sharing"] = session.marcher().sharing_path();
         j["sync"] = pipeline::to_string(session.sync());
         j["simulate"] = o.simulate;
@@ -185,24 +197,12 @@ void report_sparse_benchmark(const ViewCliOptions& o, const BenchmarkSetup& setu
     print_summary("edited tiles read back", sr);
     print_summary("tracer tile update", st);
     print_summary("trace", sm);
-    if (sf.mean > 0) {
-        std::cout << "  mean FPS " << fixed(1000.0 / sf.mean, 1) << '\n';
-    }
+    print_mean_fps(sf);
     if (!o.json.empty()) {
-        nlohmann::json j;
-        j["device"] = device_json(setup.opencl);
-        j["vulkan"] = setup.vulkan;
-        j["commit"] = commit();
-        j["date"] = utc_now();
+        nlohmann::json j = run_json(o, setup, ropts);
         j["world"] = world.at("dims");
-        j["source"] = setup.world_name;
         j["algorithm"] = "exact (sparse tiles)";
-        j["seed"] = o.seed;
-        j["interval_ms"] = o.interval_ms;
-        j["duration_s"] = o.duration_s;
-        j["image"] = {ropts.width, ropts.height};
         j["shading"] = ropts.shading == vk::Shading::lit ? "lit" : "flat";
-        j["present"] = setup.present ? vk::to_string(*setup.present) : "headless";
         j["sparse"] = world;
         j["summary"] = {{"frame", summary_json(sf)},
                         {"edit_frame", summary_json(sef)},

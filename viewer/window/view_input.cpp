@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 
 #include "voxfield/core/pick.hpp"
@@ -135,129 +136,51 @@ InputActions InputMapper::map(const RawInput& in, ViewControls& controls) {
     return a;
 }
 
-std::optional<Brush> aimed_brush(const World& world, const ViewCamera& camera,
-                                 const ViewControls& controls, const InputActions& actions) {
+namespace {
+
+// aimed_brush with `pick`, the world's picking from the camera along a direction.
+std::optional<Brush> aimed_brush_by(
+    const ViewCamera& camera, const ViewControls& controls, const InputActions& actions,
+    const std::function<std::optional<PickHit>(const Vec3d& direction)>& pick) {
     if (!actions.aim) {
         return std::nullopt;
     }
     const Aim& aim = *actions.aim;
     const Vec3d dir = pixel_direction(camera.forward(), camera.settings.fov_deg, aim.width,
                                       aim.height, aim.x, aim.y);
-    const auto hit = pick_voxel(world, camera.position(), dir);
+    const auto hit = pick(dir);
     if (!hit) {
         return std::nullopt;
     }
     const Tool tool =
         actions.right ? Tool::erase : (controls.paint_mode ? Tool::paint : Tool::place);
     return brush_for_pick(tool, controls.brush, *hit);
+}
+
+}  // namespace
+
+std::optional<Brush> aimed_brush(const World& world, const ViewCamera& camera,
+                                 const ViewControls& controls, const InputActions& actions) {
+    return aimed_brush_by(camera, controls, actions, [&](const Vec3d& dir) {
+        return pick_voxel(world, camera.position(), dir);
+    });
 }
 
 std::optional<PickHit> pick_sparse_voxel(const SparseWorld& world, const Vec3d& origin,
                                          const Vec3d& direction, double max_distance) {
-    const Dims d = world.dims();
-    const double size[3] = {double(d.x), double(d.y), double(d.z)};
-    for (int a = 0; a < 3; ++a) {
-        if (!std::isfinite(origin[a]) || !std::isfinite(direction[a])) {
-            return std::nullopt;
-        }
-    }
-    if (direction[0] == 0 && direction[1] == 0 && direction[2] == 0) {
-        return std::nullopt;
-    }
-    // Clip [0, max_distance] to the world box; remember the entry axis.
-    double t0 = 0, t1 = max_distance;
-    int entry_axis = -1;
-    for (int a = 0; a < 3; ++a) {
-        if (direction[a] == 0) {
-            if (origin[a] < 0 || origin[a] >= size[a]) {
-                return std::nullopt;
-            }
-            continue;
-        }
-        double lo = (0 - origin[a]) / direction[a];
-        double hi = (size[a] - origin[a]) / direction[a];
-        if (lo > hi) {
-            std::swap(lo, hi);
-        }
-        if (lo > t0) {
-            t0 = lo;
-            entry_axis = a;
-        }
-        t1 = std::min(t1, hi);
-    }
-    if (t0 > t1 || (t0 == t1 && entry_axis >= 0)) {
-        return std::nullopt;
-    }
-    std::int64_t cell[3];
-    int step[3];
-    double t_max[3];
-    for (int a = 0; a < 3; ++a) {
-        step[a] = direction[a] > 0 ? 1 : (direction[a] < 0 ? -1 : 0);
-        auto c = static_cast<std::int64_t>(std::floor(origin[a] + t0 * direction[a]));
-        if (a == entry_axis) {
-            c = step[a] > 0 ? 0 : static_cast<std::int64_t>(size[a]) - 1;
-        }
-        cell[a] = std::clamp<std::int64_t>(c, 0, static_cast<std::int64_t>(size[a]) - 1);
-    }
-    const auto next_crossing = [&](int a) {
-        if (step[a] == 0) {
-            return std::numeric_limits<double>::infinity();
-        }
-        const double boundary = double(cell[a] + (step[a] > 0 ? 1 : 0));
-        return (boundary - origin[a]) / direction[a];
-    };
-    for (int a = 0; a < 3; ++a) {
-        t_max[a] = next_crossing(a);
-    }
-    Int3 normal{0, 0, 0};
-    if (entry_axis >= 0) {
-        std::int64_t n[3] = {0, 0, 0};
-        n[entry_axis] = -step[entry_axis];
-        normal = {n[0], n[1], n[2]};
-    }
-    double t = t0;
-    while (true) {
-        if (world.at(static_cast<std::uint32_t>(cell[0]), static_cast<std::uint32_t>(cell[1]),
-                     static_cast<std::uint32_t>(cell[2])) != 0) {
-            return PickHit{{cell[0], cell[1], cell[2]}, normal, t};
-        }
-        int a = 0;
-        if (t_max[1] < t_max[a]) {
-            a = 1;
-        }
-        if (t_max[2] < t_max[a]) {
-            a = 2;
-        }
-        t = t_max[a];
-        if (!(t <= t1) || step[a] == 0) {
-            return std::nullopt;
-        }
-        cell[a] += step[a];
-        if (cell[a] < 0 || cell[a] >= static_cast<std::int64_t>(size[a])) {
-            return std::nullopt;
-        }
-        std::int64_t n[3] = {0, 0, 0};
-        n[a] = -step[a];
-        normal = {n[0], n[1], n[2]};
-        t_max[a] = next_crossing(a);
-    }
+    return pick_solid_voxel(
+        world.dims(),
+        [&world](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+            return world.at(x, y, z) != 0;
+        },
+        origin, direction, max_distance);
 }
 
 std::optional<Brush> aimed_brush(const SparseWorld& world, const ViewCamera& camera,
                                  const ViewControls& controls, const InputActions& actions) {
-    if (!actions.aim) {
-        return std::nullopt;
-    }
-    const Aim& aim = *actions.aim;
-    const Vec3d dir = pixel_direction(camera.forward(), camera.settings.fov_deg, aim.width,
-                                      aim.height, aim.x, aim.y);
-    const auto hit = pick_sparse_voxel(world, camera.position(), dir, kSparseAimDistance);
-    if (!hit) {
-        return std::nullopt;
-    }
-    const Tool tool =
-        actions.right ? Tool::erase : (controls.paint_mode ? Tool::paint : Tool::place);
-    return brush_for_pick(tool, controls.brush, *hit);
+    return aimed_brush_by(camera, controls, actions, [&](const Vec3d& dir) {
+        return pick_sparse_voxel(world, camera.position(), dir, kSparseAimDistance);
+    });
 }
 
 std::optional<Brush> Strokes::update(bool held, const std::optional<Brush>& aimed,

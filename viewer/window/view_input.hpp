@@ -96,7 +96,8 @@ std::optional<Brush> aimed_brush(const World& world, const ViewCamera& camera,
 // How far the brush aims on a sparse world (voxels along the ray).
 inline constexpr double kSparseAimDistance = 4096;
 // pick_voxel (core/pick.hpp) on a sparse world: the same hit, face and distance for the same
-// voxels, by the same double-precision Amanatides & Woo walk over SparseWorld::at.
+// voxels, by the same double-precision Amanatides & Woo walk (pick_solid_voxel) over
+// SparseWorld::at.
 std::optional<PickHit> pick_sparse_voxel(
     const SparseWorld& world, const Vec3d& origin, const Vec3d& direction,
     double max_distance = std::numeric_limits<double>::infinity());

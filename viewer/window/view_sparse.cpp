@@ -2,13 +2,13 @@
 #include "view_sparse.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <iostream>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "cli_util.hpp"
+#include "frame_clock.hpp"
 #include "generate_sparse.hpp"
 #include "png.hpp"
 #include "view_benchmark.hpp"
@@ -243,15 +243,11 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
     InputMapper mapper;
     std::optional<Brush> preview, last_stroke;
     vk::Image image;
-    const auto start = Clock::now();
-    auto last = start;
+    FrameClock frame_clock(script != nullptr);
     std::uint64_t frame = 0;
     bool running = true;
     while (running) {
-        const auto t0 = Clock::now();
-        const double dt = script ? 1.0 / 60 : std::chrono::duration<double>(t0 - last).count();
-        last = t0;
-        const double time_s = std::chrono::duration<double>(t0 - start).count();
+        const auto [t0, dt, time_s] = frame_clock.tick();
         std::uint32_t fb_w = o.width, fb_h = o.height;
         std::vector<Brush> batch;
         std::vector<bool> from_bench;

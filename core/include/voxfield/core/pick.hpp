@@ -3,6 +3,8 @@
 // starts at the ray's origin (never behind it) and recomputes every boundary crossing from
 // the integer cell (no accumulated error, no rounded inverse direction: the dissertation's
 // picking bugs).
+#include <cstdint>
+#include <functional>
 #include <limits>
 #include <optional>
 
@@ -28,5 +30,14 @@ struct PickHit {
 // hit.
 std::optional<PickHit> pick_voxel(const World& world, const Vec3d& origin, const Vec3d& direction,
                                   double max_distance = std::numeric_limits<double>::infinity());
+
+// The voxel lookup a pick walks: true when voxel (x, y, z), inside the box, is solid.
+using SolidVoxel = std::function<bool(std::uint32_t x, std::uint32_t y, std::uint32_t z)>;
+
+// pick_voxel over any voxel storage of dimensions `dims`: the same walk, clipping and ties,
+// asking `solid` about each cell it enters (dense World, SparseWorld, ...).
+std::optional<PickHit> pick_solid_voxel(
+    const Dims& dims, const SolidVoxel& solid, const Vec3d& origin, const Vec3d& direction,
+    double max_distance = std::numeric_limits<double>::infinity());
 
 }  // namespace voxfield
