@@ -725,41 +725,37 @@ double SparseField::sweep() {
         sweep_finish_.setArg(3, elem_, far_.data());
         sweep_finish_.setArg(4, elem_, inside_.data());
         std::vector<std::pair<std::string, cl::Event>> events;
-        // Every launch of a stage before the next stage's (the passes read neighbours).
+        // A launch per kSweepSlots tiles: global and local sizes per tile-count of a launch.
+        // Every launch of a stage is enqueued before the next stage's (the passes read
+        // neighbours).
+        enum class Shape { voxels16, lines, planes };
         auto each_batch = [&](const std::string& stage, cl::Kernel& k, cl_uint first_arg,
-                              bool per_voxel) {
+                              Shape shape) {
             for (std::size_t first = 0; first < n; first += kSweepSlots) {
                 const std::size_t count = std::min(kSweepSlots, n - first);
                 k.setArg(first_arg, static_cast<cl_uint>(first));
-                // Per voxel kernels take 16 voxels along x per work-item.
-                const cl::NDRange global =
-                    per_voxel ? cl::NDRange(kTileSize / 16, kTileSize, count * kTileSize)
-                              : cl::NDRange(kTileSize, kTileSize, count);
-                const cl::NDRange local =
-                    per_voxel ? cl::NDRange(kTileSize / 16, 16, 1) : cl::NDRange(kTileSize, 1, 1);
+                const auto [global, local] =
+                    shape == Shape::voxels16  // 16 voxels along x per work-item
+                        ? std::pair{cl::NDRange(kTileSize / 16, kTileSize, count * kTileSize),
+                                    cl::NDRange(kTileSize / 16, 16, 1)}
+                        : shape == Shape::lines
+                              ? std::pair{cl::NDRange(kTileSize, kTileSize, count),
+                                          cl::NDRange(kTileSize, 1, 1)}
+                              : std::pair{cl::NDRange(kTileSize, count), cl::NDRange(kTileSize, 1)};
                 q.enqueueNDRangeKernel(k, cl::NullRange, global, local, nullptr,
                                        &events.emplace_back(stage, cl::Event()).second);
             }
         };
-        each_batch("sweep_init", sweep_init_, 6, true);
+        each_batch("sweep_init", sweep_init_, 6, Shape::voxels16);
         for (cl_uint axis = 0; axis < 3; ++axis) {
             // CPUs take y and z a plane of 64 lines per work-item (sweep_l1_rows), unsigned.
-            cl::Kernel& k = axis == 0 || gpu_layout_ || sgn ? sweep_l1_ : sweep_l1_rows_;
+            const bool planes = axis != 0 && !gpu_layout_ && !sgn;
+            cl::Kernel& k = planes ? sweep_l1_rows_ : sweep_l1_;
             k.setArg(3, axis);
-            const std::string stage = std::string("sweep_") + "xyz"[axis];
-            if (&k == &sweep_l1_) {
-                each_batch(stage, k, 2, false);
-                continue;
-            }
-            for (std::size_t first = 0; first < n; first += kSweepSlots) {
-                const std::size_t count = std::min(kSweepSlots, n - first);
-                k.setArg(2, static_cast<cl_uint>(first));
-                q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(kTileSize, count),
-                                       cl::NDRange(kTileSize, 1), nullptr,
-                                       &events.emplace_back(stage, cl::Event()).second);
-            }
+            each_batch(std::string("sweep_") + "xyz"[axis], k, 2,
+                       planes ? Shape::planes : Shape::lines);
         }
-        each_batch("sweep_finish", sweep_finish_, 1, true);
+        each_batch("sweep_finish", sweep_finish_, 1, Shape::voxels16);
         q.finish();
         for (const auto& [stage, e] : events) {
             const double t = elapsed_ms(e, e);
