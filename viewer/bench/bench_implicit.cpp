@@ -155,7 +155,7 @@ json run_implicit(ocl::Context& ctx, const fs::path& path, std::uint32_t repeat,
     }
     json rows = json::array();
     const std::vector<std::uint32_t> resolutions =
-        quick ? std::vector<std::uint32_t>{256} : std::vector<std::uint32_t>{256, 1024};
+        quick ? std::vector<std::uint32_t>{256} : std::vector<std::uint32_t>{256, 1024, 4096};
     // One row: `repeat` runs (after `warmup`) of one discretiser into one reused grid, as a
     // caller discretising again would; `pinned` overrides the device's default readback.
     auto measure = [&](const sdf::Part& part, std::uint32_t resolution, std::uint32_t depth,

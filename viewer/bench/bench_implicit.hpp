@@ -1,6 +1,6 @@
 #pragma once
 // `voxfield bench --suite implicit`: discretisation of the gallery's bracket into the tile grid
-// of contrees (cl/implicit.hpp) at effective resolutions 256^3 and 1024^3 for several tile
+// of contrees (cl/implicit.hpp) at effective resolutions 256^3, 1024^3 and 4096^3 for several tile
 // sizes / contree depths, the reference blog's two among them; and the ray march of the part
 // (as committed) traced on its trilinear surface at 1920x1080.
 #include <nlohmann/json.hpp>

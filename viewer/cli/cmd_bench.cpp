@@ -187,19 +187,20 @@ Command add_bench(CLI::App& root) {
                     "Write PNG plots into this folder after the JSON (bench/plot.py; needs "
                     "python3-matplotlib, checked before the run; without --json the JSON goes "
                     "there too)");
-    app->add_option("--suite", o->suite,
-                    "Run a whole suite instead of --algorithms x --sizes: dissertation (the "
-                    "dissertation's generation-time tables, exact beside every row group), edits "
-                    "(its editing protocol, per-edit update times), render (ray-march frame "
-                    "times of every metric), sand (falling sand with the exact field updated "
-                    "every step; --repeat is its step count, default 200, --quick 10), implicit "
-                    "(discretising data/parts/bracket.sdf.json into tile grids of contrees at "
-                    "256^3 and 1024^3, --quick 256^3, then tracing it at 1920x1080, lit and "
-                    "flat), sparse (the city scene as a sparse world "
-                    "per --sizes XxYxZ, default 1024x256x1024, --quick 256x128x256: whole "
-                    "bounded field at --max-distance, default 16, --repeat times, default 1; "
-                    "--edits radius-8 edits on the device, default 30, --quick 6; --format "
-                    "default u8; --metric, --spacing, --signed)")
+    app->add_option(
+           "--suite", o->suite,
+           "Run a whole suite instead of --algorithms x --sizes: dissertation (the "
+           "dissertation's generation-time tables, exact beside every row group), edits "
+           "(its editing protocol, per-edit update times), render (ray-march frame "
+           "times of every metric), sand (falling sand with the exact field updated "
+           "every step; --repeat is its step count, default 200, --quick 10), implicit "
+           "(discretising data/parts/bracket.sdf.json into tile grids of contrees at "
+           "256^3, 1024^3 and 4096^3, --quick 256^3, then tracing it at 1920x1080, lit and "
+           "flat), sparse (the city scene as a sparse world "
+           "per --sizes XxYxZ, default 1024x256x1024, --quick 256x128x256: whole "
+           "bounded field at --max-distance, default 16, --repeat times, default 1; "
+           "--edits radius-8 edits on the device, default 30, --quick 6; --format "
+           "default u8; --metric, --spacing, --signed)")
         ->check(CLI::IsMember(suite_names()));
     app->add_flag("--quick", o->quick,
                   "Suites: smaller sizes and fewer runs (minutes on a 2-core CPU; what CI runs)");
