@@ -14,7 +14,7 @@
 //   FP64     1 (not UNIT): GT = double and the spacing in double, for f64 fields
 //   SIGNED   1: also the transform to the empty voxels, the world surrounded by empty space
 //            (virtual empty sites at -1 and N on every line); the output is signed
-//   INDICES  1: carry the linear index of the nearest solid and write (z, y, x) planes
+//   INDICES  1: carry the key of the nearest solid (see KEYED) and write (z, y, x) planes
 //   CPU_LAYOUT 1: the CPU layout (x_pass's scratch holds row_doubling's rows)
 //   OUT_KIND 0 unsigned integer (floor, saturate at OUT_MAX), 1 signed integer (toward zero,
 //            saturate at +-OUT_MAX), 2 float, 3 double, 4 packed32; OUT_T its element type
@@ -51,6 +51,18 @@ typedef float ST;
 
 #define SEP_NEVER (1 << 30)
 
+// With INDICES a site's feature is the key (x * Y + y) * Z + z of its nearest solid (UINT_MAX:
+// none), and of two equally near sites the one whose feature has the lower key is the nearer:
+// each pass keeps the lowest key among its nearest targets, so every voxel names its nearest
+// solid of lowest (x, y, z), the one SciPy's distance_transform_edt names (its passes run
+// along z, y, then x in world terms, each taking the lowest position of equally near sites).
+// KEYED(fa, fb): 1 where site b (after site a on the line) wins their ties.
+#if INDICES
+#define KEYED(fa, fb) ((int)((fb) < (fa)))
+#else
+#define KEYED(fa, fb) 0
+#endif
+
 inline int floor_div(int a, int b) {
     const int q = a / b;
     return (a % b != 0 && ((a < 0) != (b < 0))) ? q - 1 : q;
@@ -76,12 +88,22 @@ inline GT fpart(int x, int i, GT gi, ST s) {
 #endif
 }
 
+#if !UNIT
+// The last integer at or before v, or (e) strictly before it.
+inline ST floor_tie(ST v, int e) {
+    const ST f = floor(v);
+    return e && f == v ? f - (ST)1 : f;
+}
+#endif
+
 // Sep(i, u) for i < u: the last x at which site i is at least as near as site u (u is
-// strictly nearer beyond it); SEP_NEVER when u is never nearer, -SEP_NEVER when it always is.
-inline int sep(int i, int u, GT gi, GT gu, ST s) {
+// strictly nearer beyond it), or with e (u wins their ties, KEYED) the last x at which i is
+// strictly nearer; SEP_NEVER when u is never nearer, -SEP_NEVER when it always is.
+inline int sep_tie(int i, int u, GT gi, GT gu, ST s, int e) {
 #if UNIT && WIDE
-    // 64-bit floor((u^2 - i^2 + gu - gi) / (2 (u - i))), clamped to the int range.
-    const long num = (long)u * u - (long)i * i + (long)gu - (long)gi, den = 2 * (long)(u - i);
+    // 64-bit floor((u^2 - i^2 + gu - gi - e) / (2 (u - i))), clamped to the int range.
+    const long num = (long)u * u - (long)i * i + (long)gu - (long)gi - e,
+               den = 2 * (long)(u - i);
     long q = num / den;
     if (q * den > num) {
         --q;
@@ -90,20 +112,20 @@ inline int sep(int i, int u, GT gi, GT gu, ST s) {
 #elif UNIT
     const int a = (int)gi, b = (int)gu;
 #if METRIC == 0
-    if (b >= a + (u - i)) {
+    if (b >= a + (u - i) + e) {
         return SEP_NEVER;
     }
-    if (a > b + (u - i)) {
+    if (a + e > b + (u - i)) {
         return -SEP_NEVER;
     }
-    return floor_div(b - a + u + i, 2);
+    return floor_div(b - a + u + i - e, 2);
 #elif METRIC == 1
-    const int mid = floor_div(i + u, 2);
-    return a <= b ? max(i + b, mid) : min(u - a, mid);
+    const int mid = floor_div(i + u - e, 2);
+    return a + e <= b ? max(i + b - e, mid) : min(u - a - e, mid);
 #else
     // floor(num / den) from a float quotient (off by at most one while |num| < 2^23), then
     // corrected exactly: integer division by a variable is slow on GPUs.
-    const int num = u * u - i * i + b - a, den = 2 * (u - i);
+    const int num = u * u - i * i + b - a - e, den = 2 * (u - i);
     int q = (int)floor(native_divide((float)num, (float)den));
     while (q * den > num) {
         --q;
@@ -116,40 +138,45 @@ inline int sep(int i, int u, GT gi, GT gu, ST s) {
 #else
     const ST fi = (ST)i, fu = (ST)u;
 #if METRIC == 0
-    if (gu >= gi + s * (fu - fi)) {
+    if (e ? gu > gi + s * (fu - fi) : gu >= gi + s * (fu - fi)) {
         return SEP_NEVER;
     }
-    if (gi > gu + s * (fu - fi)) {
+    if (e ? gi >= gu + s * (fu - fi) : gi > gu + s * (fu - fi)) {
         return -SEP_NEVER;
     }
-    return (int)floor((gu - gi + s * (fu + fi)) / ((ST)2 * s));
+    return (int)floor_tie((gu - gi + s * (fu + fi)) / ((ST)2 * s), e);
 #elif METRIC == 1
-    const int mid = floor_div(i + u, 2);
-    if (gi <= gu) {
-        return max((int)min(floor(fi + gu / s), (ST)SEP_NEVER), mid);
+    const int mid = floor_div(i + u - e, 2);
+    if (e ? gi < gu : gi <= gu) {
+        return max((int)min(floor_tie(fi + gu / s, e), (ST)SEP_NEVER), mid);
     }
-    return min((int)max(floor(fu - gi / s), (ST)-SEP_NEVER), mid);
+    return min((int)max(floor_tie(fu - gi / s, e), (ST)-SEP_NEVER), mid);
 #else
     const ST s2 = s * s;
     const ST v = (s2 * (fu * fu - fi * fi) + gu - gi) / ((ST)2 * s2 * (fu - fi));
-    return (int)clamp(floor(v), (ST)-4, (ST)SEP_NEVER);
+    return (int)clamp(floor_tie(v, e), (ST)-4, (ST)SEP_NEVER);
 #endif
 #endif
 }
 
-// Whether Sep(i, u) < tq (tq >= 0): for unit-spacing L2 by one multiplication instead of a
-// division (floor(num / den) < tq exactly when num < tq * den, den > 0), since the envelope
-// tests a separator about twice per site and divides only for the sites it keeps.
-inline bool sep_below(int i, int u, GT gi, GT gu, ST s, int tq) {
+// Sep(i, u) where i wins their ties.
+inline int sep(int i, int u, GT gi, GT gu, ST s) {
+    return sep_tie(i, u, gi, gu, s, 0);
+}
+
+// Whether sep_tie(i, u, ..., e) < tq (tq >= 0): for unit-spacing L2 by one multiplication
+// instead of a division (floor(num / den) < tq exactly when num < tq * den, den > 0), since
+// the envelope tests a separator about twice per site and divides only for the sites it keeps.
+inline bool sep_below(int i, int u, GT gi, GT gu, ST s, int tq, int e) {
 #if UNIT && METRIC == 2
 #if WIDE
-    const long num = (long)u * u - (long)i * i + (long)gu - (long)gi;
+    const long num = (long)u * u - (long)i * i + (long)gu - (long)gi - e;
 #else
-    const long num = (long)(u * u - i * i + (int)gu - (int)gi);
+    const long num = (long)(u * u - i * i + (int)gu - (int)gi) - e;
 #endif
     return num < (long)tq * (2 * (long)(u - i));
 #else
-    return sep(i, u, gi, gu, s) < tq;
+    return sep_tie(i, u, gi, gu, s, e) < tq;
 #endif
 }
 
@@ -158,22 +185,34 @@ inline GT site_g(__global const GT* g, size_t base, size_t stride, int u, int n)
     return (u < 0 || u >= n) ? (GT)0 : g[base + (size_t)u * stride];
 }
 
+// The feature of site u of a line for KEYED (without INDICES none is read).
+inline uint site_f(__global const uint* f, size_t base, size_t stride, int u, int n) {
+#if INDICES
+    return (u < 0 || u >= n) ? UINT_MAX : f[base + (size_t)u * stride];
+#else
+    return 0;
+#endif
+}
+
 // Lower envelope of the sites [i0, i1) of one line for the positions [o0, o1) (Meijster's
 // first phase): on return the stack holds q + 1 sites s[k] owning positions [t[k], t[k+1]).
 // Sites with no target are skipped; `pad` adds the virtual empty sites at -1 and n where the
-// site range reaches the line's ends. Returns q (-1: no site at all).
+// site range reaches the line's ends; with INDICES ties go by the sites' features `f`
+// (KEYED). Returns q (-1: no site at all).
 #if UNIT && METRIC == 2 && !WIDE
 // Unit-spacing L2 (squares below 2^30) without division: the stack keeps each site's real
 // boundary with the site below it as a fraction t[k] / d[k] (site k is nearer beyond it,
 // the one below at or before it; d[k] > 0; none for the bottom site), so testing a new site
 // against the top compares two fractions by cross-multiplication in 64 bits. A kept site
-// may own no integer position; line_pass steps over it.
+// may own no integer position; line_pass steps over it. Where the later site wins their ties
+// (KEYED) the numerator is one less: the boundary then falls before an integer tie point.
 #define FRACTIONS 1
-inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int pad, ST sp,
-                    __global int* s, __global int* t, __global int* d, size_t ks, int o0, int o1,
-                    int i0, int i1) {
+inline int envelope(__global const GT* g, __global const uint* f, size_t base, size_t stride,
+                    int n, int pad, ST sp, __global int* s, __global int* t, __global int* d,
+                    size_t ks, int o0, int o1, int i0, int i1) {
     int q = -1, sq = 0, nq = 0, dq = 1;
     int gq = 0;
+    uint fq = 0;
     const int lo = pad && i0 == 0 ? -1 : i0;
     const int hi = pad && i1 == n ? n : i1 - 1;
     for (int u = lo; u <= hi; ++u) {
@@ -182,11 +221,12 @@ inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int
             continue;
         }
         const int gu = (int)gv;
+        const uint fu = site_f(f, base, stride, u, n);
         // The boundary of u with the top: num / den, and the top's own: nq / dq. Pop while
         // u's boundary comes at or before the top's (the bottom site: before o0).
         int num = 0, den = 1;
         while (q >= 0) {
-            num = u * u - sq * sq + gu - gq;
+            num = u * u - sq * sq + gu - gq - KEYED(fq, fu);
             den = 2 * (u - sq);
             if (q == 0 ? (long)num >= (long)o0 * den : (long)num * dq > (long)nq * den) {
                 break;
@@ -196,12 +236,14 @@ inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int
                 nq = t[q * ks];
                 dq = d[q * ks];
                 gq = (int)site_g(g, base, stride, sq, n);
+                fq = site_f(f, base, stride, sq, n);
             }
         }
         if (q < 0) {
             q = 0;
             sq = u;
             gq = gu;
+            fq = fu;
             s[0] = u;
         } else if ((long)num < (long)(o1 - 1) * den) {
             // u owns positions before o1 (1 + floor(num / den) < o1).
@@ -210,6 +252,7 @@ inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int
             nq = num;
             dq = den;
             gq = gu;
+            fq = fu;
             s[q * ks] = u;
             t[q * ks] = num;
             d[q * ks] = den;
@@ -219,12 +262,13 @@ inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int
 }
 #else
 #define FRACTIONS 0
-inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int pad, ST sp,
-                    __global int* s, __global int* t, __global int* d, size_t ks, int o0, int o1,
-                    int i0, int i1) {
-    // The top of the stack (site, start, partial) stays in registers.
+inline int envelope(__global const GT* g, __global const uint* f, size_t base, size_t stride,
+                    int n, int pad, ST sp, __global int* s, __global int* t, __global int* d,
+                    size_t ks, int o0, int o1, int i0, int i1) {
+    // The top of the stack (site, start, partial, feature) stays in registers.
     int q = -1, sq = 0, tq = 0;
     GT gq = 0;
+    uint fq = 0;
     const int lo = pad && i0 == 0 ? -1 : i0;
     const int hi = pad && i1 == n ? n : i1 - 1;
     for (int u = lo; u <= hi; ++u) {
@@ -232,14 +276,16 @@ inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int
         if (gu == G_INF) {
             continue;
         }
+        const uint fu = site_f(f, base, stride, u, n);
         // Pop the sites that u is nearer than from where they start (their separator with
         // u lies before their first position); testing the separator itself keeps the
         // starts strictly increasing even where float rounding blurs a tie.
-        while (q >= 0 && sep_below(sq, u, gq, gu, sp, tq)) {
+        while (q >= 0 && sep_below(sq, u, gq, gu, sp, tq, KEYED(fq, fu))) {
             if (--q >= 0) {
                 sq = s[q * ks];
                 tq = t[q * ks];
                 gq = site_g(g, base, stride, sq, n);
+                fq = site_f(f, base, stride, sq, n);
             }
         }
         if (q < 0) {
@@ -247,15 +293,17 @@ inline int envelope(__global const GT* g, size_t base, size_t stride, int n, int
             sq = u;
             tq = o0;
             gq = gu;
+            fq = fu;
             s[0] = u;
             t[0] = o0;
         } else {
-            const int w = 1 + sep(sq, u, gq, gu, sp);
+            const int w = 1 + sep_tie(sq, u, gq, gu, sp, KEYED(fq, fu));
             if (w < o1) {
                 ++q;
                 sq = u;
                 tq = w;
                 gq = gu;
+                fq = fu;
                 s[q * ks] = u;
                 t[q * ks] = w;
             }
@@ -294,11 +342,12 @@ inline void mark(__global int* box, int x, int y, int z) {
 // `want` is the voxel value class (1 solid, 0 empty), `pad` counts the virtual voxels at -1
 // and X as targets where the range reaches them. Partials are capped at `cap`. `left` holds
 // the distances to the nearest target on the left between the two sweeps. With `box`, only
-// changed values are written and marked (y, z: the row's coordinates).
+// changed values are written and marked (y, z: the row's coordinates). The feature of the
+// target at x is x * kx + kr (KEYED; kx = Y * Z, kr = y * Z + z).
 inline void row_nearest(__global const uchar* vox, size_t base, int X, int want, int pad, ST sx,
                         __global GT* g, __global uint* feat, __global int* left,
                         __global int* box, int y, int z, int o0, int o1, int i0, int i1,
-                        GT cap) {
+                        GT cap, uint kx, uint kr) {
     int last = pad && i0 == 0 ? -1 : INT_MIN / 2;
     for (int x = i0; x < o1; ++x) {
         if ((vox[base + x] != 0) == want) {
@@ -326,19 +375,19 @@ inline void row_nearest(__global const uchar* vox, size_t base, int X, int want,
             }
         }
 #if INDICES
-        feat[base + x] = (site < 0 || site >= X || !(has_l || has_n)) ? UINT_MAX
-                                                                       : (uint)(base + site);
+        feat[base + x] =
+            (site < 0 || site >= X || !(has_l || has_n)) ? UINT_MAX : (uint)site * kx + kr;
 #endif
     }
 }
 
-// A whole row of a full transform without change tracking: the same nearest targets as
-// row_nearest (ties to the left) from two branch-free sweeps, the forward one leaving each
-// voxel's distance to its nearest target on the left in g itself (exact in every GT), so
-// its cost is the same on every world.
+// A whole row of a full transform without change tracking: the same nearest targets and
+// features as row_nearest (ties to the left) from two branch-free sweeps, the forward one
+// leaving each voxel's distance to its nearest target on the left in g itself (exact in
+// every GT), so its cost is the same on every world.
 #define ROW_NONE 0x3FFFFFFF
 inline void row_full(__global const uchar* vox, size_t base, int X, int want, int pad, ST sx,
-                     __global GT* g, __global uint* feat, GT cap) {
+                     __global GT* g, __global uint* feat, GT cap, uint kx, uint kr) {
     int last = pad ? -1 : -ROW_NONE;
     for (int x = 0; x < X; ++x) {
         last = (vox[base + x] != 0) == want ? x : last;
@@ -353,7 +402,8 @@ inline void row_full(__global const uchar* vox, size_t base, int X, int want, in
         g[base + x] = d >= ROW_NONE ? G_INF : min(offset_part(d, sx), cap);
 #if INDICES
         const int site = dr < dl ? next : x - dl;
-        feat[base + x] = d >= ROW_NONE || site < 0 || site >= X ? UINT_MAX : (uint)(base + site);
+        feat[base + x] =
+            d >= ROW_NONE || site < 0 || site >= X ? UINT_MAX : (uint)site * kx + kr;
 #endif
     }
 }
@@ -403,22 +453,24 @@ inline void row_doubling(__global const uchar* vox, size_t base, int X, int want
 // work-item's scratch of X ints (at scratch + item * istride; full transforms without
 // features use 2 (X + 2 P) of them, row_doubling's two padded rows). `solid` 1: g's targets
 // are the nonzero voxels; 0: the zero ones (SciPy's convention, no inverted copy of the
-// input needed).
+// input needed). Z: the world's depth, for the features' keys.
 __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g,
                      __global GT* restrict h, __global uint* restrict feat, uint X, uint Y,
                      int4 lo, int4 size, uint per_item, ST sx, __global int* restrict scratch,
-                     ulong istride, __global int* box, int i0, int i1, GT cap, int solid) {
+                     ulong istride, __global int* box, int i0, int i1, GT cap, int solid,
+                     uint Z) {
     const size_t rows = (size_t)size.y * size.z;
     __global int* left = scratch + get_global_id(0) * istride;
     const size_t r0 = get_global_id(0) * per_item;
     for (size_t r = r0; r < min(r0 + per_item, rows); ++r) {
         const int y = lo.y + (int)(r % size.y), z = lo.z + (int)(r / size.y);
         const size_t base = ((size_t)z * Y + y) * X;
+        const uint kx = Y * Z, kr = (uint)y * Z + (uint)z;
         if (box == 0 && i0 == 0 && i1 == (int)X && lo.x == 0 && size.x == (int)X) {
 #if INDICES || !CPU_LAYOUT
-            row_full(vox, base, (int)X, solid, 0, sx, g, feat, cap);
+            row_full(vox, base, (int)X, solid, 0, sx, g, feat, cap, kx, kr);
 #if SIGNED
-            row_full(vox, base, (int)X, 0, 1, sx, h, feat, cap);
+            row_full(vox, base, (int)X, 0, 1, sx, h, feat, cap, kx, kr);
 #endif
 #else
             row_doubling(vox, base, (int)X, solid, 0, sx, g, left, cap);
@@ -429,10 +481,10 @@ __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g
             continue;
         }
         row_nearest(vox, base, (int)X, solid, 0, sx, g, feat, left, box, y, z, lo.x,
-                    lo.x + size.x, i0, i1, cap);
+                    lo.x + size.x, i0, i1, cap, kx, kr);
 #if SIGNED
         row_nearest(vox, base, (int)X, 0, 1, sx, h, feat, left, box, y, z, lo.x, lo.x + size.x,
-                    i0, i1, cap);
+                    i0, i1, cap, kx, kr);
 #endif
     }
 }
@@ -447,7 +499,7 @@ inline void line_pass(__global const GT* gin, __global GT* gout, size_t base, si
                       size_t ks, __global const uint* fin, __global uint* fout,
                       __global int* box, int x, int other, int axis, int o0, int o1, int i0,
                       int i1, GT cap) {
-    int q = envelope(gin, base, stride, n, pad, sp, s, t, d, ks, o0, o1, i0, i1);
+    int q = envelope(gin, fin, base, stride, n, pad, sp, s, t, d, ks, o0, o1, i0, i1);
     // The owning site (its partial and feature) in registers.
     int sq = 0;
     GT gq = 0;
@@ -497,6 +549,7 @@ inline void line_pass(__global const GT* gin, __global GT* gout, size_t base, si
 // of V-shapes of slope 1 is their minimum), with the nearest site's feature. The lines run
 // side by side (the inner loop over c vectorises), no division and no data-dependent stack,
 // so the cost is the same on every world. `pad` adds the virtual empty sites at -1 and n.
+// Of equally near sites the lower feature wins (KEYED).
 inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int cw, int n,
                           int pad, __global const uint* fin, __global uint* fout, GT cap) {
     GT run[16];
@@ -512,7 +565,8 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
             const GT cand = add_sat(run[c], 1u);
             const GT gp = tin[i];
 #if INDICES
-            fr[c] = gp <= cand ? fin[i] : fr[c];
+            const uint fp = fin[i];
+            fr[c] = gp < cand || (gp == cand && fp < fr[c]) ? fp : fr[c];
             fout[i] = fr[c];
 #endif
             run[c] = min(gp, cand);
@@ -528,7 +582,8 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
             const GT cand = add_sat(run[c], 1u);
             const GT gp = tout[i];
 #if INDICES
-            fr[c] = gp <= cand ? fout[i] : fr[c];
+            const uint fp = fout[i];
+            fr[c] = gp < cand || (gp == cand && fp < fr[c]) ? fp : fr[c];
             fout[i] = fr[c];
 #endif
             run[c] = min(gp, cand);
@@ -554,13 +609,14 @@ inline void tile_sweep_l1(__global const GT* tin, __global GT* tout, int tw, int
 // sites at -1 and n. Empty sites (G_INF) become L2_FAR in tin, which sums with any square
 // below 2^30 without wrapping (the partials stay below 2^30 here, WIDE otherwise). The sites
 // of a window go through two accumulators (even and odd sites), halving the dependent chain
-// of minima. With INDICES each lane also keeps its nearest site (the lowest of equally near
-// ones, as SciPy breaks ties along a line), whose feature (fin, same layout) goes to fout.
+// of minima. With INDICES the candidates are 64-bit (partial << 32 | feature), the sites'
+// in `kt` (16 per site), so the same minima take of equally near sites the one with the
+// lowest feature (KEYED), and each lane's feature goes to fout (fin, fout: tin's layout).
 #define L2_FAR 0x80000000u
 #define WINDOW_MAX 256
 inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* bmin,
                            __global int* live, int tw, int cw, int n, int pad, GT cap,
-                           __global const uint* fin, __global uint* fout) {
+                           __global const uint* fin, __global uint* fout, __global ulong* kt) {
     const int nb = (n + 15) / 16;
     for (int b = 0; b < nb; ++b) {
         uint16 lo = (uint16)L2_FAR;
@@ -569,6 +625,9 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
             const uint16 lane = (uint16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
             const uint16 w = select((uint16)L2_FAR, v, lane < (uint16)cw);
             vstore16(w, 0, tin + u * tw);
+#if INDICES
+            vstore16(upsample(w, vload16(0, fin + u * tw)), 0, kt + u * 16);
+#endif
             lo = min(lo, w);
         }
         const uint8 l8 = min(lo.lo, lo.hi);
@@ -596,9 +655,11 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
     uint bound = UINT_MAX;
     for (int p = 0; p < n; ++p) {
         const uint edge = pad ? (uint)min((p + 1) * (p + 1), (n - p) * (n - p)) : L2_FAR;
-        uint16 best = (uint16)edge, best1 = (uint16)L2_FAR;
 #if INDICES
-        uint16 own = (uint16)UINT_MAX, own1 = (uint16)UINT_MAX;
+        ulong16 kb = (ulong16)(((ulong)edge << 32) | UINT_MAX);
+        ulong16 kb1 = (ulong16)(((ulong)L2_FAR << 32) | UINT_MAX);
+#else
+        uint16 best = (uint16)edge, best1 = (uint16)L2_FAR;
 #endif
         const int lo = max(0, p - r), hi = min(n - 1, p + r);
         for (int b = live[lo / 16]; b <= hi / 16; b = live[b + 1]) {
@@ -612,33 +673,32 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
             for (; u < ue; u += 2) {
                 const uint k0 = (uint)((p - u) * (p - u));
                 const uint k1 = (uint)((p - u - 1) * (p - u - 1));
+#if INDICES
+                kb = min(kb, vload16(0, kt + u * 16) + (ulong16)((ulong)k0 << 32));
+                kb1 = min(kb1, vload16(0, kt + (u + 1) * 16) + (ulong16)((ulong)k1 << 32));
+#else
                 const uint16 c0 = vload16(0, tin + u * tw) + k0;
                 const uint16 c1 = vload16(0, tin + (u + 1) * tw) + k1;
-#if INDICES
-                own = select(own, (uint16)u, c0 < best);
-                own1 = select(own1, (uint16)(u + 1), c1 < best1);
-#endif
                 best = min(best, c0);
                 best1 = min(best1, c1);
+#endif
             }
             if (u == ue) {
-                const uint16 c0 = vload16(0, tin + u * tw) + (uint)((p - u) * (p - u));
 #if INDICES
-                own = select(own, (uint16)u, c0 < best);
-#endif
+                kb = min(kb, vload16(0, kt + u * 16) +
+                                 (ulong16)((ulong)((p - u) * (p - u)) << 32));
+#else
+                const uint16 c0 = vload16(0, tin + u * tw) + (uint)((p - u) * (p - u));
                 best = min(best, c0);
+#endif
             }
         }
 #if INDICES
-        // The lower site among equally near ones of the two accumulators.
-        own = select(own, own1, (best1 < best) | ((best1 == best) & (own1 < own)));
-        best = min(best, best1);
+        kb = min(kb, kb1);
+        const uint16 best = convert_uint16(kb >> (ulong16)32);
         const uint16 far = as_uint16(best >= (uint16)L2_FAR);
-        uint ow[16];
-        vstore16(select(own, (uint16)UINT_MAX, far), 0, ow);
-        for (int c = 0; c < cw; ++c) {
-            fout[p * tw + c] = ow[c] == UINT_MAX ? UINT_MAX : fin[ow[c] * tw + c];
-        }
+        vstore16(select(convert_uint16(kb & (ulong16)UINT_MAX), (uint16)UINT_MAX, far), 0,
+                 fout + p * tw);
 #else
         best = min(best, best1);
         const uint16 far = as_uint16(best >= (uint16)L2_FAR);
@@ -749,6 +809,9 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
         __global GT* tout = tin + cells;
         __global uint* ftin = (__global uint*)(tout + cells);
         __global uint* ftout = ftin + cells;
+        // tile_window_l2's 64-bit candidates with INDICES, 8-byte aligned (the offset so far
+        // has n's parity: 3 (n + 2) ints and whole tiles of an even width).
+        __global ulong* kt = (__global ulong*)(ftout + cells + (n & 1));
         const size_t l_end = min(l0 + per_item, lines);
         for (size_t c0 = l0; c0 < l_end;) {
             const int x0 = lo_x + (int)(c0 % count_x);
@@ -800,7 +863,7 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
 #if METRIC == 2 && UNIT && !WIDE
                     if (box == 0 && tile_w % 16 == 0 &&
                         tile_window_l2(tin + c0, tout + c0, (__global uint*)s, t, tile_w,
-                                       c1 - c0, (int)n, cls, cap, ftin + c0, ftout + c0)) {
+                                       c1 - c0, (int)n, cls, cap, ftin + c0, ftout + c0, kt)) {
                         continue;
                     }
 #endif
@@ -834,21 +897,22 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
             }
 #if INDICES
             if (final) {
-                // Linear index f = (zf * Y + yf) * X + xf of the nearest target (UINT_MAX:
-                // none) to its coordinates; the z pass's positions u are z.
-                const uint xy = (uint)stride, xn = (uint)mstride;
-                const double inv_xy = 1.0 / (double)xy, inv_x = 1.0 / (double)xn;
+                // The key f = (xf * Y + yf) * Z + zf of the nearest target (UINT_MAX: none)
+                // to its coordinates; the z pass's lines are n = Z long, stride = X * Y and
+                // mstride = X apart.
+                const uint zn = n, yz = (uint)(stride / mstride) * n;
+                const double inv_yz = 1.0 / (double)yz, inv_z = 1.0 / (double)zn;
                 const size_t count = (size_t)n * stride;
                 for (int u = o0; u < o1; ++u) {
                     for (int c = 0; c < cw; ++c) {
                         const size_t i = base + (size_t)u * stride + c;
                         const uint f = ftout[u * tile_w + c];
-                        const uint zf = quotient(f, xy, inv_xy);
-                        const uint r = f - zf * xy;
-                        const uint yf = quotient(r, xn, inv_x);
-                        idx[i] = f == UINT_MAX ? -1 : (int)zf;
+                        const uint xf = quotient(f, yz, inv_yz);
+                        const uint r = f - xf * yz;
+                        const uint yf = quotient(r, zn, inv_z);
+                        idx[i] = f == UINT_MAX ? -1 : (int)(r - yf * zn);
                         idx[count + i] = f == UINT_MAX ? -1 : (int)yf;
-                        idx[2 * count + i] = f == UINT_MAX ? -1 : (int)(r - yf * xn);
+                        idx[2 * count + i] = f == UINT_MAX ? -1 : (int)xf;
                     }
                 }
                 continue;
@@ -883,15 +947,16 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
 }
 
 // Writes the output format from the final partials (and the index planes: z, y, x of the
-// nearest solid, -1 without one, as SciPy's return_indices lays them out) for the voxels of
-// the box lo + [0, size): the whole world, or the voxels an incremental update changed. One
-// work-item per voxel in a 3-D range (x rounded up to the work-group size). Each reads its
-// voxel's partials and feature before writing, so `out` may be `g` (same element size) and
-// `feat` the first index plane: no `restrict` on them.
+// nearest solid, -1 without one, as SciPy's return_indices lays them out, from its key and
+// the world's depth Z) for the voxels of the box lo + [0, size): the whole world, or the
+// voxels an incremental update changed. One work-item per voxel in a 3-D range (x rounded up
+// to the work-group size). Each reads its voxel's partials and feature before writing, so
+// `out` may be `g` (same element size) and `feat` the first index plane: no `restrict` on
+// them.
 __kernel void finish(__global const GT* g, __global const GT* h, __global const uchar* restrict vox,
                      __constant uchar* rgb, __global OUT_T* out, __global const uint* feat,
                      __global int* idx, uint X, uint Y, ulong count, int4 lo, int4 size,
-                     double dmax) {
+                     double dmax, uint Z) {
     if (get_global_id(0) >= (size_t)size.x) {
         return;
     }
@@ -907,12 +972,12 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
     store(out, rgb, v, i, d);
 #if INDICES
     const uint f = feat[i];
-    const uint zf = quotient(f, X * Y, 1.0 / ((double)X * Y));
-    const uint r = f - zf * X * Y;
-    const uint yf = quotient(r, X, 1.0 / X);
-    idx[i] = f == UINT_MAX ? -1 : (int)zf;
+    const uint xf = quotient(f, Y * Z, 1.0 / ((double)Y * Z));
+    const uint r = f - xf * Y * Z;
+    const uint yf = quotient(r, Z, 1.0 / Z);
+    idx[i] = f == UINT_MAX ? -1 : (int)(r - yf * Z);
     idx[count + i] = f == UINT_MAX ? -1 : (int)yf;
-    idx[2 * count + i] = f == UINT_MAX ? -1 : (int)(r - yf * X);
+    idx[2 * count + i] = f == UINT_MAX ? -1 : (int)xf;
 #endif
 }
 

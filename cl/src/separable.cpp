@@ -176,8 +176,11 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             std::clamp<std::size_t>((std::size_t{2} << 20) / (len * 2 * (gt_bytes_ + 4)), 1, 64);
         tile_w_[a] = gpu_layout_ ? 0 : static_cast<int>(fit < 16 ? fit : fit / 16 * 16);
         const std::size_t tile = static_cast<std::size_t>(tile_w_[a]) * len;
-        col_stride_[a] =
-            3 * (len + 2) + 2 * tile * gt_bytes_ / 4 + (options.indices ? 2 * tile : 0);
+        // With indices the features' tiles, and for tile_window_l2 (unit L2 below WIDE) its
+        // 64-bit candidates of 16 lines, 8-byte aligned.
+        const bool windows = unit && !wide_ && options.metric == Metric::euclidean;
+        col_stride_[a] = 3 * (len + 2) + 2 * tile * gt_bytes_ / 4 +
+                         (options.indices ? 2 * tile + (windows ? 32 * len + 1 : 0) : 0);
         col_stride_[a] += col_stride_[a] % 2;  // 8-byte partials stay aligned
     }
     // The CPU layout's passes read each line whole before writing it: a full transform runs
@@ -424,6 +427,7 @@ cl::Kernel ExactSeparable::x_kernel(const Box& rows, Span in, const cl::Buffer& 
     k.setArg(14, static_cast<cl_int>(in.hi));
     set_cap(k, 15);
     k.setArg(16, cl_int{zero_targets_ ? 0 : 1});
+    k.setArg(17, dims_.z);
     return k;
 }
 
@@ -493,6 +497,7 @@ cl::Kernel ExactSeparable::finish_kernel(int from, const Box& voxels) {
     k.setArg(10, lo);
     k.setArg(11, size);
     k.setArg(12, max_distance_);
+    k.setArg(13, dims_.z);
     return k;
 }
 

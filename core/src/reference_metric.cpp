@@ -154,6 +154,71 @@ std::vector<double> brute(Dims dims, const std::vector<char>& target, Metric m, 
     return out;
 }
 
+// SciPy's order of equally near targets: the lowest (x, y, z), x first.
+std::uint64_t tie_key(Dims d, std::size_t i) {
+    const std::uint64_t x = i % d.x, y = i / d.x % d.y, z = i / d.x / d.y;
+    return (x * d.y + y) * d.z + z;
+}
+
+std::vector<std::int64_t> features(Dims dims, const std::vector<char>& target, Metric m,
+                                   const Spacing& s) {
+    const std::size_t nx = dims.x, ny = dims.y, nz = dims.z;
+    // Per voxel (partial distance, tie key of its target, its target's index); -1: none.
+    struct Best {
+        double g;
+        std::uint64_t key;
+        std::int64_t at;
+        bool operator<(const Best& o) const { return g < o.g || (g == o.g && key < o.key); }
+    };
+    std::vector<Best> g(dims.count());
+    for (std::size_t i = 0; i < g.size(); ++i) {
+        g[i] = target[i] ? Best{0.0, tie_key(dims, i), static_cast<std::int64_t>(i)}
+                         : Best{kInf, 0, -1};
+    }
+    std::vector<Best> line, out;
+    auto pass = [&](std::size_t n, std::size_t stride, double spacing) {
+        line.resize(n);
+        out.resize(n);
+        for (std::size_t start = 0; start < g.size(); ++start) {
+            if ((start / stride) % n != 0) {
+                continue;
+            }
+            for (std::size_t i = 0; i < n; ++i) {
+                line[i] = g[start + i * stride];
+            }
+            // Outwards from i until the offset alone passes the best (an offset equal to it
+            // may still tie).
+            for (std::size_t i = 0; i < n; ++i) {
+                Best best{kInf, 0, -1};
+                for (std::size_t k = 0; k < n; ++k) {
+                    const double offset = spacing * static_cast<double>(k);
+                    if (combine(m, 0.0, offset) > best.g) {
+                        break;
+                    }
+                    for (std::size_t j : {i - k, i + k}) {
+                        if (j < n && line[j].at >= 0) {
+                            const Best c{combine(m, line[j].g, offset), line[j].key, line[j].at};
+                            best = c < best ? c : best;
+                        }
+                    }
+                }
+                out[i] = best;
+            }
+            for (std::size_t i = 0; i < n; ++i) {
+                g[start + i * stride] = out[i];
+            }
+        }
+    };
+    pass(nx, 1, s.x);
+    pass(ny, nx, s.y);
+    pass(nz, nx * ny, s.z);
+    std::vector<std::int64_t> at(g.size());
+    for (std::size_t i = 0; i < g.size(); ++i) {
+        at[i] = g[i].at;
+    }
+    return at;
+}
+
 std::vector<char> inverted(const std::vector<char>& mask) {
     std::vector<char> t(mask.size());
     for (std::size_t i = 0; i < t.size(); ++i) {
@@ -185,6 +250,41 @@ std::vector<double> brute_force_signed(const World& world, Metric metric, const 
     const std::vector<char> mask = padded_solids(world);
     return crop_signed(world, mask, brute(p, mask, metric, spacing),
                        brute(p, inverted(mask), metric, spacing));
+}
+
+std::vector<std::int64_t> reference_features(const World& world, Metric metric,
+                                             const Spacing& spacing) {
+    return features(world.dims(), solids(world), metric, spacing);
+}
+
+std::vector<std::int64_t> brute_force_features(const World& world, Metric metric,
+                                               const Spacing& spacing) {
+    const Dims d = world.dims();
+    std::vector<std::size_t> sites;
+    for (std::size_t j = 0; j < world.size(); ++j) {
+        if (world.voxels()[j] != 0) {
+            sites.push_back(j);
+        }
+    }
+    std::vector<std::int64_t> out(world.size(), -1);
+    for (std::size_t i = 0; i < out.size(); ++i) {
+        const long x = static_cast<long>(i % d.x), y = static_cast<long>(i / d.x % d.y),
+                   z = static_cast<long>(i / d.x / d.y);
+        double best = kInf;
+        std::uint64_t best_key = 0;
+        for (std::size_t j : sites) {
+            const double v = metric_distance(metric, spacing, x - static_cast<long>(j % d.x),
+                                             y - static_cast<long>(j / d.x % d.y),
+                                             z - static_cast<long>(j / d.x / d.y));
+            const std::uint64_t key = tie_key(d, j);
+            if (v < best || (v == best && key < best_key)) {
+                best = v;
+                best_key = key;
+                out[i] = static_cast<std::int64_t>(j);
+            }
+        }
+    }
+    return out;
 }
 
 }  // namespace voxfield

@@ -12,14 +12,14 @@ Exactness: ``distance_transform_edt`` with unit sampling is bit for bit SciPy's 
 (exact integer squared distances, then one float64 square root). With other sampling it runs
 the separable passes on the host in float64 (the device's sampled kernels carry float32
 partial distances) and adds the axes' terms in SciPy's order, within 2 ulp of SciPy.
-``indices`` always name a nearest zero element. The host passes break ties as SciPy does
-(axis by axis in SciPy's order, the lowest coordinate among equally near sites), so their
-indices equal SciPy's; they compute the feature transform whenever sampling is not unit or
-the device is a CPU. A GPU computes the indices with the distances on the device (its passes
-along the last axis, then the middle, then the first), which among equally near zeros takes
-another one than SciPy on up to 29% of the elements of dense random worlds (0.3 to 5% on
-sparse or smooth ones, measured on PoCL through ``_core.distance_transform``): SciPy's ties
-cost a CPU 5 to 10x the device's time, which is why a CPU keeps them.
+``indices`` always name a nearest zero element, and ``edt``'s equal SciPy's: of equally near
+zeros SciPy's passes (along the first axis, then the middle, then the last, each taking the
+lowest position of equally near sites) name the one of lowest (last, middle, first)
+coordinates, and so do the device's passes with unit sampling (they compare the sites'
+features by that key) and the host passes with other sampling (SciPy's order of axes and
+float64 sums). ``cdt``'s indices come from the device's passes with the same ties, where
+SciPy's chamfer sweeps break them their own way (a share of the elements differs; the
+distances are equal).
 Bool and integer inputs go to the device as they are (a uint8 or bool array is read in place
 on a CPU device, its zero elements the targets); other dtypes as ``input == 0``.
 
@@ -160,8 +160,7 @@ def distance_transform_edt(input, sampling=None, return_distances=True, return_i
             raise RuntimeError("distances array must be float64")
 
     ft = None
-    unit = s is None or bool(np.all(s == 1.0))
-    device_path = unit and not (return_indices and _core.device_type(device) == "cpu")
+    device_path = s is None or bool(np.all(s == 1.0))
     out = None
     if a.size == 0:
         dt = np.zeros(shape, np.float64)

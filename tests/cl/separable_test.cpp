@@ -305,6 +305,77 @@ TEST(ExactSeparable, IndicesNameANearestSolid) {
     }
 }
 
+// Every index equals the reference's with SciPy's ties (the nearest solid of lowest
+// (x, y, z)).
+void expect_scipy_ties(const World& w, const ocl::GeneratorOptions& o, const std::string& what) {
+    const auto r = ocl::generate(pocl(), w, Palette(), o);
+    const auto ref = reference_features(w, o.metric, o.spacing);
+    const Dims d = w.dims();
+    const std::size_t n = d.count();
+    ASSERT_EQ(r.indices.size(), 3 * n) << what;
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::int64_t f = ref[i];
+        const std::int64_t want[3] = {f < 0 ? -1 : f / d.x / d.y, f < 0 ? -1 : f / d.x % d.y,
+                                      f < 0 ? -1 : f % d.x};
+        const std::int32_t z = r.indices[i], y = r.indices[n + i], x = r.indices[2 * n + i];
+        ASSERT_TRUE(z == want[0] && y == want[1] && x == want[2])
+            << what << " " << describe(o, d) << " voxel (" << i % d.x << "," << i / d.x % d.y << ","
+            << i / d.x / d.y << ") names (" << x << "," << y << "," << z << "), want (" << want[2]
+            << "," << want[1] << "," << want[0] << ")";
+    }
+}
+
+// Ties on worlds full of them (dense random worlds, small worlds, lattices of solids an
+// even number of voxels apart, long lines that leave the L2 windows for the envelope, one
+// whose squares need WIDE): every metric, both layouts.
+TEST(ExactSeparable, IndicesBreakTiesAsScipy) {
+    std::mt19937_64 rng(2027);
+    std::uniform_int_distribution<std::uint32_t> small(1, 12), axis(1, 48);
+    const double densities[] = {0.02, 0.2, 0.5, 0.8, 0.97};
+    std::vector<std::pair<std::string, World>> worlds;
+    for (int i = 0; i < 12; ++i) {
+        const Dims d = i < 6 ? Dims{small(rng), small(rng), small(rng)}
+                             : Dims{axis(rng), axis(rng), axis(rng)};
+        worlds.emplace_back("random #" + std::to_string(i),
+                            scene_random(d, densities[static_cast<std::size_t>(i) % 5], rng()));
+    }
+    World lattice(Dims{33, 21, 17});
+    for (std::uint32_t z = 0; z < 17; z += 4) {
+        for (std::uint32_t y = 1; y < 21; y += 6) {
+            for (std::uint32_t x = 0; x < 33; x += 2 + z % 3) {
+                lattice.set(x, y, z, 1);
+            }
+        }
+    }
+    worlds.emplace_back("lattice", lattice);
+    // Solids at both ends of long y and z lines only (midpoints equally near two of them).
+    World ends(Dims{18, 600, 2});
+    World zends(Dims{5, 3, 700});
+    for (std::uint32_t x = 0; x < 18; ++x) {
+        ends.set(x, 0, x % 2, 1);
+        ends.set(x, 598 + x % 2, 0, 1);
+        zends.set(x % 5, x % 3, x % 2 == 0 ? 0 : 699, 1);
+    }
+    worlds.emplace_back("y ends", ends);
+    worlds.emplace_back("z ends", zends);
+    for (const auto& [name, w] : worlds) {
+        for (Metric m : kMetrics) {
+            for (Layout layout : kLayouts) {
+                expect_scipy_ties(w, options(m, Spacing{}, false, Format::f32, layout, true), name);
+                if (HasFatalFailure()) {
+                    return;
+                }
+            }
+        }
+    }
+    // Squared distances past 2^30: 64-bit partials (WIDE).
+    const World wide = scene_random(Dims{3, 33000, 1}, 0.3, rng());
+    for (Layout layout : kLayouts) {
+        expect_scipy_ties(
+            wide, options(Metric::euclidean, Spacing{}, false, Format::f64, layout, true), "wide");
+    }
+}
+
 // The span constructor as voxfield.ndimage uses it: the world read in place with its zero
 // voxels as the targets (zero_targets), the f64 field and the index planes written into the
 // caller's memory by the z pass (no finish pass), on random grids of every density, against

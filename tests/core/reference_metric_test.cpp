@@ -47,6 +47,39 @@ TEST(ReferenceMetric, EqualsBruteForce) {
     }
 }
 
+TEST(ReferenceMetric, FeaturesBreakTiesAsBruteForce) {
+    std::mt19937_64 rng(11);
+    std::uniform_int_distribution<std::uint32_t> axis(1, 9);
+    for (int i = 0; i < 40; ++i) {
+        const World w = scene_random(Dims{axis(rng), axis(rng), axis(rng)},
+                                     std::array{0.0, 0.05, 0.3, 0.7, 1.0}[i % 5], rng());
+        for (Metric m : {Metric::manhattan, Metric::euclidean}) {
+            EXPECT_EQ(reference_features(w, m, Spacing{}), brute_force_features(w, m, Spacing{}))
+                << to_string(m) << " #" << i;
+        }
+        // L-inf: the passes' choice, a nearest solid.
+        const auto f = reference_features(w, Metric::chebyshev, Spacing{});
+        const auto d = reference_distance(w, Metric::chebyshev, Spacing{});
+        const Dims n = w.dims();
+        for (std::size_t k = 0; k < f.size(); ++k) {
+            if (f[k] < 0) {
+                ASSERT_TRUE(std::isinf(d[k]));
+                continue;
+            }
+            const auto j = static_cast<std::size_t>(f[k]);
+            ASSERT_NE(w.voxels()[j], 0);
+            const auto c = [](std::size_t a, std::size_t b) {
+                return static_cast<long>(a) - static_cast<long>(b);
+            };
+            ASSERT_EQ(
+                metric_distance(Metric::chebyshev, Spacing{}, c(k % n.x, j % n.x),
+                                c(k / n.x % n.y, j / n.x % n.y), c(k / n.x / n.y, j / n.x / n.y)),
+                d[k])
+                << "chebyshev #" << i << " voxel " << k;
+        }
+    }
+}
+
 TEST(ReferenceMetric, UnitSpacingIsExactAndManhattanAgrees) {
     const World w = scene_random(Dims{23, 17, 12}, 0.02, 3);
     const auto l1 = reference_manhattan(w);

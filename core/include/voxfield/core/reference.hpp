@@ -39,4 +39,18 @@ std::vector<double> reference_signed(const World& world, Metric metric, const Sp
 std::vector<double> brute_force_distance(const World& world, Metric metric, const Spacing& spacing);
 std::vector<double> brute_force_signed(const World& world, Metric metric, const Spacing& spacing);
 
+// The feature transform with SciPy's ties (distance_transform_edt's): each voxel's nearest
+// solid voxel as its Dims::index, -1 when the world has none. Separable as
+// reference_distance is, along x, y, then z, each pass taking of its candidates the least
+// (partial distance, target's (x, y, z)), x compared first; exact for unit spacing. For L1
+// and L2 that is the nearest solid of lowest (x, y, z); for L-inf, where a line's partial
+// distance hides its other equally near targets, the passes' choice.
+std::vector<std::int64_t> reference_features(const World& world, Metric metric,
+                                             const Spacing& spacing);
+
+// O(N * solids) brute force: the nearest solid of lowest (x, y, z), for checking the
+// reference on tiny grids.
+std::vector<std::int64_t> brute_force_features(const World& world, Metric metric,
+                                               const Spacing& spacing);
+
 }  // namespace voxfield
