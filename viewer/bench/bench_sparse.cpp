@@ -24,30 +24,7 @@
 #include "voxfield/core/stats.hpp"
 
 namespace voxfield::cli {
-namespace {
 
-using nlohmann::json;
-
-constexpr std::int64_t kEditRadius = 8;
-
-double peak_rss_bytes() {
-    rusage u{};
-    getrusage(RUSAGE_SELF, &u);
-    return static_cast<double>(u.ru_maxrss) * 1024.0;
-}
-
-// The machine's load averages (1, 5, 15 minutes; /proc/loadavg), null where unreadable: other
-// work on the machine slows a CPU device's run.
-json load_average() {
-    std::ifstream in("/proc/loadavg");
-    double a = 0, b = 0, c = 0;
-    if (!(in >> a >> b >> c)) {
-        return json();
-    }
-    return {a, b, c};
-}
-
-// The options of the row: the bench flags' metric, spacing, sign and bound, the format given.
 ocl::GeneratorOptions sparse_options(const SuiteOptions& o) {
     GeneratorFlags flags = o.field;
     flags.algorithm = "exact";
@@ -55,6 +32,12 @@ ocl::GeneratorOptions sparse_options(const SuiteOptions& o) {
     return ocl::resolve_sparse_options(
         generator_options(flags, parse_format(o.format), Dims{1, 1, 1}), true);
 }
+
+namespace {
+
+using nlohmann::json;
+
+constexpr std::int64_t kEditRadius = 8;
 
 // The highest solid voxel of column (x, z), or 0.
 std::int64_t surface(const SparseWorld& w, std::uint32_t x, std::uint32_t z) {
@@ -351,6 +334,21 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
 }
 
 }  // namespace
+
+double peak_rss_bytes() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return static_cast<double>(u.ru_maxrss) * 1024.0;
+}
+
+json load_average() {
+    std::ifstream in("/proc/loadavg");
+    double a = 0, b = 0, c = 0;
+    if (!(in >> a >> b >> c)) {
+        return json();
+    }
+    return {a, b, c};
+}
 
 json run_sparse(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t repeat,
                 std::uint32_t warmup, BenchObserver& observer) {

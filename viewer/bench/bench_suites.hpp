@@ -29,8 +29,8 @@ struct SuiteOptions {
     std::uint32_t world = 0;      // edits, sand: the world's edge; 0: the suite's default
     std::string format = "u16";   // edits: the field format
     std::string implicit_part;    // implicit: the part's .sdf.json (data/parts/bracket.sdf.json)
-    std::vector<Dims> sizes;      // sparse: the worlds (empty: the suite's default)
-    GeneratorFlags field;         // sparse: metric, spacing, sign, --max-distance
+    std::vector<Dims> sizes;      // sparse, sparse-sand: the worlds (empty: the suite's default)
+    GeneratorFlags field;         // sparse, sparse-sand: metric, spacing, sign, --max-distance
     bool compare_blocks = false;  // sparse: also time the whole field by blocks (--compare-blocks)
 };
 
@@ -51,7 +51,7 @@ class BenchObserver {
     virtual void row(const nlohmann::json& /*row*/) {}
 };
 
-// "dissertation", "edits", "render", "sand", "implicit", "sparse".
+// "dissertation", "edits", "render", "sand", "implicit", "sparse", "sparse-sand".
 const std::vector<std::string>& suite_names();
 
 // Runs suite `o.suite` on `ctx` (the render suite also opens a Vulkan context of its own) and
