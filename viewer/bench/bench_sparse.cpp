@@ -350,20 +350,24 @@ json load_average() {
     return {a, b, c};
 }
 
+void check_sparse_suite_options(const SuiteOptions& o) {
+    sparse_options(o);
+    for (const Dims& dims : o.sizes) {
+        if (dims.x > kMaxSparseAxis || dims.y > kMaxSparseAxis || dims.z > kMaxSparseAxis) {
+            throw InputError("--sizes " + dims.to_string() + ": a sparse world takes at most " +
+                             std::to_string(kMaxSparseAxis) + " voxels per axis");
+        }
+    }
+}
+
 json run_sparse(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t repeat,
                 std::uint32_t warmup, BenchObserver& observer) {
     const std::vector<Dims> sizes =
         !o.sizes.empty() ? o.sizes
                          : std::vector<Dims>{o.quick ? Dims{256, 128, 256} : Dims{1024, 256, 1024}};
     const std::uint32_t edits = o.edits != 0 ? o.edits : (o.quick ? 6 : 30);
-    sparse_options(o);  // bad options refused before the first row
+    check_sparse_suite_options(o);  // bad options refused before the first row
     json rows = json::array();
-    for (const Dims& dims : sizes) {
-        if (dims.x > kMaxSparseAxis || dims.y > kMaxSparseAxis || dims.z > kMaxSparseAxis) {
-            throw InputError("--sizes " + dims.to_string() + ": a sparse world takes at most " +
-                             std::to_string(kMaxSparseAxis) + " voxels per axis");
-        }
-    }
     for (const Dims& dims : sizes) {
         rows.push_back(sparse_row(ctx, o, dims, repeat, warmup, edits, observer));
         const json& r = rows.back();

@@ -12,7 +12,6 @@
 #include "voxfield/cl/sparse_sand.hpp"
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/clock.hpp"
-#include "voxfield/core/error.hpp"
 #include "voxfield/core/format.hpp"
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/sand.hpp"
@@ -206,13 +205,7 @@ json run_sparse_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t ste
     const std::vector<Dims> sizes =
         !o.sizes.empty() ? o.sizes
                          : std::vector<Dims>{o.quick ? Dims{256, 128, 256} : Dims{512, 128, 512}};
-    sparse_options(o);  // bad options refused before the first row
-    for (const Dims& dims : sizes) {
-        if (dims.x > kMaxSparseAxis || dims.y > kMaxSparseAxis || dims.z > kMaxSparseAxis) {
-            throw InputError("--sizes " + dims.to_string() + ": a sparse world takes at most " +
-                             std::to_string(kMaxSparseAxis) + " voxels per axis");
-        }
-    }
+    check_sparse_suite_options(o);  // bad options refused before the first row
     json rows = json::array();
     for (const Dims& dims : sizes) {
         rows.push_back(sparse_sand_row(ctx, o, dims, steps, warmup, budget_s, observer));

@@ -54,6 +54,10 @@ class BenchObserver {
 // "dissertation", "edits", "render", "sand", "implicit", "sparse", "sparse-sand".
 const std::vector<std::string>& suite_names();
 
+// Throws InputError for the options of a sparse suite (sparse, sparse-sand) that it cannot take
+// (sizes over kMaxSparseAxis, a bad metric, bound or format), before any device is opened.
+void check_sparse_suite_options(const SuiteOptions& o);
+
 // Runs suite `o.suite` on `ctx` (the render suite also opens a Vulkan context of its own) and
 // returns its document: {"device", "commit", "date", "suite", "quick", "scene", "seed",
 // "repeat", "warmup", "time_budget_s", the suite's own keys, "results": the rows}. Throws

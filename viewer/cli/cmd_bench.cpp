@@ -283,6 +283,7 @@ Command add_bench(CLI::App& root) {
                     }
                     s.field = o->field;
                     s.compare_blocks = o->compare_blocks;
+                    check_sparse_suite_options(s);  // before the device is opened
                 }
                 return run_suite_command(s, *o);
             }};
