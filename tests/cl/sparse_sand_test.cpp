@@ -1,8 +1,8 @@
 // Falling sand and water on sparse worlds (cl/sparse_sand.hpp) on PoCL: after every step the
 // world equals the CPU reference automaton's (core/sand.hpp) on the same dense world, and the
 // field equals the dense bounded field of it; random worlds of sand, water and rock, awkward
-// sizes, tiles cut by the world's edge, empty tiles between busy ones, several bounds, both
-// layouts, brushes between steps and a jump in the step numbers.
+// sizes, tiles cut by the world's edge, empty tiles between busy ones, several bounds, metrics
+// and formats (signed too), both layouts, brushes between steps and a jump in the step numbers.
 #include <gtest/gtest.h>
 
 #include <random>
@@ -50,10 +50,12 @@ World sandy_world(Dims d, std::mt19937& rng, const SandRules& rules) {
     return w;
 }
 
-ocl::GeneratorOptions bounded(double bound, Layout layout) {
+ocl::GeneratorOptions bounded(double bound, Layout layout, Metric metric = Metric::manhattan,
+                              bool signed_field = false, Format format = Format::u16) {
     ocl::GeneratorOptions o;
-    o.metric = Metric::manhattan;
-    o.format = Format::u16;
+    o.metric = metric;
+    o.signed_field = signed_field;
+    o.format = format;
     o.layout = layout;
     o.max_distance = bound;
     return ocl::resolve_sparse_options(o, true);
@@ -83,17 +85,26 @@ TEST(SparseSand, StepsEqualDenseAutomatonAndBoundedField) {
         Dims dims;
         double bound;
         Layout layout;
+        Metric metric;
+        bool signed_field;
+        Format format;
+        int steps;
     };
-    for (const Case& c : {Case{{70, 75, 67}, 4, Layout::cpu}, Case{{129, 66, 65}, 9, Layout::gpu},
-                          Case{{64, 64, 64}, 16, Layout::cpu}, Case{{41, 130, 33}, 3, Layout::cpu},
-                          Case{{200, 40, 30}, 6, Layout::gpu}}) {
+    for (const Case& c :
+         {Case{{70, 75, 67}, 4, Layout::cpu, Metric::manhattan, false, Format::u16, 20},
+          Case{{129, 66, 65}, 9, Layout::gpu, Metric::euclidean, true, Format::i16, 12},
+          Case{{64, 64, 64}, 16, Layout::cpu, Metric::manhattan, false, Format::u8, 12},
+          Case{{41, 130, 33}, 3, Layout::cpu, Metric::chebyshev, false, Format::f32, 12},
+          Case{{200, 40, 30}, 6, Layout::gpu, Metric::manhattan, true, Format::i16, 12}}) {
         World dense = sandy_world(c.dims, rng, rules);
         SparseWorld sparse = SparseWorld::from_dense(dense);
-        ocl::SparseField field(pocl(), sparse, p, bounded(c.bound, c.layout));
+        ocl::SparseField field(pocl(), sparse, p,
+                               bounded(c.bound, c.layout, c.metric, c.signed_field, c.format));
         field.run();
         ocl::SparseSand sim(pocl(), field, rules);
-        const std::string what = c.dims.to_string() + " D " + std::to_string(c.bound);
-        expect_steps_equal(dense, field, sim, p, rules, 7, 0, 20, what);
+        const std::string what =
+            c.dims.to_string() + " " + to_string(c.metric) + " D " + std::to_string(c.bound);
+        expect_steps_equal(dense, field, sim, p, rules, 7, 0, c.steps, what);
     }
 }
 
