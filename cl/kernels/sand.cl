@@ -447,3 +447,85 @@ kernel void sand_step_rows(global uchar* vox, int4 d, int4 o, int4 nb, ulong key
     vf_flush(&held, summary, changes, capacity);
     vf_boxes_merge(&boxes, summary, d);
 }
+
+// Sparse worlds (cl/src/sparse_sand.cpp): the step on windows gathered from the 64-tree tiles,
+// one per tile t whose voxels may change: tile t's 64^3 voxels with one voxel more on every side
+// and two below (VF_WIN_* voxels, x fastest; window voxel (0, 0, 0) is world voxel 64 t - (1, 2,
+// 1)). Global ids (column i, column k, window w): the columns of blocks that overlap the tile,
+// blocks 32 t .. 32 t + 31 + o per axis (inside the world's block grid nb), each from the top
+// down, as sand_step_blocks. The block partition, the hash (the block's index in the world's grid)
+// and the walls (cells outside the world `d`) are the world's, so every block that overlaps tile
+// t runs exactly as the dense step runs it; a block that overlaps two tiles runs in both windows,
+// alike. summary[8 w ..]: [0] the voxels of tile t that changed, [1..3] VF_WIN - lo and [4..6] hi
+// (half-open) of their box in window coordinates.
+#define VF_WIN_X 66
+#define VF_WIN_Y 67
+#define VF_WIN_Z 66
+
+inline size_t vf_win_index(int3 q) {
+    return ((size_t)q.z * VF_WIN_Y + (size_t)q.y) * VF_WIN_X + (size_t)q.x;
+}
+
+kernel void sand_step_windows(global uchar* windows, global const int* tiles, int4 d, int4 o,
+                              int4 nb, ulong key, uint sand, uint water, uint wall,
+                              global uint* summary) {
+    const int li = (int)get_global_id(0), lk = (int)get_global_id(1);
+    const size_t w = get_global_id(2);
+    const int3 t = vload3(w, tiles);
+    const int i = 32 * t.x + li, k = 32 * t.z + lk;
+    if (li > 31 + o.x || lk > 31 + o.z || i >= nb.x || k >= nb.z) {
+        return;
+    }
+    global uchar* win = windows + w * (size_t)(VF_WIN_X * VF_WIN_Y * VF_WIN_Z);
+    const int3 corner = 64 * t - (int3)(1, 2, 1);  // world voxel of window voxel (0, 0, 0)
+    const int3 lo = 64 * t, hi = min(lo + 64, d.xyz);
+    uint count = 0;
+    VfBoxes boxes;
+    vf_boxes_clear(&boxes);
+    for (int j = min(32 * t.y + 31 + o.y, nb.y - 1); j >= 32 * t.y; --j) {
+        const int3 b = (int3)(i, j, k);
+        const int3 origin = 2 * b - o.xyz;
+        ulong cells = 0;
+        for (int c = 0; c < 8; ++c) {
+            const int3 p = vf_cell(origin, c);
+            cells |= (ulong)(vf_inside(p, d) ? (uint)win[vf_win_index(p - corner)] : wall)
+                     << (8 * c);
+        }
+        if (!vf_may_move(cells, sand, water)) {
+            continue;
+        }
+        ulong after;
+        if ((cells & 0xFFFFFFFFul) == 0) {
+            const ulong falls = vf_bytes_equal(cells, sand) | vf_bytes_equal(cells, water);
+            after = (cells & ~falls) | ((cells & falls) >> 32);
+        } else {
+            uint below_air = 0;
+            for (int c = 0; c < 4; ++c) {
+                const int3 p = vf_cell(origin, c) - (int3)(0, 1, 0);
+                if (vf_get(cells, c) == water && vf_inside(p, d) &&
+                    win[vf_win_index(p - corner)] == 0) {
+                    below_air |= 1u << c;
+                }
+            }
+            const ulong block =
+                ((ulong)b.z * (ulong)nb.y + (ulong)b.y) * (ulong)nb.x + (ulong)b.x;
+            after = vf_sand_rules(cells, below_air, vf_sand_hash(key ^ block), sand, water);
+        }
+        for (ulong changed = vf_nonzero_bytes(cells ^ after); changed != 0;) {
+            const ulong bit = changed & (~changed + 1);
+            changed ^= bit;
+            const int c = (63 - (int)clz(bit)) >> 3;
+            const int3 p = vf_cell(origin, c);
+            win[vf_win_index(p - corner)] = (uchar)vf_get(after, c);
+            if (all(p >= lo) && all(p < hi)) {
+                ++count;
+                vf_boxes_add(&boxes, p - corner, 0, 0);
+            }
+        }
+    }
+    if (count != 0) {
+        global uint* s = summary + 8 * w;
+        atomic_add(s, count);
+        vf_box_merge(s + 1, (int4)(VF_WIN_X, VF_WIN_Y, VF_WIN_Z, 0), boxes.lo, boxes.hi);
+    }
+}

@@ -458,11 +458,7 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
         return host_apply_brush(brush);
     }
     const auto n = static_cast<std::uint32_t>(span.size());
-    // The previous edit's tables may still be on their way to the device.
-    if (!edit_writes_.empty()) {
-        cl::Event::waitForEvents(edit_writes_);
-        edit_writes_.clear();
-    }
+    wait_edit_writes();
     host_jobs_.clear();
     host_refs_.clear();
     host_origins_.clear();
@@ -494,18 +490,7 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
         ++tile;
     });
     const std::size_t nodes = host_origins_.size() / 3;
-    // Every tile into a slot of its own, never the one its previous tree lies in (read while
-    // writing): slots freed by this edit are taken by later ones only.
-    std::vector<std::uint32_t> freed;
-    for (const std::uint64_t key : keys) {
-        const std::uint32_t slot = take_slot();
-        if (const auto it = slot_of_.find(key); it != slot_of_.end()) {
-            freed.push_back(it->second);
-        }
-        slot_of_[key] = slot;
-        host_slots_.push_back(slot);
-    }
-    free_slots_.insert(free_slots_.end(), freed.begin(), freed.end());
+    take_edit_slots(keys);
     ensure_scratch(n, nodes);
     edit_events_.clear();
     cl_call("editing " + std::to_string(n) + " tiles on the device", [&] {
@@ -552,34 +537,106 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
         edit_events_.emplace_back("brush_nodes", cl::Event());
         q.enqueueNDRangeKernel(brush_k, cl::NullRange, cl::NDRange(16 * 16, nodes),
                                cl::NDRange(kGroupNodes, 1), nullptr, &edit_events_.back().second);
-        EncodeBuffers b;
-        b.vox = scratch_;
-        b.src = edit_src_;
-        b.pitch_y = 16;
-        b.pitch_z = 16 * 16;
-        b.refs = edit_refs_;
-        b.masks = masks_;
-        b.offsets = offsets_;
-        b.materials = materials_;
-        b.leaf_masks = leaf_masks_;
-        b.mid_masks = mid_masks_;
-        b.mid_counts = mid_counts_;
-        b.kept = kept_;
-        b.node_mats = node_mats_;
-        b.slots = edit_slots_;
-        b.slot_masks = slot_masks_;
-        b.slot_offsets = slot_offsets_;
-        b.slot_materials = slot_materials_;
-        b.slot_counts = slot_counts_;
-        enqueue_encode(q, encode_, b, n, edit_events_);
+        enqueue_edit_encode(scratch_, 16, 16 * 16, n);
     });
+    commit_edit_slots(keys);
+    return bounds;
+}
+
+void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t pitch_y,
+                                           std::uint32_t pitch_z,
+                                           const std::vector<DenseTile>& tiles) {
+    if (editable_ == nullptr) {
+        throw std::logic_error("SparseDeviceWorld::encode_dense_tiles on a read-only world");
+    }
+    if (tiles.empty()) {
+        return;
+    }
+    const auto n = static_cast<std::uint32_t>(tiles.size());
+    wait_edit_writes();
+    host_refs_.clear();
+    host_slots_.clear();
+    host_src_.resize(std::size_t{n} * 64);
+    std::vector<std::uint64_t> keys;
+    keys.reserve(n);
+    for (std::uint32_t t = 0; t < n; ++t) {
+        const Int3 c = tiles[t].tile;
+        const auto [node_base, material_base] = ref(c.x, c.y, c.z);
+        host_refs_.insert(host_refs_.end(), {node_base, material_base});
+        keys.push_back(key_of(c.x, c.y, c.z));
+        for (std::uint64_t b = 0; b < 64; ++b) {
+            host_src_[std::size_t{t} * 64 + b] = tiles[t].first + (b >> 4) * 16 * pitch_z +
+                                                 (b >> 2 & 3) * 16 * pitch_y + (b & 3) * 16;
+        }
+    }
+    take_edit_slots(keys);
+    ensure_scratch(n, 0);
+    edit_events_.clear();
+    cl_call("encoding " + std::to_string(n) + " dense tiles on the device", [&] {
+        auto& q = ctx_.queue();
+        edit_writes_.resize(3);
+        q.enqueueWriteBuffer(edit_refs_, CL_FALSE, 0, host_refs_.size() * 8, host_refs_.data(),
+                             nullptr, &edit_writes_[0]);
+        q.enqueueWriteBuffer(edit_slots_, CL_FALSE, 0, host_slots_.size() * 4, host_slots_.data(),
+                             nullptr, &edit_writes_[1]);
+        q.enqueueWriteBuffer(edit_src_, CL_FALSE, 0, host_src_.size() * 8, host_src_.data(),
+                             nullptr, &edit_writes_[2]);
+        enqueue_edit_encode(vox, pitch_y, pitch_z, n);
+    });
+    commit_edit_slots(keys);
+}
+
+void SparseDeviceWorld::wait_edit_writes() {
+    if (!edit_writes_.empty()) {
+        cl::Event::waitForEvents(edit_writes_);
+        edit_writes_.clear();
+    }
+}
+
+void SparseDeviceWorld::take_edit_slots(const std::vector<std::uint64_t>& keys) {
+    std::vector<std::uint32_t> freed;
+    for (const std::uint64_t key : keys) {
+        const std::uint32_t slot = take_slot();
+        if (const auto it = slot_of_.find(key); it != slot_of_.end()) {
+            freed.push_back(it->second);
+        }
+        slot_of_[key] = slot;
+        host_slots_.push_back(slot);
+    }
+    free_slots_.insert(free_slots_.end(), freed.begin(), freed.end());
+}
+
+void SparseDeviceWorld::commit_edit_slots(const std::vector<std::uint64_t>& keys) {
     for (std::size_t i = 0; i < keys.size(); ++i) {
         dir_[keys[i]] = {kSlotRef | host_slots_[i] * std::uint64_t{kTileMaxNodes},
                          host_slots_[i] * std::uint64_t{kTileVoxels}};
         lagging_.insert(keys[i]);
     }
     release_slots_if_needed();
-    return bounds;
+}
+
+void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t pitch_y,
+                                            std::uint32_t pitch_z, std::uint32_t tiles) {
+    EncodeBuffers b;
+    b.vox = vox;
+    b.src = edit_src_;
+    b.pitch_y = pitch_y;
+    b.pitch_z = pitch_z;
+    b.refs = edit_refs_;
+    b.masks = masks_;
+    b.offsets = offsets_;
+    b.materials = materials_;
+    b.leaf_masks = leaf_masks_;
+    b.mid_masks = mid_masks_;
+    b.mid_counts = mid_counts_;
+    b.kept = kept_;
+    b.node_mats = node_mats_;
+    b.slots = edit_slots_;
+    b.slot_masks = slot_masks_;
+    b.slot_offsets = slot_offsets_;
+    b.slot_materials = slot_materials_;
+    b.slot_counts = slot_counts_;
+    enqueue_encode(ctx_.queue(), encode_, b, tiles, edit_events_);
 }
 
 double SparseDeviceWorld::last_edit_kernel_ms() const {

@@ -28,6 +28,9 @@ namespace {
 constexpr std::uint32_t kInsideTile = 0xFFFFFFFEu;
 // Voxels of one batch of stacked blocks (and the most of one update block).
 constexpr std::int64_t kBatchVoxels = std::int64_t{1} << 25;
+// Several changed boxes are recomputed in one block of their hull when it holds at most this
+// many voxels (128^3), else tile by tile.
+constexpr std::int64_t kHullVoxels = std::int64_t{1} << 21;
 // Rows per work-group of the gather and scatter kernels (a work-item per row).
 constexpr std::size_t kGroupRows = 8;
 // Work-items per work-group of the GPU layout's gather and scatter (a work-item per voxel).
@@ -769,11 +772,26 @@ double SparseField::sweep() {
 
 SparseField::Update SparseField::update(const Box& changed) {
     device_world_.host_edited(changed);
-    return recompute(changed);
+    return recompute({changed});
 }
 
 SparseField::Update SparseField::apply_brush(const Brush& brush) {
     const Box changed = device_world_.apply_brush(brush);
+    Update result = recompute({changed});
+    std::vector<std::pair<std::string, double>> stages = device_world_.last_edit_stages();
+    for (const auto& [name, ms] : stages) {
+        result.edit_kernel_ms += ms;
+    }
+    result.kernel_ms += result.edit_kernel_ms;
+    stages.insert(stages.end(), result.stages.begin(), result.stages.end());
+    result.stages = std::move(stages);
+    return result;
+}
+
+SparseField::Update SparseField::apply_dense_tiles(
+    const cl::Buffer& vox, std::uint32_t pitch_y, std::uint32_t pitch_z,
+    const std::vector<SparseDeviceWorld::DenseTile>& tiles, const std::vector<Box>& changed) {
+    device_world_.encode_dense_tiles(vox, pitch_y, pitch_z, tiles);
     Update result = recompute(changed);
     std::vector<std::pair<std::string, double>> stages = device_world_.last_edit_stages();
     for (const auto& [name, ms] : stages) {
@@ -785,78 +803,103 @@ SparseField::Update SparseField::apply_brush(const Brush& brush) {
     return result;
 }
 
-SparseField::Update SparseField::recompute(const Box& changed) {
+SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
     Update result;
     stages_.clear();
     work_ = Work{};
     const Box all = world_box(world_.dims());
-    if (intersect(changed, all).empty()) {
+    // The voxels within D of a change, per change; merged into their hull when that is one
+    // block of at most kHullVoxels (the single-block path of one edit).
+    std::vector<Box> regions;
+    Box region;
+    for (const Box& b : changed) {
+        const Box r = intersect(grow(intersect(b, all), halo_), all);
+        if (!r.empty()) {
+            regions.push_back(r);
+            region = region.empty() ? r : hull(region, r);
+        }
+    }
+    if (regions.empty()) {
         return result;
     }
-    const Box region = intersect(grow(intersect(changed, all), halo_), all);
+    const Dims wd = world_.dims();
+    const auto block_of = [&](const Box& r) {
+        return intersect(grow(r, halo_), Box{{-1, -1, -1}, {wd.x + 1, wd.y + 1, wd.z + 1}});
+    };
+    if (regions.size() > 1 && block_of(region).volume() <= kHullVoxels) {
+        regions = {region};
+    }
+    // Per field tile (in key order) the hull of the regions' parts in it.
+    const std::int64_t s = kTileSize;
+    std::map<std::uint64_t, Box> parts;
+    for (const Box& r : regions) {
+        for_each_tile(tiles_of(r), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+            const Box part =
+                intersect(r, Box{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}});
+            Box& p = parts[tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                                    static_cast<std::uint32_t>(z))];
+            p = p.empty() ? part : hull(p, part);
+        });
+    }
     std::vector<std::uint32_t> slots;
     std::vector<std::uint64_t> nodes;  // per slot, its 16^3 nodes whose minima may change
-    for_each_tile(tiles_of(region), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
-        const std::uint64_t key =
-            tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
-                     static_cast<std::uint32_t>(z));
+    for (const auto& [key, part] : parts) {
+        const Int3 t = tile_of_key(key);
         const auto it = tiles_.find(key);
         const bool fresh = it == tiles_.end() || it->second == kInsideTile;
         slots.push_back(dense_slot(key));
         std::uint64_t mask = 0;
-        const std::int64_t s = kTileSize;
-        const Box part =
-            intersect(region, Box{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}});
-        for (std::int64_t nz = (part.min.z - z * s) / 16; nz <= (part.max.z - 1 - z * s) / 16;
+        for (std::int64_t nz = (part.min.z - t.z * s) / 16; nz <= (part.max.z - 1 - t.z * s) / 16;
              ++nz) {
-            for (std::int64_t ny = (part.min.y - y * s) / 16; ny <= (part.max.y - 1 - y * s) / 16;
-                 ++ny) {
-                for (std::int64_t nx = (part.min.x - x * s) / 16;
-                     nx <= (part.max.x - 1 - x * s) / 16; ++nx) {
+            for (std::int64_t ny = (part.min.y - t.y * s) / 16;
+                 ny <= (part.max.y - 1 - t.y * s) / 16; ++ny) {
+                for (std::int64_t nx = (part.min.x - t.x * s) / 16;
+                     nx <= (part.max.x - 1 - t.x * s) / 16; ++nx) {
                     mask |= std::uint64_t{1} << (nz << 4 | ny << 2 | nx);
                 }
             }
         }
         // A tile made dense now has no minima yet: all of its nodes.
         nodes.push_back(fresh ? ~std::uint64_t{0} : mask);
-    });
-    const Dims wd = world_.dims();
-    Box block_box =
-        intersect(grow(region, halo_), Box{{-1, -1, -1}, {wd.x + 1, wd.y + 1, wd.z + 1}});
-    // Extents rounded up to a multiple of 4 (more empty space beyond the world, or more of
-    // the world, changes no value inside), so that edits of about one size share a block
-    // shape and its dense generator instead of setting one up each (16 cost radius-8 edits
-    // 64^3 blocks instead of 52^3: 1.9x the voxels).
-    Int3 size{round_up_to(block_box.max.x - block_box.min.x, 4),
-              round_up_to(block_box.max.y - block_box.min.y, 4),
-              round_up_to(block_box.max.z - block_box.min.z, 4)};
-    // An edit near the world's edge (a smaller block) takes a shape set up already when that
-    // holds it with at most twice the voxels: no generator set up, and no eviction of others.
-    const Int3 need = size;
-    std::int64_t best = 2 * need.x * need.y * need.z + 1;
-    for (const auto& [shape, batch] : batches_) {
-        const auto& [bx, by, bz, n] = shape;
-        const std::int64_t v = std::int64_t{bx} * by * bz;
-        if (n == 1 && bx >= need.x && by >= need.y && bz >= need.z && v < best) {
-            best = v;
-            size = {bx, by, bz};
-        }
     }
-    block_box.max = {block_box.min.x + size.x, block_box.min.y + size.y, block_box.min.z + size.z};
     std::vector<Job> jobs;
     Dims block{};
-    if (block_box.volume() <= kBatchVoxels) {
-        jobs.push_back({region, block_box.min});
-        block = {static_cast<std::uint32_t>(block_box.max.x - block_box.min.x),
-                 static_cast<std::uint32_t>(block_box.max.y - block_box.min.y),
-                 static_cast<std::uint32_t>(block_box.max.z - block_box.min.z)};
-    } else {
+    if (regions.size() == 1) {
+        Box block_box = block_of(region);
+        // Extents rounded up to a multiple of 4 (more empty space beyond the world, or more of
+        // the world, changes no value inside), so that edits of about one size share a block
+        // shape and its dense generator instead of setting one up each (16 cost radius-8 edits
+        // 64^3 blocks instead of 52^3: 1.9x the voxels).
+        Int3 size{round_up_to(block_box.max.x - block_box.min.x, 4),
+                  round_up_to(block_box.max.y - block_box.min.y, 4),
+                  round_up_to(block_box.max.z - block_box.min.z, 4)};
+        // An edit near the world's edge (a smaller block) takes a shape set up already when that
+        // holds it with at most twice the voxels: no generator set up, and no eviction of others.
+        const Int3 need = size;
+        std::int64_t best = 2 * need.x * need.y * need.z + 1;
+        for (const auto& [shape, batch] : batches_) {
+            const auto& [bx, by, bz, n] = shape;
+            const std::int64_t v = std::int64_t{bx} * by * bz;
+            if (n == 1 && bx >= need.x && by >= need.y && bz >= need.z && v < best) {
+                best = v;
+                size = {bx, by, bz};
+            }
+        }
+        block_box.max = {block_box.min.x + size.x, block_box.min.y + size.y,
+                         block_box.min.z + size.z};
+        if (block_box.volume() <= kBatchVoxels) {
+            jobs.push_back({region, block_box.min});
+            block = {static_cast<std::uint32_t>(block_box.max.x - block_box.min.x),
+                     static_cast<std::uint32_t>(block_box.max.y - block_box.min.y),
+                     static_cast<std::uint32_t>(block_box.max.z - block_box.min.z)};
+        }
+    }
+    if (jobs.empty()) {
         block = tile_block(wd, halo_);
-        const std::int64_t s = kTileSize;
-        for_each_tile(tiles_of(region), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
-            const Box tile{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}};
-            jobs.push_back({intersect(tile, region), tile_origin(x, y, z, wd, block, halo_)});
-        });
+        for (const auto& [key, part] : parts) {
+            const Int3 t = tile_of_key(key);
+            jobs.push_back({part, tile_origin(t.x, t.y, t.z, wd, block, halo_)});
+        }
     }
     result.kernel_ms = compute(jobs, block);
     refresh_coarse(slots, nodes, &result.kernel_ms);

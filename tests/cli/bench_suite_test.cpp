@@ -373,6 +373,60 @@ TEST_F(BenchSuite, SparseTimesTheFieldAndDeviceEditsAndChecksThemExact) {
     }
 }
 
+// The sparse-sand suite on a small city: balls of sand and water dropped, the timed steps
+// recorded, the world and field after the last step equal to the CPU automaton's and the dense
+// bounded field; every option it does not take refused with one line before any work.
+TEST_F(BenchSuite, SparseSandStepsTheCityAndChecksItExact) {
+    const fs::path js = dir_ / "sparse-sand.json";
+    const RunResult r =
+        run({"bench", "--suite", "sparse-sand", "--sizes", "150x90x130", "--max-distance", "5",
+             "--repeat", "12", "--warmup", "1", "--device", "cpu", "--json", js.string()});
+    ASSERT_EQ(r.code, 0) << describe(r);
+    const json doc = json::parse(read_text(js));
+    expect_common(doc, "sparse-sand");
+    EXPECT_EQ(doc["scene"], "city");
+    EXPECT_EQ(doc["steps"], 12);
+    ASSERT_EQ(doc["results"].size(), 1u);
+    const json& row = doc["results"][0];
+    const std::string where = row.dump().substr(0, 200);
+    EXPECT_EQ(row["size"], std::vector<std::uint32_t>({150, 90, 130})) << where;
+    EXPECT_EQ(row["max_distance"], 5.0) << where;
+    EXPECT_EQ(row["format"], "u8") << where;
+    EXPECT_EQ(row["steps"], 12) << where;
+    EXPECT_EQ(row["step_warmup"], 1) << where;
+    EXPECT_EQ(row["exact"], true) << where;
+    EXPECT_GT(row["voxels_changed"].get<std::uint64_t>(), 0u) << where;
+    EXPECT_GT(row["drops"].get<std::uint64_t>(), 0u) << where;
+    ASSERT_EQ(row["samples_ms"].size(), 12u) << where;
+    for (const char* key : {"median_ms", "simulate_ms_median", "update_ms_median",
+                            "field_update_ms_median", "encode_ms_median", "tiles_run_median",
+                            "steps_per_s_wall", "field_kernel_ms", "peak_rss_bytes"}) {
+        ASSERT_TRUE(row.contains(key)) << where << " lacks " << key;
+        EXPECT_TRUE(finite_number(row[key])) << where << " " << key;
+    }
+    EXPECT_TRUE(row.contains("load_average_start")) << where;
+    for (const std::vector<std::string>& bad : {std::vector<std::string>{"--edits", "3"},
+                                                {"--compare-blocks"},
+                                                {"--world", "64"},
+                                                {"--scene", "city"},
+                                                {"--chunk", "8"},
+                                                {"--sizes", "2000000x8x8"},
+                                                {"--max-distance", "0", "--format", "u8"}}) {
+        std::vector<std::string> args = {"bench",
+                                         "--suite",
+                                         "sparse-sand",
+                                         "--device",
+                                         "cpu",
+                                         "--json",
+                                         (dir_ / "bad.json").string()};
+        args.insert(args.end(), bad.begin(), bad.end());
+        const RunResult b = run(args);
+        EXPECT_EQ(b.code, 2) << describe(b);
+        EXPECT_EQ(split_lines(b.err).size(), 1u) << describe(b);
+        EXPECT_FALSE(fs::exists(dir_ / "bad.json")) << bad[0];
+    }
+}
+
 TEST_F(BenchSuite, SuiteRefusesGridOptions) {
     const RunResult r = run({"bench", "--suite", "dissertation", "--sizes", "64"});
     EXPECT_EQ(r.code, 2) << describe(r);

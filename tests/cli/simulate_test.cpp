@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include "cli_test_util.hpp"
+#include "far_grid_util.hpp"
 
 #include <algorithm>
 #include <cstdint>
@@ -209,12 +210,70 @@ TEST_F(SimulateTest, BadInputExitsTwoAndWritesNothing) {
     EXPECT_EQ(list_dir(dir_), (std::set<std::string>{"world.npy"}));
 }
 
+// --sparse: the world as 64-trees stepped by SparseSand; --verify compares every step with the
+// dense automaton and the dense bounded field; the outputs equal the CPU reference world and
+// min(exact, D) of it. A world of several tiles (cut by the world's edge) as well as the
+// one-tile fixture.
+TEST_F(SimulateTest, SparseRunVerifiesAndEndsWithTheReferenceWorldAndCappedField) {
+    const fs::path world_out = dir_ / "world_out.npy", field_out = dir_ / "field_out.npy";
+    const fs::path json_out = dir_ / "sim.json";
+    RunResult r = run({"--steps", "12", "--seed", "3", "--sparse", "--verify", "--max-distance",
+                       "3.5", "--world-output", world_out.string(), "-o", field_out.string(),
+                       "--json", json_out.string()});
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_NE(r.out.find("verify:   world and field matched the dense automaton and the dense "
+                         "bounded field after every step"),
+              std::string::npos)
+        << r.out;
+    const World want = reference(12, 3, SandRules{});
+    EXPECT_EQ(read_npy(world_out).data, want.voxels());
+    std::vector<double> capped = reference_distance(want, Metric::manhattan, Spacing{});
+    for (double& v : capped) {
+        v = std::min(v, 3.5);
+    }
+    EXPECT_EQ(read_npy(field_out).data,
+              encode_real_field(capped, want, Palette::magicavoxel_default(), Format::u16));
+    const json j = json::parse(read_text(json_out));
+    EXPECT_EQ(j["sparse"], true);
+    EXPECT_EQ(j["max_distance"], 3.5);
+    ASSERT_EQ(j["steps"].size(), 12u);
+    EXPECT_TRUE(j["steps"][0].contains("tiles_run")) << j["steps"][0].dump();
+    EXPECT_GT(j["summary"]["voxels_changed"].get<std::size_t>(), 0u);
+
+    const fs::path big = dir_ / "big.npy";
+    const NpyArray a = npy_from_world(scene_sand(Dims{130, 70, 66}, 4));
+    write_npy(big, a.type, a.dims, a.data);
+    r = run_voxfield({"simulate", big.string(), "--steps", "10", "--sparse", "--verify",
+                      "--max-distance", "6", "--sand-material", "3", "--water-material", "2"},
+                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_NE(r.out.find("verify:"), std::string::npos) << r.out;
+}
+
+// What a sparse run cannot do on a world too large for one dense array is refused with one
+// line, before any work: --verify, -o and --world-output.
+TEST_F(SimulateTest, SparseRefusesDenseOutputsOfHugeWorlds) {
+    const fs::path grid = io_ / "far.vdb";
+    write_far_cubes_vdb(grid);
+    for (const std::vector<std::string>& extra : {std::vector<std::string>{"--verify"},
+                                                  {"-o", (dir_ / "f.npy").string()},
+                                                  {"--world-output", (dir_ / "w.npy").string()}}) {
+        std::vector<std::string> args = {"simulate", grid.string(), "--steps", "2", "--sparse"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        const RunResult r = run_voxfield(args, io_);
+        EXPECT_EQ(r.code, 2) << describe(r);
+        EXPECT_EQ(split_lines(r.err).size(), 1u) << describe(r);
+        EXPECT_NE(r.err.find("one dense array"), std::string::npos) << describe(r);
+    }
+    EXPECT_EQ(list_dir(dir_), (std::set<std::string>{"world.npy"}));
+}
+
 TEST_F(SimulateTest, HelpDescribesEveryOption) {
     const RunResult r = run_voxfield({"simulate", "--help"}, io_);
     ASSERT_EQ(r.code, 0) << describe(r);
     for (const char* option :
          {"--steps", "--sand-material", "--water-material", "--seed", "--world-output", "--output",
-          "--metric", "--spacing", "--format", "--device", "--verify", "--json"}) {
+          "--metric", "--spacing", "--format", "--device", "--verify", "--json", "--sparse"}) {
         EXPECT_NE(r.out.find(option), std::string::npos) << option << "\n" << r.out;
     }
 }

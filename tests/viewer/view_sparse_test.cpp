@@ -17,6 +17,9 @@
 #include "../cli/far_grid_util.hpp"
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/npy.hpp"
+#include "voxfield/core/palette.hpp"
+#include "voxfield/core/sand.hpp"
+#include "voxfield/core/vox.hpp"
 #include "voxfield/core/world.hpp"
 
 namespace voxfield::test {
@@ -121,6 +124,56 @@ TEST_F(ViewSparse, EditedWindowEqualsRenderOfTheEditedWorld) {
     EXPECT_EQ(read_text(shot), read_text(rendered)) << "the window's frame differs from render's";
 }
 
+// --simulate on a sparse world: after 9 frames (9 steps of the automaton with --seed) the
+// window's screenshot equals `render --sparse` of the world stepped 9 times by the CPU
+// reference. A .vox keeps its palette in both; a floor and a pillar fix the solids' box, so
+// that both default cameras agree.
+TEST_F(ViewSparse, SimulatedWindowEqualsRenderOfTheSteppedWorld) {
+    if (!have_xvfb()) {
+        GTEST_SKIP() << "xvfb-run is not installed (setup.sh installs it)";
+    }
+    const SandRules rules;
+    World w(Dims{90, 70, 80});
+    for (std::uint32_t z = 0; z < 80; ++z) {
+        for (std::uint32_t x = 0; x < 90; ++x) {
+            w.set(x, 0, z, 1);
+        }
+    }
+    for (std::uint32_t y = 0; y < 70; ++y) {
+        w.set(89, y, 79, 1);
+    }
+    for (std::uint32_t z = 20; z < 40; ++z) {
+        for (std::uint32_t y = 30; y < 50; ++y) {
+            for (std::uint32_t x = 10; x < 30; ++x) {
+                w.set(x, y, z, rules.sand);
+                w.set(x + 40, y - 20, z + 20, rules.water);
+            }
+        }
+    }
+    const Palette palette = Palette::magicavoxel_default();
+    const fs::path world = dir_ / "world.vox";
+    write_vox(world, w, palette);
+    const fs::path shot = dir_ / "viewed.png";
+    const int code = run_under_xvfb(
+        {"view", world.string(), "--sparse", "--simulate", "--seed", "5", "--frames", "9",
+         "--shading", "flat", "--width", "160", "--height", "120", "--screenshot", shot.string()},
+        io_ / "xvfb.log");
+    const std::string log = read_text(io_ / "xvfb.log");
+    ASSERT_EQ(code, 0) << log;
+    EXPECT_NE(log.find("sand steps 9"), std::string::npos) << log;
+    for (std::uint64_t step = 0; step < 9; ++step) {
+        sand_step(w, rules, 5, step);
+    }
+    const fs::path stepped = dir_ / "stepped.vox", rendered = dir_ / "rendered.png";
+    write_vox(stepped, w, palette);
+    const RunResult r =
+        run_voxfield({"render", stepped.string(), "--sparse", "-o", rendered.string(), "--width",
+                      "160", "--height", "120", "--shading", "flat"},
+                     io_);
+    ASSERT_EQ(r.code, 0) << describe(r);
+    EXPECT_EQ(read_text(shot), read_text(rendered)) << "the window's frame differs from render's";
+}
+
 // The script's click at the crosshair places the brush aimed at on the sparse world (picking
 // through SparseWorld::at), a right click erases; the script's shading select applies.
 TEST_F(ViewSparse, ScriptedClicksEditTheSparseWorld) {
@@ -200,7 +253,6 @@ TEST_F(ViewSparse, HugeGridGoesSparseWithoutTheFlag) {
 
 TEST_F(ViewSparse, WhatSparseWorldsRefuseExitsTwo) {
     const std::vector<std::vector<std::string>> refused = {
-        {"view", "--scene", "city", "--world", "64", "--sparse", "--simulate", "--benchmark"},
         {"view", "--scene", "city", "--world", "64", "--sparse", "--benchmark", "--world-output",
          (dir_ / "w.npy").string()},
         {"view", "--scene", "city", "--world", "64", "--sparse", "--benchmark", "--present", "gpu"},

@@ -24,30 +24,7 @@
 #include "voxfield/core/stats.hpp"
 
 namespace voxfield::cli {
-namespace {
 
-using nlohmann::json;
-
-constexpr std::int64_t kEditRadius = 8;
-
-double peak_rss_bytes() {
-    rusage u{};
-    getrusage(RUSAGE_SELF, &u);
-    return static_cast<double>(u.ru_maxrss) * 1024.0;
-}
-
-// The machine's load averages (1, 5, 15 minutes; /proc/loadavg), null where unreadable: other
-// work on the machine slows a CPU device's run.
-json load_average() {
-    std::ifstream in("/proc/loadavg");
-    double a = 0, b = 0, c = 0;
-    if (!(in >> a >> b >> c)) {
-        return json();
-    }
-    return {a, b, c};
-}
-
-// The options of the row: the bench flags' metric, spacing, sign and bound, the format given.
 ocl::GeneratorOptions sparse_options(const SuiteOptions& o) {
     GeneratorFlags flags = o.field;
     flags.algorithm = "exact";
@@ -55,6 +32,12 @@ ocl::GeneratorOptions sparse_options(const SuiteOptions& o) {
     return ocl::resolve_sparse_options(
         generator_options(flags, parse_format(o.format), Dims{1, 1, 1}), true);
 }
+
+namespace {
+
+using nlohmann::json;
+
+constexpr std::int64_t kEditRadius = 8;
 
 // The highest solid voxel of column (x, z), or 0.
 std::int64_t surface(const SparseWorld& w, std::uint32_t x, std::uint32_t z) {
@@ -352,20 +335,39 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
 
 }  // namespace
 
+double peak_rss_bytes() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return static_cast<double>(u.ru_maxrss) * 1024.0;
+}
+
+json load_average() {
+    std::ifstream in("/proc/loadavg");
+    double a = 0, b = 0, c = 0;
+    if (!(in >> a >> b >> c)) {
+        return json();
+    }
+    return {a, b, c};
+}
+
+void check_sparse_suite_options(const SuiteOptions& o) {
+    sparse_options(o);
+    for (const Dims& dims : o.sizes) {
+        if (dims.x > kMaxSparseAxis || dims.y > kMaxSparseAxis || dims.z > kMaxSparseAxis) {
+            throw InputError("--sizes " + dims.to_string() + ": a sparse world takes at most " +
+                             std::to_string(kMaxSparseAxis) + " voxels per axis");
+        }
+    }
+}
+
 json run_sparse(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t repeat,
                 std::uint32_t warmup, BenchObserver& observer) {
     const std::vector<Dims> sizes =
         !o.sizes.empty() ? o.sizes
                          : std::vector<Dims>{o.quick ? Dims{256, 128, 256} : Dims{1024, 256, 1024}};
     const std::uint32_t edits = o.edits != 0 ? o.edits : (o.quick ? 6 : 30);
-    sparse_options(o);  // bad options refused before the first row
+    check_sparse_suite_options(o);  // bad options refused before the first row
     json rows = json::array();
-    for (const Dims& dims : sizes) {
-        if (dims.x > kMaxSparseAxis || dims.y > kMaxSparseAxis || dims.z > kMaxSparseAxis) {
-            throw InputError("--sizes " + dims.to_string() + ": a sparse world takes at most " +
-                             std::to_string(kMaxSparseAxis) + " voxels per axis");
-        }
-    }
     for (const Dims& dims : sizes) {
         rows.push_back(sparse_row(ctx, o, dims, repeat, warmup, edits, observer));
         const json& r = rows.back();

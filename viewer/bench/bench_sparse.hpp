@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "bench_suites.hpp"
+#include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/runtime.hpp"
 
 namespace voxfield::cli {
@@ -17,6 +18,15 @@ namespace voxfield::cli {
 // One row per size in `o.sizes` (default 1024x256x1024, --quick 256x128x256): `o.field`'s
 // metric, spacing, sign and --max-distance (default 16), `o.format` (default u8); `o.edits`
 // timed edits (default 30, --quick 6) after `warmup` untimed ones; `repeat` whole-field runs.
+// The options of a sparse row: the bench flags' metric, spacing, sign and bound (default 16),
+// the format given; InputError for a bad combination.
+ocl::GeneratorOptions sparse_options(const SuiteOptions& o);
+// The process's peak resident memory (bytes, getrusage).
+double peak_rss_bytes();
+// The machine's load averages (1, 5, 15 minutes; /proc/loadavg), null where unreadable: other
+// work on the machine slows a CPU device's run.
+nlohmann::json load_average();
+
 nlohmann::json run_sparse(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t repeat,
                           std::uint32_t warmup, BenchObserver& observer);
 

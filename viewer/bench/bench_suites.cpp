@@ -10,6 +10,7 @@
 
 #include "bench_implicit.hpp"
 #include "bench_sparse.hpp"
+#include "bench_sparse_sand.hpp"
 #include "cli_util.hpp"
 #include "edit_log.hpp"
 #include "sand_run.hpp"
@@ -755,8 +756,8 @@ json run_sand(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t n, std::ui
 }  // namespace
 
 const std::vector<std::string>& suite_names() {
-    static const std::vector<std::string> names = {"dissertation", "edits",    "render",
-                                                   "sand",         "implicit", "sparse"};
+    static const std::vector<std::string> names = {"dissertation", "edits",  "render",     "sand",
+                                                   "implicit",     "sparse", "sparse-sand"};
     return names;
 }
 
@@ -810,6 +811,12 @@ json run_suite(ocl::Context& ctx, const SuiteOptions& o, BenchObserver& observer
         doc["scene"] = "city";
         doc["repeat"] = o.repeat != 0 ? o.repeat : 1;
         rows = run_sparse(ctx, o, doc["repeat"].get<std::uint32_t>(), plan.warmup, observer);
+    } else if (o.suite == "sparse-sand") {
+        const std::uint32_t steps = o.repeat != 0 ? o.repeat : (o.quick ? 10 : 100);
+        doc["scene"] = "city";
+        doc["steps"] = steps;
+        doc["repeat"] = steps;
+        rows = run_sparse_sand(ctx, o, steps, plan.warmup, plan.budget_s, observer);
     } else {
         rows = run_render(ctx, plan, o.quick, observer);
     }

@@ -29,8 +29,8 @@ struct SuiteOptions {
     std::uint32_t world = 0;      // edits, sand: the world's edge; 0: the suite's default
     std::string format = "u16";   // edits: the field format
     std::string implicit_part;    // implicit: the part's .sdf.json (data/parts/bracket.sdf.json)
-    std::vector<Dims> sizes;      // sparse: the worlds (empty: the suite's default)
-    GeneratorFlags field;         // sparse: metric, spacing, sign, --max-distance
+    std::vector<Dims> sizes;      // sparse, sparse-sand: the worlds (empty: the suite's default)
+    GeneratorFlags field;         // sparse, sparse-sand: metric, spacing, sign, --max-distance
     bool compare_blocks = false;  // sparse: also time the whole field by blocks (--compare-blocks)
 };
 
@@ -51,8 +51,12 @@ class BenchObserver {
     virtual void row(const nlohmann::json& /*row*/) {}
 };
 
-// "dissertation", "edits", "render", "sand", "implicit", "sparse".
+// "dissertation", "edits", "render", "sand", "implicit", "sparse", "sparse-sand".
 const std::vector<std::string>& suite_names();
+
+// Throws InputError for the options of a sparse suite (sparse, sparse-sand) that it cannot take
+// (sizes over kMaxSparseAxis, a bad metric, bound or format), before any device is opened.
+void check_sparse_suite_options(const SuiteOptions& o);
 
 // Runs suite `o.suite` on `ctx` (the render suite also opens a Vulkan context of its own) and
 // returns its document: {"device", "commit", "date", "suite", "quick", "scene", "seed",

@@ -25,6 +25,30 @@ std::vector<SandStepRecord> run_sand_steps(
     return records;
 }
 
+std::vector<SandStepRecord> run_sparse_sand_steps(
+    ocl::SparseSand& sim, std::uint64_t seed, std::uint64_t steps,
+    const std::function<bool(const SandStepRecord&)>& after,
+    std::vector<std::pair<std::uint32_t, std::uint32_t>>* tiles) {
+    using Clock = std::chrono::steady_clock;
+    std::vector<SandStepRecord> records;
+    for (std::uint64_t step = 0; step < steps; ++step) {
+        const auto t0 = Clock::now();
+        const ocl::SparseSand::Step u = sim.step(seed, step);
+        const auto t1 = Clock::now();
+        records.push_back({step, u.simulate_ms, u.update_ms,
+                           std::chrono::duration<double, std::milli>(t1 - t0).count(),
+                           static_cast<std::size_t>(u.changed),
+                           static_cast<std::uint64_t>(u.update.recomputed.volume()), false});
+        if (tiles != nullptr) {
+            tiles->emplace_back(u.tiles_run, u.tiles_changed);
+        }
+        if (after && !after(records.back())) {
+            break;
+        }
+    }
+    return records;
+}
+
 SandRunSummary summarize_run(const std::vector<SandStepRecord>& records) {
     SandRunSummary out;
     std::vector<double> simulate_ms, update_ms, step_ms;

@@ -5,10 +5,12 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "voxfield/cl/sparse_sand.hpp"
 #include "voxfield/core/sand.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/pipeline/scene.hpp"
@@ -41,6 +43,14 @@ void warm_up_updates(Field& field) {
 std::vector<SandStepRecord> run_sand_steps(
     pipeline::Scene& scene, const SandRules& rules, std::uint64_t seed, std::uint64_t steps,
     const std::function<bool(const SandStepRecord&)>& after = {});
+
+// The same loop on a sparse world (ocl::SparseSand, `simulate --sparse` and `bench --suite
+// sparse-sand`): steps [0, steps); a record's voxels_recomputed is the volume of the field's
+// recomputed hull. `tiles` (if set) receives each step's tiles run and tiles changed.
+std::vector<SandStepRecord> run_sparse_sand_steps(
+    ocl::SparseSand& sim, std::uint64_t seed, std::uint64_t steps,
+    const std::function<bool(const SandStepRecord&)>& after = {},
+    std::vector<std::pair<std::uint32_t, std::uint32_t>>* tiles = nullptr);
 
 // What `simulate` and `bench --suite sand` report of a run: per-step device-time statistics,
 // totals, and each step as JSON ({"step", "simulate_ms", "update_ms", "wall_ms",

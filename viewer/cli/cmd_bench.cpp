@@ -200,7 +200,12 @@ Command add_bench(CLI::App& root) {
            "per --sizes XxYxZ, default 1024x256x1024, --quick 256x128x256: whole "
            "bounded field at --max-distance, default 16, --repeat times, default 1; "
            "--edits radius-8 edits on the device, default 30, --quick 6; --format "
-           "default u8; --metric, --spacing, --signed)")
+           "default u8; --metric, --spacing, --signed), sparse-sand (the city scene as "
+           "a sparse world per --sizes, default 512x128x512, --quick 256x128x256, its "
+           "snow falling as sand and its lakes flowing as water: --repeat steps, default "
+           "100, --quick 10, after --warmup untimed ones, with the bounded field at "
+           "--max-distance updated every step; --format, --metric, --spacing, --signed "
+           "as sparse)")
         ->check(CLI::IsMember(suite_names()));
     app->add_flag("--quick", o->quick,
                   "Suites: smaller sizes and fewer runs (minutes on a 2-core CPU; what CI runs)");
@@ -229,13 +234,14 @@ Command add_bench(CLI::App& root) {
                     }
                     return run_bench(*o);
                 }
-                const bool sparse = o->suite == "sparse";
+                const bool sparse_sand = o->suite == "sparse-sand";
+                const bool sparse = o->suite == "sparse" || sparse_sand;
                 for (const char* flag : {"--algorithms", "--sizes", "--scene"}) {
                     if (app->count(flag) != 0 && !(sparse && std::string(flag) == "--sizes")) {
                         throw InputError(std::string(flag) +
                                          " does not apply to --suite (a suite fixes its "
-                                         "algorithms, sizes and scene; --suite sparse takes "
-                                         "--sizes)");
+                                         "algorithms, sizes and scene; --suite sparse and "
+                                         "sparse-sand take --sizes)");
                     }
                 }
                 if (o->suite != "edits" && app->count("--chunk") != 0) {
@@ -245,8 +251,13 @@ Command add_bench(CLI::App& root) {
                     (app->count("--edits") != 0 || app->count("--format") != 0)) {
                     throw InputError("--edits and --format apply to --suite edits and sparse only");
                 }
+                if (sparse_sand && app->count("--edits") != 0) {
+                    throw InputError(
+                        "--edits does not apply to --suite sparse-sand (--repeat is "
+                        "its step count)");
+                }
 
-                if (!sparse && o->compare_blocks) {
+                if (o->suite != "sparse" && o->compare_blocks) {
                     throw InputError("--compare-blocks applies to --suite sparse only");
                 }
                 if (o->suite != "edits" && o->suite != "sand" && app->count("--world") != 0) {
@@ -266,11 +277,14 @@ Command add_bench(CLI::App& root) {
                 s.world = o->world;
                 s.format = o->format.empty() ? (sparse ? "u8" : "u16") : o->format;
                 if (sparse) {
-                    for (const auto& size : o->sizes) {
+                    // Without --sizes, the suite's own default (not the grid's).
+                    for (const auto& size :
+                         app->count("--sizes") != 0 ? o->sizes : std::vector<std::string>{}) {
                         s.sizes.push_back(parse_size(size));
                     }
                     s.field = o->field;
                     s.compare_blocks = o->compare_blocks;
+                    check_sparse_suite_options(s);  // before the device is opened
                 }
                 return run_suite_command(s, *o);
             }};

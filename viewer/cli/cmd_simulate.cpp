@@ -18,11 +18,14 @@
 #include "progress.hpp"
 #include "sand_run.hpp"
 #include "voxfield/cl/generator.hpp"
+#include "voxfield/cl/sand.hpp"
+#include "voxfield/cl/sparse_sand.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/format.hpp"
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/output.hpp"
 #include "voxfield/core/sand.hpp"
+#include "voxfield/core/sparse.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/pipeline/scene.hpp"
@@ -40,7 +43,7 @@ struct SimulateOptions {
     std::int64_t steps = -1;
     int sand = SandRules{}.sand, water = SandRules{}.water;
     std::string seed = "1";
-    bool verify = false;
+    bool verify = false, sparse = false;
 };
 
 SandRules rules_of(const SimulateOptions& o) {
@@ -108,6 +111,204 @@ std::string field_difference(const std::vector<std::uint8_t>& incremental,
     return s.str();
 }
 
+// Refuses an output of one dense array for a world too large for one.
+void require_dense(Dims dims, const std::string& flag) {
+    if (dims.count() > kMaxDenseVoxels) {
+        throw InputError(flag + " needs the world as one dense array, and " + dims.to_string() +
+                         " has more than " + std::to_string(kMaxDenseVoxels) + " voxels");
+    }
+}
+
+// `simulate --sparse`: the world as a tile grid of 64-trees, stepped by ocl::SparseSand with
+// its bounded field (--max-distance, default 16) updated within D of each step's changes;
+// --verify compares world and field after every step with the dense automaton on the same
+// device (ocl::SandSimulator on a dense copy) and the dense bounded field of its world.
+int run_simulate_sparse(const SimulateOptions& o, const SandRules& rules, std::uint64_t seed,
+                        Format format) {
+    Progress progress("simulate");
+    progress.set("reading the world");
+    SparseModel model = load_sparse_world(o.input, InputOptions{"", format == Format::packed32});
+    SparseWorld& world = model.world;
+    const Dims dims = world.dims();
+    const ocl::GeneratorOptions options =
+        ocl::resolve_sparse_options(generator_options(o.generator, format, dims), true);
+    if (!o.world_output.empty()) {
+        require_dense(dims, "--world-output");
+    }
+    if (!o.output.empty()) {
+        require_dense(dims, "-o");
+    }
+    if (o.verify) {
+        require_dense(dims, "--verify (the dense automaton and field)");
+    }
+    progress.set("setting up the device");
+    ocl::Context ctx(ocl::select_device(o.device));
+    progress.set("computing the field");
+    ocl::SparseField field(ctx, world, model.palette, options);
+    const double full_ms = field.run();
+    ocl::SparseSand sim(ctx, field, rules);
+
+    // --verify: the dense automaton on a device copy of the world, and the dense bounded field.
+    std::unique_ptr<World> dense;
+    cl::Buffer dense_voxels;
+    std::unique_ptr<ocl::SandSimulator> dense_sim;
+    if (o.verify) {
+        dense = std::make_unique<World>(world.to_dense());
+        dense_voxels = cl::Buffer(ctx.context(), CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR,
+                                  dense->voxels().size(), dense->voxels().data());
+        dense_sim = std::make_unique<ocl::SandSimulator>(ctx, dense_voxels, dims, rules);
+    }
+    auto verify = [&](const std::string& when) {
+        const std::vector<std::uint8_t>& want_world = dense->voxels();
+        const std::vector<std::uint8_t> got_world = field.world().to_dense().voxels();
+        std::string diff;
+        if (got_world != want_world) {
+            const auto at = static_cast<std::size_t>(
+                std::mismatch(got_world.begin(), got_world.end(), want_world.begin()).first -
+                got_world.begin());
+            diff = "the sparse world differs from the dense automaton's at voxel (" +
+                   std::to_string(at % dims.x) + "," + std::to_string(at / dims.x % dims.y) + "," +
+                   std::to_string(at / (std::size_t{dims.x} * dims.y)) +
+                   "): " + std::to_string(got_world[at]) + " vs " + std::to_string(want_world[at]);
+        } else {
+            const std::vector<std::uint8_t> full =
+                ocl::generate(ctx, *dense, model.palette, options).bytes;
+            diff = field_difference(field.read_dense(), full, format, dims);
+            if (!diff.empty()) {
+                diff = "the sparse field differs from the dense bounded field (" +
+                       to_string(options.metric) + ", " + to_string(format) + "): " + diff;
+            }
+        }
+        if (diff.empty()) {
+            return true;
+        }
+        progress.stop();
+        std::cerr << "voxfield: simulate --sparse --verify failed " << when << ": " << diff << '\n';
+        return false;
+    };
+    if (o.verify && !verify("before the first step")) {
+        return 1;
+    }
+    const auto steps = static_cast<std::uint64_t>(o.steps);
+    bool verified = true;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> tiles;
+    const std::vector<SandStepRecord> records = run_sparse_sand_steps(
+        sim, seed, steps,
+        [&](const SandStepRecord& r) {
+            if (o.verify) {
+                dense_sim->step(seed, r.step);
+                ctx.queue().enqueueReadBuffer(dense_voxels, CL_TRUE, 0, dense->voxels().size(),
+                                              dense->voxels().data());
+                if (!verify("after step " + std::to_string(r.step))) {
+                    verified = false;
+                    return false;
+                }
+            }
+            progress.set("step " + std::to_string(r.step + 1) + "/" + std::to_string(steps) +
+                         (o.verify ? " (verifying)" : ""));
+            return true;
+        },
+        &tiles);
+    if (!verified) {
+        return 1;
+    }
+    progress.set("writing the outputs");
+    OutputBatch outputs;
+    if (!o.world_output.empty()) {
+        const NpyArray w = npy_from_world(field.world().to_dense());
+        write_npy(outputs, o.world_output, w.type, w.dims, w.data);
+    }
+    if (!o.output.empty()) {
+        write_npy(outputs, o.output, npy_type(format), dims, field.read_dense());
+    }
+    const SandRunSummary sm = summarize_run(records);
+    std::vector<double> run, changed;
+    for (const auto& [r, c] : tiles) {
+        run.push_back(r);
+        changed.push_back(c);
+    }
+    const Summary tiles_run = summarize(run), tiles_changed = summarize(changed);
+    const auto rate = [&](double ms) {
+        return ms > 0 ? fixed(static_cast<double>(steps) * 1000.0 / ms, 1) : std::string("-");
+    };
+    progress.stop();
+    std::cout << "device:   " << ctx.info().name << " (" << ctx.info().platform << ", "
+              << ctx.info().type << "), sparse sand windows\n"
+              << "world:    " << o.input << "  " << dims.to_string()
+              << ", sparse: " << world.tile_count() << " tiles, sand material " << int{rules.sand}
+              << ", water material " << int{rules.water} << ", seed " << seed << '\n'
+              << "field:    exact bounded (sparse, D " << *options.max_distance << ") "
+              << to_string(options.metric)
+              << (options.spacing.unit() ? "" : ", spacing " + options.spacing.to_string()) << ", "
+              << to_string(format) << '\n'
+              << "steps:    " << steps << ", " << sm.voxels_changed << " voxels changed; tiles run "
+              << "per step median " << fixed(tiles_run.median, 0) << ", changed median "
+              << fixed(tiles_changed.median, 0) << '\n'
+              << "rate:     " << rate(sm.device_ms) << " steps/s (device time), "
+              << rate(sm.wall_ms) << " steps/s (wall clock, host included)\n"
+              << "simulate: median " << fixed(sm.simulate.median, 4) << " ms, mean "
+              << fixed(sm.simulate.mean, 4) << " ms, max " << fixed(sm.simulate.max, 4) << " ms\n"
+              << "update:   median " << fixed(sm.update.median, 4) << " ms, mean "
+              << fixed(sm.update.mean, 4) << " ms, max " << fixed(sm.update.max, 4)
+              << " ms (encoding and field)\n"
+              << "full:     " << fixed(full_ms, 4) << " ms (the starting world's whole field)\n";
+    if (o.verify) {
+        std::cout << "verify:   world and field matched the dense automaton and the dense "
+                     "bounded field after every step\n";
+    }
+    if (!o.world_output.empty()) {
+        std::cout << "wrote:    " << o.world_output << " (world)\n";
+    }
+    if (!o.output.empty()) {
+        std::cout << "wrote:    " << o.output << " (field)\n";
+    }
+    if (!o.json.empty()) {
+        nlohmann::json per_step = sm.per_step;
+        for (std::size_t i = 0; i < per_step.size() && i < tiles.size(); ++i) {
+            per_step[i]["tiles_run"] = tiles[i].first;
+            per_step[i]["tiles_changed"] = tiles[i].second;
+        }
+        const auto per_s = [&](double ms) {
+            return ms > 0 ? nlohmann::json(static_cast<double>(steps) * 1000.0 / ms)
+                          : nlohmann::json();
+        };
+        const nlohmann::json j = {
+            {"device", device_json(ctx.info())},
+            {"commit", commit()},
+            {"input", o.input},
+            {"size", {dims.x, dims.y, dims.z}},
+            {"sparse", true},
+            {"tiles", world.tile_count()},
+            {"metric", to_string(options.metric)},
+            {"spacing", {options.spacing.x, options.spacing.y, options.spacing.z}},
+            {"max_distance", *options.max_distance},
+            {"format", to_string(format)},
+            {"sand_material", rules.sand},
+            {"water_material", rules.water},
+            {"seed", seed},
+            {"verified", o.verify},
+            {"full_field_ms", full_ms},
+            {"steps", per_step},
+            {"summary",
+             {{"steps", steps},
+              {"steps_per_s_device", per_s(sm.device_ms)},
+              {"steps_per_s_wall", per_s(sm.wall_ms)},
+              {"median_simulate_ms", sm.simulate.median},
+              {"median_update_ms", sm.update.median},
+              {"mean_simulate_ms", sm.simulate.mean},
+              {"mean_update_ms", sm.update.mean},
+              {"median_tiles_run", tiles_run.median},
+              {"median_tiles_changed", tiles_changed.median},
+              {"voxels_changed", sm.voxels_changed}}}};
+        outputs.write(o.json, j.dump(2) + "\n");
+    }
+    outputs.commit();
+    if (!o.json.empty()) {
+        std::cout << "wrote:    " << o.json << " (timings)\n";
+    }
+    return 0;
+}
+
 int run_simulate(const SimulateOptions& o) {
     if (o.steps < 0) {
         throw InputError("--steps must be a step count >= 0, got " + std::to_string(o.steps));
@@ -116,6 +317,9 @@ int run_simulate(const SimulateOptions& o) {
     const std::uint64_t seed = parse_seed(o.seed);
     const Format format = field_format(o.generator, o.format);
     check_outputs(o);
+    if (o.sparse) {
+        return run_simulate_sparse(o, rules, seed, format);
+    }
     const VoxModel model = load_world(o.input);
     const Dims dims = model.world.dims();
     const ocl::GeneratorOptions options = generator_options(o.generator, format, dims);
@@ -310,6 +514,11 @@ Command add_simulate(CLI::App& root) {
                   "After every step, compare the field byte for byte with a full regeneration "
                   "of the current world (same options); exit 1 at the first difference, naming "
                   "the step and the voxel");
+    app->add_flag("--sparse", o->sparse,
+                  "Store the world as a tile grid of 64-trees and step it there: only the tiles "
+                  "near recent changes run, and the bounded field (--max-distance, default 16) is "
+                  "updated within D of each step's changes; --verify then compares with the "
+                  "dense automaton and the dense bounded field");
     app->add_option("--json", o->json,
                     "Write per-step device times (simulate, update) and voxels changed, and the "
                     "full-regeneration time of the starting world on the same device, to this "

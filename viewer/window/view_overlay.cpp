@@ -325,6 +325,13 @@ void draw_sparse_overlay(const SparseOverlayInfo& info, ViewControls& controls,
         "%u written, %u removed",
         static_cast<unsigned long long>(info.edits), info.edit_ms, info.field_kernel_ms,
         info.readback_ms, info.tracer_ms, info.tiles_written, info.tiles_removed);
+    if (info.simulate) {
+        ImGui::Text("sand%s: step %llu, %.3f ms, %llu voxels moved, tiles %u run, %u changed",
+                    controls.sand_paused ? " (paused, N steps)" : "",
+                    static_cast<unsigned long long>(info.sand_steps), info.sand_ms,
+                    static_cast<unsigned long long>(info.sand_changed), info.sand_tiles_run,
+                    info.sand_tiles_changed);
+    }
     ImGui::Text("brush: %s %s, size %lld, colour %d; no undo on sparse worlds",
                 controls.paint_mode ? "paint" : "place", to_string(controls.brush.shape).c_str(),
                 static_cast<long long>(controls.brush.size), controls.brush.material);

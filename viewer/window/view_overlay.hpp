@@ -64,6 +64,12 @@ struct SparseOverlayInfo {
     double edit_ms = 0, field_kernel_ms = 0, readback_ms = 0, tracer_ms = 0;
     std::uint32_t tiles_written = 0, tiles_removed = 0;
     std::uint64_t edits = 0;
+    // --simulate: steps run, the last one's wall time (step, field, read-back and tracer), the
+    // voxels it changed and the tiles it ran and changed.
+    std::uint64_t sand_steps = 0, sand_changed = 0;
+    double sand_ms = 0;
+    std::uint32_t sand_tiles_run = 0, sand_tiles_changed = 0;
+    bool simulate = false;
 };
 
 // The sparse viewer's overlay (ImGui::Render included): crosshair and brush preview as on dense

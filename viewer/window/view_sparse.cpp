@@ -2,6 +2,7 @@
 #include "view_sparse.hpp"
 
 #include <algorithm>
+#include <filesystem>
 #include <iostream>
 #include <optional>
 #include <string>
@@ -17,8 +18,10 @@
 #include "view_session.hpp"
 #include "voxfield/cl/runtime.hpp"
 #include "voxfield/cl/sparse_field.hpp"
+#include "voxfield/cl/sparse_sand.hpp"
 #include "voxfield/core/clock.hpp"
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/sand.hpp"
 #include "voxfield/core/scene_file.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/sdf.hpp"
@@ -71,8 +74,7 @@ SparseView load_sparse_view(const ViewCliOptions& o) {
 
 // What sparse worlds do not take, refused before any device is opened.
 void check_sparse_options(const ViewCliOptions& o) {
-    const std::pair<bool, const char*> refused[] = {{o.simulate, "--simulate"},
-                                                    {!o.field_output.empty(), "--field-output"},
+    const std::pair<bool, const char*> refused[] = {{!o.field_output.empty(), "--field-output"},
                                                     {!o.world_output.empty(), "--world-output"}};
     if (o.present == "gpu") {
         throw InputError(
@@ -181,6 +183,14 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
     const auto t_load = Clock::now();
     SparseView view = load_sparse_view(o);
     SparseWorld& world = view.model.world;
+    const SandRules rules;
+    const std::string ext = std::filesystem::path(o.input).extension().string();
+    if (o.simulate && ext != ".vox" && ext != ".VOX") {
+        // As on dense worlds: a world without a palette of its own shows its falling
+        // materials as what they are.
+        view.model.palette[rules.sand] = Rgba{218, 186, 120, 255};
+        view.model.palette[rules.water] = Rgba{48, 110, 210, 255};
+    }
     const Palette& palette = view.model.palette;
     const double load_ms = ms_since(t_load);
     const Dims dims = world.dims();
@@ -193,6 +203,14 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
     const auto t_field = Clock::now();
     const double field_kernel_ms = field.run();
     const double field_ms = ms_since(t_field);
+    // --simulate: the automaton on the device's tiles (ocl::SparseSand), the stepped tiles read
+    // back and rewritten in the tracer as an edit's are.
+    std::optional<ocl::SparseSand> sand;
+    if (o.simulate) {
+        sand.emplace(cl_ctx, field, rules);
+    }
+    std::uint64_t sand_step = 0;
+    bool sand_single = false;
     vk::SparseTracer tracer(*vk_ctx);
     const auto t_upload = Clock::now();
     tracer.upload(field.world(), palette);
@@ -237,6 +255,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
     info.format = to_string(options.format);
     info.dims = dims;
     info.max_distance = options.max_distance.value_or(0);
+    info.simulate = o.simulate;
 
     std::vector<FrameRecord> records;
     std::vector<SparseEditRecord> edits;
@@ -276,6 +295,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             if (a.reset_camera) {
                 camera.reset();
             }
+            sand_single = sand_single || a.sand_step;
             if (a.history != History::none || a.save) {
                 std::cout << "sparse worlds keep no undo history and are not saved by the viewer "
                              "(`voxfield generate` writes .vdb)\n";
@@ -306,6 +326,9 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
         double update_ms = 0;
         for (std::size_t i = 0; i < batch.size(); ++i) {
             SparseEditRecord e = apply_edit(field, tracer, batch[i]);
+            if (sand) {
+                sand->touched(brush_bounds(batch[i], dims));
+            }
             e.time_s = time_s;
             e.bench = from_bench[i];
             update_ms += e.wall_ms;
@@ -317,6 +340,24 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             info.tiles_removed = e.tiles_removed;
             ++info.edits;
             edits.push_back(e);
+        }
+        double simulate_ms = -1;
+        std::size_t sand_changed = 0;
+        if (sand && (!controls.sand_paused || sand_single)) {
+            sand_single = false;
+            const auto t_step = Clock::now();
+            const ocl::SparseSand::Step st = sand->step(o.seed, sand_step++);
+            simulate_ms = st.simulate_ms;
+            sand_changed = static_cast<std::size_t>(st.changed);
+            if (!st.bounds.empty()) {
+                tracer.update_tiles(field.world(), st.bounds);
+            }
+            update_ms += ms_since(t_step);
+            info.sand_steps = sand_step;
+            info.sand_ms = ms_since(t_step);
+            info.sand_changed = st.changed;
+            info.sand_tiles_run = st.tiles_run;
+            info.sand_tiles_changed = st.tiles_changed;
         }
         double trace_ms = -1;
         if (fb_w > 0 && fb_h > 0) {
@@ -347,7 +388,8 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                 trace_ms = tracer.trace(render);
             }
         }
-        records.push_back({time_s, ms_since(t0), update_ms, 0, trace_ms, !batch.empty(), -1, 0});
+        records.push_back({time_s, ms_since(t0), update_ms, 0, trace_ms, !batch.empty(),
+                           simulate_ms, sand_changed});
         for (const ScriptAction& a : actions) {
             running = running && a.kind != ScriptAction::Kind::quit;
         }
@@ -376,7 +418,8 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
         write_png(o.window_screenshot, *shown);
         std::cout << "window screenshot " << o.window_screenshot << '\n';
     }
-    std::cout << "frames:  " << frame << ", edits " << edits.size() << '\n';
+    std::cout << "frames:  " << frame << ", edits " << edits.size()
+              << (sand ? ", sand steps " + std::to_string(sand_step) : std::string()) << '\n';
     if (bench) {
         const SparseWorld& w = field.world();
         const vk::SparseDeviceStats& ts = tracer.stats();

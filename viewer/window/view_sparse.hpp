@@ -20,7 +20,9 @@ namespace voxfield::cli {
 bool view_goes_sparse(const ViewCliOptions& o);
 
 // The viewer's loop on a sparse world; `window` is open or the caller chose to run headless.
-// InputError (exit 2) for what sparse worlds do not take: --simulate, --field-output,
+// With --simulate, falling sand and water (ocl::SparseSand, colours 2 and 3 as on dense worlds)
+// steps every frame unless paused (G; N steps once), the stepped tiles read back and rewritten
+// in the tracer. InputError (exit 2) for what sparse worlds do not take: --field-output,
 // --world-output, --present gpu, parts (.sdf.json, mixed scenes), generated scenes other than
 // city beyond one dense array, and the script's algorithm, metric and scene selections, save
 // and check.

@@ -70,6 +70,18 @@ class SparseDeviceWorld {
     // to date first) and uploaded. InputError as core's apply_brush; logic_error when read only.
     Box apply_brush(const Brush& brush);
     static constexpr std::uint32_t kMaxEditTiles = 64;
+    // A whole tile written by a kernel into a dense device buffer: its tile coordinates and
+    // the index of its voxel (0, 0, 0) in that buffer.
+    struct DenseTile {
+        Int3 tile;
+        std::uint64_t first = 0;
+    };
+    // Encodes `tiles` from `vox` (rows of `pitch_y`, slices of `pitch_z` voxels; 0 beyond the
+    // world) into the world on the device, as apply_brush encodes a brushed tile, with every
+    // 16^3 node read from `vox`. The caller keeps `vox` unchanged until the queue reaches the
+    // encoding. logic_error when read only.
+    void encode_dense_tiles(const cl::Buffer& vox, std::uint32_t pitch_y, std::uint32_t pitch_z,
+                            const std::vector<DenseTile>& tiles);
     // Device time of the kernels of the last apply_brush (ms; valid once the queue finished).
     double last_edit_kernel_ms() const;
     // The same per kernel (name, ms), in launch order.
@@ -98,6 +110,16 @@ class SparseDeviceWorld {
     void release_slots_if_needed();
     void host_changed_seen();
     Box host_apply_brush(const Brush& brush);
+    // Waits for the last edit's tables to reach the device (they are about to be rewritten).
+    void wait_edit_writes();
+    // Per tile of `keys` a fresh slot into host_slots_ (never the one its previous tree lies
+    // in: slots freed here are taken by later edits only).
+    void take_edit_slots(const std::vector<std::uint64_t>& keys);
+    // The edited tiles `keys` now live in host_slots_: the directory points there, the host lags.
+    void commit_edit_slots(const std::vector<std::uint64_t>& keys);
+    // Enqueues the encoding of `tiles` tiles from `vox` (edit_src_, edit_refs_, edit_slots_).
+    void enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t pitch_y, std::uint32_t pitch_z,
+                             std::uint32_t tiles);
 
     Context& ctx_;
     const SparseWorld& world_;

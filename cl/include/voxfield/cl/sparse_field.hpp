@@ -73,9 +73,19 @@ class SparseField {
     // for the brush's bounds; kernel_ms includes the edit's kernels. InputError as core's
     // apply_brush; logic_error for a read-only world.
     Update apply_brush(const Brush& brush);
+    // After a kernel wrote whole tiles of the world into `vox` on the device (the sparse sand
+    // simulation, sparse_sand.hpp): encodes them into the world there
+    // (SparseDeviceWorld::encode_dense_tiles) and recomputes the voxels within D of the boxes
+    // `changed` , as update()
+    // does for one box. kernel_ms includes the encoding (edit_kernel_ms); recomputed is the
+    // hull of the recomputed boxes. logic_error for a read-only world.
+    Update apply_dense_tiles(const cl::Buffer& vox, std::uint32_t pitch_y, std::uint32_t pitch_z,
+                             const std::vector<SparseDeviceWorld::DenseTile>& tiles,
+                             const std::vector<Box>& changed);
     // The world, brought up to date with the device's edits first.
     const SparseWorld& world() { return device_world_.world(); }
     const SparseDeviceWorld& device_world() const { return device_world_; }
+    SparseDeviceWorld& device_world() { return device_world_; }
 
     // The last run()'s or update's work: dense blocks and batches, voxels gathered and
     // transformed (halos included) and voxels written (the blocks' regions); kernel ms per
@@ -139,8 +149,10 @@ class SparseField {
     double sweep();
     double settle_scatters();
     void add_stage(const std::string& name, double ms);
-    // Recomputes the voxels within D of `changed` (the device's world already edited).
-    Update recompute(const Box& changed);
+    // Recomputes the voxels within D of the boxes `changed` (the device's world already
+    // edited): one box in one block (tile by tile when that is too large), several in one
+    // block of their hull when it is small, else tile by tile.
+    Update recompute(const std::vector<Box>& changed);
     // The slot of field tile `key`, made dense (filled with its constant) when it was not.
     std::uint32_t dense_slot(std::uint64_t key);
     void ensure_slots(std::size_t slots);
