@@ -726,6 +726,122 @@ inline bool tile_window_l2(__global GT* tin, __global GT* tout, __global uint* b
     }
     return true;
 }
+
+#if !INDICES
+// tile_window_l2 without features (ties need not be broken): positions go in groups of four
+// that share each site's load, the walk over the blocks and one bound. From m, the largest
+// d(p0 - 1) of the lines that have a site (s = floor(sqrt(m))), d(p0 + q) <= (sqrt(m) + q +
+// 1)^2 < r_q^2 with r_q = s + 2 + q, so a site can only be nearest to a position of the group
+// within [p0 - s - 2, p0 + 3 + s + 5], and in a block only where the block's least partial
+// plus its squared offset from the group stays within r_3^2. The window is a few sites wider
+// than a single position's, but the horizontal maximum, the root and the block walk are paid
+// once per four positions, and each site's load feeds four independent minima. Same
+// arguments, preparation of `tin` and fallback (false where r_3 passes WINDOW_MAX) as
+// tile_window_l2.
+inline bool tile_window_l2_dist(__global GT* tin, __global GT* tout, __global uint* bmin,
+                                __global int* live, int tw, int cw, int n, int pad, GT cap) {
+    const int nb = (n + 15) / 16;
+    for (int b = 0; b < nb; ++b) {
+        uint16 lo = (uint16)L2_FAR;
+        for (int u = b * 16; u < min(n, b * 16 + 16); ++u) {
+            const uint16 v = min(vload16(0, tin + u * tw), (uint16)L2_FAR);
+            const uint16 lane = (uint16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+            const uint16 w = select((uint16)L2_FAR, v, lane < (uint16)cw);
+            vstore16(w, 0, tin + u * tw);
+            lo = min(lo, w);
+        }
+        const uint8 l8 = min(lo.lo, lo.hi);
+        const uint4 l4 = min(l8.lo, l8.hi);
+        const uint2 l2 = min(l4.lo, l4.hi);
+        bmin[b] = min(l2.x, l2.y);
+    }
+    live[nb] = nb;
+    for (int b = nb; b-- > 0;) {
+        live[b] = bmin[b] < L2_FAR ? b : live[b + 1];
+    }
+    if (live[0] == nb && !pad) {
+        for (int p = 0; p < n; ++p) {
+            vstore16((uint16)G_INF, 0, tout + p * tw);
+        }
+        return true;
+    }
+    // The first group takes every site.
+    int lo = 0, hi = n - 1;
+    uint bound = UINT_MAX;
+    for (int p0 = 0; p0 < n; p0 += 4) {
+        const int last = min(p0 + 3, n - 1);
+        uint16 best0 = (uint16)L2_FAR, best1 = (uint16)L2_FAR, best2 = (uint16)L2_FAR,
+               best3 = (uint16)L2_FAR;
+        if (pad) {
+            // The virtual empty sites at -1 and n.
+            best0 = (uint16)(uint)min((p0 + 1) * (p0 + 1), (n - p0) * (n - p0));
+            best1 = (uint16)(uint)min((p0 + 2) * (p0 + 2), (n - p0 - 1) * (n - p0 - 1));
+            best2 = (uint16)(uint)min((p0 + 3) * (p0 + 3), (n - p0 - 2) * (n - p0 - 2));
+            best3 = (uint16)(uint)min((p0 + 4) * (p0 + 4), (n - p0 - 3) * (n - p0 - 3));
+        }
+        for (int b = live[lo / 16]; b <= hi / 16; b = live[b + 1]) {
+            const int b0 = b * 16, b1 = b0 + 15;
+            const int off = last < b0 ? b0 - last : p0 > b1 ? p0 - b1 : 0;
+            if (bmin[b] + (uint)(off * off) > bound) {
+                continue;
+            }
+            const int ue = min(hi, b1);
+            for (int u = max(lo, b0); u <= ue; ++u) {
+                const uint16 v = vload16(0, tin + u * tw);
+                const int k = p0 - u;
+                best0 = min(best0, v + (uint)(k * k));
+                best1 = min(best1, v + (uint)((k + 1) * (k + 1)));
+                best2 = min(best2, v + (uint)((k + 2) * (k + 2)));
+                best3 = min(best3, v + (uint)((k + 3) * (k + 3)));
+            }
+        }
+        const uint16 far0 = as_uint16(best0 >= (uint16)L2_FAR);
+        vstore16(select(min(best0, (uint16)cap), (uint16)G_INF, far0), 0, tout + p0 * tw);
+        uint16 end = best0;
+        if (p0 + 1 < n) {
+            const uint16 far1 = as_uint16(best1 >= (uint16)L2_FAR);
+            vstore16(select(min(best1, (uint16)cap), (uint16)G_INF, far1), 0,
+                     tout + (p0 + 1) * tw);
+            end = best1;
+        }
+        if (p0 + 2 < n) {
+            const uint16 far2 = as_uint16(best2 >= (uint16)L2_FAR);
+            vstore16(select(min(best2, (uint16)cap), (uint16)G_INF, far2), 0,
+                     tout + (p0 + 2) * tw);
+            end = best2;
+        }
+        if (p0 + 3 < n) {
+            const uint16 far3 = as_uint16(best3 >= (uint16)L2_FAR);
+            vstore16(select(min(best3, (uint16)cap), (uint16)G_INF, far3), 0,
+                     tout + (p0 + 3) * tw);
+            end = best3;
+        }
+        const uint16 real = end & ~as_uint16(end >= (uint16)L2_FAR);
+        const uint8 h8 = max(real.lo, real.hi);
+        const uint4 h4 = max(h8.lo, h8.hi);
+        const uint2 h2 = max(h4.lo, h4.hi);
+        const uint m = max(h2.x, h2.y);
+        // s = floor(sqrt(m)) exactly, from the float root (off by at most one).
+        int s = (int)sqrt((float)m);
+        s -= (uint)(s * s) > m;
+        s += (uint)((s + 1) * (s + 1)) <= m;
+        const int r = s + 5;
+        if (r > WINDOW_MAX) {
+            for (int u = 0; u < n; ++u) {
+                const uint16 v = vload16(0, tin + u * tw);
+                const uint16 empty = as_uint16(v >= (uint16)L2_FAR);
+                vstore16(select(v, (uint16)G_INF, empty), 0, tin + u * tw);
+            }
+            return false;
+        }
+        // The next group's window and bound.
+        lo = max(0, p0 + 4 - s - 2);
+        hi = min(n - 1, p0 + 7 + r);
+        bound = (uint)(r * r);
+    }
+    return true;
+}
+#endif
 #endif
 
 // ---- output ----
@@ -860,7 +976,13 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                     // Sub-tiles of 16 lines; the envelope per line where no vector path
                     // takes them.
                     const int c1 = min(c0 + 16, cw);
-#if METRIC == 2 && UNIT && !WIDE
+#if METRIC == 2 && UNIT && !WIDE && !INDICES
+                    if (box == 0 && tile_w % 16 == 0 &&
+                        tile_window_l2_dist(tin + c0, tout + c0, (__global uint*)s, t, tile_w,
+                                            c1 - c0, (int)n, cls, cap)) {
+                        continue;
+                    }
+#elif METRIC == 2 && UNIT && !WIDE
                     if (box == 0 && tile_w % 16 == 0 &&
                         tile_window_l2(tin + c0, tout + c0, (__global uint*)s, t, tile_w,
                                        c1 - c0, (int)n, cls, cap, ftin + c0, ftout + c0, kt)) {

@@ -10,6 +10,8 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
+#include <mutex>
 #include <new>
 #include <optional>
 #include <sstream>
@@ -577,17 +579,93 @@ double elapsed_ms(const cl::Event& first, const cl::Event& last) {
     });
 }
 
-HostMemory::HostMemory(std::size_t bytes) : size_(bytes) {
-    constexpr std::size_t huge = std::size_t{2} << 20;
-    const std::size_t align = bytes >= huge ? huge : 4096;
-    void* p = nullptr;
-    if (posix_memalign(&p, align, std::max<std::size_t>(bytes, 1)) != 0) {
-        throw std::bad_alloc();
+namespace {
+
+constexpr std::size_t kHugePage = std::size_t{2} << 20;
+
+// HostMemory's freed blocks of 2 MiB multiples, the least recently freed first.
+class HostCache {
+  public:
+    static constexpr std::size_t kLimit = std::size_t{1} << 30;
+
+    // A cached block of exactly `capacity` bytes (null without one); without one the cache
+    // is emptied.
+    void* take(std::size_t capacity) {
+        std::vector<std::pair<void*, std::size_t>> dropped;
+        {
+            const std::lock_guard<std::mutex> lock(mutex_);
+            for (auto it = blocks_.rbegin(); it != blocks_.rend(); ++it) {
+                if (it->second == capacity) {
+                    void* p = it->first;
+                    total_ -= capacity;
+                    blocks_.erase(std::next(it).base());
+                    return p;
+                }
+            }
+            dropped.swap(blocks_);
+            total_ = 0;
+        }
+        for (const auto& block : dropped) {
+            std::free(block.first);
+        }
+        return nullptr;
     }
-    data_.reset(static_cast<std::uint8_t*>(p));
-    if (bytes >= huge) {
-        // Advice only: where transparent huge pages are off the memory works in small pages.
-        ::madvise(p, bytes, MADV_HUGEPAGE);
+
+    // Keeps the block (freeing the oldest beyond kLimit).
+    void give(void* p, std::size_t capacity) {
+        std::vector<void*> dropped;
+        {
+            const std::lock_guard<std::mutex> lock(mutex_);
+            blocks_.emplace_back(p, capacity);
+            total_ += capacity;
+            while (total_ > kLimit) {
+                dropped.push_back(blocks_.front().first);
+                total_ -= blocks_.front().second;
+                blocks_.erase(blocks_.begin());
+            }
+        }
+        for (void* q : dropped) {
+            std::free(q);
+        }
+    }
+
+  private:
+    std::mutex mutex_;
+    std::vector<std::pair<void*, std::size_t>> blocks_;
+    std::size_t total_ = 0;
+};
+
+// Never destroyed: host memory may be freed during static destruction (numpy arrays of the
+// Python module at interpreter exit).
+HostCache& host_cache() {
+    static HostCache* cache = new HostCache();
+    return *cache;
+}
+
+}  // namespace
+
+HostMemory::HostMemory(std::size_t bytes) : size_(bytes) {
+    const bool huge = bytes >= kHugePage;
+    const std::size_t capacity = huge ? (bytes + kHugePage - 1) / kHugePage * kHugePage : bytes;
+    void* p = huge ? host_cache().take(capacity) : nullptr;
+    if (p == nullptr) {
+        if (posix_memalign(&p, huge ? kHugePage : 4096, std::max<std::size_t>(capacity, 1)) != 0) {
+            throw std::bad_alloc();
+        }
+        if (huge) {
+            // Advice only: where transparent huge pages are off the memory works in small
+            // pages.
+            ::madvise(p, capacity, MADV_HUGEPAGE);
+        }
+    }
+    data_ = std::unique_ptr<std::uint8_t, Free>(static_cast<std::uint8_t*>(p), Free{capacity});
+}
+
+void HostMemory::Free::operator()(std::uint8_t* p) const {
+    if (capacity >= kHugePage) {
+        host_cache().give(p, capacity);
+    } else {
+        std::free(p);
     }
 }
 
