@@ -279,7 +279,8 @@ inline int envelope(__global const GT* g, __global const uint* f, size_t base, s
 inline int envelope(__global const GT* g, __global const uint* f, size_t base, size_t stride,
                     int n, int pad, ST sp, __global int* s, __global int* t, __global int* d,
                     size_t ks, int o0, int o1, int i0, int i1) {
-    // The top of the stack (site, start, partial, feature) stays in registers.
+    // The top of the stack (site, start, partial; its feature where read eagerly, WIDE) stays
+    // in registers.
     int q = -1, sq = 0, tq = 0;
     GT gq = 0;
     uint fq = 0;
