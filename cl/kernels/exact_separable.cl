@@ -56,8 +56,11 @@ typedef float ST;
 // each pass keeps the lowest key among its nearest targets, so every voxel names its nearest
 // solid of lowest (x, y, z), the one SciPy's distance_transform_edt names (its passes run
 // along z, y, then x in world terms, each taking the lowest position of equally near sites).
-// KEYED(fa, fb): 1 where site b (after site a on the line) wins their ties.
-#if INDICES
+// KEYED(fa, fb): 1 where site b (after site a on the line) wins their ties. Not for L-inf:
+// its flat functions tie so often that comparing features cost a third of its y and z passes,
+// and SciPy's chessboard transform (cdt's chamfer sweeps) breaks ties its own way; there the
+// lower position along each pass wins.
+#if INDICES && METRIC != 1
 #define KEYED(fa, fb) ((int)((fb) < (fa)))
 #else
 #define KEYED(fa, fb) 0
@@ -194,6 +197,17 @@ inline uint site_f(__global const uint* f, size_t base, size_t stride, int u, in
 #endif
 }
 
+#if INDICES
+// Sep(i, u) of the line's sites with KEYED ties, their features read only where it matters:
+// where the two tie rules give different separators (an integer tie point).
+inline int sep_keyed(__global const uint* f, size_t base, size_t stride, int n, int i, int u,
+                     GT gi, GT gu, ST s) {
+    const int s0 = sep_tie(i, u, gi, gu, s, 0), s1 = sep_tie(i, u, gi, gu, s, 1);
+    return s1 != s0 && KEYED(site_f(f, base, stride, i, n), site_f(f, base, stride, u, n)) ? s1
+                                                                                        : s0;
+}
+#endif
+
 // Lower envelope of the sites [i0, i1) of one line for the positions [o0, o1) (Meijster's
 // first phase): on return the stack holds q + 1 sites s[k] owning positions [t[k], t[k+1]).
 // Sites with no target are skipped; `pad` adds the virtual empty sites at -1 and n where the
@@ -265,7 +279,8 @@ inline int envelope(__global const GT* g, __global const uint* f, size_t base, s
 inline int envelope(__global const GT* g, __global const uint* f, size_t base, size_t stride,
                     int n, int pad, ST sp, __global int* s, __global int* t, __global int* d,
                     size_t ks, int o0, int o1, int i0, int i1) {
-    // The top of the stack (site, start, partial, feature) stays in registers.
+    // The top of the stack (site, start, partial; its feature where read eagerly, WIDE) stays
+    // in registers.
     int q = -1, sq = 0, tq = 0;
     GT gq = 0;
     uint fq = 0;
@@ -276,10 +291,36 @@ inline int envelope(__global const GT* g, __global const uint* f, size_t base, s
         if (gu == G_INF) {
             continue;
         }
-        const uint fu = site_f(f, base, stride, u, n);
         // Pop the sites that u is nearer than from where they start (their separator with
         // u lies before their first position); testing the separator itself keeps the
         // starts strictly increasing even where float rounding blurs a tie.
+#if INDICES && !(UNIT && METRIC == 2)
+        // With features: w = 1 + Sep(top, u), computed once for the test and the push.
+        int w = 0;
+        while (q >= 0 && (w = 1 + sep_keyed(f, base, stride, n, sq, u, gq, gu, sp)) <= tq) {
+            if (--q >= 0) {
+                sq = s[q * ks];
+                tq = t[q * ks];
+                gq = site_g(g, base, stride, sq, n);
+            }
+        }
+        if (q < 0) {
+            q = 0;
+            sq = u;
+            tq = o0;
+            gq = gu;
+            s[0] = u;
+            t[0] = o0;
+        } else if (w < o1) {
+            ++q;
+            sq = u;
+            tq = w;
+            gq = gu;
+            s[q * ks] = u;
+            t[q * ks] = w;
+        }
+#else
+        const uint fu = site_f(f, base, stride, u, n);
         while (q >= 0 && sep_below(sq, u, gq, gu, sp, tq, KEYED(fq, fu))) {
             if (--q >= 0) {
                 sq = s[q * ks];
@@ -308,6 +349,7 @@ inline int envelope(__global const GT* g, __global const uint* f, size_t base, s
                 t[q * ks] = w;
             }
         }
+#endif
     }
     return q;
 }

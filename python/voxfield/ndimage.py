@@ -17,9 +17,9 @@ zeros SciPy's passes (along the first axis, then the middle, then the last, each
 lowest position of equally near sites) name the one of lowest (last, middle, first)
 coordinates, and so do the device's passes with unit sampling (they compare the sites'
 features by that key) and the host passes with other sampling (SciPy's order of axes and
-float64 sums). ``cdt``'s indices come from the device's passes with the same ties, where
-SciPy's chamfer sweeps break them their own way (a share of the elements differs; the
-distances are equal).
+float64 sums). ``cdt``'s indices come from the device's passes, taxicab's with the same
+ties and chessboard's with the lower position along each pass, where SciPy's chamfer sweeps
+break ties their own way (a share of the elements differs; the distances are equal).
 Bool and integer inputs go to the device as they are (a uint8 or bool array is read in place
 on a CPU device, its zero elements the targets); other dtypes as ``input == 0``.
 

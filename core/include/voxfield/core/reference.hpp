@@ -44,7 +44,8 @@ std::vector<double> brute_force_signed(const World& world, Metric metric, const 
 // reference_distance is, along x, y, then z, each pass taking of its candidates the least
 // (partial distance, target's (x, y, z)), x compared first; exact for unit spacing. For L1
 // and L2 that is the nearest solid of lowest (x, y, z); for L-inf, where a line's partial
-// distance hides its other equally near targets, the passes' choice.
+// distance hides its other equally near targets, the passes' choice (the kernels' L-inf
+// ties go by position instead).
 std::vector<std::int64_t> reference_features(const World& world, Metric metric,
                                              const Spacing& spacing);
 
