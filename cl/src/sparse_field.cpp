@@ -4,6 +4,7 @@
 #include "voxfield/cl/sparse_field.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -31,6 +32,8 @@ constexpr std::int64_t kBatchVoxels = std::int64_t{1} << 25;
 // Several changed boxes are recomputed in one block of their hull when it holds at most this
 // many voxels (128^3), else tile by tile.
 constexpr std::int64_t kHullVoxels = std::int64_t{1} << 21;
+// Up to this many regions are merged where they overlap and tried as blocks of their own.
+constexpr std::size_t kMaxMergedRegions = 256;
 // Rows per work-group of the gather and scatter kernels (a work-item per row).
 constexpr std::size_t kGroupRows = 8;
 // Work-items per work-group of the GPU layout's gather and scatter (a work-item per voxel).
@@ -308,13 +311,17 @@ SparseField::Batch& SparseField::batch_for(Dims block, std::uint32_t blocks) {
     return *(batches_[shape] = std::move(b));
 }
 
-double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
+double SparseField::compute(const std::vector<Job>& jobs, Dims block, bool pow2_batch) {
     if (jobs.empty()) {
         return 0;
     }
     const std::int64_t per_block = std::int64_t{block.x} * block.y * block.z;
-    const auto per_batch = static_cast<std::uint32_t>(std::clamp<std::int64_t>(
-        kBatchVoxels / per_block, 1, static_cast<std::int64_t>(jobs.size())));
+    std::int64_t want = static_cast<std::int64_t>(jobs.size());
+    if (pow2_batch) {
+        want = std::int64_t{1} << std::bit_width(static_cast<std::uint64_t>(want - 1));
+    }
+    const auto per_batch =
+        static_cast<std::uint32_t>(std::clamp<std::int64_t>(kBatchVoxels / per_block, 1, want));
     Batch& batch = batch_for(block, per_batch);
     const Dims wd = world_.dims();
     auto& q = ctx_.queue();
@@ -894,14 +901,56 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
                      static_cast<std::uint32_t>(block_box.max.z - block_box.min.z)};
         }
     }
-    if (jobs.empty()) {
-        block = tile_block(wd, halo_);
-        for (const auto& [key, part] : parts) {
-            const Int3 t = tile_of_key(key);
-            jobs.push_back({part, tile_origin(t.x, t.y, t.z, wd, block, halo_)});
+    // Several regions (or one too large for one block): the regions as blocks of their own
+    // (those that overlap merged; one shape for all, the largest's extents with their halo
+    // rounded up to 16) where that transforms fewer voxels than tile by tile (each tile's part
+    // in the tile's block, as run() places it), and blocks per batch a power of two, so that
+    // updates of a varying number of regions (the sand's steps) share a few batch shapes and
+    // their generators.
+    const bool several = jobs.empty();
+    if (several) {
+        std::vector<Box> merged;
+        if (regions.size() <= kMaxMergedRegions) {
+            merged = regions;
+            for (bool again = true; again;) {
+                again = false;
+                for (std::size_t i = 0; i < merged.size() && !again; ++i) {
+                    for (std::size_t j = i + 1; j < merged.size() && !again; ++j) {
+                        if (!intersect(merged[i], merged[j]).empty()) {
+                            merged[i] = hull(merged[i], merged[j]);
+                            merged.erase(merged.begin() + static_cast<std::ptrdiff_t>(j));
+                            again = true;
+                        }
+                    }
+                }
+            }
+        }
+        Int3 need{0, 0, 0};
+        for (const Box& r : merged) {
+            need = {std::max(need.x, r.max.x - r.min.x + 2 * std::int64_t{halo_[0]}),
+                    std::max(need.y, r.max.y - r.min.y + 2 * std::int64_t{halo_[1]}),
+                    std::max(need.z, r.max.z - r.min.z + 2 * std::int64_t{halo_[2]})};
+        }
+        const Int3 rb{round_up_to(need.x, 16), round_up_to(need.y, 16), round_up_to(need.z, 16)};
+        const Dims tb = tile_block(wd, halo_);
+        const std::int64_t region_voxels = rb.x * rb.y * rb.z;
+        if (!merged.empty() && region_voxels <= kBatchVoxels &&
+            static_cast<std::int64_t>(merged.size()) * region_voxels <
+                static_cast<std::int64_t>(parts.size()) * tb.x * tb.y * tb.z) {
+            block = {static_cast<std::uint32_t>(rb.x), static_cast<std::uint32_t>(rb.y),
+                     static_cast<std::uint32_t>(rb.z)};
+            for (const Box& r : merged) {
+                jobs.push_back({r, {r.min.x - halo_[0], r.min.y - halo_[1], r.min.z - halo_[2]}});
+            }
+        } else {
+            block = tb;
+            for (const auto& [key, part] : parts) {
+                const Int3 t = tile_of_key(key);
+                jobs.push_back({part, tile_origin(t.x, t.y, t.z, wd, block, halo_)});
+            }
         }
     }
-    result.kernel_ms = compute(jobs, block);
+    result.kernel_ms = compute(jobs, block, several && regions.size() > 1);
     refresh_coarse(slots, nodes, &result.kernel_ms);
     result.kernel_ms += settle_scatters();
     result.recomputed = region;
