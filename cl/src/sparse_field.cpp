@@ -901,56 +901,93 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
                      static_cast<std::uint32_t>(block_box.max.z - block_box.min.z)};
         }
     }
-    // Several regions (or one too large for one block): the regions as blocks of their own
-    // (those that overlap merged; one shape for all, the largest's extents with their halo
-    // rounded up to 16) where that transforms fewer voxels than tile by tile (each tile's part
-    // in the tile's block, as run() places it), and blocks per batch a power of two, so that
-    // updates of a varying number of regions (the sand's steps) share a few batch shapes and
-    // their generators.
-    const bool several = jobs.empty();
-    if (several) {
-        std::vector<Box> merged;
-        if (regions.size() <= kMaxMergedRegions) {
-            merged = regions;
-            for (bool again = true; again;) {
-                again = false;
-                for (std::size_t i = 0; i < merged.size() && !again; ++i) {
-                    for (std::size_t j = i + 1; j < merged.size() && !again; ++j) {
-                        if (!intersect(merged[i], merged[j]).empty()) {
-                            merged[i] = hull(merged[i], merged[j]);
-                            merged.erase(merged.begin() + static_cast<std::ptrdiff_t>(j));
-                            again = true;
-                        }
+    // Several regions (or one too large for one block): those that overlap merged, then the
+    // smallest k of them each in a block of its own, one shape for all k (their largest extents
+    // with the halo, rounded up to 16), with blocks per batch a power of two, so that updates
+    // of a varying number of regions (the sand's steps) share a few batch shapes and their
+    // generators; the others tile by tile (each tile's part in the tile's block, as run()
+    // places it). k is the one that transforms the fewest voxels.
+    if (jobs.empty()) {
+        std::vector<Box> merged = regions;
+        for (bool again = merged.size() <= kMaxMergedRegions; again;) {
+            again = false;
+            for (std::size_t i = 0; i < merged.size() && !again; ++i) {
+                for (std::size_t j = i + 1; j < merged.size() && !again; ++j) {
+                    if (!intersect(merged[i], merged[j]).empty()) {
+                        merged[i] = hull(merged[i], merged[j]);
+                        merged.erase(merged.begin() + static_cast<std::ptrdiff_t>(j));
+                        again = true;
                     }
                 }
             }
         }
-        Int3 need{0, 0, 0};
-        for (const Box& r : merged) {
-            need = {std::max(need.x, r.max.x - r.min.x + 2 * std::int64_t{halo_[0]}),
-                    std::max(need.y, r.max.y - r.min.y + 2 * std::int64_t{halo_[1]}),
-                    std::max(need.z, r.max.z - r.min.z + 2 * std::int64_t{halo_[2]})};
-        }
-        const Int3 rb{round_up_to(need.x, 16), round_up_to(need.y, 16), round_up_to(need.z, 16)};
         const Dims tb = tile_block(wd, halo_);
-        const std::int64_t region_voxels = rb.x * rb.y * rb.z;
-        if (!merged.empty() && region_voxels <= kBatchVoxels &&
-            static_cast<std::int64_t>(merged.size()) * region_voxels <
-                static_cast<std::int64_t>(parts.size()) * tb.x * tb.y * tb.z) {
-            block = {static_cast<std::uint32_t>(rb.x), static_cast<std::uint32_t>(rb.y),
-                     static_cast<std::uint32_t>(rb.z)};
-            for (const Box& r : merged) {
-                jobs.push_back({r, {r.min.x - halo_[0], r.min.y - halo_[1], r.min.z - halo_[2]}});
+        const std::int64_t tile_voxels = std::int64_t{tb.x} * tb.y * tb.z;
+        const auto need = [&](const Box& r) {
+            return Int3{round_up_to(r.max.x - r.min.x + 2 * std::int64_t{halo_[0]}, 16),
+                        round_up_to(r.max.y - r.min.y + 2 * std::int64_t{halo_[1]}, 16),
+                        round_up_to(r.max.z - r.min.z + 2 * std::int64_t{halo_[2]}, 16)};
+        };
+        std::size_t k = 0;
+        Int3 shape{0, 0, 0};
+        if (regions.size() > 1 && merged.size() <= kMaxMergedRegions) {
+            std::sort(merged.begin(), merged.end(), [&](const Box& a, const Box& b) {
+                const Int3 na = need(a), nb = need(b);
+                return na.x * na.y * na.z < nb.x * nb.y * nb.z;
+            });
+            // tiles[i]: the tiles of merged[i..] (their parts, counted per region).
+            std::vector<std::int64_t> tiles(merged.size() + 1, 0);
+            for (std::size_t i = merged.size(); i-- > 0;) {
+                tiles[i] = tiles[i + 1] + tiles_of(merged[i]).size();
             }
-        } else {
-            block = tb;
-            for (const auto& [key, part] : parts) {
-                const Int3 t = tile_of_key(key);
-                jobs.push_back({part, tile_origin(t.x, t.y, t.z, wd, block, halo_)});
+            std::int64_t best = tiles[0] * tile_voxels;
+            Int3 grow_shape{0, 0, 0};
+            for (std::size_t i = 0; i < merged.size(); ++i) {
+                const Int3 n = need(merged[i]);
+                grow_shape = {std::max(grow_shape.x, n.x), std::max(grow_shape.y, n.y),
+                              std::max(grow_shape.z, n.z)};
+                const std::int64_t v = grow_shape.x * grow_shape.y * grow_shape.z;
+                const std::int64_t cost =
+                    static_cast<std::int64_t>(i + 1) * v + tiles[i + 1] * tile_voxels;
+                if (v <= kBatchVoxels && cost < best) {
+                    best = cost;
+                    k = i + 1;
+                    shape = grow_shape;
+                }
             }
+        }
+        if (k > 0) {
+            std::vector<Job> small_jobs;
+            for (std::size_t i = 0; i < k; ++i) {
+                const Box& r = merged[i];
+                small_jobs.push_back(
+                    {r, {r.min.x - halo_[0], r.min.y - halo_[1], r.min.z - halo_[2]}});
+            }
+            result.kernel_ms +=
+                compute(small_jobs,
+                        {static_cast<std::uint32_t>(shape.x), static_cast<std::uint32_t>(shape.y),
+                         static_cast<std::uint32_t>(shape.z)},
+                        true);
+        }
+        std::map<std::uint64_t, Box> large_parts;  // per tile, the other regions' parts
+        for (std::size_t i = k; i < merged.size(); ++i) {
+            const Box& r = merged[i];
+            for_each_tile(tiles_of(r), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+                const Box part = intersect(
+                    r, Box{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}});
+                Box& p = large_parts[tile_key(static_cast<std::uint32_t>(x),
+                                              static_cast<std::uint32_t>(y),
+                                              static_cast<std::uint32_t>(z))];
+                p = p.empty() ? part : hull(p, part);
+            });
+        }
+        block = tb;
+        for (const auto& [key, part] : large_parts) {
+            const Int3 t = tile_of_key(key);
+            jobs.push_back({part, tile_origin(t.x, t.y, t.z, wd, block, halo_)});
         }
     }
-    result.kernel_ms = compute(jobs, block, several && regions.size() > 1);
+    result.kernel_ms += compute(jobs, block);
     refresh_coarse(slots, nodes, &result.kernel_ms);
     result.kernel_ms += settle_scatters();
     result.recomputed = region;
