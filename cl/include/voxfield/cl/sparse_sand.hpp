@@ -62,6 +62,7 @@ class SparseSand {
 
     Context& ctx_;
     SparseField& field_;
+    Dims dims_;  // the world's (read once: world() brings the host world up to date)
     SandRules rules_;
     bool gpu_layout_;
     cl::Kernel kernel_;
