@@ -820,8 +820,9 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
     std::vector<Box> regions;
     Box region;
     for (const Box& b : changed) {
-        const Box r = intersect(grow(intersect(b, all), halo_), all);
-        if (!r.empty()) {
+        const Box inside = intersect(b, all);
+        const Box r = intersect(grow(inside, halo_), all);
+        if (!inside.empty() && !r.empty()) {
             regions.push_back(r);
             region = region.empty() ? r : hull(region, r);
         }
