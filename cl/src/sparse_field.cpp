@@ -4,6 +4,7 @@
 #include "voxfield/cl/sparse_field.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -31,6 +32,8 @@ constexpr std::int64_t kBatchVoxels = std::int64_t{1} << 25;
 // Several changed boxes are recomputed in one block of their hull when it holds at most this
 // many voxels (128^3), else tile by tile.
 constexpr std::int64_t kHullVoxels = std::int64_t{1} << 21;
+// Up to this many regions are merged where they overlap and tried as blocks of their own.
+constexpr std::size_t kMaxMergedRegions = 256;
 // Rows per work-group of the gather and scatter kernels (a work-item per row).
 constexpr std::size_t kGroupRows = 8;
 // Work-items per work-group of the GPU layout's gather and scatter (a work-item per voxel).
@@ -308,13 +311,17 @@ SparseField::Batch& SparseField::batch_for(Dims block, std::uint32_t blocks) {
     return *(batches_[shape] = std::move(b));
 }
 
-double SparseField::compute(const std::vector<Job>& jobs, Dims block) {
+double SparseField::compute(const std::vector<Job>& jobs, Dims block, bool pow2_batch) {
     if (jobs.empty()) {
         return 0;
     }
     const std::int64_t per_block = std::int64_t{block.x} * block.y * block.z;
-    const auto per_batch = static_cast<std::uint32_t>(std::clamp<std::int64_t>(
-        kBatchVoxels / per_block, 1, static_cast<std::int64_t>(jobs.size())));
+    std::int64_t want = static_cast<std::int64_t>(jobs.size());
+    if (pow2_batch) {
+        want = std::int64_t{1} << std::bit_width(static_cast<std::uint64_t>(want - 1));
+    }
+    const auto per_batch =
+        static_cast<std::uint32_t>(std::clamp<std::int64_t>(kBatchVoxels / per_block, 1, want));
     Batch& batch = batch_for(block, per_batch);
     const Dims wd = world_.dims();
     auto& q = ctx_.queue();
@@ -813,8 +820,9 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
     std::vector<Box> regions;
     Box region;
     for (const Box& b : changed) {
-        const Box r = intersect(grow(intersect(b, all), halo_), all);
-        if (!r.empty()) {
+        const Box inside = intersect(b, all);
+        const Box r = intersect(grow(inside, halo_), all);
+        if (!inside.empty() && !r.empty()) {
             regions.push_back(r);
             region = region.empty() ? r : hull(region, r);
         }
@@ -894,14 +902,93 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
                      static_cast<std::uint32_t>(block_box.max.z - block_box.min.z)};
         }
     }
+    // Several regions (or one too large for one block): those that overlap merged, then the
+    // smallest k of them each in a block of its own, one shape for all k (their largest extents
+    // with the halo, rounded up to 16), with blocks per batch a power of two, so that updates
+    // of a varying number of regions (the sand's steps) share a few batch shapes and their
+    // generators; the others tile by tile (each tile's part in the tile's block, as run()
+    // places it). k is the one that transforms the fewest voxels.
     if (jobs.empty()) {
-        block = tile_block(wd, halo_);
-        for (const auto& [key, part] : parts) {
+        std::vector<Box> merged = regions;
+        for (bool again = merged.size() <= kMaxMergedRegions; again;) {
+            again = false;
+            for (std::size_t i = 0; i < merged.size() && !again; ++i) {
+                for (std::size_t j = i + 1; j < merged.size() && !again; ++j) {
+                    if (!intersect(merged[i], merged[j]).empty()) {
+                        merged[i] = hull(merged[i], merged[j]);
+                        merged.erase(merged.begin() + static_cast<std::ptrdiff_t>(j));
+                        again = true;
+                    }
+                }
+            }
+        }
+        const Dims tb = tile_block(wd, halo_);
+        const std::int64_t tile_voxels = std::int64_t{tb.x} * tb.y * tb.z;
+        const auto need = [&](const Box& r) {
+            return Int3{round_up_to(r.max.x - r.min.x + 2 * std::int64_t{halo_[0]}, 16),
+                        round_up_to(r.max.y - r.min.y + 2 * std::int64_t{halo_[1]}, 16),
+                        round_up_to(r.max.z - r.min.z + 2 * std::int64_t{halo_[2]}, 16)};
+        };
+        std::size_t k = 0;
+        Int3 shape{0, 0, 0};
+        if (regions.size() > 1 && merged.size() <= kMaxMergedRegions) {
+            std::sort(merged.begin(), merged.end(), [&](const Box& a, const Box& b) {
+                const Int3 na = need(a), nb = need(b);
+                return na.x * na.y * na.z < nb.x * nb.y * nb.z;
+            });
+            // tiles[i]: the tiles of merged[i..] (their parts, counted per region).
+            std::vector<std::int64_t> tiles(merged.size() + 1, 0);
+            for (std::size_t i = merged.size(); i-- > 0;) {
+                tiles[i] = tiles[i + 1] + tiles_of(merged[i]).size();
+            }
+            std::int64_t best = tiles[0] * tile_voxels;
+            Int3 grow_shape{0, 0, 0};
+            for (std::size_t i = 0; i < merged.size(); ++i) {
+                const Int3 n = need(merged[i]);
+                grow_shape = {std::max(grow_shape.x, n.x), std::max(grow_shape.y, n.y),
+                              std::max(grow_shape.z, n.z)};
+                const std::int64_t v = grow_shape.x * grow_shape.y * grow_shape.z;
+                const std::int64_t cost =
+                    static_cast<std::int64_t>(i + 1) * v + tiles[i + 1] * tile_voxels;
+                if (v <= kBatchVoxels && cost < best) {
+                    best = cost;
+                    k = i + 1;
+                    shape = grow_shape;
+                }
+            }
+        }
+        if (k > 0) {
+            std::vector<Job> small_jobs;
+            for (std::size_t i = 0; i < k; ++i) {
+                const Box& r = merged[i];
+                small_jobs.push_back(
+                    {r, {r.min.x - halo_[0], r.min.y - halo_[1], r.min.z - halo_[2]}});
+            }
+            result.kernel_ms +=
+                compute(small_jobs,
+                        {static_cast<std::uint32_t>(shape.x), static_cast<std::uint32_t>(shape.y),
+                         static_cast<std::uint32_t>(shape.z)},
+                        true);
+        }
+        std::map<std::uint64_t, Box> large_parts;  // per tile, the other regions' parts
+        for (std::size_t i = k; i < merged.size(); ++i) {
+            const Box& r = merged[i];
+            for_each_tile(tiles_of(r), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+                const Box part = intersect(
+                    r, Box{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}});
+                Box& p = large_parts[tile_key(static_cast<std::uint32_t>(x),
+                                              static_cast<std::uint32_t>(y),
+                                              static_cast<std::uint32_t>(z))];
+                p = p.empty() ? part : hull(p, part);
+            });
+        }
+        block = tb;
+        for (const auto& [key, part] : large_parts) {
             const Int3 t = tile_of_key(key);
             jobs.push_back({part, tile_origin(t.x, t.y, t.z, wd, block, halo_)});
         }
     }
-    result.kernel_ms = compute(jobs, block);
+    result.kernel_ms += compute(jobs, block);
     refresh_coarse(slots, nodes, &result.kernel_ms);
     result.kernel_ms += settle_scatters();
     result.recomputed = region;

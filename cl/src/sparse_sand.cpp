@@ -48,6 +48,7 @@ Box tile_box_of(const Int3& t) {
 SparseSand::SparseSand(Context& ctx, SparseField& field, const SandRules& rules)
     : ctx_(ctx),
       field_(field),
+      dims_(field.world().dims()),
       rules_(rules),
       gpu_layout_(field.options().layout == Layout::automatic
                       ? !ctx.is_cpu()
@@ -95,7 +96,7 @@ void SparseSand::touched(const Box& box) {
 
 std::vector<std::uint64_t> SparseSand::tiles_to_run(std::uint64_t s) {
     std::erase_if(active_, [&](const auto& a) { return a.second < s; });
-    const Dims d = field_.world().dims();
+    const Dims d = dims_;
     const Box all{{0, 0, 0}, {d.x, d.y, d.z}};
     std::vector<std::uint64_t> keys;
     for (const auto& [box, until] : active_) {
@@ -133,7 +134,7 @@ SparseSand::Step SparseSand::step(std::uint64_t seed, std::uint64_t s) {
         return result;
     }
     const auto n = keys.size();
-    const Dims d = field_.world().dims();
+    const Dims d = dims_;
     SparseDeviceWorld& world = field_.device_world();
     host_jobs_.clear();
     host_refs_.clear();

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bench_sparse.hpp"
@@ -94,6 +95,7 @@ json sparse_sand_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::u
 
     std::vector<double> wall, simulate, update, encode, field_update, tiles_run, tiles_changed;
     std::uint64_t changed = 0, recomputed = 0;
+    std::vector<std::pair<std::string, std::vector<double>>> stages;  // update kernels by name
     const auto t_start = Clock::now();
     bool cut = false;
     std::uint64_t step = 0;
@@ -120,6 +122,18 @@ json sparse_sand_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::u
         tiles_changed.push_back(s.tiles_changed);
         changed += s.changed;
         recomputed += static_cast<std::uint64_t>(s.update.recomputed.volume());
+        for (const auto& [name, stage_ms] : s.update.stages) {
+            auto it = std::find_if(stages.begin(), stages.end(),
+                                   [&](const auto& st) { return st.first == name; });
+            if (it == stages.end()) {
+                stages.emplace_back(name, std::vector<double>(wall.size() - 1, 0.0));
+                it = stages.end() - 1;
+            }
+            it->second.push_back(stage_ms);
+        }
+        for (auto& [name, samples] : stages) {
+            samples.resize(wall.size(), 0.0);
+        }
         if (ms_since(t_start) > budget_s * 1e3) {
             cut = step + 1 < std::uint64_t{warmup} + steps;
             ++step;
@@ -145,6 +159,10 @@ json sparse_sand_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::u
         wall_ms += wall[i];
     }
     const auto n = static_cast<double>(wall.size());
+    json stage_medians = json::object();
+    for (const auto& [name, samples] : stages) {
+        stage_medians[name] = summarize(samples).median;
+    }
     json row = {{"table", "sparse-sand"},
                 {"group", dims.to_string()},
                 {"algorithm", "sparse sand (windows) + exact bounded field"},
@@ -178,6 +196,7 @@ json sparse_sand_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::u
                 {"encode_ms_median", summarize(encode).median},
                 {"field_update_ms_median", summarize(field_update).median},
                 {"field_update_ms_max", summarize(field_update).max},
+                {"update_stage_ms_median", stage_medians},
                 {"tiles_run_median", summarize(tiles_run).median},
                 {"tiles_changed_median", summarize(tiles_changed).median},
                 {"voxels_changed", changed},

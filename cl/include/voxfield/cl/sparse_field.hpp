@@ -144,7 +144,9 @@ class SparseField {
     // Computes `jobs` (each block: block dims) in batches; returns kernel ms and adds them per
     // kernel to stages_, except the last scatters', which are left in scatters_ (nothing waits
     // for them): settle_scatters() waits and returns their ms.
-    double compute(const std::vector<Job>& jobs, Dims block);
+    // `pow2_batch`: blocks per batch rounded up to a power of two (the extra blocks transformed
+    // and not scattered), so that varying job counts share batch shapes.
+    double compute(const std::vector<Job>& jobs, Dims block, bool pow2_batch = false);
     // run()'s Manhattan sweep over slots [0, slot_keys_.size()); returns kernel ms.
     double sweep();
     double settle_scatters();

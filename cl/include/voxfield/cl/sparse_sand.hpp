@@ -50,8 +50,6 @@ class SparseSand {
     // After the world was edited inside `box` other than by step() (a brush): its tiles and
     // their neighbours run for the next 8 steps.
     void touched(const Box& box);
-    // The tiles the next step would run when it is the step after the last one.
-    std::size_t active_entries() const { return active_.size(); }
 
   private:
     // Tile keys to run at step s, ascending.
@@ -62,6 +60,7 @@ class SparseSand {
 
     Context& ctx_;
     SparseField& field_;
+    Dims dims_;  // the world's (read once: world() brings the host world up to date)
     SandRules rules_;
     bool gpu_layout_;
     cl::Kernel kernel_;
