@@ -323,20 +323,30 @@ inline uchar hmax16(V16 v) {
     return max(max(m4.s0, m4.s1), max(m4.s2, m4.s3));
 }
 
+// A y step's predecessor of the 16 bytes at p + x: the voxel above (L1) or the least of
+// the three above (L-inf's moves (a, 1, 0), as KING_STEP).
+#if CHEBYSHEV
+#define Y_FROM16(p, x) min(min(LD16((p) + (x)-1), LD16((p) + (x))), LD16((p) + (x) + 1))
+#else
+#define Y_FROM16(p, x) LD16((p) + (x))
+#endif
+
 // xy_bytes: one work-item per z-slice of the voxels, as xy_slices_seq: each row's x transform
 // by doubling, then the forward y step from the row before, into the local copy of the slice
-// (`slice`, rows of X16 = X rounded up to 16 bytes), then the backward y sweep there, writing
-// w8. A row is X16 long in the
-// doubling: the bytes past X start at T_MAX, so they only relay values between real voxels
-// at no less than their distance, and leave those exact. A row without solids is T_MAX
-// throughout; the doubling stops once the row's largest value is at most 2s after the step s
-// (every offset left to consider is at least 2s). `scratch`: two rows of X16 with `pad`
-// bytes of T_MAX on both sides. It also clears flag[0] for z_bytes (the kernels run in order).
+// (`slice`, rows of X16 = X rounded up to 32 bytes between 16 bytes of T_MAX each side), then
+// the backward y sweep there, writing w8. A row is X16 long: the bytes past X start at T_MAX,
+// so they only relay values between real voxels at no less than their distance (in L1 and
+// L-inf alike), and leave those exact. A row without solids is T_MAX throughout; the doubling
+// stops once the row's largest value is at most 2s after the step s (every offset left to
+// consider is at least 2s). CHEBYSHEV: the y steps take the least of the three voxels above
+// (below), as xy_slices_seq's KING_STEP. `scratch`: two rows of X16 with `pad` bytes of T_MAX
+// on both sides. It also clears flag[0] for the next kernel (the kernels run in order).
 __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restrict w8,
                        __global uint* restrict flag, uint X, uint Y, uint pad,
                        __local uchar* restrict scratch, __local uchar* restrict slice) {
     const size_t base = get_global_id(0) * (size_t)X * Y;
     const uint X16 = (X + 31) / 32 * 32;  // a whole number of the doubling's 32-byte steps
+    const uint S = X16 + 32;                // a slice row: 16 bytes of T_MAX, X16, 16 of T_MAX
     const uint full = X / 16 * 16;
     const uint span = X16 + 2 * pad;
     if (get_global_id(0) == 0) {
@@ -346,8 +356,12 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
         scratch[i] = (uchar)T_MAX;
     }
     for (uint y = 0; y < Y; ++y) {
+        ST16((V16)T_MAX, slice + y * S);
+        ST16((V16)T_MAX, slice + y * S + 16 + X16);
+    }
+    for (uint y = 0; y < Y; ++y) {
         __global const uchar* src = vox + base + (size_t)y * X;
-        __local uchar* dst = slice + y * X16;
+        __local uchar* dst = slice + y * S + 16;
         __local uchar* a = scratch + pad;
         __local uchar* b = scratch + span + pad;
         V16 any = 0;
@@ -382,32 +396,30 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
             }
         }
         // The forward y sweep's step from the row before (still in L1).
-        __local const uchar* prev = y > 0 ? dst - X16 : a;
+        __local const uchar* prev = y > 0 ? dst - S : a;
         for (uint x = 0; x < X16; x += 16) {
-            ST16(min(LD16(a + x), add_sat(LD16(prev + x), (V16)1)), dst + x);
+            ST16(min(LD16(a + x), add_sat(Y_FROM16(prev, x), (V16)1)), dst + x);
         }
     }
     for (uint y = Y; y-- > 0;) {
-        __local uchar* cur = slice + y * X16;
-        __local const uchar* next = y + 1 < Y ? cur + X16 : cur;
+        __local uchar* cur = slice + y * S + 16;
+        __local const uchar* next = y + 1 < Y ? cur + S : cur;
         __global uchar* o = w8 + base + (size_t)y * X;
+        // Whole vectors (the bytes past X too, for the row above), stored to w8 up to X.
+        for (uint x = 0; x < X16; x += 16) {
+            ST16(min(LD16(cur + x), add_sat(Y_FROM16(next, x), (V16)1)), cur + x);
+        }
         if ((size_t)o % 16 == 0) {
             for (uint x = 0; x < full; x += 16) {
-                const V16 d = min(LD16(cur + x), add_sat(LD16(next + x), (V16)1));
-                ST16(d, cur + x);
-                __builtin_nontemporal_store(d, (__global V16*)(o + x));
+                __builtin_nontemporal_store(LD16(cur + x), (__global V16*)(o + x));
             }
         } else {
             for (uint x = 0; x < full; x += 16) {
-                const V16 d = min(LD16(cur + x), add_sat(LD16(next + x), (V16)1));
-                ST16(d, cur + x);
-                ST16G(d, o + x);
+                ST16G(LD16(cur + x), o + x);
             }
         }
         for (uint x = full; x < X; ++x) {
-            const uchar d = min(cur[x], inc_t(next[x]));
-            cur[x] = d;
-            o[x] = d;
+            o[x] = cur[x];
         }
     }
 }
@@ -516,6 +528,67 @@ __kernel void z_king(__global T* restrict work, __global uint* restrict out,
     }
 #endif
 }
+
+#ifdef U
+// z_king on bytes (the byte program, T = uchar): the same sweeps over the planes, 16 bytes per
+// vector step (a ragged end one at a time), each row written to the output in the backward
+// sweep once final (the last plane after the forward sweep). flag[0]: a value of 255 where
+// the output is wider (SAT_CHECK; the host then runs the wide sweeps).
+__kernel void z_king_bytes(__global uchar* restrict work, __global U* restrict out,
+                           __global uint* restrict flag, uint X, uint Y, uint Z,
+                           __local uchar* restrict cm) {
+    if (get_global_id(0) != 0) {
+        return;
+    }
+    const size_t plane = (size_t)X * Y;
+    const uint full = X / 16 * 16;
+    __local uchar* c = cm + 1;
+    c[-1] = (uchar)T_MAX;
+    c[X] = (uchar)T_MAX;
+    V16 top = 0;
+    for (uint dir = 0; dir < 2; ++dir) {
+        for (uint i = 0; i < Z; ++i) {
+            const uint z = dir == 0 ? i : Z - 1 - i;
+            __global uchar* cur = work + z * plane;
+            __global const uchar* prev = dir == 0 ? cur - plane : cur + plane;
+            for (uint y = 0; y < Y; ++y) {
+                __global uchar* r = cur + (size_t)y * X;
+                if (i > 0) {
+                    __global const uchar* p0 = prev + (size_t)y * X;
+                    __global const uchar* pl = y > 0 ? p0 - X : p0;
+                    __global const uchar* ph = y + 1 < Y ? p0 + X : p0;
+                    for (uint x = 0; x < full; x += 16) {
+                        ST16(min(min(LD16G(pl + x), LD16G(p0 + x)), LD16G(ph + x)), c + x);
+                    }
+                    for (uint x = full; x < X; ++x) {
+                        c[x] = min(min(pl[x], p0[x]), ph[x]);
+                    }
+                    for (uint x = 0; x < full; x += 16) {
+                        const V16 m = min(min(LD16(c + x - 1), LD16(c + x)), LD16(c + x + 1));
+                        ST16G(min(LD16G(r + x), add_sat(m, (V16)1)), r + x);
+                    }
+                    for (uint x = full; x < X; ++x) {
+                        r[x] = min(r[x], inc_t(min(min(c[(int)x - 1], c[x]), c[x + 1])));
+                    }
+                }
+                if (dir == 1) {
+                    __global U* o = out + z * plane + (size_t)y * X;
+                    for (uint x = 0; x < full; x += 16) {
+                        const V16 d = LD16G(r + x);
+                        ST_U16(d, o + x);
+                        top = max(top, d);
+                    }
+                    for (uint x = full; x < X; ++x) {
+                        o[x] = (U)r[x];
+                        top.s0 = max(top.s0, r[x]);
+                    }
+                }
+            }
+        }
+    }
+    flag[0] = SAT_CHECK && hmax16(top) == (uchar)255;
+}
+#endif
 
 #endif
 

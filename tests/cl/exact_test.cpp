@@ -329,6 +329,21 @@ TEST(ExactChebyshevSweeps, WideAndLongWorlds) {
     expect_chebyshev(scene_random(Dims{900, 2, 5}, 0.002, 11), Palette(), "long x");
 }
 
+TEST(ExactChebyshevSweeps, BytesWidenFrom255) {
+    // As ExactManhattan.ByteSweepsWidenFrom255, for L-inf's byte sweeps.
+    for (const std::uint32_t n : {254u, 255u, 256u, 300u}) {
+        World x(Dims{n, 1, 1});
+        x.set(0, 0, 0, 1);
+        expect_chebyshev(x, Palette(), "far along x");
+        World y(Dims{2, n, 3});
+        y.set(1, n - 1, 2, 1);
+        expect_chebyshev(y, Palette(), "far along y");
+        World z(Dims{3, 2, n});
+        z.set(2, 0, 0, 1);
+        expect_chebyshev(z, Palette(), "far along z");
+    }
+}
+
 TEST(ExactChebyshevSweeps, RoutedByLayout) {
     auto o = exact_options(Format::u16, Layout::cpu);
     o.metric = Metric::chebyshev;

@@ -65,8 +65,8 @@ class ExactManhattan : public Generator {
     void allocate(const Palette& palette, const std::uint8_t* voxels, bool in_place,
                   std::span<std::uint8_t> field);
     void set_up_kernels();
-    // z_bytes and xy_bytes into stages_ (false where a slice or a strip does not fit the
-    // local memory).
+    // The byte sweeps into stages_ (false where a slice or a strip does not fit the local
+    // memory).
     bool add_byte_sweeps();
 
     bool gpu_layout_;
