@@ -336,11 +336,12 @@ inline uchar hmax16(V16 v) {
 // (`slice`, rows of X16 = X rounded up to 32 bytes between 16 bytes of T_MAX each side), then
 // the backward y sweep there, writing w8. A row is X16 long: the bytes past X start at T_MAX,
 // so they only relay values between real voxels at no less than their distance (in L1 and
-// L-inf alike), and leave those exact. A row without solids is T_MAX throughout; the doubling
-// stops once the row's largest value is at most 2s after the step s (every offset left to
-// consider is at least 2s). CHEBYSHEV: the y steps take the least of the three voxels above
-// (below), as xy_slices_seq's KING_STEP. `scratch`: two rows of X16 with `pad` bytes of T_MAX
-// on both sides. It also clears flag[0] for the next kernel (the kernels run in order).
+// L-inf alike), and leave those exact. A row without solids is T_MAX throughout; one of 1024
+// voxels or more with at most ROW_KMAX solids takes ramps between them (row_solids); the
+// doubling stops once the row's largest value is at most 2s after the step s (every offset
+// left to consider is at least 2s). CHEBYSHEV: the y steps take the least of the three voxels
+// above (below), as xy_slices_seq's KING_STEP. `scratch`: two rows of X16 with `pad` bytes of
+// T_MAX on both sides. It also clears flag[0] for the next kernel (the kernels run in order).
 __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restrict w8,
                        __global uint* restrict flag, uint X, uint Y, uint pad,
                        __local uchar* restrict scratch, __local uchar* restrict slice) {
@@ -375,7 +376,22 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
             a[x] = v ? (uchar)0 : (uchar)T_MAX;
             any.s0 = max(any.s0, v);
         }
-        if (hmax16(any) != 0) {
+        uint pos[ROW_KMAX];
+        const uint k = X >= 1024 && hmax16(any) != 0 ? row_solids(src, X, pos) : ROW_KMAX + 1;
+        if (k <= ROW_KMAX) {
+            // A long row with few solids: ramps between them (the bytes past X stay T_MAX).
+            for (uint x = 0; x < pos[0]; ++x) {
+                a[x] = (uchar)min(pos[0] - x, (uint)T_MAX);
+            }
+            for (uint i = 0; i + 1 < k; ++i) {
+                for (uint x = pos[i]; x < pos[i + 1]; ++x) {
+                    a[x] = (uchar)min(min(x - pos[i], pos[i + 1] - x), (uint)T_MAX);
+                }
+            }
+            for (uint x = pos[k - 1]; x < X; ++x) {
+                a[x] = (uchar)min(x - pos[k - 1], (uint)T_MAX);
+            }
+        } else if (hmax16(any) != 0) {
             for (uint s = 1; s < X; s <<= 1) {
                 const uchar32_v step = (uchar32_v)(uchar)min(s, (uint)T_MAX);
                 __local const uchar* lo = a - s;

@@ -106,6 +106,18 @@ TEST(ExactManhattan, ByteSweepsWidenFrom255) {
     xyz.set(0, 0, 0, 1);
     xyz.set(89, 89, 89, 1);
     expect_exact(xyz, Palette(), "corners 267 apart");
+    // Rows of 1024 voxels or more with at most 16 solids take ramps in the byte sweeps: here
+    // with every distance below 255, so that no format falls back to the wide sweeps.
+    World ramps(Dims{1030, 4, 2});
+    for (std::uint32_t z = 0; z < 2; ++z) {
+        for (std::uint32_t y = 0; y < 4; ++y) {
+            for (std::uint32_t x = y; x < 1030; x += 100 + 7 * z) {
+                ramps.set(x, y, z, 1);
+            }
+            ramps.set(1029 - y, y, z, 1);
+        }
+    }
+    expect_exact(ramps, Palette(), "long rows of few solids");
 }
 
 // The kernels a generator of `world` launches in `layout` (ExactManhattan::kernel_path), and
@@ -416,7 +428,7 @@ void expect_signed(const World& world, const std::string& what) {
 }
 
 TEST(ExactManhattanRows, SparseAndDenseRows) {
-    for (std::uint32_t X : {1u, 2u, 15u, 16u, 17u, 33u, 64u, 300u}) {
+    for (std::uint32_t X : {1u, 2u, 15u, 16u, 17u, 33u, 64u, 300u, 1024u, 1030u}) {
         const World w = rows_world(X, X);
         expect_exact(w, Palette(), "rows");
         expect_chebyshev(w, Palette(), "rows");
