@@ -277,6 +277,228 @@ __kernel void xy_slices_seq(__global const uchar* restrict vox, __global T* rest
     }
 }
 
+#ifdef U
+// The CPU layout's L1 on bytes (U: the output type, ushort or uint, or uchar for u8; T is
+// uchar and T_MAX at most 255): the sweeps compute min(exact, T_MAX) exactly (saturation
+// commutes with min-plus), in one byte per voxel instead of the output's two or four, so the
+// two passes move 5 bytes per voxel instead of 7 at u16. Where a value reaches 255 and the
+// output is wider (SAT_CHECK), the true distance may be larger: z_bytes sets flag[0] and the
+// host runs the wide sweeps (xy_slices_seq, cols_strip_final) over the world instead. Every
+// loop takes 16 bytes per step as a uchar16 (then single bytes for a ragged end): the
+// compiler's own vectorisation of byte loops left rows of 64 scalar (its vector loop takes
+// 128 bytes). Loads and stores go through types of alignment 1 (LD16 and ST16 in local
+// memory, LD16G, ST16G and ST_U16 in global memory): PoCL's vstore16 stores byte by byte.
+#define V16 uchar16
+#define CONVERT_(t, n) convert_##t##n
+#define CONVERT(t, n) CONVERT_(t, n)
+#define VTYPE_(t, n) t##n
+#define VTYPE(t, n) VTYPE_(t, n)
+typedef uchar16 uchar16_any __attribute__((aligned(1)));
+typedef VTYPE(U, 16) u16_any __attribute__((aligned(1)));
+#define LD16(p) (*(__local const uchar16_any*)(p))
+#define ST16(v, p) (*(__local uchar16_any*)(p) = (v))
+#define LD16G(p) (*(__global const uchar16_any*)(p))
+#define ST16G(v, p) (*(__global uchar16_any*)(p) = (v))
+#define ST_U16(v, p) (*(__global u16_any*)(p) = CONVERT(U, 16)(v))
+// The doubling's steps take 32 bytes at a time, in a vector of the compiler's (OpenCL C has
+// none of 32 bytes).
+typedef uchar uchar32_v __attribute__((ext_vector_type(32)));
+typedef uchar32_v uchar32_any __attribute__((aligned(1)));
+#define LD32(p) (*(__local const uchar32_any*)(p))
+#define ST32(v, p) (*(__local uchar32_any*)(p) = (v))
+inline uchar32_v min32(uchar32_v a, uchar32_v b) { return a < b ? a : b; }
+inline uchar32_v add_sat32(uchar32_v a, uchar32_v b) {
+    const uchar32_v s = a + b;
+    return s < a ? (uchar32_v)255 : s;
+}
+
+inline uchar hmin16(V16 v) {
+    const uchar8 m8 = min(v.lo, v.hi);
+    const uchar4 m4 = min(m8.lo, m8.hi);
+    return min(min(m4.s0, m4.s1), min(m4.s2, m4.s3));
+}
+inline uchar hmax16(V16 v) {
+    const uchar8 m8 = max(v.lo, v.hi);
+    const uchar4 m4 = max(m8.lo, m8.hi);
+    return max(max(m4.s0, m4.s1), max(m4.s2, m4.s3));
+}
+
+// A y step's predecessor of the 16 bytes at p + x: the voxel above (L1) or the least of
+// the three above (L-inf's moves (a, 1, 0), as KING_STEP).
+#if CHEBYSHEV
+#define Y_FROM16(p, x) min(min(LD16((p) + (x)-1), LD16((p) + (x))), LD16((p) + (x) + 1))
+#else
+#define Y_FROM16(p, x) LD16((p) + (x))
+#endif
+
+// xy_bytes: one work-item per z-slice of the voxels, as xy_slices_seq: each row's x transform
+// by doubling, then the forward y step from the row before, into the local copy of the slice
+// (`slice`, rows of X16 = X rounded up to 32 bytes between 16 bytes of T_MAX each side), then
+// the backward y sweep there, writing w8. A row is X16 long: the bytes past X start at T_MAX,
+// so they only relay values between real voxels at no less than their distance (in L1 and
+// L-inf alike), and leave those exact. A row without solids is T_MAX throughout; one of 1024
+// voxels or more with at most ROW_KMAX solids takes ramps between them (row_solids); the
+// doubling stops once the row's largest value is at most 2s after the step s (every offset
+// left to consider is at least 2s). CHEBYSHEV: the y steps take the least of the three voxels
+// above (below), as xy_slices_seq's KING_STEP. `scratch`: two rows of X16 with `pad` bytes of
+// T_MAX on both sides. It also clears flag[0] for the next kernel (the kernels run in order).
+__kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restrict w8,
+                       __global uint* restrict flag, uint X, uint Y, uint pad,
+                       __local uchar* restrict scratch, __local uchar* restrict slice) {
+    const size_t base = get_global_id(0) * (size_t)X * Y;
+    const uint X16 = (X + 31) / 32 * 32;  // a whole number of the doubling's 32-byte steps
+    const uint S = X16 + 32;                // a slice row: 16 bytes of T_MAX, X16, 16 of T_MAX
+    const uint full = X / 16 * 16;
+    const uint span = X16 + 2 * pad;
+    if (get_global_id(0) == 0) {
+        flag[0] = 0;
+    }
+    for (uint i = 0; i < 2 * span; ++i) {
+        scratch[i] = (uchar)T_MAX;
+    }
+    for (uint y = 0; y < Y; ++y) {
+        ST16((V16)T_MAX, slice + y * S);
+        ST16((V16)T_MAX, slice + y * S + 16 + X16);
+    }
+    for (uint y = 0; y < Y; ++y) {
+        __global const uchar* src = vox + base + (size_t)y * X;
+        __local uchar* dst = slice + y * S + 16;
+        __local uchar* a = scratch + pad;
+        __local uchar* b = scratch + span + pad;
+        V16 any = 0;
+        for (uint x = 0; x < full; x += 16) {
+            const V16 v = LD16G(src + x);
+            ST16(min(as_uchar16(v == (V16)0), (V16)T_MAX), a + x);
+            any = max(any, v);
+        }
+        for (uint x = full; x < X16; ++x) {
+            const uchar v = x < X ? src[x] : (uchar)0;
+            a[x] = v ? (uchar)0 : (uchar)T_MAX;
+            any.s0 = max(any.s0, v);
+        }
+        uint pos[ROW_KMAX];
+        const uint k = X >= 1024 && hmax16(any) != 0 ? row_solids(src, X, pos) : ROW_KMAX + 1;
+        if (k <= ROW_KMAX) {
+            // A long row with few solids: ramps between them (the bytes past X stay T_MAX).
+            for (uint x = 0; x < pos[0]; ++x) {
+                a[x] = (uchar)min(pos[0] - x, (uint)T_MAX);
+            }
+            for (uint i = 0; i + 1 < k; ++i) {
+                for (uint x = pos[i]; x < pos[i + 1]; ++x) {
+                    a[x] = (uchar)min(min(x - pos[i], pos[i + 1] - x), (uint)T_MAX);
+                }
+            }
+            for (uint x = pos[k - 1]; x < X; ++x) {
+                a[x] = (uchar)min(x - pos[k - 1], (uint)T_MAX);
+            }
+        } else if (hmax16(any) != 0) {
+            for (uint s = 1; s < X; s <<= 1) {
+                const uchar32_v step = (uchar32_v)(uchar)min(s, (uint)T_MAX);
+                __local const uchar* lo = a - s;
+                __local const uchar* hi = a + s;
+                uchar32_v top = 0;
+                for (uint x = 0; x < X16; x += 32) {
+                    const uchar32_v d =
+                        min32(LD32(a + x), add_sat32(min32(LD32(lo + x), LD32(hi + x)), step));
+                    ST32(d, b + x);
+                    top = top < d ? d : top;
+                }
+                __local uchar* t = a;
+                a = b;
+                b = t;
+                if ((uint)hmax16(max(top.lo, top.hi)) <= 2 * s) {
+                    break;
+                }
+            }
+        }
+        // The forward y sweep's step from the row before (still in L1).
+        __local const uchar* prev = y > 0 ? dst - S : a;
+        for (uint x = 0; x < X16; x += 16) {
+            ST16(min(LD16(a + x), add_sat(Y_FROM16(prev, x), (V16)1)), dst + x);
+        }
+    }
+    for (uint y = Y; y-- > 0;) {
+        __local uchar* cur = slice + y * S + 16;
+        __local const uchar* next = y + 1 < Y ? cur + S : cur;
+        __global uchar* o = w8 + base + (size_t)y * X;
+        // Whole vectors (the bytes past X too, for the row above), stored to w8 up to X.
+        for (uint x = 0; x < X16; x += 16) {
+            ST16(min(LD16(cur + x), add_sat(Y_FROM16(next, x), (V16)1)), cur + x);
+        }
+        if ((size_t)o % 16 == 0) {
+            for (uint x = 0; x < full; x += 16) {
+                __builtin_nontemporal_store(LD16(cur + x), (__global V16*)(o + x));
+            }
+        } else {
+            for (uint x = 0; x < full; x += 16) {
+                ST16G(LD16(cur + x), o + x);
+            }
+        }
+        for (uint x = full; x < X; ++x) {
+            o[x] = cur[x];
+        }
+    }
+}
+
+// z_bytes: the z pass, from w8 into the output. Each work-item sweeps `chunk` contiguous
+// values of a z-plane (a flat strip: whole rows, no per-row work) through all Z planes,
+// forward into `scratch` (chunk * Z bytes, the strip's columns contiguous) and backward from
+// there into `out`, so w8 is read once and the output written once; SAT_CHECK: sets flag[0]
+// where a value is 255.
+__kernel void z_bytes(__global const uchar* restrict w8, __global U* restrict out,
+                      __global uint* restrict flag, ulong plane, uint Z, uint chunk,
+                      __local uchar* restrict scratch) {
+    const size_t c0 = get_global_id(0) * (size_t)chunk;
+    const uint w = (uint)min((size_t)chunk, (size_t)plane - c0);
+    const uint w16 = w / 16 * 16;
+    for (uint z = 0; z < Z; ++z) {
+        __global const uchar* v = w8 + z * plane + c0;
+        __local uchar* cur = scratch + z * w;
+        // The previous plane's values; T_MAX before the first (read from cur, then replaced).
+        __local const uchar* prev = z > 0 ? cur - w : cur;
+        const V16 none = z > 0 ? (V16)0 : (V16)T_MAX;
+        for (uint i = 0; i < w16; i += 16) {
+            const V16 p = max(LD16(prev + i), none);
+            ST16(min(LD16G(v + i), add_sat(p, (V16)1)), cur + i);
+        }
+        for (uint i = w16; i < w; ++i) {
+            const uchar p = z > 0 ? prev[i] : (uchar)T_MAX;
+            cur[i] = min(v[i], inc_t(p));
+        }
+    }
+    V16 top = 0;
+    for (uint z = Z; z-- > 0;) {
+        __global U* o = out + z * plane + c0;
+        __local uchar* cur = scratch + z * w;
+        __local const uchar* next = z + 1 < Z ? cur + w : cur;
+        if ((size_t)o % sizeof(VTYPE(U, 16)) == 0) {
+            for (uint i = 0; i < w16; i += 16) {
+                const V16 d = min(LD16(cur + i), add_sat(LD16(next + i), (V16)1));
+                ST16(d, cur + i);
+                __builtin_nontemporal_store(CONVERT(U, 16)(d), (__global VTYPE(U, 16)*)(o + i));
+                top = max(top, d);
+            }
+        } else {
+            for (uint i = 0; i < w16; i += 16) {
+                const V16 d = min(LD16(cur + i), add_sat(LD16(next + i), (V16)1));
+                ST16(d, cur + i);
+                ST_U16(d, o + i);
+                top = max(top, d);
+            }
+        }
+        for (uint i = w16; i < w; ++i) {
+            const uchar d = min(cur[i], inc_t(next[i]));
+            cur[i] = d;
+            o[i] = (U)d;
+            top.s0 = max(top.s0, d);
+        }
+    }
+    if (SAT_CHECK && hmax16(top) == (uchar)255) {
+        flag[0] = 1;
+    }
+}
+#endif
+
 #if CHEBYSHEV
 // The L-inf z moves (a, b, +-1), a, b in {-1,0,1}, all nine at once: a forward sweep over
 // the z planes, each voxel taking 1 + the least of the nine voxels around it in the plane
@@ -322,6 +544,67 @@ __kernel void z_king(__global T* restrict work, __global uint* restrict out,
     }
 #endif
 }
+
+#ifdef U
+// z_king on bytes (the byte program, T = uchar): the same sweeps over the planes, 16 bytes per
+// vector step (a ragged end one at a time), each row written to the output in the backward
+// sweep once final (the last plane after the forward sweep). flag[0]: a value of 255 where
+// the output is wider (SAT_CHECK; the host then runs the wide sweeps).
+__kernel void z_king_bytes(__global uchar* restrict work, __global U* restrict out,
+                           __global uint* restrict flag, uint X, uint Y, uint Z,
+                           __local uchar* restrict cm) {
+    if (get_global_id(0) != 0) {
+        return;
+    }
+    const size_t plane = (size_t)X * Y;
+    const uint full = X / 16 * 16;
+    __local uchar* c = cm + 1;
+    c[-1] = (uchar)T_MAX;
+    c[X] = (uchar)T_MAX;
+    V16 top = 0;
+    for (uint dir = 0; dir < 2; ++dir) {
+        for (uint i = 0; i < Z; ++i) {
+            const uint z = dir == 0 ? i : Z - 1 - i;
+            __global uchar* cur = work + z * plane;
+            __global const uchar* prev = dir == 0 ? cur - plane : cur + plane;
+            for (uint y = 0; y < Y; ++y) {
+                __global uchar* r = cur + (size_t)y * X;
+                if (i > 0) {
+                    __global const uchar* p0 = prev + (size_t)y * X;
+                    __global const uchar* pl = y > 0 ? p0 - X : p0;
+                    __global const uchar* ph = y + 1 < Y ? p0 + X : p0;
+                    for (uint x = 0; x < full; x += 16) {
+                        ST16(min(min(LD16G(pl + x), LD16G(p0 + x)), LD16G(ph + x)), c + x);
+                    }
+                    for (uint x = full; x < X; ++x) {
+                        c[x] = min(min(pl[x], p0[x]), ph[x]);
+                    }
+                    for (uint x = 0; x < full; x += 16) {
+                        const V16 m = min(min(LD16(c + x - 1), LD16(c + x)), LD16(c + x + 1));
+                        ST16G(min(LD16G(r + x), add_sat(m, (V16)1)), r + x);
+                    }
+                    for (uint x = full; x < X; ++x) {
+                        r[x] = min(r[x], inc_t(min(min(c[(int)x - 1], c[x]), c[x + 1])));
+                    }
+                }
+                if (dir == 1) {
+                    __global U* o = out + z * plane + (size_t)y * X;
+                    for (uint x = 0; x < full; x += 16) {
+                        const V16 d = LD16G(r + x);
+                        ST_U16(d, o + x);
+                        top = max(top, d);
+                    }
+                    for (uint x = full; x < X; ++x) {
+                        o[x] = (U)r[x];
+                        top.s0 = max(top.s0, r[x]);
+                    }
+                }
+            }
+        }
+    }
+    flag[0] = SAT_CHECK && hmax16(top) == (uchar)255;
+}
+#endif
 
 #endif
 

@@ -97,6 +97,32 @@ cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t
                        options);
 }
 
+// The CPU layout's L1 and L-inf on bytes (exact_manhattan.cl's U: xy_bytes and z_bytes, or
+// xy_slices_seq and z_king_bytes): unsigned u8, u16 and u32 fields (packed32 keeps the wide
+// sweeps, which write its colours).
+bool byte_sweeps(Format f, Metric m, bool gpu_layout) {
+    return !gpu_layout && (m == Metric::manhattan || m == Metric::chebyshev) &&
+           (f == Format::u8 || f == Format::u16 || f == Format::u32);
+}
+
+// A field whose distances the byte sweeps may have cut at 255: the output holds more and the
+// bound (if any) is above 255, so the last byte kernel flags such a value and run() takes the
+// wide sweeps.
+bool byte_check(Format f, std::uint32_t cap) {
+    return f != Format::u8 && cap > 255u;
+}
+
+// The byte sweeps' program: T uchar saturating at min(255, cap), U the output type.
+cl::Program build_byte_program(Context& ctx, Format f, Metric m, std::uint32_t cap) {
+    const std::string options =
+        "-DT=uchar -DT_MAX=" + std::to_string(std::min(255u, cap)) + "u -DU=" + work_type(f).name +
+        " -DSAT_CHECK=" + (byte_check(f, cap) ? "1" : "0") +
+        " -DPACKED=0 -DSEG_K=32 -DVW=1 -DCHEBYSHEV=" + (m == Metric::chebyshev ? "1" : "0") +
+        " -DSIGNED=0 -cl-std=CL1.2";
+    return ctx.program("exact_manhattan.cl", {cl_sources::layout_h, cl_sources::exact_manhattan_cl},
+                       options);
+}
+
 }  // namespace
 
 std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
@@ -231,6 +257,9 @@ void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layo
                              std::optional<double> max_distance) {
     const std::uint32_t cap = cap_of(max_distance);
     build_program(ctx, format, 32, 1, metric, cap);
+    if (byte_sweeps(format, metric, use_gpu_layout(ctx, layout))) {
+        build_byte_program(ctx, format, metric, cap);
+    }
     if (use_gpu_layout(ctx, layout)) {
         for (const std::uint32_t len : {dims.y, dims.z}) {
             if (const std::uint32_t k = seg_k(len); k != 0) {
@@ -369,6 +398,14 @@ void ExactManhattan::set_up_kernels() {
                     cl::NDRange(1, 1)};
         };
 
+        if (byte_sweeps(format_, metric_, gpu_layout_) && add_byte_sweeps()) {
+            if (!byte_check(format_, cap_)) {
+                return;
+            }
+            // The wide sweeps below run only where the byte sweeps flag a distance of 255 or
+            // more.
+            fallback_from_ = stages_.size();
+        }
         bool rows_on_gpu = false;
         if (gpu_layout_) {
             if (auto rows = gpu_x_rows(ctx_, dims_, format_, voxels_, work_, cap_)) {
@@ -417,6 +454,66 @@ void ExactManhattan::set_up_kernels() {
     });
 }
 
+bool ExactManhattan::add_byte_sweeps() {
+    const auto& info = ctx_.info();
+    const std::size_t plane = std::size_t{dims_.x} * dims_.y;
+    const std::size_t pad = std::max<std::size_t>(1, next_pow2(dims_.x) / 2);
+    const std::size_t x16 = (std::size_t{dims_.x} + 31) / 32 * 32;  // xy_bytes' row length
+    const std::size_t rows = 2 * (x16 + 2 * pad);
+    const std::size_t slice = (x16 + 32) * dims_.y;
+    if (rows + slice > info.local_mem || dims_.z > info.local_mem) {
+        return false;
+    }
+    const cl::Program bytes = build_byte_program(ctx_, format_, metric_, cap_);
+    bytes_ = make_buffer(dims_.count(), CL_MEM_READ_WRITE);
+    flag_ = cl::Buffer(ctx_.context(), CL_MEM_READ_WRITE, sizeof(cl_uint));
+    cl::Kernel xy(bytes, "xy_bytes");
+    xy.setArg(0, voxels_);
+    xy.setArg(1, bytes_);
+    xy.setArg(2, flag_);
+    xy.setArg(3, dims_.x);
+    xy.setArg(4, dims_.y);
+    xy.setArg(5, static_cast<cl_uint>(pad));
+    xy.setArg(6, cl::Local(rows));
+    xy.setArg(7, cl::Local(slice));
+    stages_.push_back({"xy_bytes", xy, cl::NDRange(dims_.z), cl::NDRange(1)});
+    path_.push_back("xy_bytes");
+    if (metric_ == Metric::chebyshev) {
+        // L-inf's z moves over whole planes in one work-item, as z_king.
+        cl::Kernel z(bytes, "z_king_bytes");
+        z.setArg(0, bytes_);
+        z.setArg(1, out_);
+        z.setArg(2, flag_);
+        z.setArg(3, dims_.x);
+        z.setArg(4, dims_.y);
+        z.setArg(5, dims_.z);
+        z.setArg(6, cl::Local(std::size_t{dims_.x} + 2));
+        stages_.push_back({"z_king_bytes", z, cl::NDRange(1), cl::NDRange(1)});
+        path_.push_back("z_king_bytes");
+        return true;
+    }
+    // z_bytes' strips: a whole number of 64-byte lines, their columns (chunk * Z bytes) within
+    // 1 MiB so that the backward sweep reads them from L2, and at least 4 strips per core.
+    std::size_t chunk =
+        std::min<std::size_t>(plane, std::max<std::size_t>(64, (1024 * 1024) / dims_.z / 64 * 64));
+    const std::size_t want_items = 4 * std::size_t{info.compute_units};
+    while (chunk > 64 && (plane + chunk - 1) / chunk < want_items) {
+        chunk = std::max<std::size_t>(64, chunk / 2 / 64 * 64);
+    }
+    chunk = std::min(chunk, info.local_mem / dims_.z);
+    cl::Kernel z(bytes, "z_bytes");
+    z.setArg(0, bytes_);
+    z.setArg(1, out_);
+    z.setArg(2, flag_);
+    z.setArg(3, static_cast<cl_ulong>(plane));
+    z.setArg(4, dims_.z);
+    z.setArg(5, static_cast<cl_uint>(chunk));
+    z.setArg(6, cl::Local(chunk * dims_.z));
+    stages_.push_back({"z_bytes", z, cl::NDRange((plane + chunk - 1) / chunk), cl::NDRange(1)});
+    path_.push_back("z_bytes");
+    return true;
+}
+
 std::string ExactManhattan::variant() const {
     return gpu_layout_ ? "gpu layout" : "cpu layout";
 }
@@ -425,7 +522,15 @@ double ExactManhattan::run() {
     return cl_call("running exact_manhattan.cl on " + dims_.to_string(), [&] {
         auto& q = ctx_.queue();
         std::vector<std::pair<std::string, cl::Event>> events;
-        for (const KernelLaunch& stage : stages_) {
+        for (std::size_t i = 0; i < stages_.size(); ++i) {
+            if (i == fallback_from_) {
+                cl_uint cut = 0;
+                q.enqueueReadBuffer(flag_, CL_TRUE, 0, sizeof cut, &cut);
+                if (cut == 0) {
+                    break;
+                }
+            }
+            const KernelLaunch& stage = stages_[i];
             events.emplace_back(stage.name, cl::Event());
             q.enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global, stage.local, nullptr,
                                    &events.back().second);

@@ -87,6 +87,39 @@ TEST(ExactManhattan, LongDistancesSaturate) {
     expect_exact(w, Palette(), "far single voxel");
 }
 
+TEST(ExactManhattan, ByteSweepsWidenFrom255) {
+    // The CPU layout's byte sweeps hold min(distance, 255); a field whose largest distance is
+    // 255 or more takes the wide sweeps (u16, u32), one of 254 stays on bytes. Along each
+    // axis, and across all three.
+    for (const std::uint32_t n : {254u, 255u, 256u, 257u, 300u}) {
+        World x(Dims{n, 1, 1});
+        x.set(0, 0, 0, 1);
+        expect_exact(x, Palette(), "far along x");
+        World y(Dims{2, n, 3});
+        y.set(1, n - 1, 2, 1);
+        expect_exact(y, Palette(), "far along y");
+        World z(Dims{3, 2, n});
+        z.set(2, 0, 0, 1);
+        expect_exact(z, Palette(), "far along z");
+    }
+    World xyz(Dims{90, 90, 90});
+    xyz.set(0, 0, 0, 1);
+    xyz.set(89, 89, 89, 1);
+    expect_exact(xyz, Palette(), "corners 267 apart");
+    // Rows of 1024 voxels or more with at most 16 solids take ramps in the byte sweeps: here
+    // with every distance below 255, so that no format falls back to the wide sweeps.
+    World ramps(Dims{1030, 4, 2});
+    for (std::uint32_t z = 0; z < 2; ++z) {
+        for (std::uint32_t y = 0; y < 4; ++y) {
+            for (std::uint32_t x = y; x < 1030; x += 100 + 7 * z) {
+                ramps.set(x, y, z, 1);
+            }
+            ramps.set(1029 - y, y, z, 1);
+        }
+    }
+    expect_exact(ramps, Palette(), "long rows of few solids");
+}
+
 // The kernels a generator of `world` launches in `layout` (ExactManhattan::kernel_path), and
 // a check that its run() launched those (stage names in order).
 std::vector<std::string> kernel_path(const World& world, Format f, Layout layout) {
@@ -108,6 +141,10 @@ std::vector<std::string> kernel_path(const World& world, Format f, Layout layout
             names.push_back(name);
         }
     }
+    // The byte sweeps' wide fallback runs only where a distance reaches 255.
+    if (ran.size() == 2 && names.size() == 4 && names[0] == "xy_bytes") {
+        names.resize(2);
+    }
     EXPECT_EQ(ran, names) << "stage_ms names a kernel of each launch, repeats summed";
     return exact->kernel_path();
 }
@@ -115,7 +152,7 @@ std::vector<std::string> kernel_path(const World& world, Format f, Layout layout
 TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     // Columns up to 1024 voxels take cols_seg with segments of 16, up to 2048 segments of 32,
     // longer ones the strip fallback of the GPU layout; the CPU layout sweeps xy slices and
-    // strips of columns.
+    // strips of columns (on bytes where it can).
     using Path = std::vector<std::string>;
     const World tall = scene_random(Dims{3, 1100, 2}, 0.002, 5);
     const World deep = scene_random(Dims{2, 2, 2100}, 0.001, 6);
@@ -130,9 +167,14 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
         EXPECT_EQ(kernel_path(wide, f, Layout::gpu),
                   (Path{"x_rows_seg", "cols_seg/16", "cols_seg/16"}))
             << to_string(f);
+        // Bytes first where the format is unsigned and holds no colours, then (u16, u32) the
+        // wide sweeps where a distance reaches 255.
+        const Path cpu = f == Format::packed32 ? Path{"xy_slices_seq", "cols_strip_final"}
+                         : f == Format::u8
+                             ? Path{"xy_bytes", "z_bytes"}
+                             : Path{"xy_bytes", "z_bytes", "xy_slices_seq", "cols_strip_final"};
         for (const World* w : {&tall, &deep, &wide}) {
-            EXPECT_EQ(kernel_path(*w, f, Layout::cpu), (Path{"xy_slices_seq", "cols_strip_final"}))
-                << to_string(f);
+            EXPECT_EQ(kernel_path(*w, f, Layout::cpu), cpu) << to_string(f);
         }
     }
     expect_exact(tall, Palette(), "tall");
@@ -299,6 +341,21 @@ TEST(ExactChebyshevSweeps, WideAndLongWorlds) {
     expect_chebyshev(scene_random(Dims{900, 2, 5}, 0.002, 11), Palette(), "long x");
 }
 
+TEST(ExactChebyshevSweeps, BytesWidenFrom255) {
+    // As ExactManhattan.ByteSweepsWidenFrom255, for L-inf's byte sweeps.
+    for (const std::uint32_t n : {254u, 255u, 256u, 300u}) {
+        World x(Dims{n, 1, 1});
+        x.set(0, 0, 0, 1);
+        expect_chebyshev(x, Palette(), "far along x");
+        World y(Dims{2, n, 3});
+        y.set(1, n - 1, 2, 1);
+        expect_chebyshev(y, Palette(), "far along y");
+        World z(Dims{3, 2, n});
+        z.set(2, 0, 0, 1);
+        expect_chebyshev(z, Palette(), "far along z");
+    }
+}
+
 TEST(ExactChebyshevSweeps, RoutedByLayout) {
     auto o = exact_options(Format::u16, Layout::cpu);
     o.metric = Metric::chebyshev;
@@ -371,7 +428,7 @@ void expect_signed(const World& world, const std::string& what) {
 }
 
 TEST(ExactManhattanRows, SparseAndDenseRows) {
-    for (std::uint32_t X : {1u, 2u, 15u, 16u, 17u, 33u, 64u, 300u}) {
+    for (std::uint32_t X : {1u, 2u, 15u, 16u, 17u, 33u, 64u, 300u, 1024u, 1030u}) {
         const World w = rows_world(X, X);
         expect_exact(w, Palette(), "rows");
         expect_chebyshev(w, Palette(), "rows");

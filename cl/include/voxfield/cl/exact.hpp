@@ -65,6 +65,9 @@ class ExactManhattan : public Generator {
     void allocate(const Palette& palette, const std::uint8_t* voxels, bool in_place,
                   std::span<std::uint8_t> field);
     void set_up_kernels();
+    // The byte sweeps into stages_ (false where a slice or a strip does not fit the local
+    // memory).
+    bool add_byte_sweeps();
 
     bool gpu_layout_;
     Metric metric_;
@@ -72,6 +75,10 @@ class ExactManhattan : public Generator {
     cl::Buffer voxels_, rgb_, work_;
     // The kernels of one transform, in enqueue order.
     std::vector<KernelLaunch> stages_;
+    // The byte sweeps' flag (a distance cut at 255) and w8; stages_ from fallback_from_ on run
+    // only when the flag is set.
+    cl::Buffer bytes_, flag_;
+    std::size_t fallback_from_ = SIZE_MAX;
     std::vector<std::string> path_;  // kernel_path(), beside stages_
 };
 
