@@ -1018,13 +1018,15 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                     // Sub-tiles of 16 lines; the envelope per line where no vector path
                     // takes them.
                     const int c1 = min(c0 + 16, cw);
-#if METRIC == 2 && UNIT && !WIDE && !INDICES
+#if METRIC == 2 && UNIT && !WIDE && !INDICES && CPU_LAYOUT
+                    // (Tiles are the CPU layout's: compiled out of the GPU layout's col_pass,
+                    // whose registers the windows would cost.)
                     if (box == 0 && tile_w % 16 == 0 &&
                         tile_window_l2_dist(tin + c0, tout + c0, (__global uint*)s, t, tile_w,
                                             c1 - c0, (int)n, cls, cap)) {
                         continue;
                     }
-#elif METRIC == 2 && UNIT && !WIDE
+#elif METRIC == 2 && UNIT && !WIDE && CPU_LAYOUT
                     if (box == 0 && tile_w % 16 == 0 &&
                         tile_window_l2(tin + c0, tout + c0, (__global uint*)s, t, tile_w,
                                        c1 - c0, (int)n, cls, cap, ftin + c0, ftout + c0, kt)) {
