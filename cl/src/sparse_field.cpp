@@ -784,22 +784,17 @@ SparseField::Update SparseField::update(const Box& changed) {
 
 SparseField::Update SparseField::apply_brush(const Brush& brush) {
     const Box changed = device_world_.apply_brush(brush);
-    Update result = recompute({changed});
-    std::vector<std::pair<std::string, double>> stages = device_world_.last_edit_stages();
-    for (const auto& [name, ms] : stages) {
-        result.edit_kernel_ms += ms;
-    }
-    result.kernel_ms += result.edit_kernel_ms;
-    stages.insert(stages.end(), result.stages.begin(), result.stages.end());
-    result.stages = std::move(stages);
-    return result;
+    return with_edit_stages(recompute({changed}));
 }
 
 SparseField::Update SparseField::apply_dense_tiles(
     const cl::Buffer& vox, std::uint32_t pitch_y, std::uint32_t pitch_z,
     const std::vector<SparseDeviceWorld::DenseTile>& tiles, const std::vector<Box>& changed) {
     device_world_.encode_dense_tiles(vox, pitch_y, pitch_z, tiles);
-    Update result = recompute(changed);
+    return with_edit_stages(recompute(changed));
+}
+
+SparseField::Update SparseField::with_edit_stages(Update result) const {
     std::vector<std::pair<std::string, double>> stages = device_world_.last_edit_stages();
     for (const auto& [name, ms] : stages) {
         result.edit_kernel_ms += ms;

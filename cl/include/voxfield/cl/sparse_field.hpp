@@ -155,6 +155,9 @@ class SparseField {
     // edited): one box in one block (tile by tile when that is too large), several in one
     // block of their hull when it is small, else tile by tile.
     Update recompute(const std::vector<Box>& changed);
+    // `result` with the device world's last edit stages (decoding, brushing, encoding) put
+    // before its own and counted in its kernel times.
+    Update with_edit_stages(Update result) const;
     // The slot of field tile `key`, made dense (filled with its constant) when it was not.
     std::uint32_t dense_slot(std::uint64_t key);
     void ensure_slots(std::size_t slots);
