@@ -202,7 +202,7 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
                    " field tiles; radius-8 edits on the device");
 
     std::vector<double> edit_wall, edit_kernel, edit_encode, edit_gap;
-    std::vector<std::pair<std::string, std::vector<double>>> edit_stages;  // per kernel name
+    StageSamples edit_stages;  // per kernel name
     std::uint64_t recomputed = 0;
     for (std::size_t e = 0; e < edits.size(); ++e) {
         const bool warm = e < warmup;
@@ -217,18 +217,7 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
             edit_kernel.push_back(u.kernel_ms);
             edit_encode.push_back(u.edit_kernel_ms);
             edit_gap.push_back(wall - u.kernel_ms);
-            for (const auto& [name, ms] : u.stages) {
-                auto it = std::find_if(edit_stages.begin(), edit_stages.end(),
-                                       [&](const auto& s) { return s.first == name; });
-                if (it == edit_stages.end()) {
-                    edit_stages.emplace_back(name, std::vector<double>(edit_wall.size() - 1, 0.0));
-                    it = edit_stages.end() - 1;
-                }
-                it->second.push_back(ms);
-            }
-            for (auto& [name, samples] : edit_stages) {
-                samples.resize(edit_wall.size(), 0.0);
-            }
+            append_stage_samples(edit_stages, edit_wall.size(), u.stages);
             recomputed +=
                 u.recomputed.empty() ? 0 : static_cast<std::uint64_t>(u.recomputed.volume());
         }
@@ -348,6 +337,22 @@ json load_average() {
         return json();
     }
     return {a, b, c};
+}
+
+void append_stage_samples(StageSamples& columns, std::size_t samples,
+                          const std::vector<std::pair<std::string, double>>& named) {
+    for (const auto& [name, ms] : named) {
+        auto it = std::find_if(columns.begin(), columns.end(),
+                               [&](const auto& c) { return c.first == name; });
+        if (it == columns.end()) {
+            columns.emplace_back(name, std::vector<double>(samples - 1, 0.0));
+            it = columns.end() - 1;
+        }
+        it->second.push_back(ms);
+    }
+    for (auto& [name, column] : columns) {
+        column.resize(samples, 0.0);
+    }
 }
 
 void check_sparse_suite_options(const SuiteOptions& o) {

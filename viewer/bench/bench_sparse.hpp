@@ -6,7 +6,10 @@
 // voxels, peak memory and bytes per stored voxel recorded.
 #include <nlohmann/json.hpp>
 
+#include <cstddef>
 #include <cstdint>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "bench_suites.hpp"
@@ -26,6 +29,11 @@ double peak_rss_bytes();
 // The machine's load averages (1, 5, 15 minutes; /proc/loadavg), null where unreadable: other
 // work on the machine slows a CPU device's run.
 nlohmann::json load_average();
+// Per-name sample columns of a run's stages: `named` (one run's stage times) appended as
+// sample number `samples` - 1 of every column, a stage absent from a run counting 0 there.
+using StageSamples = std::vector<std::pair<std::string, std::vector<double>>>;
+void append_stage_samples(StageSamples& columns, std::size_t samples,
+                          const std::vector<std::pair<std::string, double>>& named);
 
 nlohmann::json run_sparse(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t repeat,
                           std::uint32_t warmup, BenchObserver& observer);

@@ -95,7 +95,7 @@ json sparse_sand_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::u
 
     std::vector<double> wall, simulate, update, encode, field_update, tiles_run, tiles_changed;
     std::uint64_t changed = 0, recomputed = 0;
-    std::vector<std::pair<std::string, std::vector<double>>> stages;  // update kernels by name
+    StageSamples stages;  // update kernels by name
     const auto t_start = Clock::now();
     bool cut = false;
     std::uint64_t step = 0;
@@ -122,18 +122,7 @@ json sparse_sand_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::u
         tiles_changed.push_back(s.tiles_changed);
         changed += s.changed;
         recomputed += static_cast<std::uint64_t>(s.update.recomputed.volume());
-        for (const auto& [name, stage_ms] : s.update.stages) {
-            auto it = std::find_if(stages.begin(), stages.end(),
-                                   [&](const auto& st) { return st.first == name; });
-            if (it == stages.end()) {
-                stages.emplace_back(name, std::vector<double>(wall.size() - 1, 0.0));
-                it = stages.end() - 1;
-            }
-            it->second.push_back(stage_ms);
-        }
-        for (auto& [name, samples] : stages) {
-            samples.resize(wall.size(), 0.0);
-        }
+        append_stage_samples(stages, wall.size(), s.update.stages);
         if (ms_since(t_start) > budget_s * 1e3) {
             cut = step + 1 < std::uint64_t{warmup} + steps;
             ++step;
