@@ -238,6 +238,14 @@ TEST_F(SimulateTest, SparseRunVerifiesAndEndsWithTheReferenceWorldAndCappedField
     EXPECT_EQ(j["max_distance"], 3.5);
     ASSERT_EQ(j["steps"].size(), 12u);
     EXPECT_TRUE(j["steps"][0].contains("tiles_run")) << j["steps"][0].dump();
+    // DESIGN §4's simulate record, as dense runs write it.
+    ASSERT_TRUE(j.contains("device") && j["device"].is_object()) << j.dump(1);
+    ASSERT_TRUE(j.contains("full_regeneration_ms") && j["full_regeneration_ms"].is_number());
+    for (const json& s : j["steps"]) {
+        EXPECT_TRUE(s.contains("step") && s.contains("simulate_ms") && s.contains("update_ms") &&
+                    s.contains("voxels_changed"))
+            << s.dump();
+    }
     EXPECT_GT(j["summary"]["voxels_changed"].get<std::size_t>(), 0u);
 
     const fs::path big = dir_ / "big.npy";

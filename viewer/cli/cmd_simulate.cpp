@@ -287,7 +287,7 @@ int run_simulate_sparse(const SimulateOptions& o, const SandRules& rules, std::u
             {"water_material", rules.water},
             {"seed", seed},
             {"verified", o.verify},
-            {"full_field_ms", full_ms},
+            {"full_regeneration_ms", full_ms},
             {"steps", per_step},
             {"summary",
              {{"steps", steps},
