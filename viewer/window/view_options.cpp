@@ -82,9 +82,10 @@ void add_view_options(CLI::App& app, ViewCliOptions& o) {
         ->capture_default_str();
     app.add_flag("--simulate", o.simulate,
                  "Falling sand and water every frame (as `simulate`: colour 2 falls as sand, 3 "
-                 "flows as water, every other solid stays), the field updated after each step; "
-                 "G pauses, N steps; with --benchmark the sand's and the update's times are "
-                 "recorded per frame");
+                 "flows as water, every other solid stays), the field updated after each step "
+                 "(on a --sparse world only the tiles near recent changes step, and the field "
+                 "within D of them); G pauses, N steps; with --benchmark the sand's and the "
+                 "update's times are recorded per frame");
     app.add_option("--interval-ms", o.interval_ms, "Benchmark: time between edits")
         ->capture_default_str();
     app.add_option("--duration-s", o.duration_s, "Benchmark: duration")->capture_default_str();
