@@ -217,6 +217,7 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
         sweep_init_ = cl::Kernel(program_, "sweep_init");
         sweep_l1_ = cl::Kernel(program_, "sweep_l1");
         sweep_l1_rows_ = cl::Kernel(program_, "sweep_l1_rows");
+        sweep_l1_loaded_ = cl::Kernel(program_, "sweep_l1_loaded");
         sweep_finish_ = cl::Kernel(program_, "sweep_finish");
     });
 }
@@ -724,7 +725,7 @@ double SparseField::sweep() {
         sweep_init_.setArg(5, pool_);
         sweep_init_.setArg(7, cap);
         sweep_init_.setArg(8, sgn ? -cap : cl_int{0});
-        for (cl::Kernel* k : {&sweep_l1_, &sweep_l1_rows_}) {
+        for (cl::Kernel* k : {&sweep_l1_, &sweep_l1_rows_, &sweep_l1_loaded_}) {
             k->setArg(0, pool_);
             k->setArg(1, nbrs_buf);
             k->setArg(4, static_cast<cl_uint>(halo_[0]));
@@ -758,9 +759,10 @@ double SparseField::sweep() {
         };
         each_batch("sweep_init", sweep_init_, 6, Shape::voxels16);
         for (cl_uint axis = 0; axis < 3; ++axis) {
-            // CPUs take y and z a plane of 64 lines per work-item (sweep_l1_rows), unsigned.
+            // CPUs take y and z a plane of 64 lines per work-item (sweep_l1_rows), unsigned;
+            // GPUs load each line whole first (sweep_l1_loaded).
             const bool planes = axis != 0 && !gpu_layout_ && !sgn;
-            cl::Kernel& k = planes ? sweep_l1_rows_ : sweep_l1_;
+            cl::Kernel& k = planes ? sweep_l1_rows_ : gpu_layout_ ? sweep_l1_loaded_ : sweep_l1_;
             k.setArg(3, axis);
             each_batch(std::string("sweep_") + "xyz"[axis], k, 2,
                        planes ? Shape::planes : Shape::lines);

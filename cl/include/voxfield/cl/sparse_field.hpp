@@ -178,6 +178,7 @@ class SparseField {
     bool gpu_layout_ = false;
     cl::Kernel scatter_, scatter_voxels_, node_minima_;  // arguments set per launch
     cl::Kernel fill_slot_, sweep_init_, sweep_l1_, sweep_l1_rows_, sweep_finish_;
+    cl::Kernel sweep_l1_loaded_;  // sweep_l1 of the GPU layout
     bool force_blocks_ = false;
     SparseDeviceWorld device_world_;  // the world's 64-trees on the device
     // node_minima's slots, tile coordinates and minima in list order.
