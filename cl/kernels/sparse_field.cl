@@ -269,7 +269,9 @@ __kernel void sweep_l1(__global ELEM* restrict pool, __global const uint* restri
 
 // The running values a scan toward a line carries in from its neighbour tile nb, as
 // sweep_carry, for GPUs: the halo voxels are loaded before any is scanned (along x, stride 1, in
-// aligned 16-element loads), in code unrolled over the tile's 64 places.
+// aligned 16-element loads), in code unrolled over the tile's 64 places. w holds them in scan
+// order, so that every index into it is a constant once unrolled, whatever dir (a private array
+// indexed at run time would live in memory).
 inline void sweep_carry_loaded(__global const ELEM* restrict pool, uint nb, size_t at,
                                size_t stride, int dir, uint halo, int cap, int* out, int* in) {
     *out = nb == NB_INSIDE ? 0 : cap;
@@ -278,24 +280,26 @@ inline void sweep_carry_loaded(__global const ELEM* restrict pool, uint nb, size
         return;
     }
     __global const ELEM* t = pool + (size_t)nb * TILE_VOXELS + at;
-    int v[TILE];
+    int w[TILE];  // w[k]: the value at place dir < 0 ? k : TILE - 1 - k
     if (stride == 1) {
 #pragma unroll
-        for (uint q = 0; q < TILE / 16; ++q) {
+        for (uint i = 0; i < TILE / 16; ++i) {
+            const uint q = dir < 0 ? i : TILE / 16 - 1 - i;
             if (dir < 0 ? 16 * q + 16 > TILE - halo : 16 * q < halo) {
                 ELEM e[16];
                 vstore16(*(__global const ELEM16*)(t + 16 * q), 0, e);
 #pragma unroll
-                for (uint k = 0; k < 16; ++k) {
-                    v[16 * q + k] = (int)e[k];
+                for (uint j = 0; j < 16; ++j) {
+                    w[16 * i + j] = (int)(dir < 0 ? e[j] : e[15 - j]);
                 }
             }
         }
     } else {
 #pragma unroll
-        for (uint p = 0; p < TILE; ++p) {
+        for (uint k = 0; k < TILE; ++k) {
+            const uint p = dir < 0 ? k : TILE - 1 - k;
             if (dir < 0 ? p >= TILE - halo : p < halo) {
-                v[p] = (int)t[p * stride];
+                w[k] = (int)t[p * stride];
             }
         }
     }
@@ -304,7 +308,7 @@ inline void sweep_carry_loaded(__global const ELEM* restrict pool, uint nb, size
     for (uint k = 0; k < TILE; ++k) {
         const uint p = dir < 0 ? k : TILE - 1 - k;
         if (dir < 0 ? p >= TILE - halo : p < halo) {
-            sweep_step(v[p], out, in);
+            sweep_step(w[k], out, in);
         }
     }
 }
@@ -345,18 +349,23 @@ __kernel void sweep_l1_loaded(__global ELEM* restrict pool, __global const uint*
             v[p] = (int)line[p * stride];
         }
     }
+    // The two scans written out, so that every index into v is a constant once unrolled.
     ulong changed = 0;
-    for (int dir = -1; dir <= 1; dir += 2) {
-        int out, in;
-        sweep_carry_loaded(pool, nbrs[6 * slot + 2 * axis + (dir > 0)], at, stride, dir, halo, cap,
-                           &out, &in);
+    int out, in;
+    sweep_carry_loaded(pool, nbrs[6 * slot + 2 * axis], at, stride, -1, halo, cap, &out, &in);
 #pragma unroll
-        for (uint step = 0; step < TILE; ++step) {
-            const uint p = dir < 0 ? step : TILE - 1 - step;
-            const int r = sweep_step(v[p], &out, &in);
-            changed |= (ulong)(r != v[p]) << p;
-            v[p] = r;
-        }
+    for (uint p = 0; p < TILE; ++p) {
+        const int r = sweep_step(v[p], &out, &in);
+        changed |= (ulong)(r != v[p]) << p;
+        v[p] = r;
+    }
+    sweep_carry_loaded(pool, nbrs[6 * slot + 2 * axis + 1], at, stride, 1, halo, cap, &out, &in);
+#pragma unroll
+    for (uint k = 0; k < TILE; ++k) {
+        const uint p = TILE - 1 - k;
+        const int r = sweep_step(v[p], &out, &in);
+        changed |= (ulong)(r != v[p]) << p;
+        v[p] = r;
     }
     if (axis == 0) {
 #pragma unroll
