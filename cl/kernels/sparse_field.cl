@@ -19,9 +19,21 @@
 #define KEY(v) (v)
 #endif
 
-#define VEC16_(t) t##16
-#define VEC16(t) VEC16_(t)
-typedef VEC16(ELEM) ELEM16;
+#define VEC_(t, n) t##n
+#define VEC(t, n) VEC_(t, n)
+typedef VEC(ELEM, 16) ELEM16;
+typedef VEC(ELEM, 8) ELEM8;
+typedef VEC(ELEM, 4) ELEM4;
+typedef VEC(ELEM, 2) ELEM2;
+
+// KEY of 16 values at once (the same values as KEY: +0 for every value not above 0).
+#if KEY_KIND == 1
+#define KEY16(v) ((v) >> (ELEM16)8)
+#elif KEY_KIND == 2
+#define KEY16(v) select((ELEM16)0, (v), (v) > (ELEM16)0)
+#else
+#define KEY16(v) (v)
+#endif
 
 // One work-item per row (along x) of the largest job region (sy x sz rows, stacked along z
 // per job): copies the transformed block's values into the field tiles that hold them. A
@@ -128,13 +140,20 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
     for (uint r = lid; r < 256; r += 64) {
         const uint y = r & 15, z = r >> 4;
         if (y < ny && z < nz) {
-            // The row's 16 values in one aligned load (x0 is a multiple of 16).
-            ELEM row[16];
-            vstore16(*(__global const ELEM16*)(tile + ((z0 + z) * TILE + y0 + y) * TILE + x0), 0,
-                     row);
-            for (uint x = 0; x < 16; ++x) {
-                const ELEM k = KEY(row[x]);
-                best = x < nx && k < best ? k : best;
+            __global const ELEM* row = tile + ((z0 + z) * TILE + y0 + y) * TILE + x0;
+            if (nx == 16) {
+                // A whole row in one aligned load (x0 is a multiple of 16), its least by halves.
+                const ELEM16 k16 = KEY16(*(__global const ELEM16*)row);
+                const ELEM8 k8 = min(k16.lo, k16.hi);
+                const ELEM4 k4 = min(k8.lo, k8.hi);
+                const ELEM2 k2 = min(k4.lo, k4.hi);
+                const ELEM k = min(k2.x, k2.y);
+                best = k < best ? k : best;
+            } else {
+                for (uint x = 0; x < nx; ++x) {
+                    const ELEM k = KEY(row[x]);
+                    best = k < best ? k : best;
+                }
             }
         }
     }
