@@ -606,7 +606,28 @@ double SparseField::run() {
             if (empty.empty()) {
                 continue;
             }
-            const Box sb = full(t) ? tb : world_.solid_bounds(t);
+            // The solid voxels' bounds, read only on the sides where such a tile lies: a tile
+            // level with this one along an axis has no gap along it and always lies in the
+            // reach, whatever the bounds, so the other sides stay the tile's.
+            Box sb = tb;
+            if (!full(t)) {
+                const std::int64_t at[3] = {c.x, c.y, c.z};
+                std::int64_t* lo[3] = {&sb.min.x, &sb.min.y, &sb.min.z};
+                std::int64_t* hi[3] = {&sb.max.x, &sb.max.y, &sb.max.z};
+                for (int a = 0; a < 3; ++a) {
+                    const auto along = [a](const Int3& e) {
+                        return a == 0 ? e.x : a == 1 ? e.y : e.z;
+                    };
+                    if (std::any_of(empty.begin(), empty.end(),
+                                    [&](const Int3& e) { return along(e) < at[a]; })) {
+                        *lo[a] = world_.solid_extreme(t, a, false);
+                    }
+                    if (std::any_of(empty.begin(), empty.end(),
+                                    [&](const Int3& e) { return along(e) > at[a]; })) {
+                        *hi[a] = world_.solid_extreme(t, a, true) + 1;
+                    }
+                }
+            }
             const TileSpan reach = tiles_of(intersect(grow(sb, halo_), all));
             for (const Int3& e : empty) {
                 auto within = [](std::int64_t v, std::int64_t lo, std::int64_t count) {

@@ -60,9 +60,9 @@ std::uint64_t mask_plane(int axis, int c) {
 // The least (`high`: greatest) tile-local coordinate along `axis` of the solid voxels of the
 // non-empty 64-tree at `base`: only the 16^3 nodes on the root's extreme plane are folded, then
 // only their 4^3 leaves on the extreme plane of those nodes, stopping at the tile's edge.
-std::int64_t solid_extreme(const std::vector<std::uint64_t>& masks,
-                           const std::vector<std::uint32_t>& offsets, std::uint64_t base, int axis,
-                           bool high) {
+std::int64_t tree_extreme(const std::vector<std::uint64_t>& masks,
+                          const std::vector<std::uint32_t>& offsets, std::uint64_t base, int axis,
+                          bool high) {
     const int edge = high ? 3 : 0;
     const auto pick = [high](unsigned s) {
         return high ? static_cast<int>(std::bit_width(s)) - 1 : std::countr_zero(s);
@@ -440,16 +440,19 @@ void SparseWorld::decode_tile(std::uint32_t tile, std::span<std::uint8_t> out) c
 Box SparseWorld::solid_bounds(std::uint32_t tile) const {
     const Int3 t = tile_coord(tile);
     const Int3 o{t.x * kTileSize, t.y * kTileSize, t.z * kTileSize};
-    const std::uint64_t base = node_bases_[tile];
-    if (node_masks_[base] == 0) {
+    if (node_masks_[node_bases_[tile]] == 0) {
         return {{o.x + kTileSize, o.y + kTileSize, o.z + kTileSize}, o};
     }
-    std::int64_t lo[3], hi[3];
-    for (int axis = 0; axis < 3; ++axis) {
-        lo[axis] = solid_extreme(node_masks_, node_offsets_, base, axis, false);
-        hi[axis] = solid_extreme(node_masks_, node_offsets_, base, axis, true) + 1;
-    }
-    return {{o.x + lo[0], o.y + lo[1], o.z + lo[2]}, {o.x + hi[0], o.y + hi[1], o.z + hi[2]}};
+    return {{solid_extreme(tile, 0, false), solid_extreme(tile, 1, false),
+             solid_extreme(tile, 2, false)},
+            {solid_extreme(tile, 0, true) + 1, solid_extreme(tile, 1, true) + 1,
+             solid_extreme(tile, 2, true) + 1}};
+}
+
+std::int64_t SparseWorld::solid_extreme(std::uint32_t tile, int axis, bool high) const {
+    const Int3 t = tile_coord(tile);
+    const std::int64_t origin = (axis == 0 ? t.x : axis == 1 ? t.y : t.z) * kTileSize;
+    return origin + tree_extreme(node_masks_, node_offsets_, node_bases_[tile], axis, high);
 }
 
 SparseWorld::EncodedTile SparseWorld::encode_tile(std::span<const std::uint8_t> voxels) {
