@@ -133,6 +133,31 @@ cl::Program build_byte_program(Context& ctx, Format f, Metric m, std::uint32_t c
                        options);
 }
 
+// A row kernel with `segs` work-items per row (x_rows_seg, x_words: arguments in, out, X,
+// rows and two local arrays of `elem` bytes per work-item), rows stacked to about 256
+// work-items per group; nullopt where a row does not fit one group.
+std::optional<KernelLaunch> row_segments(Context& ctx, cl::Kernel kernel, const char* name,
+                                         const cl::Buffer& in, const cl::Buffer& out, Dims dims,
+                                         std::size_t segs, std::size_t elem) {
+    const auto& info = ctx.info();
+    const std::size_t limit = kernel.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
+    const std::size_t rows = std::size_t{dims.y} * dims.z;
+    const std::size_t group_rows =
+        std::max<std::size_t>(1, std::min<std::size_t>(256, limit) / segs);
+    const std::size_t local = group_rows * segs * elem;
+    if (segs > limit || 2 * local > info.local_mem) {
+        return std::nullopt;
+    }
+    kernel.setArg(0, in);
+    kernel.setArg(1, out);
+    kernel.setArg(2, dims.x);
+    kernel.setArg(3, static_cast<cl_uint>(rows));
+    kernel.setArg(4, cl::Local(local));
+    kernel.setArg(5, cl::Local(local));
+    return KernelLaunch{name, kernel, cl::NDRange(segs, round_up(rows, group_rows)),
+                        cl::NDRange(segs, group_rows)};
+}
+
 }  // namespace
 
 std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
@@ -145,21 +170,9 @@ std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
     if (dims.x % 16 == 0) {
         // x_rows_seg: 16 voxels per work-item (one aligned word), a row per line of the
         // group, rows stacked to about 256 work-items per group.
-        cl::Kernel x_rows(base, "x_rows_seg");
-        const std::size_t limit = x_rows.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
-        const std::size_t segs = dims.x / 16;
-        const std::size_t group_rows =
-            std::max<std::size_t>(1, std::min<std::size_t>(256, limit) / segs);
-        const std::size_t local = group_rows * segs * wt.bytes;
-        if (segs <= limit && 2 * local <= info.local_mem) {
-            x_rows.setArg(0, voxels);
-            x_rows.setArg(1, work);
-            x_rows.setArg(2, dims.x);
-            x_rows.setArg(3, static_cast<cl_uint>(rows));
-            x_rows.setArg(4, cl::Local(local));
-            x_rows.setArg(5, cl::Local(local));
-            return KernelLaunch{"x_rows_seg", x_rows, cl::NDRange(segs, round_up(rows, group_rows)),
-                                cl::NDRange(segs, group_rows)};
+        if (auto launch = row_segments(ctx, cl::Kernel(base, "x_rows_seg"), "x_rows_seg", voxels,
+                                       work, dims, dims.x / 16, wt.bytes)) {
+            return launch;
         }
     }
     // Ragged rows (or rows too long for x_rows_seg) in x_rows_local: about 16 voxels per
@@ -487,26 +500,15 @@ void ExactManhattan::set_up_kernels() {
 }
 
 std::optional<KernelLaunch> ExactManhattan::x_words() {
-    const auto& info = ctx_.info();
-    const cl::Program base = build_program(ctx_, format_, 32, 1, metric_, cap_);
-    cl::Kernel kernel(base, "x_words");
-    const std::size_t limit = kernel.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
     const std::size_t w = (std::size_t{dims_.x} + 31) / 32;
-    const std::size_t rows = std::size_t{dims_.y} * dims_.z;
-    const std::size_t group_rows = std::max<std::size_t>(1, std::min<std::size_t>(256, limit) / w);
-    const std::size_t local = group_rows * w * sizeof(cl_int);
-    if (w > limit || 2 * local > info.local_mem) {
-        return std::nullopt;
+    words_ = make_buffer(std::size_t{dims_.y} * dims_.z * w * sizeof(cl_uint2), CL_MEM_READ_WRITE);
+    const cl::Program base = build_program(ctx_, format_, 32, 1, metric_, cap_);
+    auto launch = row_segments(ctx_, cl::Kernel(base, "x_words"), "x_words", voxels_, words_, dims_,
+                               w, sizeof(cl_int));
+    if (!launch) {
+        words_ = cl::Buffer();
     }
-    words_ = make_buffer(rows * w * sizeof(cl_uint2), CL_MEM_READ_WRITE);
-    kernel.setArg(0, voxels_);
-    kernel.setArg(1, words_);
-    kernel.setArg(2, dims_.x);
-    kernel.setArg(3, static_cast<cl_uint>(rows));
-    kernel.setArg(4, cl::Local(local));
-    kernel.setArg(5, cl::Local(local));
-    return KernelLaunch{"x_words", kernel, cl::NDRange(w, round_up(rows, group_rows)),
-                        cl::NDRange(w, group_rows)};
+    return launch;
 }
 
 bool ExactManhattan::add_byte_sweeps() {
