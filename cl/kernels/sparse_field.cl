@@ -332,11 +332,27 @@ inline void sweep_carry_loaded(__global const ELEM* restrict pool, uint nb, size
     }
 }
 
-// sweep_l1 for GPUs (same arguments and global ids): the line is loaded whole before it is
-// scanned (along x in four aligned 16-element loads, along y and z 64 independent loads), both
-// scans run in registers, and only the changed values are written back (along x per 16).
+// sweep_finish's value for a voxel's final distance v: up to `most` it stays, above it `far`,
+// below -most `near` (signed).
+inline ELEM sweep_finished(int v, int most, ELEM far, ELEM near) {
+#if KEY_KIND == 2
+    if (v < -most) {
+        return near;
+    }
+#endif
+    return v > most ? far : (ELEM)v;
+}
+
+// sweep_l1 for GPUs (the same arguments first, and global ids): the line is loaded whole before
+// it is scanned (along x in four aligned 16-element loads, along y and z 64 independent loads),
+// both scans run in registers, and only the changed values are written back (along x per 16).
+// The z pass, the last, writes sweep_finish's values (most, far, near as there), so that no
+// finishing pass follows on GPUs: a neighbour that reads a finished value instead of the pass's
+// reads far (or near) only where the exact value lies beyond `most`, and far + 1 > most, so what
+// it carries on from it lies beyond `most` as well and ends as far too.
 __kernel void sweep_l1_loaded(__global ELEM* restrict pool, __global const uint* restrict nbrs,
-                              uint first, uint axis, uint halo, int cap) {
+                              uint first, uint axis, uint halo, int cap, int most, ELEM far,
+                              ELEM near) {
     const size_t u = get_global_id(0), w = get_global_id(1);
     const size_t slot = first + get_global_id(2);
     size_t stride, at;
@@ -398,11 +414,20 @@ __kernel void sweep_l1_loaded(__global ELEM* restrict pool, __global const uint*
                 *(__global ELEM16*)(line + 16 * q) = vload16(0, e);
             }
         }
-    } else {
+    } else if (axis == 1) {
 #pragma unroll
         for (uint p = 0; p < TILE; ++p) {
             if ((changed >> p & 1ul) != 0) {
                 line[p * stride] = (ELEM)v[p];
+            }
+        }
+    } else {
+        // Unchanged values are the loaded ones: written when finishing changes them.
+#pragma unroll
+        for (uint p = 0; p < TILE; ++p) {
+            const ELEM f = sweep_finished(v[p], most, far, near);
+            if ((changed >> p & 1ul) != 0 || f != (ELEM)v[p]) {
+                line[p * stride] = f;
             }
         }
     }

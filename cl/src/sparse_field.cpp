@@ -785,6 +785,9 @@ double SparseField::sweep() {
             k->setArg(4, static_cast<cl_uint>(halo_[0]));
             k->setArg(5, cap);
         }
+        sweep_l1_loaded_.setArg(6, most);
+        sweep_l1_loaded_.setArg(7, elem_, far_.data());
+        sweep_l1_loaded_.setArg(8, elem_, inside_.data());
         sweep_finish_.setArg(0, pool_);
         sweep_finish_.setArg(2, most);
         sweep_finish_.setArg(3, elem_, far_.data());
@@ -821,7 +824,10 @@ double SparseField::sweep() {
             each_batch(std::string("sweep_") + "xyz"[axis], k, 2,
                        planes ? Shape::planes : Shape::lines);
         }
-        each_batch("sweep_finish", sweep_finish_, 1, Shape::voxels16);
+        // GPUs finish in the z pass (sweep_l1_loaded).
+        if (!gpu_layout_) {
+            each_batch("sweep_finish", sweep_finish_, 1, Shape::voxels16);
+        }
         q.finish();
         for (const auto& [stage, e] : events) {
             const double t = elapsed_ms(e, e);
