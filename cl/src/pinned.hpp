@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <string>
+#include <vector>
 
 #include "voxfield/cl/runtime.hpp"
 
@@ -75,6 +77,68 @@ class PinnedHost {
     std::uint8_t* data_ = nullptr;
     std::size_t size_ = 0;
     cl::Event last_;
+};
+
+// Small tables written to the device in one transfer: one device buffer with a sub-buffer per
+// table (at the device's base address alignment) and its pinned host copy.
+class PinnedTables {
+  public:
+    // Room for table i of bytes[i] bytes, once the last write from the host copy is done
+    // (whether that needed a wait: `waited`). A table whose room falls short gets twice that;
+    // the tables are then made again (their contents dropped).
+    void fit(Context& ctx, std::span<const std::size_t> bytes, bool* waited) {
+        *waited = pinned_.settle();
+        bool grow = caps_.size() != bytes.size();
+        caps_.resize(bytes.size(), 0);
+        for (std::size_t i = 0; i < bytes.size(); ++i) {
+            if (bytes[i] > caps_[i]) {
+                caps_[i] = std::max<std::size_t>(2 * bytes[i], 64);
+                grow = true;
+            }
+        }
+        if (grow) {
+            make(ctx);
+        }
+        end_ = offsets_.back() + bytes.back();
+    }
+    template <class T>
+    T* host(std::size_t i) {
+        return reinterpret_cast<T*>(pinned_.data() + offsets_[i]);
+    }
+    const cl::Buffer& buffer(std::size_t i) const { return subs_[i]; }
+    // Enqueues the write of every table (one transfer, without waiting).
+    void write(cl::CommandQueue& q) {
+        q.enqueueWriteBuffer(all_, CL_FALSE, 0, end_, pinned_.data(), nullptr, &pinned_.last());
+    }
+
+  private:
+    void make(Context& ctx) {
+        const cl::Device device = ctx.queue().getInfo<CL_QUEUE_DEVICE>();
+        const std::size_t align =
+            std::max<std::size_t>(device.getInfo<CL_DEVICE_MEM_BASE_ADDR_ALIGN>() / 8, 64);
+        offsets_.clear();
+        std::size_t size = 0;
+        for (const std::size_t cap : caps_) {
+            offsets_.push_back(size);
+            size += (cap + align - 1) / align * align;
+        }
+        cl_call("allocating " + std::to_string(size) + " bytes of tables", [&] {
+            all_ = cl::Buffer(ctx.context(), CL_MEM_READ_ONLY, size);
+            subs_.clear();
+            for (std::size_t i = 0; i < caps_.size(); ++i) {
+                const cl_buffer_region region{offsets_[i], caps_[i]};
+                subs_.push_back(
+                    all_.createSubBuffer(CL_MEM_READ_ONLY, CL_BUFFER_CREATE_TYPE_REGION, &region));
+            }
+        });
+        pinned_.reserve(ctx, size);
+    }
+
+    PinnedHost pinned_;
+    cl::Buffer all_;
+    std::vector<cl::Buffer> subs_;
+    std::vector<std::size_t> caps_, offsets_;
+    std::size_t end_ = 0;
 };
 
 }  // namespace voxfield::ocl
