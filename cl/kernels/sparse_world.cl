@@ -339,8 +339,13 @@ __kernel void encode_write(__global const uchar* restrict vox, uint pitch_y, uin
         }
         __global const uchar* in = om8 + rec[1] + from;
         const uint c = solid16[b16];
-        for (uint j = k; j < c; j += 64) {
-            out[j] = in[j];
+        // 16 bytes at a time (vload16 and vstore16 take any byte address), the tail by byte.
+        const uint whole = c / 16;
+        for (uint j = k; j < whole; j += 64) {
+            vstore16(vload16(j, in), j, out);
+        }
+        if (k < c - whole * 16) {
+            out[whole * 16 + k] = in[whole * 16 + k];
         }
         return;
     }

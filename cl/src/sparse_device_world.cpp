@@ -594,6 +594,7 @@ void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t
     b.slot_counts = slot_counts_;
     enqueue_encode(q, encode_, b, tiles, edit_events_);
     traffic_.enqueues += 3;
+    q.flush();  // submitted now: the device encodes while the host lists the field's update
 }
 
 double SparseDeviceWorld::last_edit_kernel_ms() const {
