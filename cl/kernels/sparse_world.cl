@@ -146,7 +146,8 @@ __kernel void gather_voxels(__global const ulong* restrict masks,
 //   [1] that tree's material base, [2] the slot it is written to (nodes from slot *
 //   TILE_MAX_NODES, materials from slot * TILE_VOXELS; never the slot its previous tree lies in),
 //   [3] the index in `vox` of the tile's voxel (0, 0, 0) (rows of `pitch_y`, slices of `pitch_z`
-//   voxels), [4] its dense nodes (bit z << 4 | y << 2 | x), [5..7] its tile coordinates.
+//   voxels), [4] its dense nodes (bit z << 4 | y << 2 | x), [5..7] its tile coordinates;
+// then the dense nodes as a list (tile * 64 + the node's child bit, in any order).
 // The header: [0] the brush's op (0 place, 1 erase, 2 paint; 3: no brush, the dense nodes' voxels
 // are in `vox` already), [1] its shape (0 sphere, 1 cube), [2..4] its centre, [5] its radius,
 // [6] its material, [7..9] the world's dims.
@@ -164,50 +165,16 @@ __kernel void gather_voxels(__global const ulong* restrict masks,
     __global const uchar* om8 = in_slot ? slot_materials : materials; \
     const ulong root0 = none ? 0ul : om[base];
 
-// Pass 1: a work-group of 64 per 16^3 node (global ids 0: its 4^3 child b4, 1: tile * 64 + the
-// node's child bit b16). A dense node: with a brush, each work-item decodes its 4^3 child's voxels
-// from the tile's previous tree, applies core/brush.hpp's brush to those inside the world and
-// writes them into `vox`; without one it reads them from `vox`; its occupancy goes to leaf_masks,
-// the node's mask and solid voxel count to mid_masks and mid_counts. A kept node: its mask and
-// count from the previous tree (its leaves' materials are contiguous, in mask order).
-__kernel void encode_count(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
-                           __global const long* restrict tab, __global const ulong* masks,
-                           __global const uint* offsets, __global const uchar* materials,
-                           __global const ulong* slot_masks, __global const uint* slot_offsets,
-                           __global const uchar* slot_materials,
-                           __global ulong* restrict leaf_masks, __global ulong* restrict mid_masks,
-                           __global uint* restrict mid_counts, uint tiles) {
-    __local uint solid, lo, hi;
-    const uint b4 = (uint)get_local_id(0);
-    const size_t i = get_global_id(1);
-    if (i >= (size_t)tiles * 64) {
-        return;
-    }
-    const uint b16 = (uint)(i & 63);
-    __global const long* rec = tab + TAB_HEADER + REC * (i >> 6);
-    if ((((ulong)rec[4] >> b16) & 1ul) == 0) {
-        if (b4 == 0) {
-            PREVIOUS((__global const ulong*)rec)
-            ulong mid = 0;
-            uint count = 0;
-            if ((root0 >> b16 & 1ul) != 0) {
-                const ulong n16 = base + oo[base] + rank_below(root0, b16);
-                mid = om[n16];
-                const ulong leaf = base + oo[n16];
-                const ulong last = leaf + (ulong)popcount(mid) - 1;
-                count = oo[last] + (uint)popcount(om[last]) - oo[leaf];
-            }
-            mid_masks[i] = mid;
-            mid_counts[i] = count;
-        }
-        return;
-    }
-    if (b4 == 0) {
-        solid = 0;
-        lo = 0;
-        hi = 0;
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
+// encode_count's work on child b4 of dense node b16 of the tile whose record is `rec`: its voxels
+// (decoded and brushed, or read), its mask into *leaf_mask, its solid voxels and bit added to the
+// node's (local) count and mask halves.
+void dense_leaf(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
+                __global const long* restrict tab, __global const long* restrict rec, uint b16,
+                uint b4, __global const ulong* masks, __global const uint* offsets,
+                __global const uchar* materials, __global const ulong* slot_masks,
+                __global const uint* slot_offsets, __global const uchar* slot_materials,
+                __global ulong* restrict leaf_mask, __local uint* solid, __local uint* lo,
+                __local uint* hi) {
     // The 4^3 child's first voxel, tile-local, and its place in vox.
     const uint x4 = (b16 & 3) * 16 + (b4 & 3) * 4, y4 = (b16 >> 2 & 3) * 16 + (b4 >> 2 & 3) * 4,
                z4 = (b16 >> 4) * 16 + (b4 >> 4) * 4;
@@ -254,26 +221,79 @@ __kernel void encode_count(__global uchar* restrict vox, uint pitch_y, uint pitc
             m |= (ulong)(v != 0) << bv;
         }
     }
-    leaf_masks[i * 64 + b4] = m;
+    leaf_mask[b4] = m;
     if (m != 0) {
-        atomic_add(&solid, (uint)popcount(m));
-        atomic_or(b4 < 32 ? &lo : &hi, 1u << (b4 & 31));
+        atomic_add(solid, (uint)popcount(m));
+        atomic_or(b4 < 32 ? lo : hi, 1u << (b4 & 31));
+    }
+}
+
+// Pass 1, a work-group of 64 (local id: b4) per tile, then per dense node (global id 1: the
+// tiles' groups, then the dense nodes' in list order). A tile's group: each work-item j a node
+// that is kept, its mask and count from the previous tree (its leaves' materials are contiguous,
+// in mask order). A dense node's group: with a brush, each work-item decodes its 4^3 child's
+// voxels from the tile's previous tree, applies core/brush.hpp's brush to those inside the
+// world and writes them into `vox`; without one it reads them from `vox`; its occupancy goes to
+// leaf_masks, the node's mask and solid voxel count to mid_masks and mid_counts.
+__kernel void encode_count(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
+                           __global const long* restrict tab, __global const ulong* masks,
+                           __global const uint* offsets, __global const uchar* materials,
+                           __global const ulong* slot_masks, __global const uint* slot_offsets,
+                           __global const uchar* slot_materials,
+                           __global ulong* restrict leaf_masks, __global ulong* restrict mid_masks,
+                           __global uint* restrict mid_counts, uint tiles, uint dense) {
+    __local uint solid, lo, hi;
+    const uint b4 = (uint)get_local_id(0);
+    const size_t g = get_global_id(1);
+    // Every work-item of every group passes both barriers (PoCL miscompiles a kernel where some
+    // return before a barrier).
+    const bool tile_group = g < tiles, dense_group = !tile_group && g < (size_t)tiles + dense;
+    if (b4 == 0) {
+        solid = 0;
+        lo = 0;
+        hi = 0;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    if (b4 == 0) {
+    if (tile_group) {
+        __global const long* rec = tab + TAB_HEADER + REC * g;
+        const uint j = b4;
+        if ((((ulong)rec[4] >> j) & 1ul) == 0) {
+            PREVIOUS((__global const ulong*)rec)
+            ulong mid = 0;
+            uint count = 0;
+            if ((root0 >> j & 1ul) != 0) {
+                const ulong n16 = base + oo[base] + rank_below(root0, j);
+                mid = om[n16];
+                const ulong leaf = base + oo[n16];
+                const ulong last = leaf + (ulong)popcount(mid) - 1;
+                count = oo[last] + (uint)popcount(om[last]) - oo[leaf];
+            }
+            mid_masks[g * 64 + j] = mid;
+            mid_counts[g * 64 + j] = count;
+        }
+    }
+    const size_t i = dense_group ? (size_t)tab[TAB_HEADER + REC * tiles + (g - tiles)] : 0;
+    if (dense_group) {
+        dense_leaf(vox, pitch_y, pitch_z, tab, tab + TAB_HEADER + REC * (i >> 6), (uint)(i & 63),
+                   b4, masks, offsets, materials, slot_masks, slot_offsets, slot_materials,
+                   leaf_masks + i * 64, &solid, &lo, &hi);
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (dense_group && b4 == 0) {
         mid_masks[i] = (ulong)lo | (ulong)hi << 32;
         mid_counts[i] = solid;
     }
 }
 
-// Pass 2: a work-group of 64 per 16^3 node, as pass 1 (local id k). Tile t's 64-tree goes to its
-// slot: the root (written by node 0, mask 0 when the tile is empty), its 16^3 children in mask
-// order, then their 4^3 children grouped by parent, and the materials of their voxels in mask
-// order; each node's place and offset are prefix sums of pass 1's counts of the nodes before it.
-// A kept node's leaves and materials are copied (work-item k: leaf k, and every 64th byte), the
-// leaves' offsets moved by where its materials now start; a dense node's child b4 = k writes its
-// leaf and reads its materials from `vox`. counts[2 slot], counts[2 slot + 1]: the tile's nodes
-// and materials (0, 0 when empty).
+// Pass 2: a work-group of 64 (local id k) per `per_group` 16^3 nodes of one tile (1 or 64; global
+// id 1: the group). Tile t's 64-tree goes to its slot: the root (written by node 0's group, mask
+// 0 when the tile is empty), its 16^3 children in mask order, then their 4^3 children grouped by
+// parent, and the materials of their voxels in mask order; each node's place and offset are
+// prefix sums of pass 1's counts of the nodes before it. A kept node's leaves and materials are
+// copied (work-item k: leaf k, and every 64th run of 16 bytes), the leaves' offsets moved by
+// where its materials now start; a dense node's child b4 = k writes its leaf and reads its
+// materials from `vox`. counts[2 slot], counts[2 slot + 1]: the tile's nodes and materials (0, 0
+// when empty).
 __kernel void encode_write(__global const uchar* restrict vox, uint pitch_y, uint pitch_z,
                            __global const long* restrict tab, __global const ulong* masks,
                            __global const uint* offsets, __global const uchar* materials,
@@ -281,90 +301,95 @@ __kernel void encode_write(__global const uchar* restrict vox, uint pitch_y, uin
                            __global const ulong* restrict mid_masks,
                            __global const uint* restrict mid_counts, __global ulong* slot_masks,
                            __global uint* slot_offsets, __global uchar* slot_materials,
-                           __global uint* restrict counts, uint tiles) {
-    __local uint leaves16[64], solid16[64], solid4[64];
+                           __global uint* restrict counts, uint tiles, uint per_group) {
+    // Per node of the tile its leaves and solid voxels, then (work-item j for node j) those of
+    // the nodes before it.
+    __local uint leaves16[64], solid16[64], leaves_below[64], solid_below[64];
     const uint k = (uint)get_local_id(0);
-    const size_t i = get_global_id(1);
-    if (i >= (size_t)tiles * 64) {
-        return;
-    }
-    const uint b16 = (uint)(i & 63);
-    const size_t t = i >> 6;
+    const size_t first = get_global_id(1) * per_group;  // (groups: exactly tiles * 64 / per_group)
+    const size_t t = first >> 6;
     __global const long* rec = tab + TAB_HEADER + REC * t;
     leaves16[k] = (uint)popcount(mid_masks[t * 64 + k]);
     solid16[k] = mid_counts[t * 64 + k];
-    const bool dense = (((ulong)rec[4] >> b16) & 1ul) != 0;
-    const ulong m = dense ? leaf_masks[i * 64 + k] : 0ul;
-    solid4[k] = (uint)popcount(m);
     barrier(CLK_LOCAL_MEM_FENCE);
     ulong root = 0;
-    uint leaves_before = 0, materials_before = 0, leaves = 0, solid = 0;
+    uint lb = 0, mb = 0, leaves = 0, solid = 0;
     for (uint j = 0; j < 64; ++j) {
         const uint p = leaves16[j];
         root |= (ulong)(p != 0) << j;
-        if (j < b16) {
-            leaves_before += p;
-            materials_before += solid16[j];
+        if (j < k) {
+            lb += p;
+            mb += solid16[j];
         }
         leaves += p;
         solid += solid16[j];
     }
+    leaves_below[k] = lb;
+    solid_below[k] = mb;
+    barrier(CLK_LOCAL_MEM_FENCE);
     const uint n16 = (uint)popcount(root);
     const size_t slot = (size_t)rec[2];
     const size_t nb = slot * TILE_MAX_NODES;
-    if (b16 == 0 && k == 0) {
+    if ((first & 63) == 0 && k == 0) {
         slot_masks[nb] = root;
         slot_offsets[nb] = 1;
         counts[2 * slot] = root != 0 ? 1 + n16 + leaves : 0;
         counts[2 * slot + 1] = solid;
     }
-    const ulong mid = mid_masks[i];
-    if (mid == 0) {
-        return;
-    }
-    if (k == 0) {
-        const uint r16 = rank_below(root, b16);
-        slot_masks[nb + 1 + r16] = mid;
-        slot_offsets[nb + 1 + r16] = 1 + n16 + leaves_before;
-    }
-    const size_t node = nb + 1 + n16 + leaves_before;
-    __global uchar* out = slot_materials + slot * TILE_VOXELS + materials_before;
-    if (!dense) {
-        PREVIOUS((__global const ulong*)rec)
-        const ulong leaf = base + oo[base + oo[base] + rank_below(root0, b16)];
-        const uint from = oo[leaf];
-        if (k < (uint)popcount(mid)) {
-            slot_masks[node + k] = om[leaf + k];
-            slot_offsets[node + k] = oo[leaf + k] - from + materials_before;
+    for (size_t i = first; i < first + per_group; ++i) {
+        const uint b16 = (uint)(i & 63);
+        const ulong mid = mid_masks[i];
+        if (mid == 0) {
+            continue;
         }
-        __global const uchar* in = om8 + rec[1] + from;
-        const uint c = solid16[b16];
-        // 16 bytes at a time (vload16 and vstore16 take any byte address), the tail by byte.
-        const uint whole = c / 16;
-        for (uint j = k; j < whole; j += 64) {
-            vstore16(vload16(j, in), j, out);
+        const uint materials_before = solid_below[b16];
+        if (k == 0) {
+            const uint r16 = rank_below(root, b16);
+            slot_masks[nb + 1 + r16] = mid;
+            slot_offsets[nb + 1 + r16] = 1 + n16 + leaves_below[b16];
         }
-        if (k < c - whole * 16) {
-            out[whole * 16 + k] = in[whole * 16 + k];
+        const size_t node = nb + 1 + n16 + leaves_below[b16];
+        __global uchar* out = slot_materials + slot * TILE_VOXELS + materials_before;
+        if ((((ulong)rec[4] >> b16) & 1ul) == 0) {
+            PREVIOUS((__global const ulong*)rec)
+            const ulong leaf = base + oo[base + oo[base] + rank_below(root0, b16)];
+            const uint from = oo[leaf];
+            if (k < (uint)popcount(mid)) {
+                slot_masks[node + k] = om[leaf + k];
+                slot_offsets[node + k] = oo[leaf + k] - from + materials_before;
+            }
+            // 16 bytes at a time (vload16 and vstore16 take any byte address), the tail by byte.
+            __global const uchar* in = om8 + rec[1] + from;
+            const uint c = solid16[b16];
+            const uint whole = c / 16;
+            for (uint j = k; j < whole; j += 64) {
+                vstore16(vload16(j, in), j, out);
+            }
+            if (k < c - whole * 16) {
+                out[whole * 16 + k] = in[whole * 16 + k];
+            }
+            continue;
         }
-        return;
-    }
-    if (m == 0) {
-        return;
-    }
-    uint before = 0;
-    for (uint j = 0; j < k; ++j) {
-        before += solid4[j];
-    }
-    const size_t leaf = node + rank_below(mid, k);
-    slot_masks[leaf] = m;
-    slot_offsets[leaf] = materials_before + before;
-    const uint x4 = (b16 & 3) * 16 + (k & 3) * 4, y4 = (b16 >> 2 & 3) * 16 + (k >> 2 & 3) * 4,
-               z4 = (b16 >> 4) * 16 + (k >> 4) * 4;
-    __global const uchar* vnode = vox + rec[3] + (size_t)z4 * pitch_z + (size_t)y4 * pitch_y + x4;
-    out += before;
-    for (ulong m3 = m; m3 != 0; m3 &= m3 - 1) {
-        const uint bv = lowest_bit(m3);
-        *out++ = vnode[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)];
+        __global const ulong* leaf_mask = leaf_masks + i * 64;
+        const ulong m = leaf_mask[k];
+        if (m == 0) {
+            continue;
+        }
+        uint before = 0;
+        for (uint j = 0; j < k; ++j) {
+            before += (uint)popcount(leaf_mask[j]);
+        }
+        const size_t leaf = node + rank_below(mid, k);
+        slot_masks[leaf] = m;
+        slot_offsets[leaf] = materials_before + before;
+        const uint x4 = (b16 & 3) * 16 + (k & 3) * 4, y4 = (b16 >> 2 & 3) * 16 + (k >> 2 & 3) * 4,
+                   z4 = (b16 >> 4) * 16 + (k >> 4) * 4;
+        __global const uchar* vnode =
+            vox + rec[3] + (size_t)z4 * pitch_z + (size_t)y4 * pitch_y + x4;
+        __global uchar* o = out + before;
+        for (ulong m3 = m; m3 != 0; m3 &= m3 - 1) {
+            const uint bv = lowest_bit(m3);
+            *o++ = vnode[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)];
+        }
     }
 }

@@ -3,6 +3,7 @@
 #include "voxfield/cl/sparse_device_world.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <initializer_list>
 #include <stdexcept>
 #include <string>
@@ -66,8 +67,9 @@ constexpr std::size_t kTableHeader = 16;
 constexpr std::size_t kRecord = 8;
 constexpr std::int64_t kNoBrush = 3;
 
+// With the list of dense nodes: at most 64 per tile.
 std::size_t table_bytes(std::size_t tiles) {
-    return (kTableHeader + kRecord * tiles) * 8;
+    return (kTableHeader + (kRecord + 64) * tiles) * 8;
 }
 
 // What encode_count and encode_write read and write (sparse_world.cl): the dense nodes' voxels,
@@ -80,11 +82,13 @@ struct EncodeBuffers {
     cl::Buffer slot_masks, slot_offsets, slot_materials, slot_counts;
 };
 
-// Enqueues encode_count and encode_write (`k`: those kernels) over `tiles` tiles; appends their
-// events to `events`.
+// Enqueues encode_count and encode_write (`k`: those kernels) over `tiles` tiles with `dense`
+// dense nodes, encode_write's work-groups a node each (`per_node`, the GPU layout's) or a tile
+// each; appends their events to `events`.
 void enqueue_encode(cl::CommandQueue& q, EncodeKernels& k, const EncodeBuffers& b,
-                    std::uint32_t tiles, std::vector<std::pair<std::string, cl::Event>>& events) {
-    const cl::NDRange global(64, std::size_t{tiles} * 64), local(64, 1);
+                    std::uint32_t tiles, std::uint32_t dense, bool per_node,
+                    std::vector<std::pair<std::string, cl::Event>>& events) {
+    const cl::NDRange local(64, 1);
     auto set = [](cl::Kernel& kernel, std::initializer_list<const cl::Buffer*> buffers,
                   cl_uint arg) {
         for (const cl::Buffer* buffer : buffers) {
@@ -101,16 +105,21 @@ void enqueue_encode(cl::CommandQueue& q, EncodeKernels& k, const EncodeBuffers& 
                       {&b.table, &b.masks, &b.offsets, &b.materials, &b.slot_masks, &b.slot_offsets,
                        &b.slot_materials, &b.leaf_masks, &b.mid_masks, &b.mid_counts},
                       3);
-    k.count.setArg(arg, tiles);
+    k.count.setArg(arg++, tiles);
+    k.count.setArg(arg, dense);
     events.emplace_back("encode_count", cl::Event());
-    q.enqueueNDRangeKernel(k.count, cl::NullRange, global, local, nullptr, &events.back().second);
+    q.enqueueNDRangeKernel(k.count, cl::NullRange, cl::NDRange(64, std::size_t{tiles} + dense),
+                           local, nullptr, &events.back().second);
     arg = set(k.write,
               {&b.table, &b.masks, &b.offsets, &b.materials, &b.leaf_masks, &b.mid_masks,
                &b.mid_counts, &b.slot_masks, &b.slot_offsets, &b.slot_materials, &b.slot_counts},
               3);
-    k.write.setArg(arg, tiles);
+    k.write.setArg(arg++, tiles);
+    k.write.setArg(arg, cl_uint{per_node ? 1u : 64u});
     events.emplace_back("encode_write", cl::Event());
-    q.enqueueNDRangeKernel(k.write, cl::NullRange, global, local, nullptr, &events.back().second);
+    q.enqueueNDRangeKernel(k.write, cl::NullRange,
+                           cl::NDRange(64, std::size_t{tiles} * (per_node ? 64 : 1)), local,
+                           nullptr, &events.back().second);
 }
 
 // The nodes of tile (tx, ty, tz) that `b` overlaps (bit z << 4 | y << 2 | x of each 16^3 node).
@@ -157,6 +166,9 @@ std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
             rec[2] = t;
             rec[3] = static_cast<std::int64_t>(std::uint64_t{t} * kTileVoxels);
             rec[4] = -1;
+            for (std::int64_t b = 0; b < 64; ++b) {
+                table[kTableHeader + kRecord * tiles + std::size_t{t} * 64 + b] = t * 64 + b;
+            }
         }
         EncodeBuffers b;
         b.vox = cl::Buffer(c, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, voxels.size(),
@@ -179,7 +191,7 @@ std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
         const cl::Buffer& counts = b.slot_counts;
         std::vector<std::pair<std::string, cl::Event>> events;
         EncodeKernels k{cl::Kernel(program, "encode_count"), cl::Kernel(program, "encode_write")};
-        enqueue_encode(q, k, b, tiles, events);
+        enqueue_encode(q, k, b, tiles, tiles * 64, !ctx.is_cpu(), events);
         std::vector<std::uint32_t> n(2 * std::size_t{tiles});
         q.enqueueReadBuffer(counts, CL_TRUE, 0, n.size() * 4, n.data());
         for (std::uint32_t t = 0; t < tiles; ++t) {
@@ -208,6 +220,7 @@ SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, Spa
       world_(world),
       editable_(editable),
       program_(world_program(ctx)),
+      gpu_layout_(!ctx.is_cpu()),
       pinned_(std::make_unique<PinnedHost>()) {
     if (editable != nullptr && editable != &world) {
         throw std::invalid_argument("SparseDeviceWorld: `editable` is not the world");
@@ -490,6 +503,7 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
     table[8] = d.y;
     table[9] = d.z;
     std::size_t t = 0;
+    dense_.clear();
     for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
         const auto [node_base, material_base] = ref(tx, ty, tz);
         std::int64_t* rec = table + kTableHeader + kRecord * t;
@@ -497,12 +511,17 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
         rec[1] = static_cast<std::int64_t>(material_base);
         rec[2] = host_slots_[t];
         rec[3] = static_cast<std::int64_t>(t * kTileVoxels);
-        rec[4] = static_cast<std::int64_t>(nodes_overlapped(bounds, tx, ty, tz));
+        const std::uint64_t nodes = nodes_overlapped(bounds, tx, ty, tz);
+        rec[4] = static_cast<std::int64_t>(nodes);
         rec[5] = tx;
         rec[6] = ty;
         rec[7] = tz;
+        for (std::uint64_t m = nodes; m != 0; m &= m - 1) {
+            dense_.push_back(static_cast<std::int64_t>(t * 64) + std::countr_zero(m));
+        }
         ++t;
     });
+    std::copy(dense_.begin(), dense_.end(), table + kTableHeader + kRecord * n);
     edit_events_.clear();
     cl_call("editing " + std::to_string(n) + " tiles on the device",
             [&] { enqueue_edit_encode(scratch_, kTileSize, kTileSize * kTileSize, n); });
@@ -544,6 +563,11 @@ void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t 
         rec[6] = c.y;
         rec[7] = c.z;
     }
+    dense_.resize(std::size_t{n} * 64);
+    for (std::size_t i = 0; i < dense_.size(); ++i) {
+        dense_[i] = static_cast<std::int64_t>(i);
+    }
+    std::copy(dense_.begin(), dense_.end(), table + kTableHeader + kRecord * n);
     edit_events_.clear();
     cl_call("encoding " + std::to_string(n) + " dense tiles on the device",
             [&] { enqueue_edit_encode(vox, pitch_y, pitch_z, n); });
@@ -575,8 +599,8 @@ void SparseDeviceWorld::commit_edit_slots(const std::vector<std::uint64_t>& keys
 void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t pitch_y,
                                             std::uint32_t pitch_z, std::uint32_t tiles) {
     auto& q = ctx_.queue();
-    q.enqueueWriteBuffer(table_, CL_FALSE, 0, table_bytes(tiles), pinned_->data(), nullptr,
-                         &pinned_->last());
+    q.enqueueWriteBuffer(table_, CL_FALSE, 0, (kTableHeader + kRecord * tiles + dense_.size()) * 8,
+                         pinned_->data(), nullptr, &pinned_->last());
     EncodeBuffers b;
     b.vox = vox;
     b.pitch_y = pitch_y;
@@ -592,7 +616,8 @@ void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t
     b.slot_offsets = slot_offsets_;
     b.slot_materials = slot_materials_;
     b.slot_counts = slot_counts_;
-    enqueue_encode(q, encode_, b, tiles, edit_events_);
+    enqueue_encode(q, encode_, b, tiles, static_cast<std::uint32_t>(dense_.size()), gpu_layout_,
+                   edit_events_);
     traffic_.enqueues += 3;
     q.flush();  // submitted now: the device encodes while the host lists the field's update
 }

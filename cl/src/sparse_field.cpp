@@ -204,6 +204,7 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
     elem_ = element_size(options_.format);
     gpu_layout_ =
         options_.layout == Layout::automatic ? !ctx_.is_cpu() : options_.layout == Layout::gpu;
+    device_world_.use_gpu_layout(gpu_layout_);
     const World one(Dims{1, 1, 1});
     far_ = encode_real_field({d}, one, palette_, options_.format);
     inside_ = encode_real_field({options_.signed_field ? -d : 0.0}, one, palette_, options_.format);

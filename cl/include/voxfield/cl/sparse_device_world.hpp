@@ -114,6 +114,9 @@ class SparseDeviceWorld {
     static constexpr std::uint64_t kNoRef = ~std::uint64_t{0};
     std::pair<std::uint64_t, std::uint64_t> ref(std::int64_t tx, std::int64_t ty,
                                                 std::int64_t tz) const;
+    // Whether the encoding takes the GPU layout's work-groups (a 16^3 node each; else a tile
+    // each); by default on a device that is not a CPU.
+    void use_gpu_layout(bool on) { gpu_layout_ = on; }
     // Slots in use (tiles encoded since the last whole upload).
     std::size_t slots_used() const { return slot_of_.size(); }
 
@@ -144,6 +147,7 @@ class SparseDeviceWorld {
     const SparseWorld& world_;
     SparseWorld* editable_ = nullptr;
     cl::Program program_;
+    bool gpu_layout_ = false;
     cl::Kernel gather_, gather_voxels_;  // arguments set per launch
     EncodeKernels encode_;
     // Main buffers: the host world as uploaded; dir_: per stored tile key, its refs.
@@ -166,6 +170,7 @@ class SparseDeviceWorld {
     std::size_t scratch_tiles_ = 0, table_tiles_ = 0;
     std::unique_ptr<PinnedHost> pinned_;
     std::vector<std::uint64_t> keys_;
+    std::vector<std::int64_t> dense_;  // the table's dense nodes (tile * 64 + child bit)
     std::vector<std::uint32_t> host_slots_;
     // The last edit's kernels and traffic.
     std::vector<std::pair<std::string, cl::Event>> edit_events_;
