@@ -203,22 +203,41 @@ void dense_leaf(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
         const uchar material = (uchar)tab[6];
         const long wx = tab[7], wy = tab[8], wz = tab[9];
         const long px0 = rec[5] * TILE + x4, py0 = rec[6] * TILE + y4, pz0 = rec[7] * TILE + z4;
+        // The leaf's distance to the centre per axis (0 within its extent): a leaf outside the
+        // world or out of the brush's reach keeps its voxels. Only solid voxels are written
+        // (encode_write reads no others).
+        const ulong dx = (ulong)(cx < px0 ? px0 - cx : cx > px0 + 3 ? cx - px0 - 3 : 0);
+        const ulong dy = (ulong)(cy < py0 ? py0 - cy : cy > py0 + 3 ? cy - py0 - 3 : 0);
+        const ulong dz = (ulong)(cz < pz0 ? pz0 - cz : cz > pz0 + 3 ? cz - pz0 - 3 : 0);
         ulong at = first;
-        for (uint bv = 0; bv < 64; ++bv) {
-            uchar v = 0;
-            if ((m4 >> bv & 1ul) != 0) {
-                v = om8[at++];
+        if (px0 >= wx || py0 >= wy || pz0 >= wz || dx > radius || dy > radius || dz > radius ||
+            (shape == 0 && dx * dx + dy * dy + dz * dz > radius * radius)) {
+            for (ulong m3 = m4; m3 != 0; m3 &= m3 - 1) {
+                const uint bv = lowest_bit(m3);
+                node[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)] =
+                    om8[at++];
             }
-            const long px = px0 + (bv & 3), py = py0 + (bv >> 2 & 3), pz = pz0 + (bv >> 4);
-            const ulong ax = (ulong)(px > cx ? px - cx : cx - px);
-            const ulong ay = (ulong)(py > cy ? py - cy : cy - py);
-            const ulong az = (ulong)(pz > cz ? pz - cz : cz - pz);
-            if (px < wx && py < wy && pz < wz && ax <= radius && ay <= radius && az <= radius &&
-                (shape != 0 || ax * ax + ay * ay + az * az <= radius * radius)) {
-                v = op == 0 ? material : op == 1 ? (uchar)0 : v != 0 ? material : v;
+            m = m4;
+        } else {
+            for (uint bv = 0; bv < 64; ++bv) {
+                uchar v = 0;
+                if ((m4 >> bv & 1ul) != 0) {
+                    v = om8[at++];
+                }
+                const long px = px0 + (bv & 3), py = py0 + (bv >> 2 & 3), pz = pz0 + (bv >> 4);
+                const ulong ax = (ulong)(px > cx ? px - cx : cx - px);
+                const ulong ay = (ulong)(py > cy ? py - cy : cy - py);
+                const ulong az = (ulong)(pz > cz ? pz - cz : cz - pz);
+                if (px < wx && py < wy && pz < wz && ax <= radius && ay <= radius &&
+                    az <= radius && (shape != 0 || ax * ax + ay * ay + az * az <= radius * radius)) {
+                    v = op == 0 ? material : op == 1 ? (uchar)0 : v != 0 ? material : v;
+                }
+                if (v != 0) {
+                    node[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)] =
+                        v;
+                    m |= 1ul << bv;
+                }
             }
-            node[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)] = v;
-            m |= (ulong)(v != 0) << bv;
         }
     }
     leaf_mask[b4] = m;
