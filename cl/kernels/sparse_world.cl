@@ -377,9 +377,19 @@ __kernel void encode_write(__global const uchar* restrict vox, uint pitch_y, uin
                 slot_masks[node + k] = om[leaf + k];
                 slot_offsets[node + k] = oo[leaf + k] - from + materials_before;
             }
-            // 16 bytes at a time (vload16 and vstore16 take any byte address), the tail by byte.
             __global const uchar* in = om8 + rec[1] + from;
             const uint c = solid16[b16];
+            if (per_group != 1) {
+                // A CPU: one work-item's byte loop (a memcpy to the compiler).
+                if (k == 0) {
+                    for (uint j = 0; j < c; ++j) {
+                        out[j] = in[j];
+                    }
+                }
+                continue;
+            }
+            // 16 bytes a work-item at a time (vload16 and vstore16 take any byte address), the
+            // tail by byte.
             const uint whole = c / 16;
             for (uint j = k; j < whole; j += 64) {
                 vstore16(vload16(j, in), j, out);
