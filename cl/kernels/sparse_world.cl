@@ -139,233 +139,286 @@ __kernel void gather_voxels(__global const ulong* restrict masks,
     vox[(gz * by + y) * bx + x] = v;
 }
 
-// One work-item per row (y | z << 4) of each dense 16^3 node block (global id 1: the block,
-// whose first voxel is origins[3 b..3 b+2]): core/brush.hpp's brush on the row's voxels inside
-// the world (op 0 place, 1 erase, 2 paint; shape 0 sphere, 1 cube).
-__kernel void brush_nodes(__global uchar* restrict vox, __global const long* restrict origins,
-                          uint op, uint shape, long cx, long cy, long cz, ulong radius,
-                          uchar material, long wx, long wy, long wz) {
-    const uint row = (uint)get_global_id(0);
-    const size_t b = get_global_id(1);
-    const long py = origins[3 * b + 1] + (row & 15), pz = origins[3 * b + 2] + (row >> 4);
-    if (row >= NODE * NODE || py >= wy || pz >= wz) {
-        return;
-    }
-    const ulong ay = (ulong)(py > cy ? py - cy : cy - py), az = (ulong)(pz > cz ? pz - cz : cz - pz);
-    if (ay > radius || az > radius) {
-        return;
-    }
-    __global uchar* out = vox + b * NODE_VOXELS + (size_t)row * NODE;
-    const long x0 = origins[3 * b];
-    for (uint x = 0; x < NODE && x0 + x < wx; ++x) {
-        const long px = x0 + x;
-        const ulong ax = (ulong)(px > cx ? px - cx : cx - px);
-        if (ax > radius || (shape == 0 && ax * ax + ay * ay + az * az > radius * radius)) {
-            continue;
-        }
-        const uchar v = out[x];
-        out[x] = op == 0 ? material : op == 1 ? (uchar)0 : v != 0 ? material : v;
-    }
-}
+// Encoding tiles whose 16^3 nodes are each either dense (re-encoded from voxels) or kept (copied
+// from the tile's previous 64-tree), into fresh slots. `tab`: a header of TAB_HEADER longs, then a
+// record of REC longs per tile t:
+//   [0] its previous tree's node base (NO_TILE: none, SLOT_REF: in the slot buffers),
+//   [1] that tree's material base, [2] the slot it is written to (nodes from slot *
+//   TILE_MAX_NODES, materials from slot * TILE_VOXELS; never the slot its previous tree lies in),
+//   [3] the index in `vox` of the tile's voxel (0, 0, 0) (rows of `pitch_y`, slices of `pitch_z`
+//   voxels), [4] its dense nodes (bit z << 4 | y << 2 | x), [5..7] its tile coordinates;
+// then the dense nodes as a list (tile * 64 + the node's child bit, in any order).
+// The header: [0] the brush's op (0 place, 1 erase, 2 paint; 3: no brush, the dense nodes' voxels
+// are in `vox` already), [1] its shape (0 sphere, 1 cube), [2..4] its centre, [5] its radius,
+// [6] its material, [7..9] the world's dims.
+#define TAB_HEADER 16
+#define REC 8
 
-// Encoding a tile whose 16^3 nodes are each either dense (re-encoded from voxels) or kept (copied
-// from the tile's previous 64-tree). Per tile t: refs[2 t], refs[2 t + 1] its previous tree's node
-// base (NO_TILE: none, SLOT_REF: in the slot buffers) and material base; per node (t * 64 + its
-// child bit) src[...]: the index in `vox` of its first voxel (rows of `pitch_y`, slices of
-// `pitch_z` voxels), or NO_TILE to keep it.
-
-// The previous tree's buffers of tile t, and its root (0 when none).
-#define PREVIOUS(t)                                                   \
-    ulong base = refs[2 * (t)];                                       \
+// The previous tree's buffers of the tile whose record is `rec`, and its root (0 when none).
+#define PREVIOUS(rec)                                                 \
+    ulong base = (rec)[0];                                            \
     const bool none = base == NO_TILE;                                \
     const bool in_slot = !none && (base & SLOT_REF) != 0;             \
     base &= ~SLOT_REF;                                                \
     __global const ulong* om = in_slot ? slot_masks : masks;          \
     __global const uint* oo = in_slot ? slot_offsets : offsets;       \
+    __global const uchar* om8 = in_slot ? slot_materials : materials; \
     const ulong root0 = none ? 0ul : om[base];
 
-// Pass 1: one work-item per 16^3 node: its mask, its solid voxel count and where its leaves
-// lie; a dense node also its 64 leaf masks (occupancy of each 4^3 child) into leaf_masks; a kept
-// node its previous leaves' first index into kept (in the buffer the tile's refs name).
-__kernel void encode_count(__global const uchar* restrict vox, __global const ulong* restrict src,
-                           uint pitch_y, uint pitch_z, __global const ulong* restrict refs,
-                           __global const ulong* masks, __global const uint* offsets,
-                           __global const ulong* slot_masks, __global const uint* slot_offsets,
-                           __global ulong* restrict leaf_masks, __global ulong* restrict mid_masks,
-                           __global uint* restrict mid_counts, __global ulong* restrict kept,
-                           uint tiles) {
-    const size_t i = get_global_id(0);
-    if (i >= (size_t)tiles * 64) {
-        return;
-    }
-    const uint b16 = (uint)(i & 63);
-    const ulong first = src[i];
-    ulong mid = 0;
-    uint count = 0;
-    if (first == NO_TILE) {
-        PREVIOUS(i >> 6)
-        if ((root0 >> b16 & 1ul) != 0) {
-            const ulong n16 = base + oo[base] + rank_below(root0, b16);
-            mid = om[n16];
-            const ulong leaf = base + oo[n16];
-            kept[i] = leaf;
-            const uint n = (uint)popcount(mid);
-            for (uint k = 0; k < n; ++k) {
-                count += (uint)popcount(om[leaf + k]);
-            }
-        }
-        mid_masks[i] = mid;
-        mid_counts[i] = count;
-        return;
-    }
-    __global const uchar* node = vox + first;
-    for (uint b4 = 0; b4 < 64; ++b4) {
-        const uint x4 = (b4 & 3) * 4, y4 = (b4 >> 2 & 3) * 4, z4 = (b4 >> 4) * 4;
-        ulong m = 0;
+// encode_count's work on child b4 of dense node b16 of the tile whose record is `rec`: its voxels
+// (decoded and brushed, or read), its mask into *leaf_mask, its solid voxels and bit added to the
+// node's (local) count and mask halves.
+void dense_leaf(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
+                __global const long* restrict tab, __global const long* restrict rec, uint b16,
+                uint b4, __global const ulong* masks, __global const uint* offsets,
+                __global const uchar* materials, __global const ulong* slot_masks,
+                __global const uint* slot_offsets, __global const uchar* slot_materials,
+                __global ulong* restrict leaf_mask, __local uint* solid, __local uint* lo,
+                __local uint* hi) {
+    // The 4^3 child's first voxel, tile-local, and its place in vox.
+    const uint x4 = (b16 & 3) * 16 + (b4 & 3) * 4, y4 = (b16 >> 2 & 3) * 16 + (b4 >> 2 & 3) * 4,
+               z4 = (b16 >> 4) * 16 + (b4 >> 4) * 4;
+    __global uchar* node = vox + rec[3] + (size_t)z4 * pitch_z + (size_t)y4 * pitch_y + x4;
+    ulong m = 0;
+    const long op = tab[0];
+    if (op == 3) {
         for (uint z = 0; z < 4; ++z) {
             for (uint y = 0; y < 4; ++y) {
-                const uchar4 r = vload4(0, node + (size_t)(z4 + z) * pitch_z + (y4 + y) * pitch_y + x4);
+                const uchar4 r = vload4(0, node + (size_t)z * pitch_z + (size_t)y * pitch_y);
                 const ulong bits = (ulong)(r.x != 0) | (ulong)(r.y != 0) << 1 |
                                    (ulong)(r.z != 0) << 2 | (ulong)(r.w != 0) << 3;
                 m |= bits << (z << 4 | y << 2);
             }
         }
-        leaf_masks[i * 64 + b4] = m;
-        mid |= (ulong)(m != 0) << b4;
-        count += (uint)popcount(m);
+    } else {
+        PREVIOUS((__global const ulong*)rec)
+        ulong m4 = 0, first = 0;
+        const ulong n4 = none ? NO_TILE : leaf_node(om, oo, base, root0, x4, y4, z4);
+        if (n4 != NO_TILE) {
+            m4 = om[n4];
+            first = (ulong)rec[1] + oo[n4];
+        }
+        const long shape = tab[1], cx = tab[2], cy = tab[3], cz = tab[4];
+        const ulong radius = (ulong)tab[5];
+        const uchar material = (uchar)tab[6];
+        const long wx = tab[7], wy = tab[8], wz = tab[9];
+        const long px0 = rec[5] * TILE + x4, py0 = rec[6] * TILE + y4, pz0 = rec[7] * TILE + z4;
+        // The leaf's distance to the centre per axis (0 within its extent): a leaf outside the
+        // world or out of the brush's reach keeps its voxels. Only solid voxels are written
+        // (encode_write reads no others).
+        const ulong dx = (ulong)(cx < px0 ? px0 - cx : cx > px0 + 3 ? cx - px0 - 3 : 0);
+        const ulong dy = (ulong)(cy < py0 ? py0 - cy : cy > py0 + 3 ? cy - py0 - 3 : 0);
+        const ulong dz = (ulong)(cz < pz0 ? pz0 - cz : cz > pz0 + 3 ? cz - pz0 - 3 : 0);
+        ulong at = first;
+        if (px0 >= wx || py0 >= wy || pz0 >= wz || dx > radius || dy > radius || dz > radius ||
+            (shape == 0 && dx * dx + dy * dy + dz * dz > radius * radius)) {
+            for (ulong m3 = m4; m3 != 0; m3 &= m3 - 1) {
+                const uint bv = lowest_bit(m3);
+                node[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)] =
+                    om8[at++];
+            }
+            m = m4;
+        } else {
+            for (uint bv = 0; bv < 64; ++bv) {
+                uchar v = 0;
+                if ((m4 >> bv & 1ul) != 0) {
+                    v = om8[at++];
+                }
+                const long px = px0 + (bv & 3), py = py0 + (bv >> 2 & 3), pz = pz0 + (bv >> 4);
+                const ulong ax = (ulong)(px > cx ? px - cx : cx - px);
+                const ulong ay = (ulong)(py > cy ? py - cy : cy - py);
+                const ulong az = (ulong)(pz > cz ? pz - cz : cz - pz);
+                if (px < wx && py < wy && pz < wz && ax <= radius && ay <= radius &&
+                    az <= radius && (shape != 0 || ax * ax + ay * ay + az * az <= radius * radius)) {
+                    v = op == 0 ? material : op == 1 ? (uchar)0 : v != 0 ? material : v;
+                }
+                if (v != 0) {
+                    node[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)] =
+                        v;
+                    m |= 1ul << bv;
+                }
+            }
+        }
     }
-    mid_masks[i] = mid;
-    mid_counts[i] = count;
+    leaf_mask[b4] = m;
+    if (m != 0) {
+        atomic_add(solid, (uint)popcount(m));
+        atomic_or(b4 < 32 ? lo : hi, 1u << (b4 & 31));
+    }
 }
 
-// Pass 2: one work-item per 16^3 node, as pass 1. Tile t's 64-tree goes to slot slots[t] (nodes
-// from slot * TILE_MAX_NODES, materials from slot * TILE_VOXELS; never the slot its previous tree
-// lies in): the root (written by child 0, mask 0 when the tile is empty), its 16^3 children in
-// mask order, then their 4^3 children grouped by parent (pass 3 writes the materials of their
-// voxels in mask order); each node's place and offset are prefix sums of pass 1's counts of the
-// nodes before it, its first material's (materials_before) also into node_mats. A kept node's
-// leaves are copied, their offsets moved by where its materials now start. counts[2 slot],
-// counts[2 slot + 1]: the tile's nodes and materials (0, 0 when empty).
-__kernel void encode_write(__global const ulong* restrict src, __global const ulong* restrict refs,
-                           __global const ulong* masks, __global const uint* offsets,
+// Pass 1, a work-group of 64 (local id: b4) per tile, then per dense node (global id 1: the
+// tiles' groups, then the dense nodes' in list order). A tile's group: each work-item j a node
+// that is kept, its mask and count from the previous tree (its leaves' materials are contiguous,
+// in mask order). A dense node's group: with a brush, each work-item decodes its 4^3 child's
+// voxels from the tile's previous tree, applies core/brush.hpp's brush to those inside the
+// world and writes them into `vox`; without one it reads them from `vox`; its occupancy goes to
+// leaf_masks, the node's mask and solid voxel count to mid_masks and mid_counts.
+__kernel void encode_count(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
+                           __global const long* restrict tab, __global const ulong* masks,
+                           __global const uint* offsets, __global const uchar* materials,
+                           __global const ulong* slot_masks, __global const uint* slot_offsets,
+                           __global const uchar* slot_materials,
+                           __global ulong* restrict leaf_masks, __global ulong* restrict mid_masks,
+                           __global uint* restrict mid_counts, uint tiles, uint dense) {
+    __local uint solid, lo, hi;
+    const uint b4 = (uint)get_local_id(0);
+    const size_t g = get_global_id(1);
+    // Every work-item of every group passes both barriers (PoCL miscompiles a kernel where some
+    // return before a barrier).
+    const bool tile_group = g < tiles, dense_group = !tile_group && g < (size_t)tiles + dense;
+    if (b4 == 0) {
+        solid = 0;
+        lo = 0;
+        hi = 0;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (tile_group) {
+        __global const long* rec = tab + TAB_HEADER + REC * g;
+        const uint j = b4;
+        if ((((ulong)rec[4] >> j) & 1ul) == 0) {
+            PREVIOUS((__global const ulong*)rec)
+            ulong mid = 0;
+            uint count = 0;
+            if ((root0 >> j & 1ul) != 0) {
+                const ulong n16 = base + oo[base] + rank_below(root0, j);
+                mid = om[n16];
+                const ulong leaf = base + oo[n16];
+                const ulong last = leaf + (ulong)popcount(mid) - 1;
+                count = oo[last] + (uint)popcount(om[last]) - oo[leaf];
+            }
+            mid_masks[g * 64 + j] = mid;
+            mid_counts[g * 64 + j] = count;
+        }
+    }
+    const size_t i = dense_group ? (size_t)tab[TAB_HEADER + REC * tiles + (g - tiles)] : 0;
+    if (dense_group) {
+        dense_leaf(vox, pitch_y, pitch_z, tab, tab + TAB_HEADER + REC * (i >> 6), (uint)(i & 63),
+                   b4, masks, offsets, materials, slot_masks, slot_offsets, slot_materials,
+                   leaf_masks + i * 64, &solid, &lo, &hi);
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (dense_group && b4 == 0) {
+        mid_masks[i] = (ulong)lo | (ulong)hi << 32;
+        mid_counts[i] = solid;
+    }
+}
+
+// Pass 2: a work-group of 64 (local id k) per `per_group` 16^3 nodes of one tile (1 or 64; global
+// id 1: the group). Tile t's 64-tree goes to its slot: the root (written by node 0's group, mask
+// 0 when the tile is empty), its 16^3 children in mask order, then their 4^3 children grouped by
+// parent, and the materials of their voxels in mask order; each node's place and offset are
+// prefix sums of pass 1's counts of the nodes before it. A kept node's leaves and materials are
+// copied (work-item k: leaf k, and every 64th run of 16 bytes), the leaves' offsets moved by
+// where its materials now start; a dense node's child b4 = k writes its leaf and reads its
+// materials from `vox`. counts[2 slot], counts[2 slot + 1]: the tile's nodes and materials (0, 0
+// when empty).
+__kernel void encode_write(__global const uchar* restrict vox, uint pitch_y, uint pitch_z,
+                           __global const long* restrict tab, __global const ulong* masks,
+                           __global const uint* offsets, __global const uchar* materials,
                            __global const ulong* restrict leaf_masks,
                            __global const ulong* restrict mid_masks,
-                           __global const uint* restrict mid_counts,
-                           __global const ulong* restrict kept, __global const uint* restrict slots,
-                           __global ulong* slot_masks, __global uint* slot_offsets,
-                           __global uint* restrict counts, __global uint* restrict node_mats,
-                           uint tiles) {
-    const size_t i = get_global_id(0);
-    if (i >= (size_t)tiles * 64) {
-        return;
-    }
-    const uint b16 = (uint)(i & 63);
-    const size_t t = i >> 6;
-    __global const ulong* mids = mid_masks + t * 64;
-    __global const uint* mats = mid_counts + t * 64;
+                           __global const uint* restrict mid_counts, __global ulong* slot_masks,
+                           __global uint* slot_offsets, __global uchar* slot_materials,
+                           __global uint* restrict counts, uint tiles, uint per_group) {
+    // Per node of the tile its leaves and solid voxels, then (work-item j for node j) those of
+    // the nodes before it.
+    __local uint leaves16[64], solid16[64], leaves_below[64], solid_below[64];
+    const uint k = (uint)get_local_id(0);
+    const size_t first = get_global_id(1) * per_group;  // (groups: exactly tiles * 64 / per_group)
+    const size_t t = first >> 6;
+    __global const long* rec = tab + TAB_HEADER + REC * t;
+    leaves16[k] = (uint)popcount(mid_masks[t * 64 + k]);
+    solid16[k] = mid_counts[t * 64 + k];
+    barrier(CLK_LOCAL_MEM_FENCE);
     ulong root = 0;
-    uint leaves_before = 0, materials_before = 0, leaves = 0, solid = 0;
+    uint lb = 0, mb = 0, leaves = 0, solid = 0;
     for (uint j = 0; j < 64; ++j) {
-        const uint p = (uint)popcount(mids[j]);
+        const uint p = leaves16[j];
         root |= (ulong)(p != 0) << j;
-        if (j < b16) {
-            leaves_before += p;
-            materials_before += mats[j];
+        if (j < k) {
+            lb += p;
+            mb += solid16[j];
         }
         leaves += p;
-        solid += mats[j];
+        solid += solid16[j];
     }
+    leaves_below[k] = lb;
+    solid_below[k] = mb;
+    barrier(CLK_LOCAL_MEM_FENCE);
     const uint n16 = (uint)popcount(root);
-    const size_t slot = slots[t];
+    const size_t slot = (size_t)rec[2];
     const size_t nb = slot * TILE_MAX_NODES;
-    if (b16 == 0) {
+    if ((first & 63) == 0 && k == 0) {
         slot_masks[nb] = root;
         slot_offsets[nb] = 1;
         counts[2 * slot] = root != 0 ? 1 + n16 + leaves : 0;
         counts[2 * slot + 1] = solid;
     }
-    const ulong mid = mids[b16];
-    if (mid == 0) {
-        return;
-    }
-    const uint r16 = rank_below(root, b16);
-    slot_masks[nb + 1 + r16] = mid;
-    slot_offsets[nb + 1 + r16] = 1 + n16 + leaves_before;
-    node_mats[i] = materials_before;
-    size_t node = nb + 1 + n16 + leaves_before;
-    if (src[i] == NO_TILE) {
-        PREVIOUS(t)
-        const ulong leaf = kept[i];
-        const uint n = (uint)popcount(mid);
-        const uint from = oo[leaf];
-        for (uint k = 0; k < n; ++k) {
-            slot_masks[node + k] = om[leaf + k];
-            slot_offsets[node + k] = oo[leaf + k] - from + materials_before;
+    for (size_t i = first; i < first + per_group; ++i) {
+        const uint b16 = (uint)(i & 63);
+        const ulong mid = mid_masks[i];
+        if (mid == 0) {
+            continue;
         }
-        return;
-    }
-    uint material = materials_before;
-    for (ulong m2 = mid; m2 != 0; m2 &= m2 - 1, ++node) {
-        const ulong leaf = leaf_masks[i * 64 + lowest_bit(m2)];
-        slot_masks[node] = leaf;
-        slot_offsets[node] = material;
-        material += (uint)popcount(leaf);
-    }
-}
-
-// Pass 3: the materials, a work-item per (k, node) (global ids 0 and 1): the k-th 4^3 leaf of
-// the node in mask order, at most 64 bytes, after the node's materials_before (node_mats, from
-// pass 2). A kept node's leaf copies its previous materials; a dense one's reads its voxels.
-__kernel void encode_materials(__global const uchar* restrict vox, __global const ulong* restrict src,
-                               uint pitch_y, uint pitch_z, __global const ulong* restrict refs,
-                               __global const ulong* masks, __global const uint* offsets,
-                               __global const uchar* materials,
-                               __global const ulong* restrict leaf_masks,
-                               __global const ulong* restrict mid_masks,
-                               __global const ulong* restrict kept,
-                               __global const uint* restrict slots, __global const ulong* slot_masks,
-                               __global const uint* slot_offsets, __global uchar* slot_materials,
-                               __global const uint* restrict node_mats, uint tiles) {
-    const uint k = (uint)get_global_id(0);
-    const size_t i = get_global_id(1);
-    if (i >= (size_t)tiles * 64) {
-        return;
-    }
-    const ulong mid = mid_masks[i];
-    if (k >= (uint)popcount(mid)) {
-        return;
-    }
-    const size_t t = i >> 6;
-    __global uchar* out = slot_materials + (size_t)slots[t] * TILE_VOXELS + node_mats[i];
-    const ulong first = src[i];
-    if (first == NO_TILE) {
-        PREVIOUS(t)
-        __global const uchar* om8 = in_slot ? slot_materials : materials;
-        const ulong leaf = kept[i];
-        const uint from = oo[leaf];
-        const uint at = oo[leaf + k];
-        const uint c = (uint)popcount(om[leaf + k]);
-        __global const uchar* in = om8 + refs[2 * t + 1] + at;
-        out += at - from;
-        for (uint j = 0; j < c; ++j) {
-            out[j] = in[j];
+        const uint materials_before = solid_below[b16];
+        if (k == 0) {
+            const uint r16 = rank_below(root, b16);
+            slot_masks[nb + 1 + r16] = mid;
+            slot_offsets[nb + 1 + r16] = 1 + n16 + leaves_below[b16];
         }
-        return;
-    }
-    // The k-th set bit of mid, and the materials of the leaves before it.
-    ulong m2 = mid;
-    uint before = 0;
-    for (uint j = 0; j < k; ++j) {
-        before += (uint)popcount(leaf_masks[i * 64 + lowest_bit(m2)]);
-        m2 &= m2 - 1;
-    }
-    const uint b4 = lowest_bit(m2);
-    const uint x4 = (b4 & 3) * 4, y4 = (b4 >> 2 & 3) * 4, z4 = (b4 >> 4) * 4;
-    __global const uchar* vnode = vox + first;
-    out += before;
-    for (ulong m3 = leaf_masks[i * 64 + b4]; m3 != 0; m3 &= m3 - 1) {
-        const uint bv = lowest_bit(m3);
-        *out++ = vnode[(size_t)(z4 + (bv >> 4)) * pitch_z + (y4 + (bv >> 2 & 3)) * pitch_y + x4 +
-                       (bv & 3)];
+        const size_t node = nb + 1 + n16 + leaves_below[b16];
+        __global uchar* out = slot_materials + slot * TILE_VOXELS + materials_before;
+        if ((((ulong)rec[4] >> b16) & 1ul) == 0) {
+            PREVIOUS((__global const ulong*)rec)
+            const ulong leaf = base + oo[base + oo[base] + rank_below(root0, b16)];
+            const uint from = oo[leaf];
+            if (k < (uint)popcount(mid)) {
+                slot_masks[node + k] = om[leaf + k];
+                slot_offsets[node + k] = oo[leaf + k] - from + materials_before;
+            }
+            __global const uchar* in = om8 + rec[1] + from;
+            const uint c = solid16[b16];
+            if (per_group != 1) {
+                // A CPU: one work-item's byte loop (a memcpy to the compiler).
+                if (k == 0) {
+                    for (uint j = 0; j < c; ++j) {
+                        out[j] = in[j];
+                    }
+                }
+                continue;
+            }
+            // 16 bytes a work-item at a time (vload16 and vstore16 take any byte address), the
+            // tail by byte.
+            const uint whole = c / 16;
+            for (uint j = k; j < whole; j += 64) {
+                vstore16(vload16(j, in), j, out);
+            }
+            if (k < c - whole * 16) {
+                out[whole * 16 + k] = in[whole * 16 + k];
+            }
+            continue;
+        }
+        __global const ulong* leaf_mask = leaf_masks + i * 64;
+        const ulong m = leaf_mask[k];
+        if (m == 0) {
+            continue;
+        }
+        uint before = 0;
+        for (uint j = 0; j < k; ++j) {
+            before += (uint)popcount(leaf_mask[j]);
+        }
+        const size_t leaf = node + rank_below(mid, k);
+        slot_masks[leaf] = m;
+        slot_offsets[leaf] = materials_before + before;
+        const uint x4 = (b16 & 3) * 16 + (k & 3) * 4, y4 = (b16 >> 2 & 3) * 16 + (k >> 2 & 3) * 4,
+                   z4 = (b16 >> 4) * 16 + (k >> 4) * 4;
+        __global const uchar* vnode =
+            vox + rec[3] + (size_t)z4 * pitch_z + (size_t)y4 * pitch_y + x4;
+        __global uchar* o = out + before;
+        for (ulong m3 = m; m3 != 0; m3 &= m3 - 1) {
+            const uint bv = lowest_bit(m3);
+            *o++ = vnode[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)];
+        }
     }
 }

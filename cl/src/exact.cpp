@@ -575,6 +575,20 @@ std::string ExactManhattan::variant() const {
     return gpu_layout_ ? "gpu layout" : "cpu layout";
 }
 
+bool ExactManhattan::enqueue(std::vector<std::pair<std::string, cl::Event>>& events) {
+    if (fallback_from_ < stages_.size()) {
+        return false;  // run() reads the byte sweeps' flag in between
+    }
+    cl_call("enqueueing exact_manhattan.cl on " + dims_.to_string(), [&] {
+        for (const KernelLaunch& stage : stages_) {
+            events.emplace_back(stage.name, cl::Event());
+            ctx_.queue().enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global,
+                                              stage.local, nullptr, &events.back().second);
+        }
+    });
+    return true;
+}
+
 double ExactManhattan::run() {
     return cl_call("running exact_manhattan.cl on " + dims_.to_string(), [&] {
         auto& q = ctx_.queue();

@@ -522,6 +522,17 @@ std::string ExactSeparable::variant() const {
     return !gpu_layout_ ? "cpu layout" : banded_ ? "gpu layout, banded" : "gpu layout";
 }
 
+bool ExactSeparable::enqueue(std::vector<std::pair<std::string, cl::Event>>& events) {
+    cl_call("enqueueing exact_separable.cl on " + dims_.to_string(), [&] {
+        for (const KernelLaunch& stage : stages_) {
+            events.emplace_back(stage.name, cl::Event());
+            ctx_.queue().enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global,
+                                              stage.local, nullptr, &events.back().second);
+        }
+    });
+    return true;
+}
+
 double ExactSeparable::run() {
     return cl_call("running exact_separable.cl on " + dims_.to_string(), [&] {
         auto& q = ctx_.queue();

@@ -3,10 +3,12 @@
 #include "voxfield/cl/sparse_device_world.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <initializer_list>
 #include <stdexcept>
 #include <string>
 
+#include "pinned.hpp"
 #include "util.hpp"
 #include "voxfield/core/error.hpp"
 
@@ -19,15 +21,8 @@ namespace voxfield::ocl {
 namespace {
 
 constexpr std::uint64_t kSlotRef = std::uint64_t{1} << 63;
-// Work-items per work-group of the kernels (fixed: PoCL compiles a kernel once per size).
-constexpr std::size_t kGroupRows = 8;
-constexpr std::size_t kGroupNodes = 64;
 // Bytes of one slot: its worst-case nodes (mask and offset) and materials.
 constexpr std::uint64_t kSlotBytes = std::uint64_t{kTileMaxNodes} * 12 + kTileVoxels;
-// Voxels of a 16^3 node; an edit's scratch holds its nodes' voxels, one after another.
-constexpr std::uint64_t kNodeVoxels = 16 * 16 * 16;
-// encode_count's "keep this node" (sparse_world.cl NO_TILE).
-constexpr std::uint64_t kKeep = ~std::uint64_t{0};
 // Host-edited boxes over more tiles than this upload the whole world instead.
 constexpr std::size_t kMaxHostEditTiles = 256;
 
@@ -66,22 +61,34 @@ std::uint64_t key_of(std::int64_t tx, std::int64_t ty, std::int64_t tz) {
                     static_cast<std::uint32_t>(tz));
 }
 
-// What encode_count, encode_write and encode_materials read and write (sparse_world.cl): the dense
-// nodes' voxels and, per node, its first voxel there or kKeep; per tile its previous tree's refs;
-// the previous trees' buffers (main and slot); scratch; the output slots.
+// sparse_world.cl's edit table: a header of kTableHeader longs, a record of kRecord longs per
+// tile.
+constexpr std::size_t kTableHeader = 16;
+constexpr std::size_t kRecord = 8;
+constexpr std::int64_t kNoBrush = 3;
+
+// With the list of dense nodes: at most 64 per tile.
+std::size_t table_bytes(std::size_t tiles) {
+    return (kTableHeader + (kRecord + 64) * tiles) * 8;
+}
+
+// What encode_count and encode_write read and write (sparse_world.cl): the dense nodes' voxels,
+// the table, the previous trees' buffers (main and slot), scratch, the output slots.
 struct EncodeBuffers {
-    cl::Buffer vox, src;
+    cl::Buffer vox;
     cl_uint pitch_y = 0, pitch_z = 0;
-    cl::Buffer refs, masks, offsets, materials;
-    cl::Buffer leaf_masks, mid_masks, mid_counts, kept, node_mats;
-    cl::Buffer slots, slot_masks, slot_offsets, slot_materials, slot_counts;
+    cl::Buffer table, masks, offsets, materials;
+    cl::Buffer leaf_masks, mid_masks, mid_counts;
+    cl::Buffer slot_masks, slot_offsets, slot_materials, slot_counts;
 };
 
-// Enqueues encode_count, encode_write and encode_materials (`k`: those kernels) over `tiles`
-// tiles; appends their events to `events`.
+// Enqueues encode_count and encode_write (`k`: those kernels) over `tiles` tiles with `dense`
+// dense nodes, encode_write's work-groups a node each (`per_node`, the GPU layout's) or a tile
+// each; appends their events to `events`.
 void enqueue_encode(cl::CommandQueue& q, EncodeKernels& k, const EncodeBuffers& b,
-                    std::uint32_t tiles, std::vector<std::pair<std::string, cl::Event>>& events) {
-    const cl::NDRange global(std::size_t{tiles} * 64), local(kGroupNodes);
+                    std::uint32_t tiles, std::uint32_t dense, bool per_node,
+                    std::vector<std::pair<std::string, cl::Event>>& events) {
+    const cl::NDRange local(64, 1);
     auto set = [](cl::Kernel& kernel, std::initializer_list<const cl::Buffer*> buffers,
                   cl_uint arg) {
         for (const cl::Buffer* buffer : buffers) {
@@ -89,34 +96,49 @@ void enqueue_encode(cl::CommandQueue& q, EncodeKernels& k, const EncodeBuffers& 
         }
         return arg;
     };
-    cl_uint arg = set(k.count, {&b.vox, &b.src}, 0);
-    k.count.setArg(arg++, b.pitch_y);
-    k.count.setArg(arg++, b.pitch_z);
-    arg = set(k.count,
-              {&b.refs, &b.masks, &b.offsets, &b.slot_masks, &b.slot_offsets, &b.leaf_masks,
-               &b.mid_masks, &b.mid_counts, &b.kept},
-              arg);
-    k.count.setArg(arg, tiles);
+    for (cl::Kernel* kernel : {&k.count, &k.write}) {
+        kernel->setArg(0, b.vox);
+        kernel->setArg(1, b.pitch_y);
+        kernel->setArg(2, b.pitch_z);
+    }
+    cl_uint arg = set(k.count,
+                      {&b.table, &b.masks, &b.offsets, &b.materials, &b.slot_masks, &b.slot_offsets,
+                       &b.slot_materials, &b.leaf_masks, &b.mid_masks, &b.mid_counts},
+                      3);
+    k.count.setArg(arg++, tiles);
+    k.count.setArg(arg, dense);
     events.emplace_back("encode_count", cl::Event());
-    q.enqueueNDRangeKernel(k.count, cl::NullRange, global, local, nullptr, &events.back().second);
+    q.enqueueNDRangeKernel(k.count, cl::NullRange, cl::NDRange(64, std::size_t{tiles} + dense),
+                           local, nullptr, &events.back().second);
     arg = set(k.write,
-              {&b.src, &b.refs, &b.masks, &b.offsets, &b.leaf_masks, &b.mid_masks, &b.mid_counts,
-               &b.kept, &b.slots, &b.slot_masks, &b.slot_offsets, &b.slot_counts, &b.node_mats},
-              0);
-    k.write.setArg(arg, tiles);
+              {&b.table, &b.masks, &b.offsets, &b.materials, &b.leaf_masks, &b.mid_masks,
+               &b.mid_counts, &b.slot_masks, &b.slot_offsets, &b.slot_materials, &b.slot_counts},
+              3);
+    k.write.setArg(arg++, tiles);
+    k.write.setArg(arg, cl_uint{per_node ? 1u : 64u});
     events.emplace_back("encode_write", cl::Event());
-    q.enqueueNDRangeKernel(k.write, cl::NullRange, global, local, nullptr, &events.back().second);
-    arg = set(k.materials, {&b.vox, &b.src}, 0);
-    k.materials.setArg(arg++, b.pitch_y);
-    k.materials.setArg(arg++, b.pitch_z);
-    arg = set(k.materials,
-              {&b.refs, &b.masks, &b.offsets, &b.materials, &b.leaf_masks, &b.mid_masks, &b.kept,
-               &b.slots, &b.slot_masks, &b.slot_offsets, &b.slot_materials, &b.node_mats},
-              arg);
-    k.materials.setArg(arg, tiles);
-    events.emplace_back("encode_materials", cl::Event());
-    q.enqueueNDRangeKernel(k.materials, cl::NullRange, cl::NDRange(64, std::size_t{tiles} * 64),
-                           cl::NDRange(64, 1), nullptr, &events.back().second);
+    q.enqueueNDRangeKernel(k.write, cl::NullRange,
+                           cl::NDRange(64, std::size_t{tiles} * (per_node ? 64 : 1)), local,
+                           nullptr, &events.back().second);
+}
+
+// The nodes of tile (tx, ty, tz) that `b` overlaps (bit z << 4 | y << 2 | x of each 16^3 node).
+std::uint64_t nodes_overlapped(const Box& b, std::int64_t tx, std::int64_t ty, std::int64_t tz) {
+    const std::int64_t s = kTileSize;
+    const Box part =
+        intersect(b, Box{{tx * s, ty * s, tz * s}, {(tx + 1) * s, (ty + 1) * s, (tz + 1) * s}});
+    std::uint64_t mask = 0;
+    if (part.empty()) {
+        return mask;
+    }
+    for (std::int64_t z = part.min.z / 16; z <= (part.max.z - 1) / 16; ++z) {
+        for (std::int64_t y = part.min.y / 16; y <= (part.max.y - 1) / 16; ++y) {
+            for (std::int64_t x = part.min.x / 16; x <= (part.max.x - 1) / 16; ++x) {
+                mask |= std::uint64_t{1} << ((z % 4) << 4 | (y % 4) << 2 | (x % 4));
+            }
+        }
+    }
+    return mask;
 }
 
 }  // namespace
@@ -135,36 +157,30 @@ std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
         auto& c = ctx.context();
         auto& q = ctx.queue();
         const cl::Program program = world_program(ctx);
-        // Every node dense (its first voxel in its tile), no previous trees.
-        std::vector<std::uint32_t> slots(tiles);
-        std::vector<std::uint64_t> src(std::size_t{tiles} * 64), refs(2 * std::size_t{tiles});
+        // Every node dense (read from its tile), no previous trees, no brush.
+        std::vector<std::int64_t> table(table_bytes(tiles) / 8, 0);
+        table[0] = kNoBrush;
         for (std::uint32_t t = 0; t < tiles; ++t) {
-            slots[t] = t;
-            refs[2 * t] = SparseDeviceWorld::kNoRef;
-            for (std::uint32_t b = 0; b < 64; ++b) {
-                const std::uint64_t x = (b & 3) * 16, y = (b >> 2 & 3) * 16, z = (b >> 4) * 16;
-                src[std::size_t{t} * 64 + b] =
-                    std::uint64_t{t} * kTileVoxels + (z * kTileSize + y) * kTileSize + x;
+            std::int64_t* rec = table.data() + kTableHeader + kRecord * t;
+            rec[0] = static_cast<std::int64_t>(SparseDeviceWorld::kNoRef);
+            rec[2] = t;
+            rec[3] = static_cast<std::int64_t>(std::uint64_t{t} * kTileVoxels);
+            rec[4] = -1;
+            for (std::int64_t b = 0; b < 64; ++b) {
+                table[kTableHeader + kRecord * tiles + std::size_t{t} * 64 + b] = t * 64 + b;
             }
         }
-        auto copy_of = [&](const auto& v) {
-            return cl::Buffer(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, v.size() * sizeof(v[0]),
-                              const_cast<void*>(static_cast<const void*>(v.data())));
-        };
         EncodeBuffers b;
-        b.vox = cl::Buffer(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, voxels.size(),
+        b.vox = cl::Buffer(c, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, voxels.size(),
                            const_cast<std::uint8_t*>(voxels.data()));
-        b.src = copy_of(src);
         b.pitch_y = kTileSize;
         b.pitch_z = kTileSize * kTileSize;
-        b.refs = copy_of(refs);
+        b.table =
+            cl::Buffer(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, table.size() * 8, table.data());
         b.masks = b.materials = b.offsets = cl::Buffer(c, CL_MEM_READ_ONLY, 8);
-        b.slots = copy_of(slots);
         b.leaf_masks = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 4096 * 8);
         b.mid_masks = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 8);
         b.mid_counts = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 4);
-        b.kept = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 8);
-        b.node_mats = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * 64 * 4);
         b.slot_masks = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * kTileMaxNodes * 8);
         b.slot_offsets = cl::Buffer(c, CL_MEM_READ_WRITE, std::size_t{tiles} * kTileMaxNodes * 4);
         b.slot_materials = cl::Buffer(c, CL_MEM_READ_WRITE, voxels.size());
@@ -174,9 +190,8 @@ std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
         const cl::Buffer& materials = b.slot_materials;
         const cl::Buffer& counts = b.slot_counts;
         std::vector<std::pair<std::string, cl::Event>> events;
-        EncodeKernels k{cl::Kernel(program, "encode_count"), cl::Kernel(program, "encode_write"),
-                        cl::Kernel(program, "encode_materials")};
-        enqueue_encode(q, k, b, tiles, events);
+        EncodeKernels k{cl::Kernel(program, "encode_count"), cl::Kernel(program, "encode_write")};
+        enqueue_encode(q, k, b, tiles, tiles * 64, !ctx.is_cpu(), events);
         std::vector<std::uint32_t> n(2 * std::size_t{tiles});
         q.enqueueReadBuffer(counts, CL_TRUE, 0, n.size() * 4, n.data());
         for (std::uint32_t t = 0; t < tiles; ++t) {
@@ -201,16 +216,19 @@ std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
 }
 
 SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, SparseWorld* editable)
-    : ctx_(ctx), world_(world), editable_(editable), program_(world_program(ctx)) {
+    : ctx_(ctx),
+      world_(world),
+      editable_(editable),
+      program_(world_program(ctx)),
+      gpu_layout_(!ctx.is_cpu()),
+      pinned_(std::make_unique<PinnedHost>()) {
     if (editable != nullptr && editable != &world) {
         throw std::invalid_argument("SparseDeviceWorld: `editable` is not the world");
     }
     cl_call("making the sparse world's kernels", [&] {
         gather_ = cl::Kernel(program_, "gather");
         gather_voxels_ = cl::Kernel(program_, "gather_voxels");
-        brush_ = cl::Kernel(program_, "brush_nodes");
-        encode_ = {cl::Kernel(program_, "encode_count"), cl::Kernel(program_, "encode_write"),
-                   cl::Kernel(program_, "encode_materials")};
+        encode_ = {cl::Kernel(program_, "encode_count"), cl::Kernel(program_, "encode_write")};
     });
     ensure_slot_capacity(1);
     upload_whole();
@@ -409,28 +427,24 @@ void SparseDeviceWorld::host_edited(const Box& changed) {
     release_slots_if_needed();
 }
 
-void SparseDeviceWorld::ensure_scratch(std::size_t tiles, std::size_t nodes) {
-    if (tiles <= scratch_tiles_ && nodes <= scratch_nodes_) {
-        return;
+void SparseDeviceWorld::ensure_scratch(std::size_t tiles, bool dense) {
+    auto& c = ctx_.context();
+    if (dense && tiles > scratch_tiles_) {
+        const std::size_t cap = std::max({tiles, 2 * scratch_tiles_, std::size_t{8}});
+        cl_call("allocating an edit's scratch",
+                [&] { scratch_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * kTileVoxels); });
+        scratch_tiles_ = cap;
     }
-    const std::size_t cap = std::max({tiles, scratch_tiles_, std::size_t{8}});
-    const std::size_t node_cap = std::max({nodes, scratch_nodes_, std::size_t{64}});
-    cl_call("allocating an edit's scratch", [&] {
-        auto& c = ctx_.context();
-        scratch_ = cl::Buffer(c, CL_MEM_READ_WRITE, node_cap * kNodeVoxels);
-        edit_src_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 64 * 8);
-        leaf_masks_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 4096 * 8);
-        mid_masks_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 8);
-        mid_counts_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 4);
-        kept_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 8);
-        node_mats_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 4);
-        edit_jobs_ = cl::Buffer(c, CL_MEM_READ_ONLY, node_cap * 8 * 8);
-        edit_refs_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 2 * 8);
-        edit_origins_ = cl::Buffer(c, CL_MEM_READ_ONLY, node_cap * 3 * 8);
-        edit_slots_ = cl::Buffer(c, CL_MEM_READ_ONLY, cap * 4);
-    });
-    scratch_tiles_ = cap;
-    scratch_nodes_ = node_cap;
+    if (tiles > table_tiles_) {
+        const std::size_t cap = std::max({tiles, 2 * table_tiles_, std::size_t{8}});
+        cl_call("allocating an edit's tables", [&] {
+            leaf_masks_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 4096 * 8);
+            mid_masks_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 8);
+            mid_counts_ = cl::Buffer(c, CL_MEM_READ_WRITE, cap * 64 * 4);
+            table_ = cl::Buffer(c, CL_MEM_READ_ONLY, table_bytes(cap));
+        });
+        table_tiles_ = cap;
+    }
 }
 
 Box SparseDeviceWorld::host_apply_brush(const Brush& brush) {
@@ -441,6 +455,14 @@ Box SparseDeviceWorld::host_apply_brush(const Brush& brush) {
     return changed;
 }
 
+std::int64_t* SparseDeviceWorld::edit_table(std::size_t tiles) {
+    traffic_.host_waits += pinned_->settle() ? 1 : 0;
+    pinned_->reserve(ctx_, table_bytes(std::max(tiles, table_tiles_)));
+    auto* table = reinterpret_cast<std::int64_t*>(pinned_->data());
+    std::fill(table, table + kTableHeader, std::int64_t{0});
+    return table;
+}
+
 Box SparseDeviceWorld::apply_brush(const Brush& brush) {
     if (editable_ == nullptr) {
         throw std::logic_error("SparseDeviceWorld::apply_brush on a read-only world");
@@ -448,9 +470,11 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
     if ((brush.op == BrushOp::place || brush.op == BrushOp::paint) && brush.material == 0) {
         throw InputError(to_string(brush.op) + " needs a material 1..255, not 0");
     }
+    traffic_ = QueueTraffic{};
     const Dims d = world_.dims();
     const Box bounds = brush_bounds(brush, d);  // checks the radius
     if (bounds.empty()) {
+        edit_events_.clear();
         return Box{};
     }
     const Span span = tiles_of(bounds);
@@ -458,88 +482,50 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
         return host_apply_brush(brush);
     }
     const auto n = static_cast<std::uint32_t>(span.size());
-    wait_edit_writes();
-    host_jobs_.clear();
-    host_refs_.clear();
-    host_origins_.clear();
+    keys_.clear();
     host_slots_.clear();
-    host_src_.assign(std::size_t{n} * 64, kKeep);
-    std::vector<std::uint64_t> keys;
-    // Per tile its refs; per 16^3 node the brush's bounds overlap, a job of gather (a 16^3
-    // block) and a block of scratch.
-    std::int64_t tile = 0;
     for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
-        const std::int64_t s = kTileSize;
+        keys_.push_back(key_of(tx, ty, tz));
+    });
+    take_edit_slots(keys_);
+    ensure_scratch(n, true);
+    // The table: the brush; per tile its previous tree, slot, voxels in scratch (a whole tile
+    // each) and the 16^3 nodes the brush's bounds overlap (decoded, brushed and encoded again).
+    std::int64_t* table = edit_table(n);
+    table[0] = brush.op == BrushOp::place ? 0 : brush.op == BrushOp::erase ? 1 : 2;
+    table[1] = brush.shape == BrushShape::sphere ? 0 : 1;
+    table[2] = brush.centre.x;
+    table[3] = brush.centre.y;
+    table[4] = brush.centre.z;
+    table[5] = static_cast<std::int64_t>(brush.radius);
+    table[6] = brush.material;
+    table[7] = d.x;
+    table[8] = d.y;
+    table[9] = d.z;
+    std::size_t t = 0;
+    dense_.clear();
+    for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
         const auto [node_base, material_base] = ref(tx, ty, tz);
-        host_refs_.insert(host_refs_.end(), {node_base, material_base});
-        keys.push_back(key_of(tx, ty, tz));
-        const Box part = intersect(
-            bounds, Box{{tx * s, ty * s, tz * s}, {(tx + 1) * s, (ty + 1) * s, (tz + 1) * s}});
-        for (std::int64_t z = part.min.z / 16; z <= (part.max.z - 1) / 16; ++z) {
-            for (std::int64_t y = part.min.y / 16; y <= (part.max.y - 1) / 16; ++y) {
-                for (std::int64_t x = part.min.x / 16; x <= (part.max.x - 1) / 16; ++x) {
-                    const std::int64_t bit = (z % 4) << 4 | (y % 4) << 2 | (x % 4);
-                    host_src_[static_cast<std::size_t>(tile * 64 + bit)] =
-                        host_origins_.size() / 3 * kNodeVoxels;
-                    host_jobs_.insert(host_jobs_.end(), {x * 16, y * 16, z * 16, tx, ty, tz,
-                                                         1 | 1ll << 16 | 1ll << 32, tile});
-                    host_origins_.insert(host_origins_.end(), {x * 16, y * 16, z * 16});
-                }
-            }
+        std::int64_t* rec = table + kTableHeader + kRecord * t;
+        rec[0] = static_cast<std::int64_t>(node_base);
+        rec[1] = static_cast<std::int64_t>(material_base);
+        rec[2] = host_slots_[t];
+        rec[3] = static_cast<std::int64_t>(t * kTileVoxels);
+        const std::uint64_t nodes = nodes_overlapped(bounds, tx, ty, tz);
+        rec[4] = static_cast<std::int64_t>(nodes);
+        rec[5] = tx;
+        rec[6] = ty;
+        rec[7] = tz;
+        for (std::uint64_t m = nodes; m != 0; m &= m - 1) {
+            dense_.push_back(static_cast<std::int64_t>(t * 64) + std::countr_zero(m));
         }
-        ++tile;
+        ++t;
     });
-    const std::size_t nodes = host_origins_.size() / 3;
-    take_edit_slots(keys);
-    ensure_scratch(n, nodes);
+    std::copy(dense_.begin(), dense_.end(), table + kTableHeader + kRecord * n);
     edit_events_.clear();
-    cl_call("editing " + std::to_string(n) + " tiles on the device", [&] {
-        auto& q = ctx_.queue();
-        edit_writes_.resize(5);
-        q.enqueueWriteBuffer(edit_jobs_, CL_FALSE, 0, host_jobs_.size() * 8, host_jobs_.data(),
-                             nullptr, &edit_writes_[0]);
-        q.enqueueWriteBuffer(edit_refs_, CL_FALSE, 0, host_refs_.size() * 8, host_refs_.data(),
-                             nullptr, &edit_writes_[1]);
-        q.enqueueWriteBuffer(edit_origins_, CL_FALSE, 0, host_origins_.size() * 8,
-                             host_origins_.data(), nullptr, &edit_writes_[2]);
-        q.enqueueWriteBuffer(edit_slots_, CL_FALSE, 0, host_slots_.size() * 4, host_slots_.data(),
-                             nullptr, &edit_writes_[3]);
-        q.enqueueWriteBuffer(edit_src_, CL_FALSE, 0, host_src_.size() * 8, host_src_.data(),
-                             nullptr, &edit_writes_[4]);
-        cl::Kernel gather = gather_kernel();
-        gather.setArg(6, edit_jobs_);
-        gather.setArg(7, edit_refs_);
-        gather.setArg(8, scratch_);
-        gather.setArg(9, cl_uint{16});
-        gather.setArg(10, cl_uint{16});
-        gather.setArg(11, cl_uint{16});
-        gather.setArg(12, static_cast<cl_long>(d.x));
-        gather.setArg(13, static_cast<cl_long>(d.y));
-        gather.setArg(14, static_cast<cl_long>(d.z));
-        edit_events_.emplace_back("edit_gather", cl::Event());
-        q.enqueueNDRangeKernel(gather, cl::NullRange, cl::NDRange(16, 16 * nodes),
-                               cl::NDRange(kGroupRows, 1), nullptr, &edit_events_.back().second);
-        cl::Kernel& brush_k = brush_;
-        brush_k.setArg(0, scratch_);
-        brush_k.setArg(1, edit_origins_);
-        brush_k.setArg(2, static_cast<cl_uint>(brush.op == BrushOp::place   ? 0
-                                               : brush.op == BrushOp::erase ? 1
-                                                                            : 2));
-        brush_k.setArg(3, static_cast<cl_uint>(brush.shape == BrushShape::sphere ? 0 : 1));
-        brush_k.setArg(4, static_cast<cl_long>(brush.centre.x));
-        brush_k.setArg(5, static_cast<cl_long>(brush.centre.y));
-        brush_k.setArg(6, static_cast<cl_long>(brush.centre.z));
-        brush_k.setArg(7, static_cast<cl_ulong>(brush.radius));
-        brush_k.setArg(8, static_cast<cl_uchar>(brush.material));
-        brush_k.setArg(9, static_cast<cl_long>(d.x));
-        brush_k.setArg(10, static_cast<cl_long>(d.y));
-        brush_k.setArg(11, static_cast<cl_long>(d.z));
-        edit_events_.emplace_back("brush_nodes", cl::Event());
-        q.enqueueNDRangeKernel(brush_k, cl::NullRange, cl::NDRange(16 * 16, nodes),
-                               cl::NDRange(kGroupNodes, 1), nullptr, &edit_events_.back().second);
-        enqueue_edit_encode(scratch_, 16, 16 * 16, n);
-    });
-    commit_edit_slots(keys);
+    cl_call("editing " + std::to_string(n) + " tiles on the device",
+            [&] { enqueue_edit_encode(scratch_, kTileSize, kTileSize * kTileSize, n); });
+    commit_edit_slots(keys_);
     return bounds;
 }
 
@@ -549,48 +535,43 @@ void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t 
     if (editable_ == nullptr) {
         throw std::logic_error("SparseDeviceWorld::encode_dense_tiles on a read-only world");
     }
+    traffic_ = QueueTraffic{};
     if (tiles.empty()) {
+        edit_events_.clear();
         return;
     }
     const auto n = static_cast<std::uint32_t>(tiles.size());
-    wait_edit_writes();
-    host_refs_.clear();
+    keys_.clear();
     host_slots_.clear();
-    host_src_.resize(std::size_t{n} * 64);
-    std::vector<std::uint64_t> keys;
-    keys.reserve(n);
+    for (const DenseTile& tile : tiles) {
+        keys_.push_back(key_of(tile.tile.x, tile.tile.y, tile.tile.z));
+    }
+    take_edit_slots(keys_);
+    ensure_scratch(n, false);
+    std::int64_t* table = edit_table(n);
+    table[0] = kNoBrush;
     for (std::uint32_t t = 0; t < n; ++t) {
         const Int3 c = tiles[t].tile;
         const auto [node_base, material_base] = ref(c.x, c.y, c.z);
-        host_refs_.insert(host_refs_.end(), {node_base, material_base});
-        keys.push_back(key_of(c.x, c.y, c.z));
-        for (std::uint64_t b = 0; b < 64; ++b) {
-            host_src_[std::size_t{t} * 64 + b] = tiles[t].first + (b >> 4) * 16 * pitch_z +
-                                                 (b >> 2 & 3) * 16 * pitch_y + (b & 3) * 16;
-        }
+        std::int64_t* rec = table + kTableHeader + kRecord * t;
+        rec[0] = static_cast<std::int64_t>(node_base);
+        rec[1] = static_cast<std::int64_t>(material_base);
+        rec[2] = host_slots_[t];
+        rec[3] = static_cast<std::int64_t>(tiles[t].first);
+        rec[4] = -1;  // every node from vox
+        rec[5] = c.x;
+        rec[6] = c.y;
+        rec[7] = c.z;
     }
-    take_edit_slots(keys);
-    ensure_scratch(n, 0);
+    dense_.resize(std::size_t{n} * 64);
+    for (std::size_t i = 0; i < dense_.size(); ++i) {
+        dense_[i] = static_cast<std::int64_t>(i);
+    }
+    std::copy(dense_.begin(), dense_.end(), table + kTableHeader + kRecord * n);
     edit_events_.clear();
-    cl_call("encoding " + std::to_string(n) + " dense tiles on the device", [&] {
-        auto& q = ctx_.queue();
-        edit_writes_.resize(3);
-        q.enqueueWriteBuffer(edit_refs_, CL_FALSE, 0, host_refs_.size() * 8, host_refs_.data(),
-                             nullptr, &edit_writes_[0]);
-        q.enqueueWriteBuffer(edit_slots_, CL_FALSE, 0, host_slots_.size() * 4, host_slots_.data(),
-                             nullptr, &edit_writes_[1]);
-        q.enqueueWriteBuffer(edit_src_, CL_FALSE, 0, host_src_.size() * 8, host_src_.data(),
-                             nullptr, &edit_writes_[2]);
-        enqueue_edit_encode(vox, pitch_y, pitch_z, n);
-    });
-    commit_edit_slots(keys);
-}
-
-void SparseDeviceWorld::wait_edit_writes() {
-    if (!edit_writes_.empty()) {
-        cl::Event::waitForEvents(edit_writes_);
-        edit_writes_.clear();
-    }
+    cl_call("encoding " + std::to_string(n) + " dense tiles on the device",
+            [&] { enqueue_edit_encode(vox, pitch_y, pitch_z, n); });
+    commit_edit_slots(keys_);
 }
 
 void SparseDeviceWorld::take_edit_slots(const std::vector<std::uint64_t>& keys) {
@@ -617,26 +598,28 @@ void SparseDeviceWorld::commit_edit_slots(const std::vector<std::uint64_t>& keys
 
 void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t pitch_y,
                                             std::uint32_t pitch_z, std::uint32_t tiles) {
+    auto& q = ctx_.queue();
+    q.enqueueWriteBuffer(table_, CL_FALSE, 0, (kTableHeader + kRecord * tiles + dense_.size()) * 8,
+                         pinned_->data(), nullptr, &pinned_->last());
     EncodeBuffers b;
     b.vox = vox;
-    b.src = edit_src_;
     b.pitch_y = pitch_y;
     b.pitch_z = pitch_z;
-    b.refs = edit_refs_;
+    b.table = table_;
     b.masks = masks_;
     b.offsets = offsets_;
     b.materials = materials_;
     b.leaf_masks = leaf_masks_;
     b.mid_masks = mid_masks_;
     b.mid_counts = mid_counts_;
-    b.kept = kept_;
-    b.node_mats = node_mats_;
-    b.slots = edit_slots_;
     b.slot_masks = slot_masks_;
     b.slot_offsets = slot_offsets_;
     b.slot_materials = slot_materials_;
     b.slot_counts = slot_counts_;
-    enqueue_encode(ctx_.queue(), encode_, b, tiles, edit_events_);
+    enqueue_encode(q, encode_, b, tiles, static_cast<std::uint32_t>(dense_.size()), gpu_layout_,
+                   edit_events_);
+    traffic_.enqueues += 3;
+    q.flush();  // submitted now: the device encodes while the host lists the field's update
 }
 
 double SparseDeviceWorld::last_edit_kernel_ms() const {
@@ -649,10 +632,14 @@ double SparseDeviceWorld::last_edit_kernel_ms() const {
 
 std::vector<std::pair<std::string, double>> SparseDeviceWorld::last_edit_stages() const {
     std::vector<std::pair<std::string, double>> stages;
-    for (const auto& [name, e] : edit_events_) {
-        cl_call("waiting for an edit's kernels", [&] { e.wait(); });
-        stages.emplace_back(name, elapsed_ms(e, e));
-    }
+    cl_call("waiting for an edit's kernels", [&] {
+        for (const auto& [name, e] : edit_events_) {
+            if (e.getInfo<CL_EVENT_COMMAND_EXECUTION_STATUS>() != CL_COMPLETE) {
+                e.wait();
+            }
+            stages.emplace_back(name, elapsed_ms(e, e));
+        }
+    });
     return stages;
 }
 

@@ -13,6 +13,7 @@
 #include <string>
 #include <thread>
 
+#include "pinned.hpp"
 #include "util.hpp"
 #include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/separable.hpp"
@@ -221,6 +222,7 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
     elem_ = element_size(options_.format);
     gpu_layout_ =
         options_.layout == Layout::automatic ? !ctx_.is_cpu() : options_.layout == Layout::gpu;
+    device_world_.use_gpu_layout(gpu_layout_);
     const World one(Dims{1, 1, 1});
     far_ = encode_real_field({d}, one, palette_, options_.format);
     inside_ = encode_real_field({options_.signed_field ? -d : 0.0}, one, palette_, options_.format);
@@ -267,6 +269,7 @@ void SparseField::ensure_slots(std::size_t slots) {
             ctx_.queue().enqueueCopyBuffer(pool_, pool, 0, 0, pool_slots_ * kTileVoxels * elem_);
             ctx_.queue().enqueueCopyBuffer(coarse_, coarse, 0, 0, pool_slots_ * 64 * elem_);
             ctx_.queue().finish();
+            traffic_ += {2, 1};
         }
         pool_ = pool;
         coarse_ = coarse;
@@ -291,6 +294,7 @@ std::uint32_t SparseField::dense_slot(std::uint64_t key) {
                                           cl::NDRange(kTileSize, kTileSize, kTileSize),
                                           cl::NDRange(kTileSize, 1, 1));
     });
+    ++traffic_.enqueues;
     slot_keys_.push_back(key);
     coarse_host_.resize(slot_keys_.size() * 64 * elem_);
     tiles_[key] = slot;
@@ -429,6 +433,7 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block, bool pow2_
                         cl::NDRange(kGroupRows, 1), nullptr, &ev_gather);
                 }
                 ms += batch.generator->run();  // waits for the queue, the gather too
+                traffic_ += {static_cast<std::uint32_t>(7 + batch.generator->stage_ms().size()), 1};
                 ms += elapsed_ms(ev_gather, ev_gather);
                 add_stage("gather", elapsed_ms(ev_gather, ev_gather));
                 for (const auto& [name, stage_ms] : batch.generator->stage_ms()) {
@@ -512,6 +517,7 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots,
         const std::size_t per = 64 * elem_;
         std::vector<std::uint8_t> listed(slots.size() * per);
         q.enqueueReadBuffer(minima_listed_, CL_TRUE, 0, listed.size(), listed.data());
+        traffic_ += {5, 1};
         for (std::size_t i = 0; i < slots.size(); ++i) {
             std::memcpy(coarse_host_.data() + std::size_t{slots[i]} * per, listed.data() + i * per,
                         per);
@@ -862,6 +868,7 @@ SparseField::Update SparseField::with_edit_stages(Update result) const {
         result.edit_kernel_ms += ms;
     }
     result.kernel_ms += result.edit_kernel_ms;
+    result.traffic += device_world_.last_edit_traffic();
     stages.insert(stages.end(), result.stages.begin(), result.stages.end());
     result.stages = std::move(stages);
     return result;
@@ -871,6 +878,7 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
     Update result;
     stages_.clear();
     work_ = Work{};
+    traffic_ = QueueTraffic{};
     const Box all = world_box(world_.dims());
     // The voxels within D of a change, per change; merged into their hull when that is one
     // block of at most kHullVoxels (the single-block path of one edit).
@@ -953,10 +961,15 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
         block_box.max = {block_box.min.x + size.x, block_box.min.y + size.y,
                          block_box.min.z + size.z};
         if (block_box.volume() <= kBatchVoxels) {
-            jobs.push_back({region, block_box.min});
             block = {static_cast<std::uint32_t>(block_box.max.x - block_box.min.x),
                      static_cast<std::uint32_t>(block_box.max.y - block_box.min.y),
                      static_cast<std::uint32_t>(block_box.max.z - block_box.min.z)};
+            result.kernel_ms += update_block({region, block_box.min}, block, slots, nodes);
+            result.recomputed = region;
+            result.tiles = static_cast<std::uint32_t>(slots.size());
+            result.stages = stages_;
+            result.traffic = traffic_;
+            return result;
         }
     }
     // Several regions (or one too large for one block): those that overlap merged, then the
@@ -1051,7 +1064,183 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
     result.recomputed = region;
     result.tiles = static_cast<std::uint32_t>(slots.size());
     result.stages = stages_;
+    result.traffic = traffic_;
     return result;
+}
+
+double SparseField::update_block(const Job& job, Dims block,
+                                 const std::vector<std::uint32_t>& slots,
+                                 const std::vector<std::uint64_t>& nodes) {
+    Batch& batch = batch_for(block, 1);
+    const Dims wd = world_.dims();
+    const Box bb{job.origin,
+                 {job.origin.x + block.x, job.origin.y + block.y, job.origin.z + block.z}};
+    const TileSpan span = tiles_of(bb), rspan = tiles_of(job.region);
+    const std::size_t n = slots.size();
+    // gather's job and refs, scatter's job, region and slots, node_minima's slots, tile
+    // coordinates and nodes (sparse_field.cl, sparse_world.cl).
+    enum { kJobs, kRefs, kScatterJobs, kRegions, kSlots, kList, kCoords, kNodes, kTables };
+    const std::size_t bytes[kTables] = {8 * 8,
+                                        static_cast<std::size_t>(span.size()) * 16,
+                                        8 * 8,
+                                        6 * 8,
+                                        static_cast<std::size_t>(rspan.size()) * 4,
+                                        n * 4,
+                                        n * 12,
+                                        n * 8};
+    if (!tables_) {
+        tables_ = std::make_unique<PinnedTables>();
+        minima_host_ = std::make_unique<PinnedHost>();
+    }
+    bool waited = false;
+    tables_->fit(ctx_, bytes, &waited);
+    traffic_.host_waits += waited ? 1 : 0;
+    auto* gjob = tables_->host<std::int64_t>(kJobs);
+    std::int64_t g[8] = {job.origin.x, job.origin.y, job.origin.z,  span.first.x,
+                         span.first.y, span.first.z, span.packed(), 0};
+    std::copy(g, g + 8, gjob);
+    auto* refs = tables_->host<std::uint64_t>(kRefs);
+    for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
+        const auto [node_base, material_base] = device_world_.ref(tx, ty, tz);
+        *refs++ = node_base;
+        *refs++ = material_base;
+    });
+    auto* sjob = tables_->host<std::int64_t>(kScatterJobs);
+    const std::int64_t sj[8] = {job.region.min.x, job.region.min.y, job.region.min.z, rspan.first.x,
+                                rspan.first.y,    rspan.first.z,    rspan.packed(),   0};
+    std::copy(sj, sj + 8, sjob);
+    const Int3 size{job.region.max.x - job.region.min.x, job.region.max.y - job.region.min.y,
+                    job.region.max.z - job.region.min.z};
+    auto* region = tables_->host<std::int64_t>(kRegions);
+    const std::int64_t r[6] = {size.x, size.y, size.z, job.origin.x, job.origin.y, job.origin.z};
+    std::copy(r, r + 6, region);
+    auto* scatter_slots = tables_->host<std::uint32_t>(kSlots);
+    for_each_tile(rspan, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
+        *scatter_slots++ =
+            tiles_.at(tile_key(static_cast<std::uint32_t>(tx), static_cast<std::uint32_t>(ty),
+                               static_cast<std::uint32_t>(tz)));
+    });
+    std::copy(slots.begin(), slots.end(), tables_->host<std::uint32_t>(kList));
+    auto* coords = tables_->host<std::uint32_t>(kCoords);
+    for (const std::uint32_t slot : slots) {
+        const std::uint64_t key = slot_keys_[slot];
+        *coords++ = static_cast<std::uint32_t>(key & 0x3FFF);
+        *coords++ = static_cast<std::uint32_t>(key >> 14 & 0x3FFF);
+        *coords++ = static_cast<std::uint32_t>(key >> 28);
+    }
+    std::copy(nodes.begin(), nodes.end(), tables_->host<std::uint64_t>(kNodes));
+    ++work_.batches;
+    ++work_.blocks;
+    work_.block_voxels += std::uint64_t{block.x} * block.y * block.z;
+    work_.region_voxels += static_cast<std::uint64_t>(size.x * size.y * size.z);
+    const std::size_t per = 64 * elem_;
+    if (n > update_minima_cap_) {
+        update_minima_cap_ = std::max<std::size_t>(2 * n, 64);
+        cl_call("allocating an update's node minima", [&] {
+            update_minima_ =
+                cl::Buffer(ctx_.context(), CL_MEM_WRITE_ONLY, update_minima_cap_ * per);
+        });
+    }
+    minima_host_->reserve(ctx_, update_minima_cap_ * per);
+    std::vector<std::pair<std::string, cl::Event>> events;
+    double ms = 0;
+    cl_call("updating a sparse field block of " + block.to_string(), [&] {
+        auto& q = ctx_.queue();
+        tables_->write(q);
+        cl::Kernel gather = device_world_.gather_kernel(gpu_layout_);
+        gather.setArg(6, tables_->buffer(kJobs));
+        gather.setArg(7, tables_->buffer(kRefs));
+        gather.setArg(8, batch.voxels);
+        gather.setArg(9, block.x);
+        gather.setArg(10, block.y);
+        gather.setArg(11, block.z);
+        gather.setArg(12, static_cast<cl_long>(wd.x));
+        gather.setArg(13, static_cast<cl_long>(wd.y));
+        gather.setArg(14, static_cast<cl_long>(wd.z));
+        events.emplace_back("gather", cl::Event());
+        if (gpu_layout_) {
+            q.enqueueNDRangeKernel(
+                gather, cl::NullRange,
+                cl::NDRange(round_up(block.x, kGroupVoxels), block.y, std::size_t{block.z}),
+                cl::NDRange(kGroupVoxels, 1, 1), nullptr, &events.back().second);
+        } else {
+            q.enqueueNDRangeKernel(gather, cl::NullRange,
+                                   cl::NDRange(round_up(block.y, kGroupRows), block.z),
+                                   cl::NDRange(kGroupRows, 1), nullptr, &events.back().second);
+        }
+        const std::size_t generator_first = events.size();
+        if (!batch.generator->enqueue(events)) {
+            // A generator that reads a flag back in between: its own run(), which waits.
+            ms += batch.generator->run();
+            ++traffic_.host_waits;
+            traffic_.enqueues += static_cast<std::uint32_t>(batch.generator->stage_ms().size());
+            for (const auto& [name, stage_ms] : batch.generator->stage_ms()) {
+                add_stage(name, stage_ms);
+            }
+        }
+        const std::size_t generator_end = events.size();
+        cl::Kernel& scatter = gpu_layout_ ? scatter_voxels_ : scatter_;
+        scatter.setArg(0, batch.generator->field_buffer());
+        scatter.setArg(1, pool_);
+        scatter.setArg(2, tables_->buffer(kScatterJobs));
+        scatter.setArg(3, tables_->buffer(kRegions));
+        scatter.setArg(4, tables_->buffer(kSlots));
+        scatter.setArg(5, block.x);
+        scatter.setArg(6, block.y);
+        scatter.setArg(7, block.z);
+        const auto sx = static_cast<std::size_t>(size.x);
+        const auto sy = static_cast<std::size_t>(size.y);
+        const auto sz = static_cast<std::size_t>(size.z);
+        events.emplace_back("scatter", cl::Event());
+        if (gpu_layout_) {
+            scatter.setArg(8, static_cast<cl_uint>(sx));
+            scatter.setArg(9, static_cast<cl_uint>(sy));
+            scatter.setArg(10, static_cast<cl_uint>(sz));
+            q.enqueueNDRangeKernel(scatter, cl::NullRange,
+                                   cl::NDRange(round_up(sx, kGroupVoxels), sy, sz),
+                                   cl::NDRange(kGroupVoxels, 1, 1), nullptr, &events.back().second);
+        } else {
+            scatter.setArg(8, static_cast<cl_uint>(sy));
+            scatter.setArg(9, static_cast<cl_uint>(sz));
+            q.enqueueNDRangeKernel(scatter, cl::NullRange,
+                                   cl::NDRange(round_up(sy, kGroupRows), sz),
+                                   cl::NDRange(kGroupRows, 1), nullptr, &events.back().second);
+        }
+        cl::Kernel& k = node_minima_;
+        k.setArg(0, pool_);
+        k.setArg(1, tables_->buffer(kList));
+        k.setArg(2, tables_->buffer(kCoords));
+        k.setArg(3, static_cast<cl_uint>(n));
+        k.setArg(4, coarse_);
+        k.setArg(5, elem_, far_.data());
+        k.setArg(6, wd.x);
+        k.setArg(7, wd.y);
+        k.setArg(8, wd.z);
+        k.setArg(9, update_minima_);
+        k.setArg(10, tables_->buffer(kNodes));
+        events.emplace_back("node_minima", cl::Event());
+        q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(64, n * 64), cl::NDRange(64, 1),
+                               nullptr, &events.back().second);
+        // The one wait: the minima read back, every command before them done.
+        q.enqueueReadBuffer(update_minima_, CL_TRUE, 0, n * per, minima_host_->data());
+        traffic_.enqueues += static_cast<std::uint32_t>(events.size()) + 2;
+        ++traffic_.host_waits;
+        for (std::size_t i = 0; i < n; ++i) {
+            std::memcpy(coarse_host_.data() + std::size_t{slots[i]} * per,
+                        minima_host_->data() + i * per, per);
+        }
+        for (std::size_t i = 0; i < events.size(); ++i) {
+            const double t = elapsed_ms(events[i].second, events[i].second);
+            add_stage(events[i].first, t);
+            if (i < generator_first || i >= generator_end) {
+                ms += t;
+            }
+        }
+        if (generator_end > generator_first) {
+            ms += elapsed_ms(events[generator_first].second, events[generator_end - 1].second);
+        }
+    });
+    return ms;
 }
 
 std::vector<std::uint8_t> SparseField::read_box(const Box& box) {

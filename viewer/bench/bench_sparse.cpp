@@ -201,7 +201,7 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
                    fixed(fk.median, 1) + " ms), " + std::to_string(field.dense_tiles()) +
                    " field tiles; radius-8 edits on the device");
 
-    std::vector<double> edit_wall, edit_kernel, edit_encode, edit_gap;
+    std::vector<double> edit_wall, edit_kernel, edit_encode, edit_gap, edit_enqueues, edit_waits;
     StageSamples edit_stages;  // per kernel name
     std::uint64_t recomputed = 0;
     for (std::size_t e = 0; e < edits.size(); ++e) {
@@ -217,6 +217,8 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
             edit_kernel.push_back(u.kernel_ms);
             edit_encode.push_back(u.edit_kernel_ms);
             edit_gap.push_back(wall - u.kernel_ms);
+            edit_enqueues.push_back(u.traffic.enqueues);
+            edit_waits.push_back(u.traffic.host_waits);
             append_stage_samples(edit_stages, edit_wall.size(), u.stages);
             recomputed +=
                 u.recomputed.empty() ? 0 : static_cast<std::uint64_t>(u.recomputed.volume());
@@ -298,6 +300,10 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"edit_world_kernel_ms_median", summarize(edit_encode).median},
         {"edit_stage_ms_median", stage_medians},
         {"edit_outside_kernels_ms_median", summarize(edit_gap).median},
+        {"edit_enqueues", summarize(edit_enqueues).median},
+        {"edit_host_waits", summarize(edit_waits).median},
+        {"edit_enqueues_max", summarize(edit_enqueues).max},
+        {"edit_host_waits_max", summarize(edit_waits).max},
         {"samples_ms", edit_wall},
         {"edit_voxels_recomputed_mean",
          edit_wall.empty() ? 0.0 : double(recomputed) / double(edit_wall.size())},
@@ -383,7 +389,9 @@ json run_sparse(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t repeat,
             " s kernels); radius-8 edit median " + fixed(r["median_ms"].get<double>(), 3) +
             " ms (min " + fixed(r["min_ms"].get<double>(), 3) + ", max " +
             fixed(r["max_ms"].get<double>(), 3) + "; kernels " +
-            fixed(r["edit_kernel_ms_median"].get<double>(), 3) + " ms); peak " +
+            fixed(r["edit_kernel_ms_median"].get<double>(), 3) + " ms; " +
+            fixed(r["edit_enqueues"].get<double>(), 0) + " enqueues, " +
+            fixed(r["edit_host_waits"].get<double>(), 0) + " host waits); peak " +
             fixed(r["peak_rss_bytes"].get<double>() / 1048576.0, 0) +
             " MiB = " + fixed(r["peak_bytes_per_stored_voxel"].get<double>(), 3) +
             " B per stored voxel; world " +

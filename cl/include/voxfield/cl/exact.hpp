@@ -52,6 +52,7 @@ class ExactManhattan : public Generator {
                         std::optional<double> max_distance = std::nullopt);
 
     double run() override;
+    bool enqueue(std::vector<std::pair<std::string, cl::Event>>& events) override;
     std::string variant() const override;  // "cpu layout" or "gpu layout"
     // The kernels run() launches, in order, cols_seg with its segment length ("x_rows_local",
     // "cols_seg/64", "cols_strip_final", ...): which path a world's shape takes.

@@ -104,6 +104,13 @@ class Generator {
     // the last one's end (profiling events; host round trips of the *-host variants
     // included, as that is what they cost).
     virtual double run() = 0;
+    // Enqueues the transform without waiting and appends (kernel name, event) per launch to
+    // `events`; false, with nothing enqueued, where the transform needs a host round trip
+    // (run() it then). Stage times are the caller's to read once the queue passed them.
+    virtual bool enqueue(std::vector<std::pair<std::string, cl::Event>>& events) {
+        static_cast<void>(events);
+        return false;
+    }
     // Reads the field back (element_size(format) bytes per voxel, little-endian).
     std::vector<std::uint8_t> read(double* download_ms = nullptr);
     // Reads the feature transform back: int32 planes z, y, x of the nearest solid voxel of

@@ -38,6 +38,7 @@ class ExactSeparable : public Generator {
                    bool zero_targets = false);
 
     double run() override;
+    bool enqueue(std::vector<std::pair<std::string, cl::Event>>& events) override;
     std::string variant() const override;  // "cpu layout" or "gpu layout"
     // The world on the device (one uchar per voxel); writes to it show in the next run().
     const cl::Buffer& voxels_buffer() const { return voxels_; }

@@ -1,9 +1,10 @@
 #pragma once
 // A sparse world's 64-trees on an OpenCL device (core/sparse.hpp's layout; kernels:
-// cl/kernels/sparse_world.cl), edited there: the 16^3 nodes a brush's bounds overlap are gathered
-// into dense blocks, brushed, and their tiles encoded again on the device (those nodes from the
-// blocks, the others copied from the tile's previous tree), bit for bit as core's
-// SparseWorld::encode_tile, so that an edit neither reads anything back nor encodes on the host.
+// cl/kernels/sparse_world.cl), edited there: the 16^3 nodes a brush's bounds overlap are decoded,
+// brushed and their tiles encoded again on the device, in two kernels after one write of a pinned
+// table (those nodes from their voxels, the others copied from the tile's previous tree), bit for
+// bit as core's SparseWorld::encode_tile, so that an edit neither reads anything back nor encodes
+// on the host.
 // The host world is brought up to date (the edited tiles read back and stored) only when it is
 // read: world().
 //
@@ -15,6 +16,7 @@
 // taking more than a quarter of the main buffers' bytes (at least 256 MiB) bring the host world
 // up to date and upload it again whole, which frees them.
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <unordered_map>
@@ -28,6 +30,8 @@
 
 namespace voxfield::ocl {
 
+class PinnedHost;
+
 // The most nodes of one tile's 64-tree: the root, 64 children of 16^3, 4096 of 4^3.
 inline constexpr std::uint32_t kTileMaxNodes = 1 + 64 + 4096;
 
@@ -36,9 +40,20 @@ inline constexpr std::uint32_t kTileMaxNodes = 1 + 64 + 4096;
 std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
                                                    std::span<const std::uint8_t> voxels);
 
-// sparse_world.cl's three encoding passes (encode_count, encode_write, encode_materials).
+// sparse_world.cl's two encoding passes (encode_count, encode_write).
 struct EncodeKernels {
-    cl::Kernel count, write, materials;
+    cl::Kernel count, write;
+};
+
+// Commands an edit's path enqueued on the device (kernels and transfers) and the times the host
+// waited for the device (a blocking transfer, a finish, a wait for events that were not done).
+struct QueueTraffic {
+    std::uint32_t enqueues = 0, host_waits = 0;
+    QueueTraffic& operator+=(const QueueTraffic& o) {
+        enqueues += o.enqueues;
+        host_waits += o.host_waits;
+        return *this;
+    }
 };
 
 class SparseDeviceWorld {
@@ -84,8 +99,10 @@ class SparseDeviceWorld {
                             const std::vector<DenseTile>& tiles);
     // Device time of the kernels of the last apply_brush (ms; valid once the queue finished).
     double last_edit_kernel_ms() const;
-    // The same per kernel (name, ms), in launch order.
+    // The same per kernel (name, ms), in launch order (waits for them when they are not done).
     std::vector<std::pair<std::string, double>> last_edit_stages() const;
+    // The commands and host waits of the last apply_brush or encode_dense_tiles.
+    const QueueTraffic& last_edit_traffic() const { return traffic_; }
 
     // The gather kernel (sparse_world.cl; `per_voxel`: gather_voxels, the GPU layout's) with
     // the world's buffers as its arguments 0-5; the caller sets the job arguments 6-14.
@@ -97,6 +114,9 @@ class SparseDeviceWorld {
     static constexpr std::uint64_t kNoRef = ~std::uint64_t{0};
     std::pair<std::uint64_t, std::uint64_t> ref(std::int64_t tx, std::int64_t ty,
                                                 std::int64_t tz) const;
+    // Whether the encoding takes the GPU layout's work-groups (a 16^3 node each; else a tile
+    // each); by default on a device that is not a CPU.
+    void use_gpu_layout(bool on) { gpu_layout_ = on; }
     // Slots in use (tiles encoded since the last whole upload).
     std::size_t slots_used() const { return slot_of_.size(); }
 
@@ -106,18 +126,20 @@ class SparseDeviceWorld {
     // A slot no tile holds: a freed one, else a new one (the slot buffers grow to fit it).
     std::uint32_t take_slot();
     void ensure_slot_capacity(std::size_t slots);
-    void ensure_scratch(std::size_t tiles, std::size_t nodes);
+    // Scratch and encoding buffers for `tiles` tiles (`dense`: with a whole tile of voxels each).
+    void ensure_scratch(std::size_t tiles, bool dense);
     void release_slots_if_needed();
     void host_changed_seen();
     Box host_apply_brush(const Brush& brush);
-    // Waits for the last edit's tables to reach the device (they are about to be rewritten).
-    void wait_edit_writes();
     // Per tile of `keys` a fresh slot into host_slots_ (never the one its previous tree lies
     // in: slots freed here are taken by later edits only).
     void take_edit_slots(const std::vector<std::uint64_t>& keys);
     // The edited tiles `keys` now live in host_slots_: the directory points there, the host lags.
     void commit_edit_slots(const std::vector<std::uint64_t>& keys);
-    // Enqueues the encoding of `tiles` tiles from `vox` (edit_src_, edit_refs_, edit_slots_).
+    // The pinned table of an edit of `tiles` tiles (sparse_world.cl's header and records), once
+    // its last write is done.
+    std::int64_t* edit_table(std::size_t tiles);
+    // Writes the table (one transfer) and enqueues the encoding of its `tiles` tiles from `vox`.
     void enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t pitch_y, std::uint32_t pitch_z,
                              std::uint32_t tiles);
 
@@ -125,7 +147,8 @@ class SparseDeviceWorld {
     const SparseWorld& world_;
     SparseWorld* editable_ = nullptr;
     cl::Program program_;
-    cl::Kernel gather_, gather_voxels_, brush_;  // arguments set per launch
+    bool gpu_layout_ = false;
+    cl::Kernel gather_, gather_voxels_;  // arguments set per launch
     EncodeKernels encode_;
     // Main buffers: the host world as uploaded; dir_: per stored tile key, its refs.
     cl::Buffer masks_, offsets_, materials_;
@@ -141,17 +164,17 @@ class SparseDeviceWorld {
     // What the host world's buffers were when the device last matched it.
     std::uint64_t seen_nodes_ = 0, seen_materials_ = 0, seen_generation_ = 0;
     std::uint32_t seen_tiles_ = 0;
-    // An edit's dense 16^3 nodes and encoding scratch, for up to scratch_tiles_ tiles and
-    // scratch_nodes_ nodes.
-    cl::Buffer scratch_, edit_src_, leaf_masks_, mid_masks_, mid_counts_, kept_, edit_jobs_,
-        edit_refs_, edit_origins_, edit_slots_, node_mats_;
-    std::size_t scratch_tiles_ = 0, scratch_nodes_ = 0;
-    // The last edit's tables (kept until their writes are done) and kernels.
-    std::vector<std::int64_t> host_jobs_, host_origins_;
-    std::vector<std::uint64_t> host_refs_, host_src_;
+    // An edit's tiles of voxels (scratch_, for scratch_tiles_ tiles) and encoding passes' buffers
+    // and table (for table_tiles_ tiles); the table's pinned host copy.
+    cl::Buffer scratch_, leaf_masks_, mid_masks_, mid_counts_, table_;
+    std::size_t scratch_tiles_ = 0, table_tiles_ = 0;
+    std::unique_ptr<PinnedHost> pinned_;
+    std::vector<std::uint64_t> keys_;
+    std::vector<std::int64_t> dense_;  // the table's dense nodes (tile * 64 + child bit)
     std::vector<std::uint32_t> host_slots_;
-    std::vector<cl::Event> edit_writes_;
+    // The last edit's kernels and traffic.
     std::vector<std::pair<std::string, cl::Event>> edit_events_;
+    QueueTraffic traffic_;
 };
 
 }  // namespace voxfield::ocl

@@ -30,6 +30,8 @@
 
 namespace voxfield::ocl {
 
+class PinnedTables;
+
 // --max-distance of sparse worlds when none is given.
 inline constexpr double kDefaultSparseMaxDistance = 16;
 
@@ -190,6 +192,8 @@ class SparseField {
         double edit_kernel_ms = 0;  // of which apply_brush's decoding, brush and encoding
         // kernel_ms by kernel (name, ms; summed per name), in first-launch order.
         std::vector<std::pair<std::string, double>> stages;
+        // Commands enqueued and host waits (the world's edit included).
+        QueueTraffic traffic;
     };
     // After the world's voxels inside `changed` were edited on the host (SparseWorld::edit /
     // apply_brush return that box), brings the device's world and the field up to date:
@@ -275,6 +279,11 @@ class SparseField {
     // `pow2_batch`: blocks per batch rounded up to a power of two (the extra blocks transformed
     // and not scattered), so that varying job counts share batch shapes.
     double compute(const std::vector<Job>& jobs, Dims block, bool pow2_batch = false);
+    // An update's single block `job`: its tables in one write, gather, the dense generator,
+    // scatter and the node minima of `slots` (per slot, the nodes set in `nodes`) enqueued
+    // without a wait, then the minima read back (the one wait); returns kernel ms.
+    double update_block(const Job& job, Dims block, const std::vector<std::uint32_t>& slots,
+                        const std::vector<std::uint64_t>& nodes);
     // run()'s Manhattan sweep over slots [0, slot_keys_.size()); returns kernel ms.
     double sweep();
     double settle_scatters();
@@ -326,6 +335,12 @@ class SparseField {
     std::vector<std::pair<std::string, double>> host_stages_;  // of the last run()
     std::vector<cl::Event> scatters_;
     Work work_;
+    QueueTraffic traffic_;  // of the running update
+    // update_block's tables, the node minima it computes and their pinned host copy.
+    std::unique_ptr<PinnedTables> tables_;
+    cl::Buffer update_minima_;
+    std::size_t update_minima_cap_ = 0;
+    std::unique_ptr<PinnedHost> minima_host_;
 };
 
 }  // namespace voxfield::ocl
