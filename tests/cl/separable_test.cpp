@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <random>
 #include <string>
+#include <tuple>
 
 #include "cl_test_util.hpp"
 #include "voxfield/cl/separable.hpp"
@@ -374,6 +375,81 @@ TEST(ExactSeparable, IndicesBreakTiesAsScipy) {
     for (Layout layout : kLayouts) {
         expect_scipy_ties(
             wide, options(Metric::euclidean, Spacing{}, false, Format::f64, layout, true), "wide");
+    }
+}
+
+// Unit L1 with indices in the CPU layout (l1_xy_keys and l1_z_out; rows of 65535 or more
+// take col_pass): the field in every unsigned format and SciPy's ties, on ragged and long
+// axes, distances past 255 and past 65535 (u16 saturates), a world without solids (-1) and
+// one of only solids.
+TEST(ExactSeparable, ManhattanIndicesEveryFormatAndShape) {
+    std::mt19937_64 rng(4242);
+    std::vector<std::pair<std::string, World>> worlds;
+    worlds.reserve(9);
+    worlds.emplace_back("ragged", scene_random(Dims{37, 23, 19}, 0.01, rng()));
+    worlds.emplace_back("dense", scene_random(Dims{48, 32, 16}, 0.6, rng()));
+    worlds.emplace_back("empty", World(Dims{17, 9, 5}));
+    World full(Dims{5, 6, 7});
+    for (std::uint32_t z = 0; z < 7; ++z) {
+        for (std::uint32_t y = 0; y < 6; ++y) {
+            for (std::uint32_t x = 0; x < 5; ++x) {
+                full.set(x, y, z, 3);
+            }
+        }
+    }
+    worlds.emplace_back("full", full);
+    for (const Dims d : {Dims{4000, 1, 1}, Dims{1, 4000, 1}, Dims{1, 1, 4000}}) {
+        World w(d);
+        w.set(d.x / 3, d.y / 3, d.z / 3, 1);
+        w.set(d.x - 1, d.y - 1, d.z - 1, 2);
+        worlds.emplace_back("long " + d.to_string(), w);
+    }
+    World far(Dims{300, 2, 400});
+    far.set(0, 1, 0, 1);
+    worlds.emplace_back("far", far);
+    for (const auto& [name, w] : worlds) {
+        const auto ref = reference_distance(w, Metric::manhattan, Spacing{});
+        for (Format f :
+             {Format::u8, Format::u16, Format::u32, Format::f32, Format::f64, Format::packed32}) {
+            const auto o = options(Metric::manhattan, Spacing{}, false, f, Layout::cpu, true);
+            const std::string what = name + " " + describe(o, w.dims());
+            const auto r = ocl::generate(pocl(), w, Palette(), o);
+            ASSERT_TRUE(r.bytes == encode_real_field(ref, w, Palette(), f)) << what;
+            if (f == Format::u16) {
+                expect_scipy_ties(w, o, name);
+                if (HasFatalFailure()) {
+                    return;
+                }
+            }
+        }
+    }
+    // One axis past 16 bits (the reference's lines would take seconds): along z distances
+    // past 65535 (u16 saturates), along x rows too long for the keys (col_pass); the solids
+    // at `a` and `b` of the line, its midpoint a tie (the lower one wins).
+    for (const auto& [d, a, b] :
+         {std::tuple{Dims{1, 1, 70000}, 0u, 0u}, std::tuple{Dims{65540, 1, 1}, 7u, 65539u}}) {
+        World w(d);
+        const bool along_x = d.x > 1;
+        w.set(along_x ? a : 0, 0, along_x ? 0 : a, 1);
+        w.set(along_x ? b : 0, 0, along_x ? 0 : b, 1);
+        for (Format f : {Format::u16, Format::u32}) {
+            const auto r =
+                ocl::generate(pocl(), w, Palette(),
+                              options(Metric::manhattan, Spacing{}, false, f, Layout::cpu, true));
+            const std::size_t n = d.count();
+            ASSERT_EQ(r.indices.size(), 3 * n);
+            for (std::uint32_t p = 0; p < n; ++p) {
+                const std::uint32_t da = p > a ? p - a : a - p, db = p > b ? p - b : b - p;
+                const std::uint32_t want = std::min(da, db);
+                const double got = decode_value(r.bytes, f, p);
+                ASSERT_EQ(got, f == Format::u16 ? std::min(want, 65535u) : want)
+                    << d.to_string() << " " << to_string(f) << " voxel " << p;
+                const std::int32_t s = static_cast<std::int32_t>(db < da ? b : a);
+                ASSERT_TRUE(r.indices[p] == (along_x ? 0 : s) && r.indices[n + p] == 0 &&
+                            r.indices[2 * n + p] == (along_x ? s : 0))
+                    << d.to_string() << " voxel " << p;
+            }
+        }
     }
 }
 
