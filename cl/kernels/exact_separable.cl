@@ -1392,6 +1392,45 @@ inline l1_ushort32 l1_adds32(l1_ushort32 a, l1_ushort32 b) {
         (rk) = own_ ? (k) : (rk);                                                   \
     } while (0)
 
+// Long rows with few targets (at most L1_RAMPS) take ramps between them instead of the
+// doubling: l1_row_targets finds them 16 voxels at a time (a count first, so that a dense row
+// leaves after a few blocks) and returns their number (L1_RAMPS + 1: more; pos then unset).
+#define L1_RAMPS 16
+inline uint l1_target_mask16(__global const uchar* restrict v, int solid) {
+    const uchar16 bits = (uchar16)(1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128);
+    const ulong gather = 0x0101010101010101UL;  // sums a word's bytes into its top byte
+    const uchar16 b = *(__global const l1_uchar16_any*)v;
+    const ulong2 h = as_ulong2(as_uchar16(solid ? b != (uchar16)0 : b == (uchar16)0) & bits);
+    return (uint)((h.s0 * gather) >> 56) | ((uint)((h.s1 * gather) >> 56) << 8);
+}
+inline uint l1_row_targets(__global const uchar* restrict v, uint X, int solid, uint* pos) {
+    const uint full = X / 16 * 16;
+    uint k = 0;
+    for (uint x = 0; x < full && k <= L1_RAMPS; x += 16) {
+        k += popcount(l1_target_mask16(v + x, solid));
+    }
+    for (uint x = full; x < X; ++x) {
+        k += (v[x] != 0) == (solid != 0);
+    }
+    if (k > L1_RAMPS) {
+        return L1_RAMPS + 1;
+    }
+    k = 0;
+    for (uint x = 0; x < full; x += 16) {
+        uint m = l1_target_mask16(v + x, solid);
+        while (m != 0) {
+            pos[k++] = x + 31 - clz(m & (0u - m));
+            m &= m - 1;
+        }
+    }
+    for (uint x = full; x < X; ++x) {
+        if ((v[x] != 0) == (solid != 0)) {
+            pos[k++] = x;
+        }
+    }
+    return k;
+}
+
 // One work-item per z-slice. Each row's 1-D nearest target on the left and on the right by
 // doubling in 16-bit lanes (L and R: after the steps 1, 2, 4, ... every voxel within 2s - 1
 // of its nearest target on a side holds that distance, every other one more; the steps stop
@@ -1436,7 +1475,25 @@ __kernel void l1_xy_keys(__global const uchar* restrict vox, __global uint* rest
             any.s0 |= t;
         }
         const bool none = all(any == (uchar16)0);
-        for (uint s = 1; s < X && !none; s <<= 1) {
+        uint pos[L1_RAMPS];
+        const uint k = X >= 1024 && !none ? l1_row_targets(v, X, solid, pos) : L1_RAMPS + 1;
+        if (k <= L1_RAMPS) {
+            for (uint x = 0; x < pos[0]; ++x) {
+                L[x] = L1_NONE16;
+                R[x] = (ushort)(pos[0] - x);
+            }
+            for (uint i = 0; i + 1 < k; ++i) {
+                for (uint x = pos[i]; x < pos[i + 1]; ++x) {
+                    L[x] = (ushort)(x - pos[i]);
+                    R[x] = (ushort)(pos[i + 1] - x);
+                }
+            }
+            for (uint x = pos[k - 1]; x < X; ++x) {
+                L[x] = (ushort)(x - pos[k - 1]);
+                R[x] = L1_NONE16;
+            }
+        }
+        for (uint s = 1; s < X && !none && k > L1_RAMPS; s <<= 1) {
             const l1_ushort32 step = (l1_ushort32)(ushort)s;
             l1_ushort32 top = 0;
             for (uint x = 0; x < X32; x += 32) {
@@ -1516,10 +1573,13 @@ inline void l1_store(__global OUT_T* out, __global const uchar* vox, __constant 
 }
 
 // The z pass: each work-item sweeps `chunk` consecutive voxels of a z-plane (flat strips,
-// chunk a multiple of 16) through all Z planes: forward into `tile` (three arrays of Z * chunk
-// uints: distance, key, the target's z), reading the keys of l1_xy_keys from idx's first
-// plane; backward from there, writing the output and the index planes z, y, x (-1 without a
-// target) over the keys it has read. `lxy`: the strip's x and y per lane (2 * chunk uints).
+// chunk a multiple of 16) through all Z planes: forward into `tile` (two arrays of Z * chunk
+// uints: distance and key), reading the keys of l1_xy_keys from idx's first plane; backward
+// from there, writing the output and the index planes z, y, x (-1 without a target) over the
+// keys it has read. The backward sweep's own candidate wins where the forward sweep's is
+// nearer or as near with a key not higher; its target lies at or below z, the other one's
+// above z (a target at or below z reached from z + 1 is 2 farther than from z itself), so the
+// target's z follows from the distance. `lxy`: the strip's x and y per lane (2 * chunk uints).
 __kernel void l1_z_out(__global uint* keys, __global OUT_T* restrict out,
                        __global const uchar* restrict vox, __constant uchar* rgb,
                        __global int* idx, uint X, ulong plane, uint Z, uint chunk,
@@ -1533,7 +1593,6 @@ __kernel void l1_z_out(__global uint* keys, __global OUT_T* restrict out,
     const size_t n = plane * Z;
     __local uint* td = tile;
     __local uint* tk = tile + (size_t)Z * w16;
-    __local uint* tz = tile + 2 * (size_t)Z * w16;
     __local uint* lx = lxy;
     __local uint* ly = lxy + w16;
     for (uint j = 0; j < w16; ++j) {
@@ -1556,20 +1615,14 @@ __kernel void l1_z_out(__global uint* keys, __global OUT_T* restrict out,
                 k = vload16(0, part);
             }
             const uint16 d = L1_KEY_DIST(k, L1_LDU(lx + j), L1_LDU(ly + j));
-            uint16 rd = d, rk = k, rz = (uint16)z;
+            uint16 rd = d, rk = k;
             if (z > 0) {
                 rd = L1_LDU(td + t - w16 + j);
                 rk = L1_LDU(tk + t - w16 + j);
-                rz = L1_LDU(tz + t - w16 + j);
-                const uint16 cand = rd + 1;
-                const int16 own = (d < cand) | ((d == cand) & (k < rk));
-                rd = own ? d : cand;
-                rk = own ? k : rk;
-                rz = own ? (uint16)z : rz;
+                L1_STEP(d, k, rd, rk, 0);
             }
             L1_STU(rd, td + t + j);
             L1_STU(rk, tk + t + j);
-            L1_STU(rz, tz + t + j);
         }
     }
     for (uint z = Z; z-- > 0;) {
@@ -1579,20 +1632,22 @@ __kernel void l1_z_out(__global uint* keys, __global OUT_T* restrict out,
         const bool aligned = (size_t)(idx + o) % 64 == 0 && (size_t)(idx + n + o) % 64 == 0 &&
                              (size_t)(out + o) % (16 * sizeof(OUT_T)) == 0;
         for (uint j = 0; j < w16; j += 16) {
-            uint16 d = L1_LDU(td + t + j), k = L1_LDU(tk + t + j), zz = L1_LDU(tz + t + j);
+            uint16 d = L1_LDU(td + t + j), k = L1_LDU(tk + t + j);
+            int16 own = (int16)-1;
             if (z + 1 < Z) {
                 const uint16 rd = L1_LDU(td + t + w16 + j);
                 const uint16 rk = L1_LDU(tk + t + w16 + j);
-                const uint16 rz = L1_LDU(tz + t + w16 + j);
                 const uint16 cand = rd + 1;
-                const int16 own = (d < cand) | ((d == cand) & (k <= rk));
+                own = (d < cand) | ((d == cand) & (k <= rk));
                 d = own ? d : cand;
                 k = own ? k : rk;
-                zz = own ? zz : rz;
                 L1_STU(d, td + t + j);
                 L1_STU(k, tk + t + j);
-                L1_STU(zz, tz + t + j);
             }
+            // The target's z: |z - zt| = d - (its distance within the plane), below z where
+            // the forward sweep's candidate won, above where the backward one did.
+            const uint16 dz = d - L1_KEY_DIST(k, L1_LDU(lx + j), L1_LDU(ly + j));
+            const uint16 zz = own ? (uint16)z - dz : (uint16)z + dz;
             const int16 none = k == (uint16)L1_NONE;
             const int16 iz = none ? (int16)-1 : as_int16(zz);
             const int16 iy = none ? (int16)-1 : as_int16(k & 0xFFFFu);

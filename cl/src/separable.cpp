@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -172,7 +173,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     const std::size_t l1_x32 = (std::size_t{X} + 31) / 32 * 32;
     const std::size_t l1_rows_bytes = 2 * (l1_x32 + 2 * l1_pad) * 2;
     const std::size_t l1_run_bytes = 2 * l1_x32 * 4;
-    const auto l1_z_bytes = [&](std::size_t chunk) { return (3 * std::size_t{Z} + 2) * chunk * 4; };
+    const auto l1_z_bytes = [&](std::size_t chunk) { return (2 * std::size_t{Z} + 2) * chunk * 4; };
     l1_keys_ = !gpu_layout_ && !incremental && unit && options.metric == Metric::manhattan &&
                options.indices && !options.signed_field && !options.max_distance && X < 0xFFFF &&
                Y < 0xFFFF && l1_rows_bytes + l1_run_bytes <= info.local_mem &&
@@ -301,12 +302,17 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             // L2 holds them between the sweeps), at least 4 per core.
             const std::size_t plane = std::size_t{X} * Y;
             const std::size_t plane16 = (plane + 15) / 16 * 16;
-            const std::size_t budget = std::min<std::size_t>(info.local_mem, 1 << 20);
-            std::size_t chunk =
-                std::clamp<std::size_t>(budget / l1_z_bytes(1) / 16 * 16, 16, plane16);
+            const std::size_t budget = std::min<std::size_t>(info.local_mem, std::getenv("L1BUDGET") ? std::stoul(std::getenv("L1BUDGET")) : 1 << 20);
+            // At least 32 where they fit: the u16 output's stores then fill whole lines.
+            const std::size_t least = l1_z_bytes(32) <= info.local_mem ? 32 : 16;
+            std::size_t chunk = std::clamp<std::size_t>(budget / l1_z_bytes(1) / 16 * 16, least,
+                                                        std::max(least, plane16));
             const std::size_t want_items = 4 * std::size_t{info.compute_units};
-            while (chunk > 16 && (plane + chunk - 1) / chunk < want_items) {
-                chunk = std::max<std::size_t>(16, chunk / 2 / 16 * 16);
+            while (chunk > least && (plane + chunk - 1) / chunk < want_items) {
+                chunk = std::max<std::size_t>(least, chunk / 2 / 16 * 16);
+            }
+            if (const char* e = std::getenv("L1CHUNK")) {
+                chunk = std::stoul(e);
             }
             cl::Kernel z(program_, "l1_z_out");
             z.setArg(0, indices_);
@@ -318,7 +324,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             z.setArg(6, static_cast<cl_ulong>(plane));
             z.setArg(7, Z);
             z.setArg(8, static_cast<cl_uint>(chunk));
-            z.setArg(9, cl::Local(3 * std::size_t{Z} * chunk * 4));
+            z.setArg(9, cl::Local(2 * std::size_t{Z} * chunk * 4));
             z.setArg(10, cl::Local(2 * chunk * 4));
             stages_.push_back(
                 {"l1_z_out", z, cl::NDRange((plane + chunk - 1) / chunk), cl::NDRange(1)});

@@ -381,11 +381,11 @@ TEST(ExactSeparable, IndicesBreakTiesAsScipy) {
 // Unit L1 with indices in the CPU layout (l1_xy_keys and l1_z_out; rows of 65535 or more
 // take col_pass): the field in every unsigned format and SciPy's ties, on ragged and long
 // axes, distances past 255 and past 65535 (u16 saturates), a world without solids (-1) and
-// one of only solids.
+// one of only solids; the same worlds' zero voxels as the targets.
 TEST(ExactSeparable, ManhattanIndicesEveryFormatAndShape) {
     std::mt19937_64 rng(4242);
     std::vector<std::pair<std::string, World>> worlds;
-    worlds.reserve(9);
+    worlds.reserve(11);
     worlds.emplace_back("ragged", scene_random(Dims{37, 23, 19}, 0.01, rng()));
     worlds.emplace_back("dense", scene_random(Dims{48, 32, 16}, 0.6, rng()));
     worlds.emplace_back("empty", World(Dims{17, 9, 5}));
@@ -404,6 +404,9 @@ TEST(ExactSeparable, ManhattanIndicesEveryFormatAndShape) {
         w.set(d.x - 1, d.y - 1, d.z - 1, 2);
         worlds.emplace_back("long " + d.to_string(), w);
     }
+    // Rows of 1024 or more: ramps between at most 16 targets, the doubling past them.
+    worlds.emplace_back("long rows", scene_random(Dims{1500, 3, 4}, 0.004, rng()));
+    worlds.emplace_back("long dense rows", scene_random(Dims{1100, 2, 3}, 0.05, rng()));
     World far(Dims{300, 2, 400});
     far.set(0, 1, 0, 1);
     worlds.emplace_back("far", far);
@@ -421,6 +424,43 @@ TEST(ExactSeparable, ManhattanIndicesEveryFormatAndShape) {
                     return;
                 }
             }
+        }
+    }
+    // The zero voxels as the targets (voxfield.ndimage's cdt), read in place, with SciPy's
+    // ties against the inverted world's reference.
+    for (const auto& [name, w] : worlds) {
+        const Dims d = w.dims();
+        std::vector<std::uint8_t> inverted(w.voxels().size());
+        for (std::size_t k = 0; k < inverted.size(); ++k) {
+            inverted[k] = w.voxels()[k] == 0 ? 1 : 0;
+        }
+        const World targets(d, inverted);
+        const auto ref = reference_features(targets, Metric::manhattan, Spacing{});
+        const auto o = options(Metric::manhattan, Spacing{}, false, Format::u32, Layout::cpu, true);
+        ocl::HostMemory field(d.count() * 4);
+        std::vector<std::int32_t> planes(3 * d.count(), -7);
+        {
+            ocl::ExactSeparable job(pocl(), d, w.voxels(), Palette(), o,
+                                    {field.data(), d.count() * 4}, planes, true);
+            job.run();
+            const ocl::MappedBuffer mapped(pocl(), job.field_buffer(), d.count() * 4);
+            job.read_indices([](std::span<const std::uint8_t>) {});
+        }
+        const std::size_t n = d.count();
+        const auto* got = reinterpret_cast<const std::uint32_t*>(field.data());
+        for (std::size_t i = 0; i < n; ++i) {
+            const std::int64_t f = ref[i];
+            const std::int64_t want[3] = {f < 0 ? -1 : f / d.x / d.y, f < 0 ? -1 : f / d.x % d.y,
+                                          f < 0 ? -1 : f % d.x};
+            ASSERT_TRUE(planes[i] == want[0] && planes[n + i] == want[1] &&
+                        planes[2 * n + i] == want[2])
+                << "zero targets " << name << " voxel " << i;
+            const long dist = f < 0 ? -1
+                                    : std::labs(static_cast<long>(i % d.x) - want[2]) +
+                                          std::labs(static_cast<long>(i / d.x % d.y) - want[1]) +
+                                          std::labs(static_cast<long>(i / d.x / d.y) - want[0]);
+            ASSERT_EQ(got[i], f < 0 ? 0xFFFFFFFFu : static_cast<std::uint32_t>(dist))
+                << "zero targets " << name << " voxel " << i;
         }
     }
     // One axis past 16 bits (the reference's lines would take seconds): along z distances
