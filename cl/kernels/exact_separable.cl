@@ -1580,6 +1580,10 @@ inline void l1_store(__global OUT_T* out, __global const uchar* vox, __constant 
 // nearer or as near with a key not higher; its target lies at or below z, the other one's
 // above z (a target at or below z reached from z + 1 is 2 farther than from z itself), so the
 // target's z follows from the distance. `lxy`: the strip's x and y per lane (2 * chunk uints).
+// The forward sweep prefetches the keys L1_AHEAD planes ahead: its strip's lines of a plane
+// lie a plane apart, beyond the hardware prefetchers' reach (long-z, strips of 32 columns
+// 16 KiB apart: the sweeps without stores 99 -> 45 ms at load 5).
+#define L1_AHEAD 16
 __kernel void l1_z_out(__global uint* keys, __global OUT_T* restrict out,
                        __global const uchar* restrict vox, __constant uchar* rgb,
                        __global int* idx, uint X, ulong plane, uint Z, uint chunk,
@@ -1603,6 +1607,11 @@ __kernel void l1_z_out(__global uint* keys, __global OUT_T* restrict out,
     for (uint z = 0; z < Z; ++z) {
         __global const uint* kz = keys + z * plane + c0;
         const size_t t = (size_t)z * w16;
+        if (z + L1_AHEAD < Z) {
+            for (uint j = 0; j < w; j += 16) {
+                __builtin_prefetch(kz + L1_AHEAD * plane + j);
+            }
+        }
         for (uint j = 0; j < w16; j += 16) {
             uint16 k;
             if (j + 16 <= w) {

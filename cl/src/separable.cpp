@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -302,7 +301,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             // L2 holds them between the sweeps), at least 4 per core.
             const std::size_t plane = std::size_t{X} * Y;
             const std::size_t plane16 = (plane + 15) / 16 * 16;
-            const std::size_t budget = std::min<std::size_t>(info.local_mem, std::getenv("L1BUDGET") ? std::stoul(std::getenv("L1BUDGET")) : 1 << 20);
+            const std::size_t budget = std::min<std::size_t>(info.local_mem, 1 << 20);
             // At least 32 where they fit: the u16 output's stores then fill whole lines.
             const std::size_t least = l1_z_bytes(32) <= info.local_mem ? 32 : 16;
             std::size_t chunk = std::clamp<std::size_t>(budget / l1_z_bytes(1) / 16 * 16, least,
@@ -310,9 +309,6 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             const std::size_t want_items = 4 * std::size_t{info.compute_units};
             while (chunk > least && (plane + chunk - 1) / chunk < want_items) {
                 chunk = std::max<std::size_t>(least, chunk / 2 / 16 * 16);
-            }
-            if (const char* e = std::getenv("L1CHUNK")) {
-                chunk = std::stoul(e);
             }
             cl::Kernel z(program_, "l1_z_out");
             z.setArg(0, indices_);
