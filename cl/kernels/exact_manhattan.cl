@@ -306,8 +306,11 @@ typedef VTYPE(U, 16) u16_any __attribute__((aligned(1)));
 typedef uchar uchar64_v __attribute__((ext_vector_type(64)));
 typedef uchar64_v uchar64_any __attribute__((aligned(1)));
 #define LD64(p) (*(__local const uchar64_any*)(p))
+#define LD64G(p) (*(__global const uchar64_any*)(p))
+#define as_uchar64_v(v) __builtin_astype((v), uchar64_v)
 #define ST64(v, p) (*(__local uchar64_any*)(p) = (v))
 inline uchar64_v min64(uchar64_v a, uchar64_v b) { return a < b ? a : b; }
+inline uchar64_v max64(uchar64_v a, uchar64_v b) { return a < b ? b : a; }
 inline uchar64_v add_sat64(uchar64_v a, uchar64_v b) {
     const uchar64_v s = a + b;
     return s < a ? (uchar64_v)255 : s;
@@ -323,11 +326,7 @@ inline uchar hmax16(V16 v) {
     const uchar4 m4 = max(m8.lo, m8.hi);
     return max(max(m4.s0, m4.s1), max(m4.s2, m4.s3));
 }
-inline uchar hmax64(uchar64_v v) {
-    const uchar16 a = max(v.lo.lo, v.lo.hi);
-    const uchar16 b = max(v.hi.lo, v.hi.hi);
-    return hmax16(max(a, b));
-}
+
 
 // A y step's predecessor of the 64 bytes at p + x: the voxel above (L1) or the least of
 // the three above (L-inf's moves (a, 1, 0), as KING_STEP).
@@ -355,6 +354,7 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
     const uint X64 = (X + 63) / 64 * 64;  // a whole number of 64-byte steps
     const uint S = X64 + 32;                // a slice row: 16 bytes of T_MAX, X64, 16 of T_MAX
     const uint full = X / 16 * 16;
+    const uint full64 = X / 64 * 64;
     const uint span = X64 + 2 * pad;
     if (get_global_id(0) == 0) {
         flag[0] = 0;
@@ -371,19 +371,25 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
         __local uchar* dst = slice + y * S + 16;
         __local uchar* a = scratch + pad;
         __local uchar* b = scratch + span + pad;
-        V16 any = 0;
-        for (uint x = 0; x < full; x += 16) {
+        uchar64_v any64 = 0;
+        for (uint x = 0; x < full64; x += 64) {
+            const uchar64_v v = LD64G(src + x);
+            ST64(min64(as_uchar64_v(v == (uchar64_v)0), (uchar64_v)T_MAX), a + x);
+            any64 = max64(any64, v);
+        }
+        V16 seen = max(max(any64.lo.lo, any64.lo.hi), max(any64.hi.lo, any64.hi.hi));
+        for (uint x = full64; x < full; x += 16) {
             const V16 v = LD16G(src + x);
             ST16(min(as_uchar16(v == (V16)0), (V16)T_MAX), a + x);
-            any = max(any, v);
+            seen = max(seen, v);
         }
         for (uint x = full; x < X64; ++x) {
             const uchar v = x < X ? src[x] : (uchar)0;
             a[x] = v ? (uchar)0 : (uchar)T_MAX;
-            any.s0 = max(any.s0, v);
+            seen.s0 = max(seen.s0, v);
         }
         uint pos[ROW_KMAX];
-        const uint k = X >= 1024 && hmax16(any) != 0 ? row_solids(src, X, pos) : ROW_KMAX + 1;
+        const uint k = X >= 1024 && hmax16(seen) != 0 ? row_solids(src, X, pos) : ROW_KMAX + 1;
         if (k <= ROW_KMAX) {
             // A long row with few solids: ramps between them (the bytes past X stay T_MAX).
             for (uint x = 0; x < pos[0]; ++x) {
@@ -397,7 +403,7 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
             for (uint x = pos[k - 1]; x < X; ++x) {
                 a[x] = (uchar)min(x - pos[k - 1], (uint)T_MAX);
             }
-        } else if (hmax16(any) != 0) {
+        } else if (hmax16(seen) != 0) {
             for (uint s = 1; s < X; s <<= 1) {
                 const uchar64_v step = (uchar64_v)(uchar)min(s, (uint)T_MAX);
                 __local const uchar* lo = a - s;
@@ -412,7 +418,8 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
                 __local uchar* t = a;
                 a = b;
                 b = t;
-                if ((uint)hmax64(top) <= 2 * s) {
+                // Every value at most 2s (a compare and a mask test, not a horizontal max).
+                if (2 * s >= 255u || !any(as_ulong8(top > (uchar64_v)(uchar)(2 * s)) != 0)) {
                     break;
                 }
             }
@@ -431,7 +438,14 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
         for (uint x = 0; x < X64; x += 64) {
             ST64(min64(LD64(cur + x), add_sat64(Y_FROM64(next, x), (uchar64_v)1)), cur + x);
         }
-        if ((size_t)o % 16 == 0) {
+        if ((size_t)o % 64 == 0) {
+            for (uint x = 0; x < full64; x += 64) {
+                __builtin_nontemporal_store(LD64(cur + x), (__global uchar64_v*)(o + x));
+            }
+            for (uint x = full64; x < full; x += 16) {
+                __builtin_nontemporal_store(LD16(cur + x), (__global V16*)(o + x));
+            }
+        } else if ((size_t)o % 16 == 0) {
             for (uint x = 0; x < full; x += 16) {
                 __builtin_nontemporal_store(LD16(cur + x), (__global V16*)(o + x));
             }
