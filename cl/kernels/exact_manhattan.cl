@@ -44,6 +44,11 @@
 //   values of VW adjacent columns in registers (one 32-bit word per load and store where X
 //   keeps the words aligned), joins the segments of a column through local memory, and so
 //   reads and writes each voxel once.
+//   L1 into u32 with X a multiple of 16 (FROM_BITS=1 for cols_seg): x_words writes a row as
+//   32-voxel words of solid bits, each with the row's last solid before it and first solid
+//   after it (8 bytes per 32 voxels instead of 2 or 4 bytes per voxel), and the y pass's
+//   cols_seg expands a row's x distances from them as it loads its column segments: the
+//   x pass's bytes mostly leave the DRAM traffic (read 1 byte a voxel, write 1/4).
 //   (L-inf has no GPU layout here: ExactSeparable computes it.)
 
 // A saturating +1 in the work type (saturating byte/short adds vectorise widest on CPUs).
@@ -89,6 +94,10 @@ inline T step_pair(T c, T lo, T hi, T k) {
             (cur)[(n)-1] = min((cur)[(n)-1], inc_t(min((prev)[(n)-2], (prev)[(n)-1])));    \
         }                                                                                  \
     } while (0)
+
+#ifndef FROM_BITS
+#define FROM_BITS 0
+#endif
 
 #if PACKED
 #define STORE_FINAL(i, d) \
@@ -763,6 +772,77 @@ __kernel void x_rows_local(__global const uchar* restrict vox, __global T* restr
     }
 }
 
+// The x pass as bits (GPU layout, unsigned L1, X a multiple of 16 and below 65535): work-item
+// (s, r) reads voxels [32s, 32s + 32) of row r of its group (two aligned 16-byte loads; the last
+// word of a row of 16 mod 32 voxels has 16) and writes words[row * W + s] = (bit i set where
+// voxel 32s + i is solid, (L + 1) | R << 16), with L the row's last solid voxel before the word
+// (-1 when none) and R its first after it (0xFFFF when none): a scan over the row's W words in
+// local memory, as in x_rows_local. row_dist expands a voxel's x distance from its word.
+#if !SIGNED
+inline uint solid_bits16(uchar16 a) {
+    uchar t[16];
+    vstore16(a, 0, t);
+    uint m = 0;
+#pragma unroll
+    for (uint i = 0; i < 16; ++i) {
+        m |= (uint)(t[i] != 0) << i;
+    }
+    return m;
+}
+
+__kernel void x_words(__global const uchar* restrict vox, __global uint2* restrict words, uint X,
+                      uint rows, __local int* lr, __local int* fr) {
+    const uint W = (uint)get_local_size(0);
+    const uint s = (uint)get_local_id(0);
+    const uint r = (uint)get_local_id(1);
+    const size_t row = get_group_id(1) * get_local_size(1) + r;
+    const bool active = row < rows;
+    const size_t base = (active ? row : 0) * X + s * 32;
+    uint bits = solid_bits16(*(__global const uchar16*)(vox + base));
+    if (s * 32 + 16 < X) {
+        bits |= solid_bits16(*(__global const uchar16*)(vox + base + 16)) << 16;
+    }
+    __local int* l = lr + r * W;
+    __local int* f = fr + r * W;
+    l[s] = bits != 0 ? (int)(s * 32 + 31 - clz(bits)) : -1;
+    f[s] = bits != 0 ? (int)(s * 32 + 31 - clz(bits & (0u - bits))) : INT_MAX;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint off = 1; off < W; off <<= 1) {
+        const int lo = s >= off ? l[s - off] : -1;
+        const int hi = s + off < W ? f[s + off] : INT_MAX;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        l[s] = max(l[s], lo);
+        f[s] = min(f[s], hi);
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    const int before = s > 0 ? l[s - 1] : -1;
+    const int after = s + 1 < W ? f[s + 1] : INT_MAX;
+    if (active) {
+        words[row * W + s] =
+            (uint2)(bits, (uint)(before + 1) | (uint)min(after, 0xFFFF) << 16);
+    }
+}
+
+// The x distance of voxel x of a row from the row's word holding it (x_words), up to T_MAX.
+inline T row_dist(uint2 w, uint x) {
+    const uint i = x & 31;
+    const uint le = w.x & (0xFFFFFFFFu >> (31 - i));
+    const uint ge = w.x & (0xFFFFFFFFu << i);
+    uint d = UINT_MAX;
+    if (le != 0) {
+        d = clz(le) + i - 31;
+    } else if ((w.y & 0xFFFF) != 0) {
+        d = x + 1 - (w.y & 0xFFFF);
+    }
+    if (ge != 0) {
+        d = min(d, 31 - clz(ge & (0u - ge)) - i);
+    } else if ((w.y >> 16) != 0xFFFF) {
+        d = min(d, (w.y >> 16) - x);
+    }
+    return (T)min(d, (uint)T_MAX);
+}
+#endif
+
 // Inclusive min-plus scans of a line's segment summaries, in place in local memory: after
 // them fo[s] = min over t <= s of fo[t] + K (s - t) (the forward sweep's value at the end of
 // segment s) and bo[s] = min over t >= s of bo[t] + K (t - s), by Hillis-Steele steps (log2 of
@@ -815,7 +895,12 @@ inline void store_final_vec(__global uint* restrict out, __global const uchar* r
 __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
                        __global const uchar* restrict vox, __constant uchar* rgb, uint X,
                        uint N, ulong stride, ulong mstride, uint final, __local TV* fout,
-                       __local TV* bout) {
+                       __local TV* bout
+#if FROM_BITS
+                       ,
+                       __global const uint2* restrict words, uint W
+#endif
+) {
     const uint cw = (uint)get_local_size(0);
     const uint segs = (uint)get_local_size(1);
     const uint lc = (uint)get_local_id(0);
@@ -825,11 +910,31 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
     const size_t base = x + get_global_id(2) * mstride;
     const uint n0 = s * SEG_K;
     TV v[SEG_K];
+#if FROM_BITS
+    // The y pass over x_words' rows: row (z, y) is z * N + y, the VW columns share a word.
+    __global const uint2* wz = words + get_global_id(2) * N * W + x / 32;
+#pragma unroll
+    for (uint k = 0; k < SEG_K; ++k) {
+        if (active && n0 + k < N) {
+            const uint2 w = wz[(size_t)(n0 + k) * W];
+#if VW == 1
+            v[k] = row_dist(w, x);
+#elif VW == 2
+            v[k] = (TV)(row_dist(w, x), row_dist(w, x + 1));
+#else
+            v[k] = (TV)(row_dist(w, x), row_dist(w, x + 1), row_dist(w, x + 2), row_dist(w, x + 3));
+#endif
+        } else {
+            v[k] = (TV)T_MAX;
+        }
+    }
+#else
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {
         v[k] = (active && n0 + k < N) ? *(__global const TV*)(work + base + (n0 + k) * stride)
                                       : (TV)T_MAX;
     }
+#endif
     TV fo = (TV)T_MAX;
     TV bo = (TV)T_MAX;
 #pragma unroll
@@ -947,3 +1052,4 @@ __kernel void x_rows_seg(__global const uchar* restrict vox, __global T* restric
         *(__global VEC(T, 16)*)(work + base) = d;
     }
 }
+

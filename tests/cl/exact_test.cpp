@@ -164,9 +164,9 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
         EXPECT_EQ(kernel_path(deep, f, Layout::gpu),
                   (Path{"x_rows_local", "cols_seg/16", "cols_strip_final"}))
             << to_string(f);
-        EXPECT_EQ(kernel_path(wide, f, Layout::gpu),
-                  (Path{"x_rows_seg", "cols_seg/16", "cols_seg/16"}))
-            << to_string(f);
+        const Path wide_gpu = f == Format::u32 ? Path{"x_words", "cols_bits/16", "cols_seg/16"}
+                                               : Path{"x_rows_seg", "cols_seg/16", "cols_seg/16"};
+        EXPECT_EQ(kernel_path(wide, f, Layout::gpu), wide_gpu) << to_string(f);
         // Bytes first where the format is unsigned and holds no colours, then (u16, u32) the
         // wide sweeps where a distance reaches 255.
         const Path cpu = f == Format::packed32 ? Path{"xy_slices_seq", "cols_strip_final"}
@@ -212,6 +212,31 @@ TEST(ExactManhattan, GpuLayoutOddShapes) {
             if (!diff.empty()) {
                 FAIL() << dims.to_string() << " format " << to_string(f) << ": " << diff;
             }
+        }
+    }
+}
+
+TEST(ExactManhattan, GpuBitRowsEveryWordCase) {
+    // x_words and the y pass's expansion: rows of 16 voxels (half a word), 16 mod 32 (a half
+    // word at the end), whole words and many words; solids only in far words, at a row's ends,
+    // none in a row, a word's every bit; both directions of the nearest solid from the
+    // neighbouring words' summaries.
+    for (const std::uint32_t x : {16u, 48u, 96u, 512u}) {
+        World edges(Dims{x, 5, 4});
+        edges.set(0, 0, 0, 1);
+        edges.set(x - 1, 1, 0, 2);
+        edges.set(0, 2, 1, 3);
+        edges.set(x - 1, 2, 1, 4);
+        edges.set(x / 2, 3, 2, 5);
+        for (std::uint32_t i = 0; i < std::min(x, 32u); ++i) {
+            edges.set(i, 4, 3, 6);
+        }
+        EXPECT_EQ(kernel_path(edges, Format::u32, Layout::gpu).front(), "x_words");
+        expect_exact(edges, Palette(), "word edges");
+        for (const double density : {0.002, 0.05, 0.6}) {
+            const World w =
+                scene_random(Dims{x, 9, 7}, density, x + static_cast<unsigned>(density * 1000));
+            expect_exact(w, Palette(), "random rows");
         }
     }
 }

@@ -1,6 +1,8 @@
 """`pip install .` from a fresh clone, offline, into a temporary virtual environment (Debian's
 python3 with --system-site-packages, for numpy and the build tools), then `import voxfield`
-from elsewhere with no PYTHONPATH and a small check against SciPy.
+from elsewhere with no PYTHONPATH and a small check against SciPy, then the clone's whole pytest
+suite run against the installed package (VOXFIELD_TEST_INSTALLED=1 makes the suite check that
+`voxfield` was imported from the environment's site-packages, not from a source or build tree).
 
 Usage: pip_install_check.py REPO WORKDIR   (CTest test `python_pip_install`)."""
 
@@ -44,6 +46,9 @@ def main():
     run([str(venv / "bin" / "python"), "-m", "pip", "install", "--quiet",
          "--no-build-isolation", "--no-index", "."], cwd=src, env=env)
     run([str(venv / "bin" / "python"), "-c", CHECK], cwd=work, env=env)
+    env["VOXFIELD_TEST_INSTALLED"] = str(venv)
+    run([str(venv / "bin" / "python"), "-m", "pytest", "-q", "-p", "no:cacheprovider",
+         str(src / "tests" / "python")], cwd=work, env=env)
     shutil.rmtree(work, ignore_errors=True)
 
 

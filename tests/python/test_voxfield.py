@@ -24,6 +24,16 @@ A = (13, 17, 19)
 SHAPES = [A, (1, 9, 30)]
 
 
+@pytest.mark.skipif("VOXFIELD_TEST_INSTALLED" not in os.environ,
+                    reason="only when pip_install_check.py runs the suite on an installed package")
+def test_the_installed_package_is_the_one_under_test():
+    """Under pip_install_check.py the suite must import the package pip installed."""
+    prefix = os.path.realpath(os.environ["VOXFIELD_TEST_INSTALLED"])
+    module = os.path.realpath(voxfield.__file__)
+    assert module.startswith(prefix + os.sep) and "site-packages" in module, module
+    assert os.path.realpath(voxfield._core.__file__).startswith(prefix + os.sep)
+
+
 def random_world(shape, density, seed):
     """uint8 (Z, Y, X) with about `density` solid voxels of random materials, at least one."""
     rng = np.random.default_rng(seed)

@@ -68,6 +68,7 @@ class ExactManhattan : public Generator {
     // The byte sweeps into stages_ (false where a slice or a strip does not fit the local
     // memory).
     bool add_byte_sweeps();
+    std::optional<KernelLaunch> x_words();  // allocates words_; nullopt where it cannot run
 
     bool gpu_layout_;
     Metric metric_;
@@ -78,6 +79,7 @@ class ExactManhattan : public Generator {
     // The byte sweeps' flag (a distance cut at 255) and w8; stages_ from fallback_from_ on run
     // only when the flag is set.
     cl::Buffer bytes_, flag_;
+    cl::Buffer words_;  // x_words' rows of solid bits (GPU layout, unsigned L1)
     std::size_t fallback_from_ = SIZE_MAX;
     std::vector<std::string> path_;  // kernel_path(), beside stages_
 };
