@@ -1434,12 +1434,14 @@ inline uint l1_row_targets(__global const uchar* restrict v, uint X, int solid, 
 // One work-item per z-slice. Each row's 1-D nearest target on the left and on the right by
 // doubling in 16-bit lanes (L and R: after the steps 1, 2, 4, ... every voxel within 2s - 1
 // of its nearest target on a side holds that distance, every other one more; the steps stop
-// once the nearer of the two is below 2s everywhere), then the forward y sweep's step from
-// the row before (run_d, run_k), its keys stored into `keys`; then the backward y sweep reads
-// them back (the slice's 4 bytes per voxel stay in the core's cache) and stores the final
-// keys. `rows`: L and R, each X32 = X rounded up to 32 entries between `pad` (>= the largest
-// step) of L1_NONE16 on both sides; run_d, run_k: X16 = X rounded up to 16 each. `solid` 1:
-// the nonzero voxels are the targets, 0: the zero ones (as x_pass).
+// once the nearer of the two is below 2s everywhere; L goes from one row to another, R is
+// updated in place: a load of L just behind the step's own stores would wait for them), then
+// the forward y sweep's step from the row before (run_d, run_k), its keys stored into `keys`;
+// then the backward y sweep reads them back (the slice's 4 bytes per voxel stay in the core's
+// cache) and stores the final keys. `rows`: L, R and L's second row, each X32 = X rounded up
+// to 32 entries between `pad` (>= the largest step) of L1_NONE16 on both sides; run_d, run_k:
+// X16 = X rounded up to 16 each. `solid` 1: the nonzero voxels are the targets, 0: the zero
+// ones (as x_pass).
 __kernel void l1_xy_keys(__global const uchar* restrict vox, __global uint* restrict keys, uint X,
                          uint Y, uint pad, int solid, __local ushort* restrict rows,
                          __local uint* restrict run_d, __local uint* restrict run_k) {
@@ -1449,7 +1451,8 @@ __kernel void l1_xy_keys(__global const uchar* restrict vox, __global uint* rest
     const uint full = X / 16 * 16;
     __local ushort* L = rows + pad;
     __local ushort* R = rows + X32 + 3 * pad;
-    for (uint i = 0; i < 2 * (X32 + 2 * pad); ++i) {
+    __local ushort* L2 = rows + 2 * X32 + 5 * pad;
+    for (uint i = 0; i < 3 * (X32 + 2 * pad); ++i) {
         rows[i] = L1_NONE16;
     }
     for (uint x = 0; x < X16; x += 16) {
@@ -1459,22 +1462,22 @@ __kernel void l1_xy_keys(__global const uchar* restrict vox, __global uint* rest
     for (uint y = 0; y < Y; ++y) {
         __global const uchar* v = vox + base + (size_t)y * X;
         __global uint* kr = keys + base + (size_t)y * X;
-        uchar16 any = 0;
+        uchar16 seen = 0;
         for (uint x = 0; x < full; x += 16) {
             const uchar16 b = *(__global const l1_uchar16_any*)(v + x);
             const char16 t = solid ? b != (uchar16)0 : b == (uchar16)0;
             const ushort16 init = ~as_ushort16(convert_short16(t));
             *(__local l1_ushort16_any*)(L + x) = init;
             *(__local l1_ushort16_any*)(R + x) = init;
-            any |= as_uchar16(t);
+            seen |= as_uchar16(t);
         }
         for (uint x = full; x < X; ++x) {
             const bool t = (v[x] != 0) == (solid != 0);
             L[x] = t ? 0 : L1_NONE16;
             R[x] = t ? 0 : L1_NONE16;
-            any.s0 |= t;
+            seen.s0 |= t;
         }
-        const bool none = all(any == (uchar16)0);
+        const bool none = all(seen == (uchar16)0);
         uint pos[L1_RAMPS];
         const uint k = X >= 1024 && !none ? l1_row_targets(v, X, solid, pos) : L1_RAMPS + 1;
         if (k <= L1_RAMPS) {
@@ -1501,15 +1504,17 @@ __kernel void l1_xy_keys(__global const uchar* restrict vox, __global uint* rest
                     l1_min32(L1_LDS32(L + x), l1_adds32(L1_LDS32(L + x - s), step));
                 const l1_ushort32 r =
                     l1_min32(L1_LDS32(R + x), l1_adds32(L1_LDS32(R + x + s), step));
-                L1_STS32(l, L + x);
+                L1_STS32(l, L2 + x);
                 L1_STS32(r, R + x);
                 const l1_ushort32 m = l1_min32(l, r);
                 top = top < m ? m : top;
             }
-            const ushort16 t16 = max(top.lo, top.hi);
-            const ushort8 t8 = max(t16.lo, t16.hi);
-            const ushort4 t4 = max(t8.lo, t8.hi);
-            if ((uint)max(max(t4.s0, t4.s1), max(t4.s2, t4.s3)) < 2 * s) {
+            __local ushort* t = L;
+            L = L2;
+            L2 = t;
+            // Every value below 2s (a compare and a mask test, not a horizontal max).
+            if (2 * s > 0xFFFFu ||
+                !any(as_ulong8(top >= (l1_ushort32)(ushort)(2 * s)) != 0)) {
                 break;
             }
         }

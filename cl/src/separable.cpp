@@ -170,7 +170,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     // a z strip of 16 lines.
     const std::size_t l1_pad = X > 1 ? next_pow2(X) / 2 : 1;
     const std::size_t l1_x32 = (std::size_t{X} + 31) / 32 * 32;
-    const std::size_t l1_rows_bytes = 2 * (l1_x32 + 2 * l1_pad) * 2;
+    const std::size_t l1_rows_bytes = 3 * (l1_x32 + 2 * l1_pad) * 2;
     const std::size_t l1_run_bytes = 2 * l1_x32 * 4;
     const auto l1_z_bytes = [&](std::size_t chunk) { return (2 * std::size_t{Z} + 2) * chunk * 4; };
     l1_keys_ = !gpu_layout_ && !incremental && unit && options.metric == Metric::manhattan &&
