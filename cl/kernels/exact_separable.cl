@@ -1327,3 +1327,389 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
         }
     }
 }
+
+#if INDICES && METRIC == 0 && UNIT && CPU_LAYOUT && !SIGNED
+// ---- unit L1 with indices, full transforms in the CPU layout: sweeps over packed keys ----
+//
+// The nearest solid of lowest (x, y, z) (KEYED's ties) from two kernels that move 1 + 4 + 4 +
+// 14 bytes per voxel at u16 (col_pass's partials and keys: about 40): l1_xy_keys gives each
+// z-slice's voxel the nearest solid of its slice as the key (sx << 16) | sy (its distance is
+// |sx - x| + |sy - y|, never stored; the key's order is (x, y)'s), written into the first
+// index plane; l1_z_out sweeps z over flat strips of the planes, carrying (distance, key, z)
+// in local memory, and writes the output format and the three index planes. X and Y below
+// 65535 (the host checks).
+//
+// Ties: the x pass keeps the left one of two equally near solids (the lower x); a y or z
+// sweep keeps its own voxel's candidate against the one carried from the neighbour where that
+// key is lower (the forward sweeps) or not higher (the backward ones). Equal keys in a z sweep
+// name the same (x, y) column, whose two solids equally near lie at z - k and z + k: the
+// forward sweep's (already its own) is the lower z. So each sweep keeps the lowest key among
+// its nearest targets, as tile_sweep_l1 does with whole keys.
+
+#define L1_NONE 0xFFFFFFFFu  // the key of no target
+#define L1_INF 0x3FFFFFFFu   // its distance (plus any count of steps stays below 2^31)
+#define L1_NONE16 ((ushort)0xFFFF)
+
+typedef ushort l1_ushort32 __attribute__((ext_vector_type(32)));
+typedef l1_ushort32 l1_ushort32_any __attribute__((aligned(2)));
+typedef ushort16 l1_ushort16_any __attribute__((aligned(2)));
+typedef uint16 l1_uint16_any __attribute__((aligned(4)));
+typedef int16 l1_int16_any __attribute__((aligned(4)));
+typedef uchar16 l1_uchar16_any __attribute__((aligned(1)));
+#define L1_LDS32(p) (*(__local const l1_ushort32_any*)(p))
+#define L1_STS32(v, p) (*(__local l1_ushort32_any*)(p) = (v))
+#define L1_LDS16(p) (*(__local const l1_ushort16_any*)(p))
+#define L1_LDU(p) (*(__local const l1_uint16_any*)(p))
+#define L1_STU(v, p) (*(__local l1_uint16_any*)(p) = (v))
+#define L1_LDG(p) (*(__global const l1_uint16_any*)(p))
+#define L1_STG(v, p) (*(__global l1_uint16_any*)(p) = (v))
+#define L1_STGI(v, p) (*(__global l1_int16_any*)(p) = (v))
+#define L1_LANES ((uint16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
+#define L1_CAT_(a, b) a##b
+#define L1_CAT(a, b) L1_CAT_(a, b)
+typedef L1_CAT(OUT_T, 16) l1_out16_any __attribute__((aligned(1)));
+#define L1_CONVERT_OUT16 L1_CAT(L1_CAT(convert_, OUT_T), 16)
+
+inline l1_ushort32 l1_min32(l1_ushort32 a, l1_ushort32 b) { return a < b ? a : b; }
+inline l1_ushort32 l1_adds32(l1_ushort32 a, l1_ushort32 b) {
+    const l1_ushort32 s = a + b;
+    return s < a ? (l1_ushort32)L1_NONE16 : s;
+}
+
+// The distance from (x, y) of the slice's solid named by key k (L1_INF: none), for scalars and
+// vectors alike.
+#define L1_KEY_DIST(k, x, y) \
+    ((k) == L1_NONE ? L1_INF : abs_diff((k) >> 16, (x)) + abs_diff((k)&0xFFFFu, (y)))
+
+// One sweep step: the voxel's own candidate (d, k) against the carried (rd, rk) one step
+// further; `le` 1 where the own one wins equal keys too. Leaves the winner in (rd, rk).
+#define L1_STEP(d, k, rd, rk, le)                                                   \
+    do {                                                                            \
+        const __typeof__(d) cand_ = (rd) + 1;                                       \
+        const __typeof__((d) < cand_) own_ =                                        \
+            ((d) < cand_) | (((d) == cand_) & ((le) ? (k) <= (rk) : (k) < (rk)));   \
+        (rd) = own_ ? (d) : cand_;                                                  \
+        (rk) = own_ ? (k) : (rk);                                                   \
+    } while (0)
+
+// Long rows with few targets (at most L1_RAMPS) take ramps between them instead of the
+// doubling: l1_row_targets finds them 16 voxels at a time (a count first, so that a dense row
+// leaves after a few blocks) and returns their number (L1_RAMPS + 1: more; pos then unset).
+#define L1_RAMPS 16
+inline uint l1_target_mask16(__global const uchar* restrict v, int solid) {
+    const uchar16 bits = (uchar16)(1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128);
+    const ulong gather = 0x0101010101010101UL;  // sums a word's bytes into its top byte
+    const uchar16 b = *(__global const l1_uchar16_any*)v;
+    const ulong2 h = as_ulong2(as_uchar16(solid ? b != (uchar16)0 : b == (uchar16)0) & bits);
+    return (uint)((h.s0 * gather) >> 56) | ((uint)((h.s1 * gather) >> 56) << 8);
+}
+inline uint l1_row_targets(__global const uchar* restrict v, uint X, int solid, uint* pos) {
+    const uint full = X / 16 * 16;
+    uint k = 0;
+    for (uint x = 0; x < full && k <= L1_RAMPS; x += 16) {
+        k += popcount(l1_target_mask16(v + x, solid));
+    }
+    for (uint x = full; x < X; ++x) {
+        k += (v[x] != 0) == (solid != 0);
+    }
+    if (k > L1_RAMPS) {
+        return L1_RAMPS + 1;
+    }
+    k = 0;
+    for (uint x = 0; x < full; x += 16) {
+        uint m = l1_target_mask16(v + x, solid);
+        while (m != 0) {
+            pos[k++] = x + 31 - clz(m & (0u - m));
+            m &= m - 1;
+        }
+    }
+    for (uint x = full; x < X; ++x) {
+        if ((v[x] != 0) == (solid != 0)) {
+            pos[k++] = x;
+        }
+    }
+    return k;
+}
+
+// One work-item per z-slice. Each row's 1-D nearest target on the left and on the right by
+// doubling in 16-bit lanes (L and R: after the steps 1, 2, 4, ... every voxel within 2s - 1
+// of its nearest target on a side holds that distance, every other one more; the steps stop
+// once the nearer of the two is below 2s everywhere; L goes from one row to another, R is
+// updated in place: a load of L just behind the step's own stores would wait for them), then
+// the forward y sweep's step from the row before (run_d, run_k), its keys stored into `keys`;
+// then the backward y sweep reads them back (the slice's 4 bytes per voxel stay in the core's
+// cache) and stores the final keys. `rows`: L, R and L's second row, each X32 = X rounded up
+// to 32 entries between `pad` (>= the largest step) of L1_NONE16 on both sides; run_d, run_k:
+// X16 = X rounded up to 16 each. `solid` 1: the nonzero voxels are the targets, 0: the zero
+// ones (as x_pass).
+__kernel void l1_xy_keys(__global const uchar* restrict vox, __global uint* restrict keys, uint X,
+                         uint Y, uint pad, int solid, __local ushort* restrict rows,
+                         __local uint* restrict run_d, __local uint* restrict run_k) {
+    const size_t base = get_global_id(0) * (size_t)X * Y;
+    const uint X32 = (X + 31) / 32 * 32;
+    const uint X16 = (X + 15) / 16 * 16;
+    const uint full = X / 16 * 16;
+    __local ushort* L = rows + pad;
+    __local ushort* R = rows + X32 + 3 * pad;
+    __local ushort* L2 = rows + 2 * X32 + 5 * pad;
+    for (uint i = 0; i < 3 * (X32 + 2 * pad); ++i) {
+        rows[i] = L1_NONE16;
+    }
+    for (uint x = 0; x < X16; x += 16) {
+        L1_STU((uint16)L1_INF, run_d + x);
+        L1_STU((uint16)L1_NONE, run_k + x);
+    }
+    for (uint y = 0; y < Y; ++y) {
+        __global const uchar* v = vox + base + (size_t)y * X;
+        __global uint* kr = keys + base + (size_t)y * X;
+        uchar16 seen = 0;
+        for (uint x = 0; x < full; x += 16) {
+            const uchar16 b = *(__global const l1_uchar16_any*)(v + x);
+            const char16 t = solid ? b != (uchar16)0 : b == (uchar16)0;
+            const ushort16 init = ~as_ushort16(convert_short16(t));
+            *(__local l1_ushort16_any*)(L + x) = init;
+            *(__local l1_ushort16_any*)(R + x) = init;
+            seen |= as_uchar16(t);
+        }
+        for (uint x = full; x < X; ++x) {
+            const bool t = (v[x] != 0) == (solid != 0);
+            L[x] = t ? 0 : L1_NONE16;
+            R[x] = t ? 0 : L1_NONE16;
+            seen.s0 |= t;
+        }
+        const bool none = all(seen == (uchar16)0);
+        uint pos[L1_RAMPS];
+        const uint k = X >= 1024 && !none ? l1_row_targets(v, X, solid, pos) : L1_RAMPS + 1;
+        if (k <= L1_RAMPS) {
+            for (uint x = 0; x < pos[0]; ++x) {
+                L[x] = L1_NONE16;
+                R[x] = (ushort)(pos[0] - x);
+            }
+            for (uint i = 0; i + 1 < k; ++i) {
+                for (uint x = pos[i]; x < pos[i + 1]; ++x) {
+                    L[x] = (ushort)(x - pos[i]);
+                    R[x] = (ushort)(pos[i + 1] - x);
+                }
+            }
+            for (uint x = pos[k - 1]; x < X; ++x) {
+                L[x] = (ushort)(x - pos[k - 1]);
+                R[x] = L1_NONE16;
+            }
+        }
+        for (uint s = 1; s < X && !none && k > L1_RAMPS; s <<= 1) {
+            const l1_ushort32 step = (l1_ushort32)(ushort)s;
+            l1_ushort32 top = 0;
+            for (uint x = 0; x < X32; x += 32) {
+                const l1_ushort32 l =
+                    l1_min32(L1_LDS32(L + x), l1_adds32(L1_LDS32(L + x - s), step));
+                const l1_ushort32 r =
+                    l1_min32(L1_LDS32(R + x), l1_adds32(L1_LDS32(R + x + s), step));
+                L1_STS32(l, L2 + x);
+                L1_STS32(r, R + x);
+                const l1_ushort32 m = l1_min32(l, r);
+                top = top < m ? m : top;
+            }
+            __local ushort* t = L;
+            L = L2;
+            L2 = t;
+            // Every value below 2s (a compare and a mask test, not a horizontal max).
+            if (2 * s > 0xFFFFu ||
+                !any(as_ulong8(top >= (l1_ushort32)(ushort)(2 * s)) != 0)) {
+                break;
+            }
+        }
+        for (uint x = 0; x < X16; x += 16) {
+            uint16 rd = L1_LDU(run_d + x), rk = L1_LDU(run_k + x);
+            if (none) {
+                L1_STEP((uint16)L1_INF, (uint16)L1_NONE, rd, rk, 0);
+            } else {
+                const uint16 l = convert_uint16(L1_LDS16(L + x));
+                const uint16 r = convert_uint16(L1_LDS16(R + x));
+                const uint16 xs = (uint16)x + L1_LANES;
+                const uint16 d = min(l, r);
+                const uint16 k = d == (uint16)L1_NONE16
+                                     ? (uint16)L1_NONE
+                                     : ((l <= r ? xs - l : xs + r) << 16) | (uint16)y;
+                L1_STEP(d == (uint16)L1_NONE16 ? (uint16)L1_INF : d, k, rd, rk, 0);
+            }
+            L1_STU(rd, run_d + x);
+            L1_STU(rk, run_k + x);
+            if (x < full) {
+                L1_STG(rk, kr + x);
+            }
+        }
+        for (uint x = full; x < X; ++x) {
+            kr[x] = run_k[x];
+        }
+    }
+    for (uint y = Y - 1; y-- > 0;) {
+        __global uint* kr = keys + base + (size_t)y * X;
+        for (uint x = 0; x < full; x += 16) {
+            uint16 rd = L1_LDU(run_d + x), rk = L1_LDU(run_k + x);
+            const uint16 k = L1_LDG(kr + x);
+            L1_STEP(L1_KEY_DIST(k, (uint16)x + L1_LANES, (uint16)y), k, rd, rk, 1);
+            L1_STU(rd, run_d + x);
+            L1_STU(rk, run_k + x);
+            L1_STG(rk, kr + x);
+        }
+        for (uint x = full; x < X; ++x) {
+            uint rd = run_d[x], rk = run_k[x];
+            const uint k = kr[x];
+            L1_STEP(L1_KEY_DIST(k, x, y), k, rd, rk, 1);
+            run_d[x] = rd;
+            run_k[x] = rk;
+            kr[x] = rk;
+        }
+    }
+}
+
+// The output format of distance d (L1_INF: no target, as `store` writes +inf) at voxel i.
+inline void l1_store(__global OUT_T* out, __global const uchar* vox, __constant uchar* rgb,
+                     size_t i, uint d) {
+#if OUT_KIND == 0
+    out[i] = (OUT_T)(d >= L1_INF ? OUT_MAX : min(d, (uint)OUT_MAX));
+#elif OUT_KIND == 2
+    out[i] = d >= L1_INF ? INFINITY : (float)d;
+#elif OUT_KIND == 3
+    out[i] = d >= L1_INF ? (double)INFINITY : (double)d;
+#else
+    out[i] = (min(d, 255u) << VF_PACKED_DISTANCE_SHIFT) | rgb[vox[i]];
+#endif
+}
+
+// The z pass: each work-item sweeps `chunk` consecutive voxels of a z-plane (flat strips,
+// chunk a multiple of 16) through all Z planes: forward into `tile` (two arrays of Z * chunk
+// uints: distance and key), reading the keys of l1_xy_keys from idx's first plane; backward
+// from there, writing the output and the index planes z, y, x (-1 without a target) over the
+// keys it has read. The backward sweep's own candidate wins where the forward sweep's is
+// nearer or as near with a key not higher; its target lies at or below z, the other one's
+// above z (a target at or below z reached from z + 1 is 2 farther than from z itself), so the
+// target's z follows from the distance. `lxy`: the strip's x and y per lane (2 * chunk uints).
+// The forward sweep prefetches the keys L1_AHEAD planes ahead: its strip's lines of a plane
+// lie a plane apart, beyond the hardware prefetchers' reach (long-z, strips of 32 columns
+// 16 KiB apart: the sweeps without stores 99 -> 45 ms at load 5).
+#define L1_AHEAD 16
+__kernel void l1_z_out(__global uint* keys, __global OUT_T* restrict out,
+                       __global const uchar* restrict vox, __constant uchar* rgb,
+                       __global int* idx, uint X, ulong plane, uint Z, uint chunk,
+                       __local uint* restrict tile, __local uint* restrict lxy) {
+    const size_t c0 = get_global_id(0) * (size_t)chunk;
+    if (c0 >= plane) {
+        return;
+    }
+    const uint w = (uint)min((size_t)chunk, plane - c0);
+    const uint w16 = (w + 15) / 16 * 16;
+    const size_t n = plane * Z;
+    __local uint* td = tile;
+    __local uint* tk = tile + (size_t)Z * w16;
+    __local uint* lx = lxy;
+    __local uint* ly = lxy + w16;
+    for (uint j = 0; j < w16; ++j) {
+        const size_t i = c0 + min(j, w - 1);
+        lx[j] = (uint)(i % X);
+        ly[j] = (uint)(i / X);
+    }
+    for (uint z = 0; z < Z; ++z) {
+        __global const uint* kz = keys + z * plane + c0;
+        const size_t t = (size_t)z * w16;
+        if (z + L1_AHEAD < Z) {
+            for (uint j = 0; j < w; j += 16) {
+                __builtin_prefetch(kz + L1_AHEAD * plane + j);
+            }
+        }
+        for (uint j = 0; j < w16; j += 16) {
+            uint16 k;
+            if (j + 16 <= w) {
+                k = L1_LDG(kz + j);
+            } else {
+                uint part[16];
+                for (uint q = 0; q < 16; ++q) {
+                    part[q] = j + q < w ? kz[j + q] : L1_NONE;
+                }
+                k = vload16(0, part);
+            }
+            const uint16 d = L1_KEY_DIST(k, L1_LDU(lx + j), L1_LDU(ly + j));
+            uint16 rd = d, rk = k;
+            if (z > 0) {
+                rd = L1_LDU(td + t - w16 + j);
+                rk = L1_LDU(tk + t - w16 + j);
+                L1_STEP(d, k, rd, rk, 0);
+            }
+            L1_STU(rd, td + t + j);
+            L1_STU(rk, tk + t + j);
+        }
+    }
+    for (uint z = Z; z-- > 0;) {
+        const size_t t = (size_t)z * w16;
+        const size_t o = z * plane + c0;
+        // Non-temporal stores where every plane's row is whole vectors apart.
+        const bool aligned = (size_t)(idx + o) % 64 == 0 && (size_t)(idx + n + o) % 64 == 0 &&
+                             (size_t)(out + o) % (16 * sizeof(OUT_T)) == 0;
+        for (uint j = 0; j < w16; j += 16) {
+            uint16 d = L1_LDU(td + t + j), k = L1_LDU(tk + t + j);
+            int16 own = (int16)-1;
+            if (z + 1 < Z) {
+                const uint16 rd = L1_LDU(td + t + w16 + j);
+                const uint16 rk = L1_LDU(tk + t + w16 + j);
+                const uint16 cand = rd + 1;
+                own = (d < cand) | ((d == cand) & (k <= rk));
+                d = own ? d : cand;
+                k = own ? k : rk;
+                L1_STU(d, td + t + j);
+                L1_STU(k, tk + t + j);
+            }
+            // The target's z: |z - zt| = d - (its distance within the plane), below z where
+            // the forward sweep's candidate won, above where the backward one did.
+            const uint16 dz = d - L1_KEY_DIST(k, L1_LDU(lx + j), L1_LDU(ly + j));
+            const uint16 zz = own ? (uint16)z - dz : (uint16)z + dz;
+            const int16 none = k == (uint16)L1_NONE;
+            const int16 iz = none ? (int16)-1 : as_int16(zz);
+            const int16 iy = none ? (int16)-1 : as_int16(k & 0xFFFFu);
+            const int16 ix = none ? (int16)-1 : as_int16(k >> 16);
+            if (j + 16 <= w && aligned) {
+                __builtin_nontemporal_store(iz, (__global int16*)(idx + o + j));
+                __builtin_nontemporal_store(iy, (__global int16*)(idx + n + o + j));
+                __builtin_nontemporal_store(ix, (__global int16*)(idx + 2 * n + o + j));
+#if OUT_KIND == 0
+                const uint16 c = d >= (uint16)L1_INF ? (uint16)OUT_MAX : min(d, (uint16)OUT_MAX);
+                __builtin_nontemporal_store(L1_CONVERT_OUT16(c),
+                                            (__global L1_CAT(OUT_T, 16)*)(out + o + j));
+#else
+                uint e[16];
+                vstore16(d, 0, e);
+                for (uint q = 0; q < 16; ++q) {
+                    l1_store(out, vox, rgb, o + j + q, e[q]);
+                }
+#endif
+            } else if (j + 16 <= w) {
+                L1_STGI(iz, idx + o + j);
+                L1_STGI(iy, idx + n + o + j);
+                L1_STGI(ix, idx + 2 * n + o + j);
+#if OUT_KIND == 0
+                const uint16 c = d >= (uint16)L1_INF ? (uint16)OUT_MAX : min(d, (uint16)OUT_MAX);
+                *(__global l1_out16_any*)(out + o + j) = L1_CONVERT_OUT16(c);
+#else
+                uint e[16];
+                vstore16(d, 0, e);
+                for (uint q = 0; q < 16; ++q) {
+                    l1_store(out, vox, rgb, o + j + q, e[q]);
+                }
+#endif
+            } else {
+                int a[16], b[16], c[16];
+                uint e[16];
+                vstore16(iz, 0, a);
+                vstore16(iy, 0, b);
+                vstore16(ix, 0, c);
+                vstore16(d, 0, e);
+                for (uint q = 0; j + q < w; ++q) {
+                    idx[o + j + q] = a[q];
+                    idx[n + o + j + q] = b[q];
+                    idx[2 * n + o + j + q] = c[q];
+                    l1_store(out, vox, rgb, o + j + q, e[q]);
+                }
+            }
+        }
+    }
+}
+#endif

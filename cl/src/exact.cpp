@@ -515,9 +515,9 @@ bool ExactManhattan::add_byte_sweeps() {
     const auto& info = ctx_.info();
     const std::size_t plane = std::size_t{dims_.x} * dims_.y;
     const std::size_t pad = std::max<std::size_t>(1, next_pow2(dims_.x) / 2);
-    const std::size_t x16 = (std::size_t{dims_.x} + 31) / 32 * 32;  // xy_bytes' row length
-    const std::size_t rows = 2 * (x16 + 2 * pad);
-    const std::size_t slice = (x16 + 32) * dims_.y;
+    const std::size_t x64 = (std::size_t{dims_.x} + 63) / 64 * 64;  // xy_bytes' row length
+    const std::size_t rows = 2 * (x64 + 2 * pad);
+    const std::size_t slice = (x64 + 32) * dims_.y;
     if (rows + slice > info.local_mem || dims_.z > info.local_mem) {
         return false;
     }

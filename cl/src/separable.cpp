@@ -165,6 +165,19 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     const std::uint32_t lines_y = banded_fits ? banded_lines(Y, info.local_mem) : 0;
     const std::uint32_t lines_z = banded_fits ? banded_lines(Z, info.local_mem) : 0;
 
+    // Unit L1 with indices, a full unsigned transform in the CPU layout: l1_xy_keys and
+    // l1_z_out, where the keys' 16-bit x and y hold X and Y and the local memory the rows and
+    // a z strip of 16 lines.
+    const std::size_t l1_pad = X > 1 ? next_pow2(X) / 2 : 1;
+    const std::size_t l1_x32 = (std::size_t{X} + 31) / 32 * 32;
+    const std::size_t l1_rows_bytes = 3 * (l1_x32 + 2 * l1_pad) * 2;
+    const std::size_t l1_run_bytes = 2 * l1_x32 * 4;
+    const auto l1_z_bytes = [&](std::size_t chunk) { return (2 * std::size_t{Z} + 2) * chunk * 4; };
+    l1_keys_ = !gpu_layout_ && !incremental && unit && options.metric == Metric::manhattan &&
+               options.indices && !options.signed_field && !options.max_distance && X < 0xFFFF &&
+               Y < 0xFFFF && l1_rows_bytes + l1_run_bytes <= info.local_mem &&
+               l1_z_bytes(16) <= info.local_mem;
+
     // CPU layout: at most max_items_ work-items per pass, each with its three stacks and its
     // tiles of tile_w_ lines (col_pass), sized by the pass's own line length.
     max_items_ = std::max<std::size_t>(32, 16 * std::size_t{info.compute_units});
@@ -207,7 +220,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         out_ = field.empty() ? make_buffer(out_bytes, CL_MEM_READ_WRITE)
                              : cl::Buffer(c, CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR, out_bytes,
                                           field.data());
-        const int parts = incremental ? 3 : shared_parts_ ? 1 : 2;
+        const int parts = incremental ? 3 : l1_keys_ ? 0 : shared_parts_ ? 1 : 2;
         for (int k = 0; k < parts; ++k) {
             g_[k] = k == 0 && out_is_g ? out_ : make_buffer(part_bytes, CL_MEM_READ_WRITE);
             if (options.signed_field) {
@@ -228,7 +241,9 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         for (int b = 0; b < 3 && incremental; ++b) {
             track_[b] = cl::Buffer(c, CL_MEM_READ_WRITE, 7 * sizeof(cl_int));
         }
-        scratch_ = make_buffer(scratch_ints * 4, CL_MEM_READ_WRITE);
+        if (!l1_keys_) {
+            scratch_ = make_buffer(scratch_ints * 4, CL_MEM_READ_WRITE);
+        }
         const auto table = palette.rgb332_table();
         cl::Event up_vox, up_rgb;
         if (!in_place) {
@@ -270,6 +285,47 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     }
 
     cl_call("setting up kernels, " + sizes, [&] {
+        if (l1_keys_) {
+            cl::Kernel xy(program_, "l1_xy_keys");
+            xy.setArg(0, voxels_);
+            xy.setArg(1, indices_);
+            xy.setArg(2, X);
+            xy.setArg(3, Y);
+            xy.setArg(4, static_cast<cl_uint>(l1_pad));
+            xy.setArg(5, cl_int{zero_targets_ ? 0 : 1});
+            xy.setArg(6, cl::Local(l1_rows_bytes));
+            xy.setArg(7, cl::Local(l1_run_bytes / 2));
+            xy.setArg(8, cl::Local(l1_run_bytes / 2));
+            stages_.push_back({"l1_xy_keys", xy, cl::NDRange(Z), cl::NDRange(1)});
+            // Strips of whole 64-byte lines whose tiles stay within about 1 MiB (the core's
+            // L2 holds them between the sweeps), at least 4 per core.
+            const std::size_t plane = std::size_t{X} * Y;
+            const std::size_t plane16 = (plane + 15) / 16 * 16;
+            const std::size_t budget = std::min<std::size_t>(info.local_mem, 1 << 20);
+            // At least 32 where they fit: the u16 output's stores then fill whole lines.
+            const std::size_t least = l1_z_bytes(32) <= info.local_mem ? 32 : 16;
+            std::size_t chunk = std::clamp<std::size_t>(budget / l1_z_bytes(1) / 16 * 16, least,
+                                                        std::max(least, plane16));
+            const std::size_t want_items = 4 * std::size_t{info.compute_units};
+            while (chunk > least && (plane + chunk - 1) / chunk < want_items) {
+                chunk = std::max<std::size_t>(least, chunk / 2 / 16 * 16);
+            }
+            cl::Kernel z(program_, "l1_z_out");
+            z.setArg(0, indices_);
+            z.setArg(1, out_);
+            z.setArg(2, voxels_);
+            z.setArg(3, rgb_);
+            z.setArg(4, indices_);
+            z.setArg(5, X);
+            z.setArg(6, static_cast<cl_ulong>(plane));
+            z.setArg(7, Z);
+            z.setArg(8, static_cast<cl_uint>(chunk));
+            z.setArg(9, cl::Local(2 * std::size_t{Z} * chunk * 4));
+            z.setArg(10, cl::Local(2 * chunk * 4));
+            stages_.push_back(
+                {"l1_z_out", z, cl::NDRange((plane + chunk - 1) / chunk), cl::NDRange(1)});
+            return;
+        }
         if (lines_y != 0 && lines_z != 0) {
             if (auto rows = gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0])) {
                 stages_.push_back(*rows);

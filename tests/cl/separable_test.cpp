@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <random>
 #include <string>
+#include <tuple>
 
 #include "cl_test_util.hpp"
 #include "voxfield/cl/separable.hpp"
@@ -374,6 +375,121 @@ TEST(ExactSeparable, IndicesBreakTiesAsScipy) {
     for (Layout layout : kLayouts) {
         expect_scipy_ties(
             wide, options(Metric::euclidean, Spacing{}, false, Format::f64, layout, true), "wide");
+    }
+}
+
+// Unit L1 with indices in the CPU layout (l1_xy_keys and l1_z_out; rows of 65535 or more
+// take col_pass): the field in every unsigned format and SciPy's ties, on ragged and long
+// axes, distances past 255 and past 65535 (u16 saturates), a world without solids (-1) and
+// one of only solids; the same worlds' zero voxels as the targets.
+TEST(ExactSeparable, ManhattanIndicesEveryFormatAndShape) {
+    std::mt19937_64 rng(4242);
+    std::vector<std::pair<std::string, World>> worlds;
+    worlds.reserve(11);
+    worlds.emplace_back("ragged", scene_random(Dims{37, 23, 19}, 0.01, rng()));
+    worlds.emplace_back("dense", scene_random(Dims{48, 32, 16}, 0.6, rng()));
+    worlds.emplace_back("empty", World(Dims{17, 9, 5}));
+    World full(Dims{5, 6, 7});
+    for (std::uint32_t z = 0; z < 7; ++z) {
+        for (std::uint32_t y = 0; y < 6; ++y) {
+            for (std::uint32_t x = 0; x < 5; ++x) {
+                full.set(x, y, z, 3);
+            }
+        }
+    }
+    worlds.emplace_back("full", full);
+    for (const Dims d : {Dims{4000, 1, 1}, Dims{1, 4000, 1}, Dims{1, 1, 4000}}) {
+        World w(d);
+        w.set(d.x / 3, d.y / 3, d.z / 3, 1);
+        w.set(d.x - 1, d.y - 1, d.z - 1, 2);
+        worlds.emplace_back("long " + d.to_string(), w);
+    }
+    // Rows of 1024 or more: ramps between at most 16 targets, the doubling past them.
+    worlds.emplace_back("long rows", scene_random(Dims{1500, 3, 4}, 0.004, rng()));
+    worlds.emplace_back("long dense rows", scene_random(Dims{1100, 2, 3}, 0.05, rng()));
+    World far(Dims{300, 2, 400});
+    far.set(0, 1, 0, 1);
+    worlds.emplace_back("far", far);
+    for (const auto& [name, w] : worlds) {
+        const auto ref = reference_distance(w, Metric::manhattan, Spacing{});
+        for (Format f :
+             {Format::u8, Format::u16, Format::u32, Format::f32, Format::f64, Format::packed32}) {
+            const auto o = options(Metric::manhattan, Spacing{}, false, f, Layout::cpu, true);
+            const std::string what = name + " " + describe(o, w.dims());
+            const auto r = ocl::generate(pocl(), w, Palette(), o);
+            ASSERT_TRUE(r.bytes == encode_real_field(ref, w, Palette(), f)) << what;
+            if (f == Format::u16) {
+                expect_scipy_ties(w, o, name);
+                if (HasFatalFailure()) {
+                    return;
+                }
+            }
+        }
+    }
+    // The zero voxels as the targets (voxfield.ndimage's cdt), read in place, with SciPy's
+    // ties against the inverted world's reference.
+    for (const auto& [name, w] : worlds) {
+        const Dims d = w.dims();
+        std::vector<std::uint8_t> inverted(w.voxels().size());
+        for (std::size_t k = 0; k < inverted.size(); ++k) {
+            inverted[k] = w.voxels()[k] == 0 ? 1 : 0;
+        }
+        const World targets(d, inverted);
+        const auto ref = reference_features(targets, Metric::manhattan, Spacing{});
+        const auto o = options(Metric::manhattan, Spacing{}, false, Format::u32, Layout::cpu, true);
+        ocl::HostMemory field(d.count() * 4);
+        std::vector<std::int32_t> planes(3 * d.count(), -7);
+        {
+            ocl::ExactSeparable job(pocl(), d, w.voxels(), Palette(), o,
+                                    {field.data(), d.count() * 4}, planes, true);
+            job.run();
+            const ocl::MappedBuffer mapped(pocl(), job.field_buffer(), d.count() * 4);
+            job.read_indices([](std::span<const std::uint8_t>) {});
+        }
+        const std::size_t n = d.count();
+        const auto* got = reinterpret_cast<const std::uint32_t*>(field.data());
+        for (std::size_t i = 0; i < n; ++i) {
+            const std::int64_t f = ref[i];
+            const std::int64_t want[3] = {f < 0 ? -1 : f / d.x / d.y, f < 0 ? -1 : f / d.x % d.y,
+                                          f < 0 ? -1 : f % d.x};
+            ASSERT_TRUE(planes[i] == want[0] && planes[n + i] == want[1] &&
+                        planes[2 * n + i] == want[2])
+                << "zero targets " << name << " voxel " << i;
+            const long dist = f < 0 ? -1
+                                    : std::labs(static_cast<long>(i % d.x) - want[2]) +
+                                          std::labs(static_cast<long>(i / d.x % d.y) - want[1]) +
+                                          std::labs(static_cast<long>(i / d.x / d.y) - want[0]);
+            ASSERT_EQ(got[i], f < 0 ? 0xFFFFFFFFu : static_cast<std::uint32_t>(dist))
+                << "zero targets " << name << " voxel " << i;
+        }
+    }
+    // One axis past 16 bits (the reference's lines would take seconds): along z distances
+    // past 65535 (u16 saturates), along x rows too long for the keys (col_pass); the solids
+    // at `a` and `b` of the line, its midpoint a tie (the lower one wins).
+    for (const auto& [d, a, b] :
+         {std::tuple{Dims{1, 1, 70000}, 0u, 0u}, std::tuple{Dims{65540, 1, 1}, 7u, 65539u}}) {
+        World w(d);
+        const bool along_x = d.x > 1;
+        w.set(along_x ? a : 0, 0, along_x ? 0 : a, 1);
+        w.set(along_x ? b : 0, 0, along_x ? 0 : b, 1);
+        for (Format f : {Format::u16, Format::u32}) {
+            const auto r =
+                ocl::generate(pocl(), w, Palette(),
+                              options(Metric::manhattan, Spacing{}, false, f, Layout::cpu, true));
+            const std::size_t n = d.count();
+            ASSERT_EQ(r.indices.size(), 3 * n);
+            for (std::uint32_t p = 0; p < n; ++p) {
+                const std::uint32_t da = p > a ? p - a : a - p, db = p > b ? p - b : b - p;
+                const std::uint32_t want = std::min(da, db);
+                const double got = decode_value(r.bytes, f, p);
+                ASSERT_EQ(got, f == Format::u16 ? std::min(want, 65535u) : want)
+                    << d.to_string() << " " << to_string(f) << " voxel " << p;
+                const std::int32_t s = static_cast<std::int32_t>(db < da ? b : a);
+                ASSERT_TRUE(r.indices[p] == (along_x ? 0 : s) && r.indices[n + p] == 0 &&
+                            r.indices[2 * n + p] == (along_x ? s : 0))
+                    << d.to_string() << " voxel " << p;
+            }
+        }
     }
 }
 

@@ -112,6 +112,7 @@ class ExactSeparable : public Generator {
     bool wide_ = false;           // unit-spacing L2 in 64-bit partials (squares reach 2^30)
     bool fp64_ = false;           // f64 with spacing: the scans in double
     bool shared_parts_ = false;   // one buffer of partials for every pass (CPU layout, full)
+    bool l1_keys_ = false;        // unit L1 with indices by l1_xy_keys and l1_z_out (CPU)
     std::size_t gt_bytes_ = 4;    // bytes per partial
     std::size_t max_items_ = 32;  // work-items per pass at most (CPU layout)
     // Per y and z pass (CPU layout): ints per work-item's stacks and tiles, lines per tile.
