@@ -19,6 +19,22 @@
 #define KEY(v) (v)
 #endif
 
+#define VEC_(t, n) t##n
+#define VEC(t, n) VEC_(t, n)
+typedef VEC(ELEM, 16) ELEM16;
+typedef VEC(ELEM, 8) ELEM8;
+typedef VEC(ELEM, 4) ELEM4;
+typedef VEC(ELEM, 2) ELEM2;
+
+// KEY of 16 values at once (the same values as KEY: +0 for every value not above 0).
+#if KEY_KIND == 1
+#define KEY16(v) ((v) >> (ELEM16)8)
+#elif KEY_KIND == 2
+#define KEY16(v) select((ELEM16)0, (v), (v) > (ELEM16)0)
+#else
+#define KEY16(v) (v)
+#endif
+
 // One work-item per row (along x) of the largest job region (sy x sz rows, stacked along z
 // per job): copies the transformed block's values into the field tiles that hold them. A
 // job: its region's first voxel, tile span and first entry in `slots` (per tile, x
@@ -125,9 +141,19 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
         const uint y = r & 15, z = r >> 4;
         if (y < ny && z < nz) {
             __global const ELEM* row = tile + ((z0 + z) * TILE + y0 + y) * TILE + x0;
-            for (uint x = 0; x < nx; ++x) {
-                const ELEM k = KEY(row[x]);
+            if (nx == 16) {
+                // A whole row in one aligned load (x0 is a multiple of 16), its least by halves.
+                const ELEM16 k16 = KEY16(*(__global const ELEM16*)row);
+                const ELEM8 k8 = min(k16.lo, k16.hi);
+                const ELEM4 k4 = min(k8.lo, k8.hi);
+                const ELEM2 k2 = min(k4.lo, k4.hi);
+                const ELEM k = min(k2.x, k2.y);
                 best = k < best ? k : best;
+            } else {
+                for (uint x = 0; x < nx; ++x) {
+                    const ELEM k = KEY(row[x]);
+                    best = k < best ? k : best;
+                }
             }
         }
     }
@@ -155,10 +181,6 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
 // the halo) or NB_INSIDE (all solid, no empty voxel within the halo when signed).
 #define NB_EMPTY 0xFFFFFFFFu
 #define NB_INSIDE 0xFFFFFFFEu
-
-#define VEC16_(t) t##16
-#define VEC16(t) VEC16_(t)
-typedef VEC16(ELEM) ELEM16;
 
 // A work-item per 16 voxels along x (global ids x / 16, y, and slot - first) * 64 + z) of tile slot
 // first + gid2 / 64: `solid` where the world's tree (refs: per slot the tile's node base, SLOT_REF
@@ -196,7 +218,9 @@ __kernel void sweep_init(__global const ulong* restrict masks, __global const ui
             }
         }
     }
-    vstore16(vload16(0, v), 0, pool + slot * TILE_VOXELS + ((size_t)z * TILE + y) * TILE + x0);
+    // An aligned 16-element store (x0 is a multiple of 16): one wide store on GPUs.
+    *(__global ELEM16*)(pool + slot * TILE_VOXELS + ((size_t)z * TILE + y) * TILE + x0) =
+        vload16(0, v);
 }
 
 // One scan step over value v: `out` carries the distance to the nearest solid (a solid voxel,
@@ -262,6 +286,153 @@ __kernel void sweep_l1(__global ELEM* restrict pool, __global const uint* restri
     }
 }
 
+// The running values a scan toward a line carries in from its neighbour tile nb, as
+// sweep_carry, for GPUs: the halo voxels are loaded before any is scanned (along x, stride 1, in
+// aligned 16-element loads), in code unrolled over the tile's 64 places. w holds them in scan
+// order, so that every index into it is a constant once unrolled, whatever dir (a private array
+// indexed at run time would live in memory).
+inline void sweep_carry_loaded(__global const ELEM* restrict pool, uint nb, size_t at,
+                               size_t stride, int dir, uint halo, int cap, int* out, int* in) {
+    *out = nb == NB_INSIDE ? 0 : cap;
+    *in = nb == NB_INSIDE ? cap : 0;
+    if (nb == NB_INSIDE || nb == NB_EMPTY) {
+        return;
+    }
+    __global const ELEM* t = pool + (size_t)nb * TILE_VOXELS + at;
+    int w[TILE];  // w[k]: the value at place dir < 0 ? k : TILE - 1 - k
+    if (stride == 1) {
+#pragma unroll
+        for (uint i = 0; i < TILE / 16; ++i) {
+            const uint q = dir < 0 ? i : TILE / 16 - 1 - i;
+            if (dir < 0 ? 16 * q + 16 > TILE - halo : 16 * q < halo) {
+                ELEM e[16];
+                vstore16(*(__global const ELEM16*)(t + 16 * q), 0, e);
+#pragma unroll
+                for (uint j = 0; j < 16; ++j) {
+                    w[16 * i + j] = (int)(dir < 0 ? e[j] : e[15 - j]);
+                }
+            }
+        }
+    } else {
+#pragma unroll
+        for (uint k = 0; k < TILE; ++k) {
+            const uint p = dir < 0 ? k : TILE - 1 - k;
+            if (dir < 0 ? p >= TILE - halo : p < halo) {
+                w[k] = (int)t[p * stride];
+            }
+        }
+    }
+    // Toward the line: from the farthest of the halo voxels to the nearest.
+#pragma unroll
+    for (uint k = 0; k < TILE; ++k) {
+        const uint p = dir < 0 ? k : TILE - 1 - k;
+        if (dir < 0 ? p >= TILE - halo : p < halo) {
+            sweep_step(w[k], out, in);
+        }
+    }
+}
+
+// sweep_finish's value for a voxel's final distance v: up to `most` it stays, above it `far`,
+// below -most `near` (signed).
+inline ELEM sweep_finished(int v, int most, ELEM far, ELEM near) {
+#if KEY_KIND == 2
+    if (v < -most) {
+        return near;
+    }
+#endif
+    return v > most ? far : (ELEM)v;
+}
+
+// sweep_l1 for GPUs (the same arguments first, and global ids): the line is loaded whole before
+// it is scanned (along x in four aligned 16-element loads, along y and z 64 independent loads),
+// both scans run in registers, and only the changed values are written back (along x per 16).
+// The z pass, the last, writes sweep_finish's values (most, far, near as there), so that no
+// finishing pass follows on GPUs: a neighbour that reads a finished value instead of the pass's
+// reads far (or near) only where the exact value lies beyond `most`, and far + 1 > most, so what
+// it carries on from it lies beyond `most` as well and ends as far too.
+__kernel void sweep_l1_loaded(__global ELEM* restrict pool, __global const uint* restrict nbrs,
+                              uint first, uint axis, uint halo, int cap, int most, ELEM far,
+                              ELEM near) {
+    const size_t u = get_global_id(0), w = get_global_id(1);
+    const size_t slot = first + get_global_id(2);
+    size_t stride, at;
+    if (axis == 0) {
+        stride = 1;
+        at = (w * TILE + u) * TILE;
+    } else if (axis == 1) {
+        stride = TILE;
+        at = w * TILE * TILE + u;
+    } else {
+        stride = TILE * TILE;
+        at = w * TILE + u;
+    }
+    __global ELEM* line = pool + slot * TILE_VOXELS + at;
+    int v[TILE];
+    if (axis == 0) {
+#pragma unroll
+        for (uint q = 0; q < TILE / 16; ++q) {
+            ELEM e[16];
+            vstore16(*(__global const ELEM16*)(line + 16 * q), 0, e);
+#pragma unroll
+            for (uint k = 0; k < 16; ++k) {
+                v[16 * q + k] = (int)e[k];
+            }
+        }
+    } else {
+#pragma unroll
+        for (uint p = 0; p < TILE; ++p) {
+            v[p] = (int)line[p * stride];
+        }
+    }
+    // The two scans written out, so that every index into v is a constant once unrolled.
+    ulong changed = 0;
+    int out, in;
+    sweep_carry_loaded(pool, nbrs[6 * slot + 2 * axis], at, stride, -1, halo, cap, &out, &in);
+#pragma unroll
+    for (uint p = 0; p < TILE; ++p) {
+        const int r = sweep_step(v[p], &out, &in);
+        changed |= (ulong)(r != v[p]) << p;
+        v[p] = r;
+    }
+    sweep_carry_loaded(pool, nbrs[6 * slot + 2 * axis + 1], at, stride, 1, halo, cap, &out, &in);
+#pragma unroll
+    for (uint k = 0; k < TILE; ++k) {
+        const uint p = TILE - 1 - k;
+        const int r = sweep_step(v[p], &out, &in);
+        changed |= (ulong)(r != v[p]) << p;
+        v[p] = r;
+    }
+    if (axis == 0) {
+#pragma unroll
+        for (uint q = 0; q < TILE / 16; ++q) {
+            if ((changed >> (16 * q) & 0xFFFFul) != 0) {
+                ELEM e[16];
+#pragma unroll
+                for (uint k = 0; k < 16; ++k) {
+                    e[k] = (ELEM)v[16 * q + k];
+                }
+                *(__global ELEM16*)(line + 16 * q) = vload16(0, e);
+            }
+        }
+    } else if (axis == 1) {
+#pragma unroll
+        for (uint p = 0; p < TILE; ++p) {
+            if ((changed >> p & 1ul) != 0) {
+                line[p * stride] = (ELEM)v[p];
+            }
+        }
+    } else {
+        // Unchanged values are the loaded ones: written when finishing changes them.
+#pragma unroll
+        for (uint p = 0; p < TILE; ++p) {
+            const ELEM f = sweep_finished(v[p], most, far, near);
+            if ((changed >> p & 1ul) != 0 || f != (ELEM)v[p]) {
+                line[p * stride] = f;
+            }
+        }
+    }
+}
+
 // sweep_l1 along y or z (axis 1 or 2) for CPUs: a work-item per plane (global id 0: z for y,
 // y for z; global id 1: slot - first) carries its 64 lines along x together, in four 16-wide
 // vectors, so each step reads and writes whole rows. Unsigned fields only (`in` not carried).
@@ -304,10 +475,11 @@ __kernel void sweep_finish(__global ELEM* restrict pool, uint first, int most, E
     __global ELEM* p = pool + (first + get_global_id(2) / TILE) * TILE_VOXELS +
                        ((get_global_id(2) % TILE) * TILE + get_global_id(1)) * TILE +
                        get_global_id(0) * 16;
-    ELEM16 v = vload16(0, p);
+    // Aligned 16-element loads and stores (a multiple of 16 elements in): wide on GPUs.
+    ELEM16 v = *(__global ELEM16*)p;
     v = v > (ELEM16)((ELEM)most) ? (ELEM16)far : v;
 #if KEY_KIND == 2
     v = v < (ELEM16)((ELEM)(-most)) ? (ELEM16)near : v;
 #endif
-    vstore16(v, 0, p);
+    *(__global ELEM16*)p = v;
 }

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numeric>
 #include <string>
 #include <thread>
 
@@ -138,6 +139,23 @@ void for_each_tile(const TileSpan& span, F&& f) {
     }
 }
 
+// The number of threads parallel_ranges takes for n items, at least `grain` items each.
+std::size_t range_threads(std::size_t n, std::size_t grain) {
+    return std::clamp<std::size_t>(
+        std::min<std::size_t>(std::thread::hardware_concurrency(), n / grain), 1, 64);
+}
+
+// fn(i, first, end) for the i-th of `threads` contiguous ranges of [0, n), the first on this
+// thread and the others on threads of their own; returns when all have.
+template <class F>
+void parallel_ranges(std::size_t n, std::size_t threads, F&& fn) {
+    std::vector<std::jthread> pool;
+    for (std::size_t i = 1; i < threads; ++i) {
+        pool.emplace_back([&, i] { fn(i, n * i / threads, n * (i + 1) / threads); });
+    }
+    fn(std::size_t{0}, std::size_t{0}, n / threads);
+}
+
 }  // namespace
 
 GeneratorOptions resolve_sparse_options(const GeneratorOptions& options, bool format_given) {
@@ -219,6 +237,7 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
         sweep_init_ = cl::Kernel(program_, "sweep_init");
         sweep_l1_ = cl::Kernel(program_, "sweep_l1");
         sweep_l1_rows_ = cl::Kernel(program_, "sweep_l1_rows");
+        sweep_l1_loaded_ = cl::Kernel(program_, "sweep_l1_loaded");
         sweep_finish_ = cl::Kernel(program_, "sweep_finish");
     });
 }
@@ -559,8 +578,9 @@ double SparseField::run() {
         std::vector<std::pair<std::uint64_t, std::uint32_t>> stored;
         std::vector<std::uint64_t> near;
     };
-    auto classify = [&](std::uint32_t first, std::uint32_t end, Found& out) {
-        for (std::uint32_t t = first; t < end; ++t) {
+    auto classify = [&](std::size_t first, std::size_t end, Found& out) {
+        std::vector<Int3> empty;
+        for (auto t = static_cast<std::uint32_t>(first); t < end; ++t) {
             const Int3 c = world_.tile_coord(t);
             const Box tb = world_.tile_box(t);
             bool inside = false;
@@ -580,43 +600,71 @@ double SparseField::run() {
                 tile_key(static_cast<std::uint32_t>(c.x), static_cast<std::uint32_t>(c.y),
                          static_cast<std::uint32_t>(c.z)),
                 inside ? kInsideTile : kNoTile);
-            const Box sb = world_.solid_bounds(t);
-            const Box reach = intersect(grow(sb, halo_), all);
-            for_each_tile(tiles_of(reach), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
-                if (world_.find_tile(x, y, z) != kNoTile) {
-                    return;
+            // Only tiles not stored within the halo of the whole tile can be added (the solid
+            // voxels' reach lies inside it): most tiles have none and need no solid bounds.
+            empty.clear();
+            for_each_tile(tiles_of(intersect(grow(tb, halo_), all)),
+                          [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+                              if (world_.find_tile(x, y, z) == kNoTile) {
+                                  empty.push_back({x, y, z});
+                              }
+                          });
+            if (empty.empty()) {
+                continue;
+            }
+            // The solid voxels' bounds, read only on the sides where such a tile lies: a tile
+            // level with this one along an axis has no gap along it and always lies in the
+            // reach, whatever the bounds, so the other sides stay the tile's.
+            Box sb = tb;
+            if (!full(t)) {
+                const std::int64_t at[3] = {c.x, c.y, c.z};
+                std::int64_t* lo[3] = {&sb.min.x, &sb.min.y, &sb.min.z};
+                std::int64_t* hi[3] = {&sb.max.x, &sb.max.y, &sb.max.z};
+                for (int a = 0; a < 3; ++a) {
+                    const auto along = [a](const Int3& e) {
+                        return a == 0 ? e.x : a == 1 ? e.y : e.z;
+                    };
+                    if (std::any_of(empty.begin(), empty.end(),
+                                    [&](const Int3& e) { return along(e) < at[a]; })) {
+                        *lo[a] = world_.solid_extreme(t, a, false);
+                    }
+                    if (std::any_of(empty.begin(), empty.end(),
+                                    [&](const Int3& e) { return along(e) > at[a]; })) {
+                        *hi[a] = world_.solid_extreme(t, a, true) + 1;
+                    }
+                }
+            }
+            const TileSpan reach = tiles_of(intersect(grow(sb, halo_), all));
+            for (const Int3& e : empty) {
+                auto within = [](std::int64_t v, std::int64_t lo, std::int64_t count) {
+                    return v >= lo && v < lo + count;
+                };
+                if (!within(e.x, reach.first.x, reach.count.x) ||
+                    !within(e.y, reach.first.y, reach.count.y) ||
+                    !within(e.z, reach.first.z, reach.count.z)) {
+                    continue;
                 }
                 const std::int64_t s = kTileSize;
                 auto gap = [](std::int64_t lo, std::int64_t hi, std::int64_t slo,
                               std::int64_t shi) {
                     return std::max<std::int64_t>({0, lo - (shi - 1), slo - (hi - 1)});
                 };
-                const std::int64_t gx = gap(x * s, (x + 1) * s, sb.min.x, sb.max.x);
-                const std::int64_t gy = gap(y * s, (y + 1) * s, sb.min.y, sb.max.y);
-                const std::int64_t gz = gap(z * s, (z + 1) * s, sb.min.z, sb.max.z);
+                const std::int64_t gx = gap(e.x * s, (e.x + 1) * s, sb.min.x, sb.max.x);
+                const std::int64_t gy = gap(e.y * s, (e.y + 1) * s, sb.min.y, sb.max.y);
+                const std::int64_t gz = gap(e.z * s, (e.z + 1) * s, sb.min.z, sb.max.z);
                 if (metric_distance(options_.metric, options_.spacing, gx, gy, gz) < d) {
-                    out.near.push_back(tile_key(static_cast<std::uint32_t>(x),
-                                                static_cast<std::uint32_t>(y),
-                                                static_cast<std::uint32_t>(z)));
+                    out.near.push_back(tile_key(static_cast<std::uint32_t>(e.x),
+                                                static_cast<std::uint32_t>(e.y),
+                                                static_cast<std::uint32_t>(e.z)));
                 }
-            });
+            }
         }
     };
     const std::uint32_t tile_count = world_.tile_count();
-    const std::uint32_t threads = std::clamp<std::uint32_t>(
-        std::min(std::thread::hardware_concurrency(), tile_count / 16), 1, 64);
-    std::vector<Found> found(threads);
-    {
-        std::vector<std::jthread> pool;
-        for (std::uint32_t i = 1; i < threads; ++i) {
-            pool.emplace_back([&, i] {
-                classify(static_cast<std::uint32_t>(std::uint64_t{tile_count} * i / threads),
-                         static_cast<std::uint32_t>(std::uint64_t{tile_count} * (i + 1) / threads),
-                         found[i]);
-            });
-        }
-        classify(0, static_cast<std::uint32_t>(tile_count / threads), found[0]);
-    }
+    std::vector<Found> found(range_threads(tile_count, 16));
+    parallel_ranges(
+        tile_count, found.size(),
+        [&](std::size_t i, std::size_t first, std::size_t end) { classify(first, end, found[i]); });
     tiles_.reserve(tile_count * std::size_t{2});
     for (const Found& f : found) {
         for (const auto& [key, entry] : f.stored) {
@@ -643,26 +691,29 @@ double SparseField::run() {
     ensure_slots(keys.size() + keys.size() / 16 + 16);
     lap("pool");
     const bool blocks = run_method() == "blocks";
-    std::vector<Job> jobs;
-    std::vector<std::uint32_t> slots;
-    jobs.reserve(blocks ? keys.size() : 0);
+    std::vector<Job> jobs(blocks ? keys.size() : 0);
+    std::vector<std::uint32_t> slots(keys.size());
+    std::iota(slots.begin(), slots.end(), std::uint32_t{0});
+    slot_keys_ = keys;
     const Dims block = tile_block(wd, halo_);
-    for (std::uint64_t key : keys) {
-        const auto slot = static_cast<std::uint32_t>(slot_keys_.size());
-        tiles_[key] = slot;
-        slot_keys_.push_back(key);
-        slots.push_back(slot);
-        if (!blocks) {
-            continue;
-        }
-        const Int3 t{static_cast<std::int64_t>(key & 0x3FFF),
-                     static_cast<std::int64_t>(key >> 14 & 0x3FFF),
-                     static_cast<std::int64_t>(key >> 28)};
-        const std::int64_t s = kTileSize;
-        const Box region = intersect(
-            Box{{t.x * s, t.y * s, t.z * s}, {(t.x + 1) * s, (t.y + 1) * s, (t.z + 1) * s}}, all);
-        jobs.push_back({region, tile_origin(t.x, t.y, t.z, wd, block, halo_)});
-    }
+    // Distinct entries of tiles_ are set on each thread (find() does not change the map).
+    parallel_ranges(
+        keys.size(), range_threads(keys.size(), 4096),
+        [&](std::size_t, std::size_t first, std::size_t end) {
+            for (std::size_t slot = first; slot < end; ++slot) {
+                const std::uint64_t key = keys[slot];
+                tiles_.find(key)->second = static_cast<std::uint32_t>(slot);
+                if (!blocks) {
+                    continue;
+                }
+                const Int3 t = tile_of_key(key);
+                const std::int64_t s = kTileSize;
+                const Box region = intersect(
+                    Box{{t.x * s, t.y * s, t.z * s}, {(t.x + 1) * s, (t.y + 1) * s, (t.z + 1) * s}},
+                    all);
+                jobs[slot] = {region, tile_origin(t.x, t.y, t.z, wd, block, halo_)};
+            }
+        });
     coarse_host_.assign(slot_keys_.size() * 64 * elem_, 0);
     lap("jobs");
     double ms = blocks ? compute(jobs, block) : sweep();
@@ -691,30 +742,34 @@ double SparseField::sweep() {
     const Dims grid = world_.tile_grid();
     std::vector<std::uint64_t> refs(n);
     std::vector<std::uint32_t> nbrs(6 * n);
-    for (std::size_t slot = 0; slot < n; ++slot) {
-        const std::uint64_t key = slot_keys_[slot];
-        const std::int64_t t[3] = {static_cast<std::int64_t>(key & 0x3FFF),
-                                   static_cast<std::int64_t>(key >> 14 & 0x3FFF),
-                                   static_cast<std::int64_t>(key >> 28)};
-        refs[slot] = device_world_.ref(t[0], t[1], t[2]).first;
-        const std::int64_t extent[3] = {grid.x, grid.y, grid.z};
-        for (int a = 0; a < 3; ++a) {
-            for (int side = 0; side < 2; ++side) {
-                std::int64_t c[3] = {t[0], t[1], t[2]};
-                c[a] += side == 0 ? -1 : 1;
-                std::uint32_t code = kNbEmpty;
-                if (c[a] >= 0 && c[a] < extent[a]) {
-                    const auto it = tiles_.find(tile_key(static_cast<std::uint32_t>(c[0]),
-                                                         static_cast<std::uint32_t>(c[1]),
-                                                         static_cast<std::uint32_t>(c[2])));
-                    if (it != tiles_.end()) {
-                        code = it->second == kInsideTile ? kNbInside : it->second;
+    // Lookups only: the slots split over the hardware threads.
+    parallel_ranges(
+        n, range_threads(n, 4096), [&](std::size_t, std::size_t first, std::size_t end) {
+            for (std::size_t slot = first; slot < end; ++slot) {
+                const std::uint64_t key = slot_keys_[slot];
+                const std::int64_t t[3] = {static_cast<std::int64_t>(key & 0x3FFF),
+                                           static_cast<std::int64_t>(key >> 14 & 0x3FFF),
+                                           static_cast<std::int64_t>(key >> 28)};
+                refs[slot] = device_world_.ref(t[0], t[1], t[2]).first;
+                const std::int64_t extent[3] = {grid.x, grid.y, grid.z};
+                for (int a = 0; a < 3; ++a) {
+                    for (int side = 0; side < 2; ++side) {
+                        std::int64_t c[3] = {t[0], t[1], t[2]};
+                        c[a] += side == 0 ? -1 : 1;
+                        std::uint32_t code = kNbEmpty;
+                        if (c[a] >= 0 && c[a] < extent[a]) {
+                            const auto it = tiles_.find(tile_key(static_cast<std::uint32_t>(c[0]),
+                                                                 static_cast<std::uint32_t>(c[1]),
+                                                                 static_cast<std::uint32_t>(c[2])));
+                            if (it != tiles_.end()) {
+                                code = it->second == kInsideTile ? kNbInside : it->second;
+                            }
+                        }
+                        nbrs[6 * slot + 2 * static_cast<std::size_t>(a) + side] = code;
                     }
                 }
-                nbrs[6 * slot + 2 * static_cast<std::size_t>(a) + side] = code;
             }
-        }
-    }
+        });
     const auto cap = static_cast<cl_int>(halo_[0] + 1);
     const auto most = static_cast<cl_int>(std::floor(*options_.max_distance));
     const bool sgn = options_.signed_field;
@@ -730,12 +785,15 @@ double SparseField::sweep() {
         sweep_init_.setArg(5, pool_);
         sweep_init_.setArg(7, cap);
         sweep_init_.setArg(8, sgn ? -cap : cl_int{0});
-        for (cl::Kernel* k : {&sweep_l1_, &sweep_l1_rows_}) {
+        for (cl::Kernel* k : {&sweep_l1_, &sweep_l1_rows_, &sweep_l1_loaded_}) {
             k->setArg(0, pool_);
             k->setArg(1, nbrs_buf);
             k->setArg(4, static_cast<cl_uint>(halo_[0]));
             k->setArg(5, cap);
         }
+        sweep_l1_loaded_.setArg(6, most);
+        sweep_l1_loaded_.setArg(7, elem_, far_.data());
+        sweep_l1_loaded_.setArg(8, elem_, inside_.data());
         sweep_finish_.setArg(0, pool_);
         sweep_finish_.setArg(2, most);
         sweep_finish_.setArg(3, elem_, far_.data());
@@ -764,14 +822,18 @@ double SparseField::sweep() {
         };
         each_batch("sweep_init", sweep_init_, 6, Shape::voxels16);
         for (cl_uint axis = 0; axis < 3; ++axis) {
-            // CPUs take y and z a plane of 64 lines per work-item (sweep_l1_rows), unsigned.
+            // CPUs take y and z a plane of 64 lines per work-item (sweep_l1_rows), unsigned;
+            // GPUs load each line whole first (sweep_l1_loaded).
             const bool planes = axis != 0 && !gpu_layout_ && !sgn;
-            cl::Kernel& k = planes ? sweep_l1_rows_ : sweep_l1_;
+            cl::Kernel& k = planes ? sweep_l1_rows_ : gpu_layout_ ? sweep_l1_loaded_ : sweep_l1_;
             k.setArg(3, axis);
             each_batch(std::string("sweep_") + "xyz"[axis], k, 2,
                        planes ? Shape::planes : Shape::lines);
         }
-        each_batch("sweep_finish", sweep_finish_, 1, Shape::voxels16);
+        // GPUs finish in the z pass (sweep_l1_loaded).
+        if (!gpu_layout_) {
+            each_batch("sweep_finish", sweep_finish_, 1, Shape::voxels16);
+        }
         q.finish();
         for (const auto& [stage, e] : events) {
             const double t = elapsed_ms(e, e);

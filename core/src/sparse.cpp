@@ -31,6 +31,68 @@ std::uint32_t rank_below(std::uint64_t mask, std::uint32_t bit) {
     return static_cast<std::uint32_t>(std::popcount(mask & ((std::uint64_t{1} << bit) - 1)));
 }
 
+// The coordinates along `axis` (0 x, 1 y, 2 z) of a 4^3 mask's set bits (bit z << 4 | y << 2 |
+// x): bit k for coordinate k.
+unsigned mask_coords(std::uint64_t m, int axis) {
+    unsigned s = 0;
+    if (axis == 2) {
+        for (unsigned k = 0; k < 4; ++k) {
+            s |= unsigned{(m >> (16 * k) & 0xFFFF) != 0} << k;
+        }
+        return s;
+    }
+    const std::uint64_t yx = (m | m >> 16 | m >> 32 | m >> 48) & 0xFFFF;
+    if (axis == 1) {
+        for (unsigned k = 0; k < 4; ++k) {
+            s |= unsigned{(yx >> (4 * k) & 0xF) != 0} << k;
+        }
+        return s;
+    }
+    return static_cast<unsigned>((yx | yx >> 4 | yx >> 8 | yx >> 12) & 0xF);
+}
+
+// The bits of a 4^3 mask whose coordinate along `axis` is c.
+std::uint64_t mask_plane(int axis, int c) {
+    constexpr std::uint64_t kFirst[3] = {0x1111111111111111, 0x000F000F000F000F, 0xFFFF};
+    return kFirst[axis] << (c << (2 * axis));
+}
+
+// The least (`high`: greatest) tile-local coordinate along `axis` of the solid voxels of the
+// non-empty 64-tree at `base`: only the 16^3 nodes on the root's extreme plane are folded, then
+// only their 4^3 leaves on the extreme plane of those nodes, stopping at the tile's edge.
+std::int64_t tree_extreme(const std::vector<std::uint64_t>& masks,
+                          const std::vector<std::uint32_t>& offsets, std::uint64_t base, int axis,
+                          bool high) {
+    const int edge = high ? 3 : 0;
+    const auto pick = [high](unsigned s) {
+        return high ? static_cast<int>(std::bit_width(s)) - 1 : std::countr_zero(s);
+    };
+    const auto better = [high](int a, int b) { return high ? std::max(a, b) : std::min(a, b); };
+    const std::uint64_t root = masks[base];
+    const std::uint64_t first_child = base + offsets[base];
+    const int c16 = pick(mask_coords(root, axis));
+    const std::uint64_t plane16 = root & mask_plane(axis, c16);
+    int c4 = high ? -1 : 4;
+    for (std::uint64_t r = plane16; r != 0 && c4 != edge; r &= r - 1) {
+        const std::uint64_t child =
+            first_child + rank_below(root, static_cast<std::uint32_t>(std::countr_zero(r)));
+        c4 = better(c4, pick(mask_coords(masks[child], axis)));
+    }
+    int c1 = high ? -1 : 4;
+    for (std::uint64_t r = plane16; r != 0 && c1 != edge; r &= r - 1) {
+        const std::uint64_t child =
+            first_child + rank_below(root, static_cast<std::uint32_t>(std::countr_zero(r)));
+        const std::uint64_t mid = masks[child];
+        const std::uint64_t first_leaf = base + offsets[child];
+        for (std::uint64_t m = mid & mask_plane(axis, c4); m != 0 && c1 != edge; m &= m - 1) {
+            const std::uint64_t leaf =
+                first_leaf + rank_below(mid, static_cast<std::uint32_t>(std::countr_zero(m)));
+            c1 = better(c1, pick(mask_coords(masks[leaf], axis)));
+        }
+    }
+    return std::int64_t{c16} * 16 + std::int64_t{c4} * 4 + c1;
+}
+
 std::uint64_t mix(std::uint64_t k) {
     k ^= k >> 33;
     k *= 0xff51afd7ed558ccdULL;
@@ -376,40 +438,21 @@ void SparseWorld::decode_tile(std::uint32_t tile, std::span<std::uint8_t> out) c
 }
 
 Box SparseWorld::solid_bounds(std::uint32_t tile) const {
-    // From the masks: per 4^3 leaf, the x, y and z of its solid voxels by folding its mask.
     const Int3 t = tile_coord(tile);
-    Int3 lo{kTileSize, kTileSize, kTileSize}, hi{0, 0, 0};
-    const std::uint64_t base = node_bases_[tile];
-    std::uint64_t child = base + node_offsets_[base];
-    for (std::uint64_t r = node_masks_[base]; r != 0; r &= r - 1, ++child) {
-        const int b16 = std::countr_zero(r);
-        std::uint64_t leaf = base + node_offsets_[child];
-        for (std::uint64_t m = node_masks_[child]; m != 0; m &= m - 1, ++leaf) {
-            const int b4 = std::countr_zero(m);
-            const std::uint64_t v = node_masks_[leaf];
-            const std::int64_t ox = (b16 & 3) * 16 + (b4 & 3) * 4;
-            const std::int64_t oy = (b16 >> 2 & 3) * 16 + (b4 >> 2 & 3) * 4;
-            const std::int64_t oz = (b16 >> 4) * 16 + (b4 >> 4) * 4;
-            // Bit k of zs / ys / xs: some solid voxel at z / y / x = k.
-            unsigned zs = 0, ys = 0;
-            for (unsigned k = 0; k < 4; ++k) {
-                zs |= unsigned{(v >> (16 * k) & 0xFFFF) != 0} << k;
-            }
-            const std::uint64_t yx = (v | v >> 16 | v >> 32 | v >> 48) & 0xFFFF;
-            for (unsigned k = 0; k < 4; ++k) {
-                ys |= unsigned{(yx >> (4 * k) & 0xF) != 0} << k;
-            }
-            const auto xs = static_cast<unsigned>((yx | yx >> 4 | yx >> 8 | yx >> 12) & 0xF);
-            lo = {std::min<std::int64_t>(lo.x, ox + std::countr_zero(xs)),
-                  std::min<std::int64_t>(lo.y, oy + std::countr_zero(ys)),
-                  std::min<std::int64_t>(lo.z, oz + std::countr_zero(zs))};
-            hi = {std::max<std::int64_t>(hi.x, ox + std::bit_width(xs)),
-                  std::max<std::int64_t>(hi.y, oy + std::bit_width(ys)),
-                  std::max<std::int64_t>(hi.z, oz + std::bit_width(zs))};
-        }
-    }
     const Int3 o{t.x * kTileSize, t.y * kTileSize, t.z * kTileSize};
-    return {{o.x + lo.x, o.y + lo.y, o.z + lo.z}, {o.x + hi.x, o.y + hi.y, o.z + hi.z}};
+    if (node_masks_[node_bases_[tile]] == 0) {
+        return {{o.x + kTileSize, o.y + kTileSize, o.z + kTileSize}, o};
+    }
+    return {{solid_extreme(tile, 0, false), solid_extreme(tile, 1, false),
+             solid_extreme(tile, 2, false)},
+            {solid_extreme(tile, 0, true) + 1, solid_extreme(tile, 1, true) + 1,
+             solid_extreme(tile, 2, true) + 1}};
+}
+
+std::int64_t SparseWorld::solid_extreme(std::uint32_t tile, int axis, bool high) const {
+    const Int3 t = tile_coord(tile);
+    const std::int64_t origin = (axis == 0 ? t.x : axis == 1 ? t.y : t.z) * kTileSize;
+    return origin + tree_extreme(node_masks_, node_offsets_, node_bases_[tile], axis, high);
 }
 
 SparseWorld::EncodedTile SparseWorld::encode_tile(std::span<const std::uint8_t> voxels) {

@@ -13,12 +13,14 @@
 // and are not stored, nor are tiles whose every value is the "inside" value (unsigned fields:
 // a tile full of solid voxels, 0; signed: a full tile whose halo is full, -D), except in
 // packed32, whose solid voxels carry their colour.
+#include <algorithm>
+#include <bit>
 #include <cstdint>
 #include <map>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
-#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -37,6 +39,132 @@ inline constexpr double kDefaultSparseMaxDistance = 16;
 // max_distance defaults to kDefaultSparseMaxDistance; the format defaults as for dense
 // worlds when `format_given` is false. Throws InputError naming what to change.
 GeneratorOptions resolve_sparse_options(const GeneratorOptions& options, bool format_given);
+
+// Tile key (core/sparse.hpp's tile_key) -> 32-bit entry: open addressing with linear probing in
+// one flat array, at most half full (no allocation per entry: std::unordered_map's made most of
+// run()'s listing of a large world's field tiles). The part of std::unordered_map's interface
+// that SparseField uses; an insert that grows it invalidates iterators and references. Threads
+// may find() and set distinct entries' values at once.
+class TileMap {
+  public:
+    using Entry = std::pair<std::uint64_t, std::uint32_t>;
+    template <class E>
+    class Iter {
+      public:
+        Iter(E* at, E* end) : at_(at), end_(end) { skip(); }
+        E& operator*() const { return *at_; }
+        E* operator->() const { return at_; }
+        Iter& operator++() {
+            ++at_;
+            skip();
+            return *this;
+        }
+        bool operator==(const Iter& o) const { return at_ == o.at_; }
+
+      private:
+        void skip() {
+            while (at_ != end_ && at_->first == kFree) {
+                ++at_;
+            }
+        }
+        E* at_;
+        E* end_;
+    };
+    using iterator = Iter<Entry>;
+    using const_iterator = Iter<const Entry>;
+
+    iterator begin() { return {entries_.data(), entries_.data() + entries_.size()}; }
+    iterator end() {
+        return {entries_.data() + entries_.size(), entries_.data() + entries_.size()};
+    }
+    const_iterator begin() const { return {entries_.data(), entries_.data() + entries_.size()}; }
+    const_iterator end() const {
+        return {entries_.data() + entries_.size(), entries_.data() + entries_.size()};
+    }
+    std::size_t size() const { return size_; }
+    void clear() {
+        entries_.clear();
+        size_ = 0;
+    }
+    // Room for n entries without growing.
+    void reserve(std::size_t n) {
+        if (2 * n > entries_.size()) {
+            rehash(std::bit_ceil(std::max<std::size_t>(2 * n, 16)));
+        }
+    }
+    iterator find(std::uint64_t key) {
+        return {entries_.data() + probe(key), entries_.data() + entries_.size()};
+    }
+    const_iterator find(std::uint64_t key) const {
+        return {entries_.data() + probe(key), entries_.data() + entries_.size()};
+    }
+    const std::uint32_t& at(std::uint64_t key) const {
+        const const_iterator it = find(key);
+        if (it == end()) {
+            throw std::out_of_range("TileMap::at: no entry for the tile");
+        }
+        return it->second;
+    }
+    // The entry of `key`, inserted as 0 when there was none.
+    std::uint32_t& operator[](std::uint64_t key) { return insert(key, 0)->second; }
+    // Inserts (key, value) unless `key` has an entry; true when it inserted.
+    bool emplace(std::uint64_t key, std::uint32_t value) {
+        const std::size_t before = size_;
+        insert(key, value);
+        return size_ != before;
+    }
+
+  private:
+    static constexpr std::uint64_t kFree = ~std::uint64_t{0};
+    static std::size_t hash(std::uint64_t k) {
+        k ^= k >> 33;
+        k *= 0xff51afd7ed558ccdULL;
+        k ^= k >> 33;
+        return static_cast<std::size_t>(k);
+    }
+    // The index of key's entry, or entries_.size() when it has none.
+    std::size_t probe(std::uint64_t key) const {
+        if (entries_.empty()) {
+            return 0;
+        }
+        const std::size_t mask = entries_.size() - 1;
+        for (std::size_t i = hash(key) & mask;; i = (i + 1) & mask) {
+            if (entries_[i].first == key) {
+                return i;
+            }
+            if (entries_[i].first == kFree) {
+                return entries_.size();
+            }
+        }
+    }
+    Entry* insert(std::uint64_t key, std::uint32_t value) {
+        if (2 * (size_ + 1) > entries_.size()) {
+            rehash(std::max<std::size_t>(2 * entries_.size(), 16));
+        }
+        const std::size_t mask = entries_.size() - 1;
+        std::size_t i = hash(key) & mask;
+        while (entries_[i].first != key && entries_[i].first != kFree) {
+            i = (i + 1) & mask;
+        }
+        if (entries_[i].first == kFree) {
+            entries_[i] = {key, value};
+            ++size_;
+        }
+        return &entries_[i];
+    }
+    void rehash(std::size_t capacity) {
+        std::vector<Entry> old(capacity, Entry{kFree, 0});
+        old.swap(entries_);
+        size_ = 0;
+        for (const Entry& e : old) {
+            if (e.first != kFree) {
+                insert(e.first, e.second);
+            }
+        }
+    }
+    std::vector<Entry> entries_;
+    std::size_t size_ = 0;
+};
 
 class SparseField {
   public:
@@ -187,13 +315,14 @@ class SparseField {
     bool gpu_layout_ = false;
     cl::Kernel scatter_, scatter_voxels_, node_minima_;  // arguments set per launch
     cl::Kernel fill_slot_, sweep_init_, sweep_l1_, sweep_l1_rows_, sweep_finish_;
+    cl::Kernel sweep_l1_loaded_;  // sweep_l1 of the GPU layout
     bool force_blocks_ = false;
     SparseDeviceWorld device_world_;  // the world's 64-trees on the device
     // node_minima's slots, tile coordinates and minima in list order.
     cl::Buffer minima_list_, minima_coords_, minima_listed_, minima_nodes_;
     std::size_t minima_list_cap_ = 0;
     // Field tiles: key -> slot on the device, or kInsideTile (constant inside value).
-    std::unordered_map<std::uint64_t, std::uint32_t> tiles_;
+    TileMap tiles_;
     std::vector<std::uint64_t> slot_keys_;  // per slot, its tile key
     cl::Buffer pool_;                       // slots of kTileVoxels * elem_ bytes
     std::size_t pool_slots_ = 0;

@@ -62,9 +62,10 @@ class SparseWorld {
     static SparseWorld from_dense(const World& world);
     // Tile by tile from `fill`, called once per column of tiles (a tile's x and z extents,
     // up to 16 tiles along y, clipped to the world: a fill that computes per (x, z) column
-    // does so once per 16 tiles), so that no dense array of the world ever exists. Tiles are filled and encoded on up to
-    // `threads` threads (0: one per hardware thread), so `fill` may be called concurrently,
-    // each call with its own box and span; the world is the same for any thread count.
+    // does so once per 16 tiles), so that no dense array of the world ever exists. Tiles are filled
+    // and encoded on up to `threads` threads (0: one per hardware thread), so `fill` may be called
+    // concurrently, each call with its own box and span; the world is the same for any thread
+    // count.
     static SparseWorld from_fill(Dims dims, const BoxFill& fill, unsigned threads = 0);
     // From voxels handed to the sink one by one by `place` (a scene's instances, a grid's
     // active voxels), bucketed by tile (4 bytes per voxel placed): no dense array and no
@@ -97,6 +98,9 @@ class SparseWorld {
     std::uint32_t find_tile(std::int64_t tx, std::int64_t ty, std::int64_t tz) const;
     // The bounding box of the tile's solid voxels (world coordinates).
     Box solid_bounds(std::uint32_t tile) const;
+    // One side of it: the least (`high`: greatest) coordinate along `axis` (0 x, 1 y, 2 z) of
+    // the tile's solid voxels (world coordinates; the tile holds one).
+    std::int64_t solid_extreme(std::uint32_t tile, int axis, bool high) const;
     // The tile's 64^3 voxels (tile-local, x fastest; beyond the world's edge 0).
     void decode_tile(std::uint32_t tile, std::span<std::uint8_t> out) const;
 
