@@ -579,32 +579,24 @@ bool ExactManhattan::enqueue(std::vector<std::pair<std::string, cl::Event>>& eve
     if (fallback_from_ < stages_.size()) {
         return false;  // run() reads the byte sweeps' flag in between
     }
-    cl_call("enqueueing exact_manhattan.cl on " + dims_.to_string(), [&] {
-        for (const KernelLaunch& stage : stages_) {
-            events.emplace_back(stage.name, cl::Event());
-            ctx_.queue().enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global,
-                                              stage.local, nullptr, &events.back().second);
-        }
-    });
+    cl_call("enqueueing exact_manhattan.cl on " + dims_.to_string(),
+            [&] { enqueue_stages(stages_, events); });
     return true;
 }
 
 double ExactManhattan::run() {
     return cl_call("running exact_manhattan.cl on " + dims_.to_string(), [&] {
         auto& q = ctx_.queue();
+        const std::span<const KernelLaunch> stages(stages_);
+        const std::size_t first = std::min(fallback_from_, stages.size());
         std::vector<std::pair<std::string, cl::Event>> events;
-        for (std::size_t i = 0; i < stages_.size(); ++i) {
-            if (i == fallback_from_) {
-                cl_uint cut = 0;
-                q.enqueueReadBuffer(flag_, CL_TRUE, 0, sizeof cut, &cut);
-                if (cut == 0) {
-                    break;
-                }
+        enqueue_stages(stages.first(first), events);
+        if (first < stages.size()) {
+            cl_uint cut = 0;
+            q.enqueueReadBuffer(flag_, CL_TRUE, 0, sizeof cut, &cut);
+            if (cut != 0) {
+                enqueue_stages(stages.subspan(first), events);
             }
-            const KernelLaunch& stage = stages_[i];
-            events.emplace_back(stage.name, cl::Event());
-            q.enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global, stage.local, nullptr,
-                                   &events.back().second);
         }
         q.finish();
         record_stages(events);

@@ -288,6 +288,15 @@ cl::Buffer Generator::make_buffer(std::size_t bytes, cl_mem_flags flags) {
                       host_memory_.back().data());
 }
 
+void Generator::enqueue_stages(std::span<const KernelLaunch> stages,
+                               std::vector<std::pair<std::string, cl::Event>>& events) {
+    for (const KernelLaunch& stage : stages) {
+        events.emplace_back(stage.name, cl::Event());
+        ctx_.queue().enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global, stage.local,
+                                          nullptr, &events.back().second);
+    }
+}
+
 void Generator::record_stages(const std::vector<std::pair<std::string, cl::Event>>& events) {
     stage_ms_.clear();
     for (const auto& [name, event] : events) {

@@ -579,26 +579,16 @@ std::string ExactSeparable::variant() const {
 }
 
 bool ExactSeparable::enqueue(std::vector<std::pair<std::string, cl::Event>>& events) {
-    cl_call("enqueueing exact_separable.cl on " + dims_.to_string(), [&] {
-        for (const KernelLaunch& stage : stages_) {
-            events.emplace_back(stage.name, cl::Event());
-            ctx_.queue().enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global,
-                                              stage.local, nullptr, &events.back().second);
-        }
-    });
+    cl_call("enqueueing exact_separable.cl on " + dims_.to_string(),
+            [&] { enqueue_stages(stages_, events); });
     return true;
 }
 
 double ExactSeparable::run() {
     return cl_call("running exact_separable.cl on " + dims_.to_string(), [&] {
-        auto& q = ctx_.queue();
         std::vector<std::pair<std::string, cl::Event>> events;
-        for (const KernelLaunch& stage : stages_) {
-            events.emplace_back(stage.name, cl::Event());
-            q.enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global, stage.local, nullptr,
-                                   &events.back().second);
-        }
-        q.finish();
+        enqueue_stages(stages_, events);
+        ctx_.queue().finish();
         record_stages(events);
         return elapsed_ms(events.front().second, events.back().second);
     });

@@ -143,6 +143,9 @@ class Generator {
     Generator(Context& ctx, Dims dims, Format format) : ctx_(ctx), dims_(dims), format_(format) {}
     // Records stage times from (name, event) pairs in enqueue order.
     void record_stages(const std::vector<std::pair<std::string, cl::Event>>& events);
+    // Enqueues `stages` in order, appending (kernel name, event) per launch to `events`.
+    void enqueue_stages(std::span<const KernelLaunch> stages,
+                        std::vector<std::pair<std::string, cl::Event>>& events);
     // A buffer of `bytes` (flags: its CL_MEM_READ_* access). On a device that computes in
     // host memory it lies in HostMemory the generator keeps (CL_MEM_USE_HOST_PTR), never
     // zero-filled: the first kernel that writes it touches its pages, in parallel, and the
