@@ -346,7 +346,6 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block, bool pow2_
     const auto per_batch =
         static_cast<std::uint32_t>(std::clamp<std::int64_t>(kBatchVoxels / per_block, 1, want));
     Batch& batch = batch_for(block, per_batch);
-    const Dims wd = world_.dims();
     auto& q = ctx_.queue();
     double ms = 0;
     for (std::size_t first = 0; first < jobs.size(); first += per_batch) {
@@ -409,29 +408,8 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block, bool pow2_
                 q.enqueueWriteBuffer(batch.regions, CL_FALSE, 0, regions.size() * 8,
                                      regions.data());
                 q.enqueueWriteBuffer(batch.slots, CL_FALSE, 0, slots.size() * 4, slots.data());
-                cl::Kernel gather = device_world_.gather_kernel(gpu_layout_);
-                gather.setArg(6, batch.jobs);
-                gather.setArg(7, batch.refs);
-                gather.setArg(8, batch.voxels);
-                gather.setArg(9, block.x);
-                gather.setArg(10, block.y);
-                gather.setArg(11, block.z);
-                gather.setArg(12, static_cast<cl_long>(wd.x));
-                gather.setArg(13, static_cast<cl_long>(wd.y));
-                gather.setArg(14, static_cast<cl_long>(wd.z));
                 cl::Event ev_gather;
-                // Fixed work-group sizes: PoCL compiles a kernel once per local size.
-                if (gpu_layout_) {
-                    q.enqueueNDRangeKernel(gather, cl::NullRange,
-                                           cl::NDRange(round_up(block.x, kGroupVoxels), block.y,
-                                                       std::size_t{block.z} * n),
-                                           cl::NDRange(kGroupVoxels, 1, 1), nullptr, &ev_gather);
-                } else {
-                    q.enqueueNDRangeKernel(
-                        gather, cl::NullRange,
-                        cl::NDRange(round_up(block.y, kGroupRows), std::size_t{block.z} * n),
-                        cl::NDRange(kGroupRows, 1), nullptr, &ev_gather);
-                }
+                enqueue_gather(batch.jobs, batch.refs, batch.voxels, block, n, &ev_gather);
                 ms += batch.generator->run();  // waits for the queue, the gather too
                 traffic_ += {static_cast<std::uint32_t>(7 + batch.generator->stage_ms().size()), 1};
                 ms += elapsed_ms(ev_gather, ev_gather);
@@ -439,35 +417,72 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block, bool pow2_
                 for (const auto& [name, stage_ms] : batch.generator->stage_ms()) {
                     add_stage(name, stage_ms);
                 }
-                cl::Kernel& scatter = gpu_layout_ ? scatter_voxels_ : scatter_;
-                scatter.setArg(0, batch.generator->field_buffer());
-                scatter.setArg(1, pool_);
-                scatter.setArg(2, batch.scatter_jobs);
-                scatter.setArg(3, batch.regions);
-                scatter.setArg(4, batch.slots);
-                scatter.setArg(5, block.x);
-                scatter.setArg(6, block.y);
-                scatter.setArg(7, block.z);
-                const auto sx = static_cast<std::size_t>(largest.x);
-                const auto sy = static_cast<std::size_t>(largest.y);
-                const auto sz = static_cast<std::size_t>(largest.z);
-                if (gpu_layout_) {
-                    scatter.setArg(8, static_cast<cl_uint>(sx));
-                    scatter.setArg(9, static_cast<cl_uint>(sy));
-                    scatter.setArg(10, static_cast<cl_uint>(sz));
-                    q.enqueueNDRangeKernel(
-                        scatter, cl::NullRange, cl::NDRange(round_up(sx, kGroupVoxels), sy, sz * n),
-                        cl::NDRange(kGroupVoxels, 1, 1), nullptr, &scatters_.emplace_back());
-                } else {
-                    scatter.setArg(8, static_cast<cl_uint>(sy));
-                    scatter.setArg(9, static_cast<cl_uint>(sz));
-                    q.enqueueNDRangeKernel(
-                        scatter, cl::NullRange, cl::NDRange(round_up(sy, kGroupRows), sz * n),
-                        cl::NDRange(kGroupRows, 1), nullptr, &scatters_.emplace_back());
-                }
+                enqueue_scatter(batch.generator->field_buffer(), batch.scatter_jobs, batch.regions,
+                                batch.slots, block, largest, n, &scatters_.emplace_back());
             });
     }
     return ms;
+}
+
+void SparseField::enqueue_gather(const cl::Buffer& jobs, const cl::Buffer& refs,
+                                 const cl::Buffer& voxels, Dims block, std::size_t count,
+                                 cl::Event* event) {
+    const Dims wd = world_.dims();
+    cl::Kernel gather = device_world_.gather_kernel(gpu_layout_);
+    gather.setArg(6, jobs);
+    gather.setArg(7, refs);
+    gather.setArg(8, voxels);
+    gather.setArg(9, block.x);
+    gather.setArg(10, block.y);
+    gather.setArg(11, block.z);
+    gather.setArg(12, static_cast<cl_long>(wd.x));
+    gather.setArg(13, static_cast<cl_long>(wd.y));
+    gather.setArg(14, static_cast<cl_long>(wd.z));
+    // Fixed work-group sizes: PoCL compiles a kernel once per local size.
+    auto& q = ctx_.queue();
+    if (gpu_layout_) {
+        q.enqueueNDRangeKernel(
+            gather, cl::NullRange,
+            cl::NDRange(round_up(block.x, kGroupVoxels), block.y, std::size_t{block.z} * count),
+            cl::NDRange(kGroupVoxels, 1, 1), nullptr, event);
+    } else {
+        q.enqueueNDRangeKernel(
+            gather, cl::NullRange,
+            cl::NDRange(round_up(block.y, kGroupRows), std::size_t{block.z} * count),
+            cl::NDRange(kGroupRows, 1), nullptr, event);
+    }
+}
+
+void SparseField::enqueue_scatter(const cl::Buffer& field, const cl::Buffer& jobs,
+                                  const cl::Buffer& regions, const cl::Buffer& slots, Dims block,
+                                  Int3 largest, std::size_t count, cl::Event* event) {
+    cl::Kernel& scatter = gpu_layout_ ? scatter_voxels_ : scatter_;
+    scatter.setArg(0, field);
+    scatter.setArg(1, pool_);
+    scatter.setArg(2, jobs);
+    scatter.setArg(3, regions);
+    scatter.setArg(4, slots);
+    scatter.setArg(5, block.x);
+    scatter.setArg(6, block.y);
+    scatter.setArg(7, block.z);
+    const auto sx = static_cast<std::size_t>(largest.x);
+    const auto sy = static_cast<std::size_t>(largest.y);
+    const auto sz = static_cast<std::size_t>(largest.z);
+    auto& q = ctx_.queue();
+    if (gpu_layout_) {
+        scatter.setArg(8, static_cast<cl_uint>(sx));
+        scatter.setArg(9, static_cast<cl_uint>(sy));
+        scatter.setArg(10, static_cast<cl_uint>(sz));
+        q.enqueueNDRangeKernel(scatter, cl::NullRange,
+                               cl::NDRange(round_up(sx, kGroupVoxels), sy, sz * count),
+                               cl::NDRange(kGroupVoxels, 1, 1), nullptr, event);
+    } else {
+        scatter.setArg(8, static_cast<cl_uint>(sy));
+        scatter.setArg(9, static_cast<cl_uint>(sz));
+        q.enqueueNDRangeKernel(scatter, cl::NullRange,
+                               cl::NDRange(round_up(sy, kGroupRows), sz * count),
+                               cl::NDRange(kGroupRows, 1), nullptr, event);
+    }
 }
 
 void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots,
@@ -1147,27 +1162,9 @@ double SparseField::update_block(const Job& job, Dims block,
     cl_call("updating a sparse field block of " + block.to_string(), [&] {
         auto& q = ctx_.queue();
         tables_->write(q);
-        cl::Kernel gather = device_world_.gather_kernel(gpu_layout_);
-        gather.setArg(6, tables_->buffer(kJobs));
-        gather.setArg(7, tables_->buffer(kRefs));
-        gather.setArg(8, batch.voxels);
-        gather.setArg(9, block.x);
-        gather.setArg(10, block.y);
-        gather.setArg(11, block.z);
-        gather.setArg(12, static_cast<cl_long>(wd.x));
-        gather.setArg(13, static_cast<cl_long>(wd.y));
-        gather.setArg(14, static_cast<cl_long>(wd.z));
         events.emplace_back("gather", cl::Event());
-        if (gpu_layout_) {
-            q.enqueueNDRangeKernel(
-                gather, cl::NullRange,
-                cl::NDRange(round_up(block.x, kGroupVoxels), block.y, std::size_t{block.z}),
-                cl::NDRange(kGroupVoxels, 1, 1), nullptr, &events.back().second);
-        } else {
-            q.enqueueNDRangeKernel(gather, cl::NullRange,
-                                   cl::NDRange(round_up(block.y, kGroupRows), block.z),
-                                   cl::NDRange(kGroupRows, 1), nullptr, &events.back().second);
-        }
+        enqueue_gather(tables_->buffer(kJobs), tables_->buffer(kRefs), batch.voxels, block, 1,
+                       &events.back().second);
         const std::size_t generator_first = events.size();
         if (!batch.generator->enqueue(events)) {
             // A generator that reads a flag back in between: its own run(), which waits.
@@ -1179,33 +1176,10 @@ double SparseField::update_block(const Job& job, Dims block,
             }
         }
         const std::size_t generator_end = events.size();
-        cl::Kernel& scatter = gpu_layout_ ? scatter_voxels_ : scatter_;
-        scatter.setArg(0, batch.generator->field_buffer());
-        scatter.setArg(1, pool_);
-        scatter.setArg(2, tables_->buffer(kScatterJobs));
-        scatter.setArg(3, tables_->buffer(kRegions));
-        scatter.setArg(4, tables_->buffer(kSlots));
-        scatter.setArg(5, block.x);
-        scatter.setArg(6, block.y);
-        scatter.setArg(7, block.z);
-        const auto sx = static_cast<std::size_t>(size.x);
-        const auto sy = static_cast<std::size_t>(size.y);
-        const auto sz = static_cast<std::size_t>(size.z);
         events.emplace_back("scatter", cl::Event());
-        if (gpu_layout_) {
-            scatter.setArg(8, static_cast<cl_uint>(sx));
-            scatter.setArg(9, static_cast<cl_uint>(sy));
-            scatter.setArg(10, static_cast<cl_uint>(sz));
-            q.enqueueNDRangeKernel(scatter, cl::NullRange,
-                                   cl::NDRange(round_up(sx, kGroupVoxels), sy, sz),
-                                   cl::NDRange(kGroupVoxels, 1, 1), nullptr, &events.back().second);
-        } else {
-            scatter.setArg(8, static_cast<cl_uint>(sy));
-            scatter.setArg(9, static_cast<cl_uint>(sz));
-            q.enqueueNDRangeKernel(scatter, cl::NullRange,
-                                   cl::NDRange(round_up(sy, kGroupRows), sz),
-                                   cl::NDRange(kGroupRows, 1), nullptr, &events.back().second);
-        }
+        enqueue_scatter(batch.generator->field_buffer(), tables_->buffer(kScatterJobs),
+                        tables_->buffer(kRegions), tables_->buffer(kSlots), block, size, 1,
+                        &events.back().second);
         cl::Kernel& k = node_minima_;
         k.setArg(0, pool_);
         k.setArg(1, tables_->buffer(kList));
