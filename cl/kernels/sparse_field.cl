@@ -249,6 +249,13 @@ inline void sweep_carry(__global const ELEM* restrict pool, uint nb, size_t at, 
     }
 }
 
+// The offset within a tile of its line along `axis` (0 x, 1 y, 2 z) at (u, w), the two other
+// axes' coordinates lowest first, and the line's element stride.
+inline size_t tile_line(uint axis, size_t u, size_t w, size_t* stride) {
+    *stride = axis == 0 ? 1 : axis == 1 ? TILE : TILE * TILE;
+    return axis == 0 ? (w * TILE + u) * TILE : axis == 1 ? w * TILE * TILE + u : w * TILE + u;
+}
+
 // One 1-D pass of the exact L1 transform along `axis` (0 x, 1 y, 2 z), in place: a work-item per
 // line of a tile (global ids 0 and 1 the two other axes, lowest first), a forward and a backward
 // scan over the line and `halo` voxels of each neighbour. Neighbours are read while their own
@@ -259,17 +266,8 @@ __kernel void sweep_l1(__global ELEM* restrict pool, __global const uint* restri
                        uint axis, uint halo, int cap) {
     const size_t u = get_global_id(0), w = get_global_id(1);
     const size_t slot = first + get_global_id(2);
-    size_t stride, at;
-    if (axis == 0) {
-        stride = 1;
-        at = (w * TILE + u) * TILE;
-    } else if (axis == 1) {
-        stride = TILE;
-        at = w * TILE * TILE + u;
-    } else {
-        stride = TILE * TILE;
-        at = w * TILE + u;
-    }
+    size_t stride;
+    const size_t at = tile_line(axis, u, w, &stride);
     __global ELEM* line = pool + slot * TILE_VOXELS + at;
     for (int dir = -1; dir <= 1; dir += 2) {
         int out, in;
@@ -355,17 +353,8 @@ __kernel void sweep_l1_loaded(__global ELEM* restrict pool, __global const uint*
                               ELEM near) {
     const size_t u = get_global_id(0), w = get_global_id(1);
     const size_t slot = first + get_global_id(2);
-    size_t stride, at;
-    if (axis == 0) {
-        stride = 1;
-        at = (w * TILE + u) * TILE;
-    } else if (axis == 1) {
-        stride = TILE;
-        at = w * TILE * TILE + u;
-    } else {
-        stride = TILE * TILE;
-        at = w * TILE + u;
-    }
+    size_t stride;
+    const size_t at = tile_line(axis, u, w, &stride);
     __global ELEM* line = pool + slot * TILE_VOXELS + at;
     int v[TILE];
     if (axis == 0) {
