@@ -148,12 +148,8 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
     const std::string label = "sparse " + dims.to_string();
     const ocl::GeneratorOptions options = sparse_options(o);
     const json load_start = load_average();
-    observer.stage(label + ": building the city scene tile by tile");
-    const auto t_build = Clock::now();
-    const CityScene scene(dims, o.seed);
-    SparseWorld world = SparseWorld::from_fill(
-        dims, [&](const Box& box, std::span<std::uint8_t> out) { scene.fill(box, out); });
-    const double build_ms = ms_since(t_build);
+    double build_ms = 0;
+    SparseWorld world = build_city(dims, o.seed, label, observer, build_ms);
     const double rss_after_build = peak_rss_bytes();
     const std::vector<Brush> edits = surface_edits(world, warmup + edit_count, o.seed);
     const std::uint32_t tiles = world.tile_count();
@@ -329,6 +325,17 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
 }
 
 }  // namespace
+
+SparseWorld build_city(Dims dims, std::uint64_t seed, const std::string& label,
+                       BenchObserver& observer, double& build_ms) {
+    observer.stage(label + ": building the city scene tile by tile");
+    const auto t_build = Clock::now();
+    const CityScene scene(dims, seed);
+    SparseWorld world = SparseWorld::from_fill(
+        dims, [&](const Box& box, std::span<std::uint8_t> out) { scene.fill(box, out); });
+    build_ms = ms_since(t_build);
+    return world;
+}
 
 double peak_rss_bytes() {
     rusage u{};

@@ -15,6 +15,7 @@
 #include "bench_suites.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/runtime.hpp"
+#include "voxfield/core/sparse.hpp"
 
 namespace voxfield::cli {
 
@@ -24,6 +25,10 @@ namespace voxfield::cli {
 // The options of a sparse row: the bench flags' metric, spacing, sign and bound (default 16),
 // the format given; InputError for a bad combination.
 ocl::GeneratorOptions sparse_options(const SuiteOptions& o);
+// Core's city scene of `dims` (seed `seed`) built tile by tile into a SparseWorld, announced to
+// `observer` as `label`'s build stage; `build_ms` gets the time it took.
+SparseWorld build_city(Dims dims, std::uint64_t seed, const std::string& label,
+                       BenchObserver& observer, double& build_ms);
 // The process's peak resident memory (bytes, getrusage).
 double peak_rss_bytes();
 // The machine's load averages (1, 5, 15 minutes; /proc/loadavg), null where unreadable: other

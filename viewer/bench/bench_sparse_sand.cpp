@@ -66,12 +66,8 @@ json sparse_sand_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::u
     const std::string label = "sparse-sand " + dims.to_string();
     const ocl::GeneratorOptions options = sparse_options(o);
     const json load_start = load_average();
-    observer.stage(label + ": building the city scene tile by tile");
-    const auto t_build = Clock::now();
-    const CityScene scene(dims, o.seed);
-    SparseWorld world = SparseWorld::from_fill(
-        dims, [&](const Box& box, std::span<std::uint8_t> out) { scene.fill(box, out); });
-    const double build_ms = ms_since(t_build);
+    double build_ms = 0;
+    SparseWorld world = build_city(dims, o.seed, label, observer, build_ms);
     const std::uint32_t tiles = world.tile_count();
     const Palette palette = Palette::magicavoxel_default();
     const bool check = dims.count() <= kCheckVoxels;
