@@ -227,8 +227,6 @@ TEST(SparseUpdate, SeveralBindingsAndTheWholeUploadFallback) {
     vk::SparseTracer cut(*ctx, binding);
     cut.upload(world, palette);
     ASSERT_GE(cut.stats().material_chunks, 2u);
-    ASSERT_LT(cut.stats().material_chunks, std::uint32_t{VF_SPARSE_MAX_MATERIAL_CHUNKS});
-    ASSERT_LT(cut.stats().node_chunks, std::uint32_t{VF_SPARSE_MAX_NODE_CHUNKS});
     vk::SparseTileUpdate u = cut.update_tiles(
         world,
         apply_brush(world, brush(BrushOp::place, BrushShape::sphere, {100, 30, 90}, 12, 200)));
@@ -257,7 +255,6 @@ TEST(SparseUpdate, LongSequenceWithSmallBindings) {
         std::max<std::uint64_t>(kTileVoxels, world.materials().size() / 3) / 8 * 8 + 8;
     vk::SparseTracer tracer(*ctx, binding);
     tracer.upload(world, palette);
-    ASSERT_LT(tracer.stats().material_chunks, std::uint32_t{VF_SPARSE_MAX_MATERIAL_CHUNKS});
     std::mt19937_64 rng(21);
     std::uniform_int_distribution<std::int64_t> px(0, 299), py(0, 149), pz(0, 269), radius(0, 40),
         op(0, 2);
