@@ -51,6 +51,14 @@ nlohmann::json sparse_trace_keys(const SparseWorld& world, const Palette& palett
         return {{"trace_skipped", std::string("no Vulkan device: ") + e.what()}};
     } catch (const InputError& e) {
         return {{"trace_skipped", e.what()}};
+    } catch (const vk::VkError& e) {
+        // The device's memory does not hold the tracer's copy (besides OpenCL's world and field
+        // when both run on one GPU).
+        if (e.result() != VK_ERROR_OUT_OF_DEVICE_MEMORY &&
+            e.result() != VK_ERROR_OUT_OF_HOST_MEMORY) {
+            throw;
+        }
+        return {{"trace_skipped", e.what()}};
     }
 }
 

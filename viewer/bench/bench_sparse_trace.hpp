@@ -16,8 +16,8 @@ namespace voxfield::cli {
 // trace_node_chunks and trace_material_chunks (the buffers nodes and materials were cut into),
 // trace_flat_ms and trace_lit_ms (medians of `runs` dispatches, the suite's --repeat, after one
 // untimed each), their samples, trace_node_visits_per_ray and trace_node_exits_per_ray (flat,
-// primary rays); trace_skipped (why) alone when no Vulkan device serves or the world does not
-// fit it.
+// primary rays); trace_skipped (why) alone when no Vulkan device serves, or the world does not
+// fit its limits or its memory.
 nlohmann::json sparse_trace_keys(const SparseWorld& world, const Palette& palette,
                                  std::uint32_t runs);
 // One line for the run's log: "traced 1920x1080 on DEVICE: flat F ms, lit L ms (GPU timestamps),
