@@ -25,7 +25,9 @@ nlohmann::json sparse_trace_keys(const SparseWorld& world, const Palette& palett
         nlohmann::json keys = {{"trace_width", kWidth},
                                {"trace_height", kHeight},
                                {"trace_vulkan_device", ctx.info().name},
-                               {"trace_device_bytes", tracer.stats().bytes}};
+                               {"trace_device_bytes", tracer.stats().bytes},
+                               {"trace_node_chunks", tracer.stats().node_chunks},
+                               {"trace_material_chunks", tracer.stats().material_chunks}};
         for (const vk::Shading shading : {vk::Shading::flat, vk::Shading::lit}) {
             r.shading = shading;
             tracer.render(r);  // untimed: first use of the pipeline
@@ -49,6 +51,14 @@ nlohmann::json sparse_trace_keys(const SparseWorld& world, const Palette& palett
         return {{"trace_skipped", std::string("no Vulkan device: ") + e.what()}};
     } catch (const InputError& e) {
         return {{"trace_skipped", e.what()}};
+    } catch (const vk::VkError& e) {
+        // The device's memory does not hold the tracer's copy (besides OpenCL's world and field
+        // when both run on one GPU).
+        if (e.result() != VK_ERROR_OUT_OF_DEVICE_MEMORY &&
+            e.result() != VK_ERROR_OUT_OF_HOST_MEMORY) {
+            throw;
+        }
+        return {{"trace_skipped", e.what()}};
     }
 }
 
@@ -62,7 +72,9 @@ std::string describe_sparse_trace(const nlohmann::json& keys) {
     };
     return "traced 1920x1080 on " + keys["trace_vulkan_device"].get<std::string>() + ": flat " +
            ms("trace_flat_ms") + ", lit " + ms("trace_lit_ms") + " (GPU timestamps), " +
-           fixed(keys["trace_node_visits_per_ray"].get<double>(), 2) + " node visits per ray";
+           fixed(keys["trace_node_visits_per_ray"].get<double>(), 2) + " node visits per ray, " +
+           std::to_string(keys["trace_node_chunks"].get<std::uint32_t>()) + " node and " +
+           std::to_string(keys["trace_material_chunks"].get<std::uint32_t>()) + " material chunks";
 }
 
 }  // namespace voxfield::cli

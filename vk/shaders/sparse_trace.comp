@@ -10,6 +10,8 @@
 // the walk visits exactly the voxels the plain walk visits, minus those inside empty nodes:
 // flat images equal raymarch.comp's pixel for pixel.
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_buffer_reference_uvec2 : require
 #include "voxfield/layout.h"
 #include "voxfield/vk/sparse_trace_layout.h"
 #include "trace_common.glsl"
@@ -18,11 +20,10 @@ layout(local_size_x = VF_SPARSE_LOCAL_SIZE, local_size_y = VF_SPARSE_LOCAL_SIZE)
 
 // Specialization constants (mirrored by vk/src/sparse_tracer.cpp): whether lit shading traces
 // shadow rays and occlusion taps, whether each ray counts its node visits and exits, whether
-// the nodes lie in one binding and whether the materials do (no switch over the chunks).
+// the world is one node chunk and one material chunk (read through their bindings).
 layout(constant_id = 0) const bool kShadows = true;
 layout(constant_id = 1) const bool kCount = false;
-layout(constant_id = 2) const bool kOneNodeChunk = false;
-layout(constant_id = 3) const bool kOneMaterialChunk = false;
+layout(constant_id = 2) const bool kOneChunk = false;
 
 // One RGBA8 pixel per texel, r | g << 8 | b << 16 | a << 24.
 layout(binding = VF_SPARSE_BINDING_IMAGE, r32ui) uniform writeonly uimage2D out_image;
@@ -41,23 +42,24 @@ layout(std430, binding = VF_SPARSE_BINDING_RECORDS) readonly buffer RecordBuf {
 layout(std430, binding = VF_SPARSE_BINDING_COUNTERS) writeonly buffer CounterBuf {
     uvec2 counters[];
 };
-// Unused chunk bindings alias chunk 0 and are never read.
-layout(std430, binding = VF_SPARSE_BINDING_MASKS + 0) readonly buffer K0 { uvec2 k0[]; };
-layout(std430, binding = VF_SPARSE_BINDING_MASKS + 1) readonly buffer K1 { uvec2 k1[]; };
-layout(std430, binding = VF_SPARSE_BINDING_MASKS + 2) readonly buffer K2 { uvec2 k2[]; };
-layout(std430, binding = VF_SPARSE_BINDING_MASKS + 3) readonly buffer K3 { uvec2 k3[]; };
-layout(std430, binding = VF_SPARSE_BINDING_OFFSETS + 0) readonly buffer O0 { uint o0[]; };
-layout(std430, binding = VF_SPARSE_BINDING_OFFSETS + 1) readonly buffer O1 { uint o1[]; };
-layout(std430, binding = VF_SPARSE_BINDING_OFFSETS + 2) readonly buffer O2 { uint o2[]; };
-layout(std430, binding = VF_SPARSE_BINDING_OFFSETS + 3) readonly buffer O3 { uint o3[]; };
-layout(std430, binding = VF_SPARSE_BINDING_MATERIALS + 0) readonly buffer M0 { uint m0[]; };
-layout(std430, binding = VF_SPARSE_BINDING_MATERIALS + 1) readonly buffer M1 { uint m1[]; };
-layout(std430, binding = VF_SPARSE_BINDING_MATERIALS + 2) readonly buffer M2 { uint m2[]; };
-layout(std430, binding = VF_SPARSE_BINDING_MATERIALS + 3) readonly buffer M3 { uint m3[]; };
-layout(std430, binding = VF_SPARSE_BINDING_MATERIALS + 4) readonly buffer M4 { uint m4[]; };
-layout(std430, binding = VF_SPARSE_BINDING_MATERIALS + 5) readonly buffer M5 { uint m5[]; };
-layout(std430, binding = VF_SPARSE_BINDING_MATERIALS + 6) readonly buffer M6 { uint m6[]; };
-layout(std430, binding = VF_SPARSE_BINDING_MATERIALS + 7) readonly buffer M7 { uint m7[]; };
+// The chunks, through the device addresses in the tile records: a tile's node masks and node
+// offsets from its root on, a chunk's materials.
+layout(buffer_reference, std430, buffer_reference_align = 8) readonly buffer NodeMasks {
+    uvec2 masks[];
+};
+layout(buffer_reference, std430, buffer_reference_align = 4) readonly buffer Words {
+    uint words[];
+};
+// kOneChunk: the chunks through their bindings.
+layout(std430, binding = VF_SPARSE_BINDING_MASKS0) readonly buffer Masks0 {
+    uvec2 masks0[];
+};
+layout(std430, binding = VF_SPARSE_BINDING_OFFSETS0) readonly buffer Offsets0 {
+    uint offsets0[];
+};
+layout(std430, binding = VF_SPARSE_BINDING_MATERIALS0) readonly buffer Materials0 {
+    uint materials0[];
+};
 
 // Mirrors SparsePushConstants in vk/src/sparse_tracer.cpp.
 layout(push_constant) uniform Params {
@@ -70,66 +72,6 @@ layout(push_constant) uniform Params {
     uvec4 blocks;  // block table X, Y, Z
 }
 pc;
-
-uvec2 node_mask(uint chunk, uint i) {
-    if (kOneNodeChunk) {
-        return k0[i];
-    }
-    switch (chunk) {
-        case 0u:
-            return k0[i];
-        case 1u:
-            return k1[i];
-        case 2u:
-            return k2[i];
-        default:
-            return k3[i];
-    }
-}
-
-uint node_offset(uint chunk, uint i) {
-    if (kOneNodeChunk) {
-        return o0[i];
-    }
-    switch (chunk) {
-        case 0u:
-            return o0[i];
-        case 1u:
-            return o1[i];
-        case 2u:
-            return o2[i];
-        default:
-            return o3[i];
-    }
-}
-
-uint material_word(uint chunk, uint i) {
-    if (kOneMaterialChunk) {
-        return m0[i];
-    }
-    switch (chunk) {
-        case 0u:
-            return m0[i];
-        case 1u:
-            return m1[i];
-        case 2u:
-            return m2[i];
-        case 3u:
-            return m3[i];
-        case 4u:
-            return m4[i];
-        case 5u:
-            return m5[i];
-        case 6u:
-            return m6[i];
-        default:
-            return m7[i];
-    }
-}
-
-uint material_at(uint chunk, uint i) {
-    return (material_word(chunk, i >> 2) >> ((i & 3u) * 8u)) & 0xFFu;
-}
 
 // A 64-tree child's bit (x, y, z in 0..3): z << 4 | y << 2 | x.
 uint child_bit(uvec3 l) {
@@ -157,13 +99,30 @@ int level_shift(uint level) {
 // What the walk knows of the nodes above its level (valid for the node holding its cell at
 // every level above the current one).
 uint g_page;    // level 0 occupied: the block's page
-uvec4 g_tile;   // level 1 occupied: the tile's record
-uvec2 g_mask0;  // the tile's root mask
-uint g_node1;   // level 2 occupied: the 16^3 node's index in the node chunk
+// Level 1 occupied: the tile's record (its first uvec4; through the device addresses, its
+// node masks and node offsets from its root on and its material chunk) and its root mask.
+struct Tile {
+    uvec4 record;
+    NodeMasks masks;
+    Words offsets;
+    Words materials;
+    uvec2 mask0;
+};
+Tile g_tile;
+uint g_node1;   // level 2 occupied: the 16^3 node's index (from the tile's root)
 uvec2 g_mask1;
 uint g_node2;   // level 3 occupied: the 4^3 node's index
 uvec2 g_mask2;
 uint g_bit;     // level 4 occupied: the voxel's bit in g_mask2
+
+// Node i of the walk's tile (0: its root): its mask and its offset (its first child's index).
+uvec2 node_mask(uint i) {
+    return kOneChunk ? masks0[g_tile.record.x + i] : g_tile.masks.masks[i];
+}
+
+uint node_offset(uint i) {
+    return kOneChunk ? offsets0[g_tile.record.x + i] : g_tile.offsets.words[i];
+}
 
 // Whether the node at `level` holding cell u is occupied (stored, or a set bit of its parent's
 // mask); if so, loads what the next level needs.
@@ -182,17 +141,23 @@ bool enter(uint level, uvec3 u) {
         if (tile == VF_SPARSE_NONE) {
             return false;
         }
-        g_tile = tile_records[tile];
-        g_mask0 = node_mask(g_tile.z, g_tile.x);
+        g_tile.record = tile_records[VF_SPARSE_RECORD_UVEC4S * tile];
+        if (!kOneChunk) {
+            uvec4 more = tile_records[VF_SPARSE_RECORD_UVEC4S * tile + 1u];
+            g_tile.masks = NodeMasks(g_tile.record.zw);
+            g_tile.offsets = Words(more.xy);
+            g_tile.materials = Words(more.zw);
+        }
+        g_tile.mask0 = node_mask(0u);
         return true;
     }
     if (level == 2u) {
         uint b = child_bit((u >> 4) & 3u);
-        if (!has_bit(g_mask0, b)) {
+        if (!has_bit(g_tile.mask0, b)) {
             return false;
         }
-        g_node1 = g_tile.x + node_offset(g_tile.z, g_tile.x) + rank_below(g_mask0, b);
-        g_mask1 = node_mask(g_tile.z, g_node1);
+        g_node1 = node_offset(0u) + rank_below(g_tile.mask0, b);
+        g_mask1 = node_mask(g_node1);
         return true;
     }
     if (level == 3u) {
@@ -200,8 +165,8 @@ bool enter(uint level, uvec3 u) {
         if (!has_bit(g_mask1, b)) {
             return false;
         }
-        g_node2 = g_tile.x + node_offset(g_tile.z, g_node1) + rank_below(g_mask1, b);
-        g_mask2 = node_mask(g_tile.z, g_node2);
+        g_node2 = node_offset(g_node1) + rank_below(g_mask1, b);
+        g_mask2 = node_mask(g_node2);
         return true;
     }
     g_bit = child_bit(u & 3u);
@@ -210,14 +175,15 @@ bool enter(uint level, uvec3 u) {
 
 // The material of the voxel the walk's last successful enter(kVoxelLevel, ...) found.
 uint hit_material() {
-    uint first = g_tile.y + node_offset(g_tile.z, g_node2);
-    return material_at(g_tile.w, first + rank_below(g_mask2, g_bit));
+    uint i = g_tile.record.y + node_offset(g_node2) + rank_below(g_mask2, g_bit);
+    uint word = kOneChunk ? materials0[i >> 2] : g_tile.materials.words[i >> 2];
+    return (word >> ((i & 3u) * 8u)) & 0xFFu;
 }
 
 // The material of cell c (0: empty or outside the world), looked up from the top, or from the
-// 16^3 level when c lies in the tile whose record and root mask are `tile` and `root` at tile
-// coordinates `tile_at` (the hit's: most occlusion taps are there).
-uint material_of(ivec3 c, ivec3 tile_at, uvec4 tile, uvec2 root) {
+// 16^3 level when c lies in `tile` at tile coordinates `tile_at` (the hit's: most occlusion
+// taps are there).
+uint material_of(ivec3 c, ivec3 tile_at, Tile tile) {
     if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, ivec3(pc.dims.xyz)))) {
         return 0u;
     }
@@ -225,7 +191,6 @@ uint material_of(ivec3 c, ivec3 tile_at, uvec4 tile, uvec2 root) {
     uint level = 0u;
     if ((c >> 6) == tile_at) {
         g_tile = tile;
-        g_mask0 = root;
         level = 2u;
     }
     for (; level <= kVoxelLevel; ++level) {
@@ -350,22 +315,21 @@ bool trace(vec3 o, vec3 dir, out ivec3 cell, out ivec3 face, out vec3 point, out
 // heights k = 1..4 along n, the cell straight out and the four k cells aside along the face's
 // axes (a 45 degree cone); the more of them are solid, the more the face is enclosed (nearer
 // heights weigh more, as the dense ray marcher's taps). Call it right after the trace that hit
-// `cell` (its tile's record and root mask are still the walk's).
+// `cell` (its tile is still the walk's).
 float occlusion(ivec3 cell, ivec3 n) {
     const float weights[4] = float[4](0.4, 0.3, 0.2, 0.1);
     ivec3 t1 = n.x != 0 ? ivec3(0, 1, 0) : ivec3(1, 0, 0);
     ivec3 t2 = n.z != 0 ? ivec3(0, 1, 0) : ivec3(0, 0, 1);
     ivec3 tile_at = cell >> 6;
-    uvec4 tile = g_tile;
-    uvec2 root = g_mask0;
+    Tile tile = g_tile;
     float sum = 0.0;
     for (int k = 1; k <= 4; ++k) {
         ivec3 c = cell + n * k;
-        uint solid = uint(material_of(c, tile_at, tile, root) != 0u) +
-                     uint(material_of(c + t1 * k, tile_at, tile, root) != 0u) +
-                     uint(material_of(c - t1 * k, tile_at, tile, root) != 0u) +
-                     uint(material_of(c + t2 * k, tile_at, tile, root) != 0u) +
-                     uint(material_of(c - t2 * k, tile_at, tile, root) != 0u);
+        uint solid = uint(material_of(c, tile_at, tile) != 0u) +
+                     uint(material_of(c + t1 * k, tile_at, tile) != 0u) +
+                     uint(material_of(c - t1 * k, tile_at, tile) != 0u) +
+                     uint(material_of(c + t2 * k, tile_at, tile) != 0u) +
+                     uint(material_of(c - t2 * k, tile_at, tile) != 0u);
         sum += weights[k - 1] * float(solid) / 5.0;
     }
     return 1.0 - 0.7 * sum;

@@ -98,14 +98,36 @@ Context::Context(const ContextOptions& options) {
                 enabled_.emplace_back(ext);
             }
         }
+        // Device addresses (the sparse tracer reads its chunks through them) where the device
+        // has the extension and its feature.
+        VkPhysicalDeviceBufferDeviceAddressFeaturesKHR addresses{};
+        addresses.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_BUFFER_DEVICE_ADDRESS_FEATURES_KHR;
+        if (info_.has_extension(VK_KHR_BUFFER_DEVICE_ADDRESS_EXTENSION_NAME)) {
+            VkPhysicalDeviceFeatures2 features{};
+            features.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2;
+            features.pNext = &addresses;
+            vkGetPhysicalDeviceFeatures2(physical_, &features);
+        }
+        const bool use_addresses = addresses.bufferDeviceAddress == VK_TRUE;
+        if (use_addresses) {
+            extensions.push_back(VK_KHR_BUFFER_DEVICE_ADDRESS_EXTENSION_NAME);
+            enabled_.emplace_back(VK_KHR_BUFFER_DEVICE_ADDRESS_EXTENSION_NAME);
+            addresses.bufferDeviceAddressCaptureReplay = VK_FALSE;
+            addresses.bufferDeviceAddressMultiDevice = VK_FALSE;
+        }
         VkDeviceCreateInfo info{};
         info.sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO;
+        info.pNext = use_addresses ? &addresses : nullptr;
         info.queueCreateInfoCount = 1;
         info.pQueueCreateInfos = &q;
         info.enabledExtensionCount = static_cast<std::uint32_t>(extensions.size());
         info.ppEnabledExtensionNames = extensions.data();
         check(vkCreateDevice(physical_, &info, nullptr, &device_), "vkCreateDevice", info_.name);
         vkGetDeviceQueue(device_, family_, 0, &queue_);
+        if (use_addresses) {
+            get_buffer_address_ = reinterpret_cast<PFN_vkGetBufferDeviceAddressKHR>(
+                vkGetDeviceProcAddr(device_, "vkGetBufferDeviceAddressKHR"));
+        }
 
         VkCommandPoolCreateInfo pool{};
         pool.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
@@ -178,15 +200,30 @@ std::uint32_t Context::memory_type(std::uint32_t allowed, MemoryIntent intent,
 }
 
 Owned<VkDeviceMemory> Context::allocate(const VkMemoryRequirements& req, MemoryIntent intent,
-                                        const std::string& what) {
+                                        const std::string& what, VkMemoryAllocateFlags flags) {
+    VkMemoryAllocateFlagsInfo flags_info{};
+    flags_info.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_FLAGS_INFO;
+    flags_info.flags = flags;
     VkMemoryAllocateInfo info{};
     info.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
+    info.pNext = flags != 0 ? &flags_info : nullptr;
     info.allocationSize = req.size;
     info.memoryTypeIndex = memory_type(req.memoryTypeBits, intent, what);
     VkDeviceMemory memory = VK_NULL_HANDLE;
     check(vkAllocateMemory(device_, &info, nullptr, &memory), "vkAllocateMemory",
           what + ", " + std::to_string(req.size) + " bytes");
     return Owned<VkDeviceMemory>(device_, memory, vkFreeMemory);
+}
+
+VkDeviceAddress Context::device_address(const Buffer& buffer) const {
+    if (get_buffer_address_ == nullptr) {
+        throw VkError("vkGetBufferDeviceAddressKHR", VK_ERROR_FEATURE_NOT_PRESENT,
+                      info_.name + " has no buffer device addresses");
+    }
+    VkBufferDeviceAddressInfoKHR info{};
+    info.sType = VK_STRUCTURE_TYPE_BUFFER_DEVICE_ADDRESS_INFO_KHR;
+    info.buffer = buffer.get();
+    return get_buffer_address_(device_, &info);
 }
 
 bool Context::enabled(const std::string& extension) const {
@@ -271,7 +308,8 @@ Buffer Context::make_buffer(VkDeviceSize size, VkBufferUsageFlags usage, MemoryI
     b.buffer_ = Owned<VkBuffer>(device_, handle, vkDestroyBuffer);
     VkMemoryRequirements req{};
     vkGetBufferMemoryRequirements(device_, handle, &req);
-    b.memory_ = allocate(req, intent, what);
+    const bool addressed = (usage & VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT) != 0;
+    b.memory_ = allocate(req, intent, what, addressed ? VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT : 0);
     check(vkBindBufferMemory(device_, handle, b.memory_.get(), 0), "vkBindBufferMemory", what);
     const std::uint32_t type = memory_type(req.memoryTypeBits, intent, what);
     const VkMemoryPropertyFlags host =

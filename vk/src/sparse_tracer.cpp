@@ -40,14 +40,22 @@ struct SparsePushConstants {
 };
 static_assert(sizeof(SparsePushConstants) == 112);
 
-// sparse_trace.comp's specialization constants 0..3: shadows, counting, one node chunk, one
-// material chunk.
+// sparse_trace.comp's specialization constants 0..2: shadows, counting, one chunk (of nodes
+// and of materials).
 struct Specialization {
     VkBool32 shadows;
     VkBool32 count;
-    VkBool32 one_node_chunk;
-    VkBool32 one_material_chunk;
+    VkBool32 one_chunk;
 };
+
+// The uints of one tile record (sparse_trace_layout.h).
+constexpr std::size_t kRecordWords = 4 * VF_SPARSE_RECORD_UVEC4S;
+constexpr std::uint64_t kRecordBytes = 4 * kRecordWords;
+
+// Chunks: read through device addresses (chunk 0 also through its binding), copied into.
+constexpr VkBufferUsageFlags kChunkUsage = VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT |
+                                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                           VK_BUFFER_USAGE_TRANSFER_DST_BIT;
 
 // A contiguous range [begin, end) of a node or material buffer bound as one chunk.
 struct Range {
@@ -127,8 +135,8 @@ struct SparseTracer::Impl {
     Owned<VkDescriptorSetLayout> set_layout;
     Owned<VkPipelineLayout> pipeline_layout;
     Owned<VkShaderModule> shader;
-    // By shadows | count << 1 | one node chunk << 2 | one material chunk << 3.
-    std::array<Owned<VkPipeline>, 16> pipelines;
+    // By shadows | count << 1 | one chunk << 2.
+    std::array<Owned<VkPipeline>, 8> pipelines;
     Owned<VkDescriptorPool> pool;
     VkDescriptorSet set = VK_NULL_HANDLE;
     Owned<VkQueryPool> queries;  // one pair: dispatch start, end
@@ -137,7 +145,9 @@ struct SparseTracer::Impl {
     Dims dims;
     std::array<std::uint32_t, 3> blocks{};
     Buffer palette, block_table, pages, records, counters;
+    // The chunks (node chunk c: masks[c] and offsets[c]) and their device addresses.
     std::vector<Buffer> masks, offsets, materials;
+    std::vector<VkDeviceAddress> mask_at, offset_at, material_at;
     SparseDeviceStats stats;
     std::array<std::uint32_t, 256> colours{};
 
@@ -149,7 +159,6 @@ struct SparseTracer::Impl {
     std::uint64_t record_capacity = 0, page_capacity = 0;
     // The edit arena: the node chunk and material chunk after the upload's (none: -1), their
     // capacity and use, and the tiles whose trees live there by record.
-    bool arena_room = false;
     int arena_nodes_chunk = -1, arena_materials_chunk = -1;
     std::uint64_t arena_node_cap = 0, arena_node_used = 0, arena_mat_cap = 0, arena_mat_used = 0;
     std::unordered_map<std::uint32_t, ArenaTile> arena;
@@ -167,14 +176,17 @@ struct SparseTracer::Impl {
     Impl(Context& c, VkDeviceSize l) : ctx(c), limit(l) {}
 
     Buffer storage(VkDeviceSize bytes, const void* data, VkDeviceSize data_bytes,
-                   const std::string& what) {
-        Buffer b =
-            ctx.make_buffer(std::max<VkDeviceSize>(bytes, 16),
-                            VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                            MemoryIntent::device_local, what);
+                   const std::string& what,
+                   VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                              VK_BUFFER_USAGE_TRANSFER_DST_BIT) {
+        Buffer b = ctx.make_buffer(std::max<VkDeviceSize>(bytes, 16), usage,
+                                   MemoryIntent::device_local, what);
         ctx.upload(b, data, data_bytes);
         return b;
     }
+    // Appends a node chunk or a material chunk, or puts one in place of chunk c.
+    void set_node_chunk(std::size_t c, Buffer chunk_masks, Buffer chunk_offsets);
+    void set_material_chunk(std::size_t c, Buffer chunk);
     void upload_all(const SparseWorld& world);
     void stage(const Buffer& dst, VkDeviceSize at, const void* data, VkDeviceSize size);
     void flush(const std::string& what);
@@ -183,20 +195,29 @@ struct SparseTracer::Impl {
     std::uint32_t& page_entry(std::uint32_t page, const Int3& c);
     // Makes the arena hold `nodes` and `materials` more, writing its live tiles (except
     // `dropping`, about to be rewritten) again into fresh buffers when it must grow; false
-    // when it cannot (no chunk binding left, or more than one binding).
+    // when it cannot (more than one binding).
     bool arena_fit(const SparseWorld& world, std::uint64_t nodes, std::uint64_t material_bytes,
                    const std::vector<std::uint32_t>& dropping, bool& rebuilt);
     // Appends tile t's tree to the arena; its record's node and material fields.
     ArenaTile arena_write(const SparseWorld& world, std::uint32_t t, std::uint64_t key);
     void record_arena(std::uint32_t record, const ArenaTile& a);
+    // Record `record` (kRecordWords uints of host_records): its root at index `root` of a node
+    // chunk, its first material at `first_material` of a material chunk.
+    void write_record(std::uint32_t record, std::size_t node_chunk, std::uint64_t root,
+                      std::size_t material_chunk, std::uint64_t first_material);
     void write_set();
-    VkPipeline pipeline_for(bool shadows, bool count, bool one_node_chunk, bool one_material_chunk);
+    VkPipeline pipeline_for(bool shadows, bool count, bool one_chunk);
     void prepare_target(std::uint32_t width, std::uint32_t height);
     // Traces one image; reads it back into `out` unless null. Returns the GPU time (ms, -1).
     double dispatch(const RenderOptions& o, Image* out);
 };
 
 SparseTracer::SparseTracer(Context& ctx, std::uint64_t max_binding_bytes) {
+    if (!ctx.buffer_device_address()) {
+        throw DeviceSelectionError("sparse tracer: " + ctx.info().name +
+                                   " lacks VK_KHR_buffer_device_address (bufferDeviceAddress), "
+                                   "through which the tracer reads the world's 64-trees");
+    }
     VkDeviceSize limit = ctx.info().max_storage_buffer_range;
     if (max_binding_bytes != 0) {
         limit = std::min<VkDeviceSize>(limit, max_binding_bytes);
@@ -281,33 +302,45 @@ void SparseTracer::Impl::upload_all(const SparseWorld& world) {
                              " tiles exceeds one storage-buffer binding (" + mib(m.limit) + ")");
         }
     }
+    if (world.tile_count() * kRecordBytes > m.limit) {
+        throw InputError("sparse tracer: the world's " + std::to_string(world.tile_count()) +
+                         " tile records exceed one storage-buffer binding (" + mib(m.limit) + ")");
+    }
     // Nodes and materials cut at tile starts into chunks of one binding each.
     std::vector<std::uint32_t> node_chunk, material_chunk;
     const std::vector<Range> node_ranges =
         cut(world.node_bases(), world.node_counts(), m.limit / 8, node_chunk);
     const std::vector<Range> material_ranges =
         cut(world.material_bases(), world.material_counts(), m.limit, material_chunk);
-    if (node_ranges.size() > VF_SPARSE_MAX_NODE_CHUNKS ||
-        material_ranges.size() > VF_SPARSE_MAX_MATERIAL_CHUNKS) {
-        throw InputError("sparse tracer: the world's " + std::to_string(world.node_masks().size()) +
-                         " nodes and " + std::to_string(world.materials().size()) +
-                         " material bytes need " + std::to_string(node_ranges.size()) +
-                         " node and " + std::to_string(material_ranges.size()) +
-                         " material bindings of at most " + mib(m.limit) +
-                         "; the tracer binds at most " + std::to_string(VF_SPARSE_MAX_NODE_CHUNKS) +
-                         " and " + std::to_string(VF_SPARSE_MAX_MATERIAL_CHUNKS) + " (" +
-                         std::to_string(VF_SPARSE_MAX_NODE_CHUNKS * (m.limit / 8)) + " nodes, " +
-                         mib(VF_SPARSE_MAX_MATERIAL_CHUNKS * m.limit) + " of materials)");
+    // The chunks (any number of them), then the records: their addresses.
+    m.masks.clear();
+    m.offsets.clear();
+    m.materials.clear();
+    m.mask_at.clear();
+    m.offset_at.clear();
+    m.material_at.clear();
+    for (std::size_t c = 0; c < node_ranges.size(); ++c) {
+        const Range& r = node_ranges[c];
+        const std::uint64_t n = r.end - r.begin;
+        m.set_node_chunk(c,
+                         m.storage(n * 8, world.node_masks().data() + r.begin, n * 8,
+                                   "sparse node masks", kChunkUsage),
+                         m.storage(n * 4, world.node_offsets().data() + r.begin, n * 4,
+                                   "sparse node offsets", kChunkUsage));
+    }
+    for (std::size_t c = 0; c < material_ranges.size(); ++c) {
+        const Range& r = material_ranges[c];
+        const std::uint64_t n = r.end - r.begin;
+        // Whole words: the bytes past the last material are never used.
+        m.set_material_chunk(c, m.storage((n + 3) / 4 * 4, world.materials().data() + r.begin, n,
+                                          "sparse materials", kChunkUsage));
     }
     std::vector<std::uint32_t>& recs = m.host_records;
-    recs.assign(std::size_t{world.tile_count()} * 4, 0);
+    recs.assign(std::size_t{world.tile_count()} * kRecordWords, 0);
     for (std::uint32_t t = 0; t < world.tile_count(); ++t) {
-        recs[4 * std::size_t{t}] =
-            static_cast<std::uint32_t>(world.node_bases()[t] - node_ranges[node_chunk[t]].begin);
-        recs[4 * std::size_t{t} + 1] = static_cast<std::uint32_t>(
-            world.material_bases()[t] - material_ranges[material_chunk[t]].begin);
-        recs[4 * std::size_t{t} + 2] = node_chunk[t];
-        recs[4 * std::size_t{t} + 3] = material_chunk[t];
+        const std::uint32_t nc = node_chunk[t], mc = material_chunk[t];
+        const std::uint64_t root = world.node_bases()[t] - node_ranges[nc].begin;
+        m.write_record(t, nc, root, mc, world.material_bases()[t] - material_ranges[mc].begin);
     }
 
     m.palette = m.storage(sizeof m.colours, m.colours.data(), sizeof m.colours, "sparse palette");
@@ -320,27 +353,10 @@ void SparseTracer::Impl::upload_all(const SparseWorld& world) {
     m.pages =
         m.storage(m.page_capacity * kPageTiles * 4, pg.data(), pg.size() * 4, "sparse tile pages");
     m.record_capacity = std::min<std::uint64_t>(
-        world.tile_count() + std::max<std::uint64_t>(world.tile_count() / 4, 256), m.limit / 16);
-    m.records =
-        m.storage(m.record_capacity * 16, recs.data(), recs.size() * 4, "sparse tile records");
-    m.masks.clear();
-    m.offsets.clear();
-    m.materials.clear();
-    for (const Range& r : node_ranges) {
-        const std::uint64_t n = r.end - r.begin;
-        m.masks.push_back(
-            m.storage(n * 8, world.node_masks().data() + r.begin, n * 8, "sparse node masks"));
-        m.offsets.push_back(
-            m.storage(n * 4, world.node_offsets().data() + r.begin, n * 4, "sparse node offsets"));
-    }
-    for (const Range& r : material_ranges) {
-        const std::uint64_t n = r.end - r.begin;
-        // Whole words: the bytes past the last material are never used.
-        m.materials.push_back(
-            m.storage((n + 3) / 4 * 4, world.materials().data() + r.begin, n, "sparse materials"));
-    }
-    m.arena_room = node_ranges.size() < VF_SPARSE_MAX_NODE_CHUNKS &&
-                   material_ranges.size() < VF_SPARSE_MAX_MATERIAL_CHUNKS;
+        world.tile_count() + std::max<std::uint64_t>(world.tile_count() / 4, 256),
+        m.limit / kRecordBytes);
+    m.records = m.storage(m.record_capacity * kRecordBytes, recs.data(), recs.size() * 4,
+                          "sparse tile records");
     m.arena_nodes_chunk = m.arena_materials_chunk = -1;
     m.arena_node_cap = m.arena_node_used = m.arena_mat_cap = m.arena_mat_used = 0;
     m.stats.node_chunks = static_cast<std::uint32_t>(node_ranges.size());
@@ -441,9 +457,6 @@ void SparseTracer::Impl::flush(const std::string& what) {
 bool SparseTracer::Impl::arena_fit(const SparseWorld& world, std::uint64_t nodes,
                                    std::uint64_t material_bytes,
                                    const std::vector<std::uint32_t>& dropping, bool& rebuilt) {
-    if (!arena_room) {
-        return false;
-    }
     if (arena_nodes_chunk >= 0 && arena_node_used + nodes <= arena_node_cap &&
         arena_mat_used + material_bytes <= arena_mat_cap) {
         return true;
@@ -466,9 +479,7 @@ bool SparseTracer::Impl::arena_fit(const SparseWorld& world, std::uint64_t nodes
     const std::uint64_t nodes_fit = std::min(node_cap, limit / 8);
     const std::uint64_t mats_fit = std::min(mat_cap, limit) / 4 * 4;
     const auto make = [&](VkDeviceSize bytes, const std::string& what) {
-        return ctx.make_buffer(
-            bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-            MemoryIntent::device_local, what);
+        return ctx.make_buffer(bytes, kChunkUsage, MemoryIntent::device_local, what);
     };
     Buffer new_masks = make(nodes_fit * 8, "sparse arena node masks");
     Buffer new_offsets = make(nodes_fit * 4, "sparse arena node offsets");
@@ -476,14 +487,10 @@ bool SparseTracer::Impl::arena_fit(const SparseWorld& world, std::uint64_t nodes
     if (arena_nodes_chunk < 0) {
         arena_nodes_chunk = static_cast<int>(masks.size());
         arena_materials_chunk = static_cast<int>(materials.size());
-        masks.push_back(std::move(new_masks));
-        offsets.push_back(std::move(new_offsets));
-        materials.push_back(std::move(new_materials));
-    } else {
-        masks[static_cast<std::size_t>(arena_nodes_chunk)] = std::move(new_masks);
-        offsets[static_cast<std::size_t>(arena_nodes_chunk)] = std::move(new_offsets);
-        materials[static_cast<std::size_t>(arena_materials_chunk)] = std::move(new_materials);
     }
+    set_node_chunk(static_cast<std::size_t>(arena_nodes_chunk), std::move(new_masks),
+                   std::move(new_offsets));
+    set_material_chunk(static_cast<std::size_t>(arena_materials_chunk), std::move(new_materials));
     arena_node_cap = nodes_fit;
     arena_mat_cap = mats_fit;
     arena_node_used = arena_mat_used = 0;
@@ -521,11 +528,45 @@ ArenaTile SparseTracer::Impl::arena_write(const SparseWorld& world, std::uint32_
 }
 
 void SparseTracer::Impl::record_arena(std::uint32_t record, const ArenaTile& a) {
-    std::uint32_t* r = host_records.data() + 4 * std::size_t{record};
-    r[0] = static_cast<std::uint32_t>(a.node_at);
-    r[1] = static_cast<std::uint32_t>(a.material_at);
-    r[2] = static_cast<std::uint32_t>(arena_nodes_chunk);
-    r[3] = static_cast<std::uint32_t>(arena_materials_chunk);
+    write_record(record, static_cast<std::size_t>(arena_nodes_chunk), a.node_at,
+                 static_cast<std::size_t>(arena_materials_chunk), a.material_at);
+}
+
+void SparseTracer::Impl::write_record(std::uint32_t record, std::size_t node_chunk,
+                                      std::uint64_t root, std::size_t material_chunk,
+                                      std::uint64_t first_material) {
+    std::uint32_t* r = host_records.data() + kRecordWords * record;
+    const auto split = [](std::uint32_t* at, VkDeviceAddress a) {
+        at[0] = static_cast<std::uint32_t>(a);
+        at[1] = static_cast<std::uint32_t>(a >> 32);
+    };
+    r[0] = static_cast<std::uint32_t>(root);
+    r[1] = static_cast<std::uint32_t>(first_material);
+    split(r + 2, mask_at[node_chunk] + 8 * root);
+    split(r + 4, offset_at[node_chunk] + 4 * root);
+    split(r + 6, material_at[material_chunk]);
+}
+
+void SparseTracer::Impl::set_node_chunk(std::size_t c, Buffer chunk_masks, Buffer chunk_offsets) {
+    if (c == masks.size()) {
+        masks.emplace_back();
+        offsets.emplace_back();
+        mask_at.push_back(0);
+        offset_at.push_back(0);
+    }
+    mask_at[c] = ctx.device_address(chunk_masks);
+    offset_at[c] = ctx.device_address(chunk_offsets);
+    masks[c] = std::move(chunk_masks);
+    offsets[c] = std::move(chunk_offsets);
+}
+
+void SparseTracer::Impl::set_material_chunk(std::size_t c, Buffer chunk) {
+    if (c == materials.size()) {
+        materials.emplace_back();
+        material_at.push_back(0);
+    }
+    material_at[c] = ctx.device_address(chunk);
+    materials[c] = std::move(chunk);
 }
 
 SparseTileUpdate SparseTracer::update_tiles(const SparseWorld& world, const Box& changed) {
@@ -614,8 +655,8 @@ SparseTileUpdate SparseTracer::update_tiles(const SparseWorld& world, const Box&
                 record = m.free_records.back();
                 m.free_records.pop_back();
             } else {
-                record = static_cast<std::uint32_t>(m.host_records.size() / 4);
-                m.host_records.resize(m.host_records.size() + 4, 0);
+                record = static_cast<std::uint32_t>(m.host_records.size() / kRecordWords);
+                m.host_records.resize(m.host_records.size() + kRecordWords, 0);
             }
             if (m.host_blocks[b] == VF_SPARSE_NONE) {
                 std::uint32_t page = 0;
@@ -652,26 +693,26 @@ SparseTileUpdate SparseTracer::update_tiles(const SparseWorld& world, const Box&
         }
     }
     // The directory's changes: whole buffers where they outgrew their capacity.
-    bool rebind = u.arena_rebuilt;
-    const std::uint64_t record_count = m.host_records.size() / 4;
+    bool rebind = u.arena_rebuilt;  // the arena is chunk 0, bound, when the world had none
+    const std::uint64_t record_count = m.host_records.size() / kRecordWords;
     if (record_count > m.record_capacity) {
-        if (record_count * 16 > m.limit) {
+        if (record_count * kRecordBytes > m.limit) {
             throw InputError("sparse tracer: the directory's " + std::to_string(record_count) +
                              " tile records exceed one storage-buffer binding (" + mib(m.limit) +
                              ")");
         }
-        m.record_capacity = std::min<std::uint64_t>(2 * record_count, m.limit / 16);
+        m.record_capacity = std::min<std::uint64_t>(2 * record_count, m.limit / kRecordBytes);
         m.records = Buffer{};
         m.records =
-            m.ctx.make_buffer(m.record_capacity * 16,
+            m.ctx.make_buffer(m.record_capacity * kRecordBytes,
                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                               MemoryIntent::device_local, "sparse tile records");
         m.stage(m.records, 0, m.host_records.data(), m.host_records.size() * 4);
         rebind = true;
     } else {
         for (const std::uint32_t r : dirty_records) {
-            m.stage(m.records, VkDeviceSize{r} * 16, m.host_records.data() + 4 * std::size_t{r},
-                    16);
+            m.stage(m.records, VkDeviceSize{r} * kRecordBytes,
+                    m.host_records.data() + kRecordWords * r, kRecordBytes);
         }
     }
     const std::uint64_t page_count = m.host_pages.size() / kPageTiles;
@@ -726,16 +767,9 @@ void SparseTracer::Impl::write_set() {
     add(VF_SPARSE_BINDING_RECORDS, records);
     add(VF_SPARSE_BINDING_COUNTERS, counters);
     // A world without tiles has no chunks: the block table stands in (never read).
-    for (std::uint32_t c = 0; c < VF_SPARSE_MAX_NODE_CHUNKS; ++c) {
-        add(VF_SPARSE_BINDING_MASKS + c,
-            masks.empty() ? block_table : masks[c < masks.size() ? c : 0]);
-        add(VF_SPARSE_BINDING_OFFSETS + c,
-            offsets.empty() ? block_table : offsets[c < offsets.size() ? c : 0]);
-    }
-    for (std::uint32_t c = 0; c < VF_SPARSE_MAX_MATERIAL_CHUNKS; ++c) {
-        add(VF_SPARSE_BINDING_MATERIALS + c,
-            materials.empty() ? block_table : materials[c < materials.size() ? c : 0]);
-    }
+    add(VF_SPARSE_BINDING_MASKS0, masks.empty() ? block_table : masks[0]);
+    add(VF_SPARSE_BINDING_OFFSETS0, offsets.empty() ? block_table : offsets[0]);
+    add(VF_SPARSE_BINDING_MATERIALS0, materials.empty() ? block_table : materials[0]);
     const VkDescriptorImageInfo image_info{VK_NULL_HANDLE, target.view.get(),
                                            VK_IMAGE_LAYOUT_GENERAL};
     if (target.view) {
@@ -748,23 +782,18 @@ void SparseTracer::Impl::write_set() {
                            0, nullptr);
 }
 
-VkPipeline SparseTracer::Impl::pipeline_for(bool shadows, bool count, bool one_node_chunk,
-                                            bool one_material_chunk) {
+VkPipeline SparseTracer::Impl::pipeline_for(bool shadows, bool count, bool one_chunk) {
     Owned<VkPipeline>& slot =
-        pipelines[(shadows ? 1u : 0u) | (count ? 2u : 0u) | (one_node_chunk ? 4u : 0u) |
-                  (one_material_chunk ? 8u : 0u)];
+        pipelines[(shadows ? 1u : 0u) | (count ? 2u : 0u) | (one_chunk ? 4u : 0u)];
     if (slot) {
         return slot.get();
     }
     const auto flag = [](bool b) { return b ? VkBool32{VK_TRUE} : VkBool32{VK_FALSE}; };
-    const Specialization data{flag(shadows), flag(count), flag(one_node_chunk),
-                              flag(one_material_chunk)};
-    const std::array<VkSpecializationMapEntry, 4> entries = {
+    const Specialization data{flag(shadows), flag(count), flag(one_chunk)};
+    const std::array<VkSpecializationMapEntry, 3> entries = {
         VkSpecializationMapEntry{0, offsetof(Specialization, shadows), sizeof(VkBool32)},
         VkSpecializationMapEntry{1, offsetof(Specialization, count), sizeof(VkBool32)},
-        VkSpecializationMapEntry{2, offsetof(Specialization, one_node_chunk), sizeof(VkBool32)},
-        VkSpecializationMapEntry{3, offsetof(Specialization, one_material_chunk),
-                                 sizeof(VkBool32)}};
+        VkSpecializationMapEntry{2, offsetof(Specialization, one_chunk), sizeof(VkBool32)}};
     VkSpecializationInfo spec{};
     spec.mapEntryCount = static_cast<std::uint32_t>(entries.size());
     spec.pMapEntries = entries.data();
@@ -837,7 +866,7 @@ double SparseTracer::Impl::dispatch(const RenderOptions& o, Image* out) {
     }
     m.prepare_target(o.width, o.height);
     const VkPipeline pipeline = m.pipeline_for(o.shading == Shading::lit, o.count,
-                                               m.masks.size() <= 1, m.materials.size() <= 1);
+                                               m.masks.size() <= 1 && m.materials.size() <= 1);
     const VkImage image = m.target.image.get();
     const VkQueryPool timer = m.queries.get();
     m.ctx.submit_and_wait(

@@ -263,12 +263,18 @@ class Context {
     // The validation log (nullptr: validation off).
     const std::shared_ptr<ValidationLog>& validation() const { return instance_.validation(); }
 
+    // A buffer with memory of its own; with VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT in
+    // `usage` (buffer_device_address() only) its memory is allocated for device addresses.
     Buffer make_buffer(VkDeviceSize size, VkBufferUsageFlags usage, MemoryIntent intent,
                        const std::string& what);
     // Device extensions enabled on the logical device (VK_KHR_external_memory_fd,
-    // VK_EXT_external_memory_host and VK_KHR_external_semaphore_fd, where the physical device
-    // has them).
+    // VK_EXT_external_memory_host, VK_KHR_external_semaphore_fd and
+    // VK_KHR_buffer_device_address with its feature, where the physical device has them).
     bool enabled(const std::string& extension) const;
+    // Whether shaders may read buffers through device addresses (VK_KHR_buffer_device_address:
+    // GLSL's GL_EXT_buffer_reference), and the address of a buffer made for them.
+    bool buffer_device_address() const { return get_buffer_address_ != nullptr; }
+    VkDeviceAddress device_address(const Buffer& buffer) const;
     // A buffer without memory, created for external memory of `handle_types`; bind() it.
     Buffer make_external_buffer(VkDeviceSize size, VkBufferUsageFlags usage,
                                 VkExternalMemoryHandleTypeFlags handle_types,
@@ -285,8 +291,9 @@ class Context {
                                   const std::string& what) const;
     const VkPhysicalDeviceMemoryProperties& memory_properties() const { return memory_; }
     // Allocates memory for `requirements` by intent (for images).
+    // `flags`: VkMemoryAllocateFlagsInfo's (VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT), 0: none.
     Owned<VkDeviceMemory> allocate(const VkMemoryRequirements& requirements, MemoryIntent intent,
-                                   const std::string& what);
+                                   const std::string& what, VkMemoryAllocateFlags flags = 0);
     // Copies `bytes` into `dst` at `offset`: directly when it is mapped, else through a
     // staging buffer (needs VK_BUFFER_USAGE_TRANSFER_DST_BIT).
     void upload(const Buffer& dst, const void* bytes, VkDeviceSize size, VkDeviceSize offset = 0);
@@ -377,6 +384,7 @@ class Context {
     VkPhysicalDeviceMemoryProperties memory_{};
     PhysicalDeviceInfo info_;
     std::vector<std::string> enabled_;
+    PFN_vkGetBufferDeviceAddressKHR get_buffer_address_ = nullptr;
     Owned<VkCommandPool> pool_;
     std::uint64_t submitted_ = 0, finished_ = 0;  // serials of submissions
     VkResult injected_failure_ = VK_SUCCESS;      // fail_next_submit

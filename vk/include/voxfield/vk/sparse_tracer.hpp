@@ -48,18 +48,20 @@ struct SparseTileUpdate {
 
 class SparseTracer {
   public:
-    // max_binding_bytes: cut nodes and materials into storage-buffer bindings of at most this
-    // many bytes (0: the device's maxStorageBufferRange). Tests lower it to exercise the cut.
+    // max_binding_bytes: cut nodes and materials into chunks of at most this many bytes (0: the
+    // device's maxStorageBufferRange), the directory's buffers too. Tests lower it to exercise
+    // the cut. DeviceSelectionError when the context has no buffer device addresses
+    // (Context::buffer_device_address: VK_KHR_buffer_device_address and its feature).
     explicit SparseTracer(Context& ctx, std::uint64_t max_binding_bytes = 0);
     ~SparseTracer();
     SparseTracer(const SparseTracer&) = delete;
     SparseTracer& operator=(const SparseTracer&) = delete;
 
-    // Copies the world's 64-trees (its buffers as they are, cut at tile boundaries into at most
-    // VF_SPARSE_MAX_NODE_CHUNKS node and VF_SPARSE_MAX_MATERIAL_CHUNKS material bindings), a
-    // directory of its tiles (sparse_trace_layout.h) and the palette onto the device. Throws
-    // InputError when the nodes or materials need more bindings than that, or the block table
-    // or the pages exceed one binding; the message says the limit.
+    // Copies the world's 64-trees (its buffers as they are, cut at tile boundaries into chunks
+    // of one binding each, any number of them, read through device addresses), a directory of
+    // its tiles (sparse_trace_layout.h) and the palette onto the device. Throws InputError when
+    // a tile exceeds one binding, or the block table, the pages or the tile records do; the
+    // message says the limit.
     void upload(const SparseWorld& world, const Palette& palette);
 
     // After the voxels of `changed` were edited in the uploaded world (`world`: the same world,
@@ -68,8 +70,8 @@ class SparseTracer {
     // overlaps is written again from `world`, its new 64-tree appended to the edit arena (an
     // extra node chunk and material chunk, grown by doubling, its superseded trees dropped when
     // it grows), its directory entry repointed, added (a page made for a block that had none)
-    // or removed (the page freed when it empties). Only when the upload left no chunk binding
-    // for the arena, or the arena would exceed one binding, the world is uploaded whole.
+    // or removed (the page freed when it empties). Only when the arena's live trees would
+    // exceed one binding the world is uploaded whole.
     // logic_error before an upload or for a world of other dims.
     SparseTileUpdate update_tiles(const SparseWorld& world, const Box& changed);
 
