@@ -330,14 +330,6 @@ inline uchar64_v add_sat64(uchar64_v a, uchar64_v b) {
 }
 inline uchar64_v sub_sat64(uchar64_v a, uchar64_v b) { return a > b ? a - b : (uchar64_v)0; }
 
-// The sum of v's bytes.
-inline uint sum64(uchar64_v v) {
-    const ulong8 w = __builtin_astype(v, ulong8);
-    const ulong8 pairs = (w & 0x00FF00FF00FF00FFUL) + ((w >> 8) & 0x00FF00FF00FF00FFUL);
-    const ulong8 h = (pairs * 0x0001000100010001UL) >> 48;
-    return (uint)(h.s0 + h.s1 + h.s2 + h.s3 + h.s4 + h.s5 + h.s6 + h.s7);
-}
-
 // The offsets 0..63 of a 64-byte step, and 63..0.
 #define IOTA64 \
     ((uchar64_v)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, \
@@ -346,24 +338,50 @@ inline uint sum64(uchar64_v v) {
                  62, 63))
 #define RIOTA64 ((uchar64_v)63 - IOTA64)
 
-// The bytes of a that are 0 as a bit mask (bit i: a[i] == 0): each 8 bytes' bits summed into
-// the top byte of their word by one multiplication.
+// The bytes of a that are 0 as a bit mask (bit i: a[i] == 0). With AVX-512BW (PoCL builds for
+// the host's CPU) the compare's mask register itself (vpmovb2m); elsewhere each 8 bytes' bits
+// are summed into the top byte of their word by one multiplication. The masks of run_ends
+// took a fifth of xy_bytes' time on PoCL 2 cores without the builtin.
 inline ulong zero_bits64(uchar64_v a) {
+#ifdef __AVX512BW__
+    typedef char c64 __attribute__((ext_vector_type(64)));
+    return __builtin_ia32_cvtb2mask512(__builtin_astype(a == (uchar64_v)0, c64));
+#else
     const uchar64_v w = (uchar64_v)(1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128,
                                      1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128,
                                      1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128,
                                      1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128);
     const ulong8 bits = __builtin_astype(as_uchar64_v(a == (uchar64_v)0) & w, ulong8);
-    const ulong8 h = (bits * 0x0101010101010101UL) >> 56;
-    return h.s0 | h.s1 << 8 | h.s2 << 16 | h.s3 << 24 | h.s4 << 32 | h.s5 << 40 | h.s6 << 48 |
-           h.s7 << 56;
+    return as_ulong(__builtin_convertvector((bits * 0x0101010101010101UL) >> 56, uchar8));
+#endif
 }
 
-// A row's x transform from its solids (a: 0 at a solid, T_MAX elsewhere; X64 bytes, of which
-// the n = X64 / 64 steps' solid masks are in `masks`): each 64-byte step takes the least of
-// its distances to the last solid before it (forward) and the first one after it (backward)
-// as saturated ramps, and to each solid inside it (|offset - q|). Its cost grows with the
-// solids (three vector operations each), not with the distances, as the doubling's does.
+// The ends of the runs of solids of a row (a: 0 at a solid, T_MAX elsewhere; n steps of 64
+// bytes) as one bit mask per step in `ends` (bit i: a solid voxel with an empty one or the
+// row's end beside it), and their number. The nearest solid to an empty voxel ends a run.
+inline uint run_ends(__local const uchar* restrict a, __local ulong_any* restrict ends, uint n) {
+    for (uint j = 0; j < n; ++j) {
+        ends[j] = zero_bits64(LD64(a + 64 * j));
+    }
+    uint k = 0;
+    ulong prev = 0;
+    for (uint j = 0; j < n; ++j) {
+        const ulong m = ends[j];
+        const ulong next = j + 1 < n ? ends[j + 1] : 0;
+        const ulong inner = ((m << 1) | (prev >> 63)) & ((m >> 1) | (next << 63));
+        ends[j] = m & ~inner;
+        k += popcount(ends[j]);
+        prev = m;
+    }
+    return k;
+}
+
+// A row's x transform from the ends of its runs of solids (a: 0 at a solid, T_MAX elsewhere;
+// X64 bytes, of which the n = X64 / 64 steps' run ends are in `masks`, as run_ends): each
+// 64-byte step takes the least of its distances to the last end before it (forward) and the
+// first one after it (backward) as saturated ramps, and to each end inside it (|offset - q|);
+// solids keep 0. Its cost grows with the runs (three vector operations per end), not with
+// the distances, as the doubling's does.
 inline void row_ramps64(__local uchar* restrict a, __local const ulong_any* restrict masks,
                         uint n) {
     uint last = 0;
@@ -381,7 +399,7 @@ inline void row_ramps64(__local uchar* restrict a, __local const ulong_any* rest
             last = c + (63 - clz(mask));
             any = true;
         }
-        ST64(min64(d, (uchar64_v)T_MAX), a + c);
+        ST64(min64(d, LD64(a + c)), a + c);
     }
     uint first = 0;
     any = false;
@@ -454,13 +472,13 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
         __local uchar* dst = slice + y * S + 16;
         __local uchar* a = scratch + pad;
         __local uchar* b = scratch + span + pad;
-        uchar64_v count64 = 0;  // solids per byte offset, saturated
+        uchar64_v any64 = 0;
         for (uint x = 0; x < full64; x += 64) {
             const uchar64_v v = LD64G(src + x);
             ST64(min64(as_uchar64_v(v == (uchar64_v)0), (uchar64_v)T_MAX), a + x);
-            count64 = add_sat64(count64, as_uchar64_v(v != (uchar64_v)0) & (uchar64_v)1);
+            any64 = max64(any64, v);
         }
-        V16 seen = 0;
+        V16 seen = max(max(any64.lo.lo, any64.lo.hi), max(any64.hi.lo, any64.hi.hi));
         for (uint x = full64; x < full; x += 16) {
             const V16 v = LD16G(src + x);
             ST16(min(as_uchar16(v == (V16)0), (V16)T_MAX), a + x);
@@ -471,19 +489,12 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
             a[x] = v ? (uchar)0 : (uchar)T_MAX;
             seen.s0 = max(seen.s0, v);
         }
-        // Rows with solids: where they may be few (at most 8 per 64 bytes on average; the
-        // count of the whole 64-byte steps is a lower bound), their masks (in b, free until
-        // the doubling) and ramps; else the doubling.
-        const uint some = sum64(count64);
-        uint k = some == 0 && hmax16(seen) == 0 ? 0 : X64;
-        if (k != 0 && some <= X64 / 8) {
-            k = 0;
-            __local ulong_any* masks = (__local ulong_any*)b;
-            for (uint x = 0; x < X64; x += 64) {
-                const ulong m = zero_bits64(LD64(a + x));
-                masks[x / 64] = m;
-                k += popcount(m);
-            }
+        // Rows with solids: the ends of their runs of solids as bit masks (in b, free until
+        // the doubling), then ramps where the ends are few (at most 8 per 64 bytes on
+        // average), else the doubling.
+        uint k = 0;
+        if (hmax16(seen) != 0) {
+            k = run_ends(a, (__local ulong_any*)b, X64 / 64);
         }
         if (k != 0 && k <= X64 / 8) {
             row_ramps64(a, (__local const ulong_any*)b, X64 / 64);
