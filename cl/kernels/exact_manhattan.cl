@@ -309,20 +309,112 @@ typedef VTYPE(U, 16) u16_any __attribute__((aligned(1)));
 #define LD16G(p) (*(__global const uchar16_any*)(p))
 #define ST16G(v, p) (*(__global uchar16_any*)(p) = (v))
 #define ST_U16(v, p) (*(__global u16_any*)(p) = CONVERT(U, 16)(v))
-// xy_bytes' doubling steps and y steps take 64 bytes at a time (one AVX-512 register), in a
+// xy_bytes' ramps, doubling steps and y steps take 64 bytes at a time (one AVX-512 register), in a
 // vector of the compiler's (OpenCL C has none of 64 bytes): 32-byte doubling steps and
 // 16-byte y steps took 2.5-3.6 ms of the slices of 256^3 on PoCL 2 cores.
 typedef uchar uchar64_v __attribute__((ext_vector_type(64)));
 typedef uchar64_v uchar64_any __attribute__((aligned(1)));
+typedef ulong ulong_any __attribute__((aligned(1)));
 #define LD64(p) (*(__local const uchar64_any*)(p))
 #define LD64G(p) (*(__global const uchar64_any*)(p))
 #define as_uchar64_v(v) __builtin_astype((v), uchar64_v)
 #define ST64(v, p) (*(__local uchar64_any*)(p) = (v))
+// z_bytes' output, 64 values at a time (non-temporal stores of whole 64-byte lines).
+typedef U u64_v __attribute__((ext_vector_type(64)));
+typedef u64_v u64_a64 __attribute__((aligned(64)));
 inline uchar64_v min64(uchar64_v a, uchar64_v b) { return a < b ? a : b; }
 inline uchar64_v max64(uchar64_v a, uchar64_v b) { return a < b ? b : a; }
 inline uchar64_v add_sat64(uchar64_v a, uchar64_v b) {
     const uchar64_v s = a + b;
     return s < a ? (uchar64_v)255 : s;
+}
+inline uchar64_v sub_sat64(uchar64_v a, uchar64_v b) { return a > b ? a - b : (uchar64_v)0; }
+
+// The offsets 0..63 of a 64-byte step, and 63..0.
+#define IOTA64 \
+    ((uchar64_v)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, \
+                 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, \
+                 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 60, 61, \
+                 62, 63))
+#define RIOTA64 ((uchar64_v)63 - IOTA64)
+
+// The bytes of a that are 0 as a bit mask (bit i: a[i] == 0). With AVX-512BW (PoCL builds for
+// the host's CPU) the compare's mask register itself (vpmovb2m); elsewhere each 8 bytes' bits
+// are summed into the top byte of their word by one multiplication. The masks of run_ends
+// took a fifth of xy_bytes' time on PoCL 2 cores without the builtin.
+inline ulong zero_bits64(uchar64_v a) {
+#ifdef __AVX512BW__
+    typedef char c64 __attribute__((ext_vector_type(64)));
+    return __builtin_ia32_cvtb2mask512(__builtin_astype(a == (uchar64_v)0, c64));
+#else
+    const uchar64_v w = (uchar64_v)(1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128,
+                                     1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128,
+                                     1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128,
+                                     1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128);
+    const ulong8 bits = __builtin_astype(as_uchar64_v(a == (uchar64_v)0) & w, ulong8);
+    return as_ulong(__builtin_convertvector((bits * 0x0101010101010101UL) >> 56, uchar8));
+#endif
+}
+
+// The ends of the runs of solids of a row (a: 0 at a solid, T_MAX elsewhere; n steps of 64
+// bytes) as one bit mask per step in `ends` (bit i: a solid voxel with an empty one or the
+// row's end beside it), and their number. The nearest solid to an empty voxel ends a run.
+inline uint run_ends(__local const uchar* restrict a, __local ulong_any* restrict ends, uint n) {
+    for (uint j = 0; j < n; ++j) {
+        ends[j] = zero_bits64(LD64(a + 64 * j));
+    }
+    uint k = 0;
+    ulong prev = 0;
+    for (uint j = 0; j < n; ++j) {
+        const ulong m = ends[j];
+        const ulong next = j + 1 < n ? ends[j + 1] : 0;
+        const ulong inner = ((m << 1) | (prev >> 63)) & ((m >> 1) | (next << 63));
+        ends[j] = m & ~inner;
+        k += popcount(ends[j]);
+        prev = m;
+    }
+    return k;
+}
+
+// A row's x transform from the ends of its runs of solids (a: 0 at a solid, T_MAX elsewhere;
+// X64 bytes, of which the n = X64 / 64 steps' run ends are in `masks`, as run_ends): each
+// 64-byte step takes the least of its distances to the last end before it (forward) and the
+// first one after it (backward) as saturated ramps, and to each end inside it (|offset - q|);
+// solids keep 0. Its cost grows with the runs (three vector operations per end), not with
+// the distances, as the doubling's does.
+inline void row_ramps64(__local uchar* restrict a, __local const ulong_any* restrict masks,
+                        uint n) {
+    uint last = 0;
+    bool any = false;
+    for (uint j = 0; j < n; ++j) {
+        const uint c = 64 * j;
+        uchar64_v d = any ? add_sat64(IOTA64, (uchar64_v)(uchar)min(c - last, 255u))
+                          : (uchar64_v)T_MAX;
+        const ulong mask = masks[j];
+        for (ulong m = mask; m != 0; m &= m - 1) {
+            const uchar64_v q = (uchar64_v)(uchar)(63 - clz(m & (0UL - m)));
+            d = min64(d, sub_sat64(IOTA64, q) | sub_sat64(q, IOTA64));
+        }
+        if (mask != 0) {
+            last = c + (63 - clz(mask));
+            any = true;
+        }
+        ST64(min64(d, LD64(a + c)), a + c);
+    }
+    uint first = 0;
+    any = false;
+    for (uint j = n; j-- > 0;) {
+        const uint c = 64 * j;
+        if (any && first - (c + 63) < 255u) {
+            const uchar64_v r = add_sat64(RIOTA64, (uchar64_v)(uchar)(first - (c + 63)));
+            ST64(min64(LD64(a + c), r), a + c);
+        }
+        const ulong m = masks[j];
+        if (m != 0) {
+            first = c + (63 - clz(m & (0UL - m)));
+            any = true;
+        }
+    }
 }
 
 inline uchar hmin16(V16 v) {
@@ -350,10 +442,10 @@ inline uchar hmax16(V16 v) {
 // (`slice`, rows of X64 = X rounded up to 64 bytes between 16 bytes of T_MAX each side), then
 // the backward y sweep there, writing w8. A row is X64 long: the bytes past X start at T_MAX,
 // so they only relay values between real voxels at no less than their distance (in L1 and
-// L-inf alike), and leave those exact. A row without solids is T_MAX throughout; one of 1024
-// voxels or more with at most ROW_KMAX solids takes ramps between them (row_solids); the
-// doubling stops once the row's largest value is at most 2s after the step s (every offset
-// left to consider is at least 2s). CHEBYSHEV: the y steps take the least of the three voxels
+// L-inf alike), and leave those exact. A row without solids is T_MAX throughout; one with at
+// most 8 solids per 64 bytes on average takes row_ramps64; others the doubling, which stops
+// once the row's largest value is at most 2s after the step s (every offset left to consider
+// is at least 2s). CHEBYSHEV: the y steps take the least of the three voxels
 // above (below), as xy_slices_seq's KING_STEP. `scratch`: two rows of X64 with `pad` bytes of
 // T_MAX on both sides. It also clears flag[0] for the next kernel (the kernels run in order).
 __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restrict w8,
@@ -397,22 +489,16 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
             a[x] = v ? (uchar)0 : (uchar)T_MAX;
             seen.s0 = max(seen.s0, v);
         }
-        uint pos[ROW_KMAX];
-        const uint k = X >= 1024 && hmax16(seen) != 0 ? row_solids(src, X, pos) : ROW_KMAX + 1;
-        if (k <= ROW_KMAX) {
-            // A long row with few solids: ramps between them (the bytes past X stay T_MAX).
-            for (uint x = 0; x < pos[0]; ++x) {
-                a[x] = (uchar)min(pos[0] - x, (uint)T_MAX);
-            }
-            for (uint i = 0; i + 1 < k; ++i) {
-                for (uint x = pos[i]; x < pos[i + 1]; ++x) {
-                    a[x] = (uchar)min(min(x - pos[i], pos[i + 1] - x), (uint)T_MAX);
-                }
-            }
-            for (uint x = pos[k - 1]; x < X; ++x) {
-                a[x] = (uchar)min(x - pos[k - 1], (uint)T_MAX);
-            }
-        } else if (hmax16(seen) != 0) {
+        // Rows with solids: the ends of their runs of solids as bit masks (in b, free until
+        // the doubling), then ramps where the ends are few (at most 8 per 64 bytes on
+        // average), else the doubling.
+        uint k = 0;
+        if (hmax16(seen) != 0) {
+            k = run_ends(a, (__local ulong_any*)b, X64 / 64);
+        }
+        if (k != 0 && k <= X64 / 8) {
+            row_ramps64(a, (__local const ulong_any*)b, X64 / 64);
+        } else if (k != 0) {
             for (uint s = 1; s < X; s <<= 1) {
                 const uchar64_v step = (uchar64_v)(uchar)min(s, (uint)T_MAX);
                 __local const uchar* lo = a - s;
@@ -447,21 +533,13 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
         for (uint x = 0; x < X64; x += 64) {
             ST64(min64(LD64(cur + x), add_sat64(Y_FROM64(next, x), (uchar64_v)1)), cur + x);
         }
-        if ((size_t)o % 64 == 0) {
-            for (uint x = 0; x < full64; x += 64) {
-                __builtin_nontemporal_store(LD64(cur + x), (__global uchar64_v*)(o + x));
-            }
-            for (uint x = full64; x < full; x += 16) {
-                __builtin_nontemporal_store(LD16(cur + x), (__global V16*)(o + x));
-            }
-        } else if ((size_t)o % 16 == 0) {
-            for (uint x = 0; x < full; x += 16) {
-                __builtin_nontemporal_store(LD16(cur + x), (__global V16*)(o + x));
-            }
-        } else {
-            for (uint x = 0; x < full; x += 16) {
-                ST16G(LD16(cur + x), o + x);
-            }
+        // Plain stores: w8 stays in the last-level cache for z_bytes (non-temporal stores sent
+        // it to memory, and z_bytes read it back from there).
+        for (uint x = 0; x < full64; x += 64) {
+            *(__global uchar64_any*)(o + x) = LD64(cur + x);
+        }
+        for (uint x = full64; x < full; x += 16) {
+            ST16G(LD16(cur + x), o + x);
         }
         for (uint x = full; x < X; ++x) {
             o[x] = cur[x];
@@ -483,6 +561,7 @@ __kernel void z_bytes(__global const uchar* restrict w8, __global U* restrict ou
     const size_t c0 = get_global_id(0) * (size_t)chunk;
     const uint w = (uint)min((size_t)chunk, (size_t)plane - c0);
     const uint w16 = w / 16 * 16;
+    const uint w64 = w / 64 * 64;
     for (uint z = 0; z < Z; ++z) {
         __global const uchar* v = w8 + z * plane + c0;
         __local uchar* cur = scratch + z * w;
@@ -493,8 +572,13 @@ __kernel void z_bytes(__global const uchar* restrict w8, __global U* restrict ou
         }
         // The previous plane's values; T_MAX before the first (read from cur, then replaced).
         __local const uchar* prev = z > 0 ? cur - w : cur;
+        const uchar64_v none64 = z > 0 ? (uchar64_v)0 : (uchar64_v)T_MAX;
+        for (uint i = 0; i < w64; i += 64) {
+            const uchar64_v p = max64(LD64(prev + i), none64);
+            ST64(min64(LD64G(v + i), add_sat64(p, (uchar64_v)1)), cur + i);
+        }
         const V16 none = z > 0 ? (V16)0 : (V16)T_MAX;
-        for (uint i = 0; i < w16; i += 16) {
+        for (uint i = w64; i < w16; i += 16) {
             const V16 p = max(LD16(prev + i), none);
             ST16(min(LD16G(v + i), add_sat(p, (V16)1)), cur + i);
         }
@@ -504,11 +588,26 @@ __kernel void z_bytes(__global const uchar* restrict w8, __global U* restrict ou
         }
     }
     V16 top = 0;
+    uchar64_v top64 = 0;
     for (uint z = Z; z-- > 0;) {
         __global U* o = out + z * plane + c0;
         __local uchar* cur = scratch + z * w;
         __local const uchar* next = z + 1 < Z ? cur + w : cur;
-        if ((size_t)o % sizeof(VTYPE(U, 16)) == 0) {
+        if ((size_t)o % 64 == 0) {
+            for (uint i = 0; i < w64; i += 64) {
+                const uchar64_v d = min64(LD64(cur + i), add_sat64(LD64(next + i), (uchar64_v)1));
+                ST64(d, cur + i);
+                __builtin_nontemporal_store(__builtin_convertvector(d, u64_v),
+                                            (__global u64_a64*)(o + i));
+                top64 = max64(top64, d);
+            }
+            for (uint i = w64; i < w16; i += 16) {
+                const V16 d = min(LD16(cur + i), add_sat(LD16(next + i), (V16)1));
+                ST16(d, cur + i);
+                ST_U16(d, o + i);
+                top = max(top, d);
+            }
+        } else if ((size_t)o % sizeof(VTYPE(U, 16)) == 0) {
             for (uint i = 0; i < w16; i += 16) {
                 const V16 d = min(LD16(cur + i), add_sat(LD16(next + i), (V16)1));
                 ST16(d, cur + i);
@@ -530,6 +629,7 @@ __kernel void z_bytes(__global const uchar* restrict w8, __global U* restrict ou
             top.s0 = max(top.s0, d);
         }
     }
+    top = max(top, max(max(top64.lo.lo, top64.lo.hi), max(top64.hi.lo, top64.hi.hi)));
     if (SAT_CHECK && hmax16(top) == (uchar)255) {
         flag[0] = 1;
     }

@@ -405,12 +405,15 @@ TEST(ExactChebyshevSweeps, RoutedByLayout) {
 }
 
 // The CPU layout's x pass: rows with no solid, with up to 16 solids (row_ramps: runs of
-// solids, solids at the row's ends) and with more (doubling steps that stop early: runs of 5
-// solids 5 apart), in rows of lengths around the 16-voxel blocks, for L1 (unsigned and
-// signed) and L-inf.
+// solids, solids at the row's ends), around the byte sweeps' ramp limit (8 solids per 64
+// bytes of the row rounded up to 64) and with more (doubling steps that stop early: runs of 5
+// solids 5 apart), a row of solids on both sides of every 64-byte step's edge, in rows of
+// lengths around the 16-voxel blocks, for L1 (unsigned and signed) and L-inf.
 World rows_world(std::uint32_t X, std::uint32_t seed) {
     std::mt19937_64 rng(seed);
-    const std::uint32_t counts[] = {0, 1, 2, 15, 16, 17, 40, X / 2, X};
+    const std::uint32_t ramp_limit = (X + 63) / 64 * 8;
+    const std::uint32_t counts[] = {
+        0, 1, 2, 15, 16, 17, ramp_limit, ramp_limit + 1, 40, ramp_limit * 2, X / 2, X};
     World w(Dims{X, static_cast<std::uint32_t>(std::size(counts)) + 3, 3});
     for (std::uint32_t z = 0; z < 3; ++z) {
         for (std::uint32_t r = 0; r < std::size(counts); ++r) {
@@ -428,6 +431,11 @@ World rows_world(std::uint32_t X, std::uint32_t seed) {
             if ((x - z) % 10 < 5) {
                 w.set(x, y + 1, z, 3);
             }
+        }
+        // The last voxel of one 64-byte step and the first of the next, every 64 * (z + 1).
+        for (std::uint32_t x = 64 * (z + 1); x < X; x += 64 * (z + 1)) {
+            w.set(x - 1, y + 2, z, 4);
+            w.set(x, y + 2, z, 4);
         }
     }
     return w;
@@ -453,7 +461,7 @@ void expect_signed(const World& world, const std::string& what) {
 }
 
 TEST(ExactManhattanRows, SparseAndDenseRows) {
-    for (std::uint32_t X : {1u, 2u, 15u, 16u, 17u, 33u, 64u, 300u, 1024u, 1030u}) {
+    for (std::uint32_t X : {1u, 2u, 15u, 16u, 17u, 33u, 64u, 300u, 1024u, 1030u, 2100u}) {
         const World w = rows_world(X, X);
         expect_exact(w, Palette(), "rows");
         expect_chebyshev(w, Palette(), "rows");
