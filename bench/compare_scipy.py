@@ -16,8 +16,9 @@ below is computed three ways and checked against SciPy:
   signed-manhattan     --signed (i16/i32)                    cdt(~solid) - cdt(solid), padded, cropped
   signed-euclidean     --signed --metric euclidean (f32)     edt(~solid) - edt(solid), padded, cropped
 
- 1. `voxfield generate WORLD.npy -o FIELD.npy ... --json J --warmup 1 --repeat R`: the median of
-    the R kernel times (OpenCL profiling events, the device-side figure);
+ 1. `voxfield generate WORLD.npy -o FIELD.npy ... --json J --warmup W --repeat R`: the median of
+    the R kernel times after W untimed runs (--warmup; OpenCL profiling events, the device-side
+    figure);
  2. the plain command `voxfield generate WORLD.npy -o FIELD.npy ...`, R times: its median wall
     time (process start, device set-up, reading the world, the transform, writing the field);
  3. in process: `voxfield.distance_transform` of the Python module (imported from
@@ -250,7 +251,8 @@ def run_world(world, args, module, cases, sampling):
             load_before = os.getloadavg()
             print(f"{name}: voxfield (kernels, then {args.command_repeat} plain commands) ...",
                   file=sys.stderr)
-            run_cli(base + ["--json", json_path, "--warmup", "1", "--repeat", str(args.repeat)])
+            run_cli(base + ["--json", json_path, "--warmup", str(args.warmup), "--repeat",
+                             str(args.repeat)])
             with open(json_path) as f:
                 j = json.load(f)
             device_info = j["device"]
@@ -262,7 +264,8 @@ def run_world(world, args, module, cases, sampling):
                 # The same case by the other binary, right after (its field checked too).
                 print(f"{name}: voxfield before ({args.voxfield_before}) ...", file=sys.stderr)
                 run_cli([args.voxfield_before] + base[1:] +
-                        ["--json", json_path, "--warmup", "1", "--repeat", str(args.repeat)])
+                        ["--json", json_path, "--warmup", str(args.warmup), "--repeat",
+                         str(args.repeat)])
                 with open(json_path) as f:
                     jb = json.load(f)
                 before = {"binary": args.voxfield_before, "label": args.before_label,
@@ -442,7 +445,8 @@ def main():
     ap.add_argument("--scipy-repeat", type=int,
                     help="timed SciPy calls per case (default: --repeat)")
     ap.add_argument("--warmup", type=int, default=1,
-                    help="untimed in-process calls before the timed ones (default 1)")
+                    help="untimed runs before the timed ones: the CLI's --warmup and in-process "
+                         "calls (default 1)")
     ap.add_argument("--cases", default=",".join(CASES),
                     help=f"comma-separated subset of {','.join(CASES)} (default: all)")
     ap.add_argument("--sampling", default="2,1,0.5",
