@@ -2,6 +2,7 @@
 #include "bench_sparse.hpp"
 #include "bench_sparse_trace.hpp"
 
+#include <malloc.h>
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -299,6 +300,9 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
     json peer = nullptr;
     if (o.peer) {
         observer.stage(label + ": OpenVDB's fast sweeping (fogToSdf) on the same world");
+        // The device's world and field, and the trace, were released: their heap pages go back
+        // to the system, so that the peer's grids fit beside the world.
+        malloc_trim(0);
         const bench::OpenVdbPeer p = bench::run_openvdb_peer(
             world, *options.max_distance,
             peer_exact_tiles(ctx, world, palette, options, observer, label));
