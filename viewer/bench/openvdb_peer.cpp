@@ -18,10 +18,9 @@
 namespace voxfield::bench {
 namespace {
 
-// Sets each active fog voxel to 1 where the world is solid, else 0 (one accessor per thread).
+// Sets each active fog voxel to 1 where the world is solid, else 0.
 struct FogValue {
     explicit FogValue(const openvdb::BoolTree& tree) : solid(tree) {}
-    FogValue(const FogValue& other) : solid(other.solid.tree()) {}
     void operator()(const openvdb::FloatGrid::ValueOnIter& it) const {
         it.setValue(solid.isValueOn(it.getCoord()) ? 1.0f : 0.0f);
     }
@@ -122,7 +121,13 @@ OpenVdbPeer run_openvdb_peer(const SparseWorld& world, double bound,
                                               static_cast<int>(d.z) - 1)));
         fog.tree().topologyUnion(band);
         band.clear();
-        openvdb::tools::foreach (fog.beginValueOn(), FogValue(solid), true, false);
+        // The dilation leaves 8^3 blocks wholly in the band as active tiles: each voxel is
+        // valued on its own below.
+        fog.tree().voxelizeActiveTiles();
+        // On one thread: valued by tools::foreach on several, some voxels of the 1024 x 256 x
+        // 1024 city took wrong values (errors of up to 9 voxels that varied run to run and
+        // vanished on one thread), and one thread was no slower there.
+        openvdb::tools::foreach (fog.beginValueOn(), FogValue(solid), false);
     }
     peer.band_voxels = fog.activeVoxelCount();
     peer.leaf_nodes = fog.tree().leafCount();
