@@ -322,6 +322,8 @@ typedef ulong ulong_any __attribute__((aligned(1)));
 // z_bytes' output, 64 values at a time (non-temporal stores of whole 64-byte lines).
 typedef U u64_v __attribute__((ext_vector_type(64)));
 typedef u64_v u64_a64 __attribute__((aligned(64)));
+typedef u64_v u64_any __attribute__((aligned(1)));
+#define ST64G(v, p) (*(__global uchar64_any*)(p) = (v))
 inline uchar64_v min64(uchar64_v a, uchar64_v b) { return a < b ? a : b; }
 inline uchar64_v max64(uchar64_v a, uchar64_v b) { return a < b ? b : a; }
 inline uchar64_v add_sat64(uchar64_v a, uchar64_v b) {
@@ -683,8 +685,8 @@ __kernel void z_king(__global T* restrict work, __global uint* restrict out,
 }
 
 #ifdef U
-// z_king on bytes (the byte program, T = uchar): the same sweeps over the planes, 16 bytes per
-// vector step (a ragged end one at a time), each row written to the output in the backward
+// z_king on bytes (the byte program, T = uchar): the same sweeps over the planes, 64 bytes per
+// vector step, then 16 (a ragged end one at a time), each row written to the output in the backward
 // sweep once final (the last plane after the forward sweep). flag[0]: a value of 255 where
 // the output is wider (SAT_CHECK; the host then runs the wide sweeps).
 __kernel void z_king_bytes(__global uchar* restrict work, __global U* restrict out,
@@ -695,10 +697,12 @@ __kernel void z_king_bytes(__global uchar* restrict work, __global U* restrict o
     }
     const size_t plane = (size_t)X * Y;
     const uint full = X / 16 * 16;
+    const uint full64 = X / 64 * 64;
     __local uchar* c = cm + 1;
     c[-1] = (uchar)T_MAX;
     c[X] = (uchar)T_MAX;
     V16 top = 0;
+    uchar64_v top64 = 0;
     for (uint dir = 0; dir < 2; ++dir) {
         for (uint i = 0; i < Z; ++i) {
             const uint z = dir == 0 ? i : Z - 1 - i;
@@ -710,13 +714,21 @@ __kernel void z_king_bytes(__global uchar* restrict work, __global U* restrict o
                     __global const uchar* p0 = prev + (size_t)y * X;
                     __global const uchar* pl = y > 0 ? p0 - X : p0;
                     __global const uchar* ph = y + 1 < Y ? p0 + X : p0;
-                    for (uint x = 0; x < full; x += 16) {
+                    for (uint x = 0; x < full64; x += 64) {
+                        ST64(min64(min64(LD64G(pl + x), LD64G(p0 + x)), LD64G(ph + x)), c + x);
+                    }
+                    for (uint x = full64; x < full; x += 16) {
                         ST16(min(min(LD16G(pl + x), LD16G(p0 + x)), LD16G(ph + x)), c + x);
                     }
                     for (uint x = full; x < X; ++x) {
                         c[x] = min(min(pl[x], p0[x]), ph[x]);
                     }
-                    for (uint x = 0; x < full; x += 16) {
+                    for (uint x = 0; x < full64; x += 64) {
+                        const uchar64_v m =
+                            min64(min64(LD64(c + x - 1), LD64(c + x)), LD64(c + x + 1));
+                        ST64G(min64(LD64G(r + x), add_sat64(m, (uchar64_v)1)), r + x);
+                    }
+                    for (uint x = full64; x < full; x += 16) {
                         const V16 m = min(min(LD16(c + x - 1), LD16(c + x)), LD16(c + x + 1));
                         ST16G(min(LD16G(r + x), add_sat(m, (V16)1)), r + x);
                     }
@@ -726,7 +738,12 @@ __kernel void z_king_bytes(__global uchar* restrict work, __global U* restrict o
                 }
                 if (dir == 1) {
                     __global U* o = out + z * plane + (size_t)y * X;
-                    for (uint x = 0; x < full; x += 16) {
+                    for (uint x = 0; x < full64; x += 64) {
+                        const uchar64_v d = LD64G(r + x);
+                        *(__global u64_any*)(o + x) = __builtin_convertvector(d, u64_v);
+                        top64 = max64(top64, d);
+                    }
+                    for (uint x = full64; x < full; x += 16) {
                         const V16 d = LD16G(r + x);
                         ST_U16(d, o + x);
                         top = max(top, d);
@@ -739,6 +756,7 @@ __kernel void z_king_bytes(__global uchar* restrict work, __global U* restrict o
             }
         }
     }
+    top = max(top, max(max(top64.lo.lo, top64.lo.hi), max(top64.hi.lo, top64.hi.hi)));
     flag[0] = SAT_CHECK && hmax16(top) == (uchar)255;
 }
 #endif

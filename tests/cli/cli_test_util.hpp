@@ -22,6 +22,8 @@
 #include <string>
 #include <vector>
 
+#include "../xvfb_run.hpp"
+
 extern char** environ;
 
 namespace voxfield::test {
@@ -163,7 +165,7 @@ inline bool have_xvfb() {
 // Runs `voxfield ARGS` under a fresh Xvfb server; returns the exit code, output in `log`.
 inline int run_under_xvfb(const std::vector<std::string>& args, const fs::path& log,
                           const std::string& screen = "640x480x24") {
-    std::string cmd = "xvfb-run -a -s '-screen 0 " + screen + "' '" + kExe.string() + "'";
+    std::string cmd = xvfb_run(screen) + " '" + kExe.string() + "'";
     for (const auto& a : args) {
         cmd += " '" + a + "'";
     }

@@ -542,8 +542,8 @@ TEST_F(ViewTest, OverlayShowsTheAlgorithmGiven) {
         script.append(" --frames 1 --width 64 --height 48 || exit 1; ");
     }
     const fs::path log = io_ / "xvfb.log";
-    const std::string cmd = "xvfb-run -a -s '-screen 0 640x480x24' sh -c \"" + script + "\" >'" +
-                            log.string() + "' 2>&1";
+    const std::string cmd =
+        xvfb_run("640x480x24") + " sh -c \"" + script + "\" >'" + log.string() + "' 2>&1";
     const int status = std::system(cmd.c_str());
     const std::string out = read_text(log);
     ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << out;

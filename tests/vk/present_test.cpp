@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "../xvfb_run.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/vk/present.hpp"
 #include "voxfield/vk/raymarcher.hpp"
@@ -50,9 +51,9 @@ void rerun_under_xvfb() {
     const fs::path self = fs::read_symlink("/proc/self/exe");
     const fs::path log = fs::temp_directory_path() /
                          ("voxfield_present_test_" + std::to_string(::getpid()) + ".log");
-    const std::string cmd = "xvfb-run -a -s '-screen 0 640x480x24' '" + self.string() +
-                            "' --gtest_filter='" + info->test_suite_name() + "." + info->name() +
-                            "' >'" + log.string() + "' 2>&1";
+    const std::string cmd = xvfb_run("640x480x24") + " '" + self.string() + "' --gtest_filter='" +
+                            info->test_suite_name() + "." + info->name() + "' >'" + log.string() +
+                            "' 2>&1";
     const int status = std::system(cmd.c_str());
     std::stringstream out;
     out << std::ifstream(log).rdbuf();

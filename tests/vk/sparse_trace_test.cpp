@@ -22,6 +22,7 @@
 
 #include "../cli/cli_test_util.hpp"
 #include "../cli/far_grid_util.hpp"
+#include "sparse_brush.hpp"
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/camera.hpp"
 #include "voxfield/core/error.hpp"
@@ -504,16 +505,6 @@ void expect_exact(vk::Context& ctx, vk::SparseTracer& tracer, const SparseWorld&
         EXPECT_GT(sky_pixels(got.rgba, r.sky), 0u);
         EXPECT_LT(sky_pixels(got.rgba, r.sky), std::size_t{r.width} * r.height);
     }
-}
-
-Brush brush(BrushOp op, BrushShape shape, Int3 centre, std::int64_t radius, std::uint8_t m) {
-    Brush b;
-    b.op = op;
-    b.shape = shape;
-    b.centre = centre;
-    b.radius = radius;
-    b.material = m;
-    return b;
 }
 
 // A world of random tiles (30% solid: every 4^3 node occupied, about 33 KB of node masks and

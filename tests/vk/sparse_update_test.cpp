@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "cl_test_util.hpp"
+#include "sparse_brush.hpp"
 #include "voxfield/cl/sparse_field.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/palette.hpp"
@@ -80,16 +81,6 @@ SparseWorld city(Dims dims, std::uint64_t seed) {
     const CityScene scene(dims, seed);
     return SparseWorld::from_fill(
         dims, [&](const Box& box, std::span<std::uint8_t> out) { scene.fill(box, out); });
-}
-
-Brush brush(BrushOp op, BrushShape shape, Int3 centre, std::int64_t radius, std::uint8_t m) {
-    Brush b;
-    b.op = op;
-    b.shape = shape;
-    b.centre = centre;
-    b.radius = radius;
-    b.material = m;
-    return b;
 }
 
 TEST(SparseUpdate, RandomEditsEqualAFreshUpload) {
