@@ -187,21 +187,23 @@ int main(int argc, char** argv) {
 
         nlohmann::json peer_json;
         if (peer) {
-            const bench::OpenVdbPeer p = bench::run_openvdb_peer(
-                world, bound,
-                [&](const Box& b) {
-                    const std::vector<std::uint8_t> bytes = field.read_box(b);
-                    std::vector<float> out(bytes.size() / sizeof(float));
-                    std::memcpy(out.data(), bytes.data(), out.size() * sizeof(float));
-                    return out;
-                },
-                64);
+            std::vector<bench::ExactTile> exact;
+            for (const std::uint32_t t : bench::peer_sample_tiles(world, 64)) {
+                const std::vector<std::uint8_t> bytes = field.read_box(world.tile_box(t));
+                bench::ExactTile& e = exact.emplace_back();
+                e.tile = t;
+                e.values.resize(bytes.size() / sizeof(float));
+                std::memcpy(e.values.data(), bytes.data(), e.values.size() * sizeof(float));
+            }
+            const bench::OpenVdbPeer p = bench::run_openvdb_peer(world, bound, exact);
             std::cerr << "OpenVDB fogToSdf: band " << p.band_voxels << " voxels, topology "
                       << p.topology_ms << " ms, sweep " << p.sweep_ms << " ms; error vs exact "
                       << "(" << p.compared << " voxels) mean " << p.mean_abs_error << ", max "
                       << p.max_abs_error << "\n";
             peer_json = {{"name", "OpenVDB tools::fogToSdf (fast sweeping, 1 iteration)"},
                          {"openvdb_version", p.version},
+                         {"leaf_nodes", p.leaf_nodes},
+                         {"peak_rss_bytes", p.peak_rss_bytes},
                          {"band_voxels", p.band_voxels},
                          {"topology_ms", p.topology_ms},
                          {"sweep_ms", p.sweep_ms},

@@ -373,6 +373,63 @@ TEST_F(BenchSuite, SparseTimesTheFieldAndDeviceEditsAndChecksThemExact) {
     }
 }
 
+// --peer: OpenVDB's fast sweeping on the same small city in the same run, after the row's own
+// work, with its times, band, memory and error against the exact field beside voxfield's time;
+// refused with a one-line exit 2 for a field it cannot be compared with, and outside --suite
+// sparse.
+TEST_F(BenchSuite, SparsePeerSweepsTheSameWorldWithOpenVdb) {
+    const fs::path js = dir_ / "sparse-peer.json";
+    // The row's own field in u8 (the suite's default); the peer's error is against f32.
+    const RunResult r = run({"bench", "--suite", "sparse", "--quick", "--peer", "--metric",
+                             "euclidean", "--max-distance", "8", "--edits", "2", "--warmup", "0",
+                             "--device", "cpu", "--json", js.string()});
+    ASSERT_EQ(r.code, 0) << describe(r);
+    const json doc = json::parse(read_text(js));
+    expect_common(doc, "sparse");
+    ASSERT_EQ(doc["results"].size(), 1u);
+    const json& row = doc["results"][0];
+    EXPECT_EQ(row["exact"], true);
+    EXPECT_EQ(row["format"], "u8");
+    ASSERT_TRUE(row.contains("peer")) << row.dump().substr(0, 200);
+    const json& peer = row["peer"];
+    const std::string where = peer.dump();
+    for (const char* key : {"topology_ms", "sweep_ms", "total_ms", "voxfield_field_wall_ms",
+                            "voxfield_speedup_vs_sweep", "mean_abs_error_voxels",
+                            "max_abs_error_voxels", "rss_before_bytes", "peak_rss_bytes"}) {
+        ASSERT_TRUE(peer.contains(key)) << where << " lacks " << key;
+        EXPECT_TRUE(finite_number(peer[key])) << where << " " << key;
+    }
+    EXPECT_EQ(peer["openvdb_version"].get<std::string>().empty(), false) << where;
+    EXPECT_GT(peer["topology_ms"].get<double>(), 0.0) << where;
+    EXPECT_GT(peer["sweep_ms"].get<double>(), 0.0) << where;
+    EXPECT_EQ(peer["voxfield_field_wall_ms"], row["field_wall_ms"]) << where;
+    // The band: more than the solid surface alone, less than the stored voxels.
+    EXPECT_GT(peer["band_voxels"].get<double>(), 0.0) << where;
+    EXPECT_LT(peer["band_voxels"].get<double>(), row["stored_voxels"].get<double>()) << where;
+    EXPECT_GT(peer["leaf_nodes"].get<std::uint64_t>(), 0u) << where;
+    EXPECT_GT(peer["compared_voxels"].get<std::uint64_t>(), 1000u) << where;
+    // Fast sweeping is first-order: within a voxel or so, about a tenth of one on average.
+    EXPECT_GT(peer["mean_abs_error_voxels"].get<double>(), 0.0) << where;
+    EXPECT_LT(peer["mean_abs_error_voxels"].get<double>(), 0.3) << where;
+    EXPECT_LT(peer["max_abs_error_voxels"].get<double>(), 2.0) << where;
+    EXPECT_GE(peer["peak_rss_bytes"].get<double>(), peer["rss_before_bytes"].get<double>() * 0.5)
+        << where;
+    for (const std::vector<std::string>& bad :
+         {std::vector<std::string>{"--suite", "sparse", "--peer"},
+          {"--suite", "sparse", "--peer", "--metric", "euclidean", "--signed"},
+          {"--suite", "sparse", "--peer", "--metric", "euclidean", "--spacing", "1,2,1"},
+          {"--suite", "sparse-sand", "--peer"},
+          {"--peer"}}) {
+        std::vector<std::string> args = {"bench", "--device", "cpu", "--json",
+                                         (dir_ / "bad.json").string()};
+        args.insert(args.end(), bad.begin(), bad.end());
+        const RunResult b = run(args);
+        EXPECT_EQ(b.code, 2) << describe(b);
+        EXPECT_EQ(split_lines(b.err).size(), 1u) << describe(b);
+        EXPECT_FALSE(fs::exists(dir_ / "bad.json")) << bad.back();
+    }
+}
+
 // The sparse-sand suite on a small city: balls of sand and water dropped, the timed steps
 // recorded, the world and field after the last step equal to the CPU automaton's and the dense
 // bounded field; every option it does not take refused with one line before any work.

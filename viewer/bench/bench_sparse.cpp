@@ -2,11 +2,13 @@
 #include "bench_sparse.hpp"
 #include "bench_sparse_trace.hpp"
 
+#include <malloc.h>
 #include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <optional>
 #include <random>
@@ -14,6 +16,7 @@
 
 #include "cli_util.hpp"
 #include "edit_log.hpp"
+#include "openvdb_peer.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/sparse_field.hpp"
 #include "voxfield/core/clock.hpp"
@@ -39,6 +42,8 @@ namespace {
 using nlohmann::json;
 
 constexpr std::int64_t kEditRadius = 8;
+// Tiles on which --peer compares OpenVDB's distances with the exact ones.
+constexpr std::uint32_t kPeerSampleTiles = 64;
 
 // The highest solid voxel of column (x, z), or 0.
 std::int64_t surface(const SparseWorld& w, std::uint32_t x, std::uint32_t z) {
@@ -144,6 +149,56 @@ ExactCheck check_edits(ocl::Context& ctx, ocl::SparseField& field, const Palette
     return check;
 }
 
+// The exact f32 field of the tiles that --peer compares OpenVDB's distances on, whatever the
+// row's format: each tile's dense bounded field, generated on a window of the tile with the
+// bound's halo (every solid within the bound of the tile's voxels), so exact for the tile.
+std::vector<bench::ExactTile> peer_exact_tiles(ocl::Context& ctx, const SparseWorld& world,
+                                               const Palette& palette,
+                                               const ocl::GeneratorOptions& options,
+                                               BenchObserver& observer, const std::string& label) {
+    ocl::GeneratorOptions f32 = options;
+    f32.format = Format::f32;
+    const auto halo = static_cast<std::int64_t>(std::ceil(*options.max_distance));
+    const Dims d = world.dims();
+    const std::int64_t extent[3] = {d.x, d.y, d.z};
+    std::vector<bench::ExactTile> out;
+    const std::vector<std::uint32_t> tiles = bench::peer_sample_tiles(world, kPeerSampleTiles);
+    for (const std::uint32_t t : tiles) {
+        observer.progress(label + ": exact field of compared tile " +
+                          std::to_string(out.size() + 1) + "/" + std::to_string(tiles.size()));
+        const Box b = world.tile_box(t);
+        const std::int64_t lo[3] = {b.min.x, b.min.y, b.min.z}, hi[3] = {b.max.x, b.max.y, b.max.z};
+        std::int64_t wlo[3], size[3];
+        for (int a = 0; a < 3; ++a) {
+            wlo[a] = std::max<std::int64_t>(lo[a] - halo, 0);
+            size[a] = std::min<std::int64_t>(hi[a] + halo, extent[a]) - wlo[a];
+        }
+        const Box window{{wlo[0], wlo[1], wlo[2]},
+                         {wlo[0] + size[0], wlo[1] + size[1], wlo[2] + size[2]}};
+        const Dims wd{static_cast<std::uint32_t>(size[0]), static_cast<std::uint32_t>(size[1]),
+                      static_cast<std::uint32_t>(size[2])};
+        World dense_world(wd);
+        world.read_box(window, dense_world.voxels());
+        const std::vector<std::uint8_t> dense =
+            ocl::generate(ctx, dense_world, palette, ocl::resolve_options(f32, wd)).bytes;
+        bench::ExactTile& e = out.emplace_back();
+        e.tile = t;
+        e.values.reserve(static_cast<std::size_t>(b.volume()));
+        for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
+            for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
+                for (std::int64_t x = b.min.x; x < b.max.x; ++x) {
+                    const auto j = static_cast<std::size_t>(
+                        ((z - wlo[2]) * size[1] + (y - wlo[1])) * size[0] + (x - wlo[0]));
+                    float v = 0;
+                    std::memcpy(&v, dense.data() + j * sizeof(float), sizeof(float));
+                    e.values.push_back(v);
+                }
+            }
+        }
+    }
+    return out;
+}
+
 json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32_t repeat,
                 std::uint32_t warmup, std::uint32_t edit_count, BenchObserver& observer) {
     const std::string label = "sparse " + dims.to_string();
@@ -242,6 +297,55 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
     const json trace = sparse_trace_keys(world, palette, repeat);
     observer.stage(label + ": " + describe_sparse_trace(trace));
     const json load_end = load_average();
+    json peer = nullptr;
+    if (o.peer) {
+        observer.stage(label + ": OpenVDB's fast sweeping (fogToSdf) on the same world");
+        // The device's world and field, and the trace, were released: their heap pages go back
+        // to the system, so that the peer's grids fit beside the world.
+        malloc_trim(0);
+        const bench::OpenVdbPeer p = bench::run_openvdb_peer(
+            world, *options.max_distance,
+            peer_exact_tiles(ctx, world, palette, options, observer, label));
+        const double peer_ms = p.topology_ms + p.sweep_ms;
+        peer = {{"name", "OpenVDB tools::fogToSdf (fast sweeping, 1 iteration)"},
+                {"openvdb_version", p.version},
+                {"band",
+                 "empty voxels within ceil(D) of a solid one, solid voxels with an empty "
+                 "26-neighbour"},
+                {"band_voxels", p.band_voxels},
+                {"leaf_nodes", p.leaf_nodes},
+                {"topology_ms", p.topology_ms},
+                {"sweep_ms", p.sweep_ms},
+                {"total_ms", peer_ms},
+                {"voxfield_field_wall_ms", fw.median},
+                {"voxfield_speedup_vs_sweep", p.sweep_ms / fw.median},
+                {"voxfield_speedup_vs_total", peer_ms / fw.median},
+                {"compared_voxels", p.compared},
+                {"mean_abs_error_voxels", p.mean_abs_error},
+                {"max_abs_error_voxels", p.max_abs_error},
+                {"error",
+                 "over the empty voxels of the sampled tiles within D - 1 of a solid one: "
+                 "OpenVDB's distance + 0.5 against the exact distance (voxfield's dense f32 "
+                 "bounded field of each tile with its halo)"},
+                {"rss_before_bytes", p.rss_before_bytes},
+                {"peak_rss_bytes", p.peak_rss_bytes},
+                {"peak_rss_is_own", p.peak_is_own},
+                {"added_bytes_per_leaf",
+                 p.peak_is_own && p.leaf_nodes > 0
+                     ? json((p.peak_rss_bytes - p.rss_before_bytes) / double(p.leaf_nodes))
+                     : json()},
+                {"added_bytes_per_band_voxel",
+                 p.peak_is_own && p.band_voxels > 0
+                     ? json((p.peak_rss_bytes - p.rss_before_bytes) / double(p.band_voxels))
+                     : json()},
+                {"load_average_end", load_average()}};
+        observer.stage(label + ": OpenVDB band " + std::to_string(p.band_voxels) +
+                       " voxels, topology " + fixed(p.topology_ms / 1e3, 2) + " s, sweep " +
+                       fixed(p.sweep_ms / 1e3, 2) + " s (voxfield's whole field " +
+                       fixed(fw.median / 1e3, 2) + " s); error mean " + fixed(p.mean_abs_error, 3) +
+                       ", max " + fixed(p.max_abs_error, 3) + " voxels; peak " +
+                       fixed(p.peak_rss_bytes / 1048576.0, 0) + " MiB");
+    }
 
     const double stored_voxels = static_cast<double>(tiles) * kTileVoxels;
     const double solid = static_cast<double>(solid_count);
@@ -327,6 +431,9 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"peak_within_target", peak <= peak_target},
         {"load_average_start", load_start},
         {"load_average_end", load_end}};
+    if (o.peer) {
+        row["peer"] = peer;
+    }
     put_summary(row, summarize(edit_wall));
     row.update(trace);
     return row;
@@ -377,7 +484,13 @@ void append_stage_samples(StageSamples& columns, std::size_t samples,
 }
 
 void check_sparse_suite_options(const SuiteOptions& o) {
-    sparse_options(o);
+    const ocl::GeneratorOptions options = sparse_options(o);
+    if (o.peer &&
+        (options.metric != Metric::euclidean || options.signed_field || !options.spacing.unit())) {
+        throw InputError(
+            "--peer compares OpenVDB's fast sweeping with the exact unsigned Euclidean field: "
+            "give --metric euclidean (no --signed, no --spacing)");
+    }
     for (const Dims& dims : o.sizes) {
         if (dims.x > kMaxSparseAxis || dims.y > kMaxSparseAxis || dims.z > kMaxSparseAxis) {
             throw InputError("--sizes " + dims.to_string() + ": a sparse world takes at most " +

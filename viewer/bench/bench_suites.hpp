@@ -32,6 +32,7 @@ struct SuiteOptions {
     std::vector<Dims> sizes;      // sparse, sparse-sand: the worlds (empty: the suite's default)
     GeneratorFlags field;         // sparse, sparse-sand: metric, spacing, sign, --max-distance
     bool compare_blocks = false;  // sparse: also time the whole field by blocks (--compare-blocks)
+    bool peer = false;            // sparse: then OpenVDB's fast sweeping on the same world (--peer)
 };
 
 // What a suite reports while it runs, in order; every call is optional to act on.

@@ -27,7 +27,7 @@ struct BenchOptions {
     std::uint64_t seed = 6683787;
     // --suite NAME runs a whole suite (bench_suites.hpp) instead of the grid above.
     std::string suite, plot;
-    bool quick = false, compare_blocks = false;
+    bool quick = false, compare_blocks = false, peer = false;
     double budget_s = 0;
     std::uint32_t edits = 0, world = 0;
 };
@@ -220,14 +220,18 @@ Command add_bench(CLI::App& root) {
     app->add_flag("--compare-blocks", o->compare_blocks,
                   "Suite sparse: where the whole field takes the Manhattan sweep, also time it "
                   "once by per-tile blocks (the path the sweep replaced) in the same run");
+    app->add_flag("--peer", o->peer,
+                  "Suite sparse: after each row, OpenVDB's fast sweeping (tools::fogToSdf) on "
+                  "the same world in the same run: its times, band, peak memory and error "
+                  "against the exact field (needs --metric euclidean)");
     app->add_option("--world", o->world,
                     "Suites edits and sand: world edge N (edits: default 128, --quick 64; sand: "
                     "256, --quick 64)")
         ->check(positive());
     return {app, [o, app] {
                 if (o->suite.empty()) {
-                    for (const char* flag :
-                         {"--quick", "--time-budget", "--edits", "--world", "--compare-blocks"}) {
+                    for (const char* flag : {"--quick", "--time-budget", "--edits", "--world",
+                                             "--compare-blocks", "--peer"}) {
                         if (app->count(flag) != 0) {
                             throw InputError(std::string(flag) + " applies to --suite only");
                         }
@@ -260,6 +264,9 @@ Command add_bench(CLI::App& root) {
                 if (o->suite != "sparse" && o->compare_blocks) {
                     throw InputError("--compare-blocks applies to --suite sparse only");
                 }
+                if (o->suite != "sparse" && o->peer) {
+                    throw InputError("--peer applies to --suite sparse only");
+                }
                 if (o->suite != "edits" && o->suite != "sand" && app->count("--world") != 0) {
                     throw InputError("--world applies to --suite edits and sand only");
                 }
@@ -284,6 +291,7 @@ Command add_bench(CLI::App& root) {
                     }
                     s.field = o->field;
                     s.compare_blocks = o->compare_blocks;
+                    s.peer = o->peer;
                     check_sparse_suite_options(s);  // before the device is opened
                 }
                 return run_suite_command(s, *o);
