@@ -74,6 +74,26 @@ std::vector<Brush> surface_edits(const SparseWorld& w, std::size_t count, std::u
     return edits;
 }
 
+// The dense bounded field (`options`) of `window` of the world: its voxels read densely and
+// generated on the device, x fastest.
+std::vector<std::uint8_t> window_field(ocl::Context& ctx, const SparseWorld& world,
+                                       const Palette& palette, const ocl::GeneratorOptions& options,
+                                       const Box& window) {
+    const Dims wd{static_cast<std::uint32_t>(window.max.x - window.min.x),
+                  static_cast<std::uint32_t>(window.max.y - window.min.y),
+                  static_cast<std::uint32_t>(window.max.z - window.min.z)};
+    World dense(wd);
+    world.read_box(window, dense.voxels());
+    return ocl::generate(ctx, dense, palette, ocl::resolve_options(options, wd)).bytes;
+}
+
+// The index of voxel (x, y, z) among `box`'s voxels, x fastest.
+std::size_t index_in(const Box& box, std::int64_t x, std::int64_t y, std::int64_t z) {
+    const std::int64_t bx = box.max.x - box.min.x, by = box.max.y - box.min.y;
+    return static_cast<std::size_t>(((z - box.min.z) * by + (y - box.min.y)) * bx +
+                                    (x - box.min.x));
+}
+
 // Compares the sparse field over each edit's recomputed box with the dense bounded field of the
 // same voxels: a window around the box (the box with twice the halo, moved inside the world,
 // one shape for all edits) generated densely; the box lies at least a halo inside the window
@@ -94,9 +114,6 @@ ExactCheck check_edits(ocl::Context& ctx, ocl::SparseField& field, const Palette
     for (int a = 0; a < 3; ++a) {
         size[a] = std::min<std::int64_t>(extent[a], 2 * kEditRadius + 1 + 4 * field.halo(a));
     }
-    const Dims wd{static_cast<std::uint32_t>(size[0]), static_cast<std::uint32_t>(size[1]),
-                  static_cast<std::uint32_t>(size[2])};
-    const ocl::GeneratorOptions dense_options = ocl::resolve_options(options, wd);
     const Format f = options.format;
     const std::size_t elem = element_size(f);
     for (std::size_t e = 0; e < edits.size(); ++e) {
@@ -120,18 +137,12 @@ ExactCheck check_edits(ocl::Context& ctx, ocl::SparseField& field, const Palette
         }
         const Box window{{origin[0], origin[1], origin[2]},
                          {origin[0] + size[0], origin[1] + size[1], origin[2] + size[2]}};
-        World dense_world(wd);
-        world.read_box(window, dense_world.voxels());
-        const auto dense = ocl::generate(ctx, dense_world, palette, dense_options).bytes;
+        const std::vector<std::uint8_t> dense = window_field(ctx, world, palette, options, window);
         const std::vector<std::uint8_t> got = field.read_box(box);
-        const std::int64_t bx = box.max.x - box.min.x, by = box.max.y - box.min.y;
         for (std::int64_t z = box.min.z; z < box.max.z; ++z) {
             for (std::int64_t y = box.min.y; y < box.max.y; ++y) {
                 for (std::int64_t x = box.min.x; x < box.max.x; ++x) {
-                    const auto i = static_cast<std::size_t>(
-                        ((z - box.min.z) * by + (y - box.min.y)) * bx + (x - box.min.x));
-                    const auto j = static_cast<std::size_t>(
-                        ((z - origin[2]) * size[1] + (y - origin[1])) * size[0] + (x - origin[0]));
+                    const std::size_t i = index_in(box, x, y, z), j = index_in(window, x, y, z);
                     ++check.voxels;
                     if (!std::equal(got.begin() + static_cast<long>(i * elem),
                                     got.begin() + static_cast<long>((i + 1) * elem),
@@ -168,27 +179,20 @@ std::vector<bench::ExactTile> peer_exact_tiles(ocl::Context& ctx, const SparseWo
                           std::to_string(out.size() + 1) + "/" + std::to_string(tiles.size()));
         const Box b = world.tile_box(t);
         const std::int64_t lo[3] = {b.min.x, b.min.y, b.min.z}, hi[3] = {b.max.x, b.max.y, b.max.z};
-        std::int64_t wlo[3], size[3];
+        std::int64_t wlo[3], whi[3];
         for (int a = 0; a < 3; ++a) {
             wlo[a] = std::max<std::int64_t>(lo[a] - halo, 0);
-            size[a] = std::min<std::int64_t>(hi[a] + halo, extent[a]) - wlo[a];
+            whi[a] = std::min<std::int64_t>(hi[a] + halo, extent[a]);
         }
-        const Box window{{wlo[0], wlo[1], wlo[2]},
-                         {wlo[0] + size[0], wlo[1] + size[1], wlo[2] + size[2]}};
-        const Dims wd{static_cast<std::uint32_t>(size[0]), static_cast<std::uint32_t>(size[1]),
-                      static_cast<std::uint32_t>(size[2])};
-        World dense_world(wd);
-        world.read_box(window, dense_world.voxels());
-        const std::vector<std::uint8_t> dense =
-            ocl::generate(ctx, dense_world, palette, ocl::resolve_options(f32, wd)).bytes;
+        const Box window{{wlo[0], wlo[1], wlo[2]}, {whi[0], whi[1], whi[2]}};
+        const std::vector<std::uint8_t> dense = window_field(ctx, world, palette, f32, window);
         bench::ExactTile& e = out.emplace_back();
         e.tile = t;
         e.values.reserve(static_cast<std::size_t>(b.volume()));
         for (std::int64_t z = b.min.z; z < b.max.z; ++z) {
             for (std::int64_t y = b.min.y; y < b.max.y; ++y) {
                 for (std::int64_t x = b.min.x; x < b.max.x; ++x) {
-                    const auto j = static_cast<std::size_t>(
-                        ((z - wlo[2]) * size[1] + (y - wlo[1])) * size[0] + (x - wlo[0]));
+                    const std::size_t j = index_in(window, x, y, z);
                     float v = 0;
                     std::memcpy(&v, dense.data() + j * sizeof(float), sizeof(float));
                     e.values.push_back(v);
