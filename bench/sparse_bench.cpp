@@ -6,8 +6,6 @@
 // with device, date and commit.
 //   sparse_bench [--size X,Y,Z] [--max-distance D] [--metric M] [--format F] [--device D]
 //                [--edits N] [--seed S] [--peer] [--commit C] [--json FILE]
-#include <sys/resource.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -22,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "openvdb_peer.hpp"
+#include "process_memory.hpp"
 #include "voxfield/cl/sparse_field.hpp"
 #include "voxfield/core/clock.hpp"
 #include "voxfield/core/error.hpp"
@@ -33,12 +32,7 @@
 namespace {
 
 using namespace voxfield;
-
-double peak_rss_bytes() {
-    rusage u{};
-    getrusage(RUSAGE_SELF, &u);
-    return static_cast<double>(u.ru_maxrss) * 1024.0;
-}
+using bench::peak_rss_bytes;
 
 // Rolling terrain (a sum of seeded sine waves, 12..~100 voxels high: grass on dirt on stone)
 // with blocks of buildings (solid boxes up to ~160 voxels) on a 96-voxel street grid.

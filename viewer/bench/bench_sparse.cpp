@@ -3,7 +3,6 @@
 #include "bench_sparse_trace.hpp"
 
 #include <malloc.h>
-#include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
@@ -17,6 +16,7 @@
 #include "cli_util.hpp"
 #include "edit_log.hpp"
 #include "openvdb_peer.hpp"
+#include "process_memory.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/sparse_field.hpp"
 #include "voxfield/core/clock.hpp"
@@ -28,6 +28,8 @@
 #include "voxfield/core/stats.hpp"
 
 namespace voxfield::cli {
+
+using bench::peak_rss_bytes;
 
 ocl::GeneratorOptions sparse_options(const SuiteOptions& o) {
     GeneratorFlags flags = o.field;
@@ -454,12 +456,6 @@ SparseWorld build_city(Dims dims, std::uint64_t seed, const std::string& label,
         dims, [&](const Box& box, std::span<std::uint8_t> out) { scene.fill(box, out); });
     build_ms = ms_since(t_build);
     return world;
-}
-
-double peak_rss_bytes() {
-    rusage u{};
-    getrusage(RUSAGE_SELF, &u);
-    return static_cast<double>(u.ru_maxrss) * 1024.0;
 }
 
 json load_average() {

@@ -29,8 +29,6 @@ ocl::GeneratorOptions sparse_options(const SuiteOptions& o);
 // `observer` as `label`'s build stage; `build_ms` gets the time it took.
 SparseWorld build_city(Dims dims, std::uint64_t seed, const std::string& label,
                        BenchObserver& observer, double& build_ms);
-// The process's peak resident memory (bytes, getrusage).
-double peak_rss_bytes();
 // The machine's load averages (1, 5, 15 minutes; /proc/loadavg), null where unreadable: other
 // work on the machine slows a CPU device's run.
 nlohmann::json load_average();

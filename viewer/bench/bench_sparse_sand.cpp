@@ -9,6 +9,7 @@
 
 #include "bench_sparse.hpp"
 #include "edit_log.hpp"
+#include "process_memory.hpp"
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/sparse_sand.hpp"
 #include "voxfield/core/brush.hpp"
@@ -21,6 +22,8 @@
 #include "voxfield/core/stats.hpp"
 
 namespace voxfield::cli {
+
+using bench::peak_rss_bytes;
 namespace {
 
 using nlohmann::json;

@@ -5,14 +5,12 @@
 #include <openvdb/tools/FastSweeping.h>
 #include <openvdb/tools/Morphology.h>
 #include <openvdb/tools/ValueTransformer.h>
-#include <sys/resource.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <string>
 
+#include "process_memory.hpp"
 #include "voxfield/core/clock.hpp"
 
 namespace voxfield::bench {
@@ -26,36 +24,6 @@ struct FogValue {
     }
     mutable openvdb::tree::ValueAccessor<const openvdb::BoolTree> solid;
 };
-
-double rss_now_bytes() {
-    std::ifstream in("/proc/self/statm");
-    double size = 0, resident = 0;
-    in >> size >> resident;
-    return resident * static_cast<double>(sysconf(_SC_PAGESIZE));
-}
-
-// The peak resident memory since reset_peak_rss() (VmHWM), else since the process started.
-double peak_rss_bytes() {
-    std::ifstream in("/proc/self/status");
-    std::string line;
-    while (std::getline(in, line)) {
-        if (line.rfind("VmHWM:", 0) == 0) {
-            return std::stod(line.substr(6)) * 1024.0;
-        }
-    }
-    rusage u{};
-    getrusage(RUSAGE_SELF, &u);
-    return static_cast<double>(u.ru_maxrss) * 1024.0;
-}
-
-// Resets VmHWM to the resident memory now (Linux: "5" to /proc/self/clear_refs), so that the
-// peak read afterwards is the peer's own; false where it could not.
-bool reset_peak_rss() {
-    std::ofstream out("/proc/self/clear_refs");
-    out << "5";
-    out.flush();
-    return static_cast<bool>(out);
-}
 
 // The world's solid voxels.
 void add_solids(const SparseWorld& world, openvdb::BoolTree& tree) {
