@@ -7,6 +7,7 @@
 #include <initializer_list>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "pinned.hpp"
 #include "util.hpp"
@@ -20,7 +21,7 @@ extern const char* const sparse_world_cl;
 namespace voxfield::ocl {
 namespace {
 
-constexpr std::uint64_t kSlotRef = std::uint64_t{1} << 63;
+constexpr std::uint64_t kSlotRef = SparseDeviceWorld::kSlotRef;
 // Bytes of one slot: its worst-case nodes (mask and offset) and materials.
 constexpr std::uint64_t kSlotBytes = std::uint64_t{kTileMaxNodes} * 12 + kTileVoxels;
 // Host-edited boxes over more tiles than this upload the whole world instead.
@@ -215,12 +216,14 @@ std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
     });
 }
 
-SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, SparseWorld* editable)
+SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, SparseWorld* editable,
+                                     TreeAllocator allocate)
     : ctx_(ctx),
       world_(world),
       editable_(editable),
       program_(world_program(ctx)),
       gpu_layout_(!ctx.is_cpu()),
+      allocate_(std::move(allocate)),
       pinned_(std::make_unique<PinnedHost>()) {
     if (editable != nullptr && editable != &world) {
         throw std::invalid_argument("SparseDeviceWorld: `editable` is not the world");
@@ -248,17 +251,39 @@ void SparseDeviceWorld::host_changed_seen() {
     seen_tiles_ = world_.tile_count();
 }
 
+cl::Buffer SparseDeviceWorld::tree_buffer(std::size_t bytes, cl_mem_flags flags,
+                                          const std::string& what) {
+    return allocate_ ? allocate_(bytes, what) : cl::Buffer(ctx_.context(), flags, bytes);
+}
+
+SparseDeviceWorld::TreeBuffers SparseDeviceWorld::tree_buffers() const {
+    return {masks_, offsets_, materials_, slot_masks_, slot_offsets_, slot_materials_};
+}
+
+std::vector<std::pair<Int3, std::pair<std::uint64_t, std::uint64_t>>> SparseDeviceWorld::refs()
+    const {
+    std::vector<std::pair<Int3, std::pair<std::uint64_t, std::uint64_t>>> out;
+    out.reserve(dir_.size());
+    for (const auto& [key, ref] : dir_) {
+        out.emplace_back(tile_of_key(key), ref);
+    }
+    return out;
+}
+
 void SparseDeviceWorld::upload_whole() {
     const auto& masks = world_.node_masks();
     const auto& offsets = world_.node_offsets();
     const auto& materials = world_.materials();
     cl_call("uploading the sparse world", [&] {
-        auto& c = ctx_.context();
         auto& q = ctx_.queue();
         const std::size_t nodes = std::max<std::size_t>(masks.size(), 1);
-        masks_ = cl::Buffer(c, CL_MEM_READ_ONLY, nodes * 8);
-        offsets_ = cl::Buffer(c, CL_MEM_READ_ONLY, nodes * 4);
-        materials_ = cl::Buffer(c, CL_MEM_READ_ONLY, std::max<std::size_t>(materials.size(), 1));
+        // The previous buffers go first: a world near the device's memory fits once, not twice.
+        q.finish();
+        masks_ = offsets_ = materials_ = cl::Buffer();
+        masks_ = tree_buffer(nodes * 8, CL_MEM_READ_ONLY, "sparse node masks");
+        offsets_ = tree_buffer(nodes * 4, CL_MEM_READ_ONLY, "sparse node offsets");
+        materials_ = tree_buffer(std::max<std::size_t>(materials.size(), 1), CL_MEM_READ_ONLY,
+                                 "sparse materials");
         if (!masks.empty()) {
             q.enqueueWriteBuffer(masks_, CL_FALSE, 0, masks.size() * 8, masks.data());
             q.enqueueWriteBuffer(offsets_, CL_FALSE, 0, offsets.size() * 4, offsets.data());
@@ -277,6 +302,7 @@ void SparseDeviceWorld::upload_whole() {
     slot_of_.clear();
     free_slots_.clear();
     slots_made_ = 0;
+    ++trees_generation_;
     host_changed_seen();
 }
 
@@ -287,9 +313,10 @@ void SparseDeviceWorld::ensure_slot_capacity(std::size_t slots) {
     const std::size_t cap = std::max({slots, 2 * slot_capacity_, std::size_t{16}});
     cl_call("allocating " + std::to_string(cap) + " tile slots", [&] {
         auto& c = ctx_.context();
-        cl::Buffer m(c, CL_MEM_READ_WRITE, cap * kTileMaxNodes * 8);
-        cl::Buffer o(c, CL_MEM_READ_WRITE, cap * kTileMaxNodes * 4);
-        cl::Buffer mat(c, CL_MEM_READ_WRITE, cap * kTileVoxels);
+        cl::Buffer m = tree_buffer(cap * kTileMaxNodes * 8, CL_MEM_READ_WRITE, "sparse slot masks");
+        cl::Buffer o =
+            tree_buffer(cap * kTileMaxNodes * 4, CL_MEM_READ_WRITE, "sparse slot offsets");
+        cl::Buffer mat = tree_buffer(cap * kTileVoxels, CL_MEM_READ_WRITE, "sparse slot materials");
         cl::Buffer n(c, CL_MEM_READ_WRITE, cap * 8);
         if (slot_capacity_ != 0) {
             auto& q = ctx_.queue();
@@ -304,6 +331,7 @@ void SparseDeviceWorld::ensure_slot_capacity(std::size_t slots) {
         slot_counts_ = n;
     });
     slot_capacity_ = cap;
+    ++trees_generation_;
 }
 
 std::uint32_t SparseDeviceWorld::slot_for(std::uint64_t key) {

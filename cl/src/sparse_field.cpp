@@ -12,6 +12,7 @@
 #include <numeric>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "pinned.hpp"
 #include "util.hpp"
@@ -197,20 +198,22 @@ struct SparseField::Batch {
 };
 
 SparseField::SparseField(Context& ctx, SparseWorld& world, const Palette& palette,
-                         const GeneratorOptions& options)
-    : SparseField(ctx, static_cast<const SparseWorld&>(world), palette, options, &world) {}
+                         const GeneratorOptions& options, TreeAllocator allocate)
+    : SparseField(ctx, static_cast<const SparseWorld&>(world), palette, options, &world,
+                  std::move(allocate)) {}
 
 SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& palette,
                          const GeneratorOptions& options)
-    : SparseField(ctx, world, palette, options, nullptr) {}
+    : SparseField(ctx, world, palette, options, nullptr, {}) {}
 
 SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& palette,
-                         const GeneratorOptions& options, SparseWorld* editable)
+                         const GeneratorOptions& options, SparseWorld* editable,
+                         TreeAllocator allocate)
     : ctx_(ctx),
       world_(world),
       palette_(palette),
       options_(options),
-      device_world_(ctx, world, editable) {
+      device_world_(ctx, world, editable, std::move(allocate)) {
     if (!options_.max_distance) {
         throw std::invalid_argument("SparseField: options without max_distance");
     }

@@ -23,6 +23,17 @@ F device_function(const Context& ctx, const char* name) {
     return f;
 }
 
+// Memory for buffers read through device addresses (VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT in
+// `usage`) is allocated with VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT; flags 0 otherwise.
+VkMemoryAllocateFlagsInfo address_flags(VkBufferUsageFlags usage) {
+    VkMemoryAllocateFlagsInfo info{};
+    info.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_FLAGS_INFO;
+    if ((usage & VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT) != 0) {
+        info.flags = VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT;
+    }
+    return info;
+}
+
 }  // namespace
 
 std::string describe(SharingPath path) {
@@ -124,6 +135,8 @@ ExternalMemory ExternalMemory::host_allocation(Context& ctx, VkDeviceSize bytes,
     import.sType = VK_STRUCTURE_TYPE_IMPORT_MEMORY_HOST_POINTER_INFO_EXT;
     import.handleType = type;
     import.pHostPointer = host;
+    VkMemoryAllocateFlagsInfo address = address_flags(usage);
+    import.pNext = address.flags != 0 ? &address : nullptr;
     VkMemoryAllocateInfo info{};
     info.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
     info.pNext = &import;
@@ -165,6 +178,8 @@ ExternalMemory ExternalMemory::exportable(Context& ctx, VkDeviceSize bytes,
     VkExportMemoryAllocateInfo exported{};
     exported.sType = VK_STRUCTURE_TYPE_EXPORT_MEMORY_ALLOCATE_INFO;
     exported.handleTypes = type;
+    VkMemoryAllocateFlagsInfo address = address_flags(usage);
+    exported.pNext = address.flags != 0 ? &address : nullptr;
     VkMemoryAllocateInfo info{};
     info.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO;
     info.pNext = &exported;

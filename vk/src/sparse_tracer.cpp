@@ -171,6 +171,17 @@ struct SparseTracer::Impl {
     std::vector<Copy> copies;
     Buffer staging;
 
+    // Trees read in place (upload_shared): per set, buffers over the caller's memory and their
+    // addresses; per record the tile it holds (set VF_SPARSE_NONE: a free record).
+    struct SharedSet {
+        std::array<VkDeviceMemory, 3> memory{};
+        Buffer masks, offsets, materials;
+        VkDeviceAddress mask_at = 0, offset_at = 0, material_at = 0;
+    };
+    bool shared = false;
+    std::vector<SharedSet> shared_sets;
+    std::vector<SharedTile> shared_tiles;
+
     OffscreenTarget target;
 
     Impl(Context& c, VkDeviceSize l) : ctx(c), limit(l) {}
@@ -188,6 +199,30 @@ struct SparseTracer::Impl {
     void set_node_chunk(std::size_t c, Buffer chunk_masks, Buffer chunk_offsets);
     void set_material_chunk(std::size_t c, Buffer chunk);
     void upload_all(const SparseWorld& world);
+    // The directory of the tiles `coords` (record t: coords[t]) of a world of `dims`: block
+    // table, pages and records on the host, the arena emptied. InputError past one binding.
+    void build_directory(const Dims& dims, const std::vector<Int3>& coords);
+    // The palette, block table, pages and records on the device, with room for growth.
+    void make_directory_buffers(std::uint64_t tiles);
+    // Directory changes of one update, staged by stage_directory.
+    struct DirectoryEdit {
+        std::vector<std::uint32_t> records;
+        std::vector<std::uint64_t> blocks, entries;  // entries: index into host_pages
+        std::vector<std::uint32_t> new_pages;  // written whole (the device's may hold anything)
+    };
+    // Tile c's record (VF_SPARSE_NONE when it has none).
+    std::uint32_t record_of(const Int3& c);
+    // Takes tile c (its record `record`) out of the directory: the record freed, its page too
+    // when it held nothing else.
+    void drop_tile(const Int3& c, std::uint32_t record, DirectoryEdit& e);
+    // Puts tile c (not in the directory) in: a record, and a page for a block that had none.
+    std::uint32_t add_tile(const Int3& c, DirectoryEdit& e);
+    // Stages the edit's directory changes (whole buffers where they outgrew their capacity);
+    // true when a buffer was replaced (the descriptor set must be written again).
+    bool stage_directory(const DirectoryEdit& e);
+    // Buffers over `sets`' memory (kept where the memory is the same); per set whether it moved.
+    std::vector<bool> set_shared(const std::vector<SharedTreeSet>& sets);
+    void write_shared_record(std::uint32_t record, const SharedTile& t);
     void stage(const Buffer& dst, VkDeviceSize at, const void* data, VkDeviceSize size);
     void flush(const std::string& what);
     void count_bytes();
@@ -267,45 +302,14 @@ void SparseTracer::Impl::upload_all(const SparseWorld& world) {
     m.ctx.wait_frames_in_flight();  // renders wait for their work; nothing reads the buffers
     m.loaded = false;
     m.stats = SparseDeviceStats{};
-    const Dims grid = world.tile_grid();
-    const std::uint32_t bt = VF_SPARSE_BLOCK_TILES;
-    m.blocks = {(grid.x + bt - 1) / bt, (grid.y + bt - 1) / bt, (grid.z + bt - 1) / bt};
-    const std::uint64_t block_count = std::uint64_t{m.blocks[0]} * m.blocks[1] * m.blocks[2];
-    if (block_count * 4 > m.limit) {
-        throw InputError("sparse tracer: the world " + world.dims().to_string() + " needs " +
-                         std::to_string(block_count) + " directory blocks of 512^3 voxels (" +
-                         mib(block_count * 4) + "), more than one storage-buffer binding holds (" +
-                         mib(m.limit) + ")");
-    }
-    // The directory: a page of tile indices per block that holds a stored tile.
-    std::vector<std::uint32_t>& table = m.host_blocks;
-    std::vector<std::uint32_t>& pg = m.host_pages;
-    table.assign(static_cast<std::size_t>(block_count), VF_SPARSE_NONE);
-    pg.clear();
-    m.page_fill.clear();
-    m.free_pages.clear();
-    m.free_records.clear();
-    m.arena.clear();
+    m.shared = false;
+    m.shared_sets.clear();
+    m.shared_tiles.clear();
+    std::vector<Int3> coords(world.tile_count());
     for (std::uint32_t t = 0; t < world.tile_count(); ++t) {
-        const Int3 c = world.tile_coord(t);
-        const auto b = static_cast<std::size_t>(m.block_of(c));
-        if (table[b] == VF_SPARSE_NONE) {
-            table[b] = static_cast<std::uint32_t>(pg.size() / kPageTiles);
-            pg.resize(pg.size() + kPageTiles, VF_SPARSE_NONE);
-            m.page_fill.push_back(0);
-        }
-        m.page_entry(table[b], c) = t;
-        ++m.page_fill[table[b]];
-        if (pg.size() * 4 > m.limit) {
-            throw InputError("sparse tracer: the directory of the world's " +
-                             std::to_string(world.tile_count()) +
-                             " tiles exceeds one storage-buffer binding (" + mib(m.limit) + ")");
-        }
+        coords[t] = world.tile_coord(t);
     }
-    if (world.tile_count() * kRecordBytes > m.limit) {
-        throw InputError("sparse tracer: the world's " + std::to_string(world.tile_count()) +
-                         " tile records exceed one storage-buffer binding (" + mib(m.limit) + ")");
-    }
+    m.build_directory(world.dims(), coords);
     // Nodes and materials cut at tile starts into chunks of one binding each.
     std::vector<std::uint32_t> node_chunk, material_chunk;
     const std::vector<Range> node_ranges =
@@ -335,37 +339,80 @@ void SparseTracer::Impl::upload_all(const SparseWorld& world) {
         m.set_material_chunk(c, m.storage((n + 3) / 4 * 4, world.materials().data() + r.begin, n,
                                           "sparse materials", kChunkUsage));
     }
-    std::vector<std::uint32_t>& recs = m.host_records;
-    recs.assign(std::size_t{world.tile_count()} * kRecordWords, 0);
     for (std::uint32_t t = 0; t < world.tile_count(); ++t) {
         const std::uint32_t nc = node_chunk[t], mc = material_chunk[t];
         const std::uint64_t root = world.node_bases()[t] - node_ranges[nc].begin;
         m.write_record(t, nc, root, mc, world.material_bases()[t] - material_ranges[mc].begin);
     }
-
-    m.palette = m.storage(sizeof m.colours, m.colours.data(), sizeof m.colours, "sparse palette");
-    m.block_table =
-        m.storage(table.size() * 4, table.data(), table.size() * 4, "sparse block table");
-    // Records and pages with room for the tiles and pages edits add (update_tiles).
-    const std::uint64_t page_count = pg.size() / kPageTiles;
-    m.page_capacity = std::min<std::uint64_t>(
-        page_count + std::max<std::uint64_t>(page_count / 4, 4), m.limit / (4 * kPageTiles));
-    m.pages =
-        m.storage(m.page_capacity * kPageTiles * 4, pg.data(), pg.size() * 4, "sparse tile pages");
-    m.record_capacity = std::min<std::uint64_t>(
-        world.tile_count() + std::max<std::uint64_t>(world.tile_count() / 4, 256),
-        m.limit / kRecordBytes);
-    m.records = m.storage(m.record_capacity * kRecordBytes, recs.data(), recs.size() * 4,
-                          "sparse tile records");
-    m.arena_nodes_chunk = m.arena_materials_chunk = -1;
-    m.arena_node_cap = m.arena_node_used = m.arena_mat_cap = m.arena_mat_used = 0;
+    m.make_directory_buffers(world.tile_count());
     m.stats.node_chunks = static_cast<std::uint32_t>(node_ranges.size());
     m.stats.material_chunks = static_cast<std::uint32_t>(material_ranges.size());
-    m.stats.blocks = block_count;
-    m.dims = world.dims();
     m.count_bytes();
     m.loaded = true;
     m.write_set();
+}
+
+void SparseTracer::Impl::build_directory(const Dims& world_dims, const std::vector<Int3>& coords) {
+    const std::uint32_t bt = VF_SPARSE_BLOCK_TILES;
+    const auto tiles_along = [](std::uint32_t n) { return (n + kTileSize - 1) / kTileSize; };
+    const Dims grid{tiles_along(world_dims.x), tiles_along(world_dims.y),
+                    tiles_along(world_dims.z)};
+    blocks = {(grid.x + bt - 1) / bt, (grid.y + bt - 1) / bt, (grid.z + bt - 1) / bt};
+    const std::uint64_t block_count = std::uint64_t{blocks[0]} * blocks[1] * blocks[2];
+    if (block_count * 4 > limit) {
+        throw InputError("sparse tracer: the world " + world_dims.to_string() + " needs " +
+                         std::to_string(block_count) + " directory blocks of 512^3 voxels (" +
+                         mib(block_count * 4) + "), more than one storage-buffer binding holds (" +
+                         mib(limit) + ")");
+    }
+    // The directory: a page of tile indices per block that holds a stored tile.
+    host_blocks.assign(static_cast<std::size_t>(block_count), VF_SPARSE_NONE);
+    host_pages.clear();
+    page_fill.clear();
+    free_pages.clear();
+    free_records.clear();
+    arena.clear();
+    for (std::size_t t = 0; t < coords.size(); ++t) {
+        const Int3 c = coords[t];
+        const auto b = static_cast<std::size_t>(block_of(c));
+        if (host_blocks[b] == VF_SPARSE_NONE) {
+            host_blocks[b] = static_cast<std::uint32_t>(host_pages.size() / kPageTiles);
+            host_pages.resize(host_pages.size() + kPageTiles, VF_SPARSE_NONE);
+            page_fill.push_back(0);
+        }
+        page_entry(host_blocks[b], c) = static_cast<std::uint32_t>(t);
+        ++page_fill[host_blocks[b]];
+        if (host_pages.size() * 4 > limit) {
+            throw InputError("sparse tracer: the directory of the world's " +
+                             std::to_string(coords.size()) +
+                             " tiles exceeds one storage-buffer binding (" + mib(limit) + ")");
+        }
+    }
+    if (coords.size() * kRecordBytes > limit) {
+        throw InputError("sparse tracer: the world's " + std::to_string(coords.size()) +
+                         " tile records exceed one storage-buffer binding (" + mib(limit) + ")");
+    }
+    host_records.assign(coords.size() * kRecordWords, 0);
+    arena_nodes_chunk = arena_materials_chunk = -1;
+    arena_node_cap = arena_node_used = arena_mat_cap = arena_mat_used = 0;
+    stats.blocks = block_count;
+    dims = world_dims;
+}
+
+void SparseTracer::Impl::make_directory_buffers(std::uint64_t tiles) {
+    palette = storage(sizeof colours, colours.data(), sizeof colours, "sparse palette");
+    block_table = storage(host_blocks.size() * 4, host_blocks.data(), host_blocks.size() * 4,
+                          "sparse block table");
+    // Records and pages with room for the tiles and pages edits add (update_tiles).
+    const std::uint64_t page_count = host_pages.size() / kPageTiles;
+    page_capacity = std::min<std::uint64_t>(page_count + std::max<std::uint64_t>(page_count / 4, 4),
+                                            limit / (4 * kPageTiles));
+    pages = storage(page_capacity * kPageTiles * 4, host_pages.data(), host_pages.size() * 4,
+                    "sparse tile pages");
+    record_capacity = std::min<std::uint64_t>(tiles + std::max<std::uint64_t>(tiles / 4, 256),
+                                              limit / kRecordBytes);
+    records = storage(record_capacity * kRecordBytes, host_records.data(), host_records.size() * 4,
+                      "sparse tile records");
 }
 
 std::uint64_t SparseTracer::Impl::block_of(const Int3& c) const {
@@ -387,6 +434,10 @@ void SparseTracer::Impl::count_bytes() {
         for (const Buffer& b : *chunks) {
             stats.bytes += b.size();
         }
+    }
+    stats.shared_bytes = 0;
+    for (const SharedSet& trees : shared_sets) {
+        stats.shared_bytes += trees.masks.size() + trees.offsets.size() + trees.materials.size();
     }
     stats.pages = host_pages.size() / kPageTiles - free_pages.size();
     stats.arena_tiles = static_cast<std::uint32_t>(arena.size());
@@ -577,6 +628,9 @@ SparseTileUpdate SparseTracer::update_tiles(const SparseWorld& world, const Box&
     if (world.dims() != m.dims) {
         throw std::logic_error("SparseTracer::update_tiles: the world is not the one uploaded");
     }
+    if (m.shared) {
+        throw std::logic_error("SparseTracer::update_tiles on trees read in place (repoint)");
+    }
     SparseTileUpdate u;
     const Dims d = world.dims();
     const Box box = intersect(changed, Box{{0, 0, 0}, {d.x, d.y, d.z}});
@@ -627,121 +681,30 @@ SparseTileUpdate SparseTracer::update_tiles(const SparseWorld& world, const Box&
         u.tiles_written = world.tile_count();
         return u;
     }
-    std::vector<std::uint32_t> dirty_records;
-    std::vector<std::uint64_t> dirty_blocks, dirty_entries;  // entries: index into host_pages
-    std::vector<std::uint32_t> new_pages;  // written whole (the device's may hold anything)
+    Impl::DirectoryEdit e;
     for (const Touched& k : touched) {
-        const std::uint64_t b = m.block_of(k.c);
         if (k.tile == kNoTile) {
-            // Emptied: out of the directory; its page freed when it held nothing else.
-            const std::uint32_t page = m.host_blocks[b];
-            std::uint32_t& entry = m.page_entry(page, k.c);
-            dirty_entries.push_back(static_cast<std::uint64_t>(&entry - m.host_pages.data()));
-            entry = VF_SPARSE_NONE;
-            m.arena.erase(k.record);
-            m.free_records.push_back(k.record);
-            if (--m.page_fill[page] == 0) {
-                m.host_blocks[b] = VF_SPARSE_NONE;
-                m.free_pages.push_back(page);
-                dirty_blocks.push_back(b);
-            }
+            m.drop_tile(k.c, k.record, e);
             ++u.tiles_removed;
             continue;
         }
-        std::uint32_t record = k.record;
-        if (record == VF_SPARSE_NONE) {
-            // Made in empty space: a record, and a page for a block that had none.
-            if (!m.free_records.empty()) {
-                record = m.free_records.back();
-                m.free_records.pop_back();
-            } else {
-                record = static_cast<std::uint32_t>(m.host_records.size() / kRecordWords);
-                m.host_records.resize(m.host_records.size() + kRecordWords, 0);
-            }
-            if (m.host_blocks[b] == VF_SPARSE_NONE) {
-                std::uint32_t page = 0;
-                if (!m.free_pages.empty()) {
-                    page = m.free_pages.back();
-                    m.free_pages.pop_back();
-                } else {
-                    page = static_cast<std::uint32_t>(m.host_pages.size() / kPageTiles);
-                    m.host_pages.resize(m.host_pages.size() + kPageTiles, VF_SPARSE_NONE);
-                    m.page_fill.push_back(0);
-                }
-                m.host_blocks[b] = page;
-                dirty_blocks.push_back(b);
-                new_pages.push_back(page);
-            }
-            const std::uint32_t page = m.host_blocks[b];
-            std::uint32_t& entry = m.page_entry(page, k.c);
-            entry = record;
-            dirty_entries.push_back(static_cast<std::uint64_t>(&entry - m.host_pages.data()));
-            ++m.page_fill[page];
-        }
+        const std::uint32_t record = k.record == VF_SPARSE_NONE ? m.add_tile(k.c, e) : k.record;
         const ArenaTile a = m.arena_write(
             world, k.tile,
             tile_key(static_cast<std::uint32_t>(k.c.x), static_cast<std::uint32_t>(k.c.y),
                      static_cast<std::uint32_t>(k.c.z)));
         m.arena[record] = a;
         m.record_arena(record, a);
-        dirty_records.push_back(record);
+        e.records.push_back(record);
         ++u.tiles_written;
     }
     if (u.arena_rebuilt) {
         for (const auto& [record, a] : m.arena) {
-            dirty_records.push_back(record);
+            e.records.push_back(record);
         }
     }
-    // The directory's changes: whole buffers where they outgrew their capacity.
-    bool rebind = u.arena_rebuilt;  // the arena is chunk 0, bound, when the world had none
-    const std::uint64_t record_count = m.host_records.size() / kRecordWords;
-    if (record_count > m.record_capacity) {
-        if (record_count * kRecordBytes > m.limit) {
-            throw InputError("sparse tracer: the directory's " + std::to_string(record_count) +
-                             " tile records exceed one storage-buffer binding (" + mib(m.limit) +
-                             ")");
-        }
-        m.record_capacity = std::min<std::uint64_t>(2 * record_count, m.limit / kRecordBytes);
-        m.records = Buffer{};
-        m.records =
-            m.ctx.make_buffer(m.record_capacity * kRecordBytes,
-                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                              MemoryIntent::device_local, "sparse tile records");
-        m.stage(m.records, 0, m.host_records.data(), m.host_records.size() * 4);
-        rebind = true;
-    } else {
-        for (const std::uint32_t r : dirty_records) {
-            m.stage(m.records, VkDeviceSize{r} * kRecordBytes,
-                    m.host_records.data() + kRecordWords * r, kRecordBytes);
-        }
-    }
-    const std::uint64_t page_count = m.host_pages.size() / kPageTiles;
-    if (page_count > m.page_capacity) {
-        if (m.host_pages.size() * 4 > m.limit) {
-            throw InputError("sparse tracer: the directory's " + std::to_string(page_count) +
-                             " tile pages exceed one storage-buffer binding (" + mib(m.limit) +
-                             ")");
-        }
-        m.page_capacity = std::min<std::uint64_t>(2 * page_count, m.limit / (4 * kPageTiles));
-        m.pages = Buffer{};
-        m.pages =
-            m.ctx.make_buffer(m.page_capacity * kPageTiles * 4,
-                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                              MemoryIntent::device_local, "sparse tile pages");
-        m.stage(m.pages, 0, m.host_pages.data(), m.host_pages.size() * 4);
-        rebind = true;
-    } else {
-        for (const std::uint32_t p : new_pages) {
-            m.stage(m.pages, VkDeviceSize{p} * kPageTiles * 4,
-                    m.host_pages.data() + std::size_t{p} * kPageTiles, kPageTiles * 4);
-        }
-        for (const std::uint64_t e : dirty_entries) {
-            m.stage(m.pages, e * 4, m.host_pages.data() + e, 4);
-        }
-    }
-    for (const std::uint64_t b : dirty_blocks) {
-        m.stage(m.block_table, b * 4, m.host_blocks.data() + b, 4);
-    }
+    // The arena is chunk 0, bound, when the world had none: a rebuilt one is bound again.
+    const bool rebind = m.stage_directory(e) || u.arena_rebuilt;
     u.bytes = m.staged.size();
     m.flush("sparse tracer tile update");
     m.count_bytes();
@@ -749,6 +712,251 @@ SparseTileUpdate SparseTracer::update_tiles(const SparseWorld& world, const Box&
         m.write_set();
     }
     return u;
+}
+
+std::uint32_t SparseTracer::Impl::record_of(const Int3& c) {
+    const std::uint32_t page = host_blocks[block_of(c)];
+    return page == VF_SPARSE_NONE ? VF_SPARSE_NONE : page_entry(page, c);
+}
+
+void SparseTracer::Impl::drop_tile(const Int3& c, std::uint32_t record, DirectoryEdit& e) {
+    const std::uint64_t b = block_of(c);
+    const std::uint32_t page = host_blocks[b];
+    std::uint32_t& entry = page_entry(page, c);
+    e.entries.push_back(static_cast<std::uint64_t>(&entry - host_pages.data()));
+    entry = VF_SPARSE_NONE;
+    arena.erase(record);
+    free_records.push_back(record);
+    if (--page_fill[page] == 0) {
+        host_blocks[b] = VF_SPARSE_NONE;
+        free_pages.push_back(page);
+        e.blocks.push_back(b);
+    }
+}
+
+std::uint32_t SparseTracer::Impl::add_tile(const Int3& c, DirectoryEdit& e) {
+    std::uint32_t record = 0;
+    if (!free_records.empty()) {
+        record = free_records.back();
+        free_records.pop_back();
+    } else {
+        record = static_cast<std::uint32_t>(host_records.size() / kRecordWords);
+        host_records.resize(host_records.size() + kRecordWords, 0);
+    }
+    const std::uint64_t b = block_of(c);
+    if (host_blocks[b] == VF_SPARSE_NONE) {
+        std::uint32_t page = 0;
+        if (!free_pages.empty()) {
+            page = free_pages.back();
+            free_pages.pop_back();
+        } else {
+            page = static_cast<std::uint32_t>(host_pages.size() / kPageTiles);
+            host_pages.resize(host_pages.size() + kPageTiles, VF_SPARSE_NONE);
+            page_fill.push_back(0);
+        }
+        host_blocks[b] = page;
+        e.blocks.push_back(b);
+        e.new_pages.push_back(page);
+    }
+    const std::uint32_t page = host_blocks[b];
+    std::uint32_t& entry = page_entry(page, c);
+    entry = record;
+    e.entries.push_back(static_cast<std::uint64_t>(&entry - host_pages.data()));
+    ++page_fill[page];
+    return record;
+}
+
+bool SparseTracer::Impl::stage_directory(const DirectoryEdit& e) {
+    bool rebind = false;
+    const std::uint64_t record_count = host_records.size() / kRecordWords;
+    if (record_count > record_capacity) {
+        if (record_count * kRecordBytes > limit) {
+            throw InputError("sparse tracer: the directory's " + std::to_string(record_count) +
+                             " tile records exceed one storage-buffer binding (" + mib(limit) +
+                             ")");
+        }
+        record_capacity = std::min<std::uint64_t>(2 * record_count, limit / kRecordBytes);
+        records = Buffer{};
+        records =
+            ctx.make_buffer(record_capacity * kRecordBytes,
+                            VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                            MemoryIntent::device_local, "sparse tile records");
+        stage(records, 0, host_records.data(), host_records.size() * 4);
+        rebind = true;
+    } else {
+        for (const std::uint32_t r : e.records) {
+            stage(records, VkDeviceSize{r} * kRecordBytes, host_records.data() + kRecordWords * r,
+                  kRecordBytes);
+        }
+    }
+    const std::uint64_t page_count = host_pages.size() / kPageTiles;
+    if (page_count > page_capacity) {
+        if (host_pages.size() * 4 > limit) {
+            throw InputError("sparse tracer: the directory's " + std::to_string(page_count) +
+                             " tile pages exceed one storage-buffer binding (" + mib(limit) + ")");
+        }
+        page_capacity = std::min<std::uint64_t>(2 * page_count, limit / (4 * kPageTiles));
+        pages = Buffer{};
+        pages =
+            ctx.make_buffer(page_capacity * kPageTiles * 4,
+                            VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                            MemoryIntent::device_local, "sparse tile pages");
+        stage(pages, 0, host_pages.data(), host_pages.size() * 4);
+        rebind = true;
+    } else {
+        for (const std::uint32_t p : e.new_pages) {
+            stage(pages, VkDeviceSize{p} * kPageTiles * 4,
+                  host_pages.data() + std::size_t{p} * kPageTiles, kPageTiles * 4);
+        }
+        for (const std::uint64_t entry : e.entries) {
+            stage(pages, entry * 4, host_pages.data() + entry, 4);
+        }
+    }
+    for (const std::uint64_t b : e.blocks) {
+        stage(block_table, b * 4, host_blocks.data() + b, 4);
+    }
+    return rebind;
+}
+
+void SparseTracer::upload_shared(Dims dims, const Palette& palette,
+                                 const std::vector<SharedTreeSet>& sets,
+                                 const std::vector<SharedTile>& tiles) {
+    Impl& m = *impl_;
+    for (std::size_t i = 0; i < m.colours.size(); ++i) {
+        m.colours[i] = pack_rgba(palette[static_cast<std::uint8_t>(i)]);
+    }
+    m.ctx.wait_frames_in_flight();
+    m.loaded = false;
+    m.stats = SparseDeviceStats{};
+    // The copy's chunks go: nothing of the trees is the tracer's.
+    m.masks.clear();
+    m.offsets.clear();
+    m.materials.clear();
+    m.mask_at.clear();
+    m.offset_at.clear();
+    m.material_at.clear();
+    std::vector<Int3> coords(tiles.size());
+    for (std::size_t i = 0; i < tiles.size(); ++i) {
+        coords[i] = tiles[i].tile;
+    }
+    m.build_directory(dims, coords);
+    m.shared = true;
+    m.shared_sets.clear();
+    m.set_shared(sets);
+    m.shared_tiles = tiles;
+    for (std::size_t i = 0; i < tiles.size(); ++i) {
+        m.write_shared_record(static_cast<std::uint32_t>(i), tiles[i]);
+    }
+    m.make_directory_buffers(tiles.size());
+    m.count_bytes();
+    m.loaded = true;
+    m.write_set();
+}
+
+SparseTileUpdate SparseTracer::repoint(const std::vector<SharedTreeSet>& sets,
+                                       const std::vector<SharedTile>& tiles,
+                                       const std::vector<Int3>& removed) {
+    Impl& m = *impl_;
+    if (!m.loaded || !m.shared) {
+        throw std::logic_error("SparseTracer::repoint before upload_shared");
+    }
+    m.ctx.wait_frames_in_flight();
+    SparseTileUpdate u;
+    Impl::DirectoryEdit e;
+    // Tiles in a set whose memory was replaced: the same places in the new memory.
+    const std::vector<bool> moved = m.set_shared(sets);
+    for (std::size_t r = 0; r < m.shared_tiles.size(); ++r) {
+        const SharedTile& t = m.shared_tiles[r];
+        if (t.set != VF_SPARSE_NONE && moved.at(t.set)) {
+            m.write_shared_record(static_cast<std::uint32_t>(r), t);
+            e.records.push_back(static_cast<std::uint32_t>(r));
+            ++u.tiles_moved;
+        }
+    }
+    for (const Int3& c : removed) {
+        if (const std::uint32_t record = m.record_of(c); record != VF_SPARSE_NONE) {
+            m.drop_tile(c, record, e);
+            m.shared_tiles[record].set = VF_SPARSE_NONE;
+            ++u.tiles_removed;
+        }
+    }
+    for (const SharedTile& t : tiles) {
+        std::uint32_t record = m.record_of(t.tile);
+        if (record == VF_SPARSE_NONE) {
+            record = m.add_tile(t.tile, e);
+        }
+        if (record >= m.shared_tiles.size()) {
+            m.shared_tiles.resize(record + 1);
+        }
+        m.shared_tiles[record] = t;
+        m.write_shared_record(record, t);
+        e.records.push_back(record);
+        ++u.tiles_written;
+    }
+    const bool rebind = m.stage_directory(e);
+    u.bytes = m.staged.size();
+    m.flush("sparse tracer repoint");
+    m.count_bytes();
+    if (rebind) {
+        m.write_set();
+    }
+    return u;
+}
+
+std::vector<bool> SparseTracer::Impl::set_shared(const std::vector<SharedTreeSet>& sets) {
+    std::vector<bool> moved(sets.size(), false);
+    shared_sets.resize(sets.size());
+    for (std::size_t i = 0; i < sets.size(); ++i) {
+        const SharedTreeSet& in = sets[i];
+        const std::array<const ExternalMemory*, 3> parts{in.masks, in.offsets, in.materials};
+        std::array<VkDeviceMemory, 3> memory{};
+        for (std::size_t k = 0; k < 3; ++k) {
+            memory[k] = parts[k] == nullptr ? VK_NULL_HANDLE : parts[k]->memory();
+        }
+        SharedSet& trees = shared_sets[i];
+        if (memory == trees.memory) {
+            continue;
+        }
+        moved[i] = true;
+        trees = SharedSet{};
+        trees.memory = memory;
+        if (memory[0] == VK_NULL_HANDLE || memory[1] == VK_NULL_HANDLE ||
+            memory[2] == VK_NULL_HANDLE) {
+            continue;  // a set without memory: no tile may point into it
+        }
+        const auto view = [&](const ExternalMemory& mem, const std::string& what) {
+            Buffer b =
+                ctx.make_external_buffer(mem.size(), kSharedTreeUsage, mem.handle_type(), what);
+            ctx.bind(b, mem.memory(), 0, what);
+            return b;
+        };
+        trees.masks = view(*in.masks, "shared sparse node masks");
+        trees.offsets = view(*in.offsets, "shared sparse node offsets");
+        trees.materials = view(*in.materials, "shared sparse materials");
+        trees.mask_at = ctx.device_address(trees.masks);
+        trees.offset_at = ctx.device_address(trees.offsets);
+        trees.material_at = ctx.device_address(trees.materials);
+    }
+    return moved;
+}
+
+void SparseTracer::Impl::write_shared_record(std::uint32_t record, const SharedTile& t) {
+    if (t.set >= shared_sets.size() || shared_sets[t.set].masks.get() == VK_NULL_HANDLE) {
+        throw std::logic_error("SparseTracer: a shared tile in set " + std::to_string(t.set) +
+                               ", which has no memory");
+    }
+    const SharedSet& trees = shared_sets[t.set];
+    std::uint32_t* r = host_records.data() + kRecordWords * record;
+    const auto split = [](std::uint32_t* at, VkDeviceAddress a) {
+        at[0] = static_cast<std::uint32_t>(a);
+        at[1] = static_cast<std::uint32_t>(a >> 32);
+    };
+    // The root's index is read only through chunk 0's binding, which shared trees never take.
+    r[0] = 0;
+    r[1] = static_cast<std::uint32_t>(t.material & 3);
+    split(r + 2, trees.mask_at + 8 * t.node);
+    split(r + 4, trees.offset_at + 4 * t.node);
+    split(r + 6, trees.material_at + (t.material & ~std::uint64_t{3}));
 }
 
 void SparseTracer::Impl::write_set() {
@@ -865,8 +1073,9 @@ double SparseTracer::Impl::dispatch(const RenderOptions& o, Image* out) {
         m.write_set();
     }
     m.prepare_target(o.width, o.height);
-    const VkPipeline pipeline = m.pipeline_for(o.shading == Shading::lit, o.count,
-                                               m.masks.size() <= 1 && m.materials.size() <= 1);
+    const VkPipeline pipeline =
+        m.pipeline_for(o.shading == Shading::lit, o.count,
+                       !m.shared && m.masks.size() <= 1 && m.materials.size() <= 1);
     const VkImage image = m.target.image.get();
     const VkQueryPool timer = m.queries.get();
     m.ctx.submit_and_wait(

@@ -16,6 +16,7 @@
 // taking more than a quarter of the main buffers' bytes (at least 256 MiB) bring the host world
 // up to date and upload it again whole, which frees them.
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -56,12 +57,19 @@ struct QueueTraffic {
     }
 };
 
+// Memory for the 64-trees' buffers (main and slot buffers) that another API reads in place as
+// well (the viewer's Vulkan tracer; pipeline/shared_trees.hpp): a read-write buffer of at least
+// `bytes` bytes for `what`. Empty: plain device buffers.
+using TreeAllocator = std::function<cl::Buffer(std::size_t bytes, const std::string& what)>;
+
 class SparseDeviceWorld {
   public:
     // Uploads `world` (its buffers as they are). With `editable` (null, or `world` itself) the
     // world is edited on the device and lags behind it after apply_brush until world() is
-    // called; without it apply_brush throws logic_error.
-    SparseDeviceWorld(Context& ctx, const SparseWorld& world, SparseWorld* editable = nullptr);
+    // called; without it apply_brush throws logic_error. `allocate`: where the trees' buffers
+    // come from (TreeAllocator).
+    SparseDeviceWorld(Context& ctx, const SparseWorld& world, SparseWorld* editable = nullptr,
+                      TreeAllocator allocate = {});
     // Waits for the queue (an edit's tables may still be on their way to the device).
     ~SparseDeviceWorld();
     SparseDeviceWorld(const SparseDeviceWorld&) = delete;
@@ -120,8 +128,25 @@ class SparseDeviceWorld {
     // Slots in use (tiles encoded since the last whole upload).
     std::size_t slots_used() const { return slot_of_.size(); }
 
+    // For a reader of the trees in place (TreeAllocator's memory): the buffers as they are now
+    // (main: the host world as last uploaded; slots: kTileMaxNodes nodes and kTileVoxels
+    // materials per slot), and a number that changes whenever one of them is replaced (a whole
+    // upload, the slot buffers grown). Reading them is ordered after the device's edits by
+    // the queue's finish.
+    struct TreeBuffers {
+        cl::Buffer masks, offsets, materials, slot_masks, slot_offsets, slot_materials;
+    };
+    TreeBuffers tree_buffers() const;
+    std::uint64_t trees_generation() const { return trees_generation_; }
+    // Whether a ref's node base points into the slot buffers (its index there: the rest).
+    static constexpr std::uint64_t kSlotRef = std::uint64_t{1} << 63;
+    // Every stored tile's coordinates and ref (as ref()), in no particular order.
+    std::vector<std::pair<Int3, std::pair<std::uint64_t, std::uint64_t>>> refs() const;
+
   private:
     void upload_whole();
+    // A buffer for the trees: from allocate_ when set.
+    cl::Buffer tree_buffer(std::size_t bytes, cl_mem_flags flags, const std::string& what);
     std::uint32_t slot_for(std::uint64_t key);
     // A slot no tile holds: a freed one, else a new one (the slot buffers grow to fit it).
     std::uint32_t take_slot();
@@ -152,6 +177,8 @@ class SparseDeviceWorld {
     EncodeKernels encode_;
     // Main buffers: the host world as uploaded; dir_: per stored tile key, its refs.
     cl::Buffer masks_, offsets_, materials_;
+    TreeAllocator allocate_;
+    std::uint64_t trees_generation_ = 0;
     std::unordered_map<std::uint64_t, std::pair<std::uint64_t, std::uint64_t>> dir_;
     // Slots: buffers of slot_capacity_ worst-case tiles, per slot its node and material counts.
     cl::Buffer slot_masks_, slot_offsets_, slot_materials_, slot_counts_;

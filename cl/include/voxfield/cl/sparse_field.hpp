@@ -174,9 +174,10 @@ class SparseField {
     SparseField(Context& ctx, const SparseWorld& world, const Palette& palette,
                 const GeneratorOptions& options);
     // The same, with a world the field edits on the device (apply_brush): `world` lags behind
-    // the device until it is read through world().
+    // the device until it is read through world(). `allocate`: where the device world's trees
+    // live (SparseDeviceWorld's TreeAllocator; empty: plain device buffers).
     SparseField(Context& ctx, SparseWorld& world, const Palette& palette,
-                const GeneratorOptions& options);
+                const GeneratorOptions& options, TreeAllocator allocate = {});
     ~SparseField();
     SparseField(const SparseField&) = delete;
     SparseField& operator=(const SparseField&) = delete;
@@ -266,7 +267,7 @@ class SparseField {
 
   private:
     SparseField(Context& ctx, const SparseWorld& world, const Palette& palette,
-                const GeneratorOptions& options, SparseWorld* editable);
+                const GeneratorOptions& options, SparseWorld* editable, TreeAllocator allocate);
     struct Job {
         Box region;   // voxels written: inside one block, clipped to the world
         Int3 origin;  // world coordinates of the block's first voxel

@@ -9,11 +9,13 @@
 // walk, ambient occlusion from 20 voxel look-ups in the 64-trees (not a distance field).
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/sparse.hpp"
 #include "voxfield/vk/context.hpp"
 #include "voxfield/vk/raymarcher.hpp"
+#include "voxfield/vk/shared.hpp"
 
 namespace voxfield::vk {
 
@@ -26,7 +28,9 @@ Camera default_camera(const SparseWorld& world, std::uint32_t width, std::uint32
 
 // What an upload put on the device.
 struct SparseDeviceStats {
-    std::uint64_t bytes = 0;  // every buffer the tracer reads
+    std::uint64_t bytes = 0;  // every buffer of the tracer's own that it reads
+    // Trees read in place (upload_shared): the memory of their sets, not the tracer's.
+    std::uint64_t shared_bytes = 0;
     std::uint32_t node_chunks = 0, material_chunks = 0;
     std::uint64_t blocks = 0, pages = 0;  // block table entries, pages of tile indices
     // The edit arena (update_tiles): tiles whose trees live there, its nodes and material
@@ -37,13 +41,38 @@ struct SparseDeviceStats {
     std::uint64_t arena_node_capacity = 0, arena_material_capacity = 0;
 };
 
-// What one update_tiles did.
+// Buffer usage of memory the tracer reads trees from in place (ExternalMemory for upload_shared).
+inline constexpr VkBufferUsageFlags kSharedTreeUsage =
+    VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+
+// One set of core's three tree buffers (node masks, node offsets, materials, as in
+// core/sparse.hpp) in memory that another API writes (OpenCL: pipeline/shared_trees.hpp), made
+// with kSharedTreeUsage. Null: a set without memory (no tile points into it).
+struct SharedTreeSet {
+    const ExternalMemory* masks = nullptr;
+    const ExternalMemory* offsets = nullptr;
+    const ExternalMemory* materials = nullptr;
+};
+
+// Where one stored tile's 64-tree lies: in set `set`, its root at node `node`, its first
+// material at byte `material` (node offsets tile-relative, as core lays a tile out).
+struct SharedTile {
+    Int3 tile;
+    std::uint32_t set = 0;
+    std::uint64_t node = 0, material = 0;
+};
+
+// What one update_tiles or repoint did.
 struct SparseTileUpdate {
-    std::uint32_t tiles_written = 0;  // tiles whose 64-tree was written into the edit arena
+    // Tiles whose 64-tree was written into the edit arena (repoint: whose record now points at
+    // their tree's new place).
+    std::uint32_t tiles_written = 0;
     std::uint32_t tiles_removed = 0;  // tiles taken out of the directory (now empty)
-    std::uint64_t bytes = 0;          // bytes copied from the host to the device
-    bool arena_rebuilt = false;       // the arena was (re)made: its live tiles written again
-    bool whole = false;               // the world was uploaded whole instead
+    // repoint: tiles whose records were written again because their set's memory was replaced.
+    std::uint32_t tiles_moved = 0;
+    std::uint64_t bytes = 0;     // bytes copied from the host to the device
+    bool arena_rebuilt = false;  // the arena was (re)made: its live tiles written again
+    bool whole = false;          // the world was uploaded whole instead
 };
 
 class SparseTracer {
@@ -74,6 +103,26 @@ class SparseTracer {
     // exceed one binding the world is uploaded whole.
     // logic_error before an upload or for a world of other dims.
     SparseTileUpdate update_tiles(const SparseWorld& world, const Box& changed);
+
+    // Like upload, but the trees are read in place in `sets` (memory OpenCL writes, shared with
+    // this device): nothing of the trees is copied; the tracer's own buffers are the directory
+    // (`tiles`: every stored tile of a world of `dims`, each once), its records of device
+    // addresses into the sets, and the palette. The sets' memory must stay alive and unchanged
+    // by others while a trace runs, until a later upload or repoint names other memory; the
+    // caller orders the other API's writes before the next trace (a finished queue). Shared
+    // trees always take the address path (never chunk 0's bindings). update_tiles is not
+    // taken (logic_error): edits are told through repoint.
+    void upload_shared(Dims dims, const Palette& palette, const std::vector<SharedTreeSet>& sets,
+                       const std::vector<SharedTile>& tiles);
+    // After trees moved (the device world's edits wrote tiles into other places, or its memory
+    // was replaced): `sets` as they are now (a set whose memory changed: its tiles' records
+    // written again, same places in the new memory), `tiles` whose tree is now elsewhere or
+    // new to the directory, `removed` tiles no longer stored (those the directory lacks are
+    // ignored). Only records, pages and block entries are copied. logic_error before
+    // upload_shared.
+    SparseTileUpdate repoint(const std::vector<SharedTreeSet>& sets,
+                             const std::vector<SharedTile>& tiles,
+                             const std::vector<Int3>& removed);
 
     // Traces one image and reads it back (Image::raymarch_ms: the dispatch by GPU timestamps).
     // options.count: Image::fetches counts node visits and Image::steps node exits (every level
