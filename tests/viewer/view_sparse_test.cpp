@@ -10,6 +10,8 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -60,6 +62,30 @@ World test_world() {
     return w;
 }
 
+// Sets an environment variable for the voxfield processes a test starts, restored after.
+class ScopedEnv {
+  public:
+    ScopedEnv(const char* name, const char* value) : name_(name) {
+        if (const char* old = std::getenv(name)) {
+            old_ = old;
+        }
+        ::setenv(name, value, 1);
+    }
+    ~ScopedEnv() {
+        if (old_) {
+            ::setenv(name_, old_->c_str(), 1);
+        } else {
+            ::unsetenv(name_);
+        }
+    }
+    ScopedEnv(const ScopedEnv&) = delete;
+    ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+  private:
+    const char* name_;
+    std::optional<std::string> old_;
+};
+
 fs::path write_world(const World& w, const fs::path& path) {
     const NpyArray a = npy_from_world(w);
     write_npy(path, a.type, a.dims, a.data);
@@ -97,15 +123,26 @@ TEST_F(ViewSparse, EditedWindowEqualsRenderOfTheEditedWorld) {
         "place cube 140 34 130 3 11\n";
     const fs::path edits = dir_ / "edits.txt";
     write_file(edits, edit_text);
-    const fs::path shot = dir_ / "viewed.png";
-    const int code = run_under_xvfb(
-        {"view", world.string(), "--sparse", "--frames", "6", "--edits", edits.string(),
-         "--shading", "flat", "--width", "160", "--height", "120", "--screenshot", shot.string()},
-        io_ / "xvfb.log");
-    const std::string log = read_text(io_ / "xvfb.log");
-    ASSERT_EQ(code, 0) << log;
-    EXPECT_NE(log.find("window:"), std::string::npos) << log;
-    EXPECT_NE(log.find("edits 4"), std::string::npos) << log;
+    // The tracer reading OpenCL's trees in place (path 2 here), and its own copy updated from
+    // the host world ($VOXFIELD_TRACER_COPY).
+    const fs::path shot = dir_ / "viewed.png", copied = dir_ / "viewed_copy.png";
+    for (const bool copy : {false, true}) {
+        std::optional<ScopedEnv> env;
+        if (copy) {
+            env.emplace("VOXFIELD_TRACER_COPY", "1");
+        }
+        const int code =
+            run_under_xvfb({"view", world.string(), "--sparse", "--frames", "6", "--edits",
+                            edits.string(), "--shading", "flat", "--width", "160", "--height",
+                            "120", "--screenshot", (copy ? copied : shot).string()},
+                           io_ / "xvfb.log");
+        const std::string log = read_text(io_ / "xvfb.log");
+        ASSERT_EQ(code, 0) << log;
+        EXPECT_NE(log.find("window:"), std::string::npos) << log;
+        EXPECT_NE(log.find("edits 4"), std::string::npos) << log;
+        EXPECT_NE(log.find(copy ? "sharing: path 3" : "sharing: path 2"), std::string::npos) << log;
+    }
+    EXPECT_EQ(read_text(shot), read_text(copied)) << "the shared and copied trees' frames differ";
 
     for (const Brush& b : {Brush{BrushOp::paint, BrushShape::sphere, {60, 10, 70}, 12, 3},
                            Brush{BrushOp::erase, BrushShape::cube, {104, 24, 24}, 12, 0},
@@ -221,6 +258,13 @@ TEST_F(ViewSparse, HeadlessBenchmarkOnTheCityRecordsEditsAndTiles) {
     EXPECT_EQ(s.at("max_distance").get<double>(), 6.0);
     EXPECT_EQ(s.at("format"), "u8");
     EXPECT_GT(s.at("field_tiles").get<int>(), 0);
+    // PoCL and lavapipe share host memory (path 2): the tracer reads OpenCL's trees in place.
+    EXPECT_EQ(s.at("tracer_sharing").get<std::string>().rfind("path 2", 0), 0u)
+        << s.at("tracer_sharing");
+    EXPECT_GE(s.at("tracer_shared_bytes").get<std::uint64_t>(),
+              s.at("world_bytes").get<std::uint64_t>() / 2);
+    EXPECT_LT(s.at("tracer_bytes").get<std::uint64_t>(),
+              s.at("world_bytes").get<std::uint64_t>() / 4);
     ASSERT_GE(j.at("edits").size(), 1u);
     std::uint64_t written = 0;
     for (const nlohmann::json& e : j.at("edits")) {

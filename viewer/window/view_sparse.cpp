@@ -2,6 +2,7 @@
 #include "view_sparse.hpp"
 
 #include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <optional>
@@ -26,6 +27,7 @@
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/sdf.hpp"
 #include "voxfield/core/sparse.hpp"
+#include "voxfield/pipeline/shared_trees.hpp"
 #include "voxfield/vk/sparse_tracer.hpp"
 
 namespace voxfield::cli {
@@ -136,9 +138,32 @@ Brush on_surface(const SparseWorld& world, Brush b) {
     return b;
 }
 
-// One edit through the device: the world and field edited there, the edited tiles read back
-// into the host world, the tracer's tiles rewritten.
-SparseEditRecord apply_edit(ocl::SparseField& field, vk::SparseTracer& tracer, const Brush& brush) {
+// The sharing path the tracer's trees take: the first both devices have (SharedTrees), or path
+// 3 when $VOXFIELD_TRACER_COPY is set (not empty, not 0; tests compare the two).
+vk::SharingPath tracer_fastest_path() {
+    const char* copy = std::getenv("VOXFIELD_TRACER_COPY");
+    return copy != nullptr && *copy != '\0' && std::string(copy) != "0"
+               ? vk::SharingPath::copy
+               : vk::SharingPath::opaque_fd;
+}
+
+// What the tracer reads after the device world changed inside `changed`: in place, its records
+// pointed at the trees' new places (paths 1 and 2); or, on path 3, the tiles read back into the
+// host world (SparseField::world) and written into its edit arena.
+vk::SparseTileUpdate feed_tracer(pipeline::SharedTrees& shared, ocl::SparseField& field,
+                                 vk::SparseTracer& tracer, const Palette& palette, const Dims& dims,
+                                 const Box& changed) {
+    if (shared.shares()) {
+        return shared.sync(tracer, field.device_world(), dims, palette, changed);
+    }
+    return tracer.update_tiles(field.world(), changed);
+}
+
+// One edit through the device: the world and field edited there, the tracer told (feed_tracer),
+// the edited tiles read back into the host world (which aiming walks).
+SparseEditRecord apply_edit(pipeline::SharedTrees& shared, ocl::SparseField& field,
+                            vk::SparseTracer& tracer, const Palette& palette, const Dims& dims,
+                            const Brush& brush) {
     SparseEditRecord e;
     e.brush = brush;
     const auto t0 = Clock::now();
@@ -146,12 +171,21 @@ SparseEditRecord apply_edit(ocl::SparseField& field, vk::SparseTracer& tracer, c
     e.field_kernel_ms = u.kernel_ms;
     e.edit_kernel_ms = u.edit_kernel_ms;
     e.field_tiles = u.tiles;
-    const auto t1 = Clock::now();
-    const SparseWorld& world = field.world();  // reads back the tiles the edit changed
-    e.readback_ms = ms_since(t1);
+    const Box bounds = brush_bounds(brush, dims);
+    vk::SparseTileUpdate tu;
+    if (shared.shares()) {
+        const auto t1 = Clock::now();
+        tu = feed_tracer(shared, field, tracer, palette, dims, bounds);
+        e.tracer_ms = ms_since(t1);
+    }
     const auto t2 = Clock::now();
-    const vk::SparseTileUpdate tu = tracer.update_tiles(world, brush_bounds(brush, world.dims()));
-    e.tracer_ms = ms_since(t2);
+    field.world();  // reads back the tiles the edit changed
+    e.readback_ms = ms_since(t2);
+    if (!shared.shares()) {
+        const auto t3 = Clock::now();
+        tu = feed_tracer(shared, field, tracer, palette, dims, bounds);
+        e.tracer_ms = ms_since(t3);
+    }
     e.tiles_written = tu.tiles_written;
     e.tiles_removed = tu.tiles_removed;
     e.tracer_bytes = tu.bytes;
@@ -199,7 +233,8 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
     std::string why_not_one_device;
     const std::unique_ptr<vk::Context> vk_ctx =
         marcher_context(window.handle(), validation, why_not_one_device);
-    ocl::SparseField field(cl_ctx, world, palette, options);
+    pipeline::SharedTrees shared(cl_ctx, *vk_ctx, tracer_fastest_path());
+    ocl::SparseField field(cl_ctx, world, palette, options, shared.allocator());
     const auto t_field = Clock::now();
     const double field_kernel_ms = field.run();
     const double field_ms = ms_since(t_field);
@@ -213,8 +248,16 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
     bool sand_single = false;
     vk::SparseTracer tracer(*vk_ctx);
     const auto t_upload = Clock::now();
-    tracer.upload(field.world(), palette);
+    if (shared.shares()) {
+        shared.sync(tracer, field.device_world(), dims, palette, Box{});
+    } else {
+        tracer.upload(field.world(), palette);
+    }
     const double upload_ms = ms_since(t_upload);
+    const std::string sharing =
+        shared.shares() ? vk::describe(shared.path())
+                        : "path 3: copy (the tracer holds its own copy of the trees; edits read "
+                          "the tiles back into the host world and upload them)";
 
     std::cout << "opencl:  " << cl_ctx.info().name << " (" << cl_ctx.info().type << ")\n"
               << "vulkan:  " << vk_ctx->info().name << " (" << vk_ctx->info().type << ")\n"
@@ -226,8 +269,14 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
               << to_string(options.format) << ", " << field.dense_tiles() << " tiles with values ("
               << field.field_bytes() << " bytes) in " << fixed(field_ms, 1) << " ms (kernels "
               << fixed(field_kernel_ms, 1) << " ms)\n"
-              << "tracer:  " << tracer.stats().bytes << " bytes on the device, uploaded in "
-              << fixed(upload_ms, 1) << " ms; edits rewrite only the tiles they touch\n";
+              << "tracer:  " << tracer.stats().bytes << " bytes of its own on the device, "
+              << tracer.stats().shared_bytes << " read in place, ready in " << fixed(upload_ms, 1)
+              << " ms; "
+              << (shared.shares() ? "edits repoint the tiles they touch"
+                                  : "edits rewrite the tiles they touch from the host world")
+              << "\n"
+              << "sharing: " << sharing
+              << (shared.why_not().empty() ? std::string() : " (" + shared.why_not() + ")") << '\n';
 
     std::unique_ptr<Screen> screen;
     if (window.handle() != nullptr) {
@@ -300,6 +349,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                 std::cout << "sparse worlds keep no undo history and are not saved by the viewer "
                              "(`voxfield generate` writes .vdb)\n";
             }
+            field.world();  // aiming walks the host world: the device's changes read back
             preview = aimed_brush(world, camera, controls, a);
             // A held button strokes: every frame whose aimed brush differs adds it.
             if ((a.left || a.right) && preview && preview != last_stroke) {
@@ -320,12 +370,13 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             from_bench.push_back(false);
         }
         if (const auto brush = bench ? bench->due(time_s) : std::nullopt) {
+            field.world();
             batch.push_back(on_surface(world, *brush));
             from_bench.push_back(true);
         }
         double update_ms = 0;
         for (std::size_t i = 0; i < batch.size(); ++i) {
-            SparseEditRecord e = apply_edit(field, tracer, batch[i]);
+            SparseEditRecord e = apply_edit(shared, field, tracer, palette, dims, batch[i]);
             if (sand) {
                 sand->touched(brush_bounds(batch[i], dims));
             }
@@ -350,7 +401,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             simulate_ms = st.simulate_ms;
             sand_changed = static_cast<std::size_t>(st.changed);
             if (!st.bounds.empty()) {
-                tracer.update_tiles(field.world(), st.bounds);
+                feed_tracer(shared, field, tracer, palette, dims, st.bounds);
             }
             update_ms += ms_since(t_step);
             info.sand_steps = sand_step;
@@ -366,6 +417,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             render.camera.position = camera.position();
             render.camera.target = camera.target();
             render.camera.fov_deg = camera.settings.fov_deg;
+            shared.before_trace();
             if (screen) {
                 tracer.render(render, image);
                 trace_ms = image.raymarch_ms;
@@ -387,6 +439,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             } else {
                 trace_ms = tracer.trace(render);
             }
+            shared.after_trace();
         }
         records.push_back({time_s, ms_since(t0), update_ms, 0, trace_ms, !batch.empty(),
                            simulate_ms, sand_changed});
@@ -404,7 +457,9 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
         if (render.width == 0) {
             throw std::runtime_error("no frame was rendered for --screenshot");
         }
+        shared.before_trace();
         const vk::Image shot = tracer.render(render);
+        shared.after_trace();
         write_png(o.screenshot, shot);
         std::cout << "screenshot " << o.screenshot << " (" << shot.width << "x" << shot.height
                   << ", frame " << frame << ")\n";
@@ -438,6 +493,8 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             {"load_ms", load_ms},
             {"tracer_upload_ms", upload_ms},
             {"tracer_bytes", ts.bytes},
+            {"tracer_shared_bytes", ts.shared_bytes},
+            {"tracer_sharing", sharing},
             {"tracer_node_chunks", ts.node_chunks},
             {"tracer_material_chunks", ts.material_chunks},
             {"arena_tiles", ts.arena_tiles},
