@@ -316,10 +316,16 @@ void draw_sparse_overlay(const SparseOverlayInfo& info, ViewControls& controls,
                 mib(info.world_bytes));
     ImGui::Text("  field: exact, bounded at %g, %s, %u tiles with values, %.1f MiB",
                 info.max_distance, info.format.c_str(), info.field_tiles, mib(info.field_bytes));
-    ImGui::Text("  tracer: %.1f MiB on the device; edit arena %u tiles, %.1f of %.1f MiB",
-                mib(info.tracer.bytes), info.tracer.arena_tiles,
-                mib(info.tracer.arena_nodes * 12 + info.tracer.arena_material_bytes),
-                mib(info.tracer.arena_node_capacity * 12 + info.tracer.arena_material_capacity));
+    if (info.tracer.shared_bytes != 0) {
+        ImGui::Text("  tracer: %.1f MiB of its own, reads %.1f MiB of OpenCL's trees in place (%s)",
+                    mib(info.tracer.bytes), mib(info.tracer.shared_bytes), info.sharing.c_str());
+    } else {
+        ImGui::Text(
+            "  tracer: %.1f MiB on the device; edit arena %u tiles, %.1f of %.1f MiB",
+            mib(info.tracer.bytes), info.tracer.arena_tiles,
+            mib(info.tracer.arena_nodes * 12 + info.tracer.arena_material_bytes),
+            mib(info.tracer.arena_node_capacity * 12 + info.tracer.arena_material_capacity));
+    }
     ImGui::Text(
         "edit %llu: %.3f ms (field kernels %.3f, read-back %.3f, tracer %.3f), tiles "
         "%u written, %u removed",

@@ -53,6 +53,7 @@ class Overlay {
 // tracer's device copy, the last frame's and edit's times, the devices.
 struct SparseOverlayInfo {
     std::string world, vulkan, opencl, format;
+    std::string sharing;  // how the tracer gets the trees: "path 2", ...
     Dims dims;
     std::uint32_t tiles = 0, field_tiles = 0;
     std::uint64_t solid = 0, world_bytes = 0, field_bytes = 0;

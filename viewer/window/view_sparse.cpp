@@ -301,6 +301,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
     info.world = view.name;
     info.vulkan = vk_ctx->info().name;
     info.opencl = cl_ctx.info().name;
+    info.sharing = sharing.substr(0, sharing.find(':'));
     info.format = to_string(options.format);
     info.dims = dims;
     info.max_distance = options.max_distance.value_or(0);
