@@ -693,6 +693,76 @@ void SparseDeviceWorld::set_tree_args(cl::Kernel& k, cl_uint first) {
     });
 }
 
+std::vector<std::uint8_t> SparseDeviceWorld::voxels(std::span<const Int3> cells) {
+    std::vector<std::uint8_t> out(cells.size(), 0);
+    if (cells.empty()) {
+        return out;
+    }
+    // gather_voxels' jobs (see sparse_world.cl): per cell a 1^3 block at the cell, its one tile.
+    // Launches take a power of two of at least 64 jobs, the extra ones outside the world: PoCL
+    // builds a kernel again for each new launch size (about 70 ms here), so sizes are few.
+    const std::size_t launch = std::bit_ceil(std::max<std::size_t>(cells.size(), 64));
+    std::vector<std::int64_t> jobs(8 * launch);
+    std::vector<std::uint64_t> refs(2 * launch);
+    for (std::size_t i = 0; i < launch; ++i) {
+        const Int3 c = i < cells.size() ? cells[i] : Int3{-1, -1, -1};
+        const Int3 t{c.x >> 6, c.y >> 6, c.z >> 6};
+        std::int64_t* job = jobs.data() + 8 * i;
+        job[0] = c.x;
+        job[1] = c.y;
+        job[2] = c.z;
+        job[3] = t.x;
+        job[4] = t.y;
+        job[5] = t.z;
+        job[6] = std::int64_t{1} | std::int64_t{1} << 16 | std::int64_t{1} << 32;
+        job[7] = static_cast<std::int64_t>(i);
+        const auto r = ref(t.x, t.y, t.z);
+        refs[2 * i] = r.first;
+        refs[2 * i + 1] = r.second;
+    }
+    cl_call("reading " + std::to_string(cells.size()) + " voxels of the sparse world", [&] {
+        auto& c = ctx_.context();
+        cl::Buffer job_buf(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, jobs.size() * 8,
+                           jobs.data());
+        cl::Buffer ref_buf(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, refs.size() * 8,
+                           refs.data());
+        cl::Buffer vox(c, CL_MEM_WRITE_ONLY, launch);
+        cl::Kernel k = gather_kernel(true);
+        const Dims d = world_.dims();
+        k.setArg(6, job_buf);
+        k.setArg(7, ref_buf);
+        k.setArg(8, vox);
+        k.setArg(9, cl_uint{1});
+        k.setArg(10, cl_uint{1});
+        k.setArg(11, cl_uint{1});
+        k.setArg(12, static_cast<cl_long>(d.x));
+        k.setArg(13, static_cast<cl_long>(d.y));
+        k.setArg(14, static_cast<cl_long>(d.z));
+        auto& q = ctx_.queue();
+        q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(1, 1, launch));
+        q.enqueueReadBuffer(vox, CL_TRUE, 0, out.size(), out.data());
+    });
+    return out;
+}
+
+std::optional<PickHit> SparseDeviceWorld::pick(const Vec3d& origin, const Vec3d& direction,
+                                               double max_distance) {
+    const Dims d = world_.dims();
+    std::vector<Int3> cells;
+    pick_solid_voxel(
+        d,
+        [&cells](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+            cells.push_back({x, y, z});
+            return false;
+        },
+        origin, direction, max_distance);
+    const std::vector<std::uint8_t> v = voxels(cells);
+    std::size_t next = 0;
+    return pick_solid_voxel(
+        d, [&](std::uint32_t, std::uint32_t, std::uint32_t) { return v.at(next++) != 0; }, origin,
+        direction, max_distance);
+}
+
 std::pair<std::uint64_t, std::uint64_t> SparseDeviceWorld::ref(std::int64_t tx, std::int64_t ty,
                                                                std::int64_t tz) const {
     const Dims g = world_.tile_grid();

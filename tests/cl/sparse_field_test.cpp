@@ -649,5 +649,88 @@ TEST(SparseField, OptionsForSparseWorlds) {
     EXPECT_THROW(ocl::resolve_sparse_options(o, false), InputError);
 }
 
+// The sparse viewer's reads without the host world: after device edits (the host lagging),
+// voxels() at random cells (inside, outside the world, in tiles not stored, in slots) equals the
+// world read back after; pick() equals core's pick over the world read back, hit for hit (voxel,
+// face and distance), for rays from outside and inside the world, with and without a limit.
+TEST(SparseDeviceWorld, VoxelsAndPicksReadTheDeviceNotTheHost) {
+    std::mt19937 rng(36);
+    const Palette p = Palette::magicavoxel_default();
+    const Dims d{150, 90, 200};
+    World w = blob_world(d, 12, 0.001, rng);
+    for (std::uint32_t z = 0; z < d.z; ++z) {
+        for (std::uint32_t x = 0; x < d.x; ++x) {
+            for (std::uint32_t y = 0; y < 3 + (x + z) % 9; ++y) {
+                w.set(x, y, z, 3);  // a ground, and tiles of the empty air above it
+            }
+        }
+    }
+    SparseWorld s = SparseWorld::from_dense(w);
+    Case c;
+    c.metric = Metric::manhattan;
+    c.format = Format::u8;
+    c.bound = 6;
+    ocl::SparseField f(pocl(), s, p, options_of(c));
+    for (int e = 0; e < 10; ++e) {
+        Brush b;
+        b.op = static_cast<BrushOp>(e % 3);
+        b.shape = static_cast<BrushShape>(e % 2);
+        b.centre = {std::uniform_int_distribution<std::int64_t>(0, d.x)(rng),
+                    std::uniform_int_distribution<std::int64_t>(0, d.y)(rng),
+                    std::uniform_int_distribution<std::int64_t>(0, d.z)(rng)};
+        b.radius = std::uniform_int_distribution<std::int64_t>(2, 14)(rng);
+        b.material = static_cast<std::uint8_t>(1 + e);
+        f.apply_brush(b);
+    }
+    ASSERT_TRUE(f.device_world().host_lags());
+    std::vector<Int3> cells;
+    std::uniform_int_distribution<std::int64_t> cx(-70, d.x + 70), cy(-70, d.y + 70),
+        cz(-70, d.z + 70);
+    for (int i = 0; i < 20000; ++i) {
+        cells.push_back({cx(rng), cy(rng), cz(rng)});
+    }
+    const std::vector<std::uint8_t> got = f.device_world().voxels(cells);
+    ocl::SparseDeviceWorld& dw = f.device_world();
+    std::vector<PickHit> device_hits;
+    std::vector<std::pair<Vec3d, Vec3d>> rays;
+    std::uniform_real_distribution<double> u(0, 1);
+    for (int i = 0; i < 300; ++i) {
+        const Vec3d target{u(rng) * d.x, u(rng) * d.y, u(rng) * d.z};
+        const Vec3d origin = i % 3 == 0 ? Vec3d{u(rng) * d.x, u(rng) * d.y, u(rng) * d.z}
+                                        : Vec3d{-40 + u(rng) * 30, d.y + 20 * u(rng), -30.5};
+        const Vec3d dir{target[0] - origin[0], target[1] - origin[1], target[2] - origin[2]};
+        rays.emplace_back(origin, dir);
+        const auto hit = dw.pick(origin, dir, i % 4 == 0 ? 0.7 : 1e9);
+        device_hits.push_back(hit.value_or(PickHit{{-1, -1, -1}, {0, 0, 0}, -1}));
+    }
+    ASSERT_TRUE(f.device_world().host_lags());  // nothing above read the host world back
+    const SparseWorld& host = f.world();
+    std::size_t solid = 0;
+    for (std::size_t i = 0; i < cells.size(); ++i) {
+        const Int3 v = cells[i];
+        const bool inside = v.x >= 0 && v.y >= 0 && v.z >= 0 && v.x < d.x && v.y < d.y && v.z < d.z;
+        const std::uint8_t want =
+            inside ? host.at(static_cast<std::uint32_t>(v.x), static_cast<std::uint32_t>(v.y),
+                             static_cast<std::uint32_t>(v.z))
+                   : 0;
+        ASSERT_EQ(got[i], want) << "cell " << v.x << ", " << v.y << ", " << v.z;
+        solid += want != 0;
+    }
+    EXPECT_GT(solid, 100u);
+    std::size_t hits = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        const auto want = pick_solid_voxel(
+            d,
+            [&host](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+                return host.at(x, y, z) != 0;
+            },
+            rays[i].first, rays[i].second, i % 4 == 0 ? 0.7 : 1e9);
+        EXPECT_EQ(device_hits[i], want.value_or(PickHit{{-1, -1, -1}, {0, 0, 0}, -1}))
+            << "ray " << i;
+        hits += want.has_value();
+    }
+    EXPECT_GT(hits, 100u);
+}
+
 }  // namespace
 }  // namespace voxfield

@@ -183,6 +183,13 @@ std::optional<Brush> aimed_brush(const SparseWorld& world, const ViewCamera& cam
     });
 }
 
+std::optional<Brush> aimed_brush(ocl::SparseDeviceWorld& world, const ViewCamera& camera,
+                                 const ViewControls& controls, const InputActions& actions) {
+    return aimed_brush_by(camera, controls, actions, [&](const Vec3d& dir) {
+        return world.pick(camera.position(), dir, kSparseAimDistance);
+    });
+}
+
 std::optional<Brush> Strokes::update(bool held, const std::optional<Brush>& aimed,
                                      UndoStack& undo) {
     if (held && aimed) {

@@ -11,6 +11,7 @@
 #include <set>
 
 #include "view_script.hpp"
+#include "voxfield/cl/sparse_device_world.hpp"
 #include "voxfield/core/camera.hpp"
 #include "voxfield/core/pick.hpp"
 #include "voxfield/core/sparse.hpp"
@@ -103,6 +104,11 @@ std::optional<PickHit> pick_sparse_voxel(
     double max_distance = std::numeric_limits<double>::infinity());
 // aimed_brush on a sparse world (the sparse viewer), aiming at most kSparseAimDistance voxels.
 std::optional<Brush> aimed_brush(const SparseWorld& world, const ViewCamera& camera,
+                                 const ViewControls& controls, const InputActions& actions);
+// The same on the world as the OpenCL device has it (SparseDeviceWorld::pick: the ray's voxels
+// read from the device in one transfer, the host world left lagging), the same hit as on the
+// host world brought up to date.
+std::optional<Brush> aimed_brush(ocl::SparseDeviceWorld& world, const ViewCamera& camera,
                                  const ViewControls& controls, const InputActions& actions);
 
 // Mouse strokes: from a button going down until both are up, one undoable stroke; while a

@@ -124,13 +124,16 @@ Framing sparse_framing(const SparseWorld& world) {
 
 // The benchmark's brush on the surface: the protocol's sphere (RandomEdits), its centre moved
 // to the highest solid voxel of its (x, z) column (the column's top when it has none), so that
-// edits touch the scene rather than the air above it.
-Brush on_surface(const SparseWorld& world, Brush b) {
-    const auto x = static_cast<std::uint32_t>(b.centre.x);
-    const auto z = static_cast<std::uint32_t>(b.centre.z);
+// edits touch the scene rather than the air above it. The column is read from the device.
+Brush on_surface(ocl::SparseDeviceWorld& world, const Dims& dims, Brush b) {
+    std::vector<Int3> column(dims.y);
+    for (std::uint32_t y = 0; y < dims.y; ++y) {
+        column[y] = {b.centre.x, y, b.centre.z};
+    }
+    const std::vector<std::uint8_t> v = world.voxels(column);
     b.centre.y = 0;
-    for (std::uint32_t y = world.dims().y; y-- > 0;) {
-        if (world.at(x, y, z) != 0) {
+    for (std::uint32_t y = dims.y; y-- > 0;) {
+        if (v[y] != 0) {
             b.centre.y = y;
             break;
         }
@@ -159,8 +162,8 @@ vk::SparseTileUpdate feed_tracer(pipeline::SharedTrees& shared, ocl::SparseField
     return tracer.update_tiles(field.world(), changed);
 }
 
-// One edit through the device: the world and field edited there, the tracer told (feed_tracer),
-// the edited tiles read back into the host world (which aiming walks).
+// One edit through the device: the world and field edited there, the tracer told (feed_tracer);
+// on path 3 the edited tiles are read back into the host world for the tracer first.
 SparseEditRecord apply_edit(pipeline::SharedTrees& shared, ocl::SparseField& field,
                             vk::SparseTracer& tracer, const Palette& palette, const Dims& dims,
                             const Brush& brush) {
@@ -172,20 +175,14 @@ SparseEditRecord apply_edit(pipeline::SharedTrees& shared, ocl::SparseField& fie
     e.edit_kernel_ms = u.edit_kernel_ms;
     e.field_tiles = u.tiles;
     const Box bounds = brush_bounds(brush, dims);
-    vk::SparseTileUpdate tu;
-    if (shared.shares()) {
+    if (!shared.shares()) {
         const auto t1 = Clock::now();
-        tu = feed_tracer(shared, field, tracer, palette, dims, bounds);
-        e.tracer_ms = ms_since(t1);
+        field.world();  // reads back the tiles the edit changed
+        e.readback_ms = ms_since(t1);
     }
     const auto t2 = Clock::now();
-    field.world();  // reads back the tiles the edit changed
-    e.readback_ms = ms_since(t2);
-    if (!shared.shares()) {
-        const auto t3 = Clock::now();
-        tu = feed_tracer(shared, field, tracer, palette, dims, bounds);
-        e.tracer_ms = ms_since(t3);
-    }
+    const vk::SparseTileUpdate tu = feed_tracer(shared, field, tracer, palette, dims, bounds);
+    e.tracer_ms = ms_since(t2);
     e.tiles_written = tu.tiles_written;
     e.tiles_removed = tu.tiles_removed;
     e.tracer_bytes = tu.bytes;
@@ -314,6 +311,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
     vk::Image image;
     FrameClock frame_clock(script != nullptr);
     std::uint64_t frame = 0;
+    double world_read_s = -1;  // when the overlay's world figures were last read
     bool running = true;
     while (running) {
         const auto [t0, dt, time_s] = frame_clock.tick();
@@ -350,8 +348,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                 std::cout << "sparse worlds keep no undo history and are not saved by the viewer "
                              "(`voxfield generate` writes .vdb)\n";
             }
-            field.world();  // aiming walks the host world: the device's changes read back
-            preview = aimed_brush(world, camera, controls, a);
+            preview = aimed_brush(field.device_world(), camera, controls, a);
             // A held button strokes: every frame whose aimed brush differs adds it.
             if ((a.left || a.right) && preview && preview != last_stroke) {
                 batch.push_back(*preview);
@@ -371,8 +368,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             from_bench.push_back(false);
         }
         if (const auto brush = bench ? bench->due(time_s) : std::nullopt) {
-            field.world();
-            batch.push_back(on_surface(world, *brush));
+            batch.push_back(on_surface(field.device_world(), dims, *brush));
             from_bench.push_back(true);
         }
         double update_ms = 0;
@@ -418,6 +414,15 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             render.camera.position = camera.position();
             render.camera.target = camera.target();
             render.camera.fov_deg = camera.settings.fov_deg;
+            if (screen && time_s - world_read_s >= 0.5) {
+                // The overlay's world figures: the host world, read back at most twice a second
+                // (the tracer and the aim read the device's).
+                field.world();
+                world_read_s = time_s;
+                info.tiles = world.tile_count();
+                info.solid = world.solid_count();
+                info.world_bytes = world.bytes();
+            }
             shared.before_trace();
             if (screen) {
                 tracer.render(render, image);
@@ -425,9 +430,6 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                 screen->overlay().new_frame();
                 info.frame_ms = records.empty() ? 0 : records.back().frame_ms;
                 info.trace_ms = trace_ms;
-                info.tiles = world.tile_count();
-                info.solid = world.solid_count();
-                info.world_bytes = world.bytes();
                 info.field_tiles = field.dense_tiles();
                 info.field_bytes = field.field_bytes();
                 info.tracer = tracer.stats();

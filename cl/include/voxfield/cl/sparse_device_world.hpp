@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <unordered_map>
@@ -27,6 +28,8 @@
 
 #include "voxfield/cl/runtime.hpp"
 #include "voxfield/core/brush.hpp"
+#include "voxfield/core/camera.hpp"
+#include "voxfield/core/pick.hpp"
 #include "voxfield/core/sparse.hpp"
 
 namespace voxfield::ocl {
@@ -105,6 +108,15 @@ class SparseDeviceWorld {
     // encoding. logic_error when read only.
     void encode_dense_tiles(const cl::Buffer& vox, std::uint32_t pitch_y, std::uint32_t pitch_z,
                             const std::vector<DenseTile>& tiles);
+    // The voxels at `cells` as the device has them now (0 outside the world and in tiles not
+    // stored), read in one transfer (gather_voxels, a 1^3 block per cell) without bringing the
+    // host world up to date: one host wait.
+    std::vector<std::uint8_t> voxels(std::span<const Int3> cells);
+    // core's pick_solid_voxel over the device's voxels: the ray's cells walked once without the
+    // world, their voxels read with voxels(), the walk again over them (the same cells in the
+    // same order), so the hit is exactly the host world's after world().
+    std::optional<PickHit> pick(const Vec3d& origin, const Vec3d& direction, double max_distance);
+
     // Device time of the kernels of the last apply_brush (ms; valid once the queue finished).
     double last_edit_kernel_ms() const;
     // The same per kernel (name, ms), in launch order (waits for them when they are not done).
