@@ -253,7 +253,7 @@ void SparseDeviceWorld::host_changed_seen() {
 
 cl::Buffer SparseDeviceWorld::tree_buffer(std::size_t bytes, cl_mem_flags flags,
                                           const std::string& what) {
-    return allocate_ ? allocate_(bytes, what) : cl::Buffer(ctx_.context(), flags, bytes);
+    return allocate_ ? allocate_.allocate(bytes, what) : cl::Buffer(ctx_.context(), flags, bytes);
 }
 
 SparseDeviceWorld::TreeBuffers SparseDeviceWorld::tree_buffers() const {
@@ -277,9 +277,13 @@ void SparseDeviceWorld::upload_whole() {
     cl_call("uploading the sparse world", [&] {
         auto& q = ctx_.queue();
         const std::size_t nodes = std::max<std::size_t>(masks.size(), 1);
-        // The previous buffers go first: a world near the device's memory fits once, not twice.
+        // The previous buffers go first (and the allocator is told, which may free their
+        // memory): a world near the device's memory fits once, not twice.
         q.finish();
         masks_ = offsets_ = materials_ = cl::Buffer();
+        if (allocate_.dropped) {
+            allocate_.dropped();
+        }
         masks_ = tree_buffer(nodes * 8, CL_MEM_READ_ONLY, "sparse node masks");
         offsets_ = tree_buffer(nodes * 4, CL_MEM_READ_ONLY, "sparse node offsets");
         materials_ = tree_buffer(std::max<std::size_t>(materials.size(), 1), CL_MEM_READ_ONLY,
@@ -302,7 +306,6 @@ void SparseDeviceWorld::upload_whole() {
     slot_of_.clear();
     free_slots_.clear();
     slots_made_ = 0;
-    ++trees_generation_;
     host_changed_seen();
 }
 
@@ -331,7 +334,6 @@ void SparseDeviceWorld::ensure_slot_capacity(std::size_t slots) {
         slot_counts_ = n;
     });
     slot_capacity_ = cap;
-    ++trees_generation_;
 }
 
 std::uint32_t SparseDeviceWorld::slot_for(std::uint64_t key) {

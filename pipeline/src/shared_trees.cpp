@@ -12,18 +12,56 @@
 namespace voxfield::pipeline {
 
 // One buffer of shared memory: the Vulkan memory, then OpenCL's buffer over it (released
-// first: members are destroyed in reverse order).
+// first: members are destroyed in reverse order), and a serial no other allocation gets.
 struct SharedTrees::Allocation {
     vk::ExternalMemory memory;
     cl::Buffer buffer;
+    std::uint64_t serial = 0;
 };
 
-SharedTrees::SharedTrees(ocl::Context& cl_ctx, vk::Context& vk_ctx, vk::SharingPath fastest)
-    : cl_(cl_ctx), vk_(vk_ctx) {
-    path_ = choose_sharing_path(cl_ctx, vk_ctx, why_not_, fastest);
-    if (why_not_.size() >= 2) {
-        why_not_.resize(why_not_.size() - 2);  // the last "; "
+namespace {
+
+// Drops the last "; " of choose_sharing_path's reasons.
+void trim(std::string& why_not) {
+    if (why_not.size() >= 2 && why_not.compare(why_not.size() - 2, 2, "; ") == 0) {
+        why_not.resize(why_not.size() - 2);
     }
+}
+
+}  // namespace
+
+SharedTrees::SharedTrees(ocl::Context& cl_ctx, vk::Context& vk_ctx, vk::SharingPath fastest,
+                         std::uint64_t max_allocation_bytes)
+    : cl_(cl_ctx), vk_(vk_ctx), max_allocation_(vk_ctx.info().max_memory_allocation_size) {
+    if (max_allocation_bytes != 0) {
+        max_allocation_ = max_allocation_ == 0 ? max_allocation_bytes
+                                               : std::min(max_allocation_, max_allocation_bytes);
+    }
+    if (!vk_ctx.buffer_device_address()) {
+        why_not_ =
+            "the Vulkan device lacks buffer device addresses, through which the tracer "
+            "reads shared trees";
+        return;
+    }
+    path_ = choose_sharing_path(cl_ctx, vk_ctx, why_not_, fastest);
+    if (path_ == vk::SharingPath::opaque_fd) {
+        // As RenderField falls back: a small allocation exported, imported, acquired and
+        // released first, so that a driver that refuses fails here rather than in the field.
+        try {
+            allocate(4096, "sharing probe");
+            ocl::release_external(cl_, allocations_.back()->buffer);
+            cl_.queue().finish();
+            allocations_.clear();
+        } catch (const std::exception& e) {
+            allocations_.clear();
+            why_not_ += std::string("path 1 failed: ") + e.what() + "; ";
+            path_ = vk::supports(vk_ctx, vk::SharingPath::host_pointer) &&
+                            ocl::can_use_host_memory(cl_ctx)
+                        ? vk::SharingPath::host_pointer
+                        : vk::SharingPath::copy;
+        }
+    }
+    trim(why_not_);
 }
 
 SharedTrees::~SharedTrees() {
@@ -37,31 +75,62 @@ ocl::TreeAllocator SharedTrees::allocator() {
     if (!shares()) {
         return {};
     }
-    return [this](std::size_t bytes, const std::string& what) { return allocate(bytes, what); };
+    ocl::TreeAllocator a;
+    a.allocate = [this](std::size_t bytes, const std::string& what) {
+        return allocate(bytes, what);
+    };
+    a.dropped = [this] { dropped(); };
+    return a;
 }
 
 cl::Buffer SharedTrees::allocate(std::size_t bytes, const std::string& what) {
     auto a = std::make_unique<Allocation>();
     const std::string name = what + " (shared with Vulkan)";
-    if (path_ == vk::SharingPath::opaque_fd) {
-        a->memory = vk::ExternalMemory::exportable(vk_, bytes, vk::kSharedTreeUsage, name);
-        // The import takes the fd on every way out.
-        a->buffer = ocl::import_opaque_fd(cl_, a->memory.export_fd(), bytes);
-        ocl::acquire_external(cl_, a->buffer);  // OpenCL's until before_trace
-    } else {
-        a->memory = vk::ExternalMemory::host_allocation(vk_, bytes, vk::kSharedTreeUsage, name);
-        a->buffer = ocl::wrap_host_memory(cl_, a->memory.host_pointer(),
-                                          static_cast<std::size_t>(a->memory.size()));
+    if (max_allocation_ != 0 && bytes > max_allocation_) {
+        throw AllocationError(name + ": " + std::to_string(bytes) +
+                              " bytes exceed one allocation of " + vk_.info().name + " (" +
+                              std::to_string(max_allocation_) + " bytes)");
     }
+    try {
+        if (path_ == vk::SharingPath::opaque_fd) {
+            a->memory = vk::ExternalMemory::exportable(vk_, bytes, vk::kSharedTreeUsage, name);
+            // The import takes the fd on every way out.
+            a->buffer = ocl::import_opaque_fd(cl_, a->memory.export_fd(), bytes);
+            ocl::acquire_external(cl_, a->buffer);  // OpenCL's outside trace scopes
+        } else {
+            a->memory = vk::ExternalMemory::host_allocation(vk_, bytes, vk::kSharedTreeUsage, name);
+            a->buffer = ocl::wrap_host_memory(cl_, a->memory.host_pointer(),
+                                              static_cast<std::size_t>(a->memory.size()));
+        }
+    } catch (const std::exception& e) {
+        throw AllocationError(name + ": " + e.what());
+    }
+    a->serial = next_serial_++;
     cl::Buffer b = a->buffer;
     allocations_.push_back(std::move(a));
     return b;
 }
 
-const vk::ExternalMemory* SharedTrees::memory_of(const cl::Buffer& buffer) const {
+void SharedTrees::dropped() {
+    // The world finished its queue and released its handles: a buffer whose only reference is
+    // ours is no longer the world's.
+    const auto unused = [](const std::unique_ptr<Allocation>& a) {
+        return a->buffer.getInfo<CL_MEM_REFERENCE_COUNT>() == 1;
+    };
+    if (std::none_of(allocations_.begin(), allocations_.end(), unused)) {
+        return;
+    }
+    if (tracer_ != nullptr) {
+        tracer_->drop_shared();  // it reads nothing of them before the next (whole) sync
+    }
+    traced_main_ = 0;
+    std::erase_if(allocations_, unused);
+}
+
+const SharedTrees::Allocation* SharedTrees::allocation_of(const cl::Buffer& buffer) const {
     for (const auto& a : allocations_) {
         if (a->buffer() == buffer()) {
-            return &a->memory;
+            return a.get();
         }
     }
     return nullptr;
@@ -69,8 +138,24 @@ const vk::ExternalMemory* SharedTrees::memory_of(const cl::Buffer& buffer) const
 
 std::vector<vk::SharedTreeSet> SharedTrees::sets_of(
     const ocl::SparseDeviceWorld::TreeBuffers& b) const {
-    return {{memory_of(b.masks), memory_of(b.offsets), memory_of(b.materials)},
-            {memory_of(b.slot_masks), memory_of(b.slot_offsets), memory_of(b.slot_materials)}};
+    const auto set = [&](const cl::Buffer& masks, const cl::Buffer& offsets,
+                         const cl::Buffer& materials) {
+        vk::SharedTreeSet s;
+        const Allocation* parts[3] = {allocation_of(masks), allocation_of(offsets),
+                                      allocation_of(materials)};
+        if (parts[0] == nullptr || parts[1] == nullptr || parts[2] == nullptr) {
+            throw std::logic_error(
+                "SharedTrees::sync: the world's trees are not in shared memory (make the field "
+                "with allocator())");
+        }
+        s.masks = &parts[0]->memory;
+        s.offsets = &parts[1]->memory;
+        s.materials = &parts[2]->memory;
+        s.serials = {parts[0]->serial, parts[1]->serial, parts[2]->serial};
+        return s;
+    };
+    return {set(b.masks, b.offsets, b.materials),
+            set(b.slot_masks, b.slot_offsets, b.slot_materials)};
 }
 
 void SharedTrees::free_unused(const ocl::SparseDeviceWorld::TreeBuffers& b) {
@@ -87,17 +172,13 @@ vk::SparseTileUpdate SharedTrees::sync(vk::SparseTracer& tracer,
     if (!shares()) {
         throw std::logic_error("SharedTrees::sync on path 3 (nothing is shared)");
     }
+    if (tracing_) {
+        throw std::logic_error("SharedTrees::sync inside a trace scope");
+    }
     ocl::cl_call("finishing the world's edits before the tracer reads them",
                  [&] { cl_.queue().finish(); });
     const ocl::SparseDeviceWorld::TreeBuffers b = world.tree_buffers();
     const std::vector<vk::SharedTreeSet> sets = sets_of(b);
-    for (const vk::SharedTreeSet& s : sets) {
-        if (s.masks == nullptr || s.offsets == nullptr || s.materials == nullptr) {
-            throw std::logic_error(
-                "SharedTrees::sync: the world's trees are not in shared memory (make the field "
-                "with allocator())");
-        }
-    }
     const auto tile_of = [](const Int3& c, const std::pair<std::uint64_t, std::uint64_t>& ref) {
         vk::SharedTile t;
         t.tile = c;
@@ -108,61 +189,100 @@ vk::SparseTileUpdate SharedTrees::sync(vk::SparseTracer& tracer,
         return t;
     };
     vk::SparseTileUpdate u;
-    if (b.masks() != traced_main_) {
-        std::vector<vk::SharedTile> tiles;
-        for (const auto& [c, ref] : world.refs()) {
-            tiles.push_back(tile_of(c, ref));
-        }
-        tracer.upload_shared(dims, palette, sets, tiles);
-        traced_main_ = b.masks();
-        u.whole = true;
-        u.tiles_written = static_cast<std::uint32_t>(tiles.size());
-    } else {
-        std::vector<vk::SharedTile> tiles;
-        std::vector<Int3> removed;
-        const Box box = intersect(changed, Box{{0, 0, 0}, {dims.x, dims.y, dims.z}});
-        if (!box.empty()) {
-            const std::int64_t ts = kTileSize;
-            for (std::int64_t tz = box.min.z / ts; tz <= (box.max.z - 1) / ts; ++tz) {
-                for (std::int64_t ty = box.min.y / ts; ty <= (box.max.y - 1) / ts; ++ty) {
-                    for (std::int64_t tx = box.min.x / ts; tx <= (box.max.x - 1) / ts; ++tx) {
-                        const auto ref = world.ref(tx, ty, tz);
-                        if (ref.first == ocl::SparseDeviceWorld::kNoRef) {
-                            removed.push_back({tx, ty, tz});
-                        } else {
-                            tiles.push_back(tile_of({tx, ty, tz}, ref));
+    if (tracer_ != &tracer) {
+        traced_main_ = 0;  // another tracer: its directory is made whole
+    }
+    tracer_ = &tracer;
+    try {
+        if (sets[0].serials[0] != traced_main_) {
+            std::vector<vk::SharedTile> tiles;
+            for (const auto& [c, ref] : world.refs()) {
+                tiles.push_back(tile_of(c, ref));
+            }
+            tracer.upload_shared(dims, palette, sets, tiles);
+            traced_main_ = sets[0].serials[0];
+            u.whole = true;
+            u.tiles_written = static_cast<std::uint32_t>(tiles.size());
+        } else {
+            std::vector<vk::SharedTile> tiles;
+            std::vector<Int3> removed;
+            const Box box = intersect(changed, Box{{0, 0, 0}, {dims.x, dims.y, dims.z}});
+            if (!box.empty()) {
+                const std::int64_t ts = kTileSize;
+                for (std::int64_t tz = box.min.z / ts; tz <= (box.max.z - 1) / ts; ++tz) {
+                    for (std::int64_t ty = box.min.y / ts; ty <= (box.max.y - 1) / ts; ++ty) {
+                        for (std::int64_t tx = box.min.x / ts; tx <= (box.max.x - 1) / ts; ++tx) {
+                            const auto ref = world.ref(tx, ty, tz);
+                            if (ref.first == ocl::SparseDeviceWorld::kNoRef) {
+                                removed.push_back({tx, ty, tz});
+                            } else {
+                                tiles.push_back(tile_of({tx, ty, tz}, ref));
+                            }
                         }
                     }
                 }
             }
+            u = tracer.repoint(sets, tiles, removed);
         }
-        u = tracer.repoint(sets, tiles, removed);
+    } catch (...) {
+        traced_main_ = 0;  // the next sync makes the tracer's directory whole
+        throw;
     }
     free_unused(b);
     return u;
 }
 
-void SharedTrees::before_trace() {
-    if (path_ != vk::SharingPath::opaque_fd) {
+SharedTrees::TraceScope::TraceScope(SharedTrees& shared) : shared_(shared) {
+    shared_.begin_trace();
+}
+
+SharedTrees::TraceScope::~TraceScope() {
+    shared_.end_trace();
+}
+
+void SharedTrees::begin_trace() {
+    if (tracing_) {
+        throw std::logic_error("SharedTrees: a trace scope inside another");
+    }
+    if (!shares()) {
         return;
     }
     ocl::cl_call("handing the shared trees to Vulkan", [&] {
-        for (const auto& a : allocations_) {
-            ocl::release_external(cl_, a->buffer);
-            released_.push_back(a->buffer);
+        auto& q = cl_.queue();
+        try {
+            for (const auto& a : allocations_) {
+                if (path_ == vk::SharingPath::opaque_fd) {
+                    ocl::release_external(cl_, a->buffer);
+                    held_.emplace_back(a->buffer, nullptr);
+                } else {
+                    void* p = q.enqueueMapBuffer(a->buffer, CL_FALSE, CL_MAP_READ, 0,
+                                                 a->buffer.getInfo<CL_MEM_SIZE>());
+                    held_.emplace_back(a->buffer, p);
+                }
+            }
+            q.finish();
+        } catch (...) {
+            end_trace();
+            throw;
         }
-        cl_.queue().finish();
     });
+    tracing_ = true;
 }
 
-void SharedTrees::after_trace() {
-    if (path_ != vk::SharingPath::opaque_fd) {
-        return;
+void SharedTrees::end_trace() noexcept {
+    try {
+        for (const auto& [buffer, mapped] : held_) {
+            if (path_ == vk::SharingPath::opaque_fd) {
+                ocl::acquire_external(cl_, buffer);
+            } else {
+                cl_.queue().enqueueUnmapMemObject(buffer, mapped);
+            }
+        }
+    } catch (const std::exception&) {
+        // A destructor's path: the next OpenCL call reports the device's state.
     }
-    for (const cl::Buffer& b : released_) {
-        ocl::acquire_external(cl_, b);
-    }
-    released_.clear();
+    held_.clear();
+    tracing_ = false;
 }
 
 std::uint64_t SharedTrees::bytes() const {

@@ -43,6 +43,16 @@ ocl::GeneratorOptions bounded(std::uint32_t d) {
     return ocl::resolve_sparse_options(options, true);
 }
 
+// The shared tracer's views equal a fresh upload's of the world read back (inside a trace
+// scope: path 2's buffers mapped for reading while Vulkan reads them).
+void expect_shared_as_fresh(vk::Context& ctx, pipeline::SharedTrees& shared,
+                            vk::SparseTracer& tracer, ocl::SparseField& field,
+                            const Palette& palette, const std::string& when) {
+    const SparseWorld& host = field.world();
+    const pipeline::SharedTrees::TraceScope scope(shared);
+    expect_as_fresh(ctx, tracer, host, palette, when);
+}
+
 // Declares `shared` for `ctx` and PoCL, or skips where they cannot share memory.
 #define REQUIRE_SHARING(shared, ctx)                                    \
     pipeline::SharedTrees shared(pocl(), *(ctx));                       \
@@ -64,7 +74,7 @@ TEST(SharedTrees, TheTracerReadsTheDeviceWorldInPlace) {
         shared.sync(tracer, field.device_world(), world.dims(), palette, Box{});
     EXPECT_TRUE(u.whole);
     EXPECT_EQ(u.tiles_written, world.tile_count());
-    expect_as_fresh(*ctx, tracer, field.world(), palette, "first upload");
+    expect_shared_as_fresh(*ctx, shared, tracer, field, palette, "first upload");
     // The trees are not the tracer's: its own buffers are the directory, records and palette.
     vk::SparseTracer copy(*ctx);
     copy.upload(world, palette);
@@ -88,40 +98,81 @@ TEST(SharedTrees, DeviceEditsAreTracedWithoutTheHostWorld) {
     std::mt19937_64 rng(8);
     std::uniform_int_distribution<std::int64_t> px(0, 259), py(0, 119), pz(0, 229), radius(0, 9),
         op(0, 2);
-    for (int e = 0; e < 12; ++e) {
-        // Places in the air too (tiles made above the city), erases and paints.
+    for (int e = 0; e < 30; ++e) {
+        // Places in the air too (tiles made above the city), erases and paints: small brushes,
+        // so that the slot buffers (16 slots at first) grow during one that leaves most slot
+        // tiles outside its box.
         brushes.push_back(
             brush(static_cast<BrushOp>(op(rng)), e % 3 == 0 ? BrushShape::cube : BrushShape::sphere,
                   {px(rng), py(rng), pz(rng)}, radius(rng), static_cast<std::uint8_t>(1 + e)));
     }
-    // A tile emptied whole (its tree on the device: a root without children), and a paint over
-    // every tile of the world, which outgrows the first 16 slots.
+    // A tile emptied whole (its tree on the device: a root without children), then a place.
     brushes.push_back(brush(BrushOp::erase, BrushShape::cube, {96, 32, 96}, 32, 1));
-    brushes.push_back(brush(BrushOp::paint, BrushShape::cube, {130, 60, 115}, 140, 7));
     brushes.push_back(brush(BrushOp::place, BrushShape::sphere, {200, 100, 40}, 8, 9));
     int e = 0;
-    std::uint32_t moved = 0;
+    bool moved_outside_the_box = false;
     for (const Brush& b : brushes) {
-        const std::size_t slots_before = field.device_world().slots_used();
         field.apply_brush(b);
         const vk::SparseTileUpdate u =
             shared.sync(tracer, field.device_world(), d, palette, brush_bounds(b, d));
         EXPECT_FALSE(u.whole);
-        moved += u.tiles_moved;
-        // Only directory entries move: at most a record, a page entry and a block per tile, or
-        // every record when the slot buffers were replaced.
-        if (field.device_world().slots_used() == slots_before) {
-            EXPECT_LE(u.bytes, u.tiles_written * 40u + 4096u * 4 * u.tiles_written);
-        }
-        if (++e % 4 == 0 || e == static_cast<int>(brushes.size())) {
-            expect_as_fresh(*ctx, tracer, field.world(), palette,
-                            "device edit " + std::to_string(e));
+        EXPECT_EQ(u.tiles_removed, 0u);  // the device keeps emptied tiles (empty trees)
+        // Only directory entries move: a 32-byte record per tile written or moved, and a page
+        // entry per tile new to the directory (the world is one directory block).
+        EXPECT_EQ(u.bytes, 32u * (u.tiles_written + u.tiles_moved) + 4u * u.tiles_added)
+            << "edit " << e;
+        ++e;
+        if (u.tiles_moved > 0) {
+            // The slot buffers grew: every tile in them pointed at the new memory.
+            moved_outside_the_box = moved_outside_the_box || u.tiles_moved > u.tiles_written;
+            expect_shared_as_fresh(*ctx, shared, tracer, field, palette,
+                                   "slot growth at edit " + std::to_string(e));
+        } else if (e % 6 == 0 || e == static_cast<int>(brushes.size())) {
+            expect_shared_as_fresh(*ctx, shared, tracer, field, palette,
+                                   "device edit " + std::to_string(e));
         }
     }
-    // The slot buffers grew: the tiles in them were pointed at the new memory.
+    EXPECT_TRUE(moved_outside_the_box);
     EXPECT_GT(field.device_world().slots_used(), 16u);
-    EXPECT_GT(moved, 0u);
     EXPECT_EQ(tracer.stats().arena_tiles, 0u);  // nothing went through the host world
+}
+
+// Host edits the device is told of (SparseField::update): tiles erased out of the directory, a
+// whole directory block emptied (its page freed), then tiles made again in it (a page taken).
+TEST(SharedTrees, TilesAndBlocksRemovedAndMadeAgain) {
+    REQUIRE_VULKAN(ctx);
+    REQUIRE_SHARING(shared, ctx);
+    SparseWorld world = city(Dims{700, 100, 200}, 6);  // two directory blocks along x
+    const Dims d = world.dims();
+    const Palette palette = Palette::dissertation();
+    ocl::SparseField field(pocl(), world, palette, bounded(4), shared.allocator());
+    field.run();
+    vk::SparseTracer tracer(*ctx);
+    shared.sync(tracer, field.device_world(), d, palette, Box{});
+    const std::uint64_t pages = tracer.stats().pages;
+    ASSERT_EQ(pages, 2u);
+    // Everything from x = 500 on erased: block 1 (x >= 512) emptied.
+    field.world();
+    const Box erased =
+        apply_brush(world, brush(BrushOp::erase, BrushShape::cube, {600, 50, 100}, 100, 1));
+    field.update(erased);
+    vk::SparseTileUpdate u = shared.sync(tracer, field.device_world(), d, palette, erased);
+    EXPECT_GT(u.tiles_removed, 0u);
+    EXPECT_EQ(tracer.stats().pages, 1u);
+    expect_shared_as_fresh(*ctx, shared, tracer, field, palette, "block emptied");
+    // A sphere in block 1 again: new tiles, a page for the block.
+    const Box placed =
+        apply_brush(world, brush(BrushOp::place, BrushShape::sphere, {620, 40, 90}, 20, 12));
+    field.update(placed);
+    u = shared.sync(tracer, field.device_world(), d, palette, placed);
+    EXPECT_GT(u.tiles_added, 0u);
+    EXPECT_EQ(tracer.stats().pages, 2u);
+    expect_shared_as_fresh(*ctx, shared, tracer, field, palette, "block made again");
+    // And on the device, in the block made again.
+    field.apply_brush(brush(BrushOp::paint, BrushShape::sphere, {620, 40, 90}, 12, 3));
+    shared.sync(tracer, field.device_world(), d, palette,
+                brush_bounds(brush(BrushOp::paint, BrushShape::sphere, {620, 40, 90}, 12, 3), d));
+    expect_shared_as_fresh(*ctx, shared, tracer, field, palette, "painted on the device");
 }
 
 TEST(SharedTrees, SandStepsAreTracedInPlace) {
@@ -149,7 +200,7 @@ TEST(SharedTrees, SandStepsAreTracedInPlace) {
         }
     }
     EXPECT_GT(changed, 0u);
-    expect_as_fresh(*ctx, tracer, field.world(), palette, "after 12 sand steps");
+    expect_shared_as_fresh(*ctx, shared, tracer, field, palette, "after 12 sand steps");
 }
 
 TEST(SharedTrees, AWholeUploadIsTracedAgainAndTheOldMemoryFreed) {
@@ -165,12 +216,44 @@ TEST(SharedTrees, AWholeUploadIsTracedAgainAndTheOldMemoryFreed) {
     // new main buffers.
     apply_brush(world, brush(BrushOp::place, BrushShape::sphere, {130, 90, 115}, 30, 5));
     field.device_world().refresh();
+    // The previous main buffers were freed before the new ones were allocated, and the tracer,
+    // which read them, traces nothing until it is synced again.
+    EXPECT_LT(shared.bytes(), before + world.bytes() / 2);
+    vk::RenderOptions r;
+    r.width = 8;
+    r.height = 8;
+    r.camera = vk::default_camera(world.dims());
+    EXPECT_THROW(tracer.render(r), std::logic_error);
     const vk::SparseTileUpdate u =
         shared.sync(tracer, field.device_world(), world.dims(), palette, Box{});
     EXPECT_TRUE(u.whole);
-    expect_as_fresh(*ctx, tracer, world, palette, "after a whole upload");
-    // The previous main buffers are freed once the tracer reads the new ones.
-    EXPECT_LT(shared.bytes(), before + world.bytes() / 2);
+    expect_shared_as_fresh(*ctx, shared, tracer, field, palette, "after a whole upload");
+}
+
+TEST(SharedTrees, AnAllocationOverTheLimitIsRefusedWithItsReason) {
+    REQUIRE_VULKAN(ctx);
+    EXPECT_GT(ctx->info().max_memory_allocation_size, 0u);
+    SparseWorld world = city(Dims{260, 120, 230}, 4);
+    const Palette palette = Palette::dissertation();
+    // Below the world's node masks: the field cannot be made in shared memory.
+    pipeline::SharedTrees small(pocl(), *ctx, vk::SharingPath::opaque_fd, 64 << 10);
+    if (!small.shares()) {
+        GTEST_SKIP() << "PoCL and " << ctx->info().name << " cannot share memory";
+    }
+    try {
+        ocl::SparseField field(pocl(), world, palette, bounded(6), small.allocator());
+        ADD_FAILURE() << "no AllocationError";
+    } catch (const pipeline::SharedTrees::AllocationError& e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find("exceed one allocation of"), std::string::npos) << what;
+        EXPECT_NE(what.find("65536 bytes"), std::string::npos) << what;
+    }
+    // A field without the allocator still works beside it (the viewer's fallback, path 3).
+    ocl::SparseField plain(pocl(), world, palette, bounded(6));
+    plain.run();
+    vk::SparseTracer tracer(*ctx);
+    tracer.upload(plain.world(), palette);
+    EXPECT_EQ(tracer.stats().shared_bytes, 0u);
 }
 
 TEST(SharedTrees, RefusesWhatIsNotShared) {
@@ -189,6 +272,20 @@ TEST(SharedTrees, RefusesWhatIsNotShared) {
     EXPECT_THROW(shared.sync(tracer, plain.device_world(), world.dims(), palette, Box{}),
                  std::logic_error);
     EXPECT_THROW(tracer.repoint({}, {}, {}), std::logic_error);
+    // One trace scope at a time, and no sync inside one.
+    ocl::SparseField field(pocl(), world, palette, bounded(4), shared.allocator());
+    shared.sync(tracer, field.device_world(), world.dims(), palette, Box{});
+    const pipeline::SharedTrees::TraceScope scope(shared);
+    EXPECT_THROW(pipeline::SharedTrees::TraceScope again(shared), std::logic_error);
+    EXPECT_THROW(shared.sync(tracer, field.device_world(), world.dims(), palette, Box{}),
+                 std::logic_error);
+    // A tile outside the grid, or listed twice, is refused.
+    vk::SparseTracer other(*ctx);
+    vk::SharedTile t;
+    t.tile = {0, 0, 0};
+    EXPECT_THROW(other.upload_shared(world.dims(), palette, {}, {t, t}), std::logic_error);
+    t.tile = {5, 0, 0};
+    EXPECT_THROW(other.upload_shared(world.dims(), palette, {}, {t}), std::logic_error);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -230,8 +231,24 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
     std::string why_not_one_device;
     const std::unique_ptr<vk::Context> vk_ctx =
         marcher_context(window.handle(), validation, why_not_one_device);
-    pipeline::SharedTrees shared(cl_ctx, *vk_ctx, tracer_fastest_path());
-    ocl::SparseField field(cl_ctx, world, palette, options, shared.allocator());
+    // The field's trees in memory the tracer reads in place; path 3 when that memory cannot be
+    // had (an allocation over the Vulkan device's limit, say).
+    auto shared_trees =
+        std::make_unique<pipeline::SharedTrees>(cl_ctx, *vk_ctx, tracer_fastest_path());
+    std::unique_ptr<ocl::SparseField> field_owner;
+    std::string sharing_failed;
+    try {
+        field_owner = std::make_unique<ocl::SparseField>(cl_ctx, world, palette, options,
+                                                         shared_trees->allocator());
+    } catch (const pipeline::SharedTrees::AllocationError& e) {
+        const std::string tried = vk::describe(shared_trees->path());
+        sharing_failed = tried.substr(0, tried.find(':')) + " failed: " + e.what();
+        shared_trees =
+            std::make_unique<pipeline::SharedTrees>(cl_ctx, *vk_ctx, vk::SharingPath::copy);
+        field_owner = std::make_unique<ocl::SparseField>(cl_ctx, world, palette, options);
+    }
+    pipeline::SharedTrees& shared = *shared_trees;
+    ocl::SparseField& field = *field_owner;
     const auto t_field = Clock::now();
     const double field_kernel_ms = field.run();
     const double field_ms = ms_since(t_field);
@@ -273,7 +290,10 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                                   : "edits rewrite the tiles they touch from the host world")
               << "\n"
               << "sharing: " << sharing
-              << (shared.why_not().empty() ? std::string() : " (" + shared.why_not() + ")") << '\n';
+              << (!sharing_failed.empty()    ? " (" + sharing_failed + ")"
+                  : shared.why_not().empty() ? std::string()
+                                             : " (" + shared.why_not() + ")")
+              << '\n';
 
     std::unique_ptr<Screen> screen;
     if (window.handle() != nullptr) {
@@ -423,9 +443,11 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                 info.solid = world.solid_count();
                 info.world_bytes = world.bytes();
             }
-            shared.before_trace();
             if (screen) {
-                tracer.render(render, image);
+                {
+                    const pipeline::SharedTrees::TraceScope scope(shared);
+                    tracer.render(render, image);
+                }
                 trace_ms = image.raymarch_ms;
                 screen->overlay().new_frame();
                 info.frame_ms = records.empty() ? 0 : records.back().frame_ms;
@@ -440,9 +462,9 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                 screen->presenter().present(image.rgba.data(), image.width, image.height, fb_w,
                                             fb_h, ImGuiBackend::record);
             } else {
+                const pipeline::SharedTrees::TraceScope scope(shared);
                 trace_ms = tracer.trace(render);
             }
-            shared.after_trace();
         }
         records.push_back({time_s, ms_since(t0), update_ms, 0, trace_ms, !batch.empty(),
                            simulate_ms, sand_changed});
@@ -460,9 +482,11 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
         if (render.width == 0) {
             throw std::runtime_error("no frame was rendered for --screenshot");
         }
-        shared.before_trace();
-        const vk::Image shot = tracer.render(render);
-        shared.after_trace();
+        vk::Image shot;
+        {
+            const pipeline::SharedTrees::TraceScope scope(shared);
+            shot = tracer.render(render);
+        }
         write_png(o.screenshot, shot);
         std::cout << "screenshot " << o.screenshot << " (" << shot.width << "x" << shot.height
                   << ", frame " << frame << ")\n";

@@ -122,11 +122,15 @@ PhysicalDeviceInfo describe_device(VkPhysicalDevice d, std::size_t index) {
         if (info.has_extension(VK_EXT_EXTERNAL_MEMORY_HOST_EXTENSION_NAME)) {
             id.pNext = &host;
         }
+        VkPhysicalDeviceMaintenance3Properties m3{};
+        m3.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES;
+        m3.pNext = &id;
         VkPhysicalDeviceProperties2 p2{};
         p2.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2;
-        p2.pNext = &id;
+        p2.pNext = &m3;
         vkGetPhysicalDeviceProperties2(d, &p2);
         std::memcpy(info.uuid.data(), id.deviceUUID, VK_UUID_SIZE);
+        info.max_memory_allocation_size = m3.maxMemoryAllocationSize;
         info.min_imported_host_pointer_alignment = host.minImportedHostPointerAlignment;
     }
     std::uint32_t family = 0;

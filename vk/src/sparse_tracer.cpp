@@ -174,7 +174,8 @@ struct SparseTracer::Impl {
     // Trees read in place (upload_shared): per set, buffers over the caller's memory and their
     // addresses; per record the tile it holds (set VF_SPARSE_NONE: a free record).
     struct SharedSet {
-        std::array<VkDeviceMemory, 3> memory{};
+        std::array<std::uint64_t, 3> serials{};
+        bool external = false;  // exported as an opaque fd: queue family ownership moves
         Buffer masks, offsets, materials;
         VkDeviceAddress mask_at = 0, offset_at = 0, material_at = 0;
     };
@@ -374,13 +375,24 @@ void SparseTracer::Impl::build_directory(const Dims& world_dims, const std::vect
     arena.clear();
     for (std::size_t t = 0; t < coords.size(); ++t) {
         const Int3 c = coords[t];
+        if (c.x < 0 || c.y < 0 || c.z < 0 || c.x >= grid.x || c.y >= grid.y || c.z >= grid.z) {
+            throw std::logic_error("sparse tracer: tile " + std::to_string(c.x) + ", " +
+                                   std::to_string(c.y) + ", " + std::to_string(c.z) +
+                                   " outside the tile grid " + grid.to_string());
+        }
         const auto b = static_cast<std::size_t>(block_of(c));
         if (host_blocks[b] == VF_SPARSE_NONE) {
             host_blocks[b] = static_cast<std::uint32_t>(host_pages.size() / kPageTiles);
             host_pages.resize(host_pages.size() + kPageTiles, VF_SPARSE_NONE);
             page_fill.push_back(0);
         }
-        page_entry(host_blocks[b], c) = static_cast<std::uint32_t>(t);
+        std::uint32_t& entry = page_entry(host_blocks[b], c);
+        if (entry != VF_SPARSE_NONE) {
+            throw std::logic_error("sparse tracer: tile " + std::to_string(c.x) + ", " +
+                                   std::to_string(c.y) + ", " + std::to_string(c.z) +
+                                   " listed twice");
+        }
+        entry = static_cast<std::uint32_t>(t);
         ++page_fill[host_blocks[b]];
         if (host_pages.size() * 4 > limit) {
             throw InputError("sparse tracer: the directory of the world's " +
@@ -862,45 +874,67 @@ SparseTileUpdate SparseTracer::repoint(const std::vector<SharedTreeSet>& sets,
     }
     m.ctx.wait_frames_in_flight();
     SparseTileUpdate u;
-    Impl::DirectoryEdit e;
-    // Tiles in a set whose memory was replaced: the same places in the new memory.
-    const std::vector<bool> moved = m.set_shared(sets);
-    for (std::size_t r = 0; r < m.shared_tiles.size(); ++r) {
-        const SharedTile& t = m.shared_tiles[r];
-        if (t.set != VF_SPARSE_NONE && moved.at(t.set)) {
-            m.write_shared_record(static_cast<std::uint32_t>(r), t);
-            e.records.push_back(static_cast<std::uint32_t>(r));
-            ++u.tiles_moved;
+    try {
+        Impl::DirectoryEdit e;
+        // Tiles in a set whose memory was replaced: the same places in the new memory.
+        const std::vector<bool> moved = m.set_shared(sets);
+        if (std::find(moved.begin(), moved.end(), true) != moved.end()) {
+            for (std::size_t r = 0; r < m.shared_tiles.size(); ++r) {
+                const SharedTile& t = m.shared_tiles[r];
+                if (t.set != VF_SPARSE_NONE && moved.at(t.set)) {
+                    m.write_shared_record(static_cast<std::uint32_t>(r), t);
+                    e.records.push_back(static_cast<std::uint32_t>(r));
+                    ++u.tiles_moved;
+                }
+            }
         }
-    }
-    for (const Int3& c : removed) {
-        if (const std::uint32_t record = m.record_of(c); record != VF_SPARSE_NONE) {
-            m.drop_tile(c, record, e);
-            m.shared_tiles[record].set = VF_SPARSE_NONE;
-            ++u.tiles_removed;
+        for (const Int3& c : removed) {
+            if (const std::uint32_t record = m.record_of(c); record != VF_SPARSE_NONE) {
+                m.drop_tile(c, record, e);
+                m.shared_tiles[record].set = VF_SPARSE_NONE;
+                ++u.tiles_removed;
+            }
         }
-    }
-    for (const SharedTile& t : tiles) {
-        std::uint32_t record = m.record_of(t.tile);
-        if (record == VF_SPARSE_NONE) {
-            record = m.add_tile(t.tile, e);
+        for (const SharedTile& t : tiles) {
+            std::uint32_t record = m.record_of(t.tile);
+            if (record == VF_SPARSE_NONE) {
+                record = m.add_tile(t.tile, e);
+                ++u.tiles_added;
+            }
+            if (record >= m.shared_tiles.size()) {
+                SharedTile none;
+                none.set = VF_SPARSE_NONE;
+                m.shared_tiles.resize(record + 1, none);
+            }
+            m.shared_tiles[record] = t;
+            m.write_shared_record(record, t);
+            e.records.push_back(record);
+            ++u.tiles_written;
         }
-        if (record >= m.shared_tiles.size()) {
-            m.shared_tiles.resize(record + 1);
+        const bool rebind = m.stage_directory(e);
+        u.bytes = m.staged.size();
+        m.flush("sparse tracer repoint");
+        m.count_bytes();
+        if (rebind) {
+            m.write_set();
         }
-        m.shared_tiles[record] = t;
-        m.write_shared_record(record, t);
-        e.records.push_back(record);
-        ++u.tiles_written;
-    }
-    const bool rebind = m.stage_directory(e);
-    u.bytes = m.staged.size();
-    m.flush("sparse tracer repoint");
-    m.count_bytes();
-    if (rebind) {
-        m.write_set();
+    } catch (...) {
+        // Records may point at memory the sets no longer view: nothing is traced until a whole
+        // upload_shared.
+        m.staged.clear();
+        m.copies.clear();
+        m.loaded = false;
+        m.shared_sets.clear();
+        throw;
     }
     return u;
+}
+
+void SparseTracer::drop_shared() {
+    Impl& m = *impl_;
+    m.ctx.wait_frames_in_flight();
+    m.loaded = false;
+    m.shared_sets.clear();
 }
 
 std::vector<bool> SparseTracer::Impl::set_shared(const std::vector<SharedTreeSet>& sets) {
@@ -908,34 +942,28 @@ std::vector<bool> SparseTracer::Impl::set_shared(const std::vector<SharedTreeSet
     shared_sets.resize(sets.size());
     for (std::size_t i = 0; i < sets.size(); ++i) {
         const SharedTreeSet& in = sets[i];
-        const std::array<const ExternalMemory*, 3> parts{in.masks, in.offsets, in.materials};
-        std::array<VkDeviceMemory, 3> memory{};
-        for (std::size_t k = 0; k < 3; ++k) {
-            memory[k] = parts[k] == nullptr ? VK_NULL_HANDLE : parts[k]->memory();
-        }
-        SharedSet& trees = shared_sets[i];
-        if (memory == trees.memory) {
+        if (in.serials == shared_sets[i].serials) {
             continue;
         }
         moved[i] = true;
-        trees = SharedSet{};
-        trees.memory = memory;
-        if (memory[0] == VK_NULL_HANDLE || memory[1] == VK_NULL_HANDLE ||
-            memory[2] == VK_NULL_HANDLE) {
-            continue;  // a set without memory: no tile may point into it
+        SharedSet trees;  // assigned whole below, once every view is made
+        trees.serials = in.serials;
+        if (in.masks != nullptr && in.offsets != nullptr && in.materials != nullptr) {
+            const auto view = [&](const ExternalMemory& mem, const std::string& what) {
+                Buffer b =
+                    ctx.make_external_buffer(mem.size(), kSharedTreeUsage, mem.handle_type(), what);
+                ctx.bind(b, mem.memory(), 0, what);
+                return b;
+            };
+            trees.external = in.masks->path() == SharingPath::opaque_fd;
+            trees.masks = view(*in.masks, "shared sparse node masks");
+            trees.offsets = view(*in.offsets, "shared sparse node offsets");
+            trees.materials = view(*in.materials, "shared sparse materials");
+            trees.mask_at = ctx.device_address(trees.masks);
+            trees.offset_at = ctx.device_address(trees.offsets);
+            trees.material_at = ctx.device_address(trees.materials);
         }
-        const auto view = [&](const ExternalMemory& mem, const std::string& what) {
-            Buffer b =
-                ctx.make_external_buffer(mem.size(), kSharedTreeUsage, mem.handle_type(), what);
-            ctx.bind(b, mem.memory(), 0, what);
-            return b;
-        };
-        trees.masks = view(*in.masks, "shared sparse node masks");
-        trees.offsets = view(*in.offsets, "shared sparse node offsets");
-        trees.materials = view(*in.materials, "shared sparse materials");
-        trees.mask_at = ctx.device_address(trees.masks);
-        trees.offset_at = ctx.device_address(trees.offsets);
-        trees.material_at = ctx.device_address(trees.materials);
+        shared_sets[i] = std::move(trees);
     }
     return moved;
 }
@@ -974,7 +1002,8 @@ void SparseTracer::Impl::write_set() {
     add(VF_SPARSE_BINDING_PAGES, pages);
     add(VF_SPARSE_BINDING_RECORDS, records);
     add(VF_SPARSE_BINDING_COUNTERS, counters);
-    // A world without tiles has no chunks: the block table stands in (never read).
+    // A world without tiles, or read in place (shared trees), has no chunks: the block table
+    // stands in (never read).
     add(VF_SPARSE_BINDING_MASKS0, masks.empty() ? block_table : masks[0]);
     add(VF_SPARSE_BINDING_OFFSETS0, offsets.empty() ? block_table : offsets[0]);
     add(VF_SPARSE_BINDING_MATERIALS0, materials.empty() ? block_table : materials[0]);
@@ -1087,6 +1116,30 @@ double SparseTracer::Impl::dispatch(const RenderOptions& o, Image* out) {
             vkCmdPipelineBarrier(
                 cmd, VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 0, nullptr, 0, nullptr, 1, &to_general);
+            // Trees in memory exported as an opaque fd (OpenCL wrote them): acquired from
+            // VK_QUEUE_FAMILY_EXTERNAL before the dispatch reads them, released back after.
+            std::vector<VkBufferMemoryBarrier> ownership;
+            for (const Impl::SharedSet& trees : m.shared_sets) {
+                if (!trees.external) {
+                    continue;
+                }
+                for (const Buffer* b : {&trees.masks, &trees.offsets, &trees.materials}) {
+                    VkBufferMemoryBarrier acquire{};
+                    acquire.sType = VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER;
+                    acquire.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+                    acquire.srcQueueFamilyIndex = VK_QUEUE_FAMILY_EXTERNAL;
+                    acquire.dstQueueFamilyIndex = m.ctx.queue_family();
+                    acquire.buffer = b->get();
+                    acquire.size = VK_WHOLE_SIZE;
+                    ownership.push_back(acquire);
+                }
+            }
+            if (!ownership.empty()) {
+                vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT,
+                                     VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 0, nullptr,
+                                     static_cast<std::uint32_t>(ownership.size()), ownership.data(),
+                                     0, nullptr);
+            }
             if (timer != VK_NULL_HANDLE) {
                 vkCmdResetQueryPool(cmd, timer, 0, 2);
                 vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, timer, 0);
@@ -1100,6 +1153,17 @@ double SparseTracer::Impl::dispatch(const RenderOptions& o, Image* out) {
             vkCmdDispatch(cmd, (o.width + g - 1) / g, (o.height + g - 1) / g, 1);
             if (timer != VK_NULL_HANDLE) {
                 vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, timer, 1);
+            }
+            if (!ownership.empty()) {
+                for (VkBufferMemoryBarrier& b : ownership) {
+                    b.srcAccessMask = 0;
+                    b.dstAccessMask = 0;
+                    std::swap(b.srcQueueFamilyIndex, b.dstQueueFamilyIndex);
+                }
+                vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                                     VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, 0, 0, nullptr,
+                                     static_cast<std::uint32_t>(ownership.size()), ownership.data(),
+                                     0, nullptr);
             }
             const VkImageMemoryBarrier to_copy = color_barrier(
                 to_general.image, VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_TRANSFER_READ_BIT,

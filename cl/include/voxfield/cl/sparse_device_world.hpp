@@ -61,9 +61,17 @@ struct QueueTraffic {
 };
 
 // Memory for the 64-trees' buffers (main and slot buffers) that another API reads in place as
-// well (the viewer's Vulkan tracer; pipeline/shared_trees.hpp): a read-write buffer of at least
-// `bytes` bytes for `what`. Empty: plain device buffers.
-using TreeAllocator = std::function<cl::Buffer(std::size_t bytes, const std::string& what)>;
+// well (the viewer's Vulkan tracer; pipeline/shared_trees.hpp). Without `allocate`: plain
+// device buffers.
+struct TreeAllocator {
+    // A read-write buffer of at least `bytes` bytes for `what`.
+    std::function<cl::Buffer(std::size_t bytes, const std::string& what)> allocate;
+    // Called when the world has dropped buffers it no longer uses and its queue is finished
+    // (a whole upload, before it allocates the new main buffers): memory only they used may be
+    // freed now, so that the world is not held twice. May be empty.
+    std::function<void()> dropped;
+    explicit operator bool() const { return static_cast<bool>(allocate); }
+};
 
 class SparseDeviceWorld {
   public:
@@ -142,14 +150,12 @@ class SparseDeviceWorld {
 
     // For a reader of the trees in place (TreeAllocator's memory): the buffers as they are now
     // (main: the host world as last uploaded; slots: kTileMaxNodes nodes and kTileVoxels
-    // materials per slot), and a number that changes whenever one of them is replaced (a whole
-    // upload, the slot buffers grown). Reading them is ordered after the device's edits by
-    // the queue's finish.
+    // materials per slot). Either set is replaced by a whole upload, the slots also when they
+    // grow. Reading them is ordered after the device's edits by the queue's finish.
     struct TreeBuffers {
         cl::Buffer masks, offsets, materials, slot_masks, slot_offsets, slot_materials;
     };
     TreeBuffers tree_buffers() const;
-    std::uint64_t trees_generation() const { return trees_generation_; }
     // Whether a ref's node base points into the slot buffers (its index there: the rest).
     static constexpr std::uint64_t kSlotRef = std::uint64_t{1} << 63;
     // Every stored tile's coordinates and ref (as ref()), in no particular order.
@@ -190,7 +196,6 @@ class SparseDeviceWorld {
     // Main buffers: the host world as uploaded; dir_: per stored tile key, its refs.
     cl::Buffer masks_, offsets_, materials_;
     TreeAllocator allocate_;
-    std::uint64_t trees_generation_ = 0;
     std::unordered_map<std::uint64_t, std::pair<std::uint64_t, std::uint64_t>> dir_;
     // Slots: buffers of slot_capacity_ worst-case tiles, per slot its node and material counts.
     cl::Buffer slot_masks_, slot_offsets_, slot_materials_, slot_counts_;

@@ -10,6 +10,7 @@
 // The glue between cl/ and vk/, part of the frame pipeline.
 #include <cstdint>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -22,10 +23,23 @@ namespace voxfield::pipeline {
 
 class SharedTrees {
   public:
-    // Chooses the path (choose_sharing_path from `fastest`). Both contexts must outlive this
-    // object, and this object the SparseField made with allocator().
+    // An allocation of shared memory failed (over the Vulkan device's maxMemoryAllocationSize,
+    // or refused by either API); what() says which buffer and why. The caller may fall back to
+    // path 3 (a SparseField without allocator()).
+    class AllocationError : public std::runtime_error {
+      public:
+        using std::runtime_error::runtime_error;
+    };
+
+    // Chooses the path (choose_sharing_path from `fastest`; path 3 when the Vulkan device has no
+    // buffer device addresses; path 1 only when a small exported allocation imports, acquires
+    // and releases in OpenCL, else path 2 or 3 with the reason in why_not()). Both contexts must
+    // outlive this object, and this object the SparseField made with allocator().
+    // `max_allocation_bytes`: the largest buffer allocated (0: the Vulkan device's
+    // maxMemoryAllocationSize; tests lower it).
     SharedTrees(ocl::Context& cl_ctx, vk::Context& vk_ctx,
-                vk::SharingPath fastest = vk::SharingPath::opaque_fd);
+                vk::SharingPath fastest = vk::SharingPath::opaque_fd,
+                std::uint64_t max_allocation_bytes = 0);
     ~SharedTrees();
     SharedTrees(const SharedTrees&) = delete;
     SharedTrees& operator=(const SharedTrees&) = delete;
@@ -36,22 +50,37 @@ class SharedTrees {
     const std::string& why_not() const { return why_not_; }
 
     // Where the device world's trees are allocated (ocl::SparseField's `allocate`): shared
-    // memory on paths 1 and 2, empty (plain device buffers) on path 3.
+    // memory on paths 1 and 2, empty (plain device buffers) on path 3. AllocationError when an
+    // allocation fails. When the world drops buffers (a whole upload), the memory only they
+    // used is freed at once and the tracer last synced forgets it (SparseTracer::drop_shared):
+    // the world is never held twice.
     ocl::TreeAllocator allocator();
 
     // Brings `tracer` up to date with `world` (paths 1 and 2 only; logic_error on path 3):
     // after the OpenCL queue finished, the whole directory when the world's main buffers are new
-    // (the first call, a whole upload), else the tiles `changed` overlaps (their places now, or
-    // removed) and any slot memory that was replaced. Memory the tracer no longer reads is freed
-    // after. `palette`: the world's (a whole directory takes it).
+    // (the first call, a whole upload, or after a failed sync), else the tiles `changed`
+    // overlaps (their places now, or removed) and any slot memory that was replaced. Memory the
+    // tracer no longer reads is freed after. `palette`: the world's (a whole directory takes it).
     vk::SparseTileUpdate sync(vk::SparseTracer& tracer, const ocl::SparseDeviceWorld& world,
                               const Dims& dims, const Palette& palette, const Box& changed);
 
-    // Path 1 (cl_khr_external_memory): OpenCL owns the imported memory between an acquire and
-    // a release; before_trace releases the world's buffers to Vulkan (and finishes the queue),
-    // after_trace acquires them again. No-ops on path 2.
-    void before_trace();
-    void after_trace();
+    // Brackets one trace (or several) of the tracer synced last: on path 1
+    // (cl_khr_external_memory) OpenCL owns the imported memory between an acquire and a release,
+    // so the scope releases every shared buffer to Vulkan and finishes the queue, and acquires
+    // them back when it ends; on path 2 (CL_MEM_USE_HOST_PTR) the host, and so Vulkan, may read
+    // the memory only while it is mapped, so the scope maps every buffer for reading and unmaps
+    // it after. One scope at a time (logic_error otherwise); OpenCL must not touch the world
+    // inside it.
+    class TraceScope {
+      public:
+        explicit TraceScope(SharedTrees& shared);
+        ~TraceScope();
+        TraceScope(const TraceScope&) = delete;
+        TraceScope& operator=(const TraceScope&) = delete;
+
+      private:
+        SharedTrees& shared_;
+    };
 
     // Bytes of shared memory allocated (live and not yet freed).
     std::uint64_t bytes() const;
@@ -59,19 +88,28 @@ class SharedTrees {
   private:
     struct Allocation;
     cl::Buffer allocate(std::size_t bytes, const std::string& what);
-    const vk::ExternalMemory* memory_of(const cl::Buffer& buffer) const;
+    // The world dropped buffers: frees those only this object still holds.
+    void dropped();
+    const Allocation* allocation_of(const cl::Buffer& buffer) const;
     std::vector<vk::SharedTreeSet> sets_of(const ocl::SparseDeviceWorld::TreeBuffers& b) const;
     void free_unused(const ocl::SparseDeviceWorld::TreeBuffers& b);
+    void begin_trace();
+    void end_trace() noexcept;
 
     ocl::Context& cl_;
     vk::Context& vk_;
     vk::SharingPath path_ = vk::SharingPath::copy;
     std::string why_not_;
+    std::uint64_t max_allocation_ = 0;  // 0: no limit known
     std::vector<std::unique_ptr<Allocation>> allocations_;
-    // The main masks buffer the tracer's directory was made for (retained in allocations_
-    // until the tracer reads other memory, so no new buffer can have its handle).
-    cl_mem traced_main_ = nullptr;
-    std::vector<cl::Buffer> released_;  // path 1: buffers handed to Vulkan by before_trace
+    std::uint64_t next_serial_ = 1;
+    // The serial of the main masks buffer the tracer's directory was made for (0: none), and the
+    // tracer synced last.
+    std::uint64_t traced_main_ = 0;
+    vk::SparseTracer* tracer_ = nullptr;
+    // Inside a TraceScope: the buffers released (path 1) or mapped (path 2, with their maps).
+    bool tracing_ = false;
+    std::vector<std::pair<cl::Buffer, void*>> held_;
 };
 
 }  // namespace voxfield::pipeline

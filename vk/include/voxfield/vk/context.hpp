@@ -142,6 +142,8 @@ struct PhysicalDeviceInfo {
     std::uint32_t api_version = 0;
     std::string api;  // "1.3.230"
     VkDeviceSize max_storage_buffer_range = 0;
+    // VkPhysicalDeviceMaintenance3Properties::maxMemoryAllocationSize (0: not known).
+    VkDeviceSize max_memory_allocation_size = 0;
     std::uint32_t max_storage_buffers_per_stage = 0;
     std::uint32_t max_image_dimension_2d = 0;
     VkDeviceSize min_storage_buffer_offset_alignment = 0;

@@ -7,6 +7,7 @@
 // for pixel the dense ray marcher's image of the same world. Lit shading: the ray marcher's
 // face normal, sun and ambient terms, shadows by a ray traced toward the sun through the same
 // walk, ambient occlusion from 20 voxel look-ups in the 64-trees (not a distance field).
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -47,11 +48,14 @@ inline constexpr VkBufferUsageFlags kSharedTreeUsage =
 
 // One set of core's three tree buffers (node masks, node offsets, materials, as in
 // core/sparse.hpp) in memory that another API writes (OpenCL: pipeline/shared_trees.hpp), made
-// with kSharedTreeUsage. Null: a set without memory (no tile points into it).
+// with kSharedTreeUsage. Null: a set without memory (no tile points into it). `serials`: per
+// buffer a number its owner never gives other memory (handles and addresses may be reused once
+// memory is freed); the tracer makes its views again when they change.
 struct SharedTreeSet {
     const ExternalMemory* masks = nullptr;
     const ExternalMemory* offsets = nullptr;
     const ExternalMemory* materials = nullptr;
+    std::array<std::uint64_t, 3> serials{};
 };
 
 // Where one stored tile's 64-tree lies: in set `set`, its root at node `node`, its first
@@ -68,6 +72,7 @@ struct SparseTileUpdate {
     // their tree's new place).
     std::uint32_t tiles_written = 0;
     std::uint32_t tiles_removed = 0;  // tiles taken out of the directory (now empty)
+    std::uint32_t tiles_added = 0;    // tiles new to the directory (of tiles_written)
     // repoint: tiles whose records were written again because their set's memory was replaced.
     std::uint32_t tiles_moved = 0;
     std::uint64_t bytes = 0;     // bytes copied from the host to the device
@@ -109,9 +114,11 @@ class SparseTracer {
     // (`tiles`: every stored tile of a world of `dims`, each once), its records of device
     // addresses into the sets, and the palette. The sets' memory must stay alive and unchanged
     // by others while a trace runs, until a later upload or repoint names other memory; the
-    // caller orders the other API's writes before the next trace (a finished queue). Shared
-    // trees always take the address path (never chunk 0's bindings). update_tiles is not
-    // taken (logic_error): edits are told through repoint.
+    // caller orders the other API's writes before the next trace (a finished queue). Memory
+    // exported as an opaque fd is acquired from VK_QUEUE_FAMILY_EXTERNAL before each trace and
+    // released back after. Shared trees always take the address path (never chunk 0's
+    // bindings). update_tiles is not taken (logic_error): edits are told through repoint.
+    // logic_error for a tile outside the tile grid or listed twice.
     void upload_shared(Dims dims, const Palette& palette, const std::vector<SharedTreeSet>& sets,
                        const std::vector<SharedTile>& tiles);
     // After trees moved (the device world's edits wrote tiles into other places, or its memory
@@ -119,10 +126,13 @@ class SparseTracer {
     // written again, same places in the new memory), `tiles` whose tree is now elsewhere or
     // new to the directory, `removed` tiles no longer stored (those the directory lacks are
     // ignored). Only records, pages and block entries are copied. logic_error before
-    // upload_shared.
+    // upload_shared. After an exception the tracer traces nothing until upload_shared.
     SparseTileUpdate repoint(const std::vector<SharedTreeSet>& sets,
                              const std::vector<SharedTile>& tiles,
                              const std::vector<Int3>& removed);
+    // Forgets the shared sets (their memory is about to be freed): nothing is traced until the
+    // next upload_shared.
+    void drop_shared();
 
     // Traces one image and reads it back (Image::raymarch_ms: the dispatch by GPU timestamps).
     // options.count: Image::fetches counts node visits and Image::steps node exits (every level
