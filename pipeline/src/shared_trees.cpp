@@ -32,7 +32,7 @@ void trim(std::string& why_not) {
 
 SharedTrees::SharedTrees(ocl::Context& cl_ctx, vk::Context& vk_ctx, vk::SharingPath fastest,
                          std::uint64_t max_allocation_bytes)
-    : cl_(cl_ctx), vk_(vk_ctx), max_allocation_(vk_ctx.info().max_memory_allocation_size) {
+    : cl_(cl_ctx), vk_(vk_ctx), max_allocation_(vk_ctx.info().max_buffer_size) {
     if (max_allocation_bytes != 0) {
         max_allocation_ = max_allocation_ == 0 ? max_allocation_bytes
                                                : std::min(max_allocation_, max_allocation_bytes);
@@ -87,9 +87,8 @@ cl::Buffer SharedTrees::allocate(std::size_t bytes, const std::string& what) {
     auto a = std::make_unique<Allocation>();
     const std::string name = what + " (shared with Vulkan)";
     if (max_allocation_ != 0 && bytes > max_allocation_) {
-        throw AllocationError(name + ": " + std::to_string(bytes) +
-                              " bytes exceed one allocation of " + vk_.info().name + " (" +
-                              std::to_string(max_allocation_) + " bytes)");
+        throw AllocationError(name + ": " + std::to_string(bytes) + " bytes exceed one buffer of " +
+                              vk_.info().name + " (" + std::to_string(max_allocation_) + " bytes)");
     }
     try {
         if (path_ == vk::SharingPath::opaque_fd) {

@@ -232,7 +232,7 @@ TEST(SharedTrees, AWholeUploadIsTracedAgainAndTheOldMemoryFreed) {
 
 TEST(SharedTrees, AnAllocationOverTheLimitIsRefusedWithItsReason) {
     REQUIRE_VULKAN(ctx);
-    EXPECT_GT(ctx->info().max_memory_allocation_size, 0u);
+    EXPECT_GT(ctx->info().max_buffer_size, 0u);
     SparseWorld world = city(Dims{260, 120, 230}, 4);
     const Palette palette = Palette::dissertation();
     // Below the world's node masks: the field cannot be made in shared memory.
@@ -245,7 +245,7 @@ TEST(SharedTrees, AnAllocationOverTheLimitIsRefusedWithItsReason) {
         ADD_FAILURE() << "no AllocationError";
     } catch (const pipeline::SharedTrees::AllocationError& e) {
         const std::string what = e.what();
-        EXPECT_NE(what.find("exceed one allocation of"), std::string::npos) << what;
+        EXPECT_NE(what.find("exceed one buffer of"), std::string::npos) << what;
         EXPECT_NE(what.find("65536 bytes"), std::string::npos) << what;
     }
     // A field without the allocator still works beside it (the viewer's fallback, path 3).

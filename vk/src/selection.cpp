@@ -122,15 +122,17 @@ PhysicalDeviceInfo describe_device(VkPhysicalDevice d, std::size_t index) {
         if (info.has_extension(VK_EXT_EXTERNAL_MEMORY_HOST_EXTENSION_NAME)) {
             id.pNext = &host;
         }
-        VkPhysicalDeviceMaintenance3Properties m3{};
-        m3.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES;
-        m3.pNext = &id;
+        VkPhysicalDeviceMaintenance4Properties m4{};
+        m4.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_4_PROPERTIES;
+        m4.pNext = &id;
+        const bool maintenance4 = p.apiVersion >= VK_API_VERSION_1_3 ||
+                                  info.has_extension(VK_KHR_MAINTENANCE_4_EXTENSION_NAME);
         VkPhysicalDeviceProperties2 p2{};
         p2.sType = VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2;
-        p2.pNext = &m3;
+        p2.pNext = maintenance4 ? static_cast<void*>(&m4) : static_cast<void*>(&id);
         vkGetPhysicalDeviceProperties2(d, &p2);
         std::memcpy(info.uuid.data(), id.deviceUUID, VK_UUID_SIZE);
-        info.max_memory_allocation_size = m3.maxMemoryAllocationSize;
+        info.max_buffer_size = maintenance4 ? m4.maxBufferSize : 0;
         info.min_imported_host_pointer_alignment = host.minImportedHostPointerAlignment;
     }
     std::uint32_t family = 0;

@@ -23,9 +23,10 @@ namespace voxfield::pipeline {
 
 class SharedTrees {
   public:
-    // An allocation of shared memory failed (over the Vulkan device's maxMemoryAllocationSize,
-    // or refused by either API); what() says which buffer and why. The caller may fall back to
-    // path 3 (a SparseField without allocator()).
+    // An allocation of shared memory failed (over the Vulkan device's maxBufferSize, or refused
+    // by either API: over maxMemoryAllocationSize, a soft limit some drivers keep, out of
+    // memory); what() says which buffer and why. The caller may fall back to path 3 (a
+    // SparseField without allocator()).
     class AllocationError : public std::runtime_error {
       public:
         using std::runtime_error::runtime_error;
@@ -36,7 +37,7 @@ class SharedTrees {
     // and releases in OpenCL, else path 2 or 3 with the reason in why_not()). Both contexts must
     // outlive this object, and this object the SparseField made with allocator().
     // `max_allocation_bytes`: the largest buffer allocated (0: the Vulkan device's
-    // maxMemoryAllocationSize; tests lower it).
+    // maxBufferSize; tests lower it).
     SharedTrees(ocl::Context& cl_ctx, vk::Context& vk_ctx,
                 vk::SharingPath fastest = vk::SharingPath::opaque_fd,
                 std::uint64_t max_allocation_bytes = 0);

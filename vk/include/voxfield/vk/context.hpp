@@ -142,8 +142,10 @@ struct PhysicalDeviceInfo {
     std::uint32_t api_version = 0;
     std::string api;  // "1.3.230"
     VkDeviceSize max_storage_buffer_range = 0;
-    // VkPhysicalDeviceMaintenance3Properties::maxMemoryAllocationSize (0: not known).
-    VkDeviceSize max_memory_allocation_size = 0;
+    // VkPhysicalDeviceMaintenance4Properties::maxBufferSize (0: not known, before Vulkan 1.3
+    // or VK_KHR_maintenance4). maxMemoryAllocationSize is not kept: drivers allocate beyond it
+    // (NVIDIA reports 4 GiB and allocates tens of GB).
+    VkDeviceSize max_buffer_size = 0;
     std::uint32_t max_storage_buffers_per_stage = 0;
     std::uint32_t max_image_dimension_2d = 0;
     VkDeviceSize min_storage_buffer_offset_alignment = 0;
