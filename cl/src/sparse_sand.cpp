@@ -228,6 +228,7 @@ SparseSand::Step SparseSand::step(std::uint64_t seed, std::uint64_t s) {
         result.changed += sw[0];
         result.bounds = result.bounds.empty() ? box : hull(result.bounds, box);
         changed_tiles.push_back({t, w * kWinVoxels + kTileFirst});
+        result.tiles.push_back(t);
         boxes.push_back(box);
         active_.emplace_back(box, s + kPeriod);
     }

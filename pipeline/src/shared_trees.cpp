@@ -168,6 +168,32 @@ void SharedTrees::free_unused(const ocl::SparseDeviceWorld::TreeBuffers& b) {
 vk::SparseTileUpdate SharedTrees::sync(vk::SparseTracer& tracer,
                                        const ocl::SparseDeviceWorld& world, const Dims& dims,
                                        const Palette& palette, const Box& changed) {
+    std::vector<Int3> tiles;
+    const Box box = intersect(changed, Box{{0, 0, 0}, {dims.x, dims.y, dims.z}});
+    if (!box.empty()) {
+        const std::int64_t ts = kTileSize;
+        for (std::int64_t tz = box.min.z / ts; tz <= (box.max.z - 1) / ts; ++tz) {
+            for (std::int64_t ty = box.min.y / ts; ty <= (box.max.y - 1) / ts; ++ty) {
+                for (std::int64_t tx = box.min.x / ts; tx <= (box.max.x - 1) / ts; ++tx) {
+                    tiles.push_back({tx, ty, tz});
+                }
+            }
+        }
+    }
+    return sync_tiles(tracer, world, dims, palette, tiles);
+}
+
+vk::SparseTileUpdate SharedTrees::sync(vk::SparseTracer& tracer,
+                                       const ocl::SparseDeviceWorld& world, const Dims& dims,
+                                       const Palette& palette,
+                                       const std::vector<Int3>& changed_tiles) {
+    return sync_tiles(tracer, world, dims, palette, changed_tiles);
+}
+
+vk::SparseTileUpdate SharedTrees::sync_tiles(vk::SparseTracer& tracer,
+                                             const ocl::SparseDeviceWorld& world, const Dims& dims,
+                                             const Palette& palette,
+                                             const std::vector<Int3>& changed_tiles) {
     if (!shares()) {
         throw std::logic_error("SharedTrees::sync on path 3 (nothing is shared)");
     }
@@ -205,20 +231,12 @@ vk::SparseTileUpdate SharedTrees::sync(vk::SparseTracer& tracer,
         } else {
             std::vector<vk::SharedTile> tiles;
             std::vector<Int3> removed;
-            const Box box = intersect(changed, Box{{0, 0, 0}, {dims.x, dims.y, dims.z}});
-            if (!box.empty()) {
-                const std::int64_t ts = kTileSize;
-                for (std::int64_t tz = box.min.z / ts; tz <= (box.max.z - 1) / ts; ++tz) {
-                    for (std::int64_t ty = box.min.y / ts; ty <= (box.max.y - 1) / ts; ++ty) {
-                        for (std::int64_t tx = box.min.x / ts; tx <= (box.max.x - 1) / ts; ++tx) {
-                            const auto ref = world.ref(tx, ty, tz);
-                            if (ref.first == ocl::SparseDeviceWorld::kNoRef) {
-                                removed.push_back({tx, ty, tz});
-                            } else {
-                                tiles.push_back(tile_of({tx, ty, tz}, ref));
-                            }
-                        }
-                    }
+            for (const Int3& c : changed_tiles) {
+                const auto ref = world.ref(c.x, c.y, c.z);
+                if (ref.first == ocl::SparseDeviceWorld::kNoRef) {
+                    removed.push_back(c);
+                } else {
+                    tiles.push_back(tile_of(c, ref));
                 }
             }
             u = tracer.repoint(sets, tiles, removed);

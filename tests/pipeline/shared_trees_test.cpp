@@ -195,8 +195,13 @@ TEST(SharedTrees, SandStepsAreTracedInPlace) {
     for (std::uint64_t s = 0; s < 12; ++s) {
         const ocl::SparseSand::Step st = sand.step(3, s);
         changed += static_cast<std::uint32_t>(st.changed);
-        if (!st.bounds.empty()) {
-            shared.sync(tracer, field.device_world(), d, palette, st.bounds);
+        ASSERT_EQ(st.tiles.size(), st.tiles_changed);
+        // Only the tiles the step encoded again are pointed elsewhere.
+        const vk::SparseTileUpdate u =
+            shared.sync(tracer, field.device_world(), d, palette, st.tiles);
+        EXPECT_EQ(u.tiles_written, st.tiles_changed);
+        if (s == 5) {
+            expect_shared_as_fresh(*ctx, shared, tracer, field, palette, "after 6 sand steps");
         }
     }
     EXPECT_GT(changed, 0u);

@@ -417,8 +417,10 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             const ocl::SparseSand::Step st = sand->step(o.seed, sand_step++);
             simulate_ms = st.simulate_ms;
             sand_changed = static_cast<std::size_t>(st.changed);
-            if (!st.bounds.empty()) {
-                feed_tracer(shared, field, tracer, palette, dims, st.bounds);
+            if (shared.shares()) {
+                shared.sync(tracer, field.device_world(), dims, palette, st.tiles);
+            } else if (!st.bounds.empty()) {
+                tracer.update_tiles(field.world(), st.bounds);
             }
             update_ms += ms_since(t_step);
             info.sand_steps = sand_step;

@@ -40,6 +40,7 @@ class SparseSand {
         std::uint32_t tiles_run = 0;  // tiles gathered and stepped
         std::uint32_t tiles_changed = 0;
         Box bounds;                  // of the changed voxels (Box{} when none)
+        std::vector<Int3> tiles;     // the tiles encoded again (tiles_changed of them)
         double simulate_ms = 0;      // device time: gather and step kernels, summary read
         double update_ms = 0;        // device time: encoding and the field's update
         SparseField::Update update;  // the field's update (empty when nothing changed)

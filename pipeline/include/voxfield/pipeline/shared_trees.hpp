@@ -64,6 +64,12 @@ class SharedTrees {
     // tracer no longer reads is freed after. `palette`: the world's (a whole directory takes it).
     vk::SparseTileUpdate sync(vk::SparseTracer& tracer, const ocl::SparseDeviceWorld& world,
                               const Dims& dims, const Palette& palette, const Box& changed);
+    // The same for a list of tiles (tile coordinates) that changed, such as a sand step's
+    // (ocl::SparseSand::Step::tiles): only those, where the box of a scattered change would
+    // take every tile between them.
+    vk::SparseTileUpdate sync(vk::SparseTracer& tracer, const ocl::SparseDeviceWorld& world,
+                              const Dims& dims, const Palette& palette,
+                              const std::vector<Int3>& changed_tiles);
 
     // Brackets one trace (or several) of the tracer synced last: on path 1
     // (cl_khr_external_memory) OpenCL owns the imported memory between an acquire and a release,
@@ -94,6 +100,9 @@ class SharedTrees {
     const Allocation* allocation_of(const cl::Buffer& buffer) const;
     std::vector<vk::SharedTreeSet> sets_of(const ocl::SparseDeviceWorld::TreeBuffers& b) const;
     void free_unused(const ocl::SparseDeviceWorld::TreeBuffers& b);
+    vk::SparseTileUpdate sync_tiles(vk::SparseTracer& tracer, const ocl::SparseDeviceWorld& world,
+                                    const Dims& dims, const Palette& palette,
+                                    const std::vector<Int3>& tiles);
     void begin_trace();
     void end_trace() noexcept;
 
