@@ -282,12 +282,17 @@ void SparseDeviceWorld::upload_whole() {
         q.finish();
         masks_ = offsets_ = materials_ = cl::Buffer();
         if (allocate_.dropped) {
-            allocate_.dropped();
+            allocate_.dropped({slot_masks_, slot_offsets_, slot_materials_});
         }
-        masks_ = tree_buffer(nodes * 8, CL_MEM_READ_ONLY, "sparse node masks");
-        offsets_ = tree_buffer(nodes * 4, CL_MEM_READ_ONLY, "sparse node offsets");
-        materials_ = tree_buffer(std::max<std::size_t>(materials.size(), 1), CL_MEM_READ_ONLY,
-                                 "sparse materials");
+        // All three or none (an allocation that fails leaves the world without main buffers:
+        // its later use fails with an OpenCL error, not on a half-made set).
+        cl::Buffer m = tree_buffer(nodes * 8, CL_MEM_READ_ONLY, "sparse node masks");
+        cl::Buffer o = tree_buffer(nodes * 4, CL_MEM_READ_ONLY, "sparse node offsets");
+        cl::Buffer mat = tree_buffer(std::max<std::size_t>(materials.size(), 1), CL_MEM_READ_ONLY,
+                                     "sparse materials");
+        masks_ = m;
+        offsets_ = o;
+        materials_ = mat;
         if (!masks.empty()) {
             q.enqueueWriteBuffer(masks_, CL_FALSE, 0, masks.size() * 8, masks.data());
             q.enqueueWriteBuffer(offsets_, CL_FALSE, 0, offsets.size() * 4, offsets.data());
@@ -351,9 +356,8 @@ std::uint32_t SparseDeviceWorld::take_slot() {
         free_slots_.pop_back();
         return slot;
     }
-    const auto slot = static_cast<std::uint32_t>(slots_made_++);
-    ensure_slot_capacity(slots_made_);  // copies the slot buffers in queue order
-    return slot;
+    ensure_slot_capacity(slots_made_ + 1);  // copies the slot buffers in queue order
+    return static_cast<std::uint32_t>(slots_made_++);
 }
 
 void SparseDeviceWorld::release_slots_if_needed() {
@@ -705,7 +709,7 @@ std::vector<std::uint8_t> SparseDeviceWorld::voxels(std::span<const Int3> cells)
     // builds a kernel again for each new launch size (about 70 ms here), so sizes are few.
     const std::size_t launch = std::bit_ceil(std::max<std::size_t>(cells.size(), 64));
     std::vector<std::int64_t> jobs(8 * launch);
-    std::vector<std::uint64_t> refs(2 * launch);
+    std::vector<std::uint64_t> cell_refs(2 * launch);
     for (std::size_t i = 0; i < launch; ++i) {
         const Int3 c = i < cells.size() ? cells[i] : Int3{-1, -1, -1};
         const Int3 t{c.x >> 6, c.y >> 6, c.z >> 6};
@@ -719,30 +723,43 @@ std::vector<std::uint8_t> SparseDeviceWorld::voxels(std::span<const Int3> cells)
         job[6] = std::int64_t{1} | std::int64_t{1} << 16 | std::int64_t{1} << 32;
         job[7] = static_cast<std::int64_t>(i);
         const auto r = ref(t.x, t.y, t.z);
-        refs[2 * i] = r.first;
-        refs[2 * i + 1] = r.second;
+        cell_refs[2 * i] = r.first;
+        cell_refs[2 * i + 1] = r.second;
     }
     cl_call("reading " + std::to_string(cells.size()) + " voxels of the sparse world", [&] {
         auto& c = ctx_.context();
-        cl::Buffer job_buf(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, jobs.size() * 8,
-                           jobs.data());
-        cl::Buffer ref_buf(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, refs.size() * 8,
-                           refs.data());
-        cl::Buffer vox(c, CL_MEM_WRITE_ONLY, launch);
+        auto& q = ctx_.queue();
+        if (launch > voxel_capacity_) {
+            voxel_jobs_ = cl::Buffer(c, CL_MEM_READ_ONLY, launch * 64);
+            voxel_refs_ = cl::Buffer(c, CL_MEM_READ_ONLY, launch * 16);
+            voxel_out_ = cl::Buffer(c, CL_MEM_WRITE_ONLY, launch);
+            voxel_capacity_ = launch;
+        }
         cl::Kernel k = gather_kernel(true);
         const Dims d = world_.dims();
-        k.setArg(6, job_buf);
-        k.setArg(7, ref_buf);
-        k.setArg(8, vox);
+        k.setArg(6, voxel_jobs_);
+        k.setArg(7, voxel_refs_);
+        k.setArg(8, voxel_out_);
         k.setArg(9, cl_uint{1});
         k.setArg(10, cl_uint{1});
         k.setArg(11, cl_uint{1});
         k.setArg(12, static_cast<cl_long>(d.x));
         k.setArg(13, static_cast<cl_long>(d.y));
         k.setArg(14, static_cast<cl_long>(d.z));
-        auto& q = ctx_.queue();
-        q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(1, 1, launch));
-        q.enqueueReadBuffer(vox, CL_TRUE, 0, out.size(), out.data());
+        // The writes do not block: the read waits for the queue, and with it for them (on a
+        // failure the queue is finished before `jobs` and `cell_refs` go).
+        try {
+            q.enqueueWriteBuffer(voxel_jobs_, CL_FALSE, 0, jobs.size() * 8, jobs.data());
+            q.enqueueWriteBuffer(voxel_refs_, CL_FALSE, 0, cell_refs.size() * 8, cell_refs.data());
+            q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(1, 1, launch));
+            q.enqueueReadBuffer(voxel_out_, CL_TRUE, 0, out.size(), out.data());
+        } catch (...) {
+            try {
+                q.finish();
+            } catch (const cl::Error&) {
+            }
+            throw;
+        }
     });
     return out;
 }

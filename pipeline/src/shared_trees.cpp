@@ -53,6 +53,10 @@ SharedTrees::SharedTrees(ocl::Context& cl_ctx, vk::Context& vk_ctx, vk::SharingP
             cl_.queue().finish();
             allocations_.clear();
         } catch (const std::exception& e) {
+            try {
+                cl_.queue().finish();  // the import's commands, before its memory goes
+            } catch (const cl::Error&) {
+            }
             allocations_.clear();
             why_not_ += std::string("path 1 failed: ") + e.what() + "; ";
             path_ = vk::supports(vk_ctx, vk::SharingPath::host_pointer) &&
@@ -79,7 +83,7 @@ ocl::TreeAllocator SharedTrees::allocator() {
     a.allocate = [this](std::size_t bytes, const std::string& what) {
         return allocate(bytes, what);
     };
-    a.dropped = [this] { dropped(); };
+    a.dropped = [this](const std::vector<cl::Buffer>& kept) { dropped(kept); };
     return a;
 }
 
@@ -110,11 +114,11 @@ cl::Buffer SharedTrees::allocate(std::size_t bytes, const std::string& what) {
     return b;
 }
 
-void SharedTrees::dropped() {
-    // The world finished its queue and released its handles: a buffer whose only reference is
-    // ours is no longer the world's.
-    const auto unused = [](const std::unique_ptr<Allocation>& a) {
-        return a->buffer.getInfo<CL_MEM_REFERENCE_COUNT>() == 1;
+void SharedTrees::dropped(const std::vector<cl::Buffer>& kept) {
+    // The world finished its queue and holds only `kept`: no command uses the others.
+    const auto unused = [&](const std::unique_ptr<Allocation>& a) {
+        return std::none_of(kept.begin(), kept.end(),
+                            [&](const cl::Buffer& b) { return b() == a->buffer(); });
     };
     if (std::none_of(allocations_.begin(), allocations_.end(), unused)) {
         return;
@@ -255,6 +259,13 @@ SharedTrees::TraceScope::TraceScope(SharedTrees& shared) : shared_(shared) {
 
 SharedTrees::TraceScope::~TraceScope() {
     shared_.end_trace();
+}
+
+void SharedTrees::forget(const vk::SparseTracer& tracer) {
+    if (tracer_ == &tracer) {
+        tracer_ = nullptr;
+        traced_main_ = 0;
+    }
 }
 
 void SharedTrees::begin_trace() {

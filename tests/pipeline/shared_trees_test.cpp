@@ -214,8 +214,15 @@ TEST(SharedTrees, AWholeUploadIsTracedAgainAndTheOldMemoryFreed) {
     SparseWorld world = city(Dims{260, 120, 230}, 4);
     const Palette palette = Palette::dissertation();
     ocl::SparseField field(pocl(), world, palette, bounded(6), shared.allocator());
+    field.run();
     vk::SparseTracer tracer(*ctx);
     shared.sync(tracer, field.device_world(), world.dims(), palette, Box{});
+    // Kernels and an edit have used the main buffers before they are dropped.
+    const Brush edit = brush(BrushOp::place, BrushShape::sphere, {60, 70, 60}, 9, 4);
+    field.apply_brush(edit);
+    shared.sync(tracer, field.device_world(), world.dims(), palette,
+                brush_bounds(edit, world.dims()));
+    field.world();
     const std::uint64_t before = shared.bytes();
     // A host edit the device was not told of: refresh() uploads the whole world again, into
     // new main buffers.
@@ -233,6 +240,28 @@ TEST(SharedTrees, AWholeUploadIsTracedAgainAndTheOldMemoryFreed) {
         shared.sync(tracer, field.device_world(), world.dims(), palette, Box{});
     EXPECT_TRUE(u.whole);
     expect_shared_as_fresh(*ctx, shared, tracer, field, palette, "after a whole upload");
+}
+
+// A host edit over more than 256 tiles, told through SparseField::update, uploads the device
+// world whole inside the edit: the next sync makes the tracer's directory whole again.
+TEST(SharedTrees, AWholeUploadInsideAnEditIsTracedWhole) {
+    REQUIRE_VULKAN(ctx);
+    REQUIRE_SHARING(shared, ctx);
+    SparseWorld world = city(Dims{1100, 64, 1100}, 3);  // 18 x 1 x 18 tiles
+    const Dims d = world.dims();
+    const Palette palette = Palette::dissertation();
+    ocl::SparseField field(pocl(), world, palette, bounded(3), shared.allocator());
+    field.run();
+    vk::SparseTracer tracer(*ctx);
+    shared.sync(tracer, field.device_world(), d, palette, Box{});
+    field.world();
+    const Box changed =
+        apply_brush(world, brush(BrushOp::paint, BrushShape::cube, {550, 32, 550}, 549, 6));
+    field.update(changed);
+    const vk::SparseTileUpdate u = shared.sync(tracer, field.device_world(), d, palette, changed);
+    EXPECT_TRUE(u.whole);
+    expect_shared_as_fresh(*ctx, shared, tracer, field, palette, "after the whole upload");
+    shared.forget(tracer);
 }
 
 TEST(SharedTrees, AnAllocationOverTheLimitIsRefusedWithItsReason) {

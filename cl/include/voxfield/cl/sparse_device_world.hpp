@@ -67,9 +67,10 @@ struct TreeAllocator {
     // A read-write buffer of at least `bytes` bytes for `what`.
     std::function<cl::Buffer(std::size_t bytes, const std::string& what)> allocate;
     // Called when the world has dropped buffers it no longer uses and its queue is finished
-    // (a whole upload, before it allocates the new main buffers): memory only they used may be
-    // freed now, so that the world is not held twice. May be empty.
-    std::function<void()> dropped;
+    // (a whole upload, before it allocates the new main buffers), with the tree buffers it
+    // still holds (`kept`): memory of any other buffer from `allocate` may be freed now, so
+    // that the world is not held twice. May be empty.
+    std::function<void(const std::vector<cl::Buffer>& kept)> dropped;
     explicit operator bool() const { return static_cast<bool>(allocate); }
 };
 
@@ -216,6 +217,9 @@ class SparseDeviceWorld {
     std::vector<std::uint64_t> keys_;
     std::vector<std::int64_t> dense_;  // the table's dense nodes (tile * 64 + child bit)
     std::vector<std::uint32_t> host_slots_;
+    // voxels()'s jobs, refs and output, for voxel_capacity_ cells (grown as needed).
+    cl::Buffer voxel_jobs_, voxel_refs_, voxel_out_;
+    std::size_t voxel_capacity_ = 0;
     // The last edit's kernels and traffic.
     std::vector<std::pair<std::string, cl::Event>> edit_events_;
     QueueTraffic traffic_;

@@ -62,6 +62,9 @@ class SharedTrees {
     // (the first call, a whole upload, or after a failed sync), else the tiles `changed`
     // overlaps (their places now, or removed) and any slot memory that was replaced. Memory the
     // tracer no longer reads is freed after. `palette`: the world's (a whole directory takes it).
+    // One world per object. The tracer synced last is told when memory it reads is freed (a
+    // whole upload of the world: SparseTracer::drop_shared), so it must outlive every later
+    // whole upload, or be forgotten first (forget).
     vk::SparseTileUpdate sync(vk::SparseTracer& tracer, const ocl::SparseDeviceWorld& world,
                               const Dims& dims, const Palette& palette, const Box& changed);
     // The same for a list of tiles (tile coordinates) that changed, such as a sand step's
@@ -89,14 +92,17 @@ class SharedTrees {
         SharedTrees& shared_;
     };
 
+    // `tracer` is going away: no later whole upload tells it anything.
+    void forget(const vk::SparseTracer& tracer);
+
     // Bytes of shared memory allocated (live and not yet freed).
     std::uint64_t bytes() const;
 
   private:
     struct Allocation;
     cl::Buffer allocate(std::size_t bytes, const std::string& what);
-    // The world dropped buffers: frees those only this object still holds.
-    void dropped();
+    // The world dropped buffers: frees every allocation but those it `kept`.
+    void dropped(const std::vector<cl::Buffer>& kept);
     const Allocation* allocation_of(const cl::Buffer& buffer) const;
     std::vector<vk::SharedTreeSet> sets_of(const ocl::SparseDeviceWorld::TreeBuffers& b) const;
     void free_unused(const ocl::SparseDeviceWorld::TreeBuffers& b);
