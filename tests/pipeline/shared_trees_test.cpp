@@ -18,23 +18,17 @@
 
 #include "cl_test_util.hpp"
 #include "sparse_brush.hpp"
+#include "sparse_city.hpp"
 #include "sparse_images.hpp"
 #include "voxfield/cl/sparse_field.hpp"
 #include "voxfield/cl/sparse_sand.hpp"
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/sand.hpp"
-#include "voxfield/core/scenes.hpp"
 #include "voxfield/core/sparse.hpp"
 #include "vulkan_env.hpp"
 
 namespace voxfield::test {
 namespace {
-
-SparseWorld city(Dims dims, std::uint64_t seed) {
-    const CityScene scene(dims, seed);
-    return SparseWorld::from_fill(
-        dims, [&](const Box& box, std::span<std::uint8_t> out) { scene.fill(box, out); });
-}
 
 ocl::GeneratorOptions bounded(std::uint32_t d) {
     ocl::GeneratorOptions options;

@@ -18,11 +18,11 @@
 
 #include "cl_test_util.hpp"
 #include "sparse_brush.hpp"
+#include "sparse_city.hpp"
 #include "sparse_images.hpp"
 #include "voxfield/cl/sparse_field.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/palette.hpp"
-#include "voxfield/core/scenes.hpp"
 #include "voxfield/core/sparse.hpp"
 #include "voxfield/vk/sparse_trace_layout.h"
 #include "voxfield/vk/sparse_tracer.hpp"
@@ -30,12 +30,6 @@
 
 namespace voxfield::test {
 namespace {
-
-SparseWorld city(Dims dims, std::uint64_t seed) {
-    const CityScene scene(dims, seed);
-    return SparseWorld::from_fill(
-        dims, [&](const Box& box, std::span<std::uint8_t> out) { scene.fill(box, out); });
-}
 
 TEST(SparseUpdate, RandomEditsEqualAFreshUpload) {
     REQUIRE_VULKAN(ctx);

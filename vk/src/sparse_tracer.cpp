@@ -746,26 +746,35 @@ void SparseTracer::Impl::drop_tile(const Int3& c, std::uint32_t record, Director
     }
 }
 
-std::uint32_t SparseTracer::Impl::add_tile(const Int3& c, DirectoryEdit& e) {
-    std::uint32_t record = 0;
-    if (!free_records.empty()) {
-        record = free_records.back();
-        free_records.pop_back();
-    } else {
-        record = static_cast<std::uint32_t>(host_records.size() / kRecordWords);
-        host_records.resize(host_records.size() + kRecordWords, 0);
+namespace {
+
+// The last freed index of `freed`, else `make()`'s new one.
+template <class Make>
+std::uint32_t reuse_or(std::vector<std::uint32_t>& freed, Make make) {
+    if (freed.empty()) {
+        return make();
     }
+    const std::uint32_t i = freed.back();
+    freed.pop_back();
+    return i;
+}
+
+}  // namespace
+
+std::uint32_t SparseTracer::Impl::add_tile(const Int3& c, DirectoryEdit& e) {
+    const std::uint32_t record = reuse_or(free_records, [&] {
+        const auto r = static_cast<std::uint32_t>(host_records.size() / kRecordWords);
+        host_records.resize(host_records.size() + kRecordWords, 0);
+        return r;
+    });
     const std::uint64_t b = block_of(c);
     if (host_blocks[b] == VF_SPARSE_NONE) {
-        std::uint32_t page = 0;
-        if (!free_pages.empty()) {
-            page = free_pages.back();
-            free_pages.pop_back();
-        } else {
-            page = static_cast<std::uint32_t>(host_pages.size() / kPageTiles);
+        const std::uint32_t page = reuse_or(free_pages, [&] {
+            const auto p = static_cast<std::uint32_t>(host_pages.size() / kPageTiles);
             host_pages.resize(host_pages.size() + kPageTiles, VF_SPARSE_NONE);
             page_fill.push_back(0);
-        }
+            return p;
+        });
         host_blocks[b] = page;
         e.blocks.push_back(b);
         e.new_pages.push_back(page);
