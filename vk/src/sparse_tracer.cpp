@@ -199,6 +199,7 @@ struct SparseTracer::Impl {
     // Appends a node chunk or a material chunk, or puts one in place of chunk c.
     void set_node_chunk(std::size_t c, Buffer chunk_masks, Buffer chunk_offsets);
     void set_material_chunk(std::size_t c, Buffer chunk);
+    void clear_chunks();
     void upload_all(const SparseWorld& world);
     // The directory of the tiles `coords` (record t: coords[t]) of a world of `dims`: block
     // table, pages and records on the host, the arena emptied. InputError past one binding.
@@ -318,12 +319,7 @@ void SparseTracer::Impl::upload_all(const SparseWorld& world) {
     const std::vector<Range> material_ranges =
         cut(world.material_bases(), world.material_counts(), m.limit, material_chunk);
     // The chunks (any number of them), then the records: their addresses.
-    m.masks.clear();
-    m.offsets.clear();
-    m.materials.clear();
-    m.mask_at.clear();
-    m.offset_at.clear();
-    m.material_at.clear();
+    m.clear_chunks();
     for (std::size_t c = 0; c < node_ranges.size(); ++c) {
         const Range& r = node_ranges[c];
         const std::uint64_t n = r.end - r.begin;
@@ -623,6 +619,15 @@ void SparseTracer::Impl::set_node_chunk(std::size_t c, Buffer chunk_masks, Buffe
     offsets[c] = std::move(chunk_offsets);
 }
 
+void SparseTracer::Impl::clear_chunks() {
+    masks.clear();
+    offsets.clear();
+    materials.clear();
+    mask_at.clear();
+    offset_at.clear();
+    material_at.clear();
+}
+
 void SparseTracer::Impl::set_material_chunk(std::size_t c, Buffer chunk) {
     if (c == materials.size()) {
         materials.emplace_back();
@@ -850,12 +855,7 @@ void SparseTracer::upload_shared(Dims dims, const Palette& palette,
     m.loaded = false;
     m.stats = SparseDeviceStats{};
     // The copy's chunks go: nothing of the trees is the tracer's.
-    m.masks.clear();
-    m.offsets.clear();
-    m.materials.clear();
-    m.mask_at.clear();
-    m.offset_at.clear();
-    m.material_at.clear();
+    m.clear_chunks();
     std::vector<Int3> coords(tiles.size());
     for (std::size_t i = 0; i < tiles.size(); ++i) {
         coords[i] = tiles[i].tile;
