@@ -21,6 +21,7 @@
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/palette.hpp"
 #include "voxfield/core/sand.hpp"
+#include "voxfield/core/vdb.hpp"
 #include "voxfield/core/vox.hpp"
 #include "voxfield/core/world.hpp"
 
@@ -86,6 +87,26 @@ class ScopedEnv {
     std::optional<std::string> old_;
 };
 
+// The material grid of `vdb` read back equals `w` voxel for voxel. A .vdb is read from its
+// solids' box, which starts at the origin for the worlds here (their floors hold voxel 0, 0, 0).
+void expect_vdb_world(const fs::path& vdb, const World& w) {
+    const SparseWorld s = read_vdb_sparse(vdb, "");
+    const Dims d = s.dims(), wd = w.dims();
+    ASSERT_LE(d.x, wd.x);
+    ASSERT_LE(d.y, wd.y);
+    ASSERT_LE(d.z, wd.z);
+    std::size_t differing = 0;
+    for (std::uint32_t z = 0; z < wd.z; ++z) {
+        for (std::uint32_t y = 0; y < wd.y; ++y) {
+            for (std::uint32_t x = 0; x < wd.x; ++x) {
+                const bool inside = x < d.x && y < d.y && z < d.z;
+                differing += w.at(x, y, z) != (inside ? s.at(x, y, z) : 0);
+            }
+        }
+    }
+    EXPECT_EQ(differing, 0u) << vdb;
+}
+
 fs::path write_world(const World& w, const fs::path& path) {
     const NpyArray a = npy_from_world(w);
     write_npy(path, a.type, a.dims, a.data);
@@ -126,16 +147,31 @@ TEST_F(ViewSparse, EditedWindowEqualsRenderOfTheEditedWorld) {
     // The tracer reading OpenCL's trees in place (path 2 here), and its own copy updated from
     // the host world ($VOXFIELD_TRACER_COPY).
     const fs::path shot = dir_ / "viewed.png", copied = dir_ / "viewed_copy.png";
+    const fs::path saved = dir_ / "saved.vdb";
     for (const bool copy : {false, true}) {
         std::optional<ScopedEnv> env;
         if (copy) {
             env.emplace("VOXFIELD_TRACER_COPY", "1");
         }
-        const int code =
-            run_under_xvfb({"view", world.string(), "--sparse", "--frames", "6", "--edits",
-                            edits.string(), "--shading", "flat", "--width", "160", "--height",
-                            "120", "--screenshot", (copy ? copied : shot).string()},
-                           io_ / "xvfb.log");
+        std::vector<std::string> args = {"view",
+                                         world.string(),
+                                         "--sparse",
+                                         "--frames",
+                                         "6",
+                                         "--edits",
+                                         edits.string(),
+                                         "--shading",
+                                         "flat",
+                                         "--width",
+                                         "160",
+                                         "--height",
+                                         "120",
+                                         "--screenshot",
+                                         (copy ? copied : shot).string()};
+        if (!copy) {
+            args.insert(args.end(), {"--world-output", saved.string()});
+        }
+        const int code = run_under_xvfb(args, io_ / "xvfb.log");
         const std::string log = read_text(io_ / "xvfb.log");
         ASSERT_EQ(code, 0) << log;
         EXPECT_NE(log.find("window:"), std::string::npos) << log;
@@ -150,6 +186,8 @@ TEST_F(ViewSparse, EditedWindowEqualsRenderOfTheEditedWorld) {
                            Brush{BrushOp::place, BrushShape::cube, {140, 34, 130}, 3, 11}}) {
         apply_brush(w, b);
     }
+    // --world-output wrote the edited world (and its field) as .vdb grids.
+    expect_vdb_world(saved, w);
     const fs::path edited = write_world(w, dir_ / "edited.npy");
     const fs::path rendered = dir_ / "rendered.png";
     // The edits keep the solids' box, so render's default camera is the viewer's.
@@ -219,16 +257,26 @@ TEST_F(ViewSparse, ScriptedClicksEditTheSparseWorld) {
     }
     const fs::path world = write_world(test_world(), dir_ / "world.npy");
     const fs::path script = dir_ / "script.txt";
-    write_file(script, "1 select shading flat\n2 click left\n4 click right\n6 key F2\n7 quit\n");
-    const fs::path shot = dir_ / "shot.png";
-    const int code =
-        run_under_xvfb({"view", world.string(), "--sparse", "--script", script.string(), "--width",
-                        "200", "--height", "150", "--screenshot", shot.string()},
-                       io_ / "xvfb.log");
+    // The script saves after its edits (STEM.vdb), as --world-output does at exit.
+    const fs::path stem = dir_ / "scripted";
+    write_file(script, "1 select shading flat\n2 click left\n4 click right\n6 key F2\n7 save " +
+                           stem.string() + "\n7 quit\n");
+    const fs::path shot = dir_ / "shot.png", at_exit = dir_ / "at_exit.vdb";
+    const int code = run_under_xvfb(
+        {"view", world.string(), "--sparse", "--script", script.string(), "--width", "200",
+         "--height", "150", "--screenshot", shot.string(), "--world-output", at_exit.string()},
+        io_ / "xvfb.log");
     const std::string log = read_text(io_ / "xvfb.log");
     ASSERT_EQ(code, 0) << log;
     EXPECT_NE(log.find("frames:  8, edits 2"), std::string::npos) << log;
+    EXPECT_NE(log.find("saved " + stem.string() + ".vdb"), std::string::npos) << log;
     EXPECT_EQ(read_text(shot).substr(1, 3), "PNG");
+    const SparseWorld scripted = read_vdb_sparse(stem.string() + ".vdb", "");
+    const SparseWorld exited = read_vdb_sparse(at_exit, "");
+    ASSERT_EQ(scripted.dims(), exited.dims());
+    EXPECT_EQ(scripted.to_dense().voxels(), exited.to_dense().voxels());
+    World original = test_world();
+    EXPECT_NE(scripted.to_dense().voxels(), original.voxels()) << "the clicks changed nothing";
 
     // What a sparse world does not take from a script: one line, exit 2.
     write_file(script, "1 click left\n3 select algorithm fim\n");
@@ -299,6 +347,8 @@ TEST_F(ViewSparse, WhatSparseWorldsRefuseExitsTwo) {
     const std::vector<std::vector<std::string>> refused = {
         {"view", "--scene", "city", "--world", "64", "--sparse", "--benchmark", "--world-output",
          (dir_ / "w.npy").string()},
+        {"view", "--scene", "city", "--world", "64", "--sparse", "--benchmark", "--field-output",
+         (dir_ / "f.npy").string()},
         {"view", "--scene", "city", "--world", "64", "--sparse", "--benchmark", "--present", "gpu"},
         {"view", "--scene", "spheres", "--dims", "70000,8,70000", "--benchmark"},
         {"view", "--scene", "city", "--dims", "2000000,8,8", "--benchmark"}};

@@ -6,7 +6,6 @@
 // (view_options), the window and presenter (view_window), the input mapping (view_input), the
 // session's state and edits (view_session), the overlay (view_overlay) and the benchmark's
 // records (view_benchmark). Sparse worlds take their own loop (view_sparse).
-#include <ctime>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -34,15 +33,6 @@
 
 namespace voxfield::cli {
 namespace {
-
-std::string timestamp() {
-    const std::time_t t = std::time(nullptr);
-    std::tm tm{};
-    localtime_r(&t, &tm);
-    char buf[32];
-    std::strftime(buf, sizeof buf, "%Y%m%d-%H%M%S", &tm);
-    return buf;
-}
 
 // The world to view: INPUT, or a generated scene; named for the reports. A part (.sdf.json),
 // or a mixed scene (.scene.json) with parts, is read here and discretised once the OpenCL
@@ -229,10 +219,10 @@ int run_view(ViewCliOptions o, const std::shared_ptr<vk::ValidationLog>& validat
             }
             apply_input(a, dt, s, session, edits);
             if (a.save) {
-                save_world(session, "voxfield-world-" + timestamp());
+                save_world(session, "voxfield-world-" + local_timestamp());
             }
             if (a.screenshot && frames.rendered()) {
-                const std::string path = "voxfield-" + timestamp() + ".png";
+                const std::string path = "voxfield-" + local_timestamp() + ".png";
                 write_png(path, frames.host_image(session, screen.get(), s.render));
                 std::cout << "screenshot " << std::filesystem::absolute(path).string() << '\n';
             }

@@ -34,8 +34,8 @@ bool is_npy(const std::string& input) {
     return has_extension(input, ".npy");
 }
 
-// The field as .vdb grids, read from the device tile by tile: every tile of the world and the
-// tiles within the bound of one (rings of ceil(halo / 64) tiles), never one dense array.
+}  // namespace
+
 void write_vdb_tiles(OutputBatch& outputs, const std::string& path, const SparseWorld& world,
                      ocl::SparseField& field, Format format, const VdbFieldSpec& spec) {
     const Dims grid = world.tile_grid();
@@ -80,6 +80,8 @@ void write_vdb_tiles(OutputBatch& outputs, const std::string& path, const Sparse
         },
         format, spec);
 }
+
+namespace {
 
 void require_dense_output(Dims dims, const std::string& output) {
     if (dims.count() > kMaxDenseVoxels) {

@@ -6,6 +6,10 @@
 #include <string>
 
 #include "cli_util.hpp"
+#include "voxfield/cl/sparse_field.hpp"
+#include "voxfield/core/output.hpp"
+#include "voxfield/core/sparse.hpp"
+#include "voxfield/core/vdb.hpp"
 
 namespace voxfield::cli {
 
@@ -23,6 +27,13 @@ struct SparseGenerateArgs {
     bool indices = false, stats = false;
     std::uint32_t repeat = 1, warmup = 0;
 };
+
+// The world and its field as .vdb grids (core's box-wise write_vdb: a material Int32Grid and a
+// distance FloatGrid), read from the device tile by tile: every tile of the world and the tiles
+// within the bound of one (rings of ceil(halo / 64) tiles), never one dense array. `world`: the
+// field's world, brought up to date (SparseField::world()).
+void write_vdb_tiles(OutputBatch& outputs, const std::string& path, const SparseWorld& world,
+                     ocl::SparseField& field, Format format, const VdbFieldSpec& spec);
 
 // Prints the summary (and writes --json); InputError for what sparse worlds refuse
 // (--indices, other algorithms, a field too large for one .npy). The outputs' names were

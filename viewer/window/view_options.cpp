@@ -71,7 +71,8 @@ void add_view_options(CLI::App& app, ViewCliOptions& o) {
                  "`--scene city` is generated tile by tile, never as one dense array");
     app.add_option("--field-output", o.field_output,
                    "Write the final distance field (in --format, as `generate` writes it) at exit");
-    app.add_option("--world-output", o.world_output, "Write the final world (.npy) at exit");
+    app.add_option("--world-output", o.world_output,
+                   "Write the final world at exit (.npy; sparse worlds: .vdb, with their field)");
     app.add_option("--fallback-png", o.fallback_png,
                    "Without a display: render the first frame headless into this PNG and exit 0 "
                    "(instead of exiting 2)");

@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <ctime>
 #include <iostream>
 
 #include "cli_util.hpp"
@@ -272,6 +273,15 @@ FrameUpdate apply_frame(ViewState& s, pipeline::FramePipeline& session, const Vi
         session.marcher().clear_implicit();
     }
     return update;
+}
+
+std::string local_timestamp() {
+    const std::time_t t = std::time(nullptr);
+    std::tm tm{};
+    localtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y%m%d-%H%M%S", &tm);
+    return buf;
 }
 
 void save_world(const pipeline::FramePipeline& session, const std::string& stem) {

@@ -107,6 +107,8 @@ FrameUpdate apply_frame(ViewState& s, pipeline::FramePipeline& session, const Vi
 
 // Ctrl+S and the script's `save`: the world as STEM.npy and STEM.vox.
 void save_world(const pipeline::FramePipeline& session, const std::string& stem);
+// The local time as YYYYMMDD-HHMMSS, for the names Ctrl+S and the screenshot key give files.
+std::string local_timestamp();
 // The script's actions after the frame: `save`, `check` (STEM-world.npy, STEM-field.npy and
 // STEM-state.json: what the overlay shows, the brush, undo depth, camera, sand); true when it
 // quits there.

@@ -2,6 +2,7 @@
 #include "view_sparse.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
@@ -28,6 +29,7 @@
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/sdf.hpp"
 #include "voxfield/core/sparse.hpp"
+#include "voxfield/core/vdb.hpp"
 #include "voxfield/pipeline/shared_trees.hpp"
 #include "voxfield/vk/sparse_tracer.hpp"
 
@@ -75,34 +77,58 @@ SparseView load_sparse_view(const ViewCliOptions& o) {
             "scene " + o.scene};
 }
 
+// Whether `path` ends in .vdb (any case).
+bool is_vdb_path(const std::string& path) {
+    std::string e = std::filesystem::path(path).extension().string();
+    std::transform(e.begin(), e.end(), e.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return e == ".vdb";
+}
+
 // What sparse worlds do not take, refused before any device is opened.
 void check_sparse_options(const ViewCliOptions& o) {
-    const std::pair<bool, const char*> refused[] = {{!o.field_output.empty(), "--field-output"},
-                                                    {!o.world_output.empty(), "--world-output"}};
     if (o.present == "gpu") {
         throw InputError(
             "--present gpu: a sparse world's frames are read back and go through the "
             "host (--present auto or host)");
     }
-    for (const auto& [given, what] : refused) {
-        if (given) {
-            throw InputError(std::string(what) +
-                             " does not apply to a sparse world (view it dense, or use "
-                             "`voxfield generate` for its field)");
-        }
+    if (!o.field_output.empty()) {
+        throw InputError(
+            "--field-output does not apply to a sparse world: --world-output W.vdb writes the "
+            "world and its field as OpenVDB grids");
+    }
+    if (!o.world_output.empty() && !is_vdb_path(o.world_output)) {
+        throw InputError("--world-output " + o.world_output +
+                         ": a sparse world is written as .vdb (its material and distance grids; "
+                         "--world-output " +
+                         std::filesystem::path(o.world_output).replace_extension(".vdb").string() +
+                         ")");
     }
     if (!o.script.empty()) {
         for (const ScriptAction& a : read_view_script(o.script)) {
             const bool selects_field =
                 a.kind == ScriptAction::Kind::select && a.what != "shading" && a.what != "colour";
-            if (selects_field || a.kind == ScriptAction::Kind::save ||
-                a.kind == ScriptAction::Kind::check) {
+            if (selects_field || a.kind == ScriptAction::Kind::check) {
                 throw InputError("--script line " + std::to_string(a.line) +
                                  ": a sparse world takes the script's keys, mouse, shading, "
-                                 "colour and quit only");
+                                 "colour, save and quit only");
             }
         }
     }
+}
+
+// Ctrl+S, the script's `save STEM` and --world-output: the world (read back from the device)
+// and its field as .vdb grids, tile by tile (generate's write_vdb_tiles): a material Int32Grid,
+// which `view` and `render` read back, and a distance FloatGrid.
+void save_sparse_world(ocl::SparseField& field, const ocl::GeneratorOptions& options,
+                       const std::string& path) {
+    const std::optional<VdbFieldSpec> spec =
+        vdb_output_spec(path, options.spacing, options.max_distance, options.signed_field);
+    const SparseWorld& world = field.world();
+    OutputBatch outputs;
+    write_vdb_tiles(outputs, path, world, field, options.format, *spec);
+    outputs.commit();
+    std::cout << "saved " << path << '\n';
 }
 
 // The box of the solids (the whole world when there are none) for the start view.
@@ -364,9 +390,11 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                 camera.reset();
             }
             sand_single = sand_single || a.sand_step;
-            if (a.history != History::none || a.save) {
-                std::cout << "sparse worlds keep no undo history and are not saved by the viewer "
-                             "(`voxfield generate` writes .vdb)\n";
+            if (a.history != History::none) {
+                std::cout << "sparse worlds keep no undo history\n";
+            }
+            if (a.save) {
+                save_sparse_world(field, options, "voxfield-world-" + local_timestamp() + ".vdb");
             }
             preview = aimed_brush(field.device_world(), camera, controls, a);
             // A held button strokes: every frame whose aimed brush differs adds it.
@@ -471,6 +499,9 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
         records.push_back({time_s, ms_since(t0), update_ms, 0, trace_ms, !batch.empty(),
                            simulate_ms, sand_changed});
         for (const ScriptAction& a : actions) {
+            if (a.kind == ScriptAction::Kind::save) {
+                save_sparse_world(field, options, a.value + ".vdb");
+            }
             running = running && a.kind != ScriptAction::Kind::quit;
         }
         ++frame;
@@ -501,6 +532,9 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
         }
         write_png(o.window_screenshot, *shown);
         std::cout << "window screenshot " << o.window_screenshot << '\n';
+    }
+    if (!o.world_output.empty()) {
+        save_sparse_world(field, options, o.world_output);
     }
     std::cout << "frames:  " << frame << ", edits " << edits.size()
               << (sand ? ", sand steps " + std::to_string(sand_step) : std::string()) << '\n';
