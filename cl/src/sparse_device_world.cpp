@@ -764,6 +764,55 @@ std::vector<std::uint8_t> SparseDeviceWorld::voxels(std::span<const Int3> cells)
     return out;
 }
 
+void SparseDeviceWorld::gather_tiles(const std::vector<Int3>& tiles, const cl::Buffer& out) {
+    if (tiles.empty()) {
+        return;
+    }
+    // gather's jobs: per tile a block of kTileSize^3 at its first voxel, its one tile.
+    std::vector<std::int64_t> jobs(8 * tiles.size());
+    std::vector<std::uint64_t> tile_refs(2 * tiles.size());
+    const std::int64_t ts = kTileSize;
+    for (std::size_t i = 0; i < tiles.size(); ++i) {
+        const Int3 t = tiles[i];
+        std::int64_t* job = jobs.data() + 8 * i;
+        job[0] = t.x * ts;
+        job[1] = t.y * ts;
+        job[2] = t.z * ts;
+        job[3] = t.x;
+        job[4] = t.y;
+        job[5] = t.z;
+        job[6] = std::int64_t{1} | std::int64_t{1} << 16 | std::int64_t{1} << 32;
+        job[7] = static_cast<std::int64_t>(i);
+        const auto r = ref(t.x, t.y, t.z);
+        tile_refs[2 * i] = r.first;
+        tile_refs[2 * i + 1] = r.second;
+    }
+    cl_call("gathering " + std::to_string(tiles.size()) + " tiles of the sparse world", [&] {
+        auto& c = ctx_.context();
+        // Copied at creation: the host vectors may go before the kernel runs.
+        cl::Buffer job_buf(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, jobs.size() * 8,
+                           jobs.data());
+        cl::Buffer ref_buf(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, tile_refs.size() * 8,
+                           tile_refs.data());
+        cl::Kernel k = gather_kernel(gpu_layout_);
+        const Dims d = world_.dims();
+        const auto side = static_cast<cl_uint>(kTileSize);
+        k.setArg(6, job_buf);
+        k.setArg(7, ref_buf);
+        k.setArg(8, out);
+        k.setArg(9, side);
+        k.setArg(10, side);
+        k.setArg(11, side);
+        k.setArg(12, static_cast<cl_long>(d.x));
+        k.setArg(13, static_cast<cl_long>(d.y));
+        k.setArg(14, static_cast<cl_long>(d.z));
+        const std::size_t planes = tiles.size() * kTileSize;
+        ctx_.queue().enqueueNDRangeKernel(k, cl::NullRange,
+                                          gpu_layout_ ? cl::NDRange(kTileSize, kTileSize, planes)
+                                                      : cl::NDRange(kTileSize, planes));
+    });
+}
+
 std::optional<PickHit> SparseDeviceWorld::pick(const Vec3d& origin, const Vec3d& direction,
                                                double max_distance) {
     const Dims d = world_.dims();

@@ -880,6 +880,20 @@ SparseField::Update SparseField::apply_dense_tiles(
     return with_edit_stages(recompute(changed));
 }
 
+SparseField::Update SparseField::write_tiles(const cl::Buffer& vox,
+                                             const std::vector<Int3>& tiles) {
+    std::vector<SparseDeviceWorld::DenseTile> dense;
+    std::vector<Box> boxes;
+    const std::int64_t ts = kTileSize;
+    for (std::size_t i = 0; i < tiles.size(); ++i) {
+        const Int3 t = tiles[i];
+        dense.push_back({t, i * std::uint64_t{kTileVoxels}});
+        boxes.push_back(
+            {{t.x * ts, t.y * ts, t.z * ts}, {(t.x + 1) * ts, (t.y + 1) * ts, (t.z + 1) * ts}});
+    }
+    return apply_dense_tiles(vox, kTileSize, kTileSize * kTileSize, dense, boxes);
+}
+
 SparseField::Update SparseField::with_edit_stages(Update result) const {
     std::vector<std::pair<std::string, double>> stages = device_world_.last_edit_stages();
     for (const auto& [name, ms] : stages) {

@@ -732,5 +732,67 @@ TEST(SparseDeviceWorld, VoxelsAndPicksReadTheDeviceNotTheHost) {
     EXPECT_GT(hits, 100u);
 }
 
+// The sparse viewer's undo: before each brush the tiles it touches are gathered on the device
+// (SparseDeviceWorld::gather_tiles), and writing them back (SparseField::write_tiles) in reverse
+// undoes the brushes: the world equals the dense world before them, and the field its dense
+// bounded field, in both layouts, unsigned L1 and signed L2.
+TEST(SparseDeviceWorld, GatheredTilesWrittenBackUndoBrushes) {
+    std::mt19937 rng(37);
+    const Palette p = Palette::magicavoxel_default();
+    const Dims d{150, 90, 140};  // tiles cut by the world's edge
+    for (const bool l2 : {false, true}) {
+        Case c;
+        c.metric = l2 ? Metric::euclidean : Metric::manhattan;
+        c.signed_field = l2;
+        c.layout = l2 ? Layout::gpu : Layout::cpu;
+        c.bound = 7;
+        c.format = ocl::default_format(c.metric, c.spacing, c.signed_field);
+        SCOPED_TRACE(describe(c, d));
+        World w = blob_world(d, 6, 0.0005, rng);
+        SparseWorld s = SparseWorld::from_dense(w);
+        ocl::SparseField f(pocl(), s, p, options_of(c));
+        f.run();
+        struct Step {
+            std::vector<Int3> tiles;
+            cl::Buffer before;
+        };
+        std::vector<Step> history;
+        std::vector<World> states;
+        for (int e = 0; e < 8; ++e) {
+            Brush b;
+            b.op = static_cast<BrushOp>(e % 3);
+            b.shape = static_cast<BrushShape>(e % 2);
+            b.centre = {std::uniform_int_distribution<std::int64_t>(0, d.x)(rng),
+                        std::uniform_int_distribution<std::int64_t>(0, d.y)(rng),
+                        std::uniform_int_distribution<std::int64_t>(0, d.z)(rng)};
+            b.radius = std::uniform_int_distribution<std::int64_t>(3, e == 4 ? 40 : 12)(rng);
+            b.material = static_cast<std::uint8_t>(1 + e);
+            const Box bounds = brush_bounds(b, d);
+            Step step;
+            for (std::int64_t tz = bounds.min.z / 64; tz <= (bounds.max.z - 1) / 64; ++tz) {
+                for (std::int64_t ty = bounds.min.y / 64; ty <= (bounds.max.y - 1) / 64; ++ty) {
+                    for (std::int64_t tx = bounds.min.x / 64; tx <= (bounds.max.x - 1) / 64; ++tx) {
+                        step.tiles.push_back({tx, ty, tz});
+                    }
+                }
+            }
+            step.before = cl::Buffer(pocl().context(), CL_MEM_READ_WRITE,
+                                     step.tiles.size() * std::size_t{kTileVoxels});
+            f.device_world().gather_tiles(step.tiles, step.before);
+            history.push_back(step);
+            states.push_back(w);
+            apply_brush(w, b);
+            f.apply_brush(b);
+        }
+        ASSERT_NE(f.world().to_dense().voxels(), states[3].voxels());
+        for (int k = 7; k >= 3; --k) {
+            f.write_tiles(history[static_cast<std::size_t>(k)].before,
+                          history[static_cast<std::size_t>(k)].tiles);
+        }
+        ASSERT_EQ(f.world().to_dense().voxels(), states[3].voxels());
+        expect_same(f.read_dense(), dense_field(states[3], p, c), c, d, "after 5 undos");
+    }
+}
+
 }  // namespace
 }  // namespace voxfield

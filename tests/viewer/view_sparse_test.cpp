@@ -329,6 +329,51 @@ TEST_F(ViewSparse, HeadlessBenchmarkOnTheCityRecordsEditsAndTiles) {
     }
 }
 
+// Ctrl+Z and Ctrl+Y on a sparse world (the history kept on the OpenCL device): two clicks undone
+// give back the world as it was, pixel for pixel and voxel for voxel; redone, the world of the
+// clicks; nothing left to undo says so.
+TEST_F(ViewSparse, UndoAndRedoOnTheDevice) {
+    if (!have_xvfb()) {
+        GTEST_SKIP() << "xvfb-run is not installed (setup.sh installs it)";
+    }
+    const World original = test_world();
+    const fs::path world = write_world(original, dir_ / "world.npy");
+    const fs::path script = dir_ / "script.txt";
+    const auto view = [&](const std::string& text, const fs::path& shot, const fs::path& out) {
+        write_file(script, text);
+        const int code = run_under_xvfb(
+            {"view", world.string(), "--sparse", "--script", script.string(), "--width", "200",
+             "--height", "150", "--screenshot", shot.string(), "--world-output", out.string()},
+            io_ / "xvfb.log");
+        const std::string log = read_text(io_ / "xvfb.log");
+        EXPECT_EQ(code, 0) << log;
+        return log;
+    };
+    const std::string clicks = "1 select shading flat\n2 click left\n4 click right\n";
+    // The clicks, undone twice (and once more, with nothing left).
+    const fs::path undone_shot = dir_ / "undone.png", undone = dir_ / "undone.vdb";
+    const std::string log =
+        view(clicks + "6 key ctrl+z\n8 key ctrl+z\n10 key ctrl+z\n12 quit\n", undone_shot, undone);
+    EXPECT_NE(log.find("nothing to undo"), std::string::npos) << log;
+    expect_vdb_world(undone, original);
+    // The same view without clicks.
+    const fs::path plain_shot = dir_ / "plain.png", plain = dir_ / "plain.vdb";
+    view("1 select shading flat\n12 quit\n", plain_shot, plain);
+    EXPECT_EQ(read_text(undone_shot), read_text(plain_shot)) << "the undone frame differs";
+    // Undone and redone: the clicks' world.
+    const fs::path clicked_shot = dir_ / "clicked.png", clicked = dir_ / "clicked.vdb";
+    view(clicks + "12 quit\n", clicked_shot, clicked);
+    const fs::path redone_shot = dir_ / "redone.png", redone = dir_ / "redone.vdb";
+    // (Keys a frame apart: a key held over consecutive frames is pressed once.)
+    view(clicks + "6 key ctrl+z\n8 key ctrl+z\n10 key ctrl+y\n12 key ctrl+y\n14 quit\n",
+         redone_shot, redone);
+    const SparseWorld a = read_vdb_sparse(clicked, ""), b = read_vdb_sparse(redone, "");
+    ASSERT_EQ(a.dims(), b.dims());
+    EXPECT_EQ(a.to_dense().voxels(), b.to_dense().voxels());
+    EXPECT_NE(a.to_dense().voxels(), SparseWorld::from_dense(original).to_dense().voxels());
+    EXPECT_EQ(read_text(clicked_shot), read_text(redone_shot)) << "the redone frame differs";
+}
+
 // Two 4^3 cubes 600000 voxels apart in a .vdb grid: 1.2e12 voxels, viewed sparse unasked.
 TEST_F(ViewSparse, HugeGridGoesSparseWithoutTheFlag) {
     const fs::path grid = io_ / "far.vdb";

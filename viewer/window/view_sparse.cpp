@@ -15,6 +15,7 @@
 #include "frame_clock.hpp"
 #include "generate_sparse.hpp"
 #include "png.hpp"
+#include "sparse_history.hpp"
 #include "view_benchmark.hpp"
 #include "view_input.hpp"
 #include "view_overlay.hpp"
@@ -75,6 +76,21 @@ SparseView load_sparse_view(const ViewCliOptions& o) {
     return {SparseModel{SparseWorld::from_dense(make_scene(o.scene, dims, o.scene_seed)),
                         Palette::dissertation()},
             "scene " + o.scene};
+}
+
+// The undo history's budget: 1024 tiles of 64^3 on the OpenCL device.
+constexpr std::uint64_t kUndoBytes = std::uint64_t{1024} * kTileVoxels;
+
+// The box of whole tiles `tiles` (tile coordinates).
+Box tiles_box(const std::vector<Int3>& tiles) {
+    Box b;
+    const std::int64_t ts = kTileSize;
+    for (const Int3& t : tiles) {
+        const Box tb{{t.x * ts, t.y * ts, t.z * ts},
+                     {(t.x + 1) * ts, (t.y + 1) * ts, (t.z + 1) * ts}};
+        b = b.empty() ? tb : hull(b, tb);
+    }
+    return b;
 }
 
 // Whether `path` ends in .vdb (any case).
@@ -354,6 +370,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
     std::vector<SparseEditRecord> edits;
     InputMapper mapper;
     std::optional<Brush> preview, last_stroke;
+    SparseHistory history(cl_ctx, kUndoBytes);
     vk::Image image;
     FrameClock frame_clock(script != nullptr);
     std::uint64_t frame = 0;
@@ -363,7 +380,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
         const auto [t0, dt, time_s] = frame_clock.tick();
         std::uint32_t fb_w = o.width, fb_h = o.height;
         std::vector<Brush> batch;
-        std::vector<bool> from_bench;
+        std::vector<bool> from_bench, new_step;
         const std::vector<ScriptAction> actions =
             script ? script->begin_frame(frame) : std::vector<ScriptAction>{};
         for (const ScriptAction& a : actions) {
@@ -391,7 +408,22 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             }
             sand_single = sand_single || a.sand_step;
             if (a.history != History::none) {
-                std::cout << "sparse worlds keep no undo history\n";
+                const bool undo = a.history == History::undo;
+                const auto tiles = undo ? history.undo(field) : history.redo(field);
+                if (!tiles) {
+                    std::cout << (undo ? "nothing to undo\n" : "nothing to redo\n");
+                } else {
+                    const Box box = tiles_box(*tiles);
+                    if (shared.shares()) {
+                        shared.sync(tracer, field.device_world(), dims, palette, *tiles);
+                    } else {
+                        tracer.update_tiles(field.world(), box);
+                    }
+                    if (sand) {
+                        sand->touched(box);
+                    }
+                    ++info.edits;
+                }
             }
             if (a.save) {
                 save_sparse_world(field, options, "voxfield-world-" + local_timestamp() + ".vdb");
@@ -401,6 +433,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             if ((a.left || a.right) && preview && preview != last_stroke) {
                 batch.push_back(*preview);
                 from_bench.push_back(false);
+                new_step.push_back(!last_stroke.has_value());  // a stroke is one undo step
                 last_stroke = preview;
             } else if (!a.left && !a.right) {
                 last_stroke.reset();
@@ -414,13 +447,19 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
         if (frame < in.edits.size()) {
             batch.push_back(in.edits[frame].brush);
             from_bench.push_back(false);
+            new_step.push_back(true);
         }
         if (const auto brush = bench ? bench->due(time_s) : std::nullopt) {
             batch.push_back(on_surface(field.device_world(), dims, *brush));
             from_bench.push_back(true);
+            new_step.push_back(true);
         }
         double update_ms = 0;
         for (std::size_t i = 0; i < batch.size(); ++i) {
+            if (new_step[i]) {
+                history.begin_step();
+            }
+            history.before_edit(field, brush_bounds(batch[i], dims));
             SparseEditRecord e = apply_edit(shared, field, tracer, palette, dims, batch[i]);
             if (sand) {
                 sand->touched(brush_bounds(batch[i], dims));

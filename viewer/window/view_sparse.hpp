@@ -26,11 +26,12 @@ bool view_goes_sparse(const ViewCliOptions& o);
 // The viewer's loop on a sparse world; `window` is open or the caller chose to run headless.
 // With --simulate, falling sand and water (ocl::SparseSand, colours 2 and 3 as on dense worlds)
 // steps every frame unless paused (G; N steps once), the tracer told of the stepped tiles as of
-// an edit's. Ctrl+S, the script's `save STEM` and --world-output W.vdb write the world and its
-// field as .vdb grids. InputError (exit 2) for what sparse worlds do not take: --field-output,
-// a --world-output other than .vdb, --present gpu, parts (.sdf.json, mixed scenes), generated
-// scenes other than city beyond one dense array, and the script's algorithm, metric and scene
-// selections and check.
+// an edit's. Ctrl+Z / Ctrl+Y undo and redo strokes from a history on the OpenCL device
+// (sparse_history.hpp). Ctrl+S, the script's `save STEM` and --world-output W.vdb write the world
+// and its field as .vdb grids. InputError (exit 2) for what sparse worlds do not take:
+// --field-output, a --world-output other than .vdb, --present gpu, parts (.sdf.json, mixed scenes),
+// generated scenes other than city beyond one dense array, and the script's algorithm, metric and
+// scene selections and check.
 int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                     const std::shared_ptr<vk::ValidationLog>& validation);
 

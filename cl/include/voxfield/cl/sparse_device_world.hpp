@@ -121,6 +121,11 @@ class SparseDeviceWorld {
     // stored), read in one transfer (gather_voxels, a 1^3 block per cell) without bringing the
     // host world up to date: one host wait.
     std::vector<std::uint8_t> voxels(std::span<const Int3> cells);
+    // Whole tiles of the world as the device has them now, into `out` on the device (kTileVoxels
+    // bytes per tile in the order of `tiles`, tile-local, x fastest; 0 beyond the world and in
+    // tiles not stored): nothing is read back. `out` holds tiles.size() * kTileVoxels bytes.
+    // encode_dense_tiles (pitches kTileSize, kTileSize^2) writes such tiles back: an undo.
+    void gather_tiles(const std::vector<Int3>& tiles, const cl::Buffer& out);
     // core's pick_solid_voxel over the device's voxels: the ray's cells walked once without the
     // world, their voxels read with voxels(), the walk again over them (the same cells in the
     // same order), so the hit is exactly the host world's after world().

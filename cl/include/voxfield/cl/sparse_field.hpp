@@ -215,6 +215,10 @@ class SparseField {
     Update apply_dense_tiles(const cl::Buffer& vox, std::uint32_t pitch_y, std::uint32_t pitch_z,
                              const std::vector<SparseDeviceWorld::DenseTile>& tiles,
                              const std::vector<Box>& changed);
+    // Writes whole tiles back into the world (`vox`: kTileVoxels per tile in the order of
+    // `tiles`, as SparseDeviceWorld::gather_tiles lays them out) and recomputes the voxels within
+    // D of them: the sparse viewer's undo and redo. logic_error for a read-only world.
+    Update write_tiles(const cl::Buffer& vox, const std::vector<Int3>& tiles);
     // The world, brought up to date with the device's edits first.
     const SparseWorld& world() { return device_world_.world(); }
     const SparseDeviceWorld& device_world() const { return device_world_; }
