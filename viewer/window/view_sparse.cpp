@@ -459,6 +459,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             if (new_step[i]) {
                 history.begin_step();
             }
+            // Enqueued before the edit, which waits for it: the edit's wall time includes it.
             history.before_edit(field, brush_bounds(batch[i], dims));
             SparseEditRecord e = apply_edit(shared, field, tracer, palette, dims, batch[i]);
             if (sand) {
