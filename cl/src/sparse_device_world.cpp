@@ -699,6 +699,23 @@ void SparseDeviceWorld::set_tree_args(cl::Kernel& k, cl_uint first) {
     });
 }
 
+void SparseDeviceWorld::one_tile_job(std::size_t i, const Int3& first, const Int3& tile,
+                                     std::vector<std::int64_t>& jobs,
+                                     std::vector<std::uint64_t>& refs) const {
+    std::int64_t* job = jobs.data() + 8 * i;
+    job[0] = first.x;
+    job[1] = first.y;
+    job[2] = first.z;
+    job[3] = tile.x;
+    job[4] = tile.y;
+    job[5] = tile.z;
+    job[6] = std::int64_t{1} | std::int64_t{1} << 16 | std::int64_t{1} << 32;  // one tile
+    job[7] = static_cast<std::int64_t>(i);
+    const auto r = ref(tile.x, tile.y, tile.z);
+    refs[2 * i] = r.first;
+    refs[2 * i + 1] = r.second;
+}
+
 std::vector<std::uint8_t> SparseDeviceWorld::voxels(std::span<const Int3> cells) {
     std::vector<std::uint8_t> out(cells.size(), 0);
     if (cells.empty()) {
@@ -712,19 +729,7 @@ std::vector<std::uint8_t> SparseDeviceWorld::voxels(std::span<const Int3> cells)
     std::vector<std::uint64_t> cell_refs(2 * launch);
     for (std::size_t i = 0; i < launch; ++i) {
         const Int3 c = i < cells.size() ? cells[i] : Int3{-1, -1, -1};
-        const Int3 t{c.x >> 6, c.y >> 6, c.z >> 6};
-        std::int64_t* job = jobs.data() + 8 * i;
-        job[0] = c.x;
-        job[1] = c.y;
-        job[2] = c.z;
-        job[3] = t.x;
-        job[4] = t.y;
-        job[5] = t.z;
-        job[6] = std::int64_t{1} | std::int64_t{1} << 16 | std::int64_t{1} << 32;
-        job[7] = static_cast<std::int64_t>(i);
-        const auto r = ref(t.x, t.y, t.z);
-        cell_refs[2 * i] = r.first;
-        cell_refs[2 * i + 1] = r.second;
+        one_tile_job(i, c, {c.x >> 6, c.y >> 6, c.z >> 6}, jobs, cell_refs);
     }
     cl_call("reading " + std::to_string(cells.size()) + " voxels of the sparse world", [&] {
         auto& c = ctx_.context();
@@ -774,18 +779,7 @@ void SparseDeviceWorld::gather_tiles(const std::vector<Int3>& tiles, const cl::B
     const std::int64_t ts = kTileSize;
     for (std::size_t i = 0; i < tiles.size(); ++i) {
         const Int3 t = tiles[i];
-        std::int64_t* job = jobs.data() + 8 * i;
-        job[0] = t.x * ts;
-        job[1] = t.y * ts;
-        job[2] = t.z * ts;
-        job[3] = t.x;
-        job[4] = t.y;
-        job[5] = t.z;
-        job[6] = std::int64_t{1} | std::int64_t{1} << 16 | std::int64_t{1} << 32;
-        job[7] = static_cast<std::int64_t>(i);
-        const auto r = ref(t.x, t.y, t.z);
-        tile_refs[2 * i] = r.first;
-        tile_refs[2 * i + 1] = r.second;
+        one_tile_job(i, {t.x * ts, t.y * ts, t.z * ts}, t, jobs, tile_refs);
     }
     cl_call("gathering " + std::to_string(tiles.size()) + " tiles of the sparse world", [&] {
         auto& c = ctx_.context();

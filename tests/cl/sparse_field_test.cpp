@@ -649,6 +649,20 @@ TEST(SparseField, OptionsForSparseWorlds) {
     EXPECT_THROW(ocl::resolve_sparse_options(o, false), InputError);
 }
 
+// Brush e of a sequence: place, erase, paint in turn, sphere and cube in turn, centred at a
+// random voxel of `d`, radius in [lo, hi], material 1 + e.
+Brush cycling_brush(int e, const Dims& d, std::int64_t lo, std::int64_t hi, std::mt19937& rng) {
+    Brush b;
+    b.op = static_cast<BrushOp>(e % 3);
+    b.shape = static_cast<BrushShape>(e % 2);
+    b.centre = {std::uniform_int_distribution<std::int64_t>(0, d.x)(rng),
+                std::uniform_int_distribution<std::int64_t>(0, d.y)(rng),
+                std::uniform_int_distribution<std::int64_t>(0, d.z)(rng)};
+    b.radius = std::uniform_int_distribution<std::int64_t>(lo, hi)(rng);
+    b.material = static_cast<std::uint8_t>(1 + e);
+    return b;
+}
+
 // The sparse viewer's reads without the host world: after device edits (the host lagging),
 // voxels() at random cells (inside, outside the world, in tiles not stored, in slots) equals the
 // world read back after; pick() equals core's pick over the world read back, hit for hit (voxel,
@@ -672,14 +686,7 @@ TEST(SparseDeviceWorld, VoxelsAndPicksReadTheDeviceNotTheHost) {
     c.bound = 6;
     ocl::SparseField f(pocl(), s, p, options_of(c));
     for (int e = 0; e < 10; ++e) {
-        Brush b;
-        b.op = static_cast<BrushOp>(e % 3);
-        b.shape = static_cast<BrushShape>(e % 2);
-        b.centre = {std::uniform_int_distribution<std::int64_t>(0, d.x)(rng),
-                    std::uniform_int_distribution<std::int64_t>(0, d.y)(rng),
-                    std::uniform_int_distribution<std::int64_t>(0, d.z)(rng)};
-        b.radius = std::uniform_int_distribution<std::int64_t>(2, 14)(rng);
-        b.material = static_cast<std::uint8_t>(1 + e);
+        const Brush b = cycling_brush(e, d, 2, 14, rng);
         f.apply_brush(b);
     }
     ASSERT_TRUE(f.device_world().host_lags());
@@ -759,14 +766,7 @@ TEST(SparseDeviceWorld, GatheredTilesWrittenBackUndoBrushes) {
         std::vector<Step> history;
         std::vector<World> states;
         for (int e = 0; e < 8; ++e) {
-            Brush b;
-            b.op = static_cast<BrushOp>(e % 3);
-            b.shape = static_cast<BrushShape>(e % 2);
-            b.centre = {std::uniform_int_distribution<std::int64_t>(0, d.x)(rng),
-                        std::uniform_int_distribution<std::int64_t>(0, d.y)(rng),
-                        std::uniform_int_distribution<std::int64_t>(0, d.z)(rng)};
-            b.radius = std::uniform_int_distribution<std::int64_t>(3, e == 4 ? 40 : 12)(rng);
-            b.material = static_cast<std::uint8_t>(1 + e);
+            const Brush b = cycling_brush(e, d, 3, e == 4 ? 40 : 12, rng);
             const Box bounds = brush_bounds(b, d);
             Step step;
             for (std::int64_t tz = bounds.min.z / 64; tz <= (bounds.max.z - 1) / 64; ++tz) {

@@ -86,13 +86,15 @@ SparseHistory::Step SparseHistory::swap(ocl::SparseField& field, const Step& fro
     return now;
 }
 
-std::optional<std::vector<Int3>> SparseHistory::undo(ocl::SparseField& field) {
-    if (undo_.empty()) {
+std::optional<std::vector<Int3>> SparseHistory::replay(ocl::SparseField& field,
+                                                       std::deque<Step>& from,
+                                                       std::deque<Step>& to) {
+    if (from.empty()) {
         return std::nullopt;
     }
     open_ = false;
-    Step step = std::move(undo_.back());
-    undo_.pop_back();
+    Step step = std::move(from.back());
+    from.pop_back();
     Step again = swap(field, step);
     bytes_ += again.bytes;
     bytes_ -= step.bytes;
@@ -100,26 +102,16 @@ std::optional<std::vector<Int3>> SparseHistory::undo(ocl::SparseField& field) {
     for (const Part& p : step.parts) {
         tiles.insert(tiles.end(), p.tiles.begin(), p.tiles.end());
     }
-    redo_.push_back(std::move(again));
+    to.push_back(std::move(again));
     return tiles;
 }
 
+std::optional<std::vector<Int3>> SparseHistory::undo(ocl::SparseField& field) {
+    return replay(field, undo_, redo_);
+}
+
 std::optional<std::vector<Int3>> SparseHistory::redo(ocl::SparseField& field) {
-    if (redo_.empty()) {
-        return std::nullopt;
-    }
-    open_ = false;
-    Step step = std::move(redo_.back());
-    redo_.pop_back();
-    Step again = swap(field, step);
-    bytes_ += again.bytes;
-    bytes_ -= step.bytes;
-    std::vector<Int3> tiles;
-    for (const Part& p : step.parts) {
-        tiles.insert(tiles.end(), p.tiles.begin(), p.tiles.end());
-    }
-    undo_.push_back(std::move(again));
-    return tiles;
+    return replay(field, redo_, undo_);
 }
 
 }  // namespace voxfield::cli

@@ -50,13 +50,16 @@ class SparseHistory {
     Part gather(ocl::SparseField& field, const std::vector<Int3>& tiles);
     // Writes `from` back after gathering its tiles as they are into the returned step.
     Step swap(ocl::SparseField& field, const Step& from);
+    // Undo (from undo_ to redo_) or redo (the other way): the last step of `from` written back,
+    // the tiles as they were onto `to`. Its tiles, or nullopt when `from` is empty.
+    std::optional<std::vector<Int3>> replay(ocl::SparseField& field, std::deque<Step>& from,
+                                            std::deque<Step>& to);
     void drop_oldest_over_budget();
     void clear_redo();
 
     ocl::Context& ctx_;
     std::uint64_t max_bytes_;
-    std::deque<Step> undo_;
-    std::vector<Step> redo_;
+    std::deque<Step> undo_, redo_;
     std::uint64_t bytes_ = 0;
     bool open_ = false;  // the last undo step takes further edits
 };

@@ -169,6 +169,10 @@ class SparseDeviceWorld {
 
   private:
     void upload_whole();
+    // gather's job `i` (sparse_world.cl: 8 longs) for a block whose first voxel is `first`, all
+    // in `tile`, and its refs entry (2 per job).
+    void one_tile_job(std::size_t i, const Int3& first, const Int3& tile,
+                      std::vector<std::int64_t>& jobs, std::vector<std::uint64_t>& refs) const;
     // A buffer for the trees: from allocate_ when set.
     cl::Buffer tree_buffer(std::size_t bytes, cl_mem_flags flags, const std::string& what);
     std::uint32_t slot_for(std::uint64_t key);
