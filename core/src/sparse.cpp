@@ -16,6 +16,22 @@
 #include "voxfield/core/error.hpp"
 
 namespace voxfield {
+
+std::vector<Int3> tiles_overlapping(const Box& voxels) {
+    std::vector<Int3> tiles;
+    if (voxels.empty()) {
+        return tiles;
+    }
+    const std::int64_t ts = kTileSize;
+    for (std::int64_t tz = voxels.min.z / ts; tz <= (voxels.max.z - 1) / ts; ++tz) {
+        for (std::int64_t ty = voxels.min.y / ts; ty <= (voxels.max.y - 1) / ts; ++ty) {
+            for (std::int64_t tx = voxels.min.x / ts; tx <= (voxels.max.x - 1) / ts; ++tx) {
+                tiles.push_back({tx, ty, tz});
+            }
+        }
+    }
+    return tiles;
+}
 namespace {
 
 constexpr std::uint64_t kFreeSlot = 0;

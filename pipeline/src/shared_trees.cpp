@@ -172,19 +172,8 @@ void SharedTrees::free_unused(const ocl::SparseDeviceWorld::TreeBuffers& b) {
 vk::SparseTileUpdate SharedTrees::sync(vk::SparseTracer& tracer,
                                        const ocl::SparseDeviceWorld& world, const Dims& dims,
                                        const Palette& palette, const Box& changed) {
-    std::vector<Int3> tiles;
     const Box box = intersect(changed, Box{{0, 0, 0}, {dims.x, dims.y, dims.z}});
-    if (!box.empty()) {
-        const std::int64_t ts = kTileSize;
-        for (std::int64_t tz = box.min.z / ts; tz <= (box.max.z - 1) / ts; ++tz) {
-            for (std::int64_t ty = box.min.y / ts; ty <= (box.max.y - 1) / ts; ++ty) {
-                for (std::int64_t tx = box.min.x / ts; tx <= (box.max.x - 1) / ts; ++tx) {
-                    tiles.push_back({tx, ty, tz});
-                }
-            }
-        }
-    }
-    return sync_tiles(tracer, world, dims, palette, tiles);
+    return sync_tiles(tracer, world, dims, palette, tiles_overlapping(box));
 }
 
 vk::SparseTileUpdate SharedTrees::sync(vk::SparseTracer& tracer,

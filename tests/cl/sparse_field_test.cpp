@@ -769,13 +769,7 @@ TEST(SparseDeviceWorld, GatheredTilesWrittenBackUndoBrushes) {
             const Brush b = cycling_brush(e, d, 3, e == 4 ? 40 : 12, rng);
             const Box bounds = brush_bounds(b, d);
             Step step;
-            for (std::int64_t tz = bounds.min.z / 64; tz <= (bounds.max.z - 1) / 64; ++tz) {
-                for (std::int64_t ty = bounds.min.y / 64; ty <= (bounds.max.y - 1) / 64; ++ty) {
-                    for (std::int64_t tx = bounds.min.x / 64; tx <= (bounds.max.x - 1) / 64; ++tx) {
-                        step.tiles.push_back({tx, ty, tz});
-                    }
-                }
-            }
+            step.tiles = tiles_overlapping(bounds);
             step.before = cl::Buffer(pocl().context(), CL_MEM_READ_WRITE,
                                      step.tiles.size() * std::size_t{kTileVoxels});
             f.device_world().gather_tiles(step.tiles, step.before);

@@ -40,19 +40,12 @@ void SparseHistory::before_edit(ocl::SparseField& field, const Box& bounds) {
     }
     Step& step = undo_.back();
     std::vector<Int3> fresh;
-    const std::int64_t ts = kTileSize;
-    for (std::int64_t tz = bounds.min.z / ts; tz <= (bounds.max.z - 1) / ts; ++tz) {
-        for (std::int64_t ty = bounds.min.y / ts; ty <= (bounds.max.y - 1) / ts; ++ty) {
-            for (std::int64_t tx = bounds.min.x / ts; tx <= (bounds.max.x - 1) / ts; ++tx) {
-                const Int3 t{tx, ty, tz};
-                const bool seen =
-                    std::any_of(step.parts.begin(), step.parts.end(), [&](const Part& p) {
-                        return std::find(p.tiles.begin(), p.tiles.end(), t) != p.tiles.end();
-                    });
-                if (!seen) {
-                    fresh.push_back(t);
-                }
-            }
+    for (const Int3& t : tiles_overlapping(bounds)) {
+        const bool seen = std::any_of(step.parts.begin(), step.parts.end(), [&](const Part& p) {
+            return std::find(p.tiles.begin(), p.tiles.end(), t) != p.tiles.end();
+        });
+        if (!seen) {
+            fresh.push_back(t);
         }
     }
     if (fresh.empty()) {

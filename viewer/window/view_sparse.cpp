@@ -2,7 +2,6 @@
 #include "view_sparse.hpp"
 
 #include <algorithm>
-#include <cctype>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
@@ -93,14 +92,6 @@ Box tiles_box(const std::vector<Int3>& tiles) {
     return b;
 }
 
-// Whether `path` ends in .vdb (any case).
-bool is_vdb_path(const std::string& path) {
-    std::string e = std::filesystem::path(path).extension().string();
-    std::transform(e.begin(), e.end(), e.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return e == ".vdb";
-}
-
 // What sparse worlds do not take, refused before any device is opened.
 void check_sparse_options(const ViewCliOptions& o) {
     if (o.present == "gpu") {
@@ -113,7 +104,9 @@ void check_sparse_options(const ViewCliOptions& o) {
             "--field-output does not apply to a sparse world: --world-output W.vdb writes the "
             "world and its field as OpenVDB grids");
     }
-    if (!o.world_output.empty() && !is_vdb_path(o.world_output)) {
+    // vdb_output_spec is nullopt for a path that does not end in .vdb.
+    if (!o.world_output.empty() &&
+        !vdb_output_spec(o.world_output, Spacing{}, std::nullopt, false)) {
         throw InputError("--world-output " + o.world_output +
                          ": a sparse world is written as .vdb (its material and distance grids; "
                          "--world-output " +

@@ -48,6 +48,9 @@ inline Int3 tile_of_key(std::uint64_t key) {
     return {static_cast<std::int64_t>(key & kCoord), static_cast<std::int64_t>(key >> 14 & kCoord),
             static_cast<std::int64_t>(key >> 28 & kCoord)};
 }
+// The tiles (tile grid coordinates) a box of voxels with non-negative corners overlaps, x
+// fastest, then y, then z; none for an empty box.
+std::vector<Int3> tiles_overlapping(const Box& voxels);
 
 // Fills `out` (box.volume() bytes, x fastest, then y, then z) with the voxels of `box`.
 using BoxFill = std::function<void(const Box& box, std::span<std::uint8_t> out)>;
