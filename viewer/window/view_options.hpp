@@ -53,7 +53,7 @@ inline constexpr const char* kViewKeys[][2] = {
     {"scroll", "brush size (radius = size / 2)"},
     {"1 .. 9, 0", "colour 1 .. 9, 10"},
     {"Ctrl+Z / Ctrl+Y", "undo / redo the last stroke"},
-    {"Ctrl+S", "save the world as .npy and .vox (current folder)"},
+    {"Ctrl+S", "save the world as .npy and .vox (sparse worlds: .vdb) in the current folder"},
     {"G", "--simulate: pause / run the sand and water (colour 2 is sand, 3 water)"},
     {"N", "--simulate, paused: one step"},
     {"F1", "this help"},
