@@ -318,7 +318,12 @@ void SparseDeviceWorld::ensure_slot_capacity(std::size_t slots) {
     if (slots <= slot_capacity_) {
         return;
     }
-    const std::size_t cap = std::max({slots, 2 * slot_capacity_, std::size_t{16}});
+    // Doubled, but never past what release_slots_if_needed lets the slots reach (its limit plus
+    // the most one edit takes): buffers it would never fill only raise the peak of the growth,
+    // which holds the old buffers and the new ones at once.
+    const std::size_t most = slot_limit() / kSlotBytes + 1 + kMaxHostEditTiles;
+    const std::size_t cap =
+        std::max(slots, std::min(std::max(2 * slot_capacity_, std::size_t{16}), most));
     cl_call("allocating " + std::to_string(cap) + " tile slots", [&] {
         auto& c = ctx_.context();
         cl::Buffer m = tree_buffer(cap * kTileMaxNodes * 8, CL_MEM_READ_WRITE, "sparse slot masks");
@@ -360,14 +365,33 @@ std::uint32_t SparseDeviceWorld::take_slot() {
     return static_cast<std::uint32_t>(slots_made_++);
 }
 
-void SparseDeviceWorld::release_slots_if_needed() {
+std::uint64_t SparseDeviceWorld::slot_limit() const {
     const std::uint64_t main_bytes = world_.node_masks().size() * 12 + world_.materials().size();
-    const std::uint64_t cap = std::max<std::uint64_t>(std::uint64_t{256} << 20, main_bytes / 4);
-    if (slots_made_ * kSlotBytes <= cap) {
+    return std::max<std::uint64_t>(std::uint64_t{256} << 20, main_bytes / 4);
+}
+
+void SparseDeviceWorld::release_slots_if_needed() {
+    if (slots_made_ * kSlotBytes <= slot_limit()) {
         return;
     }
     world();
     upload_whole();
+}
+
+void SparseDeviceWorld::reserve_slots(std::size_t n) {
+    const auto fresh = [&] { return n > free_slots_.size() ? n - free_slots_.size() : 0; };
+    try {
+        ensure_slot_capacity(slots_made_ + fresh());
+    } catch (const std::exception&) {
+        if (slots_made_ == 0) {
+            throw;
+        }
+        // The device cannot hold larger slot buffers now (its memory, or one buffer's limit):
+        // the world made whole again frees every slot, and the buffers there are hold the edit.
+        world();
+        upload_whole();
+        ensure_slot_capacity(fresh());
+    }
 }
 
 const SparseWorld& SparseDeviceWorld::world() {
@@ -429,6 +453,7 @@ void SparseDeviceWorld::host_edited(const Box& changed) {
         upload_whole();
         return;
     }
+    reserve_slots(static_cast<std::size_t>(span.size()));
     cl_call("uploading the tiles edited on the host", [&] {
         auto& q = ctx_.queue();
         for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
@@ -609,6 +634,7 @@ void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t 
 }
 
 void SparseDeviceWorld::take_edit_slots(const std::vector<std::uint64_t>& keys) {
+    reserve_slots(keys.size());  // nothing below allocates: all slots taken or none
     std::vector<std::uint32_t> freed;
     for (const std::uint64_t key : keys) {
         const std::uint32_t slot = take_slot();

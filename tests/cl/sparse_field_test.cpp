@@ -8,7 +8,9 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "cl_test_util.hpp"
 #include "voxfield/cl/sparse_field.hpp"
@@ -609,6 +611,56 @@ TEST(SparseDeviceWorld, LargeBrushesAndReadOnlyWorlds) {
     const SparseWorld& read_only = s;
     ocl::SparseField g(pocl(), read_only, p, options_of(c));
     EXPECT_THROW(g.apply_brush(small), std::logic_error);
+}
+
+// Slot buffers that cannot grow (an allocator refusing them past 32 slots, as a device out of
+// memory does) make the world whole again, which frees every slot, and the edit goes on: after
+// many edits over many tiles the field equals the dense bounded field and the host world the
+// dense world, and no slot buffer was ever made past the limit.
+TEST(SparseDeviceWorld, RefusedSlotGrowthUploadsTheWorldWholeAndGoesOn) {
+    std::mt19937 rng(35);
+    const Palette p = Palette::magicavoxel_default();
+    const Dims d{600, 40, 600};  // 10 x 1 x 10 tiles
+    World w = blob_world(d, 40, 0.0001, rng);
+    SparseWorld s = SparseWorld::from_dense(w);
+    Case c;
+    c.bound = 6;
+    constexpr std::size_t kMaxSlots = 32;
+    int refused = 0, dropped = 0;
+    std::size_t largest = 0;
+    ocl::TreeAllocator limited;
+    limited.allocate = [&](std::size_t bytes, const std::string& what) {
+        if (what == "sparse slot materials") {
+            if (bytes > kMaxSlots * kTileVoxels) {
+                ++refused;
+                throw std::runtime_error("refused: " + std::to_string(bytes) + " bytes");
+            }
+            largest = std::max(largest, bytes);
+        }
+        return cl::Buffer(pocl().context(), CL_MEM_READ_WRITE, std::max<std::size_t>(bytes, 1));
+    };
+    limited.dropped = [&](const std::vector<cl::Buffer>&) { ++dropped; };
+    ocl::SparseField f(pocl(), s, p, options_of(c), limited);
+    f.run();
+    const int dropped_at_start = dropped;
+    for (int e = 0; e < 40; ++e) {
+        Brush b;
+        b.op = e % 4 == 3 ? BrushOp::erase : BrushOp::place;
+        b.shape = BrushShape::sphere;
+        // Centred on tile corners: 8 tiles an edit, most of them not edited before.
+        b.centre = {std::uniform_int_distribution<std::int64_t>(1, 9)(rng) * 64, 20,
+                    std::uniform_int_distribution<std::int64_t>(1, 9)(rng) * 64};
+        b.radius = 6;
+        b.material = static_cast<std::uint8_t>(1 + e);
+        apply_brush(w, b);
+        f.apply_brush(b);
+        ASSERT_LE(f.device_world().slots_used(), kMaxSlots) << "after edit " << e;
+    }
+    EXPECT_GT(refused, 0);
+    EXPECT_GT(dropped, dropped_at_start);  // whole uploads after the refusals
+    EXPECT_EQ(largest, kMaxSlots * kTileVoxels);
+    expect_same(f.read_dense(), dense_field(w, p, c), c, d, "after the edits");
+    EXPECT_EQ(f.world().to_dense().voxels(), w.voxels());
 }
 
 TEST(SparseField, CoarseDistancesBoundTheExactDistance) {

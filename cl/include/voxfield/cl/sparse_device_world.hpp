@@ -181,7 +181,13 @@ class SparseDeviceWorld {
     void ensure_slot_capacity(std::size_t slots);
     // Scratch and encoding buffers for `tiles` tiles (`dense`: with a whole tile of voxels each).
     void ensure_scratch(std::size_t tiles, bool dense);
+    // The slot bytes past which release_slots_if_needed uploads the world whole again.
+    std::uint64_t slot_limit() const;
     void release_slots_if_needed();
+    // Makes sure `n` slots can be taken without allocating. When the slot buffers cannot grow
+    // (an allocation refused) while slots are in use, the world is uploaded whole first (the
+    // host world brought up to date), which frees them all; else the error propagates.
+    void reserve_slots(std::size_t n);
     void host_changed_seen();
     Box host_apply_brush(const Brush& brush);
     // Per tile of `keys` a fresh slot into host_slots_ (never the one its previous tree lies
