@@ -2,6 +2,8 @@
 #include "voxfield/pipeline/shared_trees.hpp"
 
 #include <algorithm>
+#include <exception>
+#include <functional>
 #include <stdexcept>
 #include <utility>
 
@@ -70,8 +72,31 @@ SharedTrees::SharedTrees(ocl::Context& cl_ctx, vk::Context& vk_ctx, vk::SharingP
 
 SharedTrees::~SharedTrees() {
     try {
+        free_where([](const Allocation&) { return true; });
+    } catch (const std::exception&) {
+        // A destructor's path: the buffers go anyway.
+    }
+}
+
+void SharedTrees::free_where(const std::function<bool(const Allocation&)>& drop) {
+    // On path 1 OpenCL holds the buffers (acquired) outside trace scopes: it gives back those
+    // that go, and its queue finishes, before their memory is freed.
+    std::exception_ptr failed;
+    try {
+        if (path_ == vk::SharingPath::opaque_fd && !tracing_) {
+            for (const auto& a : allocations_) {
+                if (drop(*a)) {
+                    ocl::release_external(cl_, a->buffer);
+                }
+            }
+        }
         cl_.queue().finish();
-    } catch (const cl::Error&) {
+    } catch (const std::exception&) {
+        failed = std::current_exception();
+    }
+    std::erase_if(allocations_, [&](const std::unique_ptr<Allocation>& a) { return drop(*a); });
+    if (failed) {
+        std::rethrow_exception(failed);
     }
 }
 
@@ -116,18 +141,19 @@ cl::Buffer SharedTrees::allocate(std::size_t bytes, const std::string& what) {
 
 void SharedTrees::dropped(const std::vector<cl::Buffer>& kept) {
     // The world finished its queue and holds only `kept`: no command uses the others.
-    const auto unused = [&](const std::unique_ptr<Allocation>& a) {
+    const auto unused = [&](const Allocation& a) {
         return std::none_of(kept.begin(), kept.end(),
-                            [&](const cl::Buffer& b) { return b() == a->buffer(); });
+                            [&](const cl::Buffer& b) { return b() == a.buffer(); });
     };
-    if (std::none_of(allocations_.begin(), allocations_.end(), unused)) {
+    if (std::none_of(allocations_.begin(), allocations_.end(),
+                     [&](const std::unique_ptr<Allocation>& a) { return unused(*a); })) {
         return;
     }
     if (tracer_ != nullptr) {
         tracer_->drop_shared();  // it reads nothing of them before the next (whole) sync
     }
     traced_main_ = 0;
-    std::erase_if(allocations_, unused);
+    free_where(unused);
 }
 
 const SharedTrees::Allocation* SharedTrees::allocation_of(const cl::Buffer& buffer) const {
@@ -164,8 +190,8 @@ std::vector<vk::SharedTreeSet> SharedTrees::sets_of(
 void SharedTrees::free_unused(const ocl::SparseDeviceWorld::TreeBuffers& b) {
     const cl_mem live[] = {b.masks(),      b.offsets(),      b.materials(),
                            b.slot_masks(), b.slot_offsets(), b.slot_materials()};
-    std::erase_if(allocations_, [&](const std::unique_ptr<Allocation>& a) {
-        return std::find(std::begin(live), std::end(live), a->buffer()) == std::end(live);
+    free_where([&](const Allocation& a) {
+        return std::find(std::begin(live), std::end(live), a.buffer()) == std::end(live);
     });
 }
 

@@ -9,6 +9,7 @@
 // nothing is shared; the caller uploads and updates the tracer from the host world as before.
 // The glue between cl/ and vk/, part of the frame pipeline.
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -104,6 +105,8 @@ class SharedTrees {
     // The world dropped buffers: frees every allocation but those it `kept`.
     void dropped(const std::vector<cl::Buffer>& kept);
     const Allocation* allocation_of(const cl::Buffer& buffer) const;
+    // Frees the allocations `drop` selects, OpenCL's hold on them given back first (path 1).
+    void free_where(const std::function<bool(const Allocation&)>& drop);
     std::vector<vk::SharedTreeSet> sets_of(const ocl::SparseDeviceWorld::TreeBuffers& b) const;
     void free_unused(const ocl::SparseDeviceWorld::TreeBuffers& b);
     vk::SparseTileUpdate sync_tiles(vk::SparseTracer& tracer, const ocl::SparseDeviceWorld& world,
