@@ -906,6 +906,39 @@ SparseField::Update SparseField::with_edit_stages(Update result) const {
     return result;
 }
 
+Box SparseField::single_block(const Box& region) const {
+    const Dims wd = world_.dims();
+    Box b = intersect(grow(region, halo_), Box{{-1, -1, -1}, {wd.x + 1, wd.y + 1, wd.z + 1}});
+    // Extents rounded up to a multiple of 4 (more empty space beyond the world, or more of the
+    // world, changes no value inside), so that edits of about one size share a block shape and
+    // its dense generator instead of setting one up each (16 cost radius-8 edits 64^3 blocks
+    // instead of 52^3: 1.9x the voxels).
+    b.max = {b.min.x + round_up_to(b.max.x - b.min.x, 4),
+             b.min.y + round_up_to(b.max.y - b.min.y, 4),
+             b.min.z + round_up_to(b.max.z - b.min.z, 4)};
+    return b;
+}
+
+void SparseField::prepare_edits(std::int64_t radius) {
+    const Dims wd = world_.dims();
+    Brush brush;
+    brush.shape = BrushShape::sphere;
+    brush.centre = {wd.x / 2, wd.y / 2, wd.z / 2};
+    brush.radius = radius;
+    const Box all = world_box(wd);
+    const Box region = intersect(grow(brush_bounds(brush, wd), halo_), all);
+    if (region.empty()) {
+        return;
+    }
+    const Box b = single_block(region);
+    if (b.volume() <= kBatchVoxels) {
+        batch_for({static_cast<std::uint32_t>(b.max.x - b.min.x),
+                   static_cast<std::uint32_t>(b.max.y - b.min.y),
+                   static_cast<std::uint32_t>(b.max.z - b.min.z)},
+                  1);
+    }
+}
+
 SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
     Update result;
     stages_.clear();
@@ -928,10 +961,7 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
         return result;
     }
     const Dims wd = world_.dims();
-    const auto block_of = [&](const Box& r) {
-        return intersect(grow(r, halo_), Box{{-1, -1, -1}, {wd.x + 1, wd.y + 1, wd.z + 1}});
-    };
-    if (regions.size() > 1 && block_of(region).volume() <= kHullVoxels) {
+    if (regions.size() > 1 && single_block(region).volume() <= kHullVoxels) {
         regions = {region};
     }
     // Per field tile (in key order) the hull of the regions' parts in it.
@@ -970,14 +1000,9 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
     std::vector<Job> jobs;
     Dims block{};
     if (regions.size() == 1) {
-        Box block_box = block_of(region);
-        // Extents rounded up to a multiple of 4 (more empty space beyond the world, or more of
-        // the world, changes no value inside), so that edits of about one size share a block
-        // shape and its dense generator instead of setting one up each (16 cost radius-8 edits
-        // 64^3 blocks instead of 52^3: 1.9x the voxels).
-        Int3 size{round_up_to(block_box.max.x - block_box.min.x, 4),
-                  round_up_to(block_box.max.y - block_box.min.y, 4),
-                  round_up_to(block_box.max.z - block_box.min.z, 4)};
+        Box block_box = single_block(region);
+        Int3 size{block_box.max.x - block_box.min.x, block_box.max.y - block_box.min.y,
+                  block_box.max.z - block_box.min.z};
         // An edit near the world's edge (a smaller block) takes a shape set up already when that
         // holds it with at most twice the voxels: no generator set up, and no eviction of others.
         const Int3 need = size;

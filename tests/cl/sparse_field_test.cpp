@@ -663,6 +663,52 @@ TEST(SparseDeviceWorld, RefusedSlotGrowthUploadsTheWorldWholeAndGoesOn) {
     EXPECT_EQ(f.world().to_dense().voxels(), w.voxels());
 }
 
+// prepare_edits sets up the programs of an edit's block update: in a fresh context, the
+// edits after it (radius 0 to 12, both layouts) build or load no program. Without it the first
+// L1 edit does (run() sweeps, with other programs); an L2 run() transforms blocks with the
+// edits' programs already.
+TEST(SparseField, PreparedEditsSetUpNoProgram) {
+    std::mt19937 rng(36);
+    const Palette p = Palette::magicavoxel_default();
+    const Dims d{300, 120, 260};
+    const World w = blob_world(d, 12, 0.0001, rng);
+    const auto set_up = [](const ocl::Context& ctx) {
+        return ctx.program_cache_stats().built + ctx.program_cache_stats().loaded;
+    };
+    for (const Metric m : {Metric::manhattan, Metric::euclidean}) {
+        for (const Layout layout : kLayouts) {
+            for (const bool prepare : {false, true}) {
+                Case c;
+                c.metric = m;
+                c.layout = layout;
+                c.bound = 16;
+                c.format = m == Metric::manhattan ? Format::u8 : Format::f32;
+                SCOPED_TRACE(describe(c, d) + (prepare ? " prepared" : " not prepared"));
+                ocl::Context ctx(pocl().info());
+                SparseWorld s = SparseWorld::from_dense(w);
+                ocl::SparseField f(ctx, s, p, options_of(c));
+                f.run();
+                const bool sweeps = m == Metric::manhattan;
+                const auto before = set_up(ctx);
+                if (prepare) {
+                    f.prepare_edits(8);
+                    EXPECT_EQ(set_up(ctx) > before, sweeps);
+                }
+                const auto ready = set_up(ctx);
+                World dense = w;
+                for (const std::int64_t r : {8, 0, 5, 12}) {
+                    const Brush b{
+                        BrushOp::place, BrushShape::sphere, {150 + 7 * r, 60, 130 - 5 * r}, r, 9};
+                    apply_brush(dense, b);
+                    f.apply_brush(b);
+                }
+                EXPECT_EQ(set_up(ctx) > ready, sweeps && !prepare);
+                expect_same(f.read_dense(), dense_field(dense, p, c), c, d, "after the edits");
+            }
+        }
+    }
+}
+
 TEST(SparseField, CoarseDistancesBoundTheExactDistance) {
     std::mt19937 rng(25);
     const Dims d{140, 66, 70};

@@ -219,6 +219,10 @@ class SparseField {
     // `tiles`, as SparseDeviceWorld::gather_tiles lays them out) and recomputes the voxels within
     // D of them: the sparse viewer's undo and redo. logic_error for a read-only world.
     Update write_tiles(const cl::Buffer& vox, const std::vector<Int3>& tiles);
+    // Sets up what the update of one edit of `radius` transforms (the dense generator of its
+    // block, whose programs a device builds on first use unless its program cache has them:
+    // about 2 s on the H200), so that the first such edit does not wait for it.
+    void prepare_edits(std::int64_t radius);
     // The world, brought up to date with the device's edits first.
     const SparseWorld& world() { return device_world_.world(); }
     const SparseDeviceWorld& device_world() const { return device_world_; }
@@ -306,6 +310,9 @@ class SparseField {
     // edited): one box in one block (tile by tile when that is too large), several in one
     // block of their hull when it is small, else tile by tile.
     Update recompute(const std::vector<Box>& changed);
+    // The block of a single region's update: the voxels within D of the region (clipped to
+    // the world and one voxel beyond), extents rounded up to a multiple of 4.
+    Box single_block(const Box& region) const;
     // `result` with the device world's last edit stages (decoding, brushing, encoding) put
     // before its own and counted in its kernel times.
     Update with_edit_stages(Update result) const;
