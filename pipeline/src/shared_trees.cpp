@@ -79,6 +79,10 @@ SharedTrees::~SharedTrees() {
 }
 
 void SharedTrees::free_where(const std::function<bool(const Allocation&)>& drop) {
+    if (std::none_of(allocations_.begin(), allocations_.end(),
+                     [&](const std::unique_ptr<Allocation>& a) { return drop(*a); })) {
+        return;
+    }
     // On path 1 OpenCL holds the buffers (acquired) outside trace scopes: it gives back those
     // that go, and its queue finishes, before their memory is freed.
     std::exception_ptr failed;
