@@ -304,14 +304,50 @@ void SparseDeviceWorld::upload_whole() {
     });
     dir_.clear();
     dir_.reserve(world_.tile_count());
+    main_counts_.clear();
+    main_counts_.reserve(world_.tile_count());
+    main_nodes_ = main_materials_ = 0;
     for (std::uint32_t t = 0; t < world_.tile_count(); ++t) {
         const Int3 c = world_.tile_coord(t);
-        dir_[key_of(c.x, c.y, c.z)] = {world_.node_bases()[t], world_.material_bases()[t]};
+        const std::uint64_t key = key_of(c.x, c.y, c.z);
+        dir_[key] = {world_.node_bases()[t], world_.material_bases()[t]};
+        main_counts_[key] = {world_.node_counts()[t], world_.material_counts()[t]};
+        main_nodes_ += world_.node_counts()[t];
+        main_materials_ += world_.material_counts()[t];
     }
     slot_of_.clear();
     free_slots_.clear();
     slots_made_ = 0;
     host_changed_seen();
+}
+
+void SparseDeviceWorld::leave_main(std::uint64_t key) {
+    if (const auto it = main_counts_.find(key); it != main_counts_.end()) {
+        main_nodes_ -= it->second.first;
+        main_materials_ -= it->second.second;
+        main_counts_.erase(it);
+    }
+}
+
+SparseDeviceWorld::Figures SparseDeviceWorld::figures() {
+    Figures f;
+    f.tiles = main_counts_.size();
+    f.solid = main_materials_;
+    f.tree_bytes = main_nodes_ * 12 + main_materials_;
+    if (slot_of_.empty()) {
+        return f;
+    }
+    std::vector<std::uint32_t> counts(2 * slots_made_);
+    cl_call("reading the slots' counts", [&] {
+        ctx_.queue().enqueueReadBuffer(slot_counts_, CL_TRUE, 0, counts.size() * 4, counts.data());
+    });
+    for (const auto& [key, slot] : slot_of_) {
+        const std::uint64_t nodes = counts[2 * slot], materials = counts[2 * slot + 1];
+        f.tiles += nodes != 0 ? 1 : 0;
+        f.solid += materials;
+        f.tree_bytes += nodes * 12 + materials;
+    }
+    return f;
 }
 
 void SparseDeviceWorld::ensure_slot_capacity(std::size_t slots) {
@@ -459,6 +495,7 @@ void SparseDeviceWorld::host_edited(const Box& changed) {
         for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
             const std::uint64_t key = key_of(tx, ty, tz);
             const std::uint32_t t = world_.find_tile(tx, ty, tz);
+            leave_main(key);
             if (t == kNoTile) {
                 dir_.erase(key);
                 if (const auto it = slot_of_.find(key); it != slot_of_.end()) {
@@ -649,6 +686,7 @@ void SparseDeviceWorld::take_edit_slots(const std::vector<std::uint64_t>& keys) 
 
 void SparseDeviceWorld::commit_edit_slots(const std::vector<std::uint64_t>& keys) {
     for (std::size_t i = 0; i < keys.size(); ++i) {
+        leave_main(keys[i]);
         dir_[keys[i]] = {kSlotRef | host_slots_[i] * std::uint64_t{kTileMaxNodes},
                          host_slots_[i] * std::uint64_t{kTileVoxels}};
         lagging_.insert(keys[i]);

@@ -709,6 +709,71 @@ TEST(SparseField, PreparedEditsSetUpNoProgram) {
     }
 }
 
+// figures() gives what the host world reports once brought up to date (tiles, solid voxels,
+// live 64-tree bytes) without reading it back: after device edits (a tile emptied among them),
+// host edits and a whole upload, the host world lagging until it is compared.
+TEST(SparseDeviceWorld, FiguresReadTheDeviceNotTheHost) {
+    std::mt19937 rng(37);
+    const Palette p = Palette::magicavoxel_default();
+    const Dims d{300, 70, 200};  // 5 x 2 x 4 tiles, cut by the world's edge
+    World w = blob_world(d, 25, 0.001, rng);
+    SparseWorld s = SparseWorld::from_dense(w);
+    Case c;
+    c.bound = 5;
+    ocl::SparseField f(pocl(), s, p, options_of(c));
+    f.run();
+    const auto host_figures = [&] {
+        const SparseWorld& h = f.world();
+        ocl::SparseDeviceWorld::Figures want;
+        want.tiles = h.tile_count();
+        want.solid = h.solid_count();
+        for (std::uint32_t t = 0; t < h.tile_count(); ++t) {
+            want.tree_bytes += std::uint64_t{h.node_counts()[t]} * 12 + h.material_counts()[t];
+        }
+        return want;
+    };
+    const auto expect_figures = [&](const std::string& when) {
+        const ocl::SparseDeviceWorld::Figures got = f.device_world().figures();
+        const ocl::SparseDeviceWorld::Figures want = host_figures();
+        EXPECT_EQ(got.tiles, want.tiles) << when;
+        EXPECT_EQ(got.solid, want.solid) << when;
+        EXPECT_EQ(got.tree_bytes, want.tree_bytes) << when;
+    };
+    expect_figures("at the start");
+    for (int e = 0; e < 30; ++e) {
+        Brush b;
+        b.op = e % 3 == 0 ? BrushOp::erase : e % 3 == 1 ? BrushOp::place : BrushOp::paint;
+        b.shape = static_cast<BrushShape>(e % 2);
+        b.centre = {std::uniform_int_distribution<std::int64_t>(0, d.x)(rng),
+                    std::uniform_int_distribution<std::int64_t>(0, d.y)(rng),
+                    std::uniform_int_distribution<std::int64_t>(0, d.z)(rng)};
+        b.radius = std::uniform_int_distribution<std::int64_t>(0, 14)(rng);
+        b.material = static_cast<std::uint8_t>(1 + e);
+        if (e == 12) {
+            // One whole tile emptied (a cube over tile (1, 0, 1) and beyond).
+            b = Brush{BrushOp::erase, BrushShape::cube, {96, 32, 96}, 40, 1};
+        }
+        if (e % 7 == 6) {
+            f.world();
+            f.update(apply_brush(s, b));
+        } else {
+            f.apply_brush(b);
+            EXPECT_TRUE(f.device_world().host_lags());
+        }
+        const ocl::SparseDeviceWorld::Figures before_read = f.device_world().figures();
+        if (e % 7 != 6) {
+            EXPECT_TRUE(f.device_world().host_lags()) << "figures() read the world back";
+        }
+        if (e % 5 == 4 || e == 12) {
+            expect_figures("after edit " + std::to_string(e));
+            EXPECT_EQ(f.device_world().figures().solid, before_read.solid);
+        }
+    }
+    f.device_world().refresh();
+    expect_figures("after a refresh");
+    EXPECT_GT(f.device_world().slots_used(), 0u);
+}
+
 TEST(SparseField, CoarseDistancesBoundTheExactDistance) {
     std::mt19937 rng(25);
     const Dims d{140, 66, 70};

@@ -373,7 +373,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
     vk::Image image;
     FrameClock frame_clock(script != nullptr);
     std::uint64_t frame = 0;
-    double world_read_s = -1;  // when the overlay's world figures were last read
+    double world_read_s = -1;  // when the overlay's world figures were last taken
     bool running = true;
     while (running) {
         const auto [t0, dt, time_s] = frame_clock.tick();
@@ -504,13 +504,14 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             render.camera.target = camera.target();
             render.camera.fov_deg = camera.settings.fov_deg;
             if (screen && time_s - world_read_s >= 0.5) {
-                // The overlay's world figures: the host world, read back at most twice a second
-                // (the tracer and the aim read the device's).
-                field.world();
+                // The overlay's world figures from the device, at most twice a second: the
+                // slots' counts read, not the world (its host copy is never brought up to date
+                // here: at 16384^2 that copy's growth alone would stall for seconds).
+                const ocl::SparseDeviceWorld::Figures fig = field.device_world().figures();
                 world_read_s = time_s;
-                info.tiles = world.tile_count();
-                info.solid = world.solid_count();
-                info.world_bytes = world.bytes();
+                info.tiles = static_cast<std::uint32_t>(fig.tiles);
+                info.solid = fig.solid;
+                info.world_bytes = fig.tree_bytes;
             }
             if (screen) {
                 {

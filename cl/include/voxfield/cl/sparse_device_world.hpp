@@ -121,6 +121,14 @@ class SparseDeviceWorld {
     // stored), read in one transfer (gather_voxels, a 1^3 block per cell) without bringing the
     // host world up to date: one host wait.
     std::vector<std::uint8_t> voxels(std::span<const Int3> cells);
+    // The world's figures as the device has them now, without bringing the host world up to
+    // date: its stored tiles, solid voxels and the bytes of their 64-trees (12 per node, 1 per
+    // material; what world() would then report as tile_count(), solid_count() and the live
+    // part of bytes()). The counts of the tiles in slots are read in one transfer.
+    struct Figures {
+        std::uint64_t tiles = 0, solid = 0, tree_bytes = 0;
+    };
+    Figures figures();
     // Whole tiles of the world as the device has them now, into `out` on the device (kTileVoxels
     // bytes per tile in the order of `tiles`, tile-local, x fastest; 0 beyond the world and in
     // tiles not stored): nothing is read back. `out` holds tiles.size() * kTileVoxels bytes.
@@ -213,6 +221,11 @@ class SparseDeviceWorld {
     cl::Buffer masks_, offsets_, materials_;
     TreeAllocator allocate_;
     std::unordered_map<std::uint64_t, std::pair<std::uint64_t, std::uint64_t>> dir_;
+    // Per tile in the main buffers, its node and material counts (figures()); a tile leaves
+    // when it goes into a slot or is removed.
+    std::unordered_map<std::uint64_t, std::pair<std::uint32_t, std::uint32_t>> main_counts_;
+    std::uint64_t main_nodes_ = 0, main_materials_ = 0;
+    void leave_main(std::uint64_t key);
     // Slots: buffers of slot_capacity_ worst-case tiles, per slot its node and material counts.
     cl::Buffer slot_masks_, slot_offsets_, slot_materials_, slot_counts_;
     std::size_t slot_capacity_ = 0;
