@@ -414,20 +414,29 @@ void SparseDeviceWorld::release_slots_if_needed() {
     upload_whole();
 }
 
-void SparseDeviceWorld::reserve_slots(std::size_t n) {
+bool SparseDeviceWorld::reserve_slots(std::size_t n) {
     const auto fresh = [&] { return n > free_slots_.size() ? n - free_slots_.size() : 0; };
-    try {
-        ensure_slot_capacity(slots_made_ + fresh());
-    } catch (const std::exception&) {
-        if (slots_made_ == 0) {
-            throw;
-        }
-        // The device cannot hold larger slot buffers now (its memory, or one buffer's limit):
-        // the world made whole again frees every slot, and the buffers there are hold the edit.
-        world();
-        upload_whole();
-        ensure_slot_capacity(fresh());
+    if (slots_made_ + fresh() <= slot_capacity_) {
+        return false;
     }
+    if (!growth_refused_) {
+        try {
+            ensure_slot_capacity(slots_made_ + fresh());
+            return false;
+        } catch (const std::exception&) {
+            if (slots_made_ == 0) {
+                throw;
+            }
+            // Not tried again: each try of a refused size would cost the allocation.
+            growth_refused_ = true;
+        }
+    }
+    // The device cannot hold larger slot buffers (its memory, or one buffer's limit): the
+    // world made whole again frees every slot, and the buffers there are hold the edit.
+    world();
+    upload_whole();
+    ensure_slot_capacity(fresh());
+    return true;
 }
 
 const SparseWorld& SparseDeviceWorld::world() {
@@ -489,7 +498,9 @@ void SparseDeviceWorld::host_edited(const Box& changed) {
         upload_whole();
         return;
     }
-    reserve_slots(static_cast<std::size_t>(span.size()));
+    if (reserve_slots(static_cast<std::size_t>(span.size()))) {
+        return;  // uploaded whole, the host's edit with it
+    }
     cl_call("uploading the tiles edited on the host", [&] {
         auto& q = ctx_.queue();
         for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
@@ -583,11 +594,11 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
     for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
         keys_.push_back(key_of(tx, ty, tz));
     });
-    take_edit_slots(keys_);
     ensure_scratch(n, true);
     // The table: the brush; per tile its previous tree, slot, voxels in scratch (a whole tile
     // each) and the 16^3 nodes the brush's bounds overlap (decoded, brushed and encoded again).
     std::int64_t* table = edit_table(n);
+    take_edit_slots(keys_);  // after every allocation of the edit but its slots'
     table[0] = brush.op == BrushOp::place ? 0 : brush.op == BrushOp::erase ? 1 : 2;
     table[1] = brush.shape == BrushShape::sphere ? 0 : 1;
     table[2] = brush.centre.x;
@@ -619,8 +630,13 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
     });
     std::copy(dense_.begin(), dense_.end(), table + kTableHeader + kRecord * n);
     edit_events_.clear();
-    cl_call("editing " + std::to_string(n) + " tiles on the device",
-            [&] { enqueue_edit_encode(scratch_, kTileSize, kTileSize * kTileSize, n); });
+    try {
+        cl_call("editing " + std::to_string(n) + " tiles on the device",
+                [&] { enqueue_edit_encode(scratch_, kTileSize, kTileSize * kTileSize, n); });
+    } catch (...) {
+        untake_edit_slots(keys_);
+        throw;
+    }
     commit_edit_slots(keys_);
     return bounds;
 }
@@ -642,9 +658,9 @@ void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t 
     for (const DenseTile& tile : tiles) {
         keys_.push_back(key_of(tile.tile.x, tile.tile.y, tile.tile.z));
     }
-    take_edit_slots(keys_);
     ensure_scratch(n, false);
     std::int64_t* table = edit_table(n);
+    take_edit_slots(keys_);  // after every allocation of the encoding but its slots'
     table[0] = kNoBrush;
     for (std::uint32_t t = 0; t < n; ++t) {
         const Int3 c = tiles[t].tile;
@@ -665,23 +681,49 @@ void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t 
     }
     std::copy(dense_.begin(), dense_.end(), table + kTableHeader + kRecord * n);
     edit_events_.clear();
-    cl_call("encoding " + std::to_string(n) + " dense tiles on the device",
-            [&] { enqueue_edit_encode(vox, pitch_y, pitch_z, n); });
+    try {
+        cl_call("encoding " + std::to_string(n) + " dense tiles on the device",
+                [&] { enqueue_edit_encode(vox, pitch_y, pitch_z, n); });
+    } catch (...) {
+        untake_edit_slots(keys_);
+        throw;
+    }
     commit_edit_slots(keys_);
 }
 
 void SparseDeviceWorld::take_edit_slots(const std::vector<std::uint64_t>& keys) {
     reserve_slots(keys.size());  // nothing below allocates: all slots taken or none
     std::vector<std::uint32_t> freed;
+    previous_slots_.clear();
     for (const std::uint64_t key : keys) {
         const std::uint32_t slot = take_slot();
-        if (const auto it = slot_of_.find(key); it != slot_of_.end()) {
+        const auto it = slot_of_.find(key);
+        previous_slots_.push_back(it != slot_of_.end() ? it->second : kNoSlot);
+        if (it != slot_of_.end()) {
             freed.push_back(it->second);
         }
         slot_of_[key] = slot;
         host_slots_.push_back(slot);
     }
     free_slots_.insert(free_slots_.end(), freed.begin(), freed.end());
+}
+
+void SparseDeviceWorld::untake_edit_slots(const std::vector<std::uint64_t>& keys) {
+    // The previous slots, appended to free_slots_ last, are the keys' again; the taken ones
+    // are free.
+    const auto freed =
+        static_cast<std::size_t>(std::count_if(previous_slots_.begin(), previous_slots_.end(),
+                                               [](std::uint32_t s) { return s != kNoSlot; }));
+    free_slots_.resize(free_slots_.size() - freed);
+    for (std::size_t i = 0; i < keys.size(); ++i) {
+        if (previous_slots_[i] != kNoSlot) {
+            slot_of_[keys[i]] = previous_slots_[i];
+        } else {
+            slot_of_.erase(keys[i]);
+        }
+        free_slots_.push_back(host_slots_[i]);
+    }
+    previous_slots_.clear();
 }
 
 void SparseDeviceWorld::commit_edit_slots(const std::vector<std::uint64_t>& keys) {

@@ -2,7 +2,6 @@
 #include "voxfield/pipeline/shared_trees.hpp"
 
 #include <algorithm>
-#include <exception>
 #include <functional>
 #include <stdexcept>
 #include <utility>
@@ -71,11 +70,7 @@ SharedTrees::SharedTrees(ocl::Context& cl_ctx, vk::Context& vk_ctx, vk::SharingP
 }
 
 SharedTrees::~SharedTrees() {
-    try {
-        free_where([](const Allocation&) { return true; });
-    } catch (const std::exception&) {
-        // A destructor's path: the buffers go anyway.
-    }
+    free_where([](const Allocation&) { return true; });
 }
 
 void SharedTrees::free_where(const std::function<bool(const Allocation&)>& drop) {
@@ -84,24 +79,24 @@ void SharedTrees::free_where(const std::function<bool(const Allocation&)>& drop)
         return;
     }
     // On path 1 OpenCL holds the buffers (acquired) outside trace scopes: it gives back those
-    // that go, and its queue finishes, before their memory is freed.
-    std::exception_ptr failed;
-    try {
-        if (path_ == vk::SharingPath::opaque_fd && !tracing_) {
-            for (const auto& a : allocations_) {
-                if (drop(*a)) {
+    // that go, and its queue finishes, before their memory is freed. Each step is tried
+    // whatever the others did; the memory goes in any case (the world no longer uses it), and
+    // a device that failed here reports it at its next command.
+    if (path_ == vk::SharingPath::opaque_fd && !tracing_) {
+        for (const auto& a : allocations_) {
+            if (drop(*a)) {
+                try {
                     ocl::release_external(cl_, a->buffer);
+                } catch (const std::exception&) {
                 }
             }
         }
+    }
+    try {
         cl_.queue().finish();
     } catch (const std::exception&) {
-        failed = std::current_exception();
     }
     std::erase_if(allocations_, [&](const std::unique_ptr<Allocation>& a) { return drop(*a); });
-    if (failed) {
-        std::rethrow_exception(failed);
-    }
 }
 
 ocl::TreeAllocator SharedTrees::allocator() {

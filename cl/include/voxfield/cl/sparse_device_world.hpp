@@ -194,13 +194,20 @@ class SparseDeviceWorld {
     void release_slots_if_needed();
     // Makes sure `n` slots can be taken without allocating. When the slot buffers cannot grow
     // (an allocation refused) while slots are in use, the world is uploaded whole first (the
-    // host world brought up to date), which frees them all; else the error propagates.
-    void reserve_slots(std::size_t n);
+    // host world brought up to date), which frees them all, and it returns true; growth is then
+    // not tried again (later edits upload whole when the slots are full). Else the error
+    // propagates.
+    bool reserve_slots(std::size_t n);
+    bool growth_refused_ = false;
     void host_changed_seen();
     Box host_apply_brush(const Brush& brush);
     // Per tile of `keys` a fresh slot into host_slots_ (never the one its previous tree lies
     // in: slots freed here are taken by later edits only).
     void take_edit_slots(const std::vector<std::uint64_t>& keys);
+    // take_edit_slots undone (the enqueue of the edit failed): the keys' previous slots back.
+    void untake_edit_slots(const std::vector<std::uint64_t>& keys);
+    static constexpr std::uint32_t kNoSlot = ~std::uint32_t{0};
+    std::vector<std::uint32_t> previous_slots_;  // per key of the last take_edit_slots
     // The edited tiles `keys` now live in host_slots_: the directory points there, the host lags.
     void commit_edit_slots(const std::vector<std::uint64_t>& keys);
     // The pinned table of an edit of `tiles` tiles (sparse_world.cl's header and records), once

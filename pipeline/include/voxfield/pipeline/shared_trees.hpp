@@ -105,7 +105,8 @@ class SharedTrees {
     // The world dropped buffers: frees every allocation but those it `kept`.
     void dropped(const std::vector<cl::Buffer>& kept);
     const Allocation* allocation_of(const cl::Buffer& buffer) const;
-    // Frees the allocations `drop` selects, OpenCL's hold on them given back first (path 1).
+    // Frees the allocations `drop` selects, OpenCL's hold on them given back first (path 1);
+    // throws nothing.
     void free_where(const std::function<bool(const Allocation&)>& drop);
     std::vector<vk::SharedTreeSet> sets_of(const ocl::SparseDeviceWorld::TreeBuffers& b) const;
     void free_unused(const ocl::SparseDeviceWorld::TreeBuffers& b);
