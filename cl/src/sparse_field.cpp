@@ -715,23 +715,19 @@ double SparseField::run() {
     slot_keys_ = keys;
     const Dims block = tile_block(wd, halo_);
     // Distinct entries of tiles_ are set on each thread (find() does not change the map).
-    parallel_ranges(
-        keys.size(), range_threads(keys.size(), 4096),
-        [&](std::size_t, std::size_t first, std::size_t end) {
-            for (std::size_t slot = first; slot < end; ++slot) {
-                const std::uint64_t key = keys[slot];
-                tiles_.find(key)->second = static_cast<std::uint32_t>(slot);
-                if (!blocks) {
-                    continue;
-                }
-                const Int3 t = tile_of_key(key);
-                const std::int64_t s = kTileSize;
-                const Box region = intersect(
-                    Box{{t.x * s, t.y * s, t.z * s}, {(t.x + 1) * s, (t.y + 1) * s, (t.z + 1) * s}},
-                    all);
-                jobs[slot] = {region, tile_origin(t.x, t.y, t.z, wd, block, halo_)};
-            }
-        });
+    parallel_ranges(keys.size(), range_threads(keys.size(), 4096),
+                    [&](std::size_t, std::size_t first, std::size_t end) {
+                        for (std::size_t slot = first; slot < end; ++slot) {
+                            const std::uint64_t key = keys[slot];
+                            tiles_.find(key)->second = static_cast<std::uint32_t>(slot);
+                            if (!blocks) {
+                                continue;
+                            }
+                            const Int3 t = tile_of_key(key);
+                            const Box region = intersect(tile_voxels(t), all);
+                            jobs[slot] = {region, tile_origin(t.x, t.y, t.z, wd, block, halo_)};
+                        }
+                    });
     coarse_host_.assign(slot_keys_.size() * 64 * elem_, 0);
     lap("jobs");
     double ms = blocks ? compute(jobs, block) : sweep();
@@ -884,12 +880,9 @@ SparseField::Update SparseField::write_tiles(const cl::Buffer& vox,
                                              const std::vector<Int3>& tiles) {
     std::vector<SparseDeviceWorld::DenseTile> dense;
     std::vector<Box> boxes;
-    const std::int64_t ts = kTileSize;
     for (std::size_t i = 0; i < tiles.size(); ++i) {
-        const Int3 t = tiles[i];
-        dense.push_back({t, i * std::uint64_t{kTileVoxels}});
-        boxes.push_back(
-            {{t.x * ts, t.y * ts, t.z * ts}, {(t.x + 1) * ts, (t.y + 1) * ts, (t.z + 1) * ts}});
+        dense.push_back({tiles[i], i * std::uint64_t{kTileVoxels}});
+        boxes.push_back(tile_voxels(tiles[i]));
     }
     return apply_dense_tiles(vox, kTileSize, kTileSize * kTileSize, dense, boxes);
 }
@@ -969,8 +962,7 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
     std::map<std::uint64_t, Box> parts;
     for (const Box& r : regions) {
         for_each_tile(tiles_of(r), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
-            const Box part =
-                intersect(r, Box{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}});
+            const Box part = intersect(r, tile_voxels({x, y, z}));
             Box& p = parts[tile_key(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
                                     static_cast<std::uint32_t>(z))];
             p = p.empty() ? part : hull(p, part);
@@ -1101,8 +1093,7 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
         for (std::size_t i = k; i < merged.size(); ++i) {
             const Box& r = merged[i];
             for_each_tile(tiles_of(r), [&](std::int64_t x, std::int64_t y, std::int64_t z) {
-                const Box part = intersect(
-                    r, Box{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}});
+                const Box part = intersect(r, voxfield::tile_voxels({x, y, z}));
                 Box& p = large_parts[tile_key(static_cast<std::uint32_t>(x),
                                               static_cast<std::uint32_t>(y),
                                               static_cast<std::uint32_t>(z))];
@@ -1284,8 +1275,7 @@ std::vector<std::uint8_t> SparseField::read_box(const Box& box) {
         if (it == tiles_.end()) {
             return;
         }
-        const Box part =
-            intersect(clipped, Box{{x * s, y * s, z * s}, {(x + 1) * s, (y + 1) * s, (z + 1) * s}});
+        const Box part = intersect(clipped, tile_voxels({x, y, z}));
         if (it->second == kInsideTile) {
             for (std::size_t i = 0; i < kTileVoxels; ++i) {
                 std::memcpy(tile.data() + i * elem_, inside_.data(), elem_);

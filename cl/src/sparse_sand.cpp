@@ -38,11 +38,6 @@ cl_int4 int4_of(std::int64_t x, std::int64_t y, std::int64_t z) {
     return {{static_cast<cl_int>(x), static_cast<cl_int>(y), static_cast<cl_int>(z), 0}};
 }
 
-Box tile_box_of(const Int3& t) {
-    const std::int64_t s = kTileSize;
-    return {{t.x * s, t.y * s, t.z * s}, {(t.x + 1) * s, (t.y + 1) * s, (t.z + 1) * s}};
-}
-
 }  // namespace
 
 SparseSand::SparseSand(Context& ctx, SparseField& field, const SandRules& rules)
@@ -83,7 +78,7 @@ void SparseSand::activate_sandy(std::uint64_t s) {
         const auto last = first + w.material_counts()[t];
         if (std::any_of(first, last,
                         [&](std::uint8_t v) { return v == rules_.sand || v == rules_.water; })) {
-            active_.emplace_back(tile_box_of(w.tile_coord(t)), s + kPeriod - 1);
+            active_.emplace_back(tile_voxels(w.tile_coord(t)), s + kPeriod - 1);
         }
     }
 }

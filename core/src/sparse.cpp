@@ -360,10 +360,7 @@ Int3 SparseWorld::tile_coord(std::uint32_t tile) const {
 }
 
 Box SparseWorld::tile_box(std::uint32_t tile) const {
-    const Int3 t = tile_coord(tile);
-    const Box b{{t.x * kTileSize, t.y * kTileSize, t.z * kTileSize},
-                {(t.x + 1) * kTileSize, (t.y + 1) * kTileSize, (t.z + 1) * kTileSize}};
-    return intersect(b, Box{{0, 0, 0}, {dims_.x, dims_.y, dims_.z}});
+    return intersect(tile_voxels(tile_coord(tile)), Box{{0, 0, 0}, {dims_.x, dims_.y, dims_.z}});
 }
 
 std::size_t SparseWorld::hash_slot(std::uint64_t key) const {

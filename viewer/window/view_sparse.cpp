@@ -83,10 +83,8 @@ constexpr std::uint64_t kUndoBytes = std::uint64_t{1024} * kTileVoxels;
 // The box of whole tiles `tiles` (tile coordinates).
 Box tiles_box(const std::vector<Int3>& tiles) {
     Box b;
-    const std::int64_t ts = kTileSize;
     for (const Int3& t : tiles) {
-        const Box tb{{t.x * ts, t.y * ts, t.z * ts},
-                     {(t.x + 1) * ts, (t.y + 1) * ts, (t.z + 1) * ts}};
+        const Box tb = tile_voxels(t);
         b = b.empty() ? tb : hull(b, tb);
     }
     return b;
@@ -196,6 +194,18 @@ vk::SparseTileUpdate feed_tracer(pipeline::SharedTrees& shared, ocl::SparseField
         return shared.sync(tracer, field.device_world(), dims, palette, changed);
     }
     return tracer.update_tiles(field.world(), changed);
+}
+
+// The same after a change listed by tiles (a sand step, an undo): those tiles repointed on paths
+// 1 and 2; on path 3 the box `bounds` of the change rewritten (nothing when it is empty).
+void feed_tracer(pipeline::SharedTrees& shared, ocl::SparseField& field, vk::SparseTracer& tracer,
+                 const Palette& palette, const Dims& dims, const std::vector<Int3>& tiles,
+                 const Box& bounds) {
+    if (shared.shares()) {
+        shared.sync(tracer, field.device_world(), dims, palette, tiles);
+    } else if (!bounds.empty()) {
+        tracer.update_tiles(field.world(), bounds);
+    }
 }
 
 // One edit through the device: the world and field edited there, the tracer told (feed_tracer);
@@ -413,11 +423,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
                     std::cout << (undo ? "nothing to undo\n" : "nothing to redo\n");
                 } else {
                     const Box box = tiles_box(*tiles);
-                    if (shared.shares()) {
-                        shared.sync(tracer, field.device_world(), dims, palette, *tiles);
-                    } else {
-                        tracer.update_tiles(field.world(), box);
-                    }
+                    feed_tracer(shared, field, tracer, palette, dims, *tiles, box);
                     if (sand) {
                         sand->touched(box);
                     }
@@ -484,11 +490,7 @@ int run_view_sparse(ViewCliOptions& o, const ViewInputs& in, Window& window,
             const ocl::SparseSand::Step st = sand->step(o.seed, sand_step++);
             simulate_ms = st.simulate_ms;
             sand_changed = static_cast<std::size_t>(st.changed);
-            if (shared.shares()) {
-                shared.sync(tracer, field.device_world(), dims, palette, st.tiles);
-            } else if (!st.bounds.empty()) {
-                tracer.update_tiles(field.world(), st.bounds);
-            }
+            feed_tracer(shared, field, tracer, palette, dims, st.tiles, st.bounds);
             update_ms += ms_since(t_step);
             info.sand_steps = sand_step;
             info.sand_ms = ms_since(t_step);

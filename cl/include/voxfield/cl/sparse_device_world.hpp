@@ -198,7 +198,8 @@ class SparseDeviceWorld {
     // not tried again (later edits upload whole when the slots are full). Else the error
     // propagates.
     bool reserve_slots(std::size_t n);
-    bool growth_refused_ = false;
+    // A tile leaves the main buffers (into a slot, or removed): its counts leave main_counts_.
+    void leave_main(std::uint64_t key);
     void host_changed_seen();
     Box host_apply_brush(const Brush& brush);
     // Per tile of `keys` a fresh slot into host_slots_ (never the one its previous tree lies
@@ -206,8 +207,6 @@ class SparseDeviceWorld {
     void take_edit_slots(const std::vector<std::uint64_t>& keys);
     // take_edit_slots undone (the enqueue of the edit failed): the keys' previous slots back.
     void untake_edit_slots(const std::vector<std::uint64_t>& keys);
-    static constexpr std::uint32_t kNoSlot = ~std::uint32_t{0};
-    std::vector<std::uint32_t> previous_slots_;  // per key of the last take_edit_slots
     // The edited tiles `keys` now live in host_slots_: the directory points there, the host lags.
     void commit_edit_slots(const std::vector<std::uint64_t>& keys);
     // The pinned table of an edit of `tiles` tiles (sparse_world.cl's header and records), once
@@ -232,12 +231,16 @@ class SparseDeviceWorld {
     // when it goes into a slot or is removed.
     std::unordered_map<std::uint64_t, std::pair<std::uint32_t, std::uint32_t>> main_counts_;
     std::uint64_t main_nodes_ = 0, main_materials_ = 0;
-    void leave_main(std::uint64_t key);
     // Slots: buffers of slot_capacity_ worst-case tiles, per slot its node and material counts.
     cl::Buffer slot_masks_, slot_offsets_, slot_materials_, slot_counts_;
     std::size_t slot_capacity_ = 0;
     std::unordered_map<std::uint64_t, std::uint32_t> slot_of_;
     std::vector<std::uint32_t> free_slots_;
+    // Per key of the last take_edit_slots, its previous slot (kNoSlot: none), for
+    // untake_edit_slots.
+    static constexpr std::uint32_t kNoSlot = ~std::uint32_t{0};
+    std::vector<std::uint32_t> previous_slots_;
+    bool growth_refused_ = false;  // a slot growth was refused (reserve_slots)
     std::size_t slots_made_ = 0;
     // Tiles edited on the device that the host world lacks.
     std::unordered_set<std::uint64_t> lagging_;

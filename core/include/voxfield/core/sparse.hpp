@@ -51,6 +51,12 @@ inline Int3 tile_of_key(std::uint64_t key) {
 // The tiles (tile grid coordinates) a box of voxels with non-negative corners overlaps, x
 // fastest, then y, then z; none for an empty box.
 std::vector<Int3> tiles_overlapping(const Box& voxels);
+// The voxels of tile `tile` (tile grid coordinates), whole: not clipped to any world.
+inline Box tile_voxels(const Int3& tile) {
+    const std::int64_t s = kTileSize;
+    return {{tile.x * s, tile.y * s, tile.z * s},
+            {(tile.x + 1) * s, (tile.y + 1) * s, (tile.z + 1) * s}};
+}
 
 // Fills `out` (box.volume() bytes, x fastest, then y, then z) with the voxels of `box`.
 using BoxFill = std::function<void(const Box& box, std::span<std::uint8_t> out)>;
