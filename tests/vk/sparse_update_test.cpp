@@ -59,6 +59,45 @@ TEST(SparseUpdate, RandomEditsEqualAFreshUpload) {
     EXPECT_GT(tracer.stats().arena_tiles, 0u);
 }
 
+// An update submits nothing of its own: its copies go in the next trace's submission, before
+// the dispatch; a second update before any trace submits the first's copies first (one
+// submission), so that no submission copies to the same place twice.
+TEST(SparseUpdate, CopiesGoWithTheNextTrace) {
+    REQUIRE_VULKAN(ctx);
+    SparseWorld world = city(Dims{200, 100, 180}, 12);
+    const Palette palette = Palette::magicavoxel_default();
+    vk::SparseTracer tracer(*ctx);
+    tracer.upload(world, palette);
+    const vk::RenderOptions view = views(world).front();
+    tracer.trace(view);
+    const auto edit = [&](std::int64_t x, std::uint8_t material) {
+        return tracer.update_tiles(
+            world, apply_brush(
+                       world, brush(BrushOp::place, BrushShape::sphere, {x, 60, 90}, 9, material)));
+    };
+    const std::uint64_t first = ctx->next_serial();
+    vk::SparseTileUpdate u = edit(40, 3);
+    EXPECT_GT(u.bytes, 0u);
+    EXPECT_EQ(ctx->next_serial(), first) << "the update submitted its copies itself";
+    tracer.trace(view);
+    EXPECT_EQ(ctx->next_serial(), first + 1) << "the copies and the trace: one submission";
+    expect_as_fresh(*ctx, tracer, world, palette, "after one update");
+    // The same tiles written twice before a trace, then more: their places in the arena and
+    // their records staged again each time.
+    const std::uint64_t second = ctx->next_serial();
+    edit(40, 4);
+    EXPECT_EQ(ctx->next_serial(), second);
+    edit(40, 5);
+    EXPECT_EQ(ctx->next_serial(), second + 1) << "the first update's copies, submitted first";
+    edit(150, 6);
+    EXPECT_EQ(ctx->next_serial(), second + 2);
+    expect_as_fresh(*ctx, tracer, world, palette, "after three updates without a trace");
+    // A whole upload drops copies staged for the buffers it replaces.
+    edit(100, 7);
+    tracer.upload(world, palette);
+    expect_as_fresh(*ctx, tracer, world, palette, "after an update and a whole upload");
+}
+
 TEST(SparseUpdate, TilesMadeInEmptySpaceAndEmptiedByErasing) {
     REQUIRE_VULKAN(ctx);
     // Solid only near the origin: most directory blocks (512^3 voxels) hold no page.

@@ -162,7 +162,9 @@ struct SparseTracer::Impl {
     int arena_nodes_chunk = -1, arena_materials_chunk = -1;
     std::uint64_t arena_node_cap = 0, arena_node_used = 0, arena_mat_cap = 0, arena_mat_used = 0;
     std::unordered_map<std::uint32_t, ArenaTile> arena;
-    // Copies staged for one submission: into dst at `at` from the staging bytes at `from`.
+    // Copies staged by one update_tiles or repoint: into dst at `at` from the staging bytes at
+    // `from`. They go with the next trace's submission (no submission of their own); the next
+    // update submits them first (flush) when no trace came in between.
     struct Copy {
         VkBuffer dst;
         VkDeviceSize at, size, from;
@@ -226,7 +228,14 @@ struct SparseTracer::Impl {
     std::vector<bool> set_shared(const std::vector<SharedTreeSet>& sets);
     void write_shared_record(std::uint32_t record, const SharedTile& t);
     void stage(const Buffer& dst, VkDeviceSize at, const void* data, VkDeviceSize size);
+    // The staged bytes into the staging buffer (grown when they do not fit).
+    void fill_staging();
+    // The staged copies into `cmd`: after earlier reads and copies, before later shader reads.
+    void record_copies(VkCommandBuffer cmd);
+    // Submits the staged copies now and waits for them (nothing when none).
     void flush(const std::string& what);
+    // Forgets the staged copies (done, or their buffers about to be replaced whole).
+    void discard_copies();
     void count_bytes();
     std::uint64_t block_of(const Int3& c) const;
     std::uint32_t& page_entry(std::uint32_t page, const Int3& c);
@@ -302,6 +311,7 @@ void SparseTracer::upload(const SparseWorld& world, const Palette& palette) {
 void SparseTracer::Impl::upload_all(const SparseWorld& world) {
     Impl& m = *this;
     m.ctx.wait_frames_in_flight();  // renders wait for their work; nothing reads the buffers
+    m.discard_copies();             // their buffers are replaced
     m.loaded = false;
     m.stats = SparseDeviceStats{};
     m.shared = false;
@@ -468,10 +478,7 @@ void SparseTracer::Impl::stage(const Buffer& dst, VkDeviceSize at, const void* d
     copies.push_back(Copy{dst.get(), at, size, from});
 }
 
-void SparseTracer::Impl::flush(const std::string& what) {
-    if (copies.empty()) {
-        return;
-    }
+void SparseTracer::Impl::fill_staging() {
     if (staging.size() < staged.size()) {
         staging = Buffer{};
         staging = ctx.make_buffer(std::max<VkDeviceSize>(staged.size(), VkDeviceSize{1} << 20),
@@ -479,36 +486,45 @@ void SparseTracer::Impl::flush(const std::string& what) {
                                   "sparse tracer staging");
     }
     std::memcpy(staging.data(), staged.data(), staged.size());
-    ctx.submit_and_wait(
-        [&](VkCommandBuffer cmd) {
-            // After the last trace's reads and the previous update's copies.
-            VkMemoryBarrier before{};
-            before.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-            before.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-            before.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-            vkCmdPipelineBarrier(
-                cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
-                VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &before, 0, nullptr, 0, nullptr);
-            std::size_t i = 0;
-            while (i < copies.size()) {
-                std::vector<VkBufferCopy> regions;
-                const VkBuffer dst = copies[i].dst;
-                for (; i < copies.size() && copies[i].dst == dst; ++i) {
-                    regions.push_back(VkBufferCopy{copies[i].from, copies[i].at, copies[i].size});
-                }
-                vkCmdCopyBuffer(cmd, staging.get(), dst, static_cast<std::uint32_t>(regions.size()),
-                                regions.data());
-            }
-            // Before the next trace reads them.
-            VkMemoryBarrier after{};
-            after.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
-            after.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-            after.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
-            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &after, 0, nullptr, 0,
-                                 nullptr);
-        },
-        what);
+}
+
+void SparseTracer::Impl::record_copies(VkCommandBuffer cmd) {
+    // After the last trace's reads and the previous update's copies.
+    VkMemoryBarrier before{};
+    before.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+    before.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    before.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1, &before, 0, nullptr, 0, nullptr);
+    std::size_t i = 0;
+    while (i < copies.size()) {
+        std::vector<VkBufferCopy> regions;
+        const VkBuffer dst = copies[i].dst;
+        for (; i < copies.size() && copies[i].dst == dst; ++i) {
+            regions.push_back(VkBufferCopy{copies[i].from, copies[i].at, copies[i].size});
+        }
+        vkCmdCopyBuffer(cmd, staging.get(), dst, static_cast<std::uint32_t>(regions.size()),
+                        regions.data());
+    }
+    // Before the next trace reads them.
+    VkMemoryBarrier after{};
+    after.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+    after.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    after.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                         0, 1, &after, 0, nullptr, 0, nullptr);
+}
+
+void SparseTracer::Impl::flush(const std::string& what) {
+    if (copies.empty()) {
+        return;
+    }
+    fill_staging();
+    ctx.submit_and_wait([&](VkCommandBuffer cmd) { record_copies(cmd); }, what);
+    discard_copies();
+}
+
+void SparseTracer::Impl::discard_copies() {
     staged.clear();
     copies.clear();
 }
@@ -655,6 +671,9 @@ SparseTileUpdate SparseTracer::update_tiles(const SparseWorld& world, const Box&
         return u;
     }
     m.ctx.wait_frames_in_flight();
+    // The previous update's copies when no trace took them: before any of their buffers is
+    // replaced, and so that one submission never copies twice to the same place.
+    m.flush("sparse tracer: the previous tile update");
     // The tiles the box overlaps: each one's tile in the world (or none) and its record.
     struct Touched {
         Int3 c;
@@ -690,8 +709,6 @@ SparseTileUpdate SparseTracer::update_tiles(const SparseWorld& world, const Box&
         return u;
     }
     if (!m.arena_fit(world, nodes, materials, dropping, u.arena_rebuilt)) {
-        m.staged.clear();
-        m.copies.clear();
         m.upload_all(world);
         u.whole = true;
         u.bytes = m.stats.bytes;
@@ -722,8 +739,7 @@ SparseTileUpdate SparseTracer::update_tiles(const SparseWorld& world, const Box&
     }
     // The arena is chunk 0, bound, when the world had none: a rebuilt one is bound again.
     const bool rebind = m.stage_directory(e) || u.arena_rebuilt;
-    u.bytes = m.staged.size();
-    m.flush("sparse tracer tile update");
+    u.bytes = m.staged.size();  // copied by the next trace
     m.count_bytes();
     if (rebind) {
         m.write_set();
@@ -852,6 +868,7 @@ void SparseTracer::upload_shared(Dims dims, const Palette& palette,
         m.colours[i] = pack_rgba(palette[static_cast<std::uint8_t>(i)]);
     }
     m.ctx.wait_frames_in_flight();
+    m.discard_copies();  // their buffers are replaced
     m.loaded = false;
     m.stats = SparseDeviceStats{};
     // The copy's chunks go: nothing of the trees is the tracer's.
@@ -884,6 +901,8 @@ SparseTileUpdate SparseTracer::repoint(const std::vector<SharedTreeSet>& sets,
     m.ctx.wait_frames_in_flight();
     SparseTileUpdate u;
     try {
+        // As in update_tiles: the previous repoint's copies when no trace took them.
+        m.flush("sparse tracer: the previous repoint");
         Impl::DirectoryEdit e;
         // Tiles in a set whose memory was replaced: the same places in the new memory.
         const std::vector<bool> moved = m.set_shared(sets);
@@ -921,8 +940,7 @@ SparseTileUpdate SparseTracer::repoint(const std::vector<SharedTreeSet>& sets,
             ++u.tiles_written;
         }
         const bool rebind = m.stage_directory(e);
-        u.bytes = m.staged.size();
-        m.flush("sparse tracer repoint");
+        u.bytes = m.staged.size();  // copied by the next trace
         m.count_bytes();
         if (rebind) {
             m.write_set();
@@ -930,8 +948,7 @@ SparseTileUpdate SparseTracer::repoint(const std::vector<SharedTreeSet>& sets,
     } catch (...) {
         // Records may point at memory the sets no longer view: nothing is traced until a whole
         // upload_shared.
-        m.staged.clear();
-        m.copies.clear();
+        m.discard_copies();
         m.loaded = false;
         m.shared_sets.clear();
         throw;
@@ -942,6 +959,7 @@ SparseTileUpdate SparseTracer::repoint(const std::vector<SharedTreeSet>& sets,
 void SparseTracer::drop_shared() {
     Impl& m = *impl_;
     m.ctx.wait_frames_in_flight();
+    m.discard_copies();
     m.loaded = false;
     m.shared_sets.clear();
 }
@@ -1116,8 +1134,16 @@ double SparseTracer::Impl::dispatch(const RenderOptions& o, Image* out) {
                        !m.shared && m.masks.size() <= 1 && m.materials.size() <= 1);
     const VkImage image = m.target.image.get();
     const VkQueryPool timer = m.queries.get();
+    // The last update's copies go first in the trace's own submission.
+    const bool copying = !m.copies.empty();
+    if (copying) {
+        m.fill_staging();
+    }
     m.ctx.submit_and_wait(
         [&](VkCommandBuffer cmd) {
+            if (copying) {
+                m.record_copies(cmd);
+            }
             const VkImageMemoryBarrier to_general =
                 color_barrier(image, 0, VK_ACCESS_SHADER_WRITE_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                               VK_IMAGE_LAYOUT_GENERAL);
@@ -1197,6 +1223,7 @@ double SparseTracer::Impl::dispatch(const RenderOptions& o, Image* out) {
                 VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &to_host, 0, nullptr, 0, nullptr);
         },
         "sparse trace " + std::to_string(o.width) + "x" + std::to_string(o.height));
+    m.discard_copies();  // done (after a failed submission they stay, for the next trace)
     double ms = -1;
     if (timer != VK_NULL_HANDLE) {
         ms = timestamp_pair_ms(m.ctx, timer, 0, true, "sparse trace timestamps");

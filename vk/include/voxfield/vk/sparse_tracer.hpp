@@ -105,7 +105,9 @@ class SparseTracer {
     // extra node chunk and material chunk, grown by doubling, its superseded trees dropped when
     // it grows), its directory entry repointed, added (a page made for a block that had none)
     // or removed (the page freed when it empties). Only when the arena's live trees would
-    // exceed one binding the world is uploaded whole.
+    // exceed one binding the world is uploaded whole. The bytes are staged on the host and
+    // copied in the next trace's submission, before its dispatch (no submission of their own;
+    // a second update before that trace submits the first's copies first).
     // logic_error before an upload or for a world of other dims.
     SparseTileUpdate update_tiles(const SparseWorld& world, const Box& changed);
 
@@ -125,8 +127,9 @@ class SparseTracer {
     // was replaced): `sets` as they are now (a set whose memory changed: its tiles' records
     // written again, same places in the new memory), `tiles` whose tree is now elsewhere or
     // new to the directory, `removed` tiles no longer stored (those the directory lacks are
-    // ignored). Only records, pages and block entries are copied. logic_error before
-    // upload_shared. After an exception the tracer traces nothing until upload_shared.
+    // ignored). Only records, pages and block entries are copied, as update_tiles copies: in
+    // the next trace's submission. logic_error before upload_shared. After an exception the
+    // tracer traces nothing until upload_shared.
     SparseTileUpdate repoint(const std::vector<SharedTreeSet>& sets,
                              const std::vector<SharedTile>& tiles,
                              const std::vector<Int3>& removed);
