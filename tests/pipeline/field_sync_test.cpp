@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "../cl/cl_test_util.hpp"
+#include "../scoped_env.hpp"
 #include "../vk/vulkan_env.hpp"
 #include "voxfield/cl/interop.hpp"
 #include "voxfield/core/format.hpp"
@@ -37,30 +38,6 @@ ocl::Context& default_opencl() {
         std::make_unique<ocl::Context>(ocl::select_device(""));
     return *ctx;
 }
-
-// Sets an environment variable for a scope, restoring what was there.
-class ScopedEnv {
-  public:
-    ScopedEnv(const char* name, const char* value) : name_(name) {
-        if (const char* old = std::getenv(name)) {
-            old_ = old;
-        }
-        setenv(name, value, 1);
-    }
-    ~ScopedEnv() {
-        if (old_) {
-            setenv(name_, old_->c_str(), 1);
-        } else {
-            unsetenv(name_);
-        }
-    }
-    ScopedEnv(const ScopedEnv&) = delete;
-    ScopedEnv& operator=(const ScopedEnv&) = delete;
-
-  private:
-    const char* name_;
-    std::optional<std::string> old_;
-};
 
 std::unique_ptr<pipeline::FramePipeline> make_pipeline(ocl::Context& cl, bool semaphores) {
     std::optional<ScopedEnv> off;

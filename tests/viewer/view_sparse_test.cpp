@@ -17,6 +17,7 @@
 
 #include "../cli/cli_test_util.hpp"
 #include "../cli/far_grid_util.hpp"
+#include "../scoped_env.hpp"
 #include "voxfield/core/brush.hpp"
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/palette.hpp"
@@ -62,30 +63,6 @@ World test_world() {
     }
     return w;
 }
-
-// Sets an environment variable for the voxfield processes a test starts, restored after.
-class ScopedEnv {
-  public:
-    ScopedEnv(const char* name, const char* value) : name_(name) {
-        if (const char* old = std::getenv(name)) {
-            old_ = old;
-        }
-        ::setenv(name, value, 1);
-    }
-    ~ScopedEnv() {
-        if (old_) {
-            ::setenv(name_, old_->c_str(), 1);
-        } else {
-            ::unsetenv(name_);
-        }
-    }
-    ScopedEnv(const ScopedEnv&) = delete;
-    ScopedEnv& operator=(const ScopedEnv&) = delete;
-
-  private:
-    const char* name_;
-    std::optional<std::string> old_;
-};
 
 // The material grid of `vdb` read back equals `w` voxel for voxel. A .vdb is read from its
 // solids' box, which starts at the origin for the worlds here (their floors hold voxel 0, 0, 0).

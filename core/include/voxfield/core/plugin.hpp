@@ -1,0 +1,35 @@
+#pragma once
+// Shared objects loaded on first use (dlopen), for libraries too costly to load at every
+// process start: linking OpenVDB makes the dynamic loader bind about 57 000 symbols, about 45 ms
+// before main on this project's VM, paid by every command whether it reads a .vdb or not. A
+// plugin's entry returns a table whose first member is the build's id, so that a plugin of
+// another build (an older install beside a newer build tree) is passed over.
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace voxfield {
+
+// The first member of every plugin table.
+struct PluginHeader {
+    const char* build_id;
+};
+
+struct PluginSpec {
+    std::string what;  // for messages: "the OpenVDB plugin"
+    std::string file;  // its file name: "libvoxfield_vdb.so"
+    std::string env;   // the environment variable that names its path instead of `places`
+    std::vector<std::filesystem::path> places;  // folders looked in, in order
+    std::string entry;     // the C symbol of its entry, `const PluginHeader* entry()`
+    std::string build_id;  // what the table's build_id must be
+};
+
+// The entry's table from the first place that holds a plugin of this build; loaded once per
+// path and never unloaded. std::runtime_error naming every place tried and why, when none does.
+const PluginHeader* load_plugin(const PluginSpec& spec);
+
+// <prefix>/lib/voxfield for a binary at <prefix>/bin (build/lib/voxfield for build/viewer), or an
+// empty path when the running binary's path is unknown.
+std::filesystem::path plugin_dir_beside_binary();
+
+}  // namespace voxfield

@@ -1,0 +1,80 @@
+// Plugins loaded on first use (voxfield/core/plugin.hpp).
+#include "voxfield/core/plugin.hpp"
+
+#include <dlfcn.h>
+
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <mutex>
+#include <stdexcept>
+#include <system_error>
+
+namespace voxfield {
+
+namespace fs = std::filesystem;
+
+const PluginHeader* load_plugin(const PluginSpec& spec) {
+    static std::mutex mutex;
+    static std::map<std::string, const PluginHeader*> loaded;  // by path
+    const std::lock_guard lock(mutex);
+    std::vector<fs::path> paths;
+    const char* named = spec.env.empty() ? nullptr : std::getenv(spec.env.c_str());
+    if (named != nullptr && *named != '\0') {
+        paths.emplace_back(named);
+    } else {
+        for (const fs::path& dir : spec.places) {
+            if (!dir.empty()) {
+                paths.push_back(dir / spec.file);
+            }
+        }
+    }
+    std::string tried;
+    for (const fs::path& path : paths) {
+        const std::string p = path.string();
+        if (const auto it = loaded.find(p); it != loaded.end()) {
+            return it->second;
+        }
+        std::string why;
+        std::error_code ec;
+        if (!fs::exists(path, ec)) {
+            why = "not there";
+        } else if (void* handle = dlopen(p.c_str(), RTLD_NOW | RTLD_LOCAL); handle == nullptr) {
+            const char* e = dlerror();
+            why = e != nullptr ? e : "dlopen failed";
+        } else if (void* entry = dlsym(handle, spec.entry.c_str()); entry == nullptr) {
+            why = "no entry " + spec.entry;
+            dlclose(handle);
+        } else {
+            const auto get = reinterpret_cast<const PluginHeader* (*)()>(entry);
+            const PluginHeader* table = get();
+            if (table == nullptr || table->build_id == nullptr ||
+                spec.build_id != table->build_id) {
+                why = "of another build (" +
+                      std::string(table != nullptr && table->build_id != nullptr ? table->build_id
+                                                                                 : "none") +
+                      ", this one is " + spec.build_id + ")";
+                dlclose(handle);
+            } else {
+                loaded.emplace(p, table);
+                return table;
+            }
+        }
+        tried += (tried.empty() ? "" : "; ") + p + ": " + why;
+    }
+    throw std::runtime_error(
+        spec.what + " (" + spec.file + ") could not be loaded" +
+        (tried.empty() ? std::string(": no place to look") : " from any place tried: " + tried) +
+        (spec.env.empty() ? std::string() : " (set " + spec.env + " to its path)"));
+}
+
+fs::path plugin_dir_beside_binary() {
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    if (ec) {
+        return {};
+    }
+    return exe.parent_path().parent_path() / "lib" / "voxfield";
+}
+
+}  // namespace voxfield
