@@ -110,6 +110,8 @@ class PinnedTables {
     void write(cl::CommandQueue& q) {
         q.enqueueWriteBuffer(all_, CL_FALSE, 0, end_, pinned_.data(), nullptr, &pinned_.last());
     }
+    // That write's event.
+    const cl::Event& last_write() { return pinned_.last(); }
 
   private:
     void make(Context& ctx) {

@@ -579,6 +579,35 @@ double elapsed_ms(const cl::Event& first, const cl::Event& last) {
     });
 }
 
+CommandSpan command_span(const std::vector<cl::Event>& commands) {
+    std::vector<std::pair<cl_ulong, cl_ulong>> runs;
+    cl_call("reading profiling info", [&] {
+        for (const cl::Event& e : commands) {
+            if (e() != nullptr) {
+                runs.emplace_back(e.getProfilingInfo<CL_PROFILING_COMMAND_START>(),
+                                  e.getProfilingInfo<CL_PROFILING_COMMAND_END>());
+            }
+        }
+    });
+    CommandSpan s;
+    if (runs.empty()) {
+        return s;
+    }
+    std::sort(runs.begin(), runs.end());
+    cl_ulong busy = 0, covered = runs.front().first, last = runs.front().first;
+    for (const auto& [start, end] : runs) {
+        covered = std::max(covered, start);
+        if (end > covered) {
+            busy += end - covered;
+            covered = end;
+        }
+        last = std::max(last, end);
+    }
+    s.span_ms = static_cast<double>(last - runs.front().first) * 1e-6;
+    s.idle_ms = s.span_ms - static_cast<double>(busy) * 1e-6;
+    return s;
+}
+
 namespace {
 
 constexpr std::size_t kHugePage = std::size_t{2} << 20;

@@ -741,6 +741,7 @@ void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t
     auto& q = ctx_.queue();
     q.enqueueWriteBuffer(table_, CL_FALSE, 0, (kTableHeader + kRecord * tiles + dense_.size()) * 8,
                          pinned_->data(), nullptr, &pinned_->last());
+    edit_write_ = pinned_->last();
     EncodeBuffers b;
     b.vox = vox;
     b.pitch_y = pitch_y;
@@ -781,6 +782,18 @@ std::vector<std::pair<std::string, double>> SparseDeviceWorld::last_edit_stages(
         }
     });
     return stages;
+}
+
+std::vector<cl::Event> SparseDeviceWorld::last_edit_commands() const {
+    std::vector<cl::Event> commands;
+    if (edit_events_.empty()) {
+        return commands;  // an edit that enqueued nothing (or the host's)
+    }
+    commands.push_back(edit_write_);
+    for (const auto& [name, e] : edit_events_) {
+        commands.push_back(e);
+    }
+    return commands;
 }
 
 cl::Kernel SparseDeviceWorld::gather_kernel(bool per_voxel) {

@@ -865,8 +865,29 @@ SparseField::Update SparseField::update(const Box& changed) {
 }
 
 SparseField::Update SparseField::apply_brush(const Brush& brush) {
+    const auto t0 = Clock::now();
     const Box changed = device_world_.apply_brush(brush);
-    return with_edit_stages(recompute({changed}));
+    const auto t1 = Clock::now();
+    block_times_ = BlockTimes{};
+    block_commands_.clear();
+    Update u = with_edit_stages(recompute({changed}));
+    if (block_times_.set) {
+        const BlockTimes& b = block_times_;
+        const auto ms = [](Clock::time_point from, Clock::time_point to) {
+            return std::chrono::duration<double, std::milli>(to - from).count();
+        };
+        u.host_stages = {{"world edit", ms(t0, t1)},
+                         {"field tables", ms(t1, b.enqueue)},
+                         {"field enqueue", ms(b.enqueue, b.enqueued)},
+                         {"wait", ms(b.enqueued, b.waited)},
+                         {"after", ms(b.waited, Clock::now())}};
+        std::vector<cl::Event> commands = device_world_.last_edit_commands();
+        commands.insert(commands.end(), block_commands_.begin(), block_commands_.end());
+        const CommandSpan span = command_span(commands);
+        u.device_span_ms = span.span_ms;
+        u.device_idle_ms = span.idle_ms;
+    }
+    return u;
 }
 
 SparseField::Update SparseField::apply_dense_tiles(
@@ -1194,7 +1215,9 @@ double SparseField::update_block(const Job& job, Dims block,
     double ms = 0;
     cl_call("updating a sparse field block of " + block.to_string(), [&] {
         auto& q = ctx_.queue();
+        block_times_.enqueue = Clock::now();
         tables_->write(q);
+        block_commands_.push_back(tables_->last_write());
         events.emplace_back("gather", cl::Event());
         enqueue_gather(tables_->buffer(kJobs), tables_->buffer(kRefs), batch.voxels, block, 1,
                        &events.back().second);
@@ -1229,9 +1252,18 @@ double SparseField::update_block(const Job& job, Dims block,
         q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(64, n * 64), cl::NDRange(64, 1),
                                nullptr, &events.back().second);
         // The one wait: the minima read back, every command before them done.
-        q.enqueueReadBuffer(update_minima_, CL_TRUE, 0, n * per, minima_host_->data());
+        block_times_.enqueued = Clock::now();
+        cl::Event read;
+        q.enqueueReadBuffer(update_minima_, CL_TRUE, 0, n * per, minima_host_->data(), nullptr,
+                            &read);
+        block_times_.waited = Clock::now();
+        block_times_.set = true;
         traffic_.enqueues += static_cast<std::uint32_t>(events.size()) + 2;
         ++traffic_.host_waits;
+        for (const auto& [name, e] : events) {
+            block_commands_.push_back(e);
+        }
+        block_commands_.push_back(read);
         for (std::size_t i = 0; i < n; ++i) {
             std::memcpy(coarse_host_.data() + std::size_t{slots[i]} * per,
                         minima_host_->data() + i * per, per);

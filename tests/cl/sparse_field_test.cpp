@@ -15,6 +15,7 @@
 #include "cl_test_util.hpp"
 #include "voxfield/cl/sparse_field.hpp"
 #include "voxfield/core/brush.hpp"
+#include "voxfield/core/clock.hpp"
 #include "voxfield/core/error.hpp"
 #include "voxfield/core/reference.hpp"
 
@@ -583,6 +584,63 @@ TEST(SparseDeviceWorld, RepeatedSmallEditsKeepTheUntouchedNodes) {
                 }
             }
         }
+    }
+}
+
+// An edit of one block says where its wall time went: the host's stages (the world's edit, the
+// field's tables, their enqueue, the wait, what came after) cover the call, and the device's
+// span of its commands holds their idle part. An edit of several blocks says nothing of it.
+TEST(SparseDeviceWorld, OneBlockEditsTellWhereTheirTimeWent) {
+    const Palette p = Palette::magicavoxel_default();
+    const Dims d{300, 90, 140};
+    World w(d);
+    for (std::uint32_t z = 0; z < d.z; ++z) {
+        for (std::uint32_t x = 0; x < d.x; ++x) {
+            for (std::uint32_t y = 0; y < 30 + (x + z) % 20; ++y) {
+                w.set(x, y, z, 7);
+            }
+        }
+    }
+    const std::vector<std::string> names = {"world edit", "field tables", "field enqueue", "wait",
+                                            "after"};
+    for (const Layout layout : kLayouts) {
+        Case c;
+        c.layout = layout;
+        c.bound = 8;
+        SCOPED_TRACE(describe(c, d));
+        SparseWorld s = SparseWorld::from_dense(w);
+        ocl::SparseField f(pocl(), s, p, options_of(c));
+        f.run();
+        for (int e = 0; e < 4; ++e) {
+            Brush b;
+            b.op = e % 2 == 0 ? BrushOp::place : BrushOp::erase;
+            b.centre = {30 + 70 * e, 40, 70};
+            b.radius = 8;
+            b.material = 3;
+            const auto t0 = Clock::now();
+            const ocl::SparseField::Update u = f.apply_brush(b);
+            const double wall = ms_since(t0);
+            ASSERT_EQ(u.host_stages.size(), names.size()) << "edit " << e;
+            double sum = 0;
+            for (std::size_t i = 0; i < names.size(); ++i) {
+                EXPECT_EQ(u.host_stages[i].first, names[i]);
+                EXPECT_GE(u.host_stages[i].second, 0.0) << names[i];
+                sum += u.host_stages[i].second;
+            }
+            EXPECT_LE(sum, wall) << "edit " << e;
+            EXPECT_GE(sum, 0.9 * wall - 0.05) << "edit " << e;
+            EXPECT_GT(u.device_span_ms, 0.0) << "edit " << e;
+            EXPECT_GE(u.device_idle_ms, 0.0) << "edit " << e;
+            EXPECT_LE(u.device_idle_ms, u.device_span_ms) << "edit " << e;
+        }
+        // Two tiles far apart written back (an undo's update): two blocks, nothing said.
+        const std::vector<Int3> apart = {{0, 0, 0}, {4, 1, 2}};
+        const cl::Buffer tiles(pocl().context(), CL_MEM_READ_WRITE,
+                               apart.size() * std::size_t{kTileVoxels});
+        f.device_world().gather_tiles(apart, tiles);
+        const ocl::SparseField::Update u = f.write_tiles(tiles, apart);
+        EXPECT_TRUE(u.host_stages.empty());
+        EXPECT_EQ(u.device_span_ms, 0.0);
     }
 }
 

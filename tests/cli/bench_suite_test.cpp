@@ -354,6 +354,17 @@ TEST_F(BenchSuite, SparseTimesTheFieldAndDeviceEditsAndChecksThemExact) {
         EXPECT_GT(row["solid_voxels"].get<std::uint64_t>(), 0u) << where;
         EXPECT_EQ(row["peak_within_target"].is_boolean(), true) << where;
         EXPECT_TRUE(row.contains("load_average_start")) << where;
+        // Radius-8 edits at D = 6 are one block each: where their time went.
+        EXPECT_EQ(row["edit_single_block_edits"], 3) << where;
+        const json& host = row["edit_host_stage_ms_median"];
+        for (const char* stage : {"world edit", "field tables", "field enqueue", "wait", "after"}) {
+            ASSERT_TRUE(host.contains(stage)) << host.dump() << " lacks " << stage;
+            EXPECT_GE(host[stage].get<double>(), 0.0) << stage;
+        }
+        EXPECT_GT(row["edit_device_span_ms_median"].get<double>(), 0.0) << where;
+        EXPECT_LE(row["edit_device_idle_ms_median"].get<double>(),
+                  row["edit_device_span_ms_median"].get<double>())
+            << where;
     }
     for (const std::vector<std::string>& bad : {std::vector<std::string>{"--sizes", "2000000x8x8"},
                                                 {"--chunk", "8"},

@@ -262,7 +262,9 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
                    " field tiles; radius-8 edits on the device");
 
     std::vector<double> edit_wall, edit_kernel, edit_encode, edit_gap, edit_enqueues, edit_waits;
-    StageSamples edit_stages;  // per kernel name
+    StageSamples edit_stages;       // per kernel name
+    StageSamples edit_host_stages;  // per host stage (Update::host_stages)
+    std::vector<double> edit_device_span, edit_device_idle;
     std::uint64_t recomputed = 0;
     for (std::size_t e = 0; e < edits.size(); ++e) {
         const bool warm = e < warmup;
@@ -280,6 +282,11 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
             edit_enqueues.push_back(u.traffic.enqueues);
             edit_waits.push_back(u.traffic.host_waits);
             append_stage_samples(edit_stages, edit_wall.size(), u.stages);
+            if (!u.host_stages.empty()) {
+                append_stage_samples(edit_host_stages, edit_device_span.size() + 1, u.host_stages);
+                edit_device_span.push_back(u.device_span_ms);
+                edit_device_idle.push_back(u.device_idle_ms);
+            }
             recomputed +=
                 u.recomputed.empty() ? 0 : static_cast<std::uint64_t>(u.recomputed.volume());
         }
@@ -287,6 +294,10 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
     json stage_medians = json::object();
     for (const auto& [name, samples] : edit_stages) {
         stage_medians[name] = summarize(samples).median;
+    }
+    json host_stage_medians = json::object();
+    for (const auto& [name, samples] : edit_host_stages) {
+        host_stage_medians[name] = summarize(samples).median;
     }
     const double peak = peak_rss_bytes();
     const auto t_sync = Clock::now();
@@ -414,6 +425,12 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"edit_world_kernel_ms_median", summarize(edit_encode).median},
         {"edit_stage_ms_median", stage_medians},
         {"edit_outside_kernels_ms_median", summarize(edit_gap).median},
+        {"edit_host_stage_ms_median", host_stage_medians},
+        {"edit_single_block_edits", edit_device_span.size()},
+        {"edit_device_span_ms_median",
+         edit_device_span.empty() ? json(nullptr) : json(summarize(edit_device_span).median)},
+        {"edit_device_idle_ms_median",
+         edit_device_idle.empty() ? json(nullptr) : json(summarize(edit_device_idle).median)},
         {"edit_enqueues", summarize(edit_enqueues).median},
         {"edit_host_waits", summarize(edit_waits).median},
         {"edit_enqueues_max", summarize(edit_enqueues).max},

@@ -141,6 +141,13 @@ decltype(auto) cl_call(const std::string& context, F&& body) {
 // Milliseconds between the start of `first` and the end of `last` (profiling info).
 double elapsed_ms(const cl::Event& first, const cl::Event& last);
 
+// Of `commands` (finished, profiled; empty events are skipped): the first start to the last end,
+// and the part of that span in which none of them ran (ms).
+struct CommandSpan {
+    double span_ms = 0, idle_ms = 0;
+};
+CommandSpan command_span(const std::vector<cl::Event>& commands);
+
 // Page-aligned host memory that is never zero-filled: its pages are touched first by whoever
 // writes them first (a read from a file, or the kernels writing a CL_MEM_USE_HOST_PTR buffer
 // over it, in parallel). Allocations of 2 MiB and more are 2 MiB-aligned, a whole number of

@@ -145,6 +145,8 @@ class SparseDeviceWorld {
     std::vector<std::pair<std::string, double>> last_edit_stages() const;
     // The commands and host waits of the last apply_brush or encode_dense_tiles.
     const QueueTraffic& last_edit_traffic() const { return traffic_; }
+    // The same commands' events (its table's write, then its kernels), for their timeline.
+    std::vector<cl::Event> last_edit_commands() const;
 
     // The gather kernel (sparse_world.cl; `per_voxel`: gather_voxels, the GPU layout's) with
     // the world's buffers as its arguments 0-5; the caller sets the job arguments 6-14.
@@ -258,7 +260,8 @@ class SparseDeviceWorld {
     // voxels()'s jobs, refs and output, for voxel_capacity_ cells (grown as needed).
     cl::Buffer voxel_jobs_, voxel_refs_, voxel_out_;
     std::size_t voxel_capacity_ = 0;
-    // The last edit's kernels and traffic.
+    // The last edit's table write, kernels and traffic.
+    cl::Event edit_write_;
     std::vector<std::pair<std::string, cl::Event>> edit_events_;
     QueueTraffic traffic_;
 };

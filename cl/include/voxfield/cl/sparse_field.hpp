@@ -26,6 +26,7 @@
 
 #include "voxfield/cl/generator.hpp"
 #include "voxfield/cl/sparse_device_world.hpp"
+#include "voxfield/core/clock.hpp"
 #include "voxfield/core/sparse.hpp"
 
 namespace voxfield::ocl {
@@ -195,6 +196,17 @@ class SparseField {
         std::vector<std::pair<std::string, double>> stages;
         // Commands enqueued and host waits (the world's edit included).
         QueueTraffic traffic;
+        // Where the wall time of an update of one block (an edit's) went, by the host's clock
+        // (name, ms): for apply_brush "world edit" (its table made, its commands enqueued),
+        // then for the block "field tables" (made on the host), "field enqueue", "wait" (the
+        // minima's read: every command done), "after" (profiling read, minima kept). Empty
+        // for updates of several blocks.
+        std::vector<std::pair<std::string, double>> host_stages;
+        // The same update's commands (transfers and kernels, the world's edit included) by
+        // their profiling events: the first start to the last end, and the part of that span in
+        // which none ran (the device waiting for the host or between launches). 0 when
+        // host_stages is empty.
+        double device_span_ms = 0, device_idle_ms = 0;
     };
     // After the world's voxels inside `changed` were edited on the host (SparseWorld::edit /
     // apply_brush return that box), brings the device's world and the field up to date:
@@ -290,7 +302,8 @@ class SparseField {
     double compute(const std::vector<Job>& jobs, Dims block, bool pow2_batch = false);
     // An update's single block `job`: its tables in one write, gather, the dense generator,
     // scatter and the node minima of `slots` (per slot, the nodes set in `nodes`) enqueued
-    // without a wait, then the minima read back (the one wait); returns kernel ms.
+    // without a wait, then the minima read back (the one wait); returns kernel ms. Its host
+    // times and commands go to block_times_ and block_commands_.
     double update_block(const Job& job, Dims block, const std::vector<std::uint32_t>& slots,
                         const std::vector<std::uint64_t>& nodes);
     // Enqueues the gather of `count` blocks of `block` voxels (tables `jobs`, `refs`) from the
@@ -357,6 +370,14 @@ class SparseField {
     std::vector<cl::Event> scatters_;
     Work work_;
     QueueTraffic traffic_;  // of the running update
+    // The last update_block's times (its first enqueue, its last, the end of its wait) and
+    // commands, for Update::host_stages and device_span_ms.
+    struct BlockTimes {
+        bool set = false;
+        Clock::time_point enqueue, enqueued, waited;
+    };
+    BlockTimes block_times_;
+    std::vector<cl::Event> block_commands_;
     // update_block's tables, the node minima it computes and their pinned host copy.
     std::unique_ptr<PinnedTables> tables_;
     cl::Buffer update_minima_;
