@@ -1167,12 +1167,24 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 #define LINK_NONE 0xFFFFu
 #define LINK_DEAD 0xFFFEu
 
+// A signed field's inner targets for cols_banded: 1 where the world's voxel is empty, else 0.
+__kernel void empty_targets(__global const uchar* restrict vox, __global uchar* restrict out,
+                            ulong n) {
+    const size_t i = get_global_id(0);
+    if (i < n) {
+        out[i] = vox[i] == 0 ? 1 : 0;
+    }
+}
+
 // Position p of line c in the local arrays.
 #define LI(p) ((p) * C + c)
 
 // Lines of n positions, element stride `stride`, line (x, o) starting at o * mstride + x,
-// x = group(0) * C + local(0), o = group(1). Input: `in16` (from16: the x pass's 1-D
+// x = group(0) * C + local(0), o = group(1) of O. Input: `in16` (from16: the x pass's 1-D
 // distances) or `in`; output: partials to `gout`, or with `final` the output format to `out`.
+// `border` (the z pass of a signed field's inner transform, whose targets are the empty
+// voxels): the space around the world is empty too, so each partial is at most that of the
+// nearest voxel outside, straight along one axis: min(x + 1, X - x, o + 1, O - o, p + 1, n - p).
 // Local arrays of n * C entries (position p of line c at p * C + c): gl (the sites'
 // partials), prv, nxt (the list; LINK_DEAD: not in it), owner; ends: 2 * C * K ints (each
 // band's or merged group's first and last site, -1 when it has none).
@@ -1181,7 +1193,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
                           uint n, ulong stride, ulong mstride, uint from16, uint final,
                           double dmax, __local GT* gl, __local ushort* prv, __local ushort* nxt,
-                          __local ushort* owner, __local int* ends) {
+                          __local ushort* owner, __local int* ends, uint O, uint border) {
     const uint C = (uint)get_local_size(0), K = (uint)get_local_size(1);
     const uint c = (uint)get_local_id(0), k = (uint)get_local_id(1);
     const uint x = (uint)get_group_id(0) * C + c;
@@ -1313,6 +1325,11 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
         if (!none) {
             const int e = owner[LI((int)p)];
             v = fpart((int)p, e, gl[LI(e)], 1.0f);
+        }
+        if (border) {
+            const uint o = (uint)get_group_id(1);
+            const uint m = min(min(min(x + 1, X - x), min(o + 1, O - o)), min(p + 1, n - p));
+            v = min(v, (GT)(METRIC == 2 ? m * m : m));
         }
         const size_t i = base + p * stride;
         if (final) {

@@ -157,9 +157,12 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
 
     // cols_banded where the device runs its work-groups of kBandedGroup (its registers may
     // cap them lower) and lines of Y and of Z fit its local memory.
+    // Signed fields take it twice: the world's solids as targets, then its empty voxels (and
+    // the space around it, cols_banded's border) for the solids' inner distances; `finish`
+    // writes both.
     const bool banded_fits =
-        gpu_layout_ && !incremental && !zero_targets_ && unit && !wide_ && !options.signed_field &&
-        !options.indices && X < 0xFFFF && Y < kLinkLimit && Z < kLinkLimit &&
+        gpu_layout_ && !incremental && !zero_targets_ && unit && !wide_ && !options.indices &&
+        X < 0xFFFF && Y < kLinkLimit && Z < kLinkLimit &&
         cl::Kernel(program_, "cols_banded")
                 .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
     const std::uint32_t lines_y = banded_fits ? banded_lines(Y, info.local_mem) : 0;
@@ -327,13 +330,38 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             return;
         }
         if (lines_y != 0 && lines_z != 0) {
-            if (auto rows = gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0])) {
+            const bool sgn = options.signed_field;
+            if (sgn) {
+                empty_ = make_buffer(n, CL_MEM_READ_WRITE);
+            }
+            auto rows = gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0]);
+            auto inner_rows = sgn ? gpu_x_rows(ctx, dims_, Format::u16, empty_, h_[0]) : rows;
+            if (rows && inner_rows) {
+                const std::size_t plane = std::size_t{X} * Y;
                 stages_.push_back(*rows);
-                stages_.push_back(banded_kernel(1, Y, lines_y, X, std::size_t{X} * Y, Z, false));
-                stages_.push_back(banded_kernel(2, Z, lines_z, std::size_t{X} * Y, X, Y, true));
+                stages_.push_back(banded_kernel(1, Y, lines_y, X, plane, Z, false, g_));
+                stages_.push_back(banded_kernel(2, Z, lines_z, plane, X, Y, !sgn, g_));
+                if (sgn) {
+                    cl::Kernel empty(program_, "empty_targets");
+                    empty.setArg(0, voxels_);
+                    empty.setArg(1, empty_);
+                    empty.setArg(2, static_cast<cl_ulong>(n));
+                    stages_.push_back(items_launch("empty_targets", empty, n));
+                    inner_rows->name = "x_rows_inner";
+                    stages_.push_back(*inner_rows);
+                    KernelLaunch y = banded_kernel(1, Y, lines_y, X, plane, Z, false, h_);
+                    KernelLaunch z = banded_kernel(2, Z, lines_z, plane, X, Y, false, h_, true);
+                    y.name = "y_banded_inner";
+                    z.name = "z_banded_inner";
+                    stages_.push_back(y);
+                    stages_.push_back(z);
+                    stages_.push_back({"finish", finish_kernel(0, all),
+                                       cl::NDRange(round_up(X, 64), Y, Z), cl::NDRange(64, 1, 1)});
+                }
                 banded_ = true;
                 return;
             }
+            empty_ = cl::Buffer();
         }
         const cl::Buffer none;
         stages_.push_back(items_launch("x_pass", x_kernel(all, xs, none), x_items(all)));
@@ -380,13 +408,14 @@ KernelLaunch ExactSeparable::items_launch(const char* name, const cl::Kernel& k,
 
 KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint32_t c,
                                            std::uint64_t stride, std::uint64_t mstride,
-                                           std::uint32_t lines_o, bool final) {
+                                           std::uint32_t lines_o, bool final,
+                                           const cl::Buffer* parts, bool border) {
     const std::uint32_t k = kBandedGroup / c;
     cl::Kernel kernel(program_, "cols_banded");
     const bool y = axis == 1;
-    kernel.setArg(0, g_[y ? 0 : 1]);
-    kernel.setArg(1, g_[y ? 0 : 1]);
-    kernel.setArg(2, g_[y ? 1 : 0]);
+    kernel.setArg(0, parts[y ? 0 : 1]);
+    kernel.setArg(1, parts[y ? 0 : 1]);
+    kernel.setArg(2, parts[y ? 1 : 0]);
     kernel.setArg(3, out_);
     kernel.setArg(4, voxels_);
     kernel.setArg(5, rgb_);
@@ -403,6 +432,8 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(15, cl::Local(cells * 2));
     kernel.setArg(16, cl::Local(cells * 2));
     kernel.setArg(17, cl::Local(std::size_t{2} * kBandedGroup * 4));
+    kernel.setArg(18, lines_o);
+    kernel.setArg(19, cl_uint{border ? 1u : 0u});
     return {y ? "y_banded" : "z_banded", kernel,
             cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * k), cl::NDRange(c, k)};
 }

@@ -651,24 +651,32 @@ TEST(ExactSeparable, BundledModels) {
 // (cols_banded): long lines (many sites per band), sparse lines (bands without a site), rows
 // without any solid, and lines shorter than the bands, every metric and an integer and a
 // float format.
+// Unsigned, and signed: a second banded transform whose targets are the empty voxels and the
+// space around the world (mostly solid worlds, a full one, an empty one, a single voxel).
 TEST(ExactSeparable, BandedGpuPassesMatchTheReference) {
     std::mt19937_64 rng(1234);
-    const Dims shapes[] = {{48, 181, 97}, {3, 260, 5}, {70, 2, 300}, {16, 64, 64}};
-    const double densities[] = {0.0004, 0.02, 0.5, 0.0004};
+    const Dims shapes[] = {{48, 181, 97}, {3, 260, 5},  {70, 2, 300}, {16, 64, 64},
+                           {33, 41, 29},  {29, 17, 40}, {20, 30, 25}, {1, 1, 1}};
+    const double densities[] = {0.0004, 0.02, 0.5, 0.0004, 0.97, 1.0, 0.0, 1.0};
     for (std::size_t i = 0; i < std::size(shapes); ++i) {
         const World w = scene_random(shapes[i], densities[i], rng());
         for (Metric m : kMetrics) {
-            for (Format f : {Format::u16, Format::f32}) {
-                auto o = options(m, Spacing{}, false, f, Layout::gpu);
-                if (m == Metric::manhattan) {
-                    o.max_distance = 1e6;  // through ExactSeparable, not exact_manhattan.cl
-                }
-                ocl::ExactSeparable g(pocl(), w, Palette(), o);
-                ASSERT_EQ(g.variant(), "gpu layout, banded") << describe(o, w.dims());
-                expect_matches(w, Palette(), o, reference_distance(w, m, Spacing{}),
-                               "banded #" + std::to_string(i));
-                if (::testing::Test::HasFailure()) {
-                    return;
+            for (bool sgn : {false, true}) {
+                for (Format f : {sgn ? Format::i16 : Format::u16, Format::f32}) {
+                    auto o = options(m, Spacing{}, sgn, f, Layout::gpu);
+                    std::vector<double> ref = reference(w, o);
+                    if (m == Metric::manhattan) {
+                        o.max_distance = 1e6;  // through ExactSeparable, not exact_manhattan.cl
+                        for (double& v : ref) {
+                            v = std::clamp(v, -1e6, 1e6);
+                        }
+                    }
+                    ocl::ExactSeparable g(pocl(), w, Palette(), o);
+                    ASSERT_EQ(g.variant(), "gpu layout, banded") << describe(o, w.dims());
+                    expect_matches(w, Palette(), o, ref, "banded #" + std::to_string(i));
+                    if (::testing::Test::HasFailure()) {
+                        return;
+                    }
                 }
             }
         }

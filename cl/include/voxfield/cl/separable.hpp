@@ -70,10 +70,13 @@ class ExactSeparable : public Generator {
     static std::size_t banded_local_bytes(std::uint32_t n, std::uint32_t lines);
     static std::size_t banded_cells(std::uint32_t n, std::uint32_t lines);  // per local array
     // The banded y (axis 1) or z (axis 2) pass over lines of n positions `stride` apart, `c`
-    // lines per work-group, line starts x + o * mstride for the lines_o values of o; `final`
-    // writes the output format.
+    // lines per work-group, line starts x + o * mstride for the lines_o values of o, from and
+    // to the partials `parts` (x rows in parts[0], y into parts[1], z into parts[0]); `final`
+    // writes the output format; `border` (z only) counts the voxels outside the world as
+    // targets (a signed field's inner transform).
     KernelLaunch banded_kernel(int axis, std::uint32_t n, std::uint32_t c, std::uint64_t stride,
-                               std::uint64_t mstride, std::uint32_t lines_o, bool final);
+                               std::uint64_t mstride, std::uint32_t lines_o, bool final,
+                               const cl::Buffer* parts, bool border = false);
     // A launch of `items` work-items (rounded up to the layout's work-group size).
     KernelLaunch items_launch(const char* name, const cl::Kernel& k, std::size_t items) const;
     void enqueue(const cl::Kernel& k, std::size_t items, cl::Event* event);
@@ -109,8 +112,9 @@ class ExactSeparable : public Generator {
     Spacing spacing_;
     cl::Program program_;
     cl::Buffer voxels_, rgb_, g_[3], h_[3], feat_[2], scratch_, track_[3];
-    bool wide_ = false;           // unit-spacing L2 in 64-bit partials (squares reach 2^30)
-    bool fp64_ = false;           // f64 with spacing: the scans in double
+    cl::Buffer empty_;   // a banded signed field's inner targets: 1 where the world is empty
+    bool wide_ = false;  // unit-spacing L2 in 64-bit partials (squares reach 2^30)
+    bool fp64_ = false;  // f64 with spacing: the scans in double
     bool shared_parts_ = false;   // one buffer of partials for every pass (CPU layout, full)
     bool l1_keys_ = false;        // unit L1 with indices by l1_xy_keys and l1_z_out (CPU)
     std::size_t gt_bytes_ = 4;    // bytes per partial
