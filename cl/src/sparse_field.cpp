@@ -868,8 +868,6 @@ SparseField::Update SparseField::apply_brush(const Brush& brush) {
     const auto t0 = Clock::now();
     const Box changed = device_world_.apply_brush(brush);
     const auto t1 = Clock::now();
-    block_times_ = BlockTimes{};
-    block_commands_.clear();
     Update u = with_edit_stages(recompute({changed}));
     if (block_times_.set) {
         const BlockTimes& b = block_times_;
@@ -958,6 +956,8 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
     stages_.clear();
     work_ = Work{};
     traffic_ = QueueTraffic{};
+    block_times_ = BlockTimes{};
+    block_commands_.clear();
     const Box all = world_box(world_.dims());
     // The voxels within D of a change, per change; merged into their hull when that is one
     // block of at most kHullVoxels (the single-block path of one edit).
@@ -1222,7 +1222,8 @@ double SparseField::update_block(const Job& job, Dims block,
         enqueue_gather(tables_->buffer(kJobs), tables_->buffer(kRefs), batch.voxels, block, 1,
                        &events.back().second);
         const std::size_t generator_first = events.size();
-        if (!batch.generator->enqueue(events)) {
+        const bool enqueued = batch.generator->enqueue(events);
+        if (!enqueued) {
             // A generator that reads a flag back in between: its own run(), which waits.
             ms += batch.generator->run();
             ++traffic_.host_waits;
@@ -1257,7 +1258,8 @@ double SparseField::update_block(const Job& job, Dims block,
         q.enqueueReadBuffer(update_minima_, CL_TRUE, 0, n * per, minima_host_->data(), nullptr,
                             &read);
         block_times_.waited = Clock::now();
-        block_times_.set = true;
+        // Not where the generator ran (and waited) by itself: its commands are not listed.
+        block_times_.set = enqueued;
         traffic_.enqueues += static_cast<std::uint32_t>(events.size()) + 2;
         ++traffic_.host_waits;
         for (const auto& [name, e] : events) {

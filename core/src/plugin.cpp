@@ -3,12 +3,14 @@
 
 #include <dlfcn.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <map>
 #include <mutex>
 #include <stdexcept>
 #include <system_error>
+#include <utility>
 
 namespace voxfield {
 
@@ -21,7 +23,9 @@ const PluginHeader* load_plugin(const PluginSpec& spec) {
     std::vector<fs::path> paths;
     const char* named = spec.env.empty() ? nullptr : std::getenv(spec.env.c_str());
     if (named != nullptr && *named != '\0') {
-        paths.emplace_back(named);
+        std::error_code ec;
+        const fs::path absolute = fs::absolute(named, ec);
+        paths.push_back(ec ? fs::path(named) : absolute);
     } else {
         for (const fs::path& dir : spec.places) {
             if (!dir.empty()) {
@@ -30,8 +34,13 @@ const PluginHeader* load_plugin(const PluginSpec& spec) {
         }
     }
     std::string tried;
+    std::vector<std::string> seen;
     for (const fs::path& path : paths) {
         const std::string p = path.string();
+        if (std::find(seen.begin(), seen.end(), p) != seen.end()) {
+            continue;
+        }
+        seen.push_back(p);
         if (const auto it = loaded.find(p); it != loaded.end()) {
             return it->second;
         }
@@ -68,13 +77,26 @@ const PluginHeader* load_plugin(const PluginSpec& spec) {
         (spec.env.empty() ? std::string() : " (set " + spec.env + " to its path)"));
 }
 
-fs::path plugin_dir_beside_binary() {
+PluginSpec project_plugin(std::string what, std::string file, std::string env, std::string entry) {
+    PluginSpec spec;
+    spec.what = std::move(what);
+    spec.file = std::move(file);
+    spec.env = std::move(env);
+    spec.places = {plugin_dir_beside_binary("../lib/voxfield"),
+                   plugin_dir_beside_binary(VOXFIELD_PLUGIN_INSTALL_REL), VOXFIELD_PLUGIN_BUILD_DIR,
+                   VOXFIELD_PLUGIN_INSTALL_DIR};
+    spec.entry = std::move(entry);
+    spec.build_id = VOXFIELD_PLUGIN_BUILD_ID;
+    return spec;
+}
+
+fs::path plugin_dir_beside_binary(const fs::path& relative) {
     std::error_code ec;
     const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
     if (ec) {
         return {};
     }
-    return exe.parent_path().parent_path() / "lib" / "voxfield";
+    return (exe.parent_path() / relative).lexically_normal();
 }
 
 }  // namespace voxfield

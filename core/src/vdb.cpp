@@ -16,14 +16,8 @@ namespace voxfield {
 namespace {
 
 const detail::VdbPlugin& plugin() {
-    PluginSpec spec;
-    spec.what = "the OpenVDB plugin";
-    spec.file = "libvoxfield_vdb.so";
-    spec.env = "VOXFIELD_VDB_PLUGIN";
-    spec.places = {plugin_dir_beside_binary(), VOXFIELD_PLUGIN_BUILD_DIR,
-                   VOXFIELD_PLUGIN_INSTALL_DIR};
-    spec.entry = "voxfield_vdb_plugin";
-    spec.build_id = VOXFIELD_PLUGIN_BUILD_ID;
+    const PluginSpec spec = project_plugin("the OpenVDB plugin", "libvoxfield_vdb.so",
+                                           "VOXFIELD_VDB_PLUGIN", "voxfield_vdb_plugin");
     // The header is the table's first member.
     return *reinterpret_cast<const detail::VdbPlugin*>(load_plugin(spec));
 }

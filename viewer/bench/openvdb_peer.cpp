@@ -20,14 +20,9 @@ std::vector<std::uint32_t> peer_sample_tiles(const SparseWorld& world, std::uint
 
 OpenVdbPeer run_openvdb_peer(const SparseWorld& world, double bound,
                              const std::vector<ExactTile>& exact) {
-    PluginSpec spec;
-    spec.what = "the OpenVDB peer's plugin";
-    spec.file = "libvoxfield_openvdb_peer.so";
-    spec.env = "VOXFIELD_OPENVDB_PEER_PLUGIN";
-    spec.places = {plugin_dir_beside_binary(), VOXFIELD_PLUGIN_BUILD_DIR,
-                   VOXFIELD_PLUGIN_INSTALL_DIR};
-    spec.entry = "voxfield_openvdb_peer_plugin";
-    spec.build_id = VOXFIELD_PLUGIN_BUILD_ID;
+    const PluginSpec spec =
+        project_plugin("the OpenVDB peer's plugin", "libvoxfield_openvdb_peer.so",
+                       "VOXFIELD_OPENVDB_PEER_PLUGIN", "voxfield_openvdb_peer_plugin");
     // The header is the table's first member.
     const auto& plugin = *reinterpret_cast<const OpenVdbPeerPlugin*>(load_plugin(spec));
     return plugin.run(world, bound, exact);

@@ -221,9 +221,10 @@ struct SparseTracer::Impl {
     void drop_tile(const Int3& c, std::uint32_t record, DirectoryEdit& e);
     // Puts tile c (not in the directory) in: a record, and a page for a block that had none.
     std::uint32_t add_tile(const Int3& c, DirectoryEdit& e);
-    // Stages the edit's directory changes (whole buffers where they outgrew their capacity);
-    // true when a buffer was replaced (the descriptor set must be written again).
-    bool stage_directory(const DirectoryEdit& e);
+    // Stages the edit's directory changes (whole buffers where they outgrew their capacity),
+    // each place once (its lists sorted and made unique); true when a buffer was replaced (the
+    // descriptor set must be written again).
+    bool stage_directory(DirectoryEdit& e);
     // Buffers over `sets`' memory (kept where the memory is the same); per set whether it moved.
     std::vector<bool> set_shared(const std::vector<SharedTreeSet>& sets);
     void write_shared_record(std::uint32_t record, const SharedTile& t);
@@ -708,41 +709,49 @@ SparseTileUpdate SparseTracer::update_tiles(const SparseWorld& world, const Box&
     if (touched.empty()) {
         return u;
     }
-    if (!m.arena_fit(world, nodes, materials, dropping, u.arena_rebuilt)) {
-        m.upload_all(world);
-        u.whole = true;
-        u.bytes = m.stats.bytes;
-        u.tiles_written = world.tile_count();
-        return u;
-    }
-    Impl::DirectoryEdit e;
-    for (const Touched& k : touched) {
-        if (k.tile == kNoTile) {
-            m.drop_tile(k.c, k.record, e);
-            ++u.tiles_removed;
-            continue;
+    try {
+        if (!m.arena_fit(world, nodes, materials, dropping, u.arena_rebuilt)) {
+            m.upload_all(world);
+            u.whole = true;
+            u.bytes = m.stats.bytes;
+            u.tiles_written = world.tile_count();
+            return u;
         }
-        const std::uint32_t record = k.record == VF_SPARSE_NONE ? m.add_tile(k.c, e) : k.record;
-        const ArenaTile a = m.arena_write(
-            world, k.tile,
-            tile_key(static_cast<std::uint32_t>(k.c.x), static_cast<std::uint32_t>(k.c.y),
-                     static_cast<std::uint32_t>(k.c.z)));
-        m.arena[record] = a;
-        m.record_arena(record, a);
-        e.records.push_back(record);
-        ++u.tiles_written;
-    }
-    if (u.arena_rebuilt) {
-        for (const auto& [record, a] : m.arena) {
+        Impl::DirectoryEdit e;
+        for (const Touched& k : touched) {
+            if (k.tile == kNoTile) {
+                m.drop_tile(k.c, k.record, e);
+                ++u.tiles_removed;
+                continue;
+            }
+            const std::uint32_t record = k.record == VF_SPARSE_NONE ? m.add_tile(k.c, e) : k.record;
+            const ArenaTile a = m.arena_write(
+                world, k.tile,
+                tile_key(static_cast<std::uint32_t>(k.c.x), static_cast<std::uint32_t>(k.c.y),
+                         static_cast<std::uint32_t>(k.c.z)));
+            m.arena[record] = a;
+            m.record_arena(record, a);
             e.records.push_back(record);
+            ++u.tiles_written;
         }
-    }
-    // The arena is chunk 0, bound, when the world had none: a rebuilt one is bound again.
-    const bool rebind = m.stage_directory(e) || u.arena_rebuilt;
-    u.bytes = m.staged.size();  // copied by the next trace
-    m.count_bytes();
-    if (rebind) {
-        m.write_set();
+        if (u.arena_rebuilt) {
+            for (const auto& [record, a] : m.arena) {
+                e.records.push_back(record);
+            }
+        }
+        // The arena is chunk 0, bound, when the world had none: a rebuilt one is bound again.
+        const bool rebind = m.stage_directory(e) || u.arena_rebuilt;
+        u.bytes = m.staged.size();  // copied by the next trace
+        m.count_bytes();
+        if (rebind) {
+            m.write_set();
+        }
+    } catch (...) {
+        // Buffers may have been replaced and the descriptor set not written again: nothing is
+        // traced (its staged copies dropped) until a whole upload.
+        m.discard_copies();
+        m.loaded = false;
+        throw;
     }
     return u;
 }
@@ -808,7 +817,17 @@ std::uint32_t SparseTracer::Impl::add_tile(const Int3& c, DirectoryEdit& e) {
     return record;
 }
 
-bool SparseTracer::Impl::stage_directory(const DirectoryEdit& e) {
+bool SparseTracer::Impl::stage_directory(DirectoryEdit& e) {
+    // Each place once (a record moved and rewritten in one update is listed twice): the copies
+    // of one submission never overlap.
+    for (auto* list : {&e.blocks, &e.entries}) {
+        std::sort(list->begin(), list->end());
+        list->erase(std::unique(list->begin(), list->end()), list->end());
+    }
+    for (auto* list : {&e.records, &e.new_pages}) {
+        std::sort(list->begin(), list->end());
+        list->erase(std::unique(list->begin(), list->end()), list->end());
+    }
     bool rebind = false;
     const std::uint64_t record_count = host_records.size() / kRecordWords;
     if (record_count > record_capacity) {

@@ -199,8 +199,9 @@ class SparseField {
         // Where the wall time of an update of one block (an edit's) went, by the host's clock
         // (name, ms): for apply_brush "world edit" (its table made, its commands enqueued),
         // then for the block "field tables" (made on the host), "field enqueue", "wait" (the
-        // minima's read: every command done), "after" (profiling read, minima kept). Empty
-        // for updates of several blocks.
+        // minima's read: every command done), "after" (profiling read, minima kept). Only
+        // apply_brush fills it, and not for updates of several blocks or where the block's
+        // generator ran (and waited) by itself.
         std::vector<std::pair<std::string, double>> host_stages;
         // The same update's commands (transfers and kernels, the world's edit included) by
         // their profiling events: the first start to the last end, and the part of that span in

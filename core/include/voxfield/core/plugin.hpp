@@ -19,6 +19,7 @@ struct PluginSpec {
     std::string what;  // for messages: "the OpenVDB plugin"
     std::string file;  // its file name: "libvoxfield_vdb.so"
     std::string env;   // the environment variable that names its path instead of `places`
+                       // (relative to the working folder when not absolute)
     std::vector<std::filesystem::path> places;  // folders looked in, in order
     std::string entry;     // the C symbol of its entry, `const PluginHeader* entry()`
     std::string build_id;  // what the table's build_id must be
@@ -28,8 +29,13 @@ struct PluginSpec {
 // path and never unloaded. std::runtime_error naming every place tried and why, when none does.
 const PluginHeader* load_plugin(const PluginSpec& spec);
 
-// <prefix>/lib/voxfield for a binary at <prefix>/bin (build/lib/voxfield for build/viewer), or an
-// empty path when the running binary's path is unknown.
-std::filesystem::path plugin_dir_beside_binary();
+// One of this project's plugins: looked for beside the binary (as the build lays it out, then as
+// the install does), in the build folder, in the install prefix; this build's id.
+PluginSpec project_plugin(std::string what, std::string file, std::string env, std::string entry);
+
+// The folder `relative` to the running binary's folder ("../lib/voxfield": build/lib/voxfield
+// for build/viewer, <prefix>/lib/voxfield for <prefix>/bin), or an empty path when the binary's
+// path is unknown.
+std::filesystem::path plugin_dir_beside_binary(const std::filesystem::path& relative);
 
 }  // namespace voxfield

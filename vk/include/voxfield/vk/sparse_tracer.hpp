@@ -108,7 +108,8 @@ class SparseTracer {
     // exceed one binding the world is uploaded whole. The bytes are staged on the host and
     // copied in the next trace's submission, before its dispatch (no submission of their own;
     // a second update before that trace submits the first's copies first).
-    // logic_error before an upload or for a world of other dims.
+    // logic_error before an upload or for a world of other dims. After another exception the
+    // tracer traces nothing until an upload.
     SparseTileUpdate update_tiles(const SparseWorld& world, const Box& changed);
 
     // Like upload, but the trees are read in place in `sets` (memory OpenCL writes, shared with
