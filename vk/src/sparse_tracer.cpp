@@ -225,6 +225,10 @@ struct SparseTracer::Impl {
     // each place once (its lists sorted and made unique); true when a buffer was replaced (the
     // descriptor set must be written again).
     bool stage_directory(DirectoryEdit& e);
+    // An update's end: its directory changes staged (u.bytes: what the next trace copies), the
+    // figures counted, the descriptor set written again where a buffer was replaced or
+    // `rebind` says so.
+    void stage_update(DirectoryEdit& e, bool rebind, SparseTileUpdate& u);
     // Buffers over `sets`' memory (kept where the memory is the same); per set whether it moved.
     std::vector<bool> set_shared(const std::vector<SharedTreeSet>& sets);
     void write_shared_record(std::uint32_t record, const SharedTile& t);
@@ -740,12 +744,7 @@ SparseTileUpdate SparseTracer::update_tiles(const SparseWorld& world, const Box&
             }
         }
         // The arena is chunk 0, bound, when the world had none: a rebuilt one is bound again.
-        const bool rebind = m.stage_directory(e) || u.arena_rebuilt;
-        u.bytes = m.staged.size();  // copied by the next trace
-        m.count_bytes();
-        if (rebind) {
-            m.write_set();
-        }
+        m.stage_update(e, u.arena_rebuilt, u);
     } catch (...) {
         // Buffers may have been replaced and the descriptor set not written again: nothing is
         // traced (its staged copies dropped) until a whole upload.
@@ -815,6 +814,15 @@ std::uint32_t SparseTracer::Impl::add_tile(const Int3& c, DirectoryEdit& e) {
     e.entries.push_back(static_cast<std::uint64_t>(&entry - host_pages.data()));
     ++page_fill[page];
     return record;
+}
+
+void SparseTracer::Impl::stage_update(DirectoryEdit& e, bool rebind, SparseTileUpdate& u) {
+    const bool replaced = stage_directory(e);
+    u.bytes = staged.size();
+    count_bytes();
+    if (replaced || rebind) {
+        write_set();
+    }
 }
 
 bool SparseTracer::Impl::stage_directory(DirectoryEdit& e) {
@@ -958,12 +966,7 @@ SparseTileUpdate SparseTracer::repoint(const std::vector<SharedTreeSet>& sets,
             e.records.push_back(record);
             ++u.tiles_written;
         }
-        const bool rebind = m.stage_directory(e);
-        u.bytes = m.staged.size();  // copied by the next trace
-        m.count_bytes();
-        if (rebind) {
-            m.write_set();
-        }
+        m.stage_update(e, false, u);
     } catch (...) {
         // Records may point at memory the sets no longer view: nothing is traced until a whole
         // upload_shared.
