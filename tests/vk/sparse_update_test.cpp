@@ -98,6 +98,39 @@ TEST(SparseUpdate, CopiesGoWithTheNextTrace) {
     expect_as_fresh(*ctx, tracer, world, palette, "after an update and a whole upload");
 }
 
+// An update that cannot be made throws, and then the tracer traces nothing, its staged copies
+// dropped, until an upload makes it whole again: here the directory's pages outgrow one binding
+// (64 KiB: 32 pages of 8^3 tiles) after the update's tiles were already written into the arena
+// and the directory's host copy.
+TEST(SparseUpdate, AFailedUpdateTracesNothingUntilAnUpload) {
+    REQUIRE_VULKAN(ctx);
+    const std::int64_t block = 8 * std::int64_t{kTileSize};  // a page's blocks of tiles
+    SparseWorld world(Dims{34 * block, 64, 64});
+    const Palette palette = Palette::magicavoxel_default();
+    const std::uint64_t binding = 64 << 10;
+    vk::SparseTracer tracer(*ctx, binding);
+    apply_brush(world, brush(BrushOp::place, BrushShape::sphere, {5, 5, 5}, 2, 4));
+    tracer.upload(world, palette);
+    const vk::RenderOptions view = views(world).front();
+    tracer.trace(view);
+    // A voxel in each of the 33 other blocks: 34 pages.
+    Box changed;
+    for (std::int64_t b = 1; b < 34; ++b) {
+        const Box one =
+            apply_brush(world, brush(BrushOp::place, BrushShape::sphere, {b * block + 9, 9, 9}, 0,
+                                     static_cast<std::uint8_t>(b)));
+        changed = changed.empty() ? one : hull(changed, one);
+    }
+    EXPECT_THROW(tracer.update_tiles(world, changed), InputError);
+    EXPECT_THROW(tracer.trace(view), std::logic_error);
+    EXPECT_THROW(tracer.update_tiles(world, changed), std::logic_error);
+    for (std::int64_t b = 1; b < 34; ++b) {
+        apply_brush(world, brush(BrushOp::erase, BrushShape::sphere, {b * block + 9, 9, 9}, 0, 1));
+    }
+    tracer.upload(world, palette);
+    expect_as_fresh(*ctx, tracer, world, palette, "uploaded again after a failed update", binding);
+}
+
 TEST(SparseUpdate, TilesMadeInEmptySpaceAndEmptiedByErasing) {
     REQUIRE_VULKAN(ctx);
     // Solid only near the origin: most directory blocks (512^3 voxels) hold no page.
