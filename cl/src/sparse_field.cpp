@@ -157,6 +157,13 @@ void parallel_ranges(std::size_t n, std::size_t threads, F&& fn) {
     fn(std::size_t{0}, std::size_t{0}, n / threads);
 }
 
+// The extents of a (non-empty) block box, as a dense generator's dims.
+Dims block_dims(const Box& b) {
+    return {static_cast<std::uint32_t>(b.max.x - b.min.x),
+            static_cast<std::uint32_t>(b.max.y - b.min.y),
+            static_cast<std::uint32_t>(b.max.z - b.min.z)};
+}
+
 }  // namespace
 
 GeneratorOptions resolve_sparse_options(const GeneratorOptions& options, bool format_given) {
@@ -572,9 +579,9 @@ double SparseField::run() {
     stages_.clear();
     host_stages_.clear();
     work_ = Work{};
-    auto lap = [this, t = std::chrono::steady_clock::now()](const char* name) mutable {
-        const auto now = std::chrono::steady_clock::now();
-        host_stages_.emplace_back(name, std::chrono::duration<double, std::milli>(now - t).count());
+    auto lap = [this, t = Clock::now()](const char* name) mutable {
+        const auto now = Clock::now();
+        host_stages_.emplace_back(name, ms_between(t, now));
         t = now;
     };
     device_world_.refresh();
@@ -871,14 +878,11 @@ SparseField::Update SparseField::apply_brush(const Brush& brush) {
     Update u = with_edit_stages(recompute({changed}));
     if (block_times_.set) {
         const BlockTimes& b = block_times_;
-        const auto ms = [](Clock::time_point from, Clock::time_point to) {
-            return std::chrono::duration<double, std::milli>(to - from).count();
-        };
-        u.host_stages = {{"world edit", ms(t0, t1)},
-                         {"field tables", ms(t1, b.enqueue)},
-                         {"field enqueue", ms(b.enqueue, b.enqueued)},
-                         {"wait", ms(b.enqueued, b.waited)},
-                         {"after", ms(b.waited, Clock::now())}};
+        u.host_stages = {{"world edit", ms_between(t0, t1)},
+                         {"field tables", ms_between(t1, b.enqueue)},
+                         {"field enqueue", ms_between(b.enqueue, b.enqueued)},
+                         {"wait", ms_between(b.enqueued, b.waited)},
+                         {"after", ms_since(b.waited)}};
         std::vector<cl::Event> commands = device_world_.last_edit_commands();
         commands.insert(commands.end(), block_commands_.begin(), block_commands_.end());
         const CommandSpan span = command_span(commands);
@@ -944,10 +948,7 @@ void SparseField::prepare_edits(std::int64_t radius) {
     }
     const Box b = single_block(region);
     if (b.volume() <= kBatchVoxels) {
-        batch_for({static_cast<std::uint32_t>(b.max.x - b.min.x),
-                   static_cast<std::uint32_t>(b.max.y - b.min.y),
-                   static_cast<std::uint32_t>(b.max.z - b.min.z)},
-                  1);
+        batch_for(block_dims(b), 1);
     }
 }
 
@@ -1031,9 +1032,7 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
         block_box.max = {block_box.min.x + size.x, block_box.min.y + size.y,
                          block_box.min.z + size.z};
         if (block_box.volume() <= kBatchVoxels) {
-            block = {static_cast<std::uint32_t>(block_box.max.x - block_box.min.x),
-                     static_cast<std::uint32_t>(block_box.max.y - block_box.min.y),
-                     static_cast<std::uint32_t>(block_box.max.z - block_box.min.z)};
+            block = block_dims(block_box);
             result.kernel_ms += update_block({region, block_box.min}, block, slots, nodes);
             result.recomputed = region;
             result.tiles = static_cast<std::uint32_t>(slots.size());

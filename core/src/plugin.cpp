@@ -5,9 +5,6 @@
 
 #include <algorithm>
 #include <cstdlib>
-#include <cstring>
-#include <map>
-#include <mutex>
 #include <stdexcept>
 #include <system_error>
 #include <utility>
@@ -17,9 +14,6 @@ namespace voxfield {
 namespace fs = std::filesystem;
 
 const PluginHeader* load_plugin(const PluginSpec& spec) {
-    static std::mutex mutex;
-    static std::map<std::string, const PluginHeader*> loaded;  // by path
-    const std::lock_guard lock(mutex);
     std::vector<fs::path> paths;
     const char* named = spec.env.empty() ? nullptr : std::getenv(spec.env.c_str());
     if (named != nullptr && *named != '\0') {
@@ -41,9 +35,6 @@ const PluginHeader* load_plugin(const PluginSpec& spec) {
             continue;
         }
         seen.push_back(p);
-        if (const auto it = loaded.find(p); it != loaded.end()) {
-            return it->second;
-        }
         std::string why;
         std::error_code ec;
         if (!fs::exists(path, ec)) {
@@ -65,8 +56,7 @@ const PluginHeader* load_plugin(const PluginSpec& spec) {
                       ", this one is " + spec.build_id + ")";
                 dlclose(handle);
             } else {
-                loaded.emplace(p, table);
-                return table;
+                return table;  // the handle stays open for the process's life
             }
         }
         tried += (tried.empty() ? "" : "; ") + p + ": " + why;

@@ -15,11 +15,13 @@ namespace voxfield {
 
 namespace {
 
+// Loaded at the first call that needs it, once (a failure throws, and the next call tries again).
 const detail::VdbPlugin& plugin() {
-    const PluginSpec spec = project_plugin("the OpenVDB plugin", "libvoxfield_vdb.so",
-                                           "VOXFIELD_VDB_PLUGIN", "voxfield_vdb_plugin");
     // The header is the table's first member.
-    return *reinterpret_cast<const detail::VdbPlugin*>(load_plugin(spec));
+    static const detail::VdbPlugin& table = *reinterpret_cast<const detail::VdbPlugin*>(
+        load_plugin(project_plugin("the OpenVDB plugin", "libvoxfield_vdb.so",
+                                   "VOXFIELD_VDB_PLUGIN", "voxfield_vdb_plugin")));
+    return table;
 }
 
 // The whole world as one box.

@@ -20,11 +20,11 @@ std::vector<std::uint32_t> peer_sample_tiles(const SparseWorld& world, std::uint
 
 OpenVdbPeer run_openvdb_peer(const SparseWorld& world, double bound,
                              const std::vector<ExactTile>& exact) {
-    const PluginSpec spec =
-        project_plugin("the OpenVDB peer's plugin", "libvoxfield_openvdb_peer.so",
-                       "VOXFIELD_OPENVDB_PEER_PLUGIN", "voxfield_openvdb_peer_plugin");
-    // The header is the table's first member.
-    const auto& plugin = *reinterpret_cast<const OpenVdbPeerPlugin*>(load_plugin(spec));
+    // Loaded at the first run, once; the header is the table's first member.
+    static const OpenVdbPeerPlugin& plugin =
+        *reinterpret_cast<const OpenVdbPeerPlugin*>(load_plugin(
+            project_plugin("the OpenVDB peer's plugin", "libvoxfield_openvdb_peer.so",
+                           "VOXFIELD_OPENVDB_PEER_PLUGIN", "voxfield_openvdb_peer_plugin")));
     return plugin.run(world, bound, exact);
 }
 

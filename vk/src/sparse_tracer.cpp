@@ -828,14 +828,14 @@ void SparseTracer::Impl::stage_update(DirectoryEdit& e, bool rebind, SparseTileU
 bool SparseTracer::Impl::stage_directory(DirectoryEdit& e) {
     // Each place once (a record moved and rewritten in one update is listed twice): the copies
     // of one submission never overlap.
-    for (auto* list : {&e.blocks, &e.entries}) {
-        std::sort(list->begin(), list->end());
-        list->erase(std::unique(list->begin(), list->end()), list->end());
-    }
-    for (auto* list : {&e.records, &e.new_pages}) {
-        std::sort(list->begin(), list->end());
-        list->erase(std::unique(list->begin(), list->end()), list->end());
-    }
+    const auto sort_unique = [](auto& list) {
+        std::sort(list.begin(), list.end());
+        list.erase(std::unique(list.begin(), list.end()), list.end());
+    };
+    sort_unique(e.blocks);
+    sort_unique(e.entries);
+    sort_unique(e.records);
+    sort_unique(e.new_pages);
     bool rebind = false;
     const std::uint64_t record_count = host_records.size() / kRecordWords;
     if (record_count > record_capacity) {

@@ -2,8 +2,9 @@
 // Shared objects loaded on first use (dlopen), for libraries too costly to load at every
 // process start: linking OpenVDB makes the dynamic loader bind about 57 000 symbols, about 45 ms
 // before main on this project's VM, paid by every command whether it reads a .vdb or not. A
-// plugin's entry returns a table whose first member is the build's id, so that a plugin of
-// another build (an older install beside a newer build tree) is passed over.
+// plugin's entry returns a table whose first member is the build's id (a hash of the headers
+// whose types cross the boundary), so that a plugin built from other headers (an older install
+// beside a newer build tree) is passed over.
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -25,8 +26,9 @@ struct PluginSpec {
     std::string build_id;  // what the table's build_id must be
 };
 
-// The entry's table from the first place that holds a plugin of this build; loaded once per
-// path and never unloaded. std::runtime_error naming every place tried and why, when none does.
+// The entry's table from the first place that holds a plugin of this build, never unloaded
+// (callers keep the table: a function-local static loads it once per process).
+// std::runtime_error naming every place tried and why, when none does.
 const PluginHeader* load_plugin(const PluginSpec& spec);
 
 // One of this project's plugins: looked for beside the binary (as the build lays it out, then as
