@@ -1112,6 +1112,18 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
     }
 }
 
+#if INDICES
+// Voxel i's (z, y, x) planes of the feature key f (-1, -1, -1 for UINT_MAX: no solid).
+inline void write_index(__global int* idx, ulong count, size_t i, uint f, uint Y, uint Z) {
+    const uint xf = quotient(f, Y * Z, 1.0 / ((double)Y * Z));
+    const uint r = f - xf * Y * Z;
+    const uint yf = quotient(r, Z, 1.0 / Z);
+    idx[i] = f == UINT_MAX ? -1 : (int)(r - yf * Z);
+    idx[count + i] = f == UINT_MAX ? -1 : (int)yf;
+    idx[2 * count + i] = f == UINT_MAX ? -1 : (int)xf;
+}
+#endif
+
 // Writes the output format from the final partials (and the index planes: z, y, x of the
 // nearest solid, -1 without one, as SciPy's return_indices lays them out, from its key and
 // the world's depth Z) for the voxels of the box lo + [0, size): the whole world, or the
@@ -1137,19 +1149,13 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 #endif
     store(out, rgb, v, i, d);
 #if INDICES
-    const uint f = feat[i];
-    const uint xf = quotient(f, Y * Z, 1.0 / ((double)Y * Z));
-    const uint r = f - xf * Y * Z;
-    const uint yf = quotient(r, Z, 1.0 / Z);
-    idx[i] = f == UINT_MAX ? -1 : (int)(r - yf * Z);
-    idx[count + i] = f == UINT_MAX ? -1 : (int)yf;
-    idx[2 * count + i] = f == UINT_MAX ? -1 : (int)xf;
+    write_index(idx, count, i, feat[i], Y, Z);
 #endif
 }
 
 // ---- GPU layout of the full transform: lower envelopes by bands in local memory ----
 //
-// For unit spacing without sign or indices, the y and z passes run cols_banded: a work-group
+// For unit spacing without sign, the y and z passes run cols_banded: a work-group
 // holds C adjacent lines (x fastest, so its loads and stores are coalesced) of n positions in
 // local memory, and K work-items per line each build the envelope of one band of about n / K
 // sites with Meijster's stack, kept as a doubly linked list over the sites (prv, nxt). The
@@ -1162,10 +1168,21 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 // owns the positions (Sep(predecessor, it), Sep(it, successor)], which the sites' work-items
 // write as owners; then every position's partial (or, in the last pass, its output value)
 // goes out. The first pass is exact_manhattan.cl's x_rows (the 1-D distance along x, 16 bits,
-// 0xFFFF where a row has no solid).
+// 0xFFFF where a row has no solid), or with INDICES x_pass (partials and features).
+// With INDICES the separators break ties by the sites' features (KEYED, as col_pass), read
+// from the previous pass's `fin` only where the two tie rules give different separators: the
+// order (partial, key) is strict, so the bands' envelopes and their merges keep the same
+// owner as the sequential stack, and every position takes its owner's feature.
 
 #define LINK_NONE 0xFFFFu
 #define LINK_DEAD 0xFFFEu
+
+// Sep(i, u) of a line's sites in cols_banded.
+#if INDICES
+#define BSEP(i, u, gi, gu) sep_keyed(fin, base, stride, (int)n, (i), (u), (gi), (gu), 1.0f)
+#else
+#define BSEP(i, u, gi, gu) sep((i), (u), (gi), (gu), 1.0f)
+#endif
 
 // A signed field's inner targets for cols_banded: 1 where the world's voxel is empty, else 0.
 __kernel void empty_targets(__global const uchar* restrict vox, __global uchar* restrict out,
@@ -1187,13 +1204,17 @@ __kernel void empty_targets(__global const uchar* restrict vox, __global uchar* 
 // nearest voxel outside, straight along one axis: min(x + 1, X - x, o + 1, O - o, p + 1, n - p).
 // Local arrays of n * C entries (position p of line c at p * C + c): gl (the sites'
 // partials), prv, nxt (the list; LINK_DEAD: not in it), owner; ends: 2 * C * K ints (each
-// band's or merged group's first and last site, -1 when it has none).
+// band's or merged group's first and last site, -1 when it has none). With INDICES: the
+// sites' features `fin`, the positions' `fout`, or with `final` the index planes `idx` of the
+// world's Y, Z and `count` voxels.
 __kernel void cols_banded(__global const ushort* restrict in16, __global const GT* restrict in,
                           __global GT* restrict gout, __global OUT_T* restrict out,
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
                           uint n, ulong stride, ulong mstride, uint from16, uint final,
                           double dmax, __local GT* gl, __local ushort* prv, __local ushort* nxt,
-                          __local ushort* owner, __local int* ends, uint O, uint border) {
+                          __local ushort* owner, __local int* ends, uint O, uint border,
+                          __global const uint* restrict fin, __global uint* restrict fout,
+                          __global int* restrict idx, uint Y, uint Z, ulong count) {
     const uint C = (uint)get_local_size(0), K = (uint)get_local_size(1);
     const uint c = (uint)get_local_id(0), k = (uint)get_local_id(1);
     const uint x = (uint)get_group_id(0) * C + c;
@@ -1229,14 +1250,14 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
         }
         int su = 0;
         while (top >= 0) {
-            su = sep(top, u, gt, gu, 1.0f);
+            su = BSEP(top, u, gt, gu);
             if (top == bot || top_sep < su) {
                 break;
             }
             nxt[LI(top)] = LINK_DEAD;
             top = prv[LI(top)];
             gt = gl[LI(top)];
-            top_sep = top == bot ? 0 : sep(prv[LI(top)], top, gl[LI(prv[LI(top)])], gt, 1.0f);
+            top_sep = top == bot ? 0 : BSEP(prv[LI(top)], top, gl[LI(prv[LI(top)])], gt);
         }
         if (top < 0) {
             bot = u;
@@ -1266,10 +1287,10 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                 int l = last[k * C + c], r = rb;
                 for (;;) {
                     const GT glv = gl[LI(l)], grv = gl[LI(r)];
-                    const int slr = sep(l, r, glv, grv, 1.0f);
+                    const int slr = BSEP(l, r, glv, grv);
                     if (l != lb) {
                         const int lp = prv[LI(l)];
-                        if (sep(lp, l, gl[LI(lp)], glv, 1.0f) >= slr) {
+                        if (BSEP(lp, l, gl[LI(lp)], glv) >= slr) {
                             nxt[LI(l)] = LINK_DEAD;
                             l = lp;
                             continue;
@@ -1277,7 +1298,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                     }
                     if (r != rt) {
                         const int rn = nxt[LI(r)];
-                        if (slr >= sep(r, rn, grv, gl[LI(rn)], 1.0f)) {
+                        if (slr >= BSEP(r, rn, grv, gl[LI(rn)])) {
                             nxt[LI(r)] = LINK_DEAD;
                             r = rn;
                             continue;
@@ -1307,8 +1328,8 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
         const int lo = before == LINK_NONE ? 0
                        : (int)before == prev
                            ? hi + 1
-                           : 1 + sep((int)before, e, gl[LI((int)before)], ge, 1.0f);
-        hi = after == LINK_NONE ? (int)n - 1 : sep(e, (int)after, ge, gl[LI((int)after)], 1.0f);
+                           : 1 + BSEP((int)before, e, gl[LI((int)before)], ge);
+        hi = after == LINK_NONE ? (int)n - 1 : BSEP(e, (int)after, ge, gl[LI((int)after)]);
         prev = e;
         for (int p = max(lo, 0); p <= min(hi, (int)n - 1); ++p) {
             owner[LI(p)] = (ushort)e;
@@ -1322,9 +1343,15 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     }
     for (uint p = k; p < n; p += K) {
         GT v = G_INF;
+#if INDICES
+        uint f = UINT_MAX;
+#endif
         if (!none) {
             const int e = owner[LI((int)p)];
             v = fpart((int)p, e, gl[LI(e)], 1.0f);
+#if INDICES
+            f = fin[base + (size_t)e * stride];
+#endif
         }
         if (border) {
             const uint o = (uint)get_group_id(1);
@@ -1339,8 +1366,14 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             const uchar cls = 0;
 #endif
             store(out, rgb, cls, i, min(distance_of(v), dmax));
+#if INDICES
+            write_index(idx, count, i, f, Y, Z);
+#endif
         } else {
             gout[i] = v;
+#if INDICES
+            fout[i] = f;
+#endif
         }
     }
 }

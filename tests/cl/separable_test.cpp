@@ -652,7 +652,9 @@ TEST(ExactSeparable, BundledModels) {
 // without any solid, and lines shorter than the bands, every metric and an integer and a
 // float format.
 // Unsigned, and signed: a second banded transform whose targets are the empty voxels and the
-// space around the world (mostly solid worlds, a full one, an empty one, a single voxel).
+// space around the world (mostly solid worlds, a full one, an empty one, a single voxel). The
+// feature transform too: x_pass, then banded passes carrying the features (SciPy's ties for
+// L1 and L2, a nearest solid for L-inf).
 TEST(ExactSeparable, BandedGpuPassesMatchTheReference) {
     std::mt19937_64 rng(1234);
     const Dims shapes[] = {{48, 181, 97}, {3, 260, 5},  {70, 2, 300}, {16, 64, 64},
@@ -678,6 +680,18 @@ TEST(ExactSeparable, BandedGpuPassesMatchTheReference) {
                         return;
                     }
                 }
+            }
+            const auto o = options(m, Spacing{}, false, Format::f32, Layout::gpu, true);
+            ocl::ExactSeparable g(pocl(), w, Palette(), o);
+            ASSERT_EQ(g.variant(), "gpu layout, banded") << describe(o, w.dims()) << " indices";
+            const std::string what = "banded indices #" + std::to_string(i);
+            if (m == Metric::chebyshev) {
+                expect_indices(w, o, what);
+            } else {
+                expect_scipy_ties(w, o, what);
+            }
+            if (::testing::Test::HasFailure()) {
+                return;
             }
         }
     }
