@@ -1168,18 +1168,44 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 // owns the positions (Sep(predecessor, it), Sep(it, successor)], which the sites' work-items
 // write as owners; then every position's partial (or, in the last pass, its output value)
 // goes out. The first pass is exact_manhattan.cl's x_rows (the 1-D distance along x, 16 bits,
-// 0xFFFF where a row has no solid), or with INDICES x_pass (partials and features).
-// With INDICES the separators break ties by the sites' features (KEYED, as col_pass), read
-// from the previous pass's `fin` only where the two tie rules give different separators: the
-// order (partial, key) is strict, so the bands' envelopes and their merges keep the same
-// owner as the sequential stack, and every position takes its owner's feature.
+// 0xFFFF where a row has no solid).
+// With INDICES the separators break ties by the sites' features (KEYED, as col_pass), found
+// only where the two tie rules give different separators (banded_key: the y pass's sites
+// from the x rows and the world, the z pass's from the y pass's keys): the order (partial,
+// key) is strict, so the bands' envelopes and their merges keep the same owner as the
+// sequential stack, and every position takes its owner's key.
 
 #define LINK_NONE 0xFFFFu
 #define LINK_DEAD 0xFFFEu
 
-// Sep(i, u) of a line's sites in cols_banded.
 #if INDICES
-#define BSEP(i, u, gi, gu) sep_keyed(fin, base, stride, (int)n, (i), (u), (gi), (gu), 1.0f)
+// The feature key of site e of a cols_banded line (x, o): in the z pass the y pass's `fin`; in
+// the y pass (from16) the nearest solid of its x row, d = the row's 1-D distance away, on the
+// left where that voxel is solid (the x pass's ties go left), else on the right.
+inline uint banded_key(__global const ushort* in16, __global const uchar* vox,
+                       __global const uint* fin, size_t base, size_t stride, int e, uint from16,
+                       uint x, uint o, uint Y, uint Z) {
+    const size_t i = base + (size_t)e * stride;
+    if (!from16) {
+        return fin[i];
+    }
+    const uint d = in16[i];
+    const uint sx = x >= d && vox[i - d] != 0 ? x - d : x + d;
+    return (sx * Y + (uint)e) * Z + o;
+}
+#define BKEY(e) banded_key(in16, vox, fin, base, stride, (e), from16, x, o, Y, Z)
+// Sep(i, u) with KEYED ties, the sites' keys found only where the two tie rules differ.
+#define BSEP(i, u, gi, gu) banded_sep(in16, vox, fin, base, stride, from16, x, o, Y, Z, i, u, gi, gu)
+inline int banded_sep(__global const ushort* in16, __global const uchar* vox,
+                      __global const uint* fin, size_t base, size_t stride, uint from16, uint x,
+                      uint o, uint Y, uint Z, int i, int u, GT gi, GT gu) {
+    const int s0 = sep_tie(i, u, gi, gu, 1.0f, 0);
+    if (KEYED(1u, 0u) == 0) {
+        return s0;  // L-inf: the lower position wins
+    }
+    const int s1 = sep_tie(i, u, gi, gu, 1.0f, 1);
+    return s1 != s0 && KEYED(BKEY(i), BKEY(u)) ? s1 : s0;
+}
 #else
 #define BSEP(i, u, gi, gu) sep((i), (u), (gi), (gu), 1.0f)
 #endif
@@ -1205,8 +1231,8 @@ __kernel void empty_targets(__global const uchar* restrict vox, __global uchar* 
 // Local arrays of n * C entries (position p of line c at p * C + c): gl (the sites'
 // partials), prv, nxt (the list; LINK_DEAD: not in it), owner; ends: 2 * C * K ints (each
 // band's or merged group's first and last site, -1 when it has none). With INDICES: the
-// sites' features `fin`, the positions' `fout`, or with `final` the index planes `idx` of the
-// world's Y, Z and `count` voxels.
+// sites' keys `fin` (z pass), the positions' `fout` (y pass), or with `final` the index
+// planes `idx` of the world's Y, Z and `count` voxels.
 __kernel void cols_banded(__global const ushort* restrict in16, __global const GT* restrict in,
                           __global GT* restrict gout, __global OUT_T* restrict out,
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
@@ -1218,8 +1244,9 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     const uint C = (uint)get_local_size(0), K = (uint)get_local_size(1);
     const uint c = (uint)get_local_id(0), k = (uint)get_local_id(1);
     const uint x = (uint)get_group_id(0) * C + c;
+    const uint o = (uint)get_group_id(1);
     const bool active = x < X;
-    const size_t base = (size_t)get_group_id(1) * mstride + x;
+    const size_t base = (size_t)o * mstride + x;
     const int band = (int)((n + K - 1) / K);
     __local int* first = ends;
     __local int* last = ends + C * K;
@@ -1350,11 +1377,10 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             const int e = owner[LI((int)p)];
             v = fpart((int)p, e, gl[LI(e)], 1.0f);
 #if INDICES
-            f = fin[base + (size_t)e * stride];
+            f = BKEY(e);
 #endif
         }
         if (border) {
-            const uint o = (uint)get_group_id(1);
             const uint m = min(min(min(x + 1, X - x), min(o + 1, O - o)), min(p + 1, n - p));
             v = min(v, (GT)(METRIC == 2 ? m * m : m));
         }

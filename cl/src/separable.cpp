@@ -159,8 +159,8 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     // cap them lower) and lines of Y and of Z fit its local memory.
     // Signed fields take it twice: the world's solids as targets, then its empty voxels (and
     // the space around it, cols_banded's border) for the solids' inner distances; `finish`
-    // writes both. The feature transform's x pass is x_pass (partials and features); the
-    // banded passes then carry the features, the z pass into the index planes.
+    // writes both. The feature transform takes the same passes; the y pass finds its sites'
+    // keys from the x rows and the world, and the z pass writes the index planes.
     const bool banded_fits =
         gpu_layout_ && !incremental && !zero_targets_ && unit && !wide_ && X < 0xFFFF &&
         Y < kLinkLimit && Z < kLinkLimit &&
@@ -330,15 +330,6 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                 {"l1_z_out", z, cl::NDRange((plane + chunk - 1) / chunk), cl::NDRange(1)});
             return;
         }
-        const cl::Buffer none;
-        const std::size_t plane = std::size_t{X} * Y;
-        if (lines_y != 0 && lines_z != 0 && options.indices) {
-            stages_.push_back(items_launch("x_pass", x_kernel(all, xs, none), x_items(all)));
-            stages_.push_back(banded_kernel(1, Y, lines_y, X, plane, Z, false, g_));
-            stages_.push_back(banded_kernel(2, Z, lines_z, plane, X, Y, true, g_));
-            banded_ = true;
-            return;
-        }
         if (lines_y != 0 && lines_z != 0) {
             const bool sgn = options.signed_field;
             if (sgn) {
@@ -347,6 +338,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             auto rows = gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0]);
             auto inner_rows = sgn ? gpu_x_rows(ctx, dims_, Format::u16, empty_, h_[0]) : rows;
             if (rows && inner_rows) {
+                const std::size_t plane = std::size_t{X} * Y;
                 stages_.push_back(*rows);
                 stages_.push_back(banded_kernel(1, Y, lines_y, X, plane, Z, false, g_));
                 stages_.push_back(banded_kernel(2, Z, lines_z, plane, X, Y, !sgn, g_));
@@ -372,6 +364,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             }
             empty_ = cl::Buffer();
         }
+        const cl::Buffer none;
         stages_.push_back(items_launch("x_pass", x_kernel(all, xs, none), x_items(all)));
         // Full transforms reuse the x pass's buffer for the z pass; incremental ones keep all.
         const int last = incremental ? 2 : 0;
@@ -421,7 +414,7 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     const std::uint32_t k = kBandedGroup / c;
     cl::Kernel kernel(program_, "cols_banded");
     const bool y = axis == 1;
-    const bool keyed = indices_() != nullptr;
+    const bool keyed = indices_() != nullptr;  // the y pass's keys into feat_[1]
     kernel.setArg(0, parts[y ? 0 : 1]);
     kernel.setArg(1, parts[y ? 0 : 1]);
     kernel.setArg(2, parts[y ? 1 : 0]);
@@ -432,7 +425,7 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(7, n);
     kernel.setArg(8, static_cast<cl_ulong>(stride));
     kernel.setArg(9, static_cast<cl_ulong>(mstride));
-    kernel.setArg(10, cl_uint{y && !keyed ? 1u : 0u});
+    kernel.setArg(10, cl_uint{y ? 1u : 0u});
     kernel.setArg(11, cl_uint{final ? 1u : 0u});
     kernel.setArg(12, max_distance_);
     const std::size_t cells = banded_cells(n, c);
@@ -444,8 +437,8 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(18, lines_o);
     kernel.setArg(19, cl_uint{border ? 1u : 0u});
     // Valid buffers where there are no features (the kernel does not touch them then).
-    kernel.setArg(20, keyed ? feat_[y ? 0 : 1] : voxels_);
-    kernel.setArg(21, keyed ? feat_[y ? 1 : 0] : out_);
+    kernel.setArg(20, keyed && !y ? feat_[1] : voxels_);
+    kernel.setArg(21, keyed && y ? feat_[1] : out_);
     kernel.setArg(22, keyed ? indices_ : out_);
     kernel.setArg(23, dims_.y);
     kernel.setArg(24, dims_.z);

@@ -73,9 +73,8 @@ class ExactSeparable : public Generator {
     // lines per work-group, line starts x + o * mstride for the lines_o values of o, from and
     // to the partials `parts` (x rows in parts[0], y into parts[1], z into parts[0]); `final`
     // writes the output format; `border` (z only) counts the voxels outside the world as
-    // targets (a signed field's inner transform). With index planes the x pass is x_pass
-    // (partials of GT in parts[0]) and the features go from feat_[0] to feat_[1] and from
-    // there to the planes.
+    // targets (a signed field's inner transform). With index planes the y pass writes its
+    // keys into feat_[1], and the z pass reads them and writes the planes.
     KernelLaunch banded_kernel(int axis, std::uint32_t n, std::uint32_t c, std::uint64_t stride,
                                std::uint64_t mstride, std::uint32_t lines_o, bool final,
                                const cl::Buffer* parts, bool border = false);
