@@ -1228,19 +1228,23 @@ __kernel void empty_targets(__global const uchar* restrict vox, __global uchar* 
 // `border` (the z pass of a signed field's inner transform, whose targets are the empty
 // voxels): the space around the world is empty too, so each partial is at most that of the
 // nearest voxel outside, straight along one axis: min(x + 1, X - x, o + 1, O - o, p + 1, n - p).
+// That pass is `final` and writes the signed value, an empty voxel's from the first
+// transform's partials `outer` (which may be `out`, of the same element size: neither is
+// `restrict`; each work-item reads its voxel's before writing it).
 // Local arrays of n * C entries (position p of line c at p * C + c): gl (the sites'
 // partials), prv, nxt (the list; LINK_DEAD: not in it), owner; ends: 2 * C * K ints (each
 // band's or merged group's first and last site, -1 when it has none). With INDICES: the
 // sites' keys `fin` (z pass), the positions' `fout` (y pass), or with `final` the index
 // planes `idx` of the world's Y, Z and `count` voxels.
 __kernel void cols_banded(__global const ushort* restrict in16, __global const GT* restrict in,
-                          __global GT* restrict gout, __global OUT_T* restrict out,
+                          __global GT* restrict gout, __global OUT_T* out,
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
                           uint n, ulong stride, ulong mstride, uint from16, uint final,
                           double dmax, __local GT* gl, __local ushort* prv, __local ushort* nxt,
                           __local ushort* owner, __local int* ends, uint O, uint border,
                           __global const uint* restrict fin, __global uint* restrict fout,
-                          __global int* restrict idx, uint Y, uint Z, ulong count) {
+                          __global int* restrict idx, uint Y, uint Z, ulong count,
+                          __global const GT* outer) {
     const uint C = (uint)get_local_size(0), K = (uint)get_local_size(1);
     const uint c = (uint)get_local_id(0), k = (uint)get_local_id(1);
     const uint x = (uint)get_group_id(0) * C + c;
@@ -1386,12 +1390,21 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
         }
         const size_t i = base + p * stride;
         if (final) {
+#if SIGNED
+            // The inner transform's z pass: an empty voxel takes the first transform's
+            // partial from `outer`, a solid one minus its own.
+            const uchar cls = vox[i];
+            const double d =
+                cls != 0 ? -min(distance_of(v), dmax) : min(distance_of(outer[i]), dmax);
+            store(out, rgb, cls, i, d);
+#else
 #if OUT_KIND == 4
             const uchar cls = vox[i];
 #else
             const uchar cls = 0;
 #endif
             store(out, rgb, cls, i, min(distance_of(v), dmax));
+#endif
 #if INDICES
             write_index(idx, count, i, f, Y, Z);
 #endif

@@ -158,9 +158,9 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     // cols_banded where the device runs its work-groups of kBandedGroup (its registers may
     // cap them lower) and lines of Y and of Z fit its local memory.
     // Signed fields take it twice: the world's solids as targets, then its empty voxels (and
-    // the space around it, cols_banded's border) for the solids' inner distances; `finish`
-    // writes both. The feature transform takes the same passes; the y pass finds its sites'
-    // keys from the x rows and the world, and the z pass writes the index planes.
+    // the space around it, cols_banded's border) for the solids' inner distances, whose z
+    // pass writes the signed values. The feature transform takes the same passes; the y pass finds
+    // its sites' keys from the x rows and the world, and the z pass writes the index planes.
     const bool banded_fits =
         gpu_layout_ && !incremental && !zero_targets_ && unit && !wide_ && X < 0xFFFF &&
         Y < kLinkLimit && Z < kLinkLimit &&
@@ -351,13 +351,11 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                     inner_rows->name = "x_rows_inner";
                     stages_.push_back(*inner_rows);
                     KernelLaunch y = banded_kernel(1, Y, lines_y, X, plane, Z, false, h_);
-                    KernelLaunch z = banded_kernel(2, Z, lines_z, plane, X, Y, false, h_, true);
+                    KernelLaunch z = banded_kernel(2, Z, lines_z, plane, X, Y, true, h_, true);
                     y.name = "y_banded_inner";
                     z.name = "z_banded_inner";
                     stages_.push_back(y);
                     stages_.push_back(z);
-                    stages_.push_back({"finish", finish_kernel(0, all),
-                                       cl::NDRange(round_up(X, 64), Y, Z), cl::NDRange(64, 1, 1)});
                 }
                 banded_ = true;
                 return;
@@ -443,6 +441,9 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(23, dims_.y);
     kernel.setArg(24, dims_.z);
     kernel.setArg(25, static_cast<cl_ulong>(dims_.count()));
+    // A signed field's solids' partials, from the first transform's z pass (read by the
+    // second's, `final`).
+    kernel.setArg(26, g_[0]);
     return {y ? "y_banded" : "z_banded", kernel,
             cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * k), cl::NDRange(c, k)};
 }
