@@ -1155,7 +1155,8 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 
 // ---- GPU layout of the full transform: lower envelopes by bands in local memory ----
 //
-// For unit spacing without sign, the y and z passes run cols_banded: a work-group
+// For full transforms in the GPU layout (signed or not, with or without indices, any spacing
+// but that of f64 fields), the y and z passes run cols_banded: a work-group
 // holds C adjacent lines (x fastest, so its loads and stores are coalesced) of n positions in
 // local memory, and K work-items per line each build the envelope of one band of about n / K
 // sites with Meijster's stack, kept as a doubly linked list over the sites (prv, nxt). The
@@ -1195,19 +1196,20 @@ inline uint banded_key(__global const ushort* in16, __global const uchar* vox,
 }
 #define BKEY(e) banded_key(in16, vox, fin, base, stride, (e), from16, x, o, Y, Z)
 // Sep(i, u) with KEYED ties, the sites' keys found only where the two tie rules differ.
-#define BSEP(i, u, gi, gu) banded_sep(in16, vox, fin, base, stride, from16, x, o, Y, Z, i, u, gi, gu)
+#define BSEP(i, u, gi, gu) \
+    banded_sep(in16, vox, fin, base, stride, from16, x, o, Y, Z, i, u, gi, gu, sp)
 inline int banded_sep(__global const ushort* in16, __global const uchar* vox,
                       __global const uint* fin, size_t base, size_t stride, uint from16, uint x,
-                      uint o, uint Y, uint Z, int i, int u, GT gi, GT gu) {
-    const int s0 = sep_tie(i, u, gi, gu, 1.0f, 0);
+                      uint o, uint Y, uint Z, int i, int u, GT gi, GT gu, ST sp) {
+    const int s0 = sep_tie(i, u, gi, gu, sp, 0);
     if (KEYED(1u, 0u) == 0) {
         return s0;  // L-inf: the lower position wins
     }
-    const int s1 = sep_tie(i, u, gi, gu, 1.0f, 1);
+    const int s1 = sep_tie(i, u, gi, gu, sp, 1);
     return s1 != s0 && KEYED(BKEY(i), BKEY(u)) ? s1 : s0;
 }
 #else
-#define BSEP(i, u, gi, gu) sep((i), (u), (gi), (gu), 1.0f)
+#define BSEP(i, u, gi, gu) sep((i), (u), (gi), (gu), sp)
 #endif
 
 // A signed field's inner targets for cols_banded: 1 where the world's voxel is empty, else 0.
@@ -1227,7 +1229,9 @@ __kernel void empty_targets(__global const uchar* restrict vox, __global uchar* 
 // distances) or `in`; output: partials to `gout`, or with `final` the output format to `out`.
 // `border` (the z pass of a signed field's inner transform, whose targets are the empty
 // voxels): the space around the world is empty too, so each partial is at most that of the
-// nearest voxel outside, straight along one axis: min(x + 1, X - x, o + 1, O - o, p + 1, n - p).
+// nearest voxel outside, straight along one axis: min(x + 1, X - x, o + 1, O - o, p + 1, n - p),
+// each offset as a partial of its axis's spacing (sx along x, so along o, sp along the line;
+// 1 with UNIT, where the partials are exact integers).
 // That pass is `final` and writes the signed value, an empty voxel's from the first
 // transform's partials `outer` (which may be `out`, of the same element size: neither is
 // `restrict`; each work-item reads its voxel's before writing it).
@@ -1244,7 +1248,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                           __local ushort* owner, __local int* ends, uint O, uint border,
                           __global const uint* restrict fin, __global uint* restrict fout,
                           __global int* restrict idx, uint Y, uint Z, ulong count,
-                          __global const GT* outer) {
+                          __global const GT* outer, ST sx, ST so, ST sp) {
     const uint C = (uint)get_local_size(0), K = (uint)get_local_size(1);
     const uint c = (uint)get_local_id(0), k = (uint)get_local_id(1);
     const uint x = (uint)get_group_id(0) * C + c;
@@ -1259,7 +1263,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
         if (active) {
             if (from16) {
                 const uint d = in16[base + p * stride];
-                v = d == 0xFFFFu ? G_INF : (METRIC == 2 ? d * d : d);
+                v = d == 0xFFFFu ? G_INF : offset_part((int)d, sx);
             } else {
                 v = in[base + p * stride];
             }
@@ -1379,14 +1383,15 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
 #endif
         if (!none) {
             const int e = owner[LI((int)p)];
-            v = fpart((int)p, e, gl[LI(e)], 1.0f);
+            v = fpart((int)p, e, gl[LI(e)], sp);
 #if INDICES
             f = BKEY(e);
 #endif
         }
         if (border) {
-            const uint m = min(min(min(x + 1, X - x), min(o + 1, O - o)), min(p + 1, n - p));
-            v = min(v, (GT)(METRIC == 2 ? m * m : m));
+            v = min(v, min(min(offset_part((int)min(x + 1, X - x), sx),
+                               offset_part((int)min(o + 1, O - o), so)),
+                           offset_part((int)min(p + 1, n - p), sp)));
         }
         const size_t i = base + p * stride;
         if (final) {

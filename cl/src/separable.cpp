@@ -156,13 +156,14 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     }
 
     // cols_banded where the device runs its work-groups of kBandedGroup (its registers may
-    // cap them lower) and lines of Y and of Z fit its local memory.
+    // cap them lower) and lines of Y and of Z fit its local memory; any spacing (the x rows'
+    // 1-D distance in voxels, scaled by the x spacing) but an f64 field's (double partials).
     // Signed fields take it twice: the world's solids as targets, then its empty voxels (and
     // the space around it, cols_banded's border) for the solids' inner distances, whose z
     // pass writes the signed values. The feature transform takes the same passes; the y pass finds
     // its sites' keys from the x rows and the world, and the z pass writes the index planes.
     const bool banded_fits =
-        gpu_layout_ && !incremental && !zero_targets_ && unit && !wide_ && X < 0xFFFF &&
+        gpu_layout_ && !incremental && !zero_targets_ && !fp64_ && !wide_ && X < 0xFFFF &&
         Y < kLinkLimit && Z < kLinkLimit &&
         cl::Kernel(program_, "cols_banded")
                 .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
@@ -444,6 +445,10 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     // A signed field's solids' partials, from the first transform's z pass (read by the
     // second's, `final`).
     kernel.setArg(26, g_[0]);
+    // The spacing along x, along the lines' other axis and along the lines.
+    set_spacing(kernel, 27, spacing_.x);
+    set_spacing(kernel, 28, y ? spacing_.z : spacing_.y);
+    set_spacing(kernel, 29, y ? spacing_.y : spacing_.z);
     return {y ? "y_banded" : "z_banded", kernel,
             cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * k), cl::NDRange(c, k)};
 }

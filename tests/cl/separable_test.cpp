@@ -653,8 +653,8 @@ TEST(ExactSeparable, BundledModels) {
 // float format.
 // Unsigned, and signed: a second banded transform whose targets are the empty voxels and the
 // space around the world (mostly solid worlds, a full one, an empty one, a single voxel). The
-// feature transform too: x_pass, then banded passes carrying the features (SciPy's ties for
-// L1 and L2, a nearest solid for L-inf).
+// feature transform too: the banded passes carrying the sites' keys (SciPy's ties for L1 and
+// L2, a nearest solid for L-inf).
 TEST(ExactSeparable, BandedGpuPassesMatchTheReference) {
     std::mt19937_64 rng(1234);
     const Dims shapes[] = {{48, 181, 97}, {3, 260, 5},  {70, 2, 300}, {16, 64, 64},
@@ -692,6 +692,39 @@ TEST(ExactSeparable, BandedGpuPassesMatchTheReference) {
             }
             if (::testing::Test::HasFailure()) {
                 return;
+            }
+        }
+    }
+}
+
+// With spacing (float partials; the x rows' distances scaled by the x spacing, the signed
+// border by each axis's): every metric, unsigned, signed and indices, within float rounding of
+// the reference; an f64 field (double partials) keeps col_pass.
+TEST(ExactSeparable, BandedGpuPassesTakeSpacing) {
+    std::mt19937_64 rng(4321);
+    const Dims shapes[] = {{48, 181, 37}, {3, 60, 5}, {40, 2, 100}, {23, 17, 29}, {1, 1, 1}};
+    const double densities[] = {0.002, 0.05, 0.5, 0.97, 1.0};
+    const Spacing spacings[] = {{1.5, 0.75, 2.0}, {0.05, 0.05, 0.05}, {1.0, 3.0, 0.5}};
+    for (std::size_t i = 0; i < std::size(shapes); ++i) {
+        const World w = scene_random(shapes[i], densities[i], rng());
+        for (const Spacing& sp : spacings) {
+            for (Metric m : kMetrics) {
+                const std::string what = "banded spacing #" + std::to_string(i);
+                for (bool sgn : {false, true}) {
+                    const auto o = options(m, sp, sgn, Format::f32, Layout::gpu);
+                    ocl::ExactSeparable g(pocl(), w, Palette(), o);
+                    ASSERT_EQ(g.variant(), "gpu layout, banded") << describe(o, w.dims());
+                    expect_matches(w, Palette(), o, reference(w, o), what);
+                }
+                const auto o = options(m, sp, false, Format::f32, Layout::gpu, true);
+                ASSERT_EQ(ocl::ExactSeparable(pocl(), w, Palette(), o).variant(),
+                          "gpu layout, banded");
+                expect_indices(w, o, what + " indices");
+                const auto o64 = options(m, sp, false, Format::f64, Layout::gpu);
+                ASSERT_EQ(ocl::ExactSeparable(pocl(), w, Palette(), o64).variant(), "gpu layout");
+                if (::testing::Test::HasFailure()) {
+                    return;
+                }
             }
         }
     }
