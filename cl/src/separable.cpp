@@ -156,19 +156,19 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     }
 
     // cols_banded where the device runs its work-groups of kBandedGroup (its registers may
-    // cap them lower) and lines of Y and of Z fit its local memory; any spacing (the x rows'
-    // 1-D distance in voxels, scaled by the x spacing) but an f64 field's (double partials).
+    // cap them lower) and lines of Y and of Z fit its local memory (partials of gt_bytes_);
+    // any spacing (the x rows' 1-D distance in voxels, scaled by the x spacing).
     // Signed fields take it twice: the world's solids as targets, then its empty voxels (and
     // the space around it, cols_banded's border) for the solids' inner distances, whose z
     // pass writes the signed values. The feature transform takes the same passes; the y pass finds
     // its sites' keys from the x rows and the world, and the z pass writes the index planes.
     const bool banded_fits =
-        gpu_layout_ && !incremental && !zero_targets_ && !fp64_ && !wide_ && X < 0xFFFF &&
-        Y < kLinkLimit && Z < kLinkLimit &&
+        gpu_layout_ && !incremental && !zero_targets_ && X < 0xFFFF && Y < kLinkLimit &&
+        Z < kLinkLimit &&
         cl::Kernel(program_, "cols_banded")
                 .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
-    const std::uint32_t lines_y = banded_fits ? banded_lines(Y, info.local_mem) : 0;
-    const std::uint32_t lines_z = banded_fits ? banded_lines(Z, info.local_mem) : 0;
+    const std::uint32_t lines_y = banded_fits ? banded_lines(Y, gt_bytes_, info.local_mem) : 0;
+    const std::uint32_t lines_z = banded_fits ? banded_lines(Z, gt_bytes_, info.local_mem) : 0;
 
     // Unit L1 with indices, a full unsigned transform in the CPU layout: l1_xy_keys and
     // l1_z_out, where the keys' 16-bit x and y hold X and Y and the local memory the rows and
@@ -382,18 +382,20 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     });
 }
 
-std::uint32_t ExactSeparable::banded_lines(std::uint32_t n, std::size_t local_mem) {
+std::uint32_t ExactSeparable::banded_lines(std::uint32_t n, std::size_t gt_bytes,
+                                           std::size_t local_mem) {
     for (std::uint32_t c = kBandedGroup / 8; c >= 1; c /= 2) {
-        if (banded_local_bytes(n, c) <= local_mem) {
+        if (banded_local_bytes(n, c, gt_bytes) <= local_mem) {
             return c;
         }
     }
     return 0;
 }
 
-std::size_t ExactSeparable::banded_local_bytes(std::uint32_t n, std::uint32_t lines) {
-    // gl (4 bytes), prv, nxt, owner (2 each) per position and line; first and last per band.
-    return banded_cells(n, lines) * 10 + 2 * std::size_t{kBandedGroup} * 4;
+std::size_t ExactSeparable::banded_local_bytes(std::uint32_t n, std::uint32_t lines,
+                                               std::size_t gt_bytes) {
+    // gl (gt_bytes), prv, nxt, owner (2 each) per position and line; first and last per band.
+    return banded_cells(n, lines) * (gt_bytes + 6) + 2 * std::size_t{kBandedGroup} * 4;
 }
 
 std::size_t ExactSeparable::banded_cells(std::uint32_t n, std::uint32_t lines) {
@@ -428,7 +430,7 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(11, cl_uint{final ? 1u : 0u});
     kernel.setArg(12, max_distance_);
     const std::size_t cells = banded_cells(n, c);
-    kernel.setArg(13, cl::Local(cells * 4));
+    kernel.setArg(13, cl::Local(cells * gt_bytes_));
     kernel.setArg(14, cl::Local(cells * 2));
     kernel.setArg(15, cl::Local(cells * 2));
     kernel.setArg(16, cl::Local(cells * 2));
