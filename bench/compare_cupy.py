@@ -26,14 +26,16 @@ In one run, on one machine, for each size N of --sizes (or the single --size):
                                                           empty voxel, cropped
      euclidean-indices  --metric euclidean --indices      edt(mask, return_distances=True,
                         (f32 field + int32 indices)          return_indices=True)
+     euclidean-sampling --metric euclidean --spacing      edt(mask, sampling=(2.0, 0.75, 1.5))
+                        1.5,0.75,2.0, f64                    (numpy's z, y, x order)
 
   3. times each CuPy peer on the GPU with CUDA events around each call, after W untimed
      warm-up calls, and takes the median of R calls (inputs on the GPU before timing; float64
      output as SciPy's, and float32 where CuPy supports float64_distances=False);
   4. checks the values on the GPU, z-slab by z-slab (outputs are read with
      np.load(mmap_mode="r"), so memory stays bounded at 1024^3):
-       - euclidean, signed-euclidean: |ours - CuPy float64| <= 2**-23 * |CuPy float64| at every
-         voxel (within one float32 ulp);
+       - euclidean, signed-euclidean, euclidean-sampling: |ours - CuPy float64| <= 2**-23 *
+         |CuPy float64| at every voxel (within one float32 ulp);
        - euclidean-indices: the field as euclidean, and every index names a solid voxel whose
          distance from the voxel is the field's (to the same tolerance);
        - manhattan (L1; CuPy's EDT is L2, so not compared for equality): EDT <= L1 <= sqrt(3) EDT;
@@ -59,7 +61,9 @@ import subprocess
 import sys
 import tempfile
 
-CASES = ["manhattan", "euclidean", "chebyshev", "signed-euclidean", "euclidean-indices"]
+CASES = ["manhattan", "euclidean", "chebyshev", "signed-euclidean", "euclidean-indices",
+         "euclidean-sampling"]
+SAMPLING_XYZ = (1.5, 0.75, 2.0)  # euclidean-sampling's --spacing (CuPy's sampling: z, y, x)
 TOL = 2.0 ** -23          # relative tolerance of the float32 comparisons (one float32 ulp)
 SLAB_VOXELS = 1 << 25     # voxels per z-slab uploaded for a check (32 Mi: bounded GPU memory)
 
@@ -376,6 +380,8 @@ def case_flags(name, shape):
         "chebyshev": ["--metric", "chebyshev", "--format", linf_fmt],
         "signed-euclidean": ["--signed", "--metric", "euclidean", "--format", "f32"],
         "euclidean-indices": ["--metric", "euclidean", "--format", "f32"],
+        "euclidean-sampling": ["--metric", "euclidean", "--format", "f64", "--spacing",
+                               ",".join(str(v) for v in SAMPLING_XYZ)],
     }[name]
 
 
@@ -385,6 +391,7 @@ PEER_CALLS = {
     "chebyshev": None,
     "signed-euclidean": "edt(~solid) - edt(solid) on the world padded by one empty voxel, cropped",
     "euclidean-indices": "distance_transform_edt(mask, return_distances=True, return_indices=True)",
+    "euclidean-sampling": "distance_transform_edt(mask, sampling=" + str(SAMPLING_XYZ[::-1]) + ")",
 }
 
 
@@ -416,9 +423,10 @@ def run_size(args, cp, cnd, n, f32_ok, small, tmp, world_name="floor-spheres"):
         "edt": lambda f64: edt(mask_gpu, f64),
         "signed": signed_peer,
         "indices": lambda f64: edt(mask_gpu, f64, return_distances=True, return_indices=True),
+        "sampling": lambda f64: edt(mask_gpu, f64, sampling=SAMPLING_XYZ[::-1]),
     }
     peer_of = {"manhattan": "edt", "euclidean": "edt", "signed-euclidean": "signed",
-               "euclidean-indices": "indices"}
+               "euclidean-indices": "indices", "euclidean-sampling": "sampling"}
     peer_times = {}
 
     def peer_timing(kind):
@@ -487,6 +495,10 @@ def run_size(args, cp, cnd, n, f32_ok, small, tmp, world_name="floor-spheres"):
         elif name == "signed-euclidean":
             ref = signed_peer(True)
             ok, detail = check_close(cp, ours, ref, "CuPy padded signed")
+            del ref
+        elif name == "euclidean-sampling":
+            ref = peer_fns["sampling"](True)
+            ok, detail = check_close(cp, ours, ref, "CuPy sampled")
             del ref
         else:  # euclidean-indices
             ok, detail = check_close(cp, ours, ref_edt)
