@@ -1155,26 +1155,24 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 
 // ---- GPU layout of the full transform: lower envelopes by bands in local memory ----
 //
-// For full transforms in the GPU layout (signed or not, with or without indices, any spacing
-// but that of f64 fields), the y and z passes run cols_banded: a work-group
-// holds C adjacent lines (x fastest, so its loads and stores are coalesced) of n positions in
-// local memory, and K work-items per line each build the envelope of one band of about n / K
-// sites with Meijster's stack, kept as a doubly linked list over the sites (prv, nxt). The
-// bands are then merged pairwise in log2(K) rounds (the parallel banding of Cao, Tang, Mitra
-// & Tan, "Parallel banding algorithm to compute exact distance transform with the GPU",
-// 2010): where two lists meet, the left list's last site is dropped while Sep(its
-// predecessor, it) >= Sep(it, the right list's first site), and the right list's first while
-// Sep(left's last, it) >= Sep(it, its successor) — a dropped site is everywhere at least as
-// far as one of its neighbours, so the lists' minimum is kept. In the final list every site
-// owns the positions (Sep(predecessor, it), Sep(it, successor)], which the sites' work-items
-// write as owners; then every position's partial (or, in the last pass, its output value)
-// goes out. The first pass is exact_manhattan.cl's x_rows (the 1-D distance along x, 16 bits,
-// 0xFFFF where a row has no solid).
-// With INDICES the separators break ties by the sites' features (KEYED, as col_pass), found
-// only where the two tie rules give different separators (banded_key: the y pass's sites
-// from the x rows and the world, the z pass's from the y pass's keys): the order (partial,
-// key) is strict, so the bands' envelopes and their merges keep the same owner as the
-// sequential stack, and every position takes its owner's key.
+// For full transforms in the GPU layout (signed or not, with or without indices, any spacing:
+// float, double (FP64) or 64-bit (WIDE) partials), the y and z passes run cols_banded: a work-group
+// holds C adjacent lines (x fastest, so its loads and stores are coalesced) of n positions in local
+// memory, and K work-items per line each build the envelope of one band of about n / K sites with
+// Meijster's stack, kept as a doubly linked list over the sites (prv, nxt). The bands are then
+// merged pairwise in log2(K) rounds (the parallel banding of Cao, Tang, Mitra & Tan, "Parallel
+// banding algorithm to compute exact distance transform with the GPU", 2010): where two lists meet,
+// the left list's last site is dropped while Sep(its predecessor, it) >= Sep(it, the right list's
+// first site), and the right list's first while Sep(left's last, it) >= Sep(it, its successor) — a
+// dropped site is everywhere at least as far as one of its neighbours, so the lists' minimum is
+// kept. In the final list every site owns the positions (Sep(predecessor, it), Sep(it, successor)],
+// which the sites' work-items write as owners; then every position's partial (or, in the last pass,
+// its output value) goes out. The first pass is exact_manhattan.cl's x_rows (the 1-D distance along
+// x, 16 bits, 0xFFFF where a row has no solid). With INDICES the separators break ties by the
+// sites' features (KEYED, as col_pass), found only where the two tie rules give different
+// separators (banded_key: the y pass's sites from the x rows and the world, the z pass's from the y
+// pass's keys): the order (partial, key) is strict, so the bands' envelopes and their merges keep
+// the same owner as the sequential stack, and every position takes its owner's key.
 
 #define LINK_NONE 0xFFFFu
 #define LINK_DEAD 0xFFFEu

@@ -125,6 +125,9 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     if (incremental && options.indices) {
         throw std::invalid_argument("ExactSeparable: incremental updates keep no indices");
     }
+    if (options.signed_field && options.indices) {
+        throw std::invalid_argument("ExactSeparable: indices are of unsigned fields only");
+    }
     const std::size_t out_bytes = n * element_size(format_);
     const OutType ot = out_type(format_);
     const bool unit = options.spacing.unit();

@@ -573,6 +573,12 @@ TEST(ExactSeparable, ZeroTargetsInPlaceFieldAndIndices) {
                             options(Metric::euclidean, Spacing{}, true, Format::f32, Layout::cpu),
                             {}, {}, true),
         std::invalid_argument);
+    for (Layout layout : kLayouts) {
+        EXPECT_THROW(ocl::ExactSeparable(
+                         pocl(), w.dims(), w.voxels(), Palette(),
+                         options(Metric::euclidean, Spacing{}, true, Format::f32, layout, true)),
+                     std::invalid_argument);
+    }
 }
 
 // The streaming read hands the same bytes as the whole read, in order, in slabs of at most
@@ -647,7 +653,7 @@ TEST(ExactSeparable, BundledModels) {
     }
 }
 
-// The GPU layout's full unsigned transforms at unit spacing run the banded passes
+// The GPU layout's full transforms at unit spacing run the banded passes
 // (cols_banded): long lines (many sites per band), sparse lines (bands without a site), rows
 // without any solid, and lines shorter than the bands, every metric and an integer and a
 // float format.
@@ -718,10 +724,12 @@ TEST(ExactSeparable, BandedGpuPassesTakeSpacing) {
                         expect_matches(w, Palette(), o, reference(w, o), what);
                     }
                 }
-                const auto o = options(m, sp, false, Format::f32, Layout::gpu, true);
-                ASSERT_EQ(ocl::ExactSeparable(pocl(), w, Palette(), o).variant(),
-                          "gpu layout, banded");
-                expect_indices(w, o, what + " indices");
+                for (Format f : {Format::f32, Format::f64}) {
+                    const auto o = options(m, sp, false, f, Layout::gpu, true);
+                    ASSERT_EQ(ocl::ExactSeparable(pocl(), w, Palette(), o).variant(),
+                              "gpu layout, banded");
+                    expect_indices(w, o, what + " indices");
+                }
                 if (::testing::Test::HasFailure()) {
                     return;
                 }
