@@ -160,14 +160,14 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
 
     // cols_banded where the device runs its work-groups of kBandedGroup (its registers may
     // cap them lower) and lines of Y and of Z fit its local memory (partials of gt_bytes_);
-    // any spacing (the x rows' 1-D distance in voxels, scaled by the x spacing).
+    // any spacing (the x rows' 1-D distance in voxels, scaled by the x spacing). Zero targets
+    // (SciPy's convention) take the x rows of empty_targets' copy of the world.
     // Signed fields take it twice: the world's solids as targets, then its empty voxels (and
     // the space around it, cols_banded's border) for the solids' inner distances, whose z
     // pass writes the signed values. The feature transform takes the same passes; the y pass finds
     // its sites' keys from the x rows and the world, and the z pass writes the index planes.
     const bool banded_fits =
-        gpu_layout_ && !incremental && !zero_targets_ && X < 0xFFFF && Y < kLinkLimit &&
-        Z < kLinkLimit &&
+        gpu_layout_ && !incremental && X < 0xFFFF && Y < kLinkLimit && Z < kLinkLimit &&
         cl::Kernel(program_, "cols_banded")
                 .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
     const std::uint32_t lines_y = banded_fits ? banded_lines(Y, gt_bytes_, info.local_mem) : 0;
@@ -336,22 +336,31 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         }
         if (lines_y != 0 && lines_z != 0) {
             const bool sgn = options.signed_field;
-            if (sgn) {
+            if (sgn || zero_targets_) {
                 empty_ = make_buffer(n, CL_MEM_READ_WRITE);
             }
-            auto rows = gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0]);
+            // The first transform's targets: the solids, or with zero targets the empty
+            // voxels (empty_targets writes them first).
+            auto rows =
+                gpu_x_rows(ctx, dims_, Format::u16, zero_targets_ ? empty_ : voxels_, g_[0]);
             auto inner_rows = sgn ? gpu_x_rows(ctx, dims_, Format::u16, empty_, h_[0]) : rows;
             if (rows && inner_rows) {
                 const std::size_t plane = std::size_t{X} * Y;
-                stages_.push_back(*rows);
-                stages_.push_back(banded_kernel(1, Y, lines_y, X, plane, Z, false, g_));
-                stages_.push_back(banded_kernel(2, Z, lines_z, plane, X, Y, !sgn, g_));
-                if (sgn) {
+                const auto empty_targets = [&] {
                     cl::Kernel empty(program_, "empty_targets");
                     empty.setArg(0, voxels_);
                     empty.setArg(1, empty_);
                     empty.setArg(2, static_cast<cl_ulong>(n));
                     stages_.push_back(items_launch("empty_targets", empty, n));
+                };
+                if (zero_targets_) {
+                    empty_targets();
+                }
+                stages_.push_back(*rows);
+                stages_.push_back(banded_kernel(1, Y, lines_y, X, plane, Z, false, g_));
+                stages_.push_back(banded_kernel(2, Z, lines_z, plane, X, Y, !sgn, g_));
+                if (sgn) {
+                    empty_targets();
                     inner_rows->name = "x_rows_inner";
                     stages_.push_back(*inner_rows);
                     KernelLaunch y = banded_kernel(1, Y, lines_y, X, plane, Z, false, h_);
@@ -423,7 +432,8 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(1, parts[y ? 0 : 1]);
     kernel.setArg(2, parts[y ? 1 : 0]);
     kernel.setArg(3, out_);
-    kernel.setArg(4, voxels_);
+    // The y pass's keys name the x rows' targets: the empty voxels with zero targets.
+    kernel.setArg(4, y && zero_targets_ ? empty_ : voxels_);
     kernel.setArg(5, rgb_);
     kernel.setArg(6, dims_.x);
     kernel.setArg(7, n);

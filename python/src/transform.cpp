@@ -8,8 +8,8 @@
 // caller's `out` array when given) or read from the device buffer into it; so are the index
 // planes of the feature transform on a CPU device (elsewhere they are read slab by slab into
 // the returned array). `targets='zero'` (voxfield.ndimage's convention): the distances are to
-// the nearest zero voxel; the CPU layout's separable passes read the world as it is, other
-// paths take an inverted copy.
+// the nearest zero voxel; the separable passes read the world as it is (the GPU layout's
+// banded ones from a copy inverted on the device), other paths take an inverted copy.
 #include <cstring>
 #include <span>
 #include <utility>
@@ -27,8 +27,8 @@ namespace {
 // uint8/bool world straight into `field` (host_field's memory) and, with o.indices, the index
 // planes into `indices`: a CPU device reads the array and writes the field and planes in
 // place, nothing copied; elsewhere the world is uploaded and the results read back into
-// them. `zero_targets`: the distances are to the nearest zero voxel of `voxels` (only where
-// the separable transforms run in the CPU layout; the caller inverts the world otherwise).
+// them. `zero_targets`: the distances are to the nearest zero voxel of `voxels` (the
+// separable transforms; the caller inverts the world for exact_manhattan.cl's sweeps).
 void transform_into(Device& dev, Dims dims, std::span<const std::uint8_t> voxels,
                     const ocl::GeneratorOptions& o, std::uint8_t* field, std::size_t bytes,
                     std::int32_t* indices, bool zero_targets) {
@@ -66,11 +66,12 @@ void transform_into(Device& dev, Dims dims, std::span<const std::uint8_t> voxels
     }
 }
 
-// Whether the separable transforms of `o` on `dev` read zero voxels as targets themselves
-// (the CPU layout); elsewhere the world is inverted on the host first.
+// Whether `o` on `dev` runs the separable transforms, which read zero voxels as targets
+// themselves (the CPU layout's passes; the GPU layout's banded passes from a copy the device
+// inverts, its col_pass from the world); exact_manhattan.cl's sweeps take an inverted copy
+// made on the host.
 bool native_zero_targets(const Device& dev, const ocl::GeneratorOptions& o) {
-    return dev.context.is_cpu() && o.layout != ocl::Layout::gpu &&
-           !ocl::ExactManhattan::handles(dev.context, o);
+    return !ocl::ExactManhattan::handles(dev.context, o);
 }
 
 }  // namespace

@@ -496,7 +496,8 @@ TEST(ExactSeparable, ManhattanIndicesEveryFormatAndShape) {
 // The span constructor as voxfield.ndimage uses it: the world read in place with its zero
 // voxels as the targets (zero_targets), the f64 field and the index planes written into the
 // caller's memory by the z pass (no finish pass), on random grids of every density, against
-// the reference of the inverted world.
+// the reference of the inverted world (SciPy's ties included); the GPU layout takes the banded
+// passes on empty_targets' copy.
 TEST(ExactSeparable, ZeroTargetsInPlaceFieldAndIndices) {
     std::mt19937_64 rng(2612);
     std::uniform_int_distribution<std::uint32_t> axis(1, 90);
@@ -514,6 +515,7 @@ TEST(ExactSeparable, ZeroTargetsInPlaceFieldAndIndices) {
         }
         const World targets(d, inverted);
         const auto ref = reference_distance(targets, Metric::euclidean, Spacing{});
+        const auto features = reference_features(targets, Metric::euclidean, Spacing{});
         for (bool indices : {false, true}) {
             for (Layout layout : kLayouts) {
                 const auto o =
@@ -525,6 +527,9 @@ TEST(ExactSeparable, ZeroTargetsInPlaceFieldAndIndices) {
                 {
                     ocl::ExactSeparable job(pocl(), d, w.voxels(), Palette(), o,
                                             {field.data(), d.count() * 8}, planes, true);
+                    if (layout == Layout::gpu) {
+                        ASSERT_EQ(job.variant(), "gpu layout, banded") << what;
+                    }
                     job.run();
                     const ocl::MappedBuffer mapped(pocl(), job.field_buffer(), d.count() * 8);
                     ASSERT_EQ(mapped.bytes().data(), field.data()) << what;
@@ -555,6 +560,9 @@ TEST(ExactSeparable, ZeroTargetsInPlaceFieldAndIndices) {
                                pz = static_cast<long>(k / d.x / d.y);
                     ASSERT_EQ(metric_distance(Metric::euclidean, Spacing{}, px - x, py - y, pz - z),
                               ref[k])
+                        << what << " voxel " << k;
+                    // SciPy's ties: the nearest zero voxel of lowest (x, y, z).
+                    ASSERT_EQ((static_cast<std::int64_t>(z) * d.y + y) * d.x + x, features[k])
                         << what << " voxel " << k;
                 }
             }
