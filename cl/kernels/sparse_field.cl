@@ -107,13 +107,13 @@ __kernel void fill_slot(__global ELEM* restrict pool, ulong slot, ELEM value) {
 // index * 64 + node): the least KEY over its voxels inside the world (a tile cut by the world's
 // edge holds no values beyond it), starting from the far value, which no value exceeds; each
 // work-item takes 4 rows of 16, then the group's least. `tiles`: per listed slot its tile's
-// coordinates (3 uints). Written per slot into `minima` and in list order into `listed` (one
-// read for the host). Only the nodes set in `nodes` (per listed slot, bit z << 4 | y << 2 | x)
-// are computed; the others keep their minima (copied into `listed`).
+// coordinates (3 uints). Written per slot into `minima`, which stays on the device. Only the
+// nodes set in `nodes` (per listed slot, bit z << 4 | y << 2 | x) are computed; the others keep
+// their minima.
 __kernel void node_minima(__global const ELEM* restrict pool, __global const uint* restrict slots,
                           __global const uint* restrict tiles, uint count,
                           __global ELEM* restrict minima, ELEM far, uint wx, uint wy, uint wz,
-                          __global ELEM* restrict listed, __global const ulong* restrict nodes) {
+                          __global const ulong* restrict nodes) {
     __local ELEM least[64];
     const uint lid = (uint)get_local_id(0);
     const size_t i = get_global_id(1);
@@ -124,9 +124,6 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
     __global const uint* t = tiles + 3 * (i / 64);
     const uint node = (uint)(i % 64);
     if ((nodes[i / 64] >> node & 1ul) == 0) {
-        if (lid == 0) {
-            listed[i] = minima[slot * 64 + node];
-        }
         return;  // the whole group
     }
     const uint x0 = (node & 3) * 16, y0 = ((node >> 2) & 3) * 16, z0 = (node >> 4) * 16;
@@ -167,7 +164,6 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
     }
     if (lid == 0) {
         minima[slot * 64 + node] = least[0];
-        listed[i] = least[0];
     }
 }
 

@@ -306,7 +306,6 @@ std::uint32_t SparseField::dense_slot(std::uint64_t key) {
     });
     ++traffic_.enqueues;
     slot_keys_.push_back(key);
-    coarse_host_.resize(slot_keys_.size() * 64 * elem_);
     tiles_[key] = slot;
     return slot;
 }
@@ -514,8 +513,6 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots,
             minima_list_cap_ = std::max(slots.size(), std::size_t{64});
             minima_list_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, minima_list_cap_ * 4);
             minima_coords_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, minima_list_cap_ * 12);
-            minima_listed_ =
-                cl::Buffer(ctx_.context(), CL_MEM_WRITE_ONLY, minima_list_cap_ * 64 * elem_);
             minima_nodes_ = cl::Buffer(ctx_.context(), CL_MEM_READ_ONLY, minima_list_cap_ * 8);
         }
         cl::Buffer& list = minima_list_;
@@ -534,19 +531,13 @@ void SparseField::refresh_coarse(const std::vector<std::uint32_t>& slots,
         k.setArg(6, wd.x);
         k.setArg(7, wd.y);
         k.setArg(8, wd.z);
-        k.setArg(9, minima_listed_);
-        k.setArg(10, minima_nodes_);
+        k.setArg(9, minima_nodes_);
         cl::Event ev;
         q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(64, slots.size() * 64),
                                cl::NDRange(64, 1), nullptr, &ev);
-        const std::size_t per = 64 * elem_;
-        std::vector<std::uint8_t> listed(slots.size() * per);
-        q.enqueueReadBuffer(minima_listed_, CL_TRUE, 0, listed.size(), listed.data());
-        traffic_ += {5, 1};
-        for (std::size_t i = 0; i < slots.size(); ++i) {
-            std::memcpy(coarse_host_.data() + std::size_t{slots[i]} * per, listed.data() + i * per,
-                        per);
-        }
+        ev.wait();
+        traffic_ += {4, 1};
+        coarse_synced_ = false;
         *ms += elapsed_ms(ev, ev);
         add_stage("node_minima", elapsed_ms(ev, ev));
     });
@@ -735,7 +726,6 @@ double SparseField::run() {
                             jobs[slot] = {region, tile_origin(t.x, t.y, t.z, wd, block, halo_)};
                         }
                     });
-    coarse_host_.assign(slot_keys_.size() * 64 * elem_, 0);
     lap("jobs");
     double ms = blocks ? compute(jobs, block) : sweep();
     lap(blocks ? "blocks" : "sweep");
@@ -1158,7 +1148,6 @@ double SparseField::update_block(const Job& job, Dims block,
                                         n * 8};
     if (!tables_) {
         tables_ = std::make_unique<PinnedTables>();
-        minima_host_ = std::make_unique<PinnedHost>();
     }
     bool waited = false;
     tables_->fit(ctx_, bytes, &waited);
@@ -1201,15 +1190,6 @@ double SparseField::update_block(const Job& job, Dims block,
     ++work_.blocks;
     work_.block_voxels += std::uint64_t{block.x} * block.y * block.z;
     work_.region_voxels += static_cast<std::uint64_t>(size.x * size.y * size.z);
-    const std::size_t per = 64 * elem_;
-    if (n > update_minima_cap_) {
-        update_minima_cap_ = std::max<std::size_t>(2 * n, 64);
-        cl_call("allocating an update's node minima", [&] {
-            update_minima_ =
-                cl::Buffer(ctx_.context(), CL_MEM_WRITE_ONLY, update_minima_cap_ * per);
-        });
-    }
-    minima_host_->reserve(ctx_, update_minima_cap_ * per);
     std::vector<std::pair<std::string, cl::Event>> events;
     double ms = 0;
     cl_call("updating a sparse field block of " + block.to_string(), [&] {
@@ -1246,28 +1226,22 @@ double SparseField::update_block(const Job& job, Dims block,
         k.setArg(6, wd.x);
         k.setArg(7, wd.y);
         k.setArg(8, wd.z);
-        k.setArg(9, update_minima_);
-        k.setArg(10, tables_->buffer(kNodes));
+        k.setArg(9, tables_->buffer(kNodes));
         events.emplace_back("node_minima", cl::Event());
         q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(64, n * 64), cl::NDRange(64, 1),
                                nullptr, &events.back().second);
-        // The one wait: the minima read back, every command before them done.
+        // The one wait: node_minima done, and with it every command before it (an in-order
+        // queue). The minima stay on the device (coarse_node reads them when asked).
         block_times_.enqueued = Clock::now();
-        cl::Event read;
-        q.enqueueReadBuffer(update_minima_, CL_TRUE, 0, n * per, minima_host_->data(), nullptr,
-                            &read);
+        events.back().second.wait();
         block_times_.waited = Clock::now();
+        coarse_synced_ = false;
         // Not where the generator ran (and waited) by itself: its commands are not listed.
         block_times_.set = enqueued;
-        traffic_.enqueues += static_cast<std::uint32_t>(events.size()) + 2;
+        traffic_.enqueues += static_cast<std::uint32_t>(events.size()) + 1;
         ++traffic_.host_waits;
         for (const auto& [name, e] : events) {
             block_commands_.push_back(e);
-        }
-        block_commands_.push_back(read);
-        for (std::size_t i = 0; i < n; ++i) {
-            std::memcpy(coarse_host_.data() + std::size_t{slots[i]} * per,
-                        minima_host_->data() + i * per, per);
         }
         for (std::size_t i = 0; i < events.size(); ++i) {
             const double t = elapsed_ms(events[i].second, events[i].second);
@@ -1364,6 +1338,14 @@ double SparseField::coarse_node(std::int64_t nx, std::int64_t ny, std::int64_t n
                              static_cast<std::uint32_t>(nz / 4)));
     if (it == tiles_.end() || it->second == kInsideTile) {
         return positive(it == tiles_.end() ? far_ : inside_);
+    }
+    if (!coarse_synced_) {
+        coarse_host_.resize(slot_keys_.size() * 64 * elem_);
+        cl_call("reading the field's node minima", [&] {
+            ctx_.queue().enqueueReadBuffer(coarse_, CL_TRUE, 0, coarse_host_.size(),
+                                           coarse_host_.data());
+        });
+        coarse_synced_ = true;
     }
     const std::size_t node = static_cast<std::size_t>(it->second) * 64 +
                              static_cast<std::size_t>((nz % 4) << 4 | (ny % 4) << 2 | (nx % 4));

@@ -282,7 +282,8 @@ class SparseField {
     // the nearest solid (the field's value, its positive part when signed) over every voxel
     // of tile (tx, ty, tz), or of the 16^3 node (nx, ny, nz) (node units: voxel / 16). D for
     // tiles beyond the bound. Float formats' values are lowered by one unit in the last place,
-    // so that the coarse distance bounds the exact distance as well.
+    // so that the coarse distance bounds the exact distance as well. The minima live on the
+    // device; the first call after a run or an update reads them back whole.
     double coarse_tile(std::int64_t tx, std::int64_t ty, std::int64_t tz);
     double coarse_node(std::int64_t nx, std::int64_t ny, std::int64_t nz);
 
@@ -353,8 +354,8 @@ class SparseField {
     cl::Kernel sweep_l1_loaded_;  // sweep_l1 of the GPU layout
     bool force_blocks_ = false;
     SparseDeviceWorld device_world_;  // the world's 64-trees on the device
-    // node_minima's slots, tile coordinates and minima in list order.
-    cl::Buffer minima_list_, minima_coords_, minima_listed_, minima_nodes_;
+    // node_minima's slots, tile coordinates and nodes of refresh_coarse.
+    cl::Buffer minima_list_, minima_coords_, minima_nodes_;
     std::size_t minima_list_cap_ = 0;
     // Field tiles: key -> slot on the device, or kInsideTile (constant inside value).
     TileMap tiles_;
@@ -362,7 +363,9 @@ class SparseField {
     cl::Buffer pool_;                       // slots of kTileVoxels * elem_ bytes
     std::size_t pool_slots_ = 0;
     cl::Buffer coarse_;  // per slot, its 64 nodes' least KEY (sparse_field.cl), in the format
-    std::vector<std::uint8_t> coarse_host_;  // mirror of coarse_
+    // A host copy of coarse_, read whole by coarse_node when the device's has changed since.
+    std::vector<std::uint8_t> coarse_host_;
+    bool coarse_synced_ = false;
     std::map<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>,
              std::unique_ptr<Batch>>
         batches_;
@@ -379,11 +382,8 @@ class SparseField {
     };
     BlockTimes block_times_;
     std::vector<cl::Event> block_commands_;
-    // update_block's tables, the node minima it computes and their pinned host copy.
+    // update_block's tables.
     std::unique_ptr<PinnedTables> tables_;
-    cl::Buffer update_minima_;
-    std::size_t update_minima_cap_ = 0;
-    std::unique_ptr<PinnedHost> minima_host_;
 };
 
 }  // namespace voxfield::ocl
