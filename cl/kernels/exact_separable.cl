@@ -1170,8 +1170,8 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 // its output value) goes out. The first pass is exact_manhattan.cl's x_rows (the 1-D distance along
 // x, 16 bits, 0xFFFF where a row has no solid). With INDICES the separators break ties by the
 // sites' features (KEYED, as col_pass), found only where the two tie rules give different
-// separators (banded_key: the y pass's sites from the x rows and the world, the z pass's from the y
-// pass's keys): the order (partial, key) is strict, so the bands' envelopes and their merges keep
+// separators (banded_key: the y pass's sites from the x rows and the targets they were made of,
+// the z pass's from the y pass's keys): the order (partial, key) is strict, so the bands' envelopes and their merges keep
 // the same owner as the sequential stack, and every position takes its owner's key.
 
 #define LINK_NONE 0xFFFFu
@@ -1179,8 +1179,9 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 
 #if INDICES
 // The feature key of site e of a cols_banded line (x, o): in the z pass the y pass's `fin`; in
-// the y pass (from16) the nearest solid of its x row, d = the row's 1-D distance away, on the
-// left where that voxel is solid (the x pass's ties go left), else on the right.
+// the y pass (from16) the nearest target of its x row, d = the row's 1-D distance away, on the
+// left where that voxel of `vox` (the x rows' input: the world, or empty_targets' copy for
+// zero targets) is nonzero (the x pass's ties go left), else on the right.
 inline uint banded_key(__global const ushort* in16, __global const uchar* vox,
                        __global const uint* fin, size_t base, size_t stride, int e, uint from16,
                        uint x, uint o, uint Y, uint Z) {
@@ -1210,7 +1211,8 @@ inline int banded_sep(__global const ushort* in16, __global const uchar* vox,
 #define BSEP(i, u, gi, gu) sep((i), (u), (gi), (gu), sp)
 #endif
 
-// A signed field's inner targets for cols_banded: 1 where the world's voxel is empty, else 0.
+// cols_banded's targets for a signed field's inner transform or for zero targets: 1 where the
+// world's voxel is empty, else 0.
 __kernel void empty_targets(__global const uchar* restrict vox, __global uchar* restrict out,
                             ulong n) {
     const size_t i = get_global_id(0);

@@ -306,6 +306,7 @@ std::uint32_t SparseField::dense_slot(std::uint64_t key) {
     });
     ++traffic_.enqueues;
     slot_keys_.push_back(key);
+    coarse_synced_ = false;  // the host copy lacks the new slot
     tiles_[key] = slot;
     return slot;
 }
@@ -570,6 +571,7 @@ double SparseField::run() {
     stages_.clear();
     host_stages_.clear();
     work_ = Work{};
+    coarse_synced_ = false;
     auto lap = [this, t = Clock::now()](const char* name) mutable {
         const auto now = Clock::now();
         host_stages_.emplace_back(name, ms_between(t, now));
