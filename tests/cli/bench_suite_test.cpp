@@ -20,19 +20,9 @@ namespace {
 
 using nlohmann::json;
 
-class BenchSuite : public ::testing::Test {
+class BenchSuite : public TempDirsTest {
   protected:
-    void SetUp() override {
-        dir_ = make_temp_dir("voxfield_bench_suite");
-        io_ = make_temp_dir("voxfield_bench_suite_io");
-    }
-    void TearDown() override {
-        fs::remove_all(dir_);
-        fs::remove_all(io_);
-    }
-    RunResult run(const std::vector<std::string>& args) { return run_voxfield(args, io_); }
-
-    fs::path dir_, io_;
+    BenchSuite() : TempDirsTest("voxfield_bench_suite") {}
 };
 
 bool finite_number(const json& v) {

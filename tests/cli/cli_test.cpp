@@ -85,18 +85,9 @@ long long first_difference(const std::vector<std::uint8_t>& a, const std::vector
     return a.size() == b.size() ? -1 : static_cast<long long>(n / es);
 }
 
-class CliTest : public ::testing::Test {
+class CliTest : public TempDirsTest {
   protected:
-    void SetUp() override {
-        dir_ = make_temp_dir("voxfield_cli");
-        io_ = make_temp_dir("voxfield_cli_io");
-    }
-    void TearDown() override {
-        std::error_code ec;
-        fs::remove_all(dir_, ec);
-        fs::remove_all(io_, ec);
-    }
-    RunResult run(const std::vector<std::string>& args) { return run_voxfield(args, io_); }
+    CliTest() : TempDirsTest("voxfield_cli") {}
 
     // Runs `generate` in every format and checks the output files against the reference.
     void check_generate(const fs::path& input, const World& world, const Palette& palette) {
@@ -136,8 +127,6 @@ class CliTest : public ::testing::Test {
         }
         EXPECT_EQ(list_dir(dir_), expected);
     }
-
-    fs::path dir_, io_;
 };
 
 // A non-cubic world (distinct X, Y, Z catch axis-order mistakes) with palette indices up to

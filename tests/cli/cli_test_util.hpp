@@ -20,6 +20,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "../xvfb_run.hpp"
@@ -120,6 +121,28 @@ inline RunResult run_voxfield(const std::vector<std::string>& args, const fs::pa
     fs::remove(err_path);
     return r;
 }
+
+// A fixture's two temporary folders, made before each test and removed after it: dir_ for its
+// files, io_ for run_voxfield's captured output (stem and stem + "_io").
+class TempDirsTest : public ::testing::Test {
+  protected:
+    explicit TempDirsTest(std::string stem) : stem_(std::move(stem)) {}
+    void SetUp() override {
+        dir_ = make_temp_dir(stem_);
+        io_ = make_temp_dir(stem_ + "_io");
+    }
+    void TearDown() override {
+        std::error_code ec;
+        fs::remove_all(dir_, ec);
+        fs::remove_all(io_, ec);
+    }
+    RunResult run(const std::vector<std::string>& args) { return run_voxfield(args, io_); }
+
+    fs::path dir_, io_;
+
+  private:
+    std::string stem_;
+};
 
 inline std::string describe(const RunResult& r) {
     return "exit " + std::to_string(r.code) + "\n--- stdout ---\n" + r.out + "--- stderr ---\n" +

@@ -18,22 +18,13 @@ namespace {
 
 const fs::path kVox = fs::path(VOXFIELD_DATA_DIR) / "vox" / "obj_house4.vox";
 
-class PluginTest : public ::testing::Test {
+class PluginTest : public TempDirsTest {
   protected:
-    void SetUp() override {
-        dir_ = make_temp_dir("voxfield_plugin");
-        io_ = make_temp_dir("voxfield_plugin_io");
-    }
-    void TearDown() override {
-        fs::remove_all(dir_);
-        fs::remove_all(io_);
-    }
+    PluginTest() : TempDirsTest("voxfield_plugin") {}
     RunResult generate(const std::string& output) {
-        return run_voxfield({"generate", kVox.string(), "-o", (dir_ / output).string(), "--device",
-                             "cpu", "--max-distance", "6"},
-                            io_);
+        return run({"generate", kVox.string(), "-o", (dir_ / output).string(), "--device", "cpu",
+                    "--max-distance", "6"});
     }
-    fs::path dir_, io_;
 };
 
 TEST_F(PluginTest, OpenVdbIsLoadedOnlyForVdbFiles) {

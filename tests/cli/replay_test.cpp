@@ -131,21 +131,15 @@ EditScript random_script(std::uint64_t seed, std::size_t count) {
     return s;
 }
 
-class ReplayTest : public ::testing::Test {
+class ReplayTest : public TempDirsTest {
   protected:
+    ReplayTest() : TempDirsTest("voxfield_replay") {}
     void SetUp() override {
-        dir_ = make_temp_dir("voxfield_replay");
-        io_ = make_temp_dir("voxfield_replay_io");
+        TempDirsTest::SetUp();
         world_path_ = dir_ / "world.npy";
         const NpyArray a = npy_from_world(initial_world());
         write_npy(world_path_, a.type, a.dims, a.data);
     }
-    void TearDown() override {
-        std::error_code ec;
-        fs::remove_all(dir_, ec);
-        fs::remove_all(io_, ec);
-    }
-    RunResult run(const std::vector<std::string>& args) { return run_voxfield(args, io_); }
 
     static World initial_world() { return scene_floor_spheres(kDims, 7, 16); }
 
@@ -243,7 +237,7 @@ class ReplayTest : public ::testing::Test {
         return r.err;
     }
 
-    fs::path dir_, io_, world_path_;
+    fs::path world_path_;
 };
 
 TEST_F(ReplayTest, RandomEditsExactMatchCpuAndVerify) {

@@ -30,19 +30,14 @@ using nlohmann::json;
 
 const Dims kDims{32, 24, 28};
 
-class SimulateTest : public ::testing::Test {
+class SimulateTest : public TempDirsTest {
   protected:
+    SimulateTest() : TempDirsTest("voxfield_simulate") {}
     void SetUp() override {
-        dir_ = make_temp_dir("voxfield_simulate");
-        io_ = make_temp_dir("voxfield_simulate_io");
+        TempDirsTest::SetUp();
         world_path_ = dir_ / "world.npy";
         const NpyArray a = npy_from_world(start());
         write_npy(world_path_, a.type, a.dims, a.data);
-    }
-    void TearDown() override {
-        std::error_code ec;
-        fs::remove_all(dir_, ec);
-        fs::remove_all(io_, ec);
     }
     RunResult run(std::vector<std::string> args) {
         args.insert(args.begin(), {"simulate", world_path_.string()});
@@ -81,7 +76,7 @@ class SimulateTest : public ::testing::Test {
         EXPECT_EQ(list_dir(dir_), (std::set<std::string>{"world.npy"}));
     }
 
-    fs::path dir_, io_, world_path_;
+    fs::path world_path_;
 };
 
 TEST_F(SimulateTest, VerifiedRunWritesTheReferenceWorldAndItsExactField) {

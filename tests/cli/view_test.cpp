@@ -45,21 +45,13 @@ std::size_t non_black_pixels(const fs::path& path, int width, int height) {
     return n;
 }
 
-class ViewTest : public ::testing::Test {
+class ViewTest : public TempDirsTest {
   protected:
-    void SetUp() override {
-        dir_ = make_temp_dir("voxfield_view_test");
-        io_ = make_temp_dir("voxfield_view_io");
-    }
-    void TearDown() override {
-        fs::remove_all(dir_);
-        fs::remove_all(io_);
-    }
+    ViewTest() : TempDirsTest("voxfield_view_test") {}
     void check_shot_and_field(const fs::path& world, const fs::path& edits,
                               const std::string& format, const fs::path& shot,
                               const fs::path& field);
     HeadlessViewerEnv env_;
-    fs::path dir_, io_;
 };
 
 TEST_F(ViewTest, NoDisplaySaysSoInOneLineAndSuggestsRender) {

@@ -29,18 +29,10 @@
 namespace voxfield::test {
 namespace {
 
-class ViewSparse : public ::testing::Test {
+class ViewSparse : public TempDirsTest {
   protected:
-    void SetUp() override {
-        dir_ = make_temp_dir("voxfield_view_sparse");
-        io_ = make_temp_dir("voxfield_view_sparse_io");
-    }
-    void TearDown() override {
-        fs::remove_all(dir_);
-        fs::remove_all(io_);
-    }
+    ViewSparse() : TempDirsTest("voxfield_view_sparse") {}
     HeadlessViewerEnv env_;
-    fs::path dir_, io_;
 };
 
 // A 150 x 40 x 140 world (three tiles along x and z): a floor, a wall and a tower.

@@ -11,18 +11,13 @@ namespace {
 
 const fs::path kModel = fs::path(VOXFIELD_DATA_DIR) / "vox" / "chr_army1.vox";
 
-class RenderCli : public ::testing::Test {
+class RenderCli : public TempDirsTest {
   protected:
+    RenderCli() : TempDirsTest("voxfield_render") {}
     void SetUp() override {
-        dir_ = make_temp_dir("voxfield_render");
-        io_ = make_temp_dir("voxfield_render_io");
+        TempDirsTest::SetUp();
         ::setenv("VOXFIELD_VALIDATE", "1", 1);  // `--validate`: any message exits 1
     }
-    void TearDown() override {
-        fs::remove_all(dir_);
-        fs::remove_all(io_);
-    }
-    fs::path dir_, io_;
 };
 
 TEST_F(RenderCli, BadInputExitsTwoWithOneLineAndNoFile) {
