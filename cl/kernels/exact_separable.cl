@@ -924,6 +924,20 @@ inline uint quotient(uint f, uint d, double inv) {
     return q;
 }
 
+#if INDICES
+// Voxel i's (z, y, x) planes (`count` voxels apart) of the feature key f (-1, -1, -1 for
+// UINT_MAX: no solid), keys (x * Y + y) * Z + z: yz = Y * Z, zn = Z and their reciprocals.
+inline void write_index(__global int* idx, size_t count, size_t i, uint f, uint yz, uint zn,
+                        double inv_yz, double inv_z) {
+    const uint xf = quotient(f, yz, inv_yz);
+    const uint r = f - xf * yz;
+    const uint yf = quotient(r, zn, inv_z);
+    idx[i] = f == UINT_MAX ? -1 : (int)(r - yf * zn);
+    idx[count + i] = f == UINT_MAX ? -1 : (int)yf;
+    idx[2 * count + i] = f == UINT_MAX ? -1 : (int)xf;
+}
+#endif
+
 // Lines of length n and element stride `stride` along `axis` (1: y, 2: z): line l has x =
 // lo_x + l % count_x and the other coordinate lo_o + l / count_x, and starts at
 // other * mstride + x; positions [o0, o1) from the sites [i0, i1), partials capped at `cap`.
@@ -1072,13 +1086,7 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
                 for (int u = o0; u < o1; ++u) {
                     for (int c = 0; c < cw; ++c) {
                         const size_t i = base + (size_t)u * stride + c;
-                        const uint f = ftout[u * tile_w + c];
-                        const uint xf = quotient(f, yz, inv_yz);
-                        const uint r = f - xf * yz;
-                        const uint yf = quotient(r, zn, inv_z);
-                        idx[i] = f == UINT_MAX ? -1 : (int)(r - yf * zn);
-                        idx[count + i] = f == UINT_MAX ? -1 : (int)yf;
-                        idx[2 * count + i] = f == UINT_MAX ? -1 : (int)xf;
+                        write_index(idx, count, i, ftout[u * tile_w + c], yz, zn, inv_yz, inv_z);
                     }
                 }
                 continue;
@@ -1112,18 +1120,6 @@ __kernel void col_pass(__global const GT* g, __global GT* gout, __global const G
     }
 }
 
-#if INDICES
-// Voxel i's (z, y, x) planes of the feature key f (-1, -1, -1 for UINT_MAX: no solid).
-inline void write_index(__global int* idx, ulong count, size_t i, uint f, uint Y, uint Z) {
-    const uint xf = quotient(f, Y * Z, 1.0 / ((double)Y * Z));
-    const uint r = f - xf * Y * Z;
-    const uint yf = quotient(r, Z, 1.0 / Z);
-    idx[i] = f == UINT_MAX ? -1 : (int)(r - yf * Z);
-    idx[count + i] = f == UINT_MAX ? -1 : (int)yf;
-    idx[2 * count + i] = f == UINT_MAX ? -1 : (int)xf;
-}
-#endif
-
 // Writes the output format from the final partials (and the index planes: z, y, x of the
 // nearest solid, -1 without one, as SciPy's return_indices lays them out, from its key and
 // the world's depth Z) for the voxels of the box lo + [0, size): the whole world, or the
@@ -1149,30 +1145,31 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 #endif
     store(out, rgb, v, i, d);
 #if INDICES
-    write_index(idx, count, i, feat[i], Y, Z);
+    write_index(idx, count, i, feat[i], Y * Z, Z, 1.0 / ((double)Y * Z), 1.0 / Z);
 #endif
 }
 
 // ---- GPU layout of the full transform: lower envelopes by bands in local memory ----
 //
 // For full transforms in the GPU layout (signed or not, with or without indices, any spacing:
-// float, double (FP64) or 64-bit (WIDE) partials), the y and z passes run cols_banded: a work-group
-// holds C adjacent lines (x fastest, so its loads and stores are coalesced) of n positions in local
-// memory, and K work-items per line each build the envelope of one band of about n / K sites with
-// Meijster's stack, kept as a doubly linked list over the sites (prv, nxt). The bands are then
-// merged pairwise in log2(K) rounds (the parallel banding of Cao, Tang, Mitra & Tan, "Parallel
-// banding algorithm to compute exact distance transform with the GPU", 2010): where two lists meet,
-// the left list's last site is dropped while Sep(its predecessor, it) >= Sep(it, the right list's
-// first site), and the right list's first while Sep(left's last, it) >= Sep(it, its successor) — a
-// dropped site is everywhere at least as far as one of its neighbours, so the lists' minimum is
-// kept. In the final list every site owns the positions (Sep(predecessor, it), Sep(it, successor)],
-// which the sites' work-items write as owners; then every position's partial (or, in the last pass,
-// its output value) goes out. The first pass is exact_manhattan.cl's x_rows (the 1-D distance along
-// x, 16 bits, 0xFFFF where a row has no solid). With INDICES the separators break ties by the
-// sites' features (KEYED, as col_pass), found only where the two tie rules give different
-// separators (banded_key: the y pass's sites from the x rows and the targets they were made of,
-// the z pass's from the y pass's keys): the order (partial, key) is strict, so the bands' envelopes and their merges keep
-// the same owner as the sequential stack, and every position takes its owner's key.
+// float, double (FP64) or 64-bit (WIDE) partials), the y and z passes run cols_banded: a
+// work-group holds C adjacent lines (x fastest, so its loads and stores are coalesced) of n
+// positions in local memory, and K work-items per line each build the envelope of one band of
+// about n / K sites with Meijster's stack, kept as a doubly linked list over the sites (prv, nxt).
+// The bands are then merged pairwise in log2(K) rounds (the parallel banding of Cao, Tang, Mitra &
+// Tan, "Parallel banding algorithm to compute exact distance transform with the GPU", 2010): where
+// two lists meet, the left list's last site is dropped while Sep(its predecessor, it) >= Sep(it,
+// the right list's first site), and the right list's first while Sep(left's last, it) >= Sep(it,
+// its successor) — a dropped site is everywhere at least as far as one of its neighbours, so the
+// lists' minimum is kept. In the final list every site owns the positions (Sep(predecessor, it),
+// Sep(it, successor)], which the sites' work-items write as owners; then every position's partial
+// (or, in the last pass, its output value) goes out. The first pass is exact_manhattan.cl's x_rows
+// (the 1-D distance along x, 16 bits, 0xFFFF where a row has no solid). With INDICES the
+// separators break ties by the sites' features (KEYED, as col_pass), found only where the two tie
+// rules give different separators (banded_key: the y pass's sites from the x rows and the targets
+// they were made of, the z pass's from the y pass's keys): the order (partial, key) is strict, so
+// the bands' envelopes and their merges keep the same owner as the sequential stack, and every
+// position takes its owner's key.
 
 #define LINK_NONE 0xFFFFu
 #define LINK_DEAD 0xFFFEu
@@ -1411,7 +1408,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             store(out, rgb, cls, i, min(distance_of(v), dmax));
 #endif
 #if INDICES
-            write_index(idx, count, i, f, Y, Z);
+            write_index(idx, count, i, f, Y * Z, Z, 1.0 / ((double)Y * Z), 1.0 / Z);
 #endif
         } else {
             gout[i] = v;

@@ -589,21 +589,25 @@ CommandSpan command_span(const std::vector<cl::Event>& commands) {
             }
         }
     });
+    return command_span(std::move(runs));
+}
+
+CommandSpan command_span(std::vector<std::pair<cl_ulong, cl_ulong>> runs) {
     CommandSpan s;
     if (runs.empty()) {
         return s;
     }
     std::sort(runs.begin(), runs.end());
-    cl_ulong busy = 0, covered = runs.front().first, last = runs.front().first;
+    // covered: the latest end so far (every run before it is counted in busy).
+    cl_ulong busy = 0, covered = runs.front().first;
     for (const auto& [start, end] : runs) {
         covered = std::max(covered, start);
         if (end > covered) {
             busy += end - covered;
             covered = end;
         }
-        last = std::max(last, end);
     }
-    s.span_ms = static_cast<double>(last - runs.front().first) * 1e-6;
+    s.span_ms = static_cast<double>(covered - runs.front().first) * 1e-6;
     s.idle_ms = s.span_ms - static_cast<double>(busy) * 1e-6;
     return s;
 }

@@ -249,9 +249,6 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         for (int b = 0; b < 3 && incremental; ++b) {
             track_[b] = cl::Buffer(c, CL_MEM_READ_WRITE, 7 * sizeof(cl_int));
         }
-        if (!l1_keys_) {
-            scratch_ = make_buffer(scratch_ints * 4, CL_MEM_READ_WRITE);
-        }
         const auto table = palette.rgb332_table();
         cl::Event up_vox, up_rgb;
         if (!in_place) {
@@ -375,6 +372,8 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             }
             empty_ = cl::Buffer();
         }
+        // x_pass's rows and col_pass's stacks: only this path's (not the banded passes').
+        scratch_ = make_buffer(scratch_ints * 4, CL_MEM_READ_WRITE);
         const cl::Buffer none;
         stages_.push_back(items_launch("x_pass", x_kernel(all, xs, none), x_items(all)));
         // Full transforms reuse the x pass's buffer for the z pass; incremental ones keep all.

@@ -147,6 +147,8 @@ struct CommandSpan {
     double span_ms = 0, idle_ms = 0;
 };
 CommandSpan command_span(const std::vector<cl::Event>& commands);
+// The same of (start, end) pairs in nanoseconds, in any order, overlapping or not.
+CommandSpan command_span(std::vector<std::pair<cl_ulong, cl_ulong>> runs);
 
 // Page-aligned host memory that is never zero-filled: its pages are touched first by whoever
 // writes them first (a read from a file, or the kernels writing a CL_MEM_USE_HOST_PTR buffer
