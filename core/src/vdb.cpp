@@ -17,10 +17,8 @@ namespace {
 
 // Loaded at the first call that needs it, once (a failure throws, and the next call tries again).
 const detail::VdbPlugin& plugin() {
-    // The header is the table's first member.
-    static const detail::VdbPlugin& table = *reinterpret_cast<const detail::VdbPlugin*>(
-        load_plugin(project_plugin("the OpenVDB plugin", "libvoxfield_vdb.so",
-                                   "VOXFIELD_VDB_PLUGIN", "voxfield_vdb_plugin")));
+    static const detail::VdbPlugin& table = load_plugin_table<detail::VdbPlugin>(project_plugin(
+        "the OpenVDB plugin", "libvoxfield_vdb.so", "VOXFIELD_VDB_PLUGIN", "voxfield_vdb_plugin"));
     return table;
 }
 

@@ -20,11 +20,10 @@ std::vector<std::uint32_t> peer_sample_tiles(const SparseWorld& world, std::uint
 
 OpenVdbPeer run_openvdb_peer(const SparseWorld& world, double bound,
                              const std::vector<ExactTile>& exact) {
-    // Loaded at the first run, once; the header is the table's first member.
-    static const OpenVdbPeerPlugin& plugin =
-        *reinterpret_cast<const OpenVdbPeerPlugin*>(load_plugin(
-            project_plugin("the OpenVDB peer's plugin", "libvoxfield_openvdb_peer.so",
-                           "VOXFIELD_OPENVDB_PEER_PLUGIN", "voxfield_openvdb_peer_plugin")));
+    // Loaded at the first run, once.
+    static const OpenVdbPeerPlugin& plugin = load_plugin_table<OpenVdbPeerPlugin>(
+        project_plugin("the OpenVDB peer's plugin", "libvoxfield_openvdb_peer.so",
+                       "VOXFIELD_OPENVDB_PEER_PLUGIN", "voxfield_openvdb_peer_plugin"));
     return plugin.run(world, bound, exact);
 }
 

@@ -31,6 +31,12 @@ struct PluginSpec {
 // std::runtime_error naming every place tried and why, when none does.
 const PluginHeader* load_plugin(const PluginSpec& spec);
 
+// load_plugin's table as the plugin's own type T (whose first member is the PluginHeader).
+template <class T>
+const T& load_plugin_table(const PluginSpec& spec) {
+    return *reinterpret_cast<const T*>(load_plugin(spec));
+}
+
 // One of this project's plugins: looked for beside the binary (as the build lays it out, then as
 // the install does), in the build folder, in the install prefix; this build's id.
 PluginSpec project_plugin(std::string what, std::string file, std::string env, std::string entry);
