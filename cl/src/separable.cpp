@@ -228,11 +228,21 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         out_ = field.empty() ? make_buffer(out_bytes, CL_MEM_READ_WRITE)
                              : cl::Buffer(c, CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR, out_bytes,
                                           field.data());
+        // On the banded passes, g_[0] holds only 16-bit x rows where the z pass writes the
+        // output itself (an unsigned field), and a signed field's inner transform needs only
+        // h_[0] for its x rows (its y pass writes g_[1], free by then). Where those passes
+        // cannot run after all, the col_pass path below allocates the whole buffers.
         const int parts = incremental ? 3 : l1_keys_ ? 0 : shared_parts_ ? 1 : 2;
+        const bool banded_rows = lines_y != 0 && lines_z != 0;
+        const std::size_t rows_bytes = n * 2;
         for (int k = 0; k < parts; ++k) {
-            g_[k] = k == 0 && out_is_g ? out_ : make_buffer(part_bytes, CL_MEM_READ_WRITE);
-            if (options.signed_field) {
-                h_[k] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
+            g_[k] = k == 0 && out_is_g ? out_
+                    : k == 0 && banded_rows && !options.signed_field
+                        ? make_buffer(rows_bytes, CL_MEM_READ_WRITE)
+                        : make_buffer(part_bytes, CL_MEM_READ_WRITE);
+            if (options.signed_field && (k == 0 || !banded_rows)) {
+                h_[k] =
+                    make_buffer(k == 0 && banded_rows ? rows_bytes : part_bytes, CL_MEM_READ_WRITE);
             }
         }
         if (options.indices) {
@@ -360,8 +370,11 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                     empty_targets();
                     inner_rows->name = "x_rows_inner";
                     stages_.push_back(*inner_rows);
-                    KernelLaunch y = banded_kernel(1, Y, lines_y, X, plane, Z, false, h_);
-                    KernelLaunch z = banded_kernel(2, Z, lines_z, plane, X, Y, true, h_, true);
+                    // The inner x rows in h_[0], its y pass's partials in g_[1] (the first
+                    // z pass has read them), its z pass writing the output.
+                    const cl::Buffer inner[2] = {h_[0], g_[1]};
+                    KernelLaunch y = banded_kernel(1, Y, lines_y, X, plane, Z, false, inner);
+                    KernelLaunch z = banded_kernel(2, Z, lines_z, plane, X, Y, true, inner, true);
                     y.name = "y_banded_inner";
                     z.name = "z_banded_inner";
                     stages_.push_back(y);
@@ -371,6 +384,14 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                 return;
             }
             empty_ = cl::Buffer();
+            // col_pass's partials are whole: the banded passes' smaller buffers go back.
+            if (!out_is_g && !options.signed_field) {
+                g_[0] = g_[2] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
+            }
+            if (options.signed_field) {
+                h_[0] = h_[2] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
+                h_[1] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
+            }
         }
         // x_pass's rows and col_pass's stacks: only this path's (not the banded passes').
         scratch_ = make_buffer(scratch_ints * 4, CL_MEM_READ_WRITE);
