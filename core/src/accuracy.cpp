@@ -64,4 +64,43 @@ Accuracy compare_fields(const std::vector<std::uint8_t>& got, const std::vector<
     return a;
 }
 
+IndexAccuracy check_indices(const World& world, Metric metric, const Spacing& spacing,
+                            std::span<const std::int32_t> planes, const std::vector<double>& exact,
+                            const std::vector<std::int64_t>* scipy) {
+    const Dims d = world.dims();
+    const std::size_t n = d.count();
+    if (planes.size() != 3 * n || exact.size() != n || (scipy != nullptr && scipy->size() != n)) {
+        throw std::invalid_argument("check_indices: planes, distances and world sizes differ");
+    }
+    const bool any_solid = world.solid_count() != 0;
+    IndexAccuracy a;
+    a.checked = n;
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::int64_t z = planes[i], y = planes[n + i], x = planes[2 * n + i];
+        bool nearest = false;
+        if (!any_solid) {
+            nearest = x == -1 && y == -1 && z == -1;
+        } else if (x >= 0 && y >= 0 && z >= 0 && x < d.x && y < d.y && z < d.z) {
+            const std::size_t target =
+                d.index(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                        static_cast<std::uint32_t>(z));
+            const auto vx = static_cast<std::int64_t>(i % d.x);
+            const auto vy = static_cast<std::int64_t>(i / d.x % d.y);
+            const auto vz = static_cast<std::int64_t>(i / d.x / d.y);
+            const double dist = metric_distance(metric, spacing, x - vx, y - vy, z - vz);
+            nearest = world.voxels()[target] != 0 &&
+                      std::fabs(dist - exact[i]) <= 1e-9 * std::max(1.0, exact[i]);
+            if (nearest && scipy != nullptr && (*scipy)[i] != static_cast<std::int64_t>(target)) {
+                ++a.not_scipy;
+                a.first_wrong = a.first_wrong < 0 ? static_cast<std::int64_t>(i) : a.first_wrong;
+            }
+        }
+        if (!nearest) {
+            ++a.not_nearest;
+            a.first_wrong = a.first_wrong < 0 ? static_cast<std::int64_t>(i) : a.first_wrong;
+        }
+    }
+    return a;
+}
+
 }  // namespace voxfield

@@ -361,6 +361,51 @@ TEST_F(CliTest, GenerateStatsPrintsPhases) {
     }
 }
 
+// With --indices, --stats checks every index against the CPU reference: a nearest solid, and
+// for unit-spacing L1 and L2 SciPy's choice among equally near ones. One line, three JSON keys.
+TEST_F(CliTest, GenerateStatsChecksIndices) {
+    const World w = test_world();
+    const fs::path in = dir_ / "world.npy";
+    write_npy(in, NpyType::u8, w.dims(), w.voxels());
+    const std::size_t n = w.dims().count();
+    struct Case {
+        std::vector<std::string> extra;
+        bool ties;
+    };
+    const std::vector<Case> cases = {
+        {{"--metric", "euclidean"}, true},
+        {{"--metric", "manhattan"}, true},
+        {{"--metric", "chebyshev"}, false},
+        {{"--metric", "euclidean", "--spacing", "1.5,0.75,2", "--format", "f64"}, false},
+    };
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.extra[1] + (c.extra.size() > 2 ? " " + c.extra[3] : ""));
+        const fs::path js = dir_ / "run.json";
+        std::vector<std::string> args = {"generate",  in.string(),
+                                         "-o",        (dir_ / "field.npy").string(),
+                                         "--indices", (dir_ / "indices.npy").string(),
+                                         "--device",  "cpu",
+                                         "--stats",   "--json",
+                                         js.string()};
+        args.insert(args.end(), c.extra.begin(), c.extra.end());
+        const RunResult r = run(args);
+        ASSERT_EQ(r.code, 0) << describe(r);
+        const std::string want =
+            "stats:   indices: 0 of " + std::to_string(n) + " name no nearest solid" +
+            (c.ties ? ", 0 a nearest solid other than SciPy's" : " (ties not compared: ");
+        EXPECT_NE(r.out.find(want), std::string::npos) << r.out;
+        const json j = json::parse(read_text(js));
+        EXPECT_EQ(j.value("indices_checked", 0u), n);
+        EXPECT_EQ(j.value("indices_not_nearest", 999u), 0u);
+        ASSERT_TRUE(j.contains("indices_not_scipy"));
+        if (c.ties) {
+            EXPECT_EQ(j["indices_not_scipy"], 0u);
+        } else {
+            EXPECT_TRUE(j["indices_not_scipy"].is_null());
+        }
+    }
+}
+
 TEST_F(CliTest, GenerateOverwritesExistingOutput) {
     const World w = test_world();
     const fs::path in = dir_ / "world.npy";

@@ -19,6 +19,7 @@
 #include "voxfield/core/clock.hpp"
 #include "voxfield/core/npy.hpp"
 #include "voxfield/core/output.hpp"
+#include "voxfield/core/reference.hpp"
 #include "voxfield/core/stats.hpp"
 #include "voxfield/core/vdb.hpp"
 #include "voxfield/core/vox.hpp"
@@ -325,6 +326,39 @@ int run_generate(const GenerateOptions& o) {
         j["mean_error"] = a.mean_error;
         j["over_fraction"] = a.over_fraction;
         j["under_fraction"] = a.under_fraction;
+        if (options.indices) {
+            // SciPy's ties are the kernels' for unit-spacing L1 and L2 (KEYED); L-inf and
+            // spacing are checked for a nearest solid only.
+            const bool ties = options.spacing.unit() && options.metric != Metric::chebyshev;
+            Progress indexing("generate");
+            indexing.set("checking the indices against the CPU reference");
+            const std::vector<std::int32_t> planes = job->read_indices();
+            const auto exact = reference_distance(world, options.metric, options.spacing);
+            std::optional<std::vector<std::int64_t>> scipy;
+            if (ties) {
+                scipy = reference_features(world, options.metric, options.spacing);
+            }
+            const IndexAccuracy ia = check_indices(world, options.metric, options.spacing, planes,
+                                                   exact, scipy ? &*scipy : nullptr);
+            indexing.stop();
+            std::cout << "stats:   indices: " << ia.not_nearest << " of " << ia.checked
+                      << " name no nearest solid"
+                      << (ties ? ", " + std::to_string(ia.not_scipy) +
+                                     " a nearest solid other than SciPy's"
+                               : std::string(" (ties not compared: ") +
+                                     (options.spacing.unit() ? "chebyshev" : "spacing") + ")");
+            if (ia.first_wrong >= 0) {
+                const auto w = static_cast<std::size_t>(ia.first_wrong);
+                const std::size_t n = dims.count();
+                std::cout << "; first at voxel (" << w % dims.x << "," << w / dims.x % dims.y << ","
+                          << w / dims.x / dims.y << "), which names (" << planes[2 * n + w] << ","
+                          << planes[n + w] << "," << planes[w] << ")";
+            }
+            std::cout << '\n';
+            j["indices_checked"] = ia.checked;
+            j["indices_not_nearest"] = ia.not_nearest;
+            j["indices_not_scipy"] = ties ? nlohmann::json(ia.not_scipy) : nlohmann::json();
+        }
     }
     if (!o.json.empty()) {
         outputs.write(o.json, j.dump(2) + "\n");
@@ -361,7 +395,9 @@ Command add_generate(CLI::App& root) {
                   "Also report the wall time of each phase (read, setup, upload, kernels, "
                   "download, write, and the whole from program start to output written), "
                   "voxels/s and accuracy against the exact CPU reference of the same semantics "
-                  "(global, or chunk-local with --chunk)");
+                  "(global, or chunk-local with --chunk); with --indices, each voxel's index "
+                  "too: a nearest solid, and SciPy's among equally near ones for unit-spacing "
+                  "manhattan and euclidean");
     app->add_option("--json", o->json,
                     "Write timings, phases and each kernel's median (stages), and --stats "
                     "accuracy, to this JSON file");
