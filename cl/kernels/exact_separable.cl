@@ -1162,8 +1162,11 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 // the right list's first site), and the right list's first while Sep(left's last, it) >= Sep(it,
 // its successor) — a dropped site is everywhere at least as far as one of its neighbours, so the
 // lists' minimum is kept. In the final list every site owns the positions (Sep(predecessor, it),
-// Sep(it, successor)], which the sites' work-items write as owners; then every position's partial
-// (or, in the last pass, its output value) goes out. The first pass is exact_manhattan.cl's x_rows
+// Sep(it, successor)]: its work-item keeps the end of that range in the site's prv entry and
+// names the site in `last` for every band whose first position it owns. Each work-item then
+// walks the list from its band's first owner over its band's positions, writing every
+// position's partial (or, in the last pass, its output value): no owner array, and the work of
+// a site that owns hundreds of positions is shared by the bands they lie in. The first pass is exact_manhattan.cl's x_rows
 // (the 1-D distance along x, 16 bits, 0xFFFF where a row has no solid). With INDICES the
 // separators break ties by the sites' features (KEYED, as col_pass), found only where the two tie
 // rules give different separators (banded_key: the y pass's sites from the x rows and the targets
@@ -1233,8 +1236,10 @@ __kernel void empty_targets(__global const uchar* restrict vox, __global uchar* 
 // transform's partials `outer` (which may be `out`, of the same element size: neither is
 // `restrict`; each work-item reads its voxel's before writing it).
 // Local arrays of n * C entries (position p of line c at p * C + c): gl (the sites'
-// partials), prv, nxt (the list; LINK_DEAD: not in it), owner; ends: 2 * C * K ints (each
-// band's or merged group's first and last site, -1 when it has none). With INDICES: the
+// partials), prv, nxt (the list; LINK_DEAD: not in it; after the merges, prv of a kept site
+// holds 1 + the last position it owns); ends: 2 * C * K ints (each band's or merged group's
+// first and last site, -1 when it has none; after the merges, `last` of a band its first
+// position's owner). With INDICES: the
 // sites' keys `fin` (z pass), the positions' `fout` (y pass), or with `final` the index
 // planes `idx` of the world's Y, Z and `count` voxels.
 __kernel void cols_banded(__global const ushort* restrict in16, __global const GT* restrict in,
@@ -1242,7 +1247,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
                           uint n, ulong stride, ulong mstride, uint from16, uint final,
                           double dmax, __local GT* gl, __local ushort* prv, __local ushort* nxt,
-                          __local ushort* owner, __local int* ends, uint O, uint border,
+                          __local int* ends, uint O, uint border,
                           __global const uint* restrict fin, __global uint* restrict fout,
                           __global int* restrict idx, uint Y, uint Z, ulong count,
                           __global const GT* outer, ST sx, ST so, ST sp) {
@@ -1346,10 +1351,12 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     }
     barrier(CLK_LOCAL_MEM_FENCE);
 
-    // Every site still in the list writes itself as the owner of its positions
-    // (Sep(predecessor, it), Sep(it, successor)]; `hi` carries the previous site's end when
-    // that site is the predecessor.
+    // Every site still in the list owns the positions (Sep(predecessor, it), Sep(it,
+    // successor)] (`hi` carries the previous site's end when that site is the predecessor):
+    // it keeps 1 + the last of them (clamped to [0, n]) in its prv entry, and names itself in
+    // `last` for every band whose first position it owns.
     int prev = -1, hi = -1;
+    const float inv_band = 1.0f / (float)band;
     for (int e = u0; e < u1; ++e) {
         const uint after = nxt[LI(e)];
         if (after == LINK_DEAD) {
@@ -1363,8 +1370,18 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                            : 1 + BSEP((int)before, e, gl[LI((int)before)], ge);
         hi = after == LINK_NONE ? (int)n - 1 : BSEP(e, (int)after, ge, gl[LI((int)after)]);
         prev = e;
-        for (int p = max(lo, 0); p <= min(hi, (int)n - 1); ++p) {
-            owner[LI(p)] = (ushort)e;
+        const int a = max(lo, 0), z = min(hi, (int)n - 1);
+        prv[LI(e)] = (ushort)max(z + 1, 0);
+        // The bands b with a <= b * band <= z; the first from a float quotient, corrected.
+        int b = (int)((float)a * inv_band);
+        while (b * band < a) {
+            ++b;
+        }
+        while (b > 0 && (b - 1) * band >= a) {
+            --b;
+        }
+        for (; b * band <= z; ++b) {
+            last[b * C + c] = e;
         }
     }
     barrier(CLK_LOCAL_MEM_FENCE);
@@ -1373,13 +1390,17 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     if (!active) {
         return;
     }
-    for (uint p = k; p < n; p += K) {
+    // The band's positions from the owner of its first one along the list.
+    int e = none || u0 >= (int)n ? 0 : last[k * C + c];
+    for (uint p = (uint)u0; p < (uint)u1; ++p) {
         GT v = G_INF;
 #if INDICES
         uint f = UINT_MAX;
 #endif
         if (!none) {
-            const int e = owner[LI((int)p)];
+            while (prv[LI(e)] <= p) {
+                e = nxt[LI(e)];
+            }
             v = fpart((int)p, e, gl[LI(e)], sp);
 #if INDICES
             f = BKEY(e);

@@ -426,8 +426,8 @@ std::uint32_t ExactSeparable::banded_lines(std::uint32_t n, std::size_t gt_bytes
 
 std::size_t ExactSeparable::banded_local_bytes(std::uint32_t n, std::uint32_t lines,
                                                std::size_t gt_bytes) {
-    // gl (gt_bytes), prv, nxt, owner (2 each) per position and line; first and last per band.
-    return banded_cells(n, lines) * (gt_bytes + 6) + 2 * std::size_t{kBandedGroup} * 4;
+    // gl (gt_bytes), prv and nxt (2 each) per position and line; first and last per band.
+    return banded_cells(n, lines) * (gt_bytes + 4) + 2 * std::size_t{kBandedGroup} * 4;
 }
 
 std::size_t ExactSeparable::banded_cells(std::uint32_t n, std::uint32_t lines) {
@@ -466,24 +466,23 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(13, cl::Local(cells * gt_bytes_));
     kernel.setArg(14, cl::Local(cells * 2));
     kernel.setArg(15, cl::Local(cells * 2));
-    kernel.setArg(16, cl::Local(cells * 2));
-    kernel.setArg(17, cl::Local(std::size_t{2} * kBandedGroup * 4));
-    kernel.setArg(18, lines_o);
-    kernel.setArg(19, cl_uint{border ? 1u : 0u});
+    kernel.setArg(16, cl::Local(std::size_t{2} * kBandedGroup * 4));
+    kernel.setArg(17, lines_o);
+    kernel.setArg(18, cl_uint{border ? 1u : 0u});
     // Valid buffers where there are no features (the kernel does not touch them then).
-    kernel.setArg(20, keyed && !y ? feat_[1] : voxels_);
-    kernel.setArg(21, keyed && y ? feat_[1] : out_);
-    kernel.setArg(22, keyed ? indices_ : out_);
-    kernel.setArg(23, dims_.y);
-    kernel.setArg(24, dims_.z);
-    kernel.setArg(25, static_cast<cl_ulong>(dims_.count()));
+    kernel.setArg(19, keyed && !y ? feat_[1] : voxels_);
+    kernel.setArg(20, keyed && y ? feat_[1] : out_);
+    kernel.setArg(21, keyed ? indices_ : out_);
+    kernel.setArg(22, dims_.y);
+    kernel.setArg(23, dims_.z);
+    kernel.setArg(24, static_cast<cl_ulong>(dims_.count()));
     // A signed field's solids' partials, from the first transform's z pass (read by the
     // second's, `final`).
-    kernel.setArg(26, g_[0]);
+    kernel.setArg(25, g_[0]);
     // The spacing along x, along the lines' other axis and along the lines.
-    set_spacing(kernel, 27, spacing_.x);
-    set_spacing(kernel, 28, y ? spacing_.z : spacing_.y);
-    set_spacing(kernel, 29, y ? spacing_.y : spacing_.z);
+    set_spacing(kernel, 26, spacing_.x);
+    set_spacing(kernel, 27, y ? spacing_.z : spacing_.y);
+    set_spacing(kernel, 28, y ? spacing_.y : spacing_.z);
     return {y ? "y_banded" : "z_banded", kernel,
             cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * k), cl::NDRange(c, k)};
 }
