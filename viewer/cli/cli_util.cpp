@@ -213,15 +213,17 @@ ocl::GeneratorOptions generator_options(const GeneratorFlags& flags, Format form
 }
 
 Accuracy accuracy_of(const World& world, const Palette& palette,
-                     const ocl::GeneratorOptions& options, const std::vector<std::uint8_t>& field) {
+                     const ocl::GeneratorOptions& options, const std::vector<std::uint8_t>& field,
+                     const std::vector<double>* distance) {
     const bool plain = options.metric == Metric::manhattan && options.spacing.unit() &&
                        !options.signed_field && !holds_sign(options.format) &&
                        !options.max_distance;
     if (plain) {
         return compare_to_exact(field, options.format, ocl::exact_reference(world, options));
     }
-    auto exact = options.signed_field ? reference_signed(world, options.metric, options.spacing)
-                                      : reference_distance(world, options.metric, options.spacing);
+    auto exact = options.signed_field  ? reference_signed(world, options.metric, options.spacing)
+                 : distance != nullptr ? *distance
+                                       : reference_distance(world, options.metric, options.spacing);
     if (options.max_distance) {
         const double bound = *options.max_distance;
         for (double& v : exact) {

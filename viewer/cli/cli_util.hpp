@@ -61,9 +61,11 @@ Format field_format(const GeneratorFlags& flags, const std::string& format);
 ocl::GeneratorOptions generator_options(const GeneratorFlags& flags, Format format, Dims world);
 
 // Accuracy of `field` (encoded in options.format) against the exact CPU reference of the
-// same options: metric, spacing, sign, global or chunk-local.
+// same options: metric, spacing, sign, global or chunk-local. `distance`: the unsigned
+// reference_distance of the options' metric and spacing where the caller has it already.
 Accuracy accuracy_of(const World& world, const Palette& palette,
-                     const ocl::GeneratorOptions& options, const std::vector<std::uint8_t>& field);
+                     const ocl::GeneratorOptions& options, const std::vector<std::uint8_t>& field,
+                     const std::vector<double>* distance = nullptr);
 
 // The .npy element type a field of format `f` is stored as (packed32 as uint32).
 NpyType npy_type(Format f);

@@ -219,11 +219,23 @@ int run_generate(const GenerateOptions& o) {
     } else {
         write_npy(outputs, o.output, npy_type(format), dims, field->bytes());
     }
+    // With --stats the index planes are read whole once, written and then checked; else
+    // streamed from the device's planes a slab at a time (read while written: part of the
+    // write phase), never whole on the host beside them.
+    std::vector<std::int32_t> index_planes;
     if (options.indices) {
-        // Streamed from the device's planes a slab at a time (read while written: part of the
-        // write phase), never whole on the host beside them.
+        if (o.stats) {
+            index_planes = job->read_indices();
+        }
         write_npy_shape(outputs, o.indices, NpyType::i32, {3, dims.z, dims.y, dims.x},
-                        [&](const OutputBatch::Sink& sink) { job->read_indices(sink); });
+                        [&](const OutputBatch::Sink& sink) {
+                            if (o.stats) {
+                                sink({reinterpret_cast<const std::uint8_t*>(index_planes.data()),
+                                      index_planes.size() * sizeof(std::int32_t)});
+                            } else {
+                                job->read_indices(sink);
+                            }
+                        });
     }
     phases.write = ms_since(t_write);
     phases.wall = ms_since(kProgramStart);
@@ -313,7 +325,13 @@ int run_generate(const GenerateOptions& o) {
         const std::vector<std::uint8_t> bytes(field->bytes().begin(), field->bytes().end());
         Progress checking("generate");
         checking.set("checking against the CPU reference");
-        const Accuracy a = accuracy_of(world, palette, options, bytes);
+        // With indices, the reference distance once, for the field and the indices both.
+        std::optional<std::vector<double>> distance;
+        if (options.indices) {
+            distance = reference_distance(world, options.metric, options.spacing);
+        }
+        const Accuracy a =
+            accuracy_of(world, palette, options, bytes, distance ? &*distance : nullptr);
         checking.stop();
         std::cout << "stats:   " << fixed(voxel_count / (timing.kernel_ms * 1e-3) / 1e6, 1)
                   << " Mvox/s; vs the exact CPU reference ("
@@ -332,14 +350,13 @@ int run_generate(const GenerateOptions& o) {
             const bool ties = options.spacing.unit() && options.metric != Metric::chebyshev;
             Progress indexing("generate");
             indexing.set("checking the indices against the CPU reference");
-            const std::vector<std::int32_t> planes = job->read_indices();
-            const auto exact = reference_distance(world, options.metric, options.spacing);
+            const std::vector<std::int32_t>& planes = index_planes;
             std::optional<std::vector<std::int64_t>> scipy;
             if (ties) {
                 scipy = reference_features(world, options.metric, options.spacing);
             }
             const IndexAccuracy ia = check_indices(world, options.metric, options.spacing, planes,
-                                                   exact, scipy ? &*scipy : nullptr);
+                                                   *distance, scipy ? &*scipy : nullptr);
             indexing.stop();
             std::cout << "stats:   indices: " << ia.not_nearest << " of " << ia.checked
                       << " name no nearest solid"
