@@ -580,7 +580,7 @@ bool ExactManhattan::enqueue(std::vector<std::pair<std::string, cl::Event>>& eve
         return false;  // run() reads the byte sweeps' flag in between
     }
     cl_call("enqueueing exact_manhattan.cl on " + dims_.to_string(),
-            [&] { enqueue_stages(stages_, events); });
+            [&] { enqueue_stages(stages_, events, stage_events_); });
     return true;
 }
 

@@ -289,11 +289,16 @@ cl::Buffer Generator::make_buffer(std::size_t bytes, cl_mem_flags flags) {
 }
 
 void Generator::enqueue_stages(std::span<const KernelLaunch> stages,
-                               std::vector<std::pair<std::string, cl::Event>>& events) {
+                               std::vector<std::pair<std::string, cl::Event>>& events,
+                               bool with_events) {
+    last_enqueued_ = stages.size();
     for (const KernelLaunch& stage : stages) {
-        events.emplace_back(stage.name, cl::Event());
+        cl::Event* event = nullptr;
+        if (with_events) {
+            event = &events.emplace_back(stage.name, cl::Event()).second;
+        }
         ctx_.queue().enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global, stage.local,
-                                          nullptr, &events.back().second);
+                                          nullptr, event);
     }
 }
 

@@ -660,7 +660,7 @@ std::string ExactSeparable::variant() const {
 
 bool ExactSeparable::enqueue(std::vector<std::pair<std::string, cl::Event>>& events) {
     cl_call("enqueueing exact_separable.cl on " + dims_.to_string(),
-            [&] { enqueue_stages(stages_, events); });
+            [&] { enqueue_stages(stages_, events, stage_events_); });
     return true;
 }
 

@@ -85,10 +85,13 @@ struct EncodeBuffers {
 
 // Enqueues encode_count and encode_write (`k`: those kernels) over `tiles` tiles with `dense`
 // dense nodes, encode_write's work-groups a node each (`per_node`, the GPU layout's) or a tile
-// each; appends their events to `events`.
+// each; appends their events to `events` (none when it is null).
 void enqueue_encode(cl::CommandQueue& q, EncodeKernels& k, const EncodeBuffers& b,
                     std::uint32_t tiles, std::uint32_t dense, bool per_node,
-                    std::vector<std::pair<std::string, cl::Event>>& events) {
+                    std::vector<std::pair<std::string, cl::Event>>* events) {
+    auto event = [&](const char* name) {
+        return events != nullptr ? &events->emplace_back(name, cl::Event()).second : nullptr;
+    };
     const cl::NDRange local(64, 1);
     auto set = [](cl::Kernel& kernel, std::initializer_list<const cl::Buffer*> buffers,
                   cl_uint arg) {
@@ -108,19 +111,17 @@ void enqueue_encode(cl::CommandQueue& q, EncodeKernels& k, const EncodeBuffers& 
                       3);
     k.count.setArg(arg++, tiles);
     k.count.setArg(arg, dense);
-    events.emplace_back("encode_count", cl::Event());
     q.enqueueNDRangeKernel(k.count, cl::NullRange, cl::NDRange(64, std::size_t{tiles} + dense),
-                           local, nullptr, &events.back().second);
+                           local, nullptr, event("encode_count"));
     arg = set(k.write,
               {&b.table, &b.masks, &b.offsets, &b.materials, &b.leaf_masks, &b.mid_masks,
                &b.mid_counts, &b.slot_masks, &b.slot_offsets, &b.slot_materials, &b.slot_counts},
               3);
     k.write.setArg(arg++, tiles);
     k.write.setArg(arg, cl_uint{per_node ? 1u : 64u});
-    events.emplace_back("encode_write", cl::Event());
     q.enqueueNDRangeKernel(k.write, cl::NullRange,
                            cl::NDRange(64, std::size_t{tiles} * (per_node ? 64 : 1)), local,
-                           nullptr, &events.back().second);
+                           nullptr, event("encode_write"));
 }
 
 // The nodes of tile (tx, ty, tz) that `b` overlaps (bit z << 4 | y << 2 | x of each 16^3 node).
@@ -192,7 +193,7 @@ std::vector<SparseWorld::EncodedTile> encode_tiles(Context& ctx,
         const cl::Buffer& counts = b.slot_counts;
         std::vector<std::pair<std::string, cl::Event>> events;
         EncodeKernels k{cl::Kernel(program, "encode_count"), cl::Kernel(program, "encode_write")};
-        enqueue_encode(q, k, b, tiles, tiles * 64, !ctx.is_cpu(), events);
+        enqueue_encode(q, k, b, tiles, tiles * 64, !ctx.is_cpu(), &events);
         std::vector<std::uint32_t> n(2 * std::size_t{tiles});
         q.enqueueReadBuffer(counts, CL_TRUE, 0, n.size() * 4, n.data());
         for (std::uint32_t t = 0; t < tiles; ++t) {
@@ -558,7 +559,7 @@ Box SparseDeviceWorld::host_apply_brush(const Brush& brush) {
     world();
     const Box changed = voxfield::apply_brush(*editable_, brush);
     host_edited(changed);
-    edit_events_.clear();
+    clear_edit_events();
     return changed;
 }
 
@@ -581,7 +582,7 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
     const Dims d = world_.dims();
     const Box bounds = brush_bounds(brush, d);  // checks the radius
     if (bounds.empty()) {
-        edit_events_.clear();
+        clear_edit_events();
         return Box{};
     }
     const Span span = tiles_of(bounds);
@@ -629,7 +630,7 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
         ++t;
     });
     std::copy(dense_.begin(), dense_.end(), table + kTableHeader + kRecord * n);
-    edit_events_.clear();
+    clear_edit_events();
     try {
         cl_call("editing " + std::to_string(n) + " tiles on the device",
                 [&] { enqueue_edit_encode(scratch_, kTileSize, kTileSize * kTileSize, n); });
@@ -649,7 +650,7 @@ void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t 
     }
     traffic_ = QueueTraffic{};
     if (tiles.empty()) {
-        edit_events_.clear();
+        clear_edit_events();
         return;
     }
     const auto n = static_cast<std::uint32_t>(tiles.size());
@@ -680,7 +681,7 @@ void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t 
         dense_[i] = static_cast<std::int64_t>(i);
     }
     std::copy(dense_.begin(), dense_.end(), table + kTableHeader + kRecord * n);
-    edit_events_.clear();
+    clear_edit_events();
     try {
         cl_call("encoding " + std::to_string(n) + " dense tiles on the device",
                 [&] { enqueue_edit_encode(vox, pitch_y, pitch_z, n); });
@@ -758,7 +759,8 @@ void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t
     b.slot_materials = slot_materials_;
     b.slot_counts = slot_counts_;
     enqueue_encode(q, encode_, b, tiles, static_cast<std::uint32_t>(dense_.size()), gpu_layout_,
-                   edit_events_);
+                   stage_events_ ? &edit_events_ : nullptr);
+    edit_enqueued_ = true;
     traffic_.enqueues += 3;
     q.flush();  // submitted now: the device encodes while the host lists the field's update
 }
@@ -786,7 +788,7 @@ std::vector<std::pair<std::string, double>> SparseDeviceWorld::last_edit_stages(
 
 std::vector<cl::Event> SparseDeviceWorld::last_edit_commands() const {
     std::vector<cl::Event> commands;
-    if (edit_events_.empty()) {
+    if (!edit_enqueued_) {
         return commands;  // an edit that enqueued nothing (or the host's)
     }
     commands.push_back(edit_write_);
@@ -794,6 +796,11 @@ std::vector<cl::Event> SparseDeviceWorld::last_edit_commands() const {
         commands.push_back(e);
     }
     return commands;
+}
+
+void SparseDeviceWorld::clear_edit_events() {
+    edit_events_.clear();
+    edit_enqueued_ = false;
 }
 
 cl::Kernel SparseDeviceWorld::gather_kernel(bool per_voxel) {

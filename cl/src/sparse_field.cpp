@@ -863,6 +863,11 @@ SparseField::Update SparseField::update(const Box& changed) {
     return recompute({changed});
 }
 
+void SparseField::set_edit_stage_events(bool on) {
+    stage_events_ = on;
+    device_world_.set_stage_events(on);
+}
+
 SparseField::Update SparseField::apply_brush(const Brush& brush) {
     const auto t0 = Clock::now();
     const Box changed = device_world_.apply_brush(brush);
@@ -880,6 +885,16 @@ SparseField::Update SparseField::apply_brush(const Brush& brush) {
         const CommandSpan span = command_span(commands);
         u.device_span_ms = span.span_ms;
         u.device_idle_ms = span.idle_ms;
+        if (!stage_events_) {
+            // The gaps between the few commands with events hold kernels without.
+            u.device_idle_ms = 0;
+            u.kernel_ms = span.span_ms;
+        }
+    }
+    if (!stage_events_) {
+        u.profiled = false;
+        u.stages.clear();
+        u.edit_kernel_ms = 0;
     }
     return u;
 }
@@ -1199,10 +1214,14 @@ double SparseField::update_block(const Job& job, Dims block,
         block_times_.enqueue = Clock::now();
         tables_->write(q);
         block_commands_.push_back(tables_->last_write());
-        events.emplace_back("gather", cl::Event());
+        // Without stage events only node_minima, the one waited for, has one.
+        auto event = [&](const char* name) {
+            return stage_events_ ? &events.emplace_back(name, cl::Event()).second : nullptr;
+        };
         enqueue_gather(tables_->buffer(kJobs), tables_->buffer(kRefs), batch.voxels, block, 1,
-                       &events.back().second);
+                       event("gather"));
         const std::size_t generator_first = events.size();
+        batch.generator->set_stage_events(stage_events_);
         const bool enqueued = batch.generator->enqueue(events);
         if (!enqueued) {
             // A generator that reads a flag back in between: its own run(), which waits.
@@ -1214,10 +1233,9 @@ double SparseField::update_block(const Job& job, Dims block,
             }
         }
         const std::size_t generator_end = events.size();
-        events.emplace_back("scatter", cl::Event());
         enqueue_scatter(batch.generator->field_buffer(), tables_->buffer(kScatterJobs),
                         tables_->buffer(kRegions), tables_->buffer(kSlots), block, size, 1,
-                        &events.back().second);
+                        event("scatter"));
         cl::Kernel& k = node_minima_;
         k.setArg(0, pool_);
         k.setArg(1, tables_->buffer(kList));
@@ -1240,7 +1258,9 @@ double SparseField::update_block(const Job& job, Dims block,
         coarse_synced_ = false;
         // Not where the generator ran (and waited) by itself: its commands are not listed.
         block_times_.set = enqueued;
-        traffic_.enqueues += static_cast<std::uint32_t>(events.size()) + 1;
+        // The tables' write, gather, the generator's launches, scatter and node_minima.
+        traffic_.enqueues +=
+            static_cast<std::uint32_t>(4 + (enqueued ? batch.generator->last_enqueued() : 0));
         ++traffic_.host_waits;
         for (const auto& [name, e] : events) {
             block_commands_.push_back(e);

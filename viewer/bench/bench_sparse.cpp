@@ -261,20 +261,35 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
                    fixed(fk.median, 1) + " ms), " + std::to_string(field.dense_tiles()) +
                    " field tiles; radius-8 edits on the device");
 
+    // The timed edits alternate: profiled ones (a profiling event per command: per-kernel
+    // stages and the device's idle time) and lean ones (events only where the host waits,
+    // SparseField::set_edit_stage_events(false)), whose wall time is the row's edit time.
     std::vector<double> edit_wall, edit_kernel, edit_encode, edit_gap, edit_enqueues, edit_waits;
+    std::vector<double> lean_wall, lean_span;
     StageSamples edit_stages;       // per kernel name
     StageSamples edit_host_stages;  // per host stage (Update::host_stages)
+    StageSamples lean_host_stages;
     std::vector<double> edit_device_span, edit_device_idle;
     std::uint64_t recomputed = 0;
     for (std::size_t e = 0; e < edits.size(); ++e) {
         const bool warm = e < warmup;
+        const bool lean = !warm && (e - warmup) % 2 == 1;
         observer.progress(label + ": " + (warm ? "warm-up edit " : "edit ") +
                           std::to_string(warm ? e + 1 : e + 1 - warmup) + "/" +
                           std::to_string(warm ? warmup : edit_count));
+        field.set_edit_stage_events(!lean);
         const auto t0 = Clock::now();
         const auto u = field.apply_brush(edits[e]);
         const double wall = ms_since(t0);
-        if (!warm) {
+        recomputed +=
+            warm || u.recomputed.empty() ? 0 : static_cast<std::uint64_t>(u.recomputed.volume());
+        if (lean) {
+            lean_wall.push_back(wall);
+            if (!u.host_stages.empty()) {
+                append_stage_samples(lean_host_stages, lean_span.size() + 1, u.host_stages);
+                lean_span.push_back(u.device_span_ms);
+            }
+        } else if (!warm) {
             edit_wall.push_back(wall);
             edit_kernel.push_back(u.kernel_ms);
             edit_encode.push_back(u.edit_kernel_ms);
@@ -287,17 +302,19 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
                 edit_device_span.push_back(u.device_span_ms);
                 edit_device_idle.push_back(u.device_idle_ms);
             }
-            recomputed +=
-                u.recomputed.empty() ? 0 : static_cast<std::uint64_t>(u.recomputed.volume());
         }
     }
+    field.set_edit_stage_events(true);
     json stage_medians = json::object();
     for (const auto& [name, samples] : edit_stages) {
         stage_medians[name] = summarize(samples).median;
     }
-    json host_stage_medians = json::object();
+    json host_stage_medians = json::object(), lean_host_stage_medians = json::object();
     for (const auto& [name, samples] : edit_host_stages) {
         host_stage_medians[name] = summarize(samples).median;
+    }
+    for (const auto& [name, samples] : lean_host_stages) {
+        lean_host_stage_medians[name] = summarize(samples).median;
     }
     const double peak = peak_rss_bytes();
     const auto t_sync = Clock::now();
@@ -415,11 +432,19 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"edit_radius", kEditRadius},
         {"edit_shape", "sphere"},
         {"edit_path", "device (decoded, brushed and encoded by kernels; host world lags)"},
-        {"edits", edit_wall.size()},
+        {"edits", edit_wall.size() + lean_wall.size()},
         {"edit_warmup", warmup},
         {"timed",
-         "median_ms..max_ms: one radius-8 edit, wall clock until the field is "
-         "up to date"},
+         "median_ms..max_ms: one radius-8 edit without per-kernel profiling events (every "
+         "other timed edit), wall clock until the field is up to date; profiled_edit_*: the "
+         "other edits, with an event per command, whose kernel and stage times the edit_* keys "
+         "give"},
+        {"profiled_edits", edit_wall.size()},
+        {"profiled_edit_ms_median", summarize(edit_wall).median},
+        {"profiled_edit_samples_ms", edit_wall},
+        {"lean_edit_host_stage_ms_median", lean_host_stage_medians},
+        {"lean_edit_device_span_ms_median",
+         lean_span.empty() ? json(nullptr) : json(summarize(lean_span).median)},
         {"edit_kernel_ms_median", summarize(edit_kernel).median},
         {"edit_kernel_ms_samples", edit_kernel},
         {"edit_world_kernel_ms_median", summarize(edit_encode).median},
@@ -435,9 +460,9 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"edit_host_waits", summarize(edit_waits).median},
         {"edit_enqueues_max", summarize(edit_enqueues).max},
         {"edit_host_waits_max", summarize(edit_waits).max},
-        {"samples_ms", edit_wall},
+        {"samples_ms", lean_wall},
         {"edit_voxels_recomputed_mean",
-         edit_wall.empty() ? 0.0 : double(recomputed) / double(edit_wall.size())},
+         edit_count == 0 ? 0.0 : double(recomputed) / double(edit_count)},
         {"host_sync_ms", host_sync_ms},
         {"exact", check.differing == 0 && check.voxels > 0},
         {"exact_checked_voxels", check.voxels},
@@ -457,7 +482,7 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
     if (o.peer) {
         row["peer"] = peer;
     }
-    put_summary(row, summarize(edit_wall));
+    put_summary(row, summarize(lean_wall.empty() ? edit_wall : lean_wall));
     row.update(trace);
     return row;
 }
@@ -533,7 +558,8 @@ json run_sparse(ocl::Context& ctx, const SuiteOptions& o, std::uint32_t repeat,
             fixed(r["field_kernel_ms"].get<double>() / 1e3, 2) +
             " s kernels); radius-8 edit median " + fixed(r["median_ms"].get<double>(), 3) +
             " ms (min " + fixed(r["min_ms"].get<double>(), 3) + ", max " +
-            fixed(r["max_ms"].get<double>(), 3) + "; kernels " +
+            fixed(r["max_ms"].get<double>(), 3) + "; profiled " +
+            fixed(r["profiled_edit_ms_median"].get<double>(), 3) + " ms, kernels " +
             fixed(r["edit_kernel_ms_median"].get<double>(), 3) + " ms; " +
             fixed(r["edit_enqueues"].get<double>(), 0) + " enqueues, " +
             fixed(r["edit_host_waits"].get<double>(), 0) + " host waits); peak " +

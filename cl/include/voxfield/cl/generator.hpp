@@ -111,6 +111,12 @@ class Generator {
         static_cast<void>(events);
         return false;
     }
+    // Whether enqueue() gives each launch a profiling event (the default) or none, appending
+    // nothing to its `events`: NVIDIA's driver spends about 7 us more host time on a launch
+    // that returns an event (bench/cl_overhead.c). run() always profiles its stages.
+    void set_stage_events(bool on) { stage_events_ = on; }
+    // The launches the last enqueue() enqueued.
+    std::size_t last_enqueued() const { return last_enqueued_; }
     // Reads the field back (element_size(format) bytes per voxel, little-endian).
     std::vector<std::uint8_t> read(double* download_ms = nullptr);
     // Reads the feature transform back: int32 planes z, y, x of the nearest solid voxel of
@@ -143,9 +149,11 @@ class Generator {
     Generator(Context& ctx, Dims dims, Format format) : ctx_(ctx), dims_(dims), format_(format) {}
     // Records stage times from (name, event) pairs in enqueue order.
     void record_stages(const std::vector<std::pair<std::string, cl::Event>>& events);
-    // Enqueues `stages` in order, appending (kernel name, event) per launch to `events`.
+    // Enqueues `stages` in order, appending (kernel name, event) per launch to `events`, or
+    // nothing and no events without `with_events` (enqueue() passes stage_events_).
     void enqueue_stages(std::span<const KernelLaunch> stages,
-                        std::vector<std::pair<std::string, cl::Event>>& events);
+                        std::vector<std::pair<std::string, cl::Event>>& events,
+                        bool with_events = true);
     // A buffer of `bytes` (flags: its CL_MEM_READ_* access). On a device that computes in
     // host memory it lies in HostMemory the generator keeps (CL_MEM_USE_HOST_PTR), never
     // zero-filled: the first kernel that writes it touches its pages, in parallel, and the
@@ -161,6 +169,8 @@ class Generator {
     double upload_ms_ = 0;
     std::uint32_t iterations_ = 0;
     std::vector<std::pair<std::string, double>> stage_ms_;
+    bool stage_events_ = true;
+    std::size_t last_enqueued_ = 0;
 };
 
 // Uploads the world and palette and sets up the kernels of options.algorithm (options as

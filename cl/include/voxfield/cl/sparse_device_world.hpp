@@ -147,6 +147,11 @@ class SparseDeviceWorld {
     const QueueTraffic& last_edit_traffic() const { return traffic_; }
     // The same commands' events (its table's write, then its kernels), for their timeline.
     std::vector<cl::Event> last_edit_commands() const;
+    // Whether apply_brush and encode_dense_tiles give their kernels profiling events (the
+    // default). Without, last_edit_stages() is empty and last_edit_commands() holds the
+    // table's write only: NVIDIA's driver spends about 7 us more host time on a launch with an
+    // event (bench/cl_overhead.c).
+    void set_stage_events(bool on) { stage_events_ = on; }
 
     // The gather kernel (sparse_world.cl; `per_voxel`: gather_voxels, the GPU layout's) with
     // the world's buffers as its arguments 0-5; the caller sets the job arguments 6-14.
@@ -203,6 +208,7 @@ class SparseDeviceWorld {
     // A tile leaves the main buffers (into a slot, or removed): its counts leave main_counts_.
     void leave_main(std::uint64_t key);
     void host_changed_seen();
+    void clear_edit_events();
     Box host_apply_brush(const Brush& brush);
     // Per tile of `keys` a fresh slot into host_slots_ (never the one its previous tree lies
     // in: slots freed here are taken by later edits only).
@@ -263,6 +269,8 @@ class SparseDeviceWorld {
     // The last edit's table write, kernels and traffic.
     cl::Event edit_write_;
     std::vector<std::pair<std::string, cl::Event>> edit_events_;
+    bool edit_enqueued_ = false;  // the last edit enqueued its table and kernels
+    bool stage_events_ = true;
     QueueTraffic traffic_;
 };
 

@@ -208,7 +208,17 @@ class SparseField {
         // which none ran (the device waiting for the host or between launches). 0 when
         // host_stages is empty.
         double device_span_ms = 0, device_idle_ms = 0;
+        // False for an apply_brush without stage events (set_edit_stage_events(false)): its
+        // kernel_ms is then device_span_ms where host_stages is filled (else the kernels that
+        // had events), and stages, edit_kernel_ms and device_idle_ms are empty or 0 (not
+        // measured).
+        bool profiled = true;
     };
+    // Whether apply_brush gives every command a profiling event (the default: per-kernel
+    // stages and the device's idle time) or only those it must wait for (its tables' writes
+    // and the last kernel). NVIDIA's driver spends about 7 us more host time on a launch with
+    // an event (bench/cl_overhead.c), 7 of an edit's 10 commands.
+    void set_edit_stage_events(bool on);
     // After the world's voxels inside `changed` were edited on the host (SparseWorld::edit /
     // apply_brush return that box), brings the device's world and the field up to date:
     // uploads the tiles `changed` overlaps and recomputes the voxels within D of `changed`
@@ -353,6 +363,7 @@ class SparseField {
     cl::Kernel fill_slot_, sweep_init_, sweep_l1_, sweep_l1_rows_, sweep_finish_;
     cl::Kernel sweep_l1_loaded_;  // sweep_l1 of the GPU layout
     bool force_blocks_ = false;
+    bool stage_events_ = true;        // set_edit_stage_events
     SparseDeviceWorld device_world_;  // the world's 64-trees on the device
     // node_minima's slots, tile coordinates and nodes of refresh_coarse.
     cl::Buffer minima_list_, minima_coords_, minima_nodes_;
