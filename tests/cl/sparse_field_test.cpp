@@ -646,6 +646,74 @@ TEST(SparseDeviceWorld, OneBlockEditsTellWhereTheirTimeWent) {
     }
 }
 
+// Edits without stage events (set_edit_stage_events(false)) change the world and the field as
+// profiled ones do, enqueue as many commands, wait as often, and say so: profiled false, no
+// stages, the device span as their kernel time; switched back, an edit has its stages again.
+TEST(SparseDeviceWorld, LeanEditsEqualProfiledOnes) {
+    const Palette p = Palette::magicavoxel_default();
+    const Dims d{200, 70, 150};
+    World w(d);
+    for (std::uint32_t z = 0; z < d.z; ++z) {
+        for (std::uint32_t x = 0; x < d.x; ++x) {
+            for (std::uint32_t y = 0; y < 20 + (x * 3 + z) % 25; ++y) {
+                w.set(x, y, z, static_cast<std::uint8_t>(1 + (x + y) % 9));
+            }
+        }
+    }
+    for (const Layout layout : kLayouts) {
+        Case c;
+        c.layout = layout;
+        c.bound = 8;
+        SCOPED_TRACE(describe(c, d));
+        SparseWorld sp = SparseWorld::from_dense(w), sl = SparseWorld::from_dense(w);
+        ocl::SparseField profiled(pocl(), sp, p, options_of(c)), lean(pocl(), sl, p, options_of(c));
+        profiled.run();
+        lean.run();
+        lean.set_edit_stage_events(false);
+        std::mt19937 rng(71);
+        for (int e = 0; e < 6; ++e) {
+            Brush b;
+            b.op = e % 3 == 0 ? BrushOp::erase : e % 3 == 1 ? BrushOp::place : BrushOp::paint;
+            b.shape = e % 2 == 0 ? BrushShape::sphere : BrushShape::cube;
+            b.centre = {static_cast<std::int64_t>(rng() % d.x),
+                        static_cast<std::int64_t>(rng() % 60),
+                        static_cast<std::int64_t>(rng() % d.z)};
+            b.radius = 3 + rng() % 7;
+            b.material = static_cast<std::uint8_t>(1 + rng() % 200);
+            const ocl::SparseField::Update a = profiled.apply_brush(b), l = lean.apply_brush(b);
+            SCOPED_TRACE("edit " + std::to_string(e));
+            EXPECT_TRUE(a.profiled);
+            EXPECT_FALSE(a.stages.empty());
+            EXPECT_FALSE(l.profiled);
+            EXPECT_TRUE(l.stages.empty());
+            EXPECT_EQ(l.edit_kernel_ms, 0.0);
+            EXPECT_EQ(l.recomputed.min, a.recomputed.min);
+            EXPECT_EQ(l.recomputed.max, a.recomputed.max);
+            EXPECT_EQ(l.tiles, a.tiles);
+            EXPECT_EQ(l.traffic.enqueues, a.traffic.enqueues);
+            EXPECT_EQ(l.traffic.host_waits, a.traffic.host_waits);
+            ASSERT_EQ(l.host_stages.empty(), a.host_stages.empty());
+            if (!l.host_stages.empty()) {
+                EXPECT_GT(l.device_span_ms, 0.0);
+                EXPECT_EQ(l.kernel_ms, l.device_span_ms);
+                EXPECT_EQ(l.device_idle_ms, 0.0);
+            }
+        }
+        const Box all{{0, 0, 0}, {d.x, d.y, d.z}};
+        EXPECT_EQ(lean.read_box(all), profiled.read_box(all));
+        EXPECT_EQ(lean.world().to_dense().voxels(), profiled.world().to_dense().voxels());
+        lean.set_edit_stage_events(true);
+        Brush b;
+        b.centre = {100, 40, 75};
+        b.radius = 8;
+        b.material = 5;
+        const ocl::SparseField::Update u = lean.apply_brush(b);
+        EXPECT_TRUE(u.profiled);
+        EXPECT_FALSE(u.stages.empty());
+        EXPECT_GT(u.edit_kernel_ms, 0.0);
+    }
+}
+
 TEST(SparseDeviceWorld, LargeBrushesAndReadOnlyWorlds) {
     std::mt19937 rng(33);
     const Palette p = Palette::magicavoxel_default();
