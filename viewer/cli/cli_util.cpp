@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <iostream>
 
 #include <unistd.h>
 #include <vector>
@@ -321,6 +322,13 @@ nlohmann::json StageTimes::json() const {
         rows.push_back({{"kernel", name}, {"median_ms", summarize(samples).median}});
     }
     return rows;
+}
+
+void exit_after_outputs(int status) {
+    std::cout.flush();
+    std::cerr.flush();
+    std::fflush(nullptr);
+    std::_Exit(status);
 }
 
 }  // namespace voxfield::cli

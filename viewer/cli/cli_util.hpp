@@ -113,5 +113,11 @@ CLI::Validator positive();
 // A rate such as Gvox/s: two decimals from 0.1 up, two significant digits below (0.0026),
 // so that a slow algorithm never reads 0.00.
 std::string rate(double v);
+// Ends the process with `status` once a command's outputs are committed and its report printed:
+// flushes the standard streams, then leaves without running destructors or exit handlers, so
+// that the device objects still in scope (an NVIDIA context, its buffers, pinned host memory)
+// are reclaimed by the operating system instead of torn down call by call after the user's
+// files are already there (bench/README.md, "the whole process").
+[[noreturn]] void exit_after_outputs(int status);
 
 }  // namespace voxfield::cli

@@ -381,7 +381,7 @@ int run_generate(const GenerateOptions& o) {
         outputs.write(o.json, j.dump(2) + "\n");
     }
     outputs.commit();
-    return 0;
+    exit_after_outputs(0);
 }
 
 }  // namespace

@@ -207,7 +207,7 @@ int run_generate_sparse(const SparseGenerateArgs& a) {
         outputs.write(a.json, j.dump(2) + "\n");
     }
     outputs.commit();
-    return 0;
+    exit_after_outputs(0);
 }
 
 }  // namespace voxfield::cli
