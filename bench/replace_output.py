@@ -3,17 +3,21 @@
 
 Usage: /usr/bin/python3 bench/replace_output.py DIR
 
-Writes DIR/t.bin once, then twice each, in turn: a new file written beside it (1 MiB writes) and
-renamed over it ("rename-over", what voxfield's writer did until 0ce7183); the same with the old
-file unlinked just before the rename ("unlink-then-rename", what it does now); the old file
-truncated and rewritten in place ("trunc-write", what numpy.save and bench/endtoend.py's streaming
-do). Prints the write's time, then the time of what follows it (the rename, or the unlink and the
-rename), and the total, in ms. On ext4 a rename over an existing file starts the new file's
+Writes DIR/t.bin once, then five times each, in turn: a new file written beside it (1 MiB writes)
+and renamed over it ("rename-over", what voxfield's writer did until 0ce7183); the same with the
+old file unlinked just before the rename ("unlink-then-rename", 0ce7183); the new file and the old
+one swapped by renameat2's RENAME_EXCHANGE, then the old one unlinked ("exchange-then-unlink",
+what the writer does now); the old file truncated and rewritten in place ("trunc-write", what
+numpy.save and bench/endtoend.py's streaming do). Prints the write's time, then the time of what follows it (the rename, the unlink and the
+rename, or the exchange and the unlink), and the total, in ms. On ext4 a rename over an existing file starts the new file's
 writeback inside rename() (auto_da_alloc). Removes its files afterwards.
 """
+import ctypes
 import os
 import sys
 import time
+
+AT_FDCWD, RENAME_EXCHANGE = -100, 2
 
 
 def write(path, flags, buf, mib):
@@ -32,7 +36,9 @@ def main():
     target, tmp = os.path.join(d, "t.bin"), os.path.join(d, "t.tmp")
     write(target, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, buf, mib)
     try:
-        for mode in ["rename-over", "unlink-then-rename", "trunc-write"] * 2:
+        libc = ctypes.CDLL(None, use_errno=True)
+        for mode in ["rename-over", "unlink-then-rename", "exchange-then-unlink",
+                     "trunc-write"] * 5:
             t0 = time.perf_counter()
             if mode == "trunc-write":
                 write(target, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, buf, mib)
@@ -40,9 +46,15 @@ def main():
             else:
                 write(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, buf, mib)
                 t1 = time.perf_counter()
-                if mode == "unlink-then-rename":
-                    os.unlink(target)
-                os.rename(tmp, target)
+                if mode == "exchange-then-unlink":
+                    if libc.renameat2(AT_FDCWD, tmp.encode(), AT_FDCWD, target.encode(),
+                                      RENAME_EXCHANGE) != 0:
+                        sys.exit(f"renameat2: {os.strerror(ctypes.get_errno())}")
+                    os.unlink(tmp)
+                else:
+                    if mode == "unlink-then-rename":
+                        os.unlink(target)
+                    os.rename(tmp, target)
             t2 = time.perf_counter()
             print(f"{mode:20s} write {1e3 * (t1 - t0):7.1f} ms, then {1e3 * (t2 - t1):7.1f} ms, "
                   f"total {1e3 * (t2 - t0):7.1f} ms")

@@ -961,6 +961,7 @@ void SparseField::prepare_edits(std::int64_t radius) {
 
 SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
     Update result;
+    result.profiled = stage_events_;  // the edit's events (set_edit_stage_events)
     stages_.clear();
     work_ = Work{};
     traffic_ = QueueTraffic{};

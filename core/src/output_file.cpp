@@ -286,13 +286,24 @@ void OutputBatch::commit() {
             throw InputError("cannot write '" + target +
                              "': it is no longer a regular file or a new path");
         }
-        // An old file is removed first, then the complete new one renamed onto its name: ext4
-        // (auto_da_alloc) starts the writeback of a file renamed over another inside rename(),
-        // which held a 512 MiB field's `generate` 0.36 s on an H100 machine after its output
-        // was written (bench/README.md, "the whole process"); readers see the old file, no
-        // file for an instant, then the new one, never a partial one.
-        if (exists && ::unlink(target.c_str()) != 0 && errno != ENOENT) {
-            fail(target, "cannot replace", errno);
+        // An old file is swapped with the complete new one in one step (renameat2's
+        // RENAME_EXCHANGE), then removed under the temporary's name. A plain rename over it
+        // would do the same for readers, but ext4 (auto_da_alloc) starts the new file's
+        // writeback inside such a rename: 0.36 s after a 512 MiB field's `generate` had written
+        // it on an H100 machine (bench/README.md, "The end of the process"). A file system
+        // without the exchange gets the plain rename.
+        if (exists &&
+            ::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, target.c_str(), RENAME_EXCHANGE) == 0) {
+            struct stat old {};
+            if (::lstat(tmp.c_str(), &old) != 0 || !S_ISREG(old.st_mode)) {
+                // Not the regular file lstat saw (replaced meanwhile): swapped back, refused.
+                ::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, target.c_str(), RENAME_EXCHANGE);
+                throw InputError("cannot write '" + target +
+                                 "': it is no longer a regular file or a new path");
+            }
+            ::unlink(tmp.c_str());  // the old file; a failure leaves a hidden temporary only
+            pending_.erase(pending_.begin());
+            continue;
         }
         if (::rename(tmp.c_str(), target.c_str()) != 0) {
             fail(target, "rename failed", errno);

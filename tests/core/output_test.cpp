@@ -79,6 +79,19 @@ TEST(OutputFile, ReplacesARegularFileAndLeavesNoTemporary) {
     EXPECT_EQ(names_in(dir.path()), (std::set<std::string>{"out.json", "out.json.tmp"}));
 }
 
+// The old file is swapped out whole (renameat2's exchange, then unlinked), never written in
+// place: another hard link to it keeps the old bytes, and no temporary is left.
+TEST(OutputFile, ReplacingAFileLeavesItsOtherLinksTheOldBytes) {
+    TempDir dir;
+    test::write_text(dir / "out.npy", "old bytes");
+    fs::create_hard_link(dir / "out.npy", dir / "backup.npy");
+    write_output_file(dir / "out.npy", std::string("new"));
+    EXPECT_EQ(text_of(dir / "out.npy"), "new");
+    EXPECT_EQ(text_of(dir / "backup.npy"), "old bytes");
+    EXPECT_EQ(fs::hard_link_count(dir / "out.npy"), 1u);
+    EXPECT_EQ(names_in(dir.path()), (std::set<std::string>{"backup.npy", "out.npy"}));
+}
+
 TEST(OutputFile, FollowsASymbolicLinkAndKeepsIt) {
     TempDir dir;
     test::write_text(dir / "real.txt", "old");

@@ -1,4 +1,4 @@
-// `voxfield`: the command-line front end. The only place that prints or exits.
+// `voxfield`: the command-line front end (viewer/cli, the only code that prints or exits).
 #include <cstdio>
 #include <iostream>
 

@@ -208,10 +208,10 @@ class SparseField {
         // which none ran (the device waiting for the host or between launches). 0 when
         // host_stages is empty.
         double device_span_ms = 0, device_idle_ms = 0;
-        // False for an apply_brush without stage events (set_edit_stage_events(false)): its
-        // kernel_ms is then device_span_ms where host_stages is filled (else the kernels that
-        // had events), and stages, edit_kernel_ms and device_idle_ms are empty or 0 (not
-        // measured).
+        // False for an update made without stage events (set_edit_stage_events(false)):
+        // apply_brush's kernel_ms is then device_span_ms where host_stages is filled, else (and
+        // for update(), apply_dense_tiles(), write_tiles()) a lower bound, the kernels that had
+        // events; apply_brush's stages, edit_kernel_ms and device_idle_ms are empty or 0.
         bool profiled = true;
     };
     // Whether apply_brush gives every command a profiling event (the default: per-kernel

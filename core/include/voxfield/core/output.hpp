@@ -3,8 +3,10 @@
 // worlds, .vox, JSON, CSV, PNG). What happens to each kind of target:
 //   - a new path or an existing regular file: the bytes go to a unique temporary file beside
 //     it (O_EXCL, a random name), renamed onto it once complete, so readers never see a partial
-//     file and a failure leaves the old file as it was. A symbolic link is followed: the file
-//     it names is replaced and the link kept;
+//     file and a failure leaves the old file as it was (an old file is swapped with it by
+//     renameat2's RENAME_EXCHANGE, then unlinked: no writeback started in the rename, so like a
+//     new file it reaches the disk with the page cache's writeback). A symbolic link is
+//     followed: the file it names is replaced and the link kept;
 //   - an existing character device (/dev/null, a terminal) or FIFO (a named pipe, a shell's
 //     process substitution): written directly, never replaced (opening a FIFO waits for its
 //     reader, as cp does);
