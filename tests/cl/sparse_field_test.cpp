@@ -702,6 +702,15 @@ TEST(SparseDeviceWorld, LeanEditsEqualProfiledOnes) {
         const Box all{{0, 0, 0}, {d.x, d.y, d.z}};
         EXPECT_EQ(lean.read_box(all), profiled.read_box(all));
         EXPECT_EQ(lean.world().to_dense().voxels(), profiled.world().to_dense().voxels());
+        // Tiles written back (an undo's update) without events say so too, and are the same.
+        const std::vector<Int3> back = {{0, 0, 0}, {2, 0, 1}};
+        for (ocl::SparseField* f : {&lean, &profiled}) {
+            const cl::Buffer tiles(pocl().context(), CL_MEM_READ_WRITE,
+                                   back.size() * std::size_t{kTileVoxels});
+            f->device_world().gather_tiles(back, tiles);
+            EXPECT_EQ(f->write_tiles(tiles, back).profiled, f == &profiled);
+        }
+        EXPECT_EQ(lean.read_box(all), profiled.read_box(all));
         lean.set_edit_stage_events(true);
         Brush b;
         b.centre = {100, 40, 75};
