@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "classic.hpp"
+#include "util.hpp"
 #include "voxfield/cl/exact.hpp"
 #include "voxfield/cl/separable.hpp"
 #include "voxfield/core/error.hpp"
@@ -293,12 +294,9 @@ void Generator::enqueue_stages(std::span<const KernelLaunch> stages,
                                bool with_events) {
     last_enqueued_ = stages.size();
     for (const KernelLaunch& stage : stages) {
-        cl::Event* event = nullptr;
-        if (with_events) {
-            event = &events.emplace_back(stage.name, cl::Event()).second;
-        }
         ctx_.queue().enqueueNDRangeKernel(stage.kernel, cl::NullRange, stage.global, stage.local,
-                                          nullptr, event);
+                                          nullptr,
+                                          stage_event(with_events ? &events : nullptr, stage.name));
     }
 }
 

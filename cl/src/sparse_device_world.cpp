@@ -89,9 +89,6 @@ struct EncodeBuffers {
 void enqueue_encode(cl::CommandQueue& q, EncodeKernels& k, const EncodeBuffers& b,
                     std::uint32_t tiles, std::uint32_t dense, bool per_node,
                     std::vector<std::pair<std::string, cl::Event>>* events) {
-    auto event = [&](const char* name) {
-        return events != nullptr ? &events->emplace_back(name, cl::Event()).second : nullptr;
-    };
     const cl::NDRange local(64, 1);
     auto set = [](cl::Kernel& kernel, std::initializer_list<const cl::Buffer*> buffers,
                   cl_uint arg) {
@@ -112,7 +109,7 @@ void enqueue_encode(cl::CommandQueue& q, EncodeKernels& k, const EncodeBuffers& 
     k.count.setArg(arg++, tiles);
     k.count.setArg(arg, dense);
     q.enqueueNDRangeKernel(k.count, cl::NullRange, cl::NDRange(64, std::size_t{tiles} + dense),
-                           local, nullptr, event("encode_count"));
+                           local, nullptr, stage_event(events, "encode_count"));
     arg = set(k.write,
               {&b.table, &b.masks, &b.offsets, &b.materials, &b.leaf_masks, &b.mid_masks,
                &b.mid_counts, &b.slot_masks, &b.slot_offsets, &b.slot_materials, &b.slot_counts},
@@ -121,7 +118,7 @@ void enqueue_encode(cl::CommandQueue& q, EncodeKernels& k, const EncodeBuffers& 
     k.write.setArg(arg, cl_uint{per_node ? 1u : 64u});
     q.enqueueNDRangeKernel(k.write, cl::NullRange,
                            cl::NDRange(64, std::size_t{tiles} * (per_node ? 64 : 1)), local,
-                           nullptr, event("encode_write"));
+                           nullptr, stage_event(events, "encode_write"));
 }
 
 // The nodes of tile (tx, ty, tz) that `b` overlaps (bit z << 4 | y << 2 | x of each 16^3 node).
@@ -760,7 +757,6 @@ void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t
     b.slot_counts = slot_counts_;
     enqueue_encode(q, encode_, b, tiles, static_cast<std::uint32_t>(dense_.size()), gpu_layout_,
                    stage_events_ ? &edit_events_ : nullptr);
-    edit_enqueued_ = true;
     traffic_.enqueues += 3;
     q.flush();  // submitted now: the device encodes while the host lists the field's update
 }
@@ -788,7 +784,7 @@ std::vector<std::pair<std::string, double>> SparseDeviceWorld::last_edit_stages(
 
 std::vector<cl::Event> SparseDeviceWorld::last_edit_commands() const {
     std::vector<cl::Event> commands;
-    if (!edit_enqueued_) {
+    if (edit_write_() == nullptr) {
         return commands;  // an edit that enqueued nothing (or the host's)
     }
     commands.push_back(edit_write_);
@@ -800,7 +796,7 @@ std::vector<cl::Event> SparseDeviceWorld::last_edit_commands() const {
 
 void SparseDeviceWorld::clear_edit_events() {
     edit_events_.clear();
-    edit_enqueued_ = false;
+    edit_write_ = cl::Event();
 }
 
 cl::Kernel SparseDeviceWorld::gather_kernel(bool per_voxel) {

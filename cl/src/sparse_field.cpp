@@ -891,11 +891,6 @@ SparseField::Update SparseField::apply_brush(const Brush& brush) {
             u.kernel_ms = span.span_ms;
         }
     }
-    if (!stage_events_) {
-        u.profiled = false;
-        u.stages.clear();
-        u.edit_kernel_ms = 0;
-    }
     return u;
 }
 
@@ -1216,11 +1211,9 @@ double SparseField::update_block(const Job& job, Dims block,
         tables_->write(q);
         block_commands_.push_back(tables_->last_write());
         // Without stage events only node_minima, the one waited for, has one.
-        auto event = [&](const char* name) {
-            return stage_events_ ? &events.emplace_back(name, cl::Event()).second : nullptr;
-        };
+        auto* staged = stage_events_ ? &events : nullptr;
         enqueue_gather(tables_->buffer(kJobs), tables_->buffer(kRefs), batch.voxels, block, 1,
-                       event("gather"));
+                       stage_event(staged, "gather"));
         const std::size_t generator_first = events.size();
         batch.generator->set_stage_events(stage_events_);
         const bool enqueued = batch.generator->enqueue(events);
@@ -1236,7 +1229,7 @@ double SparseField::update_block(const Job& job, Dims block,
         const std::size_t generator_end = events.size();
         enqueue_scatter(batch.generator->field_buffer(), tables_->buffer(kScatterJobs),
                         tables_->buffer(kRegions), tables_->buffer(kSlots), block, size, 1,
-                        event("scatter"));
+                        stage_event(staged, "scatter"));
         cl::Kernel& k = node_minima_;
         k.setArg(0, pool_);
         k.setArg(1, tables_->buffer(kList));
@@ -1268,7 +1261,9 @@ double SparseField::update_block(const Job& job, Dims block,
         }
         for (std::size_t i = 0; i < events.size(); ++i) {
             const double t = elapsed_ms(events[i].second, events[i].second);
-            add_stage(events[i].first, t);
+            if (stage_events_) {  // else node_minima's alone: no breakdown
+                add_stage(events[i].first, t);
+            }
             if (i < generator_first || i >= generator_end) {
                 ms += t;
             }

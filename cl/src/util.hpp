@@ -3,6 +3,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <utility>
+#include <vector>
+
+#include <CL/opencl.hpp>
 
 #include "voxfield/core/format.hpp"
 
@@ -10,6 +14,13 @@ namespace voxfield::ocl {
 
 inline std::size_t round_up(std::size_t v, std::size_t m) {
     return (v + m - 1) / m * m;
+}
+
+// The event a launch named `name` returns into `events` (appended), or none (null) when
+// `events` is null: profiled stages, or launches without events (set_stage_events(false)).
+inline cl::Event* stage_event(std::vector<std::pair<std::string, cl::Event>>* events,
+                              const std::string& name) {
+    return events != nullptr ? &events->emplace_back(name, cl::Event()).second : nullptr;
 }
 
 inline std::size_t next_pow2(std::size_t v) {

@@ -591,17 +591,26 @@ TEST(SparseDeviceWorld, RepeatedSmallEditsKeepTheUntouchedNodes) {
 // field's tables, their enqueue, the wait, what came after) lie within the call, and the
 // device's span of its commands holds their kernels and their idle part. An edit of several blocks
 // says nothing of it.
-TEST(SparseDeviceWorld, OneBlockEditsTellWhereTheirTimeWent) {
-    const Palette p = Palette::magicavoxel_default();
-    const Dims d{300, 90, 140};
+// A terrain: every column (x, z) solid up to height(x, z), voxel (x, y) of material(x, y).
+template <class Height, class Material>
+World terrain_world(Dims d, Height height, Material material) {
     World w(d);
     for (std::uint32_t z = 0; z < d.z; ++z) {
         for (std::uint32_t x = 0; x < d.x; ++x) {
-            for (std::uint32_t y = 0; y < 30 + (x + z) % 20; ++y) {
-                w.set(x, y, z, 7);
+            for (std::uint32_t y = 0; y < height(x, z); ++y) {
+                w.set(x, y, z, material(x, y));
             }
         }
     }
+    return w;
+}
+
+TEST(SparseDeviceWorld, OneBlockEditsTellWhereTheirTimeWent) {
+    const Palette p = Palette::magicavoxel_default();
+    const Dims d{300, 90, 140};
+    const World w = terrain_world(
+        d, [](std::uint32_t x, std::uint32_t z) { return 30 + (x + z) % 20; },
+        [](std::uint32_t, std::uint32_t) { return std::uint8_t{7}; });
     const std::vector<std::string> names = {"world edit", "field tables", "field enqueue", "wait",
                                             "after"};
     for (const Layout layout : kLayouts) {
@@ -652,14 +661,11 @@ TEST(SparseDeviceWorld, OneBlockEditsTellWhereTheirTimeWent) {
 TEST(SparseDeviceWorld, LeanEditsEqualProfiledOnes) {
     const Palette p = Palette::magicavoxel_default();
     const Dims d{200, 70, 150};
-    World w(d);
-    for (std::uint32_t z = 0; z < d.z; ++z) {
-        for (std::uint32_t x = 0; x < d.x; ++x) {
-            for (std::uint32_t y = 0; y < 20 + (x * 3 + z) % 25; ++y) {
-                w.set(x, y, z, static_cast<std::uint8_t>(1 + (x + y) % 9));
-            }
-        }
-    }
+    const World w = terrain_world(
+        d, [](std::uint32_t x, std::uint32_t z) { return 20 + (x * 3 + z) % 25; },
+        [](std::uint32_t x, std::uint32_t y) {
+            return static_cast<std::uint8_t>(1 + (x + y) % 9);
+        });
     for (const Layout layout : kLayouts) {
         Case c;
         c.layout = layout;

@@ -266,10 +266,9 @@ class SparseDeviceWorld {
     // voxels()'s jobs, refs and output, for voxel_capacity_ cells (grown as needed).
     cl::Buffer voxel_jobs_, voxel_refs_, voxel_out_;
     std::size_t voxel_capacity_ = 0;
-    // The last edit's table write, kernels and traffic.
+    // The last edit's table write (null when it enqueued none), kernels and traffic.
     cl::Event edit_write_;
     std::vector<std::pair<std::string, cl::Event>> edit_events_;
-    bool edit_enqueued_ = false;  // the last edit enqueued its table and kernels
     bool stage_events_ = true;
     QueueTraffic traffic_;
 };

@@ -208,10 +208,11 @@ class SparseField {
         // which none ran (the device waiting for the host or between launches). 0 when
         // host_stages is empty.
         double device_span_ms = 0, device_idle_ms = 0;
-        // False for an update made without stage events (set_edit_stage_events(false)):
-        // apply_brush's kernel_ms is then device_span_ms where host_stages is filled, else (and
-        // for update(), apply_dense_tiles(), write_tiles()) a lower bound, the kernels that had
-        // events; apply_brush's stages, edit_kernel_ms and device_idle_ms are empty or 0.
+        // False for an update made without stage events (set_edit_stage_events(false)): a
+        // one-block update then has no stages and edit_kernel_ms 0; apply_brush's kernel_ms is
+        // device_span_ms (device_idle_ms 0) where host_stages is filled, else (and for
+        // update(), apply_dense_tiles(), write_tiles()) a lower bound, the kernels that had
+        // events.
         bool profiled = true;
     };
     // Whether apply_brush gives every command a profiling event (the default: per-kernel
