@@ -27,5 +27,5 @@ done
 for lib in /usr/lib/x86_64-linux-gnu/libOpenCL.so.1; do
     [ -e "$lib" ] && cp -L "$lib" "$dst/lib/"
 done
-git -C "$(dirname "$0")" rev-parse HEAD > "$dst/commit_$name" 2>/dev/null || true
+git -C "$(dirname "$bin")" rev-parse HEAD > "$dst/commit_$name" 2>/dev/null || true
 du -sh "$dst"
