@@ -1401,13 +1401,16 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     }
     // The band's positions from the owner of its first one along the list.
     int e = none || u0 >= (int)n ? 0 : last[k * C + c];
+    // The owner's end (1 + its last position) and partial in registers, read again (from local
+    // memory) only when the walk moves on to the next owner.
+    uint end = prv[LI(e)];
+    GT ge = gl[LI(e)];
 #if INDICES
-    // The owner's key (a global load) and, in the last pass, its (z, y, x) planes' values (two
-    // divisions), found only when the owner changes.
+    // Likewise its key (a global load) and, in the last pass, its (z, y, x) planes' values (two
+    // divisions).
     const double inv_yz = 1.0 / ((double)Y * Z), inv_z = 1.0 / Z;
-    int key_of = -1;
-    uint key = UINT_MAX;
-    int3 place = (int3)(-1);
+    uint key = none ? UINT_MAX : BKEY(e);
+    int3 place = final ? index_of(key, Y * Z, Z, inv_yz, inv_z) : (int3)(-1);
 #endif
     for (uint p = (uint)u0; p < (uint)u1; ++p) {
         GT v = G_INF;
@@ -1415,18 +1418,21 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
         uint f = UINT_MAX;
 #endif
         if (!none) {
-            while (prv[LI(e)] <= p) {
-                e = nxt[LI(e)];
-            }
-            v = fpart((int)p, e, gl[LI(e)], sp);
+            if (end <= p) {
+                do {
+                    e = nxt[LI(e)];
+                    end = prv[LI(e)];
+                } while (end <= p);
+                ge = gl[LI(e)];
 #if INDICES
-            if (e != key_of) {
                 key = BKEY(e);
-                key_of = e;
                 if (final) {
                     place = index_of(key, Y * Z, Z, inv_yz, inv_z);
                 }
+#endif
             }
+            v = fpart((int)p, e, ge, sp);
+#if INDICES
             f = key;
 #endif
         }
