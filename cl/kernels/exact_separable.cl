@@ -927,14 +927,23 @@ inline uint quotient(uint f, uint d, double inv) {
 #if INDICES
 // Voxel i's (z, y, x) planes (`count` voxels apart) of the feature key f (-1, -1, -1 for
 // UINT_MAX: no solid), keys (x * Y + y) * Z + z: yz = Y * Z, zn = Z and their reciprocals.
-inline void write_index(__global int* idx, size_t count, size_t i, uint f, uint yz, uint zn,
-                        double inv_yz, double inv_z) {
+inline int3 index_of(uint f, uint yz, uint zn, double inv_yz, double inv_z) {
+    if (f == UINT_MAX) {
+        return (int3)(-1);
+    }
     const uint xf = quotient(f, yz, inv_yz);
     const uint r = f - xf * yz;
     const uint yf = quotient(r, zn, inv_z);
-    idx[i] = f == UINT_MAX ? -1 : (int)(r - yf * zn);
-    idx[count + i] = f == UINT_MAX ? -1 : (int)yf;
-    idx[2 * count + i] = f == UINT_MAX ? -1 : (int)xf;
+    return (int3)((int)(r - yf * zn), (int)yf, (int)xf);
+}
+inline void store_index(__global int* idx, size_t count, size_t i, int3 q) {
+    idx[i] = q.x;
+    idx[count + i] = q.y;
+    idx[2 * count + i] = q.z;
+}
+inline void write_index(__global int* idx, size_t count, size_t i, uint f, uint yz, uint zn,
+                        double inv_yz, double inv_z) {
+    store_index(idx, count, i, index_of(f, yz, zn, inv_yz, inv_z));
 }
 #endif
 
@@ -1392,18 +1401,39 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     }
     // The band's positions from the owner of its first one along the list.
     int e = none || u0 >= (int)n ? 0 : last[k * C + c];
+    // The owner's end (1 + its last position) and partial in registers, read again (from local
+    // memory) only when the walk moves on to the next owner.
+    uint end = prv[LI(e)];
+    GT ge = gl[LI(e)];
+#if INDICES
+    // Likewise its key (a global load) and, in the last pass, its (z, y, x) planes' values (two
+    // divisions).
+    const double inv_yz = 1.0 / ((double)Y * Z), inv_z = 1.0 / Z;
+    uint key = none ? UINT_MAX : BKEY(e);
+    int3 place = final ? index_of(key, Y * Z, Z, inv_yz, inv_z) : (int3)(-1);
+#endif
     for (uint p = (uint)u0; p < (uint)u1; ++p) {
         GT v = G_INF;
 #if INDICES
         uint f = UINT_MAX;
 #endif
         if (!none) {
-            while (prv[LI(e)] <= p) {
-                e = nxt[LI(e)];
-            }
-            v = fpart((int)p, e, gl[LI(e)], sp);
+            if (end <= p) {
+                do {
+                    e = nxt[LI(e)];
+                    end = prv[LI(e)];
+                } while (end <= p);
+                ge = gl[LI(e)];
 #if INDICES
-            f = BKEY(e);
+                key = BKEY(e);
+                if (final) {
+                    place = index_of(key, Y * Z, Z, inv_yz, inv_z);
+                }
+#endif
+            }
+            v = fpart((int)p, e, ge, sp);
+#if INDICES
+            f = key;
 #endif
         }
         if (border) {
@@ -1429,7 +1459,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             store(out, rgb, cls, i, min(distance_of(v), dmax));
 #endif
 #if INDICES
-            write_index(idx, count, i, f, Y * Z, Z, 1.0 / ((double)Y * Z), 1.0 / Z);
+            store_index(idx, count, i, place);
 #endif
         } else {
             gout[i] = v;
