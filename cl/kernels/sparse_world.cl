@@ -9,11 +9,6 @@
 // per slot); a reference to a slot has SLOT_REF set in its node base. The tree's constants and
 // leaf lookup are sparse_tree.cl's, compiled before this source.
 
-// The lowest set bit of m (m != 0).
-inline uint lowest_bit(ulong m) {
-    return (uint)popcount((m & (~m + 1ul)) - 1ul);
-}
-
 // A job is 8 longs: a block's first voxel x, y, z; the first tile x, y, z of the tiles it
 // overlaps; their counts (x | y << 16 | z << 32); its first entry in `refs` (per tile, x
 // fastest, its node base and material base, NO_TILE when not stored).
@@ -209,34 +204,37 @@ void dense_leaf(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
         const ulong dx = (ulong)(cx < px0 ? px0 - cx : cx > px0 + 3 ? cx - px0 - 3 : 0);
         const ulong dy = (ulong)(cy < py0 ? py0 - cy : cy > py0 + 3 ? cy - py0 - 3 : 0);
         const ulong dz = (ulong)(cz < pz0 ? pz0 - cz : cz > pz0 + 3 ? cz - pz0 - 3 : 0);
-        ulong at = first;
+        // The leaf's voxels by position: its materials (contiguous, in mask order) loaded up
+        // front, 64 independent predicated loads. Every loop over bv is unrolled, so `v` stays in
+        // registers and no load waits for an earlier voxel's store.
+        uchar v[64];
+#pragma unroll
+        for (uint bv = 0; bv < 64; ++bv) {
+            v[bv] =
+                (m4 >> bv & 1ul) != 0 ? om8[first + popcount(m4 & ((1ul << bv) - 1ul))] : (uchar)0;
+        }
         if (px0 >= wx || py0 >= wy || pz0 >= wz || dx > radius || dy > radius || dz > radius ||
             (shape == 0 && dx * dx + dy * dy + dz * dz > radius * radius)) {
-            for (ulong m3 = m4; m3 != 0; m3 &= m3 - 1) {
-                const uint bv = lowest_bit(m3);
-                node[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)] =
-                    om8[at++];
-            }
             m = m4;
         } else {
+#pragma unroll
             for (uint bv = 0; bv < 64; ++bv) {
-                uchar v = 0;
-                if ((m4 >> bv & 1ul) != 0) {
-                    v = om8[at++];
-                }
                 const long px = px0 + (bv & 3), py = py0 + (bv >> 2 & 3), pz = pz0 + (bv >> 4);
                 const ulong ax = (ulong)(px > cx ? px - cx : cx - px);
                 const ulong ay = (ulong)(py > cy ? py - cy : cy - py);
                 const ulong az = (ulong)(pz > cz ? pz - cz : cz - pz);
-                if (px < wx && py < wy && pz < wz && ax <= radius && ay <= radius &&
-                    az <= radius && (shape != 0 || ax * ax + ay * ay + az * az <= radius * radius)) {
-                    v = op == 0 ? material : op == 1 ? (uchar)0 : v != 0 ? material : v;
+                if (px < wx && py < wy && pz < wz && ax <= radius && ay <= radius && az <= radius &&
+                    (shape != 0 || ax * ax + ay * ay + az * az <= radius * radius)) {
+                    v[bv] = op == 0 ? material : op == 1 ? (uchar)0 : v[bv] != 0 ? material : v[bv];
                 }
-                if (v != 0) {
-                    node[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)] =
-                        v;
-                    m |= 1ul << bv;
-                }
+                m |= (ulong)(v[bv] != 0) << bv;
+            }
+        }
+#pragma unroll
+        for (uint bv = 0; bv < 64; ++bv) {
+            if (v[bv] != 0) {
+                node[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)] =
+                    v[bv];
             }
         }
     }
@@ -416,9 +414,29 @@ __kernel void encode_write(__global const uchar* restrict vox, uint pitch_y, uin
         __global const uchar* vnode =
             vox + rec[3] + (size_t)z4 * pitch_z + (size_t)y4 * pitch_y + x4;
         __global uchar* o = out + before;
-        for (ulong m3 = m; m3 != 0; m3 &= m3 - 1) {
-            const uint bv = lowest_bit(m3);
-            *o++ = vnode[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)];
+        // The leaf's 16 rows loaded up front (independent loads), then its solid voxels stored
+        // in mask order; the loops are unrolled, so the rows stay in registers.
+        uchar4 row[16];
+#pragma unroll
+        for (uint r = 0; r < 16; ++r) {
+            row[r] = vload4(0, vnode + (size_t)(r >> 2) * pitch_z + (size_t)(r & 3) * pitch_y);
+        }
+        uint j = 0;
+#pragma unroll
+        for (uint r = 0; r < 16; ++r) {
+            const uint bits = (uint)(m >> (r * 4)) & 15u;
+            if ((bits & 1u) != 0) {
+                o[j++] = row[r].x;
+            }
+            if ((bits & 2u) != 0) {
+                o[j++] = row[r].y;
+            }
+            if ((bits & 4u) != 0) {
+                o[j++] = row[r].z;
+            }
+            if ((bits & 8u) != 0) {
+                o[j++] = row[r].w;
+            }
         }
     }
 }
