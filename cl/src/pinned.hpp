@@ -38,11 +38,23 @@ class PinnedHost {
     std::uint8_t* data() { return data_; }
     std::size_t size() const { return size_; }
 
-    // The event of the last transfer from or into this memory (`last() = ...`).
+    // The event of the last transfer from or into this memory (`last() = ...`), or of a later
+    // command of the same in-order queue.
     cl::Event& last() { return last_; }
+    // A transfer enqueued without an event: until last() is set, settle() waits for the queue.
+    void unfenced() {
+        last_ = cl::Event();
+        unfenced_ = true;
+    }
     // Waits until that transfer is done, when it is not yet, before the memory is rewritten;
     // returns whether it had to wait.
     bool settle() {
+        if (unfenced_ && last_() == nullptr) {
+            cl_call("waiting for a transfer", [&] { queue_.finish(); });
+            unfenced_ = false;
+            return true;
+        }
+        unfenced_ = false;
         if (last_() == nullptr) {
             return false;
         }
@@ -70,6 +82,7 @@ class PinnedHost {
         data_ = nullptr;
         size_ = 0;
         last_ = cl::Event();
+        unfenced_ = false;
     }
 
     cl::CommandQueue queue_;
@@ -77,6 +90,7 @@ class PinnedHost {
     std::uint8_t* data_ = nullptr;
     std::size_t size_ = 0;
     cl::Event last_;
+    bool unfenced_ = false;
 };
 
 // Small tables written to the device in one transfer: one device buffer with a sub-buffer per
@@ -106,11 +120,20 @@ class PinnedTables {
         return reinterpret_cast<T*>(pinned_.data() + offsets_[i]);
     }
     const cl::Buffer& buffer(std::size_t i) const { return subs_[i]; }
-    // Enqueues the write of every table (one transfer, without waiting).
-    void write(cl::CommandQueue& q) {
-        q.enqueueWriteBuffer(all_, CL_FALSE, 0, end_, pinned_.data(), nullptr, &pinned_.last());
+    // Enqueues the write of every table (one transfer, without waiting), with an event, or
+    // without one (an event costs the host several microseconds on a GPU): then the caller
+    // names a later command of the same in-order queue (settled_by) for the next fit() to wait
+    // for, else that fit() waits for the queue.
+    void write(cl::CommandQueue& q, bool event = true) {
+        if (event) {
+            q.enqueueWriteBuffer(all_, CL_FALSE, 0, end_, pinned_.data(), nullptr, &pinned_.last());
+        } else {
+            q.enqueueWriteBuffer(all_, CL_FALSE, 0, end_, pinned_.data());
+            pinned_.unfenced();
+        }
     }
-    // That write's event.
+    void settled_by(const cl::Event& later) { pinned_.last() = later; }
+    // The last write's event (null for one without).
     const cl::Event& last_write() { return pinned_.last(); }
 
   private:

@@ -1208,9 +1208,12 @@ double SparseField::update_block(const Job& job, Dims block,
     cl_call("updating a sparse field block of " + block.to_string(), [&] {
         auto& q = ctx_.queue();
         block_times_.enqueue = Clock::now();
-        tables_->write(q);
-        block_commands_.push_back(tables_->last_write());
-        // Without stage events only node_minima, the one waited for, has one.
+        // Without stage events only node_minima, the one waited for, has one: the next
+        // fit() of the tables waits for it rather than for their write.
+        tables_->write(q, stage_events_);
+        if (stage_events_) {
+            block_commands_.push_back(tables_->last_write());
+        }
         auto* staged = stage_events_ ? &events : nullptr;
         enqueue_gather(tables_->buffer(kJobs), tables_->buffer(kRefs), batch.voxels, block, 1,
                        stage_event(staged, "gather"));
@@ -1244,6 +1247,9 @@ double SparseField::update_block(const Job& job, Dims block,
         events.emplace_back("node_minima", cl::Event());
         q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(64, n * 64), cl::NDRange(64, 1),
                                nullptr, &events.back().second);
+        if (!stage_events_) {
+            tables_->settled_by(events.back().second);
+        }
         // The one wait: node_minima done, and with it every command before it (an in-order
         // queue). The minima stay on the device (coarse_node reads them when asked).
         block_times_.enqueued = Clock::now();
