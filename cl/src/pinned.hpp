@@ -51,21 +51,21 @@ class PinnedHost {
     // The event is dropped first: one whose command failed (an error the edit that enqueued it
     // reported already) is not waited for again by every later call.
     bool settle() {
-        const cl::Event last = last_;
-        const bool unfenced = unfenced_;
+        const cl::Event pending = last_;
+        const bool without_event = unfenced_;
         last_ = cl::Event();
         unfenced_ = false;
-        if (last() == nullptr) {
-            if (unfenced) {
+        if (pending() == nullptr) {
+            if (without_event) {
                 cl_call("waiting for a transfer", [&] { queue_.finish(); });
             }
-            return unfenced;
+            return without_event;
         }
         const bool done = cl_call("polling a transfer", [&] {
-            return last.getInfo<CL_EVENT_COMMAND_EXECUTION_STATUS>() == CL_COMPLETE;
+            return pending.getInfo<CL_EVENT_COMMAND_EXECUTION_STATUS>() == CL_COMPLETE;
         });
         if (!done) {
-            cl_call("waiting for a transfer", [&] { last.wait(); });
+            cl_call("waiting for a transfer", [&] { pending.wait(); });
         }
         return !done;
     }
