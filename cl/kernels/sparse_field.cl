@@ -103,6 +103,31 @@ __kernel void fill_slot(__global ELEM* restrict pool, ulong slot, ELEM value) {
          (get_global_id(2) * TILE + get_global_id(1)) * TILE + get_global_id(0)] = value;
 }
 
+// The least KEY of a row of 16 values, by halves.
+inline ELEM row_least(ELEM16 v) {
+    const ELEM16 k16 = KEY16(v);
+    const ELEM8 k8 = min(k16.lo, k16.hi);
+    const ELEM4 k4 = min(k8.lo, k8.hi);
+    const ELEM2 k2 = min(k4.lo, k4.hi);
+    return min(k2.x, k2.y);
+}
+
+// The least of the 64 work-items' `best` (a work-group of 64), written to minima[at] by the first.
+inline void store_group_least(__local ELEM* least, ELEM best, __global ELEM* minima, size_t at) {
+    const uint lid = (uint)get_local_id(0);
+    least[lid] = best;
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint step = 32; step > 0; step >>= 1) {
+        if (lid < step) {
+            least[lid] = least[lid + step] < least[lid] ? least[lid + step] : least[lid];
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (lid == 0) {
+        minima[at] = least[0];
+    }
+}
+
 // A work-group of 64 work-items per 16^3 node of the listed slots (global ids 0: 0..63, 1: list
 // index * 64 + node): the least KEY over its voxels inside the world (a tile cut by the world's
 // edge holds no values beyond it), starting from the far value, which no value exceeds; each
@@ -139,12 +164,8 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
         if (y < ny && z < nz) {
             __global const ELEM* row = tile + ((z0 + z) * TILE + y0 + y) * TILE + x0;
             if (nx == 16) {
-                // A whole row in one aligned load (x0 is a multiple of 16), its least by halves.
-                const ELEM16 k16 = KEY16(*(__global const ELEM16*)row);
-                const ELEM8 k8 = min(k16.lo, k16.hi);
-                const ELEM4 k4 = min(k8.lo, k8.hi);
-                const ELEM2 k2 = min(k4.lo, k4.hi);
-                const ELEM k = min(k2.x, k2.y);
+                // A whole row in one aligned load (x0 is a multiple of 16).
+                const ELEM k = row_least(*(__global const ELEM16*)row);
                 best = k < best ? k : best;
             } else {
                 for (uint x = 0; x < nx; ++x) {
@@ -154,17 +175,80 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
             }
         }
     }
-    least[lid] = best;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    for (uint step = 32; step > 0; step >>= 1) {
-        if (lid < step) {
-            least[lid] = least[lid + step] < least[lid] ? least[lid + step] : least[lid];
+    store_group_least(least, best, minima, slot * 64 + node);
+}
+
+// scatter and node_minima in one pass, for one block's region whose every voxel lies in a
+// listed node (an edit's single block: the host lists the nodes the region overlaps). Work-groups
+// as node_minima's; a voxel of the region is copied from the transformed block `field` (bx x by
+// voxels a slice) into the pool and taken from there, every other voxel of the node read from
+// the pool. `region`: its first voxel, its size and the block's first voxel (3 longs each).
+__kernel void scatter_minima(__global const ELEM* restrict field, __global ELEM* restrict pool,
+                             __global const long* restrict region, uint bx, uint by, __global const uint* restrict slots,
+                             __global const uint* restrict tiles, uint count,
+                             __global ELEM* restrict minima, ELEM far, uint wx, uint wy, uint wz,
+                             __global const ulong* restrict nodes) {
+    __local ELEM least[64];
+    const uint lid = (uint)get_local_id(0);
+    const size_t i = get_global_id(1);
+    if (i >= (size_t)count * 64) {
+        return;  // the whole group
+    }
+    const size_t slot = slots[i / 64];
+    __global const uint* t = tiles + 3 * (i / 64);
+    const uint node = (uint)(i % 64);
+    if ((nodes[i / 64] >> node & 1ul) == 0) {
+        return;  // the whole group
+    }
+    const uint x0 = (node & 3) * 16, y0 = ((node >> 2) & 3) * 16, z0 = (node >> 4) * 16;
+    const long ox = (long)t[0] * TILE + x0, oy = (long)t[1] * TILE + y0, oz = (long)t[2] * TILE + z0;
+    const uint nx = (uint)clamp((long)wx - ox, 0l, 16l), ny = (uint)clamp((long)wy - oy, 0l, 16l),
+               nz = (uint)clamp((long)wz - oz, 0l, 16l);
+    // The region's voxels of this node along x: [ax, ex) of the node's [0, nx).
+    const uint ax = (uint)clamp(region[0] - ox, 0l, (long)nx);
+    const uint ex = (uint)clamp(region[0] + region[3] - ox, (long)ax, (long)nx);
+    __global ELEM* tile = pool + slot * TILE_VOXELS;
+    ELEM best = KEY(far);
+    for (uint r = lid; r < 256; r += 64) {
+        const uint y = r & 15, z = r >> 4;
+        if (y < ny && z < nz) {
+            __global ELEM* row = tile + ((z0 + z) * TILE + y0 + y) * TILE + x0;
+            const long py = oy + y, pz = oz + z;
+            const bool inside = py >= region[1] && py < region[1] + region[4] &&
+                                pz >= region[2] && pz < region[2] + region[5] && ax < ex;
+            // This row's first voxel in the block (where inside).
+            __global const ELEM* in =
+                inside ? field + ((size_t)(pz - region[8]) * by + (size_t)(py - region[7])) * bx +
+                             (size_t)(ox - region[6])
+                       : field;
+            if (nx == 16 && (!inside || (ax == 0 && ex == 16))) {
+                // A whole row: from the block (one unaligned load, one aligned store into the
+                // pool) or from the pool.
+                ELEM16 v;
+                if (inside) {
+                    v = vload16(0, in);
+                    *(__global ELEM16*)row = v;
+                } else {
+                    v = *(__global const ELEM16*)row;
+                }
+                const ELEM k = row_least(v);
+                best = k < best ? k : best;
+            } else {
+                for (uint x = 0; x < nx; ++x) {
+                    ELEM v;
+                    if (inside && x >= ax && x < ex) {
+                        v = in[x];
+                        row[x] = v;
+                    } else {
+                        v = row[x];
+                    }
+                    const ELEM k = KEY(v);
+                    best = k < best ? k : best;
+                }
+            }
         }
-        barrier(CLK_LOCAL_MEM_FENCE);
     }
-    if (lid == 0) {
-        minima[slot * 64 + node] = least[0];
-    }
+    store_group_least(least, best, minima, slot * 64 + node);
 }
 
 // The Manhattan sweep: a whole bounded L1 field of unit spacing computed in the field tiles

@@ -243,6 +243,7 @@ SparseField::SparseField(Context& ctx, const SparseWorld& world, const Palette& 
         scatter_ = cl::Kernel(program_, "scatter");
         scatter_voxels_ = cl::Kernel(program_, "scatter_voxels");
         node_minima_ = cl::Kernel(program_, "node_minima");
+        scatter_minima_ = cl::Kernel(program_, "scatter_minima");
         fill_slot_ = cl::Kernel(program_, "fill_slot");
         sweep_init_ = cl::Kernel(program_, "sweep_init");
         sweep_l1_ = cl::Kernel(program_, "sweep_l1");
@@ -880,15 +881,15 @@ SparseField::Update SparseField::apply_brush(const Brush& brush) {
                          {"field enqueue", ms_between(b.enqueue, b.enqueued)},
                          {"wait", ms_between(b.enqueued, b.waited)},
                          {"after", ms_since(b.waited)}};
-        std::vector<cl::Event> commands = device_world_.last_edit_commands();
-        commands.insert(commands.end(), block_commands_.begin(), block_commands_.end());
-        const CommandSpan span = command_span(commands);
-        u.device_span_ms = span.span_ms;
-        u.device_idle_ms = span.idle_ms;
-        if (!stage_events_) {
-            // The gaps between the few commands with events hold kernels without.
-            u.device_idle_ms = 0;
-            u.kernel_ms = span.span_ms;
+        if (stage_events_) {
+            std::vector<cl::Event> commands = device_world_.last_edit_commands();
+            commands.insert(commands.end(), block_commands_.begin(), block_commands_.end());
+            const CommandSpan span = command_span(commands);
+            u.device_span_ms = span.span_ms;
+            u.device_idle_ms = span.idle_ms;
+        } else {
+            // Only the last command has an event: the device's times are not measured.
+            u.kernel_ms = 0;
         }
     }
     return u;
@@ -1146,19 +1147,13 @@ double SparseField::update_block(const Job& job, Dims block,
     const Dims wd = world_.dims();
     const Box bb{job.origin,
                  {job.origin.x + block.x, job.origin.y + block.y, job.origin.z + block.z}};
-    const TileSpan span = tiles_of(bb), rspan = tiles_of(job.region);
+    const TileSpan span = tiles_of(bb);
     const std::size_t n = slots.size();
-    // gather's job and refs, scatter's job, region and slots, node_minima's slots, tile
-    // coordinates and nodes (sparse_field.cl, sparse_world.cl).
-    enum { kJobs, kRefs, kScatterJobs, kRegions, kSlots, kList, kCoords, kNodes, kTables };
-    const std::size_t bytes[kTables] = {8 * 8,
-                                        static_cast<std::size_t>(span.size()) * 16,
-                                        8 * 8,
-                                        6 * 8,
-                                        static_cast<std::size_t>(rspan.size()) * 4,
-                                        n * 4,
-                                        n * 12,
-                                        n * 8};
+    // gather's job and refs, then scatter_minima's region, slots, tile coordinates and nodes
+    // (sparse_field.cl, sparse_world.cl).
+    enum { kJobs, kRefs, kRegion, kList, kCoords, kNodes, kTables };
+    const std::size_t bytes[kTables] = {
+        8 * 8, static_cast<std::size_t>(span.size()) * 16, 9 * 8, n * 4, n * 12, n * 8};
     if (!tables_) {
         tables_ = std::make_unique<PinnedTables>();
     }
@@ -1175,21 +1170,12 @@ double SparseField::update_block(const Job& job, Dims block,
         *refs++ = node_base;
         *refs++ = material_base;
     });
-    auto* sjob = tables_->host<std::int64_t>(kScatterJobs);
-    const std::int64_t sj[8] = {job.region.min.x, job.region.min.y, job.region.min.z, rspan.first.x,
-                                rspan.first.y,    rspan.first.z,    rspan.packed(),   0};
-    std::copy(sj, sj + 8, sjob);
     const Int3 size{job.region.max.x - job.region.min.x, job.region.max.y - job.region.min.y,
                     job.region.max.z - job.region.min.z};
-    auto* region = tables_->host<std::int64_t>(kRegions);
-    const std::int64_t r[6] = {size.x, size.y, size.z, job.origin.x, job.origin.y, job.origin.z};
-    std::copy(r, r + 6, region);
-    auto* scatter_slots = tables_->host<std::uint32_t>(kSlots);
-    for_each_tile(rspan, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
-        *scatter_slots++ =
-            tiles_.at(tile_key(static_cast<std::uint32_t>(tx), static_cast<std::uint32_t>(ty),
-                               static_cast<std::uint32_t>(tz)));
-    });
+    const std::int64_t r[9] = {job.region.min.x, job.region.min.y, job.region.min.z,
+                               size.x,           size.y,           size.z,
+                               job.origin.x,     job.origin.y,     job.origin.z};
+    std::copy(r, r + 9, tables_->host<std::int64_t>(kRegion));
     std::copy(slots.begin(), slots.end(), tables_->host<std::uint32_t>(kList));
     auto* coords = tables_->host<std::uint32_t>(kCoords);
     for (const std::uint32_t slot : slots) {
@@ -1208,7 +1194,7 @@ double SparseField::update_block(const Job& job, Dims block,
     cl_call("updating a sparse field block of " + block.to_string(), [&] {
         auto& q = ctx_.queue();
         block_times_.enqueue = Clock::now();
-        // Without stage events only node_minima, the one waited for, has one: the next
+        // Without stage events only scatter_minima, the one waited for, has one: the next
         // fit() of the tables waits for it rather than for their write.
         tables_->write(q, stage_events_);
         if (stage_events_) {
@@ -1230,27 +1216,32 @@ double SparseField::update_block(const Job& job, Dims block,
             }
         }
         const std::size_t generator_end = events.size();
-        enqueue_scatter(batch.generator->field_buffer(), tables_->buffer(kScatterJobs),
-                        tables_->buffer(kRegions), tables_->buffer(kSlots), block, size, 1,
-                        stage_event(staged, "scatter"));
-        cl::Kernel& k = node_minima_;
-        k.setArg(0, pool_);
-        k.setArg(1, tables_->buffer(kList));
-        k.setArg(2, tables_->buffer(kCoords));
-        k.setArg(3, static_cast<cl_uint>(n));
-        k.setArg(4, coarse_);
-        k.setArg(5, elem_, far_.data());
-        k.setArg(6, wd.x);
-        k.setArg(7, wd.y);
-        k.setArg(8, wd.z);
-        k.setArg(9, tables_->buffer(kNodes));
-        events.emplace_back("node_minima", cl::Event());
+        // The region's values into the pool and the listed nodes' minima, in one pass: every
+        // voxel of the region lies in a listed node (`nodes` holds those the parts overlap).
+        cl::Kernel& k = scatter_minima_;
+        k.setArg(0, batch.generator->field_buffer());
+        k.setArg(1, pool_);
+        k.setArg(2, tables_->buffer(kRegion));
+        k.setArg(3, block.x);
+        k.setArg(4, block.y);
+        k.setArg(5, tables_->buffer(kList));
+        k.setArg(6, tables_->buffer(kCoords));
+        k.setArg(7, static_cast<cl_uint>(n));
+        k.setArg(8, coarse_);
+        k.setArg(9, elem_, far_.data());
+        k.setArg(10, wd.x);
+        k.setArg(11, wd.y);
+        k.setArg(12, wd.z);
+        k.setArg(13, tables_->buffer(kNodes));
+        events.emplace_back("scatter_minima", cl::Event());
         q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(64, n * 64), cl::NDRange(64, 1),
                                nullptr, &events.back().second);
         if (!stage_events_) {
+            // The tables' write and the world's edit table's, neither with an event.
             tables_->settled_by(events.back().second);
+            device_world_.settled_by(events.back().second);
         }
-        // The one wait: node_minima done, and with it every command before it (an in-order
+        // The one wait: scatter_minima done, and with it every command before it (an in-order
         // queue). The minima stay on the device (coarse_node reads them when asked).
         block_times_.enqueued = Clock::now();
         events.back().second.wait();
@@ -1258,16 +1249,16 @@ double SparseField::update_block(const Job& job, Dims block,
         coarse_synced_ = false;
         // Not where the generator ran (and waited) by itself: its commands are not listed.
         block_times_.set = enqueued;
-        // The tables' write, gather, the generator's launches, scatter and node_minima.
+        // The tables' write, gather, the generator's launches and scatter_minima.
         traffic_.enqueues +=
-            static_cast<std::uint32_t>(4 + (enqueued ? batch.generator->last_enqueued() : 0));
+            static_cast<std::uint32_t>(3 + (enqueued ? batch.generator->last_enqueued() : 0));
         ++traffic_.host_waits;
         for (const auto& [name, e] : events) {
             block_commands_.push_back(e);
         }
         for (std::size_t i = 0; i < events.size(); ++i) {
             const double t = elapsed_ms(events[i].second, events[i].second);
-            if (stage_events_) {  // else node_minima's alone: no breakdown
+            if (stage_events_) {  // else scatter_minima's alone: no breakdown
                 add_stage(events[i].first, t);
             }
             if (i < generator_first || i >= generator_end) {

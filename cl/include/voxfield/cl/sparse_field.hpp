@@ -198,27 +198,26 @@ class SparseField {
         QueueTraffic traffic;
         // Where the wall time of an update of one block (an edit's) went, by the host's clock
         // (name, ms): for apply_brush "world edit" (its table made, its commands enqueued),
-        // then for the block "field tables" (made on the host), "field enqueue", "wait" (the
-        // minima's read: every command done), "after" (profiling read, minima kept). Only
+        // then for the block "field tables" (made on the host), "field enqueue", "wait" (for
+        // the last kernel: every command done), "after" (profiling read, minima kept). Only
         // apply_brush fills it, and not for updates of several blocks or where the block's
         // generator ran (and waited) by itself.
         std::vector<std::pair<std::string, double>> host_stages;
         // The same update's commands (transfers and kernels, the world's edit included) by
         // their profiling events: the first start to the last end, and the part of that span in
         // which none ran (the device waiting for the host or between launches). 0 when
-        // host_stages is empty.
+        // host_stages is empty, and for an update without stage events.
         double device_span_ms = 0, device_idle_ms = 0;
         // False for an update made without stage events (set_edit_stage_events(false)): a
         // one-block update then has no stages and edit_kernel_ms 0; apply_brush's kernel_ms is
-        // device_span_ms (device_idle_ms 0) where host_stages is filled, else (and for
-        // update(), apply_dense_tiles(), write_tiles()) a lower bound, the kernels that had
-        // events.
+        // 0 (not measured) where host_stages is filled, else (and for update(),
+        // apply_dense_tiles(), write_tiles()) a lower bound, the kernels that had events.
         bool profiled = true;
     };
     // Whether apply_brush gives every command a profiling event (the default: per-kernel
-    // stages and the device's idle time) or only those it must wait for (its tables' writes
-    // and the last kernel). NVIDIA's driver spends about 7 us more host time on a launch with
-    // an event (bench/cl_overhead.c), 7 of an edit's 10 commands.
+    // stages and the device's idle time) or only the last kernel, the one it waits for, whose
+    // event also vouches for the tables' writes before it. NVIDIA's driver spends about 7 us
+    // more host time on a command with an event (bench/cl_overhead.c), 8 of an edit's 9.
     void set_edit_stage_events(bool on);
     // After the world's voxels inside `changed` were edited on the host (SparseWorld::edit /
     // apply_brush return that box), brings the device's world and the field up to date:
@@ -314,9 +313,10 @@ class SparseField {
     // and not scattered), so that varying job counts share batch shapes.
     double compute(const std::vector<Job>& jobs, Dims block, bool pow2_batch = false);
     // An update's single block `job`: its tables in one write, gather, the dense generator,
-    // scatter and the node minima of `slots` (per slot, the nodes set in `nodes`) enqueued
-    // without a wait, then the minima read back (the one wait); returns kernel ms. Its host
-    // times and commands go to block_times_ and block_commands_.
+    // then the scatter and the node minima of `slots` (per slot, the nodes set in `nodes`,
+    // which must hold every node the region overlaps) in one kernel, enqueued without a wait;
+    // then the one wait, for that kernel. Returns kernel ms. Its host times and commands go to
+    // block_times_ and block_commands_.
     double update_block(const Job& job, Dims block, const std::vector<std::uint32_t>& slots,
                         const std::vector<std::uint64_t>& nodes);
     // Enqueues the gather of `count` blocks of `block` voxels (tables `jobs`, `refs`) from the
@@ -361,6 +361,7 @@ class SparseField {
     // Whether gather and scatter take a work-item per voxel (GPU layout) or per row.
     bool gpu_layout_ = false;
     cl::Kernel scatter_, scatter_voxels_, node_minima_;  // arguments set per launch
+    cl::Kernel scatter_minima_;  // scatter and node_minima of update_block's one region
     cl::Kernel fill_slot_, sweep_init_, sweep_l1_, sweep_l1_rows_, sweep_finish_;
     cl::Kernel sweep_l1_loaded_;  // sweep_l1 of the GPU layout
     bool force_blocks_ = false;
