@@ -428,9 +428,11 @@ std::uint32_t ExactSeparable::banded_lines(std::uint32_t n, std::size_t gt_bytes
 
 std::size_t ExactSeparable::banded_local_bytes(std::uint32_t n, std::uint32_t lines,
                                                std::size_t gt_bytes, std::size_t key_bytes) {
-    // gl (gt_bytes), prv and nxt (2 each) and keyx (key_bytes) per position and line; first
-    // and last per band.
-    return banded_cells(n, lines) * (gt_bytes + 4 + key_bytes) + 2 * std::size_t{kBandedGroup} * 4;
+    // gl (gt_bytes), prv and nxt (2 each) and keyx (key_bytes) per position and line (without
+    // keys, keyx's 2-byte token, counted as 16 for the runtime's alignment of local arguments);
+    // first and last per band.
+    return banded_cells(n, lines) * (gt_bytes + 4 + key_bytes) + (key_bytes == 0 ? 16 : 0) +
+           2 * std::size_t{kBandedGroup} * 4;
 }
 
 std::size_t ExactSeparable::banded_cells(std::uint32_t n, std::uint32_t lines) {
