@@ -48,23 +48,25 @@ class PinnedHost {
     }
     // Waits until that transfer is done, when it is not yet, before the memory is rewritten;
     // returns whether it had to wait.
+    // The event is dropped first: one whose command failed (an error the edit that enqueued it
+    // reported already) is not waited for again by every later call.
     bool settle() {
-        if (unfenced_ && last_() == nullptr) {
-            cl_call("waiting for a transfer", [&] { queue_.finish(); });
-            unfenced_ = false;
-            return true;
-        }
+        const cl::Event pending = last_;
+        const bool without_event = unfenced_;
+        last_ = cl::Event();
         unfenced_ = false;
-        if (last_() == nullptr) {
-            return false;
+        if (pending() == nullptr) {
+            if (without_event) {
+                cl_call("waiting for a transfer", [&] { queue_.finish(); });
+            }
+            return without_event;
         }
         const bool done = cl_call("polling a transfer", [&] {
-            return last_.getInfo<CL_EVENT_COMMAND_EXECUTION_STATUS>() == CL_COMPLETE;
+            return pending.getInfo<CL_EVENT_COMMAND_EXECUTION_STATUS>() == CL_COMPLETE;
         });
         if (!done) {
-            cl_call("waiting for a transfer", [&] { last_.wait(); });
+            cl_call("waiting for a transfer", [&] { pending.wait(); });
         }
-        last_ = cl::Event();
         return !done;
     }
 

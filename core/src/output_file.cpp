@@ -302,10 +302,7 @@ void OutputBatch::commit() {
                                  "': it is no longer a regular file or a new path");
             }
             ::unlink(tmp.c_str());  // the old file; a failure leaves a hidden temporary only
-            pending_.erase(pending_.begin());
-            continue;
-        }
-        if (::rename(tmp.c_str(), target.c_str()) != 0) {
+        } else if (::rename(tmp.c_str(), target.c_str()) != 0) {
             fail(target, "rename failed", errno);
         }
         pending_.erase(pending_.begin());
