@@ -1188,27 +1188,22 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 
 #if INDICES
 // The feature key of site e of a cols_banded line (x, o): in the z pass the y pass's `fin`; in
-// the y pass (from16) the nearest target of its x row, d = the row's 1-D distance away, on the
-// left where that voxel of `vox` (the x rows' input: the world, or empty_targets' copy for
-// zero targets) is nonzero (the x pass's ties go left), else on the right.
-inline uint banded_key(__global const ushort* in16, __global const uchar* vox,
-                       __global const uint* fin, size_t base, size_t stride, int e, uint from16,
-                       uint x, uint o, uint Y, uint Z) {
-    const size_t i = base + (size_t)e * stride;
+// the y pass (from16) from the x of its x row's nearest target, which the loads put in local
+// memory (keyx, at li = LI(e)).
+inline uint banded_key(__global const uint* fin, __local const ushort* keyx, size_t base,
+                       size_t stride, int e, uint li, uint from16, uint o, uint Y, uint Z) {
     if (!from16) {
-        return fin[i];
+        return fin[base + (size_t)e * stride];
     }
-    const uint d = in16[i];
-    const uint sx = x >= d && vox[i - d] != 0 ? x - d : x + d;
-    return (sx * Y + (uint)e) * Z + o;
+    return ((uint)keyx[li] * Y + (uint)e) * Z + o;
 }
-#define BKEY(e) banded_key(in16, vox, fin, base, stride, (e), from16, x, o, Y, Z)
+#define BKEY(e) banded_key(fin, keyx, base, stride, (e), (uint)(e) * C + c, from16, o, Y, Z)
 // Sep(i, u) with KEYED ties, the sites' keys found only where the two tie rules differ.
 #define BSEP(i, u, gi, gu) \
-    banded_sep(in16, vox, fin, base, stride, from16, x, o, Y, Z, i, u, gi, gu, sp)
-inline int banded_sep(__global const ushort* in16, __global const uchar* vox,
-                      __global const uint* fin, size_t base, size_t stride, uint from16, uint x,
-                      uint o, uint Y, uint Z, int i, int u, GT gi, GT gu, ST sp) {
+    banded_sep(fin, keyx, C, c, base, stride, from16, o, Y, Z, i, u, gi, gu, sp)
+inline int banded_sep(__global const uint* fin, __local const ushort* keyx, uint C, uint c,
+                      size_t base, size_t stride, uint from16, uint o, uint Y, uint Z, int i, int u,
+                      GT gi, GT gu, ST sp) {
     const int s0 = sep_tie(i, u, gi, gu, sp, 0);
     if (KEYED(1u, 0u) == 0) {
         return s0;  // L-inf: the lower position wins
@@ -1250,7 +1245,8 @@ __kernel void empty_targets(__global const uchar* restrict vox, __global uchar* 
 // first and last site, -1 when it has none; after the merges, `last` of a band its first
 // position's owner). With INDICES: the
 // sites' keys `fin` (z pass), the positions' `fout` (y pass), or with `final` the index
-// planes `idx` of the world's Y, Z and `count` voxels.
+// planes `idx` of the world's Y, Z and `count` voxels; in the y pass keyx (n * C, as gl) holds
+// each position's x of its row's nearest target, for its key.
 __kernel void cols_banded(__global const ushort* restrict in16, __global const GT* restrict in,
                           __global GT* restrict gout, __global OUT_T* out,
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
@@ -1259,7 +1255,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                           __local int* ends, uint O, uint border,
                           __global const uint* restrict fin, __global uint* restrict fout,
                           __global int* restrict idx, uint Y, uint Z, ulong count,
-                          __global const GT* outer, ST sx, ST so, ST sp) {
+                          __global const GT* outer, ST sx, ST so, ST sp, __local ushort* keyx) {
     const uint C = (uint)get_local_size(0), K = (uint)get_local_size(1);
     const uint c = (uint)get_local_id(0), k = (uint)get_local_id(1);
     const uint x = (uint)get_group_id(0) * C + c;
@@ -1271,16 +1267,31 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     __local int* last = ends + C * K;
     for (uint p = k; p < n; p += K) {
         GT v = G_INF;
+#if INDICES
+        uint kx = 0;
+#endif
         if (active) {
             if (from16) {
-                const uint d = in16[base + p * stride];
+                const size_t i = base + p * stride;
+                const uint d = in16[i];
                 v = d == 0xFFFFu ? G_INF : offset_part((int)d, sx);
+#if INDICES
+                // The x of the row's target d away: on the left where `vox` (the x rows' input:
+                // the world, or empty_targets' copy for zero targets) has one (the x pass's
+                // ties go left), else on the right.
+                kx = d == 0xFFFFu ? 0u : x >= d && vox[i - d] != 0 ? x - d : x + d;
+#endif
             } else {
                 v = in[base + p * stride];
             }
         }
         gl[LI(p)] = v;
         nxt[LI(p)] = LINK_DEAD;
+#if INDICES
+        if (from16) {
+            keyx[LI(p)] = (ushort)kx;
+        }
+#endif
     }
     barrier(CLK_LOCAL_MEM_FENCE);
 

@@ -170,7 +170,9 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         gpu_layout_ && !incremental && X < 0xFFFF && Y < kLinkLimit && Z < kLinkLimit &&
         cl::Kernel(program_, "cols_banded")
                 .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
-    const std::uint32_t lines_y = banded_fits ? banded_lines(Y, gt_bytes_, info.local_mem) : 0;
+    // With index planes the y pass also keeps each position's target x (2 bytes).
+    const std::uint32_t lines_y =
+        banded_fits ? banded_lines(Y, gt_bytes_, info.local_mem, options.indices ? 2 : 0) : 0;
     const std::uint32_t lines_z = banded_fits ? banded_lines(Z, gt_bytes_, info.local_mem) : 0;
 
     // Unit L1 with indices, a full unsigned transform in the CPU layout: l1_xy_keys and
@@ -415,9 +417,9 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
 }
 
 std::uint32_t ExactSeparable::banded_lines(std::uint32_t n, std::size_t gt_bytes,
-                                           std::size_t local_mem) {
+                                           std::size_t local_mem, std::size_t key_bytes) {
     for (std::uint32_t c = kBandedGroup / 8; c >= 1; c /= 2) {
-        if (banded_local_bytes(n, c, gt_bytes) <= local_mem) {
+        if (banded_local_bytes(n, c, gt_bytes, key_bytes) <= local_mem) {
             return c;
         }
     }
@@ -425,9 +427,12 @@ std::uint32_t ExactSeparable::banded_lines(std::uint32_t n, std::size_t gt_bytes
 }
 
 std::size_t ExactSeparable::banded_local_bytes(std::uint32_t n, std::uint32_t lines,
-                                               std::size_t gt_bytes) {
-    // gl (gt_bytes), prv and nxt (2 each) per position and line; first and last per band.
-    return banded_cells(n, lines) * (gt_bytes + 4) + 2 * std::size_t{kBandedGroup} * 4;
+                                               std::size_t gt_bytes, std::size_t key_bytes) {
+    // gl (gt_bytes), prv and nxt (2 each) and keyx (key_bytes) per position and line (without
+    // keys, keyx's 2-byte token, counted as 16 for the runtime's alignment of local arguments);
+    // first and last per band.
+    return banded_cells(n, lines) * (gt_bytes + 4 + key_bytes) + (key_bytes == 0 ? 16 : 0) +
+           2 * std::size_t{kBandedGroup} * 4;
 }
 
 std::size_t ExactSeparable::banded_cells(std::uint32_t n, std::uint32_t lines) {
@@ -483,6 +488,8 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     set_spacing(kernel, 26, spacing_.x);
     set_spacing(kernel, 27, y ? spacing_.z : spacing_.y);
     set_spacing(kernel, 28, y ? spacing_.y : spacing_.z);
+    // The y pass's target x per position, for its keys (a token 2 bytes elsewhere).
+    kernel.setArg(29, cl::Local(keyed && y ? cells * 2 : 2));
     return {y ? "y_banded" : "z_banded", kernel,
             cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * k), cl::NDRange(c, k)};
 }

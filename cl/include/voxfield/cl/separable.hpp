@@ -62,13 +62,15 @@ class ExactSeparable : public Generator {
                 const GeneratorOptions& options);
 
     // One work-group of cols_banded: kBandedGroup work-items, `banded_lines(n, gt_bytes,
-    // local_mem)` lines of n positions of partials of gt_bytes (0: lines of n do not fit that
+    // local_mem, key_bytes)` lines of n positions of partials of gt_bytes and key_bytes more
+    // per position (the y pass's target x with index planes) (0: lines of n do not fit that
     // much local memory); its sites are 16-bit list links below kLinkLimit.
     static constexpr std::uint32_t kBandedGroup = 256;
     static constexpr std::uint32_t kLinkLimit = 0xFFFE;
-    static std::uint32_t banded_lines(std::uint32_t n, std::size_t gt_bytes, std::size_t local_mem);
+    static std::uint32_t banded_lines(std::uint32_t n, std::size_t gt_bytes, std::size_t local_mem,
+                                      std::size_t key_bytes = 0);
     static std::size_t banded_local_bytes(std::uint32_t n, std::uint32_t lines,
-                                          std::size_t gt_bytes);
+                                          std::size_t gt_bytes, std::size_t key_bytes = 0);
     static std::size_t banded_cells(std::uint32_t n, std::uint32_t lines);  // per local array
     // The banded y (axis 1) or z (axis 2) pass over lines of n positions `stride` apart, `c`
     // lines per work-group, line starts x + o * mstride for the lines_o values of o, from and
