@@ -737,15 +737,9 @@ void SparseDeviceWorld::commit_edit_slots(const std::vector<std::uint64_t>& keys
 void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t pitch_y,
                                             std::uint32_t pitch_z, std::uint32_t tiles) {
     auto& q = ctx_.queue();
-    const std::size_t bytes = (kTableHeader + kRecord * tiles + dense_.size()) * 8;
-    if (stage_events_) {
-        q.enqueueWriteBuffer(table_, CL_FALSE, 0, bytes, pinned_->data(), nullptr,
-                             &pinned_->last());
-        edit_write_ = pinned_->last();
-    } else {
-        q.enqueueWriteBuffer(table_, CL_FALSE, 0, bytes, pinned_->data());
-        pinned_->unfenced();
-    }
+    q.enqueueWriteBuffer(table_, CL_FALSE, 0, (kTableHeader + kRecord * tiles + dense_.size()) * 8,
+                         pinned_->data(), nullptr, &pinned_->last());
+    edit_write_ = pinned_->last();
     EncodeBuffers b;
     b.vox = vox;
     b.pitch_y = pitch_y;
@@ -765,10 +759,6 @@ void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t
                    stage_events_ ? &edit_events_ : nullptr);
     traffic_.enqueues += 3;
     q.flush();  // submitted now: the device encodes while the host lists the field's update
-}
-
-void SparseDeviceWorld::settled_by(const cl::Event& later) {
-    pinned_->last() = later;
 }
 
 double SparseDeviceWorld::last_edit_kernel_ms() const {
@@ -795,7 +785,7 @@ std::vector<std::pair<std::string, double>> SparseDeviceWorld::last_edit_stages(
 std::vector<cl::Event> SparseDeviceWorld::last_edit_commands() const {
     std::vector<cl::Event> commands;
     if (edit_write_() == nullptr) {
-        return commands;  // an edit that enqueued nothing, the host's, or one without events
+        return commands;  // an edit that enqueued nothing (or the host's)
     }
     commands.push_back(edit_write_);
     for (const auto& [name, e] : edit_events_) {

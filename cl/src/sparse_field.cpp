@@ -881,15 +881,15 @@ SparseField::Update SparseField::apply_brush(const Brush& brush) {
                          {"field enqueue", ms_between(b.enqueue, b.enqueued)},
                          {"wait", ms_between(b.enqueued, b.waited)},
                          {"after", ms_since(b.waited)}};
-        if (stage_events_) {
-            std::vector<cl::Event> commands = device_world_.last_edit_commands();
-            commands.insert(commands.end(), block_commands_.begin(), block_commands_.end());
-            const CommandSpan span = command_span(commands);
-            u.device_span_ms = span.span_ms;
-            u.device_idle_ms = span.idle_ms;
-        } else {
-            // Only the last command has an event: the device's times are not measured.
-            u.kernel_ms = 0;
+        std::vector<cl::Event> commands = device_world_.last_edit_commands();
+        commands.insert(commands.end(), block_commands_.begin(), block_commands_.end());
+        const CommandSpan span = command_span(commands);
+        u.device_span_ms = span.span_ms;
+        u.device_idle_ms = span.idle_ms;
+        if (!stage_events_) {
+            // The gaps between the few commands with events hold kernels without.
+            u.device_idle_ms = 0;
+            u.kernel_ms = span.span_ms;
         }
     }
     return u;
@@ -1237,9 +1237,7 @@ double SparseField::update_block(const Job& job, Dims block,
         q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(64, n * 64), cl::NDRange(64, 1),
                                nullptr, &events.back().second);
         if (!stage_events_) {
-            // The tables' write and the world's edit table's, neither with an event.
             tables_->settled_by(events.back().second);
-            device_world_.settled_by(events.back().second);
         }
         // The one wait: scatter_minima done, and with it every command before it (an in-order
         // queue). The minima stay on the device (coarse_node reads them when asked).

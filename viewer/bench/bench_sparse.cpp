@@ -265,11 +265,10 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
     // stages and the device's idle time) and lean ones (events only where the host waits,
     // SparseField::set_edit_stage_events(false)), whose wall time is the row's edit time.
     std::vector<double> edit_wall, edit_kernel, edit_encode, edit_gap, edit_enqueues, edit_waits;
-    std::vector<double> lean_wall;
+    std::vector<double> lean_wall, lean_span;
     StageSamples edit_stages;       // per kernel name
     StageSamples edit_host_stages;  // per host stage (Update::host_stages)
     StageSamples lean_host_stages;
-    std::size_t lean_staged = 0;  // lean edits with host stages (single-block ones)
     std::vector<double> edit_device_span, edit_device_idle;
     std::uint64_t recomputed = 0;
     for (std::size_t e = 0; e < edits.size(); ++e) {
@@ -287,7 +286,8 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         if (lean) {
             lean_wall.push_back(wall);
             if (!u.host_stages.empty()) {
-                append_stage_samples(lean_host_stages, ++lean_staged, u.host_stages);
+                append_stage_samples(lean_host_stages, lean_span.size() + 1, u.host_stages);
+                lean_span.push_back(u.device_span_ms);
             }
         } else if (!warm) {
             edit_wall.push_back(wall);
@@ -448,6 +448,8 @@ json sparse_row(ocl::Context& ctx, const SuiteOptions& o, Dims dims, std::uint32
         {"profiled_edit_ms_median", summarize(edit_wall).median},
         {"profiled_edit_samples_ms", edit_wall},
         {"lean_edit_host_stage_ms_median", lean_host_stage_medians},
+        {"lean_edit_device_span_ms_median",
+         lean_span.empty() ? json(nullptr) : json(summarize(lean_span).median)},
         {"edit_kernel_ms_median", summarize(edit_kernel).median},
         {"edit_kernel_ms_samples", edit_kernel},
         {"edit_world_kernel_ms_median", summarize(edit_encode).median},

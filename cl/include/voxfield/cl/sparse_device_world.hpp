@@ -147,15 +147,11 @@ class SparseDeviceWorld {
     const QueueTraffic& last_edit_traffic() const { return traffic_; }
     // The same commands' events (its table's write, then its kernels), for their timeline.
     std::vector<cl::Event> last_edit_commands() const;
-    // Whether apply_brush and encode_dense_tiles give their table's write and their kernels
-    // profiling events (the default). Without, last_edit_stages() and last_edit_commands() are
-    // empty: NVIDIA's driver spends about 7 us more host time on a command with an event
-    // (bench/cl_overhead.c). The next edit then waits for the queue before it rewrites the
-    // table's host copy, unless a later command's event is named by settled_by first.
+    // Whether apply_brush and encode_dense_tiles give their kernels profiling events (the
+    // default). Without, last_edit_stages() is empty and last_edit_commands() holds the
+    // table's write only: NVIDIA's driver spends about 7 us more host time on a launch with an
+    // event (bench/cl_overhead.c).
     void set_stage_events(bool on) { stage_events_ = on; }
-    // `later`, an event of a command enqueued after the last edit's on the same in-order queue,
-    // vouches for the table's write: the next edit waits for it (when not done) instead.
-    void settled_by(const cl::Event& later);
 
     // The gather kernel (sparse_world.cl; `per_voxel`: gather_voxels, the GPU layout's) with
     // the world's buffers as its arguments 0-5; the caller sets the job arguments 6-14.

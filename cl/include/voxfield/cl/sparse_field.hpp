@@ -206,18 +206,19 @@ class SparseField {
         // The same update's commands (transfers and kernels, the world's edit included) by
         // their profiling events: the first start to the last end, and the part of that span in
         // which none ran (the device waiting for the host or between launches). 0 when
-        // host_stages is empty, and for an update without stage events.
+        // host_stages is empty.
         double device_span_ms = 0, device_idle_ms = 0;
         // False for an update made without stage events (set_edit_stage_events(false)): a
         // one-block update then has no stages and edit_kernel_ms 0; apply_brush's kernel_ms is
-        // 0 (not measured) where host_stages is filled, else (and for update(),
-        // apply_dense_tiles(), write_tiles()) a lower bound, the kernels that had events.
+        // device_span_ms (device_idle_ms 0) where host_stages is filled, else (and for
+        // update(), apply_dense_tiles(), write_tiles()) a lower bound, the kernels that had
+        // events.
         bool profiled = true;
     };
     // Whether apply_brush gives every command a profiling event (the default: per-kernel
-    // stages and the device's idle time) or only the last kernel, the one it waits for, whose
-    // event also vouches for the tables' writes before it. NVIDIA's driver spends about 7 us
-    // more host time on a command with an event (bench/cl_overhead.c), 8 of an edit's 9.
+    // stages and the device's idle time) or only those it must wait for (its tables' writes
+    // and the last kernel). NVIDIA's driver spends about 7 us more host time on a launch with
+    // an event (bench/cl_overhead.c), 7 of an edit's 9 commands.
     void set_edit_stage_events(bool on);
     // After the world's voxels inside `changed` were edited on the host (SparseWorld::edit /
     // apply_brush return that box), brings the device's world and the field up to date:
