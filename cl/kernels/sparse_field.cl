@@ -209,7 +209,9 @@ __kernel void scatter_minima(__global const ELEM* restrict field, __global ELEM*
     const uint ex = (uint)clamp(region[0] + region[3] - ox, (long)ax, (long)nx);
     __global ELEM* tile = pool + slot * TILE_VOXELS;
     ELEM best = KEY(far);
-    for (uint r = lid; r < 256; r += 64) {
+#pragma unroll
+    for (uint j = 0; j < 4; ++j) {
+        const uint r = lid + 64 * j;  // rows lid, lid + 64, lid + 128, lid + 192 (y fastest)
         const uint y = r & 15, z = r >> 4;
         if (y < ny && z < nz) {
             __global ELEM* row = tile + ((z0 + z) * TILE + y0 + y) * TILE + x0;
@@ -221,19 +223,34 @@ __kernel void scatter_minima(__global const ELEM* restrict field, __global ELEM*
                 inside ? field + ((size_t)(pz - region[8]) * by + (size_t)(py - region[7])) * bx +
                              (size_t)(ox - region[6])
                        : field;
-            if (nx == 16 && (!inside || (ax == 0 && ex == 16))) {
-                // A whole row: from the block (one unaligned load, one aligned store into the
-                // pool) or from the pool.
+            if (nx == 16) {
+                // A whole row (x0 is a multiple of 16): from the block (unaligned loads), the
+                // pool (one aligned load) or both, blended, and stored as one aligned vector.
+                // The loads are independent (unrolled), not one voxel's after another's store.
                 ELEM16 v;
-                if (inside) {
+                if (inside && ax == 0 && ex == 16) {
                     v = vload16(0, in);
-                    *(__global ELEM16*)row = v;
                 } else {
                     v = *(__global const ELEM16*)row;
+                    if (inside) {
+                        ELEM part[16];
+                        vstore16(v, 0, part);
+#pragma unroll
+                        for (uint x = 0; x < 16; ++x) {
+                            if (x >= ax && x < ex) {
+                                part[x] = in[x];
+                            }
+                        }
+                        v = vload16(0, part);
+                    }
+                }
+                if (inside) {
+                    *(__global ELEM16*)row = v;
                 }
                 const ELEM k = row_least(v);
                 best = k < best ? k : best;
             } else {
+                // A row cut by the world's edge.
                 for (uint x = 0; x < nx; ++x) {
                     ELEM v;
                     if (inside && x >= ax && x < ex) {
