@@ -199,8 +199,7 @@ void dense_leaf(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
         const long wx = tab[7], wy = tab[8], wz = tab[9];
         const long px0 = rec[5] * TILE + x4, py0 = rec[6] * TILE + y4, pz0 = rec[7] * TILE + z4;
         // The leaf's distance to the centre per axis (0 within its extent): a leaf outside the
-        // world or out of the brush's reach keeps its voxels. Only solid voxels are written
-        // (encode_write reads no others).
+        // world or out of the brush's reach keeps its voxels.
         const ulong dx = (ulong)(cx < px0 ? px0 - cx : cx > px0 + 3 ? cx - px0 - 3 : 0);
         const ulong dy = (ulong)(cy < py0 ? py0 - cy : cy > py0 + 3 ? cy - py0 - 3 : 0);
         const ulong dz = (ulong)(cz < pz0 ? pz0 - cz : cz > pz0 + 3 ? cz - pz0 - 3 : 0);
@@ -230,12 +229,12 @@ void dense_leaf(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
                 m |= (ulong)(v[bv] != 0) << bv;
             }
         }
+        // The leaf's 16 rows of 4 voxels, one store each (the empty voxels' zeros too: this
+        // leaf's place in vox is this work-item's alone).
 #pragma unroll
-        for (uint bv = 0; bv < 64; ++bv) {
-            if (v[bv] != 0) {
-                node[(size_t)(bv >> 4) * pitch_z + (size_t)(bv >> 2 & 3) * pitch_y + (bv & 3)] =
-                    v[bv];
-            }
+        for (uint row = 0; row < 16; ++row) {
+            vstore4((uchar4)(v[4 * row], v[4 * row + 1], v[4 * row + 2], v[4 * row + 3]), 0,
+                    node + (size_t)(row >> 2) * pitch_z + (size_t)(row & 3) * pitch_y);
         }
     }
     leaf_mask[b4] = m;
