@@ -890,13 +890,7 @@ __kernel void x_rows_local(__global const uchar* restrict vox, __global T* restr
     }
 }
 
-// The x pass as bits (GPU layout, unsigned L1, X a multiple of 16 and below 65535): work-item
-// (s, r) reads voxels [32s, 32s + 32) of row r of its group (two aligned 16-byte loads; the last
-// word of a row of 16 mod 32 voxels has 16) and writes words[row * W + s] = (bit i set where
-// voxel 32s + i is solid, (L + 1) | R << 16), with L the row's last solid voxel before the word
-// (-1 when none) and R its first after it (0xFFFF when none): a scan over the row's W words in
-// local memory, as in x_rows_local. row_dist expands a voxel's x distance from its word.
-#if !SIGNED
+// Bit i set where voxel i of the 16 is solid.
 inline uint solid_bits16(uchar16 a) {
     uchar t[16];
     vstore16(a, 0, t);
@@ -907,6 +901,31 @@ inline uint solid_bits16(uchar16 a) {
     }
     return m;
 }
+
+// A row's W segments joined in local memory: on entry l[s] holds segment s's last solid
+// position (`below` when it has none) and f[s] its first (`above` when none); every work-item
+// of the group calls this (it has barriers). On return l[s] is the row's last solid at or
+// before segment s's end and f[s] its first at or after its start (Hillis-Steele steps, log2 W).
+inline void join_row_bounds(__local int* l, __local int* f, uint s, uint W, int below,
+                            int above) {
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint off = 1; off < W; off <<= 1) {
+        const int lo = s >= off ? l[s - off] : below;
+        const int hi = s + off < W ? f[s + off] : above;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        l[s] = max(l[s], lo);
+        f[s] = min(f[s], hi);
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+}
+
+// The x pass as bits (GPU layout, unsigned L1, X a multiple of 16 and below 65535): work-item
+// (s, r) reads voxels [32s, 32s + 32) of row r of its group (two aligned 16-byte loads; the last
+// word of a row of 16 mod 32 voxels has 16) and writes words[row * W + s] = (bit i set where
+// voxel 32s + i is solid, (L + 1) | R << 16), with L the row's last solid voxel before the word
+// (-1 when none) and R its first after it (0xFFFF when none): a scan over the row's W words in
+// local memory, as in x_rows_local. row_dist expands a voxel's x distance from its word.
+#if !SIGNED
 
 __kernel void x_words(__global const uchar* restrict vox, __global uint2* restrict words, uint X,
                       uint rows, __local int* lr, __local int* fr) {
@@ -924,15 +943,7 @@ __kernel void x_words(__global const uchar* restrict vox, __global uint2* restri
     __local int* f = fr + r * W;
     l[s] = bits != 0 ? (int)(s * 32 + 31 - clz(bits)) : -1;
     f[s] = bits != 0 ? (int)(s * 32 + 31 - clz(bits & (0u - bits))) : INT_MAX;
-    barrier(CLK_LOCAL_MEM_FENCE);
-    for (uint off = 1; off < W; off <<= 1) {
-        const int lo = s >= off ? l[s - off] : -1;
-        const int hi = s + off < W ? f[s + off] : INT_MAX;
-        barrier(CLK_LOCAL_MEM_FENCE);
-        l[s] = max(l[s], lo);
-        f[s] = min(f[s], hi);
-        barrier(CLK_LOCAL_MEM_FENCE);
-    }
+    join_row_bounds(l, f, s, W, -1, INT_MAX);
     const int before = s > 0 ? l[s - 1] : -1;
     const int after = s + 1 < W ? f[s + 1] : INT_MAX;
     if (active) {
@@ -986,6 +997,26 @@ inline T row_dist(uint2 w, uint x) {
 #define TV VEC(T, VW)
 #endif
 
+// cols_seg sweeps in 32-bit lanes (CV) where T_MAX < 2^31: a step min(v, c + 1) of values at
+// most T_MAX cannot wrap there, so it needs no saturating add in the narrow type (which
+// NVIDIA's compiler emulates in several instructions a lane); T = uint up to 2^32 - 1 keeps
+// add_sat. Values go back to TV (at most T_MAX) for local memory and stores.
+#define CAT_(a, b) a##b
+#define CAT(a, b) CAT_(a, b)
+#if SIGNED || T_MAX > 0x7FFFFFFF
+#define CV TV
+#define CV_INC(x) add_sat((x), (CV)1)
+#else
+#if VW == 1
+#define CV uint
+#else
+#define CV VEC(uint, VW)
+#endif
+#define CV_INC(x) ((x) + (CV)1)
+#endif
+#define TO_CV(x) CAT(convert_, CV)(x)
+#define TO_TV(x) CAT(convert_, TV)(x)
+
 #if PACKED
 inline void store_final_vec(__global uint* restrict out, __global const uchar* restrict vox,
                             __constant uchar* rgb, size_t i, TV d) {
@@ -1008,8 +1039,8 @@ inline void store_final_vec(__global uint* restrict out, __global const uchar* r
 // reaches at its end and its backward sweep at its start (with no carry), SCAN_SEGS folds
 // every segment's into the later (earlier) ones' in log2(segments) steps, and each work-item
 // sweeps again from the carries of its neighbours. Every loop over
-// v has a constant trip count and is unrolled, so v stays in registers. T_MAX is the type's
-// maximum, so add_sat saturates exactly there.
+// v has a constant trip count and is unrolled, so v stays in registers. The sweeps run in CV
+// lanes (above); the local arrays and the stores hold TV.
 __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
                        __global const uchar* restrict vox, __constant uchar* rgb, uint X,
                        uint N, ulong stride, ulong mstride, uint final, __local TV* fout,
@@ -1027,7 +1058,7 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
     const bool active = x < X;
     const size_t base = x + get_global_id(2) * mstride;
     const uint n0 = s * SEG_K;
-    TV v[SEG_K];
+    CV v[SEG_K];
 #if FROM_BITS
     // The y pass over x_words' rows: row (z, y) is z * N + y, the VW columns share a word.
     __global const uint2* wz = words + get_global_id(2) * N * W + x / 32;
@@ -1036,45 +1067,46 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
         if (active && n0 + k < N) {
             const uint2 w = wz[(size_t)(n0 + k) * W];
 #if VW == 1
-            v[k] = row_dist(w, x);
+            v[k] = TO_CV(row_dist(w, x));
 #elif VW == 2
-            v[k] = (TV)(row_dist(w, x), row_dist(w, x + 1));
+            v[k] = TO_CV((TV)(row_dist(w, x), row_dist(w, x + 1)));
 #else
-            v[k] = (TV)(row_dist(w, x), row_dist(w, x + 1), row_dist(w, x + 2), row_dist(w, x + 3));
+            v[k] = TO_CV(
+                (TV)(row_dist(w, x), row_dist(w, x + 1), row_dist(w, x + 2), row_dist(w, x + 3)));
 #endif
         } else {
-            v[k] = (TV)T_MAX;
+            v[k] = (CV)T_MAX;
         }
     }
 #else
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {
-        v[k] = (active && n0 + k < N) ? *(__global const TV*)(work + base + (n0 + k) * stride)
-                                      : (TV)T_MAX;
+        v[k] = (active && n0 + k < N) ? TO_CV(*(__global const TV*)(work + base + (n0 + k) * stride))
+                                      : (CV)T_MAX;
     }
 #endif
-    TV fo = (TV)T_MAX;
-    TV bo = (TV)T_MAX;
+    CV fo = (CV)T_MAX;
+    CV bo = (CV)T_MAX;
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {
-        fo = min(add_sat(fo, (TV)1), v[k]);
-        bo = min(add_sat(bo, (TV)1), v[SEG_K - 1 - k]);
+        fo = min(CV_INC(fo), v[k]);
+        bo = min(CV_INC(bo), v[SEG_K - 1 - k]);
     }
-    fout[s * cw + lc] = fo;
-    bout[s * cw + lc] = bo;
+    fout[s * cw + lc] = TO_TV(fo);
+    bout[s * cw + lc] = TO_TV(bo);
     barrier(CLK_LOCAL_MEM_FENCE);
 #define COL_SLOT(t) ((t)*cw + lc)
     SCAN_SEGS(TV, fout, bout, COL_SLOT, s, segs, SEG_K)
-    TV c = s > 0 ? fout[COL_SLOT(s - 1)] : (TV)T_MAX;
+    CV c = s > 0 ? TO_CV(fout[COL_SLOT(s - 1)]) : (CV)T_MAX;
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {
-        c = min(v[k], add_sat(c, (TV)1));
+        c = min(v[k], CV_INC(c));
         v[k] = c;
     }
-    c = s + 1 < segs ? bout[COL_SLOT(s + 1)] : (TV)T_MAX;
+    c = s + 1 < segs ? TO_CV(bout[COL_SLOT(s + 1)]) : (CV)T_MAX;
 #pragma unroll
     for (uint j = 0; j < SEG_K; ++j) {
-        c = min(v[SEG_K - 1 - j], add_sat(c, (TV)1));
+        c = min(v[SEG_K - 1 - j], CV_INC(c));
         v[SEG_K - 1 - j] = c;
     }
 #pragma unroll
@@ -1083,91 +1115,81 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
             const size_t i = base + (n0 + k) * stride;
 #if PACKED
             if (final) {
-                store_final_vec(out, vox, rgb, i, v[k]);
+                store_final_vec(out, vox, rgb, i, TO_TV(v[k]));
             } else {
-                *(__global TV*)(work + i) = v[k];
+                *(__global TV*)(work + i) = TO_TV(v[k]);
             }
 #else
-            *(__global TV*)(work + i) = v[k];
+            *(__global TV*)(work + i) = TO_TV(v[k]);
 #endif
         }
     }
 }
 
-// Rows along x for X a multiple of XK = 16: work-item (s, r) holds voxels [16s, 16s + 16) of
-// row r of its work-group in registers (one aligned 16-byte load), the row's segments
-// (get_local_size(0) = X / 16 of them) are joined as in cols_seg through local memory, and
-// each work-item stores its 16 distances as one aligned vector.
+// Rows along x for X a multiple of XK = 16: work-item (s, r) reads voxels [16s, 16s + 16) of
+// row r of its work-group (one aligned 16-byte load) as solid bits, the row's segments
+// (get_local_size(0) = X / 16 of them) are joined through local memory as positions (the last
+// solid before each segment and the first after it: join_row_bounds), and each work-item
+// sweeps its 16 voxels once each way in int positions (a select and a subtraction a voxel, no
+// saturating steps) and stores the 16 distances, min(d, T_MAX) (T_MAX where the row has no
+// solid), as one aligned vector.
 #define XK 16
+#define NO_LEFT (-(1 << 30))
+#define NO_RIGHT (1 << 30)
 __kernel void x_rows_seg(__global const uchar* restrict vox, __global T* restrict work, uint X,
-                         uint rows, __local T* fout, __local T* bout) {
+                         uint rows, __local int* lout, __local int* fout) {
     const uint segs = (uint)get_local_size(0);
     const uint s = (uint)get_local_id(0);
     const uint r = (uint)get_local_id(1);
     const size_t row = get_group_id(1) * get_local_size(1) + r;
     const bool active = row < rows;
     const size_t base = (active ? row : 0) * X + s * XK;
-    const uchar16 o = *(__global const uchar16*)(vox + base);
-    T v[XK];
-    v[0] = o.s0 ? (T)0 : (T)T_MAX;
-    v[1] = o.s1 ? (T)0 : (T)T_MAX;
-    v[2] = o.s2 ? (T)0 : (T)T_MAX;
-    v[3] = o.s3 ? (T)0 : (T)T_MAX;
-    v[4] = o.s4 ? (T)0 : (T)T_MAX;
-    v[5] = o.s5 ? (T)0 : (T)T_MAX;
-    v[6] = o.s6 ? (T)0 : (T)T_MAX;
-    v[7] = o.s7 ? (T)0 : (T)T_MAX;
-    v[8] = o.s8 ? (T)0 : (T)T_MAX;
-    v[9] = o.s9 ? (T)0 : (T)T_MAX;
-    v[10] = o.sa ? (T)0 : (T)T_MAX;
-    v[11] = o.sb ? (T)0 : (T)T_MAX;
-    v[12] = o.sc ? (T)0 : (T)T_MAX;
-    v[13] = o.sd ? (T)0 : (T)T_MAX;
-    v[14] = o.se ? (T)0 : (T)T_MAX;
-    v[15] = o.sf ? (T)0 : (T)T_MAX;
-    T fo = (T)T_MAX;
-    T bo = (T)T_MAX;
+    const uint m = solid_bits16(*(__global const uchar16*)(vox + base));
+    const int x0 = (int)(s * XK);
+    __local int* l = lout + r * segs;
+    __local int* f = fout + r * segs;
+    l[s] = m != 0 ? x0 + 31 - (int)clz(m) : NO_LEFT;
+    f[s] = m != 0 ? x0 + 31 - (int)clz(m & (0u - m)) : NO_RIGHT;
+    join_row_bounds(l, f, s, segs, NO_LEFT, NO_RIGHT);
+    int left = s > 0 ? l[s - 1] : NO_LEFT;
+    int right = s + 1 < segs ? f[s + 1] : NO_RIGHT;
+    int d[XK];
 #pragma unroll
     for (uint k = 0; k < XK; ++k) {
-        fo = min(add_sat(fo, (T)1), v[k]);
-        bo = min(add_sat(bo, (T)1), v[XK - 1 - k]);
+        left = (m >> k & 1u) != 0 ? x0 + (int)k : left;
+        d[k] = x0 + (int)k - left;
     }
-    fout[r * segs + s] = fo;
-    bout[r * segs + s] = bo;
-    barrier(CLK_LOCAL_MEM_FENCE);
-#define ROW_SLOT(t) (r * segs + (t))
-    SCAN_SEGS(T, fout, bout, ROW_SLOT, s, segs, XK)
-    T c = s > 0 ? fout[ROW_SLOT(s - 1)] : (T)T_MAX;
-#pragma unroll
-    for (uint k = 0; k < XK; ++k) {
-        c = min(v[k], add_sat(c, (T)1));
-        v[k] = c;
-    }
-    c = s + 1 < segs ? bout[ROW_SLOT(s + 1)] : (T)T_MAX;
 #pragma unroll
     for (uint j = 0; j < XK; ++j) {
-        c = min(v[XK - 1 - j], add_sat(c, (T)1));
-        v[XK - 1 - j] = c;
+        const uint k = XK - 1 - j;
+        right = (m >> k & 1u) != 0 ? x0 + (int)k : right;
+        d[k] = min(d[k], right - x0 - (int)k);
+    }
+    // A row's distances are below 2^21 (X <= 2^20); one from a sentinel is at least 2^29.
+    T v[XK];
+#pragma unroll
+    for (uint k = 0; k < XK; ++k) {
+        v[k] = d[k] >= (1 << 29) ? (T)T_MAX : (T)min((uint)d[k], (uint)T_MAX);
     }
     if (active) {
-        VEC(T, 16) d;
-        d.s0 = v[0];
-        d.s1 = v[1];
-        d.s2 = v[2];
-        d.s3 = v[3];
-        d.s4 = v[4];
-        d.s5 = v[5];
-        d.s6 = v[6];
-        d.s7 = v[7];
-        d.s8 = v[8];
-        d.s9 = v[9];
-        d.sa = v[10];
-        d.sb = v[11];
-        d.sc = v[12];
-        d.sd = v[13];
-        d.se = v[14];
-        d.sf = v[15];
-        *(__global VEC(T, 16)*)(work + base) = d;
+        VEC(T, 16) o;
+        o.s0 = v[0];
+        o.s1 = v[1];
+        o.s2 = v[2];
+        o.s3 = v[3];
+        o.s4 = v[4];
+        o.s5 = v[5];
+        o.s6 = v[6];
+        o.s7 = v[7];
+        o.s8 = v[8];
+        o.s9 = v[9];
+        o.sa = v[10];
+        o.sb = v[11];
+        o.sc = v[12];
+        o.sd = v[13];
+        o.se = v[14];
+        o.sf = v[15];
+        *(__global VEC(T, 16)*)(work + base) = o;
     }
 }
 

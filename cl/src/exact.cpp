@@ -164,14 +164,13 @@ std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
                                        const cl::Buffer& voxels, const cl::Buffer& work,
                                        std::uint32_t cap) {
     const auto& info = ctx.info();
-    const WorkType wt = work_type(format);
     const cl::Program base = build_program(ctx, format, 32, 1, Metric::manhattan, cap);
     const std::size_t rows = std::size_t{dims.y} * dims.z;
     if (dims.x % 16 == 0) {
         // x_rows_seg: 16 voxels per work-item (one aligned word), a row per line of the
-        // group, rows stacked to about 256 work-items per group.
+        // group, rows stacked to about 256 work-items per group; ints in local memory.
         if (auto launch = row_segments(ctx, cl::Kernel(base, "x_rows_seg"), "x_rows_seg", voxels,
-                                       work, dims, dims.x / 16, wt.bytes)) {
+                                       work, dims, dims.x / 16, sizeof(cl_int))) {
             return launch;
         }
     }
