@@ -997,7 +997,7 @@ inline T row_dist(uint2 w, uint x) {
 #define TV VEC(T, VW)
 #endif
 
-// cols_seg sweeps in 32-bit lanes (CV) where T_MAX < 2^31: a step min(v, c + 1) of values at
+// cols_seg sweeps in 32-bit lanes (CV; CS one lane) where T_MAX < 2^31: a step min(v, c + 1) of values at
 // most T_MAX cannot wrap there, so it needs no saturating add in the narrow type (which
 // NVIDIA's compiler emulates in several instructions a lane); T = uint up to 2^32 - 1 keeps
 // add_sat. Values go back to TV (at most T_MAX) for local memory and stores.
@@ -1006,7 +1006,11 @@ inline T row_dist(uint2 w, uint x) {
 #if SIGNED || T_MAX > 0x7FFFFFFF
 #define CV TV
 #define CV_INC(x) add_sat((x), (CV)1)
+#define CS T
+#define CS_INC(x) add_sat((x), (CS)1)
 #else
+#define CS uint
+#define CS_INC(x) ((x) + 1u)
 #if VW == 1
 #define CV uint
 #else
@@ -1123,6 +1127,51 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
             *(__global TV*)(work + i) = TO_TV(v[k]);
 #endif
         }
+    }
+}
+
+// The GPU layout's x and y passes of a world whose z-slice fits local memory (a sparse
+// field's edit block, small worlds): a work-group per slice loads its voxels (coalesced),
+// sweeps its rows along x and then its columns along y in local memory (a work-item per row,
+// then per column), and stores the slice (coalesced): one launch for two passes. Unsigned.
+__kernel void xy_slice_local(__global const uchar* restrict vox, __global T* restrict work,
+                             uint X, uint Y, __local T* sl) {
+    const uint lid = (uint)get_local_id(0), n = (uint)get_local_size(0);
+    const uint plane = X * Y;
+    const size_t base = get_group_id(0) * (size_t)plane;
+    for (uint i = lid; i < plane; i += n) {
+        sl[i] = vox[base + i] != 0 ? (T)0 : (T)T_MAX;
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint y = lid; y < Y; y += n) {
+        __local T* row = sl + y * X;
+        CS c = (CS)T_MAX;
+        for (uint x = 0; x < X; ++x) {
+            c = min((CS)row[x], CS_INC(c));
+            row[x] = (T)c;
+        }
+        c = (CS)T_MAX;
+        for (uint x = X; x-- > 0;) {
+            c = min((CS)row[x], CS_INC(c));
+            row[x] = (T)c;
+        }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint x = lid; x < X; x += n) {
+        CS c = (CS)T_MAX;
+        for (uint y = 0; y < Y; ++y) {
+            c = min((CS)sl[y * X + x], CS_INC(c));
+            sl[y * X + x] = (T)c;
+        }
+        c = (CS)T_MAX;
+        for (uint y = Y; y-- > 0;) {
+            c = min((CS)sl[y * X + x], CS_INC(c));
+            sl[y * X + x] = (T)c;
+        }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint i = lid; i < plane; i += n) {
+        work[base + i] = sl[i];
     }
 }
 

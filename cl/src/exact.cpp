@@ -98,6 +98,13 @@ cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t
                        options);
 }
 
+// Whether the GPU layout takes x and y in one launch (xy_slice_local): a z-slice of the work
+// type within a quarter of the local memory and 16 KiB (a sparse field's edit blocks, small
+// worlds; larger slices keep the row and column kernels, tuned for them).
+bool slice_in_local(Dims dims, std::size_t bytes, std::size_t local_mem) {
+    return std::size_t{dims.x} * dims.y * bytes <= std::min<std::size_t>(local_mem / 4, 16384);
+}
+
 // The GPU layout's x pass as bits (x_words, expanded by the y pass's cols_seg): L1 into u32
 // with rows of whole 16-voxel words whose positions fit 16 bits. On the H200 it made u32
 // 21-25% faster at 512^3 and 1024^3 and u8 and u16 3-12% slower (the expansion costs the y
@@ -439,7 +446,21 @@ void ExactManhattan::set_up_kernels() {
             fallback_from_ = stages_.size();
         }
         bool rows_on_gpu = false;
-        if (gpu_layout_ && bit_rows(dims_, format_, metric_, true)) {
+        if (gpu_layout_ && slice_in_local(dims_, wt.bytes, info.local_mem)) {
+            // x and y in one launch, a work-group per z-slice in local memory.
+            cl::Kernel xy(base, "xy_slice_local");
+            const std::size_t group = std::min<std::size_t>(
+                std::clamp<std::size_t>(next_pow2(std::max(dims_.x, dims_.y)), 32, 256),
+                xy.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device));
+            xy.setArg(0, voxels_);
+            xy.setArg(1, work_);
+            xy.setArg(2, dims_.x);
+            xy.setArg(3, dims_.y);
+            xy.setArg(4, cl::Local(plane * wt.bytes));
+            add({"xy_slice_local", xy, cl::NDRange(group * dims_.z), cl::NDRange(group)});
+            rows_on_gpu = true;
+        }
+        if (!rows_on_gpu && gpu_layout_ && bit_rows(dims_, format_, metric_, true)) {
             if (auto words = x_words()) {
                 KernelLaunch y = columns(dims_.y, dims_.x, plane, dims_.z, false, true);
                 if (y.name == "cols_bits") {

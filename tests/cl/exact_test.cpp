@@ -151,35 +151,39 @@ std::vector<std::string> kernel_path(const World& world, Format f, Layout layout
 
 TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     // Columns up to 1024 voxels take cols_seg with segments of 16, up to 2048 segments of 32,
-    // longer ones the strip fallback of the GPU layout; the CPU layout sweeps xy slices and
-    // strips of columns (on bytes where it can).
+    // longer ones the strip fallback of the GPU layout; z-slices of at most 16 KiB take x and
+    // y in one launch (xy_slice_local), larger ones the row kernels and a y column pass. The
+    // CPU layout sweeps xy slices and strips of columns (on bytes where it can).
     using Path = std::vector<std::string>;
-    const World tall = scene_random(Dims{3, 1100, 2}, 0.002, 5);
+    const World tall = scene_random(Dims{17, 1100, 2}, 0.002, 5);
     const World deep = scene_random(Dims{2, 2, 2100}, 0.001, 6);
-    const World wide = scene_random(Dims{32, 40, 30}, 0.01, 7);
+    const World wide = scene_random(Dims{144, 120, 20}, 0.01, 7);
+    const World small = scene_random(Dims{20, 30, 40}, 0.01, 8);
     for (Format f : kFormats) {
         EXPECT_EQ(kernel_path(tall, f, Layout::gpu),
                   (Path{"x_rows_local", "cols_seg/32", "cols_seg/16"}))
             << to_string(f);
-        EXPECT_EQ(kernel_path(deep, f, Layout::gpu),
-                  (Path{"x_rows_local", "cols_seg/16", "cols_strip_final"}))
+        EXPECT_EQ(kernel_path(deep, f, Layout::gpu), (Path{"xy_slice_local", "cols_strip_final"}))
             << to_string(f);
         const Path wide_gpu = f == Format::u32 ? Path{"x_words", "cols_bits/16", "cols_seg/16"}
                                                : Path{"x_rows_seg", "cols_seg/16", "cols_seg/16"};
         EXPECT_EQ(kernel_path(wide, f, Layout::gpu), wide_gpu) << to_string(f);
+        EXPECT_EQ(kernel_path(small, f, Layout::gpu), (Path{"xy_slice_local", "cols_seg/16"}))
+            << to_string(f);
         // Bytes first where the format is unsigned and holds no colours, then (u16, u32) the
         // wide sweeps where a distance reaches 255.
         const Path cpu = f == Format::packed32 ? Path{"xy_slices_seq", "cols_strip_final"}
                          : f == Format::u8
                              ? Path{"xy_bytes", "z_bytes"}
                              : Path{"xy_bytes", "z_bytes", "xy_slices_seq", "cols_strip_final"};
-        for (const World* w : {&tall, &deep, &wide}) {
+        for (const World* w : {&tall, &deep, &wide, &small}) {
             EXPECT_EQ(kernel_path(*w, f, Layout::cpu), cpu) << to_string(f);
         }
     }
     expect_exact(tall, Palette(), "tall");
     expect_exact(deep, Palette(), "deep");
     expect_exact(wide, Palette(), "wide");
+    expect_exact(small, Palette(), "small");
 }
 
 TEST(ExactManhattan, LongColumnsSaturatePerLane) {
@@ -222,7 +226,9 @@ TEST(ExactManhattan, GpuBitRowsEveryWordCase) {
     // none in a row, a word's every bit; both directions of the nearest solid from the
     // neighbouring words' summaries.
     for (const std::uint32_t x : {16u, 48u, 96u, 512u}) {
-        World edges(Dims{x, 5, 4});
+        // Rows past the fifth stay empty: u32 slices above 16 KiB, which xy_slice_local leaves
+        // to the row kernels.
+        World edges(Dims{x, std::max(5u, 4096u / x + 1), 4});
         edges.set(0, 0, 0, 1);
         edges.set(x - 1, 1, 0, 2);
         edges.set(0, 2, 1, 3);
