@@ -174,10 +174,13 @@ std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
     const cl::Program base = build_program(ctx, format, 32, 1, Metric::manhattan, cap);
     const std::size_t rows = std::size_t{dims.y} * dims.z;
     if (dims.x % 16 == 0) {
-        // x_rows_seg: 16 voxels per work-item (one aligned word), a row per line of the
-        // group, rows stacked to about 256 work-items per group; ints in local memory.
-        if (auto launch = row_segments(ctx, cl::Kernel(base, "x_rows_seg"), "x_rows_seg", voxels,
-                                       work, dims, dims.x / 16, sizeof(cl_int))) {
+        // x_rows_seg (x_rows_bits for byte work): 16 voxels per work-item (one aligned word), a
+        // row per line of the group, rows stacked to about 256 work-items per group.
+        const bool bits = work_type(format).bytes == 1;
+        const char* name = bits ? "x_rows_bits" : "x_rows_seg";
+        if (auto launch =
+                row_segments(ctx, cl::Kernel(base, name), name, voxels, work, dims, dims.x / 16,
+                             bits ? sizeof(cl_int) : work_type(format).bytes)) {
             return launch;
         }
     }
@@ -449,9 +452,10 @@ void ExactManhattan::set_up_kernels() {
         if (gpu_layout_ && slice_in_local(dims_, wt.bytes, info.local_mem)) {
             // x and y in one launch, a work-group per z-slice in local memory.
             cl::Kernel xy(base, "xy_slice_local");
+            // 256 work-items (fewer where the kernel allows fewer): the slice's loads spread
+            // wide; the sweeps use a work-item per row, then per column.
             const std::size_t group = std::min<std::size_t>(
-                std::clamp<std::size_t>(next_pow2(std::max(dims_.x, dims_.y)), 32, 256),
-                xy.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device));
+                256, xy.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device));
             xy.setArg(0, voxels_);
             xy.setArg(1, work_);
             xy.setArg(2, dims_.x);
