@@ -165,10 +165,10 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
             << to_string(f);
         EXPECT_EQ(kernel_path(deep, f, Layout::gpu), (Path{"xy_slice_local", "cols_strip_final"}))
             << to_string(f);
-        const Path wide_gpu =
-            f == Format::u32   ? Path{"x_words", "cols_bits/16", "cols_seg/16"}
-            : f == Format::u16 ? Path{"x_rows_seg", "cols_seg/16", "cols_seg/16"}
-                               : Path{"x_rows_bits", "cols_seg/16", "cols_seg/16"};
+        const Path wide_gpu = f == Format::u32 ? Path{"x_words", "cols_bits/16", "cols_seg/16"}
+                              : f == Format::u16
+                                  ? Path{"x_rows_seg", "cols_seg/16", "cols_seg/16"}
+                                  : Path{"x_rows_bits", "cols_seg/16", "cols_seg/16"};
         EXPECT_EQ(kernel_path(wide, f, Layout::gpu), wide_gpu) << to_string(f);
         EXPECT_EQ(kernel_path(small, f, Layout::gpu), (Path{"xy_slice_local", "cols_seg/16"}))
             << to_string(f);
