@@ -128,9 +128,45 @@ inline void store_group_least(__local ELEM* least, ELEM best, __global ELEM* min
     }
 }
 
+// The listed node of a work-group of node_minima or scatter_minima (global id 1: list index *
+// 64 + node): its slot, its first voxel (tile-local x0, y0, z0; world ox, oy, oz) and its voxels
+// inside the world, [0, n) along each axis (a tile cut by the world's edge holds no values
+// beyond it). False where the group has nothing to do (past the list, or a node not set in
+// `nodes`).
+typedef struct {
+    size_t slot;
+    uint node, x0, y0, z0, nx, ny, nz;
+    long ox, oy, oz;
+} ListedNode;
+
+inline bool listed_node(__global const uint* restrict slots, __global const uint* restrict tiles,
+                        uint count, __global const ulong* restrict nodes, uint wx, uint wy,
+                        uint wz, ListedNode* n) {
+    const size_t i = get_global_id(1);
+    if (i >= (size_t)count * 64) {
+        return false;
+    }
+    n->node = (uint)(i % 64);
+    if ((nodes[i / 64] >> n->node & 1ul) == 0) {
+        return false;
+    }
+    __global const uint* t = tiles + 3 * (i / 64);
+    n->slot = slots[i / 64];
+    n->x0 = (n->node & 3) * 16;
+    n->y0 = ((n->node >> 2) & 3) * 16;
+    n->z0 = (n->node >> 4) * 16;
+    n->ox = (long)t[0] * TILE + n->x0;
+    n->oy = (long)t[1] * TILE + n->y0;
+    n->oz = (long)t[2] * TILE + n->z0;
+    n->nx = (uint)clamp((long)wx - n->ox, 0l, 16l);
+    n->ny = (uint)clamp((long)wy - n->oy, 0l, 16l);
+    n->nz = (uint)clamp((long)wz - n->oz, 0l, 16l);
+    return true;
+}
+
 // A work-group of 64 work-items per 16^3 node of the listed slots (global ids 0: 0..63, 1: list
-// index * 64 + node): the least KEY over its voxels inside the world (a tile cut by the world's
-// edge holds no values beyond it), starting from the far value, which no value exceeds; each
+// index * 64 + node; listed_node): the least KEY over its voxels inside the world, starting from
+// the far value, which no value exceeds; each
 // work-item takes 4 rows of 16, then the group's least. `tiles`: per listed slot its tile's
 // coordinates (3 uints). Written per slot into `minima`, which stays on the device. Only the
 // nodes set in `nodes` (per listed slot, bit z << 4 | y << 2 | x) are computed; the others keep
@@ -141,41 +177,30 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
                           __global const ulong* restrict nodes) {
     __local ELEM least[64];
     const uint lid = (uint)get_local_id(0);
-    const size_t i = get_global_id(1);
-    if (i >= (size_t)count * 64) {
+    ListedNode n;
+    if (!listed_node(slots, tiles, count, nodes, wx, wy, wz, &n)) {
         return;  // the whole group
     }
-    const size_t slot = slots[i / 64];
-    __global const uint* t = tiles + 3 * (i / 64);
-    const uint node = (uint)(i % 64);
-    if ((nodes[i / 64] >> node & 1ul) == 0) {
-        return;  // the whole group
-    }
-    const uint x0 = (node & 3) * 16, y0 = ((node >> 2) & 3) * 16, z0 = (node >> 4) * 16;
-    // Voxels of the node inside the world: [0, n) along each axis.
-    const long ox = (long)t[0] * TILE + x0, oy = (long)t[1] * TILE + y0, oz = (long)t[2] * TILE + z0;
-    const uint nx = (uint)clamp((long)wx - ox, 0l, 16l), ny = (uint)clamp((long)wy - oy, 0l, 16l),
-               nz = (uint)clamp((long)wz - oz, 0l, 16l);
-    __global const ELEM* tile = pool + slot * TILE_VOXELS;
+    __global const ELEM* tile = pool + n.slot * TILE_VOXELS;
     ELEM best = KEY(far);
     // Rows lid, lid + 64, lid + 128, lid + 192 of the node's 256 (y fastest).
     for (uint r = lid; r < 256; r += 64) {
         const uint y = r & 15, z = r >> 4;
-        if (y < ny && z < nz) {
-            __global const ELEM* row = tile + ((z0 + z) * TILE + y0 + y) * TILE + x0;
-            if (nx == 16) {
+        if (y < n.ny && z < n.nz) {
+            __global const ELEM* row = tile + ((n.z0 + z) * TILE + n.y0 + y) * TILE + n.x0;
+            if (n.nx == 16) {
                 // A whole row in one aligned load (x0 is a multiple of 16).
                 const ELEM k = row_least(*(__global const ELEM16*)row);
                 best = k < best ? k : best;
             } else {
-                for (uint x = 0; x < nx; ++x) {
+                for (uint x = 0; x < n.nx; ++x) {
                     const ELEM k = KEY(row[x]);
                     best = k < best ? k : best;
                 }
             }
         }
     }
-    store_group_least(least, best, minima, slot * 64 + node);
+    store_group_least(least, best, minima, n.slot * 64 + n.node);
 }
 
 // scatter and node_minima in one pass, for one block's region whose every voxel lies in a
@@ -184,46 +209,37 @@ __kernel void node_minima(__global const ELEM* restrict pool, __global const uin
 // voxels a slice) into the pool and taken from there, every other voxel of the node read from
 // the pool. `region`: its first voxel, its size and the block's first voxel (3 longs each).
 __kernel void scatter_minima(__global const ELEM* restrict field, __global ELEM* restrict pool,
-                             __global const long* restrict region, uint bx, uint by, __global const uint* restrict slots,
+                             __global const long* restrict region, uint bx, uint by,
+                             __global const uint* restrict slots,
                              __global const uint* restrict tiles, uint count,
                              __global ELEM* restrict minima, ELEM far, uint wx, uint wy, uint wz,
                              __global const ulong* restrict nodes) {
     __local ELEM least[64];
     const uint lid = (uint)get_local_id(0);
-    const size_t i = get_global_id(1);
-    if (i >= (size_t)count * 64) {
+    ListedNode n;
+    if (!listed_node(slots, tiles, count, nodes, wx, wy, wz, &n)) {
         return;  // the whole group
     }
-    const size_t slot = slots[i / 64];
-    __global const uint* t = tiles + 3 * (i / 64);
-    const uint node = (uint)(i % 64);
-    if ((nodes[i / 64] >> node & 1ul) == 0) {
-        return;  // the whole group
-    }
-    const uint x0 = (node & 3) * 16, y0 = ((node >> 2) & 3) * 16, z0 = (node >> 4) * 16;
-    const long ox = (long)t[0] * TILE + x0, oy = (long)t[1] * TILE + y0, oz = (long)t[2] * TILE + z0;
-    const uint nx = (uint)clamp((long)wx - ox, 0l, 16l), ny = (uint)clamp((long)wy - oy, 0l, 16l),
-               nz = (uint)clamp((long)wz - oz, 0l, 16l);
     // The region's voxels of this node along x: [ax, ex) of the node's [0, nx).
-    const uint ax = (uint)clamp(region[0] - ox, 0l, (long)nx);
-    const uint ex = (uint)clamp(region[0] + region[3] - ox, (long)ax, (long)nx);
-    __global ELEM* tile = pool + slot * TILE_VOXELS;
+    const uint ax = (uint)clamp(region[0] - n.ox, 0l, (long)n.nx);
+    const uint ex = (uint)clamp(region[0] + region[3] - n.ox, (long)ax, (long)n.nx);
+    __global ELEM* tile = pool + n.slot * TILE_VOXELS;
     ELEM best = KEY(far);
 #pragma unroll
     for (uint j = 0; j < 4; ++j) {
         const uint r = lid + 64 * j;  // rows lid, lid + 64, lid + 128, lid + 192 (y fastest)
         const uint y = r & 15, z = r >> 4;
-        if (y < ny && z < nz) {
-            __global ELEM* row = tile + ((z0 + z) * TILE + y0 + y) * TILE + x0;
-            const long py = oy + y, pz = oz + z;
+        if (y < n.ny && z < n.nz) {
+            __global ELEM* row = tile + ((n.z0 + z) * TILE + n.y0 + y) * TILE + n.x0;
+            const long py = n.oy + y, pz = n.oz + z;
             const bool inside = py >= region[1] && py < region[1] + region[4] &&
                                 pz >= region[2] && pz < region[2] + region[5] && ax < ex;
             // This row's first voxel in the block (where inside).
             __global const ELEM* in =
                 inside ? field + ((size_t)(pz - region[8]) * by + (size_t)(py - region[7])) * bx +
-                             (size_t)(ox - region[6])
+                             (size_t)(n.ox - region[6])
                        : field;
-            if (nx == 16) {
+            if (n.nx == 16) {
                 // A whole row (x0 is a multiple of 16): from the block (unaligned loads), the
                 // pool (one aligned load) or both, blended, and stored as one aligned vector.
                 // The loads are independent (unrolled), not one voxel's after another's store.
@@ -251,7 +267,7 @@ __kernel void scatter_minima(__global const ELEM* restrict field, __global ELEM*
                 best = k < best ? k : best;
             } else {
                 // A row cut by the world's edge.
-                for (uint x = 0; x < nx; ++x) {
+                for (uint x = 0; x < n.nx; ++x) {
                     ELEM v;
                     if (inside && x >= ax && x < ex) {
                         v = in[x];
@@ -265,7 +281,7 @@ __kernel void scatter_minima(__global const ELEM* restrict field, __global ELEM*
             }
         }
     }
-    store_group_least(least, best, minima, slot * 64 + node);
+    store_group_least(least, best, minima, n.slot * 64 + n.node);
 }
 
 // The Manhattan sweep: a whole bounded L1 field of unit spacing computed in the field tiles
