@@ -997,10 +997,10 @@ inline T row_dist(uint2 w, uint x) {
 #define TV VEC(T, VW)
 #endif
 
-// cols_seg sweeps in 32-bit lanes (CV; CS one lane) where T_MAX < 2^31: a step min(v, c + 1) of values at
-// most T_MAX cannot wrap there, so it needs no saturating add in the narrow type (which
-// NVIDIA's compiler emulates in several instructions a lane); T = uint up to 2^32 - 1 keeps
-// add_sat. Values go back to TV (at most T_MAX) for local memory and stores.
+// cols_seg sweeps in 32-bit lanes (CV; CS one lane) where T_MAX < 2^31: a step min(v, c + 1)
+// of values at most T_MAX cannot wrap there, so it needs no saturating add in the narrow type
+// (which NVIDIA's compiler emulates in several instructions a lane); T = uint up to 2^32 - 1
+// keeps add_sat. Values go back to TV (at most T_MAX) for local memory and stores.
 #define CAT_(a, b) a##b
 #define CAT(a, b) CAT_(a, b)
 #if SIGNED || T_MAX > 0x7FFFFFFF
@@ -1085,8 +1085,9 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
 #else
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {
-        v[k] = (active && n0 + k < N) ? TO_CV(*(__global const TV*)(work + base + (n0 + k) * stride))
-                                      : (CV)T_MAX;
+        v[k] = (active && n0 + k < N)
+                   ? TO_CV(*(__global const TV*)(work + base + (n0 + k) * stride))
+                   : (CV)T_MAX;
     }
 #endif
     CV fo = (CV)T_MAX;
@@ -1128,6 +1129,28 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
 #endif
         }
     }
+}
+
+// Stores a work-item's 16 values (an unrolled private array) as one aligned vector.
+inline void store_row16(__global T* restrict dst, const T* v) {
+    VEC(T, 16) d;
+    d.s0 = v[0];
+    d.s1 = v[1];
+    d.s2 = v[2];
+    d.s3 = v[3];
+    d.s4 = v[4];
+    d.s5 = v[5];
+    d.s6 = v[6];
+    d.s7 = v[7];
+    d.s8 = v[8];
+    d.s9 = v[9];
+    d.sa = v[10];
+    d.sb = v[11];
+    d.sc = v[12];
+    d.sd = v[13];
+    d.se = v[14];
+    d.sf = v[15];
+    *(__global VEC(T, 16)*)dst = d;
 }
 
 // The GPU layout's x and y passes of a world whose z-slice fits local memory (a sparse
@@ -1243,24 +1266,7 @@ __kernel void x_rows_seg(__global const uchar* restrict vox, __global T* restric
         v[XK - 1 - j] = c;
     }
     if (active) {
-        VEC(T, 16) d;
-        d.s0 = v[0];
-        d.s1 = v[1];
-        d.s2 = v[2];
-        d.s3 = v[3];
-        d.s4 = v[4];
-        d.s5 = v[5];
-        d.s6 = v[6];
-        d.s7 = v[7];
-        d.s8 = v[8];
-        d.s9 = v[9];
-        d.sa = v[10];
-        d.sb = v[11];
-        d.sc = v[12];
-        d.sd = v[13];
-        d.se = v[14];
-        d.sf = v[15];
-        *(__global VEC(T, 16)*)(work + base) = d;
+        store_row16(work + base, v);
     }
 }
 
@@ -1309,24 +1315,7 @@ __kernel void x_rows_bits(__global const uchar* restrict vox, __global T* restri
         v[k] = d[k] >= (1 << 29) ? (T)T_MAX : (T)min((uint)d[k], (uint)T_MAX);
     }
     if (active) {
-        VEC(T, 16) o;
-        o.s0 = v[0];
-        o.s1 = v[1];
-        o.s2 = v[2];
-        o.s3 = v[3];
-        o.s4 = v[4];
-        o.s5 = v[5];
-        o.s6 = v[6];
-        o.s7 = v[7];
-        o.s8 = v[8];
-        o.s9 = v[9];
-        o.sa = v[10];
-        o.sb = v[11];
-        o.sc = v[12];
-        o.sd = v[13];
-        o.se = v[14];
-        o.sf = v[15];
-        *(__global VEC(T, 16)*)(work + base) = o;
+        store_row16(work + base, v);
     }
 }
 

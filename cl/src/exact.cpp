@@ -176,11 +176,10 @@ std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
     if (dims.x % 16 == 0) {
         // x_rows_seg (x_rows_bits for byte work): 16 voxels per work-item (one aligned word), a
         // row per line of the group, rows stacked to about 256 work-items per group.
-        const bool bits = work_type(format).bytes == 1;
-        const char* name = bits ? "x_rows_bits" : "x_rows_seg";
-        if (auto launch =
-                row_segments(ctx, cl::Kernel(base, name), name, voxels, work, dims, dims.x / 16,
-                             bits ? sizeof(cl_int) : work_type(format).bytes)) {
+        const std::size_t bytes = work_type(format).bytes;
+        const char* name = bytes == 1 ? "x_rows_bits" : "x_rows_seg";
+        if (auto launch = row_segments(ctx, cl::Kernel(base, name), name, voxels, work, dims,
+                                       dims.x / 16, bytes == 1 ? sizeof(cl_int) : bytes)) {
             return launch;
         }
     }

@@ -218,7 +218,7 @@ class SparseField {
     // Whether apply_brush gives every command a profiling event (the default: per-kernel
     // stages and the device's idle time) or only those it must wait for (its tables' writes
     // and the last kernel). NVIDIA's driver spends about 7 us more host time on a launch with
-    // an event (bench/cl_overhead.c), 7 of an edit's 9 commands.
+    // an event (bench/cl_overhead.c), 6 of an edit's 8 commands.
     void set_edit_stage_events(bool on);
     // After the world's voxels inside `changed` were edited on the host (SparseWorld::edit /
     // apply_brush return that box), brings the device's world and the field up to date:
