@@ -51,10 +51,13 @@ WorkType work_type(Format f) {
 }
 
 // Values per work-item in cols_seg for a column of n voxels, or 0 when too long for it: 16
-// up to 64 segments (on the H200, 1024^3 u16: y and z passes 3.5 ms each with 16, 10.7 with
-// 64, as more values per work-item cost registers and so occupancy), then 32.
+// up to 512 voxels, then 32 (at most 64 segments). On the H100, 1024^3 y and z passes take
+// 2.59 and 2.56 ms in u16 with 32 values (32 segments) against 3.07 and 5.02 with 16 (64
+// segments); at 512^3 16 values are the faster (0.243 and 0.260 ms against 0.255 and 0.280).
+// 64 values cost registers and occupancy (on the H200, 1024^3 u16: 10.7 ms a pass, 3.5 with
+// 16).
 std::uint32_t seg_k(std::uint32_t n) {
-    if (n <= 1024) {
+    if (n <= 512) {
         return 16;
     }
     if (n <= 2048) {

@@ -150,17 +150,21 @@ std::vector<std::string> kernel_path(const World& world, Format f, Layout layout
 }
 
 TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
-    // Columns up to 1024 voxels take cols_seg with segments of 16, up to 2048 segments of 32,
+    // Columns up to 512 voxels take cols_seg with segments of 16, up to 2048 segments of 32,
     // longer ones the strip fallback of the GPU layout; z-slices of at most 16 KiB take x and
     // y in one launch (xy_slice_local), larger ones the row kernels and a y column pass. The
     // CPU layout sweeps xy slices and strips of columns (on bytes where it can).
     using Path = std::vector<std::string>;
     const World tall = scene_random(Dims{17, 1100, 2}, 0.002, 5);
+    const World mid = scene_random(Dims{33, 600, 2}, 0.003, 9);
     const World deep = scene_random(Dims{2, 2, 2100}, 0.001, 6);
     const World wide = scene_random(Dims{144, 120, 20}, 0.01, 7);
     const World small = scene_random(Dims{20, 30, 40}, 0.01, 8);
     for (Format f : kFormats) {
         EXPECT_EQ(kernel_path(tall, f, Layout::gpu),
+                  (Path{"x_rows_local", "cols_seg/32", "cols_seg/16"}))
+            << to_string(f);
+        EXPECT_EQ(kernel_path(mid, f, Layout::gpu),
                   (Path{"x_rows_local", "cols_seg/32", "cols_seg/16"}))
             << to_string(f);
         EXPECT_EQ(kernel_path(deep, f, Layout::gpu), (Path{"xy_slice_local", "cols_strip_final"}))
@@ -178,11 +182,12 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
                          : f == Format::u8
                              ? Path{"xy_bytes", "z_bytes"}
                              : Path{"xy_bytes", "z_bytes", "xy_slices_seq", "cols_strip_final"};
-        for (const World* w : {&tall, &deep, &wide, &small}) {
+        for (const World* w : {&tall, &mid, &deep, &wide, &small}) {
             EXPECT_EQ(kernel_path(*w, f, Layout::cpu), cpu) << to_string(f);
         }
     }
     expect_exact(tall, Palette(), "tall");
+    expect_exact(mid, Palette(), "mid");
     expect_exact(deep, Palette(), "deep");
     expect_exact(wide, Palette(), "wide");
     expect_exact(small, Palette(), "small");
