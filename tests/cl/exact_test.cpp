@@ -194,7 +194,7 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
 }
 
 TEST(ExactManhattan, LongColumnsSaturatePerLane) {
-    // cols_seg holds 4 byte columns (2 for u16) per work-item where X allows it: every lane
+    // cols_seg holds 4 columns of 1- or 2-byte work per work-item where X allows it: every lane
     // of a word saturates on its own, along y and along z; X = 7 keeps one column per item.
     for (const std::uint32_t x : {8u, 7u}) {
         World tall(Dims{x, 600, 3});
