@@ -360,7 +360,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                     empty.setArg(0, voxels_);
                     empty.setArg(1, empty_);
                     empty.setArg(2, static_cast<cl_ulong>(n));
-                    stages_.push_back(items_launch("empty_targets", empty, n));
+                    stages_.push_back(items_launch("empty_targets", empty, (n + 15) / 16));
                 };
                 if (zero_targets_) {
                     empty_targets();
