@@ -42,8 +42,8 @@
 //   rows (X not a multiple of 16) take x_rows_local, which stages a row in local memory
 //   (coalesced) and scans it per work-group. cols_seg gives each work-item SEG_K consecutive
 //   values of VW adjacent columns in registers (one 4- or 8-byte word per load and store
-//   where X keeps the words aligned), joins the segments of a column through local memory, and so
-//   reads and writes each voxel once.
+//   where X keeps the words aligned), joins the segments of a column through local memory,
+//   and so reads and writes each voxel once.
 //   L1 into u32 with X a multiple of 16 (FROM_BITS=1 for cols_seg): x_words writes a row as
 //   32-voxel words of solid bits, each with the row's last solid before it and first solid
 //   after it (8 bytes per 32 voxels instead of 2 or 4 bytes per voxel), and the y pass's

@@ -78,13 +78,16 @@ std::uint32_t cap_of(std::optional<double> max_distance) {
 }
 
 // Adjacent columns per work-item in cols_seg, loaded and stored as one aligned word: four for
-// 1- and 2-byte work (a 4- or 8-byte word), one for 4-byte work; one where rows of X elements
-// would not keep the words aligned. On the H100, u16 columns take 0.194 and 0.218 ms (y, z) at
-// 512^3 with four against 0.243 and 0.260 with two; eight byte columns were slower than four
-// (0.190 and 0.195 ms against 0.160 and 0.159).
+// 1- and 2-byte work (a 4- or 8-byte word) where rows of X elements keep those words aligned,
+// else two for u16 (a 4-byte word) where they keep those aligned; otherwise one. On the H100,
+// u16 columns take 0.194 and 0.218 ms (y, z) at 512^3 with four against 0.243 and 0.260 with
+// two; eight byte columns were slower than four (0.190 and 0.195 ms against 0.160 and 0.159).
 std::uint32_t vec_width(Format f, std::uint32_t x) {
-    const std::uint32_t w = work_type(f).bytes <= 2 ? 4 : 1;
-    return x % w == 0 ? w : 1;
+    const std::size_t bytes = work_type(f).bytes;
+    if (bytes <= 2 && x % 4 == 0) {
+        return 4;
+    }
+    return bytes == 2 && x % 2 == 0 ? 2 : 1;
 }
 
 // The kernels of exact_manhattan.cl for format `f`, SEG_K = k, VW = vw and metric m (cached

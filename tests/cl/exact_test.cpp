@@ -194,9 +194,10 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
 }
 
 TEST(ExactManhattan, LongColumnsSaturatePerLane) {
-    // cols_seg holds 4 columns of 1- or 2-byte work per work-item where X allows it: every lane
-    // of a word saturates on its own, along y and along z; X = 7 keeps one column per item.
-    for (const std::uint32_t x : {8u, 7u}) {
+    // cols_seg holds 4 columns of 1- or 2-byte work per work-item where X allows it (2 of u16
+    // work for X = 6): every lane of a word saturates on its own, along y and along z; X = 7
+    // keeps one column per item.
+    for (const std::uint32_t x : {8u, 6u, 7u}) {
         World tall(Dims{x, 600, 3});
         tall.set(1, 0, 0, 1);
         expect_exact(tall, Palette(), "far along y");
