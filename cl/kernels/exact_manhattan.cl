@@ -19,6 +19,8 @@
 // T_MAX (its maximum), PACKED (1 when the output is packed32 and T is a separate uchar work
 // buffer), SEG_K (values per column and work-item in cols_seg), VW (adjacent columns per
 // work-item in cols_seg: 1, 2 or 4), CHEBYSHEV (0 or 1), SIGNED (0 or 1, CPU layout only).
+// ROW_TARGETS_EMPTY (0 or 1): the GPU layout's x rows kernels (x_rows_seg, x_rows_local,
+// x_rows_bits) take the zero voxels as their targets instead of the nonzero ones.
 // Saturating at T_MAX is exact: min-plus with +1 commutes with min(., T_MAX).
 //
 // SIGNED=1: the signed L1 field in the same passes, one value per voxel. Every voxel is at
@@ -50,6 +52,14 @@
 //   cols_seg expands a row's x distances from them as it loads its column segments: the
 //   x pass's bytes mostly leave the DRAM traffic (read 1 byte a voxel, write 1/4).
 //   (L-inf has no GPU layout here: ExactSeparable computes it.)
+
+// The x rows kernels' targets: the nonzero voxels (the world's solids), or with
+// ROW_TARGETS_EMPTY the zero ones (a signed field's inner transform, SciPy's zero targets).
+#if ROW_TARGETS_EMPTY
+#define IS_TARGET(b) ((b) == 0)
+#else
+#define IS_TARGET(b) ((b) != 0)
+#endif
 
 // A saturating +1 in the work type (saturating byte/short adds vectorise widest on CPUs).
 inline T inc_t(T v) { return add_sat(v, (T)1); }
@@ -840,7 +850,7 @@ __kernel void x_rows_local(__global const uchar* restrict vox, __global T* restr
     __local int* fr = first + r * L;
     const size_t base = row * X;
     for (uint x = lid; x < X; x += L) {
-        o[pad_idx(x)] = active && vox[base + x] != 0;
+        o[pad_idx(x)] = active && IS_TARGET(vox[base + x]);
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     const uint seg = (X + L - 1) / L;
@@ -890,14 +900,14 @@ __kernel void x_rows_local(__global const uchar* restrict vox, __global T* restr
     }
 }
 
-// Bit i set where voxel i of the 16 is solid.
+// Bit i set where voxel i of the 16 is a target (IS_TARGET: solid, unless ROW_TARGETS_EMPTY).
 inline uint solid_bits16(uchar16 a) {
     uchar t[16];
     vstore16(a, 0, t);
     uint m = 0;
 #pragma unroll
     for (uint i = 0; i < 16; ++i) {
-        m |= (uint)(t[i] != 0) << i;
+        m |= (uint)IS_TARGET(t[i]) << i;
     }
     return m;
 }
@@ -1225,22 +1235,22 @@ __kernel void x_rows_seg(__global const uchar* restrict vox, __global T* restric
     const size_t base = (active ? row : 0) * X + s * XK;
     const uchar16 o = *(__global const uchar16*)(vox + base);
     T v[XK];
-    v[0] = o.s0 ? (T)0 : (T)T_MAX;
-    v[1] = o.s1 ? (T)0 : (T)T_MAX;
-    v[2] = o.s2 ? (T)0 : (T)T_MAX;
-    v[3] = o.s3 ? (T)0 : (T)T_MAX;
-    v[4] = o.s4 ? (T)0 : (T)T_MAX;
-    v[5] = o.s5 ? (T)0 : (T)T_MAX;
-    v[6] = o.s6 ? (T)0 : (T)T_MAX;
-    v[7] = o.s7 ? (T)0 : (T)T_MAX;
-    v[8] = o.s8 ? (T)0 : (T)T_MAX;
-    v[9] = o.s9 ? (T)0 : (T)T_MAX;
-    v[10] = o.sa ? (T)0 : (T)T_MAX;
-    v[11] = o.sb ? (T)0 : (T)T_MAX;
-    v[12] = o.sc ? (T)0 : (T)T_MAX;
-    v[13] = o.sd ? (T)0 : (T)T_MAX;
-    v[14] = o.se ? (T)0 : (T)T_MAX;
-    v[15] = o.sf ? (T)0 : (T)T_MAX;
+    v[0] = IS_TARGET(o.s0) ? (T)0 : (T)T_MAX;
+    v[1] = IS_TARGET(o.s1) ? (T)0 : (T)T_MAX;
+    v[2] = IS_TARGET(o.s2) ? (T)0 : (T)T_MAX;
+    v[3] = IS_TARGET(o.s3) ? (T)0 : (T)T_MAX;
+    v[4] = IS_TARGET(o.s4) ? (T)0 : (T)T_MAX;
+    v[5] = IS_TARGET(o.s5) ? (T)0 : (T)T_MAX;
+    v[6] = IS_TARGET(o.s6) ? (T)0 : (T)T_MAX;
+    v[7] = IS_TARGET(o.s7) ? (T)0 : (T)T_MAX;
+    v[8] = IS_TARGET(o.s8) ? (T)0 : (T)T_MAX;
+    v[9] = IS_TARGET(o.s9) ? (T)0 : (T)T_MAX;
+    v[10] = IS_TARGET(o.sa) ? (T)0 : (T)T_MAX;
+    v[11] = IS_TARGET(o.sb) ? (T)0 : (T)T_MAX;
+    v[12] = IS_TARGET(o.sc) ? (T)0 : (T)T_MAX;
+    v[13] = IS_TARGET(o.sd) ? (T)0 : (T)T_MAX;
+    v[14] = IS_TARGET(o.se) ? (T)0 : (T)T_MAX;
+    v[15] = IS_TARGET(o.sf) ? (T)0 : (T)T_MAX;
     T fo = (T)T_MAX;
     T bo = (T)T_MAX;
 #pragma unroll

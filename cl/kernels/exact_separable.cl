@@ -15,6 +15,8 @@
 //   SIGNED   1: also the transform to the empty voxels, the world surrounded by empty space
 //            (virtual empty sites at -1 and N on every line); the output is signed
 //   INDICES  1: carry the key of the nearest solid (see KEYED) and write (z, y, x) planes
+//   ZERO_TARGETS 1: the world's zero voxels are the targets (SciPy's convention; the banded
+//            y pass's keys test for them; x_pass takes its `solid` argument instead)
 //   CPU_LAYOUT 1: the CPU layout (x_pass's scratch holds row_doubling's rows)
 //   OUT_KIND 0 unsigned integer (floor, saturate at OUT_MAX), 1 signed integer (toward zero,
 //            saturate at +-OUT_MAX), 2 float, 3 double, 4 packed32; OUT_T its element type
@@ -1218,23 +1220,6 @@ inline int banded_sep(__global const uint* fin, __local const ushort* keyx, uint
 #define BSEP(i, u, gi, gu) sep((i), (u), (gi), (gu), sp)
 #endif
 
-// cols_banded's targets for a signed field's inner transform or for zero targets: 1 where the
-// world's voxel is empty, else 0. Sixteen voxels per work-item (one aligned 16-byte load and
-// store; the last work-item takes the n % 16 left one by one): 0.46 ms at 512^3 on the H100,
-// against 1.26 with a work-item per voxel.
-__kernel void empty_targets(__global const uchar* restrict vox, __global uchar* restrict out,
-                            ulong n) {
-    const size_t i = get_global_id(0) * 16;
-    if (i + 16 <= n) {
-        const uchar16 v = vload16(0, vox + i);
-        vstore16(as_uchar16(v == (uchar16)0) & (uchar16)1, 0, out + i);
-        return;
-    }
-    for (size_t j = i; j < n; ++j) {
-        out[j] = vox[j] == 0 ? 1 : 0;
-    }
-}
-
 // Position p of line c in the local arrays.
 #define LI(p) ((p) * C + c)
 
@@ -1295,10 +1280,11 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                     const uint d = in16[i];
                     v[j] = d == 0xFFFFu ? G_INF : offset_part((int)d, sx);
 #if INDICES
-                    // The x of the row's target d away: on the left where `vox` (the x rows'
-                    // input: the world, or empty_targets' copy for zero targets) has one (the x
+                    // The x of the row's target d away: on the left where the world has a
+                    // target there (a solid voxel; an empty one with ZERO_TARGETS; the x
                     // pass's ties go left), else on the right.
-                    kx[j] = d == 0xFFFFu ? 0u : x >= d && vox[i - d] != 0 ? x - d : x + d;
+                    const bool left = x >= d && (vox[i - d] != 0) != (ZERO_TARGETS != 0);
+                    kx[j] = d == 0xFFFFu ? 0u : left ? x - d : x + d;
 #endif
                 } else {
                     v[j] = in[i];

@@ -94,7 +94,7 @@ std::uint32_t vec_width(Format f, std::uint32_t x) {
 // by ctx), saturating at `cap` where it is below the work type's maximum (T_MAX: every sweep
 // takes the minimum with a value that starts at most T_MAX, so the field is min(exact, cap)).
 cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t vw, Metric m,
-                          std::uint32_t cap, bool from_bits = false) {
+                          std::uint32_t cap, bool from_bits = false, bool empty_targets = false) {
     const WorkType wt = work_type(f);
     const std::string options =
         "-DT=" + std::string(wt.name) + " -DT_MAX=" + std::to_string(std::min(wt.max, cap)) +
@@ -102,7 +102,7 @@ cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t
         " -DSEG_K=" + std::to_string(k) + " -DVW=" + std::to_string(vw) +
         " -DCHEBYSHEV=" + (m == Metric::chebyshev ? "1" : "0") +
         " -DSIGNED=" + (wt.is_signed ? "1" : "0") + " -DFROM_BITS=" + (from_bits ? "1" : "0") +
-        " -cl-std=CL1.2";
+        " -DROW_TARGETS_EMPTY=" + (empty_targets ? "1" : "0") + " -cl-std=CL1.2";
     return ctx.program("exact_manhattan.cl", {cl_sources::layout_h, cl_sources::exact_manhattan_cl},
                        options);
 }
@@ -178,9 +178,10 @@ std::optional<KernelLaunch> row_segments(Context& ctx, cl::Kernel kernel, const 
 
 std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
                                        const cl::Buffer& voxels, const cl::Buffer& work,
-                                       std::uint32_t cap) {
+                                       std::uint32_t cap, bool empty_targets) {
     const auto& info = ctx.info();
-    const cl::Program base = build_program(ctx, format, 32, 1, Metric::manhattan, cap);
+    const cl::Program base =
+        build_program(ctx, format, 32, 1, Metric::manhattan, cap, false, empty_targets);
     const std::size_t rows = std::size_t{dims.y} * dims.z;
     if (dims.x % 16 == 0) {
         // x_rows_seg (x_rows_bits for byte work): 16 voxels per work-item (one aligned word), a

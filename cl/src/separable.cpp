@@ -145,7 +145,8 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         " -DFP64=" + (fp64_ ? "1" : "0") + " -DSIGNED=" + (options.signed_field ? "1" : "0") +
         " -DINDICES=" + (options.indices ? "1" : "0") +
         " -DCPU_LAYOUT=" + (gpu_layout_ ? "0" : "1") + " -DOUT_KIND=" + std::to_string(ot.kind) +
-        " -DOUT_T=" + ot.type + " -DOUT_MAX=" + ot.max + " -cl-std=CL1.2";
+        " -DOUT_T=" + ot.type + " -DOUT_MAX=" + ot.max +
+        " -DZERO_TARGETS=" + (zero_targets_ ? "1" : "0") + " -cl-std=CL1.2";
     program_ = ctx.program("exact_separable.cl",
                            {cl_sources::layout_h, cl_sources::exact_separable_cl}, build);
     const std::size_t part_bytes = n * gt_bytes_;
@@ -161,7 +162,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     // cols_banded where the device runs its work-groups of kBandedGroup (its registers may
     // cap them lower) and lines of Y and of Z fit its local memory (partials of gt_bytes_);
     // any spacing (the x rows' 1-D distance in voxels, scaled by the x spacing). Zero targets
-    // (SciPy's convention) take the x rows of empty_targets' copy of the world.
+    // (SciPy's convention) take x rows whose targets are the world's zero voxels.
     // Signed fields take it twice: the world's solids as targets, then its empty voxels (and
     // the space around it, cols_banded's border) for the solids' inner distances, whose z
     // pass writes the signed values. The feature transform takes the same passes; the y pass finds
@@ -345,31 +346,19 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         }
         if (lines_y != 0 && lines_z != 0) {
             const bool sgn = options.signed_field;
-            if (sgn || zero_targets_) {
-                empty_ = make_buffer(n, CL_MEM_READ_WRITE);
-            }
             // The first transform's targets: the solids, or with zero targets the empty
-            // voxels (empty_targets writes them first).
+            // voxels; a signed field's inner transform takes the empty voxels too. The x rows
+            // read the world as it is (ROW_TARGETS_EMPTY), no inverted copy.
             auto rows =
-                gpu_x_rows(ctx, dims_, Format::u16, zero_targets_ ? empty_ : voxels_, g_[0]);
-            auto inner_rows = sgn ? gpu_x_rows(ctx, dims_, Format::u16, empty_, h_[0]) : rows;
+                gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0], 0xFFFFFFFFu, zero_targets_);
+            auto inner_rows =
+                sgn ? gpu_x_rows(ctx, dims_, Format::u16, voxels_, h_[0], 0xFFFFFFFFu, true) : rows;
             if (rows && inner_rows) {
                 const std::size_t plane = std::size_t{X} * Y;
-                const auto empty_targets = [&] {
-                    cl::Kernel empty(program_, "empty_targets");
-                    empty.setArg(0, voxels_);
-                    empty.setArg(1, empty_);
-                    empty.setArg(2, static_cast<cl_ulong>(n));
-                    stages_.push_back(items_launch("empty_targets", empty, (n + 15) / 16));
-                };
-                if (zero_targets_) {
-                    empty_targets();
-                }
                 stages_.push_back(*rows);
                 stages_.push_back(banded_kernel(1, Y, lines_y, X, plane, Z, false, g_));
                 stages_.push_back(banded_kernel(2, Z, lines_z, plane, X, Y, !sgn, g_));
                 if (sgn) {
-                    empty_targets();
                     inner_rows->name = "x_rows_inner";
                     stages_.push_back(*inner_rows);
                     // The inner x rows in h_[0], its y pass's partials in g_[1] (the first
@@ -385,7 +374,6 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                 banded_ = true;
                 return;
             }
-            empty_ = cl::Buffer();
             // col_pass's partials are whole: the banded passes' smaller buffers go back.
             if (!out_is_g && !options.signed_field) {
                 g_[0] = g_[2] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
@@ -457,8 +445,8 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(1, parts[y ? 0 : 1]);
     kernel.setArg(2, parts[y ? 1 : 0]);
     kernel.setArg(3, out_);
-    // The y pass's keys name the x rows' targets: the empty voxels with zero targets.
-    kernel.setArg(4, y && zero_targets_ ? empty_ : voxels_);
+    // The world: the y pass's keys name the x rows' targets (ZERO_TARGETS: its empty voxels).
+    kernel.setArg(4, voxels_);
     kernel.setArg(5, rgb_);
     kernel.setArg(6, dims_.x);
     kernel.setArg(7, n);

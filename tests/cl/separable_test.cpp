@@ -497,7 +497,8 @@ TEST(ExactSeparable, ManhattanIndicesEveryFormatAndShape) {
 // voxels as the targets (zero_targets), the f64 field and the index planes written into the
 // caller's memory by the z pass (no finish pass), on random grids of every density, against
 // the reference of the inverted world (SciPy's ties included); the GPU layout takes the banded
-// passes on empty_targets' copy, or x_pass (its `solid` 0) and col_pass where rows are too long.
+// passes (x rows with the zero voxels as targets), or x_pass (its `solid` 0) and col_pass where
+// rows are too long.
 TEST(ExactSeparable, ZeroTargetsInPlaceFieldAndIndices) {
     std::mt19937_64 rng(2612);
     std::uniform_int_distribution<std::uint32_t> axis(1, 90);

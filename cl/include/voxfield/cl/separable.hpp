@@ -116,8 +116,6 @@ class ExactSeparable : public Generator {
     Spacing spacing_;
     cl::Program program_;
     cl::Buffer voxels_, rgb_, g_[3], h_[3], feat_[2], scratch_, track_[3];
-    // Banded passes: a signed field's inner targets, or zero targets: 1 where the world is 0.
-    cl::Buffer empty_;
     bool wide_ = false;           // unit-spacing L2 in 64-bit partials (squares reach 2^30)
     bool fp64_ = false;           // f64 with spacing: the scans in double
     bool shared_parts_ = false;   // one buffer of partials for every pass (CPU layout, full)
