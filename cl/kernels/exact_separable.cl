@@ -15,8 +15,6 @@
 //   SIGNED   1: also the transform to the empty voxels, the world surrounded by empty space
 //            (virtual empty sites at -1 and N on every line); the output is signed
 //   INDICES  1: carry the key of the nearest solid (see KEYED) and write (z, y, x) planes
-//   ZERO_TARGETS 1: the world's zero voxels are the targets (SciPy's convention; the banded
-//            y pass's keys test for them; x_pass takes its `solid` argument instead)
 //   CPU_LAYOUT 1: the CPU layout (x_pass's scratch holds row_doubling's rows)
 //   OUT_KIND 0 unsigned integer (floor, saturate at OUT_MAX), 1 signed integer (toward zero,
 //            saturate at +-OUT_MAX), 2 float, 3 double, 4 packed32; OUT_T its element type
@@ -1241,7 +1239,9 @@ inline int banded_sep(__global const uint* fin, __local const ushort* keyx, uint
 // position's owner). With INDICES: the
 // sites' keys `fin` (z pass), the positions' `fout` (y pass), or with `final` the index
 // planes `idx` of the world's Y, Z and `count` voxels; in the y pass keyx (n * C, as gl) holds
-// each position's x of its row's nearest target, for its key.
+// each position's x of its row's nearest target, for its key, the targets being the world's
+// nonzero voxels (`zero_targets` 0) or its zero ones (1, SciPy's convention; as x_pass's
+// `solid`).
 __kernel void cols_banded(__global const ushort* restrict in16, __global const GT* restrict in,
                           __global GT* restrict gout, __global OUT_T* out,
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
@@ -1250,7 +1250,8 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                           __local int* ends, uint O, uint border,
                           __global const uint* restrict fin, __global uint* restrict fout,
                           __global int* restrict idx, uint Y, uint Z, ulong count,
-                          __global const GT* outer, ST sx, ST so, ST sp, __local ushort* keyx) {
+                          __global const GT* outer, ST sx, ST so, ST sp, __local ushort* keyx,
+                          uint zero_targets) {
     const uint C = (uint)get_local_size(0), K = (uint)get_local_size(1);
     const uint c = (uint)get_local_id(0), k = (uint)get_local_id(1);
     const uint x = (uint)get_group_id(0) * C + c;
@@ -1281,9 +1282,9 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                     v[j] = d == 0xFFFFu ? G_INF : offset_part((int)d, sx);
 #if INDICES
                     // The x of the row's target d away: on the left where the world has a
-                    // target there (a solid voxel; an empty one with ZERO_TARGETS; the x
+                    // target there (a solid voxel; an empty one with `zero_targets`; the x
                     // pass's ties go left), else on the right.
-                    const bool left = x >= d && (vox[i - d] != 0) != (ZERO_TARGETS != 0);
+                    const bool left = x >= d && (vox[i - d] != 0) != (zero_targets != 0);
                     kx[j] = d == 0xFFFFu ? 0u : left ? x - d : x + d;
 #endif
                 } else {

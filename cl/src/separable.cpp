@@ -145,8 +145,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         " -DFP64=" + (fp64_ ? "1" : "0") + " -DSIGNED=" + (options.signed_field ? "1" : "0") +
         " -DINDICES=" + (options.indices ? "1" : "0") +
         " -DCPU_LAYOUT=" + (gpu_layout_ ? "0" : "1") + " -DOUT_KIND=" + std::to_string(ot.kind) +
-        " -DOUT_T=" + ot.type + " -DOUT_MAX=" + ot.max +
-        " -DZERO_TARGETS=" + (zero_targets_ ? "1" : "0") + " -cl-std=CL1.2";
+        " -DOUT_T=" + ot.type + " -DOUT_MAX=" + ot.max + " -cl-std=CL1.2";
     program_ = ctx.program("exact_separable.cl",
                            {cl_sources::layout_h, cl_sources::exact_separable_cl}, build);
     const std::size_t part_bytes = n * gt_bytes_;
@@ -445,7 +444,7 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(1, parts[y ? 0 : 1]);
     kernel.setArg(2, parts[y ? 1 : 0]);
     kernel.setArg(3, out_);
-    // The world: the y pass's keys name the x rows' targets (ZERO_TARGETS: its empty voxels).
+    // The world: the y pass's keys name the x rows' targets (with zero targets its empty voxels).
     kernel.setArg(4, voxels_);
     kernel.setArg(5, rgb_);
     kernel.setArg(6, dims_.x);
@@ -478,6 +477,7 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     set_spacing(kernel, 28, y ? spacing_.y : spacing_.z);
     // The y pass's target x per position, for its keys (a token 2 bytes elsewhere).
     kernel.setArg(29, cl::Local(keyed && y ? cells * 2 : 2));
+    kernel.setArg(30, cl_uint{zero_targets_ ? 1u : 0u});
     return {y ? "y_banded" : "z_banded", kernel,
             cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * k), cl::NDRange(c, k)};
 }
