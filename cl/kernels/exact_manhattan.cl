@@ -1163,6 +1163,21 @@ inline void store_row16(__global T* restrict dst, const T* v) {
     *(__global VEC(T, 16)*)dst = d;
 }
 
+// The 1-D L1 transform of a line of n values `step` apart in local memory, in place: a forward
+// and a backward min-plus sweep in CS lanes.
+inline void sweep_local_line(__local T* line, uint n, uint step) {
+    CS c = (CS)T_MAX;
+    for (uint i = 0; i < n; ++i) {
+        c = min((CS)line[i * step], CS_INC(c));
+        line[i * step] = (T)c;
+    }
+    c = (CS)T_MAX;
+    for (uint i = n; i-- > 0;) {
+        c = min((CS)line[i * step], CS_INC(c));
+        line[i * step] = (T)c;
+    }
+}
+
 // The GPU layout's x and y passes of a world whose z-slice fits local memory (a sparse
 // field's edit block, small worlds): a work-group per slice loads its voxels (coalesced),
 // sweeps its rows along x and then its columns along y in local memory (a work-item per row,
@@ -1189,30 +1204,11 @@ __kernel void xy_slice_local(__global const uchar* restrict vox, __global T* res
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     for (uint y = lid; y < Y; y += n) {
-        __local T* row = sl + y * X;
-        CS c = (CS)T_MAX;
-        for (uint x = 0; x < X; ++x) {
-            c = min((CS)row[x], CS_INC(c));
-            row[x] = (T)c;
-        }
-        c = (CS)T_MAX;
-        for (uint x = X; x-- > 0;) {
-            c = min((CS)row[x], CS_INC(c));
-            row[x] = (T)c;
-        }
+        sweep_local_line(sl + y * X, X, 1);
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     for (uint x = lid; x < X; x += n) {
-        CS c = (CS)T_MAX;
-        for (uint y = 0; y < Y; ++y) {
-            c = min((CS)sl[y * X + x], CS_INC(c));
-            sl[y * X + x] = (T)c;
-        }
-        c = (CS)T_MAX;
-        for (uint y = Y; y-- > 0;) {
-            c = min((CS)sl[y * X + x], CS_INC(c));
-            sl[y * X + x] = (T)c;
-        }
+        sweep_local_line(sl + x, Y, X);
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     for (uint i = lid; i < plane; i += n) {
