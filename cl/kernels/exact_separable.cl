@@ -1189,24 +1189,50 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 // 3.45 ms with one, 1.74 and 3.34 with 8, 1.73 and 3.32 with 16).
 #define BANDED_LOADS 8
 
-#if INDICES
-// The feature key of site e of a cols_banded line (x, o): in the z pass the y pass's `fin`; in
-// the y pass (from16) from the x of its x row's nearest target, which the loads put in local
-// memory (keyx, at li = LI(e)).
-inline uint banded_key(__global const uint* fin, __local const ushort* keyx, size_t base,
-                       size_t stride, int e, uint li, uint from16, uint o, uint Y, uint Z) {
-    if (!from16) {
-        return fin[base + (size_t)e * stride];
-    }
-    return ((uint)keyx[li] * Y + (uint)e) * Z + o;
+// Position p of line c in the local arrays.
+#define LI(p) ((p) * C + c)
+
+// fpart with the sum rounded once (an fma), whatever the compiler would contract: with INDICES
+// the z pass finds a site's partial from its target (banded_part), which must be the y
+// pass's value.
+inline GT fpart_fma(int x, int i, GT gi, ST s) {
+#if UNIT || METRIC == 1
+    return fpart(x, i, gi, s);
+#else
+    const ST a = s * (ST)abs(x - i);
+    return METRIC == 2 ? fma(a, a, gi) : fma(s, (ST)abs(x - i), gi);
+#endif
 }
-#define BKEY(e) banded_key(fin, keyx, base, stride, (e), (uint)(e) * C + c, from16, o, Y, Z)
+
+#if INDICES
+// The y pass hands the z pass each voxel's nearest target as (x << 16) | y (UINT_MAX: none;
+// the banded passes run where X and Y are below 0xFFFF), its `fout`. The z pass keeps these in
+// local memory (kl, over gl) instead of partials, and finds a site's partial from its target
+// (banded_part) exactly as the y pass computed it, so that it reads 4 bytes a voxel, not 8,
+// and never reads a key from global memory.
+// Site e's (x << 16) | y: in the y pass from the x of its x row's nearest target, which the
+// loads put in keyx, and e; in the z pass from kl.
+inline uint banded_xy(__local const uint* kl, __local const ushort* keyx, uint li, int e,
+                      uint from16) {
+    return from16 ? ((uint)keyx[li] << 16) | (uint)e : kl[li];
+}
+// Site e's place in the order of the keys (x * Y + y) * Z + z (with the line's own y or z).
+#define BKEY(e) (((ulong)banded_xy(kl, keyx, LI(e), (e), from16) << 16) | (uint)(e))
+// The z pass's partial of site e at line (x, y) from its y pass target xy: fpart along y of
+// the x row's offset_part, as cols_banded's y pass made it.
+inline GT banded_part(uint xy, uint x, uint y, ST sx, ST sy) {
+    if (xy == UINT_MAX) {
+        return G_INF;
+    }
+    return fpart_fma((int)y, (int)(xy & 0xFFFFu), offset_part(abs((int)x - (int)(xy >> 16)), sx),
+                     sy);
+}
+// Site e's partial: from gl in the y pass, from its target in the z pass.
+#define GLV(e) (from16 ? gl[LI(e)] : banded_part(kl[LI(e)], x, o, sx, so))
 // Sep(i, u) with KEYED ties, the sites' keys found only where the two tie rules differ.
-#define BSEP(i, u, gi, gu) \
-    banded_sep(fin, keyx, C, c, base, stride, from16, o, Y, Z, i, u, gi, gu, sp)
-inline int banded_sep(__global const uint* fin, __local const ushort* keyx, uint C, uint c,
-                      size_t base, size_t stride, uint from16, uint o, uint Y, uint Z, int i, int u,
-                      GT gi, GT gu, ST sp) {
+#define BSEP(i, u, gi, gu) banded_sep(kl, keyx, C, c, from16, i, u, gi, gu, sp)
+inline int banded_sep(__local const uint* kl, __local const ushort* keyx, uint C, uint c,
+                      uint from16, int i, int u, GT gi, GT gu, ST sp) {
     const int s0 = sep_tie(i, u, gi, gu, sp, 0);
     if (KEYED(1u, 0u) == 0) {
         return s0;  // L-inf: the lower position wins
@@ -1215,11 +1241,9 @@ inline int banded_sep(__global const uint* fin, __local const ushort* keyx, uint
     return s1 != s0 && KEYED(BKEY(i), BKEY(u)) ? s1 : s0;
 }
 #else
+#define GLV(e) gl[LI(e)]
 #define BSEP(i, u, gi, gu) sep((i), (u), (gi), (gu), sp)
 #endif
-
-// Position p of line c in the local arrays.
-#define LI(p) ((p) * C + c)
 
 // Lines of n positions, element stride `stride`, line (x, o) starting at o * mstride + x,
 // x = group(0) * C + local(0), o = group(1) of O. Input: `in16` (from16: the x pass's 1-D
@@ -1236,12 +1260,11 @@ inline int banded_sep(__global const uint* fin, __local const ushort* keyx, uint
 // partials), prv, nxt (the list; LINK_DEAD: not in it; after the merges, prv of a kept site
 // holds 1 + the last position it owns); ends: 2 * C * K ints (each band's or merged group's
 // first and last site, -1 when it has none; after the merges, `last` of a band its first
-// position's owner). With INDICES: the
-// sites' keys `fin` (z pass), the positions' `fout` (y pass), or with `final` the index
-// planes `idx` of the world's Y, Z and `count` voxels; in the y pass keyx (n * C, as gl) holds
-// each position's x of its row's nearest target, for its key, the targets being the world's
-// nonzero voxels (`zero_targets` 0) or its zero ones (1, SciPy's convention; as x_pass's
-// `solid`).
+// position's owner). With INDICES the y pass writes each position's target (x << 16) | y to
+// `fout`, not its partial, and keyx (n * C, as gl) holds each position's x of its row's nearest
+// target, the targets being the world's nonzero voxels (`zero_targets` 0) or its zero ones (1,
+// SciPy's convention; as x_pass's `solid`); the z pass reads those targets from `fin` into kl
+// (gl's memory) and writes the index planes `idx` of the world's `count` voxels.
 __kernel void cols_banded(__global const ushort* restrict in16, __global const GT* restrict in,
                           __global GT* restrict gout, __global OUT_T* out,
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
@@ -1249,9 +1272,8 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                           double dmax, __local GT* gl, __local ushort* prv, __local ushort* nxt,
                           __local int* ends, uint O, uint border,
                           __global const uint* restrict fin, __global uint* restrict fout,
-                          __global int* restrict idx, uint Y, uint Z, ulong count,
-                          __global const GT* outer, ST sx, ST so, ST sp, __local ushort* keyx,
-                          uint zero_targets) {
+                          __global int* restrict idx, ulong count, __global const GT* outer,
+                          ST sx, ST so, ST sp, __local ushort* keyx, uint zero_targets) {
     const uint C = (uint)get_local_size(0), K = (uint)get_local_size(1);
     const uint c = (uint)get_local_id(0), k = (uint)get_local_id(1);
     const uint x = (uint)get_group_id(0) * C + c;
@@ -1261,6 +1283,9 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     const int band = (int)((n + K - 1) / K);
     __local int* first = ends;
     __local int* last = ends + C * K;
+#if INDICES
+    __local uint* kl = (__local uint*)gl;
+#endif
     // BANDED_LOADS positions per step, their loads issued before any is stored, so that a
     // work-item waits for one global load's latency per step, not per position.
     for (uint p0 = k; p0 < n; p0 += BANDED_LOADS * K) {
@@ -1273,7 +1298,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             const uint p = p0 + j * K;
             v[j] = G_INF;
 #if INDICES
-            kx[j] = 0;
+            kx[j] = from16 ? 0u : UINT_MAX;
 #endif
             if (active && p < n) {
                 const size_t i = base + p * stride;
@@ -1288,7 +1313,11 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                     kx[j] = d == 0xFFFFu ? 0u : left ? x - d : x + d;
 #endif
                 } else {
+#if INDICES
+                    kx[j] = fin[i];
+#else
                     v[j] = in[i];
+#endif
                 }
             }
         }
@@ -1296,12 +1325,16 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
         for (uint j = 0; j < BANDED_LOADS; ++j) {
             const uint p = p0 + j * K;
             if (p < n) {
-                gl[LI(p)] = v[j];
                 nxt[LI(p)] = LINK_DEAD;
 #if INDICES
                 if (from16) {
+                    gl[LI(p)] = v[j];
                     keyx[LI(p)] = (ushort)kx[j];
+                } else {
+                    kl[LI(p)] = kx[j];
                 }
+#else
+                gl[LI(p)] = v[j];
 #endif
             }
         }
@@ -1314,7 +1347,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     int bot = -1, top = -1, top_sep = 0;
     GT gt = G_INF;
     for (int u = u0; u < u1; ++u) {
-        const GT gu = gl[LI(u)];
+        const GT gu = GLV(u);
         if (gu == G_INF) {
             continue;
         }
@@ -1326,8 +1359,8 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             }
             nxt[LI(top)] = LINK_DEAD;
             top = prv[LI(top)];
-            gt = gl[LI(top)];
-            top_sep = top == bot ? 0 : BSEP(prv[LI(top)], top, gl[LI(prv[LI(top)])], gt);
+            gt = GLV(top);
+            top_sep = top == bot ? 0 : BSEP(prv[LI(top)], top, GLV(prv[LI(top)]), gt);
         }
         if (top < 0) {
             bot = u;
@@ -1356,11 +1389,11 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             } else if (rb >= 0) {
                 int l = last[k * C + c], r = rb;
                 for (;;) {
-                    const GT glv = gl[LI(l)], grv = gl[LI(r)];
+                    const GT glv = GLV(l), grv = GLV(r);
                     const int slr = BSEP(l, r, glv, grv);
                     if (l != lb) {
                         const int lp = prv[LI(l)];
-                        if (BSEP(lp, l, gl[LI(lp)], glv) >= slr) {
+                        if (BSEP(lp, l, GLV(lp), glv) >= slr) {
                             nxt[LI(l)] = LINK_DEAD;
                             l = lp;
                             continue;
@@ -1368,7 +1401,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                     }
                     if (r != rt) {
                         const int rn = nxt[LI(r)];
-                        if (slr >= BSEP(r, rn, grv, gl[LI(rn)])) {
+                        if (slr >= BSEP(r, rn, grv, GLV(rn))) {
                             nxt[LI(r)] = LINK_DEAD;
                             r = rn;
                             continue;
@@ -1396,12 +1429,12 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             continue;
         }
         const uint before = prv[LI(e)];
-        const GT ge = gl[LI(e)];
+        const GT ge = GLV(e);
         const int lo = before == LINK_NONE ? 0
                        : (int)before == prev
                            ? hi + 1
-                           : 1 + BSEP((int)before, e, gl[LI((int)before)], ge);
-        hi = after == LINK_NONE ? (int)n - 1 : BSEP(e, (int)after, ge, gl[LI((int)after)]);
+                           : 1 + BSEP((int)before, e, GLV((int)before), ge);
+        hi = after == LINK_NONE ? (int)n - 1 : BSEP(e, (int)after, ge, GLV((int)after));
         prev = e;
         const int a = max(lo, 0), z = min(hi, (int)n - 1);
         prv[LI(e)] = (ushort)max(z + 1, 0);
@@ -1428,13 +1461,11 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     // The owner's end (1 + its last position) and partial in registers, read again (from local
     // memory) only when the walk moves on to the next owner.
     uint end = prv[LI(e)];
-    GT ge = gl[LI(e)];
+    GT ge = GLV(e);
 #if INDICES
-    // Likewise its key (a global load) and, in the last pass, its (z, y, x) planes' values (two
-    // divisions).
-    const double inv_yz = 1.0 / ((double)Y * Z), inv_z = 1.0 / Z;
-    uint key = none ? UINT_MAX : BKEY(e);
-    int3 place = final ? index_of(key, Y * Z, Z, inv_yz, inv_z) : (int3)(-1);
+    // Likewise its target (x << 16) | y and, in the last pass, its (z, y, x) planes' values.
+    uint key = none ? UINT_MAX : banded_xy(kl, keyx, LI(e), e, from16);
+    int3 place = final && !none ? (int3)(e, (int)(key & 0xFFFFu), (int)(key >> 16)) : (int3)(-1);
 #endif
     for (uint p = (uint)u0; p < (uint)u1; ++p) {
         GT v = G_INF;
@@ -1447,15 +1478,15 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                     e = nxt[LI(e)];
                     end = prv[LI(e)];
                 } while (end <= p);
-                ge = gl[LI(e)];
+                ge = GLV(e);
 #if INDICES
-                key = BKEY(e);
+                key = banded_xy(kl, keyx, LI(e), e, from16);
                 if (final) {
-                    place = index_of(key, Y * Z, Z, inv_yz, inv_z);
+                    place = (int3)(e, (int)(key & 0xFFFFu), (int)(key >> 16));
                 }
 #endif
             }
-            v = fpart((int)p, e, ge, sp);
+            v = fpart_fma((int)p, e, ge, sp);
 #if INDICES
             f = key;
 #endif
@@ -1486,9 +1517,10 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             store_index(idx, count, i, place);
 #endif
         } else {
-            gout[i] = v;
 #if INDICES
             fout[i] = f;
+#else
+            gout[i] = v;
 #endif
         }
     }

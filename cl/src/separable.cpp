@@ -232,8 +232,10 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                                           field.data());
         // On the banded passes, g_[0] holds only 16-bit x rows where the z pass writes the
         // output itself (an unsigned field), and a signed field's inner transform needs only
-        // h_[0] for its x rows (its y pass writes g_[1], free by then). Where those passes
-        // cannot run after all, the col_pass path below allocates the whole buffers.
+        // h_[0] for its x rows (its y pass writes g_[1], free by then). With indices the y pass
+        // hands the z pass its targets in feat_[1], no partials: g_[1] is not needed. Where
+        // those passes cannot run after all, the col_pass path below allocates the whole
+        // buffers.
         const int parts = incremental ? 3 : l1_keys_ ? 0 : shared_parts_ ? 1 : 2;
         const bool banded_rows = lines_y != 0 && lines_z != 0;
         const std::size_t rows_bytes = n * 2;
@@ -241,6 +243,8 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             g_[k] = k == 0 && out_is_g ? out_
                     : k == 0 && banded_rows && !options.signed_field
                         ? make_buffer(rows_bytes, CL_MEM_READ_WRITE)
+                    : k == 1 && banded_rows && options.indices
+                        ? g_[0]
                         : make_buffer(part_bytes, CL_MEM_READ_WRITE);
             if (options.signed_field && (k == 0 || !banded_rows)) {
                 h_[k] =
@@ -377,6 +381,9 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             if (!out_is_g && !options.signed_field) {
                 g_[0] = g_[2] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
             }
+            if (options.indices) {
+                g_[1] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
+            }
             if (options.signed_field) {
                 h_[0] = h_[2] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
                 h_[1] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
@@ -465,19 +472,17 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(19, keyed && !y ? feat_[1] : voxels_);
     kernel.setArg(20, keyed && y ? feat_[1] : out_);
     kernel.setArg(21, keyed ? indices_ : out_);
-    kernel.setArg(22, dims_.y);
-    kernel.setArg(23, dims_.z);
-    kernel.setArg(24, static_cast<cl_ulong>(dims_.count()));
+    kernel.setArg(22, static_cast<cl_ulong>(dims_.count()));
     // A signed field's solids' partials, from the first transform's z pass (read by the
     // second's, `final`).
-    kernel.setArg(25, g_[0]);
+    kernel.setArg(23, g_[0]);
     // The spacing along x, along the lines' other axis and along the lines.
-    set_spacing(kernel, 26, spacing_.x);
-    set_spacing(kernel, 27, y ? spacing_.z : spacing_.y);
-    set_spacing(kernel, 28, y ? spacing_.y : spacing_.z);
+    set_spacing(kernel, 24, spacing_.x);
+    set_spacing(kernel, 25, y ? spacing_.z : spacing_.y);
+    set_spacing(kernel, 26, y ? spacing_.y : spacing_.z);
     // The y pass's target x per position, for its keys (a token 2 bytes elsewhere).
-    kernel.setArg(29, cl::Local(keyed && y ? cells * 2 : 2));
-    kernel.setArg(30, cl_uint{zero_targets_ ? 1u : 0u});
+    kernel.setArg(27, cl::Local(keyed && y ? cells * 2 : 2));
+    kernel.setArg(28, cl_uint{zero_targets_ ? 1u : 0u});
     return {y ? "y_banded" : "z_banded", kernel,
             cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * k), cl::NDRange(c, k)};
 }
