@@ -197,12 +197,37 @@ inline uint site_f(__global const uint* f, size_t base, size_t stride, int u, in
 #endif
 }
 
+// (sep_tie(i, u, ..., 0), sep_tie(i, u, ..., 1)). For L2 both from one quotient: with e the
+// last x moves back one exactly where the tie point is an integer (the division is exact).
+inline int2 sep_pair(int i, int u, GT gi, GT gu, ST s) {
+#if METRIC == 2 && UNIT && !WIDE
+    const int num = u * u - i * i + (int)gu - (int)gi, den = 2 * (u - i);
+    int q = (int)floor(native_divide((float)num, (float)den));
+    while (q * den > num) {
+        --q;
+    }
+    while ((q + 1) * den <= num) {
+        ++q;
+    }
+    return (int2)(q, q * den == num ? q - 1 : q);
+#elif METRIC == 2 && !UNIT
+    const ST fi = (ST)i, fu = (ST)u, s2 = s * s;
+    const ST v = (s2 * (fu * fu - fi * fi) + gu - gi) / ((ST)2 * s2 * (fu - fi));
+    const ST f = floor(v);
+    return (int2)((int)clamp(f, (ST)-4, (ST)SEP_NEVER),
+                  (int)clamp(f == v ? f - (ST)1 : f, (ST)-4, (ST)SEP_NEVER));
+#else
+    return (int2)(sep_tie(i, u, gi, gu, s, 0), sep_tie(i, u, gi, gu, s, 1));
+#endif
+}
+
 #if INDICES
 // Sep(i, u) of the line's sites with KEYED ties, their features read only where it matters:
 // where the two tie rules give different separators (an integer tie point).
 inline int sep_keyed(__global const uint* f, size_t base, size_t stride, int n, int i, int u,
                      GT gi, GT gu, ST s) {
-    const int s0 = sep_tie(i, u, gi, gu, s, 0), s1 = sep_tie(i, u, gi, gu, s, 1);
+    const int2 t = sep_pair(i, u, gi, gu, s);
+    const int s0 = t.x, s1 = t.y;
     return s1 != s0 && KEYED(site_f(f, base, stride, i, n), site_f(f, base, stride, u, n)) ? s1
                                                                                         : s0;
 }
@@ -1233,12 +1258,11 @@ inline GT banded_part(uint xy, uint x, uint y, ST sx, ST sy) {
 #define BSEP(i, u, gi, gu) banded_sep(kl, keyx, C, c, from16, i, u, gi, gu, sp)
 inline int banded_sep(__local const uint* kl, __local const ushort* keyx, uint C, uint c,
                       uint from16, int i, int u, GT gi, GT gu, ST sp) {
-    const int s0 = sep_tie(i, u, gi, gu, sp, 0);
     if (KEYED(1u, 0u) == 0) {
-        return s0;  // L-inf: the lower position wins
+        return sep_tie(i, u, gi, gu, sp, 0);  // L-inf: the lower position wins
     }
-    const int s1 = sep_tie(i, u, gi, gu, sp, 1);
-    return s1 != s0 && KEYED(BKEY(i), BKEY(u)) ? s1 : s0;
+    const int2 t = sep_pair(i, u, gi, gu, sp);
+    return t.y != t.x && KEYED(BKEY(i), BKEY(u)) ? t.y : t.x;
 }
 #else
 #define GLV(e) gl[LI(e)]
