@@ -1268,6 +1268,14 @@ inline int banded_sep(__local const uint* kl, __local const ushort* keyx, uint C
 #define GLV(e) gl[LI(e)]
 #define BSEP(i, u, gi, gu) sep((i), (u), (gi), (gu), sp)
 #endif
+// Whether BSEP(i, u, gi, gu) < t: for unit L2 without keys by a multiplication (sep_below),
+// else by the separator itself.
+#define BANDED_PRODUCT_TESTS (UNIT && METRIC == 2 && !INDICES)
+#if BANDED_PRODUCT_TESTS
+#define BBELOW(i, u, gi, gu, t) sep_below((i), (u), (gi), (gu), sp, (t), 0)
+#else
+#define BBELOW(i, u, gi, gu, t) (BSEP(i, u, gi, gu) < (t))
+#endif
 
 // Lines of n positions, element stride `stride`, line (x, o) starting at o * mstride + x,
 // x = group(0) * C + local(0), o = group(1) of O. Input: `in16` (from16: the x pass's 1-D
@@ -1377,8 +1385,18 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
         }
         int su = 0;
         while (top >= 0) {
+            // The top stays while Sep(top, u) > top_sep; with product tests the separator is
+            // divided out only for the site kept.
+#if BANDED_PRODUCT_TESTS
+            const bool keep = top == bot || !BBELOW(top, u, gt, gu, top_sep + 1);
+            if (keep) {
+                su = BSEP(top, u, gt, gu);
+            }
+#else
             su = BSEP(top, u, gt, gu);
-            if (top == bot || top_sep < su) {
+            const bool keep = top == bot || top_sep < su;
+#endif
+            if (keep) {
                 break;
             }
             nxt[LI(top)] = LINK_DEAD;
@@ -1417,7 +1435,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                     const int slr = BSEP(l, r, glv, grv);
                     if (l != lb) {
                         const int lp = prv[LI(l)];
-                        if (BSEP(lp, l, GLV(lp), glv) >= slr) {
+                        if (!BBELOW(lp, l, GLV(lp), glv, slr)) {
                             nxt[LI(l)] = LINK_DEAD;
                             l = lp;
                             continue;
@@ -1425,7 +1443,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                     }
                     if (r != rt) {
                         const int rn = nxt[LI(r)];
-                        if (slr >= BSEP(r, rn, grv, GLV(rn))) {
+                        if (BBELOW(r, rn, grv, GLV(rn), slr + 1)) {
                             nxt[LI(r)] = LINK_DEAD;
                             r = rn;
                             continue;
