@@ -1268,10 +1268,23 @@ inline int banded_sep(__local const uint* kl, __local const ushort* keyx, uint C
 #define GLV(e) gl[LI(e)]
 #define BSEP(i, u, gi, gu) sep((i), (u), (gi), (gu), sp)
 #endif
-// Whether BSEP(i, u, gi, gu) < t: for unit L2 without keys by a multiplication (sep_below),
-// else by the separator itself.
-#define BANDED_PRODUCT_TESTS (UNIT && METRIC == 2 && !INDICES)
-#if BANDED_PRODUCT_TESTS
+// Whether BSEP(i, u, gi, gu) < t: for unit L2 by a multiplication (sep_below; with keys the
+// separator is one less where the division is exact and u wins the tie, so it is below t also
+// where num = t den and u's key is lower), else by the separator itself.
+#define BANDED_PRODUCT_TESTS (UNIT && METRIC == 2)
+#if BANDED_PRODUCT_TESTS && INDICES
+#define BBELOW(i, u, gi, gu, t) banded_below(kl, keyx, C, c, from16, i, u, gi, gu, t)
+inline bool banded_below(__local const uint* kl, __local const ushort* keyx, uint C, uint c,
+                         uint from16, int i, int u, GT gi, GT gu, int t) {
+#if WIDE
+    const long num = (long)u * u - (long)i * i + (long)gu - (long)gi;
+#else
+    const long num = (long)(u * u - i * i + (int)gu - (int)gi);
+#endif
+    const long prod = (long)t * (2 * (long)(u - i));
+    return num < prod || (num == prod && KEYED(BKEY(i), BKEY(u)));
+}
+#elif BANDED_PRODUCT_TESTS
 #define BBELOW(i, u, gi, gu, t) sep_below((i), (u), (gi), (gu), sp, (t), 0)
 #else
 #define BBELOW(i, u, gi, gu, t) (BSEP(i, u, gi, gu) < (t))
