@@ -167,9 +167,12 @@ inline int sep(int i, int u, GT gi, GT gu, ST s) {
     return sep_tie(i, u, gi, gu, s, 0);
 }
 
-// Whether sep_tie(i, u, ..., e) < tq (tq >= 0): for unit-spacing L2 by one multiplication
-// instead of a division (floor(num / den) < tq exactly when num < tq * den, den > 0), since
-// the envelope tests a separator about twice per site and divides only for the sites it keeps.
+// Whether sep_tie(i, u, ..., e) < tq (any integer tq): for unit-spacing L2 by one
+// multiplication instead of a division (floor(num / den) < tq exactly when num < tq * den, den >
+// 0), since the envelope tests a separator about twice per site and divides only for the sites
+// it keeps. Unlike sep_tie's, the WIDE quotient here is not clamped to +-SEP_NEVER: a test can
+// differ from one on clamped values only where both separators lie outside the line, and a
+// site kept or dropped there owns none of its positions.
 inline bool sep_below(int i, int u, GT gi, GT gu, ST s, int tq, int e) {
 #if UNIT && METRIC == 2
 #if WIDE
@@ -197,8 +200,9 @@ inline uint site_f(__global const uint* f, size_t base, size_t stride, int u, in
 #endif
 }
 
-// (sep_tie(i, u, ..., 0), sep_tie(i, u, ..., 1)). For L2 both from one quotient: with e the
-// last x moves back one exactly where the tie point is an integer (the division is exact).
+// (sep_tie(i, u, ..., 0), sep_tie(i, u, ..., 1)). For unit L2 below WIDE and for L2 with
+// spacing both from one quotient: with e the last x moves back one exactly where the tie point
+// is an integer (the division is exact). Other cases (WIDE included) take two calls.
 inline int2 sep_pair(int i, int u, GT gi, GT gu, ST s) {
 #if METRIC == 2 && UNIT && !WIDE
     const int num = u * u - i * i + (int)gu - (int)gi, den = 2 * (u - i);
@@ -1241,7 +1245,8 @@ inline uint banded_xy(__local const uint* kl, __local const ushort* keyx, uint l
                       uint from16) {
     return from16 ? ((uint)keyx[li] << 16) | (uint)e : kl[li];
 }
-// Site e's place in the order of the keys (x * Y + y) * Z + z (with the line's own y or z).
+// Site e's place in the order of the keys (x * Y + y) * Z + z: in the z pass ((x << 16 | y) << 16)
+// | z; in the y pass ((x << 16 | y) << 16) | y, the line's z being the same for all its sites.
 #define BKEY(e) (((ulong)banded_xy(kl, keyx, LI(e), (e), from16) << 16) | (uint)(e))
 // The z pass's partial of site e at line (x, y) from its y pass target xy: fpart along y of
 // the x row's offset_part, as cols_banded's y pass made it.
@@ -1292,7 +1297,9 @@ inline bool banded_below(__local const uint* kl, __local const ushort* keyx, uin
 
 // Lines of n positions, element stride `stride`, line (x, o) starting at o * mstride + x,
 // x = group(0) * C + local(0), o = group(1) of O. Input: `in16` (from16: the x pass's 1-D
-// distances) or `in`; output: partials to `gout`, or with `final` the output format to `out`.
+// distances) or `in`; output: partials to `gout`, or with `final` the output format to `out`
+// (with INDICES `in` and `gout` are not used, and the host may pass the x rows' buffer for them:
+// they stay `restrict`, which holds as nothing is written through them then).
 // `border` (the z pass of a signed field's inner transform, whose targets are the empty
 // voxels): the space around the world is empty too, so each partial is at most that of the
 // nearest voxel outside, straight along one axis: min(x + 1, X - x, o + 1, O - o, p + 1, n - p),

@@ -446,7 +446,9 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     const std::uint32_t k = kBandedGroup / c;
     cl::Kernel kernel(program_, "cols_banded");
     const bool y = axis == 1;
-    const bool keyed = indices_() != nullptr;  // the y pass's keys into feat_[1]
+    // With indices the y pass writes its targets into feat_[1], the z pass reads them; neither
+    // reads `in` nor writes `gout` (arguments 1 and 2), which may then be the x rows' buffer.
+    const bool keyed = indices_() != nullptr;
     kernel.setArg(0, parts[y ? 0 : 1]);
     kernel.setArg(1, parts[y ? 0 : 1]);
     kernel.setArg(2, parts[y ? 1 : 0]);

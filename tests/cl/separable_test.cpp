@@ -370,12 +370,21 @@ TEST(ExactSeparable, IndicesBreakTiesAsScipy) {
             }
         }
     }
-    // Squared distances past 2^30: 64-bit partials (WIDE).
+    // Squared distances past 2^30: 64-bit partials (WIDE); rows of 33008 take the GPU layout's
+    // banded passes with WIDE partials and keyed product tests.
     const World wide = scene_random(Dims{3, 33000, 1}, 0.3, rng());
     for (Layout layout : kLayouts) {
         expect_scipy_ties(
             wide, options(Metric::euclidean, Spacing{}, false, Format::f64, layout, true), "wide");
     }
+    const World wide_rows = scene_random(Dims{33008, 3, 2}, 0.0005, rng());
+    const auto banded_wide =
+        options(Metric::euclidean, Spacing{}, false, Format::f64, Layout::gpu, true);
+    ASSERT_EQ(ocl::ExactSeparable(pocl(), wide_rows, Palette(), banded_wide).variant(),
+              "gpu layout, banded");
+    expect_scipy_ties(wide_rows, banded_wide, "wide rows");
+    expect_matches(wide_rows, Palette(), banded_wide, reference(wide_rows, banded_wide),
+                   "wide rows field");
 }
 
 // Unit L1 with indices in the CPU layout (l1_xy_keys and l1_z_out; rows of 65535 or more
