@@ -1316,7 +1316,8 @@ inline bool banded_below(__local const uint* kl, __local const ushort* keyx, uin
 // `fout`, not its partial, and keyx (n * C, as gl) holds each position's x of its row's nearest
 // target, the targets being the world's nonzero voxels (`zero_targets` 0) or its zero ones (1,
 // SciPy's convention; as x_pass's `solid`); the z pass reads those targets from `fin` into kl
-// (gl's memory) and writes the index planes `idx` of the world's `count` voxels.
+// (gl's memory, then 4 bytes a cell whatever the partials' width) and writes the index planes
+// `idx` of the world's `count` voxels.
 __kernel void cols_banded(__global const ushort* restrict in16, __global const GT* restrict in,
                           __global GT* restrict gout, __global OUT_T* out,
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
