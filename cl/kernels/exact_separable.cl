@@ -1204,13 +1204,13 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 // names the site in `last` for every band whose first position it owns. Each work-item then
 // walks the list from its band's first owner over its band's positions, writing every
 // position's partial (or, in the last pass, its output value): no owner array, and the work of
-// a site that owns hundreds of positions is shared by the bands they lie in. The first pass is exact_manhattan.cl's x_rows
-// (the 1-D distance along x, 16 bits, 0xFFFF where a row has no solid). With INDICES the
-// separators break ties by the sites' features (KEYED, as col_pass), found only where the two tie
-// rules give different separators (banded_key: the y pass's sites from the x rows and the targets
-// they were made of, the z pass's from the y pass's keys): the order (partial, key) is strict, so
-// the bands' envelopes and their merges keep the same owner as the sequential stack, and every
-// position takes its owner's key.
+// a site that owns hundreds of positions is shared by the bands they lie in. The first pass is
+// exact_manhattan.cl's x_rows (the 1-D distance along x, 16 bits, 0xFFFF where a row has no
+// solid). With INDICES the separators break ties by the sites' keys (KEYED, as col_pass),
+// compared only where the two tie rules give different separators (BKEY: the y pass's sites'
+// from the x rows' targets, the z pass's from the y pass's targets): the order (partial, key) is
+// strict, so the bands' envelopes and their merges keep the same owner as the sequential stack,
+// and every position takes its owner's target.
 
 #define LINK_NONE 0xFFFFu
 #define LINK_DEAD 0xFFFEu
