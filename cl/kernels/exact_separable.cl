@@ -99,14 +99,31 @@ inline ST floor_tie(ST v, int e) {
 }
 #endif
 
+#if UNIT && METRIC == 2
+// Unit L2's tie point of sites i < u is num / (2 (u - i)): num = u^2 - i^2 + gu - gi (in int
+// arithmetic below WIDE, as sep_tie's).
+inline long l2_num(int i, int u, GT gi, GT gu) {
+#if WIDE
+    return (long)u * u - (long)i * i + (long)gu - (long)gi;
+#else
+    return (long)(u * u - i * i + (int)gu - (int)gi);
+#endif
+}
+#elif METRIC == 2
+// L2's tie point of sites i < u with spacing s: the x at which they are equally near.
+inline ST l2_tie_point(int i, int u, GT gi, GT gu, ST s) {
+    const ST fi = (ST)i, fu = (ST)u, s2 = s * s;
+    return (s2 * (fu * fu - fi * fi) + gu - gi) / ((ST)2 * s2 * (fu - fi));
+}
+#endif
+
 // Sep(i, u) for i < u: the last x at which site i is at least as near as site u (u is
 // strictly nearer beyond it), or with e (u wins their ties, KEYED) the last x at which i is
 // strictly nearer; SEP_NEVER when u is never nearer, -SEP_NEVER when it always is.
 inline int sep_tie(int i, int u, GT gi, GT gu, ST s, int e) {
 #if UNIT && WIDE
     // 64-bit floor((u^2 - i^2 + gu - gi - e) / (2 (u - i))), clamped to the int range.
-    const long num = (long)u * u - (long)i * i + (long)gu - (long)gi - e,
-               den = 2 * (long)(u - i);
+    const long num = l2_num(i, u, gi, gu) - e, den = 2 * (long)(u - i);
     long q = num / den;
     if (q * den > num) {
         --q;
@@ -138,6 +155,8 @@ inline int sep_tie(int i, int u, GT gi, GT gu, ST s, int e) {
     }
     return q;
 #endif
+#elif METRIC == 2
+    return (int)clamp(floor_tie(l2_tie_point(i, u, gi, gu, s), e), (ST)-4, (ST)SEP_NEVER);
 #else
     const ST fi = (ST)i, fu = (ST)u;
 #if METRIC == 0
@@ -148,16 +167,12 @@ inline int sep_tie(int i, int u, GT gi, GT gu, ST s, int e) {
         return -SEP_NEVER;
     }
     return (int)floor_tie((gu - gi + s * (fu + fi)) / ((ST)2 * s), e);
-#elif METRIC == 1
+#else
     const int mid = floor_div(i + u - e, 2);
     if (e ? gi < gu : gi <= gu) {
         return max((int)min(floor_tie(fi + gu / s, e), (ST)SEP_NEVER), mid);
     }
     return min((int)max(floor_tie(fu - gi / s, e), (ST)-SEP_NEVER), mid);
-#else
-    const ST s2 = s * s;
-    const ST v = (s2 * (fu * fu - fi * fi) + gu - gi) / ((ST)2 * s2 * (fu - fi));
-    return (int)clamp(floor_tie(v, e), (ST)-4, (ST)SEP_NEVER);
 #endif
 #endif
 }
@@ -175,12 +190,7 @@ inline int sep(int i, int u, GT gi, GT gu, ST s) {
 // site kept or dropped there owns none of its positions.
 inline bool sep_below(int i, int u, GT gi, GT gu, ST s, int tq, int e) {
 #if UNIT && METRIC == 2
-#if WIDE
-    const long num = (long)u * u - (long)i * i + (long)gu - (long)gi - e;
-#else
-    const long num = (long)(u * u - i * i + (int)gu - (int)gi) - e;
-#endif
-    return num < (long)tq * (2 * (long)(u - i));
+    return l2_num(i, u, gi, gu) - e < (long)tq * (2 * (long)(u - i));
 #else
     return sep_tie(i, u, gi, gu, s, e) < tq;
 #endif
@@ -205,21 +215,12 @@ inline uint site_f(__global const uint* f, size_t base, size_t stride, int u, in
 // is an integer (the division is exact). Other cases (WIDE included) take two calls.
 inline int2 sep_pair(int i, int u, GT gi, GT gu, ST s) {
 #if METRIC == 2 && UNIT && !WIDE
-    const int num = u * u - i * i + (int)gu - (int)gi, den = 2 * (u - i);
-    int q = (int)floor(native_divide((float)num, (float)den));
-    while (q * den > num) {
-        --q;
-    }
-    while ((q + 1) * den <= num) {
-        ++q;
-    }
-    return (int2)(q, q * den == num ? q - 1 : q);
+    const int q = sep_tie(i, u, gi, gu, s, 0);
+    return (int2)(q, (long)q * (2 * (long)(u - i)) == l2_num(i, u, gi, gu) ? q - 1 : q);
 #elif METRIC == 2 && !UNIT
-    const ST fi = (ST)i, fu = (ST)u, s2 = s * s;
-    const ST v = (s2 * (fu * fu - fi * fi) + gu - gi) / ((ST)2 * s2 * (fu - fi));
-    const ST f = floor(v);
-    return (int2)((int)clamp(f, (ST)-4, (ST)SEP_NEVER),
-                  (int)clamp(f == v ? f - (ST)1 : f, (ST)-4, (ST)SEP_NEVER));
+    const ST v = l2_tie_point(i, u, gi, gu, s);
+    return (int2)((int)clamp(floor_tie(v, 0), (ST)-4, (ST)SEP_NEVER),
+                  (int)clamp(floor_tie(v, 1), (ST)-4, (ST)SEP_NEVER));
 #else
     return (int2)(sep_tie(i, u, gi, gu, s, 0), sep_tie(i, u, gi, gu, s, 1));
 #endif
@@ -1281,12 +1282,7 @@ inline int banded_sep(__local const uint* kl, __local const ushort* keyx, uint C
 #define BBELOW(i, u, gi, gu, t) banded_below(kl, keyx, C, c, from16, i, u, gi, gu, t)
 inline bool banded_below(__local const uint* kl, __local const ushort* keyx, uint C, uint c,
                          uint from16, int i, int u, GT gi, GT gu, int t) {
-#if WIDE
-    const long num = (long)u * u - (long)i * i + (long)gu - (long)gi;
-#else
-    const long num = (long)(u * u - i * i + (int)gu - (int)gi);
-#endif
-    const long prod = (long)t * (2 * (long)(u - i));
+    const long num = l2_num(i, u, gi, gu), prod = (long)t * (2 * (long)(u - i));
     return num < prod || (num == prod && KEYED(BKEY(i), BKEY(u)));
 }
 #elif BANDED_PRODUCT_TESTS

@@ -171,11 +171,13 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         cl::Kernel(program_, "cols_banded")
                 .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
     // With index planes the y pass also keeps each position's target x (2 bytes).
-    const std::uint32_t lines_y =
-        banded_fits ? banded_lines(Y, gt_bytes_, info.local_mem, options.indices ? 2 : 0) : 0;
-    // With index planes the z pass keeps the y pass's targets (4 bytes), not partials.
+    const std::uint32_t lines_y = banded_fits
+                                      ? banded_lines(Y, banded_site_bytes(true, options.indices),
+                                                     info.local_mem, options.indices ? 2 : 0)
+                                      : 0;
     const std::uint32_t lines_z =
-        banded_fits ? banded_lines(Z, options.indices ? 4 : gt_bytes_, info.local_mem) : 0;
+        banded_fits ? banded_lines(Z, banded_site_bytes(false, options.indices), info.local_mem)
+                    : 0;
 
     // Unit L1 with indices, a full unsigned transform in the CPU layout: l1_xy_keys and
     // l1_z_out, where the keys' 16-bit x and y hold X and Y and the local memory the rows and
@@ -466,8 +468,7 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(11, cl_uint{final ? 1u : 0u});
     kernel.setArg(12, max_distance_);
     const std::size_t cells = banded_cells(n, c);
-    // The sites' partials, or in the z pass with indices their targets (`kl`, 4 bytes).
-    kernel.setArg(13, cl::Local(cells * (keyed && !y ? 4 : gt_bytes_)));
+    kernel.setArg(13, cl::Local(cells * banded_site_bytes(y, keyed)));
     kernel.setArg(14, cl::Local(cells * 2));
     kernel.setArg(15, cl::Local(cells * 2));
     kernel.setArg(16, cl::Local(std::size_t{2} * kBandedGroup * 4));

@@ -72,12 +72,17 @@ class ExactSeparable : public Generator {
     static std::size_t banded_local_bytes(std::uint32_t n, std::uint32_t lines,
                                           std::size_t gt_bytes, std::size_t key_bytes = 0);
     static std::size_t banded_cells(std::uint32_t n, std::uint32_t lines);  // per local array
+    // Bytes per position of cols_banded's sites: the partials (gt_bytes_), or in the z pass
+    // (y_pass false) with index planes the y pass's targets (4 bytes).
+    std::size_t banded_site_bytes(bool y_pass, bool indices) const {
+        return indices && !y_pass ? 4 : gt_bytes_;
+    }
     // The banded y (axis 1) or z (axis 2) pass over lines of n positions `stride` apart, `c`
     // lines per work-group, line starts x + o * mstride for the lines_o values of o, from and
     // to the partials `parts` (x rows in parts[0], y into parts[1], z into parts[0]); `final`
     // writes the output format; `border` (z only) counts the voxels outside the world as
     // targets (a signed field's inner transform). With index planes the y pass writes its
-    // keys into feat_[1], and the z pass reads them and writes the planes.
+    // targets into feat_[1], and the z pass reads them and writes the planes.
     KernelLaunch banded_kernel(int axis, std::uint32_t n, std::uint32_t c, std::uint64_t stride,
                                std::uint64_t mstride, std::uint32_t lines_o, bool final,
                                const cl::Buffer* parts, bool border = false);
