@@ -134,6 +134,71 @@ __kernel void gather_voxels(__global const ulong* restrict masks,
     vox[(gz * by + y) * bx + x] = v;
 }
 
+// gather's values with one work-item per leaf row, four voxels of a 4^3 leaf along x (global id 0
+// = row * quads + quad, quads = bx / 4 + 2 (a multiple of 4 or not, a block's x range meets at
+// most that many); global id 1 = block * bz + z): the GPU layout's for edit blocks, which walk the
+// tree once per four voxels and index in 32 bits.
+__kernel void gather_quads(__global const ulong* restrict masks,
+                           __global const uint* restrict offsets,
+                           __global const uchar* restrict materials,
+                           __global const ulong* restrict slot_masks,
+                           __global const uint* restrict slot_offsets,
+                           __global const uchar* restrict slot_materials,
+                           __global const long* restrict jobs, __global const ulong* restrict refs,
+                           __global uchar* restrict vox, uint bx, uint by, uint bz, long wx,
+                           long wy, long wz) {
+    const uint quads = bx / 4 + 2;
+    const uint i = (uint)get_global_id(0);
+    const uint y = i / quads, q = i - y * quads;
+    const uint gz = (uint)get_global_id(1);
+    if (y >= by) {
+        return;
+    }
+    const uint j = gz / bz;
+    const uint z = gz - j * bz;
+    __global const long* job = jobs + 8 * j;
+    const long px0 = ((job[0] >> 2) + q) * 4;
+    const long x0 = px0 - job[0];  // the quad's first voxel in the block's row, -3..bx + 3
+    if (x0 >= (long)bx) {
+        return;
+    }
+    __global uchar* out = vox + ((size_t)gz * by + y) * bx;
+    const long py = job[1] + y, pz = job[2] + z;
+    ulong m4 = 0, first = 0;
+    __global const uchar* mat = materials;
+    if (px0 >= 0 && py >= 0 && pz >= 0 && px0 < wx && py < wy && pz < wz) {
+        const long nt = job[6];
+        const uint ntx = (uint)(nt & 0xFFFF), nty = (uint)((nt >> 16) & 0xFFFF);
+        const uint r = (uint)job[7] + ((uint)((pz >> 6) - job[5]) * nty +
+                                       (uint)((py >> 6) - job[4])) * ntx +
+                       (uint)((px0 >> 6) - job[3]);
+        ulong base = refs[2 * r];
+        if (base != NO_TILE) {
+            const bool slot = (base & SLOT_REF) != 0;
+            base &= ~SLOT_REF;
+            __global const ulong* m = slot ? slot_masks : masks;
+            __global const uint* o = slot ? slot_offsets : offsets;
+            mat = slot ? slot_materials : materials;
+            const ulong n4 = leaf_node(m, o, base, m[base], (uint)(px0 & 63), (uint)(py & 63),
+                                       (uint)(pz & 63));
+            if (n4 != NO_TILE) {
+                m4 = m[n4];
+                first = refs[2 * r + 1] + o[n4];
+            }
+        }
+    }
+    // The quad's row of its leaf: bits (lz & 3) << 4 | (ly & 3) << 2 | 0..3.
+    const uint row = (uint)((pz & 3) << 4 | (py & 3) << 2);
+    const uint rank = rank_below(m4, row);
+    for (uint k = 0; k < 4; ++k) {
+        const long x = x0 + k;
+        if (x >= 0 && x < (long)bx) {
+            const bool solid = px0 + k < wx && (m4 >> (row + k) & 1ul) != 0;
+            out[x] = solid ? mat[first + rank + rank_below(m4 >> row, k)] : 0;
+        }
+    }
+}
+
 // Encoding tiles whose 16^3 nodes are each either dense (re-encoded from voxels) or kept (copied
 // from the tile's previous 64-tree), into fresh slots. `tab`: a header of TAB_HEADER longs, then a
 // record of REC longs per tile t:

@@ -229,6 +229,7 @@ SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, Spa
     cl_call("making the sparse world's kernels", [&] {
         gather_ = cl::Kernel(program_, "gather");
         gather_voxels_ = cl::Kernel(program_, "gather_voxels");
+        gather_quads_ = cl::Kernel(program_, "gather_quads");
         encode_ = {cl::Kernel(program_, "encode_count"), cl::Kernel(program_, "encode_write")};
     });
     ensure_slot_capacity(1);
@@ -799,9 +800,11 @@ void SparseDeviceWorld::clear_edit_events() {
     edit_write_ = cl::Event();
 }
 
-cl::Kernel SparseDeviceWorld::gather_kernel(bool per_voxel) {
+cl::Kernel SparseDeviceWorld::gather_kernel(Gather g) {
     return cl_call("setting up the gather kernel", [&] {
-        cl::Kernel& k = per_voxel ? gather_voxels_ : gather_;
+        cl::Kernel& k = g == Gather::quads    ? gather_quads_
+                        : g == Gather::voxels ? gather_voxels_
+                                              : gather_;
         k.setArg(0, masks_);
         k.setArg(1, offsets_);
         k.setArg(2, materials_);
@@ -862,7 +865,7 @@ std::vector<std::uint8_t> SparseDeviceWorld::voxels(std::span<const Int3> cells)
             voxel_out_ = cl::Buffer(c, CL_MEM_WRITE_ONLY, launch);
             voxel_capacity_ = launch;
         }
-        cl::Kernel k = gather_kernel(true);
+        cl::Kernel k = gather_kernel(Gather::voxels);
         const Dims d = world_.dims();
         k.setArg(6, voxel_jobs_);
         k.setArg(7, voxel_refs_);
@@ -910,7 +913,7 @@ void SparseDeviceWorld::gather_tiles(const std::vector<Int3>& tiles, const cl::B
                            jobs.data());
         cl::Buffer ref_buf(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, tile_refs.size() * 8,
                            tile_refs.data());
-        cl::Kernel k = gather_kernel(gpu_layout_);
+        cl::Kernel k = gather_kernel(gpu_layout_ ? Gather::voxels : Gather::rows);
         const Dims d = world_.dims();
         const auto side = static_cast<cl_uint>(kTileSize);
         k.setArg(6, job_buf);

@@ -439,7 +439,8 @@ void SparseField::enqueue_gather(const cl::Buffer& jobs, const cl::Buffer& refs,
                                  const cl::Buffer& voxels, Dims block, std::size_t count,
                                  cl::Event* event) {
     const Dims wd = world_.dims();
-    cl::Kernel gather = device_world_.gather_kernel(gpu_layout_);
+    using Gather = SparseDeviceWorld::Gather;
+    cl::Kernel gather = device_world_.gather_kernel(gpu_layout_ ? Gather::quads : Gather::rows);
     gather.setArg(6, jobs);
     gather.setArg(7, refs);
     gather.setArg(8, voxels);
@@ -452,10 +453,12 @@ void SparseField::enqueue_gather(const cl::Buffer& jobs, const cl::Buffer& refs,
     // Fixed work-group sizes: PoCL compiles a kernel once per local size.
     auto& q = ctx_.queue();
     if (gpu_layout_) {
+        // gather_quads: block.x / 4 + 2 work-items a row (sparse_world.cl).
+        const std::size_t quads = std::size_t{block.x / 4 + 2} * block.y;
         q.enqueueNDRangeKernel(
             gather, cl::NullRange,
-            cl::NDRange(round_up(block.x, kGroupVoxels), block.y, std::size_t{block.z} * count),
-            cl::NDRange(kGroupVoxels, 1, 1), nullptr, event);
+            cl::NDRange(round_up(quads, kGroupVoxels), std::size_t{block.z} * count),
+            cl::NDRange(kGroupVoxels, 1), nullptr, event);
     } else {
         q.enqueueNDRangeKernel(
             gather, cl::NullRange,

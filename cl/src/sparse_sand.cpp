@@ -170,7 +170,8 @@ SparseSand::Step SparseSand::step(std::uint64_t seed, std::uint64_t s) {
                              host_tiles_.data());
         q.enqueueWriteBuffer(summary_, CL_FALSE, 0, host_summary_.size() * sizeof(cl_uint),
                              host_summary_.data());
-        cl::Kernel gather = world.gather_kernel(gpu_layout_);
+        cl::Kernel gather = world.gather_kernel(gpu_layout_ ? SparseDeviceWorld::Gather::voxels
+                                                            : SparseDeviceWorld::Gather::rows);
         gather.setArg(6, jobs_);
         gather.setArg(7, refs_);
         gather.setArg(8, windows_);

@@ -153,9 +153,12 @@ class SparseDeviceWorld {
     // event (bench/cl_overhead.c).
     void set_stage_events(bool on) { stage_events_ = on; }
 
-    // The gather kernel (sparse_world.cl; `per_voxel`: gather_voxels, the GPU layout's) with
-    // the world's buffers as its arguments 0-5; the caller sets the job arguments 6-14.
-    cl::Kernel gather_kernel(bool per_voxel = false);
+    // sparse_world.cl's gathers: a work-item per row (gather, the CPU layout's), per voxel
+    // (gather_voxels) or per four voxels of a leaf's row (gather_quads, edit blocks on GPUs).
+    enum class Gather { rows, voxels, quads };
+    // The gather kernel `g` with the world's buffers as its arguments 0-5; the caller sets the
+    // job arguments 6-14.
+    cl::Kernel gather_kernel(Gather g);
     // Sets arguments first..first+3 of `k` to the trees' node masks and offsets: the main
     // buffers', then the slot buffers' (sparse_field.cl's sweep_init).
     void set_tree_args(cl::Kernel& k, cl_uint first);
@@ -229,7 +232,7 @@ class SparseDeviceWorld {
     SparseWorld* editable_ = nullptr;
     cl::Program program_;
     bool gpu_layout_ = false;
-    cl::Kernel gather_, gather_voxels_;  // arguments set per launch
+    cl::Kernel gather_, gather_voxels_, gather_quads_;  // arguments set per launch
     EncodeKernels encode_;
     // Main buffers: the host world as uploaded; dir_: per stored tile key, its refs.
     cl::Buffer masks_, offsets_, materials_;
