@@ -225,30 +225,28 @@ __kernel void gather_quads(__global const ulong* restrict masks,
     __global const uchar* om8 = in_slot ? slot_materials : materials; \
     const ulong root0 = none ? 0ul : om[base];
 
-// encode_count's work on child b4 of dense node b16 of the tile whose record is `rec`: its voxels
-// (decoded and brushed, or read), its mask into *leaf_mask, its solid voxels and bit added to the
-// node's (local) count and mask halves.
-void dense_leaf(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
-                __global const long* restrict tab, __global const long* restrict rec, uint b16,
-                uint b4, __global const ulong* masks, __global const uint* offsets,
-                __global const uchar* materials, __global const ulong* slot_masks,
-                __global const uint* slot_offsets, __global const uchar* slot_materials,
-                __global ulong* restrict leaf_mask, __local uint* solid, __local uint* lo,
-                __local uint* hi) {
-    // The 4^3 child's first voxel, tile-local, and its place in vox.
+// encode_count's work on layer z4 + `layer` of child b4 of dense node b16 of the tile whose record
+// is `rec`: its 16 voxels (decoded and brushed, or read) into `vox` and their occupancy (bit
+// y << 2 | x) into *bits.
+void dense_layer(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
+                 __global const long* restrict tab, __global const long* restrict rec, uint b16,
+                 uint b4, uint layer, __global const ulong* masks, __global const uint* offsets,
+                 __global const uchar* materials, __global const ulong* slot_masks,
+                 __global const uint* slot_offsets, __global const uchar* slot_materials,
+                 __local ushort* bits) {
+    // The 4^3 child's first voxel, tile-local, and this layer's place in vox.
     const uint x4 = (b16 & 3) * 16 + (b4 & 3) * 4, y4 = (b16 >> 2 & 3) * 16 + (b4 >> 2 & 3) * 4,
                z4 = (b16 >> 4) * 16 + (b4 >> 4) * 4;
-    __global uchar* node = vox + rec[3] + (size_t)z4 * pitch_z + (size_t)y4 * pitch_y + x4;
-    ulong m = 0;
+    __global uchar* rows =
+        vox + rec[3] + (size_t)(z4 + layer) * pitch_z + (size_t)y4 * pitch_y + x4;
+    uint m = 0;
     const long op = tab[0];
     if (op == 3) {
-        for (uint z = 0; z < 4; ++z) {
-            for (uint y = 0; y < 4; ++y) {
-                const uchar4 r = vload4(0, node + (size_t)z * pitch_z + (size_t)y * pitch_y);
-                const ulong bits = (ulong)(r.x != 0) | (ulong)(r.y != 0) << 1 |
-                                   (ulong)(r.z != 0) << 2 | (ulong)(r.w != 0) << 3;
-                m |= bits << (z << 4 | y << 2);
-            }
+        for (uint y = 0; y < 4; ++y) {
+            const uchar4 r = vload4(0, rows + (size_t)y * pitch_y);
+            m |= ((uint)(r.x != 0) | (uint)(r.y != 0) << 1 | (uint)(r.z != 0) << 2 |
+                  (uint)(r.w != 0) << 3)
+                 << (y << 2);
         }
     } else {
         PREVIOUS((__global const ulong*)rec)
@@ -258,64 +256,64 @@ void dense_leaf(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
             m4 = om[n4];
             first = (ulong)rec[1] + oo[n4];
         }
+        // The layer's bits of the leaf, and its first material (the leaf's are contiguous, in
+        // mask order).
+        const uint lm = (uint)(m4 >> (layer << 4)) & 0xFFFFu;
+        first += (ulong)popcount(m4 & ((1ul << (layer << 4)) - 1ul));
         const long shape = tab[1], cx = tab[2], cy = tab[3], cz = tab[4];
         const ulong radius = (ulong)tab[5];
         const uchar material = (uchar)tab[6];
         const long wx = tab[7], wy = tab[8], wz = tab[9];
-        const long px0 = rec[5] * TILE + x4, py0 = rec[6] * TILE + y4, pz0 = rec[7] * TILE + z4;
-        // The leaf's distance to the centre per axis (0 within its extent): a leaf outside the
-        // world or out of the brush's reach keeps its voxels.
+        const long px0 = rec[5] * TILE + x4, py0 = rec[6] * TILE + y4,
+                   pz = rec[7] * TILE + z4 + layer;
+        // The layer's distance to the centre per axis (0 within its extent): a layer outside
+        // the world or out of the brush's reach keeps its voxels.
         const ulong dx = (ulong)(cx < px0 ? px0 - cx : cx > px0 + 3 ? cx - px0 - 3 : 0);
         const ulong dy = (ulong)(cy < py0 ? py0 - cy : cy > py0 + 3 ? cy - py0 - 3 : 0);
-        const ulong dz = (ulong)(cz < pz0 ? pz0 - cz : cz > pz0 + 3 ? cz - pz0 - 3 : 0);
-        // The leaf's voxels by position: its materials (contiguous, in mask order) loaded up
-        // front, 64 independent predicated loads. Every loop over bv is unrolled, so `v` stays in
-        // registers and no load waits for an earlier voxel's store.
-        uchar v[64];
+        const ulong dz = (ulong)(pz > cz ? pz - cz : cz - pz);
+        // The layer's voxels by position, loaded up front: 16 independent predicated loads.
+        // Every loop over bv is unrolled, so `v` stays in registers.
+        uchar v[16];
 #pragma unroll
-        for (uint bv = 0; bv < 64; ++bv) {
-            v[bv] =
-                (m4 >> bv & 1ul) != 0 ? om8[first + popcount(m4 & ((1ul << bv) - 1ul))] : (uchar)0;
+        for (uint bv = 0; bv < 16; ++bv) {
+            v[bv] = (lm >> bv & 1u) != 0 ? om8[first + popcount(lm & ((1u << bv) - 1u))]
+                                          : (uchar)0;
         }
-        if (px0 >= wx || py0 >= wy || pz0 >= wz || dx > radius || dy > radius || dz > radius ||
+        if (px0 >= wx || py0 >= wy || pz >= wz || dx > radius || dy > radius || dz > radius ||
             (shape == 0 && dx * dx + dy * dy + dz * dz > radius * radius)) {
-            m = m4;
+            m = lm;
         } else {
 #pragma unroll
-            for (uint bv = 0; bv < 64; ++bv) {
-                const long px = px0 + (bv & 3), py = py0 + (bv >> 2 & 3), pz = pz0 + (bv >> 4);
+            for (uint bv = 0; bv < 16; ++bv) {
+                const long px = px0 + (bv & 3), py = py0 + (bv >> 2);
                 const ulong ax = (ulong)(px > cx ? px - cx : cx - px);
                 const ulong ay = (ulong)(py > cy ? py - cy : cy - py);
-                const ulong az = (ulong)(pz > cz ? pz - cz : cz - pz);
-                if (px < wx && py < wy && pz < wz && ax <= radius && ay <= radius && az <= radius &&
-                    (shape != 0 || ax * ax + ay * ay + az * az <= radius * radius)) {
+                if (px < wx && py < wy && ax <= radius && ay <= radius &&
+                    (shape != 0 || ax * ax + ay * ay + dz * dz <= radius * radius)) {
                     v[bv] = op == 0 ? material : op == 1 ? (uchar)0 : v[bv] != 0 ? material : v[bv];
                 }
-                m |= (ulong)(v[bv] != 0) << bv;
+                m |= (uint)(v[bv] != 0) << bv;
             }
         }
-        // The leaf's 16 rows of 4 voxels, one store each (the empty voxels' zeros too: this
-        // leaf's place in vox is this work-item's alone).
+        // The layer's 4 rows of 4 voxels, one store each (the empty voxels' zeros too: this
+        // layer's place in vox is this work-item's alone).
 #pragma unroll
-        for (uint row = 0; row < 16; ++row) {
-            vstore4((uchar4)(v[4 * row], v[4 * row + 1], v[4 * row + 2], v[4 * row + 3]), 0,
-                    node + (size_t)(row >> 2) * pitch_z + (size_t)(row & 3) * pitch_y);
+        for (uint y = 0; y < 4; ++y) {
+            vstore4((uchar4)(v[4 * y], v[4 * y + 1], v[4 * y + 2], v[4 * y + 3]), 0,
+                    rows + (size_t)y * pitch_y);
         }
     }
-    leaf_mask[b4] = m;
-    if (m != 0) {
-        atomic_add(solid, (uint)popcount(m));
-        atomic_or(b4 < 32 ? lo : hi, 1u << (b4 & 31));
-    }
+    *bits = (ushort)m;
 }
 
-// Pass 1, a work-group of 64 (local id: b4) per tile, then per dense node (global id 1: the
-// tiles' groups, then the dense nodes' in list order). A tile's group: each work-item j a node
-// that is kept, its mask and count from the previous tree (its leaves' materials are contiguous,
-// in mask order). A dense node's group: with a brush, each work-item decodes its 4^3 child's
-// voxels from the tile's previous tree, applies core/brush.hpp's brush to those inside the
-// world and writes them into `vox`; without one it reads them from `vox`; its occupancy goes to
-// leaf_masks, the node's mask and solid voxel count to mid_masks and mid_counts.
+// Pass 1, a work-group of 256 per tile, then per dense node (global id 1: the tiles' groups, then
+// the dense nodes' in list order). A tile's group: each work-item j < 64 a node that is kept, its
+// mask and count from the previous tree (its leaves' materials are contiguous, in mask order). A
+// dense node's group: work-item layer * 64 + b4 takes layer z of its 4^3 child b4 (four work-items
+// a leaf: a fourth of the serial work each); with a brush it decodes those 16 voxels from the
+// tile's previous tree, applies core/brush.hpp's brush to those inside the world and writes them
+// into `vox`; without one it reads them from `vox`. The leaf's occupancy goes to leaf_masks, the
+// node's mask and solid voxel count to mid_masks and mid_counts.
 __kernel void encode_count(__global uchar* restrict vox, uint pitch_y, uint pitch_z,
                            __global const long* restrict tab, __global const ulong* masks,
                            __global const uint* offsets, __global const uchar* materials,
@@ -324,18 +322,19 @@ __kernel void encode_count(__global uchar* restrict vox, uint pitch_y, uint pitc
                            __global ulong* restrict leaf_masks, __global ulong* restrict mid_masks,
                            __global uint* restrict mid_counts, uint tiles, uint dense) {
     __local uint solid, lo, hi;
-    const uint b4 = (uint)get_local_id(0);
+    __local ushort bits[256];
+    const uint lid = (uint)get_local_id(0), b4 = lid & 63u, layer = lid >> 6;
     const size_t g = get_global_id(1);
-    // Every work-item of every group passes both barriers (PoCL miscompiles a kernel where some
+    // Every work-item of every group passes every barrier (PoCL miscompiles a kernel where some
     // return before a barrier).
     const bool tile_group = g < tiles, dense_group = !tile_group && g < (size_t)tiles + dense;
-    if (b4 == 0) {
+    if (lid == 0) {
         solid = 0;
         lo = 0;
         hi = 0;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    if (tile_group) {
+    if (tile_group && layer == 0) {
         __global const long* rec = tab + TAB_HEADER + REC * g;
         const uint j = b4;
         if ((((ulong)rec[4] >> j) & 1ul) == 0) {
@@ -355,12 +354,23 @@ __kernel void encode_count(__global uchar* restrict vox, uint pitch_y, uint pitc
     }
     const size_t i = dense_group ? (size_t)tab[TAB_HEADER + REC * tiles + (g - tiles)] : 0;
     if (dense_group) {
-        dense_leaf(vox, pitch_y, pitch_z, tab, tab + TAB_HEADER + REC * (i >> 6), (uint)(i & 63),
-                   b4, masks, offsets, materials, slot_masks, slot_offsets, slot_materials,
-                   leaf_masks + i * 64, &solid, &lo, &hi);
+        dense_layer(vox, pitch_y, pitch_z, tab, tab + TAB_HEADER + REC * (i >> 6), (uint)(i & 63),
+                    b4, layer, masks, offsets, materials, slot_masks, slot_offsets,
+                    slot_materials, &bits[lid]);
     }
     barrier(CLK_LOCAL_MEM_FENCE);
-    if (dense_group && b4 == 0) {
+    // Each leaf's four layers into its mask, count and bit of the node's.
+    if (dense_group && layer == 0) {
+        const ulong m = (ulong)bits[b4] | (ulong)bits[64 + b4] << 16 |
+                        (ulong)bits[128 + b4] << 32 | (ulong)bits[192 + b4] << 48;
+        leaf_masks[i * 64 + b4] = m;
+        if (m != 0) {
+            atomic_add(&solid, (uint)popcount(m));
+            atomic_or(b4 < 32 ? &lo : &hi, 1u << (b4 & 31));
+        }
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (dense_group && lid == 0) {
         mid_masks[i] = (ulong)lo | (ulong)hi << 32;
         mid_counts[i] = solid;
     }
@@ -385,13 +395,18 @@ __kernel void encode_write(__global const uchar* restrict vox, uint pitch_y, uin
                            __global uint* restrict counts, uint tiles, uint per_group) {
     // Per node of the tile its leaves and solid voxels, then (work-item j for node j) those of
     // the nodes before it.
-    __local uint leaves16[64], solid16[64], leaves_below[64], solid_below[64];
+    __local uint leaves16[64], solid16[64], leaves_below[64], solid_below[64], leaf_solid[64];
     const uint k = (uint)get_local_id(0);
     const size_t first = get_global_id(1) * per_group;  // (groups: exactly tiles * 64 / per_group)
     const size_t t = first >> 6;
     __global const long* rec = tab + TAB_HEADER + REC * t;
     leaves16[k] = (uint)popcount(mid_masks[t * 64 + k]);
     solid16[k] = mid_counts[t * 64 + k];
+    if (per_group == 1) {
+        // The node's leaves' solid voxels (read whether the node is dense or not: leaf_masks
+        // has a place for every node).
+        leaf_solid[k] = (uint)popcount(leaf_masks[first * 64 + k]);
+    }
     barrier(CLK_LOCAL_MEM_FENCE);
     ulong root = 0;
     uint lb = 0, mb = 0, leaves = 0, solid = 0;
@@ -466,9 +481,10 @@ __kernel void encode_write(__global const uchar* restrict vox, uint pitch_y, uin
         if (m == 0) {
             continue;
         }
+        // The solid voxels of the leaves before this one (one node a group: from local memory).
         uint before = 0;
         for (uint j = 0; j < k; ++j) {
-            before += (uint)popcount(leaf_mask[j]);
+            before += per_group == 1 ? leaf_solid[j] : (uint)popcount(leaf_mask[j]);
         }
         const size_t leaf = node + rank_below(mid, k);
         slot_masks[leaf] = m;

@@ -108,8 +108,9 @@ void enqueue_encode(cl::CommandQueue& q, EncodeKernels& k, const EncodeBuffers& 
                       3);
     k.count.setArg(arg++, tiles);
     k.count.setArg(arg, dense);
-    q.enqueueNDRangeKernel(k.count, cl::NullRange, cl::NDRange(64, std::size_t{tiles} + dense),
-                           local, nullptr, stage_event(events, "encode_count"));
+    // encode_count: four work-items a leaf, 256 a node (sparse_world.cl).
+    q.enqueueNDRangeKernel(k.count, cl::NullRange, cl::NDRange(256, std::size_t{tiles} + dense),
+                           cl::NDRange(256, 1), nullptr, stage_event(events, "encode_count"));
     arg = set(k.write,
               {&b.table, &b.masks, &b.offsets, &b.materials, &b.leaf_masks, &b.mid_masks,
                &b.mid_counts, &b.slot_masks, &b.slot_offsets, &b.slot_materials, &b.slot_counts},
