@@ -395,18 +395,13 @@ __kernel void encode_write(__global const uchar* restrict vox, uint pitch_y, uin
                            __global uint* restrict counts, uint tiles, uint per_group) {
     // Per node of the tile its leaves and solid voxels, then (work-item j for node j) those of
     // the nodes before it.
-    __local uint leaves16[64], solid16[64], leaves_below[64], solid_below[64], leaf_solid[64];
+    __local uint leaves16[64], solid16[64], leaves_below[64], solid_below[64];
     const uint k = (uint)get_local_id(0);
     const size_t first = get_global_id(1) * per_group;  // (groups: exactly tiles * 64 / per_group)
     const size_t t = first >> 6;
     __global const long* rec = tab + TAB_HEADER + REC * t;
     leaves16[k] = (uint)popcount(mid_masks[t * 64 + k]);
     solid16[k] = mid_counts[t * 64 + k];
-    if (per_group == 1) {
-        // The node's leaves' solid voxels (read whether the node is dense or not: leaf_masks
-        // has a place for every node).
-        leaf_solid[k] = (uint)popcount(leaf_masks[first * 64 + k]);
-    }
     barrier(CLK_LOCAL_MEM_FENCE);
     ulong root = 0;
     uint lb = 0, mb = 0, leaves = 0, solid = 0;
@@ -481,10 +476,9 @@ __kernel void encode_write(__global const uchar* restrict vox, uint pitch_y, uin
         if (m == 0) {
             continue;
         }
-        // The solid voxels of the leaves before this one (one node a group: from local memory).
         uint before = 0;
         for (uint j = 0; j < k; ++j) {
-            before += per_group == 1 ? leaf_solid[j] : (uint)popcount(leaf_mask[j]);
+            before += (uint)popcount(leaf_mask[j]);
         }
         const size_t leaf = node + rank_below(mid, k);
         slot_masks[leaf] = m;
