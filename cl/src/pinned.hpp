@@ -28,10 +28,10 @@ class PinnedHost {
         release();
         const std::size_t size = std::max<std::size_t>(bytes, 4096);
         cl_call("allocating " + std::to_string(size) + " bytes of pinned host memory", [&] {
-            queue_ = ctx.queue();
+            ctx_ = &ctx;
             buffer_ = cl::Buffer(ctx.context(), CL_MEM_ALLOC_HOST_PTR | CL_MEM_READ_WRITE, size);
-            data_ = static_cast<std::uint8_t*>(
-                queue_.enqueueMapBuffer(buffer_, CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, size));
+            data_ = static_cast<std::uint8_t*>(ctx.queue().enqueueMapBuffer(
+                buffer_, CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, size));
         });
         size_ = size;
     }
@@ -57,7 +57,7 @@ class PinnedHost {
         unfenced_ = false;
         if (pending() == nullptr) {
             if (without_event) {
-                cl_call("waiting for a transfer", [&] { queue_.finish(); });
+                cl_call("waiting for a transfer", [&] { ctx_->queue().finish(); });
             }
             return without_event;
         }
@@ -77,8 +77,8 @@ class PinnedHost {
         }
         // A failing unmap has no one left to report to; the buffer is released either way.
         try {
-            queue_.enqueueUnmapMemObject(buffer_, data_);
-            queue_.finish();
+            ctx_->queue().enqueueUnmapMemObject(buffer_, data_);
+            ctx_->queue().finish();
         } catch (const cl::Error&) {
         }
         data_ = nullptr;
@@ -87,7 +87,9 @@ class PinnedHost {
         unfenced_ = false;
     }
 
-    cl::CommandQueue queue_;
+    // Its queue is the context's current one (Context::Unprofiled: a transfer without an event
+    // is on it, the other having finished).
+    Context* ctx_ = nullptr;
     cl::Buffer buffer_;
     std::uint8_t* data_ = nullptr;
     std::size_t size_ = 0;

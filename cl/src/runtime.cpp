@@ -460,6 +460,34 @@ Context::Context(DeviceInfo device) : info_(std::move(device)), cache_dir_(progr
     });
 }
 
+Context::Unprofiled::Unprofiled(Context& ctx) {
+    if (ctx.unprofiled_) {
+        return;
+    }
+    cl_call("switching to a queue without profiling", [&] {
+        ctx.queue_.finish();
+        if (ctx.other_queue_() == nullptr) {
+            ctx.other_queue_ = cl::CommandQueue(ctx.context_, ctx.info_.device, 0);
+        }
+    });
+    std::swap(ctx.queue_, ctx.other_queue_);
+    ctx.unprofiled_ = true;
+    ctx_ = &ctx;
+}
+
+Context::Unprofiled::~Unprofiled() {
+    if (ctx_ == nullptr) {
+        return;
+    }
+    // A failing finish has no one to report to here; the next command on either queue fails.
+    try {
+        ctx_->queue_.finish();
+    } catch (const cl::Error&) {
+    }
+    std::swap(ctx_->queue_, ctx_->other_queue_);
+    ctx_->unprofiled_ = false;
+}
+
 cl::Program Context::program(const std::string& name, const std::vector<std::string>& sources,
                              const std::string& options) {
     auto key = std::make_tuple(name, options, sources);
@@ -571,24 +599,42 @@ void Context::store_program(const std::filesystem::path& entry, const std::strin
     }
 }
 
+namespace {
+
+// The event's profiling time `what`, or nullopt when its queue does not profile
+// (Context::Unprofiled); other errors throw.
+std::optional<cl_ulong> profiling_time(const cl::Event& e, cl_profiling_info what) {
+    cl_ulong t = 0;
+    const cl_int err = clGetEventProfilingInfo(e(), what, sizeof t, &t, nullptr);
+    if (err == CL_PROFILING_INFO_NOT_AVAILABLE) {
+        return std::nullopt;
+    }
+    if (err != CL_SUCCESS) {
+        throw ClError("clGetEventProfilingInfo", err, "reading profiling info");
+    }
+    return t;
+}
+
+}  // namespace
+
 double elapsed_ms(const cl::Event& first, const cl::Event& last) {
-    return cl_call("reading profiling info", [&] {
-        const auto start = first.getProfilingInfo<CL_PROFILING_COMMAND_START>();
-        const auto end = last.getProfilingInfo<CL_PROFILING_COMMAND_END>();
-        return static_cast<double>(end - start) * 1e-6;
-    });
+    const auto start = profiling_time(first, CL_PROFILING_COMMAND_START);
+    const auto end = profiling_time(last, CL_PROFILING_COMMAND_END);
+    return start && end ? static_cast<double>(*end - *start) * 1e-6 : 0.0;
 }
 
 CommandSpan command_span(const std::vector<cl::Event>& commands) {
     std::vector<std::pair<cl_ulong, cl_ulong>> runs;
-    cl_call("reading profiling info", [&] {
-        for (const cl::Event& e : commands) {
-            if (e() != nullptr) {
-                runs.emplace_back(e.getProfilingInfo<CL_PROFILING_COMMAND_START>(),
-                                  e.getProfilingInfo<CL_PROFILING_COMMAND_END>());
+    for (const cl::Event& e : commands) {
+        if (e() != nullptr) {
+            const auto start = profiling_time(e, CL_PROFILING_COMMAND_START);
+            const auto end = profiling_time(e, CL_PROFILING_COMMAND_END);
+            if (!start || !end) {
+                return CommandSpan{};
             }
+            runs.emplace_back(*start, *end);
         }
-    });
+    }
     return command_span(std::move(runs));
 }
 

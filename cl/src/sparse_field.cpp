@@ -873,6 +873,11 @@ void SparseField::set_edit_stage_events(bool on) {
 }
 
 SparseField::Update SparseField::apply_brush(const Brush& brush) {
+    // A lean edit's commands on the queue without profiling (they have no stage events).
+    std::optional<Context::Unprofiled> lean;
+    if (!stage_events_) {
+        lean.emplace(ctx_);
+    }
     const auto t0 = Clock::now();
     const Box changed = device_world_.apply_brush(brush);
     const auto t1 = Clock::now();

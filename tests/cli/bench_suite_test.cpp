@@ -338,7 +338,6 @@ TEST_F(BenchSuite, SparseTimesTheFieldAndDeviceEditsAndChecksThemExact) {
                                 "min_ms",
                                 "max_ms",
                                 "profiled_edit_ms_median",
-                                "lean_edit_device_span_ms_median",
                                 "field_wall_ms",
                                 "field_kernel_ms",
                                 "edit_kernel_ms_median",

@@ -88,7 +88,8 @@ struct ProgramCacheStats {
     std::size_t rejected = 0;  // disk entries found unusable, rebuilt
 };
 
-// One device with its own context and in-order profiling queue.
+// One device with its own context and in-order profiling queue (and, while an Unprofiled guard
+// lives, a second in-order queue without profiling in its place).
 class Context {
   public:
     explicit Context(DeviceInfo device);
@@ -96,6 +97,22 @@ class Context {
     const DeviceInfo& info() const { return info_; }
     cl::Context& context() { return context_; }
     cl::CommandQueue& queue() { return queue_; }
+    // While a guard lives, queue() is an in-order queue without profiling, for short work that
+    // does not time its commands (a lean sparse edit): NVIDIA's driver takes about a third less
+    // host time per command there (bench/README.md). Making the guard waits for the profiling
+    // queue's commands and dropping it for its own, so that each queue starts with the other's
+    // work done. Commands enqueued under it have no profiling info (elapsed_ms gives 0, and
+    // command_span an empty span). A guard made while another lives changes nothing.
+    class Unprofiled {
+      public:
+        explicit Unprofiled(Context& ctx);
+        ~Unprofiled();
+        Unprofiled(const Unprofiled&) = delete;
+        Unprofiled& operator=(const Unprofiled&) = delete;
+
+      private:
+        Context* ctx_ = nullptr;  // null for a nested guard
+    };
     bool is_cpu() const { return info_.type == "cpu"; }
     // Whether the device computes in host memory (a CPU device, or one that reports
     // CL_DEVICE_HOST_UNIFIED_MEMORY), so that a buffer over host memory
@@ -121,6 +138,8 @@ class Context {
     DeviceInfo info_;
     cl::Context context_;
     cl::CommandQueue queue_;
+    cl::CommandQueue other_queue_;  // the profiling queue while an Unprofiled guard lives
+    bool unprofiled_ = false;
     std::filesystem::path cache_dir_;
     ProgramCacheStats cache_stats_;
     // Keyed by (name, options, sources): two programs of one name built from different
@@ -142,7 +161,8 @@ decltype(auto) cl_call(const std::string& context, F&& body) {
 double elapsed_ms(const cl::Event& first, const cl::Event& last);
 
 // Of `commands` (finished, profiled; empty events are skipped): the first start to the last end,
-// and the part of that span in which none of them ran (ms).
+// and the part of that span in which none of them ran (ms); an empty span where one has no
+// profiling info (enqueued under Context::Unprofiled).
 struct CommandSpan {
     double span_ms = 0, idle_ms = 0;
 };

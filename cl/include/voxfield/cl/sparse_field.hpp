@@ -209,16 +209,18 @@ class SparseField {
         // host_stages is empty.
         double device_span_ms = 0, device_idle_ms = 0;
         // False for an update made without stage events (set_edit_stage_events(false)): a
-        // one-block update then has no stages and edit_kernel_ms 0; apply_brush's kernel_ms is
-        // device_span_ms (device_idle_ms 0) where host_stages is filled, else (and for
-        // update(), apply_dense_tiles(), write_tiles()) a lower bound, the kernels that had
-        // events.
+        // one-block update then has no stages and edit_kernel_ms 0; apply_brush's commands run
+        // on the queue without profiling (Context::Unprofiled), so its kernel_ms and
+        // device_span_ms are 0 too; for update(), apply_dense_tiles() and write_tiles()
+        // kernel_ms is a lower bound, the kernels that had events.
         bool profiled = true;
     };
     // Whether apply_brush gives every command a profiling event (the default: per-kernel
     // stages and the device's idle time) or only those it must wait for (its tables' writes
-    // and the last kernel). NVIDIA's driver spends about 7 us more host time on a launch with
-    // an event (bench/cl_overhead.c), 6 of an edit's 8 commands.
+    // and the last kernel), on the context's queue without profiling (Context::Unprofiled: no
+    // times at all). NVIDIA's driver spends about 7 us more host time on a launch with an
+    // event (bench/cl_overhead.c), 6 of an edit's 8 commands, and about a third more on any
+    // command of a profiling queue (bench/README.md).
     void set_edit_stage_events(bool on);
     // After the world's voxels inside `changed` were edited on the host (SparseWorld::edit /
     // apply_brush return that box), brings the device's world and the field up to date:
