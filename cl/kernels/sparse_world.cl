@@ -87,53 +87,6 @@ __kernel void gather(__global const ulong* restrict masks, __global const uint* 
     }
 }
 
-// gather's values with one work-item per voxel (global ids x, y and block * bz + z): the GPU
-// layout's, where neighbouring work-items write neighbouring bytes and share the tree's nodes.
-__kernel void gather_voxels(__global const ulong* restrict masks,
-                            __global const uint* restrict offsets,
-                            __global const uchar* restrict materials,
-                            __global const ulong* restrict slot_masks,
-                            __global const uint* restrict slot_offsets,
-                            __global const uchar* restrict slot_materials,
-                            __global const long* restrict jobs, __global const ulong* restrict refs,
-                            __global uchar* restrict vox, uint bx, uint by, uint bz, long wx,
-                            long wy, long wz) {
-    const uint x = (uint)get_global_id(0), y = (uint)get_global_id(1);
-    const size_t gz = get_global_id(2);
-    if (x >= bx || y >= by) {
-        return;
-    }
-    const size_t j = gz / bz;
-    const uint z = (uint)(gz - j * bz);
-    __global const long* job = jobs + 8 * j;
-    const long px = job[0] + x, py = job[1] + y, pz = job[2] + z;
-    uchar v = 0;
-    if (px >= 0 && py >= 0 && pz >= 0 && px < wx && py < wy && pz < wz) {
-        const long nt = job[6];
-        const long ntx = nt & 0xFFFF, nty = (nt >> 16) & 0xFFFF;
-        const size_t r = (size_t)(job[7] + (((pz >> 6) - job[5]) * nty + ((py >> 6) - job[4])) * ntx +
-                                  ((px >> 6) - job[3]));
-        ulong base = refs[2 * r];
-        if (base != NO_TILE) {
-            const bool slot = (base & SLOT_REF) != 0;
-            base &= ~SLOT_REF;
-            __global const ulong* m = slot ? slot_masks : masks;
-            __global const uint* o = slot ? slot_offsets : offsets;
-            __global const uchar* mat = slot ? slot_materials : materials;
-            const uint lx = (uint)(px & 63), ly = (uint)(py & 63), lz = (uint)(pz & 63);
-            const ulong n4 = leaf_node(m, o, base, m[base], lx, ly, lz);
-            if (n4 != NO_TILE) {
-                const ulong m4 = m[n4];
-                const uint bv = (lz & 3) << 4 | (ly & 3) << 2 | (lx & 3);
-                if ((m4 >> bv & 1ul) != 0) {
-                    v = mat[refs[2 * r + 1] + o[n4] + rank_below(m4, bv)];
-                }
-            }
-        }
-    }
-    vox[(gz * by + y) * bx + x] = v;
-}
-
 // gather's values with one work-item per leaf row, four voxels of a 4^3 leaf along x (global id 0
 // = row * quads + quad, quads = bx / 4 + 2 (a multiple of 4 or not, a block's x range meets at
 // most that many); global id 1 = block * bz + z): the GPU layout's for edit blocks, which walk the

@@ -26,6 +26,8 @@ constexpr std::uint64_t kSlotRef = SparseDeviceWorld::kSlotRef;
 constexpr std::uint64_t kSlotBytes = std::uint64_t{kTileMaxNodes} * 12 + kTileVoxels;
 // Host-edited boxes over more tiles than this upload the whole world instead.
 constexpr std::size_t kMaxHostEditTiles = 256;
+// Work-items per work-group of gather (rows, CPU layout) and gather_quads (GPU layout).
+constexpr std::size_t kGatherRows = 8, kGatherQuads = 64;
 
 cl::Program world_program(Context& ctx) {
     return ctx.program("sparse_world.cl", {cl_sources::sparse_tree_cl, cl_sources::sparse_world_cl},
@@ -229,7 +231,6 @@ SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, Spa
     }
     cl_call("making the sparse world's kernels", [&] {
         gather_ = cl::Kernel(program_, "gather");
-        gather_voxels_ = cl::Kernel(program_, "gather_voxels");
         gather_quads_ = cl::Kernel(program_, "gather_quads");
         encode_ = {cl::Kernel(program_, "encode_count"), cl::Kernel(program_, "encode_write")};
     });
@@ -801,19 +802,39 @@ void SparseDeviceWorld::clear_edit_events() {
     edit_write_ = cl::Event();
 }
 
-cl::Kernel SparseDeviceWorld::gather_kernel(Gather g) {
-    return cl_call("setting up the gather kernel", [&] {
-        cl::Kernel& k = g == Gather::quads    ? gather_quads_
-                        : g == Gather::voxels ? gather_voxels_
-                                              : gather_;
-        k.setArg(0, masks_);
-        k.setArg(1, offsets_);
-        k.setArg(2, materials_);
-        k.setArg(3, slot_masks_);
-        k.setArg(4, slot_offsets_);
-        k.setArg(5, slot_materials_);
-        return k;
-    });
+void SparseDeviceWorld::enqueue_gather(const cl::Buffer& jobs, const cl::Buffer& refs,
+                                       const cl::Buffer& out, Dims block, std::size_t count,
+                                       cl::Event* event) {
+    const Dims d = world_.dims();
+    cl::Kernel& k = gpu_layout_ ? gather_quads_ : gather_;
+    k.setArg(0, masks_);
+    k.setArg(1, offsets_);
+    k.setArg(2, materials_);
+    k.setArg(3, slot_masks_);
+    k.setArg(4, slot_offsets_);
+    k.setArg(5, slot_materials_);
+    k.setArg(6, jobs);
+    k.setArg(7, refs);
+    k.setArg(8, out);
+    k.setArg(9, block.x);
+    k.setArg(10, block.y);
+    k.setArg(11, block.z);
+    k.setArg(12, static_cast<cl_long>(d.x));
+    k.setArg(13, static_cast<cl_long>(d.y));
+    k.setArg(14, static_cast<cl_long>(d.z));
+    // Fixed work-group sizes: PoCL compiles a kernel once per local size.
+    const std::size_t planes = std::size_t{block.z} * count;
+    if (gpu_layout_) {
+        // block.x / 4 + 2 work-items a row (sparse_world.cl).
+        const std::size_t quads = std::size_t{block.x / 4 + 2} * block.y;
+        ctx_.queue().enqueueNDRangeKernel(k, cl::NullRange,
+                                          cl::NDRange(round_up(quads, kGatherQuads), planes),
+                                          cl::NDRange(kGatherQuads, 1), nullptr, event);
+    } else {
+        ctx_.queue().enqueueNDRangeKernel(k, cl::NullRange,
+                                          cl::NDRange(round_up(block.y, kGatherRows), planes),
+                                          cl::NDRange(kGatherRows, 1), nullptr, event);
+    }
 }
 
 void SparseDeviceWorld::set_tree_args(cl::Kernel& k, cl_uint first) {
@@ -847,7 +868,7 @@ std::vector<std::uint8_t> SparseDeviceWorld::voxels(std::span<const Int3> cells)
     if (cells.empty()) {
         return out;
     }
-    // gather_voxels' jobs (see sparse_world.cl): per cell a 1^3 block at the cell, its one tile.
+    // gather's jobs (see sparse_world.cl): per cell a 1^3 block at the cell, its one tile.
     // Launches take a power of two of at least 64 jobs, the extra ones outside the world: PoCL
     // builds a kernel again for each new launch size (about 70 ms here), so sizes are few.
     const std::size_t launch = std::bit_ceil(std::max<std::size_t>(cells.size(), 64));
@@ -866,23 +887,12 @@ std::vector<std::uint8_t> SparseDeviceWorld::voxels(std::span<const Int3> cells)
             voxel_out_ = cl::Buffer(c, CL_MEM_WRITE_ONLY, launch);
             voxel_capacity_ = launch;
         }
-        cl::Kernel k = gather_kernel(Gather::voxels);
-        const Dims d = world_.dims();
-        k.setArg(6, voxel_jobs_);
-        k.setArg(7, voxel_refs_);
-        k.setArg(8, voxel_out_);
-        k.setArg(9, cl_uint{1});
-        k.setArg(10, cl_uint{1});
-        k.setArg(11, cl_uint{1});
-        k.setArg(12, static_cast<cl_long>(d.x));
-        k.setArg(13, static_cast<cl_long>(d.y));
-        k.setArg(14, static_cast<cl_long>(d.z));
         // The writes do not block: the read waits for the queue, and with it for them (on a
         // failure the queue is finished before `jobs` and `cell_refs` go).
         try {
             q.enqueueWriteBuffer(voxel_jobs_, CL_FALSE, 0, jobs.size() * 8, jobs.data());
             q.enqueueWriteBuffer(voxel_refs_, CL_FALSE, 0, cell_refs.size() * 8, cell_refs.data());
-            q.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(1, 1, launch));
+            enqueue_gather(voxel_jobs_, voxel_refs_, voxel_out_, Dims{1, 1, 1}, launch);
             q.enqueueReadBuffer(voxel_out_, CL_TRUE, 0, out.size(), out.data());
         } catch (...) {
             try {
@@ -914,22 +924,8 @@ void SparseDeviceWorld::gather_tiles(const std::vector<Int3>& tiles, const cl::B
                            jobs.data());
         cl::Buffer ref_buf(c, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, tile_refs.size() * 8,
                            tile_refs.data());
-        cl::Kernel k = gather_kernel(gpu_layout_ ? Gather::voxels : Gather::rows);
-        const Dims d = world_.dims();
-        const auto side = static_cast<cl_uint>(kTileSize);
-        k.setArg(6, job_buf);
-        k.setArg(7, ref_buf);
-        k.setArg(8, out);
-        k.setArg(9, side);
-        k.setArg(10, side);
-        k.setArg(11, side);
-        k.setArg(12, static_cast<cl_long>(d.x));
-        k.setArg(13, static_cast<cl_long>(d.y));
-        k.setArg(14, static_cast<cl_long>(d.z));
-        const std::size_t planes = tiles.size() * kTileSize;
-        ctx_.queue().enqueueNDRangeKernel(k, cl::NullRange,
-                                          gpu_layout_ ? cl::NDRange(kTileSize, kTileSize, planes)
-                                                      : cl::NDRange(kTileSize, planes));
+        const auto side = static_cast<std::uint32_t>(kTileSize);
+        enqueue_gather(job_buf, ref_buf, out, Dims{side, side, side}, tiles.size());
     });
 }
 

@@ -37,9 +37,9 @@ constexpr std::int64_t kBatchVoxels = std::int64_t{1} << 25;
 constexpr std::int64_t kHullVoxels = std::int64_t{1} << 21;
 // Up to this many regions are merged where they overlap and tried as blocks of their own.
 constexpr std::size_t kMaxMergedRegions = 256;
-// Rows per work-group of the gather and scatter kernels (a work-item per row).
+// Rows per work-group of the scatter kernel (a work-item per row).
 constexpr std::size_t kGroupRows = 8;
-// Work-items per work-group of the GPU layout's gather and scatter (a work-item per voxel).
+// Work-items per work-group of the GPU layout's scatter (a work-item per voxel).
 constexpr std::size_t kGroupVoxels = 64;
 // The largest halo (voxels): blocks beyond are larger than a batch.
 constexpr std::uint32_t kMaxHalo = 512;
@@ -420,7 +420,8 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block, bool pow2_
                                      regions.data());
                 q.enqueueWriteBuffer(batch.slots, CL_FALSE, 0, slots.size() * 4, slots.data());
                 cl::Event ev_gather;
-                enqueue_gather(batch.jobs, batch.refs, batch.voxels, block, n, &ev_gather);
+                device_world_.enqueue_gather(batch.jobs, batch.refs, batch.voxels, block, n,
+                                             &ev_gather);
                 ms += batch.generator->run();  // waits for the queue, the gather too
                 traffic_ += {static_cast<std::uint32_t>(7 + batch.generator->stage_ms().size()), 1};
                 ms += elapsed_ms(ev_gather, ev_gather);
@@ -433,38 +434,6 @@ double SparseField::compute(const std::vector<Job>& jobs, Dims block, bool pow2_
             });
     }
     return ms;
-}
-
-void SparseField::enqueue_gather(const cl::Buffer& jobs, const cl::Buffer& refs,
-                                 const cl::Buffer& voxels, Dims block, std::size_t count,
-                                 cl::Event* event) {
-    const Dims wd = world_.dims();
-    using Gather = SparseDeviceWorld::Gather;
-    cl::Kernel gather = device_world_.gather_kernel(gpu_layout_ ? Gather::quads : Gather::rows);
-    gather.setArg(6, jobs);
-    gather.setArg(7, refs);
-    gather.setArg(8, voxels);
-    gather.setArg(9, block.x);
-    gather.setArg(10, block.y);
-    gather.setArg(11, block.z);
-    gather.setArg(12, static_cast<cl_long>(wd.x));
-    gather.setArg(13, static_cast<cl_long>(wd.y));
-    gather.setArg(14, static_cast<cl_long>(wd.z));
-    // Fixed work-group sizes: PoCL compiles a kernel once per local size.
-    auto& q = ctx_.queue();
-    if (gpu_layout_) {
-        // gather_quads: block.x / 4 + 2 work-items a row (sparse_world.cl).
-        const std::size_t quads = std::size_t{block.x / 4 + 2} * block.y;
-        q.enqueueNDRangeKernel(
-            gather, cl::NullRange,
-            cl::NDRange(round_up(quads, kGroupVoxels), std::size_t{block.z} * count),
-            cl::NDRange(kGroupVoxels, 1), nullptr, event);
-    } else {
-        q.enqueueNDRangeKernel(
-            gather, cl::NullRange,
-            cl::NDRange(round_up(block.y, kGroupRows), std::size_t{block.z} * count),
-            cl::NDRange(kGroupRows, 1), nullptr, event);
-    }
 }
 
 void SparseField::enqueue_scatter(const cl::Buffer& field, const cl::Buffer& jobs,
@@ -1209,8 +1178,8 @@ double SparseField::update_block(const Job& job, Dims block,
             block_commands_.push_back(tables_->last_write());
         }
         auto* staged = stage_events_ ? &events : nullptr;
-        enqueue_gather(tables_->buffer(kJobs), tables_->buffer(kRefs), batch.voxels, block, 1,
-                       stage_event(staged, "gather"));
+        device_world_.enqueue_gather(tables_->buffer(kJobs), tables_->buffer(kRefs), batch.voxels,
+                                     block, 1, stage_event(staged, "gather"));
         const std::size_t generator_first = events.size();
         batch.generator->set_stage_events(stage_events_);
         const bool enqueued = batch.generator->enqueue(events);

@@ -29,8 +29,6 @@ constexpr std::int64_t kReach = 2;
 constexpr std::uint64_t kPeriod = 8;
 // sand_step_windows' summary words per window.
 constexpr std::size_t kSummaryWords = 8;
-// gather's rows per work-group (CPU layout), gather_voxels' voxels (GPU layout).
-constexpr std::size_t kGatherRows = 8, kGatherVoxels = 64;
 // sand_step_windows' work-group: a row of block columns.
 constexpr std::size_t kColumns = 33;
 
@@ -170,26 +168,11 @@ SparseSand::Step SparseSand::step(std::uint64_t seed, std::uint64_t s) {
                              host_tiles_.data());
         q.enqueueWriteBuffer(summary_, CL_FALSE, 0, host_summary_.size() * sizeof(cl_uint),
                              host_summary_.data());
-        cl::Kernel gather = world.gather_kernel(gpu_layout_ ? SparseDeviceWorld::Gather::voxels
-                                                            : SparseDeviceWorld::Gather::rows);
-        gather.setArg(6, jobs_);
-        gather.setArg(7, refs_);
-        gather.setArg(8, windows_);
-        gather.setArg(9, static_cast<cl_uint>(kWinX));
-        gather.setArg(10, static_cast<cl_uint>(kWinY));
-        gather.setArg(11, static_cast<cl_uint>(kWinZ));
-        gather.setArg(12, static_cast<cl_long>(d.x));
-        gather.setArg(13, static_cast<cl_long>(d.y));
-        gather.setArg(14, static_cast<cl_long>(d.z));
-        if (gpu_layout_) {
-            q.enqueueNDRangeKernel(gather, cl::NullRange,
-                                   cl::NDRange(round_up(kWinX, kGatherVoxels), kWinY, kWinZ * n),
-                                   cl::NDRange(kGatherVoxels, 1, 1));
-        } else {
-            q.enqueueNDRangeKernel(gather, cl::NullRange,
-                                   cl::NDRange(round_up(kWinY, kGatherRows), kWinZ * n),
-                                   cl::NDRange(kGatherRows, 1));
-        }
+        world.enqueue_gather(
+            jobs_, refs_, windows_,
+            Dims{static_cast<std::uint32_t>(kWinX), static_cast<std::uint32_t>(kWinY),
+                 static_cast<std::uint32_t>(kWinZ)},
+            n);
         kernel_.setArg(0, windows_);
         kernel_.setArg(1, tiles_);
         kernel_.setArg(2, int4_of(d.x, d.y, d.z));

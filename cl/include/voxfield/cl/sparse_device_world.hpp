@@ -118,7 +118,7 @@ class SparseDeviceWorld {
     void encode_dense_tiles(const cl::Buffer& vox, std::uint32_t pitch_y, std::uint32_t pitch_z,
                             const std::vector<DenseTile>& tiles);
     // The voxels at `cells` as the device has them now (0 outside the world and in tiles not
-    // stored), read in one transfer (gather_voxels, a 1^3 block per cell) without bringing the
+    // stored), read in one transfer (a gather of a 1^3 block per cell) without bringing the
     // host world up to date: one host wait.
     std::vector<std::uint8_t> voxels(std::span<const Int3> cells);
     // The world's figures as the device has them now, without bringing the host world up to
@@ -153,12 +153,11 @@ class SparseDeviceWorld {
     // event (bench/cl_overhead.c).
     void set_stage_events(bool on) { stage_events_ = on; }
 
-    // sparse_world.cl's gathers: a work-item per row (gather, the CPU layout's), per voxel
-    // (gather_voxels) or per four voxels of a leaf's row (gather_quads, edit blocks on GPUs).
-    enum class Gather { rows, voxels, quads };
-    // The gather kernel `g` with the world's buffers as its arguments 0-5; the caller sets the
-    // job arguments 6-14.
-    cl::Kernel gather_kernel(Gather g);
+    // Enqueues sparse_world.cl's gather of `count` blocks of `block` voxels stacked along z into
+    // `out` (`jobs`, `refs`: its tables): a work-item per four voxels of a leaf's row
+    // (gather_quads) in the GPU layout, per row (gather) in the CPU layout.
+    void enqueue_gather(const cl::Buffer& jobs, const cl::Buffer& refs, const cl::Buffer& out,
+                        Dims block, std::size_t count, cl::Event* event = nullptr);
     // Sets arguments first..first+3 of `k` to the trees' node masks and offsets: the main
     // buffers', then the slot buffers' (sparse_field.cl's sweep_init).
     void set_tree_args(cl::Kernel& k, cl_uint first);
@@ -232,7 +231,7 @@ class SparseDeviceWorld {
     SparseWorld* editable_ = nullptr;
     cl::Program program_;
     bool gpu_layout_ = false;
-    cl::Kernel gather_, gather_voxels_, gather_quads_;  // arguments set per launch
+    cl::Kernel gather_, gather_quads_;  // arguments set per launch (enqueue_gather)
     EncodeKernels encode_;
     // Main buffers: the host world as uploaded; dir_: per stored tile key, its refs.
     cl::Buffer masks_, offsets_, materials_;

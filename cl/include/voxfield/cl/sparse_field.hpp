@@ -322,10 +322,6 @@ class SparseField {
     // block_times_ and block_commands_.
     double update_block(const Job& job, Dims block, const std::vector<std::uint32_t>& slots,
                         const std::vector<std::uint64_t>& nodes);
-    // Enqueues the gather of `count` blocks of `block` voxels (tables `jobs`, `refs`) from the
-    // device world into `voxels`.
-    void enqueue_gather(const cl::Buffer& jobs, const cl::Buffer& refs, const cl::Buffer& voxels,
-                        Dims block, std::size_t count, cl::Event* event);
     // Enqueues the scatter of `count` blocks of the dense `field` into the pool (tables `jobs`,
     // `regions`, `slots`), each region at most `largest`.
     void enqueue_scatter(const cl::Buffer& field, const cl::Buffer& jobs, const cl::Buffer& regions,
