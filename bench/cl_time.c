@@ -97,3 +97,21 @@ cl_int clReleaseKernel(cl_kernel k) {
     REAL(clReleaseKernel);
     TIMED("releasekernel", real(k));
 }
+cl_mem clCreateBuffer(cl_context c, cl_mem_flags f, size_t sz, void* p, cl_int* err) {
+    REAL(clCreateBuffer);
+    TIMED("createbuffer", real(c, f, sz, p, err));
+}
+cl_kernel clCreateKernel(cl_program p, const char* name, cl_int* err) {
+    REAL(clCreateKernel);
+    TIMED("createkernel", real(p, name, err));
+}
+cl_int clBuildProgram(cl_program p, cl_uint n, const cl_device_id* d, const char* o,
+                      void(CL_CALLBACK* f)(cl_program, void*), void* u) {
+    REAL(clBuildProgram);
+    TIMED("buildprogram", real(p, n, d, o, f, u));
+}
+void* clEnqueueMapBuffer(cl_command_queue q, cl_mem b, cl_bool bl, cl_map_flags f, size_t off,
+                         size_t sz, cl_uint n, const cl_event* w, cl_event* e, cl_int* err) {
+    REAL(clEnqueueMapBuffer);
+    TIMED("map", real(q, b, bl, f, off, sz, n, w, e, err));
+}
