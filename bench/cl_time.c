@@ -26,10 +26,10 @@ static void note(const char* name, long long t0, long long t1) {
     static __typeof__(&name) real; \
     if (!real)                     \
     real = (__typeof__(&name))dlsym(RTLD_NEXT, #name)
-#define TIMED(label, call)               \
-    long long t0 = now_ns();             \
-    __typeof__(call) r = call;           \
-    note(label, t0, now_ns());           \
+#define TIMED(label, call)     \
+    long long t0 = now_ns();   \
+    __typeof__(call) r = call; \
+    note(label, t0, now_ns()); \
     return r
 cl_int clEnqueueNDRangeKernel(cl_command_queue q, cl_kernel k, cl_uint d, const size_t* o,
                               const size_t* g, const size_t* l, cl_uint n, const cl_event* w,
