@@ -29,9 +29,10 @@ class PinnedHost {
         const std::size_t size = std::max<std::size_t>(bytes, 4096);
         cl_call("allocating " + std::to_string(size) + " bytes of pinned host memory", [&] {
             ctx_ = &ctx;
+            map_queue_ = ctx.queue();
             buffer_ = cl::Buffer(ctx.context(), CL_MEM_ALLOC_HOST_PTR | CL_MEM_READ_WRITE, size);
-            data_ = static_cast<std::uint8_t*>(ctx.queue().enqueueMapBuffer(
-                buffer_, CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, size));
+            data_ = static_cast<std::uint8_t*>(
+                map_queue_.enqueueMapBuffer(buffer_, CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, size));
         });
         size_ = size;
     }
@@ -77,8 +78,8 @@ class PinnedHost {
         }
         // A failing unmap has no one left to report to; the buffer is released either way.
         try {
-            ctx_->queue().enqueueUnmapMemObject(buffer_, data_);
-            ctx_->queue().finish();
+            map_queue_.enqueueUnmapMemObject(buffer_, data_);
+            map_queue_.finish();
         } catch (const cl::Error&) {
         }
         data_ = nullptr;
@@ -87,9 +88,11 @@ class PinnedHost {
         unfenced_ = false;
     }
 
-    // Its queue is the context's current one (Context::Unprofiled: a transfer without an event
-    // is on it, the other having finished).
+    // settle() waits on the context's current queue (Context::Unprofiled: a transfer without an
+    // event is on it, the other having finished); the map and unmap use the queue that was
+    // current at the map (a copy: release() does not need the context).
     Context* ctx_ = nullptr;
+    cl::CommandQueue map_queue_;
     cl::Buffer buffer_;
     std::uint8_t* data_ = nullptr;
     std::size_t size_ = 0;
