@@ -858,15 +858,13 @@ SparseField::Update SparseField::apply_brush(const Brush& brush) {
                          {"field enqueue", ms_between(b.enqueue, b.enqueued)},
                          {"wait", ms_between(b.enqueued, b.waited)},
                          {"after", ms_since(b.waited)}};
-        std::vector<cl::Event> commands = device_world_.last_edit_commands();
-        commands.insert(commands.end(), block_commands_.begin(), block_commands_.end());
-        const CommandSpan span = command_span(commands);
-        u.device_span_ms = span.span_ms;
-        u.device_idle_ms = span.idle_ms;
-        if (!stage_events_) {
-            // The gaps between the few commands with events hold kernels without.
-            u.device_idle_ms = 0;
-            u.kernel_ms = span.span_ms;
+        // A lean edit's commands have no profiling times (Context::Unprofiled): no span to read.
+        if (stage_events_) {
+            std::vector<cl::Event> commands = device_world_.last_edit_commands();
+            commands.insert(commands.end(), block_commands_.begin(), block_commands_.end());
+            const CommandSpan span = command_span(commands);
+            u.device_span_ms = span.span_ms;
+            u.device_idle_ms = span.idle_ms;
         }
     }
     return u;
