@@ -1,7 +1,8 @@
 // OpenCL host-cost trace (LD_PRELOAD shim): one line "@@T <call> <start_ns> <ns>" on stderr per
-// call of the functions below (kernels by name), with the host time the real call took, to say
-// where a short GPU operation's host time goes (bench/README.md, sparse edits). Lines are
-// written after the call, outside the timed span.
+// call of the functions below (kernels by name; transfers marked +event where they return one,
+// +blocking where they block), with the host time the real call took, to count an operation's
+// commands and host waits and say where its host time goes (bench/README.md, sparse edits).
+// Lines are written after the call, outside the timed span.
 //   gcc -O2 -shared -fPIC -o /tmp/cl_time.so bench/cl_time.c -ldl -lOpenCL
 //   LD_PRELOAD=/tmp/cl_time.so voxfield bench --suite sparse ... 2> time.log
 //   python3 bench/cl_time.py time.log
@@ -21,6 +22,12 @@ static void note(const char* name, long long t0, long long t1) {
     char buf[160];
     int n = snprintf(buf, sizeof buf, "@@T %s %lld %lld\n", name, t0, t1 - t0);
     write(2, buf, n);
+}
+// "base", "base+event", "base+blocking" or "base+event+blocking" into buf.
+static const char* transfer(char* buf, size_t size, const char* base, const cl_event* e,
+                            cl_bool blocking) {
+    snprintf(buf, size, "%s%s%s", base, e ? "+event" : "", blocking ? "+blocking" : "");
+    return buf;
 }
 #define REAL(name)                 \
     static __typeof__(&name) real; \
@@ -42,12 +49,14 @@ cl_int clEnqueueNDRangeKernel(cl_command_queue q, cl_kernel k, cl_uint d, const 
 cl_int clEnqueueWriteBuffer(cl_command_queue q, cl_mem b, cl_bool bl, size_t off, size_t sz,
                             const void* p, cl_uint n, const cl_event* w, cl_event* e) {
     REAL(clEnqueueWriteBuffer);
-    TIMED(e ? "write+event" : "write", real(q, b, bl, off, sz, p, n, w, e));
+    char label[32];
+    TIMED(transfer(label, sizeof label, "write", e, bl), real(q, b, bl, off, sz, p, n, w, e));
 }
 cl_int clEnqueueReadBuffer(cl_command_queue q, cl_mem b, cl_bool bl, size_t off, size_t sz, void* p,
                            cl_uint n, const cl_event* w, cl_event* e) {
     REAL(clEnqueueReadBuffer);
-    TIMED("read", real(q, b, bl, off, sz, p, n, w, e));
+    char label[32];
+    TIMED(transfer(label, sizeof label, "read", e, bl), real(q, b, bl, off, sz, p, n, w, e));
 }
 cl_int clSetKernelArg(cl_kernel k, cl_uint i, size_t sz, const void* v) {
     REAL(clSetKernelArg);
@@ -113,5 +122,24 @@ cl_int clBuildProgram(cl_program p, cl_uint n, const cl_device_id* d, const char
 void* clEnqueueMapBuffer(cl_command_queue q, cl_mem b, cl_bool bl, cl_map_flags f, size_t off,
                          size_t sz, cl_uint n, const cl_event* w, cl_event* e, cl_int* err) {
     REAL(clEnqueueMapBuffer);
-    TIMED("map", real(q, b, bl, f, off, sz, n, w, e, err));
+    char label[32];
+    TIMED(transfer(label, sizeof label, "map", e, bl), real(q, b, bl, f, off, sz, n, w, e, err));
+}
+cl_int clEnqueueCopyBuffer(cl_command_queue q, cl_mem a, cl_mem b, size_t x, size_t y, size_t z,
+                           cl_uint n, const cl_event* w, cl_event* e) {
+    REAL(clEnqueueCopyBuffer);
+    char label[32];
+    TIMED(transfer(label, sizeof label, "copy", e, CL_FALSE), real(q, a, b, x, y, z, n, w, e));
+}
+cl_int clEnqueueFillBuffer(cl_command_queue q, cl_mem b, const void* p, size_t ps, size_t off,
+                           size_t sz, cl_uint n, const cl_event* w, cl_event* e) {
+    REAL(clEnqueueFillBuffer);
+    char label[32];
+    TIMED(transfer(label, sizeof label, "fill", e, CL_FALSE), real(q, b, p, ps, off, sz, n, w, e));
+}
+cl_int clEnqueueUnmapMemObject(cl_command_queue q, cl_mem b, void* p, cl_uint n, const cl_event* w,
+                               cl_event* e) {
+    REAL(clEnqueueUnmapMemObject);
+    char label[32];
+    TIMED(transfer(label, sizeof label, "unmap", e, CL_FALSE), real(q, b, p, n, w, e));
 }
