@@ -151,9 +151,20 @@ cl::Program build_byte_program(Context& ctx, Format f, Metric m, std::uint32_t c
                        options);
 }
 
-// A row kernel with `segs` work-items per row (x_rows_seg, x_words: arguments in, out, X,
-// rows and two local arrays of `elem` bytes per work-item), rows stacked to about 256
-// work-items per group; nullopt where a row does not fit one group.
+// A row kernel's arguments: in, out, X, the number of rows and two local arrays.
+void set_row_args(cl::Kernel& kernel, const cl::Buffer& in, const cl::Buffer& out, Dims dims,
+                  std::size_t local_a, std::size_t local_b) {
+    kernel.setArg(0, in);
+    kernel.setArg(1, out);
+    kernel.setArg(2, dims.x);
+    kernel.setArg(3, static_cast<cl_uint>(std::size_t{dims.y} * dims.z));
+    kernel.setArg(4, cl::Local(local_a));
+    kernel.setArg(5, cl::Local(local_b));
+}
+
+// A row kernel with `segs` work-items per row (x_words: arguments in, out, X, rows and two
+// local arrays of `elem` bytes per work-item), rows stacked to about 256 work-items per group;
+// nullopt where a row does not fit one group.
 std::optional<KernelLaunch> row_segments(Context& ctx, cl::Kernel kernel, const char* name,
                                          const cl::Buffer& in, const cl::Buffer& out, Dims dims,
                                          std::size_t segs, std::size_t elem) {
@@ -166,13 +177,32 @@ std::optional<KernelLaunch> row_segments(Context& ctx, cl::Kernel kernel, const 
     if (segs > limit || 2 * local > info.local_mem) {
         return std::nullopt;
     }
-    kernel.setArg(0, in);
-    kernel.setArg(1, out);
-    kernel.setArg(2, dims.x);
-    kernel.setArg(3, static_cast<cl_uint>(rows));
-    kernel.setArg(4, cl::Local(local));
-    kernel.setArg(5, cl::Local(local));
+    set_row_args(kernel, in, out, dims, local, local);
     return KernelLaunch{name, kernel, cl::NDRange(segs, round_up(rows, group_rows)),
+                        cl::NDRange(segs, group_rows)};
+}
+
+// x_rows_map: X / 16 work-items per row, each holding two rows, rows stacked to about 128
+// work-items per group (in the experiments on an H100, 1024^3 u16, two rows an item in groups
+// of 128 took 1.28 ms, a row an item 1.37 in groups of 128 and 1.39 in groups of 64); its local
+// arrays are each row's segment masks (2 bytes) and flags (a byte, rows padded to 16). nullopt
+// where a row does not fit one group.
+std::optional<KernelLaunch> map_rows(Context& ctx, const cl::Program& program,
+                                     const cl::Buffer& voxels, const cl::Buffer& work, Dims dims) {
+    const auto& info = ctx.info();
+    cl::Kernel kernel(program, "x_rows_map");
+    const std::size_t limit = kernel.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
+    const std::size_t segs = dims.x / 16;
+    const std::size_t rows = std::size_t{dims.y} * dims.z;
+    const std::size_t group_rows =
+        std::max<std::size_t>(1, std::min<std::size_t>(128, limit) / segs);
+    const std::size_t masks = 2 * group_rows * segs * 2;
+    const std::size_t flags = 2 * group_rows * round_up(segs, 16);
+    if (segs > limit || masks + flags > info.local_mem) {
+        return std::nullopt;
+    }
+    set_row_args(kernel, voxels, work, dims, masks, flags);
+    return KernelLaunch{"x_rows_map", kernel, cl::NDRange(segs, round_up(rows, 2 * group_rows) / 2),
                         cl::NDRange(segs, group_rows)};
 }
 
@@ -186,16 +216,12 @@ std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
         build_program(ctx, format, 32, 1, Metric::manhattan, cap, false, empty_targets);
     const std::size_t rows = std::size_t{dims.y} * dims.z;
     if (dims.x % 16 == 0) {
-        // x_rows_seg (x_rows_bits for byte work): 16 voxels per work-item (one aligned word), a
-        // row per line of the group, rows stacked to about 256 work-items per group.
-        const std::size_t bytes = work_type(format).bytes;
-        const char* name = bytes == 1 ? "x_rows_bits" : "x_rows_seg";
-        if (auto launch = row_segments(ctx, cl::Kernel(base, name), name, voxels, work, dims,
-                                       dims.x / 16, bytes == 1 ? sizeof(cl_int) : bytes)) {
+        // x_rows_map: 16 voxels of two rows per work-item (one aligned word each).
+        if (auto launch = map_rows(ctx, base, voxels, work, dims)) {
             return launch;
         }
     }
-    // Ragged rows (or rows too long for x_rows_seg) in x_rows_local: about 16 voxels per
+    // Ragged rows (or rows too long for x_rows_map) in x_rows_local: about 16 voxels per
     // work-item, up to 32 work-items per row, rows stacked to 256 work-items per group.
     const std::size_t per_row = std::clamp<std::size_t>(next_pow2(dims.x) / 16, 1, 32);
     cl::Kernel x_rows(base, "x_rows_local");

@@ -172,9 +172,7 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
         EXPECT_EQ(kernel_path(deep, f, Layout::gpu), (Path{"xy_slice_local", "cols_strip_final"}))
             << to_string(f);
         const Path wide_gpu = f == Format::u32 ? Path{"x_words", "cols_bits/16", "cols_seg/16"}
-                              : f == Format::u16
-                                  ? Path{"x_rows_seg", "cols_seg/16", "cols_seg/16"}
-                                  : Path{"x_rows_bits", "cols_seg/16", "cols_seg/16"};
+                                               : Path{"x_rows_map", "cols_seg/16", "cols_seg/16"};
         EXPECT_EQ(kernel_path(wide, f, Layout::gpu), wide_gpu) << to_string(f);
         EXPECT_EQ(kernel_path(small, f, Layout::gpu), (Path{"xy_slice_local", "cols_seg/16"}))
             << to_string(f);
@@ -253,6 +251,47 @@ TEST(ExactManhattan, GpuBitRowsEveryWordCase) {
             const World w =
                 scene_random(Dims{x, 9, 7}, density, x + static_cast<unsigned>(density * 1000));
             expect_exact(w, Palette(), "random rows");
+        }
+    }
+}
+
+TEST(ExactManhattan, GpuRowMapEveryWordCase) {
+    // x_rows_map: rows of 1 to 256 segments of 16 voxels (maps of one to four 64-bit words); the
+    // nearest target in the same segment, the next one, the next word of the map or several
+    // words away, only at a row's start or end, none; both rows of a work-item; bounded fields,
+    // which saturate below the work type's maximum.
+    for (const std::uint32_t x : {16u, 48u, 512u, 1040u, 4096u}) {
+        // Slices above 16 KiB even for u8, which xy_slice_local leaves to the row kernels.
+        World w(Dims{x, std::max(9u, 16384u / x + 1), 3});
+        w.set(0, 0, 0, 1);
+        w.set(x - 1, 1, 0, 2);
+        w.set(0, 2, 1, 3);
+        w.set(x - 1, 2, 1, 4);
+        w.set(x / 2, 3, 2, 5);
+        w.set(std::min(x - 1, 64u * 16u + 5), 4, 1, 6);
+        w.set(std::min(x - 1, 3u * 64u * 16u + 9), 5, 0, 7);
+        for (std::uint32_t i = 0; i < std::min(x, 32u); ++i) {
+            w.set(i, 6, 2, 8);
+        }
+        for (std::uint32_t i = 0; i < x; i += 17) {
+            w.set(i, 7, 1, 9);
+        }
+        for (Format f : {Format::u8, Format::u16}) {
+            EXPECT_EQ(kernel_path(w, f, Layout::gpu).front(), "x_rows_map") << x;
+        }
+        expect_exact(w, Palette(), "row map cases");
+        const World r = scene_random(w.dims(), 0.003, x);
+        expect_exact(r, Palette(), "random rows");
+        auto capped = reference_distance(r, Metric::manhattan, Spacing{});
+        for (double& v : capped) {
+            v = std::min(v, 6.5);
+        }
+        for (Format f : {Format::u8, Format::u16}) {
+            ocl::ExactManhattan job(pocl(), r, Palette(), f, Layout::gpu, Metric::manhattan, 6.5);
+            job.run();
+            const std::string diff = test::first_difference(
+                job.read(), encode_real_field(capped, r, Palette(), f), f, r.dims());
+            EXPECT_TRUE(diff.empty()) << x << " bounded " << to_string(f) << ": " << diff;
         }
     }
 }
