@@ -151,59 +151,43 @@ cl::Program build_byte_program(Context& ctx, Format f, Metric m, std::uint32_t c
                        options);
 }
 
-// A row kernel's arguments: in, out, X, the number of rows and two local arrays.
-void set_row_args(cl::Kernel& kernel, const cl::Buffer& in, const cl::Buffer& out, Dims dims,
-                  std::size_t local_a, std::size_t local_b) {
-    kernel.setArg(0, in);
-    kernel.setArg(1, out);
-    kernel.setArg(2, dims.x);
-    kernel.setArg(3, static_cast<cl_uint>(std::size_t{dims.y} * dims.z));
-    kernel.setArg(4, cl::Local(local_a));
-    kernel.setArg(5, cl::Local(local_b));
-}
-
-// A row kernel with `segs` work-items per row (x_words: arguments in, out, X, rows and two
-// local arrays of `elem` bytes per work-item), rows stacked to about 256 work-items per group;
-// nullopt where a row does not fit one group.
-std::optional<KernelLaunch> row_segments(Context& ctx, cl::Kernel kernel, const char* name,
-                                         const cl::Buffer& in, const cl::Buffer& out, Dims dims,
-                                         std::size_t segs, std::size_t elem) {
+// A row kernel (x_words, x_rows_map; arguments in, out, X, the number of rows and two local
+// arrays of `local_a` and `local_b` bytes per row) with `segs` work-items per row, each holding
+// `rows_per_item` rows, rows stacked to about `group_items` work-items per group; nullopt where a
+// row does not fit one group.
+std::optional<KernelLaunch> row_launch(Context& ctx, cl::Kernel kernel, const char* name,
+                                       const cl::Buffer& in, const cl::Buffer& out, Dims dims,
+                                       std::size_t segs, std::size_t group_items,
+                                       std::size_t rows_per_item, std::size_t local_a,
+                                       std::size_t local_b) {
     const auto& info = ctx.info();
     const std::size_t limit = kernel.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
     const std::size_t rows = std::size_t{dims.y} * dims.z;
-    const std::size_t group_rows =
-        std::max<std::size_t>(1, std::min<std::size_t>(256, limit) / segs);
-    const std::size_t local = group_rows * segs * elem;
-    if (segs > limit || 2 * local > info.local_mem) {
+    const std::size_t group_rows = std::max<std::size_t>(1, std::min(group_items, limit) / segs);
+    const std::size_t held = group_rows * rows_per_item;  // rows a group holds
+    if (segs > limit || held * (local_a + local_b) > info.local_mem) {
         return std::nullopt;
     }
-    set_row_args(kernel, in, out, dims, local, local);
-    return KernelLaunch{name, kernel, cl::NDRange(segs, round_up(rows, group_rows)),
+    kernel.setArg(0, in);
+    kernel.setArg(1, out);
+    kernel.setArg(2, dims.x);
+    kernel.setArg(3, static_cast<cl_uint>(rows));
+    kernel.setArg(4, cl::Local(held * local_a));
+    kernel.setArg(5, cl::Local(held * local_b));
+    return KernelLaunch{name, kernel, cl::NDRange(segs, round_up(rows, held) / rows_per_item),
                         cl::NDRange(segs, group_rows)};
 }
 
 // x_rows_map: X / 16 work-items per row, each holding two rows, rows stacked to about 128
 // work-items per group (in the experiments on an H100, 1024^3 u16, two rows an item in groups
 // of 128 took 1.28 ms, a row an item 1.37 in groups of 128 and 1.39 in groups of 64); its local
-// arrays are each row's segment masks (2 bytes) and flags (a byte, rows padded to 16). nullopt
-// where a row does not fit one group.
+// arrays are each row's segment masks (2 bytes a segment) and flags (a byte a segment, rows
+// padded to 16).
 std::optional<KernelLaunch> map_rows(Context& ctx, const cl::Program& program,
                                      const cl::Buffer& voxels, const cl::Buffer& work, Dims dims) {
-    const auto& info = ctx.info();
-    cl::Kernel kernel(program, "x_rows_map");
-    const std::size_t limit = kernel.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
     const std::size_t segs = dims.x / 16;
-    const std::size_t rows = std::size_t{dims.y} * dims.z;
-    const std::size_t group_rows =
-        std::max<std::size_t>(1, std::min<std::size_t>(128, limit) / segs);
-    const std::size_t masks = 2 * group_rows * segs * 2;
-    const std::size_t flags = 2 * group_rows * round_up(segs, 16);
-    if (segs > limit || masks + flags > info.local_mem) {
-        return std::nullopt;
-    }
-    set_row_args(kernel, voxels, work, dims, masks, flags);
-    return KernelLaunch{"x_rows_map", kernel, cl::NDRange(segs, round_up(rows, 2 * group_rows) / 2),
-                        cl::NDRange(segs, group_rows)};
+    return row_launch(ctx, cl::Kernel(program, "x_rows_map"), "x_rows_map", voxels, work, dims,
+                      segs, 128, 2, segs * 2, round_up(segs, 16));
 }
 
 }  // namespace
@@ -566,8 +550,8 @@ std::optional<KernelLaunch> ExactManhattan::x_words() {
     const std::size_t w = (std::size_t{dims_.x} + 31) / 32;
     words_ = make_buffer(std::size_t{dims_.y} * dims_.z * w * sizeof(cl_uint2), CL_MEM_READ_WRITE);
     const cl::Program base = build_program(ctx_, format_, 32, 1, metric_, cap_);
-    auto launch = row_segments(ctx_, cl::Kernel(base, "x_words"), "x_words", voxels_, words_, dims_,
-                               w, sizeof(cl_int));
+    auto launch = row_launch(ctx_, cl::Kernel(base, "x_words"), "x_words", voxels_, words_, dims_,
+                             w, 256, 1, w * sizeof(cl_int), w * sizeof(cl_int));
     if (!launch) {
         words_ = cl::Buffer();
     }
