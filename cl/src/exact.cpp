@@ -50,22 +50,19 @@ WorkType work_type(Format f) {
         to_string(f) + " (ExactSeparable writes the others)");
 }
 
-// Values per work-item in cols_seg for a column of n voxels, or 0 when too long for it: 16 up to
-// 512 voxels, then 32 (at most 64 segments); the y pass of 2-byte work (`y_of_2_bytes`) keeps
-// 16 up to 1024. On the H100, 1024^3 y and z passes took 2.59 and 2.56 ms in u16 with 32 values
-// (32 segments) against 3.07 and 5.02 with 16 (64 segments) and two columns a work-item. With
-// four (44be7a1), 16 values take the u16 y pass from 2.12 to 1.72 ms but the z pass from 2.33 to
-// 2.57; the whole 1024^3 u16 field 6.45 -> 6.09 ms, and u8 4.41 -> 4.61 (so u8 keeps 32). At
-// 512^3 16 values are the faster (0.243 and 0.260 ms against 0.255 and 0.280). 64 values cost
-// registers and occupancy (on the H200, 1024^3 u16: 10.7 ms a pass, 3.5 with 16).
+// Values per work-item in cols_seg for a column of n voxels: 16 up to 512 voxels, then 32; the y
+// pass of 2-byte work (`y_of_2_bytes`) keeps 16 up to 1024. A column of more than 2048 voxels
+// takes more than 64 segments, a work-group of up to the kernel's limit (the strip fallback
+// beyond it): a sparse field's stacked blocks make z columns of thousands of voxels, where the
+// fallback's work-item per column took 7.5 of a sand step's 9.8 ms on the H100. On the H100,
+// 1024^3 y and z passes took 2.59 and 2.56 ms in u16 with 32 values (32 segments) against 3.07
+// and 5.02 with 16 (64 segments) and two columns a work-item. With four (44be7a1), 16 values
+// take the u16 y pass from 2.12 to 1.72 ms but the z pass from 2.33 to 2.57; the whole 1024^3
+// u16 field 6.45 -> 6.09 ms, and u8 4.41 -> 4.61 (so u8 keeps 32). At 512^3 16 values are the
+// faster (0.243 and 0.260 ms against 0.255 and 0.280). 64 values cost registers and occupancy
+// (on the H200, 1024^3 u16: 10.7 ms a pass, 3.5 with 16).
 std::uint32_t seg_k(std::uint32_t n, bool y_of_2_bytes) {
-    if (n <= 512 || (n <= 1024 && y_of_2_bytes)) {
-        return 16;
-    }
-    if (n <= 2048) {
-        return 32;
-    }
-    return 0;
+    return n <= 512 || (n <= 1024 && y_of_2_bytes) ? 16 : 32;
 }
 
 bool use_gpu_layout(const Context& ctx, Layout layout) {
@@ -316,13 +313,11 @@ void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layo
     if (use_gpu_layout(ctx, layout)) {
         const bool two_bytes = work_type(format).bytes == 2;
         for (const std::uint32_t k : {seg_k(dims.y, two_bytes), seg_k(dims.z, false)}) {
-            if (k != 0) {
-                build_program(ctx, format, k, vec_width(format, dims.x), metric, cap);
-            }
+            build_program(ctx, format, k, vec_width(format, dims.x), metric, cap);
         }
-        if (const std::uint32_t k = seg_k(dims.y, false);
-            k != 0 && bit_rows(dims, format, metric, true)) {
-            build_program(ctx, format, k, vec_width(format, dims.x), metric, cap, true);
+        if (bit_rows(dims, format, metric, true)) {
+            build_program(ctx, format, seg_k(dims.y, false), vec_width(format, dims.x), metric, cap,
+                          true);
         }
     }
 }
@@ -406,9 +401,9 @@ void ExactManhattan::set_up_kernels() {
                 kernel.setArg(7, static_cast<cl_ulong>(m_stride));
                 return kernel;
             };
-            const std::uint32_t k = gpu_layout_ ? seg_k(len, !final && !bits && wt.bytes == 2) : 0;
-            const std::uint32_t segs = k == 0 ? 0 : (len + k - 1) / k;
-            if (k != 0) {
+            if (gpu_layout_) {
+                const std::uint32_t k = seg_k(len, !final && !bits && wt.bytes == 2);
+                const std::uint32_t segs = (len + k - 1) / k;
                 // As many work-items along x per group as the kernel's registers allow (up to
                 // 8: more was no faster on the H200), each holding vw adjacent columns.
                 const std::uint32_t vw = vec_width(format_, dims_.x);
@@ -438,7 +433,7 @@ void ExactManhattan::set_up_kernels() {
             }
             // A strip of x positions per work-item, its columns copied to local scratch: the
             // whole row on a CPU (the inner loop vectorises, the strip stays in L2), single
-            // columns on a GPU (a fallback for columns too long for cols_seg).
+            // columns on a GPU (a fallback for columns of more segments than a work-group holds).
             const std::size_t per_x = std::size_t{len} * wt.bytes;
             const std::size_t budget = std::min<std::size_t>(info.local_mem / 2, 512 * 1024);
             if (per_x > info.local_mem) {

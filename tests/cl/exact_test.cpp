@@ -1,6 +1,7 @@
 // `exact` on PoCL, both kernel layouts, against the CPU reference (core/reference).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <memory>
 #include <random>
@@ -150,15 +151,16 @@ std::vector<std::string> kernel_path(const World& world, Format f, Layout layout
 }
 
 TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
-    // Columns up to 512 voxels take cols_seg with segments of 16, up to 2048 segments of 32
-    // (u16's y columns 16 up to 1024), longer ones the strip fallback of the GPU layout; z-slices
-    // of at most 16 KiB take x and y in one launch (xy_slice_local), larger ones the row kernels
-    // and a y column pass. The CPU layout sweeps xy slices and strips of columns (on bytes where it
-    // can).
+    // Columns up to 512 voxels take cols_seg with segments of 16, longer ones segments of 32
+    // (u16's y columns 16 up to 1024), as many as a work-group holds (PoCL: 4096), and longer
+    // ones still the strip fallback of the GPU layout; z-slices of at most 16 KiB take x and y in
+    // one launch (xy_slice_local), larger ones the row kernels and a y column pass. The CPU layout
+    // sweeps xy slices and strips of columns (on bytes where it can).
     using Path = std::vector<std::string>;
     const World tall = scene_random(Dims{17, 1100, 2}, 0.002, 5);
     const World mid = scene_random(Dims{33, 600, 2}, 0.003, 9);
     const World deep = scene_random(Dims{2, 2, 2100}, 0.001, 6);
+    const World deeper = scene_random(Dims{2, 2, 32 * 4096 + 1}, 0.00002, 10);
     const World wide = scene_random(Dims{144, 120, 20}, 0.01, 7);
     const World small = scene_random(Dims{20, 30, 40}, 0.01, 8);
     for (Format f : kFormats) {
@@ -169,7 +171,9 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
             kernel_path(mid, f, Layout::gpu),
             (Path{"x_rows_local", f == Format::u16 ? "cols_seg/16" : "cols_seg/32", "cols_seg/16"}))
             << to_string(f);
-        EXPECT_EQ(kernel_path(deep, f, Layout::gpu), (Path{"xy_slice_local", "cols_strip_final"}))
+        EXPECT_EQ(kernel_path(deep, f, Layout::gpu), (Path{"xy_slice_local", "cols_seg/32"}))
+            << to_string(f);
+        EXPECT_EQ(kernel_path(deeper, f, Layout::gpu), (Path{"xy_slice_local", "cols_strip_final"}))
             << to_string(f);
         const Path wide_gpu = f == Format::u32 ? Path{"x_words", "cols_bits/16", "cols_seg/16"}
                                                : Path{"x_rows_map", "cols_seg/16", "cols_seg/16"};
@@ -182,13 +186,14 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
                          : f == Format::u8
                              ? Path{"xy_bytes", "z_bytes"}
                              : Path{"xy_bytes", "z_bytes", "xy_slices_seq", "cols_strip_final"};
-        for (const World* w : {&tall, &mid, &deep, &wide, &small}) {
+        for (const World* w : {&tall, &mid, &deep, &deeper, &wide, &small}) {
             EXPECT_EQ(kernel_path(*w, f, Layout::cpu), cpu) << to_string(f);
         }
     }
     expect_exact(tall, Palette(), "tall");
     expect_exact(mid, Palette(), "mid");
     expect_exact(deep, Palette(), "deep");
+    expect_exact(deeper, Palette(), "deeper");
     expect_exact(wide, Palette(), "wide");
     expect_exact(small, Palette(), "small");
 }
@@ -208,11 +213,34 @@ TEST(ExactManhattan, LongColumnsSaturatePerLane) {
     }
 }
 
+TEST(ExactManhattan, LongColumnsCarryAcrossHundredsOfSegments) {
+    // Columns of hundreds of cols_seg segments (more than 64: a work-group's scan of segment ends
+    // takes more steps) with their only solids at one end or both, so that a voxel's nearest
+    // solid lies thousands of segments away; u8 saturates, u16 and u32 do not.
+    World z_one(Dims{2, 2, 20000});
+    z_one.set(0, 0, 0, 1);
+    World z_ends(Dims{3, 2, 20000});
+    z_ends.set(0, 0, 0, 1);
+    z_ends.set(2, 1, 19999, 2);
+    World y_ends(Dims{4, 9001, 3});
+    y_ends.set(0, 0, 0, 1);
+    y_ends.set(3, 9000, 2, 1);
+    World z_middle(Dims{8, 2, 12000});
+    z_middle.set(5, 1, 6007, 1);
+    for (const World* w : {&z_one, &z_ends, &y_ends, &z_middle}) {
+        const auto path = kernel_path(*w, Format::u16, Layout::gpu);
+        EXPECT_NE(std::find(path.begin(), path.end(), "cols_seg/32"), path.end())
+            << w->dims().to_string();
+        expect_exact(*w, Palette(), "far ends");
+    }
+}
+
 TEST(ExactManhattan, GpuLayoutOddShapes) {
-    // Rows of 16-voxel words and ragged rows, columns of every cols_seg width and the strip
-    // fallback, words of 1, 2 and 4 columns.
-    const Dims shapes[] = {Dims{1, 1, 1}, Dims{3, 2049, 5}, Dims{300, 200, 700}, Dims{1024, 64, 96},
-                           Dims{1040, 3, 2}};
+    // Rows of 16-voxel words and ragged rows, columns of every cols_seg width and of hundreds of
+    // segments along y and z, words of 1, 2 and 4 columns.
+    const Dims shapes[] = {Dims{1, 1, 1},      Dims{3, 2049, 5}, Dims{300, 200, 700},
+                           Dims{1024, 64, 96}, Dims{1040, 3, 2}, Dims{4, 9001, 3},
+                           Dims{5, 3, 20011},  Dims{8, 2, 12000}};
     for (const Dims dims : shapes) {
         const World w = scene_random(dims, 0.0002, dims.x + dims.y + dims.z);
         const auto exact = reference_manhattan(w);
