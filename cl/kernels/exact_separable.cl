@@ -1292,7 +1292,9 @@ inline bool banded_below(__local const uint* kl, __local const ushort* keyx, uin
 #endif
 
 // Lines of n positions, element stride `stride`, line (x, o) starting at o * mstride + x,
-// x = group(0) * C + local(0), o = group(1) of O. Input: `in16` (from16: the x pass's 1-D
+// x = group(0) * C + local(0), o = group(1) of O; where group(1) passes O, the lines of the
+// next block of a world of stacked blocks, `bstride` elements on (its z pass: each block's
+// lines apart, their borders at the block's ends). Input: `in16` (from16: the x pass's 1-D
 // distances) or `in`; output: partials to `gout`, or with `final` the output format to `out`
 // (with INDICES `in` and `gout` are not used, and the host may pass the x rows' buffer for them:
 // they stay `restrict`, which holds as nothing is written through them then).
@@ -1322,13 +1324,15 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                           __local int* ends, uint O, uint border,
                           __global const uint* restrict fin, __global uint* restrict fout,
                           __global int* restrict idx, ulong count, __global const GT* outer,
-                          ST sx, ST so, ST sp, __local ushort* keyx, uint zero_targets) {
+                          ST sx, ST so, ST sp, __local ushort* keyx, uint zero_targets,
+                          ulong bstride) {
     const uint C = (uint)get_local_size(0), K = (uint)get_local_size(1);
     const uint c = (uint)get_local_id(0), k = (uint)get_local_id(1);
     const uint x = (uint)get_group_id(0) * C + c;
-    const uint o = (uint)get_group_id(1);
+    // Line o of its block: group(1) counts the O lines of each stacked block in turn.
+    const uint o = (uint)get_group_id(1) % O;
     const bool active = x < X;
-    const size_t base = (size_t)o * mstride + x;
+    const size_t base = (size_t)(get_group_id(1) / O) * bstride + (size_t)o * mstride + x;
     const int band = (int)((n + K - 1) / K);
     __local int* first = ends;
     __local int* last = ends + C * K;

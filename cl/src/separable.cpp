@@ -63,12 +63,21 @@ bool ExactSeparable::needed(const GeneratorOptions& o) {
 }
 
 ExactSeparable::ExactSeparable(Context& ctx, const World& world, const Palette& palette,
-                               const GeneratorOptions& options, bool incremental)
+                               const GeneratorOptions& options, bool incremental,
+                               std::uint32_t z_period)
     : Generator(ctx, world.dims(), options.format),
       gpu_layout_(options.layout == Layout::automatic ? !ctx.is_cpu()
                                                       : options.layout == Layout::gpu),
       incremental_(incremental),
+      z_period_(z_period),
       spacing_(options.spacing) {
+    if (z_period != 0 && (world.dims().z % z_period != 0 || incremental || options.indices)) {
+        throw std::invalid_argument(
+            "ExactSeparable: a z period of " + std::to_string(z_period) + " for a world of " +
+            world.dims().to_string() + (incremental ? ", incremental" : "") +
+            (options.indices ? ", with indices" : "") +
+            " (it must divide the world's z and serve a full transform without indices)");
+    }
     // Uploaded: the generator owns its copy (incremental edits rewrite it), so the world
     // need not outlive it. Reading in place is the span constructor's explicit choice.
     set_up(world.voxels().data(), false, {}, {}, palette, options);
@@ -166,8 +175,10 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     // the space around it, cols_banded's border) for the solids' inner distances, whose z
     // pass writes the signed values. The feature transform takes the same passes; the y pass finds
     // its sites' keys from the x rows and the world, and the z pass writes the index planes.
+    // The z pass's lines: the world's, or each stacked block's (z_period_).
+    const std::uint32_t zline = z_period_ != 0 ? z_period_ : Z;
     const bool banded_fits =
-        gpu_layout_ && !incremental && X < 0xFFFF && Y < kLinkLimit && Z < kLinkLimit &&
+        gpu_layout_ && !incremental && X < 0xFFFF && Y < kLinkLimit && zline < kLinkLimit &&
         cl::Kernel(program_, "cols_banded")
                 .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
     // With index planes the y pass also keeps each position's target x (2 bytes).
@@ -176,7 +187,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                                                      info.local_mem, options.indices ? 2 : 0)
                                       : 0;
     const std::uint32_t lines_z =
-        banded_fits ? banded_lines(Z, banded_site_bytes(false, options.indices), info.local_mem)
+        banded_fits ? banded_lines(zline, banded_site_bytes(false, options.indices), info.local_mem)
                     : 0;
 
     // Unit L1 with indices, a full unsigned transform in the CPU layout: l1_xy_keys and
@@ -364,7 +375,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                 const std::size_t plane = std::size_t{X} * Y;
                 stages_.push_back(*rows);
                 stages_.push_back(banded_kernel(1, Y, lines_y, X, plane, Z, false, g_));
-                stages_.push_back(banded_kernel(2, Z, lines_z, plane, X, Y, !sgn, g_));
+                stages_.push_back(banded_kernel(2, zline, lines_z, plane, X, Y, !sgn, g_));
                 if (sgn) {
                     inner_rows->name = "x_rows_inner";
                     stages_.push_back(*inner_rows);
@@ -372,7 +383,8 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                     // z pass has read them), its z pass writing the output.
                     const cl::Buffer inner[2] = {h_[0], g_[1]};
                     KernelLaunch y = banded_kernel(1, Y, lines_y, X, plane, Z, false, inner);
-                    KernelLaunch z = banded_kernel(2, Z, lines_z, plane, X, Y, true, inner, true);
+                    KernelLaunch z =
+                        banded_kernel(2, zline, lines_z, plane, X, Y, true, inner, true);
                     y.name = "y_banded_inner";
                     z.name = "z_banded_inner";
                     stages_.push_back(y);
@@ -489,8 +501,12 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     // The y pass's target x per position, for its keys (a token 2 bytes elsewhere).
     kernel.setArg(27, cl::Local(keyed && y ? cells * 2 : 2));
     kernel.setArg(28, cl_uint{zero_targets_ ? 1u : 0u});
+    // The z pass of stacked blocks: lines_o lines per block, the blocks n z-slices apart.
+    const std::uint32_t blocks = !y && z_period_ != 0 ? dims_.z / z_period_ : 1;
+    kernel.setArg(29, static_cast<cl_ulong>(stride * n));
     return {y ? "y_banded" : "z_banded", kernel,
-            cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * k), cl::NDRange(c, k)};
+            cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * blocks * k),
+            cl::NDRange(c, k)};
 }
 
 std::size_t ExactSeparable::x_per_item(const Box& rows) const {

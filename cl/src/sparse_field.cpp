@@ -332,7 +332,8 @@ SparseField::Batch& SparseField::batch_for(Dims block, std::uint32_t blocks) {
         b->voxels = g->voxels_buffer();
         b->generator = std::move(g);
     } else {
-        auto g = std::make_unique<ExactSeparable>(ctx_, zero, palette_, o);
+        // Each block's z lines apart: short lines, many to a work-group (the banded passes).
+        auto g = std::make_unique<ExactSeparable>(ctx_, zero, palette_, o, false, block.z);
         b->voxels = g->voxels_buffer();
         b->generator = std::move(g);
     }

@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <random>
 #include <string>
 #include <tuple>
+#include <vector>
 
 #include "cl_test_util.hpp"
 #include "voxfield/cl/separable.hpp"
@@ -768,6 +770,57 @@ TEST(ExactSeparable, BandedGpuPassesTakeSpacing) {
             }
         }
     }
+}
+
+TEST(ExactSeparable, StackedBlocksTakeTheirOwnZLines) {
+    // A z period (a sparse field's batch of blocks stacked along z): every block's field is
+    // the field of that block alone, byte for byte, its borders and bounds at its own z ends;
+    // the blocks are an empty one, a full one and random ones.
+    constexpr std::uint32_t kP = 37;
+    const Dims block{23, 19, kP};
+    const double densities[] = {0.02, 0.0, 1.0, 0.3, 0.001};
+    const std::uint32_t blocks = std::size(densities);
+    World stacked(Dims{block.x, block.y, kP * blocks});
+    std::vector<World> alone;
+    for (std::uint32_t b = 0; b < blocks; ++b) {
+        alone.push_back(scene_random(block, densities[b], 77 + b));
+        for (std::uint32_t z = 0; z < kP; ++z) {
+            for (std::uint32_t y = 0; y < block.y; ++y) {
+                for (std::uint32_t x = 0; x < block.x; ++x) {
+                    stacked.set(x, y, b * kP + z, alone.back().at(x, y, z));
+                }
+            }
+        }
+    }
+    for (Metric m : kMetrics) {
+        for (const Spacing& sp : {Spacing{}, Spacing{1.5, 0.75, 2.0}}) {
+            for (bool sgn : {false, true}) {
+                for (std::optional<double> bound : {std::optional<double>(), std::optional(5.0)}) {
+                    auto o = options(m, sp, sgn, Format::f32, Layout::gpu);
+                    // L1 through ExactSeparable (a bound), not exact_manhattan.cl.
+                    o.max_distance = m == Metric::manhattan && !bound ? 1e6 : bound;
+                    ocl::ExactSeparable g(pocl(), stacked, Palette(), o, false, kP);
+                    ASSERT_EQ(g.variant(), "gpu layout, banded") << describe(o, stacked.dims());
+                    g.run();
+                    const auto got = g.read();
+                    for (std::uint32_t b = 0; b < blocks; ++b) {
+                        const auto want = ocl::generate(pocl(), alone[b], Palette(), o).bytes;
+                        ASSERT_TRUE(
+                            std::equal(want.begin(), want.end(), got.begin() + b * want.size()))
+                            << describe(o, stacked.dims()) << " block " << b;
+                    }
+                }
+            }
+        }
+    }
+    auto o = options(Metric::euclidean, Spacing{}, false, Format::f32, Layout::gpu);
+    EXPECT_THROW(ocl::ExactSeparable(pocl(), stacked, Palette(), o, false, kP + 1),
+                 std::invalid_argument);
+    EXPECT_THROW(ocl::ExactSeparable(pocl(), stacked, Palette(), o, true, kP),
+                 std::invalid_argument);
+    o.indices = true;
+    EXPECT_THROW(ocl::ExactSeparable(pocl(), stacked, Palette(), o, false, kP),
+                 std::invalid_argument);
 }
 
 TEST(ExactSeparable, RefusesBadCombinations) {

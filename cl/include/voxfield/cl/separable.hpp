@@ -20,9 +20,16 @@ class ExactSeparable : public Generator {
     // returns them. `incremental` keeps every pass's partial distances (4 bytes per voxel
     // each, twice for signed fields) so that update() can recompute only what an edit
     // changes. Throws ClError when the device cannot hold the buffers or lacks fp64. The
-    // world is copied: it need not outlive the generator.
+    // world is copied: it need not outlive the generator. `z_period` (full transforms
+    // without indices): the world is blocks of that many z-slices stacked along z, each block
+    // a world of its own, whose values the caller reads only where its own solids decide
+    // them (a sparse field's blocks, bounded, read at least the bound from a block's ends):
+    // the GPU layout's banded z pass then takes each block's lines apart, as short lines fit
+    // more of them in a work-group. Values within the bound of a block's z ends may differ
+    // from the stacked world's. 0: one world.
     ExactSeparable(Context& ctx, const World& world, const Palette& palette,
-                   const GeneratorOptions& options, bool incremental = false);
+                   const GeneratorOptions& options, bool incremental = false,
+                   std::uint32_t z_period = 0);
     // A full (not incremental) transform of a world in host memory, as ExactManhattan's span
     // constructor: on a device that computes in host memory the kernels read `voxels`
     // (dims.count() palette indices) in place and write the field into `field` where given
@@ -78,7 +85,8 @@ class ExactSeparable : public Generator {
         return indices && !y_pass ? 4 : gt_bytes_;
     }
     // The banded y (axis 1) or z (axis 2) pass over lines of n positions `stride` apart, `c`
-    // lines per work-group, line starts x + o * mstride for the lines_o values of o, from and
+    // lines per work-group, line starts x + o * mstride for the lines_o values of o (the z
+    // pass: in each of the world's blocks of z_period_ slices, where it has them), from and
     // to the partials `parts` (x rows in parts[0], y into parts[1], z into parts[0]); `final`
     // writes the output format; `border` (z only) counts the voxels outside the world as
     // targets (a signed field's inner transform). With index planes the y pass writes its
@@ -118,6 +126,7 @@ class ExactSeparable : public Generator {
     bool zero_targets_ = false;  // targets are the zero voxels (x_pass's `solid` 0)
     bool banded_ = false;        // the full GPU transform by cols_banded
     bool incremental_;
+    std::uint32_t z_period_ = 0;  // z-slices per stacked block (0: one world)
     Spacing spacing_;
     cl::Program program_;
     cl::Buffer voxels_, rgb_, g_[3], h_[3], feat_[2], scratch_, track_[3];
