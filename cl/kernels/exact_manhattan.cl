@@ -828,6 +828,36 @@ __kernel void z_king_bytes(__global uchar* restrict work, __global U* restrict o
 COLS_STRIP(cols_strip, STORE_WORK)
 COLS_STRIP(cols_strip_final, STORE_FINAL)
 
+// The GPU layout's columns too long for cols_seg (more segments than a work-group holds) and
+// for a strip in local memory: a work-item per column (get_global_id(0) its x, coalesced
+// across a row), both sweeps in place in `work`, any length (as cols_strip, EDGE included).
+#define COLS_LONG(NAME, STORE)                                                             \
+    __kernel void NAME(__global T* restrict work, __global uint* restrict out,             \
+                       __global const uchar* restrict vox, __constant uchar* rgb, uint X,  \
+                       uint N, ulong stride, ulong mstride) {                              \
+        const uint x = (uint)get_global_id(0);                                             \
+        if (x >= X) {                                                                      \
+            return;                                                                        \
+        }                                                                                  \
+        const size_t base = get_global_id(1) * mstride + x;                                \
+        T c = EDGE(work[base]);                                                            \
+        work[base] = c;                                                                    \
+        for (uint n = 1; n < N; ++n) {                                                     \
+            const size_t row = base + n * stride;                                          \
+            c = step_k(n + 1 == N ? EDGE(work[row]) : work[row], c, (T)1);                 \
+            work[row] = c;                                                                 \
+        }                                                                                  \
+        STORE(base + (N - 1) * stride, c);                                                 \
+        for (uint n = N - 1; n-- > 0;) {                                                   \
+            const size_t row = base + n * stride;                                          \
+            c = step_k(work[row], c, (T)1);                                                \
+            STORE(row, c);                                                                 \
+        }                                                                                  \
+    }
+
+COLS_LONG(cols_long, STORE_WORK)
+COLS_LONG(cols_long_final, STORE_FINAL)
+
 // Rows along x, `per_row` work-items per row and get_local_size(0) / per_row rows per
 // work-group. A row's occupancy is staged in local memory (coalesced), each work-item
 // scans a contiguous segment for its last and first solid, a Hillis-Steele scan over the

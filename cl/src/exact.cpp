@@ -388,7 +388,7 @@ void ExactManhattan::set_up_kernels() {
         // apart by `m_stride`; `final` writes the output format.
         auto columns = [&](std::uint32_t len, std::uint64_t stride, std::uint64_t m_stride,
                            std::size_t m_count, bool final, bool bits = false) -> KernelLaunch {
-            // Arguments 0-7 are common to cols_seg and cols_strip.
+            // Arguments 0-7 are common to cols_seg, cols_long and cols_strip.
             auto column_kernel = [&](const cl::Program& source, const char* name) {
                 cl::Kernel kernel(source, name);
                 kernel.setArg(0, work_);
@@ -431,9 +431,18 @@ void ExactManhattan::set_up_kernels() {
                             cl::NDRange(cw, segs, 1)};
                 }
             }
+            if (gpu_layout_) {
+                // Columns of more segments than a work-group holds: a work-item per column,
+                // both sweeps in place in global memory, any length (the strip below, a
+                // work-item a group, was the fallback until then, and a u16 column of more
+                // than 24576 voxels did not fit its local memory). The bit rows' caller sees
+                // no cols_bits and takes the row kernels instead.
+                const char* name = final ? "cols_long_final" : "cols_long";
+                return {name, column_kernel(base, name),
+                        cl::NDRange(round_up(dims_.x, 64), m_count), cl::NDRange(64, 1)};
+            }
             // A strip of x positions per work-item, its columns copied to local scratch: the
-            // whole row on a CPU (the inner loop vectorises, the strip stays in L2), single
-            // columns on a GPU (a fallback for columns of more segments than a work-group holds).
+            // whole row (the inner loop vectorises, the strip stays in L2).
             const std::size_t per_x = std::size_t{len} * wt.bytes;
             const std::size_t budget = std::min<std::size_t>(info.local_mem / 2, 512 * 1024);
             if (per_x > info.local_mem) {
@@ -441,14 +450,11 @@ void ExactManhattan::set_up_kernels() {
                               sizes + ": a column of " + std::to_string(len) +
                                   " voxels does not fit the local memory of " + info.name);
             }
-            std::uint32_t strip = 1;
-            if (!gpu_layout_) {
-                strip = static_cast<std::uint32_t>(
-                    std::clamp<std::size_t>(budget / per_x / 16 * 16, 1, dims_.x));
-                const std::size_t want_items = 4 * std::size_t{info.compute_units};
-                while (strip > 16 && ((dims_.x + strip - 1) / strip) * m_count < want_items) {
-                    strip = std::max<std::uint32_t>(16, strip / 2);
-                }
+            auto strip = static_cast<std::uint32_t>(
+                std::clamp<std::size_t>(budget / per_x / 16 * 16, 1, dims_.x));
+            const std::size_t want_items = 4 * std::size_t{info.compute_units};
+            while (strip > 16 && ((dims_.x + strip - 1) / strip) * m_count < want_items) {
+                strip = std::max<std::uint32_t>(16, strip / 2);
             }
             const char* name = final ? "cols_strip_final" : "cols_strip";
             cl::Kernel kernel = column_kernel(base, name);

@@ -6,6 +6,7 @@
 #include <memory>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cl_test_util.hpp"
@@ -153,7 +154,7 @@ std::vector<std::string> kernel_path(const World& world, Format f, Layout layout
 TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     // Columns up to 512 voxels take cols_seg with segments of 16, longer ones segments of 32
     // (u16's y columns 16 up to 1024), as many as a work-group holds (PoCL: 4096), and longer
-    // ones still the strip fallback of the GPU layout; z-slices of at most 16 KiB take x and y in
+    // ones a work-item per column in place (cols_long); z-slices of at most 16 KiB take x and y in
     // one launch (xy_slice_local), larger ones the row kernels and a y column pass. The CPU layout
     // sweeps xy slices and strips of columns (on bytes where it can).
     using Path = std::vector<std::string>;
@@ -173,7 +174,7 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
             << to_string(f);
         EXPECT_EQ(kernel_path(deep, f, Layout::gpu), (Path{"xy_slice_local", "cols_seg/32"}))
             << to_string(f);
-        EXPECT_EQ(kernel_path(deeper, f, Layout::gpu), (Path{"xy_slice_local", "cols_strip_final"}))
+        EXPECT_EQ(kernel_path(deeper, f, Layout::gpu), (Path{"xy_slice_local", "cols_long_final"}))
             << to_string(f);
         const Path wide_gpu = f == Format::u32 ? Path{"x_words", "cols_bits/16", "cols_seg/16"}
                                                : Path{"x_rows_map", "cols_seg/16", "cols_seg/16"};
@@ -215,8 +216,8 @@ TEST(ExactManhattan, LongColumnsSaturatePerLane) {
 
 TEST(ExactManhattan, LongColumnsCarryAcrossHundredsOfSegments) {
     // Columns of hundreds of cols_seg segments (more than 64: a work-group's scan of segment ends
-    // takes more steps) with their only solids at one end or both, so that a voxel's nearest
-    // solid lies thousands of segments away; u8 saturates, u16 and u32 do not.
+    // takes more steps), and longer ones, with their only solids at one end or both, so that a
+    // voxel's nearest solid lies thousands of segments away; u8 saturates, u16 and u32 do not.
     World z_one(Dims{2, 2, 20000});
     z_one.set(0, 0, 0, 1);
     World z_ends(Dims{3, 2, 20000});
@@ -227,10 +228,21 @@ TEST(ExactManhattan, LongColumnsCarryAcrossHundredsOfSegments) {
     y_ends.set(3, 9000, 2, 1);
     World z_middle(Dims{8, 2, 12000});
     z_middle.set(5, 1, 6007, 1);
-    for (const World* w : {&z_one, &z_ends, &y_ends, &z_middle}) {
+    // Longer than a work-group's segments (PoCL: 4096 of 32): a work-item per column.
+    World z_long(Dims{3, 2, 140001});
+    z_long.set(0, 0, 0, 1);
+    z_long.set(1, 0, 70001, 1);
+    z_long.set(2, 1, 140000, 1);
+    World y_long(Dims{4, 140001, 2});
+    y_long.set(0, 0, 0, 1);
+    y_long.set(3, 140000, 1, 1);
+    const std::pair<const World*, const char*> worlds[] = {
+        {&z_one, "cols_seg/32"},    {&z_ends, "cols_seg/32"},     {&y_ends, "cols_seg/32"},
+        {&z_middle, "cols_seg/32"}, {&z_long, "cols_long_final"}, {&y_long, "cols_long"}};
+    for (const auto& [w, kernel] : worlds) {
         const auto path = kernel_path(*w, Format::u16, Layout::gpu);
-        EXPECT_NE(std::find(path.begin(), path.end(), "cols_seg/32"), path.end())
-            << w->dims().to_string();
+        EXPECT_NE(std::find(path.begin(), path.end(), kernel), path.end())
+            << w->dims().to_string() << " " << kernel;
         expect_exact(*w, Palette(), "far ends");
     }
 }
