@@ -19,8 +19,8 @@
 // T_MAX (its maximum), PACKED (1 when the output is packed32 and T is a separate uchar work
 // buffer), SEG_K (values per column and work-item in cols_seg), VW (adjacent columns per
 // work-item in cols_seg: 1, 2 or 4), CHEBYSHEV (0 or 1), SIGNED (0 or 1, CPU layout only).
-// ROW_TARGETS_EMPTY (0 or 1): the GPU layout's x rows kernels (x_rows_map, x_rows_local)
-// take the zero voxels as their targets instead of the nonzero ones.
+// ROW_TARGETS_EMPTY (0 or 1): the GPU layout's x rows kernels (x_rows_map, x_rows_local,
+// x_rows_long) take the zero voxels as their targets instead of the nonzero ones.
 // Saturating at T_MAX is exact: min-plus with +1 commutes with min(., T_MAX).
 //
 // SIGNED=1: the signed L1 field in the same passes, one value per voxel. Every voxel is at
@@ -43,10 +43,12 @@
 //   16-byte load and one vector store each) and finds each segment's nearest targets outside
 //   it from a map of the row's segments that have any, in local memory; ragged
 //   rows (X not a multiple of 16) take x_rows_local, which stages a row in local memory
-//   (coalesced) and scans it per work-group. cols_seg gives each work-item SEG_K consecutive
+//   (coalesced) and scans it per work-group, and rows too long for that x_rows_long, a
+//   work-item per row. cols_seg gives each work-item SEG_K consecutive
 //   values of VW adjacent columns in registers (one 4- or 8-byte word per load and store
 //   where X keeps the words aligned), joins the segments of a column through local memory,
-//   and so reads and writes each voxel once.
+//   and so reads and writes each voxel once; columns of more segments than a work-group
+//   holds take cols_long, a work-item per column.
 //   L1 into u32 with X a multiple of 16 (FROM_BITS=1 for cols_seg): x_words writes a row as
 //   32-voxel words of solid bits, each with the row's last solid before it and first solid
 //   after it (8 bytes per 32 voxels instead of 2 or 4 bytes per voxel), and the y pass's
@@ -857,6 +859,26 @@ COLS_STRIP(cols_strip_final, STORE_FINAL)
 
 COLS_LONG(cols_long, STORE_WORK)
 COLS_LONG(cols_long_final, STORE_FINAL)
+
+// The GPU layout's rows too long for x_rows_map and for x_rows_local's local memory: a
+// work-item per row, both sweeps in place in `work`, any length.
+__kernel void x_rows_long(__global const uchar* restrict vox, __global T* restrict work, uint X,
+                          uint rows) {
+    const size_t r = get_global_id(0);
+    if (r >= rows) {
+        return;
+    }
+    const size_t base = r * X;
+    T c = (T)T_MAX;
+    for (uint x = 0; x < X; ++x) {
+        c = IS_TARGET(vox[base + x]) ? (T)0 : min(add_sat(c, (T)1), (T)T_MAX);
+        work[base + x] = c;
+    }
+    for (uint x = X - 1; x-- > 0;) {
+        c = min(work[base + x], add_sat(c, (T)1));
+        work[base + x] = c;
+    }
+}
 
 // Rows along x, `per_row` work-items per row and get_local_size(0) / per_row rows per
 // work-group. A row's occupancy is staged in local memory (coalesced), each work-item

@@ -189,9 +189,8 @@ std::optional<KernelLaunch> map_rows(Context& ctx, const cl::Program& program,
 
 }  // namespace
 
-std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
-                                       const cl::Buffer& voxels, const cl::Buffer& work,
-                                       std::uint32_t cap, bool empty_targets) {
+KernelLaunch gpu_x_rows(Context& ctx, Dims dims, Format format, const cl::Buffer& voxels,
+                        const cl::Buffer& work, std::uint32_t cap, bool empty_targets) {
     const auto& info = ctx.info();
     const cl::Program base =
         build_program(ctx, format, 32, 1, Metric::manhattan, cap, false, empty_targets);
@@ -199,7 +198,7 @@ std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
     if (dims.x % 16 == 0) {
         // x_rows_map: 16 voxels of two rows per work-item (one aligned word each).
         if (auto launch = map_rows(ctx, base, voxels, work, dims)) {
-            return launch;
+            return *launch;
         }
     }
     // Ragged rows (or rows too long for x_rows_map) in x_rows_local: about 16 voxels per
@@ -212,7 +211,14 @@ std::optional<KernelLaunch> gpu_x_rows(Context& ctx, Dims dims, Format format,
     const std::size_t span = dims.x + dims.x / 32 + 1;
     const std::size_t x_local_bytes = group_rows * (span * 5 + 2 * per_row * 4);
     if (per_row > x_limit || x_local_bytes > info.local_mem) {
-        return std::nullopt;
+        // Rows longer still: a work-item per row, sweeping in place in global memory.
+        cl::Kernel long_rows(base, "x_rows_long");
+        long_rows.setArg(0, voxels);
+        long_rows.setArg(1, work);
+        long_rows.setArg(2, dims.x);
+        long_rows.setArg(3, static_cast<cl_uint>(rows));
+        return KernelLaunch{"x_rows_long", long_rows, cl::NDRange(round_up(rows, 64)),
+                            cl::NDRange(64)};
     }
     x_rows.setArg(0, voxels);
     x_rows.setArg(1, work);
@@ -501,11 +507,9 @@ void ExactManhattan::set_up_kernels() {
             }
         }
         if (gpu_layout_ && !rows_on_gpu) {
-            if (auto rows = gpu_x_rows(ctx_, dims_, format_, voxels_, work_, cap_)) {
-                add(*rows);
-                add(columns(dims_.y, dims_.x, plane, dims_.z, false));
-                rows_on_gpu = true;
-            }
+            add(gpu_x_rows(ctx_, dims_, format_, voxels_, work_, cap_));
+            add(columns(dims_.y, dims_.x, plane, dims_.z, false));
+            rows_on_gpu = true;
         }
         if (!rows_on_gpu) {
             // At least 1: a row of one voxel still takes the step to its padding (signed).

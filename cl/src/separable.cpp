@@ -248,9 +248,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         // On the banded passes, g_[0] holds only 16-bit x rows where the z pass writes the
         // output itself (an unsigned field), and a signed field's inner transform needs only
         // h_[0] for its x rows (its y pass writes g_[1], free by then). With indices the y pass
-        // hands the z pass its targets in feat_[1], no partials: g_[1] is not needed. Where
-        // those passes cannot run after all, the col_pass path below allocates the whole
-        // buffers.
+        // hands the z pass its targets in feat_[1], no partials: g_[1] is not needed.
         const int parts = incremental ? 3 : l1_keys_ ? 0 : shared_parts_ ? 1 : 2;
         const bool banded_rows = lines_y != 0 && lines_z != 0;
         const std::size_t rows_bytes = n * 2;
@@ -367,43 +365,28 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             // The first transform's targets: the solids, or with zero targets the empty
             // voxels; a signed field's inner transform takes the empty voxels too. The x rows
             // read the world as it is (ROW_TARGETS_EMPTY), no inverted copy.
-            auto rows =
-                gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0], 0xFFFFFFFFu, zero_targets_);
-            auto inner_rows =
-                sgn ? gpu_x_rows(ctx, dims_, Format::u16, voxels_, h_[0], 0xFFFFFFFFu, true) : rows;
-            if (rows && inner_rows) {
-                const std::size_t plane = std::size_t{X} * Y;
-                stages_.push_back(*rows);
-                stages_.push_back(banded_kernel(1, Y, lines_y, X, plane, Z, false, g_));
-                stages_.push_back(banded_kernel(2, zline, lines_z, plane, X, Y, !sgn, g_));
-                if (sgn) {
-                    inner_rows->name = "x_rows_inner";
-                    stages_.push_back(*inner_rows);
-                    // The inner x rows in h_[0], its y pass's partials in g_[1] (the first
-                    // z pass has read them), its z pass writing the output.
-                    const cl::Buffer inner[2] = {h_[0], g_[1]};
-                    KernelLaunch y = banded_kernel(1, Y, lines_y, X, plane, Z, false, inner);
-                    KernelLaunch z =
-                        banded_kernel(2, zline, lines_z, plane, X, Y, true, inner, true);
-                    y.name = "y_banded_inner";
-                    z.name = "z_banded_inner";
-                    stages_.push_back(y);
-                    stages_.push_back(z);
-                }
-                banded_ = true;
-                return;
+            const std::size_t plane = std::size_t{X} * Y;
+            stages_.push_back(
+                gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0], 0xFFFFFFFFu, zero_targets_));
+            stages_.push_back(banded_kernel(1, Y, lines_y, X, plane, Z, false, g_));
+            stages_.push_back(banded_kernel(2, zline, lines_z, plane, X, Y, !sgn, g_));
+            if (sgn) {
+                KernelLaunch inner_rows =
+                    gpu_x_rows(ctx, dims_, Format::u16, voxels_, h_[0], 0xFFFFFFFFu, true);
+                inner_rows.name = "x_rows_inner";
+                stages_.push_back(inner_rows);
+                // The inner x rows in h_[0], its y pass's partials in g_[1] (the first
+                // z pass has read them), its z pass writing the output.
+                const cl::Buffer inner[2] = {h_[0], g_[1]};
+                KernelLaunch y = banded_kernel(1, Y, lines_y, X, plane, Z, false, inner);
+                KernelLaunch z = banded_kernel(2, zline, lines_z, plane, X, Y, true, inner, true);
+                y.name = "y_banded_inner";
+                z.name = "z_banded_inner";
+                stages_.push_back(y);
+                stages_.push_back(z);
             }
-            // col_pass's partials are whole: the banded passes' smaller buffers go back.
-            if (!out_is_g && !options.signed_field) {
-                g_[0] = g_[2] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
-            }
-            if (options.indices) {
-                g_[1] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
-            }
-            if (options.signed_field) {
-                h_[0] = h_[2] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
-                h_[1] = make_buffer(part_bytes, CL_MEM_READ_WRITE);
-            }
+            banded_ = true;
+            return;
         }
         // x_pass's rows and col_pass's stacks: only this path's (not the banded passes').
         scratch_ = make_buffer(scratch_ints * 4, CL_MEM_READ_WRITE);

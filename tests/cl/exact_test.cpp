@@ -216,8 +216,9 @@ TEST(ExactManhattan, LongColumnsSaturatePerLane) {
 
 TEST(ExactManhattan, LongColumnsCarryAcrossHundredsOfSegments) {
     // Columns of hundreds of cols_seg segments (more than 64: a work-group's scan of segment ends
-    // takes more steps), and longer ones, with their only solids at one end or both, so that a
-    // voxel's nearest solid lies thousands of segments away; u8 saturates, u16 and u32 do not.
+    // takes more steps), longer ones, and long rows, with their only solids at one end or both, so
+    // that a voxel's nearest solid lies thousands of segments away; u8 saturates, u16 and u32 do
+    // not.
     World z_one(Dims{2, 2, 20000});
     z_one.set(0, 0, 0, 1);
     World z_ends(Dims{3, 2, 20000});
@@ -236,9 +237,23 @@ TEST(ExactManhattan, LongColumnsCarryAcrossHundredsOfSegments) {
     World y_long(Dims{4, 140001, 2});
     y_long.set(0, 0, 0, 1);
     y_long.set(3, 140000, 1, 1);
+    // Rows of thousands of x_rows_map's map words (a work-group holds up to 4096 segments on
+    // PoCL), and rows too long for it and for x_rows_local's local memory (PoCL: about 51000
+    // voxels): a work-item per row.
+    World x_map(Dims{60000, 3, 2});
+    x_map.set(0, 0, 0, 1);
+    x_map.set(30011, 1, 0, 1);
+    x_map.set(59999, 2, 1, 1);
+    World x_long(Dims{65552, 2, 2});
+    x_long.set(0, 0, 0, 1);
+    x_long.set(30011, 1, 0, 1);
+    x_long.set(65551, 1, 1, 1);
+    World x_ragged(Dims{60001, 2, 2});
+    x_ragged.set(60000, 1, 1, 1);
     const std::pair<const World*, const char*> worlds[] = {
         {&z_one, "cols_seg/32"},    {&z_ends, "cols_seg/32"},     {&y_ends, "cols_seg/32"},
-        {&z_middle, "cols_seg/32"}, {&z_long, "cols_long_final"}, {&y_long, "cols_long"}};
+        {&z_middle, "cols_seg/32"}, {&z_long, "cols_long_final"}, {&y_long, "cols_long"},
+        {&x_map, "x_rows_map"},     {&x_long, "x_rows_long"},     {&x_ragged, "x_rows_long"}};
     for (const auto& [w, kernel] : worlds) {
         const auto path = kernel_path(*w, Format::u16, Layout::gpu);
         EXPECT_NE(std::find(path.begin(), path.end(), kernel), path.end())
