@@ -52,9 +52,9 @@ WorkType work_type(Format f) {
 
 // Values per work-item in cols_seg for a column of n voxels: 16 up to 512 voxels, then 32; the y
 // pass of 2-byte work (`y_of_2_bytes`) keeps 16 up to 1024. A column of more than 2048 voxels
-// takes more than 64 segments, a work-group of up to the kernel's limit (the strip fallback
-// beyond it): a sparse field's stacked blocks make z columns of thousands of voxels, where the
-// fallback's work-item per column took 7.5 of a sand step's 9.8 ms on the H100. On the H100,
+// takes more than 64 segments, a work-group of up to the kernel's limit (cols_long beyond it):
+// a sparse field's stacked blocks make z columns of thousands of voxels, where a strip in local
+// memory, a work-item a group, took 7.5 of a sand step's 9.8 ms on the H100. On the H100,
 // 1024^3 y and z passes took 2.59 and 2.56 ms in u16 with 32 values (32 segments) against 3.07
 // and 5.02 with 16 (64 segments) and two columns a work-item. With four (44be7a1), 16 values
 // take the u16 y pass from 2.12 to 1.72 ms but the z pass from 2.33 to 2.57; the whole 1024^3
@@ -436,13 +436,11 @@ void ExactManhattan::set_up_kernels() {
                             cl::NDRange(round_up(dims_.x / vw, cw), segs, m_count),
                             cl::NDRange(cw, segs, 1)};
                 }
-            }
-            if (gpu_layout_) {
                 // Columns of more segments than a work-group holds: a work-item per column,
-                // both sweeps in place in global memory, any length (the strip below, a
-                // work-item a group, was the fallback until then, and a u16 column of more
-                // than 24576 voxels did not fit its local memory). The bit rows' caller sees
-                // no cols_bits and takes the row kernels instead.
+                // both sweeps in place in global memory, any length (the CPU layout's strip
+                // below, a work-item a group, was the fallback until then, and a u16 column of
+                // more than 24576 voxels did not fit its local memory). The bit rows' caller
+                // sees no cols_bits and takes the row kernels instead.
                 const char* name = final ? "cols_long_final" : "cols_long";
                 return {name, column_kernel(base, name),
                         cl::NDRange(round_up(dims_.x, 64), m_count), cl::NDRange(64, 1)};
