@@ -484,8 +484,8 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     // The y pass's target x per position, for its keys (a token 2 bytes elsewhere).
     kernel.setArg(27, cl::Local(keyed && y ? cells * 2 : 2));
     kernel.setArg(28, cl_uint{zero_targets_ ? 1u : 0u});
-    // The z pass of stacked blocks: lines_o lines per block, the blocks n z-slices apart.
-    const std::uint32_t blocks = !y && z_period_ != 0 ? dims_.z / z_period_ : 1;
+    // The z pass of stacked blocks (n = z_period_): lines_o lines per block, n z-slices apart.
+    const std::uint32_t blocks = y ? 1 : dims_.z / n;
     kernel.setArg(29, static_cast<cl_ulong>(stride * n));
     return {y ? "y_banded" : "z_banded", kernel,
             cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * blocks * k),

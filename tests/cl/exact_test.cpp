@@ -2,7 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <filesystem>
+#include <initializer_list>
 #include <memory>
 #include <random>
 #include <string>
@@ -214,51 +216,40 @@ TEST(ExactManhattan, LongColumnsSaturatePerLane) {
     }
 }
 
+// A world of `dims` whose only solids are `solids`, each {x, y, z, material}.
+World with_solids(Dims dims, std::initializer_list<std::array<std::uint32_t, 4>> solids) {
+    World w(dims);
+    for (const auto& [x, y, z, material] : solids) {
+        w.set(x, y, z, static_cast<std::uint8_t>(material));
+    }
+    return w;
+}
+
 TEST(ExactManhattan, LongColumnsCarryAcrossHundredsOfSegments) {
-    // Columns of hundreds of cols_seg segments (more than 64: a work-group's scan of segment ends
-    // takes more steps), longer ones, and long rows, with their only solids at one end or both, so
-    // that a voxel's nearest solid lies thousands of segments away; u8 saturates, u16 and u32 do
-    // not.
-    World z_one(Dims{2, 2, 20000});
-    z_one.set(0, 0, 0, 1);
-    World z_ends(Dims{3, 2, 20000});
-    z_ends.set(0, 0, 0, 1);
-    z_ends.set(2, 1, 19999, 2);
-    World y_ends(Dims{4, 9001, 3});
-    y_ends.set(0, 0, 0, 1);
-    y_ends.set(3, 9000, 2, 1);
-    World z_middle(Dims{8, 2, 12000});
-    z_middle.set(5, 1, 6007, 1);
-    // Longer than a work-group's segments (PoCL: 4096 of 32): a work-item per column.
-    World z_long(Dims{3, 2, 140001});
-    z_long.set(0, 0, 0, 1);
-    z_long.set(1, 0, 70001, 1);
-    z_long.set(2, 1, 140000, 1);
-    World y_long(Dims{4, 140001, 2});
-    y_long.set(0, 0, 0, 1);
-    y_long.set(3, 140000, 1, 1);
-    // Rows of thousands of x_rows_map's map words (a work-group holds up to 4096 segments on
-    // PoCL), and rows too long for it and for x_rows_local's local memory (PoCL: about 51000
-    // voxels): a work-item per row.
-    World x_map(Dims{60000, 3, 2});
-    x_map.set(0, 0, 0, 1);
-    x_map.set(30011, 1, 0, 1);
-    x_map.set(59999, 2, 1, 1);
-    World x_long(Dims{65552, 2, 2});
-    x_long.set(0, 0, 0, 1);
-    x_long.set(30011, 1, 0, 1);
-    x_long.set(65551, 1, 1, 1);
-    World x_ragged(Dims{60001, 2, 2});
-    x_ragged.set(60000, 1, 1, 1);
-    const std::pair<const World*, const char*> worlds[] = {
-        {&z_one, "cols_seg/32"},    {&z_ends, "cols_seg/32"},     {&y_ends, "cols_seg/32"},
-        {&z_middle, "cols_seg/32"}, {&z_long, "cols_long_final"}, {&y_long, "cols_long"},
-        {&x_map, "x_rows_map"},     {&x_long, "x_rows_long"},     {&x_ragged, "x_rows_long"}};
+    // Lines whose only solids are at one end, both or the middle, so that a voxel's nearest
+    // solid lies thousands of segments away (u8 saturates, u16 and u32 do not): columns of
+    // hundreds of cols_seg segments (more than 64: the scan of segment ends takes more steps);
+    // columns longer than a work-group's segments (PoCL: 4096 of 32), a work-item per column;
+    // rows of thousands of x_rows_map's map words; rows too long for it and for x_rows_local's
+    // local memory (PoCL: about 51000 voxels), a work-item per row.
+    const std::pair<World, const char*> worlds[] = {
+        {with_solids({2, 2, 20000}, {{0, 0, 0, 1}}), "cols_seg/32"},
+        {with_solids({3, 2, 20000}, {{0, 0, 0, 1}, {2, 1, 19999, 2}}), "cols_seg/32"},
+        {with_solids({4, 9001, 3}, {{0, 0, 0, 1}, {3, 9000, 2, 1}}), "cols_seg/32"},
+        {with_solids({8, 2, 12000}, {{5, 1, 6007, 1}}), "cols_seg/32"},
+        {with_solids({3, 2, 140001}, {{0, 0, 0, 1}, {1, 0, 70001, 1}, {2, 1, 140000, 1}}),
+         "cols_long_final"},
+        {with_solids({4, 140001, 2}, {{0, 0, 0, 1}, {3, 140000, 1, 1}}), "cols_long"},
+        {with_solids({60000, 3, 2}, {{0, 0, 0, 1}, {30011, 1, 0, 1}, {59999, 2, 1, 1}}),
+         "x_rows_map"},
+        {with_solids({65552, 2, 2}, {{0, 0, 0, 1}, {30011, 1, 0, 1}, {65551, 1, 1, 1}}),
+         "x_rows_long"},
+        {with_solids({60001, 2, 2}, {{60000, 1, 1, 1}}), "x_rows_long"}};
     for (const auto& [w, kernel] : worlds) {
-        const auto path = kernel_path(*w, Format::u16, Layout::gpu);
+        const auto path = kernel_path(w, Format::u16, Layout::gpu);
         EXPECT_NE(std::find(path.begin(), path.end(), kernel), path.end())
-            << w->dims().to_string() << " " << kernel;
-        expect_exact(*w, Palette(), "far ends");
+            << w.dims().to_string() << " " << kernel;
+        expect_exact(w, Palette(), "far ends");
     }
 }
 
@@ -291,12 +282,9 @@ TEST(ExactManhattan, GpuBitRowsEveryWordCase) {
     for (const std::uint32_t x : {16u, 48u, 96u, 512u}) {
         // Rows past the fifth stay empty: u32 slices above 16 KiB, which xy_slice_local leaves
         // to the row kernels.
-        World edges(Dims{x, std::max(5u, 4096u / x + 1), 4});
-        edges.set(0, 0, 0, 1);
-        edges.set(x - 1, 1, 0, 2);
-        edges.set(0, 2, 1, 3);
-        edges.set(x - 1, 2, 1, 4);
-        edges.set(x / 2, 3, 2, 5);
+        World edges = with_solids(
+            Dims{x, std::max(5u, 4096u / x + 1), 4},
+            {{0, 0, 0, 1}, {x - 1, 1, 0, 2}, {0, 2, 1, 3}, {x - 1, 2, 1, 4}, {x / 2, 3, 2, 5}});
         for (std::uint32_t i = 0; i < std::min(x, 32u); ++i) {
             edges.set(i, 4, 3, 6);
         }
@@ -317,14 +305,14 @@ TEST(ExactManhattan, GpuRowMapEveryWordCase) {
     // which saturate below the work type's maximum.
     for (const std::uint32_t x : {16u, 48u, 512u, 1040u, 4096u}) {
         // Slices above 16 KiB even for u8, which xy_slice_local leaves to the row kernels.
-        World w(Dims{x, std::max(9u, 16384u / x + 1), 3});
-        w.set(0, 0, 0, 1);
-        w.set(x - 1, 1, 0, 2);
-        w.set(0, 2, 1, 3);
-        w.set(x - 1, 2, 1, 4);
-        w.set(x / 2, 3, 2, 5);
-        w.set(std::min(x - 1, 64u * 16u + 5), 4, 1, 6);
-        w.set(std::min(x - 1, 3u * 64u * 16u + 9), 5, 0, 7);
+        World w = with_solids(Dims{x, std::max(9u, 16384u / x + 1), 3},
+                              {{0, 0, 0, 1},
+                               {x - 1, 1, 0, 2},
+                               {0, 2, 1, 3},
+                               {x - 1, 2, 1, 4},
+                               {x / 2, 3, 2, 5},
+                               {std::min(x - 1, 64u * 16u + 5), 4, 1, 6},
+                               {std::min(x - 1, 3u * 64u * 16u + 9), 5, 0, 7}});
         for (std::uint32_t i = 0; i < std::min(x, 32u); ++i) {
             w.set(i, 6, 2, 8);
         }

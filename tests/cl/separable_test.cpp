@@ -781,18 +781,14 @@ TEST(ExactSeparable, StackedBlocksTakeTheirOwnZLines) {
     const Dims block{23, 19, kP};
     const double densities[] = {0.02, 0.0, 1.0, 0.3, 0.001};
     const std::uint32_t blocks = std::size(densities);
-    World stacked(Dims{block.x, block.y, kP * blocks});
+    // Blocks stacked along z lie one after another in memory.
     std::vector<World> alone;
+    std::vector<std::uint8_t> voxels;
     for (std::uint32_t b = 0; b < blocks; ++b) {
         alone.push_back(scene_random(block, densities[b], 77 + b));
-        for (std::uint32_t z = 0; z < kP; ++z) {
-            for (std::uint32_t y = 0; y < block.y; ++y) {
-                for (std::uint32_t x = 0; x < block.x; ++x) {
-                    stacked.set(x, y, b * kP + z, alone.back().at(x, y, z));
-                }
-            }
-        }
+        voxels.insert(voxels.end(), alone.back().voxels().begin(), alone.back().voxels().end());
     }
+    const World stacked(Dims{block.x, block.y, kP * blocks}, std::move(voxels));
     for (Metric m : kMetrics) {
         for (const Spacing& sp : {Spacing{}, Spacing{1.5, 0.75, 2.0}}) {
             for (bool sgn : {false, true}) {
