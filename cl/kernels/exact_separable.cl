@@ -1194,18 +1194,22 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 // float, double (FP64) or 64-bit (WIDE) partials), the y and z passes run cols_banded: a
 // work-group holds C adjacent lines (x fastest, so its loads and stores are coalesced) of n
 // positions in local memory, and K work-items per line each build the envelope of one band of
-// about n / K sites with Meijster's stack, kept as a doubly linked list over the sites (prv, nxt).
+// sites (a multiple of 32 positions) with Meijster's stack. The sites in the envelopes are bits
+// of a mask, a 32-bit word per 32 positions, so that a band's words are its work-item's own: a
+// site's neighbours in a list are the nearest set bits (clz), and dropping a site clears its
+// bit. The mask takes 1 bit of local memory per position where a doubly linked list took 4
+// bytes, so that twice as many lines share a work-group (longer coalesced rows).
 // The bands are then merged pairwise in log2(K) rounds (the parallel banding of Cao, Tang, Mitra &
 // Tan, "Parallel banding algorithm to compute exact distance transform with the GPU", 2010): where
 // two lists meet, the left list's last site is dropped while Sep(its predecessor, it) >= Sep(it,
 // the right list's first site), and the right list's first while Sep(left's last, it) >= Sep(it,
 // its successor) — a dropped site is everywhere at least as far as one of its neighbours, so the
 // lists' minimum is kept. In the final list every site owns the positions (Sep(predecessor, it),
-// Sep(it, successor)]: its work-item keeps the end of that range in the site's prv entry and
-// names the site in `last` for every band whose first position it owns. Each work-item then
-// walks the list from its band's first owner over its band's positions, writing every
-// position's partial (or, in the last pass, its output value): no owner array, and the work of
-// a site that owns hundreds of positions is shared by the bands they lie in. The first pass is
+// Sep(it, successor)]: its work-item names the site in `last` for every band whose first
+// position it owns. Each work-item then walks the list from its band's first owner over its
+// band's positions, finding each owner's end as it moves on, writing every position's partial
+// (or, in the last pass, its output value): no owner array, and the work of a site that owns
+// hundreds of positions is shared by the bands they lie in. The first pass is
 // exact_manhattan.cl's x_rows (the 1-D distance along x, 16 bits, 0xFFFF where a row has no
 // solid). With INDICES the separators break ties by the sites' keys (KEYED, as col_pass),
 // compared only where the two tie rules give different separators (BKEY: the y pass's sites'
@@ -1213,14 +1217,54 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 // strict, so the bands' envelopes and their merges keep the same owner as the sequential stack,
 // and every position takes its owner's target.
 
-#define LINK_NONE 0xFFFFu
-#define LINK_DEAD 0xFFFEu
 // cols_banded's loads in flight per work-item (on the H100, 512^3 L2 f32: y and z passes 1.88 and
 // 3.45 ms with one, 1.74 and 3.34 with 8, 1.73 and 3.32 with 16).
 #define BANDED_LOADS 8
 
-// Position p of line c in the local arrays.
+// Position p of line c in the local arrays; word w of its line's mask.
 #define LI(p) ((p) * C + c)
+#define MW(w) ((w) * C + c)
+
+// The site in the list nearest below e and not below lo, or -1.
+inline int live_before(__local const uint* mask, uint C, uint c, int e, int lo) {
+    int w = e >> 5;
+    uint m = mask[MW(w)] & ((1u << (e & 31)) - 1u);
+    while (m == 0) {
+        if ((w << 5) <= lo) {
+            return -1;
+        }
+        m = mask[MW(--w)];
+    }
+    const int r = (w << 5) + 31 - (int)clz(m);
+    return r >= lo ? r : -1;
+}
+
+// The site in the list nearest above e and below hi, or -1.
+inline int live_after(__local const uint* mask, uint C, uint c, int e, int hi) {
+    const int s = e + 1;
+    int w = s >> 5;
+    if ((w << 5) >= hi) {
+        return -1;
+    }
+    uint m = mask[MW(w)] & (0xFFFFFFFFu << (s & 31));
+    while (m == 0) {
+        if ((++w << 5) >= hi) {
+            return -1;
+        }
+        m = mask[MW(w)];
+    }
+    const int r = (w << 5) + 31 - (int)clz(m & (0u - m));
+    return r < hi ? r : -1;
+}
+#define BEFORE(e, lo) live_before(mask, C, c, (e), (lo))
+#define AFTER(e, hi) live_after(mask, C, c, (e), (hi))
+#define DROP(e) (mask[MW((e) >> 5)] &= ~(1u << ((e)&31)))
+
+// A y pass site's partial from its x row's 1-D distance d (0xFFFF: none): the y pass keeps d in
+// local memory (gl16, 2 bytes a position), not the partial.
+inline GT part16(uint d, ST s) {
+    return d == 0xFFFFu ? G_INF : offset_part((int)d, s);
+}
 
 // fpart with the sum rounded once (an fma), whatever the compiler would contract: with INDICES
 // the z pass finds a site's partial from its target (banded_part), which must be the y
@@ -1259,7 +1303,7 @@ inline GT banded_part(uint xy, uint x, uint y, ST sx, ST sy) {
                      sy);
 }
 // Site e's partial: from gl in the y pass, from its target in the z pass.
-#define GLV(e) (from16 ? gl[LI(e)] : banded_part(kl[LI(e)], x, o, sx, so))
+#define GLV(e) (from16 ? part16(gl16[LI(e)], sx) : banded_part(kl[LI(e)], x, o, sx, so))
 // Sep(i, u) with KEYED ties, the sites' keys found only where the two tie rules differ.
 #define BSEP(i, u, gi, gu) banded_sep(kl, keyx, C, c, from16, i, u, gi, gu, sp)
 inline int banded_sep(__local const uint* kl, __local const ushort* keyx, uint C, uint c,
@@ -1271,7 +1315,7 @@ inline int banded_sep(__local const uint* kl, __local const ushort* keyx, uint C
     return t.y != t.x && KEYED(BKEY(i), BKEY(u)) ? t.y : t.x;
 }
 #else
-#define GLV(e) gl[LI(e)]
+#define GLV(e) (from16 ? part16(gl16[LI(e)], sx) : gl[LI(e)])
 #define BSEP(i, u, gi, gu) sep((i), (u), (gi), (gu), sp)
 #endif
 // Whether BSEP(i, u, gi, gu) < t: for unit L2 by a multiplication (sep_below; with keys the
@@ -1306,11 +1350,12 @@ inline bool banded_below(__local const uint* kl, __local const ushort* keyx, uin
 // That pass is `final` and writes the signed value, an empty voxel's from the first
 // transform's partials `outer` (which may be `out`, of the same element size: neither is
 // `restrict`; each work-item reads its voxel's before writing it).
-// Local arrays of n * C entries (position p of line c at p * C + c): gl (the sites'
-// partials), prv, nxt (the list; LINK_DEAD: not in it; after the merges, prv of a kept site
-// holds 1 + the last position it owns); ends: 2 * C * K ints (each band's or merged group's
-// first and last site, -1 when it has none; after the merges, `last` of a band its first
-// position's owner). With INDICES the y pass writes each position's target (x << 16) | y to
+// Local arrays: gl, n * C entries (position p of line c at p * C + c: the sites' partials, in
+// the y pass (from16) their x rows' 16-bit distances, gl16);
+// mask, ceil(n / 32) * C words (the list's sites' bits, word w of line c at w * C + c); ends,
+// 2 * C * K ints (each band's or merged group's first and last site, -1 when it has none;
+// after the merges, `last` of a band its first position's owner). Bands of `band` positions, a
+// multiple of 32 (the host picks K so that they cover n). With INDICES the y pass writes each position's target (x << 16) | y to
 // `fout`, not its partial, and keyx (n * C, as gl) holds each position's x of its row's nearest
 // target, the targets being the world's nonzero voxels (`zero_targets` 0) or its zero ones (1,
 // SciPy's convention; as x_pass's `solid`); the z pass reads those targets from `fin` into kl
@@ -1320,8 +1365,8 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                           __global GT* restrict gout, __global OUT_T* out,
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
                           uint n, ulong stride, ulong mstride, uint from16, uint final,
-                          double dmax, __local GT* gl, __local ushort* prv, __local ushort* nxt,
-                          __local int* ends, uint O, uint border,
+                          double dmax, __local GT* gl, __local uint* mask, __local int* ends,
+                          uint O, uint border,
                           __global const uint* restrict fin, __global uint* restrict fout,
                           __global int* restrict idx, ulong count, __global const GT* outer,
                           ST sx, ST so, ST sp, __local ushort* keyx, uint zero_targets,
@@ -1333,31 +1378,36 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     const uint o = (uint)get_group_id(1) % O;
     const bool active = x < X;
     const size_t base = (size_t)(get_group_id(1) / O) * bstride + (size_t)o * mstride + x;
-    const int band = (int)((n + K - 1) / K);
+    const int band = (int)(((n + K - 1) / K + 31) / 32 * 32);
     __local int* first = ends;
     __local int* last = ends + C * K;
+    __local ushort* gl16 = (__local ushort*)gl;
 #if INDICES
     __local uint* kl = (__local uint*)gl;
 #endif
     // BANDED_LOADS positions per step, their loads issued before any is stored, so that a
     // work-item waits for one global load's latency per step, not per position.
     for (uint p0 = k; p0 < n; p0 += BANDED_LOADS * K) {
-        GT v[BANDED_LOADS];
+        uint d16[BANDED_LOADS];
 #if INDICES
         uint kx[BANDED_LOADS];
+#else
+        GT v[BANDED_LOADS];
 #endif
 #pragma unroll
         for (uint j = 0; j < BANDED_LOADS; ++j) {
             const uint p = p0 + j * K;
-            v[j] = G_INF;
+            d16[j] = 0xFFFFu;
 #if INDICES
             kx[j] = from16 ? 0u : UINT_MAX;
+#else
+            v[j] = G_INF;
 #endif
             if (active && p < n) {
                 const size_t i = base + p * stride;
                 if (from16) {
                     const uint d = in16[i];
-                    v[j] = d == 0xFFFFu ? G_INF : offset_part((int)d, sx);
+                    d16[j] = d;
 #if INDICES
                     // The x of the row's target d away: on the left where the world has a
                     // target there (a solid voxel; an empty one with `zero_targets`; the x
@@ -1378,25 +1428,33 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
         for (uint j = 0; j < BANDED_LOADS; ++j) {
             const uint p = p0 + j * K;
             if (p < n) {
-                nxt[LI(p)] = LINK_DEAD;
 #if INDICES
                 if (from16) {
-                    gl[LI(p)] = v[j];
+                    gl16[LI(p)] = (ushort)d16[j];
                     keyx[LI(p)] = (ushort)kx[j];
                 } else {
                     kl[LI(p)] = kx[j];
                 }
 #else
-                gl[LI(p)] = v[j];
+                if (from16) {
+                    gl16[LI(p)] = (ushort)d16[j];
+                } else {
+                    gl[LI(p)] = v[j];
+                }
 #endif
             }
         }
+    }
+    const int u0 = min((int)k * band, (int)n), u1 = min(u0 + band, (int)n);
+    // The band's mask words (none where it is past the line's end).
+    const int w0 = u0 >> 5, w1 = u0 < u1 ? (u1 + 31) >> 5 : w0;
+    for (int w = w0; w < w1; ++w) {
+        mask[MW(w)] = 0;
     }
     barrier(CLK_LOCAL_MEM_FENCE);
 
     // The band's envelope: push every site with a target, after dropping the top while the
     // new site makes it useless. top_sep caches Sep(the site below the top, the top).
-    const int u0 = min((int)k * band, (int)n), u1 = min(u0 + band, (int)n);
     int bot = -1, top = -1, top_sep = 0;
     GT gt = G_INF;
     for (int u = u0; u < u1; ++u) {
@@ -1420,20 +1478,22 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             if (keep) {
                 break;
             }
-            nxt[LI(top)] = LINK_DEAD;
-            top = prv[LI(top)];
+            DROP(top);
+            top = BEFORE(top, bot);
             gt = GLV(top);
-            top_sep = top == bot ? 0 : BSEP(prv[LI(top)], top, GLV(prv[LI(top)]), gt);
+            if (top != bot) {
+                const int below = BEFORE(top, bot);
+                top_sep = BSEP(below, top, GLV(below), gt);
+            } else {
+                top_sep = 0;
+            }
         }
         if (top < 0) {
             bot = u;
-            prv[LI(u)] = LINK_NONE;
         } else {
-            nxt[LI(top)] = (ushort)u;
-            prv[LI(u)] = (ushort)top;
             top_sep = su;
         }
-        nxt[LI(u)] = LINK_NONE;
+        mask[MW(u >> 5)] |= 1u << (u & 31);
         top = u;
         gt = gu;
     }
@@ -1455,25 +1515,23 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                     const GT glv = GLV(l), grv = GLV(r);
                     const int slr = BSEP(l, r, glv, grv);
                     if (l != lb) {
-                        const int lp = prv[LI(l)];
+                        const int lp = BEFORE(l, lb);
                         if (!BBELOW(lp, l, GLV(lp), glv, slr)) {
-                            nxt[LI(l)] = LINK_DEAD;
+                            DROP(l);
                             l = lp;
                             continue;
                         }
                     }
                     if (r != rt) {
-                        const int rn = nxt[LI(r)];
+                        const int rn = AFTER(r, rt + 1);
                         if (BBELOW(r, rn, grv, GLV(rn), slr + 1)) {
-                            nxt[LI(r)] = LINK_DEAD;
+                            DROP(r);
                             r = rn;
                             continue;
                         }
                     }
                     break;
                 }
-                nxt[LI(l)] = (ushort)r;
-                prv[LI(r)] = (ushort)l;
                 last[k * C + c] = rt;
             }
         }
@@ -1482,35 +1540,34 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
 
     // Every site still in the list owns the positions (Sep(predecessor, it), Sep(it,
     // successor)] (`hi` carries the previous site's end when that site is the predecessor):
-    // it keeps 1 + the last of them (clamped to [0, n]) in its prv entry, and names itself in
-    // `last` for every band whose first position it owns.
+    // it names itself in `last` for every band whose first position it owns.
     int prev = -1, hi = -1;
     const float inv_band = 1.0f / (float)band;
-    for (int e = u0; e < u1; ++e) {
-        const uint after = nxt[LI(e)];
-        if (after == LINK_DEAD) {
-            continue;
-        }
-        const uint before = prv[LI(e)];
-        const GT ge = GLV(e);
-        const int lo = before == LINK_NONE ? 0
-                       : (int)before == prev
-                           ? hi + 1
-                           : 1 + BSEP((int)before, e, GLV((int)before), ge);
-        hi = after == LINK_NONE ? (int)n - 1 : BSEP(e, (int)after, ge, GLV((int)after));
-        prev = e;
-        const int a = max(lo, 0), z = min(hi, (int)n - 1);
-        prv[LI(e)] = (ushort)max(z + 1, 0);
-        // The bands b with a <= b * band <= z; the first from a float quotient, corrected.
-        int b = (int)((float)a * inv_band);
-        while (b * band < a) {
-            ++b;
-        }
-        while (b > 0 && (b - 1) * band >= a) {
-            --b;
-        }
-        for (; b * band <= z; ++b) {
-            last[b * C + c] = e;
+    for (int w = w0; w < w1; ++w) {
+        uint m = mask[MW(w)];
+        while (m != 0) {
+            const int e = (w << 5) + 31 - (int)clz(m & (0u - m));
+            m &= m - 1u;
+            const int before = prev >= 0 ? prev : BEFORE(e, 0);
+            const int after = m != 0 ? (w << 5) + 31 - (int)clz(m & (0u - m)) : AFTER(e, (int)n);
+            const GT ge = GLV(e);
+            const int lo = before < 0         ? 0
+                           : before == prev ? hi + 1
+                                            : 1 + BSEP(before, e, GLV(before), ge);
+            hi = after < 0 ? (int)n - 1 : BSEP(e, after, ge, GLV(after));
+            prev = e;
+            const int a = max(lo, 0), z = min(hi, (int)n - 1);
+            // The bands b with a <= b * band <= z; the first from a float quotient, corrected.
+            int b = (int)((float)a * inv_band);
+            while (b * band < a) {
+                ++b;
+            }
+            while (b > 0 && (b - 1) * band >= a) {
+                --b;
+            }
+            for (; b * band <= z; ++b) {
+                last[b * C + c] = e;
+            }
         }
     }
     barrier(CLK_LOCAL_MEM_FENCE);
@@ -1520,11 +1577,17 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
         return;
     }
     // The band's positions from the owner of its first one along the list.
-    int e = none || u0 >= (int)n ? 0 : last[k * C + c];
-    // The owner's end (1 + its last position) and partial in registers, read again (from local
-    // memory) only when the walk moves on to the next owner.
-    uint end = prv[LI(e)];
-    GT ge = GLV(e);
+    const bool walk = !none && u0 < (int)n;
+    int e = walk ? last[k * C + c] : 0;
+    // The owner's partial and end (1 + its last position), its successor in the list (-1:
+    // none) and that one's partial in registers, read again (from local memory) only when the
+    // walk moves on to the next owner.
+    GT ge = GLV(e), gs = ge;
+    int succ = walk ? AFTER(e, (int)n) : -1;
+    if (succ >= 0) {
+        gs = GLV(succ);
+    }
+    uint end = succ < 0 ? n : (uint)clamp(BSEP(e, succ, ge, gs) + 1, 0, (int)n);
 #if INDICES
     // Likewise its target (x << 16) | y and, in the last pass, its (z, y, x) planes' values.
     uint key = none ? UINT_MAX : banded_xy(kl, keyx, LI(e), e, from16);
@@ -1538,10 +1601,16 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
         if (!none) {
             if (end <= p) {
                 do {
-                    e = nxt[LI(e)];
-                    end = prv[LI(e)];
+                    e = succ;
+                    ge = gs;
+                    succ = AFTER(e, (int)n);
+                    if (succ < 0) {
+                        end = n;
+                    } else {
+                        gs = GLV(succ);
+                        end = (uint)clamp(BSEP(e, succ, ge, gs) + 1, 0, (int)n);
+                    }
                 } while (end <= p);
-                ge = GLV(e);
 #if INDICES
                 key = banded_xy(kl, keyx, LI(e), e, from16);
                 if (final) {

@@ -178,7 +178,7 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     // The z pass's lines: the world's, or each stacked block's (z_period_).
     const std::uint32_t zline = z_period_ != 0 ? z_period_ : Z;
     const bool banded_fits =
-        gpu_layout_ && !incremental && X < 0xFFFF && Y < kLinkLimit && zline < kLinkLimit &&
+        gpu_layout_ && !incremental && X < 0xFFFF && Y < kSiteLimit && zline < kSiteLimit &&
         cl::Kernel(program_, "cols_banded")
                 .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
     // With index planes the y pass also keeps each position's target x (2 bytes).
@@ -419,13 +419,21 @@ std::uint32_t ExactSeparable::banded_lines(std::uint32_t n, std::size_t gt_bytes
     return 0;
 }
 
+std::uint32_t ExactSeparable::banded_bands(std::uint32_t n, std::uint32_t lines) {
+    // As many as the group holds, but no more than n's words of 32 positions (rounded up to a
+    // power of two): a band's mask words are its work-item's own.
+    return static_cast<std::uint32_t>(
+        std::min<std::size_t>(kBandedGroup / lines, next_pow2((std::size_t{n} + 31) / 32)));
+}
+
 std::size_t ExactSeparable::banded_local_bytes(std::uint32_t n, std::uint32_t lines,
                                                std::size_t gt_bytes, std::size_t key_bytes) {
-    // gl (gt_bytes), prv and nxt (2 each) and keyx (key_bytes) per position and line (without
-    // keys, keyx's 2-byte token, counted as 16 for the runtime's alignment of local arguments);
-    // first and last per band.
-    return banded_cells(n, lines) * (gt_bytes + 4 + key_bytes) + (key_bytes == 0 ? 16 : 0) +
-           2 * std::size_t{kBandedGroup} * 4;
+    // gl (gt_bytes) and keyx (key_bytes) per position and line (without keys, keyx's 2-byte
+    // token, counted as 16 for the runtime's alignment of local arguments); the mask's word per
+    // 32 positions and line; first and last per band.
+    return banded_cells(n, lines) * (gt_bytes + key_bytes) + (key_bytes == 0 ? 16 : 0) +
+           (std::size_t{n} + 31) / 32 * lines * 4 +
+           2 * std::size_t{lines} * banded_bands(n, lines) * 4;
 }
 
 std::size_t ExactSeparable::banded_cells(std::uint32_t n, std::uint32_t lines) {
@@ -442,7 +450,7 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
                                            std::uint64_t stride, std::uint64_t mstride,
                                            std::uint32_t lines_o, bool final,
                                            const cl::Buffer* parts, bool border) {
-    const std::uint32_t k = kBandedGroup / c;
+    const std::uint32_t k = banded_bands(n, c);
     cl::Kernel kernel(program_, "cols_banded");
     const bool y = axis == 1;
     // With indices the y pass writes its targets into feat_[1], the z pass reads them; neither
@@ -464,29 +472,28 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(12, max_distance_);
     const std::size_t cells = banded_cells(n, c);
     kernel.setArg(13, cl::Local(cells * banded_site_bytes(y, keyed)));
-    kernel.setArg(14, cl::Local(cells * 2));
-    kernel.setArg(15, cl::Local(cells * 2));
-    kernel.setArg(16, cl::Local(std::size_t{2} * kBandedGroup * 4));
-    kernel.setArg(17, lines_o);
-    kernel.setArg(18, cl_uint{border ? 1u : 0u});
+    kernel.setArg(14, cl::Local((std::size_t{n} + 31) / 32 * c * 4));
+    kernel.setArg(15, cl::Local(std::size_t{2} * c * k * 4));
+    kernel.setArg(16, lines_o);
+    kernel.setArg(17, cl_uint{border ? 1u : 0u});
     // Valid buffers where there are no features (the kernel does not touch them then).
-    kernel.setArg(19, keyed && !y ? feat_[1] : voxels_);
-    kernel.setArg(20, keyed && y ? feat_[1] : out_);
-    kernel.setArg(21, keyed ? indices_ : out_);
-    kernel.setArg(22, static_cast<cl_ulong>(dims_.count()));
+    kernel.setArg(18, keyed && !y ? feat_[1] : voxels_);
+    kernel.setArg(19, keyed && y ? feat_[1] : out_);
+    kernel.setArg(20, keyed ? indices_ : out_);
+    kernel.setArg(21, static_cast<cl_ulong>(dims_.count()));
     // A signed field's solids' partials, from the first transform's z pass (read by the
     // second's, `final`).
-    kernel.setArg(23, g_[0]);
+    kernel.setArg(22, g_[0]);
     // The spacing along x, along the lines' other axis and along the lines.
-    set_spacing(kernel, 24, spacing_.x);
-    set_spacing(kernel, 25, y ? spacing_.z : spacing_.y);
-    set_spacing(kernel, 26, y ? spacing_.y : spacing_.z);
+    set_spacing(kernel, 23, spacing_.x);
+    set_spacing(kernel, 24, y ? spacing_.z : spacing_.y);
+    set_spacing(kernel, 25, y ? spacing_.y : spacing_.z);
     // The y pass's target x per position, for its keys (a token 2 bytes elsewhere).
-    kernel.setArg(27, cl::Local(keyed && y ? cells * 2 : 2));
-    kernel.setArg(28, cl_uint{zero_targets_ ? 1u : 0u});
+    kernel.setArg(26, cl::Local(keyed && y ? cells * 2 : 2));
+    kernel.setArg(27, cl_uint{zero_targets_ ? 1u : 0u});
     // The z pass of stacked blocks (n = z_period_): lines_o lines per block, n z-slices apart.
     const std::uint32_t blocks = y ? 1 : dims_.z / n;
-    kernel.setArg(29, static_cast<cl_ulong>(stride * n));
+    kernel.setArg(28, static_cast<cl_ulong>(stride * n));
     return {y ? "y_banded" : "z_banded", kernel,
             cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * blocks * k),
             cl::NDRange(c, k)};

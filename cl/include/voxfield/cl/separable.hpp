@@ -68,21 +68,23 @@ class ExactSeparable : public Generator {
                 std::span<std::int32_t> indices, const Palette& palette,
                 const GeneratorOptions& options);
 
-    // One work-group of cols_banded: kBandedGroup work-items, `banded_lines(n, gt_bytes,
-    // local_mem, key_bytes)` lines of n positions of partials of gt_bytes and key_bytes more
-    // per position (the y pass's target x with index planes) (0: lines of n do not fit that
-    // much local memory); its sites are 16-bit list links below kLinkLimit.
+    // One work-group of cols_banded: `banded_lines(n, gt_bytes, local_mem, key_bytes)` lines
+    // of n positions of partials of gt_bytes and key_bytes more per position (the y pass's
+    // target x with index planes) (0: lines of n do not fit that much local memory), each in
+    // `banded_bands(n, lines)` bands (work-items) of a multiple of 32 positions, at most
+    // kBandedGroup work-items; its sites' positions (16-bit in its keys) below kSiteLimit.
     static constexpr std::uint32_t kBandedGroup = 256;
-    static constexpr std::uint32_t kLinkLimit = 0xFFFE;
+    static constexpr std::uint32_t kSiteLimit = 0xFFFE;
     static std::uint32_t banded_lines(std::uint32_t n, std::size_t gt_bytes, std::size_t local_mem,
                                       std::size_t key_bytes = 0);
+    static std::uint32_t banded_bands(std::uint32_t n, std::uint32_t lines);
     static std::size_t banded_local_bytes(std::uint32_t n, std::uint32_t lines,
                                           std::size_t gt_bytes, std::size_t key_bytes = 0);
     static std::size_t banded_cells(std::uint32_t n, std::uint32_t lines);  // per local array
-    // Bytes per position of cols_banded's sites: the partials (gt_bytes_), or in the z pass
-    // (y_pass false) with index planes the y pass's targets (4 bytes).
+    // Bytes per position of cols_banded's sites: in the y pass their x rows' 16-bit distances;
+    // in the z pass the partials (gt_bytes_), or with index planes the y pass's targets (4).
     std::size_t banded_site_bytes(bool y_pass, bool indices) const {
-        return indices && !y_pass ? 4 : gt_bytes_;
+        return y_pass ? 2 : indices ? 4 : gt_bytes_;
     }
     // The banded y (axis 1) or z (axis 2) pass over lines of n positions `stride` apart, `c`
     // lines per work-group, line starts x + o * mstride for the lines_o values of o (the z
