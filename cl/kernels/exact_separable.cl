@@ -1302,7 +1302,8 @@ inline GT banded_part(uint xy, uint x, uint y, ST sx, ST sy) {
     return fpart_fma((int)y, (int)(xy & 0xFFFFu), offset_part(abs((int)x - (int)(xy >> 16)), sx),
                      sy);
 }
-// Site e's partial: from gl in the y pass, from its target in the z pass.
+// Site e's partial: from its x row's distance (gl16) in the y pass, from its target in the z
+// pass.
 #define GLV(e) (from16 ? part16(gl16[LI(e)], sx) : banded_part(kl[LI(e)], x, o, sx, so))
 // Sep(i, u) with KEYED ties, the sites' keys found only where the two tie rules differ.
 #define BSEP(i, u, gi, gu) banded_sep(kl, keyx, C, c, from16, i, u, gi, gu, sp)
@@ -1351,11 +1352,12 @@ inline bool banded_below(__local const uint* kl, __local const ushort* keyx, uin
 // transform's partials `outer` (which may be `out`, of the same element size: neither is
 // `restrict`; each work-item reads its voxel's before writing it).
 // Local arrays: gl, n * C entries (position p of line c at p * C + c: the sites' partials, in
-// the y pass (from16) their x rows' 16-bit distances, gl16);
-// mask, ceil(n / 32) * C words (the list's sites' bits, word w of line c at w * C + c); ends,
-// 2 * C * K ints (each band's or merged group's first and last site, -1 when it has none;
-// after the merges, `last` of a band its first position's owner). Bands of `band` positions, a
-// multiple of 32 (the host picks K so that they cover n). With INDICES the y pass writes each position's target (x << 16) | y to
+// the y pass (from16) their x rows' 16-bit distances, gl16); mask, ceil(n / 32) * C words (the
+// list's sites' bits, word w of line c at w * C + c); ends, 2 * C * K ints (each band's or
+// merged group's first and last site, -1 when it has none; after the merges, `last` of a band
+// its first position's owner). K bands of `band` positions, the least multiple of 32 with which
+// they cover n (bands past n are empty). With INDICES the y pass writes each position's target
+// (x << 16) | y to
 // `fout`, not its partial, and keyx (n * C, as gl) holds each position's x of its row's nearest
 // target, the targets being the world's nonzero voxels (`zero_targets` 0) or its zero ones (1,
 // SciPy's convention; as x_pass's `solid`); the z pass reads those targets from `fin` into kl

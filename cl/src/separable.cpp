@@ -428,12 +428,14 @@ std::uint32_t ExactSeparable::banded_bands(std::uint32_t n, std::uint32_t lines)
 
 std::size_t ExactSeparable::banded_local_bytes(std::uint32_t n, std::uint32_t lines,
                                                std::size_t gt_bytes, std::size_t key_bytes) {
-    // gl (gt_bytes) and keyx (key_bytes) per position and line (without keys, keyx's 2-byte
-    // token, counted as 16 for the runtime's alignment of local arguments); the mask's word per
-    // 32 positions and line; first and last per band.
-    return banded_cells(n, lines) * (gt_bytes + key_bytes) + (key_bytes == 0 ? 16 : 0) +
-           (std::size_t{n} + 31) / 32 * lines * 4 +
-           2 * std::size_t{lines} * banded_bands(n, lines) * 4;
+    // gl (gt_bytes) and keyx (key_bytes, without keys a 2-byte token) per position and line;
+    // the mask's word per 32 positions and line; first and last per band: each local argument
+    // rounded up to 16 bytes for the runtime's alignment.
+    const auto arg = [](std::size_t bytes) { return (bytes + 15) / 16 * 16; };
+    const std::size_t cells = banded_cells(n, lines);
+    return arg(cells * gt_bytes) + arg(key_bytes == 0 ? 2 : cells * key_bytes) +
+           arg((std::size_t{n} + 31) / 32 * lines * 4) +
+           arg(2 * std::size_t{lines} * banded_bands(n, lines) * 4);
 }
 
 std::size_t ExactSeparable::banded_cells(std::uint32_t n, std::uint32_t lines) {

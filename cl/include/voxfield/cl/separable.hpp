@@ -69,10 +69,11 @@ class ExactSeparable : public Generator {
                 const GeneratorOptions& options);
 
     // One work-group of cols_banded: `banded_lines(n, gt_bytes, local_mem, key_bytes)` lines
-    // of n positions of partials of gt_bytes and key_bytes more per position (the y pass's
-    // target x with index planes) (0: lines of n do not fit that much local memory), each in
-    // `banded_bands(n, lines)` bands (work-items) of a multiple of 32 positions, at most
-    // kBandedGroup work-items; its sites' positions (16-bit in its keys) below kSiteLimit.
+    // of n positions of gt_bytes (banded_site_bytes: partials, 16-bit distances or targets) and
+    // key_bytes more per position (the y pass's target x with index planes) (0: lines of n do
+    // not fit that much local memory), each in `banded_bands(n, lines)` bands (work-items) of a
+    // multiple of 32 positions, at most kBandedGroup work-items; lines shorter than kSiteLimit
+    // (positions are 16 bits in the sites' keys).
     static constexpr std::uint32_t kBandedGroup = 256;
     static constexpr std::uint32_t kSiteLimit = 0xFFFE;
     static std::uint32_t banded_lines(std::uint32_t n, std::size_t gt_bytes, std::size_t local_mem,
