@@ -1225,6 +1225,11 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 #define LI(p) ((p) * C + c)
 #define MW(w) ((w) * C + c)
 
+// The lowest set bit of a nonzero word m, as position w * 32 + bit.
+inline int lowest_site(int w, uint m) {
+    return (w << 5) + 31 - (int)clz(m & (0u - m));
+}
+
 // The site in the list nearest below e and not below lo, or -1.
 inline int live_before(__local const uint* mask, uint C, uint c, int e, int lo) {
     int w = e >> 5;
@@ -1253,7 +1258,7 @@ inline int live_after(__local const uint* mask, uint C, uint c, int e, int hi) {
         }
         m = mask[MW(w)];
     }
-    const int r = (w << 5) + 31 - (int)clz(m & (0u - m));
+    const int r = lowest_site(w, m);
     return r < hi ? r : -1;
 }
 #define BEFORE(e, lo) live_before(mask, C, c, (e), (lo))
@@ -1548,10 +1553,10 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     for (int w = w0; w < w1; ++w) {
         uint m = mask[MW(w)];
         while (m != 0) {
-            const int e = (w << 5) + 31 - (int)clz(m & (0u - m));
+            const int e = lowest_site(w, m);
             m &= m - 1u;
             const int before = prev >= 0 ? prev : BEFORE(e, 0);
-            const int after = m != 0 ? (w << 5) + 31 - (int)clz(m & (0u - m)) : AFTER(e, (int)n);
+            const int after = m != 0 ? lowest_site(w, m) : AFTER(e, (int)n);
             const GT ge = GLV(e);
             const int lo = before < 0         ? 0
                            : before == prev ? hi + 1

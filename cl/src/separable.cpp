@@ -434,12 +434,19 @@ std::size_t ExactSeparable::banded_local_bytes(std::uint32_t n, std::uint32_t li
     const auto arg = [](std::size_t bytes) { return (bytes + 15) / 16 * 16; };
     const std::size_t cells = banded_cells(n, lines);
     return arg(cells * gt_bytes) + arg(key_bytes == 0 ? 2 : cells * key_bytes) +
-           arg((std::size_t{n} + 31) / 32 * lines * 4) +
-           arg(2 * std::size_t{lines} * banded_bands(n, lines) * 4);
+           arg(banded_mask_bytes(n, lines)) + arg(banded_ends_bytes(n, lines));
 }
 
 std::size_t ExactSeparable::banded_cells(std::uint32_t n, std::uint32_t lines) {
     return std::size_t{n} * lines;
+}
+
+std::size_t ExactSeparable::banded_mask_bytes(std::uint32_t n, std::uint32_t lines) {
+    return (std::size_t{n} + 31) / 32 * lines * 4;
+}
+
+std::size_t ExactSeparable::banded_ends_bytes(std::uint32_t n, std::uint32_t lines) {
+    return 2 * std::size_t{lines} * banded_bands(n, lines) * 4;
 }
 
 KernelLaunch ExactSeparable::items_launch(const char* name, const cl::Kernel& k,
@@ -474,8 +481,8 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(12, max_distance_);
     const std::size_t cells = banded_cells(n, c);
     kernel.setArg(13, cl::Local(cells * banded_site_bytes(y, keyed)));
-    kernel.setArg(14, cl::Local((std::size_t{n} + 31) / 32 * c * 4));
-    kernel.setArg(15, cl::Local(std::size_t{2} * c * k * 4));
+    kernel.setArg(14, cl::Local(banded_mask_bytes(n, c)));
+    kernel.setArg(15, cl::Local(banded_ends_bytes(n, c)));
     kernel.setArg(16, lines_o);
     kernel.setArg(17, cl_uint{border ? 1u : 0u});
     // Valid buffers where there are no features (the kernel does not touch them then).

@@ -82,6 +82,9 @@ class ExactSeparable : public Generator {
     static std::size_t banded_local_bytes(std::uint32_t n, std::uint32_t lines,
                                           std::size_t gt_bytes, std::size_t key_bytes = 0);
     static std::size_t banded_cells(std::uint32_t n, std::uint32_t lines);  // per local array
+    // The mask's words (one per 32 positions and line) and the bands' first and last sites.
+    static std::size_t banded_mask_bytes(std::uint32_t n, std::uint32_t lines);
+    static std::size_t banded_ends_bytes(std::uint32_t n, std::uint32_t lines);
     // Bytes per position of cols_banded's sites: in the y pass their x rows' 16-bit distances;
     // in the z pass the partials (gt_bytes_), or with index planes the y pass's targets (4).
     std::size_t banded_site_bytes(bool y_pass, bool indices) const {
