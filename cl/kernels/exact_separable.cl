@@ -110,10 +110,33 @@ inline long l2_num(int i, int u, GT gi, GT gu) {
 #endif
 }
 #elif METRIC == 2
-// L2's tie point of sites i < u with spacing s: the x at which they are equally near.
+// L2's tie point of sites i < u with spacing s: the x at which they are equally near,
+// (s^2 (u^2 - i^2) + gu - gi) / (2 s^2 (u - i)) as (u + i) / 2 (exact) plus the partials' term:
+// the squares of positions thousands apart would lose the separator's digits in float.
 inline ST l2_tie_point(int i, int u, GT gi, GT gu, ST s) {
-    const ST fi = (ST)i, fu = (ST)u, s2 = s * s;
-    return (s2 * (fu * fu - fi * fi) + gu - gi) / ((ST)2 * s2 * (fu - fi));
+    return (ST)(u + i) * (ST)0.5 + (gu - gi) / ((ST)2 * (s * s) * (ST)(u - i));
+}
+#endif
+
+#if METRIC == 2 && !UNIT
+// L2's Sep(i, u) with spacing (sep_tie's rule): the floor of the tie point, then moved by one
+// where site i's partial at the position after it, as fpart evaluates it, is still at least as
+// near (strictly with e), or at that floor is not: a tie point thousands of positions along the
+// line has only a few bits below the point in float, so that its floor alone could give a
+// position to the farther site by far more than the partials' rounding.
+inline int l2_sep(int i, int u, GT gi, GT gu, ST s, int e) {
+    const ST v = clamp(floor_tie(l2_tie_point(i, u, gi, gu, s), e), (ST)-4, (ST)SEP_NEVER);
+    int q = (int)v;
+    if (q > -4 && q < SEP_NEVER) {
+        const GT a = fpart(q + 1, i, gi, s), b = fpart(q + 1, u, gu, s);
+        const GT c = fpart(q, i, gi, s), d = fpart(q, u, gu, s);
+        if (e ? a < b : a <= b) {
+            ++q;
+        } else if (e ? c >= d : c > d) {
+            --q;
+        }
+    }
+    return q;
 }
 #endif
 
@@ -156,7 +179,7 @@ inline int sep_tie(int i, int u, GT gi, GT gu, ST s, int e) {
     return q;
 #endif
 #elif METRIC == 2
-    return (int)clamp(floor_tie(l2_tie_point(i, u, gi, gu, s), e), (ST)-4, (ST)SEP_NEVER);
+    return l2_sep(i, u, gi, gu, s, e);
 #else
     const ST fi = (ST)i, fu = (ST)u;
 #if METRIC == 0
@@ -218,9 +241,7 @@ inline int2 sep_pair(int i, int u, GT gi, GT gu, ST s) {
     const int q = sep_tie(i, u, gi, gu, s, 0);
     return (int2)(q, (long)q * (2 * (long)(u - i)) == l2_num(i, u, gi, gu) ? q - 1 : q);
 #elif METRIC == 2 && !UNIT
-    const ST v = l2_tie_point(i, u, gi, gu, s);
-    return (int2)((int)clamp(floor_tie(v, 0), (ST)-4, (ST)SEP_NEVER),
-                  (int)clamp(floor_tie(v, 1), (ST)-4, (ST)SEP_NEVER));
+    return (int2)(l2_sep(i, u, gi, gu, s, 0), l2_sep(i, u, gi, gu, s, 1));
 #else
     return (int2)(sep_tie(i, u, gi, gu, s, 0), sep_tie(i, u, gi, gu, s, 1));
 #endif
