@@ -1242,6 +1242,22 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 // 3.45 ms with one, 1.74 and 3.34 with 8, 1.73 and 3.32 with 16).
 #define BANDED_LOADS 8
 
+// BANDED_GLOBAL (a second build of this file): lines too long for local memory keep gl, mask and
+// keyx in global memory instead, each work-group its own part of buffers the host sizes for
+// every group (`banded_scratch`); the same code, its barriers fencing global memory too. Lines
+// of tens of thousands of positions then still take many bands in parallel, where col_pass
+// would give each line one work-item.
+#ifndef BANDED_GLOBAL
+#define BANDED_GLOBAL 0
+#endif
+#if BANDED_GLOBAL
+#define BAS __global
+#define BANDED_FENCE (CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE)
+#else
+#define BAS __local
+#define BANDED_FENCE CLK_LOCAL_MEM_FENCE
+#endif
+
 // Position p of line c in the local arrays; word w of its line's mask.
 #define LI(p) ((p) * C + c)
 #define MW(w) ((w) * C + c)
@@ -1252,7 +1268,7 @@ inline int lowest_site(int w, uint m) {
 }
 
 // The site in the list nearest below e and not below lo, or -1.
-inline int live_before(__local const uint* mask, uint C, uint c, int e, int lo) {
+inline int live_before(BAS const uint* mask, uint C, uint c, int e, int lo) {
     int w = e >> 5;
     uint m = mask[MW(w)] & ((1u << (e & 31)) - 1u);
     while (m == 0) {
@@ -1266,7 +1282,7 @@ inline int live_before(__local const uint* mask, uint C, uint c, int e, int lo) 
 }
 
 // The site in the list nearest above e and below hi, or -1.
-inline int live_after(__local const uint* mask, uint C, uint c, int e, int hi) {
+inline int live_after(BAS const uint* mask, uint C, uint c, int e, int hi) {
     const int s = e + 1;
     int w = s >> 5;
     if ((w << 5) >= hi) {
@@ -1312,7 +1328,7 @@ inline GT fpart_fma(int x, int i, GT gi, ST s) {
 // and never reads a key from global memory.
 // Site e's (x << 16) | y: in the y pass from the x of its x row's nearest target, which the
 // loads put in keyx, and e; in the z pass from kl.
-inline uint banded_xy(__local const uint* kl, __local const ushort* keyx, uint li, int e,
+inline uint banded_xy(BAS const uint* kl, BAS const ushort* keyx, uint li, int e,
                       uint from16) {
     return from16 ? ((uint)keyx[li] << 16) | (uint)e : kl[li];
 }
@@ -1333,7 +1349,7 @@ inline GT banded_part(uint xy, uint x, uint y, ST sx, ST sy) {
 #define GLV(e) (from16 ? part16(gl16[LI(e)], sx) : banded_part(kl[LI(e)], x, o, sx, so))
 // Sep(i, u) with KEYED ties, the sites' keys found only where the two tie rules differ.
 #define BSEP(i, u, gi, gu) banded_sep(kl, keyx, C, c, from16, i, u, gi, gu, sp)
-inline int banded_sep(__local const uint* kl, __local const ushort* keyx, uint C, uint c,
+inline int banded_sep(BAS const uint* kl, BAS const ushort* keyx, uint C, uint c,
                       uint from16, int i, int u, GT gi, GT gu, ST sp) {
     if (KEYED(1u, 0u) == 0) {
         return sep_tie(i, u, gi, gu, sp, 0);  // L-inf: the lower position wins
@@ -1351,7 +1367,7 @@ inline int banded_sep(__local const uint* kl, __local const ushort* keyx, uint C
 #define BANDED_PRODUCT_TESTS (UNIT && METRIC == 2)
 #if BANDED_PRODUCT_TESTS && INDICES
 #define BBELOW(i, u, gi, gu, t) banded_below(kl, keyx, C, c, from16, i, u, gi, gu, t)
-inline bool banded_below(__local const uint* kl, __local const ushort* keyx, uint C, uint c,
+inline bool banded_below(BAS const uint* kl, BAS const ushort* keyx, uint C, uint c,
                          uint from16, int i, int u, GT gi, GT gu, int t) {
     const long num = l2_num(i, u, gi, gu), prod = (long)t * (2 * (long)(u - i));
     return num < prod || (num == prod && KEYED(BKEY(i), BKEY(u)));
@@ -1377,27 +1393,26 @@ inline bool banded_below(__local const uint* kl, __local const ushort* keyx, uin
 // That pass is `final` and writes the signed value, an empty voxel's from the first
 // transform's partials `outer` (which may be `out`, of the same element size: neither is
 // `restrict`; each work-item reads its voxel's before writing it).
-// Local arrays: gl, n * C entries (position p of line c at p * C + c: the sites' partials, in
-// the y pass (from16) their x rows' 16-bit distances, gl16); mask, ceil(n / 32) * C words (the
-// list's sites' bits, word w of line c at w * C + c); ends, 2 * C * K ints (each band's or
-// merged group's first and last site, -1 when it has none; after the merges, `last` of a band
-// its first position's owner). K bands of `band` positions, the least multiple of 32 with which
-// they cover n (bands past n are empty). With INDICES the y pass writes each position's target
-// (x << 16) | y to
-// `fout`, not its partial, and keyx (n * C, as gl) holds each position's x of its row's nearest
-// target, the targets being the world's nonzero voxels (`zero_targets` 0) or its zero ones (1,
-// SciPy's convention; as x_pass's `solid`); the z pass reads those targets from `fin` into kl
-// (gl's memory, then 4 bytes a cell whatever the partials' width) and writes the index planes
-// `idx` of the world's `count` voxels.
+// Local arrays (global with BANDED_GLOBAL): gl, n * C entries (position p of line c at p * C + c:
+// the sites' partials, in the y pass (from16) their x rows' 16-bit distances, gl16); mask, ceil(n /
+// 32) * C words (the list's sites' bits, word w of line c at w * C + c); ends, 2 * C * K ints,
+// always local (each band's or merged group's first and last site, -1 when it has none; after the
+// merges, `last` of a band its first position's owner). K bands of `band` positions, the least
+// multiple of 32 with which they cover n (bands past n are empty). With INDICES the y pass writes
+// each position's target (x << 16) | y to `fout`, not its partial, and keyx (n * C, as gl) holds
+// each position's x of its row's nearest target, the targets being the world's nonzero voxels
+// (`zero_targets` 0) or its zero ones (1, SciPy's convention; as x_pass's `solid`); the z pass
+// reads those targets from `fin` into kl (gl's memory, then 4 bytes a cell whatever the partials'
+// width) and writes the index planes `idx` of the world's `count` voxels.
 __kernel void cols_banded(__global const ushort* restrict in16, __global const GT* restrict in,
                           __global GT* restrict gout, __global OUT_T* out,
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
                           uint n, ulong stride, ulong mstride, uint from16, uint final,
-                          double dmax, __local GT* gl, __local uint* mask, __local int* ends,
+                          double dmax, BAS GT* gl, BAS uint* mask, __local int* ends,
                           uint O, uint border,
                           __global const uint* restrict fin, __global uint* restrict fout,
                           __global int* restrict idx, ulong count, __global const GT* outer,
-                          ST sx, ST so, ST sp, __local ushort* keyx, uint zero_targets,
+                          ST sx, ST so, ST sp, BAS ushort* keyx, uint zero_targets,
                           ulong bstride) {
     const uint C = (uint)get_local_size(0), K = (uint)get_local_size(1);
     const uint c = (uint)get_local_id(0), k = (uint)get_local_id(1);
@@ -1409,9 +1424,22 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     const int band = (int)(((n + K - 1) / K + 31) / 32 * 32);
     __local int* first = ends;
     __local int* last = ends + C * K;
-    __local ushort* gl16 = (__local ushort*)gl;
+#if BANDED_GLOBAL
+    // This work-group's part of the scratch: its lines' sites (2 bytes a position in the y
+    // pass, 4 with INDICES in the z pass, else a partial), mask words and (the y pass with
+    // INDICES) target x.
+    const size_t group = get_group_id(1) * get_num_groups(0) + get_group_id(0);
+    const size_t cells = (size_t)n * C;
+    const size_t site_bytes = from16 ? 2 : INDICES ? 4 : sizeof(GT);
+    gl = (__global GT*)((__global uchar*)gl + group * cells * site_bytes);
+    mask += group * (size_t)((n + 31) / 32) * C;
+    if (INDICES && from16) {
+        keyx += group * cells;
+    }
+#endif
+    BAS ushort* gl16 = (BAS ushort*)gl;
 #if INDICES
-    __local uint* kl = (__local uint*)gl;
+    BAS uint* kl = (BAS uint*)gl;
 #endif
     // BANDED_LOADS positions per step, their loads issued before any is stored, so that a
     // work-item waits for one global load's latency per step, not per position.
@@ -1479,7 +1507,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     for (int w = w0; w < w1; ++w) {
         mask[MW(w)] = 0;
     }
-    barrier(CLK_LOCAL_MEM_FENCE);
+    barrier(BANDED_FENCE);
 
     // The band's envelope: push every site with a target, after dropping the top while the
     // new site makes it useless. top_sep caches Sep(the site below the top, the top).
@@ -1530,7 +1558,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
 
     // Merge the groups [k, k + span) and [k + span, k + 2 span) into the first.
     for (uint span = 1; span < K; span <<= 1) {
-        barrier(CLK_LOCAL_MEM_FENCE);
+        barrier(BANDED_FENCE);
         if ((k & (2 * span - 1)) == 0 && k + span < K) {
             const int lb = first[k * C + c], rb = first[(k + span) * C + c];
             const int rt = last[(k + span) * C + c];
@@ -1564,7 +1592,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             }
         }
     }
-    barrier(CLK_LOCAL_MEM_FENCE);
+    barrier(BANDED_FENCE);
 
     // Every site still in the list owns the positions (Sep(predecessor, it), Sep(it,
     // successor)] (`hi` carries the previous site's end when that site is the predecessor):
@@ -1598,7 +1626,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
             }
         }
     }
-    barrier(CLK_LOCAL_MEM_FENCE);
+    barrier(BANDED_FENCE);
 
     const bool none = first[c] < 0;
     if (!active) {

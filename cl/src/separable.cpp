@@ -177,18 +177,50 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     // its sites' keys from the x rows and the world, and the z pass writes the index planes.
     // The z pass's lines: the world's, or each stacked block's (z_period_).
     const std::uint32_t zline = z_period_ != 0 ? z_period_ : Z;
-    const bool banded_fits =
-        gpu_layout_ && !incremental && X < 0xFFFF && Y < kSiteLimit && zline < kSiteLimit &&
-        cl::Kernel(program_, "cols_banded")
-                .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
-    // With index planes the y pass also keeps each position's target x (2 bytes).
-    const std::uint32_t lines_y = banded_fits
-                                      ? banded_lines(Y, banded_site_bytes(true, options.indices),
-                                                     info.local_mem, options.indices ? 2 : 0)
-                                      : 0;
-    const std::uint32_t lines_z =
-        banded_fits ? banded_lines(zline, banded_site_bytes(false, options.indices), info.local_mem)
+    const auto group_fits = [&](const cl::Program& program) {
+        return cl::Kernel(program, "cols_banded")
+                   .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device) >= kBandedGroup;
+    };
+    bool banded_fits = gpu_layout_ && !incremental && X < 0xFFFF && Y < kSiteLimit &&
+                       zline < kSiteLimit && group_fits(program_);
+    // With index planes the y pass also keeps each position's target x (2 bytes). At most
+    // kBandedLocalCap of local memory, as on a GPU (so that PoCL runs what GPUs run).
+    const std::size_t banded_local = std::min(info.local_mem, kBandedLocalCap);
+    std::uint32_t lines_y = banded_fits ? banded_lines(Y, banded_site_bytes(true, options.indices),
+                                                       banded_local, options.indices ? 2 : 0)
+                                        : 0;
+    std::uint32_t lines_z =
+        banded_fits ? banded_lines(zline, banded_site_bytes(false, options.indices), banded_local)
                     : 0;
+    // A pass whose lines do not fit keeps its lists in global memory (BANDED_GLOBAL, a second
+    // program), kBandedGlobalLines lines a group, where its scratch fits one buffer.
+    global_y_ = banded_fits && lines_y == 0;
+    global_z_ = banded_fits && lines_z == 0;
+    if (global_y_ || global_z_) {
+        lines_y = global_y_ ? kBandedGlobalLines : lines_y;
+        lines_z = global_z_ ? kBandedGlobalLines : lines_z;
+        scratch_bytes_ = {};
+        for (const int axis : {1, 2}) {
+            if (axis == 1 ? global_y_ : global_z_) {
+                const auto b = banded_scratch(axis == 1 ? Y : zline, axis == 1, options.indices);
+                for (std::size_t i = 0; i < b.size(); ++i) {
+                    scratch_bytes_[i] = std::max(scratch_bytes_[i], b[i]);
+                }
+            }
+        }
+        banded_fits =
+            *std::max_element(scratch_bytes_.begin(), scratch_bytes_.end()) <= info.max_alloc;
+        if (banded_fits) {
+            program_global_ = ctx.program("exact_separable.cl",
+                                          {cl_sources::layout_h, cl_sources::exact_separable_cl},
+                                          build + " -DBANDED_GLOBAL=1");
+            banded_fits = group_fits(program_global_);
+        }
+        if (!banded_fits) {
+            lines_y = lines_z = 0;
+            global_y_ = global_z_ = false;
+        }
+    }
 
     // Unit L1 with indices, a full unsigned transform in the CPU layout: l1_xy_keys and
     // l1_z_out, where the keys' 16-bit x and y hold X and Y and the local memory the rows and
@@ -270,6 +302,9 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                                                     3 * n * 4, indices.data());
             feat_[0] = indices_;
             feat_[1] = shared_parts_ ? indices_ : make_buffer(n * 4, CL_MEM_READ_WRITE);
+        }
+        for (std::size_t i = 0; i < scratch_bytes_.size() && (global_y_ || global_z_); ++i) {
+            banded_scratch_[i] = make_buffer(scratch_bytes_[i], CL_MEM_READ_WRITE);
         }
         for (int k = parts; k < 3; ++k) {
             g_[k] = g_[0];
@@ -380,8 +415,8 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                 const cl::Buffer inner[2] = {h_[0], g_[1]};
                 KernelLaunch y = banded_kernel(1, Y, lines_y, X, plane, Z, false, inner);
                 KernelLaunch z = banded_kernel(2, zline, lines_z, plane, X, Y, true, inner, true);
-                y.name = "y_banded_inner";
-                z.name = "z_banded_inner";
+                y.name += "_inner";
+                z.name += "_inner";
                 stages_.push_back(y);
                 stages_.push_back(z);
             }
@@ -437,6 +472,15 @@ std::size_t ExactSeparable::banded_local_bytes(std::uint32_t n, std::uint32_t li
            arg(banded_mask_bytes(n, lines)) + arg(banded_ends_bytes(n, lines));
 }
 
+std::array<std::size_t, 3> ExactSeparable::banded_scratch(std::uint32_t n, bool y_pass,
+                                                          bool indices) const {
+    // Every group's lines: X rounded up to whole groups, times the lines' other axis (and
+    // blocks), n positions each.
+    const std::size_t lines = round_up(dims_.x, kBandedGlobalLines) * dims_.y * dims_.z / n;
+    return {lines * n * banded_site_bytes(y_pass, indices), lines * ((n + 31) / 32) * 4,
+            indices && y_pass ? lines * n * 2 : 16};
+}
+
 std::size_t ExactSeparable::banded_cells(std::uint32_t n, std::uint32_t lines) {
     return std::size_t{n} * lines;
 }
@@ -460,8 +504,9 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
                                            std::uint32_t lines_o, bool final,
                                            const cl::Buffer* parts, bool border) {
     const std::uint32_t k = banded_bands(n, c);
-    cl::Kernel kernel(program_, "cols_banded");
     const bool y = axis == 1;
+    const bool global = y ? global_y_ : global_z_;
+    cl::Kernel kernel(global ? program_global_ : program_, "cols_banded");
     // With indices the y pass writes its targets into feat_[1], the z pass reads them; neither
     // reads `in` nor writes `gout` (arguments 1 and 2), which may then be the x rows' buffer.
     const bool keyed = indices_() != nullptr;
@@ -480,8 +525,13 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     kernel.setArg(11, cl_uint{final ? 1u : 0u});
     kernel.setArg(12, max_distance_);
     const std::size_t cells = banded_cells(n, c);
-    kernel.setArg(13, cl::Local(cells * banded_site_bytes(y, keyed)));
-    kernel.setArg(14, cl::Local(banded_mask_bytes(n, c)));
+    if (global) {
+        kernel.setArg(13, banded_scratch_[0]);
+        kernel.setArg(14, banded_scratch_[1]);
+    } else {
+        kernel.setArg(13, cl::Local(cells * banded_site_bytes(y, keyed)));
+        kernel.setArg(14, cl::Local(banded_mask_bytes(n, c)));
+    }
     kernel.setArg(15, cl::Local(banded_ends_bytes(n, c)));
     kernel.setArg(16, lines_o);
     kernel.setArg(17, cl_uint{border ? 1u : 0u});
@@ -498,12 +548,16 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     set_spacing(kernel, 24, y ? spacing_.z : spacing_.y);
     set_spacing(kernel, 25, y ? spacing_.y : spacing_.z);
     // The y pass's target x per position, for its keys (a token 2 bytes elsewhere).
-    kernel.setArg(26, cl::Local(keyed && y ? cells * 2 : 2));
+    if (global) {
+        kernel.setArg(26, banded_scratch_[2]);
+    } else {
+        kernel.setArg(26, cl::Local(keyed && y ? cells * 2 : 2));
+    }
     kernel.setArg(27, cl_uint{zero_targets_ ? 1u : 0u});
     // The z pass of stacked blocks (n = z_period_): lines_o lines per block, n z-slices apart.
     const std::uint32_t blocks = y ? 1 : dims_.z / n;
     kernel.setArg(28, static_cast<cl_ulong>(stride * n));
-    return {y ? "y_banded" : "z_banded", kernel,
+    return {std::string(y ? "y_banded" : "z_banded") + (global ? "_global" : ""), kernel,
             cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * blocks * k),
             cl::NDRange(c, k)};
 }

@@ -773,6 +773,76 @@ TEST(ExactSeparable, BandedGpuPassesTakeSpacing) {
     }
 }
 
+// Lines longer than the banded passes' local memory holds (kBandedLocalCap, 64 KiB): that
+// pass keeps its lists in global memory (cols_banded built with BANDED_GLOBAL), the other pass
+// its own in local memory. Long z lines, long y lines (their 2-byte x rows do not fit), and
+// long y lines that fit only without index planes (the y pass's target x takes 2 bytes more):
+// every metric, unsigned and signed, unit spacing and not, indices.
+TEST(ExactSeparable, BandedGlobalListsMatchTheReference) {
+    std::mt19937_64 rng(8642);
+    struct Case {
+        Dims dims;
+        double density;
+        const char* global;          // the stage with global lists
+        const char* global_indices;  // the same with index planes
+    };
+    const Case cases[] = {
+        {{3, 2, 17000}, 0.002, "z_banded_global", "z_banded_global"},
+        {{2, 33000, 2}, 0.001, "y_banded_global", "y_banded_global"},
+        {{3, 17000, 2}, 0.3, nullptr, "y_banded_global"},
+        {{1, 1, 20000}, 0.0, "z_banded_global", "z_banded_global"},
+    };
+    const auto stage_names = [](ocl::ExactSeparable& g) {
+        g.run();
+        std::string names;
+        for (const auto& [name, ms] : g.stage_ms()) {
+            names += name + " ";
+        }
+        return names;
+    };
+    for (const Case& c : cases) {
+        const World w = scene_random(c.dims, c.density, rng());
+        const std::string what = "global lists " + c.dims.to_string();
+        for (const Spacing& sp : {Spacing{}, Spacing{1.5, 0.75, 2.0}}) {
+            for (Metric m : kMetrics) {
+                for (bool sgn : {false, true}) {
+                    auto o = options(m, sp, sgn, Format::f32, Layout::gpu);
+                    std::vector<double> ref = reference(w, o);
+                    if (m == Metric::manhattan && sp.unit()) {
+                        o.max_distance = 1e6;  // through ExactSeparable, not exact_manhattan.cl
+                        for (double& v : ref) {
+                            v = std::clamp(v, -1e6, 1e6);
+                        }
+                    }
+                    ocl::ExactSeparable g(pocl(), w, Palette(), o);
+                    ASSERT_EQ(g.variant(), "gpu layout, banded") << describe(o, w.dims());
+                    const std::string names = stage_names(g);
+                    if (c.global != nullptr) {
+                        EXPECT_NE(names.find(c.global), std::string::npos)
+                            << describe(o, w.dims()) << ": " << names;
+                    } else {
+                        EXPECT_EQ(names.find("global"), std::string::npos)
+                            << describe(o, w.dims()) << ": " << names;
+                    }
+                    expect_matches(w, Palette(), o, ref, what);
+                }
+                const auto o = options(m, sp, false, Format::f32, Layout::gpu, true);
+                ocl::ExactSeparable g(pocl(), w, Palette(), o);
+                EXPECT_NE(stage_names(g).find(c.global_indices), std::string::npos)
+                    << describe(o, w.dims()) << " indices";
+                if (m == Metric::chebyshev || !sp.unit()) {
+                    expect_indices(w, o, what + " indices");
+                } else {
+                    expect_scipy_ties(w, o, what + " indices");
+                }
+                if (::testing::Test::HasFailure()) {
+                    return;
+                }
+            }
+        }
+    }
+}
+
 // L2 with spacing along lines of thousands of voxels: a separator's tie point there keeps few
 // bits below the point in float, so each separator is checked against the partials at its
 // integer positions (l2_sep). Without that check the 3 x 2 x 17000 world was 0.0125 voxels off

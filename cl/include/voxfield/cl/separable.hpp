@@ -76,6 +76,12 @@ class ExactSeparable : public Generator {
     // (positions are 16 bits in the sites' keys).
     static constexpr std::uint32_t kBandedGroup = 256;
     static constexpr std::uint32_t kSiteLimit = 0xFFFE;
+    // The local memory the banded passes use at most (GPUs have 32-64 KiB; PoCL's 2 MiB would
+    // hide the global lists below from its tests); a pass whose lines do not fit keeps its
+    // lists in global memory (cols_banded built with BANDED_GLOBAL), kBandedGlobalLines lines
+    // a work-group.
+    static constexpr std::size_t kBandedLocalCap = std::size_t{64} << 10;
+    static constexpr std::uint32_t kBandedGlobalLines = 8;
     static std::uint32_t banded_lines(std::uint32_t n, std::size_t gt_bytes, std::size_t local_mem,
                                       std::size_t key_bytes = 0);
     static std::uint32_t banded_bands(std::uint32_t n, std::uint32_t lines);
@@ -85,6 +91,10 @@ class ExactSeparable : public Generator {
     // The mask's words (one per 32 positions and line) and the bands' first and last sites.
     static std::size_t banded_mask_bytes(std::uint32_t n, std::uint32_t lines);
     static std::size_t banded_ends_bytes(std::uint32_t n, std::uint32_t lines);
+    // The global lists' scratch buffers of a pass over lines of n positions (the world's y or
+    // z lines, or its blocks' z lines), kBandedGlobalLines a group: sites, mask words and the y
+    // pass's target x with index planes (else a token).
+    std::array<std::size_t, 3> banded_scratch(std::uint32_t n, bool y_pass, bool indices) const;
     // Bytes per position of cols_banded's sites: in the y pass their x rows' 16-bit distances;
     // in the z pass the partials (gt_bytes_), or with index planes the y pass's targets (4).
     std::size_t banded_site_bytes(bool y_pass, bool indices) const {
@@ -131,6 +141,11 @@ class ExactSeparable : public Generator {
     bool gpu_layout_;
     bool zero_targets_ = false;  // targets are the zero voxels (x_pass's `solid` 0)
     bool banded_ = false;        // the full GPU transform by cols_banded
+    bool global_y_ = false;      // its y pass's lists in global memory (program_global_)
+    bool global_z_ = false;      // its z pass's
+    std::array<std::size_t, 3> scratch_bytes_{};  // banded_scratch of those passes, the larger
+    cl::Program program_global_;
+    cl::Buffer banded_scratch_[3];
     bool incremental_;
     std::uint32_t z_period_ = 0;  // z-slices per stacked block (0: one world)
     Spacing spacing_;
