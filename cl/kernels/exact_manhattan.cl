@@ -48,7 +48,8 @@
 //   values of VW adjacent columns in registers (one 4- or 8-byte word per load and store
 //   where X keeps the words aligned), joins the segments of a column through local memory,
 //   and so reads and writes each voxel once; columns of more segments than a work-group
-//   holds take cols_long, a work-item per column.
+//   holds take it in chunks, a work-group each, in two launches (the chunks' ends, then the
+//   sweeps with their carries).
 //   L1 into u32 with X a multiple of 16 (FROM_BITS=1 for cols_seg): x_words writes a row as
 //   32-voxel words of solid bits, each with the row's last solid before it and first solid
 //   after it (8 bytes per 32 voxels instead of 2 or 4 bytes per voxel), and the y pass's
@@ -830,36 +831,6 @@ __kernel void z_king_bytes(__global uchar* restrict work, __global U* restrict o
 COLS_STRIP(cols_strip, STORE_WORK)
 COLS_STRIP(cols_strip_final, STORE_FINAL)
 
-// The GPU layout's columns too long for cols_seg (more segments than a work-group holds) and
-// for a strip in local memory: a work-item per column (get_global_id(0) its x, coalesced
-// across a row), both sweeps in place in `work`, any length (as cols_strip, EDGE included).
-#define COLS_LONG(NAME, STORE)                                                             \
-    __kernel void NAME(__global T* restrict work, __global uint* restrict out,             \
-                       __global const uchar* restrict vox, __constant uchar* rgb, uint X,  \
-                       uint N, ulong stride, ulong mstride) {                              \
-        const uint x = (uint)get_global_id(0);                                             \
-        if (x >= X) {                                                                      \
-            return;                                                                        \
-        }                                                                                  \
-        const size_t base = get_global_id(1) * mstride + x;                                \
-        T c = EDGE(work[base]);                                                            \
-        work[base] = c;                                                                    \
-        for (uint n = 1; n < N; ++n) {                                                     \
-            const size_t row = base + n * stride;                                          \
-            c = step_k(n + 1 == N ? EDGE(work[row]) : work[row], c, (T)1);                 \
-            work[row] = c;                                                                 \
-        }                                                                                  \
-        STORE(base + (N - 1) * stride, c);                                                 \
-        for (uint n = N - 1; n-- > 0;) {                                                   \
-            const size_t row = base + n * stride;                                          \
-            c = step_k(work[row], c, (T)1);                                                \
-            STORE(row, c);                                                                 \
-        }                                                                                  \
-    }
-
-COLS_LONG(cols_long, STORE_WORK)
-COLS_LONG(cols_long_final, STORE_FINAL)
-
 // The GPU layout's rows too long for x_rows_map and for x_rows_local's local memory: a
 // work-item per row, both sweeps in place in `work`, any length.
 __kernel void x_rows_long(__global const uchar* restrict vox, __global T* restrict work, uint X,
@@ -1081,6 +1052,12 @@ inline T row_dist(uint2 w, uint x) {
 #endif
 #define CV_INC(x) ((x) + (CV)1)
 #endif
+// x + d in CV lanes (d at most T_MAX): as CV_INC, no wrap where the lanes are 32-bit.
+#if SIGNED || T_MAX > 0x7FFFFFFF
+#define CV_ADD(x, d) add_sat((x), (CV)(d))
+#else
+#define CV_ADD(x, d) ((x) + (CV)(d))
+#endif
 #define TO_CV(x) CAT(convert_, CV)(x)
 #define TO_TV(x) CAT(convert_, TV)(x)
 
@@ -1108,10 +1085,16 @@ inline void store_final_vec(__global uint* restrict out, __global const uchar* r
 // sweeps again from the carries of its neighbours. Every loop over
 // v has a constant trip count and is unrolled, so v stays in registers. The sweeps run in CV
 // lanes (above); the local arrays and the stores hold TV.
+// Longer columns take chunks of segs * SEG_K values, a work-group each (group(1) the chunk,
+// num_groups(1) of them), in two launches: `chunks` 1 publishes each chunk's forward value at
+// its last position and backward value at its first (no carry from other chunks; ends[2 (col G
+// + g)] and ends[2 (col G + g) + 1], col = the work-item's place in dimensions 0 and 2) and
+// writes nothing else; `chunks` 2 then sweeps each chunk from those carries too, walking the
+// chunks before it (after it) a chunk length at a time. `chunks` 0: one chunk, ends unused.
 __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
                        __global const uchar* restrict vox, __constant uchar* rgb, uint X,
                        uint N, ulong stride, ulong mstride, uint final, __local TV* fout,
-                       __local TV* bout
+                       __local TV* bout, __global TV* ends, uint chunks
 #if FROM_BITS
                        ,
                        __global const uint2* restrict words, uint W
@@ -1124,7 +1107,8 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
     const uint x = ((uint)get_group_id(0) * cw + lc) * VW;
     const bool active = x < X;
     const size_t base = x + get_global_id(2) * mstride;
-    const uint n0 = s * SEG_K;
+    const uint g = (uint)get_group_id(1), G = (uint)get_num_groups(1);
+    const uint n0 = (g * segs + s) * SEG_K;
     CV v[SEG_K];
 #if FROM_BITS
     // The y pass over x_words' rows: row (z, y) is z * N + y, the VW columns share a word.
@@ -1165,13 +1149,41 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
     barrier(CLK_LOCAL_MEM_FENCE);
 #define COL_SLOT(t) ((t)*cw + lc)
     SCAN_SEGS(TV, fout, bout, COL_SLOT, s, segs, SEG_K)
+    __global TV* col_ends =
+        ends + 2 * (get_global_id(2) * get_global_size(0) + get_global_id(0)) * G;
+    if (chunks == 1) {
+        if (s + 1 == segs) {
+            col_ends[2 * g] = fout[COL_SLOT(s)];
+        }
+        if (s == 0) {
+            col_ends[2 * g + 1] = bout[COL_SLOT(0)];
+        }
+        return;
+    }
+    // With chunks, the carries of the chunks before (after) this one too, walked a chunk's
+    // length at a time, then moved to this segment's start (end).
+    const uint len = min(segs * SEG_K, (uint)T_MAX);
     CV c = s > 0 ? TO_CV(fout[COL_SLOT(s - 1)]) : (CV)T_MAX;
+    if (chunks == 2) {
+        CV f = (CV)T_MAX;
+        for (uint h = 0; h < g; ++h) {
+            f = min(CV_ADD(f, len), TO_CV(col_ends[2 * h]));
+        }
+        c = min(c, CV_ADD(f, min(s * SEG_K, (uint)T_MAX)));
+    }
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {
         c = min(v[k], CV_INC(c));
         v[k] = c;
     }
     c = s + 1 < segs ? TO_CV(bout[COL_SLOT(s + 1)]) : (CV)T_MAX;
+    if (chunks == 2) {
+        CV b = (CV)T_MAX;
+        for (uint h = G - 1; h > g; --h) {
+            b = min(CV_ADD(b, len), TO_CV(col_ends[2 * h + 1]));
+        }
+        c = min(c, CV_ADD(b, min((segs - 1 - s) * SEG_K, (uint)T_MAX)));
+    }
 #pragma unroll
     for (uint j = 0; j < SEG_K; ++j) {
         c = min(v[SEG_K - 1 - j], CV_INC(c));

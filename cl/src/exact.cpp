@@ -52,15 +52,15 @@ WorkType work_type(Format f) {
 
 // Values per work-item in cols_seg for a column of n voxels: 16 up to 512 voxels, then 32; the y
 // pass of 2-byte work (`y_of_2_bytes`) keeps 16 up to 1024. A column of more than 2048 voxels
-// takes more than 64 segments, a work-group of up to the kernel's limit (cols_long beyond it):
-// a sparse field's stacked blocks make z columns of thousands of voxels, where a strip in local
-// memory, a work-item a group, took 7.5 of a sand step's 9.8 ms on the H100. On the H100,
-// 1024^3 y and z passes took 2.59 and 2.56 ms in u16 with 32 values (32 segments) against 3.07
-// and 5.02 with 16 (64 segments) and two columns a work-item. With four (44be7a1), 16 values
-// take the u16 y pass from 2.12 to 1.72 ms but the z pass from 2.33 to 2.57; the whole 1024^3
-// u16 field 6.45 -> 6.09 ms, and u8 4.41 -> 4.61 (so u8 keeps 32). At 512^3 16 values are the
-// faster (0.243 and 0.260 ms against 0.255 and 0.280). 64 values cost registers and occupancy
-// (on the H200, 1024^3 u16: 10.7 ms a pass, 3.5 with 16).
+// takes more than 64 segments, a work-group of up to the kernel's limit (chunks of a
+// work-group each beyond it): a sparse field's stacked blocks make z columns of thousands of
+// voxels, where a strip in local memory, a work-item a group, took 7.5 of a sand step's 9.8 ms on
+// the H100. On the H100, 1024^3 y and z passes took 2.59 and 2.56 ms in u16 with 32 values (32
+// segments) against 3.07 and 5.02 with 16 (64 segments) and two columns a work-item. With four
+// (44be7a1), 16 values take the u16 y pass from 2.12 to 1.72 ms but the z pass from 2.33 to 2.57;
+// the whole 1024^3 u16 field 6.45 -> 6.09 ms, and u8 4.41 -> 4.61 (so u8 keeps 32). At 512^3 16
+// values are the faster (0.243 and 0.260 ms against 0.255 and 0.280). 64 values cost registers and
+// occupancy (on the H200, 1024^3 u16: 10.7 ms a pass, 3.5 with 16).
 std::uint32_t seg_k(std::uint32_t n, bool y_of_2_bytes) {
     return n <= 512 || (n <= 1024 && y_of_2_bytes) ? 16 : 32;
 }
@@ -391,10 +391,12 @@ void ExactManhattan::set_up_kernels() {
     };
     cl_call("setting up kernels, " + sizes, [&] {
         // Columns of length len with element stride `stride`, lines of columns `m_count`
-        // apart by `m_stride`; `final` writes the output format.
+        // apart by `m_stride`; `final` writes the output format. Empty where `bits` (the y
+        // pass from x_words' rows) cannot take cols_bits: the caller takes the row kernels.
         auto columns = [&](std::uint32_t len, std::uint64_t stride, std::uint64_t m_stride,
-                           std::size_t m_count, bool final, bool bits = false) -> KernelLaunch {
-            // Arguments 0-7 are common to cols_seg, cols_long and cols_strip.
+                           std::size_t m_count, bool final,
+                           bool bits = false) -> std::vector<KernelLaunch> {
+            // Arguments 0-7 are common to cols_seg and cols_strip.
             auto column_kernel = [&](const cl::Program& source, const char* name) {
                 cl::Kernel kernel(source, name);
                 kernel.setArg(0, work_);
@@ -413,37 +415,67 @@ void ExactManhattan::set_up_kernels() {
                 // As many work-items along x per group as the kernel's registers allow (up to
                 // 8: more was no faster on the H200), each holding vw adjacent columns.
                 const std::uint32_t vw = vec_width(format_, dims_.x);
-                cl::Kernel seg = column_kernel(
-                    build_program(ctx_, format_, k, vw, metric_, cap_, bits), "cols_seg");
+                const cl::Program source = build_program(ctx_, format_, k, vw, metric_, cap_, bits);
+                // cols_seg over `g` chunks of `n` segments, cw columns a group (`chunks`: the
+                // kernel's argument of that name; ends: its buffer, where chunks is nonzero).
+                const std::size_t word = std::size_t{vw} * wt.bytes;
+                auto seg_launch = [&](const char* name, std::uint32_t cw, std::uint32_t n,
+                                      std::uint32_t g, cl_uint chunks, const cl::Buffer& ends) {
+                    cl::Kernel seg = column_kernel(source, "cols_seg");
+                    seg.setArg(8, cl_uint{final ? 1u : 0u});
+                    seg.setArg(9, cl::Local(std::size_t{cw} * n * word));
+                    seg.setArg(10, cl::Local(std::size_t{cw} * n * word));
+                    seg.setArg(11, chunks != 0 ? ends : work_);
+                    seg.setArg(12, chunks);
+                    if (bits) {
+                        seg.setArg(13, words_);
+                        seg.setArg(14, static_cast<cl_uint>((dims_.x + 31) / 32));
+                    }
+                    return KernelLaunch{
+                        name, seg,
+                        cl::NDRange(round_up(dims_.x / vw, cw), std::size_t{n} * g, m_count),
+                        cl::NDRange(cw, n, 1)};
+                };
                 const std::size_t limit =
-                    seg.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
+                    cl::Kernel(source, "cols_seg")
+                        .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
+                const auto fits = [&](std::uint32_t cw, std::uint32_t n) {
+                    return std::size_t{cw} * n <= limit &&
+                           2 * std::size_t{cw} * n * word <= info.local_mem;
+                };
                 std::uint32_t cw = 8;
-                while (cw > 1 && std::size_t{cw} * segs > limit) {
+                while (cw > 1 && !fits(cw, segs)) {
                     cw /= 2;
                 }
-                const std::size_t word = std::size_t{vw} * wt.bytes;
-                if (std::size_t{cw} * segs <= limit &&
-                    2 * std::size_t{cw} * segs * word <= info.local_mem) {
-                    seg.setArg(8, cl_uint{final ? 1u : 0u});
-                    seg.setArg(9, cl::Local(std::size_t{cw} * segs * word));
-                    seg.setArg(10, cl::Local(std::size_t{cw} * segs * word));
-                    if (bits) {
-                        seg.setArg(11, words_);
-                        seg.setArg(12, static_cast<cl_uint>((dims_.x + 31) / 32));
-                    }
+                if (fits(cw, segs)) {
                     seg_used = k;
-                    return {bits ? "cols_bits" : "cols_seg", seg,
-                            cl::NDRange(round_up(dims_.x / vw, cw), segs, m_count),
-                            cl::NDRange(cw, segs, 1)};
+                    return {seg_launch(bits ? "cols_bits" : "cols_seg", cw, segs, 1, 0, work_)};
                 }
-                // Columns of more segments than a work-group holds: a work-item per column,
-                // both sweeps in place in global memory, any length (the CPU layout's strip
-                // below, a work-item a group, was the fallback until then, and a u16 column of
-                // more than 24576 voxels did not fit its local memory). The bit rows' caller
-                // sees no cols_bits and takes the row kernels instead.
-                const char* name = final ? "cols_long_final" : "cols_long";
-                return {name, column_kernel(base, name),
-                        cl::NDRange(round_up(dims_.x, 64), m_count), cl::NDRange(64, 1)};
+                if (bits) {
+                    return {};
+                }
+                // Columns of more segments than a work-group holds: chunks of a power of two of
+                // segments, 8 columns a group (4 or 2 where the kernel allows fewer work-items),
+                // any length. cols_chunk_ends publishes each chunk's ends, cols_chunks sweeps
+                // every chunk from the others' (the column read twice, written once). A
+                // work-item per column (in place in global memory) took 24 ms for long-z's 64 x
+                // 64 x 32768 L1 u16 on the H200, where 512^3 takes 0.5.
+                cw = 8;
+                while (cw > 2 && limit / cw < 2) {
+                    cw /= 2;
+                }
+                std::uint32_t n = static_cast<std::uint32_t>(next_pow2(limit / cw + 1) / 2);
+                while (n > 1 && !fits(cw, n)) {
+                    n /= 2;
+                }
+                const std::uint32_t g = (segs + n - 1) / n;
+                // (Kept by the generator: a kernel argument does not keep its buffer.)
+                const cl::Buffer& ends = chunk_ends_.emplace_back(
+                    make_buffer(2 * std::size_t{g} * round_up(dims_.x / vw, cw) * m_count * word,
+                                CL_MEM_READ_WRITE));
+                seg_used = k;
+                return {seg_launch("cols_chunk_ends", cw, n, g, 1, ends),
+                        seg_launch("cols_chunks", cw, n, g, 2, ends)};
             }
             // A strip of x positions per work-item, its columns copied to local scratch: the
             // whole row (the inner loop vectorises, the strip stays in L2).
@@ -464,8 +496,8 @@ void ExactManhattan::set_up_kernels() {
             cl::Kernel kernel = column_kernel(base, name);
             kernel.setArg(8, strip);
             kernel.setArg(9, cl::Local(per_x * strip));
-            return {name, kernel, cl::NDRange((dims_.x + strip - 1) / strip, m_count),
-                    cl::NDRange(1, 1)};
+            return {{name, kernel, cl::NDRange((dims_.x + strip - 1) / strip, m_count),
+                     cl::NDRange(1, 1)}};
         };
 
         if (byte_sweeps(format_, metric_, gpu_layout_) && add_byte_sweeps()) {
@@ -494,10 +526,11 @@ void ExactManhattan::set_up_kernels() {
         }
         if (!rows_on_gpu && gpu_layout_ && bit_rows(dims_, format_, metric_, true)) {
             if (auto words = x_words()) {
-                KernelLaunch y = columns(dims_.y, dims_.x, plane, dims_.z, false, true);
-                if (y.name == "cols_bits") {
+                const std::vector<KernelLaunch> y =
+                    columns(dims_.y, dims_.x, plane, dims_.z, false, true);
+                if (!y.empty()) {
                     add(*words);
-                    add(y);
+                    add(y.front());
                     rows_on_gpu = true;
                 } else {
                     words_ = cl::Buffer();
@@ -506,7 +539,9 @@ void ExactManhattan::set_up_kernels() {
         }
         if (gpu_layout_ && !rows_on_gpu) {
             add(gpu_x_rows(ctx_, dims_, format_, voxels_, work_, cap_));
-            add(columns(dims_.y, dims_.x, plane, dims_.z, false));
+            for (const KernelLaunch& y : columns(dims_.y, dims_.x, plane, dims_.z, false)) {
+                add(y);
+            }
             rows_on_gpu = true;
         }
         if (!rows_on_gpu) {
@@ -544,7 +579,9 @@ void ExactManhattan::set_up_kernels() {
             k.setArg(8, cl::Local((std::size_t{dims_.x} + 2) * wt.bytes));
             add({"z_king", k, cl::NDRange(1), cl::NDRange(1)});
         } else {
-            add(columns(dims_.z, plane, dims_.x, dims_.y, true));
+            for (const KernelLaunch& z : columns(dims_.z, plane, dims_.x, dims_.y, true)) {
+                add(z);
+            }
         }
     });
 }

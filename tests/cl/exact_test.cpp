@@ -156,9 +156,9 @@ std::vector<std::string> kernel_path(const World& world, Format f, Layout layout
 TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     // Columns up to 512 voxels take cols_seg with segments of 16, longer ones segments of 32
     // (u16's y columns 16 up to 1024), as many as a work-group holds (PoCL: 4096), and longer
-    // ones a work-item per column in place (cols_long); z-slices of at most 16 KiB take x and y in
-    // one launch (xy_slice_local), larger ones the row kernels and a y column pass. The CPU layout
-    // sweeps xy slices and strips of columns (on bytes where it can).
+    // ones in chunks of a work-group (cols_chunk_ends, cols_chunks); z-slices of at most 16 KiB
+    // take x and y in one launch (xy_slice_local), larger ones the row kernels and a y column pass.
+    // The CPU layout sweeps xy slices and strips of columns (on bytes where it can).
     using Path = std::vector<std::string>;
     const World tall = scene_random(Dims{17, 1100, 2}, 0.002, 5);
     const World mid = scene_random(Dims{33, 600, 2}, 0.003, 9);
@@ -176,7 +176,8 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
             << to_string(f);
         EXPECT_EQ(kernel_path(deep, f, Layout::gpu), (Path{"xy_slice_local", "cols_seg/32"}))
             << to_string(f);
-        EXPECT_EQ(kernel_path(deeper, f, Layout::gpu), (Path{"xy_slice_local", "cols_long_final"}))
+        EXPECT_EQ(kernel_path(deeper, f, Layout::gpu),
+                  (Path{"xy_slice_local", "cols_chunk_ends", "cols_chunks"}))
             << to_string(f);
         const Path wide_gpu = f == Format::u32 ? Path{"x_words", "cols_bits/16", "cols_seg/16"}
                                                : Path{"x_rows_map", "cols_seg/16", "cols_seg/16"};
@@ -229,7 +230,8 @@ TEST(ExactManhattan, LongColumnsCarryAcrossHundredsOfSegments) {
     // Lines whose only solids are at one end, both or the middle, so that a voxel's nearest
     // solid lies thousands of segments away (u8 saturates, u16 and u32 do not): columns of
     // hundreds of cols_seg segments (more than 64: the scan of segment ends takes more steps);
-    // columns longer than a work-group's segments (PoCL: 4096 of 32), a work-item per column;
+    // columns longer than a work-group's segments (PoCL: 4096 of 32), in chunks of a work-group
+    // (nine here, each 512 segments);
     // rows of thousands of x_rows_map's map words; rows too long for it and for x_rows_local's
     // local memory (PoCL: about 51000 voxels), a work-item per row.
     const std::pair<World, const char*> worlds[] = {
@@ -238,8 +240,8 @@ TEST(ExactManhattan, LongColumnsCarryAcrossHundredsOfSegments) {
         {with_solids({4, 9001, 3}, {{0, 0, 0, 1}, {3, 9000, 2, 1}}), "cols_seg/32"},
         {with_solids({8, 2, 12000}, {{5, 1, 6007, 1}}), "cols_seg/32"},
         {with_solids({3, 2, 140001}, {{0, 0, 0, 1}, {1, 0, 70001, 1}, {2, 1, 140000, 1}}),
-         "cols_long_final"},
-        {with_solids({4, 140001, 2}, {{0, 0, 0, 1}, {3, 140000, 1, 1}}), "cols_long"},
+         "cols_chunks"},
+        {with_solids({4, 140001, 2}, {{0, 0, 0, 1}, {3, 140000, 1, 1}}), "cols_chunks"},
         {with_solids({60000, 3, 2}, {{0, 0, 0, 1}, {30011, 1, 0, 1}, {59999, 2, 1, 1}}),
          "x_rows_map"},
         {with_solids({65552, 2, 2}, {{0, 0, 0, 1}, {30011, 1, 0, 1}, {65551, 1, 1, 1}}),
@@ -390,6 +392,29 @@ TEST(ExactManhattan, BoundedFieldsSaturateAtD) {
                 }
             }
         }
+    }
+}
+
+// Columns in chunks (cols_chunk_ends, cols_chunks) with bounds: the carries from other chunks
+// saturate at floor(D) as within a chunk, where D is below a chunk's length and beyond it.
+TEST(ExactManhattan, LongColumnsInChunksSaturateAtD) {
+    const World w =
+        with_solids({3, 2, 140001}, {{0, 0, 0, 1}, {1, 0, 70001, 1}, {2, 1, 140000, 1}});
+    const auto exact = reference_distance(w, Metric::manhattan, Spacing{});
+    const std::pair<Format, double> cases[] = {{Format::packed32, 1.0},
+                                               {Format::u16, 300.0},
+                                               {Format::u16, 20000.5},
+                                               {Format::u32, 100000.0}};
+    for (const auto& [f, bound] : cases) {
+        std::vector<double> capped = exact;
+        for (double& v : capped) {
+            v = std::min(v, bound);
+        }
+        ocl::ExactManhattan job(pocl(), w, Palette(), f, Layout::gpu, Metric::manhattan, bound);
+        job.run();
+        const std::string diff = test::first_difference(
+            job.read(), encode_real_field(capped, w, Palette(), f), f, w.dims());
+        ASSERT_TRUE(diff.empty()) << "D " << bound << " format " << to_string(f) << ": " << diff;
     }
 }
 

@@ -81,6 +81,8 @@ class ExactManhattan : public Generator {
     // only when the flag is set.
     cl::Buffer bytes_, flag_;
     cl::Buffer words_;  // x_words' rows of solid bits (GPU layout, unsigned L1)
+    // cols_seg's chunk ends of columns too long for a work-group (GPU layout), per pass.
+    std::vector<cl::Buffer> chunk_ends_;
     std::size_t fallback_from_ = SIZE_MAX;
     std::vector<std::string> path_;  // kernel_path(), beside stages_
 };
