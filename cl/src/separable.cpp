@@ -196,20 +196,20 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
     // program), kBandedGlobalLines lines a group, where its scratch fits one buffer.
     global_y_ = banded_fits && lines_y == 0;
     global_z_ = banded_fits && lines_z == 0;
+    std::array<std::size_t, 3> scratch_bytes{};  // banded_scratch of those passes, the larger
     if (global_y_ || global_z_) {
         lines_y = global_y_ ? kBandedGlobalLines : lines_y;
         lines_z = global_z_ ? kBandedGlobalLines : lines_z;
-        scratch_bytes_ = {};
         for (const int axis : {1, 2}) {
             if (axis == 1 ? global_y_ : global_z_) {
                 const auto b = banded_scratch(axis == 1 ? Y : zline, axis == 1, options.indices);
                 for (std::size_t i = 0; i < b.size(); ++i) {
-                    scratch_bytes_[i] = std::max(scratch_bytes_[i], b[i]);
+                    scratch_bytes[i] = std::max(scratch_bytes[i], b[i]);
                 }
             }
         }
         banded_fits =
-            *std::max_element(scratch_bytes_.begin(), scratch_bytes_.end()) <= info.max_alloc;
+            *std::max_element(scratch_bytes.begin(), scratch_bytes.end()) <= info.max_alloc;
         if (banded_fits) {
             program_global_ = ctx.program("exact_separable.cl",
                                           {cl_sources::layout_h, cl_sources::exact_separable_cl},
@@ -303,8 +303,8 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             feat_[0] = indices_;
             feat_[1] = shared_parts_ ? indices_ : make_buffer(n * 4, CL_MEM_READ_WRITE);
         }
-        for (std::size_t i = 0; i < scratch_bytes_.size() && (global_y_ || global_z_); ++i) {
-            banded_scratch_[i] = make_buffer(scratch_bytes_[i], CL_MEM_READ_WRITE);
+        for (std::size_t i = 0; i < scratch_bytes.size() && (global_y_ || global_z_); ++i) {
+            banded_scratch_[i] = make_buffer(scratch_bytes[i], CL_MEM_READ_WRITE);
         }
         for (int k = parts; k < 3; ++k) {
             g_[k] = g_[0];
@@ -476,9 +476,11 @@ std::array<std::size_t, 3> ExactSeparable::banded_scratch(std::uint32_t n, bool 
                                                           bool indices) const {
     // Every group's lines: X rounded up to whole groups, times the lines' other axis (and
     // blocks), n positions each.
-    const std::size_t lines = round_up(dims_.x, kBandedGlobalLines) * dims_.y * dims_.z / n;
-    return {lines * n * banded_site_bytes(y_pass, indices), lines * ((n + 31) / 32) * 4,
-            indices && y_pass ? lines * n * 2 : 16};
+    const auto lines =
+        static_cast<std::uint32_t>(round_up(dims_.x, kBandedGlobalLines) * dims_.y * dims_.z / n);
+    const std::size_t cells = banded_cells(n, lines);
+    return {cells * banded_site_bytes(y_pass, indices), banded_mask_bytes(n, lines),
+            indices && y_pass ? cells * 2 : 16};
 }
 
 std::size_t ExactSeparable::banded_cells(std::uint32_t n, std::uint32_t lines) {

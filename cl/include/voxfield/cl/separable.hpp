@@ -143,7 +143,6 @@ class ExactSeparable : public Generator {
     bool banded_ = false;        // the full GPU transform by cols_banded
     bool global_y_ = false;      // its y pass's lists in global memory (program_global_)
     bool global_z_ = false;      // its z pass's
-    std::array<std::size_t, 3> scratch_bytes_{};  // banded_scratch of those passes, the larger
     cl::Program program_global_;
     cl::Buffer banded_scratch_[3];
     bool incremental_;
