@@ -1310,35 +1310,67 @@ inline uint lowest_bit(ulong m) { return 63u - (uint)clz(m & (0ul - m)); }
 
 // Segment s's carries: the forward sweep's value just before it (x0 - 1 - the row's last target
 // before x0) and the backward sweep's just after it, T_MAX where there is none (or it does not
-// fit).
+// fit). A row in chunks (chunk c of nc, x positions relative to the chunk's first): where the
+// chunk has no such target, the nearest from the other chunks' ends (x: last target, y: first;
+// -1 and INT_MAX where a chunk has none), walked a chunk at a time.
 inline void row_carries(__local const ushort* masks, __local const uint4* flags, uint segs,
-                        uint s, T* cf, T* cb) {
+                        uint s, __global const int2* ends, uint c, uint nc, T* cf, T* cb) {
     const uint chunks = (segs + 15) / 16, words = (segs + 63) / 64;
     const uint w0 = s / 64, b = s % 64;
     const ulong own = segment_map(flags, w0, chunks);
     const int x0 = (int)(s * XK);
+    const int cx = (int)(c * segs * XK);
     ulong m = own & ((1ul << b) - 1ul);
     uint w = w0;
     while (m == 0 && w > 0) {
         m = segment_map(flags, --w, chunks);
     }
-    *cf = (T)T_MAX;
+    int last = INT_MIN;
     if (m != 0) {
         const uint t = 64 * w + 63u - (uint)clz(m);
-        const int last = (int)(t * XK) + 31 - (int)clz((uint)masks[t]);
-        *cf = (T)min((uint)(x0 - 1 - last), (uint)T_MAX);
+        last = (int)(t * XK) + 31 - (int)clz((uint)masks[t]);
+    } else {
+        for (uint k = c; k-- > 0 && last == INT_MIN;) {
+            last = ends[k].x >= 0 ? ends[k].x - cx : INT_MIN;
+        }
     }
+    *cf = last == INT_MIN ? (T)T_MAX : (T)min((uint)(x0 - 1 - last), (uint)T_MAX);
     m = b < 63 ? own & (~0ul << (b + 1)) : 0ul;
     w = w0;
     while (m == 0 && w + 1 < words) {
         m = segment_map(flags, ++w, chunks);
     }
-    *cb = (T)T_MAX;
+    int first = INT_MAX;
     if (m != 0) {
         const uint t = 64 * w + lowest_bit(m);
-        const int first = (int)(t * XK) + (int)lowest_bit((ulong)masks[t]);
-        *cb = (T)min((uint)(first - x0 - (int)XK), (uint)T_MAX);
+        first = (int)(t * XK) + (int)lowest_bit((ulong)masks[t]);
+    } else {
+        for (uint k = c + 1; k < nc && first == INT_MAX; ++k) {
+            first = ends[k].y != INT_MAX ? ends[k].y - cx : INT_MAX;
+        }
     }
+    *cb = first == INT_MAX ? (T)T_MAX : (T)min((uint)(first - x0 - (int)XK), (uint)T_MAX);
+}
+
+// A chunk's last and first target (x relative to the chunk; -1 and INT_MAX where it has none).
+inline int2 chunk_ends(__local const ushort* masks, __local const uint4* flags, uint segs) {
+    const uint chunks = (segs + 15) / 16, words = (segs + 63) / 64;
+    int2 e = (int2)(-1, INT_MAX);
+    for (uint w = words; w-- > 0 && e.x < 0;) {
+        const ulong m = segment_map(flags, w, chunks);
+        if (m != 0) {
+            const uint t = 64 * w + 63u - (uint)clz(m);
+            e.x = (int)(t * XK) + 31 - (int)clz((uint)masks[t]);
+        }
+    }
+    for (uint w = 0; w < words && e.y == INT_MAX; ++w) {
+        const ulong m = segment_map(flags, w, chunks);
+        if (m != 0) {
+            const uint t = 64 * w + lowest_bit(m);
+            e.y = (int)(t * XK) + (int)lowest_bit((ulong)masks[t]);
+        }
+    }
+    return e;
 }
 
 // A segment's 16 voxels swept from its carries (T_MAX where not a target, 0 where one is).
@@ -1356,25 +1388,28 @@ inline void sweep_segment(uint m, T cf, T cb, T* v) {
 }
 
 __kernel void x_rows_map(__global const uchar* restrict vox, __global T* restrict work, uint X,
-                         uint rows, __local ushort* masks, __local uint4* flag_chunks) {
+                         uint rows, __local ushort* masks, __local uint4* flag_chunks,
+                         __global int2* restrict ends, uint chunks) {
     const uint segs = (uint)get_local_size(0);
     const uint s = (uint)get_local_id(0);
     const uint R = (uint)get_local_size(1);
+    const uint c = (uint)get_group_id(0), nc = (uint)get_num_groups(0);
+    const uint g = c * segs + s;  // the segment's index in its row
     const uint stride = (segs + 15) / 16 * 16;
     __local uchar* flags = (__local uchar*)flag_chunks;
     uint m[2];
     size_t base[2];
     bool active[2];
-    uchar16 o[2];
+    size_t row[2];
     for (uint h = 0; h < 2; ++h) {
-        const size_t row = get_group_id(1) * 2 * R + get_local_id(1) + h * R;
-        active[h] = row < rows;
-        base[h] = (active[h] ? row : 0) * X + s * XK;
-        o[h] = *(__global const uchar16*)(vox + base[h]);
+        row[h] = get_group_id(1) * 2 * R + get_local_id(1) + h * R;
+        active[h] = row[h] < rows && g < X / XK;
+        base[h] = (active[h] ? row[h] * X + g * XK : 0);
+        const uchar16 o = *(__global const uchar16*)(vox + base[h]);
+        m[h] = active[h] ? solid_bits16(o) : 0u;
     }
     for (uint h = 0; h < 2; ++h) {
         const uint r = (uint)get_local_id(1) + h * R;
-        m[h] = solid_bits16(o[h]);
         masks[r * segs + s] = (ushort)m[h];
         flags[r * stride + s] = m[h] != 0 ? 1 : 0;
         for (uint p = segs + s; p < stride; p += segs) {
@@ -1384,8 +1419,18 @@ __kernel void x_rows_map(__global const uchar* restrict vox, __global T* restric
     barrier(CLK_LOCAL_MEM_FENCE);
     for (uint h = 0; h < 2; ++h) {
         const uint r = (uint)get_local_id(1) + h * R;
+        if (chunks == 1) {
+            if (s == 0 && row[h] < rows) {
+                int2 e = chunk_ends(masks + r * segs, flag_chunks + r * (stride / 16), segs);
+                const int cx = (int)(c * segs * XK);
+                ends[row[h] * nc + c] = (int2)(e.x >= 0 ? e.x + cx : -1,
+                                               e.y != INT_MAX ? e.y + cx : INT_MAX);
+            }
+            continue;
+        }
         T cf, cb;
-        row_carries(masks + r * segs, flag_chunks + r * (stride / 16), segs, s, &cf, &cb);
+        row_carries(masks + r * segs, flag_chunks + r * (stride / 16), segs, s,
+                    ends + (chunks == 2 ? row[h] * nc : 0), c, chunks == 2 ? nc : 0, &cf, &cb);
         T v[XK];
         sweep_segment(m[h], cf, cb, v);
         if (active[h]) {

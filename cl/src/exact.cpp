@@ -149,14 +149,15 @@ cl::Program build_byte_program(Context& ctx, Format f, Metric m, std::uint32_t c
 }
 
 // A row kernel (x_words, x_rows_map; arguments in, out, X, the number of rows and two local
-// arrays of `local_a` and `local_b` bytes per row) with `segs` work-items per row, each holding
-// `rows_per_item` rows, rows stacked to about `group_items` work-items per group; nullopt where a
-// row does not fit one group.
+// arrays of `local_a` and `local_b` bytes per row) with `segs` work-items per row (per chunk of
+// a row, where `chunks` work-groups share each row), each holding `rows_per_item` rows, rows
+// stacked to about `group_items` work-items per group; nullopt where `segs` does not fit one
+// group.
 std::optional<KernelLaunch> row_launch(Context& ctx, cl::Kernel kernel, const char* name,
                                        const cl::Buffer& in, const cl::Buffer& out, Dims dims,
                                        std::size_t segs, std::size_t group_items,
                                        std::size_t rows_per_item, std::size_t local_a,
-                                       std::size_t local_b) {
+                                       std::size_t local_b, std::size_t chunks = 1) {
     const auto& info = ctx.info();
     const std::size_t limit = kernel.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
     const std::size_t rows = std::size_t{dims.y} * dims.z;
@@ -171,34 +172,64 @@ std::optional<KernelLaunch> row_launch(Context& ctx, cl::Kernel kernel, const ch
     kernel.setArg(3, static_cast<cl_uint>(rows));
     kernel.setArg(4, cl::Local(held * local_a));
     kernel.setArg(5, cl::Local(held * local_b));
-    return KernelLaunch{name, kernel, cl::NDRange(segs, round_up(rows, held) / rows_per_item),
+    return KernelLaunch{name, kernel,
+                        cl::NDRange(segs * chunks, round_up(rows, held) / rows_per_item),
                         cl::NDRange(segs, group_rows)};
 }
+
+// Rows of more than kMapRowSegs segments (16 voxels each) take x_rows_map in chunks of
+// kMapChunkSegs segments: a GPU's work-group holds at most 1024 work-items, and PoCL's 4096
+// would keep every test row from the chunks.
+constexpr std::size_t kMapRowSegs = 1024;
+constexpr std::size_t kMapChunkSegs = 128;
 
 // x_rows_map: X / 16 work-items per row, each holding two rows, rows stacked to about 128
 // work-items per group (in the experiments on an H100, 1024^3 u16, two rows an item in groups
 // of 128 took 1.28 ms, a row an item 1.37 in groups of 128 and 1.39 in groups of 64); its local
 // arrays are each row's segment masks (2 bytes a segment) and flags (a byte a segment, rows
-// padded to 16).
-std::optional<KernelLaunch> map_rows(Context& ctx, const cl::Program& program,
-                                     const cl::Buffer& voxels, const cl::Buffer& work, Dims dims) {
-    const std::size_t segs = dims.x / 16;
-    return row_launch(ctx, cl::Kernel(program, "x_rows_map"), "x_rows_map", voxels, work, dims,
-                      segs, 128, 2, segs * 2, round_up(segs, 16));
+// padded to 16). Longer rows in chunks of kMapChunkSegs segments, a work-group each, in two
+// launches: x_rows_ends publishes each chunk's last and first target, x_rows_chunks sweeps
+// every chunk from its own and, where it has none on a side, the nearest other chunk's (the
+// row read twice, written once).
+std::optional<XRows> map_rows(Context& ctx, const cl::Program& program, const cl::Buffer& voxels,
+                              const cl::Buffer& work, Dims dims) {
+    const std::size_t row_segs = dims.x / 16;
+    auto launch = [&](const char* name, std::size_t segs, std::size_t chunks, cl_uint mode,
+                      const cl::Buffer& ends) {
+        cl::Kernel kernel(program, "x_rows_map");
+        kernel.setArg(6, ends);
+        kernel.setArg(7, mode);
+        return row_launch(ctx, kernel, name, voxels, work, dims, segs, 128, 2, segs * 2,
+                          round_up(segs, 16), chunks);
+    };
+    if (row_segs <= kMapRowSegs) {
+        if (auto whole = launch("x_rows_map", row_segs, 1, 0, work)) {
+            return XRows{{*whole}, cl::Buffer()};
+        }
+    }
+    const std::size_t chunks = (row_segs + kMapChunkSegs - 1) / kMapChunkSegs;
+    const std::size_t rows = std::size_t{dims.y} * dims.z;
+    cl::Buffer ends(ctx.context(), CL_MEM_READ_WRITE, rows * chunks * 8);
+    auto publish = launch("x_rows_ends", kMapChunkSegs, chunks, 1, ends);
+    auto sweep = launch("x_rows_chunks", kMapChunkSegs, chunks, 2, ends);
+    if (!publish || !sweep) {
+        return std::nullopt;
+    }
+    return XRows{{*publish, *sweep}, ends};
 }
 
 }  // namespace
 
-KernelLaunch gpu_x_rows(Context& ctx, Dims dims, Format format, const cl::Buffer& voxels,
-                        const cl::Buffer& work, std::uint32_t cap, bool empty_targets) {
+XRows gpu_x_rows(Context& ctx, Dims dims, Format format, const cl::Buffer& voxels,
+                 const cl::Buffer& work, std::uint32_t cap, bool empty_targets) {
     const auto& info = ctx.info();
     const cl::Program base =
         build_program(ctx, format, 32, 1, Metric::manhattan, cap, false, empty_targets);
     const std::size_t rows = std::size_t{dims.y} * dims.z;
     if (dims.x % 16 == 0) {
         // x_rows_map: 16 voxels of two rows per work-item (one aligned word each).
-        if (auto launch = map_rows(ctx, base, voxels, work, dims)) {
-            return *launch;
+        if (auto rows_map = map_rows(ctx, base, voxels, work, dims)) {
+            return *rows_map;
         }
     }
     // Ragged rows (or rows too long for x_rows_map) in x_rows_local: about 16 voxels per
@@ -217,8 +248,9 @@ KernelLaunch gpu_x_rows(Context& ctx, Dims dims, Format format, const cl::Buffer
         long_rows.setArg(1, work);
         long_rows.setArg(2, dims.x);
         long_rows.setArg(3, static_cast<cl_uint>(rows));
-        return KernelLaunch{"x_rows_long", long_rows, cl::NDRange(round_up(rows, 64)),
-                            cl::NDRange(64)};
+        return XRows{{KernelLaunch{"x_rows_long", long_rows, cl::NDRange(round_up(rows, 64)),
+                                   cl::NDRange(64)}},
+                     cl::Buffer()};
     }
     x_rows.setArg(0, voxels);
     x_rows.setArg(1, work);
@@ -229,8 +261,10 @@ KernelLaunch gpu_x_rows(Context& ctx, Dims dims, Format format, const cl::Buffer
     x_rows.setArg(6, cl::Local(group_rows * span * 4));
     x_rows.setArg(7, cl::Local(group_rows * per_row * 4));
     x_rows.setArg(8, cl::Local(group_rows * per_row * 4));
-    return KernelLaunch{"x_rows_local", x_rows, cl::NDRange(round_up(rows, group_rows) * per_row),
-                        cl::NDRange(group_rows * per_row)};
+    return XRows{
+        {KernelLaunch{"x_rows_local", x_rows, cl::NDRange(round_up(rows, group_rows) * per_row),
+                      cl::NDRange(group_rows * per_row)}},
+        cl::Buffer()};
 }
 
 ExactManhattan::ExactManhattan(Context& ctx, Dims dims, const cl::Buffer& voxels,
@@ -313,10 +347,11 @@ void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layo
                              std::optional<double> max_distance) {
     const std::uint32_t cap = cap_of(max_distance);
     build_program(ctx, format, 32, 1, metric, cap);
-    if (byte_sweeps(format, metric, use_gpu_layout(ctx, layout))) {
+    const bool gpu_layout = use_gpu_layout(ctx, layout);
+    if (byte_sweeps(format, metric, gpu_layout)) {
         build_byte_program(ctx, format, metric, cap);
     }
-    if (use_gpu_layout(ctx, layout)) {
+    if (gpu_layout) {
         const bool two_bytes = work_type(format).bytes == 2;
         for (const std::uint32_t k : {seg_k(dims.y, two_bytes), seg_k(dims.z, false)}) {
             build_program(ctx, format, k, vec_width(format, dims.x), metric, cap);
@@ -538,7 +573,13 @@ void ExactManhattan::set_up_kernels() {
             }
         }
         if (gpu_layout_ && !rows_on_gpu) {
-            add(gpu_x_rows(ctx_, dims_, format_, voxels_, work_, cap_));
+            XRows x = gpu_x_rows(ctx_, dims_, format_, voxels_, work_, cap_);
+            for (const KernelLaunch& launch : x.launches) {
+                add(launch);
+            }
+            if (x.ends()) {
+                chunk_ends_.push_back(x.ends);
+            }
             for (const KernelLaunch& y : columns(dims_.y, dims_.x, plane, dims_.z, false)) {
                 add(y);
             }

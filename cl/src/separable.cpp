@@ -401,15 +401,21 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             // voxels; a signed field's inner transform takes the empty voxels too. The x rows
             // read the world as it is (ROW_TARGETS_EMPTY), no inverted copy.
             const std::size_t plane = std::size_t{X} * Y;
-            stages_.push_back(
-                gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0], 0xFFFFFFFFu, zero_targets_));
+            const XRows rows =
+                gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0], 0xFFFFFFFFu, zero_targets_);
+            stages_.insert(stages_.end(), rows.launches.begin(), rows.launches.end());
+            row_ends_[0] = rows.ends;
             stages_.push_back(banded_kernel(1, Y, lines_y, X, plane, Z, false, g_));
             stages_.push_back(banded_kernel(2, zline, lines_z, plane, X, Y, !sgn, g_));
             if (sgn) {
-                KernelLaunch inner_rows =
+                XRows inner_rows =
                     gpu_x_rows(ctx, dims_, Format::u16, voxels_, h_[0], 0xFFFFFFFFu, true);
-                inner_rows.name = "x_rows_inner";
-                stages_.push_back(inner_rows);
+                for (KernelLaunch& launch : inner_rows.launches) {
+                    launch.name = inner_rows.launches.size() == 1 ? std::string("x_rows_inner")
+                                                                  : launch.name + "_inner";
+                    stages_.push_back(launch);
+                }
+                row_ends_[1] = inner_rows.ends;
                 // The inner x rows in h_[0], its y pass's partials in g_[1] (the first
                 // z pass has read them), its z pass writing the output.
                 const cl::Buffer inner[2] = {h_[0], g_[1]};

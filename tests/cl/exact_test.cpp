@@ -232,8 +232,9 @@ TEST(ExactManhattan, LongColumnsCarryAcrossHundredsOfSegments) {
     // hundreds of cols_seg segments (more than 64: the scan of segment ends takes more steps);
     // columns longer than a work-group's segments (PoCL: 4096 of 32), in chunks of a work-group
     // (nine here, each 512 segments);
-    // rows of thousands of x_rows_map's map words; rows too long for it and for x_rows_local's
-    // local memory (PoCL: about 51000 voxels), a work-item per row.
+    // rows longer than a GPU's work-group (1024 segments of 16 voxels) in x_rows_map's chunks
+    // of 128 segments (the last one partial in the second); ragged rows too long for
+    // x_rows_local's local memory (PoCL: about 51000 voxels), a work-item per row.
     const std::pair<World, const char*> worlds[] = {
         {with_solids({2, 2, 20000}, {{0, 0, 0, 1}}), "cols_seg/32"},
         {with_solids({3, 2, 20000}, {{0, 0, 0, 1}, {2, 1, 19999, 2}}), "cols_seg/32"},
@@ -243,9 +244,9 @@ TEST(ExactManhattan, LongColumnsCarryAcrossHundredsOfSegments) {
          "cols_chunks"},
         {with_solids({4, 140001, 2}, {{0, 0, 0, 1}, {3, 140000, 1, 1}}), "cols_chunks"},
         {with_solids({60000, 3, 2}, {{0, 0, 0, 1}, {30011, 1, 0, 1}, {59999, 2, 1, 1}}),
-         "x_rows_map"},
+         "x_rows_chunks"},
         {with_solids({65552, 2, 2}, {{0, 0, 0, 1}, {30011, 1, 0, 1}, {65551, 1, 1, 1}}),
-         "x_rows_long"},
+         "x_rows_chunks"},
         {with_solids({60001, 2, 2}, {{60000, 1, 1, 1}}), "x_rows_long"}};
     for (const auto& [w, kernel] : worlds) {
         const auto path = kernel_path(w, Format::u16, Layout::gpu);
@@ -296,6 +297,46 @@ TEST(ExactManhattan, GpuBitRowsEveryWordCase) {
             const World w =
                 scene_random(Dims{x, 9, 7}, density, x + static_cast<unsigned>(density * 1000));
             expect_exact(w, Palette(), "random rows");
+        }
+    }
+}
+
+TEST(ExactManhattan, GpuRowsInChunksEveryCarry) {
+    // x_rows_map's chunks (rows of more than 1024 segments, chunks of 128 = 2048 voxels): a row's
+    // nearest target in its own chunk, in the next chunk or many chunks away on either side, at
+    // the row's first or last voxel, in a partial last chunk, none at all; both rows of a
+    // work-item; u8 (saturating) and u16, bounded fields, random rows.
+    for (const std::uint32_t x : {16400u, 32768u, 36880u}) {
+        World w = with_solids(Dims{x, 9, 3}, {{0, 0, 0, 1},
+                                              {x - 1, 1, 0, 2},
+                                              {0, 2, 1, 3},
+                                              {x - 1, 2, 1, 4},
+                                              {x / 2, 3, 2, 5},
+                                              {2047, 4, 1, 6},
+                                              {2048, 5, 0, 7},
+                                              {x - 3, 6, 2, 8},
+                                              {5 * 2048 + 100, 7, 0, 1}});
+        for (std::uint32_t i = 0; i < x; i += 4093) {
+            w.set(i, 8, 1, 9);
+        }
+        // (u32 rows of whole words below 65535 voxels take x_words.)
+        for (Format f : {Format::u8, Format::u16}) {
+            const auto path = kernel_path(w, f, Layout::gpu);
+            EXPECT_NE(std::find(path.begin(), path.end(), "x_rows_chunks"), path.end()) << x;
+        }
+        expect_exact(w, Palette(), "row chunk cases");
+        const World r = scene_random(w.dims(), 0.0004, x);
+        expect_exact(r, Palette(), "random long rows");
+        auto capped = reference_distance(w, Metric::manhattan, Spacing{});
+        for (double& v : capped) {
+            v = std::min(v, 300.5);
+        }
+        for (Format f : {Format::u16, Format::u32}) {
+            ocl::ExactManhattan job(pocl(), w, Palette(), f, Layout::gpu, Metric::manhattan, 300.5);
+            job.run();
+            const std::string diff = test::first_difference(
+                job.read(), encode_real_field(capped, w, Palette(), f), f, w.dims());
+            EXPECT_TRUE(diff.empty()) << x << " bounded " << to_string(f) << ": " << diff;
         }
     }
 }

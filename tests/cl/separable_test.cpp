@@ -686,10 +686,11 @@ TEST(ExactSeparable, BundledModels) {
 // L2, a nearest solid for L-inf).
 TEST(ExactSeparable, BandedGpuPassesMatchTheReference) {
     std::mt19937_64 rng(1234);
-    // The last shape's rows are too long for x_rows_local's local memory on PoCL (x_rows_long).
-    const Dims shapes[] = {{48, 181, 97}, {3, 260, 5},  {70, 2, 300}, {16, 64, 64}, {33, 41, 29},
-                           {29, 17, 40},  {20, 30, 25}, {1, 1, 1},    {60001, 2, 3}};
-    const double densities[] = {0.0004, 0.02, 0.5, 0.0004, 0.97, 1.0, 0.0, 1.0, 0.0001};
+    // The ninth shape's rows are too long for x_rows_local's local memory on PoCL (x_rows_long),
+    // the tenth's for a work-group of x_rows_map (its chunks).
+    const Dims shapes[] = {{48, 181, 97}, {3, 260, 5},  {70, 2, 300}, {16, 64, 64},  {33, 41, 29},
+                           {29, 17, 40},  {20, 30, 25}, {1, 1, 1},    {60001, 2, 3}, {32784, 3, 2}};
+    const double densities[] = {0.0004, 0.02, 0.5, 0.0004, 0.97, 1.0, 0.0, 1.0, 0.0001, 0.0003};
     for (std::size_t i = 0; i < std::size(shapes); ++i) {
         const World w = scene_random(shapes[i], densities[i], rng());
         for (Metric m : kMetrics) {

@@ -145,6 +145,8 @@ class ExactSeparable : public Generator {
     bool global_z_ = false;      // its z pass's
     cl::Program program_global_;
     cl::Buffer banded_scratch_[3];
+    // The banded transforms' x rows in chunks: the chunks' ends (outer, inner).
+    cl::Buffer row_ends_[2];
     bool incremental_;
     std::uint32_t z_period_ = 0;  // z-slices per stacked block (0: one world)
     Spacing spacing_;
