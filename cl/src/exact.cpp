@@ -69,6 +69,27 @@ bool use_gpu_layout(const Context& ctx, Layout layout) {
     return layout == Layout::automatic ? !ctx.is_cpu() : layout == Layout::gpu;
 }
 
+// The layout of a world: the one asked for (or the device's), except that an unsigned L1 field
+// whose rows or columns the CPU layout cannot hold in local memory (a row's two sweeps with
+// half a row's padding on each side, a column of the z or y strips) takes the GPU layout's
+// kernels, which hold neither and run on any device: on PoCL with 1 MiB of local memory,
+// u32 rows of 65552 voxels needed 1.5 MiB. (Signed fields and L-inf have the CPU layout
+// only.)
+bool use_gpu_layout(const Context& ctx, Layout layout, Dims dims, Format format, Metric metric) {
+    if (use_gpu_layout(ctx, layout)) {
+        return true;
+    }
+    const WorkType wt = work_type(format);
+    if (wt.is_signed || metric != Metric::manhattan) {
+        return false;
+    }
+    const std::size_t local = ctx.info().local_mem;
+    const std::size_t pad = std::max<std::size_t>(1, next_pow2(dims.x) / 2);
+    const std::size_t rows = 2 * (std::size_t{dims.x} + 2 * pad) * wt.bytes;
+    const std::size_t column = std::size_t{std::max(dims.y, dims.z)} * wt.bytes;
+    return rows > local || column > local;
+}
+
 // A bounded field's saturation in the sweeps: floor(D) (the integer formats' min(exact, D)).
 std::uint32_t cap_of(std::optional<double> max_distance) {
     return max_distance
@@ -271,7 +292,7 @@ ExactManhattan::ExactManhattan(Context& ctx, Dims dims, const cl::Buffer& voxels
                                const cl::Buffer& out, const Palette& palette, Format format,
                                Layout layout, std::optional<double> max_distance)
     : Generator(ctx, dims, format),
-      gpu_layout_(use_gpu_layout(ctx, layout)),
+      gpu_layout_(use_gpu_layout(ctx, layout, dims, format, Metric::manhattan)),
       metric_(Metric::manhattan),
       cap_(cap_of(max_distance)) {
     const WorkType wt = work_type(format_);
@@ -315,7 +336,7 @@ ExactManhattan::ExactManhattan(Context& ctx, const World& world, const Palette& 
                                Format format, Layout layout, Metric metric,
                                std::optional<double> max_distance)
     : Generator(ctx, world.dims(), format),
-      gpu_layout_(use_gpu_layout(ctx, layout)),
+      gpu_layout_(use_gpu_layout(ctx, layout, world.dims(), format, metric)),
       metric_(metric),
       cap_(cap_of(max_distance)) {
     allocate(palette, world.voxels().data(), false, {});
@@ -326,7 +347,7 @@ ExactManhattan::ExactManhattan(Context& ctx, Dims dims, std::span<const std::uin
                                const Palette& palette, Format format, Layout layout, Metric metric,
                                std::span<std::uint8_t> field, std::optional<double> max_distance)
     : Generator(ctx, dims, format),
-      gpu_layout_(use_gpu_layout(ctx, layout)),
+      gpu_layout_(use_gpu_layout(ctx, layout, dims, format, metric)),
       metric_(metric),
       cap_(cap_of(max_distance)) {
     if (voxels.size() != dims.count()) {
@@ -347,7 +368,7 @@ void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layo
                              std::optional<double> max_distance) {
     const std::uint32_t cap = cap_of(max_distance);
     build_program(ctx, format, 32, 1, metric, cap);
-    const bool gpu_layout = use_gpu_layout(ctx, layout);
+    const bool gpu_layout = use_gpu_layout(ctx, layout, dims, format, metric);
     if (byte_sweeps(format, metric, gpu_layout)) {
         build_byte_program(ctx, format, metric, cap);
     }
