@@ -5,11 +5,13 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <random>
 #include <string>
 #include <system_error>
+#include <utility>
 
 #include "voxfield/core/error.hpp"
 
@@ -116,6 +118,8 @@ class Fd {
     Fd(const Fd&) = delete;
     Fd& operator=(const Fd&) = delete;
     int get() const { return fd_; }
+    // Gives the descriptor up without closing it.
+    int release() { return std::exchange(fd_, -1); }
     // Closes it now; the close's errno when it fails, else 0.
     int close() {
         const int rc = ::close(fd_);
@@ -231,9 +235,30 @@ void check_outputs(const std::vector<NamedPath>& outputs, const std::vector<Name
 }
 
 OutputBatch::~OutputBatch() {
+    for (const auto& [target, fd] : reserved_) {
+        ::close(fd);
+    }
     for (const auto& [tmp, target] : pending_) {
         ::unlink(tmp.c_str());
     }
+}
+
+void OutputBatch::reserve(const fs::path& path, std::uint64_t bytes) {
+    const std::string file = path.string();
+    std::string target;
+    if (classify(path, target) == Target::direct) {
+        return;
+    }
+    std::string tmp;
+    Fd fd(create_temporary(file, target, tmp));
+    pending_.emplace_back(tmp, target);
+    // Only a lack of room (or a failing disk) is the output's failure: a file system that
+    // cannot reserve (EOPNOTSUPP and the like) is written as any other.
+    if (bytes > 0 && ::fallocate(fd.get(), 0, 0, static_cast<off_t>(bytes)) != 0 &&
+        (errno == ENOSPC || errno == EDQUOT || errno == EFBIG || errno == EIO)) {
+        fail(file, "cannot take " + std::to_string(bytes) + " bytes for it", errno);
+    }
+    reserved_.emplace_back(target, fd.release());
 }
 
 void OutputBatch::write(const fs::path& path,
@@ -259,10 +284,24 @@ void OutputBatch::write(const fs::path& path, const std::function<void(const Sin
         }
         return;
     }
+    const auto reserved = std::find_if(reserved_.begin(), reserved_.end(),
+                                       [&](const auto& r) { return r.first == target; });
     std::string tmp;
-    Fd fd(create_temporary(file, target, tmp));
-    pending_.emplace_back(tmp, target);
-    produce([&](std::span<const std::uint8_t> part) { write_all(fd.get(), file, part); });
+    Fd fd(reserved != reserved_.end() ? reserved->second : create_temporary(file, target, tmp));
+    if (reserved != reserved_.end()) {
+        reserved_.erase(reserved);
+    } else {
+        pending_.emplace_back(tmp, target);
+    }
+    std::uint64_t written = 0;
+    produce([&](std::span<const std::uint8_t> part) {
+        write_all(fd.get(), file, part);
+        written += part.size();
+    });
+    // A reserved file is cut to what was written (no-op for a file written from empty).
+    if (::ftruncate(fd.get(), static_cast<off_t>(written)) != 0) {
+        fail(file, "cannot set its length", errno);
+    }
     // Not forced to disk (no fsync, as numpy.save and cp do not): the rename makes the file
     // whole or absent for readers; its data reach the disk with the page cache's writeback.
     if (const int e = fd.close(); e != 0) {

@@ -206,6 +206,46 @@ TEST(OutputFile, ABatchCommittedWritesEveryOutput) {
     EXPECT_EQ(read_npy(dir / "f.npy").data, (std::vector<std::uint8_t>{1, 2}));
 }
 
+TEST(OutputFile, AReservedFileKeepsWhatWasWrittenAndNothingBeforeCommit) {
+    TempDir dir;
+    test::write_text(dir / "old.npy", "old content");
+    const std::vector<std::uint8_t> field(5000, 7);
+    {
+        OutputBatch batch;
+        // Reserved larger, smaller and exactly: each file keeps the bytes written.
+        batch.reserve(dir / "old.npy", 1 << 20);
+        batch.reserve(dir / "new.npy", 10);
+        batch.reserve(dir / "a.txt", 5);
+        EXPECT_EQ(text_of(dir / "old.npy"), "old content");
+        EXPECT_EQ(names_in(dir.path()).count("new.npy"), 0u);
+        write_npy(batch, dir / "old.npy", NpyType::u8, Dims{50, 10, 10}, field);
+        write_npy(batch, dir / "new.npy", NpyType::u8, Dims{50, 10, 10}, field);
+        batch.write(dir / "a.txt", std::string("first"));
+        batch.commit();
+    }
+    EXPECT_EQ(names_in(dir.path()), (std::set<std::string>{"a.txt", "new.npy", "old.npy"}));
+    EXPECT_EQ(read_npy(dir / "old.npy").data, field);
+    EXPECT_EQ(read_npy(dir / "new.npy").data, field);
+    EXPECT_EQ(fs::file_size(dir / "old.npy"), fs::file_size(dir / "new.npy"));
+    EXPECT_EQ(text_of(dir / "a.txt"), "first");
+    {
+        // Reserved, never written or committed: no temporary stays and the old file is kept.
+        OutputBatch batch;
+        batch.reserve(dir / "a.txt", 1 << 16);
+        batch.reserve(dir / "b.txt", 1 << 16);
+    }
+    EXPECT_EQ(names_in(dir.path()), (std::set<std::string>{"a.txt", "new.npy", "old.npy"}));
+    EXPECT_EQ(text_of(dir / "a.txt"), "first");
+    const fs::path null = dir / "null";
+    if (make_char_device(null, 1, 3).empty()) {
+        OutputBatch batch;
+        batch.reserve(null, 1 << 16);
+        batch.write(null, std::string("direct"));
+        batch.commit();
+        EXPECT_TRUE(is_char_device(null));
+    }
+}
+
 TEST(OutputFile, ChecksOutputsAgainstEachOtherAndTheInputs) {
     TempDir dir;
     test::write_text(dir / "in.npy", "x");

@@ -102,6 +102,19 @@ int run_generate(const GenerateOptions& o) {
     // device whose layout they lack for it (chebyshev on a GPU) gets a World after the read.
     bool in_place = npy && options.algorithm == ocl::Algorithm::exact &&
                     ocl::ExactManhattan::handles(options, options.layout == ocl::Layout::gpu);
+    // The outputs' files are made, and their room taken, on another thread while the device
+    // is set up, so that writing them later only copies (OutputBatch::reserve); a .vdb's size
+    // is not known before its tree is built.
+    OutputBatch outputs;
+    std::future<void> reserving;
+    if (!vdb) {
+        reserving = std::async(std::launch::async, [&, dims] {
+            outputs.reserve(o.output, dims.count() * element_size(format));
+            if (options.indices) {
+                outputs.reserve(o.indices, dims.count() * 3 * sizeof(std::int32_t));
+            }
+        });
+    }
     ocl::HostMemory voxels;
     std::size_t solid = 0;
     std::future<double> reading;
@@ -203,7 +216,9 @@ int run_generate(const GenerateOptions& o) {
 
     // Every output goes into one batch, renamed onto its target only once all are written:
     // a failure leaves none of them.
-    OutputBatch outputs;
+    if (reserving.valid()) {
+        reserving.get();
+    }
     progress.set("writing " + o.output);
     const auto t_write = Clock::now();
     if (vdb) {

@@ -71,10 +71,20 @@ class OutputBatch {
     // program holds, e.g. a device buffer read in slabs). An exception from `produce` leaves
     // no temporary behind.
     void write(const std::filesystem::path& path, const std::function<void(const Sink&)>& produce);
+    // Creates the temporary of `path` now, before its content exists, and takes `bytes` of
+    // room for it from the file system (fallocate): a later write() of `path` fills that
+    // file and then only copies (on tmpfs and ext4 the pages or blocks are found here, e.g.
+    // on a second thread while the device is set up), and a disk too full for the output
+    // fails here rather than part-way through the write. The file keeps the written length.
+    // A path written directly (a device, a FIFO), or a file system without fallocate,
+    // reserves nothing. Not thread-safe: nothing else may use the batch while it runs.
+    void reserve(const std::filesystem::path& path, std::uint64_t bytes);
     void commit();
 
   private:
     std::vector<std::pair<std::string, std::string>> pending_;  // (temporary, target)
+    // Reserved temporaries, open until written: (target, descriptor).
+    std::vector<std::pair<std::string, int>> reserved_;
 };
 
 // One file written on its own: an OutputBatch of one, committed.
