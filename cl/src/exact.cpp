@@ -127,11 +127,22 @@ cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t
                        options);
 }
 
+// xy_slice_local's row stride in local memory (elements of `bytes`): the least above X whose
+// bytes are an odd number of 4-byte words, so that a warp's row sweeps read 32 banks.
+std::uint32_t slice_stride(std::uint32_t x, std::size_t bytes) {
+    std::uint32_t sx = x + 1;
+    while (sx * bytes % 8 != 4) {
+        ++sx;
+    }
+    return sx;
+}
+
 // Whether the GPU layout takes x and y in one launch (xy_slice_local): a z-slice of the work
 // type within a quarter of the local memory and 16 KiB (a sparse field's edit blocks, small
 // worlds; larger slices keep the row and column kernels, tuned for them).
 bool slice_in_local(Dims dims, std::size_t bytes, std::size_t local_mem) {
-    return std::size_t{dims.x} * dims.y * bytes <= std::min<std::size_t>(local_mem / 4, 16384);
+    return std::size_t{slice_stride(dims.x, bytes)} * dims.y * bytes <=
+           std::min<std::size_t>(local_mem / 4, 16384);
 }
 
 // The GPU layout's x pass as bits (x_words, expanded by the y pass's cols_seg): L1 into u32
@@ -574,9 +585,11 @@ void ExactManhattan::set_up_kernels() {
                 256, xy.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device));
             xy.setArg(0, voxels_);
             xy.setArg(1, work_);
+            const std::uint32_t sx = slice_stride(dims_.x, wt.bytes);
             xy.setArg(2, dims_.x);
             xy.setArg(3, dims_.y);
-            xy.setArg(4, cl::Local(plane * wt.bytes));
+            xy.setArg(4, sx);
+            xy.setArg(5, cl::Local(std::size_t{sx} * dims_.y * wt.bytes));
             add({"xy_slice_local", xy, cl::NDRange(group * dims_.z), cl::NDRange(group)});
             rows_on_gpu = true;
         }
