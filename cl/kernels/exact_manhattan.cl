@@ -1247,10 +1247,13 @@ inline void sweep_local_line(__local T* line, uint n, uint step) {
 // field's edit block, small worlds): a work-group per slice loads its voxels (coalesced),
 // sweeps its rows along x and then its columns along y in local memory (a work-item per row,
 // then per column), and stores the slice (coalesced): one launch for two passes. Unsigned.
-// Rows lie SX >= X + 1 elements apart in local memory, SX * sizeof(T) an odd number of 4-byte
-// words (the host's choice), so that the row sweeps' work-items, a row each, read different
-// banks: with rows X apart, 64 u16 voxels (128 bytes) put every work-item of a warp in one
-// bank, and the long-z world's (64 x 64 x 32768) x and y passes took 2.3 ms on an H100.
+// Rows lie SX elements apart in local memory: X, or where rows X apart would put many of a
+// warp's work-items (a row each in the row sweeps) in one bank, more (the host's choice): with
+// rows of 64 u16 voxels (128 bytes) all 32 were in one bank, and the long-z world's (64 x 64 x
+// 32768) x and y passes took 2.3 ms on an H100 against 0.43 padded.
+// Element j of a slice (rows of X) in local memory whose rows lie SX apart.
+inline uint slice_at(uint j, uint X, uint SX) { return SX == X ? j : j / X * SX + j % X; }
+
 __kernel void xy_slice_local(__global const uchar* restrict vox, __global T* restrict work,
                              uint X, uint Y, uint SX, __local T* sl) {
     const uint lid = (uint)get_local_id(0), n = (uint)get_local_size(0);
@@ -1268,7 +1271,7 @@ __kernel void xy_slice_local(__global const uchar* restrict vox, __global T* res
         for (uint u = 0; u < 4; ++u) {
             const uint j = i + u * n;
             if (j < plane) {
-                sl[j / X * SX + j % X] = a[u] != 0 ? (T)0 : (T)T_MAX;
+                sl[slice_at(j, X, SX)] = a[u] != 0 ? (T)0 : (T)T_MAX;
             }
         }
     }
@@ -1282,7 +1285,7 @@ __kernel void xy_slice_local(__global const uchar* restrict vox, __global T* res
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     for (uint i = lid; i < plane; i += n) {
-        work[base + i] = sl[i / X * SX + i % X];
+        work[base + i] = sl[slice_at(i, X, SX)];
     }
 }
 
