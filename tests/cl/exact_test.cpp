@@ -303,6 +303,22 @@ TEST(ExactManhattan, GpuBitRowsEveryWordCase) {
     }
 }
 
+// The GPU layout's field of `world` bounded at `bound` in each of `formats`: min(exact, bound).
+void expect_bounded_gpu(const World& world, double bound, std::initializer_list<Format> formats,
+                        const std::string& what) {
+    auto capped = reference_distance(world, Metric::manhattan, Spacing{});
+    for (double& v : capped) {
+        v = std::min(v, bound);
+    }
+    for (Format f : formats) {
+        ocl::ExactManhattan job(pocl(), world, Palette(), f, Layout::gpu, Metric::manhattan, bound);
+        job.run();
+        const std::string diff = test::first_difference(
+            job.read(), encode_real_field(capped, world, Palette(), f), f, world.dims());
+        EXPECT_TRUE(diff.empty()) << what << " bounded " << to_string(f) << ": " << diff;
+    }
+}
+
 TEST(ExactManhattan, GpuRowsInChunksEveryCarry) {
     // x_rows_map's chunks (rows of more than 1024 segments, chunks of 128 = 2048 voxels): a row's
     // nearest target in its own chunk, in the next chunk or many chunks away on either side, at
@@ -329,17 +345,7 @@ TEST(ExactManhattan, GpuRowsInChunksEveryCarry) {
         expect_exact(w, Palette(), "row chunk cases");
         const World r = scene_random(w.dims(), 0.0004, x);
         expect_exact(r, Palette(), "random long rows");
-        auto capped = reference_distance(w, Metric::manhattan, Spacing{});
-        for (double& v : capped) {
-            v = std::min(v, 300.5);
-        }
-        for (Format f : {Format::u16, Format::u32}) {
-            ocl::ExactManhattan job(pocl(), w, Palette(), f, Layout::gpu, Metric::manhattan, 300.5);
-            job.run();
-            const std::string diff = test::first_difference(
-                job.read(), encode_real_field(capped, w, Palette(), f), f, w.dims());
-            EXPECT_TRUE(diff.empty()) << x << " bounded " << to_string(f) << ": " << diff;
-        }
+        expect_bounded_gpu(w, 300.5, {Format::u16, Format::u32}, std::to_string(x));
     }
 }
 
@@ -370,17 +376,7 @@ TEST(ExactManhattan, GpuRowMapEveryWordCase) {
         expect_exact(w, Palette(), "row map cases");
         const World r = scene_random(w.dims(), 0.003, x);
         expect_exact(r, Palette(), "random rows");
-        auto capped = reference_distance(r, Metric::manhattan, Spacing{});
-        for (double& v : capped) {
-            v = std::min(v, 6.5);
-        }
-        for (Format f : {Format::u8, Format::u16}) {
-            ocl::ExactManhattan job(pocl(), r, Palette(), f, Layout::gpu, Metric::manhattan, 6.5);
-            job.run();
-            const std::string diff = test::first_difference(
-                job.read(), encode_real_field(capped, r, Palette(), f), f, r.dims());
-            EXPECT_TRUE(diff.empty()) << x << " bounded " << to_string(f) << ": " << diff;
-        }
+        expect_bounded_gpu(r, 6.5, {Format::u8, Format::u16}, std::to_string(x));
     }
 }
 
