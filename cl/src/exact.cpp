@@ -70,6 +70,16 @@ bool use_gpu_layout(const Context& ctx, Layout layout) {
     return layout == Layout::automatic ? !ctx.is_cpu() : layout == Layout::gpu;
 }
 
+// The CPU layout's row sweeps (xy_slices_seq, xy_bytes): a row's padding on each side, half
+// the row rounded up to a power of two and at least 1 (a row of one voxel still takes the step
+// to its padding, signed), and xy_slices_seq's local bytes for two padded rows of `bytes`.
+std::size_t slices_pad(std::uint32_t x) {
+    return std::max<std::size_t>(1, next_pow2(x) / 2);
+}
+std::size_t slices_scratch(std::uint32_t x, std::size_t bytes) {
+    return 2 * (std::size_t{x} + 2 * slices_pad(x)) * bytes;
+}
+
 // The layout of a world: the one asked for (or the device's), except that an unsigned L1 field
 // whose rows or columns the CPU layout cannot hold in local memory (a row's two sweeps with
 // half a row's padding on each side, a column of the z or y strips) takes the GPU layout's
@@ -85,10 +95,8 @@ bool use_gpu_layout(const Context& ctx, Layout layout, Dims dims, Format format,
         return false;
     }
     const std::size_t local = ctx.info().local_mem;
-    const std::size_t pad = std::max<std::size_t>(1, next_pow2(dims.x) / 2);
-    const std::size_t rows = 2 * (std::size_t{dims.x} + 2 * pad) * wt.bytes;
     const std::size_t column = std::size_t{std::max(dims.y, dims.z)} * wt.bytes;
-    return rows > local || column > local;
+    return slices_scratch(dims.x, wt.bytes) > local || column > local;
 }
 
 // A bounded field's saturation in the sweeps: floor(D) (the integer formats' min(exact, D)).
@@ -637,9 +645,7 @@ void ExactManhattan::set_up_kernels() {
             rows_on_gpu = true;
         }
         if (!rows_on_gpu) {
-            // At least 1: a row of one voxel still takes the step to its padding (signed).
-            const std::size_t pad = std::max<std::size_t>(1, next_pow2(dims_.x) / 2);
-            const std::size_t scratch = 2 * (std::size_t{dims_.x} + 2 * pad) * wt.bytes;
+            const std::size_t scratch = slices_scratch(dims_.x, wt.bytes);
             if (scratch > info.local_mem) {
                 throw ClError("clEnqueueNDRangeKernel", CL_OUT_OF_RESOURCES,
                               sizes + ": rows of " + std::to_string(dims_.x) +
@@ -650,7 +656,7 @@ void ExactManhattan::set_up_kernels() {
             xy.setArg(1, work_);
             xy.setArg(2, dims_.x);
             xy.setArg(3, dims_.y);
-            xy.setArg(4, static_cast<cl_uint>(pad));
+            xy.setArg(4, static_cast<cl_uint>(slices_pad(dims_.x)));
             xy.setArg(5, cl::Local(scratch));
             add({"xy_slices_seq", xy, cl::NDRange(dims_.z),
                  gpu_layout_ ? cl::NullRange : cl::NDRange(1)});
@@ -693,7 +699,7 @@ std::optional<KernelLaunch> ExactManhattan::x_words() {
 bool ExactManhattan::add_byte_sweeps() {
     const auto& info = ctx_.info();
     const std::size_t plane = std::size_t{dims_.x} * dims_.y;
-    const std::size_t pad = std::max<std::size_t>(1, next_pow2(dims_.x) / 2);
+    const std::size_t pad = slices_pad(dims_.x);
     const std::size_t x64 = (std::size_t{dims_.x} + 63) / 64 * 64;  // xy_bytes' row length
     const std::size_t rows = 2 * (x64 + 2 * pad);
     const std::size_t slice = (x64 + 32) * dims_.y;

@@ -284,12 +284,13 @@ void OutputBatch::write(const fs::path& path, const std::function<void(const Sin
         }
         return;
     }
-    const auto reserved = std::find_if(reserved_.begin(), reserved_.end(),
-                                       [&](const auto& r) { return r.first == target; });
+    const auto found = std::find_if(reserved_.begin(), reserved_.end(),
+                                    [&](const auto& r) { return r.first == target; });
+    const bool reserved = found != reserved_.end();
     std::string tmp;
-    Fd fd(reserved != reserved_.end() ? reserved->second : create_temporary(file, target, tmp));
-    if (reserved != reserved_.end()) {
-        reserved_.erase(reserved);
+    Fd fd(reserved ? found->second : create_temporary(file, target, tmp));
+    if (reserved) {
+        reserved_.erase(found);
     } else {
         pending_.emplace_back(tmp, target);
     }
@@ -298,8 +299,8 @@ void OutputBatch::write(const fs::path& path, const std::function<void(const Sin
         write_all(fd.get(), file, part);
         written += part.size();
     });
-    // A reserved file is cut to what was written (no-op for a file written from empty).
-    if (::ftruncate(fd.get(), static_cast<off_t>(written)) != 0) {
+    // A reserved file is cut to what was written (its room may have been more).
+    if (reserved && ::ftruncate(fd.get(), static_cast<off_t>(written)) != 0) {
         fail(file, "cannot set its length", errno);
     }
     // Not forced to disk (no fsync, as numpy.save and cp do not): the rename makes the file
