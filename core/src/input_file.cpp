@@ -114,11 +114,20 @@ VoxModel load_vox(const std::filesystem::path& path, const InputOptions&) {
 }
 
 VoxModel load_npy(const std::filesystem::path& path, const InputOptions& options) {
-    const NpyArray array = read_npy(path);
+    // A uint8 array is the world's own bytes: read straight into the world, without the
+    // array's copy (at 512^3 two passes and 128 MiB of page faults fewer).
+    const NpyReader reader(path);
+    if (reader.type() == NpyType::u8) {
+        World world(reader.dims());
+        reader.read_data(world.voxels());
+        return VoxModel{std::move(world), Palette()};
+    }
+    std::vector<std::uint8_t> data(reader.data_bytes());
+    reader.read_data(data);
     try {
-        return VoxModel{
-            world_from_npy(array, options.palette_values ? Labels::palette : Labels::solid),
-            Palette()};
+        return VoxModel{world_from_labels(reader.type(), reader.dims(), data,
+                                          options.palette_values ? Labels::palette : Labels::solid),
+                        Palette()};
     } catch (const InputError& e) {
         throw InputError(path.string() + ": " + e.what());
     }
