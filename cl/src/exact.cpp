@@ -80,23 +80,27 @@ std::size_t slices_scratch(std::uint32_t x, std::size_t bytes) {
     return 2 * (std::size_t{x} + 2 * slices_pad(x)) * bytes;
 }
 
+// Whether the CPU layout's sweeps hold a world's lines in local memory: a row's two sweeps
+// with half a row's padding on each side (xy_slices_seq), and a column of the z or y strips.
+// On PoCL with 1 MiB of local memory, u32 rows of 65552 voxels needed 1.5 MiB.
+bool cpu_lines_fit(const Context& ctx, Dims dims, Format format) {
+    const std::size_t bytes = work_type(format).bytes, local = ctx.info().local_mem;
+    return slices_scratch(dims.x, bytes) <= local &&
+           std::size_t{std::max(dims.y, dims.z)} * bytes <= local;
+}
+
 // The layout of a world: the one asked for (or the device's), except that an unsigned L1 field
-// whose rows or columns the CPU layout cannot hold in local memory (a row's two sweeps with
-// half a row's padding on each side, a column of the z or y strips) takes the GPU layout's
-// kernels, which hold neither and run on any device: on PoCL with 1 MiB of local memory,
-// u32 rows of 65552 voxels needed 1.5 MiB. (Signed fields and L-inf have the CPU layout
-// only.)
+// whose lines the CPU layout cannot hold takes the GPU layout's kernels, which hold neither
+// and run on any device. (Signed fields and L-inf have the CPU layout only: such worlds take
+// ExactSeparable, ExactManhattan::handles.)
 bool use_gpu_layout(const Context& ctx, Layout layout, Dims dims, Format format, Metric metric) {
     if (use_gpu_layout(ctx, layout)) {
         return true;
     }
-    const WorkType wt = work_type(format);
-    if (wt.is_signed || metric != Metric::manhattan) {
+    if (work_type(format).is_signed || metric != Metric::manhattan) {
         return false;
     }
-    const std::size_t local = ctx.info().local_mem;
-    const std::size_t column = std::size_t{std::max(dims.y, dims.z)} * wt.bytes;
-    return slices_scratch(dims.x, wt.bytes) > local || column > local;
+    return !cpu_lines_fit(ctx, dims, format);
 }
 
 // A bounded field's saturation in the sweeps: floor(D) (the integer formats' min(exact, D)).
@@ -345,8 +349,11 @@ ExactManhattan::ExactManhattan(Context& ctx, Dims dims, const cl::Buffer& voxels
     set_up_kernels();
 }
 
-bool ExactManhattan::handles(const Context& ctx, const GeneratorOptions& o) {
-    return handles(o, use_gpu_layout(ctx, o.layout));
+bool ExactManhattan::handles(const Context& ctx, const GeneratorOptions& o, Dims dims) {
+    const bool gpu_layout = use_gpu_layout(ctx, o.layout);
+    return handles(o, gpu_layout) &&
+           (gpu_layout || !(o.signed_field || o.metric == Metric::chebyshev) ||
+            cpu_lines_fit(ctx, dims, o.format));
 }
 
 bool ExactManhattan::handles(const GeneratorOptions& o, bool gpu_layout) {

@@ -318,7 +318,7 @@ std::unique_ptr<Generator> make_generator(Context& ctx, const World& world, cons
                                           const GeneratorOptions& options) {
     const GeneratorOptions o = resolve_options(options, world.dims());
     if (o.algorithm == Algorithm::exact) {
-        if (ExactManhattan::handles(ctx, o)) {
+        if (ExactManhattan::handles(ctx, o, world.dims())) {
             return std::make_unique<ExactManhattan>(ctx, world, palette, o.format, o.layout,
                                                     o.metric, o.max_distance);
         }

@@ -326,7 +326,7 @@ SparseField::Batch& SparseField::batch_for(Dims block, std::uint32_t blocks) {
     b->blocks = blocks;
     const World zero(Dims{block.x, block.y, block.z * blocks});
     const GeneratorOptions& o = options_;
-    if (ExactManhattan::handles(ctx_, o)) {
+    if (ExactManhattan::handles(ctx_, o, zero.dims())) {
         auto g = std::make_unique<ExactManhattan>(ctx_, zero, palette_, o.format, o.layout,
                                                   o.metric, o.max_distance);
         b->voxels = g->voxels_buffer();

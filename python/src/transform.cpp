@@ -36,7 +36,7 @@ void transform_into(Device& dev, Dims dims, std::span<const std::uint8_t> voxels
     const std::span<std::uint8_t> out(field, bytes);
     const std::span<std::int32_t> planes(indices, indices != nullptr ? 3 * dims.count() : 0);
     std::unique_ptr<ocl::Generator> made;
-    if (!zero_targets && ocl::ExactManhattan::handles(ctx, o)) {
+    if (!zero_targets && ocl::ExactManhattan::handles(ctx, o, dims)) {
         made = std::make_unique<ocl::ExactManhattan>(ctx, dims, voxels, Palette{}, o.format,
                                                      o.layout, o.metric, out, o.max_distance);
     } else {
@@ -70,8 +70,8 @@ void transform_into(Device& dev, Dims dims, std::span<const std::uint8_t> voxels
 // themselves (the CPU layout's passes; the GPU layout's banded passes from a copy the device
 // inverts, its col_pass from the world); exact_manhattan.cl's sweeps take an inverted copy
 // made on the host.
-bool native_zero_targets(const Device& dev, const ocl::GeneratorOptions& o) {
-    return !ocl::ExactManhattan::handles(dev.context, o);
+bool native_zero_targets(const Device& dev, const ocl::GeneratorOptions& o, Dims dims) {
+    return !ocl::ExactManhattan::handles(dev.context, o, dims);
 }
 
 }  // namespace
@@ -114,7 +114,7 @@ py::object distance_transform(const py::object& world, const std::string& metric
     // arrays.
     const bool direct = w.bytes_are_voxels() && options.algorithm == ocl::Algorithm::exact &&
                         labels == Labels::solid;
-    const bool invert = zero && !(direct && native_zero_targets(*dev, options));
+    const bool invert = zero && !(direct && native_zero_targets(*dev, options, w.dims));
     if (!empty) {
         check_device_bytes(*dev, std::max(field_bytes, index_bytes),
                            w.count + field_bytes + index_bytes,

@@ -13,6 +13,7 @@
 
 #include "cl_test_util.hpp"
 #include "voxfield/cl/exact.hpp"
+#include "voxfield/cl/separable.hpp"
 #include "voxfield/core/reference.hpp"
 #include "voxfield/core/scenes.hpp"
 #include "voxfield/core/vox.hpp"
@@ -420,7 +421,7 @@ TEST(ExactManhattan, BoundedFieldsSaturateAtD) {
                     auto o = exact_options(f, layout);
                     o.metric = m;
                     o.max_distance = bound;
-                    ASSERT_TRUE(ocl::ExactManhattan::handles(pocl(), o));
+                    ASSERT_TRUE(ocl::ExactManhattan::handles(pocl(), o, w.dims()));
                     ocl::ExactManhattan job(pocl(), w, Palette(), f, layout, m, bound);
                     job.run();
                     const std::string diff = test::first_difference(job.read(), want, f, w.dims());
@@ -477,7 +478,7 @@ void expect_chebyshev(const World& world, const Palette& palette, const std::str
     for (Format f : kFormats) {
         auto o = exact_options(f, Layout::cpu);
         o.metric = Metric::chebyshev;
-        ASSERT_TRUE(ocl::ExactManhattan::handles(pocl(), o));
+        ASSERT_TRUE(ocl::ExactManhattan::handles(pocl(), o, world.dims()));
         const auto want = encode_real_field(exact, world, palette, f);
         ocl::ExactManhattan job(pocl(), world, palette, f, Layout::cpu, Metric::chebyshev);
         job.run();
@@ -544,19 +545,20 @@ TEST(ExactChebyshevSweeps, BytesWidenFrom255) {
 }
 
 TEST(ExactChebyshevSweeps, RoutedByLayout) {
+    const Dims small{9, 9, 9};
     auto o = exact_options(Format::u16, Layout::cpu);
     o.metric = Metric::chebyshev;
-    EXPECT_TRUE(ocl::ExactManhattan::handles(pocl(), o));
+    EXPECT_TRUE(ocl::ExactManhattan::handles(pocl(), o, small));
     o.layout = Layout::gpu;
-    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o, small));
     o.layout = Layout::cpu;
     o.format = Format::f32;
-    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o, small));
     o.format = Format::u16;
     o.max_distance = 4.0;  // bounded: the same sweeps, saturating at floor(D)
-    EXPECT_TRUE(ocl::ExactManhattan::handles(pocl(), o));
+    EXPECT_TRUE(ocl::ExactManhattan::handles(pocl(), o, small));
     o.signed_field = true;
-    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o, small));
     const World w = scene_random(Dims{9, 9, 9}, 0.1, 1);
     EXPECT_THROW(
         ocl::ExactManhattan(pocl(), w, Palette(), Format::u16, Layout::gpu, Metric::chebyshev),
@@ -681,29 +683,70 @@ TEST(ExactSignedSweeps, BundledModels) {
 // Signed L1 takes the sweeps only unbounded, in the CPU layout and a signed integer format;
 // ExactSeparable computes the rest.
 TEST(ExactSignedSweeps, RoutedByLayoutFormatAndBound) {
+    const Dims small{9, 9, 9};
     auto o = exact_options(Format::i16, Layout::cpu);
     o.signed_field = true;
-    EXPECT_TRUE(ocl::ExactManhattan::handles(pocl(), o));
+    EXPECT_TRUE(ocl::ExactManhattan::handles(pocl(), o, small));
     o.layout = Layout::gpu;
-    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o, small));
     o.layout = Layout::cpu;
     o.format = Format::f32;
-    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o, small));
     o.format = Format::i32;
     o.max_distance = 4.0;
-    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o, small));
     o.max_distance.reset();
     o.metric = Metric::chebyshev;
-    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o, small));
     o.metric = Metric::manhattan;
     o.signed_field = false;  // an unsigned field in a signed format: ExactSeparable
-    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o));
+    EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o, small));
     const World w = scene_random(Dims{9, 9, 9}, 0.1, 1);
     EXPECT_THROW(ocl::ExactManhattan(pocl(), w, Palette(), Format::i16, Layout::gpu),
                  std::invalid_argument);
     EXPECT_THROW(
         ocl::ExactManhattan(pocl(), w, Palette(), Format::i16, Layout::cpu, Metric::manhattan, 5.0),
         std::invalid_argument);
+}
+
+// The CPU layout's signed and L-inf sweeps hold a row (with its padding) and a z column in
+// local memory: a world whose lines are longer takes ExactSeparable, exact as ever, instead of
+// failing with CL_OUT_OF_RESOURCES (1 MiB on PoCL here: signed i32 rows of 70001 voxels, L-inf
+// u16 rows of 2^20). Lines a little longer than this device's local memory holds.
+TEST(ExactSweeps, LinesLongerThanLocalMemoryTakeTheSeparableTransform) {
+    const auto longest = static_cast<std::uint32_t>(pocl().info().local_mem / 2 + 1);
+    struct Case {
+        Dims dims;
+        Metric metric;
+        bool sgn;
+        Format format;
+    };
+    const Case cases[] = {{{longest, 2, 1}, Metric::manhattan, true, Format::i32},
+                          {{1, 2, longest / 2 + 1}, Metric::manhattan, true, Format::i32},
+                          {{longest, 1, 2}, Metric::chebyshev, false, Format::u16},
+                          {{2, 1, longest + 1}, Metric::chebyshev, false, Format::u16}};
+    std::uint64_t seed = 9;
+    for (const Case& c : cases) {
+        const World w = scene_random(c.dims, 0.0005, ++seed);
+        auto o = exact_options(c.format, Layout::cpu);
+        o.metric = c.metric;
+        o.signed_field = c.sgn;
+        const std::string what =
+            c.dims.to_string() + " " + to_string(c.metric) + (c.sgn ? " signed" : "");
+        EXPECT_FALSE(ocl::ExactManhattan::handles(pocl(), o, c.dims)) << what;
+        auto job = ocl::make_generator(pocl(), w, Palette(), o);
+        ASSERT_NE(dynamic_cast<const ocl::ExactSeparable*>(job.get()), nullptr) << what;
+        job->run();
+        const auto exact = c.sgn ? reference_signed(w, c.metric, Spacing{})
+                                 : reference_distance(w, c.metric, Spacing{});
+        const std::string diff = test::first_difference(
+            job->read(), encode_real_field(exact, w, Palette(), c.format), c.format, c.dims);
+        EXPECT_TRUE(diff.empty()) << what << ": " << diff;
+    }
+    // Lines that fit keep the sweeps.
+    auto o = exact_options(Format::i32, Layout::cpu);
+    o.signed_field = true;
+    EXPECT_TRUE(ocl::ExactManhattan::handles(pocl(), o, Dims{64, 2, 3}));
 }
 
 TEST(DeviceSelection, ExplainsRejections) {

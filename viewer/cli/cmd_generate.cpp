@@ -139,7 +139,7 @@ int run_generate(const GenerateOptions& o) {
     // (An exception here leaves through `loading`'s destructor, which waits for the read.)
     ocl::Context ctx(ocl::select_device(o.device));
     double build_ms = 0;  // kernel build, where it is not part of the upload
-    if (in_place && !ocl::ExactManhattan::handles(ctx, options)) {
+    if (in_place && !ocl::ExactManhattan::handles(ctx, options, dims)) {
         phases.read = reading.get();
         model = VoxModel{
             World(dims, std::vector<std::uint8_t>(voxels.span().begin(), voxels.span().end())),

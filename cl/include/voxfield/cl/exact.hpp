@@ -38,10 +38,13 @@ class ExactManhattan : public Generator {
                    const Palette& palette, Format format, Layout layout = Layout::automatic,
                    std::optional<double> max_distance = std::nullopt);
 
-    // Whether these sweeps compute `o` (resolved options) on ctx: unsigned fields of unit
-    // spacing without indices, bounded or not, in u8, u16, u32 or packed32; manhattan in both
-    // layouts, chebyshev in the CPU layout. ExactSeparable computes the rest.
-    static bool handles(const Context& ctx, const GeneratorOptions& o);
+    // Whether these sweeps compute `o` (resolved options) for a world of `dims` on ctx:
+    // unsigned fields of unit spacing without indices, bounded or not, in u8, u16, u32 or
+    // packed32, manhattan in both layouts, chebyshev in the CPU layout; signed manhattan in
+    // the CPU layout, unbounded, i8, i16 or i32. The CPU layout's signed and chebyshev sweeps
+    // only where its local memory holds the world's rows and columns. ExactSeparable computes
+    // the rest.
+    static bool handles(const Context& ctx, const GeneratorOptions& o, Dims dims);
     // The same for the layout `gpu_layout` (as `o.layout` resolves on the device).
     static bool handles(const GeneratorOptions& o, bool gpu_layout);
 
