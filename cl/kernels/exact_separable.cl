@@ -504,7 +504,7 @@ inline void row_full(__global const uchar* vox, size_t base, int X, int want, in
 #if !INDICES && CPU_LAYOUT
 // A whole row of a full transform without change tracking or features: each voxel's 1-D
 // distance to its nearest target by doubling, vectorised along the row (as xy_slices_seq
-// of exact_manhattan.cl does): after the steps 1, 2, 4, ... < X, d[x] = min(d[x],
+// of exact_manhattan.cl does): after the steps 1, 2, 4, ..., P, d[x] = min(d[x],
 // d[x - s] + s, d[x + s] + s) has taken every offset below 2 s as a sum of distinct powers
 // of two, the exact 1-D distance, in about 3 vector operations per voxel and step instead
 // of a dependent select per voxel. `buf` holds two rows of X + 2 P ints (P = the largest
@@ -512,7 +512,8 @@ inline void row_full(__global const uchar* vox, size_t base, int X, int want, in
 // -1 and X; those further out are never nearer).
 inline void row_doubling(__global const uchar* vox, size_t base, int X, int want, int pad,
                          ST sx, __global GT* g, __global int* buf, GT cap) {
-    const int P = X > 1 ? 1 << (31 - clz(X - 1)) : 0;
+    // (A row of one voxel takes one step too, to its padding: a signed field's outside.)
+    const int P = X > 1 ? 1 << (31 - clz(X - 1)) : 1;
     const int span = X + 2 * P;
     __global int* a = buf + P;
     __global int* b = buf + span + P;
@@ -526,7 +527,7 @@ inline void row_doubling(__global const uchar* vox, size_t base, int X, int want
     for (int x = 0; x < X; ++x) {
         a[x] = (vox[base + x] != 0) == want ? 0 : ROW_NONE;
     }
-    for (int s = 1; s < X; s <<= 1) {
+    for (int s = 1; s <= P; s <<= 1) {
         for (int x = 0; x < X; ++x) {
             b[x] = min(a[x], min(a[x - s], a[x + s]) + s);
         }

@@ -50,9 +50,10 @@ OutType out_type(Format f) {
 }
 
 // x_pass's scratch ints per work-item: in the CPU layout row_doubling's two rows of X + 2 P
-// (P: the largest power of two below X), in the GPU layout row_nearest's X.
+// (P: the largest power of two below X, 1 for a row of one voxel), in the GPU layout
+// row_nearest's X.
 std::size_t x_stride(bool gpu_layout, std::size_t X) {
-    return gpu_layout ? X : 2 * (X + (X > 1 ? next_pow2(X) : 0));
+    return gpu_layout ? X : 2 * (X + (X > 1 ? next_pow2(X) : 2));
 }
 
 }  // namespace

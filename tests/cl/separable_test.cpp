@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <optional>
 #include <random>
@@ -772,6 +773,35 @@ TEST(ExactSeparable, BandedGpuPassesTakeSpacing) {
             }
         }
     }
+}
+
+// A signed field's solids take the space around the world as empty: along x too where a row
+// holds one voxel (the CPU layout's row_doubling once took no step there, so that a solid of a
+// world one voxel wide was as far from its outside as its y neighbours). With the x spacing
+// the smallest, the outside along x is the nearest empty space.
+TEST(ExactSeparable, RowsOfOneVoxelSeeTheOutsideAlongX) {
+    World lone(Dims{1, 50, 1});
+    lone.set(0, 20, 0, 1);
+    const World worlds[] = {lone, scene_random(Dims{1, 9, 7}, 0.3, 5),
+                            scene_random(Dims{1, 1, 40}, 0.2, 6)};
+    const Spacing spacings[] = {{0.5, 1.0, 2.0}, {0.25, 3.0, 1.0}};
+    for (const World& w : worlds) {
+        for (const Spacing& sp : spacings) {
+            for (Metric m : kMetrics) {
+                for (Layout layout : {Layout::cpu, Layout::gpu}) {
+                    const auto o = options(m, sp, true, Format::f32, layout);
+                    expect_matches(
+                        w, Palette(), o, reference(w, o),
+                        layout == Layout::cpu ? "one-voxel rows, cpu" : "one-voxel rows, gpu");
+                }
+            }
+        }
+    }
+    const auto o = options(Metric::euclidean, spacings[0], true, Format::f32, Layout::cpu);
+    const auto field = ocl::generate(pocl(), lone, Palette(), o).bytes;
+    float v = 0;
+    std::memcpy(&v, field.data() + 20 * sizeof(float), sizeof v);
+    EXPECT_EQ(v, -0.5f);
 }
 
 // Lines longer than the banded passes' local memory holds (kBandedLocalCap, 64 KiB): that
