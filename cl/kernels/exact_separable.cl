@@ -501,17 +501,20 @@ inline void row_full(__global const uchar* vox, size_t base, int X, int want, in
     }
 }
 
-#if !INDICES && CPU_LAYOUT
-// A whole row of a full transform without change tracking or features: each voxel's 1-D
+#if CPU_LAYOUT
+// A whole row of a full transform without change tracking: each voxel's 1-D
 // distance to its nearest target by doubling, vectorised along the row (as xy_slices_seq
 // of exact_manhattan.cl does): after the steps 1, 2, 4, ..., P, d[x] = min(d[x],
 // d[x - s] + s, d[x + s] + s) has taken every offset below 2 s as a sum of distinct powers
 // of two, the exact 1-D distance, in about 3 vector operations per voxel and step instead
 // of a dependent select per voxel. `buf` holds two rows of X + 2 P ints (P = the largest
 // step), padded on both sides with ROW_NONE, or with `pad` with targets (the virtual ones at
-// -1 and X; those further out are never nearer).
+// -1 and X; those further out are never nearer). With INDICES (pad 0) each voxel's feature
+// then comes from its distance d: the target at x - d where there is one (row_full's ties to
+// the left), else the one at x + d.
 inline void row_doubling(__global const uchar* vox, size_t base, int X, int want, int pad,
-                         ST sx, __global GT* g, __global int* buf, GT cap) {
+                         ST sx, __global GT* g, __global int* buf, GT cap,
+                         __global uint* feat, uint kx, uint kr) {
     // (A row of one voxel takes one step too, to its padding: a signed field's outside.)
     const int P = X > 1 ? 1 << (31 - clz(X - 1)) : 1;
     const int span = X + 2 * P;
@@ -538,6 +541,10 @@ inline void row_doubling(__global const uchar* vox, size_t base, int X, int want
     for (int x = 0; x < X; ++x) {
         const int d = a[x];
         g[base + x] = d >= ROW_NONE ? G_INF : min(offset_part(d, sx), cap);
+#if INDICES
+        const bool left = d <= x && (vox[base + x - d] != 0) == want;
+        feat[base + x] = d >= ROW_NONE ? UINT_MAX : (uint)(left ? x - d : x + d) * kx + kr;
+#endif
     }
 }
 #endif
@@ -561,15 +568,15 @@ __kernel void x_pass(__global const uchar* restrict vox, __global GT* restrict g
         const size_t base = ((size_t)z * Y + y) * X;
         const uint kx = Y * Z, kr = (uint)y * Z + (uint)z;
         if (box == 0 && i0 == 0 && i1 == (int)X && lo.x == 0 && size.x == (int)X) {
-#if INDICES || !CPU_LAYOUT
+#if !CPU_LAYOUT
             row_full(vox, base, (int)X, solid, 0, sx, g, feat, cap, kx, kr);
 #if SIGNED
             row_full(vox, base, (int)X, 0, 1, sx, h, feat, cap, kx, kr);
 #endif
 #else
-            row_doubling(vox, base, (int)X, solid, 0, sx, g, left, cap);
+            row_doubling(vox, base, (int)X, solid, 0, sx, g, left, cap, feat, kx, kr);
 #if SIGNED
-            row_doubling(vox, base, (int)X, 0, 1, sx, h, left, cap);
+            row_doubling(vox, base, (int)X, 0, 1, sx, h, left, cap, feat, kx, kr);
 #endif
 #endif
             continue;
