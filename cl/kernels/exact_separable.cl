@@ -971,16 +971,13 @@ inline void store(__global OUT_T* out, __constant uchar* rgb, uchar v, size_t i,
 #endif
 }
 
-// floor(f / d) from a double reciprocal, corrected by one step either way: integer division
-// by a run-time divisor costs tens of cycles, three per voxel in `finish`.
-inline uint quotient(uint f, uint d, double inv) {
-    uint q = (uint)min((double)f * inv, 4294967295.0);
-    if ((ulong)q * d > f) {
-        --q;
-    } else if (((ulong)q + 1) * d <= f) {
-        ++q;
-    }
-    return q;
+// floor(f / d) for any 32-bit f and d >= 1 as floor((f + 1/2) inv), inv the double nearest
+// 1 / d: (f + 1/2) / d lies at least 1 / (2 d) from an integer, and the two roundings move it
+// by at most (f + 1/2) / d 2^-52, less than that, so the floor needs no correction (checked
+// against f / d in numpy for 6 M pairs around multiples of 2000 divisors). Integer division by
+// a run-time divisor costs tens of cycles, three per voxel in `finish`.
+inline uint quotient(uint f, double inv) {
+    return (uint)(((double)f + 0.5) * inv);
 }
 
 #if INDICES
@@ -990,9 +987,9 @@ inline int3 index_of(uint f, uint yz, uint zn, double inv_yz, double inv_z) {
     if (f == UINT_MAX) {
         return (int3)(-1);
     }
-    const uint xf = quotient(f, yz, inv_yz);
+    const uint xf = quotient(f, inv_yz);
     const uint r = f - xf * yz;
-    const uint yf = quotient(r, zn, inv_z);
+    const uint yf = quotient(r, inv_z);
     return (int3)((int)(r - yf * zn), (int)yf, (int)xf);
 }
 inline void store_index(__global int* idx, size_t count, size_t i, int3 q) {
