@@ -515,7 +515,7 @@ inline void row_full(__global const uchar* vox, size_t base, int X, int want, in
 inline void row_doubling(__global const uchar* vox, size_t base, int X, int want, int pad,
                          ST sx, __global GT* g, __global int* buf, GT cap,
                          __global uint* feat, uint kx, uint kr) {
-    // (A row of one voxel takes one step too, to its padding: a signed field's outside.)
+    // P: the host's row_pad(X) (a row of one voxel takes one step too, to its padding).
     const int P = X > 1 ? 1 << (31 - clz(X - 1)) : 1;
     const int span = X + 2 * P;
     __global int* a = buf + P;

@@ -70,14 +70,9 @@ bool use_gpu_layout(const Context& ctx, Layout layout) {
     return layout == Layout::automatic ? !ctx.is_cpu() : layout == Layout::gpu;
 }
 
-// The CPU layout's row sweeps (xy_slices_seq, xy_bytes): a row's padding on each side, half
-// the row rounded up to a power of two and at least 1 (a row of one voxel still takes the step
-// to its padding, signed), and xy_slices_seq's local bytes for two padded rows of `bytes`.
-std::size_t slices_pad(std::uint32_t x) {
-    return std::max<std::size_t>(1, next_pow2(x) / 2);
-}
+// xy_slices_seq's local bytes for two rows of `bytes`, padded (row_pad) on each side.
 std::size_t slices_scratch(std::uint32_t x, std::size_t bytes) {
-    return 2 * (std::size_t{x} + 2 * slices_pad(x)) * bytes;
+    return 2 * (std::size_t{x} + 2 * row_pad(x)) * bytes;
 }
 
 // Whether the CPU layout's sweeps hold a world's lines in local memory: a row's two sweeps
@@ -350,9 +345,11 @@ ExactManhattan::ExactManhattan(Context& ctx, Dims dims, const cl::Buffer& voxels
 }
 
 bool ExactManhattan::handles(const Context& ctx, const GeneratorOptions& o, Dims dims) {
-    const bool gpu_layout = use_gpu_layout(ctx, o.layout);
-    return handles(o, gpu_layout) &&
-           (gpu_layout || !(o.signed_field || o.metric == Metric::chebyshev) ||
+    // Where the layout these sweeps would take for the world is the CPU layout, only if its
+    // local memory holds the world's lines (unsigned L1 switches to the GPU layout where it
+    // does not; signed L1 and L-inf have no other).
+    return handles(o, use_gpu_layout(ctx, o.layout)) &&
+           (use_gpu_layout(ctx, o.layout, dims, o.format, o.metric) ||
             cpu_lines_fit(ctx, dims, o.format));
 }
 
@@ -663,7 +660,7 @@ void ExactManhattan::set_up_kernels() {
             xy.setArg(1, work_);
             xy.setArg(2, dims_.x);
             xy.setArg(3, dims_.y);
-            xy.setArg(4, static_cast<cl_uint>(slices_pad(dims_.x)));
+            xy.setArg(4, static_cast<cl_uint>(row_pad(dims_.x)));
             xy.setArg(5, cl::Local(scratch));
             add({"xy_slices_seq", xy, cl::NDRange(dims_.z),
                  gpu_layout_ ? cl::NullRange : cl::NDRange(1)});
@@ -706,7 +703,7 @@ std::optional<KernelLaunch> ExactManhattan::x_words() {
 bool ExactManhattan::add_byte_sweeps() {
     const auto& info = ctx_.info();
     const std::size_t plane = std::size_t{dims_.x} * dims_.y;
-    const std::size_t pad = slices_pad(dims_.x);
+    const std::size_t pad = row_pad(dims_.x);
     const std::size_t x64 = (std::size_t{dims_.x} + 63) / 64 * 64;  // xy_bytes' row length
     const std::size_t rows = 2 * (x64 + 2 * pad);
     const std::size_t slice = (x64 + 32) * dims_.y;

@@ -50,10 +50,9 @@ OutType out_type(Format f) {
 }
 
 // x_pass's scratch ints per work-item: in the CPU layout row_doubling's two rows of X + 2 P
-// (P: the largest power of two below X, 1 for a row of one voxel), in the GPU layout
-// row_nearest's X.
+// (P = row_pad(X), its largest step), in the GPU layout row_nearest's X.
 std::size_t x_stride(bool gpu_layout, std::size_t X) {
-    return gpu_layout ? X : 2 * (X + (X > 1 ? next_pow2(X) : 2));
+    return gpu_layout ? X : 2 * (X + 2 * row_pad(X));
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 #pragma once
 // Small host-side helpers shared by the generators.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -29,6 +30,14 @@ inline std::size_t next_pow2(std::size_t v) {
         p <<= 1;
     }
     return p;
+}
+
+// The padding on each side of a row that the CPU layout's doubling sweeps take (xy_slices_seq,
+// xy_bytes, row_doubling): their largest step, half the row rounded up to a power of two, and
+// at least 1 (a row of one voxel still takes the step to its padding: a signed field's
+// outside).
+inline std::size_t row_pad(std::size_t x) {
+    return std::max<std::size_t>(1, next_pow2(x) / 2);
 }
 
 // Build options of the kernels that write a field: OUT_T (the element type), OUT_MAX (its
