@@ -2,6 +2,7 @@
 #include "voxfield/core/chunks.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -153,11 +154,13 @@ void require_chunk_fits(Dims world, std::uint32_t chunk) {
     const ChunkGrid grid(world, chunk);  // checks the power of two
     const char* axes[] = {"x", "y", "z"};
     const std::uint32_t extent[] = {world.x, world.y, world.z};
+    // The largest chunk that fits: a power of two no longer than the world's shortest axis.
+    const std::uint32_t fits = std::bit_floor(std::min({world.x, world.y, world.z}));
     for (int a = 0; a < 3; ++a) {
         if (chunk > extent[a]) {
             throw InputError("chunk size " + std::to_string(chunk) + " is larger than the world " +
-                             world.to_string() + " along " + axes[a] + ": use a chunk of at most " +
-                             std::to_string(extent[a]) + " voxels");
+                             world.to_string() + " along " + axes[a] + ": use --chunk " +
+                             std::to_string(fits) + " or less (a power of two)");
         }
     }
 }

@@ -185,6 +185,16 @@ TEST(Chunks, RequireChunkFits) {
         FAIL() << "chunk 16 in an 8-voxel-tall world accepted";
     } catch (const InputError& e) {
         EXPECT_NE(std::string(e.what()).find("along y"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("use --chunk 8 or less"), std::string::npos)
+            << e.what();
+    }
+    // The chunk suggested is a power of two that fits every axis, not the short axis's length.
+    try {
+        require_chunk_fits(Dims{40, 12, 1}, 8);
+        FAIL() << "chunk 8 in a one-voxel-deep world accepted";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("use --chunk 1 or less"), std::string::npos)
+            << e.what();
     }
 }
 
