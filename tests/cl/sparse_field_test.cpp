@@ -338,6 +338,33 @@ TEST(SparseField, ManhattanSweepEqualsBlocksAndTheDenseField) {
     }
 }
 
+// The edit tests' k-th case of metric m, signed or not: the layouts in turn, a bound beyond a
+// tile for k = 2 (9.5 otherwise), packed32 for unsigned Manhattan (the others' default format).
+Case edit_case(Metric m, bool sgn, int k) {
+    Case c;
+    c.metric = m;
+    c.signed_field = sgn;
+    c.layout = kLayouts[k % 2];
+    c.bound = k == 2 ? 70 : 9.5;
+    c.format =
+        m == Metric::manhattan && !sgn ? Format::packed32 : ocl::default_format(m, c.spacing, sgn);
+    return c;
+}
+
+// A random brush: any operation and shape, centred up to 3 voxels outside `d`, radius up to
+// `most`, any material.
+Brush random_brush(const Dims& d, std::int64_t most, std::mt19937& rng) {
+    Brush b;
+    b.op = static_cast<BrushOp>(std::uniform_int_distribution<int>(0, 2)(rng));
+    b.shape = static_cast<BrushShape>(std::uniform_int_distribution<int>(0, 1)(rng));
+    b.centre = {std::uniform_int_distribution<std::int64_t>(-3, d.x + 3)(rng),
+                std::uniform_int_distribution<std::int64_t>(-3, d.y + 3)(rng),
+                std::uniform_int_distribution<std::int64_t>(-3, d.z + 3)(rng)};
+    b.radius = std::uniform_int_distribution<std::int64_t>(0, most)(rng);
+    b.material = static_cast<std::uint8_t>(std::uniform_int_distribution<int>(1, 255)(rng));
+    return b;
+}
+
 TEST(SparseField, UpdatesAfterRandomBrushesEqualRecomputation) {
     std::mt19937 rng(24);
     const Palette p = Palette::magicavoxel_default();
@@ -345,29 +372,14 @@ TEST(SparseField, UpdatesAfterRandomBrushesEqualRecomputation) {
     for (const Metric m : kMetrics) {
         for (const bool sgn : {false, true}) {
             const Dims d = k % 2 == 0 ? Dims{100, 50, 70} : Dims{64, 100, 65};
-            Case c;
-            c.metric = m;
-            c.signed_field = sgn;
-            c.layout = kLayouts[k % 2];
-            c.bound = k == 2 ? 70 : 9.5;
-            c.format = m == Metric::manhattan && !sgn ? Format::packed32
-                                                      : ocl::default_format(m, c.spacing, sgn);
-            ++k;
+            const Case c = edit_case(m, sgn, k++);
             SCOPED_TRACE(describe(c, d));
             World w = blob_world(d, 6, 0.0002, rng);
             SparseWorld s = SparseWorld::from_dense(w);
             ocl::SparseField f(pocl(), s, p, options_of(c));
             f.run();
             for (int e = 0; e < 12; ++e) {
-                Brush b;
-                b.op = static_cast<BrushOp>(std::uniform_int_distribution<int>(0, 2)(rng));
-                b.shape = static_cast<BrushShape>(std::uniform_int_distribution<int>(0, 1)(rng));
-                b.centre = {std::uniform_int_distribution<std::int64_t>(-3, d.x + 3)(rng),
-                            std::uniform_int_distribution<std::int64_t>(-3, d.y + 3)(rng),
-                            std::uniform_int_distribution<std::int64_t>(-3, d.z + 3)(rng)};
-                b.radius = std::uniform_int_distribution<std::int64_t>(0, e == 5 ? 60 : 12)(rng);
-                b.material =
-                    static_cast<std::uint8_t>(std::uniform_int_distribution<int>(1, 255)(rng));
+                const Brush b = random_brush(d, e == 5 ? 60 : 12, rng);
                 apply_brush(w, b);
                 const Box changed = apply_brush(s, b);
                 const auto u = f.update(changed);
@@ -464,29 +476,14 @@ TEST(SparseDeviceWorld, BrushesOnTheDeviceEqualTheDenseReference) {
             const Dims d = k % 3 == 0   ? Dims{100, 50, 70}
                            : k % 3 == 1 ? Dims{64, 100, 65}
                                         : Dims{130, 20, 129};
-            Case c;
-            c.metric = m;
-            c.signed_field = sgn;
-            c.layout = kLayouts[k % 2];
-            c.bound = k == 2 ? 70 : 9.5;
-            c.format = m == Metric::manhattan && !sgn ? Format::packed32
-                                                      : ocl::default_format(m, c.spacing, sgn);
-            ++k;
+            const Case c = edit_case(m, sgn, k++);
             SCOPED_TRACE(describe(c, d));
             World w = blob_world(d, 6, 0.0002, rng);
             SparseWorld s = SparseWorld::from_dense(w);
             ocl::SparseField f(pocl(), s, p, options_of(c));
             f.run();
             for (int e = 0; e < 14; ++e) {
-                Brush b;
-                b.op = static_cast<BrushOp>(std::uniform_int_distribution<int>(0, 2)(rng));
-                b.shape = static_cast<BrushShape>(std::uniform_int_distribution<int>(0, 1)(rng));
-                b.centre = {std::uniform_int_distribution<std::int64_t>(-3, d.x + 3)(rng),
-                            std::uniform_int_distribution<std::int64_t>(-3, d.y + 3)(rng),
-                            std::uniform_int_distribution<std::int64_t>(-3, d.z + 3)(rng)};
-                b.radius = std::uniform_int_distribution<std::int64_t>(0, e == 5 ? 60 : 12)(rng);
-                b.material =
-                    static_cast<std::uint8_t>(std::uniform_int_distribution<int>(1, 255)(rng));
+                const Brush b = random_brush(d, e == 5 ? 60 : 12, rng);
                 apply_brush(w, b);
                 if (e % 5 == 4) {
                     // On the host: the world read (brought up to date) and edited there.
