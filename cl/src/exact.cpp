@@ -118,6 +118,23 @@ std::uint32_t vec_width(Format f, std::uint32_t x) {
     return bytes == 2 && x % 2 == 0 ? 2 : 1;
 }
 
+// Work-items along x in a cols_seg group (vw columns each) before the kernel's limits: 8, and for
+// 2-byte work on columns of few segments more, up to about 256 work-items a group (at most 64,
+// and no more than the row's words). With 8, a column of 64 voxels (4 segments of 16) made groups
+// of 32 work-items. On the H100 (bench/README, "Short columns in larger groups"), u16 columns of
+// 64 voxels took 0.198 ms instead of 0.279 in long-y's z pass (64 x 32768 x 64) and 0.478 instead
+// of 0.505 in long-x's y and z passes, 512^3 unchanged; u8 columns in long-x took 0.380 ms instead
+// of 0.263, so 1-byte work keeps 8.
+std::uint32_t seg_group_columns(std::uint32_t segs, std::size_t bytes, std::uint32_t row_words) {
+    std::uint32_t cw = 8;
+    if (bytes == 2) {
+        while (cw < 64 && 2 * cw * segs <= 256 && 2 * cw <= row_words) {
+            cw *= 2;
+        }
+    }
+    return cw;
+}
+
 // The kernels of exact_manhattan.cl for format `f`, SEG_K = k, VW = vw and metric m (cached
 // by ctx), saturating at `cap` where it is below the work type's maximum (T_MAX: every sweep
 // takes the minimum with a value that starts at most T_MAX, so the field is min(exact, cap)).
@@ -509,7 +526,8 @@ void ExactManhattan::set_up_kernels() {
                 const std::uint32_t k = seg_k(len, !final && !bits && wt.bytes == 2);
                 const std::uint32_t segs = (len + k - 1) / k;
                 // As many work-items along x per group as the kernel's registers allow (up to
-                // 8: more was no faster on the H200), each holding vw adjacent columns.
+                // 8, more for short u16 columns: seg_group_columns), each holding vw adjacent
+                // columns.
                 const std::uint32_t vw = vec_width(format_, dims_.x);
                 const cl::Program source = build_program(ctx_, format_, k, vw, metric_, cap_, bits);
                 // cols_seg over `g` chunks of `n` segments, cw columns a group (`chunks`: the
@@ -539,7 +557,7 @@ void ExactManhattan::set_up_kernels() {
                     return std::size_t{cw} * n <= limit &&
                            2 * std::size_t{cw} * n * word <= info.local_mem;
                 };
-                std::uint32_t cw = 8;
+                std::uint32_t cw = seg_group_columns(segs, wt.bytes, dims_.x / vw);
                 while (cw > 1 && !fits(cw, segs)) {
                     cw /= 2;
                 }

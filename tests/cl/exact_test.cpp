@@ -260,11 +260,14 @@ TEST(ExactManhattan, LongColumnsCarryAcrossHundredsOfSegments) {
 TEST(ExactManhattan, GpuLayoutOddShapes) {
     // Rows of 16-voxel words and ragged rows, columns of every cols_seg width and of
     // hundreds of segments along y and z, words of 1, 2 and 4 columns; slices in local memory
-    // whose rows xy_slice_local pads (64 and 32 voxels: many rows of a warp in one bank) or not.
+    // whose rows xy_slice_local pads (64 and 32 voxels: many rows of a warp in one bank) or not;
+    // short u16 columns in groups of 16 to 64 work-items along x (seg_group_columns), the
+    // rows' last group ragged (1000 and 2052 voxels: 250 and 513 words of 4 columns).
     const Dims shapes[] = {Dims{1, 1, 1},      Dims{3, 2049, 5},  Dims{300, 200, 700},
                            Dims{1024, 64, 96}, Dims{1040, 3, 2},  Dims{4, 9001, 3},
                            Dims{5, 3, 20011},  Dims{8, 2, 12000}, Dims{64, 40, 9},
-                           Dims{32, 48, 5},    Dims{49, 49, 7}};
+                           Dims{32, 48, 5},    Dims{49, 49, 7},   Dims{1000, 70, 3},
+                           Dims{2052, 64, 9}};
     for (const Dims dims : shapes) {
         const World w = scene_random(dims, 0.0002, dims.x + dims.y + dims.z);
         const auto exact = reference_manhattan(w);
