@@ -135,11 +135,25 @@ std::uint32_t seg_group_columns(std::uint32_t segs, std::size_t bytes, std::uint
     return cw;
 }
 
+// Whether a cols_seg group of cw work-items along x (vw columns each, `word` bytes) and n segments
+// fits the kernel's work-group limit and the device's local memory (its two arrays of ends).
+bool seg_group_fits(std::size_t limit, std::size_t local_mem, std::uint32_t cw, std::uint32_t n,
+                    std::size_t word) {
+    return std::size_t{cw} * n <= limit && 2 * std::size_t{cw} * n * word <= local_mem;
+}
+
+// cols_seg's work-group limit in `program` on the context's device.
+std::size_t cols_seg_limit(const Context& ctx, const cl::Program& program) {
+    return cl::Kernel(program, "cols_seg")
+        .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(ctx.info().device);
+}
+
 // The kernels of exact_manhattan.cl for format `f`, SEG_K = k, VW = vw and metric m (cached
 // by ctx), saturating at `cap` where it is below the work type's maximum (T_MAX: every sweep
 // takes the minimum with a value that starts at most T_MAX, so the field is min(exact, cap)).
 cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t vw, Metric m,
-                          std::uint32_t cap, bool from_bits = false, bool empty_targets = false) {
+                          std::uint32_t cap, bool from_bits = false, bool empty_targets = false,
+                          bool col_chunks = false) {
     const WorkType wt = work_type(f);
     const std::string options =
         "-DT=" + std::string(wt.name) + " -DT_MAX=" + std::to_string(std::min(wt.max, cap)) +
@@ -147,7 +161,8 @@ cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t
         " -DSEG_K=" + std::to_string(k) + " -DVW=" + std::to_string(vw) +
         " -DCHEBYSHEV=" + (m == Metric::chebyshev ? "1" : "0") +
         " -DSIGNED=" + (wt.is_signed ? "1" : "0") + " -DFROM_BITS=" + (from_bits ? "1" : "0") +
-        " -DROW_TARGETS_EMPTY=" + (empty_targets ? "1" : "0") + " -cl-std=CL1.2";
+        " -DROW_TARGETS_EMPTY=" + (empty_targets ? "1" : "0") +
+        " -DCOL_CHUNKS=" + (col_chunks ? "1" : "0") + " -cl-std=CL1.2";
     return ctx.program("exact_manhattan.cl", {cl_sources::layout_h, cl_sources::exact_manhattan_cl},
                        options);
 }
@@ -431,8 +446,17 @@ void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layo
     }
     if (gpu_layout) {
         const bool two_bytes = work_type(format).bytes == 2;
-        for (const std::uint32_t k : {seg_k(dims.y, two_bytes), seg_k(dims.z, false)}) {
-            build_program(ctx, format, k, vec_width(format, dims.x), metric, cap);
+        const std::uint32_t vw = vec_width(format, dims.x);
+        const std::size_t word = vw * work_type(format).bytes;
+        for (const auto& [len, y_of_2_bytes] : {std::pair{dims.y, two_bytes}, {dims.z, false}}) {
+            const std::uint32_t k = seg_k(len, y_of_2_bytes);
+            const cl::Program source = build_program(ctx, format, k, vw, metric, cap);
+            // Columns of more segments than one column's group holds take chunks (set-up's
+            // columns), from their own program.
+            if (!seg_group_fits(cols_seg_limit(ctx, source), ctx.info().local_mem, 1,
+                                (len + k - 1) / k, word)) {
+                build_program(ctx, format, k, vw, metric, cap, false, false, true);
+            }
         }
         if (bit_rows(dims, format, metric, true)) {
             build_program(ctx, format, seg_k(dims.y, false), vec_width(format, dims.x), metric, cap,
@@ -533,9 +557,10 @@ void ExactManhattan::set_up_kernels() {
                 // cols_seg over `g` chunks of `n` segments, cw columns a group (`chunks`: the
                 // kernel's argument of that name; ends: its buffer, where chunks is nonzero).
                 const std::size_t word = std::size_t{vw} * wt.bytes;
-                auto seg_launch = [&](const char* name, std::uint32_t cw, std::uint32_t n,
-                                      std::uint32_t g, cl_uint chunks, const cl::Buffer& ends) {
-                    cl::Kernel seg = column_kernel(source, "cols_seg");
+                auto seg_launch = [&](const char* name, const cl::Program& from, std::uint32_t cw,
+                                      std::uint32_t n, std::uint32_t g, cl_uint chunks,
+                                      const cl::Buffer& ends) {
+                    cl::Kernel seg = column_kernel(from, "cols_seg");
                     seg.setArg(8, cl_uint{final ? 1u : 0u});
                     seg.setArg(9, cl::Local(std::size_t{cw} * n * word));
                     seg.setArg(10, cl::Local(std::size_t{cw} * n * word));
@@ -550,20 +575,15 @@ void ExactManhattan::set_up_kernels() {
                         cl::NDRange(round_up(dims_.x / vw, cw), std::size_t{n} * g, m_count),
                         cl::NDRange(cw, n, 1)};
                 };
-                const std::size_t limit =
-                    cl::Kernel(source, "cols_seg")
-                        .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device);
-                const auto fits = [&](std::uint32_t cw, std::uint32_t n) {
-                    return std::size_t{cw} * n <= limit &&
-                           2 * std::size_t{cw} * n * word <= info.local_mem;
-                };
+                const std::size_t limit = cols_seg_limit(ctx_, source);
                 std::uint32_t cw = seg_group_columns(segs, wt.bytes, dims_.x / vw);
-                while (cw > 1 && !fits(cw, segs)) {
+                while (cw > 1 && !seg_group_fits(limit, info.local_mem, cw, segs, word)) {
                     cw /= 2;
                 }
-                if (fits(cw, segs)) {
+                if (seg_group_fits(limit, info.local_mem, cw, segs, word)) {
                     seg_used = k;
-                    return {seg_launch(bits ? "cols_bits" : "cols_seg", cw, segs, 1, 0, work_)};
+                    return {
+                        seg_launch(bits ? "cols_bits" : "cols_seg", source, cw, segs, 1, 0, work_)};
                 }
                 if (bits) {
                     return {};
@@ -574,12 +594,15 @@ void ExactManhattan::set_up_kernels() {
                 // every chunk from the others' (the column read twice, written once). A
                 // work-item per column (in place in global memory) took 24 ms for long-z's 64 x
                 // 64 x 32768 L1 u16 on the H200, where 512^3 takes 0.5.
+                const cl::Program chunked =
+                    build_program(ctx_, format_, k, vw, metric_, cap_, false, false, true);
+                const std::size_t chunk_limit = cols_seg_limit(ctx_, chunked);
                 cw = 8;
-                while (cw > 2 && limit / cw < 2) {
+                while (cw > 2 && chunk_limit / cw < 2) {
                     cw /= 2;
                 }
-                std::uint32_t n = static_cast<std::uint32_t>(next_pow2(limit / cw + 1) / 2);
-                while (n > 1 && !fits(cw, n)) {
+                std::uint32_t n = static_cast<std::uint32_t>(next_pow2(chunk_limit / cw + 1) / 2);
+                while (n > 1 && !seg_group_fits(chunk_limit, info.local_mem, cw, n, word)) {
                     n /= 2;
                 }
                 const std::uint32_t g = (segs + n - 1) / n;
@@ -588,8 +611,8 @@ void ExactManhattan::set_up_kernels() {
                     make_buffer(2 * std::size_t{g} * round_up(dims_.x / vw, cw) * m_count * word,
                                 CL_MEM_READ_WRITE));
                 seg_used = k;
-                return {seg_launch("cols_chunk_ends", cw, n, g, 1, ends),
-                        seg_launch("cols_chunks", cw, n, g, 2, ends)};
+                return {seg_launch("cols_chunk_ends", chunked, cw, n, g, 1, ends),
+                        seg_launch("cols_chunks", chunked, cw, n, g, 2, ends)};
             }
             // A strip of x positions per work-item, its columns copied to local scratch: the
             // whole row (the inner loop vectorises, the strip stays in L2).
