@@ -21,7 +21,8 @@
 // work-item in cols_seg: 1, 2 or 4), CHEBYSHEV (0 or 1), SIGNED (0 or 1, CPU layout only).
 // ROW_TARGETS_EMPTY (0 or 1): the GPU layout's x rows kernels (x_rows_map, x_rows_local,
 // x_rows_long) take the zero voxels as their targets instead of the nonzero ones.
-// COL_CHUNKS (0 or 1): cols_seg over columns in chunks (its `chunks` argument 1 or 2).
+// CHUNKS (0 or 1): cols_seg and x_rows_map over lines in chunks (their `chunks` argument 1 or
+// 2); with 0 that argument is ignored (one chunk).
 // Saturating at T_MAX is exact: min-plus with +1 commutes with min(., T_MAX).
 //
 // SIGNED=1: the signed L1 field in the same passes, one value per voxel. Every voxel is at
@@ -113,8 +114,8 @@ inline T step_pair(T c, T lo, T hi, T k) {
 #ifndef FROM_BITS
 #define FROM_BITS 0
 #endif
-#ifndef COL_CHUNKS
-#define COL_CHUNKS 0
+#ifndef CHUNKS
+#define CHUNKS 0
 #endif
 
 #if PACKED
@@ -1095,7 +1096,7 @@ inline void store_final_vec(__global uint* restrict out, __global const uchar* r
 // + g)] and ends[2 (col G + g) + 1], col = the work-item's place in dimensions 0 and 2) and
 // writes nothing else; `chunks` 2 then sweeps each chunk from those carries too, walking the
 // chunks before it (after it) a chunk length at a time. `chunks` 0: one chunk, ends unused.
-// The chunks' code is built only with COL_CHUNKS=1, their own program: in every build its
+// The chunks' code is built only with CHUNKS=1, their own program: in every build its
 // branches, though not taken, made the H100's 512^3 u16 y and z passes take 0.59 ms against 0.42
 // (u8 0.52 against 0.32; 1024^3 u16 5.03 against 4.07).
 __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
@@ -1114,7 +1115,7 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
     const uint x = ((uint)get_group_id(0) * cw + lc) * VW;
     const bool active = x < X;
     const size_t base = x + get_global_id(2) * mstride;
-#if COL_CHUNKS
+#if CHUNKS
     const uint g = (uint)get_group_id(1), G = (uint)get_num_groups(1);
     const uint n0 = (g * segs + s) * SEG_K;
 #else
@@ -1160,7 +1161,7 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
     barrier(CLK_LOCAL_MEM_FENCE);
 #define COL_SLOT(t) ((t)*cw + lc)
     SCAN_SEGS(TV, fout, bout, COL_SLOT, s, segs, SEG_K)
-#if COL_CHUNKS
+#if CHUNKS
     __global TV* col_ends =
         ends + 2 * (get_global_id(2) * get_global_size(0) + get_global_id(0)) * G;
     if (chunks == 1) {
@@ -1177,7 +1178,7 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
     const uint len = min(segs * SEG_K, (uint)T_MAX);
 #endif
     CV c = s > 0 ? TO_CV(fout[COL_SLOT(s - 1)]) : (CV)T_MAX;
-#if COL_CHUNKS
+#if CHUNKS
     if (chunks == 2) {
         CV f = (CV)T_MAX;
         for (uint h = 0; h < g; ++h) {
@@ -1192,7 +1193,7 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
         v[k] = c;
     }
     c = s + 1 < segs ? TO_CV(bout[COL_SLOT(s + 1)]) : (CV)T_MAX;
-#if COL_CHUNKS
+#if CHUNKS
     if (chunks == 2) {
         CV b = (CV)T_MAX;
         for (uint h = G - 1; h > g; --h) {
@@ -1418,7 +1419,11 @@ __kernel void x_rows_map(__global const uchar* restrict vox, __global T* restric
     const uint segs = (uint)get_local_size(0);
     const uint s = (uint)get_local_id(0);
     const uint R = (uint)get_local_size(1);
+#if CHUNKS
     const uint c = (uint)get_group_id(0), nc = (uint)get_num_groups(0);
+#else
+    const uint c = 0, nc = 0;
+#endif
     const uint g = c * segs + s;  // the segment's index in its row
     const uint stride = (segs + 15) / 16 * 16;
     __local uchar* flags = (__local uchar*)flag_chunks;
@@ -1444,6 +1449,7 @@ __kernel void x_rows_map(__global const uchar* restrict vox, __global T* restric
     barrier(CLK_LOCAL_MEM_FENCE);
     for (uint h = 0; h < 2; ++h) {
         const uint r = (uint)get_local_id(1) + h * R;
+#if CHUNKS
         if (chunks == 1) {
             if (s == 0 && row[h] < rows) {
                 int2 e = chunk_ends(masks + r * segs, flag_chunks + r * (stride / 16), segs);
@@ -1453,9 +1459,11 @@ __kernel void x_rows_map(__global const uchar* restrict vox, __global T* restric
             }
             continue;
         }
+#endif
         T cf, cb;
         row_carries(masks + r * segs, flag_chunks + r * (stride / 16), segs, s,
-                    ends + (chunks == 2 ? row[h] * nc : 0), c, chunks == 2 ? nc : 0, &cf, &cb);
+                    ends + (CHUNKS && chunks == 2 ? row[h] * nc : 0), c,
+                    CHUNKS && chunks == 2 ? nc : 0, &cf, &cb);
         T v[XK];
         sweep_segment(m[h], cf, cb, v);
         if (active[h]) {

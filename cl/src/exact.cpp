@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -153,7 +154,7 @@ std::size_t cols_seg_limit(const Context& ctx, const cl::Program& program) {
 // takes the minimum with a value that starts at most T_MAX, so the field is min(exact, cap)).
 cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t vw, Metric m,
                           std::uint32_t cap, bool from_bits = false, bool empty_targets = false,
-                          bool col_chunks = false) {
+                          bool chunks = false) {
     const WorkType wt = work_type(f);
     const std::string options =
         "-DT=" + std::string(wt.name) + " -DT_MAX=" + std::to_string(std::min(wt.max, cap)) +
@@ -162,7 +163,7 @@ cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t
         " -DCHEBYSHEV=" + (m == Metric::chebyshev ? "1" : "0") +
         " -DSIGNED=" + (wt.is_signed ? "1" : "0") + " -DFROM_BITS=" + (from_bits ? "1" : "0") +
         " -DROW_TARGETS_EMPTY=" + (empty_targets ? "1" : "0") +
-        " -DCOL_CHUNKS=" + (col_chunks ? "1" : "0") + " -cl-std=CL1.2";
+        " -DCHUNKS=" + (chunks ? "1" : "0") + " -cl-std=CL1.2";
     return ctx.program("exact_manhattan.cl", {cl_sources::layout_h, cl_sources::exact_manhattan_cl},
                        options);
 }
@@ -279,27 +280,30 @@ constexpr std::size_t kMapChunkSegs = 128;
 // launches: x_rows_ends publishes each chunk's last and first target, x_rows_chunks sweeps
 // every chunk from its own and, where it has none on a side, the nearest other chunk's (the
 // row read twice, written once).
-std::optional<XRows> map_rows(Context& ctx, const cl::Program& program, const cl::Buffer& voxels,
+// The chunks' launches come from a program of their own (CHUNKS=1, `chunked`), as cols_seg's.
+std::optional<XRows> map_rows(Context& ctx, const cl::Program& program,
+                              const std::function<cl::Program()>& chunked, const cl::Buffer& voxels,
                               const cl::Buffer& work, Dims dims) {
     const std::size_t row_segs = dims.x / 16;
-    auto launch = [&](const char* name, std::size_t segs, std::size_t chunks, cl_uint mode,
-                      const cl::Buffer& ends) {
-        cl::Kernel kernel(program, "x_rows_map");
+    auto launch = [&](const char* name, const cl::Program& from, std::size_t segs,
+                      std::size_t chunks, cl_uint mode, const cl::Buffer& ends) {
+        cl::Kernel kernel(from, "x_rows_map");
         kernel.setArg(6, ends);
         kernel.setArg(7, mode);
         return row_launch(ctx, kernel, name, voxels, work, dims, segs, 128, 2, segs * 2,
                           round_up(segs, 16), chunks);
     };
     if (row_segs <= kMapRowSegs) {
-        if (auto whole = launch("x_rows_map", row_segs, 1, 0, work)) {
+        if (auto whole = launch("x_rows_map", program, row_segs, 1, 0, work)) {
             return XRows{{*whole}, cl::Buffer()};
         }
     }
     const std::size_t chunks = (row_segs + kMapChunkSegs - 1) / kMapChunkSegs;
     const std::size_t rows = std::size_t{dims.y} * dims.z;
     cl::Buffer ends(ctx.context(), CL_MEM_READ_WRITE, rows * chunks * 8);
-    auto publish = launch("x_rows_ends", kMapChunkSegs, chunks, 1, ends);
-    auto sweep = launch("x_rows_chunks", kMapChunkSegs, chunks, 2, ends);
+    const cl::Program in_chunks = chunked();
+    auto publish = launch("x_rows_ends", in_chunks, kMapChunkSegs, chunks, 1, ends);
+    auto sweep = launch("x_rows_chunks", in_chunks, kMapChunkSegs, chunks, 2, ends);
     if (!publish || !sweep) {
         return std::nullopt;
     }
@@ -316,7 +320,11 @@ XRows gpu_x_rows(Context& ctx, Dims dims, Format format, const cl::Buffer& voxel
     const std::size_t rows = std::size_t{dims.y} * dims.z;
     if (dims.x % 16 == 0) {
         // x_rows_map: 16 voxels of two rows per work-item (one aligned word each).
-        if (auto rows_map = map_rows(ctx, base, voxels, work, dims)) {
+        const auto chunked = [&] {
+            return build_program(ctx, format, 32, 1, Metric::manhattan, cap, false, empty_targets,
+                                 true);
+        };
+        if (auto rows_map = map_rows(ctx, base, chunked, voxels, work, dims)) {
             return *rows_map;
         }
     }
@@ -445,6 +453,10 @@ void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layo
         build_byte_program(ctx, format, metric, cap);
     }
     if (gpu_layout) {
+        // Rows too long for one x_rows_map group take it in chunks (gpu_x_rows).
+        if (dims.x % 16 == 0 && dims.x / 16 > kMapRowSegs) {
+            build_program(ctx, format, 32, 1, Metric::manhattan, cap, false, false, true);
+        }
         const bool two_bytes = work_type(format).bytes == 2;
         const std::uint32_t vw = vec_width(format, dims.x);
         const std::size_t word = vw * work_type(format).bytes;
