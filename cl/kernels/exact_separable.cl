@@ -1255,6 +1255,11 @@ __kernel void finish(__global const GT* g, __global const GT* h, __global const 
 #ifndef BANDED_GLOBAL
 #define BANDED_GLOBAL 0
 #endif
+// BANDED_AXIS (1 or 2; 0: either, by the arguments): a build of cols_banded for the y or the z
+// pass alone, whose loops then hold no test of which pass they run.
+#ifndef BANDED_AXIS
+#define BANDED_AXIS 0
+#endif
 #if BANDED_GLOBAL
 #define BAS __global
 #define BANDED_FENCE (CLK_LOCAL_MEM_FENCE | CLK_GLOBAL_MEM_FENCE)
@@ -1412,13 +1417,18 @@ inline bool banded_below(BAS const uint* kl, BAS const ushort* keyx, uint C, uin
 __kernel void cols_banded(__global const ushort* restrict in16, __global const GT* restrict in,
                           __global GT* restrict gout, __global OUT_T* out,
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
-                          uint n, ulong stride, ulong mstride, uint from16, uint final,
+                          uint n, ulong stride, ulong mstride, uint from16_in, uint final_in,
                           double dmax, BAS GT* gl, BAS uint* mask, __local int* ends,
-                          uint O, uint border,
+                          uint O, uint border_in,
                           __global const uint* restrict fin, __global uint* restrict fout,
                           __global int* restrict idx, ulong count, __global const GT* outer,
                           ST sx, ST so, ST sp, BAS ushort* keyx, uint zero_targets,
                           ulong bstride) {
+    // The pass: fixed where the program is built for one (BANDED_AXIS 1: the y pass, from the x
+    // rows' 16-bit distances, never final; 2: the z pass), else the arguments'.
+    const uint from16 = BANDED_AXIS == 1 ? 1u : BANDED_AXIS == 2 ? 0u : from16_in;
+    const uint final = BANDED_AXIS == 1 ? 0u : final_in;
+    const uint border = BANDED_AXIS == 1 ? 0u : border_in;
     const uint C = (uint)get_local_size(0), K = (uint)get_local_size(1);
     const uint c = (uint)get_local_id(0), k = (uint)get_local_id(1);
     const uint x = (uint)get_group_id(0) * C + c;

@@ -221,6 +221,22 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
             global_y_ = global_z_ = false;
         }
     }
+    // The passes with their lists in local memory from programs built for their axis
+    // (BANDED_AXIS: no test of which pass in their loops), where the work-group still fits;
+    // else from program_, which takes the pass from its arguments.
+    for (const int axis : {1, 2}) {
+        cl::Program& own = banded_program_[axis - 1];
+        own = program_;
+        if (banded_fits && (axis == 1 ? lines_y : lines_z) != 0 &&
+            !(axis == 1 ? global_y_ : global_z_)) {
+            const cl::Program p = ctx.program(
+                "exact_separable.cl", {cl_sources::layout_h, cl_sources::exact_separable_cl},
+                build + " -DBANDED_AXIS=" + std::to_string(axis));
+            if (group_fits(p)) {
+                own = p;
+            }
+        }
+    }
 
     // Unit L1 with indices, a full unsigned transform in the CPU layout: l1_xy_keys and
     // l1_z_out, where the keys' 16-bit x and y hold X and Y and the local memory the rows and
@@ -514,7 +530,7 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     const std::uint32_t k = banded_bands(n, c);
     const bool y = axis == 1;
     const bool global = y ? global_y_ : global_z_;
-    cl::Kernel kernel(global ? program_global_ : program_, "cols_banded");
+    cl::Kernel kernel(global ? program_global_ : banded_program_[y ? 0 : 1], "cols_banded");
     // With indices the y pass writes its targets into feat_[1], the z pass reads them; neither
     // reads `in` nor writes `gout` (arguments 1 and 2), which may then be the x rows' buffer.
     const bool keyed = indices_() != nullptr;

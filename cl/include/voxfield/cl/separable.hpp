@@ -144,6 +144,7 @@ class ExactSeparable : public Generator {
     bool global_y_ = false;      // its y pass's lists in global memory (program_global_)
     bool global_z_ = false;      // its z pass's
     cl::Program program_global_;
+    cl::Program banded_program_[2];  // the y and z passes' in local memory (BANDED_AXIS)
     cl::Buffer banded_scratch_[3];
     // The banded transforms' x rows in chunks: the chunks' ends (outer, inner).
     cl::Buffer row_ends_[2];
