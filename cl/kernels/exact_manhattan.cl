@@ -21,8 +21,8 @@
 // work-item in cols_seg: 1, 2 or 4), CHEBYSHEV (0 or 1), SIGNED (0 or 1, CPU layout only).
 // ROW_TARGETS_EMPTY (0 or 1): the GPU layout's x rows kernels (x_rows_map, x_rows_local,
 // x_rows_long) take the zero voxels as their targets instead of the nonzero ones.
-// CHUNKS (0 or 1): cols_seg and x_rows_map over lines in chunks (their `chunks` argument 1 or
-// 2); with 0 that argument is ignored (one chunk).
+// CHUNKS (0 or 1): cols_seg and x_rows_map over lines in chunks (their `chunks` argument 1:
+// publish the chunks' ends, 2: sweep from them); with 0 that argument is ignored (one chunk).
 // Saturating at T_MAX is exact: min-plus with +1 commutes with min(., T_MAX).
 //
 // SIGNED=1: the signed L1 field in the same passes, one value per voxel. Every voxel is at
@@ -1095,10 +1095,10 @@ inline void store_final_vec(__global uint* restrict out, __global const uchar* r
 // its last position and backward value at its first (no carry from other chunks; ends[2 (col G
 // + g)] and ends[2 (col G + g) + 1], col = the work-item's place in dimensions 0 and 2) and
 // writes nothing else; `chunks` 2 then sweeps each chunk from those carries too, walking the
-// chunks before it (after it) a chunk length at a time. `chunks` 0: one chunk, ends unused.
-// The chunks' code is built only with CHUNKS=1, their own program: in every build its
-// branches, though not taken, made the H100's 512^3 u16 y and z passes take 0.59 ms against 0.42
-// (u8 0.52 against 0.32; 1024^3 u16 5.03 against 4.07).
+// chunks before it (after it) a chunk length at a time. Without CHUNKS: one chunk, `chunks`
+// and ends unused. The chunks' code is built only with CHUNKS=1, their own program: in every
+// build its branches, though not taken, made the H100's 512^3 u16 y and z passes take 0.59 ms
+// against 0.42 (u8 0.52 against 0.32; 1024^3 u16 5.03 against 4.07).
 __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
                        __global const uchar* restrict vox, __constant uchar* rgb, uint X,
                        uint N, ulong stride, ulong mstride, uint final, __local TV* fout,
@@ -1117,10 +1117,10 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
     const size_t base = x + get_global_id(2) * mstride;
 #if CHUNKS
     const uint g = (uint)get_group_id(1), G = (uint)get_num_groups(1);
-    const uint n0 = (g * segs + s) * SEG_K;
 #else
-    const uint n0 = s * SEG_K;
+    const uint g = 0;
 #endif
+    const uint n0 = (g * segs + s) * SEG_K;
     CV v[SEG_K];
 #if FROM_BITS
     // The y pass over x_words' rows: row (z, y) is z * N + y, the VW columns share a word.
@@ -1179,13 +1179,11 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
 #endif
     CV c = s > 0 ? TO_CV(fout[COL_SLOT(s - 1)]) : (CV)T_MAX;
 #if CHUNKS
-    if (chunks == 2) {
-        CV f = (CV)T_MAX;
-        for (uint h = 0; h < g; ++h) {
-            f = min(CV_ADD(f, len), TO_CV(col_ends[2 * h]));
-        }
-        c = min(c, CV_ADD(f, min(s * SEG_K, (uint)T_MAX)));
+    CV f = (CV)T_MAX;
+    for (uint h = 0; h < g; ++h) {
+        f = min(CV_ADD(f, len), TO_CV(col_ends[2 * h]));
     }
+    c = min(c, CV_ADD(f, min(s * SEG_K, (uint)T_MAX)));
 #endif
 #pragma unroll
     for (uint k = 0; k < SEG_K; ++k) {
@@ -1194,13 +1192,11 @@ __kernel void cols_seg(__global T* restrict work, __global uint* restrict out,
     }
     c = s + 1 < segs ? TO_CV(bout[COL_SLOT(s + 1)]) : (CV)T_MAX;
 #if CHUNKS
-    if (chunks == 2) {
-        CV b = (CV)T_MAX;
-        for (uint h = G - 1; h > g; --h) {
-            b = min(CV_ADD(b, len), TO_CV(col_ends[2 * h + 1]));
-        }
-        c = min(c, CV_ADD(b, min((segs - 1 - s) * SEG_K, (uint)T_MAX)));
+    CV b = (CV)T_MAX;
+    for (uint h = G - 1; h > g; --h) {
+        b = min(CV_ADD(b, len), TO_CV(col_ends[2 * h + 1]));
     }
+    c = min(c, CV_ADD(b, min((segs - 1 - s) * SEG_K, (uint)T_MAX)));
 #endif
 #pragma unroll
     for (uint j = 0; j < SEG_K; ++j) {
@@ -1461,9 +1457,9 @@ __kernel void x_rows_map(__global const uchar* restrict vox, __global T* restric
         }
 #endif
         T cf, cb;
-        row_carries(masks + r * segs, flag_chunks + r * (stride / 16), segs, s,
-                    ends + (CHUNKS && chunks == 2 ? row[h] * nc : 0), c,
-                    CHUNKS && chunks == 2 ? nc : 0, &cf, &cb);
+        // (nc is 0 without CHUNKS: no other chunk's ends.)
+        row_carries(masks + r * segs, flag_chunks + r * (stride / 16), segs, s, ends + row[h] * nc,
+                    c, nc, &cf, &cb);
         T v[XK];
         sweep_segment(m[h], cf, cb, v);
         if (active[h]) {

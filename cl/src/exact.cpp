@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <functional>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -122,10 +121,10 @@ std::uint32_t vec_width(Format f, std::uint32_t x) {
 // Work-items along x in a cols_seg group (vw columns each) before the kernel's limits: 8, and for
 // 2-byte work on columns of few segments more, up to about 256 work-items a group (at most 64,
 // and no more than the row's words). With 8, a column of 64 voxels (4 segments of 16) made groups
-// of 32 work-items. On the H100 (bench/README, "Short columns in larger groups"), u16 columns of
-// 64 voxels took 0.198 ms instead of 0.279 in long-y's z pass (64 x 32768 x 64) and 0.478 instead
-// of 0.505 in long-x's y and z passes, 512^3 unchanged; u8 columns in long-x took 0.380 ms instead
-// of 0.263, so 1-byte work keeps 8.
+// of 32 work-items. On the H100 (bench/README, the section on short u16 columns in larger groups),
+// u16 columns of 64 voxels took 0.198 ms instead of 0.279 in long-y's z pass (64 x 32768 x 64) and
+// 0.478 instead of 0.505 in long-x's y and z passes, 512^3 unchanged; u8 columns in long-x took
+// 0.380 ms instead of 0.263, so 1-byte work keeps 8.
 std::uint32_t seg_group_columns(std::uint32_t segs, std::size_t bytes, std::uint32_t row_words) {
     std::uint32_t cw = 8;
     if (bytes == 2) {
@@ -166,6 +165,13 @@ cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t
         " -DCHUNKS=" + (chunks ? "1" : "0") + " -cl-std=CL1.2";
     return ctx.program("exact_manhattan.cl", {cl_sources::layout_h, cl_sources::exact_manhattan_cl},
                        options);
+}
+
+// build_program's CHUNKS=1 build: the program of cols_seg's and x_rows_map's launches over lines
+// in chunks.
+cl::Program chunk_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t vw, Metric m,
+                          std::uint32_t cap, bool empty_targets = false) {
+    return build_program(ctx, f, k, vw, m, cap, false, empty_targets, true);
 }
 
 // xy_slice_local's row stride in local memory (elements of `bytes`): X, unless rows X apart put
@@ -272,6 +278,11 @@ std::optional<KernelLaunch> row_launch(Context& ctx, cl::Kernel kernel, const ch
 constexpr std::size_t kMapRowSegs = 1024;
 constexpr std::size_t kMapChunkSegs = 128;
 
+// Whether rows of 16-voxel words take x_rows_map in chunks.
+bool map_rows_in_chunks(Dims dims) {
+    return dims.x / 16 > kMapRowSegs;
+}
+
 // x_rows_map: X / 16 work-items per row, each holding two rows, rows stacked to about 128
 // work-items per group (in the experiments on an H100, 1024^3 u16, two rows an item in groups
 // of 128 took 1.28 ms, a row an item 1.37 in groups of 128 and 1.39 in groups of 64); its local
@@ -280,10 +291,9 @@ constexpr std::size_t kMapChunkSegs = 128;
 // launches: x_rows_ends publishes each chunk's last and first target, x_rows_chunks sweeps
 // every chunk from its own and, where it has none on a side, the nearest other chunk's (the
 // row read twice, written once).
-// The chunks' launches come from a program of their own (CHUNKS=1, `chunked`), as cols_seg's.
-std::optional<XRows> map_rows(Context& ctx, const cl::Program& program,
-                              const std::function<cl::Program()>& chunked, const cl::Buffer& voxels,
-                              const cl::Buffer& work, Dims dims) {
+// The chunks' launches come from a program of their own (chunk_program), as cols_seg's.
+std::optional<XRows> map_rows(Context& ctx, Format format, std::uint32_t cap, bool empty_targets,
+                              const cl::Buffer& voxels, const cl::Buffer& work, Dims dims) {
     const std::size_t row_segs = dims.x / 16;
     auto launch = [&](const char* name, const cl::Program& from, std::size_t segs,
                       std::size_t chunks, cl_uint mode, const cl::Buffer& ends) {
@@ -293,7 +303,9 @@ std::optional<XRows> map_rows(Context& ctx, const cl::Program& program,
         return row_launch(ctx, kernel, name, voxels, work, dims, segs, 128, 2, segs * 2,
                           round_up(segs, 16), chunks);
     };
-    if (row_segs <= kMapRowSegs) {
+    if (!map_rows_in_chunks(dims)) {
+        const cl::Program program =
+            build_program(ctx, format, 32, 1, Metric::manhattan, cap, false, empty_targets);
         if (auto whole = launch("x_rows_map", program, row_segs, 1, 0, work)) {
             return XRows{{*whole}, cl::Buffer()};
         }
@@ -301,7 +313,8 @@ std::optional<XRows> map_rows(Context& ctx, const cl::Program& program,
     const std::size_t chunks = (row_segs + kMapChunkSegs - 1) / kMapChunkSegs;
     const std::size_t rows = std::size_t{dims.y} * dims.z;
     cl::Buffer ends(ctx.context(), CL_MEM_READ_WRITE, rows * chunks * 8);
-    const cl::Program in_chunks = chunked();
+    const cl::Program in_chunks =
+        chunk_program(ctx, format, 32, 1, Metric::manhattan, cap, empty_targets);
     auto publish = launch("x_rows_ends", in_chunks, kMapChunkSegs, chunks, 1, ends);
     auto sweep = launch("x_rows_chunks", in_chunks, kMapChunkSegs, chunks, 2, ends);
     if (!publish || !sweep) {
@@ -320,11 +333,7 @@ XRows gpu_x_rows(Context& ctx, Dims dims, Format format, const cl::Buffer& voxel
     const std::size_t rows = std::size_t{dims.y} * dims.z;
     if (dims.x % 16 == 0) {
         // x_rows_map: 16 voxels of two rows per work-item (one aligned word each).
-        const auto chunked = [&] {
-            return build_program(ctx, format, 32, 1, Metric::manhattan, cap, false, empty_targets,
-                                 true);
-        };
-        if (auto rows_map = map_rows(ctx, base, chunked, voxels, work, dims)) {
+        if (auto rows_map = map_rows(ctx, format, cap, empty_targets, voxels, work, dims)) {
             return *rows_map;
         }
     }
@@ -454,8 +463,8 @@ void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layo
     }
     if (gpu_layout) {
         // Rows too long for one x_rows_map group take it in chunks (gpu_x_rows).
-        if (dims.x % 16 == 0 && dims.x / 16 > kMapRowSegs) {
-            build_program(ctx, format, 32, 1, Metric::manhattan, cap, false, false, true);
+        if (dims.x % 16 == 0 && map_rows_in_chunks(dims)) {
+            chunk_program(ctx, format, 32, 1, Metric::manhattan, cap);
         }
         const bool two_bytes = work_type(format).bytes == 2;
         const std::uint32_t vw = vec_width(format, dims.x);
@@ -467,7 +476,7 @@ void ExactManhattan::prepare(Context& ctx, Dims dims, Format format, Layout layo
             // columns), from their own program.
             if (!seg_group_fits(cols_seg_limit(ctx, source), ctx.info().local_mem, 1,
                                 (len + k - 1) / k, word)) {
-                build_program(ctx, format, k, vw, metric, cap, false, false, true);
+                chunk_program(ctx, format, k, vw, metric, cap);
             }
         }
         if (bit_rows(dims, format, metric, true)) {
@@ -606,8 +615,7 @@ void ExactManhattan::set_up_kernels() {
                 // every chunk from the others' (the column read twice, written once). A
                 // work-item per column (in place in global memory) took 24 ms for long-z's 64 x
                 // 64 x 32768 L1 u16 on the H200, where 512^3 takes 0.5.
-                const cl::Program chunked =
-                    build_program(ctx_, format_, k, vw, metric_, cap_, false, false, true);
+                const cl::Program chunked = chunk_program(ctx_, format_, k, vw, metric_, cap_);
                 const std::size_t chunk_limit = cols_seg_limit(ctx_, chunked);
                 cw = 8;
                 while (cw > 2 && chunk_limit / cw < 2) {
