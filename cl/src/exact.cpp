@@ -200,12 +200,25 @@ std::uint32_t slice_stride(std::uint32_t x, std::size_t bytes) {
     return sx;
 }
 
-// Whether the GPU layout takes x and y in one launch (xy_slice_local): a z-slice of the work
-// type within a quarter of the local memory and 16 KiB (a sparse field's edit blocks, small
-// worlds; larger slices keep the row and column kernels, tuned for them).
+// xy_slice_local's `ends` (elements): two per 16-value segment of the pass whose lines have
+// several (sweep_local_segments), at least one.
+std::size_t slice_ends(Dims dims) {
+    const auto segments = [](std::size_t lines, std::size_t n) {
+        const std::size_t nseg = (n + 15) / 16;
+        return nseg > 1 ? lines * nseg : 0;
+    };
+    return std::max<std::size_t>(1,
+                                 2 * std::max(segments(dims.y, dims.x), segments(dims.x, dims.y)));
+}
+
+// Whether the GPU layout takes x and y in one launch (xy_slice_local or _segments): a z-slice of
+// the work type within a quarter of the local memory and 16 KiB (a sparse field's edit blocks,
+// small worlds; larger slices keep the row and column kernels, tuned for them), its segments' ends
+// beside it.
 bool slice_in_local(Dims dims, std::size_t bytes, std::size_t local_mem) {
-    return std::size_t{slice_stride(dims.x, bytes)} * dims.y * bytes <=
-           std::min<std::size_t>(local_mem / 4, 16384);
+    const std::size_t slice = std::size_t{slice_stride(dims.x, bytes)} * dims.y * bytes;
+    return slice <= std::min<std::size_t>(local_mem / 4, 16384) &&
+           slice + slice_ends(dims) * bytes <= local_mem;
 }
 
 // The GPU layout's x pass as bits (x_words, expanded by the y pass's cols_seg): L1 into u32
@@ -667,10 +680,14 @@ void ExactManhattan::set_up_kernels() {
         }
         bool rows_on_gpu = false;
         if (gpu_layout_ && slice_in_local(dims_, wt.bytes, info.local_mem)) {
-            // x and y in one launch, a work-group per z-slice in local memory.
-            cl::Kernel xy(base, "xy_slice_local");
+            // x and y in one launch, a work-group per z-slice in local memory: by segments of
+            // lines where the slices fit in one wave of the compute units (each group's chain is
+            // the time), else by lines (fewer instructions, the device full).
+            const bool segments = dims_.z <= info.compute_units;
+            const char* name = segments ? "xy_slice_segments" : "xy_slice_local";
+            cl::Kernel xy(base, name);
             // 256 work-items (fewer where the kernel allows fewer): the slice's loads spread
-            // wide; the sweeps use a work-item per row, then per column.
+            // wide.
             const std::size_t group = std::min<std::size_t>(
                 256, xy.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(info.device));
             xy.setArg(0, voxels_);
@@ -680,7 +697,10 @@ void ExactManhattan::set_up_kernels() {
             xy.setArg(3, dims_.y);
             xy.setArg(4, sx);
             xy.setArg(5, cl::Local(std::size_t{sx} * dims_.y * wt.bytes));
-            add({"xy_slice_local", xy, cl::NDRange(group * dims_.z), cl::NDRange(group)});
+            if (segments) {
+                xy.setArg(6, cl::Local(slice_ends(dims_) * wt.bytes));
+            }
+            add({name, xy, cl::NDRange(group * dims_.z), cl::NDRange(group)});
             rows_on_gpu = true;
         }
         if (!rows_on_gpu && gpu_layout_ && bit_rows(dims_, format_, metric_, true)) {

@@ -158,7 +158,8 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     // Columns up to 512 voxels take cols_seg with segments of 16, longer ones segments of 32
     // (u16's y columns 16 up to 1024), as many as a work-group holds (PoCL: 4096), and longer
     // ones in chunks of a work-group (cols_chunk_ends, cols_chunks); z-slices of at most 16 KiB
-    // take x and y in one launch (xy_slice_local), larger ones the row kernels and a y column pass.
+    // take x and y in one launch (xy_slice_local; xy_slice_segments where they are as few as the
+    // compute units), larger ones the row kernels and a y column pass.
     // The CPU layout sweeps xy slices and strips of columns (on bytes where it can).
     using Path = std::vector<std::string>;
     const World tall = scene_random(Dims{17, 1100, 2}, 0.002, 5);
@@ -166,7 +167,8 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     const World deep = scene_random(Dims{2, 2, 2100}, 0.001, 6);
     const World deeper = scene_random(Dims{2, 2, 32 * 4096 + 1}, 0.00002, 10);
     const World wide = scene_random(Dims{144, 120, 20}, 0.01, 7);
-    const World small = scene_random(Dims{20, 30, 40}, 0.01, 8);
+    const World small = scene_random(Dims{20, 30, 400}, 0.002, 8);
+    const World one_slice = scene_random(Dims{20, 30, 1}, 0.01, 11);
     for (Format f : kFormats) {
         EXPECT_EQ(kernel_path(tall, f, Layout::gpu),
                   (Path{"x_rows_local", "cols_seg/32", "cols_seg/16"}))
@@ -185,6 +187,8 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
         EXPECT_EQ(kernel_path(wide, f, Layout::gpu), wide_gpu) << to_string(f);
         EXPECT_EQ(kernel_path(small, f, Layout::gpu), (Path{"xy_slice_local", "cols_seg/16"}))
             << to_string(f);
+        EXPECT_EQ(kernel_path(one_slice, f, Layout::gpu).front(), "xy_slice_segments")
+            << to_string(f);
         // Bytes first where the format is unsigned and holds no colours, then (u16, u32) the
         // wide sweeps where a distance reaches 255.
         const Path cpu = f == Format::packed32 ? Path{"xy_slices_seq", "cols_strip_final"}
@@ -201,6 +205,7 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     expect_exact(deeper, Palette(), "deeper");
     expect_exact(wide, Palette(), "wide");
     expect_exact(small, Palette(), "small");
+    expect_exact(one_slice, Palette(), "one slice");
 }
 
 TEST(ExactManhattan, LongColumnsSaturatePerLane) {
@@ -254,6 +259,46 @@ TEST(ExactManhattan, LongColumnsCarryAcrossHundredsOfSegments) {
         EXPECT_NE(std::find(path.begin(), path.end(), kernel), path.end())
             << w.dims().to_string() << " " << kernel;
         expect_exact(w, Palette(), "far ends");
+    }
+}
+
+TEST(ExactManhattan, SliceSegmentsCarryAlongLines) {
+    // xy_slice_segments sweeps a slice's rows and columns in segments of 16 values: lines of
+    // one segment, of a segment and one value, of whole and ragged segments; sparse worlds
+    // (carries across many empty segments, T_MAX runs) and dense ones (carries that a segment's
+    // own values beat); a solid voxel at each end of the longest row and column. Worlds of as
+    // many slices as the device has compute units take it, more take xy_slice_local.
+    const std::uint32_t units = pocl().info().compute_units;
+    const std::uint32_t sizes[] = {1, 15, 16, 17, 33, 52, 64, 100};
+    std::uint64_t seed = 1;
+    for (const std::uint32_t x : sizes) {
+        for (const std::uint32_t y : sizes) {
+            for (const double density : {0.002, 0.05, 0.4}) {
+                const std::uint32_t z = density > 0.01 ? std::min(units, 3u) : units + 1;
+                World w = scene_random(Dims{x, y, z}, density, seed++);
+                w.set(0, 0, z - 1, 1);
+                w.set(x - 1, y - 1, 0, 1);
+                const auto exact = reference_manhattan(w);
+                for (Format f : kFormats) {
+                    // Slices above 16 KiB (u32 from 4096 voxels, rows padded) take the row
+                    // kernels.
+                    const std::string first = kernel_path(w, f, Layout::gpu).front();
+                    if (first != "xy_slice_local" && first != "xy_slice_segments") {
+                        EXPECT_GE(x * y, 4096u) << w.dims().to_string() << " " << to_string(f);
+                        continue;
+                    }
+                    EXPECT_EQ(first, z <= units ? "xy_slice_segments" : "xy_slice_local");
+                    const auto want = encode_field(exact, w, Palette(), f);
+                    const auto got =
+                        ocl::generate(pocl(), w, Palette(), exact_options(f, Layout::gpu)).bytes;
+                    const std::string diff = test::first_difference(got, want, f, w.dims());
+                    if (!diff.empty()) {
+                        FAIL() << w.dims().to_string() << " density " << density << " format "
+                               << to_string(f) << ": " << diff;
+                    }
+                }
+            }
+        }
     }
 }
 
