@@ -200,7 +200,7 @@ std::uint32_t slice_stride(std::uint32_t x, std::size_t bytes) {
     return sx;
 }
 
-// xy_slice_local's `ends` (elements): two per 16-value segment of the pass whose lines have
+// xy_slice_segments' `ends` (elements): two per 16-value segment of the pass whose lines have
 // several (sweep_local_segments), at least one.
 std::size_t slice_ends(Dims dims) {
     const auto segments = [](std::size_t lines, std::size_t n) {
