@@ -1252,7 +1252,7 @@ inline void store_row16(__global T* restrict dst, const T* v) {
 // xy_slice_segments 16 values of a line a work-item (sweep_local_segments: the shortest chain,
 // for as many slices as the device has compute units or fewer, a sparse field's edit block;
 // `ends` holds two values per such segment of the pass with more). On an H100 a radius-8 edit's
-// block (52^3, u8) took 12.1-12.6 us by segments against 14.8-15.3 by lines, and the long-z
+// block (52^3, u8) took 11.4-12.1 us by segments against 13.1-15.3 by lines, and the long-z
 // world's 32768 slices (64 x 64, u16) 0.56-0.65 ms against 0.43-0.45.
 // Rows lie SX elements apart in local memory: X, or where rows X apart would put many of a
 // warp's work-items (a row each in xy_slice_local) in one bank, more (the host's choice): with
