@@ -1338,29 +1338,42 @@ __kernel void xy_slice_local(__global const uchar* restrict vox, __global T* res
 // forward from its carry, then backward over the forward values from the other (which gives
 // min over j of v_j + |i - j|, as sweeping the whole line does).
 #define SK 16
+
+// Work-item w's segment in sweep_local_segments: its values into v (T_MAX past the line's end),
+// its length into *len and its place among the segments (line * nseg + segment) into *e;
+// returns where its first value lies.
+inline __local T* load_segment(__local T* sl, uint w, uint lines, uint n, uint nseg, uint step,
+                               uint lstep, bool seg_fastest, uint* len, uint* e, CS* v) {
+    const uint l = seg_fastest ? w / nseg : w % lines;
+    const uint s = seg_fastest ? w % nseg : w / lines;
+    const uint start = s * SK;
+    *len = min((uint)SK, n - start);
+    *e = l * nseg + s;
+    __local T* p = sl + l * lstep + start * step;
+#pragma unroll
+    for (uint k = 0; k < SK; ++k) {
+        v[k] = k < *len ? (CS)p[k * step] : (CS)T_MAX;
+    }
+    return p;
+}
+
 inline void sweep_local_segments(__local T* sl, uint lines, uint n, uint step, uint lstep,
                                  bool seg_fastest, __local T* ends) {
     const uint lid = (uint)get_local_id(0), gsize = (uint)get_local_size(0);
     const uint nseg = (n + SK - 1) / SK, total = lines * nseg;
     if (nseg > 1) {
         for (uint w = lid; w < total; w += gsize) {
-            const uint l = seg_fastest ? w / nseg : w % lines;
-            const uint s = seg_fastest ? w % nseg : w / lines;
-            const uint start = s * SK, len = min((uint)SK, n - start);
-            __local const T* p = sl + l * lstep + start * step;
+            uint len, e;
             CS v[SK];
-#pragma unroll
-            for (uint k = 0; k < SK; ++k) {
-                v[k] = k < len ? (CS)p[k * step] : (CS)T_MAX;
-            }
+            load_segment(sl, w, lines, n, nseg, step, lstep, seg_fastest, &len, &e, v);
             CS f = (CS)T_MAX, b = (CS)T_MAX;
 #pragma unroll
             for (uint k = 0; k < SK; ++k) {
                 f = k < len ? min(v[k], CS_INC(f)) : f;
                 b = min(v[SK - 1 - k], CS_INC(b));
             }
-            ends[2 * (l * nseg + s)] = (T)f;
-            ends[2 * (l * nseg + s) + 1] = (T)b;
+            ends[2 * e] = (T)f;
+            ends[2 * e + 1] = (T)b;
         }
         barrier(CLK_LOCAL_MEM_FENCE);
         for (uint l = lid; l < lines; l += gsize) {
@@ -1381,16 +1394,10 @@ inline void sweep_local_segments(__local T* sl, uint lines, uint n, uint step, u
         barrier(CLK_LOCAL_MEM_FENCE);
     }
     for (uint w = lid; w < total; w += gsize) {
-        const uint l = seg_fastest ? w / nseg : w % lines;
-        const uint s = seg_fastest ? w % nseg : w / lines;
-        const uint start = s * SK, len = min((uint)SK, n - start);
-        __local T* p = sl + l * lstep + start * step;
+        uint len, e;
         CS v[SK];
-#pragma unroll
-        for (uint k = 0; k < SK; ++k) {
-            v[k] = k < len ? (CS)p[k * step] : (CS)T_MAX;
-        }
-        CS c = nseg > 1 ? (CS)ends[2 * (l * nseg + s)] : (CS)T_MAX;
+        __local T* p = load_segment(sl, w, lines, n, nseg, step, lstep, seg_fastest, &len, &e, v);
+        CS c = nseg > 1 ? (CS)ends[2 * e] : (CS)T_MAX;
 #pragma unroll
         for (uint k = 0; k < SK; ++k) {
             c = min(v[k], CS_INC(c));
@@ -1398,7 +1405,7 @@ inline void sweep_local_segments(__local T* sl, uint lines, uint n, uint step, u
         }
         // The backward carry enters at the segment's last value (a short last segment: its
         // padding's T_MAX values change nothing).
-        c = nseg > 1 ? (CS)ends[2 * (l * nseg + s) + 1] : (CS)T_MAX;
+        c = nseg > 1 ? (CS)ends[2 * e + 1] : (CS)T_MAX;
 #pragma unroll
         for (uint k = SK; k-- > 0;) {
             c = k < len ? min(v[k], CS_INC(c)) : c;
