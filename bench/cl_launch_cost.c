@@ -2,37 +2,14 @@
 // 1, 4, 8 or 16 buffer arguments, 8 sub-buffers of one buffer, a by-value table of 640 bytes;
 // each launched on an idle queue (the call timed alone, then the queue finished, as an edit's
 // first launches are) and back to back. Then an edit-shaped sequence (two small table writes and
-// six launches of 16, 16, 9, 4, 4 and 14 buffers, the last with an event, then one wait) against
+// six launches of 16, 16, 8, 4, 4 and 16 buffers, the last with an event, then one wait) against
 // the same launches taking their tables by value (no writes), and against one write. Queue
 // without profiling, as a lean edit's. Medians of 2001 calls or sequences, after 200 untimed.
 //   gcc -O2 -o /tmp/cl_launch_cost bench/cl_launch_cost.c -lOpenCL && /tmp/cl_launch_cost [gpu|cpu]
-#define CL_TARGET_OPENCL_VERSION 300
-#include <CL/cl.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-#include <time.h>
+#include "cl_bench.h"
 
-static double now_us(void) {
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return t.tv_sec * 1e6 + t.tv_nsec * 1e-3;
-}
-static int cmp(const void* a, const void* b) {
-    const double x = *(const double*)a, y = *(const double*)b;
-    return (x > y) - (x < y);
-}
 #define N 2001
 #define WARM 200
-#define CHECK(e)                                                          \
-    do {                                                                  \
-        cl_int e_ = (e);                                                  \
-        if (e_ != CL_SUCCESS) {                                           \
-            fprintf(stderr, "OpenCL error %d at line %d\n", e_, __LINE__); \
-            exit(1);                                                      \
-        }                                                                 \
-    } while (0)
-
 // bufN: N global buffers, the first written where a flag says (never); table: 80 longs by value.
 static const char* kSource =
     "typedef struct { long v[80]; } Table;\n"
@@ -130,19 +107,7 @@ static void sequence(const char* what, int writes, cl_kernel* ks) {
 }
 
 int main(int argc, char** argv) {
-    const cl_device_type type =
-        argc > 1 && strcmp(argv[1], "cpu") == 0 ? CL_DEVICE_TYPE_CPU : CL_DEVICE_TYPE_GPU;
-    cl_platform_id platforms[8];
-    cl_uint np = 0;
-    CHECK(clGetPlatformIDs(8, platforms, &np));
-    cl_device_id dev = NULL;
-    for (cl_uint i = 0; i < np && !dev; ++i) {
-        if (clGetDeviceIDs(platforms[i], type, 1, &dev, NULL) != CL_SUCCESS) dev = NULL;
-    }
-    if (!dev) {
-        fprintf(stderr, "no %s device\n", type == CL_DEVICE_TYPE_GPU ? "GPU" : "CPU");
-        return 2;
-    }
+    cl_device_id dev = bench_device(argc, argv);
     char name[256];
     size_t param = 0;
     clGetDeviceInfo(dev, CL_DEVICE_NAME, sizeof name, name, NULL);

@@ -3,46 +3,15 @@
 // queue, as voxfield's), clGetEventProfilingInfo, clReleaseEvent, and a whole batch of 10
 // launches ended by one wait. Medians of 21 rounds of 2000 calls (rounds of 200 batches).
 //   gcc -O2 -o /tmp/cl_overhead bench/cl_overhead.c -lOpenCL && /tmp/cl_overhead [gpu|cpu]
-#define CL_TARGET_OPENCL_VERSION 300
-#include <CL/cl.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-#include <time.h>
+#include "cl_bench.h"
 
-static double now_us(void) {
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return t.tv_sec * 1e6 + t.tv_nsec * 1e-3;
-}
-static int cmp(const void* a, const void* b) {
-    const double x = *(const double*)a, y = *(const double*)b;
-    return (x > y) - (x < y);
-}
 #define ROUNDS 21
 #define CALLS 2000
-#define CHECK(e)                                                    \
-    if ((e) != CL_SUCCESS) {                                        \
-        fprintf(stderr, "OpenCL error %d at line %d\n", e, __LINE__); \
-        return 1;                                                   \
-    }
 static const char* kSource =
     "__kernel void empty(__global int* a, int b) { if (b < 0) a[get_global_id(0)] = b; }";
 
 int main(int argc, char** argv) {
-    const cl_device_type type =
-        argc > 1 && strcmp(argv[1], "cpu") == 0 ? CL_DEVICE_TYPE_CPU : CL_DEVICE_TYPE_GPU;
-    cl_platform_id platforms[8];
-    cl_uint np = 0;
-    CHECK(clGetPlatformIDs(8, platforms, &np));
-    cl_device_id dev = NULL;
-    for (cl_uint i = 0; i < np && !dev; ++i) {
-        if (clGetDeviceIDs(platforms[i], type, 1, &dev, NULL) != CL_SUCCESS) dev = NULL;
-    }
-    if (!dev) {
-        fprintf(stderr, "no %s device\n", type == CL_DEVICE_TYPE_GPU ? "GPU" : "CPU");
-        return 2;
-    }
+    cl_device_id dev = bench_device(argc, argv);
     char name[256];
     clGetDeviceInfo(dev, CL_DEVICE_NAME, sizeof name, name, NULL);
     cl_int e;
