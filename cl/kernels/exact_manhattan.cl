@@ -1311,11 +1311,10 @@ inline void sweep_local_line(__local T* line, uint n, uint step) {
     }
 }
 
-__kernel void xy_slice_local(__global const uchar* restrict vox, __global T* restrict work,
-                             uint X, uint Y, uint SX, __local T* sl) {
+// xy_slice_local's sweeps of a loaded slice, then its store (sparse_slices.cl's too).
+inline void sweep_and_store_lines(__global T* restrict work, uint X, uint Y, uint SX,
+                                  __local T* sl) {
     const uint lid = (uint)get_local_id(0), n = (uint)get_local_size(0);
-    load_slice(vox, X, Y, SX, sl);
-    barrier(CLK_LOCAL_MEM_FENCE);
     for (uint y = lid; y < Y; y += n) {
         sweep_local_line(sl + y * SX, X, 1);
     }
@@ -1325,6 +1324,13 @@ __kernel void xy_slice_local(__global const uchar* restrict vox, __global T* res
     }
     barrier(CLK_LOCAL_MEM_FENCE);
     store_slice(work, X, Y, SX, sl);
+}
+
+__kernel void xy_slice_local(__global const uchar* restrict vox, __global T* restrict work,
+                             uint X, uint Y, uint SX, __local T* sl) {
+    load_slice(vox, X, Y, SX, sl);
+    barrier(CLK_LOCAL_MEM_FENCE);
+    sweep_and_store_lines(work, X, Y, SX, sl);
 }
 
 // The 1-D L1 transform of `lines` lines of n values in local memory (value i of line l at
@@ -1420,15 +1426,21 @@ inline void sweep_local_segments(__local T* sl, uint lines, uint n, uint step, u
     }
 }
 
-__kernel void xy_slice_segments(__global const uchar* restrict vox, __global T* restrict work,
-                                uint X, uint Y, uint SX, __local T* sl, __local T* ends) {
-    load_slice(vox, X, Y, SX, sl);
-    barrier(CLK_LOCAL_MEM_FENCE);
+// xy_slice_segments' sweeps of a loaded slice, then its store (sparse_slices.cl's too).
+inline void sweep_and_store_segments(__global T* restrict work, uint X, uint Y, uint SX,
+                                     __local T* sl, __local T* ends) {
     sweep_local_segments(sl, Y, X, 1, SX, true, ends);
     barrier(CLK_LOCAL_MEM_FENCE);
     sweep_local_segments(sl, X, Y, SX, 1, false, ends);
     barrier(CLK_LOCAL_MEM_FENCE);
     store_slice(work, X, Y, SX, sl);
+}
+
+__kernel void xy_slice_segments(__global const uchar* restrict vox, __global T* restrict work,
+                                uint X, uint Y, uint SX, __local T* sl, __local T* ends) {
+    load_slice(vox, X, Y, SX, sl);
+    barrier(CLK_LOCAL_MEM_FENCE);
+    sweep_and_store_segments(work, X, Y, SX, sl, ends);
 }
 
 // Rows along x for X a multiple of XK = 16, two rows a work-item: work-item (s, r) holds

@@ -148,23 +148,28 @@ std::size_t cols_seg_limit(const Context& ctx, const cl::Program& program) {
         .getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(ctx.info().device);
 }
 
-// The kernels of exact_manhattan.cl for format `f`, SEG_K = k, VW = vw and metric m (cached
-// by ctx), saturating at `cap` where it is below the work type's maximum (T_MAX: every sweep
-// takes the minimum with a value that starts at most T_MAX, so the field is min(exact, cap)).
+// The build options of exact_manhattan.cl for format `f`, SEG_K = k, VW = vw and metric m,
+// saturating at `cap` where it is below the work type's maximum (T_MAX: every sweep takes the
+// minimum with a value that starts at most T_MAX, so the field is min(exact, cap)).
+std::string program_options(Format f, std::uint32_t k, std::uint32_t vw, Metric m,
+                            std::uint32_t cap, bool from_bits = false, bool empty_targets = false,
+                            bool chunks = false) {
+    const WorkType wt = work_type(f);
+    return "-DT=" + std::string(wt.name) + " -DT_MAX=" + std::to_string(std::min(wt.max, cap)) +
+           (wt.is_signed ? "" : "u") + " -DPACKED=" + (f == Format::packed32 ? "1" : "0") +
+           " -DSEG_K=" + std::to_string(k) + " -DVW=" + std::to_string(vw) +
+           " -DCHEBYSHEV=" + (m == Metric::chebyshev ? "1" : "0") +
+           " -DSIGNED=" + (wt.is_signed ? "1" : "0") + " -DFROM_BITS=" + (from_bits ? "1" : "0") +
+           " -DROW_TARGETS_EMPTY=" + (empty_targets ? "1" : "0") +
+           " -DCHUNKS=" + (chunks ? "1" : "0") + " -cl-std=CL1.2";
+}
+
+// The kernels of exact_manhattan.cl built with program_options' options (cached by ctx).
 cl::Program build_program(Context& ctx, Format f, std::uint32_t k, std::uint32_t vw, Metric m,
                           std::uint32_t cap, bool from_bits = false, bool empty_targets = false,
                           bool chunks = false) {
-    const WorkType wt = work_type(f);
-    const std::string options =
-        "-DT=" + std::string(wt.name) + " -DT_MAX=" + std::to_string(std::min(wt.max, cap)) +
-        (wt.is_signed ? "" : "u") + " -DPACKED=" + (f == Format::packed32 ? "1" : "0") +
-        " -DSEG_K=" + std::to_string(k) + " -DVW=" + std::to_string(vw) +
-        " -DCHEBYSHEV=" + (m == Metric::chebyshev ? "1" : "0") +
-        " -DSIGNED=" + (wt.is_signed ? "1" : "0") + " -DFROM_BITS=" + (from_bits ? "1" : "0") +
-        " -DROW_TARGETS_EMPTY=" + (empty_targets ? "1" : "0") +
-        " -DCHUNKS=" + (chunks ? "1" : "0") + " -cl-std=CL1.2";
     return ctx.program("exact_manhattan.cl", {cl_sources::layout_h, cl_sources::exact_manhattan_cl},
-                       options);
+                       program_options(f, k, vw, m, cap, from_bits, empty_targets, chunks));
 }
 
 // build_program's CHUNKS=1 build: the program of cols_seg's and x_rows_map's launches over lines
@@ -700,6 +705,17 @@ void ExactManhattan::set_up_kernels() {
             if (segments) {
                 xy.setArg(6, cl::Local(slice_ends(dims_) * wt.bytes));
             }
+            // (packed32's last pass colours the field from the voxels: no other source.)
+            if (stages_.empty() && format_ != Format::packed32) {
+                slice_stage_ = SliceStage{segments,
+                                          program_options(format_, 32, 1, metric_, cap_),
+                                          sx,
+                                          std::size_t{sx} * dims_.y * wt.bytes,
+                                          segments ? slice_ends(dims_) * wt.bytes : 0,
+                                          cl::NDRange(group * dims_.z),
+                                          cl::NDRange(group),
+                                          work_};
+            }
             add({name, xy, cl::NDRange(group * dims_.z), cl::NDRange(group)});
             rows_on_gpu = true;
         }
@@ -852,6 +868,15 @@ bool ExactManhattan::enqueue(std::vector<std::pair<std::string, cl::Event>>& eve
     cl_call("enqueueing exact_manhattan.cl on " + dims_.to_string(),
             [&] { enqueue_stages(stages_, events, stage_events_); });
     return true;
+}
+
+void ExactManhattan::enqueue_after_slices(std::vector<std::pair<std::string, cl::Event>>& events) {
+    if (!slice_stage_) {
+        throw std::logic_error("ExactManhattan::enqueue_after_slices without a slice stage");
+    }
+    cl_call("enqueueing exact_manhattan.cl after its slices on " + dims_.to_string(), [&] {
+        enqueue_stages(std::span<const KernelLaunch>(stages_).subspan(1), events, stage_events_);
+    });
 }
 
 double ExactManhattan::run() {

@@ -22,8 +22,11 @@
 #include "voxfield/core/format.hpp"
 
 namespace voxfield::cl_sources {
+extern const char* const layout_h;
+extern const char* const exact_manhattan_cl;
 extern const char* const sparse_tree_cl;
 extern const char* const sparse_field_cl;
+extern const char* const sparse_slices_cl;
 }  // namespace voxfield::cl_sources
 
 namespace voxfield::ocl {
@@ -202,6 +205,12 @@ struct SparseField::Batch {
     cl::Buffer voxels;  // the generator's world
     cl::Buffer jobs, refs, scatter_jobs, regions, slots;
     std::size_t refs_cap = 0, slots_cap = 0;
+    // A one-block batch whose generator starts with a slice stage: that stage reading the block
+    // from the world's trees (sparse_slices.cl; its tree, jobs and refs arguments set per
+    // update), in place of the gather and the generator's own first launch.
+    ExactManhattan* slices_of = nullptr;
+    cl::Kernel tree_slices;
+    std::string tree_slices_name;
 };
 
 SparseField::SparseField(Context& ctx, SparseWorld& world, const Palette& palette,
@@ -330,6 +339,10 @@ SparseField::Batch& SparseField::batch_for(Dims block, std::uint32_t blocks) {
         auto g = std::make_unique<ExactManhattan>(ctx_, zero, palette_, o.format, o.layout,
                                                   o.metric, o.max_distance);
         b->voxels = g->voxels_buffer();
+        if (blocks == 1 && g->slice_stage()) {
+            b->slices_of = g.get();
+            set_up_tree_slices(*b);
+        }
         b->generator = std::move(g);
     } else {
         // Each block's z lines apart: short lines, many to a work-group (the banded passes).
@@ -344,6 +357,32 @@ SparseField::Batch& SparseField::batch_for(Dims block, std::uint32_t blocks) {
         b->regions = cl::Buffer(c, CL_MEM_READ_ONLY, std::size_t{blocks} * 6 * 8);
     });
     return *(batches_[shape] = std::move(b));
+}
+
+void SparseField::set_up_tree_slices(Batch& b) {
+    const ExactManhattan::SliceStage& stage = *b.slices_of->slice_stage();
+    const Dims wd = world_.dims();
+    cl_call("setting up the tree slices of a sparse block of " + b.block.to_string(), [&] {
+        const cl::Program program =
+            ctx_.program("sparse_slices.cl",
+                         {cl_sources::layout_h, cl_sources::sparse_tree_cl,
+                          cl_sources::exact_manhattan_cl, cl_sources::sparse_slices_cl},
+                         stage.options);
+        b.tree_slices_name = stage.segments ? "xy_tree_segments" : "xy_tree_local";
+        cl::Kernel& k = b.tree_slices = cl::Kernel(program, b.tree_slices_name.c_str());
+        k.setArg(6, stage.work);
+        k.setArg(7, b.block.x);
+        k.setArg(8, b.block.y);
+        k.setArg(9, b.block.z);
+        k.setArg(10, stage.sx);
+        k.setArg(11, static_cast<cl_long>(wd.x));
+        k.setArg(12, static_cast<cl_long>(wd.y));
+        k.setArg(13, static_cast<cl_long>(wd.z));
+        k.setArg(14, cl::Local(stage.slice_bytes));
+        if (stage.segments) {
+            k.setArg(15, cl::Local(stage.ends_bytes));
+        }
+    });
 }
 
 double SparseField::compute(const std::vector<Job>& jobs, Dims block, bool pow2_batch) {
@@ -1177,11 +1216,25 @@ double SparseField::update_block(const Job& job, Dims block,
             block_commands_.push_back(tables_->last_write());
         }
         auto* staged = stage_events_ ? &events : nullptr;
-        device_world_.enqueue_gather(tables_->buffer(kJobs), tables_->buffer(kRefs), batch.voxels,
-                                     block, 1, stage_event(staged, "gather"));
-        const std::size_t generator_first = events.size();
         batch.generator->set_stage_events(stage_events_);
-        const bool enqueued = batch.generator->enqueue(events);
+        std::size_t generator_first = events.size();
+        bool enqueued = true;
+        if (batch.slices_of != nullptr) {
+            // The block's slices from the trees: the gather and the generator's first launch.
+            cl::Kernel& xy = batch.tree_slices;
+            device_world_.set_tree_args(xy, 0);
+            xy.setArg(4, tables_->buffer(kJobs));
+            xy.setArg(5, tables_->buffer(kRefs));
+            const ExactManhattan::SliceStage& stage = *batch.slices_of->slice_stage();
+            q.enqueueNDRangeKernel(xy, cl::NullRange, stage.global, stage.local, nullptr,
+                                   stage_event(staged, batch.tree_slices_name));
+            batch.slices_of->enqueue_after_slices(events);
+        } else {
+            device_world_.enqueue_gather(tables_->buffer(kJobs), tables_->buffer(kRefs),
+                                         batch.voxels, block, 1, stage_event(staged, "gather"));
+            generator_first = events.size();
+            enqueued = batch.generator->enqueue(events);
+        }
         if (!enqueued) {
             // A generator that reads a flag back in between: its own run(), which waits.
             ms += batch.generator->run();

@@ -728,6 +728,58 @@ TEST(SparseDeviceWorld, LeanEditsEqualProfiledOnes) {
     }
 }
 
+// An edit's block whose field starts with a slice stage (unsigned L1 in the GPU layout) reads
+// its slices from the world's trees in that launch (sparse_slices.cl), without a gather: in
+// u8, u16 and u32, near the world's edges (blocks reaching past them, tiles cut by them),
+// across tile borders, on the device and from the host (update), the field equals the dense
+// bounded field after every edit, and the profiled edit names the kernel. packed32 (coloured
+// from the gathered materials) keeps the gather, and equals it too.
+TEST(SparseDeviceWorld, EditBlocksReadTheirSlicesFromTheTrees) {
+    std::mt19937 rng(73);
+    const Palette p = Palette::magicavoxel_default();
+    const Dims d{150, 90, 140};
+    const World start = terrain_world(
+        d, [](std::uint32_t x, std::uint32_t z) { return 25 + (x * 7 + z * 3) % 30; },
+        [](std::uint32_t x, std::uint32_t y) {
+            return static_cast<std::uint8_t>(1 + (x * 5 + y) % 200);
+        });
+    for (const Format format : {Format::u8, Format::u16, Format::u32, Format::packed32}) {
+        Case c;
+        c.layout = Layout::gpu;
+        c.format = format;
+        c.bound = format == Format::u8 ? 6 : 9.5;
+        SCOPED_TRACE(describe(c, d));
+        World w = start;
+        SparseWorld s = SparseWorld::from_dense(w);
+        ocl::SparseField f(pocl(), s, p, options_of(c));
+        f.run();
+        int named_edits = 0;
+        for (int e = 0; e < 10; ++e) {
+            Brush b = random_brush(d, 9, rng);
+            if (e == 0) {
+                b.centre = {64, 40, 64};  // on a tile corner
+            }
+            apply_brush(w, b);
+            const ocl::SparseField::Update u =
+                e % 4 == 3 ? (f.world(), f.update(apply_brush(s, b))) : f.apply_brush(b);
+            SCOPED_TRACE("edit " + std::to_string(e));
+            if (u.tiles > 0 && !u.host_stages.empty()) {
+                const auto named = [&](const std::string& name) {
+                    return std::any_of(u.stages.begin(), u.stages.end(),
+                                       [&](const auto& st) { return st.first == name; });
+                };
+                const bool tree = format != Format::packed32;
+                EXPECT_EQ(named("xy_tree_local") || named("xy_tree_segments"), tree);
+                EXPECT_EQ(named("gather"), !tree);
+                EXPECT_EQ(named("xy_slice_local") || named("xy_slice_segments"), !tree);
+                ++named_edits;
+            }
+            expect_same(f.read_dense(), dense_field(w, p, c), c, d, "after the edit");
+        }
+        EXPECT_GE(named_edits, 3);
+    }
+}
+
 TEST(SparseDeviceWorld, LargeBrushesAndReadOnlyWorlds) {
     std::mt19937 rng(33);
     const Palette p = Palette::magicavoxel_default();

@@ -63,6 +63,26 @@ class ExactManhattan : public Generator {
     // The world on the device (uint8 per voxel); writes to it show in the next run().
     const cl::Buffer& voxels_buffer() const { return voxels_; }
 
+    // The x and y passes as one launch over z-slices in local memory (xy_slice_local, or
+    // xy_slice_segments where `segments`), where the transform starts with it and no later
+    // launch reads the voxels (every format but packed32): what a launch of the same sweeps
+    // over another source of voxels needs (a sparse field's edit block read from its world's
+    // trees, sparse_slices.cl): the program's build options, a slice's row stride in local
+    // memory, the bytes of its two local arrays (`ends` 0 for xy_slice_local), the launch's
+    // ranges and the buffer it writes.
+    struct SliceStage {
+        bool segments = false;
+        std::string options;
+        std::uint32_t sx = 0;
+        std::size_t slice_bytes = 0, ends_bytes = 0;
+        cl::NDRange global, local;
+        cl::Buffer work;
+    };
+    const std::optional<SliceStage>& slice_stage() const { return slice_stage_; }
+    // enqueue() without the slice stage, which the caller enqueued in its own form before;
+    // std::logic_error where there is none.
+    void enqueue_after_slices(std::vector<std::pair<std::string, cl::Event>>& events);
+
   private:
     // Reads `voxels` in place (`in_place`) or uploads them; `field`: host memory for the
     // output, or empty.
@@ -88,6 +108,7 @@ class ExactManhattan : public Generator {
     std::vector<cl::Buffer> chunk_ends_;
     std::size_t fallback_from_ = SIZE_MAX;
     std::vector<std::string> path_;  // kernel_path(), beside stages_
+    std::optional<SliceStage> slice_stage_;
 };
 
 }  // namespace voxfield::ocl

@@ -309,14 +309,17 @@ class SparseField {
     };
     struct Batch;  // a dense generator of one block shape and its buffers
     Batch& batch_for(Dims block, std::uint32_t blocks);
+    // Builds the kernel of a one-block batch's slice stage from the trees (Batch::tree_slices).
+    void set_up_tree_slices(Batch& b);
     // Computes `jobs` (each block: block dims) in batches; returns kernel ms and adds them per
     // kernel to stages_, except the last scatters', which are left in scatters_ (nothing waits
     // for them): settle_scatters() waits and returns their ms.
     // `pow2_batch`: blocks per batch rounded up to a power of two (the extra blocks transformed
     // and not scattered), so that varying job counts share batch shapes.
     double compute(const std::vector<Job>& jobs, Dims block, bool pow2_batch = false);
-    // An update's single block `job`: its tables in one write, gather, the dense generator,
-    // then the scatter and the node minima of `slots` (per slot, the nodes set in `nodes`,
+    // An update's single block `job`: its tables in one write, gather, the dense generator (or,
+    // where the batch has tree slices, those and the generator's later launches), then the
+    // scatter and the node minima of `slots` (per slot, the nodes set in `nodes`,
     // which must hold every node the region overlaps) in one kernel, enqueued without a wait;
     // then the one wait, for that kernel. Returns kernel ms. Its host times and commands go to
     // block_times_ and block_commands_.
