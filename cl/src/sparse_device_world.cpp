@@ -240,6 +240,7 @@ SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, Spa
 
 SparseDeviceWorld::~SparseDeviceWorld() {
     try {
+        wait_for_edit();
         ctx_.queue().finish();
     } catch (const cl::Error&) {
     }
@@ -272,6 +273,10 @@ std::vector<std::pair<Int3, std::pair<std::uint64_t, std::uint64_t>>> SparseDevi
 }
 
 void SparseDeviceWorld::upload_whole() {
+    wait_for_edit();
+    ++uploads_;
+    brushed_ = false;
+    before_.clear();
     const auto& masks = world_.node_masks();
     const auto& offsets = world_.node_offsets();
     const auto& materials = world_.materials();
@@ -331,6 +336,7 @@ void SparseDeviceWorld::leave_main(std::uint64_t key) {
 }
 
 SparseDeviceWorld::Figures SparseDeviceWorld::figures() {
+    wait_for_edit();
     Figures f;
     f.tiles = main_counts_.size();
     f.solid = main_materials_;
@@ -444,6 +450,7 @@ const SparseWorld& SparseDeviceWorld::world() {
     if (lagging_.empty()) {
         return world_;
     }
+    wait_for_edit();
     cl_call("reading back the tiles edited on the device", [&] {
         auto& q = ctx_.queue();
         std::vector<std::uint32_t> counts(2 * slots_made_);
@@ -484,6 +491,8 @@ void SparseDeviceWorld::refresh() {
 }
 
 void SparseDeviceWorld::host_edited(const Box& changed) {
+    brushed_ = false;
+    before_.clear();
     if (!lagging_.empty()) {
         throw std::logic_error(
             "SparseDeviceWorld::host_edited: the host world was edited while it lagged behind "
@@ -571,7 +580,10 @@ std::int64_t* SparseDeviceWorld::edit_table(std::size_t tiles) {
     return table;
 }
 
-Box SparseDeviceWorld::apply_brush(const Brush& brush) {
+Box SparseDeviceWorld::apply_brush(const Brush& brush, bool beside) {
+    wait_for_edit();
+    brushed_ = false;
+    before_.clear();
     if (editable_ == nullptr) {
         throw std::logic_error("SparseDeviceWorld::apply_brush on a read-only world");
     }
@@ -599,7 +611,15 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
     // The table: the brush; per tile its previous tree, slot, voxels in scratch (a whole tile
     // each) and the 16^3 nodes the brush's bounds overlap (decoded, brushed and encoded again).
     std::int64_t* table = edit_table(n);
+    const std::size_t capacity = slot_capacity_;
+    const std::uint64_t uploads = uploads_;
     take_edit_slots(keys_);  // after every allocation of the edit but its slots'
+    // (A growth's copies or an upload are on the context's queue: the edit follows them there.)
+    beside = beside && slot_capacity_ == capacity && uploads_ == uploads;
+    if (beside && beside_() == nullptr) {
+        cl_call("making a queue for edits",
+                [&] { beside_ = cl::CommandQueue(ctx_.context(), ctx_.info().device, 0); });
+    }
     table[0] = brush.op == BrushOp::place ? 0 : brush.op == BrushOp::erase ? 1 : 2;
     table[1] = brush.shape == BrushShape::sphere ? 0 : 1;
     table[2] = brush.centre.x;
@@ -632,14 +652,44 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush) {
     std::copy(dense_.begin(), dense_.end(), table + kTableHeader + kRecord * n);
     clear_edit_events();
     try {
-        cl_call("editing " + std::to_string(n) + " tiles on the device",
-                [&] { enqueue_edit_encode(scratch_, kTileSize, kTileSize * kTileSize, n); });
+        cl_call("editing " + std::to_string(n) + " tiles on the device", [&] {
+            enqueue_edit_encode(beside ? beside_ : ctx_.queue(), scratch_, kTileSize,
+                                kTileSize * kTileSize, n);
+        });
     } catch (...) {
         untake_edit_slots(keys_);
         throw;
     }
-    commit_edit_slots(keys_);
+    on_beside_ = beside;
+    for (const std::uint64_t key : keys_) {
+        const auto it = dir_.find(key);
+        before_[key] =
+            it != dir_.end() ? it->second : std::pair<std::uint64_t, std::uint64_t>{kNoRef, 0};
+    }
+    brushed_ = true;
+    commit_edit_slots(keys_);  // (an upload there drops before_)
     return bounds;
+}
+
+void SparseDeviceWorld::wait_for_edit() {
+    if (on_beside_) {
+        on_beside_ = false;
+        cl_call("waiting for an edit's commands", [&] { beside_.finish(); });
+    }
+}
+
+std::pair<std::uint64_t, std::uint64_t> SparseDeviceWorld::ref_before_edit(std::int64_t tx,
+                                                                           std::int64_t ty,
+                                                                           std::int64_t tz) const {
+    if (brushed_) {
+        const Dims g = world_.tile_grid();
+        if (tx >= 0 && ty >= 0 && tz >= 0 && tx < g.x && ty < g.y && tz < g.z) {
+            if (const auto it = before_.find(key_of(tx, ty, tz)); it != before_.end()) {
+                return it->second;
+            }
+        }
+    }
+    return ref(tx, ty, tz);
 }
 
 void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t pitch_y,
@@ -648,6 +698,9 @@ void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t 
     if (editable_ == nullptr) {
         throw std::logic_error("SparseDeviceWorld::encode_dense_tiles on a read-only world");
     }
+    wait_for_edit();
+    brushed_ = false;
+    before_.clear();
     traffic_ = QueueTraffic{};
     if (tiles.empty()) {
         clear_edit_events();
@@ -684,7 +737,7 @@ void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t 
     clear_edit_events();
     try {
         cl_call("encoding " + std::to_string(n) + " dense tiles on the device",
-                [&] { enqueue_edit_encode(vox, pitch_y, pitch_z, n); });
+                [&] { enqueue_edit_encode(ctx_.queue(), vox, pitch_y, pitch_z, n); });
     } catch (...) {
         untake_edit_slots(keys_);
         throw;
@@ -737,9 +790,9 @@ void SparseDeviceWorld::commit_edit_slots(const std::vector<std::uint64_t>& keys
     release_slots_if_needed();
 }
 
-void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t pitch_y,
-                                            std::uint32_t pitch_z, std::uint32_t tiles) {
-    auto& q = ctx_.queue();
+void SparseDeviceWorld::enqueue_edit_encode(cl::CommandQueue& q, const cl::Buffer& vox,
+                                            std::uint32_t pitch_y, std::uint32_t pitch_z,
+                                            std::uint32_t tiles) {
     q.enqueueWriteBuffer(table_, CL_FALSE, 0, (kTableHeader + kRecord * tiles + dense_.size()) * 8,
                          pinned_->data(), nullptr, &pinned_->last());
     edit_write_ = pinned_->last();
@@ -805,6 +858,7 @@ void SparseDeviceWorld::clear_edit_events() {
 void SparseDeviceWorld::enqueue_gather(const cl::Buffer& jobs, const cl::Buffer& refs,
                                        const cl::Buffer& out, Dims block, std::size_t count,
                                        cl::Event* event) {
+    wait_for_edit();  // a gather reads the trees as they are
     const Dims d = world_.dims();
     cl::Kernel& k = gpu_layout_ ? gather_quads_ : gather_;
     k.setArg(0, masks_);
