@@ -780,6 +780,73 @@ TEST(SparseDeviceWorld, EditBlocksReadTheirSlicesFromTheTrees) {
     }
 }
 
+// A device brush beside the context's queue (apply_brush's `beside`) is waited for by whatever
+// reads the world next, without a wait of the caller's: its voxels, its figures, whole tiles
+// gathered, and the host world read back are those of the brushed world; ref_before_edit gives
+// the edited tiles' references before the brush and ref() the new ones.
+TEST(SparseDeviceWorld, BrushesBesideAreWaitedForByEveryRead) {
+    std::mt19937 rng(75);
+    const Dims d{150, 90, 140};
+    World w = terrain_world(
+        d, [](std::uint32_t x, std::uint32_t z) { return 20 + (x * 3 + z * 5) % 40; },
+        [](std::uint32_t x, std::uint32_t y) {
+            return static_cast<std::uint8_t>(1 + (x + 3 * y) % 250);
+        });
+    SparseWorld s = SparseWorld::from_dense(w);
+    ocl::SparseDeviceWorld dw(pocl(), s, &s);
+    for (int e = 0; e < 8; ++e) {
+        SCOPED_TRACE("edit " + std::to_string(e));
+        Brush b = random_brush(d, 12, rng);
+        b.centre = {static_cast<std::int64_t>(rng() % d.x), static_cast<std::int64_t>(rng() % 60),
+                    static_cast<std::int64_t>(rng() % d.z)};
+        apply_brush(w, b);
+        const Int3 t{b.centre.x / kTileSize, b.centre.y / kTileSize, b.centre.z / kTileSize};
+        const auto before = dw.ref(t.x, t.y, t.z);
+        const Box box = dw.apply_brush(b, true);
+        ASSERT_FALSE(box.empty());
+        EXPECT_TRUE(dw.brushed_on_device());
+        EXPECT_EQ(dw.ref_before_edit(t.x, t.y, t.z), before);
+        EXPECT_NE(dw.ref(t.x, t.y, t.z), before);
+        if (e % 4 == 0) {
+            std::vector<Int3> cells;
+            std::vector<std::uint8_t> want;
+            for (std::int64_t z = box.min.z; z < box.max.z; ++z) {
+                for (std::int64_t y = box.min.y; y < box.max.y; ++y) {
+                    for (std::int64_t x = box.min.x; x < box.max.x; ++x) {
+                        cells.push_back({x, y, z});
+                        want.push_back(w.at(static_cast<std::uint32_t>(x),
+                                            static_cast<std::uint32_t>(y),
+                                            static_cast<std::uint32_t>(z)));
+                    }
+                }
+            }
+            EXPECT_EQ(dw.voxels(cells), want);
+        } else if (e % 4 == 1) {
+            const auto solid = static_cast<std::uint64_t>(std::count_if(
+                w.voxels().begin(), w.voxels().end(), [](std::uint8_t v) { return v != 0; }));
+            EXPECT_EQ(dw.figures().solid, solid);
+        } else if (e % 4 == 2) {
+            const cl::Buffer tile(pocl().context(), CL_MEM_READ_WRITE, kTileVoxels);
+            dw.gather_tiles({t}, tile);
+            std::vector<std::uint8_t> got(kTileVoxels);
+            pocl().queue().enqueueReadBuffer(tile, CL_TRUE, 0, got.size(), got.data());
+            for (std::uint32_t i = 0; i < kTileVoxels; ++i) {
+                const std::int64_t x = t.x * kTileSize + i % kTileSize,
+                                   y = t.y * kTileSize + i / kTileSize % kTileSize,
+                                   z = t.z * kTileSize + i / (kTileSize * kTileSize);
+                const bool inside = x < d.x && y < d.y && z < d.z;
+                ASSERT_EQ(got[i], inside ? w.at(static_cast<std::uint32_t>(x),
+                                                static_cast<std::uint32_t>(y),
+                                                static_cast<std::uint32_t>(z))
+                                         : 0)
+                    << "voxel " << x << "," << y << "," << z;
+            }
+        } else {
+            ASSERT_EQ(dw.world().to_dense().voxels(), w.voxels());
+        }
+    }
+}
+
 TEST(SparseDeviceWorld, LargeBrushesAndReadOnlyWorlds) {
     std::mt19937 rng(33);
     const Palette p = Palette::magicavoxel_default();
