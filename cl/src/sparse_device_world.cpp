@@ -273,10 +273,8 @@ std::vector<std::pair<Int3, std::pair<std::uint64_t, std::uint64_t>>> SparseDevi
 }
 
 void SparseDeviceWorld::upload_whole() {
-    wait_for_edit();
+    start_change();
     ++uploads_;
-    brushed_ = false;
-    before_.clear();
     const auto& masks = world_.node_masks();
     const auto& offsets = world_.node_offsets();
     const auto& materials = world_.materials();
@@ -491,8 +489,7 @@ void SparseDeviceWorld::refresh() {
 }
 
 void SparseDeviceWorld::host_edited(const Box& changed) {
-    brushed_ = false;
-    before_.clear();
+    start_change();
     if (!lagging_.empty()) {
         throw std::logic_error(
             "SparseDeviceWorld::host_edited: the host world was edited while it lagged behind "
@@ -581,9 +578,7 @@ std::int64_t* SparseDeviceWorld::edit_table(std::size_t tiles) {
 }
 
 Box SparseDeviceWorld::apply_brush(const Brush& brush, bool beside) {
-    wait_for_edit();
-    brushed_ = false;
-    before_.clear();
+    start_change();
     if (editable_ == nullptr) {
         throw std::logic_error("SparseDeviceWorld::apply_brush on a read-only world");
     }
@@ -620,8 +615,8 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush, bool beside) {
         cl_call("making a queue for edits",
                 [&] { beside_ = cl::CommandQueue(ctx_.context(), ctx_.info().device, 0); });
     }
-    table[0] = brush.op == BrushOp::place ? 0 : brush.op == BrushOp::erase ? 1 : 2;
-    table[1] = brush.shape == BrushShape::sphere ? 0 : 1;
+    table[0] = brush_op_code(brush);
+    table[1] = brush_shape_code(brush);
     table[2] = brush.centre.x;
     table[3] = brush.centre.y;
     table[4] = brush.centre.z;
@@ -662,13 +657,15 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush, bool beside) {
     }
     on_beside_ = beside;
     for (const std::uint64_t key : keys_) {
-        const auto it = dir_.find(key);
-        before_[key] =
-            it != dir_.end() ? it->second : std::pair<std::uint64_t, std::uint64_t>{kNoRef, 0};
+        before_[key] = ref_of(key);
     }
-    brushed_ = true;
     commit_edit_slots(keys_);  // (an upload there drops before_)
     return bounds;
+}
+
+void SparseDeviceWorld::start_change() {
+    wait_for_edit();
+    before_.clear();
 }
 
 void SparseDeviceWorld::wait_for_edit() {
@@ -681,12 +678,9 @@ void SparseDeviceWorld::wait_for_edit() {
 std::pair<std::uint64_t, std::uint64_t> SparseDeviceWorld::ref_before_edit(std::int64_t tx,
                                                                            std::int64_t ty,
                                                                            std::int64_t tz) const {
-    if (brushed_) {
-        const Dims g = world_.tile_grid();
-        if (tx >= 0 && ty >= 0 && tz >= 0 && tx < g.x && ty < g.y && tz < g.z) {
-            if (const auto it = before_.find(key_of(tx, ty, tz)); it != before_.end()) {
-                return it->second;
-            }
+    if (in_grid(tx, ty, tz)) {
+        if (const auto it = before_.find(key_of(tx, ty, tz)); it != before_.end()) {
+            return it->second;
         }
     }
     return ref(tx, ty, tz);
@@ -698,9 +692,7 @@ void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t 
     if (editable_ == nullptr) {
         throw std::logic_error("SparseDeviceWorld::encode_dense_tiles on a read-only world");
     }
-    wait_for_edit();
-    brushed_ = false;
-    before_.clear();
+    start_change();
     traffic_ = QueueTraffic{};
     if (tiles.empty()) {
         clear_edit_events();
@@ -1003,11 +995,17 @@ std::optional<PickHit> SparseDeviceWorld::pick(const Vec3d& origin, const Vec3d&
 
 std::pair<std::uint64_t, std::uint64_t> SparseDeviceWorld::ref(std::int64_t tx, std::int64_t ty,
                                                                std::int64_t tz) const {
+    return in_grid(tx, ty, tz) ? ref_of(key_of(tx, ty, tz))
+                               : std::pair<std::uint64_t, std::uint64_t>{kNoRef, 0};
+}
+
+bool SparseDeviceWorld::in_grid(std::int64_t tx, std::int64_t ty, std::int64_t tz) const {
     const Dims g = world_.tile_grid();
-    if (tx < 0 || ty < 0 || tz < 0 || tx >= g.x || ty >= g.y || tz >= g.z) {
-        return {kNoRef, 0};
-    }
-    const auto it = dir_.find(key_of(tx, ty, tz));
+    return tx >= 0 && ty >= 0 && tz >= 0 && tx < g.x && ty < g.y && tz < g.z;
+}
+
+std::pair<std::uint64_t, std::uint64_t> SparseDeviceWorld::ref_of(std::uint64_t key) const {
+    const auto it = dir_.find(key);
     return it == dir_.end() ? std::pair<std::uint64_t, std::uint64_t>{kNoRef, 0} : it->second;
 }
 

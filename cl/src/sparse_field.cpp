@@ -1237,15 +1237,14 @@ double SparseField::update_block(const Job& job, Dims block,
             xy.setArg(4, tables_->buffer(kJobs));
             xy.setArg(5, tables_->buffer(kRefs));
             // The brush as sparse_slices.cl's `brushed` takes it (op 3: none).
-            const cl_long4 b = {{brushed ? brush->centre.x : 0, brushed ? brush->centre.y : 0,
-                                 brushed ? brush->centre.z : 0,
-                                 brushed ? static_cast<cl_long>(brush->radius) : 0}};
-            xy.setArg(14, b);
-            xy.setArg(15, brushed ? static_cast<cl_uint>(brush->op == BrushOp::place   ? 0
-                                                         : brush->op == BrushOp::erase ? 1
-                                                                                       : 2) |
-                                        (brush->shape == BrushShape::sphere ? 0u : 4u)
-                                  : cl_uint{3});
+            if (brushed) {
+                xy.setArg(14, cl_long4{{brush->centre.x, brush->centre.y, brush->centre.z,
+                                        static_cast<cl_long>(brush->radius)}});
+                xy.setArg(15, cl_uint{brush_op_code(*brush) | brush_shape_code(*brush) << 2});
+            } else {
+                xy.setArg(14, cl_long4{{0, 0, 0, 0}});
+                xy.setArg(15, cl_uint{3});
+            }
             const ExactManhattan::SliceStage& stage = *batch.slices_of->slice_stage();
             q.enqueueNDRangeKernel(xy, cl::NullRange, stage.global, stage.local, nullptr,
                                    stage_event(staged, batch.tree_slices_name));

@@ -116,7 +116,7 @@ class SparseDeviceWorld {
     // tiles it edited as they were before it on the device until the next edit or upload;
     // ref_before_edit reads those, for work that applies the brush itself as it reads them
     // rather than wait for the new trees. Elsewhere ref_before_edit is ref().
-    bool brushed_on_device() const { return brushed_; }
+    bool brushed_on_device() const { return !before_.empty(); }
     std::pair<std::uint64_t, std::uint64_t> ref_before_edit(std::int64_t tx, std::int64_t ty,
                                                             std::int64_t tz) const;
     static constexpr std::uint32_t kMaxEditTiles = 64;
@@ -231,6 +231,13 @@ class SparseDeviceWorld {
     // Per tile of `keys` a fresh slot into host_slots_ (never the one its previous tree lies
     // in: slots freed here are taken by later edits only).
     void take_edit_slots(const std::vector<std::uint64_t>& keys);
+    // Before any change to the world on the device: the last edit waited for (wait_for_edit),
+    // its refs before it dropped.
+    void start_change();
+    // Whether tile (tx, ty, tz) lies in the world's tile grid; a stored tile key's refs
+    // ({kNoRef, 0} when not stored).
+    bool in_grid(std::int64_t tx, std::int64_t ty, std::int64_t tz) const;
+    std::pair<std::uint64_t, std::uint64_t> ref_of(std::uint64_t key) const;
     // take_edit_slots undone (the enqueue of the edit failed): the keys' previous slots back.
     void untake_edit_slots(const std::vector<std::uint64_t>& keys);
     // The edited tiles `keys` now live in host_slots_: the directory points there, the host lags.
@@ -289,9 +296,8 @@ class SparseDeviceWorld {
     // unwaited.
     cl::CommandQueue beside_;
     bool on_beside_ = false;
-    // The last device brush's tiles' refs before it (brushed_on_device, ref_before_edit), and
-    // the uploads of the whole world so far (an upload in an edit drops those refs).
-    bool brushed_ = false;
+    // The last device brush's tiles' refs before it (brushed_on_device, ref_before_edit; empty
+    // after any other change), and the uploads of the whole world so far.
     std::unordered_map<std::uint64_t, std::pair<std::uint64_t, std::uint64_t>> before_;
     std::uint64_t uploads_ = 0;
     // The last edit's table write (null when it enqueued none), kernels and traffic.
