@@ -4,8 +4,6 @@
 // sweeps' values (0 where solid, T_MAX where empty; no materials), then sweeps and stores it as
 // xy_slice_local or xy_slice_segments does. One launch instead of the gather and the x and y
 // pass. Compiled after sparse_tree.cl and exact_manhattan.cl, with the latter's options.
-// A device edit's block reads the trees as they were before its brush and applies the brush as
-// it reads them, so that it need not wait for the world's new trees.
 //
 // The block: X x Y x bz voxels from the job's origin (jobs: gather_quads' 8 longs a block; refs:
 // its tiles' node and material bases); slice g of the launch is z = g % bz of block g / bz.
@@ -46,42 +44,16 @@ inline uint quad_bits(__global const ulong* restrict masks, __global const uint*
     return past > 0 ? bits & (0xFu >> past) : bits;
 }
 
-// A quad's solid bits after a brush (core/brush.hpp, as encode_count's dense_layer applies it to
-// the voxels inside the world): `b` its centre and radius, `op_shape` its op (0 place, 1 erase,
-// 2 paint, 3 none) | its shape << 2 (0 sphere, 1 cube). Paint changes no voxel's solidity.
-inline uint brushed(uint bits, long px0, long py, long pz, long wx, long wy, long wz, long4 b,
-                    uint op_shape) {
-    const uint op = op_shape & 3u;
-    if (op > 1u || px0 < 0 || py < 0 || pz < 0 || px0 >= wx || py >= wy || pz >= wz) {
-        return bits;
-    }
-    const ulong r = (ulong)b.w;
-    const ulong ay = (ulong)(py > b.y ? py - b.y : b.y - py);
-    const ulong az = (ulong)(pz > b.z ? pz - b.z : b.z - pz);
-    if (ay > r || az > r) {
-        return bits;
-    }
-    for (uint v = 0; v < 4; ++v) {
-        const long px = px0 + v;
-        const ulong ax = (ulong)(px > b.x ? px - b.x : b.x - px);
-        if (px < wx && ax <= r && ((op_shape >> 2) != 0u || ax * ax + ay * ay + az * az <= r * r)) {
-            bits = op == 0u ? bits | 1u << v : bits & ~(1u << v);
-        }
-    }
-    return bits;
-}
-
-// The work-group's slice from the trees into local memory (rows SX apart), `brush` applied as
-// it is read (see brushed): quads of four voxels aligned in world x (X / 4 + 2 a row: a row's
-// first and last may lie partly outside the block), four quads in flight per work-item before
-// their stores.
+// The work-group's slice from the trees into local memory (rows SX apart): quads of four voxels
+// aligned in world x (X / 4 + 2 a row: a row's first and last may lie partly outside the
+// block), four quads in flight per work-item before their stores.
 inline void load_tree_slice(__global const ulong* restrict masks,
                             __global const uint* restrict offsets,
                             __global const ulong* restrict slot_masks,
                             __global const uint* restrict slot_offsets,
                             __global const long* restrict jobs, __global const ulong* restrict refs,
                             uint X, uint Y, uint bz, uint SX, long wx, long wy, long wz,
-                            long4 brush, uint brush_op, __local T* sl) {
+                            __local T* sl) {
     const uint lid = (uint)get_local_id(0), n = (uint)get_local_size(0);
     const uint g = (uint)get_group_id(0), b = g / bz, z = g - b * bz;
     __global const long* job = jobs + 8 * b;
@@ -93,12 +65,10 @@ inline void load_tree_slice(__global const ulong* restrict masks,
         for (uint u = 0; u < 4; ++u) {
             const uint k = i + u * n;
             const uint y = k / quads, q = k - y * quads;
-            const long px0 = (qx + q) * 4, py = job[1] + y;
             // A row's last quads may start past the block (and its tiles' references).
-            bits[u] = k < total && px0 - ox < (long)X
-                          ? brushed(quad_bits(masks, offsets, slot_masks, slot_offsets, job, refs,
-                                              px0, py, pz, wx, wy, wz),
-                                    px0, py, pz, wx, wy, wz, brush, brush_op)
+            bits[u] = k < total && (qx + q) * 4 - ox < (long)X
+                          ? quad_bits(masks, offsets, slot_masks, slot_offsets, job, refs,
+                                      (qx + q) * 4, job[1] + y, pz, wx, wy, wz)
                           : 0u;
         }
 #pragma unroll
@@ -122,9 +92,9 @@ __kernel void xy_tree_local(__global const ulong* restrict masks,
                             __global const uint* restrict slot_offsets,
                             __global const long* restrict jobs, __global const ulong* restrict refs,
                             __global T* restrict work, uint X, uint Y, uint bz, uint SX, long wx,
-                            long wy, long wz, long4 brush, uint brush_op, __local T* sl) {
+                            long wy, long wz, __local T* sl) {
     load_tree_slice(masks, offsets, slot_masks, slot_offsets, jobs, refs, X, Y, bz, SX, wx, wy, wz,
-                    brush, brush_op, sl);
+                    sl);
     barrier(CLK_LOCAL_MEM_FENCE);
     sweep_and_store_lines(work, X, Y, SX, sl);
 }
@@ -136,9 +106,9 @@ __kernel void xy_tree_segments(__global const ulong* restrict masks,
                                __global const long* restrict jobs,
                                __global const ulong* restrict refs, __global T* restrict work,
                                uint X, uint Y, uint bz, uint SX, long wx, long wy, long wz,
-                               long4 brush, uint brush_op, __local T* sl, __local T* ends) {
+                               __local T* sl, __local T* ends) {
     load_tree_slice(masks, offsets, slot_masks, slot_offsets, jobs, refs, X, Y, bz, SX, wx, wy, wz,
-                    brush, brush_op, sl);
+                    sl);
     barrier(CLK_LOCAL_MEM_FENCE);
     sweep_and_store_segments(work, X, Y, SX, sl, ends);
 }

@@ -240,7 +240,6 @@ SparseDeviceWorld::SparseDeviceWorld(Context& ctx, const SparseWorld& world, Spa
 
 SparseDeviceWorld::~SparseDeviceWorld() {
     try {
-        wait_for_edit();
         ctx_.queue().finish();
     } catch (const cl::Error&) {
     }
@@ -273,8 +272,6 @@ std::vector<std::pair<Int3, std::pair<std::uint64_t, std::uint64_t>>> SparseDevi
 }
 
 void SparseDeviceWorld::upload_whole() {
-    start_change();
-    ++uploads_;
     const auto& masks = world_.node_masks();
     const auto& offsets = world_.node_offsets();
     const auto& materials = world_.materials();
@@ -334,7 +331,6 @@ void SparseDeviceWorld::leave_main(std::uint64_t key) {
 }
 
 SparseDeviceWorld::Figures SparseDeviceWorld::figures() {
-    wait_for_edit();
     Figures f;
     f.tiles = main_counts_.size();
     f.solid = main_materials_;
@@ -448,7 +444,6 @@ const SparseWorld& SparseDeviceWorld::world() {
     if (lagging_.empty()) {
         return world_;
     }
-    wait_for_edit();
     cl_call("reading back the tiles edited on the device", [&] {
         auto& q = ctx_.queue();
         std::vector<std::uint32_t> counts(2 * slots_made_);
@@ -489,7 +484,6 @@ void SparseDeviceWorld::refresh() {
 }
 
 void SparseDeviceWorld::host_edited(const Box& changed) {
-    start_change();
     if (!lagging_.empty()) {
         throw std::logic_error(
             "SparseDeviceWorld::host_edited: the host world was edited while it lagged behind "
@@ -577,8 +571,7 @@ std::int64_t* SparseDeviceWorld::edit_table(std::size_t tiles) {
     return table;
 }
 
-Box SparseDeviceWorld::apply_brush(const Brush& brush, bool beside) {
-    start_change();
+Box SparseDeviceWorld::apply_brush(const Brush& brush) {
     if (editable_ == nullptr) {
         throw std::logic_error("SparseDeviceWorld::apply_brush on a read-only world");
     }
@@ -606,17 +599,9 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush, bool beside) {
     // The table: the brush; per tile its previous tree, slot, voxels in scratch (a whole tile
     // each) and the 16^3 nodes the brush's bounds overlap (decoded, brushed and encoded again).
     std::int64_t* table = edit_table(n);
-    const std::size_t capacity = slot_capacity_;
-    const std::uint64_t uploads = uploads_;
     take_edit_slots(keys_);  // after every allocation of the edit but its slots'
-    // (A growth's copies or an upload are on the context's queue: the edit follows them there.)
-    beside = beside && slot_capacity_ == capacity && uploads_ == uploads;
-    if (beside && beside_() == nullptr) {
-        cl_call("making a queue for edits",
-                [&] { beside_ = cl::CommandQueue(ctx_.context(), ctx_.info().device, 0); });
-    }
-    table[0] = brush_op_code(brush);
-    table[1] = brush_shape_code(brush);
+    table[0] = brush.op == BrushOp::place ? 0 : brush.op == BrushOp::erase ? 1 : 2;
+    table[1] = brush.shape == BrushShape::sphere ? 0 : 1;
     table[2] = brush.centre.x;
     table[3] = brush.centre.y;
     table[4] = brush.centre.z;
@@ -647,43 +632,14 @@ Box SparseDeviceWorld::apply_brush(const Brush& brush, bool beside) {
     std::copy(dense_.begin(), dense_.end(), table + kTableHeader + kRecord * n);
     clear_edit_events();
     try {
-        cl_call("editing " + std::to_string(n) + " tiles on the device", [&] {
-            enqueue_edit_encode(beside ? beside_ : ctx_.queue(), scratch_, kTileSize,
-                                kTileSize * kTileSize, n);
-        });
+        cl_call("editing " + std::to_string(n) + " tiles on the device",
+                [&] { enqueue_edit_encode(scratch_, kTileSize, kTileSize * kTileSize, n); });
     } catch (...) {
         untake_edit_slots(keys_);
         throw;
     }
-    on_beside_ = beside;
-    for (const std::uint64_t key : keys_) {
-        before_[key] = ref_of(key);
-    }
-    commit_edit_slots(keys_);  // (an upload there drops before_)
+    commit_edit_slots(keys_);
     return bounds;
-}
-
-void SparseDeviceWorld::start_change() {
-    wait_for_edit();
-    before_.clear();
-}
-
-void SparseDeviceWorld::wait_for_edit() {
-    if (on_beside_) {
-        on_beside_ = false;
-        cl_call("waiting for an edit's commands", [&] { beside_.finish(); });
-    }
-}
-
-std::pair<std::uint64_t, std::uint64_t> SparseDeviceWorld::ref_before_edit(std::int64_t tx,
-                                                                           std::int64_t ty,
-                                                                           std::int64_t tz) const {
-    if (in_grid(tx, ty, tz)) {
-        if (const auto it = before_.find(key_of(tx, ty, tz)); it != before_.end()) {
-            return it->second;
-        }
-    }
-    return ref(tx, ty, tz);
 }
 
 void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t pitch_y,
@@ -692,7 +648,6 @@ void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t 
     if (editable_ == nullptr) {
         throw std::logic_error("SparseDeviceWorld::encode_dense_tiles on a read-only world");
     }
-    start_change();
     traffic_ = QueueTraffic{};
     if (tiles.empty()) {
         clear_edit_events();
@@ -729,7 +684,7 @@ void SparseDeviceWorld::encode_dense_tiles(const cl::Buffer& vox, std::uint32_t 
     clear_edit_events();
     try {
         cl_call("encoding " + std::to_string(n) + " dense tiles on the device",
-                [&] { enqueue_edit_encode(ctx_.queue(), vox, pitch_y, pitch_z, n); });
+                [&] { enqueue_edit_encode(vox, pitch_y, pitch_z, n); });
     } catch (...) {
         untake_edit_slots(keys_);
         throw;
@@ -782,9 +737,9 @@ void SparseDeviceWorld::commit_edit_slots(const std::vector<std::uint64_t>& keys
     release_slots_if_needed();
 }
 
-void SparseDeviceWorld::enqueue_edit_encode(cl::CommandQueue& q, const cl::Buffer& vox,
-                                            std::uint32_t pitch_y, std::uint32_t pitch_z,
-                                            std::uint32_t tiles) {
+void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t pitch_y,
+                                            std::uint32_t pitch_z, std::uint32_t tiles) {
+    auto& q = ctx_.queue();
     q.enqueueWriteBuffer(table_, CL_FALSE, 0, (kTableHeader + kRecord * tiles + dense_.size()) * 8,
                          pinned_->data(), nullptr, &pinned_->last());
     edit_write_ = pinned_->last();
@@ -850,7 +805,6 @@ void SparseDeviceWorld::clear_edit_events() {
 void SparseDeviceWorld::enqueue_gather(const cl::Buffer& jobs, const cl::Buffer& refs,
                                        const cl::Buffer& out, Dims block, std::size_t count,
                                        cl::Event* event) {
-    wait_for_edit();  // a gather reads the trees as they are
     const Dims d = world_.dims();
     cl::Kernel& k = gpu_layout_ ? gather_quads_ : gather_;
     k.setArg(0, masks_);
@@ -995,17 +949,11 @@ std::optional<PickHit> SparseDeviceWorld::pick(const Vec3d& origin, const Vec3d&
 
 std::pair<std::uint64_t, std::uint64_t> SparseDeviceWorld::ref(std::int64_t tx, std::int64_t ty,
                                                                std::int64_t tz) const {
-    return in_grid(tx, ty, tz) ? ref_of(key_of(tx, ty, tz))
-                               : std::pair<std::uint64_t, std::uint64_t>{kNoRef, 0};
-}
-
-bool SparseDeviceWorld::in_grid(std::int64_t tx, std::int64_t ty, std::int64_t tz) const {
     const Dims g = world_.tile_grid();
-    return tx >= 0 && ty >= 0 && tz >= 0 && tx < g.x && ty < g.y && tz < g.z;
-}
-
-std::pair<std::uint64_t, std::uint64_t> SparseDeviceWorld::ref_of(std::uint64_t key) const {
-    const auto it = dir_.find(key);
+    if (tx < 0 || ty < 0 || tz < 0 || tx >= g.x || ty >= g.y || tz >= g.z) {
+        return {kNoRef, 0};
+    }
+    const auto it = dir_.find(key_of(tx, ty, tz));
     return it == dir_.end() ? std::pair<std::uint64_t, std::uint64_t>{kNoRef, 0} : it->second;
 }
 

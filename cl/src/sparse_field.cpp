@@ -378,9 +378,9 @@ void SparseField::set_up_tree_slices(Batch& b) {
         k.setArg(11, static_cast<cl_long>(wd.x));
         k.setArg(12, static_cast<cl_long>(wd.y));
         k.setArg(13, static_cast<cl_long>(wd.z));
-        k.setArg(16, cl::Local(stage.slice_bytes));
+        k.setArg(14, cl::Local(stage.slice_bytes));
         if (stage.segments) {
-            k.setArg(17, cl::Local(stage.ends_bytes));
+            k.setArg(15, cl::Local(stage.ends_bytes));
         }
     });
 }
@@ -888,12 +888,9 @@ SparseField::Update SparseField::apply_brush(const Brush& brush) {
         lean.emplace(ctx_);
     }
     const auto t0 = Clock::now();
-    // The world's commands beside the field's where nothing enqueued before is pending (a
-    // lean edit whose guard switched the queues).
-    const Box changed = device_world_.apply_brush(brush, lean && lean->switched());
+    const Box changed = device_world_.apply_brush(brush);
     const auto t1 = Clock::now();
-    Update u = with_edit_stages(recompute({changed}, &brush));
-    device_world_.wait_for_edit();
+    Update u = with_edit_stages(recompute({changed}));
     if (block_times_.set) {
         const BlockTimes& b = block_times_;
         u.host_stages = {{"world edit", ms_between(t0, t1)},
@@ -973,7 +970,7 @@ void SparseField::prepare_edits(std::int64_t radius) {
     }
 }
 
-SparseField::Update SparseField::recompute(const std::vector<Box>& changed, const Brush* brush) {
+SparseField::Update SparseField::recompute(const std::vector<Box>& changed) {
     Update result;
     result.profiled = stage_events_;  // the edit's events (set_edit_stage_events)
     stages_.clear();
@@ -1055,7 +1052,7 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed, cons
                          block_box.min.z + size.z};
         if (block_box.volume() <= kBatchVoxels) {
             block = block_dims(block_box);
-            result.kernel_ms += update_block({region, block_box.min}, block, slots, nodes, brush);
+            result.kernel_ms += update_block({region, block_box.min}, block, slots, nodes);
             result.recomputed = region;
             result.tiles = static_cast<std::uint32_t>(slots.size());
             result.stages = stages_;
@@ -1160,12 +1157,8 @@ SparseField::Update SparseField::recompute(const std::vector<Box>& changed, cons
 
 double SparseField::update_block(const Job& job, Dims block,
                                  const std::vector<std::uint32_t>& slots,
-                                 const std::vector<std::uint64_t>& nodes, const Brush* brush) {
+                                 const std::vector<std::uint64_t>& nodes) {
     Batch& batch = batch_for(block, 1);
-    // The tree slices read the trees before the world's device edit and apply its brush; any
-    // other way reads them as they are.
-    const bool brushed =
-        brush != nullptr && batch.slices_of != nullptr && device_world_.brushed_on_device();
     const Dims wd = world_.dims();
     const Box bb{job.origin,
                  {job.origin.x + block.x, job.origin.y + block.y, job.origin.z + block.z}};
@@ -1188,8 +1181,7 @@ double SparseField::update_block(const Job& job, Dims block,
     std::copy(g, g + 8, gjob);
     auto* refs = tables_->host<std::uint64_t>(kRefs);
     for_each_tile(span, [&](std::int64_t tx, std::int64_t ty, std::int64_t tz) {
-        const auto [node_base, material_base] =
-            brushed ? device_world_.ref_before_edit(tx, ty, tz) : device_world_.ref(tx, ty, tz);
+        const auto [node_base, material_base] = device_world_.ref(tx, ty, tz);
         *refs++ = node_base;
         *refs++ = material_base;
     });
@@ -1230,21 +1222,9 @@ double SparseField::update_block(const Job& job, Dims block,
         if (batch.slices_of != nullptr) {
             // The block's slices from the trees: the gather and the generator's first launch.
             cl::Kernel& xy = batch.tree_slices;
-            if (!brushed) {
-                device_world_.wait_for_edit();
-            }
             device_world_.set_tree_args(xy, 0);
             xy.setArg(4, tables_->buffer(kJobs));
             xy.setArg(5, tables_->buffer(kRefs));
-            // The brush as sparse_slices.cl's `brushed` takes it (op 3: none).
-            if (brushed) {
-                xy.setArg(14, cl_long4{{brush->centre.x, brush->centre.y, brush->centre.z,
-                                        static_cast<cl_long>(brush->radius)}});
-                xy.setArg(15, cl_uint{brush_op_code(*brush) | brush_shape_code(*brush) << 2});
-            } else {
-                xy.setArg(14, cl_long4{{0, 0, 0, 0}});
-                xy.setArg(15, cl_uint{3});
-            }
             const ExactManhattan::SliceStage& stage = *batch.slices_of->slice_stage();
             q.enqueueNDRangeKernel(xy, cl::NullRange, stage.global, stage.local, nullptr,
                                    stage_event(staged, batch.tree_slices_name));
@@ -1292,7 +1272,6 @@ double SparseField::update_block(const Job& job, Dims block,
         // queue). The minima stay on the device (coarse_node reads them when asked).
         block_times_.enqueued = Clock::now();
         events.back().second.wait();
-        device_world_.wait_for_edit();
         block_times_.waited = Clock::now();
         coarse_synced_ = false;
         // Not where the generator ran (and waited) by itself: its commands are not listed.

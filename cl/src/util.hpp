@@ -9,7 +9,6 @@
 
 #include <CL/opencl.hpp>
 
-#include "voxfield/core/brush.hpp"
 #include "voxfield/core/format.hpp"
 
 namespace voxfield::ocl {
@@ -23,16 +22,6 @@ inline std::size_t round_up(std::size_t v, std::size_t m) {
 inline cl::Event* stage_event(std::vector<std::pair<std::string, cl::Event>>* events,
                               const std::string& name) {
     return events != nullptr ? &events->emplace_back(name, cl::Event()).second : nullptr;
-}
-
-// A brush's op and shape as the kernels take them (sparse_world.cl's edit table,
-// sparse_slices.cl's `brushed`): op 0 place, 1 erase, 2 paint (3 there: no brush); shape 0
-// sphere, 1 cube.
-inline std::uint32_t brush_op_code(const Brush& b) {
-    return b.op == BrushOp::place ? 0 : b.op == BrushOp::erase ? 1 : 2;
-}
-inline std::uint32_t brush_shape_code(const Brush& b) {
-    return b.shape == BrushShape::sphere ? 0 : 1;
 }
 
 inline std::size_t next_pow2(std::size_t v) {

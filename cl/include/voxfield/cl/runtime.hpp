@@ -109,9 +109,6 @@ class Context {
         ~Unprofiled();
         Unprofiled(const Unprofiled&) = delete;
         Unprofiled& operator=(const Unprofiled&) = delete;
-        // Whether this guard switched the queues (not a nested one): then nothing enqueued
-        // before it is pending on either queue.
-        bool switched() const { return ctx_ != nullptr; }
 
       private:
         Context* ctx_ = nullptr;  // null for a nested guard

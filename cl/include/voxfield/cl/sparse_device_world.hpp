@@ -103,22 +103,7 @@ class SparseDeviceWorld {
     // returns the box of voxels it may have changed (its bounds in the world; Box{} when
     // none). A brush over more than kMaxEditTiles tiles is applied to the host world (brought up
     // to date first) and uploaded. InputError as core's apply_brush; logic_error when read only.
-    Box apply_brush(const Brush& brush) { return apply_brush(brush, false); }
-    // The same; with `beside` its commands go on a queue of their own (made once), so that the
-    // device runs them beside work the caller enqueues next on the context's queue, except where
-    // the edit grew the slot buffers or uploaded the world (copies on the context's queue: then
-    // on that queue). wait_for_edit() waits for them. The caller must have nothing pending on
-    // the context's queue (nor another queue) that the edit depends on.
-    Box apply_brush(const Brush& brush, bool beside);
-    // Waits for the last apply_brush's commands where they went on a queue of their own.
-    void wait_for_edit();
-    // Whether the last apply_brush ran on the device (its kernels), leaving the trees of the
-    // tiles it edited as they were before it on the device until the next edit or upload;
-    // ref_before_edit reads those, for work that applies the brush itself as it reads them
-    // rather than wait for the new trees. Elsewhere ref_before_edit is ref().
-    bool brushed_on_device() const { return !before_.empty(); }
-    std::pair<std::uint64_t, std::uint64_t> ref_before_edit(std::int64_t tx, std::int64_t ty,
-                                                            std::int64_t tz) const;
+    Box apply_brush(const Brush& brush);
     static constexpr std::uint32_t kMaxEditTiles = 64;
     // A whole tile written by a kernel into a dense device buffer: its tile coordinates and
     // the index of its voxel (0, 0, 0) in that buffer.
@@ -170,8 +155,7 @@ class SparseDeviceWorld {
 
     // Enqueues sparse_world.cl's gather of `count` blocks of `block` voxels stacked along z into
     // `out` (`jobs`, `refs`: its tables): a work-item per four voxels of a leaf's row
-    // (gather_quads) in the GPU layout, per row (gather) in the CPU layout. Waits for an edit
-    // beside it first (wait_for_edit).
+    // (gather_quads) in the GPU layout, per row (gather) in the CPU layout.
     void enqueue_gather(const cl::Buffer& jobs, const cl::Buffer& refs, const cl::Buffer& out,
                         Dims block, std::size_t count, cl::Event* event = nullptr);
     // Sets arguments first..first+3 of `k` to the trees' node masks and offsets: the main
@@ -231,13 +215,6 @@ class SparseDeviceWorld {
     // Per tile of `keys` a fresh slot into host_slots_ (never the one its previous tree lies
     // in: slots freed here are taken by later edits only).
     void take_edit_slots(const std::vector<std::uint64_t>& keys);
-    // Before any change to the world on the device: the last edit waited for (wait_for_edit),
-    // its refs before it dropped.
-    void start_change();
-    // Whether tile (tx, ty, tz) lies in the world's tile grid; a stored tile key's refs
-    // ({kNoRef, 0} when not stored).
-    bool in_grid(std::int64_t tx, std::int64_t ty, std::int64_t tz) const;
-    std::pair<std::uint64_t, std::uint64_t> ref_of(std::uint64_t key) const;
     // take_edit_slots undone (the enqueue of the edit failed): the keys' previous slots back.
     void untake_edit_slots(const std::vector<std::uint64_t>& keys);
     // The edited tiles `keys` now live in host_slots_: the directory points there, the host lags.
@@ -245,10 +222,9 @@ class SparseDeviceWorld {
     // The pinned table of an edit of `tiles` tiles (sparse_world.cl's header and records), once
     // its last write is done.
     std::int64_t* edit_table(std::size_t tiles);
-    // Writes the table (one transfer) and enqueues the encoding of its `tiles` tiles from `vox`
-    // on `q`, flushed.
-    void enqueue_edit_encode(cl::CommandQueue& q, const cl::Buffer& vox, std::uint32_t pitch_y,
-                             std::uint32_t pitch_z, std::uint32_t tiles);
+    // Writes the table (one transfer) and enqueues the encoding of its `tiles` tiles from `vox`.
+    void enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t pitch_y, std::uint32_t pitch_z,
+                             std::uint32_t tiles);
 
     Context& ctx_;
     const SparseWorld& world_;
@@ -292,14 +268,6 @@ class SparseDeviceWorld {
     // voxels()'s jobs, refs and output, for voxel_capacity_ cells (grown as needed).
     cl::Buffer voxel_jobs_, voxel_refs_, voxel_out_;
     std::size_t voxel_capacity_ = 0;
-    // apply_brush's queue of its own (`beside`), and whether the last edit's commands are on it
-    // unwaited.
-    cl::CommandQueue beside_;
-    bool on_beside_ = false;
-    // The last device brush's tiles' refs before it (brushed_on_device, ref_before_edit; empty
-    // after any other change), and the uploads of the whole world so far.
-    std::unordered_map<std::uint64_t, std::pair<std::uint64_t, std::uint64_t>> before_;
-    std::uint64_t uploads_ = 0;
     // The last edit's table write (null when it enqueued none), kernels and traffic.
     cl::Event edit_write_;
     std::vector<std::pair<std::string, cl::Event>> edit_events_;

@@ -229,12 +229,8 @@ class SparseField {
     Update update(const Box& changed);
     // Applies `brush` to the world on the device (SparseDeviceWorld::apply_brush: decoded,
     // brushed and encoded there, nothing read back) and updates the field as update() does
-    // for the brush's bounds; kernel_ms includes the edit's kernels. Where its block takes tree
-    // slices, they read the trees as they were before the brush and apply it themselves, and a
-    // lean edit (set_edit_stage_events(false)) puts the world's commands on a queue of their
-    // own (SparseDeviceWorld::apply_brush's `beside`), so that the device runs the world's
-    // re-encoding and the field's update at once. InputError as core's apply_brush;
-    // logic_error for a read-only world.
+    // for the brush's bounds; kernel_ms includes the edit's kernels. InputError as core's
+    // apply_brush; logic_error for a read-only world.
     Update apply_brush(const Brush& brush);
     // After a kernel wrote whole tiles of the world into `vox` on the device (the sparse sand
     // simulation, sparse_sand.hpp): encodes them into the world there
@@ -325,12 +321,10 @@ class SparseField {
     // where the batch has tree slices, those and the generator's later launches), then the
     // scatter and the node minima of `slots` (per slot, the nodes set in `nodes`,
     // which must hold every node the region overlaps) in one kernel, enqueued without a wait;
-    // then the one wait, for that kernel (and the world's edit where it ran beside). With
-    // `brush` (the world's last device edit) the tree slices read the trees before it and apply
-    // it. Returns kernel ms. Its host times and commands go to block_times_ and
-    // block_commands_.
+    // then the one wait, for that kernel. Returns kernel ms. Its host times and commands go to
+    // block_times_ and block_commands_.
     double update_block(const Job& job, Dims block, const std::vector<std::uint32_t>& slots,
-                        const std::vector<std::uint64_t>& nodes, const Brush* brush);
+                        const std::vector<std::uint64_t>& nodes);
     // Enqueues the scatter of `count` blocks of the dense `field` into the pool (tables `jobs`,
     // `regions`, `slots`), each region at most `largest`.
     void enqueue_scatter(const cl::Buffer& field, const cl::Buffer& jobs, const cl::Buffer& regions,
@@ -342,9 +336,8 @@ class SparseField {
     void add_stage(const std::string& name, double ms);
     // Recomputes the voxels within D of the boxes `changed` (the device's world already
     // edited): one box in one block (tile by tile when that is too large), several in one
-    // block of their hull when it is small, else tile by tile. `brush`: the world's last device
-    // edit, for update_block.
-    Update recompute(const std::vector<Box>& changed, const Brush* brush = nullptr);
+    // block of their hull when it is small, else tile by tile.
+    Update recompute(const std::vector<Box>& changed);
     // The block of a single region's update: the voxels within D of the region (clipped to
     // the world and one voxel beyond), extents rounded up to a multiple of 4.
     Box single_block(const Box& region) const;
