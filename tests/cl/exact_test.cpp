@@ -159,7 +159,8 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     // (u16's y columns 16 up to 1024), as many as a work-group holds (PoCL: 4096), and longer
     // ones in chunks of a work-group (cols_chunk_ends, cols_chunks); z-slices of at most 16 KiB
     // take x and y in one launch (xy_slice_local; xy_slice_segments where they are as few as the
-    // compute units), larger ones the row kernels and a y column pass.
+    // compute units), larger ones, and those of worlds over 2^23 voxels, the row kernels and a y
+    // column pass.
     // The CPU layout sweeps xy slices and strips of columns (on bytes where it can).
     using Path = std::vector<std::string>;
     const World tall = scene_random(Dims{17, 1100, 2}, 0.002, 5);
@@ -169,6 +170,7 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     const World wide = scene_random(Dims{144, 120, 20}, 0.01, 7);
     const World small = scene_random(Dims{20, 30, 400}, 0.002, 8);
     const World one_slice = scene_random(Dims{20, 30, 1}, 0.01, 11);
+    const World many_slices = scene_random(Dims{4, 4, (1u << 19) + 1}, 0.00002, 12);
     for (Format f : kFormats) {
         EXPECT_EQ(kernel_path(tall, f, Layout::gpu),
                   (Path{"x_rows_local", "cols_seg/32", "cols_seg/16"}))
@@ -189,6 +191,9 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
             << to_string(f);
         EXPECT_EQ(kernel_path(one_slice, f, Layout::gpu).front(), "xy_slice_segments")
             << to_string(f);
+        EXPECT_EQ(kernel_path(many_slices, f, Layout::gpu),
+                  (Path{"x_rows_local", "cols_seg/16", "cols_chunk_ends", "cols_chunks"}))
+            << to_string(f);
         // Bytes first where the format is unsigned and holds no colours, then (u16, u32) the
         // wide sweeps where a distance reaches 255.
         const Path cpu = f == Format::packed32 ? Path{"xy_slices_seq", "cols_strip_final"}
@@ -206,6 +211,7 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     expect_exact(wide, Palette(), "wide");
     expect_exact(small, Palette(), "small");
     expect_exact(one_slice, Palette(), "one slice");
+    expect_exact(many_slices, Palette(), "slices of a world over 2^23 voxels");
 }
 
 TEST(ExactManhattan, LongColumnsSaturatePerLane) {
