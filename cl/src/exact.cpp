@@ -219,12 +219,11 @@ std::size_t slice_ends(Dims dims) {
 // Whether the GPU layout takes x and y in one launch (xy_slice_local or _segments): a z-slice of
 // the work type within a quarter of the local memory and 16 KiB, its segments' ends beside it, in
 // a world of at most kSliceWorldVoxels (a sparse field's edit blocks, small worlds). Larger
-// slices, and the slices of larger worlds, take the row and column kernels: on an H100 the long-z
-// world (64 x 64 x 32768) took its x and y passes in 0.359 ms (u16) and 0.265 ms (u8) there
-// against xy_slice_local's 0.442 and 0.422 ms (bench/README). The one launch saves a few us, so
-// the bound is where the rows' saving per voxel (0.6-1.2 ps) passes about 5 us: an estimate from
-// those figures, not timed around it.
-constexpr std::uint64_t kSliceWorldVoxels = std::uint64_t{1} << 23;
+// slices, and the slices of larger worlds, take the row and column kernels: on an H100 they ran
+// the x and y passes of 64 x 64 x Z worlds faster than xy_slice_local, by 2.5-6 us at 2^23 voxels,
+// 14-19 us at 2^24 and 0.08-0.16 ms at 2^27 (long-z), u8 and u16 (bench/README). The bound, half
+// the smallest of those, is not timed itself.
+constexpr std::uint64_t kSliceWorldVoxels = std::uint64_t{1} << 22;
 
 bool slice_in_local(Dims dims, std::size_t bytes, std::size_t local_mem) {
     const std::size_t slice = std::size_t{slice_stride(dims.x, bytes)} * dims.y * bytes;

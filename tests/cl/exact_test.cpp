@@ -159,7 +159,7 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     // (u16's y columns 16 up to 1024), as many as a work-group holds (PoCL: 4096), and longer
     // ones in chunks of a work-group (cols_chunk_ends, cols_chunks); z-slices of at most 16 KiB
     // take x and y in one launch (xy_slice_local; xy_slice_segments where they are as few as the
-    // compute units), larger ones, and those of worlds over 2^23 voxels, the row kernels and a y
+    // compute units), larger ones, and those of worlds over 2^22 voxels, the row kernels and a y
     // column pass.
     // The CPU layout sweeps xy slices and strips of columns (on bytes where it can).
     using Path = std::vector<std::string>;
@@ -211,7 +211,7 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     expect_exact(wide, Palette(), "wide");
     expect_exact(small, Palette(), "small");
     expect_exact(one_slice, Palette(), "one slice");
-    expect_exact(many_slices, Palette(), "slices of a world over 2^23 voxels");
+    expect_exact(many_slices, Palette(), "slices of a world over 2^22 voxels");
 }
 
 TEST(ExactManhattan, LongColumnsSaturatePerLane) {
