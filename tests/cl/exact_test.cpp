@@ -170,7 +170,9 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     const World wide = scene_random(Dims{144, 120, 20}, 0.01, 7);
     const World small = scene_random(Dims{20, 30, 400}, 0.002, 8);
     const World one_slice = scene_random(Dims{20, 30, 1}, 0.01, 11);
-    const World many_slices = scene_random(Dims{4, 4, (1u << 19) + 1}, 0.00002, 12);
+    // Slices of 16 voxels: a world of exactly 2^22 voxels takes them, one slice more does not.
+    const World at_bound = scene_random(Dims{4, 4, 1u << 18}, 0.00002, 12);
+    const World over_bound = scene_random(Dims{4, 4, (1u << 18) + 1}, 0.00002, 12);
     for (Format f : kFormats) {
         EXPECT_EQ(kernel_path(tall, f, Layout::gpu),
                   (Path{"x_rows_local", "cols_seg/32", "cols_seg/16"}))
@@ -191,7 +193,10 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
             << to_string(f);
         EXPECT_EQ(kernel_path(one_slice, f, Layout::gpu).front(), "xy_slice_segments")
             << to_string(f);
-        EXPECT_EQ(kernel_path(many_slices, f, Layout::gpu),
+        EXPECT_EQ(kernel_path(at_bound, f, Layout::gpu),
+                  (Path{"xy_slice_local", "cols_chunk_ends", "cols_chunks"}))
+            << to_string(f);
+        EXPECT_EQ(kernel_path(over_bound, f, Layout::gpu),
                   (Path{"x_rows_local", "cols_seg/16", "cols_chunk_ends", "cols_chunks"}))
             << to_string(f);
         // Bytes first where the format is unsigned and holds no colours, then (u16, u32) the
@@ -211,7 +216,7 @@ TEST(ExactManhattan, LongColumnsUseEveryKernelPath) {
     expect_exact(wide, Palette(), "wide");
     expect_exact(small, Palette(), "small");
     expect_exact(one_slice, Palette(), "one slice");
-    expect_exact(many_slices, Palette(), "slices of a world over 2^22 voxels");
+    expect_exact(over_bound, Palette(), "slices of a world over 2^22 voxels");
 }
 
 TEST(ExactManhattan, LongColumnsSaturatePerLane) {
