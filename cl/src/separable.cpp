@@ -238,6 +238,14 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         }
     }
 
+    windowed_ =
+        lines_y != 0 && lines_z != 0 && unit && options.metric == Metric::euclidean && !wide_;
+    // A flag per banded work-group of each pass (lines_y lines in x at a z; lines_z at a y of
+    // a block).
+    const std::size_t window_flags[2] = {
+        windowed_ ? (std::size_t{X} + lines_y - 1) / lines_y * Z : 0,
+        windowed_ ? (std::size_t{X} + lines_z - 1) / lines_z * Y * (Z / zline) : 0};
+
     // Unit L1 with indices, a full unsigned transform in the CPU layout: l1_xy_keys and
     // l1_z_out, where the keys' 16-bit x and y hold X and Y and the local memory the rows and
     // a z strip of 16 lines.
@@ -318,6 +326,9 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                                                     3 * n * 4, indices.data());
             feat_[0] = indices_;
             feat_[1] = shared_parts_ ? indices_ : make_buffer(n * 4, CL_MEM_READ_WRITE);
+        }
+        for (int axis = 0; axis < 2 && windowed_; ++axis) {
+            window_bail_[axis] = make_buffer(window_flags[axis], CL_MEM_READ_WRITE);
         }
         for (std::size_t i = 0; i < scratch_bytes.size() && (global_y_ || global_z_); ++i) {
             banded_scratch_[i] = make_buffer(scratch_bytes[i], CL_MEM_READ_WRITE);
@@ -421,8 +432,8 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                 gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0], 0xFFFFFFFFu, zero_targets_);
             stages_.insert(stages_.end(), rows.launches.begin(), rows.launches.end());
             row_ends_[0] = rows.ends;
-            stages_.push_back(banded_kernel(1, Y, lines_y, X, plane, Z, false, g_));
-            stages_.push_back(banded_kernel(2, zline, lines_z, plane, X, Y, !sgn, g_));
+            add_banded_pass(1, Y, lines_y, X, plane, Z, false, g_);
+            add_banded_pass(2, zline, lines_z, plane, X, Y, !sgn, g_);
             if (sgn) {
                 XRows inner_rows =
                     gpu_x_rows(ctx, dims_, Format::u16, voxels_, h_[0], 0xFFFFFFFFu, true);
@@ -435,12 +446,8 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                 // The inner x rows in h_[0], its y pass's partials in g_[1] (the first
                 // z pass has read them), its z pass writing the output.
                 const cl::Buffer inner[2] = {h_[0], g_[1]};
-                KernelLaunch y = banded_kernel(1, Y, lines_y, X, plane, Z, false, inner);
-                KernelLaunch z = banded_kernel(2, zline, lines_z, plane, X, Y, true, inner, true);
-                y.name += "_inner";
-                z.name += "_inner";
-                stages_.push_back(y);
-                stages_.push_back(z);
+                add_banded_pass(1, Y, lines_y, X, plane, Z, false, inner, false, "_inner");
+                add_banded_pass(2, zline, lines_z, plane, X, Y, true, inner, true, "_inner");
             }
             banded_ = true;
             return;
@@ -523,10 +530,10 @@ KernelLaunch ExactSeparable::items_launch(const char* name, const cl::Kernel& k,
     return {name, k, cl::NDRange(round_up(items, local)), cl::NDRange(local)};
 }
 
-KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint32_t c,
-                                           std::uint64_t stride, std::uint64_t mstride,
-                                           std::uint32_t lines_o, bool final,
-                                           const cl::Buffer* parts, bool border) {
+void ExactSeparable::add_banded_pass(int axis, std::uint32_t n, std::uint32_t c,
+                                     std::uint64_t stride, std::uint64_t mstride,
+                                     std::uint32_t lines_o, bool final, const cl::Buffer* parts,
+                                     bool border, const std::string& suffix) {
     const std::uint32_t k = banded_bands(n, c);
     const bool y = axis == 1;
     const bool global = y ? global_y_ : global_z_;
@@ -581,9 +588,44 @@ KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint3
     // The z pass of stacked blocks (n = z_period_): lines_o lines per block, n z-slices apart.
     const std::uint32_t blocks = y ? 1 : dims_.z / n;
     kernel.setArg(28, static_cast<cl_ulong>(stride * n));
-    return {std::string(y ? "y_banded" : "z_banded") + (global ? "_global" : ""), kernel,
-            cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * blocks * k),
-            cl::NDRange(c, k)};
+    kernel.setArg(29, windowed_ ? window_bail_[y ? 0 : 1] : voxels_);
+    kernel.setArg(30, cl_uint{windowed_ ? 1u : 0u});
+    const std::size_t lines = std::size_t{lines_o} * blocks;
+    if (windowed_) {
+        // cols_window first: cols_banded takes only the groups whose lines it left.
+        cl::Kernel window(program_, "cols_window");
+        window.setArg(0, parts[y ? 0 : 1]);
+        window.setArg(1, parts[y ? 0 : 1]);
+        window.setArg(2, parts[y ? 1 : 0]);
+        window.setArg(3, out_);
+        window.setArg(4, voxels_);
+        window.setArg(5, rgb_);
+        window.setArg(6, dims_.x);
+        window.setArg(7, n);
+        window.setArg(8, static_cast<cl_ulong>(stride));
+        window.setArg(9, static_cast<cl_ulong>(mstride));
+        window.setArg(10, cl_uint{y ? 1u : 0u});
+        window.setArg(11, cl_uint{final ? 1u : 0u});
+        window.setArg(12, max_distance_);
+        window.setArg(13, lines_o);
+        window.setArg(14, cl_uint{border ? 1u : 0u});
+        window.setArg(15, keyed && !y ? feat_[1] : voxels_);
+        window.setArg(16, keyed && y ? feat_[1] : out_);
+        window.setArg(17, keyed ? indices_ : out_);
+        window.setArg(18, static_cast<cl_ulong>(dims_.count()));
+        window.setArg(19, g_[0]);
+        window.setArg(20, cl_uint{zero_targets_ ? 1u : 0u});
+        window.setArg(21, static_cast<cl_ulong>(stride * n));
+        window.setArg(22, c);
+        window.setArg(23, kWindowReach);
+        window.setArg(24, window_bail_[y ? 0 : 1]);
+        stages_.push_back({std::string(y ? "y_window" : "z_window") + suffix, window,
+                           cl::NDRange(round_up(dims_.x, kWindowGroup), lines),
+                           cl::NDRange(kWindowGroup, 1)});
+    }
+    stages_.push_back(
+        {std::string(y ? "y_banded" : "z_banded") + (global ? "_global" : "") + suffix, kernel,
+         cl::NDRange(round_up(dims_.x, c), lines * k), cl::NDRange(c, k)});
 }
 
 std::size_t ExactSeparable::x_per_item(const Box& rows) const {
@@ -751,6 +793,21 @@ void ExactSeparable::enqueue_voxels(const cl::Kernel& k, const Box& b, cl::Event
                     static_cast<std::size_t>(b.max.y - b.min.y),
                     static_cast<std::size_t>(b.max.z - b.min.z)),
         cl::NDRange(64, 1, 1), nullptr, event);
+}
+
+ExactSeparable::WindowStats ExactSeparable::window_stats() {
+    WindowStats stats;
+    for (int axis = 0; axis < 2 && windowed_; ++axis) {
+        std::vector<std::uint8_t> flags(window_bail_[axis].getInfo<CL_MEM_SIZE>());
+        cl_call("reading cols_window's flags", [&] {
+            ctx_.queue().enqueueReadBuffer(window_bail_[axis], CL_TRUE, 0, flags.size(),
+                                           flags.data());
+        });
+        stats.groups[axis] = flags.size();
+        stats.left[axis] = static_cast<std::uint64_t>(
+            std::count_if(flags.begin(), flags.end(), [](std::uint8_t f) { return f != 0; }));
+    }
+    return stats;
 }
 
 std::string ExactSeparable::variant() const {

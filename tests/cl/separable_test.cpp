@@ -736,6 +736,83 @@ TEST(ExactSeparable, BandedGpuPassesMatchTheReference) {
     }
 }
 
+// Unit L2's banded passes first run cols_window, which finishes the lines whose positions find
+// their nearest site within kWindowReach (16) positions and leaves the other lines' work-groups
+// to cols_banded: a dense world (every group finished), a world of one solid (every group
+// left), and a world dense in one half and empty in the other (some of each), unsigned, signed
+// (whose inner transform finishes every group) and with indices (SciPy's ties: the window's ties by
+// the same keys as the bands'), each against the reference.
+TEST(ExactSeparable, WindowPassFinishesNearLinesAndLeavesTheRest) {
+    std::mt19937_64 rng(2468);
+    World lone(Dims{40, 40, 40});
+    lone.set(3, 20, 30, 1);
+    World half(Dims{64, 40, 40});
+    std::bernoulli_distribution solid(0.3);
+    for (std::int32_t z = 0; z < 40; ++z) {
+        for (std::int32_t y = 0; y < 40; ++y) {
+            for (std::int32_t x = 0; x < 32; ++x) {
+                half.set(x, y, z, solid(rng) ? 1 : 0);
+            }
+        }
+    }
+    struct Case {
+        World world;
+        const char* name;
+        int left;  // -1: no group left, 0: some, 1: all
+    };
+    const Case cases[] = {{scene_random(Dims{70, 40, 50}, 0.3, rng()), "dense", -1},
+                          {lone, "one solid", 1},
+                          {half, "half dense", 0}};
+    for (const Case& c : cases) {
+        for (int variant = 0; variant < 3; ++variant) {
+            const bool sgn = variant == 1, keyed = variant == 2;
+            const auto o =
+                options(Metric::euclidean, Spacing{}, sgn, Format::f32, Layout::gpu, keyed);
+            const std::string what = std::string("window, ") + c.name + ", " +
+                                     (sgn     ? "signed"
+                                      : keyed ? "indices"
+                                              : "unsigned");
+            ocl::ExactSeparable g(pocl(), c.world, Palette(), o);
+            g.run();
+            // A signed field's stats are its inner transform's, whose targets (the empty
+            // voxels) lie near everywhere in these worlds.
+            const auto stats = g.window_stats();
+            const int left = sgn ? -1 : c.left;
+            for (int axis = 0; axis < 2; ++axis) {
+                ASSERT_GT(stats.groups[axis], 0u) << what;
+                if (left < 0) {
+                    EXPECT_EQ(stats.left[axis], 0u) << what << " axis " << axis;
+                } else if (left > 0) {
+                    EXPECT_EQ(stats.left[axis], stats.groups[axis]) << what << " axis " << axis;
+                } else {
+                    EXPECT_GT(stats.left[axis], 0u) << what << " axis " << axis;
+                    EXPECT_LT(stats.left[axis], stats.groups[axis]) << what << " axis " << axis;
+                }
+            }
+            if (keyed) {
+                expect_scipy_ties(c.world, o, what);
+                ASSERT_EQ(ocl::generate(pocl(), c.world, Palette(), o).bytes,
+                          ocl::generate(pocl(), c.world, Palette(),
+                                        options(Metric::euclidean, Spacing{}, false, Format::f32,
+                                                Layout::gpu))
+                              .bytes)
+                    << what << " field";
+            } else {
+                expect_matches(c.world, Palette(), o, reference(c.world, o), what);
+            }
+        }
+    }
+    // Other metrics and spacing take no window.
+    const World& w = cases[0].world;
+    for (const auto& o :
+         {options(Metric::manhattan, Spacing{}, false, Format::f32, Layout::gpu),
+          options(Metric::euclidean, Spacing{1.5, 1, 1}, false, Format::f32, Layout::gpu)}) {
+        ocl::ExactSeparable g(pocl(), w, Palette(), o);
+        g.run();
+        EXPECT_EQ(g.window_stats().groups[0], 0u) << describe(o, w.dims());
+    }
+}
+
 // With spacing (float partials, double for f64 fields; the x rows' distances scaled by the x
 // spacing, the signed border by each axis's): every metric, unsigned, signed and indices,
 // within rounding of the reference.
