@@ -1763,7 +1763,9 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
 // position would need a step beyond `reach` is left to cols_banded (values already written
 // are rewritten with the same ones): the flag of its banded work-group (C lines, `bail`,
 // cols_banded's group index) is set, and the group's other lines stop too. cols_banded's
-// arguments, its lines and its writes (banded_write), unit spacing.
+// arguments, its lines and its writes (banded_write), unit spacing; not the passes with
+// `border` (a signed field's inner z pass, whose output may hold the partials `outer` that
+// the bands would read again for a line left here).
 #define WINDOW_GROUP 64
 
 // Line position u's site: its partial (G_INF: none) and, with INDICES, its key in KEYED's
@@ -1805,7 +1807,7 @@ __kernel __attribute__((reqd_work_group_size(WINDOW_GROUP, 1, 1))) void cols_win
     __global const ushort* restrict in16, __global const GT* restrict in,
     __global GT* restrict gout, __global OUT_T* out, __global const uchar* restrict vox,
     __constant uchar* rgb, uint X, uint n, ulong stride, ulong mstride, uint from16, uint final,
-    double dmax, uint O, uint border, __global const uint* restrict fin,
+    double dmax, uint O, __global const uint* restrict fin,
     __global uint* restrict fout, __global int* restrict idx, ulong count,
     __global const GT* outer, uint zero_targets, ulong bstride, uint C, uint reach,
     __global uchar* restrict bail) {
@@ -1880,12 +1882,7 @@ __kernel __attribute__((reqd_work_group_size(WINDOW_GROUP, 1, 1))) void cols_win
         }
         e = be;
         ge = bg;
-        GT v = best;
-        if (border) {
-            v = min(v, min(min(offset_part((int)min(x + 1, X - x), 1.0f),
-                               offset_part((int)min(o + 1, O - o), 1.0f)),
-                           offset_part((int)min((uint)p + 1, n - (uint)p), 1.0f)));
-        }
+        const GT v = best;
 #if INDICES
         uint f = UINT_MAX;
         int3 place = (int3)(-1);

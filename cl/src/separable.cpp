@@ -588,38 +588,41 @@ void ExactSeparable::add_banded_pass(int axis, std::uint32_t n, std::uint32_t c,
     // The z pass of stacked blocks (n = z_period_): lines_o lines per block, n z-slices apart.
     const std::uint32_t blocks = y ? 1 : dims_.z / n;
     kernel.setArg(28, static_cast<cl_ulong>(stride * n));
-    kernel.setArg(29, windowed_ ? window_bail_[y ? 0 : 1] : voxels_);
-    kernel.setArg(30, cl_uint{windowed_ ? 1u : 0u});
+    // cols_window first, and cols_banded takes only the groups whose lines it left; not in a
+    // signed field's inner z pass, whose output may be the buffer of the first transform's
+    // partials (`outer`): a line the window left would have overwritten some of them for the
+    // bands.
+    const bool window = windowed_ && !border;
+    kernel.setArg(29, window ? window_bail_[y ? 0 : 1] : voxels_);
+    kernel.setArg(30, cl_uint{window ? 1u : 0u});
     const std::size_t lines = std::size_t{lines_o} * blocks;
-    if (windowed_) {
-        // cols_window first: cols_banded takes only the groups whose lines it left.
-        cl::Kernel window(program_, "cols_window");
-        window.setArg(0, parts[y ? 0 : 1]);
-        window.setArg(1, parts[y ? 0 : 1]);
-        window.setArg(2, parts[y ? 1 : 0]);
-        window.setArg(3, out_);
-        window.setArg(4, voxels_);
-        window.setArg(5, rgb_);
-        window.setArg(6, dims_.x);
-        window.setArg(7, n);
-        window.setArg(8, static_cast<cl_ulong>(stride));
-        window.setArg(9, static_cast<cl_ulong>(mstride));
-        window.setArg(10, cl_uint{y ? 1u : 0u});
-        window.setArg(11, cl_uint{final ? 1u : 0u});
-        window.setArg(12, max_distance_);
-        window.setArg(13, lines_o);
-        window.setArg(14, cl_uint{border ? 1u : 0u});
-        window.setArg(15, keyed && !y ? feat_[1] : voxels_);
-        window.setArg(16, keyed && y ? feat_[1] : out_);
-        window.setArg(17, keyed ? indices_ : out_);
-        window.setArg(18, static_cast<cl_ulong>(dims_.count()));
-        window.setArg(19, g_[0]);
-        window.setArg(20, cl_uint{zero_targets_ ? 1u : 0u});
-        window.setArg(21, static_cast<cl_ulong>(stride * n));
-        window.setArg(22, c);
-        window.setArg(23, kWindowReach);
-        window.setArg(24, window_bail_[y ? 0 : 1]);
-        stages_.push_back({std::string(y ? "y_window" : "z_window") + suffix, window,
+    if (window) {
+        cl::Kernel w(program_, "cols_window");
+        w.setArg(0, parts[y ? 0 : 1]);
+        w.setArg(1, parts[y ? 0 : 1]);
+        w.setArg(2, parts[y ? 1 : 0]);
+        w.setArg(3, out_);
+        w.setArg(4, voxels_);
+        w.setArg(5, rgb_);
+        w.setArg(6, dims_.x);
+        w.setArg(7, n);
+        w.setArg(8, static_cast<cl_ulong>(stride));
+        w.setArg(9, static_cast<cl_ulong>(mstride));
+        w.setArg(10, cl_uint{y ? 1u : 0u});
+        w.setArg(11, cl_uint{final ? 1u : 0u});
+        w.setArg(12, max_distance_);
+        w.setArg(13, lines_o);
+        w.setArg(14, keyed && !y ? feat_[1] : voxels_);
+        w.setArg(15, keyed && y ? feat_[1] : out_);
+        w.setArg(16, keyed ? indices_ : out_);
+        w.setArg(17, static_cast<cl_ulong>(dims_.count()));
+        w.setArg(18, g_[0]);
+        w.setArg(19, cl_uint{zero_targets_ ? 1u : 0u});
+        w.setArg(20, static_cast<cl_ulong>(stride * n));
+        w.setArg(21, c);
+        w.setArg(22, kWindowReach);
+        w.setArg(23, window_bail_[y ? 0 : 1]);
+        stages_.push_back({std::string(y ? "y_window" : "z_window") + suffix, w,
                            cl::NDRange(round_up(dims_.x, kWindowGroup), lines),
                            cl::NDRange(kWindowGroup, 1)});
     }

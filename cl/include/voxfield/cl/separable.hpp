@@ -51,8 +51,9 @@ class ExactSeparable : public Generator {
     const cl::Buffer& voxels_buffer() const { return voxels_; }
 
     // Unit L2's banded passes: their work-groups and how many of them cols_window left to
-    // cols_banded in the last run (a signed field's: its inner transform's), y then z; all zero
-    // where the passes take no window (other metrics, spacing, 64-bit partials, col_pass).
+    // cols_banded in the last run, y then z (a signed field's: its inner transform's y pass and
+    // its first transform's z pass; the inner z pass takes no window); all zero where the
+    // passes take no window (other metrics, spacing, 64-bit partials, col_pass).
     struct WindowStats {
         std::uint64_t groups[2] = {0, 0};
         std::uint64_t left[2] = {0, 0};
