@@ -541,20 +541,25 @@ void ExactSeparable::add_banded_pass(int axis, std::uint32_t n, std::uint32_t c,
     // With indices the y pass writes its targets into feat_[1], the z pass reads them; neither
     // reads `in` nor writes `gout` (arguments 1 and 2), which may then be the x rows' buffer.
     const bool keyed = indices_() != nullptr;
-    kernel.setArg(0, parts[y ? 0 : 1]);
-    kernel.setArg(1, parts[y ? 0 : 1]);
-    kernel.setArg(2, parts[y ? 1 : 0]);
-    kernel.setArg(3, out_);
-    // The world: the y pass's keys name the x rows' targets (with zero targets its empty voxels).
-    kernel.setArg(4, voxels_);
-    kernel.setArg(5, rgb_);
-    kernel.setArg(6, dims_.x);
-    kernel.setArg(7, n);
-    kernel.setArg(8, static_cast<cl_ulong>(stride));
-    kernel.setArg(9, static_cast<cl_ulong>(mstride));
-    kernel.setArg(10, cl_uint{y ? 1u : 0u});
-    kernel.setArg(11, cl_uint{final ? 1u : 0u});
-    kernel.setArg(12, max_distance_);
+    // Arguments 0-12, cols_banded's and cols_window's alike.
+    const auto set_lines = [&](cl::Kernel& launch) {
+        launch.setArg(0, parts[y ? 0 : 1]);
+        launch.setArg(1, parts[y ? 0 : 1]);
+        launch.setArg(2, parts[y ? 1 : 0]);
+        launch.setArg(3, out_);
+        // The world: the y pass's keys name the x rows' targets (with zero targets its empty
+        // voxels).
+        launch.setArg(4, voxels_);
+        launch.setArg(5, rgb_);
+        launch.setArg(6, dims_.x);
+        launch.setArg(7, n);
+        launch.setArg(8, static_cast<cl_ulong>(stride));
+        launch.setArg(9, static_cast<cl_ulong>(mstride));
+        launch.setArg(10, cl_uint{y ? 1u : 0u});
+        launch.setArg(11, cl_uint{final ? 1u : 0u});
+        launch.setArg(12, max_distance_);
+    };
+    set_lines(kernel);
     const std::size_t cells = banded_cells(n, c);
     if (global) {
         kernel.setArg(13, banded_scratch_[0]);
@@ -598,19 +603,7 @@ void ExactSeparable::add_banded_pass(int axis, std::uint32_t n, std::uint32_t c,
     const std::size_t lines = std::size_t{lines_o} * blocks;
     if (window) {
         cl::Kernel w(program_, "cols_window");
-        w.setArg(0, parts[y ? 0 : 1]);
-        w.setArg(1, parts[y ? 0 : 1]);
-        w.setArg(2, parts[y ? 1 : 0]);
-        w.setArg(3, out_);
-        w.setArg(4, voxels_);
-        w.setArg(5, rgb_);
-        w.setArg(6, dims_.x);
-        w.setArg(7, n);
-        w.setArg(8, static_cast<cl_ulong>(stride));
-        w.setArg(9, static_cast<cl_ulong>(mstride));
-        w.setArg(10, cl_uint{y ? 1u : 0u});
-        w.setArg(11, cl_uint{final ? 1u : 0u});
-        w.setArg(12, max_distance_);
+        set_lines(w);
         w.setArg(13, lines_o);
         w.setArg(14, keyed && !y ? feat_[1] : voxels_);
         w.setArg(15, keyed && y ? feat_[1] : out_);
