@@ -1318,6 +1318,15 @@ inline GT part16(uint d, ST s) {
     return d == 0xFFFFu ? G_INF : offset_part((int)d, s);
 }
 
+// The x of the target of voxel i's x row (at x, its 1-D distance d; 0xFFFF: none, 0): on the
+// left where the world has a target there (a solid voxel; an empty one with `zero_targets`; the
+// x pass's ties go left), else on the right.
+inline uint row_target_x(__global const uchar* restrict vox, size_t i, uint x, uint d,
+                         uint zero_targets) {
+    const bool left = x >= d && (vox[i - d] != 0) != (zero_targets != 0);
+    return d == 0xFFFFu ? 0u : left ? x - d : x + d;
+}
+
 // fpart with the sum rounded once (an fma), whatever the compiler would contract: with INDICES
 // the z pass finds a site's partial from its target (banded_part), which must be the y
 // pass's value.
@@ -1523,11 +1532,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                     const uint d = in16[i];
                     d16[j] = d;
 #if INDICES
-                    // The x of the row's target d away: on the left where the world has a
-                    // target there (a solid voxel; an empty one with `zero_targets`; the x
-                    // pass's ties go left), else on the right.
-                    const bool left = x >= d && (vox[i - d] != 0) != (zero_targets != 0);
-                    kx[j] = d == 0xFFFFu ? 0u : left ? x - d : x + d;
+                    kx[j] = row_target_x(vox, i, x, d, zero_targets);
 #endif
                 } else {
 #if INDICES
@@ -1768,21 +1773,15 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
 // the bands would read again for a line left here).
 #define WINDOW_GROUP 64
 
-// Line position u's site: its partial (G_INF: none) and, with INDICES, its key in KEYED's
-// order (the y pass: its x row target's x, then u; the z pass: the y pass's target, then u).
+// Site i's partial (G_INF: none), as cols_banded's GLV finds it: the y pass's from its x row's
+// distance, the z pass's from the y pass's target with INDICES, else as the y pass wrote it.
 inline GT window_site(__global const ushort* restrict in16, __global const GT* restrict in,
                       __global const uint* restrict fin, size_t i, uint from16, uint x, uint o) {
     if (from16) {
-        const uint d = in16[i];
-        return d == 0xFFFFu ? G_INF : (GT)d * (GT)d;
+        return part16(in16[i], 1.0f);
     }
 #if INDICES
-    const uint xy = fin[i];
-    if (xy == UINT_MAX) {
-        return G_INF;
-    }
-    const int dx = (int)x - (int)(xy >> 16), dy = (int)o - (int)(xy & 0xFFFFu);
-    return (GT)(dx * dx) + (GT)(dy * dy);
+    return banded_part(fin[i], x, o, 1.0f, 1.0f);
 #else
     return in[i];
 #endif
@@ -1797,9 +1796,7 @@ inline uint window_target(__global const ushort* restrict in16, __global const u
     if (!from16) {
         return fin[i];
     }
-    const uint d = in16[i];
-    const bool left = x >= d && (vox[i - d] != 0) != (zero_targets != 0);
-    return ((left ? x - d : x + d) << 16) | (uint)u;
+    return (row_target_x(vox, i, x, in16[i], zero_targets) << 16) | (uint)u;
 }
 #endif
 
