@@ -740,9 +740,18 @@ void SparseDeviceWorld::commit_edit_slots(const std::vector<std::uint64_t>& keys
 void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t pitch_y,
                                             std::uint32_t pitch_z, std::uint32_t tiles) {
     auto& q = ctx_.queue();
-    q.enqueueWriteBuffer(table_, CL_FALSE, 0, (kTableHeader + kRecord * tiles + dense_.size()) * 8,
-                         pinned_->data(), nullptr, &pinned_->last());
-    edit_write_ = pinned_->last();
+    const std::size_t bytes = (kTableHeader + kRecord * tiles + dense_.size()) * 8;
+    // With stage events the write has one too (where the edit's device span starts); without,
+    // none (NVIDIA's driver takes several us of host time for an event): the pinned table is
+    // then fenced by a later command (settled_by), else the next edit waits for the queue.
+    if (stage_events_) {
+        q.enqueueWriteBuffer(table_, CL_FALSE, 0, bytes, pinned_->data(), nullptr,
+                             &pinned_->last());
+        edit_write_ = pinned_->last();
+    } else {
+        q.enqueueWriteBuffer(table_, CL_FALSE, 0, bytes, pinned_->data());
+        pinned_->unfenced();
+    }
     EncodeBuffers b;
     b.vox = vox;
     b.pitch_y = pitch_y;
@@ -762,6 +771,10 @@ void SparseDeviceWorld::enqueue_edit_encode(const cl::Buffer& vox, std::uint32_t
                    stage_events_ ? &edit_events_ : nullptr);
     traffic_.enqueues += 3;
     q.flush();  // submitted now: the device encodes while the host lists the field's update
+}
+
+void SparseDeviceWorld::settled_by(const cl::Event& later) {
+    pinned_->last() = later;
 }
 
 double SparseDeviceWorld::last_edit_kernel_ms() const {

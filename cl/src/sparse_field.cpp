@@ -1267,6 +1267,7 @@ double SparseField::update_block(const Job& job, Dims block,
                                nullptr, &events.back().second);
         if (!stage_events_) {
             tables_->settled_by(events.back().second);
+            device_world_.settled_by(events.back().second);
         }
         // The one wait: scatter_minima done, and with it every command before it (an in-order
         // queue). The minima stay on the device (coarse_node reads them when asked).

@@ -147,11 +147,14 @@ class SparseDeviceWorld {
     const QueueTraffic& last_edit_traffic() const { return traffic_; }
     // The same commands' events (its table's write, then its kernels), for their timeline.
     std::vector<cl::Event> last_edit_commands() const;
-    // Whether apply_brush and encode_dense_tiles give their kernels profiling events (the
-    // default). Without, last_edit_stages() is empty and last_edit_commands() holds the
-    // table's write only: NVIDIA's driver spends about 7 us more host time on a launch with an
-    // event (bench/cl_overhead.c).
+    // Whether apply_brush and encode_dense_tiles give their commands profiling events (the
+    // default). Without, last_edit_stages() and last_edit_commands() are empty: NVIDIA's
+    // driver spends about 7 us more host time on a launch with an event (bench/cl_overhead.c).
     void set_stage_events(bool on) { stage_events_ = on; }
+    // Names a command enqueued after the last edit's on the same in-order queue, one the caller
+    // waits for: once it is done, the next edit rewrites the edit's pinned table without waiting
+    // for the queue (an edit without stage events writes its table without an event).
+    void settled_by(const cl::Event& later);
 
     // Enqueues sparse_world.cl's gather of `count` blocks of `block` voxels stacked along z into
     // `out` (`jobs`, `refs`: its tables): a work-item per four voxels of a leaf's row
@@ -268,7 +271,8 @@ class SparseDeviceWorld {
     // voxels()'s jobs, refs and output, for voxel_capacity_ cells (grown as needed).
     cl::Buffer voxel_jobs_, voxel_refs_, voxel_out_;
     std::size_t voxel_capacity_ = 0;
-    // The last edit's table write (null when it enqueued none), kernels and traffic.
+    // The last edit's table write (null when it enqueued none or had no stage events), kernels
+    // and traffic.
     cl::Event edit_write_;
     std::vector<std::pair<std::string, cl::Event>> edit_events_;
     bool stage_events_ = true;
