@@ -1318,15 +1318,6 @@ inline GT part16(uint d, ST s) {
     return d == 0xFFFFu ? G_INF : offset_part((int)d, s);
 }
 
-// The x of the target of voxel i's x row (at x, its 1-D distance d; 0xFFFF: none, 0): on the
-// left where the world has a target there (a solid voxel; an empty one with `zero_targets`; the
-// x pass's ties go left), else on the right.
-inline uint row_target_x(__global const uchar* restrict vox, size_t i, uint x, uint d,
-                         uint zero_targets) {
-    const bool left = x >= d && (vox[i - d] != 0) != (zero_targets != 0);
-    return d == 0xFFFFu ? 0u : left ? x - d : x + d;
-}
-
 // fpart with the sum rounded once (an fma), whatever the compiler would contract: with INDICES
 // the z pass finds a site's partial from its target (banded_part), which must be the y
 // pass's value.
@@ -1397,41 +1388,6 @@ inline bool banded_below(BAS const uint* kl, BAS const ushort* keyx, uint C, uin
 #define BBELOW(i, u, gi, gu, t) (BSEP(i, u, gi, gu) < (t))
 #endif
 
-// A banded pass's (or cols_window's) value v of voxel i: with `final` the output format (a
-// signed field's inner transform: an empty voxel takes the first transform's partial from
-// `outer`, a solid one minus its own) and with INDICES the index planes `place`; else the
-// partial to `gout`, or with INDICES the target f to `fout`.
-inline void banded_write(__global GT* restrict gout, __global OUT_T* out,
-                         __global const uchar* restrict vox, __constant uchar* rgb, double dmax,
-                         __global uint* restrict fout, __global int* restrict idx, ulong count,
-                         __global const GT* outer, size_t i, uint final, GT v, uint f,
-                         int3 place) {
-    if (final) {
-#if SIGNED
-        const uchar cls = vox[i];
-        const double d =
-            cls != 0 ? -min(distance_of(v), dmax) : min(distance_of(outer[i]), dmax);
-        store(out, rgb, cls, i, d);
-#else
-#if OUT_KIND == 4
-        const uchar cls = vox[i];
-#else
-        const uchar cls = 0;
-#endif
-        store(out, rgb, cls, i, min(distance_of(v), dmax));
-#endif
-#if INDICES
-        store_index(idx, count, i, place);
-#endif
-    } else {
-#if INDICES
-        fout[i] = f;
-#else
-        gout[i] = v;
-#endif
-    }
-}
-
 // Lines of n positions, element stride `stride`, line (x, o) starting at o * mstride + x,
 // x = group(0) * C + local(0), o = group(1) of O; where group(1) passes O, the lines of the
 // next block of a world of stacked blocks, `bstride` elements on (its z pass: each block's
@@ -1461,21 +1417,13 @@ inline void banded_write(__global GT* restrict gout, __global OUT_T* out,
 __kernel void cols_banded(__global const ushort* restrict in16, __global const GT* restrict in,
                           __global GT* restrict gout, __global OUT_T* out,
                           __global const uchar* restrict vox, __constant uchar* rgb, uint X,
-                          uint n_in, ulong stride, ulong mstride, uint from16_in, uint final_in,
+                          uint n, ulong stride, ulong mstride, uint from16_in, uint final_in,
                           double dmax, BAS GT* gl, BAS uint* mask, __local int* ends,
                           uint O, uint border_in,
                           __global const uint* restrict fin, __global uint* restrict fout,
                           __global int* restrict idx, ulong count, __global const GT* outer,
                           ST sx, ST so, ST sp, BAS ushort* keyx, uint zero_targets,
-                          ulong bstride, __global const uchar* restrict window_bail,
-                          uint windowed) {
-    // After cols_window (`windowed`) a group whose lines it finished (its flag clear) takes
-    // lines of no position: it only meets the barriers (a return before them would leave them
-    // to part of the group, where a compiler cannot see that the whole group returns).
-    const uint n = windowed && window_bail[get_group_id(1) * get_num_groups(0) +
-                                           get_group_id(0)] == 0
-                       ? 0u
-                       : n_in;
+                          ulong bstride) {
     // The pass: fixed where the program is built for one (BANDED_AXIS 1: the y pass, from the x
     // rows' 16-bit distances, never final; 2: the z pass), else the arguments'.
     const uint from16 = BANDED_AXIS == 1 ? 1u : BANDED_AXIS == 2 ? 0u : from16_in;
@@ -1486,7 +1434,7 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
     const uint x = (uint)get_group_id(0) * C + c;
     // Line o of its block: group(1) counts the O lines of each stacked block in turn.
     const uint o = (uint)get_group_id(1) % O;
-    const bool active = x < X && n != 0;
+    const bool active = x < X;
     const size_t base = (size_t)(get_group_id(1) / O) * bstride + (size_t)o * mstride + x;
     const int band = (int)(((n + K - 1) / K + 31) / 32 * 32);
     __local int* first = ends;
@@ -1532,7 +1480,11 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                     const uint d = in16[i];
                     d16[j] = d;
 #if INDICES
-                    kx[j] = row_target_x(vox, i, x, d, zero_targets);
+                    // The x of the row's target d away: on the left where the world has a
+                    // target there (a solid voxel; an empty one with `zero_targets`; the x
+                    // pass's ties go left), else on the right.
+                    const bool left = x >= d && (vox[i - d] != 0) != (zero_targets != 0);
+                    kx[j] = d == 0xFFFFu ? 0u : left ? x - d : x + d;
 #endif
                 } else {
 #if INDICES
@@ -1747,161 +1699,35 @@ __kernel void cols_banded(__global const ushort* restrict in16, __global const G
                                offset_part((int)min(o + 1, O - o), so)),
                            offset_part((int)min(p + 1, n - p), sp)));
         }
-#if !INDICES
-        const uint f = 0;
-        const int3 place = (int3)(-1);
-#endif
-        banded_write(gout, out, vox, rgb, dmax, fout, idx, count, outer, base + p * stride,
-                     final, v, f, place);
-    }
-}
-
-#if UNIT && METRIC == 2 && !WIDE
-// ---- cols_window: unit L2's y and z passes where the sites that matter lie near ----
-//
-// A banded pass's lines, one work-item each (WINDOW_GROUP adjacent lines in x a work-group),
-// each position p from the sites near it: the site u of least g_u + (p - u)^2 (with INDICES
-// the lowest key among the least, KEYED's order) lies within k of p once k^2 exceeds the least
-// found so far, so the search steps outward from p (first taking the owner of p - 1, which
-// bounds it) and stops there: in dense worlds after a few steps, where a banded pass spends
-// most of its time building envelopes of sites that own one position each. A line where some
-// position would need a step beyond `reach` is left to cols_banded (values already written
-// are rewritten with the same ones): the flag of its banded work-group (C lines, `bail`,
-// cols_banded's group index) is set, and the group's other lines stop too. cols_banded's
-// arguments, its lines and its writes (banded_write), unit spacing; not the passes with
-// `border` (a signed field's inner z pass, whose output may hold the partials `outer` that
-// the bands would read again for a line left here).
-#define WINDOW_GROUP 64
-
-// Site i's partial (G_INF: none), as cols_banded's GLV finds it: the y pass's from its x row's
-// distance, the z pass's from the y pass's target with INDICES, else as the y pass wrote it.
-inline GT window_site(__global const ushort* restrict in16, __global const GT* restrict in,
-                      __global const uint* restrict fin, size_t i, uint from16, uint x, uint o) {
-    if (from16) {
-        return part16(in16[i], 1.0f);
-    }
-#if INDICES
-    return banded_part(fin[i], x, o, 1.0f, 1.0f);
+        const size_t i = base + p * stride;
+        if (final) {
+#if SIGNED
+            // The inner transform's z pass: an empty voxel takes the first transform's
+            // partial from `outer`, a solid one minus its own.
+            const uchar cls = vox[i];
+            const double d =
+                cls != 0 ? -min(distance_of(v), dmax) : min(distance_of(outer[i]), dmax);
+            store(out, rgb, cls, i, d);
 #else
-    return in[i];
-#endif
-}
-
-#if INDICES
-// The target of site u (voxel i) as the pass writes it: the y pass's (x << 16) | u from its x
-// row's target (cols_banded's loads), the z pass's as the y pass wrote it.
-inline uint window_target(__global const ushort* restrict in16, __global const uint* restrict fin,
-                          __global const uchar* restrict vox, size_t i, uint from16, uint x,
-                          int u, uint zero_targets) {
-    if (!from16) {
-        return fin[i];
-    }
-    return (row_target_x(vox, i, x, in16[i], zero_targets) << 16) | (uint)u;
-}
-#endif
-
-__kernel __attribute__((reqd_work_group_size(WINDOW_GROUP, 1, 1))) void cols_window(
-    __global const ushort* restrict in16, __global const GT* restrict in,
-    __global GT* restrict gout, __global OUT_T* out, __global const uchar* restrict vox,
-    __constant uchar* rgb, uint X, uint n, ulong stride, ulong mstride, uint from16, uint final,
-    double dmax, uint O, __global const uint* restrict fin,
-    __global uint* restrict fout, __global int* restrict idx, ulong count,
-    __global const GT* outer, uint zero_targets, ulong bstride, uint C, uint reach,
-    __global uchar* restrict bail) {
-    __local volatile uchar left[WINDOW_GROUP];
-    const uint lx = (uint)get_local_id(0), x = (uint)get_global_id(0);
-    const uint line = (uint)get_global_id(1), o = line % O, slot = lx / C;
-    const size_t base = (size_t)(line / O) * bstride + (size_t)o * mstride + x;
-    if (lx % C == 0) {
-        left[slot] = 0;
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    // The owner of the previous position and its partial (-1: none yet).
-    int e = -1;
-    GT ge = G_INF;
-    for (int p = 0; x < X && p < (int)n && left[slot] == 0; ++p) {
-        // The least so far (G_INF: none), its site and partial; with INDICES its target,
-        // found where a tie needs it (have_key).
-        GT best = e >= 0 ? ge + (GT)((p - e) * (p - e)) : G_INF;
-        int be = e;
-        GT bg = ge;
-#if INDICES
-        uint bkey = 0;
-        bool have_key = false;
-#endif
-        for (int k = 0;; ++k) {
-            if ((be >= 0 && (GT)(k * k) > best) || (p - k < 0 && p + k >= (int)n)) {
-                break;
-            }
-            if (k > (int)reach) {
-                left[slot] = 1;
-                break;
-            }
-            for (int side = 0; side < (k == 0 ? 1 : 2); ++side) {
-                const int u = side == 0 ? p - k : p + k;
-                if (u < 0 || u >= (int)n) {
-                    continue;
-                }
-                const size_t i = base + (size_t)u * stride;
-                const GT g = window_site(in16, in, fin, i, from16, x, o);
-                if (g == G_INF) {
-                    continue;
-                }
-                const GT t = g + (GT)(k * k);
-#if INDICES
-                if (t == best && u != be) {
-                    if (!have_key) {
-                        bkey = window_target(in16, fin, vox, base + (size_t)be * stride, from16,
-                                             x, be, zero_targets);
-                        have_key = true;
-                    }
-                    const uint key = window_target(in16, fin, vox, i, from16, x, u, zero_targets);
-                    if (KEYED(((ulong)bkey << 16) | (uint)be, ((ulong)key << 16) | (uint)u)) {
-                        be = u;
-                        bg = g;
-                        bkey = key;
-                    }
-                    continue;
-                }
-#endif
-                if (t < best) {
-                    best = t;
-                    be = u;
-                    bg = g;
-#if INDICES
-                    have_key = false;
-#endif
-                }
-            }
-        }
-        if (left[slot] != 0) {
-            break;
-        }
-        e = be;
-        ge = bg;
-        const GT v = best;
-#if INDICES
-        uint f = UINT_MAX;
-        int3 place = (int3)(-1);
-        if (be >= 0) {
-            f = have_key ? bkey
-                         : window_target(in16, fin, vox, base + (size_t)be * stride, from16, x,
-                                         be, zero_targets);
-            place = (int3)(be, (int)(f & 0xFFFFu), (int)(f >> 16));
-        }
+#if OUT_KIND == 4
+            const uchar cls = vox[i];
 #else
-        const uint f = 0;
-        const int3 place = (int3)(-1);
+            const uchar cls = 0;
 #endif
-        banded_write(gout, out, vox, rgb, dmax, fout, idx, count, outer, base + (size_t)p * stride,
-                     final, v, f, place);
-    }
-    barrier(CLK_LOCAL_MEM_FENCE);
-    if (lx % C == 0 && x < X) {
-        bail[(size_t)line * ((X + C - 1) / C) + x / C] = left[slot];
+            store(out, rgb, cls, i, min(distance_of(v), dmax));
+#endif
+#if INDICES
+            store_index(idx, count, i, place);
+#endif
+        } else {
+#if INDICES
+            fout[i] = f;
+#else
+            gout[i] = v;
+#endif
+        }
     }
 }
-#endif
 
 #if INDICES && METRIC == 0 && UNIT && CPU_LAYOUT && !SIGNED
 // ---- unit L1 with indices, full transforms in the CPU layout: sweeps over packed keys ----

@@ -238,14 +238,6 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
         }
     }
 
-    windowed_ =
-        lines_y != 0 && lines_z != 0 && unit && options.metric == Metric::euclidean && !wide_;
-    // A flag per banded work-group of each pass (lines_y lines in x at a z; lines_z at a y of
-    // a block).
-    const std::size_t window_flags[2] = {
-        windowed_ ? (std::size_t{X} + lines_y - 1) / lines_y * Z : 0,
-        windowed_ ? (std::size_t{X} + lines_z - 1) / lines_z * Y * (Z / zline) : 0};
-
     // Unit L1 with indices, a full unsigned transform in the CPU layout: l1_xy_keys and
     // l1_z_out, where the keys' 16-bit x and y hold X and Y and the local memory the rows and
     // a z strip of 16 lines.
@@ -326,9 +318,6 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                                                     3 * n * 4, indices.data());
             feat_[0] = indices_;
             feat_[1] = shared_parts_ ? indices_ : make_buffer(n * 4, CL_MEM_READ_WRITE);
-        }
-        for (int axis = 0; axis < 2 && windowed_; ++axis) {
-            window_bail_[axis] = make_buffer(window_flags[axis], CL_MEM_READ_WRITE);
         }
         for (std::size_t i = 0; i < scratch_bytes.size() && (global_y_ || global_z_); ++i) {
             banded_scratch_[i] = make_buffer(scratch_bytes[i], CL_MEM_READ_WRITE);
@@ -432,8 +421,8 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                 gpu_x_rows(ctx, dims_, Format::u16, voxels_, g_[0], 0xFFFFFFFFu, zero_targets_);
             stages_.insert(stages_.end(), rows.launches.begin(), rows.launches.end());
             row_ends_[0] = rows.ends;
-            add_banded_pass(1, Y, lines_y, X, plane, Z, false, g_);
-            add_banded_pass(2, zline, lines_z, plane, X, Y, !sgn, g_);
+            stages_.push_back(banded_kernel(1, Y, lines_y, X, plane, Z, false, g_));
+            stages_.push_back(banded_kernel(2, zline, lines_z, plane, X, Y, !sgn, g_));
             if (sgn) {
                 XRows inner_rows =
                     gpu_x_rows(ctx, dims_, Format::u16, voxels_, h_[0], 0xFFFFFFFFu, true);
@@ -446,8 +435,12 @@ void ExactSeparable::set_up(const std::uint8_t* voxels, bool in_place,
                 // The inner x rows in h_[0], its y pass's partials in g_[1] (the first
                 // z pass has read them), its z pass writing the output.
                 const cl::Buffer inner[2] = {h_[0], g_[1]};
-                add_banded_pass(1, Y, lines_y, X, plane, Z, false, inner, false, "_inner");
-                add_banded_pass(2, zline, lines_z, plane, X, Y, true, inner, true, "_inner");
+                KernelLaunch y = banded_kernel(1, Y, lines_y, X, plane, Z, false, inner);
+                KernelLaunch z = banded_kernel(2, zline, lines_z, plane, X, Y, true, inner, true);
+                y.name += "_inner";
+                z.name += "_inner";
+                stages_.push_back(y);
+                stages_.push_back(z);
             }
             banded_ = true;
             return;
@@ -530,10 +523,10 @@ KernelLaunch ExactSeparable::items_launch(const char* name, const cl::Kernel& k,
     return {name, k, cl::NDRange(round_up(items, local)), cl::NDRange(local)};
 }
 
-void ExactSeparable::add_banded_pass(int axis, std::uint32_t n, std::uint32_t c,
-                                     std::uint64_t stride, std::uint64_t mstride,
-                                     std::uint32_t lines_o, bool final, const cl::Buffer* parts,
-                                     bool border, const std::string& suffix) {
+KernelLaunch ExactSeparable::banded_kernel(int axis, std::uint32_t n, std::uint32_t c,
+                                           std::uint64_t stride, std::uint64_t mstride,
+                                           std::uint32_t lines_o, bool final,
+                                           const cl::Buffer* parts, bool border) {
     const std::uint32_t k = banded_bands(n, c);
     const bool y = axis == 1;
     const bool global = y ? global_y_ : global_z_;
@@ -541,25 +534,20 @@ void ExactSeparable::add_banded_pass(int axis, std::uint32_t n, std::uint32_t c,
     // With indices the y pass writes its targets into feat_[1], the z pass reads them; neither
     // reads `in` nor writes `gout` (arguments 1 and 2), which may then be the x rows' buffer.
     const bool keyed = indices_() != nullptr;
-    // Arguments 0-12, cols_banded's and cols_window's alike.
-    const auto set_lines = [&](cl::Kernel& launch) {
-        launch.setArg(0, parts[y ? 0 : 1]);
-        launch.setArg(1, parts[y ? 0 : 1]);
-        launch.setArg(2, parts[y ? 1 : 0]);
-        launch.setArg(3, out_);
-        // The world: the y pass's keys name the x rows' targets (with zero targets its empty
-        // voxels).
-        launch.setArg(4, voxels_);
-        launch.setArg(5, rgb_);
-        launch.setArg(6, dims_.x);
-        launch.setArg(7, n);
-        launch.setArg(8, static_cast<cl_ulong>(stride));
-        launch.setArg(9, static_cast<cl_ulong>(mstride));
-        launch.setArg(10, cl_uint{y ? 1u : 0u});
-        launch.setArg(11, cl_uint{final ? 1u : 0u});
-        launch.setArg(12, max_distance_);
-    };
-    set_lines(kernel);
+    kernel.setArg(0, parts[y ? 0 : 1]);
+    kernel.setArg(1, parts[y ? 0 : 1]);
+    kernel.setArg(2, parts[y ? 1 : 0]);
+    kernel.setArg(3, out_);
+    // The world: the y pass's keys name the x rows' targets (with zero targets its empty voxels).
+    kernel.setArg(4, voxels_);
+    kernel.setArg(5, rgb_);
+    kernel.setArg(6, dims_.x);
+    kernel.setArg(7, n);
+    kernel.setArg(8, static_cast<cl_ulong>(stride));
+    kernel.setArg(9, static_cast<cl_ulong>(mstride));
+    kernel.setArg(10, cl_uint{y ? 1u : 0u});
+    kernel.setArg(11, cl_uint{final ? 1u : 0u});
+    kernel.setArg(12, max_distance_);
     const std::size_t cells = banded_cells(n, c);
     if (global) {
         kernel.setArg(13, banded_scratch_[0]);
@@ -593,35 +581,9 @@ void ExactSeparable::add_banded_pass(int axis, std::uint32_t n, std::uint32_t c,
     // The z pass of stacked blocks (n = z_period_): lines_o lines per block, n z-slices apart.
     const std::uint32_t blocks = y ? 1 : dims_.z / n;
     kernel.setArg(28, static_cast<cl_ulong>(stride * n));
-    // cols_window first, and cols_banded takes only the groups whose lines it left; not in a
-    // signed field's inner z pass, whose output may be the buffer of the first transform's
-    // partials (`outer`): a line the window left would have overwritten some of them for the
-    // bands.
-    const bool window = windowed_ && !border;
-    kernel.setArg(29, window ? window_bail_[y ? 0 : 1] : voxels_);
-    kernel.setArg(30, cl_uint{window ? 1u : 0u});
-    const std::size_t lines = std::size_t{lines_o} * blocks;
-    if (window) {
-        cl::Kernel w(program_, "cols_window");
-        set_lines(w);
-        w.setArg(13, lines_o);
-        w.setArg(14, keyed && !y ? feat_[1] : voxels_);
-        w.setArg(15, keyed && y ? feat_[1] : out_);
-        w.setArg(16, keyed ? indices_ : out_);
-        w.setArg(17, static_cast<cl_ulong>(dims_.count()));
-        w.setArg(18, g_[0]);
-        w.setArg(19, cl_uint{zero_targets_ ? 1u : 0u});
-        w.setArg(20, static_cast<cl_ulong>(stride * n));
-        w.setArg(21, c);
-        w.setArg(22, kWindowReach);
-        w.setArg(23, window_bail_[y ? 0 : 1]);
-        stages_.push_back({std::string(y ? "y_window" : "z_window") + suffix, w,
-                           cl::NDRange(round_up(dims_.x, kWindowGroup), lines),
-                           cl::NDRange(kWindowGroup, 1)});
-    }
-    stages_.push_back(
-        {std::string(y ? "y_banded" : "z_banded") + (global ? "_global" : "") + suffix, kernel,
-         cl::NDRange(round_up(dims_.x, c), lines * k), cl::NDRange(c, k)});
+    return {std::string(y ? "y_banded" : "z_banded") + (global ? "_global" : ""), kernel,
+            cl::NDRange(round_up(dims_.x, c), std::size_t{lines_o} * blocks * k),
+            cl::NDRange(c, k)};
 }
 
 std::size_t ExactSeparable::x_per_item(const Box& rows) const {
@@ -789,21 +751,6 @@ void ExactSeparable::enqueue_voxels(const cl::Kernel& k, const Box& b, cl::Event
                     static_cast<std::size_t>(b.max.y - b.min.y),
                     static_cast<std::size_t>(b.max.z - b.min.z)),
         cl::NDRange(64, 1, 1), nullptr, event);
-}
-
-ExactSeparable::WindowStats ExactSeparable::window_stats() {
-    WindowStats stats;
-    for (int axis = 0; axis < 2 && windowed_; ++axis) {
-        std::vector<std::uint8_t> flags(window_bail_[axis].getInfo<CL_MEM_SIZE>());
-        cl_call("reading cols_window's flags", [&] {
-            ctx_.queue().enqueueReadBuffer(window_bail_[axis], CL_TRUE, 0, flags.size(),
-                                           flags.data());
-        });
-        stats.groups[axis] = flags.size();
-        stats.left[axis] = static_cast<std::uint64_t>(
-            std::count_if(flags.begin(), flags.end(), [](std::uint8_t f) { return f != 0; }));
-    }
-    return stats;
 }
 
 std::string ExactSeparable::variant() const {

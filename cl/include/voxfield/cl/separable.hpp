@@ -50,16 +50,6 @@ class ExactSeparable : public Generator {
     // The world on the device (one uchar per voxel); writes to it show in the next run().
     const cl::Buffer& voxels_buffer() const { return voxels_; }
 
-    // Unit L2's banded passes: their work-groups and how many of them cols_window left to
-    // cols_banded in the last run, y then z (a signed field's: its inner transform's y pass and
-    // its first transform's z pass; the inner z pass takes no window); all zero where the
-    // passes take no window (other metrics, spacing, 64-bit partials, col_pass).
-    struct WindowStats {
-        std::uint64_t groups[2] = {0, 0};
-        std::uint64_t left[2] = {0, 0};
-    };
-    WindowStats window_stats();
-
     struct Update {
         std::uint64_t voxels_recomputed = 0;  // positions the three passes recomputed
         Box changed;                          // the voxels whose distance changed
@@ -110,24 +100,16 @@ class ExactSeparable : public Generator {
     std::size_t banded_site_bytes(bool y_pass, bool indices) const {
         return y_pass ? 2 : indices ? 4 : gt_bytes_;
     }
-    // Unit L2 (32-bit partials): before each banded pass cols_window, kWindowGroup lines a
-    // work-group, which finishes every line whose positions each find their nearest site within
-    // kWindowReach positions and flags (window_bail_, a byte per banded work-group) the groups
-    // it leaves to cols_banded.
-    static constexpr std::uint32_t kWindowGroup = 64;
-    static constexpr std::uint32_t kWindowReach = 16;
     // The banded y (axis 1) or z (axis 2) pass over lines of n positions `stride` apart, `c`
     // lines per work-group, line starts x + o * mstride for the lines_o values of o (the z
     // pass: in each of the world's blocks of z_period_ slices, where it has them), from and
     // to the partials `parts` (x rows in parts[0], y into parts[1], z into parts[0]); `final`
     // writes the output format; `border` (z only) counts the voxels outside the world as
     // targets (a signed field's inner transform). With index planes the y pass writes its
-    // targets into feat_[1], and the z pass reads them and writes the planes. Appends its
-    // launches (cols_window's first where windowed_) to stages_, their names ending in `suffix`.
-    void add_banded_pass(int axis, std::uint32_t n, std::uint32_t c, std::uint64_t stride,
-                         std::uint64_t mstride, std::uint32_t lines_o, bool final,
-                         const cl::Buffer* parts, bool border = false,
-                         const std::string& suffix = "");
+    // targets into feat_[1], and the z pass reads them and writes the planes.
+    KernelLaunch banded_kernel(int axis, std::uint32_t n, std::uint32_t c, std::uint64_t stride,
+                               std::uint64_t mstride, std::uint32_t lines_o, bool final,
+                               const cl::Buffer* parts, bool border = false);
     // A launch of `items` work-items (rounded up to the layout's work-group size).
     KernelLaunch items_launch(const char* name, const cl::Kernel& k, std::size_t items) const;
     void enqueue(const cl::Kernel& k, std::size_t items, cl::Event* event);
@@ -161,8 +143,6 @@ class ExactSeparable : public Generator {
     bool banded_ = false;        // the full GPU transform by cols_banded
     bool global_y_ = false;      // its y pass's lists in global memory (program_global_)
     bool global_z_ = false;      // its z pass's
-    bool windowed_ = false;      // cols_window before each banded pass
-    cl::Buffer window_bail_[2];  // its flags in the y and z passes
     cl::Program program_global_;
     cl::Program banded_program_[2];  // the y and z passes' in local memory (BANDED_AXIS)
     cl::Buffer banded_scratch_[3];
