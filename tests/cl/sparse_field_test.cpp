@@ -654,8 +654,8 @@ TEST(SparseDeviceWorld, OneBlockEditsTellWhereTheirTimeWent) {
 
 // Edits without stage events (set_edit_stage_events(false)) change the world and the field as
 // profiled ones do, enqueue as many commands, wait as often, and say so: profiled false, no
-// stages and, on the queue without profiling, no kernel time or device span; switched back, an
-// edit has its stages again.
+// stages, no event on any command (the world's table write included) and, on the queue without
+// profiling, no kernel time or device span; switched back, an edit has its stages again.
 TEST(SparseDeviceWorld, LeanEditsEqualProfiledOnes) {
     const Palette p = Palette::magicavoxel_default();
     const Dims d{200, 70, 150};
@@ -703,6 +703,10 @@ TEST(SparseDeviceWorld, LeanEditsEqualProfiledOnes) {
             if (!a.host_stages.empty()) {
                 EXPECT_GT(a.device_span_ms, 0.0);
             }
+            // The lean edit's table write has no event either (the edit's scatter_minima
+            // fences its pinned table); the profiled one's starts its commands' timeline.
+            EXPECT_TRUE(lean.device_world().last_edit_commands().empty());
+            EXPECT_EQ(profiled.device_world().last_edit_commands().empty(), a.host_stages.empty());
         }
         const Box all{{0, 0, 0}, {d.x, d.y, d.z}};
         EXPECT_EQ(lean.read_box(all), profiled.read_box(all));
