@@ -328,12 +328,11 @@ typedef VTYPE(U, 16) u16_any __attribute__((aligned(1)));
 #define LD16G(p) (*(__global const uchar16_any*)(p))
 #define ST16G(v, p) (*(__global uchar16_any*)(p) = (v))
 #define ST_U16(v, p) (*(__global u16_any*)(p) = CONVERT(U, 16)(v))
-// xy_bytes' ramps, doubling steps and y steps take 64 bytes at a time (one AVX-512 register), in a
-// vector of the compiler's (OpenCL C has none of 64 bytes): 32-byte doubling steps and
-// 16-byte y steps took 2.5-3.6 ms of the slices of 256^3 on PoCL 2 cores.
+// xy_bytes' row scans and y steps take 64 bytes at a time (one AVX-512 register), in a vector
+// of the compiler's (OpenCL C has none of 64 bytes): 32-byte doubling steps and 16-byte y
+// steps took 2.5-3.6 ms of the slices of 256^3 on PoCL 2 cores.
 typedef uchar uchar64_v __attribute__((ext_vector_type(64)));
 typedef uchar64_v uchar64_any __attribute__((aligned(1)));
-typedef ulong ulong_any __attribute__((aligned(1)));
 #define LD64(p) (*(__local const uchar64_any*)(p))
 #define LD64G(p) (*(__global const uchar64_any*)(p))
 #define as_uchar64_v(v) __builtin_astype((v), uchar64_v)
@@ -349,7 +348,6 @@ inline uchar64_v add_sat64(uchar64_v a, uchar64_v b) {
     const uchar64_v s = a + b;
     return s < a ? (uchar64_v)255 : s;
 }
-inline uchar64_v sub_sat64(uchar64_v a, uchar64_v b) { return a > b ? a - b : (uchar64_v)0; }
 
 // The offsets 0..63 of a 64-byte step, and 63..0.
 #define IOTA64 \
@@ -359,90 +357,54 @@ inline uchar64_v sub_sat64(uchar64_v a, uchar64_v b) { return a > b ? a - b : (u
                  62, 63))
 #define RIOTA64 ((uchar64_v)63 - IOTA64)
 
-// The bytes of a that are 0 as a bit mask (bit i: a[i] == 0). With AVX-512BW (PoCL builds for
-// the host's CPU) the compare's mask register itself (vpmovb2m); elsewhere each 8 bytes' bits
-// are summed into the top byte of their word by one multiplication. The masks of run_ends
-// took a fifth of xy_bytes' time on PoCL 2 cores without the builtin.
-inline ulong zero_bits64(uchar64_v a) {
-#ifdef __AVX512BW__
-    typedef char c64 __attribute__((ext_vector_type(64)));
-    return __builtin_ia32_cvtb2mask512(__builtin_astype(a == (uchar64_v)0, c64));
-#else
-    const uchar64_v w = (uchar64_v)(1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128,
-                                     1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128,
-                                     1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128,
-                                     1, 2, 4, 8, 16, 32, 64, 128, 1, 2, 4, 8, 16, 32, 64, 128);
-    const ulong8 bits = __builtin_astype(as_uchar64_v(a == (uchar64_v)0) & w, ulong8);
-    return as_ulong(__builtin_convertvector((bits * 0x0101010101010101UL) >> 56, uchar8));
-#endif
+// A row's x transform, 64 bytes at a time in registers: a min-plus scan by doubling inside the
+// 64 lanes (shifts of 1 .. 32 lanes, T_MAX shifted in), then the carry from the step before
+// (forward) or after (backward). No branch depends on the data, so random rows cost what
+// uniform ones do (run-end ramps and a doubling in local memory, before, took twice the time
+// of uniform rows on random 1% and 10% on PoCL 2 cores, in mispredicted branches).
+#define LANES64(o) \
+    (o) + 0, (o) + 1, (o) + 2, (o) + 3, (o) + 4, (o) + 5, (o) + 6, (o) + 7, (o) + 8, (o) + 9, \
+    (o) + 10, (o) + 11, (o) + 12, (o) + 13, (o) + 14, (o) + 15, (o) + 16, (o) + 17, (o) + 18, \
+    (o) + 19, (o) + 20, (o) + 21, (o) + 22, (o) + 23, (o) + 24, (o) + 25, (o) + 26, (o) + 27, \
+    (o) + 28, (o) + 29, (o) + 30, (o) + 31, (o) + 32, (o) + 33, (o) + 34, (o) + 35, (o) + 36, \
+    (o) + 37, (o) + 38, (o) + 39, (o) + 40, (o) + 41, (o) + 42, (o) + 43, (o) + 44, (o) + 45, \
+    (o) + 46, (o) + 47, (o) + 48, (o) + 49, (o) + 50, (o) + 51, (o) + 52, (o) + 53, (o) + 54, \
+    (o) + 55, (o) + 56, (o) + 57, (o) + 58, (o) + 59, (o) + 60, (o) + 61, (o) + 62, (o) + 63
+#define UP64(v, s) __builtin_shufflevector((uchar64_v)(uchar)T_MAX, (v), LANES64(64 - (s)))
+#define DOWN64(v, s) __builtin_shufflevector((v), (uchar64_v)(uchar)T_MAX, LANES64(s))
+inline uchar64_v scan_up64(uchar64_v v) {
+    v = min64(v, add_sat64(UP64(v, 1), (uchar64_v)1));
+    v = min64(v, add_sat64(UP64(v, 2), (uchar64_v)2));
+    v = min64(v, add_sat64(UP64(v, 4), (uchar64_v)4));
+    v = min64(v, add_sat64(UP64(v, 8), (uchar64_v)8));
+    v = min64(v, add_sat64(UP64(v, 16), (uchar64_v)16));
+    return min64(v, add_sat64(UP64(v, 32), (uchar64_v)32));
 }
-
-// The ends of the runs of solids of a row (a: 0 at a solid, T_MAX elsewhere; n steps of 64
-// bytes) as one bit mask per step in `ends` (bit i: a solid voxel with an empty one or the
-// row's end beside it), and their number. The nearest solid to an empty voxel ends a run.
-inline uint run_ends(__local const uchar* restrict a, __local ulong_any* restrict ends, uint n) {
-    for (uint j = 0; j < n; ++j) {
-        ends[j] = zero_bits64(LD64(a + 64 * j));
-    }
-    uint k = 0;
-    ulong prev = 0;
-    for (uint j = 0; j < n; ++j) {
-        const ulong m = ends[j];
-        const ulong next = j + 1 < n ? ends[j + 1] : 0;
-        const ulong inner = ((m << 1) | (prev >> 63)) & ((m >> 1) | (next << 63));
-        ends[j] = m & ~inner;
-        k += popcount(ends[j]);
-        prev = m;
-    }
-    return k;
+inline uchar64_v scan_down64(uchar64_v v) {
+    v = min64(v, add_sat64(DOWN64(v, 1), (uchar64_v)1));
+    v = min64(v, add_sat64(DOWN64(v, 2), (uchar64_v)2));
+    v = min64(v, add_sat64(DOWN64(v, 4), (uchar64_v)4));
+    v = min64(v, add_sat64(DOWN64(v, 8), (uchar64_v)8));
+    v = min64(v, add_sat64(DOWN64(v, 16), (uchar64_v)16));
+    return min64(v, add_sat64(DOWN64(v, 32), (uchar64_v)32));
 }
-
-// A row's x transform from the ends of its runs of solids (a: 0 at a solid, T_MAX elsewhere;
-// X64 bytes, of which the n = X64 / 64 steps' run ends are in `masks`, as run_ends): each
-// 64-byte step takes the least of its distances to the last end before it (forward) and the
-// first one after it (backward) as saturated ramps, and to each end inside it (|offset - q|);
-// solids keep 0. Its cost grows with the runs (three vector operations per end), not with
-// the distances, as the doubling's does.
-inline void row_ramps64(__local uchar* restrict a, __local const ulong_any* restrict masks,
-                        uint n) {
-    uint last = 0;
-    bool any = false;
+inline void row_scan64(__local uchar* restrict a, uint n) {
+    uchar carry = (uchar)T_MAX;  // the value just before the step
     for (uint j = 0; j < n; ++j) {
-        const uint c = 64 * j;
-        uchar64_v d = any ? add_sat64(IOTA64, (uchar64_v)(uchar)min(c - last, 255u))
-                          : (uchar64_v)T_MAX;
-        const ulong mask = masks[j];
-        for (ulong m = mask; m != 0; m &= m - 1) {
-            const uchar64_v q = (uchar64_v)(uchar)(63 - clz(m & (0UL - m)));
-            d = min64(d, sub_sat64(IOTA64, q) | sub_sat64(q, IOTA64));
-        }
-        if (mask != 0) {
-            last = c + (63 - clz(mask));
-            any = true;
-        }
-        ST64(min64(d, LD64(a + c)), a + c);
+        const uchar64_v v = min64(scan_up64(LD64(a + 64 * j)),
+                                  add_sat64(IOTA64 + (uchar64_v)1, (uchar64_v)carry));
+        carry = v[63];
+        ST64(v, a + 64 * j);
     }
-    uint first = 0;
-    any = false;
+    carry = (uchar)T_MAX;  // the value just after the step
     for (uint j = n; j-- > 0;) {
-        const uint c = 64 * j;
-        if (any && first - (c + 63) < 255u) {
-            const uchar64_v r = add_sat64(RIOTA64, (uchar64_v)(uchar)(first - (c + 63)));
-            ST64(min64(LD64(a + c), r), a + c);
-        }
-        const ulong m = masks[j];
-        if (m != 0) {
-            first = c + (63 - clz(m & (0UL - m)));
-            any = true;
-        }
+        const uchar64_v v = min64(scan_down64(LD64(a + 64 * j)),
+                                  add_sat64(RIOTA64 + (uchar64_v)1, (uchar64_v)carry));
+        carry = v[0];
+        ST64(v, a + 64 * j);
     }
 }
 
-inline uchar hmin16(V16 v) {
-    const uchar8 m8 = min(v.lo, v.hi);
-    const uchar4 m4 = min(m8.lo, m8.hi);
-    return min(min(m4.s0, m4.s1), min(m4.s2, m4.s3));
-}
 inline uchar hmax16(V16 v) {
     const uchar8 m8 = max(v.lo, v.hi);
     const uchar4 m4 = max(m8.lo, m8.hi);
@@ -459,31 +421,29 @@ inline uchar hmax16(V16 v) {
 #endif
 
 // xy_bytes: one work-item per z-slice of the voxels, as xy_slices_seq: each row's x transform
-// by doubling, then the forward y step from the row before, into the local copy of the slice
-// (`slice`, rows of X64 = X rounded up to 64 bytes between 16 bytes of T_MAX each side), then
-// the backward y sweep there, writing w8. A row is X64 long: the bytes past X start at T_MAX,
-// so they only relay values between real voxels at no less than their distance (in L1 and
-// L-inf alike), and leave those exact. A row without solids is T_MAX throughout; one with at
-// most 8 solids per 64 bytes on average takes row_ramps64; others the doubling, which stops
-// once the row's largest value is at most 2s after the step s (every offset left to consider
-// is at least 2s). CHEBYSHEV: the y steps take the least of the three voxels
-// above (below), as xy_slices_seq's KING_STEP. `scratch`: two rows of X64 with `pad` bytes of
-// T_MAX on both sides. It also clears flag[0] for the next kernel (the kernels run in order).
+// (row_scan64, in `line`: X64 = X rounded up to 64 bytes), then the forward y step from the row
+// before, into the local copy of the slice (`slice`), then the backward y sweep there, writing
+// w8. `line` and the slice's rows have 16 bytes of T_MAX each side (L-inf's y steps read the
+// voxels beside a row's ends; the first row's step reads `line` itself). The bytes of a row
+// past X start at T_MAX, so they only relay values between real voxels at no less than their
+// distance (in L1 and L-inf alike), and leave those exact. A row without solids is T_MAX
+// throughout and skips the scan. CHEBYSHEV: the y steps take the least of the three voxels
+// above (below), as xy_slices_seq's KING_STEP. It also clears flag[0] for the next kernel (the
+// kernels run in order).
 __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restrict w8,
-                       __global uint* restrict flag, uint X, uint Y, uint pad,
-                       __local uchar* restrict scratch, __local uchar* restrict slice) {
+                       __global uint* restrict flag, uint X, uint Y, __local uchar* restrict line,
+                       __local uchar* restrict slice) {
     const size_t base = get_global_id(0) * (size_t)X * Y;
     const uint X64 = (X + 63) / 64 * 64;  // a whole number of 64-byte steps
     const uint S = X64 + 32;                // a slice row: 16 bytes of T_MAX, X64, 16 of T_MAX
     const uint full = X / 16 * 16;
     const uint full64 = X / 64 * 64;
-    const uint span = X64 + 2 * pad;
+    __local uchar* const row = line + 16;
     if (get_global_id(0) == 0) {
         flag[0] = 0;
     }
-    for (uint i = 0; i < 2 * span; ++i) {
-        scratch[i] = (uchar)T_MAX;
-    }
+    ST16((V16)T_MAX, line);
+    ST16((V16)T_MAX, row + X64);
     for (uint y = 0; y < Y; ++y) {
         ST16((V16)T_MAX, slice + y * S);
         ST16((V16)T_MAX, slice + y * S + 16 + X64);
@@ -491,59 +451,30 @@ __kernel void xy_bytes(__global const uchar* restrict vox, __global uchar* restr
     for (uint y = 0; y < Y; ++y) {
         __global const uchar* src = vox + base + (size_t)y * X;
         __local uchar* dst = slice + y * S + 16;
-        __local uchar* a = scratch + pad;
-        __local uchar* b = scratch + span + pad;
         uchar64_v any64 = 0;
         for (uint x = 0; x < full64; x += 64) {
             const uchar64_v v = LD64G(src + x);
-            ST64(min64(as_uchar64_v(v == (uchar64_v)0), (uchar64_v)T_MAX), a + x);
+            ST64(min64(as_uchar64_v(v == (uchar64_v)0), (uchar64_v)T_MAX), row + x);
             any64 = max64(any64, v);
         }
         V16 seen = max(max(any64.lo.lo, any64.lo.hi), max(any64.hi.lo, any64.hi.hi));
         for (uint x = full64; x < full; x += 16) {
             const V16 v = LD16G(src + x);
-            ST16(min(as_uchar16(v == (V16)0), (V16)T_MAX), a + x);
+            ST16(min(as_uchar16(v == (V16)0), (V16)T_MAX), row + x);
             seen = max(seen, v);
         }
         for (uint x = full; x < X64; ++x) {
             const uchar v = x < X ? src[x] : (uchar)0;
-            a[x] = v ? (uchar)0 : (uchar)T_MAX;
+            row[x] = v ? (uchar)0 : (uchar)T_MAX;
             seen.s0 = max(seen.s0, v);
         }
-        // Rows with solids: the ends of their runs of solids as bit masks (in b, free until
-        // the doubling), then ramps where the ends are few (at most 8 per 64 bytes on
-        // average), else the doubling.
-        uint k = 0;
         if (hmax16(seen) != 0) {
-            k = run_ends(a, (__local ulong_any*)b, X64 / 64);
-        }
-        if (k != 0 && k <= X64 / 8) {
-            row_ramps64(a, (__local const ulong_any*)b, X64 / 64);
-        } else if (k != 0) {
-            for (uint s = 1; s < X; s <<= 1) {
-                const uchar64_v step = (uchar64_v)(uchar)min(s, (uint)T_MAX);
-                __local const uchar* lo = a - s;
-                __local const uchar* hi = a + s;
-                uchar64_v top = 0;
-                for (uint x = 0; x < X64; x += 64) {
-                    const uchar64_v d =
-                        min64(LD64(a + x), add_sat64(min64(LD64(lo + x), LD64(hi + x)), step));
-                    ST64(d, b + x);
-                    top = top < d ? d : top;
-                }
-                __local uchar* t = a;
-                a = b;
-                b = t;
-                // Every value at most 2s (a compare and a mask test, not a horizontal max).
-                if (2 * s >= 255u || !any(as_ulong8(top > (uchar64_v)(uchar)(2 * s)) != 0)) {
-                    break;
-                }
-            }
+            row_scan64(row, X64 / 64);
         }
         // The forward y sweep's step from the row before (still in L1).
-        __local const uchar* prev = y > 0 ? dst - S : a;
+        __local const uchar* prev = y > 0 ? dst - S : row;
         for (uint x = 0; x < X64; x += 64) {
-            ST64(min64(LD64(a + x), add_sat64(Y_FROM64(prev, x), (uchar64_v)1)), dst + x);
+            ST64(min64(LD64(row + x), add_sat64(Y_FROM64(prev, x), (uchar64_v)1)), dst + x);
         }
     }
     for (uint y = Y; y-- > 0;) {

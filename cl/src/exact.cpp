@@ -806,11 +806,9 @@ std::optional<KernelLaunch> ExactManhattan::x_words() {
 bool ExactManhattan::add_byte_sweeps() {
     const auto& info = ctx_.info();
     const std::size_t plane = std::size_t{dims_.x} * dims_.y;
-    const std::size_t pad = row_pad(dims_.x);
     const std::size_t x64 = (std::size_t{dims_.x} + 63) / 64 * 64;  // xy_bytes' row length
-    const std::size_t rows = 2 * (x64 + 2 * pad);
     const std::size_t slice = (x64 + 32) * dims_.y;
-    if (rows + slice > info.local_mem || dims_.z > info.local_mem) {
+    if (x64 + 32 + slice > info.local_mem || dims_.z > info.local_mem) {
         return false;
     }
     const cl::Program bytes = build_byte_program(ctx_, format_, metric_, cap_);
@@ -822,9 +820,8 @@ bool ExactManhattan::add_byte_sweeps() {
     xy.setArg(2, flag_);
     xy.setArg(3, dims_.x);
     xy.setArg(4, dims_.y);
-    xy.setArg(5, static_cast<cl_uint>(pad));
-    xy.setArg(6, cl::Local(rows));
-    xy.setArg(7, cl::Local(slice));
+    xy.setArg(5, cl::Local(x64 + 32));
+    xy.setArg(6, cl::Local(slice));
     stages_.push_back({"xy_bytes", xy, cl::NDRange(dims_.z), cl::NDRange(1)});
     path_.push_back("xy_bytes");
     if (metric_ == Metric::chebyshev) {

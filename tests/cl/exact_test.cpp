@@ -111,8 +111,9 @@ TEST(ExactManhattan, ByteSweepsWidenFrom255) {
     xyz.set(0, 0, 0, 1);
     xyz.set(89, 89, 89, 1);
     expect_exact(xyz, Palette(), "corners 267 apart");
-    // Rows of 1024 voxels or more with at most 16 solids take ramps in the byte sweeps: here
-    // with every distance below 255, so that no format falls back to the wide sweeps.
+    // Rows of 1024 voxels or more with few solids: the byte sweeps' scans carry distances
+    // across 64-byte steps, every distance below 255, so that no format falls back to the
+    // wide sweeps.
     World ramps(Dims{1030, 4, 2});
     for (std::uint32_t z = 0; z < 2; ++z) {
         for (std::uint32_t y = 0; y < 4; ++y) {
@@ -627,16 +628,17 @@ TEST(ExactChebyshevSweeps, RoutedByLayout) {
         std::invalid_argument);
 }
 
-// The CPU layout's x pass: rows with no solid, with up to 16 solids (row_ramps: runs of
-// solids, solids at the row's ends), around the byte sweeps' ramp limit (8 solids per 64
-// bytes of the row rounded up to 64) and with more (doubling steps that stop early: runs of 5
-// solids 5 apart), a row of solids on both sides of every 64-byte step's edge, in rows of
-// lengths around the 16-voxel blocks, for L1 (unsigned and signed) and L-inf.
+// The CPU layout's x pass: rows with no solid, with up to 16 solids (the wide sweeps'
+// row_ramps: runs of solids, solids at the row's ends), with 8 and 16 solids per 64 bytes of
+// the row rounded up to 64 and with more (doubling steps that stop early: runs of 5 solids 5
+// apart), a row of solids on both sides of every 64-byte step's edge (the byte sweeps' scans
+// carry across it), in rows of lengths around the 16-voxel blocks, for L1 (unsigned and
+// signed) and L-inf.
 World rows_world(std::uint32_t X, std::uint32_t seed) {
     std::mt19937_64 rng(seed);
-    const std::uint32_t ramp_limit = (X + 63) / 64 * 8;
+    const std::uint32_t eight_per_step = (X + 63) / 64 * 8;
     const std::uint32_t counts[] = {
-        0, 1, 2, 15, 16, 17, ramp_limit, ramp_limit + 1, 40, ramp_limit * 2, X / 2, X};
+        0, 1, 2, 15, 16, 17, eight_per_step, eight_per_step + 1, 40, eight_per_step * 2, X / 2, X};
     World w(Dims{X, static_cast<std::uint32_t>(std::size(counts)) + 3, 3});
     for (std::uint32_t z = 0; z < 3; ++z) {
         for (std::uint32_t r = 0; r < std::size(counts); ++r) {
