@@ -409,38 +409,31 @@ inline ulong zero_bits64(uchar64_v a) {
     return as_ulong(__builtin_convertvector((bits * 0x0101010101010101UL) >> 56, uchar8));
 #endif
 }
-inline void row_scan64(__local uchar* restrict a, uint n) {
-    uchar carry = (uchar)T_MAX;  // the value just before the step
-    for (uint j = 0; j < n; ++j) {
-        uchar64_v v = LD64(a + 64 * j);
-        const ulong solid = zero_bits64(v);
-        if (solid == ~0UL) {
-            carry = 0;
-            continue;
-        } else if (solid != 0) {
-            v = scan_up64(v);
-        } else if (carry >= (uchar)T_MAX) {
-            continue;
-        }
-        v = min64(v, add_sat64(IOTA64 + (uchar64_v)1, (uchar64_v)carry));
-        carry = v[63];
-        ST64(v, a + 64 * j);
+// One step of row_scan64 at p, forward from the carry before it (down: backward from the one
+// after it); returns the carry for the next step.
+inline uchar scan_step64(__local uchar* restrict p, uchar carry, bool down) {
+    uchar64_v v = LD64(p);
+    const ulong solid = zero_bits64(v);
+    if (solid == ~0UL) {
+        return 0;
     }
-    carry = (uchar)T_MAX;  // the value just after the step
+    if (solid != 0) {
+        v = down ? scan_down64(v) : scan_up64(v);
+    } else if (carry >= (uchar)T_MAX) {
+        return carry;
+    }
+    v = min64(v, add_sat64((down ? RIOTA64 : IOTA64) + (uchar64_v)1, (uchar64_v)carry));
+    ST64(v, p);
+    return down ? v[0] : v[63];
+}
+inline void row_scan64(__local uchar* restrict a, uint n) {
+    uchar carry = (uchar)T_MAX;
+    for (uint j = 0; j < n; ++j) {
+        carry = scan_step64(a + 64 * j, carry, false);
+    }
+    carry = (uchar)T_MAX;
     for (uint j = n; j-- > 0;) {
-        uchar64_v v = LD64(a + 64 * j);
-        const ulong solid = zero_bits64(v);
-        if (solid == ~0UL) {
-            carry = 0;
-            continue;
-        } else if (solid != 0) {
-            v = scan_down64(v);
-        } else if (carry >= (uchar)T_MAX) {
-            continue;
-        }
-        v = min64(v, add_sat64(RIOTA64 + (uchar64_v)1, (uchar64_v)carry));
-        carry = v[0];
-        ST64(v, a + 64 * j);
+        carry = scan_step64(a + 64 * j, carry, true);
     }
 }
 
