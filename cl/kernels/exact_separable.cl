@@ -140,6 +140,32 @@ inline int l2_sep(int i, int u, GT gi, GT gu, ST s, int e) {
 }
 #endif
 
+#if METRIC == 0 && !UNIT
+// L1's Sep(i, u) with spacing (sep_tie's rule): SEP_NEVER or -SEP_NEVER where one site's
+// partial beyond the other (as fpart evaluates it) is never above the other's, else the floor
+// of the tie point (gu - gi + s (u + i)) / (2 s) moved by one where the partials at the
+// positions beside it say otherwise: with spacings far apart the partials' difference is a
+// few thousandths beside s (u + i) in the tens of thousands, and the float sum loses it.
+inline int l1_sep(int i, int u, GT gi, GT gu, ST s, int e) {
+    const GT ui = fpart(u, i, gi, s), iu = fpart(i, u, gu, s);
+    if (e ? gu > ui : gu >= ui) {
+        return SEP_NEVER;
+    }
+    if (e ? gi >= iu : gi > iu) {
+        return -SEP_NEVER;
+    }
+    int q = (int)floor_tie((gu - gi + s * ((ST)u + (ST)i)) / ((ST)2 * s), e);
+    const GT a = fpart(q + 1, i, gi, s), b = fpart(q + 1, u, gu, s);
+    const GT c = fpart(q, i, gi, s), d = fpart(q, u, gu, s);
+    if (e ? a < b : a <= b) {
+        ++q;
+    } else if (e ? c >= d : c > d) {
+        --q;
+    }
+    return q;
+}
+#endif
+
 // Sep(i, u) for i < u: the last x at which site i is at least as near as site u (u is
 // strictly nearer beyond it), or with e (u wins their ties, KEYED) the last x at which i is
 // strictly nearer; SEP_NEVER when u is never nearer, -SEP_NEVER when it always is.
@@ -180,23 +206,15 @@ inline int sep_tie(int i, int u, GT gi, GT gu, ST s, int e) {
 #endif
 #elif METRIC == 2
     return l2_sep(i, u, gi, gu, s, e);
+#elif METRIC == 0
+    return l1_sep(i, u, gi, gu, s, e);
 #else
     const ST fi = (ST)i, fu = (ST)u;
-#if METRIC == 0
-    if (e ? gu > gi + s * (fu - fi) : gu >= gi + s * (fu - fi)) {
-        return SEP_NEVER;
-    }
-    if (e ? gi >= gu + s * (fu - fi) : gi > gu + s * (fu - fi)) {
-        return -SEP_NEVER;
-    }
-    return (int)floor_tie((gu - gi + s * (fu + fi)) / ((ST)2 * s), e);
-#else
     const int mid = floor_div(i + u - e, 2);
     if (e ? gi < gu : gi <= gu) {
         return max((int)min(floor_tie(fi + gu / s, e), (ST)SEP_NEVER), mid);
     }
     return min((int)max(floor_tie(fu - gi / s, e), (ST)-SEP_NEVER), mid);
-#endif
 #endif
 }
 

@@ -900,6 +900,37 @@ TEST(ExactSeparable, LongLinesWithSpacingMatchTheReference) {
     }
 }
 
+// Spacings a million apart: an L1 separator's tie point (gu - gi + s (u + i)) / (2 s) sums the
+// partials' difference (thousandths) with s (u + i) (tens of thousands), whose float sum loses
+// it, so that its floor alone gave a z position to the farther of two sites (1000.010 for
+// 1000.009 below). Every metric, both layouts, f32 and f64, signed too.
+TEST(ExactSeparable, SpacingsOfFarApartScales) {
+    World pair(Dims{20, 1, 21});
+    pair.set(0, 0, 18, 1);
+    pair.set(19, 0, 20, 1);
+    std::mt19937_64 rng(1357);
+    const World worlds[] = {pair, scene_random(Dims{71, 53, 37}, 0.0005, rng()),
+                            scene_random(Dims{33, 40, 45}, 0.01, rng())};
+    for (const Spacing& sp : {Spacing{1e-3, 1.0, 1e3}, Spacing{1e3, 1e-3, 1.0}}) {
+        for (std::size_t i = 0; i < std::size(worlds); ++i) {
+            for (Metric m : kMetrics) {
+                for (Layout layout : kLayouts) {
+                    for (bool sgn : {false, true}) {
+                        for (Format f : {Format::f32, Format::f64}) {
+                            const auto o = options(m, sp, sgn, f, layout);
+                            expect_matches(worlds[i], Palette(), o, reference(worlds[i], o),
+                                           "far apart scales #" + std::to_string(i));
+                        }
+                    }
+                    if (::testing::Test::HasFailure()) {
+                        return;
+                    }
+                }
+            }
+        }
+    }
+}
+
 TEST(ExactSeparable, StackedBlocksTakeTheirOwnZLines) {
     // A z period (a sparse field's batch of blocks stacked along z): every block's field is
     // the field of that block alone, byte for byte, its borders and bounds at its own z ends;
