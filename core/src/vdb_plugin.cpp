@@ -109,13 +109,15 @@ openvdb::CoordBBox solid_box(const OpenGrid& g, const std::string& file) {
     if (box.empty()) {
         throw InputError(where + " has no active voxels");
     }
-    const openvdb::Coord n = box.dim();
+    // In 64 bits: CoordBBox::dim() wraps around in Int32 for voxels 2^31 or more apart.
+    std::int64_t n[3];
     for (int a = 0; a < 3; ++a) {
-        if (n[a] > static_cast<openvdb::Int32>(kVoxMaxSceneAxis)) {
-            throw InputError(where + " spans " + std::to_string(n[0]) + "x" + std::to_string(n[1]) +
-                             "x" + std::to_string(n[2]) + " voxels, over the limit of " +
-                             std::to_string(kVoxMaxSceneAxis) + " per axis");
-        }
+        n[a] = std::int64_t{box.max()[a]} - box.min()[a] + 1;
+    }
+    if (std::max({n[0], n[1], n[2]}) > std::int64_t{kVoxMaxSceneAxis}) {
+        throw InputError(where + " spans " + std::to_string(n[0]) + "x" + std::to_string(n[1]) +
+                         "x" + std::to_string(n[2]) + " voxels, over the limit of " +
+                         std::to_string(kVoxMaxSceneAxis) + " per axis");
     }
     return box;
 }

@@ -14,9 +14,11 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "test_util.hpp"
@@ -438,6 +440,21 @@ TEST(Vdb, UnusableFilesAreOneLineErrors) {
     write_grids(dir / "wide.vdb", {wide});
     expect_input_error([&] { read_vdb(dir / "wide.vdb", ""); },
                        {"over the limit of 1048576 per axis"});
+    // Voxels 2^31 or more apart, whose extent wraps around in OpenVDB's 32-bit Coord (it read
+    // as 3000000001 or as 0 voxels: then `info` allocated until it ran out of memory).
+    for (const auto& [lo, hi] : {std::pair{-1500000000, 1500000000},
+                                 std::pair{std::numeric_limits<openvdb::Int32>::min(),
+                                           std::numeric_limits<openvdb::Int32>::max()}}) {
+        auto wrap = openvdb::FloatGrid::create(0.0f);
+        wrap->setName("wrap");
+        wrap->tree().setValue(openvdb::Coord(lo, 0, 0), 1.0f);
+        wrap->tree().setValue(openvdb::Coord(hi, 0, 0), 1.0f);
+        write_grids(dir / "wrap.vdb", {wrap});
+        expect_input_error([&] { read_vdb(dir / "wrap.vdb", ""); },
+                           {"wrap.vdb", "over the limit of 1048576 per axis"});
+        expect_input_error([&] { describe_input(dir / "wrap.vdb", InputOptions{}, 16); },
+                           {"wrap.vdb", "over the limit of 1048576 per axis"});
+    }
     // Output: non-uniform spacing is refused; other extensions are not .vdb.
     expect_input_error(
         [&] {
