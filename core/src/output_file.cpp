@@ -48,8 +48,26 @@ std::string errno_text(int e) {
 // A file to create or replace through a temporary, or a device or FIFO written directly.
 enum class Target { file, direct };
 
+// `path` with the symbolic links at its end followed, dangling ones too (a relative target is
+// taken from the link's folder): the file that writing through it creates or replaces.
+fs::path follow_links(const fs::path& path) {
+    fs::path p = path;
+    for (int hops = 0; hops < 40; ++hops) {
+        std::error_code ec;
+        if (!fs::is_symlink(fs::symlink_status(p, ec))) {
+            return p;
+        }
+        const fs::path to = fs::read_symlink(p, ec);
+        if (ec) {
+            return p;
+        }
+        p = to.is_absolute() ? to : p.parent_path() / to;
+    }
+    throw InputError("cannot write '" + path.string() + "': too many levels of symbolic links");
+}
+
 // What writing `path` means (see output.hpp); InputError for a refused target. `resolved` is
-// the file to create or replace (the target of a symbolic link).
+// the file to create or replace (the target of a symbolic link, dangling or not).
 Target classify(const fs::path& path, std::string& resolved) {
     const std::string file = path.string();
     if (file.empty()) {
@@ -82,7 +100,9 @@ Target classify(const fs::path& path, std::string& resolved) {
         if (::access(resolved.c_str(), W_OK) != 0) {
             fail(file, "the existing file is not writable", errno);
         }
-    } else if (errno != ENOENT && errno != ENOTDIR) {
+    } else if (errno == ENOENT) {
+        resolved = follow_links(path).string();
+    } else if (errno != ENOTDIR) {
         fail(file, "cannot examine the path", errno);
     }
     fs::path dir = fs::path(resolved).parent_path();
@@ -198,9 +218,10 @@ void check_outputs(const std::vector<NamedPath>& outputs, const std::vector<Name
             k.ino = st.st_ino;
         }
         std::error_code ec;
-        k.path = fs::weakly_canonical(p, ec);
+        const fs::path file = fs::absolute(k.exists ? p : follow_links(p), ec);
+        k.path = fs::weakly_canonical(file, ec);
         if (ec) {
-            k.path = fs::absolute(p, ec).lexically_normal();
+            k.path = file.lexically_normal();
         }
         return k;
     };

@@ -102,6 +102,22 @@ TEST(OutputFile, FollowsASymbolicLinkAndKeepsIt) {
     EXPECT_EQ(names_in(dir.path()), (std::set<std::string>{"link.txt", "real.txt"}));
 }
 
+TEST(OutputFile, FollowsADanglingLinkBeforeAnyWork) {
+    // A link to a file not yet there: the file is created and the link kept; a link into a
+    // folder that does not exist is refused by the check before any work, as that folder.
+    TempDir dir;
+    fs::create_symlink("new.txt", dir / "link.txt");
+    check_output_path(dir / "link.txt");
+    write_output_file(dir / "link.txt", std::string("new"));
+    EXPECT_TRUE(fs::is_symlink(dir / "link.txt"));
+    EXPECT_EQ(text_of(dir / "new.txt"), "new");
+    EXPECT_EQ(names_in(dir.path()), (std::set<std::string>{"link.txt", "new.txt"}));
+    fs::create_symlink(dir / "no" / "x.npy", dir / "far.npy");
+    const std::string what = expect_throw<InputError>([&] { check_output_path(dir / "far.npy"); });
+    EXPECT_NE(what.find("folder '" + (dir / "no").string() + "' does not exist"), std::string::npos)
+        << what;
+}
+
 TEST(OutputFile, RefusesADirectoryBeforeWritingAnything) {
     TempDir dir;
     fs::create_directory(dir / "adir");
@@ -260,6 +276,20 @@ TEST(OutputFile, ChecksOutputsAgainstEachOtherAndTheInputs) {
     EXPECT_NE(what.find("is the input INPUT"), std::string::npos) << what;
     check_outputs({{"-o", dir / "o.npy"}, {"--json", dir / "o.json"}, {"--csv", ""}},
                   {{"INPUT", dir / "in.npy"}});
+    // A dangling link names the file that writing through it would create.
+    fs::create_symlink("f.npy", dir / "to_f.npy");
+    what = expect_throw<InputError>([&] {
+        check_outputs({{"-o", dir / "f.npy"}, {"--indices", dir / "to_f.npy"}}, {});
+    });
+    EXPECT_NE(what.find("-o and --indices name the same file"), std::string::npos) << what;
+    // The same with the output given relative to the working folder, as on a command line.
+    const fs::path cwd = fs::current_path();
+    fs::current_path(dir.path());
+    what = expect_throw<InputError>([&] {
+        check_outputs({{"-o", "f.npy"}, {"--indices", "to_f.npy"}}, {});
+    });
+    fs::current_path(cwd);
+    EXPECT_NE(what.find("-o and --indices name the same file"), std::string::npos) << what;
     const fs::path null = dir / "null";
     if (make_char_device(null, 1, 3).empty()) {
         check_outputs({{"-o", null}, {"--indices", null}}, {});
