@@ -8,9 +8,10 @@ on any scheduler (threads, processes, a ``distributed`` cluster).
 Two exact schemes:
 
 * Bounded fields (``distance_transform(..., max_distance=D)``): each block is computed on the
-  OpenCL device with a halo of ``ceil(D / sampling)`` voxels per axis (``map_overlap``; Dask
-  merges blocks smaller than the halo first). A voxel's value depends only on the solids
-  within D, which the halo holds, and everything beyond D saturates at D.
+  OpenCL device with a halo of ``ceil(D / sampling)`` voxels per axis, at most the axis's
+  length (``map_overlap``; Dask merges blocks smaller than the halo first). A voxel's value
+  depends only on the solids within D, which the halo holds, and everything beyond D
+  saturates at D.
 * Unbounded fields (``distance_transform`` without ``max_distance``,
   ``distance_transform_edt`` and ``distance_transform_cdt``): the separable transform on the
   host in slabs along axis 0 (a chunk row of blocks spanning every other axis, about 640
@@ -294,7 +295,8 @@ def distance_transform(world, metric="manhattan", signed=False, sampling=None,
         bound = float(max_distance)
         if not (math.isfinite(bound) and bound > 0):
             raise ValueError(f"max_distance must be a positive number, not {max_distance}")
-        depth = {a: int(math.ceil(bound / spacing[a])) for a in range(3)}
+        # Within D of a voxel along an axis; no more than the axis (a halo past it is refused).
+        depth = {a: min(int(math.ceil(bound / spacing[a])), w.shape[a]) for a in range(3)}
         # Checks every argument once, eagerly, on a one-voxel world.
         _core.distance_transform(np.zeros((1, 1, 1), np.uint8), metric, signed, sampling,
                                  False, bound, fmt, "exact", device)

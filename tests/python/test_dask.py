@@ -54,6 +54,20 @@ def test_bounded_equals_one_piece_with_halos_larger_than_blocks(chunks):
         np.testing.assert_array_equal(got, want, err_msg=f"{metric} {bound} {chunks}")
 
 
+def test_bounded_halos_longer_than_the_axes():
+    # ceil(D / sampling) past an axis's length: the halo is the whole axis (map_overlap refuses
+    # a depth larger than the array).
+    w = world(0.005, 4)
+    dw = da.from_array(w, chunks=(8, 19, 10))
+    for metric, bound, sampling in (("euclidean", 30, None), ("manhattan", 20, (1, 2, 0.5)),
+                                    ("chebyshev", 25, (0.3, 1.7, 2.9))):
+        got = threaded(vd.distance_transform(dw, metric=metric, max_distance=bound,
+                                             sampling=sampling))
+        want = voxfield.distance_transform(w, metric=metric, max_distance=bound,
+                                           sampling=sampling)
+        np.testing.assert_array_equal(got, want, err_msg=f"{metric} {bound}")
+
+
 @pytest.mark.parametrize("chunks", CHUNKS)
 def test_ndimage_functions_equal_one_piece(chunks):
     a = world(0.9, 3)
