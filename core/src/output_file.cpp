@@ -6,8 +6,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <random>
 #include <string>
 #include <system_error>
@@ -42,6 +44,37 @@ std::string errno_text(int e) {
             throw InputError(message);
         default:
             throw OutputError(message);
+    }
+}
+
+// The temporaries of every batch not yet renamed or removed, for remove_output_temporaries (a
+// signal handler): each name is written once into a slot of its own that is never reused, and
+// published by its flag after, so that a handler never reads a name being written. A name
+// longer than a slot, or past the last slot, goes untracked (the batch still removes it).
+constexpr std::size_t kTrackedSlots = 256;
+constexpr std::size_t kTrackedName = 1024;
+char g_tracked_names[kTrackedSlots][kTrackedName];
+std::atomic<bool> g_tracked[kTrackedSlots];
+std::atomic<std::size_t> g_tracked_used{0};
+
+void track_temporary(const std::string& tmp) {
+    if (tmp.size() >= kTrackedName) {
+        return;
+    }
+    const std::size_t i = g_tracked_used.fetch_add(1);
+    if (i < kTrackedSlots) {
+        std::memcpy(g_tracked_names[i], tmp.c_str(), tmp.size() + 1);
+        g_tracked[i].store(true);
+    }
+}
+
+void untrack_temporary(const std::string& tmp) {
+    const std::size_t n = std::min(g_tracked_used.load(), kTrackedSlots);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (g_tracked[i].load() && tmp == g_tracked_names[i]) {
+            g_tracked[i].store(false);
+            return;
+        }
     }
 }
 
@@ -184,6 +217,7 @@ int create_temporary(const std::string& file, const std::string& target, std::st
         tmp = (dir / leaf).string();
         const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
         if (fd >= 0) {
+            track_temporary(tmp);
             return fd;
         }
         if (errno != EEXIST || attempt > 100) {
@@ -261,6 +295,7 @@ OutputBatch::~OutputBatch() {
     }
     for (const auto& [tmp, target] : pending_) {
         ::unlink(tmp.c_str());
+        untrack_temporary(tmp);
     }
 }
 
@@ -366,7 +401,17 @@ void OutputBatch::commit() {
         } else if (::rename(tmp.c_str(), target.c_str()) != 0) {
             fail(target, "rename failed", errno);
         }
+        untrack_temporary(tmp);
         pending_.erase(pending_.begin());
+    }
+}
+
+void remove_output_temporaries() noexcept {
+    const std::size_t n = std::min(g_tracked_used.load(), kTrackedSlots);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (g_tracked[i].load()) {
+            ::unlink(g_tracked_names[i]);
+        }
     }
 }
 

@@ -2,10 +2,14 @@
 // before any work, nothing left behind by a failed run, special files written directly or
 // refused, never replaced. Special files are made in a temporary folder (mkfifo, mknod c 1 7
 // for a /dev/full-like device); device nodes need root, else those tests are skipped.
+#include <signal.h>
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
 
+#include <chrono>
+#include <csignal>
 #include <future>
+#include <thread>
 
 #include "cli_test_util.hpp"
 #include "voxfield/core/npy.hpp"
@@ -86,6 +90,50 @@ TEST_F(OutputCli, AFifoGetsTheFieldAndStaysAFifo) {
     struct stat st {};
     ASSERT_EQ(::lstat(in("pipe").c_str(), &st), 0);
     EXPECT_TRUE(S_ISFIFO(st.st_mode));
+}
+
+// Ctrl-C or SIGTERM while a generate's outputs are reserved (their temporaries made while the
+// device is set up, before the kernels' many repeats): the signal still ends the process, and
+// its handler removes the temporaries, which no destructor would.
+TEST_F(OutputCli, ASignalLeavesNoTemporaryBehind) {
+    write_npy(dir / "big.npy", NpyType::u8, Dims{64, 64, 64}, std::vector<std::uint8_t>(1 << 18));
+    for (const int sig : {SIGINT, SIGTERM}) {
+        SCOPED_TRACE(sig);
+        std::vector<std::string> args = {kExe.string(), "generate",  in("big.npy"), "-o",
+                                         in("f.npy"),   "--indices", in("i.npy"),   "--repeat",
+                                         "100000",      "--device",  "cpu"};
+        std::vector<char*> argv;
+        for (auto& a : args) {
+            argv.push_back(a.data());
+        }
+        argv.push_back(nullptr);
+        posix_spawn_file_actions_t fa;
+        posix_spawn_file_actions_init(&fa);
+        posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+        posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
+        pid_t pid = 0;
+        ASSERT_EQ(posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ), 0);
+        posix_spawn_file_actions_destroy(&fa);
+        // Both temporaries exist once the kernels repeat (at most a minute on PoCL).
+        auto temporaries = [&] {
+            std::size_t n = 0;
+            for (const auto& name : list_dir(dir)) {
+                n += name.find(".tmp-") != std::string::npos;
+            }
+            return n;
+        };
+        for (int i = 0; i < 600 && temporaries() < 2; ++i) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        }
+        EXPECT_EQ(temporaries(), 2u);
+        ::kill(pid, sig);
+        int status = 0;
+        while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+        }
+        ASSERT_TRUE(WIFSIGNALED(status));
+        EXPECT_EQ(WTERMSIG(status), sig);
+        EXPECT_EQ(list_dir(dir), (std::set<std::string>{"big.npy", "w.npy"}));
+    }
 }
 
 // The indices are streamed from the device a slab at a time: a target that fails part-way

@@ -1,20 +1,37 @@
 // `voxfield`: the command-line front end (viewer/cli, the only code that prints or exits).
+#include <csignal>
 #include <cstdio>
 #include <iostream>
 
 #include "cli_util.hpp"
 #include "voxfield/cl/runtime.hpp"
 #include "voxfield/core/error.hpp"
+#include "voxfield/core/output.hpp"
 #include "voxfield/vk/context.hpp"
+
+namespace {
+
+// Ctrl-C, SIGTERM or SIGHUP while outputs are being written: their temporaries are removed
+// (no destructor runs), then the signal ends the process as it would have.
+extern "C" void end_on_signal(int sig) {
+    voxfield::remove_output_temporaries();
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
     using namespace voxfield;
+    for (const int sig : {SIGINT, SIGTERM, SIGHUP}) {
+        std::signal(sig, end_on_signal);
+    }
     CLI::App app{"voxfield: fast, exact distance fields for voxel worlds on any OpenCL device"};
     app.require_subcommand(1);
     app.set_version_flag("--version", std::string("voxfield ") + cli::commit());
     std::vector<cli::Command> commands = {
         cli::add_devices(app), cli::add_generate(app), cli::add_replay(app), cli::add_simulate(app),
-        cli::add_bench(app),   cli::add_render(app),   cli::add_view(app), cli::add_info(app)};
+        cli::add_bench(app),   cli::add_render(app),   cli::add_view(app),   cli::add_info(app)};
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

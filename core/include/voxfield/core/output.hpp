@@ -87,6 +87,11 @@ class OutputBatch {
     std::vector<std::pair<std::string, int>> reserved_;
 };
 
+// Removes the temporaries of every OutputBatch alive (created, not yet renamed or removed):
+// for the executable's handler of a signal that ends the process (Ctrl-C, SIGTERM), which
+// runs no destructor. Async-signal-safe (unlink only).
+void remove_output_temporaries() noexcept;
+
 // One file written on its own: an OutputBatch of one, committed.
 void write_output_file(const std::filesystem::path& path,
                        std::initializer_list<std::span<const std::uint8_t>> parts);
