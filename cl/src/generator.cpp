@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -117,6 +118,14 @@ GeneratorOptions resolve_options(const GeneratorOptions& options, Dims world) {
         std::ostringstream text;
         text << *o.max_distance;
         throw InputError("--max-distance must be a positive number, not " + text.str());
+    }
+    // The kernels and a .vdb's background hold the bound as a float.
+    if (o.max_distance && *o.max_distance > std::numeric_limits<float>::max()) {
+        std::ostringstream text;
+        text << *o.max_distance;
+        throw InputError("--max-distance " + text.str() +
+                         " is beyond float range (at most 3.4e38); leave it out for an "
+                         "unbounded field");
     }
     if (o.max_distance && o.algorithm != Algorithm::exact) {
         throw InputError("--max-distance: " + name +

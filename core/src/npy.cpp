@@ -391,7 +391,7 @@ NpyReader::NpyReader(const std::filesystem::path& path) : file_(std::make_unique
     const bool is_float =
         found != nullptr && (found->type == NpyType::f32 || found->type == NpyType::f64);
     if (found != nullptr && !one_byte && !is_float && order == '>') {
-        throw InputError(file + ": dtype '" + d + "' (" + found->name +
+        throw InputError(file + ": dtype '" + printable(d) + "' (" + found->name +
                          ", big-endian) is not supported: only little-endian arrays are read "
                          "(save it with a.astype('<" +
                          kind + "'))");
@@ -401,7 +401,8 @@ NpyReader::NpyReader(const std::filesystem::path& path) : file_(std::make_unique
     if (found == nullptr || !order_ok || (is_float && order == '>')) {
         const bool ordered = !d.empty() && std::string("<>|=").find(d[0]) != std::string::npos;
         const std::string name = numpy_name(ordered ? d.substr(1) : d);
-        throw InputError(file + ": dtype '" + d + "'" + (name.empty() ? "" : " (" + name + ")") +
+        throw InputError(file + ": dtype '" + printable(d) + "'" +
+                         (name.empty() ? "" : " (" + name + ")") +
                          " is not supported: " + kWorldDtypes);
     }
     type_ = found->type;

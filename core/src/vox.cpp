@@ -45,21 +45,9 @@ std::uint32_t u32_at(const std::vector<std::uint8_t>& b, std::size_t off) {
            (static_cast<std::uint32_t>(b[off + 3]) << 24);
 }
 
-// A chunk id for messages: printable characters as-is, anything else as \xNN.
+// A chunk id for messages (printable).
 std::string id_text(const std::vector<std::uint8_t>& b, std::size_t off) {
-    std::string s;
-    for (std::size_t k = 0; k < 4; ++k) {
-        const unsigned char c = b[off + k];
-        if (c >= 0x20 && c < 0x7f && c != '\'' && c != '\\') {
-            s += static_cast<char>(c);
-        } else {
-            const char* hex = "0123456789abcdef";
-            s += "\\x";
-            s += hex[c >> 4];
-            s += hex[c & 15];
-        }
-    }
-    return s;
+    return printable(std::string_view(reinterpret_cast<const char*>(b.data() + off), 4));
 }
 
 struct Chunk {
@@ -270,7 +258,7 @@ std::array<std::int32_t, 9> decode_rotation(const std::string& text, Reader& rd)
     }
     const std::uint32_t c0 = v & 3, c1 = (v >> 2) & 3;
     if (!ok || v > 127 || c0 > 2 || c1 > 2 || c0 == c1) {
-        rd.fail("invalid rotation '_r' = '" + text +
+        rd.fail("invalid rotation '_r' = '" + printable(text) +
                 "' (a packed rotation byte 0..127 whose rows "
                 "name two different columns 0..2)");
     }
@@ -308,7 +296,7 @@ std::array<std::int64_t, 3> decode_translation(const std::string& text, Reader& 
         ++pos;
     }
     if (!ok || pos != text.size()) {
-        rd.fail("invalid translation '_t' = '" + text + "' (three 32-bit integers)");
+        rd.fail("invalid translation '_t' = '" + printable(text) + "' (three 32-bit integers)");
     }
     return t;
 }

@@ -69,6 +69,14 @@ TEST_F(ValuesCli, ABoundThatRoundsToZeroAndIndicesWithABoundAreRefused) {
     EXPECT_EQ(r.code, 0) << describe(r);
 }
 
+TEST_F(ValuesCli, EmptyValuesAndABoundBeyondFloatRangeAreRefused) {
+    // An empty value is not the option left out.
+    expect_refused({"--max-distance", ""}, "--max-distance: an empty value");
+    expect_refused({"--spacing", ""}, "--spacing: an empty value");
+    // A .vdb's background and the kernels hold the bound as a float.
+    expect_refused({"--max-distance", "1e40", "--format", "f64"}, "beyond float range");
+}
+
 TEST_F(ValuesCli, ADeviceIndexBeyondTheIntegersDoesNotWrapAround) {
     for (const char* index : {"18446744073709551616", "18446744073709551617", "99"}) {
         const RunResult r = run({"generate", in("w.npy"), "-o", in("o.npy"), "--device", index});

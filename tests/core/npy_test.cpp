@@ -212,6 +212,13 @@ TEST(Npy, Rejections) {
                      make_npy(dict(">u2", "False", "(2, 2, 2)"), 16),
                      {"be2.npy", "'>u2'", "big-endian"}});
     cases.push_back({"be4.npy", make_npy(dict(">u4", "False", "(2, 2, 2)"), 32), {"big-endian"}});
+    // A descr's control characters and NUL quoted, so that the message is one whole line.
+    cases.push_back({"nl.npy",
+                     make_npy(dict("x\ny", "False", "(2, 2, 2)"), 8),
+                     {"dtype 'x\\x0ay' is not supported"}});
+    cases.push_back({"nul.npy",
+                     make_npy(dict(std::string("|u1\0", 4), "False", "(2, 2, 2)"), 8),
+                     {"dtype '|u1\\x00' is not supported"}});
     cases.push_back({"fortran.npy",
                      make_npy(dict("|u1", "True", "(2, 2, 2)"), 8),
                      {"fortran.npy", "fortran_order"}});

@@ -1014,6 +1014,7 @@ TEST(VoxScene, CorruptGraphsAreOneLineErrors) {
         check("huge.vox", sb, {"2x1048577x2", "over the limit of 1048576 per axis"});
     }
     // Bad rotation and translation strings, written by hand.
+    int case_number = 0;
     for (const auto& [r, t, part] :
          std::vector<std::array<std::string, 3>>{{"3", "0 0 0", "invalid rotation '_r' = '3'"},
                                                  {"5", "0 0 0", "invalid rotation '_r' = '5'"},
@@ -1022,7 +1023,10 @@ TEST(VoxScene, CorruptGraphsAreOneLineErrors) {
                                                  {"4", "1 2", "invalid translation '_t' = '1 2'"},
                                                  {"4", "1 2 3 4", "invalid translation"},
                                                  {"4", "1 2 99999999999", "invalid translation"},
-                                                 {"4", "1 - 3", "invalid translation"}}) {
+                                                 {"4", "1 - 3", "invalid translation"},
+                                                 // File text is quoted on one line.
+                                                 {"1\n", "0 0 0", "'_r' = '1\\x0a'"},
+                                                 {"4", "1\n2\n3", "'_t' = '1\\x0a2\\x0a3'"}}) {
         SceneBuilder sb;
         std::vector<std::uint8_t> c;
         put_u32(c, 0);
@@ -1034,7 +1038,7 @@ TEST(VoxScene, CorruptGraphsAreOneLineErrors) {
         put_dict(c, {{"_r", r}, {"_t", t}});
         sb.node_chunk("nTRN", c);
         sb.shape(1, 0);
-        check("rt" + r + ".vox", sb, {"chunk 'nTRN'", part});
+        check("rt" + std::to_string(case_number++) + ".vox", sb, {"chunk 'nTRN'", part});
     }
     // Truncated node chunks: every cut of a valid nTRN's content.
     SceneBuilder whole;

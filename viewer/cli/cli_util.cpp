@@ -156,12 +156,18 @@ void add_metric_flags(CLI::App& app, GeneratorFlags& flags) {
     app.add_option("--metric", flags.metric, metric_help)
         ->check(CLI::IsMember(metric_names()))
         ->capture_default_str();
+    // An empty value is refused, not taken as the option left out.
+    const CLI::Validator given(
+        [](const std::string& v) { return v.empty() ? std::string("an empty value") : ""; }, "",
+        "given");
     app.add_option("--spacing", flags.spacing,
                    "Voxel size per world axis X,Y,Z (positive; default 1,1,1); each axis offset "
-                   "is scaled by it before the metric (SciPy's sampling, in x,y,z order)");
+                   "is scaled by it before the metric (SciPy's sampling, in x,y,z order)")
+        ->check(given);
     app.add_option("--max-distance", flags.max_distance,
                    "Bounded field: exact up to D, D beyond (a positive number, in the units of "
-                   "--spacing); an edit's update then touches only voxels within D of it");
+                   "--spacing); an edit's update then touches only voxels within D of it")
+        ->check(given);
 }
 
 void add_signed_flag(CLI::App& app, GeneratorFlags& flags) {

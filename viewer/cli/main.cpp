@@ -2,6 +2,8 @@
 #include <csignal>
 #include <cstdio>
 #include <iostream>
+#include <string>
+#include <string_view>
 
 #include "cli_util.hpp"
 #include "voxfield/cl/runtime.hpp"
@@ -17,6 +19,18 @@ extern "C" void end_on_signal(int sig) {
     voxfield::remove_output_temporaries();
     std::signal(sig, SIG_DFL);
     std::raise(sig);
+}
+
+// An error on one line, whatever text a message took from a file: control characters (a
+// newline, a tab) as \xNN.
+std::string one_line(const char* what) {
+    std::string s;
+    for (const char* p = what; *p != '\0'; ++p) {
+        const auto c = static_cast<unsigned char>(*p);
+        s += c < 0x20 || c == 0x7f ? voxfield::printable(std::string_view(p, 1))
+                                   : std::string(1, *p);
+    }
+    return s;
 }
 
 }  // namespace
@@ -41,7 +55,7 @@ int main(int argc, char** argv) {
     } catch (const CLI::CallForVersion& e) {
         return app.exit(e);
     } catch (const CLI::ParseError& e) {
-        std::cerr << "voxfield: " << e.what() << " (see --help)\n";
+        std::cerr << "voxfield: " << one_line(e.what()) << " (see --help)\n";
         return 2;
     }
     try {
@@ -52,25 +66,25 @@ int main(int argc, char** argv) {
         }
         return 2;
     } catch (const InputError& e) {
-        std::cerr << "voxfield: " << e.what() << '\n';
+        std::cerr << "voxfield: " << one_line(e.what()) << '\n';
         return 2;
     } catch (const ocl::BuildError& e) {
-        std::cerr << "voxfield: " << e.what() << '\n';
+        std::cerr << "voxfield: " << one_line(e.what()) << '\n';
         return 1;
     } catch (const ocl::ClError& e) {
-        std::cerr << "voxfield: device failure: " << e.what() << '\n';
+        std::cerr << "voxfield: device failure: " << one_line(e.what()) << '\n';
         return 1;
     } catch (const vk::VkError& e) {
-        std::cerr << "voxfield: Vulkan device failure: " << e.what() << '\n';
+        std::cerr << "voxfield: Vulkan device failure: " << one_line(e.what()) << '\n';
         return 1;
     } catch (const vk::DeviceSelectionError& e) {
-        std::cerr << "voxfield: " << e.what() << '\n';
+        std::cerr << "voxfield: " << one_line(e.what()) << '\n';
         return 2;  // as OpenCL's DeviceSelectionError: no device (driver) serves the request
     } catch (const std::bad_alloc&) {
         std::cerr << "voxfield: out of host memory\n";
         return 1;
     } catch (const std::exception& e) {
-        std::cerr << "voxfield: " << e.what() << '\n';
+        std::cerr << "voxfield: " << one_line(e.what()) << '\n';
         return 1;
     }
 }
