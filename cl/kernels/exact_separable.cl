@@ -118,34 +118,38 @@ inline ST l2_tie_point(int i, int u, GT gi, GT gu, ST s) {
 }
 #endif
 
-#if METRIC == 2 && !UNIT
-// L2's Sep(i, u) with spacing (sep_tie's rule): the floor of the tie point, then moved by one
-// where site i's partial at the position after it, as fpart evaluates it, is still at least as
-// near (strictly with e), or at that floor is not: a tie point thousands of positions along the
-// line has only a few bits below the point in float, so that its floor alone could give a
-// position to the farther site by far more than the partials' rounding.
-inline int l2_sep(int i, int u, GT gi, GT gu, ST s, int e) {
-    const ST v = clamp(floor_tie(l2_tie_point(i, u, gi, gu, s), e), (ST)-4, (ST)SEP_NEVER);
-    int q = (int)v;
-    if (q > -4 && q < SEP_NEVER) {
-        const GT a = fpart(q + 1, i, gi, s), b = fpart(q + 1, u, gu, s);
-        const GT c = fpart(q, i, gi, s), d = fpart(q, u, gu, s);
-        if (e ? a < b : a <= b) {
-            ++q;
-        } else if (e ? c >= d : c > d) {
-            --q;
-        }
+#if !UNIT
+// A separator q of sites i < u from a float tie point, checked against the partials as fpart
+// evaluates them: moved up where site i is still at least as near at q + 1 (strictly with e),
+// down where it is not at q. A tie point's floor can be off by one where the float arithmetic
+// before it lost bits the partials keep (sep_tie's rule).
+inline int sep_checked(int q, int i, int u, GT gi, GT gu, ST s, int e) {
+    const GT a = fpart(q + 1, i, gi, s), b = fpart(q + 1, u, gu, s);
+    const GT c = fpart(q, i, gi, s), d = fpart(q, u, gu, s);
+    if (e ? a < b : a <= b) {
+        return q + 1;
     }
-    return q;
+    return (e ? c >= d : c > d) ? q - 1 : q;
+}
+#endif
+
+#if METRIC == 2 && !UNIT
+// L2's Sep(i, u) with spacing (sep_tie's rule): the floor of the tie point, sep_checked: a tie
+// point thousands of positions along the line has only a few bits below the point in float,
+// so that its floor alone could give a position to the farther site by far more than the
+// partials' rounding.
+inline int l2_sep(int i, int u, GT gi, GT gu, ST s, int e) {
+    const int q = (int)clamp(floor_tie(l2_tie_point(i, u, gi, gu, s), e), (ST)-4, (ST)SEP_NEVER);
+    return q > -4 && q < SEP_NEVER ? sep_checked(q, i, u, gi, gu, s, e) : q;
 }
 #endif
 
 #if METRIC == 0 && !UNIT
 // L1's Sep(i, u) with spacing (sep_tie's rule): SEP_NEVER or -SEP_NEVER where one site's
 // partial beyond the other (as fpart evaluates it) is never above the other's, else the floor
-// of the tie point (gu - gi + s (u + i)) / (2 s) moved by one where the partials at the
-// positions beside it say otherwise: with spacings far apart the partials' difference is a
-// few thousandths beside s (u + i) in the tens of thousands, and the float sum loses it.
+// of the tie point (gu - gi + s (u + i)) / (2 s), sep_checked: with spacings far apart the
+// partials' difference is a few thousandths beside s (u + i) in the tens of thousands, and
+// the float sum loses it.
 inline int l1_sep(int i, int u, GT gi, GT gu, ST s, int e) {
     const GT ui = fpart(u, i, gi, s), iu = fpart(i, u, gu, s);
     if (e ? gu > ui : gu >= ui) {
@@ -154,15 +158,8 @@ inline int l1_sep(int i, int u, GT gi, GT gu, ST s, int e) {
     if (e ? gi >= iu : gi > iu) {
         return -SEP_NEVER;
     }
-    int q = (int)floor_tie((gu - gi + s * ((ST)u + (ST)i)) / ((ST)2 * s), e);
-    const GT a = fpart(q + 1, i, gi, s), b = fpart(q + 1, u, gu, s);
-    const GT c = fpart(q, i, gi, s), d = fpart(q, u, gu, s);
-    if (e ? a < b : a <= b) {
-        ++q;
-    } else if (e ? c >= d : c > d) {
-        --q;
-    }
-    return q;
+    const int q = (int)floor_tie((gu - gi + s * ((ST)u + (ST)i)) / ((ST)2 * s), e);
+    return sep_checked(q, i, u, gi, gu, s, e);
 }
 #endif
 

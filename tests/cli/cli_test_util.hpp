@@ -81,11 +81,10 @@ inline std::vector<std::string> split_lines(const std::string& text) {
 
 // Runs the binary with `args`; stdout/stderr go to files in `io_dir` (never the work folder,
 // so that the folder listing checks see only what voxfield wrote).
-inline RunResult run_voxfield(const std::vector<std::string>& args, const fs::path& io_dir) {
-    static int counter = 0;
-    ++counter;
-    const fs::path out_path = io_dir / ("stdout_" + std::to_string(counter));
-    const fs::path err_path = io_dir / ("stderr_" + std::to_string(counter));
+// Starts voxfield with `args`, stdin from /dev/null and stdout and stderr into the files
+// given; its pid, or 0 with `error` set.
+inline pid_t spawn_voxfield(const std::vector<std::string>& args, const fs::path& out_path,
+                            const fs::path& err_path, std::string& error) {
     std::vector<std::string> argv_s = {kExe.string()};
     argv_s.insert(argv_s.end(), args.begin(), args.end());
     std::vector<char*> argv;
@@ -102,9 +101,21 @@ inline RunResult run_voxfield(const std::vector<std::string>& args, const fs::pa
     pid_t pid = 0;
     const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
     posix_spawn_file_actions_destroy(&fa);
-    RunResult r;
     if (rc != 0) {
-        r.err = std::string("posix_spawn failed: ") + std::strerror(rc);
+        error = std::string("posix_spawn failed: ") + std::strerror(rc);
+        return 0;
+    }
+    return pid;
+}
+
+inline RunResult run_voxfield(const std::vector<std::string>& args, const fs::path& io_dir) {
+    static int counter = 0;
+    ++counter;
+    const fs::path out_path = io_dir / ("stdout_" + std::to_string(counter));
+    const fs::path err_path = io_dir / ("stderr_" + std::to_string(counter));
+    RunResult r;
+    const pid_t pid = spawn_voxfield(args, out_path, err_path, r.err);
+    if (pid == 0) {
         return r;
     }
     int status = 0;

@@ -99,21 +99,11 @@ TEST_F(OutputCli, ASignalLeavesNoTemporaryBehind) {
     write_npy(dir / "big.npy", NpyType::u8, Dims{64, 64, 64}, std::vector<std::uint8_t>(1 << 18));
     for (const int sig : {SIGINT, SIGTERM}) {
         SCOPED_TRACE(sig);
-        std::vector<std::string> args = {kExe.string(), "generate",  in("big.npy"), "-o",
-                                         in("f.npy"),   "--indices", in("i.npy"),   "--repeat",
-                                         "100000",      "--device",  "cpu"};
-        std::vector<char*> argv;
-        for (auto& a : args) {
-            argv.push_back(a.data());
-        }
-        argv.push_back(nullptr);
-        posix_spawn_file_actions_t fa;
-        posix_spawn_file_actions_init(&fa);
-        posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
-        posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
-        pid_t pid = 0;
-        ASSERT_EQ(posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ), 0);
-        posix_spawn_file_actions_destroy(&fa);
+        std::string error;
+        const pid_t pid = spawn_voxfield({"generate", in("big.npy"), "-o", in("f.npy"), "--indices",
+                                          in("i.npy"), "--repeat", "100000", "--device", "cpu"},
+                                         "/dev/null", "/dev/null", error);
+        ASSERT_NE(pid, 0) << error;
         // Both temporaries exist once the kernels repeat (at most a minute on PoCL).
         auto temporaries = [&] {
             std::size_t n = 0;
