@@ -126,6 +126,36 @@ TEST_F(OutputCli, ASignalLeavesNoTemporaryBehind) {
     }
 }
 
+// A signal its caller ignores (nohup's SIGHUP) stays ignored: the handler that removes the
+// temporaries is installed only where the signal would have ended the process.
+TEST_F(OutputCli, AnIgnoredSignalStaysIgnored) {
+    write_npy(dir / "big.npy", NpyType::u8, Dims{64, 64, 64}, std::vector<std::uint8_t>(1 << 18));
+    struct sigaction ignore {};
+    struct sigaction old {};
+    ignore.sa_handler = SIG_IGN;
+    ASSERT_EQ(::sigaction(SIGHUP, &ignore, &old), 0);
+    std::string error;
+    const pid_t pid = spawn_voxfield(
+        {"generate", in("big.npy"), "-o", in("f.npy"), "--repeat", "100000", "--device", "cpu"},
+        "/dev/null", "/dev/null", error);
+    ::sigaction(SIGHUP, &old, nullptr);
+    ASSERT_NE(pid, 0) << error;
+    for (int i = 0; i < 600 && list_dir(dir).size() < 3; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    EXPECT_EQ(list_dir(dir).size(), 3u);  // w.npy, big.npy and f.npy's temporary
+    ::kill(pid, SIGHUP);
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    int status = 0;
+    EXPECT_EQ(::waitpid(pid, &status, WNOHANG), 0) << "ended by an ignored SIGHUP";
+    ::kill(pid, SIGTERM);
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    ASSERT_TRUE(WIFSIGNALED(status));
+    EXPECT_EQ(WTERMSIG(status), SIGTERM);
+    EXPECT_EQ(list_dir(dir), (std::set<std::string>{"big.npy", "w.npy"}));
+}
+
 // The indices are streamed from the device a slab at a time: a target that fails part-way
 // still leaves no field, and a FIFO gets the same bytes as a file.
 TEST_F(OutputCli, StreamedIndicesFailingLeaveNoFieldBehind) {

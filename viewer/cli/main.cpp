@@ -1,4 +1,6 @@
 // `voxfield`: the command-line front end (viewer/cli, the only code that prints or exits).
+#include <signal.h>
+
 #include <csignal>
 #include <cstdio>
 #include <iostream>
@@ -38,7 +40,12 @@ std::string one_line(const char* what) {
 int main(int argc, char** argv) {
     using namespace voxfield;
     for (const int sig : {SIGINT, SIGTERM, SIGHUP}) {
-        std::signal(sig, end_on_signal);
+        // A signal the caller ignores (nohup's SIGHUP, a script's background job's SIGINT)
+        // stays ignored.
+        struct sigaction old {};
+        if (::sigaction(sig, nullptr, &old) == 0 && old.sa_handler != SIG_IGN) {
+            std::signal(sig, end_on_signal);
+        }
     }
     CLI::App app{"voxfield: fast, exact distance fields for voxel worlds on any OpenCL device"};
     app.require_subcommand(1);
